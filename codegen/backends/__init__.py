@@ -1,0 +1,64 @@
+"""Code-generation backends: one module per target language (printer + templates).
+
+A backend is a SymPy printer subclass that overrides only what differs from
+SymPy's own, and a ``render`` function that fills its jinja2 templates in
+``templates/``.  Everything above the printer (CSE, the kernel list, file
+writing) is shared in ``codegen.kernels`` and ``codegen.generate``.
+"""
+from __future__ import annotations
+
+import jinja2
+import sympy as sp
+from sympy.printing.precedence import PRECEDENCE
+
+TEMPLATES = jinja2.Environment(
+    loader=jinja2.PackageLoader("codegen.backends", "templates"),
+    undefined=jinja2.StrictUndefined,
+    keep_trailing_newline=True,
+    trim_blocks=True,
+    lstrip_blocks=True,
+)
+
+
+def float_literal(value) -> str:
+    """Shortest decimal that round-trips to the nearest double of ``value``."""
+    text = repr(float(value))
+    if text in ("inf", "-inf", "nan"):
+        raise ValueError(f"cannot print the non-finite constant {value}")
+    return text
+
+
+class ExactArithmeticMixin:
+    """Printer methods shared by the numpy and C printers.
+
+    Exact constants print as one correctly rounded double; small integer powers
+    print as products (``x*x``), which is faster than ``pow`` and exact in the
+    same way; ``x**(1/2)`` prints as ``sqrt``.
+    """
+
+    _sqrt_name = "sqrt"
+
+    def _print_Float(self, expr):
+        return float_literal(expr)
+
+    def _print_Rational(self, expr):
+        return float_literal(expr)
+
+    def _print_Integer(self, expr):
+        return str(int(expr))
+
+    def _print_Pow(self, expr, rational=False):
+        base, exponent = expr.base, expr.exp
+        if exponent.is_Integer and 1 <= abs(int(exponent)) <= 4:
+            k = abs(int(exponent))
+            factor = self.parenthesize(base, PRECEDENCE["Mul"], strict=True)
+            if k == 1:
+                return factor if exponent > 0 else f"1.0/{factor}"
+            # Parenthesised: the product must bind like a power inside y/x**2.
+            product = "(" + "*".join([factor] * k) + ")"
+            return product if exponent > 0 else f"1.0/{product}"
+        if exponent == sp.S.Half:
+            return f"{self._sqrt_name}({self._print(base)})"
+        if exponent == -sp.S.Half:
+            return f"1.0/{self._sqrt_name}({self._print(base)})"
+        return super()._print_Pow(expr, rational=rational)

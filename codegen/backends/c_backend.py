@@ -1,0 +1,67 @@
+"""The C99 backend: a C99CodePrinter subclass, the header/source templates and a cffi binding."""
+from __future__ import annotations
+
+from sympy.printing.c import C99CodePrinter
+
+from . import TEMPLATES, ExactArithmeticMixin
+
+__all__ = ["CKernelPrinter", "render", "STRICT_FLAGS"]
+
+# What every generated C file must compile cleanly with (checked by `make build`).
+STRICT_FLAGS = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic")
+
+
+class CKernelPrinter(ExactArithmeticMixin, C99CodePrinter):
+    """Prints C99 expressions; constants as correctly rounded double literals."""
+
+    def __init__(self):
+        # No M_PI-style macros: they are POSIX, not C99 (pi is folded to a literal anyway).
+        super().__init__({"math_macros": {}, "allow_unknown_functions": False})
+
+    def _print_BooleanTrue(self, expr):
+        return "1"
+
+    def _print_BooleanFalse(self, expr):
+        return "0"
+
+
+def prototypes(context: dict, suffix: str = "") -> list[str]:
+    """The declaration of each kernel's single and batched entry point."""
+    name = context["name"]
+    lines = []
+    for f in context["functions"]:
+        inputs = "".join(f"const double *{a[0]}, " for a in f["arguments"])
+        outputs = "".join(f", {'double' if o['dtype'] == 'float' else 'int'} *{o['name']}" for o in f["outputs"])
+        sizes = ", ".join(f"{a[0]}[{len(a[1])}]" for a in f["arguments"])
+        out_sizes = ", ".join(f"{o['name']}[{o['size']}]" for o in f["outputs"])
+        lines.append(f"/* {f['name']}: {sizes} -> {out_sizes} (row-major). {f['doc']} */")
+        lines.append(f"void {name}_{f['name']}({inputs}const {name}_params *params{outputs});")
+        lines.append(f"void {name}_{f['name']}_batch(size_t count, {inputs}const {name}_params *params{outputs});")
+    return lines
+
+
+def declarations(context: dict, for_cffi: bool) -> str:
+    name = context["name"]
+    fields = " ".join(f"double {p[0]};" for p in context["params"]) or "double unused;"
+    lines = [f"/* Robot parameters (SI units). */", f"typedef struct {name}_params {{ {fields} }} {name}_params;"]
+    if not for_cffi:
+        lines.append(f"extern const {name}_params {name}_default_params;")
+    lines.append("")
+    lines.extend(prototypes(context))
+    return "\n".join(lines)
+
+
+def render(context: dict) -> dict[str, str]:
+    """Files of the C backend, by name, for one robot."""
+    printer = CKernelPrinter()
+    name = context["name"]
+    context = dict(context, c_declarations=declarations(context, False), c_cdef=declarations(context, True))
+    files = {}
+    for template, filename in (
+        ("robot.h.j2", f"{name}.h"),
+        ("robot.c.j2", f"{name}.c"),
+        ("c_kernels.py.j2", "c_kernels.py"),
+        ("build_c.py.j2", "build_c.py"),
+    ):
+        files[filename] = TEMPLATES.get_template(template).render(context, printer=printer)
+    return files

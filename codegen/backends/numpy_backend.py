@@ -1,0 +1,53 @@
+"""The numpy backend: a NumPyPrinter subclass and the module template."""
+from __future__ import annotations
+
+from sympy.printing.numpy import NumPyPrinter
+
+from . import TEMPLATES, ExactArithmeticMixin
+
+__all__ = ["NumpyKernelPrinter", "render"]
+
+
+class NumpyKernelPrinter(ExactArithmeticMixin, NumPyPrinter):
+    """Prints element-wise numpy code (every input may be a batch of values)."""
+
+    _sqrt_name = "numpy.sqrt"
+
+    def __init__(self):
+        super().__init__({"fully_qualified_modules": True, "allow_unknown_functions": False})
+
+    def _nested(self, function, args):
+        printed = [self._print(a) for a in args]
+        text = printed[0]
+        for other in printed[1:]:
+            text = f"{function}({text}, {other})"
+        return text
+
+    def _print_Min(self, expr):
+        return self._nested("numpy.minimum", expr.args)
+
+    def _print_Max(self, expr):
+        return self._nested("numpy.maximum", expr.args)
+
+    def _print_And(self, expr):
+        return self._nested("numpy.logical_and", expr.args)
+
+    def _print_Or(self, expr):
+        return self._nested("numpy.logical_or", expr.args)
+
+    def _print_Not(self, expr):
+        return f"numpy.logical_not({self._print(expr.args[0])})"
+
+    def _print_BooleanTrue(self, expr):
+        return "True"
+
+    def _print_BooleanFalse(self, expr):
+        return "False"
+
+
+def render(context: dict) -> dict[str, str]:
+    """Files of the numpy backend, by name, for one robot."""
+    printer = NumpyKernelPrinter()
+    return {
+        "numpy_kernels.py": TEMPLATES.get_template("numpy_kernels.py.j2").render(context, printer=printer),
+    }

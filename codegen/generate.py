@@ -1,0 +1,155 @@
+"""Writing ``generated/``: render every backend for every robot, deterministically.
+
+``render_tree`` returns the whole tree as {relative path: text}; ``write_tree``
+writes it (each file atomically, stale generated files removed) and
+``stale_files`` lists what differs from what is on disk, for ``make check``.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import sys
+import time
+from pathlib import Path
+
+import derivations
+from derivations.model import RobotModel
+
+from .backends import TEMPLATES, c_backend, float_literal, numpy_backend
+from .kernels import PreparedFunction, prepare
+
+__all__ = ["REPO", "GENERATED", "render_robot", "render_tree", "write_tree", "stale_files", "robot_context"]
+
+REPO = Path(__file__).resolve().parent.parent
+GENERATED = REPO / "generated"
+BACKENDS = {"numpy": numpy_backend, "c": c_backend}
+# Files that generation owns in a robot folder (anything else there is left alone).
+OWNED_SUFFIXES = (".py", ".h", ".c", ".tex")
+
+
+def describe_origin(model: RobotModel, description: Path | None) -> str:
+    if description is None:
+        return f"the derivations model {model.name!r}"
+    digest = hashlib.sha256(description.read_bytes()).hexdigest()[:16]
+    try:
+        shown = description.resolve().relative_to(REPO).as_posix()
+    except ValueError:
+        shown = description.name
+    return f"{shown} (sha256 {digest})"
+
+
+def template_function(prepared: PreparedFunction, accepts_nonfinite: bool = False) -> dict:
+    """What the templates need of one kernel."""
+    outputs = []
+    for out in prepared.outputs:
+        zero_free = out.dtype == "float" and any(e == 0 for e in out.entries)
+        indices = [_index(k, out.shape) for k in range(out.size)]
+        assignments = [(i, e) for i, e in zip(indices, out.entries) if not (zero_free and e == 0)]
+        outputs.append({
+            "name": out.name, "shape": tuple(out.shape), "dtype": out.dtype, "size": out.size,
+            "has_zeros": zero_free, "assignments": assignments, "flat": list(enumerate(out.entries)),
+        })
+    return {
+        "name": prepared.name, "doc": prepared.doc, "arguments": prepared.arguments,
+        "params_used": prepared.params_used, "arguments_used": prepared.arguments_used,
+        "temporaries": prepared.temporaries, "outputs": outputs, "operations": prepared.operations,
+        "accepts_nonfinite": accepts_nonfinite,
+    }
+
+
+def _index(flat: int, shape: tuple[int, ...]) -> str:
+    parts = []
+    for n in reversed(shape):
+        parts.append(flat % n)
+        flat //= n
+    return ", ".join(str(p) for p in reversed(parts))
+
+
+def robot_context(model: RobotModel, origin: str, verbose: bool = False) -> dict:
+    param_names = tuple(str(s) for s in model.params)
+    functions = []
+    for function in model.functions():
+        start = time.perf_counter()
+        prepared = prepare(function, param_names)
+        functions.append(template_function(prepared, accepts_nonfinite=function.name == "ik"))
+        if verbose:
+            print(f"[cse] {model.name}.{function.name}: {prepared.operations} ops, "
+                  f"{time.perf_counter() - start:.2f} s", file=sys.stderr)
+    limits = []
+    for lim in model.limits:
+        limits.append("None" if lim is None else f"({float_literal(lim[0])}, {float_literal(lim[1])})")
+    return {
+        "name": model.name, "title": model.title, "source": model.source, "origin": origin,
+        "joints": [str(s) for s in model.q], "joint_types": list(model.joint_types),
+        "task": list(model.task_names), "branches": [b.name for b in model.ik],
+        "params": [(str(s), float_literal(v)) for s, v in model.params.items()],
+        "limits": limits, "functions": functions,
+    }
+
+
+def render_robot(model: RobotModel, description: Path | None = None, backends=("numpy", "c"),
+                 verbose: bool = False) -> dict[str, str]:
+    """{file name: text} of one robot's package."""
+    context = robot_context(model, describe_origin(model, description), verbose)
+    files = {
+        "__init__.py": TEMPLATES.get_template("package_init.py.j2").render(context),
+        "_runtime.py": TEMPLATES.get_template("runtime.py.j2").render(context),
+    }
+    for backend in backends:
+        files.update(BACKENDS[backend].render(context))
+    return files
+
+
+def render_tree(names=None, verbose: bool = False) -> dict[str, str]:
+    """The whole ``generated/`` tree as {relative path: text}."""
+    names = list(derivations.ROBOTS) if names is None else list(names)
+    tree = {"__init__.py": TEMPLATES.get_template("generated_init.py.j2").render(robots=names)}
+    for name in names:
+        model = derivations.load(name, verbose=verbose)
+        for filename, text in render_robot(model, derivations.ROBOTS[name], verbose=verbose).items():
+            tree[f"{name}/{filename}"] = text
+    return tree
+
+
+def write_tree(tree: dict[str, str], root: Path = GENERATED, robots=None) -> list[str]:
+    """Write ``tree`` under ``root``; return the paths that changed.
+
+    Generated files of the listed robots that the tree no longer holds are
+    removed, so a renamed kernel leaves nothing stale behind.
+    """
+    changed = []
+    for rel, text in sorted(tree.items()):
+        path = root / rel
+        if path.is_file() and path.read_text(encoding="utf-8") == text:
+            continue
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(path.name + ".part")
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, path)
+        changed.append(rel)
+    for robot in robots or {rel.split("/")[0] for rel in tree if "/" in rel}:
+        folder = root / robot
+        for path in sorted(folder.glob("*")):
+            rel = f"{robot}/{path.name}"
+            if path.suffix in OWNED_SUFFIXES and rel not in tree:
+                path.unlink()
+                changed.append(f"{rel} (removed)")
+    return changed
+
+
+def stale_files(tree: dict[str, str], root: Path = GENERATED) -> list[str]:
+    """Paths under ``root`` that differ from ``tree`` (missing, changed or left over)."""
+    stale = []
+    for rel, text in sorted(tree.items()):
+        path = root / rel
+        if not path.is_file():
+            stale.append(f"{rel} (missing)")
+        elif path.read_text(encoding="utf-8") != text:
+            stale.append(f"{rel} (out of date)")
+    robots = {rel.split("/")[0] for rel in tree if "/" in rel}
+    for robot in sorted(robots):
+        for path in sorted((root / robot).glob("*")):
+            rel = f"{robot}/{path.name}"
+            if path.suffix in OWNED_SUFFIXES and rel not in tree:
+                stale.append(f"{rel} (not generated any more)")
+    return stale

@@ -1,0 +1,73 @@
+"""Symbolic robot kinematics (SymPy only; this package never prints code).
+
+>>> import derivations
+>>> model = derivations.load("planar_2r")
+>>> model.task.T
+Matrix([[l1*cos(q1) + l2*cos(q1 + q2), l1*sin(q1) + l2*sin(q1 + q2)]])
+
+``ROBOTS`` maps each registered robot name to its description file; ``load``
+also takes the path of a user's description file.
+"""
+from __future__ import annotations
+
+import importlib
+import sys
+import time
+from pathlib import Path
+
+from .cache import cached
+from .description import Description, DescriptionError, read_description
+from .model import IKBranch, RobotModel, SymbolicFunction, build_chain_model
+
+__all__ = ["ROBOTS", "load", "RobotModel", "SymbolicFunction", "IKBranch", "DescriptionError",
+           "UnknownRobotError"]
+
+_ROBOT_DIR = Path(__file__).resolve().parent / "robots"
+ROBOTS: dict[str, Path] = {p.stem: p for p in sorted(_ROBOT_DIR.glob("*.toml"))}
+
+
+class UnknownRobotError(KeyError, ValueError):
+    """A robot name that is neither registered nor a description file."""
+
+    def __str__(self):
+        return self.args[0]
+
+
+def load(name: str | Path, *, verbose: bool = False) -> RobotModel:
+    """The symbolic model of a registered robot, or of a description file.
+
+    ``name`` is a registry name (see ``ROBOTS``) or the path of a ``.toml``
+    description.  Derivation results are cached on disk (``derivations.cache``).
+    """
+    path = _resolve(name)
+    description = read_description(path)
+    text = path.read_bytes()
+    extension = _ROBOT_DIR / f"{description.name}.py" if path.parent == _ROBOT_DIR else None
+    start = time.perf_counter()
+    model = cached(f"model-{description.name}", text, lambda: _derive(description, extension))
+    if verbose:
+        print(f"[derive] {description.name}: {time.perf_counter() - start:.2f} s", file=sys.stderr)
+    return model
+
+
+def _resolve(name: str | Path) -> Path:
+    if isinstance(name, str) and name in ROBOTS:
+        return ROBOTS[name]
+    path = Path(name)
+    if path.suffix == ".toml":
+        if not path.is_file():
+            raise DescriptionError(f"{path}: no such description file")
+        return path
+    known = ", ".join(ROBOTS)
+    raise UnknownRobotError(f"unknown robot {str(name)!r}; known robots: {known} (or give a .toml description file)")
+
+
+def _derive(description: Description, extension: Path | None) -> RobotModel:
+    limits = [None if j.limits is None else (float(j.limits[0]), float(j.limits[1])) for j in description.joints]
+    model = build_chain_model(description.name, description.title, description.source, description.chain(),
+                              description.q, description.params, description.task, limits)
+    model.notes.update(description.notes)
+    if extension is not None and extension.is_file():
+        module = importlib.import_module(f"derivations.robots.{description.name}")
+        module.extend(model)
+    return model

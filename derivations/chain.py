@@ -1,0 +1,163 @@
+"""Serial chains in Denavit-Hartenberg form and their forward kinematics.
+
+A chain is a list of joints, revolute (R) or prismatic (P), each with four DH
+parameters.  Two conventions are supported:
+
+* ``standard`` (Denavit-Hartenberg; Rehiara Eq. 4):
+  ``A_i = Rot(z, theta_i) Trans(z, d_i) Trans(x, a_i) Rot(x, alpha_i)``;
+  joint i moves about / along ``z_{i-1}`` through ``o_{i-1}``.
+* ``modified`` (Craig):
+  ``A_i = Rot(x, alpha_{i-1}) Trans(x, a_{i-1}) Rot(z, theta_i) Trans(z, d_i)``;
+  joint i moves about / along ``z_i`` through ``o_i``.  In a description the
+  ``a`` and ``alpha`` of joint i are Craig's ``a_{i-1}`` and ``alpha_{i-1}``.
+
+For a revolute joint ``theta_i = q_i + offset_i`` and ``d_i`` is constant; for a
+prismatic joint ``d_i = q_i + offset_i`` and ``theta_i`` is constant.
+
+Everything here is exact SymPy.  The products are simplified link by link (the
+partial products stay small, so ``trigsimp`` is cheap and turns ``c1 c2 - s1 s2``
+into ``cos(q1 + q2)``), and the geometric Jacobian is built from the columns of
+the velocity-model slides: ``[z_{i-1} x (o_n - o_{i-1}); z_{i-1}]`` for a revolute
+joint, ``[z_{i-1}; 0]`` for a prismatic one.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import sympy as sp
+
+__all__ = ["Joint", "Chain", "dh_standard", "dh_modified", "simplify_entry", "rpy_matrix"]
+
+REVOLUTE = "R"
+PRISMATIC = "P"
+
+
+@dataclass(frozen=True)
+class Joint:
+    """One joint of a serial chain.
+
+    ``a, alpha, d, theta`` are the DH constants (``d`` unused for a prismatic
+    joint, ``theta`` unused for a revolute one: the joint variable takes that
+    place, plus ``offset``).  Lengths in metres, angles in radians; each may be a
+    number, a parameter symbol or an exact expression.  ``limits`` is the joint
+    range ``(low, high)`` in radians or metres, or ``None``.
+    """
+
+    type: str
+    a: sp.Expr = sp.S.Zero
+    alpha: sp.Expr = sp.S.Zero
+    d: sp.Expr = sp.S.Zero
+    theta: sp.Expr = sp.S.Zero
+    offset: sp.Expr = sp.S.Zero
+    limits: tuple[sp.Expr, sp.Expr] | None = None
+
+    def __post_init__(self):
+        if self.type not in (REVOLUTE, PRISMATIC):
+            raise ValueError(f"joint type must be 'R' or 'P', got {self.type!r}")
+
+
+def dh_standard(theta, d, a, alpha) -> sp.Matrix:
+    """Rehiara Eq. 6: ``Rot(z,theta) Trans(z,d) Trans(x,a) Rot(x,alpha)``."""
+    ct, st, ca, sa = sp.cos(theta), sp.sin(theta), sp.cos(alpha), sp.sin(alpha)
+    return sp.Matrix(
+        [
+            [ct, -st * ca, st * sa, a * ct],
+            [st, ct * ca, -ct * sa, a * st],
+            [0, sa, ca, d],
+            [0, 0, 0, 1],
+        ]
+    )
+
+
+def dh_modified(theta, d, a, alpha) -> sp.Matrix:
+    """Craig's link transform ``Rot(x,alpha) Trans(x,a) Rot(z,theta) Trans(z,d)``."""
+    ct, st, ca, sa = sp.cos(theta), sp.sin(theta), sp.cos(alpha), sp.sin(alpha)
+    return sp.Matrix(
+        [
+            [ct, -st, 0, a],
+            [st * ca, ct * ca, -sa, -sa * d],
+            [st * sa, ct * sa, ca, ca * d],
+            [0, 0, 0, 1],
+        ]
+    )
+
+
+def rpy_matrix(roll, pitch, yaw) -> sp.Matrix:
+    """Rotation ``Rz(yaw) Ry(pitch) Rx(roll)`` (fixed-axis roll, pitch, yaw)."""
+    cr, sr = sp.cos(roll), sp.sin(roll)
+    cp, sp_ = sp.cos(pitch), sp.sin(pitch)
+    cy, sy = sp.cos(yaw), sp.sin(yaw)
+    rx = sp.Matrix([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    ry = sp.Matrix([[cp, 0, sp_], [0, 1, 0], [-sp_, 0, cp]])
+    rz = sp.Matrix([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    return rz * ry * rx
+
+
+def simplify_entry(expr: sp.Expr) -> sp.Expr:
+    """The simplification used on every derived entry: expand, then trigsimp.
+
+    Cheap on the small link-by-link products; it merges angle sums
+    (``c1 c2 - s1 s2 -> cos(q1 + q2)``) and removes ``sin^2 + cos^2``.
+    """
+    expr = sp.expand(expr)
+    if not expr.has(sp.sin, sp.cos):
+        return expr
+    return sp.trigsimp(expr)
+
+
+@dataclass
+class Chain:
+    """A serial chain: joints, convention, optional fixed tool transform."""
+
+    joints: list[Joint]
+    convention: str = "standard"
+    tool: sp.Matrix = field(default_factory=lambda: sp.eye(4))
+
+    def __post_init__(self):
+        if self.convention not in ("standard", "modified"):
+            raise ValueError(f"convention must be 'standard' or 'modified', got {self.convention!r}")
+        if not self.joints:
+            raise ValueError("a chain needs at least one joint")
+
+    @property
+    def n(self) -> int:
+        return len(self.joints)
+
+    def link_transform(self, i: int, qi: sp.Symbol) -> sp.Matrix:
+        """The transform of link i (0-based) as a function of its joint variable."""
+        j = self.joints[i]
+        if j.type == REVOLUTE:
+            theta, d = qi + j.offset, j.d
+        else:
+            theta, d = j.theta, qi + j.offset
+        build = dh_standard if self.convention == "standard" else dh_modified
+        return build(theta, d, j.a, j.alpha)
+
+    def link_frames(self, q) -> list[sp.Matrix]:
+        """``[T_0 = I, T_1, ..., T_n]``: base-to-link-i transforms, simplified link by link."""
+        frames = [sp.eye(4)]
+        for i in range(self.n):
+            product = frames[-1] * self.link_transform(i, q[i])
+            frames.append(product.applyfunc(simplify_entry))
+        return frames
+
+    def joint_axes(self, link_frames: list[sp.Matrix]) -> list[tuple[sp.Matrix, sp.Matrix]]:
+        """For each joint, its unit axis and a point on it, in the base frame."""
+        axes = []
+        for i in range(self.n):
+            frame = link_frames[i] if self.convention == "standard" else link_frames[i + 1]
+            axes.append((frame[:3, 2], frame[:3, 3]))
+        return axes
+
+    def geometric_jacobian(self, link_frames: list[sp.Matrix], tool_point: sp.Matrix) -> sp.Matrix:
+        """6 x n ``[v; w]`` Jacobian of ``tool_point`` (velocity-model slides)."""
+        columns = []
+        for joint, (z, o) in zip(self.joints, self.joint_axes(link_frames)):
+            if joint.type == REVOLUTE:
+                v = z.cross(tool_point - o)
+                w = z
+            else:
+                v = z
+                w = sp.zeros(3, 1)
+            columns.append(sp.Matrix.vstack(v, w))
+        return sp.Matrix.hstack(*columns).applyfunc(simplify_entry)

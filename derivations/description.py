@@ -1,0 +1,203 @@
+"""Robot description files (TOML) -> serial-chain models.
+
+The papers' DH robots ship as description files in ``derivations/robots/``, and
+a user's robot is described the same way::
+
+    name = "cylindrical_rpp"
+    convention = "standard"          # or "modified" (Craig)
+    task = ["x", "y", "z"]           # x y z phi pose; default ["pose"]
+    [params]                         # defaults in SI; usable in any field below
+    d1 = 0.5
+    [[joint]]
+    type = "R"                       # R (revolute) or P (prismatic)
+    a = 0                            # numbers, parameter names, or expressions of them and pi
+    alpha = 0
+    d = "d1"
+    offset = 0                       # added to the joint variable
+    limits = [-3.1416, 3.1416]       # optional, rad or m
+    [tool]                           # optional fixed transform after the last joint
+    xyz = [0, 0, 0.1]
+    rpy = [0, 0, 0]
+
+Every error is a :class:`DescriptionError` naming the file, the joint and the
+field.
+"""
+from __future__ import annotations
+
+import re
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import sympy as sp
+
+from .chain import PRISMATIC, REVOLUTE, Chain, Joint, rpy_matrix
+from .expressions import ExpressionError, is_identifier, parse_expression
+
+__all__ = ["DescriptionError", "Description", "read_description", "parse_description"]
+
+TOP_KEYS = {"name", "title", "source", "convention", "task", "params", "joint", "tool", "notes"}
+JOINT_KEYS = {"type", "a", "alpha", "d", "theta", "offset", "limits", "name"}
+TOOL_KEYS = {"xyz", "rpy"}
+
+
+class DescriptionError(ValueError):
+    """A robot description is malformed; the message names file, joint and field."""
+
+
+@dataclass
+class Description:
+    """A parsed, validated description (exact SymPy values, not yet derived)."""
+
+    name: str
+    title: str
+    source: str
+    convention: str
+    task: list[str]
+    params: dict[sp.Symbol, float]
+    joints: list[Joint]
+    tool: sp.Matrix
+    notes: dict[str, str]
+    q: tuple[sp.Symbol, ...]
+
+    def chain(self) -> Chain:
+        return Chain(self.joints, self.convention, self.tool)
+
+
+def read_description(path: str | Path) -> Description:
+    """Read and validate a description file."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise DescriptionError(f"{path}: cannot read: {exc.strerror}") from None
+    return parse_description(text, str(path))
+
+
+def parse_description(text: str, origin: str = "<string>") -> Description:
+    """Parse description text; ``origin`` names it in error messages."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise DescriptionError(f"{origin}: malformed TOML: {exc}") from None
+    return _Parser(origin).parse(data)
+
+
+class _Parser:
+    def __init__(self, origin: str):
+        self.origin = origin
+
+    def fail(self, where: str, message: str):
+        raise DescriptionError(f"{self.origin}: {where}: {message}")
+
+    def parse(self, data: dict[str, Any]) -> Description:
+        unknown = sorted(set(data) - TOP_KEYS)
+        if unknown:
+            self.fail("top level", f"unknown field {unknown[0]!r} (expected one of {', '.join(sorted(TOP_KEYS))})")
+        name = data.get("name")
+        if name is None:
+            self.fail("top level", "missing field 'name'")
+        if not isinstance(name, str) or not is_identifier(name):
+            self.fail("field 'name'", f"{name!r} is not a valid identifier "
+                      "(ASCII letters, digits and _, not starting with a digit or _, not a reserved word)")
+        convention = data.get("convention", "standard")
+        if convention not in ("standard", "modified"):
+            self.fail("field 'convention'", f"expected 'standard' or 'modified', got {convention!r}")
+        for key in ("title", "source"):
+            if key in data and not isinstance(data[key], str):
+                self.fail(f"field {key!r}", "expected a string")
+
+        params = self.parse_params(data.get("params", {}))
+        joints_data = data.get("joint")
+        if joints_data is None:
+            self.fail("top level", "missing [[joint]] tables: a robot needs at least one joint")
+        if not isinstance(joints_data, list) or not all(isinstance(j, dict) for j in joints_data):
+            self.fail("field 'joint'", "expected an array of tables ([[joint]])")
+        q = tuple(sp.Symbol(f"q{i + 1}", real=True) for i in range(len(joints_data)))
+        names = {str(s): s for s in params}
+        joints = [self.parse_joint(i, j, names) for i, j in enumerate(joints_data)]
+        tool = self.parse_tool(data.get("tool"), names)
+
+        task = data.get("task", ["pose"])
+        if not isinstance(task, list) or not task or not all(isinstance(t, str) for t in task):
+            self.fail("field 'task'", "expected a non-empty list of names among x, y, z, phi, pose")
+        bad = [t for t in task if t not in ("x", "y", "z", "phi", "pose")]
+        if bad:
+            self.fail("field 'task'", f"unknown task coordinate {bad[0]!r} (expected x, y, z, phi or pose)")
+        notes = data.get("notes", {})
+        if not isinstance(notes, dict) or not all(isinstance(v, str) for v in notes.values()):
+            self.fail("field 'notes'", "expected a table of strings")
+        return Description(
+            name=name, title=data.get("title", name), source=data.get("source", ""),
+            convention=convention, task=task, params=params, joints=joints, tool=tool,
+            notes=dict(notes), q=q,
+        )
+
+    def parse_params(self, raw) -> dict[sp.Symbol, float]:
+        if not isinstance(raw, dict):
+            self.fail("field 'params'", "expected a table of name = number")
+        params: dict[sp.Symbol, float] = {}
+        for key, value in raw.items():
+            where = f"params: {key!r}"
+            if not is_identifier(key) or re.fullmatch(r"q\d+", key):
+                self.fail(where, "not a valid parameter name (an identifier that is not reserved and not q1, q2, ...)")
+            try:
+                expr = parse_expression(value, {})
+            except ExpressionError as exc:
+                self.fail(where, str(exc))
+            params[sp.Symbol(key, real=True)] = float(expr)
+        return params
+
+    def value(self, where: str, raw, names) -> sp.Expr:
+        try:
+            return parse_expression(raw, names)
+        except ExpressionError as exc:
+            self.fail(where, str(exc))
+
+    def parse_joint(self, i: int, raw: dict, names) -> Joint:
+        label = f"joint {i + 1}" + (f" ({raw['name']})" if isinstance(raw.get("name"), str) else "")
+        unknown = sorted(set(raw) - JOINT_KEYS)
+        if unknown:
+            self.fail(label, f"unknown field {unknown[0]!r} (expected {', '.join(sorted(JOINT_KEYS - {'name'}))})")
+        if "type" not in raw:
+            self.fail(label, "missing field 'type' (R for revolute or P for prismatic)")
+        jtype = raw["type"]
+        if jtype not in (REVOLUTE, PRISMATIC):
+            self.fail(f"{label}: field 'type'", f"unknown joint type {jtype!r} (expected 'R' or 'P')")
+        if jtype == REVOLUTE and "theta" in raw:
+            self.fail(f"{label}: field 'theta'", "theta is the joint variable of a revolute joint; use 'offset'")
+        if jtype == PRISMATIC and "d" in raw:
+            self.fail(f"{label}: field 'd'", "d is the joint variable of a prismatic joint; use 'offset'")
+        fields = {}
+        for key in ("a", "alpha", "d", "theta", "offset"):
+            fields[key] = self.value(f"{label}: field {key!r}", raw.get(key, 0), names)
+        limits = None
+        if "limits" in raw:
+            lim = raw["limits"]
+            if not isinstance(lim, list) or len(lim) != 2:
+                self.fail(f"{label}: field 'limits'", "expected [low, high]")
+            low, high = (self.value(f"{label}: field 'limits'", v, {}) for v in lim)
+            if not float(low) < float(high):
+                self.fail(f"{label}: field 'limits'", f"low {float(low)} must be below high {float(high)}")
+            limits = (low, high)
+        return Joint(type=jtype, limits=limits, **fields)
+
+    def parse_tool(self, raw, names) -> sp.Matrix:
+        if raw is None:
+            return sp.eye(4)
+        if not isinstance(raw, dict):
+            self.fail("field 'tool'", "expected a table with xyz and rpy")
+        unknown = sorted(set(raw) - TOOL_KEYS)
+        if unknown:
+            self.fail("tool", f"unknown field {unknown[0]!r} (expected xyz, rpy)")
+        vectors = {}
+        for key in ("xyz", "rpy"):
+            v = raw.get(key, [0, 0, 0])
+            if not isinstance(v, list) or len(v) != 3:
+                self.fail(f"tool: field {key!r}", "expected a list of three values")
+            vectors[key] = [self.value(f"tool: field {key!r}", e, names) for e in v]
+        transform = sp.eye(4)
+        transform[:3, :3] = rpy_matrix(*vectors["rpy"])
+        transform[:3, 3] = sp.Matrix(vectors["xyz"])
+        return transform

@@ -1,0 +1,142 @@
+"""A small, safe parser for the expressions that robot descriptions may hold.
+
+A DH entry or a parameter default in a description file may be a number, a
+parameter name, ``pi``, or an arithmetic expression of those with ``+ - * / **``
+and a few functions (``sin cos tan sqrt`` and ``deg(x) = x*pi/180``).  The text is
+parsed with Python's ``ast`` module and converted node by node into SymPy; it is
+never evaluated, so a description file cannot run code.
+
+Decimal literals become exact rationals (``0.4318`` -> ``2159/5000``) so that the
+symbolic side stays exact; the generated code prints them back as the same
+decimal.
+"""
+from __future__ import annotations
+
+import ast
+import math
+from typing import Mapping
+
+import sympy as sp
+
+__all__ = ["ExpressionError", "parse_expression", "to_exact", "is_identifier"]
+
+
+class ExpressionError(ValueError):
+    """An expression in a robot description is malformed or uses a forbidden name."""
+
+
+_FUNCTIONS = {
+    "sin": sp.sin,
+    "cos": sp.cos,
+    "tan": sp.tan,
+    "sqrt": sp.sqrt,
+    "deg": lambda x: x * sp.pi / 180,
+}
+_BINARY = {
+    ast.Add: lambda a, b: a + b,
+    ast.Sub: lambda a, b: a - b,
+    ast.Mult: lambda a, b: a * b,
+    ast.Div: lambda a, b: a / b,
+    ast.Pow: lambda a, b: a**b,
+}
+
+# Words that are valid Python identifiers but must not name a parameter: they
+# would collide with the printed code (C keywords, numpy/C math names) or with
+# the names the generated kernels use themselves.
+RESERVED = frozenset(
+    """
+    auto break case char const continue default do double else enum extern float for goto
+    if inline int long register restrict return short signed sizeof static struct switch
+    typedef union unsigned void volatile while _Bool _Complex _Imaginary
+    and as assert async await class def del elif except finally from global import in is
+    lambda nonlocal not or pass raise try with yield None True False
+    pi e E I oo nan inf sin cos tan sqrt deg atan2 acos asin exp log abs
+    numpy np math out params count q qd qdd x xd xdd t valid
+    y z phi r11 r12 r13 r21 r22 r23 r31 r32 r33
+    """.split()
+)
+
+
+def is_identifier(name: str) -> bool:
+    """True when ``name`` is safe as a C and Python identifier in generated code.
+
+    ASCII letters, digits and underscores, not starting with a digit, at most 63
+    characters, not a reserved word and not starting with an underscore (those
+    names belong to the generated code).
+    """
+    return (
+        isinstance(name, str)
+        and 0 < len(name) <= 63
+        and name.isascii()
+        and name.isidentifier()
+        and not name.startswith("_")
+        and name not in RESERVED
+    )
+
+
+def to_exact(value: float | int) -> sp.Expr:
+    """A Python number as an exact SymPy number (floats through their shortest repr)."""
+    if isinstance(value, bool):
+        raise ExpressionError(f"expected a number, got the boolean {value!r}")
+    if isinstance(value, int):
+        return sp.Integer(value)
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            raise ExpressionError(f"expected a finite number, got {value!r}")
+        return sp.Rational(repr(value))
+    raise ExpressionError(f"expected a number, got {type(value).__name__} {value!r}")
+
+
+def parse_expression(text: str | int | float, names: Mapping[str, sp.Symbol]) -> sp.Expr:
+    """Parse ``text`` into a SymPy expression over the symbols in ``names``.
+
+    ``names`` maps each allowed parameter name to its symbol; ``pi`` is always
+    allowed.  Raises :class:`ExpressionError` naming the offending piece.
+    """
+    if isinstance(text, (int, float)) and not isinstance(text, bool):
+        return to_exact(text)
+    if not isinstance(text, str):
+        raise ExpressionError(
+            f"expected a number or an expression string, got {type(text).__name__} {text!r}"
+        )
+    if len(text) > 500:
+        raise ExpressionError("expression longer than 500 characters")
+    try:
+        tree = ast.parse(text.strip(), mode="eval")
+    except SyntaxError as exc:
+        raise ExpressionError(f"cannot parse {text!r}: {exc.msg}") from None
+    return _convert(tree.body, names, text)
+
+
+def _convert(node: ast.AST, names: Mapping[str, sp.Symbol], text: str) -> sp.Expr:
+    if isinstance(node, ast.Constant):
+        if isinstance(node.value, (int, float)) and not isinstance(node.value, bool):
+            return to_exact(node.value)
+        raise ExpressionError(f"in {text!r}: only numbers are allowed as literals, got {node.value!r}")
+    if isinstance(node, ast.Name):
+        if node.id == "pi":
+            return sp.pi
+        if node.id in names:
+            return names[node.id]
+        known = ", ".join(sorted(names)) or "none"
+        raise ExpressionError(f"in {text!r}: unknown name {node.id!r} (parameters: {known}; also pi)")
+    if isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
+        left = _convert(node.left, names, text)
+        right = _convert(node.right, names, text)
+        if isinstance(node.op, ast.Div) and right == 0:
+            raise ExpressionError(f"in {text!r}: division by zero")
+        return _BINARY[type(node.op)](left, right)
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.UAdd, ast.USub)):
+        operand = _convert(node.operand, names, text)
+        return -operand if isinstance(node.op, ast.USub) else operand
+    if isinstance(node, ast.Call):
+        if not isinstance(node.func, ast.Name) or node.func.id not in _FUNCTIONS:
+            allowed = ", ".join(sorted(_FUNCTIONS))
+            raise ExpressionError(f"in {text!r}: only the functions {allowed} may be called")
+        if node.keywords or len(node.args) != 1:
+            raise ExpressionError(f"in {text!r}: {node.func.id}() takes exactly one argument")
+        return _FUNCTIONS[node.func.id](_convert(node.args[0], names, text))
+    raise ExpressionError(
+        f"in {text!r}: {type(node).__name__} is not allowed "
+        "(use numbers, parameter names, pi, + - * / ** and sin cos tan sqrt deg)"
+    )

@@ -1,0 +1,213 @@
+"""The robot model: what a derivation produces and what code generation reads.
+
+A :class:`RobotModel` holds the symbolic kinematics of one robot (frames, tool
+pose, geometric Jacobian, task coordinates and their Jacobian, inverse-kinematics
+branches) and describes each kernel to generate as a :class:`SymbolicFunction`:
+a name, its array arguments (each a vector of symbols) and its outputs (arrays
+of SymPy expressions).  Code generation needs nothing else.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import sympy as sp
+
+from .chain import PRISMATIC, REVOLUTE, Chain, simplify_entry
+
+__all__ = ["Argument", "Output", "SymbolicFunction", "IKBranch", "RobotModel", "task_coordinates"]
+
+
+@dataclass(frozen=True)
+class Argument:
+    """An array argument ``name`` of shape (..., len(symbols))."""
+
+    name: str
+    symbols: tuple[sp.Symbol, ...]
+    doc: str = ""
+
+
+@dataclass(frozen=True)
+class Output:
+    """An output array: ``values`` flattened row-major, of the given ``shape``.
+
+    ``dtype`` is ``"float"`` or ``"bool"`` (a bool output is a SymPy boolean
+    expression per entry).
+    """
+
+    name: str
+    values: tuple[sp.Basic, ...]
+    shape: tuple[int, ...]
+    dtype: str = "float"
+    doc: str = ""
+
+    @classmethod
+    def from_matrix(cls, name: str, matrix, doc: str = "", dtype: str = "float") -> "Output":
+        array = sp.Array(matrix)
+        return cls(name, tuple(sp.flatten(array.tolist())) if array.shape else (array[()],),
+                   tuple(array.shape), dtype, doc)
+
+
+@dataclass(frozen=True)
+class SymbolicFunction:
+    """One kernel to generate: ``name(arguments..., **params) -> outputs``."""
+
+    name: str
+    arguments: tuple[Argument, ...]
+    outputs: tuple[Output, ...]
+    doc: str = ""
+
+
+@dataclass(frozen=True)
+class IKBranch:
+    """One closed-form inverse-kinematics branch.
+
+    ``solution`` holds one expression per joint in the task symbols and the
+    parameters; ``condition`` is the SymPy condition under which the branch
+    exists (``True`` when it always does).
+    """
+
+    name: str
+    solution: tuple[sp.Expr, ...]
+    condition: sp.Basic = sp.true
+    doc: str = ""
+
+
+POSE_NAMES = ("x", "y", "z", "r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33")
+
+
+def task_coordinates(spec: Sequence[str], chain: Chain, q, fk: sp.Matrix, link_frames) -> tuple[list[str], sp.Matrix]:
+    """Task coordinates named in ``spec`` as exact expressions in ``q``.
+
+    ``x, y, z``: the tool point; ``pose``: the tool point followed by the nine
+    entries of the tool rotation, row by row; ``phi``: the planar orientation of
+    the tool (rotation about the base z axis), for chains whose revolute axes
+    are all parallel to base z.  ``phi`` is derived as the exact linear form
+    ``phi0 + sum(s_i q_i)`` with ``s_i = z_i . e_z = +-1``, and checked against
+    the rotation block: ``R(q) = Rz(phi - phi0) R(0)``.
+    """
+    names: list[str] = []
+    values: list[sp.Expr] = []
+    for item in spec:
+        if item in ("x", "y", "z"):
+            names.append(item)
+            values.append(fk["xyz".index(item), 3])
+        elif item == "pose":
+            names.extend(POSE_NAMES)
+            values.extend([fk[0, 3], fk[1, 3], fk[2, 3]] + [fk[r, c] for r in range(3) for c in range(3)])
+        elif item == "phi":
+            names.append(item)
+            values.append(_planar_orientation(chain, q, fk, link_frames))
+        else:
+            raise ValueError(f"unknown task coordinate {item!r} (expected x, y, z, phi or pose)")
+    if len(set(names)) != len(names):
+        raise ValueError(f"task coordinates repeat a name: {names}")
+    return names, sp.Matrix(values)
+
+
+def _planar_orientation(chain: Chain, q, fk: sp.Matrix, link_frames) -> sp.Expr:
+    phi = sp.S.Zero
+    for joint, qi, (axis, _) in zip(chain.joints, q, chain.joint_axes(link_frames)):
+        if joint.type != REVOLUTE:
+            continue
+        if axis[0] != 0 or axis[1] != 0 or axis[2] not in (1, -1):
+            raise ValueError("task coordinate 'phi' needs every revolute axis parallel to the base z axis")
+        phi += axis[2] * qi
+    rot0 = fk[:3, :3].subs({qi: 0 for qi in q})
+    phi0 = sp.atan2(sp.nsimplify(rot0[1, 0]), sp.nsimplify(rot0[0, 0]))
+    if rot0[0, 0] == 0 and rot0[1, 0] == 0:
+        phi0 = sp.atan2(-rot0[0, 1], rot0[1, 1])
+    angle = phi
+    rz = sp.Matrix([[sp.cos(angle), -sp.sin(angle), 0], [sp.sin(angle), sp.cos(angle), 0], [0, 0, 1]])
+    residual = (rz * rot0 - fk[:3, :3]).applyfunc(simplify_entry)
+    if residual != sp.zeros(3, 3):
+        raise ValueError("task coordinate 'phi': the tool rotation is not a rotation about the base z axis")
+    return phi + phi0
+
+
+@dataclass
+class RobotModel:
+    """Symbolic kinematics of one robot (see DESIGN.md, "Symbolic contract").
+
+    Attributes: ``q`` joint symbols q1..qn; ``params`` {Symbol: default float, SI};
+    ``frames`` [T_0, ..., T_n] (base to tool; the tool transform is part of the
+    last one); ``fk`` = ``frames[-1]``; ``jacobian`` 6 x n geometric ``[v; w]``;
+    ``task`` m x 1; ``task_jacobian`` m x n; ``ik`` list of :class:`IKBranch`.
+    """
+
+    name: str
+    title: str
+    source: str
+    joint_types: tuple[str, ...]
+    q: tuple[sp.Symbol, ...]
+    params: dict[sp.Symbol, float]
+    frames: list[sp.Matrix]
+    jacobian: sp.Matrix
+    task_names: tuple[str, ...]
+    task: sp.Matrix
+    task_jacobian: sp.Matrix
+    limits: tuple[tuple[float, float] | None, ...]
+    chain: Chain | None = None
+    ik: list[IKBranch] = field(default_factory=list)
+    notes: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        return len(self.q)
+
+    @property
+    def fk(self) -> sp.Matrix:
+        return self.frames[-1]
+
+    @property
+    def task_symbols(self) -> tuple[sp.Symbol, ...]:
+        """Symbols standing for the task coordinates (inputs of the inverse problem)."""
+        return tuple(sp.Symbol(name, real=True) for name in self.task_names)
+
+    def joint_unit(self, i: int) -> str:
+        return "rad" if self.joint_types[i] == REVOLUTE else "m"
+
+    def functions(self) -> list[SymbolicFunction]:
+        """The kernels of the generated-code contract, in a fixed order."""
+        n, m = self.n, len(self.task_names)
+        q = Argument("q", self.q, f"joint coordinates, shape (..., {n}) ({self._units()})")
+        frames = sp.Array([list(f) for f in self.frames]).reshape(n + 1, 4, 4)
+        return [
+            SymbolicFunction("fk", (q,), (Output.from_matrix("T", self.fk),),
+                             "Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres."),
+            SymbolicFunction("frames", (q,), (Output("frames", tuple(sp.flatten(frames.tolist())), (n + 1, 4, 4)),),
+                             f"Frames T_0 (base) .. T_{n} (tool), shape (..., {n + 1}, 4, 4)."),
+            SymbolicFunction("jacobian", (q,), (Output.from_matrix("J", self.jacobian),),
+                             f"Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, {n})."),
+            SymbolicFunction("task", (q,), (Output("x", tuple(self.task), (m,)),),
+                             f"Task coordinates {', '.join(self.task_names)}, shape (..., {m})."),
+            SymbolicFunction("task_jacobian", (q,), (Output.from_matrix("Jx", self.task_jacobian),),
+                             f"d task / d q, shape (..., {m}, {n})."),
+        ]
+
+    def _units(self) -> str:
+        units = ["rad" if t == REVOLUTE else "m" for t in self.joint_types]
+        return ", ".join(f"{s}: {u}" for s, u in zip(self.q, units))
+
+
+def build_chain_model(name: str, title: str, source: str, chain: Chain, q, params: dict,
+                      task_spec: Sequence[str], limits) -> RobotModel:
+    """Derive every kinematic quantity of a DH chain (the slow symbolic step)."""
+    link_frames = chain.link_frames(q)
+    tool = chain.tool
+    frames = list(link_frames)
+    if tool != sp.eye(4):
+        frames[-1] = (frames[-1] * tool).applyfunc(simplify_entry)
+    fk = frames[-1]
+    jacobian = chain.geometric_jacobian(link_frames, fk[:3, 3])
+    task_names, task = task_coordinates(task_spec, chain, q, fk, link_frames)
+    task_jacobian = task.jacobian(sp.Matrix(q)).applyfunc(simplify_entry)
+    return RobotModel(
+        name=name, title=title, source=source,
+        joint_types=tuple(j.type for j in chain.joints), q=tuple(q), params=dict(params),
+        frames=frames, jacobian=jacobian, task_names=tuple(task_names), task=task,
+        task_jacobian=task_jacobian, limits=tuple(limits), chain=chain,
+    )
+
+
+__all__ += ["build_chain_model", "REVOLUTE", "PRISMATIC"]

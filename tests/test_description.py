@@ -1,0 +1,106 @@
+"""Robot descriptions: the parser accepts what it should and names what is wrong."""
+import pytest
+import sympy as sp
+
+import derivations
+from derivations.description import DescriptionError, parse_description
+from derivations.expressions import ExpressionError, parse_expression
+
+GOOD = """
+name = "cylindrical_rpp"
+task = ["x", "y", "z"]
+[params]
+d1 = 0.5
+[[joint]]
+type = "R"
+d = "d1"
+limits = ["deg(-170)", "deg(170)"]
+[[joint]]
+type = "P"
+alpha = "-pi/2"
+[[joint]]
+type = "P"
+theta = "pi/2"
+alpha = "pi/2"
+[tool]
+xyz = [0, 0, 0.1]
+"""
+
+
+def test_a_good_description_parses_exactly():
+    d = parse_description(GOOD, "robot.toml")
+    assert d.name == "cylindrical_rpp"
+    assert [j.type for j in d.joints] == ["R", "P", "P"]
+    assert d.joints[1].alpha == -sp.pi / 2
+    assert d.joints[0].limits == (-sp.Rational(17, 18) * sp.pi, sp.Rational(17, 18) * sp.pi)
+    assert d.tool[2, 3] == sp.Rational(1, 10)
+    assert list(d.params.values()) == [0.5]
+
+
+@pytest.mark.parametrize("mutation, message", [
+    (("name = \"cylindrical_rpp\"", "name = \"1robot\""), r"robot.toml: field 'name': '1robot' is not a valid identifier"),
+    (("name = \"cylindrical_rpp\"", "name = \"sin\""), "not a valid identifier"),
+    (("type = \"R\"", "type = \"H\""), r"robot.toml: joint 1: field 'type': unknown joint type 'H'"),
+    (("d = \"d1\"", "d = \"d2\""), r"joint 1: field 'd': in 'd2': unknown name 'd2' \(parameters: d1; also pi\)"),
+    (("d = \"d1\"", "d = \"__import__('os')\""), r"joint 1: field 'd': .*only the functions"),
+    (("d = \"d1\"", "d = \"d1.real\""), r"joint 1: field 'd': .*Attribute is not allowed"),
+    (("d = \"d1\"", "d = \"(lambda: 1)()\""), "joint 1: field 'd'"),
+    (("d = \"d1\"", "d = \"d1 +\""), "cannot parse"),
+    (("theta = \"pi/2\"", "d = 0.3"), r"joint 3: field 'd': d is the joint variable of a prismatic joint"),
+    (("alpha = \"-pi/2\"", "alfa = 1"), r"joint 2: unknown field 'alfa'"),
+    (("d1 = 0.5", "if = 0.5"), r"params: 'if': not a valid parameter name"),
+    (("d1 = 0.5", "d1 = \"far\""), r"params: 'd1'"),
+    (("task = [\"x\", \"y\", \"z\"]", "task = [\"w\"]"), r"field 'task': unknown task coordinate 'w'"),
+    (("limits = [\"deg(-170)\", \"deg(170)\"]", "limits = [1, -1]"), r"joint 1: field 'limits': low 1.0 must be below high -1.0"),
+    (("[[joint]]\ntype = \"R\"", "[[joint]]\nkind = \"R\""), r"joint 1: unknown field 'kind'"),
+])
+def test_bad_descriptions_name_file_joint_and_field(mutation, message):
+    old, new = mutation
+    assert old in GOOD
+    with pytest.raises(DescriptionError, match=message):
+        parse_description(GOOD.replace(old, new, 1), "robot.toml")
+
+
+def test_malformed_toml_and_missing_fields():
+    with pytest.raises(DescriptionError, match="robot.toml: malformed TOML"):
+        parse_description("name = ", "robot.toml")
+    with pytest.raises(DescriptionError, match="missing field 'name'"):
+        parse_description("[[joint]]\ntype = 'R'\n", "robot.toml")
+    with pytest.raises(DescriptionError, match="missing \\[\\[joint\\]\\] tables"):
+        parse_description("name = 'arm'\n", "robot.toml")
+    with pytest.raises(DescriptionError, match="joint 1: missing field 'type'"):
+        parse_description("name = 'arm'\n[[joint]]\na = 1\n", "robot.toml")
+
+
+def test_expressions_are_parsed_never_evaluated():
+    a = sp.Symbol("a", real=True)
+    assert parse_expression("2*a + pi/2", {"a": a}) == 2 * a + sp.pi / 2
+    assert parse_expression("deg(90)", {}) == sp.pi / 2
+    assert parse_expression(0.4318, {}) == sp.Rational(2159, 5000)
+    for text in ("open('x')", "a.__class__", "[1]", "1 if a else 2", "a @ a", "'text'", "a < 1"):
+        with pytest.raises(ExpressionError):
+            parse_expression(text, {"a": a})
+    with pytest.raises(ExpressionError, match="division by zero"):
+        parse_expression("1/0", {})
+
+
+def test_unknown_robot_lists_the_known_ones():
+    with pytest.raises(derivations.UnknownRobotError, match="unknown robot 'puma561'; known robots: .*puma560"):
+        derivations.load("puma561")
+    with pytest.raises(ValueError):  # it is a ValueError as well as a KeyError
+        derivations.load("nothing")
+
+
+def test_a_user_description_file_loads_like_a_registered_robot(tmp_path):
+    path = tmp_path / "cyl.toml"
+    path.write_text(GOOD)
+    model = derivations.load(path)
+    q1, q2, q3 = model.q
+    (d1,) = model.params
+    # By hand: the lift q2 raises the arm to d1 + q2; the slide q3 runs along (-s1, c1, 0);
+    # the tool's 0.1 m along z_3 = (c1, s1, 0).
+    c1, s1 = sp.cos(q1), sp.sin(q1)
+    expected = sp.Matrix([-q3 * s1 + c1 / 10, q3 * c1 + s1 / 10, d1 + q2])
+    assert model.task_names == ("x", "y", "z")
+    assert sp.simplify(model.task - expected) == sp.zeros(3, 1)
+    assert model.jacobian.shape == (6, 3)
