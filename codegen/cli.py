@@ -1,15 +1,18 @@
-"""Command line: ``python -m codegen`` (installed as ``kinegen``).
+"""Command line: ``kinegen`` (also ``python -m codegen``).
 
-    kinegen list                      registered robots
-    kinegen generate [ROBOT ...]      write generated/ (numpy, C, build scripts)
-    kinegen build [ROBOT ...]         strict-warning compile + cffi extension per robot
-    kinegen sanitize [ROBOT ...]      run every C entry point under ASan + UBSan
-    kinegen verify [ROBOT ...]        kernels against SymPy at 30 digits; summary table
-    kinegen check                     fail when generated/ is not what the derivations give
-    kinegen all                       generate, build, sanitize, verify (what `make` runs)
+    kinegen list                                  registered robots
+    kinegen show ROBOT|FILE [--what W] [--latex]  the derived equations of a robot
+    kinegen generate                              regenerate generated/ for every registered robot
+    kinegen generate ROBOT|FILE --out DIR         a self-contained package for one robot
+    kinegen build [ROBOT ...]                     strict-warning compile + cffi extension per robot
+    kinegen sanitize [ROBOT ...]                  every C entry point under ASan + UBSan
+    kinegen verify [ROBOT ...]                    kernels against SymPy at 30 digits; summary table
+    kinegen verify FILE --out DIR                 the same for a package made by `generate`
+    kinegen check                                 fail when generated/ is not what the derivations give
+    kinegen all                                   generate, build, sanitize, verify (what `make` runs)
 
 Progress goes to stderr; ``--quiet`` silences it.  Exit status: 0 on success,
-1 when a check fails, 2 on bad input.
+1 when a check or a compilation fails, 2 on bad input (nothing is written then).
 """
 from __future__ import annotations
 
@@ -17,6 +20,9 @@ import argparse
 import importlib
 import sys
 import time
+from pathlib import Path
+
+import sympy as sp
 
 import derivations
 
@@ -25,6 +31,12 @@ from . import generate as gen
 from .verify import format_table, verify_model
 
 __all__ = ["main"]
+
+SHOW = ("summary", "params", "dh", "fk", "frames", "jacobian", "task", "task_jacobian", "ik")
+
+
+class InputError(ValueError):
+    """Bad command-line input: reported with exit status 2."""
 
 
 class Progress:
@@ -37,28 +49,104 @@ class Progress:
             print(f"[{time.perf_counter() - self.start:6.1f} s] {message}", file=sys.stderr, flush=True)
 
 
-def _robots(names: list[str]) -> list[str]:
+def _is_file(target: str) -> bool:
+    return target.endswith(".toml") or "/" in target
+
+
+def _registered(names: list[str]) -> list[str]:
     if not names:
         return list(derivations.ROBOTS)
-    unknown = [n for n in names if n not in derivations.ROBOTS]
-    if unknown:
-        raise SystemExit(_usage_error(f"unknown robot {unknown[0]!r}; known robots: {', '.join(derivations.ROBOTS)}"))
+    for n in names:
+        if n not in derivations.ROBOTS:
+            raise InputError(f"unknown robot {n!r}; known robots: {', '.join(derivations.ROBOTS)} "
+                             "(or give a .toml description file)")
     return names
 
 
-def _usage_error(message: str) -> int:
-    print(f"kinegen: error: {message}", file=sys.stderr)
-    return 2
+def _load(target: str, say) -> tuple:
+    """(model, description path) of a registered name or a description file."""
+    if not _is_file(target):
+        _registered([target])
+    say(f"deriving {target} (cached after the first time)")
+    model = derivations.load(target, verbose=not say.quiet)
+    path = derivations.ROBOTS[target] if target in derivations.ROBOTS and not _is_file(target) else Path(target)
+    return model, path
 
+
+def _default_out(model) -> Path:
+    return Path.cwd() / model.name
+
+
+# -- commands ---------------------------------------------------------------------------------
 
 def cmd_list(args, say) -> int:
-    for name in derivations.ROBOTS:
-        print(name)
+    width = max(len(n) for n in derivations.ROBOTS)
+    for name, path in derivations.ROBOTS.items():
+        title = derivations.description.read_description(path).title if path.suffix == ".toml" else ""
+        print(f"{name.ljust(width)}  {title}")
+    return 0
+
+
+def cmd_show(args, say) -> int:
+    model, _ = _load(args.robot, say)
+    what = args.what
+    render = sp.latex if args.latex else (lambda e: sp.pretty(e, use_unicode=False, wrap_line=False))
+    if what == "summary":
+        print(f"{model.title} ({model.name})\nsource: {model.source}")
+        print(f"joints: {', '.join(f'{q} ({t})' for q, t in zip(model.q, model.joint_types))}")
+        print(f"task: {', '.join(model.task_names)}")
+        print("params: " + ", ".join(f"{p} = {v}" for p, v in model.params.items()))
+        print(f"ik branches: {', '.join(b.name for b in model.ik) or 'none'}")
+        print(f"kernels: {', '.join(f.name for f in model.functions())}")
+        return 0
+    if what == "params":
+        for p, v in model.params.items():
+            print(f"{p} = {v}")
+        return 0
+    if what == "dh":
+        if model.chain is None:
+            raise InputError(f"{model.name} is not a DH chain")
+        print(f"convention: {model.chain.convention}")
+        print("joint  type  a  alpha  d  theta  offset")
+        for i, j in enumerate(model.chain.joints, 1):
+            d = model.q[i - 1] if j.type == "P" else j.d
+            theta = model.q[i - 1] if j.type == "R" else j.theta
+            print(f"{i}  {j.type}  {j.a}  {j.alpha}  {d}  {theta}  {j.offset}")
+        return 0
+    if what == "ik":
+        if not model.ik:
+            raise InputError(f"{model.name} has no closed-form inverse kinematics yet")
+        for branch in model.ik:
+            print(f"{branch.name}:")
+            for q, expr in zip(model.q, branch.solution):
+                print(f"  {q} = {render(expr)}")
+        return 0
+    value = {"fk": model.fk, "jacobian": model.jacobian, "task": model.task,
+             "task_jacobian": model.task_jacobian}.get(what)
+    if what == "frames":
+        for i, frame in enumerate(model.frames):
+            print(f"T_{i} =\n{render(frame)}\n")
+        return 0
+    print(render(value))
     return 0
 
 
 def cmd_generate(args, say) -> int:
-    names = _robots(args.robots)
+    backends = args.backend
+    if args.out is not None or any(_is_file(t) for t in args.robots):
+        if len(args.robots) != 1:
+            raise InputError("generate with --out or a description file takes exactly one robot")
+        if args.out and Path(args.out).exists() and not args.force:  # refuse before the slow derivation
+            raise gen.OutputExistsError(f"{args.out}: output folder exists (use --force to replace it)")
+        model, path = _load(args.robots[0], say)
+        out = Path(args.out) if args.out else _default_out(model)
+        build = None if args.no_build else (lambda folder: (c_build.compile_strict(folder, model.name),
+                                                             c_build.build_extension(folder)))
+        written = gen.write_package(model, path, out, backends=backends, force=args.force, build=build, say=say)
+        say(f"wrote {written}")
+        print(written)
+        return 0
+    names = _registered(args.robots)
     say(f"deriving and rendering {len(names)} robot(s)")
     tree = gen.render_tree(names, verbose=not args.quiet)
     if not args.robots:
@@ -70,7 +158,7 @@ def cmd_generate(args, say) -> int:
 
 
 def cmd_build(args, say) -> int:
-    for name in _robots(args.robots):
+    for name in _registered(args.robots):
         package = gen.GENERATED / name
         say(f"{name}: compiling with {' '.join(c_build.STRICT_FLAGS)}")
         c_build.compile_strict(package, name)
@@ -80,7 +168,7 @@ def cmd_build(args, say) -> int:
 
 
 def cmd_sanitize(args, say) -> int:
-    for name in _robots(args.robots):
+    for name in _registered(args.robots):
         model = derivations.load(name)
         context = gen.robot_context(model, "")
         say(f"{name}: sanitizer run (ASan + UBSan) of every entry point")
@@ -88,21 +176,39 @@ def cmd_sanitize(args, say) -> int:
     return 0
 
 
-def _modules(name: str, backends: list[str]) -> dict:
+def _package_modules(package: Path, backends: list[str]) -> dict:
+    """Import a standalone package's backends by path."""
+    if not (package / "numpy_kernels.py").is_file():
+        raise InputError(f"{package}: no generated package here (run `kinegen generate ... --out {package}`)")
+    sys.path.insert(0, str(package.resolve().parent))
     importlib.invalidate_caches()
-    return {b: importlib.import_module(f"generated.{name}.{'numpy_kernels' if b == 'numpy' else 'c_kernels'}")
-            for b in backends}
+    try:
+        return {b: importlib.import_module(f"{package.name}.{'numpy_kernels' if b == 'numpy' else 'c_kernels'}")
+                for b in backends}
+    finally:
+        sys.path.pop(0)
 
 
 def cmd_verify(args, say) -> int:
     checks = []
-    for name in _robots(args.robots):
-        say(f"{name}: verifying against SymPy at 30 digits ({args.samples} points per kernel)")
-        checks.extend(verify_model(derivations.load(name), _modules(name, args.backends), samples=args.samples))
+    if any(_is_file(t) for t in args.robots) or args.out:
+        if len(args.robots) != 1:
+            raise InputError("verify with --out or a description file takes exactly one robot")
+        model, _ = _load(args.robots[0], say)
+        package = Path(args.out) if args.out else _default_out(model)
+        say(f"{model.name}: verifying {package} against SymPy at 30 digits")
+        checks = verify_model(model, _package_modules(package, args.backends), samples=args.samples)
+    else:
+        for name in _registered(args.robots):
+            say(f"{name}: verifying against SymPy at 30 digits ({args.samples} points per kernel)")
+            importlib.invalidate_caches()
+            modules = {b: importlib.import_module(f"generated.{name}.{'numpy_kernels' if b == 'numpy' else 'c_kernels'}")
+                       for b in args.backends}
+            checks.extend(verify_model(derivations.load(name), modules, samples=args.samples))
     print(format_table(checks))
     failed = [c for c in checks if not c.ok]
     print(f"\n{len(checks) - len(failed)} passed, {len(failed)} failed "
-          f"(tolerance {checks[0].tolerance:g} relative against SymPy; finite differences 1e-7)" if checks else "")
+          f"(tolerance 1e-12 relative against SymPy; finite differences 1e-7)")
     return 1 if failed else 0
 
 
@@ -126,27 +232,52 @@ def cmd_all(args, say) -> int:
     return 0
 
 
+def _backends(text: str) -> list[str]:
+    names = [b.strip() for b in text.split(",") if b.strip()]
+    bad = [b for b in names if b not in ("numpy", "c")]
+    if bad or not names:
+        raise argparse.ArgumentTypeError(f"unknown backend {bad[0] if bad else text!r} (expected numpy, c)")
+    return names
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="kinegen", description=__doc__.split("\n\n")[0],
+                                epilog="\n\n".join(__doc__.split("\n\n")[1:]),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--quiet", action="store_true", help="no progress output on stderr")
-    sub = p.add_subparsers(dest="command", required=True)
-    sub.add_parser("list", help="registered robots").set_defaults(run=cmd_list)
+    # --quiet is accepted after the command too (SUPPRESS keeps the top-level value otherwise).
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS, help="no progress output")
+    sub = p.add_subparsers(dest="command", required=True, metavar="command")
+    sub.add_parser("list", help="registered robots", parents=[common]).set_defaults(run=cmd_list)
+    show = sub.add_parser("show", help="the derived equations of a robot", parents=[common])
+    show.add_argument("robot", help="a registered robot name or a .toml description file")
+    show.add_argument("--what", choices=SHOW, default="summary", help="which quantity (default: summary)")
+    show.add_argument("--latex", action="store_true", help="print LaTeX instead of text")
+    show.set_defaults(run=cmd_show)
     for name, run, text in (
-        ("generate", cmd_generate, "write generated/"),
+        ("generate", cmd_generate, "write generated/, or a standalone package with --out"),
         ("build", cmd_build, "compile the generated C (strict flags, cffi extension)"),
         ("sanitize", cmd_sanitize, "run every C entry point under ASan and UBSan"),
         ("verify", cmd_verify, "check the kernels against SymPy"),
         ("all", cmd_all, "generate, build, sanitize and verify"),
     ):
-        s = sub.add_parser(name, help=text)
-        s.add_argument("robots", nargs="*", help="robot names (default: all)")
+        s = sub.add_parser(name, help=text, parents=[common])
+        s.add_argument("robots", nargs="*", metavar="robot", help="robot names or a .toml file (default: all)")
+        if name in ("generate", "verify", "all"):
+            s.add_argument("--backend", "--backends", dest="backends" if name != "generate" else "backend",
+                           type=_backends, default=["numpy", "c"], help="comma-separated: numpy,c (default both)")
+        if name in ("generate", "verify"):
+            s.add_argument("--out", help="folder of a standalone package (default ./ROBOT_NAME)")
+        if name == "generate":
+            s.add_argument("--force", action="store_true", help="replace an existing --out folder")
+            s.add_argument("--no-build", action="store_true", help="do not compile the C extension")
         if name in ("verify", "all"):
             s.add_argument("--samples", type=int, default=6, help="points per kernel (default 6)")
-            s.add_argument("--backends", type=lambda v: v.split(","), default=["numpy", "c"],
-                           help="comma-separated backends (default numpy,c)")
+        if name == "all":
+            s.set_defaults(out=None, backend=["numpy", "c"], force=False, no_build=False)
         s.set_defaults(run=run)
-    sub.add_parser("check", help="fail when generated/ is stale").set_defaults(run=cmd_check)
+    sub.add_parser("check", help="fail when generated/ is stale", parents=[common]).set_defaults(run=cmd_check)
     return p
 
 
@@ -155,8 +286,9 @@ def main(argv=None) -> int:
     say = Progress(args.quiet)
     try:
         return args.run(args, say)
-    except (derivations.DescriptionError, ValueError) as exc:
-        return _usage_error(str(exc))
+    except (derivations.DescriptionError, InputError, gen.OutputExistsError, derivations.UnknownRobotError) as exc:
+        print(f"kinegen: error: {exc}", file=sys.stderr)
+        return 2
     except c_build.CompileError as exc:
         print(f"kinegen: {exc}", file=sys.stderr)
         return 1

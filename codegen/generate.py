@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import hashlib
 import os
+import shutil
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -18,7 +20,8 @@ from derivations.model import RobotModel
 from .backends import TEMPLATES, c_backend, float_literal, numpy_backend
 from .kernels import PreparedFunction, prepare
 
-__all__ = ["REPO", "GENERATED", "render_robot", "render_tree", "write_tree", "stale_files", "robot_context"]
+__all__ = ["REPO", "GENERATED", "render_robot", "render_tree", "write_tree", "write_package", "stale_files",
+           "robot_context", "OutputExistsError"]
 
 REPO = Path(__file__).resolve().parent.parent
 GENERATED = REPO / "generated"
@@ -109,6 +112,45 @@ def render_tree(names=None, verbose: bool = False) -> dict[str, str]:
         for filename, text in render_robot(model, derivations.ROBOTS[name], verbose=verbose).items():
             tree[f"{name}/{filename}"] = text
     return tree
+
+
+class OutputExistsError(ValueError):
+    """The output folder of a standalone package exists and --force was not given."""
+
+
+def write_package(model: RobotModel, description: Path | None, out: Path, backends=("numpy", "c"),
+                  force: bool = False, build=None, say=lambda message: None) -> Path:
+    """Write a self-contained package for ``model`` into the folder ``out``.
+
+    The package holds the numpy kernels, the C header and source with their
+    cffi build script, and the input checks; ``build(folder)`` (when given)
+    compiles the C extension.  Everything is written and built in a scratch
+    folder beside ``out`` and moved into place at the end, so a failure leaves
+    no partial package behind.
+    """
+    out = Path(out)
+    if out.exists() and not force:
+        raise OutputExistsError(f"{out}: output folder exists (use --force to replace it)")
+    if not out.name.isidentifier():
+        raise ValueError(f"{out}: the package folder name must be a Python identifier to be importable")
+    backends = tuple(dict.fromkeys(("numpy", *backends)))  # the C binding reads the numpy module's constants
+    say(f"{model.name}: rendering {', '.join(backends)} kernels")
+    files = render_robot(model, description, backends=backends)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    scratch = Path(tempfile.mkdtemp(prefix=f".{out.name}-", dir=out.parent))
+    try:
+        for filename, text in files.items():
+            (scratch / filename).write_text(text, encoding="utf-8")
+        if build is not None and "c" in backends:
+            say(f"{model.name}: compiling the C kernels and their cffi extension")
+            build(scratch)
+        if out.exists():
+            shutil.rmtree(out)
+        os.replace(scratch, out)
+    except BaseException:
+        shutil.rmtree(scratch, ignore_errors=True)
+        raise
+    return out
 
 
 def write_tree(tree: dict[str, str], root: Path = GENERATED, robots=None) -> list[str]:
