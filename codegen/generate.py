@@ -30,6 +30,18 @@ BACKENDS = {"numpy": numpy_backend, "c": c_backend}
 OWNED_SUFFIXES = (".py", ".h", ".c", ".tex")
 
 
+def safe_text(text: str) -> str:
+    """Free text (a title, a citation, a file name) made safe inside C comments and Python docstrings.
+
+    Control characters become spaces, and the sequences that would end a comment
+    or a docstring (star-slash, triple quotes, backslashes) are broken up.
+    """
+    text = "".join(ch if ch.isprintable() else " " for ch in str(text))
+    for bad, good in (("\\", "/"), ('"""', "'''"), ("*/", "* /"), ("/*", "/ *")):
+        text = text.replace(bad, good)
+    return text
+
+
 def describe_origin(model: RobotModel, description: Path | None) -> str:
     if description is None:
         return f"the derivations model {model.name!r}"
@@ -38,7 +50,7 @@ def describe_origin(model: RobotModel, description: Path | None) -> str:
         shown = description.resolve().relative_to(REPO).as_posix()
     except ValueError:
         shown = description.name
-    return f"{shown} (sha256 {digest})"
+    return safe_text(f"{shown} (sha256 {digest})")
 
 
 def template_function(prepared: PreparedFunction, accepts_nonfinite: bool = False) -> dict:
@@ -82,7 +94,7 @@ def robot_context(model: RobotModel, origin: str, verbose: bool = False) -> dict
     for lim in model.limits:
         limits.append("None" if lim is None else f"({float_literal(lim[0])}, {float_literal(lim[1])})")
     return {
-        "name": model.name, "title": model.title, "source": model.source, "origin": origin,
+        "name": model.name, "title": safe_text(model.title), "source": safe_text(model.source), "origin": origin,
         "joints": [str(s) for s in model.q], "joint_types": list(model.joint_types),
         "task": list(model.task_names), "branches": [b.name for b in model.ik],
         "params": [(str(s), float_literal(v)) for s, v in model.params.items()],

@@ -115,3 +115,15 @@ def test_list_and_show(capsys):
     assert r"\sin{\left(q_{1} + q_{2} \right)}" in capsys.readouterr().out
     assert main(["--quiet", "show", "adept_three", "--what", "dh"]) == 0
     assert "2  R  l2  pi  0  q2  0" in capsys.readouterr().out
+
+
+def test_free_text_cannot_break_the_generated_code(tmp_path):
+    """A title holding comment and docstring terminators still gives valid C and Python."""
+    title = "*/ int oops; /* \"\"\" \\ end"
+    hostile = CYLINDRICAL.replace('title = "Cylindrical RPP robot"', f"title = '''{title}'''")
+    assert hostile != CYLINDRICAL
+    (tmp_path / "cyl.toml").write_text(hostile)
+    assert main(["--quiet", "generate", str(tmp_path / "cyl.toml"), "--out", str(tmp_path / "pkg")]) == 0
+    script = "import pkg; print(pkg.load('c').task([0.0, 0.0, 0.0]), pkg.__doc__.splitlines()[0])"
+    result = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, check=True, capture_output=True, text=True)
+    assert "int oops" in result.stdout  # the title survives, defanged
