@@ -7,6 +7,8 @@
     kinegen verify [ROBOT ...]        kernels against SymPy at 30 digits; summary table
     kinegen check                     fail when generated/ is not what the derivations give
     kinegen all                       generate, build, sanitize, verify (what `make` runs)
+    kinegen latex ROBOT [--what W]    print the LaTeX of a robot's derived equations (W: fk, jacobian, ik, ...)
+    kinegen report                    build report/build/kinegen-report.pdf with pdflatex
 
 Progress goes to stderr; ``--quiet`` silences it.  Exit status: 0 on success,
 1 when a check fails, 2 on bad input.
@@ -22,6 +24,8 @@ import derivations
 
 from . import build as c_build
 from . import generate as gen
+from . import report as tex_report
+from .backends import latex_backend
 from .verify import format_table, verify_model
 
 __all__ = ["main"]
@@ -118,6 +122,22 @@ def cmd_check(args, say) -> int:
     return 0
 
 
+def cmd_latex(args, say) -> int:
+    model = derivations.load(args.robot)
+    what = [w for item in args.what or [] for w in item.split(",") if w]
+    print(latex_backend.latex_for(model, what), end="")
+    return 0
+
+
+def cmd_report(args, say) -> int:
+    say(f"pdflatex {tex_report.MAIN.relative_to(gen.REPO)} -> {tex_report.BUILD.relative_to(gen.REPO)}/")
+    result = tex_report.build_report()
+    for warning in result.warnings:
+        print(f"warning: {warning}")
+    print(f"{result.pdf.relative_to(gen.REPO)}: {result.pages} pages, {len(result.warnings)} warning(s)")
+    return 1 if result.warnings else 0
+
+
 def cmd_all(args, say) -> int:
     for step in (cmd_generate, cmd_build, cmd_sanitize, cmd_verify):
         status = step(args, say)
@@ -147,6 +167,13 @@ def parser() -> argparse.ArgumentParser:
                            help="comma-separated backends (default numpy,c)")
         s.set_defaults(run=run)
     sub.add_parser("check", help="fail when generated/ is stale").set_defaults(run=cmd_check)
+    s = sub.add_parser("latex", help="print the LaTeX of a robot's derived equations")
+    s.add_argument("robot", help="robot name or .toml description file")
+    s.add_argument("--what", action="append", metavar="SECTION",
+                   help=f"section(s) to print, comma-separated: {', '.join(latex_backend.SECTION_KEYS)}, "
+                        "or an extra a model carries (default: all)")
+    s.set_defaults(run=cmd_latex)
+    sub.add_parser("report", help="build the PDF report (needs pdflatex)").set_defaults(run=cmd_report)
     return p
 
 
@@ -157,6 +184,9 @@ def main(argv=None) -> int:
         return args.run(args, say)
     except (derivations.DescriptionError, ValueError) as exc:
         return _usage_error(str(exc))
+    except tex_report.ReportError as exc:
+        print(f"kinegen: {exc}", file=sys.stderr)
+        return 1
     except c_build.CompileError as exc:
         print(f"kinegen: {exc}", file=sys.stderr)
         return 1
