@@ -6,6 +6,7 @@
 #   make build      compile the generated C (strict warnings) and its cffi extensions
 #   make verify     kernels against SymPy at 30 digits, as a table
 #   make check      fail when generated/ is out of date with derivations/ and codegen/
+#   make report     the PDF report (report/build/kinegen-report.pdf); installs TeX Live if missing
 #   make clean      remove the virtual environment, caches and built libraries
 
 PYTHON ?= python3
@@ -14,7 +15,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 KINEGEN := $(PY) -m codegen
 
-.PHONY: all install generate build sanitize verify check test clean
+.PHONY: all install generate build sanitize verify check test report texlive clean
 
 all: $(STAMP)
 	$(KINEGEN) all
@@ -44,6 +45,20 @@ check: $(STAMP)
 
 test: build
 	$(PY) -m pytest
+
+# The report needs pdflatex; `make test` does not (it skips the report build without it).
+# texlive-latex-base + texlive-latex-recommended hold every package the report loads.
+TEXLIVE_PACKAGES := texlive-latex-base texlive-latex-recommended
+SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+
+texlive:
+	@command -v pdflatex >/dev/null 2>&1 || { \
+	  echo "pdflatex not found: installing $(TEXLIVE_PACKAGES)"; \
+	  $(SUDO) apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $(TEXLIVE_PACKAGES); }
+
+report: $(STAMP) texlive
+	$(KINEGEN) report
 
 clean:
 	rm -rf $(VENV) .cache build *.egg-info

@@ -10,6 +10,8 @@
     kinegen verify FILE --out DIR                 the same for a package made by `generate`
     kinegen check                                 fail when generated/ is not what the derivations give
     kinegen all                                   generate, build, sanitize, verify (what `make` runs)
+    kinegen latex ROBOT|FILE [--what W]            the LaTeX of a robot's derived equations (W: fk, jacobian, ik, ...)
+    kinegen report                                build report/build/kinegen-report.pdf with pdflatex
 
 Progress goes to stderr; ``--quiet`` silences it.  Exit status: 0 on success,
 1 when a check or a compilation fails, 2 on bad input (nothing is written then).
@@ -28,6 +30,8 @@ import derivations
 
 from . import build as c_build
 from . import generate as gen
+from . import report as tex_report
+from .backends import latex_backend
 from .verify import format_table, verify_model
 
 __all__ = ["main"]
@@ -90,6 +94,9 @@ def cmd_list(args, say) -> int:
 def cmd_show(args, say) -> int:
     model, _ = _load(args.robot, say)
     what = args.what
+    if args.latex and what in latex_backend.SECTION_KEYS:
+        print(latex_backend.latex_for(model, [what]), end="")  # the fragments' notation
+        return 0
     render = sp.latex if args.latex else (lambda e: sp.pretty(e, use_unicode=False, wrap_line=False))
     if what == "summary":
         print(f"{model.title} ({model.name})\nsource: {model.source}")
@@ -224,6 +231,25 @@ def cmd_check(args, say) -> int:
     return 0
 
 
+def cmd_latex(args, say) -> int:
+    model, _ = _load(args.robot, say)
+    what = [w for item in args.what or [] for w in item.split(",") if w]
+    try:
+        print(latex_backend.latex_for(model, what), end="")
+    except ValueError as exc:  # an unknown section name
+        raise InputError(str(exc)) from None
+    return 0
+
+
+def cmd_report(args, say) -> int:
+    say(f"pdflatex {tex_report.MAIN.relative_to(gen.REPO)} -> {tex_report.BUILD.relative_to(gen.REPO)}/")
+    result = tex_report.build_report()
+    for warning in result.warnings:
+        print(f"warning: {warning}")
+    print(f"{result.pdf.relative_to(gen.REPO)}: {result.pages} pages, {len(result.warnings)} warning(s)")
+    return 1 if result.warnings else 0
+
+
 def cmd_all(args, say) -> int:
     for step in (cmd_generate, cmd_build, cmd_sanitize, cmd_verify):
         status = step(args, say)
@@ -278,6 +304,13 @@ def parser() -> argparse.ArgumentParser:
             s.set_defaults(out=None, backend=["numpy", "c"], force=False, no_build=False)
         s.set_defaults(run=run)
     sub.add_parser("check", help="fail when generated/ is stale", parents=[common]).set_defaults(run=cmd_check)
+    s = sub.add_parser("latex", help="print the LaTeX of a robot's derived equations", parents=[common])
+    s.add_argument("robot", help="robot name or .toml description file")
+    s.add_argument("--what", action="append", metavar="SECTION",
+                   help=f"section(s) to print, comma-separated: {', '.join(latex_backend.SECTION_KEYS)}, "
+                        "or an extra a model carries (default: all)")
+    s.set_defaults(run=cmd_latex)
+    sub.add_parser("report", help="build the PDF report (needs pdflatex)", parents=[common]).set_defaults(run=cmd_report)
     return p
 
 
@@ -289,6 +322,9 @@ def main(argv=None) -> int:
     except (derivations.DescriptionError, InputError, gen.OutputExistsError, derivations.UnknownRobotError) as exc:
         print(f"kinegen: error: {exc}", file=sys.stderr)
         return 2
+    except tex_report.ReportError as exc:
+        print(f"kinegen: {exc}", file=sys.stderr)
+        return 1
     except c_build.CompileError as exc:
         print(f"kinegen: {exc}", file=sys.stderr)
         return 1

@@ -17,7 +17,7 @@ from pathlib import Path
 import derivations
 from derivations.model import RobotModel
 
-from .backends import TEMPLATES, c_backend, float_literal, numpy_backend
+from .backends import TEMPLATES, c_backend, float_literal, latex_backend, numpy_backend
 from .kernels import PreparedFunction, prepare
 
 __all__ = ["REPO", "GENERATED", "render_robot", "render_tree", "write_tree", "write_package", "stale_files",
@@ -103,8 +103,8 @@ def robot_context(model: RobotModel, origin: str, verbose: bool = False) -> dict
 
 
 def render_robot(model: RobotModel, description: Path | None = None, backends=("numpy", "c"),
-                 verbose: bool = False) -> dict[str, str]:
-    """{file name: text} of one robot's package."""
+                 verbose: bool = False, latex: bool = True) -> dict[str, str]:
+    """{file name: text} of one robot's package (kernels, and ``<name>.tex`` unless ``latex`` is off)."""
     context = robot_context(model, describe_origin(model, description), verbose)
     files = {
         "__init__.py": TEMPLATES.get_template("package_init.py.j2").render(context),
@@ -112,6 +112,8 @@ def render_robot(model: RobotModel, description: Path | None = None, backends=("
     }
     for backend in backends:
         files.update(BACKENDS[backend].render(context))
+    if latex:
+        files.update(latex_backend.render(model, context["origin"]))
     return files
 
 

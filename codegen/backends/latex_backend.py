@@ -1,0 +1,873 @@
+"""The LaTeX backend: every derived equation of a robot, in the papers' notation.
+
+A :class:`KinematicsLatexPrinter` (a SymPy ``LatexPrinter`` subclass) prints
+the joint variable ``q_i`` as ``\\theta_i`` (revolute) or ``d_i`` (prismatic)
+and the sine and cosine of a plain sum of joint angles in the abbreviation of
+Kumar and the velocity slides: ``cos(q1) -> c_{1}``, ``sin(q1 + q2) -> s_{12}``.
+Any other angle (a difference, a multiple, an offset) keeps the explicit
+function, ``\\cos(\\theta_1 + \\theta_2 - \\theta_4)``: one abbreviation style,
+used throughout.
+
+:class:`MathLayout` breaks what is too wide for a page: a long sum over several
+aligned lines, a wide matrix into its entries, each entry broken the same way.
+Widths are estimated from the LaTeX text (:func:`math_width`, in units of about
+one italic letter); the report build checks the estimate against pdflatex's
+own overfull-box warnings.
+
+:func:`robot_sections` lists what a fragment holds, in order: parameters, DH
+table, each link transform A_i, their product T, the task coordinates, the
+geometric and task Jacobians, det J and the singular set, the rate maps, each
+IK branch, notes, and anything further a model carries (printed generically).
+Each equation that reproduces a paper's equation is tagged with it
+(``Rehiara Eq. 13``) from :data:`CITATIONS`, or from a model note ``cite_<key>``.
+"""
+from __future__ import annotations
+
+import dataclasses
+import re
+from dataclasses import dataclass, field
+
+import sympy as sp
+from sympy.core.parameters import distribute
+from sympy.printing.latex import LatexPrinter
+
+from derivations.chain import PRISMATIC, REVOLUTE, simplify_entry
+from derivations.singular import JacobianDeterminant, inverse_rate_map, jacobian_determinant
+
+from . import TEMPLATES
+
+__all__ = ["KinematicsLatexPrinter", "MathLayout", "Section", "CITATIONS", "SECTION_KEYS", "math_width",
+           "robot_sections", "render", "latex_for", "escape_text"]
+
+# Width of a display line in math_width units (about one italic letter at 11 pt):
+# the report's text block is 16 cm; the margin leaves room for a tag on the first line.
+LINE_WIDTH = 66.0
+
+# Which paper equation each derived quantity reproduces, per robot.  Keys are the
+# section keys (SECTION_KEYS), "link<i>" for one link transform and "ik:<branch>"
+# for one inverse-kinematics branch.  "~" is a LaTeX non-breaking space.
+CITATIONS: dict[str, dict[str, str]] = {
+    "planar_2r": {
+        "position": "Rehiara Eq.~22",
+        "jacobian": "slides, 2-link example",
+        "task_jacobian": "slides, IVM of a 2R",
+        "det": "slides, singularity of a 2R",
+        "rates": "slides, DVM of a 2R",
+        "inverse_rates": "slides, IVM of a 2R",
+        "ik": "Rehiara Eqs.~18, 21, 27, 34",
+    },
+    "planar_3r": {
+        "position": "Kumar Eq.~4",
+        "task_jacobian": "Kumar Eq.~11",
+        "det": "Kumar Eq.~13",
+        "rates": "Kumar Eq.~11",
+        "inverse_rates": "Kumar Eq.~12",
+        "ik": "Kumar Eqs.~h--j",
+    },
+    "planar_rp": {
+        "position": "Kumar Eq.~5",
+        "ik": "Kumar Eqs.~6--8",
+    },
+    "planar_pp": {
+        "position": "Kumar Eq.~10",
+        "ik": "Kumar Eq.~10",
+    },
+    "adept_three": {
+        "dh": "Rehiara Table~1",
+        "link1": "Rehiara Eq.~9",
+        "link2": "Rehiara Eq.~10",
+        "link3": "Rehiara Eq.~11",
+        "link4": "Rehiara Eq.~12",
+        "fk": "Rehiara Eq.~13, corrected (E1)",
+        "position": "Rehiara Eq.~14",
+        "task_jacobian": "Rehiara Eq.~42, rows 1--3",
+        "ik": "Rehiara Eqs.~15--34",
+    },
+    "scorbot_er7": {
+        "position": "Predescu--Stroe Fig.~3",
+        "ik": "Predescu--Stroe Eqs.~3.1--3.11",
+    },
+    "puma560": {
+        "dh": "Kumar Fig.~1; Paul, Craig",
+    },
+}
+
+SECTION_KEYS = ("params", "dh", "links", "fk", "position", "jacobian", "task_jacobian", "det", "rates", "ik",
+                "notes")
+
+# RobotModel attributes every section above already covers; anything else a model
+# carries (added by later derivations) is printed generically as an extra section.
+_KNOWN_ATTRIBUTES = {"name", "title", "source", "joint_types", "q", "params", "frames", "jacobian", "task_names",
+                     "task", "task_jacobian", "limits", "chain", "ik", "notes"}
+
+
+# --------------------------------------------------------------------------- printer
+
+class KinematicsLatexPrinter(LatexPrinter):
+    """LaTeX in the papers' notation for one robot's symbols.
+
+    ``joints`` are the joint symbols q1..qn and ``joint_types`` their kinds (R/P);
+    ``params`` the robot's parameter symbols.  A joint prints as ``\\theta_i`` or
+    ``d_i``; when that clashes with a parameter's printed name (a parameter
+    ``d3`` beside a prismatic joint 3) the joint keeps ``q_i``.  Trigonometric
+    abbreviations are switched off when a parameter would print like one
+    (``c_{1}``, ``s_{2}``).
+    """
+
+    def __init__(self, joints=(), joint_types=(), params=(), task_names=(), settings=None):
+        probe = LatexPrinter()
+        taken = {probe.doprint(p) for p in params}
+        names: dict[sp.Symbol, str] = {}
+        self.joint_latex: dict[sp.Symbol, str] = {}
+        self.revolute: dict[sp.Symbol, int] = {}
+        # Rates print with a dot, after the other factors, in joint (or task) order.
+        self.rate_order: dict[str, int] = {}
+        for i, (qi, kind) in enumerate(zip(joints, joint_types), start=1):
+            text = rf"\theta_{{{i}}}" if kind == REVOLUTE else f"d_{{{i}}}"
+            if text in taken:
+                text = f"q_{{{i}}}"
+            names[qi] = self.joint_latex[qi] = text
+            names[rate_symbol(qi)] = _dotted(text)
+            self.rate_order[rate_symbol(qi).name] = i
+            if kind == REVOLUTE:
+                self.revolute[qi] = i
+        for k, name in enumerate(task_names):
+            names[task_rate_symbol(name)] = rf"\dot{{{probe.doprint(sp.Symbol(name, real=True))}}}"
+            self.rate_order[task_rate_symbol(name).name] = k
+        self.abbreviate = not any(re.fullmatch(r"[cs](_\{\d+\})?", t) for t in taken)
+        base = {"symbol_names": names, "inv_trig_style": "full"}
+        base.update(settings or {})
+        super().__init__(base)
+
+    # sin and cos: c_{12} for a plain sum of revolute joint angles, else \cos(...)
+    def _angle_label(self, angle: sp.Expr) -> str | None:
+        if not self.abbreviate:
+            return None
+        indices = []
+        for term, coefficient in angle.as_coefficients_dict().items():
+            if coefficient != 1 or term not in self.revolute:
+                return None
+            indices.append(self.revolute[term])
+        if not indices or any(i > 9 for i in indices):
+            return None
+        return "".join(str(i) for i in sorted(indices))
+
+    def _trig(self, letter: str, name: str, expr, exp=None) -> str:
+        label = self._angle_label(expr.args[0])
+        if label is not None:
+            text = f"{letter}_{{{label}}}"
+            return f"{text}^{{{exp}}}" if exp is not None else text
+        head = rf"\{name}" if exp is None else rf"\{name}^{{{exp}}}"
+        return f"{head}({self._print(expr.args[0])})"
+
+    def _print_sin(self, expr, exp=None):
+        return self._trig("s", "sin", expr, exp)
+
+    def _print_cos(self, expr, exp=None):
+        return self._trig("c", "cos", expr, exp)
+
+    def _print_atan2(self, expr, exp=None):
+        y, x = (self._print(a) for a in expr.args)
+        head = r"\operatorname{atan2}" if exp is None else rf"\operatorname{{atan2}}^{{{exp}}}"
+        return rf"{head}\left({y},\, {x}\right)"
+
+    def _as_ordered_terms(self, expr, order=None):
+        """Terms in SymPy's order, except that a sum of rates keeps the order of the rates
+        (``c_{12} \\dot x + s_{12} \\dot y``, as the papers write)."""
+        terms = super()._as_ordered_terms(expr, order=order)
+
+        def rank(term):
+            names = [a.name for a in term.atoms(sp.Symbol) if getattr(a, "rate", None) is not None]
+            return min((self.rate_order.get(n, 0) for n in names), default=-1)
+        if any(rank(t) >= 0 for t in terms):
+            terms = sorted(terms, key=rank)
+        return terms
+
+    def _print_Symbol(self, expr, style="plain"):
+        rate = getattr(expr, "rate", None)
+        return super()._print_Symbol(rate if rate is not None else expr, style)
+
+    def _print_BooleanTrue(self, expr):
+        return r"\text{always}"
+
+    def legend(self) -> str:
+        """One sentence saying what the abbreviations stand for (empty when unused)."""
+        if not self.abbreviate or not self.revolute:
+            return ""
+        joints = sorted(self.revolute, key=self.revolute.get)
+        first = joints[0]
+        i, name = self.revolute[first], self.joint_latex[first]
+        text = rf"$c_{{{i}}} = \cos {name}$, $s_{{{i}}} = \sin {name}$"
+        if len(joints) > 1:
+            j, other = self.revolute[joints[1]], self.joint_latex[joints[1]]
+            text += rf", $c_{{{i}{j}}} = \cos({name} + {other})$ and so on"
+        return text
+
+
+def rate_symbol(qi: sp.Symbol) -> sp.Symbol:
+    """The symbol of the rate of ``qi`` (printed with a dot)."""
+    return sp.Symbol(f"{qi.name}_rate", real=True)
+
+
+def task_rate_symbol(name: str) -> sp.Symbol:
+    """The symbol of the rate of task coordinate ``name`` (printed with a dot)."""
+    return sp.Symbol(f"{name}_rate", real=True)
+
+
+def _dotted(text: str) -> str:
+    """``\\theta_{1}`` -> ``\\dot{\\theta}_{1}``."""
+    head, sep, sub = text.partition("_")
+    return rf"\dot{{{head}}}{sep}{sub}"
+
+
+# --------------------------------------------------------------------------- widths
+
+_ZERO_WIDTH = {"left", "right", "bigl", "bigr", "Bigl", "Bigr", "biggl", "biggr", "displaystyle", "textstyle",
+               "mathrm", "mathbf", "mathit", "operatorname", "text", "dot", "ddot", "bar", "hat", "tilde", "vec",
+               "begin", "end", "limits", "nolimits", "tag", "label", "notag", "nonumber"}
+_SPACES = {",": 0.3, ";": 0.5, ":": 0.4, "!": -0.2, " ": 0.4, "quad": 1.8, "qquad": 3.6}
+_RELATIONS = {"leq", "geq", "neq", "le", "ge", "ne", "wedge", "vee", "iff", "implies", "to", "in", "cdot",
+              "times", "pm", "mp", "approx", "equiv", "mapsto", "land", "lor", "neg"}
+_OPERATORS = {"sin": 2.4, "cos": 2.6, "tan": 2.4, "arcsin": 5.0, "arccos": 5.2, "arctan": 5.0, "det": 2.4,
+              "sqrt": 1.2, "log": 2.2, "exp": 2.4, "min": 2.7, "max": 2.8}
+
+
+def math_width(tex: str) -> float:
+    """Estimated printed width of inline LaTeX math, in units of about one italic letter.
+
+    Deliberately a little pessimistic: a binary operator with its spacing counts
+    2.2, a sub- or superscript 0.7 of its content, a fraction the wider of its
+    numerator and denominator.
+    """
+    return _Width(tex).group(until=None)
+
+
+class _Width:
+    def __init__(self, text: str):
+        self.text = text
+        self.i = 0
+
+    def group(self, until: str | None) -> float:
+        width = 0.0
+        while self.i < len(self.text):
+            ch = self.text[self.i]
+            if until is not None and ch == until:
+                self.i += 1
+                return width
+            self.i += 1
+            if ch == "\\":
+                width += self.command()
+            elif ch == "{":
+                width += self.group("}")
+            elif ch in "_^":
+                width += 0.7 * self.argument()
+            elif ch in " \n\t&}":
+                continue
+            elif ch in "+-=<>":
+                width += 2.2
+            elif ch in "()[],.;|'":
+                width += 0.6
+            else:
+                width += 1.0
+        return width
+
+    def argument(self) -> float:
+        while self.i < len(self.text) and self.text[self.i] == " ":
+            self.i += 1
+        if self.i >= len(self.text):
+            return 0.0
+        ch = self.text[self.i]
+        self.i += 1
+        if ch == "{":
+            return self.group("}")
+        if ch == "\\":
+            return self.command()
+        return 1.0
+
+    def command(self) -> float:
+        match = re.match(r"[A-Za-z]+|.", self.text[self.i:])
+        if match is None:
+            return 0.0
+        name = match.group(0)
+        self.i += len(name)
+        if name in ("frac", "dfrac", "tfrac"):
+            return max(self.argument(), self.argument()) + 0.4
+        if name in ("left", "right", "bigl", "bigr", "Bigl", "Bigr", "biggl", "biggr"):
+            self.i += 1 if self.text[self.i:self.i + 1] != "\\" else 0
+            return 0.6
+        if name in ("begin", "end", "tag", "label", "text", "operatorname", "mathrm"):
+            inner = self.argument()
+            return 0.0 if name in ("begin", "end", "tag", "label") else inner
+        if name in ("sqrt",):
+            return 1.2 + self.argument()
+        if name in _SPACES:
+            return _SPACES[name]
+        if name in _RELATIONS:
+            return 2.4
+        if name in _OPERATORS:
+            return _OPERATORS[name]
+        if name in _ZERO_WIDTH:
+            return 0.0
+        return 1.1  # a Greek letter or another symbol
+
+
+# --------------------------------------------------------------------------- layout
+
+def escape_text(text: str) -> str:
+    """Plain text (a note, a docstring) made safe for pdflatex."""
+    replacements = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
+                    "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}"}
+    out = "".join(replacements.get(ch, ch) for ch in text)
+    unicode = {"θ": r"$\theta$", "φ": r"$\phi$", "π": r"$\pi$", "°": r"$^\circ$", "±": r"$\pm$", "×": r"$\times$",
+               "≤": r"$\le$", "≥": r"$\ge$", "−": "-", "–": "--", "—": "---", "’": "'", "“": "``", "”": "''",
+               "α": r"$\alpha$", "β": r"$\beta$", "γ": r"$\gamma$", "σ": r"$\sigma$", "·": r"$\cdot$"}
+    out = "".join(unicode.get(ch, ch if ord(ch) < 128 else "?") for ch in out)
+    return out
+
+
+@dataclass
+class MathLayout:
+    """Lays out equations and matrices so that each line fits ``width``."""
+
+    printer: KinematicsLatexPrinter
+    width: float = LINE_WIDTH
+
+    def tex(self, expr) -> str:
+        return self.printer.doprint(expr)
+
+    # Sums broken over lines ------------------------------------------------
+    def pieces(self, expr, limit: float) -> list[tuple[str, str]]:
+        """``expr`` as (operator, text) pieces, each of which may start a new line.
+
+        A sum gives one piece per term (operator ``+`` or ``-``; the first piece
+        has ``""`` or ``-``); a term still wider than ``limit`` that is a product
+        with a sum in it is opened up: ``c_1 \\bigl(a_1 + a_2 c_2 ... \\bigr)``.
+        """
+        terms = self.printer._as_ordered_terms(expr) if isinstance(expr, sp.Add) else [expr]
+        out: list[tuple[str, str]] = []
+        for k, term in enumerate(terms):
+            sign = "+"
+            if isinstance(expr, sp.Add) and term.could_extract_minus_sign():
+                sign, term = "-", -term
+            if k == 0:
+                sign = "-" if sign == "-" else ""
+            text = self.tex(term)
+            if isinstance(expr, sp.Add) and self.printer._needs_add_brackets(term):
+                text = rf"\left({text}\right)"
+            opened = self._open_product(term, limit) if math_width(text) > limit else None
+            if opened:
+                out.append((sign, opened[0][1]))
+                out.extend(opened[1:])
+            else:
+                out.append((sign, text))
+        return out
+
+    def _open_product(self, term, limit: float) -> list[tuple[str, str]] | None:
+        if not isinstance(term, sp.Mul):
+            return None
+        sums = [f for f in term.args if isinstance(f, sp.Add)]
+        if not sums:
+            return None
+        widest = max(sums, key=lambda f: math_width(self.tex(f)))
+        inner = self.pieces(widest, limit)
+        if len(inner) < 2:
+            return None
+        rest = term / widest
+        head = "" if rest == 1 else ("-" if rest == -1 else self.tex(rest) + " ")
+        first_op, first_text = inner[0]
+        inner[0] = ("", rf"{head}\bigl({first_op}{first_text}")
+        inner[-1] = (inner[-1][0], inner[-1][1] + r"\bigr)")
+        return inner
+
+    def lines(self, expr, first: float) -> list[str]:
+        """``expr`` broken into lines; ``first`` is the width left on the first line.
+
+        A continuation line starts ``{}+ ...`` so that its sign keeps binary spacing.
+        """
+        text = self.tex(expr)
+        if math_width(text) <= first:
+            return [text]
+        lines: list[str] = []
+        current, room = "", first
+        for op, piece in self.pieces(expr, self.width - 8):
+            if not current:
+                current = (f"{{}}{op} {piece}" if op else piece) if lines else f"{op}{piece}"
+                continue
+            joined = f"{current} {op} {piece}" if op else f"{current} {piece}"
+            if math_width(joined) > room:
+                lines.append(current)
+                room = self.width - 4
+                current = f"{{}}{op} {piece}" if op else piece
+            else:
+                current = joined
+        lines.append(current)
+        return lines
+
+    def align_rows(self, lhs: str, expr, relation: str = "=") -> list[str]:
+        """Rows of an ``align*``: ``lhs &= ...`` then ``&\\quad ...`` continuation lines."""
+        first = self.width - math_width(lhs) - 3
+        parts = self.lines(expr, first)
+        rows = [f"{lhs} &{relation} {parts[0]}"]
+        rows.extend(rf"&\quad {part}" for part in parts[1:])
+        return rows
+
+    # Matrices -----------------------------------------------------------------
+    def matrix(self, M: sp.Matrix) -> str:
+        rows = [" & ".join(self.tex(e) for e in M.row(r)) for r in range(M.rows)]
+        return "\\begin{bmatrix}\n" + " \\\\\n".join(rows) + "\n\\end{bmatrix}"
+
+    def matrix_width(self, M: sp.Matrix) -> float:
+        widths = [max(math_width(self.tex(M[r, c])) for r in range(M.rows)) for c in range(M.cols)]
+        return sum(widths) + 2.0 * (M.cols - 1) + 2.0
+
+    def fits(self, lhs: str, M: sp.Matrix) -> bool:
+        return math_width(lhs) + 3 + self.matrix_width(M) <= self.width
+
+
+# --------------------------------------------------------------------------- sections
+
+@dataclass
+class Section:
+    """One part of a robot's fragment: ``key`` (for ``--what``), a title, LaTeX body."""
+
+    key: str
+    title: str
+    body: str
+
+
+@dataclass
+class _Writer:
+    model: object
+    layout: MathLayout
+    citations: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def printer(self) -> KinematicsLatexPrinter:
+        return self.layout.printer
+
+    def tag(self, key: str) -> str:
+        cite = self.citations.get(key)
+        return rf" \tag{{{cite}}}" if cite else ""
+
+    def display(self, lhs: str, expr, key: str = "", relation: str = "=") -> str:
+        """One equation, broken over lines when long."""
+        rows = self.layout.align_rows(lhs, expr, relation)
+        rows[0] += self.tag(key)
+        return self._align(rows)
+
+    def equations(self, pairs, key: str = "") -> str:
+        """Several equations aligned at ``=``, tagged on the first."""
+        rows: list[str] = []
+        for lhs, expr in pairs:
+            rows.extend(self.layout.align_rows(lhs, expr))
+        if rows:
+            rows[0] += self.tag(key)
+        return self._align(rows)
+
+    @staticmethod
+    def _align(rows: list[str]) -> str:
+        return "\\begin{align*}\n" + " \\\\\n".join(rows) + "\n\\end{align*}"
+
+    def matrix_equation(self, lhs: str, M: sp.Matrix, key: str = "", entry: str = "",
+                        skip_last_row: bool = False, product: str = "") -> str:
+        """``lhs = [M]`` when it fits a line, else ``lhs`` entry by entry.
+
+        ``entry`` is the name of an entry with ``{ij}`` for its 1-based indices;
+        ``skip_last_row`` leaves out the (0 0 0 1) row of a homogeneous transform.
+        ``product`` (e.g. ``A_1 A_2``) is printed between ``lhs`` and the matrix.
+        """
+        head = f"{lhs} = {product}" if product else lhs
+        if self.layout.fits(head, M):
+            return ("\\begin{equation*}\n" + f"{head} = {self.layout.matrix(M)}" + self.tag(key)
+                    + "\n\\end{equation*}")
+        entry = entry or (lhs + "_{{{ij}}}")
+        rows_shown = M.rows - 1 if skip_last_row else M.rows
+        pairs, zeros = [], []
+        for r in range(rows_shown):
+            for c in range(M.cols):
+                name = entry.format(ij=f"{r + 1}{c + 1}")
+                (zeros.append(name) if M[r, c] == 0 else pairs.append((name, M[r, c])))
+        intro = f"${head}$" if product else f"${lhs}$"
+        text = (f"{intro} is ${M.rows} \\times {M.cols}$; its entries are" +
+                (" (the last row is $(0\\ 0\\ 0\\ 1)$)" if skip_last_row else "") + ":\n")
+        text += self.equations(pairs, key)
+        if zeros:
+            text += "\nand " + self._zero_list(zeros) + ".\n"
+        return text
+
+    @staticmethod
+    def _zero_list(names: list[str]) -> str:
+        if len(names) == 1:
+            return f"${names[0]} = 0$"
+        return "$" + " = ".join(names) + " = 0$"
+
+
+def robot_sections(model, citations: dict[str, str] | None = None, width: float = LINE_WIDTH) -> list[Section]:
+    """Every derived equation of ``model``, as fragment sections in a fixed order."""
+    printer = KinematicsLatexPrinter(model.q, model.joint_types, tuple(model.params), model.task_names)
+    cites = dict(CITATIONS.get(model.name, {}))
+    cites.update({k[len("cite_"):]: v for k, v in model.notes.items() if k.startswith("cite_")})
+    cites.update(citations or {})
+    w = _Writer(model, MathLayout(printer, width), cites)
+    sections = [_params(w), _dh(w), _links(w), _fk(w), _position(w), _jacobian(w), _task_jacobian(w)]
+    determinant = jacobian_determinant(model)
+    sections += [_det(w, determinant), _rates(w, determinant), _ik(w), _notes(w)]
+    sections += _extras(w)
+    return [s for s in sections if s is not None]
+
+
+def _joint_list(w: _Writer) -> str:
+    return ", ".join(w.printer.joint_latex[qi] for qi in w.model.q)
+
+
+def _params(w: _Writer) -> Section:
+    m = w.model
+    kinds = {REVOLUTE: "revolute", PRISMATIC: "prismatic"}
+    joints = ", ".join(f"${w.printer.joint_latex[qi]}$ ({kinds[t]})" for qi, t in zip(m.q, m.joint_types))
+    text = f"Joint variables: {joints}."
+    if m.params:
+        values = ", ".join(f"${w.layout.tex(p)} = {_number(v)}$" for p, v in m.params.items())
+        text += f" Parameters (SI units, the defaults): {values}."
+    legend = w.printer.legend()
+    if legend:
+        text += f" Abbreviations: {legend}."
+    return Section("params", "Symbols", text + "\n")
+
+
+def _number(value: float) -> str:
+    text = f"{value:.6g}"
+    return text if "e" not in text else sp.latex(sp.Float(value, 6))
+
+
+def _dh(w: _Writer) -> Section | None:
+    chain = w.model.chain
+    if chain is None:
+        return None
+    tex = w.layout.tex
+    rows = []
+    for i, (joint, qi) in enumerate(zip(chain.joints, w.model.q), start=1):
+        variable = qi + joint.offset
+        theta = variable if joint.type == REVOLUTE else joint.theta
+        d = variable if joint.type == PRISMATIC else joint.d
+        cells = [str(i), tex(theta), tex(d), tex(joint.a), tex(joint.alpha)]
+        if chain.convention == "modified":
+            cells = [str(i), tex(joint.alpha), tex(joint.a), tex(theta), tex(d)]
+        rows.append(" & ".join(c if k == 0 else f"${c}$" for k, c in enumerate(cells)) + r" \\")
+    if chain.convention == "standard":
+        header = r"$i$ & $\theta_i$ & $d_i$ & $a_i$ & $\alpha_i$ \\"
+        convention = "standard Denavit--Hartenberg convention (Rehiara Eqs.~4--6, corrected as erratum E2)"
+        rule = (r"A_i = \mathrm{Rot}(z, \theta_i)\,\mathrm{Trans}(z, d_i)\,"
+                r"\mathrm{Trans}(x, a_i)\,\mathrm{Rot}(x, \alpha_i)")
+    else:
+        header = r"$i$ & $\alpha_{i-1}$ & $a_{i-1}$ & $\theta_i$ & $d_i$ \\"
+        convention = "modified (Craig) convention"
+        rule = (r"A_i = \mathrm{Rot}(x, \alpha_{i-1})\,\mathrm{Trans}(x, a_{i-1})\,"
+                r"\mathrm{Rot}(z, \theta_i)\,\mathrm{Trans}(z, d_i)")
+    cite = w.citations.get("dh")
+    caption = f"Denavit--Hartenberg parameters{f' ({cite})' if cite else ''}, {convention}:"
+    body = (caption + "\n\\begin{equation*}\n" + rule + "\n\\end{equation*}\n"
+            + "\\begin{center}\n\\begin{tabular}{ccccc}\n\\hline\n" + header + "\n\\hline\n"
+            + "\n".join(rows) + "\n\\hline\n\\end{tabular}\n\\end{center}\n")
+    return Section("dh", "Denavit--Hartenberg table", body)
+
+
+def _links(w: _Writer) -> Section | None:
+    chain = w.model.chain
+    if chain is None:
+        return None
+    parts = []
+    for i, qi in enumerate(w.model.q):
+        A = chain.link_transform(i, qi).applyfunc(simplify_entry)
+        name = f"A_{{{i + 1}}}"
+        parts.append(w.matrix_equation(name, A, key=f"link{i + 1}", entry=f"(A_{{{i + 1}}})_{{{{{{ij}}}}}}",
+                                       skip_last_row=True))
+    if chain.tool != sp.eye(4):
+        parts.append(w.matrix_equation(r"T_{\mathrm{tool}}", chain.tool, skip_last_row=True))
+    return Section("links", "Link transforms", "\n".join(parts) + "\n")
+
+
+def _fk(w: _Writer) -> Section:
+    m = w.model
+    if m.chain is not None:
+        product = " ".join(f"A_{{{i}}}" for i in range(1, m.n + 1))
+        if m.chain.tool != sp.eye(4):
+            product += r" T_{\mathrm{tool}}"
+    else:
+        product = ""
+    body = w.matrix_equation("T", m.fk, key="fk", skip_last_row=True, product=product)
+    return Section("fk", "Tool pose", body + "\n")
+
+
+_POSE_ROTATION = re.compile(r"r\d\d")
+
+
+def _task_latex(w: _Writer, name: str) -> str:
+    return w.layout.tex(sp.Symbol(name, real=True))
+
+
+def _position(w: _Writer) -> Section:
+    m = w.model
+    pairs = [(_task_latex(w, n), e) for n, e in zip(m.task_names, m.task) if not _POSE_ROTATION.fullmatch(n)]
+    body = w.equations(pairs, key="position")
+    if any(_POSE_ROTATION.fullmatch(n) for n in m.task_names):
+        body += "\nand $r_{ij} = T_{ij}$ for the rotation entries of the task vector.\n"
+    return Section("position", "Task coordinates", body + "\n")
+
+
+def _jacobian(w: _Writer) -> Section:
+    m = w.model
+    intro = (r"Geometric Jacobian $J = [J_v;\ J_\omega]$ of the tool point $o_n$ in the base frame: the "
+             r"column of a revolute joint with axis $z$ through $o$ is $[z \times (o_n - o);\ z]$, that of a "
+             r"prismatic joint $[z;\ 0]$ (velocity slides; $z = z_{i-1}$, $o = o_{i-1}$ in standard DH).")
+    body = w.matrix_equation("J", m.jacobian, key="jacobian")
+    return Section("jacobian", "Geometric Jacobian", intro + "\n" + body + "\n")
+
+
+def _task_jacobian(w: _Writer) -> Section:
+    m = w.model
+    rows = [k for k, n in enumerate(m.task_names) if not _POSE_ROTATION.fullmatch(n)]
+    J = m.task_jacobian.extract(rows, list(range(m.n)))
+    names = ", ".join(_task_latex(w, m.task_names[k]) for k in rows)
+    intro = rf"Task Jacobian $J_x = \partial ({names}) / \partial q$"
+    if len(rows) < len(m.task_names):
+        intro += r" (the rows of the rotation entries $r_{ij}$ are left out: their rates are $J_\omega$)"
+    body = w.matrix_equation("J_x", J, key="task_jacobian", entry="J_{{x,{ij}}}")
+    return Section("task_jacobian", "Task Jacobian", intro + ":\n" + body + "\n")
+
+
+def _det(w: _Writer, determinant: JacobianDeterminant | None) -> Section:
+    m = w.model
+    if determinant is None:
+        shape = m.task_jacobian.shape
+        text = (f"The task Jacobian is ${shape[0]} \\times {shape[1]}$ and the geometric one "
+                f"$6 \\times {m.n}$: neither is square, so there is no determinant to print.\n")
+        return Section("det", "Singularities", text)
+    name = "J_x" if determinant.which == "task_jacobian" else "J"
+    body = w.display(rf"\det {name}", determinant.value, key="det")
+    if determinant.which == "jacobian":
+        body = ("The determinant of the geometric Jacobian does not depend on the reference point or the frame; "
+                "with the wrist-partitioned form $[A\\ 0;\\ C\\ D]$ of the velocity slides it is "
+                "$\\det A \\det D$:\n" + body)
+    if not determinant.singular:
+        body += "\nIt never vanishes for nonzero parameters: the arm has no singular configuration.\n"
+        return Section("det", "Singularities", body)
+    conditions = []
+    for factor, zeros in determinant.singular:
+        if zeros:
+            conditions.append(r" \text{ or } ".join(
+                f"{w.layout.tex(z.lhs)} = {w.layout.tex(z.rhs)}" for z in zeros))
+        else:
+            conditions.append(f"{w.layout.tex(factor)} = 0")
+    constant = [f for f in determinant.factors if not (f.free_symbols & set(m.q)) and not f.is_number]
+    lead = "Singular configurations (one turn, $-\\pi < \\theta_i \\le \\pi$)"
+    if constant:
+        lead += " for nonzero " + ", ".join(f"${w.layout.tex(f)}$" for f in constant)
+    rows = [rf"&{c}" for c in conditions]
+    rows[0] += w.tag("singular")
+    body += "\n" + lead + ":\n" + "\\begin{align*}\n" + " \\\\\n".join(rows) + "\n\\end{align*}\n"
+    return Section("det", "Singularities", body)
+
+
+def _rates(w: _Writer, determinant: JacobianDeterminant | None) -> Section:
+    m = w.model
+    rows = [k for k, n in enumerate(m.task_names) if not _POSE_ROTATION.fullmatch(n)]
+    rates = [rate_symbol(qi) for qi in m.q]
+    trig = sorted(m.task_jacobian.atoms(sp.sin, sp.cos), key=sp.default_sort_key)
+    pairs = []
+    for k in rows:
+        value = sp.expand((m.task_jacobian.row(k) * sp.Matrix(rates))[0])
+        # Kumar's and the slides' grouping, -l1 s1 th1' - l2 s12 (th1' + th2'), when each sine or
+        # cosine then has a constant coefficient; otherwise by joint rate, J_k1 th1' + J_k2 th2' + ...
+        by_trig = sp.collect(value, trig, evaluate=False) if trig else {}
+        keys = trig if by_trig and not any(c.has(sp.sin, sp.cos) for c in by_trig.values()) else rates
+        pairs.append((rf"\dot{{{_task_latex(w, m.task_names[k])}}}", _rates_last(_grouped(value, keys), rates)))
+    body = (r"Forward rate map $\dot x = J_x \dot q$:" + "\n" + w.equations(pairs, key="rates") + "\n")
+    inverse = inverse_rate_map(m, determinant)
+    if inverse is not None:
+        adjugate, det = inverse
+        task_rates = [task_rate_symbol(n) for n in m.task_names]
+        rows_tex: list[str] = []
+        for i, qi in enumerate(m.q):
+            numerator = sp.expand((adjugate.row(i) * sp.Matrix(task_rates))[0])
+            numerator, denominator = sp.fraction(sp.cancel(numerator / det))
+            denominator = sp.factor(denominator)
+            if denominator.could_extract_minus_sign():
+                numerator, denominator = -numerator, -denominator
+            numerator = _rates_last(_grouped(sp.expand(numerator), task_rates), task_rates)
+            rows_tex.extend(_fraction_rows(w, _dotted(w.printer.joint_latex[qi]), numerator, denominator))
+        rows_tex[0] += w.tag("inverse_rates")
+        body += (r"Inverse rate map $\dot q = J_x^{-1} \dot x = \operatorname{adj}(J_x)\, \dot x / \det J_x$, "
+                 r"away from the singular set:" + "\n" + _Writer._align(rows_tex) + "\n")
+    elif determinant is not None and determinant.which == "task_jacobian":
+        body += (f"The inverse rate map is $\\dot q = J_x^{{-1}} \\dot x$ away from the singular set "
+                 f"(its closed form is not printed for {m.n} joints).\n")
+    return Section("rates", "Rate maps", body)
+
+
+def _grouped(expr: sp.Expr, keys) -> sp.Expr:
+    """``expr`` collected on ``keys``, each coefficient with its common factor and sign taken out."""
+    if not keys:
+        return expr
+    collected = sp.collect(expr, list(keys))
+    with distribute(False):
+        return sp.Add(*[sp.factor_terms(t) for t in sp.Add.make_args(collected)])
+
+
+def _rates_last(expr: sp.Expr, rates) -> sp.Expr:
+    """Print rates after the other factors (``l_1 s_1 \\dot\\theta_1``, as the papers write).
+
+    SymPy prints a product's commutative factors first and its non-commutative
+    ones last, in their given order, so the rates are swapped for
+    non-commutative twins printed with the same name.
+    """
+    with distribute(False):
+        return expr.xreplace({r: _NonCommutativeRate(r) for r in rates})
+
+
+class _NonCommutativeRate(sp.Symbol):
+    """A rate symbol that sorts after the other factors of a product when printed."""
+
+    def __new__(cls, rate: sp.Symbol):
+        obj = super().__new__(cls, rate.name, commutative=False)
+        obj.rate = rate
+        return obj
+
+    def __getnewargs_ex__(self):
+        return ((self.rate,), {})
+
+
+def _fraction_rows(w: _Writer, lhs: str, numerator: sp.Expr, denominator: sp.Expr) -> list[str]:
+    """``lhs = numerator / denominator``, the numerator broken if too long."""
+    if numerator == 0:
+        return [f"{lhs} &= 0"]
+    if denominator == 1:
+        return w.layout.align_rows(lhs, numerator)
+    den = w.layout.tex(denominator)
+    text = rf"\frac{{{w.layout.tex(numerator)}}}{{{den}}}"
+    if math_width(lhs) + 3 + math_width(text) <= w.layout.width:
+        return [f"{lhs} &= {text}"]
+    head = rf"\frac{{1}}{{{den}}}\bigl("
+    parts = w.layout.lines(numerator, w.layout.width - math_width(lhs) - math_width(head) - 4)
+    parts[0] = head + parts[0]
+    parts[-1] += r"\bigr)"
+    return [f"{lhs} &= {parts[0]}"] + [rf"&\quad {p}" for p in parts[1:]]
+
+
+def _ik(w: _Writer) -> Section | None:
+    m = w.model
+    if not m.ik:
+        return None
+    parts = []
+    for branch in m.ik:
+        header = rf"\paragraph{{Branch \texttt{{{escape_text(branch.name)}}}}}"
+        if branch.doc:
+            header += " " + escape_text(branch.doc)
+        pairs = [(w.printer.joint_latex[qi], expr) for qi, expr in zip(m.q, branch.solution)]
+        key = f"ik:{branch.name}" if f"ik:{branch.name}" in w.citations else "ik"
+        body = header + "\n" + w.equations(pairs, key=key) + "\n"
+        condition = branch.condition
+        if condition is not sp.true and condition != sp.true:
+            args = condition.args if isinstance(condition, sp.And) else (condition,)
+            rows = [rf"&{w.layout.tex(a)}" for a in args]
+            body += "It exists when\n" + _Writer._align(rows) + "\n"
+        parts.append(body)
+    return Section("ik", "Inverse kinematics", "\n".join(parts))
+
+
+def _notes(w: _Writer) -> Section | None:
+    notes = {k: v for k, v in w.model.notes.items() if not k.startswith("cite_")}
+    if not notes:
+        return None
+    items = "\n".join(rf"\item \textbf{{{escape_text(k)}}}: {escape_text(v)}" for k, v in sorted(notes.items()))
+    return Section("notes", "Notes", "\\begin{itemize}\n" + items + "\n\\end{itemize}\n")
+
+
+# --------------------------------------------------------------------------- extras
+
+def _extras(w: _Writer) -> list[Section]:
+    """Sections for whatever else the model carries (rate maps, singularities, ...)."""
+    sections = []
+    for name, value in sorted(vars(w.model).items()):
+        if name in _KNOWN_ATTRIBUTES or name.startswith("_") or not _has_symbols(value):
+            continue
+        body = _generic(w, name, value, depth=0)
+        if body.strip():
+            sections.append(Section(name, escape_text(name.replace("_", " ").capitalize()), body))
+    return sections
+
+
+def _has_symbols(value, depth: int = 0) -> bool:
+    if depth > 4:
+        return False
+    if isinstance(value, (sp.Basic, sp.MatrixBase)):
+        return True
+    if isinstance(value, dict):
+        return any(_has_symbols(v, depth + 1) for v in value.values())
+    if isinstance(value, (list, tuple)):
+        return any(_has_symbols(v, depth + 1) for v in value)
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return any(_has_symbols(getattr(value, f.name), depth + 1) for f in dataclasses.fields(value))
+    return False
+
+
+def _generic(w: _Writer, label: str, value, depth: int) -> str:
+    """Print an unknown structure: matrices, expressions, relations, and what holds them."""
+    if depth > 4:
+        return ""
+    name = _label_latex(label)
+    if isinstance(value, sp.MatrixBase):
+        return w.matrix_equation(name, sp.Matrix(value), key=label) + "\n"
+    if isinstance(value, sp.Basic):
+        if isinstance(value, (sp.Expr,)):
+            return w.display(name, value, key=label) + "\n"
+        return f"\\begin{{align*}}\n&{w.layout.tex(value)}{w.tag(label)}\n\\end{{align*}}\n"
+    if isinstance(value, dict):
+        return "".join(_generic(w, str(k), v, depth + 1) for k, v in value.items() if _has_symbols(v))
+    if isinstance(value, (list, tuple)):
+        if value and all(isinstance(v, sp.Expr) for v in value):
+            return w.equations([(f"{name}_{{{k + 1}}}", v) for k, v in enumerate(value)], key=label) + "\n"
+        return "".join(_generic(w, label, v, depth + 1) for v in value)
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        title = getattr(value, "name", None)
+        out = rf"\paragraph{{{escape_text(str(title))}}}" + "\n" if isinstance(title, str) else ""
+        doc = getattr(value, "doc", None)
+        if isinstance(doc, str) and doc:
+            out += escape_text(doc) + "\n"
+        for f in dataclasses.fields(value):
+            if f.name in ("name", "doc"):
+                continue
+            item = getattr(value, f.name)
+            if _has_symbols(item):
+                out += _generic(w, f.name, item, depth + 1)
+        return out
+    return ""
+
+
+def _label_latex(label: str) -> str:
+    """A field name as a math symbol: ``condition -> \\mathrm{condition}``."""
+    if re.fullmatch(r"[A-Za-z]", label):
+        return label
+    return r"\mathrm{" + escape_text(label) + "}"
+
+
+# --------------------------------------------------------------------------- files
+
+def render(model, origin: str) -> dict[str, str]:
+    """``{<name>.tex: fragment}`` for one robot."""
+    text = TEMPLATES.get_template("robot.tex.j2").render(
+        name=model.name, title=escape_text(model.title), source=escape_text(model.source), origin=origin,
+        sections=robot_sections(model))
+    return {f"{model.name}.tex": text}
+
+
+def latex_for(model, what: list[str] | None = None) -> str:
+    """The LaTeX of the chosen sections (all when ``what`` is empty), for the terminal."""
+    sections = robot_sections(model)
+    if what:
+        known = [s.key for s in sections]
+        unknown = [k for k in what if k not in known]
+        if unknown:
+            raise ValueError(f"latex: {model.name} has no section {unknown[0]!r} "
+                             f"(expected one of {', '.join(known)})")
+        sections = [s for s in sections if s.key in what]
+    return "\n".join(f"% {s.title}\n{s.body}" for s in sections)

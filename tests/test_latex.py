@@ -1,0 +1,293 @@
+"""The LaTeX backend: notation, line breaking, sections, citations, the CLI, and the
+determinants and rate maps it prints (checked against the papers and numerically)."""
+import copy
+import dataclasses
+import re
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import derivations
+from codegen import cli, generate
+from codegen.backends import latex_backend
+from codegen.backends.latex_backend import (CITATIONS, KinematicsLatexPrinter, MathLayout, escape_text, latex_for,
+                                            math_width, robot_sections)
+from derivations.model import IKBranch
+from derivations.singular import inverse_rate_map, jacobian_determinant
+from conftest import ROBOT_NAMES
+
+c, s = sp.cos, sp.sin
+
+
+def printer_for(model):
+    return KinematicsLatexPrinter(model.q, model.joint_types, tuple(model.params))
+
+
+def params(model, *names):
+    by_name = {str(p): p for p in model.params}
+    return [by_name[n] for n in names]
+
+
+# --------------------------------------------------------------------------- notation
+
+def test_joint_variables_print_by_joint_type(models):
+    rp = printer_for(models["planar_rp"])
+    q1, q2 = models["planar_rp"].q
+    assert rp.doprint(q1) == r"\theta_{1}" and rp.doprint(q2) == "d_{2}"  # Kumar Fig. 11: theta1, d2
+    adept = models["adept_three"]
+    p = printer_for(adept)
+    assert [p.doprint(q) for q in adept.q] == [r"\theta_{1}", r"\theta_{2}", "d_{3}", r"\theta_{4}"]
+    d1, d4 = params(adept, "d1", "d4")
+    assert p.doprint(d1 - d4 - adept.q[2]) == "d_{1} - d_{4} - d_{3}"  # Rehiara Eq. 14: -d4 - d3 + d1
+
+
+def test_trig_abbreviations_for_plain_sums_only(models):
+    m = models["adept_three"]
+    q1, q2, d3, q4 = m.q
+    p = printer_for(m)
+    assert p.doprint(c(q1)) == "c_{1}"
+    assert p.doprint(s(q1 + q2)) == "s_{12}"
+    assert p.doprint(c(q1) ** 2) == "c_{1}^{2}"
+    assert p.doprint(c(q1 + q2 - q4)) == r"\cos(\theta_{1} + \theta_{2} - \theta_{4})"
+    assert p.doprint(s(q2 / 2)) == r"\sin(\frac{\theta_{2}}{2})"
+    assert p.doprint(c(d3)) == r"\cos(d_{3})"  # a prismatic variable is no angle
+    assert p.doprint(sp.atan2(q1, q2)) == r"\operatorname{atan2}\left(\theta_{1},\, \theta_{2}\right)"
+
+
+def test_clashing_names_fall_back_to_plain_symbols():
+    q1, q2, q3 = sp.symbols("q1 q2 q3", real=True)
+    d3, c1 = sp.symbols("d3 c1", real=True)
+    p = KinematicsLatexPrinter((q1, q2, q3), ("R", "R", "P"), (d3,))
+    assert p.doprint(q3) == "q_{3}"  # a parameter d3 beside a prismatic joint 3
+    assert p.doprint(q1) == r"\theta_{1}"
+    p = KinematicsLatexPrinter((q1, q2), ("R", "R"), (c1,))
+    assert p.doprint(c(q1)) == r"\cos(\theta_{1})"  # a parameter c1 would read like the abbreviation
+    assert p.legend() == ""
+
+
+def test_text_is_escaped_for_pdflatex():
+    assert escape_text("d4 = 5% of l_1 & more {x}") == r"d4 = 5\% of l\_1 \& more \{x\}"
+    assert escape_text("θ ± 150°") == r"$\theta$ $\pm$ 150$^\circ$"
+    assert escape_text("naïve") == "na?ve"
+
+
+# --------------------------------------------------------------------------- layout
+
+def unbroken(lines):
+    return re.sub(r"\s+", "", "".join(lines).replace("{}", "").replace(r"\bigl(", r"\left(").replace(r"\bigr)", r"\right)"))
+
+
+@pytest.mark.parametrize("width", [30.0, 45.0, 66.0])
+def test_long_sums_break_into_lines_that_fit_and_lose_nothing(models, width):
+    m = models["puma560"]
+    layout = MathLayout(printer_for(m), width)
+    for expr in (m.fk[0, 0], m.fk[1, 1], m.jacobian[0, 0], m.fk[0, 3]):
+        lines = layout.lines(expr, width - 5)
+        assert all(math_width(line) <= width for line in lines[1:]), lines
+        assert math_width(lines[0]) <= width - 5
+        assert unbroken(lines) == re.sub(r"\s+", "", layout.tex(expr))
+
+
+def test_a_product_with_a_long_sum_is_opened_across_lines(models):
+    m = models["scorbot_er7"]
+    layout = MathLayout(printer_for(m), 24.0)
+    expr = m.fk[0, 3]  # (a1 + a2 c2 + a3 c23 + d5 c234) c1
+    lines = layout.lines(expr, 18.0)
+    assert len(lines) > 1
+    assert lines[0].startswith(r"c_{1} \bigl(") and lines[-1].endswith(r"\bigr)")
+    assert all(math_width(line) <= 24.0 for line in lines)
+    assert unbroken(lines) == re.sub(r"\s+", "", r"c_{1}\left(a_{1} + a_{2} c_{2} + a_{3} c_{23} + d_{5} c_{234}\right)")
+
+
+def test_math_width_grows_with_content():
+    assert math_width("x") < math_width("x + y") < math_width(r"x + y + \theta_{1}")
+    assert math_width(r"\frac{a + b}{c}") == pytest.approx(math_width("a + b") + 0.4)
+    assert math_width(r"\left(x\right)") < math_width("x") + 2
+
+
+def test_wide_matrices_print_entry_by_entry(models):
+    sections = {sec.key: sec.body for sec in robot_sections(models["puma560"])}
+    assert r"T_{11} &= " in sections["fk"] and r"\begin{bmatrix}" not in sections["fk"]
+    assert "the last row is $(0\\ 0\\ 0\\ 1)$" in sections["fk"]
+    assert "J_{14} = J_{15} = J_{16}" in sections["jacobian"]  # the zero entries, named once
+    narrow = {sec.key: sec.body for sec in robot_sections(models["planar_2r"])}
+    assert r"\begin{bmatrix}" in narrow["fk"]
+
+
+# --------------------------------------------------------------------------- sections
+
+def with_ik(model):
+    m = copy.copy(model)
+    q1, q2 = m.q
+    x, y = m.task_symbols
+    l1, l2 = params(m, "l1", "l2")
+    cos2 = (x**2 + y**2 - l1**2 - l2**2) / (2 * l1 * l2)
+    theta2 = sp.acos(cos2)
+    theta1 = sp.atan2(y, x) - sp.atan2(l2 * sp.sin(theta2), l1 + l2 * sp.cos(theta2))
+    m.ik = [IKBranch("elbow_up", (theta1, theta2), sp.And(cos2 >= -1, cos2 <= 1), "theta2 >= 0 (Rehiara Eq. 18)"),
+            IKBranch("elbow_down", (sp.atan2(y, x) + sp.atan2(l2 * sp.sin(theta2), l1 + l2 * sp.cos(theta2)),
+                                    -theta2))]
+    return m
+
+
+def test_ik_branches_print_with_their_conditions(models):
+    m = with_ik(models["planar_2r"])
+    sections = {sec.key: sec for sec in robot_sections(m)}
+    body = sections["ik"].body
+    assert r"\paragraph{Branch \texttt{elbow\_up}} theta2 >= 0 (Rehiara Eq. 18)" in body
+    assert r"\paragraph{Branch \texttt{elbow\_down}}" in body
+    assert r"\theta_{1} &= " in body and r"\theta_{2} &= \arccos" in body
+    assert r"\operatorname{atan2}" in body
+    assert body.count(r"\tag{Rehiara Eqs.~18, 21, 27, 34}") == 2
+    assert "It exists when" in body and r"\geq -1" in body  # the elbow_up condition; elbow_down has none
+    assert body.count("It exists when") == 1
+    assert latex_for(m, ["ik"]).startswith("% Inverse kinematics")
+
+
+@dataclasses.dataclass
+class SingularFamily:  # the shape a later module may give model.singularities
+    name: str
+    condition: sp.Basic
+    doc: str = ""
+
+
+def test_whatever_else_a_model_carries_is_printed(models):
+    m = copy.copy(models["planar_2r"])
+    q1, q2 = m.q
+    m.singularities = [SingularFamily("elbow_stretched", sp.Eq(s(q2), 0), "theta2 = 0 or pi (slides)")]
+    m.hessian_x = sp.Matrix([[c(q1), 0], [0, s(q1 + q2)]])
+    m.comment = "not symbolic: no section"
+    sections = {sec.key: sec for sec in robot_sections(m)}
+    assert r"\paragraph{elbow\_stretched}" in sections["singularities"].body
+    assert "s_{2} = 0" in sections["singularities"].body
+    assert "c_{1}" in sections["hessian_x"].body and "s_{12}" in sections["hessian_x"].body
+    assert "comment" not in sections
+    assert latex_for(m, ["singularities"]).startswith("% Singularities")
+
+
+def test_citation_keys_name_real_sections():
+    for robot, table in CITATIONS.items():
+        assert robot in derivations.ROBOTS
+        n = derivations.load(robot).n
+        valid = set(latex_backend.SECTION_KEYS) | {"singular", "inverse_rates"} | {f"link{i}" for i in range(1, n + 1)}
+        for key in table:
+            assert key in valid or key.startswith("ik:"), (robot, key)
+
+
+@pytest.mark.parametrize("name", ROBOT_NAMES)
+def test_fragments_carry_the_papers_equation_numbers(name):
+    text = (generate.GENERATED / name / f"{name}.tex").read_text()
+    assert "Do not edit by hand" in text and "\\kinegenrobot{" in text
+    model = derivations.load(name)
+    for key, cite in CITATIONS.get(name, {}).items():
+        if key.startswith("ik") and not model.ik:
+            continue  # printed once the model carries IK branches
+        assert cite in text, (name, key)
+
+
+def test_the_papers_landmark_equations_are_tagged():
+    frag = {n: (generate.GENERATED / n / f"{n}.tex").read_text() for n in ROBOT_NAMES}
+    assert r"\det J_x &= l_{1} l_{2} s_{2} \tag{Kumar Eq.~13}" in frag["planar_3r"]
+    assert r"\tag{Kumar Eq.~11}" in frag["planar_3r"]
+    assert r"\tag{Rehiara Eq.~13, corrected (E1)}" in frag["adept_three"]
+    for eq in (9, 10, 11, 12):
+        assert rf"\tag{{Rehiara Eq.~{eq}}}" in frag["adept_three"]
+
+
+# --------------------------------------------------------------------------- what it prints is right
+
+def test_determinants_reproduce_the_papers(models):
+    m = models["planar_3r"]
+    l1, l2 = params(m, "l1", "l2")
+    det = jacobian_determinant(m)
+    assert det.which == "task_jacobian"
+    assert sp.simplify(det.value - l1 * l2 * s(m.q[1])) == 0  # Kumar Eq. 13
+    assert det.singular == ((s(m.q[1]), (sp.Eq(m.q[1], 0), sp.Eq(m.q[1], sp.pi))),)  # "0 or 180 degrees"
+    m2 = models["planar_2r"]
+    assert sp.simplify(jacobian_determinant(m2).value - l1 * l2 * s(m2.q[1])) == 0  # slides: |J| = l1 l2 s2
+    rp = jacobian_determinant(models["planar_rp"])
+    assert rp.value == -models["planar_rp"].q[1]  # det [[-d2 s1, c1], [d2 c1, s1]] = -d2
+    assert rp.singular[0][1] == (sp.Eq(models["planar_rp"].q[1], 0),)
+    assert jacobian_determinant(models["planar_pp"]).singular == ()
+    assert jacobian_determinant(models["scorbot_er7"]) is None  # 3 x 5: no determinant
+
+
+@pytest.mark.parametrize("name", ["puma560", "adept_three", "planar_3r", "planar_rp"])
+def test_factored_determinant_matches_numpy(models, name):
+    m = models[name]
+    det = jacobian_determinant(m)
+    J = m.task_jacobian if det.which == "task_jacobian" else m.jacobian
+    rng = np.random.default_rng(13)
+    for _ in range(5):
+        point = {qi: float(v) for qi, v in zip(m.q, rng.uniform(-2.5, 2.5, m.n))}
+        point.update(m.params)
+        expected = np.linalg.det(np.array(J.evalf(subs=point), dtype=float))
+        assert float(det.value.evalf(subs=point)) == pytest.approx(expected, rel=1e-10, abs=1e-14)
+        for factor, zeros in det.singular:
+            for zero in zeros:  # each printed singular configuration zeroes its factor
+                assert abs(float(factor.subs(zero.lhs, zero.rhs).evalf(subs=point))) < 1e-12
+
+
+def test_puma_singular_set_is_shoulder_elbow_wrist(models):
+    m = models["puma560"]
+    a2, a3, d4 = params(m, "a2", "a3", "d4")
+    q1, q2, q3, q4, q5, q6 = m.q
+    det = jacobian_determinant(m)
+    # a2 (a3 s3 + d4 c3)(a2 c2 + a3 c23 - d4 s23) s5: elbow, wrist centre on the shoulder axis, wrist
+    expected = a2 * (a3 * s(q3) + d4 * c(q3)) * (a2 * c(q2) + a3 * c(q2 + q3) - d4 * s(q2 + q3)) * s(q5)
+    assert sp.expand(sp.expand_trig(det.value - expected)) == 0
+    assert [zeros for _, zeros in det.singular][-1] == (sp.Eq(q5, 0), sp.Eq(q5, sp.pi))
+
+
+@pytest.mark.parametrize("name", ["planar_2r", "planar_3r", "planar_rp", "planar_pp", "adept_three"])
+def test_inverse_rate_maps_invert_the_task_jacobian(models, name):
+    m = models[name]
+    adjugate, det = inverse_rate_map(m)
+    rng = np.random.default_rng(7)
+    for _ in range(5):
+        point = {qi: float(v) for qi, v in zip(m.q, rng.uniform(0.2, 2.8, m.n))}
+        point.update(m.params)
+        J = np.array(m.task_jacobian.evalf(subs=point), dtype=float)
+        inverse = np.array(adjugate.evalf(subs=point), dtype=float) / float(det.evalf(subs=point))
+        assert np.allclose(inverse @ J, np.eye(m.n), atol=1e-12)
+    assert inverse_rate_map(models["puma560"]) is None  # 12 x 6 task: no inverse printed
+
+
+def test_slides_ivm_is_what_the_fragment_prints(models):
+    m = models["planar_2r"]
+    body = latex_for(m, ["rates"])
+    # slides: theta1' = (l2 c12 X' + l2 s12 Y') / (l1 l2 s2), printed with l2 cancelled
+    assert r"\dot{\theta}_{1} &= \frac{c_{12} \dot{x} + s_{12} \dot{y}}{l_{1} s_{2}}" in body
+    assert r"\dot{x} &= - l_{1} s_{1} \dot{\theta}_{1} - l_{2} s_{12} \left(\dot{\theta}_{1} + \dot{\theta}_{2}\right)" in body
+
+
+# --------------------------------------------------------------------------- command line
+
+def test_cli_prints_one_section(capsys):
+    assert cli.main(["latex", "planar_3r", "--what", "det"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("% Singularities")
+    assert r"\det J_x &= l_{1} l_{2} s_{2} \tag{Kumar Eq.~13}" in out
+    assert "Task coordinates" not in out
+    assert cli.main(["latex", "adept_three", "--what", "fk,position"]) == 0
+    out = capsys.readouterr().out
+    assert "Rehiara Eq.~13" in out and "Rehiara Eq.~14" in out and "Link transforms" not in out
+
+
+def test_cli_rejects_unknown_sections_and_robots(capsys):
+    assert cli.main(["latex", "planar_3r", "--what", "torque"]) == 2
+    err = capsys.readouterr().err
+    assert "no section 'torque'" in err and "expected one of" in err and "jacobian" in err
+    assert cli.main(["latex", "no_such_robot"]) == 2
+    assert "unknown robot 'no_such_robot'" in capsys.readouterr().err
+
+
+def test_cli_prints_a_users_description(tmp_path, capsys):
+    path = tmp_path / "cyl.toml"
+    path.write_text('name = "cyl"\ntask = ["x", "y", "z"]\n[params]\nd1 = 0.5\n'
+                    '[[joint]]\ntype = "R"\nd = "d1"\n[[joint]]\ntype = "P"\nalpha = "-pi/2"\n'
+                    '[[joint]]\ntype = "P"\n')
+    assert cli.main(["latex", str(path), "--what", "dh"]) == 0
+    out = capsys.readouterr().out
+    assert r"$\theta_{1}$ & $d_{1}$" in out and "$d_{2}$" in out and "$d_{3}$" in out
