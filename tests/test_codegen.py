@@ -85,5 +85,5 @@ def test_generated_files_say_what_they_are_generated_from():
     for name in ROBOT_NAMES:
         for filename in ("numpy_kernels.py", "c_kernels.py", f"{name}.c", f"{name}.h"):
             text = (generate.GENERATED / name / filename).read_text()
-            assert f"derivations/robots/{name}.toml (sha256" in text
+            assert f"derivations/robots/{derivations.ROBOTS[name].name} (sha256" in text
             assert "Do not edit by hand" in text
