@@ -6,6 +6,7 @@
 #   make build      compile the generated C (strict warnings) and its cffi extensions
 #   make verify     kernels against SymPy at 30 digits, as a table
 #   make check      fail when generated/ is out of date with derivations/ and codegen/
+#   make avr-limits the AVR 3000 Matlab script: axis limits from motor limits (R=18.3in by default)
 #   make clean      remove the virtual environment, caches and built libraries
 
 PYTHON ?= python3
@@ -14,7 +15,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 KINEGEN := $(PY) -m codegen
 
-.PHONY: all install generate build sanitize verify check test clean
+.PHONY: all install generate build sanitize verify check test clean avr-limits
 
 all: $(STAMP)
 	$(KINEGEN) all
@@ -41,6 +42,9 @@ verify: build
 
 check: $(STAMP)
 	$(KINEGEN) check
+
+avr-limits: $(STAMP)
+	$(KINEGEN) --quiet avr3000-limits --R=$(or $(R),18.3in)
 
 test: build
 	$(PY) -m pytest

@@ -51,6 +51,8 @@ def declarations(context: dict, for_cffi: bool) -> str:
     lines = [f"/* Robot parameters (SI units). */", f"typedef struct {name}_params {{ {fields} }} {name}_params;"]
     if not for_cffi:
         lines.append(f"extern const {name}_params {name}_default_params;")
+    elif context["status_codes"]:  # the header's status codes, for callers through cffi
+        lines.extend(f"#define {name.upper()}_{kind.upper()} {code}" for kind, code in context["status_codes"])
     lines.append("")
     lines.extend(prototypes(context))
     return "\n".join(lines)

@@ -73,10 +73,10 @@ def require(ok, batch, function, kind, message, name, value):
 
 def check_status(status, function, messages, name, value):
     """Raise for the first nonzero C status code, with the message of its requirement kind."""
-    failed = numpy.argwhere(status != 0)
-    if failed.size == 0:
+    failed = status != 0
+    if not failed.any():
         return
-    index = tuple(int(i) for i in failed[0])
+    index = tuple(int(i) for i in numpy.argwhere(failed)[0])
     kind = STATUS[int(status[index])]
     point = value[index]
     where = f" at batch index {index}" if index else ""

@@ -18,6 +18,8 @@ CFLAGS = ["-std=c99", "-O3"]
 CDEF = """
 /* Robot parameters (SI units). */
 typedef struct avr3000_params { double a; double e; double J11; double J21; double J22; double J33; } avr3000_params;
+#define AVR3000_UNREACHABLE 1
+#define AVR3000_SINGULAR 2
 
 /* fk: q[3] -> T[16] (row-major). Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. */
 void avr3000_fk(const double *q, const avr3000_params *params, double *T);
