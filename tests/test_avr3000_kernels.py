@@ -244,3 +244,4 @@ def test_limits_command_runs_as_a_module():
     result = subprocess.run([sys.executable, "-m", "codegen", "--quiet", "avr3000-limits", "--R=18.3in",
                              "--units", "in"], capture_output=True, text=True, check=True)
     assert "121.886" in result.stdout and "SI units" not in result.stdout
+

@@ -2,7 +2,7 @@
 
 Each test writes the paper's equation out by hand and checks that the model's
 derivation gives it; where the print is wrong the test shows the printed form
-failing and the derived one holding (README, "Errata", E2-E7).
+failing and the derived one holding (README, "Errata", AVR1-AVR6).
 """
 import math
 
@@ -90,7 +90,7 @@ def test_eq7_position_from_the_link_frames(avr):
 
 
 def test_eq7_velocity_expanded_lines_and_the_jx_erratum(avr):
-    """E2: the collected J12^x, J22^x drop the factor 0.5 on the e term that the expanded line above them has."""
+    """AVR1: the collected J12^x, J22^x drop the factor 0.5 on the e term that the expanded line above them has."""
     a, e = syms(avr)[:2]
     q1, q2, _ = avr.q
     qd1, qd2, _ = avr.spaces["joint"].velocity
@@ -180,7 +180,7 @@ def test_section4_gear_ratios(avr):
 
 
 def test_section4_erratum_gear_r_sign(avr):
-    """E3: GearR is printed positive; only the negative ratio keeps T still (Eq. 14, first row)."""
+    """AVR2: GearR is printed positive; only the negative ratio keeps T still (Eq. 14, first row)."""
     Tdot = avr.maps["motor_to_tool_velocity"].values[0]
     td = avr.spaces["motor"].velocity
     values = _eq1_values(avr)
@@ -191,7 +191,7 @@ def test_section4_erratum_gear_r_sign(avr):
 
 
 def test_section4_erratum_numbers_differ_from_eq1_but_keep_the_ratio(avr):
-    """E4: section 4 substitutes J21 = 1.1634e-5, J11 = -1.795196e-5, not Eq. 1's values; the ratio J11/J21 agrees."""
+    """AVR3: section 4 substitutes J21 = 1.1634e-5, J11 = -1.795196e-5, not Eq. 1's values; the ratio J11/J21 agrees."""
     a, e, J11, J21, J22, J33 = syms(avr)
     eq1 = {k: float(v) for k, v in _eq1_values(avr).items()}
     assert eq1[J21] != pytest.approx(1.1634e-5, rel=0.1)
@@ -227,7 +227,7 @@ def test_matlab_script_position_numbers():
 
 
 def test_matlab_erratum_jmj_sign(avr):
-    """E5: the script's JMJ is -ECPR times Eq. 1's Jacobian in its T and R rows (same magnitudes)."""
+    """AVR4: the script's JMJ is -ECPR times Eq. 1's Jacobian in its T and R rows (same magnitudes)."""
     values = {k: float(v) for k, v in avr.params.items()}
     J = np.array(avr.maps["motor_to_joint_velocity"].values.jacobian(
         sp.Matrix(avr.spaces["motor"].velocity)).subs(values), dtype=float)
@@ -249,7 +249,7 @@ def test_matlab_jjt_and_jx_are_the_derived_jacobians(avr):
 
 
 def test_matlab_erratum_jjc_misses_the_link_length(avr):
-    """E6: the script's JJC (joint -> Cartesian) lacks the factor a = ArmLength in its x and y rows."""
+    """AVR5: the script's JJC (joint -> Cartesian) lacks the factor a = ArmLength in its x and y rows."""
     a, e = syms(avr)[:2]
     q1, q2, _ = avr.q
     derived = avr.maps["joint_to_cartesian_velocity"].values.jacobian(
@@ -289,4 +289,17 @@ def test_matlab_pure_r_motion_magnitude_matches_the_model(avr):
     rates = rates.subs(dict(zip(avr.spaces["motor"].velocity, [sp.Rational(v) for v in counts]))).xreplace(values)
     tool_rate = [float(v.evalf(30)) for v in rates]
     assert tool_rate[0] == pytest.approx(0, abs=1e-9)
-    assert tool_rate[1] / IN == pytest.approx(-script_tool[1], rel=1e-9)  # E5: opposite sign, same magnitude
+    assert tool_rate[1] / IN == pytest.approx(-script_tool[1], rel=1e-9)  # AVR4: opposite sign, same magnitude
+
+
+def test_matlab_erratum_script_keeps_only_the_last_motor_vector():
+    """AVR6: MaxMotorVel is assigned for R, T and Z motion in turn; as printed only Z survives, so the
+    script's R-axis block computes VelMaxR = 0, AccMaxR = 0 and TimeAccR = 0/0."""
+    omega_z = 5500 * 2 * math.pi / 60
+    max_motor_vel = np.array([0, 0, omega_z])  # the last assignment wins
+    q2 = 2.0 * math.acos(18.3 / (ARM * 2.0))
+    vel_max_r = (matlab_jjt(q2) @ matlab_jmj() @ max_motor_vel)[1]
+    acc_max_r = 1.5 * vel_max_r * vel_max_r / abs(20.0 - (-10.0))
+    assert vel_max_r == 0 and acc_max_r == 0
+    with np.errstate(invalid="ignore"):
+        assert np.isnan(np.float64(1.5 * vel_max_r) / np.float64(acc_max_r))
