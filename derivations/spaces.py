@@ -111,6 +111,13 @@ class SpaceMap:
         """Source position, then velocity and acceleration as the level needs them."""
         return tuple(self.source.argument(level) for level in LEVELS[:LEVELS.index(self.level) + 1])
 
+    @property
+    def jacobian(self) -> sp.Matrix:
+        """d target / d source of a position map (the Matlab script's JMJ, JJT, JMT, JMC, JX)."""
+        if self.level != "position":
+            raise ValueError(f"{self.name}: the Jacobian is that of the position map")
+        return self.values.jacobian(sp.Matrix(self.source.position))
+
     def function(self) -> SymbolicFunction:
         out = self.target.argument(self.level)
         doc = f"{self.source.name.capitalize()} -> {self.target.name} {self.level}"
@@ -160,10 +167,10 @@ def differentiate(position: SpaceMap, level: str, cite: str = "") -> SpaceMap:
         raise ValueError("differentiate() takes a position map and 'velocity' or 'acceleration'")
     x = sp.Matrix(position.source.position)
     xd = sp.Matrix(position.source.velocity)
-    velocity = position.values.jacobian(x) * xd
+    velocity = position.jacobian * xd
     values = velocity
     if level == "acceleration":
-        values = position.values.jacobian(x) * sp.Matrix(position.source.acceleration) + velocity.jacobian(x) * xd
+        values = position.jacobian * sp.Matrix(position.source.acceleration) + velocity.jacobian(x) * xd
     for requirement in position.derivative_requires:
         condition = requirement.condition
         if isinstance(condition, sp.core.relational.Relational) and not values.has(condition.lhs):

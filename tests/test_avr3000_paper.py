@@ -266,6 +266,7 @@ def test_matlab_jmt_is_the_chain_rule_of_the_derived_maps(avr):
     jjt_of_motor = jjt.xreplace(dict(zip(avr.q, avr.maps["motor_to_joint"].values)))
     jmt = avr.maps["motor_to_tool_velocity"].values.jacobian(sp.Matrix(avr.spaces["motor"].velocity))
     assert vanishes(jmt - jjt_of_motor * J)
+    assert jmt == avr.maps["motor_to_tool"].jacobian  # the same matrix, as the model exposes it
     jjc = avr.maps["joint_to_cartesian_velocity"].values.jacobian(sp.Matrix(avr.spaces["joint"].velocity))
     jmc = avr.maps["motor_to_cartesian_velocity"].values.jacobian(sp.Matrix(avr.spaces["motor"].velocity))
     assert vanishes(jmc - jjc.xreplace(dict(zip(avr.q, avr.maps["motor_to_joint"].values))) * J)

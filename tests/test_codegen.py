@@ -34,7 +34,7 @@ def test_stale_files_are_reported(tmp_path):
 RENDER = "import sys; from codegen.generate import render_tree; t = render_tree(['{0}']); sys.stdout.write(''.join(k + t[k] for k in sorted(t)))"
 
 
-@pytest.mark.parametrize("name", ["adept_three", "puma560"])
+@pytest.mark.parametrize("name", ["adept_three", "puma560", "avr3000"])
 def test_generation_is_byte_identical_across_processes_and_hash_seeds(name):
     outputs = []
     for seed in ("0", "12345"):
