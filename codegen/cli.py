@@ -23,6 +23,7 @@ import time
 
 import derivations
 
+from . import avr_limits
 from . import build as c_build
 from . import generate as gen
 from .verify import format_table, verify_model
@@ -129,45 +130,6 @@ def cmd_all(args, say) -> int:
     return 0
 
 
-_LENGTH_UNITS = {"in": 0.0254, "mm": 0.001, "m": 1.0}
-_ANGLE_UNITS = {"deg": 3.141592653589793 / 180, "rad": 1.0}
-
-
-def _quantity(text: str, units: dict[str, float], what: str) -> float:
-    """``18.3in`` -> 0.46482: a number with an optional unit suffix (the first of ``units`` is not the default)."""
-    for suffix, scale in sorted(units.items(), key=lambda item: -len(item[0])):
-        if text.endswith(suffix):
-            number, factor = text[:-len(suffix)], scale
-            break
-    else:
-        number, factor = text, 1.0
-    try:
-        value = float(number) * factor
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"{what} must be a number with an optional unit ({', '.join(units)}), got {text!r}") from None
-    if value != value or value in (float("inf"), float("-inf")):
-        raise argparse.ArgumentTypeError(f"{what} must be finite, got {text!r}")
-    return value
-
-
-def _rpm(text: str) -> tuple[float, float, float]:
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        values = ()
-    if len(values) != 3:
-        raise argparse.ArgumentTypeError(f"--rpm takes three comma-separated speeds (M1,M2,M3), got {text!r}")
-    return values
-
-
-def cmd_avr3000_limits(args, say) -> int:
-    from derivations.motor_limits import axis_limits
-    say("evaluating the AVR 3000 model at 30 digits")
-    print(axis_limits(derivations.load("avr3000"), R=args.R, T=args.T, motor_rpm=args.rpm).table(args.units), end="")
-    return 0
-
-
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="kinegen", description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -189,15 +151,7 @@ def parser() -> argparse.ArgumentParser:
                            help="comma-separated backends (default numpy,c)")
         s.set_defaults(run=run)
     sub.add_parser("check", help="fail when generated/ is stale").set_defaults(run=cmd_check)
-    limits = sub.add_parser("avr3000-limits", help="AVR 3000 axis limits from motor speed limits (the Matlab script)")
-    limits.add_argument("--R", type=lambda t: _quantity(t, _LENGTH_UNITS, "--R"), default=18.3 * 0.0254,
-                        help="radial position, metres or with a unit: 18.3in, 464.82mm (default 18.3in)")
-    limits.add_argument("--T", type=lambda t: _quantity(t, _ANGLE_UNITS, "--T"), default=0.0,
-                        help="T position, radians or 30deg (default 0)")
-    limits.add_argument("--rpm", type=_rpm, default=(4500.0, 4500.0, 5500.0),
-                        help="motor speed limits M1,M2,M3 in rpm (default the script's 4500,4500,5500)")
-    limits.add_argument("--units", choices=("both", "si", "in"), default="both", help="table units (default both)")
-    limits.set_defaults(run=cmd_avr3000_limits)
+    avr_limits.add_parser(sub)
     return p
 
 
