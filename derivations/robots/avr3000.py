@@ -33,7 +33,7 @@ import sympy as sp
 
 from derivations.chain import simplify_entry
 from derivations.model import IKBranch, Requirement
-from derivations.spaces import SpacesModel, compose, coordinate_space, differentiate, position_map
+from derivations.spaces import SpaceMap, SpacesModel, compose, coordinate_space, differentiate, position_map
 
 INCH = sp.Rational(254, 10000)  # metres per inch, exact
 
@@ -113,7 +113,7 @@ def _check_identity(name, expressions, symbols):
         raise ValueError(f"{name}: the round trip is not the identity: {list(residual)}")
 
 
-def position_maps() -> dict[str, "SpaceMap"]:
+def position_maps() -> dict[str, SpaceMap]:
     """The twelve position maps between the four spaces, by kernel name."""
     theta1, theta2, theta3 = motor.position
     q1, q2, q3 = joint.position
