@@ -7,6 +7,7 @@
 #   make verify     kernels against SymPy at 30 digits, as a table
 #   make check      fail when generated/ is out of date with derivations/ and codegen/
 #   make report     the PDF report (report/build/kinegen-report.pdf); installs TeX Live if missing
+#   make avr-limits the AVR 3000 Matlab script: axis limits from motor limits (R=18.3in by default)
 #   make clean      remove the virtual environment, caches and built libraries
 
 PYTHON ?= python3
@@ -15,7 +16,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 KINEGEN := $(PY) -m codegen
 
-.PHONY: all install generate build sanitize verify check test report texlive clean
+.PHONY: all install generate build sanitize verify check test report texlive clean avr-limits
 
 all: $(STAMP)
 	$(KINEGEN) all
@@ -42,6 +43,9 @@ verify: build
 
 check: $(STAMP)
 	$(KINEGEN) check
+
+avr-limits: $(STAMP)
+	$(KINEGEN) --quiet avr3000-limits --R=$(or $(R),18.3in)
 
 test: build
 	$(PY) -m pytest

@@ -12,6 +12,8 @@
     kinegen all                                   generate, build, sanitize, verify (what `make` runs)
     kinegen latex ROBOT|FILE [--what W]            the LaTeX of a robot's derived equations (W: fk, jacobian, ik, ...)
     kinegen report                                build report/build/kinegen-report.pdf with pdflatex
+    kinegen avr3000-limits [--R 18.3in] [--T 0]   the AVR 3000 Matlab script: axis velocity and acceleration
+                                                  limits from motor speed limits
 
 Progress goes to stderr; ``--quiet`` silences it.  Exit status: 0 on success,
 1 when a check or a compilation fails, 2 on bad input (nothing is written then).
@@ -28,6 +30,7 @@ import sympy as sp
 
 import derivations
 
+from . import avr_limits
 from . import build as c_build
 from . import generate as gen
 from . import report as tex_report
@@ -311,6 +314,7 @@ def parser() -> argparse.ArgumentParser:
                         "or an extra a model carries (default: all)")
     s.set_defaults(run=cmd_latex)
     sub.add_parser("report", help="build the PDF report (needs pdflatex)", parents=[common]).set_defaults(run=cmd_report)
+    avr_limits.add_parser(sub)
     return p
 
 

@@ -14,11 +14,13 @@ import tempfile
 import time
 from pathlib import Path
 
+import sympy as sp
+
 import derivations
 from derivations.model import RobotModel
 
 from .backends import TEMPLATES, c_backend, float_literal, latex_backend, numpy_backend
-from .kernels import PreparedFunction, prepare
+from .kernels import STATUS_CODES, PreparedFunction, prepare
 
 __all__ = ["REPO", "GENERATED", "render_robot", "render_tree", "write_tree", "write_package", "stale_files",
            "robot_context", "OutputExistsError"]
@@ -68,7 +70,7 @@ def template_function(prepared: PreparedFunction, accepts_nonfinite: bool = Fals
         "name": prepared.name, "doc": prepared.doc, "arguments": prepared.arguments,
         "params_used": prepared.params_used, "arguments_used": prepared.arguments_used,
         "temporaries": prepared.temporaries, "outputs": outputs, "operations": prepared.operations,
-        "accepts_nonfinite": accepts_nonfinite,
+        "accepts_nonfinite": accepts_nonfinite, "checks": prepared.checks,
     }
 
 
@@ -90,6 +92,9 @@ def robot_context(model: RobotModel, origin: str, verbose: bool = False) -> dict
         if verbose:
             print(f"[cse] {model.name}.{function.name}: {prepared.operations} ops, "
                   f"{time.perf_counter() - start:.2f} s", file=sys.stderr)
+    defaults = {s: sp.Rational(v) for s, v in model.params.items()}
+    constants = [(name, float_literal(sp.sympify(value).xreplace(defaults).evalf(30)))
+                 for name, value in getattr(model, "constants", {}).items()]
     limits = []
     for lim in model.limits:
         limits.append("None" if lim is None else f"({float_literal(lim[0])}, {float_literal(lim[1])})")
@@ -98,7 +103,8 @@ def robot_context(model: RobotModel, origin: str, verbose: bool = False) -> dict
         "joints": [str(s) for s in model.q], "joint_types": list(model.joint_types),
         "task": list(model.task_names), "branches": [b.name for b in model.ik],
         "params": [(str(s), float_literal(v)) for s, v in model.params.items()],
-        "limits": limits, "functions": functions,
+        "limits": limits, "functions": functions, "constants": constants,
+        "status_codes": list(STATUS_CODES.items()) if any(f["checks"] for f in functions) else [],
     }
 
 

@@ -13,9 +13,11 @@ import sympy as sp
 
 from derivations.model import SymbolicFunction
 
-__all__ = ["PreparedFunction", "PreparedOutput", "prepare", "exact_floats"]
+__all__ = ["PreparedFunction", "PreparedOutput", "PreparedCheck", "prepare", "exact_floats", "STATUS_CODES"]
 
 TEMPORARY_PREFIX = "_t"
+# Status returned by a C kernel whose requirement fails (0 is success); also named in each header.
+STATUS_CODES = {"unreachable": 1, "singular": 2}
 
 
 @dataclass(frozen=True)
@@ -35,6 +37,17 @@ class PreparedOutput:
 
 
 @dataclass(frozen=True)
+class PreparedCheck:
+    """A requirement as printed: the temporaries it needs, computed just before it, and its condition."""
+
+    temporaries: tuple[tuple[str, sp.Basic], ...]
+    condition: sp.Basic
+    kind: str
+    code: int
+    message: str
+
+
+@dataclass(frozen=True)
 class PreparedFunction:
     name: str
     doc: str
@@ -43,12 +56,15 @@ class PreparedFunction:
     temporaries: tuple[tuple[str, sp.Basic], ...]
     outputs: tuple[PreparedOutput, ...]
     operations: int
+    checks: tuple[PreparedCheck, ...] = ()  # in order, before ``temporaries``
 
     @property
     def arguments_used(self) -> frozenset[str]:
         used = set()
-        for _, expr in self.temporaries:
+        for _, expr in self.temporaries + tuple(t for c in self.checks for t in c.temporaries):
             used |= {str(s) for s in expr.free_symbols}
+        for check in self.checks:
+            used |= {str(s) for s in check.condition.free_symbols}
         for out in self.outputs:
             for expr in out.entries:
                 used |= {str(s) for s in getattr(expr, "free_symbols", ())}
@@ -61,13 +77,23 @@ def exact_floats(expr: sp.Basic) -> sp.Basic:
 
 
 def prepare(function: SymbolicFunction, param_names: tuple[str, ...]) -> PreparedFunction:
-    """Flatten all outputs of ``function``, run one CSE over them, unflatten."""
+    """Flatten all outputs of ``function``, run one CSE over them, unflatten.
+
+    The conditions of ``function.requires`` join the same CSE, so that a
+    condition and the outputs read one temporary for a shared subexpression;
+    each condition is then printed after the temporaries it needs (and before
+    the rest), so nothing that could fail is computed before its check.
+    """
     flat: list[sp.Basic] = []
     for out in function.outputs:
         flat.extend(out.values)
+    flat.extend(r.condition for r in function.requires)
     flat = [exact_floats(sp.sympify(e)) for e in flat]
     symbols = sp.numbered_symbols(TEMPORARY_PREFIX, real=True)
     replacements, reduced = sp.cse(flat, symbols=symbols, order="canonical")
+    conditions = reduced[len(reduced) - len(function.requires):]
+    reduced = reduced[:len(reduced) - len(function.requires)]
+    checks, replacements = _stage_checks(function, replacements, conditions)
     outputs = []
     start = 0
     for out in function.outputs:
@@ -79,6 +105,31 @@ def prepare(function: SymbolicFunction, param_names: tuple[str, ...]) -> Prepare
         free |= {str(s) for s in e.free_symbols}
     params_used = tuple(p for p in param_names if p in free)
     operations = sum(sp.count_ops(e) for _, e in replacements) + sum(sp.count_ops(e) for e in reduced)
+    operations += sum(sp.count_ops(e) for c in checks for _, e in c.temporaries)
+    operations += sum(sp.count_ops(c.condition) for c in checks)
     arguments = tuple((a.name, tuple(str(s) for s in a.symbols), a.doc) for a in function.arguments)
     return PreparedFunction(function.name, function.doc, arguments, params_used,
-                            tuple((str(s), e) for s, e in replacements), tuple(outputs), int(operations))
+                            tuple((str(s), e) for s, e in replacements), tuple(outputs), int(operations),
+                            tuple(checks))
+
+
+def _stage_checks(function: SymbolicFunction, replacements, conditions):
+    """Split the CSE temporaries: those each check needs (in order), then the rest."""
+    if not function.requires:
+        return [], replacements
+    definitions = dict(replacements)
+    emitted: set[sp.Symbol] = set()
+    checks = []
+    for requirement, condition in zip(function.requires, conditions):
+        needed: set[sp.Symbol] = set()
+        pending = [s for s in condition.free_symbols if s in definitions]
+        while pending:
+            symbol = pending.pop()
+            if symbol not in needed and symbol not in emitted:
+                needed.add(symbol)
+                pending.extend(s for s in definitions[symbol].free_symbols if s in definitions)
+        stage = tuple((str(s), e) for s, e in replacements if s in needed)  # CSE order is a topological order
+        emitted |= needed
+        checks.append(PreparedCheck(stage, condition, requirement.kind, STATUS_CODES[requirement.kind],
+                                    requirement.message))
+    return checks, [(s, e) for s, e in replacements if s not in emitted]

@@ -55,15 +55,39 @@ def sample_params(model: RobotModel, rng: np.random.Generator) -> dict[str, floa
     return {str(s): (v * rng.uniform(0.7, 1.3) if v != 0 else rng.uniform(0.01, 0.1)) for s, v in model.params.items()}
 
 
-def sample_points(model: RobotModel, function: SymbolicFunction, rng: np.random.Generator, count: int):
-    """``count`` argument tuples for ``function`` (joint arguments within limits)."""
+def sample_points(model: RobotModel, function: SymbolicFunction, rng: np.random.Generator, count: int,
+                  param_sets=None):
+    """``count`` argument tuples for ``function`` (joint arguments within limits).
+
+    A model may give ``sample_ranges`` {symbol: (low, high)}, SymPy expressions
+    in its parameters: an argument whose symbols all have one is drawn from
+    those intervals, evaluated at each point's parameters (``param_sets[k]``,
+    ``None`` for the defaults), so that the point lies where the kernel is defined.
+    """
+    ranges = getattr(model, "sample_ranges", {})
     args = []
     for argument in function.arguments:
-        if argument.name == "q":
+        if argument.symbols and all(s in ranges for s in argument.symbols):
+            args.append(_sample_in_ranges(model, [ranges[s] for s in argument.symbols], rng, count, param_sets))
+        elif argument.name == "q":
             args.append(sample_joints(model, rng, count))
         else:
             args.append(rng.uniform(-1.0, 1.0, (count, len(argument.symbols))))
     return args
+
+
+def _sample_in_ranges(model, bounds, rng, count, param_sets):
+    symbols = {str(s): s for s in model.params}
+    columns = []
+    for low, high in bounds:
+        column = []
+        for k in range(count):
+            values = (param_sets[k] if param_sets and param_sets[k] else
+                      {n: model.params[s] for n, s in symbols.items()})
+            subs = {symbols[n]: sp.Rational(v) for n, v in values.items()}
+            column.append(rng.uniform(float(sp.sympify(low).xreplace(subs)), float(sp.sympify(high).xreplace(subs))))
+        columns.append(column)
+    return np.array(columns, dtype=float).T.reshape(count, len(bounds))
 
 
 def reference(function: SymbolicFunction, values: dict[sp.Symbol, float]) -> list[np.ndarray]:
@@ -101,8 +125,12 @@ def verify_model(model: RobotModel, modules: dict, samples: int = 6, seed: int =
     checks = []
     param_symbols = {str(s): s for s in model.params}
     for function in model.functions():
-        points = sample_points(model, function, rng, samples)
-        param_sets = [None] + [sample_params(model, rng) for _ in range(samples - 1)]
+        if getattr(model, "sample_ranges", None):  # points may depend on the parameters: draw those first
+            param_sets = [None] + [sample_params(model, rng) for _ in range(samples - 1)]
+            points = sample_points(model, function, rng, samples, param_sets)
+        else:
+            points = sample_points(model, function, rng, samples)
+            param_sets = [None] + [sample_params(model, rng) for _ in range(samples - 1)]
         worst = {backend: 0.0 for backend in modules}
         for k in range(samples):
             values = {}

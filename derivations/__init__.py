@@ -5,8 +5,12 @@
 >>> model.task.T
 Matrix([[l1*cos(q1) + l2*cos(q1 + q2), l1*sin(q1) + l2*sin(q1 + q2)]])
 
-``ROBOTS`` maps each registered robot name to its description file; ``load``
-also takes the path of a user's description file.
+``ROBOTS`` maps each registered robot name to the file that defines it: a
+description ``robots/<name>.toml`` (a DH chain, optionally extended by a module
+``robots/<name>.py`` with ``extend(model)``), or a module ``robots/<name>.py``
+with no description beside it, whose ``build()`` returns the model (for robots
+that are not one chain, such as the AVR 3000).  ``load`` also takes the path of
+a user's description file.
 """
 from __future__ import annotations
 
@@ -23,7 +27,16 @@ __all__ = ["ROBOTS", "load", "RobotModel", "SymbolicFunction", "IKBranch", "Desc
            "UnknownRobotError"]
 
 _ROBOT_DIR = Path(__file__).resolve().parent / "robots"
-ROBOTS: dict[str, Path] = {p.stem: p for p in sorted(_ROBOT_DIR.glob("*.toml"))}
+
+def _registry() -> dict[str, Path]:
+    robots = {p.stem: p for p in _ROBOT_DIR.glob("*.toml")}
+    for module in _ROBOT_DIR.glob("*.py"):
+        if not module.stem.startswith("_") and module.stem not in robots:
+            robots[module.stem] = module  # a robot built in Python: the module defines build()
+    return dict(sorted(robots.items()))
+
+
+ROBOTS: dict[str, Path] = _registry()
 
 
 class UnknownRobotError(KeyError, ValueError):
@@ -40,6 +53,8 @@ def load(name: str | Path, *, verbose: bool = False) -> RobotModel:
     description.  Derivation results are cached on disk (``derivations.cache``).
     """
     path = _resolve(name)
+    if path.suffix == ".py":
+        return _load_module(path, verbose)
     description = read_description(path)
     text = path.read_bytes()
     extension = _ROBOT_DIR / f"{description.name}.py" if path.parent == _ROBOT_DIR else None
@@ -47,6 +62,15 @@ def load(name: str | Path, *, verbose: bool = False) -> RobotModel:
     model = cached(f"model-{description.name}", text, lambda: _derive(description, extension))
     if verbose:
         print(f"[derive] {description.name}: {time.perf_counter() - start:.2f} s", file=sys.stderr)
+    return model
+
+
+def _load_module(path: Path, verbose: bool) -> RobotModel:
+    module = importlib.import_module(f"derivations.robots.{path.stem}")
+    start = time.perf_counter()
+    model = cached(f"model-{path.stem}", path.read_bytes(), module.build)
+    if verbose:
+        print(f"[derive] {path.stem}: {time.perf_counter() - start:.2f} s", file=sys.stderr)
     return model
 
 

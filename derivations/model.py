@@ -15,7 +15,7 @@ import sympy as sp
 
 from .chain import PRISMATIC, REVOLUTE, Chain, simplify_entry
 
-__all__ = ["Argument", "Output", "SymbolicFunction", "IKBranch", "RobotModel", "task_coordinates"]
+__all__ = ["Argument", "Output", "Requirement", "SymbolicFunction", "IKBranch", "RobotModel", "task_coordinates"]
 
 
 @dataclass(frozen=True)
@@ -49,13 +49,43 @@ class Output:
 
 
 @dataclass(frozen=True)
+class Requirement:
+    """A condition the arguments of a kernel must meet for its outputs to exist.
+
+    ``kind`` is ``"unreachable"`` (the target lies outside the workspace) or
+    ``"singular"`` (a configuration where the map divides by zero).  The
+    generated numpy kernel raises ``ValueError`` (subclasses ``UnreachableError``
+    and ``SingularError``) naming ``message``; the C kernel returns a status
+    code and writes no output.  Write ``condition`` on the very subexpression the
+    outputs use (the argument of ``acos``, the radicand under a denominator):
+    conditions and outputs share one CSE, so the test is made on the same
+    floating-point value the outputs are computed from.
+    """
+
+    condition: sp.Basic
+    kind: str
+    message: str
+
+    KINDS = ("unreachable", "singular")
+
+    def __post_init__(self):
+        if self.kind not in self.KINDS:
+            raise ValueError(f"requirement kind must be one of {self.KINDS}, got {self.kind!r}")
+
+
+@dataclass(frozen=True)
 class SymbolicFunction:
-    """One kernel to generate: ``name(arguments..., **params) -> outputs``."""
+    """One kernel to generate: ``name(arguments..., **params) -> outputs``.
+
+    ``requires`` lists the conditions checked, in order, before any output is
+    computed (empty for maps defined everywhere).
+    """
 
     name: str
     arguments: tuple[Argument, ...]
     outputs: tuple[Output, ...]
     doc: str = ""
+    requires: tuple[Requirement, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -132,7 +162,9 @@ class RobotModel:
     Attributes: ``q`` joint symbols q1..qn; ``params`` {Symbol: default float, SI};
     ``frames`` [T_0, ..., T_n] (base to tool; the tool transform is part of the
     last one); ``fk`` = ``frames[-1]``; ``jacobian`` 6 x n geometric ``[v; w]``;
-    ``task`` m x 1; ``task_jacobian`` m x n; ``ik`` list of :class:`IKBranch`.
+    ``task`` m x 1; ``task_jacobian`` m x n; ``ik`` list of :class:`IKBranch`;
+    ``constants`` {NAME: expression in the parameters}, emitted as module
+    constants evaluated at the default parameters.
     """
 
     name: str
@@ -150,6 +182,7 @@ class RobotModel:
     chain: Chain | None = None
     ik: list[IKBranch] = field(default_factory=list)
     notes: dict[str, str] = field(default_factory=dict)
+    constants: dict[str, sp.Expr] = field(default_factory=dict)
 
     @property
     def n(self) -> int:

@@ -10,7 +10,7 @@ Do not edit by hand.
 """
 import importlib
 
-ROBOTS = ("adept_three", "planar_2r", "planar_3r", "planar_pp", "planar_rp", "puma560", "scorbot_er7", )
+ROBOTS = ("adept_three", "avr3000", "planar_2r", "planar_3r", "planar_pp", "planar_rp", "puma560", "scorbot_er7", )
 BACKENDS = ("numpy", "c")
 
 

@@ -33,7 +33,8 @@ class ExactArithmeticMixin:
 
     Exact constants print as one correctly rounded double; small integer powers
     print as products (``x*x``), which is faster than ``pow`` and exact in the
-    same way; ``x**(1/2)`` prints as ``sqrt``.
+    same way; ``x**(1/2)`` prints as ``sqrt`` and ``x**(k/2)`` as a product
+    with one ``sqrt``.
     """
 
     _sqrt_name = "sqrt"
@@ -61,4 +62,12 @@ class ExactArithmeticMixin:
             return f"{self._sqrt_name}({self._print(base)})"
         if exponent == -sp.S.Half:
             return f"1.0/{self._sqrt_name}({self._print(base)})"
-        return super()._print_Pow(expr, rational=rational)
+        if exponent.is_Rational and exponent.q == 2 and abs(exponent.p) <= 7:
+            # x**(k/2) = x*...*x*sqrt(x): derivatives of sqrt and acos give (1 - u**2)**(-3/2).
+            factor = self.parenthesize(base, PRECEDENCE["Mul"], strict=True)
+            whole = (abs(int(exponent.p)) - 1) // 2
+            product = "(" + "*".join([factor] * whole + [f"{self._sqrt_name}({self._print(base)})"]) + ")"
+            return product if exponent > 0 else f"1.0/{product}"
+        if rational:
+            return super()._print_Pow(expr, rational=rational)
+        return super()._print_Pow(expr)

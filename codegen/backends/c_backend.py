@@ -35,6 +35,11 @@ def prototypes(context: dict, suffix: str = "") -> list[str]:
         sizes = ", ".join(f"{a[0]}[{len(a[1])}]" for a in f["arguments"])
         out_sizes = ", ".join(f"{o['name']}[{o['size']}]" for o in f["outputs"])
         lines.append(f"/* {f['name']}: {sizes} -> {out_sizes} (row-major). {f['doc']} */")
+        if f["checks"]:  # returns a status code; the batch counts failures and may record each item's status
+            lines.append(f"int {name}_{f['name']}({inputs}const {name}_params *params{outputs});")
+            lines.append(f"size_t {name}_{f['name']}_batch(size_t count, {inputs}const {name}_params *params{outputs}, "
+                         "int *status);")
+            continue
         lines.append(f"void {name}_{f['name']}({inputs}const {name}_params *params{outputs});")
         lines.append(f"void {name}_{f['name']}_batch(size_t count, {inputs}const {name}_params *params{outputs});")
     return lines
@@ -46,6 +51,8 @@ def declarations(context: dict, for_cffi: bool) -> str:
     lines = [f"/* Robot parameters (SI units). */", f"typedef struct {name}_params {{ {fields} }} {name}_params;"]
     if not for_cffi:
         lines.append(f"extern const {name}_params {name}_default_params;")
+    elif context["status_codes"]:  # the header's status codes, for callers through cffi
+        lines.extend(f"#define {name.upper()}_{kind.upper()} {code}" for kind, code in context["status_codes"])
     lines.append("")
     lines.extend(prototypes(context))
     return "\n".join(lines)

@@ -480,7 +480,8 @@ class _Writer:
         if self.layout.fits(head, M):
             return ("\\begin{equation*}\n" + f"{head} = {self.layout.matrix(M)}" + self.tag(key)
                     + "\n\\end{equation*}")
-        entry = entry or (lhs + "_{{{ij}}}")
+        # lhs may hold TeX braces (\mathrm{...}): escape them before using it as a format string
+        entry = entry or (lhs.replace("{", "{{").replace("}", "}}") + "_{{{ij}}}")
         rows_shown = M.rows - 1 if skip_last_row else M.rows
         pairs, zeros = [], []
         for r in range(rows_shown):
