@@ -52,11 +52,15 @@ def sample_joints(model: RobotModel, rng: np.random.Generator, count: int) -> np
 
 def sample_params(model: RobotModel, rng: np.random.Generator) -> dict[str, float]:
     """Parameters moved away from their defaults, to exercise the keyword path."""
+    if hasattr(model, "sample_parameters"):  # a kernel set says where its formulas hold
+        return model.sample_parameters(rng)
     return {str(s): (v * rng.uniform(0.7, 1.3) if v != 0 else rng.uniform(0.01, 0.1)) for s, v in model.params.items()}
 
 
 def sample_points(model: RobotModel, function: SymbolicFunction, rng: np.random.Generator, count: int):
     """``count`` argument tuples for ``function`` (joint arguments within limits)."""
+    if hasattr(model, "sample_arguments"):  # a kernel set says where its formulas hold
+        return model.sample_arguments(function, rng, count)
     args = []
     for argument in function.arguments:
         if argument.name == "q":

@@ -6,7 +6,9 @@
 Matrix([[l1*cos(q1) + l2*cos(q1 + q2), l1*sin(q1) + l2*sin(q1 + q2)]])
 
 ``ROBOTS`` maps each registered robot name to its description file; ``load``
-also takes the path of a user's description file.
+also takes the path of a user's description file.  ``KERNEL_SETS`` names the
+generated packages that are not robots (time laws, a paper's path), each built
+by the module of that name (``load_kernel_set``).
 """
 from __future__ import annotations
 
@@ -17,13 +19,17 @@ from pathlib import Path
 
 from .cache import cached
 from .description import Description, DescriptionError, read_description
+from .kernelset import KernelSet
 from .model import IKBranch, RobotModel, SymbolicFunction, build_chain_model
 
 __all__ = ["ROBOTS", "load", "RobotModel", "SymbolicFunction", "IKBranch", "DescriptionError",
-           "UnknownRobotError"]
+           "UnknownRobotError", "KERNEL_SETS", "KernelSet", "load_kernel_set"]
 
 _ROBOT_DIR = Path(__file__).resolve().parent / "robots"
 ROBOTS: dict[str, Path] = {p.stem: p for p in sorted(_ROBOT_DIR.glob("*.toml"))}
+# Generated packages that are not robots: name -> the module whose kernel_set() builds it.
+KERNEL_SETS: dict[str, Path] = {name: Path(__file__).resolve().parent / f"{name}.py"
+                                for name in ("trajectory", "scorbot_path")}
 
 
 class UnknownRobotError(KeyError, ValueError):
@@ -71,3 +77,13 @@ def _derive(description: Description, extension: Path | None) -> RobotModel:
         module = importlib.import_module(f"derivations.robots.{description.name}")
         module.extend(model)
     return model
+
+
+def load_kernel_set(name: str) -> KernelSet:
+    """The kernels of a non-robot package (see ``KERNEL_SETS``), cached on disk like a model."""
+    if name not in KERNEL_SETS:
+        raise UnknownRobotError(f"unknown kernel set {name!r}; known kernel sets: {', '.join(KERNEL_SETS)}")
+    module = importlib.import_module(f"derivations.{name}")
+    # A kernel set may read robot models (the SCORBOT path does): their descriptions are part of the key.
+    content = KERNEL_SETS[name].read_bytes() + b"".join(p.read_bytes() for p in ROBOTS.values())
+    return cached(f"kernels-{name}", content, module.kernel_set)

@@ -61,4 +61,5 @@ class ExactArithmeticMixin:
             return f"{self._sqrt_name}({self._print(base)})"
         if exponent == -sp.S.Half:
             return f"1.0/{self._sqrt_name}({self._print(base)})"
-        return super()._print_Pow(expr, rational=rational)
+        # Only the Python printers take ``rational``; SymPy's C printers do not.
+        return super()._print_Pow(expr, rational=rational) if rational else super()._print_Pow(expr)
