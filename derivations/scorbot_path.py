@@ -154,7 +154,9 @@ def _wrist_line(model, theta2, start, end):
 def tool_point_from_theta2(model, theta2, start=(M[0], M[2]), end=(N[0], N[2])) -> tuple[sp.Expr, sp.Expr]:
     """(x, z) of P5 in metres for the elbow angle ``theta2`` (rad), by Eqs. 4.2-4.7.
 
-    ``start`` and ``end`` are (x, z) of P5 at M and N (the path lies in y = 0).
+    ``start`` and ``end`` are (x, z) of P5 at M and N (the path lies in y = 0);
+    the paper's slope form of the line needs them at different x.  Eq. 4.5 takes
+    the larger-x intersection, which is the elbow-up wrist on this path.
     """
     x, z, _ = _wrist_line(model, theta2, start, end)
     return x, z
@@ -200,7 +202,8 @@ def kernel_set(model=None) -> KernelSet:
 
     ``tool_point_from_theta2(theta2_state)``: theta2, its rate and acceleration
     (..., 3) -> ``p`` (..., 3, 2): rows position, velocity, acceleration of P5,
-    columns x, z; ``valid`` (...) where the elbow circle meets the line (Eqs. 4.2-4.7).
+    columns x, z; ``valid`` (...) where the elbow circle meets the line (Eqs. 4.2-4.7;
+    the line in the paper's slope form, so xM != xN).
 
     ``joints_along_line(path)``: s, ds/dt, d2s/dt2 (..., 3) -> ``q`` (..., 3, 5):
     rows joint angles, rates, accelerations on the paper's branch at
