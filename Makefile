@@ -8,15 +8,17 @@
 #   make check      fail when generated/ is out of date with derivations/ and codegen/
 #   make report     the PDF report (report/build/kinegen-report.pdf); installs TeX Live if missing
 #   make avr-limits the AVR 3000 Matlab script: axis limits from motor limits (R=18.3in by default)
+#   make plots      trajectory plots as PNG files in plots/ (installs matplotlib, the 'plots' extra)
 #   make clean      remove the virtual environment, caches and built libraries
 
 PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
+PLOTS_STAMP := $(VENV)/.plots-installed
 KINEGEN := $(PY) -m codegen
 
-.PHONY: all install generate build sanitize verify check test report texlive clean avr-limits
+.PHONY: all install generate build sanitize verify check test report texlive plots clean avr-limits
 
 all: $(STAMP)
 	$(KINEGEN) all
@@ -28,6 +30,11 @@ $(STAMP): pyproject.toml
 	touch $@
 
 install: $(STAMP)
+
+# matplotlib, for `make plots` and the plot tests (about 20 s to install, once)
+$(PLOTS_STAMP): $(STAMP)
+	$(PY) -m pip install --quiet --disable-pip-version-check -e '.[dev,plots]'
+	touch $@
 
 generate: $(STAMP)
 	$(KINEGEN) generate
@@ -47,7 +54,9 @@ check: $(STAMP)
 avr-limits: $(STAMP)
 	$(KINEGEN) --quiet avr3000-limits --R=$(or $(R),18.3in)
 
+# matplotlib is installed when it can be; without it the plot tests skip, saying why.
 test: build
+	@$(MAKE) --no-print-directory $(PLOTS_STAMP) || echo "make test: matplotlib not installed; the plot tests will skip"
 	$(PY) -m pytest
 
 # The report needs pdflatex; `make test` does not (it skips the report build without it).
@@ -63,6 +72,8 @@ texlive:
 
 report: $(STAMP) texlive
 	$(KINEGEN) report
+plots: $(PLOTS_STAMP)
+	$(PY) -m codegen.plots --out plots
 
 clean:
 	rm -rf $(VENV) .cache build *.egg-info

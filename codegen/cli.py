@@ -61,13 +61,19 @@ def _is_file(target: str) -> bool:
 
 
 def _registered(names: list[str]) -> list[str]:
+    """Registered robots and kernel sets (all of them when ``names`` is empty)."""
     if not names:
-        return list(derivations.ROBOTS)
+        return list(derivations.ROBOTS) + list(derivations.KERNEL_SETS)
     for n in names:
-        if n not in derivations.ROBOTS:
+        if n not in derivations.ROBOTS and n not in derivations.KERNEL_SETS:
             raise InputError(f"unknown robot {n!r}; known robots: {', '.join(derivations.ROBOTS)} "
-                             "(or give a .toml description file)")
+                             f"(kernel sets: {', '.join(derivations.KERNEL_SETS)}; or give a .toml description file)")
     return names
+
+
+def _symbolic(name: str):
+    """The model of a registered robot or kernel set."""
+    return derivations.load_kernel_set(name) if name in derivations.KERNEL_SETS else derivations.load(name)
 
 
 def _load(target: str, say) -> tuple:
@@ -179,7 +185,7 @@ def cmd_build(args, say) -> int:
 
 def cmd_sanitize(args, say) -> int:
     for name in _registered(args.robots):
-        model = derivations.load(name)
+        model = _symbolic(name)
         context = gen.robot_context(model, "")
         say(f"{name}: sanitizer run (ASan + UBSan) of every entry point")
         c_build.sanitizer_run(gen.GENERATED / name, name, context["functions"], model.n)
@@ -214,7 +220,7 @@ def cmd_verify(args, say) -> int:
             importlib.invalidate_caches()
             modules = {b: importlib.import_module(f"generated.{name}.{'numpy_kernels' if b == 'numpy' else 'c_kernels'}")
                        for b in args.backends}
-            checks.extend(verify_model(derivations.load(name), modules, samples=args.samples))
+            checks.extend(verify_model(_symbolic(name), modules, samples=args.samples))
     print(format_table(checks))
     failed = [c for c in checks if not c.ok]
     print(f"\n{len(checks) - len(failed)} passed, {len(failed)} failed "

@@ -17,6 +17,7 @@ from pathlib import Path
 import sympy as sp
 
 import derivations
+from derivations.kernelset import KernelSet
 from derivations.model import RobotModel
 
 from .backends import TEMPLATES, c_backend, float_literal, latex_backend, numpy_backend
@@ -112,24 +113,29 @@ def render_robot(model: RobotModel, description: Path | None = None, backends=("
                  verbose: bool = False, latex: bool = True) -> dict[str, str]:
     """{file name: text} of one robot's package (kernels, and ``<name>.tex`` unless ``latex`` is off)."""
     context = robot_context(model, describe_origin(model, description), verbose)
+    init = "kernel_set_init.py.j2" if isinstance(model, KernelSet) else "package_init.py.j2"
     files = {
-        "__init__.py": TEMPLATES.get_template("package_init.py.j2").render(context),
+        "__init__.py": TEMPLATES.get_template(init).render(context),
         "_runtime.py": TEMPLATES.get_template("runtime.py.j2").render(context),
     }
     for backend in backends:
         files.update(BACKENDS[backend].render(context))
-    if latex:
+    if latex and not isinstance(model, KernelSet):  # the LaTeX fragment describes a robot
         files.update(latex_backend.render(model, context["origin"]))
     return files
 
 
 def render_tree(names=None, verbose: bool = False) -> dict[str, str]:
-    """The whole ``generated/`` tree as {relative path: text}."""
-    names = list(derivations.ROBOTS) if names is None else list(names)
-    tree = {"__init__.py": TEMPLATES.get_template("generated_init.py.j2").render(robots=names)}
+    """The whole ``generated/`` tree as {relative path: text}: every robot, then every kernel set."""
+    names = list(derivations.ROBOTS) + list(derivations.KERNEL_SETS) if names is None else list(names)
+    robots = [n for n in names if n not in derivations.KERNEL_SETS]
+    tree = {"__init__.py": TEMPLATES.get_template("generated_init.py.j2").render(robots=robots)}
     for name in names:
-        model = derivations.load(name, verbose=verbose)
-        for filename, text in render_robot(model, derivations.ROBOTS[name], verbose=verbose).items():
+        if name in derivations.KERNEL_SETS:
+            model, source = derivations.load_kernel_set(name), derivations.KERNEL_SETS[name]
+        else:
+            model, source = derivations.load(name, verbose=verbose), derivations.ROBOTS[name]
+        for filename, text in render_robot(model, source, verbose=verbose).items():
             tree[f"{name}/{filename}"] = text
     return tree
 

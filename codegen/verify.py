@@ -52,6 +52,8 @@ def sample_joints(model: RobotModel, rng: np.random.Generator, count: int) -> np
 
 def sample_params(model: RobotModel, rng: np.random.Generator) -> dict[str, float]:
     """Parameters moved away from their defaults, to exercise the keyword path."""
+    if hasattr(model, "sample_parameters"):  # a kernel set says where its formulas hold
+        return model.sample_parameters(rng)
     return {str(s): (v * rng.uniform(0.7, 1.3) if v != 0 else rng.uniform(0.01, 0.1)) for s, v in model.params.items()}
 
 
@@ -64,6 +66,8 @@ def sample_points(model: RobotModel, function: SymbolicFunction, rng: np.random.
     those intervals, evaluated at each point's parameters (``param_sets[k]``,
     ``None`` for the defaults), so that the point lies where the kernel is defined.
     """
+    if hasattr(model, "sample_arguments"):  # a kernel set says where its formulas hold
+        return model.sample_arguments(function, rng, count)
     ranges = getattr(model, "sample_ranges", {})
     args = []
     for argument in function.arguments:

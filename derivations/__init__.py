@@ -11,6 +11,9 @@ description ``robots/<name>.toml`` (a DH chain, optionally extended by a module
 with no description beside it, whose ``build()`` returns the model (for robots
 that are not one chain, such as the AVR 3000).  ``load`` also takes the path of
 a user's description file.
+``KERNEL_SETS`` names the
+generated packages that are not robots (time laws, a paper's path), each built
+by the module of that name (``load_kernel_set``).
 """
 from __future__ import annotations
 
@@ -21,10 +24,11 @@ from pathlib import Path
 
 from .cache import cached
 from .description import Description, DescriptionError, read_description
+from .kernelset import KernelSet
 from .model import IKBranch, RobotModel, SymbolicFunction, build_chain_model
 
 __all__ = ["ROBOTS", "load", "RobotModel", "SymbolicFunction", "IKBranch", "DescriptionError",
-           "UnknownRobotError"]
+           "UnknownRobotError", "KERNEL_SETS", "KernelSet", "load_kernel_set"]
 
 _ROBOT_DIR = Path(__file__).resolve().parent / "robots"
 
@@ -37,6 +41,9 @@ def _registry() -> dict[str, Path]:
 
 
 ROBOTS: dict[str, Path] = _registry()
+# Generated packages that are not robots: name -> the module whose kernel_set() builds it.
+KERNEL_SETS: dict[str, Path] = {name: Path(__file__).resolve().parent / f"{name}.py"
+                                for name in ("trajectory", "scorbot_path")}
 
 
 class UnknownRobotError(KeyError, ValueError):
@@ -95,3 +102,13 @@ def _derive(description: Description, extension: Path | None) -> RobotModel:
         module = importlib.import_module(f"derivations.robots.{description.name}")
         module.extend(model)
     return model
+
+
+def load_kernel_set(name: str) -> KernelSet:
+    """The kernels of a non-robot package (see ``KERNEL_SETS``), cached on disk like a model."""
+    if name not in KERNEL_SETS:
+        raise UnknownRobotError(f"unknown kernel set {name!r}; known kernel sets: {', '.join(KERNEL_SETS)}")
+    module = importlib.import_module(f"derivations.{name}")
+    # A kernel set may read robot models (the SCORBOT path does): their descriptions are part of the key.
+    content = KERNEL_SETS[name].read_bytes() + b"".join(p.read_bytes() for p in ROBOTS.values())
+    return cached(f"kernels-{name}", content, module.kernel_set)
