@@ -149,7 +149,7 @@ class WrapAngle(sp.Function):
 
     @classmethod
     def eval(cls, theta):
-        if theta.is_Number:
+        if theta.is_number:  # a number or an exact constant expression such as 3*pi/2
             return cls.formula(theta)
         return None
 

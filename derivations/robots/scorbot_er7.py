@@ -17,8 +17,12 @@ In the arm's vertical plane, with the horizontal distance from the shoulder
 The shoulder flip turns the base by pi (theta1 = atan2(-y, -x), rho = -sqrt(x^2 + y^2))
 and reaches P5 over the back of the robot, where the links allow it.
 
-Branch names (stable; trajectories build on them), ``up`` and ``down`` meaning the
-elbow O3 above or below the line from the shoulder O2 to the wrist O4:
+Branch names (stable; trajectories build on them).  ``up`` and ``down`` say whether
+the elbow O3 lies above or below the line from the shoulder O2 to the wrist O4
+while the wrist is ahead of the shoulder in the direction the arm reaches (along
+the gripper for the direct branches, against it for the flips); the sign of
+theta3 names the branch everywhere, and where the wrist passes behind the
+shoulder (targets close to the base axis) above and below swap:
 
 =============================  ==========================  ===============
 name                           theta1                      theta3
@@ -30,7 +34,7 @@ name                           theta1                      theta3
 =============================  ==========================  ===============
 
 The paper's numbers (theta2 = 13.4685 deg at M, 126.62 deg at N, Eq. 4.1) are
-on ``elbow_up``, theta3 = -acos(...); Eq. 3.5 prints +acos (README, Errata E2).
+on ``elbow_up``, theta3 = -acos(...); Eq. 3.5 prints +acos (README, Errata IK1).
 """
 from __future__ import annotations
 

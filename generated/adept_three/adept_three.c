@@ -346,8 +346,14 @@ int adept_three_ik(const double *restrict _x, const adept_three_params *restrict
     valid[0] = _t11;
     valid[1] = _t11;
     {
-        int branch, joint, valid_branches = 0;
+        int branch, joint, finite_target = 1, valid_branches = 0;
+        for (joint = 0; joint < 4; ++joint) {
+            finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
+        }
         for (branch = 0; branch < 2; ++branch) {
+            if (!finite_target) {
+                valid[branch] = 0;
+            }
             for (joint = 0; joint < 4; ++joint) {
                 if (!isfinite(Q[4 * branch + joint])) {
                     valid[branch] = 0;  /* no NaN leaks out as a valid answer */

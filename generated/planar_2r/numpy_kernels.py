@@ -193,7 +193,8 @@ def ik(x, *, l1=0.559, l2=0.508):
     valid = numpy.empty(_batch + (2,), dtype=bool)
     valid[..., 0] = _t7
     valid[..., 1] = _t7
-    valid &= numpy.isfinite(Q).all(axis=-1)  # no NaN leaks out as a valid answer
+    # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
+    valid &= numpy.isfinite(Q).all(axis=-1) & numpy.isfinite(_x).all(axis=-1)[..., None]
     return Q, valid
 
 

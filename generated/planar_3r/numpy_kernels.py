@@ -251,7 +251,8 @@ def ik(x, *, l1=0.5, l2=0.4, l3=0.2):
     valid = numpy.empty(_batch + (2,), dtype=bool)
     valid[..., 0] = _t21
     valid[..., 1] = _t21
-    valid &= numpy.isfinite(Q).all(axis=-1)  # no NaN leaks out as a valid answer
+    # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
+    valid &= numpy.isfinite(Q).all(axis=-1) & numpy.isfinite(_x).all(axis=-1)[..., None]
     return Q, valid
 
 

@@ -326,8 +326,14 @@ int planar_3r_ik(const double *restrict _x, const planar_3r_params *restrict par
     valid[0] = _t21;
     valid[1] = _t21;
     {
-        int branch, joint, valid_branches = 0;
+        int branch, joint, finite_target = 1, valid_branches = 0;
+        for (joint = 0; joint < 3; ++joint) {
+            finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
+        }
         for (branch = 0; branch < 2; ++branch) {
+            if (!finite_target) {
+                valid[branch] = 0;
+            }
             for (joint = 0; joint < 3; ++joint) {
                 if (!isfinite(Q[3 * branch + joint])) {
                     valid[branch] = 0;  /* no NaN leaks out as a valid answer */

@@ -136,7 +136,8 @@ def ik(x):
     Q[..., 0, 1] = x
     valid = numpy.empty(_batch + (1,), dtype=bool)
     valid[..., 0] = True
-    valid &= numpy.isfinite(Q).all(axis=-1)  # no NaN leaks out as a valid answer
+    # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
+    valid &= numpy.isfinite(Q).all(axis=-1) & numpy.isfinite(_x).all(axis=-1)[..., None]
     return Q, valid
 
 

@@ -189,8 +189,14 @@ int planar_pp_ik(const double *restrict _x, const planar_pp_params *restrict par
     Q[1] = x;
     valid[0] = 1;
     {
-        int branch, joint, valid_branches = 0;
+        int branch, joint, finite_target = 1, valid_branches = 0;
+        for (joint = 0; joint < 2; ++joint) {
+            finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
+        }
         for (branch = 0; branch < 1; ++branch) {
+            if (!finite_target) {
+                valid[branch] = 0;
+            }
             for (joint = 0; joint < 2; ++joint) {
                 if (!isfinite(Q[2 * branch + joint])) {
                     valid[branch] = 0;  /* no NaN leaks out as a valid answer */

@@ -736,7 +736,8 @@ def ik(x, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     valid[..., 5] = _t140
     valid[..., 6] = _t139
     valid[..., 7] = _t139
-    valid &= numpy.isfinite(Q).all(axis=-1)  # no NaN leaks out as a valid answer
+    # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
+    valid &= numpy.isfinite(Q).all(axis=-1) & numpy.isfinite(_x).all(axis=-1)[..., None]
     return Q, valid
 
 

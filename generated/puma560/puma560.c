@@ -889,8 +889,14 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
     valid[6] = _t139;
     valid[7] = _t139;
     {
-        int branch, joint, valid_branches = 0;
+        int branch, joint, finite_target = 1, valid_branches = 0;
+        for (joint = 0; joint < 12; ++joint) {
+            finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
+        }
         for (branch = 0; branch < 8; ++branch) {
+            if (!finite_target) {
+                valid[branch] = 0;
+            }
             for (joint = 0; joint < 6; ++joint) {
                 if (!isfinite(Q[6 * branch + joint])) {
                     valid[branch] = 0;  /* no NaN leaks out as a valid answer */

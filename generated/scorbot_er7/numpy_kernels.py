@@ -381,7 +381,8 @@ def ik(x, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     valid[..., 1] = _t31
     valid[..., 2] = _t32
     valid[..., 3] = _t32
-    valid &= numpy.isfinite(Q).all(axis=-1)  # no NaN leaks out as a valid answer
+    # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
+    valid &= numpy.isfinite(Q).all(axis=-1) & numpy.isfinite(_x).all(axis=-1)[..., None]
     return Q, valid
 
 

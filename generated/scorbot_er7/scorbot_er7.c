@@ -455,8 +455,14 @@ int scorbot_er7_ik(const double *restrict _x, const scorbot_er7_params *restrict
     valid[2] = _t32;
     valid[3] = _t32;
     {
-        int branch, joint, valid_branches = 0;
+        int branch, joint, finite_target = 1, valid_branches = 0;
+        for (joint = 0; joint < 3; ++joint) {
+            finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
+        }
         for (branch = 0; branch < 4; ++branch) {
+            if (!finite_target) {
+                valid[branch] = 0;
+            }
             for (joint = 0; joint < 5; ++joint) {
                 if (!isfinite(Q[5 * branch + joint])) {
                     valid[branch] = 0;  /* no NaN leaks out as a valid answer */
