@@ -609,3 +609,35 @@ def test_within_limits_agrees_between_backends_and_on_unlimited_robots():
         np.testing.assert_array_equal(kn.within_limits(Q), kc.within_limits(Q))
     k = kernels("planar_2r", "numpy")
     assert k.within_limits([[10.0, -10.0], [np.inf, 0.0]]).tolist() == [True, False]
+
+
+# --- the symbolic branches at a singular pose, and the README ------------------------------------------------
+
+def test_puma_kernels_match_sympy_at_a_wrist_singular_pose(models):
+    """The Piecewise choice theta4 := 0 holds in SymPy at 30 digits as in both kernels."""
+    from codegen.verify import reference
+    m = models["puma560"]
+    function = m.ik_function()
+    kn = kernels("puma560", "numpy")
+    x = kn.task([0.3, -0.4, 0.5, 1.1, 0.0, -0.7])
+    values = dict(zip(m.task_symbols, x))
+    values.update(m.params)
+    Q_ref, valid_ref = reference(function, values)
+    for backend in BACKENDS:
+        Q, valid = kernels("puma560", backend).ik(x)
+        np.testing.assert_array_equal(valid, valid_ref)
+        difference = np.abs(Q - Q_ref)
+        assert np.all((difference < 1e-12) | (np.abs(difference - 2 * np.pi) < 1e-12))
+    assert (Q_ref[:, 3] == 0).sum() >= 1
+
+
+def test_readme_ik_example_runs():
+    from pathlib import Path
+    text = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    section = text[text.index("## Inverse kinematics"):]
+    block = section[section.index("```python") + len("```python"):]
+    block = block[:block.index("```")]
+    namespace = {}
+    exec(compile(block, "README.md", "exec"), namespace)
+    assert namespace["valid"].all() and namespace["usable"].tolist() == [True, True, False, False]
+    assert math.degrees(namespace["q"][1]) == pytest.approx(13.4685, abs=5e-5)
