@@ -12,6 +12,8 @@ import sys
 import time
 from pathlib import Path
 
+import sympy as sp
+
 import derivations
 from derivations.model import POSE_NAMES, REVOLUTE, RobotModel
 
@@ -63,6 +65,9 @@ def template_function(prepared: PreparedFunction, accepts_nonfinite: bool = Fals
         # The inverse kinematics kernel returns the number of valid branches in C
         # and marks a branch invalid wherever its joint values are not finite.
         "is_ik": prepared.name == "ik",
+        # Temporaries holding a truth value (relations are Boolean but not is_Boolean in SymPy).
+        "boolean_temporaries": frozenset(name for name, expr in prepared.temporaries
+                                         if isinstance(expr, sp.logic.boolalg.Boolean)),
     }
 
 

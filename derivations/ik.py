@@ -28,7 +28,8 @@ from dataclasses import dataclass
 import sympy as sp
 
 __all__ = ["ACOS_TOLERANCE", "Root", "clamp_unit", "acos_clamped", "atan2_of_sine_cosine", "law_of_cosines",
-           "p_cos_q_sin_r", "prismatic_along", "sine_cosine_pair", "two_link", "WrapAngle", "wrap_angle", "kernel_form"]
+           "p_cos_q_sin_r", "prismatic_along", "sine_cosine_pair", "two_link", "WrapAngle", "wrap_angle", "kernel_form",
+           "substitute_steps"]
 
 # |c| <= 1 + ACOS_TOLERANCE clamps onto the unit interval; beyond is unreachable.
 ACOS_TOLERANCE = sp.Rational(1, 10**12)
@@ -212,3 +213,16 @@ def two_link(x: sp.Expr, y: sp.Expr, a: sp.Expr, b: sp.Expr, method: str = "alge
             t1 = sine_cosine_pair(a + b * sp.cos(t2), b * sp.sin(t2), x, y)[0].value
         solutions.append((elbow.name, t1, t2, elbow.condition))
     return solutions
+
+
+def substitute_steps(expr: sp.Expr, steps) -> sp.Expr:
+    """``expr`` with the step symbols replaced by their definitions, latest first.
+
+    ``steps`` is an ordered sequence of ``(symbol, expression)`` in which each
+    expression uses only symbols defined before it, so one pass from the last
+    step back to the first leaves none of the step symbols.
+    """
+    expr = sp.sympify(expr)
+    for symbol, definition in reversed(tuple(steps)):
+        expr = expr.xreplace({symbol: definition})
+    return expr

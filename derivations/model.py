@@ -65,13 +65,19 @@ class IKBranch:
 
     ``solution`` holds one expression per joint in the task symbols and the
     parameters; ``condition`` is the SymPy condition under which the branch
-    exists (``True`` when it always does).
+    exists (``True`` when it always does).  ``steps``, where a derivation has
+    them, are the same solution as the paper or textbook writes it: ordered
+    definitions ``(symbol, expression)``, each expression in the task symbols,
+    the parameters and the symbols defined before it, the joint symbols q_i
+    among them; substituting them in order (``derivations.ik.substitute_steps``)
+    gives ``solution``.
     """
 
     name: str
     solution: tuple[sp.Expr, ...]
     condition: sp.Basic = sp.true
     doc: str = ""
+    steps: tuple[tuple[sp.Symbol, sp.Expr], ...] = ()
 
 
 POSE_NAMES = ("x", "y", "z", "r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33")

@@ -641,3 +641,18 @@ def test_readme_ik_example_runs():
     exec(compile(block, "README.md", "exec"), namespace)
     assert namespace["valid"].all() and namespace["usable"].tolist() == [True, True, False, False]
     assert math.degrees(namespace["q"][1]) == pytest.approx(13.4685, abs=5e-5)
+
+
+@pytest.mark.parametrize("name", ["planar_3r", "scorbot_er7", "puma560"])
+def test_steps_define_each_symbol_from_earlier_ones_and_give_the_solution(models, name):
+    """The printed form of a branch (``steps``) is well ordered and is the solution."""
+    from derivations.ik import substitute_steps
+    m = models[name]
+    for branch in m.ik:
+        assert branch.steps
+        known = set(m.task_symbols) | set(m.params)
+        for symbol, definition in branch.steps:
+            assert sp.sympify(definition).free_symbols <= known, (branch.name, symbol)
+            known.add(symbol)
+        assert set(m.q) <= {s for s, _ in branch.steps}
+        assert tuple(substitute_steps(q, branch.steps) for q in m.q) == branch.solution

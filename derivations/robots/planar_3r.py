@@ -17,12 +17,15 @@ from __future__ import annotations
 
 import sympy as sp
 
-from derivations.ik import atan2_of_sine_cosine, p_cos_q_sin_r
+from derivations.ik import atan2_of_sine_cosine, p_cos_q_sin_r, substitute_steps
 from derivations.model import IKBranch
 
 from ._common import parameters
 
 NAMES = {"sigma_minus": "elbow_up", "sigma_plus": "elbow_down"}
+
+
+WRIST = sp.symbols("x' y'", real=True)   # Kumar's x', y': the wrist point
 
 
 def wrist_point(model):
@@ -32,27 +35,33 @@ def wrist_point(model):
     return x - l3 * sp.cos(phi), y - l3 * sp.sin(phi)
 
 
-def kumar_eq_f(model):
-    """Kumar Eq. (f) as (P, Q, R) of Eq. (g): P cos(t1) + Q sin(t1) + R = 0."""
+def kumar_eq_f(model, xw=None, yw=None):
+    """Kumar Eq. (f) as (P, Q, R) of Eq. (g): P cos(t1) + Q sin(t1) + R = 0 (in x', y' if given)."""
     l1, l2 = parameters(model, "l1", "l2")
-    xw, yw = wrist_point(model)
+    if xw is None:
+        xw, yw = wrist_point(model)
     return -2 * l1 * xw, -2 * l1 * yw, xw**2 + yw**2 + l1**2 - l2**2
 
 
 def extend(model):
     x, y, phi = model.task_symbols
+    q1, q2, q3 = model.q
     l1, l2 = parameters(model, "l1", "l2")
-    xw, yw = wrist_point(model)
+    xw, yw = WRIST
     branches = {}
-    for root in p_cos_q_sin_r(*kumar_eq_f(model)):                      # Kumar Eq. (h)
-        q1 = root.value
+    for root in p_cos_q_sin_r(*kumar_eq_f(model, xw, yw)):                        # Kumar Eq. (h)
         q12 = atan2_of_sine_cosine((yw - l1 * sp.sin(q1)) / l2, (xw - l1 * sp.cos(q1)) / l2)[0].value
-        q2 = q12 - q1                                                    # Kumar Eq. (i)
-        q3 = phi - q1 - q2                                               # Kumar Eq. (j)
+        steps = (
+            (xw, wrist_point(model)[0]),                                           # Kumar Eq. (d)
+            (yw, wrist_point(model)[1]),                                           # Kumar Eq. (e)
+            (q1, root.value),                                                      # Kumar Eq. (h)
+            (q2, q12 - q1),                                                        # Kumar Eq. (i)
+            (q3, phi - q1 - q2),                                                   # Kumar Eq. (j)
+        )
         sigma = "+1" if root.name == "sigma_plus" else "-1"
         name = NAMES[root.name]
         branches[name] = IKBranch(
-            name, (q1, q2, q3), root.condition,
+            name, tuple(substitute_steps(qi, steps) for qi in model.q), substitute_steps(root.condition, steps),
             f"Kumar Eqs. (h)-(j) with sigma = {sigma}; exists while the wrist point (x - l3 cos phi, "
-            "y - l3 sin phi) lies between |l1 - l2| and l1 + l2 from the base (and not on it)")
+            "y - l3 sin phi) lies between |l1 - l2| and l1 + l2 from the base (and not on it)", steps)
     model.ik = [branches["elbow_up"], branches["elbow_down"]]

@@ -44,7 +44,7 @@ from __future__ import annotations
 import sympy as sp
 
 from derivations.chain import simplify_entry
-from derivations.ik import p_cos_q_sin_r, sine_cosine_pair
+from derivations.ik import p_cos_q_sin_r, sine_cosine_pair, substitute_steps
 from derivations.model import POSE_NAMES, IKBranch
 
 from ._common import parameters
@@ -87,44 +87,51 @@ def extend(model):
     v_of_q = a2 * sp.sin(q2) + a3 * sp.sin(q2 + q3) + d4 * sp.cos(q2 + q3)
     _check_structure(model, u_of_q, v_of_q)
 
-    shoulder = {"right": None, "left": None}
-    for root in p_cos_q_sin_r(py, -px, d3):                                   # step 1
-        shoulder["right" if root.name == "sigma_plus" else "left"] = root
+    u = sp.Symbol("u", real=True)               # the wrist's reach ahead of the shoulder, in frame 1
+    W = sp.Matrix(3, 3, sp.symbols("w11:14 w21:24 w31:34", real=True))   # W = R36 = R03^T R
+    m13, m23, m31, m32 = sp.symbols("m13 m23 m31 m32", real=True)       # entries of M = Rot(A4)^T R36
+    shoulder = {("right" if root.name == "sigma_plus" else "left"): root
+                for root in p_cos_q_sin_r(py, -px, d3)}                                   # step 1
     v = pz - d1
     u_squared = px**2 + py**2 - d3**2
     elbow_roots = {root.name: root for root in
                    p_cos_q_sin_r(2 * a2 * a3, -2 * a2 * d4, a2**2 + a3**2 + d4**2 - u_squared - v**2)}  # step 2
+    R36 = model.frames[3][:3, :3].T * R
+    M = chain.link_transform(3, q4)[:3, :3].T * W
     branches = []
     for side in ("right", "left"):
-        theta1 = shoulder[side].value
-        u = px * sp.cos(theta1) + py * sp.sin(theta1)
         for elbow in ("elbow_up", "elbow_down"):
             up_root = "sigma_minus" if side == "right" else "sigma_plus"
-            root3 = elbow_roots[up_root] if elbow == "elbow_up" else \
-                elbow_roots["sigma_plus" if up_root == "sigma_minus" else "sigma_minus"]
-            theta3 = root3.value
-            A = a2 + a3 * sp.cos(theta3) - d4 * sp.sin(theta3)
-            B = a3 * sp.sin(theta3) + d4 * sp.cos(theta3)
-            (pair,) = sine_cosine_pair(A, B, u, v)                              # step 3
-            theta2 = pair.value
-            arm = {q1: theta1, q2: theta2, q3: theta3}
-            R03 = model.frames[3][:3, :3].xreplace(arm)
-            R36 = R03.T * R                                                     # step 4
-            singular = R36[0, 2]**2 + R36[1, 2]**2 <= WRIST_SINGULAR**2
+            down_root = "sigma_plus" if side == "right" else "sigma_minus"
+            root3 = elbow_roots[up_root if elbow == "elbow_up" else down_root]
+            A = a2 + a3 * sp.cos(q3) - d4 * sp.sin(q3)
+            B = a3 * sp.sin(q3) + d4 * sp.cos(q3)
+            (pair,) = sine_cosine_pair(A, B, u, v)                                        # step 3
+            singular = W[0, 2]**2 + W[1, 2]**2 <= WRIST_SINGULAR**2
             for wrist in ("noflip", "flip"):
                 turn = 0 if wrist == "noflip" else sp.pi
-                theta4 = sp.Piecewise((turn, singular), (sp.atan2(-R36[1, 2], -R36[0, 2]) + turn, True))
-                M = chain.link_transform(3, q4)[:3, :3].xreplace({q4: theta4}).T * R36
-                theta5 = sp.atan2(-M[0, 2], M[1, 2])
-                theta6 = sp.atan2(-M[2, 0], -M[2, 1])
-                condition = sp.And(shoulder[side].condition, root3.condition, pair.condition)
+                steps = (
+                    (q1, shoulder[side].value),
+                    (u, px * sp.cos(q1) + py * sp.sin(q1)),
+                    (q3, root3.value),
+                    (q2, pair.value),
+                    *((W[i, j], R36[i, j]) for i, j in ((0, 0), (0, 1), (0, 2), (1, 0), (1, 1), (1, 2), (2, 2))),
+                    (q4, sp.Piecewise((turn, singular), (sp.atan2(-W[1, 2], -W[0, 2]) + turn, True))),  # step 4
+                    (m13, M[0, 2]), (m23, M[1, 2]), (m31, M[2, 0]), (m32, M[2, 1]),
+                    (q5, sp.atan2(-m13, m23)),
+                    (q6, sp.atan2(-m31, -m32)),
+                )
+                solution = tuple(substitute_steps(qi, steps) for qi in model.q)
+                condition = substitute_steps(sp.And(shoulder[side].condition, root3.condition,
+                                                    pair.condition), steps)
                 name = f"{side}_{elbow}_{wrist}"
                 branches.append(IKBranch(
-                    name, (theta1, theta2, theta3, theta4, theta5, theta6), condition,
+                    name, solution, condition,
                     f"Paul/Craig decoupling (module docstring): shoulder {side} (theta1 root sigma = "
-                    f"{'+1' if side == 'right' else '-1'}), {elbow.replace('_', ' ')} (theta3 root "
-                    f"{up_root if elbow == 'elbow_up' else 'the other'}), wrist {wrist} "
+                    f"{'+1' if side == 'right' else '-1'}), {elbow.replace('_', ' ')} (theta3 root sigma = "
+                    f"{'+1' if root3.name == 'sigma_plus' else '-1'}), wrist {wrist} "
                     f"(sin(theta5) {'>=' if wrist == 'noflip' else '<='} 0; at the wrist singularity "
                     f"theta4 := {'0' if wrist == 'noflip' else 'pi'}); exists while the wrist centre is at least "
-                    "|d3| from the base axis and within the arm's reach"))
+                    "|d3| from the base axis and within the arm's reach",
+                    steps))
     model.ik = branches

@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from derivations.ik import atan2_of_sine_cosine, law_of_cosines
+from derivations.ik import atan2_of_sine_cosine, law_of_cosines, substitute_steps
 from derivations.model import IKBranch
 
 from ._common import parameters
@@ -48,27 +48,36 @@ from ._common import parameters
 ORDER = ("elbow_up", "elbow_down", "shoulder_flip_elbow_up", "shoulder_flip_elbow_down")
 
 
+# The paper's intermediate quantities (Fig. 3): the horizontal and vertical distances
+# from the shoulder O2 to the wrist O4, and the angles of Eqs. 3.6, 3.7.
+O2B, O4B, ALPHA, BETA = sp.symbols("O2B O4B alpha beta", real=True)
+
+
 def extend(model):
     x, y, z = model.task_symbols
+    q1, q2, q3, q4, q5 = model.q
     a1, a2, a3, d1, d5 = parameters(model, "a1", "a2", "a3", "d1", "d5")
     branches = {}
     for flip in (False, True):
         sign = -1 if flip else 1
-        q1 = atan2_of_sine_cosine(sign * y, sign * x)[0].value          # Eq. 3.1 (flip: turned by pi)
-        horizontal = sign * sp.sqrt(x**2 + y**2) - a1 - d5               # O2B
-        vertical = z - d1                                                 # O4B
-        for root in law_of_cosines(horizontal**2 + vertical**2, a2, a3):  # Eqs. 3.2-3.5
-            q3 = root.value
-            alpha = atan2_of_sine_cosine(a3 * sp.sin(q3), a2 + a3 * sp.cos(q3))[0].value  # Eq. 3.6
-            beta = atan2_of_sine_cosine(vertical, horizontal)[0].value                    # Eq. 3.7
-            q2 = beta - alpha                                                             # Eq. 3.8
-            q4 = -q2 - q3                                                                 # Eq. 3.11
+        for root in law_of_cosines(O2B**2 + O4B**2, a2, a3):                             # Eqs. 3.2-3.5
+            steps = (
+                (q1, atan2_of_sine_cosine(sign * y, sign * x)[0].value),                # Eq. 3.1 (flip: turned by pi)
+                (O2B, sign * sp.sqrt(x**2 + y**2) - a1 - d5),
+                (O4B, z - d1),
+                (q3, root.value),                                                         # Eq. 3.5
+                (ALPHA, atan2_of_sine_cosine(a3 * sp.sin(q3), a2 + a3 * sp.cos(q3))[0].value),  # Eq. 3.6
+                (BETA, atan2_of_sine_cosine(O4B, O2B)[0].value),                          # Eq. 3.7
+                (q2, BETA - ALPHA),                                                       # Eqs. 3.8-3.9
+                (q4, -q2 - q3),                                                           # Eq. 3.11
+                (q5, sp.S.Zero),                                                          # free: the choice
+            )
             up = (root.name == "negative") != flip
             name = ("shoulder_flip_" if flip else "") + ("elbow_up" if up else "elbow_down")
             branches[name] = IKBranch(
-                name, (q1, q2, q3, q4, sp.S.Zero), root.condition,
+                name, tuple(substitute_steps(qi, steps) for qi in model.q), substitute_steps(root.condition, steps),
                 f"Predescu and Stroe Eqs. 3.1-3.11, theta1 = atan2({'-y, -x' if flip else 'y, x'}), "
                 f"theta3 = {'-' if root.name == 'negative' else '+'}acos(...), theta4 = -(theta2 + theta3), "
                 "theta5 = 0 (free: the position task does not fix it); exists while the wrist O4 lies between "
-                "|a2 - a3| and a2 + a3 from the shoulder O2")
+                "|a2 - a3| and a2 + a3 from the shoulder O2", steps)
     model.ik = [branches[name] for name in ORDER]

@@ -334,7 +334,7 @@ int adept_three_ik(const double *restrict _x, const adept_three_params *restrict
     const double _t8 = acos(_t2);
     const double _t9 = d1 - d4 - z;
     const double _t10 = atan2(_t3*y - _t5, _t3*x + _t6);
-    const double _t11 = (0.5)*fabs(_t0*_t1) <= 1.000000000001;
+    const int _t11 = (0.5)*fabs(_t0*_t1) <= 1.000000000001;
     Q[0] = kinegen_wrap_angle(_t7);
     Q[1] = kinegen_wrap_angle(-_t8);
     Q[2] = _t9;

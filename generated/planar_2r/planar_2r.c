@@ -249,7 +249,7 @@ int planar_2r_ik(const double *restrict _x, const planar_2r_params *restrict par
     const double _t4 = l2*sqrt(1 - (_t3*_t3));
     const double _t5 = _t3*l2 + l1;
     const double _t6 = acos(_t3);
-    const double _t7 = (0.5)*fabs(_t1*_t2) <= 1.000000000001;
+    const int _t7 = (0.5)*fabs(_t1*_t2) <= 1.000000000001;
     Q[0] = kinegen_wrap_angle(_t0 - atan2(-_t4, _t5));
     Q[1] = kinegen_wrap_angle(-_t6);
     Q[2] = kinegen_wrap_angle(_t0 - atan2(_t4, _t5));

@@ -20,7 +20,7 @@ TASK = ("x", "y", "phi", )
 BRANCHES = ("elbow_up", "elbow_down", )
 PARAMS = {"l1": 0.5, "l2": 0.4, "l3": 0.2}
 LIMITS = (None, None, None, )
-OPERATIONS = {"fk": 19, "frames": 21, "jacobian": 21, "task": 18, "task_jacobian": 21, "ik": 86}
+OPERATIONS = {"fk": 19, "frames": 21, "jacobian": 21, "task": 18, "task_jacobian": 21, "ik": 78}
 
 
 def fk(q, *, l1=0.5, l2=0.4, l3=0.2):
@@ -208,7 +208,7 @@ def ik(x, *, l1=0.5, l2=0.4, l3=0.2):
     Branches, in order: BRANCHES. Revolute joints are wrapped to (-pi, pi]. A branch
     is valid where it exists; an unreachable, NaN or inf target gives valid False
     (never an exception). within_limits(Q) tells which solutions respect LIMITS.
-    (86 operations after common-subexpression elimination.)
+    (78 operations after common-subexpression elimination.)
     """
     x = _runtime.as_batch(x, 3, "ik", "x", finite=False)
     l1 = _runtime.as_param(l1, "l1")
@@ -231,26 +231,25 @@ def ik(x, *, l1=0.5, l2=0.4, l3=0.2):
     _t9 = 4*_t8
     _t10 = (_t5*_t5)
     _t11 = _t10*_t9 + _t7*_t9
-    _t12 = _t8 - (l2*l2)
-    _t13 = numpy.arccos(numpy.minimum(1, numpy.maximum(-1, (-_t10 - _t12 - _t7)/numpy.sqrt(_t11))))
-    _t14 = _t13 - _t6
-    _t15 = 1.0/l2
-    _t16 = numpy.arctan2(_t15*(-_t0 + l1*numpy.sin(_t14) + y), _t15*(-_t4 - l1*numpy.cos(_t14)))
-    _t17 = _t13 + _t6
-    _t18 = -numpy.arctan2(_t15*(-_t1 - l1*numpy.sin(_t17)), _t15*(-_t4 - l1*numpy.cos(_t17)))
-    _t19 = (_t4*_t4)
-    _t20 = (_t1*_t1)
-    _t21 = numpy.logical_and(numpy.greater(_t11, 0), numpy.less_equal(abs(_t12 + _t19 + _t20)/numpy.sqrt(_t19*_t9 + _t20*_t9), 1.000000000001))
+    _t12 = 1.0/numpy.sqrt(_t11)
+    _t13 = _t10 + _t7 + _t8 - (l2*l2)
+    _t14 = numpy.arccos(numpy.minimum(1, numpy.maximum(-1, -_t12*_t13)))
+    _t15 = _t14 - _t6
+    _t16 = 1.0/l2
+    _t17 = numpy.arctan2(_t16*(-_t0 + l1*numpy.sin(_t15) + y), _t16*(-_t4 - l1*numpy.cos(_t15)))
+    _t18 = _t14 + _t6
+    _t19 = -numpy.arctan2(_t16*(-_t1 - l1*numpy.sin(_t18)), _t16*(-_t4 - l1*numpy.cos(_t18)))
+    _t20 = numpy.logical_and(numpy.greater(_t11, 0), numpy.less_equal(_t12*abs(_t13), 1.000000000001))
     Q = numpy.empty(_batch + (2, 3))
-    Q[..., 0, 0] = _runtime.wrap_angle(-_t14)
-    Q[..., 0, 1] = _runtime.wrap_angle(_t14 + _t16)
-    Q[..., 0, 2] = _runtime.wrap_angle(-_t16 + phi)
-    Q[..., 1, 0] = _runtime.wrap_angle(_t17)
-    Q[..., 1, 1] = _runtime.wrap_angle(-_t17 - _t18)
-    Q[..., 1, 2] = _runtime.wrap_angle(_t18 + phi)
+    Q[..., 0, 0] = _runtime.wrap_angle(-_t15)
+    Q[..., 0, 1] = _runtime.wrap_angle(_t15 + _t17)
+    Q[..., 0, 2] = _runtime.wrap_angle(-_t17 + phi)
+    Q[..., 1, 0] = _runtime.wrap_angle(_t18)
+    Q[..., 1, 1] = _runtime.wrap_angle(-_t18 - _t19)
+    Q[..., 1, 2] = _runtime.wrap_angle(_t19 + phi)
     valid = numpy.empty(_batch + (2,), dtype=bool)
-    valid[..., 0] = _t21
-    valid[..., 1] = _t21
+    valid[..., 0] = _t20
+    valid[..., 1] = _t20
     # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
     valid &= numpy.isfinite(Q).all(axis=-1) & numpy.isfinite(_x).all(axis=-1)[..., None]
     return Q, valid

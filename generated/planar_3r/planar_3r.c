@@ -9,7 +9,7 @@
  * jacobian: 21 operations after common-subexpression elimination
  * task: 18 operations after common-subexpression elimination
  * task_jacobian: 21 operations after common-subexpression elimination
- * ik: 86 operations after common-subexpression elimination
+ * ik: 78 operations after common-subexpression elimination
  */
 #include "planar_3r.h"
 
@@ -307,24 +307,23 @@ int planar_3r_ik(const double *restrict _x, const planar_3r_params *restrict par
     const double _t9 = 4*_t8;
     const double _t10 = (_t5*_t5);
     const double _t11 = _t10*_t9 + _t7*_t9;
-    const double _t12 = _t8 - (l2*l2);
-    const double _t13 = acos(fmin(1, fmax(-1, (-_t10 - _t12 - _t7)/sqrt(_t11))));
-    const double _t14 = _t13 - _t6;
-    const double _t15 = 1.0/l2;
-    const double _t16 = atan2(_t15*(-_t0 + l1*sin(_t14) + y), _t15*(-_t4 - l1*cos(_t14)));
-    const double _t17 = _t13 + _t6;
-    const double _t18 = -atan2(_t15*(-_t1 - l1*sin(_t17)), _t15*(-_t4 - l1*cos(_t17)));
-    const double _t19 = (_t4*_t4);
-    const double _t20 = (_t1*_t1);
-    const int _t21 = fabs(_t12 + _t19 + _t20)/sqrt(_t19*_t9 + _t20*_t9) <= 1.000000000001 && _t11 > 0;
-    Q[0] = kinegen_wrap_angle(-_t14);
-    Q[1] = kinegen_wrap_angle(_t14 + _t16);
-    Q[2] = kinegen_wrap_angle(-_t16 + phi);
-    Q[3] = kinegen_wrap_angle(_t17);
-    Q[4] = kinegen_wrap_angle(-_t17 - _t18);
-    Q[5] = kinegen_wrap_angle(_t18 + phi);
-    valid[0] = _t21;
-    valid[1] = _t21;
+    const double _t12 = 1.0/sqrt(_t11);
+    const double _t13 = _t10 + _t7 + _t8 - (l2*l2);
+    const double _t14 = acos(fmin(1, fmax(-1, -_t12*_t13)));
+    const double _t15 = _t14 - _t6;
+    const double _t16 = 1.0/l2;
+    const double _t17 = atan2(_t16*(-_t0 + l1*sin(_t15) + y), _t16*(-_t4 - l1*cos(_t15)));
+    const double _t18 = _t14 + _t6;
+    const double _t19 = -atan2(_t16*(-_t1 - l1*sin(_t18)), _t16*(-_t4 - l1*cos(_t18)));
+    const int _t20 = _t12*fabs(_t13) <= 1.000000000001 && _t11 > 0;
+    Q[0] = kinegen_wrap_angle(-_t15);
+    Q[1] = kinegen_wrap_angle(_t15 + _t17);
+    Q[2] = kinegen_wrap_angle(-_t17 + phi);
+    Q[3] = kinegen_wrap_angle(_t18);
+    Q[4] = kinegen_wrap_angle(-_t18 - _t19);
+    Q[5] = kinegen_wrap_angle(_t19 + phi);
+    valid[0] = _t20;
+    valid[1] = _t20;
     {
         int branch, joint, finite_target = 1, valid_branches = 0;
         for (joint = 0; joint < 3; ++joint) {

@@ -694,7 +694,7 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
     const double _t40 = _t25*r13;
     const double _t41 = _t26*r23;
     const double _t42 = _t38*r33 + _t39*_t40 + _t39*_t41;
-    const double _t43 = _t35 + (_t42*_t42) <= 1e-24;
+    const int _t43 = _t35 + (_t42*_t42) <= 1e-24;
     const double _t44 = atan2(_t33, -_t42);
     const double _t45 = ((_t43) ? (
    0
@@ -733,7 +733,7 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
     const double _t69 = sin(_t68);
     const double _t70 = cos(_t68);
     const double _t71 = _t40*_t70 + _t41*_t70 + _t69*r33;
-    const double _t72 = _t35 + (_t71*_t71) <= 1e-24;
+    const int _t72 = _t35 + (_t71*_t71) <= 1e-24;
     const double _t73 = atan2(_t33, -_t71);
     const double _t74 = ((_t72) ? (
    0
@@ -771,7 +771,7 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
     const double _t97 = _t87*r13;
     const double _t98 = _t88*r23;
     const double _t99 = _t95*r33 + _t96*_t97 - _t96*_t98;
-    const double _t100 = _t93 + (_t99*_t99) <= 1e-24;
+    const int _t100 = _t93 + (_t99*_t99) <= 1e-24;
     const double _t101 = -_t92;
     const double _t102 = atan2(_t101, -_t99);
     const double _t103 = ((_t100) ? (
@@ -803,7 +803,7 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
     const double _t119 = sin(_t118);
     const double _t120 = cos(_t118);
     const double _t121 = _t119*r33 + _t120*_t97 - _t120*_t98;
-    const double _t122 = (_t121*_t121) + _t93 <= 1e-24;
+    const int _t122 = (_t121*_t121) + _t93 <= 1e-24;
     const double _t123 = atan2(_t101, -_t121);
     const double _t124 = ((_t122) ? (
    0
@@ -826,10 +826,10 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
 ));
     const double _t133 = sin(_t132);
     const double _t134 = cos(_t132);
-    const double _t135 = _t3 > 0;
-    const double _t136 = _t4*fabs(d3) <= 1.000000000001;
-    const double _t137 = _t16 > 0;
-    const double _t138 = _t17*fabs(_t18 - (_t8*_t8)) <= 1.000000000001;
+    const int _t135 = _t3 > 0;
+    const int _t136 = _t4*fabs(d3) <= 1.000000000001;
+    const int _t137 = _t16 > 0;
+    const int _t138 = _t17*fabs(_t18 - (_t8*_t8)) <= 1.000000000001;
     const int _t139 = _t135 && _t136 && _t137 && _t138 && (_t23*_t23) + (_t28*_t28) > 0;
     const int _t140 = _t135 && _t136 && _t137 && _t138 && (_t61*_t61) + (_t63*_t63) > 0;
     Q[0] = _t7;

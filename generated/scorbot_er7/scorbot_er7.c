@@ -428,8 +428,8 @@ int scorbot_er7_ik(const double *restrict _x, const scorbot_er7_params *restrict
     const double _t28 = acos(_t24);
     const double _t29 = _t23 + atan2(-_t25, _t26);
     const double _t30 = -(_t1*_t1) + _t9;
-    const double _t31 = (0.5)*fabs(_t11*(_t30 - (_t5*_t5))) <= 1.000000000001;
-    const double _t32 = (0.5)*fabs(_t11*((_t20*_t20) - _t30)) <= 1.000000000001;
+    const int _t31 = (0.5)*fabs(_t11*(_t30 - (_t5*_t5))) <= 1.000000000001;
+    const int _t32 = (0.5)*fabs(_t11*((_t20*_t20) - _t30)) <= 1.000000000001;
     Q[0] = _t0;
     Q[1] = kinegen_wrap_angle(-_t16);
     Q[2] = kinegen_wrap_angle(-_t17);
