@@ -656,3 +656,18 @@ def test_steps_define_each_symbol_from_earlier_ones_and_give_the_solution(models
             known.add(symbol)
         assert set(m.q) <= {s for s, _ in branch.steps}
         assert tuple(substitute_steps(q, branch.steps) for q in m.q) == branch.solution
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_the_inner_edge_of_the_two_link_workspace(backend):
+    """Folded (q2 = pi) the 2R arm reaches |l1 - l2| = 51 mm: 1e-12 outside that ring solves, 1e-9 inside does not."""
+    k = kernels("planar_2r", backend)
+    l1, l2 = k.PARAMS["l1"], k.PARAMS["l2"]
+    angles = np.random.default_rng(20).uniform(-np.pi, np.pi, 200)
+    direction = np.stack([np.cos(angles), np.sin(angles)], -1)
+    Q, valid = k.ik(direction * (l1 - l2 + 1e-12))
+    assert valid.all()
+    assert np.abs(k.task(Q) - direction[:, None] * (l1 - l2 + 1e-12)).max() < 1e-9
+    np.testing.assert_allclose(np.abs(Q[..., 1]), np.pi, atol=1e-5)
+    _, valid = k.ik(direction * (l1 - l2 - 1e-9))
+    assert not valid.any()

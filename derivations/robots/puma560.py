@@ -37,6 +37,11 @@ free by the pose; the defined choice is theta4 = 0 (``noflip``) or pi
 (``flip``), and theta6 then carries theta4 + theta6 (theta5 = 0) or
 theta6 - theta4 (theta5 = pi).  Detect it in a solution by |sin(q5)| <= 1e-12.
 
+Shoulder singularity: with d3 = 0 (not the Puma's value) a wrist centre on the
+base axis leaves theta1 free; the branches report it as not valid
+(P^2 + Q^2 > 0 in step 1).  With d3 != 0 the wrist centre cannot come closer
+to the axis than |d3|, and there the two shoulder roots coincide.
+
 Branch names: ``{right|left}_{elbow_up|elbow_down}_{noflip|flip}``.
 """
 from __future__ import annotations
