@@ -55,25 +55,33 @@ def sample_params(model: RobotModel, rng: np.random.Generator) -> dict[str, floa
     return {str(s): (v * rng.uniform(0.7, 1.3) if v != 0 else rng.uniform(0.01, 0.1)) for s, v in model.params.items()}
 
 
-def sample_targets(model: RobotModel, rng: np.random.Generator, count: int) -> np.ndarray:
-    """Reachable task coordinates: the model's task at random joints, evaluated at 30 digits."""
+def sample_targets(model: RobotModel, rng: np.random.Generator, count: int, param_sets=None) -> np.ndarray:
+    """Reachable task coordinates: the model's task at random joints, evaluated at 30 digits.
+
+    Target k is reached with the parameters ``param_sets[k]`` ({name: value};
+    None or absent: the defaults), the ones its kernel call will use.
+    """
+    by_name = {str(s): s for s in model.params}
     targets = []
-    for q in sample_joints(model, rng, count):
+    for k, q in enumerate(sample_joints(model, rng, count)):
+        params = (param_sets[k] if param_sets is not None else None) or {str(s): v for s, v in model.params.items()}
         subs = {s: sp.Rational(float(v)) for s, v in zip(model.q, q)}
-        subs.update({s: sp.Rational(float(v)) for s, v in model.params.items()})
+        subs.update({by_name[n]: sp.Rational(float(v)) for n, v in params.items()})
         targets.append([float(e.evalf(DIGITS, subs=subs)) for e in model.task])
     return np.array(targets, dtype=float).reshape(count, len(model.task_names))
 
 
-def sample_points(model: RobotModel, function: SymbolicFunction, rng: np.random.Generator, count: int):
+def sample_points(model: RobotModel, function: SymbolicFunction, rng: np.random.Generator, count: int,
+                  param_sets=None):
     """``count`` argument tuples for ``function``: joint arguments within limits, task
-    coordinates (the inverse kinematics' input) reached by random joints, others in [-1, 1]."""
+    coordinates (the inverse kinematics' input) reached by random joints with the
+    parameters of ``param_sets`` (see :func:`sample_targets`), others in [-1, 1]."""
     args = []
     for argument in function.arguments:
         if argument.name == "q":
             args.append(sample_joints(model, rng, count))
         elif argument.symbols == model.task_symbols:
-            args.append(sample_targets(model, rng, count))
+            args.append(sample_targets(model, rng, count, param_sets))
         else:
             args.append(rng.uniform(-1.0, 1.0, (count, len(argument.symbols))))
     return args
@@ -149,8 +157,8 @@ def verify_model(model: RobotModel, modules: dict, samples: int = 6, seed: int =
     checks = []
     param_symbols = {str(s): s for s in model.params}
     for function in model.functions():
-        points = sample_points(model, function, rng, samples)
         param_sets = [None] + [sample_params(model, rng) for _ in range(samples - 1)]
+        points = sample_points(model, function, rng, samples, param_sets)
         worst = {backend: 0.0 for backend in modules}
         compared = 0
         for k in range(samples):
