@@ -671,3 +671,18 @@ def test_the_inner_edge_of_the_two_link_workspace(backend):
     np.testing.assert_allclose(np.abs(Q[..., 1]), np.pi, atol=1e-5)
     _, valid = k.ik(direction * (l1 - l2 - 1e-9))
     assert not valid.any()
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_puma_near_the_wrist_singularity_every_branch_still_reaches_the_pose(backend):
+    """Around theta5 = 0 and pi, on both sides of the 1e-12 switch to theta4 := 0, the pose error stays
+    below 1e-12: theta5 and theta6 are taken from entries of size one given theta4."""
+    k = kernels("puma560", backend)
+    rng = np.random.default_rng(21)
+    for theta5 in (1e-4, 1e-7, 1e-10, 1e-12, 3e-13, 1e-14, 0.0, np.pi - 1e-9, np.pi - 1e-12):
+        q = rng.uniform(-np.pi, np.pi, (500, 6))
+        q[:, 4] = theta5 * rng.choice([-1.0, 1.0], 500)
+        T = k.fk(q)
+        Q, valid = k.ik(T)
+        assert valid.all()
+        assert np.abs(k.fk(Q) - T[:, None]).max() < 2e-12, theta5

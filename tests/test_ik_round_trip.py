@@ -101,6 +101,8 @@ def round_trip(name, backend, count=COUNT, seed=2024):
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # the kernel must not warn either
         Q, valid = k.ik(x)
+    revolute = [i for i, kind in enumerate(k.JOINT_TYPES) if kind == "R"]
+    outside_turn = (np.abs(Q[..., revolute]) > np.pi).any(axis=-1) & valid  # not in (-pi, pi] as doubles
     error = np.where(valid, task_error(k, Q, x), 0.0)
     distance = np.where(valid, joint_distance(name, k, Q, q), np.inf).min(axis=-1)
     return {
@@ -110,6 +112,7 @@ def round_trip(name, backend, count=COUNT, seed=2024):
         "wrong": int((error > FK_TOLERANCE).sum()),
         "no solution": int((~valid.any(axis=-1)).sum()),
         "missing": int((distance > JOINT_TOLERANCE).sum()),
+        "not wrapped": int(outside_turn.sum()),
         "max fk error": float(error.max()),
         "max joint distance": float(distance.max()),
         "in limits": float(k.within_limits(Q)[valid].mean()),
@@ -123,6 +126,7 @@ def test_every_configuration_comes_back_and_every_answer_is_right(name, backend)
     assert stats["wrong"] == 0, stats
     assert stats["no solution"] == 0, stats
     assert stats["missing"] == 0, stats
+    assert stats["not wrapped"] == 0, stats
     assert stats["max fk error"] < FK_TOLERANCE
     assert stats["valid branches"] >= COUNT
 
@@ -142,7 +146,7 @@ def test_numpy_and_c_agree_branch_by_branch(name):
 
 def main():
     columns = ["robot", "backend", "configurations", "degenerate", "valid branches", "wrong", "no solution",
-               "missing", "max fk error", "max joint distance", "in limits"]
+               "missing", "not wrapped", "max fk error", "max joint distance", "in limits"]
     rows = [round_trip(name, backend) for name in ROBOT_NAMES for backend in ("numpy", "c")]
     cells = [[f"{r[c]:.1e}" if isinstance(r[c], float) and c != "in limits" else
               (f"{r[c]:.2f}" if c == "in limits" else str(r[c])) for c in columns] for r in rows]
