@@ -180,6 +180,19 @@ def line_point(s) -> tuple[sp.Expr, sp.Expr, sp.Expr]:
     return tuple(m + s * (n - m) for m, n in zip(M, N))
 
 
+def _without_clamps(expr: sp.Expr) -> sp.Expr:
+    """``expr`` with the IK's acos/asin argument clamps ``Min(1, Max(-1, u))`` replaced by ``u``.
+
+    For differentiation only: the path lies strictly inside the workspace, where
+    the clamp is the identity (its derivative would otherwise bring Heaviside
+    and DiracDelta terms that are zero there).
+    """
+    ends = (sp.S.One, sp.S.NegativeOne)
+    return expr.replace(
+        lambda e: isinstance(e, (sp.Min, sp.Max)) and len(e.args) == 2 and any(a in ends for a in e.args),
+        lambda e: next(a for a in e.args if a not in ends))
+
+
 def joints_along_line(model, s_law: sp.Expr, branch: IKBranch | None = None):
     """Joint angles, rates and accelerations (5-vectors, rad, rad/s, rad/s^2) along MN.
 
@@ -191,7 +204,7 @@ def joints_along_line(model, s_law: sp.Expr, branch: IKBranch | None = None):
     values = {**dict(zip(model.task_symbols, line_point(s_law))),
               **{s: sp.Rational(str(v)) for s, v in model.params.items()}}
     angles = sp.Matrix([sp.sympify(e).xreplace(values) for e in branch.solution])
-    rates = angles.diff(trajectory.t)
+    rates = angles.applyfunc(_without_clamps).diff(trajectory.t)
     return angles, rates, rates.diff(trajectory.t)
 
 
@@ -241,7 +254,7 @@ def kernel_set(model=None) -> KernelSet:
     s, s_rate, s_accel = sp.symbols("s s_rate s_accel", **real)
     point = {task: a + s * (b - a) for task, a, b in zip(model.task_symbols, (xM, yM, zM), (xN, yN, zN))}
     angles = [sp.sympify(e).xreplace(point) for e in branch.solution]
-    first = [sp.diff(e, s) for e in angles]
+    first = [sp.diff(_without_clamps(e), s) for e in angles]
     second = [sp.diff(e, s) for e in first]
     rows = (angles, [f * s_rate for f in first], [f2 * s_rate**2 + f * s_accel for f, f2 in zip(first, second)])
     line = SymbolicFunction(

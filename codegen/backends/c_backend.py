@@ -18,6 +18,9 @@ class CKernelPrinter(ExactArithmeticMixin, C99CodePrinter):
         # No M_PI-style macros: they are POSIX, not C99 (pi is folded to a literal anyway).
         super().__init__({"math_macros": {}, "allow_unknown_functions": False})
 
+    def _print_WrapAngle(self, expr):
+        return f"kinegen_wrap_angle({self._print(expr.args[0])})"
+
     def _print_BooleanTrue(self, expr):
         return "1"
 
@@ -40,8 +43,20 @@ def prototypes(context: dict, suffix: str = "") -> list[str]:
             lines.append(f"size_t {name}_{f['name']}_batch(size_t count, {inputs}const {name}_params *params{outputs}, "
                          "int *status);")
             continue
-        lines.append(f"void {name}_{f['name']}({inputs}const {name}_params *params{outputs});")
-        lines.append(f"void {name}_{f['name']}_batch(size_t count, {inputs}const {name}_params *params{outputs});")
+        if f["is_ik"]:
+            refused = ", or -1 when x is not a rigid transform" if context["pose_task"] else ""
+            lines.append(f"/* Returns the number of valid branches{refused}; the batch returns their total "
+                         f"(-1 if any item was refused). */")
+        single, batch = ("int", "long") if f["is_ik"] else ("void", "void")
+        lines.append(f"{single} {name}_{f['name']}({inputs}const {name}_params *params{outputs});")
+        lines.append(f"{batch} {name}_{f['name']}_batch(size_t count, {inputs}const {name}_params *params{outputs});")
+    n = len(context["joints"])
+    if not n:  # a kernel set has no joints to check
+        return lines
+    lines.append(f"/* within_limits: q[{n}] -> 1 when every joint lies within its limits "
+                 "(revolute joints modulo 2 pi), else 0. */")
+    lines.append(f"int {name}_within_limits(const double *q);")
+    lines.append(f"void {name}_within_limits_batch(size_t count, const double *q, int *inside);")
     return lines
 
 

@@ -754,6 +754,16 @@ def _fraction_rows(w: _Writer, lhs: str, numerator: sp.Expr, denominator: sp.Exp
     return [f"{lhs} &= {parts[0]}"] + [rf"&\quad {p}" for p in parts[1:]]
 
 
+def _shorten(w: _Writer, pairs):
+    """``pairs`` (lhs, expr) as they are when each fits a line, else with the repeated
+    pieces named ``kappa_1, kappa_2, ...`` and defined first (one CSE over all)."""
+    if max(len(w.layout.tex(e)) for _, e in pairs) <= 200:
+        return pairs
+    names = sp.numbered_symbols("kappa_", start=1, real=True)
+    shared, reduced = sp.cse([e for _, e in pairs], symbols=names, order="canonical")
+    return [(w.layout.tex(k), e) for k, e in shared] + [(lhs, e) for (lhs, _), e in zip(pairs, reduced)]
+
+
 def _ik(w: _Writer) -> Section | None:
     m = w.model
     if not m.ik:
@@ -763,14 +773,24 @@ def _ik(w: _Writer) -> Section | None:
         header = rf"\paragraph{{Branch \texttt{{{escape_text(branch.name)}}}}}"
         if branch.doc:
             header += " " + escape_text(branch.doc)
-        pairs = [(w.printer.joint_latex[qi], expr) for qi, expr in zip(m.q, branch.solution)]
         key = f"ik:{branch.name}" if f"ik:{branch.name}" in w.citations else "ik"
-        body = header + "\n" + w.equations(pairs, key=key) + "\n"
+        if branch.steps:
+            # The derivation as the paper or textbook writes it: each step in the ones before
+            # (the flat solution of a 6R arm runs to kilobytes per joint).
+            pairs = [(w.printer.joint_latex.get(symbol, w.layout.tex(symbol)), expr) for symbol, expr in branch.steps]
+            body = header + " In steps, each using the ones before it:\n" + w.equations(_shorten(w, pairs), key=key) + "\n"
+        else:
+            pairs = [(w.printer.joint_latex[qi], expr) for qi, expr in zip(m.q, branch.solution)]
+            body = header + "\n" + w.equations(_shorten(w, pairs), key=key) + "\n"
         condition = branch.condition
         if condition is not sp.true and condition != sp.true:
             args = condition.args if isinstance(condition, sp.And) else (condition,)
             rows = [rf"&{w.layout.tex(a)}" for a in args]
-            body += "It exists when\n" + _Writer._align(rows) + "\n"
+            if branch.steps or sum(len(r) for r in rows) > 600:
+                body += ("It exists where the square roots and inverse cosines of its steps are real "
+                         "(the condition, written out, is in the generated kernels).\n")
+            else:
+                body += "It exists when\n" + _Writer._align(rows) + "\n"
         parts.append(body)
     return Section("ik", "Inverse kinematics", "\n".join(parts))
 

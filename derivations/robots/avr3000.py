@@ -32,6 +32,7 @@ from __future__ import annotations
 import sympy as sp
 
 from derivations.chain import simplify_entry
+from derivations.ik import WrapAngle
 from derivations.model import IKBranch, Requirement
 from derivations.spaces import SpaceMap, SpacesModel, compose, coordinate_space, differentiate, position_map
 
@@ -255,8 +256,10 @@ def build() -> SpacesModel:
         task_jacobian=joint_to_tool.values.jacobian(sp.Matrix(q)),
         # q2 in [0, 2 pi] is the range of Eq. 8 (R from 2a through 0 to -2a); Z 0 - 6 in (section 5).
         limits=(None, (0.0, float(2 * sp.pi)), (0.0, float(Z_STROKE))),
-        ik=[IKBranch("principal", tuple(tool_to_joint.values), reach,
-                     "Sotirov Eq. 8: q2 = 2 acos(R / 2a) in [0, 2 pi], q1 = pi/2 - q2/2 - T, q3 = Z")],
+        # q1 wrapped to (-pi, pi] like every revolute joint of an IK branch; q2 keeps Eq. 8's [0, 2 pi].
+        ik=[IKBranch("principal", (WrapAngle(tool_to_joint.values[0]),) + tuple(tool_to_joint.values[1:]), reach,
+                     "Sotirov Eq. 8: q2 = 2 acos(R / 2a) in [0, 2 pi], q1 = pi/2 - q2/2 - T wrapped to (-pi, pi], "
+                     "q3 = Z")],
         constants=gear_ratios(maps["motor_to_tool_velocity"].values),
         spaces={s.name: s for s in SPACES}, maps=maps, sample_ranges=sample_ranges,
     )

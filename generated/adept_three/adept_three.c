@@ -9,12 +9,27 @@
  * jacobian: 15 operations after common-subexpression elimination
  * task: 14 operations after common-subexpression elimination
  * task_jacobian: 15 operations after common-subexpression elimination
+ * ik: 53 operations after common-subexpression elimination
  */
 #include "adept_three.h"
 
 #include <math.h>
 
 const adept_three_params adept_three_default_params = { 0.559, 0.508, 0.8763, 0.0 };
+
+/* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi. */
+static double kinegen_wrap_angle(double angle)
+{
+    const double pi = 3.141592653589793, two_pi = 6.283185307179586;
+    double wrapped = angle + two_pi * floor((pi - angle) / two_pi);
+    if (wrapped > pi) {
+        wrapped -= two_pi;  /* rounding of the floor's argument */
+    }
+    if (wrapped < -pi) {
+        wrapped += two_pi;
+    }
+    return wrapped;
+}
 
 /* Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. */
 void adept_three_fk(const double *restrict q, const adept_three_params *restrict params, double *restrict T)
@@ -289,5 +304,110 @@ void adept_three_task_jacobian_batch(size_t count, const double *restrict q, con
     size_t i;
     for (i = 0; i < count; ++i) {
         adept_three_task_jacobian(q + 4 * i, params, Jx + 16 * i);
+    }
+}
+
+/* Inverse kinematics, all 2 branches (lefty, righty): Q (..., 2, 4), valid (..., 2).
+   Returns the number of valid branches. A branch
+   whose joint values are not finite (a NaN or inf target) is never valid. */
+int adept_three_ik(const double *restrict _x, const adept_three_params *restrict params, double *restrict Q, int *restrict valid)
+{
+    const double x = _x[0];
+    const double y = _x[1];
+    const double z = _x[2];
+    const double phi = _x[3];
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double d1 = params->d1;
+    const double d4 = params->d4;
+    const double _t0 = (l1*l1) + (l2*l2) - (x*x) - (y*y);
+    const double _t1 = 1/(l1*l2);
+    const double _t2 = fmin(1, fmax(-1, -0.5*_t0*_t1));
+    const double _t3 = _t2*l2 + l1;
+    const double _t4 = l2*sqrt(1 - (_t2*_t2));
+    const double _t5 = _t4*x;
+    const double _t6 = _t4*y;
+    const double _t7 = atan2(_t3*y + _t5, _t3*x - _t6);
+    const double _t8 = acos(_t2);
+    const double _t9 = d1 - d4 - z;
+    const double _t10 = atan2(_t3*y - _t5, _t3*x + _t6);
+    const int _t11 = (0.5)*fabs(_t0*_t1) <= 1.000000000001;
+    Q[0] = kinegen_wrap_angle(_t7);
+    Q[1] = kinegen_wrap_angle(-_t8);
+    Q[2] = _t9;
+    Q[3] = kinegen_wrap_angle(_t7 - _t8 - phi);
+    Q[4] = kinegen_wrap_angle(_t10);
+    Q[5] = kinegen_wrap_angle(_t8);
+    Q[6] = _t9;
+    Q[7] = kinegen_wrap_angle(_t10 + _t8 - phi);
+    valid[0] = _t11;
+    valid[1] = _t11;
+    {
+        int branch, joint, finite_target = 1, valid_branches = 0;
+        for (joint = 0; joint < 4; ++joint) {
+            finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
+        }
+        for (branch = 0; branch < 2; ++branch) {
+            if (!finite_target) {
+                valid[branch] = 0;
+            }
+            for (joint = 0; joint < 4; ++joint) {
+                if (!isfinite(Q[4 * branch + joint])) {
+                    valid[branch] = 0;  /* no NaN leaks out as a valid answer */
+                }
+            }
+            valid_branches += valid[branch] != 0;
+        }
+        return valid_branches;
+    }
+}
+
+long adept_three_ik_batch(size_t count, const double *restrict x, const adept_three_params *restrict params, double *restrict Q, int *restrict valid)
+{
+    size_t i;
+    long valid_branches = 0;
+    int refused = 0;
+    for (i = 0; i < count; ++i) {
+        const int found = adept_three_ik(x + 4 * i, params, Q + 8 * i, valid + 2 * i);
+        if (found < 0) {
+            refused = 1;
+        } else {
+            valid_branches += found;
+        }
+    }
+    return refused ? -1 : valid_branches;
+}
+
+/* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */
+int adept_three_within_limits(const double *restrict q)
+{
+    int inside = 1;
+    {
+        double turn = q[0] - (-2.6179938779914944);
+        turn -= 6.283185307179586 * floor(turn / 6.283185307179586);
+        inside = inside && turn <= (2.6179938779914944) - (-2.6179938779914944);
+    }
+    {
+        double turn = q[1] - (-2.6179938779914944);
+        turn -= 6.283185307179586 * floor(turn / 6.283185307179586);
+        inside = inside && turn <= (2.6179938779914944) - (-2.6179938779914944);
+    }
+    inside = inside && q[2] >= (0.0) && q[2] <= (0.305);
+    {
+        double turn = q[3] - (-4.71238898038469);
+        turn -= 6.283185307179586 * floor(turn / 6.283185307179586);
+        inside = inside && turn <= (4.71238898038469) - (-4.71238898038469);
+    }
+    return inside;
+}
+
+void adept_three_within_limits_batch(size_t count, const double *restrict q, int *restrict inside)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        inside[i] = adept_three_within_limits(q + 4 * i);
     }
 }

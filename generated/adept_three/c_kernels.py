@@ -104,3 +104,30 @@ def task_jacobian(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
         _ffi.from_buffer("double[]", Jx, require_writable=True),
     )
     return Jx
+
+
+def ik(x, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """Inverse kinematics, all 2 branches (lefty, righty): Q (..., 2, 4), valid (..., 2). (C backend)"""
+    x = _runtime.as_batch(x, 4, "ik", "x", finite=False)
+    params = _params(l1, l2, d1, d4)
+    batch = _runtime.batch_shape(x)
+    x = _input(x, batch)
+    Q = numpy.empty(batch + (2, 4), dtype=numpy.float64)
+    valid = numpy.empty(batch + (2,), dtype=numpy.intc)
+    status = _lib.adept_three_ik_batch(
+        int(numpy.prod(batch, dtype=numpy.int64)),
+        _ffi.from_buffer("double[]", x),
+        params,
+        _ffi.from_buffer("double[]", Q, require_writable=True),
+        _ffi.from_buffer("int[]", valid, require_writable=True),
+    )
+    return Q, valid.astype(bool)
+
+
+def within_limits(q):
+    """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 4) -> (...). (C backend)"""
+    q = numpy.ascontiguousarray(_runtime.as_batch(q, 4, "within_limits", "q", finite=False))
+    inside = numpy.empty(q.shape[:-1], dtype=numpy.intc)
+    _lib.adept_three_within_limits_batch(int(numpy.prod(q.shape[:-1], dtype=numpy.int64)), _ffi.from_buffer("double[]", q),
+                                        _ffi.from_buffer("int[]", inside, require_writable=True))
+    return inside.astype(bool)

@@ -17,10 +17,10 @@ NAME = "adept_three"
 JOINTS = ("q1", "q2", "q3", "q4", )
 JOINT_TYPES = ("R", "R", "P", "R", )
 TASK = ("x", "y", "z", "phi", )
-BRANCHES = ()
+BRANCHES = ("lefty", "righty", )
 PARAMS = {"l1": 0.559, "l2": 0.508, "d1": 0.8763, "d4": 0.0}
 LIMITS = ((-2.6179938779914944, 2.6179938779914944), (-2.6179938779914944, 2.6179938779914944), (0.0, 0.305), (-4.71238898038469, 4.71238898038469), )
-OPERATIONS = {"fk": 18, "frames": 23, "jacobian": 15, "task": 14, "task_jacobian": 15}
+OPERATIONS = {"fk": 18, "frames": 23, "jacobian": 15, "task": 14, "task_jacobian": 15, "ik": 53}
 
 
 def fk(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
@@ -210,3 +210,63 @@ def task_jacobian(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     Jx[..., 3, 1] = 1
     Jx[..., 3, 3] = -1
     return Jx
+
+
+@numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
+def ik(x, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """Inverse kinematics, all 2 branches (lefty, righty): Q (..., 2, 4), valid (..., 2).
+
+    x: task coordinates x, y, z, phi, shape (..., 4)
+    Branches, in order: BRANCHES. Revolute joints are wrapped to (-pi, pi]. A branch
+    is valid where it exists; an unreachable, NaN or inf target gives valid False
+    (never an exception). within_limits(Q) tells which solutions respect LIMITS.
+    (53 operations after common-subexpression elimination.)
+    """
+    x = _runtime.as_batch(x, 4, "ik", "x", finite=False)
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    d1 = _runtime.as_param(d1, "d1")
+    d4 = _runtime.as_param(d4, "d4")
+    _batch = _runtime.batch_shape(x)
+    _x = x
+    x = _x[..., 0]
+    y = _x[..., 1]
+    z = _x[..., 2]
+    phi = _x[..., 3]
+    _t0 = (l1*l1) + (l2*l2) - (x*x) - (y*y)
+    _t1 = 1/(l1*l2)
+    _t2 = numpy.minimum(1, numpy.maximum(-1, -0.5*_t0*_t1))
+    _t3 = _t2*l2 + l1
+    _t4 = l2*numpy.sqrt(1 - (_t2*_t2))
+    _t5 = _t4*x
+    _t6 = _t4*y
+    _t7 = numpy.arctan2(_t3*y + _t5, _t3*x - _t6)
+    _t8 = numpy.arccos(_t2)
+    _t9 = d1 - d4 - z
+    _t10 = numpy.arctan2(_t3*y - _t5, _t3*x + _t6)
+    _t11 = numpy.less_equal((0.5)*abs(_t0*_t1), 1.000000000001)
+    Q = numpy.empty(_batch + (2, 4))
+    Q[..., 0, 0] = _runtime.wrap_angle(_t7)
+    Q[..., 0, 1] = _runtime.wrap_angle(-_t8)
+    Q[..., 0, 2] = _t9
+    Q[..., 0, 3] = _runtime.wrap_angle(_t7 - _t8 - phi)
+    Q[..., 1, 0] = _runtime.wrap_angle(_t10)
+    Q[..., 1, 1] = _runtime.wrap_angle(_t8)
+    Q[..., 1, 2] = _t9
+    Q[..., 1, 3] = _runtime.wrap_angle(_t10 + _t8 - phi)
+    valid = numpy.empty(_batch + (2,), dtype=bool)
+    valid[..., 0] = _t11
+    valid[..., 1] = _t11
+    # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
+    valid &= numpy.isfinite(Q).all(axis=-1) & numpy.isfinite(_x).all(axis=-1)[..., None]
+    return Q, valid
+
+
+def within_limits(q):
+    """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 4) -> (...).
+
+    Takes ik's Q of shape (..., k, 4) as it is, giving (..., k). A joint without
+    limits only needs a finite value; NaN gives False.
+    """
+    q = _runtime.as_batch(q, 4, "within_limits", "q", finite=False)
+    return _runtime.within_limits(q, LIMITS, JOINT_TYPES)

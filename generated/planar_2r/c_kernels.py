@@ -104,3 +104,30 @@ def task_jacobian(q, *, l1=0.559, l2=0.508):
         _ffi.from_buffer("double[]", Jx, require_writable=True),
     )
     return Jx
+
+
+def ik(x, *, l1=0.559, l2=0.508):
+    """Inverse kinematics, all 2 branches (elbow_up, elbow_down): Q (..., 2, 2), valid (..., 2). (C backend)"""
+    x = _runtime.as_batch(x, 2, "ik", "x", finite=False)
+    params = _params(l1, l2)
+    batch = _runtime.batch_shape(x)
+    x = _input(x, batch)
+    Q = numpy.empty(batch + (2, 2), dtype=numpy.float64)
+    valid = numpy.empty(batch + (2,), dtype=numpy.intc)
+    status = _lib.planar_2r_ik_batch(
+        int(numpy.prod(batch, dtype=numpy.int64)),
+        _ffi.from_buffer("double[]", x),
+        params,
+        _ffi.from_buffer("double[]", Q, require_writable=True),
+        _ffi.from_buffer("int[]", valid, require_writable=True),
+    )
+    return Q, valid.astype(bool)
+
+
+def within_limits(q):
+    """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 2) -> (...). (C backend)"""
+    q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "within_limits", "q", finite=False))
+    inside = numpy.empty(q.shape[:-1], dtype=numpy.intc)
+    _lib.planar_2r_within_limits_batch(int(numpy.prod(q.shape[:-1], dtype=numpy.int64)), _ffi.from_buffer("double[]", q),
+                                        _ffi.from_buffer("int[]", inside, require_writable=True))
+    return inside.astype(bool)

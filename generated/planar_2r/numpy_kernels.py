@@ -17,10 +17,10 @@ NAME = "planar_2r"
 JOINTS = ("q1", "q2", )
 JOINT_TYPES = ("R", "R", )
 TASK = ("x", "y", )
-BRANCHES = ()
+BRANCHES = ("elbow_up", "elbow_down", )
 PARAMS = {"l1": 0.559, "l2": 0.508}
 LIMITS = (None, None, )
-OPERATIONS = {"fk": 12, "frames": 13, "jacobian": 13, "task": 11, "task_jacobian": 13}
+OPERATIONS = {"fk": 12, "frames": 13, "jacobian": 13, "task": 11, "task_jacobian": 13, "ik": 39}
 
 
 def fk(q, *, l1=0.559, l2=0.508):
@@ -158,3 +158,51 @@ def task_jacobian(q, *, l1=0.559, l2=0.508):
     Jx[..., 1, 0] = _t2 + l1*numpy.cos(q1)
     Jx[..., 1, 1] = _t2
     return Jx
+
+
+@numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
+def ik(x, *, l1=0.559, l2=0.508):
+    """Inverse kinematics, all 2 branches (elbow_up, elbow_down): Q (..., 2, 2), valid (..., 2).
+
+    x: task coordinates x, y, shape (..., 2)
+    Branches, in order: BRANCHES. Revolute joints are wrapped to (-pi, pi]. A branch
+    is valid where it exists; an unreachable, NaN or inf target gives valid False
+    (never an exception). within_limits(Q) tells which solutions respect LIMITS.
+    (39 operations after common-subexpression elimination.)
+    """
+    x = _runtime.as_batch(x, 2, "ik", "x", finite=False)
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    _batch = _runtime.batch_shape(x)
+    _x = x
+    x = _x[..., 0]
+    y = _x[..., 1]
+    _t0 = numpy.arctan2(y, x)
+    _t1 = (l1*l1) + (l2*l2) - (x*x) - (y*y)
+    _t2 = 1/(l1*l2)
+    _t3 = numpy.minimum(1, numpy.maximum(-1, -0.5*_t1*_t2))
+    _t4 = l2*numpy.sqrt(1 - (_t3*_t3))
+    _t5 = _t3*l2 + l1
+    _t6 = numpy.arccos(_t3)
+    _t7 = numpy.less_equal((0.5)*abs(_t1*_t2), 1.000000000001)
+    Q = numpy.empty(_batch + (2, 2))
+    Q[..., 0, 0] = _runtime.wrap_angle(_t0 - numpy.arctan2(-_t4, _t5))
+    Q[..., 0, 1] = _runtime.wrap_angle(-_t6)
+    Q[..., 1, 0] = _runtime.wrap_angle(_t0 - numpy.arctan2(_t4, _t5))
+    Q[..., 1, 1] = _runtime.wrap_angle(_t6)
+    valid = numpy.empty(_batch + (2,), dtype=bool)
+    valid[..., 0] = _t7
+    valid[..., 1] = _t7
+    # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
+    valid &= numpy.isfinite(Q).all(axis=-1) & numpy.isfinite(_x).all(axis=-1)[..., None]
+    return Q, valid
+
+
+def within_limits(q):
+    """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 2) -> (...).
+
+    Takes ik's Q of shape (..., k, 2) as it is, giving (..., k). A joint without
+    limits only needs a finite value; NaN gives False.
+    """
+    q = _runtime.as_batch(q, 2, "within_limits", "q", finite=False)
+    return _runtime.within_limits(q, LIMITS, JOINT_TYPES)

@@ -17,10 +17,10 @@ NAME = "planar_3r"
 JOINTS = ("q1", "q2", "q3", )
 JOINT_TYPES = ("R", "R", "R", )
 TASK = ("x", "y", "phi", )
-BRANCHES = ()
+BRANCHES = ("elbow_up", "elbow_down", )
 PARAMS = {"l1": 0.5, "l2": 0.4, "l3": 0.2}
 LIMITS = (None, None, None, )
-OPERATIONS = {"fk": 19, "frames": 21, "jacobian": 21, "task": 18, "task_jacobian": 21}
+OPERATIONS = {"fk": 19, "frames": 21, "jacobian": 21, "task": 18, "task_jacobian": 21, "ik": 78}
 
 
 def fk(q, *, l1=0.5, l2=0.4, l3=0.2):
@@ -198,3 +198,68 @@ def task_jacobian(q, *, l1=0.5, l2=0.4, l3=0.2):
     Jx[..., 2, 1] = 1
     Jx[..., 2, 2] = 1
     return Jx
+
+
+@numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
+def ik(x, *, l1=0.5, l2=0.4, l3=0.2):
+    """Inverse kinematics, all 2 branches (elbow_up, elbow_down): Q (..., 2, 3), valid (..., 2).
+
+    x: task coordinates x, y, phi, shape (..., 3)
+    Branches, in order: BRANCHES. Revolute joints are wrapped to (-pi, pi]. A branch
+    is valid where it exists; an unreachable, NaN or inf target gives valid False
+    (never an exception). within_limits(Q) tells which solutions respect LIMITS.
+    (78 operations after common-subexpression elimination.)
+    """
+    x = _runtime.as_batch(x, 3, "ik", "x", finite=False)
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    l3 = _runtime.as_param(l3, "l3")
+    _batch = _runtime.batch_shape(x)
+    _x = x
+    x = _x[..., 0]
+    y = _x[..., 1]
+    phi = _x[..., 2]
+    _t0 = l3*numpy.sin(phi)
+    _t1 = _t0 - y
+    _t2 = -_t1
+    _t3 = 2*l1
+    _t4 = l3*numpy.cos(phi) - x
+    _t5 = -_t4
+    _t6 = numpy.arctan2(-_t2*_t3, -_t3*_t5)
+    _t7 = (_t2*_t2)
+    _t8 = (l1*l1)
+    _t9 = 4*_t8
+    _t10 = (_t5*_t5)
+    _t11 = _t10*_t9 + _t7*_t9
+    _t12 = 1.0/numpy.sqrt(_t11)
+    _t13 = _t10 + _t7 + _t8 - (l2*l2)
+    _t14 = numpy.arccos(numpy.minimum(1, numpy.maximum(-1, -_t12*_t13)))
+    _t15 = _t14 - _t6
+    _t16 = 1.0/l2
+    _t17 = numpy.arctan2(_t16*(-_t0 + l1*numpy.sin(_t15) + y), _t16*(-_t4 - l1*numpy.cos(_t15)))
+    _t18 = _t14 + _t6
+    _t19 = -numpy.arctan2(_t16*(-_t1 - l1*numpy.sin(_t18)), _t16*(-_t4 - l1*numpy.cos(_t18)))
+    _t20 = numpy.logical_and(numpy.greater(_t11, 0), numpy.less_equal(_t12*abs(_t13), 1.000000000001))
+    Q = numpy.empty(_batch + (2, 3))
+    Q[..., 0, 0] = _runtime.wrap_angle(-_t15)
+    Q[..., 0, 1] = _runtime.wrap_angle(_t15 + _t17)
+    Q[..., 0, 2] = _runtime.wrap_angle(-_t17 + phi)
+    Q[..., 1, 0] = _runtime.wrap_angle(_t18)
+    Q[..., 1, 1] = _runtime.wrap_angle(-_t18 - _t19)
+    Q[..., 1, 2] = _runtime.wrap_angle(_t19 + phi)
+    valid = numpy.empty(_batch + (2,), dtype=bool)
+    valid[..., 0] = _t20
+    valid[..., 1] = _t20
+    # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
+    valid &= numpy.isfinite(Q).all(axis=-1) & numpy.isfinite(_x).all(axis=-1)[..., None]
+    return Q, valid
+
+
+def within_limits(q):
+    """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 3) -> (...).
+
+    Takes ik's Q of shape (..., k, 3) as it is, giving (..., k). A joint without
+    limits only needs a finite value; NaN gives False.
+    """
+    q = _runtime.as_batch(q, 3, "within_limits", "q", finite=False)
+    return _runtime.within_limits(q, LIMITS, JOINT_TYPES)

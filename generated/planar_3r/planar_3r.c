@@ -9,12 +9,27 @@
  * jacobian: 21 operations after common-subexpression elimination
  * task: 18 operations after common-subexpression elimination
  * task_jacobian: 21 operations after common-subexpression elimination
+ * ik: 78 operations after common-subexpression elimination
  */
 #include "planar_3r.h"
 
 #include <math.h>
 
 const planar_3r_params planar_3r_default_params = { 0.5, 0.4, 0.2 };
+
+/* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi. */
+static double kinegen_wrap_angle(double angle)
+{
+    const double pi = 3.141592653589793, two_pi = 6.283185307179586;
+    double wrapped = angle + two_pi * floor((pi - angle) / two_pi);
+    if (wrapped > pi) {
+        wrapped -= two_pi;  /* rounding of the floor's argument */
+    }
+    if (wrapped < -pi) {
+        wrapped += two_pi;
+    }
+    return wrapped;
+}
 
 /* Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. */
 void planar_3r_fk(const double *restrict q, const planar_3r_params *restrict params, double *restrict T)
@@ -263,5 +278,102 @@ void planar_3r_task_jacobian_batch(size_t count, const double *restrict q, const
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_3r_task_jacobian(q + 3 * i, params, Jx + 9 * i);
+    }
+}
+
+/* Inverse kinematics, all 2 branches (elbow_up, elbow_down): Q (..., 2, 3), valid (..., 2).
+   Returns the number of valid branches. A branch
+   whose joint values are not finite (a NaN or inf target) is never valid. */
+int planar_3r_ik(const double *restrict _x, const planar_3r_params *restrict params, double *restrict Q, int *restrict valid)
+{
+    const double x = _x[0];
+    const double y = _x[1];
+    const double phi = _x[2];
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    const double _t0 = l3*sin(phi);
+    const double _t1 = _t0 - y;
+    const double _t2 = -_t1;
+    const double _t3 = 2*l1;
+    const double _t4 = l3*cos(phi) - x;
+    const double _t5 = -_t4;
+    const double _t6 = atan2(-_t2*_t3, -_t3*_t5);
+    const double _t7 = (_t2*_t2);
+    const double _t8 = (l1*l1);
+    const double _t9 = 4*_t8;
+    const double _t10 = (_t5*_t5);
+    const double _t11 = _t10*_t9 + _t7*_t9;
+    const double _t12 = 1.0/sqrt(_t11);
+    const double _t13 = _t10 + _t7 + _t8 - (l2*l2);
+    const double _t14 = acos(fmin(1, fmax(-1, -_t12*_t13)));
+    const double _t15 = _t14 - _t6;
+    const double _t16 = 1.0/l2;
+    const double _t17 = atan2(_t16*(-_t0 + l1*sin(_t15) + y), _t16*(-_t4 - l1*cos(_t15)));
+    const double _t18 = _t14 + _t6;
+    const double _t19 = -atan2(_t16*(-_t1 - l1*sin(_t18)), _t16*(-_t4 - l1*cos(_t18)));
+    const int _t20 = _t12*fabs(_t13) <= 1.000000000001 && _t11 > 0;
+    Q[0] = kinegen_wrap_angle(-_t15);
+    Q[1] = kinegen_wrap_angle(_t15 + _t17);
+    Q[2] = kinegen_wrap_angle(-_t17 + phi);
+    Q[3] = kinegen_wrap_angle(_t18);
+    Q[4] = kinegen_wrap_angle(-_t18 - _t19);
+    Q[5] = kinegen_wrap_angle(_t19 + phi);
+    valid[0] = _t20;
+    valid[1] = _t20;
+    {
+        int branch, joint, finite_target = 1, valid_branches = 0;
+        for (joint = 0; joint < 3; ++joint) {
+            finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
+        }
+        for (branch = 0; branch < 2; ++branch) {
+            if (!finite_target) {
+                valid[branch] = 0;
+            }
+            for (joint = 0; joint < 3; ++joint) {
+                if (!isfinite(Q[3 * branch + joint])) {
+                    valid[branch] = 0;  /* no NaN leaks out as a valid answer */
+                }
+            }
+            valid_branches += valid[branch] != 0;
+        }
+        return valid_branches;
+    }
+}
+
+long planar_3r_ik_batch(size_t count, const double *restrict x, const planar_3r_params *restrict params, double *restrict Q, int *restrict valid)
+{
+    size_t i;
+    long valid_branches = 0;
+    int refused = 0;
+    for (i = 0; i < count; ++i) {
+        const int found = planar_3r_ik(x + 3 * i, params, Q + 6 * i, valid + 2 * i);
+        if (found < 0) {
+            refused = 1;
+        } else {
+            valid_branches += found;
+        }
+    }
+    return refused ? -1 : valid_branches;
+}
+
+/* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */
+int planar_3r_within_limits(const double *restrict q)
+{
+    int inside = 1;
+    inside = inside && isfinite(q[0]);
+    inside = inside && isfinite(q[1]);
+    inside = inside && isfinite(q[2]);
+    return inside;
+}
+
+void planar_3r_within_limits_batch(size_t count, const double *restrict q, int *restrict inside)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        inside[i] = planar_3r_within_limits(q + 3 * i);
     }
 }

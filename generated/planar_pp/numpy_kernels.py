@@ -17,10 +17,10 @@ NAME = "planar_pp"
 JOINTS = ("q1", "q2", )
 JOINT_TYPES = ("P", "P", )
 TASK = ("x", "y", )
-BRANCHES = ()
+BRANCHES = ("unique", )
 PARAMS = {}
 LIMITS = (None, None, )
-OPERATIONS = {"fk": 1, "frames": 3, "jacobian": 0, "task": 0, "task_jacobian": 0}
+OPERATIONS = {"fk": 1, "frames": 3, "jacobian": 0, "task": 0, "task_jacobian": 0, "ik": 0}
 
 
 def fk(q):
@@ -114,3 +114,38 @@ def task_jacobian(q):
     Jx[..., 0, 1] = 1
     Jx[..., 1, 0] = 1
     return Jx
+
+
+@numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
+def ik(x):
+    """Inverse kinematics, all 1 branches (unique): Q (..., 1, 2), valid (..., 1).
+
+    x: task coordinates x, y, shape (..., 2)
+    Branches, in order: BRANCHES. Revolute joints are wrapped to (-pi, pi]. A branch
+    is valid where it exists; an unreachable, NaN or inf target gives valid False
+    (never an exception). within_limits(Q) tells which solutions respect LIMITS.
+    (0 operations after common-subexpression elimination.)
+    """
+    x = _runtime.as_batch(x, 2, "ik", "x", finite=False)
+    _batch = _runtime.batch_shape(x)
+    _x = x
+    x = _x[..., 0]
+    y = _x[..., 1]
+    Q = numpy.empty(_batch + (1, 2))
+    Q[..., 0, 0] = y
+    Q[..., 0, 1] = x
+    valid = numpy.empty(_batch + (1,), dtype=bool)
+    valid[..., 0] = True
+    # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
+    valid &= numpy.isfinite(Q).all(axis=-1) & numpy.isfinite(_x).all(axis=-1)[..., None]
+    return Q, valid
+
+
+def within_limits(q):
+    """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 2) -> (...).
+
+    Takes ik's Q of shape (..., k, 2) as it is, giving (..., k). A joint without
+    limits only needs a finite value; NaN gives False.
+    """
+    q = _runtime.as_batch(q, 2, "within_limits", "q", finite=False)
+    return _runtime.within_limits(q, LIMITS, JOINT_TYPES)

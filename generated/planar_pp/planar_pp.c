@@ -9,6 +9,7 @@
  * jacobian: 0 operations after common-subexpression elimination
  * task: 0 operations after common-subexpression elimination
  * task_jacobian: 0 operations after common-subexpression elimination
+ * ik: 0 operations after common-subexpression elimination
  */
 #include "planar_pp.h"
 
@@ -173,5 +174,69 @@ void planar_pp_task_jacobian_batch(size_t count, const double *restrict q, const
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_pp_task_jacobian(q + 2 * i, params, Jx + 4 * i);
+    }
+}
+
+/* Inverse kinematics, all 1 branches (unique): Q (..., 1, 2), valid (..., 1).
+   Returns the number of valid branches. A branch
+   whose joint values are not finite (a NaN or inf target) is never valid. */
+int planar_pp_ik(const double *restrict _x, const planar_pp_params *restrict params, double *restrict Q, int *restrict valid)
+{
+    const double x = _x[0];
+    const double y = _x[1];
+    (void)params;
+    Q[0] = y;
+    Q[1] = x;
+    valid[0] = 1;
+    {
+        int branch, joint, finite_target = 1, valid_branches = 0;
+        for (joint = 0; joint < 2; ++joint) {
+            finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
+        }
+        for (branch = 0; branch < 1; ++branch) {
+            if (!finite_target) {
+                valid[branch] = 0;
+            }
+            for (joint = 0; joint < 2; ++joint) {
+                if (!isfinite(Q[2 * branch + joint])) {
+                    valid[branch] = 0;  /* no NaN leaks out as a valid answer */
+                }
+            }
+            valid_branches += valid[branch] != 0;
+        }
+        return valid_branches;
+    }
+}
+
+long planar_pp_ik_batch(size_t count, const double *restrict x, const planar_pp_params *restrict params, double *restrict Q, int *restrict valid)
+{
+    size_t i;
+    long valid_branches = 0;
+    int refused = 0;
+    for (i = 0; i < count; ++i) {
+        const int found = planar_pp_ik(x + 2 * i, params, Q + 2 * i, valid + 1 * i);
+        if (found < 0) {
+            refused = 1;
+        } else {
+            valid_branches += found;
+        }
+    }
+    return refused ? -1 : valid_branches;
+}
+
+/* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */
+int planar_pp_within_limits(const double *restrict q)
+{
+    int inside = 1;
+    inside = inside && isfinite(q[0]);
+    inside = inside && isfinite(q[1]);
+    return inside;
+}
+
+void planar_pp_within_limits_batch(size_t count, const double *restrict q, int *restrict inside)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        inside[i] = planar_pp_within_limits(q + 2 * i);
     }
 }

@@ -17,10 +17,10 @@ NAME = "planar_rp"
 JOINTS = ("q1", "q2", )
 JOINT_TYPES = ("R", "P", )
 TASK = ("x", "y", )
-BRANCHES = ()
+BRANCHES = ("d2_positive", "d2_negative", )
 PARAMS = {}
 LIMITS = (None, None, )
-OPERATIONS = {"fk": 6, "frames": 6, "jacobian": 5, "task": 4, "task_jacobian": 5}
+OPERATIONS = {"fk": 6, "frames": 6, "jacobian": 5, "task": 4, "task_jacobian": 5, "ik": 12}
 
 
 def fk(q):
@@ -137,3 +137,42 @@ def task_jacobian(q):
     Jx[..., 1, 0] = _t1*q2
     Jx[..., 1, 1] = _t0
     return Jx
+
+
+@numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
+def ik(x):
+    """Inverse kinematics, all 2 branches (d2_positive, d2_negative): Q (..., 2, 2), valid (..., 2).
+
+    x: task coordinates x, y, shape (..., 2)
+    Branches, in order: BRANCHES. Revolute joints are wrapped to (-pi, pi]. A branch
+    is valid where it exists; an unreachable, NaN or inf target gives valid False
+    (never an exception). within_limits(Q) tells which solutions respect LIMITS.
+    (12 operations after common-subexpression elimination.)
+    """
+    x = _runtime.as_batch(x, 2, "ik", "x", finite=False)
+    _batch = _runtime.batch_shape(x)
+    _x = x
+    x = _x[..., 0]
+    y = _x[..., 1]
+    _t0 = numpy.sqrt((x*x) + (y*y))
+    Q = numpy.empty(_batch + (2, 2))
+    Q[..., 0, 0] = _runtime.wrap_angle(numpy.arctan2(y, x))
+    Q[..., 0, 1] = _t0
+    Q[..., 1, 0] = _runtime.wrap_angle(numpy.arctan2(-y, -x))
+    Q[..., 1, 1] = -_t0
+    valid = numpy.empty(_batch + (2,), dtype=bool)
+    valid[..., 0] = True
+    valid[..., 1] = True
+    # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
+    valid &= numpy.isfinite(Q).all(axis=-1) & numpy.isfinite(_x).all(axis=-1)[..., None]
+    return Q, valid
+
+
+def within_limits(q):
+    """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 2) -> (...).
+
+    Takes ik's Q of shape (..., k, 2) as it is, giving (..., k). A joint without
+    limits only needs a finite value; NaN gives False.
+    """
+    q = _runtime.as_batch(q, 2, "within_limits", "q", finite=False)
+    return _runtime.within_limits(q, LIMITS, JOINT_TYPES)

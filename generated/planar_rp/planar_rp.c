@@ -9,12 +9,27 @@
  * jacobian: 5 operations after common-subexpression elimination
  * task: 4 operations after common-subexpression elimination
  * task_jacobian: 5 operations after common-subexpression elimination
+ * ik: 12 operations after common-subexpression elimination
  */
 #include "planar_rp.h"
 
 #include <math.h>
 
 const planar_rp_params planar_rp_default_params = { 0.0 };
+
+/* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi. */
+static double kinegen_wrap_angle(double angle)
+{
+    const double pi = 3.141592653589793, two_pi = 6.283185307179586;
+    double wrapped = angle + two_pi * floor((pi - angle) / two_pi);
+    if (wrapped > pi) {
+        wrapped -= two_pi;  /* rounding of the floor's argument */
+    }
+    if (wrapped < -pi) {
+        wrapped += two_pi;
+    }
+    return wrapped;
+}
 
 /* Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. */
 void planar_rp_fk(const double *restrict q, const planar_rp_params *restrict params, double *restrict T)
@@ -184,5 +199,73 @@ void planar_rp_task_jacobian_batch(size_t count, const double *restrict q, const
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_rp_task_jacobian(q + 2 * i, params, Jx + 4 * i);
+    }
+}
+
+/* Inverse kinematics, all 2 branches (d2_positive, d2_negative): Q (..., 2, 2), valid (..., 2).
+   Returns the number of valid branches. A branch
+   whose joint values are not finite (a NaN or inf target) is never valid. */
+int planar_rp_ik(const double *restrict _x, const planar_rp_params *restrict params, double *restrict Q, int *restrict valid)
+{
+    const double x = _x[0];
+    const double y = _x[1];
+    (void)params;
+    const double _t0 = sqrt((x*x) + (y*y));
+    Q[0] = kinegen_wrap_angle(atan2(y, x));
+    Q[1] = _t0;
+    Q[2] = kinegen_wrap_angle(atan2(-y, -x));
+    Q[3] = -_t0;
+    valid[0] = 1;
+    valid[1] = 1;
+    {
+        int branch, joint, finite_target = 1, valid_branches = 0;
+        for (joint = 0; joint < 2; ++joint) {
+            finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
+        }
+        for (branch = 0; branch < 2; ++branch) {
+            if (!finite_target) {
+                valid[branch] = 0;
+            }
+            for (joint = 0; joint < 2; ++joint) {
+                if (!isfinite(Q[2 * branch + joint])) {
+                    valid[branch] = 0;  /* no NaN leaks out as a valid answer */
+                }
+            }
+            valid_branches += valid[branch] != 0;
+        }
+        return valid_branches;
+    }
+}
+
+long planar_rp_ik_batch(size_t count, const double *restrict x, const planar_rp_params *restrict params, double *restrict Q, int *restrict valid)
+{
+    size_t i;
+    long valid_branches = 0;
+    int refused = 0;
+    for (i = 0; i < count; ++i) {
+        const int found = planar_rp_ik(x + 2 * i, params, Q + 4 * i, valid + 2 * i);
+        if (found < 0) {
+            refused = 1;
+        } else {
+            valid_branches += found;
+        }
+    }
+    return refused ? -1 : valid_branches;
+}
+
+/* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */
+int planar_rp_within_limits(const double *restrict q)
+{
+    int inside = 1;
+    inside = inside && isfinite(q[0]);
+    inside = inside && isfinite(q[1]);
+    return inside;
+}
+
+void planar_rp_within_limits_batch(size_t count, const double *restrict q, int *restrict inside)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        inside[i] = planar_rp_within_limits(q + 2 * i);
     }
 }

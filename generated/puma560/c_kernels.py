@@ -104,3 +104,32 @@ def task_jacobian(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318)
         _ffi.from_buffer("double[]", Jx, require_writable=True),
     )
     return Jx
+
+
+def ik(x, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
+    """Inverse kinematics, all 8 branches (right_elbow_up_noflip, right_elbow_up_flip, right_elbow_down_noflip, right_elbow_down_flip, left_elbow_up_noflip, left_elbow_up_flip, left_elbow_down_noflip, left_elbow_down_flip): Q (..., 8, 6), valid (..., 8). (C backend)"""
+    x = _runtime.as_pose_task(x, "ik", "x", 1e-09)
+    params = _params(d1, a2, a3, d3, d4)
+    batch = _runtime.batch_shape(x)
+    x = _input(x, batch)
+    Q = numpy.empty(batch + (8, 6), dtype=numpy.float64)
+    valid = numpy.empty(batch + (8,), dtype=numpy.intc)
+    status = _lib.puma560_ik_batch(
+        int(numpy.prod(batch, dtype=numpy.int64)),
+        _ffi.from_buffer("double[]", x),
+        params,
+        _ffi.from_buffer("double[]", Q, require_writable=True),
+        _ffi.from_buffer("int[]", valid, require_writable=True),
+    )
+    if status < 0:  # the C check refused a pose that the Python check let through (at the tolerance)
+        raise ValueError("ik: x holds a pose that is not a rigid transform (tolerance 1e-09)")
+    return Q, valid.astype(bool)
+
+
+def within_limits(q):
+    """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 6) -> (...). (C backend)"""
+    q = numpy.ascontiguousarray(_runtime.as_batch(q, 6, "within_limits", "q", finite=False))
+    inside = numpy.empty(q.shape[:-1], dtype=numpy.intc)
+    _lib.puma560_within_limits_batch(int(numpy.prod(q.shape[:-1], dtype=numpy.int64)), _ffi.from_buffer("double[]", q),
+                                        _ffi.from_buffer("int[]", inside, require_writable=True))
+    return inside.astype(bool)

@@ -17,10 +17,10 @@ NAME = "puma560"
 JOINTS = ("q1", "q2", "q3", "q4", "q5", "q6", )
 JOINT_TYPES = ("R", "R", "R", "R", "R", "R", )
 TASK = ("x", "y", "z", "r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33", )
-BRANCHES = ()
+BRANCHES = ("right_elbow_up_noflip", "right_elbow_up_flip", "right_elbow_down_noflip", "right_elbow_down_flip", "left_elbow_up_noflip", "left_elbow_up_flip", "left_elbow_down_noflip", "left_elbow_down_flip", )
 PARAMS = {"d1": 0.67183, "a2": 0.4318, "a3": 0.0203, "d3": 0.15005, "d4": 0.4318}
 LIMITS = ((-2.792526803190927, 2.792526803190927), (-0.7853981633974483, 3.9269908169872414), (-3.9269908169872414, 0.7853981633974483), (-1.9198621771937625, 2.9670597283903604), (-1.7453292519943295, 1.7453292519943295), (-4.642575810304916, 4.642575810304916), )
-OPERATIONS = {"fk": 125, "frames": 154, "jacobian": 75, "task": 125, "task_jacobian": 223}
+OPERATIONS = {"fk": 125, "frames": 154, "jacobian": 75, "task": 125, "task_jacobian": 223, "ik": 431}
 
 
 def fk(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
@@ -503,3 +503,249 @@ def task_jacobian(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318)
     Jx[..., 11, 3] = _t17*_t38
     Jx[..., 11, 4] = -_t12*_t27 - _t25
     return Jx
+
+
+@numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
+def ik(x, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
+    """Inverse kinematics, all 8 branches (right_elbow_up_noflip, right_elbow_up_flip, right_elbow_down_noflip, right_elbow_down_flip, left_elbow_up_noflip, left_elbow_up_flip, left_elbow_down_noflip, left_elbow_down_flip): Q (..., 8, 6), valid (..., 8).
+
+    x: task coordinates x, y, z, r11, r12, r13, r21, r22, r23, r31, r32, r33, shape (..., 12), or poses of shape (..., 4, 4)
+    Branches, in order: BRANCHES. Revolute joints are wrapped to (-pi, pi]. A branch
+    is valid where it exists; an unreachable, NaN or inf target gives valid False
+    (never an exception). within_limits(Q) tells which solutions respect LIMITS.
+    A finite pose whose rotation is not orthonormal within 1e-09 (or is a
+    reflection) raises ValueError.
+    (431 operations after common-subexpression elimination.)
+    """
+    x = _runtime.as_pose_task(x, "ik", "x", 1e-09)
+    d1 = _runtime.as_param(d1, "d1")
+    a2 = _runtime.as_param(a2, "a2")
+    a3 = _runtime.as_param(a3, "a3")
+    d3 = _runtime.as_param(d3, "d3")
+    d4 = _runtime.as_param(d4, "d4")
+    _batch = _runtime.batch_shape(x)
+    _x = x
+    x = _x[..., 0]
+    y = _x[..., 1]
+    z = _x[..., 2]
+    r11 = _x[..., 3]
+    r12 = _x[..., 4]
+    r13 = _x[..., 5]
+    r21 = _x[..., 6]
+    r22 = _x[..., 7]
+    r23 = _x[..., 8]
+    r31 = _x[..., 9]
+    r32 = _x[..., 10]
+    r33 = _x[..., 11]
+    _t0 = numpy.arctan2(-x, y)
+    _t1 = (x*x)
+    _t2 = (y*y)
+    _t3 = _t1 + _t2
+    _t4 = 1.0/numpy.sqrt(_t3)
+    _t5 = numpy.arccos(numpy.minimum(1, numpy.maximum(-1, -_t4*d3)))
+    _t6 = _t0 + _t5
+    _t7 = _runtime.wrap_angle(_t6)
+    _t8 = d1 - z
+    _t9 = -_t8
+    _t10 = 2*a2
+    _t11 = numpy.arctan2(-_t10*d4, _t10*a3)
+    _t12 = (a3*a3)
+    _t13 = (a2*a2)
+    _t14 = 4*_t13
+    _t15 = (d4*d4)
+    _t16 = _t12*_t14 + _t14*_t15
+    _t17 = 1.0/numpy.sqrt(_t16)
+    _t18 = -_t1 + _t12 + _t13 + _t15 - _t2 + (d3*d3)
+    _t19 = numpy.arccos(numpy.minimum(1, numpy.maximum(-1, _t17*(-_t18 + (_t9*_t9)))))
+    _t20 = -_t11 + _t19
+    _t21 = numpy.cos(_t20)
+    _t22 = numpy.sin(_t20)
+    _t23 = _t21*a3 + _t22*d4 + a2
+    _t24 = _t23*_t9
+    _t25 = numpy.cos(_t6)
+    _t26 = numpy.sin(_t6)
+    _t27 = _t25*x + _t26*y
+    _t28 = _t21*d4 - _t22*a3
+    _t29 = _t28*_t9
+    _t30 = numpy.arctan2(_t24 - _t27*_t28, _t23*_t27 + _t29)
+    _t31 = _runtime.wrap_angle(_t30)
+    _t32 = _runtime.wrap_angle(-_t20)
+    _t33 = -_t25*r23 + _t26*r13
+    _t34 = -_t33
+    _t35 = (_t34*_t34)
+    _t36 = _t11 - _t19
+    _t37 = _t30 + _t36
+    _t38 = numpy.sin(_t37)
+    _t39 = numpy.cos(_t37)
+    _t40 = _t25*r13
+    _t41 = _t26*r23
+    _t42 = _t38*r33 + _t39*_t40 + _t39*_t41
+    _t43 = numpy.less_equal(_t35 + (_t42*_t42), 1e-24)
+    _t44 = numpy.arctan2(_t33, -_t42)
+    _t45 = numpy.where(_t43, 0, _t44)
+    _t46 = numpy.sin(_t45)
+    _t47 = numpy.cos(_t45)
+    _t48 = -_t38*_t40 - _t38*_t41 + _t39*r33
+    _t49 = _t25*r21 - _t26*r11
+    _t50 = _t25*_t39
+    _t51 = _t26*_t39
+    _t52 = _t38*r31 + _t50*r11 + _t51*r21
+    _t53 = _t25*r22 - _t26*r12
+    _t54 = _t38*r32 + _t50*r12 + _t51*r22
+    _t55 = numpy.where(_t43, 3.141592653589793, _t44 + 3.141592653589793)
+    _t56 = numpy.sin(_t55)
+    _t57 = numpy.cos(_t55)
+    _t58 = _t11 + _t19
+    _t59 = numpy.cos(_t58)
+    _t60 = numpy.sin(_t58)
+    _t61 = _t59*a3 - _t60*d4 + a2
+    _t62 = _t61*_t9
+    _t63 = _t59*d4 + _t60*a3
+    _t64 = _t63*_t9
+    _t65 = numpy.arctan2(-_t27*_t63 + _t62, _t27*_t61 + _t64)
+    _t66 = _runtime.wrap_angle(_t65)
+    _t67 = _runtime.wrap_angle(_t58)
+    _t68 = _t58 + _t65
+    _t69 = numpy.sin(_t68)
+    _t70 = numpy.cos(_t68)
+    _t71 = _t40*_t70 + _t41*_t70 + _t69*r33
+    _t72 = numpy.less_equal(_t35 + (_t71*_t71), 1e-24)
+    _t73 = numpy.arctan2(_t33, -_t71)
+    _t74 = numpy.where(_t72, 0, _t73)
+    _t75 = numpy.sin(_t74)
+    _t76 = numpy.cos(_t74)
+    _t77 = -_t40*_t69 - _t41*_t69 + _t70*r33
+    _t78 = _t25*_t70
+    _t79 = _t26*_t70
+    _t80 = _t69*r31 + _t78*r11 + _t79*r21
+    _t81 = _t69*r32 + _t78*r12 + _t79*r22
+    _t82 = numpy.where(_t72, 3.141592653589793, _t73 + 3.141592653589793)
+    _t83 = numpy.sin(_t82)
+    _t84 = numpy.cos(_t82)
+    _t85 = -_t0 + _t5
+    _t86 = _runtime.wrap_angle(-_t85)
+    _t87 = numpy.cos(_t85)
+    _t88 = numpy.sin(_t85)
+    _t89 = _t87*x - _t88*y
+    _t90 = numpy.arctan2(_t62 - _t63*_t89, _t61*_t89 + _t64)
+    _t91 = _runtime.wrap_angle(_t90)
+    _t92 = _t87*r23 + _t88*r13
+    _t93 = (_t92*_t92)
+    _t94 = _t58 + _t90
+    _t95 = numpy.sin(_t94)
+    _t96 = numpy.cos(_t94)
+    _t97 = _t87*r13
+    _t98 = _t88*r23
+    _t99 = _t95*r33 + _t96*_t97 - _t96*_t98
+    _t100 = numpy.less_equal(_t93 + (_t99*_t99), 1e-24)
+    _t101 = -_t92
+    _t102 = numpy.arctan2(_t101, -_t99)
+    _t103 = numpy.where(_t100, 0, _t102)
+    _t104 = numpy.sin(_t103)
+    _t105 = numpy.cos(_t103)
+    _t106 = -_t95*_t97 + _t95*_t98 + _t96*r33
+    _t107 = _t87*r21 + _t88*r11
+    _t108 = _t87*_t96
+    _t109 = _t88*_t96
+    _t110 = _t108*r11 - _t109*r21 + _t95*r31
+    _t111 = _t87*r22 + _t88*r12
+    _t112 = _t108*r12 - _t109*r22 + _t95*r32
+    _t113 = numpy.where(_t100, 3.141592653589793, _t102 + 3.141592653589793)
+    _t114 = numpy.sin(_t113)
+    _t115 = numpy.cos(_t113)
+    _t116 = numpy.arctan2(_t24 - _t28*_t89, _t23*_t89 + _t29)
+    _t117 = _runtime.wrap_angle(_t116)
+    _t118 = _t116 + _t36
+    _t119 = numpy.sin(_t118)
+    _t120 = numpy.cos(_t118)
+    _t121 = _t119*r33 + _t120*_t97 - _t120*_t98
+    _t122 = numpy.less_equal((_t121*_t121) + _t93, 1e-24)
+    _t123 = numpy.arctan2(_t101, -_t121)
+    _t124 = numpy.where(_t122, 0, _t123)
+    _t125 = numpy.sin(_t124)
+    _t126 = numpy.cos(_t124)
+    _t127 = -_t119*_t97 + _t119*_t98 + _t120*r33
+    _t128 = _t120*_t87
+    _t129 = _t120*_t88
+    _t130 = _t119*r31 + _t128*r11 - _t129*r21
+    _t131 = _t119*r32 + _t128*r12 - _t129*r22
+    _t132 = numpy.where(_t122, 3.141592653589793, _t123 + 3.141592653589793)
+    _t133 = numpy.sin(_t132)
+    _t134 = numpy.cos(_t132)
+    _t135 = numpy.greater(_t3, 0)
+    _t136 = numpy.less_equal(_t4*abs(d3), 1.000000000001)
+    _t137 = numpy.greater(_t16, 0)
+    _t138 = numpy.less_equal(_t17*abs(_t18 - (_t8*_t8)), 1.000000000001)
+    _t139 = numpy.logical_and(numpy.logical_and(numpy.logical_and(numpy.logical_and(_t135, _t136), _t137), _t138), numpy.greater((_t23*_t23) + (_t28*_t28), 0))
+    _t140 = numpy.logical_and(numpy.logical_and(numpy.logical_and(numpy.logical_and(_t135, _t136), _t137), _t138), numpy.greater((_t61*_t61) + (_t63*_t63), 0))
+    Q = numpy.empty(_batch + (8, 6))
+    Q[..., 0, 0] = _t7
+    Q[..., 0, 1] = _t31
+    Q[..., 0, 2] = _t32
+    Q[..., 0, 3] = _runtime.wrap_angle(_t45)
+    Q[..., 0, 4] = _runtime.wrap_angle(numpy.arctan2(-_t34*_t46 - _t42*_t47, _t48))
+    Q[..., 0, 5] = _runtime.wrap_angle(numpy.arctan2(-_t46*_t52 + _t47*_t49, -_t46*_t54 + _t47*_t53))
+    Q[..., 1, 0] = _t7
+    Q[..., 1, 1] = _t31
+    Q[..., 1, 2] = _t32
+    Q[..., 1, 3] = _runtime.wrap_angle(_t55)
+    Q[..., 1, 4] = _runtime.wrap_angle(numpy.arctan2(-_t34*_t56 - _t42*_t57, _t48))
+    Q[..., 1, 5] = _runtime.wrap_angle(numpy.arctan2(_t49*_t57 - _t52*_t56, _t53*_t57 - _t54*_t56))
+    Q[..., 2, 0] = _t7
+    Q[..., 2, 1] = _t66
+    Q[..., 2, 2] = _t67
+    Q[..., 2, 3] = _runtime.wrap_angle(_t74)
+    Q[..., 2, 4] = _runtime.wrap_angle(numpy.arctan2(-_t34*_t75 - _t71*_t76, _t77))
+    Q[..., 2, 5] = _runtime.wrap_angle(numpy.arctan2(_t49*_t76 - _t75*_t80, _t53*_t76 - _t75*_t81))
+    Q[..., 3, 0] = _t7
+    Q[..., 3, 1] = _t66
+    Q[..., 3, 2] = _t67
+    Q[..., 3, 3] = _runtime.wrap_angle(_t82)
+    Q[..., 3, 4] = _runtime.wrap_angle(numpy.arctan2(-_t34*_t83 - _t71*_t84, _t77))
+    Q[..., 3, 5] = _runtime.wrap_angle(numpy.arctan2(_t49*_t84 - _t80*_t83, _t53*_t84 - _t81*_t83))
+    Q[..., 4, 0] = _t86
+    Q[..., 4, 1] = _t91
+    Q[..., 4, 2] = _t67
+    Q[..., 4, 3] = _runtime.wrap_angle(_t103)
+    Q[..., 4, 4] = _runtime.wrap_angle(numpy.arctan2(-_t104*_t92 - _t105*_t99, _t106))
+    Q[..., 4, 5] = _runtime.wrap_angle(numpy.arctan2(-_t104*_t110 + _t105*_t107, -_t104*_t112 + _t105*_t111))
+    Q[..., 5, 0] = _t86
+    Q[..., 5, 1] = _t91
+    Q[..., 5, 2] = _t67
+    Q[..., 5, 3] = _runtime.wrap_angle(_t113)
+    Q[..., 5, 4] = _runtime.wrap_angle(numpy.arctan2(-_t114*_t92 - _t115*_t99, _t106))
+    Q[..., 5, 5] = _runtime.wrap_angle(numpy.arctan2(_t107*_t115 - _t110*_t114, _t111*_t115 - _t112*_t114))
+    Q[..., 6, 0] = _t86
+    Q[..., 6, 1] = _t117
+    Q[..., 6, 2] = _t32
+    Q[..., 6, 3] = _runtime.wrap_angle(_t124)
+    Q[..., 6, 4] = _runtime.wrap_angle(numpy.arctan2(-_t121*_t126 - _t125*_t92, _t127))
+    Q[..., 6, 5] = _runtime.wrap_angle(numpy.arctan2(_t107*_t126 - _t125*_t130, _t111*_t126 - _t125*_t131))
+    Q[..., 7, 0] = _t86
+    Q[..., 7, 1] = _t117
+    Q[..., 7, 2] = _t32
+    Q[..., 7, 3] = _runtime.wrap_angle(_t132)
+    Q[..., 7, 4] = _runtime.wrap_angle(numpy.arctan2(-_t121*_t134 - _t133*_t92, _t127))
+    Q[..., 7, 5] = _runtime.wrap_angle(numpy.arctan2(_t107*_t134 - _t130*_t133, _t111*_t134 - _t131*_t133))
+    valid = numpy.empty(_batch + (8,), dtype=bool)
+    valid[..., 0] = _t139
+    valid[..., 1] = _t139
+    valid[..., 2] = _t140
+    valid[..., 3] = _t140
+    valid[..., 4] = _t140
+    valid[..., 5] = _t140
+    valid[..., 6] = _t139
+    valid[..., 7] = _t139
+    # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
+    valid &= numpy.isfinite(Q).all(axis=-1) & numpy.isfinite(_x).all(axis=-1)[..., None]
+    return Q, valid
+
+
+def within_limits(q):
+    """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 6) -> (...).
+
+    Takes ik's Q of shape (..., k, 6) as it is, giving (..., k). A joint without
+    limits only needs a finite value; NaN gives False.
+    """
+    q = _runtime.as_batch(q, 6, "within_limits", "q", finite=False)
+    return _runtime.within_limits(q, LIMITS, JOINT_TYPES)

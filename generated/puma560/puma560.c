@@ -9,12 +9,50 @@
  * jacobian: 75 operations after common-subexpression elimination
  * task: 125 operations after common-subexpression elimination
  * task_jacobian: 223 operations after common-subexpression elimination
+ * ik: 431 operations after common-subexpression elimination
  */
 #include "puma560.h"
 
 #include <math.h>
 
 const puma560_params puma560_default_params = { 0.67183, 0.4318, 0.0203, 0.15005, 0.4318 };
+
+/* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi. */
+static double kinegen_wrap_angle(double angle)
+{
+    const double pi = 3.141592653589793, two_pi = 6.283185307179586;
+    double wrapped = angle + two_pi * floor((pi - angle) / two_pi);
+    if (wrapped > pi) {
+        wrapped -= two_pi;  /* rounding of the floor's argument */
+    }
+    if (wrapped < -pi) {
+        wrapped += two_pi;
+    }
+    return wrapped;
+}
+
+/* 1 when the pose task x (x, y, z, r11 .. r33) is finite and its rotation R is not
+   orthonormal within 1e-09 (max|R R^T - I|) or is a reflection (det R < 0). */
+static int puma560_is_refused_pose(const double *restrict x)
+{
+    const double *r = x + 3;
+    double deviation = 0.0, determinant;
+    int i, j;
+    for (i = 0; i < 12; ++i) {
+        if (!isfinite(x[i])) {
+            return 0;  /* reported through valid instead */
+        }
+    }
+    for (i = 0; i < 3; ++i) {
+        for (j = 0; j < 3; ++j) {
+            const double dot = r[3 * i] * r[3 * j] + r[3 * i + 1] * r[3 * j + 1] + r[3 * i + 2] * r[3 * j + 2];
+            deviation = fmax(deviation, fabs(dot - (i == j ? 1.0 : 0.0)));
+        }
+    }
+    determinant = r[0] * (r[4] * r[8] - r[5] * r[7]) - r[1] * (r[3] * r[8] - r[5] * r[6])
+                  + r[2] * (r[3] * r[7] - r[4] * r[6]);
+    return deviation > 1e-09 || determinant < 0.0;
+}
 
 /* Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. */
 void puma560_fk(const double *restrict q, const puma560_params *restrict params, double *restrict T)
@@ -584,5 +622,355 @@ void puma560_task_jacobian_batch(size_t count, const double *restrict q, const p
     size_t i;
     for (i = 0; i < count; ++i) {
         puma560_task_jacobian(q + 6 * i, params, Jx + 72 * i);
+    }
+}
+
+/* Inverse kinematics, all 8 branches (right_elbow_up_noflip, right_elbow_up_flip, right_elbow_down_noflip, right_elbow_down_flip, left_elbow_up_noflip, left_elbow_up_flip, left_elbow_down_noflip, left_elbow_down_flip): Q (..., 8, 6), valid (..., 8).
+   Returns the number of valid branches, or -1 (and no branch valid) when x is a
+   finite pose whose rotation is not orthonormal within 1e-09 or is a reflection. A branch
+   whose joint values are not finite (a NaN or inf target) is never valid. */
+int puma560_ik(const double *restrict _x, const puma560_params *restrict params, double *restrict Q, int *restrict valid)
+{
+    const double x = _x[0];
+    const double y = _x[1];
+    const double z = _x[2];
+    const double r11 = _x[3];
+    const double r12 = _x[4];
+    const double r13 = _x[5];
+    const double r21 = _x[6];
+    const double r22 = _x[7];
+    const double r23 = _x[8];
+    const double r31 = _x[9];
+    const double r32 = _x[10];
+    const double r33 = _x[11];
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double d1 = params->d1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    const double _t0 = atan2(-x, y);
+    const double _t1 = (x*x);
+    const double _t2 = (y*y);
+    const double _t3 = _t1 + _t2;
+    const double _t4 = 1.0/sqrt(_t3);
+    const double _t5 = acos(fmin(1, fmax(-1, -_t4*d3)));
+    const double _t6 = _t0 + _t5;
+    const double _t7 = kinegen_wrap_angle(_t6);
+    const double _t8 = d1 - z;
+    const double _t9 = -_t8;
+    const double _t10 = 2*a2;
+    const double _t11 = atan2(-_t10*d4, _t10*a3);
+    const double _t12 = (a3*a3);
+    const double _t13 = (a2*a2);
+    const double _t14 = 4*_t13;
+    const double _t15 = (d4*d4);
+    const double _t16 = _t12*_t14 + _t14*_t15;
+    const double _t17 = 1.0/sqrt(_t16);
+    const double _t18 = -_t1 + _t12 + _t13 + _t15 - _t2 + (d3*d3);
+    const double _t19 = acos(fmin(1, fmax(-1, _t17*(-_t18 + (_t9*_t9)))));
+    const double _t20 = -_t11 + _t19;
+    const double _t21 = cos(_t20);
+    const double _t22 = sin(_t20);
+    const double _t23 = _t21*a3 + _t22*d4 + a2;
+    const double _t24 = _t23*_t9;
+    const double _t25 = cos(_t6);
+    const double _t26 = sin(_t6);
+    const double _t27 = _t25*x + _t26*y;
+    const double _t28 = _t21*d4 - _t22*a3;
+    const double _t29 = _t28*_t9;
+    const double _t30 = atan2(_t24 - _t27*_t28, _t23*_t27 + _t29);
+    const double _t31 = kinegen_wrap_angle(_t30);
+    const double _t32 = kinegen_wrap_angle(-_t20);
+    const double _t33 = -_t25*r23 + _t26*r13;
+    const double _t34 = -_t33;
+    const double _t35 = (_t34*_t34);
+    const double _t36 = _t11 - _t19;
+    const double _t37 = _t30 + _t36;
+    const double _t38 = sin(_t37);
+    const double _t39 = cos(_t37);
+    const double _t40 = _t25*r13;
+    const double _t41 = _t26*r23;
+    const double _t42 = _t38*r33 + _t39*_t40 + _t39*_t41;
+    const int _t43 = _t35 + (_t42*_t42) <= 1e-24;
+    const double _t44 = atan2(_t33, -_t42);
+    const double _t45 = ((_t43) ? (
+   0
+)
+: (
+   _t44
+));
+    const double _t46 = sin(_t45);
+    const double _t47 = cos(_t45);
+    const double _t48 = -_t38*_t40 - _t38*_t41 + _t39*r33;
+    const double _t49 = _t25*r21 - _t26*r11;
+    const double _t50 = _t25*_t39;
+    const double _t51 = _t26*_t39;
+    const double _t52 = _t38*r31 + _t50*r11 + _t51*r21;
+    const double _t53 = _t25*r22 - _t26*r12;
+    const double _t54 = _t38*r32 + _t50*r12 + _t51*r22;
+    const double _t55 = ((_t43) ? (
+   3.141592653589793
+)
+: (
+   _t44 + 3.141592653589793
+));
+    const double _t56 = sin(_t55);
+    const double _t57 = cos(_t55);
+    const double _t58 = _t11 + _t19;
+    const double _t59 = cos(_t58);
+    const double _t60 = sin(_t58);
+    const double _t61 = _t59*a3 - _t60*d4 + a2;
+    const double _t62 = _t61*_t9;
+    const double _t63 = _t59*d4 + _t60*a3;
+    const double _t64 = _t63*_t9;
+    const double _t65 = atan2(-_t27*_t63 + _t62, _t27*_t61 + _t64);
+    const double _t66 = kinegen_wrap_angle(_t65);
+    const double _t67 = kinegen_wrap_angle(_t58);
+    const double _t68 = _t58 + _t65;
+    const double _t69 = sin(_t68);
+    const double _t70 = cos(_t68);
+    const double _t71 = _t40*_t70 + _t41*_t70 + _t69*r33;
+    const int _t72 = _t35 + (_t71*_t71) <= 1e-24;
+    const double _t73 = atan2(_t33, -_t71);
+    const double _t74 = ((_t72) ? (
+   0
+)
+: (
+   _t73
+));
+    const double _t75 = sin(_t74);
+    const double _t76 = cos(_t74);
+    const double _t77 = -_t40*_t69 - _t41*_t69 + _t70*r33;
+    const double _t78 = _t25*_t70;
+    const double _t79 = _t26*_t70;
+    const double _t80 = _t69*r31 + _t78*r11 + _t79*r21;
+    const double _t81 = _t69*r32 + _t78*r12 + _t79*r22;
+    const double _t82 = ((_t72) ? (
+   3.141592653589793
+)
+: (
+   _t73 + 3.141592653589793
+));
+    const double _t83 = sin(_t82);
+    const double _t84 = cos(_t82);
+    const double _t85 = -_t0 + _t5;
+    const double _t86 = kinegen_wrap_angle(-_t85);
+    const double _t87 = cos(_t85);
+    const double _t88 = sin(_t85);
+    const double _t89 = _t87*x - _t88*y;
+    const double _t90 = atan2(_t62 - _t63*_t89, _t61*_t89 + _t64);
+    const double _t91 = kinegen_wrap_angle(_t90);
+    const double _t92 = _t87*r23 + _t88*r13;
+    const double _t93 = (_t92*_t92);
+    const double _t94 = _t58 + _t90;
+    const double _t95 = sin(_t94);
+    const double _t96 = cos(_t94);
+    const double _t97 = _t87*r13;
+    const double _t98 = _t88*r23;
+    const double _t99 = _t95*r33 + _t96*_t97 - _t96*_t98;
+    const int _t100 = _t93 + (_t99*_t99) <= 1e-24;
+    const double _t101 = -_t92;
+    const double _t102 = atan2(_t101, -_t99);
+    const double _t103 = ((_t100) ? (
+   0
+)
+: (
+   _t102
+));
+    const double _t104 = sin(_t103);
+    const double _t105 = cos(_t103);
+    const double _t106 = -_t95*_t97 + _t95*_t98 + _t96*r33;
+    const double _t107 = _t87*r21 + _t88*r11;
+    const double _t108 = _t87*_t96;
+    const double _t109 = _t88*_t96;
+    const double _t110 = _t108*r11 - _t109*r21 + _t95*r31;
+    const double _t111 = _t87*r22 + _t88*r12;
+    const double _t112 = _t108*r12 - _t109*r22 + _t95*r32;
+    const double _t113 = ((_t100) ? (
+   3.141592653589793
+)
+: (
+   _t102 + 3.141592653589793
+));
+    const double _t114 = sin(_t113);
+    const double _t115 = cos(_t113);
+    const double _t116 = atan2(_t24 - _t28*_t89, _t23*_t89 + _t29);
+    const double _t117 = kinegen_wrap_angle(_t116);
+    const double _t118 = _t116 + _t36;
+    const double _t119 = sin(_t118);
+    const double _t120 = cos(_t118);
+    const double _t121 = _t119*r33 + _t120*_t97 - _t120*_t98;
+    const int _t122 = (_t121*_t121) + _t93 <= 1e-24;
+    const double _t123 = atan2(_t101, -_t121);
+    const double _t124 = ((_t122) ? (
+   0
+)
+: (
+   _t123
+));
+    const double _t125 = sin(_t124);
+    const double _t126 = cos(_t124);
+    const double _t127 = -_t119*_t97 + _t119*_t98 + _t120*r33;
+    const double _t128 = _t120*_t87;
+    const double _t129 = _t120*_t88;
+    const double _t130 = _t119*r31 + _t128*r11 - _t129*r21;
+    const double _t131 = _t119*r32 + _t128*r12 - _t129*r22;
+    const double _t132 = ((_t122) ? (
+   3.141592653589793
+)
+: (
+   _t123 + 3.141592653589793
+));
+    const double _t133 = sin(_t132);
+    const double _t134 = cos(_t132);
+    const int _t135 = _t3 > 0;
+    const int _t136 = _t4*fabs(d3) <= 1.000000000001;
+    const int _t137 = _t16 > 0;
+    const int _t138 = _t17*fabs(_t18 - (_t8*_t8)) <= 1.000000000001;
+    const int _t139 = _t135 && _t136 && _t137 && _t138 && (_t23*_t23) + (_t28*_t28) > 0;
+    const int _t140 = _t135 && _t136 && _t137 && _t138 && (_t61*_t61) + (_t63*_t63) > 0;
+    Q[0] = _t7;
+    Q[1] = _t31;
+    Q[2] = _t32;
+    Q[3] = kinegen_wrap_angle(_t45);
+    Q[4] = kinegen_wrap_angle(atan2(-_t34*_t46 - _t42*_t47, _t48));
+    Q[5] = kinegen_wrap_angle(atan2(-_t46*_t52 + _t47*_t49, -_t46*_t54 + _t47*_t53));
+    Q[6] = _t7;
+    Q[7] = _t31;
+    Q[8] = _t32;
+    Q[9] = kinegen_wrap_angle(_t55);
+    Q[10] = kinegen_wrap_angle(atan2(-_t34*_t56 - _t42*_t57, _t48));
+    Q[11] = kinegen_wrap_angle(atan2(_t49*_t57 - _t52*_t56, _t53*_t57 - _t54*_t56));
+    Q[12] = _t7;
+    Q[13] = _t66;
+    Q[14] = _t67;
+    Q[15] = kinegen_wrap_angle(_t74);
+    Q[16] = kinegen_wrap_angle(atan2(-_t34*_t75 - _t71*_t76, _t77));
+    Q[17] = kinegen_wrap_angle(atan2(_t49*_t76 - _t75*_t80, _t53*_t76 - _t75*_t81));
+    Q[18] = _t7;
+    Q[19] = _t66;
+    Q[20] = _t67;
+    Q[21] = kinegen_wrap_angle(_t82);
+    Q[22] = kinegen_wrap_angle(atan2(-_t34*_t83 - _t71*_t84, _t77));
+    Q[23] = kinegen_wrap_angle(atan2(_t49*_t84 - _t80*_t83, _t53*_t84 - _t81*_t83));
+    Q[24] = _t86;
+    Q[25] = _t91;
+    Q[26] = _t67;
+    Q[27] = kinegen_wrap_angle(_t103);
+    Q[28] = kinegen_wrap_angle(atan2(-_t104*_t92 - _t105*_t99, _t106));
+    Q[29] = kinegen_wrap_angle(atan2(-_t104*_t110 + _t105*_t107, -_t104*_t112 + _t105*_t111));
+    Q[30] = _t86;
+    Q[31] = _t91;
+    Q[32] = _t67;
+    Q[33] = kinegen_wrap_angle(_t113);
+    Q[34] = kinegen_wrap_angle(atan2(-_t114*_t92 - _t115*_t99, _t106));
+    Q[35] = kinegen_wrap_angle(atan2(_t107*_t115 - _t110*_t114, _t111*_t115 - _t112*_t114));
+    Q[36] = _t86;
+    Q[37] = _t117;
+    Q[38] = _t32;
+    Q[39] = kinegen_wrap_angle(_t124);
+    Q[40] = kinegen_wrap_angle(atan2(-_t121*_t126 - _t125*_t92, _t127));
+    Q[41] = kinegen_wrap_angle(atan2(_t107*_t126 - _t125*_t130, _t111*_t126 - _t125*_t131));
+    Q[42] = _t86;
+    Q[43] = _t117;
+    Q[44] = _t32;
+    Q[45] = kinegen_wrap_angle(_t132);
+    Q[46] = kinegen_wrap_angle(atan2(-_t121*_t134 - _t133*_t92, _t127));
+    Q[47] = kinegen_wrap_angle(atan2(_t107*_t134 - _t130*_t133, _t111*_t134 - _t131*_t133));
+    valid[0] = _t139;
+    valid[1] = _t139;
+    valid[2] = _t140;
+    valid[3] = _t140;
+    valid[4] = _t140;
+    valid[5] = _t140;
+    valid[6] = _t139;
+    valid[7] = _t139;
+    {
+        int branch, joint, finite_target = 1, valid_branches = 0;
+        for (joint = 0; joint < 12; ++joint) {
+            finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
+        }
+        for (branch = 0; branch < 8; ++branch) {
+            if (!finite_target) {
+                valid[branch] = 0;
+            }
+            for (joint = 0; joint < 6; ++joint) {
+                if (!isfinite(Q[6 * branch + joint])) {
+                    valid[branch] = 0;  /* no NaN leaks out as a valid answer */
+                }
+            }
+            valid_branches += valid[branch] != 0;
+        }
+        if (!puma560_is_refused_pose(_x)) {
+            return valid_branches;
+        }
+        for (branch = 0; branch < 8; ++branch) {
+            valid[branch] = 0;
+        }
+        return -1;
+    }
+}
+
+long puma560_ik_batch(size_t count, const double *restrict x, const puma560_params *restrict params, double *restrict Q, int *restrict valid)
+{
+    size_t i;
+    long valid_branches = 0;
+    int refused = 0;
+    for (i = 0; i < count; ++i) {
+        const int found = puma560_ik(x + 12 * i, params, Q + 48 * i, valid + 8 * i);
+        if (found < 0) {
+            refused = 1;
+        } else {
+            valid_branches += found;
+        }
+    }
+    return refused ? -1 : valid_branches;
+}
+
+/* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */
+int puma560_within_limits(const double *restrict q)
+{
+    int inside = 1;
+    {
+        double turn = q[0] - (-2.792526803190927);
+        turn -= 6.283185307179586 * floor(turn / 6.283185307179586);
+        inside = inside && turn <= (2.792526803190927) - (-2.792526803190927);
+    }
+    {
+        double turn = q[1] - (-0.7853981633974483);
+        turn -= 6.283185307179586 * floor(turn / 6.283185307179586);
+        inside = inside && turn <= (3.9269908169872414) - (-0.7853981633974483);
+    }
+    {
+        double turn = q[2] - (-3.9269908169872414);
+        turn -= 6.283185307179586 * floor(turn / 6.283185307179586);
+        inside = inside && turn <= (0.7853981633974483) - (-3.9269908169872414);
+    }
+    {
+        double turn = q[3] - (-1.9198621771937625);
+        turn -= 6.283185307179586 * floor(turn / 6.283185307179586);
+        inside = inside && turn <= (2.9670597283903604) - (-1.9198621771937625);
+    }
+    {
+        double turn = q[4] - (-1.7453292519943295);
+        turn -= 6.283185307179586 * floor(turn / 6.283185307179586);
+        inside = inside && turn <= (1.7453292519943295) - (-1.7453292519943295);
+    }
+    {
+        double turn = q[5] - (-4.642575810304916);
+        turn -= 6.283185307179586 * floor(turn / 6.283185307179586);
+        inside = inside && turn <= (4.642575810304916) - (-4.642575810304916);
+    }
+    return inside;
+}
+
+void puma560_within_limits_batch(size_t count, const double *restrict q, int *restrict inside)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        inside[i] = puma560_within_limits(q + 6 * i);
     }
 }

@@ -104,3 +104,30 @@ def task_jacobian(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
         _ffi.from_buffer("double[]", Jx, require_writable=True),
     )
     return Jx
+
+
+def ik(x, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
+    """Inverse kinematics, all 4 branches (elbow_up, elbow_down, shoulder_flip_elbow_up, shoulder_flip_elbow_down): Q (..., 4, 5), valid (..., 4). (C backend)"""
+    x = _runtime.as_batch(x, 3, "ik", "x", finite=False)
+    params = _params(a1, a2, a3, d1, d5)
+    batch = _runtime.batch_shape(x)
+    x = _input(x, batch)
+    Q = numpy.empty(batch + (4, 5), dtype=numpy.float64)
+    valid = numpy.empty(batch + (4,), dtype=numpy.intc)
+    status = _lib.scorbot_er7_ik_batch(
+        int(numpy.prod(batch, dtype=numpy.int64)),
+        _ffi.from_buffer("double[]", x),
+        params,
+        _ffi.from_buffer("double[]", Q, require_writable=True),
+        _ffi.from_buffer("int[]", valid, require_writable=True),
+    )
+    return Q, valid.astype(bool)
+
+
+def within_limits(q):
+    """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 5) -> (...). (C backend)"""
+    q = numpy.ascontiguousarray(_runtime.as_batch(q, 5, "within_limits", "q", finite=False))
+    inside = numpy.empty(q.shape[:-1], dtype=numpy.intc)
+    _lib.scorbot_er7_within_limits_batch(int(numpy.prod(q.shape[:-1], dtype=numpy.int64)), _ffi.from_buffer("double[]", q),
+                                        _ffi.from_buffer("int[]", inside, require_writable=True))
+    return inside.astype(bool)

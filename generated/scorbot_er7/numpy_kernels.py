@@ -17,10 +17,10 @@ NAME = "scorbot_er7"
 JOINTS = ("q1", "q2", "q3", "q4", "q5", )
 JOINT_TYPES = ("R", "R", "R", "R", "R", )
 TASK = ("x", "y", "z", )
-BRANCHES = ()
+BRANCHES = ("elbow_up", "elbow_down", "shoulder_flip_elbow_up", "shoulder_flip_elbow_down", )
 PARAMS = {"a1": 0.05, "a2": 0.3, "a3": 0.25, "d1": 0.385, "d5": 0.212}
 LIMITS = (None, None, None, None, None, )
-OPERATIONS = {"fk": 44, "frames": 67, "jacobian": 39, "task": 24, "task_jacobian": 36}
+OPERATIONS = {"fk": 44, "frames": 67, "jacobian": 39, "task": 24, "task_jacobian": 36, "ik": 108}
 
 
 def fk(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
@@ -303,3 +303,94 @@ def task_jacobian(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     Jx[..., 2, 2] = _t4
     Jx[..., 2, 3] = _t3
     return Jx
+
+
+@numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
+def ik(x, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
+    """Inverse kinematics, all 4 branches (elbow_up, elbow_down, shoulder_flip_elbow_up, shoulder_flip_elbow_down): Q (..., 4, 5), valid (..., 4).
+
+    x: task coordinates x, y, z, shape (..., 3)
+    Branches, in order: BRANCHES. Revolute joints are wrapped to (-pi, pi]. A branch
+    is valid where it exists; an unreachable, NaN or inf target gives valid False
+    (never an exception). within_limits(Q) tells which solutions respect LIMITS.
+    (108 operations after common-subexpression elimination.)
+    """
+    x = _runtime.as_batch(x, 3, "ik", "x", finite=False)
+    a1 = _runtime.as_param(a1, "a1")
+    a2 = _runtime.as_param(a2, "a2")
+    a3 = _runtime.as_param(a3, "a3")
+    d1 = _runtime.as_param(d1, "d1")
+    d5 = _runtime.as_param(d5, "d5")
+    _batch = _runtime.batch_shape(x)
+    _x = x
+    x = _x[..., 0]
+    y = _x[..., 1]
+    z = _x[..., 2]
+    _t0 = _runtime.wrap_angle(numpy.arctan2(y, x))
+    _t1 = d1 - z
+    _t2 = -_t1
+    _t3 = numpy.sqrt((x*x) + (y*y))
+    _t4 = a1 + d5
+    _t5 = -_t3 + _t4
+    _t6 = -_t5
+    _t7 = numpy.arctan2(_t2, _t6)
+    _t8 = -_t7
+    _t9 = (a2*a2) + (a3*a3)
+    _t10 = -(_t2*_t2) + _t9
+    _t11 = 1/(a2*a3)
+    _t12 = (0.5)*_t11
+    _t13 = numpy.minimum(1, numpy.maximum(-1, _t12*(-_t10 + (_t6*_t6))))
+    _t14 = a3*numpy.sqrt(1 - (_t13*_t13))
+    _t15 = _t13*a3 + a2
+    _t16 = _t8 + numpy.arctan2(-_t14, _t15)
+    _t17 = numpy.arccos(_t13)
+    _t18 = numpy.arctan2(_t14, _t15)
+    _t19 = _runtime.wrap_angle(numpy.arctan2(-y, -x))
+    _t20 = _t3 + _t4
+    _t21 = -_t20
+    _t22 = numpy.arctan2(_t2, _t21)
+    _t23 = -_t22
+    _t24 = numpy.minimum(1, numpy.maximum(-1, _t12*(-_t10 + (_t21*_t21))))
+    _t25 = a3*numpy.sqrt(1 - (_t24*_t24))
+    _t26 = _t24*a3 + a2
+    _t27 = numpy.arctan2(_t25, _t26)
+    _t28 = numpy.arccos(_t24)
+    _t29 = _t23 + numpy.arctan2(-_t25, _t26)
+    _t30 = -(_t1*_t1) + _t9
+    _t31 = numpy.less_equal((0.5)*abs(_t11*(_t30 - (_t5*_t5))), 1.000000000001)
+    _t32 = numpy.less_equal((0.5)*abs(_t11*((_t20*_t20) - _t30)), 1.000000000001)
+    Q = numpy.zeros(_batch + (4, 5))
+    Q[..., 0, 0] = _t0
+    Q[..., 0, 1] = _runtime.wrap_angle(-_t16)
+    Q[..., 0, 2] = _runtime.wrap_angle(-_t17)
+    Q[..., 0, 3] = _runtime.wrap_angle(_t16 + _t17)
+    Q[..., 1, 0] = _t0
+    Q[..., 1, 1] = _runtime.wrap_angle(-_t18 - _t8)
+    Q[..., 1, 2] = _runtime.wrap_angle(_t17)
+    Q[..., 1, 3] = _runtime.wrap_angle(-_t17 + _t18 - _t7)
+    Q[..., 2, 0] = _t19
+    Q[..., 2, 1] = _runtime.wrap_angle(-_t23 - _t27)
+    Q[..., 2, 2] = _runtime.wrap_angle(_t28)
+    Q[..., 2, 3] = _runtime.wrap_angle(-_t22 + _t27 - _t28)
+    Q[..., 3, 0] = _t19
+    Q[..., 3, 1] = _runtime.wrap_angle(-_t29)
+    Q[..., 3, 2] = _runtime.wrap_angle(-_t28)
+    Q[..., 3, 3] = _runtime.wrap_angle(_t28 + _t29)
+    valid = numpy.empty(_batch + (4,), dtype=bool)
+    valid[..., 0] = _t31
+    valid[..., 1] = _t31
+    valid[..., 2] = _t32
+    valid[..., 3] = _t32
+    # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
+    valid &= numpy.isfinite(Q).all(axis=-1) & numpy.isfinite(_x).all(axis=-1)[..., None]
+    return Q, valid
+
+
+def within_limits(q):
+    """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 5) -> (...).
+
+    Takes ik's Q of shape (..., k, 5) as it is, giving (..., k). A joint without
+    limits only needs a finite value; NaN gives False.
+    """
+    q = _runtime.as_batch(q, 5, "within_limits", "q", finite=False)
+    return _runtime.within_limits(q, LIMITS, JOINT_TYPES)

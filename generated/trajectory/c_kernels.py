@@ -108,3 +108,4 @@ def trapezoid(time, profile):
         _ffi.from_buffer("int[]", valid, require_writable=True),
     )
     return state, valid.astype(bool)
+

@@ -151,9 +151,10 @@ def trapezoid(time, profile):
     _t14 = numpy.less(t, _t11)
     _t15 = accel_time + decel_time
     state = numpy.empty(_batch + (3,))
-    state[..., 0] = numpy.select([_t0,_t3,_t10,_t14,True], [0,(0.5)*_t2*(t*t),_t1*_t4 + _t1*(-_t5 - accel_time),-_t13*((_t11 + _t5)*(_t11 + _t5)) + length,length], default=numpy.nan)
-    state[..., 1] = numpy.select([_t0,_t3,_t10,_t14,True], [0,_t2*t,_t1,-_t13*(-_t15 - 2*_t8 + 2*t),0], default=numpy.nan)
-    state[..., 2] = numpy.select([_t0,_t3,_t10,_t14,True], [0,_t2,0,-_t12,0], default=numpy.nan)
+    state[..., 0] = numpy.where(_t0, 0, numpy.where(_t3, (0.5)*_t2*(t*t), numpy.where(_t10, _t1*_t4 + _t1*(-_t5 - accel_time), numpy.where(_t14, -_t13*((_t11 + _t5)*(_t11 + _t5)) + length, length))))
+    state[..., 1] = numpy.where(_t0, 0, numpy.where(_t3, _t2*t, numpy.where(_t10, _t1, numpy.where(_t14, -_t13*(-_t15 - 2*_t8 + 2*t), 0))))
+    state[..., 2] = numpy.where(_t0, 0, numpy.where(_t3, _t2, numpy.where(_t10, 0, numpy.where(_t14, -_t12, 0))))
     valid = numpy.empty(_batch + (), dtype=bool)
     valid[..., ] = numpy.logical_and(numpy.logical_and(numpy.logical_and(numpy.logical_and(numpy.greater(accel_time, 0), numpy.greater(decel_time, 0)), numpy.greater(speed, 0)), numpy.not_equal(length, 0)), numpy.less_equal((0.5)*_t15*speed, _t7))
     return state, valid
+

@@ -117,21 +117,21 @@ void trajectory_trapezoid(const double *restrict time, const double *restrict pr
     const double accel_time = profile[2];
     const double decel_time = profile[3];
     (void)params;
-    const double _t0 = t < 0;
+    const int _t0 = t < 0;
     const double _t1 = speed*(((length) > 0) - ((length) < 0));
     const double _t2 = _t1/accel_time;
-    const double _t3 = accel_time > t;
+    const int _t3 = accel_time > t;
     const double _t4 = (0.5)*accel_time;
     const double _t5 = -t;
     const double _t6 = (0.5)*decel_time;
     const double _t7 = fabs(length);
     const double _t8 = _t7/speed;
     const double _t9 = _t4 + _t8;
-    const double _t10 = t < -_t6 + _t9;
+    const int _t10 = t < -_t6 + _t9;
     const double _t11 = _t6 + _t9;
     const double _t12 = _t1/decel_time;
     const double _t13 = (0.5)*_t12;
-    const double _t14 = t < _t11;
+    const int _t14 = t < _t11;
     const double _t15 = accel_time + decel_time;
     state[0] = ((_t0) ? (
    0
@@ -188,3 +188,4 @@ void trajectory_trapezoid_batch(size_t count, const double *restrict time, const
         trajectory_trapezoid(time + 1 * i, profile + 4 * i, params, state + 3 * i, valid + 1 * i);
     }
 }
+
