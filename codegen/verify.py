@@ -2,14 +2,18 @@
 
 The reference is the model's own expression, evaluated independently of the
 printed code: exact substitution of the sample point (each float64 as the exact
-rational it is) and ``evalf`` at 30 significant digits.  The error of a kernel
+rational it is) and ``evalf`` at 30 significant digits (45 for the common
+subexpressions it is evaluated through).  The error of a kernel
 output at a point is its relative error in the max norm,
 ``max|generated - reference| / max|reference|`` (absolute where the reference
 is all zeros); a kernel passes below ``TOLERANCE``.  The geometric Jacobian is
-checked again against central finite differences of ``fk``.
+checked again against central finite differences of ``fk``, and the rates of
+the Jacobians (``jacobian_dot``, ``task_jacobian_dot``) against central
+differences of the Jacobians along ``q + t qd``.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -19,11 +23,12 @@ import sympy as sp
 from derivations.model import RobotModel, SymbolicFunction
 
 __all__ = ["TOLERANCE", "FD_TOLERANCE", "Check", "sample_points", "reference", "verify_model",
-           "jacobian_by_finite_differences", "format_table"]
+           "jacobian_by_finite_differences", "derivative_along", "format_table"]
 
 TOLERANCE = 1e-12
 FD_TOLERANCE = 1e-7
 DIGITS = 30
+WORKING_DIGITS = 45  # for intermediate common subexpressions
 
 
 @dataclass(frozen=True)
@@ -66,17 +71,37 @@ def sample_points(model: RobotModel, function: SymbolicFunction, rng: np.random.
     return args
 
 
+@functools.lru_cache(maxsize=None)
+def _evaluation_plan(function: SymbolicFunction):
+    """The outputs of ``function`` as a chain of common subexpressions (SymPy's own ``cse``).
+
+    The inverse-rate kernels are trees of ~10^5 operations once their shared
+    subexpressions are unfolded; evaluating the chain keeps each ``evalf`` small.
+    """
+    flat = [sp.sympify(e) for out in function.outputs for e in out.values]
+    return sp.cse(flat, symbols=sp.numbered_symbols("_ref", real=True), order="canonical")
+
+
 def reference(function: SymbolicFunction, values: dict[sp.Symbol, float]) -> list[np.ndarray]:
-    """Each output of ``function`` at ``values``, by exact substitution and evalf(30)."""
-    subs = {s: sp.Rational(float(v)) for s, v in values.items()}
-    outputs = []
+    """Each output of ``function`` at ``values``: exact substitution, then evalf.
+
+    The sample point enters exactly (each float64 as the rational it is); each
+    common subexpression is evaluated with ``evalf`` at ``WORKING_DIGITS`` and the
+    outputs at ``DIGITS`` significant digits.
+    """
+    known: dict[sp.Basic, sp.Basic] = {s: sp.Rational(float(v)) for s, v in values.items()}
+    replacements, reduced = _evaluation_plan(function)
+    for symbol, expr in replacements:
+        value = expr.xreplace(known)
+        known[symbol] = value if isinstance(value, sp.logic.boolalg.Boolean) else value.evalf(WORKING_DIGITS)
+    outputs, start = [], 0
     for out in function.outputs:
+        entries = [e.xreplace(known) for e in reduced[start:start + len(out.values)]]
+        start += len(out.values)
         if out.dtype == "bool":
-            flat = [bool(sp.sympify(e).subs(subs)) for e in out.values]
-            outputs.append(np.array(flat, dtype=bool).reshape(out.shape))
+            outputs.append(np.array([bool(e) for e in entries], dtype=bool).reshape(out.shape))
         else:
-            flat = [float(sp.sympify(e).evalf(DIGITS, subs=subs)) for e in out.values]
-            outputs.append(np.array(flat, dtype=float).reshape(out.shape))
+            outputs.append(np.array([float(e.evalf(DIGITS)) for e in entries], dtype=float).reshape(out.shape))
     return outputs
 
 
@@ -126,7 +151,23 @@ def verify_model(model: RobotModel, modules: dict, samples: int = 6, seed: int =
             error = float(np.max(np.abs(module.jacobian(q) - jacobian_by_finite_differences(module.fk, q))))
             checks.append(Check(model.name, "jacobian", backend, error, samples,
                                 "central differences of fk", FD_TOLERANCE))
+    names = {f.name for f in model.functions()}
+    for rate, kernel in (("jacobian_dot", "jacobian"), ("task_jacobian_dot", "task_jacobian")):
+        if rate not in names:
+            continue
+        for backend, module in modules.items():
+            q = sample_joints(model, rng, samples)
+            qd = rng.uniform(-1.0, 1.0, q.shape)
+            expected = derivative_along(getattr(module, kernel), q, qd)
+            error = float(np.max(np.abs(getattr(module, rate)(q, qd) - expected)))
+            checks.append(Check(model.name, rate, backend, error, samples,
+                                f"central differences of {kernel} along q + t qd", FD_TOLERANCE))
     return checks
+
+
+def derivative_along(kernel, q: np.ndarray, qd: np.ndarray, step: float = 1e-6) -> np.ndarray:
+    """``d/dt kernel(q + t qd)`` at t = 0 by central differences (the time derivative along qd)."""
+    return (kernel(q + step * qd) - kernel(q - step * qd)) / (2 * step)
 
 
 def jacobian_by_finite_differences(fk, q: np.ndarray, step: float = 1e-6) -> np.ndarray:

@@ -28,6 +28,10 @@ def float_literal(value) -> str:
     return text
 
 
+# Integer powers up to this print as products (the manipulability thresholds need L**6).
+MAX_PRODUCT_POWER = 8
+
+
 class ExactArithmeticMixin:
     """Printer methods shared by the numpy and C printers.
 
@@ -49,7 +53,7 @@ class ExactArithmeticMixin:
 
     def _print_Pow(self, expr, rational=False):
         base, exponent = expr.base, expr.exp
-        if exponent.is_Integer and 1 <= abs(int(exponent)) <= 4:
+        if exponent.is_Integer and 1 <= abs(int(exponent)) <= MAX_PRODUCT_POWER:
             k = abs(int(exponent))
             factor = self.parenthesize(base, PRECEDENCE["Mul"], strict=True)
             if k == 1:
@@ -61,4 +65,5 @@ class ExactArithmeticMixin:
             return f"{self._sqrt_name}({self._print(base)})"
         if exponent == -sp.S.Half:
             return f"1.0/{self._sqrt_name}({self._print(base)})"
-        return super()._print_Pow(expr, rational=rational)
+        # The C printers take no ``rational`` keyword (only NumPyPrinter does).
+        return super()._print_Pow(expr, rational=rational) if rational else super()._print_Pow(expr)

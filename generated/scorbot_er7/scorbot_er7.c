@@ -9,6 +9,14 @@
  * jacobian: 39 operations after common-subexpression elimination
  * task: 24 operations after common-subexpression elimination
  * task_jacobian: 36 operations after common-subexpression elimination
+ * task_velocity: 46 operations after common-subexpression elimination
+ * twist: 61 operations after common-subexpression elimination
+ * task_jacobian_dot: 101 operations after common-subexpression elimination
+ * jacobian_dot: 124 operations after common-subexpression elimination
+ * task_acceleration: 148 operations after common-subexpression elimination
+ * manipulability: 56 operations after common-subexpression elimination
+ * joint_velocity: 287 operations after common-subexpression elimination
+ * joint_acceleration: 389 operations after common-subexpression elimination
  */
 #include "scorbot_er7.h"
 
@@ -363,5 +371,632 @@ void scorbot_er7_task_jacobian_batch(size_t count, const double *restrict q, con
     size_t i;
     for (i = 0; i < count; ++i) {
         scorbot_er7_task_jacobian(q + 5 * i, params, Jx + 15 * i);
+    }
+}
+
+/* Task rates x_dot = J_x q_dot, shape (..., 3). */
+void scorbot_er7_task_velocity(const double *restrict q, const double *restrict qd, const scorbot_er7_params *restrict params, double *restrict xd)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    const double qd4 = qd[3];
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d5 = params->d5;
+    const double _t0 = cos(q1);
+    const double _t1 = q2 + q3;
+    const double _t2 = _t1 + q4;
+    const double _t3 = d5*sin(_t2);
+    const double _t4 = _t3*qd4;
+    const double _t5 = _t3 + a3*sin(_t1);
+    const double _t6 = _t5*qd3;
+    const double _t7 = qd2*(_t5 + a2*sin(q2));
+    const double _t8 = sin(q1);
+    const double _t9 = d5*cos(_t2);
+    const double _t10 = _t9 + a3*cos(_t1);
+    const double _t11 = _t10 + a2*cos(q2);
+    const double _t12 = _t11 + a1;
+    xd[0] = -_t0*_t4 - _t0*_t6 - _t0*_t7 - _t12*_t8*qd1;
+    xd[1] = _t0*_t12*qd1 - _t4*_t8 - _t6*_t8 - _t7*_t8;
+    xd[2] = _t10*qd3 + _t11*qd2 + _t9*qd4;
+}
+
+void scorbot_er7_task_velocity_batch(size_t count, const double *restrict q, const double *restrict qd, const scorbot_er7_params *restrict params, double *restrict xd)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        scorbot_er7_task_velocity(q + 5 * i, qd + 5 * i, params, xd + 3 * i);
+    }
+}
+
+/* Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s. */
+void scorbot_er7_twist(const double *restrict q, const double *restrict qd, const scorbot_er7_params *restrict params, double *restrict twist)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    const double qd4 = qd[3];
+    const double qd5 = qd[4];
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d5 = params->d5;
+    const double _t0 = q2 + q3;
+    const double _t1 = _t0 + q4;
+    const double _t2 = sin(_t1);
+    const double _t3 = _t2*d5;
+    const double _t4 = cos(q1);
+    const double _t5 = _t4*qd4;
+    const double _t6 = _t3 + a3*sin(_t0);
+    const double _t7 = _t4*qd3;
+    const double _t8 = _t6 + a2*sin(q2);
+    const double _t9 = _t4*qd2;
+    const double _t10 = sin(q1);
+    const double _t11 = cos(_t1);
+    const double _t12 = _t11*d5;
+    const double _t13 = _t12 + a3*cos(_t0);
+    const double _t14 = _t13 + a2*cos(q2);
+    const double _t15 = _t14 + a1;
+    const double _t16 = _t10*qd4;
+    const double _t17 = _t10*qd3;
+    const double _t18 = _t10*qd2;
+    twist[0] = -_t10*_t15*qd1 - _t3*_t5 - _t6*_t7 - _t8*_t9;
+    twist[1] = _t15*_t4*qd1 - _t16*_t3 - _t17*_t6 - _t18*_t8;
+    twist[2] = _t12*qd4 + _t13*qd3 + _t14*qd2;
+    twist[3] = _t11*_t4*qd5 + _t16 + _t17 + _t18;
+    twist[4] = _t10*_t11*qd5 - _t5 - _t7 - _t9;
+    twist[5] = _t2*qd5 + qd1;
+}
+
+void scorbot_er7_twist_batch(size_t count, const double *restrict q, const double *restrict qd, const scorbot_er7_params *restrict params, double *restrict twist)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        scorbot_er7_twist(q + 5 * i, qd + 5 * i, params, twist + 6 * i);
+    }
+}
+
+/* d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 3, 5). */
+void scorbot_er7_task_jacobian_dot(const double *restrict q, const double *restrict qd, const scorbot_er7_params *restrict params, double *restrict Jx_dot)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    const double qd4 = qd[3];
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d5 = params->d5;
+    const double _t0 = sin(q1);
+    const double _t1 = q2 + q3;
+    const double _t2 = _t1 + q4;
+    const double _t3 = sin(_t2);
+    const double _t4 = _t3*d5;
+    const double _t5 = _t4 + a3*sin(_t1);
+    const double _t6 = -_t5;
+    const double _t7 = _t6*qd3;
+    const double _t8 = cos(q1);
+    const double _t9 = d5*cos(_t2);
+    const double _t10 = _t9 + a3*cos(_t1);
+    const double _t11 = _t10 + a2*cos(q2);
+    const double _t12 = qd1*(_t11 + a1);
+    const double _t13 = _t5 + a2*sin(q2);
+    const double _t14 = -_t13;
+    const double _t15 = _t14*qd2;
+    const double _t16 = _t8*qd2;
+    const double _t17 = _t10*qd3;
+    const double _t18 = _t8*_t9;
+    const double _t19 = _t18*qd4;
+    const double _t20 = _t17*_t8 + _t19;
+    const double _t21 = _t4*qd4;
+    const double _t22 = _t8*qd1;
+    const double _t23 = _t0*qd2;
+    const double _t24 = _t0*_t9;
+    const double _t25 = _t24*qd4;
+    const double _t26 = _t0*_t17 + _t25;
+    const double _t27 = -_t21 + _t7;
+    Jx_dot[0] = -_t0*_t15 + _t0*_t3*d5*qd4 - _t0*_t7 - _t12*_t8;
+    Jx_dot[1] = _t0*_t13*qd1 - _t11*_t16 - _t20;
+    Jx_dot[2] = _t0*_t5*qd1 - _t10*_t16 - _t20;
+    Jx_dot[3] = _t0*_t3*d5*qd1 - _t16*_t9 - _t18*qd3 - _t19;
+    Jx_dot[4] = 0;
+    Jx_dot[5] = -_t0*_t12 + _t14*_t8*qd2 - _t21*_t8 + _t6*_t8*qd3;
+    Jx_dot[6] = -_t11*_t23 - _t13*_t22 - _t26;
+    Jx_dot[7] = -_t10*_t23 - _t22*_t5 - _t26;
+    Jx_dot[8] = -_t22*_t4 - _t23*_t9 - _t24*qd3 - _t25;
+    Jx_dot[9] = 0;
+    Jx_dot[10] = 0;
+    Jx_dot[11] = _t15 + _t27;
+    Jx_dot[12] = _t27 + _t6*qd2;
+    Jx_dot[13] = -_t21 - _t4*qd2 - _t4*qd3;
+    Jx_dot[14] = 0;
+}
+
+void scorbot_er7_task_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const scorbot_er7_params *restrict params, double *restrict Jx_dot)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        scorbot_er7_task_jacobian_dot(q + 5 * i, qd + 5 * i, params, Jx_dot + 15 * i);
+    }
+}
+
+/* d(J)/dt of the geometric Jacobian, shape (..., 6, 5). */
+void scorbot_er7_jacobian_dot(const double *restrict q, const double *restrict qd, const scorbot_er7_params *restrict params, double *restrict J_dot)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    const double qd4 = qd[3];
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d5 = params->d5;
+    const double _t0 = sin(q1);
+    const double _t1 = q2 + q3;
+    const double _t2 = _t1 + q4;
+    const double _t3 = sin(_t2);
+    const double _t4 = _t3*d5;
+    const double _t5 = _t4 + a3*sin(_t1);
+    const double _t6 = -_t5;
+    const double _t7 = _t6*qd3;
+    const double _t8 = cos(_t2);
+    const double _t9 = _t8*d5;
+    const double _t10 = _t9 + a3*cos(_t1);
+    const double _t11 = _t10 + a2*cos(q2);
+    const double _t12 = _t11 + a1;
+    const double _t13 = cos(q1);
+    const double _t14 = _t13*qd1;
+    const double _t15 = _t5 + a2*sin(q2);
+    const double _t16 = -_t15;
+    const double _t17 = _t16*qd2;
+    const double _t18 = _t13*qd2;
+    const double _t19 = _t10*qd3;
+    const double _t20 = _t13*_t9;
+    const double _t21 = _t20*qd4;
+    const double _t22 = _t13*_t19 + _t21;
+    const double _t23 = _t4*qd4;
+    const double _t24 = _t0*qd1;
+    const double _t25 = _t0*qd2;
+    const double _t26 = _t0*_t9;
+    const double _t27 = _t26*qd4;
+    const double _t28 = _t0*_t19 + _t27;
+    const double _t29 = -_t23 + _t7;
+    const double _t30 = _t13*_t3;
+    const double _t31 = _t0*_t3;
+    J_dot[0] = -_t0*_t17 + _t0*_t3*d5*qd4 - _t0*_t7 - _t12*_t14;
+    J_dot[1] = _t0*_t15*qd1 - _t11*_t18 - _t22;
+    J_dot[2] = _t0*_t5*qd1 - _t10*_t18 - _t22;
+    J_dot[3] = _t0*_t3*d5*qd1 - _t18*_t9 - _t20*qd3 - _t21;
+    J_dot[4] = 0;
+    J_dot[5] = -_t12*_t24 + _t13*_t16*qd2 - _t13*_t23 + _t13*_t6*qd3;
+    J_dot[6] = -_t11*_t25 - _t14*_t15 - _t28;
+    J_dot[7] = -_t10*_t25 - _t14*_t5 - _t28;
+    J_dot[8] = -_t14*_t4 - _t25*_t9 - _t26*qd3 - _t27;
+    J_dot[9] = 0;
+    J_dot[10] = 0;
+    J_dot[11] = _t17 + _t29;
+    J_dot[12] = _t29 + _t6*qd2;
+    J_dot[13] = -_t23 - _t4*qd2 - _t4*qd3;
+    J_dot[14] = 0;
+    J_dot[15] = 0;
+    J_dot[16] = _t14;
+    J_dot[17] = _t14;
+    J_dot[18] = _t14;
+    J_dot[19] = -_t18*_t3 - _t24*_t8 - _t30*qd3 - _t30*qd4;
+    J_dot[20] = 0;
+    J_dot[21] = _t24;
+    J_dot[22] = _t24;
+    J_dot[23] = _t24;
+    J_dot[24] = _t13*_t8*qd1 - _t25*_t3 - _t31*qd3 - _t31*qd4;
+    J_dot[25] = 0;
+    J_dot[26] = 0;
+    J_dot[27] = 0;
+    J_dot[28] = 0;
+    J_dot[29] = _t8*qd2 + _t8*qd3 + _t8*qd4;
+}
+
+void scorbot_er7_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const scorbot_er7_params *restrict params, double *restrict J_dot)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        scorbot_er7_jacobian_dot(q + 5 * i, qd + 5 * i, params, J_dot + 30 * i);
+    }
+}
+
+/* Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 3). */
+void scorbot_er7_task_acceleration(const double *restrict q, const double *restrict qd, const double *restrict qdd, const scorbot_er7_params *restrict params, double *restrict xdd)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    const double qd4 = qd[3];
+    const double qdd1 = qdd[0];
+    const double qdd2 = qdd[1];
+    const double qdd3 = qdd[2];
+    const double qdd4 = qdd[3];
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d5 = params->d5;
+    const double _t0 = cos(q1);
+    const double _t1 = q2 + q3;
+    const double _t2 = _t1 + q4;
+    const double _t3 = sin(_t2);
+    const double _t4 = _t3*d5;
+    const double _t5 = _t0*_t4;
+    const double _t6 = _t4 + a3*sin(_t1);
+    const double _t7 = _t0*_t6;
+    const double _t8 = _t6 + a2*sin(q2);
+    const double _t9 = _t0*_t8;
+    const double _t10 = sin(q1);
+    const double _t11 = d5*cos(_t2);
+    const double _t12 = _t11 + a3*cos(_t1);
+    const double _t13 = _t12 + a2*cos(q2);
+    const double _t14 = _t13 + a1;
+    const double _t15 = _t14*qdd1;
+    const double _t16 = _t0*qd2;
+    const double _t17 = _t0*_t11;
+    const double _t18 = _t17*qd4;
+    const double _t19 = _t12*qd3;
+    const double _t20 = _t0*_t19 + _t18;
+    const double _t21 = -_t6;
+    const double _t22 = _t21*qd3;
+    const double _t23 = _t14*qd1;
+    const double _t24 = -_t8;
+    const double _t25 = _t24*qd2;
+    const double _t26 = _t10*qd2;
+    const double _t27 = _t10*_t11;
+    const double _t28 = _t27*qd4;
+    const double _t29 = _t10*_t19 + _t28;
+    const double _t30 = _t4*qd4;
+    const double _t31 = _t22 - _t30;
+    xdd[0] = -_t10*_t15 - _t5*qdd4 - _t7*qdd3 - _t9*qdd2 + qd1*(-_t0*_t23 - _t10*_t22 - _t10*_t25 + _t10*_t3*d5*qd4) + qd2*(_t10*_t8*qd1 - _t13*_t16 - _t20) + qd3*(_t10*_t6*qd1 - _t12*_t16 - _t20) + qd4*(_t10*_t3*d5*qd1 - _t11*_t16 - _t17*qd3 - _t18);
+    xdd[1] = _t0*_t15 - _t10*_t4*qdd4 - _t10*_t6*qdd3 - _t10*_t8*qdd2 + qd1*(_t0*_t21*qd3 + _t0*_t24*qd2 - _t0*_t30 - _t10*_t23) + qd2*(-_t13*_t26 - _t29 - _t9*qd1) + qd3*(-_t12*_t26 - _t29 - _t7*qd1) + qd4*(-_t11*_t26 - _t27*qd3 - _t28 - _t5*qd1);
+    xdd[2] = _t11*qdd4 + _t12*qdd3 + _t13*qdd2 + qd2*(_t25 + _t31) + qd3*(_t21*qd2 + _t31) + qd4*(-_t30 - _t4*qd2 - _t4*qd3);
+}
+
+void scorbot_er7_task_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict qdd, const scorbot_er7_params *restrict params, double *restrict xdd)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        scorbot_er7_task_acceleration(q + 5 * i, qd + 5 * i, qdd + 5 * i, params, xdd + 3 * i);
+    }
+}
+
+/* Manipulability w (det(J_x J_x^T); |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...). */
+void scorbot_er7_manipulability(const double *restrict q, const scorbot_er7_params *restrict params, double *restrict manipulability, int *restrict singular)
+{
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d1 = params->d1;
+    const double d5 = params->d5;
+    const double _t0 = sin(q4);
+    const double _t1 = q3 + q4;
+    const double _t2 = ((a1 + a2*cos(q2) + a3*cos(q2 + q3) + d5*cos(_t1 + q2))*(a1 + a2*cos(q2) + a3*cos(q2 + q3) + d5*cos(_t1 + q2)));
+    const double _t3 = _t2*(d5*d5);
+    const double _t4 = (_t0*_t0)*_t3*(a3*a3);
+    const double _t5 = sin(_t1);
+    const double _t6 = _t2*(a2*a2)*((_t5*d5 + a3*sin(q3))*(_t5*d5 + a3*sin(q3)));
+    const double _t7 = _t3*((_t0*a3 + _t5*a2)*(_t0*a3 + _t5*a2));
+    const double _t8 = 1.0/((fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5)));
+    manipulability[0] = sqrt(_t4 + _t6 + _t7);
+    singular[0] = _t4*_t8 + _t6*_t8 + _t7*_t8 < 1e-06;
+}
+
+void scorbot_er7_manipulability_batch(size_t count, const double *restrict q, const scorbot_er7_params *restrict params, double *restrict manipulability, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        scorbot_er7_manipulability(q + 5 * i, params, manipulability + 1 * i, singular + 1 * i);
+    }
+}
+
+/* Joint rates from task rates: minimum-norm J_x^T (J_x J_x^T)^-1 x_dot; damped least squares where singular. Shapes (..., 5) and (...). */
+void scorbot_er7_joint_velocity(const double *restrict q, const double *restrict xd, const scorbot_er7_params *restrict params, double *restrict qd, int *restrict singular)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double xd_x = xd[0];
+    const double xd_y = xd[1];
+    const double xd_z = xd[2];
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d1 = params->d1;
+    const double d5 = params->d5;
+    const double _t0 = q2 + q3;
+    const double _t1 = q3 + q4;
+    const double _t2 = _t1 + q2;
+    const double _t3 = cos(_t2);
+    const double _t4 = _t3*d5 + a3*cos(_t0);
+    const double _t5 = _t4 + a2*cos(q2);
+    const double _t6 = _t5 + a1;
+    const double _t7 = (_t6*_t6);
+    const double _t8 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
+    const double _t9 = _t7/(_t8*_t8*_t8*_t8*_t8*_t8);
+    const double _t10 = (d5*d5);
+    const double _t11 = sin(q4);
+    const double _t12 = _t10*(_t11*_t11)*(a3*a3);
+    const double _t13 = _t12*_t9;
+    const double _t14 = sin(_t1);
+    const double _t15 = (a2*a2)*((_t14*d5 + a3*sin(q3))*(_t14*d5 + a3*sin(q3)));
+    const double _t16 = _t15*_t9;
+    const double _t17 = _t10*((_t11*a3 + _t14*a2)*(_t11*a3 + _t14*a2));
+    const double _t18 = _t17*_t9;
+    const double _t19 = fmax(0, -1000000*_t13 - 1000000*_t16 - 1000000*_t18 + 1);
+    const double _t20 = sin(_t2);
+    const double _t21 = (_t20*_t20);
+    const double _t22 = 1.0/(_t8*_t8*_t8*_t8);
+    const double _t23 = _t22*_t7;
+    const double _t24 = _t10*_t23;
+    const double _t25 = _t20*d5;
+    const double _t26 = _t25 + a3*sin(_t0);
+    const double _t27 = (_t26*_t26);
+    const double _t28 = _t26 + a2*sin(q2);
+    const double _t29 = (_t28*_t28);
+    const double _t30 = _t21*_t24 + _t23*_t27 + _t23*_t29;
+    const double _t31 = (0.0001)*_t19;
+    const double _t32 = cos(q1);
+    const double _t33 = (_t32*_t32);
+    const double _t34 = _t22*_t33;
+    const double _t35 = sin(q1);
+    const double _t36 = (_t35*_t35);
+    const double _t37 = (_t3*_t3);
+    const double _t38 = _t24*_t37;
+    const double _t39 = (_t4*_t4);
+    const double _t40 = _t23*_t36;
+    const double _t41 = (_t5*_t5);
+    const double _t42 = _t12*_t34 + _t15*_t34 + _t17*_t34 + _t36*_t38 + _t39*_t40 + _t40*_t41;
+    const double _t43 = _t22*_t36;
+    const double _t44 = _t23*_t33;
+    const double _t45 = _t12*_t43 + _t15*_t43 + _t17*_t43 + _t33*_t38 + _t39*_t44 + _t41*_t44;
+    const double _t46 = 1.0/(_t8*_t8);
+    const double _t47 = _t10*_t46;
+    const double _t48 = _t37*_t47 + _t39*_t46 + _t41*_t46;
+    const double _t49 = (1e-08)*(_t19*_t19);
+    const double _t50 = _t21*_t47;
+    const double _t51 = _t33*_t46;
+    const double _t52 = _t36*_t46;
+    const double _t53 = _t27*_t51 + _t29*_t51 + _t33*_t50 + _t52*_t7;
+    const double _t54 = _t27*_t52 + _t29*_t52 + _t36*_t50 + _t51*_t7;
+    const double _t55 = _t13 + _t16 + _t18;
+    const double _t56 = 1.0/((1e-12)*(_t19*_t19*_t19) + _t30*_t31 + _t31*_t42 + _t31*_t45 + _t48*_t49 + _t49*_t53 + _t49*_t54 + _t55);
+    const double _t57 = _t20*_t3;
+    const double _t58 = _t24*_t57;
+    const double _t59 = _t26*_t4;
+    const double _t60 = _t23*_t35;
+    const double _t61 = _t28*_t5;
+    const double _t62 = _t47*_t57;
+    const double _t63 = _t35*_t46;
+    const double _t64 = -_t31*(-_t35*_t62 - _t59*_t63 - _t61*_t63) + _t35*_t58 + _t59*_t60 + _t60*_t61;
+    const double _t65 = 1.0/_t8;
+    const double _t66 = _t65*xd_z;
+    const double _t67 = _t32*_t35;
+    const double _t68 = _t22*_t67;
+    const double _t69 = _t32*_t63;
+    const double _t70 = _t10*_t22*_t32*_t35*_t37*_t7 - _t12*_t68 - _t15*_t68 - _t17*_t68 + _t22*_t32*_t35*_t39*_t7 + _t22*_t32*_t35*_t41*_t7 - _t31*(_t27*_t69 + _t29*_t69 + _t50*_t67 - _t69*_t7);
+    const double _t71 = _t65*xd_x;
+    const double _t72 = _t31*_t48;
+    const double _t73 = _t31*_t53 + _t49;
+    const double _t74 = _t65*xd_y;
+    const double _t75 = _t64*_t66 + _t70*_t71 + _t74*(_t42 + _t72 + _t73);
+    const double _t76 = _t6*_t65;
+    const double _t77 = _t23*_t32;
+    const double _t78 = _t32*_t46;
+    const double _t79 = -_t31*(-_t32*_t62 - _t59*_t78 - _t61*_t78) + _t32*_t58 + _t59*_t77 + _t61*_t77;
+    const double _t80 = _t31*_t54;
+    const double _t81 = _t66*_t79 + _t70*_t74 + _t71*(_t45 + _t49 + _t72 + _t80);
+    const double _t82 = _t64*_t74 + _t66*(_t30 + _t73 + _t80) + _t71*_t79;
+    const double _t83 = _t28*_t65;
+    const double _t84 = _t35*_t75;
+    const double _t85 = _t32*_t81;
+    const double _t86 = _t26*_t65;
+    const double _t87 = _t25*_t65;
+    qd[0] = _t56*(_t32*_t75*_t76 - _t35*_t76*_t81);
+    qd[1] = _t56*(_t5*_t65*_t82 - _t83*_t84 - _t83*_t85);
+    qd[2] = _t56*(_t4*_t65*_t82 - _t84*_t86 - _t85*_t86);
+    qd[3] = _t56*(_t3*_t65*_t82*d5 - _t84*_t87 - _t85*_t87);
+    qd[4] = 0;
+    singular[0] = _t55 < 1e-06;
+}
+
+void scorbot_er7_joint_velocity_batch(size_t count, const double *restrict q, const double *restrict xd, const scorbot_er7_params *restrict params, double *restrict qd, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        scorbot_er7_joint_velocity(q + 5 * i, xd + 3 * i, params, qd + 5 * i, singular + 1 * i);
+    }
+}
+
+/* Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 5) and (...). */
+void scorbot_er7_joint_acceleration(const double *restrict q, const double *restrict qd, const double *restrict xdd, const scorbot_er7_params *restrict params, double *restrict qdd, int *restrict singular)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    const double qd4 = qd[3];
+    const double xdd_x = xdd[0];
+    const double xdd_y = xdd[1];
+    const double xdd_z = xdd[2];
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d1 = params->d1;
+    const double d5 = params->d5;
+    const double _t0 = q2 + q3;
+    const double _t1 = q3 + q4;
+    const double _t2 = _t1 + q2;
+    const double _t3 = cos(_t2);
+    const double _t4 = _t3*d5;
+    const double _t5 = _t4 + a3*cos(_t0);
+    const double _t6 = _t5 + a2*cos(q2);
+    const double _t7 = _t6 + a1;
+    const double _t8 = (_t7*_t7);
+    const double _t9 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
+    const double _t10 = _t8/(_t9*_t9*_t9*_t9*_t9*_t9);
+    const double _t11 = (d5*d5);
+    const double _t12 = sin(q4);
+    const double _t13 = _t11*(_t12*_t12)*(a3*a3);
+    const double _t14 = _t10*_t13;
+    const double _t15 = sin(_t1);
+    const double _t16 = (a2*a2)*((_t15*d5 + a3*sin(q3))*(_t15*d5 + a3*sin(q3)));
+    const double _t17 = _t10*_t16;
+    const double _t18 = _t11*((_t12*a3 + _t15*a2)*(_t12*a3 + _t15*a2));
+    const double _t19 = _t10*_t18;
+    const double _t20 = fmax(0, -1000000*_t14 - 1000000*_t17 - 1000000*_t19 + 1);
+    const double _t21 = sin(_t2);
+    const double _t22 = (_t21*_t21);
+    const double _t23 = 1.0/(_t9*_t9*_t9*_t9);
+    const double _t24 = _t23*_t8;
+    const double _t25 = _t11*_t24;
+    const double _t26 = _t21*d5;
+    const double _t27 = _t26 + a3*sin(_t0);
+    const double _t28 = (_t27*_t27);
+    const double _t29 = _t27 + a2*sin(q2);
+    const double _t30 = (_t29*_t29);
+    const double _t31 = _t22*_t25 + _t24*_t28 + _t24*_t30;
+    const double _t32 = (0.0001)*_t20;
+    const double _t33 = cos(q1);
+    const double _t34 = (_t33*_t33);
+    const double _t35 = _t23*_t34;
+    const double _t36 = sin(q1);
+    const double _t37 = (_t36*_t36);
+    const double _t38 = (_t3*_t3);
+    const double _t39 = _t25*_t38;
+    const double _t40 = (_t5*_t5);
+    const double _t41 = _t24*_t37;
+    const double _t42 = (_t6*_t6);
+    const double _t43 = _t13*_t35 + _t16*_t35 + _t18*_t35 + _t37*_t39 + _t40*_t41 + _t41*_t42;
+    const double _t44 = _t23*_t37;
+    const double _t45 = _t24*_t34;
+    const double _t46 = _t13*_t44 + _t16*_t44 + _t18*_t44 + _t34*_t39 + _t40*_t45 + _t42*_t45;
+    const double _t47 = 1.0/(_t9*_t9);
+    const double _t48 = _t11*_t47;
+    const double _t49 = _t38*_t48 + _t40*_t47 + _t42*_t47;
+    const double _t50 = (1e-08)*(_t20*_t20);
+    const double _t51 = _t22*_t48;
+    const double _t52 = _t34*_t47;
+    const double _t53 = _t37*_t47;
+    const double _t54 = _t28*_t52 + _t30*_t52 + _t34*_t51 + _t53*_t8;
+    const double _t55 = _t28*_t53 + _t30*_t53 + _t37*_t51 + _t52*_t8;
+    const double _t56 = _t14 + _t17 + _t19;
+    const double _t57 = 1.0/((1e-12)*(_t20*_t20*_t20) + _t31*_t32 + _t32*_t43 + _t32*_t46 + _t49*_t50 + _t50*_t54 + _t50*_t55 + _t56);
+    const double _t58 = _t21*_t3;
+    const double _t59 = _t25*_t58;
+    const double _t60 = _t27*_t5;
+    const double _t61 = _t24*_t36;
+    const double _t62 = _t29*_t6;
+    const double _t63 = _t48*_t58;
+    const double _t64 = _t36*_t47;
+    const double _t65 = -_t32*(-_t36*_t63 - _t60*_t64 - _t62*_t64) + _t36*_t59 + _t60*_t61 + _t61*_t62;
+    const double _t66 = 1.0/_t9;
+    const double _t67 = _t26*qd4;
+    const double _t68 = -_t27;
+    const double _t69 = _t68*qd3;
+    const double _t70 = -_t67 + _t69;
+    const double _t71 = -_t29;
+    const double _t72 = _t71*qd2;
+    const double _t73 = _t66*(-qd2*(_t70 + _t72) - qd3*(_t68*qd2 + _t70) - qd4*(-_t26*qd2 - _t26*qd3 - _t67) + xdd_z);
+    const double _t74 = _t33*_t36;
+    const double _t75 = _t23*_t74;
+    const double _t76 = _t33*_t64;
+    const double _t77 = _t11*_t23*_t33*_t36*_t38*_t8 - _t13*_t75 - _t16*_t75 - _t18*_t75 + _t23*_t33*_t36*_t40*_t8 + _t23*_t33*_t36*_t42*_t8 - _t32*(_t28*_t76 + _t30*_t76 + _t51*_t74 - _t76*_t8);
+    const double _t78 = _t33*qd2;
+    const double _t79 = _t33*_t4;
+    const double _t80 = _t79*qd4;
+    const double _t81 = _t5*qd3;
+    const double _t82 = _t33*_t81 + _t80;
+    const double _t83 = _t7*qd1;
+    const double _t84 = _t66*(-qd1*(_t21*_t36*d5*qd4 - _t33*_t83 - _t36*_t69 - _t36*_t72) - qd2*(_t29*_t36*qd1 - _t6*_t78 - _t82) - qd3*(_t27*_t36*qd1 - _t5*_t78 - _t82) - qd4*(_t21*_t36*d5*qd1 - _t4*_t78 - _t79*qd3 - _t80) + xdd_x);
+    const double _t85 = _t32*_t49;
+    const double _t86 = _t32*_t54 + _t50;
+    const double _t87 = _t33*qd1;
+    const double _t88 = _t36*qd2;
+    const double _t89 = _t36*_t4;
+    const double _t90 = _t89*qd4;
+    const double _t91 = _t36*_t81 + _t90;
+    const double _t92 = _t66*(-qd1*(-_t33*_t67 + _t33*_t68*qd3 + _t33*_t71*qd2 - _t36*_t83) - qd2*(-_t29*_t87 - _t6*_t88 - _t91) - qd3*(-_t27*_t87 - _t5*_t88 - _t91) - qd4*(-_t26*_t87 - _t4*_t88 - _t89*qd3 - _t90) + xdd_y);
+    const double _t93 = _t65*_t73 + _t77*_t84 + _t92*(_t43 + _t85 + _t86);
+    const double _t94 = _t66*_t7;
+    const double _t95 = _t24*_t33;
+    const double _t96 = _t33*_t47;
+    const double _t97 = -_t32*(-_t33*_t63 - _t60*_t96 - _t62*_t96) + _t33*_t59 + _t60*_t95 + _t62*_t95;
+    const double _t98 = _t32*_t55;
+    const double _t99 = _t73*_t97 + _t77*_t92 + _t84*(_t46 + _t50 + _t85 + _t98);
+    const double _t100 = _t65*_t92 + _t73*(_t31 + _t86 + _t98) + _t84*_t97;
+    const double _t101 = _t29*_t66;
+    const double _t102 = _t36*_t93;
+    const double _t103 = _t33*_t99;
+    const double _t104 = _t27*_t66;
+    const double _t105 = _t26*_t66;
+    qdd[0] = _t57*(_t33*_t93*_t94 - _t36*_t94*_t99);
+    qdd[1] = _t57*(_t100*_t6*_t66 - _t101*_t102 - _t101*_t103);
+    qdd[2] = _t57*(_t100*_t5*_t66 - _t102*_t104 - _t103*_t104);
+    qdd[3] = _t57*(_t100*_t3*_t66*d5 - _t102*_t105 - _t103*_t105);
+    qdd[4] = 0;
+    singular[0] = _t56 < 1e-06;
+}
+
+void scorbot_er7_joint_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict xdd, const scorbot_er7_params *restrict params, double *restrict qdd, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        scorbot_er7_joint_acceleration(q + 5 * i, qd + 5 * i, xdd + 3 * i, params, qdd + 5 * i, singular + 1 * i);
     }
 }
