@@ -6,6 +6,7 @@
 #   make build      compile the generated C (strict warnings) and its cffi extensions
 #   make verify     kernels against SymPy at 30 digits, as a table
 #   make check      fail when generated/ is out of date with derivations/ and codegen/
+#   make bench      time Paul's partitioned inverse against a 6x6 solve (PUMA 560)
 #   make clean      remove the virtual environment, caches and built libraries
 
 PYTHON ?= python3
@@ -14,7 +15,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 KINEGEN := $(PY) -m codegen
 
-.PHONY: all install generate build sanitize verify check test clean
+.PHONY: all install generate build sanitize verify check test bench clean
 
 all: $(STAMP)
 	$(KINEGEN) all
@@ -44,6 +45,9 @@ check: $(STAMP)
 
 test: build
 	$(PY) -m pytest
+
+bench: build
+	$(PY) benchmarks/wrist_partition.py
 
 clean:
 	rm -rf $(VENV) .cache build *.egg-info

@@ -162,6 +162,10 @@ def damping_factor(measure_squared: sp.Expr) -> sp.Expr:
 class Minors:
     """The minors ``det J[R, C]`` of one matrix, computed on demand, simplified and memoised.
 
+    A minor is ``simplify_entry`` of its determinant (``factored`` for the maximal
+    ones, which carry the singularities): small exact expressions keep their
+    accuracy where the rows are nearly dependent.
+
     ``known`` supplies minors already derived (the factored determinant of a square
     ``J``, the factored maximal minors of a wide one), keyed by ``(rows, columns)``.
     """
@@ -178,15 +182,25 @@ class Minors:
             elif len(rows) == 1:
                 value = self.J[rows[0], columns[0]]
             else:
-                value = factored(self.J.extract(list(rows), list(columns)).det(method="berkowitz"))
+                determinant = self.J.extract(list(rows), list(columns)).det(method="berkowitz")
+                value = factored(determinant) if len(rows) == min(self.J.shape) else simplify_entry(determinant)
             self.table[key] = value
         return self.table[key]
 
     @classmethod
     def of_square(cls, J: sp.Matrix, inverse: ClosedFormInverse) -> "Minors":
-        """The minors of a square ``J`` whose factored determinant is ``inverse.determinant``."""
+        """The minors of a square ``J`` with its closed-form inverse: the determinant is the
+        full minor, and the adjugate holds the others of size n - 1 (``adj_ij`` is
+        ``(-1)^(i+j)`` times the minor without row j and column i)."""
         full = tuple(range(J.rows))
-        return cls(J, {(full, full): inverse.determinant})
+        known = {(full, full): inverse.determinant}
+        if J.rows > 1:
+            for i in full:
+                for j in full:
+                    rows = tuple(r for r in full if r != j)
+                    columns = tuple(c for c in full if c != i)
+                    known[(rows, columns)] = (-1)**(i + j) * inverse.adjugate[i, j]
+        return cls(J, known)
 
     def maximal(self) -> dict[tuple[tuple[int, ...], tuple[int, ...]], sp.Expr]:
         """Every minor of full size ``min(rows, columns)``."""

@@ -32,7 +32,7 @@ from .chain import PRISMATIC, REVOLUTE, simplify_entry
 from .damping import (ClosedFormInverse, Minors, Scaling, closed_form_inverse, measure_squared,
                       regularised_solve, singular_flag)
 
-__all__ = ["WristPartition", "wrist_partition", "skew"]
+__all__ = ["WristBlocks", "WristPartition", "wrist_blocks", "wrist_partition", "skew"]
 
 
 def skew(v) -> sp.Matrix:
@@ -69,9 +69,7 @@ class WristPartition:
     @property
     def tool_jacobian(self) -> sp.Matrix:
         """``[[I, -[r]x], [0, I]] J_wrist`` with ``r = O_E - O_wrist``: V_E = V_wrist + w x r."""
-        shift = sp.Matrix.vstack(sp.Matrix.hstack(sp.eye(3), -skew(self.tool_offset)),
-                                 sp.Matrix.hstack(sp.zeros(3, 3), sp.eye(3)))
-        return (shift * self.wrist_jacobian).applyfunc(simplify_entry)
+        return WristBlocks(self.wrist_centre, self.tool_offset, self.A, self.C, self.D).tool_jacobian
 
     @property
     def determinant(self) -> sp.Expr:
@@ -98,8 +96,27 @@ class WristPartition:
                 singular_flag(measure_squared(self.wrist_minors, self.wrist_scaling)))
 
 
-def wrist_partition(model, reference_length: sp.Expr) -> WristPartition | None:
-    """Paul's partition of ``model``, or None when it has no spherical wrist.
+@dataclass(frozen=True)
+class WristBlocks:
+    """The blocks of Paul's partition (no inverses): see :class:`WristPartition`."""
+
+    wrist_centre: sp.Matrix
+    tool_offset: sp.Matrix
+    A: sp.Matrix
+    C: sp.Matrix
+    D: sp.Matrix
+
+    @property
+    def tool_jacobian(self) -> sp.Matrix:
+        """``[[I, -[r]x], [0, I]] [[A, 0], [C, D]]`` with ``r = O_E - O_wrist``: V_E = V_wrist + w x r."""
+        wrist = sp.Matrix.vstack(sp.Matrix.hstack(self.A, sp.zeros(3, 3)), sp.Matrix.hstack(self.C, self.D))
+        shift = sp.Matrix.vstack(sp.Matrix.hstack(sp.eye(3), -skew(self.tool_offset)),
+                                 sp.Matrix.hstack(sp.zeros(3, 3), sp.eye(3)))
+        return (shift * wrist).applyfunc(simplify_entry)
+
+
+def wrist_blocks(model) -> WristBlocks | None:
+    """Paul's blocks of ``model``, or None when it has no spherical wrist.
 
     Needs six joints, the last three revolute, and a point common to their axes;
     the candidates are the points the axes are given through, and one is accepted
@@ -126,14 +143,22 @@ def wrist_partition(model, reference_length: sp.Expr) -> WristPartition | None:
         else:
             arm_linear.append(z.cross(centre - o))
             arm_angular.append(z)
-    A = sp.Matrix.hstack(*arm_linear).applyfunc(simplify_entry)
-    C = sp.Matrix.hstack(*arm_angular)
-    D = sp.Matrix.hstack(*[z for z, _ in wrist_axes])
-    offset = (model.fk[:3, 3] - centre).applyfunc(simplify_entry)
+    return WristBlocks(
+        wrist_centre=centre, tool_offset=(model.fk[:3, 3] - centre).applyfunc(simplify_entry),
+        A=sp.Matrix.hstack(*arm_linear).applyfunc(simplify_entry), C=sp.Matrix.hstack(*arm_angular),
+        D=sp.Matrix.hstack(*[z for z, _ in wrist_axes]))
+
+
+def wrist_partition(model, reference_length: sp.Expr) -> WristPartition | None:
+    """Paul's partition of ``model`` with the closed-form block inverses (None: no spherical wrist)."""
+    blocks = wrist_blocks(model)
+    if blocks is None:
+        return None
+    A, D = blocks.A, blocks.D
     arm_columns = tuple(1 if t == PRISMATIC else 0 for t in model.joint_types[:3])
     arm_inverse, wrist_inverse = closed_form_inverse(A), closed_form_inverse(D)
     return WristPartition(
-        wrist_centre=centre, tool_offset=offset, A=A, C=C, D=D,
+        wrist_centre=blocks.wrist_centre, tool_offset=blocks.tool_offset, A=A, C=blocks.C, D=D,
         arm_inverse=arm_inverse, wrist_inverse=wrist_inverse,
         arm_scaling=Scaling(reference_length, (1, 1, 1), arm_columns),
         wrist_scaling=Scaling(reference_length, (0, 0, 0), (0, 0, 0)),

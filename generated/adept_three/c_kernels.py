@@ -273,7 +273,7 @@ def tool_configuration(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     params = _params(l1, l2, d1, d4)
     batch = _runtime.batch_shape(q)
     q = _input(q, batch)
-    w_tool = numpy.empty(batch + (6, 1), dtype=numpy.float64)
+    w_tool = numpy.empty(batch + (6,), dtype=numpy.float64)
     _lib.adept_three_tool_configuration_batch(
         int(numpy.prod(batch, dtype=numpy.int64)),
         _ffi.from_buffer("double[]", q),

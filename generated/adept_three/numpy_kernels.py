@@ -631,11 +631,11 @@ def tool_configuration(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     q3 = q[..., 2]
     q4 = q[..., 3]
     _t0 = q1 + q2
-    w_tool = numpy.zeros(_batch + (6, 1))
-    w_tool[..., 0, 0] = l1*numpy.cos(q1) + l2*numpy.cos(_t0)
-    w_tool[..., 1, 0] = l1*numpy.sin(q1) + l2*numpy.sin(_t0)
-    w_tool[..., 2, 0] = d1 - d4 - q3
-    w_tool[..., 5, 0] = -numpy.exp(0.3183098861837907*q4)
+    w_tool = numpy.zeros(_batch + (6,))
+    w_tool[..., 0] = l1*numpy.cos(q1) + l2*numpy.cos(_t0)
+    w_tool[..., 1] = l1*numpy.sin(q1) + l2*numpy.sin(_t0)
+    w_tool[..., 2] = d1 - d4 - q3
+    w_tool[..., 5] = -numpy.exp(0.3183098861837907*q4)
     return w_tool
 
 

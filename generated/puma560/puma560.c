@@ -15,9 +15,9 @@
  * jacobian_dot: 214 operations after common-subexpression elimination
  * task_acceleration: 1007 operations after common-subexpression elimination
  * manipulability: 41 operations after common-subexpression elimination
- * joint_velocity: 703 operations after common-subexpression elimination
- * joint_acceleration: 877 operations after common-subexpression elimination
- * joint_velocity_from_twist: 592 operations after common-subexpression elimination
+ * joint_velocity: 717 operations after common-subexpression elimination
+ * joint_acceleration: 890 operations after common-subexpression elimination
+ * joint_velocity_from_twist: 606 operations after common-subexpression elimination
  */
 #include "puma560.h"
 
@@ -1441,169 +1441,169 @@ void puma560_joint_velocity(const double *restrict q, const double *restrict xd,
     const double d4 = params->d4;
     const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
     const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
-    const double _t2 = cos(q2);
-    const double _t3 = _t2*a2;
-    const double _t4 = q2 + q3;
-    const double _t5 = cos(_t4);
-    const double _t6 = _t5*a3;
-    const double _t7 = sin(_t4);
-    const double _t8 = _t7*d4;
-    const double _t9 = _t6 - _t8;
-    const double _t10 = _t3 + _t9;
-    const double _t11 = (_t10*_t10);
-    const double _t12 = (a2*a2);
-    const double _t13 = a3*sin(q3) + d4*cos(q3);
-    const double _t14 = _t12*(_t13*_t13);
-    const double _t15 = _t11*_t14;
-    const double _t16 = _t15/_t1;
-    const double _t17 = fmax(0, 1 - 1000000*_t16);
-    const double _t18 = 1.0/(_t0*_t0);
-    const double _t19 = (_t9*_t9);
-    const double _t20 = _t11*_t18 + _t18*_t19;
-    const double _t21 = (1e-08)*(_t17*_t17);
-    const double _t22 = _t7*a3;
-    const double _t23 = _t5*d4;
-    const double _t24 = _t22 + _t23;
+    const double _t2 = (a2*a2);
+    const double _t3 = a3*sin(q3) + d4*cos(q3);
+    const double _t4 = cos(q2);
+    const double _t5 = _t4*a2;
+    const double _t6 = q2 + q3;
+    const double _t7 = cos(_t6);
+    const double _t8 = _t7*a3;
+    const double _t9 = sin(_t6);
+    const double _t10 = _t9*d4;
+    const double _t11 = -_t10 + _t8;
+    const double _t12 = _t11 + _t5;
+    const double _t13 = (_t12*_t12);
+    const double _t14 = _t13*_t2*(_t3*_t3);
+    const double _t15 = _t14/_t1;
+    const double _t16 = fmax(0, 1 - 1000000*_t15);
+    const double _t17 = 1.0/(_t0*_t0);
+    const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
+    const double _t19 = (1e-08)*(_t16*_t16);
+    const double _t20 = _t9*a3;
+    const double _t21 = _t7*d4;
+    const double _t22 = _t20 + _t21;
+    const double _t23 = (_t22*_t22);
+    const double _t24 = sin(q1);
     const double _t25 = (_t24*_t24);
-    const double _t26 = 1.0/(_t0*_t0*_t0*_t0);
-    const double _t27 = _t11*_t26;
-    const double _t28 = sin(q2);
-    const double _t29 = _t28*a2;
-    const double _t30 = _t24 + _t29;
-    const double _t31 = (_t30*_t30);
-    const double _t32 = _t25*_t27 + _t27*_t31;
-    const double _t33 = (0.0001)*_t17;
-    const double _t34 = sin(q1);
-    const double _t35 = (_t34*_t34);
-    const double _t36 = _t18*_t35;
-    const double _t37 = _t34*d3;
-    const double _t38 = cos(q1);
-    const double _t39 = _t3*_t38;
-    const double _t40 = _t37 + _t38*_t6 - _t38*_t8 + _t39;
-    const double _t41 = (_t40*_t40);
-    const double _t42 = _t18*_t41 + _t25*_t36 + _t31*_t36;
-    const double _t43 = (_t38*_t38);
-    const double _t44 = _t18*_t43;
-    const double _t45 = _t38*d3;
-    const double _t46 = _t3*_t34;
-    const double _t47 = _t34*_t6 - _t34*_t8 - _t45 + _t46;
-    const double _t48 = -_t47;
-    const double _t49 = _t18*(_t48*_t48) + _t25*_t44 + _t31*_t44;
-    const double _t50 = _t14*_t26;
-    const double _t51 = _t19*_t26;
-    const double _t52 = _t27*_t41 + _t35*_t50 + _t41*_t51;
-    const double _t53 = (_t47*_t47);
-    const double _t54 = _t27*_t53 + _t43*_t50 + _t51*_t53;
-    const double _t55 = 1.0/(_t16 + (1e-12)*(_t17*_t17*_t17) + _t20*_t21 + _t21*_t42 + _t21*_t49 + _t32*_t33 + _t33*_t52 + _t33*_t54);
-    const double _t56 = 1.0/_t0;
-    const double _t57 = _t27*_t30;
-    const double _t58 = _t24*_t9;
-    const double _t59 = _t10*_t26*_t58;
-    const double _t60 = _t18*_t38;
-    const double _t61 = _t10*_t30;
-    const double _t62 = -_t33*(-_t58*_t60 - _t60*_t61) + _t40*_t57 + _t40*_t59;
-    const double _t63 = _t56*xd_z;
-    const double _t64 = _t34*_t38;
-    const double _t65 = _t18*_t64;
-    const double _t66 = _t11*_t26*_t40*_t47 + _t19*_t26*_t40*_t47 - _t33*(_t18*_t40*_t48 + _t25*_t65 + _t31*_t65) - _t50*_t64;
-    const double _t67 = _t56*xd_y;
-    const double _t68 = _t33*_t42;
-    const double _t69 = _t20*_t33;
-    const double _t70 = _t56*xd_x;
-    const double _t71 = _t56*(_t62*_t63 + _t66*_t67 + _t70*(_t21 + _t52 + _t68 + _t69));
-    const double _t72 = _t18*_t34;
-    const double _t73 = -_t33*(-_t58*_t72 - _t61*_t72) + _t47*_t57 + _t47*_t59;
-    const double _t74 = _t21 + _t33*_t49;
-    const double _t75 = _t56*(_t63*_t73 + _t66*_t70 + _t67*(_t54 + _t69 + _t74));
-    const double _t76 = _t16 < 1e-06;
-    const double _t77 = q1 + q3;
-    const double _t78 = sin(_t77);
-    const double _t79 = cos(_t77);
-    const double _t80 = q1 - q3;
-    const double _t81 = cos(_t80);
-    const double _t82 = sin(_t80);
-    const double _t83 = (0.5)*a2;
-    const double _t84 = _t10*_t13*a2/fmax(_t15, (1e-06)*_t1);
-    const double _t85 = ((_t76) ? (
-   _t55*(_t40*_t75 + _t48*_t71)
+    const double _t26 = _t17*_t25;
+    const double _t27 = sin(q2);
+    const double _t28 = _t27*a2;
+    const double _t29 = _t22 + _t28;
+    const double _t30 = (_t29*_t29);
+    const double _t31 = _t24*d3;
+    const double _t32 = cos(q1);
+    const double _t33 = _t32*_t5;
+    const double _t34 = -_t10*_t32 + _t31 + _t32*_t8 + _t33;
+    const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
+    const double _t36 = (_t32*_t32);
+    const double _t37 = _t17*_t36;
+    const double _t38 = _t24*_t5;
+    const double _t39 = -_t24*_t8 + _t24*_t9*d4 + _t32*d3 - _t38;
+    const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
+    const double _t41 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t42 = a3*d4;
+    const double _t43 = (_t9*_t9);
+    const double _t44 = (a3*a3);
+    const double _t45 = _t7*_t9;
+    const double _t46 = (d4*d4);
+    const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
+    const double _t48 = -_t10*_t28 + _t2*_t27*_t4 + _t28*_t8 + _t47;
+    const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
+    const double _t50 = (0.0001)*_t16;
+    const double _t51 = q1 + q3;
+    const double _t52 = sin(_t51);
+    const double _t53 = cos(_t51);
+    const double _t54 = q1 - q3;
+    const double _t55 = cos(_t54);
+    const double _t56 = sin(_t54);
+    const double _t57 = _t52*d4 - _t53*a3 + _t55*a3 + _t56*d4;
+    const double _t58 = (0.25)*_t2*_t41;
+    const double _t59 = _t33*_t8;
+    const double _t60 = _t10*_t33;
+    const double _t61 = (_t7*_t7);
+    const double _t62 = _t44*_t61;
+    const double _t63 = _t43*_t46;
+    const double _t64 = 2*q2 + 2*q3;
+    const double _t65 = _t64 + q1;
+    const double _t66 = _t64 - q1;
+    const double _t67 = -_t10*_t31 + _t31*_t8 + _t32*_t62 + _t32*_t63 - 0.5*_t42*(sin(_t65) + sin(_t66));
+    const double _t68 = _t59 - _t60 + _t67;
+    const double _t69 = _t2*(_t4*_t4);
+    const double _t70 = _t31*_t5 + _t32*_t69 + 2*_t59 - 2*_t60 + _t67;
+    const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
+    const double _t72 = -_t52*a3 - _t53*d4 - _t55*d4 + _t56*a3;
+    const double _t73 = _t38*_t8;
+    const double _t74 = _t10*_t32*d3 + _t24*_t62 + _t24*_t63 - _t32*_t7*a3*d3 - 0.5*a3*d4*(-cos(_t65) + cos(_t66));
+    const double _t75 = _t24*_t4*_t9*a2*d4 - _t73 - _t74;
+    const double _t76 = -2*_t24*_t4*_t9*a2*d4 + _t24*_t69 - _t32*_t4*a2*d3 + 2*_t73 + _t74;
+    const double _t77 = -_t76;
+    const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
+    const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
+    const double _t80 = 1.0/_t0;
+    const double _t81 = _t11*_t22;
+    const double _t82 = _t17*_t32;
+    const double _t83 = _t12*_t29;
+    const double _t84 = _t41*_t47*_t68 + _t41*_t48*_t70 - _t50*(-_t81*_t82 - _t82*_t83);
+    const double _t85 = _t80*xd_z;
+    const double _t86 = _t35*_t50;
+    const double _t87 = _t18*_t50;
+    const double _t88 = _t80*xd_x;
+    const double _t89 = _t24*_t32;
+    const double _t90 = _t17*_t89;
+    const double _t91 = _t41*_t75;
+    const double _t92 = _t41*_t77;
+    const double _t93 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t17*_t34*_t39 + _t23*_t90 + _t30*_t90) - _t68*_t91 - _t70*_t92;
+    const double _t94 = _t80*xd_y;
+    const double _t95 = _t80*(_t84*_t85 + _t88*(_t19 + _t71 + _t86 + _t87) + _t93*_t94);
+    const double _t96 = _t17*_t24;
+    const double _t97 = -_t47*_t91 - _t48*_t92 - _t50*(-_t81*_t96 - _t83*_t96);
+    const double _t98 = _t19 + _t40*_t50;
+    const double _t99 = _t80*(_t85*_t97 + _t88*_t93 + _t94*(_t78 + _t87 + _t98));
+    const double _t100 = _t15 < 1e-06;
+    const double _t101 = (0.5)*a2;
+    const double _t102 = _t12*_t3*a2/fmax(_t14, (1e-06)*_t1);
+    const double _t103 = ((_t100) ? (
+   _t79*(_t34*_t99 + _t39*_t95)
 )
 : (
-   -_t84*(_t83*xd_x*(_t78*d4 - _t79*a3 + _t81*a3 + _t82*d4) + _t83*xd_y*(-_t78*a3 - _t79*d4 - _t81*d4 + _t82*a3))
+   -_t102*(_t101*_t57*xd_x + _t101*_t72*xd_y)
 ));
-    const double _t86 = _t62*_t70 + _t63*(_t32 + _t68 + _t74) + _t67*_t73;
-    const double _t87 = _t38*_t71;
-    const double _t88 = _t34*_t75;
-    const double _t89 = a3*d4;
-    const double _t90 = (_t7*_t7);
-    const double _t91 = (a3*a3);
-    const double _t92 = _t5*_t7;
-    const double _t93 = (d4*d4);
-    const double _t94 = _t22*_t3 + _t23*_t3 - 2*_t89*_t90 + _t89 + _t91*_t92 - _t92*_t93;
-    const double _t95 = _t39*_t6;
-    const double _t96 = (_t5*_t5);
-    const double _t97 = _t91*_t96;
-    const double _t98 = _t90*_t93;
-    const double _t99 = 2*q2 + 2*q3;
-    const double _t100 = _t99 + q1;
-    const double _t101 = _t99 - q1;
-    const double _t102 = (0.5)*_t89;
-    const double _t103 = -_t102*(sin(_t100) + sin(_t101)) + _t37*_t6 - _t37*_t8 + _t38*_t97 + _t38*_t98;
-    const double _t104 = _t46*_t6;
-    const double _t105 = -_t102*(-cos(_t100) + cos(_t101)) + _t34*_t97 + _t34*_t98 - _t45*_t6 + _t45*_t8;
-    const double _t106 = ((_t76) ? (
-   _t55*(_t10*_t56*_t86 - _t30*_t87 - _t30*_t88)
+    const double _t104 = _t84*_t88 + _t85*(_t49 + _t86 + _t98) + _t94*_t97;
+    const double _t105 = _t32*_t95;
+    const double _t106 = _t24*_t99;
+    const double _t107 = ((_t100) ? (
+   _t79*(_t104*_t12*_t80 - _t105*_t29 - _t106*_t29)
 )
 : (
-   -_t84*(-_t94*xd_z + xd_x*(-_t103 + _t2*_t38*_t7*a2*d4 - _t95) + xd_y*(-_t104 - _t105 + _t2*_t34*_t7*a2*d4))
+   -_t102*(-_t47*xd_z - _t68*xd_x + _t75*xd_y)
 ));
-    const double _t107 = _t12*(_t2*_t2);
-    const double _t108 = ((_t76) ? (
-   _t55*(-_t24*_t87 - _t24*_t88 + _t56*_t86*_t9)
+    const double _t108 = ((_t100) ? (
+   _t79*(_t104*_t11*_t80 - _t105*_t22 - _t106*_t22)
 )
 : (
-   -_t84*(xd_x*(_t103 + _t107*_t38 + _t3*_t37 - 2*_t39*_t8 + 2*_t95) + xd_y*(2*_t104 + _t105 + _t107*_t34 - _t3*_t45 - 2*_t46*_t8) + xd_z*(_t12*_t2*_t28 + _t29*_t6 - _t29*_t8 + _t94))
+   -_t102*(_t48*xd_z + _t70*xd_x + _t76*xd_y)
 ));
     const double _t109 = sin(q5);
     const double _t110 = (_t109*_t109);
     const double _t111 = fmax(0, 1 - 1000000*_t110);
     const double _t112 = sin(q4);
-    const double _t113 = (_t112*_t112)*_t90;
+    const double _t113 = (_t112*_t112)*_t43;
     const double _t114 = cos(q5);
     const double _t115 = cos(q4);
-    const double _t116 = _t109*_t7;
-    const double _t117 = _t114*_t5 - _t115*_t116;
-    const double _t118 = _t113 + (_t117*_t117) + _t96;
+    const double _t116 = _t109*_t9;
+    const double _t117 = _t114*_t7 - _t115*_t116;
+    const double _t118 = _t113 + (_t117*_t117) + _t61;
     const double _t119 = (1e-08)*(_t111*_t111);
-    const double _t120 = _t109*_t5;
-    const double _t121 = _t114*_t7;
+    const double _t120 = _t109*_t7;
+    const double _t121 = _t114*_t9;
     const double _t122 = _t115*_t121;
     const double _t123 = -_t120 - _t122;
-    const double _t124 = _t110*_t113 + (_t115*_t115)*_t90 + (_t123*_t123);
+    const double _t124 = _t110*_t113 + (_t115*_t115)*_t43 + (_t123*_t123);
     const double _t125 = (0.0001)*_t111;
-    const double _t126 = _t115*_t34;
-    const double _t127 = _t112*_t38;
-    const double _t128 = _t127*_t5;
+    const double _t126 = _t115*_t24;
+    const double _t127 = _t112*_t32;
+    const double _t128 = _t127*_t7;
     const double _t129 = _t126 + _t128;
     const double _t130 = (_t129*_t129);
-    const double _t131 = _t115*_t38;
-    const double _t132 = _t109*_t112*_t34 - _t120*_t131 - _t121*_t38;
-    const double _t133 = _t130 + (_t132*_t132) + _t43*_t90;
-    const double _t134 = _t112*_t34;
-    const double _t135 = _t134*_t5;
-    const double _t136 = -_t115*_t38 + _t135;
-    const double _t137 = -_t109*_t127 - _t120*_t126 - _t121*_t34;
-    const double _t138 = (_t136*_t136) + (_t137*_t137) + _t35*_t90;
-    const double _t139 = _t115*_t38*_t5 - _t134;
+    const double _t131 = _t115*_t32;
+    const double _t132 = _t109*_t112*_t24 - _t120*_t131 - _t121*_t32;
+    const double _t133 = _t130 + (_t132*_t132) + _t36*_t43;
+    const double _t134 = _t112*_t24;
+    const double _t135 = _t134*_t7;
+    const double _t136 = -_t115*_t32 + _t135;
+    const double _t137 = -_t109*_t127 - _t120*_t126 - _t121*_t24;
+    const double _t138 = (_t136*_t136) + (_t137*_t137) + _t25*_t43;
+    const double _t139 = _t115*_t32*_t7 - _t134;
     const double _t140 = _t114*_t134;
-    const double _t141 = _t116*_t38;
-    const double _t142 = _t114*_t5;
+    const double _t141 = _t116*_t32;
+    const double _t142 = _t114*_t7;
     const double _t143 = -_t131*_t142 + _t140 + _t141;
     const double _t144 = _t110*_t130 + (_t139*_t139) + (_t143*_t143);
-    const double _t145 = _t126*_t5 + _t127;
+    const double _t145 = _t126*_t7 + _t127;
     const double _t146 = -_t145;
     const double _t147 = -_t136;
     const double _t148 = _t114*_t127;
-    const double _t149 = _t116*_t34;
+    const double _t149 = _t116*_t24;
     const double _t150 = _t126*_t142 + _t148 - _t149;
     const double _t151 = _t110*(_t147*_t147) + (_t146*_t146) + (_t150*_t150);
     const double _t152 = 1.0/(_t110 + (1e-12)*(_t111*_t111*_t111) + _t118*_t119 + _t119*_t133 + _t119*_t138 + _t124*_t125 + _t125*_t144 + _t125*_t151);
@@ -1615,33 +1615,33 @@ void puma560_joint_velocity(const double *restrict q, const double *restrict xd,
     const double _t158 = _t126*_t157;
     const double _t159 = -_t135*_t155 + _t142*_t158 + _t148*_t157 - _t149*_t157 + _t156;
     const double _t160 = _t126*_t155;
-    const double _t161 = _t109*_t155*_t34*_t7 + _t115*_t157*_t38 - _t135*_t157 - _t142*_t160 - _t148*_t155;
-    const double _t162 = _t109*_t155*_t38*_t7 + _t112*_t114*_t155*_t34 - _t128*_t157 - _t142*_t156 - _t158;
-    const double _t163 = _t114*_t115*_t157*_t38*_t5 - _t128*_t155 - _t140*_t157 - _t141*_t157 - _t160;
-    const double _t164 = (0.5)*_t132*xd_r23 - 0.5*_t137*xd_r13 - 0.5*_t159*xd_r11 - 0.5*_t161*xd_r12 + (0.5)*_t162*xd_r22 + (0.5)*_t163*xd_r21 - _t85;
-    const double _t165 = _t115*_t7;
-    const double _t166 = _t112*_t7;
+    const double _t161 = _t109*_t155*_t24*_t9 + _t115*_t157*_t32 - _t135*_t157 - _t142*_t160 - _t148*_t155;
+    const double _t162 = _t109*_t155*_t32*_t9 + _t112*_t114*_t155*_t24 - _t128*_t157 - _t142*_t156 - _t158;
+    const double _t163 = _t114*_t115*_t157*_t32*_t7 - _t128*_t155 - _t140*_t157 - _t141*_t157 - _t160;
+    const double _t164 = -_t103 + (0.5)*_t132*xd_r23 - 0.5*_t137*xd_r13 - 0.5*_t159*xd_r11 - 0.5*_t161*xd_r12 + (0.5)*_t162*xd_r22 + (0.5)*_t163*xd_r21;
+    const double _t165 = _t115*_t9;
+    const double _t166 = _t112*_t9;
     const double _t167 = _t129*_t166;
-    const double _t168 = _t110*_t167 + _t123*_t143 - _t125*(_t117*_t132 + _t167 - _t38*_t92) + _t139*_t165;
+    const double _t168 = _t110*_t167 + _t123*_t143 - _t125*(_t117*_t132 + _t167 - _t32*_t45) + _t139*_t165;
     const double _t169 = (0.5)*_t117;
     const double _t170 = (0.5)*_t120*_t157 + (0.5)*_t122*_t157 - 0.5*_t155*_t166;
     const double _t171 = -0.5*_t120*_t155 - 0.5*_t122*_t155 - 0.5*_t157*_t166;
-    const double _t172 = -_t106*_t34 - _t108*_t34 + (0.5)*_t137*xd_r33 + (0.5)*_t159*xd_r31 + (0.5)*_t161*xd_r32 - _t169*xd_r23 - _t170*xd_r21 - _t171*xd_r22;
+    const double _t172 = -_t107*_t24 - _t108*_t24 + (0.5)*_t137*xd_r33 + (0.5)*_t159*xd_r31 + (0.5)*_t161*xd_r32 - _t169*xd_r23 - _t170*xd_r21 - _t171*xd_r22;
     const double _t173 = _t110*_t147;
-    const double _t174 = -_t123*_t150 - _t125*(_t117*_t137 + _t136*_t166 - _t34*_t92) - _t146*_t165 - _t166*_t173;
-    const double _t175 = _t106*_t38 + _t108*_t38 - 0.5*_t132*xd_r33 - 0.5*_t162*xd_r32 - 0.5*_t163*xd_r31 + _t169*xd_r13 + _t170*xd_r11 + _t171*xd_r12;
+    const double _t174 = -_t123*_t150 - _t125*(_t117*_t137 + _t136*_t166 - _t24*_t45) - _t146*_t165 - _t166*_t173;
+    const double _t175 = _t107*_t32 + _t108*_t32 - 0.5*_t132*xd_r33 - 0.5*_t162*xd_r32 - 0.5*_t163*xd_r31 + _t169*xd_r13 + _t170*xd_r11 + _t171*xd_r12;
     const double _t176 = _t164*(_t124 + _t153 + _t154) + _t168*_t172 + _t174*_t175;
     const double _t177 = _t118*_t125;
-    const double _t178 = -_t125*(_t129*_t136 + _t132*_t137 + _t64*_t90) - _t129*_t173 - _t139*_t146 - _t143*_t150;
+    const double _t178 = -_t125*(_t129*_t136 + _t132*_t137 + _t43*_t89) - _t129*_t173 - _t139*_t146 - _t143*_t150;
     const double _t179 = _t164*_t168 + _t172*(_t144 + _t154 + _t177) + _t175*_t178;
     const double _t180 = _t164*_t174 + _t172*_t178 + _t175*(_t119 + _t151 + _t153 + _t177);
     const double _t181 = _t110 < 1e-06;
     const double _t182 = _t109/fmax(1e-06, _t110);
-    qd[0] = _t85;
-    qd[1] = _t106;
+    qd[0] = _t103;
+    qd[1] = _t107;
     qd[2] = _t108;
     qd[3] = ((_t181) ? (
-   _t152*(_t176*_t5 - _t179*_t38*_t7 - _t180*_t34*_t7)
+   _t152*(_t176*_t7 - _t179*_t32*_t9 - _t180*_t24*_t9)
 )
 : (
    -_t182*(_t123*_t164 + _t143*_t172 - _t150*_t175)
@@ -1658,7 +1658,7 @@ void puma560_joint_velocity(const double *restrict q, const double *restrict xd,
 : (
    -_t182*(_t139*_t172 + _t145*_t175 + _t164*_t165)
 ));
-    singular[0] = _t181 || _t76;
+    singular[0] = _t100 || _t181;
 }
 
 void puma560_joint_velocity_batch(size_t count, const double *restrict q, const double *restrict xd, const puma560_params *restrict params, double *restrict qd, int *restrict singular)
@@ -1706,245 +1706,246 @@ void puma560_joint_acceleration(const double *restrict q, const double *restrict
     const double d4 = params->d4;
     const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
     const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
-    const double _t2 = cos(q2);
-    const double _t3 = _t2*a2;
-    const double _t4 = q2 + q3;
-    const double _t5 = cos(_t4);
-    const double _t6 = _t5*a3;
-    const double _t7 = sin(_t4);
-    const double _t8 = _t7*d4;
-    const double _t9 = _t6 - _t8;
-    const double _t10 = _t3 + _t9;
-    const double _t11 = (_t10*_t10);
-    const double _t12 = (a2*a2);
-    const double _t13 = a3*sin(q3) + d4*cos(q3);
-    const double _t14 = _t12*(_t13*_t13);
-    const double _t15 = _t11*_t14;
-    const double _t16 = _t15/_t1;
-    const double _t17 = fmax(0, 1 - 1000000*_t16);
-    const double _t18 = 1.0/(_t0*_t0);
-    const double _t19 = (_t9*_t9);
-    const double _t20 = _t11*_t18 + _t18*_t19;
-    const double _t21 = (1e-08)*(_t17*_t17);
-    const double _t22 = _t7*a3;
-    const double _t23 = _t5*d4;
-    const double _t24 = _t22 + _t23;
+    const double _t2 = (a2*a2);
+    const double _t3 = a3*sin(q3) + d4*cos(q3);
+    const double _t4 = cos(q2);
+    const double _t5 = _t4*a2;
+    const double _t6 = q2 + q3;
+    const double _t7 = cos(_t6);
+    const double _t8 = _t7*a3;
+    const double _t9 = sin(_t6);
+    const double _t10 = _t9*d4;
+    const double _t11 = -_t10 + _t8;
+    const double _t12 = _t11 + _t5;
+    const double _t13 = (_t12*_t12);
+    const double _t14 = _t13*_t2*(_t3*_t3);
+    const double _t15 = _t14/_t1;
+    const double _t16 = fmax(0, 1 - 1000000*_t15);
+    const double _t17 = 1.0/(_t0*_t0);
+    const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
+    const double _t19 = (1e-08)*(_t16*_t16);
+    const double _t20 = _t9*a3;
+    const double _t21 = _t7*d4;
+    const double _t22 = _t20 + _t21;
+    const double _t23 = (_t22*_t22);
+    const double _t24 = sin(q1);
     const double _t25 = (_t24*_t24);
-    const double _t26 = 1.0/(_t0*_t0*_t0*_t0);
-    const double _t27 = _t11*_t26;
-    const double _t28 = sin(q2);
-    const double _t29 = _t28*a2;
-    const double _t30 = _t24 + _t29;
-    const double _t31 = (_t30*_t30);
-    const double _t32 = _t25*_t27 + _t27*_t31;
-    const double _t33 = (0.0001)*_t17;
-    const double _t34 = sin(q1);
-    const double _t35 = (_t34*_t34);
-    const double _t36 = _t18*_t35;
-    const double _t37 = _t34*d3;
-    const double _t38 = cos(q1);
-    const double _t39 = _t3*_t38;
-    const double _t40 = _t37 + _t38*_t6 - _t38*_t8 + _t39;
-    const double _t41 = (_t40*_t40);
-    const double _t42 = _t18*_t41 + _t25*_t36 + _t31*_t36;
-    const double _t43 = (_t38*_t38);
-    const double _t44 = _t18*_t43;
-    const double _t45 = _t38*d3;
-    const double _t46 = _t3*_t34;
-    const double _t47 = _t34*_t6 - _t34*_t8 - _t45 + _t46;
-    const double _t48 = -_t47;
-    const double _t49 = _t18*(_t48*_t48) + _t25*_t44 + _t31*_t44;
-    const double _t50 = _t14*_t26;
-    const double _t51 = _t19*_t26;
-    const double _t52 = _t27*_t41 + _t35*_t50 + _t41*_t51;
-    const double _t53 = (_t47*_t47);
-    const double _t54 = _t27*_t53 + _t43*_t50 + _t51*_t53;
-    const double _t55 = 1.0/(_t16 + (1e-12)*(_t17*_t17*_t17) + _t20*_t21 + _t21*_t42 + _t21*_t49 + _t32*_t33 + _t33*_t52 + _t33*_t54);
-    const double _t56 = 1.0/_t0;
-    const double _t57 = _t24*_t9;
-    const double _t58 = _t10*_t26*_t57;
-    const double _t59 = _t18*_t38;
-    const double _t60 = _t10*_t30;
-    const double _t61 = _t27*_t30*_t40 - _t33*(-_t57*_t59 - _t59*_t60) + _t40*_t58;
-    const double _t62 = -_t24;
-    const double _t63 = _t62*qd3;
-    const double _t64 = -qd2*(-_t30*qd2 + _t63) - qd3*(_t62*qd2 + _t63) + xdd_z;
-    const double _t65 = _t56*_t64;
-    const double _t66 = _t34*_t38;
-    const double _t67 = _t18*_t66;
-    const double _t68 = _t11*_t26*_t40*_t47 + _t19*_t26*_t40*_t47 - _t33*(_t18*_t40*_t48 + _t25*_t67 + _t31*_t67) - _t50*_t66;
-    const double _t69 = _t38*qd1;
-    const double _t70 = _t34*qd2;
-    const double _t71 = _t9*qd3;
-    const double _t72 = _t34*_t71;
-    const double _t73 = _t22*_t38 + _t23*_t38;
-    const double _t74 = -qd1*(_t48*qd1 - _t73*qd3 + qd2*(-_t29*_t38 - _t73)) - qd2*(-_t10*_t70 - _t30*_t69 - _t72) - qd3*(-_t24*_t69 - _t70*_t9 - _t72) + xdd_y;
-    const double _t75 = _t56*_t74;
-    const double _t76 = _t20*_t33;
-    const double _t77 = _t21 + _t33*_t42;
-    const double _t78 = _t38*qd2;
-    const double _t79 = _t38*_t71;
-    const double _t80 = _t22*_t34 + _t23*_t34;
-    const double _t81 = -qd1*(-_t40*qd1 + _t80*qd3 + qd2*(_t29*_t34 + _t80)) - qd2*(-_t10*_t78 + _t30*_t34*qd1 - _t79) - qd3*(_t24*_t34*qd1 - _t78*_t9 - _t79) + xdd_x;
-    const double _t82 = _t56*_t81;
-    const double _t83 = _t56*(_t61*_t65 + _t68*_t75 + _t82*(_t52 + _t76 + _t77));
-    const double _t84 = _t18*_t34;
-    const double _t85 = _t27*_t30*_t47 - _t33*(-_t57*_t84 - _t60*_t84) + _t47*_t58;
-    const double _t86 = _t33*_t49;
-    const double _t87 = _t56*(_t65*_t85 + _t68*_t82 + _t75*(_t21 + _t54 + _t76 + _t86));
-    const double _t88 = _t16 < 1e-06;
-    const double _t89 = q1 + q3;
-    const double _t90 = sin(_t89);
-    const double _t91 = cos(_t89);
-    const double _t92 = q1 - q3;
-    const double _t93 = cos(_t92);
-    const double _t94 = sin(_t92);
-    const double _t95 = (0.5)*a2;
-    const double _t96 = _t10*_t13*a2/fmax(_t15, (1e-06)*_t1);
-    const double _t97 = ((_t88) ? (
-   _t55*(_t40*_t87 + _t48*_t83)
+    const double _t26 = _t17*_t25;
+    const double _t27 = sin(q2);
+    const double _t28 = _t27*a2;
+    const double _t29 = _t22 + _t28;
+    const double _t30 = (_t29*_t29);
+    const double _t31 = _t24*d3;
+    const double _t32 = cos(q1);
+    const double _t33 = _t32*_t5;
+    const double _t34 = -_t10*_t32 + _t31 + _t32*_t8 + _t33;
+    const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
+    const double _t36 = (_t32*_t32);
+    const double _t37 = _t17*_t36;
+    const double _t38 = _t24*_t5;
+    const double _t39 = -_t24*_t8 + _t24*_t9*d4 + _t32*d3 - _t38;
+    const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
+    const double _t41 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t42 = a3*d4;
+    const double _t43 = (_t9*_t9);
+    const double _t44 = (a3*a3);
+    const double _t45 = _t7*_t9;
+    const double _t46 = (d4*d4);
+    const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
+    const double _t48 = -_t10*_t28 + _t2*_t27*_t4 + _t28*_t8 + _t47;
+    const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
+    const double _t50 = (0.0001)*_t16;
+    const double _t51 = q1 + q3;
+    const double _t52 = sin(_t51);
+    const double _t53 = cos(_t51);
+    const double _t54 = q1 - q3;
+    const double _t55 = cos(_t54);
+    const double _t56 = sin(_t54);
+    const double _t57 = _t52*d4 - _t53*a3 + _t55*a3 + _t56*d4;
+    const double _t58 = (0.25)*_t2*_t41;
+    const double _t59 = _t33*_t8;
+    const double _t60 = _t10*_t33;
+    const double _t61 = (_t7*_t7);
+    const double _t62 = _t44*_t61;
+    const double _t63 = _t43*_t46;
+    const double _t64 = 2*q2 + 2*q3;
+    const double _t65 = _t64 + q1;
+    const double _t66 = _t64 - q1;
+    const double _t67 = -_t10*_t31 + _t31*_t8 + _t32*_t62 + _t32*_t63 - 0.5*_t42*(sin(_t65) + sin(_t66));
+    const double _t68 = _t59 - _t60 + _t67;
+    const double _t69 = _t2*(_t4*_t4);
+    const double _t70 = _t31*_t5 + _t32*_t69 + 2*_t59 - 2*_t60 + _t67;
+    const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
+    const double _t72 = -_t52*a3 - _t53*d4 - _t55*d4 + _t56*a3;
+    const double _t73 = _t38*_t8;
+    const double _t74 = _t10*_t32*d3 + _t24*_t62 + _t24*_t63 - _t32*_t7*a3*d3 - 0.5*a3*d4*(-cos(_t65) + cos(_t66));
+    const double _t75 = _t24*_t4*_t9*a2*d4 - _t73 - _t74;
+    const double _t76 = -2*_t24*_t4*_t9*a2*d4 + _t24*_t69 - _t32*_t4*a2*d3 + 2*_t73 + _t74;
+    const double _t77 = -_t76;
+    const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
+    const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
+    const double _t80 = 1.0/_t0;
+    const double _t81 = _t17*_t32;
+    const double _t82 = _t11*_t22;
+    const double _t83 = _t12*_t29;
+    const double _t84 = _t41*_t68;
+    const double _t85 = _t41*_t70;
+    const double _t86 = _t47*_t84 + _t48*_t85 - _t50*(-_t81*_t82 - _t81*_t83);
+    const double _t87 = -_t22;
+    const double _t88 = _t87*qd3;
+    const double _t89 = -qd2*(-_t29*qd2 + _t88) - qd3*(_t87*qd2 + _t88) + xdd_z;
+    const double _t90 = _t80*_t89;
+    const double _t91 = _t18*_t50;
+    const double _t92 = _t19 + _t35*_t50;
+    const double _t93 = _t32*qd2;
+    const double _t94 = _t11*qd3;
+    const double _t95 = _t32*_t94;
+    const double _t96 = _t20*_t24 + _t21*_t24;
+    const double _t97 = -qd1*(-_t34*qd1 + _t96*qd3 + qd2*(_t24*_t28 + _t96)) - qd2*(-_t12*_t93 + _t24*_t29*qd1 - _t95) - qd3*(-_t11*_t93 + _t22*_t24*qd1 - _t95) + xdd_x;
+    const double _t98 = _t80*_t97;
+    const double _t99 = _t24*_t32;
+    const double _t100 = _t17*_t99;
+    const double _t101 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t100*_t23 + _t100*_t30 + _t17*_t34*_t39) - _t75*_t84 - _t77*_t85;
+    const double _t102 = _t32*qd1;
+    const double _t103 = _t24*qd2;
+    const double _t104 = _t24*_t94;
+    const double _t105 = _t20*_t32 + _t21*_t32;
+    const double _t106 = -qd1*(-_t105*qd3 + _t39*qd1 + qd2*(-_t105 - _t28*_t32)) - qd2*(-_t102*_t29 - _t103*_t12 - _t104) - qd3*(-_t102*_t22 - _t103*_t11 - _t104) + xdd_y;
+    const double _t107 = _t106*_t80;
+    const double _t108 = _t80*(_t101*_t107 + _t86*_t90 + _t98*(_t71 + _t91 + _t92));
+    const double _t109 = _t17*_t24;
+    const double _t110 = -_t41*_t47*_t75 - _t41*_t48*_t77 - _t50*(-_t109*_t82 - _t109*_t83);
+    const double _t111 = _t40*_t50;
+    const double _t112 = _t80*(_t101*_t98 + _t107*(_t111 + _t19 + _t78 + _t91) + _t110*_t90);
+    const double _t113 = _t15 < 1e-06;
+    const double _t114 = (0.5)*a2;
+    const double _t115 = _t12*_t3*a2/fmax(_t14, (1e-06)*_t1);
+    const double _t116 = ((_t113) ? (
+   _t79*(_t108*_t39 + _t112*_t34)
 )
 : (
-   -_t96*(_t74*_t95*(-_t90*a3 - _t91*d4 - _t93*d4 + _t94*a3) + _t81*_t95*(_t90*d4 - _t91*a3 + _t93*a3 + _t94*d4))
+   -_t115*(_t106*_t114*_t72 + _t114*_t57*_t97)
 ));
-    const double _t98 = _t61*_t82 + _t65*(_t32 + _t77 + _t86) + _t75*_t85;
-    const double _t99 = _t38*_t83;
-    const double _t100 = _t34*_t87;
-    const double _t101 = a3*d4;
-    const double _t102 = (_t7*_t7);
-    const double _t103 = (a3*a3);
-    const double _t104 = _t5*_t7;
-    const double _t105 = (d4*d4);
-    const double _t106 = -2*_t101*_t102 + _t101 + _t103*_t104 - _t104*_t105 + _t22*_t3 + _t23*_t3;
-    const double _t107 = _t39*_t6;
-    const double _t108 = (_t5*_t5);
-    const double _t109 = _t103*_t108;
-    const double _t110 = _t102*_t105;
-    const double _t111 = 2*q2 + 2*q3;
-    const double _t112 = _t111 + q1;
-    const double _t113 = _t111 - q1;
-    const double _t114 = (0.5)*_t101;
-    const double _t115 = _t109*_t38 + _t110*_t38 - _t114*(sin(_t112) + sin(_t113)) + _t37*_t6 - _t37*_t8;
-    const double _t116 = _t46*_t6;
-    const double _t117 = _t109*_t34 + _t110*_t34 - _t114*(-cos(_t112) + cos(_t113)) - _t45*_t6 + _t45*_t8;
-    const double _t118 = ((_t88) ? (
-   _t55*(_t10*_t56*_t98 - _t100*_t30 - _t30*_t99)
+    const double _t117 = _t107*_t110 + _t86*_t98 + _t90*(_t111 + _t49 + _t92);
+    const double _t118 = _t108*_t32;
+    const double _t119 = _t112*_t24;
+    const double _t120 = ((_t113) ? (
+   _t79*(_t117*_t12*_t80 - _t118*_t29 - _t119*_t29)
 )
 : (
-   -_t96*(-_t106*_t64 + _t74*(-_t116 - _t117 + _t2*_t34*_t7*a2*d4) + _t81*(-_t107 - _t115 + _t2*_t38*_t7*a2*d4))
+   -_t115*(_t106*_t75 - _t47*_t89 - _t68*_t97)
 ));
-    const double _t119 = _t12*(_t2*_t2);
-    const double _t120 = ((_t88) ? (
-   _t55*(-_t100*_t24 - _t24*_t99 + _t56*_t9*_t98)
+    const double _t121 = ((_t113) ? (
+   _t79*(_t11*_t117*_t80 - _t118*_t22 - _t119*_t22)
 )
 : (
-   -_t96*(_t64*(_t106 + _t12*_t2*_t28 + _t29*_t6 - _t29*_t8) + _t74*(2*_t116 + _t117 + _t119*_t34 - _t3*_t45 - 2*_t46*_t8) + _t81*(2*_t107 + _t115 + _t119*_t38 + _t3*_t37 - 2*_t39*_t8))
+   -_t115*(_t106*_t76 + _t48*_t89 + _t70*_t97)
 ));
-    const double _t121 = sin(q5);
-    const double _t122 = (_t121*_t121);
-    const double _t123 = fmax(0, 1 - 1000000*_t122);
-    const double _t124 = sin(q4);
-    const double _t125 = _t102*(_t124*_t124);
-    const double _t126 = cos(q5);
-    const double _t127 = cos(q4);
-    const double _t128 = _t121*_t7;
-    const double _t129 = _t126*_t5 - _t127*_t128;
-    const double _t130 = _t108 + _t125 + (_t129*_t129);
-    const double _t131 = (1e-08)*(_t123*_t123);
-    const double _t132 = _t121*_t5;
-    const double _t133 = _t126*_t7;
-    const double _t134 = _t127*_t133;
-    const double _t135 = -_t132 - _t134;
-    const double _t136 = _t102*(_t127*_t127) + _t122*_t125 + (_t135*_t135);
-    const double _t137 = (0.0001)*_t123;
-    const double _t138 = _t127*_t34;
-    const double _t139 = _t124*_t38;
-    const double _t140 = _t139*_t5;
-    const double _t141 = _t138 + _t140;
-    const double _t142 = (_t141*_t141);
-    const double _t143 = _t127*_t38;
-    const double _t144 = _t121*_t124*_t34 - _t132*_t143 - _t133*_t38;
-    const double _t145 = _t102*_t43 + _t142 + (_t144*_t144);
-    const double _t146 = _t124*_t34;
-    const double _t147 = _t146*_t5;
-    const double _t148 = -_t127*_t38 + _t147;
-    const double _t149 = _t121*_t139 + _t132*_t138 + _t133*_t34;
-    const double _t150 = -_t149;
-    const double _t151 = _t102*_t35 + (_t148*_t148) + (_t150*_t150);
-    const double _t152 = _t127*_t38*_t5 - _t146;
-    const double _t153 = _t126*_t146;
-    const double _t154 = _t128*_t38;
-    const double _t155 = _t126*_t5;
-    const double _t156 = -_t143*_t155 + _t153 + _t154;
-    const double _t157 = _t122*_t142 + (_t152*_t152) + (_t156*_t156);
-    const double _t158 = _t138*_t5 + _t139;
-    const double _t159 = -_t158;
-    const double _t160 = -_t148;
-    const double _t161 = _t126*_t139;
-    const double _t162 = _t128*_t34;
-    const double _t163 = _t138*_t155 + _t161 - _t162;
-    const double _t164 = _t122*(_t160*_t160) + (_t159*_t159) + (_t163*_t163);
-    const double _t165 = 1.0/(_t122 + (1e-12)*(_t123*_t123*_t123) + _t130*_t131 + _t131*_t145 + _t131*_t151 + _t136*_t137 + _t137*_t157 + _t137*_t164);
-    const double _t166 = _t137*_t145;
-    const double _t167 = _t131 + _t137*_t151;
-    const double _t168 = _t7*qd2;
-    const double _t169 = _t7*qd3;
-    const double _t170 = _t5*qd3;
-    const double _t171 = _t127*_t7;
-    const double _t172 = sin(q6);
-    const double _t173 = _t143*_t172;
-    const double _t174 = cos(q6);
-    const double _t175 = _t138*_t174;
-    const double _t176 = -_t147*_t172 + _t155*_t175 + _t161*_t174 - _t162*_t174 + _t173;
-    const double _t177 = _t138*_t172;
-    const double _t178 = _t121*_t172*_t34*_t7 + _t127*_t174*_t38 - _t147*_t174 - _t155*_t177 - _t161*_t172;
-    const double _t179 = _t121*_t172*_t38*_t7 + _t124*_t126*_t172*_t34 - _t140*_t174 - _t155*_t173 - _t175;
-    const double _t180 = _t126*_t127*_t174*_t38*_t5 - _t140*_t172 - _t153*_t174 - _t154*_t174 - _t177;
-    const double _t181 = _t124*_t128;
-    const double _t182 = -_t127*_t132 - _t133;
-    const double _t183 = (0.5)*_t144*xdd_r23 - 0.5*_t150*xdd_r13 - 0.5*_t176*xdd_r11 - 0.5*_t178*xdd_r12 + (0.5)*_t179*xdd_r22 + (0.5)*_t180*xdd_r21 - _t97 - qd4*(-_t168 - _t169) - qd5*(_t124*_t170 + _t124*_t5*qd2 + _t171*qd4) - qd6*(_t135*qd5 + _t181*qd4 + _t182*qd2 + _t182*qd3);
-    const double _t184 = _t124*_t7;
-    const double _t185 = _t141*_t184;
-    const double _t186 = _t122*_t185 + _t135*_t156 - _t137*(-_t104*_t38 + _t129*_t144 + _t185) + _t152*_t171;
-    const double _t187 = _t132*_t174 + _t134*_t174 - _t172*_t184;
-    const double _t188 = -_t132*_t172 - _t134*_t172 - _t174*_t184;
-    const double _t189 = _t128*_t143 - _t155*_t38;
-    const double _t190 = -_t118*_t34 - _t120*_t34 - 0.5*_t129*xdd_r23 + (0.5)*_t150*xdd_r33 + (0.5)*_t176*xdd_r31 + (0.5)*_t178*xdd_r32 - 0.5*_t187*xdd_r21 - 0.5*_t188*xdd_r22 - _t69*qd3 - _t78*qd1 - qd4*(-_t170*_t38 + _t34*_t7*qd1 - _t5*_t78) - qd5*(-_t139*_t168 - _t139*_t169 + _t152*qd4 + _t160*qd1) - qd6*(_t149*qd1 + _t156*qd5 + _t189*qd2 + _t189*qd3 + qd4*(_t121*_t138 + _t132*_t139));
-    const double _t191 = _t122*_t160;
-    const double _t192 = -_t135*_t163 - _t137*(-_t104*_t34 + _t129*_t150 + _t148*_t184) - _t159*_t171 - _t184*_t191;
-    const double _t193 = _t34*qd1;
-    const double _t194 = _t128*_t138 - _t155*_t34;
-    const double _t195 = -_t163;
-    const double _t196 = _t118*_t38 + _t120*_t38 + (0.5)*_t129*xdd_r13 - 0.5*_t144*xdd_r33 - 0.5*_t179*xdd_r32 - 0.5*_t180*xdd_r31 + (0.5)*_t187*xdd_r11 + (0.5)*_t188*xdd_r12 - _t193*qd2 - _t193*qd3 - qd4*(-_t170*_t34 - _t5*_t70 - _t69*_t7) - qd5*(_t141*qd1 - _t146*_t168 - _t146*_t169 + _t158*qd4) - qd6*(_t144*qd1 + _t194*qd2 + _t194*qd3 + _t195*qd5 + qd4*(-_t121*_t143 + _t132*_t146));
-    const double _t197 = _t183*(_t136 + _t166 + _t167) + _t186*_t190 + _t192*_t196;
-    const double _t198 = _t130*_t137;
-    const double _t199 = -_t137*(_t102*_t66 + _t141*_t148 + _t144*_t150) - _t141*_t191 - _t152*_t159 - _t156*_t163;
-    const double _t200 = _t183*_t186 + _t190*(_t157 + _t167 + _t198) + _t196*_t199;
-    const double _t201 = _t183*_t192 + _t190*_t199 + _t196*(_t131 + _t164 + _t166 + _t198);
-    const double _t202 = _t122 < 1e-06;
-    const double _t203 = _t121/fmax(1e-06, _t122);
-    qdd[0] = _t97;
-    qdd[1] = _t118;
-    qdd[2] = _t120;
-    qdd[3] = ((_t202) ? (
-   _t165*(_t197*_t5 - _t200*_t38*_t7 - _t201*_t34*_t7)
+    const double _t122 = sin(q5);
+    const double _t123 = (_t122*_t122);
+    const double _t124 = fmax(0, 1 - 1000000*_t123);
+    const double _t125 = sin(q4);
+    const double _t126 = (_t125*_t125)*_t43;
+    const double _t127 = cos(q5);
+    const double _t128 = cos(q4);
+    const double _t129 = _t122*_t9;
+    const double _t130 = _t127*_t7 - _t128*_t129;
+    const double _t131 = _t126 + (_t130*_t130) + _t61;
+    const double _t132 = (1e-08)*(_t124*_t124);
+    const double _t133 = _t122*_t7;
+    const double _t134 = _t127*_t9;
+    const double _t135 = _t128*_t134;
+    const double _t136 = -_t133 - _t135;
+    const double _t137 = _t123*_t126 + (_t128*_t128)*_t43 + (_t136*_t136);
+    const double _t138 = (0.0001)*_t124;
+    const double _t139 = _t128*_t24;
+    const double _t140 = _t125*_t32;
+    const double _t141 = _t140*_t7;
+    const double _t142 = _t139 + _t141;
+    const double _t143 = (_t142*_t142);
+    const double _t144 = _t128*_t32;
+    const double _t145 = _t122*_t125*_t24 - _t133*_t144 - _t134*_t32;
+    const double _t146 = _t143 + (_t145*_t145) + _t36*_t43;
+    const double _t147 = _t125*_t24;
+    const double _t148 = _t147*_t7;
+    const double _t149 = -_t128*_t32 + _t148;
+    const double _t150 = _t122*_t140 + _t133*_t139 + _t134*_t24;
+    const double _t151 = -_t150;
+    const double _t152 = (_t149*_t149) + (_t151*_t151) + _t25*_t43;
+    const double _t153 = _t128*_t32*_t7 - _t147;
+    const double _t154 = _t127*_t147;
+    const double _t155 = _t129*_t32;
+    const double _t156 = _t127*_t7;
+    const double _t157 = -_t144*_t156 + _t154 + _t155;
+    const double _t158 = _t123*_t143 + (_t153*_t153) + (_t157*_t157);
+    const double _t159 = _t139*_t7 + _t140;
+    const double _t160 = -_t159;
+    const double _t161 = -_t149;
+    const double _t162 = _t127*_t140;
+    const double _t163 = _t129*_t24;
+    const double _t164 = _t139*_t156 + _t162 - _t163;
+    const double _t165 = _t123*(_t161*_t161) + (_t160*_t160) + (_t164*_t164);
+    const double _t166 = 1.0/(_t123 + (1e-12)*(_t124*_t124*_t124) + _t131*_t132 + _t132*_t146 + _t132*_t152 + _t137*_t138 + _t138*_t158 + _t138*_t165);
+    const double _t167 = _t138*_t146;
+    const double _t168 = _t132 + _t138*_t152;
+    const double _t169 = _t9*qd2;
+    const double _t170 = _t9*qd3;
+    const double _t171 = _t7*qd3;
+    const double _t172 = _t128*_t9;
+    const double _t173 = sin(q6);
+    const double _t174 = _t144*_t173;
+    const double _t175 = cos(q6);
+    const double _t176 = _t139*_t175;
+    const double _t177 = -_t148*_t173 + _t156*_t176 + _t162*_t175 - _t163*_t175 + _t174;
+    const double _t178 = _t139*_t173;
+    const double _t179 = _t122*_t173*_t24*_t9 + _t128*_t175*_t32 - _t148*_t175 - _t156*_t178 - _t162*_t173;
+    const double _t180 = _t122*_t173*_t32*_t9 + _t125*_t127*_t173*_t24 - _t141*_t175 - _t156*_t174 - _t176;
+    const double _t181 = _t127*_t128*_t175*_t32*_t7 - _t141*_t173 - _t154*_t175 - _t155*_t175 - _t178;
+    const double _t182 = _t125*_t129;
+    const double _t183 = -_t128*_t133 - _t134;
+    const double _t184 = -_t116 + (0.5)*_t145*xdd_r23 - 0.5*_t151*xdd_r13 - 0.5*_t177*xdd_r11 - 0.5*_t179*xdd_r12 + (0.5)*_t180*xdd_r22 + (0.5)*_t181*xdd_r21 - qd4*(-_t169 - _t170) - qd5*(_t125*_t171 + _t125*_t7*qd2 + _t172*qd4) - qd6*(_t136*qd5 + _t182*qd4 + _t183*qd2 + _t183*qd3);
+    const double _t185 = _t125*_t9;
+    const double _t186 = _t142*_t185;
+    const double _t187 = _t123*_t186 + _t136*_t157 - _t138*(_t130*_t145 + _t186 - _t32*_t45) + _t153*_t172;
+    const double _t188 = _t133*_t175 + _t135*_t175 - _t173*_t185;
+    const double _t189 = -_t133*_t173 - _t135*_t173 - _t175*_t185;
+    const double _t190 = _t129*_t144 - _t156*_t32;
+    const double _t191 = -_t102*qd3 - _t120*_t24 - _t121*_t24 - 0.5*_t130*xdd_r23 + (0.5)*_t151*xdd_r33 + (0.5)*_t177*xdd_r31 + (0.5)*_t179*xdd_r32 - 0.5*_t188*xdd_r21 - 0.5*_t189*xdd_r22 - _t93*qd1 - qd4*(-_t171*_t32 + _t24*_t9*qd1 - _t7*_t93) - qd5*(-_t140*_t169 - _t140*_t170 + _t153*qd4 + _t161*qd1) - qd6*(_t150*qd1 + _t157*qd5 + _t190*qd2 + _t190*qd3 + qd4*(_t122*_t139 + _t133*_t140));
+    const double _t192 = _t123*_t161;
+    const double _t193 = -_t136*_t164 - _t138*(_t130*_t151 + _t149*_t185 - _t24*_t45) - _t160*_t172 - _t185*_t192;
+    const double _t194 = _t24*qd1;
+    const double _t195 = _t129*_t139 - _t156*_t24;
+    const double _t196 = -_t164;
+    const double _t197 = _t120*_t32 + _t121*_t32 + (0.5)*_t130*xdd_r13 - 0.5*_t145*xdd_r33 - 0.5*_t180*xdd_r32 - 0.5*_t181*xdd_r31 + (0.5)*_t188*xdd_r11 + (0.5)*_t189*xdd_r12 - _t194*qd2 - _t194*qd3 - qd4*(-_t102*_t9 - _t103*_t7 - _t171*_t24) - qd5*(_t142*qd1 - _t147*_t169 - _t147*_t170 + _t159*qd4) - qd6*(_t145*qd1 + _t195*qd2 + _t195*qd3 + _t196*qd5 + qd4*(-_t122*_t144 + _t133*_t147));
+    const double _t198 = _t184*(_t137 + _t167 + _t168) + _t187*_t191 + _t193*_t197;
+    const double _t199 = _t131*_t138;
+    const double _t200 = -_t138*(_t142*_t149 + _t145*_t151 + _t43*_t99) - _t142*_t192 - _t153*_t160 - _t157*_t164;
+    const double _t201 = _t184*_t187 + _t191*(_t158 + _t168 + _t199) + _t197*_t200;
+    const double _t202 = _t184*_t193 + _t191*_t200 + _t197*(_t132 + _t165 + _t167 + _t199);
+    const double _t203 = _t123 < 1e-06;
+    const double _t204 = _t122/fmax(1e-06, _t123);
+    qdd[0] = _t116;
+    qdd[1] = _t120;
+    qdd[2] = _t121;
+    qdd[3] = ((_t203) ? (
+   _t166*(_t198*_t7 - _t201*_t32*_t9 - _t202*_t24*_t9)
 )
 : (
-   -_t203*(_t135*_t183 + _t156*_t190 + _t195*_t196)
+   -_t204*(_t136*_t184 + _t157*_t191 + _t196*_t197)
 ));
-    qdd[4] = ((_t202) ? (
-   _t165*(_t141*_t200 + _t148*_t201 + _t184*_t197)
+    qdd[4] = ((_t203) ? (
+   _t166*(_t142*_t201 + _t149*_t202 + _t185*_t198)
 )
 : (
-   -_t203*(-_t121*_t141*_t190 + _t121*_t160*_t196 - _t181*_t183)
+   -_t204*(-_t122*_t142*_t191 + _t122*_t161*_t197 - _t182*_t184)
 ));
-    qdd[5] = ((_t202) ? (
-   _t165*(_t129*_t197 + _t144*_t200 + _t150*_t201)
+    qdd[5] = ((_t203) ? (
+   _t166*(_t130*_t198 + _t145*_t201 + _t151*_t202)
 )
 : (
-   -_t203*(_t152*_t190 + _t158*_t196 + _t171*_t183)
+   -_t204*(_t153*_t191 + _t159*_t197 + _t172*_t184)
 ));
-    singular[0] = _t202 || _t88;
+    singular[0] = _t113 || _t203;
 }
 
 void puma560_joint_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict xdd, const puma560_params *restrict params, double *restrict qdd, int *restrict singular)
@@ -1979,188 +1980,188 @@ void puma560_joint_velocity_from_twist(const double *restrict q, const double *r
     const double d4 = params->d4;
     const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
     const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
-    const double _t2 = cos(q2);
-    const double _t3 = _t2*a2;
-    const double _t4 = q2 + q3;
-    const double _t5 = cos(_t4);
-    const double _t6 = _t5*a3;
-    const double _t7 = sin(_t4);
-    const double _t8 = _t7*d4;
-    const double _t9 = _t6 - _t8;
-    const double _t10 = _t3 + _t9;
-    const double _t11 = (_t10*_t10);
-    const double _t12 = (a2*a2);
-    const double _t13 = a3*sin(q3) + d4*cos(q3);
-    const double _t14 = _t12*(_t13*_t13);
-    const double _t15 = _t11*_t14;
-    const double _t16 = _t15/_t1;
-    const double _t17 = fmax(0, 1 - 1000000*_t16);
-    const double _t18 = 1.0/(_t0*_t0);
-    const double _t19 = (_t9*_t9);
-    const double _t20 = _t11*_t18 + _t18*_t19;
-    const double _t21 = (1e-08)*(_t17*_t17);
-    const double _t22 = _t7*a3;
-    const double _t23 = _t5*d4;
-    const double _t24 = _t22 + _t23;
+    const double _t2 = (a2*a2);
+    const double _t3 = a3*sin(q3) + d4*cos(q3);
+    const double _t4 = cos(q2);
+    const double _t5 = _t4*a2;
+    const double _t6 = q2 + q3;
+    const double _t7 = cos(_t6);
+    const double _t8 = _t7*a3;
+    const double _t9 = sin(_t6);
+    const double _t10 = _t9*d4;
+    const double _t11 = -_t10 + _t8;
+    const double _t12 = _t11 + _t5;
+    const double _t13 = (_t12*_t12);
+    const double _t14 = _t13*_t2*(_t3*_t3);
+    const double _t15 = _t14/_t1;
+    const double _t16 = fmax(0, 1 - 1000000*_t15);
+    const double _t17 = 1.0/(_t0*_t0);
+    const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
+    const double _t19 = (1e-08)*(_t16*_t16);
+    const double _t20 = _t9*a3;
+    const double _t21 = _t7*d4;
+    const double _t22 = _t20 + _t21;
+    const double _t23 = (_t22*_t22);
+    const double _t24 = sin(q1);
     const double _t25 = (_t24*_t24);
-    const double _t26 = 1.0/(_t0*_t0*_t0*_t0);
-    const double _t27 = _t11*_t26;
-    const double _t28 = sin(q2);
-    const double _t29 = _t28*a2;
-    const double _t30 = _t24 + _t29;
-    const double _t31 = (_t30*_t30);
-    const double _t32 = _t25*_t27 + _t27*_t31;
-    const double _t33 = (0.0001)*_t17;
-    const double _t34 = sin(q1);
-    const double _t35 = (_t34*_t34);
-    const double _t36 = _t18*_t35;
-    const double _t37 = _t34*d3;
-    const double _t38 = cos(q1);
-    const double _t39 = _t3*_t38;
-    const double _t40 = _t37 + _t38*_t6 - _t38*_t8 + _t39;
-    const double _t41 = (_t40*_t40);
-    const double _t42 = _t18*_t41 + _t25*_t36 + _t31*_t36;
-    const double _t43 = (_t38*_t38);
-    const double _t44 = _t18*_t43;
-    const double _t45 = _t38*d3;
-    const double _t46 = _t3*_t34;
-    const double _t47 = _t34*_t6 - _t34*_t8 - _t45 + _t46;
-    const double _t48 = -_t47;
-    const double _t49 = _t18*(_t48*_t48) + _t25*_t44 + _t31*_t44;
-    const double _t50 = _t14*_t26;
-    const double _t51 = _t19*_t26;
-    const double _t52 = _t27*_t41 + _t35*_t50 + _t41*_t51;
-    const double _t53 = (_t47*_t47);
-    const double _t54 = _t27*_t53 + _t43*_t50 + _t51*_t53;
-    const double _t55 = 1.0/(_t16 + (1e-12)*(_t17*_t17*_t17) + _t20*_t21 + _t21*_t42 + _t21*_t49 + _t32*_t33 + _t33*_t52 + _t33*_t54);
-    const double _t56 = 1.0/_t0;
-    const double _t57 = _t27*_t30;
-    const double _t58 = _t24*_t9;
-    const double _t59 = _t10*_t26*_t58;
-    const double _t60 = _t18*_t38;
-    const double _t61 = _t10*_t30;
-    const double _t62 = -_t33*(-_t58*_t60 - _t60*_t61) + _t40*_t57 + _t40*_t59;
-    const double _t63 = _t56*twist_vz;
-    const double _t64 = _t34*_t38;
-    const double _t65 = _t18*_t64;
-    const double _t66 = _t11*_t26*_t40*_t47 + _t19*_t26*_t40*_t47 - _t33*(_t18*_t40*_t48 + _t25*_t65 + _t31*_t65) - _t50*_t64;
-    const double _t67 = _t56*twist_vy;
-    const double _t68 = _t33*_t42;
-    const double _t69 = _t20*_t33;
-    const double _t70 = _t56*twist_vx;
-    const double _t71 = _t56*(_t62*_t63 + _t66*_t67 + _t70*(_t21 + _t52 + _t68 + _t69));
-    const double _t72 = _t18*_t34;
-    const double _t73 = -_t33*(-_t58*_t72 - _t61*_t72) + _t47*_t57 + _t47*_t59;
-    const double _t74 = _t21 + _t33*_t49;
-    const double _t75 = _t56*(_t63*_t73 + _t66*_t70 + _t67*(_t54 + _t69 + _t74));
-    const double _t76 = _t16 < 1e-06;
-    const double _t77 = q1 + q3;
-    const double _t78 = sin(_t77);
-    const double _t79 = cos(_t77);
-    const double _t80 = q1 - q3;
-    const double _t81 = cos(_t80);
-    const double _t82 = sin(_t80);
-    const double _t83 = (0.5)*a2;
-    const double _t84 = _t10*_t13*a2/fmax(_t15, (1e-06)*_t1);
-    const double _t85 = ((_t76) ? (
-   _t55*(_t40*_t75 + _t48*_t71)
+    const double _t26 = _t17*_t25;
+    const double _t27 = sin(q2);
+    const double _t28 = _t27*a2;
+    const double _t29 = _t22 + _t28;
+    const double _t30 = (_t29*_t29);
+    const double _t31 = _t24*d3;
+    const double _t32 = cos(q1);
+    const double _t33 = _t32*_t5;
+    const double _t34 = -_t10*_t32 + _t31 + _t32*_t8 + _t33;
+    const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
+    const double _t36 = (_t32*_t32);
+    const double _t37 = _t17*_t36;
+    const double _t38 = _t24*_t5;
+    const double _t39 = -_t24*_t8 + _t24*_t9*d4 + _t32*d3 - _t38;
+    const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
+    const double _t41 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t42 = a3*d4;
+    const double _t43 = (_t9*_t9);
+    const double _t44 = (a3*a3);
+    const double _t45 = _t7*_t9;
+    const double _t46 = (d4*d4);
+    const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
+    const double _t48 = -_t10*_t28 + _t2*_t27*_t4 + _t28*_t8 + _t47;
+    const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
+    const double _t50 = (0.0001)*_t16;
+    const double _t51 = q1 + q3;
+    const double _t52 = sin(_t51);
+    const double _t53 = cos(_t51);
+    const double _t54 = q1 - q3;
+    const double _t55 = cos(_t54);
+    const double _t56 = sin(_t54);
+    const double _t57 = _t52*d4 - _t53*a3 + _t55*a3 + _t56*d4;
+    const double _t58 = (0.25)*_t2*_t41;
+    const double _t59 = _t33*_t8;
+    const double _t60 = _t10*_t33;
+    const double _t61 = (_t7*_t7);
+    const double _t62 = _t44*_t61;
+    const double _t63 = _t43*_t46;
+    const double _t64 = 2*q2 + 2*q3;
+    const double _t65 = _t64 + q1;
+    const double _t66 = _t64 - q1;
+    const double _t67 = -_t10*_t31 + _t31*_t8 + _t32*_t62 + _t32*_t63 - 0.5*_t42*(sin(_t65) + sin(_t66));
+    const double _t68 = _t59 - _t60 + _t67;
+    const double _t69 = _t2*(_t4*_t4);
+    const double _t70 = _t31*_t5 + _t32*_t69 + 2*_t59 - 2*_t60 + _t67;
+    const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
+    const double _t72 = -_t52*a3 - _t53*d4 - _t55*d4 + _t56*a3;
+    const double _t73 = _t38*_t8;
+    const double _t74 = _t10*_t32*d3 + _t24*_t62 + _t24*_t63 - _t32*_t7*a3*d3 - 0.5*a3*d4*(-cos(_t65) + cos(_t66));
+    const double _t75 = _t24*_t4*_t9*a2*d4 - _t73 - _t74;
+    const double _t76 = -2*_t24*_t4*_t9*a2*d4 + _t24*_t69 - _t32*_t4*a2*d3 + 2*_t73 + _t74;
+    const double _t77 = -_t76;
+    const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
+    const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
+    const double _t80 = 1.0/_t0;
+    const double _t81 = _t11*_t22;
+    const double _t82 = _t17*_t32;
+    const double _t83 = _t12*_t29;
+    const double _t84 = _t41*_t47*_t68 + _t41*_t48*_t70 - _t50*(-_t81*_t82 - _t82*_t83);
+    const double _t85 = _t80*twist_vz;
+    const double _t86 = _t35*_t50;
+    const double _t87 = _t18*_t50;
+    const double _t88 = _t80*twist_vx;
+    const double _t89 = _t24*_t32;
+    const double _t90 = _t17*_t89;
+    const double _t91 = _t41*_t75;
+    const double _t92 = _t41*_t77;
+    const double _t93 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t17*_t34*_t39 + _t23*_t90 + _t30*_t90) - _t68*_t91 - _t70*_t92;
+    const double _t94 = _t80*twist_vy;
+    const double _t95 = _t80*(_t84*_t85 + _t88*(_t19 + _t71 + _t86 + _t87) + _t93*_t94);
+    const double _t96 = _t17*_t24;
+    const double _t97 = -_t47*_t91 - _t48*_t92 - _t50*(-_t81*_t96 - _t83*_t96);
+    const double _t98 = _t19 + _t40*_t50;
+    const double _t99 = _t80*(_t85*_t97 + _t88*_t93 + _t94*(_t78 + _t87 + _t98));
+    const double _t100 = _t15 < 1e-06;
+    const double _t101 = (0.5)*a2;
+    const double _t102 = _t12*_t3*a2/fmax(_t14, (1e-06)*_t1);
+    const double _t103 = ((_t100) ? (
+   _t79*(_t34*_t99 + _t39*_t95)
 )
 : (
-   -_t84*(_t83*twist_vx*(_t78*d4 - _t79*a3 + _t81*a3 + _t82*d4) + _t83*twist_vy*(-_t78*a3 - _t79*d4 - _t81*d4 + _t82*a3))
+   -_t102*(_t101*_t57*twist_vx + _t101*_t72*twist_vy)
 ));
-    const double _t86 = _t62*_t70 + _t63*(_t32 + _t68 + _t74) + _t67*_t73;
-    const double _t87 = _t38*_t71;
-    const double _t88 = _t34*_t75;
-    const double _t89 = a3*d4;
-    const double _t90 = (_t7*_t7);
-    const double _t91 = (a3*a3);
-    const double _t92 = _t5*_t7;
-    const double _t93 = (d4*d4);
-    const double _t94 = _t22*_t3 + _t23*_t3 - 2*_t89*_t90 + _t89 + _t91*_t92 - _t92*_t93;
-    const double _t95 = _t39*_t6;
-    const double _t96 = (_t5*_t5);
-    const double _t97 = _t91*_t96;
-    const double _t98 = _t90*_t93;
-    const double _t99 = 2*q2 + 2*q3;
-    const double _t100 = _t99 + q1;
-    const double _t101 = _t99 - q1;
-    const double _t102 = (0.5)*_t89;
-    const double _t103 = -_t102*(sin(_t100) + sin(_t101)) + _t37*_t6 - _t37*_t8 + _t38*_t97 + _t38*_t98;
-    const double _t104 = _t46*_t6;
-    const double _t105 = -_t102*(-cos(_t100) + cos(_t101)) + _t34*_t97 + _t34*_t98 - _t45*_t6 + _t45*_t8;
-    const double _t106 = ((_t76) ? (
-   _t55*(_t10*_t56*_t86 - _t30*_t87 - _t30*_t88)
+    const double _t104 = _t84*_t88 + _t85*(_t49 + _t86 + _t98) + _t94*_t97;
+    const double _t105 = _t32*_t95;
+    const double _t106 = _t24*_t99;
+    const double _t107 = ((_t100) ? (
+   _t79*(_t104*_t12*_t80 - _t105*_t29 - _t106*_t29)
 )
 : (
-   -_t84*(-_t94*twist_vz + twist_vx*(-_t103 + _t2*_t38*_t7*a2*d4 - _t95) + twist_vy*(-_t104 - _t105 + _t2*_t34*_t7*a2*d4))
+   -_t102*(-_t47*twist_vz - _t68*twist_vx + _t75*twist_vy)
 ));
-    const double _t107 = _t12*(_t2*_t2);
-    const double _t108 = ((_t76) ? (
-   _t55*(-_t24*_t87 - _t24*_t88 + _t56*_t86*_t9)
+    const double _t108 = ((_t100) ? (
+   _t79*(_t104*_t11*_t80 - _t105*_t22 - _t106*_t22)
 )
 : (
-   -_t84*(twist_vx*(_t103 + _t107*_t38 + _t3*_t37 - 2*_t39*_t8 + 2*_t95) + twist_vy*(2*_t104 + _t105 + _t107*_t34 - _t3*_t45 - 2*_t46*_t8) + twist_vz*(_t12*_t2*_t28 + _t29*_t6 - _t29*_t8 + _t94))
+   -_t102*(_t48*twist_vz + _t70*twist_vx + _t76*twist_vy)
 ));
     const double _t109 = sin(q5);
     const double _t110 = (_t109*_t109);
     const double _t111 = fmax(0, 1 - 1000000*_t110);
     const double _t112 = sin(q4);
-    const double _t113 = (_t112*_t112)*_t90;
+    const double _t113 = (_t112*_t112)*_t43;
     const double _t114 = cos(q5);
     const double _t115 = cos(q4);
-    const double _t116 = _t109*_t7;
-    const double _t117 = _t114*_t5 - _t115*_t116;
-    const double _t118 = _t113 + (_t117*_t117) + _t96;
+    const double _t116 = _t109*_t9;
+    const double _t117 = _t114*_t7 - _t115*_t116;
+    const double _t118 = _t113 + (_t117*_t117) + _t61;
     const double _t119 = (1e-08)*(_t111*_t111);
-    const double _t120 = _t109*_t5;
-    const double _t121 = _t114*_t7;
+    const double _t120 = _t109*_t7;
+    const double _t121 = _t114*_t9;
     const double _t122 = -_t115*_t121 - _t120;
-    const double _t123 = _t110*_t113 + (_t115*_t115)*_t90 + (_t122*_t122);
+    const double _t123 = _t110*_t113 + (_t115*_t115)*_t43 + (_t122*_t122);
     const double _t124 = (0.0001)*_t111;
-    const double _t125 = _t115*_t34;
-    const double _t126 = _t112*_t38;
-    const double _t127 = _t125 + _t126*_t5;
+    const double _t125 = _t115*_t24;
+    const double _t126 = _t112*_t32;
+    const double _t127 = _t125 + _t126*_t7;
     const double _t128 = (_t127*_t127);
-    const double _t129 = _t115*_t38;
-    const double _t130 = _t109*_t112*_t34 - _t120*_t129 - _t121*_t38;
-    const double _t131 = _t128 + (_t130*_t130) + _t43*_t90;
-    const double _t132 = _t112*_t34;
-    const double _t133 = -_t115*_t38 + _t132*_t5;
-    const double _t134 = -_t109*_t126 - _t120*_t125 - _t121*_t34;
-    const double _t135 = (_t133*_t133) + (_t134*_t134) + _t35*_t90;
-    const double _t136 = _t115*_t38*_t5 - _t132;
-    const double _t137 = _t114*_t5;
-    const double _t138 = _t114*_t132 + _t116*_t38 - _t129*_t137;
+    const double _t129 = _t115*_t32;
+    const double _t130 = _t109*_t112*_t24 - _t120*_t129 - _t121*_t32;
+    const double _t131 = _t128 + (_t130*_t130) + _t36*_t43;
+    const double _t132 = _t112*_t24;
+    const double _t133 = -_t115*_t32 + _t132*_t7;
+    const double _t134 = -_t109*_t126 - _t120*_t125 - _t121*_t24;
+    const double _t135 = (_t133*_t133) + (_t134*_t134) + _t25*_t43;
+    const double _t136 = _t115*_t32*_t7 - _t132;
+    const double _t137 = _t114*_t7;
+    const double _t138 = _t114*_t132 + _t116*_t32 - _t129*_t137;
     const double _t139 = _t110*_t128 + (_t136*_t136) + (_t138*_t138);
-    const double _t140 = _t125*_t5 + _t126;
+    const double _t140 = _t125*_t7 + _t126;
     const double _t141 = -_t140;
     const double _t142 = -_t133;
-    const double _t143 = _t114*_t126 - _t116*_t34 + _t125*_t137;
+    const double _t143 = _t114*_t126 - _t116*_t24 + _t125*_t137;
     const double _t144 = _t110*(_t142*_t142) + (_t141*_t141) + (_t143*_t143);
     const double _t145 = 1.0/(_t110 + (1e-12)*(_t111*_t111*_t111) + _t118*_t119 + _t119*_t131 + _t119*_t135 + _t123*_t124 + _t124*_t139 + _t124*_t144);
     const double _t146 = _t124*_t131;
     const double _t147 = _t119 + _t124*_t135;
-    const double _t148 = -_t85 + twist_wz;
-    const double _t149 = _t115*_t7;
-    const double _t150 = _t112*_t7;
+    const double _t148 = -_t103 + twist_wz;
+    const double _t149 = _t115*_t9;
+    const double _t150 = _t112*_t9;
     const double _t151 = _t127*_t150;
-    const double _t152 = _t110*_t151 + _t122*_t138 - _t124*(_t117*_t130 + _t151 - _t38*_t92) + _t136*_t149;
-    const double _t153 = -_t106*_t34 - _t108*_t34 + twist_wx;
+    const double _t152 = _t110*_t151 + _t122*_t138 - _t124*(_t117*_t130 + _t151 - _t32*_t45) + _t136*_t149;
+    const double _t153 = -_t107*_t24 - _t108*_t24 + twist_wx;
     const double _t154 = _t110*_t142;
-    const double _t155 = -_t122*_t143 - _t124*(_t117*_t134 + _t133*_t150 - _t34*_t92) - _t141*_t149 - _t150*_t154;
-    const double _t156 = _t106*_t38 + _t108*_t38 + twist_wy;
+    const double _t155 = -_t122*_t143 - _t124*(_t117*_t134 + _t133*_t150 - _t24*_t45) - _t141*_t149 - _t150*_t154;
+    const double _t156 = _t107*_t32 + _t108*_t32 + twist_wy;
     const double _t157 = _t148*(_t123 + _t146 + _t147) + _t152*_t153 + _t155*_t156;
     const double _t158 = _t118*_t124;
-    const double _t159 = -_t124*(_t127*_t133 + _t130*_t134 + _t64*_t90) - _t127*_t154 - _t136*_t141 - _t138*_t143;
+    const double _t159 = -_t124*(_t127*_t133 + _t130*_t134 + _t43*_t89) - _t127*_t154 - _t136*_t141 - _t138*_t143;
     const double _t160 = _t148*_t152 + _t153*(_t139 + _t147 + _t158) + _t156*_t159;
     const double _t161 = _t148*_t155 + _t153*_t159 + _t156*(_t119 + _t144 + _t146 + _t158);
     const double _t162 = _t110 < 1e-06;
     const double _t163 = _t109/fmax(1e-06, _t110);
-    qd[0] = _t85;
-    qd[1] = _t106;
+    qd[0] = _t103;
+    qd[1] = _t107;
     qd[2] = _t108;
     qd[3] = ((_t162) ? (
-   _t145*(_t157*_t5 - _t160*_t38*_t7 - _t161*_t34*_t7)
+   _t145*(_t157*_t7 - _t160*_t32*_t9 - _t161*_t24*_t9)
 )
 : (
    -_t163*(_t122*_t148 + _t138*_t153 - _t143*_t156)
@@ -2177,7 +2178,7 @@ void puma560_joint_velocity_from_twist(const double *restrict q, const double *r
 : (
    -_t163*(_t136*_t153 + _t140*_t156 + _t148*_t149)
 ));
-    singular[0] = _t162 || _t76;
+    singular[0] = _t100 || _t162;
 }
 
 void puma560_joint_velocity_from_twist_batch(size_t count, const double *restrict q, const double *restrict twist, const puma560_params *restrict params, double *restrict qd, int *restrict singular)
