@@ -32,6 +32,7 @@ Everything here is derived once per robot and cached on disk
 from __future__ import annotations
 
 import itertools
+import re
 from dataclasses import dataclass
 
 import sympy as sp
@@ -114,7 +115,8 @@ class SingularCondition:
     @property
     def joints(self) -> tuple[str, ...]:
         symbols = set().union(*(f.free_symbols for f in self.factors))
-        return tuple(sorted((str(s) for s in symbols if s.name.startswith("q")), key=lambda n: int(n[1:])))
+        names = [str(s) for s in symbols if re.fullmatch(r"q\d+", str(s))]
+        return tuple(sorted(names, key=lambda name: int(name[1:])))
 
 
 @dataclass(frozen=True)

@@ -541,3 +541,36 @@ def test_parameter_names_cannot_shadow_rate_arguments(name):
     text = f'name = "arm"\n[params]\n{name} = 1.0\n[[joint]]\ntype = "R"\na = "{name}"\n'
     with pytest.raises(DescriptionError, match="not a valid parameter name"):
         parse_description(text, "robot.toml")
+
+
+TALL = """
+name = "tall_rr"
+task = ["x", "y", "z"]
+[params]
+l1 = 0.5
+l2 = 0.3
+[[joint]]
+type = "R"
+a = "l1"
+alpha = "pi/2"
+[[joint]]
+type = "R"
+a = "l2"
+"""
+
+
+def test_a_tall_task_jacobian_gets_the_least_squares_inverse(tmp_path):
+    """A user's arm with two joints and task (x, y, z): joint_velocity is the least-squares solution."""
+    path = tmp_path / "tall.toml"
+    path.write_text(TALL)
+    m = derivations.load(path)
+    assert m.rates.strategy == "tall"
+    rng = np.random.default_rng(19)
+    for _ in range(3):
+        point = {qi: float(v) for qi, v in zip(m.q, rng.uniform(0.3, 1.2, 2))}
+        point.update({x: float(v) for x, v in zip(m.rates.xd, rng.uniform(-1, 1, 3))})
+        point.update(m.params)
+        J = np.array(m.task_jacobian.subs(point).evalf(), dtype=float)
+        xd = np.array([point[x] for x in m.rates.xd])
+        qd = np.array(m.rates.joint_velocity.subs(point).evalf(), dtype=float).ravel()
+        np.testing.assert_allclose(qd, np.linalg.lstsq(J, xd, rcond=None)[0], rtol=1e-10)
