@@ -37,7 +37,7 @@ from .chain import PRISMATIC, Chain, simplify_entry
 
 __all__ = ["SINGULAR_MEASURE", "MAX_DAMPING", "Scaling", "ClosedFormInverse", "RegularisedSolve",
            "Minors", "reference_length", "factored", "closed_form_inverse", "regularised_solve",
-           "square_measure", "measure_squared", "damped_least_squares", "singular_flag", "damping_factor"]
+           "measure_squared", "damped_least_squares", "singular_flag", "damping_factor"]
 
 # mu_0: below this normalised manipulability a configuration counts as singular.
 SINGULAR_MEASURE = sp.Rational(1, 1000)
@@ -133,11 +133,6 @@ def closed_form_inverse(J: sp.Matrix) -> ClosedFormInverse:
     determinant = factored(J.det(method="berkowitz"))
     adjugate = J.adjugate(method="berkowitz").applyfunc(simplify_entry)
     return ClosedFormInverse(adjugate, determinant)
-
-
-def square_measure(determinant: sp.Expr, scaling: Scaling) -> sp.Expr:
-    """``mu^2 = det(J)^2 / L^(2k)`` of a square Jacobian."""
-    return determinant**2 / scaling.length**(2 * scaling.power)
 
 
 @dataclass(frozen=True)

@@ -31,14 +31,13 @@ Everything here is derived once per robot and cached on disk
 """
 from __future__ import annotations
 
-import itertools
 import re
 from dataclasses import dataclass
 
 import sympy as sp
 
 from .cache import cached
-from .chain import PRISMATIC, simplify_entry
+from .chain import PRISMATIC
 from .damping import (ClosedFormInverse, Minors, Scaling, closed_form_inverse, factored, measure_squared,
                       reference_length, regularised_solve, singular_flag)
 from .model import POSE_NAMES, Argument, Output, SymbolicFunction
