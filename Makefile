@@ -9,6 +9,7 @@
 #   make report     the PDF report (report/build/kinegen-report.pdf); installs TeX Live if missing
 #   make avr-limits the AVR 3000 Matlab script: axis limits from motor limits (R=18.3in by default)
 #   make plots      trajectory plots as PNG files in plots/ (installs matplotlib, the 'plots' extra)
+#   make bench      time Paul's partitioned inverse against a 6x6 solve (PUMA 560)
 #   make clean      remove the virtual environment, caches and built libraries
 
 PYTHON ?= python3
@@ -18,7 +19,7 @@ STAMP := $(VENV)/.installed
 PLOTS_STAMP := $(VENV)/.plots-installed
 KINEGEN := $(PY) -m codegen
 
-.PHONY: all install generate build sanitize verify check test report texlive plots clean avr-limits
+.PHONY: all install generate build sanitize verify check test report texlive plots bench clean avr-limits
 
 all: $(STAMP)
 	$(KINEGEN) all
@@ -74,6 +75,9 @@ report: $(STAMP) texlive
 	$(KINEGEN) report
 plots: $(PLOTS_STAMP)
 	$(PY) -m codegen.plots --out plots
+
+bench: build
+	$(PY) benchmarks/wrist_partition.py
 
 clean:
 	rm -rf $(VENV) .cache build *.egg-info

@@ -2,14 +2,18 @@
 
 The reference is the model's own expression, evaluated independently of the
 printed code: exact substitution of the sample point (each float64 as the exact
-number it is, in a 40-digit Float) and ``evalf`` at 30 significant digits.  The error of a kernel
+rational it is) and ``evalf`` at 30 significant digits (45 for the common
+subexpressions it is evaluated through).  The error of a kernel
 output at a point is its relative error in the max norm,
 ``max|generated - reference| / max|reference|`` (absolute where the reference
 is all zeros); a kernel passes below ``TOLERANCE``.  The geometric Jacobian is
-checked again against central finite differences of ``fk``.
+checked again against central finite differences of ``fk``, and the rates of
+the Jacobians (``jacobian_dot``, ``task_jacobian_dot``) against central
+differences of the Jacobians along ``q + t qd``.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -19,11 +23,12 @@ import sympy as sp
 from derivations.model import RobotModel, SymbolicFunction
 
 __all__ = ["TOLERANCE", "FD_TOLERANCE", "Check", "sample_points", "reference", "verify_model",
-           "jacobian_by_finite_differences", "format_table"]
+           "jacobian_by_finite_differences", "derivative_along", "format_table"]
 
 TOLERANCE = 1e-12
 FD_TOLERANCE = 1e-7
 DIGITS = 30
+WORKING_DIGITS = 45  # for intermediate common subexpressions
 
 
 @dataclass(frozen=True)
@@ -113,6 +118,8 @@ def _sample_in_ranges(model, bounds, rng, count, param_sets):
             column.append(rng.uniform(float(sp.sympify(low).xreplace(subs)), float(sp.sympify(high).xreplace(subs))))
         columns.append(column)
     return np.array(columns, dtype=float).T.reshape(count, len(bounds))
+
+
 def truth(condition: sp.Basic, subs: dict) -> bool:
     """A SymPy condition at a point: each relation's sides by evalf(30), then compared."""
     condition = sp.sympify(condition)
@@ -130,22 +137,38 @@ def truth(condition: sp.Basic, subs: dict) -> bool:
     raise TypeError(f"cannot evaluate the condition {condition!r}")
 
 
-def reference(function: SymbolicFunction, values: dict[sp.Symbol, float]) -> list[np.ndarray]:
-    """Each output of ``function`` at ``values``, by exact substitution and evalf(30).
 
-    Each value enters as the exact double it is, held in a 40-digit Float (a
-    double needs 17), so SymPy evaluates every function at 40 digits as it
-    substitutes; exact rationals for the values do the same far more slowly.
+@functools.lru_cache(maxsize=None)
+def _evaluation_plan(function: SymbolicFunction):
+    """The outputs of ``function`` as a chain of common subexpressions (SymPy's own ``cse``).
+
+    The inverse-rate kernels are trees of ~10^5 operations once their shared
+    subexpressions are unfolded; evaluating the chain keeps each ``evalf`` small.
     """
-    subs = {s: sp.Float(sp.Rational(float(v)), DIGITS + 10) for s, v in values.items()}
-    outputs = []
+    flat = [sp.sympify(e) for out in function.outputs for e in out.values]
+    return sp.cse(flat, symbols=sp.numbered_symbols("_ref", real=True), order="canonical")
+
+
+def reference(function: SymbolicFunction, values: dict[sp.Symbol, float]) -> list[np.ndarray]:
+    """Each output of ``function`` at ``values``: exact substitution, then evalf.
+
+    The sample point enters exactly (each float64 as the rational it is); each
+    common subexpression is evaluated with ``evalf`` at ``WORKING_DIGITS`` and the
+    outputs at ``DIGITS`` significant digits.
+    """
+    known: dict[sp.Basic, sp.Basic] = {s: sp.Rational(float(v)) for s, v in values.items()}
+    replacements, reduced = _evaluation_plan(function)
+    for symbol, expr in replacements:
+        value = expr.xreplace(known)
+        known[symbol] = value if isinstance(value, sp.logic.boolalg.Boolean) else value.evalf(WORKING_DIGITS)
+    outputs, start = [], 0
     for out in function.outputs:
+        entries = [e.xreplace(known) for e in reduced[start:start + len(out.values)]]
+        start += len(out.values)
         if out.dtype == "bool":
-            flat = [truth(e, subs) for e in out.values]
-            outputs.append(np.array(flat, dtype=bool).reshape(out.shape))
+            outputs.append(np.array([truth(e, {}) for e in entries], dtype=bool).reshape(out.shape))
         else:
-            flat = [float(sp.sympify(e).xreplace(subs).evalf(DIGITS)) for e in out.values]
-            outputs.append(np.array(flat, dtype=float).reshape(out.shape))
+            outputs.append(np.array([float(e.evalf(DIGITS)) for e in entries], dtype=float).reshape(out.shape))
     return outputs
 
 
@@ -166,8 +189,16 @@ def existence_mask(function: SymbolicFunction, expected: list[np.ndarray]) -> np
     (k, ...) (the inverse kinematics: a branch per row) is compared only on the
     rows whose reference condition holds; other kernels everywhere (None).
     """
-    masks = [want for want, out in zip(expected, function.outputs) if out.dtype == "bool"]
-    return masks[0] if len(masks) == 1 else None
+    bools = [(want, out) for want, out in zip(expected, function.outputs) if out.dtype == "bool"]
+    if len(bools) != 1:
+        return None
+    want, flag = bools[0]
+    rows = flag.shape[0] if flag.shape else None
+    floats = [out for out in function.outputs if out.dtype == "float"]
+    # Only a per-branch existence flag masks (not, say, a singular flag, which says nothing of definedness).
+    if flag.name != "valid" or rows is None or not all(out.shape[:1] == (rows,) for out in floats):
+        return None
+    return want
 
 
 def verify_model(model: RobotModel, modules: dict, samples: int = 6, seed: int = 0) -> list[Check]:
@@ -214,7 +245,23 @@ def verify_model(model: RobotModel, modules: dict, samples: int = 6, seed: int =
             error = float(np.max(np.abs(module.jacobian(q) - jacobian_by_finite_differences(module.fk, q))))
             checks.append(Check(model.name, "jacobian", backend, error, samples,
                                 "central differences of fk", FD_TOLERANCE))
+    names = {f.name for f in model.functions()}
+    for rate, kernel in (("jacobian_dot", "jacobian"), ("task_jacobian_dot", "task_jacobian")):
+        if rate not in names:
+            continue
+        for backend, module in modules.items():
+            q = sample_joints(model, rng, samples)
+            qd = rng.uniform(-1.0, 1.0, q.shape)
+            expected = derivative_along(getattr(module, kernel), q, qd)
+            error = float(np.max(np.abs(getattr(module, rate)(q, qd) - expected)))
+            checks.append(Check(model.name, rate, backend, error, samples,
+                                f"central differences of {kernel} along q + t qd", FD_TOLERANCE))
     return checks
+
+
+def derivative_along(kernel, q: np.ndarray, qd: np.ndarray, step: float = 1e-6) -> np.ndarray:
+    """``d/dt kernel(q + t qd)`` at t = 0 by central differences (the time derivative along qd)."""
+    return (kernel(q + step * qd) - kernel(q - step * qd)) / (2 * step)
 
 
 def jacobian_by_finite_differences(fk, q: np.ndarray, step: float = 1e-6) -> np.ndarray:

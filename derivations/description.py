@@ -140,8 +140,10 @@ class _Parser:
         params: dict[sp.Symbol, float] = {}
         for key, value in raw.items():
             where = f"params: {key!r}"
-            if not is_identifier(key) or re.fullmatch(r"q\d+", key):
-                self.fail(where, "not a valid parameter name (an identifier that is not reserved and not q1, q2, ...)")
+            # q1.., qd1.., qdd1.., xd_*, xdd_*, twist_* name the kernels' arguments (derivations/velocity.py).
+            if not is_identifier(key) or re.fullmatch(r"qd{0,2}\d+|(xdd?|twist)_\w+", key):
+                self.fail(where, "not a valid parameter name (an identifier that is not reserved and not q1, q2, ..., "
+                          "qd1, qdd1, ..., or xd_*, xdd_*, twist_*)")
             try:
                 expr = parse_expression(value, {})
             except ExpressionError as exc:

@@ -53,6 +53,7 @@ RESERVED = frozenset(
     pi e E I oo nan inf sin cos tan sqrt deg atan2 acos asin exp log abs
     numpy np math out params count q qd qdd x xd xdd t valid
     y z phi r11 r12 r13 r21 r22 r23 r31 r32 r33
+    twist singular manipulability Jx_dot J_dot w_tool Jw
     """.split()
 )
 

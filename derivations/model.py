@@ -223,7 +223,7 @@ class RobotModel:
                              f"Task coordinates {', '.join(self.task_names)}, shape (..., {m})."),
             SymbolicFunction("task_jacobian", (q,), (Output.from_matrix("Jx", self.task_jacobian),),
                              f"d task / d q, shape (..., {m}, {n})."),
-        ] + ([self.ik_function()] if self.ik else [])
+        ] + ([self.ik_function()] if self.ik else []) + self.rate_functions()
 
     def ik_function(self) -> SymbolicFunction:
         """The ``ik`` kernel: every branch of ``self.ik`` at once.
@@ -245,6 +245,22 @@ class RobotModel:
              Output("valid", tuple(sp.sympify(b.condition) for b in self.ik), (k,), "bool",
                     "whether each branch exists")),
             f"Inverse kinematics, all {k} branches ({names}): Q (..., {k}, {n}), valid (..., {k}).")
+
+    @property
+    def rates(self):
+        """Rate kinematics (derivations.velocity.RateKinematics), derived on first use and cached; None
+        for a model without a DH chain."""
+        from .velocity import rate_kinematics
+        return rate_kinematics(self)
+
+    @property
+    def singularities(self):
+        """Singular configurations (derivations.velocity.Singularities): factored determinant, conditions."""
+        return None if self.rates is None else self.rates.singularities
+
+    def rate_functions(self) -> list[SymbolicFunction]:
+        """The velocity and acceleration kernels (derivations/velocity.py)."""
+        return [] if self.rates is None else list(self.rates.functions)
 
     def _units(self) -> str:
         units = ["rad" if t == REVOLUTE else "m" for t in self.joint_types]

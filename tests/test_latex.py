@@ -155,15 +155,16 @@ class SingularFamily:  # the shape a later module may give model.singularities
 def test_whatever_else_a_model_carries_is_printed(models):
     m = copy.copy(models["planar_2r"])
     q1, q2 = m.q
-    m.singularities = [SingularFamily("elbow_stretched", sp.Eq(s(q2), 0), "theta2 = 0 or pi (slides)")]
+    # (model.singularities itself is a property of the rate module; a plain attribute stands in)
+    m.singular_families = [SingularFamily("elbow_stretched", sp.Eq(s(q2), 0), "theta2 = 0 or pi (slides)")]
     m.hessian_x = sp.Matrix([[c(q1), 0], [0, s(q1 + q2)]])
     m.comment = "not symbolic: no section"
     sections = {sec.key: sec for sec in robot_sections(m)}
-    assert r"\paragraph{elbow\_stretched}" in sections["singularities"].body
-    assert "s_{2} = 0" in sections["singularities"].body
+    assert r"\paragraph{elbow\_stretched}" in sections["singular_families"].body
+    assert "s_{2} = 0" in sections["singular_families"].body
     assert "c_{1}" in sections["hessian_x"].body and "s_{12}" in sections["hessian_x"].body
     assert "comment" not in sections
-    assert latex_for(m, ["singularities"]).startswith("% Singularities")
+    assert latex_for(m, ["singular_families"]).startswith("% Singular families")
 
 
 def test_citation_keys_name_real_sections():

@@ -28,6 +28,10 @@ def float_literal(value) -> str:
     return text
 
 
+# Integer powers up to this print as products (the manipulability thresholds need L**6).
+MAX_PRODUCT_POWER = 8
+
+
 class ExactArithmeticMixin:
     """Printer methods shared by the numpy and C printers.
 
@@ -50,7 +54,7 @@ class ExactArithmeticMixin:
 
     def _print_Pow(self, expr, rational=False):
         base, exponent = expr.base, expr.exp
-        if exponent.is_Integer and 1 <= abs(int(exponent)) <= 4:
+        if exponent.is_Integer and 1 <= abs(int(exponent)) <= MAX_PRODUCT_POWER:
             k = abs(int(exponent))
             factor = self.parenthesize(base, PRECEDENCE["Mul"], strict=True)
             if k == 1:

@@ -10,6 +10,16 @@
  * task: 14 operations after common-subexpression elimination
  * task_jacobian: 15 operations after common-subexpression elimination
  * ik: 53 operations after common-subexpression elimination
+ * task_velocity: 21 operations after common-subexpression elimination
+ * twist: 21 operations after common-subexpression elimination
+ * task_jacobian_dot: 25 operations after common-subexpression elimination
+ * jacobian_dot: 25 operations after common-subexpression elimination
+ * task_acceleration: 42 operations after common-subexpression elimination
+ * manipulability: 20 operations after common-subexpression elimination
+ * joint_velocity: 235 operations after common-subexpression elimination
+ * joint_acceleration: 255 operations after common-subexpression elimination
+ * tool_configuration: 16 operations after common-subexpression elimination
+ * tool_configuration_jacobian: 18 operations after common-subexpression elimination
  */
 #include "adept_three.h"
 
@@ -379,6 +389,562 @@ long adept_three_ik_batch(size_t count, const double *restrict x, const adept_th
         }
     }
     return refused ? -1 : valid_branches;
+}
+
+/* Task rates x_dot = J_x q_dot, shape (..., 4). */
+void adept_three_task_velocity(const double *restrict q, const double *restrict qd, const adept_three_params *restrict params, double *restrict xd)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    const double qd4 = qd[3];
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double _t0 = q1 + q2;
+    const double _t1 = l2*sin(_t0);
+    const double _t2 = l2*cos(_t0);
+    xd[0] = -_t1*qd2 + qd1*(-_t1 - l1*sin(q1));
+    xd[1] = _t2*qd2 + qd1*(_t2 + l1*cos(q1));
+    xd[2] = -qd3;
+    xd[3] = qd1 + qd2 - qd4;
+}
+
+void adept_three_task_velocity_batch(size_t count, const double *restrict q, const double *restrict qd, const adept_three_params *restrict params, double *restrict xd)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        adept_three_task_velocity(q + 4 * i, qd + 4 * i, params, xd + 4 * i);
+    }
+}
+
+/* Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s. */
+void adept_three_twist(const double *restrict q, const double *restrict qd, const adept_three_params *restrict params, double *restrict twist)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    const double qd4 = qd[3];
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double _t0 = q1 + q2;
+    const double _t1 = l2*sin(_t0);
+    const double _t2 = l2*cos(_t0);
+    twist[0] = -_t1*qd2 + qd1*(-_t1 - l1*sin(q1));
+    twist[1] = _t2*qd2 + qd1*(_t2 + l1*cos(q1));
+    twist[2] = -qd3;
+    twist[3] = 0;
+    twist[4] = 0;
+    twist[5] = qd1 + qd2 - qd4;
+}
+
+void adept_three_twist_batch(size_t count, const double *restrict q, const double *restrict qd, const adept_three_params *restrict params, double *restrict twist)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        adept_three_twist(q + 4 * i, qd + 4 * i, params, twist + 6 * i);
+    }
+}
+
+/* d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 4, 4). */
+void adept_three_task_jacobian_dot(const double *restrict q, const double *restrict qd, const adept_three_params *restrict params, double *restrict Jx_dot)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double _t0 = q1 + q2;
+    const double _t1 = l2*cos(_t0);
+    const double _t2 = _t1*qd2;
+    const double _t3 = l2*sin(_t0);
+    const double _t4 = _t3*qd2;
+    Jx_dot[0] = -_t2 + qd1*(-_t1 - l1*cos(q1));
+    Jx_dot[1] = -_t1*qd1 - _t2;
+    Jx_dot[2] = 0;
+    Jx_dot[3] = 0;
+    Jx_dot[4] = -_t4 + qd1*(-_t3 - l1*sin(q1));
+    Jx_dot[5] = -_t3*qd1 - _t4;
+    Jx_dot[6] = 0;
+    Jx_dot[7] = 0;
+    Jx_dot[8] = 0;
+    Jx_dot[9] = 0;
+    Jx_dot[10] = 0;
+    Jx_dot[11] = 0;
+    Jx_dot[12] = 0;
+    Jx_dot[13] = 0;
+    Jx_dot[14] = 0;
+    Jx_dot[15] = 0;
+}
+
+void adept_three_task_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const adept_three_params *restrict params, double *restrict Jx_dot)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        adept_three_task_jacobian_dot(q + 4 * i, qd + 4 * i, params, Jx_dot + 16 * i);
+    }
+}
+
+/* d(J)/dt of the geometric Jacobian, shape (..., 6, 4). */
+void adept_three_jacobian_dot(const double *restrict q, const double *restrict qd, const adept_three_params *restrict params, double *restrict J_dot)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double _t0 = q1 + q2;
+    const double _t1 = l2*cos(_t0);
+    const double _t2 = _t1*qd2;
+    const double _t3 = l2*sin(_t0);
+    const double _t4 = _t3*qd2;
+    J_dot[0] = -_t2 + qd1*(-_t1 - l1*cos(q1));
+    J_dot[1] = -_t1*qd1 - _t2;
+    J_dot[2] = 0;
+    J_dot[3] = 0;
+    J_dot[4] = -_t4 + qd1*(-_t3 - l1*sin(q1));
+    J_dot[5] = -_t3*qd1 - _t4;
+    J_dot[6] = 0;
+    J_dot[7] = 0;
+    J_dot[8] = 0;
+    J_dot[9] = 0;
+    J_dot[10] = 0;
+    J_dot[11] = 0;
+    J_dot[12] = 0;
+    J_dot[13] = 0;
+    J_dot[14] = 0;
+    J_dot[15] = 0;
+    J_dot[16] = 0;
+    J_dot[17] = 0;
+    J_dot[18] = 0;
+    J_dot[19] = 0;
+    J_dot[20] = 0;
+    J_dot[21] = 0;
+    J_dot[22] = 0;
+    J_dot[23] = 0;
+}
+
+void adept_three_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const adept_three_params *restrict params, double *restrict J_dot)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        adept_three_jacobian_dot(q + 4 * i, qd + 4 * i, params, J_dot + 24 * i);
+    }
+}
+
+/* Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 4). */
+void adept_three_task_acceleration(const double *restrict q, const double *restrict qd, const double *restrict qdd, const adept_three_params *restrict params, double *restrict xdd)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qdd1 = qdd[0];
+    const double qdd2 = qdd[1];
+    const double qdd3 = qdd[2];
+    const double qdd4 = qdd[3];
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double _t0 = q1 + q2;
+    const double _t1 = l2*sin(_t0);
+    const double _t2 = -_t1 - l1*sin(q1);
+    const double _t3 = l2*cos(_t0);
+    const double _t4 = _t3*qd2;
+    const double _t5 = _t3 + l1*cos(q1);
+    const double _t6 = _t1*qd2;
+    xdd[0] = -_t1*qdd2 + _t2*qdd1 + qd1*(-_t4 - _t5*qd1) + qd2*(-_t3*qd1 - _t4);
+    xdd[1] = _t3*qdd2 + _t5*qdd1 + qd1*(_t2*qd1 - _t6) + qd2*(-_t1*qd1 - _t6);
+    xdd[2] = -qdd3;
+    xdd[3] = qdd1 + qdd2 - qdd4;
+}
+
+void adept_three_task_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict qdd, const adept_three_params *restrict params, double *restrict xdd)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        adept_three_task_acceleration(q + 4 * i, qd + 4 * i, qdd + 4 * i, params, xdd + 4 * i);
+    }
+}
+
+/* Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...). */
+void adept_three_manipulability(const double *restrict q, const adept_three_params *restrict params, double *restrict manipulability, int *restrict singular)
+{
+    const double q2 = q[1];
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double d1 = params->d1;
+    const double d4 = params->d4;
+    const double _t0 = sin(q2);
+    manipulability[0] = fabs(_t0*l1*l2);
+    singular[0] = (_t0*_t0)*(l1*l1)*(l2*l2)/((fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))) < 1e-06;
+}
+
+void adept_three_manipulability_batch(size_t count, const double *restrict q, const adept_three_params *restrict params, double *restrict manipulability, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        adept_three_manipulability(q + 4 * i, params, manipulability + 1 * i, singular + 1 * i);
+    }
+}
+
+/* Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 4) and (...). */
+void adept_three_joint_velocity(const double *restrict q, const double *restrict xd, const adept_three_params *restrict params, double *restrict qd, int *restrict singular)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double xd_x = xd[0];
+    const double xd_y = xd[1];
+    const double xd_z = xd[2];
+    const double xd_phi = xd[3];
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double d1 = params->d1;
+    const double d4 = params->d4;
+    const double _t0 = fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2);
+    const double _t1 = (_t0*_t0*_t0*_t0);
+    const double _t2 = (l1*l1);
+    const double _t3 = (l2*l2);
+    const double _t4 = sin(q2);
+    const double _t5 = _t2*_t3*(_t4*_t4);
+    const double _t6 = _t5/_t1;
+    const double _t7 = fmax(0, 1 - 1000000*_t6);
+    const double _t8 = (_t7*_t7);
+    const double _t9 = (3e-08)*_t8;
+    const double _t10 = (_t7*_t7*_t7);
+    const double _t11 = (1e-08)*_t8;
+    const double _t12 = q1 + q2;
+    const double _t13 = sin(_t12);
+    const double _t14 = 1.0/(_t0*_t0);
+    const double _t15 = _t14*_t3;
+    const double _t16 = (_t13*_t13)*_t15;
+    const double _t17 = sin(q1);
+    const double _t18 = _t17*l1;
+    const double _t19 = _t13*l2;
+    const double _t20 = _t18 + _t19;
+    const double _t21 = _t14*(_t20*_t20) + _t16;
+    const double _t22 = cos(_t12);
+    const double _t23 = _t15*(_t22*_t22);
+    const double _t24 = cos(q1);
+    const double _t25 = _t24*l1;
+    const double _t26 = _t22*l2;
+    const double _t27 = _t25 + _t26;
+    const double _t28 = _t14*(_t27*_t27) + _t23;
+    const double _t29 = (1e-12)*_t10;
+    const double _t30 = -_t20;
+    const double _t31 = _t14*(_t30*_t30) + _t16;
+    const double _t32 = -_t27;
+    const double _t33 = _t14*(_t32*_t32) + _t23;
+    const double _t34 = _t14*_t2;
+    const double _t35 = (_t24*_t24)*_t34;
+    const double _t36 = _t28 + _t35;
+    const double _t37 = (0.0001)*_t7;
+    const double _t38 = (_t17*_t17)*_t34;
+    const double _t39 = _t31 + _t38;
+    const double _t40 = _t21 + _t38;
+    const double _t41 = _t33 + _t35;
+    const double _t42 = 1.0/((4e-12)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (0.0002)*_t6*_t7 + _t6 + (1e-16)*(_t7*_t7*_t7*_t7) + _t9);
+    const double _t43 = _t4*l2;
+    const double _t44 = _t2*_t43/(_t0*_t0*_t0);
+    const double _t45 = _t17*_t44;
+    const double _t46 = 1.0/_t0;
+    const double _t47 = _t26*_t46;
+    const double _t48 = _t27*_t46;
+    const double _t49 = -_t11*(_t47 + _t48) + _t37*_t45 + _t37*(_t32*_t46 - _t47) + _t45;
+    const double _t50 = _t17*_t24*_t34;
+    const double _t51 = _t13*_t15*_t22;
+    const double _t52 = _t14*_t27*_t30;
+    const double _t53 = -_t14*_t20*_t32 + _t51;
+    const double _t54 = -_t11*(-_t51 + _t52) + _t37*_t53 - _t37*(-_t50 - _t53) + _t50 + _t51 - _t52;
+    const double _t55 = _t46*xd_x;
+    const double _t56 = _t37*_t40;
+    const double _t57 = _t11*_t31;
+    const double _t58 = _t21*_t37 + _t29 + _t57;
+    const double _t59 = (0.0003)*_t7 + (4e-08)*_t8;
+    const double _t60 = _t46*xd_y;
+    const double _t61 = _t49*xd_phi + _t54*_t55 + _t60*(_t39 + _t56 + _t58 + _t59);
+    const double _t62 = _t24*_t44;
+    const double _t63 = _t19*_t46;
+    const double _t64 = -_t11*(_t30*_t46 - _t63) + _t37*_t62 + _t37*(_t20*_t46 + _t63) + _t62;
+    const double _t65 = _t11*_t28;
+    const double _t66 = _t33*_t37 + _t65;
+    const double _t67 = _t29 + _t37*_t41;
+    const double _t68 = _t54*_t60 + _t55*(_t36 + _t59 + _t66 + _t67) + _t64*xd_phi;
+    const double _t69 = _t37*_t6 + _t6;
+    const double _t70 = _t49*_t60 + _t55*_t64 + xd_phi*(_t11 + _t58 + _t66 + _t69);
+    const int _t71 = _t6 < 1e-06;
+    const double _t72 = 1.0/fmax(_t5, (1e-06)*_t1);
+    const double _t73 = _t43*l1;
+    const double _t74 = _t72*_t73;
+    qd[0] = ((_t71) ? (
+   _t42*(_t30*_t46*_t68 + _t48*_t61 + _t70)
+)
+: (
+   _t74*(_t19*xd_y + _t26*xd_x)
+));
+    qd[1] = ((_t71) ? (
+   _t42*(_t47*_t61 - _t63*_t68 + _t70)
+)
+: (
+   _t74*(_t30*xd_y + _t32*xd_x)
+));
+    qd[2] = ((_t71) ? (
+   -_t42*xd_z*(_t56 + _t57 + _t65 + _t67 + _t69 + _t9)
+)
+: (
+   -_t5*_t72*xd_z
+));
+    qd[3] = ((_t71) ? (
+   -_t42*_t70
+)
+: (
+   _t74*(-_t18*xd_y - _t25*xd_x - _t73*xd_phi)
+));
+    singular[0] = _t71;
+}
+
+void adept_three_joint_velocity_batch(size_t count, const double *restrict q, const double *restrict xd, const adept_three_params *restrict params, double *restrict qd, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        adept_three_joint_velocity(q + 4 * i, xd + 4 * i, params, qd + 4 * i, singular + 1 * i);
+    }
+}
+
+/* Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 4) and (...). */
+void adept_three_joint_acceleration(const double *restrict q, const double *restrict qd, const double *restrict xdd, const adept_three_params *restrict params, double *restrict qdd, int *restrict singular)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double xdd_x = xdd[0];
+    const double xdd_y = xdd[1];
+    const double xdd_z = xdd[2];
+    const double xdd_phi = xdd[3];
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double d1 = params->d1;
+    const double d4 = params->d4;
+    const double _t0 = fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2);
+    const double _t1 = (_t0*_t0*_t0*_t0);
+    const double _t2 = (l1*l1);
+    const double _t3 = (l2*l2);
+    const double _t4 = sin(q2);
+    const double _t5 = _t2*_t3*(_t4*_t4);
+    const double _t6 = _t5/_t1;
+    const double _t7 = fmax(0, 1 - 1000000*_t6);
+    const double _t8 = (_t7*_t7);
+    const double _t9 = (3e-08)*_t8;
+    const double _t10 = (_t7*_t7*_t7);
+    const double _t11 = (1e-08)*_t8;
+    const double _t12 = q1 + q2;
+    const double _t13 = sin(_t12);
+    const double _t14 = 1.0/(_t0*_t0);
+    const double _t15 = _t14*_t3;
+    const double _t16 = (_t13*_t13)*_t15;
+    const double _t17 = sin(q1);
+    const double _t18 = _t17*l1;
+    const double _t19 = _t13*l2;
+    const double _t20 = _t18 + _t19;
+    const double _t21 = _t14*(_t20*_t20) + _t16;
+    const double _t22 = cos(_t12);
+    const double _t23 = _t15*(_t22*_t22);
+    const double _t24 = cos(q1);
+    const double _t25 = _t24*l1;
+    const double _t26 = _t22*l2;
+    const double _t27 = _t25 + _t26;
+    const double _t28 = _t14*(_t27*_t27) + _t23;
+    const double _t29 = (1e-12)*_t10;
+    const double _t30 = -_t20;
+    const double _t31 = _t14*(_t30*_t30) + _t16;
+    const double _t32 = -_t27;
+    const double _t33 = _t14*(_t32*_t32) + _t23;
+    const double _t34 = _t14*_t2;
+    const double _t35 = (_t24*_t24)*_t34;
+    const double _t36 = _t28 + _t35;
+    const double _t37 = (0.0001)*_t7;
+    const double _t38 = (_t17*_t17)*_t34;
+    const double _t39 = _t31 + _t38;
+    const double _t40 = _t21 + _t38;
+    const double _t41 = _t33 + _t35;
+    const double _t42 = 1.0/((4e-12)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (0.0002)*_t6*_t7 + _t6 + (1e-16)*(_t7*_t7*_t7*_t7) + _t9);
+    const double _t43 = _t4*l2;
+    const double _t44 = _t2*_t43/(_t0*_t0*_t0);
+    const double _t45 = _t17*_t44;
+    const double _t46 = 1.0/_t0;
+    const double _t47 = _t26*_t46;
+    const double _t48 = _t27*_t46;
+    const double _t49 = -_t11*(_t47 + _t48) + _t37*_t45 + _t37*(_t32*_t46 - _t47) + _t45;
+    const double _t50 = _t17*_t24*_t34;
+    const double _t51 = _t13*_t15*_t22;
+    const double _t52 = _t14*_t27*_t30;
+    const double _t53 = -_t14*_t20*_t32 + _t51;
+    const double _t54 = -_t11*(-_t51 + _t52) + _t37*_t53 - _t37*(-_t50 - _t53) + _t50 + _t51 - _t52;
+    const double _t55 = _t26*qd2;
+    const double _t56 = -qd1*(_t32*qd1 - _t55) - qd2*(-_t26*qd1 - _t55) + xdd_x;
+    const double _t57 = _t46*_t56;
+    const double _t58 = _t37*_t40;
+    const double _t59 = _t11*_t31;
+    const double _t60 = _t21*_t37 + _t29 + _t59;
+    const double _t61 = (0.0003)*_t7 + (4e-08)*_t8;
+    const double _t62 = _t19*qd2;
+    const double _t63 = -qd1*(_t30*qd1 - _t62) - qd2*(-_t19*qd1 - _t62) + xdd_y;
+    const double _t64 = _t46*_t63;
+    const double _t65 = _t49*xdd_phi + _t54*_t57 + _t64*(_t39 + _t58 + _t60 + _t61);
+    const double _t66 = _t24*_t44;
+    const double _t67 = _t19*_t46;
+    const double _t68 = -_t11*(_t30*_t46 - _t67) + _t37*_t66 + _t37*(_t20*_t46 + _t67) + _t66;
+    const double _t69 = _t11*_t28;
+    const double _t70 = _t33*_t37 + _t69;
+    const double _t71 = _t29 + _t37*_t41;
+    const double _t72 = _t54*_t64 + _t57*(_t36 + _t61 + _t70 + _t71) + _t68*xdd_phi;
+    const double _t73 = _t37*_t6 + _t6;
+    const double _t74 = _t49*_t64 + _t57*_t68 + xdd_phi*(_t11 + _t60 + _t70 + _t73);
+    const int _t75 = _t6 < 1e-06;
+    const double _t76 = 1.0/fmax(_t5, (1e-06)*_t1);
+    const double _t77 = _t43*l1;
+    const double _t78 = _t76*_t77;
+    qdd[0] = ((_t75) ? (
+   _t42*(_t30*_t46*_t72 + _t48*_t65 + _t74)
+)
+: (
+   _t78*(_t19*_t63 + _t26*_t56)
+));
+    qdd[1] = ((_t75) ? (
+   _t42*(_t47*_t65 - _t67*_t72 + _t74)
+)
+: (
+   _t78*(_t30*_t63 + _t32*_t56)
+));
+    qdd[2] = ((_t75) ? (
+   -_t42*xdd_z*(_t58 + _t59 + _t69 + _t71 + _t73 + _t9)
+)
+: (
+   -_t5*_t76*xdd_z
+));
+    qdd[3] = ((_t75) ? (
+   -_t42*_t74
+)
+: (
+   _t78*(-_t18*_t63 - _t25*_t56 - _t77*xdd_phi)
+));
+    singular[0] = _t75;
+}
+
+void adept_three_joint_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict xdd, const adept_three_params *restrict params, double *restrict qdd, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        adept_three_joint_acceleration(q + 4 * i, qd + 4 * i, xdd + 4 * i, params, qdd + 4 * i, singular + 1 * i);
+    }
+}
+
+/* Rehiara Eq. 39: tool configuration vector [p; a exp(q_n/pi)], shape (..., 6); p in metres, the rest dimensionless. */
+void adept_three_tool_configuration(const double *restrict q, const adept_three_params *restrict params, double *restrict w_tool)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double d1 = params->d1;
+    const double d4 = params->d4;
+    const double _t0 = q1 + q2;
+    w_tool[0] = l1*cos(q1) + l2*cos(_t0);
+    w_tool[1] = l1*sin(q1) + l2*sin(_t0);
+    w_tool[2] = d1 - d4 - q3;
+    w_tool[3] = 0;
+    w_tool[4] = 0;
+    w_tool[5] = -exp(0.3183098861837907*q4);
+}
+
+void adept_three_tool_configuration_batch(size_t count, const double *restrict q, const adept_three_params *restrict params, double *restrict w_tool)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        adept_three_tool_configuration(q + 4 * i, params, w_tool + 6 * i);
+    }
+}
+
+/* Rehiara Eq. 41: d(tool configuration vector)/dq, shape (..., 6, 4). Not a velocity Jacobian: rows 4-6 are rates of a exp(q_n/pi), not angular velocity. */
+void adept_three_tool_configuration_jacobian(const double *restrict q, const adept_three_params *restrict params, double *restrict Jw)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q4 = q[3];
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double _t0 = q1 + q2;
+    const double _t1 = l2*sin(_t0);
+    const double _t2 = l2*cos(_t0);
+    Jw[0] = -_t1 - l1*sin(q1);
+    Jw[1] = -_t1;
+    Jw[2] = 0;
+    Jw[3] = 0;
+    Jw[4] = _t2 + l1*cos(q1);
+    Jw[5] = _t2;
+    Jw[6] = 0;
+    Jw[7] = 0;
+    Jw[8] = 0;
+    Jw[9] = 0;
+    Jw[10] = -1;
+    Jw[11] = 0;
+    Jw[12] = 0;
+    Jw[13] = 0;
+    Jw[14] = 0;
+    Jw[15] = 0;
+    Jw[16] = 0;
+    Jw[17] = 0;
+    Jw[18] = 0;
+    Jw[19] = 0;
+    Jw[20] = 0;
+    Jw[21] = 0;
+    Jw[22] = 0;
+    Jw[23] = -0.3183098861837907*exp(0.3183098861837907*q4);
+}
+
+void adept_three_tool_configuration_jacobian_batch(size_t count, const double *restrict q, const adept_three_params *restrict params, double *restrict Jw)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        adept_three_tool_configuration_jacobian(q + 4 * i, params, Jw + 24 * i);
+    }
 }
 
 /* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */

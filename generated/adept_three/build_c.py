@@ -38,6 +38,36 @@ void adept_three_task_jacobian_batch(size_t count, const double *q, const adept_
 /* Returns the number of valid branches; the batch returns their total (-1 if any item was refused). */
 int adept_three_ik(const double *x, const adept_three_params *params, double *Q, int *valid);
 long adept_three_ik_batch(size_t count, const double *x, const adept_three_params *params, double *Q, int *valid);
+/* task_velocity: q[4], qd[4] -> xd[4] (row-major). Task rates x_dot = J_x q_dot, shape (..., 4). */
+void adept_three_task_velocity(const double *q, const double *qd, const adept_three_params *params, double *xd);
+void adept_three_task_velocity_batch(size_t count, const double *q, const double *qd, const adept_three_params *params, double *xd);
+/* twist: q[4], qd[4] -> twist[6] (row-major). Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s. */
+void adept_three_twist(const double *q, const double *qd, const adept_three_params *params, double *twist);
+void adept_three_twist_batch(size_t count, const double *q, const double *qd, const adept_three_params *params, double *twist);
+/* task_jacobian_dot: q[4], qd[4] -> Jx_dot[16] (row-major). d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 4, 4). */
+void adept_three_task_jacobian_dot(const double *q, const double *qd, const adept_three_params *params, double *Jx_dot);
+void adept_three_task_jacobian_dot_batch(size_t count, const double *q, const double *qd, const adept_three_params *params, double *Jx_dot);
+/* jacobian_dot: q[4], qd[4] -> J_dot[24] (row-major). d(J)/dt of the geometric Jacobian, shape (..., 6, 4). */
+void adept_three_jacobian_dot(const double *q, const double *qd, const adept_three_params *params, double *J_dot);
+void adept_three_jacobian_dot_batch(size_t count, const double *q, const double *qd, const adept_three_params *params, double *J_dot);
+/* task_acceleration: q[4], qd[4], qdd[4] -> xdd[4] (row-major). Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 4). */
+void adept_three_task_acceleration(const double *q, const double *qd, const double *qdd, const adept_three_params *params, double *xdd);
+void adept_three_task_acceleration_batch(size_t count, const double *q, const double *qd, const double *qdd, const adept_three_params *params, double *xdd);
+/* manipulability: q[4] -> manipulability[1], singular[1] (row-major). Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...). */
+void adept_three_manipulability(const double *q, const adept_three_params *params, double *manipulability, int *singular);
+void adept_three_manipulability_batch(size_t count, const double *q, const adept_three_params *params, double *manipulability, int *singular);
+/* joint_velocity: q[4], xd[4] -> qd[4], singular[1] (row-major). Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 4) and (...). */
+void adept_three_joint_velocity(const double *q, const double *xd, const adept_three_params *params, double *qd, int *singular);
+void adept_three_joint_velocity_batch(size_t count, const double *q, const double *xd, const adept_three_params *params, double *qd, int *singular);
+/* joint_acceleration: q[4], qd[4], xdd[4] -> qdd[4], singular[1] (row-major). Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 4) and (...). */
+void adept_three_joint_acceleration(const double *q, const double *qd, const double *xdd, const adept_three_params *params, double *qdd, int *singular);
+void adept_three_joint_acceleration_batch(size_t count, const double *q, const double *qd, const double *xdd, const adept_three_params *params, double *qdd, int *singular);
+/* tool_configuration: q[4] -> w_tool[6] (row-major). Rehiara Eq. 39: tool configuration vector [p; a exp(q_n/pi)], shape (..., 6); p in metres, the rest dimensionless. */
+void adept_three_tool_configuration(const double *q, const adept_three_params *params, double *w_tool);
+void adept_three_tool_configuration_batch(size_t count, const double *q, const adept_three_params *params, double *w_tool);
+/* tool_configuration_jacobian: q[4] -> Jw[24] (row-major). Rehiara Eq. 41: d(tool configuration vector)/dq, shape (..., 6, 4). Not a velocity Jacobian: rows 4-6 are rates of a exp(q_n/pi), not angular velocity. */
+void adept_three_tool_configuration_jacobian(const double *q, const adept_three_params *params, double *Jw);
+void adept_three_tool_configuration_jacobian_batch(size_t count, const double *q, const adept_three_params *params, double *Jw);
 /* within_limits: q[4] -> 1 when every joint lies within its limits (revolute joints modulo 2 pi), else 0. */
 int adept_three_within_limits(const double *q);
 void adept_three_within_limits_batch(size_t count, const double *q, int *inside);

@@ -124,6 +124,199 @@ def ik(x, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     return Q, valid.astype(bool)
 
 
+def task_velocity(q, qd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """Task rates x_dot = J_x q_dot, shape (..., 4). (C backend)"""
+    q = _runtime.as_batch(q, 4, "task_velocity", "q")
+    qd = _runtime.as_batch(qd, 4, "task_velocity", "qd")
+    params = _params(l1, l2, d1, d4)
+    batch = _runtime.batch_shape(q, qd)
+    q = _input(q, batch)
+    qd = _input(qd, batch)
+    xd = numpy.empty(batch + (4,), dtype=numpy.float64)
+    _lib.adept_three_task_velocity_batch(
+        int(numpy.prod(batch, dtype=numpy.int64)),
+        _ffi.from_buffer("double[]", q),
+        _ffi.from_buffer("double[]", qd),
+        params,
+        _ffi.from_buffer("double[]", xd, require_writable=True),
+    )
+    return xd
+
+
+def twist(q, qd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s. (C backend)"""
+    q = _runtime.as_batch(q, 4, "twist", "q")
+    qd = _runtime.as_batch(qd, 4, "twist", "qd")
+    params = _params(l1, l2, d1, d4)
+    batch = _runtime.batch_shape(q, qd)
+    q = _input(q, batch)
+    qd = _input(qd, batch)
+    twist = numpy.empty(batch + (6,), dtype=numpy.float64)
+    _lib.adept_three_twist_batch(
+        int(numpy.prod(batch, dtype=numpy.int64)),
+        _ffi.from_buffer("double[]", q),
+        _ffi.from_buffer("double[]", qd),
+        params,
+        _ffi.from_buffer("double[]", twist, require_writable=True),
+    )
+    return twist
+
+
+def task_jacobian_dot(q, qd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 4, 4). (C backend)"""
+    q = _runtime.as_batch(q, 4, "task_jacobian_dot", "q")
+    qd = _runtime.as_batch(qd, 4, "task_jacobian_dot", "qd")
+    params = _params(l1, l2, d1, d4)
+    batch = _runtime.batch_shape(q, qd)
+    q = _input(q, batch)
+    qd = _input(qd, batch)
+    Jx_dot = numpy.empty(batch + (4, 4), dtype=numpy.float64)
+    _lib.adept_three_task_jacobian_dot_batch(
+        int(numpy.prod(batch, dtype=numpy.int64)),
+        _ffi.from_buffer("double[]", q),
+        _ffi.from_buffer("double[]", qd),
+        params,
+        _ffi.from_buffer("double[]", Jx_dot, require_writable=True),
+    )
+    return Jx_dot
+
+
+def jacobian_dot(q, qd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """d(J)/dt of the geometric Jacobian, shape (..., 6, 4). (C backend)"""
+    q = _runtime.as_batch(q, 4, "jacobian_dot", "q")
+    qd = _runtime.as_batch(qd, 4, "jacobian_dot", "qd")
+    params = _params(l1, l2, d1, d4)
+    batch = _runtime.batch_shape(q, qd)
+    q = _input(q, batch)
+    qd = _input(qd, batch)
+    J_dot = numpy.empty(batch + (6, 4), dtype=numpy.float64)
+    _lib.adept_three_jacobian_dot_batch(
+        int(numpy.prod(batch, dtype=numpy.int64)),
+        _ffi.from_buffer("double[]", q),
+        _ffi.from_buffer("double[]", qd),
+        params,
+        _ffi.from_buffer("double[]", J_dot, require_writable=True),
+    )
+    return J_dot
+
+
+def task_acceleration(q, qd, qdd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 4). (C backend)"""
+    q = _runtime.as_batch(q, 4, "task_acceleration", "q")
+    qd = _runtime.as_batch(qd, 4, "task_acceleration", "qd")
+    qdd = _runtime.as_batch(qdd, 4, "task_acceleration", "qdd")
+    params = _params(l1, l2, d1, d4)
+    batch = _runtime.batch_shape(q, qd, qdd)
+    q = _input(q, batch)
+    qd = _input(qd, batch)
+    qdd = _input(qdd, batch)
+    xdd = numpy.empty(batch + (4,), dtype=numpy.float64)
+    _lib.adept_three_task_acceleration_batch(
+        int(numpy.prod(batch, dtype=numpy.int64)),
+        _ffi.from_buffer("double[]", q),
+        _ffi.from_buffer("double[]", qd),
+        _ffi.from_buffer("double[]", qdd),
+        params,
+        _ffi.from_buffer("double[]", xdd, require_writable=True),
+    )
+    return xdd
+
+
+def manipulability(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...). (C backend)"""
+    q = _runtime.as_batch(q, 4, "manipulability", "q")
+    params = _params(l1, l2, d1, d4)
+    batch = _runtime.batch_shape(q)
+    q = _input(q, batch)
+    manipulability = numpy.empty(batch + (), dtype=numpy.float64)
+    singular = numpy.empty(batch + (), dtype=numpy.intc)
+    _lib.adept_three_manipulability_batch(
+        int(numpy.prod(batch, dtype=numpy.int64)),
+        _ffi.from_buffer("double[]", q),
+        params,
+        _ffi.from_buffer("double[]", manipulability, require_writable=True),
+        _ffi.from_buffer("int[]", singular, require_writable=True),
+    )
+    return manipulability, singular.astype(bool)
+
+
+def joint_velocity(q, xd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 4) and (...). (C backend)"""
+    q = _runtime.as_batch(q, 4, "joint_velocity", "q")
+    xd = _runtime.as_batch(xd, 4, "joint_velocity", "xd")
+    params = _params(l1, l2, d1, d4)
+    batch = _runtime.batch_shape(q, xd)
+    q = _input(q, batch)
+    xd = _input(xd, batch)
+    qd = numpy.empty(batch + (4,), dtype=numpy.float64)
+    singular = numpy.empty(batch + (), dtype=numpy.intc)
+    _lib.adept_three_joint_velocity_batch(
+        int(numpy.prod(batch, dtype=numpy.int64)),
+        _ffi.from_buffer("double[]", q),
+        _ffi.from_buffer("double[]", xd),
+        params,
+        _ffi.from_buffer("double[]", qd, require_writable=True),
+        _ffi.from_buffer("int[]", singular, require_writable=True),
+    )
+    return qd, singular.astype(bool)
+
+
+def joint_acceleration(q, qd, xdd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 4) and (...). (C backend)"""
+    q = _runtime.as_batch(q, 4, "joint_acceleration", "q")
+    qd = _runtime.as_batch(qd, 4, "joint_acceleration", "qd")
+    xdd = _runtime.as_batch(xdd, 4, "joint_acceleration", "xdd")
+    params = _params(l1, l2, d1, d4)
+    batch = _runtime.batch_shape(q, qd, xdd)
+    q = _input(q, batch)
+    qd = _input(qd, batch)
+    xdd = _input(xdd, batch)
+    qdd = numpy.empty(batch + (4,), dtype=numpy.float64)
+    singular = numpy.empty(batch + (), dtype=numpy.intc)
+    _lib.adept_three_joint_acceleration_batch(
+        int(numpy.prod(batch, dtype=numpy.int64)),
+        _ffi.from_buffer("double[]", q),
+        _ffi.from_buffer("double[]", qd),
+        _ffi.from_buffer("double[]", xdd),
+        params,
+        _ffi.from_buffer("double[]", qdd, require_writable=True),
+        _ffi.from_buffer("int[]", singular, require_writable=True),
+    )
+    return qdd, singular.astype(bool)
+
+
+def tool_configuration(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """Rehiara Eq. 39: tool configuration vector [p; a exp(q_n/pi)], shape (..., 6); p in metres, the rest dimensionless. (C backend)"""
+    q = _runtime.as_batch(q, 4, "tool_configuration", "q")
+    params = _params(l1, l2, d1, d4)
+    batch = _runtime.batch_shape(q)
+    q = _input(q, batch)
+    w_tool = numpy.empty(batch + (6,), dtype=numpy.float64)
+    _lib.adept_three_tool_configuration_batch(
+        int(numpy.prod(batch, dtype=numpy.int64)),
+        _ffi.from_buffer("double[]", q),
+        params,
+        _ffi.from_buffer("double[]", w_tool, require_writable=True),
+    )
+    return w_tool
+
+
+def tool_configuration_jacobian(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """Rehiara Eq. 41: d(tool configuration vector)/dq, shape (..., 6, 4). Not a velocity Jacobian: rows 4-6 are rates of a exp(q_n/pi), not angular velocity. (C backend)"""
+    q = _runtime.as_batch(q, 4, "tool_configuration_jacobian", "q")
+    params = _params(l1, l2, d1, d4)
+    batch = _runtime.batch_shape(q)
+    q = _input(q, batch)
+    Jw = numpy.empty(batch + (6, 4), dtype=numpy.float64)
+    _lib.adept_three_tool_configuration_jacobian_batch(
+        int(numpy.prod(batch, dtype=numpy.int64)),
+        _ffi.from_buffer("double[]", q),
+        params,
+        _ffi.from_buffer("double[]", Jw, require_writable=True),
+    )
+    return Jw
+
+
 def within_limits(q):
     """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 4) -> (...). (C backend)"""
     q = numpy.ascontiguousarray(_runtime.as_batch(q, 4, "within_limits", "q", finite=False))

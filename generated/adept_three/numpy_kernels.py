@@ -20,7 +20,7 @@ TASK = ("x", "y", "z", "phi", )
 BRANCHES = ("lefty", "righty", )
 PARAMS = {"l1": 0.559, "l2": 0.508, "d1": 0.8763, "d4": 0.0}
 LIMITS = ((-2.6179938779914944, 2.6179938779914944), (-2.6179938779914944, 2.6179938779914944), (0.0, 0.305), (-4.71238898038469, 4.71238898038469), )
-OPERATIONS = {"fk": 18, "frames": 23, "jacobian": 15, "task": 14, "task_jacobian": 15, "ik": 53}
+OPERATIONS = {"fk": 18, "frames": 23, "jacobian": 15, "task": 14, "task_jacobian": 15, "ik": 53, "task_velocity": 21, "twist": 21, "task_jacobian_dot": 25, "jacobian_dot": 25, "task_acceleration": 42, "manipulability": 20, "joint_velocity": 235, "joint_acceleration": 255, "tool_configuration": 16, "tool_configuration_jacobian": 18}
 
 
 def fk(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
@@ -260,6 +260,461 @@ def ik(x, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
     valid &= numpy.isfinite(Q).all(axis=-1) & numpy.isfinite(_x).all(axis=-1)[..., None]
     return Q, valid
+
+
+def task_velocity(q, qd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """Task rates x_dot = J_x q_dot, shape (..., 4).
+
+    q: joint coordinates, shape (..., 4) (q1: rad, q2: rad, q3: m, q4: rad)
+    qd: joint rates, shape (..., 4) (per second)
+    (21 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 4, "task_velocity", "q")
+    qd = _runtime.as_batch(qd, 4, "task_velocity", "qd")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    _runtime.as_param(d1, "d1")
+    _runtime.as_param(d4, "d4")
+    _batch = _runtime.batch_shape(q, qd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    qd3 = qd[..., 2]
+    qd4 = qd[..., 3]
+    _t0 = q1 + q2
+    _t1 = l2*numpy.sin(_t0)
+    _t2 = l2*numpy.cos(_t0)
+    xd = numpy.empty(_batch + (4,))
+    xd[..., 0] = -_t1*qd2 + qd1*(-_t1 - l1*numpy.sin(q1))
+    xd[..., 1] = _t2*qd2 + qd1*(_t2 + l1*numpy.cos(q1))
+    xd[..., 2] = -qd3
+    xd[..., 3] = qd1 + qd2 - qd4
+    return xd
+
+
+def twist(q, qd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s.
+
+    q: joint coordinates, shape (..., 4) (q1: rad, q2: rad, q3: m, q4: rad)
+    qd: joint rates, shape (..., 4) (per second)
+    (21 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 4, "twist", "q")
+    qd = _runtime.as_batch(qd, 4, "twist", "qd")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    _runtime.as_param(d1, "d1")
+    _runtime.as_param(d4, "d4")
+    _batch = _runtime.batch_shape(q, qd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    qd3 = qd[..., 2]
+    qd4 = qd[..., 3]
+    _t0 = q1 + q2
+    _t1 = l2*numpy.sin(_t0)
+    _t2 = l2*numpy.cos(_t0)
+    twist = numpy.zeros(_batch + (6,))
+    twist[..., 0] = -_t1*qd2 + qd1*(-_t1 - l1*numpy.sin(q1))
+    twist[..., 1] = _t2*qd2 + qd1*(_t2 + l1*numpy.cos(q1))
+    twist[..., 2] = -qd3
+    twist[..., 5] = qd1 + qd2 - qd4
+    return twist
+
+
+def task_jacobian_dot(q, qd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 4, 4).
+
+    q: joint coordinates, shape (..., 4) (q1: rad, q2: rad, q3: m, q4: rad)
+    qd: joint rates, shape (..., 4) (per second)
+    (25 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 4, "task_jacobian_dot", "q")
+    qd = _runtime.as_batch(qd, 4, "task_jacobian_dot", "qd")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    _runtime.as_param(d1, "d1")
+    _runtime.as_param(d4, "d4")
+    _batch = _runtime.batch_shape(q, qd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    _t0 = q1 + q2
+    _t1 = l2*numpy.cos(_t0)
+    _t2 = _t1*qd2
+    _t3 = l2*numpy.sin(_t0)
+    _t4 = _t3*qd2
+    Jx_dot = numpy.zeros(_batch + (4, 4))
+    Jx_dot[..., 0, 0] = -_t2 + qd1*(-_t1 - l1*numpy.cos(q1))
+    Jx_dot[..., 0, 1] = -_t1*qd1 - _t2
+    Jx_dot[..., 1, 0] = -_t4 + qd1*(-_t3 - l1*numpy.sin(q1))
+    Jx_dot[..., 1, 1] = -_t3*qd1 - _t4
+    return Jx_dot
+
+
+def jacobian_dot(q, qd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """d(J)/dt of the geometric Jacobian, shape (..., 6, 4).
+
+    q: joint coordinates, shape (..., 4) (q1: rad, q2: rad, q3: m, q4: rad)
+    qd: joint rates, shape (..., 4) (per second)
+    (25 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 4, "jacobian_dot", "q")
+    qd = _runtime.as_batch(qd, 4, "jacobian_dot", "qd")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    _runtime.as_param(d1, "d1")
+    _runtime.as_param(d4, "d4")
+    _batch = _runtime.batch_shape(q, qd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    _t0 = q1 + q2
+    _t1 = l2*numpy.cos(_t0)
+    _t2 = _t1*qd2
+    _t3 = l2*numpy.sin(_t0)
+    _t4 = _t3*qd2
+    J_dot = numpy.zeros(_batch + (6, 4))
+    J_dot[..., 0, 0] = -_t2 + qd1*(-_t1 - l1*numpy.cos(q1))
+    J_dot[..., 0, 1] = -_t1*qd1 - _t2
+    J_dot[..., 1, 0] = -_t4 + qd1*(-_t3 - l1*numpy.sin(q1))
+    J_dot[..., 1, 1] = -_t3*qd1 - _t4
+    return J_dot
+
+
+def task_acceleration(q, qd, qdd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 4).
+
+    q: joint coordinates, shape (..., 4) (q1: rad, q2: rad, q3: m, q4: rad)
+    qd: joint rates, shape (..., 4) (per second)
+    qdd: joint accelerations, shape (..., 4) (per second squared)
+    (42 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 4, "task_acceleration", "q")
+    qd = _runtime.as_batch(qd, 4, "task_acceleration", "qd")
+    qdd = _runtime.as_batch(qdd, 4, "task_acceleration", "qdd")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    _runtime.as_param(d1, "d1")
+    _runtime.as_param(d4, "d4")
+    _batch = _runtime.batch_shape(q, qd, qdd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    qdd1 = qdd[..., 0]
+    qdd2 = qdd[..., 1]
+    qdd3 = qdd[..., 2]
+    qdd4 = qdd[..., 3]
+    _t0 = q1 + q2
+    _t1 = l2*numpy.sin(_t0)
+    _t2 = -_t1 - l1*numpy.sin(q1)
+    _t3 = l2*numpy.cos(_t0)
+    _t4 = _t3*qd2
+    _t5 = _t3 + l1*numpy.cos(q1)
+    _t6 = _t1*qd2
+    xdd = numpy.empty(_batch + (4,))
+    xdd[..., 0] = -_t1*qdd2 + _t2*qdd1 + qd1*(-_t4 - _t5*qd1) + qd2*(-_t3*qd1 - _t4)
+    xdd[..., 1] = _t3*qdd2 + _t5*qdd1 + qd1*(_t2*qd1 - _t6) + qd2*(-_t1*qd1 - _t6)
+    xdd[..., 2] = -qdd3
+    xdd[..., 3] = qdd1 + qdd2 - qdd4
+    return xdd
+
+
+def manipulability(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...).
+
+    q: joint coordinates, shape (..., 4) (q1: rad, q2: rad, q3: m, q4: rad)
+    (20 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 4, "manipulability", "q")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    d1 = _runtime.as_param(d1, "d1")
+    d4 = _runtime.as_param(d4, "d4")
+    _batch = _runtime.batch_shape(q)
+    q2 = q[..., 1]
+    _t0 = numpy.sin(q2)
+    manipulability = numpy.empty(_batch + ())
+    manipulability[..., ] = abs(_t0*l1*l2)
+    singular = numpy.empty(_batch + (), dtype=bool)
+    singular[..., ] = numpy.less((_t0*_t0)*(l1*l1)*(l2*l2)/((abs(d1) + abs(d4) + abs(l1) + abs(l2))*(abs(d1) + abs(d4) + abs(l1) + abs(l2))*(abs(d1) + abs(d4) + abs(l1) + abs(l2))*(abs(d1) + abs(d4) + abs(l1) + abs(l2))), 1e-06)
+    return manipulability, singular
+
+
+def joint_velocity(q, xd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 4) and (...).
+
+    q: joint coordinates, shape (..., 4) (q1: rad, q2: rad, q3: m, q4: rad)
+    xd: task rates d(x, y, z, phi)/dt, shape (..., 4) (per second)
+    (235 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 4, "joint_velocity", "q")
+    xd = _runtime.as_batch(xd, 4, "joint_velocity", "xd")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    d1 = _runtime.as_param(d1, "d1")
+    d4 = _runtime.as_param(d4, "d4")
+    _batch = _runtime.batch_shape(q, xd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    xd_x = xd[..., 0]
+    xd_y = xd[..., 1]
+    xd_z = xd[..., 2]
+    xd_phi = xd[..., 3]
+    _t0 = abs(d1) + abs(d4) + abs(l1) + abs(l2)
+    _t1 = (_t0*_t0*_t0*_t0)
+    _t2 = (l1*l1)
+    _t3 = (l2*l2)
+    _t4 = numpy.sin(q2)
+    _t5 = _t2*_t3*(_t4*_t4)
+    _t6 = _t5/_t1
+    _t7 = numpy.maximum(0, 1 - 1000000*_t6)
+    _t8 = (_t7*_t7)
+    _t9 = (3e-08)*_t8
+    _t10 = (_t7*_t7*_t7)
+    _t11 = (1e-08)*_t8
+    _t12 = q1 + q2
+    _t13 = numpy.sin(_t12)
+    _t14 = 1.0/(_t0*_t0)
+    _t15 = _t14*_t3
+    _t16 = (_t13*_t13)*_t15
+    _t17 = numpy.sin(q1)
+    _t18 = _t17*l1
+    _t19 = _t13*l2
+    _t20 = _t18 + _t19
+    _t21 = _t14*(_t20*_t20) + _t16
+    _t22 = numpy.cos(_t12)
+    _t23 = _t15*(_t22*_t22)
+    _t24 = numpy.cos(q1)
+    _t25 = _t24*l1
+    _t26 = _t22*l2
+    _t27 = _t25 + _t26
+    _t28 = _t14*(_t27*_t27) + _t23
+    _t29 = (1e-12)*_t10
+    _t30 = -_t20
+    _t31 = _t14*(_t30*_t30) + _t16
+    _t32 = -_t27
+    _t33 = _t14*(_t32*_t32) + _t23
+    _t34 = _t14*_t2
+    _t35 = (_t24*_t24)*_t34
+    _t36 = _t28 + _t35
+    _t37 = (0.0001)*_t7
+    _t38 = (_t17*_t17)*_t34
+    _t39 = _t31 + _t38
+    _t40 = _t21 + _t38
+    _t41 = _t33 + _t35
+    _t42 = 1.0/((4e-12)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (0.0002)*_t6*_t7 + _t6 + (1e-16)*(_t7*_t7*_t7*_t7) + _t9)
+    _t43 = _t4*l2
+    _t44 = _t2*_t43/(_t0*_t0*_t0)
+    _t45 = _t17*_t44
+    _t46 = 1.0/_t0
+    _t47 = _t26*_t46
+    _t48 = _t27*_t46
+    _t49 = -_t11*(_t47 + _t48) + _t37*_t45 + _t37*(_t32*_t46 - _t47) + _t45
+    _t50 = _t17*_t24*_t34
+    _t51 = _t13*_t15*_t22
+    _t52 = _t14*_t27*_t30
+    _t53 = -_t14*_t20*_t32 + _t51
+    _t54 = -_t11*(-_t51 + _t52) + _t37*_t53 - _t37*(-_t50 - _t53) + _t50 + _t51 - _t52
+    _t55 = _t46*xd_x
+    _t56 = _t37*_t40
+    _t57 = _t11*_t31
+    _t58 = _t21*_t37 + _t29 + _t57
+    _t59 = (0.0003)*_t7 + (4e-08)*_t8
+    _t60 = _t46*xd_y
+    _t61 = _t49*xd_phi + _t54*_t55 + _t60*(_t39 + _t56 + _t58 + _t59)
+    _t62 = _t24*_t44
+    _t63 = _t19*_t46
+    _t64 = -_t11*(_t30*_t46 - _t63) + _t37*_t62 + _t37*(_t20*_t46 + _t63) + _t62
+    _t65 = _t11*_t28
+    _t66 = _t33*_t37 + _t65
+    _t67 = _t29 + _t37*_t41
+    _t68 = _t54*_t60 + _t55*(_t36 + _t59 + _t66 + _t67) + _t64*xd_phi
+    _t69 = _t37*_t6 + _t6
+    _t70 = _t49*_t60 + _t55*_t64 + xd_phi*(_t11 + _t58 + _t66 + _t69)
+    _t71 = numpy.less(_t6, 1e-06)
+    _t72 = 1.0/numpy.maximum(_t5, (1e-06)*_t1)
+    _t73 = _t43*l1
+    _t74 = _t72*_t73
+    qd = numpy.empty(_batch + (4,))
+    qd[..., 0] = numpy.where(_t71, _t42*(_t30*_t46*_t68 + _t48*_t61 + _t70), _t74*(_t19*xd_y + _t26*xd_x))
+    qd[..., 1] = numpy.where(_t71, _t42*(_t47*_t61 - _t63*_t68 + _t70), _t74*(_t30*xd_y + _t32*xd_x))
+    qd[..., 2] = numpy.where(_t71, -_t42*xd_z*(_t56 + _t57 + _t65 + _t67 + _t69 + _t9), -_t5*_t72*xd_z)
+    qd[..., 3] = numpy.where(_t71, -_t42*_t70, _t74*(-_t18*xd_y - _t25*xd_x - _t73*xd_phi))
+    singular = numpy.empty(_batch + (), dtype=bool)
+    singular[..., ] = _t71
+    return qd, singular
+
+
+def joint_acceleration(q, qd, xdd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 4) and (...).
+
+    q: joint coordinates, shape (..., 4) (q1: rad, q2: rad, q3: m, q4: rad)
+    qd: joint rates, shape (..., 4) (per second)
+    xdd: task accelerations, shape (..., 4) (per second squared)
+    (255 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 4, "joint_acceleration", "q")
+    qd = _runtime.as_batch(qd, 4, "joint_acceleration", "qd")
+    xdd = _runtime.as_batch(xdd, 4, "joint_acceleration", "xdd")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    d1 = _runtime.as_param(d1, "d1")
+    d4 = _runtime.as_param(d4, "d4")
+    _batch = _runtime.batch_shape(q, qd, xdd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    xdd_x = xdd[..., 0]
+    xdd_y = xdd[..., 1]
+    xdd_z = xdd[..., 2]
+    xdd_phi = xdd[..., 3]
+    _t0 = abs(d1) + abs(d4) + abs(l1) + abs(l2)
+    _t1 = (_t0*_t0*_t0*_t0)
+    _t2 = (l1*l1)
+    _t3 = (l2*l2)
+    _t4 = numpy.sin(q2)
+    _t5 = _t2*_t3*(_t4*_t4)
+    _t6 = _t5/_t1
+    _t7 = numpy.maximum(0, 1 - 1000000*_t6)
+    _t8 = (_t7*_t7)
+    _t9 = (3e-08)*_t8
+    _t10 = (_t7*_t7*_t7)
+    _t11 = (1e-08)*_t8
+    _t12 = q1 + q2
+    _t13 = numpy.sin(_t12)
+    _t14 = 1.0/(_t0*_t0)
+    _t15 = _t14*_t3
+    _t16 = (_t13*_t13)*_t15
+    _t17 = numpy.sin(q1)
+    _t18 = _t17*l1
+    _t19 = _t13*l2
+    _t20 = _t18 + _t19
+    _t21 = _t14*(_t20*_t20) + _t16
+    _t22 = numpy.cos(_t12)
+    _t23 = _t15*(_t22*_t22)
+    _t24 = numpy.cos(q1)
+    _t25 = _t24*l1
+    _t26 = _t22*l2
+    _t27 = _t25 + _t26
+    _t28 = _t14*(_t27*_t27) + _t23
+    _t29 = (1e-12)*_t10
+    _t30 = -_t20
+    _t31 = _t14*(_t30*_t30) + _t16
+    _t32 = -_t27
+    _t33 = _t14*(_t32*_t32) + _t23
+    _t34 = _t14*_t2
+    _t35 = (_t24*_t24)*_t34
+    _t36 = _t28 + _t35
+    _t37 = (0.0001)*_t7
+    _t38 = (_t17*_t17)*_t34
+    _t39 = _t31 + _t38
+    _t40 = _t21 + _t38
+    _t41 = _t33 + _t35
+    _t42 = 1.0/((4e-12)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (0.0002)*_t6*_t7 + _t6 + (1e-16)*(_t7*_t7*_t7*_t7) + _t9)
+    _t43 = _t4*l2
+    _t44 = _t2*_t43/(_t0*_t0*_t0)
+    _t45 = _t17*_t44
+    _t46 = 1.0/_t0
+    _t47 = _t26*_t46
+    _t48 = _t27*_t46
+    _t49 = -_t11*(_t47 + _t48) + _t37*_t45 + _t37*(_t32*_t46 - _t47) + _t45
+    _t50 = _t17*_t24*_t34
+    _t51 = _t13*_t15*_t22
+    _t52 = _t14*_t27*_t30
+    _t53 = -_t14*_t20*_t32 + _t51
+    _t54 = -_t11*(-_t51 + _t52) + _t37*_t53 - _t37*(-_t50 - _t53) + _t50 + _t51 - _t52
+    _t55 = _t26*qd2
+    _t56 = -qd1*(_t32*qd1 - _t55) - qd2*(-_t26*qd1 - _t55) + xdd_x
+    _t57 = _t46*_t56
+    _t58 = _t37*_t40
+    _t59 = _t11*_t31
+    _t60 = _t21*_t37 + _t29 + _t59
+    _t61 = (0.0003)*_t7 + (4e-08)*_t8
+    _t62 = _t19*qd2
+    _t63 = -qd1*(_t30*qd1 - _t62) - qd2*(-_t19*qd1 - _t62) + xdd_y
+    _t64 = _t46*_t63
+    _t65 = _t49*xdd_phi + _t54*_t57 + _t64*(_t39 + _t58 + _t60 + _t61)
+    _t66 = _t24*_t44
+    _t67 = _t19*_t46
+    _t68 = -_t11*(_t30*_t46 - _t67) + _t37*_t66 + _t37*(_t20*_t46 + _t67) + _t66
+    _t69 = _t11*_t28
+    _t70 = _t33*_t37 + _t69
+    _t71 = _t29 + _t37*_t41
+    _t72 = _t54*_t64 + _t57*(_t36 + _t61 + _t70 + _t71) + _t68*xdd_phi
+    _t73 = _t37*_t6 + _t6
+    _t74 = _t49*_t64 + _t57*_t68 + xdd_phi*(_t11 + _t60 + _t70 + _t73)
+    _t75 = numpy.less(_t6, 1e-06)
+    _t76 = 1.0/numpy.maximum(_t5, (1e-06)*_t1)
+    _t77 = _t43*l1
+    _t78 = _t76*_t77
+    qdd = numpy.empty(_batch + (4,))
+    qdd[..., 0] = numpy.where(_t75, _t42*(_t30*_t46*_t72 + _t48*_t65 + _t74), _t78*(_t19*_t63 + _t26*_t56))
+    qdd[..., 1] = numpy.where(_t75, _t42*(_t47*_t65 - _t67*_t72 + _t74), _t78*(_t30*_t63 + _t32*_t56))
+    qdd[..., 2] = numpy.where(_t75, -_t42*xdd_z*(_t58 + _t59 + _t69 + _t71 + _t73 + _t9), -_t5*_t76*xdd_z)
+    qdd[..., 3] = numpy.where(_t75, -_t42*_t74, _t78*(-_t18*_t63 - _t25*_t56 - _t77*xdd_phi))
+    singular = numpy.empty(_batch + (), dtype=bool)
+    singular[..., ] = _t75
+    return qdd, singular
+
+
+def tool_configuration(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """Rehiara Eq. 39: tool configuration vector [p; a exp(q_n/pi)], shape (..., 6); p in metres, the rest dimensionless.
+
+    q: joint coordinates, shape (..., 4)
+    (16 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 4, "tool_configuration", "q")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    d1 = _runtime.as_param(d1, "d1")
+    d4 = _runtime.as_param(d4, "d4")
+    _batch = _runtime.batch_shape(q)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    q3 = q[..., 2]
+    q4 = q[..., 3]
+    _t0 = q1 + q2
+    w_tool = numpy.zeros(_batch + (6,))
+    w_tool[..., 0] = l1*numpy.cos(q1) + l2*numpy.cos(_t0)
+    w_tool[..., 1] = l1*numpy.sin(q1) + l2*numpy.sin(_t0)
+    w_tool[..., 2] = d1 - d4 - q3
+    w_tool[..., 5] = -numpy.exp(0.3183098861837907*q4)
+    return w_tool
+
+
+def tool_configuration_jacobian(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """Rehiara Eq. 41: d(tool configuration vector)/dq, shape (..., 6, 4). Not a velocity Jacobian: rows 4-6 are rates of a exp(q_n/pi), not angular velocity.
+
+    q: joint coordinates, shape (..., 4)
+    (18 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 4, "tool_configuration_jacobian", "q")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    _runtime.as_param(d1, "d1")
+    _runtime.as_param(d4, "d4")
+    _batch = _runtime.batch_shape(q)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    q4 = q[..., 3]
+    _t0 = q1 + q2
+    _t1 = l2*numpy.sin(_t0)
+    _t2 = l2*numpy.cos(_t0)
+    Jw = numpy.zeros(_batch + (6, 4))
+    Jw[..., 0, 0] = -_t1 - l1*numpy.sin(q1)
+    Jw[..., 0, 1] = -_t1
+    Jw[..., 1, 0] = _t2 + l1*numpy.cos(q1)
+    Jw[..., 1, 1] = _t2
+    Jw[..., 2, 2] = -1
+    Jw[..., 5, 3] = -0.3183098861837907*numpy.exp(0.3183098861837907*q4)
+    return Jw
 
 
 def within_limits(q):

@@ -38,6 +38,30 @@ void planar_2r_task_jacobian_batch(size_t count, const double *q, const planar_2
 /* Returns the number of valid branches; the batch returns their total (-1 if any item was refused). */
 int planar_2r_ik(const double *x, const planar_2r_params *params, double *Q, int *valid);
 long planar_2r_ik_batch(size_t count, const double *x, const planar_2r_params *params, double *Q, int *valid);
+/* task_velocity: q[2], qd[2] -> xd[2] (row-major). Task rates x_dot = J_x q_dot, shape (..., 2). */
+void planar_2r_task_velocity(const double *q, const double *qd, const planar_2r_params *params, double *xd);
+void planar_2r_task_velocity_batch(size_t count, const double *q, const double *qd, const planar_2r_params *params, double *xd);
+/* twist: q[2], qd[2] -> twist[6] (row-major). Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s. */
+void planar_2r_twist(const double *q, const double *qd, const planar_2r_params *params, double *twist);
+void planar_2r_twist_batch(size_t count, const double *q, const double *qd, const planar_2r_params *params, double *twist);
+/* task_jacobian_dot: q[2], qd[2] -> Jx_dot[4] (row-major). d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 2, 2). */
+void planar_2r_task_jacobian_dot(const double *q, const double *qd, const planar_2r_params *params, double *Jx_dot);
+void planar_2r_task_jacobian_dot_batch(size_t count, const double *q, const double *qd, const planar_2r_params *params, double *Jx_dot);
+/* jacobian_dot: q[2], qd[2] -> J_dot[12] (row-major). d(J)/dt of the geometric Jacobian, shape (..., 6, 2). */
+void planar_2r_jacobian_dot(const double *q, const double *qd, const planar_2r_params *params, double *J_dot);
+void planar_2r_jacobian_dot_batch(size_t count, const double *q, const double *qd, const planar_2r_params *params, double *J_dot);
+/* task_acceleration: q[2], qd[2], qdd[2] -> xdd[2] (row-major). Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 2). */
+void planar_2r_task_acceleration(const double *q, const double *qd, const double *qdd, const planar_2r_params *params, double *xdd);
+void planar_2r_task_acceleration_batch(size_t count, const double *q, const double *qd, const double *qdd, const planar_2r_params *params, double *xdd);
+/* manipulability: q[2] -> manipulability[1], singular[1] (row-major). Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...). */
+void planar_2r_manipulability(const double *q, const planar_2r_params *params, double *manipulability, int *singular);
+void planar_2r_manipulability_batch(size_t count, const double *q, const planar_2r_params *params, double *manipulability, int *singular);
+/* joint_velocity: q[2], xd[2] -> qd[2], singular[1] (row-major). Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 2) and (...). */
+void planar_2r_joint_velocity(const double *q, const double *xd, const planar_2r_params *params, double *qd, int *singular);
+void planar_2r_joint_velocity_batch(size_t count, const double *q, const double *xd, const planar_2r_params *params, double *qd, int *singular);
+/* joint_acceleration: q[2], qd[2], xdd[2] -> qdd[2], singular[1] (row-major). Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 2) and (...). */
+void planar_2r_joint_acceleration(const double *q, const double *qd, const double *xdd, const planar_2r_params *params, double *qdd, int *singular);
+void planar_2r_joint_acceleration_batch(size_t count, const double *q, const double *qd, const double *xdd, const planar_2r_params *params, double *qdd, int *singular);
 /* within_limits: q[2] -> 1 when every joint lies within its limits (revolute joints modulo 2 pi), else 0. */
 int planar_2r_within_limits(const double *q);
 void planar_2r_within_limits_batch(size_t count, const double *q, int *inside);

@@ -20,7 +20,7 @@ TASK = ("x", "y", )
 BRANCHES = ("elbow_up", "elbow_down", )
 PARAMS = {"l1": 0.559, "l2": 0.508}
 LIMITS = (None, None, )
-OPERATIONS = {"fk": 12, "frames": 13, "jacobian": 13, "task": 11, "task_jacobian": 13, "ik": 39}
+OPERATIONS = {"fk": 12, "frames": 13, "jacobian": 13, "task": 11, "task_jacobian": 13, "ik": 39, "task_velocity": 18, "twist": 19, "task_jacobian_dot": 25, "jacobian_dot": 25, "task_acceleration": 39, "manipulability": 16, "joint_velocity": 91, "joint_acceleration": 115}
 
 
 def fk(q, *, l1=0.559, l2=0.508):
@@ -196,6 +196,278 @@ def ik(x, *, l1=0.559, l2=0.508):
     # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
     valid &= numpy.isfinite(Q).all(axis=-1) & numpy.isfinite(_x).all(axis=-1)[..., None]
     return Q, valid
+
+
+def task_velocity(q, qd, *, l1=0.559, l2=0.508):
+    """Task rates x_dot = J_x q_dot, shape (..., 2).
+
+    q: joint coordinates, shape (..., 2) (q1: rad, q2: rad)
+    qd: joint rates, shape (..., 2) (per second)
+    (18 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "task_velocity", "q")
+    qd = _runtime.as_batch(qd, 2, "task_velocity", "qd")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    _batch = _runtime.batch_shape(q, qd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    _t0 = q1 + q2
+    _t1 = l2*numpy.sin(_t0)
+    _t2 = l2*numpy.cos(_t0)
+    xd = numpy.empty(_batch + (2,))
+    xd[..., 0] = -_t1*qd2 + qd1*(-_t1 - l1*numpy.sin(q1))
+    xd[..., 1] = _t2*qd2 + qd1*(_t2 + l1*numpy.cos(q1))
+    return xd
+
+
+def twist(q, qd, *, l1=0.559, l2=0.508):
+    """Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s.
+
+    q: joint coordinates, shape (..., 2) (q1: rad, q2: rad)
+    qd: joint rates, shape (..., 2) (per second)
+    (19 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "twist", "q")
+    qd = _runtime.as_batch(qd, 2, "twist", "qd")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    _batch = _runtime.batch_shape(q, qd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    _t0 = q1 + q2
+    _t1 = l2*numpy.sin(_t0)
+    _t2 = l2*numpy.cos(_t0)
+    twist = numpy.zeros(_batch + (6,))
+    twist[..., 0] = -_t1*qd2 + qd1*(-_t1 - l1*numpy.sin(q1))
+    twist[..., 1] = _t2*qd2 + qd1*(_t2 + l1*numpy.cos(q1))
+    twist[..., 5] = qd1 + qd2
+    return twist
+
+
+def task_jacobian_dot(q, qd, *, l1=0.559, l2=0.508):
+    """d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 2, 2).
+
+    q: joint coordinates, shape (..., 2) (q1: rad, q2: rad)
+    qd: joint rates, shape (..., 2) (per second)
+    (25 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "task_jacobian_dot", "q")
+    qd = _runtime.as_batch(qd, 2, "task_jacobian_dot", "qd")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    _batch = _runtime.batch_shape(q, qd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    _t0 = q1 + q2
+    _t1 = l2*numpy.cos(_t0)
+    _t2 = _t1*qd2
+    _t3 = l2*numpy.sin(_t0)
+    _t4 = _t3*qd2
+    Jx_dot = numpy.empty(_batch + (2, 2))
+    Jx_dot[..., 0, 0] = -_t2 + qd1*(-_t1 - l1*numpy.cos(q1))
+    Jx_dot[..., 0, 1] = -_t1*qd1 - _t2
+    Jx_dot[..., 1, 0] = -_t4 + qd1*(-_t3 - l1*numpy.sin(q1))
+    Jx_dot[..., 1, 1] = -_t3*qd1 - _t4
+    return Jx_dot
+
+
+def jacobian_dot(q, qd, *, l1=0.559, l2=0.508):
+    """d(J)/dt of the geometric Jacobian, shape (..., 6, 2).
+
+    q: joint coordinates, shape (..., 2) (q1: rad, q2: rad)
+    qd: joint rates, shape (..., 2) (per second)
+    (25 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "jacobian_dot", "q")
+    qd = _runtime.as_batch(qd, 2, "jacobian_dot", "qd")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    _batch = _runtime.batch_shape(q, qd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    _t0 = q1 + q2
+    _t1 = l2*numpy.cos(_t0)
+    _t2 = _t1*qd2
+    _t3 = l2*numpy.sin(_t0)
+    _t4 = _t3*qd2
+    J_dot = numpy.zeros(_batch + (6, 2))
+    J_dot[..., 0, 0] = -_t2 + qd1*(-_t1 - l1*numpy.cos(q1))
+    J_dot[..., 0, 1] = -_t1*qd1 - _t2
+    J_dot[..., 1, 0] = -_t4 + qd1*(-_t3 - l1*numpy.sin(q1))
+    J_dot[..., 1, 1] = -_t3*qd1 - _t4
+    return J_dot
+
+
+def task_acceleration(q, qd, qdd, *, l1=0.559, l2=0.508):
+    """Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 2).
+
+    q: joint coordinates, shape (..., 2) (q1: rad, q2: rad)
+    qd: joint rates, shape (..., 2) (per second)
+    qdd: joint accelerations, shape (..., 2) (per second squared)
+    (39 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "task_acceleration", "q")
+    qd = _runtime.as_batch(qd, 2, "task_acceleration", "qd")
+    qdd = _runtime.as_batch(qdd, 2, "task_acceleration", "qdd")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    _batch = _runtime.batch_shape(q, qd, qdd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    qdd1 = qdd[..., 0]
+    qdd2 = qdd[..., 1]
+    _t0 = q1 + q2
+    _t1 = l2*numpy.sin(_t0)
+    _t2 = -_t1 - l1*numpy.sin(q1)
+    _t3 = l2*numpy.cos(_t0)
+    _t4 = _t3*qd2
+    _t5 = _t3 + l1*numpy.cos(q1)
+    _t6 = _t1*qd2
+    xdd = numpy.empty(_batch + (2,))
+    xdd[..., 0] = -_t1*qdd2 + _t2*qdd1 + qd1*(-_t4 - _t5*qd1) + qd2*(-_t3*qd1 - _t4)
+    xdd[..., 1] = _t3*qdd2 + _t5*qdd1 + qd1*(_t2*qd1 - _t6) + qd2*(-_t1*qd1 - _t6)
+    return xdd
+
+
+def manipulability(q, *, l1=0.559, l2=0.508):
+    """Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...).
+
+    q: joint coordinates, shape (..., 2) (q1: rad, q2: rad)
+    (16 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "manipulability", "q")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    _batch = _runtime.batch_shape(q)
+    q2 = q[..., 1]
+    _t0 = numpy.sin(q2)
+    manipulability = numpy.empty(_batch + ())
+    manipulability[..., ] = abs(_t0*l1*l2)
+    singular = numpy.empty(_batch + (), dtype=bool)
+    singular[..., ] = numpy.less((_t0*_t0)*(l1*l1)*(l2*l2)/((abs(l1) + abs(l2))*(abs(l1) + abs(l2))*(abs(l1) + abs(l2))*(abs(l1) + abs(l2))), 1e-06)
+    return manipulability, singular
+
+
+def joint_velocity(q, xd, *, l1=0.559, l2=0.508):
+    """Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 2) and (...).
+
+    q: joint coordinates, shape (..., 2) (q1: rad, q2: rad)
+    xd: task rates d(x, y)/dt, shape (..., 2) (per second)
+    (91 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "joint_velocity", "q")
+    xd = _runtime.as_batch(xd, 2, "joint_velocity", "xd")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    _batch = _runtime.batch_shape(q, xd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    xd_x = xd[..., 0]
+    xd_y = xd[..., 1]
+    _t0 = abs(l1) + abs(l2)
+    _t1 = (_t0*_t0*_t0*_t0)
+    _t2 = (l2*l2)
+    _t3 = numpy.sin(q2)
+    _t4 = _t2*(_t3*_t3)*(l1*l1)
+    _t5 = _t4/_t1
+    _t6 = numpy.maximum(0, 1 - 1000000*_t5)
+    _t7 = q1 + q2
+    _t8 = numpy.cos(_t7)
+    _t9 = 1.0/(_t0*_t0)
+    _t10 = _t2*_t9
+    _t11 = _t8*l2
+    _t12 = _t11 + l1*numpy.cos(q1)
+    _t13 = _t10*(_t8*_t8) + (_t12*_t12)*_t9
+    _t14 = (0.0001)*_t6
+    _t15 = numpy.sin(_t7)
+    _t16 = _t15*l2
+    _t17 = -_t16 - l1*numpy.sin(q1)
+    _t18 = _t10*(_t15*_t15) + (_t17*_t17)*_t9
+    _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-08)*(_t6*_t6))
+    _t20 = 1.0/_t0
+    _t21 = _t10*_t15*_t8 - _t12*_t17*_t9
+    _t22 = _t20*xd_y
+    _t23 = _t20*xd_x
+    _t24 = _t20*(_t21*_t22 + _t23*(_t13 + _t14))
+    _t25 = _t20*(_t21*_t23 + _t22*(_t14 + _t18))
+    _t26 = numpy.less(_t5, 1e-06)
+    _t27 = _t3*l1*l2/numpy.maximum(_t4, (1e-06)*_t1)
+    qd = numpy.empty(_batch + (2,))
+    qd[..., 0] = numpy.where(_t26, _t19*(_t12*_t25 + _t17*_t24), _t27*(_t11*xd_x + _t16*xd_y))
+    qd[..., 1] = numpy.where(_t26, _t19*(_t11*_t25 - _t16*_t24), _t27*(-_t12*xd_x + _t17*xd_y))
+    singular = numpy.empty(_batch + (), dtype=bool)
+    singular[..., ] = _t26
+    return qd, singular
+
+
+def joint_acceleration(q, qd, xdd, *, l1=0.559, l2=0.508):
+    """Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 2) and (...).
+
+    q: joint coordinates, shape (..., 2) (q1: rad, q2: rad)
+    qd: joint rates, shape (..., 2) (per second)
+    xdd: task accelerations, shape (..., 2) (per second squared)
+    (115 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "joint_acceleration", "q")
+    qd = _runtime.as_batch(qd, 2, "joint_acceleration", "qd")
+    xdd = _runtime.as_batch(xdd, 2, "joint_acceleration", "xdd")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    _batch = _runtime.batch_shape(q, qd, xdd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    xdd_x = xdd[..., 0]
+    xdd_y = xdd[..., 1]
+    _t0 = abs(l1) + abs(l2)
+    _t1 = (_t0*_t0*_t0*_t0)
+    _t2 = (l2*l2)
+    _t3 = numpy.sin(q2)
+    _t4 = _t2*(_t3*_t3)*(l1*l1)
+    _t5 = _t4/_t1
+    _t6 = numpy.maximum(0, 1 - 1000000*_t5)
+    _t7 = q1 + q2
+    _t8 = numpy.cos(_t7)
+    _t9 = 1.0/(_t0*_t0)
+    _t10 = _t2*_t9
+    _t11 = _t8*l2
+    _t12 = _t11 + l1*numpy.cos(q1)
+    _t13 = _t10*(_t8*_t8) + (_t12*_t12)*_t9
+    _t14 = (0.0001)*_t6
+    _t15 = numpy.sin(_t7)
+    _t16 = _t15*l2
+    _t17 = -_t16 - l1*numpy.sin(q1)
+    _t18 = _t10*(_t15*_t15) + (_t17*_t17)*_t9
+    _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-08)*(_t6*_t6))
+    _t20 = 1.0/_t0
+    _t21 = _t16*qd2
+    _t22 = -qd1*(_t17*qd1 - _t21) - qd2*(-_t16*qd1 - _t21) + xdd_y
+    _t23 = _t20*(_t10*_t15*_t8 - _t12*_t17*_t9)
+    _t24 = _t11*qd2
+    _t25 = -_t12
+    _t26 = -qd1*(-_t24 + _t25*qd1) - qd2*(-_t11*qd1 - _t24) + xdd_x
+    _t27 = _t20*(_t20*_t26*(_t13 + _t14) + _t22*_t23)
+    _t28 = _t20*_t22*(_t14 + _t18) + _t23*_t26
+    _t29 = numpy.less(_t5, 1e-06)
+    _t30 = _t3*l1*l2/numpy.maximum(_t4, (1e-06)*_t1)
+    qdd = numpy.empty(_batch + (2,))
+    qdd[..., 0] = numpy.where(_t29, _t19*(_t12*_t20*_t28 + _t17*_t27), _t30*(_t11*_t26 + _t16*_t22))
+    qdd[..., 1] = numpy.where(_t29, _t19*(-_t16*_t27 + _t20*_t28*_t8*l2), _t30*(_t17*_t22 + _t25*_t26))
+    singular = numpy.empty(_batch + (), dtype=bool)
+    singular[..., ] = _t29
+    return qdd, singular
 
 
 def within_limits(q):

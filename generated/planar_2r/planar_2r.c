@@ -10,6 +10,14 @@
  * task: 11 operations after common-subexpression elimination
  * task_jacobian: 13 operations after common-subexpression elimination
  * ik: 39 operations after common-subexpression elimination
+ * task_velocity: 18 operations after common-subexpression elimination
+ * twist: 19 operations after common-subexpression elimination
+ * task_jacobian_dot: 25 operations after common-subexpression elimination
+ * jacobian_dot: 25 operations after common-subexpression elimination
+ * task_acceleration: 39 operations after common-subexpression elimination
+ * manipulability: 16 operations after common-subexpression elimination
+ * joint_velocity: 91 operations after common-subexpression elimination
+ * joint_acceleration: 115 operations after common-subexpression elimination
  */
 #include "planar_2r.h"
 
@@ -290,6 +298,320 @@ long planar_2r_ik_batch(size_t count, const double *restrict x, const planar_2r_
         }
     }
     return refused ? -1 : valid_branches;
+}
+
+/* Task rates x_dot = J_x q_dot, shape (..., 2). */
+void planar_2r_task_velocity(const double *restrict q, const double *restrict qd, const planar_2r_params *restrict params, double *restrict xd)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double _t0 = q1 + q2;
+    const double _t1 = l2*sin(_t0);
+    const double _t2 = l2*cos(_t0);
+    xd[0] = -_t1*qd2 + qd1*(-_t1 - l1*sin(q1));
+    xd[1] = _t2*qd2 + qd1*(_t2 + l1*cos(q1));
+}
+
+void planar_2r_task_velocity_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_2r_params *restrict params, double *restrict xd)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_2r_task_velocity(q + 2 * i, qd + 2 * i, params, xd + 2 * i);
+    }
+}
+
+/* Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s. */
+void planar_2r_twist(const double *restrict q, const double *restrict qd, const planar_2r_params *restrict params, double *restrict twist)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double _t0 = q1 + q2;
+    const double _t1 = l2*sin(_t0);
+    const double _t2 = l2*cos(_t0);
+    twist[0] = -_t1*qd2 + qd1*(-_t1 - l1*sin(q1));
+    twist[1] = _t2*qd2 + qd1*(_t2 + l1*cos(q1));
+    twist[2] = 0;
+    twist[3] = 0;
+    twist[4] = 0;
+    twist[5] = qd1 + qd2;
+}
+
+void planar_2r_twist_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_2r_params *restrict params, double *restrict twist)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_2r_twist(q + 2 * i, qd + 2 * i, params, twist + 6 * i);
+    }
+}
+
+/* d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 2, 2). */
+void planar_2r_task_jacobian_dot(const double *restrict q, const double *restrict qd, const planar_2r_params *restrict params, double *restrict Jx_dot)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double _t0 = q1 + q2;
+    const double _t1 = l2*cos(_t0);
+    const double _t2 = _t1*qd2;
+    const double _t3 = l2*sin(_t0);
+    const double _t4 = _t3*qd2;
+    Jx_dot[0] = -_t2 + qd1*(-_t1 - l1*cos(q1));
+    Jx_dot[1] = -_t1*qd1 - _t2;
+    Jx_dot[2] = -_t4 + qd1*(-_t3 - l1*sin(q1));
+    Jx_dot[3] = -_t3*qd1 - _t4;
+}
+
+void planar_2r_task_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_2r_params *restrict params, double *restrict Jx_dot)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_2r_task_jacobian_dot(q + 2 * i, qd + 2 * i, params, Jx_dot + 4 * i);
+    }
+}
+
+/* d(J)/dt of the geometric Jacobian, shape (..., 6, 2). */
+void planar_2r_jacobian_dot(const double *restrict q, const double *restrict qd, const planar_2r_params *restrict params, double *restrict J_dot)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double _t0 = q1 + q2;
+    const double _t1 = l2*cos(_t0);
+    const double _t2 = _t1*qd2;
+    const double _t3 = l2*sin(_t0);
+    const double _t4 = _t3*qd2;
+    J_dot[0] = -_t2 + qd1*(-_t1 - l1*cos(q1));
+    J_dot[1] = -_t1*qd1 - _t2;
+    J_dot[2] = -_t4 + qd1*(-_t3 - l1*sin(q1));
+    J_dot[3] = -_t3*qd1 - _t4;
+    J_dot[4] = 0;
+    J_dot[5] = 0;
+    J_dot[6] = 0;
+    J_dot[7] = 0;
+    J_dot[8] = 0;
+    J_dot[9] = 0;
+    J_dot[10] = 0;
+    J_dot[11] = 0;
+}
+
+void planar_2r_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_2r_params *restrict params, double *restrict J_dot)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_2r_jacobian_dot(q + 2 * i, qd + 2 * i, params, J_dot + 12 * i);
+    }
+}
+
+/* Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 2). */
+void planar_2r_task_acceleration(const double *restrict q, const double *restrict qd, const double *restrict qdd, const planar_2r_params *restrict params, double *restrict xdd)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qdd1 = qdd[0];
+    const double qdd2 = qdd[1];
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double _t0 = q1 + q2;
+    const double _t1 = l2*sin(_t0);
+    const double _t2 = -_t1 - l1*sin(q1);
+    const double _t3 = l2*cos(_t0);
+    const double _t4 = _t3*qd2;
+    const double _t5 = _t3 + l1*cos(q1);
+    const double _t6 = _t1*qd2;
+    xdd[0] = -_t1*qdd2 + _t2*qdd1 + qd1*(-_t4 - _t5*qd1) + qd2*(-_t3*qd1 - _t4);
+    xdd[1] = _t3*qdd2 + _t5*qdd1 + qd1*(_t2*qd1 - _t6) + qd2*(-_t1*qd1 - _t6);
+}
+
+void planar_2r_task_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict qdd, const planar_2r_params *restrict params, double *restrict xdd)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_2r_task_acceleration(q + 2 * i, qd + 2 * i, qdd + 2 * i, params, xdd + 2 * i);
+    }
+}
+
+/* Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...). */
+void planar_2r_manipulability(const double *restrict q, const planar_2r_params *restrict params, double *restrict manipulability, int *restrict singular)
+{
+    const double q2 = q[1];
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double _t0 = sin(q2);
+    manipulability[0] = fabs(_t0*l1*l2);
+    singular[0] = (_t0*_t0)*(l1*l1)*(l2*l2)/((fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))) < 1e-06;
+}
+
+void planar_2r_manipulability_batch(size_t count, const double *restrict q, const planar_2r_params *restrict params, double *restrict manipulability, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_2r_manipulability(q + 2 * i, params, manipulability + 1 * i, singular + 1 * i);
+    }
+}
+
+/* Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 2) and (...). */
+void planar_2r_joint_velocity(const double *restrict q, const double *restrict xd, const planar_2r_params *restrict params, double *restrict qd, int *restrict singular)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double xd_x = xd[0];
+    const double xd_y = xd[1];
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double _t0 = fabs(l1) + fabs(l2);
+    const double _t1 = (_t0*_t0*_t0*_t0);
+    const double _t2 = (l2*l2);
+    const double _t3 = sin(q2);
+    const double _t4 = _t2*(_t3*_t3)*(l1*l1);
+    const double _t5 = _t4/_t1;
+    const double _t6 = fmax(0, 1 - 1000000*_t5);
+    const double _t7 = q1 + q2;
+    const double _t8 = cos(_t7);
+    const double _t9 = 1.0/(_t0*_t0);
+    const double _t10 = _t2*_t9;
+    const double _t11 = _t8*l2;
+    const double _t12 = _t11 + l1*cos(q1);
+    const double _t13 = _t10*(_t8*_t8) + (_t12*_t12)*_t9;
+    const double _t14 = (0.0001)*_t6;
+    const double _t15 = sin(_t7);
+    const double _t16 = _t15*l2;
+    const double _t17 = -_t16 - l1*sin(q1);
+    const double _t18 = _t10*(_t15*_t15) + (_t17*_t17)*_t9;
+    const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-08)*(_t6*_t6));
+    const double _t20 = 1.0/_t0;
+    const double _t21 = _t10*_t15*_t8 - _t12*_t17*_t9;
+    const double _t22 = _t20*xd_y;
+    const double _t23 = _t20*xd_x;
+    const double _t24 = _t20*(_t21*_t22 + _t23*(_t13 + _t14));
+    const double _t25 = _t20*(_t21*_t23 + _t22*(_t14 + _t18));
+    const int _t26 = _t5 < 1e-06;
+    const double _t27 = _t3*l1*l2/fmax(_t4, (1e-06)*_t1);
+    qd[0] = ((_t26) ? (
+   _t19*(_t12*_t25 + _t17*_t24)
+)
+: (
+   _t27*(_t11*xd_x + _t16*xd_y)
+));
+    qd[1] = ((_t26) ? (
+   _t19*(_t11*_t25 - _t16*_t24)
+)
+: (
+   _t27*(-_t12*xd_x + _t17*xd_y)
+));
+    singular[0] = _t26;
+}
+
+void planar_2r_joint_velocity_batch(size_t count, const double *restrict q, const double *restrict xd, const planar_2r_params *restrict params, double *restrict qd, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_2r_joint_velocity(q + 2 * i, xd + 2 * i, params, qd + 2 * i, singular + 1 * i);
+    }
+}
+
+/* Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 2) and (...). */
+void planar_2r_joint_acceleration(const double *restrict q, const double *restrict qd, const double *restrict xdd, const planar_2r_params *restrict params, double *restrict qdd, int *restrict singular)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double xdd_x = xdd[0];
+    const double xdd_y = xdd[1];
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double _t0 = fabs(l1) + fabs(l2);
+    const double _t1 = (_t0*_t0*_t0*_t0);
+    const double _t2 = (l2*l2);
+    const double _t3 = sin(q2);
+    const double _t4 = _t2*(_t3*_t3)*(l1*l1);
+    const double _t5 = _t4/_t1;
+    const double _t6 = fmax(0, 1 - 1000000*_t5);
+    const double _t7 = q1 + q2;
+    const double _t8 = cos(_t7);
+    const double _t9 = 1.0/(_t0*_t0);
+    const double _t10 = _t2*_t9;
+    const double _t11 = _t8*l2;
+    const double _t12 = _t11 + l1*cos(q1);
+    const double _t13 = _t10*(_t8*_t8) + (_t12*_t12)*_t9;
+    const double _t14 = (0.0001)*_t6;
+    const double _t15 = sin(_t7);
+    const double _t16 = _t15*l2;
+    const double _t17 = -_t16 - l1*sin(q1);
+    const double _t18 = _t10*(_t15*_t15) + (_t17*_t17)*_t9;
+    const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-08)*(_t6*_t6));
+    const double _t20 = 1.0/_t0;
+    const double _t21 = _t16*qd2;
+    const double _t22 = -qd1*(_t17*qd1 - _t21) - qd2*(-_t16*qd1 - _t21) + xdd_y;
+    const double _t23 = _t20*(_t10*_t15*_t8 - _t12*_t17*_t9);
+    const double _t24 = _t11*qd2;
+    const double _t25 = -_t12;
+    const double _t26 = -qd1*(-_t24 + _t25*qd1) - qd2*(-_t11*qd1 - _t24) + xdd_x;
+    const double _t27 = _t20*(_t20*_t26*(_t13 + _t14) + _t22*_t23);
+    const double _t28 = _t20*_t22*(_t14 + _t18) + _t23*_t26;
+    const int _t29 = _t5 < 1e-06;
+    const double _t30 = _t3*l1*l2/fmax(_t4, (1e-06)*_t1);
+    qdd[0] = ((_t29) ? (
+   _t19*(_t12*_t20*_t28 + _t17*_t27)
+)
+: (
+   _t30*(_t11*_t26 + _t16*_t22)
+));
+    qdd[1] = ((_t29) ? (
+   _t19*(-_t16*_t27 + _t20*_t28*_t8*l2)
+)
+: (
+   _t30*(_t17*_t22 + _t25*_t26)
+));
+    singular[0] = _t29;
+}
+
+void planar_2r_joint_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict xdd, const planar_2r_params *restrict params, double *restrict qdd, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_2r_joint_acceleration(q + 2 * i, qd + 2 * i, xdd + 2 * i, params, qdd + 2 * i, singular + 1 * i);
+    }
 }
 
 /* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */

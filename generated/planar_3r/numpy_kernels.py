@@ -20,7 +20,7 @@ TASK = ("x", "y", "phi", )
 BRANCHES = ("elbow_up", "elbow_down", )
 PARAMS = {"l1": 0.5, "l2": 0.4, "l3": 0.2}
 LIMITS = (None, None, None, )
-OPERATIONS = {"fk": 19, "frames": 21, "jacobian": 21, "task": 18, "task_jacobian": 21, "ik": 78}
+OPERATIONS = {"fk": 19, "frames": 21, "jacobian": 21, "task": 18, "task_jacobian": 21, "ik": 78, "task_velocity": 31, "twist": 31, "task_jacobian_dot": 46, "jacobian_dot": 46, "task_acceleration": 69, "manipulability": 18, "joint_velocity": 243, "joint_acceleration": 280}
 
 
 def fk(q, *, l1=0.5, l2=0.4, l3=0.2):
@@ -253,6 +253,439 @@ def ik(x, *, l1=0.5, l2=0.4, l3=0.2):
     # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
     valid &= numpy.isfinite(Q).all(axis=-1) & numpy.isfinite(_x).all(axis=-1)[..., None]
     return Q, valid
+
+
+def task_velocity(q, qd, *, l1=0.5, l2=0.4, l3=0.2):
+    """Task rates x_dot = J_x q_dot, shape (..., 3).
+
+    q: joint coordinates, shape (..., 3) (q1: rad, q2: rad, q3: rad)
+    qd: joint rates, shape (..., 3) (per second)
+    (31 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 3, "task_velocity", "q")
+    qd = _runtime.as_batch(qd, 3, "task_velocity", "qd")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    l3 = _runtime.as_param(l3, "l3")
+    _batch = _runtime.batch_shape(q, qd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    q3 = q[..., 2]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    qd3 = qd[..., 2]
+    _t0 = q1 + q2
+    _t1 = _t0 + q3
+    _t2 = l3*numpy.sin(_t1)
+    _t3 = _t2 + l2*numpy.sin(_t0)
+    _t4 = l3*numpy.cos(_t1)
+    _t5 = _t4 + l2*numpy.cos(_t0)
+    xd = numpy.empty(_batch + (3,))
+    xd[..., 0] = -_t2*qd3 - _t3*qd2 + qd1*(-_t3 - l1*numpy.sin(q1))
+    xd[..., 1] = _t4*qd3 + _t5*qd2 + qd1*(_t5 + l1*numpy.cos(q1))
+    xd[..., 2] = qd1 + qd2 + qd3
+    return xd
+
+
+def twist(q, qd, *, l1=0.5, l2=0.4, l3=0.2):
+    """Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s.
+
+    q: joint coordinates, shape (..., 3) (q1: rad, q2: rad, q3: rad)
+    qd: joint rates, shape (..., 3) (per second)
+    (31 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 3, "twist", "q")
+    qd = _runtime.as_batch(qd, 3, "twist", "qd")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    l3 = _runtime.as_param(l3, "l3")
+    _batch = _runtime.batch_shape(q, qd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    q3 = q[..., 2]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    qd3 = qd[..., 2]
+    _t0 = q1 + q2
+    _t1 = _t0 + q3
+    _t2 = l3*numpy.sin(_t1)
+    _t3 = _t2 + l2*numpy.sin(_t0)
+    _t4 = l3*numpy.cos(_t1)
+    _t5 = _t4 + l2*numpy.cos(_t0)
+    twist = numpy.zeros(_batch + (6,))
+    twist[..., 0] = -_t2*qd3 - _t3*qd2 + qd1*(-_t3 - l1*numpy.sin(q1))
+    twist[..., 1] = _t4*qd3 + _t5*qd2 + qd1*(_t5 + l1*numpy.cos(q1))
+    twist[..., 5] = qd1 + qd2 + qd3
+    return twist
+
+
+def task_jacobian_dot(q, qd, *, l1=0.5, l2=0.4, l3=0.2):
+    """d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 3, 3).
+
+    q: joint coordinates, shape (..., 3) (q1: rad, q2: rad, q3: rad)
+    qd: joint rates, shape (..., 3) (per second)
+    (46 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 3, "task_jacobian_dot", "q")
+    qd = _runtime.as_batch(qd, 3, "task_jacobian_dot", "qd")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    l3 = _runtime.as_param(l3, "l3")
+    _batch = _runtime.batch_shape(q, qd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    q3 = q[..., 2]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    qd3 = qd[..., 2]
+    _t0 = q1 + q2
+    _t1 = _t0 + q3
+    _t2 = l3*numpy.cos(_t1)
+    _t3 = _t2 + l2*numpy.cos(_t0)
+    _t4 = -_t3
+    _t5 = _t2*qd3
+    _t6 = _t4*qd2 - _t5
+    _t7 = l3*numpy.sin(_t1)
+    _t8 = _t7 + l2*numpy.sin(_t0)
+    _t9 = -_t8
+    _t10 = _t7*qd3
+    _t11 = -_t10 + _t9*qd2
+    Jx_dot = numpy.zeros(_batch + (3, 3))
+    Jx_dot[..., 0, 0] = _t6 + qd1*(-_t3 - l1*numpy.cos(q1))
+    Jx_dot[..., 0, 1] = _t4*qd1 + _t6
+    Jx_dot[..., 0, 2] = -_t2*qd1 - _t2*qd2 - _t5
+    Jx_dot[..., 1, 0] = _t11 + qd1*(-_t8 - l1*numpy.sin(q1))
+    Jx_dot[..., 1, 1] = _t11 + _t9*qd1
+    Jx_dot[..., 1, 2] = -_t10 - _t7*qd1 - _t7*qd2
+    return Jx_dot
+
+
+def jacobian_dot(q, qd, *, l1=0.5, l2=0.4, l3=0.2):
+    """d(J)/dt of the geometric Jacobian, shape (..., 6, 3).
+
+    q: joint coordinates, shape (..., 3) (q1: rad, q2: rad, q3: rad)
+    qd: joint rates, shape (..., 3) (per second)
+    (46 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 3, "jacobian_dot", "q")
+    qd = _runtime.as_batch(qd, 3, "jacobian_dot", "qd")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    l3 = _runtime.as_param(l3, "l3")
+    _batch = _runtime.batch_shape(q, qd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    q3 = q[..., 2]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    qd3 = qd[..., 2]
+    _t0 = q1 + q2
+    _t1 = _t0 + q3
+    _t2 = l3*numpy.cos(_t1)
+    _t3 = _t2 + l2*numpy.cos(_t0)
+    _t4 = -_t3
+    _t5 = _t2*qd3
+    _t6 = _t4*qd2 - _t5
+    _t7 = l3*numpy.sin(_t1)
+    _t8 = _t7 + l2*numpy.sin(_t0)
+    _t9 = -_t8
+    _t10 = _t7*qd3
+    _t11 = -_t10 + _t9*qd2
+    J_dot = numpy.zeros(_batch + (6, 3))
+    J_dot[..., 0, 0] = _t6 + qd1*(-_t3 - l1*numpy.cos(q1))
+    J_dot[..., 0, 1] = _t4*qd1 + _t6
+    J_dot[..., 0, 2] = -_t2*qd1 - _t2*qd2 - _t5
+    J_dot[..., 1, 0] = _t11 + qd1*(-_t8 - l1*numpy.sin(q1))
+    J_dot[..., 1, 1] = _t11 + _t9*qd1
+    J_dot[..., 1, 2] = -_t10 - _t7*qd1 - _t7*qd2
+    return J_dot
+
+
+def task_acceleration(q, qd, qdd, *, l1=0.5, l2=0.4, l3=0.2):
+    """Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 3).
+
+    q: joint coordinates, shape (..., 3) (q1: rad, q2: rad, q3: rad)
+    qd: joint rates, shape (..., 3) (per second)
+    qdd: joint accelerations, shape (..., 3) (per second squared)
+    (69 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 3, "task_acceleration", "q")
+    qd = _runtime.as_batch(qd, 3, "task_acceleration", "qd")
+    qdd = _runtime.as_batch(qdd, 3, "task_acceleration", "qdd")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    l3 = _runtime.as_param(l3, "l3")
+    _batch = _runtime.batch_shape(q, qd, qdd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    q3 = q[..., 2]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    qd3 = qd[..., 2]
+    qdd1 = qdd[..., 0]
+    qdd2 = qdd[..., 1]
+    qdd3 = qdd[..., 2]
+    _t0 = q1 + q2
+    _t1 = _t0 + q3
+    _t2 = l3*numpy.sin(_t1)
+    _t3 = _t2 + l2*numpy.sin(_t0)
+    _t4 = -_t3
+    _t5 = -_t3 - l1*numpy.sin(q1)
+    _t6 = l3*numpy.cos(_t1)
+    _t7 = _t6*qd3
+    _t8 = _t6 + l2*numpy.cos(_t0)
+    _t9 = -_t8
+    _t10 = -_t7 + _t9*qd2
+    _t11 = _t8 + l1*numpy.cos(q1)
+    _t12 = _t2*qd3
+    _t13 = -_t12 + _t4*qd2
+    xdd = numpy.empty(_batch + (3,))
+    xdd[..., 0] = -_t2*qdd3 + _t4*qdd2 + _t5*qdd1 + qd1*(_t10 - _t11*qd1) + qd2*(_t10 + _t9*qd1) + qd3*(-_t6*qd1 - _t6*qd2 - _t7)
+    xdd[..., 1] = _t11*qdd1 + _t6*qdd3 + _t8*qdd2 + qd1*(_t13 + _t5*qd1) + qd2*(_t13 + _t4*qd1) + qd3*(-_t12 - _t2*qd1 - _t2*qd2)
+    xdd[..., 2] = qdd1 + qdd2 + qdd3
+    return xdd
+
+
+def manipulability(q, *, l1=0.5, l2=0.4, l3=0.2):
+    """Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...).
+
+    q: joint coordinates, shape (..., 3) (q1: rad, q2: rad, q3: rad)
+    (18 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 3, "manipulability", "q")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    l3 = _runtime.as_param(l3, "l3")
+    _batch = _runtime.batch_shape(q)
+    q2 = q[..., 1]
+    _t0 = numpy.sin(q2)
+    manipulability = numpy.empty(_batch + ())
+    manipulability[..., ] = abs(_t0*l1*l2)
+    singular = numpy.empty(_batch + (), dtype=bool)
+    singular[..., ] = numpy.less((_t0*_t0)*(l1*l1)*(l2*l2)/((abs(l1) + abs(l2) + abs(l3))*(abs(l1) + abs(l2) + abs(l3))*(abs(l1) + abs(l2) + abs(l3))*(abs(l1) + abs(l2) + abs(l3))), 1e-06)
+    return manipulability, singular
+
+
+def joint_velocity(q, xd, *, l1=0.5, l2=0.4, l3=0.2):
+    """Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 3) and (...).
+
+    q: joint coordinates, shape (..., 3) (q1: rad, q2: rad, q3: rad)
+    xd: task rates d(x, y, phi)/dt, shape (..., 3) (per second)
+    (243 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 3, "joint_velocity", "q")
+    xd = _runtime.as_batch(xd, 3, "joint_velocity", "xd")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    l3 = _runtime.as_param(l3, "l3")
+    _batch = _runtime.batch_shape(q, xd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    q3 = q[..., 2]
+    xd_x = xd[..., 0]
+    xd_y = xd[..., 1]
+    xd_phi = xd[..., 2]
+    _t0 = (l1*l1)
+    _t1 = abs(l1) + abs(l2) + abs(l3)
+    _t2 = (_t1*_t1*_t1*_t1)
+    _t3 = 1.0/_t2
+    _t4 = _t0*_t3
+    _t5 = (l2*l2)
+    _t6 = numpy.sin(q2)
+    _t7 = _t5*(_t6*_t6)
+    _t8 = _t4*_t7
+    _t9 = numpy.maximum(0, 1 - 1000000*_t8)
+    _t10 = (_t9*_t9)
+    _t11 = numpy.cos(q1)
+    _t12 = 1.0/(_t1*_t1)
+    _t13 = _t0*_t12
+    _t14 = q1 + q2
+    _t15 = numpy.cos(_t14)
+    _t16 = _t12*_t5
+    _t17 = _t11*l1
+    _t18 = _t15*l2
+    _t19 = _t17 + _t18
+    _t20 = (_t11*_t11)*_t13 + _t12*(_t19*_t19) + (_t15*_t15)*_t16
+    _t21 = (0.0001)*_t9
+    _t22 = numpy.sin(q1)
+    _t23 = numpy.sin(_t14)
+    _t24 = _t22*l1
+    _t25 = _t23*l2
+    _t26 = _t24 + _t25
+    _t27 = -_t26
+    _t28 = _t12*(_t27*_t27) + _t13*(_t22*_t22) + _t16*(_t23*_t23)
+    _t29 = numpy.sin(q3)
+    _t30 = (l3*l3)
+    _t31 = _t3*_t30
+    _t32 = _t6*l2
+    _t33 = numpy.sin(q2 + q3)
+    _t34 = _t32 + _t33*l3
+    _t35 = _t29*l2
+    _t36 = _t33*l1 + _t35
+    _t37 = (_t29*_t29)*_t31*_t5 + _t31*(_t36*_t36) + (_t34*_t34)*_t4
+    _t38 = _t14 + q3
+    _t39 = numpy.cos(_t38)
+    _t40 = _t12*_t30
+    _t41 = _t39*l3
+    _t42 = _t18 + _t41
+    _t43 = _t19 + _t41
+    _t44 = _t12*(_t42*_t42) + _t12*(_t43*_t43) + (_t39*_t39)*_t40
+    _t45 = (1e-08)*_t10
+    _t46 = numpy.sin(_t38)
+    _t47 = _t46*l3
+    _t48 = -_t25 - _t47
+    _t49 = -_t26 - _t47
+    _t50 = _t12*(_t48*_t48) + _t12*(_t49*_t49) + _t40*(_t46*_t46)
+    _t51 = 1.0/((3e-08)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-12)*(_t9*_t9*_t9))
+    _t52 = 1.0/(_t1*_t1*_t1)
+    _t53 = _t29*_t5*_t52*l3
+    _t54 = _t0*_t34*_t52
+    _t55 = _t36*l3
+    _t56 = _t52*_t55
+    _t57 = 1.0/_t1
+    _t58 = _t41*_t57
+    _t59 = _t42*_t57
+    _t60 = _t43*_t57
+    _t61 = -_t21*(_t58 + _t59 + _t60) + _t22*_t54 + _t23*_t53 - _t27*_t56
+    _t62 = _t11*_t13*_t22 - _t12*_t19*_t27 + _t15*_t16*_t23 - _t21*(_t12*_t42*_t48 + _t12*_t43*_t49 - _t39*_t40*_t46)
+    _t63 = _t57*xd_x
+    _t64 = (0.0003)*_t9
+    _t65 = _t21*_t50 + _t45
+    _t66 = _t57*xd_y
+    _t67 = _t61*xd_phi + _t62*_t63 + _t66*(_t28 + _t64 + _t65)
+    _t68 = _t47*_t57
+    _t69 = _t48*_t57
+    _t70 = _t49*_t57
+    _t71 = _t11*_t54 + _t15*_t53 + _t19*_t56 - _t21*(-_t68 + _t69 + _t70)
+    _t72 = _t21*_t44
+    _t73 = _t62*_t66 + _t63*(_t20 + _t45 + _t64 + _t72) + _t71*xd_phi
+    _t74 = _t61*_t66 + _t63*_t71 + xd_phi*(_t37 + _t65 + _t72)
+    _t75 = numpy.less(_t8, 1e-06)
+    _t76 = _t32*l1/numpy.maximum((1e-06)*_t2, _t0*_t7)
+    qd = numpy.empty(_batch + (3,))
+    qd[..., 0] = numpy.where(_t75, _t51*(_t60*_t67 + _t70*_t73 + _t74), _t76*(_t18*xd_x + _t25*xd_y + _t35*l3*xd_phi))
+    qd[..., 1] = numpy.where(_t75, _t51*(_t59*_t67 + _t69*_t73 + _t74), _t76*(-_t19*xd_x + _t27*xd_y - _t55*xd_phi))
+    qd[..., 2] = numpy.where(_t75, _t51*(_t58*_t67 - _t68*_t73 + _t74), _t76*(_t17*xd_x + _t24*xd_y + _t34*l1*xd_phi))
+    singular = numpy.empty(_batch + (), dtype=bool)
+    singular[..., ] = _t75
+    return qd, singular
+
+
+def joint_acceleration(q, qd, xdd, *, l1=0.5, l2=0.4, l3=0.2):
+    """Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 3) and (...).
+
+    q: joint coordinates, shape (..., 3) (q1: rad, q2: rad, q3: rad)
+    qd: joint rates, shape (..., 3) (per second)
+    xdd: task accelerations, shape (..., 3) (per second squared)
+    (280 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 3, "joint_acceleration", "q")
+    qd = _runtime.as_batch(qd, 3, "joint_acceleration", "qd")
+    xdd = _runtime.as_batch(xdd, 3, "joint_acceleration", "xdd")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    l3 = _runtime.as_param(l3, "l3")
+    _batch = _runtime.batch_shape(q, qd, xdd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    q3 = q[..., 2]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    qd3 = qd[..., 2]
+    xdd_x = xdd[..., 0]
+    xdd_y = xdd[..., 1]
+    xdd_phi = xdd[..., 2]
+    _t0 = (l1*l1)
+    _t1 = abs(l1) + abs(l2) + abs(l3)
+    _t2 = (_t1*_t1*_t1*_t1)
+    _t3 = 1.0/_t2
+    _t4 = _t0*_t3
+    _t5 = (l2*l2)
+    _t6 = numpy.sin(q2)
+    _t7 = _t5*(_t6*_t6)
+    _t8 = _t4*_t7
+    _t9 = numpy.maximum(0, 1 - 1000000*_t8)
+    _t10 = (_t9*_t9)
+    _t11 = numpy.cos(q1)
+    _t12 = 1.0/(_t1*_t1)
+    _t13 = _t0*_t12
+    _t14 = q1 + q2
+    _t15 = numpy.cos(_t14)
+    _t16 = _t12*_t5
+    _t17 = _t11*l1
+    _t18 = _t15*l2
+    _t19 = _t17 + _t18
+    _t20 = (_t11*_t11)*_t13 + _t12*(_t19*_t19) + (_t15*_t15)*_t16
+    _t21 = (0.0001)*_t9
+    _t22 = numpy.sin(q1)
+    _t23 = numpy.sin(_t14)
+    _t24 = _t22*l1
+    _t25 = _t23*l2
+    _t26 = _t24 + _t25
+    _t27 = -_t26
+    _t28 = _t12*(_t27*_t27) + _t13*(_t22*_t22) + _t16*(_t23*_t23)
+    _t29 = numpy.sin(q3)
+    _t30 = (l3*l3)
+    _t31 = _t3*_t30
+    _t32 = _t6*l2
+    _t33 = numpy.sin(q2 + q3)
+    _t34 = _t32 + _t33*l3
+    _t35 = _t29*l2
+    _t36 = _t33*l1 + _t35
+    _t37 = (_t29*_t29)*_t31*_t5 + _t31*(_t36*_t36) + (_t34*_t34)*_t4
+    _t38 = _t14 + q3
+    _t39 = numpy.cos(_t38)
+    _t40 = _t12*_t30
+    _t41 = _t39*l3
+    _t42 = _t18 + _t41
+    _t43 = _t19 + _t41
+    _t44 = _t12*(_t42*_t42) + _t12*(_t43*_t43) + (_t39*_t39)*_t40
+    _t45 = (1e-08)*_t10
+    _t46 = numpy.sin(_t38)
+    _t47 = _t46*l3
+    _t48 = -_t25 - _t47
+    _t49 = -_t26 - _t47
+    _t50 = _t12*(_t48*_t48) + _t12*(_t49*_t49) + _t40*(_t46*_t46)
+    _t51 = 1.0/((3e-08)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-12)*(_t9*_t9*_t9))
+    _t52 = 1.0/(_t1*_t1*_t1)
+    _t53 = _t29*_t5*_t52*l3
+    _t54 = _t0*_t34*_t52
+    _t55 = _t36*l3
+    _t56 = _t52*_t55
+    _t57 = 1.0/_t1
+    _t58 = _t41*_t57
+    _t59 = _t42*_t57
+    _t60 = _t43*_t57
+    _t61 = -_t21*(_t58 + _t59 + _t60) + _t22*_t54 + _t23*_t53 - _t27*_t56
+    _t62 = _t11*_t13*_t22 - _t12*_t19*_t27 + _t15*_t16*_t23 - _t21*(_t12*_t42*_t48 + _t12*_t43*_t49 - _t39*_t40*_t46)
+    _t63 = _t41*qd3
+    _t64 = -_t42
+    _t65 = -_t63 + _t64*qd2
+    _t66 = -qd1*(-_t43*qd1 + _t65) - qd2*(_t64*qd1 + _t65) - qd3*(-_t41*qd1 - _t41*qd2 - _t63) + xdd_x
+    _t67 = _t57*_t66
+    _t68 = (0.0003)*_t9
+    _t69 = _t21*_t50 + _t45
+    _t70 = _t47*qd3
+    _t71 = _t48*qd2 - _t70
+    _t72 = -qd1*(_t49*qd1 + _t71) - qd2*(_t48*qd1 + _t71) - qd3*(-_t47*qd1 - _t47*qd2 - _t70) + xdd_y
+    _t73 = _t57*_t72
+    _t74 = _t61*xdd_phi + _t62*_t67 + _t73*(_t28 + _t68 + _t69)
+    _t75 = _t47*_t57
+    _t76 = _t48*_t57
+    _t77 = _t49*_t57
+    _t78 = _t11*_t54 + _t15*_t53 + _t19*_t56 - _t21*(-_t75 + _t76 + _t77)
+    _t79 = _t21*_t44
+    _t80 = _t62*_t73 + _t67*(_t20 + _t45 + _t68 + _t79) + _t78*xdd_phi
+    _t81 = _t61*_t73 + _t67*_t78 + xdd_phi*(_t37 + _t69 + _t79)
+    _t82 = numpy.less(_t8, 1e-06)
+    _t83 = _t32*l1/numpy.maximum((1e-06)*_t2, _t0*_t7)
+    qdd = numpy.empty(_batch + (3,))
+    qdd[..., 0] = numpy.where(_t82, _t51*(_t60*_t74 + _t77*_t80 + _t81), _t83*(_t18*_t66 + _t25*_t72 + _t35*l3*xdd_phi))
+    qdd[..., 1] = numpy.where(_t82, _t51*(_t59*_t74 + _t76*_t80 + _t81), _t83*(-_t19*_t66 + _t27*_t72 - _t55*xdd_phi))
+    qdd[..., 2] = numpy.where(_t82, _t51*(_t58*_t74 - _t75*_t80 + _t81), _t83*(_t17*_t66 + _t24*_t72 + _t34*l1*xdd_phi))
+    singular = numpy.empty(_batch + (), dtype=bool)
+    singular[..., ] = _t82
+    return qdd, singular
 
 
 def within_limits(q):

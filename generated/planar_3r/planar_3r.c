@@ -10,6 +10,14 @@
  * task: 18 operations after common-subexpression elimination
  * task_jacobian: 21 operations after common-subexpression elimination
  * ik: 78 operations after common-subexpression elimination
+ * task_velocity: 31 operations after common-subexpression elimination
+ * twist: 31 operations after common-subexpression elimination
+ * task_jacobian_dot: 46 operations after common-subexpression elimination
+ * jacobian_dot: 46 operations after common-subexpression elimination
+ * task_acceleration: 69 operations after common-subexpression elimination
+ * manipulability: 18 operations after common-subexpression elimination
+ * joint_velocity: 243 operations after common-subexpression elimination
+ * joint_acceleration: 280 operations after common-subexpression elimination
  */
 #include "planar_3r.h"
 
@@ -358,6 +366,498 @@ long planar_3r_ik_batch(size_t count, const double *restrict x, const planar_3r_
         }
     }
     return refused ? -1 : valid_branches;
+}
+
+/* Task rates x_dot = J_x q_dot, shape (..., 3). */
+void planar_3r_task_velocity(const double *restrict q, const double *restrict qd, const planar_3r_params *restrict params, double *restrict xd)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    const double _t0 = q1 + q2;
+    const double _t1 = _t0 + q3;
+    const double _t2 = l3*sin(_t1);
+    const double _t3 = _t2 + l2*sin(_t0);
+    const double _t4 = l3*cos(_t1);
+    const double _t5 = _t4 + l2*cos(_t0);
+    xd[0] = -_t2*qd3 - _t3*qd2 + qd1*(-_t3 - l1*sin(q1));
+    xd[1] = _t4*qd3 + _t5*qd2 + qd1*(_t5 + l1*cos(q1));
+    xd[2] = qd1 + qd2 + qd3;
+}
+
+void planar_3r_task_velocity_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_3r_params *restrict params, double *restrict xd)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_3r_task_velocity(q + 3 * i, qd + 3 * i, params, xd + 3 * i);
+    }
+}
+
+/* Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s. */
+void planar_3r_twist(const double *restrict q, const double *restrict qd, const planar_3r_params *restrict params, double *restrict twist)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    const double _t0 = q1 + q2;
+    const double _t1 = _t0 + q3;
+    const double _t2 = l3*sin(_t1);
+    const double _t3 = _t2 + l2*sin(_t0);
+    const double _t4 = l3*cos(_t1);
+    const double _t5 = _t4 + l2*cos(_t0);
+    twist[0] = -_t2*qd3 - _t3*qd2 + qd1*(-_t3 - l1*sin(q1));
+    twist[1] = _t4*qd3 + _t5*qd2 + qd1*(_t5 + l1*cos(q1));
+    twist[2] = 0;
+    twist[3] = 0;
+    twist[4] = 0;
+    twist[5] = qd1 + qd2 + qd3;
+}
+
+void planar_3r_twist_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_3r_params *restrict params, double *restrict twist)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_3r_twist(q + 3 * i, qd + 3 * i, params, twist + 6 * i);
+    }
+}
+
+/* d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 3, 3). */
+void planar_3r_task_jacobian_dot(const double *restrict q, const double *restrict qd, const planar_3r_params *restrict params, double *restrict Jx_dot)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    const double _t0 = q1 + q2;
+    const double _t1 = _t0 + q3;
+    const double _t2 = l3*cos(_t1);
+    const double _t3 = _t2 + l2*cos(_t0);
+    const double _t4 = -_t3;
+    const double _t5 = _t2*qd3;
+    const double _t6 = _t4*qd2 - _t5;
+    const double _t7 = l3*sin(_t1);
+    const double _t8 = _t7 + l2*sin(_t0);
+    const double _t9 = -_t8;
+    const double _t10 = _t7*qd3;
+    const double _t11 = -_t10 + _t9*qd2;
+    Jx_dot[0] = _t6 + qd1*(-_t3 - l1*cos(q1));
+    Jx_dot[1] = _t4*qd1 + _t6;
+    Jx_dot[2] = -_t2*qd1 - _t2*qd2 - _t5;
+    Jx_dot[3] = _t11 + qd1*(-_t8 - l1*sin(q1));
+    Jx_dot[4] = _t11 + _t9*qd1;
+    Jx_dot[5] = -_t10 - _t7*qd1 - _t7*qd2;
+    Jx_dot[6] = 0;
+    Jx_dot[7] = 0;
+    Jx_dot[8] = 0;
+}
+
+void planar_3r_task_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_3r_params *restrict params, double *restrict Jx_dot)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_3r_task_jacobian_dot(q + 3 * i, qd + 3 * i, params, Jx_dot + 9 * i);
+    }
+}
+
+/* d(J)/dt of the geometric Jacobian, shape (..., 6, 3). */
+void planar_3r_jacobian_dot(const double *restrict q, const double *restrict qd, const planar_3r_params *restrict params, double *restrict J_dot)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    const double _t0 = q1 + q2;
+    const double _t1 = _t0 + q3;
+    const double _t2 = l3*cos(_t1);
+    const double _t3 = _t2 + l2*cos(_t0);
+    const double _t4 = -_t3;
+    const double _t5 = _t2*qd3;
+    const double _t6 = _t4*qd2 - _t5;
+    const double _t7 = l3*sin(_t1);
+    const double _t8 = _t7 + l2*sin(_t0);
+    const double _t9 = -_t8;
+    const double _t10 = _t7*qd3;
+    const double _t11 = -_t10 + _t9*qd2;
+    J_dot[0] = _t6 + qd1*(-_t3 - l1*cos(q1));
+    J_dot[1] = _t4*qd1 + _t6;
+    J_dot[2] = -_t2*qd1 - _t2*qd2 - _t5;
+    J_dot[3] = _t11 + qd1*(-_t8 - l1*sin(q1));
+    J_dot[4] = _t11 + _t9*qd1;
+    J_dot[5] = -_t10 - _t7*qd1 - _t7*qd2;
+    J_dot[6] = 0;
+    J_dot[7] = 0;
+    J_dot[8] = 0;
+    J_dot[9] = 0;
+    J_dot[10] = 0;
+    J_dot[11] = 0;
+    J_dot[12] = 0;
+    J_dot[13] = 0;
+    J_dot[14] = 0;
+    J_dot[15] = 0;
+    J_dot[16] = 0;
+    J_dot[17] = 0;
+}
+
+void planar_3r_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_3r_params *restrict params, double *restrict J_dot)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_3r_jacobian_dot(q + 3 * i, qd + 3 * i, params, J_dot + 18 * i);
+    }
+}
+
+/* Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 3). */
+void planar_3r_task_acceleration(const double *restrict q, const double *restrict qd, const double *restrict qdd, const planar_3r_params *restrict params, double *restrict xdd)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    const double qdd1 = qdd[0];
+    const double qdd2 = qdd[1];
+    const double qdd3 = qdd[2];
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    const double _t0 = q1 + q2;
+    const double _t1 = _t0 + q3;
+    const double _t2 = l3*sin(_t1);
+    const double _t3 = _t2 + l2*sin(_t0);
+    const double _t4 = -_t3;
+    const double _t5 = -_t3 - l1*sin(q1);
+    const double _t6 = l3*cos(_t1);
+    const double _t7 = _t6*qd3;
+    const double _t8 = _t6 + l2*cos(_t0);
+    const double _t9 = -_t8;
+    const double _t10 = -_t7 + _t9*qd2;
+    const double _t11 = _t8 + l1*cos(q1);
+    const double _t12 = _t2*qd3;
+    const double _t13 = -_t12 + _t4*qd2;
+    xdd[0] = -_t2*qdd3 + _t4*qdd2 + _t5*qdd1 + qd1*(_t10 - _t11*qd1) + qd2*(_t10 + _t9*qd1) + qd3*(-_t6*qd1 - _t6*qd2 - _t7);
+    xdd[1] = _t11*qdd1 + _t6*qdd3 + _t8*qdd2 + qd1*(_t13 + _t5*qd1) + qd2*(_t13 + _t4*qd1) + qd3*(-_t12 - _t2*qd1 - _t2*qd2);
+    xdd[2] = qdd1 + qdd2 + qdd3;
+}
+
+void planar_3r_task_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict qdd, const planar_3r_params *restrict params, double *restrict xdd)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_3r_task_acceleration(q + 3 * i, qd + 3 * i, qdd + 3 * i, params, xdd + 3 * i);
+    }
+}
+
+/* Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...). */
+void planar_3r_manipulability(const double *restrict q, const planar_3r_params *restrict params, double *restrict manipulability, int *restrict singular)
+{
+    const double q2 = q[1];
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    const double _t0 = sin(q2);
+    manipulability[0] = fabs(_t0*l1*l2);
+    singular[0] = (_t0*_t0)*(l1*l1)*(l2*l2)/((fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))) < 1e-06;
+}
+
+void planar_3r_manipulability_batch(size_t count, const double *restrict q, const planar_3r_params *restrict params, double *restrict manipulability, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_3r_manipulability(q + 3 * i, params, manipulability + 1 * i, singular + 1 * i);
+    }
+}
+
+/* Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 3) and (...). */
+void planar_3r_joint_velocity(const double *restrict q, const double *restrict xd, const planar_3r_params *restrict params, double *restrict qd, int *restrict singular)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double xd_x = xd[0];
+    const double xd_y = xd[1];
+    const double xd_phi = xd[2];
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    const double _t0 = (l1*l1);
+    const double _t1 = fabs(l1) + fabs(l2) + fabs(l3);
+    const double _t2 = (_t1*_t1*_t1*_t1);
+    const double _t3 = 1.0/_t2;
+    const double _t4 = _t0*_t3;
+    const double _t5 = (l2*l2);
+    const double _t6 = sin(q2);
+    const double _t7 = _t5*(_t6*_t6);
+    const double _t8 = _t4*_t7;
+    const double _t9 = fmax(0, 1 - 1000000*_t8);
+    const double _t10 = (_t9*_t9);
+    const double _t11 = cos(q1);
+    const double _t12 = 1.0/(_t1*_t1);
+    const double _t13 = _t0*_t12;
+    const double _t14 = q1 + q2;
+    const double _t15 = cos(_t14);
+    const double _t16 = _t12*_t5;
+    const double _t17 = _t11*l1;
+    const double _t18 = _t15*l2;
+    const double _t19 = _t17 + _t18;
+    const double _t20 = (_t11*_t11)*_t13 + _t12*(_t19*_t19) + (_t15*_t15)*_t16;
+    const double _t21 = (0.0001)*_t9;
+    const double _t22 = sin(q1);
+    const double _t23 = sin(_t14);
+    const double _t24 = _t22*l1;
+    const double _t25 = _t23*l2;
+    const double _t26 = _t24 + _t25;
+    const double _t27 = -_t26;
+    const double _t28 = _t12*(_t27*_t27) + _t13*(_t22*_t22) + _t16*(_t23*_t23);
+    const double _t29 = sin(q3);
+    const double _t30 = (l3*l3);
+    const double _t31 = _t3*_t30;
+    const double _t32 = _t6*l2;
+    const double _t33 = sin(q2 + q3);
+    const double _t34 = _t32 + _t33*l3;
+    const double _t35 = _t29*l2;
+    const double _t36 = _t33*l1 + _t35;
+    const double _t37 = (_t29*_t29)*_t31*_t5 + _t31*(_t36*_t36) + (_t34*_t34)*_t4;
+    const double _t38 = _t14 + q3;
+    const double _t39 = cos(_t38);
+    const double _t40 = _t12*_t30;
+    const double _t41 = _t39*l3;
+    const double _t42 = _t18 + _t41;
+    const double _t43 = _t19 + _t41;
+    const double _t44 = _t12*(_t42*_t42) + _t12*(_t43*_t43) + (_t39*_t39)*_t40;
+    const double _t45 = (1e-08)*_t10;
+    const double _t46 = sin(_t38);
+    const double _t47 = _t46*l3;
+    const double _t48 = -_t25 - _t47;
+    const double _t49 = -_t26 - _t47;
+    const double _t50 = _t12*(_t48*_t48) + _t12*(_t49*_t49) + _t40*(_t46*_t46);
+    const double _t51 = 1.0/((3e-08)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-12)*(_t9*_t9*_t9));
+    const double _t52 = 1.0/(_t1*_t1*_t1);
+    const double _t53 = _t29*_t5*_t52*l3;
+    const double _t54 = _t0*_t34*_t52;
+    const double _t55 = _t36*l3;
+    const double _t56 = _t52*_t55;
+    const double _t57 = 1.0/_t1;
+    const double _t58 = _t41*_t57;
+    const double _t59 = _t42*_t57;
+    const double _t60 = _t43*_t57;
+    const double _t61 = -_t21*(_t58 + _t59 + _t60) + _t22*_t54 + _t23*_t53 - _t27*_t56;
+    const double _t62 = _t11*_t13*_t22 - _t12*_t19*_t27 + _t15*_t16*_t23 - _t21*(_t12*_t42*_t48 + _t12*_t43*_t49 - _t39*_t40*_t46);
+    const double _t63 = _t57*xd_x;
+    const double _t64 = (0.0003)*_t9;
+    const double _t65 = _t21*_t50 + _t45;
+    const double _t66 = _t57*xd_y;
+    const double _t67 = _t61*xd_phi + _t62*_t63 + _t66*(_t28 + _t64 + _t65);
+    const double _t68 = _t47*_t57;
+    const double _t69 = _t48*_t57;
+    const double _t70 = _t49*_t57;
+    const double _t71 = _t11*_t54 + _t15*_t53 + _t19*_t56 - _t21*(-_t68 + _t69 + _t70);
+    const double _t72 = _t21*_t44;
+    const double _t73 = _t62*_t66 + _t63*(_t20 + _t45 + _t64 + _t72) + _t71*xd_phi;
+    const double _t74 = _t61*_t66 + _t63*_t71 + xd_phi*(_t37 + _t65 + _t72);
+    const int _t75 = _t8 < 1e-06;
+    const double _t76 = _t32*l1/fmax((1e-06)*_t2, _t0*_t7);
+    qd[0] = ((_t75) ? (
+   _t51*(_t60*_t67 + _t70*_t73 + _t74)
+)
+: (
+   _t76*(_t18*xd_x + _t25*xd_y + _t35*l3*xd_phi)
+));
+    qd[1] = ((_t75) ? (
+   _t51*(_t59*_t67 + _t69*_t73 + _t74)
+)
+: (
+   _t76*(-_t19*xd_x + _t27*xd_y - _t55*xd_phi)
+));
+    qd[2] = ((_t75) ? (
+   _t51*(_t58*_t67 - _t68*_t73 + _t74)
+)
+: (
+   _t76*(_t17*xd_x + _t24*xd_y + _t34*l1*xd_phi)
+));
+    singular[0] = _t75;
+}
+
+void planar_3r_joint_velocity_batch(size_t count, const double *restrict q, const double *restrict xd, const planar_3r_params *restrict params, double *restrict qd, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_3r_joint_velocity(q + 3 * i, xd + 3 * i, params, qd + 3 * i, singular + 1 * i);
+    }
+}
+
+/* Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 3) and (...). */
+void planar_3r_joint_acceleration(const double *restrict q, const double *restrict qd, const double *restrict xdd, const planar_3r_params *restrict params, double *restrict qdd, int *restrict singular)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    const double xdd_x = xdd[0];
+    const double xdd_y = xdd[1];
+    const double xdd_phi = xdd[2];
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    const double _t0 = (l1*l1);
+    const double _t1 = fabs(l1) + fabs(l2) + fabs(l3);
+    const double _t2 = (_t1*_t1*_t1*_t1);
+    const double _t3 = 1.0/_t2;
+    const double _t4 = _t0*_t3;
+    const double _t5 = (l2*l2);
+    const double _t6 = sin(q2);
+    const double _t7 = _t5*(_t6*_t6);
+    const double _t8 = _t4*_t7;
+    const double _t9 = fmax(0, 1 - 1000000*_t8);
+    const double _t10 = (_t9*_t9);
+    const double _t11 = cos(q1);
+    const double _t12 = 1.0/(_t1*_t1);
+    const double _t13 = _t0*_t12;
+    const double _t14 = q1 + q2;
+    const double _t15 = cos(_t14);
+    const double _t16 = _t12*_t5;
+    const double _t17 = _t11*l1;
+    const double _t18 = _t15*l2;
+    const double _t19 = _t17 + _t18;
+    const double _t20 = (_t11*_t11)*_t13 + _t12*(_t19*_t19) + (_t15*_t15)*_t16;
+    const double _t21 = (0.0001)*_t9;
+    const double _t22 = sin(q1);
+    const double _t23 = sin(_t14);
+    const double _t24 = _t22*l1;
+    const double _t25 = _t23*l2;
+    const double _t26 = _t24 + _t25;
+    const double _t27 = -_t26;
+    const double _t28 = _t12*(_t27*_t27) + _t13*(_t22*_t22) + _t16*(_t23*_t23);
+    const double _t29 = sin(q3);
+    const double _t30 = (l3*l3);
+    const double _t31 = _t3*_t30;
+    const double _t32 = _t6*l2;
+    const double _t33 = sin(q2 + q3);
+    const double _t34 = _t32 + _t33*l3;
+    const double _t35 = _t29*l2;
+    const double _t36 = _t33*l1 + _t35;
+    const double _t37 = (_t29*_t29)*_t31*_t5 + _t31*(_t36*_t36) + (_t34*_t34)*_t4;
+    const double _t38 = _t14 + q3;
+    const double _t39 = cos(_t38);
+    const double _t40 = _t12*_t30;
+    const double _t41 = _t39*l3;
+    const double _t42 = _t18 + _t41;
+    const double _t43 = _t19 + _t41;
+    const double _t44 = _t12*(_t42*_t42) + _t12*(_t43*_t43) + (_t39*_t39)*_t40;
+    const double _t45 = (1e-08)*_t10;
+    const double _t46 = sin(_t38);
+    const double _t47 = _t46*l3;
+    const double _t48 = -_t25 - _t47;
+    const double _t49 = -_t26 - _t47;
+    const double _t50 = _t12*(_t48*_t48) + _t12*(_t49*_t49) + _t40*(_t46*_t46);
+    const double _t51 = 1.0/((3e-08)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-12)*(_t9*_t9*_t9));
+    const double _t52 = 1.0/(_t1*_t1*_t1);
+    const double _t53 = _t29*_t5*_t52*l3;
+    const double _t54 = _t0*_t34*_t52;
+    const double _t55 = _t36*l3;
+    const double _t56 = _t52*_t55;
+    const double _t57 = 1.0/_t1;
+    const double _t58 = _t41*_t57;
+    const double _t59 = _t42*_t57;
+    const double _t60 = _t43*_t57;
+    const double _t61 = -_t21*(_t58 + _t59 + _t60) + _t22*_t54 + _t23*_t53 - _t27*_t56;
+    const double _t62 = _t11*_t13*_t22 - _t12*_t19*_t27 + _t15*_t16*_t23 - _t21*(_t12*_t42*_t48 + _t12*_t43*_t49 - _t39*_t40*_t46);
+    const double _t63 = _t41*qd3;
+    const double _t64 = -_t42;
+    const double _t65 = -_t63 + _t64*qd2;
+    const double _t66 = -qd1*(-_t43*qd1 + _t65) - qd2*(_t64*qd1 + _t65) - qd3*(-_t41*qd1 - _t41*qd2 - _t63) + xdd_x;
+    const double _t67 = _t57*_t66;
+    const double _t68 = (0.0003)*_t9;
+    const double _t69 = _t21*_t50 + _t45;
+    const double _t70 = _t47*qd3;
+    const double _t71 = _t48*qd2 - _t70;
+    const double _t72 = -qd1*(_t49*qd1 + _t71) - qd2*(_t48*qd1 + _t71) - qd3*(-_t47*qd1 - _t47*qd2 - _t70) + xdd_y;
+    const double _t73 = _t57*_t72;
+    const double _t74 = _t61*xdd_phi + _t62*_t67 + _t73*(_t28 + _t68 + _t69);
+    const double _t75 = _t47*_t57;
+    const double _t76 = _t48*_t57;
+    const double _t77 = _t49*_t57;
+    const double _t78 = _t11*_t54 + _t15*_t53 + _t19*_t56 - _t21*(-_t75 + _t76 + _t77);
+    const double _t79 = _t21*_t44;
+    const double _t80 = _t62*_t73 + _t67*(_t20 + _t45 + _t68 + _t79) + _t78*xdd_phi;
+    const double _t81 = _t61*_t73 + _t67*_t78 + xdd_phi*(_t37 + _t69 + _t79);
+    const int _t82 = _t8 < 1e-06;
+    const double _t83 = _t32*l1/fmax((1e-06)*_t2, _t0*_t7);
+    qdd[0] = ((_t82) ? (
+   _t51*(_t60*_t74 + _t77*_t80 + _t81)
+)
+: (
+   _t83*(_t18*_t66 + _t25*_t72 + _t35*l3*xdd_phi)
+));
+    qdd[1] = ((_t82) ? (
+   _t51*(_t59*_t74 + _t76*_t80 + _t81)
+)
+: (
+   _t83*(-_t19*_t66 + _t27*_t72 - _t55*xdd_phi)
+));
+    qdd[2] = ((_t82) ? (
+   _t51*(_t58*_t74 - _t75*_t80 + _t81)
+)
+: (
+   _t83*(_t17*_t66 + _t24*_t72 + _t34*l1*xdd_phi)
+));
+    singular[0] = _t82;
+}
+
+void planar_3r_joint_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict xdd, const planar_3r_params *restrict params, double *restrict qdd, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_3r_joint_acceleration(q + 3 * i, qd + 3 * i, xdd + 3 * i, params, qdd + 3 * i, singular + 1 * i);
+    }
 }
 
 /* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */

@@ -20,7 +20,7 @@ TASK = ("x", "y", )
 BRANCHES = ("unique", )
 PARAMS = {}
 LIMITS = (None, None, )
-OPERATIONS = {"fk": 1, "frames": 3, "jacobian": 0, "task": 0, "task_jacobian": 0, "ik": 0}
+OPERATIONS = {"fk": 1, "frames": 3, "jacobian": 0, "task": 0, "task_jacobian": 0, "ik": 0, "task_velocity": 0, "twist": 0, "task_jacobian_dot": 0, "jacobian_dot": 0, "task_acceleration": 0, "manipulability": 0, "joint_velocity": 0, "joint_acceleration": 0}
 
 
 def fk(q):
@@ -139,6 +139,147 @@ def ik(x):
     # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
     valid &= numpy.isfinite(Q).all(axis=-1) & numpy.isfinite(_x).all(axis=-1)[..., None]
     return Q, valid
+
+
+def task_velocity(q, qd):
+    """Task rates x_dot = J_x q_dot, shape (..., 2).
+
+    q: joint coordinates, shape (..., 2) (q1: m, q2: m)
+    qd: joint rates, shape (..., 2) (per second)
+    (0 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "task_velocity", "q")
+    qd = _runtime.as_batch(qd, 2, "task_velocity", "qd")
+    _batch = _runtime.batch_shape(q, qd)
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    xd = numpy.empty(_batch + (2,))
+    xd[..., 0] = qd2
+    xd[..., 1] = qd1
+    return xd
+
+
+def twist(q, qd):
+    """Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s.
+
+    q: joint coordinates, shape (..., 2) (q1: m, q2: m)
+    qd: joint rates, shape (..., 2) (per second)
+    (0 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "twist", "q")
+    qd = _runtime.as_batch(qd, 2, "twist", "qd")
+    _batch = _runtime.batch_shape(q, qd)
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    twist = numpy.zeros(_batch + (6,))
+    twist[..., 0] = qd2
+    twist[..., 1] = qd1
+    return twist
+
+
+def task_jacobian_dot(q, qd):
+    """d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 2, 2).
+
+    q: joint coordinates, shape (..., 2) (q1: m, q2: m)
+    qd: joint rates, shape (..., 2) (per second)
+    (0 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "task_jacobian_dot", "q")
+    qd = _runtime.as_batch(qd, 2, "task_jacobian_dot", "qd")
+    _batch = _runtime.batch_shape(q, qd)
+    Jx_dot = numpy.zeros(_batch + (2, 2))
+    return Jx_dot
+
+
+def jacobian_dot(q, qd):
+    """d(J)/dt of the geometric Jacobian, shape (..., 6, 2).
+
+    q: joint coordinates, shape (..., 2) (q1: m, q2: m)
+    qd: joint rates, shape (..., 2) (per second)
+    (0 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "jacobian_dot", "q")
+    qd = _runtime.as_batch(qd, 2, "jacobian_dot", "qd")
+    _batch = _runtime.batch_shape(q, qd)
+    J_dot = numpy.zeros(_batch + (6, 2))
+    return J_dot
+
+
+def task_acceleration(q, qd, qdd):
+    """Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 2).
+
+    q: joint coordinates, shape (..., 2) (q1: m, q2: m)
+    qd: joint rates, shape (..., 2) (per second)
+    qdd: joint accelerations, shape (..., 2) (per second squared)
+    (0 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "task_acceleration", "q")
+    qd = _runtime.as_batch(qd, 2, "task_acceleration", "qd")
+    qdd = _runtime.as_batch(qdd, 2, "task_acceleration", "qdd")
+    _batch = _runtime.batch_shape(q, qd, qdd)
+    qdd1 = qdd[..., 0]
+    qdd2 = qdd[..., 1]
+    xdd = numpy.empty(_batch + (2,))
+    xdd[..., 0] = qdd2
+    xdd[..., 1] = qdd1
+    return xdd
+
+
+def manipulability(q):
+    """Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...).
+
+    q: joint coordinates, shape (..., 2) (q1: m, q2: m)
+    (0 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "manipulability", "q")
+    _batch = _runtime.batch_shape(q)
+    manipulability = numpy.empty(_batch + ())
+    manipulability[..., ] = 1
+    singular = numpy.empty(_batch + (), dtype=bool)
+    singular[..., ] = False
+    return manipulability, singular
+
+
+def joint_velocity(q, xd):
+    """Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 2) and (...).
+
+    q: joint coordinates, shape (..., 2) (q1: m, q2: m)
+    xd: task rates d(x, y)/dt, shape (..., 2) (per second)
+    (0 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "joint_velocity", "q")
+    xd = _runtime.as_batch(xd, 2, "joint_velocity", "xd")
+    _batch = _runtime.batch_shape(q, xd)
+    xd_x = xd[..., 0]
+    xd_y = xd[..., 1]
+    qd = numpy.empty(_batch + (2,))
+    qd[..., 0] = xd_y
+    qd[..., 1] = xd_x
+    singular = numpy.empty(_batch + (), dtype=bool)
+    singular[..., ] = False
+    return qd, singular
+
+
+def joint_acceleration(q, qd, xdd):
+    """Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 2) and (...).
+
+    q: joint coordinates, shape (..., 2) (q1: m, q2: m)
+    qd: joint rates, shape (..., 2) (per second)
+    xdd: task accelerations, shape (..., 2) (per second squared)
+    (0 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "joint_acceleration", "q")
+    qd = _runtime.as_batch(qd, 2, "joint_acceleration", "qd")
+    xdd = _runtime.as_batch(xdd, 2, "joint_acceleration", "xdd")
+    _batch = _runtime.batch_shape(q, qd, xdd)
+    xdd_x = xdd[..., 0]
+    xdd_y = xdd[..., 1]
+    qdd = numpy.empty(_batch + (2,))
+    qdd[..., 0] = xdd_y
+    qdd[..., 1] = xdd_x
+    singular = numpy.empty(_batch + (), dtype=bool)
+    singular[..., ] = False
+    return qdd, singular
 
 
 def within_limits(q):

@@ -10,6 +10,14 @@
  * task: 0 operations after common-subexpression elimination
  * task_jacobian: 0 operations after common-subexpression elimination
  * ik: 0 operations after common-subexpression elimination
+ * task_velocity: 0 operations after common-subexpression elimination
+ * twist: 0 operations after common-subexpression elimination
+ * task_jacobian_dot: 0 operations after common-subexpression elimination
+ * jacobian_dot: 0 operations after common-subexpression elimination
+ * task_acceleration: 0 operations after common-subexpression elimination
+ * manipulability: 0 operations after common-subexpression elimination
+ * joint_velocity: 0 operations after common-subexpression elimination
+ * joint_acceleration: 0 operations after common-subexpression elimination
  */
 #include "planar_pp.h"
 
@@ -222,6 +230,174 @@ long planar_pp_ik_batch(size_t count, const double *restrict x, const planar_pp_
         }
     }
     return refused ? -1 : valid_branches;
+}
+
+/* Task rates x_dot = J_x q_dot, shape (..., 2). */
+void planar_pp_task_velocity(const double *restrict q, const double *restrict qd, const planar_pp_params *restrict params, double *restrict xd)
+{
+    (void)q;
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    (void)params;
+    xd[0] = qd2;
+    xd[1] = qd1;
+}
+
+void planar_pp_task_velocity_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_pp_params *restrict params, double *restrict xd)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_pp_task_velocity(q + 2 * i, qd + 2 * i, params, xd + 2 * i);
+    }
+}
+
+/* Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s. */
+void planar_pp_twist(const double *restrict q, const double *restrict qd, const planar_pp_params *restrict params, double *restrict twist)
+{
+    (void)q;
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    (void)params;
+    twist[0] = qd2;
+    twist[1] = qd1;
+    twist[2] = 0;
+    twist[3] = 0;
+    twist[4] = 0;
+    twist[5] = 0;
+}
+
+void planar_pp_twist_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_pp_params *restrict params, double *restrict twist)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_pp_twist(q + 2 * i, qd + 2 * i, params, twist + 6 * i);
+    }
+}
+
+/* d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 2, 2). */
+void planar_pp_task_jacobian_dot(const double *restrict q, const double *restrict qd, const planar_pp_params *restrict params, double *restrict Jx_dot)
+{
+    (void)q;
+    (void)qd;
+    (void)params;
+    Jx_dot[0] = 0;
+    Jx_dot[1] = 0;
+    Jx_dot[2] = 0;
+    Jx_dot[3] = 0;
+}
+
+void planar_pp_task_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_pp_params *restrict params, double *restrict Jx_dot)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_pp_task_jacobian_dot(q + 2 * i, qd + 2 * i, params, Jx_dot + 4 * i);
+    }
+}
+
+/* d(J)/dt of the geometric Jacobian, shape (..., 6, 2). */
+void planar_pp_jacobian_dot(const double *restrict q, const double *restrict qd, const planar_pp_params *restrict params, double *restrict J_dot)
+{
+    (void)q;
+    (void)qd;
+    (void)params;
+    J_dot[0] = 0;
+    J_dot[1] = 0;
+    J_dot[2] = 0;
+    J_dot[3] = 0;
+    J_dot[4] = 0;
+    J_dot[5] = 0;
+    J_dot[6] = 0;
+    J_dot[7] = 0;
+    J_dot[8] = 0;
+    J_dot[9] = 0;
+    J_dot[10] = 0;
+    J_dot[11] = 0;
+}
+
+void planar_pp_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_pp_params *restrict params, double *restrict J_dot)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_pp_jacobian_dot(q + 2 * i, qd + 2 * i, params, J_dot + 12 * i);
+    }
+}
+
+/* Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 2). */
+void planar_pp_task_acceleration(const double *restrict q, const double *restrict qd, const double *restrict qdd, const planar_pp_params *restrict params, double *restrict xdd)
+{
+    (void)q;
+    (void)qd;
+    const double qdd1 = qdd[0];
+    const double qdd2 = qdd[1];
+    (void)params;
+    xdd[0] = qdd2;
+    xdd[1] = qdd1;
+}
+
+void planar_pp_task_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict qdd, const planar_pp_params *restrict params, double *restrict xdd)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_pp_task_acceleration(q + 2 * i, qd + 2 * i, qdd + 2 * i, params, xdd + 2 * i);
+    }
+}
+
+/* Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...). */
+void planar_pp_manipulability(const double *restrict q, const planar_pp_params *restrict params, double *restrict manipulability, int *restrict singular)
+{
+    (void)q;
+    (void)params;
+    manipulability[0] = 1;
+    singular[0] = 0;
+}
+
+void planar_pp_manipulability_batch(size_t count, const double *restrict q, const planar_pp_params *restrict params, double *restrict manipulability, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_pp_manipulability(q + 2 * i, params, manipulability + 1 * i, singular + 1 * i);
+    }
+}
+
+/* Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 2) and (...). */
+void planar_pp_joint_velocity(const double *restrict q, const double *restrict xd, const planar_pp_params *restrict params, double *restrict qd, int *restrict singular)
+{
+    (void)q;
+    const double xd_x = xd[0];
+    const double xd_y = xd[1];
+    (void)params;
+    qd[0] = xd_y;
+    qd[1] = xd_x;
+    singular[0] = 0;
+}
+
+void planar_pp_joint_velocity_batch(size_t count, const double *restrict q, const double *restrict xd, const planar_pp_params *restrict params, double *restrict qd, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_pp_joint_velocity(q + 2 * i, xd + 2 * i, params, qd + 2 * i, singular + 1 * i);
+    }
+}
+
+/* Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 2) and (...). */
+void planar_pp_joint_acceleration(const double *restrict q, const double *restrict qd, const double *restrict xdd, const planar_pp_params *restrict params, double *restrict qdd, int *restrict singular)
+{
+    (void)q;
+    (void)qd;
+    const double xdd_x = xdd[0];
+    const double xdd_y = xdd[1];
+    (void)params;
+    qdd[0] = xdd_y;
+    qdd[1] = xdd_x;
+    singular[0] = 0;
+}
+
+void planar_pp_joint_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict xdd, const planar_pp_params *restrict params, double *restrict qdd, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_pp_joint_acceleration(q + 2 * i, qd + 2 * i, xdd + 2 * i, params, qdd + 2 * i, singular + 1 * i);
+    }
 }
 
 /* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */

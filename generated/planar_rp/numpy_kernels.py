@@ -20,7 +20,7 @@ TASK = ("x", "y", )
 BRANCHES = ("d2_positive", "d2_negative", )
 PARAMS = {}
 LIMITS = (None, None, )
-OPERATIONS = {"fk": 6, "frames": 6, "jacobian": 5, "task": 4, "task_jacobian": 5, "ik": 12}
+OPERATIONS = {"fk": 6, "frames": 6, "jacobian": 5, "task": 4, "task_jacobian": 5, "ik": 12, "task_velocity": 9, "twist": 9, "task_jacobian_dot": 12, "jacobian_dot": 12, "task_acceleration": 26, "manipulability": 4, "joint_velocity": 60, "joint_acceleration": 77}
 
 
 def fk(q):
@@ -166,6 +166,238 @@ def ik(x):
     # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
     valid &= numpy.isfinite(Q).all(axis=-1) & numpy.isfinite(_x).all(axis=-1)[..., None]
     return Q, valid
+
+
+def task_velocity(q, qd):
+    """Task rates x_dot = J_x q_dot, shape (..., 2).
+
+    q: joint coordinates, shape (..., 2) (q1: rad, q2: m)
+    qd: joint rates, shape (..., 2) (per second)
+    (9 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "task_velocity", "q")
+    qd = _runtime.as_batch(qd, 2, "task_velocity", "qd")
+    _batch = _runtime.batch_shape(q, qd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    _t0 = numpy.cos(q1)
+    _t1 = numpy.sin(q1)
+    _t2 = q2*qd1
+    xd = numpy.empty(_batch + (2,))
+    xd[..., 0] = _t0*qd2 - _t1*_t2
+    xd[..., 1] = _t0*_t2 + _t1*qd2
+    return xd
+
+
+def twist(q, qd):
+    """Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s.
+
+    q: joint coordinates, shape (..., 2) (q1: rad, q2: m)
+    qd: joint rates, shape (..., 2) (per second)
+    (9 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "twist", "q")
+    qd = _runtime.as_batch(qd, 2, "twist", "qd")
+    _batch = _runtime.batch_shape(q, qd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    _t0 = numpy.cos(q1)
+    _t1 = numpy.sin(q1)
+    _t2 = q2*qd1
+    twist = numpy.zeros(_batch + (6,))
+    twist[..., 0] = _t0*qd2 - _t1*_t2
+    twist[..., 1] = _t0*_t2 + _t1*qd2
+    twist[..., 5] = qd1
+    return twist
+
+
+def task_jacobian_dot(q, qd):
+    """d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 2, 2).
+
+    q: joint coordinates, shape (..., 2) (q1: rad, q2: m)
+    qd: joint rates, shape (..., 2) (per second)
+    (12 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "task_jacobian_dot", "q")
+    qd = _runtime.as_batch(qd, 2, "task_jacobian_dot", "qd")
+    _batch = _runtime.batch_shape(q, qd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    _t0 = numpy.sin(q1)
+    _t1 = numpy.cos(q1)
+    _t2 = _t1*qd1
+    _t3 = _t0*qd1
+    Jx_dot = numpy.empty(_batch + (2, 2))
+    Jx_dot[..., 0, 0] = -_t0*qd2 - _t2*q2
+    Jx_dot[..., 0, 1] = -_t3
+    Jx_dot[..., 1, 0] = _t1*qd2 - _t3*q2
+    Jx_dot[..., 1, 1] = _t2
+    return Jx_dot
+
+
+def jacobian_dot(q, qd):
+    """d(J)/dt of the geometric Jacobian, shape (..., 6, 2).
+
+    q: joint coordinates, shape (..., 2) (q1: rad, q2: m)
+    qd: joint rates, shape (..., 2) (per second)
+    (12 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "jacobian_dot", "q")
+    qd = _runtime.as_batch(qd, 2, "jacobian_dot", "qd")
+    _batch = _runtime.batch_shape(q, qd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    _t0 = numpy.sin(q1)
+    _t1 = numpy.cos(q1)
+    _t2 = _t1*qd1
+    _t3 = _t0*qd1
+    J_dot = numpy.zeros(_batch + (6, 2))
+    J_dot[..., 0, 0] = -_t0*qd2 - _t2*q2
+    J_dot[..., 0, 1] = -_t3
+    J_dot[..., 1, 0] = _t1*qd2 - _t3*q2
+    J_dot[..., 1, 1] = _t2
+    return J_dot
+
+
+def task_acceleration(q, qd, qdd):
+    """Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 2).
+
+    q: joint coordinates, shape (..., 2) (q1: rad, q2: m)
+    qd: joint rates, shape (..., 2) (per second)
+    qdd: joint accelerations, shape (..., 2) (per second squared)
+    (26 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "task_acceleration", "q")
+    qd = _runtime.as_batch(qd, 2, "task_acceleration", "qd")
+    qdd = _runtime.as_batch(qdd, 2, "task_acceleration", "qdd")
+    _batch = _runtime.batch_shape(q, qd, qdd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    qdd1 = qdd[..., 0]
+    qdd2 = qdd[..., 1]
+    _t0 = numpy.cos(q1)
+    _t1 = numpy.sin(q1)
+    _t2 = q2*qdd1
+    _t3 = _t1*qd2
+    _t4 = q2*qd1
+    xdd = numpy.empty(_batch + (2,))
+    xdd[..., 0] = _t0*qdd2 - _t1*_t2 - _t3*qd1 + qd1*(-_t0*_t4 - _t3)
+    xdd[..., 1] = _t0*_t2 + _t0*qd1*qd2 + _t1*qdd2 + qd1*(_t0*qd2 - _t1*_t4)
+    return xdd
+
+
+def manipulability(q):
+    """Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...).
+
+    q: joint coordinates, shape (..., 2) (q1: rad, q2: m)
+    (4 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "manipulability", "q")
+    _batch = _runtime.batch_shape(q)
+    q2 = q[..., 1]
+    manipulability = numpy.empty(_batch + ())
+    manipulability[..., ] = abs(q2)
+    singular = numpy.empty(_batch + (), dtype=bool)
+    singular[..., ] = numpy.less((q2*q2), 1e-06)
+    return manipulability, singular
+
+
+def joint_velocity(q, xd):
+    """Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 2) and (...).
+
+    q: joint coordinates, shape (..., 2) (q1: rad, q2: m)
+    xd: task rates d(x, y)/dt, shape (..., 2) (per second)
+    (60 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "joint_velocity", "q")
+    xd = _runtime.as_batch(xd, 2, "joint_velocity", "xd")
+    _batch = _runtime.batch_shape(q, xd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    xd_x = xd[..., 0]
+    xd_y = xd[..., 1]
+    _t0 = (q2*q2)
+    _t1 = numpy.maximum(0, 1 - 1000000*_t0)
+    _t2 = numpy.cos(q1)
+    _t3 = (_t2*_t2)
+    _t4 = numpy.sin(q1)
+    _t5 = (_t4*_t4)
+    _t6 = _t0*_t5 + _t3
+    _t7 = (0.0001)*_t1
+    _t8 = _t0*_t3 + _t5
+    _t9 = 1.0/(_t0 + (1e-08)*(_t1*_t1) + _t6*_t7 + _t7*_t8)
+    _t10 = _t2*_t4
+    _t11 = _t0*_t10 - _t10
+    _t12 = _t11*xd_x + xd_y*(_t6 + _t7)
+    _t13 = _t2*q2
+    _t14 = _t11*xd_y + xd_x*(_t7 + _t8)
+    _t15 = _t4*q2
+    _t16 = numpy.less(_t0, 1e-06)
+    _t17 = q2/numpy.maximum(1e-06, _t0)
+    qd = numpy.empty(_batch + (2,))
+    qd[..., 0] = numpy.where(_t16, _t9*(_t12*_t13 - _t14*_t15), -_t17*(-_t2*xd_y + _t4*xd_x))
+    qd[..., 1] = numpy.where(_t16, _t9*(_t12*_t4 + _t14*_t2), -_t17*(-_t13*xd_x - _t15*xd_y))
+    singular = numpy.empty(_batch + (), dtype=bool)
+    singular[..., ] = _t16
+    return qd, singular
+
+
+def joint_acceleration(q, qd, xdd):
+    """Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 2) and (...).
+
+    q: joint coordinates, shape (..., 2) (q1: rad, q2: m)
+    qd: joint rates, shape (..., 2) (per second)
+    xdd: task accelerations, shape (..., 2) (per second squared)
+    (77 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "joint_acceleration", "q")
+    qd = _runtime.as_batch(qd, 2, "joint_acceleration", "qd")
+    xdd = _runtime.as_batch(xdd, 2, "joint_acceleration", "xdd")
+    _batch = _runtime.batch_shape(q, qd, xdd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    xdd_x = xdd[..., 0]
+    xdd_y = xdd[..., 1]
+    _t0 = (q2*q2)
+    _t1 = numpy.maximum(0, 1 - 1000000*_t0)
+    _t2 = numpy.cos(q1)
+    _t3 = (_t2*_t2)
+    _t4 = numpy.sin(q1)
+    _t5 = (_t4*_t4)
+    _t6 = _t0*_t5 + _t3
+    _t7 = (0.0001)*_t1
+    _t8 = _t0*_t3 + _t5
+    _t9 = 1.0/(_t0 + (1e-08)*(_t1*_t1) + _t6*_t7 + _t7*_t8)
+    _t10 = _t2*_t4
+    _t11 = _t0*_t10 - _t10
+    _t12 = _t4*qd2
+    _t13 = q2*qd1
+    _t14 = _t12*qd1 - qd1*(-_t12 - _t13*_t2) + xdd_x
+    _t15 = -_t2*qd1*qd2 - qd1*(-_t13*_t4 + _t2*qd2) + xdd_y
+    _t16 = _t11*_t14 + _t15*(_t6 + _t7)
+    _t17 = _t2*q2
+    _t18 = _t11*_t15 + _t14*(_t7 + _t8)
+    _t19 = _t4*q2
+    _t20 = numpy.less(_t0, 1e-06)
+    _t21 = q2/numpy.maximum(1e-06, _t0)
+    qdd = numpy.empty(_batch + (2,))
+    qdd[..., 0] = numpy.where(_t20, _t9*(_t16*_t17 - _t18*_t19), -_t21*(_t14*_t4 - _t15*_t2))
+    qdd[..., 1] = numpy.where(_t20, _t9*(_t16*_t4 + _t18*_t2), -_t21*(-_t14*_t17 - _t15*_t19))
+    singular = numpy.empty(_batch + (), dtype=bool)
+    singular[..., ] = _t20
+    return qdd, singular
 
 
 def within_limits(q):

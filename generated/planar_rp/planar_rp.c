@@ -10,6 +10,14 @@
  * task: 4 operations after common-subexpression elimination
  * task_jacobian: 5 operations after common-subexpression elimination
  * ik: 12 operations after common-subexpression elimination
+ * task_velocity: 9 operations after common-subexpression elimination
+ * twist: 9 operations after common-subexpression elimination
+ * task_jacobian_dot: 12 operations after common-subexpression elimination
+ * jacobian_dot: 12 operations after common-subexpression elimination
+ * task_acceleration: 26 operations after common-subexpression elimination
+ * manipulability: 4 operations after common-subexpression elimination
+ * joint_velocity: 60 operations after common-subexpression elimination
+ * joint_acceleration: 77 operations after common-subexpression elimination
  */
 #include "planar_rp.h"
 
@@ -251,6 +259,264 @@ long planar_rp_ik_batch(size_t count, const double *restrict x, const planar_rp_
         }
     }
     return refused ? -1 : valid_branches;
+}
+
+/* Task rates x_dot = J_x q_dot, shape (..., 2). */
+void planar_rp_task_velocity(const double *restrict q, const double *restrict qd, const planar_rp_params *restrict params, double *restrict xd)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    (void)params;
+    const double _t0 = cos(q1);
+    const double _t1 = sin(q1);
+    const double _t2 = q2*qd1;
+    xd[0] = _t0*qd2 - _t1*_t2;
+    xd[1] = _t0*_t2 + _t1*qd2;
+}
+
+void planar_rp_task_velocity_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_rp_params *restrict params, double *restrict xd)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_rp_task_velocity(q + 2 * i, qd + 2 * i, params, xd + 2 * i);
+    }
+}
+
+/* Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s. */
+void planar_rp_twist(const double *restrict q, const double *restrict qd, const planar_rp_params *restrict params, double *restrict twist)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    (void)params;
+    const double _t0 = cos(q1);
+    const double _t1 = sin(q1);
+    const double _t2 = q2*qd1;
+    twist[0] = _t0*qd2 - _t1*_t2;
+    twist[1] = _t0*_t2 + _t1*qd2;
+    twist[2] = 0;
+    twist[3] = 0;
+    twist[4] = 0;
+    twist[5] = qd1;
+}
+
+void planar_rp_twist_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_rp_params *restrict params, double *restrict twist)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_rp_twist(q + 2 * i, qd + 2 * i, params, twist + 6 * i);
+    }
+}
+
+/* d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 2, 2). */
+void planar_rp_task_jacobian_dot(const double *restrict q, const double *restrict qd, const planar_rp_params *restrict params, double *restrict Jx_dot)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    (void)params;
+    const double _t0 = sin(q1);
+    const double _t1 = cos(q1);
+    const double _t2 = _t1*qd1;
+    const double _t3 = _t0*qd1;
+    Jx_dot[0] = -_t0*qd2 - _t2*q2;
+    Jx_dot[1] = -_t3;
+    Jx_dot[2] = _t1*qd2 - _t3*q2;
+    Jx_dot[3] = _t2;
+}
+
+void planar_rp_task_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_rp_params *restrict params, double *restrict Jx_dot)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_rp_task_jacobian_dot(q + 2 * i, qd + 2 * i, params, Jx_dot + 4 * i);
+    }
+}
+
+/* d(J)/dt of the geometric Jacobian, shape (..., 6, 2). */
+void planar_rp_jacobian_dot(const double *restrict q, const double *restrict qd, const planar_rp_params *restrict params, double *restrict J_dot)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    (void)params;
+    const double _t0 = sin(q1);
+    const double _t1 = cos(q1);
+    const double _t2 = _t1*qd1;
+    const double _t3 = _t0*qd1;
+    J_dot[0] = -_t0*qd2 - _t2*q2;
+    J_dot[1] = -_t3;
+    J_dot[2] = _t1*qd2 - _t3*q2;
+    J_dot[3] = _t2;
+    J_dot[4] = 0;
+    J_dot[5] = 0;
+    J_dot[6] = 0;
+    J_dot[7] = 0;
+    J_dot[8] = 0;
+    J_dot[9] = 0;
+    J_dot[10] = 0;
+    J_dot[11] = 0;
+}
+
+void planar_rp_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_rp_params *restrict params, double *restrict J_dot)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_rp_jacobian_dot(q + 2 * i, qd + 2 * i, params, J_dot + 12 * i);
+    }
+}
+
+/* Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 2). */
+void planar_rp_task_acceleration(const double *restrict q, const double *restrict qd, const double *restrict qdd, const planar_rp_params *restrict params, double *restrict xdd)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qdd1 = qdd[0];
+    const double qdd2 = qdd[1];
+    (void)params;
+    const double _t0 = cos(q1);
+    const double _t1 = sin(q1);
+    const double _t2 = q2*qdd1;
+    const double _t3 = _t1*qd2;
+    const double _t4 = q2*qd1;
+    xdd[0] = _t0*qdd2 - _t1*_t2 - _t3*qd1 + qd1*(-_t0*_t4 - _t3);
+    xdd[1] = _t0*_t2 + _t0*qd1*qd2 + _t1*qdd2 + qd1*(_t0*qd2 - _t1*_t4);
+}
+
+void planar_rp_task_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict qdd, const planar_rp_params *restrict params, double *restrict xdd)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_rp_task_acceleration(q + 2 * i, qd + 2 * i, qdd + 2 * i, params, xdd + 2 * i);
+    }
+}
+
+/* Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...). */
+void planar_rp_manipulability(const double *restrict q, const planar_rp_params *restrict params, double *restrict manipulability, int *restrict singular)
+{
+    const double q2 = q[1];
+    (void)params;
+    manipulability[0] = fabs(q2);
+    singular[0] = (q2*q2) < 1e-06;
+}
+
+void planar_rp_manipulability_batch(size_t count, const double *restrict q, const planar_rp_params *restrict params, double *restrict manipulability, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_rp_manipulability(q + 2 * i, params, manipulability + 1 * i, singular + 1 * i);
+    }
+}
+
+/* Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 2) and (...). */
+void planar_rp_joint_velocity(const double *restrict q, const double *restrict xd, const planar_rp_params *restrict params, double *restrict qd, int *restrict singular)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double xd_x = xd[0];
+    const double xd_y = xd[1];
+    (void)params;
+    const double _t0 = (q2*q2);
+    const double _t1 = fmax(0, 1 - 1000000*_t0);
+    const double _t2 = cos(q1);
+    const double _t3 = (_t2*_t2);
+    const double _t4 = sin(q1);
+    const double _t5 = (_t4*_t4);
+    const double _t6 = _t0*_t5 + _t3;
+    const double _t7 = (0.0001)*_t1;
+    const double _t8 = _t0*_t3 + _t5;
+    const double _t9 = 1.0/(_t0 + (1e-08)*(_t1*_t1) + _t6*_t7 + _t7*_t8);
+    const double _t10 = _t2*_t4;
+    const double _t11 = _t0*_t10 - _t10;
+    const double _t12 = _t11*xd_x + xd_y*(_t6 + _t7);
+    const double _t13 = _t2*q2;
+    const double _t14 = _t11*xd_y + xd_x*(_t7 + _t8);
+    const double _t15 = _t4*q2;
+    const int _t16 = _t0 < 1e-06;
+    const double _t17 = q2/fmax(1e-06, _t0);
+    qd[0] = ((_t16) ? (
+   _t9*(_t12*_t13 - _t14*_t15)
+)
+: (
+   -_t17*(-_t2*xd_y + _t4*xd_x)
+));
+    qd[1] = ((_t16) ? (
+   _t9*(_t12*_t4 + _t14*_t2)
+)
+: (
+   -_t17*(-_t13*xd_x - _t15*xd_y)
+));
+    singular[0] = _t16;
+}
+
+void planar_rp_joint_velocity_batch(size_t count, const double *restrict q, const double *restrict xd, const planar_rp_params *restrict params, double *restrict qd, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_rp_joint_velocity(q + 2 * i, xd + 2 * i, params, qd + 2 * i, singular + 1 * i);
+    }
+}
+
+/* Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 2) and (...). */
+void planar_rp_joint_acceleration(const double *restrict q, const double *restrict qd, const double *restrict xdd, const planar_rp_params *restrict params, double *restrict qdd, int *restrict singular)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double xdd_x = xdd[0];
+    const double xdd_y = xdd[1];
+    (void)params;
+    const double _t0 = (q2*q2);
+    const double _t1 = fmax(0, 1 - 1000000*_t0);
+    const double _t2 = cos(q1);
+    const double _t3 = (_t2*_t2);
+    const double _t4 = sin(q1);
+    const double _t5 = (_t4*_t4);
+    const double _t6 = _t0*_t5 + _t3;
+    const double _t7 = (0.0001)*_t1;
+    const double _t8 = _t0*_t3 + _t5;
+    const double _t9 = 1.0/(_t0 + (1e-08)*(_t1*_t1) + _t6*_t7 + _t7*_t8);
+    const double _t10 = _t2*_t4;
+    const double _t11 = _t0*_t10 - _t10;
+    const double _t12 = _t4*qd2;
+    const double _t13 = q2*qd1;
+    const double _t14 = _t12*qd1 - qd1*(-_t12 - _t13*_t2) + xdd_x;
+    const double _t15 = -_t2*qd1*qd2 - qd1*(-_t13*_t4 + _t2*qd2) + xdd_y;
+    const double _t16 = _t11*_t14 + _t15*(_t6 + _t7);
+    const double _t17 = _t2*q2;
+    const double _t18 = _t11*_t15 + _t14*(_t7 + _t8);
+    const double _t19 = _t4*q2;
+    const int _t20 = _t0 < 1e-06;
+    const double _t21 = q2/fmax(1e-06, _t0);
+    qdd[0] = ((_t20) ? (
+   _t9*(_t16*_t17 - _t18*_t19)
+)
+: (
+   -_t21*(_t14*_t4 - _t15*_t2)
+));
+    qdd[1] = ((_t20) ? (
+   _t9*(_t16*_t4 + _t18*_t2)
+)
+: (
+   -_t21*(-_t14*_t17 - _t15*_t19)
+));
+    singular[0] = _t20;
+}
+
+void planar_rp_joint_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict xdd, const planar_rp_params *restrict params, double *restrict qdd, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_rp_joint_acceleration(q + 2 * i, qd + 2 * i, xdd + 2 * i, params, qdd + 2 * i, singular + 1 * i);
+    }
 }
 
 /* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */

@@ -38,6 +38,33 @@ void puma560_task_jacobian_batch(size_t count, const double *q, const puma560_pa
 /* Returns the number of valid branches, or -1 when x is not a rigid transform; the batch returns their total (-1 if any item was refused). */
 int puma560_ik(const double *x, const puma560_params *params, double *Q, int *valid);
 long puma560_ik_batch(size_t count, const double *x, const puma560_params *params, double *Q, int *valid);
+/* task_velocity: q[6], qd[6] -> xd[12] (row-major). Task rates x_dot = J_x q_dot, shape (..., 12). */
+void puma560_task_velocity(const double *q, const double *qd, const puma560_params *params, double *xd);
+void puma560_task_velocity_batch(size_t count, const double *q, const double *qd, const puma560_params *params, double *xd);
+/* twist: q[6], qd[6] -> twist[6] (row-major). Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s. */
+void puma560_twist(const double *q, const double *qd, const puma560_params *params, double *twist);
+void puma560_twist_batch(size_t count, const double *q, const double *qd, const puma560_params *params, double *twist);
+/* task_jacobian_dot: q[6], qd[6] -> Jx_dot[72] (row-major). d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 12, 6). */
+void puma560_task_jacobian_dot(const double *q, const double *qd, const puma560_params *params, double *Jx_dot);
+void puma560_task_jacobian_dot_batch(size_t count, const double *q, const double *qd, const puma560_params *params, double *Jx_dot);
+/* jacobian_dot: q[6], qd[6] -> J_dot[36] (row-major). d(J)/dt of the geometric Jacobian, shape (..., 6, 6). */
+void puma560_jacobian_dot(const double *q, const double *qd, const puma560_params *params, double *J_dot);
+void puma560_jacobian_dot_batch(size_t count, const double *q, const double *qd, const puma560_params *params, double *J_dot);
+/* task_acceleration: q[6], qd[6], qdd[6] -> xdd[12] (row-major). Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 12). */
+void puma560_task_acceleration(const double *q, const double *qd, const double *qdd, const puma560_params *params, double *xdd);
+void puma560_task_acceleration_batch(size_t count, const double *q, const double *qd, const double *qdd, const puma560_params *params, double *xdd);
+/* manipulability: q[6] -> manipulability[1], singular[1] (row-major). Manipulability w (det J = det A det D; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...). */
+void puma560_manipulability(const double *q, const puma560_params *params, double *manipulability, int *singular);
+void puma560_manipulability_batch(size_t count, const double *q, const puma560_params *params, double *manipulability, int *singular);
+/* joint_velocity: q[6], xd[12] -> qd[6], singular[1] (row-major). Joint rates from task rates: twist from the pose rates, then Paul's partitioned inverse; damped least squares where singular. Shapes (..., 6) and (...). */
+void puma560_joint_velocity(const double *q, const double *xd, const puma560_params *params, double *qd, int *singular);
+void puma560_joint_velocity_batch(size_t count, const double *q, const double *xd, const puma560_params *params, double *qd, int *singular);
+/* joint_acceleration: q[6], qd[6], xdd[12] -> qdd[6], singular[1] (row-major). Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 6) and (...). */
+void puma560_joint_acceleration(const double *q, const double *qd, const double *xdd, const puma560_params *params, double *qdd, int *singular);
+void puma560_joint_acceleration_batch(size_t count, const double *q, const double *qd, const double *xdd, const puma560_params *params, double *qdd, int *singular);
+/* joint_velocity_from_twist: q[6], twist[6] -> qd[6], singular[1] (row-major). Joint rates from the tool twist by Paul's wrist partition (two 3 x 3 solves; damped least squares per block where singular). Shapes (..., 6) and (...). */
+void puma560_joint_velocity_from_twist(const double *q, const double *twist, const puma560_params *params, double *qd, int *singular);
+void puma560_joint_velocity_from_twist_batch(size_t count, const double *q, const double *twist, const puma560_params *params, double *qd, int *singular);
 /* within_limits: q[6] -> 1 when every joint lies within its limits (revolute joints modulo 2 pi), else 0. */
 int puma560_within_limits(const double *q);
 void puma560_within_limits_batch(size_t count, const double *q, int *inside);

@@ -10,6 +10,15 @@
  * task: 125 operations after common-subexpression elimination
  * task_jacobian: 223 operations after common-subexpression elimination
  * ik: 431 operations after common-subexpression elimination
+ * task_velocity: 306 operations after common-subexpression elimination
+ * twist: 101 operations after common-subexpression elimination
+ * task_jacobian_dot: 773 operations after common-subexpression elimination
+ * jacobian_dot: 214 operations after common-subexpression elimination
+ * task_acceleration: 1007 operations after common-subexpression elimination
+ * manipulability: 41 operations after common-subexpression elimination
+ * joint_velocity: 717 operations after common-subexpression elimination
+ * joint_acceleration: 890 operations after common-subexpression elimination
+ * joint_velocity_from_twist: 606 operations after common-subexpression elimination
  */
 #include "puma560.h"
 
@@ -928,6 +937,1599 @@ long puma560_ik_batch(size_t count, const double *restrict x, const puma560_para
         }
     }
     return refused ? -1 : valid_branches;
+}
+
+/* Task rates x_dot = J_x q_dot, shape (..., 12). */
+void puma560_task_velocity(const double *restrict q, const double *restrict qd, const puma560_params *restrict params, double *restrict xd)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double q5 = q[4];
+    const double q6 = q[5];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    const double qd4 = qd[3];
+    const double qd5 = qd[4];
+    const double qd6 = qd[5];
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    const double _t0 = cos(q1);
+    const double _t1 = q2 + q3;
+    const double _t2 = sin(_t1);
+    const double _t3 = cos(_t1);
+    const double _t4 = _t2*a3 + _t3*d4;
+    const double _t5 = _t4*qd3;
+    const double _t6 = qd2*(_t4 + a2*sin(q2));
+    const double _t7 = sin(q1);
+    const double _t8 = a2*cos(q2);
+    const double _t9 = _t3*a3;
+    const double _t10 = _t2*d4;
+    const double _t11 = -_t10 + _t9;
+    const double _t12 = sin(q4);
+    const double _t13 = sin(q5);
+    const double _t14 = cos(q5);
+    const double _t15 = _t14*_t2;
+    const double _t16 = cos(q4);
+    const double _t17 = _t0*_t16;
+    const double _t18 = _t13*_t3;
+    const double _t19 = _t0*_t15 - _t12*_t13*_t7 + _t17*_t18;
+    const double _t20 = -_t19;
+    const double _t21 = cos(q6);
+    const double _t22 = _t21*qd5;
+    const double _t23 = sin(q6);
+    const double _t24 = _t16*_t21;
+    const double _t25 = _t12*_t2*_t23 - _t15*_t24 - _t18*_t21;
+    const double _t26 = _t0*_t25;
+    const double _t27 = _t16*_t7;
+    const double _t28 = _t21*_t27;
+    const double _t29 = _t17*_t23;
+    const double _t30 = _t14*_t3;
+    const double _t31 = _t12*_t21;
+    const double _t32 = _t0*_t31;
+    const double _t33 = _t12*_t23*_t3*_t7 + _t13*_t2*_t21*_t7 - _t14*_t32 - _t28*_t30 - _t29;
+    const double _t34 = _t0*_t13*_t2*_t23 + _t12*_t14*_t23*_t7 - _t28 - _t29*_t30 - _t3*_t32;
+    const double _t35 = _t23*qd5;
+    const double _t36 = _t16*_t23;
+    const double _t37 = _t15*_t36 + _t18*_t23 + _t2*_t31;
+    const double _t38 = _t0*_t37;
+    const double _t39 = _t12*_t7;
+    const double _t40 = _t21*_t39;
+    const double _t41 = _t23*_t27;
+    const double _t42 = _t17*_t21;
+    const double _t43 = _t12*_t23;
+    const double _t44 = _t0*_t43;
+    const double _t45 = _t0*_t13;
+    const double _t46 = _t2*_t45;
+    const double _t47 = _t14*_t40 + _t21*_t46 + _t3*_t44 - _t30*_t42 + _t41;
+    const double _t48 = _t13*_t2;
+    const double _t49 = _t14*_t44 - _t23*_t48*_t7 + _t3*_t40 + _t30*_t41 - _t42;
+    const double _t50 = _t0*_t12;
+    const double _t51 = _t13*qd4;
+    const double _t52 = _t16*_t48 - _t30;
+    const double _t53 = _t0*_t52;
+    const double _t54 = _t12*_t45 + _t15*_t7 + _t18*_t27;
+    const double _t55 = _t25*_t7;
+    const double _t56 = _t37*_t7;
+    const double _t57 = _t52*_t7;
+    const double _t58 = _t2*qd4;
+    const double _t59 = _t14*_t16*_t21*_t3 - _t21*_t48 - _t3*_t43;
+    const double _t60 = _t13*_t2*_t23 - _t3*_t31 - _t30*_t36;
+    const double _t61 = -_t15 - _t16*_t18;
+    xd[0] = -_t0*_t5 - _t0*_t6 + qd1*(_t0*d3 + _t2*_t7*d4 - _t7*_t8 - _t7*_t9);
+    xd[1] = -_t5*_t7 - _t6*_t7 + qd1*(-_t0*_t10 + _t0*_t8 + _t0*_t9 + _t7*d3);
+    xd[2] = _t11*qd3 + qd2*(_t11 + _t8);
+    xd[3] = _t20*_t22 + _t26*qd2 + _t26*qd3 + _t33*qd1 + _t34*qd6 + qd4*(_t12*_t23*_t7 - _t14*_t28 - _t29*_t3 - _t30*_t32);
+    xd[4] = _t19*_t35 + _t38*qd2 + _t38*qd3 + _t47*qd6 + _t49*qd1 + qd4*(_t14*_t41 - _t3*_t42 + _t30*_t44 + _t40);
+    xd[5] = _t51*(_t27 + _t3*_t50) + _t53*qd2 + _t53*qd3 + _t54*qd1 + qd5*(_t14*_t39 - _t17*_t30 + _t46);
+    xd[6] = -_t22*_t54 - _t47*qd1 - _t49*qd6 + _t55*qd2 + _t55*qd3 + qd4*(_t0*_t14*_t16*_t21 - _t3*_t41 - _t30*_t40 - _t44);
+    xd[7] = _t33*qd6 + _t34*qd1 + _t35*_t54 + _t56*qd2 + _t56*qd3 + qd4*(_t12*_t14*_t23*_t3*_t7 - _t14*_t29 - _t28*_t3 - _t32);
+    xd[8] = _t20*qd1 + _t51*(-_t17 + _t3*_t39) + _t57*qd2 + _t57*qd3 + qd5*(_t13*_t2*_t7 - _t14*_t50 - _t27*_t30);
+    xd[9] = -_t22*_t52 - _t37*qd6 - _t58*(_t14*_t31 + _t36) + _t59*qd2 + _t59*qd3;
+    xd[10] = _t25*qd6 + _t35*_t52 + _t58*(_t14*_t43 - _t24) + _t60*qd2 + _t60*qd3;
+    xd[11] = _t12*_t48*qd4 + _t61*qd2 + _t61*qd3 + qd5*(-_t15*_t16 - _t18);
+}
+
+void puma560_task_velocity_batch(size_t count, const double *restrict q, const double *restrict qd, const puma560_params *restrict params, double *restrict xd)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        puma560_task_velocity(q + 6 * i, qd + 6 * i, params, xd + 12 * i);
+    }
+}
+
+/* Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s. */
+void puma560_twist(const double *restrict q, const double *restrict qd, const puma560_params *restrict params, double *restrict twist)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double q5 = q[4];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    const double qd4 = qd[3];
+    const double qd5 = qd[4];
+    const double qd6 = qd[5];
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    const double _t0 = q2 + q3;
+    const double _t1 = sin(_t0);
+    const double _t2 = cos(_t0);
+    const double _t3 = _t1*a3 + _t2*d4;
+    const double _t4 = cos(q1);
+    const double _t5 = _t4*qd3;
+    const double _t6 = _t3 + a2*sin(q2);
+    const double _t7 = _t4*qd2;
+    const double _t8 = sin(q1);
+    const double _t9 = a2*cos(q2);
+    const double _t10 = _t2*a3;
+    const double _t11 = _t8*qd3;
+    const double _t12 = _t8*qd2;
+    const double _t13 = _t1*d4;
+    const double _t14 = _t10 - _t13;
+    const double _t15 = _t1*_t4;
+    const double _t16 = cos(q4);
+    const double _t17 = _t16*_t8;
+    const double _t18 = sin(q4);
+    const double _t19 = _t18*_t2;
+    const double _t20 = sin(q5);
+    const double _t21 = cos(q5);
+    const double _t22 = _t16*_t4;
+    const double _t23 = _t2*_t20;
+    const double _t24 = _t1*_t8;
+    twist[0] = -_t3*_t5 - _t6*_t7 + qd1*(_t1*_t8*d4 - _t10*_t8 + _t4*d3 - _t8*_t9);
+    twist[1] = -_t11*_t3 - _t12*_t6 + qd1*(_t10*_t4 - _t13*_t4 + _t4*_t9 + _t8*d3);
+    twist[2] = _t14*qd3 + qd2*(_t14 + _t9);
+    twist[3] = _t11 + _t12 - _t15*qd4 + qd5*(_t17 + _t19*_t4) + qd6*(-_t15*_t21 + _t18*_t20*_t8 - _t22*_t23);
+    twist[4] = -_t24*qd4 - _t5 - _t7 + qd5*(_t19*_t8 - _t22) + qd6*(-_t17*_t23 - _t18*_t20*_t4 - _t21*_t24);
+    twist[5] = _t1*_t18*qd5 + _t2*qd4 + qd1 + qd6*(-_t1*_t16*_t20 + _t2*_t21);
+}
+
+void puma560_twist_batch(size_t count, const double *restrict q, const double *restrict qd, const puma560_params *restrict params, double *restrict twist)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        puma560_twist(q + 6 * i, qd + 6 * i, params, twist + 6 * i);
+    }
+}
+
+/* d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 12, 6). */
+void puma560_task_jacobian_dot(const double *restrict q, const double *restrict qd, const puma560_params *restrict params, double *restrict Jx_dot)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double q5 = q[4];
+    const double q6 = q[5];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    const double qd4 = qd[3];
+    const double qd5 = qd[4];
+    const double qd6 = qd[5];
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    const double _t0 = sin(q1);
+    const double _t1 = q2 + q3;
+    const double _t2 = sin(_t1);
+    const double _t3 = _t2*a3;
+    const double _t4 = cos(_t1);
+    const double _t5 = _t4*d4;
+    const double _t6 = _t0*_t3 + _t0*_t5;
+    const double _t7 = a2*sin(q2);
+    const double _t8 = cos(q1);
+    const double _t9 = a2*cos(q2);
+    const double _t10 = _t4*a3;
+    const double _t11 = _t10 - _t2*d4;
+    const double _t12 = _t11*qd3;
+    const double _t13 = _t12*_t8;
+    const double _t14 = _t3 + _t5;
+    const double _t15 = _t14 + _t7;
+    const double _t16 = _t11 + _t9;
+    const double _t17 = _t8*qd2;
+    const double _t18 = _t3*_t8 + _t5*_t8;
+    const double _t19 = _t0*_t12;
+    const double _t20 = _t8*qd1;
+    const double _t21 = _t0*qd2;
+    const double _t22 = -_t14;
+    const double _t23 = _t22*qd3;
+    const double _t24 = cos(q6);
+    const double _t25 = sin(q5);
+    const double _t26 = sin(q4);
+    const double _t27 = _t26*_t8;
+    const double _t28 = _t25*_t27;
+    const double _t29 = cos(q5);
+    const double _t30 = _t2*_t29;
+    const double _t31 = _t0*_t30;
+    const double _t32 = cos(q4);
+    const double _t33 = _t0*_t32;
+    const double _t34 = _t25*_t4;
+    const double _t35 = _t24*_t34;
+    const double _t36 = sin(q6);
+    const double _t37 = _t0*_t26;
+    const double _t38 = _t36*_t37;
+    const double _t39 = _t24*_t33;
+    const double _t40 = _t0*_t35 - _t2*_t38 + _t30*_t39;
+    const double _t41 = _t27*_t36;
+    const double _t42 = _t32*_t8;
+    const double _t43 = _t24*_t42;
+    const double _t44 = _t33*_t36;
+    const double _t45 = _t29*_t4;
+    const double _t46 = _t24*_t45;
+    const double _t47 = -_t29*_t43 + _t37*_t46 + _t4*_t44 + _t41;
+    const double _t48 = _t2*_t25;
+    const double _t49 = _t24*_t48;
+    const double _t50 = _t24*_t37;
+    const double _t51 = _t29*_t50 + _t4*_t41 - _t43*_t45 + _t44;
+    const double _t52 = _t49*_t8 + _t51;
+    const double _t53 = _t36*_t48;
+    const double _t54 = _t29*_t41 + _t4*_t50 - _t43 + _t44*_t45;
+    const double _t55 = -_t0*_t53 + _t54;
+    const double _t56 = _t40*qd2 + _t40*qd3 + _t47*qd4 + _t52*qd1 + _t55*qd6 + qd5*(_t24*_t28 + _t24*_t31 + _t33*_t35);
+    const double _t57 = _t32*_t36;
+    const double _t58 = _t24*_t26;
+    const double _t59 = qd4*(_t2*_t57 + _t30*_t58);
+    const double _t60 = _t24*_t32;
+    const double _t61 = qd5*(-_t46 + _t48*_t60);
+    const double _t62 = _t34*_t36;
+    const double _t63 = _t2*_t58 + _t30*_t57 + _t62;
+    const double _t64 = _t63*qd6;
+    const double _t65 = _t26*_t36;
+    const double _t66 = _t4*_t65 - _t45*_t60 + _t49;
+    const double _t67 = _t66*qd2;
+    const double _t68 = _t66*qd3;
+    const double _t69 = -_t2*_t26*_t36 + _t30*_t60 + _t35;
+    const double _t70 = -_t69;
+    const double _t71 = _t0*qd1;
+    const double _t72 = _t59*_t8 + _t61*_t8 + _t64*_t8 + _t67*_t8 + _t68*_t8 - _t70*_t71;
+    const double _t73 = _t25*_t33;
+    const double _t74 = _t36*_t42;
+    const double _t75 = _t24*_t27;
+    const double _t76 = _t2*_t74 + _t30*_t75;
+    const double _t77 = _t29*_t44 - _t4*_t43 + _t41*_t45 + _t50;
+    const double _t78 = _t27*_t34 + _t73;
+    const double _t79 = _t78*qd4;
+    const double _t80 = _t42*_t48 - _t45*_t8;
+    const double _t81 = _t80*qd2;
+    const double _t82 = _t80*qd3;
+    const double _t83 = _t28 + _t31 + _t33*_t34;
+    const double _t84 = _t83*qd1;
+    const double _t85 = _t29*_t37;
+    const double _t86 = _t48*_t8;
+    const double _t87 = -_t42*_t45 + _t85 + _t86;
+    const double _t88 = _t87*qd5;
+    const double _t89 = _t30*_t8;
+    const double _t90 = -_t0*_t25*_t26 + _t34*_t42 + _t89;
+    const double _t91 = _t36*qd6;
+    const double _t92 = _t2*_t75 + _t30*_t74 + _t62*_t8;
+    const double _t93 = _t52*qd6 + _t55*qd1 + _t77*qd4 + _t92*qd2 + _t92*qd3 + qd5*(-_t25*_t36*_t37 + _t36*_t89 + _t42*_t62);
+    const double _t94 = _t25*_t41 + _t31*_t36 + _t34*_t44;
+    const double _t95 = _t0*_t62 + _t2*_t50 + _t30*_t44;
+    const double _t96 = -_t95;
+    const double _t97 = _t29*_t74 - _t36*_t37*_t45 + _t39*_t4 + _t75;
+    const double _t98 = -_t36*_t85 + _t39 + _t4*_t75 + _t45*_t74;
+    const double _t99 = -_t36*_t86 + _t98;
+    const double _t100 = _t29*_t75 + _t33*_t46 - _t38*_t4 + _t74;
+    const double _t101 = -_t0*_t49 + _t100;
+    const double _t102 = -_t2*_t24*_t32 + _t30*_t65;
+    const double _t103 = -_t102*qd4;
+    const double _t104 = -_t29*_t36*_t4 + _t48*_t57;
+    const double _t105 = -_t104;
+    const double _t106 = _t8*qd5;
+    const double _t107 = _t4*_t58 + _t45*_t57 - _t53;
+    const double _t108 = _t8*qd3;
+    const double _t109 = _t69*qd6;
+    const double _t110 = _t103*_t8 + _t105*_t106 + _t107*_t108 + _t107*_t17 + _t109*_t8 - _t63*_t71;
+    const double _t111 = _t2*_t24*_t32*_t8 - _t30*_t41;
+    const double _t112 = _t27*_t46 + _t29*_t39 - _t38 + _t4*_t74;
+    const double _t113 = -_t36*_t80;
+    const double _t114 = _t24*qd6;
+    const double _t115 = _t36*qd5;
+    const double _t116 = _t24*_t89 - _t25*_t50 + _t34*_t43;
+    const double _t117 = -_t2*_t41 + _t30*_t43 + _t35*_t8;
+    const double _t118 = qd4*(_t25*_t32*_t8 - _t34*_t37);
+    const double _t119 = _t0*_t29*_t4 - _t33*_t48;
+    const double _t120 = _t119*qd2;
+    const double _t121 = _t119*qd3;
+    const double _t122 = _t90*qd1;
+    const double _t123 = -_t0*_t48 + _t27*_t29 + _t33*_t45;
+    const double _t124 = _t123*qd5;
+    const double _t125 = _t27*_t48;
+    const double _t126 = _t30 + _t32*_t34;
+    const double _t127 = _t30*_t32 + _t34;
+    const double _t128 = _t32*_t48;
+    const double _t129 = _t128 - _t45;
+    const double _t130 = _t106*_t127 + _t108*_t126 - _t125*qd4 + _t126*_t17 - _t129*_t71;
+    const double _t131 = _t27*_t4 + _t33;
+    const double _t132 = _t29*qd5;
+    const double _t133 = -_t32*_t8 + _t37*_t4;
+    const double _t134 = _t25*qd1;
+    const double _t135 = _t25*qd4;
+    const double _t136 = _t30*_t42 + _t34*_t8;
+    const double _t137 = -_t117;
+    const double _t138 = -_t112;
+    const double _t139 = -_t101;
+    const double _t140 = -_t99;
+    const double _t141 = _t0*_t59 + _t0*_t61 + _t0*_t64 + _t0*_t67 + _t0*_t68 + _t20*_t70;
+    const double _t142 = _t2*_t44 + _t30*_t50;
+    const double _t143 = -_t97;
+    const double _t144 = _t0*qd5;
+    const double _t145 = _t0*qd3;
+    const double _t146 = _t0*_t103 + _t0*_t109 + _t105*_t144 + _t107*_t145 + _t107*_t21 + _t20*_t63;
+    const double _t147 = _t0*_t2*_t24*_t32 - _t30*_t38;
+    const double _t148 = _t37*_t48;
+    const double _t149 = _t126*_t145 + _t126*_t21 + _t127*_t144 + _t129*_t20 - _t148*qd4;
+    const double _t150 = _t0*_t34 + _t30*_t33;
+    const double _t151 = -_t107;
+    const double _t152 = _t151*qd6 + _t70*qd2 + _t70*qd3 + qd4*(-_t4*_t57 - _t45*_t58) + qd5*(-_t24*_t30 - _t34*_t60);
+    const double _t153 = _t29*_t58 + _t57;
+    const double _t154 = _t153*_t4;
+    const double _t155 = _t2*qd4;
+    const double _t156 = -_t24*_t32 + _t29*_t65;
+    const double _t157 = _t2*qd6;
+    const double _t158 = -_t126*_t24;
+    const double _t159 = _t63*qd2 + _t63*qd3 + _t66*qd6 + qd4*(-_t4*_t60 + _t45*_t65) + qd5*(_t30*_t36 + _t34*_t57);
+    const double _t160 = _t48*_t65;
+    const double _t161 = _t156*_t4;
+    const double _t162 = _t126*_t36;
+    const double _t163 = _t26*_t34;
+    const double _t164 = -_t32*_t45 + _t48;
+    const double _t165 = _t129*qd2 + _t129*qd3 + _t163*qd4 + _t164*qd5;
+    const double _t166 = _t26*_t30;
+    Jx_dot[0] = _t6*qd3 + qd1*(-_t0*d3 - _t10*_t8 + _t2*_t8*d4 - _t8*_t9) + qd2*(_t0*_t7 + _t6);
+    Jx_dot[1] = _t0*_t15*qd1 - _t13 - _t16*_t17;
+    Jx_dot[2] = _t0*_t14*qd1 - _t11*_t17 - _t13;
+    Jx_dot[3] = 0;
+    Jx_dot[4] = 0;
+    Jx_dot[5] = 0;
+    Jx_dot[6] = -_t18*qd3 + qd1*(-_t0*_t10 + _t0*_t2*d4 - _t0*_t9 + _t8*d3) + qd2*(-_t18 - _t7*_t8);
+    Jx_dot[7] = -_t15*_t20 - _t16*_t21 - _t19;
+    Jx_dot[8] = -_t11*_t21 - _t14*_t20 - _t19;
+    Jx_dot[9] = 0;
+    Jx_dot[10] = 0;
+    Jx_dot[11] = 0;
+    Jx_dot[12] = 0;
+    Jx_dot[13] = -_t15*qd2 + _t23;
+    Jx_dot[14] = _t22*qd2 + _t23;
+    Jx_dot[15] = 0;
+    Jx_dot[16] = 0;
+    Jx_dot[17] = 0;
+    Jx_dot[18] = _t56;
+    Jx_dot[19] = _t72;
+    Jx_dot[20] = _t72;
+    Jx_dot[21] = _t47*qd1 + _t51*qd4 + _t76*qd2 + _t76*qd3 + _t77*qd6 + qd5*(_t24*_t73 + _t27*_t35);
+    Jx_dot[22] = _t24*_t79 + _t24*_t81 + _t24*_t82 + _t24*_t84 + _t24*_t88 + _t90*_t91;
+    Jx_dot[23] = _t93;
+    Jx_dot[24] = _t101*qd6 - _t94*qd5 + _t96*qd2 + _t96*qd3 + _t97*qd4 + _t99*qd1;
+    Jx_dot[25] = _t110;
+    Jx_dot[26] = _t110;
+    Jx_dot[27] = _t111*qd2 + _t111*qd3 + _t112*qd6 + _t97*qd1 + _t98*qd4 + qd5*(-_t25*_t44 - _t34*_t41);
+    Jx_dot[28] = _t113*qd2 + _t113*qd3 + _t114*_t90 - _t115*_t87 - _t36*_t78*qd4 - _t36*_t83*qd1;
+    Jx_dot[29] = _t101*qd1 + _t112*qd4 + _t116*qd5 + _t117*qd2 + _t117*qd3 + _t99*qd6;
+    Jx_dot[30] = _t118 + _t120 + _t121 + _t122 + _t124;
+    Jx_dot[31] = _t130;
+    Jx_dot[32] = _t130;
+    Jx_dot[33] = -_t125*qd2 - _t125*qd3 + _t131*_t132 - _t133*_t134 + _t135*(_t32*_t4*_t8 - _t37);
+    Jx_dot[34] = _t123*qd1 + _t136*qd2 + _t136*qd3 + _t90*qd5 + qd4*(_t27*_t45 + _t29*_t33);
+    Jx_dot[35] = 0;
+    Jx_dot[36] = -_t116*qd5 + _t137*qd2 + _t137*qd3 + _t138*qd4 + _t139*qd1 + _t140*qd6;
+    Jx_dot[37] = _t141;
+    Jx_dot[38] = _t141;
+    Jx_dot[39] = -_t100*qd4 + _t138*qd1 + _t142*qd2 + _t142*qd3 + _t143*qd6 + qd5*(-_t25*_t43 + _t35*_t37);
+    Jx_dot[40] = -_t118*_t24 - _t120*_t24 - _t121*_t24 - _t122*_t24 - _t124*_t24 + _t36*_t83*qd6;
+    Jx_dot[41] = _t139*qd6 + _t140*qd1 + _t143*qd4 + _t94*qd5 + _t95*qd2 + _t95*qd3;
+    Jx_dot[42] = _t93;
+    Jx_dot[43] = _t146;
+    Jx_dot[44] = _t146;
+    Jx_dot[45] = _t147*qd2 + _t147*qd3 + _t47*qd6 + _t54*qd4 + _t77*qd1 + qd5*(_t25*_t32*_t36*_t8 - _t37*_t62);
+    Jx_dot[46] = _t114*_t83 + _t118*_t36 + _t120*_t36 + _t121*_t36 + _t122*_t36 + _t124*_t36;
+    Jx_dot[47] = _t56;
+    Jx_dot[48] = _t79 + _t81 + _t82 + _t84 + _t88;
+    Jx_dot[49] = _t149;
+    Jx_dot[50] = _t149;
+    Jx_dot[51] = _t131*_t134 + _t132*_t133 + _t135*(_t27 + _t33*_t4) - _t148*qd2 - _t148*qd3;
+    Jx_dot[52] = _t150*qd2 + _t150*qd3 + _t83*qd5 + _t87*qd1 + qd4*(-_t29*_t42 + _t37*_t45);
+    Jx_dot[53] = 0;
+    Jx_dot[54] = 0;
+    Jx_dot[55] = _t152;
+    Jx_dot[56] = _t152;
+    Jx_dot[57] = -_t154*qd2 - _t154*qd3 - _t155*(_t24*_t29*_t32 - _t65) + _t156*_t157 + _t2*_t24*_t25*_t26*qd5;
+    Jx_dot[58] = -_t127*_t24*qd5 + _t129*_t91 + _t158*qd2 + _t158*qd3 + _t48*_t58*qd4;
+    Jx_dot[59] = _t102*qd4 + _t104*qd5 + _t151*qd2 + _t151*qd3 + _t70*qd6;
+    Jx_dot[60] = 0;
+    Jx_dot[61] = _t159;
+    Jx_dot[62] = _t159;
+    Jx_dot[63] = _t153*_t157 + _t155*(_t29*_t57 + _t58) - _t160*qd5 + _t161*qd2 + _t161*qd3;
+    Jx_dot[64] = _t114*_t129 + _t115*_t127 - _t160*qd4 + _t162*qd2 + _t162*qd3;
+    Jx_dot[65] = _t59 + _t61 + _t64 + _t67 + _t68;
+    Jx_dot[66] = 0;
+    Jx_dot[67] = _t165;
+    Jx_dot[68] = _t165;
+    Jx_dot[69] = _t128*qd4 + _t163*qd2 + _t163*qd3 + _t166*qd5;
+    Jx_dot[70] = _t129*qd5 + _t164*qd2 + _t164*qd3 + _t166*qd4;
+    Jx_dot[71] = 0;
+}
+
+void puma560_task_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const puma560_params *restrict params, double *restrict Jx_dot)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        puma560_task_jacobian_dot(q + 6 * i, qd + 6 * i, params, Jx_dot + 72 * i);
+    }
+}
+
+/* d(J)/dt of the geometric Jacobian, shape (..., 6, 6). */
+void puma560_jacobian_dot(const double *restrict q, const double *restrict qd, const puma560_params *restrict params, double *restrict J_dot)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double q5 = q[4];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    const double qd4 = qd[3];
+    const double qd5 = qd[4];
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    const double _t0 = sin(q1);
+    const double _t1 = q2 + q3;
+    const double _t2 = sin(_t1);
+    const double _t3 = _t2*a3;
+    const double _t4 = cos(_t1);
+    const double _t5 = _t4*d4;
+    const double _t6 = _t0*_t3 + _t0*_t5;
+    const double _t7 = a2*sin(q2);
+    const double _t8 = cos(q1);
+    const double _t9 = a2*cos(q2);
+    const double _t10 = _t4*a3;
+    const double _t11 = _t10 - _t2*d4;
+    const double _t12 = _t11*qd3;
+    const double _t13 = _t12*_t8;
+    const double _t14 = _t3 + _t5;
+    const double _t15 = _t14 + _t7;
+    const double _t16 = _t11 + _t9;
+    const double _t17 = _t8*qd2;
+    const double _t18 = _t3*_t8 + _t5*_t8;
+    const double _t19 = _t0*_t12;
+    const double _t20 = _t8*qd1;
+    const double _t21 = _t0*qd2;
+    const double _t22 = -_t14;
+    const double _t23 = _t22*qd3;
+    const double _t24 = _t4*_t8;
+    const double _t25 = sin(q4);
+    const double _t26 = _t25*_t8;
+    const double _t27 = _t2*qd2;
+    const double _t28 = _t2*qd3;
+    const double _t29 = cos(q4);
+    const double _t30 = _t0*_t25;
+    const double _t31 = sin(q5);
+    const double _t32 = _t0*_t29;
+    const double _t33 = _t31*_t32;
+    const double _t34 = _t31*_t4;
+    const double _t35 = cos(q5);
+    const double _t36 = _t29*_t8;
+    const double _t37 = _t2*_t31;
+    const double _t38 = -_t24*_t35 + _t36*_t37;
+    const double _t39 = _t2*_t35;
+    const double _t40 = _t0*qd1;
+    const double _t41 = _t0*_t4;
+    const double _t42 = _t32*_t4;
+    const double _t43 = _t2*_t33 - _t35*_t41;
+    const double _t44 = _t25*_t4;
+    const double _t45 = -_t29*_t34 - _t39;
+    J_dot[0] = _t6*qd3 + qd1*(-_t0*d3 - _t10*_t8 + _t2*_t8*d4 - _t8*_t9) + qd2*(_t0*_t7 + _t6);
+    J_dot[1] = _t0*_t15*qd1 - _t13 - _t16*_t17;
+    J_dot[2] = _t0*_t14*qd1 - _t11*_t17 - _t13;
+    J_dot[3] = 0;
+    J_dot[4] = 0;
+    J_dot[5] = 0;
+    J_dot[6] = -_t18*qd3 + qd1*(-_t0*_t10 + _t0*_t2*d4 - _t0*_t9 + _t8*d3) + qd2*(-_t18 - _t7*_t8);
+    J_dot[7] = -_t15*_t20 - _t16*_t21 - _t19;
+    J_dot[8] = -_t11*_t21 - _t14*_t20 - _t19;
+    J_dot[9] = 0;
+    J_dot[10] = 0;
+    J_dot[11] = 0;
+    J_dot[12] = 0;
+    J_dot[13] = -_t15*qd2 + _t23;
+    J_dot[14] = _t22*qd2 + _t23;
+    J_dot[15] = 0;
+    J_dot[16] = 0;
+    J_dot[17] = 0;
+    J_dot[18] = 0;
+    J_dot[19] = _t20;
+    J_dot[20] = _t20;
+    J_dot[21] = _t0*_t2*qd1 - _t17*_t4 - _t24*qd3;
+    J_dot[22] = -_t26*_t27 - _t26*_t28 + qd1*(_t29*_t8 - _t30*_t4) + qd4*(_t29*_t4*_t8 - _t30);
+    J_dot[23] = _t38*qd2 + _t38*qd3 + qd1*(_t0*_t39 + _t26*_t31 + _t32*_t34) + qd4*(_t26*_t34 + _t33) + qd5*(_t30*_t35 - _t35*_t36*_t4 + _t37*_t8);
+    J_dot[24] = 0;
+    J_dot[25] = _t40;
+    J_dot[26] = _t40;
+    J_dot[27] = -_t2*_t20 - _t21*_t4 - _t41*qd3;
+    J_dot[28] = -_t27*_t30 - _t28*_t30 + qd1*(_t26*_t4 + _t32) + qd4*(_t26 + _t42);
+    J_dot[29] = _t43*qd2 + _t43*qd3 + qd1*(_t0*_t25*_t31 - _t34*_t36 - _t39*_t8) + qd4*(_t30*_t34 - _t31*_t36) + qd5*(_t0*_t2*_t31 - _t26*_t35 - _t35*_t42);
+    J_dot[30] = 0;
+    J_dot[31] = 0;
+    J_dot[32] = 0;
+    J_dot[33] = -_t27 - _t28;
+    J_dot[34] = _t2*_t29*qd4 + _t44*qd2 + _t44*qd3;
+    J_dot[35] = _t25*_t37*qd4 + _t45*qd2 + _t45*qd3 + qd5*(-_t29*_t39 - _t34);
+}
+
+void puma560_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const puma560_params *restrict params, double *restrict J_dot)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        puma560_jacobian_dot(q + 6 * i, qd + 6 * i, params, J_dot + 36 * i);
+    }
+}
+
+/* Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 12). */
+void puma560_task_acceleration(const double *restrict q, const double *restrict qd, const double *restrict qdd, const puma560_params *restrict params, double *restrict xdd)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double q5 = q[4];
+    const double q6 = q[5];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    const double qd4 = qd[3];
+    const double qd5 = qd[4];
+    const double qd6 = qd[5];
+    const double qdd1 = qdd[0];
+    const double qdd2 = qdd[1];
+    const double qdd3 = qdd[2];
+    const double qdd4 = qdd[3];
+    const double qdd5 = qdd[4];
+    const double qdd6 = qdd[5];
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    const double _t0 = cos(q1);
+    const double _t1 = q2 + q3;
+    const double _t2 = sin(_t1);
+    const double _t3 = _t2*a3;
+    const double _t4 = cos(_t1);
+    const double _t5 = _t4*d4;
+    const double _t6 = _t3 + _t5;
+    const double _t7 = _t0*_t6;
+    const double _t8 = a2*sin(q2);
+    const double _t9 = _t6 + _t8;
+    const double _t10 = _t0*_t9;
+    const double _t11 = sin(q1);
+    const double _t12 = a2*cos(q2);
+    const double _t13 = _t4*a3;
+    const double _t14 = _t0*d3 - _t11*_t12 - _t11*_t13 + _t11*_t2*d4;
+    const double _t15 = _t13 - _t2*d4;
+    const double _t16 = _t0*qd2;
+    const double _t17 = _t15*qd3;
+    const double _t18 = _t0*_t17;
+    const double _t19 = _t12 + _t15;
+    const double _t20 = _t11*_t3 + _t11*_t5;
+    const double _t21 = _t0*_t12 + _t0*_t13 - _t0*_t2*d4 + _t11*d3;
+    const double _t22 = _t11*qdd3;
+    const double _t23 = _t11*qdd2;
+    const double _t24 = _t11*qd2;
+    const double _t25 = _t11*_t17;
+    const double _t26 = _t0*_t3 + _t0*_t5;
+    const double _t27 = -_t6;
+    const double _t28 = _t27*qd3;
+    const double _t29 = sin(q4);
+    const double _t30 = sin(q5);
+    const double _t31 = cos(q5);
+    const double _t32 = _t2*_t31;
+    const double _t33 = _t0*_t32;
+    const double _t34 = _t30*_t4;
+    const double _t35 = cos(q4);
+    const double _t36 = _t0*_t35;
+    const double _t37 = -_t11*_t29*_t30 + _t33 + _t34*_t36;
+    const double _t38 = -_t37;
+    const double _t39 = cos(q6);
+    const double _t40 = _t39*qdd5;
+    const double _t41 = _t34*_t39;
+    const double _t42 = sin(q6);
+    const double _t43 = _t35*_t39;
+    const double _t44 = -_t2*_t29*_t42 + _t32*_t43 + _t41;
+    const double _t45 = -_t44;
+    const double _t46 = _t0*_t45;
+    const double _t47 = _t11*_t35;
+    const double _t48 = _t39*_t47;
+    const double _t49 = _t36*_t42;
+    const double _t50 = _t0*_t29;
+    const double _t51 = _t31*_t4;
+    const double _t52 = _t39*_t51;
+    const double _t53 = -_t11*_t29*_t42 + _t31*_t48 + _t4*_t49 + _t50*_t52;
+    const double _t54 = -_t53;
+    const double _t55 = _t39*_t50;
+    const double _t56 = -_t11*_t29*_t4*_t42 + _t31*_t55 + _t47*_t52 + _t49;
+    const double _t57 = -_t11*_t2*_t30*_t39 + _t56;
+    const double _t58 = -_t57;
+    const double _t59 = _t11*_t29;
+    const double _t60 = _t31*_t59;
+    const double _t61 = _t4*_t55 - _t42*_t60 + _t48 + _t49*_t51;
+    const double _t62 = -_t0*_t2*_t30*_t42 + _t61;
+    const double _t63 = -_t62;
+    const double _t64 = _t30*_t47;
+    const double _t65 = _t34*_t50 + _t64;
+    const double _t66 = _t65*qd4;
+    const double _t67 = _t2*_t30;
+    const double _t68 = -_t0*_t51 + _t36*_t67;
+    const double _t69 = _t68*qd2;
+    const double _t70 = _t68*qd3;
+    const double _t71 = _t30*_t50;
+    const double _t72 = _t11*_t32;
+    const double _t73 = _t34*_t47 + _t71 + _t72;
+    const double _t74 = _t73*qd1;
+    const double _t75 = _t0*_t67 - _t36*_t51 + _t60;
+    const double _t76 = _t75*qd5;
+    const double _t77 = _t42*qd6;
+    const double _t78 = _t35*_t42;
+    const double _t79 = _t29*_t39;
+    const double _t80 = qd4*(_t2*_t78 + _t32*_t79);
+    const double _t81 = qd5*(_t43*_t67 - _t52);
+    const double _t82 = _t34*_t42;
+    const double _t83 = _t2*_t79 + _t32*_t78 + _t82;
+    const double _t84 = _t83*qd6;
+    const double _t85 = _t29*_t42;
+    const double _t86 = _t39*_t67;
+    const double _t87 = _t4*_t85 - _t43*_t51 + _t86;
+    const double _t88 = _t87*qd2;
+    const double _t89 = _t87*qd3;
+    const double _t90 = _t11*qd1;
+    const double _t91 = _t0*_t80 + _t0*_t81 + _t0*_t84 + _t0*_t88 + _t0*_t89 - _t45*_t90;
+    const double _t92 = _t2*_t49 + _t32*_t55;
+    const double _t93 = _t42*_t50;
+    const double _t94 = _t36*_t39;
+    const double _t95 = _t42*_t47;
+    const double _t96 = -_t31*_t94 + _t4*_t95 + _t52*_t59 + _t93;
+    const double _t97 = _t39*_t59;
+    const double _t98 = _t31*_t97 + _t4*_t93 - _t51*_t94 + _t95;
+    const double _t99 = _t31*_t95 - _t4*_t94 + _t51*_t93 + _t97;
+    const double _t100 = _t0*_t82 + _t2*_t55 + _t32*_t49;
+    const double _t101 = _t0*_t86 + _t98;
+    const double _t102 = _t42*_t67;
+    const double _t103 = _t31*_t93 + _t4*_t97 + _t51*_t95 - _t94;
+    const double _t104 = -_t102*_t11 + _t103;
+    const double _t105 = _t100*qd2 + _t100*qd3 + _t101*qd6 + _t104*qd1 + _t99*qd4 + qd5*(-_t30*_t42*_t59 + _t33*_t42 + _t36*_t82);
+    const double _t106 = _t42*_t59;
+    const double _t107 = -_t106*_t2 + _t11*_t41 + _t32*_t48;
+    const double _t108 = _t101*qd1 + _t104*qd6 + _t107*qd2 + _t107*qd3 + _t96*qd4 + qd5*(_t39*_t71 + _t39*_t72 + _t41*_t47);
+    const double _t109 = _t42*qdd5;
+    const double _t110 = _t0*_t83;
+    const double _t111 = -_t42*_t68;
+    const double _t112 = _t39*qd6;
+    const double _t113 = _t42*qd5;
+    const double _t114 = -_t2*_t35*_t39 + _t32*_t85;
+    const double _t115 = -_t114*qd4;
+    const double _t116 = -_t31*_t4*_t42 + _t67*_t78;
+    const double _t117 = -_t116;
+    const double _t118 = _t0*qd5;
+    const double _t119 = -_t102 + _t4*_t79 + _t51*_t78;
+    const double _t120 = _t0*qd3;
+    const double _t121 = _t44*qd6;
+    const double _t122 = _t0*_t115 + _t0*_t121 + _t117*_t118 + _t119*_t120 + _t119*_t16 - _t83*_t90;
+    const double _t123 = _t0*_t2*_t35*_t39 - _t32*_t93;
+    const double _t124 = -_t106*_t51 + _t31*_t49 + _t4*_t48 + _t55;
+    const double _t125 = -_t30*_t97 + _t33*_t39 + _t34*_t94;
+    const double _t126 = _t0*_t41 - _t2*_t93 + _t32*_t94;
+    const double _t127 = _t30*_t93 + _t34*_t95 + _t42*_t72;
+    const double _t128 = _t11*_t82 + _t2*_t97 + _t32*_t95;
+    const double _t129 = -_t128;
+    const double _t130 = _t4*_t50 + _t47;
+    const double _t131 = _t30*qdd4;
+    const double _t132 = _t35*_t67;
+    const double _t133 = _t132 - _t51;
+    const double _t134 = _t0*_t133;
+    const double _t135 = _t50*_t67;
+    const double _t136 = _t31*qd5;
+    const double _t137 = -_t0*_t35 + _t4*_t59;
+    const double _t138 = _t30*qd1;
+    const double _t139 = _t30*qd4;
+    const double _t140 = _t32 + _t34*_t35;
+    const double _t141 = _t32*_t35 + _t34;
+    const double _t142 = _t118*_t141 + _t120*_t140 - _t133*_t90 - _t135*qd4 + _t140*_t16;
+    const double _t143 = _t0*_t34 + _t32*_t36;
+    const double _t144 = -_t11*_t67 + _t31*_t50 + _t47*_t51;
+    const double _t145 = qd4*(_t0*_t30*_t35 - _t34*_t59);
+    const double _t146 = _t11*_t31*_t4 - _t47*_t67;
+    const double _t147 = _t146*qd2;
+    const double _t148 = _t146*qd3;
+    const double _t149 = _t37*qd1;
+    const double _t150 = _t144*qd5;
+    const double _t151 = _t11*_t80 + _t11*_t81 + _t11*_t84 + _t11*_t88 + _t11*_t89 + _t46*qd1;
+    const double _t152 = _t2*_t95 + _t32*_t97;
+    const double _t153 = -_t124;
+    const double _t154 = -_t126;
+    const double _t155 = _t11*qd5;
+    const double _t156 = _t11*qd3;
+    const double _t157 = _t11*_t115 + _t11*_t121 + _t110*qd1 + _t117*_t155 + _t119*_t156 + _t119*_t24;
+    const double _t158 = -_t106*_t32 + _t11*_t2*_t35*_t39;
+    const double _t159 = _t59*_t67;
+    const double _t160 = _t134*qd1 + _t140*_t156 + _t140*_t24 + _t141*_t155 - _t159*qd4;
+    const double _t161 = _t11*_t34 + _t32*_t47;
+    const double _t162 = _t31*_t79 + _t78;
+    const double _t163 = _t2*qdd4;
+    const double _t164 = -_t133;
+    const double _t165 = -_t87;
+    const double _t166 = _t162*_t4;
+    const double _t167 = _t2*qd4;
+    const double _t168 = _t31*_t85 - _t35*_t39;
+    const double _t169 = _t2*qd6;
+    const double _t170 = -_t140;
+    const double _t171 = _t170*_t39;
+    const double _t172 = -_t141;
+    const double _t173 = -_t119;
+    const double _t174 = _t173*qd6 + _t45*qd2 + _t45*qd3 + qd4*(-_t4*_t78 - _t51*_t79) + qd5*(-_t32*_t39 - _t34*_t43);
+    const double _t175 = _t67*_t85;
+    const double _t176 = _t168*_t4;
+    const double _t177 = _t140*_t42;
+    const double _t178 = _t83*qd2 + _t83*qd3 + _t87*qd6 + qd4*(-_t4*_t43 + _t51*_t85) + qd5*(_t32*_t42 + _t34*_t78);
+    const double _t179 = _t29*_t34;
+    const double _t180 = _t29*_t32;
+    const double _t181 = -_t35*_t51 + _t67;
+    const double _t182 = _t133*qd2 + _t133*qd3 + _t179*qd4 + _t181*qd5;
+    xdd[0] = -_t10*qdd2 + _t14*qdd1 - _t7*qdd3 + qd1*(_t20*qd3 - _t21*qd1 + qd2*(_t11*_t8 + _t20)) + qd2*(_t11*_t9*qd1 - _t16*_t19 - _t18) + qd3*(_t11*_t6*qd1 - _t15*_t16 - _t18);
+    xdd[1] = _t21*qdd1 - _t22*_t6 - _t23*_t9 + qd1*(_t14*qd1 - _t26*qd3 + qd2*(-_t0*_t8 - _t26)) + qd2*(-_t10*qd1 - _t19*_t24 - _t25) + qd3*(-_t15*_t24 - _t25 - _t7*qd1);
+    xdd[2] = _t15*qdd3 + _t19*qdd2 + qd2*(_t28 - _t9*qd2) + qd3*(_t27*qd2 + _t28);
+    xdd[3] = _t105*qd6 + _t108*qd1 + _t38*_t40 + _t46*qdd2 + _t46*qdd3 + _t54*qdd4 + _t58*qdd1 + _t63*qdd6 + _t91*qd2 + _t91*qd3 + qd4*(_t92*qd2 + _t92*qd3 + _t96*qd1 + _t98*qd4 + _t99*qd6 + qd5*(_t39*_t64 + _t41*_t50)) + qd5*(-_t38*_t77 + _t39*_t66 + _t39*_t69 + _t39*_t70 + _t39*_t74 + _t39*_t76);
+    xdd[4] = _t101*qdd6 + _t104*qdd1 + _t109*_t37 + _t110*qdd2 + _t110*qdd3 + _t122*qd2 + _t122*qd3 + _t99*qdd4 + qd1*(_t124*qd4 - _t127*qd5 + _t129*qd2 + _t129*qd3 + _t57*qd6 + _t62*qd1) + qd4*(_t123*qd2 + _t123*qd3 + _t124*qd1 + _t53*qd6 + _t61*qd4 + qd5*(-_t30*_t95 - _t34*_t93)) + qd5*(_t111*qd2 + _t111*qd3 + _t112*_t37 - _t113*_t75 - _t42*_t65*qd4 - _t42*_t73*qd1) + qd6*(_t125*qd5 + _t126*qd2 + _t126*qd3 + _t53*qd4 + _t57*qd1 + _t62*qd6);
+    xdd[5] = _t130*_t131 + _t134*qdd2 + _t134*qdd3 + _t142*qd2 + _t142*qd3 + _t73*qdd1 + _t75*qdd5 + qd1*(_t145 + _t147 + _t148 + _t149 + _t150) + qd4*(_t130*_t136 - _t135*qd2 - _t135*qd3 - _t137*_t138 + _t139*(_t0*_t35*_t4 - _t59)) + qd5*(_t143*qd2 + _t143*qd3 + _t144*qd1 + _t37*qd5 + qd4*(_t31*_t47 + _t50*_t51));
+    xdd[6] = -_t101*qdd1 - _t104*qdd6 + _t151*qd2 + _t151*qd3 + _t22*_t45 + _t23*_t45 - _t40*_t73 - _t96*qdd4 + qd1*(-_t125*qd5 + _t154*qd2 + _t154*qd3 + _t54*qd4 + _t58*qd1 + _t63*qd6) + qd4*(_t152*qd2 + _t152*qd3 + _t153*qd6 + _t54*qd1 - _t56*qd4 + qd5*(-_t30*_t94 + _t41*_t59)) + qd5*(-_t145*_t39 - _t147*_t39 - _t148*_t39 - _t149*_t39 - _t150*_t39 + _t42*_t73*qd6) + qd6*(_t127*qd5 + _t128*qd2 + _t128*qd3 + _t153*qd4 + _t58*qd6 + _t63*qd1);
+    xdd[7] = _t105*qd1 + _t108*qd6 + _t109*_t73 + _t153*qdd4 + _t157*qd2 + _t157*qd3 + _t22*_t83 + _t23*_t83 + _t58*qdd6 + _t63*qdd1 + qd4*(_t103*qd4 + _t158*qd2 + _t158*qd3 + _t96*qd6 + _t99*qd1 + qd5*(_t0*_t30*_t35*_t42 - _t59*_t82)) + qd5*(_t112*_t73 + _t145*_t42 + _t147*_t42 + _t148*_t42 + _t149*_t42 + _t150*_t42);
+    xdd[8] = _t131*_t137 + _t133*_t22 + _t133*_t23 - _t144*qdd5 + _t160*qd2 + _t160*qd3 + _t38*qdd1 + qd1*(_t66 + _t69 + _t70 + _t74 + _t76) + qd4*(_t130*_t138 + _t136*_t137 + _t139*(_t4*_t47 + _t50) - _t159*qd2 - _t159*qd3) + qd5*(_t161*qd2 + _t161*qd3 + _t73*qd5 + _t75*qd1 + qd4*(-_t31*_t36 + _t51*_t59));
+    xdd[9] = -_t162*_t163 + _t164*_t40 + _t165*qdd2 + _t165*qdd3 + _t174*qd2 + _t174*qd3 - _t83*qdd6 + qd4*(-_t166*qd2 - _t166*qd3 - _t167*(_t31*_t35*_t39 - _t85) + _t168*_t169 + _t2*_t29*_t30*_t39*qd5) + qd5*(-_t164*_t77 + _t171*qd2 + _t171*qd3 + _t172*_t39*qd5 + _t67*_t79*qd4) + qd6*(_t114*qd4 + _t116*qd5 + _t173*qd2 + _t173*qd3 + _t45*qd6);
+    xdd[10] = _t109*_t133 + _t163*_t168 + _t173*qdd2 + _t173*qdd3 + _t178*qd2 + _t178*qd3 + _t45*qdd6 + qd4*(_t162*_t169 + _t167*(_t31*_t78 + _t79) - _t175*qd5 + _t176*qd2 + _t176*qd3) + qd5*(_t112*_t133 + _t113*_t141 - _t175*qd4 + _t177*qd2 + _t177*qd3) + qd6*(_t80 + _t81 + _t84 + _t88 + _t89);
+    xdd[11] = _t170*qdd2 + _t170*qdd3 + _t172*qdd5 + _t182*qd2 + _t182*qd3 + _t29*_t67*qdd4 + qd4*(_t132*qd4 + _t179*qd2 + _t179*qd3 + _t180*qd5) + qd5*(_t133*qd5 + _t180*qd4 + _t181*qd2 + _t181*qd3);
+}
+
+void puma560_task_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict qdd, const puma560_params *restrict params, double *restrict xdd)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        puma560_task_acceleration(q + 6 * i, qd + 6 * i, qdd + 6 * i, params, xdd + 12 * i);
+    }
+}
+
+/* Manipulability w (det J = det A det D; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...). */
+void puma560_manipulability(const double *restrict q, const puma560_params *restrict params, double *restrict manipulability, int *restrict singular)
+{
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q5 = q[4];
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double d1 = params->d1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    const double _t0 = sin(q5);
+    const double _t1 = a3*sin(q3) + d4*cos(q3);
+    const double _t2 = q2 + q3;
+    const double _t3 = a2*cos(q2) + a3*cos(_t2) - d4*sin(_t2);
+    manipulability[0] = fabs(_t0*_t1*_t3*a2);
+    singular[0] = (_t0*_t0) < 1e-06 || (_t1*_t1)*(_t3*_t3)*(a2*a2)/((fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))) < 1e-06;
+}
+
+void puma560_manipulability_batch(size_t count, const double *restrict q, const puma560_params *restrict params, double *restrict manipulability, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        puma560_manipulability(q + 6 * i, params, manipulability + 1 * i, singular + 1 * i);
+    }
+}
+
+/* Joint rates from task rates: twist from the pose rates, then Paul's partitioned inverse; damped least squares where singular. Shapes (..., 6) and (...). */
+void puma560_joint_velocity(const double *restrict q, const double *restrict xd, const puma560_params *restrict params, double *restrict qd, int *restrict singular)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double q5 = q[4];
+    const double q6 = q[5];
+    const double xd_x = xd[0];
+    const double xd_y = xd[1];
+    const double xd_z = xd[2];
+    const double xd_r11 = xd[3];
+    const double xd_r12 = xd[4];
+    const double xd_r13 = xd[5];
+    const double xd_r21 = xd[6];
+    const double xd_r22 = xd[7];
+    const double xd_r23 = xd[8];
+    const double xd_r31 = xd[9];
+    const double xd_r32 = xd[10];
+    const double xd_r33 = xd[11];
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double d1 = params->d1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
+    const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
+    const double _t2 = (a2*a2);
+    const double _t3 = a3*sin(q3) + d4*cos(q3);
+    const double _t4 = cos(q2);
+    const double _t5 = _t4*a2;
+    const double _t6 = q2 + q3;
+    const double _t7 = cos(_t6);
+    const double _t8 = _t7*a3;
+    const double _t9 = sin(_t6);
+    const double _t10 = _t9*d4;
+    const double _t11 = -_t10 + _t8;
+    const double _t12 = _t11 + _t5;
+    const double _t13 = (_t12*_t12);
+    const double _t14 = _t13*_t2*(_t3*_t3);
+    const double _t15 = _t14/_t1;
+    const double _t16 = fmax(0, 1 - 1000000*_t15);
+    const double _t17 = 1.0/(_t0*_t0);
+    const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
+    const double _t19 = (1e-08)*(_t16*_t16);
+    const double _t20 = _t9*a3;
+    const double _t21 = _t7*d4;
+    const double _t22 = _t20 + _t21;
+    const double _t23 = (_t22*_t22);
+    const double _t24 = sin(q1);
+    const double _t25 = (_t24*_t24);
+    const double _t26 = _t17*_t25;
+    const double _t27 = sin(q2);
+    const double _t28 = _t27*a2;
+    const double _t29 = _t22 + _t28;
+    const double _t30 = (_t29*_t29);
+    const double _t31 = _t24*d3;
+    const double _t32 = cos(q1);
+    const double _t33 = _t32*_t5;
+    const double _t34 = -_t10*_t32 + _t31 + _t32*_t8 + _t33;
+    const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
+    const double _t36 = (_t32*_t32);
+    const double _t37 = _t17*_t36;
+    const double _t38 = _t24*_t5;
+    const double _t39 = -_t24*_t8 + _t24*_t9*d4 + _t32*d3 - _t38;
+    const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
+    const double _t41 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t42 = a3*d4;
+    const double _t43 = (_t9*_t9);
+    const double _t44 = (a3*a3);
+    const double _t45 = _t7*_t9;
+    const double _t46 = (d4*d4);
+    const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
+    const double _t48 = -_t10*_t28 + _t2*_t27*_t4 + _t28*_t8 + _t47;
+    const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
+    const double _t50 = (0.0001)*_t16;
+    const double _t51 = q1 + q3;
+    const double _t52 = sin(_t51);
+    const double _t53 = cos(_t51);
+    const double _t54 = q1 - q3;
+    const double _t55 = cos(_t54);
+    const double _t56 = sin(_t54);
+    const double _t57 = _t52*d4 - _t53*a3 + _t55*a3 + _t56*d4;
+    const double _t58 = (0.25)*_t2*_t41;
+    const double _t59 = _t33*_t8;
+    const double _t60 = _t10*_t33;
+    const double _t61 = (_t7*_t7);
+    const double _t62 = _t44*_t61;
+    const double _t63 = _t43*_t46;
+    const double _t64 = 2*q2 + 2*q3;
+    const double _t65 = _t64 + q1;
+    const double _t66 = _t64 - q1;
+    const double _t67 = -_t10*_t31 + _t31*_t8 + _t32*_t62 + _t32*_t63 - 0.5*_t42*(sin(_t65) + sin(_t66));
+    const double _t68 = _t59 - _t60 + _t67;
+    const double _t69 = _t2*(_t4*_t4);
+    const double _t70 = _t31*_t5 + _t32*_t69 + 2*_t59 - 2*_t60 + _t67;
+    const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
+    const double _t72 = -_t52*a3 - _t53*d4 - _t55*d4 + _t56*a3;
+    const double _t73 = _t38*_t8;
+    const double _t74 = _t10*_t32*d3 + _t24*_t62 + _t24*_t63 - _t32*_t7*a3*d3 - 0.5*a3*d4*(-cos(_t65) + cos(_t66));
+    const double _t75 = _t24*_t4*_t9*a2*d4 - _t73 - _t74;
+    const double _t76 = -2*_t24*_t4*_t9*a2*d4 + _t24*_t69 - _t32*_t4*a2*d3 + 2*_t73 + _t74;
+    const double _t77 = -_t76;
+    const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
+    const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
+    const double _t80 = 1.0/_t0;
+    const double _t81 = _t11*_t22;
+    const double _t82 = _t17*_t32;
+    const double _t83 = _t12*_t29;
+    const double _t84 = _t41*_t47*_t68 + _t41*_t48*_t70 - _t50*(-_t81*_t82 - _t82*_t83);
+    const double _t85 = _t80*xd_z;
+    const double _t86 = _t35*_t50;
+    const double _t87 = _t18*_t50;
+    const double _t88 = _t80*xd_x;
+    const double _t89 = _t24*_t32;
+    const double _t90 = _t17*_t89;
+    const double _t91 = _t41*_t75;
+    const double _t92 = _t41*_t77;
+    const double _t93 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t17*_t34*_t39 + _t23*_t90 + _t30*_t90) - _t68*_t91 - _t70*_t92;
+    const double _t94 = _t80*xd_y;
+    const double _t95 = _t80*(_t84*_t85 + _t88*(_t19 + _t71 + _t86 + _t87) + _t93*_t94);
+    const double _t96 = _t17*_t24;
+    const double _t97 = -_t47*_t91 - _t48*_t92 - _t50*(-_t81*_t96 - _t83*_t96);
+    const double _t98 = _t19 + _t40*_t50;
+    const double _t99 = _t80*(_t85*_t97 + _t88*_t93 + _t94*(_t78 + _t87 + _t98));
+    const int _t100 = _t15 < 1e-06;
+    const double _t101 = (0.5)*a2;
+    const double _t102 = _t12*_t3*a2/fmax(_t14, (1e-06)*_t1);
+    const double _t103 = ((_t100) ? (
+   _t79*(_t34*_t99 + _t39*_t95)
+)
+: (
+   -_t102*(_t101*_t57*xd_x + _t101*_t72*xd_y)
+));
+    const double _t104 = _t84*_t88 + _t85*(_t49 + _t86 + _t98) + _t94*_t97;
+    const double _t105 = _t32*_t95;
+    const double _t106 = _t24*_t99;
+    const double _t107 = ((_t100) ? (
+   _t79*(_t104*_t12*_t80 - _t105*_t29 - _t106*_t29)
+)
+: (
+   -_t102*(-_t47*xd_z - _t68*xd_x + _t75*xd_y)
+));
+    const double _t108 = ((_t100) ? (
+   _t79*(_t104*_t11*_t80 - _t105*_t22 - _t106*_t22)
+)
+: (
+   -_t102*(_t48*xd_z + _t70*xd_x + _t76*xd_y)
+));
+    const double _t109 = sin(q5);
+    const double _t110 = (_t109*_t109);
+    const double _t111 = fmax(0, 1 - 1000000*_t110);
+    const double _t112 = sin(q4);
+    const double _t113 = (_t112*_t112)*_t43;
+    const double _t114 = cos(q5);
+    const double _t115 = cos(q4);
+    const double _t116 = _t109*_t9;
+    const double _t117 = _t114*_t7 - _t115*_t116;
+    const double _t118 = _t113 + (_t117*_t117) + _t61;
+    const double _t119 = (1e-08)*(_t111*_t111);
+    const double _t120 = _t109*_t7;
+    const double _t121 = _t114*_t9;
+    const double _t122 = _t115*_t121;
+    const double _t123 = -_t120 - _t122;
+    const double _t124 = _t110*_t113 + (_t115*_t115)*_t43 + (_t123*_t123);
+    const double _t125 = (0.0001)*_t111;
+    const double _t126 = _t115*_t24;
+    const double _t127 = _t112*_t32;
+    const double _t128 = _t127*_t7;
+    const double _t129 = _t126 + _t128;
+    const double _t130 = (_t129*_t129);
+    const double _t131 = _t115*_t32;
+    const double _t132 = _t109*_t112*_t24 - _t120*_t131 - _t121*_t32;
+    const double _t133 = _t130 + (_t132*_t132) + _t36*_t43;
+    const double _t134 = _t112*_t24;
+    const double _t135 = _t134*_t7;
+    const double _t136 = -_t115*_t32 + _t135;
+    const double _t137 = -_t109*_t127 - _t120*_t126 - _t121*_t24;
+    const double _t138 = (_t136*_t136) + (_t137*_t137) + _t25*_t43;
+    const double _t139 = _t115*_t32*_t7 - _t134;
+    const double _t140 = _t114*_t134;
+    const double _t141 = _t116*_t32;
+    const double _t142 = _t114*_t7;
+    const double _t143 = -_t131*_t142 + _t140 + _t141;
+    const double _t144 = _t110*_t130 + (_t139*_t139) + (_t143*_t143);
+    const double _t145 = _t126*_t7 + _t127;
+    const double _t146 = -_t145;
+    const double _t147 = -_t136;
+    const double _t148 = _t114*_t127;
+    const double _t149 = _t116*_t24;
+    const double _t150 = _t126*_t142 + _t148 - _t149;
+    const double _t151 = _t110*(_t147*_t147) + (_t146*_t146) + (_t150*_t150);
+    const double _t152 = 1.0/(_t110 + (1e-12)*(_t111*_t111*_t111) + _t118*_t119 + _t119*_t133 + _t119*_t138 + _t124*_t125 + _t125*_t144 + _t125*_t151);
+    const double _t153 = _t125*_t133;
+    const double _t154 = _t119 + _t125*_t138;
+    const double _t155 = sin(q6);
+    const double _t156 = _t131*_t155;
+    const double _t157 = cos(q6);
+    const double _t158 = _t126*_t157;
+    const double _t159 = -_t135*_t155 + _t142*_t158 + _t148*_t157 - _t149*_t157 + _t156;
+    const double _t160 = _t126*_t155;
+    const double _t161 = _t109*_t155*_t24*_t9 + _t115*_t157*_t32 - _t135*_t157 - _t142*_t160 - _t148*_t155;
+    const double _t162 = _t109*_t155*_t32*_t9 + _t112*_t114*_t155*_t24 - _t128*_t157 - _t142*_t156 - _t158;
+    const double _t163 = _t114*_t115*_t157*_t32*_t7 - _t128*_t155 - _t140*_t157 - _t141*_t157 - _t160;
+    const double _t164 = -_t103 + (0.5)*_t132*xd_r23 - 0.5*_t137*xd_r13 - 0.5*_t159*xd_r11 - 0.5*_t161*xd_r12 + (0.5)*_t162*xd_r22 + (0.5)*_t163*xd_r21;
+    const double _t165 = _t115*_t9;
+    const double _t166 = _t112*_t9;
+    const double _t167 = _t129*_t166;
+    const double _t168 = _t110*_t167 + _t123*_t143 - _t125*(_t117*_t132 + _t167 - _t32*_t45) + _t139*_t165;
+    const double _t169 = (0.5)*_t117;
+    const double _t170 = (0.5)*_t120*_t157 + (0.5)*_t122*_t157 - 0.5*_t155*_t166;
+    const double _t171 = -0.5*_t120*_t155 - 0.5*_t122*_t155 - 0.5*_t157*_t166;
+    const double _t172 = -_t107*_t24 - _t108*_t24 + (0.5)*_t137*xd_r33 + (0.5)*_t159*xd_r31 + (0.5)*_t161*xd_r32 - _t169*xd_r23 - _t170*xd_r21 - _t171*xd_r22;
+    const double _t173 = _t110*_t147;
+    const double _t174 = -_t123*_t150 - _t125*(_t117*_t137 + _t136*_t166 - _t24*_t45) - _t146*_t165 - _t166*_t173;
+    const double _t175 = _t107*_t32 + _t108*_t32 - 0.5*_t132*xd_r33 - 0.5*_t162*xd_r32 - 0.5*_t163*xd_r31 + _t169*xd_r13 + _t170*xd_r11 + _t171*xd_r12;
+    const double _t176 = _t164*(_t124 + _t153 + _t154) + _t168*_t172 + _t174*_t175;
+    const double _t177 = _t118*_t125;
+    const double _t178 = -_t125*(_t129*_t136 + _t132*_t137 + _t43*_t89) - _t129*_t173 - _t139*_t146 - _t143*_t150;
+    const double _t179 = _t164*_t168 + _t172*(_t144 + _t154 + _t177) + _t175*_t178;
+    const double _t180 = _t164*_t174 + _t172*_t178 + _t175*(_t119 + _t151 + _t153 + _t177);
+    const int _t181 = _t110 < 1e-06;
+    const double _t182 = _t109/fmax(1e-06, _t110);
+    qd[0] = _t103;
+    qd[1] = _t107;
+    qd[2] = _t108;
+    qd[3] = ((_t181) ? (
+   _t152*(_t176*_t7 - _t179*_t32*_t9 - _t180*_t24*_t9)
+)
+: (
+   -_t182*(_t123*_t164 + _t143*_t172 - _t150*_t175)
+));
+    qd[4] = ((_t181) ? (
+   _t152*(_t129*_t179 + _t136*_t180 + _t166*_t176)
+)
+: (
+   -_t182*(-_t109*_t129*_t172 + _t109*_t147*_t175 - _t112*_t116*_t164)
+));
+    qd[5] = ((_t181) ? (
+   _t152*(_t117*_t176 + _t132*_t179 + _t137*_t180)
+)
+: (
+   -_t182*(_t139*_t172 + _t145*_t175 + _t164*_t165)
+));
+    singular[0] = _t100 || _t181;
+}
+
+void puma560_joint_velocity_batch(size_t count, const double *restrict q, const double *restrict xd, const puma560_params *restrict params, double *restrict qd, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        puma560_joint_velocity(q + 6 * i, xd + 12 * i, params, qd + 6 * i, singular + 1 * i);
+    }
+}
+
+/* Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 6) and (...). */
+void puma560_joint_acceleration(const double *restrict q, const double *restrict qd, const double *restrict xdd, const puma560_params *restrict params, double *restrict qdd, int *restrict singular)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double q5 = q[4];
+    const double q6 = q[5];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    const double qd4 = qd[3];
+    const double qd5 = qd[4];
+    const double qd6 = qd[5];
+    const double xdd_x = xdd[0];
+    const double xdd_y = xdd[1];
+    const double xdd_z = xdd[2];
+    const double xdd_r11 = xdd[3];
+    const double xdd_r12 = xdd[4];
+    const double xdd_r13 = xdd[5];
+    const double xdd_r21 = xdd[6];
+    const double xdd_r22 = xdd[7];
+    const double xdd_r23 = xdd[8];
+    const double xdd_r31 = xdd[9];
+    const double xdd_r32 = xdd[10];
+    const double xdd_r33 = xdd[11];
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double d1 = params->d1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
+    const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
+    const double _t2 = (a2*a2);
+    const double _t3 = a3*sin(q3) + d4*cos(q3);
+    const double _t4 = cos(q2);
+    const double _t5 = _t4*a2;
+    const double _t6 = q2 + q3;
+    const double _t7 = cos(_t6);
+    const double _t8 = _t7*a3;
+    const double _t9 = sin(_t6);
+    const double _t10 = _t9*d4;
+    const double _t11 = -_t10 + _t8;
+    const double _t12 = _t11 + _t5;
+    const double _t13 = (_t12*_t12);
+    const double _t14 = _t13*_t2*(_t3*_t3);
+    const double _t15 = _t14/_t1;
+    const double _t16 = fmax(0, 1 - 1000000*_t15);
+    const double _t17 = 1.0/(_t0*_t0);
+    const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
+    const double _t19 = (1e-08)*(_t16*_t16);
+    const double _t20 = _t9*a3;
+    const double _t21 = _t7*d4;
+    const double _t22 = _t20 + _t21;
+    const double _t23 = (_t22*_t22);
+    const double _t24 = sin(q1);
+    const double _t25 = (_t24*_t24);
+    const double _t26 = _t17*_t25;
+    const double _t27 = sin(q2);
+    const double _t28 = _t27*a2;
+    const double _t29 = _t22 + _t28;
+    const double _t30 = (_t29*_t29);
+    const double _t31 = _t24*d3;
+    const double _t32 = cos(q1);
+    const double _t33 = _t32*_t5;
+    const double _t34 = -_t10*_t32 + _t31 + _t32*_t8 + _t33;
+    const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
+    const double _t36 = (_t32*_t32);
+    const double _t37 = _t17*_t36;
+    const double _t38 = _t24*_t5;
+    const double _t39 = -_t24*_t8 + _t24*_t9*d4 + _t32*d3 - _t38;
+    const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
+    const double _t41 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t42 = a3*d4;
+    const double _t43 = (_t9*_t9);
+    const double _t44 = (a3*a3);
+    const double _t45 = _t7*_t9;
+    const double _t46 = (d4*d4);
+    const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
+    const double _t48 = -_t10*_t28 + _t2*_t27*_t4 + _t28*_t8 + _t47;
+    const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
+    const double _t50 = (0.0001)*_t16;
+    const double _t51 = q1 + q3;
+    const double _t52 = sin(_t51);
+    const double _t53 = cos(_t51);
+    const double _t54 = q1 - q3;
+    const double _t55 = cos(_t54);
+    const double _t56 = sin(_t54);
+    const double _t57 = _t52*d4 - _t53*a3 + _t55*a3 + _t56*d4;
+    const double _t58 = (0.25)*_t2*_t41;
+    const double _t59 = _t33*_t8;
+    const double _t60 = _t10*_t33;
+    const double _t61 = (_t7*_t7);
+    const double _t62 = _t44*_t61;
+    const double _t63 = _t43*_t46;
+    const double _t64 = 2*q2 + 2*q3;
+    const double _t65 = _t64 + q1;
+    const double _t66 = _t64 - q1;
+    const double _t67 = -_t10*_t31 + _t31*_t8 + _t32*_t62 + _t32*_t63 - 0.5*_t42*(sin(_t65) + sin(_t66));
+    const double _t68 = _t59 - _t60 + _t67;
+    const double _t69 = _t2*(_t4*_t4);
+    const double _t70 = _t31*_t5 + _t32*_t69 + 2*_t59 - 2*_t60 + _t67;
+    const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
+    const double _t72 = -_t52*a3 - _t53*d4 - _t55*d4 + _t56*a3;
+    const double _t73 = _t38*_t8;
+    const double _t74 = _t10*_t32*d3 + _t24*_t62 + _t24*_t63 - _t32*_t7*a3*d3 - 0.5*a3*d4*(-cos(_t65) + cos(_t66));
+    const double _t75 = _t24*_t4*_t9*a2*d4 - _t73 - _t74;
+    const double _t76 = -2*_t24*_t4*_t9*a2*d4 + _t24*_t69 - _t32*_t4*a2*d3 + 2*_t73 + _t74;
+    const double _t77 = -_t76;
+    const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
+    const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
+    const double _t80 = 1.0/_t0;
+    const double _t81 = _t17*_t32;
+    const double _t82 = _t11*_t22;
+    const double _t83 = _t12*_t29;
+    const double _t84 = _t41*_t68;
+    const double _t85 = _t41*_t70;
+    const double _t86 = _t47*_t84 + _t48*_t85 - _t50*(-_t81*_t82 - _t81*_t83);
+    const double _t87 = -_t22;
+    const double _t88 = _t87*qd3;
+    const double _t89 = -qd2*(-_t29*qd2 + _t88) - qd3*(_t87*qd2 + _t88) + xdd_z;
+    const double _t90 = _t80*_t89;
+    const double _t91 = _t18*_t50;
+    const double _t92 = _t19 + _t35*_t50;
+    const double _t93 = _t32*qd2;
+    const double _t94 = _t11*qd3;
+    const double _t95 = _t32*_t94;
+    const double _t96 = _t20*_t24 + _t21*_t24;
+    const double _t97 = -qd1*(-_t34*qd1 + _t96*qd3 + qd2*(_t24*_t28 + _t96)) - qd2*(-_t12*_t93 + _t24*_t29*qd1 - _t95) - qd3*(-_t11*_t93 + _t22*_t24*qd1 - _t95) + xdd_x;
+    const double _t98 = _t80*_t97;
+    const double _t99 = _t24*_t32;
+    const double _t100 = _t17*_t99;
+    const double _t101 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t100*_t23 + _t100*_t30 + _t17*_t34*_t39) - _t75*_t84 - _t77*_t85;
+    const double _t102 = _t32*qd1;
+    const double _t103 = _t24*qd2;
+    const double _t104 = _t24*_t94;
+    const double _t105 = _t20*_t32 + _t21*_t32;
+    const double _t106 = -qd1*(-_t105*qd3 + _t39*qd1 + qd2*(-_t105 - _t28*_t32)) - qd2*(-_t102*_t29 - _t103*_t12 - _t104) - qd3*(-_t102*_t22 - _t103*_t11 - _t104) + xdd_y;
+    const double _t107 = _t106*_t80;
+    const double _t108 = _t80*(_t101*_t107 + _t86*_t90 + _t98*(_t71 + _t91 + _t92));
+    const double _t109 = _t17*_t24;
+    const double _t110 = -_t41*_t47*_t75 - _t41*_t48*_t77 - _t50*(-_t109*_t82 - _t109*_t83);
+    const double _t111 = _t40*_t50;
+    const double _t112 = _t80*(_t101*_t98 + _t107*(_t111 + _t19 + _t78 + _t91) + _t110*_t90);
+    const int _t113 = _t15 < 1e-06;
+    const double _t114 = (0.5)*a2;
+    const double _t115 = _t12*_t3*a2/fmax(_t14, (1e-06)*_t1);
+    const double _t116 = ((_t113) ? (
+   _t79*(_t108*_t39 + _t112*_t34)
+)
+: (
+   -_t115*(_t106*_t114*_t72 + _t114*_t57*_t97)
+));
+    const double _t117 = _t107*_t110 + _t86*_t98 + _t90*(_t111 + _t49 + _t92);
+    const double _t118 = _t108*_t32;
+    const double _t119 = _t112*_t24;
+    const double _t120 = ((_t113) ? (
+   _t79*(_t117*_t12*_t80 - _t118*_t29 - _t119*_t29)
+)
+: (
+   -_t115*(_t106*_t75 - _t47*_t89 - _t68*_t97)
+));
+    const double _t121 = ((_t113) ? (
+   _t79*(_t11*_t117*_t80 - _t118*_t22 - _t119*_t22)
+)
+: (
+   -_t115*(_t106*_t76 + _t48*_t89 + _t70*_t97)
+));
+    const double _t122 = sin(q5);
+    const double _t123 = (_t122*_t122);
+    const double _t124 = fmax(0, 1 - 1000000*_t123);
+    const double _t125 = sin(q4);
+    const double _t126 = (_t125*_t125)*_t43;
+    const double _t127 = cos(q5);
+    const double _t128 = cos(q4);
+    const double _t129 = _t122*_t9;
+    const double _t130 = _t127*_t7 - _t128*_t129;
+    const double _t131 = _t126 + (_t130*_t130) + _t61;
+    const double _t132 = (1e-08)*(_t124*_t124);
+    const double _t133 = _t122*_t7;
+    const double _t134 = _t127*_t9;
+    const double _t135 = _t128*_t134;
+    const double _t136 = -_t133 - _t135;
+    const double _t137 = _t123*_t126 + (_t128*_t128)*_t43 + (_t136*_t136);
+    const double _t138 = (0.0001)*_t124;
+    const double _t139 = _t128*_t24;
+    const double _t140 = _t125*_t32;
+    const double _t141 = _t140*_t7;
+    const double _t142 = _t139 + _t141;
+    const double _t143 = (_t142*_t142);
+    const double _t144 = _t128*_t32;
+    const double _t145 = _t122*_t125*_t24 - _t133*_t144 - _t134*_t32;
+    const double _t146 = _t143 + (_t145*_t145) + _t36*_t43;
+    const double _t147 = _t125*_t24;
+    const double _t148 = _t147*_t7;
+    const double _t149 = -_t128*_t32 + _t148;
+    const double _t150 = _t122*_t140 + _t133*_t139 + _t134*_t24;
+    const double _t151 = -_t150;
+    const double _t152 = (_t149*_t149) + (_t151*_t151) + _t25*_t43;
+    const double _t153 = _t128*_t32*_t7 - _t147;
+    const double _t154 = _t127*_t147;
+    const double _t155 = _t129*_t32;
+    const double _t156 = _t127*_t7;
+    const double _t157 = -_t144*_t156 + _t154 + _t155;
+    const double _t158 = _t123*_t143 + (_t153*_t153) + (_t157*_t157);
+    const double _t159 = _t139*_t7 + _t140;
+    const double _t160 = -_t159;
+    const double _t161 = -_t149;
+    const double _t162 = _t127*_t140;
+    const double _t163 = _t129*_t24;
+    const double _t164 = _t139*_t156 + _t162 - _t163;
+    const double _t165 = _t123*(_t161*_t161) + (_t160*_t160) + (_t164*_t164);
+    const double _t166 = 1.0/(_t123 + (1e-12)*(_t124*_t124*_t124) + _t131*_t132 + _t132*_t146 + _t132*_t152 + _t137*_t138 + _t138*_t158 + _t138*_t165);
+    const double _t167 = _t138*_t146;
+    const double _t168 = _t132 + _t138*_t152;
+    const double _t169 = _t9*qd2;
+    const double _t170 = _t9*qd3;
+    const double _t171 = _t7*qd3;
+    const double _t172 = _t128*_t9;
+    const double _t173 = sin(q6);
+    const double _t174 = _t144*_t173;
+    const double _t175 = cos(q6);
+    const double _t176 = _t139*_t175;
+    const double _t177 = -_t148*_t173 + _t156*_t176 + _t162*_t175 - _t163*_t175 + _t174;
+    const double _t178 = _t139*_t173;
+    const double _t179 = _t122*_t173*_t24*_t9 + _t128*_t175*_t32 - _t148*_t175 - _t156*_t178 - _t162*_t173;
+    const double _t180 = _t122*_t173*_t32*_t9 + _t125*_t127*_t173*_t24 - _t141*_t175 - _t156*_t174 - _t176;
+    const double _t181 = _t127*_t128*_t175*_t32*_t7 - _t141*_t173 - _t154*_t175 - _t155*_t175 - _t178;
+    const double _t182 = _t125*_t129;
+    const double _t183 = -_t128*_t133 - _t134;
+    const double _t184 = -_t116 + (0.5)*_t145*xdd_r23 - 0.5*_t151*xdd_r13 - 0.5*_t177*xdd_r11 - 0.5*_t179*xdd_r12 + (0.5)*_t180*xdd_r22 + (0.5)*_t181*xdd_r21 - qd4*(-_t169 - _t170) - qd5*(_t125*_t171 + _t125*_t7*qd2 + _t172*qd4) - qd6*(_t136*qd5 + _t182*qd4 + _t183*qd2 + _t183*qd3);
+    const double _t185 = _t125*_t9;
+    const double _t186 = _t142*_t185;
+    const double _t187 = _t123*_t186 + _t136*_t157 - _t138*(_t130*_t145 + _t186 - _t32*_t45) + _t153*_t172;
+    const double _t188 = _t133*_t175 + _t135*_t175 - _t173*_t185;
+    const double _t189 = -_t133*_t173 - _t135*_t173 - _t175*_t185;
+    const double _t190 = _t129*_t144 - _t156*_t32;
+    const double _t191 = -_t102*qd3 - _t120*_t24 - _t121*_t24 - 0.5*_t130*xdd_r23 + (0.5)*_t151*xdd_r33 + (0.5)*_t177*xdd_r31 + (0.5)*_t179*xdd_r32 - 0.5*_t188*xdd_r21 - 0.5*_t189*xdd_r22 - _t93*qd1 - qd4*(-_t171*_t32 + _t24*_t9*qd1 - _t7*_t93) - qd5*(-_t140*_t169 - _t140*_t170 + _t153*qd4 + _t161*qd1) - qd6*(_t150*qd1 + _t157*qd5 + _t190*qd2 + _t190*qd3 + qd4*(_t122*_t139 + _t133*_t140));
+    const double _t192 = _t123*_t161;
+    const double _t193 = -_t136*_t164 - _t138*(_t130*_t151 + _t149*_t185 - _t24*_t45) - _t160*_t172 - _t185*_t192;
+    const double _t194 = _t24*qd1;
+    const double _t195 = _t129*_t139 - _t156*_t24;
+    const double _t196 = -_t164;
+    const double _t197 = _t120*_t32 + _t121*_t32 + (0.5)*_t130*xdd_r13 - 0.5*_t145*xdd_r33 - 0.5*_t180*xdd_r32 - 0.5*_t181*xdd_r31 + (0.5)*_t188*xdd_r11 + (0.5)*_t189*xdd_r12 - _t194*qd2 - _t194*qd3 - qd4*(-_t102*_t9 - _t103*_t7 - _t171*_t24) - qd5*(_t142*qd1 - _t147*_t169 - _t147*_t170 + _t159*qd4) - qd6*(_t145*qd1 + _t195*qd2 + _t195*qd3 + _t196*qd5 + qd4*(-_t122*_t144 + _t133*_t147));
+    const double _t198 = _t184*(_t137 + _t167 + _t168) + _t187*_t191 + _t193*_t197;
+    const double _t199 = _t131*_t138;
+    const double _t200 = -_t138*(_t142*_t149 + _t145*_t151 + _t43*_t99) - _t142*_t192 - _t153*_t160 - _t157*_t164;
+    const double _t201 = _t184*_t187 + _t191*(_t158 + _t168 + _t199) + _t197*_t200;
+    const double _t202 = _t184*_t193 + _t191*_t200 + _t197*(_t132 + _t165 + _t167 + _t199);
+    const int _t203 = _t123 < 1e-06;
+    const double _t204 = _t122/fmax(1e-06, _t123);
+    qdd[0] = _t116;
+    qdd[1] = _t120;
+    qdd[2] = _t121;
+    qdd[3] = ((_t203) ? (
+   _t166*(_t198*_t7 - _t201*_t32*_t9 - _t202*_t24*_t9)
+)
+: (
+   -_t204*(_t136*_t184 + _t157*_t191 + _t196*_t197)
+));
+    qdd[4] = ((_t203) ? (
+   _t166*(_t142*_t201 + _t149*_t202 + _t185*_t198)
+)
+: (
+   -_t204*(-_t122*_t142*_t191 + _t122*_t161*_t197 - _t182*_t184)
+));
+    qdd[5] = ((_t203) ? (
+   _t166*(_t130*_t198 + _t145*_t201 + _t151*_t202)
+)
+: (
+   -_t204*(_t153*_t191 + _t159*_t197 + _t172*_t184)
+));
+    singular[0] = _t113 || _t203;
+}
+
+void puma560_joint_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict xdd, const puma560_params *restrict params, double *restrict qdd, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        puma560_joint_acceleration(q + 6 * i, qd + 6 * i, xdd + 12 * i, params, qdd + 6 * i, singular + 1 * i);
+    }
+}
+
+/* Joint rates from the tool twist by Paul's wrist partition (two 3 x 3 solves; damped least squares per block where singular). Shapes (..., 6) and (...). */
+void puma560_joint_velocity_from_twist(const double *restrict q, const double *restrict twist, const puma560_params *restrict params, double *restrict qd, int *restrict singular)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double q5 = q[4];
+    const double twist_vx = twist[0];
+    const double twist_vy = twist[1];
+    const double twist_vz = twist[2];
+    const double twist_wx = twist[3];
+    const double twist_wy = twist[4];
+    const double twist_wz = twist[5];
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double d1 = params->d1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
+    const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
+    const double _t2 = (a2*a2);
+    const double _t3 = a3*sin(q3) + d4*cos(q3);
+    const double _t4 = cos(q2);
+    const double _t5 = _t4*a2;
+    const double _t6 = q2 + q3;
+    const double _t7 = cos(_t6);
+    const double _t8 = _t7*a3;
+    const double _t9 = sin(_t6);
+    const double _t10 = _t9*d4;
+    const double _t11 = -_t10 + _t8;
+    const double _t12 = _t11 + _t5;
+    const double _t13 = (_t12*_t12);
+    const double _t14 = _t13*_t2*(_t3*_t3);
+    const double _t15 = _t14/_t1;
+    const double _t16 = fmax(0, 1 - 1000000*_t15);
+    const double _t17 = 1.0/(_t0*_t0);
+    const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
+    const double _t19 = (1e-08)*(_t16*_t16);
+    const double _t20 = _t9*a3;
+    const double _t21 = _t7*d4;
+    const double _t22 = _t20 + _t21;
+    const double _t23 = (_t22*_t22);
+    const double _t24 = sin(q1);
+    const double _t25 = (_t24*_t24);
+    const double _t26 = _t17*_t25;
+    const double _t27 = sin(q2);
+    const double _t28 = _t27*a2;
+    const double _t29 = _t22 + _t28;
+    const double _t30 = (_t29*_t29);
+    const double _t31 = _t24*d3;
+    const double _t32 = cos(q1);
+    const double _t33 = _t32*_t5;
+    const double _t34 = -_t10*_t32 + _t31 + _t32*_t8 + _t33;
+    const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
+    const double _t36 = (_t32*_t32);
+    const double _t37 = _t17*_t36;
+    const double _t38 = _t24*_t5;
+    const double _t39 = -_t24*_t8 + _t24*_t9*d4 + _t32*d3 - _t38;
+    const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
+    const double _t41 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t42 = a3*d4;
+    const double _t43 = (_t9*_t9);
+    const double _t44 = (a3*a3);
+    const double _t45 = _t7*_t9;
+    const double _t46 = (d4*d4);
+    const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
+    const double _t48 = -_t10*_t28 + _t2*_t27*_t4 + _t28*_t8 + _t47;
+    const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
+    const double _t50 = (0.0001)*_t16;
+    const double _t51 = q1 + q3;
+    const double _t52 = sin(_t51);
+    const double _t53 = cos(_t51);
+    const double _t54 = q1 - q3;
+    const double _t55 = cos(_t54);
+    const double _t56 = sin(_t54);
+    const double _t57 = _t52*d4 - _t53*a3 + _t55*a3 + _t56*d4;
+    const double _t58 = (0.25)*_t2*_t41;
+    const double _t59 = _t33*_t8;
+    const double _t60 = _t10*_t33;
+    const double _t61 = (_t7*_t7);
+    const double _t62 = _t44*_t61;
+    const double _t63 = _t43*_t46;
+    const double _t64 = 2*q2 + 2*q3;
+    const double _t65 = _t64 + q1;
+    const double _t66 = _t64 - q1;
+    const double _t67 = -_t10*_t31 + _t31*_t8 + _t32*_t62 + _t32*_t63 - 0.5*_t42*(sin(_t65) + sin(_t66));
+    const double _t68 = _t59 - _t60 + _t67;
+    const double _t69 = _t2*(_t4*_t4);
+    const double _t70 = _t31*_t5 + _t32*_t69 + 2*_t59 - 2*_t60 + _t67;
+    const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
+    const double _t72 = -_t52*a3 - _t53*d4 - _t55*d4 + _t56*a3;
+    const double _t73 = _t38*_t8;
+    const double _t74 = _t10*_t32*d3 + _t24*_t62 + _t24*_t63 - _t32*_t7*a3*d3 - 0.5*a3*d4*(-cos(_t65) + cos(_t66));
+    const double _t75 = _t24*_t4*_t9*a2*d4 - _t73 - _t74;
+    const double _t76 = -2*_t24*_t4*_t9*a2*d4 + _t24*_t69 - _t32*_t4*a2*d3 + 2*_t73 + _t74;
+    const double _t77 = -_t76;
+    const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
+    const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
+    const double _t80 = 1.0/_t0;
+    const double _t81 = _t11*_t22;
+    const double _t82 = _t17*_t32;
+    const double _t83 = _t12*_t29;
+    const double _t84 = _t41*_t47*_t68 + _t41*_t48*_t70 - _t50*(-_t81*_t82 - _t82*_t83);
+    const double _t85 = _t80*twist_vz;
+    const double _t86 = _t35*_t50;
+    const double _t87 = _t18*_t50;
+    const double _t88 = _t80*twist_vx;
+    const double _t89 = _t24*_t32;
+    const double _t90 = _t17*_t89;
+    const double _t91 = _t41*_t75;
+    const double _t92 = _t41*_t77;
+    const double _t93 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t17*_t34*_t39 + _t23*_t90 + _t30*_t90) - _t68*_t91 - _t70*_t92;
+    const double _t94 = _t80*twist_vy;
+    const double _t95 = _t80*(_t84*_t85 + _t88*(_t19 + _t71 + _t86 + _t87) + _t93*_t94);
+    const double _t96 = _t17*_t24;
+    const double _t97 = -_t47*_t91 - _t48*_t92 - _t50*(-_t81*_t96 - _t83*_t96);
+    const double _t98 = _t19 + _t40*_t50;
+    const double _t99 = _t80*(_t85*_t97 + _t88*_t93 + _t94*(_t78 + _t87 + _t98));
+    const int _t100 = _t15 < 1e-06;
+    const double _t101 = (0.5)*a2;
+    const double _t102 = _t12*_t3*a2/fmax(_t14, (1e-06)*_t1);
+    const double _t103 = ((_t100) ? (
+   _t79*(_t34*_t99 + _t39*_t95)
+)
+: (
+   -_t102*(_t101*_t57*twist_vx + _t101*_t72*twist_vy)
+));
+    const double _t104 = _t84*_t88 + _t85*(_t49 + _t86 + _t98) + _t94*_t97;
+    const double _t105 = _t32*_t95;
+    const double _t106 = _t24*_t99;
+    const double _t107 = ((_t100) ? (
+   _t79*(_t104*_t12*_t80 - _t105*_t29 - _t106*_t29)
+)
+: (
+   -_t102*(-_t47*twist_vz - _t68*twist_vx + _t75*twist_vy)
+));
+    const double _t108 = ((_t100) ? (
+   _t79*(_t104*_t11*_t80 - _t105*_t22 - _t106*_t22)
+)
+: (
+   -_t102*(_t48*twist_vz + _t70*twist_vx + _t76*twist_vy)
+));
+    const double _t109 = sin(q5);
+    const double _t110 = (_t109*_t109);
+    const double _t111 = fmax(0, 1 - 1000000*_t110);
+    const double _t112 = sin(q4);
+    const double _t113 = (_t112*_t112)*_t43;
+    const double _t114 = cos(q5);
+    const double _t115 = cos(q4);
+    const double _t116 = _t109*_t9;
+    const double _t117 = _t114*_t7 - _t115*_t116;
+    const double _t118 = _t113 + (_t117*_t117) + _t61;
+    const double _t119 = (1e-08)*(_t111*_t111);
+    const double _t120 = _t109*_t7;
+    const double _t121 = _t114*_t9;
+    const double _t122 = -_t115*_t121 - _t120;
+    const double _t123 = _t110*_t113 + (_t115*_t115)*_t43 + (_t122*_t122);
+    const double _t124 = (0.0001)*_t111;
+    const double _t125 = _t115*_t24;
+    const double _t126 = _t112*_t32;
+    const double _t127 = _t125 + _t126*_t7;
+    const double _t128 = (_t127*_t127);
+    const double _t129 = _t115*_t32;
+    const double _t130 = _t109*_t112*_t24 - _t120*_t129 - _t121*_t32;
+    const double _t131 = _t128 + (_t130*_t130) + _t36*_t43;
+    const double _t132 = _t112*_t24;
+    const double _t133 = -_t115*_t32 + _t132*_t7;
+    const double _t134 = -_t109*_t126 - _t120*_t125 - _t121*_t24;
+    const double _t135 = (_t133*_t133) + (_t134*_t134) + _t25*_t43;
+    const double _t136 = _t115*_t32*_t7 - _t132;
+    const double _t137 = _t114*_t7;
+    const double _t138 = _t114*_t132 + _t116*_t32 - _t129*_t137;
+    const double _t139 = _t110*_t128 + (_t136*_t136) + (_t138*_t138);
+    const double _t140 = _t125*_t7 + _t126;
+    const double _t141 = -_t140;
+    const double _t142 = -_t133;
+    const double _t143 = _t114*_t126 - _t116*_t24 + _t125*_t137;
+    const double _t144 = _t110*(_t142*_t142) + (_t141*_t141) + (_t143*_t143);
+    const double _t145 = 1.0/(_t110 + (1e-12)*(_t111*_t111*_t111) + _t118*_t119 + _t119*_t131 + _t119*_t135 + _t123*_t124 + _t124*_t139 + _t124*_t144);
+    const double _t146 = _t124*_t131;
+    const double _t147 = _t119 + _t124*_t135;
+    const double _t148 = -_t103 + twist_wz;
+    const double _t149 = _t115*_t9;
+    const double _t150 = _t112*_t9;
+    const double _t151 = _t127*_t150;
+    const double _t152 = _t110*_t151 + _t122*_t138 - _t124*(_t117*_t130 + _t151 - _t32*_t45) + _t136*_t149;
+    const double _t153 = -_t107*_t24 - _t108*_t24 + twist_wx;
+    const double _t154 = _t110*_t142;
+    const double _t155 = -_t122*_t143 - _t124*(_t117*_t134 + _t133*_t150 - _t24*_t45) - _t141*_t149 - _t150*_t154;
+    const double _t156 = _t107*_t32 + _t108*_t32 + twist_wy;
+    const double _t157 = _t148*(_t123 + _t146 + _t147) + _t152*_t153 + _t155*_t156;
+    const double _t158 = _t118*_t124;
+    const double _t159 = -_t124*(_t127*_t133 + _t130*_t134 + _t43*_t89) - _t127*_t154 - _t136*_t141 - _t138*_t143;
+    const double _t160 = _t148*_t152 + _t153*(_t139 + _t147 + _t158) + _t156*_t159;
+    const double _t161 = _t148*_t155 + _t153*_t159 + _t156*(_t119 + _t144 + _t146 + _t158);
+    const int _t162 = _t110 < 1e-06;
+    const double _t163 = _t109/fmax(1e-06, _t110);
+    qd[0] = _t103;
+    qd[1] = _t107;
+    qd[2] = _t108;
+    qd[3] = ((_t162) ? (
+   _t145*(_t157*_t7 - _t160*_t32*_t9 - _t161*_t24*_t9)
+)
+: (
+   -_t163*(_t122*_t148 + _t138*_t153 - _t143*_t156)
+));
+    qd[4] = ((_t162) ? (
+   _t145*(_t127*_t160 + _t133*_t161 + _t150*_t157)
+)
+: (
+   -_t163*(-_t109*_t127*_t153 + _t109*_t142*_t156 - _t112*_t116*_t148)
+));
+    qd[5] = ((_t162) ? (
+   _t145*(_t117*_t157 + _t130*_t160 + _t134*_t161)
+)
+: (
+   -_t163*(_t136*_t153 + _t140*_t156 + _t148*_t149)
+));
+    singular[0] = _t100 || _t162;
+}
+
+void puma560_joint_velocity_from_twist_batch(size_t count, const double *restrict q, const double *restrict twist, const puma560_params *restrict params, double *restrict qd, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        puma560_joint_velocity_from_twist(q + 6 * i, twist + 6 * i, params, qd + 6 * i, singular + 1 * i);
+    }
 }
 
 /* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */

@@ -124,6 +124,167 @@ def ik(x, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     return Q, valid.astype(bool)
 
 
+def task_velocity(q, qd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
+    """Task rates x_dot = J_x q_dot, shape (..., 3). (C backend)"""
+    q = _runtime.as_batch(q, 5, "task_velocity", "q")
+    qd = _runtime.as_batch(qd, 5, "task_velocity", "qd")
+    params = _params(a1, a2, a3, d1, d5)
+    batch = _runtime.batch_shape(q, qd)
+    q = _input(q, batch)
+    qd = _input(qd, batch)
+    xd = numpy.empty(batch + (3,), dtype=numpy.float64)
+    _lib.scorbot_er7_task_velocity_batch(
+        int(numpy.prod(batch, dtype=numpy.int64)),
+        _ffi.from_buffer("double[]", q),
+        _ffi.from_buffer("double[]", qd),
+        params,
+        _ffi.from_buffer("double[]", xd, require_writable=True),
+    )
+    return xd
+
+
+def twist(q, qd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
+    """Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s. (C backend)"""
+    q = _runtime.as_batch(q, 5, "twist", "q")
+    qd = _runtime.as_batch(qd, 5, "twist", "qd")
+    params = _params(a1, a2, a3, d1, d5)
+    batch = _runtime.batch_shape(q, qd)
+    q = _input(q, batch)
+    qd = _input(qd, batch)
+    twist = numpy.empty(batch + (6,), dtype=numpy.float64)
+    _lib.scorbot_er7_twist_batch(
+        int(numpy.prod(batch, dtype=numpy.int64)),
+        _ffi.from_buffer("double[]", q),
+        _ffi.from_buffer("double[]", qd),
+        params,
+        _ffi.from_buffer("double[]", twist, require_writable=True),
+    )
+    return twist
+
+
+def task_jacobian_dot(q, qd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
+    """d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 3, 5). (C backend)"""
+    q = _runtime.as_batch(q, 5, "task_jacobian_dot", "q")
+    qd = _runtime.as_batch(qd, 5, "task_jacobian_dot", "qd")
+    params = _params(a1, a2, a3, d1, d5)
+    batch = _runtime.batch_shape(q, qd)
+    q = _input(q, batch)
+    qd = _input(qd, batch)
+    Jx_dot = numpy.empty(batch + (3, 5), dtype=numpy.float64)
+    _lib.scorbot_er7_task_jacobian_dot_batch(
+        int(numpy.prod(batch, dtype=numpy.int64)),
+        _ffi.from_buffer("double[]", q),
+        _ffi.from_buffer("double[]", qd),
+        params,
+        _ffi.from_buffer("double[]", Jx_dot, require_writable=True),
+    )
+    return Jx_dot
+
+
+def jacobian_dot(q, qd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
+    """d(J)/dt of the geometric Jacobian, shape (..., 6, 5). (C backend)"""
+    q = _runtime.as_batch(q, 5, "jacobian_dot", "q")
+    qd = _runtime.as_batch(qd, 5, "jacobian_dot", "qd")
+    params = _params(a1, a2, a3, d1, d5)
+    batch = _runtime.batch_shape(q, qd)
+    q = _input(q, batch)
+    qd = _input(qd, batch)
+    J_dot = numpy.empty(batch + (6, 5), dtype=numpy.float64)
+    _lib.scorbot_er7_jacobian_dot_batch(
+        int(numpy.prod(batch, dtype=numpy.int64)),
+        _ffi.from_buffer("double[]", q),
+        _ffi.from_buffer("double[]", qd),
+        params,
+        _ffi.from_buffer("double[]", J_dot, require_writable=True),
+    )
+    return J_dot
+
+
+def task_acceleration(q, qd, qdd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
+    """Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 3). (C backend)"""
+    q = _runtime.as_batch(q, 5, "task_acceleration", "q")
+    qd = _runtime.as_batch(qd, 5, "task_acceleration", "qd")
+    qdd = _runtime.as_batch(qdd, 5, "task_acceleration", "qdd")
+    params = _params(a1, a2, a3, d1, d5)
+    batch = _runtime.batch_shape(q, qd, qdd)
+    q = _input(q, batch)
+    qd = _input(qd, batch)
+    qdd = _input(qdd, batch)
+    xdd = numpy.empty(batch + (3,), dtype=numpy.float64)
+    _lib.scorbot_er7_task_acceleration_batch(
+        int(numpy.prod(batch, dtype=numpy.int64)),
+        _ffi.from_buffer("double[]", q),
+        _ffi.from_buffer("double[]", qd),
+        _ffi.from_buffer("double[]", qdd),
+        params,
+        _ffi.from_buffer("double[]", xdd, require_writable=True),
+    )
+    return xdd
+
+
+def manipulability(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
+    """Manipulability w (det(J_x J_x^T); |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...). (C backend)"""
+    q = _runtime.as_batch(q, 5, "manipulability", "q")
+    params = _params(a1, a2, a3, d1, d5)
+    batch = _runtime.batch_shape(q)
+    q = _input(q, batch)
+    manipulability = numpy.empty(batch + (), dtype=numpy.float64)
+    singular = numpy.empty(batch + (), dtype=numpy.intc)
+    _lib.scorbot_er7_manipulability_batch(
+        int(numpy.prod(batch, dtype=numpy.int64)),
+        _ffi.from_buffer("double[]", q),
+        params,
+        _ffi.from_buffer("double[]", manipulability, require_writable=True),
+        _ffi.from_buffer("int[]", singular, require_writable=True),
+    )
+    return manipulability, singular.astype(bool)
+
+
+def joint_velocity(q, xd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
+    """Joint rates from task rates: minimum-norm J_x^T (J_x J_x^T)^-1 x_dot; damped least squares where singular. Shapes (..., 5) and (...). (C backend)"""
+    q = _runtime.as_batch(q, 5, "joint_velocity", "q")
+    xd = _runtime.as_batch(xd, 3, "joint_velocity", "xd")
+    params = _params(a1, a2, a3, d1, d5)
+    batch = _runtime.batch_shape(q, xd)
+    q = _input(q, batch)
+    xd = _input(xd, batch)
+    qd = numpy.empty(batch + (5,), dtype=numpy.float64)
+    singular = numpy.empty(batch + (), dtype=numpy.intc)
+    _lib.scorbot_er7_joint_velocity_batch(
+        int(numpy.prod(batch, dtype=numpy.int64)),
+        _ffi.from_buffer("double[]", q),
+        _ffi.from_buffer("double[]", xd),
+        params,
+        _ffi.from_buffer("double[]", qd, require_writable=True),
+        _ffi.from_buffer("int[]", singular, require_writable=True),
+    )
+    return qd, singular.astype(bool)
+
+
+def joint_acceleration(q, qd, xdd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
+    """Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 5) and (...). (C backend)"""
+    q = _runtime.as_batch(q, 5, "joint_acceleration", "q")
+    qd = _runtime.as_batch(qd, 5, "joint_acceleration", "qd")
+    xdd = _runtime.as_batch(xdd, 3, "joint_acceleration", "xdd")
+    params = _params(a1, a2, a3, d1, d5)
+    batch = _runtime.batch_shape(q, qd, xdd)
+    q = _input(q, batch)
+    qd = _input(qd, batch)
+    xdd = _input(xdd, batch)
+    qdd = numpy.empty(batch + (5,), dtype=numpy.float64)
+    singular = numpy.empty(batch + (), dtype=numpy.intc)
+    _lib.scorbot_er7_joint_acceleration_batch(
+        int(numpy.prod(batch, dtype=numpy.int64)),
+        _ffi.from_buffer("double[]", q),
+        _ffi.from_buffer("double[]", qd),
+        _ffi.from_buffer("double[]", xdd),
+        params,
+        _ffi.from_buffer("double[]", qdd, require_writable=True),
+        _ffi.from_buffer("int[]", singular, require_writable=True),
+    )
+    return qdd, singular.astype(bool)
+
+
 def within_limits(q):
     """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 5) -> (...). (C backend)"""
     q = numpy.ascontiguousarray(_runtime.as_batch(q, 5, "within_limits", "q", finite=False))

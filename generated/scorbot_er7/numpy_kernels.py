@@ -20,7 +20,7 @@ TASK = ("x", "y", "z", )
 BRANCHES = ("elbow_up", "elbow_down", "shoulder_flip_elbow_up", "shoulder_flip_elbow_down", )
 PARAMS = {"a1": 0.05, "a2": 0.3, "a3": 0.25, "d1": 0.385, "d5": 0.212}
 LIMITS = (None, None, None, None, None, )
-OPERATIONS = {"fk": 44, "frames": 67, "jacobian": 39, "task": 24, "task_jacobian": 36, "ik": 108}
+OPERATIONS = {"fk": 44, "frames": 67, "jacobian": 39, "task": 24, "task_jacobian": 36, "ik": 108, "task_velocity": 46, "twist": 61, "task_jacobian_dot": 101, "jacobian_dot": 124, "task_acceleration": 148, "manipulability": 56, "joint_velocity": 395, "joint_acceleration": 496}
 
 
 def fk(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
@@ -384,6 +384,680 @@ def ik(x, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
     valid &= numpy.isfinite(Q).all(axis=-1) & numpy.isfinite(_x).all(axis=-1)[..., None]
     return Q, valid
+
+
+def task_velocity(q, qd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
+    """Task rates x_dot = J_x q_dot, shape (..., 3).
+
+    q: joint coordinates, shape (..., 5) (q1: rad, q2: rad, q3: rad, q4: rad, q5: rad)
+    qd: joint rates, shape (..., 5) (per second)
+    (46 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 5, "task_velocity", "q")
+    qd = _runtime.as_batch(qd, 5, "task_velocity", "qd")
+    a1 = _runtime.as_param(a1, "a1")
+    a2 = _runtime.as_param(a2, "a2")
+    a3 = _runtime.as_param(a3, "a3")
+    d5 = _runtime.as_param(d5, "d5")
+    _runtime.as_param(d1, "d1")
+    _batch = _runtime.batch_shape(q, qd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    q3 = q[..., 2]
+    q4 = q[..., 3]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    qd3 = qd[..., 2]
+    qd4 = qd[..., 3]
+    _t0 = numpy.cos(q1)
+    _t1 = q2 + q3
+    _t2 = _t1 + q4
+    _t3 = d5*numpy.sin(_t2)
+    _t4 = _t3*qd4
+    _t5 = _t3 + a3*numpy.sin(_t1)
+    _t6 = _t5*qd3
+    _t7 = qd2*(_t5 + a2*numpy.sin(q2))
+    _t8 = numpy.sin(q1)
+    _t9 = d5*numpy.cos(_t2)
+    _t10 = _t9 + a3*numpy.cos(_t1)
+    _t11 = _t10 + a2*numpy.cos(q2)
+    _t12 = _t11 + a1
+    xd = numpy.empty(_batch + (3,))
+    xd[..., 0] = -_t0*_t4 - _t0*_t6 - _t0*_t7 - _t12*_t8*qd1
+    xd[..., 1] = _t0*_t12*qd1 - _t4*_t8 - _t6*_t8 - _t7*_t8
+    xd[..., 2] = _t10*qd3 + _t11*qd2 + _t9*qd4
+    return xd
+
+
+def twist(q, qd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
+    """Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s.
+
+    q: joint coordinates, shape (..., 5) (q1: rad, q2: rad, q3: rad, q4: rad, q5: rad)
+    qd: joint rates, shape (..., 5) (per second)
+    (61 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 5, "twist", "q")
+    qd = _runtime.as_batch(qd, 5, "twist", "qd")
+    a1 = _runtime.as_param(a1, "a1")
+    a2 = _runtime.as_param(a2, "a2")
+    a3 = _runtime.as_param(a3, "a3")
+    d5 = _runtime.as_param(d5, "d5")
+    _runtime.as_param(d1, "d1")
+    _batch = _runtime.batch_shape(q, qd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    q3 = q[..., 2]
+    q4 = q[..., 3]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    qd3 = qd[..., 2]
+    qd4 = qd[..., 3]
+    qd5 = qd[..., 4]
+    _t0 = q2 + q3
+    _t1 = _t0 + q4
+    _t2 = numpy.sin(_t1)
+    _t3 = _t2*d5
+    _t4 = numpy.cos(q1)
+    _t5 = _t4*qd4
+    _t6 = _t3 + a3*numpy.sin(_t0)
+    _t7 = _t4*qd3
+    _t8 = _t6 + a2*numpy.sin(q2)
+    _t9 = _t4*qd2
+    _t10 = numpy.sin(q1)
+    _t11 = numpy.cos(_t1)
+    _t12 = _t11*d5
+    _t13 = _t12 + a3*numpy.cos(_t0)
+    _t14 = _t13 + a2*numpy.cos(q2)
+    _t15 = _t14 + a1
+    _t16 = _t10*qd4
+    _t17 = _t10*qd3
+    _t18 = _t10*qd2
+    twist = numpy.empty(_batch + (6,))
+    twist[..., 0] = -_t10*_t15*qd1 - _t3*_t5 - _t6*_t7 - _t8*_t9
+    twist[..., 1] = _t15*_t4*qd1 - _t16*_t3 - _t17*_t6 - _t18*_t8
+    twist[..., 2] = _t12*qd4 + _t13*qd3 + _t14*qd2
+    twist[..., 3] = _t11*_t4*qd5 + _t16 + _t17 + _t18
+    twist[..., 4] = _t10*_t11*qd5 - _t5 - _t7 - _t9
+    twist[..., 5] = _t2*qd5 + qd1
+    return twist
+
+
+def task_jacobian_dot(q, qd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
+    """d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 3, 5).
+
+    q: joint coordinates, shape (..., 5) (q1: rad, q2: rad, q3: rad, q4: rad, q5: rad)
+    qd: joint rates, shape (..., 5) (per second)
+    (101 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 5, "task_jacobian_dot", "q")
+    qd = _runtime.as_batch(qd, 5, "task_jacobian_dot", "qd")
+    a1 = _runtime.as_param(a1, "a1")
+    a2 = _runtime.as_param(a2, "a2")
+    a3 = _runtime.as_param(a3, "a3")
+    d5 = _runtime.as_param(d5, "d5")
+    _runtime.as_param(d1, "d1")
+    _batch = _runtime.batch_shape(q, qd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    q3 = q[..., 2]
+    q4 = q[..., 3]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    qd3 = qd[..., 2]
+    qd4 = qd[..., 3]
+    _t0 = numpy.sin(q1)
+    _t1 = q2 + q3
+    _t2 = _t1 + q4
+    _t3 = numpy.sin(_t2)
+    _t4 = _t3*d5
+    _t5 = _t4 + a3*numpy.sin(_t1)
+    _t6 = -_t5
+    _t7 = _t6*qd3
+    _t8 = numpy.cos(q1)
+    _t9 = d5*numpy.cos(_t2)
+    _t10 = _t9 + a3*numpy.cos(_t1)
+    _t11 = _t10 + a2*numpy.cos(q2)
+    _t12 = qd1*(_t11 + a1)
+    _t13 = _t5 + a2*numpy.sin(q2)
+    _t14 = -_t13
+    _t15 = _t14*qd2
+    _t16 = _t8*qd2
+    _t17 = _t10*qd3
+    _t18 = _t8*_t9
+    _t19 = _t18*qd4
+    _t20 = _t17*_t8 + _t19
+    _t21 = _t4*qd4
+    _t22 = _t8*qd1
+    _t23 = _t0*qd2
+    _t24 = _t0*_t9
+    _t25 = _t24*qd4
+    _t26 = _t0*_t17 + _t25
+    _t27 = -_t21 + _t7
+    Jx_dot = numpy.zeros(_batch + (3, 5))
+    Jx_dot[..., 0, 0] = -_t0*_t15 + _t0*_t3*d5*qd4 - _t0*_t7 - _t12*_t8
+    Jx_dot[..., 0, 1] = _t0*_t13*qd1 - _t11*_t16 - _t20
+    Jx_dot[..., 0, 2] = _t0*_t5*qd1 - _t10*_t16 - _t20
+    Jx_dot[..., 0, 3] = _t0*_t3*d5*qd1 - _t16*_t9 - _t18*qd3 - _t19
+    Jx_dot[..., 1, 0] = -_t0*_t12 + _t14*_t8*qd2 - _t21*_t8 + _t6*_t8*qd3
+    Jx_dot[..., 1, 1] = -_t11*_t23 - _t13*_t22 - _t26
+    Jx_dot[..., 1, 2] = -_t10*_t23 - _t22*_t5 - _t26
+    Jx_dot[..., 1, 3] = -_t22*_t4 - _t23*_t9 - _t24*qd3 - _t25
+    Jx_dot[..., 2, 1] = _t15 + _t27
+    Jx_dot[..., 2, 2] = _t27 + _t6*qd2
+    Jx_dot[..., 2, 3] = -_t21 - _t4*qd2 - _t4*qd3
+    return Jx_dot
+
+
+def jacobian_dot(q, qd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
+    """d(J)/dt of the geometric Jacobian, shape (..., 6, 5).
+
+    q: joint coordinates, shape (..., 5) (q1: rad, q2: rad, q3: rad, q4: rad, q5: rad)
+    qd: joint rates, shape (..., 5) (per second)
+    (124 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 5, "jacobian_dot", "q")
+    qd = _runtime.as_batch(qd, 5, "jacobian_dot", "qd")
+    a1 = _runtime.as_param(a1, "a1")
+    a2 = _runtime.as_param(a2, "a2")
+    a3 = _runtime.as_param(a3, "a3")
+    d5 = _runtime.as_param(d5, "d5")
+    _runtime.as_param(d1, "d1")
+    _batch = _runtime.batch_shape(q, qd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    q3 = q[..., 2]
+    q4 = q[..., 3]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    qd3 = qd[..., 2]
+    qd4 = qd[..., 3]
+    _t0 = numpy.sin(q1)
+    _t1 = q2 + q3
+    _t2 = _t1 + q4
+    _t3 = numpy.sin(_t2)
+    _t4 = _t3*d5
+    _t5 = _t4 + a3*numpy.sin(_t1)
+    _t6 = -_t5
+    _t7 = _t6*qd3
+    _t8 = numpy.cos(_t2)
+    _t9 = _t8*d5
+    _t10 = _t9 + a3*numpy.cos(_t1)
+    _t11 = _t10 + a2*numpy.cos(q2)
+    _t12 = _t11 + a1
+    _t13 = numpy.cos(q1)
+    _t14 = _t13*qd1
+    _t15 = _t5 + a2*numpy.sin(q2)
+    _t16 = -_t15
+    _t17 = _t16*qd2
+    _t18 = _t13*qd2
+    _t19 = _t10*qd3
+    _t20 = _t13*_t9
+    _t21 = _t20*qd4
+    _t22 = _t13*_t19 + _t21
+    _t23 = _t4*qd4
+    _t24 = _t0*qd1
+    _t25 = _t0*qd2
+    _t26 = _t0*_t9
+    _t27 = _t26*qd4
+    _t28 = _t0*_t19 + _t27
+    _t29 = -_t23 + _t7
+    _t30 = _t13*_t3
+    _t31 = _t0*_t3
+    J_dot = numpy.zeros(_batch + (6, 5))
+    J_dot[..., 0, 0] = -_t0*_t17 + _t0*_t3*d5*qd4 - _t0*_t7 - _t12*_t14
+    J_dot[..., 0, 1] = _t0*_t15*qd1 - _t11*_t18 - _t22
+    J_dot[..., 0, 2] = _t0*_t5*qd1 - _t10*_t18 - _t22
+    J_dot[..., 0, 3] = _t0*_t3*d5*qd1 - _t18*_t9 - _t20*qd3 - _t21
+    J_dot[..., 1, 0] = -_t12*_t24 + _t13*_t16*qd2 - _t13*_t23 + _t13*_t6*qd3
+    J_dot[..., 1, 1] = -_t11*_t25 - _t14*_t15 - _t28
+    J_dot[..., 1, 2] = -_t10*_t25 - _t14*_t5 - _t28
+    J_dot[..., 1, 3] = -_t14*_t4 - _t25*_t9 - _t26*qd3 - _t27
+    J_dot[..., 2, 1] = _t17 + _t29
+    J_dot[..., 2, 2] = _t29 + _t6*qd2
+    J_dot[..., 2, 3] = -_t23 - _t4*qd2 - _t4*qd3
+    J_dot[..., 3, 1] = _t14
+    J_dot[..., 3, 2] = _t14
+    J_dot[..., 3, 3] = _t14
+    J_dot[..., 3, 4] = -_t18*_t3 - _t24*_t8 - _t30*qd3 - _t30*qd4
+    J_dot[..., 4, 1] = _t24
+    J_dot[..., 4, 2] = _t24
+    J_dot[..., 4, 3] = _t24
+    J_dot[..., 4, 4] = _t13*_t8*qd1 - _t25*_t3 - _t31*qd3 - _t31*qd4
+    J_dot[..., 5, 4] = _t8*qd2 + _t8*qd3 + _t8*qd4
+    return J_dot
+
+
+def task_acceleration(q, qd, qdd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
+    """Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 3).
+
+    q: joint coordinates, shape (..., 5) (q1: rad, q2: rad, q3: rad, q4: rad, q5: rad)
+    qd: joint rates, shape (..., 5) (per second)
+    qdd: joint accelerations, shape (..., 5) (per second squared)
+    (148 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 5, "task_acceleration", "q")
+    qd = _runtime.as_batch(qd, 5, "task_acceleration", "qd")
+    qdd = _runtime.as_batch(qdd, 5, "task_acceleration", "qdd")
+    a1 = _runtime.as_param(a1, "a1")
+    a2 = _runtime.as_param(a2, "a2")
+    a3 = _runtime.as_param(a3, "a3")
+    d5 = _runtime.as_param(d5, "d5")
+    _runtime.as_param(d1, "d1")
+    _batch = _runtime.batch_shape(q, qd, qdd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    q3 = q[..., 2]
+    q4 = q[..., 3]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    qd3 = qd[..., 2]
+    qd4 = qd[..., 3]
+    qdd1 = qdd[..., 0]
+    qdd2 = qdd[..., 1]
+    qdd3 = qdd[..., 2]
+    qdd4 = qdd[..., 3]
+    _t0 = numpy.cos(q1)
+    _t1 = q2 + q3
+    _t2 = _t1 + q4
+    _t3 = numpy.sin(_t2)
+    _t4 = _t3*d5
+    _t5 = _t0*_t4
+    _t6 = _t4 + a3*numpy.sin(_t1)
+    _t7 = _t0*_t6
+    _t8 = _t6 + a2*numpy.sin(q2)
+    _t9 = _t0*_t8
+    _t10 = numpy.sin(q1)
+    _t11 = d5*numpy.cos(_t2)
+    _t12 = _t11 + a3*numpy.cos(_t1)
+    _t13 = _t12 + a2*numpy.cos(q2)
+    _t14 = _t13 + a1
+    _t15 = _t14*qdd1
+    _t16 = _t0*qd2
+    _t17 = _t0*_t11
+    _t18 = _t17*qd4
+    _t19 = _t12*qd3
+    _t20 = _t0*_t19 + _t18
+    _t21 = -_t6
+    _t22 = _t21*qd3
+    _t23 = _t14*qd1
+    _t24 = -_t8
+    _t25 = _t24*qd2
+    _t26 = _t10*qd2
+    _t27 = _t10*_t11
+    _t28 = _t27*qd4
+    _t29 = _t10*_t19 + _t28
+    _t30 = _t4*qd4
+    _t31 = _t22 - _t30
+    xdd = numpy.empty(_batch + (3,))
+    xdd[..., 0] = -_t10*_t15 - _t5*qdd4 - _t7*qdd3 - _t9*qdd2 + qd1*(-_t0*_t23 - _t10*_t22 - _t10*_t25 + _t10*_t3*d5*qd4) + qd2*(_t10*_t8*qd1 - _t13*_t16 - _t20) + qd3*(_t10*_t6*qd1 - _t12*_t16 - _t20) + qd4*(_t10*_t3*d5*qd1 - _t11*_t16 - _t17*qd3 - _t18)
+    xdd[..., 1] = _t0*_t15 - _t10*_t4*qdd4 - _t10*_t6*qdd3 - _t10*_t8*qdd2 + qd1*(_t0*_t21*qd3 + _t0*_t24*qd2 - _t0*_t30 - _t10*_t23) + qd2*(-_t13*_t26 - _t29 - _t9*qd1) + qd3*(-_t12*_t26 - _t29 - _t7*qd1) + qd4*(-_t11*_t26 - _t27*qd3 - _t28 - _t5*qd1)
+    xdd[..., 2] = _t11*qdd4 + _t12*qdd3 + _t13*qdd2 + qd2*(_t25 + _t31) + qd3*(_t21*qd2 + _t31) + qd4*(-_t30 - _t4*qd2 - _t4*qd3)
+    return xdd
+
+
+def manipulability(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
+    """Manipulability w (det(J_x J_x^T); |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...).
+
+    q: joint coordinates, shape (..., 5) (q1: rad, q2: rad, q3: rad, q4: rad, q5: rad)
+    (56 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 5, "manipulability", "q")
+    a1 = _runtime.as_param(a1, "a1")
+    a2 = _runtime.as_param(a2, "a2")
+    a3 = _runtime.as_param(a3, "a3")
+    d1 = _runtime.as_param(d1, "d1")
+    d5 = _runtime.as_param(d5, "d5")
+    _batch = _runtime.batch_shape(q)
+    q2 = q[..., 1]
+    q3 = q[..., 2]
+    q4 = q[..., 3]
+    _t0 = numpy.sin(q4)
+    _t1 = q3 + q4
+    _t2 = ((a1 + a2*numpy.cos(q2) + a3*numpy.cos(q2 + q3) + d5*numpy.cos(_t1 + q2))*(a1 + a2*numpy.cos(q2) + a3*numpy.cos(q2 + q3) + d5*numpy.cos(_t1 + q2)))
+    _t3 = _t2*(d5*d5)
+    _t4 = (_t0*_t0)*_t3*(a3*a3)
+    _t5 = numpy.sin(_t1)
+    _t6 = _t2*(a2*a2)*((_t5*d5 + a3*numpy.sin(q3))*(_t5*d5 + a3*numpy.sin(q3)))
+    _t7 = _t3*((_t0*a3 + _t5*a2)*(_t0*a3 + _t5*a2))
+    _t8 = 1.0/((abs(a1) + abs(a2) + abs(a3) + abs(d1) + abs(d5))*(abs(a1) + abs(a2) + abs(a3) + abs(d1) + abs(d5))*(abs(a1) + abs(a2) + abs(a3) + abs(d1) + abs(d5))*(abs(a1) + abs(a2) + abs(a3) + abs(d1) + abs(d5))*(abs(a1) + abs(a2) + abs(a3) + abs(d1) + abs(d5))*(abs(a1) + abs(a2) + abs(a3) + abs(d1) + abs(d5)))
+    manipulability = numpy.empty(_batch + ())
+    manipulability[..., ] = numpy.sqrt(_t4 + _t6 + _t7)
+    singular = numpy.empty(_batch + (), dtype=bool)
+    singular[..., ] = numpy.less(_t4*_t8 + _t6*_t8 + _t7*_t8, 1e-06)
+    return manipulability, singular
+
+
+def joint_velocity(q, xd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
+    """Joint rates from task rates: minimum-norm J_x^T (J_x J_x^T)^-1 x_dot; damped least squares where singular. Shapes (..., 5) and (...).
+
+    q: joint coordinates, shape (..., 5) (q1: rad, q2: rad, q3: rad, q4: rad, q5: rad)
+    xd: task rates d(x, y, z)/dt, shape (..., 3) (per second)
+    (395 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 5, "joint_velocity", "q")
+    xd = _runtime.as_batch(xd, 3, "joint_velocity", "xd")
+    a1 = _runtime.as_param(a1, "a1")
+    a2 = _runtime.as_param(a2, "a2")
+    a3 = _runtime.as_param(a3, "a3")
+    d1 = _runtime.as_param(d1, "d1")
+    d5 = _runtime.as_param(d5, "d5")
+    _batch = _runtime.batch_shape(q, xd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    q3 = q[..., 2]
+    q4 = q[..., 3]
+    xd_x = xd[..., 0]
+    xd_y = xd[..., 1]
+    xd_z = xd[..., 2]
+    _t0 = (a3*a3)
+    _t1 = numpy.sin(q4)
+    _t2 = (d5*d5)
+    _t3 = numpy.cos(q2)
+    _t4 = _t3*a2
+    _t5 = q2 + q3
+    _t6 = numpy.cos(_t5)
+    _t7 = _t6*a3
+    _t8 = q3 + q4
+    _t9 = _t8 + q2
+    _t10 = numpy.cos(_t9)
+    _t11 = _t10*d5
+    _t12 = _t11 + _t7
+    _t13 = _t12 + _t4
+    _t14 = _t13 + a1
+    _t15 = (_t14*_t14)
+    _t16 = abs(a1) + abs(a2) + abs(a3) + abs(d1) + abs(d5)
+    _t17 = _t15/(_t16*_t16*_t16*_t16*_t16*_t16)
+    _t18 = _t17*_t2
+    _t19 = _t0*(_t1*_t1)*_t18
+    _t20 = (a2*a2)
+    _t21 = numpy.sin(_t8)
+    _t22 = _t17*_t20*((_t21*d5 + a3*numpy.sin(q3))*(_t21*d5 + a3*numpy.sin(q3)))
+    _t23 = _t18*((_t1*a3 + _t21*a2)*(_t1*a3 + _t21*a2))
+    _t24 = numpy.maximum(0, -1000000*_t19 - 1000000*_t22 - 1000000*_t23 + 1)
+    _t25 = numpy.sin(_t9)
+    _t26 = (_t25*_t25)
+    _t27 = 1.0/(_t16*_t16*_t16*_t16)
+    _t28 = _t2*_t27
+    _t29 = numpy.sin(_t5)
+    _t30 = _t29*a3
+    _t31 = _t25*d5
+    _t32 = _t10*_t2*_t25
+    _t33 = _t0*_t29*_t6 + _t11*_t30 + _t30*_t4 + _t30*a1 + _t31*_t4 + _t31*_t7 + _t31*a1 + _t32
+    _t34 = numpy.sin(q2)
+    _t35 = _t34*a2
+    _t36 = _t11*_t35 + _t20*_t3*_t34 + _t33 + _t35*_t7 + _t35*a1
+    _t37 = _t15*_t26*_t28 + _t27*(_t33*_t33) + _t27*(_t36*_t36)
+    _t38 = (0.0001)*_t24
+    _t39 = q1 - q4
+    _t40 = numpy.cos(_t39)
+    _t41 = q1 + q4
+    _t42 = numpy.cos(_t41)
+    _t43 = _t40 - _t42
+    _t44 = (0.25)*_t28
+    _t45 = _t0*_t44
+    _t46 = numpy.cos(q1)
+    _t47 = (_t46*_t46)
+    _t48 = _t27*_t47
+    _t49 = (_t10*_t10)
+    _t50 = _t2*_t49
+    _t51 = _t15*_t50
+    _t52 = q1 + q3
+    _t53 = q1 - q3
+    _t54 = _t8 + q1
+    _t55 = numpy.cos(_t54)
+    _t56 = _t8 - q1
+    _t57 = numpy.cos(_t56)
+    _t58 = -_t55*d5 + _t57*d5 - a3*numpy.cos(_t52) + a3*numpy.cos(_t53)
+    _t59 = (0.25)*_t20*_t27
+    _t60 = _t40*a3 - _t42*a3 - _t55*a2 + _t57*a2
+    _t61 = _t4*_t7
+    _t62 = _t11*_t4
+    _t63 = _t0*(_t6*_t6) + 2*_t11*_t7 + _t11*a1 + _t50 + _t7*a1
+    _t64 = _t61 + _t62 + _t63
+    _t65 = (_t64*_t64)
+    _t66 = _t20*(_t3*_t3) + _t4*a1 + 2*_t61 + 2*_t62 + _t63
+    _t67 = (_t66*_t66)
+    _t68 = (_t43*_t43)*_t45 + _t44*(_t60*_t60) + _t48*_t51 + _t48*_t65 + _t48*_t67 + (_t58*_t58)*_t59
+    _t69 = numpy.sin(_t39)
+    _t70 = numpy.sin(_t41)
+    _t71 = -_t69 + _t70
+    _t72 = numpy.sin(q1)
+    _t73 = (_t72*_t72)
+    _t74 = _t27*_t73
+    _t75 = numpy.sin(_t54)
+    _t76 = numpy.sin(_t56)
+    _t77 = _t75*d5 + _t76*d5 + a3*numpy.sin(_t52) - a3*numpy.sin(_t53)
+    _t78 = -_t69*a3 + _t70*a3 + _t75*a2 + _t76*a2
+    _t79 = _t44*(_t78*_t78) + _t45*(_t71*_t71) + _t51*_t74 + _t59*(_t77*_t77) + _t65*_t74 + _t67*_t74
+    _t80 = 1.0/(_t16*_t16)
+    _t81 = (_t12*_t12)*_t80 + (_t13*_t13)*_t80 + _t50*_t80
+    _t82 = (1e-08)*(_t24*_t24)
+    _t83 = _t47*_t80
+    _t84 = _t2*_t26
+    _t85 = _t30 + _t31
+    _t86 = (_t85*_t85)
+    _t87 = _t35 + _t85
+    _t88 = (_t87*_t87)
+    _t89 = _t73*_t80
+    _t90 = _t15*_t89 + _t83*_t84 + _t83*_t86 + _t83*_t88
+    _t91 = _t15*_t83 + _t84*_t89 + _t86*_t89 + _t88*_t89
+    _t92 = _t19 + _t22 + _t23
+    _t93 = 1.0/((1e-12)*(_t24*_t24*_t24) + _t37*_t38 + _t38*_t68 + _t38*_t79 + _t81*_t82 + _t82*_t90 + _t82*_t91 + _t92)
+    _t94 = _t27*_t72
+    _t95 = _t15*_t32
+    _t96 = _t33*_t64
+    _t97 = _t36*_t66
+    _t98 = _t72*_t80
+    _t99 = _t12*_t85
+    _t100 = _t13*_t87
+    _t101 = -_t38*(-_t100*_t98 - _t32*_t98 - _t98*_t99) + _t94*_t95 + _t94*_t96 + _t94*_t97
+    _t102 = 1.0/_t16
+    _t103 = _t102*xd_z
+    _t104 = _t46*_t72*_t80
+    _t105 = _t15*_t2*_t27*_t46*_t49*_t72 + _t27*_t46*_t65*_t72 + _t27*_t46*_t67*_t72 - _t38*(-_t104*_t15 + _t104*_t84 + _t104*_t86 + _t104*_t88) - _t43*_t45*_t71 - _t44*_t60*_t78 - _t58*_t59*_t77
+    _t106 = _t102*xd_x
+    _t107 = _t38*_t81
+    _t108 = _t38*_t90 + _t82
+    _t109 = _t102*xd_y
+    _t110 = _t101*_t103 + _t105*_t106 + _t109*(_t107 + _t108 + _t79)
+    _t111 = _t102*_t14
+    _t112 = _t27*_t46
+    _t113 = _t46*_t80
+    _t114 = _t112*_t95 + _t112*_t96 + _t112*_t97 - _t38*(-_t100*_t113 - _t113*_t32 - _t113*_t99)
+    _t115 = _t38*_t91
+    _t116 = _t103*_t114 + _t105*_t109 + _t106*(_t107 + _t115 + _t68 + _t82)
+    _t117 = _t101*_t109 + _t103*(_t108 + _t115 + _t37) + _t106*_t114
+    _t118 = _t102*_t87
+    _t119 = _t110*_t72
+    _t120 = _t116*_t46
+    _t121 = _t102*_t85
+    _t122 = _t102*_t31
+    qd = numpy.zeros(_batch + (5,))
+    qd[..., 0] = _t93*(_t110*_t111*_t46 - _t111*_t116*_t72)
+    qd[..., 1] = _t93*(_t102*_t117*_t13 - _t118*_t119 - _t118*_t120)
+    qd[..., 2] = _t93*(_t102*_t117*_t12 - _t119*_t121 - _t120*_t121)
+    qd[..., 3] = _t93*(_t10*_t102*_t117*d5 - _t119*_t122 - _t120*_t122)
+    singular = numpy.empty(_batch + (), dtype=bool)
+    singular[..., ] = numpy.less(_t92, 1e-06)
+    return qd, singular
+
+
+def joint_acceleration(q, qd, xdd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
+    """Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 5) and (...).
+
+    q: joint coordinates, shape (..., 5) (q1: rad, q2: rad, q3: rad, q4: rad, q5: rad)
+    qd: joint rates, shape (..., 5) (per second)
+    xdd: task accelerations, shape (..., 3) (per second squared)
+    (496 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 5, "joint_acceleration", "q")
+    qd = _runtime.as_batch(qd, 5, "joint_acceleration", "qd")
+    xdd = _runtime.as_batch(xdd, 3, "joint_acceleration", "xdd")
+    a1 = _runtime.as_param(a1, "a1")
+    a2 = _runtime.as_param(a2, "a2")
+    a3 = _runtime.as_param(a3, "a3")
+    d1 = _runtime.as_param(d1, "d1")
+    d5 = _runtime.as_param(d5, "d5")
+    _batch = _runtime.batch_shape(q, qd, xdd)
+    q1 = q[..., 0]
+    q2 = q[..., 1]
+    q3 = q[..., 2]
+    q4 = q[..., 3]
+    qd1 = qd[..., 0]
+    qd2 = qd[..., 1]
+    qd3 = qd[..., 2]
+    qd4 = qd[..., 3]
+    xdd_x = xdd[..., 0]
+    xdd_y = xdd[..., 1]
+    xdd_z = xdd[..., 2]
+    _t0 = (a3*a3)
+    _t1 = numpy.sin(q4)
+    _t2 = (d5*d5)
+    _t3 = numpy.cos(q2)
+    _t4 = _t3*a2
+    _t5 = q2 + q3
+    _t6 = numpy.cos(_t5)
+    _t7 = _t6*a3
+    _t8 = q3 + q4
+    _t9 = _t8 + q2
+    _t10 = numpy.cos(_t9)
+    _t11 = _t10*d5
+    _t12 = _t11 + _t7
+    _t13 = _t12 + _t4
+    _t14 = _t13 + a1
+    _t15 = (_t14*_t14)
+    _t16 = abs(a1) + abs(a2) + abs(a3) + abs(d1) + abs(d5)
+    _t17 = _t15/(_t16*_t16*_t16*_t16*_t16*_t16)
+    _t18 = _t17*_t2
+    _t19 = _t0*(_t1*_t1)*_t18
+    _t20 = (a2*a2)
+    _t21 = numpy.sin(_t8)
+    _t22 = _t17*_t20*((_t21*d5 + a3*numpy.sin(q3))*(_t21*d5 + a3*numpy.sin(q3)))
+    _t23 = _t18*((_t1*a3 + _t21*a2)*(_t1*a3 + _t21*a2))
+    _t24 = numpy.maximum(0, -1000000*_t19 - 1000000*_t22 - 1000000*_t23 + 1)
+    _t25 = numpy.sin(_t9)
+    _t26 = (_t25*_t25)
+    _t27 = 1.0/(_t16*_t16*_t16*_t16)
+    _t28 = _t2*_t27
+    _t29 = numpy.sin(_t5)
+    _t30 = _t29*a3
+    _t31 = _t25*d5
+    _t32 = _t10*_t2*_t25
+    _t33 = _t0*_t29*_t6 + _t11*_t30 + _t30*_t4 + _t30*a1 + _t31*_t4 + _t31*_t7 + _t31*a1 + _t32
+    _t34 = numpy.sin(q2)
+    _t35 = _t34*a2
+    _t36 = _t11*_t35 + _t20*_t3*_t34 + _t33 + _t35*_t7 + _t35*a1
+    _t37 = _t15*_t26*_t28 + _t27*(_t33*_t33) + _t27*(_t36*_t36)
+    _t38 = (0.0001)*_t24
+    _t39 = q1 - q4
+    _t40 = numpy.cos(_t39)
+    _t41 = q1 + q4
+    _t42 = numpy.cos(_t41)
+    _t43 = _t40 - _t42
+    _t44 = (0.25)*_t28
+    _t45 = _t0*_t44
+    _t46 = numpy.cos(q1)
+    _t47 = (_t46*_t46)
+    _t48 = _t27*_t47
+    _t49 = (_t10*_t10)
+    _t50 = _t2*_t49
+    _t51 = _t15*_t50
+    _t52 = q1 + q3
+    _t53 = q1 - q3
+    _t54 = _t8 + q1
+    _t55 = numpy.cos(_t54)
+    _t56 = _t8 - q1
+    _t57 = numpy.cos(_t56)
+    _t58 = -_t55*d5 + _t57*d5 - a3*numpy.cos(_t52) + a3*numpy.cos(_t53)
+    _t59 = (0.25)*_t20*_t27
+    _t60 = _t40*a3 - _t42*a3 - _t55*a2 + _t57*a2
+    _t61 = _t4*_t7
+    _t62 = _t11*_t4
+    _t63 = _t0*(_t6*_t6) + 2*_t11*_t7 + _t11*a1 + _t50 + _t7*a1
+    _t64 = _t61 + _t62 + _t63
+    _t65 = (_t64*_t64)
+    _t66 = _t20*(_t3*_t3) + _t4*a1 + 2*_t61 + 2*_t62 + _t63
+    _t67 = (_t66*_t66)
+    _t68 = (_t43*_t43)*_t45 + _t44*(_t60*_t60) + _t48*_t51 + _t48*_t65 + _t48*_t67 + (_t58*_t58)*_t59
+    _t69 = numpy.sin(_t39)
+    _t70 = numpy.sin(_t41)
+    _t71 = -_t69 + _t70
+    _t72 = numpy.sin(q1)
+    _t73 = (_t72*_t72)
+    _t74 = _t27*_t73
+    _t75 = numpy.sin(_t54)
+    _t76 = numpy.sin(_t56)
+    _t77 = _t75*d5 + _t76*d5 + a3*numpy.sin(_t52) - a3*numpy.sin(_t53)
+    _t78 = -_t69*a3 + _t70*a3 + _t75*a2 + _t76*a2
+    _t79 = _t44*(_t78*_t78) + _t45*(_t71*_t71) + _t51*_t74 + _t59*(_t77*_t77) + _t65*_t74 + _t67*_t74
+    _t80 = 1.0/(_t16*_t16)
+    _t81 = (_t12*_t12)*_t80 + (_t13*_t13)*_t80 + _t50*_t80
+    _t82 = (1e-08)*(_t24*_t24)
+    _t83 = _t47*_t80
+    _t84 = _t2*_t26
+    _t85 = _t30 + _t31
+    _t86 = (_t85*_t85)
+    _t87 = _t35 + _t85
+    _t88 = (_t87*_t87)
+    _t89 = _t73*_t80
+    _t90 = _t15*_t89 + _t83*_t84 + _t83*_t86 + _t83*_t88
+    _t91 = _t15*_t83 + _t84*_t89 + _t86*_t89 + _t88*_t89
+    _t92 = _t19 + _t22 + _t23
+    _t93 = 1.0/((1e-12)*(_t24*_t24*_t24) + _t37*_t38 + _t38*_t68 + _t38*_t79 + _t81*_t82 + _t82*_t90 + _t82*_t91 + _t92)
+    _t94 = _t27*_t72
+    _t95 = _t15*_t32
+    _t96 = _t33*_t64
+    _t97 = _t36*_t66
+    _t98 = _t72*_t80
+    _t99 = _t12*_t85
+    _t100 = _t13*_t87
+    _t101 = -_t38*(-_t100*_t98 - _t32*_t98 - _t98*_t99) + _t94*_t95 + _t94*_t96 + _t94*_t97
+    _t102 = 1.0/_t16
+    _t103 = _t31*qd4
+    _t104 = -_t85
+    _t105 = _t104*qd3
+    _t106 = -_t103 + _t105
+    _t107 = -_t87
+    _t108 = _t107*qd2
+    _t109 = _t102*(-qd2*(_t106 + _t108) - qd3*(_t104*qd2 + _t106) - qd4*(-_t103 - _t31*qd2 - _t31*qd3) + xdd_z)
+    _t110 = _t46*_t98
+    _t111 = _t15*_t2*_t27*_t46*_t49*_t72 + _t27*_t46*_t65*_t72 + _t27*_t46*_t67*_t72 - _t38*(-_t110*_t15 + _t110*_t84 + _t110*_t86 + _t110*_t88) - _t43*_t45*_t71 - _t44*_t60*_t78 - _t58*_t59*_t77
+    _t112 = _t46*qd2
+    _t113 = _t11*_t46
+    _t114 = _t113*qd4
+    _t115 = _t12*qd3
+    _t116 = _t114 + _t115*_t46
+    _t117 = _t14*qd1
+    _t118 = _t102*(-qd1*(-_t105*_t72 - _t108*_t72 - _t117*_t46 + _t25*_t72*d5*qd4) - qd2*(-_t112*_t13 - _t116 + _t72*_t87*qd1) - qd3*(-_t112*_t12 - _t116 + _t72*_t85*qd1) - qd4*(-_t11*_t112 - _t113*qd3 - _t114 + _t25*_t72*d5*qd1) + xdd_x)
+    _t119 = _t38*_t81
+    _t120 = _t38*_t90 + _t82
+    _t121 = _t46*qd1
+    _t122 = _t72*qd2
+    _t123 = _t11*_t72
+    _t124 = _t123*qd4
+    _t125 = _t115*_t72 + _t124
+    _t126 = _t102*(-qd1*(-_t103*_t46 + _t104*_t46*qd3 + _t107*_t46*qd2 - _t117*_t72) - qd2*(-_t121*_t87 - _t122*_t13 - _t125) - qd3*(-_t12*_t122 - _t121*_t85 - _t125) - qd4*(-_t11*_t122 - _t121*_t31 - _t123*qd3 - _t124) + xdd_y)
+    _t127 = _t101*_t109 + _t111*_t118 + _t126*(_t119 + _t120 + _t79)
+    _t128 = _t102*_t14
+    _t129 = _t27*_t46
+    _t130 = _t46*_t80
+    _t131 = _t129*_t95 + _t129*_t96 + _t129*_t97 - _t38*(-_t100*_t130 - _t130*_t32 - _t130*_t99)
+    _t132 = _t38*_t91
+    _t133 = _t109*_t131 + _t111*_t126 + _t118*(_t119 + _t132 + _t68 + _t82)
+    _t134 = _t101*_t126 + _t109*(_t120 + _t132 + _t37) + _t118*_t131
+    _t135 = _t102*_t87
+    _t136 = _t127*_t72
+    _t137 = _t133*_t46
+    _t138 = _t102*_t85
+    _t139 = _t102*_t31
+    qdd = numpy.zeros(_batch + (5,))
+    qdd[..., 0] = _t93*(_t127*_t128*_t46 - _t128*_t133*_t72)
+    qdd[..., 1] = _t93*(_t102*_t13*_t134 - _t135*_t136 - _t135*_t137)
+    qdd[..., 2] = _t93*(_t102*_t12*_t134 - _t136*_t138 - _t137*_t138)
+    qdd[..., 3] = _t93*(_t10*_t102*_t134*d5 - _t136*_t139 - _t137*_t139)
+    singular = numpy.empty(_batch + (), dtype=bool)
+    singular[..., ] = numpy.less(_t92, 1e-06)
+    return qdd, singular
 
 
 def within_limits(q):

@@ -10,6 +10,14 @@
  * task: 24 operations after common-subexpression elimination
  * task_jacobian: 36 operations after common-subexpression elimination
  * ik: 108 operations after common-subexpression elimination
+ * task_velocity: 46 operations after common-subexpression elimination
+ * twist: 61 operations after common-subexpression elimination
+ * task_jacobian_dot: 101 operations after common-subexpression elimination
+ * jacobian_dot: 124 operations after common-subexpression elimination
+ * task_acceleration: 148 operations after common-subexpression elimination
+ * manipulability: 56 operations after common-subexpression elimination
+ * joint_velocity: 395 operations after common-subexpression elimination
+ * joint_acceleration: 496 operations after common-subexpression elimination
  */
 #include "scorbot_er7.h"
 
@@ -488,6 +496,702 @@ long scorbot_er7_ik_batch(size_t count, const double *restrict x, const scorbot_
         }
     }
     return refused ? -1 : valid_branches;
+}
+
+/* Task rates x_dot = J_x q_dot, shape (..., 3). */
+void scorbot_er7_task_velocity(const double *restrict q, const double *restrict qd, const scorbot_er7_params *restrict params, double *restrict xd)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    const double qd4 = qd[3];
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d5 = params->d5;
+    const double _t0 = cos(q1);
+    const double _t1 = q2 + q3;
+    const double _t2 = _t1 + q4;
+    const double _t3 = d5*sin(_t2);
+    const double _t4 = _t3*qd4;
+    const double _t5 = _t3 + a3*sin(_t1);
+    const double _t6 = _t5*qd3;
+    const double _t7 = qd2*(_t5 + a2*sin(q2));
+    const double _t8 = sin(q1);
+    const double _t9 = d5*cos(_t2);
+    const double _t10 = _t9 + a3*cos(_t1);
+    const double _t11 = _t10 + a2*cos(q2);
+    const double _t12 = _t11 + a1;
+    xd[0] = -_t0*_t4 - _t0*_t6 - _t0*_t7 - _t12*_t8*qd1;
+    xd[1] = _t0*_t12*qd1 - _t4*_t8 - _t6*_t8 - _t7*_t8;
+    xd[2] = _t10*qd3 + _t11*qd2 + _t9*qd4;
+}
+
+void scorbot_er7_task_velocity_batch(size_t count, const double *restrict q, const double *restrict qd, const scorbot_er7_params *restrict params, double *restrict xd)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        scorbot_er7_task_velocity(q + 5 * i, qd + 5 * i, params, xd + 3 * i);
+    }
+}
+
+/* Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s. */
+void scorbot_er7_twist(const double *restrict q, const double *restrict qd, const scorbot_er7_params *restrict params, double *restrict twist)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    const double qd4 = qd[3];
+    const double qd5 = qd[4];
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d5 = params->d5;
+    const double _t0 = q2 + q3;
+    const double _t1 = _t0 + q4;
+    const double _t2 = sin(_t1);
+    const double _t3 = _t2*d5;
+    const double _t4 = cos(q1);
+    const double _t5 = _t4*qd4;
+    const double _t6 = _t3 + a3*sin(_t0);
+    const double _t7 = _t4*qd3;
+    const double _t8 = _t6 + a2*sin(q2);
+    const double _t9 = _t4*qd2;
+    const double _t10 = sin(q1);
+    const double _t11 = cos(_t1);
+    const double _t12 = _t11*d5;
+    const double _t13 = _t12 + a3*cos(_t0);
+    const double _t14 = _t13 + a2*cos(q2);
+    const double _t15 = _t14 + a1;
+    const double _t16 = _t10*qd4;
+    const double _t17 = _t10*qd3;
+    const double _t18 = _t10*qd2;
+    twist[0] = -_t10*_t15*qd1 - _t3*_t5 - _t6*_t7 - _t8*_t9;
+    twist[1] = _t15*_t4*qd1 - _t16*_t3 - _t17*_t6 - _t18*_t8;
+    twist[2] = _t12*qd4 + _t13*qd3 + _t14*qd2;
+    twist[3] = _t11*_t4*qd5 + _t16 + _t17 + _t18;
+    twist[4] = _t10*_t11*qd5 - _t5 - _t7 - _t9;
+    twist[5] = _t2*qd5 + qd1;
+}
+
+void scorbot_er7_twist_batch(size_t count, const double *restrict q, const double *restrict qd, const scorbot_er7_params *restrict params, double *restrict twist)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        scorbot_er7_twist(q + 5 * i, qd + 5 * i, params, twist + 6 * i);
+    }
+}
+
+/* d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 3, 5). */
+void scorbot_er7_task_jacobian_dot(const double *restrict q, const double *restrict qd, const scorbot_er7_params *restrict params, double *restrict Jx_dot)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    const double qd4 = qd[3];
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d5 = params->d5;
+    const double _t0 = sin(q1);
+    const double _t1 = q2 + q3;
+    const double _t2 = _t1 + q4;
+    const double _t3 = sin(_t2);
+    const double _t4 = _t3*d5;
+    const double _t5 = _t4 + a3*sin(_t1);
+    const double _t6 = -_t5;
+    const double _t7 = _t6*qd3;
+    const double _t8 = cos(q1);
+    const double _t9 = d5*cos(_t2);
+    const double _t10 = _t9 + a3*cos(_t1);
+    const double _t11 = _t10 + a2*cos(q2);
+    const double _t12 = qd1*(_t11 + a1);
+    const double _t13 = _t5 + a2*sin(q2);
+    const double _t14 = -_t13;
+    const double _t15 = _t14*qd2;
+    const double _t16 = _t8*qd2;
+    const double _t17 = _t10*qd3;
+    const double _t18 = _t8*_t9;
+    const double _t19 = _t18*qd4;
+    const double _t20 = _t17*_t8 + _t19;
+    const double _t21 = _t4*qd4;
+    const double _t22 = _t8*qd1;
+    const double _t23 = _t0*qd2;
+    const double _t24 = _t0*_t9;
+    const double _t25 = _t24*qd4;
+    const double _t26 = _t0*_t17 + _t25;
+    const double _t27 = -_t21 + _t7;
+    Jx_dot[0] = -_t0*_t15 + _t0*_t3*d5*qd4 - _t0*_t7 - _t12*_t8;
+    Jx_dot[1] = _t0*_t13*qd1 - _t11*_t16 - _t20;
+    Jx_dot[2] = _t0*_t5*qd1 - _t10*_t16 - _t20;
+    Jx_dot[3] = _t0*_t3*d5*qd1 - _t16*_t9 - _t18*qd3 - _t19;
+    Jx_dot[4] = 0;
+    Jx_dot[5] = -_t0*_t12 + _t14*_t8*qd2 - _t21*_t8 + _t6*_t8*qd3;
+    Jx_dot[6] = -_t11*_t23 - _t13*_t22 - _t26;
+    Jx_dot[7] = -_t10*_t23 - _t22*_t5 - _t26;
+    Jx_dot[8] = -_t22*_t4 - _t23*_t9 - _t24*qd3 - _t25;
+    Jx_dot[9] = 0;
+    Jx_dot[10] = 0;
+    Jx_dot[11] = _t15 + _t27;
+    Jx_dot[12] = _t27 + _t6*qd2;
+    Jx_dot[13] = -_t21 - _t4*qd2 - _t4*qd3;
+    Jx_dot[14] = 0;
+}
+
+void scorbot_er7_task_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const scorbot_er7_params *restrict params, double *restrict Jx_dot)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        scorbot_er7_task_jacobian_dot(q + 5 * i, qd + 5 * i, params, Jx_dot + 15 * i);
+    }
+}
+
+/* d(J)/dt of the geometric Jacobian, shape (..., 6, 5). */
+void scorbot_er7_jacobian_dot(const double *restrict q, const double *restrict qd, const scorbot_er7_params *restrict params, double *restrict J_dot)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    const double qd4 = qd[3];
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d5 = params->d5;
+    const double _t0 = sin(q1);
+    const double _t1 = q2 + q3;
+    const double _t2 = _t1 + q4;
+    const double _t3 = sin(_t2);
+    const double _t4 = _t3*d5;
+    const double _t5 = _t4 + a3*sin(_t1);
+    const double _t6 = -_t5;
+    const double _t7 = _t6*qd3;
+    const double _t8 = cos(_t2);
+    const double _t9 = _t8*d5;
+    const double _t10 = _t9 + a3*cos(_t1);
+    const double _t11 = _t10 + a2*cos(q2);
+    const double _t12 = _t11 + a1;
+    const double _t13 = cos(q1);
+    const double _t14 = _t13*qd1;
+    const double _t15 = _t5 + a2*sin(q2);
+    const double _t16 = -_t15;
+    const double _t17 = _t16*qd2;
+    const double _t18 = _t13*qd2;
+    const double _t19 = _t10*qd3;
+    const double _t20 = _t13*_t9;
+    const double _t21 = _t20*qd4;
+    const double _t22 = _t13*_t19 + _t21;
+    const double _t23 = _t4*qd4;
+    const double _t24 = _t0*qd1;
+    const double _t25 = _t0*qd2;
+    const double _t26 = _t0*_t9;
+    const double _t27 = _t26*qd4;
+    const double _t28 = _t0*_t19 + _t27;
+    const double _t29 = -_t23 + _t7;
+    const double _t30 = _t13*_t3;
+    const double _t31 = _t0*_t3;
+    J_dot[0] = -_t0*_t17 + _t0*_t3*d5*qd4 - _t0*_t7 - _t12*_t14;
+    J_dot[1] = _t0*_t15*qd1 - _t11*_t18 - _t22;
+    J_dot[2] = _t0*_t5*qd1 - _t10*_t18 - _t22;
+    J_dot[3] = _t0*_t3*d5*qd1 - _t18*_t9 - _t20*qd3 - _t21;
+    J_dot[4] = 0;
+    J_dot[5] = -_t12*_t24 + _t13*_t16*qd2 - _t13*_t23 + _t13*_t6*qd3;
+    J_dot[6] = -_t11*_t25 - _t14*_t15 - _t28;
+    J_dot[7] = -_t10*_t25 - _t14*_t5 - _t28;
+    J_dot[8] = -_t14*_t4 - _t25*_t9 - _t26*qd3 - _t27;
+    J_dot[9] = 0;
+    J_dot[10] = 0;
+    J_dot[11] = _t17 + _t29;
+    J_dot[12] = _t29 + _t6*qd2;
+    J_dot[13] = -_t23 - _t4*qd2 - _t4*qd3;
+    J_dot[14] = 0;
+    J_dot[15] = 0;
+    J_dot[16] = _t14;
+    J_dot[17] = _t14;
+    J_dot[18] = _t14;
+    J_dot[19] = -_t18*_t3 - _t24*_t8 - _t30*qd3 - _t30*qd4;
+    J_dot[20] = 0;
+    J_dot[21] = _t24;
+    J_dot[22] = _t24;
+    J_dot[23] = _t24;
+    J_dot[24] = _t13*_t8*qd1 - _t25*_t3 - _t31*qd3 - _t31*qd4;
+    J_dot[25] = 0;
+    J_dot[26] = 0;
+    J_dot[27] = 0;
+    J_dot[28] = 0;
+    J_dot[29] = _t8*qd2 + _t8*qd3 + _t8*qd4;
+}
+
+void scorbot_er7_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const scorbot_er7_params *restrict params, double *restrict J_dot)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        scorbot_er7_jacobian_dot(q + 5 * i, qd + 5 * i, params, J_dot + 30 * i);
+    }
+}
+
+/* Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 3). */
+void scorbot_er7_task_acceleration(const double *restrict q, const double *restrict qd, const double *restrict qdd, const scorbot_er7_params *restrict params, double *restrict xdd)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    const double qd4 = qd[3];
+    const double qdd1 = qdd[0];
+    const double qdd2 = qdd[1];
+    const double qdd3 = qdd[2];
+    const double qdd4 = qdd[3];
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d5 = params->d5;
+    const double _t0 = cos(q1);
+    const double _t1 = q2 + q3;
+    const double _t2 = _t1 + q4;
+    const double _t3 = sin(_t2);
+    const double _t4 = _t3*d5;
+    const double _t5 = _t0*_t4;
+    const double _t6 = _t4 + a3*sin(_t1);
+    const double _t7 = _t0*_t6;
+    const double _t8 = _t6 + a2*sin(q2);
+    const double _t9 = _t0*_t8;
+    const double _t10 = sin(q1);
+    const double _t11 = d5*cos(_t2);
+    const double _t12 = _t11 + a3*cos(_t1);
+    const double _t13 = _t12 + a2*cos(q2);
+    const double _t14 = _t13 + a1;
+    const double _t15 = _t14*qdd1;
+    const double _t16 = _t0*qd2;
+    const double _t17 = _t0*_t11;
+    const double _t18 = _t17*qd4;
+    const double _t19 = _t12*qd3;
+    const double _t20 = _t0*_t19 + _t18;
+    const double _t21 = -_t6;
+    const double _t22 = _t21*qd3;
+    const double _t23 = _t14*qd1;
+    const double _t24 = -_t8;
+    const double _t25 = _t24*qd2;
+    const double _t26 = _t10*qd2;
+    const double _t27 = _t10*_t11;
+    const double _t28 = _t27*qd4;
+    const double _t29 = _t10*_t19 + _t28;
+    const double _t30 = _t4*qd4;
+    const double _t31 = _t22 - _t30;
+    xdd[0] = -_t10*_t15 - _t5*qdd4 - _t7*qdd3 - _t9*qdd2 + qd1*(-_t0*_t23 - _t10*_t22 - _t10*_t25 + _t10*_t3*d5*qd4) + qd2*(_t10*_t8*qd1 - _t13*_t16 - _t20) + qd3*(_t10*_t6*qd1 - _t12*_t16 - _t20) + qd4*(_t10*_t3*d5*qd1 - _t11*_t16 - _t17*qd3 - _t18);
+    xdd[1] = _t0*_t15 - _t10*_t4*qdd4 - _t10*_t6*qdd3 - _t10*_t8*qdd2 + qd1*(_t0*_t21*qd3 + _t0*_t24*qd2 - _t0*_t30 - _t10*_t23) + qd2*(-_t13*_t26 - _t29 - _t9*qd1) + qd3*(-_t12*_t26 - _t29 - _t7*qd1) + qd4*(-_t11*_t26 - _t27*qd3 - _t28 - _t5*qd1);
+    xdd[2] = _t11*qdd4 + _t12*qdd3 + _t13*qdd2 + qd2*(_t25 + _t31) + qd3*(_t21*qd2 + _t31) + qd4*(-_t30 - _t4*qd2 - _t4*qd3);
+}
+
+void scorbot_er7_task_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict qdd, const scorbot_er7_params *restrict params, double *restrict xdd)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        scorbot_er7_task_acceleration(q + 5 * i, qd + 5 * i, qdd + 5 * i, params, xdd + 3 * i);
+    }
+}
+
+/* Manipulability w (det(J_x J_x^T); |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...). */
+void scorbot_er7_manipulability(const double *restrict q, const scorbot_er7_params *restrict params, double *restrict manipulability, int *restrict singular)
+{
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d1 = params->d1;
+    const double d5 = params->d5;
+    const double _t0 = sin(q4);
+    const double _t1 = q3 + q4;
+    const double _t2 = ((a1 + a2*cos(q2) + a3*cos(q2 + q3) + d5*cos(_t1 + q2))*(a1 + a2*cos(q2) + a3*cos(q2 + q3) + d5*cos(_t1 + q2)));
+    const double _t3 = _t2*(d5*d5);
+    const double _t4 = (_t0*_t0)*_t3*(a3*a3);
+    const double _t5 = sin(_t1);
+    const double _t6 = _t2*(a2*a2)*((_t5*d5 + a3*sin(q3))*(_t5*d5 + a3*sin(q3)));
+    const double _t7 = _t3*((_t0*a3 + _t5*a2)*(_t0*a3 + _t5*a2));
+    const double _t8 = 1.0/((fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5)));
+    manipulability[0] = sqrt(_t4 + _t6 + _t7);
+    singular[0] = _t4*_t8 + _t6*_t8 + _t7*_t8 < 1e-06;
+}
+
+void scorbot_er7_manipulability_batch(size_t count, const double *restrict q, const scorbot_er7_params *restrict params, double *restrict manipulability, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        scorbot_er7_manipulability(q + 5 * i, params, manipulability + 1 * i, singular + 1 * i);
+    }
+}
+
+/* Joint rates from task rates: minimum-norm J_x^T (J_x J_x^T)^-1 x_dot; damped least squares where singular. Shapes (..., 5) and (...). */
+void scorbot_er7_joint_velocity(const double *restrict q, const double *restrict xd, const scorbot_er7_params *restrict params, double *restrict qd, int *restrict singular)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double xd_x = xd[0];
+    const double xd_y = xd[1];
+    const double xd_z = xd[2];
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d1 = params->d1;
+    const double d5 = params->d5;
+    const double _t0 = (a3*a3);
+    const double _t1 = sin(q4);
+    const double _t2 = (d5*d5);
+    const double _t3 = cos(q2);
+    const double _t4 = _t3*a2;
+    const double _t5 = q2 + q3;
+    const double _t6 = cos(_t5);
+    const double _t7 = _t6*a3;
+    const double _t8 = q3 + q4;
+    const double _t9 = _t8 + q2;
+    const double _t10 = cos(_t9);
+    const double _t11 = _t10*d5;
+    const double _t12 = _t11 + _t7;
+    const double _t13 = _t12 + _t4;
+    const double _t14 = _t13 + a1;
+    const double _t15 = (_t14*_t14);
+    const double _t16 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
+    const double _t17 = _t15/(_t16*_t16*_t16*_t16*_t16*_t16);
+    const double _t18 = _t17*_t2;
+    const double _t19 = _t0*(_t1*_t1)*_t18;
+    const double _t20 = (a2*a2);
+    const double _t21 = sin(_t8);
+    const double _t22 = _t17*_t20*((_t21*d5 + a3*sin(q3))*(_t21*d5 + a3*sin(q3)));
+    const double _t23 = _t18*((_t1*a3 + _t21*a2)*(_t1*a3 + _t21*a2));
+    const double _t24 = fmax(0, -1000000*_t19 - 1000000*_t22 - 1000000*_t23 + 1);
+    const double _t25 = sin(_t9);
+    const double _t26 = (_t25*_t25);
+    const double _t27 = 1.0/(_t16*_t16*_t16*_t16);
+    const double _t28 = _t2*_t27;
+    const double _t29 = sin(_t5);
+    const double _t30 = _t29*a3;
+    const double _t31 = _t25*d5;
+    const double _t32 = _t10*_t2*_t25;
+    const double _t33 = _t0*_t29*_t6 + _t11*_t30 + _t30*_t4 + _t30*a1 + _t31*_t4 + _t31*_t7 + _t31*a1 + _t32;
+    const double _t34 = sin(q2);
+    const double _t35 = _t34*a2;
+    const double _t36 = _t11*_t35 + _t20*_t3*_t34 + _t33 + _t35*_t7 + _t35*a1;
+    const double _t37 = _t15*_t26*_t28 + _t27*(_t33*_t33) + _t27*(_t36*_t36);
+    const double _t38 = (0.0001)*_t24;
+    const double _t39 = q1 - q4;
+    const double _t40 = cos(_t39);
+    const double _t41 = q1 + q4;
+    const double _t42 = cos(_t41);
+    const double _t43 = _t40 - _t42;
+    const double _t44 = (0.25)*_t28;
+    const double _t45 = _t0*_t44;
+    const double _t46 = cos(q1);
+    const double _t47 = (_t46*_t46);
+    const double _t48 = _t27*_t47;
+    const double _t49 = (_t10*_t10);
+    const double _t50 = _t2*_t49;
+    const double _t51 = _t15*_t50;
+    const double _t52 = q1 + q3;
+    const double _t53 = q1 - q3;
+    const double _t54 = _t8 + q1;
+    const double _t55 = cos(_t54);
+    const double _t56 = _t8 - q1;
+    const double _t57 = cos(_t56);
+    const double _t58 = -_t55*d5 + _t57*d5 - a3*cos(_t52) + a3*cos(_t53);
+    const double _t59 = (0.25)*_t20*_t27;
+    const double _t60 = _t40*a3 - _t42*a3 - _t55*a2 + _t57*a2;
+    const double _t61 = _t4*_t7;
+    const double _t62 = _t11*_t4;
+    const double _t63 = _t0*(_t6*_t6) + 2*_t11*_t7 + _t11*a1 + _t50 + _t7*a1;
+    const double _t64 = _t61 + _t62 + _t63;
+    const double _t65 = (_t64*_t64);
+    const double _t66 = _t20*(_t3*_t3) + _t4*a1 + 2*_t61 + 2*_t62 + _t63;
+    const double _t67 = (_t66*_t66);
+    const double _t68 = (_t43*_t43)*_t45 + _t44*(_t60*_t60) + _t48*_t51 + _t48*_t65 + _t48*_t67 + (_t58*_t58)*_t59;
+    const double _t69 = sin(_t39);
+    const double _t70 = sin(_t41);
+    const double _t71 = -_t69 + _t70;
+    const double _t72 = sin(q1);
+    const double _t73 = (_t72*_t72);
+    const double _t74 = _t27*_t73;
+    const double _t75 = sin(_t54);
+    const double _t76 = sin(_t56);
+    const double _t77 = _t75*d5 + _t76*d5 + a3*sin(_t52) - a3*sin(_t53);
+    const double _t78 = -_t69*a3 + _t70*a3 + _t75*a2 + _t76*a2;
+    const double _t79 = _t44*(_t78*_t78) + _t45*(_t71*_t71) + _t51*_t74 + _t59*(_t77*_t77) + _t65*_t74 + _t67*_t74;
+    const double _t80 = 1.0/(_t16*_t16);
+    const double _t81 = (_t12*_t12)*_t80 + (_t13*_t13)*_t80 + _t50*_t80;
+    const double _t82 = (1e-08)*(_t24*_t24);
+    const double _t83 = _t47*_t80;
+    const double _t84 = _t2*_t26;
+    const double _t85 = _t30 + _t31;
+    const double _t86 = (_t85*_t85);
+    const double _t87 = _t35 + _t85;
+    const double _t88 = (_t87*_t87);
+    const double _t89 = _t73*_t80;
+    const double _t90 = _t15*_t89 + _t83*_t84 + _t83*_t86 + _t83*_t88;
+    const double _t91 = _t15*_t83 + _t84*_t89 + _t86*_t89 + _t88*_t89;
+    const double _t92 = _t19 + _t22 + _t23;
+    const double _t93 = 1.0/((1e-12)*(_t24*_t24*_t24) + _t37*_t38 + _t38*_t68 + _t38*_t79 + _t81*_t82 + _t82*_t90 + _t82*_t91 + _t92);
+    const double _t94 = _t27*_t72;
+    const double _t95 = _t15*_t32;
+    const double _t96 = _t33*_t64;
+    const double _t97 = _t36*_t66;
+    const double _t98 = _t72*_t80;
+    const double _t99 = _t12*_t85;
+    const double _t100 = _t13*_t87;
+    const double _t101 = -_t38*(-_t100*_t98 - _t32*_t98 - _t98*_t99) + _t94*_t95 + _t94*_t96 + _t94*_t97;
+    const double _t102 = 1.0/_t16;
+    const double _t103 = _t102*xd_z;
+    const double _t104 = _t46*_t72*_t80;
+    const double _t105 = _t15*_t2*_t27*_t46*_t49*_t72 + _t27*_t46*_t65*_t72 + _t27*_t46*_t67*_t72 - _t38*(-_t104*_t15 + _t104*_t84 + _t104*_t86 + _t104*_t88) - _t43*_t45*_t71 - _t44*_t60*_t78 - _t58*_t59*_t77;
+    const double _t106 = _t102*xd_x;
+    const double _t107 = _t38*_t81;
+    const double _t108 = _t38*_t90 + _t82;
+    const double _t109 = _t102*xd_y;
+    const double _t110 = _t101*_t103 + _t105*_t106 + _t109*(_t107 + _t108 + _t79);
+    const double _t111 = _t102*_t14;
+    const double _t112 = _t27*_t46;
+    const double _t113 = _t46*_t80;
+    const double _t114 = _t112*_t95 + _t112*_t96 + _t112*_t97 - _t38*(-_t100*_t113 - _t113*_t32 - _t113*_t99);
+    const double _t115 = _t38*_t91;
+    const double _t116 = _t103*_t114 + _t105*_t109 + _t106*(_t107 + _t115 + _t68 + _t82);
+    const double _t117 = _t101*_t109 + _t103*(_t108 + _t115 + _t37) + _t106*_t114;
+    const double _t118 = _t102*_t87;
+    const double _t119 = _t110*_t72;
+    const double _t120 = _t116*_t46;
+    const double _t121 = _t102*_t85;
+    const double _t122 = _t102*_t31;
+    qd[0] = _t93*(_t110*_t111*_t46 - _t111*_t116*_t72);
+    qd[1] = _t93*(_t102*_t117*_t13 - _t118*_t119 - _t118*_t120);
+    qd[2] = _t93*(_t102*_t117*_t12 - _t119*_t121 - _t120*_t121);
+    qd[3] = _t93*(_t10*_t102*_t117*d5 - _t119*_t122 - _t120*_t122);
+    qd[4] = 0;
+    singular[0] = _t92 < 1e-06;
+}
+
+void scorbot_er7_joint_velocity_batch(size_t count, const double *restrict q, const double *restrict xd, const scorbot_er7_params *restrict params, double *restrict qd, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        scorbot_er7_joint_velocity(q + 5 * i, xd + 3 * i, params, qd + 5 * i, singular + 1 * i);
+    }
+}
+
+/* Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 5) and (...). */
+void scorbot_er7_joint_acceleration(const double *restrict q, const double *restrict qd, const double *restrict xdd, const scorbot_er7_params *restrict params, double *restrict qdd, int *restrict singular)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double qd1 = qd[0];
+    const double qd2 = qd[1];
+    const double qd3 = qd[2];
+    const double qd4 = qd[3];
+    const double xdd_x = xdd[0];
+    const double xdd_y = xdd[1];
+    const double xdd_z = xdd[2];
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d1 = params->d1;
+    const double d5 = params->d5;
+    const double _t0 = (a3*a3);
+    const double _t1 = sin(q4);
+    const double _t2 = (d5*d5);
+    const double _t3 = cos(q2);
+    const double _t4 = _t3*a2;
+    const double _t5 = q2 + q3;
+    const double _t6 = cos(_t5);
+    const double _t7 = _t6*a3;
+    const double _t8 = q3 + q4;
+    const double _t9 = _t8 + q2;
+    const double _t10 = cos(_t9);
+    const double _t11 = _t10*d5;
+    const double _t12 = _t11 + _t7;
+    const double _t13 = _t12 + _t4;
+    const double _t14 = _t13 + a1;
+    const double _t15 = (_t14*_t14);
+    const double _t16 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
+    const double _t17 = _t15/(_t16*_t16*_t16*_t16*_t16*_t16);
+    const double _t18 = _t17*_t2;
+    const double _t19 = _t0*(_t1*_t1)*_t18;
+    const double _t20 = (a2*a2);
+    const double _t21 = sin(_t8);
+    const double _t22 = _t17*_t20*((_t21*d5 + a3*sin(q3))*(_t21*d5 + a3*sin(q3)));
+    const double _t23 = _t18*((_t1*a3 + _t21*a2)*(_t1*a3 + _t21*a2));
+    const double _t24 = fmax(0, -1000000*_t19 - 1000000*_t22 - 1000000*_t23 + 1);
+    const double _t25 = sin(_t9);
+    const double _t26 = (_t25*_t25);
+    const double _t27 = 1.0/(_t16*_t16*_t16*_t16);
+    const double _t28 = _t2*_t27;
+    const double _t29 = sin(_t5);
+    const double _t30 = _t29*a3;
+    const double _t31 = _t25*d5;
+    const double _t32 = _t10*_t2*_t25;
+    const double _t33 = _t0*_t29*_t6 + _t11*_t30 + _t30*_t4 + _t30*a1 + _t31*_t4 + _t31*_t7 + _t31*a1 + _t32;
+    const double _t34 = sin(q2);
+    const double _t35 = _t34*a2;
+    const double _t36 = _t11*_t35 + _t20*_t3*_t34 + _t33 + _t35*_t7 + _t35*a1;
+    const double _t37 = _t15*_t26*_t28 + _t27*(_t33*_t33) + _t27*(_t36*_t36);
+    const double _t38 = (0.0001)*_t24;
+    const double _t39 = q1 - q4;
+    const double _t40 = cos(_t39);
+    const double _t41 = q1 + q4;
+    const double _t42 = cos(_t41);
+    const double _t43 = _t40 - _t42;
+    const double _t44 = (0.25)*_t28;
+    const double _t45 = _t0*_t44;
+    const double _t46 = cos(q1);
+    const double _t47 = (_t46*_t46);
+    const double _t48 = _t27*_t47;
+    const double _t49 = (_t10*_t10);
+    const double _t50 = _t2*_t49;
+    const double _t51 = _t15*_t50;
+    const double _t52 = q1 + q3;
+    const double _t53 = q1 - q3;
+    const double _t54 = _t8 + q1;
+    const double _t55 = cos(_t54);
+    const double _t56 = _t8 - q1;
+    const double _t57 = cos(_t56);
+    const double _t58 = -_t55*d5 + _t57*d5 - a3*cos(_t52) + a3*cos(_t53);
+    const double _t59 = (0.25)*_t20*_t27;
+    const double _t60 = _t40*a3 - _t42*a3 - _t55*a2 + _t57*a2;
+    const double _t61 = _t4*_t7;
+    const double _t62 = _t11*_t4;
+    const double _t63 = _t0*(_t6*_t6) + 2*_t11*_t7 + _t11*a1 + _t50 + _t7*a1;
+    const double _t64 = _t61 + _t62 + _t63;
+    const double _t65 = (_t64*_t64);
+    const double _t66 = _t20*(_t3*_t3) + _t4*a1 + 2*_t61 + 2*_t62 + _t63;
+    const double _t67 = (_t66*_t66);
+    const double _t68 = (_t43*_t43)*_t45 + _t44*(_t60*_t60) + _t48*_t51 + _t48*_t65 + _t48*_t67 + (_t58*_t58)*_t59;
+    const double _t69 = sin(_t39);
+    const double _t70 = sin(_t41);
+    const double _t71 = -_t69 + _t70;
+    const double _t72 = sin(q1);
+    const double _t73 = (_t72*_t72);
+    const double _t74 = _t27*_t73;
+    const double _t75 = sin(_t54);
+    const double _t76 = sin(_t56);
+    const double _t77 = _t75*d5 + _t76*d5 + a3*sin(_t52) - a3*sin(_t53);
+    const double _t78 = -_t69*a3 + _t70*a3 + _t75*a2 + _t76*a2;
+    const double _t79 = _t44*(_t78*_t78) + _t45*(_t71*_t71) + _t51*_t74 + _t59*(_t77*_t77) + _t65*_t74 + _t67*_t74;
+    const double _t80 = 1.0/(_t16*_t16);
+    const double _t81 = (_t12*_t12)*_t80 + (_t13*_t13)*_t80 + _t50*_t80;
+    const double _t82 = (1e-08)*(_t24*_t24);
+    const double _t83 = _t47*_t80;
+    const double _t84 = _t2*_t26;
+    const double _t85 = _t30 + _t31;
+    const double _t86 = (_t85*_t85);
+    const double _t87 = _t35 + _t85;
+    const double _t88 = (_t87*_t87);
+    const double _t89 = _t73*_t80;
+    const double _t90 = _t15*_t89 + _t83*_t84 + _t83*_t86 + _t83*_t88;
+    const double _t91 = _t15*_t83 + _t84*_t89 + _t86*_t89 + _t88*_t89;
+    const double _t92 = _t19 + _t22 + _t23;
+    const double _t93 = 1.0/((1e-12)*(_t24*_t24*_t24) + _t37*_t38 + _t38*_t68 + _t38*_t79 + _t81*_t82 + _t82*_t90 + _t82*_t91 + _t92);
+    const double _t94 = _t27*_t72;
+    const double _t95 = _t15*_t32;
+    const double _t96 = _t33*_t64;
+    const double _t97 = _t36*_t66;
+    const double _t98 = _t72*_t80;
+    const double _t99 = _t12*_t85;
+    const double _t100 = _t13*_t87;
+    const double _t101 = -_t38*(-_t100*_t98 - _t32*_t98 - _t98*_t99) + _t94*_t95 + _t94*_t96 + _t94*_t97;
+    const double _t102 = 1.0/_t16;
+    const double _t103 = _t31*qd4;
+    const double _t104 = -_t85;
+    const double _t105 = _t104*qd3;
+    const double _t106 = -_t103 + _t105;
+    const double _t107 = -_t87;
+    const double _t108 = _t107*qd2;
+    const double _t109 = _t102*(-qd2*(_t106 + _t108) - qd3*(_t104*qd2 + _t106) - qd4*(-_t103 - _t31*qd2 - _t31*qd3) + xdd_z);
+    const double _t110 = _t46*_t98;
+    const double _t111 = _t15*_t2*_t27*_t46*_t49*_t72 + _t27*_t46*_t65*_t72 + _t27*_t46*_t67*_t72 - _t38*(-_t110*_t15 + _t110*_t84 + _t110*_t86 + _t110*_t88) - _t43*_t45*_t71 - _t44*_t60*_t78 - _t58*_t59*_t77;
+    const double _t112 = _t46*qd2;
+    const double _t113 = _t11*_t46;
+    const double _t114 = _t113*qd4;
+    const double _t115 = _t12*qd3;
+    const double _t116 = _t114 + _t115*_t46;
+    const double _t117 = _t14*qd1;
+    const double _t118 = _t102*(-qd1*(-_t105*_t72 - _t108*_t72 - _t117*_t46 + _t25*_t72*d5*qd4) - qd2*(-_t112*_t13 - _t116 + _t72*_t87*qd1) - qd3*(-_t112*_t12 - _t116 + _t72*_t85*qd1) - qd4*(-_t11*_t112 - _t113*qd3 - _t114 + _t25*_t72*d5*qd1) + xdd_x);
+    const double _t119 = _t38*_t81;
+    const double _t120 = _t38*_t90 + _t82;
+    const double _t121 = _t46*qd1;
+    const double _t122 = _t72*qd2;
+    const double _t123 = _t11*_t72;
+    const double _t124 = _t123*qd4;
+    const double _t125 = _t115*_t72 + _t124;
+    const double _t126 = _t102*(-qd1*(-_t103*_t46 + _t104*_t46*qd3 + _t107*_t46*qd2 - _t117*_t72) - qd2*(-_t121*_t87 - _t122*_t13 - _t125) - qd3*(-_t12*_t122 - _t121*_t85 - _t125) - qd4*(-_t11*_t122 - _t121*_t31 - _t123*qd3 - _t124) + xdd_y);
+    const double _t127 = _t101*_t109 + _t111*_t118 + _t126*(_t119 + _t120 + _t79);
+    const double _t128 = _t102*_t14;
+    const double _t129 = _t27*_t46;
+    const double _t130 = _t46*_t80;
+    const double _t131 = _t129*_t95 + _t129*_t96 + _t129*_t97 - _t38*(-_t100*_t130 - _t130*_t32 - _t130*_t99);
+    const double _t132 = _t38*_t91;
+    const double _t133 = _t109*_t131 + _t111*_t126 + _t118*(_t119 + _t132 + _t68 + _t82);
+    const double _t134 = _t101*_t126 + _t109*(_t120 + _t132 + _t37) + _t118*_t131;
+    const double _t135 = _t102*_t87;
+    const double _t136 = _t127*_t72;
+    const double _t137 = _t133*_t46;
+    const double _t138 = _t102*_t85;
+    const double _t139 = _t102*_t31;
+    qdd[0] = _t93*(_t127*_t128*_t46 - _t128*_t133*_t72);
+    qdd[1] = _t93*(_t102*_t13*_t134 - _t135*_t136 - _t135*_t137);
+    qdd[2] = _t93*(_t102*_t12*_t134 - _t136*_t138 - _t137*_t138);
+    qdd[3] = _t93*(_t10*_t102*_t134*d5 - _t136*_t139 - _t137*_t139);
+    qdd[4] = 0;
+    singular[0] = _t92 < 1e-06;
+}
+
+void scorbot_er7_joint_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict xdd, const scorbot_er7_params *restrict params, double *restrict qdd, int *restrict singular)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        scorbot_er7_joint_acceleration(q + 5 * i, qd + 5 * i, xdd + 3 * i, params, qdd + 5 * i, singular + 1 * i);
+    }
 }
 
 /* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */

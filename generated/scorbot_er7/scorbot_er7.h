@@ -47,6 +47,30 @@ void scorbot_er7_task_jacobian_batch(size_t count, const double *q, const scorbo
 /* Returns the number of valid branches; the batch returns their total (-1 if any item was refused). */
 int scorbot_er7_ik(const double *x, const scorbot_er7_params *params, double *Q, int *valid);
 long scorbot_er7_ik_batch(size_t count, const double *x, const scorbot_er7_params *params, double *Q, int *valid);
+/* task_velocity: q[5], qd[5] -> xd[3] (row-major). Task rates x_dot = J_x q_dot, shape (..., 3). */
+void scorbot_er7_task_velocity(const double *q, const double *qd, const scorbot_er7_params *params, double *xd);
+void scorbot_er7_task_velocity_batch(size_t count, const double *q, const double *qd, const scorbot_er7_params *params, double *xd);
+/* twist: q[5], qd[5] -> twist[6] (row-major). Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s. */
+void scorbot_er7_twist(const double *q, const double *qd, const scorbot_er7_params *params, double *twist);
+void scorbot_er7_twist_batch(size_t count, const double *q, const double *qd, const scorbot_er7_params *params, double *twist);
+/* task_jacobian_dot: q[5], qd[5] -> Jx_dot[15] (row-major). d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 3, 5). */
+void scorbot_er7_task_jacobian_dot(const double *q, const double *qd, const scorbot_er7_params *params, double *Jx_dot);
+void scorbot_er7_task_jacobian_dot_batch(size_t count, const double *q, const double *qd, const scorbot_er7_params *params, double *Jx_dot);
+/* jacobian_dot: q[5], qd[5] -> J_dot[30] (row-major). d(J)/dt of the geometric Jacobian, shape (..., 6, 5). */
+void scorbot_er7_jacobian_dot(const double *q, const double *qd, const scorbot_er7_params *params, double *J_dot);
+void scorbot_er7_jacobian_dot_batch(size_t count, const double *q, const double *qd, const scorbot_er7_params *params, double *J_dot);
+/* task_acceleration: q[5], qd[5], qdd[5] -> xdd[3] (row-major). Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 3). */
+void scorbot_er7_task_acceleration(const double *q, const double *qd, const double *qdd, const scorbot_er7_params *params, double *xdd);
+void scorbot_er7_task_acceleration_batch(size_t count, const double *q, const double *qd, const double *qdd, const scorbot_er7_params *params, double *xdd);
+/* manipulability: q[5] -> manipulability[1], singular[1] (row-major). Manipulability w (det(J_x J_x^T); |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...). */
+void scorbot_er7_manipulability(const double *q, const scorbot_er7_params *params, double *manipulability, int *singular);
+void scorbot_er7_manipulability_batch(size_t count, const double *q, const scorbot_er7_params *params, double *manipulability, int *singular);
+/* joint_velocity: q[5], xd[3] -> qd[5], singular[1] (row-major). Joint rates from task rates: minimum-norm J_x^T (J_x J_x^T)^-1 x_dot; damped least squares where singular. Shapes (..., 5) and (...). */
+void scorbot_er7_joint_velocity(const double *q, const double *xd, const scorbot_er7_params *params, double *qd, int *singular);
+void scorbot_er7_joint_velocity_batch(size_t count, const double *q, const double *xd, const scorbot_er7_params *params, double *qd, int *singular);
+/* joint_acceleration: q[5], qd[5], xdd[3] -> qdd[5], singular[1] (row-major). Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 5) and (...). */
+void scorbot_er7_joint_acceleration(const double *q, const double *qd, const double *xdd, const scorbot_er7_params *params, double *qdd, int *singular);
+void scorbot_er7_joint_acceleration_batch(size_t count, const double *q, const double *qd, const double *xdd, const scorbot_er7_params *params, double *qdd, int *singular);
 /* within_limits: q[5] -> 1 when every joint lies within its limits (revolute joints modulo 2 pi), else 0. */
 int scorbot_er7_within_limits(const double *q);
 void scorbot_er7_within_limits_batch(size_t count, const double *q, int *inside);
