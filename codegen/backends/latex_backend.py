@@ -316,7 +316,9 @@ class _Width:
 def escape_text(text: str) -> str:
     """Plain text (a note, a docstring) made safe for pdflatex."""
     replacements = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
-                    "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}"}
+                    "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}",
+                    # OT1 text fonts print < > | as inverted marks and a dash: set them as math
+                    "<": r"\textless{}", ">": r"\textgreater{}", "|": r"\textbar{}"}
     out = "".join(replacements.get(ch, ch) for ch in text)
     unicode = {"θ": r"$\theta$", "φ": r"$\phi$", "π": r"$\pi$", "°": r"$^\circ$", "±": r"$\pm$", "×": r"$\times$",
                "≤": r"$\le$", "≥": r"$\ge$", "−": "-", "–": "--", "—": "---", "’": "'", "“": "``", "”": "''",
