@@ -135,7 +135,7 @@ def test_ik_branches_print_with_their_conditions(models):
     m = with_ik(models["planar_2r"])
     sections = {sec.key: sec for sec in robot_sections(m)}
     body = sections["ik"].body
-    assert r"\paragraph{Branch \texttt{elbow\_up}} theta2 >= 0 (Rehiara Eq. 18)" in body
+    assert r"\paragraph{Branch \texttt{elbow\_up}} theta2 \textgreater{}= 0 (Rehiara Eq. 18)" in body
     assert r"\paragraph{Branch \texttt{elbow\_down}}" in body
     assert r"\theta_{1} &= " in body and r"\theta_{2} &= \arccos" in body
     assert r"\operatorname{atan2}" in body
