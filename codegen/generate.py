@@ -19,6 +19,7 @@ from derivations.model import RobotModel
 
 from .backends import TEMPLATES, c_backend, float_literal, numpy_backend
 from .kernels import PreparedFunction, prepare
+from .stages import stage
 
 __all__ = ["REPO", "GENERATED", "render_robot", "render_tree", "write_tree", "write_package", "stale_files",
            "robot_context", "OutputExistsError"]
@@ -52,7 +53,14 @@ def template_function(prepared: PreparedFunction, accepts_nonfinite: bool = Fals
             "name": out.name, "shape": tuple(out.shape), "dtype": out.dtype, "size": out.size,
             "has_zeros": zero_free, "assignments": assignments, "flat": list(enumerate(out.entries)),
         })
+    staged = stage(prepared)
+    for out, entries in zip(outputs, staged.outputs):
+        out["staged"] = list(enumerate(entries))
     return {
+        "stages": [{"body": [(n, e, n in staged.arrays) for n, e in s.body], "calls": s.calls}
+                   for s in staged.stages],
+        "arrays": staged.arrays,
+        "indexed": staged.arrays | (prepared.arguments_used & {s for a in prepared.arguments for s in a[1]}),
         "name": prepared.name, "doc": prepared.doc, "arguments": prepared.arguments,
         "params_used": prepared.params_used, "arguments_used": prepared.arguments_used,
         "temporaries": prepared.temporaries, "outputs": outputs, "operations": prepared.operations,

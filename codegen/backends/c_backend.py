@@ -14,9 +14,18 @@ STRICT_FLAGS = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic")
 class CKernelPrinter(ExactArithmeticMixin, C99CodePrinter):
     """Prints C99 expressions; constants as correctly rounded double literals."""
 
-    def __init__(self):
+    def __init__(self, indexed=frozenset()):
         # No M_PI-style macros: they are POSIX, not C99 (pi is folded to a literal anyway).
         super().__init__({"math_macros": {}, "allow_unknown_functions": False})
+        self._indexed = frozenset(indexed)
+
+    def indexed(self, names) -> "CKernelPrinter":
+        """A printer that reads the variables ``names`` as ``name[i]`` (per-block arrays)."""
+        return CKernelPrinter(names)
+
+    def _print_Symbol(self, expr):
+        text = super()._print_Symbol(expr)
+        return f"{text}[i]" if expr.name in self._indexed else text
 
     def _print_BooleanTrue(self, expr):
         return "1"
@@ -40,6 +49,17 @@ def prototypes(context: dict, suffix: str = "") -> list[str]:
     return lines
 
 
+def checked_prototypes(context: dict) -> list[str]:
+    """The cffi module's own entry points (build_c.py.j2): a kernel of ``count`` items, inputs checked."""
+    name = context["name"]
+    lines = []
+    for f in context["functions"]:
+        inputs = "".join(f"const double *{a[0]}, " for a in f["arguments"])
+        outputs = "".join(f", {'double' if o['dtype'] == 'float' else 'int'} *{o['name']}" for o in f["outputs"])
+        lines.append(f"int {name}_{f['name']}_checked(size_t count, {inputs}const {name}_params *params{outputs})")
+    return lines
+
+
 def declarations(context: dict, for_cffi: bool) -> str:
     name = context["name"]
     fields = " ".join(f"double {p[0]};" for p in context["params"]) or "double unused;"
@@ -48,6 +68,8 @@ def declarations(context: dict, for_cffi: bool) -> str:
         lines.append(f"extern const {name}_params {name}_default_params;")
     lines.append("")
     lines.extend(prototypes(context))
+    if for_cffi:
+        lines.extend(f"{p};" for p in checked_prototypes(context))
     return "\n".join(lines)
 
 
@@ -55,7 +77,8 @@ def render(context: dict) -> dict[str, str]:
     """Files of the C backend, by name, for one robot."""
     printer = CKernelPrinter()
     name = context["name"]
-    context = dict(context, c_declarations=declarations(context, False), c_cdef=declarations(context, True))
+    context = dict(context, c_declarations=declarations(context, False), c_cdef=declarations(context, True),
+                   c_checked=checked_prototypes(context))
     files = {}
     for template, filename in (
         ("robot.h.j2", f"{name}.h"),

@@ -14,6 +14,34 @@
 
 #include <math.h>
 
+/*
+ * Batched entry points.  Plain C99 loops over the single-point entry point by
+ * default.  With -DKINEGEN_BLOCKED they work through their items in blocks of
+ * KINEGEN_BLOCK instead: the inputs of a block are copied into one array per
+ * coordinate, every sine and every cosine is taken in a loop of its own, and the
+ * arithmetic runs in one loop per stage, from the same expressions as the single
+ * point (so the results are bit-identical).  -DKINEGEN_SIMD -fopenmp-simd (what
+ * build_c.py uses where the compiler and C library allow) adds to that SIMD
+ * declarations of sin and cos, so that the loops vectorise and call glibc's
+ * vector math library (libmvec, at most 4 ulp).  No NaN or infinity check is
+ * affected: no -ffast-math is involved.
+ */
+#ifdef KINEGEN_SIMD
+#pragma omp declare simd notinbranch
+double sin(double);
+#pragma omp declare simd notinbranch
+double cos(double);
+#define KINEGEN_VECTOR_LOOP _Pragma("omp simd")
+#ifndef KINEGEN_BLOCKED
+#define KINEGEN_BLOCKED
+#endif
+#else
+#define KINEGEN_VECTOR_LOOP
+#endif
+#ifndef KINEGEN_BLOCK
+#define KINEGEN_BLOCK 64
+#endif
+
 const adept_three_params adept_three_default_params = { 0.559, 0.508, 0.8763, 0.0 };
 
 /* Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. */
@@ -32,16 +60,20 @@ void adept_three_fk(const double *restrict q, const adept_three_params *restrict
     const double d4 = params->d4;
     const double _t0 = q1 + q2;
     const double _t1 = _t0 - q4;
-    const double _t2 = cos(_t1);
-    const double _t3 = sin(_t1);
-    T[0] = _t2;
-    T[1] = _t3;
+    const double _s0 = sin(_t1);
+    const double _c0 = cos(_t1);
+    const double _s1 = sin(q1);
+    const double _c1 = cos(q1);
+    const double _s2 = sin(_t0);
+    const double _c2 = cos(_t0);
+    T[0] = _c0;
+    T[1] = _s0;
     T[2] = 0;
-    T[3] = l1*cos(q1) + l2*cos(_t0);
-    T[4] = _t3;
-    T[5] = -_t2;
+    T[3] = _c1*l1 + _c2*l2;
+    T[4] = _s0;
+    T[5] = -_c0;
     T[6] = 0;
-    T[7] = l1*sin(q1) + l2*sin(_t0);
+    T[7] = _s1*l1 + _s2*l2;
     T[8] = 0;
     T[9] = 0;
     T[10] = -1;
@@ -52,12 +84,93 @@ void adept_three_fk(const double *restrict q, const adept_three_params *restrict
     T[15] = 1;
 }
 
+/* fk of `count` items, stored one after the other in each argument and output. */
 void adept_three_fk_batch(size_t count, const double *restrict q, const adept_three_params *restrict params, double *restrict T)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double q3[KINEGEN_BLOCK];
+    double q4[KINEGEN_BLOCK];
+    double _t0[KINEGEN_BLOCK];
+    double _t1[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    double _s1[KINEGEN_BLOCK];
+    double _c1[KINEGEN_BLOCK];
+    double _s2[KINEGEN_BLOCK];
+    double _c2[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double d1 = params->d1;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[4 * (start + i) + 0];
+            q2[i] = q[4 * (start + i) + 1];
+            q3[i] = q[4 * (start + i) + 2];
+            q4[i] = q[4 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+            _t1[i] = _t0[i] - q4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            T[16 * (start + i) + 0] = _c0[i];
+            T[16 * (start + i) + 1] = _s0[i];
+            T[16 * (start + i) + 2] = 0;
+            T[16 * (start + i) + 3] = _c1[i]*l1 + _c2[i]*l2;
+            T[16 * (start + i) + 4] = _s0[i];
+            T[16 * (start + i) + 5] = -_c0[i];
+            T[16 * (start + i) + 6] = 0;
+            T[16 * (start + i) + 7] = _s1[i]*l1 + _s2[i]*l2;
+            T[16 * (start + i) + 8] = 0;
+            T[16 * (start + i) + 9] = 0;
+            T[16 * (start + i) + 10] = -1;
+            T[16 * (start + i) + 11] = d1 - d4 - q3[i];
+            T[16 * (start + i) + 12] = 0;
+            T[16 * (start + i) + 13] = 0;
+            T[16 * (start + i) + 14] = 0;
+            T[16 * (start + i) + 15] = 1;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         adept_three_fk(q + 4 * i, params, T + 16 * i);
     }
+#endif
 }
 
 /* Frames T_0 (base) .. T_4 (tool), shape (..., 5, 4, 4). */
@@ -74,19 +187,19 @@ void adept_three_frames(const double *restrict q, const adept_three_params *rest
     const double l2 = params->l2;
     const double d1 = params->d1;
     const double d4 = params->d4;
-    const double _t0 = cos(q1);
-    const double _t1 = sin(q1);
-    const double _t2 = _t0*l1;
-    const double _t3 = _t1*l1;
     const double _t4 = q1 + q2;
-    const double _t5 = cos(_t4);
-    const double _t6 = sin(_t4);
-    const double _t7 = _t2 + _t5*l2;
-    const double _t8 = -_t5;
-    const double _t9 = _t3 + _t6*l2;
     const double _t10 = _t4 - q4;
-    const double _t11 = cos(_t10);
-    const double _t12 = sin(_t10);
+    const double _s0 = sin(q1);
+    const double _c0 = cos(q1);
+    const double _s1 = sin(_t4);
+    const double _c1 = cos(_t4);
+    const double _s2 = sin(_t10);
+    const double _c2 = cos(_t10);
+    const double _t2 = _c0*l1;
+    const double _t3 = _s0*l1;
+    const double _t7 = _c1*l2 + _t2;
+    const double _t8 = -_c1;
+    const double _t9 = _s1*l2 + _t3;
     frames[0] = 1;
     frames[1] = 0;
     frames[2] = 0;
@@ -103,12 +216,12 @@ void adept_three_frames(const double *restrict q, const adept_three_params *rest
     frames[13] = 0;
     frames[14] = 0;
     frames[15] = 1;
-    frames[16] = _t0;
-    frames[17] = -_t1;
+    frames[16] = _c0;
+    frames[17] = -_s0;
     frames[18] = 0;
     frames[19] = _t2;
-    frames[20] = _t1;
-    frames[21] = _t0;
+    frames[20] = _s0;
+    frames[21] = _c0;
     frames[22] = 0;
     frames[23] = _t3;
     frames[24] = 0;
@@ -119,11 +232,11 @@ void adept_three_frames(const double *restrict q, const adept_three_params *rest
     frames[29] = 0;
     frames[30] = 0;
     frames[31] = 1;
-    frames[32] = _t5;
-    frames[33] = _t6;
+    frames[32] = _c1;
+    frames[33] = _s1;
     frames[34] = 0;
     frames[35] = _t7;
-    frames[36] = _t6;
+    frames[36] = _s1;
     frames[37] = _t8;
     frames[38] = 0;
     frames[39] = _t9;
@@ -135,11 +248,11 @@ void adept_three_frames(const double *restrict q, const adept_three_params *rest
     frames[45] = 0;
     frames[46] = 0;
     frames[47] = 1;
-    frames[48] = _t5;
-    frames[49] = _t6;
+    frames[48] = _c1;
+    frames[49] = _s1;
     frames[50] = 0;
     frames[51] = _t7;
-    frames[52] = _t6;
+    frames[52] = _s1;
     frames[53] = _t8;
     frames[54] = 0;
     frames[55] = _t9;
@@ -151,12 +264,12 @@ void adept_three_frames(const double *restrict q, const adept_three_params *rest
     frames[61] = 0;
     frames[62] = 0;
     frames[63] = 1;
-    frames[64] = _t11;
-    frames[65] = _t12;
+    frames[64] = _c2;
+    frames[65] = _s2;
     frames[66] = 0;
     frames[67] = _t7;
-    frames[68] = _t12;
-    frames[69] = -_t11;
+    frames[68] = _s2;
+    frames[69] = -_c2;
     frames[70] = 0;
     frames[71] = _t9;
     frames[72] = 0;
@@ -169,12 +282,162 @@ void adept_three_frames(const double *restrict q, const adept_three_params *rest
     frames[79] = 1;
 }
 
+/* frames of `count` items, stored one after the other in each argument and output. */
 void adept_three_frames_batch(size_t count, const double *restrict q, const adept_three_params *restrict params, double *restrict frames)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double q3[KINEGEN_BLOCK];
+    double q4[KINEGEN_BLOCK];
+    double _t4[KINEGEN_BLOCK];
+    double _t10[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    double _s1[KINEGEN_BLOCK];
+    double _c1[KINEGEN_BLOCK];
+    double _s2[KINEGEN_BLOCK];
+    double _c2[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double d1 = params->d1;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[4 * (start + i) + 0];
+            q2[i] = q[4 * (start + i) + 1];
+            q3[i] = q[4 * (start + i) + 2];
+            q4[i] = q[4 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t4[i] = q1[i] + q2[i];
+            _t10[i] = _t4[i] - q4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t10[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t10[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t2 = _c0[i]*l1;
+            const double _t3 = _s0[i]*l1;
+            const double _t7 = _c1[i]*l2 + _t2;
+            const double _t8 = -_c1[i];
+            const double _t9 = _s1[i]*l2 + _t3;
+            frames[80 * (start + i) + 0] = 1;
+            frames[80 * (start + i) + 1] = 0;
+            frames[80 * (start + i) + 2] = 0;
+            frames[80 * (start + i) + 3] = 0;
+            frames[80 * (start + i) + 4] = 0;
+            frames[80 * (start + i) + 5] = 1;
+            frames[80 * (start + i) + 6] = 0;
+            frames[80 * (start + i) + 7] = 0;
+            frames[80 * (start + i) + 8] = 0;
+            frames[80 * (start + i) + 9] = 0;
+            frames[80 * (start + i) + 10] = 1;
+            frames[80 * (start + i) + 11] = 0;
+            frames[80 * (start + i) + 12] = 0;
+            frames[80 * (start + i) + 13] = 0;
+            frames[80 * (start + i) + 14] = 0;
+            frames[80 * (start + i) + 15] = 1;
+            frames[80 * (start + i) + 16] = _c0[i];
+            frames[80 * (start + i) + 17] = -_s0[i];
+            frames[80 * (start + i) + 18] = 0;
+            frames[80 * (start + i) + 19] = _t2;
+            frames[80 * (start + i) + 20] = _s0[i];
+            frames[80 * (start + i) + 21] = _c0[i];
+            frames[80 * (start + i) + 22] = 0;
+            frames[80 * (start + i) + 23] = _t3;
+            frames[80 * (start + i) + 24] = 0;
+            frames[80 * (start + i) + 25] = 0;
+            frames[80 * (start + i) + 26] = 1;
+            frames[80 * (start + i) + 27] = d1;
+            frames[80 * (start + i) + 28] = 0;
+            frames[80 * (start + i) + 29] = 0;
+            frames[80 * (start + i) + 30] = 0;
+            frames[80 * (start + i) + 31] = 1;
+            frames[80 * (start + i) + 32] = _c1[i];
+            frames[80 * (start + i) + 33] = _s1[i];
+            frames[80 * (start + i) + 34] = 0;
+            frames[80 * (start + i) + 35] = _t7;
+            frames[80 * (start + i) + 36] = _s1[i];
+            frames[80 * (start + i) + 37] = _t8;
+            frames[80 * (start + i) + 38] = 0;
+            frames[80 * (start + i) + 39] = _t9;
+            frames[80 * (start + i) + 40] = 0;
+            frames[80 * (start + i) + 41] = 0;
+            frames[80 * (start + i) + 42] = -1;
+            frames[80 * (start + i) + 43] = d1;
+            frames[80 * (start + i) + 44] = 0;
+            frames[80 * (start + i) + 45] = 0;
+            frames[80 * (start + i) + 46] = 0;
+            frames[80 * (start + i) + 47] = 1;
+            frames[80 * (start + i) + 48] = _c1[i];
+            frames[80 * (start + i) + 49] = _s1[i];
+            frames[80 * (start + i) + 50] = 0;
+            frames[80 * (start + i) + 51] = _t7;
+            frames[80 * (start + i) + 52] = _s1[i];
+            frames[80 * (start + i) + 53] = _t8;
+            frames[80 * (start + i) + 54] = 0;
+            frames[80 * (start + i) + 55] = _t9;
+            frames[80 * (start + i) + 56] = 0;
+            frames[80 * (start + i) + 57] = 0;
+            frames[80 * (start + i) + 58] = -1;
+            frames[80 * (start + i) + 59] = d1 - q3[i];
+            frames[80 * (start + i) + 60] = 0;
+            frames[80 * (start + i) + 61] = 0;
+            frames[80 * (start + i) + 62] = 0;
+            frames[80 * (start + i) + 63] = 1;
+            frames[80 * (start + i) + 64] = _c2[i];
+            frames[80 * (start + i) + 65] = _s2[i];
+            frames[80 * (start + i) + 66] = 0;
+            frames[80 * (start + i) + 67] = _t7;
+            frames[80 * (start + i) + 68] = _s2[i];
+            frames[80 * (start + i) + 69] = -_c2[i];
+            frames[80 * (start + i) + 70] = 0;
+            frames[80 * (start + i) + 71] = _t9;
+            frames[80 * (start + i) + 72] = 0;
+            frames[80 * (start + i) + 73] = 0;
+            frames[80 * (start + i) + 74] = -1;
+            frames[80 * (start + i) + 75] = d1 - d4 - q3[i];
+            frames[80 * (start + i) + 76] = 0;
+            frames[80 * (start + i) + 77] = 0;
+            frames[80 * (start + i) + 78] = 0;
+            frames[80 * (start + i) + 79] = 1;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         adept_three_frames(q + 4 * i, params, frames + 80 * i);
     }
+#endif
 }
 
 /* Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 4). */
@@ -188,13 +451,17 @@ void adept_three_jacobian(const double *restrict q, const adept_three_params *re
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _t1 = l2*sin(_t0);
-    const double _t2 = l2*cos(_t0);
-    J[0] = -_t1 - l1*sin(q1);
+    const double _s0 = sin(_t0);
+    const double _c0 = cos(_t0);
+    const double _s1 = sin(q1);
+    const double _c1 = cos(q1);
+    const double _t1 = _s0*l2;
+    const double _t2 = _c0*l2;
+    J[0] = -_s1*l1 - _t1;
     J[1] = -_t1;
     J[2] = 0;
     J[3] = 0;
-    J[4] = _t2 + l1*cos(q1);
+    J[4] = _c1*l1 + _t2;
     J[5] = _t2;
     J[6] = 0;
     J[7] = 0;
@@ -216,12 +483,85 @@ void adept_three_jacobian(const double *restrict q, const adept_three_params *re
     J[23] = -1;
 }
 
+/* jacobian of `count` items, stored one after the other in each argument and output. */
 void adept_three_jacobian_batch(size_t count, const double *restrict q, const adept_three_params *restrict params, double *restrict J)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double _t0[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    double _s1[KINEGEN_BLOCK];
+    double _c1[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[4 * (start + i) + 0];
+            q2[i] = q[4 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t1 = _s0[i]*l2;
+            const double _t2 = _c0[i]*l2;
+            J[24 * (start + i) + 0] = -_s1[i]*l1 - _t1;
+            J[24 * (start + i) + 1] = -_t1;
+            J[24 * (start + i) + 2] = 0;
+            J[24 * (start + i) + 3] = 0;
+            J[24 * (start + i) + 4] = _c1[i]*l1 + _t2;
+            J[24 * (start + i) + 5] = _t2;
+            J[24 * (start + i) + 6] = 0;
+            J[24 * (start + i) + 7] = 0;
+            J[24 * (start + i) + 8] = 0;
+            J[24 * (start + i) + 9] = 0;
+            J[24 * (start + i) + 10] = -1;
+            J[24 * (start + i) + 11] = 0;
+            J[24 * (start + i) + 12] = 0;
+            J[24 * (start + i) + 13] = 0;
+            J[24 * (start + i) + 14] = 0;
+            J[24 * (start + i) + 15] = 0;
+            J[24 * (start + i) + 16] = 0;
+            J[24 * (start + i) + 17] = 0;
+            J[24 * (start + i) + 18] = 0;
+            J[24 * (start + i) + 19] = 0;
+            J[24 * (start + i) + 20] = 1;
+            J[24 * (start + i) + 21] = 1;
+            J[24 * (start + i) + 22] = 0;
+            J[24 * (start + i) + 23] = -1;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         adept_three_jacobian(q + 4 * i, params, J + 24 * i);
     }
+#endif
 }
 
 /* Task coordinates x, y, z, phi, shape (..., 4). */
@@ -239,18 +579,79 @@ void adept_three_task(const double *restrict q, const adept_three_params *restri
     const double d1 = params->d1;
     const double d4 = params->d4;
     const double _t0 = q1 + q2;
-    x[0] = l1*cos(q1) + l2*cos(_t0);
-    x[1] = l1*sin(q1) + l2*sin(_t0);
+    const double _s0 = sin(q1);
+    const double _c0 = cos(q1);
+    const double _s1 = sin(_t0);
+    const double _c1 = cos(_t0);
+    x[0] = _c0*l1 + _c1*l2;
+    x[1] = _s0*l1 + _s1*l2;
     x[2] = d1 - d4 - q3;
     x[3] = _t0 - q4;
 }
 
+/* task of `count` items, stored one after the other in each argument and output. */
 void adept_three_task_batch(size_t count, const double *restrict q, const adept_three_params *restrict params, double *restrict x)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double q3[KINEGEN_BLOCK];
+    double q4[KINEGEN_BLOCK];
+    double _t0[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    double _s1[KINEGEN_BLOCK];
+    double _c1[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double d1 = params->d1;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[4 * (start + i) + 0];
+            q2[i] = q[4 * (start + i) + 1];
+            q3[i] = q[4 * (start + i) + 2];
+            q4[i] = q[4 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            x[4 * (start + i) + 0] = _c0[i]*l1 + _c1[i]*l2;
+            x[4 * (start + i) + 1] = _s0[i]*l1 + _s1[i]*l2;
+            x[4 * (start + i) + 2] = d1 - d4 - q3[i];
+            x[4 * (start + i) + 3] = _t0[i] - q4[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         adept_three_task(q + 4 * i, params, x + 4 * i);
     }
+#endif
 }
 
 /* d task / d q, shape (..., 4, 4). */
@@ -264,13 +665,17 @@ void adept_three_task_jacobian(const double *restrict q, const adept_three_param
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _t1 = l2*sin(_t0);
-    const double _t2 = l2*cos(_t0);
-    Jx[0] = -_t1 - l1*sin(q1);
+    const double _s0 = sin(_t0);
+    const double _c0 = cos(_t0);
+    const double _s1 = sin(q1);
+    const double _c1 = cos(q1);
+    const double _t1 = _s0*l2;
+    const double _t2 = _c0*l2;
+    Jx[0] = -_s1*l1 - _t1;
     Jx[1] = -_t1;
     Jx[2] = 0;
     Jx[3] = 0;
-    Jx[4] = _t2 + l1*cos(q1);
+    Jx[4] = _c1*l1 + _t2;
     Jx[5] = _t2;
     Jx[6] = 0;
     Jx[7] = 0;
@@ -284,10 +689,75 @@ void adept_three_task_jacobian(const double *restrict q, const adept_three_param
     Jx[15] = -1;
 }
 
+/* task_jacobian of `count` items, stored one after the other in each argument and output. */
 void adept_three_task_jacobian_batch(size_t count, const double *restrict q, const adept_three_params *restrict params, double *restrict Jx)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double _t0[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    double _s1[KINEGEN_BLOCK];
+    double _c1[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[4 * (start + i) + 0];
+            q2[i] = q[4 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t1 = _s0[i]*l2;
+            const double _t2 = _c0[i]*l2;
+            Jx[16 * (start + i) + 0] = -_s1[i]*l1 - _t1;
+            Jx[16 * (start + i) + 1] = -_t1;
+            Jx[16 * (start + i) + 2] = 0;
+            Jx[16 * (start + i) + 3] = 0;
+            Jx[16 * (start + i) + 4] = _c1[i]*l1 + _t2;
+            Jx[16 * (start + i) + 5] = _t2;
+            Jx[16 * (start + i) + 6] = 0;
+            Jx[16 * (start + i) + 7] = 0;
+            Jx[16 * (start + i) + 8] = 0;
+            Jx[16 * (start + i) + 9] = 0;
+            Jx[16 * (start + i) + 10] = -1;
+            Jx[16 * (start + i) + 11] = 0;
+            Jx[16 * (start + i) + 12] = 1;
+            Jx[16 * (start + i) + 13] = 1;
+            Jx[16 * (start + i) + 14] = 0;
+            Jx[16 * (start + i) + 15] = -1;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         adept_three_task_jacobian(q + 4 * i, params, Jx + 16 * i);
     }
+#endif
 }

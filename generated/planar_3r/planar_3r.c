@@ -14,6 +14,34 @@
 
 #include <math.h>
 
+/*
+ * Batched entry points.  Plain C99 loops over the single-point entry point by
+ * default.  With -DKINEGEN_BLOCKED they work through their items in blocks of
+ * KINEGEN_BLOCK instead: the inputs of a block are copied into one array per
+ * coordinate, every sine and every cosine is taken in a loop of its own, and the
+ * arithmetic runs in one loop per stage, from the same expressions as the single
+ * point (so the results are bit-identical).  -DKINEGEN_SIMD -fopenmp-simd (what
+ * build_c.py uses where the compiler and C library allow) adds to that SIMD
+ * declarations of sin and cos, so that the loops vectorise and call glibc's
+ * vector math library (libmvec, at most 4 ulp).  No NaN or infinity check is
+ * affected: no -ffast-math is involved.
+ */
+#ifdef KINEGEN_SIMD
+#pragma omp declare simd notinbranch
+double sin(double);
+#pragma omp declare simd notinbranch
+double cos(double);
+#define KINEGEN_VECTOR_LOOP _Pragma("omp simd")
+#ifndef KINEGEN_BLOCKED
+#define KINEGEN_BLOCKED
+#endif
+#else
+#define KINEGEN_VECTOR_LOOP
+#endif
+#ifndef KINEGEN_BLOCK
+#define KINEGEN_BLOCK 64
+#endif
+
 const planar_3r_params planar_3r_default_params = { 0.5, 0.4, 0.2 };
 
 /* Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. */
@@ -30,16 +58,20 @@ void planar_3r_fk(const double *restrict q, const planar_3r_params *restrict par
     const double l3 = params->l3;
     const double _t0 = q1 + q2;
     const double _t1 = _t0 + q3;
-    const double _t2 = cos(_t1);
-    const double _t3 = sin(_t1);
-    T[0] = _t2;
-    T[1] = -_t3;
+    const double _s0 = sin(_t1);
+    const double _c0 = cos(_t1);
+    const double _s1 = sin(q1);
+    const double _c1 = cos(q1);
+    const double _s2 = sin(_t0);
+    const double _c2 = cos(_t0);
+    T[0] = _c0;
+    T[1] = -_s0;
     T[2] = 0;
-    T[3] = _t2*l3 + l1*cos(q1) + l2*cos(_t0);
-    T[4] = _t3;
-    T[5] = _t2;
+    T[3] = _c0*l3 + _c1*l1 + _c2*l2;
+    T[4] = _s0;
+    T[5] = _c0;
     T[6] = 0;
-    T[7] = _t3*l3 + l1*sin(q1) + l2*sin(_t0);
+    T[7] = _s0*l3 + _s1*l1 + _s2*l2;
     T[8] = 0;
     T[9] = 0;
     T[10] = 1;
@@ -50,12 +82,90 @@ void planar_3r_fk(const double *restrict q, const planar_3r_params *restrict par
     T[15] = 1;
 }
 
+/* fk of `count` items, stored one after the other in each argument and output. */
 void planar_3r_fk_batch(size_t count, const double *restrict q, const planar_3r_params *restrict params, double *restrict T)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double q3[KINEGEN_BLOCK];
+    double _t0[KINEGEN_BLOCK];
+    double _t1[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    double _s1[KINEGEN_BLOCK];
+    double _c1[KINEGEN_BLOCK];
+    double _s2[KINEGEN_BLOCK];
+    double _c2[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+            q3[i] = q[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+            _t1[i] = _t0[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            T[16 * (start + i) + 0] = _c0[i];
+            T[16 * (start + i) + 1] = -_s0[i];
+            T[16 * (start + i) + 2] = 0;
+            T[16 * (start + i) + 3] = _c0[i]*l3 + _c1[i]*l1 + _c2[i]*l2;
+            T[16 * (start + i) + 4] = _s0[i];
+            T[16 * (start + i) + 5] = _c0[i];
+            T[16 * (start + i) + 6] = 0;
+            T[16 * (start + i) + 7] = _s0[i]*l3 + _s1[i]*l1 + _s2[i]*l2;
+            T[16 * (start + i) + 8] = 0;
+            T[16 * (start + i) + 9] = 0;
+            T[16 * (start + i) + 10] = 1;
+            T[16 * (start + i) + 11] = 0;
+            T[16 * (start + i) + 12] = 0;
+            T[16 * (start + i) + 13] = 0;
+            T[16 * (start + i) + 14] = 0;
+            T[16 * (start + i) + 15] = 1;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_3r_fk(q + 3 * i, params, T + 16 * i);
     }
+#endif
 }
 
 /* Frames T_0 (base) .. T_3 (tool), shape (..., 4, 4, 4). */
@@ -70,18 +180,18 @@ void planar_3r_frames(const double *restrict q, const planar_3r_params *restrict
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double l3 = params->l3;
-    const double _t0 = cos(q1);
-    const double _t1 = sin(q1);
-    const double _t2 = _t0*l1;
-    const double _t3 = _t1*l1;
     const double _t4 = q1 + q2;
-    const double _t5 = cos(_t4);
-    const double _t6 = sin(_t4);
-    const double _t7 = _t2 + _t5*l2;
-    const double _t8 = _t3 + _t6*l2;
     const double _t9 = _t4 + q3;
-    const double _t10 = cos(_t9);
-    const double _t11 = sin(_t9);
+    const double _s0 = sin(q1);
+    const double _c0 = cos(q1);
+    const double _s1 = sin(_t4);
+    const double _c1 = cos(_t4);
+    const double _s2 = sin(_t9);
+    const double _c2 = cos(_t9);
+    const double _t2 = _c0*l1;
+    const double _t3 = _s0*l1;
+    const double _t7 = _c1*l2 + _t2;
+    const double _t8 = _s1*l2 + _t3;
     frames[0] = 1;
     frames[1] = 0;
     frames[2] = 0;
@@ -98,12 +208,12 @@ void planar_3r_frames(const double *restrict q, const planar_3r_params *restrict
     frames[13] = 0;
     frames[14] = 0;
     frames[15] = 1;
-    frames[16] = _t0;
-    frames[17] = -_t1;
+    frames[16] = _c0;
+    frames[17] = -_s0;
     frames[18] = 0;
     frames[19] = _t2;
-    frames[20] = _t1;
-    frames[21] = _t0;
+    frames[20] = _s0;
+    frames[21] = _c0;
     frames[22] = 0;
     frames[23] = _t3;
     frames[24] = 0;
@@ -114,12 +224,12 @@ void planar_3r_frames(const double *restrict q, const planar_3r_params *restrict
     frames[29] = 0;
     frames[30] = 0;
     frames[31] = 1;
-    frames[32] = _t5;
-    frames[33] = -_t6;
+    frames[32] = _c1;
+    frames[33] = -_s1;
     frames[34] = 0;
     frames[35] = _t7;
-    frames[36] = _t6;
-    frames[37] = _t5;
+    frames[36] = _s1;
+    frames[37] = _c1;
     frames[38] = 0;
     frames[39] = _t8;
     frames[40] = 0;
@@ -130,14 +240,14 @@ void planar_3r_frames(const double *restrict q, const planar_3r_params *restrict
     frames[45] = 0;
     frames[46] = 0;
     frames[47] = 1;
-    frames[48] = _t10;
-    frames[49] = -_t11;
+    frames[48] = _c2;
+    frames[49] = -_s2;
     frames[50] = 0;
-    frames[51] = _t10*l3 + _t7;
-    frames[52] = _t11;
-    frames[53] = _t10;
+    frames[51] = _c2*l3 + _t7;
+    frames[52] = _s2;
+    frames[53] = _c2;
     frames[54] = 0;
-    frames[55] = _t11*l3 + _t8;
+    frames[55] = _s2*l3 + _t8;
     frames[56] = 0;
     frames[57] = 0;
     frames[58] = 1;
@@ -148,12 +258,142 @@ void planar_3r_frames(const double *restrict q, const planar_3r_params *restrict
     frames[63] = 1;
 }
 
+/* frames of `count` items, stored one after the other in each argument and output. */
 void planar_3r_frames_batch(size_t count, const double *restrict q, const planar_3r_params *restrict params, double *restrict frames)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double q3[KINEGEN_BLOCK];
+    double _t4[KINEGEN_BLOCK];
+    double _t9[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    double _s1[KINEGEN_BLOCK];
+    double _c1[KINEGEN_BLOCK];
+    double _s2[KINEGEN_BLOCK];
+    double _c2[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+            q3[i] = q[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t4[i] = q1[i] + q2[i];
+            _t9[i] = _t4[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t9[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t9[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t2 = _c0[i]*l1;
+            const double _t3 = _s0[i]*l1;
+            const double _t7 = _c1[i]*l2 + _t2;
+            const double _t8 = _s1[i]*l2 + _t3;
+            frames[64 * (start + i) + 0] = 1;
+            frames[64 * (start + i) + 1] = 0;
+            frames[64 * (start + i) + 2] = 0;
+            frames[64 * (start + i) + 3] = 0;
+            frames[64 * (start + i) + 4] = 0;
+            frames[64 * (start + i) + 5] = 1;
+            frames[64 * (start + i) + 6] = 0;
+            frames[64 * (start + i) + 7] = 0;
+            frames[64 * (start + i) + 8] = 0;
+            frames[64 * (start + i) + 9] = 0;
+            frames[64 * (start + i) + 10] = 1;
+            frames[64 * (start + i) + 11] = 0;
+            frames[64 * (start + i) + 12] = 0;
+            frames[64 * (start + i) + 13] = 0;
+            frames[64 * (start + i) + 14] = 0;
+            frames[64 * (start + i) + 15] = 1;
+            frames[64 * (start + i) + 16] = _c0[i];
+            frames[64 * (start + i) + 17] = -_s0[i];
+            frames[64 * (start + i) + 18] = 0;
+            frames[64 * (start + i) + 19] = _t2;
+            frames[64 * (start + i) + 20] = _s0[i];
+            frames[64 * (start + i) + 21] = _c0[i];
+            frames[64 * (start + i) + 22] = 0;
+            frames[64 * (start + i) + 23] = _t3;
+            frames[64 * (start + i) + 24] = 0;
+            frames[64 * (start + i) + 25] = 0;
+            frames[64 * (start + i) + 26] = 1;
+            frames[64 * (start + i) + 27] = 0;
+            frames[64 * (start + i) + 28] = 0;
+            frames[64 * (start + i) + 29] = 0;
+            frames[64 * (start + i) + 30] = 0;
+            frames[64 * (start + i) + 31] = 1;
+            frames[64 * (start + i) + 32] = _c1[i];
+            frames[64 * (start + i) + 33] = -_s1[i];
+            frames[64 * (start + i) + 34] = 0;
+            frames[64 * (start + i) + 35] = _t7;
+            frames[64 * (start + i) + 36] = _s1[i];
+            frames[64 * (start + i) + 37] = _c1[i];
+            frames[64 * (start + i) + 38] = 0;
+            frames[64 * (start + i) + 39] = _t8;
+            frames[64 * (start + i) + 40] = 0;
+            frames[64 * (start + i) + 41] = 0;
+            frames[64 * (start + i) + 42] = 1;
+            frames[64 * (start + i) + 43] = 0;
+            frames[64 * (start + i) + 44] = 0;
+            frames[64 * (start + i) + 45] = 0;
+            frames[64 * (start + i) + 46] = 0;
+            frames[64 * (start + i) + 47] = 1;
+            frames[64 * (start + i) + 48] = _c2[i];
+            frames[64 * (start + i) + 49] = -_s2[i];
+            frames[64 * (start + i) + 50] = 0;
+            frames[64 * (start + i) + 51] = _c2[i]*l3 + _t7;
+            frames[64 * (start + i) + 52] = _s2[i];
+            frames[64 * (start + i) + 53] = _c2[i];
+            frames[64 * (start + i) + 54] = 0;
+            frames[64 * (start + i) + 55] = _s2[i]*l3 + _t8;
+            frames[64 * (start + i) + 56] = 0;
+            frames[64 * (start + i) + 57] = 0;
+            frames[64 * (start + i) + 58] = 1;
+            frames[64 * (start + i) + 59] = 0;
+            frames[64 * (start + i) + 60] = 0;
+            frames[64 * (start + i) + 61] = 0;
+            frames[64 * (start + i) + 62] = 0;
+            frames[64 * (start + i) + 63] = 1;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_3r_frames(q + 3 * i, params, frames + 64 * i);
     }
+#endif
 }
 
 /* Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 3). */
@@ -170,14 +410,20 @@ void planar_3r_jacobian(const double *restrict q, const planar_3r_params *restri
     const double l3 = params->l3;
     const double _t0 = q1 + q2;
     const double _t1 = _t0 + q3;
-    const double _t2 = l3*sin(_t1);
-    const double _t3 = _t2 + l2*sin(_t0);
-    const double _t4 = l3*cos(_t1);
-    const double _t5 = _t4 + l2*cos(_t0);
-    J[0] = -_t3 - l1*sin(q1);
+    const double _s0 = sin(_t1);
+    const double _c0 = cos(_t1);
+    const double _s1 = sin(_t0);
+    const double _c1 = cos(_t0);
+    const double _s2 = sin(q1);
+    const double _c2 = cos(q1);
+    const double _t2 = _s0*l3;
+    const double _t3 = _s1*l2 + _t2;
+    const double _t4 = _c0*l3;
+    const double _t5 = _c1*l2 + _t4;
+    J[0] = -_s2*l1 - _t3;
     J[1] = -_t3;
     J[2] = -_t2;
-    J[3] = _t5 + l1*cos(q1);
+    J[3] = _c2*l1 + _t5;
     J[4] = _t5;
     J[5] = _t4;
     J[6] = 0;
@@ -194,12 +440,96 @@ void planar_3r_jacobian(const double *restrict q, const planar_3r_params *restri
     J[17] = 1;
 }
 
+/* jacobian of `count` items, stored one after the other in each argument and output. */
 void planar_3r_jacobian_batch(size_t count, const double *restrict q, const planar_3r_params *restrict params, double *restrict J)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double q3[KINEGEN_BLOCK];
+    double _t0[KINEGEN_BLOCK];
+    double _t1[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    double _s1[KINEGEN_BLOCK];
+    double _c1[KINEGEN_BLOCK];
+    double _s2[KINEGEN_BLOCK];
+    double _c2[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+            q3[i] = q[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+            _t1[i] = _t0[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t2 = _s0[i]*l3;
+            const double _t3 = _s1[i]*l2 + _t2;
+            const double _t4 = _c0[i]*l3;
+            const double _t5 = _c1[i]*l2 + _t4;
+            J[18 * (start + i) + 0] = -_s2[i]*l1 - _t3;
+            J[18 * (start + i) + 1] = -_t3;
+            J[18 * (start + i) + 2] = -_t2;
+            J[18 * (start + i) + 3] = _c2[i]*l1 + _t5;
+            J[18 * (start + i) + 4] = _t5;
+            J[18 * (start + i) + 5] = _t4;
+            J[18 * (start + i) + 6] = 0;
+            J[18 * (start + i) + 7] = 0;
+            J[18 * (start + i) + 8] = 0;
+            J[18 * (start + i) + 9] = 0;
+            J[18 * (start + i) + 10] = 0;
+            J[18 * (start + i) + 11] = 0;
+            J[18 * (start + i) + 12] = 0;
+            J[18 * (start + i) + 13] = 0;
+            J[18 * (start + i) + 14] = 0;
+            J[18 * (start + i) + 15] = 1;
+            J[18 * (start + i) + 16] = 1;
+            J[18 * (start + i) + 17] = 1;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_3r_jacobian(q + 3 * i, params, J + 18 * i);
     }
+#endif
 }
 
 /* Task coordinates x, y, phi, shape (..., 3). */
@@ -216,17 +546,88 @@ void planar_3r_task(const double *restrict q, const planar_3r_params *restrict p
     const double l3 = params->l3;
     const double _t0 = q1 + q2;
     const double _t1 = _t0 + q3;
-    x[0] = l1*cos(q1) + l2*cos(_t0) + l3*cos(_t1);
-    x[1] = l1*sin(q1) + l2*sin(_t0) + l3*sin(_t1);
+    const double _s0 = sin(q1);
+    const double _c0 = cos(q1);
+    const double _s1 = sin(_t0);
+    const double _c1 = cos(_t0);
+    const double _s2 = sin(_t1);
+    const double _c2 = cos(_t1);
+    x[0] = _c0*l1 + _c1*l2 + _c2*l3;
+    x[1] = _s0*l1 + _s1*l2 + _s2*l3;
     x[2] = _t1;
 }
 
+/* task of `count` items, stored one after the other in each argument and output. */
 void planar_3r_task_batch(size_t count, const double *restrict q, const planar_3r_params *restrict params, double *restrict x)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double q3[KINEGEN_BLOCK];
+    double _t0[KINEGEN_BLOCK];
+    double _t1[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    double _s1[KINEGEN_BLOCK];
+    double _c1[KINEGEN_BLOCK];
+    double _s2[KINEGEN_BLOCK];
+    double _c2[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+            q3[i] = q[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+            _t1[i] = _t0[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            x[3 * (start + i) + 0] = _c0[i]*l1 + _c1[i]*l2 + _c2[i]*l3;
+            x[3 * (start + i) + 1] = _s0[i]*l1 + _s1[i]*l2 + _s2[i]*l3;
+            x[3 * (start + i) + 2] = _t1[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_3r_task(q + 3 * i, params, x + 3 * i);
     }
+#endif
 }
 
 /* d task / d q, shape (..., 3, 3). */
@@ -243,14 +644,20 @@ void planar_3r_task_jacobian(const double *restrict q, const planar_3r_params *r
     const double l3 = params->l3;
     const double _t0 = q1 + q2;
     const double _t1 = _t0 + q3;
-    const double _t2 = l3*sin(_t1);
-    const double _t3 = _t2 + l2*sin(_t0);
-    const double _t4 = l3*cos(_t1);
-    const double _t5 = _t4 + l2*cos(_t0);
-    Jx[0] = -_t3 - l1*sin(q1);
+    const double _s0 = sin(_t1);
+    const double _c0 = cos(_t1);
+    const double _s1 = sin(_t0);
+    const double _c1 = cos(_t0);
+    const double _s2 = sin(q1);
+    const double _c2 = cos(q1);
+    const double _t2 = _s0*l3;
+    const double _t3 = _s1*l2 + _t2;
+    const double _t4 = _c0*l3;
+    const double _t5 = _c1*l2 + _t4;
+    Jx[0] = -_s2*l1 - _t3;
     Jx[1] = -_t3;
     Jx[2] = -_t2;
-    Jx[3] = _t5 + l1*cos(q1);
+    Jx[3] = _c2*l1 + _t5;
     Jx[4] = _t5;
     Jx[5] = _t4;
     Jx[6] = 1;
@@ -258,10 +665,85 @@ void planar_3r_task_jacobian(const double *restrict q, const planar_3r_params *r
     Jx[8] = 1;
 }
 
+/* task_jacobian of `count` items, stored one after the other in each argument and output. */
 void planar_3r_task_jacobian_batch(size_t count, const double *restrict q, const planar_3r_params *restrict params, double *restrict Jx)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double q3[KINEGEN_BLOCK];
+    double _t0[KINEGEN_BLOCK];
+    double _t1[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    double _s1[KINEGEN_BLOCK];
+    double _c1[KINEGEN_BLOCK];
+    double _s2[KINEGEN_BLOCK];
+    double _c2[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+            q3[i] = q[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+            _t1[i] = _t0[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t2 = _s0[i]*l3;
+            const double _t3 = _s1[i]*l2 + _t2;
+            const double _t4 = _c0[i]*l3;
+            const double _t5 = _c1[i]*l2 + _t4;
+            Jx[9 * (start + i) + 0] = -_s2[i]*l1 - _t3;
+            Jx[9 * (start + i) + 1] = -_t3;
+            Jx[9 * (start + i) + 2] = -_t2;
+            Jx[9 * (start + i) + 3] = _c2[i]*l1 + _t5;
+            Jx[9 * (start + i) + 4] = _t5;
+            Jx[9 * (start + i) + 5] = _t4;
+            Jx[9 * (start + i) + 6] = 1;
+            Jx[9 * (start + i) + 7] = 1;
+            Jx[9 * (start + i) + 8] = 1;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_3r_task_jacobian(q + 3 * i, params, Jx + 9 * i);
     }
+#endif
 }

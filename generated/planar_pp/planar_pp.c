@@ -14,6 +14,34 @@
 
 #include <math.h>
 
+/*
+ * Batched entry points.  Plain C99 loops over the single-point entry point by
+ * default.  With -DKINEGEN_BLOCKED they work through their items in blocks of
+ * KINEGEN_BLOCK instead: the inputs of a block are copied into one array per
+ * coordinate, every sine and every cosine is taken in a loop of its own, and the
+ * arithmetic runs in one loop per stage, from the same expressions as the single
+ * point (so the results are bit-identical).  -DKINEGEN_SIMD -fopenmp-simd (what
+ * build_c.py uses where the compiler and C library allow) adds to that SIMD
+ * declarations of sin and cos, so that the loops vectorise and call glibc's
+ * vector math library (libmvec, at most 4 ulp).  No NaN or infinity check is
+ * affected: no -ffast-math is involved.
+ */
+#ifdef KINEGEN_SIMD
+#pragma omp declare simd notinbranch
+double sin(double);
+#pragma omp declare simd notinbranch
+double cos(double);
+#define KINEGEN_VECTOR_LOOP _Pragma("omp simd")
+#ifndef KINEGEN_BLOCKED
+#define KINEGEN_BLOCKED
+#endif
+#else
+#define KINEGEN_VECTOR_LOOP
+#endif
+#ifndef KINEGEN_BLOCK
+#define KINEGEN_BLOCK 64
+#endif
+
 const planar_pp_params planar_pp_default_params = { 0.0 };
 
 /* Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. */
@@ -40,12 +68,46 @@ void planar_pp_fk(const double *restrict q, const planar_pp_params *restrict par
     T[15] = 1;
 }
 
+/* fk of `count` items, stored one after the other in each argument and output. */
 void planar_pp_fk_batch(size_t count, const double *restrict q, const planar_pp_params *restrict params, double *restrict T)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            T[16 * (start + i) + 0] = 0;
+            T[16 * (start + i) + 1] = 0;
+            T[16 * (start + i) + 2] = 1;
+            T[16 * (start + i) + 3] = q2[i];
+            T[16 * (start + i) + 4] = 0;
+            T[16 * (start + i) + 5] = 1;
+            T[16 * (start + i) + 6] = 0;
+            T[16 * (start + i) + 7] = q1[i];
+            T[16 * (start + i) + 8] = -1;
+            T[16 * (start + i) + 9] = 0;
+            T[16 * (start + i) + 10] = 0;
+            T[16 * (start + i) + 11] = 0;
+            T[16 * (start + i) + 12] = 0;
+            T[16 * (start + i) + 13] = 0;
+            T[16 * (start + i) + 14] = 0;
+            T[16 * (start + i) + 15] = 1;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_pp_fk(q + 2 * i, params, T + 16 * i);
     }
+#endif
 }
 
 /* Frames T_0 (base) .. T_2 (tool), shape (..., 3, 4, 4). */
@@ -104,12 +166,78 @@ void planar_pp_frames(const double *restrict q, const planar_pp_params *restrict
     frames[47] = 1;
 }
 
+/* frames of `count` items, stored one after the other in each argument and output. */
 void planar_pp_frames_batch(size_t count, const double *restrict q, const planar_pp_params *restrict params, double *restrict frames)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            frames[48 * (start + i) + 0] = 1;
+            frames[48 * (start + i) + 1] = 0;
+            frames[48 * (start + i) + 2] = 0;
+            frames[48 * (start + i) + 3] = 0;
+            frames[48 * (start + i) + 4] = 0;
+            frames[48 * (start + i) + 5] = 1;
+            frames[48 * (start + i) + 6] = 0;
+            frames[48 * (start + i) + 7] = 0;
+            frames[48 * (start + i) + 8] = 0;
+            frames[48 * (start + i) + 9] = 0;
+            frames[48 * (start + i) + 10] = 1;
+            frames[48 * (start + i) + 11] = 0;
+            frames[48 * (start + i) + 12] = 0;
+            frames[48 * (start + i) + 13] = 0;
+            frames[48 * (start + i) + 14] = 0;
+            frames[48 * (start + i) + 15] = 1;
+            frames[48 * (start + i) + 16] = 0;
+            frames[48 * (start + i) + 17] = -1;
+            frames[48 * (start + i) + 18] = 0;
+            frames[48 * (start + i) + 19] = 0;
+            frames[48 * (start + i) + 20] = 0;
+            frames[48 * (start + i) + 21] = 0;
+            frames[48 * (start + i) + 22] = 1;
+            frames[48 * (start + i) + 23] = q1[i];
+            frames[48 * (start + i) + 24] = -1;
+            frames[48 * (start + i) + 25] = 0;
+            frames[48 * (start + i) + 26] = 0;
+            frames[48 * (start + i) + 27] = 0;
+            frames[48 * (start + i) + 28] = 0;
+            frames[48 * (start + i) + 29] = 0;
+            frames[48 * (start + i) + 30] = 0;
+            frames[48 * (start + i) + 31] = 1;
+            frames[48 * (start + i) + 32] = 0;
+            frames[48 * (start + i) + 33] = 0;
+            frames[48 * (start + i) + 34] = 1;
+            frames[48 * (start + i) + 35] = q2[i];
+            frames[48 * (start + i) + 36] = 0;
+            frames[48 * (start + i) + 37] = 1;
+            frames[48 * (start + i) + 38] = 0;
+            frames[48 * (start + i) + 39] = q1[i];
+            frames[48 * (start + i) + 40] = -1;
+            frames[48 * (start + i) + 41] = 0;
+            frames[48 * (start + i) + 42] = 0;
+            frames[48 * (start + i) + 43] = 0;
+            frames[48 * (start + i) + 44] = 0;
+            frames[48 * (start + i) + 45] = 0;
+            frames[48 * (start + i) + 46] = 0;
+            frames[48 * (start + i) + 47] = 1;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_pp_frames(q + 2 * i, params, frames + 48 * i);
     }
+#endif
 }
 
 /* Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 2). */
@@ -131,12 +259,37 @@ void planar_pp_jacobian(const double *restrict q, const planar_pp_params *restri
     J[11] = 0;
 }
 
+/* jacobian of `count` items, stored one after the other in each argument and output. */
 void planar_pp_jacobian_batch(size_t count, const double *restrict q, const planar_pp_params *restrict params, double *restrict J)
 {
+#ifdef KINEGEN_BLOCKED
+    size_t start, i, n;
+    (void)q;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            J[12 * (start + i) + 0] = 0;
+            J[12 * (start + i) + 1] = 1;
+            J[12 * (start + i) + 2] = 1;
+            J[12 * (start + i) + 3] = 0;
+            J[12 * (start + i) + 4] = 0;
+            J[12 * (start + i) + 5] = 0;
+            J[12 * (start + i) + 6] = 0;
+            J[12 * (start + i) + 7] = 0;
+            J[12 * (start + i) + 8] = 0;
+            J[12 * (start + i) + 9] = 0;
+            J[12 * (start + i) + 10] = 0;
+            J[12 * (start + i) + 11] = 0;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_pp_jacobian(q + 2 * i, params, J + 12 * i);
     }
+#endif
 }
 
 /* Task coordinates x, y, shape (..., 2). */
@@ -149,12 +302,32 @@ void planar_pp_task(const double *restrict q, const planar_pp_params *restrict p
     x[1] = q1;
 }
 
+/* task of `count` items, stored one after the other in each argument and output. */
 void planar_pp_task_batch(size_t count, const double *restrict q, const planar_pp_params *restrict params, double *restrict x)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            x[2 * (start + i) + 0] = q2[i];
+            x[2 * (start + i) + 1] = q1[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_pp_task(q + 2 * i, params, x + 2 * i);
     }
+#endif
 }
 
 /* d task / d q, shape (..., 2, 2). */
@@ -168,10 +341,27 @@ void planar_pp_task_jacobian(const double *restrict q, const planar_pp_params *r
     Jx[3] = 0;
 }
 
+/* task_jacobian of `count` items, stored one after the other in each argument and output. */
 void planar_pp_task_jacobian_batch(size_t count, const double *restrict q, const planar_pp_params *restrict params, double *restrict Jx)
 {
+#ifdef KINEGEN_BLOCKED
+    size_t start, i, n;
+    (void)q;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            Jx[4 * (start + i) + 0] = 0;
+            Jx[4 * (start + i) + 1] = 1;
+            Jx[4 * (start + i) + 2] = 1;
+            Jx[4 * (start + i) + 3] = 0;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_pp_task_jacobian(q + 2 * i, params, Jx + 4 * i);
     }
+#endif
 }

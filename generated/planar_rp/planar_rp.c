@@ -14,6 +14,34 @@
 
 #include <math.h>
 
+/*
+ * Batched entry points.  Plain C99 loops over the single-point entry point by
+ * default.  With -DKINEGEN_BLOCKED they work through their items in blocks of
+ * KINEGEN_BLOCK instead: the inputs of a block are copied into one array per
+ * coordinate, every sine and every cosine is taken in a loop of its own, and the
+ * arithmetic runs in one loop per stage, from the same expressions as the single
+ * point (so the results are bit-identical).  -DKINEGEN_SIMD -fopenmp-simd (what
+ * build_c.py uses where the compiler and C library allow) adds to that SIMD
+ * declarations of sin and cos, so that the loops vectorise and call glibc's
+ * vector math library (libmvec, at most 4 ulp).  No NaN or infinity check is
+ * affected: no -ffast-math is involved.
+ */
+#ifdef KINEGEN_SIMD
+#pragma omp declare simd notinbranch
+double sin(double);
+#pragma omp declare simd notinbranch
+double cos(double);
+#define KINEGEN_VECTOR_LOOP _Pragma("omp simd")
+#ifndef KINEGEN_BLOCKED
+#define KINEGEN_BLOCKED
+#endif
+#else
+#define KINEGEN_VECTOR_LOOP
+#endif
+#ifndef KINEGEN_BLOCK
+#define KINEGEN_BLOCK 64
+#endif
+
 const planar_rp_params planar_rp_default_params = { 0.0 };
 
 /* Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. */
@@ -22,16 +50,16 @@ void planar_rp_fk(const double *restrict q, const planar_rp_params *restrict par
     const double q1 = q[0];
     const double q2 = q[1];
     (void)params;
-    const double _t0 = sin(q1);
-    const double _t1 = cos(q1);
-    T[0] = _t0;
+    const double _s0 = sin(q1);
+    const double _c0 = cos(q1);
+    T[0] = _s0;
     T[1] = 0;
-    T[2] = _t1;
-    T[3] = _t1*q2;
-    T[4] = -_t1;
+    T[2] = _c0;
+    T[3] = _c0*q2;
+    T[4] = -_c0;
     T[5] = 0;
-    T[6] = _t0;
-    T[7] = _t0*q2;
+    T[6] = _s0;
+    T[7] = _s0*q2;
     T[8] = 0;
     T[9] = -1;
     T[10] = 0;
@@ -42,12 +70,56 @@ void planar_rp_fk(const double *restrict q, const planar_rp_params *restrict par
     T[15] = 1;
 }
 
+/* fk of `count` items, stored one after the other in each argument and output. */
 void planar_rp_fk_batch(size_t count, const double *restrict q, const planar_rp_params *restrict params, double *restrict T)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            T[16 * (start + i) + 0] = _s0[i];
+            T[16 * (start + i) + 1] = 0;
+            T[16 * (start + i) + 2] = _c0[i];
+            T[16 * (start + i) + 3] = _c0[i]*q2[i];
+            T[16 * (start + i) + 4] = -_c0[i];
+            T[16 * (start + i) + 5] = 0;
+            T[16 * (start + i) + 6] = _s0[i];
+            T[16 * (start + i) + 7] = _s0[i]*q2[i];
+            T[16 * (start + i) + 8] = 0;
+            T[16 * (start + i) + 9] = -1;
+            T[16 * (start + i) + 10] = 0;
+            T[16 * (start + i) + 11] = 0;
+            T[16 * (start + i) + 12] = 0;
+            T[16 * (start + i) + 13] = 0;
+            T[16 * (start + i) + 14] = 0;
+            T[16 * (start + i) + 15] = 1;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_rp_fk(q + 2 * i, params, T + 16 * i);
     }
+#endif
 }
 
 /* Frames T_0 (base) .. T_2 (tool), shape (..., 3, 4, 4). */
@@ -56,9 +128,9 @@ void planar_rp_frames(const double *restrict q, const planar_rp_params *restrict
     const double q1 = q[0];
     const double q2 = q[1];
     (void)params;
-    const double _t0 = sin(q1);
-    const double _t1 = cos(q1);
-    const double _t2 = -_t1;
+    const double _s0 = sin(q1);
+    const double _c0 = cos(q1);
+    const double _t2 = -_c0;
     frames[0] = 1;
     frames[1] = 0;
     frames[2] = 0;
@@ -75,12 +147,12 @@ void planar_rp_frames(const double *restrict q, const planar_rp_params *restrict
     frames[13] = 0;
     frames[14] = 0;
     frames[15] = 1;
-    frames[16] = _t0;
-    frames[17] = _t1;
+    frames[16] = _s0;
+    frames[17] = _c0;
     frames[18] = 0;
     frames[19] = 0;
     frames[20] = _t2;
-    frames[21] = _t0;
+    frames[21] = _s0;
     frames[22] = 0;
     frames[23] = 0;
     frames[24] = 0;
@@ -91,14 +163,14 @@ void planar_rp_frames(const double *restrict q, const planar_rp_params *restrict
     frames[29] = 0;
     frames[30] = 0;
     frames[31] = 1;
-    frames[32] = _t0;
+    frames[32] = _s0;
     frames[33] = 0;
-    frames[34] = _t1;
-    frames[35] = _t1*q2;
+    frames[34] = _c0;
+    frames[35] = _c0*q2;
     frames[36] = _t2;
     frames[37] = 0;
-    frames[38] = _t0;
-    frames[39] = _t0*q2;
+    frames[38] = _s0;
+    frames[39] = _s0*q2;
     frames[40] = 0;
     frames[41] = -1;
     frames[42] = 0;
@@ -109,12 +181,89 @@ void planar_rp_frames(const double *restrict q, const planar_rp_params *restrict
     frames[47] = 1;
 }
 
+/* frames of `count` items, stored one after the other in each argument and output. */
 void planar_rp_frames_batch(size_t count, const double *restrict q, const planar_rp_params *restrict params, double *restrict frames)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t2 = -_c0[i];
+            frames[48 * (start + i) + 0] = 1;
+            frames[48 * (start + i) + 1] = 0;
+            frames[48 * (start + i) + 2] = 0;
+            frames[48 * (start + i) + 3] = 0;
+            frames[48 * (start + i) + 4] = 0;
+            frames[48 * (start + i) + 5] = 1;
+            frames[48 * (start + i) + 6] = 0;
+            frames[48 * (start + i) + 7] = 0;
+            frames[48 * (start + i) + 8] = 0;
+            frames[48 * (start + i) + 9] = 0;
+            frames[48 * (start + i) + 10] = 1;
+            frames[48 * (start + i) + 11] = 0;
+            frames[48 * (start + i) + 12] = 0;
+            frames[48 * (start + i) + 13] = 0;
+            frames[48 * (start + i) + 14] = 0;
+            frames[48 * (start + i) + 15] = 1;
+            frames[48 * (start + i) + 16] = _s0[i];
+            frames[48 * (start + i) + 17] = _c0[i];
+            frames[48 * (start + i) + 18] = 0;
+            frames[48 * (start + i) + 19] = 0;
+            frames[48 * (start + i) + 20] = _t2;
+            frames[48 * (start + i) + 21] = _s0[i];
+            frames[48 * (start + i) + 22] = 0;
+            frames[48 * (start + i) + 23] = 0;
+            frames[48 * (start + i) + 24] = 0;
+            frames[48 * (start + i) + 25] = 0;
+            frames[48 * (start + i) + 26] = 1;
+            frames[48 * (start + i) + 27] = 0;
+            frames[48 * (start + i) + 28] = 0;
+            frames[48 * (start + i) + 29] = 0;
+            frames[48 * (start + i) + 30] = 0;
+            frames[48 * (start + i) + 31] = 1;
+            frames[48 * (start + i) + 32] = _s0[i];
+            frames[48 * (start + i) + 33] = 0;
+            frames[48 * (start + i) + 34] = _c0[i];
+            frames[48 * (start + i) + 35] = _c0[i]*q2[i];
+            frames[48 * (start + i) + 36] = _t2;
+            frames[48 * (start + i) + 37] = 0;
+            frames[48 * (start + i) + 38] = _s0[i];
+            frames[48 * (start + i) + 39] = _s0[i]*q2[i];
+            frames[48 * (start + i) + 40] = 0;
+            frames[48 * (start + i) + 41] = -1;
+            frames[48 * (start + i) + 42] = 0;
+            frames[48 * (start + i) + 43] = 0;
+            frames[48 * (start + i) + 44] = 0;
+            frames[48 * (start + i) + 45] = 0;
+            frames[48 * (start + i) + 46] = 0;
+            frames[48 * (start + i) + 47] = 1;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_rp_frames(q + 2 * i, params, frames + 48 * i);
     }
+#endif
 }
 
 /* Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 2). */
@@ -123,12 +272,12 @@ void planar_rp_jacobian(const double *restrict q, const planar_rp_params *restri
     const double q1 = q[0];
     const double q2 = q[1];
     (void)params;
-    const double _t0 = sin(q1);
-    const double _t1 = cos(q1);
-    J[0] = -_t0*q2;
-    J[1] = _t1;
-    J[2] = _t1*q2;
-    J[3] = _t0;
+    const double _s0 = sin(q1);
+    const double _c0 = cos(q1);
+    J[0] = -_s0*q2;
+    J[1] = _c0;
+    J[2] = _c0*q2;
+    J[3] = _s0;
     J[4] = 0;
     J[5] = 0;
     J[6] = 0;
@@ -139,12 +288,52 @@ void planar_rp_jacobian(const double *restrict q, const planar_rp_params *restri
     J[11] = 0;
 }
 
+/* jacobian of `count` items, stored one after the other in each argument and output. */
 void planar_rp_jacobian_batch(size_t count, const double *restrict q, const planar_rp_params *restrict params, double *restrict J)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            J[12 * (start + i) + 0] = -_s0[i]*q2[i];
+            J[12 * (start + i) + 1] = _c0[i];
+            J[12 * (start + i) + 2] = _c0[i]*q2[i];
+            J[12 * (start + i) + 3] = _s0[i];
+            J[12 * (start + i) + 4] = 0;
+            J[12 * (start + i) + 5] = 0;
+            J[12 * (start + i) + 6] = 0;
+            J[12 * (start + i) + 7] = 0;
+            J[12 * (start + i) + 8] = 0;
+            J[12 * (start + i) + 9] = 0;
+            J[12 * (start + i) + 10] = 1;
+            J[12 * (start + i) + 11] = 0;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_rp_jacobian(q + 2 * i, params, J + 12 * i);
     }
+#endif
 }
 
 /* Task coordinates x, y, shape (..., 2). */
@@ -153,16 +342,48 @@ void planar_rp_task(const double *restrict q, const planar_rp_params *restrict p
     const double q1 = q[0];
     const double q2 = q[1];
     (void)params;
-    x[0] = q2*cos(q1);
-    x[1] = q2*sin(q1);
+    const double _s0 = sin(q1);
+    const double _c0 = cos(q1);
+    x[0] = _c0*q2;
+    x[1] = _s0*q2;
 }
 
+/* task of `count` items, stored one after the other in each argument and output. */
 void planar_rp_task_batch(size_t count, const double *restrict q, const planar_rp_params *restrict params, double *restrict x)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            x[2 * (start + i) + 0] = _c0[i]*q2[i];
+            x[2 * (start + i) + 1] = _s0[i]*q2[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_rp_task(q + 2 * i, params, x + 2 * i);
     }
+#endif
 }
 
 /* d task / d q, shape (..., 2, 2). */
@@ -171,18 +392,50 @@ void planar_rp_task_jacobian(const double *restrict q, const planar_rp_params *r
     const double q1 = q[0];
     const double q2 = q[1];
     (void)params;
-    const double _t0 = sin(q1);
-    const double _t1 = cos(q1);
-    Jx[0] = -_t0*q2;
-    Jx[1] = _t1;
-    Jx[2] = _t1*q2;
-    Jx[3] = _t0;
+    const double _s0 = sin(q1);
+    const double _c0 = cos(q1);
+    Jx[0] = -_s0*q2;
+    Jx[1] = _c0;
+    Jx[2] = _c0*q2;
+    Jx[3] = _s0;
 }
 
+/* task_jacobian of `count` items, stored one after the other in each argument and output. */
 void planar_rp_task_jacobian_batch(size_t count, const double *restrict q, const planar_rp_params *restrict params, double *restrict Jx)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            Jx[4 * (start + i) + 0] = -_s0[i]*q2[i];
+            Jx[4 * (start + i) + 1] = _c0[i];
+            Jx[4 * (start + i) + 2] = _c0[i]*q2[i];
+            Jx[4 * (start + i) + 3] = _s0[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_rp_task_jacobian(q + 2 * i, params, Jx + 4 * i);
     }
+#endif
 }

@@ -14,6 +14,34 @@
 
 #include <math.h>
 
+/*
+ * Batched entry points.  Plain C99 loops over the single-point entry point by
+ * default.  With -DKINEGEN_BLOCKED they work through their items in blocks of
+ * KINEGEN_BLOCK instead: the inputs of a block are copied into one array per
+ * coordinate, every sine and every cosine is taken in a loop of its own, and the
+ * arithmetic runs in one loop per stage, from the same expressions as the single
+ * point (so the results are bit-identical).  -DKINEGEN_SIMD -fopenmp-simd (what
+ * build_c.py uses where the compiler and C library allow) adds to that SIMD
+ * declarations of sin and cos, so that the loops vectorise and call glibc's
+ * vector math library (libmvec, at most 4 ulp).  No NaN or infinity check is
+ * affected: no -ffast-math is involved.
+ */
+#ifdef KINEGEN_SIMD
+#pragma omp declare simd notinbranch
+double sin(double);
+#pragma omp declare simd notinbranch
+double cos(double);
+#define KINEGEN_VECTOR_LOOP _Pragma("omp simd")
+#ifndef KINEGEN_BLOCKED
+#define KINEGEN_BLOCKED
+#endif
+#else
+#define KINEGEN_VECTOR_LOOP
+#endif
+#ifndef KINEGEN_BLOCK
+#define KINEGEN_BLOCK 64
+#endif
+
 const puma560_params puma560_default_params = { 0.67183, 0.4318, 0.0203, 0.15005, 0.4318 };
 
 /* Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. */
@@ -33,60 +61,195 @@ void puma560_fk(const double *restrict q, const puma560_params *restrict params,
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t0 = sin(q6);
-    const double _t1 = sin(q1);
-    const double _t2 = cos(q4);
-    const double _t3 = _t1*_t2;
-    const double _t4 = _t0*_t3;
-    const double _t5 = cos(q5);
-    const double _t6 = cos(q6);
-    const double _t7 = sin(q4);
-    const double _t8 = _t6*_t7;
-    const double _t9 = _t0*_t7;
-    const double _t10 = cos(q1);
     const double _t11 = q2 + q3;
-    const double _t12 = cos(_t11);
-    const double _t13 = _t10*_t12;
-    const double _t14 = sin(q5);
-    const double _t15 = sin(_t11);
-    const double _t16 = _t10*_t15;
-    const double _t17 = _t3*_t6;
-    const double _t18 = _t12*_t5;
-    const double _t19 = _t10*_t2;
-    const double _t20 = _t0*_t19;
-    const double _t21 = _t12*_t14;
-    const double _t22 = a2*cos(q2);
-    const double _t23 = _t12*a3;
-    const double _t24 = _t10*_t5;
-    const double _t25 = _t1*_t12;
-    const double _t26 = _t1*_t15;
-    const double _t27 = _t15*_t7;
-    const double _t28 = _t15*_t2;
-    const double _t29 = _t28*_t5;
-    T[0] = -_t1*_t5*_t8 + _t10*_t12*_t2*_t5*_t6 - _t13*_t9 - _t14*_t16*_t6 - _t4;
-    T[1] = _t0*_t1*_t5*_t7 + _t0*_t10*_t14*_t15 - _t13*_t8 - _t17 - _t18*_t20;
-    T[2] = _t1*_t14*_t7 - _t16*_t5 - _t19*_t21;
-    T[3] = _t1*d3 + _t10*_t22 + _t10*_t23 - _t16*d4;
-    T[4] = -_t14*_t26*_t6 + _t17*_t18 + _t20 + _t24*_t8 - _t25*_t9;
-    T[5] = _t0*_t1*_t14*_t15 + _t10*_t2*_t6 - _t18*_t4 - _t24*_t9 - _t25*_t8;
-    T[6] = -_t10*_t14*_t7 - _t21*_t3 - _t26*_t5;
-    T[7] = _t1*_t22 + _t1*_t23 - _t10*d3 - _t26*d4;
-    T[8] = -_t0*_t27 + _t21*_t6 + _t29*_t6;
-    T[9] = -_t0*_t21 - _t0*_t29 - _t27*_t6;
-    T[10] = _t12*_t5 - _t14*_t28;
-    T[11] = _t12*d4 + _t15*a3 + a2*sin(q2) + d1;
+    const double _s0 = sin(q6);
+    const double _c0 = cos(q6);
+    const double _s1 = sin(q1);
+    const double _c1 = cos(q1);
+    const double _s2 = sin(q4);
+    const double _c2 = cos(q4);
+    const double _s3 = sin(q5);
+    const double _c3 = cos(q5);
+    const double _s4 = sin(_t11);
+    const double _c4 = cos(_t11);
+    const double _s5 = sin(q2);
+    const double _c5 = cos(q2);
+    const double _t3 = _c2*_s1;
+    const double _t4 = _s0*_t3;
+    const double _t8 = _c0*_s2;
+    const double _t9 = _s0*_s2;
+    const double _t13 = _c1*_c4;
+    const double _t16 = _c1*_s4;
+    const double _t17 = _c0*_t3;
+    const double _t18 = _c3*_c4;
+    const double _t19 = _c1*_c2;
+    const double _t20 = _s0*_t19;
+    const double _t21 = _c4*_s3;
+    const double _t22 = _c5*a2;
+    const double _t23 = _c4*a3;
+    const double _t24 = _c1*_c3;
+    const double _t25 = _c4*_s1;
+    const double _t26 = _s1*_s4;
+    const double _t27 = _s2*_s4;
+    const double _t28 = _c2*_s4;
+    const double _t29 = _c3*_t28;
+    T[0] = _c0*_c1*_c2*_c3*_c4 - _c0*_s3*_t16 - _c3*_s1*_t8 - _t13*_t9 - _t4;
+    T[1] = _c1*_s0*_s3*_s4 + _c3*_s0*_s1*_s2 - _t13*_t8 - _t17 - _t18*_t20;
+    T[2] = -_c3*_t16 + _s1*_s2*_s3 - _t19*_t21;
+    T[3] = _c1*_t22 + _c1*_t23 + _s1*d3 - _t16*d4;
+    T[4] = -_c0*_s3*_t26 + _t17*_t18 + _t20 + _t24*_t8 - _t25*_t9;
+    T[5] = _c0*_c1*_c2 + _s0*_s1*_s3*_s4 - _t18*_t4 - _t24*_t9 - _t25*_t8;
+    T[6] = -_c1*_s2*_s3 - _c3*_t26 - _t21*_t3;
+    T[7] = -_c1*d3 + _s1*_t22 + _s1*_t23 - _t26*d4;
+    T[8] = _c0*_t21 + _c0*_t29 - _s0*_t27;
+    T[9] = -_c0*_t27 - _s0*_t21 - _s0*_t29;
+    T[10] = _c3*_c4 - _s3*_t28;
+    T[11] = _c4*d4 + _s4*a3 + _s5*a2 + d1;
     T[12] = 0;
     T[13] = 0;
     T[14] = 0;
     T[15] = 1;
 }
 
+/* fk of `count` items, stored one after the other in each argument and output. */
 void puma560_fk_batch(size_t count, const double *restrict q, const puma560_params *restrict params, double *restrict T)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double q3[KINEGEN_BLOCK];
+    double q4[KINEGEN_BLOCK];
+    double q5[KINEGEN_BLOCK];
+    double q6[KINEGEN_BLOCK];
+    double _t11[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    double _s1[KINEGEN_BLOCK];
+    double _c1[KINEGEN_BLOCK];
+    double _s2[KINEGEN_BLOCK];
+    double _c2[KINEGEN_BLOCK];
+    double _s3[KINEGEN_BLOCK];
+    double _c3[KINEGEN_BLOCK];
+    double _s4[KINEGEN_BLOCK];
+    double _c4[KINEGEN_BLOCK];
+    double _s5[KINEGEN_BLOCK];
+    double _c5[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double d1 = params->d1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[6 * (start + i) + 0];
+            q2[i] = q[6 * (start + i) + 1];
+            q3[i] = q[6 * (start + i) + 2];
+            q4[i] = q[6 * (start + i) + 3];
+            q5[i] = q[6 * (start + i) + 4];
+            q6[i] = q[6 * (start + i) + 5];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t11[i] = q2[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(_t11[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(_t11[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s5[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c5[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t3 = _c2[i]*_s1[i];
+            const double _t4 = _s0[i]*_t3;
+            const double _t8 = _c0[i]*_s2[i];
+            const double _t9 = _s0[i]*_s2[i];
+            const double _t13 = _c1[i]*_c4[i];
+            const double _t16 = _c1[i]*_s4[i];
+            const double _t17 = _c0[i]*_t3;
+            const double _t18 = _c3[i]*_c4[i];
+            const double _t19 = _c1[i]*_c2[i];
+            const double _t20 = _s0[i]*_t19;
+            const double _t21 = _c4[i]*_s3[i];
+            const double _t22 = _c5[i]*a2;
+            const double _t23 = _c4[i]*a3;
+            const double _t24 = _c1[i]*_c3[i];
+            const double _t25 = _c4[i]*_s1[i];
+            const double _t26 = _s1[i]*_s4[i];
+            const double _t27 = _s2[i]*_s4[i];
+            const double _t28 = _c2[i]*_s4[i];
+            const double _t29 = _c3[i]*_t28;
+            T[16 * (start + i) + 0] = _c0[i]*_c1[i]*_c2[i]*_c3[i]*_c4[i] - _c0[i]*_s3[i]*_t16 - _c3[i]*_s1[i]*_t8 - _t13*_t9 - _t4;
+            T[16 * (start + i) + 1] = _c1[i]*_s0[i]*_s3[i]*_s4[i] + _c3[i]*_s0[i]*_s1[i]*_s2[i] - _t13*_t8 - _t17 - _t18*_t20;
+            T[16 * (start + i) + 2] = -_c3[i]*_t16 + _s1[i]*_s2[i]*_s3[i] - _t19*_t21;
+            T[16 * (start + i) + 3] = _c1[i]*_t22 + _c1[i]*_t23 + _s1[i]*d3 - _t16*d4;
+            T[16 * (start + i) + 4] = -_c0[i]*_s3[i]*_t26 + _t17*_t18 + _t20 + _t24*_t8 - _t25*_t9;
+            T[16 * (start + i) + 5] = _c0[i]*_c1[i]*_c2[i] + _s0[i]*_s1[i]*_s3[i]*_s4[i] - _t18*_t4 - _t24*_t9 - _t25*_t8;
+            T[16 * (start + i) + 6] = -_c1[i]*_s2[i]*_s3[i] - _c3[i]*_t26 - _t21*_t3;
+            T[16 * (start + i) + 7] = -_c1[i]*d3 + _s1[i]*_t22 + _s1[i]*_t23 - _t26*d4;
+            T[16 * (start + i) + 8] = _c0[i]*_t21 + _c0[i]*_t29 - _s0[i]*_t27;
+            T[16 * (start + i) + 9] = -_c0[i]*_t27 - _s0[i]*_t21 - _s0[i]*_t29;
+            T[16 * (start + i) + 10] = _c3[i]*_c4[i] - _s3[i]*_t28;
+            T[16 * (start + i) + 11] = _c4[i]*d4 + _s4[i]*a3 + _s5[i]*a2 + d1;
+            T[16 * (start + i) + 12] = 0;
+            T[16 * (start + i) + 13] = 0;
+            T[16 * (start + i) + 14] = 0;
+            T[16 * (start + i) + 15] = 1;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         puma560_fk(q + 6 * i, params, T + 16 * i);
     }
+#endif
 }
 
 /* Frames T_0 (base) .. T_6 (tool), shape (..., 7, 4, 4). */
@@ -106,59 +269,59 @@ void puma560_frames(const double *restrict q, const puma560_params *restrict par
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t0 = cos(q1);
-    const double _t1 = sin(q1);
-    const double _t2 = -_t0;
-    const double _t3 = cos(q2);
-    const double _t4 = _t0*_t3;
-    const double _t5 = sin(q2);
-    const double _t6 = _t4*a2;
-    const double _t7 = _t1*_t3;
-    const double _t8 = _t7*a2;
-    const double _t9 = _t5*a2 + d1;
     const double _t10 = q2 + q3;
-    const double _t11 = cos(_t10);
-    const double _t12 = _t0*_t11;
-    const double _t13 = sin(_t10);
-    const double _t14 = _t0*_t13;
+    const double _s0 = sin(q1);
+    const double _c0 = cos(q1);
+    const double _s1 = sin(q2);
+    const double _c1 = cos(q2);
+    const double _s2 = sin(_t10);
+    const double _c2 = cos(_t10);
+    const double _s3 = sin(q4);
+    const double _c3 = cos(q4);
+    const double _s4 = sin(q5);
+    const double _c4 = cos(q5);
+    const double _s5 = sin(q6);
+    const double _c5 = cos(q6);
+    const double _t2 = -_c0;
+    const double _t4 = _c0*_c1;
+    const double _t6 = _t4*a2;
+    const double _t7 = _c1*_s0;
+    const double _t8 = _t7*a2;
+    const double _t9 = _s1*a2 + d1;
+    const double _t12 = _c0*_c2;
+    const double _t14 = _c0*_s2;
     const double _t15 = -_t14;
-    const double _t16 = _t1*d3 + _t12*a3 + _t6;
-    const double _t17 = _t1*_t11;
-    const double _t18 = _t1*_t13;
+    const double _t16 = _s0*d3 + _t12*a3 + _t6;
+    const double _t17 = _c2*_s0;
+    const double _t18 = _s0*_s2;
     const double _t19 = -_t18;
-    const double _t20 = -_t0*d3 + _t17*a3 + _t8;
-    const double _t21 = _t13*a3 + _t9;
-    const double _t22 = sin(q4);
-    const double _t23 = _t1*_t22;
-    const double _t24 = cos(q4);
-    const double _t25 = _t1*_t24;
-    const double _t26 = _t12*_t22;
+    const double _t20 = -_c0*d3 + _t17*a3 + _t8;
+    const double _t21 = _s2*a3 + _t9;
+    const double _t23 = _s0*_s3;
+    const double _t25 = _c3*_s0;
+    const double _t26 = _s3*_t12;
     const double _t27 = _t25 + _t26;
     const double _t28 = -_t14*d4 + _t16;
-    const double _t29 = _t0*_t22;
-    const double _t30 = _t17*_t24;
-    const double _t31 = _t0*_t24;
-    const double _t32 = _t17*_t22;
+    const double _t29 = _c0*_s3;
+    const double _t30 = _c3*_t17;
+    const double _t31 = _c0*_c3;
+    const double _t32 = _s3*_t17;
     const double _t33 = -_t31 + _t32;
     const double _t34 = -_t18*d4 + _t20;
-    const double _t35 = _t13*_t24;
-    const double _t36 = _t13*_t22;
-    const double _t37 = _t11*d4 + _t21;
-    const double _t38 = cos(q5);
-    const double _t39 = _t23*_t38;
-    const double _t40 = sin(q5);
-    const double _t41 = _t14*_t40;
-    const double _t42 = _t12*_t24;
-    const double _t43 = _t1*_t22*_t40 - _t14*_t38 - _t40*_t42;
-    const double _t44 = _t29*_t38;
-    const double _t45 = _t18*_t40;
-    const double _t46 = _t30*_t38;
-    const double _t47 = -_t18*_t38 - _t29*_t40 - _t30*_t40;
-    const double _t48 = _t11*_t40;
-    const double _t49 = _t35*_t38;
-    const double _t50 = _t11*_t38 - _t35*_t40;
-    const double _t51 = sin(q6);
-    const double _t52 = cos(q6);
+    const double _t35 = _c3*_s2;
+    const double _t36 = _s2*_s3;
+    const double _t37 = _c2*d4 + _t21;
+    const double _t39 = _c4*_t23;
+    const double _t41 = _s4*_t14;
+    const double _t42 = _c3*_t12;
+    const double _t43 = -_c4*_t14 + _s0*_s3*_s4 - _s4*_t42;
+    const double _t44 = _c4*_t29;
+    const double _t45 = _s4*_t18;
+    const double _t46 = _c4*_t30;
+    const double _t47 = -_c4*_t18 - _s4*_t29 - _s4*_t30;
+    const double _t48 = _c2*_s4;
+    const double _t49 = _c4*_t35;
+    const double _t50 = _c2*_c4 - _s4*_t35;
     frames[0] = 1;
     frames[1] = 0;
     frames[2] = 0;
@@ -175,11 +338,11 @@ void puma560_frames(const double *restrict q, const puma560_params *restrict par
     frames[13] = 0;
     frames[14] = 0;
     frames[15] = 1;
-    frames[16] = _t0;
+    frames[16] = _c0;
     frames[17] = 0;
-    frames[18] = _t1;
+    frames[18] = _s0;
     frames[19] = 0;
-    frames[20] = _t1;
+    frames[20] = _s0;
     frames[21] = 0;
     frames[22] = _t2;
     frames[23] = 0;
@@ -192,15 +355,15 @@ void puma560_frames(const double *restrict q, const puma560_params *restrict par
     frames[30] = 0;
     frames[31] = 1;
     frames[32] = _t4;
-    frames[33] = -_t0*_t5;
-    frames[34] = _t1;
+    frames[33] = -_c0*_s1;
+    frames[34] = _s0;
     frames[35] = _t6;
     frames[36] = _t7;
-    frames[37] = -_t1*_t5;
+    frames[37] = -_s0*_s1;
     frames[38] = _t2;
     frames[39] = _t8;
-    frames[40] = _t5;
-    frames[41] = _t3;
+    frames[40] = _s1;
+    frames[41] = _c1;
     frames[42] = 0;
     frames[43] = _t9;
     frames[44] = 0;
@@ -208,22 +371,22 @@ void puma560_frames(const double *restrict q, const puma560_params *restrict par
     frames[46] = 0;
     frames[47] = 1;
     frames[48] = _t12;
-    frames[49] = -_t1;
+    frames[49] = -_s0;
     frames[50] = _t15;
     frames[51] = _t16;
     frames[52] = _t17;
-    frames[53] = _t0;
+    frames[53] = _c0;
     frames[54] = _t19;
     frames[55] = _t20;
-    frames[56] = _t13;
+    frames[56] = _s2;
     frames[57] = 0;
-    frames[58] = _t11;
+    frames[58] = _c2;
     frames[59] = _t21;
     frames[60] = 0;
     frames[61] = 0;
     frames[62] = 0;
     frames[63] = 1;
-    frames[64] = _t0*_t11*_t24 - _t23;
+    frames[64] = _c0*_c2*_c3 - _t23;
     frames[65] = _t15;
     frames[66] = _t27;
     frames[67] = _t28;
@@ -232,14 +395,14 @@ void puma560_frames(const double *restrict q, const puma560_params *restrict par
     frames[70] = _t33;
     frames[71] = _t34;
     frames[72] = _t35;
-    frames[73] = _t11;
+    frames[73] = _c2;
     frames[74] = _t36;
     frames[75] = _t37;
     frames[76] = 0;
     frames[77] = 0;
     frames[78] = 0;
     frames[79] = 1;
-    frames[80] = _t0*_t11*_t24*_t38 - _t39 - _t41;
+    frames[80] = _c0*_c2*_c3*_c4 - _t39 - _t41;
     frames[81] = -_t27;
     frames[82] = _t43;
     frames[83] = _t28;
@@ -255,16 +418,16 @@ void puma560_frames(const double *restrict q, const puma560_params *restrict par
     frames[93] = 0;
     frames[94] = 0;
     frames[95] = 1;
-    frames[96] = _t0*_t11*_t24*_t38*_t52 - _t25*_t51 - _t26*_t51 - _t39*_t52 - _t41*_t52;
-    frames[97] = _t0*_t13*_t40*_t51 + _t1*_t22*_t38*_t51 - _t25*_t52 - _t26*_t52 - _t38*_t42*_t51;
+    frames[96] = _c0*_c2*_c3*_c4*_c5 - _c5*_t39 - _c5*_t41 - _s5*_t25 - _s5*_t26;
+    frames[97] = _c0*_s2*_s4*_s5 + _c4*_s0*_s3*_s5 - _c4*_s5*_t42 - _c5*_t25 - _c5*_t26;
     frames[98] = _t43;
     frames[99] = _t28;
-    frames[100] = _t31*_t51 - _t32*_t51 + _t44*_t52 - _t45*_t52 + _t46*_t52;
-    frames[101] = _t0*_t24*_t52 + _t1*_t13*_t40*_t51 - _t32*_t52 - _t44*_t51 - _t46*_t51;
+    frames[100] = _c5*_t44 - _c5*_t45 + _c5*_t46 + _s5*_t31 - _s5*_t32;
+    frames[101] = _c0*_c3*_c5 - _c5*_t32 + _s0*_s2*_s4*_s5 - _s5*_t44 - _s5*_t46;
     frames[102] = _t47;
     frames[103] = _t34;
-    frames[104] = -_t36*_t51 + _t48*_t52 + _t49*_t52;
-    frames[105] = -_t36*_t52 - _t48*_t51 - _t49*_t51;
+    frames[104] = _c5*_t48 + _c5*_t49 - _s5*_t36;
+    frames[105] = -_c5*_t36 - _s5*_t48 - _s5*_t49;
     frames[106] = _t50;
     frames[107] = _t37;
     frames[108] = 0;
@@ -273,12 +436,262 @@ void puma560_frames(const double *restrict q, const puma560_params *restrict par
     frames[111] = 1;
 }
 
+/* frames of `count` items, stored one after the other in each argument and output. */
 void puma560_frames_batch(size_t count, const double *restrict q, const puma560_params *restrict params, double *restrict frames)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double q3[KINEGEN_BLOCK];
+    double q4[KINEGEN_BLOCK];
+    double q5[KINEGEN_BLOCK];
+    double q6[KINEGEN_BLOCK];
+    double _t10[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    double _s1[KINEGEN_BLOCK];
+    double _c1[KINEGEN_BLOCK];
+    double _s2[KINEGEN_BLOCK];
+    double _c2[KINEGEN_BLOCK];
+    double _s3[KINEGEN_BLOCK];
+    double _c3[KINEGEN_BLOCK];
+    double _s4[KINEGEN_BLOCK];
+    double _c4[KINEGEN_BLOCK];
+    double _s5[KINEGEN_BLOCK];
+    double _c5[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double d1 = params->d1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[6 * (start + i) + 0];
+            q2[i] = q[6 * (start + i) + 1];
+            q3[i] = q[6 * (start + i) + 2];
+            q4[i] = q[6 * (start + i) + 3];
+            q5[i] = q[6 * (start + i) + 4];
+            q6[i] = q[6 * (start + i) + 5];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t10[i] = q2[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t10[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t10[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s5[i] = sin(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c5[i] = cos(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t2 = -_c0[i];
+            const double _t4 = _c0[i]*_c1[i];
+            const double _t6 = _t4*a2;
+            const double _t7 = _c1[i]*_s0[i];
+            const double _t8 = _t7*a2;
+            const double _t9 = _s1[i]*a2 + d1;
+            const double _t12 = _c0[i]*_c2[i];
+            const double _t14 = _c0[i]*_s2[i];
+            const double _t15 = -_t14;
+            const double _t16 = _s0[i]*d3 + _t12*a3 + _t6;
+            const double _t17 = _c2[i]*_s0[i];
+            const double _t18 = _s0[i]*_s2[i];
+            const double _t19 = -_t18;
+            const double _t20 = -_c0[i]*d3 + _t17*a3 + _t8;
+            const double _t21 = _s2[i]*a3 + _t9;
+            const double _t23 = _s0[i]*_s3[i];
+            const double _t25 = _c3[i]*_s0[i];
+            const double _t26 = _s3[i]*_t12;
+            const double _t27 = _t25 + _t26;
+            const double _t28 = -_t14*d4 + _t16;
+            const double _t29 = _c0[i]*_s3[i];
+            const double _t30 = _c3[i]*_t17;
+            const double _t31 = _c0[i]*_c3[i];
+            const double _t32 = _s3[i]*_t17;
+            const double _t33 = -_t31 + _t32;
+            const double _t34 = -_t18*d4 + _t20;
+            const double _t35 = _c3[i]*_s2[i];
+            const double _t36 = _s2[i]*_s3[i];
+            const double _t37 = _c2[i]*d4 + _t21;
+            const double _t39 = _c4[i]*_t23;
+            const double _t41 = _s4[i]*_t14;
+            const double _t42 = _c3[i]*_t12;
+            const double _t43 = -_c4[i]*_t14 + _s0[i]*_s3[i]*_s4[i] - _s4[i]*_t42;
+            const double _t44 = _c4[i]*_t29;
+            const double _t45 = _s4[i]*_t18;
+            const double _t46 = _c4[i]*_t30;
+            const double _t47 = -_c4[i]*_t18 - _s4[i]*_t29 - _s4[i]*_t30;
+            const double _t48 = _c2[i]*_s4[i];
+            const double _t49 = _c4[i]*_t35;
+            const double _t50 = _c2[i]*_c4[i] - _s4[i]*_t35;
+            frames[112 * (start + i) + 0] = 1;
+            frames[112 * (start + i) + 1] = 0;
+            frames[112 * (start + i) + 2] = 0;
+            frames[112 * (start + i) + 3] = 0;
+            frames[112 * (start + i) + 4] = 0;
+            frames[112 * (start + i) + 5] = 1;
+            frames[112 * (start + i) + 6] = 0;
+            frames[112 * (start + i) + 7] = 0;
+            frames[112 * (start + i) + 8] = 0;
+            frames[112 * (start + i) + 9] = 0;
+            frames[112 * (start + i) + 10] = 1;
+            frames[112 * (start + i) + 11] = 0;
+            frames[112 * (start + i) + 12] = 0;
+            frames[112 * (start + i) + 13] = 0;
+            frames[112 * (start + i) + 14] = 0;
+            frames[112 * (start + i) + 15] = 1;
+            frames[112 * (start + i) + 16] = _c0[i];
+            frames[112 * (start + i) + 17] = 0;
+            frames[112 * (start + i) + 18] = _s0[i];
+            frames[112 * (start + i) + 19] = 0;
+            frames[112 * (start + i) + 20] = _s0[i];
+            frames[112 * (start + i) + 21] = 0;
+            frames[112 * (start + i) + 22] = _t2;
+            frames[112 * (start + i) + 23] = 0;
+            frames[112 * (start + i) + 24] = 0;
+            frames[112 * (start + i) + 25] = 1;
+            frames[112 * (start + i) + 26] = 0;
+            frames[112 * (start + i) + 27] = d1;
+            frames[112 * (start + i) + 28] = 0;
+            frames[112 * (start + i) + 29] = 0;
+            frames[112 * (start + i) + 30] = 0;
+            frames[112 * (start + i) + 31] = 1;
+            frames[112 * (start + i) + 32] = _t4;
+            frames[112 * (start + i) + 33] = -_c0[i]*_s1[i];
+            frames[112 * (start + i) + 34] = _s0[i];
+            frames[112 * (start + i) + 35] = _t6;
+            frames[112 * (start + i) + 36] = _t7;
+            frames[112 * (start + i) + 37] = -_s0[i]*_s1[i];
+            frames[112 * (start + i) + 38] = _t2;
+            frames[112 * (start + i) + 39] = _t8;
+            frames[112 * (start + i) + 40] = _s1[i];
+            frames[112 * (start + i) + 41] = _c1[i];
+            frames[112 * (start + i) + 42] = 0;
+            frames[112 * (start + i) + 43] = _t9;
+            frames[112 * (start + i) + 44] = 0;
+            frames[112 * (start + i) + 45] = 0;
+            frames[112 * (start + i) + 46] = 0;
+            frames[112 * (start + i) + 47] = 1;
+            frames[112 * (start + i) + 48] = _t12;
+            frames[112 * (start + i) + 49] = -_s0[i];
+            frames[112 * (start + i) + 50] = _t15;
+            frames[112 * (start + i) + 51] = _t16;
+            frames[112 * (start + i) + 52] = _t17;
+            frames[112 * (start + i) + 53] = _c0[i];
+            frames[112 * (start + i) + 54] = _t19;
+            frames[112 * (start + i) + 55] = _t20;
+            frames[112 * (start + i) + 56] = _s2[i];
+            frames[112 * (start + i) + 57] = 0;
+            frames[112 * (start + i) + 58] = _c2[i];
+            frames[112 * (start + i) + 59] = _t21;
+            frames[112 * (start + i) + 60] = 0;
+            frames[112 * (start + i) + 61] = 0;
+            frames[112 * (start + i) + 62] = 0;
+            frames[112 * (start + i) + 63] = 1;
+            frames[112 * (start + i) + 64] = _c0[i]*_c2[i]*_c3[i] - _t23;
+            frames[112 * (start + i) + 65] = _t15;
+            frames[112 * (start + i) + 66] = _t27;
+            frames[112 * (start + i) + 67] = _t28;
+            frames[112 * (start + i) + 68] = _t29 + _t30;
+            frames[112 * (start + i) + 69] = _t19;
+            frames[112 * (start + i) + 70] = _t33;
+            frames[112 * (start + i) + 71] = _t34;
+            frames[112 * (start + i) + 72] = _t35;
+            frames[112 * (start + i) + 73] = _c2[i];
+            frames[112 * (start + i) + 74] = _t36;
+            frames[112 * (start + i) + 75] = _t37;
+            frames[112 * (start + i) + 76] = 0;
+            frames[112 * (start + i) + 77] = 0;
+            frames[112 * (start + i) + 78] = 0;
+            frames[112 * (start + i) + 79] = 1;
+            frames[112 * (start + i) + 80] = _c0[i]*_c2[i]*_c3[i]*_c4[i] - _t39 - _t41;
+            frames[112 * (start + i) + 81] = -_t27;
+            frames[112 * (start + i) + 82] = _t43;
+            frames[112 * (start + i) + 83] = _t28;
+            frames[112 * (start + i) + 84] = _t44 - _t45 + _t46;
+            frames[112 * (start + i) + 85] = -_t33;
+            frames[112 * (start + i) + 86] = _t47;
+            frames[112 * (start + i) + 87] = _t34;
+            frames[112 * (start + i) + 88] = _t48 + _t49;
+            frames[112 * (start + i) + 89] = -_t36;
+            frames[112 * (start + i) + 90] = _t50;
+            frames[112 * (start + i) + 91] = _t37;
+            frames[112 * (start + i) + 92] = 0;
+            frames[112 * (start + i) + 93] = 0;
+            frames[112 * (start + i) + 94] = 0;
+            frames[112 * (start + i) + 95] = 1;
+            frames[112 * (start + i) + 96] = _c0[i]*_c2[i]*_c3[i]*_c4[i]*_c5[i] - _c5[i]*_t39 - _c5[i]*_t41 - _s5[i]*_t25 - _s5[i]*_t26;
+            frames[112 * (start + i) + 97] = _c0[i]*_s2[i]*_s4[i]*_s5[i] + _c4[i]*_s0[i]*_s3[i]*_s5[i] - _c4[i]*_s5[i]*_t42 - _c5[i]*_t25 - _c5[i]*_t26;
+            frames[112 * (start + i) + 98] = _t43;
+            frames[112 * (start + i) + 99] = _t28;
+            frames[112 * (start + i) + 100] = _c5[i]*_t44 - _c5[i]*_t45 + _c5[i]*_t46 + _s5[i]*_t31 - _s5[i]*_t32;
+            frames[112 * (start + i) + 101] = _c0[i]*_c3[i]*_c5[i] - _c5[i]*_t32 + _s0[i]*_s2[i]*_s4[i]*_s5[i] - _s5[i]*_t44 - _s5[i]*_t46;
+            frames[112 * (start + i) + 102] = _t47;
+            frames[112 * (start + i) + 103] = _t34;
+            frames[112 * (start + i) + 104] = _c5[i]*_t48 + _c5[i]*_t49 - _s5[i]*_t36;
+            frames[112 * (start + i) + 105] = -_c5[i]*_t36 - _s5[i]*_t48 - _s5[i]*_t49;
+            frames[112 * (start + i) + 106] = _t50;
+            frames[112 * (start + i) + 107] = _t37;
+            frames[112 * (start + i) + 108] = 0;
+            frames[112 * (start + i) + 109] = 0;
+            frames[112 * (start + i) + 110] = 0;
+            frames[112 * (start + i) + 111] = 1;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         puma560_frames(q + 6 * i, params, frames + 112 * i);
     }
+#endif
 }
 
 /* Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 6). */
@@ -296,37 +709,39 @@ void puma560_jacobian(const double *restrict q, const puma560_params *restrict p
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t0 = cos(q1);
-    const double _t1 = sin(q1);
-    const double _t2 = a2*cos(q2);
     const double _t3 = q2 + q3;
-    const double _t4 = cos(_t3);
-    const double _t5 = _t4*a3;
-    const double _t6 = sin(_t3);
-    const double _t7 = _t4*d4 + _t6*a3;
-    const double _t8 = _t7 + a2*sin(q2);
-    const double _t9 = _t6*d4;
+    const double _s0 = sin(q1);
+    const double _c0 = cos(q1);
+    const double _s1 = sin(q2);
+    const double _c1 = cos(q2);
+    const double _s2 = sin(_t3);
+    const double _c2 = cos(_t3);
+    const double _s3 = sin(q4);
+    const double _c3 = cos(q4);
+    const double _s4 = sin(q5);
+    const double _c4 = cos(q5);
+    const double _t2 = _c1*a2;
+    const double _t5 = _c2*a3;
+    const double _t7 = _c2*d4 + _s2*a3;
+    const double _t8 = _s1*a2 + _t7;
+    const double _t9 = _s2*d4;
     const double _t10 = _t5 - _t9;
-    const double _t11 = _t0*_t6;
-    const double _t12 = cos(q4);
-    const double _t13 = _t1*_t12;
-    const double _t14 = sin(q4);
-    const double _t15 = _t14*_t4;
-    const double _t16 = sin(q5);
-    const double _t17 = cos(q5);
-    const double _t18 = _t0*_t12;
-    const double _t19 = _t16*_t4;
-    const double _t20 = -_t0;
-    const double _t21 = _t1*_t6;
-    J[0] = _t0*d3 - _t1*_t2 - _t1*_t5 + _t1*_t6*d4;
-    J[1] = -_t0*_t8;
-    J[2] = -_t0*_t7;
+    const double _t11 = _c0*_s2;
+    const double _t13 = _c3*_s0;
+    const double _t15 = _c2*_s3;
+    const double _t18 = _c0*_c3;
+    const double _t19 = _c2*_s4;
+    const double _t20 = -_c0;
+    const double _t21 = _s0*_s2;
+    J[0] = _c0*d3 + _s0*_s2*d4 - _s0*_t2 - _s0*_t5;
+    J[1] = -_c0*_t8;
+    J[2] = -_c0*_t7;
     J[3] = 0;
     J[4] = 0;
     J[5] = 0;
-    J[6] = _t0*_t2 + _t0*_t5 - _t0*_t9 + _t1*d3;
-    J[7] = -_t1*_t8;
-    J[8] = -_t1*_t7;
+    J[6] = _c0*_t2 + _c0*_t5 - _c0*_t9 + _s0*d3;
+    J[7] = -_s0*_t8;
+    J[8] = -_s0*_t7;
     J[9] = 0;
     J[10] = 0;
     J[11] = 0;
@@ -337,31 +752,165 @@ void puma560_jacobian(const double *restrict q, const puma560_params *restrict p
     J[16] = 0;
     J[17] = 0;
     J[18] = 0;
-    J[19] = _t1;
-    J[20] = _t1;
+    J[19] = _s0;
+    J[20] = _s0;
     J[21] = -_t11;
-    J[22] = _t0*_t15 + _t13;
-    J[23] = _t1*_t14*_t16 - _t11*_t17 - _t18*_t19;
+    J[22] = _c0*_t15 + _t13;
+    J[23] = -_c4*_t11 + _s0*_s3*_s4 - _t18*_t19;
     J[24] = 0;
     J[25] = _t20;
     J[26] = _t20;
     J[27] = -_t21;
-    J[28] = _t1*_t15 - _t18;
-    J[29] = -_t0*_t14*_t16 - _t13*_t19 - _t17*_t21;
+    J[28] = _s0*_t15 - _t18;
+    J[29] = -_c0*_s3*_s4 - _c4*_t21 - _t13*_t19;
     J[30] = 1;
     J[31] = 0;
     J[32] = 0;
-    J[33] = _t4;
-    J[34] = _t14*_t6;
-    J[35] = -_t12*_t16*_t6 + _t17*_t4;
+    J[33] = _c2;
+    J[34] = _s2*_s3;
+    J[35] = _c2*_c4 - _c3*_s2*_s4;
 }
 
+/* jacobian of `count` items, stored one after the other in each argument and output. */
 void puma560_jacobian_batch(size_t count, const double *restrict q, const puma560_params *restrict params, double *restrict J)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double q3[KINEGEN_BLOCK];
+    double q4[KINEGEN_BLOCK];
+    double q5[KINEGEN_BLOCK];
+    double _t3[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    double _s1[KINEGEN_BLOCK];
+    double _c1[KINEGEN_BLOCK];
+    double _s2[KINEGEN_BLOCK];
+    double _c2[KINEGEN_BLOCK];
+    double _s3[KINEGEN_BLOCK];
+    double _c3[KINEGEN_BLOCK];
+    double _s4[KINEGEN_BLOCK];
+    double _c4[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[6 * (start + i) + 0];
+            q2[i] = q[6 * (start + i) + 1];
+            q3[i] = q[6 * (start + i) + 2];
+            q4[i] = q[6 * (start + i) + 3];
+            q5[i] = q[6 * (start + i) + 4];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t3[i] = q2[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t2 = _c1[i]*a2;
+            const double _t5 = _c2[i]*a3;
+            const double _t7 = _c2[i]*d4 + _s2[i]*a3;
+            const double _t8 = _s1[i]*a2 + _t7;
+            const double _t9 = _s2[i]*d4;
+            const double _t10 = _t5 - _t9;
+            const double _t11 = _c0[i]*_s2[i];
+            const double _t13 = _c3[i]*_s0[i];
+            const double _t15 = _c2[i]*_s3[i];
+            const double _t18 = _c0[i]*_c3[i];
+            const double _t19 = _c2[i]*_s4[i];
+            const double _t20 = -_c0[i];
+            const double _t21 = _s0[i]*_s2[i];
+            J[36 * (start + i) + 0] = _c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5;
+            J[36 * (start + i) + 1] = -_c0[i]*_t8;
+            J[36 * (start + i) + 2] = -_c0[i]*_t7;
+            J[36 * (start + i) + 3] = 0;
+            J[36 * (start + i) + 4] = 0;
+            J[36 * (start + i) + 5] = 0;
+            J[36 * (start + i) + 6] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t9 + _s0[i]*d3;
+            J[36 * (start + i) + 7] = -_s0[i]*_t8;
+            J[36 * (start + i) + 8] = -_s0[i]*_t7;
+            J[36 * (start + i) + 9] = 0;
+            J[36 * (start + i) + 10] = 0;
+            J[36 * (start + i) + 11] = 0;
+            J[36 * (start + i) + 12] = 0;
+            J[36 * (start + i) + 13] = _t10 + _t2;
+            J[36 * (start + i) + 14] = _t10;
+            J[36 * (start + i) + 15] = 0;
+            J[36 * (start + i) + 16] = 0;
+            J[36 * (start + i) + 17] = 0;
+            J[36 * (start + i) + 18] = 0;
+            J[36 * (start + i) + 19] = _s0[i];
+            J[36 * (start + i) + 20] = _s0[i];
+            J[36 * (start + i) + 21] = -_t11;
+            J[36 * (start + i) + 22] = _c0[i]*_t15 + _t13;
+            J[36 * (start + i) + 23] = -_c4[i]*_t11 + _s0[i]*_s3[i]*_s4[i] - _t18*_t19;
+            J[36 * (start + i) + 24] = 0;
+            J[36 * (start + i) + 25] = _t20;
+            J[36 * (start + i) + 26] = _t20;
+            J[36 * (start + i) + 27] = -_t21;
+            J[36 * (start + i) + 28] = _s0[i]*_t15 - _t18;
+            J[36 * (start + i) + 29] = -_c0[i]*_s3[i]*_s4[i] - _c4[i]*_t21 - _t13*_t19;
+            J[36 * (start + i) + 30] = 1;
+            J[36 * (start + i) + 31] = 0;
+            J[36 * (start + i) + 32] = 0;
+            J[36 * (start + i) + 33] = _c2[i];
+            J[36 * (start + i) + 34] = _s2[i]*_s3[i];
+            J[36 * (start + i) + 35] = _c2[i]*_c4[i] - _c3[i]*_s2[i]*_s4[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         puma560_jacobian(q + 6 * i, params, J + 36 * i);
     }
+#endif
 }
 
 /* Task coordinates x, y, z, r11, r12, r13, r21, r22, r23, r31, r32, r33, shape (..., 12). */
@@ -381,56 +930,187 @@ void puma560_task(const double *restrict q, const puma560_params *restrict param
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t0 = sin(q1);
-    const double _t1 = cos(q1);
-    const double _t2 = a2*cos(q2);
     const double _t3 = q2 + q3;
-    const double _t4 = cos(_t3);
-    const double _t5 = _t4*a3;
-    const double _t6 = sin(_t3);
-    const double _t7 = _t6*d4;
-    const double _t8 = sin(q6);
-    const double _t9 = cos(q4);
-    const double _t10 = _t0*_t9;
-    const double _t11 = _t10*_t8;
-    const double _t12 = cos(q5);
-    const double _t13 = cos(q6);
-    const double _t14 = sin(q4);
-    const double _t15 = _t13*_t14;
-    const double _t16 = _t14*_t8;
-    const double _t17 = _t1*_t4;
-    const double _t18 = sin(q5);
-    const double _t19 = _t18*_t6;
-    const double _t20 = _t10*_t13;
-    const double _t21 = _t12*_t4;
-    const double _t22 = _t1*_t9;
-    const double _t23 = _t22*_t8;
-    const double _t24 = _t12*_t6;
-    const double _t25 = _t18*_t4;
-    const double _t26 = _t1*_t12;
-    const double _t27 = _t0*_t4;
-    const double _t28 = _t14*_t6;
-    const double _t29 = _t24*_t9;
-    x[0] = _t0*d3 + _t1*_t2 + _t1*_t5 - _t1*_t7;
-    x[1] = _t0*_t2 + _t0*_t5 - _t0*_t7 - _t1*d3;
-    x[2] = _t4*d4 + _t6*a3 + a2*sin(q2) + d1;
-    x[3] = -_t0*_t12*_t15 + _t1*_t12*_t13*_t4*_t9 - _t1*_t13*_t19 - _t11 - _t16*_t17;
-    x[4] = _t0*_t12*_t14*_t8 + _t1*_t18*_t6*_t8 - _t15*_t17 - _t20 - _t21*_t23;
-    x[5] = _t0*_t14*_t18 - _t1*_t24 - _t22*_t25;
-    x[6] = -_t0*_t13*_t19 + _t15*_t26 - _t16*_t27 + _t20*_t21 + _t23;
-    x[7] = _t0*_t18*_t6*_t8 + _t1*_t13*_t9 - _t11*_t21 - _t15*_t27 - _t16*_t26;
-    x[8] = -_t0*_t24 - _t1*_t14*_t18 - _t10*_t25;
-    x[9] = _t13*_t25 + _t13*_t29 - _t28*_t8;
-    x[10] = -_t13*_t28 - _t25*_t8 - _t29*_t8;
-    x[11] = _t12*_t4 - _t19*_t9;
+    const double _s0 = sin(q1);
+    const double _c0 = cos(q1);
+    const double _s1 = sin(q2);
+    const double _c1 = cos(q2);
+    const double _s2 = sin(_t3);
+    const double _c2 = cos(_t3);
+    const double _s3 = sin(q6);
+    const double _c3 = cos(q6);
+    const double _s4 = sin(q4);
+    const double _c4 = cos(q4);
+    const double _s5 = sin(q5);
+    const double _c5 = cos(q5);
+    const double _t2 = _c1*a2;
+    const double _t5 = _c2*a3;
+    const double _t7 = _s2*d4;
+    const double _t10 = _c4*_s0;
+    const double _t11 = _s3*_t10;
+    const double _t15 = _c3*_s4;
+    const double _t16 = _s3*_s4;
+    const double _t17 = _c0*_c2;
+    const double _t19 = _s2*_s5;
+    const double _t20 = _c3*_t10;
+    const double _t21 = _c2*_c5;
+    const double _t22 = _c0*_c4;
+    const double _t23 = _s3*_t22;
+    const double _t24 = _c5*_s2;
+    const double _t25 = _c2*_s5;
+    const double _t26 = _c0*_c5;
+    const double _t27 = _c2*_s0;
+    const double _t28 = _s2*_s4;
+    const double _t29 = _c4*_t24;
+    x[0] = _c0*_t2 + _c0*_t5 - _c0*_t7 + _s0*d3;
+    x[1] = -_c0*d3 + _s0*_t2 + _s0*_t5 - _s0*_t7;
+    x[2] = _c2*d4 + _s1*a2 + _s2*a3 + d1;
+    x[3] = _c0*_c2*_c3*_c4*_c5 - _c0*_c3*_t19 - _c5*_s0*_t15 - _t11 - _t16*_t17;
+    x[4] = _c0*_s2*_s3*_s5 + _c5*_s0*_s3*_s4 - _t15*_t17 - _t20 - _t21*_t23;
+    x[5] = -_c0*_t24 + _s0*_s4*_s5 - _t22*_t25;
+    x[6] = -_c3*_s0*_t19 + _t15*_t26 - _t16*_t27 + _t20*_t21 + _t23;
+    x[7] = _c0*_c3*_c4 + _s0*_s2*_s3*_s5 - _t11*_t21 - _t15*_t27 - _t16*_t26;
+    x[8] = -_c0*_s4*_s5 - _s0*_t24 - _t10*_t25;
+    x[9] = _c3*_t25 + _c3*_t29 - _s3*_t28;
+    x[10] = -_c3*_t28 - _s3*_t25 - _s3*_t29;
+    x[11] = _c2*_c5 - _c4*_t19;
 }
 
+/* task of `count` items, stored one after the other in each argument and output. */
 void puma560_task_batch(size_t count, const double *restrict q, const puma560_params *restrict params, double *restrict x)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double q3[KINEGEN_BLOCK];
+    double q4[KINEGEN_BLOCK];
+    double q5[KINEGEN_BLOCK];
+    double q6[KINEGEN_BLOCK];
+    double _t3[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    double _s1[KINEGEN_BLOCK];
+    double _c1[KINEGEN_BLOCK];
+    double _s2[KINEGEN_BLOCK];
+    double _c2[KINEGEN_BLOCK];
+    double _s3[KINEGEN_BLOCK];
+    double _c3[KINEGEN_BLOCK];
+    double _s4[KINEGEN_BLOCK];
+    double _c4[KINEGEN_BLOCK];
+    double _s5[KINEGEN_BLOCK];
+    double _c5[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double d1 = params->d1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[6 * (start + i) + 0];
+            q2[i] = q[6 * (start + i) + 1];
+            q3[i] = q[6 * (start + i) + 2];
+            q4[i] = q[6 * (start + i) + 3];
+            q5[i] = q[6 * (start + i) + 4];
+            q6[i] = q[6 * (start + i) + 5];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t3[i] = q2[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s5[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c5[i] = cos(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t2 = _c1[i]*a2;
+            const double _t5 = _c2[i]*a3;
+            const double _t7 = _s2[i]*d4;
+            const double _t10 = _c4[i]*_s0[i];
+            const double _t11 = _s3[i]*_t10;
+            const double _t15 = _c3[i]*_s4[i];
+            const double _t16 = _s3[i]*_s4[i];
+            const double _t17 = _c0[i]*_c2[i];
+            const double _t19 = _s2[i]*_s5[i];
+            const double _t20 = _c3[i]*_t10;
+            const double _t21 = _c2[i]*_c5[i];
+            const double _t22 = _c0[i]*_c4[i];
+            const double _t23 = _s3[i]*_t22;
+            const double _t24 = _c5[i]*_s2[i];
+            const double _t25 = _c2[i]*_s5[i];
+            const double _t26 = _c0[i]*_c5[i];
+            const double _t27 = _c2[i]*_s0[i];
+            const double _t28 = _s2[i]*_s4[i];
+            const double _t29 = _c4[i]*_t24;
+            x[12 * (start + i) + 0] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t7 + _s0[i]*d3;
+            x[12 * (start + i) + 1] = -_c0[i]*d3 + _s0[i]*_t2 + _s0[i]*_t5 - _s0[i]*_t7;
+            x[12 * (start + i) + 2] = _c2[i]*d4 + _s1[i]*a2 + _s2[i]*a3 + d1;
+            x[12 * (start + i) + 3] = _c0[i]*_c2[i]*_c3[i]*_c4[i]*_c5[i] - _c0[i]*_c3[i]*_t19 - _c5[i]*_s0[i]*_t15 - _t11 - _t16*_t17;
+            x[12 * (start + i) + 4] = _c0[i]*_s2[i]*_s3[i]*_s5[i] + _c5[i]*_s0[i]*_s3[i]*_s4[i] - _t15*_t17 - _t20 - _t21*_t23;
+            x[12 * (start + i) + 5] = -_c0[i]*_t24 + _s0[i]*_s4[i]*_s5[i] - _t22*_t25;
+            x[12 * (start + i) + 6] = -_c3[i]*_s0[i]*_t19 + _t15*_t26 - _t16*_t27 + _t20*_t21 + _t23;
+            x[12 * (start + i) + 7] = _c0[i]*_c3[i]*_c4[i] + _s0[i]*_s2[i]*_s3[i]*_s5[i] - _t11*_t21 - _t15*_t27 - _t16*_t26;
+            x[12 * (start + i) + 8] = -_c0[i]*_s4[i]*_s5[i] - _s0[i]*_t24 - _t10*_t25;
+            x[12 * (start + i) + 9] = _c3[i]*_t25 + _c3[i]*_t29 - _s3[i]*_t28;
+            x[12 * (start + i) + 10] = -_c3[i]*_t28 - _s3[i]*_t25 - _s3[i]*_t29;
+            x[12 * (start + i) + 11] = _c2[i]*_c5[i] - _c4[i]*_t19;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         puma560_task(q + 6 * i, params, x + 12 * i);
     }
+#endif
 }
 
 /* d task / d q, shape (..., 12, 6). */
@@ -449,71 +1129,73 @@ void puma560_task_jacobian(const double *restrict q, const puma560_params *restr
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t0 = cos(q1);
-    const double _t1 = sin(q1);
-    const double _t2 = a2*cos(q2);
     const double _t3 = q2 + q3;
-    const double _t4 = cos(_t3);
-    const double _t5 = _t4*a3;
-    const double _t6 = sin(_t3);
-    const double _t7 = _t4*d4 + _t6*a3;
-    const double _t8 = _t7 + a2*sin(q2);
-    const double _t9 = _t6*d4;
+    const double _s0 = sin(q1);
+    const double _c0 = cos(q1);
+    const double _s1 = sin(q2);
+    const double _c1 = cos(q2);
+    const double _s2 = sin(_t3);
+    const double _c2 = cos(_t3);
+    const double _s3 = sin(q6);
+    const double _c3 = cos(q6);
+    const double _s4 = sin(q4);
+    const double _c4 = cos(q4);
+    const double _s5 = sin(q5);
+    const double _c5 = cos(q5);
+    const double _t2 = _c1*a2;
+    const double _t5 = _c2*a3;
+    const double _t7 = _c2*d4 + _s2*a3;
+    const double _t8 = _s1*a2 + _t7;
+    const double _t9 = _s2*d4;
     const double _t10 = _t5 - _t9;
-    const double _t11 = sin(q6);
-    const double _t12 = cos(q4);
-    const double _t13 = _t0*_t12;
-    const double _t14 = _t11*_t13;
-    const double _t15 = cos(q5);
-    const double _t16 = cos(q6);
-    const double _t17 = sin(q4);
-    const double _t18 = _t16*_t17;
-    const double _t19 = _t0*_t18;
-    const double _t20 = sin(q5);
-    const double _t21 = _t15*_t4;
-    const double _t22 = _t1*_t12;
-    const double _t23 = _t16*_t22;
-    const double _t24 = _t1*_t11*_t17*_t4 + _t1*_t16*_t20*_t6 - _t14 - _t15*_t19 - _t21*_t23;
-    const double _t25 = _t20*_t4;
-    const double _t26 = _t12*_t16;
-    const double _t27 = _t15*_t6;
-    const double _t28 = _t11*_t17*_t6 - _t16*_t25 - _t26*_t27;
-    const double _t29 = _t0*_t28;
-    const double _t30 = _t0*_t27 - _t1*_t17*_t20 + _t13*_t25;
+    const double _t13 = _c0*_c4;
+    const double _t14 = _s3*_t13;
+    const double _t18 = _c3*_s4;
+    const double _t19 = _c0*_t18;
+    const double _t21 = _c2*_c5;
+    const double _t22 = _c4*_s0;
+    const double _t23 = _c3*_t22;
+    const double _t24 = _c2*_s0*_s3*_s4 + _c3*_s0*_s2*_s5 - _c5*_t19 - _t14 - _t21*_t23;
+    const double _t25 = _c2*_s5;
+    const double _t26 = _c3*_c4;
+    const double _t27 = _c5*_s2;
+    const double _t28 = -_c3*_t25 + _s2*_s3*_s4 - _t26*_t27;
+    const double _t29 = _c0*_t28;
+    const double _t30 = _c0*_t27 - _s0*_s4*_s5 + _t13*_t25;
     const double _t31 = -_t30;
-    const double _t32 = _t0*_t11*_t20*_t6 + _t1*_t11*_t15*_t17 - _t14*_t21 - _t19*_t4 - _t23;
-    const double _t33 = _t13*_t16;
-    const double _t34 = _t11*_t17;
-    const double _t35 = _t0*_t34;
-    const double _t36 = _t1*_t17;
-    const double _t37 = _t16*_t36;
-    const double _t38 = _t20*_t6;
-    const double _t39 = _t11*_t22;
-    const double _t40 = -_t1*_t11*_t38 + _t15*_t35 + _t21*_t39 - _t33 + _t37*_t4;
-    const double _t41 = _t11*_t12;
-    const double _t42 = _t11*_t25 + _t18*_t6 + _t27*_t41;
-    const double _t43 = _t0*_t42;
-    const double _t44 = _t0*_t38;
-    const double _t45 = _t15*_t37 + _t16*_t44 - _t21*_t33 + _t35*_t4 + _t39;
-    const double _t46 = _t0*_t17;
-    const double _t47 = _t1*_t27 + _t20*_t46 + _t22*_t25;
-    const double _t48 = _t12*_t38 - _t21;
-    const double _t49 = _t0*_t48;
-    const double _t50 = _t1*_t28;
-    const double _t51 = _t1*_t42;
-    const double _t52 = _t1*_t48;
-    const double _t53 = _t12*_t15*_t16*_t4 - _t16*_t38 - _t34*_t4;
-    const double _t54 = _t11*_t20*_t6 - _t18*_t4 - _t21*_t41;
-    const double _t55 = -_t12*_t25 - _t27;
-    Jx[0] = _t0*d3 - _t1*_t2 - _t1*_t5 + _t1*_t6*d4;
-    Jx[1] = -_t0*_t8;
-    Jx[2] = -_t0*_t7;
+    const double _t32 = _c0*_s2*_s3*_s5 - _c2*_t19 + _c5*_s0*_s3*_s4 - _t14*_t21 - _t23;
+    const double _t33 = _c3*_t13;
+    const double _t34 = _s3*_s4;
+    const double _t35 = _c0*_t34;
+    const double _t36 = _s0*_s4;
+    const double _t37 = _c3*_t36;
+    const double _t38 = _s2*_s5;
+    const double _t39 = _s3*_t22;
+    const double _t40 = _c2*_t37 + _c5*_t35 - _s0*_s3*_t38 + _t21*_t39 - _t33;
+    const double _t41 = _c4*_s3;
+    const double _t42 = _s2*_t18 + _s3*_t25 + _t27*_t41;
+    const double _t43 = _c0*_t42;
+    const double _t44 = _c0*_t38;
+    const double _t45 = _c2*_t35 + _c3*_t44 + _c5*_t37 - _t21*_t33 + _t39;
+    const double _t46 = _c0*_s4;
+    const double _t47 = _s0*_t27 + _s5*_t46 + _t22*_t25;
+    const double _t48 = _c4*_t38 - _t21;
+    const double _t49 = _c0*_t48;
+    const double _t50 = _s0*_t28;
+    const double _t51 = _s0*_t42;
+    const double _t52 = _s0*_t48;
+    const double _t53 = _c2*_c3*_c4*_c5 - _c2*_t34 - _c3*_t38;
+    const double _t54 = -_c2*_t18 + _s2*_s3*_s5 - _t21*_t41;
+    const double _t55 = -_c4*_t25 - _t27;
+    Jx[0] = _c0*d3 + _s0*_s2*d4 - _s0*_t2 - _s0*_t5;
+    Jx[1] = -_c0*_t8;
+    Jx[2] = -_c0*_t7;
     Jx[3] = 0;
     Jx[4] = 0;
     Jx[5] = 0;
-    Jx[6] = _t0*_t2 + _t0*_t5 - _t0*_t9 + _t1*d3;
-    Jx[7] = -_t1*_t8;
-    Jx[8] = -_t1*_t7;
+    Jx[6] = _c0*_t2 + _c0*_t5 - _c0*_t9 + _s0*d3;
+    Jx[7] = -_s0*_t8;
+    Jx[8] = -_s0*_t7;
     Jx[9] = 0;
     Jx[10] = 0;
     Jx[11] = 0;
@@ -526,63 +1208,277 @@ void puma560_task_jacobian(const double *restrict q, const puma560_params *restr
     Jx[18] = _t24;
     Jx[19] = _t29;
     Jx[20] = _t29;
-    Jx[21] = _t1*_t11*_t17 - _t14*_t4 - _t15*_t23 - _t19*_t21;
-    Jx[22] = _t16*_t31;
+    Jx[21] = -_c2*_t14 - _c5*_t23 + _s0*_s3*_s4 - _t19*_t21;
+    Jx[22] = _c3*_t31;
     Jx[23] = _t32;
     Jx[24] = _t40;
     Jx[25] = _t43;
     Jx[26] = _t43;
-    Jx[27] = _t15*_t39 + _t21*_t35 - _t33*_t4 + _t37;
-    Jx[28] = _t11*_t30;
+    Jx[27] = -_c2*_t33 + _c5*_t39 + _t21*_t35 + _t37;
+    Jx[28] = _s3*_t30;
     Jx[29] = _t45;
     Jx[30] = _t47;
     Jx[31] = _t49;
     Jx[32] = _t49;
-    Jx[33] = _t20*(_t22 + _t4*_t46);
-    Jx[34] = -_t13*_t21 + _t15*_t36 + _t44;
+    Jx[33] = _s5*(_c2*_t46 + _t22);
+    Jx[34] = _c5*_t36 - _t13*_t21 + _t44;
     Jx[35] = 0;
     Jx[36] = -_t45;
     Jx[37] = _t50;
     Jx[38] = _t50;
-    Jx[39] = _t0*_t12*_t15*_t16 - _t21*_t37 - _t35 - _t39*_t4;
-    Jx[40] = -_t16*_t47;
+    Jx[39] = _c0*_c3*_c4*_c5 - _c2*_t39 - _t21*_t37 - _t35;
+    Jx[40] = -_c3*_t47;
     Jx[41] = -_t40;
     Jx[42] = _t32;
     Jx[43] = _t51;
     Jx[44] = _t51;
-    Jx[45] = _t1*_t11*_t15*_t17*_t4 - _t14*_t15 - _t19 - _t23*_t4;
-    Jx[46] = _t11*_t47;
+    Jx[45] = _c2*_c5*_s0*_s3*_s4 - _c2*_t23 - _c5*_t14 - _t19;
+    Jx[46] = _s3*_t47;
     Jx[47] = _t24;
     Jx[48] = _t31;
     Jx[49] = _t52;
     Jx[50] = _t52;
-    Jx[51] = _t20*(-_t13 + _t36*_t4);
-    Jx[52] = _t1*_t20*_t6 - _t15*_t46 - _t21*_t22;
+    Jx[51] = _s5*(_c2*_t36 - _t13);
+    Jx[52] = -_c5*_t46 + _s0*_s2*_s5 - _t21*_t22;
     Jx[53] = 0;
     Jx[54] = 0;
     Jx[55] = _t53;
     Jx[56] = _t53;
-    Jx[57] = -_t6*(_t15*_t18 + _t41);
-    Jx[58] = -_t16*_t48;
+    Jx[57] = -_s2*(_c5*_t18 + _t41);
+    Jx[58] = -_c3*_t48;
     Jx[59] = -_t42;
     Jx[60] = 0;
     Jx[61] = _t54;
     Jx[62] = _t54;
-    Jx[63] = _t6*(_t15*_t34 - _t26);
-    Jx[64] = _t11*_t48;
+    Jx[63] = _s2*(_c5*_t34 - _t26);
+    Jx[64] = _s3*_t48;
     Jx[65] = _t28;
     Jx[66] = 0;
     Jx[67] = _t55;
     Jx[68] = _t55;
-    Jx[69] = _t17*_t38;
-    Jx[70] = -_t12*_t27 - _t25;
+    Jx[69] = _s4*_t38;
+    Jx[70] = -_c4*_t27 - _t25;
     Jx[71] = 0;
 }
 
+/* task_jacobian of `count` items, stored one after the other in each argument and output. */
 void puma560_task_jacobian_batch(size_t count, const double *restrict q, const puma560_params *restrict params, double *restrict Jx)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double q3[KINEGEN_BLOCK];
+    double q4[KINEGEN_BLOCK];
+    double q5[KINEGEN_BLOCK];
+    double q6[KINEGEN_BLOCK];
+    double _t3[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    double _s1[KINEGEN_BLOCK];
+    double _c1[KINEGEN_BLOCK];
+    double _s2[KINEGEN_BLOCK];
+    double _c2[KINEGEN_BLOCK];
+    double _s3[KINEGEN_BLOCK];
+    double _c3[KINEGEN_BLOCK];
+    double _s4[KINEGEN_BLOCK];
+    double _c4[KINEGEN_BLOCK];
+    double _s5[KINEGEN_BLOCK];
+    double _c5[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[6 * (start + i) + 0];
+            q2[i] = q[6 * (start + i) + 1];
+            q3[i] = q[6 * (start + i) + 2];
+            q4[i] = q[6 * (start + i) + 3];
+            q5[i] = q[6 * (start + i) + 4];
+            q6[i] = q[6 * (start + i) + 5];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t3[i] = q2[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s5[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c5[i] = cos(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t2 = _c1[i]*a2;
+            const double _t5 = _c2[i]*a3;
+            const double _t7 = _c2[i]*d4 + _s2[i]*a3;
+            const double _t8 = _s1[i]*a2 + _t7;
+            const double _t9 = _s2[i]*d4;
+            const double _t10 = _t5 - _t9;
+            const double _t13 = _c0[i]*_c4[i];
+            const double _t14 = _s3[i]*_t13;
+            const double _t18 = _c3[i]*_s4[i];
+            const double _t19 = _c0[i]*_t18;
+            const double _t21 = _c2[i]*_c5[i];
+            const double _t22 = _c4[i]*_s0[i];
+            const double _t23 = _c3[i]*_t22;
+            const double _t24 = _c2[i]*_s0[i]*_s3[i]*_s4[i] + _c3[i]*_s0[i]*_s2[i]*_s5[i] - _c5[i]*_t19 - _t14 - _t21*_t23;
+            const double _t25 = _c2[i]*_s5[i];
+            const double _t26 = _c3[i]*_c4[i];
+            const double _t27 = _c5[i]*_s2[i];
+            const double _t28 = -_c3[i]*_t25 + _s2[i]*_s3[i]*_s4[i] - _t26*_t27;
+            const double _t29 = _c0[i]*_t28;
+            const double _t30 = _c0[i]*_t27 - _s0[i]*_s4[i]*_s5[i] + _t13*_t25;
+            const double _t31 = -_t30;
+            const double _t32 = _c0[i]*_s2[i]*_s3[i]*_s5[i] - _c2[i]*_t19 + _c5[i]*_s0[i]*_s3[i]*_s4[i] - _t14*_t21 - _t23;
+            const double _t33 = _c3[i]*_t13;
+            const double _t34 = _s3[i]*_s4[i];
+            const double _t35 = _c0[i]*_t34;
+            const double _t36 = _s0[i]*_s4[i];
+            const double _t37 = _c3[i]*_t36;
+            const double _t38 = _s2[i]*_s5[i];
+            const double _t39 = _s3[i]*_t22;
+            const double _t40 = _c2[i]*_t37 + _c5[i]*_t35 - _s0[i]*_s3[i]*_t38 + _t21*_t39 - _t33;
+            const double _t41 = _c4[i]*_s3[i];
+            const double _t42 = _s2[i]*_t18 + _s3[i]*_t25 + _t27*_t41;
+            const double _t43 = _c0[i]*_t42;
+            const double _t44 = _c0[i]*_t38;
+            const double _t45 = _c2[i]*_t35 + _c3[i]*_t44 + _c5[i]*_t37 - _t21*_t33 + _t39;
+            const double _t46 = _c0[i]*_s4[i];
+            const double _t47 = _s0[i]*_t27 + _s5[i]*_t46 + _t22*_t25;
+            const double _t48 = _c4[i]*_t38 - _t21;
+            const double _t49 = _c0[i]*_t48;
+            const double _t50 = _s0[i]*_t28;
+            const double _t51 = _s0[i]*_t42;
+            const double _t52 = _s0[i]*_t48;
+            const double _t53 = _c2[i]*_c3[i]*_c4[i]*_c5[i] - _c2[i]*_t34 - _c3[i]*_t38;
+            const double _t54 = -_c2[i]*_t18 + _s2[i]*_s3[i]*_s5[i] - _t21*_t41;
+            const double _t55 = -_c4[i]*_t25 - _t27;
+            Jx[72 * (start + i) + 0] = _c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5;
+            Jx[72 * (start + i) + 1] = -_c0[i]*_t8;
+            Jx[72 * (start + i) + 2] = -_c0[i]*_t7;
+            Jx[72 * (start + i) + 3] = 0;
+            Jx[72 * (start + i) + 4] = 0;
+            Jx[72 * (start + i) + 5] = 0;
+            Jx[72 * (start + i) + 6] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t9 + _s0[i]*d3;
+            Jx[72 * (start + i) + 7] = -_s0[i]*_t8;
+            Jx[72 * (start + i) + 8] = -_s0[i]*_t7;
+            Jx[72 * (start + i) + 9] = 0;
+            Jx[72 * (start + i) + 10] = 0;
+            Jx[72 * (start + i) + 11] = 0;
+            Jx[72 * (start + i) + 12] = 0;
+            Jx[72 * (start + i) + 13] = _t10 + _t2;
+            Jx[72 * (start + i) + 14] = _t10;
+            Jx[72 * (start + i) + 15] = 0;
+            Jx[72 * (start + i) + 16] = 0;
+            Jx[72 * (start + i) + 17] = 0;
+            Jx[72 * (start + i) + 18] = _t24;
+            Jx[72 * (start + i) + 19] = _t29;
+            Jx[72 * (start + i) + 20] = _t29;
+            Jx[72 * (start + i) + 21] = -_c2[i]*_t14 - _c5[i]*_t23 + _s0[i]*_s3[i]*_s4[i] - _t19*_t21;
+            Jx[72 * (start + i) + 22] = _c3[i]*_t31;
+            Jx[72 * (start + i) + 23] = _t32;
+            Jx[72 * (start + i) + 24] = _t40;
+            Jx[72 * (start + i) + 25] = _t43;
+            Jx[72 * (start + i) + 26] = _t43;
+            Jx[72 * (start + i) + 27] = -_c2[i]*_t33 + _c5[i]*_t39 + _t21*_t35 + _t37;
+            Jx[72 * (start + i) + 28] = _s3[i]*_t30;
+            Jx[72 * (start + i) + 29] = _t45;
+            Jx[72 * (start + i) + 30] = _t47;
+            Jx[72 * (start + i) + 31] = _t49;
+            Jx[72 * (start + i) + 32] = _t49;
+            Jx[72 * (start + i) + 33] = _s5[i]*(_c2[i]*_t46 + _t22);
+            Jx[72 * (start + i) + 34] = _c5[i]*_t36 - _t13*_t21 + _t44;
+            Jx[72 * (start + i) + 35] = 0;
+            Jx[72 * (start + i) + 36] = -_t45;
+            Jx[72 * (start + i) + 37] = _t50;
+            Jx[72 * (start + i) + 38] = _t50;
+            Jx[72 * (start + i) + 39] = _c0[i]*_c3[i]*_c4[i]*_c5[i] - _c2[i]*_t39 - _t21*_t37 - _t35;
+            Jx[72 * (start + i) + 40] = -_c3[i]*_t47;
+            Jx[72 * (start + i) + 41] = -_t40;
+            Jx[72 * (start + i) + 42] = _t32;
+            Jx[72 * (start + i) + 43] = _t51;
+            Jx[72 * (start + i) + 44] = _t51;
+            Jx[72 * (start + i) + 45] = _c2[i]*_c5[i]*_s0[i]*_s3[i]*_s4[i] - _c2[i]*_t23 - _c5[i]*_t14 - _t19;
+            Jx[72 * (start + i) + 46] = _s3[i]*_t47;
+            Jx[72 * (start + i) + 47] = _t24;
+            Jx[72 * (start + i) + 48] = _t31;
+            Jx[72 * (start + i) + 49] = _t52;
+            Jx[72 * (start + i) + 50] = _t52;
+            Jx[72 * (start + i) + 51] = _s5[i]*(_c2[i]*_t36 - _t13);
+            Jx[72 * (start + i) + 52] = -_c5[i]*_t46 + _s0[i]*_s2[i]*_s5[i] - _t21*_t22;
+            Jx[72 * (start + i) + 53] = 0;
+            Jx[72 * (start + i) + 54] = 0;
+            Jx[72 * (start + i) + 55] = _t53;
+            Jx[72 * (start + i) + 56] = _t53;
+            Jx[72 * (start + i) + 57] = -_s2[i]*(_c5[i]*_t18 + _t41);
+            Jx[72 * (start + i) + 58] = -_c3[i]*_t48;
+            Jx[72 * (start + i) + 59] = -_t42;
+            Jx[72 * (start + i) + 60] = 0;
+            Jx[72 * (start + i) + 61] = _t54;
+            Jx[72 * (start + i) + 62] = _t54;
+            Jx[72 * (start + i) + 63] = _s2[i]*(_c5[i]*_t34 - _t26);
+            Jx[72 * (start + i) + 64] = _s3[i]*_t48;
+            Jx[72 * (start + i) + 65] = _t28;
+            Jx[72 * (start + i) + 66] = 0;
+            Jx[72 * (start + i) + 67] = _t55;
+            Jx[72 * (start + i) + 68] = _t55;
+            Jx[72 * (start + i) + 69] = _s4[i]*_t38;
+            Jx[72 * (start + i) + 70] = -_c4[i]*_t27 - _t25;
+            Jx[72 * (start + i) + 71] = 0;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         puma560_task_jacobian(q + 6 * i, params, Jx + 72 * i);
     }
+#endif
 }

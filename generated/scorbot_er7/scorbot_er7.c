@@ -14,6 +14,34 @@
 
 #include <math.h>
 
+/*
+ * Batched entry points.  Plain C99 loops over the single-point entry point by
+ * default.  With -DKINEGEN_BLOCKED they work through their items in blocks of
+ * KINEGEN_BLOCK instead: the inputs of a block are copied into one array per
+ * coordinate, every sine and every cosine is taken in a loop of its own, and the
+ * arithmetic runs in one loop per stage, from the same expressions as the single
+ * point (so the results are bit-identical).  -DKINEGEN_SIMD -fopenmp-simd (what
+ * build_c.py uses where the compiler and C library allow) adds to that SIMD
+ * declarations of sin and cos, so that the loops vectorise and call glibc's
+ * vector math library (libmvec, at most 4 ulp).  No NaN or infinity check is
+ * affected: no -ffast-math is involved.
+ */
+#ifdef KINEGEN_SIMD
+#pragma omp declare simd notinbranch
+double sin(double);
+#pragma omp declare simd notinbranch
+double cos(double);
+#define KINEGEN_VECTOR_LOOP _Pragma("omp simd")
+#ifndef KINEGEN_BLOCKED
+#define KINEGEN_BLOCKED
+#endif
+#else
+#define KINEGEN_VECTOR_LOOP
+#endif
+#ifndef KINEGEN_BLOCK
+#define KINEGEN_BLOCK 64
+#endif
+
 const scorbot_er7_params scorbot_er7_default_params = { 0.05, 0.3, 0.25, 0.385, 0.212 };
 
 /* Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. */
@@ -32,43 +60,156 @@ void scorbot_er7_fk(const double *restrict q, const scorbot_er7_params *restrict
     const double a3 = params->a3;
     const double d1 = params->d1;
     const double d5 = params->d5;
-    const double _t0 = sin(q1);
-    const double _t1 = sin(q5);
-    const double _t2 = _t0*_t1;
     const double _t3 = q2 + q3;
     const double _t4 = _t3 + q4;
-    const double _t5 = sin(_t4);
-    const double _t6 = cos(q1);
-    const double _t7 = cos(q5);
-    const double _t8 = _t6*_t7;
-    const double _t9 = _t0*_t7;
-    const double _t10 = _t1*_t6;
-    const double _t11 = cos(_t4);
-    const double _t12 = _t11*d5 + a1 + a2*cos(q2) + a3*cos(_t3);
-    T[0] = _t2 - _t5*_t8;
-    T[1] = _t10*_t5 + _t9;
-    T[2] = _t11*_t6;
-    T[3] = _t12*_t6;
-    T[4] = -_t10 - _t5*_t9;
-    T[5] = _t2*_t5 - _t8;
-    T[6] = _t0*_t11;
-    T[7] = _t0*_t12;
-    T[8] = _t11*_t7;
-    T[9] = -_t1*_t11;
-    T[10] = _t5;
-    T[11] = _t5*d5 + a2*sin(q2) + a3*sin(_t3) + d1;
+    const double _s0 = sin(q1);
+    const double _c0 = cos(q1);
+    const double _s1 = sin(q5);
+    const double _c1 = cos(q5);
+    const double _s2 = sin(_t4);
+    const double _c2 = cos(_t4);
+    const double _s3 = sin(q2);
+    const double _c3 = cos(q2);
+    const double _s4 = sin(_t3);
+    const double _c4 = cos(_t3);
+    const double _t2 = _s0*_s1;
+    const double _t8 = _c0*_c1;
+    const double _t9 = _c1*_s0;
+    const double _t10 = _c0*_s1;
+    const double _t12 = _c2*d5 + _c3*a2 + _c4*a3 + a1;
+    T[0] = -_s2*_t8 + _t2;
+    T[1] = _s2*_t10 + _t9;
+    T[2] = _c0*_c2;
+    T[3] = _c0*_t12;
+    T[4] = -_s2*_t9 - _t10;
+    T[5] = _s2*_t2 - _t8;
+    T[6] = _c2*_s0;
+    T[7] = _s0*_t12;
+    T[8] = _c1*_c2;
+    T[9] = -_c2*_s1;
+    T[10] = _s2;
+    T[11] = _s2*d5 + _s3*a2 + _s4*a3 + d1;
     T[12] = 0;
     T[13] = 0;
     T[14] = 0;
     T[15] = 1;
 }
 
+/* fk of `count` items, stored one after the other in each argument and output. */
 void scorbot_er7_fk_batch(size_t count, const double *restrict q, const scorbot_er7_params *restrict params, double *restrict T)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double q3[KINEGEN_BLOCK];
+    double q4[KINEGEN_BLOCK];
+    double q5[KINEGEN_BLOCK];
+    double _t3[KINEGEN_BLOCK];
+    double _t4[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    double _s1[KINEGEN_BLOCK];
+    double _c1[KINEGEN_BLOCK];
+    double _s2[KINEGEN_BLOCK];
+    double _c2[KINEGEN_BLOCK];
+    double _s3[KINEGEN_BLOCK];
+    double _c3[KINEGEN_BLOCK];
+    double _s4[KINEGEN_BLOCK];
+    double _c4[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d1 = params->d1;
+    const double d5 = params->d5;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[5 * (start + i) + 0];
+            q2[i] = q[5 * (start + i) + 1];
+            q3[i] = q[5 * (start + i) + 2];
+            q4[i] = q[5 * (start + i) + 3];
+            q5[i] = q[5 * (start + i) + 4];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t3[i] = q2[i] + q3[i];
+            _t4[i] = _t3[i] + q4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t2 = _s0[i]*_s1[i];
+            const double _t8 = _c0[i]*_c1[i];
+            const double _t9 = _c1[i]*_s0[i];
+            const double _t10 = _c0[i]*_s1[i];
+            const double _t12 = _c2[i]*d5 + _c3[i]*a2 + _c4[i]*a3 + a1;
+            T[16 * (start + i) + 0] = -_s2[i]*_t8 + _t2;
+            T[16 * (start + i) + 1] = _s2[i]*_t10 + _t9;
+            T[16 * (start + i) + 2] = _c0[i]*_c2[i];
+            T[16 * (start + i) + 3] = _c0[i]*_t12;
+            T[16 * (start + i) + 4] = -_s2[i]*_t9 - _t10;
+            T[16 * (start + i) + 5] = _s2[i]*_t2 - _t8;
+            T[16 * (start + i) + 6] = _c2[i]*_s0[i];
+            T[16 * (start + i) + 7] = _s0[i]*_t12;
+            T[16 * (start + i) + 8] = _c1[i]*_c2[i];
+            T[16 * (start + i) + 9] = -_c2[i]*_s1[i];
+            T[16 * (start + i) + 10] = _s2[i];
+            T[16 * (start + i) + 11] = _s2[i]*d5 + _s3[i]*a2 + _s4[i]*a3 + d1;
+            T[16 * (start + i) + 12] = 0;
+            T[16 * (start + i) + 13] = 0;
+            T[16 * (start + i) + 14] = 0;
+            T[16 * (start + i) + 15] = 1;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         scorbot_er7_fk(q + 5 * i, params, T + 16 * i);
     }
+#endif
 }
 
 /* Frames T_0 (base) .. T_5 (tool), shape (..., 6, 4, 4). */
@@ -87,30 +228,30 @@ void scorbot_er7_frames(const double *restrict q, const scorbot_er7_params *rest
     const double a3 = params->a3;
     const double d1 = params->d1;
     const double d5 = params->d5;
-    const double _t0 = cos(q1);
-    const double _t1 = sin(q1);
-    const double _t2 = -_t0;
-    const double _t3 = cos(q2);
-    const double _t4 = sin(q2);
-    const double _t5 = _t3*a2 + a1;
-    const double _t6 = _t4*a2 + d1;
     const double _t7 = q2 + q3;
-    const double _t8 = cos(_t7);
-    const double _t9 = sin(_t7);
-    const double _t10 = _t5 + _t8*a3;
-    const double _t11 = _t0*_t10;
-    const double _t12 = _t1*_t10;
-    const double _t13 = _t6 + _t9*a3;
     const double _t14 = _t7 + q4;
-    const double _t15 = sin(_t14);
-    const double _t16 = _t0*_t15;
-    const double _t17 = cos(_t14);
-    const double _t18 = _t0*_t17;
-    const double _t19 = _t1*_t15;
-    const double _t20 = _t1*_t17;
-    const double _t21 = sin(q5);
-    const double _t22 = cos(q5);
-    const double _t23 = _t10 + _t17*d5;
+    const double _s0 = sin(q1);
+    const double _c0 = cos(q1);
+    const double _s1 = sin(q2);
+    const double _c1 = cos(q2);
+    const double _s2 = sin(_t7);
+    const double _c2 = cos(_t7);
+    const double _s3 = sin(_t14);
+    const double _c3 = cos(_t14);
+    const double _s4 = sin(q5);
+    const double _c4 = cos(q5);
+    const double _t2 = -_c0;
+    const double _t5 = _c1*a2 + a1;
+    const double _t6 = _s1*a2 + d1;
+    const double _t10 = _c2*a3 + _t5;
+    const double _t11 = _c0*_t10;
+    const double _t12 = _s0*_t10;
+    const double _t13 = _s2*a3 + _t6;
+    const double _t16 = _c0*_s3;
+    const double _t18 = _c0*_c3;
+    const double _t19 = _s0*_s3;
+    const double _t20 = _c3*_s0;
+    const double _t23 = _c3*d5 + _t10;
     frames[0] = 1;
     frames[1] = 0;
     frames[2] = 0;
@@ -127,14 +268,14 @@ void scorbot_er7_frames(const double *restrict q, const scorbot_er7_params *rest
     frames[13] = 0;
     frames[14] = 0;
     frames[15] = 1;
-    frames[16] = _t0;
+    frames[16] = _c0;
     frames[17] = 0;
-    frames[18] = _t1;
-    frames[19] = _t0*a1;
-    frames[20] = _t1;
+    frames[18] = _s0;
+    frames[19] = _c0*a1;
+    frames[20] = _s0;
     frames[21] = 0;
     frames[22] = _t2;
-    frames[23] = _t1*a1;
+    frames[23] = _s0*a1;
     frames[24] = 0;
     frames[25] = 1;
     frames[26] = 0;
@@ -143,32 +284,32 @@ void scorbot_er7_frames(const double *restrict q, const scorbot_er7_params *rest
     frames[29] = 0;
     frames[30] = 0;
     frames[31] = 1;
-    frames[32] = _t0*_t3;
-    frames[33] = -_t0*_t4;
-    frames[34] = _t1;
-    frames[35] = _t0*_t5;
-    frames[36] = _t1*_t3;
-    frames[37] = -_t1*_t4;
+    frames[32] = _c0*_c1;
+    frames[33] = -_c0*_s1;
+    frames[34] = _s0;
+    frames[35] = _c0*_t5;
+    frames[36] = _c1*_s0;
+    frames[37] = -_s0*_s1;
     frames[38] = _t2;
-    frames[39] = _t1*_t5;
-    frames[40] = _t4;
-    frames[41] = _t3;
+    frames[39] = _s0*_t5;
+    frames[40] = _s1;
+    frames[41] = _c1;
     frames[42] = 0;
     frames[43] = _t6;
     frames[44] = 0;
     frames[45] = 0;
     frames[46] = 0;
     frames[47] = 1;
-    frames[48] = _t0*_t8;
-    frames[49] = -_t0*_t9;
-    frames[50] = _t1;
+    frames[48] = _c0*_c2;
+    frames[49] = -_c0*_s2;
+    frames[50] = _s0;
     frames[51] = _t11;
-    frames[52] = _t1*_t8;
-    frames[53] = -_t1*_t9;
+    frames[52] = _c2*_s0;
+    frames[53] = -_s0*_s2;
     frames[54] = _t2;
     frames[55] = _t12;
-    frames[56] = _t9;
-    frames[57] = _t8;
+    frames[56] = _s2;
+    frames[57] = _c2;
     frames[58] = 0;
     frames[59] = _t13;
     frames[60] = 0;
@@ -176,45 +317,241 @@ void scorbot_er7_frames(const double *restrict q, const scorbot_er7_params *rest
     frames[62] = 0;
     frames[63] = 1;
     frames[64] = -_t16;
-    frames[65] = _t1;
+    frames[65] = _s0;
     frames[66] = _t18;
     frames[67] = _t11;
     frames[68] = -_t19;
     frames[69] = _t2;
     frames[70] = _t20;
     frames[71] = _t12;
-    frames[72] = _t17;
+    frames[72] = _c3;
     frames[73] = 0;
-    frames[74] = _t15;
+    frames[74] = _s3;
     frames[75] = _t13;
     frames[76] = 0;
     frames[77] = 0;
     frames[78] = 0;
     frames[79] = 1;
-    frames[80] = _t1*_t21 - _t16*_t22;
-    frames[81] = _t1*_t22 + _t16*_t21;
+    frames[80] = -_c4*_t16 + _s0*_s4;
+    frames[81] = _c4*_s0 + _s4*_t16;
     frames[82] = _t18;
-    frames[83] = _t0*_t23;
-    frames[84] = -_t0*_t21 - _t19*_t22;
-    frames[85] = -_t0*_t22 + _t19*_t21;
+    frames[83] = _c0*_t23;
+    frames[84] = -_c0*_s4 - _c4*_t19;
+    frames[85] = -_c0*_c4 + _s4*_t19;
     frames[86] = _t20;
-    frames[87] = _t1*_t23;
-    frames[88] = _t17*_t22;
-    frames[89] = -_t17*_t21;
-    frames[90] = _t15;
-    frames[91] = _t13 + _t15*d5;
+    frames[87] = _s0*_t23;
+    frames[88] = _c3*_c4;
+    frames[89] = -_c3*_s4;
+    frames[90] = _s3;
+    frames[91] = _s3*d5 + _t13;
     frames[92] = 0;
     frames[93] = 0;
     frames[94] = 0;
     frames[95] = 1;
 }
 
+/* frames of `count` items, stored one after the other in each argument and output. */
 void scorbot_er7_frames_batch(size_t count, const double *restrict q, const scorbot_er7_params *restrict params, double *restrict frames)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double q3[KINEGEN_BLOCK];
+    double q4[KINEGEN_BLOCK];
+    double q5[KINEGEN_BLOCK];
+    double _t7[KINEGEN_BLOCK];
+    double _t14[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    double _s1[KINEGEN_BLOCK];
+    double _c1[KINEGEN_BLOCK];
+    double _s2[KINEGEN_BLOCK];
+    double _c2[KINEGEN_BLOCK];
+    double _s3[KINEGEN_BLOCK];
+    double _c3[KINEGEN_BLOCK];
+    double _s4[KINEGEN_BLOCK];
+    double _c4[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d1 = params->d1;
+    const double d5 = params->d5;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[5 * (start + i) + 0];
+            q2[i] = q[5 * (start + i) + 1];
+            q3[i] = q[5 * (start + i) + 2];
+            q4[i] = q[5 * (start + i) + 3];
+            q5[i] = q[5 * (start + i) + 4];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t7[i] = q2[i] + q3[i];
+            _t14[i] = _t7[i] + q4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t7[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t7[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(_t14[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(_t14[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t2 = -_c0[i];
+            const double _t5 = _c1[i]*a2 + a1;
+            const double _t6 = _s1[i]*a2 + d1;
+            const double _t10 = _c2[i]*a3 + _t5;
+            const double _t11 = _c0[i]*_t10;
+            const double _t12 = _s0[i]*_t10;
+            const double _t13 = _s2[i]*a3 + _t6;
+            const double _t16 = _c0[i]*_s3[i];
+            const double _t18 = _c0[i]*_c3[i];
+            const double _t19 = _s0[i]*_s3[i];
+            const double _t20 = _c3[i]*_s0[i];
+            const double _t23 = _c3[i]*d5 + _t10;
+            frames[96 * (start + i) + 0] = 1;
+            frames[96 * (start + i) + 1] = 0;
+            frames[96 * (start + i) + 2] = 0;
+            frames[96 * (start + i) + 3] = 0;
+            frames[96 * (start + i) + 4] = 0;
+            frames[96 * (start + i) + 5] = 1;
+            frames[96 * (start + i) + 6] = 0;
+            frames[96 * (start + i) + 7] = 0;
+            frames[96 * (start + i) + 8] = 0;
+            frames[96 * (start + i) + 9] = 0;
+            frames[96 * (start + i) + 10] = 1;
+            frames[96 * (start + i) + 11] = 0;
+            frames[96 * (start + i) + 12] = 0;
+            frames[96 * (start + i) + 13] = 0;
+            frames[96 * (start + i) + 14] = 0;
+            frames[96 * (start + i) + 15] = 1;
+            frames[96 * (start + i) + 16] = _c0[i];
+            frames[96 * (start + i) + 17] = 0;
+            frames[96 * (start + i) + 18] = _s0[i];
+            frames[96 * (start + i) + 19] = _c0[i]*a1;
+            frames[96 * (start + i) + 20] = _s0[i];
+            frames[96 * (start + i) + 21] = 0;
+            frames[96 * (start + i) + 22] = _t2;
+            frames[96 * (start + i) + 23] = _s0[i]*a1;
+            frames[96 * (start + i) + 24] = 0;
+            frames[96 * (start + i) + 25] = 1;
+            frames[96 * (start + i) + 26] = 0;
+            frames[96 * (start + i) + 27] = d1;
+            frames[96 * (start + i) + 28] = 0;
+            frames[96 * (start + i) + 29] = 0;
+            frames[96 * (start + i) + 30] = 0;
+            frames[96 * (start + i) + 31] = 1;
+            frames[96 * (start + i) + 32] = _c0[i]*_c1[i];
+            frames[96 * (start + i) + 33] = -_c0[i]*_s1[i];
+            frames[96 * (start + i) + 34] = _s0[i];
+            frames[96 * (start + i) + 35] = _c0[i]*_t5;
+            frames[96 * (start + i) + 36] = _c1[i]*_s0[i];
+            frames[96 * (start + i) + 37] = -_s0[i]*_s1[i];
+            frames[96 * (start + i) + 38] = _t2;
+            frames[96 * (start + i) + 39] = _s0[i]*_t5;
+            frames[96 * (start + i) + 40] = _s1[i];
+            frames[96 * (start + i) + 41] = _c1[i];
+            frames[96 * (start + i) + 42] = 0;
+            frames[96 * (start + i) + 43] = _t6;
+            frames[96 * (start + i) + 44] = 0;
+            frames[96 * (start + i) + 45] = 0;
+            frames[96 * (start + i) + 46] = 0;
+            frames[96 * (start + i) + 47] = 1;
+            frames[96 * (start + i) + 48] = _c0[i]*_c2[i];
+            frames[96 * (start + i) + 49] = -_c0[i]*_s2[i];
+            frames[96 * (start + i) + 50] = _s0[i];
+            frames[96 * (start + i) + 51] = _t11;
+            frames[96 * (start + i) + 52] = _c2[i]*_s0[i];
+            frames[96 * (start + i) + 53] = -_s0[i]*_s2[i];
+            frames[96 * (start + i) + 54] = _t2;
+            frames[96 * (start + i) + 55] = _t12;
+            frames[96 * (start + i) + 56] = _s2[i];
+            frames[96 * (start + i) + 57] = _c2[i];
+            frames[96 * (start + i) + 58] = 0;
+            frames[96 * (start + i) + 59] = _t13;
+            frames[96 * (start + i) + 60] = 0;
+            frames[96 * (start + i) + 61] = 0;
+            frames[96 * (start + i) + 62] = 0;
+            frames[96 * (start + i) + 63] = 1;
+            frames[96 * (start + i) + 64] = -_t16;
+            frames[96 * (start + i) + 65] = _s0[i];
+            frames[96 * (start + i) + 66] = _t18;
+            frames[96 * (start + i) + 67] = _t11;
+            frames[96 * (start + i) + 68] = -_t19;
+            frames[96 * (start + i) + 69] = _t2;
+            frames[96 * (start + i) + 70] = _t20;
+            frames[96 * (start + i) + 71] = _t12;
+            frames[96 * (start + i) + 72] = _c3[i];
+            frames[96 * (start + i) + 73] = 0;
+            frames[96 * (start + i) + 74] = _s3[i];
+            frames[96 * (start + i) + 75] = _t13;
+            frames[96 * (start + i) + 76] = 0;
+            frames[96 * (start + i) + 77] = 0;
+            frames[96 * (start + i) + 78] = 0;
+            frames[96 * (start + i) + 79] = 1;
+            frames[96 * (start + i) + 80] = -_c4[i]*_t16 + _s0[i]*_s4[i];
+            frames[96 * (start + i) + 81] = _c4[i]*_s0[i] + _s4[i]*_t16;
+            frames[96 * (start + i) + 82] = _t18;
+            frames[96 * (start + i) + 83] = _c0[i]*_t23;
+            frames[96 * (start + i) + 84] = -_c0[i]*_s4[i] - _c4[i]*_t19;
+            frames[96 * (start + i) + 85] = -_c0[i]*_c4[i] + _s4[i]*_t19;
+            frames[96 * (start + i) + 86] = _t20;
+            frames[96 * (start + i) + 87] = _s0[i]*_t23;
+            frames[96 * (start + i) + 88] = _c3[i]*_c4[i];
+            frames[96 * (start + i) + 89] = -_c3[i]*_s4[i];
+            frames[96 * (start + i) + 90] = _s3[i];
+            frames[96 * (start + i) + 91] = _s3[i]*d5 + _t13;
+            frames[96 * (start + i) + 92] = 0;
+            frames[96 * (start + i) + 93] = 0;
+            frames[96 * (start + i) + 94] = 0;
+            frames[96 * (start + i) + 95] = 1;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         scorbot_er7_frames(q + 5 * i, params, frames + 96 * i);
     }
+#endif
 }
 
 /* Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 5). */
@@ -231,29 +568,33 @@ void scorbot_er7_jacobian(const double *restrict q, const scorbot_er7_params *re
     const double a2 = params->a2;
     const double a3 = params->a3;
     const double d5 = params->d5;
-    const double _t0 = sin(q1);
     const double _t1 = q2 + q3;
     const double _t2 = _t1 + q4;
-    const double _t3 = cos(_t2);
-    const double _t4 = _t3*d5;
-    const double _t5 = _t4 + a3*cos(_t1);
-    const double _t6 = _t5 + a2*cos(q2);
+    const double _s0 = sin(q1);
+    const double _c0 = cos(q1);
+    const double _s1 = sin(_t2);
+    const double _c1 = cos(_t2);
+    const double _s2 = sin(_t1);
+    const double _c2 = cos(_t1);
+    const double _s3 = sin(q2);
+    const double _c3 = cos(q2);
+    const double _t4 = _c1*d5;
+    const double _t5 = _c2*a3 + _t4;
+    const double _t6 = _c3*a2 + _t5;
     const double _t7 = _t6 + a1;
-    const double _t8 = cos(q1);
-    const double _t9 = sin(_t2);
-    const double _t10 = _t9*d5;
-    const double _t11 = _t10 + a3*sin(_t1);
-    const double _t12 = _t11 + a2*sin(q2);
-    const double _t13 = -_t8;
-    J[0] = -_t0*_t7;
-    J[1] = -_t12*_t8;
-    J[2] = -_t11*_t8;
-    J[3] = -_t10*_t8;
+    const double _t10 = _s1*d5;
+    const double _t11 = _s2*a3 + _t10;
+    const double _t12 = _s3*a2 + _t11;
+    const double _t13 = -_c0;
+    J[0] = -_s0*_t7;
+    J[1] = -_c0*_t12;
+    J[2] = -_c0*_t11;
+    J[3] = -_c0*_t10;
     J[4] = 0;
-    J[5] = _t7*_t8;
-    J[6] = -_t0*_t12;
-    J[7] = -_t0*_t11;
-    J[8] = -_t0*_t10;
+    J[5] = _c0*_t7;
+    J[6] = -_s0*_t12;
+    J[7] = -_s0*_t11;
+    J[8] = -_s0*_t10;
     J[9] = 0;
     J[10] = 0;
     J[11] = _t6;
@@ -261,28 +602,141 @@ void scorbot_er7_jacobian(const double *restrict q, const scorbot_er7_params *re
     J[13] = _t4;
     J[14] = 0;
     J[15] = 0;
-    J[16] = _t0;
-    J[17] = _t0;
-    J[18] = _t0;
-    J[19] = _t3*_t8;
+    J[16] = _s0;
+    J[17] = _s0;
+    J[18] = _s0;
+    J[19] = _c0*_c1;
     J[20] = 0;
     J[21] = _t13;
     J[22] = _t13;
     J[23] = _t13;
-    J[24] = _t0*_t3;
+    J[24] = _c1*_s0;
     J[25] = 1;
     J[26] = 0;
     J[27] = 0;
     J[28] = 0;
-    J[29] = _t9;
+    J[29] = _s1;
 }
 
+/* jacobian of `count` items, stored one after the other in each argument and output. */
 void scorbot_er7_jacobian_batch(size_t count, const double *restrict q, const scorbot_er7_params *restrict params, double *restrict J)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double q3[KINEGEN_BLOCK];
+    double q4[KINEGEN_BLOCK];
+    double _t1[KINEGEN_BLOCK];
+    double _t2[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    double _s1[KINEGEN_BLOCK];
+    double _c1[KINEGEN_BLOCK];
+    double _s2[KINEGEN_BLOCK];
+    double _c2[KINEGEN_BLOCK];
+    double _s3[KINEGEN_BLOCK];
+    double _c3[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d5 = params->d5;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[5 * (start + i) + 0];
+            q2[i] = q[5 * (start + i) + 1];
+            q3[i] = q[5 * (start + i) + 2];
+            q4[i] = q[5 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t1[i] = q2[i] + q3[i];
+            _t2[i] = _t1[i] + q4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t4 = _c1[i]*d5;
+            const double _t5 = _c2[i]*a3 + _t4;
+            const double _t6 = _c3[i]*a2 + _t5;
+            const double _t7 = _t6 + a1;
+            const double _t10 = _s1[i]*d5;
+            const double _t11 = _s2[i]*a3 + _t10;
+            const double _t12 = _s3[i]*a2 + _t11;
+            const double _t13 = -_c0[i];
+            J[30 * (start + i) + 0] = -_s0[i]*_t7;
+            J[30 * (start + i) + 1] = -_c0[i]*_t12;
+            J[30 * (start + i) + 2] = -_c0[i]*_t11;
+            J[30 * (start + i) + 3] = -_c0[i]*_t10;
+            J[30 * (start + i) + 4] = 0;
+            J[30 * (start + i) + 5] = _c0[i]*_t7;
+            J[30 * (start + i) + 6] = -_s0[i]*_t12;
+            J[30 * (start + i) + 7] = -_s0[i]*_t11;
+            J[30 * (start + i) + 8] = -_s0[i]*_t10;
+            J[30 * (start + i) + 9] = 0;
+            J[30 * (start + i) + 10] = 0;
+            J[30 * (start + i) + 11] = _t6;
+            J[30 * (start + i) + 12] = _t5;
+            J[30 * (start + i) + 13] = _t4;
+            J[30 * (start + i) + 14] = 0;
+            J[30 * (start + i) + 15] = 0;
+            J[30 * (start + i) + 16] = _s0[i];
+            J[30 * (start + i) + 17] = _s0[i];
+            J[30 * (start + i) + 18] = _s0[i];
+            J[30 * (start + i) + 19] = _c0[i]*_c1[i];
+            J[30 * (start + i) + 20] = 0;
+            J[30 * (start + i) + 21] = _t13;
+            J[30 * (start + i) + 22] = _t13;
+            J[30 * (start + i) + 23] = _t13;
+            J[30 * (start + i) + 24] = _c1[i]*_s0[i];
+            J[30 * (start + i) + 25] = 1;
+            J[30 * (start + i) + 26] = 0;
+            J[30 * (start + i) + 27] = 0;
+            J[30 * (start + i) + 28] = 0;
+            J[30 * (start + i) + 29] = _s1[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         scorbot_er7_jacobian(q + 5 * i, params, J + 30 * i);
     }
+#endif
 }
 
 /* Task coordinates x, y, z, shape (..., 3). */
@@ -302,18 +756,106 @@ void scorbot_er7_task(const double *restrict q, const scorbot_er7_params *restri
     const double d5 = params->d5;
     const double _t0 = q2 + q3;
     const double _t1 = _t0 + q4;
-    const double _t2 = a1 + a2*cos(q2) + a3*cos(_t0) + d5*cos(_t1);
-    x[0] = _t2*cos(q1);
-    x[1] = _t2*sin(q1);
-    x[2] = a2*sin(q2) + a3*sin(_t0) + d1 + d5*sin(_t1);
+    const double _s0 = sin(q2);
+    const double _c0 = cos(q2);
+    const double _s1 = sin(_t0);
+    const double _c1 = cos(_t0);
+    const double _s2 = sin(_t1);
+    const double _c2 = cos(_t1);
+    const double _s3 = sin(q1);
+    const double _c3 = cos(q1);
+    const double _t2 = _c0*a2 + _c1*a3 + _c2*d5 + a1;
+    x[0] = _c3*_t2;
+    x[1] = _s3*_t2;
+    x[2] = _s0*a2 + _s1*a3 + _s2*d5 + d1;
 }
 
+/* task of `count` items, stored one after the other in each argument and output. */
 void scorbot_er7_task_batch(size_t count, const double *restrict q, const scorbot_er7_params *restrict params, double *restrict x)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double q3[KINEGEN_BLOCK];
+    double q4[KINEGEN_BLOCK];
+    double _t0[KINEGEN_BLOCK];
+    double _t1[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    double _s1[KINEGEN_BLOCK];
+    double _c1[KINEGEN_BLOCK];
+    double _s2[KINEGEN_BLOCK];
+    double _c2[KINEGEN_BLOCK];
+    double _s3[KINEGEN_BLOCK];
+    double _c3[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d1 = params->d1;
+    const double d5 = params->d5;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[5 * (start + i) + 0];
+            q2[i] = q[5 * (start + i) + 1];
+            q3[i] = q[5 * (start + i) + 2];
+            q4[i] = q[5 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q2[i] + q3[i];
+            _t1[i] = _t0[i] + q4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t2 = _c0[i]*a2 + _c1[i]*a3 + _c2[i]*d5 + a1;
+            x[3 * (start + i) + 0] = _c3[i]*_t2;
+            x[3 * (start + i) + 1] = _s3[i]*_t2;
+            x[3 * (start + i) + 2] = _s0[i]*a2 + _s1[i]*a3 + _s2[i]*d5 + d1;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         scorbot_er7_task(q + 5 * i, params, x + 3 * i);
     }
+#endif
 }
 
 /* d task / d q, shape (..., 3, 5). */
@@ -330,26 +872,32 @@ void scorbot_er7_task_jacobian(const double *restrict q, const scorbot_er7_param
     const double a2 = params->a2;
     const double a3 = params->a3;
     const double d5 = params->d5;
-    const double _t0 = sin(q1);
     const double _t1 = q2 + q3;
     const double _t2 = _t1 + q4;
-    const double _t3 = d5*cos(_t2);
-    const double _t4 = _t3 + a3*cos(_t1);
-    const double _t5 = _t4 + a2*cos(q2);
+    const double _s0 = sin(q1);
+    const double _c0 = cos(q1);
+    const double _s1 = sin(_t2);
+    const double _c1 = cos(_t2);
+    const double _s2 = sin(_t1);
+    const double _c2 = cos(_t1);
+    const double _s3 = sin(q2);
+    const double _c3 = cos(q2);
+    const double _t3 = _c1*d5;
+    const double _t4 = _c2*a3 + _t3;
+    const double _t5 = _c3*a2 + _t4;
     const double _t6 = _t5 + a1;
-    const double _t7 = cos(q1);
-    const double _t8 = d5*sin(_t2);
-    const double _t9 = _t8 + a3*sin(_t1);
-    const double _t10 = _t9 + a2*sin(q2);
-    Jx[0] = -_t0*_t6;
-    Jx[1] = -_t10*_t7;
-    Jx[2] = -_t7*_t9;
-    Jx[3] = -_t7*_t8;
+    const double _t8 = _s1*d5;
+    const double _t9 = _s2*a3 + _t8;
+    const double _t10 = _s3*a2 + _t9;
+    Jx[0] = -_s0*_t6;
+    Jx[1] = -_c0*_t10;
+    Jx[2] = -_c0*_t9;
+    Jx[3] = -_c0*_t8;
     Jx[4] = 0;
-    Jx[5] = _t6*_t7;
-    Jx[6] = -_t0*_t10;
-    Jx[7] = -_t0*_t9;
-    Jx[8] = -_t0*_t8;
+    Jx[5] = _c0*_t6;
+    Jx[6] = -_s0*_t10;
+    Jx[7] = -_s0*_t9;
+    Jx[8] = -_s0*_t8;
     Jx[9] = 0;
     Jx[10] = 0;
     Jx[11] = _t5;
@@ -358,10 +906,107 @@ void scorbot_er7_task_jacobian(const double *restrict q, const scorbot_er7_param
     Jx[14] = 0;
 }
 
+/* task_jacobian of `count` items, stored one after the other in each argument and output. */
 void scorbot_er7_task_jacobian_batch(size_t count, const double *restrict q, const scorbot_er7_params *restrict params, double *restrict Jx)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK];
+    double q2[KINEGEN_BLOCK];
+    double q3[KINEGEN_BLOCK];
+    double q4[KINEGEN_BLOCK];
+    double _t1[KINEGEN_BLOCK];
+    double _t2[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    double _s1[KINEGEN_BLOCK];
+    double _c1[KINEGEN_BLOCK];
+    double _s2[KINEGEN_BLOCK];
+    double _c2[KINEGEN_BLOCK];
+    double _s3[KINEGEN_BLOCK];
+    double _c3[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d5 = params->d5;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[5 * (start + i) + 0];
+            q2[i] = q[5 * (start + i) + 1];
+            q3[i] = q[5 * (start + i) + 2];
+            q4[i] = q[5 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t1[i] = q2[i] + q3[i];
+            _t2[i] = _t1[i] + q4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t3 = _c1[i]*d5;
+            const double _t4 = _c2[i]*a3 + _t3;
+            const double _t5 = _c3[i]*a2 + _t4;
+            const double _t6 = _t5 + a1;
+            const double _t8 = _s1[i]*d5;
+            const double _t9 = _s2[i]*a3 + _t8;
+            const double _t10 = _s3[i]*a2 + _t9;
+            Jx[15 * (start + i) + 0] = -_s0[i]*_t6;
+            Jx[15 * (start + i) + 1] = -_c0[i]*_t10;
+            Jx[15 * (start + i) + 2] = -_c0[i]*_t9;
+            Jx[15 * (start + i) + 3] = -_c0[i]*_t8;
+            Jx[15 * (start + i) + 4] = 0;
+            Jx[15 * (start + i) + 5] = _c0[i]*_t6;
+            Jx[15 * (start + i) + 6] = -_s0[i]*_t10;
+            Jx[15 * (start + i) + 7] = -_s0[i]*_t9;
+            Jx[15 * (start + i) + 8] = -_s0[i]*_t8;
+            Jx[15 * (start + i) + 9] = 0;
+            Jx[15 * (start + i) + 10] = 0;
+            Jx[15 * (start + i) + 11] = _t5;
+            Jx[15 * (start + i) + 12] = _t4;
+            Jx[15 * (start + i) + 13] = _t3;
+            Jx[15 * (start + i) + 14] = 0;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         scorbot_er7_task_jacobian(q + 5 * i, params, Jx + 15 * i);
     }
+#endif
 }
