@@ -52,6 +52,7 @@ def template_function(prepared: PreparedFunction, accepts_nonfinite: bool = Fals
         outputs.append({
             "name": out.name, "shape": tuple(out.shape), "dtype": out.dtype, "size": out.size,
             "has_zeros": zero_free, "assignments": assignments, "flat": list(enumerate(out.entries)),
+            "constant": {k for k, e in enumerate(out.entries) if not getattr(e, "free_symbols", None)},
         })
     staged = stage(prepared)
     for out, entries in zip(outputs, staged.outputs):

@@ -24,6 +24,7 @@ except ImportError as _exc:  # pragma: no cover - depends on the build
     ) from _exc
 
 _ndarray, _float64, _empty, _from_buffer = numpy.ndarray, numpy.dtype(numpy.float64), numpy.empty, _ffi.from_buffer
+_DOUBLES, _INTS = _ffi.typeof("double[]"), _ffi.typeof("int[]")
 # The parameter defaults: a call that leaves every parameter alone (checked by identity,
 # so that no other value can pass for them) uses _DEFAULT_PARAMS without any checking.
 _l1 = 0.559
@@ -54,16 +55,17 @@ def _input(array, batch):
 def fk(q, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
     """Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 and d1 is _d1 and d4 is _d4 else _params((l1, l2, d1, d4, ))
-    if not (type(q) is _ndarray and q.dtype is _float64 and q.ndim and q.shape[-1] == 4
-            and q.flags.c_contiguous):
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 4 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 4, "fk", "q", finite=False))
     batch = q.shape[:-1]
+    count = q.size // 4
     T = _empty(batch + (4, 4))
     if _lib.adept_three_fk_checked(
-        math.prod(batch),
-        _from_buffer("double[]", q),
+        count,
+        _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer("double[]", T, require_writable=True),
+        _from_buffer(_DOUBLES, T, require_writable=True),
     ):
         raise ValueError("fk: q contains NaN or inf")
     return T
@@ -72,16 +74,17 @@ def fk(q, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
 def frames(q, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
     """Frames T_0 (base) .. T_4 (tool), shape (..., 5, 4, 4). (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 and d1 is _d1 and d4 is _d4 else _params((l1, l2, d1, d4, ))
-    if not (type(q) is _ndarray and q.dtype is _float64 and q.ndim and q.shape[-1] == 4
-            and q.flags.c_contiguous):
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 4 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 4, "frames", "q", finite=False))
     batch = q.shape[:-1]
+    count = q.size // 4
     frames = _empty(batch + (5, 4, 4))
     if _lib.adept_three_frames_checked(
-        math.prod(batch),
-        _from_buffer("double[]", q),
+        count,
+        _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer("double[]", frames, require_writable=True),
+        _from_buffer(_DOUBLES, frames, require_writable=True),
     ):
         raise ValueError("frames: q contains NaN or inf")
     return frames
@@ -90,16 +93,17 @@ def frames(q, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
 def jacobian(q, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
     """Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 4). (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 and d1 is _d1 and d4 is _d4 else _params((l1, l2, d1, d4, ))
-    if not (type(q) is _ndarray and q.dtype is _float64 and q.ndim and q.shape[-1] == 4
-            and q.flags.c_contiguous):
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 4 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 4, "jacobian", "q", finite=False))
     batch = q.shape[:-1]
+    count = q.size // 4
     J = _empty(batch + (6, 4))
     if _lib.adept_three_jacobian_checked(
-        math.prod(batch),
-        _from_buffer("double[]", q),
+        count,
+        _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer("double[]", J, require_writable=True),
+        _from_buffer(_DOUBLES, J, require_writable=True),
     ):
         raise ValueError("jacobian: q contains NaN or inf")
     return J
@@ -108,16 +112,17 @@ def jacobian(q, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
 def task(q, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
     """Task coordinates x, y, z, phi, shape (..., 4). (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 and d1 is _d1 and d4 is _d4 else _params((l1, l2, d1, d4, ))
-    if not (type(q) is _ndarray and q.dtype is _float64 and q.ndim and q.shape[-1] == 4
-            and q.flags.c_contiguous):
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 4 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 4, "task", "q", finite=False))
     batch = q.shape[:-1]
+    count = q.size // 4
     x = _empty(batch + (4,))
     if _lib.adept_three_task_checked(
-        math.prod(batch),
-        _from_buffer("double[]", q),
+        count,
+        _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer("double[]", x, require_writable=True),
+        _from_buffer(_DOUBLES, x, require_writable=True),
     ):
         raise ValueError("task: q contains NaN or inf")
     return x
@@ -126,16 +131,17 @@ def task(q, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
 def task_jacobian(q, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
     """d task / d q, shape (..., 4, 4). (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 and d1 is _d1 and d4 is _d4 else _params((l1, l2, d1, d4, ))
-    if not (type(q) is _ndarray and q.dtype is _float64 and q.ndim and q.shape[-1] == 4
-            and q.flags.c_contiguous):
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 4 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 4, "task_jacobian", "q", finite=False))
     batch = q.shape[:-1]
+    count = q.size // 4
     Jx = _empty(batch + (4, 4))
     if _lib.adept_three_task_jacobian_checked(
-        math.prod(batch),
-        _from_buffer("double[]", q),
+        count,
+        _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer("double[]", Jx, require_writable=True),
+        _from_buffer(_DOUBLES, Jx, require_writable=True),
     ):
         raise ValueError("task_jacobian: q contains NaN or inf")
     return Jx

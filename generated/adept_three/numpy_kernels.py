@@ -20,6 +20,8 @@ TASK = ("x", "y", "z", "phi", )
 BRANCHES = ()
 PARAMS = {"l1": 0.559, "l2": 0.508, "d1": 0.8763, "d4": 0.0}
 LIMITS = ((-2.6179938779914944, 2.6179938779914944), (-2.6179938779914944, 2.6179938779914944), (0.0, 0.305), (-4.71238898038469, 4.71238898038469), )
+# Batches are worked through CHUNK items at a time, so that the temporaries stay in cache.
+CHUNK = 4096
 OPERATIONS = {"fk": 18, "frames": 23, "jacobian": 15, "task": 14, "task_jacobian": 15}
 
 
@@ -35,25 +37,37 @@ def fk(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     d1 = _runtime.as_param(d1, "d1")
     d4 = _runtime.as_param(d4, "d4")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    q3 = q[..., 2]
-    q4 = q[..., 3]
-    _t0 = q1 + q2
-    _t1 = _t0 - q4
-    _t2 = numpy.cos(_t1)
-    _t3 = numpy.sin(_t1)
-    T = numpy.zeros(_batch + (4, 4))
-    T[..., 0, 0] = _t2
-    T[..., 0, 1] = _t3
-    T[..., 0, 3] = l1*numpy.cos(q1) + l2*numpy.cos(_t0)
-    T[..., 1, 0] = _t3
-    T[..., 1, 1] = -_t2
-    T[..., 1, 3] = l1*numpy.sin(q1) + l2*numpy.sin(_t0)
-    T[..., 2, 2] = -1
-    T[..., 2, 3] = d1 - d4 - q3
-    T[..., 3, 3] = 1
-    return T
+    q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
+    _count = q.shape[0]
+    T = numpy.empty((_count, 16))
+    T[:, 2] = 0
+    T[:, 6] = 0
+    T[:, 8] = 0
+    T[:, 9] = 0
+    T[:, 10] = -1
+    T[:, 12] = 0
+    T[:, 13] = 0
+    T[:, 14] = 0
+    T[:, 15] = 1
+    for _start in range(0, _count, CHUNK):
+        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
+        q1 = _q[0]
+        q2 = _q[1]
+        q3 = _q[2]
+        q4 = _q[3]
+        _t0 = q1 + q2
+        _t1 = _t0 - q4
+        _t2 = numpy.cos(_t1)
+        _t3 = numpy.sin(_t1)
+        _T = T[_start:_start + CHUNK].T
+        _T[0] = _t2
+        _T[1] = _t3
+        _T[3] = l1*numpy.cos(q1) + l2*numpy.cos(_t0)
+        _T[4] = _t3
+        _T[5] = -_t2
+        _T[7] = l1*numpy.sin(q1) + l2*numpy.sin(_t0)
+        _T[11] = d1 - d4 - q3
+    return T.reshape(_batch + (4, 4))
 
 
 def frames(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
@@ -68,65 +82,110 @@ def frames(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     d1 = _runtime.as_param(d1, "d1")
     d4 = _runtime.as_param(d4, "d4")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    q3 = q[..., 2]
-    q4 = q[..., 3]
-    _t0 = numpy.cos(q1)
-    _t1 = numpy.sin(q1)
-    _t2 = _t0*l1
-    _t3 = _t1*l1
-    _t4 = q1 + q2
-    _t5 = numpy.cos(_t4)
-    _t6 = numpy.sin(_t4)
-    _t7 = _t2 + _t5*l2
-    _t8 = -_t5
-    _t9 = _t3 + _t6*l2
-    _t10 = _t4 - q4
-    _t11 = numpy.cos(_t10)
-    _t12 = numpy.sin(_t10)
-    frames = numpy.zeros(_batch + (5, 4, 4))
-    frames[..., 0, 0, 0] = 1
-    frames[..., 0, 1, 1] = 1
-    frames[..., 0, 2, 2] = 1
-    frames[..., 0, 3, 3] = 1
-    frames[..., 1, 0, 0] = _t0
-    frames[..., 1, 0, 1] = -_t1
-    frames[..., 1, 0, 3] = _t2
-    frames[..., 1, 1, 0] = _t1
-    frames[..., 1, 1, 1] = _t0
-    frames[..., 1, 1, 3] = _t3
-    frames[..., 1, 2, 2] = 1
-    frames[..., 1, 2, 3] = d1
-    frames[..., 1, 3, 3] = 1
-    frames[..., 2, 0, 0] = _t5
-    frames[..., 2, 0, 1] = _t6
-    frames[..., 2, 0, 3] = _t7
-    frames[..., 2, 1, 0] = _t6
-    frames[..., 2, 1, 1] = _t8
-    frames[..., 2, 1, 3] = _t9
-    frames[..., 2, 2, 2] = -1
-    frames[..., 2, 2, 3] = d1
-    frames[..., 2, 3, 3] = 1
-    frames[..., 3, 0, 0] = _t5
-    frames[..., 3, 0, 1] = _t6
-    frames[..., 3, 0, 3] = _t7
-    frames[..., 3, 1, 0] = _t6
-    frames[..., 3, 1, 1] = _t8
-    frames[..., 3, 1, 3] = _t9
-    frames[..., 3, 2, 2] = -1
-    frames[..., 3, 2, 3] = d1 - q3
-    frames[..., 3, 3, 3] = 1
-    frames[..., 4, 0, 0] = _t11
-    frames[..., 4, 0, 1] = _t12
-    frames[..., 4, 0, 3] = _t7
-    frames[..., 4, 1, 0] = _t12
-    frames[..., 4, 1, 1] = -_t11
-    frames[..., 4, 1, 3] = _t9
-    frames[..., 4, 2, 2] = -1
-    frames[..., 4, 2, 3] = d1 - d4 - q3
-    frames[..., 4, 3, 3] = 1
-    return frames
+    q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
+    _count = q.shape[0]
+    frames = numpy.empty((_count, 80))
+    frames[:, 0] = 1
+    frames[:, 1] = 0
+    frames[:, 2] = 0
+    frames[:, 3] = 0
+    frames[:, 4] = 0
+    frames[:, 5] = 1
+    frames[:, 6] = 0
+    frames[:, 7] = 0
+    frames[:, 8] = 0
+    frames[:, 9] = 0
+    frames[:, 10] = 1
+    frames[:, 11] = 0
+    frames[:, 12] = 0
+    frames[:, 13] = 0
+    frames[:, 14] = 0
+    frames[:, 15] = 1
+    frames[:, 18] = 0
+    frames[:, 22] = 0
+    frames[:, 24] = 0
+    frames[:, 25] = 0
+    frames[:, 26] = 1
+    frames[:, 28] = 0
+    frames[:, 29] = 0
+    frames[:, 30] = 0
+    frames[:, 31] = 1
+    frames[:, 34] = 0
+    frames[:, 38] = 0
+    frames[:, 40] = 0
+    frames[:, 41] = 0
+    frames[:, 42] = -1
+    frames[:, 44] = 0
+    frames[:, 45] = 0
+    frames[:, 46] = 0
+    frames[:, 47] = 1
+    frames[:, 50] = 0
+    frames[:, 54] = 0
+    frames[:, 56] = 0
+    frames[:, 57] = 0
+    frames[:, 58] = -1
+    frames[:, 60] = 0
+    frames[:, 61] = 0
+    frames[:, 62] = 0
+    frames[:, 63] = 1
+    frames[:, 66] = 0
+    frames[:, 70] = 0
+    frames[:, 72] = 0
+    frames[:, 73] = 0
+    frames[:, 74] = -1
+    frames[:, 76] = 0
+    frames[:, 77] = 0
+    frames[:, 78] = 0
+    frames[:, 79] = 1
+    for _start in range(0, _count, CHUNK):
+        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
+        q1 = _q[0]
+        q2 = _q[1]
+        q3 = _q[2]
+        q4 = _q[3]
+        _t0 = numpy.cos(q1)
+        _t1 = numpy.sin(q1)
+        _t2 = _t0*l1
+        _t3 = _t1*l1
+        _t4 = q1 + q2
+        _t5 = numpy.cos(_t4)
+        _t6 = numpy.sin(_t4)
+        _t7 = _t2 + _t5*l2
+        _t8 = -_t5
+        _t9 = _t3 + _t6*l2
+        _t10 = _t4 - q4
+        _t11 = numpy.cos(_t10)
+        _t12 = numpy.sin(_t10)
+        _frames = frames[_start:_start + CHUNK].T
+        _frames[16] = _t0
+        _frames[17] = -_t1
+        _frames[19] = _t2
+        _frames[20] = _t1
+        _frames[21] = _t0
+        _frames[23] = _t3
+        _frames[27] = d1
+        _frames[32] = _t5
+        _frames[33] = _t6
+        _frames[35] = _t7
+        _frames[36] = _t6
+        _frames[37] = _t8
+        _frames[39] = _t9
+        _frames[43] = d1
+        _frames[48] = _t5
+        _frames[49] = _t6
+        _frames[51] = _t7
+        _frames[52] = _t6
+        _frames[53] = _t8
+        _frames[55] = _t9
+        _frames[59] = d1 - q3
+        _frames[64] = _t11
+        _frames[65] = _t12
+        _frames[67] = _t7
+        _frames[68] = _t12
+        _frames[69] = -_t11
+        _frames[71] = _t9
+        _frames[75] = d1 - d4 - q3
+    return frames.reshape(_batch + (5, 4, 4))
 
 
 def jacobian(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
@@ -141,21 +200,42 @@ def jacobian(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     _runtime.as_param(d1, "d1")
     _runtime.as_param(d4, "d4")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    _t0 = q1 + q2
-    _t1 = l2*numpy.sin(_t0)
-    _t2 = l2*numpy.cos(_t0)
-    J = numpy.zeros(_batch + (6, 4))
-    J[..., 0, 0] = -_t1 - l1*numpy.sin(q1)
-    J[..., 0, 1] = -_t1
-    J[..., 1, 0] = _t2 + l1*numpy.cos(q1)
-    J[..., 1, 1] = _t2
-    J[..., 2, 2] = -1
-    J[..., 5, 0] = 1
-    J[..., 5, 1] = 1
-    J[..., 5, 3] = -1
-    return J
+    q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
+    _count = q.shape[0]
+    J = numpy.empty((_count, 24))
+    J[:, 2] = 0
+    J[:, 3] = 0
+    J[:, 6] = 0
+    J[:, 7] = 0
+    J[:, 8] = 0
+    J[:, 9] = 0
+    J[:, 10] = -1
+    J[:, 11] = 0
+    J[:, 12] = 0
+    J[:, 13] = 0
+    J[:, 14] = 0
+    J[:, 15] = 0
+    J[:, 16] = 0
+    J[:, 17] = 0
+    J[:, 18] = 0
+    J[:, 19] = 0
+    J[:, 20] = 1
+    J[:, 21] = 1
+    J[:, 22] = 0
+    J[:, 23] = -1
+    for _start in range(0, _count, CHUNK):
+        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
+        q1 = _q[0]
+        q2 = _q[1]
+        _t0 = q1 + q2
+        _t1 = l2*numpy.sin(_t0)
+        _t2 = l2*numpy.cos(_t0)
+        _J = J[_start:_start + CHUNK].T
+        _J[0] = -_t1 - l1*numpy.sin(q1)
+        _J[1] = -_t1
+        _J[4] = _t2 + l1*numpy.cos(q1)
+        _J[5] = _t2
+    return J.reshape(_batch + (6, 4))
 
 
 def task(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
@@ -170,17 +250,22 @@ def task(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     d1 = _runtime.as_param(d1, "d1")
     d4 = _runtime.as_param(d4, "d4")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    q3 = q[..., 2]
-    q4 = q[..., 3]
-    _t0 = q1 + q2
-    x = numpy.empty(_batch + (4,))
-    x[..., 0] = l1*numpy.cos(q1) + l2*numpy.cos(_t0)
-    x[..., 1] = l1*numpy.sin(q1) + l2*numpy.sin(_t0)
-    x[..., 2] = d1 - d4 - q3
-    x[..., 3] = _t0 - q4
-    return x
+    q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
+    _count = q.shape[0]
+    x = numpy.empty((_count, 4))
+    for _start in range(0, _count, CHUNK):
+        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
+        q1 = _q[0]
+        q2 = _q[1]
+        q3 = _q[2]
+        q4 = _q[3]
+        _t0 = q1 + q2
+        _x = x[_start:_start + CHUNK].T
+        _x[0] = l1*numpy.cos(q1) + l2*numpy.cos(_t0)
+        _x[1] = l1*numpy.sin(q1) + l2*numpy.sin(_t0)
+        _x[2] = d1 - d4 - q3
+        _x[3] = _t0 - q4
+    return x.reshape(_batch + (4,))
 
 
 def task_jacobian(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
@@ -195,18 +280,31 @@ def task_jacobian(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     _runtime.as_param(d1, "d1")
     _runtime.as_param(d4, "d4")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    _t0 = q1 + q2
-    _t1 = l2*numpy.sin(_t0)
-    _t2 = l2*numpy.cos(_t0)
-    Jx = numpy.zeros(_batch + (4, 4))
-    Jx[..., 0, 0] = -_t1 - l1*numpy.sin(q1)
-    Jx[..., 0, 1] = -_t1
-    Jx[..., 1, 0] = _t2 + l1*numpy.cos(q1)
-    Jx[..., 1, 1] = _t2
-    Jx[..., 2, 2] = -1
-    Jx[..., 3, 0] = 1
-    Jx[..., 3, 1] = 1
-    Jx[..., 3, 3] = -1
-    return Jx
+    q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
+    _count = q.shape[0]
+    Jx = numpy.empty((_count, 16))
+    Jx[:, 2] = 0
+    Jx[:, 3] = 0
+    Jx[:, 6] = 0
+    Jx[:, 7] = 0
+    Jx[:, 8] = 0
+    Jx[:, 9] = 0
+    Jx[:, 10] = -1
+    Jx[:, 11] = 0
+    Jx[:, 12] = 1
+    Jx[:, 13] = 1
+    Jx[:, 14] = 0
+    Jx[:, 15] = -1
+    for _start in range(0, _count, CHUNK):
+        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
+        q1 = _q[0]
+        q2 = _q[1]
+        _t0 = q1 + q2
+        _t1 = l2*numpy.sin(_t0)
+        _t2 = l2*numpy.cos(_t0)
+        _Jx = Jx[_start:_start + CHUNK].T
+        _Jx[0] = -_t1 - l1*numpy.sin(q1)
+        _Jx[1] = -_t1
+        _Jx[4] = _t2 + l1*numpy.cos(q1)
+        _Jx[5] = _t2
+    return Jx.reshape(_batch + (4, 4))

@@ -24,6 +24,7 @@ except ImportError as _exc:  # pragma: no cover - depends on the build
     ) from _exc
 
 _ndarray, _float64, _empty, _from_buffer = numpy.ndarray, numpy.dtype(numpy.float64), numpy.empty, _ffi.from_buffer
+_DOUBLES, _INTS = _ffi.typeof("double[]"), _ffi.typeof("int[]")
 # The parameter defaults: a call that leaves every parameter alone (checked by identity,
 # so that no other value can pass for them) uses _DEFAULT_PARAMS without any checking.
 _l1 = 0.559
@@ -52,16 +53,17 @@ def _input(array, batch):
 def fk(q, *, l1=_l1, l2=_l2):
     """Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 else _params((l1, l2, ))
-    if not (type(q) is _ndarray and q.dtype is _float64 and q.ndim and q.shape[-1] == 2
-            and q.flags.c_contiguous):
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 2 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "fk", "q", finite=False))
     batch = q.shape[:-1]
+    count = q.size // 2
     T = _empty(batch + (4, 4))
     if _lib.planar_2r_fk_checked(
-        math.prod(batch),
-        _from_buffer("double[]", q),
+        count,
+        _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer("double[]", T, require_writable=True),
+        _from_buffer(_DOUBLES, T, require_writable=True),
     ):
         raise ValueError("fk: q contains NaN or inf")
     return T
@@ -70,16 +72,17 @@ def fk(q, *, l1=_l1, l2=_l2):
 def frames(q, *, l1=_l1, l2=_l2):
     """Frames T_0 (base) .. T_2 (tool), shape (..., 3, 4, 4). (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 else _params((l1, l2, ))
-    if not (type(q) is _ndarray and q.dtype is _float64 and q.ndim and q.shape[-1] == 2
-            and q.flags.c_contiguous):
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 2 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "frames", "q", finite=False))
     batch = q.shape[:-1]
+    count = q.size // 2
     frames = _empty(batch + (3, 4, 4))
     if _lib.planar_2r_frames_checked(
-        math.prod(batch),
-        _from_buffer("double[]", q),
+        count,
+        _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer("double[]", frames, require_writable=True),
+        _from_buffer(_DOUBLES, frames, require_writable=True),
     ):
         raise ValueError("frames: q contains NaN or inf")
     return frames
@@ -88,16 +91,17 @@ def frames(q, *, l1=_l1, l2=_l2):
 def jacobian(q, *, l1=_l1, l2=_l2):
     """Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 2). (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 else _params((l1, l2, ))
-    if not (type(q) is _ndarray and q.dtype is _float64 and q.ndim and q.shape[-1] == 2
-            and q.flags.c_contiguous):
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 2 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "jacobian", "q", finite=False))
     batch = q.shape[:-1]
+    count = q.size // 2
     J = _empty(batch + (6, 2))
     if _lib.planar_2r_jacobian_checked(
-        math.prod(batch),
-        _from_buffer("double[]", q),
+        count,
+        _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer("double[]", J, require_writable=True),
+        _from_buffer(_DOUBLES, J, require_writable=True),
     ):
         raise ValueError("jacobian: q contains NaN or inf")
     return J
@@ -106,16 +110,17 @@ def jacobian(q, *, l1=_l1, l2=_l2):
 def task(q, *, l1=_l1, l2=_l2):
     """Task coordinates x, y, shape (..., 2). (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 else _params((l1, l2, ))
-    if not (type(q) is _ndarray and q.dtype is _float64 and q.ndim and q.shape[-1] == 2
-            and q.flags.c_contiguous):
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 2 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "task", "q", finite=False))
     batch = q.shape[:-1]
+    count = q.size // 2
     x = _empty(batch + (2,))
     if _lib.planar_2r_task_checked(
-        math.prod(batch),
-        _from_buffer("double[]", q),
+        count,
+        _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer("double[]", x, require_writable=True),
+        _from_buffer(_DOUBLES, x, require_writable=True),
     ):
         raise ValueError("task: q contains NaN or inf")
     return x
@@ -124,16 +129,17 @@ def task(q, *, l1=_l1, l2=_l2):
 def task_jacobian(q, *, l1=_l1, l2=_l2):
     """d task / d q, shape (..., 2, 2). (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 else _params((l1, l2, ))
-    if not (type(q) is _ndarray and q.dtype is _float64 and q.ndim and q.shape[-1] == 2
-            and q.flags.c_contiguous):
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 2 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "task_jacobian", "q", finite=False))
     batch = q.shape[:-1]
+    count = q.size // 2
     Jx = _empty(batch + (2, 2))
     if _lib.planar_2r_task_jacobian_checked(
-        math.prod(batch),
-        _from_buffer("double[]", q),
+        count,
+        _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer("double[]", Jx, require_writable=True),
+        _from_buffer(_DOUBLES, Jx, require_writable=True),
     ):
         raise ValueError("task_jacobian: q contains NaN or inf")
     return Jx

@@ -20,6 +20,8 @@ TASK = ("x", "y", "phi", )
 BRANCHES = ()
 PARAMS = {"l1": 0.5, "l2": 0.4, "l3": 0.2}
 LIMITS = (None, None, None, )
+# Batches are worked through CHUNK items at a time, so that the temporaries stay in cache.
+CHUNK = 4096
 OPERATIONS = {"fk": 19, "frames": 21, "jacobian": 21, "task": 18, "task_jacobian": 21}
 
 
@@ -34,23 +36,36 @@ def fk(q, *, l1=0.5, l2=0.4, l3=0.2):
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    q3 = q[..., 2]
-    _t0 = q1 + q2
-    _t1 = _t0 + q3
-    _t2 = numpy.cos(_t1)
-    _t3 = numpy.sin(_t1)
-    T = numpy.zeros(_batch + (4, 4))
-    T[..., 0, 0] = _t2
-    T[..., 0, 1] = -_t3
-    T[..., 0, 3] = _t2*l3 + l1*numpy.cos(q1) + l2*numpy.cos(_t0)
-    T[..., 1, 0] = _t3
-    T[..., 1, 1] = _t2
-    T[..., 1, 3] = _t3*l3 + l1*numpy.sin(q1) + l2*numpy.sin(_t0)
-    T[..., 2, 2] = 1
-    T[..., 3, 3] = 1
-    return T
+    q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
+    _count = q.shape[0]
+    T = numpy.empty((_count, 16))
+    T[:, 2] = 0
+    T[:, 6] = 0
+    T[:, 8] = 0
+    T[:, 9] = 0
+    T[:, 10] = 1
+    T[:, 11] = 0
+    T[:, 12] = 0
+    T[:, 13] = 0
+    T[:, 14] = 0
+    T[:, 15] = 1
+    for _start in range(0, _count, CHUNK):
+        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
+        q1 = _q[0]
+        q2 = _q[1]
+        q3 = _q[2]
+        _t0 = q1 + q2
+        _t1 = _t0 + q3
+        _t2 = numpy.cos(_t1)
+        _t3 = numpy.sin(_t1)
+        _T = T[_start:_start + CHUNK].T
+        _T[0] = _t2
+        _T[1] = -_t3
+        _T[3] = _t2*l3 + l1*numpy.cos(q1) + l2*numpy.cos(_t0)
+        _T[4] = _t3
+        _T[5] = _t2
+        _T[7] = _t3*l3 + l1*numpy.sin(q1) + l2*numpy.sin(_t0)
+    return T.reshape(_batch + (4, 4))
 
 
 def frames(q, *, l1=0.5, l2=0.4, l3=0.2):
@@ -64,51 +79,92 @@ def frames(q, *, l1=0.5, l2=0.4, l3=0.2):
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    q3 = q[..., 2]
-    _t0 = numpy.cos(q1)
-    _t1 = numpy.sin(q1)
-    _t2 = _t0*l1
-    _t3 = _t1*l1
-    _t4 = q1 + q2
-    _t5 = numpy.cos(_t4)
-    _t6 = numpy.sin(_t4)
-    _t7 = _t2 + _t5*l2
-    _t8 = _t3 + _t6*l2
-    _t9 = _t4 + q3
-    _t10 = numpy.cos(_t9)
-    _t11 = numpy.sin(_t9)
-    frames = numpy.zeros(_batch + (4, 4, 4))
-    frames[..., 0, 0, 0] = 1
-    frames[..., 0, 1, 1] = 1
-    frames[..., 0, 2, 2] = 1
-    frames[..., 0, 3, 3] = 1
-    frames[..., 1, 0, 0] = _t0
-    frames[..., 1, 0, 1] = -_t1
-    frames[..., 1, 0, 3] = _t2
-    frames[..., 1, 1, 0] = _t1
-    frames[..., 1, 1, 1] = _t0
-    frames[..., 1, 1, 3] = _t3
-    frames[..., 1, 2, 2] = 1
-    frames[..., 1, 3, 3] = 1
-    frames[..., 2, 0, 0] = _t5
-    frames[..., 2, 0, 1] = -_t6
-    frames[..., 2, 0, 3] = _t7
-    frames[..., 2, 1, 0] = _t6
-    frames[..., 2, 1, 1] = _t5
-    frames[..., 2, 1, 3] = _t8
-    frames[..., 2, 2, 2] = 1
-    frames[..., 2, 3, 3] = 1
-    frames[..., 3, 0, 0] = _t10
-    frames[..., 3, 0, 1] = -_t11
-    frames[..., 3, 0, 3] = _t10*l3 + _t7
-    frames[..., 3, 1, 0] = _t11
-    frames[..., 3, 1, 1] = _t10
-    frames[..., 3, 1, 3] = _t11*l3 + _t8
-    frames[..., 3, 2, 2] = 1
-    frames[..., 3, 3, 3] = 1
-    return frames
+    q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
+    _count = q.shape[0]
+    frames = numpy.empty((_count, 64))
+    frames[:, 0] = 1
+    frames[:, 1] = 0
+    frames[:, 2] = 0
+    frames[:, 3] = 0
+    frames[:, 4] = 0
+    frames[:, 5] = 1
+    frames[:, 6] = 0
+    frames[:, 7] = 0
+    frames[:, 8] = 0
+    frames[:, 9] = 0
+    frames[:, 10] = 1
+    frames[:, 11] = 0
+    frames[:, 12] = 0
+    frames[:, 13] = 0
+    frames[:, 14] = 0
+    frames[:, 15] = 1
+    frames[:, 18] = 0
+    frames[:, 22] = 0
+    frames[:, 24] = 0
+    frames[:, 25] = 0
+    frames[:, 26] = 1
+    frames[:, 27] = 0
+    frames[:, 28] = 0
+    frames[:, 29] = 0
+    frames[:, 30] = 0
+    frames[:, 31] = 1
+    frames[:, 34] = 0
+    frames[:, 38] = 0
+    frames[:, 40] = 0
+    frames[:, 41] = 0
+    frames[:, 42] = 1
+    frames[:, 43] = 0
+    frames[:, 44] = 0
+    frames[:, 45] = 0
+    frames[:, 46] = 0
+    frames[:, 47] = 1
+    frames[:, 50] = 0
+    frames[:, 54] = 0
+    frames[:, 56] = 0
+    frames[:, 57] = 0
+    frames[:, 58] = 1
+    frames[:, 59] = 0
+    frames[:, 60] = 0
+    frames[:, 61] = 0
+    frames[:, 62] = 0
+    frames[:, 63] = 1
+    for _start in range(0, _count, CHUNK):
+        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
+        q1 = _q[0]
+        q2 = _q[1]
+        q3 = _q[2]
+        _t0 = numpy.cos(q1)
+        _t1 = numpy.sin(q1)
+        _t2 = _t0*l1
+        _t3 = _t1*l1
+        _t4 = q1 + q2
+        _t5 = numpy.cos(_t4)
+        _t6 = numpy.sin(_t4)
+        _t7 = _t2 + _t5*l2
+        _t8 = _t3 + _t6*l2
+        _t9 = _t4 + q3
+        _t10 = numpy.cos(_t9)
+        _t11 = numpy.sin(_t9)
+        _frames = frames[_start:_start + CHUNK].T
+        _frames[16] = _t0
+        _frames[17] = -_t1
+        _frames[19] = _t2
+        _frames[20] = _t1
+        _frames[21] = _t0
+        _frames[23] = _t3
+        _frames[32] = _t5
+        _frames[33] = -_t6
+        _frames[35] = _t7
+        _frames[36] = _t6
+        _frames[37] = _t5
+        _frames[39] = _t8
+        _frames[48] = _t10
+        _frames[49] = -_t11
+        _frames[51] = _t10*l3 + _t7
+        _frames[52] = _t11
+        _frames[53] = _t10
+        _frames[55] = _t11*l3 + _t8
+    return frames.reshape(_batch + (4, 4, 4))
 
 
 def jacobian(q, *, l1=0.5, l2=0.4, l3=0.2):
@@ -122,26 +178,40 @@ def jacobian(q, *, l1=0.5, l2=0.4, l3=0.2):
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    q3 = q[..., 2]
-    _t0 = q1 + q2
-    _t1 = _t0 + q3
-    _t2 = l3*numpy.sin(_t1)
-    _t3 = _t2 + l2*numpy.sin(_t0)
-    _t4 = l3*numpy.cos(_t1)
-    _t5 = _t4 + l2*numpy.cos(_t0)
-    J = numpy.zeros(_batch + (6, 3))
-    J[..., 0, 0] = -_t3 - l1*numpy.sin(q1)
-    J[..., 0, 1] = -_t3
-    J[..., 0, 2] = -_t2
-    J[..., 1, 0] = _t5 + l1*numpy.cos(q1)
-    J[..., 1, 1] = _t5
-    J[..., 1, 2] = _t4
-    J[..., 5, 0] = 1
-    J[..., 5, 1] = 1
-    J[..., 5, 2] = 1
-    return J
+    q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
+    _count = q.shape[0]
+    J = numpy.empty((_count, 18))
+    J[:, 6] = 0
+    J[:, 7] = 0
+    J[:, 8] = 0
+    J[:, 9] = 0
+    J[:, 10] = 0
+    J[:, 11] = 0
+    J[:, 12] = 0
+    J[:, 13] = 0
+    J[:, 14] = 0
+    J[:, 15] = 1
+    J[:, 16] = 1
+    J[:, 17] = 1
+    for _start in range(0, _count, CHUNK):
+        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
+        q1 = _q[0]
+        q2 = _q[1]
+        q3 = _q[2]
+        _t0 = q1 + q2
+        _t1 = _t0 + q3
+        _t2 = l3*numpy.sin(_t1)
+        _t3 = _t2 + l2*numpy.sin(_t0)
+        _t4 = l3*numpy.cos(_t1)
+        _t5 = _t4 + l2*numpy.cos(_t0)
+        _J = J[_start:_start + CHUNK].T
+        _J[0] = -_t3 - l1*numpy.sin(q1)
+        _J[1] = -_t3
+        _J[2] = -_t2
+        _J[3] = _t5 + l1*numpy.cos(q1)
+        _J[4] = _t5
+        _J[5] = _t4
+    return J.reshape(_batch + (6, 3))
 
 
 def task(q, *, l1=0.5, l2=0.4, l3=0.2):
@@ -155,16 +225,21 @@ def task(q, *, l1=0.5, l2=0.4, l3=0.2):
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    q3 = q[..., 2]
-    _t0 = q1 + q2
-    _t1 = _t0 + q3
-    x = numpy.empty(_batch + (3,))
-    x[..., 0] = l1*numpy.cos(q1) + l2*numpy.cos(_t0) + l3*numpy.cos(_t1)
-    x[..., 1] = l1*numpy.sin(q1) + l2*numpy.sin(_t0) + l3*numpy.sin(_t1)
-    x[..., 2] = _t1
-    return x
+    q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
+    _count = q.shape[0]
+    x = numpy.empty((_count, 3))
+    for _start in range(0, _count, CHUNK):
+        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
+        q1 = _q[0]
+        q2 = _q[1]
+        q3 = _q[2]
+        _t0 = q1 + q2
+        _t1 = _t0 + q3
+        _x = x[_start:_start + CHUNK].T
+        _x[0] = l1*numpy.cos(q1) + l2*numpy.cos(_t0) + l3*numpy.cos(_t1)
+        _x[1] = l1*numpy.sin(q1) + l2*numpy.sin(_t0) + l3*numpy.sin(_t1)
+        _x[2] = _t1
+    return x.reshape(_batch + (3,))
 
 
 def task_jacobian(q, *, l1=0.5, l2=0.4, l3=0.2):
@@ -178,23 +253,28 @@ def task_jacobian(q, *, l1=0.5, l2=0.4, l3=0.2):
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    q3 = q[..., 2]
-    _t0 = q1 + q2
-    _t1 = _t0 + q3
-    _t2 = l3*numpy.sin(_t1)
-    _t3 = _t2 + l2*numpy.sin(_t0)
-    _t4 = l3*numpy.cos(_t1)
-    _t5 = _t4 + l2*numpy.cos(_t0)
-    Jx = numpy.empty(_batch + (3, 3))
-    Jx[..., 0, 0] = -_t3 - l1*numpy.sin(q1)
-    Jx[..., 0, 1] = -_t3
-    Jx[..., 0, 2] = -_t2
-    Jx[..., 1, 0] = _t5 + l1*numpy.cos(q1)
-    Jx[..., 1, 1] = _t5
-    Jx[..., 1, 2] = _t4
-    Jx[..., 2, 0] = 1
-    Jx[..., 2, 1] = 1
-    Jx[..., 2, 2] = 1
-    return Jx
+    q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
+    _count = q.shape[0]
+    Jx = numpy.empty((_count, 9))
+    Jx[:, 6] = 1
+    Jx[:, 7] = 1
+    Jx[:, 8] = 1
+    for _start in range(0, _count, CHUNK):
+        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
+        q1 = _q[0]
+        q2 = _q[1]
+        q3 = _q[2]
+        _t0 = q1 + q2
+        _t1 = _t0 + q3
+        _t2 = l3*numpy.sin(_t1)
+        _t3 = _t2 + l2*numpy.sin(_t0)
+        _t4 = l3*numpy.cos(_t1)
+        _t5 = _t4 + l2*numpy.cos(_t0)
+        _Jx = Jx[_start:_start + CHUNK].T
+        _Jx[0] = -_t3 - l1*numpy.sin(q1)
+        _Jx[1] = -_t3
+        _Jx[2] = -_t2
+        _Jx[3] = _t5 + l1*numpy.cos(q1)
+        _Jx[4] = _t5
+        _Jx[5] = _t4
+    return Jx.reshape(_batch + (3, 3))

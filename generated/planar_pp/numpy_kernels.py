@@ -20,6 +20,8 @@ TASK = ("x", "y", )
 BRANCHES = ()
 PARAMS = {}
 LIMITS = (None, None, )
+# Batches are worked through CHUNK items at a time, so that the temporaries stay in cache.
+CHUNK = 4096
 OPERATIONS = {"fk": 1, "frames": 3, "jacobian": 0, "task": 0, "task_jacobian": 0}
 
 
@@ -31,16 +33,31 @@ def fk(q):
     """
     q = _runtime.as_batch(q, 2, "fk", "q")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    T = numpy.zeros(_batch + (4, 4))
-    T[..., 0, 2] = 1
-    T[..., 0, 3] = q2
-    T[..., 1, 1] = 1
-    T[..., 1, 3] = q1
-    T[..., 2, 0] = -1
-    T[..., 3, 3] = 1
-    return T
+    q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = q.shape[0]
+    T = numpy.empty((_count, 16))
+    T[:, 0] = 0
+    T[:, 1] = 0
+    T[:, 2] = 1
+    T[:, 4] = 0
+    T[:, 5] = 1
+    T[:, 6] = 0
+    T[:, 8] = -1
+    T[:, 9] = 0
+    T[:, 10] = 0
+    T[:, 11] = 0
+    T[:, 12] = 0
+    T[:, 13] = 0
+    T[:, 14] = 0
+    T[:, 15] = 1
+    for _start in range(0, _count, CHUNK):
+        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
+        q1 = _q[0]
+        q2 = _q[1]
+        _T = T[_start:_start + CHUNK].T
+        _T[3] = q2
+        _T[7] = q1
+    return T.reshape(_batch + (4, 4))
 
 
 def frames(q):
@@ -51,25 +68,63 @@ def frames(q):
     """
     q = _runtime.as_batch(q, 2, "frames", "q")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    frames = numpy.zeros(_batch + (3, 4, 4))
-    frames[..., 0, 0, 0] = 1
-    frames[..., 0, 1, 1] = 1
-    frames[..., 0, 2, 2] = 1
-    frames[..., 0, 3, 3] = 1
-    frames[..., 1, 0, 1] = -1
-    frames[..., 1, 1, 2] = 1
-    frames[..., 1, 1, 3] = q1
-    frames[..., 1, 2, 0] = -1
-    frames[..., 1, 3, 3] = 1
-    frames[..., 2, 0, 2] = 1
-    frames[..., 2, 0, 3] = q2
-    frames[..., 2, 1, 1] = 1
-    frames[..., 2, 1, 3] = q1
-    frames[..., 2, 2, 0] = -1
-    frames[..., 2, 3, 3] = 1
-    return frames
+    q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = q.shape[0]
+    frames = numpy.empty((_count, 48))
+    frames[:, 0] = 1
+    frames[:, 1] = 0
+    frames[:, 2] = 0
+    frames[:, 3] = 0
+    frames[:, 4] = 0
+    frames[:, 5] = 1
+    frames[:, 6] = 0
+    frames[:, 7] = 0
+    frames[:, 8] = 0
+    frames[:, 9] = 0
+    frames[:, 10] = 1
+    frames[:, 11] = 0
+    frames[:, 12] = 0
+    frames[:, 13] = 0
+    frames[:, 14] = 0
+    frames[:, 15] = 1
+    frames[:, 16] = 0
+    frames[:, 17] = -1
+    frames[:, 18] = 0
+    frames[:, 19] = 0
+    frames[:, 20] = 0
+    frames[:, 21] = 0
+    frames[:, 22] = 1
+    frames[:, 24] = -1
+    frames[:, 25] = 0
+    frames[:, 26] = 0
+    frames[:, 27] = 0
+    frames[:, 28] = 0
+    frames[:, 29] = 0
+    frames[:, 30] = 0
+    frames[:, 31] = 1
+    frames[:, 32] = 0
+    frames[:, 33] = 0
+    frames[:, 34] = 1
+    frames[:, 36] = 0
+    frames[:, 37] = 1
+    frames[:, 38] = 0
+    frames[:, 40] = -1
+    frames[:, 41] = 0
+    frames[:, 42] = 0
+    frames[:, 43] = 0
+    frames[:, 44] = 0
+    frames[:, 45] = 0
+    frames[:, 46] = 0
+    frames[:, 47] = 1
+    for _start in range(0, _count, CHUNK):
+        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
+        q1 = _q[0]
+        q2 = _q[1]
+        _frames = frames[_start:_start + CHUNK].T
+        _frames[23] = q1
+        _frames[35] = q2
+        _frames[39] = q1
+    return frames.reshape(_batch + (3, 4, 4))
 
 
 def jacobian(q):
@@ -80,10 +135,24 @@ def jacobian(q):
     """
     q = _runtime.as_batch(q, 2, "jacobian", "q")
     _batch = _runtime.batch_shape(q)
-    J = numpy.zeros(_batch + (6, 2))
-    J[..., 0, 1] = 1
-    J[..., 1, 0] = 1
-    return J
+    q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = q.shape[0]
+    J = numpy.empty((_count, 12))
+    J[:, 0] = 0
+    J[:, 1] = 1
+    J[:, 2] = 1
+    J[:, 3] = 0
+    J[:, 4] = 0
+    J[:, 5] = 0
+    J[:, 6] = 0
+    J[:, 7] = 0
+    J[:, 8] = 0
+    J[:, 9] = 0
+    J[:, 10] = 0
+    J[:, 11] = 0
+    for _start in range(0, _count, CHUNK):
+        _J = J[_start:_start + CHUNK].T
+    return J.reshape(_batch + (6, 2))
 
 
 def task(q):
@@ -94,12 +163,17 @@ def task(q):
     """
     q = _runtime.as_batch(q, 2, "task", "q")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    x = numpy.empty(_batch + (2,))
-    x[..., 0] = q2
-    x[..., 1] = q1
-    return x
+    q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = q.shape[0]
+    x = numpy.empty((_count, 2))
+    for _start in range(0, _count, CHUNK):
+        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
+        q1 = _q[0]
+        q2 = _q[1]
+        _x = x[_start:_start + CHUNK].T
+        _x[0] = q2
+        _x[1] = q1
+    return x.reshape(_batch + (2,))
 
 
 def task_jacobian(q):
@@ -110,7 +184,13 @@ def task_jacobian(q):
     """
     q = _runtime.as_batch(q, 2, "task_jacobian", "q")
     _batch = _runtime.batch_shape(q)
-    Jx = numpy.zeros(_batch + (2, 2))
-    Jx[..., 0, 1] = 1
-    Jx[..., 1, 0] = 1
-    return Jx
+    q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = q.shape[0]
+    Jx = numpy.empty((_count, 4))
+    Jx[:, 0] = 0
+    Jx[:, 1] = 1
+    Jx[:, 2] = 1
+    Jx[:, 3] = 0
+    for _start in range(0, _count, CHUNK):
+        _Jx = Jx[_start:_start + CHUNK].T
+    return Jx.reshape(_batch + (2, 2))

@@ -20,6 +20,8 @@ TASK = ("x", "y", )
 BRANCHES = ()
 PARAMS = {}
 LIMITS = (None, None, )
+# Batches are worked through CHUNK items at a time, so that the temporaries stay in cache.
+CHUNK = 4096
 OPERATIONS = {"fk": 6, "frames": 6, "jacobian": 5, "task": 4, "task_jacobian": 5}
 
 
@@ -31,20 +33,33 @@ def fk(q):
     """
     q = _runtime.as_batch(q, 2, "fk", "q")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    _t0 = numpy.sin(q1)
-    _t1 = numpy.cos(q1)
-    T = numpy.zeros(_batch + (4, 4))
-    T[..., 0, 0] = _t0
-    T[..., 0, 2] = _t1
-    T[..., 0, 3] = _t1*q2
-    T[..., 1, 0] = -_t1
-    T[..., 1, 2] = _t0
-    T[..., 1, 3] = _t0*q2
-    T[..., 2, 1] = -1
-    T[..., 3, 3] = 1
-    return T
+    q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = q.shape[0]
+    T = numpy.empty((_count, 16))
+    T[:, 1] = 0
+    T[:, 5] = 0
+    T[:, 8] = 0
+    T[:, 9] = -1
+    T[:, 10] = 0
+    T[:, 11] = 0
+    T[:, 12] = 0
+    T[:, 13] = 0
+    T[:, 14] = 0
+    T[:, 15] = 1
+    for _start in range(0, _count, CHUNK):
+        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
+        q1 = _q[0]
+        q2 = _q[1]
+        _t0 = numpy.sin(q1)
+        _t1 = numpy.cos(q1)
+        _T = T[_start:_start + CHUNK].T
+        _T[0] = _t0
+        _T[2] = _t1
+        _T[3] = _t1*q2
+        _T[4] = -_t1
+        _T[6] = _t0
+        _T[7] = _t0*q2
+    return T.reshape(_batch + (4, 4))
 
 
 def frames(q):
@@ -55,31 +70,66 @@ def frames(q):
     """
     q = _runtime.as_batch(q, 2, "frames", "q")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    _t0 = numpy.sin(q1)
-    _t1 = numpy.cos(q1)
-    _t2 = -_t1
-    frames = numpy.zeros(_batch + (3, 4, 4))
-    frames[..., 0, 0, 0] = 1
-    frames[..., 0, 1, 1] = 1
-    frames[..., 0, 2, 2] = 1
-    frames[..., 0, 3, 3] = 1
-    frames[..., 1, 0, 0] = _t0
-    frames[..., 1, 0, 1] = _t1
-    frames[..., 1, 1, 0] = _t2
-    frames[..., 1, 1, 1] = _t0
-    frames[..., 1, 2, 2] = 1
-    frames[..., 1, 3, 3] = 1
-    frames[..., 2, 0, 0] = _t0
-    frames[..., 2, 0, 2] = _t1
-    frames[..., 2, 0, 3] = _t1*q2
-    frames[..., 2, 1, 0] = _t2
-    frames[..., 2, 1, 2] = _t0
-    frames[..., 2, 1, 3] = _t0*q2
-    frames[..., 2, 2, 1] = -1
-    frames[..., 2, 3, 3] = 1
-    return frames
+    q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = q.shape[0]
+    frames = numpy.empty((_count, 48))
+    frames[:, 0] = 1
+    frames[:, 1] = 0
+    frames[:, 2] = 0
+    frames[:, 3] = 0
+    frames[:, 4] = 0
+    frames[:, 5] = 1
+    frames[:, 6] = 0
+    frames[:, 7] = 0
+    frames[:, 8] = 0
+    frames[:, 9] = 0
+    frames[:, 10] = 1
+    frames[:, 11] = 0
+    frames[:, 12] = 0
+    frames[:, 13] = 0
+    frames[:, 14] = 0
+    frames[:, 15] = 1
+    frames[:, 18] = 0
+    frames[:, 19] = 0
+    frames[:, 22] = 0
+    frames[:, 23] = 0
+    frames[:, 24] = 0
+    frames[:, 25] = 0
+    frames[:, 26] = 1
+    frames[:, 27] = 0
+    frames[:, 28] = 0
+    frames[:, 29] = 0
+    frames[:, 30] = 0
+    frames[:, 31] = 1
+    frames[:, 33] = 0
+    frames[:, 37] = 0
+    frames[:, 40] = 0
+    frames[:, 41] = -1
+    frames[:, 42] = 0
+    frames[:, 43] = 0
+    frames[:, 44] = 0
+    frames[:, 45] = 0
+    frames[:, 46] = 0
+    frames[:, 47] = 1
+    for _start in range(0, _count, CHUNK):
+        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
+        q1 = _q[0]
+        q2 = _q[1]
+        _t0 = numpy.sin(q1)
+        _t1 = numpy.cos(q1)
+        _t2 = -_t1
+        _frames = frames[_start:_start + CHUNK].T
+        _frames[16] = _t0
+        _frames[17] = _t1
+        _frames[20] = _t2
+        _frames[21] = _t0
+        _frames[32] = _t0
+        _frames[34] = _t1
+        _frames[35] = _t1*q2
+        _frames[36] = _t2
+        _frames[38] = _t0
+        _frames[39] = _t0*q2
+    return frames.reshape(_batch + (3, 4, 4))
 
 
 def jacobian(q):
@@ -90,17 +140,29 @@ def jacobian(q):
     """
     q = _runtime.as_batch(q, 2, "jacobian", "q")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    _t0 = numpy.sin(q1)
-    _t1 = numpy.cos(q1)
-    J = numpy.zeros(_batch + (6, 2))
-    J[..., 0, 0] = -_t0*q2
-    J[..., 0, 1] = _t1
-    J[..., 1, 0] = _t1*q2
-    J[..., 1, 1] = _t0
-    J[..., 5, 0] = 1
-    return J
+    q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = q.shape[0]
+    J = numpy.empty((_count, 12))
+    J[:, 4] = 0
+    J[:, 5] = 0
+    J[:, 6] = 0
+    J[:, 7] = 0
+    J[:, 8] = 0
+    J[:, 9] = 0
+    J[:, 10] = 1
+    J[:, 11] = 0
+    for _start in range(0, _count, CHUNK):
+        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
+        q1 = _q[0]
+        q2 = _q[1]
+        _t0 = numpy.sin(q1)
+        _t1 = numpy.cos(q1)
+        _J = J[_start:_start + CHUNK].T
+        _J[0] = -_t0*q2
+        _J[1] = _t1
+        _J[2] = _t1*q2
+        _J[3] = _t0
+    return J.reshape(_batch + (6, 2))
 
 
 def task(q):
@@ -111,12 +173,17 @@ def task(q):
     """
     q = _runtime.as_batch(q, 2, "task", "q")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    x = numpy.empty(_batch + (2,))
-    x[..., 0] = q2*numpy.cos(q1)
-    x[..., 1] = q2*numpy.sin(q1)
-    return x
+    q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = q.shape[0]
+    x = numpy.empty((_count, 2))
+    for _start in range(0, _count, CHUNK):
+        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
+        q1 = _q[0]
+        q2 = _q[1]
+        _x = x[_start:_start + CHUNK].T
+        _x[0] = q2*numpy.cos(q1)
+        _x[1] = q2*numpy.sin(q1)
+    return x.reshape(_batch + (2,))
 
 
 def task_jacobian(q):
@@ -127,13 +194,18 @@ def task_jacobian(q):
     """
     q = _runtime.as_batch(q, 2, "task_jacobian", "q")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    _t0 = numpy.sin(q1)
-    _t1 = numpy.cos(q1)
-    Jx = numpy.empty(_batch + (2, 2))
-    Jx[..., 0, 0] = -_t0*q2
-    Jx[..., 0, 1] = _t1
-    Jx[..., 1, 0] = _t1*q2
-    Jx[..., 1, 1] = _t0
-    return Jx
+    q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = q.shape[0]
+    Jx = numpy.empty((_count, 4))
+    for _start in range(0, _count, CHUNK):
+        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
+        q1 = _q[0]
+        q2 = _q[1]
+        _t0 = numpy.sin(q1)
+        _t1 = numpy.cos(q1)
+        _Jx = Jx[_start:_start + CHUNK].T
+        _Jx[0] = -_t0*q2
+        _Jx[1] = _t1
+        _Jx[2] = _t1*q2
+        _Jx[3] = _t0
+    return Jx.reshape(_batch + (2, 2))

@@ -24,6 +24,7 @@ except ImportError as _exc:  # pragma: no cover - depends on the build
     ) from _exc
 
 _ndarray, _float64, _empty, _from_buffer = numpy.ndarray, numpy.dtype(numpy.float64), numpy.empty, _ffi.from_buffer
+_DOUBLES, _INTS = _ffi.typeof("double[]"), _ffi.typeof("int[]")
 # The parameter defaults: a call that leaves every parameter alone (checked by identity,
 # so that no other value can pass for them) uses _DEFAULT_PARAMS without any checking.
 _d1 = 0.67183
@@ -55,16 +56,17 @@ def _input(array, batch):
 def fk(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
     """Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. (C backend)"""
     params = _DEFAULT_PARAMS if d1 is _d1 and a2 is _a2 and a3 is _a3 and d3 is _d3 and d4 is _d4 else _params((d1, a2, a3, d3, d4, ))
-    if not (type(q) is _ndarray and q.dtype is _float64 and q.ndim and q.shape[-1] == 6
-            and q.flags.c_contiguous):
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 6 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 6, "fk", "q", finite=False))
     batch = q.shape[:-1]
+    count = q.size // 6
     T = _empty(batch + (4, 4))
     if _lib.puma560_fk_checked(
-        math.prod(batch),
-        _from_buffer("double[]", q),
+        count,
+        _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer("double[]", T, require_writable=True),
+        _from_buffer(_DOUBLES, T, require_writable=True),
     ):
         raise ValueError("fk: q contains NaN or inf")
     return T
@@ -73,16 +75,17 @@ def fk(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
 def frames(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
     """Frames T_0 (base) .. T_6 (tool), shape (..., 7, 4, 4). (C backend)"""
     params = _DEFAULT_PARAMS if d1 is _d1 and a2 is _a2 and a3 is _a3 and d3 is _d3 and d4 is _d4 else _params((d1, a2, a3, d3, d4, ))
-    if not (type(q) is _ndarray and q.dtype is _float64 and q.ndim and q.shape[-1] == 6
-            and q.flags.c_contiguous):
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 6 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 6, "frames", "q", finite=False))
     batch = q.shape[:-1]
+    count = q.size // 6
     frames = _empty(batch + (7, 4, 4))
     if _lib.puma560_frames_checked(
-        math.prod(batch),
-        _from_buffer("double[]", q),
+        count,
+        _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer("double[]", frames, require_writable=True),
+        _from_buffer(_DOUBLES, frames, require_writable=True),
     ):
         raise ValueError("frames: q contains NaN or inf")
     return frames
@@ -91,16 +94,17 @@ def frames(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
 def jacobian(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
     """Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 6). (C backend)"""
     params = _DEFAULT_PARAMS if d1 is _d1 and a2 is _a2 and a3 is _a3 and d3 is _d3 and d4 is _d4 else _params((d1, a2, a3, d3, d4, ))
-    if not (type(q) is _ndarray and q.dtype is _float64 and q.ndim and q.shape[-1] == 6
-            and q.flags.c_contiguous):
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 6 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 6, "jacobian", "q", finite=False))
     batch = q.shape[:-1]
+    count = q.size // 6
     J = _empty(batch + (6, 6))
     if _lib.puma560_jacobian_checked(
-        math.prod(batch),
-        _from_buffer("double[]", q),
+        count,
+        _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer("double[]", J, require_writable=True),
+        _from_buffer(_DOUBLES, J, require_writable=True),
     ):
         raise ValueError("jacobian: q contains NaN or inf")
     return J
@@ -109,16 +113,17 @@ def jacobian(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
 def task(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
     """Task coordinates x, y, z, r11, r12, r13, r21, r22, r23, r31, r32, r33, shape (..., 12). (C backend)"""
     params = _DEFAULT_PARAMS if d1 is _d1 and a2 is _a2 and a3 is _a3 and d3 is _d3 and d4 is _d4 else _params((d1, a2, a3, d3, d4, ))
-    if not (type(q) is _ndarray and q.dtype is _float64 and q.ndim and q.shape[-1] == 6
-            and q.flags.c_contiguous):
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 6 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 6, "task", "q", finite=False))
     batch = q.shape[:-1]
+    count = q.size // 6
     x = _empty(batch + (12,))
     if _lib.puma560_task_checked(
-        math.prod(batch),
-        _from_buffer("double[]", q),
+        count,
+        _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer("double[]", x, require_writable=True),
+        _from_buffer(_DOUBLES, x, require_writable=True),
     ):
         raise ValueError("task: q contains NaN or inf")
     return x
@@ -127,16 +132,17 @@ def task(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
 def task_jacobian(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
     """d task / d q, shape (..., 12, 6). (C backend)"""
     params = _DEFAULT_PARAMS if d1 is _d1 and a2 is _a2 and a3 is _a3 and d3 is _d3 and d4 is _d4 else _params((d1, a2, a3, d3, d4, ))
-    if not (type(q) is _ndarray and q.dtype is _float64 and q.ndim and q.shape[-1] == 6
-            and q.flags.c_contiguous):
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 6 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 6, "task_jacobian", "q", finite=False))
     batch = q.shape[:-1]
+    count = q.size // 6
     Jx = _empty(batch + (12, 6))
     if _lib.puma560_task_jacobian_checked(
-        math.prod(batch),
-        _from_buffer("double[]", q),
+        count,
+        _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer("double[]", Jx, require_writable=True),
+        _from_buffer(_DOUBLES, Jx, require_writable=True),
     ):
         raise ValueError("task_jacobian: q contains NaN or inf")
     return Jx

@@ -24,6 +24,7 @@ except ImportError as _exc:  # pragma: no cover - depends on the build
     ) from _exc
 
 _ndarray, _float64, _empty, _from_buffer = numpy.ndarray, numpy.dtype(numpy.float64), numpy.empty, _ffi.from_buffer
+_DOUBLES, _INTS = _ffi.typeof("double[]"), _ffi.typeof("int[]")
 # The parameter defaults: a call that leaves every parameter alone (checked by identity,
 # so that no other value can pass for them) uses _DEFAULT_PARAMS without any checking.
 _a1 = 0.05
@@ -55,16 +56,17 @@ def _input(array, batch):
 def fk(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     """Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. (C backend)"""
     params = _DEFAULT_PARAMS if a1 is _a1 and a2 is _a2 and a3 is _a3 and d1 is _d1 and d5 is _d5 else _params((a1, a2, a3, d1, d5, ))
-    if not (type(q) is _ndarray and q.dtype is _float64 and q.ndim and q.shape[-1] == 5
-            and q.flags.c_contiguous):
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 5 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 5, "fk", "q", finite=False))
     batch = q.shape[:-1]
+    count = q.size // 5
     T = _empty(batch + (4, 4))
     if _lib.scorbot_er7_fk_checked(
-        math.prod(batch),
-        _from_buffer("double[]", q),
+        count,
+        _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer("double[]", T, require_writable=True),
+        _from_buffer(_DOUBLES, T, require_writable=True),
     ):
         raise ValueError("fk: q contains NaN or inf")
     return T
@@ -73,16 +75,17 @@ def fk(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
 def frames(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     """Frames T_0 (base) .. T_5 (tool), shape (..., 6, 4, 4). (C backend)"""
     params = _DEFAULT_PARAMS if a1 is _a1 and a2 is _a2 and a3 is _a3 and d1 is _d1 and d5 is _d5 else _params((a1, a2, a3, d1, d5, ))
-    if not (type(q) is _ndarray and q.dtype is _float64 and q.ndim and q.shape[-1] == 5
-            and q.flags.c_contiguous):
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 5 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 5, "frames", "q", finite=False))
     batch = q.shape[:-1]
+    count = q.size // 5
     frames = _empty(batch + (6, 4, 4))
     if _lib.scorbot_er7_frames_checked(
-        math.prod(batch),
-        _from_buffer("double[]", q),
+        count,
+        _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer("double[]", frames, require_writable=True),
+        _from_buffer(_DOUBLES, frames, require_writable=True),
     ):
         raise ValueError("frames: q contains NaN or inf")
     return frames
@@ -91,16 +94,17 @@ def frames(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
 def jacobian(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     """Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 5). (C backend)"""
     params = _DEFAULT_PARAMS if a1 is _a1 and a2 is _a2 and a3 is _a3 and d1 is _d1 and d5 is _d5 else _params((a1, a2, a3, d1, d5, ))
-    if not (type(q) is _ndarray and q.dtype is _float64 and q.ndim and q.shape[-1] == 5
-            and q.flags.c_contiguous):
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 5 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 5, "jacobian", "q", finite=False))
     batch = q.shape[:-1]
+    count = q.size // 5
     J = _empty(batch + (6, 5))
     if _lib.scorbot_er7_jacobian_checked(
-        math.prod(batch),
-        _from_buffer("double[]", q),
+        count,
+        _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer("double[]", J, require_writable=True),
+        _from_buffer(_DOUBLES, J, require_writable=True),
     ):
         raise ValueError("jacobian: q contains NaN or inf")
     return J
@@ -109,16 +113,17 @@ def jacobian(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
 def task(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     """Task coordinates x, y, z, shape (..., 3). (C backend)"""
     params = _DEFAULT_PARAMS if a1 is _a1 and a2 is _a2 and a3 is _a3 and d1 is _d1 and d5 is _d5 else _params((a1, a2, a3, d1, d5, ))
-    if not (type(q) is _ndarray and q.dtype is _float64 and q.ndim and q.shape[-1] == 5
-            and q.flags.c_contiguous):
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 5 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 5, "task", "q", finite=False))
     batch = q.shape[:-1]
+    count = q.size // 5
     x = _empty(batch + (3,))
     if _lib.scorbot_er7_task_checked(
-        math.prod(batch),
-        _from_buffer("double[]", q),
+        count,
+        _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer("double[]", x, require_writable=True),
+        _from_buffer(_DOUBLES, x, require_writable=True),
     ):
         raise ValueError("task: q contains NaN or inf")
     return x
@@ -127,16 +132,17 @@ def task(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
 def task_jacobian(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     """d task / d q, shape (..., 3, 5). (C backend)"""
     params = _DEFAULT_PARAMS if a1 is _a1 and a2 is _a2 and a3 is _a3 and d1 is _d1 and d5 is _d5 else _params((a1, a2, a3, d1, d5, ))
-    if not (type(q) is _ndarray and q.dtype is _float64 and q.ndim and q.shape[-1] == 5
-            and q.flags.c_contiguous):
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 5 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 5, "task_jacobian", "q", finite=False))
     batch = q.shape[:-1]
+    count = q.size // 5
     Jx = _empty(batch + (3, 5))
     if _lib.scorbot_er7_task_jacobian_checked(
-        math.prod(batch),
-        _from_buffer("double[]", q),
+        count,
+        _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer("double[]", Jx, require_writable=True),
+        _from_buffer(_DOUBLES, Jx, require_writable=True),
     ):
         raise ValueError("task_jacobian: q contains NaN or inf")
     return Jx

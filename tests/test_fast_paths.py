@@ -1,0 +1,141 @@
+"""The performance levers keep every result and every check: blocks, vector sin/cos, thin binding.
+
+Speed itself is never asserted here (`make bench` measures it); these tests
+check that the faster paths compute the same numbers and reject the same bad
+input as the plain ones.
+"""
+import importlib.util
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import generated
+from codegen import build, generate
+from conftest import kernels
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def build_module(name):
+    spec = importlib.util.spec_from_file_location(f"_test_build_{name}", generate.GENERATED / name / "build_c.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.parametrize("kernel", ["fk", "frames", "jacobian", "task", "task_jacobian"])
+def test_batches_across_block_boundaries_equal_single_calls(kernel):
+    """Batches of 1, a partial block, exactly a block and several blocks against one call per pose.
+
+    The built library's batches run vectorised (libmvec sin/cos, at most 4 ulp
+    from the scalar libm), the single poses in scalar C: equal to 1e-14.
+    """
+    k = kernels("puma560", "c")
+    rng = np.random.default_rng(3)
+    for count in (1, 5, 63, 64, 65, 200):
+        q = rng.uniform(-3, 3, (count, 6))
+        batch = getattr(k, kernel)(q)
+        single = np.stack([getattr(k, kernel)(qi) for qi in q])
+        np.testing.assert_allclose(batch, single, rtol=0, atol=1e-14)
+
+
+def test_nan_and_inf_are_caught_in_c_anywhere_in_a_batch():
+    """The finiteness check runs in C, over every value, wherever the bad one is."""
+    k = kernels("puma560", "c")
+    q = np.zeros((1000, 6))
+    for bad in (np.nan, np.inf, -np.inf):
+        for where in ((0, 0), (517, 3), (999, 5)):
+            q_bad = q.copy()
+            q_bad[where] = bad
+            with pytest.raises(ValueError, match="fk: q contains NaN or inf"):
+                k.fk(q_bad)
+            with pytest.raises(ValueError, match="jacobian: q contains NaN or inf"):
+                k.jacobian(q_bad)
+    assert np.isfinite(k.fk(q)).all()
+
+
+@pytest.mark.parametrize("q", [
+    np.zeros((4, 12))[:, ::2],  # not contiguous
+    np.zeros((4, 6), dtype=np.float32),  # another dtype
+    np.zeros((4, 6)).astype(">f8"),  # another byte order
+    [[0.0] * 6] * 4,  # a list
+    np.zeros((4, 6), dtype=np.int16),
+])
+def test_inputs_off_the_fast_path_give_the_same_results(q):
+    k = kernels("puma560", "c")
+    np.testing.assert_array_equal(k.fk(q), k.fk(np.zeros((4, 6))))
+
+
+def test_parameters_off_the_default_are_checked_and_cached_by_value():
+    k = kernels("puma560", "c")
+    q = np.random.default_rng(4).uniform(-1, 1, (3, 6))
+    longer = k.fk(q, a2=0.5)
+    assert not np.allclose(longer, k.fk(q))
+    np.testing.assert_array_equal(k.fk(q, a2=0.5), longer)  # from the cache
+    np.testing.assert_array_equal(k.fk(q, a2=np.float64(0.5)), longer)
+    np.testing.assert_array_equal(k.fk(q, a2=np.array(0.5)), longer)
+    np.testing.assert_array_equal(k.fk(q, a2=1), k.fk(q, a2=1.0))
+    # A bool equals 1.0 and hashes like it, so the cache must not let it through.
+    k.fk(q, d1=1.0)
+    with pytest.raises(ValueError, match="parameter d1 must be a real number, got bool"):
+        k.fk(q, d1=True)
+    with pytest.raises(ValueError, match="parameter d1 must be finite"):
+        k.fk(q, d1=float("nan"))
+    np.testing.assert_array_equal(k.fk(q, d1=0.67183), k.fk(q))  # an equal value, not the default object
+
+
+def test_adept_three_defaults_of_zero_are_not_taken_by_false():
+    k = kernels("adept_three", "c")
+    with pytest.raises(ValueError, match="parameter d4 must be a real number, got bool"):
+        k.fk(np.zeros(4), d4=False)
+
+
+def test_the_built_library_uses_the_fast_flags_only_when_they_work():
+    flags = build_module("puma560").compile_flags()
+    assert flags[:2] == ["-std=c99", "-O3"]
+    assert "-ffast-math" not in flags and "-ffinite-math-only" not in flags
+    portable = subprocess.run(
+        [sys.executable, "-c", "import runpy; print(runpy.run_path('build_c.py')['compile_flags']())"],
+        cwd=generate.GENERATED / "puma560", capture_output=True, text=True, check=True,
+        env={"KINEGEN_PORTABLE": "1", "PATH": "/usr/bin:/bin"})
+    assert portable.stdout.strip() == "['-std=c99', '-O3']"
+
+
+def test_every_layout_compiles_strictly_and_blocked_equals_plain_under_sanitizers():
+    """What `make build` and `make sanitize` check, for one small robot and a block of 4."""
+    package = generate.GENERATED / "planar_2r"
+    build.compile_strict(package, "planar_2r")
+    import derivations
+    model = derivations.load("planar_2r")
+    context = generate.robot_context(model, "")
+    assert build.sanitizer_run(package, "planar_2r", context["functions"], model.n)
+
+
+def test_numpy_chunks_equal_one_chunk():
+    """The numpy kernels work through big batches CHUNK poses at a time."""
+    k = kernels("puma560", "numpy")
+    q = np.random.default_rng(6).uniform(-2, 2, (2 * k.CHUNK + 3, 6))
+    whole = k.jacobian(q)
+    pieces = np.concatenate([k.jacobian(q[s:s + 7]) for s in range(0, len(q), 7)])
+    np.testing.assert_array_equal(whole, pieces)
+    grid = q[:len(q) // 3 * 3].reshape(-1, 3, 6)
+    np.testing.assert_array_equal(k.fk(grid).reshape(-1, 4, 4), k.fk(q[:len(grid) * 3]))
+
+
+def test_benchmark_quick_run_writes_a_table(tmp_path):
+    """`benchmarks/run.py --quick` runs (peers that are not installed say so) and writes its report."""
+    out = tmp_path / "results.md"
+    result = subprocess.run([sys.executable, str(REPO / "benchmarks" / "run.py"), "--quick", "--quiet",
+                             "--robots", "planar_3r", "--count", "300", "--out", str(out)],
+                            capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr
+    text = out.read_text()
+    assert "| planar_3r | fk |" in text and "## Inside C" in text and "## Targets" in text
+    row = next(line for line in text.splitlines() if line.startswith("| planar_3r | fk |"))
+    cells = [c.strip() for c in row.split("|")[3:-1]]
+    assert "×" in cells[0] and ("ns" in cells[0] or "µs" in cells[0])  # kinegen C: a time and ratios
+    assert math.isfinite(float(cells[2].split()[0]))  # lambdify measured
