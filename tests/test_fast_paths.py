@@ -139,3 +139,17 @@ def test_benchmark_quick_run_writes_a_table(tmp_path):
     cells = [c.strip() for c in row.split("|")[3:-1]]
     assert "×" in cells[0] and ("ns" in cells[0] or "µs" in cells[0])  # kinegen C: a time and ratios
     assert math.isfinite(float(cells[2].split()[0]))  # lambdify measured
+
+
+@pytest.mark.parametrize("name", ["planar_3r", "adept_three", "scorbot_er7"])
+def test_cheap_derivative_simplification_gives_what_trigsimp_gives(models, name):
+    """The task Jacobian skips trigsimp (the Puma's cold derivation: 13 s of 20): same expressions.
+
+    The Puma is left out only for time (trigsimp takes 13 s there); its generated
+    code is byte-identical either way, which test_codegen's freshness check holds.
+    """
+    import sympy as sp
+    from derivations.chain import simplify_derivative, simplify_entry
+    m = models[name]
+    raw = m.task.jacobian(sp.Matrix(m.q))
+    assert raw.applyfunc(simplify_derivative) == raw.applyfunc(simplify_entry)
