@@ -58,8 +58,8 @@ def template_function(prepared: PreparedFunction, accepts_nonfinite: bool = Fals
     for out, entries in zip(outputs, staged.outputs):
         out["staged"] = list(enumerate(entries))
     return {
-        "stages": [{"body": [(n, e, n in staged.arrays) for n, e in s.body], "calls": s.calls}
-                   for s in staged.stages],
+        "stages": [{"body": [(n, e, n in staged.arrays) for n, e in s.body], "calls": s.calls,
+                    "angles": _angles(s.calls)} for s in staged.stages],
         "arrays": staged.arrays,
         "indexed": staged.arrays | (prepared.arguments_used & {s for a in prepared.arguments for s in a[1]}),
         "name": prepared.name, "doc": prepared.doc, "arguments": prepared.arguments,
@@ -67,6 +67,15 @@ def template_function(prepared: PreparedFunction, accepts_nonfinite: bool = Fals
         "temporaries": prepared.temporaries, "outputs": outputs, "operations": prepared.operations,
         "accepts_nonfinite": accepts_nonfinite,
     }
+
+
+def _angles(calls) -> list[dict]:
+    """The sine and cosine variables wanted of each angle of a stage (None where not wanted)."""
+    angles: dict[str, dict] = {}
+    for c in calls:
+        entry = angles.setdefault(c.argument, {"angle": c.argument, "index": c.name[2:], "sin": None, "cos": None})
+        entry[c.function] = c.name
+    return list(angles.values())
 
 
 def _index(flat: int, shape: tuple[int, ...]) -> str:

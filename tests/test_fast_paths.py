@@ -153,3 +153,22 @@ def test_cheap_derivative_simplification_gives_what_trigsimp_gives(models, name)
     m = models[name]
     raw = m.task.jacobian(sp.Matrix(m.q))
     assert raw.applyfunc(simplify_derivative) == raw.applyfunc(simplify_entry)
+
+
+def test_numpy_sine_and_cosine_from_the_half_angle_tangent_match_libm():
+    """numpy kernels take sin and cos from h = tan(angle/2); near 0, pi/2, pi and far out they match libm.
+
+    planar_2r's fk holds cos(q1 + q2) and sin(q1 + q2) as entries (0, 0) and (1, 0).
+    """
+    k = kernels("planar_2r", "numpy")
+    rng = np.random.default_rng(8)
+    angles = np.concatenate([rng.uniform(-4, 4, 2000), rng.uniform(-1e4, 1e4, 2000),
+                             np.pi / 2 + rng.uniform(-1e-7, 1e-7, 200), np.pi - rng.uniform(0, 1e-7, 200),
+                             -np.pi + rng.uniform(0, 1e-7, 200), rng.uniform(-1e-9, 1e-9, 200),
+                             [0.0, np.pi, -np.pi, np.pi / 2, 3 * np.pi]])
+    T = k.fk(np.stack([angles, np.zeros_like(angles)], axis=-1))
+    cos = np.array([math.cos(a) for a in angles])
+    sin = np.array([math.sin(a) for a in angles])
+    assert np.abs(T[:, 0, 0] - cos).max() <= 4.5e-16
+    assert np.abs(T[:, 1, 0] - sin).max() <= 4.5e-16
+    assert (np.abs(T[:, 1, 0] - sin) <= 4.5e-16 * np.abs(sin)).all()  # sin is relatively accurate, even near 0
