@@ -285,7 +285,11 @@ class Pinocchio:
 
     name = "Pinocchio"
 
-    def __init__(self):
+    def __init__(self, with_result: bool = False):
+        """``with_result``: also read the result out as a numpy array (what our kernels return)."""
+        self.with_result = with_result
+        if with_result:
+            self.name = "Pinocchio, result as numpy"
         try:
             import pinocchio as pin
         except ImportError as exc:
@@ -347,21 +351,35 @@ class Pinocchio:
             return lambda: data.oMi[joint].homogeneous
         return lambda: data.oMf[frame].homogeneous
 
-    def jacobian(self, name):
+    def jacobian(self, name, with_result=True):
+        """computeJointJacobians; with_result: and the tool point's [v; w] Jacobian as numpy."""
         pin = self.pin
         robot, data, joint, frame, identity = self.model(name)
+        if not with_result:
+            return lambda q: pin.computeJointJacobians(robot, data, q)
 
         def jacobian(q):
             pin.computeJointJacobians(robot, data, q)
             return pin.getFrameJacobian(robot, data, frame, pin.LOCAL_WORLD_ALIGNED)
         return jacobian
 
+    def fk_with_result(self, name):
+        fk, pose = self.fk(name), self.pose(name)
+
+        def fk_pose(q):
+            fk(q)
+            return pose()
+        return fk_pose
+
     def make(self, work: Workload, kernel: str, mode: str):
         if self.missing:
             return Missing(self.missing)
         if kernel == "ik":
             return Missing("n/a (no IK)")
-        function = self.fk(work.robot) if kernel == "fk" else self.jacobian(work.robot)
+        if kernel == "fk":
+            function = self.fk_with_result(work.robot) if self.with_result else self.fk(work.robot)
+        else:
+            function = self.jacobian(work.robot, self.with_result)
         if mode == "batch":
             loop = list(work.q[:work.loop])
             return Run(lambda: [function(q) for q in loop], len(loop), f"Python loop over {len(loop)} poses")
@@ -385,7 +403,7 @@ def agreement(contenders, work: Workload, points: int = 3) -> dict[str, float]:
             err = max(max(np.abs(robot.fkine(qi).A - Ti).max() for qi, Ti in zip(q, T)),
                       max(np.abs(robot.jacob0(qi) - Ji).max() for qi, Ji in zip(q, J)))
             result[c.name] = err
-        elif isinstance(c, Pinocchio) and not c.missing:
+        elif isinstance(c, Pinocchio) and not c.missing and not c.with_result:
             fk, pose, jac = c.fk(work.robot), c.pose(work.robot), c.jacobian(work.robot)
             errs = []
             for qi, Ti, Ji in zip(q, T, J):

@@ -60,12 +60,36 @@ void adept_three_fk(const double *restrict q, const adept_three_params *restrict
     const double d4 = params->d4;
     const double _t0 = q1 + q2;
     const double _t1 = _t0 - q4;
-    const double _s0 = sin(_t1);
-    const double _c0 = cos(_t1);
-    const double _s1 = sin(q1);
-    const double _c1 = cos(q1);
-    const double _s2 = sin(_t0);
-    const double _c2 = cos(_t0);
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t1, q1, _t0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t1);
+    _c0 = cos(_t1);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+    _s2 = sin(_t0);
+    _c2 = cos(_t0);
+#endif
     T[0] = _c0;
     T[1] = _s0;
     T[2] = 0;
@@ -189,12 +213,36 @@ void adept_three_frames(const double *restrict q, const adept_three_params *rest
     const double d4 = params->d4;
     const double _t4 = q1 + q2;
     const double _t10 = _t4 - q4;
-    const double _s0 = sin(q1);
-    const double _c0 = cos(q1);
-    const double _s1 = sin(_t4);
-    const double _c1 = cos(_t4);
-    const double _s2 = sin(_t10);
-    const double _c2 = cos(_t10);
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q1, _t4, _t10, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t4);
+    _c1 = cos(_t4);
+    _s2 = sin(_t10);
+    _c2 = cos(_t10);
+#endif
     const double _t2 = _c0*l1;
     const double _t3 = _s0*l1;
     const double _t7 = _c1*l2 + _t2;
@@ -451,10 +499,32 @@ void adept_three_jacobian(const double *restrict q, const adept_three_params *re
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _s0 = sin(_t0);
-    const double _c0 = cos(_t0);
-    const double _s1 = sin(q1);
-    const double _c1 = cos(q1);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+#endif
     const double _t1 = _s0*l2;
     const double _t2 = _c0*l2;
     J[0] = -_s1*l1 - _t1;
@@ -579,10 +649,32 @@ void adept_three_task(const double *restrict q, const adept_three_params *restri
     const double d1 = params->d1;
     const double d4 = params->d4;
     const double _t0 = q1 + q2;
-    const double _s0 = sin(q1);
-    const double _c0 = cos(q1);
-    const double _s1 = sin(_t0);
-    const double _c1 = cos(_t0);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q1, _t0, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+#endif
     x[0] = _c0*l1 + _c1*l2;
     x[1] = _s0*l1 + _s1*l2;
     x[2] = d1 - d4 - q3;
@@ -665,10 +757,32 @@ void adept_three_task_jacobian(const double *restrict q, const adept_three_param
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _s0 = sin(_t0);
-    const double _c0 = cos(_t0);
-    const double _s1 = sin(q1);
-    const double _c1 = cos(q1);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+#endif
     const double _t1 = _s0*l2;
     const double _t2 = _c0*l2;
     Jx[0] = -_s1*l1 - _t1;

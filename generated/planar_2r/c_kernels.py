@@ -5,8 +5,10 @@ with the template codegen/backends/templates/c_kernels.py.j2. Do not edit by han
 The compiled library is built by `make build` (or `python build_c.py` here).
 
 A call costs little more than the C it runs: a C-contiguous float64 argument is
-passed as it is, the inputs are checked for NaN and inf in C, and the C
-parameter struct is made once per distinct set of parameter values.
+passed as it is (one point by the shortest path), the inputs are checked for
+NaN and inf in C, and the C parameter struct is made once per distinct set of
+parameter values.  Outputs are fresh numpy arrays, writable by construction, so
+cffi is not asked to check that (require_writable costs 0.4 us a call).
 """
 import math
 
@@ -53,6 +55,16 @@ def _input(array, batch):
 def fk(q, *, l1=_l1, l2=_l2):
     """Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 else _params((l1, l2, ))
+    if type(q) is _ndarray and q.shape == (2,) and q.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, q)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            T = _empty((4, 4))
+            if _lib.planar_2r_fk_checked(1, pointer, params, _from_buffer(_DOUBLES, T)):
+                raise ValueError("fk: q contains NaN or inf")
+            return T
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 2 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "fk", "q", finite=False))
@@ -63,7 +75,7 @@ def fk(q, *, l1=_l1, l2=_l2):
         count,
         _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer(_DOUBLES, T, require_writable=True),
+        _from_buffer(_DOUBLES, T),
     ):
         raise ValueError("fk: q contains NaN or inf")
     return T
@@ -72,6 +84,16 @@ def fk(q, *, l1=_l1, l2=_l2):
 def frames(q, *, l1=_l1, l2=_l2):
     """Frames T_0 (base) .. T_2 (tool), shape (..., 3, 4, 4). (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 else _params((l1, l2, ))
+    if type(q) is _ndarray and q.shape == (2,) and q.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, q)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            frames = _empty((3, 4, 4))
+            if _lib.planar_2r_frames_checked(1, pointer, params, _from_buffer(_DOUBLES, frames)):
+                raise ValueError("frames: q contains NaN or inf")
+            return frames
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 2 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "frames", "q", finite=False))
@@ -82,7 +104,7 @@ def frames(q, *, l1=_l1, l2=_l2):
         count,
         _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer(_DOUBLES, frames, require_writable=True),
+        _from_buffer(_DOUBLES, frames),
     ):
         raise ValueError("frames: q contains NaN or inf")
     return frames
@@ -91,6 +113,16 @@ def frames(q, *, l1=_l1, l2=_l2):
 def jacobian(q, *, l1=_l1, l2=_l2):
     """Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 2). (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 else _params((l1, l2, ))
+    if type(q) is _ndarray and q.shape == (2,) and q.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, q)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            J = _empty((6, 2))
+            if _lib.planar_2r_jacobian_checked(1, pointer, params, _from_buffer(_DOUBLES, J)):
+                raise ValueError("jacobian: q contains NaN or inf")
+            return J
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 2 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "jacobian", "q", finite=False))
@@ -101,7 +133,7 @@ def jacobian(q, *, l1=_l1, l2=_l2):
         count,
         _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer(_DOUBLES, J, require_writable=True),
+        _from_buffer(_DOUBLES, J),
     ):
         raise ValueError("jacobian: q contains NaN or inf")
     return J
@@ -110,6 +142,16 @@ def jacobian(q, *, l1=_l1, l2=_l2):
 def task(q, *, l1=_l1, l2=_l2):
     """Task coordinates x, y, shape (..., 2). (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 else _params((l1, l2, ))
+    if type(q) is _ndarray and q.shape == (2,) and q.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, q)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            x = _empty((2,))
+            if _lib.planar_2r_task_checked(1, pointer, params, _from_buffer(_DOUBLES, x)):
+                raise ValueError("task: q contains NaN or inf")
+            return x
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 2 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "task", "q", finite=False))
@@ -120,7 +162,7 @@ def task(q, *, l1=_l1, l2=_l2):
         count,
         _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer(_DOUBLES, x, require_writable=True),
+        _from_buffer(_DOUBLES, x),
     ):
         raise ValueError("task: q contains NaN or inf")
     return x
@@ -129,6 +171,16 @@ def task(q, *, l1=_l1, l2=_l2):
 def task_jacobian(q, *, l1=_l1, l2=_l2):
     """d task / d q, shape (..., 2, 2). (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 else _params((l1, l2, ))
+    if type(q) is _ndarray and q.shape == (2,) and q.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, q)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            Jx = _empty((2, 2))
+            if _lib.planar_2r_task_jacobian_checked(1, pointer, params, _from_buffer(_DOUBLES, Jx)):
+                raise ValueError("task_jacobian: q contains NaN or inf")
+            return Jx
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 2 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "task_jacobian", "q", finite=False))
@@ -139,7 +191,7 @@ def task_jacobian(q, *, l1=_l1, l2=_l2):
         count,
         _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer(_DOUBLES, Jx, require_writable=True),
+        _from_buffer(_DOUBLES, Jx),
     ):
         raise ValueError("task_jacobian: q contains NaN or inf")
     return Jx

@@ -55,10 +55,32 @@ void planar_2r_fk(const double *restrict q, const planar_2r_params *restrict par
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _s0 = sin(_t0);
-    const double _c0 = cos(_t0);
-    const double _s1 = sin(q1);
-    const double _c1 = cos(q1);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+#endif
     T[0] = _c0;
     T[1] = -_s0;
     T[2] = 0;
@@ -159,10 +181,32 @@ void planar_2r_frames(const double *restrict q, const planar_2r_params *restrict
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t4 = q1 + q2;
-    const double _s0 = sin(q1);
-    const double _c0 = cos(q1);
-    const double _s1 = sin(_t4);
-    const double _c1 = cos(_t4);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q1, _t4, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t4);
+    _c1 = cos(_t4);
+#endif
     const double _t2 = _c0*l1;
     const double _t3 = _s0*l1;
     frames[0] = 1;
@@ -331,10 +375,32 @@ void planar_2r_jacobian(const double *restrict q, const planar_2r_params *restri
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _s0 = sin(_t0);
-    const double _c0 = cos(_t0);
-    const double _s1 = sin(q1);
-    const double _c1 = cos(q1);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+#endif
     const double _t1 = _s0*l2;
     const double _t2 = _c0*l2;
     J[0] = -_s1*l1 - _t1;
@@ -431,10 +497,32 @@ void planar_2r_task(const double *restrict q, const planar_2r_params *restrict p
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _s0 = sin(q1);
-    const double _c0 = cos(q1);
-    const double _s1 = sin(_t0);
-    const double _c1 = cos(_t0);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q1, _t0, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+#endif
     x[0] = _c0*l1 + _c1*l2;
     x[1] = _s0*l1 + _s1*l2;
 }
@@ -507,10 +595,32 @@ void planar_2r_task_jacobian(const double *restrict q, const planar_2r_params *r
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _s0 = sin(_t0);
-    const double _c0 = cos(_t0);
-    const double _s1 = sin(q1);
-    const double _c1 = cos(q1);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+#endif
     const double _t1 = _s0*l2;
     const double _t2 = _c0*l2;
     Jx[0] = -_s1*l1 - _t1;

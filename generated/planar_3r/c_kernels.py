@@ -5,8 +5,10 @@ with the template codegen/backends/templates/c_kernels.py.j2. Do not edit by han
 The compiled library is built by `make build` (or `python build_c.py` here).
 
 A call costs little more than the C it runs: a C-contiguous float64 argument is
-passed as it is, the inputs are checked for NaN and inf in C, and the C
-parameter struct is made once per distinct set of parameter values.
+passed as it is (one point by the shortest path), the inputs are checked for
+NaN and inf in C, and the C parameter struct is made once per distinct set of
+parameter values.  Outputs are fresh numpy arrays, writable by construction, so
+cffi is not asked to check that (require_writable costs 0.4 us a call).
 """
 import math
 
@@ -54,6 +56,16 @@ def _input(array, batch):
 def fk(q, *, l1=_l1, l2=_l2, l3=_l3):
     """Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 and l3 is _l3 else _params((l1, l2, l3, ))
+    if type(q) is _ndarray and q.shape == (3,) and q.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, q)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            T = _empty((4, 4))
+            if _lib.planar_3r_fk_checked(1, pointer, params, _from_buffer(_DOUBLES, T)):
+                raise ValueError("fk: q contains NaN or inf")
+            return T
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 3 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 3, "fk", "q", finite=False))
@@ -64,7 +76,7 @@ def fk(q, *, l1=_l1, l2=_l2, l3=_l3):
         count,
         _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer(_DOUBLES, T, require_writable=True),
+        _from_buffer(_DOUBLES, T),
     ):
         raise ValueError("fk: q contains NaN or inf")
     return T
@@ -73,6 +85,16 @@ def fk(q, *, l1=_l1, l2=_l2, l3=_l3):
 def frames(q, *, l1=_l1, l2=_l2, l3=_l3):
     """Frames T_0 (base) .. T_3 (tool), shape (..., 4, 4, 4). (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 and l3 is _l3 else _params((l1, l2, l3, ))
+    if type(q) is _ndarray and q.shape == (3,) and q.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, q)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            frames = _empty((4, 4, 4))
+            if _lib.planar_3r_frames_checked(1, pointer, params, _from_buffer(_DOUBLES, frames)):
+                raise ValueError("frames: q contains NaN or inf")
+            return frames
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 3 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 3, "frames", "q", finite=False))
@@ -83,7 +105,7 @@ def frames(q, *, l1=_l1, l2=_l2, l3=_l3):
         count,
         _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer(_DOUBLES, frames, require_writable=True),
+        _from_buffer(_DOUBLES, frames),
     ):
         raise ValueError("frames: q contains NaN or inf")
     return frames
@@ -92,6 +114,16 @@ def frames(q, *, l1=_l1, l2=_l2, l3=_l3):
 def jacobian(q, *, l1=_l1, l2=_l2, l3=_l3):
     """Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 3). (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 and l3 is _l3 else _params((l1, l2, l3, ))
+    if type(q) is _ndarray and q.shape == (3,) and q.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, q)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            J = _empty((6, 3))
+            if _lib.planar_3r_jacobian_checked(1, pointer, params, _from_buffer(_DOUBLES, J)):
+                raise ValueError("jacobian: q contains NaN or inf")
+            return J
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 3 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 3, "jacobian", "q", finite=False))
@@ -102,7 +134,7 @@ def jacobian(q, *, l1=_l1, l2=_l2, l3=_l3):
         count,
         _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer(_DOUBLES, J, require_writable=True),
+        _from_buffer(_DOUBLES, J),
     ):
         raise ValueError("jacobian: q contains NaN or inf")
     return J
@@ -111,6 +143,16 @@ def jacobian(q, *, l1=_l1, l2=_l2, l3=_l3):
 def task(q, *, l1=_l1, l2=_l2, l3=_l3):
     """Task coordinates x, y, phi, shape (..., 3). (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 and l3 is _l3 else _params((l1, l2, l3, ))
+    if type(q) is _ndarray and q.shape == (3,) and q.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, q)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            x = _empty((3,))
+            if _lib.planar_3r_task_checked(1, pointer, params, _from_buffer(_DOUBLES, x)):
+                raise ValueError("task: q contains NaN or inf")
+            return x
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 3 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 3, "task", "q", finite=False))
@@ -121,7 +163,7 @@ def task(q, *, l1=_l1, l2=_l2, l3=_l3):
         count,
         _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer(_DOUBLES, x, require_writable=True),
+        _from_buffer(_DOUBLES, x),
     ):
         raise ValueError("task: q contains NaN or inf")
     return x
@@ -130,6 +172,16 @@ def task(q, *, l1=_l1, l2=_l2, l3=_l3):
 def task_jacobian(q, *, l1=_l1, l2=_l2, l3=_l3):
     """d task / d q, shape (..., 3, 3). (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 and l3 is _l3 else _params((l1, l2, l3, ))
+    if type(q) is _ndarray and q.shape == (3,) and q.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, q)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            Jx = _empty((3, 3))
+            if _lib.planar_3r_task_jacobian_checked(1, pointer, params, _from_buffer(_DOUBLES, Jx)):
+                raise ValueError("task_jacobian: q contains NaN or inf")
+            return Jx
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 3 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 3, "task_jacobian", "q", finite=False))
@@ -140,7 +192,7 @@ def task_jacobian(q, *, l1=_l1, l2=_l2, l3=_l3):
         count,
         _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer(_DOUBLES, Jx, require_writable=True),
+        _from_buffer(_DOUBLES, Jx),
     ):
         raise ValueError("task_jacobian: q contains NaN or inf")
     return Jx

@@ -58,12 +58,36 @@ void planar_3r_fk(const double *restrict q, const planar_3r_params *restrict par
     const double l3 = params->l3;
     const double _t0 = q1 + q2;
     const double _t1 = _t0 + q3;
-    const double _s0 = sin(_t1);
-    const double _c0 = cos(_t1);
-    const double _s1 = sin(q1);
-    const double _c1 = cos(q1);
-    const double _s2 = sin(_t0);
-    const double _c2 = cos(_t0);
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t1, q1, _t0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t1);
+    _c0 = cos(_t1);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+    _s2 = sin(_t0);
+    _c2 = cos(_t0);
+#endif
     T[0] = _c0;
     T[1] = -_s0;
     T[2] = 0;
@@ -182,12 +206,36 @@ void planar_3r_frames(const double *restrict q, const planar_3r_params *restrict
     const double l3 = params->l3;
     const double _t4 = q1 + q2;
     const double _t9 = _t4 + q3;
-    const double _s0 = sin(q1);
-    const double _c0 = cos(q1);
-    const double _s1 = sin(_t4);
-    const double _c1 = cos(_t4);
-    const double _s2 = sin(_t9);
-    const double _c2 = cos(_t9);
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q1, _t4, _t9, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t4);
+    _c1 = cos(_t4);
+    _s2 = sin(_t9);
+    _c2 = cos(_t9);
+#endif
     const double _t2 = _c0*l1;
     const double _t3 = _s0*l1;
     const double _t7 = _c1*l2 + _t2;
@@ -410,12 +458,36 @@ void planar_3r_jacobian(const double *restrict q, const planar_3r_params *restri
     const double l3 = params->l3;
     const double _t0 = q1 + q2;
     const double _t1 = _t0 + q3;
-    const double _s0 = sin(_t1);
-    const double _c0 = cos(_t1);
-    const double _s1 = sin(_t0);
-    const double _c1 = cos(_t0);
-    const double _s2 = sin(q1);
-    const double _c2 = cos(q1);
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t1, _t0, q1, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t1);
+    _c0 = cos(_t1);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+    _s2 = sin(q1);
+    _c2 = cos(q1);
+#endif
     const double _t2 = _s0*l3;
     const double _t3 = _s1*l2 + _t2;
     const double _t4 = _c0*l3;
@@ -546,12 +618,36 @@ void planar_3r_task(const double *restrict q, const planar_3r_params *restrict p
     const double l3 = params->l3;
     const double _t0 = q1 + q2;
     const double _t1 = _t0 + q3;
-    const double _s0 = sin(q1);
-    const double _c0 = cos(q1);
-    const double _s1 = sin(_t0);
-    const double _c1 = cos(_t0);
-    const double _s2 = sin(_t1);
-    const double _c2 = cos(_t1);
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q1, _t0, _t1, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+    _s2 = sin(_t1);
+    _c2 = cos(_t1);
+#endif
     x[0] = _c0*l1 + _c1*l2 + _c2*l3;
     x[1] = _s0*l1 + _s1*l2 + _s2*l3;
     x[2] = _t1;
@@ -644,12 +740,36 @@ void planar_3r_task_jacobian(const double *restrict q, const planar_3r_params *r
     const double l3 = params->l3;
     const double _t0 = q1 + q2;
     const double _t1 = _t0 + q3;
-    const double _s0 = sin(_t1);
-    const double _c0 = cos(_t1);
-    const double _s1 = sin(_t0);
-    const double _c1 = cos(_t0);
-    const double _s2 = sin(q1);
-    const double _c2 = cos(q1);
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t1, _t0, q1, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t1);
+    _c0 = cos(_t1);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+    _s2 = sin(q1);
+    _c2 = cos(q1);
+#endif
     const double _t2 = _s0*l3;
     const double _t3 = _s1*l2 + _t2;
     const double _t4 = _c0*l3;

@@ -5,8 +5,10 @@ with the template codegen/backends/templates/c_kernels.py.j2. Do not edit by han
 The compiled library is built by `make build` (or `python build_c.py` here).
 
 A call costs little more than the C it runs: a C-contiguous float64 argument is
-passed as it is, the inputs are checked for NaN and inf in C, and the C
-parameter struct is made once per distinct set of parameter values.
+passed as it is (one point by the shortest path), the inputs are checked for
+NaN and inf in C, and the C parameter struct is made once per distinct set of
+parameter values.  Outputs are fresh numpy arrays, writable by construction, so
+cffi is not asked to check that (require_writable costs 0.4 us a call).
 """
 import math
 
@@ -51,6 +53,16 @@ def _input(array, batch):
 def fk(q):
     """Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. (C backend)"""
     params = _DEFAULT_PARAMS
+    if type(q) is _ndarray and q.shape == (2,) and q.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, q)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            T = _empty((4, 4))
+            if _lib.planar_pp_fk_checked(1, pointer, params, _from_buffer(_DOUBLES, T)):
+                raise ValueError("fk: q contains NaN or inf")
+            return T
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 2 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "fk", "q", finite=False))
@@ -61,7 +73,7 @@ def fk(q):
         count,
         _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer(_DOUBLES, T, require_writable=True),
+        _from_buffer(_DOUBLES, T),
     ):
         raise ValueError("fk: q contains NaN or inf")
     return T
@@ -70,6 +82,16 @@ def fk(q):
 def frames(q):
     """Frames T_0 (base) .. T_2 (tool), shape (..., 3, 4, 4). (C backend)"""
     params = _DEFAULT_PARAMS
+    if type(q) is _ndarray and q.shape == (2,) and q.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, q)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            frames = _empty((3, 4, 4))
+            if _lib.planar_pp_frames_checked(1, pointer, params, _from_buffer(_DOUBLES, frames)):
+                raise ValueError("frames: q contains NaN or inf")
+            return frames
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 2 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "frames", "q", finite=False))
@@ -80,7 +102,7 @@ def frames(q):
         count,
         _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer(_DOUBLES, frames, require_writable=True),
+        _from_buffer(_DOUBLES, frames),
     ):
         raise ValueError("frames: q contains NaN or inf")
     return frames
@@ -89,6 +111,16 @@ def frames(q):
 def jacobian(q):
     """Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 2). (C backend)"""
     params = _DEFAULT_PARAMS
+    if type(q) is _ndarray and q.shape == (2,) and q.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, q)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            J = _empty((6, 2))
+            if _lib.planar_pp_jacobian_checked(1, pointer, params, _from_buffer(_DOUBLES, J)):
+                raise ValueError("jacobian: q contains NaN or inf")
+            return J
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 2 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "jacobian", "q", finite=False))
@@ -99,7 +131,7 @@ def jacobian(q):
         count,
         _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer(_DOUBLES, J, require_writable=True),
+        _from_buffer(_DOUBLES, J),
     ):
         raise ValueError("jacobian: q contains NaN or inf")
     return J
@@ -108,6 +140,16 @@ def jacobian(q):
 def task(q):
     """Task coordinates x, y, shape (..., 2). (C backend)"""
     params = _DEFAULT_PARAMS
+    if type(q) is _ndarray and q.shape == (2,) and q.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, q)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            x = _empty((2,))
+            if _lib.planar_pp_task_checked(1, pointer, params, _from_buffer(_DOUBLES, x)):
+                raise ValueError("task: q contains NaN or inf")
+            return x
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 2 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "task", "q", finite=False))
@@ -118,7 +160,7 @@ def task(q):
         count,
         _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer(_DOUBLES, x, require_writable=True),
+        _from_buffer(_DOUBLES, x),
     ):
         raise ValueError("task: q contains NaN or inf")
     return x
@@ -127,6 +169,16 @@ def task(q):
 def task_jacobian(q):
     """d task / d q, shape (..., 2, 2). (C backend)"""
     params = _DEFAULT_PARAMS
+    if type(q) is _ndarray and q.shape == (2,) and q.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, q)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            Jx = _empty((2, 2))
+            if _lib.planar_pp_task_jacobian_checked(1, pointer, params, _from_buffer(_DOUBLES, Jx)):
+                raise ValueError("task_jacobian: q contains NaN or inf")
+            return Jx
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 2 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "task_jacobian", "q", finite=False))
@@ -137,7 +189,7 @@ def task_jacobian(q):
         count,
         _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer(_DOUBLES, Jx, require_writable=True),
+        _from_buffer(_DOUBLES, Jx),
     ):
         raise ValueError("task_jacobian: q contains NaN or inf")
     return Jx

@@ -62,18 +62,48 @@ void puma560_fk(const double *restrict q, const puma560_params *restrict params,
     const double d3 = params->d3;
     const double d4 = params->d4;
     const double _t11 = q2 + q3;
-    const double _s0 = sin(q6);
-    const double _c0 = cos(q6);
-    const double _s1 = sin(q1);
-    const double _c1 = cos(q1);
-    const double _s2 = sin(q4);
-    const double _c2 = cos(q4);
-    const double _s3 = sin(q5);
-    const double _c3 = cos(q5);
-    const double _s4 = sin(_t11);
-    const double _c4 = cos(_t11);
-    const double _s5 = sin(q2);
-    const double _c5 = cos(q2);
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { q6, q1, q4, q5, _t11, q2, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+        _s5 = sine[5];
+        _c5 = cosine[5];
+    }
+#else
+    _s0 = sin(q6);
+    _c0 = cos(q6);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+    _s2 = sin(q4);
+    _c2 = cos(q4);
+    _s3 = sin(q5);
+    _c3 = cos(q5);
+    _s4 = sin(_t11);
+    _c4 = cos(_t11);
+    _s5 = sin(q2);
+    _c5 = cos(q2);
+#endif
     const double _t3 = _c2*_s1;
     const double _t4 = _s0*_t3;
     const double _t8 = _c0*_s2;
@@ -270,18 +300,48 @@ void puma560_frames(const double *restrict q, const puma560_params *restrict par
     const double d3 = params->d3;
     const double d4 = params->d4;
     const double _t10 = q2 + q3;
-    const double _s0 = sin(q1);
-    const double _c0 = cos(q1);
-    const double _s1 = sin(q2);
-    const double _c1 = cos(q2);
-    const double _s2 = sin(_t10);
-    const double _c2 = cos(_t10);
-    const double _s3 = sin(q4);
-    const double _c3 = cos(q4);
-    const double _s4 = sin(q5);
-    const double _c4 = cos(q5);
-    const double _s5 = sin(q6);
-    const double _c5 = cos(q6);
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { q1, q2, _t10, q4, q5, q6, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+        _s5 = sine[5];
+        _c5 = cosine[5];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(q2);
+    _c1 = cos(q2);
+    _s2 = sin(_t10);
+    _c2 = cos(_t10);
+    _s3 = sin(q4);
+    _c3 = cos(q4);
+    _s4 = sin(q5);
+    _c4 = cos(q5);
+    _s5 = sin(q6);
+    _c5 = cos(q6);
+#endif
     const double _t2 = -_c0;
     const double _t4 = _c0*_c1;
     const double _t6 = _t4*a2;
@@ -710,16 +770,44 @@ void puma560_jacobian(const double *restrict q, const puma560_params *restrict p
     const double d3 = params->d3;
     const double d4 = params->d4;
     const double _t3 = q2 + q3;
-    const double _s0 = sin(q1);
-    const double _c0 = cos(q1);
-    const double _s1 = sin(q2);
-    const double _c1 = cos(q2);
-    const double _s2 = sin(_t3);
-    const double _c2 = cos(_t3);
-    const double _s3 = sin(q4);
-    const double _c3 = cos(q4);
-    const double _s4 = sin(q5);
-    const double _c4 = cos(q5);
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { q1, q2, _t3, q4, q5, 0.0, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(q2);
+    _c1 = cos(q2);
+    _s2 = sin(_t3);
+    _c2 = cos(_t3);
+    _s3 = sin(q4);
+    _c3 = cos(q4);
+    _s4 = sin(q5);
+    _c4 = cos(q5);
+#endif
     const double _t2 = _c1*a2;
     const double _t5 = _c2*a3;
     const double _t7 = _c2*d4 + _s2*a3;
@@ -931,18 +1019,48 @@ void puma560_task(const double *restrict q, const puma560_params *restrict param
     const double d3 = params->d3;
     const double d4 = params->d4;
     const double _t3 = q2 + q3;
-    const double _s0 = sin(q1);
-    const double _c0 = cos(q1);
-    const double _s1 = sin(q2);
-    const double _c1 = cos(q2);
-    const double _s2 = sin(_t3);
-    const double _c2 = cos(_t3);
-    const double _s3 = sin(q6);
-    const double _c3 = cos(q6);
-    const double _s4 = sin(q4);
-    const double _c4 = cos(q4);
-    const double _s5 = sin(q5);
-    const double _c5 = cos(q5);
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { q1, q2, _t3, q6, q4, q5, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+        _s5 = sine[5];
+        _c5 = cosine[5];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(q2);
+    _c1 = cos(q2);
+    _s2 = sin(_t3);
+    _c2 = cos(_t3);
+    _s3 = sin(q6);
+    _c3 = cos(q6);
+    _s4 = sin(q4);
+    _c4 = cos(q4);
+    _s5 = sin(q5);
+    _c5 = cos(q5);
+#endif
     const double _t2 = _c1*a2;
     const double _t5 = _c2*a3;
     const double _t7 = _s2*d4;
@@ -1130,18 +1248,48 @@ void puma560_task_jacobian(const double *restrict q, const puma560_params *restr
     const double d3 = params->d3;
     const double d4 = params->d4;
     const double _t3 = q2 + q3;
-    const double _s0 = sin(q1);
-    const double _c0 = cos(q1);
-    const double _s1 = sin(q2);
-    const double _c1 = cos(q2);
-    const double _s2 = sin(_t3);
-    const double _c2 = cos(_t3);
-    const double _s3 = sin(q6);
-    const double _c3 = cos(q6);
-    const double _s4 = sin(q4);
-    const double _c4 = cos(q4);
-    const double _s5 = sin(q5);
-    const double _c5 = cos(q5);
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { q1, q2, _t3, q6, q4, q5, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+        _s5 = sine[5];
+        _c5 = cosine[5];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(q2);
+    _c1 = cos(q2);
+    _s2 = sin(_t3);
+    _c2 = cos(_t3);
+    _s3 = sin(q6);
+    _c3 = cos(q6);
+    _s4 = sin(q4);
+    _c4 = cos(q4);
+    _s5 = sin(q5);
+    _c5 = cos(q5);
+#endif
     const double _t2 = _c1*a2;
     const double _t5 = _c2*a3;
     const double _t7 = _c2*d4 + _s2*a3;

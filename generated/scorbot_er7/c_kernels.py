@@ -5,8 +5,10 @@ with the template codegen/backends/templates/c_kernels.py.j2. Do not edit by han
 The compiled library is built by `make build` (or `python build_c.py` here).
 
 A call costs little more than the C it runs: a C-contiguous float64 argument is
-passed as it is, the inputs are checked for NaN and inf in C, and the C
-parameter struct is made once per distinct set of parameter values.
+passed as it is (one point by the shortest path), the inputs are checked for
+NaN and inf in C, and the C parameter struct is made once per distinct set of
+parameter values.  Outputs are fresh numpy arrays, writable by construction, so
+cffi is not asked to check that (require_writable costs 0.4 us a call).
 """
 import math
 
@@ -56,6 +58,16 @@ def _input(array, batch):
 def fk(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     """Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. (C backend)"""
     params = _DEFAULT_PARAMS if a1 is _a1 and a2 is _a2 and a3 is _a3 and d1 is _d1 and d5 is _d5 else _params((a1, a2, a3, d1, d5, ))
+    if type(q) is _ndarray and q.shape == (5,) and q.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, q)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            T = _empty((4, 4))
+            if _lib.scorbot_er7_fk_checked(1, pointer, params, _from_buffer(_DOUBLES, T)):
+                raise ValueError("fk: q contains NaN or inf")
+            return T
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 5 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 5, "fk", "q", finite=False))
@@ -66,7 +78,7 @@ def fk(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
         count,
         _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer(_DOUBLES, T, require_writable=True),
+        _from_buffer(_DOUBLES, T),
     ):
         raise ValueError("fk: q contains NaN or inf")
     return T
@@ -75,6 +87,16 @@ def fk(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
 def frames(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     """Frames T_0 (base) .. T_5 (tool), shape (..., 6, 4, 4). (C backend)"""
     params = _DEFAULT_PARAMS if a1 is _a1 and a2 is _a2 and a3 is _a3 and d1 is _d1 and d5 is _d5 else _params((a1, a2, a3, d1, d5, ))
+    if type(q) is _ndarray and q.shape == (5,) and q.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, q)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            frames = _empty((6, 4, 4))
+            if _lib.scorbot_er7_frames_checked(1, pointer, params, _from_buffer(_DOUBLES, frames)):
+                raise ValueError("frames: q contains NaN or inf")
+            return frames
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 5 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 5, "frames", "q", finite=False))
@@ -85,7 +107,7 @@ def frames(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
         count,
         _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer(_DOUBLES, frames, require_writable=True),
+        _from_buffer(_DOUBLES, frames),
     ):
         raise ValueError("frames: q contains NaN or inf")
     return frames
@@ -94,6 +116,16 @@ def frames(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
 def jacobian(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     """Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 5). (C backend)"""
     params = _DEFAULT_PARAMS if a1 is _a1 and a2 is _a2 and a3 is _a3 and d1 is _d1 and d5 is _d5 else _params((a1, a2, a3, d1, d5, ))
+    if type(q) is _ndarray and q.shape == (5,) and q.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, q)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            J = _empty((6, 5))
+            if _lib.scorbot_er7_jacobian_checked(1, pointer, params, _from_buffer(_DOUBLES, J)):
+                raise ValueError("jacobian: q contains NaN or inf")
+            return J
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 5 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 5, "jacobian", "q", finite=False))
@@ -104,7 +136,7 @@ def jacobian(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
         count,
         _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer(_DOUBLES, J, require_writable=True),
+        _from_buffer(_DOUBLES, J),
     ):
         raise ValueError("jacobian: q contains NaN or inf")
     return J
@@ -113,6 +145,16 @@ def jacobian(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
 def task(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     """Task coordinates x, y, z, shape (..., 3). (C backend)"""
     params = _DEFAULT_PARAMS if a1 is _a1 and a2 is _a2 and a3 is _a3 and d1 is _d1 and d5 is _d5 else _params((a1, a2, a3, d1, d5, ))
+    if type(q) is _ndarray and q.shape == (5,) and q.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, q)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            x = _empty((3,))
+            if _lib.scorbot_er7_task_checked(1, pointer, params, _from_buffer(_DOUBLES, x)):
+                raise ValueError("task: q contains NaN or inf")
+            return x
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 5 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 5, "task", "q", finite=False))
@@ -123,7 +165,7 @@ def task(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
         count,
         _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer(_DOUBLES, x, require_writable=True),
+        _from_buffer(_DOUBLES, x),
     ):
         raise ValueError("task: q contains NaN or inf")
     return x
@@ -132,6 +174,16 @@ def task(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
 def task_jacobian(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     """d task / d q, shape (..., 3, 5). (C backend)"""
     params = _DEFAULT_PARAMS if a1 is _a1 and a2 is _a2 and a3 is _a3 and d1 is _d1 and d5 is _d5 else _params((a1, a2, a3, d1, d5, ))
+    if type(q) is _ndarray and q.shape == (5,) and q.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, q)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            Jx = _empty((3, 5))
+            if _lib.scorbot_er7_task_jacobian_checked(1, pointer, params, _from_buffer(_DOUBLES, Jx)):
+                raise ValueError("task_jacobian: q contains NaN or inf")
+            return Jx
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 5 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 5, "task_jacobian", "q", finite=False))
@@ -142,7 +194,7 @@ def task_jacobian(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
         count,
         _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer(_DOUBLES, Jx, require_writable=True),
+        _from_buffer(_DOUBLES, Jx),
     ):
         raise ValueError("task_jacobian: q contains NaN or inf")
     return Jx

@@ -62,16 +62,44 @@ void scorbot_er7_fk(const double *restrict q, const scorbot_er7_params *restrict
     const double d5 = params->d5;
     const double _t3 = q2 + q3;
     const double _t4 = _t3 + q4;
-    const double _s0 = sin(q1);
-    const double _c0 = cos(q1);
-    const double _s1 = sin(q5);
-    const double _c1 = cos(q5);
-    const double _s2 = sin(_t4);
-    const double _c2 = cos(_t4);
-    const double _s3 = sin(q2);
-    const double _c3 = cos(q2);
-    const double _s4 = sin(_t3);
-    const double _c4 = cos(_t3);
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { q1, q5, _t4, q2, _t3, 0.0, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(q5);
+    _c1 = cos(q5);
+    _s2 = sin(_t4);
+    _c2 = cos(_t4);
+    _s3 = sin(q2);
+    _c3 = cos(q2);
+    _s4 = sin(_t3);
+    _c4 = cos(_t3);
+#endif
     const double _t2 = _s0*_s1;
     const double _t8 = _c0*_c1;
     const double _t9 = _c1*_s0;
@@ -230,16 +258,44 @@ void scorbot_er7_frames(const double *restrict q, const scorbot_er7_params *rest
     const double d5 = params->d5;
     const double _t7 = q2 + q3;
     const double _t14 = _t7 + q4;
-    const double _s0 = sin(q1);
-    const double _c0 = cos(q1);
-    const double _s1 = sin(q2);
-    const double _c1 = cos(q2);
-    const double _s2 = sin(_t7);
-    const double _c2 = cos(_t7);
-    const double _s3 = sin(_t14);
-    const double _c3 = cos(_t14);
-    const double _s4 = sin(q5);
-    const double _c4 = cos(q5);
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { q1, q2, _t7, _t14, q5, 0.0, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(q2);
+    _c1 = cos(q2);
+    _s2 = sin(_t7);
+    _c2 = cos(_t7);
+    _s3 = sin(_t14);
+    _c3 = cos(_t14);
+    _s4 = sin(q5);
+    _c4 = cos(q5);
+#endif
     const double _t2 = -_c0;
     const double _t5 = _c1*a2 + a1;
     const double _t6 = _s1*a2 + d1;
@@ -570,14 +626,40 @@ void scorbot_er7_jacobian(const double *restrict q, const scorbot_er7_params *re
     const double d5 = params->d5;
     const double _t1 = q2 + q3;
     const double _t2 = _t1 + q4;
-    const double _s0 = sin(q1);
-    const double _c0 = cos(q1);
-    const double _s1 = sin(_t2);
-    const double _c1 = cos(_t2);
-    const double _s2 = sin(_t1);
-    const double _c2 = cos(_t1);
-    const double _s3 = sin(q2);
-    const double _c3 = cos(q2);
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q1, _t2, _t1, q2,  };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t2);
+    _c1 = cos(_t2);
+    _s2 = sin(_t1);
+    _c2 = cos(_t1);
+    _s3 = sin(q2);
+    _c3 = cos(q2);
+#endif
     const double _t4 = _c1*d5;
     const double _t5 = _c2*a3 + _t4;
     const double _t6 = _c3*a2 + _t5;
@@ -756,14 +838,40 @@ void scorbot_er7_task(const double *restrict q, const scorbot_er7_params *restri
     const double d5 = params->d5;
     const double _t0 = q2 + q3;
     const double _t1 = _t0 + q4;
-    const double _s0 = sin(q2);
-    const double _c0 = cos(q2);
-    const double _s1 = sin(_t0);
-    const double _c1 = cos(_t0);
-    const double _s2 = sin(_t1);
-    const double _c2 = cos(_t1);
-    const double _s3 = sin(q1);
-    const double _c3 = cos(q1);
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q2, _t0, _t1, q1,  };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+    }
+#else
+    _s0 = sin(q2);
+    _c0 = cos(q2);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+    _s2 = sin(_t1);
+    _c2 = cos(_t1);
+    _s3 = sin(q1);
+    _c3 = cos(q1);
+#endif
     const double _t2 = _c0*a2 + _c1*a3 + _c2*d5 + a1;
     x[0] = _c3*_t2;
     x[1] = _s3*_t2;
@@ -874,14 +982,40 @@ void scorbot_er7_task_jacobian(const double *restrict q, const scorbot_er7_param
     const double d5 = params->d5;
     const double _t1 = q2 + q3;
     const double _t2 = _t1 + q4;
-    const double _s0 = sin(q1);
-    const double _c0 = cos(q1);
-    const double _s1 = sin(_t2);
-    const double _c1 = cos(_t2);
-    const double _s2 = sin(_t1);
-    const double _c2 = cos(_t1);
-    const double _s3 = sin(q2);
-    const double _c3 = cos(q2);
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q1, _t2, _t1, q2,  };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t2);
+    _c1 = cos(_t2);
+    _s2 = sin(_t1);
+    _c2 = cos(_t1);
+    _s3 = sin(q2);
+    _c3 = cos(q2);
+#endif
     const double _t3 = _c1*d5;
     const double _t4 = _c2*a3 + _t3;
     const double _t5 = _c3*a2 + _t4;
