@@ -77,7 +77,7 @@ def sanitizer_run(package: Path, name: str, functions: list[dict], n_joints: int
     rng = random.Random(seed)
     inputs = [[rng.uniform(-3.0, 3.0) for _ in range(64)] for _ in range(3)]
     source = TEMPLATES.get_template("sanitize_driver.c.j2").render(
-        name=name, functions=functions, inputs=inputs, count=3 + SANITIZER_BLOCK)
+        name=name, functions=functions, inputs=inputs, count=3 + SANITIZER_BLOCK, n_joints=n_joints)
     outputs = []
     with tempfile.TemporaryDirectory(prefix="kinegen-asan-") as scratch:
         driver = Path(scratch) / "driver.c"

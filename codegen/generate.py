@@ -14,8 +14,10 @@ import tempfile
 import time
 from pathlib import Path
 
+import sympy as sp
+
 import derivations
-from derivations.model import RobotModel
+from derivations.model import POSE_NAMES, REVOLUTE, RobotModel
 
 from .backends import TEMPLATES, c_backend, float_literal, numpy_backend
 from .kernels import PreparedFunction, prepare
@@ -29,6 +31,8 @@ GENERATED = REPO / "generated"
 BACKENDS = {"numpy": numpy_backend, "c": c_backend}
 # Files that generation owns in a robot folder (anything else there is left alone).
 OWNED_SUFFIXES = (".py", ".h", ".c", ".tex")
+# A pose given to ik whose rotation R has max|R^T R - I| above this, or det R < 0, is refused.
+RIGID_TOLERANCE = "1e-09"
 
 
 def describe_origin(model: RobotModel, description: Path | None) -> str:
@@ -54,6 +58,10 @@ def template_function(prepared: PreparedFunction, accepts_nonfinite: bool = Fals
             "has_zeros": zero_free, "assignments": assignments, "flat": list(enumerate(out.entries)),
             "constant": {k for k, e in enumerate(out.entries) if not getattr(e, "free_symbols", None)},
         })
+    # Each argument as (name, symbol names, doc, storage): the storage name holds the
+    # array where one of its own symbols takes the argument's name (ik's x holds x, y, ...).
+    arguments = tuple((name, symbols, doc, f"_{name}" if name in symbols else name)
+                      for name, symbols, doc in prepared.arguments)
     staged = stage(prepared)
     for out, entries in zip(outputs, staged.outputs):
         out["staged"] = list(enumerate(entries))
@@ -62,10 +70,16 @@ def template_function(prepared: PreparedFunction, accepts_nonfinite: bool = Fals
                     "angles": _angles(s.calls)} for s in staged.stages],
         "arrays": staged.arrays,
         "indexed": staged.arrays | (prepared.arguments_used & {s for a in prepared.arguments for s in a[1]}),
-        "name": prepared.name, "doc": prepared.doc, "arguments": prepared.arguments,
+        "name": prepared.name, "doc": prepared.doc, "arguments": arguments,
         "params_used": prepared.params_used, "arguments_used": prepared.arguments_used,
         "temporaries": prepared.temporaries, "outputs": outputs, "operations": prepared.operations,
         "accepts_nonfinite": accepts_nonfinite,
+        # The inverse kinematics kernel returns the number of valid branches in C
+        # and marks a branch invalid wherever its joint values are not finite.
+        "is_ik": prepared.name == "ik",
+        # Temporaries holding a truth value (relations are Boolean but not is_Boolean in SymPy).
+        "boolean_temporaries": frozenset(name for name, expr in prepared.temporaries
+                                         if isinstance(expr, sp.logic.boolalg.Boolean)),
     }
 
 
@@ -96,15 +110,24 @@ def robot_context(model: RobotModel, origin: str, verbose: bool = False) -> dict
         if verbose:
             print(f"[cse] {model.name}.{function.name}: {prepared.operations} ops, "
                   f"{time.perf_counter() - start:.2f} s", file=sys.stderr)
-    limits = []
-    for lim in model.limits:
+    limits, joint_limits = [], []
+    for i, lim in enumerate(model.limits):
         limits.append("None" if lim is None else f"({float_literal(lim[0])}, {float_literal(lim[1])})")
+        if lim is not None:
+            joint_limits.append((i, float_literal(lim[0]), float_literal(lim[1]),
+                                 model.joint_types[i] == REVOLUTE))
     return {
         "name": model.name, "title": model.title, "source": model.source, "origin": origin,
         "joints": [str(s) for s in model.q], "joint_types": list(model.joint_types),
         "task": list(model.task_names), "branches": [b.name for b in model.ik],
         "params": [(str(s), float_literal(v)) for s, v in model.params.items()],
         "limits": limits, "functions": functions,
+        # (joint index, low, high, revolute) of each limited joint, for within_limits.
+        "joint_limits": joint_limits,
+        "unlimited_joints": [i for i, lim in enumerate(model.limits) if lim is None],
+        # A pose task (x, y, z, r11 .. r33): ik also takes (..., 4, 4) and checks the rotation.
+        "pose_task": tuple(model.task_names) == POSE_NAMES,
+        "rigid_tolerance": RIGID_TOLERANCE,
     }
 
 

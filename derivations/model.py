@@ -14,6 +14,7 @@ from typing import Sequence
 import sympy as sp
 
 from .chain import PRISMATIC, REVOLUTE, Chain, simplify_derivative, simplify_entry
+from .ik import kernel_form
 
 __all__ = ["Argument", "Output", "SymbolicFunction", "IKBranch", "RobotModel", "task_coordinates"]
 
@@ -64,13 +65,19 @@ class IKBranch:
 
     ``solution`` holds one expression per joint in the task symbols and the
     parameters; ``condition`` is the SymPy condition under which the branch
-    exists (``True`` when it always does).
+    exists (``True`` when it always does).  ``steps``, where a derivation has
+    them, are the same solution as the paper or textbook writes it: ordered
+    definitions ``(symbol, expression)``, each expression in the task symbols,
+    the parameters and the symbols defined before it, the joint symbols q_i
+    among them; substituting them in order (``derivations.ik.substitute_steps``)
+    gives ``solution``.
     """
 
     name: str
     solution: tuple[sp.Expr, ...]
     condition: sp.Basic = sp.true
     doc: str = ""
+    steps: tuple[tuple[sp.Symbol, sp.Expr], ...] = ()
 
 
 POSE_NAMES = ("x", "y", "z", "r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33")
@@ -183,7 +190,28 @@ class RobotModel:
                              f"Task coordinates {', '.join(self.task_names)}, shape (..., {m})."),
             SymbolicFunction("task_jacobian", (q,), (Output.from_matrix("Jx", self.task_jacobian),),
                              f"d task / d q, shape (..., {m}, {n})."),
-        ]
+        ] + ([self.ik_function()] if self.ik else [])
+
+    def ik_function(self) -> SymbolicFunction:
+        """The ``ik`` kernel: every branch of ``self.ik`` at once.
+
+        ``Q`` (k, n) holds each branch's joint values (revolute joints wrapped to
+        (-pi, pi], see ``derivations.ik.kernel_form``); ``valid`` (k,) is each
+        branch's existence condition.  The generated code also marks a branch
+        invalid wherever its joint values are not finite (a NaN or inf target).
+        """
+        k, n = len(self.ik), self.n
+        names = ", ".join(b.name for b in self.ik)
+        x = Argument("x", self.task_symbols, f"task coordinates {', '.join(self.task_names)}, shape (..., "
+                     f"{len(self.task_names)})")
+        revolute = [t == REVOLUTE for t in self.joint_types]
+        values = tuple(kernel_form(e, r) for branch in self.ik for e, r in zip(branch.solution, revolute))
+        return SymbolicFunction(
+            "ik", (x,),
+            (Output("Q", values, (k, n), "float", f"joint values of each branch ({names})"),
+             Output("valid", tuple(sp.sympify(b.condition) for b in self.ik), (k,), "bool",
+                    "whether each branch exists")),
+            f"Inverse kinematics, all {k} branches ({names}): Q (..., {k}, {n}), valid (..., {k}).")
 
     def _units(self) -> str:
         units = ["rad" if t == REVOLUTE else "m" for t in self.joint_types]

@@ -27,6 +27,9 @@ class CKernelPrinter(ExactArithmeticMixin, C99CodePrinter):
         text = super()._print_Symbol(expr)
         return f"{text}[i]" if expr.name in self._indexed else text
 
+    def _print_WrapAngle(self, expr):
+        return f"kinegen_wrap_angle({self._print(expr.args[0])})"
+
     def _print_BooleanTrue(self, expr):
         return "1"
 
@@ -44,8 +47,18 @@ def prototypes(context: dict, suffix: str = "") -> list[str]:
         sizes = ", ".join(f"{a[0]}[{len(a[1])}]" for a in f["arguments"])
         out_sizes = ", ".join(f"{o['name']}[{o['size']}]" for o in f["outputs"])
         lines.append(f"/* {f['name']}: {sizes} -> {out_sizes} (row-major). {f['doc']} */")
-        lines.append(f"void {name}_{f['name']}({inputs}const {name}_params *params{outputs});")
-        lines.append(f"void {name}_{f['name']}_batch(size_t count, {inputs}const {name}_params *params{outputs});")
+        if f["is_ik"]:
+            refused = ", or -1 when x is not a rigid transform" if context["pose_task"] else ""
+            lines.append(f"/* Returns the number of valid branches{refused}; the batch returns their total "
+                         f"(-1 if any item was refused). */")
+        single, batch = ("int", "long") if f["is_ik"] else ("void", "void")
+        lines.append(f"{single} {name}_{f['name']}({inputs}const {name}_params *params{outputs});")
+        lines.append(f"{batch} {name}_{f['name']}_batch(size_t count, {inputs}const {name}_params *params{outputs});")
+    n = len(context["joints"])
+    lines.append(f"/* within_limits: q[{n}] -> 1 when every joint lies within its limits "
+                 "(revolute joints modulo 2 pi), else 0. */")
+    lines.append(f"int {name}_within_limits(const double *q);")
+    lines.append(f"void {name}_within_limits_batch(size_t count, const double *q, int *inside);")
     return lines
 
 

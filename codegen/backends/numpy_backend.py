@@ -1,6 +1,7 @@
 """The numpy backend: a NumPyPrinter subclass and the module template."""
 from __future__ import annotations
 
+import sympy as sp
 from sympy.printing.numpy import NumPyPrinter
 
 from . import TEMPLATES, ExactArithmeticMixin
@@ -37,6 +38,19 @@ class NumpyKernelPrinter(ExactArithmeticMixin, NumPyPrinter):
 
     def _print_Not(self, expr):
         return f"numpy.logical_not({self._print(expr.args[0])})"
+
+    def _print_Piecewise(self, expr):
+        # numpy.where, nested from the last piece: clearer than numpy.select and the
+        # same element-wise choice; a Piecewise without a final True piece is refused.
+        if expr.args[-1].cond is not sp.true:
+            raise ValueError(f"cannot print a Piecewise without a catch-all piece: {expr}")
+        text = self._print(expr.args[-1].expr)
+        for value, condition in reversed(expr.args[:-1]):
+            text = f"numpy.where({self._print(condition)}, {self._print(value)}, {text})"
+        return text
+
+    def _print_WrapAngle(self, expr):
+        return f"_runtime.wrap_angle({self._print(expr.args[0])})"
 
     def _print_BooleanTrue(self, expr):
         return "True"

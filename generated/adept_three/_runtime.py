@@ -46,3 +46,76 @@ def batch_shape(*arrays):
     except ValueError:
         shapes = ", ".join(str(a.shape) for a in arrays)
         raise ValueError(f"batch dimensions do not broadcast: {shapes}") from None
+
+
+def as_pose_task(value, function, name, tolerance):
+    """A pose as the task vector (x, y, z, r11 .. r33), from (..., 12) or (..., 4, 4).
+
+    Entries that are NaN or inf pass (ik reports them through valid); a finite pose
+    whose rotation is not orthonormal within ``tolerance`` or is a reflection, or a
+    4x4 whose last row is not (0, 0, 0, 1), raises a ValueError naming the item.
+    """
+    try:
+        array = numpy.asarray(value)
+    except Exception as exc:  # ragged lists and the like
+        raise ValueError(f"{function}: {name} must be an array of shape (..., 12) or (..., 4, 4): {exc}") from None
+    if array.dtype.kind not in "iuf":
+        raise ValueError(f"{function}: {name} must be a real numeric array of shape (..., 12) or (..., 4, 4), "
+                         f"got dtype {array.dtype}")
+    array = array.astype(numpy.float64, copy=False)
+    if array.ndim >= 2 and array.shape[-2:] == (4, 4):
+        bottom = array[..., 3, :]
+        wrong = numpy.isfinite(bottom).all(axis=-1) & (numpy.abs(bottom - (0.0, 0.0, 0.0, 1.0)).max(axis=-1) > tolerance)
+        if wrong.any():
+            index = tuple(int(i) for i in numpy.argwhere(wrong)[0])
+            raise ValueError(f"{function}: {name}{list(index)} is not a homogeneous transform: last row "
+                             f"{bottom[index].tolist()}, expected [0, 0, 0, 1]")
+        array = numpy.concatenate([array[..., :3, 3], array[..., :3, :3].reshape(array.shape[:-2] + (9,))], axis=-1)
+    elif array.ndim == 0 or array.shape[-1] != 12:
+        raise ValueError(f"{function}: expected {name} of shape (..., 12) (x, y, z, r11 .. r33) or a pose of "
+                         f"shape (..., 4, 4), got shape {array.shape}")
+    finite = numpy.isfinite(array).all(axis=-1)
+    rotation = numpy.where(finite[..., None], array, 0.0)[..., 3:].reshape(array.shape[:-1] + (3, 3))
+    rotation = numpy.where(finite[..., None, None], rotation, numpy.eye(3))
+    deviation = numpy.abs(rotation @ numpy.swapaxes(rotation, -1, -2) - numpy.eye(3)).max(axis=(-2, -1))
+    determinant = numpy.linalg.det(rotation) if rotation.size else numpy.ones(rotation.shape[:-2])
+    wrong = (deviation > tolerance) | (determinant < 0)
+    if wrong.any():
+        index = tuple(int(i) for i in numpy.argwhere(wrong)[0])
+        raise ValueError(f"{function}: {name}{list(index) if index else ''} is not a rigid transform: its rotation has "
+                         f"max|R R^T - I| = {deviation[index]:.3g} and det R = {determinant[index]:.6g}; expected "
+                         f"an orthonormal R with det R = +1 (tolerance {tolerance:g})")
+    return array
+
+
+def within_limits(q, limits, joint_types):
+    """(...) bool: every joint of q (..., n) within its (low, high) in ``limits``.
+
+    Revolute joints ("R" in ``joint_types``) count modulo 2 pi: the turn of q at
+    or above low must not exceed high.  ``None`` (no limits) only asks for a
+    finite value.
+    """
+    inside = numpy.ones(q.shape[:-1], dtype=bool)
+    with numpy.errstate(invalid="ignore"):
+        for i, (limit, kind) in enumerate(zip(limits, joint_types)):
+            value = q[..., i]
+            if limit is None:
+                inside &= numpy.isfinite(value)
+            elif kind == "R":
+                turn = value - limit[0]
+                turn = turn - TWO_PI * numpy.floor(turn / TWO_PI)
+                inside &= turn <= limit[1] - limit[0]
+            else:
+                inside &= (value >= limit[0]) & (value <= limit[1])
+    return inside
+
+
+def wrap_angle(angle):
+    """angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi."""
+    wrapped = angle + TWO_PI * numpy.floor((PI - angle) / TWO_PI)
+    wrapped = numpy.where(wrapped > PI, wrapped - TWO_PI, wrapped)  # rounding of the floor's argument
+    return numpy.where(wrapped < -PI, wrapped + TWO_PI, wrapped)
+
+
+PI = 3.141592653589793
+TWO_PI = 6.283185307179586

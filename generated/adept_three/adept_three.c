@@ -9,6 +9,7 @@
  * jacobian: 15 operations after common-subexpression elimination
  * task: 14 operations after common-subexpression elimination
  * task_jacobian: 15 operations after common-subexpression elimination
+ * ik: 53 operations after common-subexpression elimination
  */
 #include "adept_three.h"
 
@@ -22,15 +23,25 @@
  * arithmetic runs in one loop per stage, from the same expressions as the single
  * point (so the results are bit-identical).  -DKINEGEN_SIMD -fopenmp-simd (what
  * build_c.py uses where the compiler and C library allow) adds to that SIMD
- * declarations of sin and cos, so that the loops vectorise and call glibc's
- * vector math library (libmvec, at most 4 ulp).  No NaN or infinity check is
- * affected: no -ffast-math is involved.
+ * declarations of the math functions, so that the loops vectorise and call
+ * glibc's vector math library (libmvec, at most 4 ulp), and the single point
+ * takes the sines and cosines of a stage's angles as one vector.  No NaN or
+ * infinity check is affected: no -ffast-math is involved.
  */
 #ifdef KINEGEN_SIMD
 #pragma omp declare simd notinbranch
 double sin(double);
 #pragma omp declare simd notinbranch
 double cos(double);
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+/* libmvec has these from glibc 2.35 on. */
+#pragma omp declare simd notinbranch
+double atan2(double, double);
+#pragma omp declare simd notinbranch
+double acos(double);
+#pragma omp declare simd notinbranch
+double asin(double);
+#endif
 #define KINEGEN_VECTOR_LOOP _Pragma("omp simd")
 #ifndef KINEGEN_BLOCKED
 #define KINEGEN_BLOCKED
@@ -43,6 +54,20 @@ double cos(double);
 #endif
 
 const adept_three_params adept_three_default_params = { 0.559, 0.508, 0.8763, 0.0 };
+
+/* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi. */
+static double kinegen_wrap_angle(double angle)
+{
+    const double pi = 3.141592653589793, two_pi = 6.283185307179586;
+    double wrapped = angle + two_pi * floor((pi - angle) / two_pi);
+    if (wrapped > pi) {
+        wrapped -= two_pi;  /* rounding of the floor's argument */
+    }
+    if (wrapped < -pi) {
+        wrapped += two_pi;
+    }
+    return wrapped;
+}
 
 /* Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. */
 void adept_three_fk(const double *restrict q, const adept_three_params *restrict params, double *restrict T)
@@ -874,4 +899,172 @@ void adept_three_task_jacobian_batch(size_t count, const double *restrict q, con
         adept_three_task_jacobian(q + 4 * i, params, Jx + 16 * i);
     }
 #endif
+}
+
+/* The checks after an ik of one target x: a branch with a joint value that is not
+   finite, or of a target that is not, is not valid; returns the number of valid branches. */
+static int adept_three_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
+{
+    int branch, joint, finite_target = 1, valid_branches = 0;
+    for (joint = 0; joint < 4; ++joint) {
+        finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
+    }
+    for (branch = 0; branch < 2; ++branch) {
+        if (!finite_target) {
+            valid[branch] = 0;
+        }
+        for (joint = 0; joint < 4; ++joint) {
+            if (!isfinite(Q[4 * branch + joint])) {
+                valid[branch] = 0;  /* no NaN leaks out as a valid answer */
+            }
+        }
+        valid_branches += valid[branch] != 0;
+    }
+    return valid_branches;
+}
+
+/* Inverse kinematics, all 2 branches (lefty, righty): Q (..., 2, 4), valid (..., 2).
+   Returns the number of valid branches. A branch
+   whose joint values are not finite (a NaN or inf target) is never valid. */
+int adept_three_ik(const double *restrict _x, const adept_three_params *restrict params, double *restrict Q, int *restrict valid)
+{
+    const double x = _x[0];
+    const double y = _x[1];
+    const double z = _x[2];
+    const double phi = _x[3];
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double d1 = params->d1;
+    const double d4 = params->d4;
+    const double _t0 = (l1*l1) + (l2*l2) - (x*x) - (y*y);
+    const double _t1 = 1/(l1*l2);
+    const double _t2 = fmin(1, fmax(-1, -0.5*_t0*_t1));
+    const double _t3 = _t2*l2 + l1;
+    const double _t4 = l2*sqrt(1 - (_t2*_t2));
+    const double _t5 = _t4*x;
+    const double _t6 = _t4*y;
+    const double _t7 = atan2(_t3*y + _t5, _t3*x - _t6);
+    const double _t8 = acos(_t2);
+    const double _t9 = d1 - d4 - z;
+    const double _t10 = atan2(_t3*y - _t5, _t3*x + _t6);
+    const int _t11 = (0.5)*fabs(_t0*_t1) <= 1.000000000001;
+    Q[0] = kinegen_wrap_angle(_t7);
+    Q[1] = kinegen_wrap_angle(-_t8);
+    Q[2] = _t9;
+    Q[3] = kinegen_wrap_angle(_t7 - _t8 - phi);
+    Q[4] = kinegen_wrap_angle(_t10);
+    Q[5] = kinegen_wrap_angle(_t8);
+    Q[6] = _t9;
+    Q[7] = kinegen_wrap_angle(_t10 + _t8 - phi);
+    valid[0] = _t11;
+    valid[1] = _t11;
+    return adept_three_ik_checks(_x, Q, valid);
+}
+
+/* ik of `count` items, stored one after the other in each argument and output.   Returns the total number of valid branches, or -1 if any item was refused. */
+long adept_three_ik_batch(size_t count, const double *restrict _x, const adept_three_params *restrict params, double *restrict Q, int *restrict valid)
+{
+    long valid_branches = 0;
+    int refused = 0;
+#ifdef KINEGEN_BLOCKED
+    double x[KINEGEN_BLOCK];
+    double y[KINEGEN_BLOCK];
+    double z[KINEGEN_BLOCK];
+    double phi[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double d1 = params->d1;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            x[i] = _x[4 * (start + i) + 0];
+            y[i] = _x[4 * (start + i) + 1];
+            z[i] = _x[4 * (start + i) + 2];
+            phi[i] = _x[4 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t0 = (l1*l1) + (l2*l2) - (x[i]*x[i]) - (y[i]*y[i]);
+            const double _t1 = 1/(l1*l2);
+            const double _t2 = fmin(1, fmax(-1, -0.5*_t0*_t1));
+            const double _t3 = _t2*l2 + l1;
+            const double _t4 = l2*sqrt(1 - (_t2*_t2));
+            const double _t5 = _t4*x[i];
+            const double _t6 = _t4*y[i];
+            const double _t7 = atan2(_t3*y[i] + _t5, _t3*x[i] - _t6);
+            const double _t8 = acos(_t2);
+            const double _t9 = d1 - d4 - z[i];
+            const double _t10 = atan2(_t3*y[i] - _t5, _t3*x[i] + _t6);
+            const int _t11 = (0.5)*fabs(_t0*_t1) <= 1.000000000001;
+            Q[8 * (start + i) + 0] = kinegen_wrap_angle(_t7);
+            Q[8 * (start + i) + 1] = kinegen_wrap_angle(-_t8);
+            Q[8 * (start + i) + 2] = _t9;
+            Q[8 * (start + i) + 3] = kinegen_wrap_angle(_t7 - _t8 - phi[i]);
+            Q[8 * (start + i) + 4] = kinegen_wrap_angle(_t10);
+            Q[8 * (start + i) + 5] = kinegen_wrap_angle(_t8);
+            Q[8 * (start + i) + 6] = _t9;
+            Q[8 * (start + i) + 7] = kinegen_wrap_angle(_t10 + _t8 - phi[i]);
+            valid[2 * (start + i) + 0] = _t11;
+            valid[2 * (start + i) + 1] = _t11;
+        }
+        for (i = 0; i < n; ++i) {
+            const int found = adept_three_ik_checks(_x + 4 * (start + i), Q + 8 * (start + i), valid + 2 * (start + i));
+            if (found < 0) {
+                refused = 1;
+            } else {
+                valid_branches += found;
+            }
+        }
+    }
+#else
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        const int found = adept_three_ik(_x + 4 * i, params, Q + 8 * i, valid + 2 * i);
+        if (found < 0) {
+            refused = 1;
+        } else {
+            valid_branches += found;
+        }
+    }
+#endif
+    return refused ? -1 : valid_branches;
+}
+
+/* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */
+int adept_three_within_limits(const double *restrict q)
+{
+    int inside = 1;
+    {
+        double turn = q[0] - (-2.6179938779914944);
+        turn -= 6.283185307179586 * floor(turn / 6.283185307179586);
+        inside = inside && turn <= (2.6179938779914944) - (-2.6179938779914944);
+    }
+    {
+        double turn = q[1] - (-2.6179938779914944);
+        turn -= 6.283185307179586 * floor(turn / 6.283185307179586);
+        inside = inside && turn <= (2.6179938779914944) - (-2.6179938779914944);
+    }
+    inside = inside && q[2] >= (0.0) && q[2] <= (0.305);
+    {
+        double turn = q[3] - (-4.71238898038469);
+        turn -= 6.283185307179586 * floor(turn / 6.283185307179586);
+        inside = inside && turn <= (4.71238898038469) - (-4.71238898038469);
+    }
+    return inside;
+}
+
+void adept_three_within_limits_batch(size_t count, const double *restrict q, int *restrict inside)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        inside[i] = adept_three_within_limits(q + 4 * i);
+    }
 }

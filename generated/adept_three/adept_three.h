@@ -22,7 +22,7 @@ extern "C" {
 
 #define ADEPT_THREE_JOINTS 4
 #define ADEPT_THREE_TASK 4
-#define ADEPT_THREE_BRANCHES 0
+#define ADEPT_THREE_BRANCHES 2
 
 /* Robot parameters (SI units). */
 typedef struct adept_three_params { double l1; double l2; double d1; double d4; } adept_three_params;
@@ -43,6 +43,13 @@ void adept_three_task_batch(size_t count, const double *q, const adept_three_par
 /* task_jacobian: q[4] -> Jx[16] (row-major). d task / d q, shape (..., 4, 4). */
 void adept_three_task_jacobian(const double *q, const adept_three_params *params, double *Jx);
 void adept_three_task_jacobian_batch(size_t count, const double *q, const adept_three_params *params, double *Jx);
+/* ik: x[4] -> Q[8], valid[2] (row-major). Inverse kinematics, all 2 branches (lefty, righty): Q (..., 2, 4), valid (..., 2). */
+/* Returns the number of valid branches; the batch returns their total (-1 if any item was refused). */
+int adept_three_ik(const double *x, const adept_three_params *params, double *Q, int *valid);
+long adept_three_ik_batch(size_t count, const double *x, const adept_three_params *params, double *Q, int *valid);
+/* within_limits: q[4] -> 1 when every joint lies within its limits (revolute joints modulo 2 pi), else 0. */
+int adept_three_within_limits(const double *q);
+void adept_three_within_limits_batch(size_t count, const double *q, int *inside);
 
 #ifdef __cplusplus
 }

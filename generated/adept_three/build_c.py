@@ -43,7 +43,8 @@ int main(void)
 """
 # The entry points the Python binding calls: a kernel of `count` items (the single-point
 # function for one) after checking in C, where -ffinite-math-only never applies, that no
-# input is NaN or inf; 1 means one is, and nothing was computed.
+# input is NaN or inf; 1 means one is, and nothing was computed.  ik takes NaN and inf
+# (valid says there is no answer) and returns -1 when it refused a pose.
 CHECKED = """
 #include <math.h>
 #include "adept_three.h"
@@ -122,6 +123,14 @@ int adept_three_task_jacobian_checked(size_t count, const double *q, const adept
     }
     return 0;
 }
+
+int adept_three_ik_checked(size_t count, const double *x, const adept_three_params *params, double *Q, int *valid)
+{
+    if (count == 1) {
+        return adept_three_ik(x, params, Q, valid) < 0 ? -1 : 0;
+    }
+    return adept_three_ik_batch(count, x, params, Q, valid) < 0 ? -1 : 0;
+}
 """
 CDEF = """
 /* Robot parameters (SI units). */
@@ -142,11 +151,19 @@ void adept_three_task_batch(size_t count, const double *q, const adept_three_par
 /* task_jacobian: q[4] -> Jx[16] (row-major). d task / d q, shape (..., 4, 4). */
 void adept_three_task_jacobian(const double *q, const adept_three_params *params, double *Jx);
 void adept_three_task_jacobian_batch(size_t count, const double *q, const adept_three_params *params, double *Jx);
+/* ik: x[4] -> Q[8], valid[2] (row-major). Inverse kinematics, all 2 branches (lefty, righty): Q (..., 2, 4), valid (..., 2). */
+/* Returns the number of valid branches; the batch returns their total (-1 if any item was refused). */
+int adept_three_ik(const double *x, const adept_three_params *params, double *Q, int *valid);
+long adept_three_ik_batch(size_t count, const double *x, const adept_three_params *params, double *Q, int *valid);
+/* within_limits: q[4] -> 1 when every joint lies within its limits (revolute joints modulo 2 pi), else 0. */
+int adept_three_within_limits(const double *q);
+void adept_three_within_limits_batch(size_t count, const double *q, int *inside);
 int adept_three_fk_checked(size_t count, const double *q, const adept_three_params *params, double *T);
 int adept_three_frames_checked(size_t count, const double *q, const adept_three_params *params, double *frames);
 int adept_three_jacobian_checked(size_t count, const double *q, const adept_three_params *params, double *J);
 int adept_three_task_checked(size_t count, const double *q, const adept_three_params *params, double *x);
 int adept_three_task_jacobian_checked(size_t count, const double *q, const adept_three_params *params, double *Jx);
+int adept_three_ik_checked(size_t count, const double *x, const adept_three_params *params, double *Q, int *valid);
 """
 
 

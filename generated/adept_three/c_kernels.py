@@ -73,12 +73,13 @@ def fk(q, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
     batch = q.shape[:-1]
     count = q.size // 4
     T = _empty(batch + (4, 4))
-    if _lib.adept_three_fk_checked(
+    status = _lib.adept_three_fk_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, T),
-    ):
+    )
+    if status:
         raise ValueError("fk: q contains NaN or inf")
     return T
 
@@ -102,12 +103,13 @@ def frames(q, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
     batch = q.shape[:-1]
     count = q.size // 4
     frames = _empty(batch + (5, 4, 4))
-    if _lib.adept_three_frames_checked(
+    status = _lib.adept_three_frames_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, frames),
-    ):
+    )
+    if status:
         raise ValueError("frames: q contains NaN or inf")
     return frames
 
@@ -131,12 +133,13 @@ def jacobian(q, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
     batch = q.shape[:-1]
     count = q.size // 4
     J = _empty(batch + (6, 4))
-    if _lib.adept_three_jacobian_checked(
+    status = _lib.adept_three_jacobian_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, J),
-    ):
+    )
+    if status:
         raise ValueError("jacobian: q contains NaN or inf")
     return J
 
@@ -160,12 +163,13 @@ def task(q, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
     batch = q.shape[:-1]
     count = q.size // 4
     x = _empty(batch + (4,))
-    if _lib.adept_three_task_checked(
+    status = _lib.adept_three_task_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, x),
-    ):
+    )
+    if status:
         raise ValueError("task: q contains NaN or inf")
     return x
 
@@ -189,11 +193,40 @@ def task_jacobian(q, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
     batch = q.shape[:-1]
     count = q.size // 4
     Jx = _empty(batch + (4, 4))
-    if _lib.adept_three_task_jacobian_checked(
+    status = _lib.adept_three_task_jacobian_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, Jx),
-    ):
+    )
+    if status:
         raise ValueError("task_jacobian: q contains NaN or inf")
     return Jx
+
+
+def ik(x, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
+    """Inverse kinematics, all 2 branches (lefty, righty): Q (..., 2, 4), valid (..., 2). (C backend)"""
+    params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 and d1 is _d1 and d4 is _d4 else _params((l1, l2, d1, d4, ))
+    if (type(x) is not _ndarray or x.dtype is not _float64 or not x.ndim
+            or x.shape[-1] != 4 or not x.flags.c_contiguous):
+        x = numpy.ascontiguousarray(_runtime.as_batch(x, 4, "ik", "x", finite=False))
+    batch = x.shape[:-1]
+    count = x.size // 4
+    Q = _empty(batch + (2, 4))
+    valid = _empty(batch + (2,), dtype=numpy.intc)
+    status = _lib.adept_three_ik_checked(
+        count,
+        _from_buffer(_DOUBLES, x),
+        params,
+        _from_buffer(_DOUBLES, Q),
+        _from_buffer(_INTS, valid),
+    )
+    return Q, valid.astype(bool)
+
+
+def within_limits(q):
+    """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 4) -> (...). (C backend)"""
+    q = numpy.ascontiguousarray(_runtime.as_batch(q, 4, "within_limits", "q", finite=False))
+    inside = numpy.empty(q.shape[:-1], dtype=numpy.intc)
+    _lib.adept_three_within_limits_batch(q.size // 4, _from_buffer(_DOUBLES, q), _from_buffer(_INTS, inside))
+    return inside.astype(bool)

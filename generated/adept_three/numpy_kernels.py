@@ -17,7 +17,7 @@ NAME = "adept_three"
 JOINTS = ("q1", "q2", "q3", "q4", )
 JOINT_TYPES = ("R", "R", "P", "R", )
 TASK = ("x", "y", "z", "phi", )
-BRANCHES = ()
+BRANCHES = ("lefty", "righty", )
 PARAMS = {"l1": 0.559, "l2": 0.508, "d1": 0.8763, "d4": 0.0}
 LIMITS = ((-2.6179938779914944, 2.6179938779914944), (-2.6179938779914944, 2.6179938779914944), (0.0, 0.305), (-4.71238898038469, 4.71238898038469), )
 # Batches are worked through CHUNK items at a time, so that the temporaries stay in cache.
@@ -26,7 +26,7 @@ LIMITS = ((-2.6179938779914944, 2.6179938779914944), (-2.6179938779914944, 2.617
 # vectorises float64 tan but not sin and cos (about 3 ns an angle for both,
 # against 17 ns for each); the error stays within 2.2e-16 (absolute) of libm's.
 CHUNK = 4096
-OPERATIONS = {"fk": 18, "frames": 23, "jacobian": 15, "task": 14, "task_jacobian": 15}
+OPERATIONS = {"fk": 18, "frames": 23, "jacobian": 15, "task": 14, "task_jacobian": 15, "ik": 53}
 
 
 def fk(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
@@ -41,8 +41,8 @@ def fk(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     d1 = _runtime.as_param(d1, "d1")
     d4 = _runtime.as_param(d4, "d4")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
+    _count = _all_q.shape[0]
     T = numpy.empty((_count, 16))
     T[:, 2] = 0
     T[:, 6] = 0
@@ -54,11 +54,11 @@ def fk(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     T[:, 14] = 0
     T[:, 15] = 1
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
-        q3 = _q[2]
-        q4 = _q[3]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
+        q4 = _columns_q[3]
         _t0 = q1 + q2
         _t1 = _t0 - q4
         _h0 = numpy.tan(0.5*_t1)
@@ -99,8 +99,8 @@ def frames(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     d1 = _runtime.as_param(d1, "d1")
     d4 = _runtime.as_param(d4, "d4")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
+    _count = _all_q.shape[0]
     frames = numpy.empty((_count, 80))
     frames[:, 0] = 1
     frames[:, 1] = 0
@@ -155,11 +155,11 @@ def frames(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     frames[:, 78] = 0
     frames[:, 79] = 1
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
-        q3 = _q[2]
-        q4 = _q[3]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
+        q4 = _columns_q[3]
         _t4 = q1 + q2
         _t10 = _t4 - q4
         _h0 = numpy.tan(0.5*q1)
@@ -226,8 +226,8 @@ def jacobian(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     _runtime.as_param(d1, "d1")
     _runtime.as_param(d4, "d4")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
+    _count = _all_q.shape[0]
     J = numpy.empty((_count, 24))
     J[:, 2] = 0
     J[:, 3] = 0
@@ -250,9 +250,9 @@ def jacobian(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     J[:, 22] = 0
     J[:, 23] = -1
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
         _t0 = q1 + q2
         _h0 = numpy.tan(0.5*_t0)
         _u0 = _h0*_h0
@@ -286,15 +286,15 @@ def task(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     d1 = _runtime.as_param(d1, "d1")
     d4 = _runtime.as_param(d4, "d4")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
+    _count = _all_q.shape[0]
     x = numpy.empty((_count, 4))
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
-        q3 = _q[2]
-        q4 = _q[3]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
+        q4 = _columns_q[3]
         _t0 = q1 + q2
         _h0 = numpy.tan(0.5*q1)
         _u0 = _h0*_h0
@@ -326,8 +326,8 @@ def task_jacobian(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     _runtime.as_param(d1, "d1")
     _runtime.as_param(d4, "d4")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
+    _count = _all_q.shape[0]
     Jx = numpy.empty((_count, 16))
     Jx[:, 2] = 0
     Jx[:, 3] = 0
@@ -342,9 +342,9 @@ def task_jacobian(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     Jx[:, 14] = 0
     Jx[:, 15] = -1
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
         _t0 = q1 + q2
         _h0 = numpy.tan(0.5*_t0)
         _u0 = _h0*_h0
@@ -364,3 +364,69 @@ def task_jacobian(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
         _Jx[4] = _c1*l1 + _t2
         _Jx[5] = _t2
     return Jx.reshape(_batch + (4, 4))
+
+
+@numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
+def ik(x, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """Inverse kinematics, all 2 branches (lefty, righty): Q (..., 2, 4), valid (..., 2).
+
+    x: task coordinates x, y, z, phi, shape (..., 4)
+    Branches, in order: BRANCHES. Revolute joints are wrapped to (-pi, pi]. A branch
+    is valid where it exists; an unreachable, NaN or inf target gives valid False
+    (never an exception). within_limits(Q) tells which solutions respect LIMITS.
+    (53 operations after common-subexpression elimination.)
+    """
+    x = _runtime.as_batch(x, 4, "ik", "x", finite=False)
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    d1 = _runtime.as_param(d1, "d1")
+    d4 = _runtime.as_param(d4, "d4")
+    _batch = _runtime.batch_shape(x)
+    _all_x = numpy.broadcast_to(x, _batch + (4,)).reshape(-1, 4)
+    _count = _all_x.shape[0]
+    Q = numpy.empty((_count, 8))
+    valid = numpy.empty((_count, 2), dtype=bool)
+    for _start in range(0, _count, CHUNK):
+        _columns_x = numpy.ascontiguousarray(_all_x[_start:_start + CHUNK].T)
+        x = _columns_x[0]
+        y = _columns_x[1]
+        z = _columns_x[2]
+        phi = _columns_x[3]
+        _t0 = (l1*l1) + (l2*l2) - (x*x) - (y*y)
+        _t1 = 1/(l1*l2)
+        _t2 = numpy.minimum(1, numpy.maximum(-1, -0.5*_t0*_t1))
+        _t3 = _t2*l2 + l1
+        _t4 = l2*numpy.sqrt(1 - (_t2*_t2))
+        _t5 = _t4*x
+        _t6 = _t4*y
+        _t7 = numpy.arctan2(_t3*y + _t5, _t3*x - _t6)
+        _t8 = numpy.arccos(_t2)
+        _t9 = d1 - d4 - z
+        _t10 = numpy.arctan2(_t3*y - _t5, _t3*x + _t6)
+        _t11 = numpy.less_equal((0.5)*abs(_t0*_t1), 1.000000000001)
+        _Q = Q[_start:_start + CHUNK].T
+        _Q[0] = _runtime.wrap_angle(_t7)
+        _Q[1] = _runtime.wrap_angle(-_t8)
+        _Q[2] = _t9
+        _Q[3] = _runtime.wrap_angle(_t7 - _t8 - phi)
+        _Q[4] = _runtime.wrap_angle(_t10)
+        _Q[5] = _runtime.wrap_angle(_t8)
+        _Q[6] = _t9
+        _Q[7] = _runtime.wrap_angle(_t10 + _t8 - phi)
+        _valid = valid[_start:_start + CHUNK].T
+        _valid[0] = _t11
+        _valid[1] = _t11
+    # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
+    valid &= (numpy.isfinite(Q.reshape((_count,) + (2, 4))).all(axis=-1)
+              & numpy.isfinite(_all_x).all(axis=-1)[:, None])
+    return Q.reshape(_batch + (2, 4)), valid.reshape(_batch + (2,))
+
+
+def within_limits(q):
+    """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 4) -> (...).
+
+    Takes ik's Q of shape (..., k, 4) as it is, giving (..., k). A joint without
+    limits only needs a finite value; NaN gives False.
+    """
+    q = _runtime.as_batch(q, 4, "within_limits", "q", finite=False)
+    return _runtime.within_limits(q, LIMITS, JOINT_TYPES)

@@ -71,12 +71,13 @@ def fk(q, *, l1=_l1, l2=_l2):
     batch = q.shape[:-1]
     count = q.size // 2
     T = _empty(batch + (4, 4))
-    if _lib.planar_2r_fk_checked(
+    status = _lib.planar_2r_fk_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, T),
-    ):
+    )
+    if status:
         raise ValueError("fk: q contains NaN or inf")
     return T
 
@@ -100,12 +101,13 @@ def frames(q, *, l1=_l1, l2=_l2):
     batch = q.shape[:-1]
     count = q.size // 2
     frames = _empty(batch + (3, 4, 4))
-    if _lib.planar_2r_frames_checked(
+    status = _lib.planar_2r_frames_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, frames),
-    ):
+    )
+    if status:
         raise ValueError("frames: q contains NaN or inf")
     return frames
 
@@ -129,12 +131,13 @@ def jacobian(q, *, l1=_l1, l2=_l2):
     batch = q.shape[:-1]
     count = q.size // 2
     J = _empty(batch + (6, 2))
-    if _lib.planar_2r_jacobian_checked(
+    status = _lib.planar_2r_jacobian_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, J),
-    ):
+    )
+    if status:
         raise ValueError("jacobian: q contains NaN or inf")
     return J
 
@@ -158,12 +161,13 @@ def task(q, *, l1=_l1, l2=_l2):
     batch = q.shape[:-1]
     count = q.size // 2
     x = _empty(batch + (2,))
-    if _lib.planar_2r_task_checked(
+    status = _lib.planar_2r_task_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, x),
-    ):
+    )
+    if status:
         raise ValueError("task: q contains NaN or inf")
     return x
 
@@ -187,11 +191,40 @@ def task_jacobian(q, *, l1=_l1, l2=_l2):
     batch = q.shape[:-1]
     count = q.size // 2
     Jx = _empty(batch + (2, 2))
-    if _lib.planar_2r_task_jacobian_checked(
+    status = _lib.planar_2r_task_jacobian_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, Jx),
-    ):
+    )
+    if status:
         raise ValueError("task_jacobian: q contains NaN or inf")
     return Jx
+
+
+def ik(x, *, l1=_l1, l2=_l2):
+    """Inverse kinematics, all 2 branches (elbow_up, elbow_down): Q (..., 2, 2), valid (..., 2). (C backend)"""
+    params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 else _params((l1, l2, ))
+    if (type(x) is not _ndarray or x.dtype is not _float64 or not x.ndim
+            or x.shape[-1] != 2 or not x.flags.c_contiguous):
+        x = numpy.ascontiguousarray(_runtime.as_batch(x, 2, "ik", "x", finite=False))
+    batch = x.shape[:-1]
+    count = x.size // 2
+    Q = _empty(batch + (2, 2))
+    valid = _empty(batch + (2,), dtype=numpy.intc)
+    status = _lib.planar_2r_ik_checked(
+        count,
+        _from_buffer(_DOUBLES, x),
+        params,
+        _from_buffer(_DOUBLES, Q),
+        _from_buffer(_INTS, valid),
+    )
+    return Q, valid.astype(bool)
+
+
+def within_limits(q):
+    """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 2) -> (...). (C backend)"""
+    q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "within_limits", "q", finite=False))
+    inside = numpy.empty(q.shape[:-1], dtype=numpy.intc)
+    _lib.planar_2r_within_limits_batch(q.size // 2, _from_buffer(_DOUBLES, q), _from_buffer(_INTS, inside))
+    return inside.astype(bool)

@@ -17,7 +17,7 @@ NAME = "planar_2r"
 JOINTS = ("q1", "q2", )
 JOINT_TYPES = ("R", "R", )
 TASK = ("x", "y", )
-BRANCHES = ()
+BRANCHES = ("elbow_up", "elbow_down", )
 PARAMS = {"l1": 0.559, "l2": 0.508}
 LIMITS = (None, None, )
 # Batches are worked through CHUNK items at a time, so that the temporaries stay in cache.
@@ -26,7 +26,7 @@ LIMITS = (None, None, )
 # vectorises float64 tan but not sin and cos (about 3 ns an angle for both,
 # against 17 ns for each); the error stays within 2.2e-16 (absolute) of libm's.
 CHUNK = 4096
-OPERATIONS = {"fk": 12, "frames": 13, "jacobian": 13, "task": 11, "task_jacobian": 13}
+OPERATIONS = {"fk": 12, "frames": 13, "jacobian": 13, "task": 11, "task_jacobian": 13, "ik": 39}
 
 
 def fk(q, *, l1=0.559, l2=0.508):
@@ -39,8 +39,8 @@ def fk(q, *, l1=0.559, l2=0.508):
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
     T = numpy.empty((_count, 16))
     T[:, 2] = 0
     T[:, 6] = 0
@@ -53,9 +53,9 @@ def fk(q, *, l1=0.559, l2=0.508):
     T[:, 14] = 0
     T[:, 15] = 1
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
         _t0 = q1 + q2
         _h0 = numpy.tan(0.5*_t0)
         _u0 = _h0*_h0
@@ -87,8 +87,8 @@ def frames(q, *, l1=0.559, l2=0.508):
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
     frames = numpy.empty((_count, 48))
     frames[:, 0] = 1
     frames[:, 1] = 0
@@ -127,9 +127,9 @@ def frames(q, *, l1=0.559, l2=0.508):
     frames[:, 46] = 0
     frames[:, 47] = 1
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
         _t4 = q1 + q2
         _h0 = numpy.tan(0.5*q1)
         _u0 = _h0*_h0
@@ -169,8 +169,8 @@ def jacobian(q, *, l1=0.559, l2=0.508):
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
     J = numpy.empty((_count, 12))
     J[:, 4] = 0
     J[:, 5] = 0
@@ -181,9 +181,9 @@ def jacobian(q, *, l1=0.559, l2=0.508):
     J[:, 10] = 1
     J[:, 11] = 1
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
         _t0 = q1 + q2
         _h0 = numpy.tan(0.5*_t0)
         _u0 = _h0*_h0
@@ -215,13 +215,13 @@ def task(q, *, l1=0.559, l2=0.508):
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
     x = numpy.empty((_count, 2))
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
         _t0 = q1 + q2
         _h0 = numpy.tan(0.5*q1)
         _u0 = _h0*_h0
@@ -249,13 +249,13 @@ def task_jacobian(q, *, l1=0.559, l2=0.508):
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
     Jx = numpy.empty((_count, 4))
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
         _t0 = q1 + q2
         _h0 = numpy.tan(0.5*_t0)
         _u0 = _h0*_h0
@@ -275,3 +275,57 @@ def task_jacobian(q, *, l1=0.559, l2=0.508):
         _Jx[2] = _c1*l1 + _t2
         _Jx[3] = _t2
     return Jx.reshape(_batch + (2, 2))
+
+
+@numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
+def ik(x, *, l1=0.559, l2=0.508):
+    """Inverse kinematics, all 2 branches (elbow_up, elbow_down): Q (..., 2, 2), valid (..., 2).
+
+    x: task coordinates x, y, shape (..., 2)
+    Branches, in order: BRANCHES. Revolute joints are wrapped to (-pi, pi]. A branch
+    is valid where it exists; an unreachable, NaN or inf target gives valid False
+    (never an exception). within_limits(Q) tells which solutions respect LIMITS.
+    (39 operations after common-subexpression elimination.)
+    """
+    x = _runtime.as_batch(x, 2, "ik", "x", finite=False)
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    _batch = _runtime.batch_shape(x)
+    _all_x = numpy.broadcast_to(x, _batch + (2,)).reshape(-1, 2)
+    _count = _all_x.shape[0]
+    Q = numpy.empty((_count, 4))
+    valid = numpy.empty((_count, 2), dtype=bool)
+    for _start in range(0, _count, CHUNK):
+        _columns_x = numpy.ascontiguousarray(_all_x[_start:_start + CHUNK].T)
+        x = _columns_x[0]
+        y = _columns_x[1]
+        _t0 = numpy.arctan2(y, x)
+        _t1 = (l1*l1) + (l2*l2) - (x*x) - (y*y)
+        _t2 = 1/(l1*l2)
+        _t3 = numpy.minimum(1, numpy.maximum(-1, -0.5*_t1*_t2))
+        _t4 = l2*numpy.sqrt(1 - (_t3*_t3))
+        _t5 = _t3*l2 + l1
+        _t6 = numpy.arccos(_t3)
+        _t7 = numpy.less_equal((0.5)*abs(_t1*_t2), 1.000000000001)
+        _Q = Q[_start:_start + CHUNK].T
+        _Q[0] = _runtime.wrap_angle(_t0 - numpy.arctan2(-_t4, _t5))
+        _Q[1] = _runtime.wrap_angle(-_t6)
+        _Q[2] = _runtime.wrap_angle(_t0 - numpy.arctan2(_t4, _t5))
+        _Q[3] = _runtime.wrap_angle(_t6)
+        _valid = valid[_start:_start + CHUNK].T
+        _valid[0] = _t7
+        _valid[1] = _t7
+    # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
+    valid &= (numpy.isfinite(Q.reshape((_count,) + (2, 2))).all(axis=-1)
+              & numpy.isfinite(_all_x).all(axis=-1)[:, None])
+    return Q.reshape(_batch + (2, 2)), valid.reshape(_batch + (2,))
+
+
+def within_limits(q):
+    """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 2) -> (...).
+
+    Takes ik's Q of shape (..., k, 2) as it is, giving (..., k). A joint without
+    limits only needs a finite value; NaN gives False.
+    """
+    q = _runtime.as_batch(q, 2, "within_limits", "q", finite=False)
+    return _runtime.within_limits(q, LIMITS, JOINT_TYPES)

@@ -43,7 +43,8 @@ int main(void)
 """
 # The entry points the Python binding calls: a kernel of `count` items (the single-point
 # function for one) after checking in C, where -ffinite-math-only never applies, that no
-# input is NaN or inf; 1 means one is, and nothing was computed.
+# input is NaN or inf; 1 means one is, and nothing was computed.  ik takes NaN and inf
+# (valid says there is no answer) and returns -1 when it refused a pose.
 CHECKED = """
 #include <math.h>
 #include "planar_3r.h"
@@ -122,6 +123,14 @@ int planar_3r_task_jacobian_checked(size_t count, const double *q, const planar_
     }
     return 0;
 }
+
+int planar_3r_ik_checked(size_t count, const double *x, const planar_3r_params *params, double *Q, int *valid)
+{
+    if (count == 1) {
+        return planar_3r_ik(x, params, Q, valid) < 0 ? -1 : 0;
+    }
+    return planar_3r_ik_batch(count, x, params, Q, valid) < 0 ? -1 : 0;
+}
 """
 CDEF = """
 /* Robot parameters (SI units). */
@@ -142,11 +151,19 @@ void planar_3r_task_batch(size_t count, const double *q, const planar_3r_params 
 /* task_jacobian: q[3] -> Jx[9] (row-major). d task / d q, shape (..., 3, 3). */
 void planar_3r_task_jacobian(const double *q, const planar_3r_params *params, double *Jx);
 void planar_3r_task_jacobian_batch(size_t count, const double *q, const planar_3r_params *params, double *Jx);
+/* ik: x[3] -> Q[6], valid[2] (row-major). Inverse kinematics, all 2 branches (elbow_up, elbow_down): Q (..., 2, 3), valid (..., 2). */
+/* Returns the number of valid branches; the batch returns their total (-1 if any item was refused). */
+int planar_3r_ik(const double *x, const planar_3r_params *params, double *Q, int *valid);
+long planar_3r_ik_batch(size_t count, const double *x, const planar_3r_params *params, double *Q, int *valid);
+/* within_limits: q[3] -> 1 when every joint lies within its limits (revolute joints modulo 2 pi), else 0. */
+int planar_3r_within_limits(const double *q);
+void planar_3r_within_limits_batch(size_t count, const double *q, int *inside);
 int planar_3r_fk_checked(size_t count, const double *q, const planar_3r_params *params, double *T);
 int planar_3r_frames_checked(size_t count, const double *q, const planar_3r_params *params, double *frames);
 int planar_3r_jacobian_checked(size_t count, const double *q, const planar_3r_params *params, double *J);
 int planar_3r_task_checked(size_t count, const double *q, const planar_3r_params *params, double *x);
 int planar_3r_task_jacobian_checked(size_t count, const double *q, const planar_3r_params *params, double *Jx);
+int planar_3r_ik_checked(size_t count, const double *x, const planar_3r_params *params, double *Q, int *valid);
 """
 
 

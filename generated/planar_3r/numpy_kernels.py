@@ -17,7 +17,7 @@ NAME = "planar_3r"
 JOINTS = ("q1", "q2", "q3", )
 JOINT_TYPES = ("R", "R", "R", )
 TASK = ("x", "y", "phi", )
-BRANCHES = ()
+BRANCHES = ("elbow_up", "elbow_down", )
 PARAMS = {"l1": 0.5, "l2": 0.4, "l3": 0.2}
 LIMITS = (None, None, None, )
 # Batches are worked through CHUNK items at a time, so that the temporaries stay in cache.
@@ -26,7 +26,7 @@ LIMITS = (None, None, None, )
 # vectorises float64 tan but not sin and cos (about 3 ns an angle for both,
 # against 17 ns for each); the error stays within 2.2e-16 (absolute) of libm's.
 CHUNK = 4096
-OPERATIONS = {"fk": 19, "frames": 21, "jacobian": 21, "task": 18, "task_jacobian": 21}
+OPERATIONS = {"fk": 19, "frames": 21, "jacobian": 21, "task": 18, "task_jacobian": 21, "ik": 78}
 
 
 def fk(q, *, l1=0.5, l2=0.4, l3=0.2):
@@ -40,8 +40,8 @@ def fk(q, *, l1=0.5, l2=0.4, l3=0.2):
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
+    _count = _all_q.shape[0]
     T = numpy.empty((_count, 16))
     T[:, 2] = 0
     T[:, 6] = 0
@@ -54,10 +54,10 @@ def fk(q, *, l1=0.5, l2=0.4, l3=0.2):
     T[:, 14] = 0
     T[:, 15] = 1
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
-        q3 = _q[2]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
         _t0 = q1 + q2
         _t1 = _t0 + q3
         _h0 = numpy.tan(0.5*_t1)
@@ -96,8 +96,8 @@ def frames(q, *, l1=0.5, l2=0.4, l3=0.2):
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
+    _count = _all_q.shape[0]
     frames = numpy.empty((_count, 64))
     frames[:, 0] = 1
     frames[:, 1] = 0
@@ -146,10 +146,10 @@ def frames(q, *, l1=0.5, l2=0.4, l3=0.2):
     frames[:, 62] = 0
     frames[:, 63] = 1
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
-        q3 = _q[2]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
         _t4 = q1 + q2
         _t9 = _t4 + q3
         _h0 = numpy.tan(0.5*q1)
@@ -204,8 +204,8 @@ def jacobian(q, *, l1=0.5, l2=0.4, l3=0.2):
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
+    _count = _all_q.shape[0]
     J = numpy.empty((_count, 18))
     J[:, 6] = 0
     J[:, 7] = 0
@@ -220,10 +220,10 @@ def jacobian(q, *, l1=0.5, l2=0.4, l3=0.2):
     J[:, 16] = 1
     J[:, 17] = 1
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
-        q3 = _q[2]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
         _t0 = q1 + q2
         _t1 = _t0 + q3
         _h0 = numpy.tan(0.5*_t1)
@@ -266,14 +266,14 @@ def task(q, *, l1=0.5, l2=0.4, l3=0.2):
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
+    _count = _all_q.shape[0]
     x = numpy.empty((_count, 3))
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
-        q3 = _q[2]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
         _t0 = q1 + q2
         _t1 = _t0 + q3
         _h0 = numpy.tan(0.5*q1)
@@ -309,17 +309,17 @@ def task_jacobian(q, *, l1=0.5, l2=0.4, l3=0.2):
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
+    _count = _all_q.shape[0]
     Jx = numpy.empty((_count, 9))
     Jx[:, 6] = 1
     Jx[:, 7] = 1
     Jx[:, 8] = 1
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
-        q3 = _q[2]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
         _t0 = q1 + q2
         _t1 = _t0 + q3
         _h0 = numpy.tan(0.5*_t1)
@@ -349,3 +349,89 @@ def task_jacobian(q, *, l1=0.5, l2=0.4, l3=0.2):
         _Jx[4] = _t5
         _Jx[5] = _t4
     return Jx.reshape(_batch + (3, 3))
+
+
+@numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
+def ik(x, *, l1=0.5, l2=0.4, l3=0.2):
+    """Inverse kinematics, all 2 branches (elbow_up, elbow_down): Q (..., 2, 3), valid (..., 2).
+
+    x: task coordinates x, y, phi, shape (..., 3)
+    Branches, in order: BRANCHES. Revolute joints are wrapped to (-pi, pi]. A branch
+    is valid where it exists; an unreachable, NaN or inf target gives valid False
+    (never an exception). within_limits(Q) tells which solutions respect LIMITS.
+    (78 operations after common-subexpression elimination.)
+    """
+    x = _runtime.as_batch(x, 3, "ik", "x", finite=False)
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    l3 = _runtime.as_param(l3, "l3")
+    _batch = _runtime.batch_shape(x)
+    _all_x = numpy.broadcast_to(x, _batch + (3,)).reshape(-1, 3)
+    _count = _all_x.shape[0]
+    Q = numpy.empty((_count, 6))
+    valid = numpy.empty((_count, 2), dtype=bool)
+    for _start in range(0, _count, CHUNK):
+        _columns_x = numpy.ascontiguousarray(_all_x[_start:_start + CHUNK].T)
+        x = _columns_x[0]
+        y = _columns_x[1]
+        phi = _columns_x[2]
+        _h0 = numpy.tan(0.5*phi)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _c0 = (1.0 - _u0)*_r0
+        _t0 = _s0*l3
+        _t1 = _t0 - y
+        _t2 = -_t1
+        _t3 = 2*l1
+        _t4 = _c0*l3 - x
+        _t5 = -_t4
+        _t6 = numpy.arctan2(-_t2*_t3, -_t3*_t5)
+        _t7 = (_t2*_t2)
+        _t8 = (l1*l1)
+        _t9 = 4*_t8
+        _t10 = (_t5*_t5)
+        _t11 = _t10*_t9 + _t7*_t9
+        _t12 = 1.0/numpy.sqrt(_t11)
+        _t13 = _t10 + _t7 + _t8 - (l2*l2)
+        _t14 = numpy.arccos(numpy.minimum(1, numpy.maximum(-1, -_t12*_t13)))
+        _t15 = _t14 - _t6
+        _t18 = _t14 + _t6
+        _h1 = numpy.tan(0.5*_t15)
+        _u1 = _h1*_h1
+        _r1 = 1.0/(1.0 + _u1)
+        _s1 = (_h1 + _h1)*_r1
+        _c1 = (1.0 - _u1)*_r1
+        _h2 = numpy.tan(0.5*_t18)
+        _u2 = _h2*_h2
+        _r2 = 1.0/(1.0 + _u2)
+        _s2 = (_h2 + _h2)*_r2
+        _c2 = (1.0 - _u2)*_r2
+        _t16 = 1.0/l2
+        _t17 = numpy.arctan2(_t16*(_s1*l1 - _t0 + y), _t16*(-_c1*l1 - _t4))
+        _t19 = -numpy.arctan2(_t16*(-_s2*l1 - _t1), _t16*(-_c2*l1 - _t4))
+        _t20 = numpy.logical_and(numpy.greater(_t11, 0), numpy.less_equal(_t12*abs(_t13), 1.000000000001))
+        _Q = Q[_start:_start + CHUNK].T
+        _Q[0] = _runtime.wrap_angle(-_t15)
+        _Q[1] = _runtime.wrap_angle(_t15 + _t17)
+        _Q[2] = _runtime.wrap_angle(-_t17 + phi)
+        _Q[3] = _runtime.wrap_angle(_t18)
+        _Q[4] = _runtime.wrap_angle(-_t18 - _t19)
+        _Q[5] = _runtime.wrap_angle(_t19 + phi)
+        _valid = valid[_start:_start + CHUNK].T
+        _valid[0] = _t20
+        _valid[1] = _t20
+    # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
+    valid &= (numpy.isfinite(Q.reshape((_count,) + (2, 3))).all(axis=-1)
+              & numpy.isfinite(_all_x).all(axis=-1)[:, None])
+    return Q.reshape(_batch + (2, 3)), valid.reshape(_batch + (2,))
+
+
+def within_limits(q):
+    """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 3) -> (...).
+
+    Takes ik's Q of shape (..., k, 3) as it is, giving (..., k). A joint without
+    limits only needs a finite value; NaN gives False.
+    """
+    q = _runtime.as_batch(q, 3, "within_limits", "q", finite=False)
+    return _runtime.within_limits(q, LIMITS, JOINT_TYPES)

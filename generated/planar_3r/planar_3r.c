@@ -9,6 +9,7 @@
  * jacobian: 21 operations after common-subexpression elimination
  * task: 18 operations after common-subexpression elimination
  * task_jacobian: 21 operations after common-subexpression elimination
+ * ik: 78 operations after common-subexpression elimination
  */
 #include "planar_3r.h"
 
@@ -22,15 +23,25 @@
  * arithmetic runs in one loop per stage, from the same expressions as the single
  * point (so the results are bit-identical).  -DKINEGEN_SIMD -fopenmp-simd (what
  * build_c.py uses where the compiler and C library allow) adds to that SIMD
- * declarations of sin and cos, so that the loops vectorise and call glibc's
- * vector math library (libmvec, at most 4 ulp).  No NaN or infinity check is
- * affected: no -ffast-math is involved.
+ * declarations of the math functions, so that the loops vectorise and call
+ * glibc's vector math library (libmvec, at most 4 ulp), and the single point
+ * takes the sines and cosines of a stage's angles as one vector.  No NaN or
+ * infinity check is affected: no -ffast-math is involved.
  */
 #ifdef KINEGEN_SIMD
 #pragma omp declare simd notinbranch
 double sin(double);
 #pragma omp declare simd notinbranch
 double cos(double);
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+/* libmvec has these from glibc 2.35 on. */
+#pragma omp declare simd notinbranch
+double atan2(double, double);
+#pragma omp declare simd notinbranch
+double acos(double);
+#pragma omp declare simd notinbranch
+double asin(double);
+#endif
 #define KINEGEN_VECTOR_LOOP _Pragma("omp simd")
 #ifndef KINEGEN_BLOCKED
 #define KINEGEN_BLOCKED
@@ -43,6 +54,20 @@ double cos(double);
 #endif
 
 const planar_3r_params planar_3r_default_params = { 0.5, 0.4, 0.2 };
+
+/* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi. */
+static double kinegen_wrap_angle(double angle)
+{
+    const double pi = 3.141592653589793, two_pi = 6.283185307179586;
+    double wrapped = angle + two_pi * floor((pi - angle) / two_pi);
+    if (wrapped > pi) {
+        wrapped -= two_pi;  /* rounding of the floor's argument */
+    }
+    if (wrapped < -pi) {
+        wrapped += two_pi;
+    }
+    return wrapped;
+}
 
 /* Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. */
 void planar_3r_fk(const double *restrict q, const planar_3r_params *restrict params, double *restrict T)
@@ -866,4 +891,237 @@ void planar_3r_task_jacobian_batch(size_t count, const double *restrict q, const
         planar_3r_task_jacobian(q + 3 * i, params, Jx + 9 * i);
     }
 #endif
+}
+
+/* The checks after an ik of one target x: a branch with a joint value that is not
+   finite, or of a target that is not, is not valid; returns the number of valid branches. */
+static int planar_3r_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
+{
+    int branch, joint, finite_target = 1, valid_branches = 0;
+    for (joint = 0; joint < 3; ++joint) {
+        finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
+    }
+    for (branch = 0; branch < 2; ++branch) {
+        if (!finite_target) {
+            valid[branch] = 0;
+        }
+        for (joint = 0; joint < 3; ++joint) {
+            if (!isfinite(Q[3 * branch + joint])) {
+                valid[branch] = 0;  /* no NaN leaks out as a valid answer */
+            }
+        }
+        valid_branches += valid[branch] != 0;
+    }
+    return valid_branches;
+}
+
+/* Inverse kinematics, all 2 branches (elbow_up, elbow_down): Q (..., 2, 3), valid (..., 2).
+   Returns the number of valid branches. A branch
+   whose joint values are not finite (a NaN or inf target) is never valid. */
+int planar_3r_ik(const double *restrict _x, const planar_3r_params *restrict params, double *restrict Q, int *restrict valid)
+{
+    const double x = _x[0];
+    const double y = _x[1];
+    const double phi = _x[2];
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    const double _s0 = sin(phi);
+    const double _c0 = cos(phi);
+    const double _t0 = _s0*l3;
+    const double _t1 = _t0 - y;
+    const double _t2 = -_t1;
+    const double _t3 = 2*l1;
+    const double _t4 = _c0*l3 - x;
+    const double _t5 = -_t4;
+    const double _t6 = atan2(-_t2*_t3, -_t3*_t5);
+    const double _t7 = (_t2*_t2);
+    const double _t8 = (l1*l1);
+    const double _t9 = 4*_t8;
+    const double _t10 = (_t5*_t5);
+    const double _t11 = _t10*_t9 + _t7*_t9;
+    const double _t12 = 1.0/sqrt(_t11);
+    const double _t13 = _t10 + _t7 + _t8 - (l2*l2);
+    const double _t14 = acos(fmin(1, fmax(-1, -_t12*_t13)));
+    const double _t15 = _t14 - _t6;
+    const double _t18 = _t14 + _t6;
+    double _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t15, _t18, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s1 = sine[0];
+        _c1 = cosine[0];
+        _s2 = sine[1];
+        _c2 = cosine[1];
+    }
+#else
+    _s1 = sin(_t15);
+    _c1 = cos(_t15);
+    _s2 = sin(_t18);
+    _c2 = cos(_t18);
+#endif
+    const double _t16 = 1.0/l2;
+    const double _t17 = atan2(_t16*(_s1*l1 - _t0 + y), _t16*(-_c1*l1 - _t4));
+    const double _t19 = -atan2(_t16*(-_s2*l1 - _t1), _t16*(-_c2*l1 - _t4));
+    const int _t20 = _t12*fabs(_t13) <= 1.000000000001 && _t11 > 0;
+    Q[0] = kinegen_wrap_angle(-_t15);
+    Q[1] = kinegen_wrap_angle(_t15 + _t17);
+    Q[2] = kinegen_wrap_angle(-_t17 + phi);
+    Q[3] = kinegen_wrap_angle(_t18);
+    Q[4] = kinegen_wrap_angle(-_t18 - _t19);
+    Q[5] = kinegen_wrap_angle(_t19 + phi);
+    valid[0] = _t20;
+    valid[1] = _t20;
+    return planar_3r_ik_checks(_x, Q, valid);
+}
+
+/* ik of `count` items, stored one after the other in each argument and output.   Returns the total number of valid branches, or -1 if any item was refused. */
+long planar_3r_ik_batch(size_t count, const double *restrict _x, const planar_3r_params *restrict params, double *restrict Q, int *restrict valid)
+{
+    long valid_branches = 0;
+    int refused = 0;
+#ifdef KINEGEN_BLOCKED
+    double x[KINEGEN_BLOCK];
+    double y[KINEGEN_BLOCK];
+    double phi[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    double _t0[KINEGEN_BLOCK];
+    double _t1[KINEGEN_BLOCK];
+    double _t4[KINEGEN_BLOCK];
+    double _t11[KINEGEN_BLOCK];
+    double _t12[KINEGEN_BLOCK];
+    double _t13[KINEGEN_BLOCK];
+    double _t15[KINEGEN_BLOCK];
+    double _t18[KINEGEN_BLOCK];
+    double _s1[KINEGEN_BLOCK];
+    double _c1[KINEGEN_BLOCK];
+    double _s2[KINEGEN_BLOCK];
+    double _c2[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            x[i] = _x[3 * (start + i) + 0];
+            y[i] = _x[3 * (start + i) + 1];
+            phi[i] = _x[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(phi[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(phi[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = _s0[i]*l3;
+            _t1[i] = _t0[i] - y[i];
+            const double _t2 = -_t1[i];
+            const double _t3 = 2*l1;
+            _t4[i] = _c0[i]*l3 - x[i];
+            const double _t5 = -_t4[i];
+            const double _t6 = atan2(-_t2*_t3, -_t3*_t5);
+            const double _t7 = (_t2*_t2);
+            const double _t8 = (l1*l1);
+            const double _t9 = 4*_t8;
+            const double _t10 = (_t5*_t5);
+            _t11[i] = _t10*_t9 + _t7*_t9;
+            _t12[i] = 1.0/sqrt(_t11[i]);
+            _t13[i] = _t10 + _t7 + _t8 - (l2*l2);
+            const double _t14 = acos(fmin(1, fmax(-1, -_t12[i]*_t13[i])));
+            _t15[i] = _t14 - _t6;
+            _t18[i] = _t14 + _t6;
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t15[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t15[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t18[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t18[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t16 = 1.0/l2;
+            const double _t17 = atan2(_t16*(_s1[i]*l1 - _t0[i] + y[i]), _t16*(-_c1[i]*l1 - _t4[i]));
+            const double _t19 = -atan2(_t16*(-_s2[i]*l1 - _t1[i]), _t16*(-_c2[i]*l1 - _t4[i]));
+            const int _t20 = _t12[i]*fabs(_t13[i]) <= 1.000000000001 && _t11[i] > 0;
+            Q[6 * (start + i) + 0] = kinegen_wrap_angle(-_t15[i]);
+            Q[6 * (start + i) + 1] = kinegen_wrap_angle(_t15[i] + _t17);
+            Q[6 * (start + i) + 2] = kinegen_wrap_angle(-_t17 + phi[i]);
+            Q[6 * (start + i) + 3] = kinegen_wrap_angle(_t18[i]);
+            Q[6 * (start + i) + 4] = kinegen_wrap_angle(-_t18[i] - _t19);
+            Q[6 * (start + i) + 5] = kinegen_wrap_angle(_t19 + phi[i]);
+            valid[2 * (start + i) + 0] = _t20;
+            valid[2 * (start + i) + 1] = _t20;
+        }
+        for (i = 0; i < n; ++i) {
+            const int found = planar_3r_ik_checks(_x + 3 * (start + i), Q + 6 * (start + i), valid + 2 * (start + i));
+            if (found < 0) {
+                refused = 1;
+            } else {
+                valid_branches += found;
+            }
+        }
+    }
+#else
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        const int found = planar_3r_ik(_x + 3 * i, params, Q + 6 * i, valid + 2 * i);
+        if (found < 0) {
+            refused = 1;
+        } else {
+            valid_branches += found;
+        }
+    }
+#endif
+    return refused ? -1 : valid_branches;
+}
+
+/* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */
+int planar_3r_within_limits(const double *restrict q)
+{
+    int inside = 1;
+    inside = inside && isfinite(q[0]);
+    inside = inside && isfinite(q[1]);
+    inside = inside && isfinite(q[2]);
+    return inside;
+}
+
+void planar_3r_within_limits_batch(size_t count, const double *restrict q, int *restrict inside)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        inside[i] = planar_3r_within_limits(q + 3 * i);
+    }
 }

@@ -22,7 +22,7 @@ extern "C" {
 
 #define PLANAR_3R_JOINTS 3
 #define PLANAR_3R_TASK 3
-#define PLANAR_3R_BRANCHES 0
+#define PLANAR_3R_BRANCHES 2
 
 /* Robot parameters (SI units). */
 typedef struct planar_3r_params { double l1; double l2; double l3; } planar_3r_params;
@@ -43,6 +43,13 @@ void planar_3r_task_batch(size_t count, const double *q, const planar_3r_params 
 /* task_jacobian: q[3] -> Jx[9] (row-major). d task / d q, shape (..., 3, 3). */
 void planar_3r_task_jacobian(const double *q, const planar_3r_params *params, double *Jx);
 void planar_3r_task_jacobian_batch(size_t count, const double *q, const planar_3r_params *params, double *Jx);
+/* ik: x[3] -> Q[6], valid[2] (row-major). Inverse kinematics, all 2 branches (elbow_up, elbow_down): Q (..., 2, 3), valid (..., 2). */
+/* Returns the number of valid branches; the batch returns their total (-1 if any item was refused). */
+int planar_3r_ik(const double *x, const planar_3r_params *params, double *Q, int *valid);
+long planar_3r_ik_batch(size_t count, const double *x, const planar_3r_params *params, double *Q, int *valid);
+/* within_limits: q[3] -> 1 when every joint lies within its limits (revolute joints modulo 2 pi), else 0. */
+int planar_3r_within_limits(const double *q);
+void planar_3r_within_limits_batch(size_t count, const double *q, int *inside);
 
 #ifdef __cplusplus
 }

@@ -43,7 +43,8 @@ int main(void)
 """
 # The entry points the Python binding calls: a kernel of `count` items (the single-point
 # function for one) after checking in C, where -ffinite-math-only never applies, that no
-# input is NaN or inf; 1 means one is, and nothing was computed.
+# input is NaN or inf; 1 means one is, and nothing was computed.  ik takes NaN and inf
+# (valid says there is no answer) and returns -1 when it refused a pose.
 CHECKED = """
 #include <math.h>
 #include "planar_pp.h"
@@ -122,6 +123,14 @@ int planar_pp_task_jacobian_checked(size_t count, const double *q, const planar_
     }
     return 0;
 }
+
+int planar_pp_ik_checked(size_t count, const double *x, const planar_pp_params *params, double *Q, int *valid)
+{
+    if (count == 1) {
+        return planar_pp_ik(x, params, Q, valid) < 0 ? -1 : 0;
+    }
+    return planar_pp_ik_batch(count, x, params, Q, valid) < 0 ? -1 : 0;
+}
 """
 CDEF = """
 /* Robot parameters (SI units). */
@@ -142,11 +151,19 @@ void planar_pp_task_batch(size_t count, const double *q, const planar_pp_params 
 /* task_jacobian: q[2] -> Jx[4] (row-major). d task / d q, shape (..., 2, 2). */
 void planar_pp_task_jacobian(const double *q, const planar_pp_params *params, double *Jx);
 void planar_pp_task_jacobian_batch(size_t count, const double *q, const planar_pp_params *params, double *Jx);
+/* ik: x[2] -> Q[2], valid[1] (row-major). Inverse kinematics, all 1 branches (unique): Q (..., 1, 2), valid (..., 1). */
+/* Returns the number of valid branches; the batch returns their total (-1 if any item was refused). */
+int planar_pp_ik(const double *x, const planar_pp_params *params, double *Q, int *valid);
+long planar_pp_ik_batch(size_t count, const double *x, const planar_pp_params *params, double *Q, int *valid);
+/* within_limits: q[2] -> 1 when every joint lies within its limits (revolute joints modulo 2 pi), else 0. */
+int planar_pp_within_limits(const double *q);
+void planar_pp_within_limits_batch(size_t count, const double *q, int *inside);
 int planar_pp_fk_checked(size_t count, const double *q, const planar_pp_params *params, double *T);
 int planar_pp_frames_checked(size_t count, const double *q, const planar_pp_params *params, double *frames);
 int planar_pp_jacobian_checked(size_t count, const double *q, const planar_pp_params *params, double *J);
 int planar_pp_task_checked(size_t count, const double *q, const planar_pp_params *params, double *x);
 int planar_pp_task_jacobian_checked(size_t count, const double *q, const planar_pp_params *params, double *Jx);
+int planar_pp_ik_checked(size_t count, const double *x, const planar_pp_params *params, double *Q, int *valid);
 """
 
 

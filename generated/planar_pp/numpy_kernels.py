@@ -17,7 +17,7 @@ NAME = "planar_pp"
 JOINTS = ("q1", "q2", )
 JOINT_TYPES = ("P", "P", )
 TASK = ("x", "y", )
-BRANCHES = ()
+BRANCHES = ("unique", )
 PARAMS = {}
 LIMITS = (None, None, )
 # Batches are worked through CHUNK items at a time, so that the temporaries stay in cache.
@@ -26,7 +26,7 @@ LIMITS = (None, None, )
 # vectorises float64 tan but not sin and cos (about 3 ns an angle for both,
 # against 17 ns for each); the error stays within 2.2e-16 (absolute) of libm's.
 CHUNK = 4096
-OPERATIONS = {"fk": 1, "frames": 3, "jacobian": 0, "task": 0, "task_jacobian": 0}
+OPERATIONS = {"fk": 1, "frames": 3, "jacobian": 0, "task": 0, "task_jacobian": 0, "ik": 0}
 
 
 def fk(q):
@@ -37,8 +37,8 @@ def fk(q):
     """
     q = _runtime.as_batch(q, 2, "fk", "q")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
     T = numpy.empty((_count, 16))
     T[:, 0] = 0
     T[:, 1] = 0
@@ -55,9 +55,9 @@ def fk(q):
     T[:, 14] = 0
     T[:, 15] = 1
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
         _T = T[_start:_start + CHUNK].T
         _T[3] = q2
         _T[7] = q1
@@ -72,8 +72,8 @@ def frames(q):
     """
     q = _runtime.as_batch(q, 2, "frames", "q")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
     frames = numpy.empty((_count, 48))
     frames[:, 0] = 1
     frames[:, 1] = 0
@@ -121,9 +121,9 @@ def frames(q):
     frames[:, 46] = 0
     frames[:, 47] = 1
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
         _frames = frames[_start:_start + CHUNK].T
         _frames[23] = q1
         _frames[35] = q2
@@ -139,8 +139,8 @@ def jacobian(q):
     """
     q = _runtime.as_batch(q, 2, "jacobian", "q")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
     J = numpy.empty((_count, 12))
     J[:, 0] = 0
     J[:, 1] = 1
@@ -167,13 +167,13 @@ def task(q):
     """
     q = _runtime.as_batch(q, 2, "task", "q")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
     x = numpy.empty((_count, 2))
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
         _x = x[_start:_start + CHUNK].T
         _x[0] = q2
         _x[1] = q1
@@ -188,8 +188,8 @@ def task_jacobian(q):
     """
     q = _runtime.as_batch(q, 2, "task_jacobian", "q")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
     Jx = numpy.empty((_count, 4))
     Jx[:, 0] = 0
     Jx[:, 1] = 1
@@ -198,3 +198,44 @@ def task_jacobian(q):
     for _start in range(0, _count, CHUNK):
         _Jx = Jx[_start:_start + CHUNK].T
     return Jx.reshape(_batch + (2, 2))
+
+
+@numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
+def ik(x):
+    """Inverse kinematics, all 1 branches (unique): Q (..., 1, 2), valid (..., 1).
+
+    x: task coordinates x, y, shape (..., 2)
+    Branches, in order: BRANCHES. Revolute joints are wrapped to (-pi, pi]. A branch
+    is valid where it exists; an unreachable, NaN or inf target gives valid False
+    (never an exception). within_limits(Q) tells which solutions respect LIMITS.
+    (0 operations after common-subexpression elimination.)
+    """
+    x = _runtime.as_batch(x, 2, "ik", "x", finite=False)
+    _batch = _runtime.batch_shape(x)
+    _all_x = numpy.broadcast_to(x, _batch + (2,)).reshape(-1, 2)
+    _count = _all_x.shape[0]
+    Q = numpy.empty((_count, 2))
+    valid = numpy.empty((_count, 1), dtype=bool)
+    valid[:, 0] = True
+    for _start in range(0, _count, CHUNK):
+        _columns_x = numpy.ascontiguousarray(_all_x[_start:_start + CHUNK].T)
+        x = _columns_x[0]
+        y = _columns_x[1]
+        _Q = Q[_start:_start + CHUNK].T
+        _Q[0] = y
+        _Q[1] = x
+        _valid = valid[_start:_start + CHUNK].T
+    # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
+    valid &= (numpy.isfinite(Q.reshape((_count,) + (1, 2))).all(axis=-1)
+              & numpy.isfinite(_all_x).all(axis=-1)[:, None])
+    return Q.reshape(_batch + (1, 2)), valid.reshape(_batch + (1,))
+
+
+def within_limits(q):
+    """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 2) -> (...).
+
+    Takes ik's Q of shape (..., k, 2) as it is, giving (..., k). A joint without
+    limits only needs a finite value; NaN gives False.
+    """
+    q = _runtime.as_batch(q, 2, "within_limits", "q", finite=False)
+    return _runtime.within_limits(q, LIMITS, JOINT_TYPES)

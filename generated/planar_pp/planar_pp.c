@@ -9,6 +9,7 @@
  * jacobian: 0 operations after common-subexpression elimination
  * task: 0 operations after common-subexpression elimination
  * task_jacobian: 0 operations after common-subexpression elimination
+ * ik: 0 operations after common-subexpression elimination
  */
 #include "planar_pp.h"
 
@@ -22,15 +23,25 @@
  * arithmetic runs in one loop per stage, from the same expressions as the single
  * point (so the results are bit-identical).  -DKINEGEN_SIMD -fopenmp-simd (what
  * build_c.py uses where the compiler and C library allow) adds to that SIMD
- * declarations of sin and cos, so that the loops vectorise and call glibc's
- * vector math library (libmvec, at most 4 ulp).  No NaN or infinity check is
- * affected: no -ffast-math is involved.
+ * declarations of the math functions, so that the loops vectorise and call
+ * glibc's vector math library (libmvec, at most 4 ulp), and the single point
+ * takes the sines and cosines of a stage's angles as one vector.  No NaN or
+ * infinity check is affected: no -ffast-math is involved.
  */
 #ifdef KINEGEN_SIMD
 #pragma omp declare simd notinbranch
 double sin(double);
 #pragma omp declare simd notinbranch
 double cos(double);
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+/* libmvec has these from glibc 2.35 on. */
+#pragma omp declare simd notinbranch
+double atan2(double, double);
+#pragma omp declare simd notinbranch
+double acos(double);
+#pragma omp declare simd notinbranch
+double asin(double);
+#endif
 #define KINEGEN_VECTOR_LOOP _Pragma("omp simd")
 #ifndef KINEGEN_BLOCKED
 #define KINEGEN_BLOCKED
@@ -364,4 +375,102 @@ void planar_pp_task_jacobian_batch(size_t count, const double *restrict q, const
         planar_pp_task_jacobian(q + 2 * i, params, Jx + 4 * i);
     }
 #endif
+}
+
+/* The checks after an ik of one target x: a branch with a joint value that is not
+   finite, or of a target that is not, is not valid; returns the number of valid branches. */
+static int planar_pp_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
+{
+    int branch, joint, finite_target = 1, valid_branches = 0;
+    for (joint = 0; joint < 2; ++joint) {
+        finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
+    }
+    for (branch = 0; branch < 1; ++branch) {
+        if (!finite_target) {
+            valid[branch] = 0;
+        }
+        for (joint = 0; joint < 2; ++joint) {
+            if (!isfinite(Q[2 * branch + joint])) {
+                valid[branch] = 0;  /* no NaN leaks out as a valid answer */
+            }
+        }
+        valid_branches += valid[branch] != 0;
+    }
+    return valid_branches;
+}
+
+/* Inverse kinematics, all 1 branches (unique): Q (..., 1, 2), valid (..., 1).
+   Returns the number of valid branches. A branch
+   whose joint values are not finite (a NaN or inf target) is never valid. */
+int planar_pp_ik(const double *restrict _x, const planar_pp_params *restrict params, double *restrict Q, int *restrict valid)
+{
+    const double x = _x[0];
+    const double y = _x[1];
+    (void)params;
+    Q[0] = y;
+    Q[1] = x;
+    valid[0] = 1;
+    return planar_pp_ik_checks(_x, Q, valid);
+}
+
+/* ik of `count` items, stored one after the other in each argument and output.   Returns the total number of valid branches, or -1 if any item was refused. */
+long planar_pp_ik_batch(size_t count, const double *restrict _x, const planar_pp_params *restrict params, double *restrict Q, int *restrict valid)
+{
+    long valid_branches = 0;
+    int refused = 0;
+#ifdef KINEGEN_BLOCKED
+    double x[KINEGEN_BLOCK];
+    double y[KINEGEN_BLOCK];
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            x[i] = _x[2 * (start + i) + 0];
+            y[i] = _x[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            Q[2 * (start + i) + 0] = y[i];
+            Q[2 * (start + i) + 1] = x[i];
+            valid[1 * (start + i) + 0] = 1;
+        }
+        for (i = 0; i < n; ++i) {
+            const int found = planar_pp_ik_checks(_x + 2 * (start + i), Q + 2 * (start + i), valid + 1 * (start + i));
+            if (found < 0) {
+                refused = 1;
+            } else {
+                valid_branches += found;
+            }
+        }
+    }
+#else
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        const int found = planar_pp_ik(_x + 2 * i, params, Q + 2 * i, valid + 1 * i);
+        if (found < 0) {
+            refused = 1;
+        } else {
+            valid_branches += found;
+        }
+    }
+#endif
+    return refused ? -1 : valid_branches;
+}
+
+/* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */
+int planar_pp_within_limits(const double *restrict q)
+{
+    int inside = 1;
+    inside = inside && isfinite(q[0]);
+    inside = inside && isfinite(q[1]);
+    return inside;
+}
+
+void planar_pp_within_limits_batch(size_t count, const double *restrict q, int *restrict inside)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        inside[i] = planar_pp_within_limits(q + 2 * i);
+    }
 }

@@ -22,7 +22,7 @@ extern "C" {
 
 #define PLANAR_PP_JOINTS 2
 #define PLANAR_PP_TASK 2
-#define PLANAR_PP_BRANCHES 0
+#define PLANAR_PP_BRANCHES 1
 
 /* Robot parameters (SI units). */
 typedef struct planar_pp_params { double unused; } planar_pp_params;
@@ -43,6 +43,13 @@ void planar_pp_task_batch(size_t count, const double *q, const planar_pp_params 
 /* task_jacobian: q[2] -> Jx[4] (row-major). d task / d q, shape (..., 2, 2). */
 void planar_pp_task_jacobian(const double *q, const planar_pp_params *params, double *Jx);
 void planar_pp_task_jacobian_batch(size_t count, const double *q, const planar_pp_params *params, double *Jx);
+/* ik: x[2] -> Q[2], valid[1] (row-major). Inverse kinematics, all 1 branches (unique): Q (..., 1, 2), valid (..., 1). */
+/* Returns the number of valid branches; the batch returns their total (-1 if any item was refused). */
+int planar_pp_ik(const double *x, const planar_pp_params *params, double *Q, int *valid);
+long planar_pp_ik_batch(size_t count, const double *x, const planar_pp_params *params, double *Q, int *valid);
+/* within_limits: q[2] -> 1 when every joint lies within its limits (revolute joints modulo 2 pi), else 0. */
+int planar_pp_within_limits(const double *q);
+void planar_pp_within_limits_batch(size_t count, const double *q, int *inside);
 
 #ifdef __cplusplus
 }

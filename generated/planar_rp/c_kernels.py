@@ -69,12 +69,13 @@ def fk(q):
     batch = q.shape[:-1]
     count = q.size // 2
     T = _empty(batch + (4, 4))
-    if _lib.planar_rp_fk_checked(
+    status = _lib.planar_rp_fk_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, T),
-    ):
+    )
+    if status:
         raise ValueError("fk: q contains NaN or inf")
     return T
 
@@ -98,12 +99,13 @@ def frames(q):
     batch = q.shape[:-1]
     count = q.size // 2
     frames = _empty(batch + (3, 4, 4))
-    if _lib.planar_rp_frames_checked(
+    status = _lib.planar_rp_frames_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, frames),
-    ):
+    )
+    if status:
         raise ValueError("frames: q contains NaN or inf")
     return frames
 
@@ -127,12 +129,13 @@ def jacobian(q):
     batch = q.shape[:-1]
     count = q.size // 2
     J = _empty(batch + (6, 2))
-    if _lib.planar_rp_jacobian_checked(
+    status = _lib.planar_rp_jacobian_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, J),
-    ):
+    )
+    if status:
         raise ValueError("jacobian: q contains NaN or inf")
     return J
 
@@ -156,12 +159,13 @@ def task(q):
     batch = q.shape[:-1]
     count = q.size // 2
     x = _empty(batch + (2,))
-    if _lib.planar_rp_task_checked(
+    status = _lib.planar_rp_task_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, x),
-    ):
+    )
+    if status:
         raise ValueError("task: q contains NaN or inf")
     return x
 
@@ -185,11 +189,40 @@ def task_jacobian(q):
     batch = q.shape[:-1]
     count = q.size // 2
     Jx = _empty(batch + (2, 2))
-    if _lib.planar_rp_task_jacobian_checked(
+    status = _lib.planar_rp_task_jacobian_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, Jx),
-    ):
+    )
+    if status:
         raise ValueError("task_jacobian: q contains NaN or inf")
     return Jx
+
+
+def ik(x):
+    """Inverse kinematics, all 2 branches (d2_positive, d2_negative): Q (..., 2, 2), valid (..., 2). (C backend)"""
+    params = _DEFAULT_PARAMS
+    if (type(x) is not _ndarray or x.dtype is not _float64 or not x.ndim
+            or x.shape[-1] != 2 or not x.flags.c_contiguous):
+        x = numpy.ascontiguousarray(_runtime.as_batch(x, 2, "ik", "x", finite=False))
+    batch = x.shape[:-1]
+    count = x.size // 2
+    Q = _empty(batch + (2, 2))
+    valid = _empty(batch + (2,), dtype=numpy.intc)
+    status = _lib.planar_rp_ik_checked(
+        count,
+        _from_buffer(_DOUBLES, x),
+        params,
+        _from_buffer(_DOUBLES, Q),
+        _from_buffer(_INTS, valid),
+    )
+    return Q, valid.astype(bool)
+
+
+def within_limits(q):
+    """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 2) -> (...). (C backend)"""
+    q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "within_limits", "q", finite=False))
+    inside = numpy.empty(q.shape[:-1], dtype=numpy.intc)
+    _lib.planar_rp_within_limits_batch(q.size // 2, _from_buffer(_DOUBLES, q), _from_buffer(_INTS, inside))
+    return inside.astype(bool)

@@ -43,7 +43,8 @@ int main(void)
 """
 # The entry points the Python binding calls: a kernel of `count` items (the single-point
 # function for one) after checking in C, where -ffinite-math-only never applies, that no
-# input is NaN or inf; 1 means one is, and nothing was computed.
+# input is NaN or inf; 1 means one is, and nothing was computed.  ik takes NaN and inf
+# (valid says there is no answer) and returns -1 when it refused a pose.
 CHECKED = """
 #include <math.h>
 #include "puma560.h"
@@ -122,6 +123,14 @@ int puma560_task_jacobian_checked(size_t count, const double *q, const puma560_p
     }
     return 0;
 }
+
+int puma560_ik_checked(size_t count, const double *x, const puma560_params *params, double *Q, int *valid)
+{
+    if (count == 1) {
+        return puma560_ik(x, params, Q, valid) < 0 ? -1 : 0;
+    }
+    return puma560_ik_batch(count, x, params, Q, valid) < 0 ? -1 : 0;
+}
 """
 CDEF = """
 /* Robot parameters (SI units). */
@@ -142,11 +151,19 @@ void puma560_task_batch(size_t count, const double *q, const puma560_params *par
 /* task_jacobian: q[6] -> Jx[72] (row-major). d task / d q, shape (..., 12, 6). */
 void puma560_task_jacobian(const double *q, const puma560_params *params, double *Jx);
 void puma560_task_jacobian_batch(size_t count, const double *q, const puma560_params *params, double *Jx);
+/* ik: x[12] -> Q[48], valid[8] (row-major). Inverse kinematics, all 8 branches (right_elbow_up_noflip, right_elbow_up_flip, right_elbow_down_noflip, right_elbow_down_flip, left_elbow_up_noflip, left_elbow_up_flip, left_elbow_down_noflip, left_elbow_down_flip): Q (..., 8, 6), valid (..., 8). */
+/* Returns the number of valid branches, or -1 when x is not a rigid transform; the batch returns their total (-1 if any item was refused). */
+int puma560_ik(const double *x, const puma560_params *params, double *Q, int *valid);
+long puma560_ik_batch(size_t count, const double *x, const puma560_params *params, double *Q, int *valid);
+/* within_limits: q[6] -> 1 when every joint lies within its limits (revolute joints modulo 2 pi), else 0. */
+int puma560_within_limits(const double *q);
+void puma560_within_limits_batch(size_t count, const double *q, int *inside);
 int puma560_fk_checked(size_t count, const double *q, const puma560_params *params, double *T);
 int puma560_frames_checked(size_t count, const double *q, const puma560_params *params, double *frames);
 int puma560_jacobian_checked(size_t count, const double *q, const puma560_params *params, double *J);
 int puma560_task_checked(size_t count, const double *q, const puma560_params *params, double *x);
 int puma560_task_jacobian_checked(size_t count, const double *q, const puma560_params *params, double *Jx);
+int puma560_ik_checked(size_t count, const double *x, const puma560_params *params, double *Q, int *valid);
 """
 
 

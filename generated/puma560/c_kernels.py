@@ -74,12 +74,13 @@ def fk(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
     batch = q.shape[:-1]
     count = q.size // 6
     T = _empty(batch + (4, 4))
-    if _lib.puma560_fk_checked(
+    status = _lib.puma560_fk_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, T),
-    ):
+    )
+    if status:
         raise ValueError("fk: q contains NaN or inf")
     return T
 
@@ -103,12 +104,13 @@ def frames(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
     batch = q.shape[:-1]
     count = q.size // 6
     frames = _empty(batch + (7, 4, 4))
-    if _lib.puma560_frames_checked(
+    status = _lib.puma560_frames_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, frames),
-    ):
+    )
+    if status:
         raise ValueError("frames: q contains NaN or inf")
     return frames
 
@@ -132,12 +134,13 @@ def jacobian(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
     batch = q.shape[:-1]
     count = q.size // 6
     J = _empty(batch + (6, 6))
-    if _lib.puma560_jacobian_checked(
+    status = _lib.puma560_jacobian_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, J),
-    ):
+    )
+    if status:
         raise ValueError("jacobian: q contains NaN or inf")
     return J
 
@@ -161,12 +164,13 @@ def task(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
     batch = q.shape[:-1]
     count = q.size // 6
     x = _empty(batch + (12,))
-    if _lib.puma560_task_checked(
+    status = _lib.puma560_task_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, x),
-    ):
+    )
+    if status:
         raise ValueError("task: q contains NaN or inf")
     return x
 
@@ -190,11 +194,43 @@ def task_jacobian(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
     batch = q.shape[:-1]
     count = q.size // 6
     Jx = _empty(batch + (12, 6))
-    if _lib.puma560_task_jacobian_checked(
+    status = _lib.puma560_task_jacobian_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, Jx),
-    ):
+    )
+    if status:
         raise ValueError("task_jacobian: q contains NaN or inf")
     return Jx
+
+
+def ik(x, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
+    """Inverse kinematics, all 8 branches (right_elbow_up_noflip, right_elbow_up_flip, right_elbow_down_noflip, right_elbow_down_flip, left_elbow_up_noflip, left_elbow_up_flip, left_elbow_down_noflip, left_elbow_down_flip): Q (..., 8, 6), valid (..., 8). (C backend)"""
+    params = _DEFAULT_PARAMS if d1 is _d1 and a2 is _a2 and a3 is _a3 and d3 is _d3 and d4 is _d4 else _params((d1, a2, a3, d3, d4, ))
+    if (type(x) is not _ndarray or x.dtype is not _float64 or not x.ndim
+            or x.shape[-1] != 12 or not x.flags.c_contiguous):
+        x = numpy.ascontiguousarray(_runtime.as_pose_task(x, "ik", "x", 1e-09))
+    batch = x.shape[:-1]
+    count = x.size // 12
+    Q = _empty(batch + (8, 6))
+    valid = _empty(batch + (8,), dtype=numpy.intc)
+    status = _lib.puma560_ik_checked(
+        count,
+        _from_buffer(_DOUBLES, x),
+        params,
+        _from_buffer(_DOUBLES, Q),
+        _from_buffer(_INTS, valid),
+    )
+    if status < 0:  # C refused a pose that is not a rigid transform: the numpy check names it
+        _runtime.as_pose_task(x, "ik", "x", 1e-09)
+        raise ValueError("ik: x holds a pose that is not a rigid transform (tolerance 1e-09)")
+    return Q, valid.astype(bool)
+
+
+def within_limits(q):
+    """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 6) -> (...). (C backend)"""
+    q = numpy.ascontiguousarray(_runtime.as_batch(q, 6, "within_limits", "q", finite=False))
+    inside = numpy.empty(q.shape[:-1], dtype=numpy.intc)
+    _lib.puma560_within_limits_batch(q.size // 6, _from_buffer(_DOUBLES, q), _from_buffer(_INTS, inside))
+    return inside.astype(bool)

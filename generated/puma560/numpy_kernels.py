@@ -17,7 +17,7 @@ NAME = "puma560"
 JOINTS = ("q1", "q2", "q3", "q4", "q5", "q6", )
 JOINT_TYPES = ("R", "R", "R", "R", "R", "R", )
 TASK = ("x", "y", "z", "r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33", )
-BRANCHES = ()
+BRANCHES = ("right_elbow_up_noflip", "right_elbow_up_flip", "right_elbow_down_noflip", "right_elbow_down_flip", "left_elbow_up_noflip", "left_elbow_up_flip", "left_elbow_down_noflip", "left_elbow_down_flip", )
 PARAMS = {"d1": 0.67183, "a2": 0.4318, "a3": 0.0203, "d3": 0.15005, "d4": 0.4318}
 LIMITS = ((-2.792526803190927, 2.792526803190927), (-0.7853981633974483, 3.9269908169872414), (-3.9269908169872414, 0.7853981633974483), (-1.9198621771937625, 2.9670597283903604), (-1.7453292519943295, 1.7453292519943295), (-4.642575810304916, 4.642575810304916), )
 # Batches are worked through CHUNK items at a time, so that the temporaries stay in cache.
@@ -26,7 +26,7 @@ LIMITS = ((-2.792526803190927, 2.792526803190927), (-0.7853981633974483, 3.92699
 # vectorises float64 tan but not sin and cos (about 3 ns an angle for both,
 # against 17 ns for each); the error stays within 2.2e-16 (absolute) of libm's.
 CHUNK = 4096
-OPERATIONS = {"fk": 125, "frames": 154, "jacobian": 75, "task": 125, "task_jacobian": 223}
+OPERATIONS = {"fk": 125, "frames": 154, "jacobian": 75, "task": 125, "task_jacobian": 223, "ik": 431}
 
 
 def fk(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
@@ -42,21 +42,21 @@ def fk(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     d3 = _runtime.as_param(d3, "d3")
     d4 = _runtime.as_param(d4, "d4")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
+    _count = _all_q.shape[0]
     T = numpy.empty((_count, 16))
     T[:, 12] = 0
     T[:, 13] = 0
     T[:, 14] = 0
     T[:, 15] = 1
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
-        q3 = _q[2]
-        q4 = _q[3]
-        q5 = _q[4]
-        q6 = _q[5]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
+        q4 = _columns_q[3]
+        q5 = _columns_q[4]
+        q6 = _columns_q[5]
         _t11 = q2 + q3
         _h0 = numpy.tan(0.5*q6)
         _u0 = _h0*_h0
@@ -136,8 +136,8 @@ def frames(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     d3 = _runtime.as_param(d3, "d3")
     d4 = _runtime.as_param(d4, "d4")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
+    _count = _all_q.shape[0]
     frames = numpy.empty((_count, 112))
     frames[:, 0] = 1
     frames[:, 1] = 0
@@ -189,13 +189,13 @@ def frames(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     frames[:, 110] = 0
     frames[:, 111] = 1
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
-        q3 = _q[2]
-        q4 = _q[3]
-        q5 = _q[4]
-        q6 = _q[5]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
+        q4 = _columns_q[3]
+        q5 = _columns_q[4]
+        q6 = _columns_q[5]
         _t10 = q2 + q3
         _h0 = numpy.tan(0.5*q1)
         _u0 = _h0*_h0
@@ -347,8 +347,8 @@ def jacobian(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     d4 = _runtime.as_param(d4, "d4")
     _runtime.as_param(d1, "d1")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
+    _count = _all_q.shape[0]
     J = numpy.empty((_count, 36))
     J[:, 3] = 0
     J[:, 4] = 0
@@ -366,12 +366,12 @@ def jacobian(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     J[:, 31] = 0
     J[:, 32] = 0
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
-        q3 = _q[2]
-        q4 = _q[3]
-        q5 = _q[4]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
+        q4 = _columns_q[3]
+        q5 = _columns_q[4]
         _t3 = q2 + q3
         _h0 = numpy.tan(0.5*q1)
         _u0 = _h0*_h0
@@ -449,17 +449,17 @@ def task(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     d3 = _runtime.as_param(d3, "d3")
     d4 = _runtime.as_param(d4, "d4")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
+    _count = _all_q.shape[0]
     x = numpy.empty((_count, 12))
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
-        q3 = _q[2]
-        q4 = _q[3]
-        q5 = _q[4]
-        q6 = _q[5]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
+        q4 = _columns_q[3]
+        q5 = _columns_q[4]
+        q6 = _columns_q[5]
         _t3 = q2 + q3
         _h0 = numpy.tan(0.5*q1)
         _u0 = _h0*_h0
@@ -539,8 +539,8 @@ def task_jacobian(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318)
     d4 = _runtime.as_param(d4, "d4")
     _runtime.as_param(d1, "d1")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
+    _count = _all_q.shape[0]
     Jx = numpy.empty((_count, 72))
     Jx[:, 3] = 0
     Jx[:, 4] = 0
@@ -559,13 +559,13 @@ def task_jacobian(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318)
     Jx[:, 66] = 0
     Jx[:, 71] = 0
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
-        q3 = _q[2]
-        q4 = _q[3]
-        q5 = _q[4]
-        q6 = _q[5]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
+        q4 = _columns_q[3]
+        q5 = _columns_q[4]
+        q6 = _columns_q[5]
         _t3 = q2 + q3
         _h0 = numpy.tan(0.5*q1)
         _u0 = _h0*_h0
@@ -700,3 +700,303 @@ def task_jacobian(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318)
         _Jx[69] = _s4*_t38
         _Jx[70] = -_c4*_t27 - _t25
     return Jx.reshape(_batch + (12, 6))
+
+
+@numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
+def ik(x, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
+    """Inverse kinematics, all 8 branches (right_elbow_up_noflip, right_elbow_up_flip, right_elbow_down_noflip, right_elbow_down_flip, left_elbow_up_noflip, left_elbow_up_flip, left_elbow_down_noflip, left_elbow_down_flip): Q (..., 8, 6), valid (..., 8).
+
+    x: task coordinates x, y, z, r11, r12, r13, r21, r22, r23, r31, r32, r33, shape (..., 12), or poses of shape (..., 4, 4)
+    Branches, in order: BRANCHES. Revolute joints are wrapped to (-pi, pi]. A branch
+    is valid where it exists; an unreachable, NaN or inf target gives valid False
+    (never an exception). within_limits(Q) tells which solutions respect LIMITS.
+    A finite pose whose rotation is not orthonormal within 1e-09 (or is a
+    reflection) raises ValueError.
+    (431 operations after common-subexpression elimination.)
+    """
+    x = _runtime.as_pose_task(x, "ik", "x", 1e-09)
+    d1 = _runtime.as_param(d1, "d1")
+    a2 = _runtime.as_param(a2, "a2")
+    a3 = _runtime.as_param(a3, "a3")
+    d3 = _runtime.as_param(d3, "d3")
+    d4 = _runtime.as_param(d4, "d4")
+    _batch = _runtime.batch_shape(x)
+    _all_x = numpy.broadcast_to(x, _batch + (12,)).reshape(-1, 12)
+    _count = _all_x.shape[0]
+    Q = numpy.empty((_count, 48))
+    valid = numpy.empty((_count, 8), dtype=bool)
+    for _start in range(0, _count, CHUNK):
+        _columns_x = numpy.ascontiguousarray(_all_x[_start:_start + CHUNK].T)
+        x = _columns_x[0]
+        y = _columns_x[1]
+        z = _columns_x[2]
+        r11 = _columns_x[3]
+        r12 = _columns_x[4]
+        r13 = _columns_x[5]
+        r21 = _columns_x[6]
+        r22 = _columns_x[7]
+        r23 = _columns_x[8]
+        r31 = _columns_x[9]
+        r32 = _columns_x[10]
+        r33 = _columns_x[11]
+        _t0 = numpy.arctan2(-x, y)
+        _t1 = (x*x)
+        _t2 = (y*y)
+        _t3 = _t1 + _t2
+        _t4 = 1.0/numpy.sqrt(_t3)
+        _t5 = numpy.arccos(numpy.minimum(1, numpy.maximum(-1, -_t4*d3)))
+        _t6 = _t0 + _t5
+        _t8 = d1 - z
+        _t9 = -_t8
+        _t10 = 2*a2
+        _t11 = numpy.arctan2(-_t10*d4, _t10*a3)
+        _t12 = (a3*a3)
+        _t13 = (a2*a2)
+        _t14 = 4*_t13
+        _t15 = (d4*d4)
+        _t16 = _t12*_t14 + _t14*_t15
+        _t17 = 1.0/numpy.sqrt(_t16)
+        _t18 = -_t1 + _t12 + _t13 + _t15 - _t2 + (d3*d3)
+        _t19 = numpy.arccos(numpy.minimum(1, numpy.maximum(-1, _t17*(-_t18 + (_t9*_t9)))))
+        _t20 = -_t11 + _t19
+        _t58 = _t11 + _t19
+        _t85 = -_t0 + _t5
+        _h0 = numpy.tan(0.5*_t20)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _c0 = (1.0 - _u0)*_r0
+        _h1 = numpy.tan(0.5*_t6)
+        _u1 = _h1*_h1
+        _r1 = 1.0/(1.0 + _u1)
+        _s1 = (_h1 + _h1)*_r1
+        _c1 = (1.0 - _u1)*_r1
+        _h5 = numpy.tan(0.5*_t58)
+        _u5 = _h5*_h5
+        _r5 = 1.0/(1.0 + _u5)
+        _s5 = (_h5 + _h5)*_r5
+        _c5 = (1.0 - _u5)*_r5
+        _h9 = numpy.tan(0.5*_t85)
+        _u9 = _h9*_h9
+        _r9 = 1.0/(1.0 + _u9)
+        _s9 = (_h9 + _h9)*_r9
+        _c9 = (1.0 - _u9)*_r9
+        _t23 = _c0*a3 + _s0*d4 + a2
+        _t24 = _t23*_t9
+        _t27 = _c1*x + _s1*y
+        _t28 = _c0*d4 - _s0*a3
+        _t29 = _t28*_t9
+        _t30 = numpy.arctan2(_t24 - _t27*_t28, _t23*_t27 + _t29)
+        _t36 = _t11 - _t19
+        _t37 = _t30 + _t36
+        _t61 = _c5*a3 - _s5*d4 + a2
+        _t62 = _t61*_t9
+        _t63 = _c5*d4 + _s5*a3
+        _t64 = _t63*_t9
+        _t65 = numpy.arctan2(-_t27*_t63 + _t62, _t27*_t61 + _t64)
+        _t68 = _t58 + _t65
+        _t89 = _c9*x - _s9*y
+        _t90 = numpy.arctan2(_t62 - _t63*_t89, _t61*_t89 + _t64)
+        _t94 = _t58 + _t90
+        _t116 = numpy.arctan2(_t24 - _t28*_t89, _t23*_t89 + _t29)
+        _t118 = _t116 + _t36
+        _h2 = numpy.tan(0.5*_t37)
+        _u2 = _h2*_h2
+        _r2 = 1.0/(1.0 + _u2)
+        _s2 = (_h2 + _h2)*_r2
+        _c2 = (1.0 - _u2)*_r2
+        _h6 = numpy.tan(0.5*_t68)
+        _u6 = _h6*_h6
+        _r6 = 1.0/(1.0 + _u6)
+        _s6 = (_h6 + _h6)*_r6
+        _c6 = (1.0 - _u6)*_r6
+        _h10 = numpy.tan(0.5*_t94)
+        _u10 = _h10*_h10
+        _r10 = 1.0/(1.0 + _u10)
+        _s10 = (_h10 + _h10)*_r10
+        _c10 = (1.0 - _u10)*_r10
+        _h13 = numpy.tan(0.5*_t118)
+        _u13 = _h13*_h13
+        _r13 = 1.0/(1.0 + _u13)
+        _s13 = (_h13 + _h13)*_r13
+        _c13 = (1.0 - _u13)*_r13
+        _t33 = -_c1*r23 + _s1*r13
+        _t34 = -_t33
+        _t35 = (_t34*_t34)
+        _t40 = _c1*r13
+        _t41 = _s1*r23
+        _t42 = _c2*_t40 + _c2*_t41 + _s2*r33
+        _t43 = numpy.less_equal(_t35 + (_t42*_t42), 1e-24)
+        _t44 = numpy.arctan2(_t33, -_t42)
+        _t45 = numpy.where(_t43, 0, _t44)
+        _t55 = numpy.where(_t43, 3.141592653589793, _t44 + 3.141592653589793)
+        _t71 = _c6*_t40 + _c6*_t41 + _s6*r33
+        _t72 = numpy.less_equal(_t35 + (_t71*_t71), 1e-24)
+        _t73 = numpy.arctan2(_t33, -_t71)
+        _t74 = numpy.where(_t72, 0, _t73)
+        _t82 = numpy.where(_t72, 3.141592653589793, _t73 + 3.141592653589793)
+        _t92 = _c9*r23 + _s9*r13
+        _t93 = (_t92*_t92)
+        _t97 = _c9*r13
+        _t98 = _s9*r23
+        _t99 = _c10*_t97 - _c10*_t98 + _s10*r33
+        _t100 = numpy.less_equal(_t93 + (_t99*_t99), 1e-24)
+        _t101 = -_t92
+        _t102 = numpy.arctan2(_t101, -_t99)
+        _t103 = numpy.where(_t100, 0, _t102)
+        _t113 = numpy.where(_t100, 3.141592653589793, _t102 + 3.141592653589793)
+        _t121 = _c13*_t97 - _c13*_t98 + _s13*r33
+        _t122 = numpy.less_equal((_t121*_t121) + _t93, 1e-24)
+        _t123 = numpy.arctan2(_t101, -_t121)
+        _t124 = numpy.where(_t122, 0, _t123)
+        _t132 = numpy.where(_t122, 3.141592653589793, _t123 + 3.141592653589793)
+        _h3 = numpy.tan(0.5*_t45)
+        _u3 = _h3*_h3
+        _r3 = 1.0/(1.0 + _u3)
+        _s3 = (_h3 + _h3)*_r3
+        _c3 = (1.0 - _u3)*_r3
+        _h4 = numpy.tan(0.5*_t55)
+        _u4 = _h4*_h4
+        _r4 = 1.0/(1.0 + _u4)
+        _s4 = (_h4 + _h4)*_r4
+        _c4 = (1.0 - _u4)*_r4
+        _h7 = numpy.tan(0.5*_t74)
+        _u7 = _h7*_h7
+        _r7 = 1.0/(1.0 + _u7)
+        _s7 = (_h7 + _h7)*_r7
+        _c7 = (1.0 - _u7)*_r7
+        _h8 = numpy.tan(0.5*_t82)
+        _u8 = _h8*_h8
+        _r8 = 1.0/(1.0 + _u8)
+        _s8 = (_h8 + _h8)*_r8
+        _c8 = (1.0 - _u8)*_r8
+        _h11 = numpy.tan(0.5*_t103)
+        _u11 = _h11*_h11
+        _r11 = 1.0/(1.0 + _u11)
+        _s11 = (_h11 + _h11)*_r11
+        _c11 = (1.0 - _u11)*_r11
+        _h12 = numpy.tan(0.5*_t113)
+        _u12 = _h12*_h12
+        _r12 = 1.0/(1.0 + _u12)
+        _s12 = (_h12 + _h12)*_r12
+        _c12 = (1.0 - _u12)*_r12
+        _h14 = numpy.tan(0.5*_t124)
+        _u14 = _h14*_h14
+        _r14 = 1.0/(1.0 + _u14)
+        _s14 = (_h14 + _h14)*_r14
+        _c14 = (1.0 - _u14)*_r14
+        _h15 = numpy.tan(0.5*_t132)
+        _u15 = _h15*_h15
+        _r15 = 1.0/(1.0 + _u15)
+        _s15 = (_h15 + _h15)*_r15
+        _c15 = (1.0 - _u15)*_r15
+        _t7 = _runtime.wrap_angle(_t6)
+        _t31 = _runtime.wrap_angle(_t30)
+        _t32 = _runtime.wrap_angle(-_t20)
+        _t48 = _c2*r33 - _s2*_t40 - _s2*_t41
+        _t49 = _c1*r21 - _s1*r11
+        _t50 = _c1*_c2
+        _t51 = _c2*_s1
+        _t52 = _s2*r31 + _t50*r11 + _t51*r21
+        _t53 = _c1*r22 - _s1*r12
+        _t54 = _s2*r32 + _t50*r12 + _t51*r22
+        _t66 = _runtime.wrap_angle(_t65)
+        _t67 = _runtime.wrap_angle(_t58)
+        _t77 = _c6*r33 - _s6*_t40 - _s6*_t41
+        _t78 = _c1*_c6
+        _t79 = _c6*_s1
+        _t80 = _s6*r31 + _t78*r11 + _t79*r21
+        _t81 = _s6*r32 + _t78*r12 + _t79*r22
+        _t86 = _runtime.wrap_angle(-_t85)
+        _t91 = _runtime.wrap_angle(_t90)
+        _t106 = _c10*r33 - _s10*_t97 + _s10*_t98
+        _t107 = _c9*r21 + _s9*r11
+        _t108 = _c10*_c9
+        _t109 = _c10*_s9
+        _t110 = _s10*r31 + _t108*r11 - _t109*r21
+        _t111 = _c9*r22 + _s9*r12
+        _t112 = _s10*r32 + _t108*r12 - _t109*r22
+        _t117 = _runtime.wrap_angle(_t116)
+        _t127 = _c13*r33 - _s13*_t97 + _s13*_t98
+        _t128 = _c13*_c9
+        _t129 = _c13*_s9
+        _t130 = _s13*r31 + _t128*r11 - _t129*r21
+        _t131 = _s13*r32 + _t128*r12 - _t129*r22
+        _t135 = numpy.greater(_t3, 0)
+        _t136 = numpy.less_equal(_t4*abs(d3), 1.000000000001)
+        _t137 = numpy.greater(_t16, 0)
+        _t138 = numpy.less_equal(_t17*abs(_t18 - (_t8*_t8)), 1.000000000001)
+        _t139 = numpy.logical_and(numpy.logical_and(numpy.logical_and(numpy.logical_and(_t135, _t136), _t137), _t138), numpy.greater((_t23*_t23) + (_t28*_t28), 0))
+        _t140 = numpy.logical_and(numpy.logical_and(numpy.logical_and(numpy.logical_and(_t135, _t136), _t137), _t138), numpy.greater((_t61*_t61) + (_t63*_t63), 0))
+        _Q = Q[_start:_start + CHUNK].T
+        _Q[0] = _t7
+        _Q[1] = _t31
+        _Q[2] = _t32
+        _Q[3] = _runtime.wrap_angle(_t45)
+        _Q[4] = _runtime.wrap_angle(numpy.arctan2(-_c3*_t42 - _s3*_t34, _t48))
+        _Q[5] = _runtime.wrap_angle(numpy.arctan2(_c3*_t49 - _s3*_t52, _c3*_t53 - _s3*_t54))
+        _Q[6] = _t7
+        _Q[7] = _t31
+        _Q[8] = _t32
+        _Q[9] = _runtime.wrap_angle(_t55)
+        _Q[10] = _runtime.wrap_angle(numpy.arctan2(-_c4*_t42 - _s4*_t34, _t48))
+        _Q[11] = _runtime.wrap_angle(numpy.arctan2(_c4*_t49 - _s4*_t52, _c4*_t53 - _s4*_t54))
+        _Q[12] = _t7
+        _Q[13] = _t66
+        _Q[14] = _t67
+        _Q[15] = _runtime.wrap_angle(_t74)
+        _Q[16] = _runtime.wrap_angle(numpy.arctan2(-_c7*_t71 - _s7*_t34, _t77))
+        _Q[17] = _runtime.wrap_angle(numpy.arctan2(_c7*_t49 - _s7*_t80, _c7*_t53 - _s7*_t81))
+        _Q[18] = _t7
+        _Q[19] = _t66
+        _Q[20] = _t67
+        _Q[21] = _runtime.wrap_angle(_t82)
+        _Q[22] = _runtime.wrap_angle(numpy.arctan2(-_c8*_t71 - _s8*_t34, _t77))
+        _Q[23] = _runtime.wrap_angle(numpy.arctan2(_c8*_t49 - _s8*_t80, _c8*_t53 - _s8*_t81))
+        _Q[24] = _t86
+        _Q[25] = _t91
+        _Q[26] = _t67
+        _Q[27] = _runtime.wrap_angle(_t103)
+        _Q[28] = _runtime.wrap_angle(numpy.arctan2(-_c11*_t99 - _s11*_t92, _t106))
+        _Q[29] = _runtime.wrap_angle(numpy.arctan2(_c11*_t107 - _s11*_t110, _c11*_t111 - _s11*_t112))
+        _Q[30] = _t86
+        _Q[31] = _t91
+        _Q[32] = _t67
+        _Q[33] = _runtime.wrap_angle(_t113)
+        _Q[34] = _runtime.wrap_angle(numpy.arctan2(-_c12*_t99 - _s12*_t92, _t106))
+        _Q[35] = _runtime.wrap_angle(numpy.arctan2(_c12*_t107 - _s12*_t110, _c12*_t111 - _s12*_t112))
+        _Q[36] = _t86
+        _Q[37] = _t117
+        _Q[38] = _t32
+        _Q[39] = _runtime.wrap_angle(_t124)
+        _Q[40] = _runtime.wrap_angle(numpy.arctan2(-_c14*_t121 - _s14*_t92, _t127))
+        _Q[41] = _runtime.wrap_angle(numpy.arctan2(_c14*_t107 - _s14*_t130, _c14*_t111 - _s14*_t131))
+        _Q[42] = _t86
+        _Q[43] = _t117
+        _Q[44] = _t32
+        _Q[45] = _runtime.wrap_angle(_t132)
+        _Q[46] = _runtime.wrap_angle(numpy.arctan2(-_c15*_t121 - _s15*_t92, _t127))
+        _Q[47] = _runtime.wrap_angle(numpy.arctan2(_c15*_t107 - _s15*_t130, _c15*_t111 - _s15*_t131))
+        _valid = valid[_start:_start + CHUNK].T
+        _valid[0] = _t139
+        _valid[1] = _t139
+        _valid[2] = _t140
+        _valid[3] = _t140
+        _valid[4] = _t140
+        _valid[5] = _t140
+        _valid[6] = _t139
+        _valid[7] = _t139
+    # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
+    valid &= (numpy.isfinite(Q.reshape((_count,) + (8, 6))).all(axis=-1)
+              & numpy.isfinite(_all_x).all(axis=-1)[:, None])
+    return Q.reshape(_batch + (8, 6)), valid.reshape(_batch + (8,))
+
+
+def within_limits(q):
+    """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 6) -> (...).
+
+    Takes ik's Q of shape (..., k, 6) as it is, giving (..., k). A joint without
+    limits only needs a finite value; NaN gives False.
+    """
+    q = _runtime.as_batch(q, 6, "within_limits", "q", finite=False)
+    return _runtime.within_limits(q, LIMITS, JOINT_TYPES)

@@ -9,6 +9,7 @@
  * jacobian: 75 operations after common-subexpression elimination
  * task: 125 operations after common-subexpression elimination
  * task_jacobian: 223 operations after common-subexpression elimination
+ * ik: 431 operations after common-subexpression elimination
  */
 #include "puma560.h"
 
@@ -22,15 +23,25 @@
  * arithmetic runs in one loop per stage, from the same expressions as the single
  * point (so the results are bit-identical).  -DKINEGEN_SIMD -fopenmp-simd (what
  * build_c.py uses where the compiler and C library allow) adds to that SIMD
- * declarations of sin and cos, so that the loops vectorise and call glibc's
- * vector math library (libmvec, at most 4 ulp).  No NaN or infinity check is
- * affected: no -ffast-math is involved.
+ * declarations of the math functions, so that the loops vectorise and call
+ * glibc's vector math library (libmvec, at most 4 ulp), and the single point
+ * takes the sines and cosines of a stage's angles as one vector.  No NaN or
+ * infinity check is affected: no -ffast-math is involved.
  */
 #ifdef KINEGEN_SIMD
 #pragma omp declare simd notinbranch
 double sin(double);
 #pragma omp declare simd notinbranch
 double cos(double);
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+/* libmvec has these from glibc 2.35 on. */
+#pragma omp declare simd notinbranch
+double atan2(double, double);
+#pragma omp declare simd notinbranch
+double acos(double);
+#pragma omp declare simd notinbranch
+double asin(double);
+#endif
 #define KINEGEN_VECTOR_LOOP _Pragma("omp simd")
 #ifndef KINEGEN_BLOCKED
 #define KINEGEN_BLOCKED
@@ -43,6 +54,43 @@ double cos(double);
 #endif
 
 const puma560_params puma560_default_params = { 0.67183, 0.4318, 0.0203, 0.15005, 0.4318 };
+
+/* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi. */
+static double kinegen_wrap_angle(double angle)
+{
+    const double pi = 3.141592653589793, two_pi = 6.283185307179586;
+    double wrapped = angle + two_pi * floor((pi - angle) / two_pi);
+    if (wrapped > pi) {
+        wrapped -= two_pi;  /* rounding of the floor's argument */
+    }
+    if (wrapped < -pi) {
+        wrapped += two_pi;
+    }
+    return wrapped;
+}
+
+/* 1 when the pose task x (x, y, z, r11 .. r33) is finite and its rotation R is not
+   orthonormal within 1e-09 (max|R R^T - I|) or is a reflection (det R < 0). */
+static int puma560_is_refused_pose(const double *restrict x)
+{
+    const double *r = x + 3;
+    double deviation = 0.0, determinant;
+    int i, j;
+    for (i = 0; i < 12; ++i) {
+        if (!isfinite(x[i])) {
+            return 0;  /* reported through valid instead */
+        }
+    }
+    for (i = 0; i < 3; ++i) {
+        for (j = 0; j < 3; ++j) {
+            const double dot = r[3 * i] * r[3 * j] + r[3 * i + 1] * r[3 * j + 1] + r[3 * i + 2] * r[3 * j + 2];
+            deviation = fmax(deviation, fabs(dot - (i == j ? 1.0 : 0.0)));
+        }
+    }
+    determinant = r[0] * (r[4] * r[8] - r[5] * r[7]) - r[1] * (r[3] * r[8] - r[5] * r[6])
+                  + r[2] * (r[3] * r[7] - r[4] * r[6]);
+    return deviation > 1e-09 || determinant < 0.0;
+}
 
 /* Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. */
 void puma560_fk(const double *restrict q, const puma560_params *restrict params, double *restrict T)
@@ -1629,4 +1677,916 @@ void puma560_task_jacobian_batch(size_t count, const double *restrict q, const p
         puma560_task_jacobian(q + 6 * i, params, Jx + 72 * i);
     }
 #endif
+}
+
+/* The checks after an ik of one target x: a branch with a joint value that is not
+   finite, or of a target that is not, is not valid; returns the number of valid branches,
+   or -1 (and no branch valid) when x is a finite pose that is not a rigid transform. */
+static int puma560_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
+{
+    int branch, joint, finite_target = 1, valid_branches = 0;
+    for (joint = 0; joint < 12; ++joint) {
+        finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
+    }
+    for (branch = 0; branch < 8; ++branch) {
+        if (!finite_target) {
+            valid[branch] = 0;
+        }
+        for (joint = 0; joint < 6; ++joint) {
+            if (!isfinite(Q[6 * branch + joint])) {
+                valid[branch] = 0;  /* no NaN leaks out as a valid answer */
+            }
+        }
+        valid_branches += valid[branch] != 0;
+    }
+    if (!puma560_is_refused_pose(_x)) {
+        return valid_branches;
+    }
+    for (branch = 0; branch < 8; ++branch) {
+        valid[branch] = 0;
+    }
+    return -1;
+}
+
+/* Inverse kinematics, all 8 branches (right_elbow_up_noflip, right_elbow_up_flip, right_elbow_down_noflip, right_elbow_down_flip, left_elbow_up_noflip, left_elbow_up_flip, left_elbow_down_noflip, left_elbow_down_flip): Q (..., 8, 6), valid (..., 8).
+   Returns the number of valid branches, or -1 (and no branch valid) when x is a
+   finite pose whose rotation is not orthonormal within 1e-09 or is a reflection. A branch
+   whose joint values are not finite (a NaN or inf target) is never valid. */
+int puma560_ik(const double *restrict _x, const puma560_params *restrict params, double *restrict Q, int *restrict valid)
+{
+    const double x = _x[0];
+    const double y = _x[1];
+    const double z = _x[2];
+    const double r11 = _x[3];
+    const double r12 = _x[4];
+    const double r13 = _x[5];
+    const double r21 = _x[6];
+    const double r22 = _x[7];
+    const double r23 = _x[8];
+    const double r31 = _x[9];
+    const double r32 = _x[10];
+    const double r33 = _x[11];
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double d1 = params->d1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    const double _t0 = atan2(-x, y);
+    const double _t1 = (x*x);
+    const double _t2 = (y*y);
+    const double _t3 = _t1 + _t2;
+    const double _t4 = 1.0/sqrt(_t3);
+    const double _t5 = acos(fmin(1, fmax(-1, -_t4*d3)));
+    const double _t6 = _t0 + _t5;
+    const double _t8 = d1 - z;
+    const double _t9 = -_t8;
+    const double _t10 = 2*a2;
+    const double _t11 = atan2(-_t10*d4, _t10*a3);
+    const double _t12 = (a3*a3);
+    const double _t13 = (a2*a2);
+    const double _t14 = 4*_t13;
+    const double _t15 = (d4*d4);
+    const double _t16 = _t12*_t14 + _t14*_t15;
+    const double _t17 = 1.0/sqrt(_t16);
+    const double _t18 = -_t1 + _t12 + _t13 + _t15 - _t2 + (d3*d3);
+    const double _t19 = acos(fmin(1, fmax(-1, _t17*(-_t18 + (_t9*_t9)))));
+    const double _t20 = -_t11 + _t19;
+    const double _t58 = _t11 + _t19;
+    const double _t85 = -_t0 + _t5;
+    double _s0, _c0, _s1, _c1, _s5, _c5, _s9, _c9;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t20, _t6, _t58, _t85,  };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s5 = sine[2];
+        _c5 = cosine[2];
+        _s9 = sine[3];
+        _c9 = cosine[3];
+    }
+#else
+    _s0 = sin(_t20);
+    _c0 = cos(_t20);
+    _s1 = sin(_t6);
+    _c1 = cos(_t6);
+    _s5 = sin(_t58);
+    _c5 = cos(_t58);
+    _s9 = sin(_t85);
+    _c9 = cos(_t85);
+#endif
+    const double _t23 = _c0*a3 + _s0*d4 + a2;
+    const double _t24 = _t23*_t9;
+    const double _t27 = _c1*x + _s1*y;
+    const double _t28 = _c0*d4 - _s0*a3;
+    const double _t29 = _t28*_t9;
+    const double _t30 = atan2(_t24 - _t27*_t28, _t23*_t27 + _t29);
+    const double _t36 = _t11 - _t19;
+    const double _t37 = _t30 + _t36;
+    const double _t61 = _c5*a3 - _s5*d4 + a2;
+    const double _t62 = _t61*_t9;
+    const double _t63 = _c5*d4 + _s5*a3;
+    const double _t64 = _t63*_t9;
+    const double _t65 = atan2(-_t27*_t63 + _t62, _t27*_t61 + _t64);
+    const double _t68 = _t58 + _t65;
+    const double _t89 = _c9*x - _s9*y;
+    const double _t90 = atan2(_t62 - _t63*_t89, _t61*_t89 + _t64);
+    const double _t94 = _t58 + _t90;
+    const double _t116 = atan2(_t24 - _t28*_t89, _t23*_t89 + _t29);
+    const double _t118 = _t116 + _t36;
+    double _s2, _c2, _s6, _c6, _s10, _c10, _s13, _c13;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t37, _t68, _t94, _t118,  };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s2 = sine[0];
+        _c2 = cosine[0];
+        _s6 = sine[1];
+        _c6 = cosine[1];
+        _s10 = sine[2];
+        _c10 = cosine[2];
+        _s13 = sine[3];
+        _c13 = cosine[3];
+    }
+#else
+    _s2 = sin(_t37);
+    _c2 = cos(_t37);
+    _s6 = sin(_t68);
+    _c6 = cos(_t68);
+    _s10 = sin(_t94);
+    _c10 = cos(_t94);
+    _s13 = sin(_t118);
+    _c13 = cos(_t118);
+#endif
+    const double _t33 = -_c1*r23 + _s1*r13;
+    const double _t34 = -_t33;
+    const double _t35 = (_t34*_t34);
+    const double _t40 = _c1*r13;
+    const double _t41 = _s1*r23;
+    const double _t42 = _c2*_t40 + _c2*_t41 + _s2*r33;
+    const int _t43 = _t35 + (_t42*_t42) <= 1e-24;
+    const double _t44 = atan2(_t33, -_t42);
+    const double _t45 = ((_t43) ? (
+   0
+)
+: (
+   _t44
+));
+    const double _t55 = ((_t43) ? (
+   3.141592653589793
+)
+: (
+   _t44 + 3.141592653589793
+));
+    const double _t71 = _c6*_t40 + _c6*_t41 + _s6*r33;
+    const int _t72 = _t35 + (_t71*_t71) <= 1e-24;
+    const double _t73 = atan2(_t33, -_t71);
+    const double _t74 = ((_t72) ? (
+   0
+)
+: (
+   _t73
+));
+    const double _t82 = ((_t72) ? (
+   3.141592653589793
+)
+: (
+   _t73 + 3.141592653589793
+));
+    const double _t92 = _c9*r23 + _s9*r13;
+    const double _t93 = (_t92*_t92);
+    const double _t97 = _c9*r13;
+    const double _t98 = _s9*r23;
+    const double _t99 = _c10*_t97 - _c10*_t98 + _s10*r33;
+    const int _t100 = _t93 + (_t99*_t99) <= 1e-24;
+    const double _t101 = -_t92;
+    const double _t102 = atan2(_t101, -_t99);
+    const double _t103 = ((_t100) ? (
+   0
+)
+: (
+   _t102
+));
+    const double _t113 = ((_t100) ? (
+   3.141592653589793
+)
+: (
+   _t102 + 3.141592653589793
+));
+    const double _t121 = _c13*_t97 - _c13*_t98 + _s13*r33;
+    const int _t122 = (_t121*_t121) + _t93 <= 1e-24;
+    const double _t123 = atan2(_t101, -_t121);
+    const double _t124 = ((_t122) ? (
+   0
+)
+: (
+   _t123
+));
+    const double _t132 = ((_t122) ? (
+   3.141592653589793
+)
+: (
+   _t123 + 3.141592653589793
+));
+    double _s3, _c3, _s4, _c4, _s7, _c7, _s8, _c8, _s11, _c11, _s12, _c12, _s14, _c14, _s15, _c15;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { _t45, _t55, _t74, _t82, _t103, _t113, _t124, _t132,  };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s3 = sine[0];
+        _c3 = cosine[0];
+        _s4 = sine[1];
+        _c4 = cosine[1];
+        _s7 = sine[2];
+        _c7 = cosine[2];
+        _s8 = sine[3];
+        _c8 = cosine[3];
+        _s11 = sine[4];
+        _c11 = cosine[4];
+        _s12 = sine[5];
+        _c12 = cosine[5];
+        _s14 = sine[6];
+        _c14 = cosine[6];
+        _s15 = sine[7];
+        _c15 = cosine[7];
+    }
+#else
+    _s3 = sin(_t45);
+    _c3 = cos(_t45);
+    _s4 = sin(_t55);
+    _c4 = cos(_t55);
+    _s7 = sin(_t74);
+    _c7 = cos(_t74);
+    _s8 = sin(_t82);
+    _c8 = cos(_t82);
+    _s11 = sin(_t103);
+    _c11 = cos(_t103);
+    _s12 = sin(_t113);
+    _c12 = cos(_t113);
+    _s14 = sin(_t124);
+    _c14 = cos(_t124);
+    _s15 = sin(_t132);
+    _c15 = cos(_t132);
+#endif
+    const double _t7 = kinegen_wrap_angle(_t6);
+    const double _t31 = kinegen_wrap_angle(_t30);
+    const double _t32 = kinegen_wrap_angle(-_t20);
+    const double _t48 = _c2*r33 - _s2*_t40 - _s2*_t41;
+    const double _t49 = _c1*r21 - _s1*r11;
+    const double _t50 = _c1*_c2;
+    const double _t51 = _c2*_s1;
+    const double _t52 = _s2*r31 + _t50*r11 + _t51*r21;
+    const double _t53 = _c1*r22 - _s1*r12;
+    const double _t54 = _s2*r32 + _t50*r12 + _t51*r22;
+    const double _t66 = kinegen_wrap_angle(_t65);
+    const double _t67 = kinegen_wrap_angle(_t58);
+    const double _t77 = _c6*r33 - _s6*_t40 - _s6*_t41;
+    const double _t78 = _c1*_c6;
+    const double _t79 = _c6*_s1;
+    const double _t80 = _s6*r31 + _t78*r11 + _t79*r21;
+    const double _t81 = _s6*r32 + _t78*r12 + _t79*r22;
+    const double _t86 = kinegen_wrap_angle(-_t85);
+    const double _t91 = kinegen_wrap_angle(_t90);
+    const double _t106 = _c10*r33 - _s10*_t97 + _s10*_t98;
+    const double _t107 = _c9*r21 + _s9*r11;
+    const double _t108 = _c10*_c9;
+    const double _t109 = _c10*_s9;
+    const double _t110 = _s10*r31 + _t108*r11 - _t109*r21;
+    const double _t111 = _c9*r22 + _s9*r12;
+    const double _t112 = _s10*r32 + _t108*r12 - _t109*r22;
+    const double _t117 = kinegen_wrap_angle(_t116);
+    const double _t127 = _c13*r33 - _s13*_t97 + _s13*_t98;
+    const double _t128 = _c13*_c9;
+    const double _t129 = _c13*_s9;
+    const double _t130 = _s13*r31 + _t128*r11 - _t129*r21;
+    const double _t131 = _s13*r32 + _t128*r12 - _t129*r22;
+    const int _t135 = _t3 > 0;
+    const int _t136 = _t4*fabs(d3) <= 1.000000000001;
+    const int _t137 = _t16 > 0;
+    const int _t138 = _t17*fabs(_t18 - (_t8*_t8)) <= 1.000000000001;
+    const int _t139 = _t135 && _t136 && _t137 && _t138 && (_t23*_t23) + (_t28*_t28) > 0;
+    const int _t140 = _t135 && _t136 && _t137 && _t138 && (_t61*_t61) + (_t63*_t63) > 0;
+    Q[0] = _t7;
+    Q[1] = _t31;
+    Q[2] = _t32;
+    Q[3] = kinegen_wrap_angle(_t45);
+    Q[4] = kinegen_wrap_angle(atan2(-_c3*_t42 - _s3*_t34, _t48));
+    Q[5] = kinegen_wrap_angle(atan2(_c3*_t49 - _s3*_t52, _c3*_t53 - _s3*_t54));
+    Q[6] = _t7;
+    Q[7] = _t31;
+    Q[8] = _t32;
+    Q[9] = kinegen_wrap_angle(_t55);
+    Q[10] = kinegen_wrap_angle(atan2(-_c4*_t42 - _s4*_t34, _t48));
+    Q[11] = kinegen_wrap_angle(atan2(_c4*_t49 - _s4*_t52, _c4*_t53 - _s4*_t54));
+    Q[12] = _t7;
+    Q[13] = _t66;
+    Q[14] = _t67;
+    Q[15] = kinegen_wrap_angle(_t74);
+    Q[16] = kinegen_wrap_angle(atan2(-_c7*_t71 - _s7*_t34, _t77));
+    Q[17] = kinegen_wrap_angle(atan2(_c7*_t49 - _s7*_t80, _c7*_t53 - _s7*_t81));
+    Q[18] = _t7;
+    Q[19] = _t66;
+    Q[20] = _t67;
+    Q[21] = kinegen_wrap_angle(_t82);
+    Q[22] = kinegen_wrap_angle(atan2(-_c8*_t71 - _s8*_t34, _t77));
+    Q[23] = kinegen_wrap_angle(atan2(_c8*_t49 - _s8*_t80, _c8*_t53 - _s8*_t81));
+    Q[24] = _t86;
+    Q[25] = _t91;
+    Q[26] = _t67;
+    Q[27] = kinegen_wrap_angle(_t103);
+    Q[28] = kinegen_wrap_angle(atan2(-_c11*_t99 - _s11*_t92, _t106));
+    Q[29] = kinegen_wrap_angle(atan2(_c11*_t107 - _s11*_t110, _c11*_t111 - _s11*_t112));
+    Q[30] = _t86;
+    Q[31] = _t91;
+    Q[32] = _t67;
+    Q[33] = kinegen_wrap_angle(_t113);
+    Q[34] = kinegen_wrap_angle(atan2(-_c12*_t99 - _s12*_t92, _t106));
+    Q[35] = kinegen_wrap_angle(atan2(_c12*_t107 - _s12*_t110, _c12*_t111 - _s12*_t112));
+    Q[36] = _t86;
+    Q[37] = _t117;
+    Q[38] = _t32;
+    Q[39] = kinegen_wrap_angle(_t124);
+    Q[40] = kinegen_wrap_angle(atan2(-_c14*_t121 - _s14*_t92, _t127));
+    Q[41] = kinegen_wrap_angle(atan2(_c14*_t107 - _s14*_t130, _c14*_t111 - _s14*_t131));
+    Q[42] = _t86;
+    Q[43] = _t117;
+    Q[44] = _t32;
+    Q[45] = kinegen_wrap_angle(_t132);
+    Q[46] = kinegen_wrap_angle(atan2(-_c15*_t121 - _s15*_t92, _t127));
+    Q[47] = kinegen_wrap_angle(atan2(_c15*_t107 - _s15*_t130, _c15*_t111 - _s15*_t131));
+    valid[0] = _t139;
+    valid[1] = _t139;
+    valid[2] = _t140;
+    valid[3] = _t140;
+    valid[4] = _t140;
+    valid[5] = _t140;
+    valid[6] = _t139;
+    valid[7] = _t139;
+    return puma560_ik_checks(_x, Q, valid);
+}
+
+/* ik of `count` items, stored one after the other in each argument and output.   Returns the total number of valid branches, or -1 if any item was refused. */
+long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_params *restrict params, double *restrict Q, int *restrict valid)
+{
+    long valid_branches = 0;
+    int refused = 0;
+#ifdef KINEGEN_BLOCKED
+    double x[KINEGEN_BLOCK];
+    double y[KINEGEN_BLOCK];
+    double z[KINEGEN_BLOCK];
+    double r11[KINEGEN_BLOCK];
+    double r12[KINEGEN_BLOCK];
+    double r13[KINEGEN_BLOCK];
+    double r21[KINEGEN_BLOCK];
+    double r22[KINEGEN_BLOCK];
+    double r23[KINEGEN_BLOCK];
+    double r31[KINEGEN_BLOCK];
+    double r32[KINEGEN_BLOCK];
+    double r33[KINEGEN_BLOCK];
+    double _t3[KINEGEN_BLOCK];
+    double _t4[KINEGEN_BLOCK];
+    double _t6[KINEGEN_BLOCK];
+    double _t8[KINEGEN_BLOCK];
+    double _t9[KINEGEN_BLOCK];
+    double _t11[KINEGEN_BLOCK];
+    double _t16[KINEGEN_BLOCK];
+    double _t17[KINEGEN_BLOCK];
+    double _t18[KINEGEN_BLOCK];
+    double _t19[KINEGEN_BLOCK];
+    double _t20[KINEGEN_BLOCK];
+    double _t58[KINEGEN_BLOCK];
+    double _t85[KINEGEN_BLOCK];
+    double _s0[KINEGEN_BLOCK];
+    double _c0[KINEGEN_BLOCK];
+    double _s1[KINEGEN_BLOCK];
+    double _c1[KINEGEN_BLOCK];
+    double _s5[KINEGEN_BLOCK];
+    double _c5[KINEGEN_BLOCK];
+    double _s9[KINEGEN_BLOCK];
+    double _c9[KINEGEN_BLOCK];
+    double _t23[KINEGEN_BLOCK];
+    double _t28[KINEGEN_BLOCK];
+    double _t30[KINEGEN_BLOCK];
+    double _t37[KINEGEN_BLOCK];
+    double _t61[KINEGEN_BLOCK];
+    double _t63[KINEGEN_BLOCK];
+    double _t65[KINEGEN_BLOCK];
+    double _t68[KINEGEN_BLOCK];
+    double _t90[KINEGEN_BLOCK];
+    double _t94[KINEGEN_BLOCK];
+    double _t116[KINEGEN_BLOCK];
+    double _t118[KINEGEN_BLOCK];
+    double _s2[KINEGEN_BLOCK];
+    double _c2[KINEGEN_BLOCK];
+    double _s6[KINEGEN_BLOCK];
+    double _c6[KINEGEN_BLOCK];
+    double _s10[KINEGEN_BLOCK];
+    double _c10[KINEGEN_BLOCK];
+    double _s13[KINEGEN_BLOCK];
+    double _c13[KINEGEN_BLOCK];
+    double _t34[KINEGEN_BLOCK];
+    double _t40[KINEGEN_BLOCK];
+    double _t41[KINEGEN_BLOCK];
+    double _t42[KINEGEN_BLOCK];
+    double _t45[KINEGEN_BLOCK];
+    double _t55[KINEGEN_BLOCK];
+    double _t71[KINEGEN_BLOCK];
+    double _t74[KINEGEN_BLOCK];
+    double _t82[KINEGEN_BLOCK];
+    double _t92[KINEGEN_BLOCK];
+    double _t97[KINEGEN_BLOCK];
+    double _t98[KINEGEN_BLOCK];
+    double _t99[KINEGEN_BLOCK];
+    double _t103[KINEGEN_BLOCK];
+    double _t113[KINEGEN_BLOCK];
+    double _t121[KINEGEN_BLOCK];
+    double _t124[KINEGEN_BLOCK];
+    double _t132[KINEGEN_BLOCK];
+    double _s3[KINEGEN_BLOCK];
+    double _c3[KINEGEN_BLOCK];
+    double _s4[KINEGEN_BLOCK];
+    double _c4[KINEGEN_BLOCK];
+    double _s7[KINEGEN_BLOCK];
+    double _c7[KINEGEN_BLOCK];
+    double _s8[KINEGEN_BLOCK];
+    double _c8[KINEGEN_BLOCK];
+    double _s11[KINEGEN_BLOCK];
+    double _c11[KINEGEN_BLOCK];
+    double _s12[KINEGEN_BLOCK];
+    double _c12[KINEGEN_BLOCK];
+    double _s14[KINEGEN_BLOCK];
+    double _c14[KINEGEN_BLOCK];
+    double _s15[KINEGEN_BLOCK];
+    double _c15[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double d1 = params->d1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            x[i] = _x[12 * (start + i) + 0];
+            y[i] = _x[12 * (start + i) + 1];
+            z[i] = _x[12 * (start + i) + 2];
+            r11[i] = _x[12 * (start + i) + 3];
+            r12[i] = _x[12 * (start + i) + 4];
+            r13[i] = _x[12 * (start + i) + 5];
+            r21[i] = _x[12 * (start + i) + 6];
+            r22[i] = _x[12 * (start + i) + 7];
+            r23[i] = _x[12 * (start + i) + 8];
+            r31[i] = _x[12 * (start + i) + 9];
+            r32[i] = _x[12 * (start + i) + 10];
+            r33[i] = _x[12 * (start + i) + 11];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t0 = atan2(-x[i], y[i]);
+            const double _t1 = (x[i]*x[i]);
+            const double _t2 = (y[i]*y[i]);
+            _t3[i] = _t1 + _t2;
+            _t4[i] = 1.0/sqrt(_t3[i]);
+            const double _t5 = acos(fmin(1, fmax(-1, -_t4[i]*d3)));
+            _t6[i] = _t0 + _t5;
+            _t8[i] = d1 - z[i];
+            _t9[i] = -_t8[i];
+            const double _t10 = 2*a2;
+            _t11[i] = atan2(-_t10*d4, _t10*a3);
+            const double _t12 = (a3*a3);
+            const double _t13 = (a2*a2);
+            const double _t14 = 4*_t13;
+            const double _t15 = (d4*d4);
+            _t16[i] = _t12*_t14 + _t14*_t15;
+            _t17[i] = 1.0/sqrt(_t16[i]);
+            _t18[i] = -_t1 + _t12 + _t13 + _t15 - _t2 + (d3*d3);
+            _t19[i] = acos(fmin(1, fmax(-1, _t17[i]*(-_t18[i] + (_t9[i]*_t9[i])))));
+            _t20[i] = -_t11[i] + _t19[i];
+            _t58[i] = _t11[i] + _t19[i];
+            _t85[i] = -_t0 + _t5;
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t20[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t20[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s5[i] = sin(_t58[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c5[i] = cos(_t58[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s9[i] = sin(_t85[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c9[i] = cos(_t85[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t23[i] = _c0[i]*a3 + _s0[i]*d4 + a2;
+            const double _t24 = _t23[i]*_t9[i];
+            const double _t27 = _c1[i]*x[i] + _s1[i]*y[i];
+            _t28[i] = _c0[i]*d4 - _s0[i]*a3;
+            const double _t29 = _t28[i]*_t9[i];
+            _t30[i] = atan2(_t24 - _t27*_t28[i], _t23[i]*_t27 + _t29);
+            const double _t36 = _t11[i] - _t19[i];
+            _t37[i] = _t30[i] + _t36;
+            _t61[i] = _c5[i]*a3 - _s5[i]*d4 + a2;
+            const double _t62 = _t61[i]*_t9[i];
+            _t63[i] = _c5[i]*d4 + _s5[i]*a3;
+            const double _t64 = _t63[i]*_t9[i];
+            _t65[i] = atan2(-_t27*_t63[i] + _t62, _t27*_t61[i] + _t64);
+            _t68[i] = _t58[i] + _t65[i];
+            const double _t89 = _c9[i]*x[i] - _s9[i]*y[i];
+            _t90[i] = atan2(_t62 - _t63[i]*_t89, _t61[i]*_t89 + _t64);
+            _t94[i] = _t58[i] + _t90[i];
+            _t116[i] = atan2(_t24 - _t28[i]*_t89, _t23[i]*_t89 + _t29);
+            _t118[i] = _t116[i] + _t36;
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t37[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t37[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s6[i] = sin(_t68[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c6[i] = cos(_t68[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s10[i] = sin(_t94[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c10[i] = cos(_t94[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s13[i] = sin(_t118[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c13[i] = cos(_t118[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t33 = -_c1[i]*r23[i] + _s1[i]*r13[i];
+            _t34[i] = -_t33;
+            const double _t35 = (_t34[i]*_t34[i]);
+            _t40[i] = _c1[i]*r13[i];
+            _t41[i] = _s1[i]*r23[i];
+            _t42[i] = _c2[i]*_t40[i] + _c2[i]*_t41[i] + _s2[i]*r33[i];
+            const int _t43 = _t35 + (_t42[i]*_t42[i]) <= 1e-24;
+            const double _t44 = atan2(_t33, -_t42[i]);
+            _t45[i] = ((_t43) ? (
+   0
+)
+: (
+   _t44
+));
+            _t55[i] = ((_t43) ? (
+   3.141592653589793
+)
+: (
+   _t44 + 3.141592653589793
+));
+            _t71[i] = _c6[i]*_t40[i] + _c6[i]*_t41[i] + _s6[i]*r33[i];
+            const int _t72 = _t35 + (_t71[i]*_t71[i]) <= 1e-24;
+            const double _t73 = atan2(_t33, -_t71[i]);
+            _t74[i] = ((_t72) ? (
+   0
+)
+: (
+   _t73
+));
+            _t82[i] = ((_t72) ? (
+   3.141592653589793
+)
+: (
+   _t73 + 3.141592653589793
+));
+            _t92[i] = _c9[i]*r23[i] + _s9[i]*r13[i];
+            const double _t93 = (_t92[i]*_t92[i]);
+            _t97[i] = _c9[i]*r13[i];
+            _t98[i] = _s9[i]*r23[i];
+            _t99[i] = _c10[i]*_t97[i] - _c10[i]*_t98[i] + _s10[i]*r33[i];
+            const int _t100 = _t93 + (_t99[i]*_t99[i]) <= 1e-24;
+            const double _t101 = -_t92[i];
+            const double _t102 = atan2(_t101, -_t99[i]);
+            _t103[i] = ((_t100) ? (
+   0
+)
+: (
+   _t102
+));
+            _t113[i] = ((_t100) ? (
+   3.141592653589793
+)
+: (
+   _t102 + 3.141592653589793
+));
+            _t121[i] = _c13[i]*_t97[i] - _c13[i]*_t98[i] + _s13[i]*r33[i];
+            const int _t122 = (_t121[i]*_t121[i]) + _t93 <= 1e-24;
+            const double _t123 = atan2(_t101, -_t121[i]);
+            _t124[i] = ((_t122) ? (
+   0
+)
+: (
+   _t123
+));
+            _t132[i] = ((_t122) ? (
+   3.141592653589793
+)
+: (
+   _t123 + 3.141592653589793
+));
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(_t45[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(_t45[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(_t55[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(_t55[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s7[i] = sin(_t74[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c7[i] = cos(_t74[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s8[i] = sin(_t82[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c8[i] = cos(_t82[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s11[i] = sin(_t103[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c11[i] = cos(_t103[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s12[i] = sin(_t113[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c12[i] = cos(_t113[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s14[i] = sin(_t124[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c14[i] = cos(_t124[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s15[i] = sin(_t132[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c15[i] = cos(_t132[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t7 = kinegen_wrap_angle(_t6[i]);
+            const double _t31 = kinegen_wrap_angle(_t30[i]);
+            const double _t32 = kinegen_wrap_angle(-_t20[i]);
+            const double _t48 = _c2[i]*r33[i] - _s2[i]*_t40[i] - _s2[i]*_t41[i];
+            const double _t49 = _c1[i]*r21[i] - _s1[i]*r11[i];
+            const double _t50 = _c1[i]*_c2[i];
+            const double _t51 = _c2[i]*_s1[i];
+            const double _t52 = _s2[i]*r31[i] + _t50*r11[i] + _t51*r21[i];
+            const double _t53 = _c1[i]*r22[i] - _s1[i]*r12[i];
+            const double _t54 = _s2[i]*r32[i] + _t50*r12[i] + _t51*r22[i];
+            const double _t66 = kinegen_wrap_angle(_t65[i]);
+            const double _t67 = kinegen_wrap_angle(_t58[i]);
+            const double _t77 = _c6[i]*r33[i] - _s6[i]*_t40[i] - _s6[i]*_t41[i];
+            const double _t78 = _c1[i]*_c6[i];
+            const double _t79 = _c6[i]*_s1[i];
+            const double _t80 = _s6[i]*r31[i] + _t78*r11[i] + _t79*r21[i];
+            const double _t81 = _s6[i]*r32[i] + _t78*r12[i] + _t79*r22[i];
+            const double _t86 = kinegen_wrap_angle(-_t85[i]);
+            const double _t91 = kinegen_wrap_angle(_t90[i]);
+            const double _t106 = _c10[i]*r33[i] - _s10[i]*_t97[i] + _s10[i]*_t98[i];
+            const double _t107 = _c9[i]*r21[i] + _s9[i]*r11[i];
+            const double _t108 = _c10[i]*_c9[i];
+            const double _t109 = _c10[i]*_s9[i];
+            const double _t110 = _s10[i]*r31[i] + _t108*r11[i] - _t109*r21[i];
+            const double _t111 = _c9[i]*r22[i] + _s9[i]*r12[i];
+            const double _t112 = _s10[i]*r32[i] + _t108*r12[i] - _t109*r22[i];
+            const double _t117 = kinegen_wrap_angle(_t116[i]);
+            const double _t127 = _c13[i]*r33[i] - _s13[i]*_t97[i] + _s13[i]*_t98[i];
+            const double _t128 = _c13[i]*_c9[i];
+            const double _t129 = _c13[i]*_s9[i];
+            const double _t130 = _s13[i]*r31[i] + _t128*r11[i] - _t129*r21[i];
+            const double _t131 = _s13[i]*r32[i] + _t128*r12[i] - _t129*r22[i];
+            const int _t135 = _t3[i] > 0;
+            const int _t136 = _t4[i]*fabs(d3) <= 1.000000000001;
+            const int _t137 = _t16[i] > 0;
+            const int _t138 = _t17[i]*fabs(_t18[i] - (_t8[i]*_t8[i])) <= 1.000000000001;
+            const int _t139 = _t135 && _t136 && _t137 && _t138 && (_t23[i]*_t23[i]) + (_t28[i]*_t28[i]) > 0;
+            const int _t140 = _t135 && _t136 && _t137 && _t138 && (_t61[i]*_t61[i]) + (_t63[i]*_t63[i]) > 0;
+            Q[48 * (start + i) + 0] = _t7;
+            Q[48 * (start + i) + 1] = _t31;
+            Q[48 * (start + i) + 2] = _t32;
+            Q[48 * (start + i) + 3] = kinegen_wrap_angle(_t45[i]);
+            Q[48 * (start + i) + 4] = kinegen_wrap_angle(atan2(-_c3[i]*_t42[i] - _s3[i]*_t34[i], _t48));
+            Q[48 * (start + i) + 5] = kinegen_wrap_angle(atan2(_c3[i]*_t49 - _s3[i]*_t52, _c3[i]*_t53 - _s3[i]*_t54));
+            Q[48 * (start + i) + 6] = _t7;
+            Q[48 * (start + i) + 7] = _t31;
+            Q[48 * (start + i) + 8] = _t32;
+            Q[48 * (start + i) + 9] = kinegen_wrap_angle(_t55[i]);
+            Q[48 * (start + i) + 10] = kinegen_wrap_angle(atan2(-_c4[i]*_t42[i] - _s4[i]*_t34[i], _t48));
+            Q[48 * (start + i) + 11] = kinegen_wrap_angle(atan2(_c4[i]*_t49 - _s4[i]*_t52, _c4[i]*_t53 - _s4[i]*_t54));
+            Q[48 * (start + i) + 12] = _t7;
+            Q[48 * (start + i) + 13] = _t66;
+            Q[48 * (start + i) + 14] = _t67;
+            Q[48 * (start + i) + 15] = kinegen_wrap_angle(_t74[i]);
+            Q[48 * (start + i) + 16] = kinegen_wrap_angle(atan2(-_c7[i]*_t71[i] - _s7[i]*_t34[i], _t77));
+            Q[48 * (start + i) + 17] = kinegen_wrap_angle(atan2(_c7[i]*_t49 - _s7[i]*_t80, _c7[i]*_t53 - _s7[i]*_t81));
+            Q[48 * (start + i) + 18] = _t7;
+            Q[48 * (start + i) + 19] = _t66;
+            Q[48 * (start + i) + 20] = _t67;
+            Q[48 * (start + i) + 21] = kinegen_wrap_angle(_t82[i]);
+            Q[48 * (start + i) + 22] = kinegen_wrap_angle(atan2(-_c8[i]*_t71[i] - _s8[i]*_t34[i], _t77));
+            Q[48 * (start + i) + 23] = kinegen_wrap_angle(atan2(_c8[i]*_t49 - _s8[i]*_t80, _c8[i]*_t53 - _s8[i]*_t81));
+            Q[48 * (start + i) + 24] = _t86;
+            Q[48 * (start + i) + 25] = _t91;
+            Q[48 * (start + i) + 26] = _t67;
+            Q[48 * (start + i) + 27] = kinegen_wrap_angle(_t103[i]);
+            Q[48 * (start + i) + 28] = kinegen_wrap_angle(atan2(-_c11[i]*_t99[i] - _s11[i]*_t92[i], _t106));
+            Q[48 * (start + i) + 29] = kinegen_wrap_angle(atan2(_c11[i]*_t107 - _s11[i]*_t110, _c11[i]*_t111 - _s11[i]*_t112));
+            Q[48 * (start + i) + 30] = _t86;
+            Q[48 * (start + i) + 31] = _t91;
+            Q[48 * (start + i) + 32] = _t67;
+            Q[48 * (start + i) + 33] = kinegen_wrap_angle(_t113[i]);
+            Q[48 * (start + i) + 34] = kinegen_wrap_angle(atan2(-_c12[i]*_t99[i] - _s12[i]*_t92[i], _t106));
+            Q[48 * (start + i) + 35] = kinegen_wrap_angle(atan2(_c12[i]*_t107 - _s12[i]*_t110, _c12[i]*_t111 - _s12[i]*_t112));
+            Q[48 * (start + i) + 36] = _t86;
+            Q[48 * (start + i) + 37] = _t117;
+            Q[48 * (start + i) + 38] = _t32;
+            Q[48 * (start + i) + 39] = kinegen_wrap_angle(_t124[i]);
+            Q[48 * (start + i) + 40] = kinegen_wrap_angle(atan2(-_c14[i]*_t121[i] - _s14[i]*_t92[i], _t127));
+            Q[48 * (start + i) + 41] = kinegen_wrap_angle(atan2(_c14[i]*_t107 - _s14[i]*_t130, _c14[i]*_t111 - _s14[i]*_t131));
+            Q[48 * (start + i) + 42] = _t86;
+            Q[48 * (start + i) + 43] = _t117;
+            Q[48 * (start + i) + 44] = _t32;
+            Q[48 * (start + i) + 45] = kinegen_wrap_angle(_t132[i]);
+            Q[48 * (start + i) + 46] = kinegen_wrap_angle(atan2(-_c15[i]*_t121[i] - _s15[i]*_t92[i], _t127));
+            Q[48 * (start + i) + 47] = kinegen_wrap_angle(atan2(_c15[i]*_t107 - _s15[i]*_t130, _c15[i]*_t111 - _s15[i]*_t131));
+            valid[8 * (start + i) + 0] = _t139;
+            valid[8 * (start + i) + 1] = _t139;
+            valid[8 * (start + i) + 2] = _t140;
+            valid[8 * (start + i) + 3] = _t140;
+            valid[8 * (start + i) + 4] = _t140;
+            valid[8 * (start + i) + 5] = _t140;
+            valid[8 * (start + i) + 6] = _t139;
+            valid[8 * (start + i) + 7] = _t139;
+        }
+        for (i = 0; i < n; ++i) {
+            const int found = puma560_ik_checks(_x + 12 * (start + i), Q + 48 * (start + i), valid + 8 * (start + i));
+            if (found < 0) {
+                refused = 1;
+            } else {
+                valid_branches += found;
+            }
+        }
+    }
+#else
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        const int found = puma560_ik(_x + 12 * i, params, Q + 48 * i, valid + 8 * i);
+        if (found < 0) {
+            refused = 1;
+        } else {
+            valid_branches += found;
+        }
+    }
+#endif
+    return refused ? -1 : valid_branches;
+}
+
+/* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */
+int puma560_within_limits(const double *restrict q)
+{
+    int inside = 1;
+    {
+        double turn = q[0] - (-2.792526803190927);
+        turn -= 6.283185307179586 * floor(turn / 6.283185307179586);
+        inside = inside && turn <= (2.792526803190927) - (-2.792526803190927);
+    }
+    {
+        double turn = q[1] - (-0.7853981633974483);
+        turn -= 6.283185307179586 * floor(turn / 6.283185307179586);
+        inside = inside && turn <= (3.9269908169872414) - (-0.7853981633974483);
+    }
+    {
+        double turn = q[2] - (-3.9269908169872414);
+        turn -= 6.283185307179586 * floor(turn / 6.283185307179586);
+        inside = inside && turn <= (0.7853981633974483) - (-3.9269908169872414);
+    }
+    {
+        double turn = q[3] - (-1.9198621771937625);
+        turn -= 6.283185307179586 * floor(turn / 6.283185307179586);
+        inside = inside && turn <= (2.9670597283903604) - (-1.9198621771937625);
+    }
+    {
+        double turn = q[4] - (-1.7453292519943295);
+        turn -= 6.283185307179586 * floor(turn / 6.283185307179586);
+        inside = inside && turn <= (1.7453292519943295) - (-1.7453292519943295);
+    }
+    {
+        double turn = q[5] - (-4.642575810304916);
+        turn -= 6.283185307179586 * floor(turn / 6.283185307179586);
+        inside = inside && turn <= (4.642575810304916) - (-4.642575810304916);
+    }
+    return inside;
+}
+
+void puma560_within_limits_batch(size_t count, const double *restrict q, int *restrict inside)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        inside[i] = puma560_within_limits(q + 6 * i);
+    }
 }

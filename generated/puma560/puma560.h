@@ -22,7 +22,7 @@ extern "C" {
 
 #define PUMA560_JOINTS 6
 #define PUMA560_TASK 12
-#define PUMA560_BRANCHES 0
+#define PUMA560_BRANCHES 8
 
 /* Robot parameters (SI units). */
 typedef struct puma560_params { double d1; double a2; double a3; double d3; double d4; } puma560_params;
@@ -43,6 +43,13 @@ void puma560_task_batch(size_t count, const double *q, const puma560_params *par
 /* task_jacobian: q[6] -> Jx[72] (row-major). d task / d q, shape (..., 12, 6). */
 void puma560_task_jacobian(const double *q, const puma560_params *params, double *Jx);
 void puma560_task_jacobian_batch(size_t count, const double *q, const puma560_params *params, double *Jx);
+/* ik: x[12] -> Q[48], valid[8] (row-major). Inverse kinematics, all 8 branches (right_elbow_up_noflip, right_elbow_up_flip, right_elbow_down_noflip, right_elbow_down_flip, left_elbow_up_noflip, left_elbow_up_flip, left_elbow_down_noflip, left_elbow_down_flip): Q (..., 8, 6), valid (..., 8). */
+/* Returns the number of valid branches, or -1 when x is not a rigid transform; the batch returns their total (-1 if any item was refused). */
+int puma560_ik(const double *x, const puma560_params *params, double *Q, int *valid);
+long puma560_ik_batch(size_t count, const double *x, const puma560_params *params, double *Q, int *valid);
+/* within_limits: q[6] -> 1 when every joint lies within its limits (revolute joints modulo 2 pi), else 0. */
+int puma560_within_limits(const double *q);
+void puma560_within_limits_batch(size_t count, const double *q, int *inside);
 
 #ifdef __cplusplus
 }

@@ -43,7 +43,8 @@ int main(void)
 """
 # The entry points the Python binding calls: a kernel of `count` items (the single-point
 # function for one) after checking in C, where -ffinite-math-only never applies, that no
-# input is NaN or inf; 1 means one is, and nothing was computed.
+# input is NaN or inf; 1 means one is, and nothing was computed.  ik takes NaN and inf
+# (valid says there is no answer) and returns -1 when it refused a pose.
 CHECKED = """
 #include <math.h>
 #include "scorbot_er7.h"
@@ -122,6 +123,14 @@ int scorbot_er7_task_jacobian_checked(size_t count, const double *q, const scorb
     }
     return 0;
 }
+
+int scorbot_er7_ik_checked(size_t count, const double *x, const scorbot_er7_params *params, double *Q, int *valid)
+{
+    if (count == 1) {
+        return scorbot_er7_ik(x, params, Q, valid) < 0 ? -1 : 0;
+    }
+    return scorbot_er7_ik_batch(count, x, params, Q, valid) < 0 ? -1 : 0;
+}
 """
 CDEF = """
 /* Robot parameters (SI units). */
@@ -142,11 +151,19 @@ void scorbot_er7_task_batch(size_t count, const double *q, const scorbot_er7_par
 /* task_jacobian: q[5] -> Jx[15] (row-major). d task / d q, shape (..., 3, 5). */
 void scorbot_er7_task_jacobian(const double *q, const scorbot_er7_params *params, double *Jx);
 void scorbot_er7_task_jacobian_batch(size_t count, const double *q, const scorbot_er7_params *params, double *Jx);
+/* ik: x[3] -> Q[20], valid[4] (row-major). Inverse kinematics, all 4 branches (elbow_up, elbow_down, shoulder_flip_elbow_up, shoulder_flip_elbow_down): Q (..., 4, 5), valid (..., 4). */
+/* Returns the number of valid branches; the batch returns their total (-1 if any item was refused). */
+int scorbot_er7_ik(const double *x, const scorbot_er7_params *params, double *Q, int *valid);
+long scorbot_er7_ik_batch(size_t count, const double *x, const scorbot_er7_params *params, double *Q, int *valid);
+/* within_limits: q[5] -> 1 when every joint lies within its limits (revolute joints modulo 2 pi), else 0. */
+int scorbot_er7_within_limits(const double *q);
+void scorbot_er7_within_limits_batch(size_t count, const double *q, int *inside);
 int scorbot_er7_fk_checked(size_t count, const double *q, const scorbot_er7_params *params, double *T);
 int scorbot_er7_frames_checked(size_t count, const double *q, const scorbot_er7_params *params, double *frames);
 int scorbot_er7_jacobian_checked(size_t count, const double *q, const scorbot_er7_params *params, double *J);
 int scorbot_er7_task_checked(size_t count, const double *q, const scorbot_er7_params *params, double *x);
 int scorbot_er7_task_jacobian_checked(size_t count, const double *q, const scorbot_er7_params *params, double *Jx);
+int scorbot_er7_ik_checked(size_t count, const double *x, const scorbot_er7_params *params, double *Q, int *valid);
 """
 
 

@@ -74,12 +74,13 @@ def fk(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     batch = q.shape[:-1]
     count = q.size // 5
     T = _empty(batch + (4, 4))
-    if _lib.scorbot_er7_fk_checked(
+    status = _lib.scorbot_er7_fk_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, T),
-    ):
+    )
+    if status:
         raise ValueError("fk: q contains NaN or inf")
     return T
 
@@ -103,12 +104,13 @@ def frames(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     batch = q.shape[:-1]
     count = q.size // 5
     frames = _empty(batch + (6, 4, 4))
-    if _lib.scorbot_er7_frames_checked(
+    status = _lib.scorbot_er7_frames_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, frames),
-    ):
+    )
+    if status:
         raise ValueError("frames: q contains NaN or inf")
     return frames
 
@@ -132,12 +134,13 @@ def jacobian(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     batch = q.shape[:-1]
     count = q.size // 5
     J = _empty(batch + (6, 5))
-    if _lib.scorbot_er7_jacobian_checked(
+    status = _lib.scorbot_er7_jacobian_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, J),
-    ):
+    )
+    if status:
         raise ValueError("jacobian: q contains NaN or inf")
     return J
 
@@ -161,12 +164,13 @@ def task(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     batch = q.shape[:-1]
     count = q.size // 5
     x = _empty(batch + (3,))
-    if _lib.scorbot_er7_task_checked(
+    status = _lib.scorbot_er7_task_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, x),
-    ):
+    )
+    if status:
         raise ValueError("task: q contains NaN or inf")
     return x
 
@@ -190,11 +194,40 @@ def task_jacobian(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     batch = q.shape[:-1]
     count = q.size // 5
     Jx = _empty(batch + (3, 5))
-    if _lib.scorbot_er7_task_jacobian_checked(
+    status = _lib.scorbot_er7_task_jacobian_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
         _from_buffer(_DOUBLES, Jx),
-    ):
+    )
+    if status:
         raise ValueError("task_jacobian: q contains NaN or inf")
     return Jx
+
+
+def ik(x, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
+    """Inverse kinematics, all 4 branches (elbow_up, elbow_down, shoulder_flip_elbow_up, shoulder_flip_elbow_down): Q (..., 4, 5), valid (..., 4). (C backend)"""
+    params = _DEFAULT_PARAMS if a1 is _a1 and a2 is _a2 and a3 is _a3 and d1 is _d1 and d5 is _d5 else _params((a1, a2, a3, d1, d5, ))
+    if (type(x) is not _ndarray or x.dtype is not _float64 or not x.ndim
+            or x.shape[-1] != 3 or not x.flags.c_contiguous):
+        x = numpy.ascontiguousarray(_runtime.as_batch(x, 3, "ik", "x", finite=False))
+    batch = x.shape[:-1]
+    count = x.size // 3
+    Q = _empty(batch + (4, 5))
+    valid = _empty(batch + (4,), dtype=numpy.intc)
+    status = _lib.scorbot_er7_ik_checked(
+        count,
+        _from_buffer(_DOUBLES, x),
+        params,
+        _from_buffer(_DOUBLES, Q),
+        _from_buffer(_INTS, valid),
+    )
+    return Q, valid.astype(bool)
+
+
+def within_limits(q):
+    """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 5) -> (...). (C backend)"""
+    q = numpy.ascontiguousarray(_runtime.as_batch(q, 5, "within_limits", "q", finite=False))
+    inside = numpy.empty(q.shape[:-1], dtype=numpy.intc)
+    _lib.scorbot_er7_within_limits_batch(q.size // 5, _from_buffer(_DOUBLES, q), _from_buffer(_INTS, inside))
+    return inside.astype(bool)

@@ -17,7 +17,7 @@ NAME = "scorbot_er7"
 JOINTS = ("q1", "q2", "q3", "q4", "q5", )
 JOINT_TYPES = ("R", "R", "R", "R", "R", )
 TASK = ("x", "y", "z", )
-BRANCHES = ()
+BRANCHES = ("elbow_up", "elbow_down", "shoulder_flip_elbow_up", "shoulder_flip_elbow_down", )
 PARAMS = {"a1": 0.05, "a2": 0.3, "a3": 0.25, "d1": 0.385, "d5": 0.212}
 LIMITS = (None, None, None, None, None, )
 # Batches are worked through CHUNK items at a time, so that the temporaries stay in cache.
@@ -26,7 +26,7 @@ LIMITS = (None, None, None, None, None, )
 # vectorises float64 tan but not sin and cos (about 3 ns an angle for both,
 # against 17 ns for each); the error stays within 2.2e-16 (absolute) of libm's.
 CHUNK = 4096
-OPERATIONS = {"fk": 44, "frames": 67, "jacobian": 39, "task": 24, "task_jacobian": 36}
+OPERATIONS = {"fk": 44, "frames": 67, "jacobian": 39, "task": 24, "task_jacobian": 36, "ik": 108}
 
 
 def fk(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
@@ -42,20 +42,20 @@ def fk(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     d1 = _runtime.as_param(d1, "d1")
     d5 = _runtime.as_param(d5, "d5")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
+    _count = _all_q.shape[0]
     T = numpy.empty((_count, 16))
     T[:, 12] = 0
     T[:, 13] = 0
     T[:, 14] = 0
     T[:, 15] = 1
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
-        q3 = _q[2]
-        q4 = _q[3]
-        q5 = _q[4]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
+        q4 = _columns_q[3]
+        q5 = _columns_q[4]
         _t3 = q2 + q3
         _t4 = _t3 + q4
         _h0 = numpy.tan(0.5*q1)
@@ -117,8 +117,8 @@ def frames(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     d1 = _runtime.as_param(d1, "d1")
     d5 = _runtime.as_param(d5, "d5")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
+    _count = _all_q.shape[0]
     frames = numpy.empty((_count, 96))
     frames[:, 0] = 1
     frames[:, 1] = 0
@@ -165,12 +165,12 @@ def frames(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     frames[:, 94] = 0
     frames[:, 95] = 1
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
-        q3 = _q[2]
-        q4 = _q[3]
-        q5 = _q[4]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
+        q4 = _columns_q[3]
+        q5 = _columns_q[4]
         _t7 = q2 + q3
         _t14 = _t7 + q4
         _h0 = numpy.tan(0.5*q1)
@@ -279,8 +279,8 @@ def jacobian(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     d5 = _runtime.as_param(d5, "d5")
     _runtime.as_param(d1, "d1")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
+    _count = _all_q.shape[0]
     J = numpy.empty((_count, 30))
     J[:, 4] = 0
     J[:, 9] = 0
@@ -293,11 +293,11 @@ def jacobian(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     J[:, 27] = 0
     J[:, 28] = 0
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
-        q3 = _q[2]
-        q4 = _q[3]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
+        q4 = _columns_q[3]
         _t1 = q2 + q3
         _t2 = _t1 + q4
         _h0 = numpy.tan(0.5*q1)
@@ -365,15 +365,15 @@ def task(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     d1 = _runtime.as_param(d1, "d1")
     d5 = _runtime.as_param(d5, "d5")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
+    _count = _all_q.shape[0]
     x = numpy.empty((_count, 3))
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
-        q3 = _q[2]
-        q4 = _q[3]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
+        q4 = _columns_q[3]
         _t0 = q2 + q3
         _t1 = _t0 + q4
         _h0 = numpy.tan(0.5*q2)
@@ -417,19 +417,19 @@ def task_jacobian(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     d5 = _runtime.as_param(d5, "d5")
     _runtime.as_param(d1, "d1")
     _batch = _runtime.batch_shape(q)
-    q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
-    _count = q.shape[0]
+    _all_q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
+    _count = _all_q.shape[0]
     Jx = numpy.empty((_count, 15))
     Jx[:, 4] = 0
     Jx[:, 9] = 0
     Jx[:, 10] = 0
     Jx[:, 14] = 0
     for _start in range(0, _count, CHUNK):
-        _q = numpy.ascontiguousarray(q[_start:_start + CHUNK].T)
-        q1 = _q[0]
-        q2 = _q[1]
-        q3 = _q[2]
-        q4 = _q[3]
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
+        q4 = _columns_q[3]
         _t1 = q2 + q3
         _t2 = _t1 + q4
         _h0 = numpy.tan(0.5*q1)
@@ -472,3 +472,104 @@ def task_jacobian(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
         _Jx[12] = _t4
         _Jx[13] = _t3
     return Jx.reshape(_batch + (3, 5))
+
+
+@numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
+def ik(x, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
+    """Inverse kinematics, all 4 branches (elbow_up, elbow_down, shoulder_flip_elbow_up, shoulder_flip_elbow_down): Q (..., 4, 5), valid (..., 4).
+
+    x: task coordinates x, y, z, shape (..., 3)
+    Branches, in order: BRANCHES. Revolute joints are wrapped to (-pi, pi]. A branch
+    is valid where it exists; an unreachable, NaN or inf target gives valid False
+    (never an exception). within_limits(Q) tells which solutions respect LIMITS.
+    (108 operations after common-subexpression elimination.)
+    """
+    x = _runtime.as_batch(x, 3, "ik", "x", finite=False)
+    a1 = _runtime.as_param(a1, "a1")
+    a2 = _runtime.as_param(a2, "a2")
+    a3 = _runtime.as_param(a3, "a3")
+    d1 = _runtime.as_param(d1, "d1")
+    d5 = _runtime.as_param(d5, "d5")
+    _batch = _runtime.batch_shape(x)
+    _all_x = numpy.broadcast_to(x, _batch + (3,)).reshape(-1, 3)
+    _count = _all_x.shape[0]
+    Q = numpy.empty((_count, 20))
+    Q[:, 4] = 0
+    Q[:, 9] = 0
+    Q[:, 14] = 0
+    Q[:, 19] = 0
+    valid = numpy.empty((_count, 4), dtype=bool)
+    for _start in range(0, _count, CHUNK):
+        _columns_x = numpy.ascontiguousarray(_all_x[_start:_start + CHUNK].T)
+        x = _columns_x[0]
+        y = _columns_x[1]
+        z = _columns_x[2]
+        _t0 = _runtime.wrap_angle(numpy.arctan2(y, x))
+        _t1 = d1 - z
+        _t2 = -_t1
+        _t3 = numpy.sqrt((x*x) + (y*y))
+        _t4 = a1 + d5
+        _t5 = -_t3 + _t4
+        _t6 = -_t5
+        _t7 = numpy.arctan2(_t2, _t6)
+        _t8 = -_t7
+        _t9 = (a2*a2) + (a3*a3)
+        _t10 = -(_t2*_t2) + _t9
+        _t11 = 1/(a2*a3)
+        _t12 = (0.5)*_t11
+        _t13 = numpy.minimum(1, numpy.maximum(-1, _t12*(-_t10 + (_t6*_t6))))
+        _t14 = a3*numpy.sqrt(1 - (_t13*_t13))
+        _t15 = _t13*a3 + a2
+        _t16 = _t8 + numpy.arctan2(-_t14, _t15)
+        _t17 = numpy.arccos(_t13)
+        _t18 = numpy.arctan2(_t14, _t15)
+        _t19 = _runtime.wrap_angle(numpy.arctan2(-y, -x))
+        _t20 = _t3 + _t4
+        _t21 = -_t20
+        _t22 = numpy.arctan2(_t2, _t21)
+        _t23 = -_t22
+        _t24 = numpy.minimum(1, numpy.maximum(-1, _t12*(-_t10 + (_t21*_t21))))
+        _t25 = a3*numpy.sqrt(1 - (_t24*_t24))
+        _t26 = _t24*a3 + a2
+        _t27 = numpy.arctan2(_t25, _t26)
+        _t28 = numpy.arccos(_t24)
+        _t29 = _t23 + numpy.arctan2(-_t25, _t26)
+        _t30 = -(_t1*_t1) + _t9
+        _t31 = numpy.less_equal((0.5)*abs(_t11*(_t30 - (_t5*_t5))), 1.000000000001)
+        _t32 = numpy.less_equal((0.5)*abs(_t11*((_t20*_t20) - _t30)), 1.000000000001)
+        _Q = Q[_start:_start + CHUNK].T
+        _Q[0] = _t0
+        _Q[1] = _runtime.wrap_angle(-_t16)
+        _Q[2] = _runtime.wrap_angle(-_t17)
+        _Q[3] = _runtime.wrap_angle(_t16 + _t17)
+        _Q[5] = _t0
+        _Q[6] = _runtime.wrap_angle(-_t18 - _t8)
+        _Q[7] = _runtime.wrap_angle(_t17)
+        _Q[8] = _runtime.wrap_angle(-_t17 + _t18 - _t7)
+        _Q[10] = _t19
+        _Q[11] = _runtime.wrap_angle(-_t23 - _t27)
+        _Q[12] = _runtime.wrap_angle(_t28)
+        _Q[13] = _runtime.wrap_angle(-_t22 + _t27 - _t28)
+        _Q[15] = _t19
+        _Q[16] = _runtime.wrap_angle(-_t29)
+        _Q[17] = _runtime.wrap_angle(-_t28)
+        _Q[18] = _runtime.wrap_angle(_t28 + _t29)
+        _valid = valid[_start:_start + CHUNK].T
+        _valid[0] = _t31
+        _valid[1] = _t31
+        _valid[2] = _t32
+        _valid[3] = _t32
+    # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
+    valid &= (numpy.isfinite(Q.reshape((_count,) + (4, 5))).all(axis=-1)
+              & numpy.isfinite(_all_x).all(axis=-1)[:, None])
+    return Q.reshape(_batch + (4, 5)), valid.reshape(_batch + (4,))
+
+
+def within_limits(q):
+    """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 5) -> (...).
+
+    Takes ik's Q of shape (..., k, 5) as it is, giving (..., k). A joint without
+    limits only needs a finite value; NaN gives False.
+    """
+    q = _runtime.as_batch(q, 5, "within_limits", "q", finite=False)
+    return _runtime.within_limits(q, LIMITS, JOINT_TYPES)

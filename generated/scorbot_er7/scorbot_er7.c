@@ -9,6 +9,7 @@
  * jacobian: 39 operations after common-subexpression elimination
  * task: 24 operations after common-subexpression elimination
  * task_jacobian: 36 operations after common-subexpression elimination
+ * ik: 108 operations after common-subexpression elimination
  */
 #include "scorbot_er7.h"
 
@@ -22,15 +23,25 @@
  * arithmetic runs in one loop per stage, from the same expressions as the single
  * point (so the results are bit-identical).  -DKINEGEN_SIMD -fopenmp-simd (what
  * build_c.py uses where the compiler and C library allow) adds to that SIMD
- * declarations of sin and cos, so that the loops vectorise and call glibc's
- * vector math library (libmvec, at most 4 ulp).  No NaN or infinity check is
- * affected: no -ffast-math is involved.
+ * declarations of the math functions, so that the loops vectorise and call
+ * glibc's vector math library (libmvec, at most 4 ulp), and the single point
+ * takes the sines and cosines of a stage's angles as one vector.  No NaN or
+ * infinity check is affected: no -ffast-math is involved.
  */
 #ifdef KINEGEN_SIMD
 #pragma omp declare simd notinbranch
 double sin(double);
 #pragma omp declare simd notinbranch
 double cos(double);
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+/* libmvec has these from glibc 2.35 on. */
+#pragma omp declare simd notinbranch
+double atan2(double, double);
+#pragma omp declare simd notinbranch
+double acos(double);
+#pragma omp declare simd notinbranch
+double asin(double);
+#endif
 #define KINEGEN_VECTOR_LOOP _Pragma("omp simd")
 #ifndef KINEGEN_BLOCKED
 #define KINEGEN_BLOCKED
@@ -43,6 +54,20 @@ double cos(double);
 #endif
 
 const scorbot_er7_params scorbot_er7_default_params = { 0.05, 0.3, 0.25, 0.385, 0.212 };
+
+/* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi. */
+static double kinegen_wrap_angle(double angle)
+{
+    const double pi = 3.141592653589793, two_pi = 6.283185307179586;
+    double wrapped = angle + two_pi * floor((pi - angle) / two_pi);
+    if (wrapped > pi) {
+        wrapped -= two_pi;  /* rounding of the floor's argument */
+    }
+    if (wrapped < -pi) {
+        wrapped += two_pi;
+    }
+    return wrapped;
+}
 
 /* Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. */
 void scorbot_er7_fk(const double *restrict q, const scorbot_er7_params *restrict params, double *restrict T)
@@ -1143,4 +1168,230 @@ void scorbot_er7_task_jacobian_batch(size_t count, const double *restrict q, con
         scorbot_er7_task_jacobian(q + 5 * i, params, Jx + 15 * i);
     }
 #endif
+}
+
+/* The checks after an ik of one target x: a branch with a joint value that is not
+   finite, or of a target that is not, is not valid; returns the number of valid branches. */
+static int scorbot_er7_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
+{
+    int branch, joint, finite_target = 1, valid_branches = 0;
+    for (joint = 0; joint < 3; ++joint) {
+        finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
+    }
+    for (branch = 0; branch < 4; ++branch) {
+        if (!finite_target) {
+            valid[branch] = 0;
+        }
+        for (joint = 0; joint < 5; ++joint) {
+            if (!isfinite(Q[5 * branch + joint])) {
+                valid[branch] = 0;  /* no NaN leaks out as a valid answer */
+            }
+        }
+        valid_branches += valid[branch] != 0;
+    }
+    return valid_branches;
+}
+
+/* Inverse kinematics, all 4 branches (elbow_up, elbow_down, shoulder_flip_elbow_up, shoulder_flip_elbow_down): Q (..., 4, 5), valid (..., 4).
+   Returns the number of valid branches. A branch
+   whose joint values are not finite (a NaN or inf target) is never valid. */
+int scorbot_er7_ik(const double *restrict _x, const scorbot_er7_params *restrict params, double *restrict Q, int *restrict valid)
+{
+    const double x = _x[0];
+    const double y = _x[1];
+    const double z = _x[2];
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d1 = params->d1;
+    const double d5 = params->d5;
+    const double _t0 = kinegen_wrap_angle(atan2(y, x));
+    const double _t1 = d1 - z;
+    const double _t2 = -_t1;
+    const double _t3 = sqrt((x*x) + (y*y));
+    const double _t4 = a1 + d5;
+    const double _t5 = -_t3 + _t4;
+    const double _t6 = -_t5;
+    const double _t7 = atan2(_t2, _t6);
+    const double _t8 = -_t7;
+    const double _t9 = (a2*a2) + (a3*a3);
+    const double _t10 = -(_t2*_t2) + _t9;
+    const double _t11 = 1/(a2*a3);
+    const double _t12 = (0.5)*_t11;
+    const double _t13 = fmin(1, fmax(-1, _t12*(-_t10 + (_t6*_t6))));
+    const double _t14 = a3*sqrt(1 - (_t13*_t13));
+    const double _t15 = _t13*a3 + a2;
+    const double _t16 = _t8 + atan2(-_t14, _t15);
+    const double _t17 = acos(_t13);
+    const double _t18 = atan2(_t14, _t15);
+    const double _t19 = kinegen_wrap_angle(atan2(-y, -x));
+    const double _t20 = _t3 + _t4;
+    const double _t21 = -_t20;
+    const double _t22 = atan2(_t2, _t21);
+    const double _t23 = -_t22;
+    const double _t24 = fmin(1, fmax(-1, _t12*(-_t10 + (_t21*_t21))));
+    const double _t25 = a3*sqrt(1 - (_t24*_t24));
+    const double _t26 = _t24*a3 + a2;
+    const double _t27 = atan2(_t25, _t26);
+    const double _t28 = acos(_t24);
+    const double _t29 = _t23 + atan2(-_t25, _t26);
+    const double _t30 = -(_t1*_t1) + _t9;
+    const int _t31 = (0.5)*fabs(_t11*(_t30 - (_t5*_t5))) <= 1.000000000001;
+    const int _t32 = (0.5)*fabs(_t11*((_t20*_t20) - _t30)) <= 1.000000000001;
+    Q[0] = _t0;
+    Q[1] = kinegen_wrap_angle(-_t16);
+    Q[2] = kinegen_wrap_angle(-_t17);
+    Q[3] = kinegen_wrap_angle(_t16 + _t17);
+    Q[4] = 0;
+    Q[5] = _t0;
+    Q[6] = kinegen_wrap_angle(-_t18 - _t8);
+    Q[7] = kinegen_wrap_angle(_t17);
+    Q[8] = kinegen_wrap_angle(-_t17 + _t18 - _t7);
+    Q[9] = 0;
+    Q[10] = _t19;
+    Q[11] = kinegen_wrap_angle(-_t23 - _t27);
+    Q[12] = kinegen_wrap_angle(_t28);
+    Q[13] = kinegen_wrap_angle(-_t22 + _t27 - _t28);
+    Q[14] = 0;
+    Q[15] = _t19;
+    Q[16] = kinegen_wrap_angle(-_t29);
+    Q[17] = kinegen_wrap_angle(-_t28);
+    Q[18] = kinegen_wrap_angle(_t28 + _t29);
+    Q[19] = 0;
+    valid[0] = _t31;
+    valid[1] = _t31;
+    valid[2] = _t32;
+    valid[3] = _t32;
+    return scorbot_er7_ik_checks(_x, Q, valid);
+}
+
+/* ik of `count` items, stored one after the other in each argument and output.   Returns the total number of valid branches, or -1 if any item was refused. */
+long scorbot_er7_ik_batch(size_t count, const double *restrict _x, const scorbot_er7_params *restrict params, double *restrict Q, int *restrict valid)
+{
+    long valid_branches = 0;
+    int refused = 0;
+#ifdef KINEGEN_BLOCKED
+    double x[KINEGEN_BLOCK];
+    double y[KINEGEN_BLOCK];
+    double z[KINEGEN_BLOCK];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d1 = params->d1;
+    const double d5 = params->d5;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        for (i = 0; i < n; ++i) {
+            x[i] = _x[3 * (start + i) + 0];
+            y[i] = _x[3 * (start + i) + 1];
+            z[i] = _x[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t0 = kinegen_wrap_angle(atan2(y[i], x[i]));
+            const double _t1 = d1 - z[i];
+            const double _t2 = -_t1;
+            const double _t3 = sqrt((x[i]*x[i]) + (y[i]*y[i]));
+            const double _t4 = a1 + d5;
+            const double _t5 = -_t3 + _t4;
+            const double _t6 = -_t5;
+            const double _t7 = atan2(_t2, _t6);
+            const double _t8 = -_t7;
+            const double _t9 = (a2*a2) + (a3*a3);
+            const double _t10 = -(_t2*_t2) + _t9;
+            const double _t11 = 1/(a2*a3);
+            const double _t12 = (0.5)*_t11;
+            const double _t13 = fmin(1, fmax(-1, _t12*(-_t10 + (_t6*_t6))));
+            const double _t14 = a3*sqrt(1 - (_t13*_t13));
+            const double _t15 = _t13*a3 + a2;
+            const double _t16 = _t8 + atan2(-_t14, _t15);
+            const double _t17 = acos(_t13);
+            const double _t18 = atan2(_t14, _t15);
+            const double _t19 = kinegen_wrap_angle(atan2(-y[i], -x[i]));
+            const double _t20 = _t3 + _t4;
+            const double _t21 = -_t20;
+            const double _t22 = atan2(_t2, _t21);
+            const double _t23 = -_t22;
+            const double _t24 = fmin(1, fmax(-1, _t12*(-_t10 + (_t21*_t21))));
+            const double _t25 = a3*sqrt(1 - (_t24*_t24));
+            const double _t26 = _t24*a3 + a2;
+            const double _t27 = atan2(_t25, _t26);
+            const double _t28 = acos(_t24);
+            const double _t29 = _t23 + atan2(-_t25, _t26);
+            const double _t30 = -(_t1*_t1) + _t9;
+            const int _t31 = (0.5)*fabs(_t11*(_t30 - (_t5*_t5))) <= 1.000000000001;
+            const int _t32 = (0.5)*fabs(_t11*((_t20*_t20) - _t30)) <= 1.000000000001;
+            Q[20 * (start + i) + 0] = _t0;
+            Q[20 * (start + i) + 1] = kinegen_wrap_angle(-_t16);
+            Q[20 * (start + i) + 2] = kinegen_wrap_angle(-_t17);
+            Q[20 * (start + i) + 3] = kinegen_wrap_angle(_t16 + _t17);
+            Q[20 * (start + i) + 4] = 0;
+            Q[20 * (start + i) + 5] = _t0;
+            Q[20 * (start + i) + 6] = kinegen_wrap_angle(-_t18 - _t8);
+            Q[20 * (start + i) + 7] = kinegen_wrap_angle(_t17);
+            Q[20 * (start + i) + 8] = kinegen_wrap_angle(-_t17 + _t18 - _t7);
+            Q[20 * (start + i) + 9] = 0;
+            Q[20 * (start + i) + 10] = _t19;
+            Q[20 * (start + i) + 11] = kinegen_wrap_angle(-_t23 - _t27);
+            Q[20 * (start + i) + 12] = kinegen_wrap_angle(_t28);
+            Q[20 * (start + i) + 13] = kinegen_wrap_angle(-_t22 + _t27 - _t28);
+            Q[20 * (start + i) + 14] = 0;
+            Q[20 * (start + i) + 15] = _t19;
+            Q[20 * (start + i) + 16] = kinegen_wrap_angle(-_t29);
+            Q[20 * (start + i) + 17] = kinegen_wrap_angle(-_t28);
+            Q[20 * (start + i) + 18] = kinegen_wrap_angle(_t28 + _t29);
+            Q[20 * (start + i) + 19] = 0;
+            valid[4 * (start + i) + 0] = _t31;
+            valid[4 * (start + i) + 1] = _t31;
+            valid[4 * (start + i) + 2] = _t32;
+            valid[4 * (start + i) + 3] = _t32;
+        }
+        for (i = 0; i < n; ++i) {
+            const int found = scorbot_er7_ik_checks(_x + 3 * (start + i), Q + 20 * (start + i), valid + 4 * (start + i));
+            if (found < 0) {
+                refused = 1;
+            } else {
+                valid_branches += found;
+            }
+        }
+    }
+#else
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        const int found = scorbot_er7_ik(_x + 3 * i, params, Q + 20 * i, valid + 4 * i);
+        if (found < 0) {
+            refused = 1;
+        } else {
+            valid_branches += found;
+        }
+    }
+#endif
+    return refused ? -1 : valid_branches;
+}
+
+/* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */
+int scorbot_er7_within_limits(const double *restrict q)
+{
+    int inside = 1;
+    inside = inside && isfinite(q[0]);
+    inside = inside && isfinite(q[1]);
+    inside = inside && isfinite(q[2]);
+    inside = inside && isfinite(q[3]);
+    inside = inside && isfinite(q[4]);
+    return inside;
+}
+
+void scorbot_er7_within_limits_batch(size_t count, const double *restrict q, int *restrict inside)
+{
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        inside[i] = scorbot_er7_within_limits(q + 5 * i);
+    }
 }

@@ -22,7 +22,7 @@ extern "C" {
 
 #define SCORBOT_ER7_JOINTS 5
 #define SCORBOT_ER7_TASK 3
-#define SCORBOT_ER7_BRANCHES 0
+#define SCORBOT_ER7_BRANCHES 4
 
 /* Robot parameters (SI units). */
 typedef struct scorbot_er7_params { double a1; double a2; double a3; double d1; double d5; } scorbot_er7_params;
@@ -43,6 +43,13 @@ void scorbot_er7_task_batch(size_t count, const double *q, const scorbot_er7_par
 /* task_jacobian: q[5] -> Jx[15] (row-major). d task / d q, shape (..., 3, 5). */
 void scorbot_er7_task_jacobian(const double *q, const scorbot_er7_params *params, double *Jx);
 void scorbot_er7_task_jacobian_batch(size_t count, const double *q, const scorbot_er7_params *params, double *Jx);
+/* ik: x[3] -> Q[20], valid[4] (row-major). Inverse kinematics, all 4 branches (elbow_up, elbow_down, shoulder_flip_elbow_up, shoulder_flip_elbow_down): Q (..., 4, 5), valid (..., 4). */
+/* Returns the number of valid branches; the batch returns their total (-1 if any item was refused). */
+int scorbot_er7_ik(const double *x, const scorbot_er7_params *params, double *Q, int *valid);
+long scorbot_er7_ik_batch(size_t count, const double *x, const scorbot_er7_params *params, double *Q, int *valid);
+/* within_limits: q[5] -> 1 when every joint lies within its limits (revolute joints modulo 2 pi), else 0. */
+int scorbot_er7_within_limits(const double *q);
+void scorbot_er7_within_limits_batch(size_t count, const double *q, int *inside);
 
 #ifdef __cplusplus
 }

@@ -1,0 +1,67 @@
+"""Planar 3R arm: inverse kinematics by Kumar's Eqs. (d)-(j), both values of sigma.
+
+Kumar, section 5.4: with the wrist point ``x' = x - l3 cos(phi)``,
+``y' = y - l3 sin(phi)`` (Eqs. d, e), squaring and adding gives Eq. (f),
+``(-2 l1 x') cos(t1) + (-2 l1 y') sin(t1) + (x'^2 + y'^2 + l1^2 - l2^2) = 0``,
+of the form P cos + Q sin + R = 0 (Eq. g), solved by Appendix 2 (Eq. h,
+``derivations.ik.p_cos_q_sin_r``); then ``t2 = atan2((y' - l1 s1)/l2, (x' - l1 c1)/l2) - t1``
+(Eq. i) and ``t3 = phi - t1 - t2`` (Eq. j).
+
+Branch names follow the planar 2R arm: ``elbow_up`` has t2 in [-pi, 0] (sigma = -1),
+``elbow_down`` has t2 in [0, pi] (sigma = +1).  Kumar's Fig. 14 caption calls
+sigma = +1 "elbow-up"; with Eq. (h) as printed, sigma = +1 puts the elbow to the
+right of the line from the base to the wrist, below it for a wrist to the right
+of the base (README, Errata IK2; tests/test_ik.py).
+"""
+from __future__ import annotations
+
+import sympy as sp
+
+from derivations.ik import atan2_of_sine_cosine, p_cos_q_sin_r, substitute_steps
+from derivations.model import IKBranch
+
+from ._common import parameters
+
+NAMES = {"sigma_minus": "elbow_up", "sigma_plus": "elbow_down"}
+
+
+WRIST = sp.symbols("x' y'", real=True)   # Kumar's x', y': the wrist point
+
+
+def wrist_point(model):
+    """Kumar Eqs. (d), (e): the point the first two links must reach."""
+    x, y, phi = model.task_symbols
+    (l3,) = parameters(model, "l3")
+    return x - l3 * sp.cos(phi), y - l3 * sp.sin(phi)
+
+
+def kumar_eq_f(model, xw=None, yw=None):
+    """Kumar Eq. (f) as (P, Q, R) of Eq. (g): P cos(t1) + Q sin(t1) + R = 0 (in x', y' if given)."""
+    l1, l2 = parameters(model, "l1", "l2")
+    if xw is None:
+        xw, yw = wrist_point(model)
+    return -2 * l1 * xw, -2 * l1 * yw, xw**2 + yw**2 + l1**2 - l2**2
+
+
+def extend(model):
+    x, y, phi = model.task_symbols
+    q1, q2, q3 = model.q
+    l1, l2 = parameters(model, "l1", "l2")
+    xw, yw = WRIST
+    branches = {}
+    for root in p_cos_q_sin_r(*kumar_eq_f(model, xw, yw)):                        # Kumar Eq. (h)
+        q12 = atan2_of_sine_cosine((yw - l1 * sp.sin(q1)) / l2, (xw - l1 * sp.cos(q1)) / l2)[0].value
+        steps = (
+            (xw, wrist_point(model)[0]),                                           # Kumar Eq. (d)
+            (yw, wrist_point(model)[1]),                                           # Kumar Eq. (e)
+            (q1, root.value),                                                      # Kumar Eq. (h)
+            (q2, q12 - q1),                                                        # Kumar Eq. (i)
+            (q3, phi - q1 - q2),                                                   # Kumar Eq. (j)
+        )
+        sigma = "+1" if root.name == "sigma_plus" else "-1"
+        name = NAMES[root.name]
+        branches[name] = IKBranch(
+            name, tuple(substitute_steps(qi, steps) for qi in model.q), substitute_steps(root.condition, steps),
+            f"Kumar Eqs. (h)-(j) with sigma = {sigma}; exists while the wrist point (x - l3 cos phi, "
+            "y - l3 sin phi) lies between |l1 - l2| and l1 + l2 from the base (and not on it)", steps)
+    model.ik = [branches["elbow_up"], branches["elbow_down"]]
