@@ -66,8 +66,12 @@ def template_function(prepared: PreparedFunction, accepts_nonfinite: bool = Fals
     for out, entries in zip(outputs, staged.outputs):
         out["staged"] = list(enumerate(entries))
     return {
+        "prologue": staged.prologue,
+        # Outputs the blocked C writes per block, one array per entry, then copies out item by
+        # item: GCC 12 does not vectorise a loop that stores ik's 48 joint values per item.
+        "block_outputs": [o.name for o in prepared.outputs if prepared.name == "ik" and o.dtype == "float"],
         "stages": [{"body": [(n, e, n in staged.arrays) for n, e in s.body], "calls": s.calls,
-                    "angles": _angles(s.calls)} for s in staged.stages],
+                    "angles": _angles(s.calls), "groups": _call_groups(s.calls)} for s in staged.stages],
         "arrays": staged.arrays,
         "indexed": staged.arrays | (prepared.arguments_used & {s for a in prepared.arguments for s in a[1]}),
         "name": prepared.name, "doc": prepared.doc, "arguments": arguments,
@@ -83,10 +87,23 @@ def template_function(prepared: PreparedFunction, accepts_nonfinite: bool = Fals
     }
 
 
+def _call_groups(calls) -> list[dict]:
+    """A stage's calls other than sin and cos, by function, each with its SymPy form (for numpy)."""
+    functions = {"atan2": sp.atan2, "acos": sp.acos, "asin": sp.asin}
+    groups: dict[str, list] = {}
+    for c in calls:
+        if c.function in functions:
+            expr = functions[c.function](*(sp.Symbol(a, real=True) for a in c.arguments))
+            groups.setdefault(c.function, []).append({"name": c.name, "arguments": c.arguments, "expr": expr})
+    return [{"function": f, "calls": members} for f, members in groups.items()]
+
+
 def _angles(calls) -> list[dict]:
     """The sine and cosine variables wanted of each angle of a stage (None where not wanted)."""
     angles: dict[str, dict] = {}
     for c in calls:
+        if c.function not in ("sin", "cos"):
+            continue
         entry = angles.setdefault(c.argument, {"angle": c.argument, "index": c.name[2:], "sin": None, "cos": None})
         entry[c.function] = c.name
     return list(angles.values())

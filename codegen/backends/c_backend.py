@@ -1,6 +1,7 @@
 """The C99 backend: a C99CodePrinter subclass, the header/source templates and a cffi binding."""
 from __future__ import annotations
 
+import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
 from . import TEMPLATES, ExactArithmeticMixin
@@ -26,6 +27,19 @@ class CKernelPrinter(ExactArithmeticMixin, C99CodePrinter):
     def _print_Symbol(self, expr):
         text = super()._print_Symbol(expr)
         return f"{text}[i]" if expr.name in self._indexed else text
+
+    def _nested(self, function, args):
+        text = self._print(args[0])
+        for other in args[1:]:
+            text = f"{function}({text}, {self._print(other)})"
+        return text
+
+    def _print_Min(self, expr):
+        # Not C99's fmin, which drops a NaN and is not vectorised without -ffinite-math-only.
+        return self._nested("kinegen_min", expr.args)
+
+    def _print_Max(self, expr):
+        return self._nested("kinegen_max", expr.args)
 
     def _print_WrapAngle(self, expr):
         return f"kinegen_wrap_angle({self._print(expr.args[0])})"
@@ -86,12 +100,22 @@ def declarations(context: dict, for_cffi: bool) -> str:
     return "\n".join(lines)
 
 
+def _uses(context: dict, *types) -> bool:
+    """Whether any expression a C kernel prints holds one of ``types``."""
+    for f in context["functions"]:
+        expressions = [e for _, e in f["prologue"]] + [e for s in f["stages"] for _, e, _ in s["body"]]
+        expressions += [e for out in f["outputs"] for _, e in out["staged"]]
+        if any(isinstance(e, sp.Basic) and e.has(*types) for e in expressions):
+            return True
+    return False
+
+
 def render(context: dict) -> dict[str, str]:
     """Files of the C backend, by name, for one robot."""
     printer = CKernelPrinter()
     name = context["name"]
     context = dict(context, c_declarations=declarations(context, False), c_cdef=declarations(context, True),
-                   c_checked=checked_prototypes(context))
+                   c_checked=checked_prototypes(context), uses_min_max=_uses(context, sp.Min, sp.Max))
     files = {}
     for template, filename in (
         ("robot.h.j2", f"{name}.h"),

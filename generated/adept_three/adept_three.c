@@ -55,6 +55,18 @@ double asin(double);
 
 const adept_three_params adept_three_default_params = { 0.559, 0.508, 0.8763, 0.0 };
 
+/* min and max that pass a NaN on, like numpy.minimum and numpy.maximum: C99's fmin and
+   fmax would turn an acos argument of NaN into +-1 and a valid-looking angle. */
+static double kinegen_min(double a, double b)
+{
+    return isnan(a) || a < b ? a : b;
+}
+
+static double kinegen_max(double a, double b)
+{
+    return isnan(a) || a > b ? a : b;
+}
+
 /* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi. */
 static double kinegen_wrap_angle(double angle)
 {
@@ -939,26 +951,47 @@ int adept_three_ik(const double *restrict _x, const adept_three_params *restrict
     const double l2 = params->l2;
     const double d1 = params->d1;
     const double d4 = params->d4;
-    const double _t0 = (l1*l1) + (l2*l2) - (x*x) - (y*y);
     const double _t1 = 1/(l1*l2);
-    const double _t2 = fmin(1, fmax(-1, -0.5*_t0*_t1));
+    const double _t0 = (l1*l1) + (l2*l2) - (x*x) - (y*y);
+    const double _t2 = kinegen_min(1, kinegen_max(-1, -0.5*_t0*_t1));
     const double _t3 = _t2*l2 + l1;
     const double _t4 = l2*sqrt(1 - (_t2*_t2));
     const double _t5 = _t4*x;
     const double _t6 = _t4*y;
-    const double _t7 = atan2(_t3*y + _t5, _t3*x - _t6);
-    const double _t8 = acos(_t2);
+    const double _a0 = _t3*y + _t5;
+    const double _a1 = _t3*x - _t6;
+    const double _a2 = _t3*y - _t5;
+    const double _a3 = _t3*x + _t6;
+    double _f0, _f1, _f2;
+#if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+    {
+        /* The atan2 arguments side by side: one vector call. */
+        const double argument0[4] = { _a0, _a2, 0.0, 0.0 };
+        const double argument1[4] = { _a1, _a3, 1.0, 1.0 };
+        double result[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            result[k] = atan2(argument0[k], argument1[k]);
+        }
+        _f0 = result[0];
+        _f2 = result[1];
+    }
+#else
+    _f0 = atan2(_a0, _a1);
+    _f2 = atan2(_a2, _a3);
+#endif
+    _f1 = acos(_t2);
     const double _t9 = d1 - d4 - z;
-    const double _t10 = atan2(_t3*y - _t5, _t3*x + _t6);
     const int _t11 = (0.5)*fabs(_t0*_t1) <= 1.000000000001;
-    Q[0] = kinegen_wrap_angle(_t7);
-    Q[1] = kinegen_wrap_angle(-_t8);
+    Q[0] = kinegen_wrap_angle(_f0);
+    Q[1] = kinegen_wrap_angle(-_f1);
     Q[2] = _t9;
-    Q[3] = kinegen_wrap_angle(_t7 - _t8 - phi);
-    Q[4] = kinegen_wrap_angle(_t10);
-    Q[5] = kinegen_wrap_angle(_t8);
+    Q[3] = kinegen_wrap_angle(_f0 - _f1 - phi);
+    Q[4] = kinegen_wrap_angle(_f2);
+    Q[5] = kinegen_wrap_angle(_f1);
     Q[6] = _t9;
-    Q[7] = kinegen_wrap_angle(_t10 + _t8 - phi);
+    Q[7] = kinegen_wrap_angle(_f1 + _f2 - phi);
     valid[0] = _t11;
     valid[1] = _t11;
     return adept_three_ik_checks(_x, Q, valid);
@@ -974,6 +1007,16 @@ long adept_three_ik_batch(size_t count, const double *restrict _x, const adept_t
     double y[KINEGEN_BLOCK];
     double z[KINEGEN_BLOCK];
     double phi[KINEGEN_BLOCK];
+    double _t0[KINEGEN_BLOCK];
+    double _t2[KINEGEN_BLOCK];
+    double _a0[KINEGEN_BLOCK];
+    double _a1[KINEGEN_BLOCK];
+    double _a2[KINEGEN_BLOCK];
+    double _a3[KINEGEN_BLOCK];
+    double _f0[KINEGEN_BLOCK];
+    double _f1[KINEGEN_BLOCK];
+    double _f2[KINEGEN_BLOCK];
+    double _Q_block[8][KINEGEN_BLOCK];
     size_t start, i, n;
     if (params == NULL) {
         params = &adept_three_default_params;
@@ -982,6 +1025,7 @@ long adept_three_ik_batch(size_t count, const double *restrict _x, const adept_t
     const double l2 = params->l2;
     const double d1 = params->d1;
     const double d4 = params->d4;
+    const double _t1 = 1/(l1*l2);
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
         for (i = 0; i < n; ++i) {
@@ -992,28 +1036,49 @@ long adept_three_ik_batch(size_t count, const double *restrict _x, const adept_t
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            const double _t0 = (l1*l1) + (l2*l2) - (x[i]*x[i]) - (y[i]*y[i]);
-            const double _t1 = 1/(l1*l2);
-            const double _t2 = fmin(1, fmax(-1, -0.5*_t0*_t1));
-            const double _t3 = _t2*l2 + l1;
-            const double _t4 = l2*sqrt(1 - (_t2*_t2));
+            _t0[i] = (l1*l1) + (l2*l2) - (x[i]*x[i]) - (y[i]*y[i]);
+            _t2[i] = kinegen_min(1, kinegen_max(-1, -0.5*_t0[i]*_t1));
+            const double _t3 = _t2[i]*l2 + l1;
+            const double _t4 = l2*sqrt(1 - (_t2[i]*_t2[i]));
             const double _t5 = _t4*x[i];
             const double _t6 = _t4*y[i];
-            const double _t7 = atan2(_t3*y[i] + _t5, _t3*x[i] - _t6);
-            const double _t8 = acos(_t2);
+            _a0[i] = _t3*y[i] + _t5;
+            _a1[i] = _t3*x[i] - _t6;
+            _a2[i] = _t3*y[i] - _t5;
+            _a3[i] = _t3*x[i] + _t6;
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f0[i] = atan2(_a0[i], _a1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f1[i] = acos(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f2[i] = atan2(_a2[i], _a3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
             const double _t9 = d1 - d4 - z[i];
-            const double _t10 = atan2(_t3*y[i] - _t5, _t3*x[i] + _t6);
-            const int _t11 = (0.5)*fabs(_t0*_t1) <= 1.000000000001;
-            Q[8 * (start + i) + 0] = kinegen_wrap_angle(_t7);
-            Q[8 * (start + i) + 1] = kinegen_wrap_angle(-_t8);
-            Q[8 * (start + i) + 2] = _t9;
-            Q[8 * (start + i) + 3] = kinegen_wrap_angle(_t7 - _t8 - phi[i]);
-            Q[8 * (start + i) + 4] = kinegen_wrap_angle(_t10);
-            Q[8 * (start + i) + 5] = kinegen_wrap_angle(_t8);
-            Q[8 * (start + i) + 6] = _t9;
-            Q[8 * (start + i) + 7] = kinegen_wrap_angle(_t10 + _t8 - phi[i]);
+            const int _t11 = (0.5)*fabs(_t0[i]*_t1) <= 1.000000000001;
+            _Q_block[0][i] = kinegen_wrap_angle(_f0[i]);
+            _Q_block[1][i] = kinegen_wrap_angle(-_f1[i]);
+            _Q_block[2][i] = _t9;
+            _Q_block[3][i] = kinegen_wrap_angle(_f0[i] - _f1[i] - phi[i]);
+            _Q_block[4][i] = kinegen_wrap_angle(_f2[i]);
+            _Q_block[5][i] = kinegen_wrap_angle(_f1[i]);
+            _Q_block[6][i] = _t9;
+            _Q_block[7][i] = kinegen_wrap_angle(_f1[i] + _f2[i] - phi[i]);
             valid[2 * (start + i) + 0] = _t11;
             valid[2 * (start + i) + 1] = _t11;
+        }
+        for (i = 0; i < n; ++i) {
+            int k;
+            for (k = 0; k < 8; ++k) {
+                Q[8 * (start + i) + k] = _Q_block[k][i];
+            }
         }
         for (i = 0; i < n; ++i) {
             const int found = adept_three_ik_checks(_x + 4 * (start + i), Q + 8 * (start + i), valid + 2 * (start + i));

@@ -386,6 +386,7 @@ def ik(x, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     _count = _all_x.shape[0]
     Q = numpy.empty((_count, 8))
     valid = numpy.empty((_count, 2), dtype=bool)
+    _t1 = 1/(l1*l2)
     for _start in range(0, _count, CHUNK):
         _columns_x = numpy.ascontiguousarray(_all_x[_start:_start + CHUNK].T)
         x = _columns_x[0]
@@ -393,26 +394,29 @@ def ik(x, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
         z = _columns_x[2]
         phi = _columns_x[3]
         _t0 = (l1*l1) + (l2*l2) - (x*x) - (y*y)
-        _t1 = 1/(l1*l2)
         _t2 = numpy.minimum(1, numpy.maximum(-1, -0.5*_t0*_t1))
         _t3 = _t2*l2 + l1
         _t4 = l2*numpy.sqrt(1 - (_t2*_t2))
         _t5 = _t4*x
         _t6 = _t4*y
-        _t7 = numpy.arctan2(_t3*y + _t5, _t3*x - _t6)
-        _t8 = numpy.arccos(_t2)
+        _a0 = _t3*y + _t5
+        _a1 = _t3*x - _t6
+        _a2 = _t3*y - _t5
+        _a3 = _t3*x + _t6
+        _f0 = numpy.arctan2(_a0, _a1)
+        _f2 = numpy.arctan2(_a2, _a3)
+        _f1 = numpy.arccos(_t2)
         _t9 = d1 - d4 - z
-        _t10 = numpy.arctan2(_t3*y - _t5, _t3*x + _t6)
         _t11 = numpy.less_equal((0.5)*abs(_t0*_t1), 1.000000000001)
         _Q = Q[_start:_start + CHUNK].T
-        _Q[0] = _runtime.wrap_angle(_t7)
-        _Q[1] = _runtime.wrap_angle(-_t8)
+        _Q[0] = _runtime.wrap_angle(_f0)
+        _Q[1] = _runtime.wrap_angle(-_f1)
         _Q[2] = _t9
-        _Q[3] = _runtime.wrap_angle(_t7 - _t8 - phi)
-        _Q[4] = _runtime.wrap_angle(_t10)
-        _Q[5] = _runtime.wrap_angle(_t8)
+        _Q[3] = _runtime.wrap_angle(_f0 - _f1 - phi)
+        _Q[4] = _runtime.wrap_angle(_f2)
+        _Q[5] = _runtime.wrap_angle(_f1)
         _Q[6] = _t9
-        _Q[7] = _runtime.wrap_angle(_t10 + _t8 - phi)
+        _Q[7] = _runtime.wrap_angle(_f1 + _f2 - phi)
         _valid = valid[_start:_start + CHUNK].T
         _valid[0] = _t11
         _valid[1] = _t11

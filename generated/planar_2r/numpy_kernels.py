@@ -295,23 +295,26 @@ def ik(x, *, l1=0.559, l2=0.508):
     _count = _all_x.shape[0]
     Q = numpy.empty((_count, 4))
     valid = numpy.empty((_count, 2), dtype=bool)
+    _t2 = 1/(l1*l2)
     for _start in range(0, _count, CHUNK):
         _columns_x = numpy.ascontiguousarray(_all_x[_start:_start + CHUNK].T)
         x = _columns_x[0]
         y = _columns_x[1]
-        _t0 = numpy.arctan2(y, x)
         _t1 = (l1*l1) + (l2*l2) - (x*x) - (y*y)
-        _t2 = 1/(l1*l2)
         _t3 = numpy.minimum(1, numpy.maximum(-1, -0.5*_t1*_t2))
         _t4 = l2*numpy.sqrt(1 - (_t3*_t3))
         _t5 = _t3*l2 + l1
-        _t6 = numpy.arccos(_t3)
+        _a0 = -_t4
+        _f0 = numpy.arctan2(y, x)
+        _f2 = numpy.arctan2(_a0, _t5)
+        _f3 = numpy.arctan2(_t4, _t5)
+        _f1 = numpy.arccos(_t3)
         _t7 = numpy.less_equal((0.5)*abs(_t1*_t2), 1.000000000001)
         _Q = Q[_start:_start + CHUNK].T
-        _Q[0] = _runtime.wrap_angle(_t0 - numpy.arctan2(-_t4, _t5))
-        _Q[1] = _runtime.wrap_angle(-_t6)
-        _Q[2] = _runtime.wrap_angle(_t0 - numpy.arctan2(_t4, _t5))
-        _Q[3] = _runtime.wrap_angle(_t6)
+        _Q[0] = _runtime.wrap_angle(_f0 - _f2)
+        _Q[1] = _runtime.wrap_angle(-_f1)
+        _Q[2] = _runtime.wrap_angle(_f0 - _f3)
+        _Q[3] = _runtime.wrap_angle(_f1)
         _valid = valid[_start:_start + CHUNK].T
         _valid[0] = _t7
         _valid[1] = _t7

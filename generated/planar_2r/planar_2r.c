@@ -55,6 +55,18 @@ double asin(double);
 
 const planar_2r_params planar_2r_default_params = { 0.559, 0.508 };
 
+/* min and max that pass a NaN on, like numpy.minimum and numpy.maximum: C99's fmin and
+   fmax would turn an acos argument of NaN into +-1 and a valid-looking angle. */
+static double kinegen_min(double a, double b)
+{
+    return isnan(a) || a < b ? a : b;
+}
+
+static double kinegen_max(double a, double b)
+{
+    return isnan(a) || a > b ? a : b;
+}
+
 /* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi. */
 static double kinegen_wrap_angle(double angle)
 {
@@ -749,18 +761,39 @@ int planar_2r_ik(const double *restrict _x, const planar_2r_params *restrict par
     }
     const double l1 = params->l1;
     const double l2 = params->l2;
-    const double _t0 = atan2(y, x);
-    const double _t1 = (l1*l1) + (l2*l2) - (x*x) - (y*y);
     const double _t2 = 1/(l1*l2);
-    const double _t3 = fmin(1, fmax(-1, -0.5*_t1*_t2));
+    const double _t1 = (l1*l1) + (l2*l2) - (x*x) - (y*y);
+    const double _t3 = kinegen_min(1, kinegen_max(-1, -0.5*_t1*_t2));
     const double _t4 = l2*sqrt(1 - (_t3*_t3));
     const double _t5 = _t3*l2 + l1;
-    const double _t6 = acos(_t3);
+    const double _a0 = -_t4;
+    double _f0, _f1, _f2, _f3;
+#if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+    {
+        /* The atan2 arguments side by side: one vector call. */
+        const double argument0[4] = { y, _a0, _t4, 0.0 };
+        const double argument1[4] = { x, _t5, _t5, 1.0 };
+        double result[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            result[k] = atan2(argument0[k], argument1[k]);
+        }
+        _f0 = result[0];
+        _f2 = result[1];
+        _f3 = result[2];
+    }
+#else
+    _f0 = atan2(y, x);
+    _f2 = atan2(_a0, _t5);
+    _f3 = atan2(_t4, _t5);
+#endif
+    _f1 = acos(_t3);
     const int _t7 = (0.5)*fabs(_t1*_t2) <= 1.000000000001;
-    Q[0] = kinegen_wrap_angle(_t0 - atan2(-_t4, _t5));
-    Q[1] = kinegen_wrap_angle(-_t6);
-    Q[2] = kinegen_wrap_angle(_t0 - atan2(_t4, _t5));
-    Q[3] = kinegen_wrap_angle(_t6);
+    Q[0] = kinegen_wrap_angle(_f0 - _f2);
+    Q[1] = kinegen_wrap_angle(-_f1);
+    Q[2] = kinegen_wrap_angle(_f0 - _f3);
+    Q[3] = kinegen_wrap_angle(_f1);
     valid[0] = _t7;
     valid[1] = _t7;
     return planar_2r_ik_checks(_x, Q, valid);
@@ -774,12 +807,23 @@ long planar_2r_ik_batch(size_t count, const double *restrict _x, const planar_2r
 #ifdef KINEGEN_BLOCKED
     double x[KINEGEN_BLOCK];
     double y[KINEGEN_BLOCK];
+    double _t1[KINEGEN_BLOCK];
+    double _t3[KINEGEN_BLOCK];
+    double _t4[KINEGEN_BLOCK];
+    double _t5[KINEGEN_BLOCK];
+    double _a0[KINEGEN_BLOCK];
+    double _f0[KINEGEN_BLOCK];
+    double _f1[KINEGEN_BLOCK];
+    double _f2[KINEGEN_BLOCK];
+    double _f3[KINEGEN_BLOCK];
+    double _Q_block[4][KINEGEN_BLOCK];
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_2r_default_params;
     }
     const double l1 = params->l1;
     const double l2 = params->l2;
+    const double _t2 = 1/(l1*l2);
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
         for (i = 0; i < n; ++i) {
@@ -788,20 +832,43 @@ long planar_2r_ik_batch(size_t count, const double *restrict _x, const planar_2r
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            const double _t0 = atan2(y[i], x[i]);
-            const double _t1 = (l1*l1) + (l2*l2) - (x[i]*x[i]) - (y[i]*y[i]);
-            const double _t2 = 1/(l1*l2);
-            const double _t3 = fmin(1, fmax(-1, -0.5*_t1*_t2));
-            const double _t4 = l2*sqrt(1 - (_t3*_t3));
-            const double _t5 = _t3*l2 + l1;
-            const double _t6 = acos(_t3);
-            const int _t7 = (0.5)*fabs(_t1*_t2) <= 1.000000000001;
-            Q[4 * (start + i) + 0] = kinegen_wrap_angle(_t0 - atan2(-_t4, _t5));
-            Q[4 * (start + i) + 1] = kinegen_wrap_angle(-_t6);
-            Q[4 * (start + i) + 2] = kinegen_wrap_angle(_t0 - atan2(_t4, _t5));
-            Q[4 * (start + i) + 3] = kinegen_wrap_angle(_t6);
+            _t1[i] = (l1*l1) + (l2*l2) - (x[i]*x[i]) - (y[i]*y[i]);
+            _t3[i] = kinegen_min(1, kinegen_max(-1, -0.5*_t1[i]*_t2));
+            _t4[i] = l2*sqrt(1 - (_t3[i]*_t3[i]));
+            _t5[i] = _t3[i]*l2 + l1;
+            _a0[i] = -_t4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f0[i] = atan2(y[i], x[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f1[i] = acos(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f2[i] = atan2(_a0[i], _t5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f3[i] = atan2(_t4[i], _t5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const int _t7 = (0.5)*fabs(_t1[i]*_t2) <= 1.000000000001;
+            _Q_block[0][i] = kinegen_wrap_angle(_f0[i] - _f2[i]);
+            _Q_block[1][i] = kinegen_wrap_angle(-_f1[i]);
+            _Q_block[2][i] = kinegen_wrap_angle(_f0[i] - _f3[i]);
+            _Q_block[3][i] = kinegen_wrap_angle(_f1[i]);
             valid[2 * (start + i) + 0] = _t7;
             valid[2 * (start + i) + 1] = _t7;
+        }
+        for (i = 0; i < n; ++i) {
+            int k;
+            for (k = 0; k < 4; ++k) {
+                Q[4 * (start + i) + k] = _Q_block[k][i];
+            }
         }
         for (i = 0; i < n; ++i) {
             const int found = planar_2r_ik_checks(_x + 2 * (start + i), Q + 4 * (start + i), valid + 2 * (start + i));

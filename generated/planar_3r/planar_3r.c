@@ -55,6 +55,18 @@ double asin(double);
 
 const planar_3r_params planar_3r_default_params = { 0.5, 0.4, 0.2 };
 
+/* min and max that pass a NaN on, like numpy.minimum and numpy.maximum: C99's fmin and
+   fmax would turn an acos argument of NaN into +-1 and a valid-looking angle. */
+static double kinegen_min(double a, double b)
+{
+    return isnan(a) || a < b ? a : b;
+}
+
+static double kinegen_max(double a, double b)
+{
+    return isnan(a) || a > b ? a : b;
+}
+
 /* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi. */
 static double kinegen_wrap_angle(double angle)
 {
@@ -929,25 +941,31 @@ int planar_3r_ik(const double *restrict _x, const planar_3r_params *restrict par
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double l3 = params->l3;
-    const double _s0 = sin(phi);
-    const double _c0 = cos(phi);
+    const double _t3 = 2*l1;
+    const double _t8 = (l1*l1);
+    const double _t9 = 4*_t8;
+    const double _t16 = 1.0/l2;
+    double _s0, _c0;
+    _s0 = sin(phi);
+    _c0 = cos(phi);
     const double _t0 = _s0*l3;
     const double _t1 = _t0 - y;
     const double _t2 = -_t1;
-    const double _t3 = 2*l1;
     const double _t4 = _c0*l3 - x;
     const double _t5 = -_t4;
-    const double _t6 = atan2(-_t2*_t3, -_t3*_t5);
+    const double _a0 = -_t2*_t3;
+    const double _a1 = -_t3*_t5;
     const double _t7 = (_t2*_t2);
-    const double _t8 = (l1*l1);
-    const double _t9 = 4*_t8;
     const double _t10 = (_t5*_t5);
     const double _t11 = _t10*_t9 + _t7*_t9;
     const double _t12 = 1.0/sqrt(_t11);
     const double _t13 = _t10 + _t7 + _t8 - (l2*l2);
-    const double _t14 = acos(fmin(1, fmax(-1, -_t12*_t13)));
-    const double _t15 = _t14 - _t6;
-    const double _t18 = _t14 + _t6;
+    const double _a2 = kinegen_min(1, kinegen_max(-1, -_t12*_t13));
+    double _f0, _f1;
+    _f0 = atan2(_a0, _a1);
+    _f1 = acos(_a2);
+    const double _t15 = -_f0 + _f1;
+    const double _t18 = _f0 + _f1;
     double _s1, _c1, _s2, _c2;
 #ifdef KINEGEN_SIMD
     {
@@ -974,13 +992,34 @@ int planar_3r_ik(const double *restrict _x, const planar_3r_params *restrict par
     _s2 = sin(_t18);
     _c2 = cos(_t18);
 #endif
-    const double _t16 = 1.0/l2;
-    const double _t17 = atan2(_t16*(_s1*l1 - _t0 + y), _t16*(-_c1*l1 - _t4));
-    const double _t19 = -atan2(_t16*(-_s2*l1 - _t1), _t16*(-_c2*l1 - _t4));
+    const double _a3 = _t16*(_s1*l1 - _t0 + y);
+    const double _a4 = _t16*(-_c1*l1 - _t4);
+    const double _a5 = _t16*(-_s2*l1 - _t1);
+    const double _a6 = _t16*(-_c2*l1 - _t4);
+    double _f2, _f3;
+#if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+    {
+        /* The atan2 arguments side by side: one vector call. */
+        const double argument0[4] = { _a3, _a5, 0.0, 0.0 };
+        const double argument1[4] = { _a4, _a6, 1.0, 1.0 };
+        double result[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            result[k] = atan2(argument0[k], argument1[k]);
+        }
+        _f2 = result[0];
+        _f3 = result[1];
+    }
+#else
+    _f2 = atan2(_a3, _a4);
+    _f3 = atan2(_a5, _a6);
+#endif
+    const double _t19 = -_f3;
     const int _t20 = _t12*fabs(_t13) <= 1.000000000001 && _t11 > 0;
     Q[0] = kinegen_wrap_angle(-_t15);
-    Q[1] = kinegen_wrap_angle(_t15 + _t17);
-    Q[2] = kinegen_wrap_angle(-_t17 + phi);
+    Q[1] = kinegen_wrap_angle(_f2 + _t15);
+    Q[2] = kinegen_wrap_angle(-_f2 + phi);
     Q[3] = kinegen_wrap_angle(_t18);
     Q[4] = kinegen_wrap_angle(-_t18 - _t19);
     Q[5] = kinegen_wrap_angle(_t19 + phi);
@@ -1003,15 +1042,27 @@ long planar_3r_ik_batch(size_t count, const double *restrict _x, const planar_3r
     double _t0[KINEGEN_BLOCK];
     double _t1[KINEGEN_BLOCK];
     double _t4[KINEGEN_BLOCK];
+    double _a0[KINEGEN_BLOCK];
+    double _a1[KINEGEN_BLOCK];
     double _t11[KINEGEN_BLOCK];
     double _t12[KINEGEN_BLOCK];
     double _t13[KINEGEN_BLOCK];
+    double _a2[KINEGEN_BLOCK];
+    double _f0[KINEGEN_BLOCK];
+    double _f1[KINEGEN_BLOCK];
     double _t15[KINEGEN_BLOCK];
     double _t18[KINEGEN_BLOCK];
     double _s1[KINEGEN_BLOCK];
     double _c1[KINEGEN_BLOCK];
     double _s2[KINEGEN_BLOCK];
     double _c2[KINEGEN_BLOCK];
+    double _a3[KINEGEN_BLOCK];
+    double _a4[KINEGEN_BLOCK];
+    double _a5[KINEGEN_BLOCK];
+    double _a6[KINEGEN_BLOCK];
+    double _f2[KINEGEN_BLOCK];
+    double _f3[KINEGEN_BLOCK];
+    double _Q_block[6][KINEGEN_BLOCK];
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_3r_default_params;
@@ -1019,6 +1070,10 @@ long planar_3r_ik_batch(size_t count, const double *restrict _x, const planar_3r
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double l3 = params->l3;
+    const double _t3 = 2*l1;
+    const double _t8 = (l1*l1);
+    const double _t9 = 4*_t8;
+    const double _t16 = 1.0/l2;
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
         for (i = 0; i < n; ++i) {
@@ -1039,20 +1094,29 @@ long planar_3r_ik_batch(size_t count, const double *restrict _x, const planar_3r
             _t0[i] = _s0[i]*l3;
             _t1[i] = _t0[i] - y[i];
             const double _t2 = -_t1[i];
-            const double _t3 = 2*l1;
             _t4[i] = _c0[i]*l3 - x[i];
             const double _t5 = -_t4[i];
-            const double _t6 = atan2(-_t2*_t3, -_t3*_t5);
+            _a0[i] = -_t2*_t3;
+            _a1[i] = -_t3*_t5;
             const double _t7 = (_t2*_t2);
-            const double _t8 = (l1*l1);
-            const double _t9 = 4*_t8;
             const double _t10 = (_t5*_t5);
             _t11[i] = _t10*_t9 + _t7*_t9;
             _t12[i] = 1.0/sqrt(_t11[i]);
             _t13[i] = _t10 + _t7 + _t8 - (l2*l2);
-            const double _t14 = acos(fmin(1, fmax(-1, -_t12[i]*_t13[i])));
-            _t15[i] = _t14 - _t6;
-            _t18[i] = _t14 + _t6;
+            _a2[i] = kinegen_min(1, kinegen_max(-1, -_t12[i]*_t13[i]));
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f0[i] = atan2(_a0[i], _a1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f1[i] = acos(_a2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t15[i] = -_f0[i] + _f1[i];
+            _t18[i] = _f0[i] + _f1[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -1072,18 +1136,37 @@ long planar_3r_ik_batch(size_t count, const double *restrict _x, const planar_3r
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            const double _t16 = 1.0/l2;
-            const double _t17 = atan2(_t16*(_s1[i]*l1 - _t0[i] + y[i]), _t16*(-_c1[i]*l1 - _t4[i]));
-            const double _t19 = -atan2(_t16*(-_s2[i]*l1 - _t1[i]), _t16*(-_c2[i]*l1 - _t4[i]));
+            _a3[i] = _t16*(_s1[i]*l1 - _t0[i] + y[i]);
+            _a4[i] = _t16*(-_c1[i]*l1 - _t4[i]);
+            _a5[i] = _t16*(-_s2[i]*l1 - _t1[i]);
+            _a6[i] = _t16*(-_c2[i]*l1 - _t4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f2[i] = atan2(_a3[i], _a4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f3[i] = atan2(_a5[i], _a6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t19 = -_f3[i];
             const int _t20 = _t12[i]*fabs(_t13[i]) <= 1.000000000001 && _t11[i] > 0;
-            Q[6 * (start + i) + 0] = kinegen_wrap_angle(-_t15[i]);
-            Q[6 * (start + i) + 1] = kinegen_wrap_angle(_t15[i] + _t17);
-            Q[6 * (start + i) + 2] = kinegen_wrap_angle(-_t17 + phi[i]);
-            Q[6 * (start + i) + 3] = kinegen_wrap_angle(_t18[i]);
-            Q[6 * (start + i) + 4] = kinegen_wrap_angle(-_t18[i] - _t19);
-            Q[6 * (start + i) + 5] = kinegen_wrap_angle(_t19 + phi[i]);
+            _Q_block[0][i] = kinegen_wrap_angle(-_t15[i]);
+            _Q_block[1][i] = kinegen_wrap_angle(_f2[i] + _t15[i]);
+            _Q_block[2][i] = kinegen_wrap_angle(-_f2[i] + phi[i]);
+            _Q_block[3][i] = kinegen_wrap_angle(_t18[i]);
+            _Q_block[4][i] = kinegen_wrap_angle(-_t18[i] - _t19);
+            _Q_block[5][i] = kinegen_wrap_angle(_t19 + phi[i]);
             valid[2 * (start + i) + 0] = _t20;
             valid[2 * (start + i) + 1] = _t20;
+        }
+        for (i = 0; i < n; ++i) {
+            int k;
+            for (k = 0; k < 6; ++k) {
+                Q[6 * (start + i) + k] = _Q_block[k][i];
+            }
         }
         for (i = 0; i < n; ++i) {
             const int found = planar_3r_ik_checks(_x + 3 * (start + i), Q + 6 * (start + i), valid + 2 * (start + i));

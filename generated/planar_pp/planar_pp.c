@@ -421,6 +421,7 @@ long planar_pp_ik_batch(size_t count, const double *restrict _x, const planar_pp
 #ifdef KINEGEN_BLOCKED
     double x[KINEGEN_BLOCK];
     double y[KINEGEN_BLOCK];
+    double _Q_block[2][KINEGEN_BLOCK];
     size_t start, i, n;
     (void)params;
     for (start = 0; start < count; start += n) {
@@ -431,9 +432,15 @@ long planar_pp_ik_batch(size_t count, const double *restrict _x, const planar_pp
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            Q[2 * (start + i) + 0] = y[i];
-            Q[2 * (start + i) + 1] = x[i];
+            _Q_block[0][i] = y[i];
+            _Q_block[1][i] = x[i];
             valid[1 * (start + i) + 0] = 1;
+        }
+        for (i = 0; i < n; ++i) {
+            int k;
+            for (k = 0; k < 2; ++k) {
+                Q[2 * (start + i) + k] = _Q_block[k][i];
+            }
         }
         for (i = 0; i < n; ++i) {
             const int found = planar_pp_ik_checks(_x + 2 * (start + i), Q + 2 * (start + i), valid + 1 * (start + i));

@@ -254,11 +254,15 @@ def ik(x):
         _columns_x = numpy.ascontiguousarray(_all_x[_start:_start + CHUNK].T)
         x = _columns_x[0]
         y = _columns_x[1]
+        _a0 = -y
+        _a1 = -x
+        _f0 = numpy.arctan2(y, x)
+        _f1 = numpy.arctan2(_a0, _a1)
         _t0 = numpy.sqrt((x*x) + (y*y))
         _Q = Q[_start:_start + CHUNK].T
-        _Q[0] = _runtime.wrap_angle(numpy.arctan2(y, x))
+        _Q[0] = _runtime.wrap_angle(_f0)
         _Q[1] = _t0
-        _Q[2] = _runtime.wrap_angle(numpy.arctan2(-y, -x))
+        _Q[2] = _runtime.wrap_angle(_f1)
         _Q[3] = -_t0
         _valid = valid[_start:_start + CHUNK].T
     # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.

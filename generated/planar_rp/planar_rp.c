@@ -75,8 +75,9 @@ void planar_rp_fk(const double *restrict q, const planar_rp_params *restrict par
     const double q1 = q[0];
     const double q2 = q[1];
     (void)params;
-    const double _s0 = sin(q1);
-    const double _c0 = cos(q1);
+    double _s0, _c0;
+    _s0 = sin(q1);
+    _c0 = cos(q1);
     T[0] = _s0;
     T[1] = 0;
     T[2] = _c0;
@@ -153,8 +154,9 @@ void planar_rp_frames(const double *restrict q, const planar_rp_params *restrict
     const double q1 = q[0];
     const double q2 = q[1];
     (void)params;
-    const double _s0 = sin(q1);
-    const double _c0 = cos(q1);
+    double _s0, _c0;
+    _s0 = sin(q1);
+    _c0 = cos(q1);
     const double _t2 = -_c0;
     frames[0] = 1;
     frames[1] = 0;
@@ -297,8 +299,9 @@ void planar_rp_jacobian(const double *restrict q, const planar_rp_params *restri
     const double q1 = q[0];
     const double q2 = q[1];
     (void)params;
-    const double _s0 = sin(q1);
-    const double _c0 = cos(q1);
+    double _s0, _c0;
+    _s0 = sin(q1);
+    _c0 = cos(q1);
     J[0] = -_s0*q2;
     J[1] = _c0;
     J[2] = _c0*q2;
@@ -367,8 +370,9 @@ void planar_rp_task(const double *restrict q, const planar_rp_params *restrict p
     const double q1 = q[0];
     const double q2 = q[1];
     (void)params;
-    const double _s0 = sin(q1);
-    const double _c0 = cos(q1);
+    double _s0, _c0;
+    _s0 = sin(q1);
+    _c0 = cos(q1);
     x[0] = _c0*q2;
     x[1] = _s0*q2;
 }
@@ -417,8 +421,9 @@ void planar_rp_task_jacobian(const double *restrict q, const planar_rp_params *r
     const double q1 = q[0];
     const double q2 = q[1];
     (void)params;
-    const double _s0 = sin(q1);
-    const double _c0 = cos(q1);
+    double _s0, _c0;
+    _s0 = sin(q1);
+    _c0 = cos(q1);
     Jx[0] = -_s0*q2;
     Jx[1] = _c0;
     Jx[2] = _c0*q2;
@@ -495,10 +500,31 @@ int planar_rp_ik(const double *restrict _x, const planar_rp_params *restrict par
     const double x = _x[0];
     const double y = _x[1];
     (void)params;
+    const double _a0 = -y;
+    const double _a1 = -x;
+    double _f0, _f1;
+#if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+    {
+        /* The atan2 arguments side by side: one vector call. */
+        const double argument0[4] = { y, _a0, 0.0, 0.0 };
+        const double argument1[4] = { x, _a1, 1.0, 1.0 };
+        double result[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            result[k] = atan2(argument0[k], argument1[k]);
+        }
+        _f0 = result[0];
+        _f1 = result[1];
+    }
+#else
+    _f0 = atan2(y, x);
+    _f1 = atan2(_a0, _a1);
+#endif
     const double _t0 = sqrt((x*x) + (y*y));
-    Q[0] = kinegen_wrap_angle(atan2(y, x));
+    Q[0] = kinegen_wrap_angle(_f0);
     Q[1] = _t0;
-    Q[2] = kinegen_wrap_angle(atan2(-y, -x));
+    Q[2] = kinegen_wrap_angle(_f1);
     Q[3] = -_t0;
     valid[0] = 1;
     valid[1] = 1;
@@ -513,6 +539,11 @@ long planar_rp_ik_batch(size_t count, const double *restrict _x, const planar_rp
 #ifdef KINEGEN_BLOCKED
     double x[KINEGEN_BLOCK];
     double y[KINEGEN_BLOCK];
+    double _a0[KINEGEN_BLOCK];
+    double _a1[KINEGEN_BLOCK];
+    double _f0[KINEGEN_BLOCK];
+    double _f1[KINEGEN_BLOCK];
+    double _Q_block[4][KINEGEN_BLOCK];
     size_t start, i, n;
     (void)params;
     for (start = 0; start < count; start += n) {
@@ -523,13 +554,32 @@ long planar_rp_ik_batch(size_t count, const double *restrict _x, const planar_rp
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
+            _a0[i] = -y[i];
+            _a1[i] = -x[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f0[i] = atan2(y[i], x[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f1[i] = atan2(_a0[i], _a1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
             const double _t0 = sqrt((x[i]*x[i]) + (y[i]*y[i]));
-            Q[4 * (start + i) + 0] = kinegen_wrap_angle(atan2(y[i], x[i]));
-            Q[4 * (start + i) + 1] = _t0;
-            Q[4 * (start + i) + 2] = kinegen_wrap_angle(atan2(-y[i], -x[i]));
-            Q[4 * (start + i) + 3] = -_t0;
+            _Q_block[0][i] = kinegen_wrap_angle(_f0[i]);
+            _Q_block[1][i] = _t0;
+            _Q_block[2][i] = kinegen_wrap_angle(_f1[i]);
+            _Q_block[3][i] = -_t0;
             valid[2 * (start + i) + 0] = 1;
             valid[2 * (start + i) + 1] = 1;
+        }
+        for (i = 0; i < n; ++i) {
+            int k;
+            for (k = 0; k < 4; ++k) {
+                Q[4 * (start + i) + k] = _Q_block[k][i];
+            }
         }
         for (i = 0; i < n; ++i) {
             const int found = planar_rp_ik_checks(_x + 2 * (start + i), Q + 4 * (start + i), valid + 2 * (start + i));

@@ -55,6 +55,18 @@ double asin(double);
 
 const puma560_params puma560_default_params = { 0.67183, 0.4318, 0.0203, 0.15005, 0.4318 };
 
+/* min and max that pass a NaN on, like numpy.minimum and numpy.maximum: C99's fmin and
+   fmax would turn an acos argument of NaN into +-1 and a valid-looking angle. */
+static double kinegen_min(double a, double b)
+{
+    return isnan(a) || a < b ? a : b;
+}
+
+static double kinegen_max(double a, double b)
+{
+    return isnan(a) || a > b ? a : b;
+}
+
 /* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi. */
 static double kinegen_wrap_angle(double angle)
 {
@@ -1734,28 +1746,50 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t0 = atan2(-x, y);
-    const double _t1 = (x*x);
-    const double _t2 = (y*y);
-    const double _t3 = _t1 + _t2;
-    const double _t4 = 1.0/sqrt(_t3);
-    const double _t5 = acos(fmin(1, fmax(-1, -_t4*d3)));
-    const double _t6 = _t0 + _t5;
-    const double _t8 = d1 - z;
-    const double _t9 = -_t8;
     const double _t10 = 2*a2;
-    const double _t11 = atan2(-_t10*d4, _t10*a3);
+    const double _a2 = -_t10*d4;
+    const double _a3 = _t10*a3;
     const double _t12 = (a3*a3);
     const double _t13 = (a2*a2);
     const double _t14 = 4*_t13;
     const double _t15 = (d4*d4);
     const double _t16 = _t12*_t14 + _t14*_t15;
     const double _t17 = 1.0/sqrt(_t16);
+    const int _t137 = _t16 > 0;
+    const double _f2 = atan2(_a2, _a3);
+    const double _a0 = -x;
+    const double _t1 = (x*x);
+    const double _t2 = (y*y);
+    const double _t3 = _t1 + _t2;
+    const double _t4 = 1.0/sqrt(_t3);
+    const double _a1 = kinegen_min(1, kinegen_max(-1, -_t4*d3));
+    const double _t8 = d1 - z;
+    const double _t9 = -_t8;
     const double _t18 = -_t1 + _t12 + _t13 + _t15 - _t2 + (d3*d3);
-    const double _t19 = acos(fmin(1, fmax(-1, _t17*(-_t18 + (_t9*_t9)))));
-    const double _t20 = -_t11 + _t19;
-    const double _t58 = _t11 + _t19;
-    const double _t85 = -_t0 + _t5;
+    const double _a4 = kinegen_min(1, kinegen_max(-1, _t17*(-_t18 + (_t9*_t9))));
+    double _f0, _f1, _f3;
+    _f0 = atan2(_a0, y);
+#if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+    {
+        /* The acos arguments side by side: one vector call. */
+        const double argument0[4] = { _a1, _a4, 1.0, 1.0 };
+        double result[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            result[k] = acos(argument0[k]);
+        }
+        _f1 = result[0];
+        _f3 = result[1];
+    }
+#else
+    _f1 = acos(_a1);
+    _f3 = acos(_a4);
+#endif
+    const double _t6 = _f0 + _f1;
+    const double _t20 = -_f2 + _f3;
+    const double _t58 = _f2 + _f3;
+    const double _t85 = -_f0 + _f1;
     double _s0, _c0, _s1, _c1, _s5, _c5, _s9, _c9;
 #ifdef KINEGEN_SIMD
     {
@@ -1795,20 +1829,47 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
     const double _t27 = _c1*x + _s1*y;
     const double _t28 = _c0*d4 - _s0*a3;
     const double _t29 = _t28*_t9;
-    const double _t30 = atan2(_t24 - _t27*_t28, _t23*_t27 + _t29);
-    const double _t36 = _t11 - _t19;
-    const double _t37 = _t30 + _t36;
+    const double _a5 = _t24 - _t27*_t28;
+    const double _a6 = _t23*_t27 + _t29;
     const double _t61 = _c5*a3 - _s5*d4 + a2;
     const double _t62 = _t61*_t9;
     const double _t63 = _c5*d4 + _s5*a3;
     const double _t64 = _t63*_t9;
-    const double _t65 = atan2(-_t27*_t63 + _t62, _t27*_t61 + _t64);
-    const double _t68 = _t58 + _t65;
+    const double _a8 = -_t27*_t63 + _t62;
+    const double _a9 = _t27*_t61 + _t64;
     const double _t89 = _c9*x - _s9*y;
-    const double _t90 = atan2(_t62 - _t63*_t89, _t61*_t89 + _t64);
-    const double _t94 = _t58 + _t90;
-    const double _t116 = atan2(_t24 - _t28*_t89, _t23*_t89 + _t29);
-    const double _t118 = _t116 + _t36;
+    const double _a11 = _t62 - _t63*_t89;
+    const double _a12 = _t61*_t89 + _t64;
+    const double _a14 = _t24 - _t28*_t89;
+    const double _a15 = _t23*_t89 + _t29;
+    double _f4, _f6, _f8, _f10;
+#if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+    {
+        /* The atan2 arguments side by side: one vector call. */
+        const double argument0[4] = { _a5, _a8, _a11, _a14,  };
+        const double argument1[4] = { _a6, _a9, _a12, _a15,  };
+        double result[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            result[k] = atan2(argument0[k], argument1[k]);
+        }
+        _f4 = result[0];
+        _f6 = result[1];
+        _f8 = result[2];
+        _f10 = result[3];
+    }
+#else
+    _f4 = atan2(_a5, _a6);
+    _f6 = atan2(_a8, _a9);
+    _f8 = atan2(_a11, _a12);
+    _f10 = atan2(_a14, _a15);
+#endif
+    const double _t36 = _f2 - _f3;
+    const double _t37 = _f4 + _t36;
+    const double _t68 = _f6 + _t58;
+    const double _t94 = _f8 + _t58;
+    const double _t118 = _f10 + _t36;
     double _s2, _c2, _s6, _c6, _s10, _c10, _s13, _c13;
 #ifdef KINEGEN_SIMD
     {
@@ -1844,74 +1905,97 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
     _c13 = cos(_t118);
 #endif
     const double _t33 = -_c1*r23 + _s1*r13;
-    const double _t34 = -_t33;
-    const double _t35 = (_t34*_t34);
     const double _t40 = _c1*r13;
     const double _t41 = _s1*r23;
     const double _t42 = _c2*_t40 + _c2*_t41 + _s2*r33;
+    const double _a7 = -_t42;
+    const double _t71 = _c6*_t40 + _c6*_t41 + _s6*r33;
+    const double _a10 = -_t71;
+    const double _t92 = _c9*r23 + _s9*r13;
+    const double _t97 = _c9*r13;
+    const double _t98 = _s9*r23;
+    const double _t99 = _c10*_t97 - _c10*_t98 + _s10*r33;
+    const double _t101 = -_t92;
+    const double _a13 = -_t99;
+    const double _t121 = _c13*_t97 - _c13*_t98 + _s13*r33;
+    const double _a16 = -_t121;
+    double _f5, _f7, _f9, _f11;
+#if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+    {
+        /* The atan2 arguments side by side: one vector call. */
+        const double argument0[4] = { _t33, _t33, _t101, _t101,  };
+        const double argument1[4] = { _a7, _a10, _a13, _a16,  };
+        double result[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            result[k] = atan2(argument0[k], argument1[k]);
+        }
+        _f5 = result[0];
+        _f7 = result[1];
+        _f9 = result[2];
+        _f11 = result[3];
+    }
+#else
+    _f5 = atan2(_t33, _a7);
+    _f7 = atan2(_t33, _a10);
+    _f9 = atan2(_t101, _a13);
+    _f11 = atan2(_t101, _a16);
+#endif
+    const double _t34 = -_t33;
+    const double _t35 = (_t34*_t34);
     const int _t43 = _t35 + (_t42*_t42) <= 1e-24;
-    const double _t44 = atan2(_t33, -_t42);
     const double _t45 = ((_t43) ? (
    0
 )
 : (
-   _t44
+   _f5
 ));
     const double _t55 = ((_t43) ? (
    3.141592653589793
 )
 : (
-   _t44 + 3.141592653589793
+   _f5 + 3.141592653589793
 ));
-    const double _t71 = _c6*_t40 + _c6*_t41 + _s6*r33;
     const int _t72 = _t35 + (_t71*_t71) <= 1e-24;
-    const double _t73 = atan2(_t33, -_t71);
     const double _t74 = ((_t72) ? (
    0
 )
 : (
-   _t73
+   _f7
 ));
     const double _t82 = ((_t72) ? (
    3.141592653589793
 )
 : (
-   _t73 + 3.141592653589793
+   _f7 + 3.141592653589793
 ));
-    const double _t92 = _c9*r23 + _s9*r13;
     const double _t93 = (_t92*_t92);
-    const double _t97 = _c9*r13;
-    const double _t98 = _s9*r23;
-    const double _t99 = _c10*_t97 - _c10*_t98 + _s10*r33;
     const int _t100 = _t93 + (_t99*_t99) <= 1e-24;
-    const double _t101 = -_t92;
-    const double _t102 = atan2(_t101, -_t99);
     const double _t103 = ((_t100) ? (
    0
 )
 : (
-   _t102
+   _f9
 ));
     const double _t113 = ((_t100) ? (
    3.141592653589793
 )
 : (
-   _t102 + 3.141592653589793
+   _f9 + 3.141592653589793
 ));
-    const double _t121 = _c13*_t97 - _c13*_t98 + _s13*r33;
     const int _t122 = (_t121*_t121) + _t93 <= 1e-24;
-    const double _t123 = atan2(_t101, -_t121);
     const double _t124 = ((_t122) ? (
    0
 )
 : (
-   _t123
+   _f11
 ));
     const double _t132 = ((_t122) ? (
    3.141592653589793
 )
 : (
-   _t123 + 3.141592653589793
+   _f11 + 3.141592653589793
 ));
     double _s3, _c3, _s4, _c4, _s7, _c7, _s8, _c8, _s11, _c11, _s12, _c12, _s14, _c14, _s15, _c15;
 #ifdef KINEGEN_SIMD
@@ -1963,9 +2047,6 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
     _s15 = sin(_t132);
     _c15 = cos(_t132);
 #endif
-    const double _t7 = kinegen_wrap_angle(_t6);
-    const double _t31 = kinegen_wrap_angle(_t30);
-    const double _t32 = kinegen_wrap_angle(-_t20);
     const double _t48 = _c2*r33 - _s2*_t40 - _s2*_t41;
     const double _t49 = _c1*r21 - _s1*r11;
     const double _t50 = _c1*_c2;
@@ -1973,15 +2054,11 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
     const double _t52 = _s2*r31 + _t50*r11 + _t51*r21;
     const double _t53 = _c1*r22 - _s1*r12;
     const double _t54 = _s2*r32 + _t50*r12 + _t51*r22;
-    const double _t66 = kinegen_wrap_angle(_t65);
-    const double _t67 = kinegen_wrap_angle(_t58);
     const double _t77 = _c6*r33 - _s6*_t40 - _s6*_t41;
     const double _t78 = _c1*_c6;
     const double _t79 = _c6*_s1;
     const double _t80 = _s6*r31 + _t78*r11 + _t79*r21;
     const double _t81 = _s6*r32 + _t78*r12 + _t79*r22;
-    const double _t86 = kinegen_wrap_angle(-_t85);
-    const double _t91 = kinegen_wrap_angle(_t90);
     const double _t106 = _c10*r33 - _s10*_t97 + _s10*_t98;
     const double _t107 = _c9*r21 + _s9*r11;
     const double _t108 = _c10*_c9;
@@ -1989,15 +2066,92 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
     const double _t110 = _s10*r31 + _t108*r11 - _t109*r21;
     const double _t111 = _c9*r22 + _s9*r12;
     const double _t112 = _s10*r32 + _t108*r12 - _t109*r22;
-    const double _t117 = kinegen_wrap_angle(_t116);
     const double _t127 = _c13*r33 - _s13*_t97 + _s13*_t98;
     const double _t128 = _c13*_c9;
     const double _t129 = _c13*_s9;
     const double _t130 = _s13*r31 + _t128*r11 - _t129*r21;
     const double _t131 = _s13*r32 + _t128*r12 - _t129*r22;
+    const double _a17 = -_c3*_t42 - _s3*_t34;
+    const double _a18 = _c3*_t49 - _s3*_t52;
+    const double _a19 = _c3*_t53 - _s3*_t54;
+    const double _a20 = -_c4*_t42 - _s4*_t34;
+    const double _a21 = _c4*_t49 - _s4*_t52;
+    const double _a22 = _c4*_t53 - _s4*_t54;
+    const double _a23 = -_c7*_t71 - _s7*_t34;
+    const double _a24 = _c7*_t49 - _s7*_t80;
+    const double _a25 = _c7*_t53 - _s7*_t81;
+    const double _a26 = -_c8*_t71 - _s8*_t34;
+    const double _a27 = _c8*_t49 - _s8*_t80;
+    const double _a28 = _c8*_t53 - _s8*_t81;
+    const double _a29 = -_c11*_t99 - _s11*_t92;
+    const double _a30 = _c11*_t107 - _s11*_t110;
+    const double _a31 = _c11*_t111 - _s11*_t112;
+    const double _a32 = -_c12*_t99 - _s12*_t92;
+    const double _a33 = _c12*_t107 - _s12*_t110;
+    const double _a34 = _c12*_t111 - _s12*_t112;
+    const double _a35 = -_c14*_t121 - _s14*_t92;
+    const double _a36 = _c14*_t107 - _s14*_t130;
+    const double _a37 = _c14*_t111 - _s14*_t131;
+    const double _a38 = -_c15*_t121 - _s15*_t92;
+    const double _a39 = _c15*_t107 - _s15*_t130;
+    const double _a40 = _c15*_t111 - _s15*_t131;
+    double _f12, _f13, _f14, _f15, _f16, _f17, _f18, _f19, _f20, _f21, _f22, _f23, _f24, _f25, _f26, _f27;
+#if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+    {
+        /* The atan2 arguments side by side: one vector call. */
+        const double argument0[16] = { _a17, _a18, _a20, _a21, _a23, _a24, _a26, _a27, _a29, _a30, _a32, _a33, _a35, _a36, _a38, _a39,  };
+        const double argument1[16] = { _t48, _a19, _t48, _a22, _t77, _a25, _t77, _a28, _t106, _a31, _t106, _a34, _t127, _a37, _t127, _a40,  };
+        double result[16];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 16; ++k) {
+            result[k] = atan2(argument0[k], argument1[k]);
+        }
+        _f12 = result[0];
+        _f13 = result[1];
+        _f14 = result[2];
+        _f15 = result[3];
+        _f16 = result[4];
+        _f17 = result[5];
+        _f18 = result[6];
+        _f19 = result[7];
+        _f20 = result[8];
+        _f21 = result[9];
+        _f22 = result[10];
+        _f23 = result[11];
+        _f24 = result[12];
+        _f25 = result[13];
+        _f26 = result[14];
+        _f27 = result[15];
+    }
+#else
+    _f12 = atan2(_a17, _t48);
+    _f13 = atan2(_a18, _a19);
+    _f14 = atan2(_a20, _t48);
+    _f15 = atan2(_a21, _a22);
+    _f16 = atan2(_a23, _t77);
+    _f17 = atan2(_a24, _a25);
+    _f18 = atan2(_a26, _t77);
+    _f19 = atan2(_a27, _a28);
+    _f20 = atan2(_a29, _t106);
+    _f21 = atan2(_a30, _a31);
+    _f22 = atan2(_a32, _t106);
+    _f23 = atan2(_a33, _a34);
+    _f24 = atan2(_a35, _t127);
+    _f25 = atan2(_a36, _a37);
+    _f26 = atan2(_a38, _t127);
+    _f27 = atan2(_a39, _a40);
+#endif
+    const double _t7 = kinegen_wrap_angle(_t6);
+    const double _t31 = kinegen_wrap_angle(_f4);
+    const double _t32 = kinegen_wrap_angle(-_t20);
+    const double _t66 = kinegen_wrap_angle(_f6);
+    const double _t67 = kinegen_wrap_angle(_t58);
+    const double _t86 = kinegen_wrap_angle(-_t85);
+    const double _t91 = kinegen_wrap_angle(_f8);
+    const double _t117 = kinegen_wrap_angle(_f10);
     const int _t135 = _t3 > 0;
     const int _t136 = _t4*fabs(d3) <= 1.000000000001;
-    const int _t137 = _t16 > 0;
     const int _t138 = _t17*fabs(_t18 - (_t8*_t8)) <= 1.000000000001;
     const int _t139 = _t135 && _t136 && _t137 && _t138 && (_t23*_t23) + (_t28*_t28) > 0;
     const int _t140 = _t135 && _t136 && _t137 && _t138 && (_t61*_t61) + (_t63*_t63) > 0;
@@ -2005,50 +2159,50 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
     Q[1] = _t31;
     Q[2] = _t32;
     Q[3] = kinegen_wrap_angle(_t45);
-    Q[4] = kinegen_wrap_angle(atan2(-_c3*_t42 - _s3*_t34, _t48));
-    Q[5] = kinegen_wrap_angle(atan2(_c3*_t49 - _s3*_t52, _c3*_t53 - _s3*_t54));
+    Q[4] = kinegen_wrap_angle(_f12);
+    Q[5] = kinegen_wrap_angle(_f13);
     Q[6] = _t7;
     Q[7] = _t31;
     Q[8] = _t32;
     Q[9] = kinegen_wrap_angle(_t55);
-    Q[10] = kinegen_wrap_angle(atan2(-_c4*_t42 - _s4*_t34, _t48));
-    Q[11] = kinegen_wrap_angle(atan2(_c4*_t49 - _s4*_t52, _c4*_t53 - _s4*_t54));
+    Q[10] = kinegen_wrap_angle(_f14);
+    Q[11] = kinegen_wrap_angle(_f15);
     Q[12] = _t7;
     Q[13] = _t66;
     Q[14] = _t67;
     Q[15] = kinegen_wrap_angle(_t74);
-    Q[16] = kinegen_wrap_angle(atan2(-_c7*_t71 - _s7*_t34, _t77));
-    Q[17] = kinegen_wrap_angle(atan2(_c7*_t49 - _s7*_t80, _c7*_t53 - _s7*_t81));
+    Q[16] = kinegen_wrap_angle(_f16);
+    Q[17] = kinegen_wrap_angle(_f17);
     Q[18] = _t7;
     Q[19] = _t66;
     Q[20] = _t67;
     Q[21] = kinegen_wrap_angle(_t82);
-    Q[22] = kinegen_wrap_angle(atan2(-_c8*_t71 - _s8*_t34, _t77));
-    Q[23] = kinegen_wrap_angle(atan2(_c8*_t49 - _s8*_t80, _c8*_t53 - _s8*_t81));
+    Q[22] = kinegen_wrap_angle(_f18);
+    Q[23] = kinegen_wrap_angle(_f19);
     Q[24] = _t86;
     Q[25] = _t91;
     Q[26] = _t67;
     Q[27] = kinegen_wrap_angle(_t103);
-    Q[28] = kinegen_wrap_angle(atan2(-_c11*_t99 - _s11*_t92, _t106));
-    Q[29] = kinegen_wrap_angle(atan2(_c11*_t107 - _s11*_t110, _c11*_t111 - _s11*_t112));
+    Q[28] = kinegen_wrap_angle(_f20);
+    Q[29] = kinegen_wrap_angle(_f21);
     Q[30] = _t86;
     Q[31] = _t91;
     Q[32] = _t67;
     Q[33] = kinegen_wrap_angle(_t113);
-    Q[34] = kinegen_wrap_angle(atan2(-_c12*_t99 - _s12*_t92, _t106));
-    Q[35] = kinegen_wrap_angle(atan2(_c12*_t107 - _s12*_t110, _c12*_t111 - _s12*_t112));
+    Q[34] = kinegen_wrap_angle(_f22);
+    Q[35] = kinegen_wrap_angle(_f23);
     Q[36] = _t86;
     Q[37] = _t117;
     Q[38] = _t32;
     Q[39] = kinegen_wrap_angle(_t124);
-    Q[40] = kinegen_wrap_angle(atan2(-_c14*_t121 - _s14*_t92, _t127));
-    Q[41] = kinegen_wrap_angle(atan2(_c14*_t107 - _s14*_t130, _c14*_t111 - _s14*_t131));
+    Q[40] = kinegen_wrap_angle(_f24);
+    Q[41] = kinegen_wrap_angle(_f25);
     Q[42] = _t86;
     Q[43] = _t117;
     Q[44] = _t32;
     Q[45] = kinegen_wrap_angle(_t132);
-    Q[46] = kinegen_wrap_angle(atan2(-_c15*_t121 - _s15*_t92, _t127));
-    Q[47] = kinegen_wrap_angle(atan2(_c15*_t107 - _s15*_t130, _c15*_t111 - _s15*_t131));
+    Q[46] = kinegen_wrap_angle(_f26);
+    Q[47] = kinegen_wrap_angle(_f27);
     valid[0] = _t139;
     valid[1] = _t139;
     valid[2] = _t140;
@@ -2078,16 +2232,18 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
     double r31[KINEGEN_BLOCK];
     double r32[KINEGEN_BLOCK];
     double r33[KINEGEN_BLOCK];
+    double _a0[KINEGEN_BLOCK];
     double _t3[KINEGEN_BLOCK];
     double _t4[KINEGEN_BLOCK];
-    double _t6[KINEGEN_BLOCK];
+    double _a1[KINEGEN_BLOCK];
     double _t8[KINEGEN_BLOCK];
     double _t9[KINEGEN_BLOCK];
-    double _t11[KINEGEN_BLOCK];
-    double _t16[KINEGEN_BLOCK];
-    double _t17[KINEGEN_BLOCK];
     double _t18[KINEGEN_BLOCK];
-    double _t19[KINEGEN_BLOCK];
+    double _a4[KINEGEN_BLOCK];
+    double _f0[KINEGEN_BLOCK];
+    double _f1[KINEGEN_BLOCK];
+    double _f3[KINEGEN_BLOCK];
+    double _t6[KINEGEN_BLOCK];
     double _t20[KINEGEN_BLOCK];
     double _t58[KINEGEN_BLOCK];
     double _t85[KINEGEN_BLOCK];
@@ -2101,15 +2257,23 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
     double _c9[KINEGEN_BLOCK];
     double _t23[KINEGEN_BLOCK];
     double _t28[KINEGEN_BLOCK];
-    double _t30[KINEGEN_BLOCK];
-    double _t37[KINEGEN_BLOCK];
+    double _a5[KINEGEN_BLOCK];
+    double _a6[KINEGEN_BLOCK];
     double _t61[KINEGEN_BLOCK];
     double _t63[KINEGEN_BLOCK];
-    double _t65[KINEGEN_BLOCK];
+    double _a8[KINEGEN_BLOCK];
+    double _a9[KINEGEN_BLOCK];
+    double _a11[KINEGEN_BLOCK];
+    double _a12[KINEGEN_BLOCK];
+    double _a14[KINEGEN_BLOCK];
+    double _a15[KINEGEN_BLOCK];
+    double _f4[KINEGEN_BLOCK];
+    double _f6[KINEGEN_BLOCK];
+    double _f8[KINEGEN_BLOCK];
+    double _f10[KINEGEN_BLOCK];
+    double _t37[KINEGEN_BLOCK];
     double _t68[KINEGEN_BLOCK];
-    double _t90[KINEGEN_BLOCK];
     double _t94[KINEGEN_BLOCK];
-    double _t116[KINEGEN_BLOCK];
     double _t118[KINEGEN_BLOCK];
     double _s2[KINEGEN_BLOCK];
     double _c2[KINEGEN_BLOCK];
@@ -2119,22 +2283,32 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
     double _c10[KINEGEN_BLOCK];
     double _s13[KINEGEN_BLOCK];
     double _c13[KINEGEN_BLOCK];
-    double _t34[KINEGEN_BLOCK];
+    double _t33[KINEGEN_BLOCK];
     double _t40[KINEGEN_BLOCK];
     double _t41[KINEGEN_BLOCK];
     double _t42[KINEGEN_BLOCK];
-    double _t45[KINEGEN_BLOCK];
-    double _t55[KINEGEN_BLOCK];
+    double _a7[KINEGEN_BLOCK];
     double _t71[KINEGEN_BLOCK];
-    double _t74[KINEGEN_BLOCK];
-    double _t82[KINEGEN_BLOCK];
+    double _a10[KINEGEN_BLOCK];
     double _t92[KINEGEN_BLOCK];
     double _t97[KINEGEN_BLOCK];
     double _t98[KINEGEN_BLOCK];
     double _t99[KINEGEN_BLOCK];
+    double _t101[KINEGEN_BLOCK];
+    double _a13[KINEGEN_BLOCK];
+    double _t121[KINEGEN_BLOCK];
+    double _a16[KINEGEN_BLOCK];
+    double _f5[KINEGEN_BLOCK];
+    double _f7[KINEGEN_BLOCK];
+    double _f9[KINEGEN_BLOCK];
+    double _f11[KINEGEN_BLOCK];
+    double _t34[KINEGEN_BLOCK];
+    double _t45[KINEGEN_BLOCK];
+    double _t55[KINEGEN_BLOCK];
+    double _t74[KINEGEN_BLOCK];
+    double _t82[KINEGEN_BLOCK];
     double _t103[KINEGEN_BLOCK];
     double _t113[KINEGEN_BLOCK];
-    double _t121[KINEGEN_BLOCK];
     double _t124[KINEGEN_BLOCK];
     double _t132[KINEGEN_BLOCK];
     double _s3[KINEGEN_BLOCK];
@@ -2153,6 +2327,51 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
     double _c14[KINEGEN_BLOCK];
     double _s15[KINEGEN_BLOCK];
     double _c15[KINEGEN_BLOCK];
+    double _t48[KINEGEN_BLOCK];
+    double _t77[KINEGEN_BLOCK];
+    double _t106[KINEGEN_BLOCK];
+    double _t127[KINEGEN_BLOCK];
+    double _a17[KINEGEN_BLOCK];
+    double _a18[KINEGEN_BLOCK];
+    double _a19[KINEGEN_BLOCK];
+    double _a20[KINEGEN_BLOCK];
+    double _a21[KINEGEN_BLOCK];
+    double _a22[KINEGEN_BLOCK];
+    double _a23[KINEGEN_BLOCK];
+    double _a24[KINEGEN_BLOCK];
+    double _a25[KINEGEN_BLOCK];
+    double _a26[KINEGEN_BLOCK];
+    double _a27[KINEGEN_BLOCK];
+    double _a28[KINEGEN_BLOCK];
+    double _a29[KINEGEN_BLOCK];
+    double _a30[KINEGEN_BLOCK];
+    double _a31[KINEGEN_BLOCK];
+    double _a32[KINEGEN_BLOCK];
+    double _a33[KINEGEN_BLOCK];
+    double _a34[KINEGEN_BLOCK];
+    double _a35[KINEGEN_BLOCK];
+    double _a36[KINEGEN_BLOCK];
+    double _a37[KINEGEN_BLOCK];
+    double _a38[KINEGEN_BLOCK];
+    double _a39[KINEGEN_BLOCK];
+    double _a40[KINEGEN_BLOCK];
+    double _f12[KINEGEN_BLOCK];
+    double _f13[KINEGEN_BLOCK];
+    double _f14[KINEGEN_BLOCK];
+    double _f15[KINEGEN_BLOCK];
+    double _f16[KINEGEN_BLOCK];
+    double _f17[KINEGEN_BLOCK];
+    double _f18[KINEGEN_BLOCK];
+    double _f19[KINEGEN_BLOCK];
+    double _f20[KINEGEN_BLOCK];
+    double _f21[KINEGEN_BLOCK];
+    double _f22[KINEGEN_BLOCK];
+    double _f23[KINEGEN_BLOCK];
+    double _f24[KINEGEN_BLOCK];
+    double _f25[KINEGEN_BLOCK];
+    double _f26[KINEGEN_BLOCK];
+    double _f27[KINEGEN_BLOCK];
+    double _Q_block[48][KINEGEN_BLOCK];
     size_t start, i, n;
     if (params == NULL) {
         params = &puma560_default_params;
@@ -2162,6 +2381,17 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
+    const double _t10 = 2*a2;
+    const double _a2 = -_t10*d4;
+    const double _a3 = _t10*a3;
+    const double _t12 = (a3*a3);
+    const double _t13 = (a2*a2);
+    const double _t14 = 4*_t13;
+    const double _t15 = (d4*d4);
+    const double _t16 = _t12*_t14 + _t14*_t15;
+    const double _t17 = 1.0/sqrt(_t16);
+    const int _t137 = _t16 > 0;
+    const double _f2 = atan2(_a2, _a3);
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
         for (i = 0; i < n; ++i) {
@@ -2180,28 +2410,35 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            const double _t0 = atan2(-x[i], y[i]);
+            _a0[i] = -x[i];
             const double _t1 = (x[i]*x[i]);
             const double _t2 = (y[i]*y[i]);
             _t3[i] = _t1 + _t2;
             _t4[i] = 1.0/sqrt(_t3[i]);
-            const double _t5 = acos(fmin(1, fmax(-1, -_t4[i]*d3)));
-            _t6[i] = _t0 + _t5;
+            _a1[i] = kinegen_min(1, kinegen_max(-1, -_t4[i]*d3));
             _t8[i] = d1 - z[i];
             _t9[i] = -_t8[i];
-            const double _t10 = 2*a2;
-            _t11[i] = atan2(-_t10*d4, _t10*a3);
-            const double _t12 = (a3*a3);
-            const double _t13 = (a2*a2);
-            const double _t14 = 4*_t13;
-            const double _t15 = (d4*d4);
-            _t16[i] = _t12*_t14 + _t14*_t15;
-            _t17[i] = 1.0/sqrt(_t16[i]);
             _t18[i] = -_t1 + _t12 + _t13 + _t15 - _t2 + (d3*d3);
-            _t19[i] = acos(fmin(1, fmax(-1, _t17[i]*(-_t18[i] + (_t9[i]*_t9[i])))));
-            _t20[i] = -_t11[i] + _t19[i];
-            _t58[i] = _t11[i] + _t19[i];
-            _t85[i] = -_t0 + _t5;
+            _a4[i] = kinegen_min(1, kinegen_max(-1, _t17*(-_t18[i] + (_t9[i]*_t9[i]))));
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f0[i] = atan2(_a0[i], y[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f1[i] = acos(_a1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f3[i] = acos(_a4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t6[i] = _f0[i] + _f1[i];
+            _t20[i] = -_f2 + _f3[i];
+            _t58[i] = _f2 + _f3[i];
+            _t85[i] = -_f0[i] + _f1[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -2242,20 +2479,43 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
             const double _t27 = _c1[i]*x[i] + _s1[i]*y[i];
             _t28[i] = _c0[i]*d4 - _s0[i]*a3;
             const double _t29 = _t28[i]*_t9[i];
-            _t30[i] = atan2(_t24 - _t27*_t28[i], _t23[i]*_t27 + _t29);
-            const double _t36 = _t11[i] - _t19[i];
-            _t37[i] = _t30[i] + _t36;
+            _a5[i] = _t24 - _t27*_t28[i];
+            _a6[i] = _t23[i]*_t27 + _t29;
             _t61[i] = _c5[i]*a3 - _s5[i]*d4 + a2;
             const double _t62 = _t61[i]*_t9[i];
             _t63[i] = _c5[i]*d4 + _s5[i]*a3;
             const double _t64 = _t63[i]*_t9[i];
-            _t65[i] = atan2(-_t27*_t63[i] + _t62, _t27*_t61[i] + _t64);
-            _t68[i] = _t58[i] + _t65[i];
+            _a8[i] = -_t27*_t63[i] + _t62;
+            _a9[i] = _t27*_t61[i] + _t64;
             const double _t89 = _c9[i]*x[i] - _s9[i]*y[i];
-            _t90[i] = atan2(_t62 - _t63[i]*_t89, _t61[i]*_t89 + _t64);
-            _t94[i] = _t58[i] + _t90[i];
-            _t116[i] = atan2(_t24 - _t28[i]*_t89, _t23[i]*_t89 + _t29);
-            _t118[i] = _t116[i] + _t36;
+            _a11[i] = _t62 - _t63[i]*_t89;
+            _a12[i] = _t61[i]*_t89 + _t64;
+            _a14[i] = _t24 - _t28[i]*_t89;
+            _a15[i] = _t23[i]*_t89 + _t29;
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f4[i] = atan2(_a5[i], _a6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f6[i] = atan2(_a8[i], _a9[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f8[i] = atan2(_a11[i], _a12[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f10[i] = atan2(_a14[i], _a15[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t36 = _f2 - _f3[i];
+            _t37[i] = _f4[i] + _t36;
+            _t68[i] = _f6[i] + _t58[i];
+            _t94[i] = _f8[i] + _t58[i];
+            _t118[i] = _f10[i] + _t36;
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -2291,75 +2551,94 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            const double _t33 = -_c1[i]*r23[i] + _s1[i]*r13[i];
-            _t34[i] = -_t33;
-            const double _t35 = (_t34[i]*_t34[i]);
+            _t33[i] = -_c1[i]*r23[i] + _s1[i]*r13[i];
             _t40[i] = _c1[i]*r13[i];
             _t41[i] = _s1[i]*r23[i];
             _t42[i] = _c2[i]*_t40[i] + _c2[i]*_t41[i] + _s2[i]*r33[i];
+            _a7[i] = -_t42[i];
+            _t71[i] = _c6[i]*_t40[i] + _c6[i]*_t41[i] + _s6[i]*r33[i];
+            _a10[i] = -_t71[i];
+            _t92[i] = _c9[i]*r23[i] + _s9[i]*r13[i];
+            _t97[i] = _c9[i]*r13[i];
+            _t98[i] = _s9[i]*r23[i];
+            _t99[i] = _c10[i]*_t97[i] - _c10[i]*_t98[i] + _s10[i]*r33[i];
+            _t101[i] = -_t92[i];
+            _a13[i] = -_t99[i];
+            _t121[i] = _c13[i]*_t97[i] - _c13[i]*_t98[i] + _s13[i]*r33[i];
+            _a16[i] = -_t121[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f5[i] = atan2(_t33[i], _a7[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f7[i] = atan2(_t33[i], _a10[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f9[i] = atan2(_t101[i], _a13[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f11[i] = atan2(_t101[i], _a16[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t34[i] = -_t33[i];
+            const double _t35 = (_t34[i]*_t34[i]);
             const int _t43 = _t35 + (_t42[i]*_t42[i]) <= 1e-24;
-            const double _t44 = atan2(_t33, -_t42[i]);
             _t45[i] = ((_t43) ? (
    0
 )
 : (
-   _t44
+   _f5[i]
 ));
             _t55[i] = ((_t43) ? (
    3.141592653589793
 )
 : (
-   _t44 + 3.141592653589793
+   _f5[i] + 3.141592653589793
 ));
-            _t71[i] = _c6[i]*_t40[i] + _c6[i]*_t41[i] + _s6[i]*r33[i];
             const int _t72 = _t35 + (_t71[i]*_t71[i]) <= 1e-24;
-            const double _t73 = atan2(_t33, -_t71[i]);
             _t74[i] = ((_t72) ? (
    0
 )
 : (
-   _t73
+   _f7[i]
 ));
             _t82[i] = ((_t72) ? (
    3.141592653589793
 )
 : (
-   _t73 + 3.141592653589793
+   _f7[i] + 3.141592653589793
 ));
-            _t92[i] = _c9[i]*r23[i] + _s9[i]*r13[i];
             const double _t93 = (_t92[i]*_t92[i]);
-            _t97[i] = _c9[i]*r13[i];
-            _t98[i] = _s9[i]*r23[i];
-            _t99[i] = _c10[i]*_t97[i] - _c10[i]*_t98[i] + _s10[i]*r33[i];
             const int _t100 = _t93 + (_t99[i]*_t99[i]) <= 1e-24;
-            const double _t101 = -_t92[i];
-            const double _t102 = atan2(_t101, -_t99[i]);
             _t103[i] = ((_t100) ? (
    0
 )
 : (
-   _t102
+   _f9[i]
 ));
             _t113[i] = ((_t100) ? (
    3.141592653589793
 )
 : (
-   _t102 + 3.141592653589793
+   _f9[i] + 3.141592653589793
 ));
-            _t121[i] = _c13[i]*_t97[i] - _c13[i]*_t98[i] + _s13[i]*r33[i];
             const int _t122 = (_t121[i]*_t121[i]) + _t93 <= 1e-24;
-            const double _t123 = atan2(_t101, -_t121[i]);
             _t124[i] = ((_t122) ? (
    0
 )
 : (
-   _t123
+   _f11[i]
 ));
             _t132[i] = ((_t122) ? (
    3.141592653589793
 )
 : (
-   _t123 + 3.141592653589793
+   _f11[i] + 3.141592653589793
 ));
         }
         KINEGEN_VECTOR_LOOP
@@ -2428,92 +2707,182 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            const double _t7 = kinegen_wrap_angle(_t6[i]);
-            const double _t31 = kinegen_wrap_angle(_t30[i]);
-            const double _t32 = kinegen_wrap_angle(-_t20[i]);
-            const double _t48 = _c2[i]*r33[i] - _s2[i]*_t40[i] - _s2[i]*_t41[i];
+            _t48[i] = _c2[i]*r33[i] - _s2[i]*_t40[i] - _s2[i]*_t41[i];
             const double _t49 = _c1[i]*r21[i] - _s1[i]*r11[i];
             const double _t50 = _c1[i]*_c2[i];
             const double _t51 = _c2[i]*_s1[i];
             const double _t52 = _s2[i]*r31[i] + _t50*r11[i] + _t51*r21[i];
             const double _t53 = _c1[i]*r22[i] - _s1[i]*r12[i];
             const double _t54 = _s2[i]*r32[i] + _t50*r12[i] + _t51*r22[i];
-            const double _t66 = kinegen_wrap_angle(_t65[i]);
-            const double _t67 = kinegen_wrap_angle(_t58[i]);
-            const double _t77 = _c6[i]*r33[i] - _s6[i]*_t40[i] - _s6[i]*_t41[i];
+            _t77[i] = _c6[i]*r33[i] - _s6[i]*_t40[i] - _s6[i]*_t41[i];
             const double _t78 = _c1[i]*_c6[i];
             const double _t79 = _c6[i]*_s1[i];
             const double _t80 = _s6[i]*r31[i] + _t78*r11[i] + _t79*r21[i];
             const double _t81 = _s6[i]*r32[i] + _t78*r12[i] + _t79*r22[i];
-            const double _t86 = kinegen_wrap_angle(-_t85[i]);
-            const double _t91 = kinegen_wrap_angle(_t90[i]);
-            const double _t106 = _c10[i]*r33[i] - _s10[i]*_t97[i] + _s10[i]*_t98[i];
+            _t106[i] = _c10[i]*r33[i] - _s10[i]*_t97[i] + _s10[i]*_t98[i];
             const double _t107 = _c9[i]*r21[i] + _s9[i]*r11[i];
             const double _t108 = _c10[i]*_c9[i];
             const double _t109 = _c10[i]*_s9[i];
             const double _t110 = _s10[i]*r31[i] + _t108*r11[i] - _t109*r21[i];
             const double _t111 = _c9[i]*r22[i] + _s9[i]*r12[i];
             const double _t112 = _s10[i]*r32[i] + _t108*r12[i] - _t109*r22[i];
-            const double _t117 = kinegen_wrap_angle(_t116[i]);
-            const double _t127 = _c13[i]*r33[i] - _s13[i]*_t97[i] + _s13[i]*_t98[i];
+            _t127[i] = _c13[i]*r33[i] - _s13[i]*_t97[i] + _s13[i]*_t98[i];
             const double _t128 = _c13[i]*_c9[i];
             const double _t129 = _c13[i]*_s9[i];
             const double _t130 = _s13[i]*r31[i] + _t128*r11[i] - _t129*r21[i];
             const double _t131 = _s13[i]*r32[i] + _t128*r12[i] - _t129*r22[i];
+            _a17[i] = -_c3[i]*_t42[i] - _s3[i]*_t34[i];
+            _a18[i] = _c3[i]*_t49 - _s3[i]*_t52;
+            _a19[i] = _c3[i]*_t53 - _s3[i]*_t54;
+            _a20[i] = -_c4[i]*_t42[i] - _s4[i]*_t34[i];
+            _a21[i] = _c4[i]*_t49 - _s4[i]*_t52;
+            _a22[i] = _c4[i]*_t53 - _s4[i]*_t54;
+            _a23[i] = -_c7[i]*_t71[i] - _s7[i]*_t34[i];
+            _a24[i] = _c7[i]*_t49 - _s7[i]*_t80;
+            _a25[i] = _c7[i]*_t53 - _s7[i]*_t81;
+            _a26[i] = -_c8[i]*_t71[i] - _s8[i]*_t34[i];
+            _a27[i] = _c8[i]*_t49 - _s8[i]*_t80;
+            _a28[i] = _c8[i]*_t53 - _s8[i]*_t81;
+            _a29[i] = -_c11[i]*_t99[i] - _s11[i]*_t92[i];
+            _a30[i] = _c11[i]*_t107 - _s11[i]*_t110;
+            _a31[i] = _c11[i]*_t111 - _s11[i]*_t112;
+            _a32[i] = -_c12[i]*_t99[i] - _s12[i]*_t92[i];
+            _a33[i] = _c12[i]*_t107 - _s12[i]*_t110;
+            _a34[i] = _c12[i]*_t111 - _s12[i]*_t112;
+            _a35[i] = -_c14[i]*_t121[i] - _s14[i]*_t92[i];
+            _a36[i] = _c14[i]*_t107 - _s14[i]*_t130;
+            _a37[i] = _c14[i]*_t111 - _s14[i]*_t131;
+            _a38[i] = -_c15[i]*_t121[i] - _s15[i]*_t92[i];
+            _a39[i] = _c15[i]*_t107 - _s15[i]*_t130;
+            _a40[i] = _c15[i]*_t111 - _s15[i]*_t131;
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f12[i] = atan2(_a17[i], _t48[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f13[i] = atan2(_a18[i], _a19[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f14[i] = atan2(_a20[i], _t48[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f15[i] = atan2(_a21[i], _a22[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f16[i] = atan2(_a23[i], _t77[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f17[i] = atan2(_a24[i], _a25[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f18[i] = atan2(_a26[i], _t77[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f19[i] = atan2(_a27[i], _a28[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f20[i] = atan2(_a29[i], _t106[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f21[i] = atan2(_a30[i], _a31[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f22[i] = atan2(_a32[i], _t106[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f23[i] = atan2(_a33[i], _a34[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f24[i] = atan2(_a35[i], _t127[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f25[i] = atan2(_a36[i], _a37[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f26[i] = atan2(_a38[i], _t127[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f27[i] = atan2(_a39[i], _a40[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t7 = kinegen_wrap_angle(_t6[i]);
+            const double _t31 = kinegen_wrap_angle(_f4[i]);
+            const double _t32 = kinegen_wrap_angle(-_t20[i]);
+            const double _t66 = kinegen_wrap_angle(_f6[i]);
+            const double _t67 = kinegen_wrap_angle(_t58[i]);
+            const double _t86 = kinegen_wrap_angle(-_t85[i]);
+            const double _t91 = kinegen_wrap_angle(_f8[i]);
+            const double _t117 = kinegen_wrap_angle(_f10[i]);
             const int _t135 = _t3[i] > 0;
             const int _t136 = _t4[i]*fabs(d3) <= 1.000000000001;
-            const int _t137 = _t16[i] > 0;
-            const int _t138 = _t17[i]*fabs(_t18[i] - (_t8[i]*_t8[i])) <= 1.000000000001;
+            const int _t138 = _t17*fabs(_t18[i] - (_t8[i]*_t8[i])) <= 1.000000000001;
             const int _t139 = _t135 && _t136 && _t137 && _t138 && (_t23[i]*_t23[i]) + (_t28[i]*_t28[i]) > 0;
             const int _t140 = _t135 && _t136 && _t137 && _t138 && (_t61[i]*_t61[i]) + (_t63[i]*_t63[i]) > 0;
-            Q[48 * (start + i) + 0] = _t7;
-            Q[48 * (start + i) + 1] = _t31;
-            Q[48 * (start + i) + 2] = _t32;
-            Q[48 * (start + i) + 3] = kinegen_wrap_angle(_t45[i]);
-            Q[48 * (start + i) + 4] = kinegen_wrap_angle(atan2(-_c3[i]*_t42[i] - _s3[i]*_t34[i], _t48));
-            Q[48 * (start + i) + 5] = kinegen_wrap_angle(atan2(_c3[i]*_t49 - _s3[i]*_t52, _c3[i]*_t53 - _s3[i]*_t54));
-            Q[48 * (start + i) + 6] = _t7;
-            Q[48 * (start + i) + 7] = _t31;
-            Q[48 * (start + i) + 8] = _t32;
-            Q[48 * (start + i) + 9] = kinegen_wrap_angle(_t55[i]);
-            Q[48 * (start + i) + 10] = kinegen_wrap_angle(atan2(-_c4[i]*_t42[i] - _s4[i]*_t34[i], _t48));
-            Q[48 * (start + i) + 11] = kinegen_wrap_angle(atan2(_c4[i]*_t49 - _s4[i]*_t52, _c4[i]*_t53 - _s4[i]*_t54));
-            Q[48 * (start + i) + 12] = _t7;
-            Q[48 * (start + i) + 13] = _t66;
-            Q[48 * (start + i) + 14] = _t67;
-            Q[48 * (start + i) + 15] = kinegen_wrap_angle(_t74[i]);
-            Q[48 * (start + i) + 16] = kinegen_wrap_angle(atan2(-_c7[i]*_t71[i] - _s7[i]*_t34[i], _t77));
-            Q[48 * (start + i) + 17] = kinegen_wrap_angle(atan2(_c7[i]*_t49 - _s7[i]*_t80, _c7[i]*_t53 - _s7[i]*_t81));
-            Q[48 * (start + i) + 18] = _t7;
-            Q[48 * (start + i) + 19] = _t66;
-            Q[48 * (start + i) + 20] = _t67;
-            Q[48 * (start + i) + 21] = kinegen_wrap_angle(_t82[i]);
-            Q[48 * (start + i) + 22] = kinegen_wrap_angle(atan2(-_c8[i]*_t71[i] - _s8[i]*_t34[i], _t77));
-            Q[48 * (start + i) + 23] = kinegen_wrap_angle(atan2(_c8[i]*_t49 - _s8[i]*_t80, _c8[i]*_t53 - _s8[i]*_t81));
-            Q[48 * (start + i) + 24] = _t86;
-            Q[48 * (start + i) + 25] = _t91;
-            Q[48 * (start + i) + 26] = _t67;
-            Q[48 * (start + i) + 27] = kinegen_wrap_angle(_t103[i]);
-            Q[48 * (start + i) + 28] = kinegen_wrap_angle(atan2(-_c11[i]*_t99[i] - _s11[i]*_t92[i], _t106));
-            Q[48 * (start + i) + 29] = kinegen_wrap_angle(atan2(_c11[i]*_t107 - _s11[i]*_t110, _c11[i]*_t111 - _s11[i]*_t112));
-            Q[48 * (start + i) + 30] = _t86;
-            Q[48 * (start + i) + 31] = _t91;
-            Q[48 * (start + i) + 32] = _t67;
-            Q[48 * (start + i) + 33] = kinegen_wrap_angle(_t113[i]);
-            Q[48 * (start + i) + 34] = kinegen_wrap_angle(atan2(-_c12[i]*_t99[i] - _s12[i]*_t92[i], _t106));
-            Q[48 * (start + i) + 35] = kinegen_wrap_angle(atan2(_c12[i]*_t107 - _s12[i]*_t110, _c12[i]*_t111 - _s12[i]*_t112));
-            Q[48 * (start + i) + 36] = _t86;
-            Q[48 * (start + i) + 37] = _t117;
-            Q[48 * (start + i) + 38] = _t32;
-            Q[48 * (start + i) + 39] = kinegen_wrap_angle(_t124[i]);
-            Q[48 * (start + i) + 40] = kinegen_wrap_angle(atan2(-_c14[i]*_t121[i] - _s14[i]*_t92[i], _t127));
-            Q[48 * (start + i) + 41] = kinegen_wrap_angle(atan2(_c14[i]*_t107 - _s14[i]*_t130, _c14[i]*_t111 - _s14[i]*_t131));
-            Q[48 * (start + i) + 42] = _t86;
-            Q[48 * (start + i) + 43] = _t117;
-            Q[48 * (start + i) + 44] = _t32;
-            Q[48 * (start + i) + 45] = kinegen_wrap_angle(_t132[i]);
-            Q[48 * (start + i) + 46] = kinegen_wrap_angle(atan2(-_c15[i]*_t121[i] - _s15[i]*_t92[i], _t127));
-            Q[48 * (start + i) + 47] = kinegen_wrap_angle(atan2(_c15[i]*_t107 - _s15[i]*_t130, _c15[i]*_t111 - _s15[i]*_t131));
+            _Q_block[0][i] = _t7;
+            _Q_block[1][i] = _t31;
+            _Q_block[2][i] = _t32;
+            _Q_block[3][i] = kinegen_wrap_angle(_t45[i]);
+            _Q_block[4][i] = kinegen_wrap_angle(_f12[i]);
+            _Q_block[5][i] = kinegen_wrap_angle(_f13[i]);
+            _Q_block[6][i] = _t7;
+            _Q_block[7][i] = _t31;
+            _Q_block[8][i] = _t32;
+            _Q_block[9][i] = kinegen_wrap_angle(_t55[i]);
+            _Q_block[10][i] = kinegen_wrap_angle(_f14[i]);
+            _Q_block[11][i] = kinegen_wrap_angle(_f15[i]);
+            _Q_block[12][i] = _t7;
+            _Q_block[13][i] = _t66;
+            _Q_block[14][i] = _t67;
+            _Q_block[15][i] = kinegen_wrap_angle(_t74[i]);
+            _Q_block[16][i] = kinegen_wrap_angle(_f16[i]);
+            _Q_block[17][i] = kinegen_wrap_angle(_f17[i]);
+            _Q_block[18][i] = _t7;
+            _Q_block[19][i] = _t66;
+            _Q_block[20][i] = _t67;
+            _Q_block[21][i] = kinegen_wrap_angle(_t82[i]);
+            _Q_block[22][i] = kinegen_wrap_angle(_f18[i]);
+            _Q_block[23][i] = kinegen_wrap_angle(_f19[i]);
+            _Q_block[24][i] = _t86;
+            _Q_block[25][i] = _t91;
+            _Q_block[26][i] = _t67;
+            _Q_block[27][i] = kinegen_wrap_angle(_t103[i]);
+            _Q_block[28][i] = kinegen_wrap_angle(_f20[i]);
+            _Q_block[29][i] = kinegen_wrap_angle(_f21[i]);
+            _Q_block[30][i] = _t86;
+            _Q_block[31][i] = _t91;
+            _Q_block[32][i] = _t67;
+            _Q_block[33][i] = kinegen_wrap_angle(_t113[i]);
+            _Q_block[34][i] = kinegen_wrap_angle(_f22[i]);
+            _Q_block[35][i] = kinegen_wrap_angle(_f23[i]);
+            _Q_block[36][i] = _t86;
+            _Q_block[37][i] = _t117;
+            _Q_block[38][i] = _t32;
+            _Q_block[39][i] = kinegen_wrap_angle(_t124[i]);
+            _Q_block[40][i] = kinegen_wrap_angle(_f24[i]);
+            _Q_block[41][i] = kinegen_wrap_angle(_f25[i]);
+            _Q_block[42][i] = _t86;
+            _Q_block[43][i] = _t117;
+            _Q_block[44][i] = _t32;
+            _Q_block[45][i] = kinegen_wrap_angle(_t132[i]);
+            _Q_block[46][i] = kinegen_wrap_angle(_f26[i]);
+            _Q_block[47][i] = kinegen_wrap_angle(_f27[i]);
             valid[8 * (start + i) + 0] = _t139;
             valid[8 * (start + i) + 1] = _t139;
             valid[8 * (start + i) + 2] = _t140;
@@ -2522,6 +2891,12 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
             valid[8 * (start + i) + 5] = _t140;
             valid[8 * (start + i) + 6] = _t139;
             valid[8 * (start + i) + 7] = _t139;
+        }
+        for (i = 0; i < n; ++i) {
+            int k;
+            for (k = 0; k < 48; ++k) {
+                Q[48 * (start + i) + k] = _Q_block[k][i];
+            }
         }
         for (i = 0; i < n; ++i) {
             const int found = puma560_ik_checks(_x + 12 * (start + i), Q + 48 * (start + i), valid + 8 * (start + i));

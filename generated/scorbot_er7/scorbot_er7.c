@@ -55,6 +55,18 @@ double asin(double);
 
 const scorbot_er7_params scorbot_er7_default_params = { 0.05, 0.3, 0.25, 0.385, 0.212 };
 
+/* min and max that pass a NaN on, like numpy.minimum and numpy.maximum: C99's fmin and
+   fmax would turn an acos argument of NaN into +-1 and a valid-looking angle. */
+static double kinegen_min(double a, double b)
+{
+    return isnan(a) || a < b ? a : b;
+}
+
+static double kinegen_max(double a, double b)
+{
+    return isnan(a) || a > b ? a : b;
+}
+
 /* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi. */
 static double kinegen_wrap_angle(double angle)
 {
@@ -1208,58 +1220,104 @@ int scorbot_er7_ik(const double *restrict _x, const scorbot_er7_params *restrict
     const double a3 = params->a3;
     const double d1 = params->d1;
     const double d5 = params->d5;
-    const double _t0 = kinegen_wrap_angle(atan2(y, x));
+    const double _t4 = a1 + d5;
+    const double _t9 = (a2*a2) + (a3*a3);
+    const double _t11 = 1/(a2*a3);
+    const double _t12 = (0.5)*_t11;
     const double _t1 = d1 - z;
     const double _t2 = -_t1;
     const double _t3 = sqrt((x*x) + (y*y));
-    const double _t4 = a1 + d5;
     const double _t5 = -_t3 + _t4;
     const double _t6 = -_t5;
-    const double _t7 = atan2(_t2, _t6);
-    const double _t8 = -_t7;
-    const double _t9 = (a2*a2) + (a3*a3);
     const double _t10 = -(_t2*_t2) + _t9;
-    const double _t11 = 1/(a2*a3);
-    const double _t12 = (0.5)*_t11;
-    const double _t13 = fmin(1, fmax(-1, _t12*(-_t10 + (_t6*_t6))));
+    const double _t13 = kinegen_min(1, kinegen_max(-1, _t12*(-_t10 + (_t6*_t6))));
     const double _t14 = a3*sqrt(1 - (_t13*_t13));
     const double _t15 = _t13*a3 + a2;
-    const double _t16 = _t8 + atan2(-_t14, _t15);
-    const double _t17 = acos(_t13);
-    const double _t18 = atan2(_t14, _t15);
-    const double _t19 = kinegen_wrap_angle(atan2(-y, -x));
+    const double _a0 = -_t14;
+    const double _a1 = -y;
+    const double _a2 = -x;
     const double _t20 = _t3 + _t4;
     const double _t21 = -_t20;
-    const double _t22 = atan2(_t2, _t21);
-    const double _t23 = -_t22;
-    const double _t24 = fmin(1, fmax(-1, _t12*(-_t10 + (_t21*_t21))));
+    const double _t24 = kinegen_min(1, kinegen_max(-1, _t12*(-_t10 + (_t21*_t21))));
     const double _t25 = a3*sqrt(1 - (_t24*_t24));
     const double _t26 = _t24*a3 + a2;
-    const double _t27 = atan2(_t25, _t26);
-    const double _t28 = acos(_t24);
-    const double _t29 = _t23 + atan2(-_t25, _t26);
+    const double _a3 = -_t25;
+    double _f0, _f1, _f2, _f3, _f4, _f5, _f6, _f7, _f8, _f9;
+#if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+    {
+        /* The atan2 arguments side by side: one vector call. */
+        const double argument0[8] = { y, _t2, _a0, _t14, _a1, _t2, _t25, _a3,  };
+        const double argument1[8] = { x, _t6, _t15, _t15, _a2, _t21, _t26, _t26,  };
+        double result[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            result[k] = atan2(argument0[k], argument1[k]);
+        }
+        _f0 = result[0];
+        _f1 = result[1];
+        _f2 = result[2];
+        _f4 = result[3];
+        _f5 = result[4];
+        _f6 = result[5];
+        _f7 = result[6];
+        _f9 = result[7];
+    }
+#else
+    _f0 = atan2(y, x);
+    _f1 = atan2(_t2, _t6);
+    _f2 = atan2(_a0, _t15);
+    _f4 = atan2(_t14, _t15);
+    _f5 = atan2(_a1, _a2);
+    _f6 = atan2(_t2, _t21);
+    _f7 = atan2(_t25, _t26);
+    _f9 = atan2(_a3, _t26);
+#endif
+#if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+    {
+        /* The acos arguments side by side: one vector call. */
+        const double argument0[4] = { _t13, _t24, 1.0, 1.0 };
+        double result[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            result[k] = acos(argument0[k]);
+        }
+        _f3 = result[0];
+        _f8 = result[1];
+    }
+#else
+    _f3 = acos(_t13);
+    _f8 = acos(_t24);
+#endif
+    const double _t0 = kinegen_wrap_angle(_f0);
+    const double _t8 = -_f1;
+    const double _t16 = _f2 + _t8;
+    const double _t19 = kinegen_wrap_angle(_f5);
+    const double _t23 = -_f6;
+    const double _t29 = _f9 + _t23;
     const double _t30 = -(_t1*_t1) + _t9;
     const int _t31 = (0.5)*fabs(_t11*(_t30 - (_t5*_t5))) <= 1.000000000001;
     const int _t32 = (0.5)*fabs(_t11*((_t20*_t20) - _t30)) <= 1.000000000001;
     Q[0] = _t0;
     Q[1] = kinegen_wrap_angle(-_t16);
-    Q[2] = kinegen_wrap_angle(-_t17);
-    Q[3] = kinegen_wrap_angle(_t16 + _t17);
+    Q[2] = kinegen_wrap_angle(-_f3);
+    Q[3] = kinegen_wrap_angle(_f3 + _t16);
     Q[4] = 0;
     Q[5] = _t0;
-    Q[6] = kinegen_wrap_angle(-_t18 - _t8);
-    Q[7] = kinegen_wrap_angle(_t17);
-    Q[8] = kinegen_wrap_angle(-_t17 + _t18 - _t7);
+    Q[6] = kinegen_wrap_angle(-_f4 - _t8);
+    Q[7] = kinegen_wrap_angle(_f3);
+    Q[8] = kinegen_wrap_angle(-_f1 - _f3 + _f4);
     Q[9] = 0;
     Q[10] = _t19;
-    Q[11] = kinegen_wrap_angle(-_t23 - _t27);
-    Q[12] = kinegen_wrap_angle(_t28);
-    Q[13] = kinegen_wrap_angle(-_t22 + _t27 - _t28);
+    Q[11] = kinegen_wrap_angle(-_f7 - _t23);
+    Q[12] = kinegen_wrap_angle(_f8);
+    Q[13] = kinegen_wrap_angle(-_f6 + _f7 - _f8);
     Q[14] = 0;
     Q[15] = _t19;
     Q[16] = kinegen_wrap_angle(-_t29);
-    Q[17] = kinegen_wrap_angle(-_t28);
-    Q[18] = kinegen_wrap_angle(_t28 + _t29);
+    Q[17] = kinegen_wrap_angle(-_f8);
+    Q[18] = kinegen_wrap_angle(_f8 + _t29);
     Q[19] = 0;
     valid[0] = _t31;
     valid[1] = _t31;
@@ -1277,6 +1335,33 @@ long scorbot_er7_ik_batch(size_t count, const double *restrict _x, const scorbot
     double x[KINEGEN_BLOCK];
     double y[KINEGEN_BLOCK];
     double z[KINEGEN_BLOCK];
+    double _t1[KINEGEN_BLOCK];
+    double _t2[KINEGEN_BLOCK];
+    double _t5[KINEGEN_BLOCK];
+    double _t6[KINEGEN_BLOCK];
+    double _t13[KINEGEN_BLOCK];
+    double _t14[KINEGEN_BLOCK];
+    double _t15[KINEGEN_BLOCK];
+    double _a0[KINEGEN_BLOCK];
+    double _a1[KINEGEN_BLOCK];
+    double _a2[KINEGEN_BLOCK];
+    double _t20[KINEGEN_BLOCK];
+    double _t21[KINEGEN_BLOCK];
+    double _t24[KINEGEN_BLOCK];
+    double _t25[KINEGEN_BLOCK];
+    double _t26[KINEGEN_BLOCK];
+    double _a3[KINEGEN_BLOCK];
+    double _f0[KINEGEN_BLOCK];
+    double _f1[KINEGEN_BLOCK];
+    double _f2[KINEGEN_BLOCK];
+    double _f3[KINEGEN_BLOCK];
+    double _f4[KINEGEN_BLOCK];
+    double _f5[KINEGEN_BLOCK];
+    double _f6[KINEGEN_BLOCK];
+    double _f7[KINEGEN_BLOCK];
+    double _f8[KINEGEN_BLOCK];
+    double _f9[KINEGEN_BLOCK];
+    double _Q_block[20][KINEGEN_BLOCK];
     size_t start, i, n;
     if (params == NULL) {
         params = &scorbot_er7_default_params;
@@ -1286,6 +1371,10 @@ long scorbot_er7_ik_batch(size_t count, const double *restrict _x, const scorbot
     const double a3 = params->a3;
     const double d1 = params->d1;
     const double d5 = params->d5;
+    const double _t4 = a1 + d5;
+    const double _t9 = (a2*a2) + (a3*a3);
+    const double _t11 = 1/(a2*a3);
+    const double _t12 = (0.5)*_t11;
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
         for (i = 0; i < n; ++i) {
@@ -1295,63 +1384,106 @@ long scorbot_er7_ik_batch(size_t count, const double *restrict _x, const scorbot
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            const double _t0 = kinegen_wrap_angle(atan2(y[i], x[i]));
-            const double _t1 = d1 - z[i];
-            const double _t2 = -_t1;
+            _t1[i] = d1 - z[i];
+            _t2[i] = -_t1[i];
             const double _t3 = sqrt((x[i]*x[i]) + (y[i]*y[i]));
-            const double _t4 = a1 + d5;
-            const double _t5 = -_t3 + _t4;
-            const double _t6 = -_t5;
-            const double _t7 = atan2(_t2, _t6);
-            const double _t8 = -_t7;
-            const double _t9 = (a2*a2) + (a3*a3);
-            const double _t10 = -(_t2*_t2) + _t9;
-            const double _t11 = 1/(a2*a3);
-            const double _t12 = (0.5)*_t11;
-            const double _t13 = fmin(1, fmax(-1, _t12*(-_t10 + (_t6*_t6))));
-            const double _t14 = a3*sqrt(1 - (_t13*_t13));
-            const double _t15 = _t13*a3 + a2;
-            const double _t16 = _t8 + atan2(-_t14, _t15);
-            const double _t17 = acos(_t13);
-            const double _t18 = atan2(_t14, _t15);
-            const double _t19 = kinegen_wrap_angle(atan2(-y[i], -x[i]));
-            const double _t20 = _t3 + _t4;
-            const double _t21 = -_t20;
-            const double _t22 = atan2(_t2, _t21);
-            const double _t23 = -_t22;
-            const double _t24 = fmin(1, fmax(-1, _t12*(-_t10 + (_t21*_t21))));
-            const double _t25 = a3*sqrt(1 - (_t24*_t24));
-            const double _t26 = _t24*a3 + a2;
-            const double _t27 = atan2(_t25, _t26);
-            const double _t28 = acos(_t24);
-            const double _t29 = _t23 + atan2(-_t25, _t26);
-            const double _t30 = -(_t1*_t1) + _t9;
-            const int _t31 = (0.5)*fabs(_t11*(_t30 - (_t5*_t5))) <= 1.000000000001;
-            const int _t32 = (0.5)*fabs(_t11*((_t20*_t20) - _t30)) <= 1.000000000001;
-            Q[20 * (start + i) + 0] = _t0;
-            Q[20 * (start + i) + 1] = kinegen_wrap_angle(-_t16);
-            Q[20 * (start + i) + 2] = kinegen_wrap_angle(-_t17);
-            Q[20 * (start + i) + 3] = kinegen_wrap_angle(_t16 + _t17);
-            Q[20 * (start + i) + 4] = 0;
-            Q[20 * (start + i) + 5] = _t0;
-            Q[20 * (start + i) + 6] = kinegen_wrap_angle(-_t18 - _t8);
-            Q[20 * (start + i) + 7] = kinegen_wrap_angle(_t17);
-            Q[20 * (start + i) + 8] = kinegen_wrap_angle(-_t17 + _t18 - _t7);
-            Q[20 * (start + i) + 9] = 0;
-            Q[20 * (start + i) + 10] = _t19;
-            Q[20 * (start + i) + 11] = kinegen_wrap_angle(-_t23 - _t27);
-            Q[20 * (start + i) + 12] = kinegen_wrap_angle(_t28);
-            Q[20 * (start + i) + 13] = kinegen_wrap_angle(-_t22 + _t27 - _t28);
-            Q[20 * (start + i) + 14] = 0;
-            Q[20 * (start + i) + 15] = _t19;
-            Q[20 * (start + i) + 16] = kinegen_wrap_angle(-_t29);
-            Q[20 * (start + i) + 17] = kinegen_wrap_angle(-_t28);
-            Q[20 * (start + i) + 18] = kinegen_wrap_angle(_t28 + _t29);
-            Q[20 * (start + i) + 19] = 0;
+            _t5[i] = -_t3 + _t4;
+            _t6[i] = -_t5[i];
+            const double _t10 = -(_t2[i]*_t2[i]) + _t9;
+            _t13[i] = kinegen_min(1, kinegen_max(-1, _t12*(-_t10 + (_t6[i]*_t6[i]))));
+            _t14[i] = a3*sqrt(1 - (_t13[i]*_t13[i]));
+            _t15[i] = _t13[i]*a3 + a2;
+            _a0[i] = -_t14[i];
+            _a1[i] = -y[i];
+            _a2[i] = -x[i];
+            _t20[i] = _t3 + _t4;
+            _t21[i] = -_t20[i];
+            _t24[i] = kinegen_min(1, kinegen_max(-1, _t12*(-_t10 + (_t21[i]*_t21[i]))));
+            _t25[i] = a3*sqrt(1 - (_t24[i]*_t24[i]));
+            _t26[i] = _t24[i]*a3 + a2;
+            _a3[i] = -_t25[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f0[i] = atan2(y[i], x[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f1[i] = atan2(_t2[i], _t6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f2[i] = atan2(_a0[i], _t15[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f3[i] = acos(_t13[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f4[i] = atan2(_t14[i], _t15[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f5[i] = atan2(_a1[i], _a2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f6[i] = atan2(_t2[i], _t21[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f7[i] = atan2(_t25[i], _t26[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f8[i] = acos(_t24[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f9[i] = atan2(_a3[i], _t26[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t0 = kinegen_wrap_angle(_f0[i]);
+            const double _t8 = -_f1[i];
+            const double _t16 = _f2[i] + _t8;
+            const double _t19 = kinegen_wrap_angle(_f5[i]);
+            const double _t23 = -_f6[i];
+            const double _t29 = _f9[i] + _t23;
+            const double _t30 = -(_t1[i]*_t1[i]) + _t9;
+            const int _t31 = (0.5)*fabs(_t11*(_t30 - (_t5[i]*_t5[i]))) <= 1.000000000001;
+            const int _t32 = (0.5)*fabs(_t11*((_t20[i]*_t20[i]) - _t30)) <= 1.000000000001;
+            _Q_block[0][i] = _t0;
+            _Q_block[1][i] = kinegen_wrap_angle(-_t16);
+            _Q_block[2][i] = kinegen_wrap_angle(-_f3[i]);
+            _Q_block[3][i] = kinegen_wrap_angle(_f3[i] + _t16);
+            _Q_block[4][i] = 0;
+            _Q_block[5][i] = _t0;
+            _Q_block[6][i] = kinegen_wrap_angle(-_f4[i] - _t8);
+            _Q_block[7][i] = kinegen_wrap_angle(_f3[i]);
+            _Q_block[8][i] = kinegen_wrap_angle(-_f1[i] - _f3[i] + _f4[i]);
+            _Q_block[9][i] = 0;
+            _Q_block[10][i] = _t19;
+            _Q_block[11][i] = kinegen_wrap_angle(-_f7[i] - _t23);
+            _Q_block[12][i] = kinegen_wrap_angle(_f8[i]);
+            _Q_block[13][i] = kinegen_wrap_angle(-_f6[i] + _f7[i] - _f8[i]);
+            _Q_block[14][i] = 0;
+            _Q_block[15][i] = _t19;
+            _Q_block[16][i] = kinegen_wrap_angle(-_t29);
+            _Q_block[17][i] = kinegen_wrap_angle(-_f8[i]);
+            _Q_block[18][i] = kinegen_wrap_angle(_f8[i] + _t29);
+            _Q_block[19][i] = 0;
             valid[4 * (start + i) + 0] = _t31;
             valid[4 * (start + i) + 1] = _t31;
             valid[4 * (start + i) + 2] = _t32;
             valid[4 * (start + i) + 3] = _t32;
+        }
+        for (i = 0; i < n; ++i) {
+            int k;
+            for (k = 0; k < 20; ++k) {
+                Q[20 * (start + i) + k] = _Q_block[k][i];
+            }
         }
         for (i = 0; i < n; ++i) {
             const int found = scorbot_er7_ik_checks(_x + 3 * (start + i), Q + 20 * (start + i), valid + 4 * (start + i));
