@@ -70,6 +70,11 @@ def template_function(prepared: PreparedFunction, accepts_nonfinite: bool = Fals
         # Outputs the blocked C writes per block, one array per entry, then copies out item by
         # item: GCC 12 does not vectorise a loop that stores ik's 48 joint values per item.
         "block_outputs": [o.name for o in prepared.outputs if prepared.name == "ik" and o.dtype == "float"],
+        # Outputs that can be streamed out in pairs of doubles (16-byte aligned rows: an even
+        # size); not ik's, whose checks read the joint values straight back.
+        "stream_outputs": [o.name for o in prepared.outputs if o.dtype == "float" and o.size % 2 == 0
+                           and prepared.name != "ik"],
+        "stream_size": sum(o.size for o in prepared.outputs if o.dtype == "float" and o.size % 2 == 0),
         "stages": [{"body": [(n, e, n in staged.arrays) for n, e in s.body], "calls": s.calls,
                     "angles": _angles(s.calls), "groups": _call_groups(s.calls)} for s in staged.stages],
         "arrays": staged.arrays,

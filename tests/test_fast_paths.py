@@ -172,3 +172,25 @@ def test_numpy_sine_and_cosine_from_the_half_angle_tangent_match_libm():
     assert np.abs(T[:, 0, 0] - cos).max() <= 4.5e-16
     assert np.abs(T[:, 1, 0] - sin).max() <= 4.5e-16
     assert (np.abs(T[:, 1, 0] - sin) <= 4.5e-16 * np.abs(sin)).all()  # sin is relatively accurate, even near 0
+
+
+@pytest.mark.parametrize("kernel, size", [("fk", 16), ("jacobian", 36)])
+def test_batches_past_the_caches_stream_the_same_numbers_aligned_or_not(kernel, size):
+    """Outputs over KINEGEN_STREAM_BYTES (1 MiB) go out in streaming stores when 16-byte aligned.
+
+    Both the streamed path (a numpy output) and the plain one (an output 8 bytes
+    off alignment, through the C entry point) must give the per-pose results.
+    """
+    from generated.puma560._puma560_c import ffi, lib
+    k = kernels("puma560", "c")
+    count = 2 * (1 << 20) // (8 * size) + 5  # twice the threshold, and a partial block
+    q = np.random.default_rng(9).uniform(-3, 3, (count, 6))
+    streamed = getattr(k, kernel)(q)
+    picks = np.random.default_rng(10).choice(count, 300, replace=False)
+    single = np.stack([getattr(k, kernel)(q[i]) for i in picks])
+    np.testing.assert_allclose(streamed[picks], single, rtol=0, atol=1e-14)
+    buffer = np.zeros(count * size + 1)
+    shifted = ffi.from_buffer("double[]", buffer) + 1  # 8 bytes past a 16-byte boundary
+    assert int(ffi.cast("uintptr_t", shifted)) % 16 == 8
+    getattr(lib, f"puma560_{kernel}_batch")(count, ffi.from_buffer("double[]", q), ffi.NULL, shifted)
+    np.testing.assert_array_equal(buffer[1:].reshape(streamed.shape), streamed)

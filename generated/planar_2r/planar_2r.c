@@ -52,6 +52,17 @@ double asin(double);
 #ifndef KINEGEN_BLOCK
 #define KINEGEN_BLOCK 64
 #endif
+#if defined(KINEGEN_SIMD) && defined(__SSE2__) && !defined(KINEGEN_NO_STREAM)
+/* Batches whose outputs exceed KINEGEN_STREAM_BYTES write them with SSE2 streaming
+   stores: a plain store first reads the line it overwrites, which doubles the memory
+   traffic of a batch too large for the caches. */
+#include <emmintrin.h>
+#include <stdint.h>
+#define KINEGEN_STREAM
+#ifndef KINEGEN_STREAM_BYTES
+#define KINEGEN_STREAM_BYTES 1048576
+#endif
+#endif
 
 const planar_2r_params planar_2r_default_params = { 0.559, 0.508 };
 
@@ -147,6 +158,11 @@ void planar_2r_fk_batch(size_t count, const double *restrict q, const planar_2r_
     double _c0[KINEGEN_BLOCK];
     double _s1[KINEGEN_BLOCK];
     double _c1[KINEGEN_BLOCK];
+#ifdef KINEGEN_STREAM
+    double _T_block[16][KINEGEN_BLOCK];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
+#endif
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_2r_default_params;
@@ -179,26 +195,66 @@ void planar_2r_fk_batch(size_t count, const double *restrict q, const planar_2r_
         for (i = 0; i < n; ++i) {
             _c1[i] = cos(q1[i]);
         }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            T[16 * (start + i) + 0] = _c0[i];
-            T[16 * (start + i) + 1] = -_s0[i];
-            T[16 * (start + i) + 2] = 0;
-            T[16 * (start + i) + 3] = _c0[i]*l2 + _c1[i]*l1;
-            T[16 * (start + i) + 4] = _s0[i];
-            T[16 * (start + i) + 5] = _c0[i];
-            T[16 * (start + i) + 6] = 0;
-            T[16 * (start + i) + 7] = _s0[i]*l2 + _s1[i]*l1;
-            T[16 * (start + i) + 8] = 0;
-            T[16 * (start + i) + 9] = 0;
-            T[16 * (start + i) + 10] = 1;
-            T[16 * (start + i) + 11] = 0;
-            T[16 * (start + i) + 12] = 0;
-            T[16 * (start + i) + 13] = 0;
-            T[16 * (start + i) + 14] = 0;
-            T[16 * (start + i) + 15] = 1;
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _T_block[0][i] = _c0[i];
+                _T_block[1][i] = -_s0[i];
+                _T_block[2][i] = 0;
+                _T_block[3][i] = _c0[i]*l2 + _c1[i]*l1;
+                _T_block[4][i] = _s0[i];
+                _T_block[5][i] = _c0[i];
+                _T_block[6][i] = 0;
+                _T_block[7][i] = _s0[i]*l2 + _s1[i]*l1;
+                _T_block[8][i] = 0;
+                _T_block[9][i] = 0;
+                _T_block[10][i] = 1;
+                _T_block[11][i] = 0;
+                _T_block[12][i] = 0;
+                _T_block[13][i] = 0;
+                _T_block[14][i] = 0;
+                _T_block[15][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                T[16 * (start + i) + 0] = _c0[i];
+                T[16 * (start + i) + 1] = -_s0[i];
+                T[16 * (start + i) + 2] = 0;
+                T[16 * (start + i) + 3] = _c0[i]*l2 + _c1[i]*l1;
+                T[16 * (start + i) + 4] = _s0[i];
+                T[16 * (start + i) + 5] = _c0[i];
+                T[16 * (start + i) + 6] = 0;
+                T[16 * (start + i) + 7] = _s0[i]*l2 + _s1[i]*l1;
+                T[16 * (start + i) + 8] = 0;
+                T[16 * (start + i) + 9] = 0;
+                T[16 * (start + i) + 10] = 1;
+                T[16 * (start + i) + 11] = 0;
+                T[16 * (start + i) + 12] = 0;
+                T[16 * (start + i) + 13] = 0;
+                T[16 * (start + i) + 14] = 0;
+                T[16 * (start + i) + 15] = 1;
+            }
         }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 16; k += 2) {
+                    _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
+                }
+            }
+        }
+#endif
     }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
 #else
     size_t i;
     for (i = 0; i < count; ++i) {
@@ -307,6 +363,11 @@ void planar_2r_frames_batch(size_t count, const double *restrict q, const planar
     double _c0[KINEGEN_BLOCK];
     double _s1[KINEGEN_BLOCK];
     double _c1[KINEGEN_BLOCK];
+#ifdef KINEGEN_STREAM
+    double _frames_block[48][KINEGEN_BLOCK];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 48 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
+#endif
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_2r_default_params;
@@ -339,60 +400,134 @@ void planar_2r_frames_batch(size_t count, const double *restrict q, const planar
         for (i = 0; i < n; ++i) {
             _c1[i] = cos(_t4[i]);
         }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            const double _t2 = _c0[i]*l1;
-            const double _t3 = _s0[i]*l1;
-            frames[48 * (start + i) + 0] = 1;
-            frames[48 * (start + i) + 1] = 0;
-            frames[48 * (start + i) + 2] = 0;
-            frames[48 * (start + i) + 3] = 0;
-            frames[48 * (start + i) + 4] = 0;
-            frames[48 * (start + i) + 5] = 1;
-            frames[48 * (start + i) + 6] = 0;
-            frames[48 * (start + i) + 7] = 0;
-            frames[48 * (start + i) + 8] = 0;
-            frames[48 * (start + i) + 9] = 0;
-            frames[48 * (start + i) + 10] = 1;
-            frames[48 * (start + i) + 11] = 0;
-            frames[48 * (start + i) + 12] = 0;
-            frames[48 * (start + i) + 13] = 0;
-            frames[48 * (start + i) + 14] = 0;
-            frames[48 * (start + i) + 15] = 1;
-            frames[48 * (start + i) + 16] = _c0[i];
-            frames[48 * (start + i) + 17] = -_s0[i];
-            frames[48 * (start + i) + 18] = 0;
-            frames[48 * (start + i) + 19] = _t2;
-            frames[48 * (start + i) + 20] = _s0[i];
-            frames[48 * (start + i) + 21] = _c0[i];
-            frames[48 * (start + i) + 22] = 0;
-            frames[48 * (start + i) + 23] = _t3;
-            frames[48 * (start + i) + 24] = 0;
-            frames[48 * (start + i) + 25] = 0;
-            frames[48 * (start + i) + 26] = 1;
-            frames[48 * (start + i) + 27] = 0;
-            frames[48 * (start + i) + 28] = 0;
-            frames[48 * (start + i) + 29] = 0;
-            frames[48 * (start + i) + 30] = 0;
-            frames[48 * (start + i) + 31] = 1;
-            frames[48 * (start + i) + 32] = _c1[i];
-            frames[48 * (start + i) + 33] = -_s1[i];
-            frames[48 * (start + i) + 34] = 0;
-            frames[48 * (start + i) + 35] = _c1[i]*l2 + _t2;
-            frames[48 * (start + i) + 36] = _s1[i];
-            frames[48 * (start + i) + 37] = _c1[i];
-            frames[48 * (start + i) + 38] = 0;
-            frames[48 * (start + i) + 39] = _s1[i]*l2 + _t3;
-            frames[48 * (start + i) + 40] = 0;
-            frames[48 * (start + i) + 41] = 0;
-            frames[48 * (start + i) + 42] = 1;
-            frames[48 * (start + i) + 43] = 0;
-            frames[48 * (start + i) + 44] = 0;
-            frames[48 * (start + i) + 45] = 0;
-            frames[48 * (start + i) + 46] = 0;
-            frames[48 * (start + i) + 47] = 1;
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c0[i]*l1;
+                const double _t3 = _s0[i]*l1;
+                _frames_block[0][i] = 1;
+                _frames_block[1][i] = 0;
+                _frames_block[2][i] = 0;
+                _frames_block[3][i] = 0;
+                _frames_block[4][i] = 0;
+                _frames_block[5][i] = 1;
+                _frames_block[6][i] = 0;
+                _frames_block[7][i] = 0;
+                _frames_block[8][i] = 0;
+                _frames_block[9][i] = 0;
+                _frames_block[10][i] = 1;
+                _frames_block[11][i] = 0;
+                _frames_block[12][i] = 0;
+                _frames_block[13][i] = 0;
+                _frames_block[14][i] = 0;
+                _frames_block[15][i] = 1;
+                _frames_block[16][i] = _c0[i];
+                _frames_block[17][i] = -_s0[i];
+                _frames_block[18][i] = 0;
+                _frames_block[19][i] = _t2;
+                _frames_block[20][i] = _s0[i];
+                _frames_block[21][i] = _c0[i];
+                _frames_block[22][i] = 0;
+                _frames_block[23][i] = _t3;
+                _frames_block[24][i] = 0;
+                _frames_block[25][i] = 0;
+                _frames_block[26][i] = 1;
+                _frames_block[27][i] = 0;
+                _frames_block[28][i] = 0;
+                _frames_block[29][i] = 0;
+                _frames_block[30][i] = 0;
+                _frames_block[31][i] = 1;
+                _frames_block[32][i] = _c1[i];
+                _frames_block[33][i] = -_s1[i];
+                _frames_block[34][i] = 0;
+                _frames_block[35][i] = _c1[i]*l2 + _t2;
+                _frames_block[36][i] = _s1[i];
+                _frames_block[37][i] = _c1[i];
+                _frames_block[38][i] = 0;
+                _frames_block[39][i] = _s1[i]*l2 + _t3;
+                _frames_block[40][i] = 0;
+                _frames_block[41][i] = 0;
+                _frames_block[42][i] = 1;
+                _frames_block[43][i] = 0;
+                _frames_block[44][i] = 0;
+                _frames_block[45][i] = 0;
+                _frames_block[46][i] = 0;
+                _frames_block[47][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c0[i]*l1;
+                const double _t3 = _s0[i]*l1;
+                frames[48 * (start + i) + 0] = 1;
+                frames[48 * (start + i) + 1] = 0;
+                frames[48 * (start + i) + 2] = 0;
+                frames[48 * (start + i) + 3] = 0;
+                frames[48 * (start + i) + 4] = 0;
+                frames[48 * (start + i) + 5] = 1;
+                frames[48 * (start + i) + 6] = 0;
+                frames[48 * (start + i) + 7] = 0;
+                frames[48 * (start + i) + 8] = 0;
+                frames[48 * (start + i) + 9] = 0;
+                frames[48 * (start + i) + 10] = 1;
+                frames[48 * (start + i) + 11] = 0;
+                frames[48 * (start + i) + 12] = 0;
+                frames[48 * (start + i) + 13] = 0;
+                frames[48 * (start + i) + 14] = 0;
+                frames[48 * (start + i) + 15] = 1;
+                frames[48 * (start + i) + 16] = _c0[i];
+                frames[48 * (start + i) + 17] = -_s0[i];
+                frames[48 * (start + i) + 18] = 0;
+                frames[48 * (start + i) + 19] = _t2;
+                frames[48 * (start + i) + 20] = _s0[i];
+                frames[48 * (start + i) + 21] = _c0[i];
+                frames[48 * (start + i) + 22] = 0;
+                frames[48 * (start + i) + 23] = _t3;
+                frames[48 * (start + i) + 24] = 0;
+                frames[48 * (start + i) + 25] = 0;
+                frames[48 * (start + i) + 26] = 1;
+                frames[48 * (start + i) + 27] = 0;
+                frames[48 * (start + i) + 28] = 0;
+                frames[48 * (start + i) + 29] = 0;
+                frames[48 * (start + i) + 30] = 0;
+                frames[48 * (start + i) + 31] = 1;
+                frames[48 * (start + i) + 32] = _c1[i];
+                frames[48 * (start + i) + 33] = -_s1[i];
+                frames[48 * (start + i) + 34] = 0;
+                frames[48 * (start + i) + 35] = _c1[i]*l2 + _t2;
+                frames[48 * (start + i) + 36] = _s1[i];
+                frames[48 * (start + i) + 37] = _c1[i];
+                frames[48 * (start + i) + 38] = 0;
+                frames[48 * (start + i) + 39] = _s1[i]*l2 + _t3;
+                frames[48 * (start + i) + 40] = 0;
+                frames[48 * (start + i) + 41] = 0;
+                frames[48 * (start + i) + 42] = 1;
+                frames[48 * (start + i) + 43] = 0;
+                frames[48 * (start + i) + 44] = 0;
+                frames[48 * (start + i) + 45] = 0;
+                frames[48 * (start + i) + 46] = 0;
+                frames[48 * (start + i) + 47] = 1;
+            }
         }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 48; k += 2) {
+                    _mm_stream_pd(frames + 48 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
+                }
+            }
+        }
+#endif
     }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
 #else
     size_t i;
     for (i = 0; i < count; ++i) {
@@ -465,6 +600,11 @@ void planar_2r_jacobian_batch(size_t count, const double *restrict q, const plan
     double _c0[KINEGEN_BLOCK];
     double _s1[KINEGEN_BLOCK];
     double _c1[KINEGEN_BLOCK];
+#ifdef KINEGEN_STREAM
+    double _J_block[12][KINEGEN_BLOCK];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
+#endif
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_2r_default_params;
@@ -497,24 +637,62 @@ void planar_2r_jacobian_batch(size_t count, const double *restrict q, const plan
         for (i = 0; i < n; ++i) {
             _c1[i] = cos(q1[i]);
         }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            const double _t1 = _s0[i]*l2;
-            const double _t2 = _c0[i]*l2;
-            J[12 * (start + i) + 0] = -_s1[i]*l1 - _t1;
-            J[12 * (start + i) + 1] = -_t1;
-            J[12 * (start + i) + 2] = _c1[i]*l1 + _t2;
-            J[12 * (start + i) + 3] = _t2;
-            J[12 * (start + i) + 4] = 0;
-            J[12 * (start + i) + 5] = 0;
-            J[12 * (start + i) + 6] = 0;
-            J[12 * (start + i) + 7] = 0;
-            J[12 * (start + i) + 8] = 0;
-            J[12 * (start + i) + 9] = 0;
-            J[12 * (start + i) + 10] = 1;
-            J[12 * (start + i) + 11] = 1;
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = _c0[i]*l2;
+                _J_block[0][i] = -_s1[i]*l1 - _t1;
+                _J_block[1][i] = -_t1;
+                _J_block[2][i] = _c1[i]*l1 + _t2;
+                _J_block[3][i] = _t2;
+                _J_block[4][i] = 0;
+                _J_block[5][i] = 0;
+                _J_block[6][i] = 0;
+                _J_block[7][i] = 0;
+                _J_block[8][i] = 0;
+                _J_block[9][i] = 0;
+                _J_block[10][i] = 1;
+                _J_block[11][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = _c0[i]*l2;
+                J[12 * (start + i) + 0] = -_s1[i]*l1 - _t1;
+                J[12 * (start + i) + 1] = -_t1;
+                J[12 * (start + i) + 2] = _c1[i]*l1 + _t2;
+                J[12 * (start + i) + 3] = _t2;
+                J[12 * (start + i) + 4] = 0;
+                J[12 * (start + i) + 5] = 0;
+                J[12 * (start + i) + 6] = 0;
+                J[12 * (start + i) + 7] = 0;
+                J[12 * (start + i) + 8] = 0;
+                J[12 * (start + i) + 9] = 0;
+                J[12 * (start + i) + 10] = 1;
+                J[12 * (start + i) + 11] = 1;
+            }
         }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 12; k += 2) {
+                    _mm_stream_pd(J + 12 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
+                }
+            }
+        }
+#endif
     }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
 #else
     size_t i;
     for (i = 0; i < count; ++i) {
@@ -575,6 +753,11 @@ void planar_2r_task_batch(size_t count, const double *restrict q, const planar_2
     double _c0[KINEGEN_BLOCK];
     double _s1[KINEGEN_BLOCK];
     double _c1[KINEGEN_BLOCK];
+#ifdef KINEGEN_STREAM
+    double _x_block[2][KINEGEN_BLOCK];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)x & 15) == 0;
+#endif
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_2r_default_params;
@@ -607,12 +790,38 @@ void planar_2r_task_batch(size_t count, const double *restrict q, const planar_2
         for (i = 0; i < n; ++i) {
             _c1[i] = cos(_t0[i]);
         }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            x[2 * (start + i) + 0] = _c0[i]*l1 + _c1[i]*l2;
-            x[2 * (start + i) + 1] = _s0[i]*l1 + _s1[i]*l2;
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _x_block[0][i] = _c0[i]*l1 + _c1[i]*l2;
+                _x_block[1][i] = _s0[i]*l1 + _s1[i]*l2;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                x[2 * (start + i) + 0] = _c0[i]*l1 + _c1[i]*l2;
+                x[2 * (start + i) + 1] = _s0[i]*l1 + _s1[i]*l2;
+            }
         }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 2; k += 2) {
+                    _mm_stream_pd(x + 2 * (start + i) + k, _mm_set_pd(_x_block[k + 1][i], _x_block[k][i]));
+                }
+            }
+        }
+#endif
     }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
 #else
     size_t i;
     for (i = 0; i < count; ++i) {
@@ -677,6 +886,11 @@ void planar_2r_task_jacobian_batch(size_t count, const double *restrict q, const
     double _c0[KINEGEN_BLOCK];
     double _s1[KINEGEN_BLOCK];
     double _c1[KINEGEN_BLOCK];
+#ifdef KINEGEN_STREAM
+    double _Jx_block[4][KINEGEN_BLOCK];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx & 15) == 0;
+#endif
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_2r_default_params;
@@ -709,16 +923,46 @@ void planar_2r_task_jacobian_batch(size_t count, const double *restrict q, const
         for (i = 0; i < n; ++i) {
             _c1[i] = cos(q1[i]);
         }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            const double _t1 = _s0[i]*l2;
-            const double _t2 = _c0[i]*l2;
-            Jx[4 * (start + i) + 0] = -_s1[i]*l1 - _t1;
-            Jx[4 * (start + i) + 1] = -_t1;
-            Jx[4 * (start + i) + 2] = _c1[i]*l1 + _t2;
-            Jx[4 * (start + i) + 3] = _t2;
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = _c0[i]*l2;
+                _Jx_block[0][i] = -_s1[i]*l1 - _t1;
+                _Jx_block[1][i] = -_t1;
+                _Jx_block[2][i] = _c1[i]*l1 + _t2;
+                _Jx_block[3][i] = _t2;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = _c0[i]*l2;
+                Jx[4 * (start + i) + 0] = -_s1[i]*l1 - _t1;
+                Jx[4 * (start + i) + 1] = -_t1;
+                Jx[4 * (start + i) + 2] = _c1[i]*l1 + _t2;
+                Jx[4 * (start + i) + 3] = _t2;
+            }
         }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 4; k += 2) {
+                    _mm_stream_pd(Jx + 4 * (start + i) + k, _mm_set_pd(_Jx_block[k + 1][i], _Jx_block[k][i]));
+                }
+            }
+        }
+#endif
     }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
 #else
     size_t i;
     for (i = 0; i < count; ++i) {
@@ -864,10 +1108,12 @@ long planar_2r_ik_batch(size_t count, const double *restrict _x, const planar_2r
             valid[2 * (start + i) + 0] = _t7;
             valid[2 * (start + i) + 1] = _t7;
         }
-        for (i = 0; i < n; ++i) {
-            int k;
-            for (k = 0; k < 4; ++k) {
-                Q[4 * (start + i) + k] = _Q_block[k][i];
+        {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 4; ++k) {
+                    Q[4 * (start + i) + k] = _Q_block[k][i];
+                }
             }
         }
         for (i = 0; i < n; ++i) {

@@ -52,6 +52,17 @@ double asin(double);
 #ifndef KINEGEN_BLOCK
 #define KINEGEN_BLOCK 64
 #endif
+#if defined(KINEGEN_SIMD) && defined(__SSE2__) && !defined(KINEGEN_NO_STREAM)
+/* Batches whose outputs exceed KINEGEN_STREAM_BYTES write them with SSE2 streaming
+   stores: a plain store first reads the line it overwrites, which doubles the memory
+   traffic of a batch too large for the caches. */
+#include <emmintrin.h>
+#include <stdint.h>
+#define KINEGEN_STREAM
+#ifndef KINEGEN_STREAM_BYTES
+#define KINEGEN_STREAM_BYTES 1048576
+#endif
+#endif
 
 const puma560_params puma560_default_params = { 0.67183, 0.4318, 0.0203, 0.15005, 0.4318 };
 
@@ -224,6 +235,11 @@ void puma560_fk_batch(size_t count, const double *restrict q, const puma560_para
     double _c4[KINEGEN_BLOCK];
     double _s5[KINEGEN_BLOCK];
     double _c5[KINEGEN_BLOCK];
+#ifdef KINEGEN_STREAM
+    double _T_block[16][KINEGEN_BLOCK];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
+#endif
     size_t start, i, n;
     if (params == NULL) {
         params = &puma560_default_params;
@@ -295,45 +311,104 @@ void puma560_fk_batch(size_t count, const double *restrict q, const puma560_para
         for (i = 0; i < n; ++i) {
             _c5[i] = cos(q2[i]);
         }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            const double _t3 = _c2[i]*_s1[i];
-            const double _t4 = _s0[i]*_t3;
-            const double _t8 = _c0[i]*_s2[i];
-            const double _t9 = _s0[i]*_s2[i];
-            const double _t13 = _c1[i]*_c4[i];
-            const double _t16 = _c1[i]*_s4[i];
-            const double _t17 = _c0[i]*_t3;
-            const double _t18 = _c3[i]*_c4[i];
-            const double _t19 = _c1[i]*_c2[i];
-            const double _t20 = _s0[i]*_t19;
-            const double _t21 = _c4[i]*_s3[i];
-            const double _t22 = _c5[i]*a2;
-            const double _t23 = _c4[i]*a3;
-            const double _t24 = _c1[i]*_c3[i];
-            const double _t25 = _c4[i]*_s1[i];
-            const double _t26 = _s1[i]*_s4[i];
-            const double _t27 = _s2[i]*_s4[i];
-            const double _t28 = _c2[i]*_s4[i];
-            const double _t29 = _c3[i]*_t28;
-            T[16 * (start + i) + 0] = _c0[i]*_c1[i]*_c2[i]*_c3[i]*_c4[i] - _c0[i]*_s3[i]*_t16 - _c3[i]*_s1[i]*_t8 - _t13*_t9 - _t4;
-            T[16 * (start + i) + 1] = _c1[i]*_s0[i]*_s3[i]*_s4[i] + _c3[i]*_s0[i]*_s1[i]*_s2[i] - _t13*_t8 - _t17 - _t18*_t20;
-            T[16 * (start + i) + 2] = -_c3[i]*_t16 + _s1[i]*_s2[i]*_s3[i] - _t19*_t21;
-            T[16 * (start + i) + 3] = _c1[i]*_t22 + _c1[i]*_t23 + _s1[i]*d3 - _t16*d4;
-            T[16 * (start + i) + 4] = -_c0[i]*_s3[i]*_t26 + _t17*_t18 + _t20 + _t24*_t8 - _t25*_t9;
-            T[16 * (start + i) + 5] = _c0[i]*_c1[i]*_c2[i] + _s0[i]*_s1[i]*_s3[i]*_s4[i] - _t18*_t4 - _t24*_t9 - _t25*_t8;
-            T[16 * (start + i) + 6] = -_c1[i]*_s2[i]*_s3[i] - _c3[i]*_t26 - _t21*_t3;
-            T[16 * (start + i) + 7] = -_c1[i]*d3 + _s1[i]*_t22 + _s1[i]*_t23 - _t26*d4;
-            T[16 * (start + i) + 8] = _c0[i]*_t21 + _c0[i]*_t29 - _s0[i]*_t27;
-            T[16 * (start + i) + 9] = -_c0[i]*_t27 - _s0[i]*_t21 - _s0[i]*_t29;
-            T[16 * (start + i) + 10] = _c3[i]*_c4[i] - _s3[i]*_t28;
-            T[16 * (start + i) + 11] = _c4[i]*d4 + _s4[i]*a3 + _s5[i]*a2 + d1;
-            T[16 * (start + i) + 12] = 0;
-            T[16 * (start + i) + 13] = 0;
-            T[16 * (start + i) + 14] = 0;
-            T[16 * (start + i) + 15] = 1;
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _c2[i]*_s1[i];
+                const double _t4 = _s0[i]*_t3;
+                const double _t8 = _c0[i]*_s2[i];
+                const double _t9 = _s0[i]*_s2[i];
+                const double _t13 = _c1[i]*_c4[i];
+                const double _t16 = _c1[i]*_s4[i];
+                const double _t17 = _c0[i]*_t3;
+                const double _t18 = _c3[i]*_c4[i];
+                const double _t19 = _c1[i]*_c2[i];
+                const double _t20 = _s0[i]*_t19;
+                const double _t21 = _c4[i]*_s3[i];
+                const double _t22 = _c5[i]*a2;
+                const double _t23 = _c4[i]*a3;
+                const double _t24 = _c1[i]*_c3[i];
+                const double _t25 = _c4[i]*_s1[i];
+                const double _t26 = _s1[i]*_s4[i];
+                const double _t27 = _s2[i]*_s4[i];
+                const double _t28 = _c2[i]*_s4[i];
+                const double _t29 = _c3[i]*_t28;
+                _T_block[0][i] = _c0[i]*_c1[i]*_c2[i]*_c3[i]*_c4[i] - _c0[i]*_s3[i]*_t16 - _c3[i]*_s1[i]*_t8 - _t13*_t9 - _t4;
+                _T_block[1][i] = _c1[i]*_s0[i]*_s3[i]*_s4[i] + _c3[i]*_s0[i]*_s1[i]*_s2[i] - _t13*_t8 - _t17 - _t18*_t20;
+                _T_block[2][i] = -_c3[i]*_t16 + _s1[i]*_s2[i]*_s3[i] - _t19*_t21;
+                _T_block[3][i] = _c1[i]*_t22 + _c1[i]*_t23 + _s1[i]*d3 - _t16*d4;
+                _T_block[4][i] = -_c0[i]*_s3[i]*_t26 + _t17*_t18 + _t20 + _t24*_t8 - _t25*_t9;
+                _T_block[5][i] = _c0[i]*_c1[i]*_c2[i] + _s0[i]*_s1[i]*_s3[i]*_s4[i] - _t18*_t4 - _t24*_t9 - _t25*_t8;
+                _T_block[6][i] = -_c1[i]*_s2[i]*_s3[i] - _c3[i]*_t26 - _t21*_t3;
+                _T_block[7][i] = -_c1[i]*d3 + _s1[i]*_t22 + _s1[i]*_t23 - _t26*d4;
+                _T_block[8][i] = _c0[i]*_t21 + _c0[i]*_t29 - _s0[i]*_t27;
+                _T_block[9][i] = -_c0[i]*_t27 - _s0[i]*_t21 - _s0[i]*_t29;
+                _T_block[10][i] = _c3[i]*_c4[i] - _s3[i]*_t28;
+                _T_block[11][i] = _c4[i]*d4 + _s4[i]*a3 + _s5[i]*a2 + d1;
+                _T_block[12][i] = 0;
+                _T_block[13][i] = 0;
+                _T_block[14][i] = 0;
+                _T_block[15][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _c2[i]*_s1[i];
+                const double _t4 = _s0[i]*_t3;
+                const double _t8 = _c0[i]*_s2[i];
+                const double _t9 = _s0[i]*_s2[i];
+                const double _t13 = _c1[i]*_c4[i];
+                const double _t16 = _c1[i]*_s4[i];
+                const double _t17 = _c0[i]*_t3;
+                const double _t18 = _c3[i]*_c4[i];
+                const double _t19 = _c1[i]*_c2[i];
+                const double _t20 = _s0[i]*_t19;
+                const double _t21 = _c4[i]*_s3[i];
+                const double _t22 = _c5[i]*a2;
+                const double _t23 = _c4[i]*a3;
+                const double _t24 = _c1[i]*_c3[i];
+                const double _t25 = _c4[i]*_s1[i];
+                const double _t26 = _s1[i]*_s4[i];
+                const double _t27 = _s2[i]*_s4[i];
+                const double _t28 = _c2[i]*_s4[i];
+                const double _t29 = _c3[i]*_t28;
+                T[16 * (start + i) + 0] = _c0[i]*_c1[i]*_c2[i]*_c3[i]*_c4[i] - _c0[i]*_s3[i]*_t16 - _c3[i]*_s1[i]*_t8 - _t13*_t9 - _t4;
+                T[16 * (start + i) + 1] = _c1[i]*_s0[i]*_s3[i]*_s4[i] + _c3[i]*_s0[i]*_s1[i]*_s2[i] - _t13*_t8 - _t17 - _t18*_t20;
+                T[16 * (start + i) + 2] = -_c3[i]*_t16 + _s1[i]*_s2[i]*_s3[i] - _t19*_t21;
+                T[16 * (start + i) + 3] = _c1[i]*_t22 + _c1[i]*_t23 + _s1[i]*d3 - _t16*d4;
+                T[16 * (start + i) + 4] = -_c0[i]*_s3[i]*_t26 + _t17*_t18 + _t20 + _t24*_t8 - _t25*_t9;
+                T[16 * (start + i) + 5] = _c0[i]*_c1[i]*_c2[i] + _s0[i]*_s1[i]*_s3[i]*_s4[i] - _t18*_t4 - _t24*_t9 - _t25*_t8;
+                T[16 * (start + i) + 6] = -_c1[i]*_s2[i]*_s3[i] - _c3[i]*_t26 - _t21*_t3;
+                T[16 * (start + i) + 7] = -_c1[i]*d3 + _s1[i]*_t22 + _s1[i]*_t23 - _t26*d4;
+                T[16 * (start + i) + 8] = _c0[i]*_t21 + _c0[i]*_t29 - _s0[i]*_t27;
+                T[16 * (start + i) + 9] = -_c0[i]*_t27 - _s0[i]*_t21 - _s0[i]*_t29;
+                T[16 * (start + i) + 10] = _c3[i]*_c4[i] - _s3[i]*_t28;
+                T[16 * (start + i) + 11] = _c4[i]*d4 + _s4[i]*a3 + _s5[i]*a2 + d1;
+                T[16 * (start + i) + 12] = 0;
+                T[16 * (start + i) + 13] = 0;
+                T[16 * (start + i) + 14] = 0;
+                T[16 * (start + i) + 15] = 1;
+            }
         }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 16; k += 2) {
+                    _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
+                }
+            }
+        }
+#endif
     }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
 #else
     size_t i;
     for (i = 0; i < count; ++i) {
@@ -579,6 +654,11 @@ void puma560_frames_batch(size_t count, const double *restrict q, const puma560_
     double _c4[KINEGEN_BLOCK];
     double _s5[KINEGEN_BLOCK];
     double _c5[KINEGEN_BLOCK];
+#ifdef KINEGEN_STREAM
+    double _frames_block[112][KINEGEN_BLOCK];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 112 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
+#endif
     size_t start, i, n;
     if (params == NULL) {
         params = &puma560_default_params;
@@ -650,162 +730,338 @@ void puma560_frames_batch(size_t count, const double *restrict q, const puma560_
         for (i = 0; i < n; ++i) {
             _c5[i] = cos(q6[i]);
         }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            const double _t2 = -_c0[i];
-            const double _t4 = _c0[i]*_c1[i];
-            const double _t6 = _t4*a2;
-            const double _t7 = _c1[i]*_s0[i];
-            const double _t8 = _t7*a2;
-            const double _t9 = _s1[i]*a2 + d1;
-            const double _t12 = _c0[i]*_c2[i];
-            const double _t14 = _c0[i]*_s2[i];
-            const double _t15 = -_t14;
-            const double _t16 = _s0[i]*d3 + _t12*a3 + _t6;
-            const double _t17 = _c2[i]*_s0[i];
-            const double _t18 = _s0[i]*_s2[i];
-            const double _t19 = -_t18;
-            const double _t20 = -_c0[i]*d3 + _t17*a3 + _t8;
-            const double _t21 = _s2[i]*a3 + _t9;
-            const double _t23 = _s0[i]*_s3[i];
-            const double _t25 = _c3[i]*_s0[i];
-            const double _t26 = _s3[i]*_t12;
-            const double _t27 = _t25 + _t26;
-            const double _t28 = -_t14*d4 + _t16;
-            const double _t29 = _c0[i]*_s3[i];
-            const double _t30 = _c3[i]*_t17;
-            const double _t31 = _c0[i]*_c3[i];
-            const double _t32 = _s3[i]*_t17;
-            const double _t33 = -_t31 + _t32;
-            const double _t34 = -_t18*d4 + _t20;
-            const double _t35 = _c3[i]*_s2[i];
-            const double _t36 = _s2[i]*_s3[i];
-            const double _t37 = _c2[i]*d4 + _t21;
-            const double _t39 = _c4[i]*_t23;
-            const double _t41 = _s4[i]*_t14;
-            const double _t42 = _c3[i]*_t12;
-            const double _t43 = -_c4[i]*_t14 + _s0[i]*_s3[i]*_s4[i] - _s4[i]*_t42;
-            const double _t44 = _c4[i]*_t29;
-            const double _t45 = _s4[i]*_t18;
-            const double _t46 = _c4[i]*_t30;
-            const double _t47 = -_c4[i]*_t18 - _s4[i]*_t29 - _s4[i]*_t30;
-            const double _t48 = _c2[i]*_s4[i];
-            const double _t49 = _c4[i]*_t35;
-            const double _t50 = _c2[i]*_c4[i] - _s4[i]*_t35;
-            frames[112 * (start + i) + 0] = 1;
-            frames[112 * (start + i) + 1] = 0;
-            frames[112 * (start + i) + 2] = 0;
-            frames[112 * (start + i) + 3] = 0;
-            frames[112 * (start + i) + 4] = 0;
-            frames[112 * (start + i) + 5] = 1;
-            frames[112 * (start + i) + 6] = 0;
-            frames[112 * (start + i) + 7] = 0;
-            frames[112 * (start + i) + 8] = 0;
-            frames[112 * (start + i) + 9] = 0;
-            frames[112 * (start + i) + 10] = 1;
-            frames[112 * (start + i) + 11] = 0;
-            frames[112 * (start + i) + 12] = 0;
-            frames[112 * (start + i) + 13] = 0;
-            frames[112 * (start + i) + 14] = 0;
-            frames[112 * (start + i) + 15] = 1;
-            frames[112 * (start + i) + 16] = _c0[i];
-            frames[112 * (start + i) + 17] = 0;
-            frames[112 * (start + i) + 18] = _s0[i];
-            frames[112 * (start + i) + 19] = 0;
-            frames[112 * (start + i) + 20] = _s0[i];
-            frames[112 * (start + i) + 21] = 0;
-            frames[112 * (start + i) + 22] = _t2;
-            frames[112 * (start + i) + 23] = 0;
-            frames[112 * (start + i) + 24] = 0;
-            frames[112 * (start + i) + 25] = 1;
-            frames[112 * (start + i) + 26] = 0;
-            frames[112 * (start + i) + 27] = d1;
-            frames[112 * (start + i) + 28] = 0;
-            frames[112 * (start + i) + 29] = 0;
-            frames[112 * (start + i) + 30] = 0;
-            frames[112 * (start + i) + 31] = 1;
-            frames[112 * (start + i) + 32] = _t4;
-            frames[112 * (start + i) + 33] = -_c0[i]*_s1[i];
-            frames[112 * (start + i) + 34] = _s0[i];
-            frames[112 * (start + i) + 35] = _t6;
-            frames[112 * (start + i) + 36] = _t7;
-            frames[112 * (start + i) + 37] = -_s0[i]*_s1[i];
-            frames[112 * (start + i) + 38] = _t2;
-            frames[112 * (start + i) + 39] = _t8;
-            frames[112 * (start + i) + 40] = _s1[i];
-            frames[112 * (start + i) + 41] = _c1[i];
-            frames[112 * (start + i) + 42] = 0;
-            frames[112 * (start + i) + 43] = _t9;
-            frames[112 * (start + i) + 44] = 0;
-            frames[112 * (start + i) + 45] = 0;
-            frames[112 * (start + i) + 46] = 0;
-            frames[112 * (start + i) + 47] = 1;
-            frames[112 * (start + i) + 48] = _t12;
-            frames[112 * (start + i) + 49] = -_s0[i];
-            frames[112 * (start + i) + 50] = _t15;
-            frames[112 * (start + i) + 51] = _t16;
-            frames[112 * (start + i) + 52] = _t17;
-            frames[112 * (start + i) + 53] = _c0[i];
-            frames[112 * (start + i) + 54] = _t19;
-            frames[112 * (start + i) + 55] = _t20;
-            frames[112 * (start + i) + 56] = _s2[i];
-            frames[112 * (start + i) + 57] = 0;
-            frames[112 * (start + i) + 58] = _c2[i];
-            frames[112 * (start + i) + 59] = _t21;
-            frames[112 * (start + i) + 60] = 0;
-            frames[112 * (start + i) + 61] = 0;
-            frames[112 * (start + i) + 62] = 0;
-            frames[112 * (start + i) + 63] = 1;
-            frames[112 * (start + i) + 64] = _c0[i]*_c2[i]*_c3[i] - _t23;
-            frames[112 * (start + i) + 65] = _t15;
-            frames[112 * (start + i) + 66] = _t27;
-            frames[112 * (start + i) + 67] = _t28;
-            frames[112 * (start + i) + 68] = _t29 + _t30;
-            frames[112 * (start + i) + 69] = _t19;
-            frames[112 * (start + i) + 70] = _t33;
-            frames[112 * (start + i) + 71] = _t34;
-            frames[112 * (start + i) + 72] = _t35;
-            frames[112 * (start + i) + 73] = _c2[i];
-            frames[112 * (start + i) + 74] = _t36;
-            frames[112 * (start + i) + 75] = _t37;
-            frames[112 * (start + i) + 76] = 0;
-            frames[112 * (start + i) + 77] = 0;
-            frames[112 * (start + i) + 78] = 0;
-            frames[112 * (start + i) + 79] = 1;
-            frames[112 * (start + i) + 80] = _c0[i]*_c2[i]*_c3[i]*_c4[i] - _t39 - _t41;
-            frames[112 * (start + i) + 81] = -_t27;
-            frames[112 * (start + i) + 82] = _t43;
-            frames[112 * (start + i) + 83] = _t28;
-            frames[112 * (start + i) + 84] = _t44 - _t45 + _t46;
-            frames[112 * (start + i) + 85] = -_t33;
-            frames[112 * (start + i) + 86] = _t47;
-            frames[112 * (start + i) + 87] = _t34;
-            frames[112 * (start + i) + 88] = _t48 + _t49;
-            frames[112 * (start + i) + 89] = -_t36;
-            frames[112 * (start + i) + 90] = _t50;
-            frames[112 * (start + i) + 91] = _t37;
-            frames[112 * (start + i) + 92] = 0;
-            frames[112 * (start + i) + 93] = 0;
-            frames[112 * (start + i) + 94] = 0;
-            frames[112 * (start + i) + 95] = 1;
-            frames[112 * (start + i) + 96] = _c0[i]*_c2[i]*_c3[i]*_c4[i]*_c5[i] - _c5[i]*_t39 - _c5[i]*_t41 - _s5[i]*_t25 - _s5[i]*_t26;
-            frames[112 * (start + i) + 97] = _c0[i]*_s2[i]*_s4[i]*_s5[i] + _c4[i]*_s0[i]*_s3[i]*_s5[i] - _c4[i]*_s5[i]*_t42 - _c5[i]*_t25 - _c5[i]*_t26;
-            frames[112 * (start + i) + 98] = _t43;
-            frames[112 * (start + i) + 99] = _t28;
-            frames[112 * (start + i) + 100] = _c5[i]*_t44 - _c5[i]*_t45 + _c5[i]*_t46 + _s5[i]*_t31 - _s5[i]*_t32;
-            frames[112 * (start + i) + 101] = _c0[i]*_c3[i]*_c5[i] - _c5[i]*_t32 + _s0[i]*_s2[i]*_s4[i]*_s5[i] - _s5[i]*_t44 - _s5[i]*_t46;
-            frames[112 * (start + i) + 102] = _t47;
-            frames[112 * (start + i) + 103] = _t34;
-            frames[112 * (start + i) + 104] = _c5[i]*_t48 + _c5[i]*_t49 - _s5[i]*_t36;
-            frames[112 * (start + i) + 105] = -_c5[i]*_t36 - _s5[i]*_t48 - _s5[i]*_t49;
-            frames[112 * (start + i) + 106] = _t50;
-            frames[112 * (start + i) + 107] = _t37;
-            frames[112 * (start + i) + 108] = 0;
-            frames[112 * (start + i) + 109] = 0;
-            frames[112 * (start + i) + 110] = 0;
-            frames[112 * (start + i) + 111] = 1;
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = -_c0[i];
+                const double _t4 = _c0[i]*_c1[i];
+                const double _t6 = _t4*a2;
+                const double _t7 = _c1[i]*_s0[i];
+                const double _t8 = _t7*a2;
+                const double _t9 = _s1[i]*a2 + d1;
+                const double _t12 = _c0[i]*_c2[i];
+                const double _t14 = _c0[i]*_s2[i];
+                const double _t15 = -_t14;
+                const double _t16 = _s0[i]*d3 + _t12*a3 + _t6;
+                const double _t17 = _c2[i]*_s0[i];
+                const double _t18 = _s0[i]*_s2[i];
+                const double _t19 = -_t18;
+                const double _t20 = -_c0[i]*d3 + _t17*a3 + _t8;
+                const double _t21 = _s2[i]*a3 + _t9;
+                const double _t23 = _s0[i]*_s3[i];
+                const double _t25 = _c3[i]*_s0[i];
+                const double _t26 = _s3[i]*_t12;
+                const double _t27 = _t25 + _t26;
+                const double _t28 = -_t14*d4 + _t16;
+                const double _t29 = _c0[i]*_s3[i];
+                const double _t30 = _c3[i]*_t17;
+                const double _t31 = _c0[i]*_c3[i];
+                const double _t32 = _s3[i]*_t17;
+                const double _t33 = -_t31 + _t32;
+                const double _t34 = -_t18*d4 + _t20;
+                const double _t35 = _c3[i]*_s2[i];
+                const double _t36 = _s2[i]*_s3[i];
+                const double _t37 = _c2[i]*d4 + _t21;
+                const double _t39 = _c4[i]*_t23;
+                const double _t41 = _s4[i]*_t14;
+                const double _t42 = _c3[i]*_t12;
+                const double _t43 = -_c4[i]*_t14 + _s0[i]*_s3[i]*_s4[i] - _s4[i]*_t42;
+                const double _t44 = _c4[i]*_t29;
+                const double _t45 = _s4[i]*_t18;
+                const double _t46 = _c4[i]*_t30;
+                const double _t47 = -_c4[i]*_t18 - _s4[i]*_t29 - _s4[i]*_t30;
+                const double _t48 = _c2[i]*_s4[i];
+                const double _t49 = _c4[i]*_t35;
+                const double _t50 = _c2[i]*_c4[i] - _s4[i]*_t35;
+                _frames_block[0][i] = 1;
+                _frames_block[1][i] = 0;
+                _frames_block[2][i] = 0;
+                _frames_block[3][i] = 0;
+                _frames_block[4][i] = 0;
+                _frames_block[5][i] = 1;
+                _frames_block[6][i] = 0;
+                _frames_block[7][i] = 0;
+                _frames_block[8][i] = 0;
+                _frames_block[9][i] = 0;
+                _frames_block[10][i] = 1;
+                _frames_block[11][i] = 0;
+                _frames_block[12][i] = 0;
+                _frames_block[13][i] = 0;
+                _frames_block[14][i] = 0;
+                _frames_block[15][i] = 1;
+                _frames_block[16][i] = _c0[i];
+                _frames_block[17][i] = 0;
+                _frames_block[18][i] = _s0[i];
+                _frames_block[19][i] = 0;
+                _frames_block[20][i] = _s0[i];
+                _frames_block[21][i] = 0;
+                _frames_block[22][i] = _t2;
+                _frames_block[23][i] = 0;
+                _frames_block[24][i] = 0;
+                _frames_block[25][i] = 1;
+                _frames_block[26][i] = 0;
+                _frames_block[27][i] = d1;
+                _frames_block[28][i] = 0;
+                _frames_block[29][i] = 0;
+                _frames_block[30][i] = 0;
+                _frames_block[31][i] = 1;
+                _frames_block[32][i] = _t4;
+                _frames_block[33][i] = -_c0[i]*_s1[i];
+                _frames_block[34][i] = _s0[i];
+                _frames_block[35][i] = _t6;
+                _frames_block[36][i] = _t7;
+                _frames_block[37][i] = -_s0[i]*_s1[i];
+                _frames_block[38][i] = _t2;
+                _frames_block[39][i] = _t8;
+                _frames_block[40][i] = _s1[i];
+                _frames_block[41][i] = _c1[i];
+                _frames_block[42][i] = 0;
+                _frames_block[43][i] = _t9;
+                _frames_block[44][i] = 0;
+                _frames_block[45][i] = 0;
+                _frames_block[46][i] = 0;
+                _frames_block[47][i] = 1;
+                _frames_block[48][i] = _t12;
+                _frames_block[49][i] = -_s0[i];
+                _frames_block[50][i] = _t15;
+                _frames_block[51][i] = _t16;
+                _frames_block[52][i] = _t17;
+                _frames_block[53][i] = _c0[i];
+                _frames_block[54][i] = _t19;
+                _frames_block[55][i] = _t20;
+                _frames_block[56][i] = _s2[i];
+                _frames_block[57][i] = 0;
+                _frames_block[58][i] = _c2[i];
+                _frames_block[59][i] = _t21;
+                _frames_block[60][i] = 0;
+                _frames_block[61][i] = 0;
+                _frames_block[62][i] = 0;
+                _frames_block[63][i] = 1;
+                _frames_block[64][i] = _c0[i]*_c2[i]*_c3[i] - _t23;
+                _frames_block[65][i] = _t15;
+                _frames_block[66][i] = _t27;
+                _frames_block[67][i] = _t28;
+                _frames_block[68][i] = _t29 + _t30;
+                _frames_block[69][i] = _t19;
+                _frames_block[70][i] = _t33;
+                _frames_block[71][i] = _t34;
+                _frames_block[72][i] = _t35;
+                _frames_block[73][i] = _c2[i];
+                _frames_block[74][i] = _t36;
+                _frames_block[75][i] = _t37;
+                _frames_block[76][i] = 0;
+                _frames_block[77][i] = 0;
+                _frames_block[78][i] = 0;
+                _frames_block[79][i] = 1;
+                _frames_block[80][i] = _c0[i]*_c2[i]*_c3[i]*_c4[i] - _t39 - _t41;
+                _frames_block[81][i] = -_t27;
+                _frames_block[82][i] = _t43;
+                _frames_block[83][i] = _t28;
+                _frames_block[84][i] = _t44 - _t45 + _t46;
+                _frames_block[85][i] = -_t33;
+                _frames_block[86][i] = _t47;
+                _frames_block[87][i] = _t34;
+                _frames_block[88][i] = _t48 + _t49;
+                _frames_block[89][i] = -_t36;
+                _frames_block[90][i] = _t50;
+                _frames_block[91][i] = _t37;
+                _frames_block[92][i] = 0;
+                _frames_block[93][i] = 0;
+                _frames_block[94][i] = 0;
+                _frames_block[95][i] = 1;
+                _frames_block[96][i] = _c0[i]*_c2[i]*_c3[i]*_c4[i]*_c5[i] - _c5[i]*_t39 - _c5[i]*_t41 - _s5[i]*_t25 - _s5[i]*_t26;
+                _frames_block[97][i] = _c0[i]*_s2[i]*_s4[i]*_s5[i] + _c4[i]*_s0[i]*_s3[i]*_s5[i] - _c4[i]*_s5[i]*_t42 - _c5[i]*_t25 - _c5[i]*_t26;
+                _frames_block[98][i] = _t43;
+                _frames_block[99][i] = _t28;
+                _frames_block[100][i] = _c5[i]*_t44 - _c5[i]*_t45 + _c5[i]*_t46 + _s5[i]*_t31 - _s5[i]*_t32;
+                _frames_block[101][i] = _c0[i]*_c3[i]*_c5[i] - _c5[i]*_t32 + _s0[i]*_s2[i]*_s4[i]*_s5[i] - _s5[i]*_t44 - _s5[i]*_t46;
+                _frames_block[102][i] = _t47;
+                _frames_block[103][i] = _t34;
+                _frames_block[104][i] = _c5[i]*_t48 + _c5[i]*_t49 - _s5[i]*_t36;
+                _frames_block[105][i] = -_c5[i]*_t36 - _s5[i]*_t48 - _s5[i]*_t49;
+                _frames_block[106][i] = _t50;
+                _frames_block[107][i] = _t37;
+                _frames_block[108][i] = 0;
+                _frames_block[109][i] = 0;
+                _frames_block[110][i] = 0;
+                _frames_block[111][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = -_c0[i];
+                const double _t4 = _c0[i]*_c1[i];
+                const double _t6 = _t4*a2;
+                const double _t7 = _c1[i]*_s0[i];
+                const double _t8 = _t7*a2;
+                const double _t9 = _s1[i]*a2 + d1;
+                const double _t12 = _c0[i]*_c2[i];
+                const double _t14 = _c0[i]*_s2[i];
+                const double _t15 = -_t14;
+                const double _t16 = _s0[i]*d3 + _t12*a3 + _t6;
+                const double _t17 = _c2[i]*_s0[i];
+                const double _t18 = _s0[i]*_s2[i];
+                const double _t19 = -_t18;
+                const double _t20 = -_c0[i]*d3 + _t17*a3 + _t8;
+                const double _t21 = _s2[i]*a3 + _t9;
+                const double _t23 = _s0[i]*_s3[i];
+                const double _t25 = _c3[i]*_s0[i];
+                const double _t26 = _s3[i]*_t12;
+                const double _t27 = _t25 + _t26;
+                const double _t28 = -_t14*d4 + _t16;
+                const double _t29 = _c0[i]*_s3[i];
+                const double _t30 = _c3[i]*_t17;
+                const double _t31 = _c0[i]*_c3[i];
+                const double _t32 = _s3[i]*_t17;
+                const double _t33 = -_t31 + _t32;
+                const double _t34 = -_t18*d4 + _t20;
+                const double _t35 = _c3[i]*_s2[i];
+                const double _t36 = _s2[i]*_s3[i];
+                const double _t37 = _c2[i]*d4 + _t21;
+                const double _t39 = _c4[i]*_t23;
+                const double _t41 = _s4[i]*_t14;
+                const double _t42 = _c3[i]*_t12;
+                const double _t43 = -_c4[i]*_t14 + _s0[i]*_s3[i]*_s4[i] - _s4[i]*_t42;
+                const double _t44 = _c4[i]*_t29;
+                const double _t45 = _s4[i]*_t18;
+                const double _t46 = _c4[i]*_t30;
+                const double _t47 = -_c4[i]*_t18 - _s4[i]*_t29 - _s4[i]*_t30;
+                const double _t48 = _c2[i]*_s4[i];
+                const double _t49 = _c4[i]*_t35;
+                const double _t50 = _c2[i]*_c4[i] - _s4[i]*_t35;
+                frames[112 * (start + i) + 0] = 1;
+                frames[112 * (start + i) + 1] = 0;
+                frames[112 * (start + i) + 2] = 0;
+                frames[112 * (start + i) + 3] = 0;
+                frames[112 * (start + i) + 4] = 0;
+                frames[112 * (start + i) + 5] = 1;
+                frames[112 * (start + i) + 6] = 0;
+                frames[112 * (start + i) + 7] = 0;
+                frames[112 * (start + i) + 8] = 0;
+                frames[112 * (start + i) + 9] = 0;
+                frames[112 * (start + i) + 10] = 1;
+                frames[112 * (start + i) + 11] = 0;
+                frames[112 * (start + i) + 12] = 0;
+                frames[112 * (start + i) + 13] = 0;
+                frames[112 * (start + i) + 14] = 0;
+                frames[112 * (start + i) + 15] = 1;
+                frames[112 * (start + i) + 16] = _c0[i];
+                frames[112 * (start + i) + 17] = 0;
+                frames[112 * (start + i) + 18] = _s0[i];
+                frames[112 * (start + i) + 19] = 0;
+                frames[112 * (start + i) + 20] = _s0[i];
+                frames[112 * (start + i) + 21] = 0;
+                frames[112 * (start + i) + 22] = _t2;
+                frames[112 * (start + i) + 23] = 0;
+                frames[112 * (start + i) + 24] = 0;
+                frames[112 * (start + i) + 25] = 1;
+                frames[112 * (start + i) + 26] = 0;
+                frames[112 * (start + i) + 27] = d1;
+                frames[112 * (start + i) + 28] = 0;
+                frames[112 * (start + i) + 29] = 0;
+                frames[112 * (start + i) + 30] = 0;
+                frames[112 * (start + i) + 31] = 1;
+                frames[112 * (start + i) + 32] = _t4;
+                frames[112 * (start + i) + 33] = -_c0[i]*_s1[i];
+                frames[112 * (start + i) + 34] = _s0[i];
+                frames[112 * (start + i) + 35] = _t6;
+                frames[112 * (start + i) + 36] = _t7;
+                frames[112 * (start + i) + 37] = -_s0[i]*_s1[i];
+                frames[112 * (start + i) + 38] = _t2;
+                frames[112 * (start + i) + 39] = _t8;
+                frames[112 * (start + i) + 40] = _s1[i];
+                frames[112 * (start + i) + 41] = _c1[i];
+                frames[112 * (start + i) + 42] = 0;
+                frames[112 * (start + i) + 43] = _t9;
+                frames[112 * (start + i) + 44] = 0;
+                frames[112 * (start + i) + 45] = 0;
+                frames[112 * (start + i) + 46] = 0;
+                frames[112 * (start + i) + 47] = 1;
+                frames[112 * (start + i) + 48] = _t12;
+                frames[112 * (start + i) + 49] = -_s0[i];
+                frames[112 * (start + i) + 50] = _t15;
+                frames[112 * (start + i) + 51] = _t16;
+                frames[112 * (start + i) + 52] = _t17;
+                frames[112 * (start + i) + 53] = _c0[i];
+                frames[112 * (start + i) + 54] = _t19;
+                frames[112 * (start + i) + 55] = _t20;
+                frames[112 * (start + i) + 56] = _s2[i];
+                frames[112 * (start + i) + 57] = 0;
+                frames[112 * (start + i) + 58] = _c2[i];
+                frames[112 * (start + i) + 59] = _t21;
+                frames[112 * (start + i) + 60] = 0;
+                frames[112 * (start + i) + 61] = 0;
+                frames[112 * (start + i) + 62] = 0;
+                frames[112 * (start + i) + 63] = 1;
+                frames[112 * (start + i) + 64] = _c0[i]*_c2[i]*_c3[i] - _t23;
+                frames[112 * (start + i) + 65] = _t15;
+                frames[112 * (start + i) + 66] = _t27;
+                frames[112 * (start + i) + 67] = _t28;
+                frames[112 * (start + i) + 68] = _t29 + _t30;
+                frames[112 * (start + i) + 69] = _t19;
+                frames[112 * (start + i) + 70] = _t33;
+                frames[112 * (start + i) + 71] = _t34;
+                frames[112 * (start + i) + 72] = _t35;
+                frames[112 * (start + i) + 73] = _c2[i];
+                frames[112 * (start + i) + 74] = _t36;
+                frames[112 * (start + i) + 75] = _t37;
+                frames[112 * (start + i) + 76] = 0;
+                frames[112 * (start + i) + 77] = 0;
+                frames[112 * (start + i) + 78] = 0;
+                frames[112 * (start + i) + 79] = 1;
+                frames[112 * (start + i) + 80] = _c0[i]*_c2[i]*_c3[i]*_c4[i] - _t39 - _t41;
+                frames[112 * (start + i) + 81] = -_t27;
+                frames[112 * (start + i) + 82] = _t43;
+                frames[112 * (start + i) + 83] = _t28;
+                frames[112 * (start + i) + 84] = _t44 - _t45 + _t46;
+                frames[112 * (start + i) + 85] = -_t33;
+                frames[112 * (start + i) + 86] = _t47;
+                frames[112 * (start + i) + 87] = _t34;
+                frames[112 * (start + i) + 88] = _t48 + _t49;
+                frames[112 * (start + i) + 89] = -_t36;
+                frames[112 * (start + i) + 90] = _t50;
+                frames[112 * (start + i) + 91] = _t37;
+                frames[112 * (start + i) + 92] = 0;
+                frames[112 * (start + i) + 93] = 0;
+                frames[112 * (start + i) + 94] = 0;
+                frames[112 * (start + i) + 95] = 1;
+                frames[112 * (start + i) + 96] = _c0[i]*_c2[i]*_c3[i]*_c4[i]*_c5[i] - _c5[i]*_t39 - _c5[i]*_t41 - _s5[i]*_t25 - _s5[i]*_t26;
+                frames[112 * (start + i) + 97] = _c0[i]*_s2[i]*_s4[i]*_s5[i] + _c4[i]*_s0[i]*_s3[i]*_s5[i] - _c4[i]*_s5[i]*_t42 - _c5[i]*_t25 - _c5[i]*_t26;
+                frames[112 * (start + i) + 98] = _t43;
+                frames[112 * (start + i) + 99] = _t28;
+                frames[112 * (start + i) + 100] = _c5[i]*_t44 - _c5[i]*_t45 + _c5[i]*_t46 + _s5[i]*_t31 - _s5[i]*_t32;
+                frames[112 * (start + i) + 101] = _c0[i]*_c3[i]*_c5[i] - _c5[i]*_t32 + _s0[i]*_s2[i]*_s4[i]*_s5[i] - _s5[i]*_t44 - _s5[i]*_t46;
+                frames[112 * (start + i) + 102] = _t47;
+                frames[112 * (start + i) + 103] = _t34;
+                frames[112 * (start + i) + 104] = _c5[i]*_t48 + _c5[i]*_t49 - _s5[i]*_t36;
+                frames[112 * (start + i) + 105] = -_c5[i]*_t36 - _s5[i]*_t48 - _s5[i]*_t49;
+                frames[112 * (start + i) + 106] = _t50;
+                frames[112 * (start + i) + 107] = _t37;
+                frames[112 * (start + i) + 108] = 0;
+                frames[112 * (start + i) + 109] = 0;
+                frames[112 * (start + i) + 110] = 0;
+                frames[112 * (start + i) + 111] = 1;
+            }
         }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 112; k += 2) {
+                    _mm_stream_pd(frames + 112 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
+                }
+            }
+        }
+#endif
     }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
 #else
     size_t i;
     for (i = 0; i < count; ++i) {
@@ -939,6 +1195,11 @@ void puma560_jacobian_batch(size_t count, const double *restrict q, const puma56
     double _c3[KINEGEN_BLOCK];
     double _s4[KINEGEN_BLOCK];
     double _c4[KINEGEN_BLOCK];
+#ifdef KINEGEN_STREAM
+    double _J_block[36][KINEGEN_BLOCK];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 36 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
+#endif
     size_t start, i, n;
     if (params == NULL) {
         params = &puma560_default_params;
@@ -1000,59 +1261,132 @@ void puma560_jacobian_batch(size_t count, const double *restrict q, const puma56
         for (i = 0; i < n; ++i) {
             _c4[i] = cos(q5[i]);
         }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            const double _t2 = _c1[i]*a2;
-            const double _t5 = _c2[i]*a3;
-            const double _t7 = _c2[i]*d4 + _s2[i]*a3;
-            const double _t8 = _s1[i]*a2 + _t7;
-            const double _t9 = _s2[i]*d4;
-            const double _t10 = _t5 - _t9;
-            const double _t11 = _c0[i]*_s2[i];
-            const double _t13 = _c3[i]*_s0[i];
-            const double _t15 = _c2[i]*_s3[i];
-            const double _t18 = _c0[i]*_c3[i];
-            const double _t19 = _c2[i]*_s4[i];
-            const double _t20 = -_c0[i];
-            const double _t21 = _s0[i]*_s2[i];
-            J[36 * (start + i) + 0] = _c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5;
-            J[36 * (start + i) + 1] = -_c0[i]*_t8;
-            J[36 * (start + i) + 2] = -_c0[i]*_t7;
-            J[36 * (start + i) + 3] = 0;
-            J[36 * (start + i) + 4] = 0;
-            J[36 * (start + i) + 5] = 0;
-            J[36 * (start + i) + 6] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t9 + _s0[i]*d3;
-            J[36 * (start + i) + 7] = -_s0[i]*_t8;
-            J[36 * (start + i) + 8] = -_s0[i]*_t7;
-            J[36 * (start + i) + 9] = 0;
-            J[36 * (start + i) + 10] = 0;
-            J[36 * (start + i) + 11] = 0;
-            J[36 * (start + i) + 12] = 0;
-            J[36 * (start + i) + 13] = _t10 + _t2;
-            J[36 * (start + i) + 14] = _t10;
-            J[36 * (start + i) + 15] = 0;
-            J[36 * (start + i) + 16] = 0;
-            J[36 * (start + i) + 17] = 0;
-            J[36 * (start + i) + 18] = 0;
-            J[36 * (start + i) + 19] = _s0[i];
-            J[36 * (start + i) + 20] = _s0[i];
-            J[36 * (start + i) + 21] = -_t11;
-            J[36 * (start + i) + 22] = _c0[i]*_t15 + _t13;
-            J[36 * (start + i) + 23] = -_c4[i]*_t11 + _s0[i]*_s3[i]*_s4[i] - _t18*_t19;
-            J[36 * (start + i) + 24] = 0;
-            J[36 * (start + i) + 25] = _t20;
-            J[36 * (start + i) + 26] = _t20;
-            J[36 * (start + i) + 27] = -_t21;
-            J[36 * (start + i) + 28] = _s0[i]*_t15 - _t18;
-            J[36 * (start + i) + 29] = -_c0[i]*_s3[i]*_s4[i] - _c4[i]*_t21 - _t13*_t19;
-            J[36 * (start + i) + 30] = 1;
-            J[36 * (start + i) + 31] = 0;
-            J[36 * (start + i) + 32] = 0;
-            J[36 * (start + i) + 33] = _c2[i];
-            J[36 * (start + i) + 34] = _s2[i]*_s3[i];
-            J[36 * (start + i) + 35] = _c2[i]*_c4[i] - _c3[i]*_s2[i]*_s4[i];
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = _c2[i]*d4 + _s2[i]*a3;
+                const double _t8 = _s1[i]*a2 + _t7;
+                const double _t9 = _s2[i]*d4;
+                const double _t10 = _t5 - _t9;
+                const double _t11 = _c0[i]*_s2[i];
+                const double _t13 = _c3[i]*_s0[i];
+                const double _t15 = _c2[i]*_s3[i];
+                const double _t18 = _c0[i]*_c3[i];
+                const double _t19 = _c2[i]*_s4[i];
+                const double _t20 = -_c0[i];
+                const double _t21 = _s0[i]*_s2[i];
+                _J_block[0][i] = _c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5;
+                _J_block[1][i] = -_c0[i]*_t8;
+                _J_block[2][i] = -_c0[i]*_t7;
+                _J_block[3][i] = 0;
+                _J_block[4][i] = 0;
+                _J_block[5][i] = 0;
+                _J_block[6][i] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t9 + _s0[i]*d3;
+                _J_block[7][i] = -_s0[i]*_t8;
+                _J_block[8][i] = -_s0[i]*_t7;
+                _J_block[9][i] = 0;
+                _J_block[10][i] = 0;
+                _J_block[11][i] = 0;
+                _J_block[12][i] = 0;
+                _J_block[13][i] = _t10 + _t2;
+                _J_block[14][i] = _t10;
+                _J_block[15][i] = 0;
+                _J_block[16][i] = 0;
+                _J_block[17][i] = 0;
+                _J_block[18][i] = 0;
+                _J_block[19][i] = _s0[i];
+                _J_block[20][i] = _s0[i];
+                _J_block[21][i] = -_t11;
+                _J_block[22][i] = _c0[i]*_t15 + _t13;
+                _J_block[23][i] = -_c4[i]*_t11 + _s0[i]*_s3[i]*_s4[i] - _t18*_t19;
+                _J_block[24][i] = 0;
+                _J_block[25][i] = _t20;
+                _J_block[26][i] = _t20;
+                _J_block[27][i] = -_t21;
+                _J_block[28][i] = _s0[i]*_t15 - _t18;
+                _J_block[29][i] = -_c0[i]*_s3[i]*_s4[i] - _c4[i]*_t21 - _t13*_t19;
+                _J_block[30][i] = 1;
+                _J_block[31][i] = 0;
+                _J_block[32][i] = 0;
+                _J_block[33][i] = _c2[i];
+                _J_block[34][i] = _s2[i]*_s3[i];
+                _J_block[35][i] = _c2[i]*_c4[i] - _c3[i]*_s2[i]*_s4[i];
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = _c2[i]*d4 + _s2[i]*a3;
+                const double _t8 = _s1[i]*a2 + _t7;
+                const double _t9 = _s2[i]*d4;
+                const double _t10 = _t5 - _t9;
+                const double _t11 = _c0[i]*_s2[i];
+                const double _t13 = _c3[i]*_s0[i];
+                const double _t15 = _c2[i]*_s3[i];
+                const double _t18 = _c0[i]*_c3[i];
+                const double _t19 = _c2[i]*_s4[i];
+                const double _t20 = -_c0[i];
+                const double _t21 = _s0[i]*_s2[i];
+                J[36 * (start + i) + 0] = _c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5;
+                J[36 * (start + i) + 1] = -_c0[i]*_t8;
+                J[36 * (start + i) + 2] = -_c0[i]*_t7;
+                J[36 * (start + i) + 3] = 0;
+                J[36 * (start + i) + 4] = 0;
+                J[36 * (start + i) + 5] = 0;
+                J[36 * (start + i) + 6] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t9 + _s0[i]*d3;
+                J[36 * (start + i) + 7] = -_s0[i]*_t8;
+                J[36 * (start + i) + 8] = -_s0[i]*_t7;
+                J[36 * (start + i) + 9] = 0;
+                J[36 * (start + i) + 10] = 0;
+                J[36 * (start + i) + 11] = 0;
+                J[36 * (start + i) + 12] = 0;
+                J[36 * (start + i) + 13] = _t10 + _t2;
+                J[36 * (start + i) + 14] = _t10;
+                J[36 * (start + i) + 15] = 0;
+                J[36 * (start + i) + 16] = 0;
+                J[36 * (start + i) + 17] = 0;
+                J[36 * (start + i) + 18] = 0;
+                J[36 * (start + i) + 19] = _s0[i];
+                J[36 * (start + i) + 20] = _s0[i];
+                J[36 * (start + i) + 21] = -_t11;
+                J[36 * (start + i) + 22] = _c0[i]*_t15 + _t13;
+                J[36 * (start + i) + 23] = -_c4[i]*_t11 + _s0[i]*_s3[i]*_s4[i] - _t18*_t19;
+                J[36 * (start + i) + 24] = 0;
+                J[36 * (start + i) + 25] = _t20;
+                J[36 * (start + i) + 26] = _t20;
+                J[36 * (start + i) + 27] = -_t21;
+                J[36 * (start + i) + 28] = _s0[i]*_t15 - _t18;
+                J[36 * (start + i) + 29] = -_c0[i]*_s3[i]*_s4[i] - _c4[i]*_t21 - _t13*_t19;
+                J[36 * (start + i) + 30] = 1;
+                J[36 * (start + i) + 31] = 0;
+                J[36 * (start + i) + 32] = 0;
+                J[36 * (start + i) + 33] = _c2[i];
+                J[36 * (start + i) + 34] = _s2[i]*_s3[i];
+                J[36 * (start + i) + 35] = _c2[i]*_c4[i] - _c3[i]*_s2[i]*_s4[i];
+            }
         }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 36; k += 2) {
+                    _mm_stream_pd(J + 36 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
+                }
+            }
+        }
+#endif
     }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
 #else
     size_t i;
     for (i = 0; i < count; ++i) {
@@ -1177,6 +1511,11 @@ void puma560_task_batch(size_t count, const double *restrict q, const puma560_pa
     double _c4[KINEGEN_BLOCK];
     double _s5[KINEGEN_BLOCK];
     double _c5[KINEGEN_BLOCK];
+#ifdef KINEGEN_STREAM
+    double _x_block[12][KINEGEN_BLOCK];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)x & 15) == 0;
+#endif
     size_t start, i, n;
     if (params == NULL) {
         params = &puma560_default_params;
@@ -1248,41 +1587,96 @@ void puma560_task_batch(size_t count, const double *restrict q, const puma560_pa
         for (i = 0; i < n; ++i) {
             _c5[i] = cos(q5[i]);
         }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            const double _t2 = _c1[i]*a2;
-            const double _t5 = _c2[i]*a3;
-            const double _t7 = _s2[i]*d4;
-            const double _t10 = _c4[i]*_s0[i];
-            const double _t11 = _s3[i]*_t10;
-            const double _t15 = _c3[i]*_s4[i];
-            const double _t16 = _s3[i]*_s4[i];
-            const double _t17 = _c0[i]*_c2[i];
-            const double _t19 = _s2[i]*_s5[i];
-            const double _t20 = _c3[i]*_t10;
-            const double _t21 = _c2[i]*_c5[i];
-            const double _t22 = _c0[i]*_c4[i];
-            const double _t23 = _s3[i]*_t22;
-            const double _t24 = _c5[i]*_s2[i];
-            const double _t25 = _c2[i]*_s5[i];
-            const double _t26 = _c0[i]*_c5[i];
-            const double _t27 = _c2[i]*_s0[i];
-            const double _t28 = _s2[i]*_s4[i];
-            const double _t29 = _c4[i]*_t24;
-            x[12 * (start + i) + 0] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t7 + _s0[i]*d3;
-            x[12 * (start + i) + 1] = -_c0[i]*d3 + _s0[i]*_t2 + _s0[i]*_t5 - _s0[i]*_t7;
-            x[12 * (start + i) + 2] = _c2[i]*d4 + _s1[i]*a2 + _s2[i]*a3 + d1;
-            x[12 * (start + i) + 3] = _c0[i]*_c2[i]*_c3[i]*_c4[i]*_c5[i] - _c0[i]*_c3[i]*_t19 - _c5[i]*_s0[i]*_t15 - _t11 - _t16*_t17;
-            x[12 * (start + i) + 4] = _c0[i]*_s2[i]*_s3[i]*_s5[i] + _c5[i]*_s0[i]*_s3[i]*_s4[i] - _t15*_t17 - _t20 - _t21*_t23;
-            x[12 * (start + i) + 5] = -_c0[i]*_t24 + _s0[i]*_s4[i]*_s5[i] - _t22*_t25;
-            x[12 * (start + i) + 6] = -_c3[i]*_s0[i]*_t19 + _t15*_t26 - _t16*_t27 + _t20*_t21 + _t23;
-            x[12 * (start + i) + 7] = _c0[i]*_c3[i]*_c4[i] + _s0[i]*_s2[i]*_s3[i]*_s5[i] - _t11*_t21 - _t15*_t27 - _t16*_t26;
-            x[12 * (start + i) + 8] = -_c0[i]*_s4[i]*_s5[i] - _s0[i]*_t24 - _t10*_t25;
-            x[12 * (start + i) + 9] = _c3[i]*_t25 + _c3[i]*_t29 - _s3[i]*_t28;
-            x[12 * (start + i) + 10] = -_c3[i]*_t28 - _s3[i]*_t25 - _s3[i]*_t29;
-            x[12 * (start + i) + 11] = _c2[i]*_c5[i] - _c4[i]*_t19;
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = _s2[i]*d4;
+                const double _t10 = _c4[i]*_s0[i];
+                const double _t11 = _s3[i]*_t10;
+                const double _t15 = _c3[i]*_s4[i];
+                const double _t16 = _s3[i]*_s4[i];
+                const double _t17 = _c0[i]*_c2[i];
+                const double _t19 = _s2[i]*_s5[i];
+                const double _t20 = _c3[i]*_t10;
+                const double _t21 = _c2[i]*_c5[i];
+                const double _t22 = _c0[i]*_c4[i];
+                const double _t23 = _s3[i]*_t22;
+                const double _t24 = _c5[i]*_s2[i];
+                const double _t25 = _c2[i]*_s5[i];
+                const double _t26 = _c0[i]*_c5[i];
+                const double _t27 = _c2[i]*_s0[i];
+                const double _t28 = _s2[i]*_s4[i];
+                const double _t29 = _c4[i]*_t24;
+                _x_block[0][i] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t7 + _s0[i]*d3;
+                _x_block[1][i] = -_c0[i]*d3 + _s0[i]*_t2 + _s0[i]*_t5 - _s0[i]*_t7;
+                _x_block[2][i] = _c2[i]*d4 + _s1[i]*a2 + _s2[i]*a3 + d1;
+                _x_block[3][i] = _c0[i]*_c2[i]*_c3[i]*_c4[i]*_c5[i] - _c0[i]*_c3[i]*_t19 - _c5[i]*_s0[i]*_t15 - _t11 - _t16*_t17;
+                _x_block[4][i] = _c0[i]*_s2[i]*_s3[i]*_s5[i] + _c5[i]*_s0[i]*_s3[i]*_s4[i] - _t15*_t17 - _t20 - _t21*_t23;
+                _x_block[5][i] = -_c0[i]*_t24 + _s0[i]*_s4[i]*_s5[i] - _t22*_t25;
+                _x_block[6][i] = -_c3[i]*_s0[i]*_t19 + _t15*_t26 - _t16*_t27 + _t20*_t21 + _t23;
+                _x_block[7][i] = _c0[i]*_c3[i]*_c4[i] + _s0[i]*_s2[i]*_s3[i]*_s5[i] - _t11*_t21 - _t15*_t27 - _t16*_t26;
+                _x_block[8][i] = -_c0[i]*_s4[i]*_s5[i] - _s0[i]*_t24 - _t10*_t25;
+                _x_block[9][i] = _c3[i]*_t25 + _c3[i]*_t29 - _s3[i]*_t28;
+                _x_block[10][i] = -_c3[i]*_t28 - _s3[i]*_t25 - _s3[i]*_t29;
+                _x_block[11][i] = _c2[i]*_c5[i] - _c4[i]*_t19;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = _s2[i]*d4;
+                const double _t10 = _c4[i]*_s0[i];
+                const double _t11 = _s3[i]*_t10;
+                const double _t15 = _c3[i]*_s4[i];
+                const double _t16 = _s3[i]*_s4[i];
+                const double _t17 = _c0[i]*_c2[i];
+                const double _t19 = _s2[i]*_s5[i];
+                const double _t20 = _c3[i]*_t10;
+                const double _t21 = _c2[i]*_c5[i];
+                const double _t22 = _c0[i]*_c4[i];
+                const double _t23 = _s3[i]*_t22;
+                const double _t24 = _c5[i]*_s2[i];
+                const double _t25 = _c2[i]*_s5[i];
+                const double _t26 = _c0[i]*_c5[i];
+                const double _t27 = _c2[i]*_s0[i];
+                const double _t28 = _s2[i]*_s4[i];
+                const double _t29 = _c4[i]*_t24;
+                x[12 * (start + i) + 0] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t7 + _s0[i]*d3;
+                x[12 * (start + i) + 1] = -_c0[i]*d3 + _s0[i]*_t2 + _s0[i]*_t5 - _s0[i]*_t7;
+                x[12 * (start + i) + 2] = _c2[i]*d4 + _s1[i]*a2 + _s2[i]*a3 + d1;
+                x[12 * (start + i) + 3] = _c0[i]*_c2[i]*_c3[i]*_c4[i]*_c5[i] - _c0[i]*_c3[i]*_t19 - _c5[i]*_s0[i]*_t15 - _t11 - _t16*_t17;
+                x[12 * (start + i) + 4] = _c0[i]*_s2[i]*_s3[i]*_s5[i] + _c5[i]*_s0[i]*_s3[i]*_s4[i] - _t15*_t17 - _t20 - _t21*_t23;
+                x[12 * (start + i) + 5] = -_c0[i]*_t24 + _s0[i]*_s4[i]*_s5[i] - _t22*_t25;
+                x[12 * (start + i) + 6] = -_c3[i]*_s0[i]*_t19 + _t15*_t26 - _t16*_t27 + _t20*_t21 + _t23;
+                x[12 * (start + i) + 7] = _c0[i]*_c3[i]*_c4[i] + _s0[i]*_s2[i]*_s3[i]*_s5[i] - _t11*_t21 - _t15*_t27 - _t16*_t26;
+                x[12 * (start + i) + 8] = -_c0[i]*_s4[i]*_s5[i] - _s0[i]*_t24 - _t10*_t25;
+                x[12 * (start + i) + 9] = _c3[i]*_t25 + _c3[i]*_t29 - _s3[i]*_t28;
+                x[12 * (start + i) + 10] = -_c3[i]*_t28 - _s3[i]*_t25 - _s3[i]*_t29;
+                x[12 * (start + i) + 11] = _c2[i]*_c5[i] - _c4[i]*_t19;
+            }
         }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 12; k += 2) {
+                    _mm_stream_pd(x + 12 * (start + i) + k, _mm_set_pd(_x_block[k + 1][i], _x_block[k][i]));
+                }
+            }
+        }
+#endif
     }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
 #else
     size_t i;
     for (i = 0; i < count; ++i) {
@@ -1492,6 +1886,11 @@ void puma560_task_jacobian_batch(size_t count, const double *restrict q, const p
     double _c4[KINEGEN_BLOCK];
     double _s5[KINEGEN_BLOCK];
     double _c5[KINEGEN_BLOCK];
+#ifdef KINEGEN_STREAM
+    double _Jx_block[72][KINEGEN_BLOCK];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 72 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx & 15) == 0;
+#endif
     size_t start, i, n;
     if (params == NULL) {
         params = &puma560_default_params;
@@ -1562,127 +1961,268 @@ void puma560_task_jacobian_batch(size_t count, const double *restrict q, const p
         for (i = 0; i < n; ++i) {
             _c5[i] = cos(q5[i]);
         }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            const double _t2 = _c1[i]*a2;
-            const double _t5 = _c2[i]*a3;
-            const double _t7 = _c2[i]*d4 + _s2[i]*a3;
-            const double _t8 = _s1[i]*a2 + _t7;
-            const double _t9 = _s2[i]*d4;
-            const double _t10 = _t5 - _t9;
-            const double _t13 = _c0[i]*_c4[i];
-            const double _t14 = _s3[i]*_t13;
-            const double _t18 = _c3[i]*_s4[i];
-            const double _t19 = _c0[i]*_t18;
-            const double _t21 = _c2[i]*_c5[i];
-            const double _t22 = _c4[i]*_s0[i];
-            const double _t23 = _c3[i]*_t22;
-            const double _t24 = _c2[i]*_s0[i]*_s3[i]*_s4[i] + _c3[i]*_s0[i]*_s2[i]*_s5[i] - _c5[i]*_t19 - _t14 - _t21*_t23;
-            const double _t25 = _c2[i]*_s5[i];
-            const double _t26 = _c3[i]*_c4[i];
-            const double _t27 = _c5[i]*_s2[i];
-            const double _t28 = -_c3[i]*_t25 + _s2[i]*_s3[i]*_s4[i] - _t26*_t27;
-            const double _t29 = _c0[i]*_t28;
-            const double _t30 = _c0[i]*_t27 - _s0[i]*_s4[i]*_s5[i] + _t13*_t25;
-            const double _t31 = -_t30;
-            const double _t32 = _c0[i]*_s2[i]*_s3[i]*_s5[i] - _c2[i]*_t19 + _c5[i]*_s0[i]*_s3[i]*_s4[i] - _t14*_t21 - _t23;
-            const double _t33 = _c3[i]*_t13;
-            const double _t34 = _s3[i]*_s4[i];
-            const double _t35 = _c0[i]*_t34;
-            const double _t36 = _s0[i]*_s4[i];
-            const double _t37 = _c3[i]*_t36;
-            const double _t38 = _s2[i]*_s5[i];
-            const double _t39 = _s3[i]*_t22;
-            const double _t40 = _c2[i]*_t37 + _c5[i]*_t35 - _s0[i]*_s3[i]*_t38 + _t21*_t39 - _t33;
-            const double _t41 = _c4[i]*_s3[i];
-            const double _t42 = _s2[i]*_t18 + _s3[i]*_t25 + _t27*_t41;
-            const double _t43 = _c0[i]*_t42;
-            const double _t44 = _c0[i]*_t38;
-            const double _t45 = _c2[i]*_t35 + _c3[i]*_t44 + _c5[i]*_t37 - _t21*_t33 + _t39;
-            const double _t46 = _c0[i]*_s4[i];
-            const double _t47 = _s0[i]*_t27 + _s5[i]*_t46 + _t22*_t25;
-            const double _t48 = _c4[i]*_t38 - _t21;
-            const double _t49 = _c0[i]*_t48;
-            const double _t50 = _s0[i]*_t28;
-            const double _t51 = _s0[i]*_t42;
-            const double _t52 = _s0[i]*_t48;
-            const double _t53 = _c2[i]*_c3[i]*_c4[i]*_c5[i] - _c2[i]*_t34 - _c3[i]*_t38;
-            const double _t54 = -_c2[i]*_t18 + _s2[i]*_s3[i]*_s5[i] - _t21*_t41;
-            const double _t55 = -_c4[i]*_t25 - _t27;
-            Jx[72 * (start + i) + 0] = _c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5;
-            Jx[72 * (start + i) + 1] = -_c0[i]*_t8;
-            Jx[72 * (start + i) + 2] = -_c0[i]*_t7;
-            Jx[72 * (start + i) + 3] = 0;
-            Jx[72 * (start + i) + 4] = 0;
-            Jx[72 * (start + i) + 5] = 0;
-            Jx[72 * (start + i) + 6] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t9 + _s0[i]*d3;
-            Jx[72 * (start + i) + 7] = -_s0[i]*_t8;
-            Jx[72 * (start + i) + 8] = -_s0[i]*_t7;
-            Jx[72 * (start + i) + 9] = 0;
-            Jx[72 * (start + i) + 10] = 0;
-            Jx[72 * (start + i) + 11] = 0;
-            Jx[72 * (start + i) + 12] = 0;
-            Jx[72 * (start + i) + 13] = _t10 + _t2;
-            Jx[72 * (start + i) + 14] = _t10;
-            Jx[72 * (start + i) + 15] = 0;
-            Jx[72 * (start + i) + 16] = 0;
-            Jx[72 * (start + i) + 17] = 0;
-            Jx[72 * (start + i) + 18] = _t24;
-            Jx[72 * (start + i) + 19] = _t29;
-            Jx[72 * (start + i) + 20] = _t29;
-            Jx[72 * (start + i) + 21] = -_c2[i]*_t14 - _c5[i]*_t23 + _s0[i]*_s3[i]*_s4[i] - _t19*_t21;
-            Jx[72 * (start + i) + 22] = _c3[i]*_t31;
-            Jx[72 * (start + i) + 23] = _t32;
-            Jx[72 * (start + i) + 24] = _t40;
-            Jx[72 * (start + i) + 25] = _t43;
-            Jx[72 * (start + i) + 26] = _t43;
-            Jx[72 * (start + i) + 27] = -_c2[i]*_t33 + _c5[i]*_t39 + _t21*_t35 + _t37;
-            Jx[72 * (start + i) + 28] = _s3[i]*_t30;
-            Jx[72 * (start + i) + 29] = _t45;
-            Jx[72 * (start + i) + 30] = _t47;
-            Jx[72 * (start + i) + 31] = _t49;
-            Jx[72 * (start + i) + 32] = _t49;
-            Jx[72 * (start + i) + 33] = _s5[i]*(_c2[i]*_t46 + _t22);
-            Jx[72 * (start + i) + 34] = _c5[i]*_t36 - _t13*_t21 + _t44;
-            Jx[72 * (start + i) + 35] = 0;
-            Jx[72 * (start + i) + 36] = -_t45;
-            Jx[72 * (start + i) + 37] = _t50;
-            Jx[72 * (start + i) + 38] = _t50;
-            Jx[72 * (start + i) + 39] = _c0[i]*_c3[i]*_c4[i]*_c5[i] - _c2[i]*_t39 - _t21*_t37 - _t35;
-            Jx[72 * (start + i) + 40] = -_c3[i]*_t47;
-            Jx[72 * (start + i) + 41] = -_t40;
-            Jx[72 * (start + i) + 42] = _t32;
-            Jx[72 * (start + i) + 43] = _t51;
-            Jx[72 * (start + i) + 44] = _t51;
-            Jx[72 * (start + i) + 45] = _c2[i]*_c5[i]*_s0[i]*_s3[i]*_s4[i] - _c2[i]*_t23 - _c5[i]*_t14 - _t19;
-            Jx[72 * (start + i) + 46] = _s3[i]*_t47;
-            Jx[72 * (start + i) + 47] = _t24;
-            Jx[72 * (start + i) + 48] = _t31;
-            Jx[72 * (start + i) + 49] = _t52;
-            Jx[72 * (start + i) + 50] = _t52;
-            Jx[72 * (start + i) + 51] = _s5[i]*(_c2[i]*_t36 - _t13);
-            Jx[72 * (start + i) + 52] = -_c5[i]*_t46 + _s0[i]*_s2[i]*_s5[i] - _t21*_t22;
-            Jx[72 * (start + i) + 53] = 0;
-            Jx[72 * (start + i) + 54] = 0;
-            Jx[72 * (start + i) + 55] = _t53;
-            Jx[72 * (start + i) + 56] = _t53;
-            Jx[72 * (start + i) + 57] = -_s2[i]*(_c5[i]*_t18 + _t41);
-            Jx[72 * (start + i) + 58] = -_c3[i]*_t48;
-            Jx[72 * (start + i) + 59] = -_t42;
-            Jx[72 * (start + i) + 60] = 0;
-            Jx[72 * (start + i) + 61] = _t54;
-            Jx[72 * (start + i) + 62] = _t54;
-            Jx[72 * (start + i) + 63] = _s2[i]*(_c5[i]*_t34 - _t26);
-            Jx[72 * (start + i) + 64] = _s3[i]*_t48;
-            Jx[72 * (start + i) + 65] = _t28;
-            Jx[72 * (start + i) + 66] = 0;
-            Jx[72 * (start + i) + 67] = _t55;
-            Jx[72 * (start + i) + 68] = _t55;
-            Jx[72 * (start + i) + 69] = _s4[i]*_t38;
-            Jx[72 * (start + i) + 70] = -_c4[i]*_t27 - _t25;
-            Jx[72 * (start + i) + 71] = 0;
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = _c2[i]*d4 + _s2[i]*a3;
+                const double _t8 = _s1[i]*a2 + _t7;
+                const double _t9 = _s2[i]*d4;
+                const double _t10 = _t5 - _t9;
+                const double _t13 = _c0[i]*_c4[i];
+                const double _t14 = _s3[i]*_t13;
+                const double _t18 = _c3[i]*_s4[i];
+                const double _t19 = _c0[i]*_t18;
+                const double _t21 = _c2[i]*_c5[i];
+                const double _t22 = _c4[i]*_s0[i];
+                const double _t23 = _c3[i]*_t22;
+                const double _t24 = _c2[i]*_s0[i]*_s3[i]*_s4[i] + _c3[i]*_s0[i]*_s2[i]*_s5[i] - _c5[i]*_t19 - _t14 - _t21*_t23;
+                const double _t25 = _c2[i]*_s5[i];
+                const double _t26 = _c3[i]*_c4[i];
+                const double _t27 = _c5[i]*_s2[i];
+                const double _t28 = -_c3[i]*_t25 + _s2[i]*_s3[i]*_s4[i] - _t26*_t27;
+                const double _t29 = _c0[i]*_t28;
+                const double _t30 = _c0[i]*_t27 - _s0[i]*_s4[i]*_s5[i] + _t13*_t25;
+                const double _t31 = -_t30;
+                const double _t32 = _c0[i]*_s2[i]*_s3[i]*_s5[i] - _c2[i]*_t19 + _c5[i]*_s0[i]*_s3[i]*_s4[i] - _t14*_t21 - _t23;
+                const double _t33 = _c3[i]*_t13;
+                const double _t34 = _s3[i]*_s4[i];
+                const double _t35 = _c0[i]*_t34;
+                const double _t36 = _s0[i]*_s4[i];
+                const double _t37 = _c3[i]*_t36;
+                const double _t38 = _s2[i]*_s5[i];
+                const double _t39 = _s3[i]*_t22;
+                const double _t40 = _c2[i]*_t37 + _c5[i]*_t35 - _s0[i]*_s3[i]*_t38 + _t21*_t39 - _t33;
+                const double _t41 = _c4[i]*_s3[i];
+                const double _t42 = _s2[i]*_t18 + _s3[i]*_t25 + _t27*_t41;
+                const double _t43 = _c0[i]*_t42;
+                const double _t44 = _c0[i]*_t38;
+                const double _t45 = _c2[i]*_t35 + _c3[i]*_t44 + _c5[i]*_t37 - _t21*_t33 + _t39;
+                const double _t46 = _c0[i]*_s4[i];
+                const double _t47 = _s0[i]*_t27 + _s5[i]*_t46 + _t22*_t25;
+                const double _t48 = _c4[i]*_t38 - _t21;
+                const double _t49 = _c0[i]*_t48;
+                const double _t50 = _s0[i]*_t28;
+                const double _t51 = _s0[i]*_t42;
+                const double _t52 = _s0[i]*_t48;
+                const double _t53 = _c2[i]*_c3[i]*_c4[i]*_c5[i] - _c2[i]*_t34 - _c3[i]*_t38;
+                const double _t54 = -_c2[i]*_t18 + _s2[i]*_s3[i]*_s5[i] - _t21*_t41;
+                const double _t55 = -_c4[i]*_t25 - _t27;
+                _Jx_block[0][i] = _c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5;
+                _Jx_block[1][i] = -_c0[i]*_t8;
+                _Jx_block[2][i] = -_c0[i]*_t7;
+                _Jx_block[3][i] = 0;
+                _Jx_block[4][i] = 0;
+                _Jx_block[5][i] = 0;
+                _Jx_block[6][i] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t9 + _s0[i]*d3;
+                _Jx_block[7][i] = -_s0[i]*_t8;
+                _Jx_block[8][i] = -_s0[i]*_t7;
+                _Jx_block[9][i] = 0;
+                _Jx_block[10][i] = 0;
+                _Jx_block[11][i] = 0;
+                _Jx_block[12][i] = 0;
+                _Jx_block[13][i] = _t10 + _t2;
+                _Jx_block[14][i] = _t10;
+                _Jx_block[15][i] = 0;
+                _Jx_block[16][i] = 0;
+                _Jx_block[17][i] = 0;
+                _Jx_block[18][i] = _t24;
+                _Jx_block[19][i] = _t29;
+                _Jx_block[20][i] = _t29;
+                _Jx_block[21][i] = -_c2[i]*_t14 - _c5[i]*_t23 + _s0[i]*_s3[i]*_s4[i] - _t19*_t21;
+                _Jx_block[22][i] = _c3[i]*_t31;
+                _Jx_block[23][i] = _t32;
+                _Jx_block[24][i] = _t40;
+                _Jx_block[25][i] = _t43;
+                _Jx_block[26][i] = _t43;
+                _Jx_block[27][i] = -_c2[i]*_t33 + _c5[i]*_t39 + _t21*_t35 + _t37;
+                _Jx_block[28][i] = _s3[i]*_t30;
+                _Jx_block[29][i] = _t45;
+                _Jx_block[30][i] = _t47;
+                _Jx_block[31][i] = _t49;
+                _Jx_block[32][i] = _t49;
+                _Jx_block[33][i] = _s5[i]*(_c2[i]*_t46 + _t22);
+                _Jx_block[34][i] = _c5[i]*_t36 - _t13*_t21 + _t44;
+                _Jx_block[35][i] = 0;
+                _Jx_block[36][i] = -_t45;
+                _Jx_block[37][i] = _t50;
+                _Jx_block[38][i] = _t50;
+                _Jx_block[39][i] = _c0[i]*_c3[i]*_c4[i]*_c5[i] - _c2[i]*_t39 - _t21*_t37 - _t35;
+                _Jx_block[40][i] = -_c3[i]*_t47;
+                _Jx_block[41][i] = -_t40;
+                _Jx_block[42][i] = _t32;
+                _Jx_block[43][i] = _t51;
+                _Jx_block[44][i] = _t51;
+                _Jx_block[45][i] = _c2[i]*_c5[i]*_s0[i]*_s3[i]*_s4[i] - _c2[i]*_t23 - _c5[i]*_t14 - _t19;
+                _Jx_block[46][i] = _s3[i]*_t47;
+                _Jx_block[47][i] = _t24;
+                _Jx_block[48][i] = _t31;
+                _Jx_block[49][i] = _t52;
+                _Jx_block[50][i] = _t52;
+                _Jx_block[51][i] = _s5[i]*(_c2[i]*_t36 - _t13);
+                _Jx_block[52][i] = -_c5[i]*_t46 + _s0[i]*_s2[i]*_s5[i] - _t21*_t22;
+                _Jx_block[53][i] = 0;
+                _Jx_block[54][i] = 0;
+                _Jx_block[55][i] = _t53;
+                _Jx_block[56][i] = _t53;
+                _Jx_block[57][i] = -_s2[i]*(_c5[i]*_t18 + _t41);
+                _Jx_block[58][i] = -_c3[i]*_t48;
+                _Jx_block[59][i] = -_t42;
+                _Jx_block[60][i] = 0;
+                _Jx_block[61][i] = _t54;
+                _Jx_block[62][i] = _t54;
+                _Jx_block[63][i] = _s2[i]*(_c5[i]*_t34 - _t26);
+                _Jx_block[64][i] = _s3[i]*_t48;
+                _Jx_block[65][i] = _t28;
+                _Jx_block[66][i] = 0;
+                _Jx_block[67][i] = _t55;
+                _Jx_block[68][i] = _t55;
+                _Jx_block[69][i] = _s4[i]*_t38;
+                _Jx_block[70][i] = -_c4[i]*_t27 - _t25;
+                _Jx_block[71][i] = 0;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = _c2[i]*d4 + _s2[i]*a3;
+                const double _t8 = _s1[i]*a2 + _t7;
+                const double _t9 = _s2[i]*d4;
+                const double _t10 = _t5 - _t9;
+                const double _t13 = _c0[i]*_c4[i];
+                const double _t14 = _s3[i]*_t13;
+                const double _t18 = _c3[i]*_s4[i];
+                const double _t19 = _c0[i]*_t18;
+                const double _t21 = _c2[i]*_c5[i];
+                const double _t22 = _c4[i]*_s0[i];
+                const double _t23 = _c3[i]*_t22;
+                const double _t24 = _c2[i]*_s0[i]*_s3[i]*_s4[i] + _c3[i]*_s0[i]*_s2[i]*_s5[i] - _c5[i]*_t19 - _t14 - _t21*_t23;
+                const double _t25 = _c2[i]*_s5[i];
+                const double _t26 = _c3[i]*_c4[i];
+                const double _t27 = _c5[i]*_s2[i];
+                const double _t28 = -_c3[i]*_t25 + _s2[i]*_s3[i]*_s4[i] - _t26*_t27;
+                const double _t29 = _c0[i]*_t28;
+                const double _t30 = _c0[i]*_t27 - _s0[i]*_s4[i]*_s5[i] + _t13*_t25;
+                const double _t31 = -_t30;
+                const double _t32 = _c0[i]*_s2[i]*_s3[i]*_s5[i] - _c2[i]*_t19 + _c5[i]*_s0[i]*_s3[i]*_s4[i] - _t14*_t21 - _t23;
+                const double _t33 = _c3[i]*_t13;
+                const double _t34 = _s3[i]*_s4[i];
+                const double _t35 = _c0[i]*_t34;
+                const double _t36 = _s0[i]*_s4[i];
+                const double _t37 = _c3[i]*_t36;
+                const double _t38 = _s2[i]*_s5[i];
+                const double _t39 = _s3[i]*_t22;
+                const double _t40 = _c2[i]*_t37 + _c5[i]*_t35 - _s0[i]*_s3[i]*_t38 + _t21*_t39 - _t33;
+                const double _t41 = _c4[i]*_s3[i];
+                const double _t42 = _s2[i]*_t18 + _s3[i]*_t25 + _t27*_t41;
+                const double _t43 = _c0[i]*_t42;
+                const double _t44 = _c0[i]*_t38;
+                const double _t45 = _c2[i]*_t35 + _c3[i]*_t44 + _c5[i]*_t37 - _t21*_t33 + _t39;
+                const double _t46 = _c0[i]*_s4[i];
+                const double _t47 = _s0[i]*_t27 + _s5[i]*_t46 + _t22*_t25;
+                const double _t48 = _c4[i]*_t38 - _t21;
+                const double _t49 = _c0[i]*_t48;
+                const double _t50 = _s0[i]*_t28;
+                const double _t51 = _s0[i]*_t42;
+                const double _t52 = _s0[i]*_t48;
+                const double _t53 = _c2[i]*_c3[i]*_c4[i]*_c5[i] - _c2[i]*_t34 - _c3[i]*_t38;
+                const double _t54 = -_c2[i]*_t18 + _s2[i]*_s3[i]*_s5[i] - _t21*_t41;
+                const double _t55 = -_c4[i]*_t25 - _t27;
+                Jx[72 * (start + i) + 0] = _c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5;
+                Jx[72 * (start + i) + 1] = -_c0[i]*_t8;
+                Jx[72 * (start + i) + 2] = -_c0[i]*_t7;
+                Jx[72 * (start + i) + 3] = 0;
+                Jx[72 * (start + i) + 4] = 0;
+                Jx[72 * (start + i) + 5] = 0;
+                Jx[72 * (start + i) + 6] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t9 + _s0[i]*d3;
+                Jx[72 * (start + i) + 7] = -_s0[i]*_t8;
+                Jx[72 * (start + i) + 8] = -_s0[i]*_t7;
+                Jx[72 * (start + i) + 9] = 0;
+                Jx[72 * (start + i) + 10] = 0;
+                Jx[72 * (start + i) + 11] = 0;
+                Jx[72 * (start + i) + 12] = 0;
+                Jx[72 * (start + i) + 13] = _t10 + _t2;
+                Jx[72 * (start + i) + 14] = _t10;
+                Jx[72 * (start + i) + 15] = 0;
+                Jx[72 * (start + i) + 16] = 0;
+                Jx[72 * (start + i) + 17] = 0;
+                Jx[72 * (start + i) + 18] = _t24;
+                Jx[72 * (start + i) + 19] = _t29;
+                Jx[72 * (start + i) + 20] = _t29;
+                Jx[72 * (start + i) + 21] = -_c2[i]*_t14 - _c5[i]*_t23 + _s0[i]*_s3[i]*_s4[i] - _t19*_t21;
+                Jx[72 * (start + i) + 22] = _c3[i]*_t31;
+                Jx[72 * (start + i) + 23] = _t32;
+                Jx[72 * (start + i) + 24] = _t40;
+                Jx[72 * (start + i) + 25] = _t43;
+                Jx[72 * (start + i) + 26] = _t43;
+                Jx[72 * (start + i) + 27] = -_c2[i]*_t33 + _c5[i]*_t39 + _t21*_t35 + _t37;
+                Jx[72 * (start + i) + 28] = _s3[i]*_t30;
+                Jx[72 * (start + i) + 29] = _t45;
+                Jx[72 * (start + i) + 30] = _t47;
+                Jx[72 * (start + i) + 31] = _t49;
+                Jx[72 * (start + i) + 32] = _t49;
+                Jx[72 * (start + i) + 33] = _s5[i]*(_c2[i]*_t46 + _t22);
+                Jx[72 * (start + i) + 34] = _c5[i]*_t36 - _t13*_t21 + _t44;
+                Jx[72 * (start + i) + 35] = 0;
+                Jx[72 * (start + i) + 36] = -_t45;
+                Jx[72 * (start + i) + 37] = _t50;
+                Jx[72 * (start + i) + 38] = _t50;
+                Jx[72 * (start + i) + 39] = _c0[i]*_c3[i]*_c4[i]*_c5[i] - _c2[i]*_t39 - _t21*_t37 - _t35;
+                Jx[72 * (start + i) + 40] = -_c3[i]*_t47;
+                Jx[72 * (start + i) + 41] = -_t40;
+                Jx[72 * (start + i) + 42] = _t32;
+                Jx[72 * (start + i) + 43] = _t51;
+                Jx[72 * (start + i) + 44] = _t51;
+                Jx[72 * (start + i) + 45] = _c2[i]*_c5[i]*_s0[i]*_s3[i]*_s4[i] - _c2[i]*_t23 - _c5[i]*_t14 - _t19;
+                Jx[72 * (start + i) + 46] = _s3[i]*_t47;
+                Jx[72 * (start + i) + 47] = _t24;
+                Jx[72 * (start + i) + 48] = _t31;
+                Jx[72 * (start + i) + 49] = _t52;
+                Jx[72 * (start + i) + 50] = _t52;
+                Jx[72 * (start + i) + 51] = _s5[i]*(_c2[i]*_t36 - _t13);
+                Jx[72 * (start + i) + 52] = -_c5[i]*_t46 + _s0[i]*_s2[i]*_s5[i] - _t21*_t22;
+                Jx[72 * (start + i) + 53] = 0;
+                Jx[72 * (start + i) + 54] = 0;
+                Jx[72 * (start + i) + 55] = _t53;
+                Jx[72 * (start + i) + 56] = _t53;
+                Jx[72 * (start + i) + 57] = -_s2[i]*(_c5[i]*_t18 + _t41);
+                Jx[72 * (start + i) + 58] = -_c3[i]*_t48;
+                Jx[72 * (start + i) + 59] = -_t42;
+                Jx[72 * (start + i) + 60] = 0;
+                Jx[72 * (start + i) + 61] = _t54;
+                Jx[72 * (start + i) + 62] = _t54;
+                Jx[72 * (start + i) + 63] = _s2[i]*(_c5[i]*_t34 - _t26);
+                Jx[72 * (start + i) + 64] = _s3[i]*_t48;
+                Jx[72 * (start + i) + 65] = _t28;
+                Jx[72 * (start + i) + 66] = 0;
+                Jx[72 * (start + i) + 67] = _t55;
+                Jx[72 * (start + i) + 68] = _t55;
+                Jx[72 * (start + i) + 69] = _s4[i]*_t38;
+                Jx[72 * (start + i) + 70] = -_c4[i]*_t27 - _t25;
+                Jx[72 * (start + i) + 71] = 0;
+            }
         }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 72; k += 2) {
+                    _mm_stream_pd(Jx + 72 * (start + i) + k, _mm_set_pd(_Jx_block[k + 1][i], _Jx_block[k][i]));
+                }
+            }
+        }
+#endif
     }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
 #else
     size_t i;
     for (i = 0; i < count; ++i) {
@@ -2892,10 +3432,12 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
             valid[8 * (start + i) + 6] = _t139;
             valid[8 * (start + i) + 7] = _t139;
         }
-        for (i = 0; i < n; ++i) {
-            int k;
-            for (k = 0; k < 48; ++k) {
-                Q[48 * (start + i) + k] = _Q_block[k][i];
+        {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 48; ++k) {
+                    Q[48 * (start + i) + k] = _Q_block[k][i];
+                }
             }
         }
         for (i = 0; i < n; ++i) {
