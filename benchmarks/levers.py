@@ -7,10 +7,13 @@ Each row times the same work with a lever off and on, in this process:
 * batched C (inside C, no Python): the plain loop over the single-point function
   (``KINEGEN_PORTABLE=1`` builds), the blocked layout in scalar C
   (``-DKINEGEN_BLOCKED``), and the blocked layout vectorised with libmvec
-  (``-DKINEGEN_SIMD -fopenmp-simd`` and the rest of build_c.py's flags);
+  (``-DKINEGEN_SIMD -fopenmp-simd`` and the rest of build_c.py's flags), with
+  and without streaming stores; the single point with the vector calls of a
+  stage's angles (vectorised builds) or one libm call each;
 * the cffi call from Python for one pose: the binding as first written (input
   checks in numpy, a parameter struct allocated per call) against the thin path;
-* numpy: one pass over the whole batch against cache-sized chunks;
+* numpy: one pass over the whole batch against cache-sized chunks, and sin and
+  cos from numpy.sin and numpy.cos against one tangent of the half angle;
 * derivation: the Puma's task Jacobian simplified with ``trigsimp`` against
   ``expand`` + ``factor_terms`` (:func:`derivations.chain.simplify_derivative`).
 """
@@ -44,7 +47,8 @@ def c_layouts(count: int, repeat: int) -> list[tuple[str, str, float, float]]:
     layouts = {
         "plain loop over the single point": [f for f in base if f.startswith(("-std", "-O"))],
         "blocks, scalar C (-DKINEGEN_BLOCKED)": [*base, "-DKINEGEN_BLOCKED"],
-        "blocks, vectorised, libmvec sin/cos": fast,
+        "blocks, vectorised (libmvec), plain stores": [*fast, "-DKINEGEN_NO_STREAM"],
+        "blocks, vectorised (libmvec), streaming stores past 1 MiB": fast,
     }
     rows = []
     with tempfile.TemporaryDirectory(prefix="kinegen-levers-") as build:
@@ -62,8 +66,9 @@ def c_layouts(count: int, repeat: int) -> list[tuple[str, str, float, float]]:
             for line in out.splitlines():
                 _, kernel, mode, ns = line.split()
                 figures[(kernel, mode)] = float(ns)
-            for kernel in ("fk", "jacobian"):
-                rows.append((kernel, label, figures[(kernel, "single")], figures[(kernel, "batch")]))
+            for kernel in ("fk", "jacobian", "ik"):
+                if (kernel, "single") in figures:
+                    rows.append((kernel, label, figures[(kernel, "single")], figures[(kernel, "batch")]))
     return rows
 
 
@@ -86,7 +91,7 @@ def binding(repeat: int, min_time: float) -> list[tuple[str, float]]:
                              ffi.from_buffer("double[]", T, require_writable=True))
         return T
 
-    np.testing.assert_array_equal(first_binding(q), kernels.fk(q))
+    np.testing.assert_allclose(first_binding(q), kernels.fk(q), rtol=0, atol=1e-14)
     return [("numpy checks, parameter struct per call (the first binding)",
              seconds_per_pose(Run(lambda: first_binding(q), 1), repeat, min_time)),
             ("checks in C, cached parameter struct (generated now)",
@@ -107,6 +112,23 @@ def numpy_chunks(count: int, repeat: int, min_time: float) -> list[tuple[str, st
     finally:
         kernels.CHUNK = chunk
     return rows
+
+
+def numpy_trig(repeat: int, min_time: float) -> list[tuple[str, float]]:
+    """Sine and cosine of 4096 angles: numpy.sin and numpy.cos, or one tan of the half angle."""
+    angles = np.random.default_rng(5).uniform(-np.pi, np.pi, 4096)
+
+    def direct():
+        return np.sin(angles), np.cos(angles)
+
+    def half_angle():
+        h = np.tan(0.5 * angles)
+        u = h * h
+        r = 1.0 / (1.0 + u)
+        return (h + h) * r, (1.0 - u) * r
+
+    return [(label, seconds_per_pose(Run(f, len(angles)), repeat, min_time))
+            for label, f in (("numpy.sin and numpy.cos", direct), ("numpy.tan of the half angle", half_angle))]
 
 
 def derivation() -> list[tuple[str, float]]:
@@ -149,6 +171,10 @@ def main(argv=None) -> int:
               "| kernel | layout | per pose | speed-up |", "|---|---|---|---|"]
     whole = {k: t for k, label, t in rows if label.startswith("one pass")}
     lines += [f"| {k} | {label} | {format_time(t)} | {format_ratio(whole[k] / t)} |" for k, label, t in rows]
+    rows = numpy_trig(repeat, min_time)
+    lines += ["", "Inside the numpy kernels, sin and cos of an angle (numpy vectorises float64 tan, "
+              "not sin and cos):", "", "| computed with | per angle, both | speed-up |", "|---|---|---|"]
+    lines += [f"| {label} | {format_time(t)} | {format_ratio(rows[0][1] / t)} |" for label, t in rows]
     rows = derivation()
     lines += ["", "## Derivation: the Puma's task Jacobian (72 entries), same expressions", "",
               "| simplification | seconds | speed-up |", "|---|---|---|"]

@@ -67,6 +67,7 @@ def fk(q, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
             if _lib.adept_three_fk_checked(1, pointer, params, _from_buffer(_DOUBLES, T)):
                 raise ValueError("fk: q contains NaN or inf")
             return T
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 4 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 4, "fk", "q", finite=False))
@@ -97,6 +98,7 @@ def frames(q, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
             if _lib.adept_three_frames_checked(1, pointer, params, _from_buffer(_DOUBLES, frames)):
                 raise ValueError("frames: q contains NaN or inf")
             return frames
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 4 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 4, "frames", "q", finite=False))
@@ -127,6 +129,7 @@ def jacobian(q, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
             if _lib.adept_three_jacobian_checked(1, pointer, params, _from_buffer(_DOUBLES, J)):
                 raise ValueError("jacobian: q contains NaN or inf")
             return J
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 4 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 4, "jacobian", "q", finite=False))
@@ -157,6 +160,7 @@ def task(q, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
             if _lib.adept_three_task_checked(1, pointer, params, _from_buffer(_DOUBLES, x)):
                 raise ValueError("task: q contains NaN or inf")
             return x
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 4 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 4, "task", "q", finite=False))
@@ -187,6 +191,7 @@ def task_jacobian(q, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
             if _lib.adept_three_task_jacobian_checked(1, pointer, params, _from_buffer(_DOUBLES, Jx)):
                 raise ValueError("task_jacobian: q contains NaN or inf")
             return Jx
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 4 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 4, "task_jacobian", "q", finite=False))
@@ -207,6 +212,17 @@ def task_jacobian(q, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
 def ik(x, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
     """Inverse kinematics, all 2 branches (lefty, righty): Q (..., 2, 4), valid (..., 2). (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 and d1 is _d1 and d4 is _d4 else _params((l1, l2, d1, d4, ))
+    if type(x) is _ndarray and x.shape == (4,) and x.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, x)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            Q = _empty((2, 4))
+            valid = _empty((2,), dtype=numpy.intc)
+            _lib.adept_three_ik_checked(1, pointer, params, _from_buffer(_DOUBLES, Q), _from_buffer(_INTS, valid))
+            return Q, valid.astype(bool)
+
     if (type(x) is not _ndarray or x.dtype is not _float64 or not x.ndim
             or x.shape[-1] != 4 or not x.flags.c_contiguous):
         x = numpy.ascontiguousarray(_runtime.as_batch(x, 4, "ik", "x", finite=False))

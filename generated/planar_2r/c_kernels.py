@@ -65,6 +65,7 @@ def fk(q, *, l1=_l1, l2=_l2):
             if _lib.planar_2r_fk_checked(1, pointer, params, _from_buffer(_DOUBLES, T)):
                 raise ValueError("fk: q contains NaN or inf")
             return T
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 2 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "fk", "q", finite=False))
@@ -95,6 +96,7 @@ def frames(q, *, l1=_l1, l2=_l2):
             if _lib.planar_2r_frames_checked(1, pointer, params, _from_buffer(_DOUBLES, frames)):
                 raise ValueError("frames: q contains NaN or inf")
             return frames
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 2 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "frames", "q", finite=False))
@@ -125,6 +127,7 @@ def jacobian(q, *, l1=_l1, l2=_l2):
             if _lib.planar_2r_jacobian_checked(1, pointer, params, _from_buffer(_DOUBLES, J)):
                 raise ValueError("jacobian: q contains NaN or inf")
             return J
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 2 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "jacobian", "q", finite=False))
@@ -155,6 +158,7 @@ def task(q, *, l1=_l1, l2=_l2):
             if _lib.planar_2r_task_checked(1, pointer, params, _from_buffer(_DOUBLES, x)):
                 raise ValueError("task: q contains NaN or inf")
             return x
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 2 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "task", "q", finite=False))
@@ -185,6 +189,7 @@ def task_jacobian(q, *, l1=_l1, l2=_l2):
             if _lib.planar_2r_task_jacobian_checked(1, pointer, params, _from_buffer(_DOUBLES, Jx)):
                 raise ValueError("task_jacobian: q contains NaN or inf")
             return Jx
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 2 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "task_jacobian", "q", finite=False))
@@ -205,6 +210,17 @@ def task_jacobian(q, *, l1=_l1, l2=_l2):
 def ik(x, *, l1=_l1, l2=_l2):
     """Inverse kinematics, all 2 branches (elbow_up, elbow_down): Q (..., 2, 2), valid (..., 2). (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 else _params((l1, l2, ))
+    if type(x) is _ndarray and x.shape == (2,) and x.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, x)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            Q = _empty((2, 2))
+            valid = _empty((2,), dtype=numpy.intc)
+            _lib.planar_2r_ik_checked(1, pointer, params, _from_buffer(_DOUBLES, Q), _from_buffer(_INTS, valid))
+            return Q, valid.astype(bool)
+
     if (type(x) is not _ndarray or x.dtype is not _float64 or not x.ndim
             or x.shape[-1] != 2 or not x.flags.c_contiguous):
         x = numpy.ascontiguousarray(_runtime.as_batch(x, 2, "ik", "x", finite=False))

@@ -66,6 +66,7 @@ def fk(q, *, l1=_l1, l2=_l2, l3=_l3):
             if _lib.planar_3r_fk_checked(1, pointer, params, _from_buffer(_DOUBLES, T)):
                 raise ValueError("fk: q contains NaN or inf")
             return T
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 3 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 3, "fk", "q", finite=False))
@@ -96,6 +97,7 @@ def frames(q, *, l1=_l1, l2=_l2, l3=_l3):
             if _lib.planar_3r_frames_checked(1, pointer, params, _from_buffer(_DOUBLES, frames)):
                 raise ValueError("frames: q contains NaN or inf")
             return frames
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 3 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 3, "frames", "q", finite=False))
@@ -126,6 +128,7 @@ def jacobian(q, *, l1=_l1, l2=_l2, l3=_l3):
             if _lib.planar_3r_jacobian_checked(1, pointer, params, _from_buffer(_DOUBLES, J)):
                 raise ValueError("jacobian: q contains NaN or inf")
             return J
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 3 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 3, "jacobian", "q", finite=False))
@@ -156,6 +159,7 @@ def task(q, *, l1=_l1, l2=_l2, l3=_l3):
             if _lib.planar_3r_task_checked(1, pointer, params, _from_buffer(_DOUBLES, x)):
                 raise ValueError("task: q contains NaN or inf")
             return x
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 3 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 3, "task", "q", finite=False))
@@ -186,6 +190,7 @@ def task_jacobian(q, *, l1=_l1, l2=_l2, l3=_l3):
             if _lib.planar_3r_task_jacobian_checked(1, pointer, params, _from_buffer(_DOUBLES, Jx)):
                 raise ValueError("task_jacobian: q contains NaN or inf")
             return Jx
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 3 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 3, "task_jacobian", "q", finite=False))
@@ -206,6 +211,17 @@ def task_jacobian(q, *, l1=_l1, l2=_l2, l3=_l3):
 def ik(x, *, l1=_l1, l2=_l2, l3=_l3):
     """Inverse kinematics, all 2 branches (elbow_up, elbow_down): Q (..., 2, 3), valid (..., 2). (C backend)"""
     params = _DEFAULT_PARAMS if l1 is _l1 and l2 is _l2 and l3 is _l3 else _params((l1, l2, l3, ))
+    if type(x) is _ndarray and x.shape == (3,) and x.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, x)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            Q = _empty((2, 3))
+            valid = _empty((2,), dtype=numpy.intc)
+            _lib.planar_3r_ik_checked(1, pointer, params, _from_buffer(_DOUBLES, Q), _from_buffer(_INTS, valid))
+            return Q, valid.astype(bool)
+
     if (type(x) is not _ndarray or x.dtype is not _float64 or not x.ndim
             or x.shape[-1] != 3 or not x.flags.c_contiguous):
         x = numpy.ascontiguousarray(_runtime.as_batch(x, 3, "ik", "x", finite=False))

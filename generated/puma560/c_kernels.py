@@ -68,6 +68,7 @@ def fk(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
             if _lib.puma560_fk_checked(1, pointer, params, _from_buffer(_DOUBLES, T)):
                 raise ValueError("fk: q contains NaN or inf")
             return T
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 6 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 6, "fk", "q", finite=False))
@@ -98,6 +99,7 @@ def frames(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
             if _lib.puma560_frames_checked(1, pointer, params, _from_buffer(_DOUBLES, frames)):
                 raise ValueError("frames: q contains NaN or inf")
             return frames
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 6 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 6, "frames", "q", finite=False))
@@ -128,6 +130,7 @@ def jacobian(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
             if _lib.puma560_jacobian_checked(1, pointer, params, _from_buffer(_DOUBLES, J)):
                 raise ValueError("jacobian: q contains NaN or inf")
             return J
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 6 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 6, "jacobian", "q", finite=False))
@@ -158,6 +161,7 @@ def task(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
             if _lib.puma560_task_checked(1, pointer, params, _from_buffer(_DOUBLES, x)):
                 raise ValueError("task: q contains NaN or inf")
             return x
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 6 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 6, "task", "q", finite=False))
@@ -188,6 +192,7 @@ def task_jacobian(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
             if _lib.puma560_task_jacobian_checked(1, pointer, params, _from_buffer(_DOUBLES, Jx)):
                 raise ValueError("task_jacobian: q contains NaN or inf")
             return Jx
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 6 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 6, "task_jacobian", "q", finite=False))
@@ -208,6 +213,19 @@ def task_jacobian(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
 def ik(x, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
     """Inverse kinematics, all 8 branches (right_elbow_up_noflip, right_elbow_up_flip, right_elbow_down_noflip, right_elbow_down_flip, left_elbow_up_noflip, left_elbow_up_flip, left_elbow_down_noflip, left_elbow_down_flip): Q (..., 8, 6), valid (..., 8). (C backend)"""
     params = _DEFAULT_PARAMS if d1 is _d1 and a2 is _a2 and a3 is _a3 and d3 is _d3 and d4 is _d4 else _params((d1, a2, a3, d3, d4, ))
+    if type(x) is _ndarray and x.shape == (12,) and x.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, x)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            Q = _empty((8, 6))
+            valid = _empty((8,), dtype=numpy.intc)
+            if _lib.puma560_ik_checked(1, pointer, params, _from_buffer(_DOUBLES, Q), _from_buffer(_INTS, valid)):
+                _runtime.as_pose_task(x, "ik", "x", 1e-09)  # names the problem
+                raise ValueError("ik: x holds a pose that is not a rigid transform (tolerance 1e-09)")
+            return Q, valid.astype(bool)
+
     if (type(x) is not _ndarray or x.dtype is not _float64 or not x.ndim
             or x.shape[-1] != 12 or not x.flags.c_contiguous):
         x = numpy.ascontiguousarray(_runtime.as_pose_task(x, "ik", "x", 1e-09))

@@ -68,6 +68,7 @@ def fk(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
             if _lib.scorbot_er7_fk_checked(1, pointer, params, _from_buffer(_DOUBLES, T)):
                 raise ValueError("fk: q contains NaN or inf")
             return T
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 5 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 5, "fk", "q", finite=False))
@@ -98,6 +99,7 @@ def frames(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
             if _lib.scorbot_er7_frames_checked(1, pointer, params, _from_buffer(_DOUBLES, frames)):
                 raise ValueError("frames: q contains NaN or inf")
             return frames
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 5 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 5, "frames", "q", finite=False))
@@ -128,6 +130,7 @@ def jacobian(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
             if _lib.scorbot_er7_jacobian_checked(1, pointer, params, _from_buffer(_DOUBLES, J)):
                 raise ValueError("jacobian: q contains NaN or inf")
             return J
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 5 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 5, "jacobian", "q", finite=False))
@@ -158,6 +161,7 @@ def task(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
             if _lib.scorbot_er7_task_checked(1, pointer, params, _from_buffer(_DOUBLES, x)):
                 raise ValueError("task: q contains NaN or inf")
             return x
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 5 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 5, "task", "q", finite=False))
@@ -188,6 +192,7 @@ def task_jacobian(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
             if _lib.scorbot_er7_task_jacobian_checked(1, pointer, params, _from_buffer(_DOUBLES, Jx)):
                 raise ValueError("task_jacobian: q contains NaN or inf")
             return Jx
+
     if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
             or q.shape[-1] != 5 or not q.flags.c_contiguous):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 5, "task_jacobian", "q", finite=False))
@@ -208,6 +213,17 @@ def task_jacobian(q, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
 def ik(x, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     """Inverse kinematics, all 4 branches (elbow_up, elbow_down, shoulder_flip_elbow_up, shoulder_flip_elbow_down): Q (..., 4, 5), valid (..., 4). (C backend)"""
     params = _DEFAULT_PARAMS if a1 is _a1 and a2 is _a2 and a3 is _a3 and d1 is _d1 and d5 is _d5 else _params((a1, a2, a3, d1, d5, ))
+    if type(x) is _ndarray and x.shape == (3,) and x.dtype is _float64:
+        try:  # one point, as it comes: the shortest path
+            pointer = _from_buffer(_DOUBLES, x)
+        except ValueError:  # not contiguous
+            pass
+        else:
+            Q = _empty((4, 5))
+            valid = _empty((4,), dtype=numpy.intc)
+            _lib.scorbot_er7_ik_checked(1, pointer, params, _from_buffer(_DOUBLES, Q), _from_buffer(_INTS, valid))
+            return Q, valid.astype(bool)
+
     if (type(x) is not _ndarray or x.dtype is not _float64 or not x.ndim
             or x.shape[-1] != 3 or not x.flags.c_contiguous):
         x = numpy.ascontiguousarray(_runtime.as_batch(x, 3, "ik", "x", finite=False))
