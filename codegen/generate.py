@@ -65,15 +65,24 @@ def template_function(prepared: PreparedFunction, accepts_nonfinite: bool = Fals
     staged = stage(prepared)
     for out, entries in zip(outputs, staged.outputs):
         out["staged"] = list(enumerate(entries))
+    block_outputs = [o.name for o in prepared.outputs if prepared.name == "ik" and o.dtype == "float"]
+    stream_outputs = [o.name for o in prepared.outputs if o.dtype == "float" and o.size % 2 == 0
+                      and prepared.name != "ik"]
+    inputs = {s for a in prepared.arguments for s in a[1]} & prepared.arguments_used
+    per_item = len(inputs) + len(staged.arrays) + sum(o.size for o in prepared.outputs
+                                                      if o.name in block_outputs or o.name in stream_outputs)
+    block = 64  # items per block of the batched C, halved while its arrays would pass 32 KiB of stack
+    while block > 8 and 8 * block * per_item > 32768:
+        block //= 2
     return {
+        "block": block,
         "prologue": staged.prologue,
         # Outputs the blocked C writes per block, one array per entry, then copies out item by
         # item: GCC 12 does not vectorise a loop that stores ik's 48 joint values per item.
-        "block_outputs": [o.name for o in prepared.outputs if prepared.name == "ik" and o.dtype == "float"],
+        "block_outputs": block_outputs,
         # Outputs that can be streamed out in pairs of doubles (16-byte aligned rows: an even
         # size); not ik's, whose checks read the joint values straight back.
-        "stream_outputs": [o.name for o in prepared.outputs if o.dtype == "float" and o.size % 2 == 0
-                           and prepared.name != "ik"],
+        "stream_outputs": stream_outputs,
         "stream_size": sum(o.size for o in prepared.outputs if o.dtype == "float" and o.size % 2 == 0),
         "stages": [{"body": [(n, e, n in staged.arrays) for n, e in s.body], "calls": s.calls,
                     "angles": _angles(s.calls), "groups": _call_groups(s.calls)} for s in staged.stages],

@@ -52,6 +52,8 @@ double asin(double);
 #ifndef KINEGEN_BLOCK
 #define KINEGEN_BLOCK 64
 #endif
+/* Each kernel's block: at most KINEGEN_BLOCK items, fewer where its arrays would pass 32 KiB of stack. */
+#define KINEGEN_BLOCK_OF(items) ((items) < KINEGEN_BLOCK ? (items) : KINEGEN_BLOCK)
 #if defined(KINEGEN_SIMD) && defined(__SSE2__) && !defined(KINEGEN_NO_STREAM)
 /* Batches whose outputs exceed KINEGEN_STREAM_BYTES write them with SSE2 streaming
    stores: a plain store first reads the line it overwrites, which doubles the memory
@@ -160,20 +162,20 @@ void adept_three_fk(const double *restrict q, const adept_three_params *restrict
 void adept_three_fk_batch(size_t count, const double *restrict q, const adept_three_params *restrict params, double *restrict T)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double q3[KINEGEN_BLOCK];
-    double q4[KINEGEN_BLOCK];
-    double _t0[KINEGEN_BLOCK];
-    double _t1[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
-    double _s1[KINEGEN_BLOCK];
-    double _c1[KINEGEN_BLOCK];
-    double _s2[KINEGEN_BLOCK];
-    double _c2[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
 #ifdef KINEGEN_STREAM
-    double _T_block[16][KINEGEN_BLOCK];
+    double _T_block[16][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
 #endif
@@ -186,7 +188,7 @@ void adept_three_fk_batch(size_t count, const double *restrict q, const adept_th
     const double d1 = params->d1;
     const double d4 = params->d4;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[4 * (start + i) + 0];
             q2[i] = q[4 * (start + i) + 1];
@@ -427,20 +429,20 @@ void adept_three_frames(const double *restrict q, const adept_three_params *rest
 void adept_three_frames_batch(size_t count, const double *restrict q, const adept_three_params *restrict params, double *restrict frames)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double q3[KINEGEN_BLOCK];
-    double q4[KINEGEN_BLOCK];
-    double _t4[KINEGEN_BLOCK];
-    double _t10[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
-    double _s1[KINEGEN_BLOCK];
-    double _c1[KINEGEN_BLOCK];
-    double _s2[KINEGEN_BLOCK];
-    double _c2[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(32)];
+    double q2[KINEGEN_BLOCK_OF(32)];
+    double q3[KINEGEN_BLOCK_OF(32)];
+    double q4[KINEGEN_BLOCK_OF(32)];
+    double _t4[KINEGEN_BLOCK_OF(32)];
+    double _t10[KINEGEN_BLOCK_OF(32)];
+    double _s0[KINEGEN_BLOCK_OF(32)];
+    double _c0[KINEGEN_BLOCK_OF(32)];
+    double _s1[KINEGEN_BLOCK_OF(32)];
+    double _c1[KINEGEN_BLOCK_OF(32)];
+    double _s2[KINEGEN_BLOCK_OF(32)];
+    double _c2[KINEGEN_BLOCK_OF(32)];
 #ifdef KINEGEN_STREAM
-    double _frames_block[80][KINEGEN_BLOCK];
+    double _frames_block[80][KINEGEN_BLOCK_OF(32)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 80 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
 #endif
@@ -453,7 +455,7 @@ void adept_three_frames_batch(size_t count, const double *restrict q, const adep
     const double d1 = params->d1;
     const double d4 = params->d4;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(32) ? count - start : KINEGEN_BLOCK_OF(32);
         for (i = 0; i < n; ++i) {
             q1[i] = q[4 * (start + i) + 0];
             q2[i] = q[4 * (start + i) + 1];
@@ -764,15 +766,15 @@ void adept_three_jacobian(const double *restrict q, const adept_three_params *re
 void adept_three_jacobian_batch(size_t count, const double *restrict q, const adept_three_params *restrict params, double *restrict J)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double _t0[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
-    double _s1[KINEGEN_BLOCK];
-    double _c1[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
 #ifdef KINEGEN_STREAM
-    double _J_block[24][KINEGEN_BLOCK];
+    double _J_block[24][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 24 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
 #endif
@@ -783,7 +785,7 @@ void adept_three_jacobian_batch(size_t count, const double *restrict q, const ad
     const double l1 = params->l1;
     const double l2 = params->l2;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[4 * (start + i) + 0];
             q2[i] = q[4 * (start + i) + 1];
@@ -947,17 +949,17 @@ void adept_three_task(const double *restrict q, const adept_three_params *restri
 void adept_three_task_batch(size_t count, const double *restrict q, const adept_three_params *restrict params, double *restrict x)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double q3[KINEGEN_BLOCK];
-    double q4[KINEGEN_BLOCK];
-    double _t0[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
-    double _s1[KINEGEN_BLOCK];
-    double _c1[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
 #ifdef KINEGEN_STREAM
-    double _x_block[4][KINEGEN_BLOCK];
+    double _x_block[4][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)x & 15) == 0;
 #endif
@@ -970,7 +972,7 @@ void adept_three_task_batch(size_t count, const double *restrict q, const adept_
     const double d1 = params->d1;
     const double d4 = params->d4;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[4 * (start + i) + 0];
             q2[i] = q[4 * (start + i) + 1];
@@ -1102,15 +1104,15 @@ void adept_three_task_jacobian(const double *restrict q, const adept_three_param
 void adept_three_task_jacobian_batch(size_t count, const double *restrict q, const adept_three_params *restrict params, double *restrict Jx)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double _t0[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
-    double _s1[KINEGEN_BLOCK];
-    double _c1[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
 #ifdef KINEGEN_STREAM
-    double _Jx_block[16][KINEGEN_BLOCK];
+    double _Jx_block[16][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx & 15) == 0;
 #endif
@@ -1121,7 +1123,7 @@ void adept_three_task_jacobian_batch(size_t count, const double *restrict q, con
     const double l1 = params->l1;
     const double l2 = params->l2;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[4 * (start + i) + 0];
             q2[i] = q[4 * (start + i) + 1];
@@ -1308,20 +1310,20 @@ long adept_three_ik_batch(size_t count, const double *restrict _x, const adept_t
     long valid_branches = 0;
     int refused = 0;
 #ifdef KINEGEN_BLOCKED
-    double x[KINEGEN_BLOCK];
-    double y[KINEGEN_BLOCK];
-    double z[KINEGEN_BLOCK];
-    double phi[KINEGEN_BLOCK];
-    double _t0[KINEGEN_BLOCK];
-    double _t2[KINEGEN_BLOCK];
-    double _a0[KINEGEN_BLOCK];
-    double _a1[KINEGEN_BLOCK];
-    double _a2[KINEGEN_BLOCK];
-    double _a3[KINEGEN_BLOCK];
-    double _f0[KINEGEN_BLOCK];
-    double _f1[KINEGEN_BLOCK];
-    double _f2[KINEGEN_BLOCK];
-    double _Q_block[8][KINEGEN_BLOCK];
+    double x[KINEGEN_BLOCK_OF(64)];
+    double y[KINEGEN_BLOCK_OF(64)];
+    double z[KINEGEN_BLOCK_OF(64)];
+    double phi[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
+    double _a0[KINEGEN_BLOCK_OF(64)];
+    double _a1[KINEGEN_BLOCK_OF(64)];
+    double _a2[KINEGEN_BLOCK_OF(64)];
+    double _a3[KINEGEN_BLOCK_OF(64)];
+    double _f0[KINEGEN_BLOCK_OF(64)];
+    double _f1[KINEGEN_BLOCK_OF(64)];
+    double _f2[KINEGEN_BLOCK_OF(64)];
+    double _Q_block[8][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &adept_three_default_params;
@@ -1332,7 +1334,7 @@ long adept_three_ik_batch(size_t count, const double *restrict _x, const adept_t
     const double d4 = params->d4;
     const double _t1 = 1/(l1*l2);
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             x[i] = _x[4 * (start + i) + 0];
             y[i] = _x[4 * (start + i) + 1];

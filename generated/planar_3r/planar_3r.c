@@ -52,6 +52,8 @@ double asin(double);
 #ifndef KINEGEN_BLOCK
 #define KINEGEN_BLOCK 64
 #endif
+/* Each kernel's block: at most KINEGEN_BLOCK items, fewer where its arrays would pass 32 KiB of stack. */
+#define KINEGEN_BLOCK_OF(items) ((items) < KINEGEN_BLOCK ? (items) : KINEGEN_BLOCK)
 #if defined(KINEGEN_SIMD) && defined(__SSE2__) && !defined(KINEGEN_NO_STREAM)
 /* Batches whose outputs exceed KINEGEN_STREAM_BYTES write them with SSE2 streaming
    stores: a plain store first reads the line it overwrites, which doubles the memory
@@ -158,19 +160,19 @@ void planar_3r_fk(const double *restrict q, const planar_3r_params *restrict par
 void planar_3r_fk_batch(size_t count, const double *restrict q, const planar_3r_params *restrict params, double *restrict T)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double q3[KINEGEN_BLOCK];
-    double _t0[KINEGEN_BLOCK];
-    double _t1[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
-    double _s1[KINEGEN_BLOCK];
-    double _c1[KINEGEN_BLOCK];
-    double _s2[KINEGEN_BLOCK];
-    double _c2[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
 #ifdef KINEGEN_STREAM
-    double _T_block[16][KINEGEN_BLOCK];
+    double _T_block[16][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
 #endif
@@ -182,7 +184,7 @@ void planar_3r_fk_batch(size_t count, const double *restrict q, const planar_3r_
     const double l2 = params->l2;
     const double l3 = params->l3;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[3 * (start + i) + 0];
             q2[i] = q[3 * (start + i) + 1];
@@ -403,19 +405,19 @@ void planar_3r_frames(const double *restrict q, const planar_3r_params *restrict
 void planar_3r_frames_batch(size_t count, const double *restrict q, const planar_3r_params *restrict params, double *restrict frames)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double q3[KINEGEN_BLOCK];
-    double _t4[KINEGEN_BLOCK];
-    double _t9[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
-    double _s1[KINEGEN_BLOCK];
-    double _c1[KINEGEN_BLOCK];
-    double _s2[KINEGEN_BLOCK];
-    double _c2[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(32)];
+    double q2[KINEGEN_BLOCK_OF(32)];
+    double q3[KINEGEN_BLOCK_OF(32)];
+    double _t4[KINEGEN_BLOCK_OF(32)];
+    double _t9[KINEGEN_BLOCK_OF(32)];
+    double _s0[KINEGEN_BLOCK_OF(32)];
+    double _c0[KINEGEN_BLOCK_OF(32)];
+    double _s1[KINEGEN_BLOCK_OF(32)];
+    double _c1[KINEGEN_BLOCK_OF(32)];
+    double _s2[KINEGEN_BLOCK_OF(32)];
+    double _c2[KINEGEN_BLOCK_OF(32)];
 #ifdef KINEGEN_STREAM
-    double _frames_block[64][KINEGEN_BLOCK];
+    double _frames_block[64][KINEGEN_BLOCK_OF(32)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 64 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
 #endif
@@ -427,7 +429,7 @@ void planar_3r_frames_batch(size_t count, const double *restrict q, const planar
     const double l2 = params->l2;
     const double l3 = params->l3;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(32) ? count - start : KINEGEN_BLOCK_OF(32);
         for (i = 0; i < n; ++i) {
             q1[i] = q[3 * (start + i) + 0];
             q2[i] = q[3 * (start + i) + 1];
@@ -706,19 +708,19 @@ void planar_3r_jacobian(const double *restrict q, const planar_3r_params *restri
 void planar_3r_jacobian_batch(size_t count, const double *restrict q, const planar_3r_params *restrict params, double *restrict J)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double q3[KINEGEN_BLOCK];
-    double _t0[KINEGEN_BLOCK];
-    double _t1[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
-    double _s1[KINEGEN_BLOCK];
-    double _c1[KINEGEN_BLOCK];
-    double _s2[KINEGEN_BLOCK];
-    double _c2[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
 #ifdef KINEGEN_STREAM
-    double _J_block[18][KINEGEN_BLOCK];
+    double _J_block[18][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 18 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
 #endif
@@ -730,7 +732,7 @@ void planar_3r_jacobian_batch(size_t count, const double *restrict q, const plan
     const double l2 = params->l2;
     const double l3 = params->l3;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[3 * (start + i) + 0];
             q2[i] = q[3 * (start + i) + 1];
@@ -898,17 +900,17 @@ void planar_3r_task(const double *restrict q, const planar_3r_params *restrict p
 void planar_3r_task_batch(size_t count, const double *restrict q, const planar_3r_params *restrict params, double *restrict x)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double q3[KINEGEN_BLOCK];
-    double _t0[KINEGEN_BLOCK];
-    double _t1[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
-    double _s1[KINEGEN_BLOCK];
-    double _c1[KINEGEN_BLOCK];
-    double _s2[KINEGEN_BLOCK];
-    double _c2[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_3r_default_params;
@@ -917,7 +919,7 @@ void planar_3r_task_batch(size_t count, const double *restrict q, const planar_3
     const double l2 = params->l2;
     const double l3 = params->l3;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[3 * (start + i) + 0];
             q2[i] = q[3 * (start + i) + 1];
@@ -1030,17 +1032,17 @@ void planar_3r_task_jacobian(const double *restrict q, const planar_3r_params *r
 void planar_3r_task_jacobian_batch(size_t count, const double *restrict q, const planar_3r_params *restrict params, double *restrict Jx)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double q3[KINEGEN_BLOCK];
-    double _t0[KINEGEN_BLOCK];
-    double _t1[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
-    double _s1[KINEGEN_BLOCK];
-    double _c1[KINEGEN_BLOCK];
-    double _s2[KINEGEN_BLOCK];
-    double _c2[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_3r_default_params;
@@ -1049,7 +1051,7 @@ void planar_3r_task_jacobian_batch(size_t count, const double *restrict q, const
     const double l2 = params->l2;
     const double l3 = params->l3;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[3 * (start + i) + 0];
             q2[i] = q[3 * (start + i) + 1];
@@ -1238,35 +1240,35 @@ long planar_3r_ik_batch(size_t count, const double *restrict _x, const planar_3r
     long valid_branches = 0;
     int refused = 0;
 #ifdef KINEGEN_BLOCKED
-    double x[KINEGEN_BLOCK];
-    double y[KINEGEN_BLOCK];
-    double phi[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
-    double _t0[KINEGEN_BLOCK];
-    double _t1[KINEGEN_BLOCK];
-    double _t4[KINEGEN_BLOCK];
-    double _a0[KINEGEN_BLOCK];
-    double _a1[KINEGEN_BLOCK];
-    double _t11[KINEGEN_BLOCK];
-    double _t12[KINEGEN_BLOCK];
-    double _t13[KINEGEN_BLOCK];
-    double _a2[KINEGEN_BLOCK];
-    double _f0[KINEGEN_BLOCK];
-    double _f1[KINEGEN_BLOCK];
-    double _t15[KINEGEN_BLOCK];
-    double _t18[KINEGEN_BLOCK];
-    double _s1[KINEGEN_BLOCK];
-    double _c1[KINEGEN_BLOCK];
-    double _s2[KINEGEN_BLOCK];
-    double _c2[KINEGEN_BLOCK];
-    double _a3[KINEGEN_BLOCK];
-    double _a4[KINEGEN_BLOCK];
-    double _a5[KINEGEN_BLOCK];
-    double _a6[KINEGEN_BLOCK];
-    double _f2[KINEGEN_BLOCK];
-    double _f3[KINEGEN_BLOCK];
-    double _Q_block[6][KINEGEN_BLOCK];
+    double x[KINEGEN_BLOCK_OF(64)];
+    double y[KINEGEN_BLOCK_OF(64)];
+    double phi[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _t4[KINEGEN_BLOCK_OF(64)];
+    double _a0[KINEGEN_BLOCK_OF(64)];
+    double _a1[KINEGEN_BLOCK_OF(64)];
+    double _t11[KINEGEN_BLOCK_OF(64)];
+    double _t12[KINEGEN_BLOCK_OF(64)];
+    double _t13[KINEGEN_BLOCK_OF(64)];
+    double _a2[KINEGEN_BLOCK_OF(64)];
+    double _f0[KINEGEN_BLOCK_OF(64)];
+    double _f1[KINEGEN_BLOCK_OF(64)];
+    double _t15[KINEGEN_BLOCK_OF(64)];
+    double _t18[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _a3[KINEGEN_BLOCK_OF(64)];
+    double _a4[KINEGEN_BLOCK_OF(64)];
+    double _a5[KINEGEN_BLOCK_OF(64)];
+    double _a6[KINEGEN_BLOCK_OF(64)];
+    double _f2[KINEGEN_BLOCK_OF(64)];
+    double _f3[KINEGEN_BLOCK_OF(64)];
+    double _Q_block[6][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_3r_default_params;
@@ -1279,7 +1281,7 @@ long planar_3r_ik_batch(size_t count, const double *restrict _x, const planar_3r
     const double _t9 = 4*_t8;
     const double _t16 = 1.0/l2;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             x[i] = _x[3 * (start + i) + 0];
             y[i] = _x[3 * (start + i) + 1];

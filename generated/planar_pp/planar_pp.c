@@ -52,6 +52,8 @@ double asin(double);
 #ifndef KINEGEN_BLOCK
 #define KINEGEN_BLOCK 64
 #endif
+/* Each kernel's block: at most KINEGEN_BLOCK items, fewer where its arrays would pass 32 KiB of stack. */
+#define KINEGEN_BLOCK_OF(items) ((items) < KINEGEN_BLOCK ? (items) : KINEGEN_BLOCK)
 #if defined(KINEGEN_SIMD) && defined(__SSE2__) && !defined(KINEGEN_NO_STREAM)
 /* Batches whose outputs exceed KINEGEN_STREAM_BYTES write them with SSE2 streaming
    stores: a plain store first reads the line it overwrites, which doubles the memory
@@ -94,17 +96,17 @@ void planar_pp_fk(const double *restrict q, const planar_pp_params *restrict par
 void planar_pp_fk_batch(size_t count, const double *restrict q, const planar_pp_params *restrict params, double *restrict T)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
 #ifdef KINEGEN_STREAM
-    double _T_block[16][KINEGEN_BLOCK];
+    double _T_block[16][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
 #endif
     size_t start, i, n;
     (void)params;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[2 * (start + i) + 0];
             q2[i] = q[2 * (start + i) + 1];
@@ -237,17 +239,17 @@ void planar_pp_frames(const double *restrict q, const planar_pp_params *restrict
 void planar_pp_frames_batch(size_t count, const double *restrict q, const planar_pp_params *restrict params, double *restrict frames)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
 #ifdef KINEGEN_STREAM
-    double _frames_block[48][KINEGEN_BLOCK];
+    double _frames_block[48][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 48 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
 #endif
     size_t start, i, n;
     (void)params;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[2 * (start + i) + 0];
             q2[i] = q[2 * (start + i) + 1];
@@ -408,7 +410,7 @@ void planar_pp_jacobian_batch(size_t count, const double *restrict q, const plan
 {
 #ifdef KINEGEN_BLOCKED
 #ifdef KINEGEN_STREAM
-    double _J_block[12][KINEGEN_BLOCK];
+    double _J_block[12][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
 #endif
@@ -416,7 +418,7 @@ void planar_pp_jacobian_batch(size_t count, const double *restrict q, const plan
     (void)q;
     (void)params;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
 #ifdef KINEGEN_STREAM
         if (stream) {
             KINEGEN_VECTOR_LOOP
@@ -491,17 +493,17 @@ void planar_pp_task(const double *restrict q, const planar_pp_params *restrict p
 void planar_pp_task_batch(size_t count, const double *restrict q, const planar_pp_params *restrict params, double *restrict x)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
 #ifdef KINEGEN_STREAM
-    double _x_block[2][KINEGEN_BLOCK];
+    double _x_block[2][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)x & 15) == 0;
 #endif
     size_t start, i, n;
     (void)params;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[2 * (start + i) + 0];
             q2[i] = q[2 * (start + i) + 1];
@@ -562,7 +564,7 @@ void planar_pp_task_jacobian_batch(size_t count, const double *restrict q, const
 {
 #ifdef KINEGEN_BLOCKED
 #ifdef KINEGEN_STREAM
-    double _Jx_block[4][KINEGEN_BLOCK];
+    double _Jx_block[4][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx & 15) == 0;
 #endif
@@ -570,7 +572,7 @@ void planar_pp_task_jacobian_batch(size_t count, const double *restrict q, const
     (void)q;
     (void)params;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
 #ifdef KINEGEN_STREAM
         if (stream) {
             KINEGEN_VECTOR_LOOP
@@ -657,13 +659,13 @@ long planar_pp_ik_batch(size_t count, const double *restrict _x, const planar_pp
     long valid_branches = 0;
     int refused = 0;
 #ifdef KINEGEN_BLOCKED
-    double x[KINEGEN_BLOCK];
-    double y[KINEGEN_BLOCK];
-    double _Q_block[2][KINEGEN_BLOCK];
+    double x[KINEGEN_BLOCK_OF(64)];
+    double y[KINEGEN_BLOCK_OF(64)];
+    double _Q_block[2][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     (void)params;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             x[i] = _x[2 * (start + i) + 0];
             y[i] = _x[2 * (start + i) + 1];

@@ -52,6 +52,8 @@ double asin(double);
 #ifndef KINEGEN_BLOCK
 #define KINEGEN_BLOCK 64
 #endif
+/* Each kernel's block: at most KINEGEN_BLOCK items, fewer where its arrays would pass 32 KiB of stack. */
+#define KINEGEN_BLOCK_OF(items) ((items) < KINEGEN_BLOCK ? (items) : KINEGEN_BLOCK)
 #if defined(KINEGEN_SIMD) && defined(__SSE2__) && !defined(KINEGEN_NO_STREAM)
 /* Batches whose outputs exceed KINEGEN_STREAM_BYTES write them with SSE2 streaming
    stores: a plain store first reads the line it overwrites, which doubles the memory
@@ -111,19 +113,19 @@ void planar_rp_fk(const double *restrict q, const planar_rp_params *restrict par
 void planar_rp_fk_batch(size_t count, const double *restrict q, const planar_rp_params *restrict params, double *restrict T)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
 #ifdef KINEGEN_STREAM
-    double _T_block[16][KINEGEN_BLOCK];
+    double _T_block[16][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
 #endif
     size_t start, i, n;
     (void)params;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[2 * (start + i) + 0];
             q2[i] = q[2 * (start + i) + 1];
@@ -268,19 +270,19 @@ void planar_rp_frames(const double *restrict q, const planar_rp_params *restrict
 void planar_rp_frames_batch(size_t count, const double *restrict q, const planar_rp_params *restrict params, double *restrict frames)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
 #ifdef KINEGEN_STREAM
-    double _frames_block[48][KINEGEN_BLOCK];
+    double _frames_block[48][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 48 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
 #endif
     size_t start, i, n;
     (void)params;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[2 * (start + i) + 0];
             q2[i] = q[2 * (start + i) + 1];
@@ -454,19 +456,19 @@ void planar_rp_jacobian(const double *restrict q, const planar_rp_params *restri
 void planar_rp_jacobian_batch(size_t count, const double *restrict q, const planar_rp_params *restrict params, double *restrict J)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
 #ifdef KINEGEN_STREAM
-    double _J_block[12][KINEGEN_BLOCK];
+    double _J_block[12][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
 #endif
     size_t start, i, n;
     (void)params;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[2 * (start + i) + 0];
             q2[i] = q[2 * (start + i) + 1];
@@ -556,19 +558,19 @@ void planar_rp_task(const double *restrict q, const planar_rp_params *restrict p
 void planar_rp_task_batch(size_t count, const double *restrict q, const planar_rp_params *restrict params, double *restrict x)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
 #ifdef KINEGEN_STREAM
-    double _x_block[2][KINEGEN_BLOCK];
+    double _x_block[2][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)x & 15) == 0;
 #endif
     size_t start, i, n;
     (void)params;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[2 * (start + i) + 0];
             q2[i] = q[2 * (start + i) + 1];
@@ -640,19 +642,19 @@ void planar_rp_task_jacobian(const double *restrict q, const planar_rp_params *r
 void planar_rp_task_jacobian_batch(size_t count, const double *restrict q, const planar_rp_params *restrict params, double *restrict Jx)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
 #ifdef KINEGEN_STREAM
-    double _Jx_block[4][KINEGEN_BLOCK];
+    double _Jx_block[4][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx & 15) == 0;
 #endif
     size_t start, i, n;
     (void)params;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[2 * (start + i) + 0];
             q2[i] = q[2 * (start + i) + 1];
@@ -776,17 +778,17 @@ long planar_rp_ik_batch(size_t count, const double *restrict _x, const planar_rp
     long valid_branches = 0;
     int refused = 0;
 #ifdef KINEGEN_BLOCKED
-    double x[KINEGEN_BLOCK];
-    double y[KINEGEN_BLOCK];
-    double _a0[KINEGEN_BLOCK];
-    double _a1[KINEGEN_BLOCK];
-    double _f0[KINEGEN_BLOCK];
-    double _f1[KINEGEN_BLOCK];
-    double _Q_block[4][KINEGEN_BLOCK];
+    double x[KINEGEN_BLOCK_OF(64)];
+    double y[KINEGEN_BLOCK_OF(64)];
+    double _a0[KINEGEN_BLOCK_OF(64)];
+    double _a1[KINEGEN_BLOCK_OF(64)];
+    double _f0[KINEGEN_BLOCK_OF(64)];
+    double _f1[KINEGEN_BLOCK_OF(64)];
+    double _Q_block[4][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     (void)params;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             x[i] = _x[2 * (start + i) + 0];
             y[i] = _x[2 * (start + i) + 1];

@@ -52,6 +52,8 @@ double asin(double);
 #ifndef KINEGEN_BLOCK
 #define KINEGEN_BLOCK 64
 #endif
+/* Each kernel's block: at most KINEGEN_BLOCK items, fewer where its arrays would pass 32 KiB of stack. */
+#define KINEGEN_BLOCK_OF(items) ((items) < KINEGEN_BLOCK ? (items) : KINEGEN_BLOCK)
 #if defined(KINEGEN_SIMD) && defined(__SSE2__) && !defined(KINEGEN_NO_STREAM)
 /* Batches whose outputs exceed KINEGEN_STREAM_BYTES write them with SSE2 streaming
    stores: a plain store first reads the line it overwrites, which doubles the memory
@@ -216,27 +218,27 @@ void puma560_fk(const double *restrict q, const puma560_params *restrict params,
 void puma560_fk_batch(size_t count, const double *restrict q, const puma560_params *restrict params, double *restrict T)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double q3[KINEGEN_BLOCK];
-    double q4[KINEGEN_BLOCK];
-    double q5[KINEGEN_BLOCK];
-    double q6[KINEGEN_BLOCK];
-    double _t11[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
-    double _s1[KINEGEN_BLOCK];
-    double _c1[KINEGEN_BLOCK];
-    double _s2[KINEGEN_BLOCK];
-    double _c2[KINEGEN_BLOCK];
-    double _s3[KINEGEN_BLOCK];
-    double _c3[KINEGEN_BLOCK];
-    double _s4[KINEGEN_BLOCK];
-    double _c4[KINEGEN_BLOCK];
-    double _s5[KINEGEN_BLOCK];
-    double _c5[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double q5[KINEGEN_BLOCK_OF(64)];
+    double q6[KINEGEN_BLOCK_OF(64)];
+    double _t11[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    double _s4[KINEGEN_BLOCK_OF(64)];
+    double _c4[KINEGEN_BLOCK_OF(64)];
+    double _s5[KINEGEN_BLOCK_OF(64)];
+    double _c5[KINEGEN_BLOCK_OF(64)];
 #ifdef KINEGEN_STREAM
-    double _T_block[16][KINEGEN_BLOCK];
+    double _T_block[16][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
 #endif
@@ -250,7 +252,7 @@ void puma560_fk_batch(size_t count, const double *restrict q, const puma560_para
     const double d3 = params->d3;
     const double d4 = params->d4;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[6 * (start + i) + 0];
             q2[i] = q[6 * (start + i) + 1];
@@ -635,27 +637,27 @@ void puma560_frames(const double *restrict q, const puma560_params *restrict par
 void puma560_frames_batch(size_t count, const double *restrict q, const puma560_params *restrict params, double *restrict frames)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double q3[KINEGEN_BLOCK];
-    double q4[KINEGEN_BLOCK];
-    double q5[KINEGEN_BLOCK];
-    double q6[KINEGEN_BLOCK];
-    double _t10[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
-    double _s1[KINEGEN_BLOCK];
-    double _c1[KINEGEN_BLOCK];
-    double _s2[KINEGEN_BLOCK];
-    double _c2[KINEGEN_BLOCK];
-    double _s3[KINEGEN_BLOCK];
-    double _c3[KINEGEN_BLOCK];
-    double _s4[KINEGEN_BLOCK];
-    double _c4[KINEGEN_BLOCK];
-    double _s5[KINEGEN_BLOCK];
-    double _c5[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(16)];
+    double q2[KINEGEN_BLOCK_OF(16)];
+    double q3[KINEGEN_BLOCK_OF(16)];
+    double q4[KINEGEN_BLOCK_OF(16)];
+    double q5[KINEGEN_BLOCK_OF(16)];
+    double q6[KINEGEN_BLOCK_OF(16)];
+    double _t10[KINEGEN_BLOCK_OF(16)];
+    double _s0[KINEGEN_BLOCK_OF(16)];
+    double _c0[KINEGEN_BLOCK_OF(16)];
+    double _s1[KINEGEN_BLOCK_OF(16)];
+    double _c1[KINEGEN_BLOCK_OF(16)];
+    double _s2[KINEGEN_BLOCK_OF(16)];
+    double _c2[KINEGEN_BLOCK_OF(16)];
+    double _s3[KINEGEN_BLOCK_OF(16)];
+    double _c3[KINEGEN_BLOCK_OF(16)];
+    double _s4[KINEGEN_BLOCK_OF(16)];
+    double _c4[KINEGEN_BLOCK_OF(16)];
+    double _s5[KINEGEN_BLOCK_OF(16)];
+    double _c5[KINEGEN_BLOCK_OF(16)];
 #ifdef KINEGEN_STREAM
-    double _frames_block[112][KINEGEN_BLOCK];
+    double _frames_block[112][KINEGEN_BLOCK_OF(16)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 112 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
 #endif
@@ -669,7 +671,7 @@ void puma560_frames_batch(size_t count, const double *restrict q, const puma560_
     const double d3 = params->d3;
     const double d4 = params->d4;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(16) ? count - start : KINEGEN_BLOCK_OF(16);
         for (i = 0; i < n; ++i) {
             q1[i] = q[6 * (start + i) + 0];
             q2[i] = q[6 * (start + i) + 1];
@@ -1179,24 +1181,24 @@ void puma560_jacobian(const double *restrict q, const puma560_params *restrict p
 void puma560_jacobian_batch(size_t count, const double *restrict q, const puma560_params *restrict params, double *restrict J)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double q3[KINEGEN_BLOCK];
-    double q4[KINEGEN_BLOCK];
-    double q5[KINEGEN_BLOCK];
-    double _t3[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
-    double _s1[KINEGEN_BLOCK];
-    double _c1[KINEGEN_BLOCK];
-    double _s2[KINEGEN_BLOCK];
-    double _c2[KINEGEN_BLOCK];
-    double _s3[KINEGEN_BLOCK];
-    double _c3[KINEGEN_BLOCK];
-    double _s4[KINEGEN_BLOCK];
-    double _c4[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double q5[KINEGEN_BLOCK_OF(64)];
+    double _t3[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    double _s4[KINEGEN_BLOCK_OF(64)];
+    double _c4[KINEGEN_BLOCK_OF(64)];
 #ifdef KINEGEN_STREAM
-    double _J_block[36][KINEGEN_BLOCK];
+    double _J_block[36][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 36 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
 #endif
@@ -1209,7 +1211,7 @@ void puma560_jacobian_batch(size_t count, const double *restrict q, const puma56
     const double d3 = params->d3;
     const double d4 = params->d4;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[6 * (start + i) + 0];
             q2[i] = q[6 * (start + i) + 1];
@@ -1492,27 +1494,27 @@ void puma560_task(const double *restrict q, const puma560_params *restrict param
 void puma560_task_batch(size_t count, const double *restrict q, const puma560_params *restrict params, double *restrict x)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double q3[KINEGEN_BLOCK];
-    double q4[KINEGEN_BLOCK];
-    double q5[KINEGEN_BLOCK];
-    double q6[KINEGEN_BLOCK];
-    double _t3[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
-    double _s1[KINEGEN_BLOCK];
-    double _c1[KINEGEN_BLOCK];
-    double _s2[KINEGEN_BLOCK];
-    double _c2[KINEGEN_BLOCK];
-    double _s3[KINEGEN_BLOCK];
-    double _c3[KINEGEN_BLOCK];
-    double _s4[KINEGEN_BLOCK];
-    double _c4[KINEGEN_BLOCK];
-    double _s5[KINEGEN_BLOCK];
-    double _c5[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double q5[KINEGEN_BLOCK_OF(64)];
+    double q6[KINEGEN_BLOCK_OF(64)];
+    double _t3[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    double _s4[KINEGEN_BLOCK_OF(64)];
+    double _c4[KINEGEN_BLOCK_OF(64)];
+    double _s5[KINEGEN_BLOCK_OF(64)];
+    double _c5[KINEGEN_BLOCK_OF(64)];
 #ifdef KINEGEN_STREAM
-    double _x_block[12][KINEGEN_BLOCK];
+    double _x_block[12][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)x & 15) == 0;
 #endif
@@ -1526,7 +1528,7 @@ void puma560_task_batch(size_t count, const double *restrict q, const puma560_pa
     const double d3 = params->d3;
     const double d4 = params->d4;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[6 * (start + i) + 0];
             q2[i] = q[6 * (start + i) + 1];
@@ -1867,27 +1869,27 @@ void puma560_task_jacobian(const double *restrict q, const puma560_params *restr
 void puma560_task_jacobian_batch(size_t count, const double *restrict q, const puma560_params *restrict params, double *restrict Jx)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double q3[KINEGEN_BLOCK];
-    double q4[KINEGEN_BLOCK];
-    double q5[KINEGEN_BLOCK];
-    double q6[KINEGEN_BLOCK];
-    double _t3[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
-    double _s1[KINEGEN_BLOCK];
-    double _c1[KINEGEN_BLOCK];
-    double _s2[KINEGEN_BLOCK];
-    double _c2[KINEGEN_BLOCK];
-    double _s3[KINEGEN_BLOCK];
-    double _c3[KINEGEN_BLOCK];
-    double _s4[KINEGEN_BLOCK];
-    double _c4[KINEGEN_BLOCK];
-    double _s5[KINEGEN_BLOCK];
-    double _c5[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(32)];
+    double q2[KINEGEN_BLOCK_OF(32)];
+    double q3[KINEGEN_BLOCK_OF(32)];
+    double q4[KINEGEN_BLOCK_OF(32)];
+    double q5[KINEGEN_BLOCK_OF(32)];
+    double q6[KINEGEN_BLOCK_OF(32)];
+    double _t3[KINEGEN_BLOCK_OF(32)];
+    double _s0[KINEGEN_BLOCK_OF(32)];
+    double _c0[KINEGEN_BLOCK_OF(32)];
+    double _s1[KINEGEN_BLOCK_OF(32)];
+    double _c1[KINEGEN_BLOCK_OF(32)];
+    double _s2[KINEGEN_BLOCK_OF(32)];
+    double _c2[KINEGEN_BLOCK_OF(32)];
+    double _s3[KINEGEN_BLOCK_OF(32)];
+    double _c3[KINEGEN_BLOCK_OF(32)];
+    double _s4[KINEGEN_BLOCK_OF(32)];
+    double _c4[KINEGEN_BLOCK_OF(32)];
+    double _s5[KINEGEN_BLOCK_OF(32)];
+    double _c5[KINEGEN_BLOCK_OF(32)];
 #ifdef KINEGEN_STREAM
-    double _Jx_block[72][KINEGEN_BLOCK];
+    double _Jx_block[72][KINEGEN_BLOCK_OF(32)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 72 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx & 15) == 0;
 #endif
@@ -1900,7 +1902,7 @@ void puma560_task_jacobian_batch(size_t count, const double *restrict q, const p
     const double d3 = params->d3;
     const double d4 = params->d4;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(32) ? count - start : KINEGEN_BLOCK_OF(32);
         for (i = 0; i < n; ++i) {
             q1[i] = q[6 * (start + i) + 0];
             q2[i] = q[6 * (start + i) + 1];
@@ -2760,158 +2762,158 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
     long valid_branches = 0;
     int refused = 0;
 #ifdef KINEGEN_BLOCKED
-    double x[KINEGEN_BLOCK];
-    double y[KINEGEN_BLOCK];
-    double z[KINEGEN_BLOCK];
-    double r11[KINEGEN_BLOCK];
-    double r12[KINEGEN_BLOCK];
-    double r13[KINEGEN_BLOCK];
-    double r21[KINEGEN_BLOCK];
-    double r22[KINEGEN_BLOCK];
-    double r23[KINEGEN_BLOCK];
-    double r31[KINEGEN_BLOCK];
-    double r32[KINEGEN_BLOCK];
-    double r33[KINEGEN_BLOCK];
-    double _a0[KINEGEN_BLOCK];
-    double _t3[KINEGEN_BLOCK];
-    double _t4[KINEGEN_BLOCK];
-    double _a1[KINEGEN_BLOCK];
-    double _t8[KINEGEN_BLOCK];
-    double _t9[KINEGEN_BLOCK];
-    double _t18[KINEGEN_BLOCK];
-    double _a4[KINEGEN_BLOCK];
-    double _f0[KINEGEN_BLOCK];
-    double _f1[KINEGEN_BLOCK];
-    double _f3[KINEGEN_BLOCK];
-    double _t6[KINEGEN_BLOCK];
-    double _t20[KINEGEN_BLOCK];
-    double _t58[KINEGEN_BLOCK];
-    double _t85[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
-    double _s1[KINEGEN_BLOCK];
-    double _c1[KINEGEN_BLOCK];
-    double _s5[KINEGEN_BLOCK];
-    double _c5[KINEGEN_BLOCK];
-    double _s9[KINEGEN_BLOCK];
-    double _c9[KINEGEN_BLOCK];
-    double _t23[KINEGEN_BLOCK];
-    double _t28[KINEGEN_BLOCK];
-    double _a5[KINEGEN_BLOCK];
-    double _a6[KINEGEN_BLOCK];
-    double _t61[KINEGEN_BLOCK];
-    double _t63[KINEGEN_BLOCK];
-    double _a8[KINEGEN_BLOCK];
-    double _a9[KINEGEN_BLOCK];
-    double _a11[KINEGEN_BLOCK];
-    double _a12[KINEGEN_BLOCK];
-    double _a14[KINEGEN_BLOCK];
-    double _a15[KINEGEN_BLOCK];
-    double _f4[KINEGEN_BLOCK];
-    double _f6[KINEGEN_BLOCK];
-    double _f8[KINEGEN_BLOCK];
-    double _f10[KINEGEN_BLOCK];
-    double _t37[KINEGEN_BLOCK];
-    double _t68[KINEGEN_BLOCK];
-    double _t94[KINEGEN_BLOCK];
-    double _t118[KINEGEN_BLOCK];
-    double _s2[KINEGEN_BLOCK];
-    double _c2[KINEGEN_BLOCK];
-    double _s6[KINEGEN_BLOCK];
-    double _c6[KINEGEN_BLOCK];
-    double _s10[KINEGEN_BLOCK];
-    double _c10[KINEGEN_BLOCK];
-    double _s13[KINEGEN_BLOCK];
-    double _c13[KINEGEN_BLOCK];
-    double _t33[KINEGEN_BLOCK];
-    double _t40[KINEGEN_BLOCK];
-    double _t41[KINEGEN_BLOCK];
-    double _t42[KINEGEN_BLOCK];
-    double _a7[KINEGEN_BLOCK];
-    double _t71[KINEGEN_BLOCK];
-    double _a10[KINEGEN_BLOCK];
-    double _t92[KINEGEN_BLOCK];
-    double _t97[KINEGEN_BLOCK];
-    double _t98[KINEGEN_BLOCK];
-    double _t99[KINEGEN_BLOCK];
-    double _t101[KINEGEN_BLOCK];
-    double _a13[KINEGEN_BLOCK];
-    double _t121[KINEGEN_BLOCK];
-    double _a16[KINEGEN_BLOCK];
-    double _f5[KINEGEN_BLOCK];
-    double _f7[KINEGEN_BLOCK];
-    double _f9[KINEGEN_BLOCK];
-    double _f11[KINEGEN_BLOCK];
-    double _t34[KINEGEN_BLOCK];
-    double _t45[KINEGEN_BLOCK];
-    double _t55[KINEGEN_BLOCK];
-    double _t74[KINEGEN_BLOCK];
-    double _t82[KINEGEN_BLOCK];
-    double _t103[KINEGEN_BLOCK];
-    double _t113[KINEGEN_BLOCK];
-    double _t124[KINEGEN_BLOCK];
-    double _t132[KINEGEN_BLOCK];
-    double _s3[KINEGEN_BLOCK];
-    double _c3[KINEGEN_BLOCK];
-    double _s4[KINEGEN_BLOCK];
-    double _c4[KINEGEN_BLOCK];
-    double _s7[KINEGEN_BLOCK];
-    double _c7[KINEGEN_BLOCK];
-    double _s8[KINEGEN_BLOCK];
-    double _c8[KINEGEN_BLOCK];
-    double _s11[KINEGEN_BLOCK];
-    double _c11[KINEGEN_BLOCK];
-    double _s12[KINEGEN_BLOCK];
-    double _c12[KINEGEN_BLOCK];
-    double _s14[KINEGEN_BLOCK];
-    double _c14[KINEGEN_BLOCK];
-    double _s15[KINEGEN_BLOCK];
-    double _c15[KINEGEN_BLOCK];
-    double _t48[KINEGEN_BLOCK];
-    double _t77[KINEGEN_BLOCK];
-    double _t106[KINEGEN_BLOCK];
-    double _t127[KINEGEN_BLOCK];
-    double _a17[KINEGEN_BLOCK];
-    double _a18[KINEGEN_BLOCK];
-    double _a19[KINEGEN_BLOCK];
-    double _a20[KINEGEN_BLOCK];
-    double _a21[KINEGEN_BLOCK];
-    double _a22[KINEGEN_BLOCK];
-    double _a23[KINEGEN_BLOCK];
-    double _a24[KINEGEN_BLOCK];
-    double _a25[KINEGEN_BLOCK];
-    double _a26[KINEGEN_BLOCK];
-    double _a27[KINEGEN_BLOCK];
-    double _a28[KINEGEN_BLOCK];
-    double _a29[KINEGEN_BLOCK];
-    double _a30[KINEGEN_BLOCK];
-    double _a31[KINEGEN_BLOCK];
-    double _a32[KINEGEN_BLOCK];
-    double _a33[KINEGEN_BLOCK];
-    double _a34[KINEGEN_BLOCK];
-    double _a35[KINEGEN_BLOCK];
-    double _a36[KINEGEN_BLOCK];
-    double _a37[KINEGEN_BLOCK];
-    double _a38[KINEGEN_BLOCK];
-    double _a39[KINEGEN_BLOCK];
-    double _a40[KINEGEN_BLOCK];
-    double _f12[KINEGEN_BLOCK];
-    double _f13[KINEGEN_BLOCK];
-    double _f14[KINEGEN_BLOCK];
-    double _f15[KINEGEN_BLOCK];
-    double _f16[KINEGEN_BLOCK];
-    double _f17[KINEGEN_BLOCK];
-    double _f18[KINEGEN_BLOCK];
-    double _f19[KINEGEN_BLOCK];
-    double _f20[KINEGEN_BLOCK];
-    double _f21[KINEGEN_BLOCK];
-    double _f22[KINEGEN_BLOCK];
-    double _f23[KINEGEN_BLOCK];
-    double _f24[KINEGEN_BLOCK];
-    double _f25[KINEGEN_BLOCK];
-    double _f26[KINEGEN_BLOCK];
-    double _f27[KINEGEN_BLOCK];
-    double _Q_block[48][KINEGEN_BLOCK];
+    double x[KINEGEN_BLOCK_OF(16)];
+    double y[KINEGEN_BLOCK_OF(16)];
+    double z[KINEGEN_BLOCK_OF(16)];
+    double r11[KINEGEN_BLOCK_OF(16)];
+    double r12[KINEGEN_BLOCK_OF(16)];
+    double r13[KINEGEN_BLOCK_OF(16)];
+    double r21[KINEGEN_BLOCK_OF(16)];
+    double r22[KINEGEN_BLOCK_OF(16)];
+    double r23[KINEGEN_BLOCK_OF(16)];
+    double r31[KINEGEN_BLOCK_OF(16)];
+    double r32[KINEGEN_BLOCK_OF(16)];
+    double r33[KINEGEN_BLOCK_OF(16)];
+    double _a0[KINEGEN_BLOCK_OF(16)];
+    double _t3[KINEGEN_BLOCK_OF(16)];
+    double _t4[KINEGEN_BLOCK_OF(16)];
+    double _a1[KINEGEN_BLOCK_OF(16)];
+    double _t8[KINEGEN_BLOCK_OF(16)];
+    double _t9[KINEGEN_BLOCK_OF(16)];
+    double _t18[KINEGEN_BLOCK_OF(16)];
+    double _a4[KINEGEN_BLOCK_OF(16)];
+    double _f0[KINEGEN_BLOCK_OF(16)];
+    double _f1[KINEGEN_BLOCK_OF(16)];
+    double _f3[KINEGEN_BLOCK_OF(16)];
+    double _t6[KINEGEN_BLOCK_OF(16)];
+    double _t20[KINEGEN_BLOCK_OF(16)];
+    double _t58[KINEGEN_BLOCK_OF(16)];
+    double _t85[KINEGEN_BLOCK_OF(16)];
+    double _s0[KINEGEN_BLOCK_OF(16)];
+    double _c0[KINEGEN_BLOCK_OF(16)];
+    double _s1[KINEGEN_BLOCK_OF(16)];
+    double _c1[KINEGEN_BLOCK_OF(16)];
+    double _s5[KINEGEN_BLOCK_OF(16)];
+    double _c5[KINEGEN_BLOCK_OF(16)];
+    double _s9[KINEGEN_BLOCK_OF(16)];
+    double _c9[KINEGEN_BLOCK_OF(16)];
+    double _t23[KINEGEN_BLOCK_OF(16)];
+    double _t28[KINEGEN_BLOCK_OF(16)];
+    double _a5[KINEGEN_BLOCK_OF(16)];
+    double _a6[KINEGEN_BLOCK_OF(16)];
+    double _t61[KINEGEN_BLOCK_OF(16)];
+    double _t63[KINEGEN_BLOCK_OF(16)];
+    double _a8[KINEGEN_BLOCK_OF(16)];
+    double _a9[KINEGEN_BLOCK_OF(16)];
+    double _a11[KINEGEN_BLOCK_OF(16)];
+    double _a12[KINEGEN_BLOCK_OF(16)];
+    double _a14[KINEGEN_BLOCK_OF(16)];
+    double _a15[KINEGEN_BLOCK_OF(16)];
+    double _f4[KINEGEN_BLOCK_OF(16)];
+    double _f6[KINEGEN_BLOCK_OF(16)];
+    double _f8[KINEGEN_BLOCK_OF(16)];
+    double _f10[KINEGEN_BLOCK_OF(16)];
+    double _t37[KINEGEN_BLOCK_OF(16)];
+    double _t68[KINEGEN_BLOCK_OF(16)];
+    double _t94[KINEGEN_BLOCK_OF(16)];
+    double _t118[KINEGEN_BLOCK_OF(16)];
+    double _s2[KINEGEN_BLOCK_OF(16)];
+    double _c2[KINEGEN_BLOCK_OF(16)];
+    double _s6[KINEGEN_BLOCK_OF(16)];
+    double _c6[KINEGEN_BLOCK_OF(16)];
+    double _s10[KINEGEN_BLOCK_OF(16)];
+    double _c10[KINEGEN_BLOCK_OF(16)];
+    double _s13[KINEGEN_BLOCK_OF(16)];
+    double _c13[KINEGEN_BLOCK_OF(16)];
+    double _t33[KINEGEN_BLOCK_OF(16)];
+    double _t40[KINEGEN_BLOCK_OF(16)];
+    double _t41[KINEGEN_BLOCK_OF(16)];
+    double _t42[KINEGEN_BLOCK_OF(16)];
+    double _a7[KINEGEN_BLOCK_OF(16)];
+    double _t71[KINEGEN_BLOCK_OF(16)];
+    double _a10[KINEGEN_BLOCK_OF(16)];
+    double _t92[KINEGEN_BLOCK_OF(16)];
+    double _t97[KINEGEN_BLOCK_OF(16)];
+    double _t98[KINEGEN_BLOCK_OF(16)];
+    double _t99[KINEGEN_BLOCK_OF(16)];
+    double _t101[KINEGEN_BLOCK_OF(16)];
+    double _a13[KINEGEN_BLOCK_OF(16)];
+    double _t121[KINEGEN_BLOCK_OF(16)];
+    double _a16[KINEGEN_BLOCK_OF(16)];
+    double _f5[KINEGEN_BLOCK_OF(16)];
+    double _f7[KINEGEN_BLOCK_OF(16)];
+    double _f9[KINEGEN_BLOCK_OF(16)];
+    double _f11[KINEGEN_BLOCK_OF(16)];
+    double _t34[KINEGEN_BLOCK_OF(16)];
+    double _t45[KINEGEN_BLOCK_OF(16)];
+    double _t55[KINEGEN_BLOCK_OF(16)];
+    double _t74[KINEGEN_BLOCK_OF(16)];
+    double _t82[KINEGEN_BLOCK_OF(16)];
+    double _t103[KINEGEN_BLOCK_OF(16)];
+    double _t113[KINEGEN_BLOCK_OF(16)];
+    double _t124[KINEGEN_BLOCK_OF(16)];
+    double _t132[KINEGEN_BLOCK_OF(16)];
+    double _s3[KINEGEN_BLOCK_OF(16)];
+    double _c3[KINEGEN_BLOCK_OF(16)];
+    double _s4[KINEGEN_BLOCK_OF(16)];
+    double _c4[KINEGEN_BLOCK_OF(16)];
+    double _s7[KINEGEN_BLOCK_OF(16)];
+    double _c7[KINEGEN_BLOCK_OF(16)];
+    double _s8[KINEGEN_BLOCK_OF(16)];
+    double _c8[KINEGEN_BLOCK_OF(16)];
+    double _s11[KINEGEN_BLOCK_OF(16)];
+    double _c11[KINEGEN_BLOCK_OF(16)];
+    double _s12[KINEGEN_BLOCK_OF(16)];
+    double _c12[KINEGEN_BLOCK_OF(16)];
+    double _s14[KINEGEN_BLOCK_OF(16)];
+    double _c14[KINEGEN_BLOCK_OF(16)];
+    double _s15[KINEGEN_BLOCK_OF(16)];
+    double _c15[KINEGEN_BLOCK_OF(16)];
+    double _t48[KINEGEN_BLOCK_OF(16)];
+    double _t77[KINEGEN_BLOCK_OF(16)];
+    double _t106[KINEGEN_BLOCK_OF(16)];
+    double _t127[KINEGEN_BLOCK_OF(16)];
+    double _a17[KINEGEN_BLOCK_OF(16)];
+    double _a18[KINEGEN_BLOCK_OF(16)];
+    double _a19[KINEGEN_BLOCK_OF(16)];
+    double _a20[KINEGEN_BLOCK_OF(16)];
+    double _a21[KINEGEN_BLOCK_OF(16)];
+    double _a22[KINEGEN_BLOCK_OF(16)];
+    double _a23[KINEGEN_BLOCK_OF(16)];
+    double _a24[KINEGEN_BLOCK_OF(16)];
+    double _a25[KINEGEN_BLOCK_OF(16)];
+    double _a26[KINEGEN_BLOCK_OF(16)];
+    double _a27[KINEGEN_BLOCK_OF(16)];
+    double _a28[KINEGEN_BLOCK_OF(16)];
+    double _a29[KINEGEN_BLOCK_OF(16)];
+    double _a30[KINEGEN_BLOCK_OF(16)];
+    double _a31[KINEGEN_BLOCK_OF(16)];
+    double _a32[KINEGEN_BLOCK_OF(16)];
+    double _a33[KINEGEN_BLOCK_OF(16)];
+    double _a34[KINEGEN_BLOCK_OF(16)];
+    double _a35[KINEGEN_BLOCK_OF(16)];
+    double _a36[KINEGEN_BLOCK_OF(16)];
+    double _a37[KINEGEN_BLOCK_OF(16)];
+    double _a38[KINEGEN_BLOCK_OF(16)];
+    double _a39[KINEGEN_BLOCK_OF(16)];
+    double _a40[KINEGEN_BLOCK_OF(16)];
+    double _f12[KINEGEN_BLOCK_OF(16)];
+    double _f13[KINEGEN_BLOCK_OF(16)];
+    double _f14[KINEGEN_BLOCK_OF(16)];
+    double _f15[KINEGEN_BLOCK_OF(16)];
+    double _f16[KINEGEN_BLOCK_OF(16)];
+    double _f17[KINEGEN_BLOCK_OF(16)];
+    double _f18[KINEGEN_BLOCK_OF(16)];
+    double _f19[KINEGEN_BLOCK_OF(16)];
+    double _f20[KINEGEN_BLOCK_OF(16)];
+    double _f21[KINEGEN_BLOCK_OF(16)];
+    double _f22[KINEGEN_BLOCK_OF(16)];
+    double _f23[KINEGEN_BLOCK_OF(16)];
+    double _f24[KINEGEN_BLOCK_OF(16)];
+    double _f25[KINEGEN_BLOCK_OF(16)];
+    double _f26[KINEGEN_BLOCK_OF(16)];
+    double _f27[KINEGEN_BLOCK_OF(16)];
+    double _Q_block[48][KINEGEN_BLOCK_OF(16)];
     size_t start, i, n;
     if (params == NULL) {
         params = &puma560_default_params;
@@ -2933,7 +2935,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
     const int _t137 = _t16 > 0;
     const double _f2 = atan2(_a2, _a3);
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(16) ? count - start : KINEGEN_BLOCK_OF(16);
         for (i = 0; i < n; ++i) {
             x[i] = _x[12 * (start + i) + 0];
             y[i] = _x[12 * (start + i) + 1];

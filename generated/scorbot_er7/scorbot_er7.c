@@ -52,6 +52,8 @@ double asin(double);
 #ifndef KINEGEN_BLOCK
 #define KINEGEN_BLOCK 64
 #endif
+/* Each kernel's block: at most KINEGEN_BLOCK items, fewer where its arrays would pass 32 KiB of stack. */
+#define KINEGEN_BLOCK_OF(items) ((items) < KINEGEN_BLOCK ? (items) : KINEGEN_BLOCK)
 #if defined(KINEGEN_SIMD) && defined(__SSE2__) && !defined(KINEGEN_NO_STREAM)
 /* Batches whose outputs exceed KINEGEN_STREAM_BYTES write them with SSE2 streaming
    stores: a plain store first reads the line it overwrites, which doubles the memory
@@ -175,25 +177,25 @@ void scorbot_er7_fk(const double *restrict q, const scorbot_er7_params *restrict
 void scorbot_er7_fk_batch(size_t count, const double *restrict q, const scorbot_er7_params *restrict params, double *restrict T)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double q3[KINEGEN_BLOCK];
-    double q4[KINEGEN_BLOCK];
-    double q5[KINEGEN_BLOCK];
-    double _t3[KINEGEN_BLOCK];
-    double _t4[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
-    double _s1[KINEGEN_BLOCK];
-    double _c1[KINEGEN_BLOCK];
-    double _s2[KINEGEN_BLOCK];
-    double _c2[KINEGEN_BLOCK];
-    double _s3[KINEGEN_BLOCK];
-    double _c3[KINEGEN_BLOCK];
-    double _s4[KINEGEN_BLOCK];
-    double _c4[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double q5[KINEGEN_BLOCK_OF(64)];
+    double _t3[KINEGEN_BLOCK_OF(64)];
+    double _t4[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    double _s4[KINEGEN_BLOCK_OF(64)];
+    double _c4[KINEGEN_BLOCK_OF(64)];
 #ifdef KINEGEN_STREAM
-    double _T_block[16][KINEGEN_BLOCK];
+    double _T_block[16][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
 #endif
@@ -207,7 +209,7 @@ void scorbot_er7_fk_batch(size_t count, const double *restrict q, const scorbot_
     const double d1 = params->d1;
     const double d5 = params->d5;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[5 * (start + i) + 0];
             q2[i] = q[5 * (start + i) + 1];
@@ -508,25 +510,25 @@ void scorbot_er7_frames(const double *restrict q, const scorbot_er7_params *rest
 void scorbot_er7_frames_batch(size_t count, const double *restrict q, const scorbot_er7_params *restrict params, double *restrict frames)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double q3[KINEGEN_BLOCK];
-    double q4[KINEGEN_BLOCK];
-    double q5[KINEGEN_BLOCK];
-    double _t7[KINEGEN_BLOCK];
-    double _t14[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
-    double _s1[KINEGEN_BLOCK];
-    double _c1[KINEGEN_BLOCK];
-    double _s2[KINEGEN_BLOCK];
-    double _c2[KINEGEN_BLOCK];
-    double _s3[KINEGEN_BLOCK];
-    double _c3[KINEGEN_BLOCK];
-    double _s4[KINEGEN_BLOCK];
-    double _c4[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(32)];
+    double q2[KINEGEN_BLOCK_OF(32)];
+    double q3[KINEGEN_BLOCK_OF(32)];
+    double q4[KINEGEN_BLOCK_OF(32)];
+    double q5[KINEGEN_BLOCK_OF(32)];
+    double _t7[KINEGEN_BLOCK_OF(32)];
+    double _t14[KINEGEN_BLOCK_OF(32)];
+    double _s0[KINEGEN_BLOCK_OF(32)];
+    double _c0[KINEGEN_BLOCK_OF(32)];
+    double _s1[KINEGEN_BLOCK_OF(32)];
+    double _c1[KINEGEN_BLOCK_OF(32)];
+    double _s2[KINEGEN_BLOCK_OF(32)];
+    double _c2[KINEGEN_BLOCK_OF(32)];
+    double _s3[KINEGEN_BLOCK_OF(32)];
+    double _c3[KINEGEN_BLOCK_OF(32)];
+    double _s4[KINEGEN_BLOCK_OF(32)];
+    double _c4[KINEGEN_BLOCK_OF(32)];
 #ifdef KINEGEN_STREAM
-    double _frames_block[96][KINEGEN_BLOCK];
+    double _frames_block[96][KINEGEN_BLOCK_OF(32)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 96 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
 #endif
@@ -540,7 +542,7 @@ void scorbot_er7_frames_batch(size_t count, const double *restrict q, const scor
     const double d1 = params->d1;
     const double d5 = params->d5;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(32) ? count - start : KINEGEN_BLOCK_OF(32);
         for (i = 0; i < n; ++i) {
             q1[i] = q[5 * (start + i) + 0];
             q2[i] = q[5 * (start + i) + 1];
@@ -939,22 +941,22 @@ void scorbot_er7_jacobian(const double *restrict q, const scorbot_er7_params *re
 void scorbot_er7_jacobian_batch(size_t count, const double *restrict q, const scorbot_er7_params *restrict params, double *restrict J)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double q3[KINEGEN_BLOCK];
-    double q4[KINEGEN_BLOCK];
-    double _t1[KINEGEN_BLOCK];
-    double _t2[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
-    double _s1[KINEGEN_BLOCK];
-    double _c1[KINEGEN_BLOCK];
-    double _s2[KINEGEN_BLOCK];
-    double _c2[KINEGEN_BLOCK];
-    double _s3[KINEGEN_BLOCK];
-    double _c3[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
 #ifdef KINEGEN_STREAM
-    double _J_block[30][KINEGEN_BLOCK];
+    double _J_block[30][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 30 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
 #endif
@@ -967,7 +969,7 @@ void scorbot_er7_jacobian_batch(size_t count, const double *restrict q, const sc
     const double a3 = params->a3;
     const double d5 = params->d5;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[5 * (start + i) + 0];
             q2[i] = q[5 * (start + i) + 1];
@@ -1184,20 +1186,20 @@ void scorbot_er7_task(const double *restrict q, const scorbot_er7_params *restri
 void scorbot_er7_task_batch(size_t count, const double *restrict q, const scorbot_er7_params *restrict params, double *restrict x)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double q3[KINEGEN_BLOCK];
-    double q4[KINEGEN_BLOCK];
-    double _t0[KINEGEN_BLOCK];
-    double _t1[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
-    double _s1[KINEGEN_BLOCK];
-    double _c1[KINEGEN_BLOCK];
-    double _s2[KINEGEN_BLOCK];
-    double _c2[KINEGEN_BLOCK];
-    double _s3[KINEGEN_BLOCK];
-    double _c3[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &scorbot_er7_default_params;
@@ -1208,7 +1210,7 @@ void scorbot_er7_task_batch(size_t count, const double *restrict q, const scorbo
     const double d1 = params->d1;
     const double d5 = params->d5;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[5 * (start + i) + 0];
             q2[i] = q[5 * (start + i) + 1];
@@ -1346,20 +1348,20 @@ void scorbot_er7_task_jacobian(const double *restrict q, const scorbot_er7_param
 void scorbot_er7_task_jacobian_batch(size_t count, const double *restrict q, const scorbot_er7_params *restrict params, double *restrict Jx)
 {
 #ifdef KINEGEN_BLOCKED
-    double q1[KINEGEN_BLOCK];
-    double q2[KINEGEN_BLOCK];
-    double q3[KINEGEN_BLOCK];
-    double q4[KINEGEN_BLOCK];
-    double _t1[KINEGEN_BLOCK];
-    double _t2[KINEGEN_BLOCK];
-    double _s0[KINEGEN_BLOCK];
-    double _c0[KINEGEN_BLOCK];
-    double _s1[KINEGEN_BLOCK];
-    double _c1[KINEGEN_BLOCK];
-    double _s2[KINEGEN_BLOCK];
-    double _c2[KINEGEN_BLOCK];
-    double _s3[KINEGEN_BLOCK];
-    double _c3[KINEGEN_BLOCK];
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &scorbot_er7_default_params;
@@ -1369,7 +1371,7 @@ void scorbot_er7_task_jacobian_batch(size_t count, const double *restrict q, con
     const double a3 = params->a3;
     const double d5 = params->d5;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             q1[i] = q[5 * (start + i) + 0];
             q2[i] = q[5 * (start + i) + 1];
@@ -1597,36 +1599,36 @@ long scorbot_er7_ik_batch(size_t count, const double *restrict _x, const scorbot
     long valid_branches = 0;
     int refused = 0;
 #ifdef KINEGEN_BLOCKED
-    double x[KINEGEN_BLOCK];
-    double y[KINEGEN_BLOCK];
-    double z[KINEGEN_BLOCK];
-    double _t1[KINEGEN_BLOCK];
-    double _t2[KINEGEN_BLOCK];
-    double _t5[KINEGEN_BLOCK];
-    double _t6[KINEGEN_BLOCK];
-    double _t13[KINEGEN_BLOCK];
-    double _t14[KINEGEN_BLOCK];
-    double _t15[KINEGEN_BLOCK];
-    double _a0[KINEGEN_BLOCK];
-    double _a1[KINEGEN_BLOCK];
-    double _a2[KINEGEN_BLOCK];
-    double _t20[KINEGEN_BLOCK];
-    double _t21[KINEGEN_BLOCK];
-    double _t24[KINEGEN_BLOCK];
-    double _t25[KINEGEN_BLOCK];
-    double _t26[KINEGEN_BLOCK];
-    double _a3[KINEGEN_BLOCK];
-    double _f0[KINEGEN_BLOCK];
-    double _f1[KINEGEN_BLOCK];
-    double _f2[KINEGEN_BLOCK];
-    double _f3[KINEGEN_BLOCK];
-    double _f4[KINEGEN_BLOCK];
-    double _f5[KINEGEN_BLOCK];
-    double _f6[KINEGEN_BLOCK];
-    double _f7[KINEGEN_BLOCK];
-    double _f8[KINEGEN_BLOCK];
-    double _f9[KINEGEN_BLOCK];
-    double _Q_block[20][KINEGEN_BLOCK];
+    double x[KINEGEN_BLOCK_OF(64)];
+    double y[KINEGEN_BLOCK_OF(64)];
+    double z[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
+    double _t5[KINEGEN_BLOCK_OF(64)];
+    double _t6[KINEGEN_BLOCK_OF(64)];
+    double _t13[KINEGEN_BLOCK_OF(64)];
+    double _t14[KINEGEN_BLOCK_OF(64)];
+    double _t15[KINEGEN_BLOCK_OF(64)];
+    double _a0[KINEGEN_BLOCK_OF(64)];
+    double _a1[KINEGEN_BLOCK_OF(64)];
+    double _a2[KINEGEN_BLOCK_OF(64)];
+    double _t20[KINEGEN_BLOCK_OF(64)];
+    double _t21[KINEGEN_BLOCK_OF(64)];
+    double _t24[KINEGEN_BLOCK_OF(64)];
+    double _t25[KINEGEN_BLOCK_OF(64)];
+    double _t26[KINEGEN_BLOCK_OF(64)];
+    double _a3[KINEGEN_BLOCK_OF(64)];
+    double _f0[KINEGEN_BLOCK_OF(64)];
+    double _f1[KINEGEN_BLOCK_OF(64)];
+    double _f2[KINEGEN_BLOCK_OF(64)];
+    double _f3[KINEGEN_BLOCK_OF(64)];
+    double _f4[KINEGEN_BLOCK_OF(64)];
+    double _f5[KINEGEN_BLOCK_OF(64)];
+    double _f6[KINEGEN_BLOCK_OF(64)];
+    double _f7[KINEGEN_BLOCK_OF(64)];
+    double _f8[KINEGEN_BLOCK_OF(64)];
+    double _f9[KINEGEN_BLOCK_OF(64)];
+    double _Q_block[20][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &scorbot_er7_default_params;
@@ -1641,7 +1643,7 @@ long scorbot_er7_ik_batch(size_t count, const double *restrict _x, const scorbot
     const double _t11 = 1/(a2*a3);
     const double _t12 = (0.5)*_t11;
     for (start = 0; start < count; start += n) {
-        n = count - start < KINEGEN_BLOCK ? count - start : KINEGEN_BLOCK;
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
             x[i] = _x[3 * (start + i) + 0];
             y[i] = _x[3 * (start + i) + 1];
