@@ -9,7 +9,9 @@
 #   make report     the PDF report (report/build/kinegen-report.pdf); installs TeX Live if missing
 #   make avr-limits the AVR 3000 Matlab script: axis limits from motor limits (R=18.3in by default)
 #   make plots      trajectory plots as PNG files in plots/ (installs matplotlib, the 'plots' extra)
-#   make bench      time Paul's partitioned inverse against a 6x6 solve (PUMA 560)
+#   make bench      time the kernels against lambdify, the Robotics Toolbox and Pinocchio
+#                   (installed into .venv-bench only; writes benchmarks/results.md), then
+#                   Paul's partitioned inverse against a 6x6 solve (PUMA 560)
 #   make clean      remove the virtual environment, caches and built libraries
 
 PYTHON ?= python3
@@ -18,6 +20,11 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 PLOTS_STAMP := $(VENV)/.plots-installed
 KINEGEN := $(PY) -m codegen
+# The benchmark's own environment: the project plus the peers it is timed against.
+BENCH_VENV ?= .venv-bench
+BENCH_PY := $(BENCH_VENV)/bin/python
+BENCH_STAMP := $(BENCH_VENV)/.installed
+BENCH_PEERS = $$($(BENCH_PY) -c "import tomllib; print(' '.join(tomllib.load(open('pyproject.toml', 'rb'))['project']['optional-dependencies']['bench']))")
 
 .PHONY: all install generate build sanitize verify check test report texlive plots bench clean avr-limits
 
@@ -76,9 +83,22 @@ report: $(STAMP) texlive
 plots: $(PLOTS_STAMP)
 	$(PY) -m codegen.plots --out plots
 
-bench: build
-	$(PY) benchmarks/wrist_partition.py
+# A peer that cannot be installed here is left out (the table says "not installed").
+$(BENCH_STAMP): pyproject.toml
+	$(PYTHON) -m venv $(BENCH_VENV)
+	$(BENCH_PY) -m pip install --quiet --disable-pip-version-check --upgrade pip
+	$(BENCH_PY) -m pip install --quiet --disable-pip-version-check -e .
+	$(BENCH_PY) -m pip install --quiet --disable-pip-version-check -e '.[bench]' || \
+	for peer in $(BENCH_PEERS); do \
+		$(BENCH_PY) -m pip install --quiet --disable-pip-version-check "$$peer" || echo "bench: $$peer not installed"; \
+	done
+	touch $@
+
+bench: $(BENCH_STAMP)
+	$(BENCH_PY) -m codegen build --quiet
+	$(BENCH_PY) benchmarks/run.py
+	$(BENCH_PY) benchmarks/wrist_partition.py
 
 clean:
-	rm -rf $(VENV) .cache build *.egg-info
+	rm -rf $(VENV) $(BENCH_VENV) .cache build *.egg-info
 	find generated -name '*.so' -delete

@@ -23,6 +23,7 @@ from derivations.model import POSE_NAMES, REVOLUTE, RobotModel
 
 from .backends import TEMPLATES, c_backend, float_literal, latex_backend, numpy_backend
 from .kernels import STATUS_CODES, PreparedFunction, prepare
+from .stages import stage
 
 __all__ = ["REPO", "GENERATED", "render_robot", "render_tree", "write_tree", "write_package", "stale_files",
            "robot_context", "OutputExistsError"]
@@ -69,12 +70,38 @@ def template_function(prepared: PreparedFunction, accepts_nonfinite: bool = Fals
         outputs.append({
             "name": out.name, "shape": tuple(out.shape), "dtype": out.dtype, "size": out.size,
             "has_zeros": zero_free, "assignments": assignments, "flat": list(enumerate(out.entries)),
+            "constant": {k for k, e in enumerate(out.entries) if not getattr(e, "free_symbols", None)},
         })
     # Each argument as (name, symbol names, doc, storage): the storage name holds the
     # array where one of its own symbols takes the argument's name (ik's x holds x, y, ...).
     arguments = tuple((name, symbols, doc, f"_{name}" if name in symbols else name)
                       for name, symbols, doc in prepared.arguments)
+    staged = stage(prepared)
+    for out, entries in zip(outputs, staged.outputs):
+        out["staged"] = list(enumerate(entries))
+    block_outputs = [o.name for o in prepared.outputs if prepared.name == "ik" and o.dtype == "float"]
+    stream_outputs = [o.name for o in prepared.outputs if o.dtype == "float" and o.size % 2 == 0
+                      and prepared.name != "ik"]
+    inputs = {s for a in prepared.arguments for s in a[1]} & prepared.arguments_used
+    per_item = len(inputs) + len(staged.arrays) + sum(o.size for o in prepared.outputs
+                                                      if o.name in block_outputs or o.name in stream_outputs)
+    block = 64  # items per block of the batched C, halved while its arrays would pass 32 KiB of stack
+    while block > 8 and 8 * block * per_item > 32768:
+        block //= 2
     return {
+        "block": block,
+        "prologue": staged.prologue,
+        # Outputs the blocked C writes per block, one array per entry, then copies out item by
+        # item: GCC 12 does not vectorise a loop that stores ik's 48 joint values per item.
+        "block_outputs": block_outputs,
+        # Outputs that can be streamed out in pairs of doubles (16-byte aligned rows: an even
+        # size); not ik's, whose checks read the joint values straight back.
+        "stream_outputs": stream_outputs,
+        "stream_size": sum(o.size for o in prepared.outputs if o.dtype == "float" and o.size % 2 == 0),
+        "stages": [{"body": [(n, e, n in staged.arrays) for n, e in s.body], "calls": s.calls,
+                    "angles": _angles(s.calls), "groups": _call_groups(s.calls)} for s in staged.stages],
+        "arrays": staged.arrays,
+        "indexed": staged.arrays | (prepared.arguments_used & {s for a in prepared.arguments for s in a[1]}),
         "name": prepared.name, "doc": prepared.doc, "arguments": arguments,
         "params_used": prepared.params_used, "arguments_used": prepared.arguments_used,
         "temporaries": prepared.temporaries, "outputs": outputs, "operations": prepared.operations,
@@ -86,6 +113,28 @@ def template_function(prepared: PreparedFunction, accepts_nonfinite: bool = Fals
         "boolean_temporaries": frozenset(name for name, expr in prepared.temporaries
                                          if isinstance(expr, sp.logic.boolalg.Boolean)),
     }
+
+
+def _call_groups(calls) -> list[dict]:
+    """A stage's calls other than sin and cos, by function, each with its SymPy form (for numpy)."""
+    functions = {"atan2": sp.atan2, "acos": sp.acos, "asin": sp.asin}
+    groups: dict[str, list] = {}
+    for c in calls:
+        if c.function in functions:
+            expr = functions[c.function](*(sp.Symbol(a, real=True) for a in c.arguments))
+            groups.setdefault(c.function, []).append({"name": c.name, "arguments": c.arguments, "expr": expr})
+    return [{"function": f, "calls": members} for f, members in groups.items()]
+
+
+def _angles(calls) -> list[dict]:
+    """The sine and cosine variables wanted of each angle of a stage (None where not wanted)."""
+    angles: dict[str, dict] = {}
+    for c in calls:
+        if c.function not in ("sin", "cos"):
+            continue
+        entry = angles.setdefault(c.argument, {"angle": c.argument, "index": c.name[2:], "sin": None, "cos": None})
+        entry[c.function] = c.name
+    return list(angles.values())
 
 
 def _index(flat: int, shape: tuple[int, ...]) -> str:
@@ -119,7 +168,8 @@ def robot_context(model: RobotModel, origin: str, verbose: bool = False) -> dict
     uses_wrap_angle = any(
         sp.sympify(expr).has(WrapAngle)
         for f in functions
-        for expr in [e for _, e in f["temporaries"]] + [e for out in f["outputs"] for _, e in out["flat"]])
+        for expr in [e for _, e in f["temporaries"]] + [e for out in f["outputs"] for _, e in out["flat"]]
+        + [e for c in f["checks"] for _, e in c.temporaries] + [c.condition for c in f["checks"]])
     return {
         "uses_wrap_angle": uses_wrap_angle,
         "name": model.name, "title": safe_text(model.title), "source": safe_text(model.source), "origin": origin,

@@ -393,7 +393,9 @@ def test_ik_shapes_broadcast(name, backend):
     assert Q.shape == (2, 3, b, n) and valid.shape == (2, 3, b) and valid.dtype == bool
     Q1, valid1 = k.ik(x[1, 2])
     assert Q1.shape == (b, n)
-    np.testing.assert_array_equal(Q1, Q[1, 2])
+    # The built C runs batches vectorised (libmvec) and one point in scalar C: equal to rounding.
+    np.testing.assert_allclose(Q1, Q[1, 2], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(valid1, valid[1, 2])
     assert k.within_limits(Q).shape == (2, 3, b)
 
 

@@ -144,9 +144,18 @@ def test_numpy_and_c_agree_branch_by_branch(name):
     Qn, valid_n = kn.ik(x)
     Qc, valid_c = kc.ik(x)
     np.testing.assert_array_equal(valid_n, valid_c)
-    difference = np.abs(Qn - Qc)[valid_n]
+    difference = np.abs(Qn - Qc)
     # angles near +-pi may land on either end of the turn after wrapping
-    assert np.all((difference < 1e-12) | (np.abs(difference - 2 * np.pi) < 1e-12))
+    difference = np.where(valid_n[..., None], np.minimum(difference, np.abs(difference - 2 * np.pi)), 0.0)
+    # The backends round differently (the built C takes sin and cos from libmvec, numpy
+    # from a tangent of the half angle), by a few ulps.  At a double root (see
+    # JOINT_TOLERANCE) that becomes up to sqrt(eps) ~ 1e-8 in the joints, with both
+    # answers still on the target; everywhere else the two agree to 1e-12.
+    apart = difference.max(axis=-1) > 1e-12
+    assert difference.max() < JOINT_TOLERANCE
+    assert task_error(kn, Qn, x)[apart].max(initial=0.0) < FK_TOLERANCE
+    assert task_error(kc, Qc, x)[apart].max(initial=0.0) < FK_TOLERANCE
+    assert apart.sum() <= 0.01 * valid_n.sum()  # rare: the degenerate draws at a workspace boundary
 
 
 def main():

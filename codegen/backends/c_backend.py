@@ -1,6 +1,7 @@
 """The C99 backend: a C99CodePrinter subclass, the header/source templates and a cffi binding."""
 from __future__ import annotations
 
+import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
 from . import TEMPLATES, ExactArithmeticMixin
@@ -14,9 +15,31 @@ STRICT_FLAGS = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic")
 class CKernelPrinter(ExactArithmeticMixin, C99CodePrinter):
     """Prints C99 expressions; constants as correctly rounded double literals."""
 
-    def __init__(self):
+    def __init__(self, indexed=frozenset()):
         # No M_PI-style macros: they are POSIX, not C99 (pi is folded to a literal anyway).
         super().__init__({"math_macros": {}, "allow_unknown_functions": False})
+        self._indexed = frozenset(indexed)
+
+    def indexed(self, names) -> "CKernelPrinter":
+        """A printer that reads the variables ``names`` as ``name[i]`` (per-block arrays)."""
+        return CKernelPrinter(names)
+
+    def _print_Symbol(self, expr):
+        text = super()._print_Symbol(expr)
+        return f"{text}[i]" if expr.name in self._indexed else text
+
+    def _nested(self, function, args):
+        text = self._print(args[0])
+        for other in args[1:]:
+            text = f"{function}({text}, {self._print(other)})"
+        return text
+
+    def _print_Min(self, expr):
+        # Not C99's fmin, which drops a NaN and is not vectorised without -ffinite-math-only.
+        return self._nested("kinegen_min", expr.args)
+
+    def _print_Max(self, expr):
+        return self._nested("kinegen_max", expr.args)
 
     def _print_WrapAngle(self, expr):
         return f"kinegen_wrap_angle({self._print(expr.args[0])})"
@@ -60,6 +83,18 @@ def prototypes(context: dict, suffix: str = "") -> list[str]:
     return lines
 
 
+def checked_prototypes(context: dict) -> list[str]:
+    """The cffi module's own entry points (build_c.py.j2): a kernel of ``count`` items, inputs checked."""
+    name = context["name"]
+    lines = []
+    for f in context["functions"]:
+        inputs = "".join(f"const double *{a[0]}, " for a in f["arguments"])
+        outputs = "".join(f", {'double' if o['dtype'] == 'float' else 'int'} *{o['name']}" for o in f["outputs"])
+        status = ", int *status" if f["checks"] else ""  # each item's requirement status code
+        lines.append(f"int {name}_{f['name']}_checked(size_t count, {inputs}const {name}_params *params{outputs}{status})")
+    return lines
+
+
 def declarations(context: dict, for_cffi: bool) -> str:
     name = context["name"]
     fields = " ".join(f"double {p[0]};" for p in context["params"]) or "double unused;"
@@ -70,14 +105,29 @@ def declarations(context: dict, for_cffi: bool) -> str:
         lines.extend(f"#define {name.upper()}_{kind.upper()} {code}" for kind, code in context["status_codes"])
     lines.append("")
     lines.extend(prototypes(context))
+    if for_cffi:
+        lines.extend(f"{p};" for p in checked_prototypes(context))
     return "\n".join(lines)
+
+
+def _uses(context: dict, *types) -> bool:
+    """Whether any expression a C kernel prints holds one of ``types``."""
+    for f in context["functions"]:
+        expressions = [e for _, e in f["prologue"]] + [e for s in f["stages"] for _, e, _ in s["body"]]
+        expressions += [e for out in f["outputs"] for _, e in out["staged"]]
+        expressions += [e for c in f["checks"] for _, e in c.temporaries] + [c.condition for c in f["checks"]]
+        if any(isinstance(e, sp.Basic) and e.has(*types) for e in expressions):
+            return True
+    return False
 
 
 def render(context: dict) -> dict[str, str]:
     """Files of the C backend, by name, for one robot."""
     printer = CKernelPrinter()
     name = context["name"]
-    context = dict(context, c_declarations=declarations(context, False), c_cdef=declarations(context, True))
+    context = dict(context, c_declarations=declarations(context, False), c_cdef=declarations(context, True),
+                   c_checked=checked_prototypes(context), 
+                   uses_min=_uses(context, sp.Min), uses_max=_uses(context, sp.Max))
     files = {}
     for template, filename in (
         ("robot.h.j2", f"{name}.h"),

@@ -25,7 +25,71 @@
 
 #include <math.h>
 
+/*
+ * Batched entry points.  Plain C99 loops over the single-point entry point by
+ * default.  With -DKINEGEN_BLOCKED they work through their items in blocks of
+ * KINEGEN_BLOCK instead: the inputs of a block are copied into one array per
+ * coordinate, every sine and every cosine is taken in a loop of its own, and the
+ * arithmetic runs in one loop per stage, from the same expressions as the single
+ * point (so the results are bit-identical).  -DKINEGEN_SIMD -fopenmp-simd (what
+ * build_c.py uses where the compiler and C library allow) adds to that SIMD
+ * declarations of the math functions, so that the loops vectorise and call
+ * glibc's vector math library (libmvec, at most 4 ulp), and the single point
+ * takes the sines and cosines of a stage's angles as one vector.  No NaN or
+ * infinity check is affected: no -ffast-math is involved.
+ */
+#ifdef KINEGEN_SIMD
+#pragma omp declare simd notinbranch
+double sin(double);
+#pragma omp declare simd notinbranch
+double cos(double);
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+/* libmvec has these from glibc 2.35 on. */
+#pragma omp declare simd notinbranch
+double atan2(double, double);
+#pragma omp declare simd notinbranch
+double acos(double);
+#pragma omp declare simd notinbranch
+double asin(double);
+#endif
+#define KINEGEN_VECTOR_LOOP _Pragma("omp simd")
+#ifndef KINEGEN_BLOCKED
+#define KINEGEN_BLOCKED
+#endif
+#else
+#define KINEGEN_VECTOR_LOOP
+#endif
+#ifndef KINEGEN_BLOCK
+#define KINEGEN_BLOCK 64
+#endif
+/* Each kernel's block: at most KINEGEN_BLOCK items, fewer where its arrays would pass 32 KiB of stack. */
+#define KINEGEN_BLOCK_OF(items) ((items) < KINEGEN_BLOCK ? (items) : KINEGEN_BLOCK)
+#if defined(KINEGEN_SIMD) && defined(__SSE2__) && !defined(KINEGEN_NO_STREAM)
+/* Batches whose outputs exceed KINEGEN_STREAM_BYTES write them with SSE2 streaming
+   stores: a plain store first reads the line it overwrites, which doubles the memory
+   traffic of a batch too large for the caches. */
+#include <emmintrin.h>
+#include <stdint.h>
+#define KINEGEN_STREAM
+#ifndef KINEGEN_STREAM_BYTES
+#define KINEGEN_STREAM_BYTES 1048576
+#endif
+#endif
+
 const adept_three_params adept_three_default_params = { 0.559, 0.508, 0.8763, 0.0 };
+
+/* min and max that pass a NaN on, like numpy.minimum and numpy.maximum: C99's fmin and
+   fmax would turn an acos argument of NaN into +-1 and a valid-looking angle.  Each is
+   emitted only where a kernel uses it (static: -Werror=unused-function). */
+static double kinegen_min(double a, double b)
+{
+    return isnan(a) || a < b ? a : b;
+}
+
+static double kinegen_max(double a, double b)
+{
+    return isnan(a) || a > b ? a : b;
+}
 
 /* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi. */
 static double kinegen_wrap_angle(double angle)
@@ -57,16 +121,44 @@ void adept_three_fk(const double *restrict q, const adept_three_params *restrict
     const double d4 = params->d4;
     const double _t0 = q1 + q2;
     const double _t1 = _t0 - q4;
-    const double _t2 = cos(_t1);
-    const double _t3 = sin(_t1);
-    T[0] = _t2;
-    T[1] = _t3;
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t1, q1, _t0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t1);
+    _c0 = cos(_t1);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+    _s2 = sin(_t0);
+    _c2 = cos(_t0);
+#endif
+    T[0] = _c0;
+    T[1] = _s0;
     T[2] = 0;
-    T[3] = l1*cos(q1) + l2*cos(_t0);
-    T[4] = _t3;
-    T[5] = -_t2;
+    T[3] = _c1*l1 + _c2*l2;
+    T[4] = _s0;
+    T[5] = -_c0;
     T[6] = 0;
-    T[7] = l1*sin(q1) + l2*sin(_t0);
+    T[7] = _s1*l1 + _s2*l2;
     T[8] = 0;
     T[9] = 0;
     T[10] = -1;
@@ -77,12 +169,138 @@ void adept_three_fk(const double *restrict q, const adept_three_params *restrict
     T[15] = 1;
 }
 
+/* fk of `count` items, stored one after the other in each argument and output. */
 void adept_three_fk_batch(size_t count, const double *restrict q, const adept_three_params *restrict params, double *restrict T)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _T_block[16][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double d1 = params->d1;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[4 * (start + i) + 0];
+            q2[i] = q[4 * (start + i) + 1];
+            q3[i] = q[4 * (start + i) + 2];
+            q4[i] = q[4 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+            _t1[i] = _t0[i] - q4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t0[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _T_block[0][i] = _c0[i];
+                _T_block[1][i] = _s0[i];
+                _T_block[2][i] = 0;
+                _T_block[3][i] = _c1[i]*l1 + _c2[i]*l2;
+                _T_block[4][i] = _s0[i];
+                _T_block[5][i] = -_c0[i];
+                _T_block[6][i] = 0;
+                _T_block[7][i] = _s1[i]*l1 + _s2[i]*l2;
+                _T_block[8][i] = 0;
+                _T_block[9][i] = 0;
+                _T_block[10][i] = -1;
+                _T_block[11][i] = d1 - d4 - q3[i];
+                _T_block[12][i] = 0;
+                _T_block[13][i] = 0;
+                _T_block[14][i] = 0;
+                _T_block[15][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                T[16 * (start + i) + 0] = _c0[i];
+                T[16 * (start + i) + 1] = _s0[i];
+                T[16 * (start + i) + 2] = 0;
+                T[16 * (start + i) + 3] = _c1[i]*l1 + _c2[i]*l2;
+                T[16 * (start + i) + 4] = _s0[i];
+                T[16 * (start + i) + 5] = -_c0[i];
+                T[16 * (start + i) + 6] = 0;
+                T[16 * (start + i) + 7] = _s1[i]*l1 + _s2[i]*l2;
+                T[16 * (start + i) + 8] = 0;
+                T[16 * (start + i) + 9] = 0;
+                T[16 * (start + i) + 10] = -1;
+                T[16 * (start + i) + 11] = d1 - d4 - q3[i];
+                T[16 * (start + i) + 12] = 0;
+                T[16 * (start + i) + 13] = 0;
+                T[16 * (start + i) + 14] = 0;
+                T[16 * (start + i) + 15] = 1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 16; k += 2) {
+                    _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         adept_three_fk(q + 4 * i, params, T + 16 * i);
     }
+#endif
 }
 
 /* Frames T_0 (base) .. T_4 (tool), shape (..., 5, 4, 4). */
@@ -99,19 +317,43 @@ void adept_three_frames(const double *restrict q, const adept_three_params *rest
     const double l2 = params->l2;
     const double d1 = params->d1;
     const double d4 = params->d4;
-    const double _t0 = cos(q1);
-    const double _t1 = sin(q1);
-    const double _t2 = _t0*l1;
-    const double _t3 = _t1*l1;
     const double _t4 = q1 + q2;
-    const double _t5 = cos(_t4);
-    const double _t6 = sin(_t4);
-    const double _t7 = _t2 + _t5*l2;
-    const double _t8 = -_t5;
-    const double _t9 = _t3 + _t6*l2;
     const double _t10 = _t4 - q4;
-    const double _t11 = cos(_t10);
-    const double _t12 = sin(_t10);
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q1, _t4, _t10, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t4);
+    _c1 = cos(_t4);
+    _s2 = sin(_t10);
+    _c2 = cos(_t10);
+#endif
+    const double _t2 = _c0*l1;
+    const double _t3 = _s0*l1;
+    const double _t7 = _c1*l2 + _t2;
+    const double _t8 = -_c1;
+    const double _t9 = _s1*l2 + _t3;
     frames[0] = 1;
     frames[1] = 0;
     frames[2] = 0;
@@ -128,12 +370,12 @@ void adept_three_frames(const double *restrict q, const adept_three_params *rest
     frames[13] = 0;
     frames[14] = 0;
     frames[15] = 1;
-    frames[16] = _t0;
-    frames[17] = -_t1;
+    frames[16] = _c0;
+    frames[17] = -_s0;
     frames[18] = 0;
     frames[19] = _t2;
-    frames[20] = _t1;
-    frames[21] = _t0;
+    frames[20] = _s0;
+    frames[21] = _c0;
     frames[22] = 0;
     frames[23] = _t3;
     frames[24] = 0;
@@ -144,11 +386,11 @@ void adept_three_frames(const double *restrict q, const adept_three_params *rest
     frames[29] = 0;
     frames[30] = 0;
     frames[31] = 1;
-    frames[32] = _t5;
-    frames[33] = _t6;
+    frames[32] = _c1;
+    frames[33] = _s1;
     frames[34] = 0;
     frames[35] = _t7;
-    frames[36] = _t6;
+    frames[36] = _s1;
     frames[37] = _t8;
     frames[38] = 0;
     frames[39] = _t9;
@@ -160,11 +402,11 @@ void adept_three_frames(const double *restrict q, const adept_three_params *rest
     frames[45] = 0;
     frames[46] = 0;
     frames[47] = 1;
-    frames[48] = _t5;
-    frames[49] = _t6;
+    frames[48] = _c1;
+    frames[49] = _s1;
     frames[50] = 0;
     frames[51] = _t7;
-    frames[52] = _t6;
+    frames[52] = _s1;
     frames[53] = _t8;
     frames[54] = 0;
     frames[55] = _t9;
@@ -176,12 +418,12 @@ void adept_three_frames(const double *restrict q, const adept_three_params *rest
     frames[61] = 0;
     frames[62] = 0;
     frames[63] = 1;
-    frames[64] = _t11;
-    frames[65] = _t12;
+    frames[64] = _c2;
+    frames[65] = _s2;
     frames[66] = 0;
     frames[67] = _t7;
-    frames[68] = _t12;
-    frames[69] = -_t11;
+    frames[68] = _s2;
+    frames[69] = -_c2;
     frames[70] = 0;
     frames[71] = _t9;
     frames[72] = 0;
@@ -194,12 +436,276 @@ void adept_three_frames(const double *restrict q, const adept_three_params *rest
     frames[79] = 1;
 }
 
+/* frames of `count` items, stored one after the other in each argument and output. */
 void adept_three_frames_batch(size_t count, const double *restrict q, const adept_three_params *restrict params, double *restrict frames)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(32)];
+    double q2[KINEGEN_BLOCK_OF(32)];
+    double q3[KINEGEN_BLOCK_OF(32)];
+    double q4[KINEGEN_BLOCK_OF(32)];
+    double _t4[KINEGEN_BLOCK_OF(32)];
+    double _t10[KINEGEN_BLOCK_OF(32)];
+    double _s0[KINEGEN_BLOCK_OF(32)];
+    double _c0[KINEGEN_BLOCK_OF(32)];
+    double _s1[KINEGEN_BLOCK_OF(32)];
+    double _c1[KINEGEN_BLOCK_OF(32)];
+    double _s2[KINEGEN_BLOCK_OF(32)];
+    double _c2[KINEGEN_BLOCK_OF(32)];
+#ifdef KINEGEN_STREAM
+    double _frames_block[80][KINEGEN_BLOCK_OF(32)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 80 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double d1 = params->d1;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(32) ? count - start : KINEGEN_BLOCK_OF(32);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[4 * (start + i) + 0];
+            q2[i] = q[4 * (start + i) + 1];
+            q3[i] = q[4 * (start + i) + 2];
+            q4[i] = q[4 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t4[i] = q1[i] + q2[i];
+            _t10[i] = _t4[i] - q4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t10[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t10[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c0[i]*l1;
+                const double _t3 = _s0[i]*l1;
+                const double _t7 = _c1[i]*l2 + _t2;
+                const double _t8 = -_c1[i];
+                const double _t9 = _s1[i]*l2 + _t3;
+                _frames_block[0][i] = 1;
+                _frames_block[1][i] = 0;
+                _frames_block[2][i] = 0;
+                _frames_block[3][i] = 0;
+                _frames_block[4][i] = 0;
+                _frames_block[5][i] = 1;
+                _frames_block[6][i] = 0;
+                _frames_block[7][i] = 0;
+                _frames_block[8][i] = 0;
+                _frames_block[9][i] = 0;
+                _frames_block[10][i] = 1;
+                _frames_block[11][i] = 0;
+                _frames_block[12][i] = 0;
+                _frames_block[13][i] = 0;
+                _frames_block[14][i] = 0;
+                _frames_block[15][i] = 1;
+                _frames_block[16][i] = _c0[i];
+                _frames_block[17][i] = -_s0[i];
+                _frames_block[18][i] = 0;
+                _frames_block[19][i] = _t2;
+                _frames_block[20][i] = _s0[i];
+                _frames_block[21][i] = _c0[i];
+                _frames_block[22][i] = 0;
+                _frames_block[23][i] = _t3;
+                _frames_block[24][i] = 0;
+                _frames_block[25][i] = 0;
+                _frames_block[26][i] = 1;
+                _frames_block[27][i] = d1;
+                _frames_block[28][i] = 0;
+                _frames_block[29][i] = 0;
+                _frames_block[30][i] = 0;
+                _frames_block[31][i] = 1;
+                _frames_block[32][i] = _c1[i];
+                _frames_block[33][i] = _s1[i];
+                _frames_block[34][i] = 0;
+                _frames_block[35][i] = _t7;
+                _frames_block[36][i] = _s1[i];
+                _frames_block[37][i] = _t8;
+                _frames_block[38][i] = 0;
+                _frames_block[39][i] = _t9;
+                _frames_block[40][i] = 0;
+                _frames_block[41][i] = 0;
+                _frames_block[42][i] = -1;
+                _frames_block[43][i] = d1;
+                _frames_block[44][i] = 0;
+                _frames_block[45][i] = 0;
+                _frames_block[46][i] = 0;
+                _frames_block[47][i] = 1;
+                _frames_block[48][i] = _c1[i];
+                _frames_block[49][i] = _s1[i];
+                _frames_block[50][i] = 0;
+                _frames_block[51][i] = _t7;
+                _frames_block[52][i] = _s1[i];
+                _frames_block[53][i] = _t8;
+                _frames_block[54][i] = 0;
+                _frames_block[55][i] = _t9;
+                _frames_block[56][i] = 0;
+                _frames_block[57][i] = 0;
+                _frames_block[58][i] = -1;
+                _frames_block[59][i] = d1 - q3[i];
+                _frames_block[60][i] = 0;
+                _frames_block[61][i] = 0;
+                _frames_block[62][i] = 0;
+                _frames_block[63][i] = 1;
+                _frames_block[64][i] = _c2[i];
+                _frames_block[65][i] = _s2[i];
+                _frames_block[66][i] = 0;
+                _frames_block[67][i] = _t7;
+                _frames_block[68][i] = _s2[i];
+                _frames_block[69][i] = -_c2[i];
+                _frames_block[70][i] = 0;
+                _frames_block[71][i] = _t9;
+                _frames_block[72][i] = 0;
+                _frames_block[73][i] = 0;
+                _frames_block[74][i] = -1;
+                _frames_block[75][i] = d1 - d4 - q3[i];
+                _frames_block[76][i] = 0;
+                _frames_block[77][i] = 0;
+                _frames_block[78][i] = 0;
+                _frames_block[79][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c0[i]*l1;
+                const double _t3 = _s0[i]*l1;
+                const double _t7 = _c1[i]*l2 + _t2;
+                const double _t8 = -_c1[i];
+                const double _t9 = _s1[i]*l2 + _t3;
+                frames[80 * (start + i) + 0] = 1;
+                frames[80 * (start + i) + 1] = 0;
+                frames[80 * (start + i) + 2] = 0;
+                frames[80 * (start + i) + 3] = 0;
+                frames[80 * (start + i) + 4] = 0;
+                frames[80 * (start + i) + 5] = 1;
+                frames[80 * (start + i) + 6] = 0;
+                frames[80 * (start + i) + 7] = 0;
+                frames[80 * (start + i) + 8] = 0;
+                frames[80 * (start + i) + 9] = 0;
+                frames[80 * (start + i) + 10] = 1;
+                frames[80 * (start + i) + 11] = 0;
+                frames[80 * (start + i) + 12] = 0;
+                frames[80 * (start + i) + 13] = 0;
+                frames[80 * (start + i) + 14] = 0;
+                frames[80 * (start + i) + 15] = 1;
+                frames[80 * (start + i) + 16] = _c0[i];
+                frames[80 * (start + i) + 17] = -_s0[i];
+                frames[80 * (start + i) + 18] = 0;
+                frames[80 * (start + i) + 19] = _t2;
+                frames[80 * (start + i) + 20] = _s0[i];
+                frames[80 * (start + i) + 21] = _c0[i];
+                frames[80 * (start + i) + 22] = 0;
+                frames[80 * (start + i) + 23] = _t3;
+                frames[80 * (start + i) + 24] = 0;
+                frames[80 * (start + i) + 25] = 0;
+                frames[80 * (start + i) + 26] = 1;
+                frames[80 * (start + i) + 27] = d1;
+                frames[80 * (start + i) + 28] = 0;
+                frames[80 * (start + i) + 29] = 0;
+                frames[80 * (start + i) + 30] = 0;
+                frames[80 * (start + i) + 31] = 1;
+                frames[80 * (start + i) + 32] = _c1[i];
+                frames[80 * (start + i) + 33] = _s1[i];
+                frames[80 * (start + i) + 34] = 0;
+                frames[80 * (start + i) + 35] = _t7;
+                frames[80 * (start + i) + 36] = _s1[i];
+                frames[80 * (start + i) + 37] = _t8;
+                frames[80 * (start + i) + 38] = 0;
+                frames[80 * (start + i) + 39] = _t9;
+                frames[80 * (start + i) + 40] = 0;
+                frames[80 * (start + i) + 41] = 0;
+                frames[80 * (start + i) + 42] = -1;
+                frames[80 * (start + i) + 43] = d1;
+                frames[80 * (start + i) + 44] = 0;
+                frames[80 * (start + i) + 45] = 0;
+                frames[80 * (start + i) + 46] = 0;
+                frames[80 * (start + i) + 47] = 1;
+                frames[80 * (start + i) + 48] = _c1[i];
+                frames[80 * (start + i) + 49] = _s1[i];
+                frames[80 * (start + i) + 50] = 0;
+                frames[80 * (start + i) + 51] = _t7;
+                frames[80 * (start + i) + 52] = _s1[i];
+                frames[80 * (start + i) + 53] = _t8;
+                frames[80 * (start + i) + 54] = 0;
+                frames[80 * (start + i) + 55] = _t9;
+                frames[80 * (start + i) + 56] = 0;
+                frames[80 * (start + i) + 57] = 0;
+                frames[80 * (start + i) + 58] = -1;
+                frames[80 * (start + i) + 59] = d1 - q3[i];
+                frames[80 * (start + i) + 60] = 0;
+                frames[80 * (start + i) + 61] = 0;
+                frames[80 * (start + i) + 62] = 0;
+                frames[80 * (start + i) + 63] = 1;
+                frames[80 * (start + i) + 64] = _c2[i];
+                frames[80 * (start + i) + 65] = _s2[i];
+                frames[80 * (start + i) + 66] = 0;
+                frames[80 * (start + i) + 67] = _t7;
+                frames[80 * (start + i) + 68] = _s2[i];
+                frames[80 * (start + i) + 69] = -_c2[i];
+                frames[80 * (start + i) + 70] = 0;
+                frames[80 * (start + i) + 71] = _t9;
+                frames[80 * (start + i) + 72] = 0;
+                frames[80 * (start + i) + 73] = 0;
+                frames[80 * (start + i) + 74] = -1;
+                frames[80 * (start + i) + 75] = d1 - d4 - q3[i];
+                frames[80 * (start + i) + 76] = 0;
+                frames[80 * (start + i) + 77] = 0;
+                frames[80 * (start + i) + 78] = 0;
+                frames[80 * (start + i) + 79] = 1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 80; k += 2) {
+                    _mm_stream_pd(frames + 80 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         adept_three_frames(q + 4 * i, params, frames + 80 * i);
     }
+#endif
 }
 
 /* Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 4). */
@@ -213,13 +719,39 @@ void adept_three_jacobian(const double *restrict q, const adept_three_params *re
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _t1 = l2*sin(_t0);
-    const double _t2 = l2*cos(_t0);
-    J[0] = -_t1 - l1*sin(q1);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+#endif
+    const double _t1 = _s0*l2;
+    const double _t2 = _c0*l2;
+    J[0] = -_s1*l1 - _t1;
     J[1] = -_t1;
     J[2] = 0;
     J[3] = 0;
-    J[4] = _t2 + l1*cos(q1);
+    J[4] = _c1*l1 + _t2;
     J[5] = _t2;
     J[6] = 0;
     J[7] = 0;
@@ -241,12 +773,140 @@ void adept_three_jacobian(const double *restrict q, const adept_three_params *re
     J[23] = -1;
 }
 
+/* jacobian of `count` items, stored one after the other in each argument and output. */
 void adept_three_jacobian_batch(size_t count, const double *restrict q, const adept_three_params *restrict params, double *restrict J)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _J_block[24][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 24 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[4 * (start + i) + 0];
+            q2[i] = q[4 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = _c0[i]*l2;
+                _J_block[0][i] = -_s1[i]*l1 - _t1;
+                _J_block[1][i] = -_t1;
+                _J_block[2][i] = 0;
+                _J_block[3][i] = 0;
+                _J_block[4][i] = _c1[i]*l1 + _t2;
+                _J_block[5][i] = _t2;
+                _J_block[6][i] = 0;
+                _J_block[7][i] = 0;
+                _J_block[8][i] = 0;
+                _J_block[9][i] = 0;
+                _J_block[10][i] = -1;
+                _J_block[11][i] = 0;
+                _J_block[12][i] = 0;
+                _J_block[13][i] = 0;
+                _J_block[14][i] = 0;
+                _J_block[15][i] = 0;
+                _J_block[16][i] = 0;
+                _J_block[17][i] = 0;
+                _J_block[18][i] = 0;
+                _J_block[19][i] = 0;
+                _J_block[20][i] = 1;
+                _J_block[21][i] = 1;
+                _J_block[22][i] = 0;
+                _J_block[23][i] = -1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = _c0[i]*l2;
+                J[24 * (start + i) + 0] = -_s1[i]*l1 - _t1;
+                J[24 * (start + i) + 1] = -_t1;
+                J[24 * (start + i) + 2] = 0;
+                J[24 * (start + i) + 3] = 0;
+                J[24 * (start + i) + 4] = _c1[i]*l1 + _t2;
+                J[24 * (start + i) + 5] = _t2;
+                J[24 * (start + i) + 6] = 0;
+                J[24 * (start + i) + 7] = 0;
+                J[24 * (start + i) + 8] = 0;
+                J[24 * (start + i) + 9] = 0;
+                J[24 * (start + i) + 10] = -1;
+                J[24 * (start + i) + 11] = 0;
+                J[24 * (start + i) + 12] = 0;
+                J[24 * (start + i) + 13] = 0;
+                J[24 * (start + i) + 14] = 0;
+                J[24 * (start + i) + 15] = 0;
+                J[24 * (start + i) + 16] = 0;
+                J[24 * (start + i) + 17] = 0;
+                J[24 * (start + i) + 18] = 0;
+                J[24 * (start + i) + 19] = 0;
+                J[24 * (start + i) + 20] = 1;
+                J[24 * (start + i) + 21] = 1;
+                J[24 * (start + i) + 22] = 0;
+                J[24 * (start + i) + 23] = -1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 24; k += 2) {
+                    _mm_stream_pd(J + 24 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         adept_three_jacobian(q + 4 * i, params, J + 24 * i);
     }
+#endif
 }
 
 /* Task coordinates x, y, z, phi, shape (..., 4). */
@@ -264,18 +924,134 @@ void adept_three_task(const double *restrict q, const adept_three_params *restri
     const double d1 = params->d1;
     const double d4 = params->d4;
     const double _t0 = q1 + q2;
-    x[0] = l1*cos(q1) + l2*cos(_t0);
-    x[1] = l1*sin(q1) + l2*sin(_t0);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q1, _t0, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+#endif
+    x[0] = _c0*l1 + _c1*l2;
+    x[1] = _s0*l1 + _s1*l2;
     x[2] = d1 - d4 - q3;
     x[3] = _t0 - q4;
 }
 
+/* task of `count` items, stored one after the other in each argument and output. */
 void adept_three_task_batch(size_t count, const double *restrict q, const adept_three_params *restrict params, double *restrict x)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _x_block[4][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)x & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double d1 = params->d1;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[4 * (start + i) + 0];
+            q2[i] = q[4 * (start + i) + 1];
+            q3[i] = q[4 * (start + i) + 2];
+            q4[i] = q[4 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t0[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _x_block[0][i] = _c0[i]*l1 + _c1[i]*l2;
+                _x_block[1][i] = _s0[i]*l1 + _s1[i]*l2;
+                _x_block[2][i] = d1 - d4 - q3[i];
+                _x_block[3][i] = _t0[i] - q4[i];
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                x[4 * (start + i) + 0] = _c0[i]*l1 + _c1[i]*l2;
+                x[4 * (start + i) + 1] = _s0[i]*l1 + _s1[i]*l2;
+                x[4 * (start + i) + 2] = d1 - d4 - q3[i];
+                x[4 * (start + i) + 3] = _t0[i] - q4[i];
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 4; k += 2) {
+                    _mm_stream_pd(x + 4 * (start + i) + k, _mm_set_pd(_x_block[k + 1][i], _x_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         adept_three_task(q + 4 * i, params, x + 4 * i);
     }
+#endif
 }
 
 /* d task / d q, shape (..., 4, 4). */
@@ -289,13 +1065,39 @@ void adept_three_task_jacobian(const double *restrict q, const adept_three_param
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _t1 = l2*sin(_t0);
-    const double _t2 = l2*cos(_t0);
-    Jx[0] = -_t1 - l1*sin(q1);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+#endif
+    const double _t1 = _s0*l2;
+    const double _t2 = _c0*l2;
+    Jx[0] = -_s1*l1 - _t1;
     Jx[1] = -_t1;
     Jx[2] = 0;
     Jx[3] = 0;
-    Jx[4] = _t2 + l1*cos(q1);
+    Jx[4] = _c1*l1 + _t2;
     Jx[5] = _t2;
     Jx[6] = 0;
     Jx[7] = 0;
@@ -309,12 +1111,146 @@ void adept_three_task_jacobian(const double *restrict q, const adept_three_param
     Jx[15] = -1;
 }
 
+/* task_jacobian of `count` items, stored one after the other in each argument and output. */
 void adept_three_task_jacobian_batch(size_t count, const double *restrict q, const adept_three_params *restrict params, double *restrict Jx)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _Jx_block[16][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[4 * (start + i) + 0];
+            q2[i] = q[4 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = _c0[i]*l2;
+                _Jx_block[0][i] = -_s1[i]*l1 - _t1;
+                _Jx_block[1][i] = -_t1;
+                _Jx_block[2][i] = 0;
+                _Jx_block[3][i] = 0;
+                _Jx_block[4][i] = _c1[i]*l1 + _t2;
+                _Jx_block[5][i] = _t2;
+                _Jx_block[6][i] = 0;
+                _Jx_block[7][i] = 0;
+                _Jx_block[8][i] = 0;
+                _Jx_block[9][i] = 0;
+                _Jx_block[10][i] = -1;
+                _Jx_block[11][i] = 0;
+                _Jx_block[12][i] = 1;
+                _Jx_block[13][i] = 1;
+                _Jx_block[14][i] = 0;
+                _Jx_block[15][i] = -1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = _c0[i]*l2;
+                Jx[16 * (start + i) + 0] = -_s1[i]*l1 - _t1;
+                Jx[16 * (start + i) + 1] = -_t1;
+                Jx[16 * (start + i) + 2] = 0;
+                Jx[16 * (start + i) + 3] = 0;
+                Jx[16 * (start + i) + 4] = _c1[i]*l1 + _t2;
+                Jx[16 * (start + i) + 5] = _t2;
+                Jx[16 * (start + i) + 6] = 0;
+                Jx[16 * (start + i) + 7] = 0;
+                Jx[16 * (start + i) + 8] = 0;
+                Jx[16 * (start + i) + 9] = 0;
+                Jx[16 * (start + i) + 10] = -1;
+                Jx[16 * (start + i) + 11] = 0;
+                Jx[16 * (start + i) + 12] = 1;
+                Jx[16 * (start + i) + 13] = 1;
+                Jx[16 * (start + i) + 14] = 0;
+                Jx[16 * (start + i) + 15] = -1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 16; k += 2) {
+                    _mm_stream_pd(Jx + 16 * (start + i) + k, _mm_set_pd(_Jx_block[k + 1][i], _Jx_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         adept_three_task_jacobian(q + 4 * i, params, Jx + 16 * i);
     }
+#endif
+}
+
+/* The checks after an ik of one target x: a branch with a joint value that is not
+   finite, or of a target that is not, is not valid; returns the number of valid branches. */
+static int adept_three_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
+{
+    int branch, joint, finite_target = 1, valid_branches = 0;
+    for (joint = 0; joint < 4; ++joint) {
+        finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
+    }
+    for (branch = 0; branch < 2; ++branch) {
+        if (!finite_target) {
+            valid[branch] = 0;
+        }
+        for (joint = 0; joint < 4; ++joint) {
+            if (!isfinite(Q[4 * branch + joint])) {
+                valid[branch] = 0;  /* no NaN leaks out as a valid answer */
+            }
+        }
+        valid_branches += valid[branch] != 0;
+    }
+    return valid_branches;
 }
 
 /* Inverse kinematics, all 2 branches (lefty, righty): Q (..., 2, 4), valid (..., 2).
@@ -333,61 +1269,157 @@ int adept_three_ik(const double *restrict _x, const adept_three_params *restrict
     const double l2 = params->l2;
     const double d1 = params->d1;
     const double d4 = params->d4;
-    const double _t0 = (l1*l1) + (l2*l2) - (x*x) - (y*y);
     const double _t1 = 1/(l1*l2);
-    const double _t2 = fmin(1, fmax(-1, -0.5*_t0*_t1));
+    const double _t0 = (l1*l1) + (l2*l2) - (x*x) - (y*y);
+    const double _t2 = kinegen_min(1, kinegen_max(-1, -0.5*_t0*_t1));
     const double _t3 = _t2*l2 + l1;
     const double _t4 = l2*sqrt(1 - (_t2*_t2));
     const double _t5 = _t4*x;
     const double _t6 = _t4*y;
-    const double _t7 = atan2(_t3*y + _t5, _t3*x - _t6);
-    const double _t8 = acos(_t2);
+    const double _a0 = _t3*y + _t5;
+    const double _a1 = _t3*x - _t6;
+    const double _a2 = _t3*y - _t5;
+    const double _a3 = _t3*x + _t6;
+    double _f0, _f1, _f2;
+#if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+    {
+        /* The atan2 arguments side by side: one vector call. */
+        const double argument0[4] = { _a0, _a2, 0.0, 0.0 };
+        const double argument1[4] = { _a1, _a3, 1.0, 1.0 };
+        double result[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            result[k] = atan2(argument0[k], argument1[k]);
+        }
+        _f0 = result[0];
+        _f2 = result[1];
+    }
+#else
+    _f0 = atan2(_a0, _a1);
+    _f2 = atan2(_a2, _a3);
+#endif
+    _f1 = acos(_t2);
     const double _t9 = d1 - d4 - z;
-    const double _t10 = atan2(_t3*y - _t5, _t3*x + _t6);
     const int _t11 = (0.5)*fabs(_t0*_t1) <= 1.000000000001;
-    Q[0] = kinegen_wrap_angle(_t7);
-    Q[1] = kinegen_wrap_angle(-_t8);
+    Q[0] = kinegen_wrap_angle(_f0);
+    Q[1] = kinegen_wrap_angle(-_f1);
     Q[2] = _t9;
-    Q[3] = kinegen_wrap_angle(_t7 - _t8 - phi);
-    Q[4] = kinegen_wrap_angle(_t10);
-    Q[5] = kinegen_wrap_angle(_t8);
+    Q[3] = kinegen_wrap_angle(_f0 - _f1 - phi);
+    Q[4] = kinegen_wrap_angle(_f2);
+    Q[5] = kinegen_wrap_angle(_f1);
     Q[6] = _t9;
-    Q[7] = kinegen_wrap_angle(_t10 + _t8 - phi);
+    Q[7] = kinegen_wrap_angle(_f1 + _f2 - phi);
     valid[0] = _t11;
     valid[1] = _t11;
-    {
-        int branch, joint, finite_target = 1, valid_branches = 0;
-        for (joint = 0; joint < 4; ++joint) {
-            finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
-        }
-        for (branch = 0; branch < 2; ++branch) {
-            if (!finite_target) {
-                valid[branch] = 0;
-            }
-            for (joint = 0; joint < 4; ++joint) {
-                if (!isfinite(Q[4 * branch + joint])) {
-                    valid[branch] = 0;  /* no NaN leaks out as a valid answer */
-                }
-            }
-            valid_branches += valid[branch] != 0;
-        }
-        return valid_branches;
-    }
+    return adept_three_ik_checks(_x, Q, valid);
 }
 
-long adept_three_ik_batch(size_t count, const double *restrict x, const adept_three_params *restrict params, double *restrict Q, int *restrict valid)
+/* ik of `count` items, stored one after the other in each argument and output.   Returns the total number of valid branches, or -1 if any item was refused. */
+long adept_three_ik_batch(size_t count, const double *restrict _x, const adept_three_params *restrict params, double *restrict Q, int *restrict valid)
 {
-    size_t i;
     long valid_branches = 0;
     int refused = 0;
+#ifdef KINEGEN_BLOCKED
+    double x[KINEGEN_BLOCK_OF(64)];
+    double y[KINEGEN_BLOCK_OF(64)];
+    double z[KINEGEN_BLOCK_OF(64)];
+    double phi[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
+    double _a0[KINEGEN_BLOCK_OF(64)];
+    double _a1[KINEGEN_BLOCK_OF(64)];
+    double _a2[KINEGEN_BLOCK_OF(64)];
+    double _a3[KINEGEN_BLOCK_OF(64)];
+    double _f0[KINEGEN_BLOCK_OF(64)];
+    double _f1[KINEGEN_BLOCK_OF(64)];
+    double _f2[KINEGEN_BLOCK_OF(64)];
+    double _Q_block[8][KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double d1 = params->d1;
+    const double d4 = params->d4;
+    const double _t1 = 1/(l1*l2);
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            x[i] = _x[4 * (start + i) + 0];
+            y[i] = _x[4 * (start + i) + 1];
+            z[i] = _x[4 * (start + i) + 2];
+            phi[i] = _x[4 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = (l1*l1) + (l2*l2) - (x[i]*x[i]) - (y[i]*y[i]);
+            _t2[i] = kinegen_min(1, kinegen_max(-1, -0.5*_t0[i]*_t1));
+            const double _t3 = _t2[i]*l2 + l1;
+            const double _t4 = l2*sqrt(1 - (_t2[i]*_t2[i]));
+            const double _t5 = _t4*x[i];
+            const double _t6 = _t4*y[i];
+            _a0[i] = _t3*y[i] + _t5;
+            _a1[i] = _t3*x[i] - _t6;
+            _a2[i] = _t3*y[i] - _t5;
+            _a3[i] = _t3*x[i] + _t6;
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f0[i] = atan2(_a0[i], _a1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f1[i] = acos(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f2[i] = atan2(_a2[i], _a3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t9 = d1 - d4 - z[i];
+            const int _t11 = (0.5)*fabs(_t0[i]*_t1) <= 1.000000000001;
+            _Q_block[0][i] = kinegen_wrap_angle(_f0[i]);
+            _Q_block[1][i] = kinegen_wrap_angle(-_f1[i]);
+            _Q_block[2][i] = _t9;
+            _Q_block[3][i] = kinegen_wrap_angle(_f0[i] - _f1[i] - phi[i]);
+            _Q_block[4][i] = kinegen_wrap_angle(_f2[i]);
+            _Q_block[5][i] = kinegen_wrap_angle(_f1[i]);
+            _Q_block[6][i] = _t9;
+            _Q_block[7][i] = kinegen_wrap_angle(_f1[i] + _f2[i] - phi[i]);
+            valid[2 * (start + i) + 0] = _t11;
+            valid[2 * (start + i) + 1] = _t11;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 8; ++k) {
+                    Q[8 * (start + i) + k] = _Q_block[k][i];
+                }
+            }
+        }
+        for (i = 0; i < n; ++i) {
+            const int found = adept_three_ik_checks(_x + 4 * (start + i), Q + 8 * (start + i), valid + 2 * (start + i));
+            if (found < 0) {
+                refused = 1;
+            } else {
+                valid_branches += found;
+            }
+        }
+    }
+#else
+    size_t i;
     for (i = 0; i < count; ++i) {
-        const int found = adept_three_ik(x + 4 * i, params, Q + 8 * i, valid + 2 * i);
+        const int found = adept_three_ik(_x + 4 * i, params, Q + 8 * i, valid + 2 * i);
         if (found < 0) {
             refused = 1;
         } else {
             valid_branches += found;
         }
     }
+#endif
     return refused ? -1 : valid_branches;
 }
 
@@ -406,20 +1438,142 @@ void adept_three_task_velocity(const double *restrict q, const double *restrict 
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _t1 = l2*sin(_t0);
-    const double _t2 = l2*cos(_t0);
-    xd[0] = -_t1*qd2 + qd1*(-_t1 - l1*sin(q1));
-    xd[1] = _t2*qd2 + qd1*(_t2 + l1*cos(q1));
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+#endif
+    const double _t1 = _s0*l2;
+    const double _t2 = _c0*l2;
+    xd[0] = -_t1*qd2 + qd1*(-_s1*l1 - _t1);
+    xd[1] = _t2*qd2 + qd1*(_c1*l1 + _t2);
     xd[2] = -qd3;
     xd[3] = qd1 + qd2 - qd4;
 }
 
+/* task_velocity of `count` items, stored one after the other in each argument and output. */
 void adept_three_task_velocity_batch(size_t count, const double *restrict q, const double *restrict qd, const adept_three_params *restrict params, double *restrict xd)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double qd3[KINEGEN_BLOCK_OF(64)];
+    double qd4[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _xd_block[4][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)xd & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[4 * (start + i) + 0];
+            q2[i] = q[4 * (start + i) + 1];
+            qd1[i] = qd[4 * (start + i) + 0];
+            qd2[i] = qd[4 * (start + i) + 1];
+            qd3[i] = qd[4 * (start + i) + 2];
+            qd4[i] = qd[4 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = _c0[i]*l2;
+                _xd_block[0][i] = -_t1*qd2[i] + qd1[i]*(-_s1[i]*l1 - _t1);
+                _xd_block[1][i] = _t2*qd2[i] + qd1[i]*(_c1[i]*l1 + _t2);
+                _xd_block[2][i] = -qd3[i];
+                _xd_block[3][i] = qd1[i] + qd2[i] - qd4[i];
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = _c0[i]*l2;
+                xd[4 * (start + i) + 0] = -_t1*qd2[i] + qd1[i]*(-_s1[i]*l1 - _t1);
+                xd[4 * (start + i) + 1] = _t2*qd2[i] + qd1[i]*(_c1[i]*l1 + _t2);
+                xd[4 * (start + i) + 2] = -qd3[i];
+                xd[4 * (start + i) + 3] = qd1[i] + qd2[i] - qd4[i];
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 4; k += 2) {
+                    _mm_stream_pd(xd + 4 * (start + i) + k, _mm_set_pd(_xd_block[k + 1][i], _xd_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         adept_three_task_velocity(q + 4 * i, qd + 4 * i, params, xd + 4 * i);
     }
+#endif
 }
 
 /* Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s. */
@@ -437,22 +1591,148 @@ void adept_three_twist(const double *restrict q, const double *restrict qd, cons
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _t1 = l2*sin(_t0);
-    const double _t2 = l2*cos(_t0);
-    twist[0] = -_t1*qd2 + qd1*(-_t1 - l1*sin(q1));
-    twist[1] = _t2*qd2 + qd1*(_t2 + l1*cos(q1));
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+#endif
+    const double _t1 = _s0*l2;
+    const double _t2 = _c0*l2;
+    twist[0] = -_t1*qd2 + qd1*(-_s1*l1 - _t1);
+    twist[1] = _t2*qd2 + qd1*(_c1*l1 + _t2);
     twist[2] = -qd3;
     twist[3] = 0;
     twist[4] = 0;
     twist[5] = qd1 + qd2 - qd4;
 }
 
+/* twist of `count` items, stored one after the other in each argument and output. */
 void adept_three_twist_batch(size_t count, const double *restrict q, const double *restrict qd, const adept_three_params *restrict params, double *restrict twist)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double qd3[KINEGEN_BLOCK_OF(64)];
+    double qd4[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _twist_block[6][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)twist & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[4 * (start + i) + 0];
+            q2[i] = q[4 * (start + i) + 1];
+            qd1[i] = qd[4 * (start + i) + 0];
+            qd2[i] = qd[4 * (start + i) + 1];
+            qd3[i] = qd[4 * (start + i) + 2];
+            qd4[i] = qd[4 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = _c0[i]*l2;
+                _twist_block[0][i] = -_t1*qd2[i] + qd1[i]*(-_s1[i]*l1 - _t1);
+                _twist_block[1][i] = _t2*qd2[i] + qd1[i]*(_c1[i]*l1 + _t2);
+                _twist_block[2][i] = -qd3[i];
+                _twist_block[3][i] = 0;
+                _twist_block[4][i] = 0;
+                _twist_block[5][i] = qd1[i] + qd2[i] - qd4[i];
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = _c0[i]*l2;
+                twist[6 * (start + i) + 0] = -_t1*qd2[i] + qd1[i]*(-_s1[i]*l1 - _t1);
+                twist[6 * (start + i) + 1] = _t2*qd2[i] + qd1[i]*(_c1[i]*l1 + _t2);
+                twist[6 * (start + i) + 2] = -qd3[i];
+                twist[6 * (start + i) + 3] = 0;
+                twist[6 * (start + i) + 4] = 0;
+                twist[6 * (start + i) + 5] = qd1[i] + qd2[i] - qd4[i];
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 6; k += 2) {
+                    _mm_stream_pd(twist + 6 * (start + i) + k, _mm_set_pd(_twist_block[k + 1][i], _twist_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         adept_three_twist(q + 4 * i, qd + 4 * i, params, twist + 6 * i);
     }
+#endif
 }
 
 /* d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 4, 4). */
@@ -468,15 +1748,41 @@ void adept_three_task_jacobian_dot(const double *restrict q, const double *restr
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _t1 = l2*cos(_t0);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+#endif
+    const double _t1 = _c0*l2;
     const double _t2 = _t1*qd2;
-    const double _t3 = l2*sin(_t0);
+    const double _t3 = _s0*l2;
     const double _t4 = _t3*qd2;
-    Jx_dot[0] = -_t2 + qd1*(-_t1 - l1*cos(q1));
+    Jx_dot[0] = -_t2 + qd1*(-_c1*l1 - _t1);
     Jx_dot[1] = -_t1*qd1 - _t2;
     Jx_dot[2] = 0;
     Jx_dot[3] = 0;
-    Jx_dot[4] = -_t4 + qd1*(-_t3 - l1*sin(q1));
+    Jx_dot[4] = -_t4 + qd1*(-_s1*l1 - _t3);
     Jx_dot[5] = -_t3*qd1 - _t4;
     Jx_dot[6] = 0;
     Jx_dot[7] = 0;
@@ -490,12 +1796,132 @@ void adept_three_task_jacobian_dot(const double *restrict q, const double *restr
     Jx_dot[15] = 0;
 }
 
+/* task_jacobian_dot of `count` items, stored one after the other in each argument and output. */
 void adept_three_task_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const adept_three_params *restrict params, double *restrict Jx_dot)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _Jx_dot_block[16][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx_dot & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[4 * (start + i) + 0];
+            q2[i] = q[4 * (start + i) + 1];
+            qd1[i] = qd[4 * (start + i) + 0];
+            qd2[i] = qd[4 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _c0[i]*l2;
+                const double _t2 = _t1*qd2[i];
+                const double _t3 = _s0[i]*l2;
+                const double _t4 = _t3*qd2[i];
+                _Jx_dot_block[0][i] = -_t2 + qd1[i]*(-_c1[i]*l1 - _t1);
+                _Jx_dot_block[1][i] = -_t1*qd1[i] - _t2;
+                _Jx_dot_block[2][i] = 0;
+                _Jx_dot_block[3][i] = 0;
+                _Jx_dot_block[4][i] = -_t4 + qd1[i]*(-_s1[i]*l1 - _t3);
+                _Jx_dot_block[5][i] = -_t3*qd1[i] - _t4;
+                _Jx_dot_block[6][i] = 0;
+                _Jx_dot_block[7][i] = 0;
+                _Jx_dot_block[8][i] = 0;
+                _Jx_dot_block[9][i] = 0;
+                _Jx_dot_block[10][i] = 0;
+                _Jx_dot_block[11][i] = 0;
+                _Jx_dot_block[12][i] = 0;
+                _Jx_dot_block[13][i] = 0;
+                _Jx_dot_block[14][i] = 0;
+                _Jx_dot_block[15][i] = 0;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _c0[i]*l2;
+                const double _t2 = _t1*qd2[i];
+                const double _t3 = _s0[i]*l2;
+                const double _t4 = _t3*qd2[i];
+                Jx_dot[16 * (start + i) + 0] = -_t2 + qd1[i]*(-_c1[i]*l1 - _t1);
+                Jx_dot[16 * (start + i) + 1] = -_t1*qd1[i] - _t2;
+                Jx_dot[16 * (start + i) + 2] = 0;
+                Jx_dot[16 * (start + i) + 3] = 0;
+                Jx_dot[16 * (start + i) + 4] = -_t4 + qd1[i]*(-_s1[i]*l1 - _t3);
+                Jx_dot[16 * (start + i) + 5] = -_t3*qd1[i] - _t4;
+                Jx_dot[16 * (start + i) + 6] = 0;
+                Jx_dot[16 * (start + i) + 7] = 0;
+                Jx_dot[16 * (start + i) + 8] = 0;
+                Jx_dot[16 * (start + i) + 9] = 0;
+                Jx_dot[16 * (start + i) + 10] = 0;
+                Jx_dot[16 * (start + i) + 11] = 0;
+                Jx_dot[16 * (start + i) + 12] = 0;
+                Jx_dot[16 * (start + i) + 13] = 0;
+                Jx_dot[16 * (start + i) + 14] = 0;
+                Jx_dot[16 * (start + i) + 15] = 0;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 16; k += 2) {
+                    _mm_stream_pd(Jx_dot + 16 * (start + i) + k, _mm_set_pd(_Jx_dot_block[k + 1][i], _Jx_dot_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         adept_three_task_jacobian_dot(q + 4 * i, qd + 4 * i, params, Jx_dot + 16 * i);
     }
+#endif
 }
 
 /* d(J)/dt of the geometric Jacobian, shape (..., 6, 4). */
@@ -511,15 +1937,41 @@ void adept_three_jacobian_dot(const double *restrict q, const double *restrict q
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _t1 = l2*cos(_t0);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+#endif
+    const double _t1 = _c0*l2;
     const double _t2 = _t1*qd2;
-    const double _t3 = l2*sin(_t0);
+    const double _t3 = _s0*l2;
     const double _t4 = _t3*qd2;
-    J_dot[0] = -_t2 + qd1*(-_t1 - l1*cos(q1));
+    J_dot[0] = -_t2 + qd1*(-_c1*l1 - _t1);
     J_dot[1] = -_t1*qd1 - _t2;
     J_dot[2] = 0;
     J_dot[3] = 0;
-    J_dot[4] = -_t4 + qd1*(-_t3 - l1*sin(q1));
+    J_dot[4] = -_t4 + qd1*(-_s1*l1 - _t3);
     J_dot[5] = -_t3*qd1 - _t4;
     J_dot[6] = 0;
     J_dot[7] = 0;
@@ -541,12 +1993,148 @@ void adept_three_jacobian_dot(const double *restrict q, const double *restrict q
     J_dot[23] = 0;
 }
 
+/* jacobian_dot of `count` items, stored one after the other in each argument and output. */
 void adept_three_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const adept_three_params *restrict params, double *restrict J_dot)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _J_dot_block[24][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 24 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_dot & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[4 * (start + i) + 0];
+            q2[i] = q[4 * (start + i) + 1];
+            qd1[i] = qd[4 * (start + i) + 0];
+            qd2[i] = qd[4 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _c0[i]*l2;
+                const double _t2 = _t1*qd2[i];
+                const double _t3 = _s0[i]*l2;
+                const double _t4 = _t3*qd2[i];
+                _J_dot_block[0][i] = -_t2 + qd1[i]*(-_c1[i]*l1 - _t1);
+                _J_dot_block[1][i] = -_t1*qd1[i] - _t2;
+                _J_dot_block[2][i] = 0;
+                _J_dot_block[3][i] = 0;
+                _J_dot_block[4][i] = -_t4 + qd1[i]*(-_s1[i]*l1 - _t3);
+                _J_dot_block[5][i] = -_t3*qd1[i] - _t4;
+                _J_dot_block[6][i] = 0;
+                _J_dot_block[7][i] = 0;
+                _J_dot_block[8][i] = 0;
+                _J_dot_block[9][i] = 0;
+                _J_dot_block[10][i] = 0;
+                _J_dot_block[11][i] = 0;
+                _J_dot_block[12][i] = 0;
+                _J_dot_block[13][i] = 0;
+                _J_dot_block[14][i] = 0;
+                _J_dot_block[15][i] = 0;
+                _J_dot_block[16][i] = 0;
+                _J_dot_block[17][i] = 0;
+                _J_dot_block[18][i] = 0;
+                _J_dot_block[19][i] = 0;
+                _J_dot_block[20][i] = 0;
+                _J_dot_block[21][i] = 0;
+                _J_dot_block[22][i] = 0;
+                _J_dot_block[23][i] = 0;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _c0[i]*l2;
+                const double _t2 = _t1*qd2[i];
+                const double _t3 = _s0[i]*l2;
+                const double _t4 = _t3*qd2[i];
+                J_dot[24 * (start + i) + 0] = -_t2 + qd1[i]*(-_c1[i]*l1 - _t1);
+                J_dot[24 * (start + i) + 1] = -_t1*qd1[i] - _t2;
+                J_dot[24 * (start + i) + 2] = 0;
+                J_dot[24 * (start + i) + 3] = 0;
+                J_dot[24 * (start + i) + 4] = -_t4 + qd1[i]*(-_s1[i]*l1 - _t3);
+                J_dot[24 * (start + i) + 5] = -_t3*qd1[i] - _t4;
+                J_dot[24 * (start + i) + 6] = 0;
+                J_dot[24 * (start + i) + 7] = 0;
+                J_dot[24 * (start + i) + 8] = 0;
+                J_dot[24 * (start + i) + 9] = 0;
+                J_dot[24 * (start + i) + 10] = 0;
+                J_dot[24 * (start + i) + 11] = 0;
+                J_dot[24 * (start + i) + 12] = 0;
+                J_dot[24 * (start + i) + 13] = 0;
+                J_dot[24 * (start + i) + 14] = 0;
+                J_dot[24 * (start + i) + 15] = 0;
+                J_dot[24 * (start + i) + 16] = 0;
+                J_dot[24 * (start + i) + 17] = 0;
+                J_dot[24 * (start + i) + 18] = 0;
+                J_dot[24 * (start + i) + 19] = 0;
+                J_dot[24 * (start + i) + 20] = 0;
+                J_dot[24 * (start + i) + 21] = 0;
+                J_dot[24 * (start + i) + 22] = 0;
+                J_dot[24 * (start + i) + 23] = 0;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 24; k += 2) {
+                    _mm_stream_pd(J_dot + 24 * (start + i) + k, _mm_set_pd(_J_dot_block[k + 1][i], _J_dot_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         adept_three_jacobian_dot(q + 4 * i, qd + 4 * i, params, J_dot + 24 * i);
     }
+#endif
 }
 
 /* Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 4). */
@@ -566,11 +2154,37 @@ void adept_three_task_acceleration(const double *restrict q, const double *restr
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _t1 = l2*sin(_t0);
-    const double _t2 = -_t1 - l1*sin(q1);
-    const double _t3 = l2*cos(_t0);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+#endif
+    const double _t1 = _s0*l2;
+    const double _t2 = -_s1*l1 - _t1;
+    const double _t3 = _c0*l2;
     const double _t4 = _t3*qd2;
-    const double _t5 = _t3 + l1*cos(q1);
+    const double _t5 = _c1*l1 + _t3;
     const double _t6 = _t1*qd2;
     xdd[0] = -_t1*qdd2 + _t2*qdd1 + qd1*(-_t4 - _t5*qd1) + qd2*(-_t3*qd1 - _t4);
     xdd[1] = _t3*qdd2 + _t5*qdd1 + qd1*(_t2*qd1 - _t6) + qd2*(-_t1*qd1 - _t6);
@@ -578,12 +2192,120 @@ void adept_three_task_acceleration(const double *restrict q, const double *restr
     xdd[3] = qdd1 + qdd2 - qdd4;
 }
 
+/* task_acceleration of `count` items, stored one after the other in each argument and output. */
 void adept_three_task_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict qdd, const adept_three_params *restrict params, double *restrict xdd)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double qdd1[KINEGEN_BLOCK_OF(64)];
+    double qdd2[KINEGEN_BLOCK_OF(64)];
+    double qdd3[KINEGEN_BLOCK_OF(64)];
+    double qdd4[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _xdd_block[4][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)xdd & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[4 * (start + i) + 0];
+            q2[i] = q[4 * (start + i) + 1];
+            qd1[i] = qd[4 * (start + i) + 0];
+            qd2[i] = qd[4 * (start + i) + 1];
+            qdd1[i] = qdd[4 * (start + i) + 0];
+            qdd2[i] = qdd[4 * (start + i) + 1];
+            qdd3[i] = qdd[4 * (start + i) + 2];
+            qdd4[i] = qdd[4 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = -_s1[i]*l1 - _t1;
+                const double _t3 = _c0[i]*l2;
+                const double _t4 = _t3*qd2[i];
+                const double _t5 = _c1[i]*l1 + _t3;
+                const double _t6 = _t1*qd2[i];
+                _xdd_block[0][i] = -_t1*qdd2[i] + _t2*qdd1[i] + qd1[i]*(-_t4 - _t5*qd1[i]) + qd2[i]*(-_t3*qd1[i] - _t4);
+                _xdd_block[1][i] = _t3*qdd2[i] + _t5*qdd1[i] + qd1[i]*(_t2*qd1[i] - _t6) + qd2[i]*(-_t1*qd1[i] - _t6);
+                _xdd_block[2][i] = -qdd3[i];
+                _xdd_block[3][i] = qdd1[i] + qdd2[i] - qdd4[i];
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = -_s1[i]*l1 - _t1;
+                const double _t3 = _c0[i]*l2;
+                const double _t4 = _t3*qd2[i];
+                const double _t5 = _c1[i]*l1 + _t3;
+                const double _t6 = _t1*qd2[i];
+                xdd[4 * (start + i) + 0] = -_t1*qdd2[i] + _t2*qdd1[i] + qd1[i]*(-_t4 - _t5*qd1[i]) + qd2[i]*(-_t3*qd1[i] - _t4);
+                xdd[4 * (start + i) + 1] = _t3*qdd2[i] + _t5*qdd1[i] + qd1[i]*(_t2*qd1[i] - _t6) + qd2[i]*(-_t1*qd1[i] - _t6);
+                xdd[4 * (start + i) + 2] = -qdd3[i];
+                xdd[4 * (start + i) + 3] = qdd1[i] + qdd2[i] - qdd4[i];
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 4; k += 2) {
+                    _mm_stream_pd(xdd + 4 * (start + i) + k, _mm_set_pd(_xdd_block[k + 1][i], _xdd_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         adept_three_task_acceleration(q + 4 * i, qd + 4 * i, qdd + 4 * i, params, xdd + 4 * i);
     }
+#endif
 }
 
 /* Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...). */
@@ -597,17 +2319,47 @@ void adept_three_manipulability(const double *restrict q, const adept_three_para
     const double l2 = params->l2;
     const double d1 = params->d1;
     const double d4 = params->d4;
-    const double _t0 = sin(q2);
-    manipulability[0] = fabs(_t0*l1*l2);
-    singular[0] = (_t0*_t0)*(l1*l1)*(l2*l2)/((fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))) < 1e-06;
+    double _s0;
+    _s0 = sin(q2);
+    manipulability[0] = fabs(_s0*l1*l2);
+    singular[0] = (_s0*_s0)*(l1*l1)*(l2*l2)/((fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))) < 1e-06;
 }
 
+/* manipulability of `count` items, stored one after the other in each argument and output. */
 void adept_three_manipulability_batch(size_t count, const double *restrict q, const adept_three_params *restrict params, double *restrict manipulability, int *restrict singular)
 {
+#ifdef KINEGEN_BLOCKED
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double d1 = params->d1;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q2[i] = q[4 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            manipulability[1 * (start + i) + 0] = fabs(_s0[i]*l1*l2);
+            singular[1 * (start + i) + 0] = (_s0[i]*_s0[i])*(l1*l1)*(l2*l2)/((fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))) < 1e-06;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         adept_three_manipulability(q + 4 * i, params, manipulability + 1 * i, singular + 1 * i);
     }
+#endif
 }
 
 /* Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 4) and (...). */
@@ -630,29 +2382,54 @@ void adept_three_joint_velocity(const double *restrict q, const double *restrict
     const double _t1 = (_t0*_t0*_t0*_t0);
     const double _t2 = (l1*l1);
     const double _t3 = (l2*l2);
-    const double _t4 = sin(q2);
-    const double _t5 = _t2*_t3*(_t4*_t4);
+    const double _t14 = 1.0/(_t0*_t0);
+    const double _t15 = _t14*_t3;
+    const double _t34 = _t14*_t2;
+    const double _t46 = 1.0/_t0;
+    const double _t12 = q1 + q2;
+    double _s0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q2, _t12, q1, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(q2);
+    _s1 = sin(_t12);
+    _c1 = cos(_t12);
+    _s2 = sin(q1);
+    _c2 = cos(q1);
+#endif
+    const double _t5 = (_s0*_s0)*_t2*_t3;
     const double _t6 = _t5/_t1;
-    const double _t7 = fmax(0, 1 - 1000000*_t6);
+    const double _t7 = kinegen_max(0, 1 - 1000000*_t6);
     const double _t8 = (_t7*_t7);
     const double _t9 = (3e-08)*_t8;
     const double _t10 = (_t7*_t7*_t7);
     const double _t11 = (1e-08)*_t8;
-    const double _t12 = q1 + q2;
-    const double _t13 = sin(_t12);
-    const double _t14 = 1.0/(_t0*_t0);
-    const double _t15 = _t14*_t3;
-    const double _t16 = (_t13*_t13)*_t15;
-    const double _t17 = sin(q1);
-    const double _t18 = _t17*l1;
-    const double _t19 = _t13*l2;
+    const double _t16 = (_s1*_s1)*_t15;
+    const double _t18 = _s2*l1;
+    const double _t19 = _s1*l2;
     const double _t20 = _t18 + _t19;
     const double _t21 = _t14*(_t20*_t20) + _t16;
-    const double _t22 = cos(_t12);
-    const double _t23 = _t15*(_t22*_t22);
-    const double _t24 = cos(q1);
-    const double _t25 = _t24*l1;
-    const double _t26 = _t22*l2;
+    const double _t23 = (_c1*_c1)*_t15;
+    const double _t25 = _c2*l1;
+    const double _t26 = _c1*l2;
     const double _t27 = _t25 + _t26;
     const double _t28 = _t14*(_t27*_t27) + _t23;
     const double _t29 = (1e-12)*_t10;
@@ -660,24 +2437,22 @@ void adept_three_joint_velocity(const double *restrict q, const double *restrict
     const double _t31 = _t14*(_t30*_t30) + _t16;
     const double _t32 = -_t27;
     const double _t33 = _t14*(_t32*_t32) + _t23;
-    const double _t34 = _t14*_t2;
-    const double _t35 = (_t24*_t24)*_t34;
+    const double _t35 = (_c2*_c2)*_t34;
     const double _t36 = _t28 + _t35;
     const double _t37 = (0.0001)*_t7;
-    const double _t38 = (_t17*_t17)*_t34;
+    const double _t38 = (_s2*_s2)*_t34;
     const double _t39 = _t31 + _t38;
     const double _t40 = _t21 + _t38;
     const double _t41 = _t33 + _t35;
     const double _t42 = 1.0/((4e-12)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (0.0002)*_t6*_t7 + _t6 + (1e-16)*(_t7*_t7*_t7*_t7) + _t9);
-    const double _t43 = _t4*l2;
+    const double _t43 = _s0*l2;
     const double _t44 = _t2*_t43/(_t0*_t0*_t0);
-    const double _t45 = _t17*_t44;
-    const double _t46 = 1.0/_t0;
+    const double _t45 = _s2*_t44;
     const double _t47 = _t26*_t46;
     const double _t48 = _t27*_t46;
     const double _t49 = -_t11*(_t47 + _t48) + _t37*_t45 + _t37*(_t32*_t46 - _t47) + _t45;
-    const double _t50 = _t17*_t24*_t34;
-    const double _t51 = _t13*_t15*_t22;
+    const double _t50 = _c2*_s2*_t34;
+    const double _t51 = _c1*_s1*_t15;
     const double _t52 = _t14*_t27*_t30;
     const double _t53 = -_t14*_t20*_t32 + _t51;
     const double _t54 = -_t11*(-_t51 + _t52) + _t37*_t53 - _t37*(-_t50 - _t53) + _t50 + _t51 - _t52;
@@ -688,7 +2463,7 @@ void adept_three_joint_velocity(const double *restrict q, const double *restrict
     const double _t59 = (0.0003)*_t7 + (4e-08)*_t8;
     const double _t60 = _t46*xd_y;
     const double _t61 = _t49*xd_phi + _t54*_t55 + _t60*(_t39 + _t56 + _t58 + _t59);
-    const double _t62 = _t24*_t44;
+    const double _t62 = _c2*_t44;
     const double _t63 = _t19*_t46;
     const double _t64 = -_t11*(_t30*_t46 - _t63) + _t37*_t62 + _t37*(_t20*_t46 + _t63) + _t62;
     const double _t65 = _t11*_t28;
@@ -698,7 +2473,7 @@ void adept_three_joint_velocity(const double *restrict q, const double *restrict
     const double _t69 = _t37*_t6 + _t6;
     const double _t70 = _t49*_t60 + _t55*_t64 + xd_phi*(_t11 + _t58 + _t66 + _t69);
     const int _t71 = _t6 < 1e-06;
-    const double _t72 = 1.0/fmax(_t5, (1e-06)*_t1);
+    const double _t72 = 1.0/kinegen_max(_t5, (1e-06)*_t1);
     const double _t73 = _t43*l1;
     const double _t74 = _t72*_t73;
     qd[0] = ((_t71) ? (
@@ -728,12 +2503,283 @@ void adept_three_joint_velocity(const double *restrict q, const double *restrict
     singular[0] = _t71;
 }
 
+/* joint_velocity of `count` items, stored one after the other in each argument and output. */
 void adept_three_joint_velocity_batch(size_t count, const double *restrict q, const double *restrict xd, const adept_three_params *restrict params, double *restrict qd, int *restrict singular)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double xd_x[KINEGEN_BLOCK_OF(64)];
+    double xd_y[KINEGEN_BLOCK_OF(64)];
+    double xd_z[KINEGEN_BLOCK_OF(64)];
+    double xd_phi[KINEGEN_BLOCK_OF(64)];
+    double _t12[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _qd_block[4][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)qd & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double d1 = params->d1;
+    const double d4 = params->d4;
+    const double _t0 = fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2);
+    const double _t1 = (_t0*_t0*_t0*_t0);
+    const double _t2 = (l1*l1);
+    const double _t3 = (l2*l2);
+    const double _t14 = 1.0/(_t0*_t0);
+    const double _t15 = _t14*_t3;
+    const double _t34 = _t14*_t2;
+    const double _t46 = 1.0/_t0;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[4 * (start + i) + 0];
+            q2[i] = q[4 * (start + i) + 1];
+            xd_x[i] = xd[4 * (start + i) + 0];
+            xd_y[i] = xd[4 * (start + i) + 1];
+            xd_z[i] = xd[4 * (start + i) + 2];
+            xd_phi[i] = xd[4 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t12[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t12[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t12[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t5 = (_s0[i]*_s0[i])*_t2*_t3;
+                const double _t6 = _t5/_t1;
+                const double _t7 = kinegen_max(0, 1 - 1000000*_t6);
+                const double _t8 = (_t7*_t7);
+                const double _t9 = (3e-08)*_t8;
+                const double _t10 = (_t7*_t7*_t7);
+                const double _t11 = (1e-08)*_t8;
+                const double _t16 = (_s1[i]*_s1[i])*_t15;
+                const double _t18 = _s2[i]*l1;
+                const double _t19 = _s1[i]*l2;
+                const double _t20 = _t18 + _t19;
+                const double _t21 = _t14*(_t20*_t20) + _t16;
+                const double _t23 = (_c1[i]*_c1[i])*_t15;
+                const double _t25 = _c2[i]*l1;
+                const double _t26 = _c1[i]*l2;
+                const double _t27 = _t25 + _t26;
+                const double _t28 = _t14*(_t27*_t27) + _t23;
+                const double _t29 = (1e-12)*_t10;
+                const double _t30 = -_t20;
+                const double _t31 = _t14*(_t30*_t30) + _t16;
+                const double _t32 = -_t27;
+                const double _t33 = _t14*(_t32*_t32) + _t23;
+                const double _t35 = (_c2[i]*_c2[i])*_t34;
+                const double _t36 = _t28 + _t35;
+                const double _t37 = (0.0001)*_t7;
+                const double _t38 = (_s2[i]*_s2[i])*_t34;
+                const double _t39 = _t31 + _t38;
+                const double _t40 = _t21 + _t38;
+                const double _t41 = _t33 + _t35;
+                const double _t42 = 1.0/((4e-12)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (0.0002)*_t6*_t7 + _t6 + (1e-16)*(_t7*_t7*_t7*_t7) + _t9);
+                const double _t43 = _s0[i]*l2;
+                const double _t44 = _t2*_t43/(_t0*_t0*_t0);
+                const double _t45 = _s2[i]*_t44;
+                const double _t47 = _t26*_t46;
+                const double _t48 = _t27*_t46;
+                const double _t49 = -_t11*(_t47 + _t48) + _t37*_t45 + _t37*(_t32*_t46 - _t47) + _t45;
+                const double _t50 = _c2[i]*_s2[i]*_t34;
+                const double _t51 = _c1[i]*_s1[i]*_t15;
+                const double _t52 = _t14*_t27*_t30;
+                const double _t53 = -_t14*_t20*_t32 + _t51;
+                const double _t54 = -_t11*(-_t51 + _t52) + _t37*_t53 - _t37*(-_t50 - _t53) + _t50 + _t51 - _t52;
+                const double _t55 = _t46*xd_x[i];
+                const double _t56 = _t37*_t40;
+                const double _t57 = _t11*_t31;
+                const double _t58 = _t21*_t37 + _t29 + _t57;
+                const double _t59 = (0.0003)*_t7 + (4e-08)*_t8;
+                const double _t60 = _t46*xd_y[i];
+                const double _t61 = _t49*xd_phi[i] + _t54*_t55 + _t60*(_t39 + _t56 + _t58 + _t59);
+                const double _t62 = _c2[i]*_t44;
+                const double _t63 = _t19*_t46;
+                const double _t64 = -_t11*(_t30*_t46 - _t63) + _t37*_t62 + _t37*(_t20*_t46 + _t63) + _t62;
+                const double _t65 = _t11*_t28;
+                const double _t66 = _t33*_t37 + _t65;
+                const double _t67 = _t29 + _t37*_t41;
+                const double _t68 = _t54*_t60 + _t55*(_t36 + _t59 + _t66 + _t67) + _t64*xd_phi[i];
+                const double _t69 = _t37*_t6 + _t6;
+                const double _t70 = _t49*_t60 + _t55*_t64 + xd_phi[i]*(_t11 + _t58 + _t66 + _t69);
+                const int _t71 = _t6 < 1e-06;
+                const double _t72 = 1.0/kinegen_max(_t5, (1e-06)*_t1);
+                const double _t73 = _t43*l1;
+                const double _t74 = _t72*_t73;
+                _qd_block[0][i] = ((_t71) ? (
+   _t42*(_t30*_t46*_t68 + _t48*_t61 + _t70)
+)
+: (
+   _t74*(_t19*xd_y[i] + _t26*xd_x[i])
+));
+                _qd_block[1][i] = ((_t71) ? (
+   _t42*(_t47*_t61 - _t63*_t68 + _t70)
+)
+: (
+   _t74*(_t30*xd_y[i] + _t32*xd_x[i])
+));
+                _qd_block[2][i] = ((_t71) ? (
+   -_t42*xd_z[i]*(_t56 + _t57 + _t65 + _t67 + _t69 + _t9)
+)
+: (
+   -_t5*_t72*xd_z[i]
+));
+                _qd_block[3][i] = ((_t71) ? (
+   -_t42*_t70
+)
+: (
+   _t74*(-_t18*xd_y[i] - _t25*xd_x[i] - _t73*xd_phi[i])
+));
+                singular[1 * (start + i) + 0] = _t71;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t5 = (_s0[i]*_s0[i])*_t2*_t3;
+                const double _t6 = _t5/_t1;
+                const double _t7 = kinegen_max(0, 1 - 1000000*_t6);
+                const double _t8 = (_t7*_t7);
+                const double _t9 = (3e-08)*_t8;
+                const double _t10 = (_t7*_t7*_t7);
+                const double _t11 = (1e-08)*_t8;
+                const double _t16 = (_s1[i]*_s1[i])*_t15;
+                const double _t18 = _s2[i]*l1;
+                const double _t19 = _s1[i]*l2;
+                const double _t20 = _t18 + _t19;
+                const double _t21 = _t14*(_t20*_t20) + _t16;
+                const double _t23 = (_c1[i]*_c1[i])*_t15;
+                const double _t25 = _c2[i]*l1;
+                const double _t26 = _c1[i]*l2;
+                const double _t27 = _t25 + _t26;
+                const double _t28 = _t14*(_t27*_t27) + _t23;
+                const double _t29 = (1e-12)*_t10;
+                const double _t30 = -_t20;
+                const double _t31 = _t14*(_t30*_t30) + _t16;
+                const double _t32 = -_t27;
+                const double _t33 = _t14*(_t32*_t32) + _t23;
+                const double _t35 = (_c2[i]*_c2[i])*_t34;
+                const double _t36 = _t28 + _t35;
+                const double _t37 = (0.0001)*_t7;
+                const double _t38 = (_s2[i]*_s2[i])*_t34;
+                const double _t39 = _t31 + _t38;
+                const double _t40 = _t21 + _t38;
+                const double _t41 = _t33 + _t35;
+                const double _t42 = 1.0/((4e-12)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (0.0002)*_t6*_t7 + _t6 + (1e-16)*(_t7*_t7*_t7*_t7) + _t9);
+                const double _t43 = _s0[i]*l2;
+                const double _t44 = _t2*_t43/(_t0*_t0*_t0);
+                const double _t45 = _s2[i]*_t44;
+                const double _t47 = _t26*_t46;
+                const double _t48 = _t27*_t46;
+                const double _t49 = -_t11*(_t47 + _t48) + _t37*_t45 + _t37*(_t32*_t46 - _t47) + _t45;
+                const double _t50 = _c2[i]*_s2[i]*_t34;
+                const double _t51 = _c1[i]*_s1[i]*_t15;
+                const double _t52 = _t14*_t27*_t30;
+                const double _t53 = -_t14*_t20*_t32 + _t51;
+                const double _t54 = -_t11*(-_t51 + _t52) + _t37*_t53 - _t37*(-_t50 - _t53) + _t50 + _t51 - _t52;
+                const double _t55 = _t46*xd_x[i];
+                const double _t56 = _t37*_t40;
+                const double _t57 = _t11*_t31;
+                const double _t58 = _t21*_t37 + _t29 + _t57;
+                const double _t59 = (0.0003)*_t7 + (4e-08)*_t8;
+                const double _t60 = _t46*xd_y[i];
+                const double _t61 = _t49*xd_phi[i] + _t54*_t55 + _t60*(_t39 + _t56 + _t58 + _t59);
+                const double _t62 = _c2[i]*_t44;
+                const double _t63 = _t19*_t46;
+                const double _t64 = -_t11*(_t30*_t46 - _t63) + _t37*_t62 + _t37*(_t20*_t46 + _t63) + _t62;
+                const double _t65 = _t11*_t28;
+                const double _t66 = _t33*_t37 + _t65;
+                const double _t67 = _t29 + _t37*_t41;
+                const double _t68 = _t54*_t60 + _t55*(_t36 + _t59 + _t66 + _t67) + _t64*xd_phi[i];
+                const double _t69 = _t37*_t6 + _t6;
+                const double _t70 = _t49*_t60 + _t55*_t64 + xd_phi[i]*(_t11 + _t58 + _t66 + _t69);
+                const int _t71 = _t6 < 1e-06;
+                const double _t72 = 1.0/kinegen_max(_t5, (1e-06)*_t1);
+                const double _t73 = _t43*l1;
+                const double _t74 = _t72*_t73;
+                qd[4 * (start + i) + 0] = ((_t71) ? (
+   _t42*(_t30*_t46*_t68 + _t48*_t61 + _t70)
+)
+: (
+   _t74*(_t19*xd_y[i] + _t26*xd_x[i])
+));
+                qd[4 * (start + i) + 1] = ((_t71) ? (
+   _t42*(_t47*_t61 - _t63*_t68 + _t70)
+)
+: (
+   _t74*(_t30*xd_y[i] + _t32*xd_x[i])
+));
+                qd[4 * (start + i) + 2] = ((_t71) ? (
+   -_t42*xd_z[i]*(_t56 + _t57 + _t65 + _t67 + _t69 + _t9)
+)
+: (
+   -_t5*_t72*xd_z[i]
+));
+                qd[4 * (start + i) + 3] = ((_t71) ? (
+   -_t42*_t70
+)
+: (
+   _t74*(-_t18*xd_y[i] - _t25*xd_x[i] - _t73*xd_phi[i])
+));
+                singular[1 * (start + i) + 0] = _t71;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 4; k += 2) {
+                    _mm_stream_pd(qd + 4 * (start + i) + k, _mm_set_pd(_qd_block[k + 1][i], _qd_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         adept_three_joint_velocity(q + 4 * i, xd + 4 * i, params, qd + 4 * i, singular + 1 * i);
     }
+#endif
 }
 
 /* Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 4) and (...). */
@@ -758,29 +2804,54 @@ void adept_three_joint_acceleration(const double *restrict q, const double *rest
     const double _t1 = (_t0*_t0*_t0*_t0);
     const double _t2 = (l1*l1);
     const double _t3 = (l2*l2);
-    const double _t4 = sin(q2);
-    const double _t5 = _t2*_t3*(_t4*_t4);
+    const double _t14 = 1.0/(_t0*_t0);
+    const double _t15 = _t14*_t3;
+    const double _t34 = _t14*_t2;
+    const double _t46 = 1.0/_t0;
+    const double _t12 = q1 + q2;
+    double _s0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q2, _t12, q1, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(q2);
+    _s1 = sin(_t12);
+    _c1 = cos(_t12);
+    _s2 = sin(q1);
+    _c2 = cos(q1);
+#endif
+    const double _t5 = (_s0*_s0)*_t2*_t3;
     const double _t6 = _t5/_t1;
-    const double _t7 = fmax(0, 1 - 1000000*_t6);
+    const double _t7 = kinegen_max(0, 1 - 1000000*_t6);
     const double _t8 = (_t7*_t7);
     const double _t9 = (3e-08)*_t8;
     const double _t10 = (_t7*_t7*_t7);
     const double _t11 = (1e-08)*_t8;
-    const double _t12 = q1 + q2;
-    const double _t13 = sin(_t12);
-    const double _t14 = 1.0/(_t0*_t0);
-    const double _t15 = _t14*_t3;
-    const double _t16 = (_t13*_t13)*_t15;
-    const double _t17 = sin(q1);
-    const double _t18 = _t17*l1;
-    const double _t19 = _t13*l2;
+    const double _t16 = (_s1*_s1)*_t15;
+    const double _t18 = _s2*l1;
+    const double _t19 = _s1*l2;
     const double _t20 = _t18 + _t19;
     const double _t21 = _t14*(_t20*_t20) + _t16;
-    const double _t22 = cos(_t12);
-    const double _t23 = _t15*(_t22*_t22);
-    const double _t24 = cos(q1);
-    const double _t25 = _t24*l1;
-    const double _t26 = _t22*l2;
+    const double _t23 = (_c1*_c1)*_t15;
+    const double _t25 = _c2*l1;
+    const double _t26 = _c1*l2;
     const double _t27 = _t25 + _t26;
     const double _t28 = _t14*(_t27*_t27) + _t23;
     const double _t29 = (1e-12)*_t10;
@@ -788,24 +2859,22 @@ void adept_three_joint_acceleration(const double *restrict q, const double *rest
     const double _t31 = _t14*(_t30*_t30) + _t16;
     const double _t32 = -_t27;
     const double _t33 = _t14*(_t32*_t32) + _t23;
-    const double _t34 = _t14*_t2;
-    const double _t35 = (_t24*_t24)*_t34;
+    const double _t35 = (_c2*_c2)*_t34;
     const double _t36 = _t28 + _t35;
     const double _t37 = (0.0001)*_t7;
-    const double _t38 = (_t17*_t17)*_t34;
+    const double _t38 = (_s2*_s2)*_t34;
     const double _t39 = _t31 + _t38;
     const double _t40 = _t21 + _t38;
     const double _t41 = _t33 + _t35;
     const double _t42 = 1.0/((4e-12)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (0.0002)*_t6*_t7 + _t6 + (1e-16)*(_t7*_t7*_t7*_t7) + _t9);
-    const double _t43 = _t4*l2;
+    const double _t43 = _s0*l2;
     const double _t44 = _t2*_t43/(_t0*_t0*_t0);
-    const double _t45 = _t17*_t44;
-    const double _t46 = 1.0/_t0;
+    const double _t45 = _s2*_t44;
     const double _t47 = _t26*_t46;
     const double _t48 = _t27*_t46;
     const double _t49 = -_t11*(_t47 + _t48) + _t37*_t45 + _t37*(_t32*_t46 - _t47) + _t45;
-    const double _t50 = _t17*_t24*_t34;
-    const double _t51 = _t13*_t15*_t22;
+    const double _t50 = _c2*_s2*_t34;
+    const double _t51 = _c1*_s1*_t15;
     const double _t52 = _t14*_t27*_t30;
     const double _t53 = -_t14*_t20*_t32 + _t51;
     const double _t54 = -_t11*(-_t51 + _t52) + _t37*_t53 - _t37*(-_t50 - _t53) + _t50 + _t51 - _t52;
@@ -820,7 +2889,7 @@ void adept_three_joint_acceleration(const double *restrict q, const double *rest
     const double _t63 = -qd1*(_t30*qd1 - _t62) - qd2*(-_t19*qd1 - _t62) + xdd_y;
     const double _t64 = _t46*_t63;
     const double _t65 = _t49*xdd_phi + _t54*_t57 + _t64*(_t39 + _t58 + _t60 + _t61);
-    const double _t66 = _t24*_t44;
+    const double _t66 = _c2*_t44;
     const double _t67 = _t19*_t46;
     const double _t68 = -_t11*(_t30*_t46 - _t67) + _t37*_t66 + _t37*(_t20*_t46 + _t67) + _t66;
     const double _t69 = _t11*_t28;
@@ -830,7 +2899,7 @@ void adept_three_joint_acceleration(const double *restrict q, const double *rest
     const double _t73 = _t37*_t6 + _t6;
     const double _t74 = _t49*_t64 + _t57*_t68 + xdd_phi*(_t11 + _t60 + _t70 + _t73);
     const int _t75 = _t6 < 1e-06;
-    const double _t76 = 1.0/fmax(_t5, (1e-06)*_t1);
+    const double _t76 = 1.0/kinegen_max(_t5, (1e-06)*_t1);
     const double _t77 = _t43*l1;
     const double _t78 = _t76*_t77;
     qdd[0] = ((_t75) ? (
@@ -860,12 +2929,295 @@ void adept_three_joint_acceleration(const double *restrict q, const double *rest
     singular[0] = _t75;
 }
 
+/* joint_acceleration of `count` items, stored one after the other in each argument and output. */
 void adept_three_joint_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict xdd, const adept_three_params *restrict params, double *restrict qdd, int *restrict singular)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double xdd_x[KINEGEN_BLOCK_OF(64)];
+    double xdd_y[KINEGEN_BLOCK_OF(64)];
+    double xdd_z[KINEGEN_BLOCK_OF(64)];
+    double xdd_phi[KINEGEN_BLOCK_OF(64)];
+    double _t12[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _qdd_block[4][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)qdd & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double d1 = params->d1;
+    const double d4 = params->d4;
+    const double _t0 = fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2);
+    const double _t1 = (_t0*_t0*_t0*_t0);
+    const double _t2 = (l1*l1);
+    const double _t3 = (l2*l2);
+    const double _t14 = 1.0/(_t0*_t0);
+    const double _t15 = _t14*_t3;
+    const double _t34 = _t14*_t2;
+    const double _t46 = 1.0/_t0;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[4 * (start + i) + 0];
+            q2[i] = q[4 * (start + i) + 1];
+            qd1[i] = qd[4 * (start + i) + 0];
+            qd2[i] = qd[4 * (start + i) + 1];
+            xdd_x[i] = xdd[4 * (start + i) + 0];
+            xdd_y[i] = xdd[4 * (start + i) + 1];
+            xdd_z[i] = xdd[4 * (start + i) + 2];
+            xdd_phi[i] = xdd[4 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t12[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t12[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t12[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t5 = (_s0[i]*_s0[i])*_t2*_t3;
+                const double _t6 = _t5/_t1;
+                const double _t7 = kinegen_max(0, 1 - 1000000*_t6);
+                const double _t8 = (_t7*_t7);
+                const double _t9 = (3e-08)*_t8;
+                const double _t10 = (_t7*_t7*_t7);
+                const double _t11 = (1e-08)*_t8;
+                const double _t16 = (_s1[i]*_s1[i])*_t15;
+                const double _t18 = _s2[i]*l1;
+                const double _t19 = _s1[i]*l2;
+                const double _t20 = _t18 + _t19;
+                const double _t21 = _t14*(_t20*_t20) + _t16;
+                const double _t23 = (_c1[i]*_c1[i])*_t15;
+                const double _t25 = _c2[i]*l1;
+                const double _t26 = _c1[i]*l2;
+                const double _t27 = _t25 + _t26;
+                const double _t28 = _t14*(_t27*_t27) + _t23;
+                const double _t29 = (1e-12)*_t10;
+                const double _t30 = -_t20;
+                const double _t31 = _t14*(_t30*_t30) + _t16;
+                const double _t32 = -_t27;
+                const double _t33 = _t14*(_t32*_t32) + _t23;
+                const double _t35 = (_c2[i]*_c2[i])*_t34;
+                const double _t36 = _t28 + _t35;
+                const double _t37 = (0.0001)*_t7;
+                const double _t38 = (_s2[i]*_s2[i])*_t34;
+                const double _t39 = _t31 + _t38;
+                const double _t40 = _t21 + _t38;
+                const double _t41 = _t33 + _t35;
+                const double _t42 = 1.0/((4e-12)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (0.0002)*_t6*_t7 + _t6 + (1e-16)*(_t7*_t7*_t7*_t7) + _t9);
+                const double _t43 = _s0[i]*l2;
+                const double _t44 = _t2*_t43/(_t0*_t0*_t0);
+                const double _t45 = _s2[i]*_t44;
+                const double _t47 = _t26*_t46;
+                const double _t48 = _t27*_t46;
+                const double _t49 = -_t11*(_t47 + _t48) + _t37*_t45 + _t37*(_t32*_t46 - _t47) + _t45;
+                const double _t50 = _c2[i]*_s2[i]*_t34;
+                const double _t51 = _c1[i]*_s1[i]*_t15;
+                const double _t52 = _t14*_t27*_t30;
+                const double _t53 = -_t14*_t20*_t32 + _t51;
+                const double _t54 = -_t11*(-_t51 + _t52) + _t37*_t53 - _t37*(-_t50 - _t53) + _t50 + _t51 - _t52;
+                const double _t55 = _t26*qd2[i];
+                const double _t56 = -qd1[i]*(_t32*qd1[i] - _t55) - qd2[i]*(-_t26*qd1[i] - _t55) + xdd_x[i];
+                const double _t57 = _t46*_t56;
+                const double _t58 = _t37*_t40;
+                const double _t59 = _t11*_t31;
+                const double _t60 = _t21*_t37 + _t29 + _t59;
+                const double _t61 = (0.0003)*_t7 + (4e-08)*_t8;
+                const double _t62 = _t19*qd2[i];
+                const double _t63 = -qd1[i]*(_t30*qd1[i] - _t62) - qd2[i]*(-_t19*qd1[i] - _t62) + xdd_y[i];
+                const double _t64 = _t46*_t63;
+                const double _t65 = _t49*xdd_phi[i] + _t54*_t57 + _t64*(_t39 + _t58 + _t60 + _t61);
+                const double _t66 = _c2[i]*_t44;
+                const double _t67 = _t19*_t46;
+                const double _t68 = -_t11*(_t30*_t46 - _t67) + _t37*_t66 + _t37*(_t20*_t46 + _t67) + _t66;
+                const double _t69 = _t11*_t28;
+                const double _t70 = _t33*_t37 + _t69;
+                const double _t71 = _t29 + _t37*_t41;
+                const double _t72 = _t54*_t64 + _t57*(_t36 + _t61 + _t70 + _t71) + _t68*xdd_phi[i];
+                const double _t73 = _t37*_t6 + _t6;
+                const double _t74 = _t49*_t64 + _t57*_t68 + xdd_phi[i]*(_t11 + _t60 + _t70 + _t73);
+                const int _t75 = _t6 < 1e-06;
+                const double _t76 = 1.0/kinegen_max(_t5, (1e-06)*_t1);
+                const double _t77 = _t43*l1;
+                const double _t78 = _t76*_t77;
+                _qdd_block[0][i] = ((_t75) ? (
+   _t42*(_t30*_t46*_t72 + _t48*_t65 + _t74)
+)
+: (
+   _t78*(_t19*_t63 + _t26*_t56)
+));
+                _qdd_block[1][i] = ((_t75) ? (
+   _t42*(_t47*_t65 - _t67*_t72 + _t74)
+)
+: (
+   _t78*(_t30*_t63 + _t32*_t56)
+));
+                _qdd_block[2][i] = ((_t75) ? (
+   -_t42*xdd_z[i]*(_t58 + _t59 + _t69 + _t71 + _t73 + _t9)
+)
+: (
+   -_t5*_t76*xdd_z[i]
+));
+                _qdd_block[3][i] = ((_t75) ? (
+   -_t42*_t74
+)
+: (
+   _t78*(-_t18*_t63 - _t25*_t56 - _t77*xdd_phi[i])
+));
+                singular[1 * (start + i) + 0] = _t75;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t5 = (_s0[i]*_s0[i])*_t2*_t3;
+                const double _t6 = _t5/_t1;
+                const double _t7 = kinegen_max(0, 1 - 1000000*_t6);
+                const double _t8 = (_t7*_t7);
+                const double _t9 = (3e-08)*_t8;
+                const double _t10 = (_t7*_t7*_t7);
+                const double _t11 = (1e-08)*_t8;
+                const double _t16 = (_s1[i]*_s1[i])*_t15;
+                const double _t18 = _s2[i]*l1;
+                const double _t19 = _s1[i]*l2;
+                const double _t20 = _t18 + _t19;
+                const double _t21 = _t14*(_t20*_t20) + _t16;
+                const double _t23 = (_c1[i]*_c1[i])*_t15;
+                const double _t25 = _c2[i]*l1;
+                const double _t26 = _c1[i]*l2;
+                const double _t27 = _t25 + _t26;
+                const double _t28 = _t14*(_t27*_t27) + _t23;
+                const double _t29 = (1e-12)*_t10;
+                const double _t30 = -_t20;
+                const double _t31 = _t14*(_t30*_t30) + _t16;
+                const double _t32 = -_t27;
+                const double _t33 = _t14*(_t32*_t32) + _t23;
+                const double _t35 = (_c2[i]*_c2[i])*_t34;
+                const double _t36 = _t28 + _t35;
+                const double _t37 = (0.0001)*_t7;
+                const double _t38 = (_s2[i]*_s2[i])*_t34;
+                const double _t39 = _t31 + _t38;
+                const double _t40 = _t21 + _t38;
+                const double _t41 = _t33 + _t35;
+                const double _t42 = 1.0/((4e-12)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (0.0002)*_t6*_t7 + _t6 + (1e-16)*(_t7*_t7*_t7*_t7) + _t9);
+                const double _t43 = _s0[i]*l2;
+                const double _t44 = _t2*_t43/(_t0*_t0*_t0);
+                const double _t45 = _s2[i]*_t44;
+                const double _t47 = _t26*_t46;
+                const double _t48 = _t27*_t46;
+                const double _t49 = -_t11*(_t47 + _t48) + _t37*_t45 + _t37*(_t32*_t46 - _t47) + _t45;
+                const double _t50 = _c2[i]*_s2[i]*_t34;
+                const double _t51 = _c1[i]*_s1[i]*_t15;
+                const double _t52 = _t14*_t27*_t30;
+                const double _t53 = -_t14*_t20*_t32 + _t51;
+                const double _t54 = -_t11*(-_t51 + _t52) + _t37*_t53 - _t37*(-_t50 - _t53) + _t50 + _t51 - _t52;
+                const double _t55 = _t26*qd2[i];
+                const double _t56 = -qd1[i]*(_t32*qd1[i] - _t55) - qd2[i]*(-_t26*qd1[i] - _t55) + xdd_x[i];
+                const double _t57 = _t46*_t56;
+                const double _t58 = _t37*_t40;
+                const double _t59 = _t11*_t31;
+                const double _t60 = _t21*_t37 + _t29 + _t59;
+                const double _t61 = (0.0003)*_t7 + (4e-08)*_t8;
+                const double _t62 = _t19*qd2[i];
+                const double _t63 = -qd1[i]*(_t30*qd1[i] - _t62) - qd2[i]*(-_t19*qd1[i] - _t62) + xdd_y[i];
+                const double _t64 = _t46*_t63;
+                const double _t65 = _t49*xdd_phi[i] + _t54*_t57 + _t64*(_t39 + _t58 + _t60 + _t61);
+                const double _t66 = _c2[i]*_t44;
+                const double _t67 = _t19*_t46;
+                const double _t68 = -_t11*(_t30*_t46 - _t67) + _t37*_t66 + _t37*(_t20*_t46 + _t67) + _t66;
+                const double _t69 = _t11*_t28;
+                const double _t70 = _t33*_t37 + _t69;
+                const double _t71 = _t29 + _t37*_t41;
+                const double _t72 = _t54*_t64 + _t57*(_t36 + _t61 + _t70 + _t71) + _t68*xdd_phi[i];
+                const double _t73 = _t37*_t6 + _t6;
+                const double _t74 = _t49*_t64 + _t57*_t68 + xdd_phi[i]*(_t11 + _t60 + _t70 + _t73);
+                const int _t75 = _t6 < 1e-06;
+                const double _t76 = 1.0/kinegen_max(_t5, (1e-06)*_t1);
+                const double _t77 = _t43*l1;
+                const double _t78 = _t76*_t77;
+                qdd[4 * (start + i) + 0] = ((_t75) ? (
+   _t42*(_t30*_t46*_t72 + _t48*_t65 + _t74)
+)
+: (
+   _t78*(_t19*_t63 + _t26*_t56)
+));
+                qdd[4 * (start + i) + 1] = ((_t75) ? (
+   _t42*(_t47*_t65 - _t67*_t72 + _t74)
+)
+: (
+   _t78*(_t30*_t63 + _t32*_t56)
+));
+                qdd[4 * (start + i) + 2] = ((_t75) ? (
+   -_t42*xdd_z[i]*(_t58 + _t59 + _t69 + _t71 + _t73 + _t9)
+)
+: (
+   -_t5*_t76*xdd_z[i]
+));
+                qdd[4 * (start + i) + 3] = ((_t75) ? (
+   -_t42*_t74
+)
+: (
+   _t78*(-_t18*_t63 - _t25*_t56 - _t77*xdd_phi[i])
+));
+                singular[1 * (start + i) + 0] = _t75;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 4; k += 2) {
+                    _mm_stream_pd(qdd + 4 * (start + i) + k, _mm_set_pd(_qdd_block[k + 1][i], _qdd_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         adept_three_joint_acceleration(q + 4 * i, qd + 4 * i, xdd + 4 * i, params, qdd + 4 * i, singular + 1 * i);
     }
+#endif
 }
 
 /* Rehiara Eq. 39: tool configuration vector [p; a exp(q_n/pi)], shape (..., 6); p in metres, the rest dimensionless. */
@@ -883,20 +3235,140 @@ void adept_three_tool_configuration(const double *restrict q, const adept_three_
     const double d1 = params->d1;
     const double d4 = params->d4;
     const double _t0 = q1 + q2;
-    w_tool[0] = l1*cos(q1) + l2*cos(_t0);
-    w_tool[1] = l1*sin(q1) + l2*sin(_t0);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q1, _t0, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+#endif
+    w_tool[0] = _c0*l1 + _c1*l2;
+    w_tool[1] = _s0*l1 + _s1*l2;
     w_tool[2] = d1 - d4 - q3;
     w_tool[3] = 0;
     w_tool[4] = 0;
     w_tool[5] = -exp(0.3183098861837907*q4);
 }
 
+/* tool_configuration of `count` items, stored one after the other in each argument and output. */
 void adept_three_tool_configuration_batch(size_t count, const double *restrict q, const adept_three_params *restrict params, double *restrict w_tool)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _w_tool_block[6][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)w_tool & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double d1 = params->d1;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[4 * (start + i) + 0];
+            q2[i] = q[4 * (start + i) + 1];
+            q3[i] = q[4 * (start + i) + 2];
+            q4[i] = q[4 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t0[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _w_tool_block[0][i] = _c0[i]*l1 + _c1[i]*l2;
+                _w_tool_block[1][i] = _s0[i]*l1 + _s1[i]*l2;
+                _w_tool_block[2][i] = d1 - d4 - q3[i];
+                _w_tool_block[3][i] = 0;
+                _w_tool_block[4][i] = 0;
+                _w_tool_block[5][i] = -exp(0.3183098861837907*q4[i]);
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                w_tool[6 * (start + i) + 0] = _c0[i]*l1 + _c1[i]*l2;
+                w_tool[6 * (start + i) + 1] = _s0[i]*l1 + _s1[i]*l2;
+                w_tool[6 * (start + i) + 2] = d1 - d4 - q3[i];
+                w_tool[6 * (start + i) + 3] = 0;
+                w_tool[6 * (start + i) + 4] = 0;
+                w_tool[6 * (start + i) + 5] = -exp(0.3183098861837907*q4[i]);
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 6; k += 2) {
+                    _mm_stream_pd(w_tool + 6 * (start + i) + k, _mm_set_pd(_w_tool_block[k + 1][i], _w_tool_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         adept_three_tool_configuration(q + 4 * i, params, w_tool + 6 * i);
     }
+#endif
 }
 
 /* Rehiara Eq. 41: d(tool configuration vector)/dq, shape (..., 6, 4). Not a velocity Jacobian: rows 4-6 are rates of a exp(q_n/pi), not angular velocity. */
@@ -911,13 +3383,39 @@ void adept_three_tool_configuration_jacobian(const double *restrict q, const ade
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _t1 = l2*sin(_t0);
-    const double _t2 = l2*cos(_t0);
-    Jw[0] = -_t1 - l1*sin(q1);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+#endif
+    const double _t1 = _s0*l2;
+    const double _t2 = _c0*l2;
+    Jw[0] = -_s1*l1 - _t1;
     Jw[1] = -_t1;
     Jw[2] = 0;
     Jw[3] = 0;
-    Jw[4] = _t2 + l1*cos(q1);
+    Jw[4] = _c1*l1 + _t2;
     Jw[5] = _t2;
     Jw[6] = 0;
     Jw[7] = 0;
@@ -939,12 +3437,142 @@ void adept_three_tool_configuration_jacobian(const double *restrict q, const ade
     Jw[23] = -0.3183098861837907*exp(0.3183098861837907*q4);
 }
 
+/* tool_configuration_jacobian of `count` items, stored one after the other in each argument and output. */
 void adept_three_tool_configuration_jacobian_batch(size_t count, const double *restrict q, const adept_three_params *restrict params, double *restrict Jw)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _Jw_block[24][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 24 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jw & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[4 * (start + i) + 0];
+            q2[i] = q[4 * (start + i) + 1];
+            q4[i] = q[4 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = _c0[i]*l2;
+                _Jw_block[0][i] = -_s1[i]*l1 - _t1;
+                _Jw_block[1][i] = -_t1;
+                _Jw_block[2][i] = 0;
+                _Jw_block[3][i] = 0;
+                _Jw_block[4][i] = _c1[i]*l1 + _t2;
+                _Jw_block[5][i] = _t2;
+                _Jw_block[6][i] = 0;
+                _Jw_block[7][i] = 0;
+                _Jw_block[8][i] = 0;
+                _Jw_block[9][i] = 0;
+                _Jw_block[10][i] = -1;
+                _Jw_block[11][i] = 0;
+                _Jw_block[12][i] = 0;
+                _Jw_block[13][i] = 0;
+                _Jw_block[14][i] = 0;
+                _Jw_block[15][i] = 0;
+                _Jw_block[16][i] = 0;
+                _Jw_block[17][i] = 0;
+                _Jw_block[18][i] = 0;
+                _Jw_block[19][i] = 0;
+                _Jw_block[20][i] = 0;
+                _Jw_block[21][i] = 0;
+                _Jw_block[22][i] = 0;
+                _Jw_block[23][i] = -0.3183098861837907*exp(0.3183098861837907*q4[i]);
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = _c0[i]*l2;
+                Jw[24 * (start + i) + 0] = -_s1[i]*l1 - _t1;
+                Jw[24 * (start + i) + 1] = -_t1;
+                Jw[24 * (start + i) + 2] = 0;
+                Jw[24 * (start + i) + 3] = 0;
+                Jw[24 * (start + i) + 4] = _c1[i]*l1 + _t2;
+                Jw[24 * (start + i) + 5] = _t2;
+                Jw[24 * (start + i) + 6] = 0;
+                Jw[24 * (start + i) + 7] = 0;
+                Jw[24 * (start + i) + 8] = 0;
+                Jw[24 * (start + i) + 9] = 0;
+                Jw[24 * (start + i) + 10] = -1;
+                Jw[24 * (start + i) + 11] = 0;
+                Jw[24 * (start + i) + 12] = 0;
+                Jw[24 * (start + i) + 13] = 0;
+                Jw[24 * (start + i) + 14] = 0;
+                Jw[24 * (start + i) + 15] = 0;
+                Jw[24 * (start + i) + 16] = 0;
+                Jw[24 * (start + i) + 17] = 0;
+                Jw[24 * (start + i) + 18] = 0;
+                Jw[24 * (start + i) + 19] = 0;
+                Jw[24 * (start + i) + 20] = 0;
+                Jw[24 * (start + i) + 21] = 0;
+                Jw[24 * (start + i) + 22] = 0;
+                Jw[24 * (start + i) + 23] = -0.3183098861837907*exp(0.3183098861837907*q4[i]);
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 24; k += 2) {
+                    _mm_stream_pd(Jw + 24 * (start + i) + k, _mm_set_pd(_Jw_block[k + 1][i], _Jw_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         adept_three_tool_configuration_jacobian(q + 4 * i, params, Jw + 24 * i);
     }
+#endif
 }
 
 /* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */

@@ -51,7 +51,71 @@
 
 #include <math.h>
 
+/*
+ * Batched entry points.  Plain C99 loops over the single-point entry point by
+ * default.  With -DKINEGEN_BLOCKED they work through their items in blocks of
+ * KINEGEN_BLOCK instead: the inputs of a block are copied into one array per
+ * coordinate, every sine and every cosine is taken in a loop of its own, and the
+ * arithmetic runs in one loop per stage, from the same expressions as the single
+ * point (so the results are bit-identical).  -DKINEGEN_SIMD -fopenmp-simd (what
+ * build_c.py uses where the compiler and C library allow) adds to that SIMD
+ * declarations of the math functions, so that the loops vectorise and call
+ * glibc's vector math library (libmvec, at most 4 ulp), and the single point
+ * takes the sines and cosines of a stage's angles as one vector.  No NaN or
+ * infinity check is affected: no -ffast-math is involved.
+ */
+#ifdef KINEGEN_SIMD
+#pragma omp declare simd notinbranch
+double sin(double);
+#pragma omp declare simd notinbranch
+double cos(double);
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+/* libmvec has these from glibc 2.35 on. */
+#pragma omp declare simd notinbranch
+double atan2(double, double);
+#pragma omp declare simd notinbranch
+double acos(double);
+#pragma omp declare simd notinbranch
+double asin(double);
+#endif
+#define KINEGEN_VECTOR_LOOP _Pragma("omp simd")
+#ifndef KINEGEN_BLOCKED
+#define KINEGEN_BLOCKED
+#endif
+#else
+#define KINEGEN_VECTOR_LOOP
+#endif
+#ifndef KINEGEN_BLOCK
+#define KINEGEN_BLOCK 64
+#endif
+/* Each kernel's block: at most KINEGEN_BLOCK items, fewer where its arrays would pass 32 KiB of stack. */
+#define KINEGEN_BLOCK_OF(items) ((items) < KINEGEN_BLOCK ? (items) : KINEGEN_BLOCK)
+#if defined(KINEGEN_SIMD) && defined(__SSE2__) && !defined(KINEGEN_NO_STREAM)
+/* Batches whose outputs exceed KINEGEN_STREAM_BYTES write them with SSE2 streaming
+   stores: a plain store first reads the line it overwrites, which doubles the memory
+   traffic of a batch too large for the caches. */
+#include <emmintrin.h>
+#include <stdint.h>
+#define KINEGEN_STREAM
+#ifndef KINEGEN_STREAM_BYTES
+#define KINEGEN_STREAM_BYTES 1048576
+#endif
+#endif
+
 const avr3000_params avr3000_default_params = { 0.2667, 0.0, -4.0175691732e-05, 2.6036376953e-05, -2.6036376953e-05, 1.6666666692e-07 };
+
+/* min and max that pass a NaN on, like numpy.minimum and numpy.maximum: C99's fmin and
+   fmax would turn an acos argument of NaN into +-1 and a valid-looking angle.  Each is
+   emitted only where a kernel uses it (static: -Werror=unused-function). */
+static double kinegen_min(double a, double b)
+{
+    return isnan(a) || a < b ? a : b;
+}
+
+static double kinegen_max(double a, double b)
+{
+    return isnan(a) || a > b ? a : b;
+}
 
 /* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi. */
 static double kinegen_wrap_angle(double angle)
@@ -79,17 +143,45 @@ void avr3000_fk(const double *restrict q, const avr3000_params *restrict params,
     const double a = params->a;
     const double e = params->e;
     const double _t0 = q1 + (0.5)*q2;
-    const double _t1 = cos(_t0);
-    const double _t2 = sin(_t0);
     const double _t3 = q1 + q2;
-    T[0] = _t1;
-    T[1] = -_t2;
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, _t3, q1, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(_t3);
+    _c1 = cos(_t3);
+    _s2 = sin(q1);
+    _c2 = cos(q1);
+#endif
+    T[0] = _c0;
+    T[1] = -_s0;
     T[2] = 0;
-    T[3] = -_t1*e + a*cos(_t3) + a*cos(q1);
-    T[4] = _t2;
-    T[5] = _t1;
+    T[3] = -_c0*e + _c1*a + _c2*a;
+    T[4] = _s0;
+    T[5] = _c0;
     T[6] = 0;
-    T[7] = -_t2*e + a*sin(_t3) + a*sin(q1);
+    T[7] = -_s0*e + _s1*a + _s2*a;
     T[8] = 0;
     T[9] = 0;
     T[10] = 1;
@@ -100,12 +192,134 @@ void avr3000_fk(const double *restrict q, const avr3000_params *restrict params,
     T[15] = 1;
 }
 
+/* fk of `count` items, stored one after the other in each argument and output. */
 void avr3000_fk_batch(size_t count, const double *restrict q, const avr3000_params *restrict params, double *restrict T)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t3[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _T_block[16][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double a = params->a;
+    const double e = params->e;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+            q3[i] = q[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + (0.5)*q2[i];
+            _t3[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _T_block[0][i] = _c0[i];
+                _T_block[1][i] = -_s0[i];
+                _T_block[2][i] = 0;
+                _T_block[3][i] = -_c0[i]*e + _c1[i]*a + _c2[i]*a;
+                _T_block[4][i] = _s0[i];
+                _T_block[5][i] = _c0[i];
+                _T_block[6][i] = 0;
+                _T_block[7][i] = -_s0[i]*e + _s1[i]*a + _s2[i]*a;
+                _T_block[8][i] = 0;
+                _T_block[9][i] = 0;
+                _T_block[10][i] = 1;
+                _T_block[11][i] = q3[i];
+                _T_block[12][i] = 0;
+                _T_block[13][i] = 0;
+                _T_block[14][i] = 0;
+                _T_block[15][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                T[16 * (start + i) + 0] = _c0[i];
+                T[16 * (start + i) + 1] = -_s0[i];
+                T[16 * (start + i) + 2] = 0;
+                T[16 * (start + i) + 3] = -_c0[i]*e + _c1[i]*a + _c2[i]*a;
+                T[16 * (start + i) + 4] = _s0[i];
+                T[16 * (start + i) + 5] = _c0[i];
+                T[16 * (start + i) + 6] = 0;
+                T[16 * (start + i) + 7] = -_s0[i]*e + _s1[i]*a + _s2[i]*a;
+                T[16 * (start + i) + 8] = 0;
+                T[16 * (start + i) + 9] = 0;
+                T[16 * (start + i) + 10] = 1;
+                T[16 * (start + i) + 11] = q3[i];
+                T[16 * (start + i) + 12] = 0;
+                T[16 * (start + i) + 13] = 0;
+                T[16 * (start + i) + 14] = 0;
+                T[16 * (start + i) + 15] = 1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 16; k += 2) {
+                    _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_fk(q + 3 * i, params, T + 16 * i);
     }
+#endif
 }
 
 /* Frames T_0 (base) .. T_3 (tool), shape (..., 4, 4, 4). */
@@ -119,16 +333,40 @@ void avr3000_frames(const double *restrict q, const avr3000_params *restrict par
     }
     const double a = params->a;
     const double e = params->e;
-    const double _t0 = cos(q1);
-    const double _t1 = sin(q1);
     const double _t2 = q1 + q2;
-    const double _t3 = cos(_t2);
-    const double _t4 = sin(_t2);
-    const double _t5 = _t0*a;
-    const double _t6 = _t1*a;
     const double _t7 = q1 + (0.5)*q2;
-    const double _t8 = cos(_t7);
-    const double _t9 = sin(_t7);
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q1, _t2, _t7, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t2);
+    _c1 = cos(_t2);
+    _s2 = sin(_t7);
+    _c2 = cos(_t7);
+#endif
+    const double _t5 = _c0*a;
+    const double _t6 = _s0*a;
     frames[0] = 1;
     frames[1] = 0;
     frames[2] = 0;
@@ -145,12 +383,12 @@ void avr3000_frames(const double *restrict q, const avr3000_params *restrict par
     frames[13] = 0;
     frames[14] = 0;
     frames[15] = 1;
-    frames[16] = _t0;
-    frames[17] = -_t1;
+    frames[16] = _c0;
+    frames[17] = -_s0;
     frames[18] = 0;
     frames[19] = 0;
-    frames[20] = _t1;
-    frames[21] = _t0;
+    frames[20] = _s0;
+    frames[21] = _c0;
     frames[22] = 0;
     frames[23] = 0;
     frames[24] = 0;
@@ -161,12 +399,12 @@ void avr3000_frames(const double *restrict q, const avr3000_params *restrict par
     frames[29] = 0;
     frames[30] = 0;
     frames[31] = 1;
-    frames[32] = _t3;
-    frames[33] = -_t4;
+    frames[32] = _c1;
+    frames[33] = -_s1;
     frames[34] = 0;
     frames[35] = _t5;
-    frames[36] = _t4;
-    frames[37] = _t3;
+    frames[36] = _s1;
+    frames[37] = _c1;
     frames[38] = 0;
     frames[39] = _t6;
     frames[40] = 0;
@@ -177,14 +415,14 @@ void avr3000_frames(const double *restrict q, const avr3000_params *restrict par
     frames[45] = 0;
     frames[46] = 0;
     frames[47] = 1;
-    frames[48] = _t8;
-    frames[49] = -_t9;
+    frames[48] = _c2;
+    frames[49] = -_s2;
     frames[50] = 0;
-    frames[51] = _t3*a + _t5 - _t8*e;
-    frames[52] = _t9;
-    frames[53] = _t8;
+    frames[51] = _c1*a - _c2*e + _t5;
+    frames[52] = _s2;
+    frames[53] = _c2;
     frames[54] = 0;
-    frames[55] = _t4*a + _t6 - _t9*e;
+    frames[55] = _s1*a - _s2*e + _t6;
     frames[56] = 0;
     frames[57] = 0;
     frames[58] = 1;
@@ -195,12 +433,234 @@ void avr3000_frames(const double *restrict q, const avr3000_params *restrict par
     frames[63] = 1;
 }
 
+/* frames of `count` items, stored one after the other in each argument and output. */
 void avr3000_frames_batch(size_t count, const double *restrict q, const avr3000_params *restrict params, double *restrict frames)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(32)];
+    double q2[KINEGEN_BLOCK_OF(32)];
+    double q3[KINEGEN_BLOCK_OF(32)];
+    double _t2[KINEGEN_BLOCK_OF(32)];
+    double _t7[KINEGEN_BLOCK_OF(32)];
+    double _s0[KINEGEN_BLOCK_OF(32)];
+    double _c0[KINEGEN_BLOCK_OF(32)];
+    double _s1[KINEGEN_BLOCK_OF(32)];
+    double _c1[KINEGEN_BLOCK_OF(32)];
+    double _s2[KINEGEN_BLOCK_OF(32)];
+    double _c2[KINEGEN_BLOCK_OF(32)];
+#ifdef KINEGEN_STREAM
+    double _frames_block[64][KINEGEN_BLOCK_OF(32)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 64 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double a = params->a;
+    const double e = params->e;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(32) ? count - start : KINEGEN_BLOCK_OF(32);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+            q3[i] = q[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t2[i] = q1[i] + q2[i];
+            _t7[i] = q1[i] + (0.5)*q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t7[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t7[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t5 = _c0[i]*a;
+                const double _t6 = _s0[i]*a;
+                _frames_block[0][i] = 1;
+                _frames_block[1][i] = 0;
+                _frames_block[2][i] = 0;
+                _frames_block[3][i] = 0;
+                _frames_block[4][i] = 0;
+                _frames_block[5][i] = 1;
+                _frames_block[6][i] = 0;
+                _frames_block[7][i] = 0;
+                _frames_block[8][i] = 0;
+                _frames_block[9][i] = 0;
+                _frames_block[10][i] = 1;
+                _frames_block[11][i] = 0;
+                _frames_block[12][i] = 0;
+                _frames_block[13][i] = 0;
+                _frames_block[14][i] = 0;
+                _frames_block[15][i] = 1;
+                _frames_block[16][i] = _c0[i];
+                _frames_block[17][i] = -_s0[i];
+                _frames_block[18][i] = 0;
+                _frames_block[19][i] = 0;
+                _frames_block[20][i] = _s0[i];
+                _frames_block[21][i] = _c0[i];
+                _frames_block[22][i] = 0;
+                _frames_block[23][i] = 0;
+                _frames_block[24][i] = 0;
+                _frames_block[25][i] = 0;
+                _frames_block[26][i] = 1;
+                _frames_block[27][i] = q3[i];
+                _frames_block[28][i] = 0;
+                _frames_block[29][i] = 0;
+                _frames_block[30][i] = 0;
+                _frames_block[31][i] = 1;
+                _frames_block[32][i] = _c1[i];
+                _frames_block[33][i] = -_s1[i];
+                _frames_block[34][i] = 0;
+                _frames_block[35][i] = _t5;
+                _frames_block[36][i] = _s1[i];
+                _frames_block[37][i] = _c1[i];
+                _frames_block[38][i] = 0;
+                _frames_block[39][i] = _t6;
+                _frames_block[40][i] = 0;
+                _frames_block[41][i] = 0;
+                _frames_block[42][i] = 1;
+                _frames_block[43][i] = q3[i];
+                _frames_block[44][i] = 0;
+                _frames_block[45][i] = 0;
+                _frames_block[46][i] = 0;
+                _frames_block[47][i] = 1;
+                _frames_block[48][i] = _c2[i];
+                _frames_block[49][i] = -_s2[i];
+                _frames_block[50][i] = 0;
+                _frames_block[51][i] = _c1[i]*a - _c2[i]*e + _t5;
+                _frames_block[52][i] = _s2[i];
+                _frames_block[53][i] = _c2[i];
+                _frames_block[54][i] = 0;
+                _frames_block[55][i] = _s1[i]*a - _s2[i]*e + _t6;
+                _frames_block[56][i] = 0;
+                _frames_block[57][i] = 0;
+                _frames_block[58][i] = 1;
+                _frames_block[59][i] = q3[i];
+                _frames_block[60][i] = 0;
+                _frames_block[61][i] = 0;
+                _frames_block[62][i] = 0;
+                _frames_block[63][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t5 = _c0[i]*a;
+                const double _t6 = _s0[i]*a;
+                frames[64 * (start + i) + 0] = 1;
+                frames[64 * (start + i) + 1] = 0;
+                frames[64 * (start + i) + 2] = 0;
+                frames[64 * (start + i) + 3] = 0;
+                frames[64 * (start + i) + 4] = 0;
+                frames[64 * (start + i) + 5] = 1;
+                frames[64 * (start + i) + 6] = 0;
+                frames[64 * (start + i) + 7] = 0;
+                frames[64 * (start + i) + 8] = 0;
+                frames[64 * (start + i) + 9] = 0;
+                frames[64 * (start + i) + 10] = 1;
+                frames[64 * (start + i) + 11] = 0;
+                frames[64 * (start + i) + 12] = 0;
+                frames[64 * (start + i) + 13] = 0;
+                frames[64 * (start + i) + 14] = 0;
+                frames[64 * (start + i) + 15] = 1;
+                frames[64 * (start + i) + 16] = _c0[i];
+                frames[64 * (start + i) + 17] = -_s0[i];
+                frames[64 * (start + i) + 18] = 0;
+                frames[64 * (start + i) + 19] = 0;
+                frames[64 * (start + i) + 20] = _s0[i];
+                frames[64 * (start + i) + 21] = _c0[i];
+                frames[64 * (start + i) + 22] = 0;
+                frames[64 * (start + i) + 23] = 0;
+                frames[64 * (start + i) + 24] = 0;
+                frames[64 * (start + i) + 25] = 0;
+                frames[64 * (start + i) + 26] = 1;
+                frames[64 * (start + i) + 27] = q3[i];
+                frames[64 * (start + i) + 28] = 0;
+                frames[64 * (start + i) + 29] = 0;
+                frames[64 * (start + i) + 30] = 0;
+                frames[64 * (start + i) + 31] = 1;
+                frames[64 * (start + i) + 32] = _c1[i];
+                frames[64 * (start + i) + 33] = -_s1[i];
+                frames[64 * (start + i) + 34] = 0;
+                frames[64 * (start + i) + 35] = _t5;
+                frames[64 * (start + i) + 36] = _s1[i];
+                frames[64 * (start + i) + 37] = _c1[i];
+                frames[64 * (start + i) + 38] = 0;
+                frames[64 * (start + i) + 39] = _t6;
+                frames[64 * (start + i) + 40] = 0;
+                frames[64 * (start + i) + 41] = 0;
+                frames[64 * (start + i) + 42] = 1;
+                frames[64 * (start + i) + 43] = q3[i];
+                frames[64 * (start + i) + 44] = 0;
+                frames[64 * (start + i) + 45] = 0;
+                frames[64 * (start + i) + 46] = 0;
+                frames[64 * (start + i) + 47] = 1;
+                frames[64 * (start + i) + 48] = _c2[i];
+                frames[64 * (start + i) + 49] = -_s2[i];
+                frames[64 * (start + i) + 50] = 0;
+                frames[64 * (start + i) + 51] = _c1[i]*a - _c2[i]*e + _t5;
+                frames[64 * (start + i) + 52] = _s2[i];
+                frames[64 * (start + i) + 53] = _c2[i];
+                frames[64 * (start + i) + 54] = 0;
+                frames[64 * (start + i) + 55] = _s1[i]*a - _s2[i]*e + _t6;
+                frames[64 * (start + i) + 56] = 0;
+                frames[64 * (start + i) + 57] = 0;
+                frames[64 * (start + i) + 58] = 1;
+                frames[64 * (start + i) + 59] = q3[i];
+                frames[64 * (start + i) + 60] = 0;
+                frames[64 * (start + i) + 61] = 0;
+                frames[64 * (start + i) + 62] = 0;
+                frames[64 * (start + i) + 63] = 1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 64; k += 2) {
+                    _mm_stream_pd(frames + 64 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_frames(q + 3 * i, params, frames + 64 * i);
     }
+#endif
 }
 
 /* Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 3). */
@@ -214,15 +674,44 @@ void avr3000_jacobian(const double *restrict q, const avr3000_params *restrict p
     const double a = params->a;
     const double e = params->e;
     const double _t0 = q1 + q2;
-    const double _t1 = a*sin(_t0);
     const double _t2 = q1 + (0.5)*q2;
-    const double _t3 = sin(_t2);
-    const double _t4 = a*cos(_t0);
-    const double _t5 = e*cos(_t2);
-    J[0] = -_t1 + _t3*e - a*sin(q1);
-    J[1] = -_t1 + (0.5)*_t3*e;
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, _t2, q1, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(_t2);
+    _c1 = cos(_t2);
+    _s2 = sin(q1);
+    _c2 = cos(q1);
+#endif
+    const double _t1 = _s0*a;
+    const double _t4 = _c0*a;
+    const double _t5 = _c1*e;
+    J[0] = _s1*e - _s2*a - _t1;
+    J[1] = (0.5)*_s1*e - _t1;
     J[2] = 0;
-    J[3] = _t4 - _t5 + a*cos(q1);
+    J[3] = _c2*a + _t4 - _t5;
     J[4] = _t4 - 0.5*_t5;
     J[5] = 0;
     J[6] = 0;
@@ -239,12 +728,142 @@ void avr3000_jacobian(const double *restrict q, const avr3000_params *restrict p
     J[17] = 0;
 }
 
+/* jacobian of `count` items, stored one after the other in each argument and output. */
 void avr3000_jacobian_batch(size_t count, const double *restrict q, const avr3000_params *restrict params, double *restrict J)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _J_block[18][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 18 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double a = params->a;
+    const double e = params->e;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+            _t2[i] = q1[i] + (0.5)*q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*a;
+                const double _t4 = _c0[i]*a;
+                const double _t5 = _c1[i]*e;
+                _J_block[0][i] = _s1[i]*e - _s2[i]*a - _t1;
+                _J_block[1][i] = (0.5)*_s1[i]*e - _t1;
+                _J_block[2][i] = 0;
+                _J_block[3][i] = _c2[i]*a + _t4 - _t5;
+                _J_block[4][i] = _t4 - 0.5*_t5;
+                _J_block[5][i] = 0;
+                _J_block[6][i] = 0;
+                _J_block[7][i] = 0;
+                _J_block[8][i] = 1;
+                _J_block[9][i] = 0;
+                _J_block[10][i] = 0;
+                _J_block[11][i] = 0;
+                _J_block[12][i] = 0;
+                _J_block[13][i] = 0;
+                _J_block[14][i] = 0;
+                _J_block[15][i] = 1;
+                _J_block[16][i] = 0.5;
+                _J_block[17][i] = 0;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*a;
+                const double _t4 = _c0[i]*a;
+                const double _t5 = _c1[i]*e;
+                J[18 * (start + i) + 0] = _s1[i]*e - _s2[i]*a - _t1;
+                J[18 * (start + i) + 1] = (0.5)*_s1[i]*e - _t1;
+                J[18 * (start + i) + 2] = 0;
+                J[18 * (start + i) + 3] = _c2[i]*a + _t4 - _t5;
+                J[18 * (start + i) + 4] = _t4 - 0.5*_t5;
+                J[18 * (start + i) + 5] = 0;
+                J[18 * (start + i) + 6] = 0;
+                J[18 * (start + i) + 7] = 0;
+                J[18 * (start + i) + 8] = 1;
+                J[18 * (start + i) + 9] = 0;
+                J[18 * (start + i) + 10] = 0;
+                J[18 * (start + i) + 11] = 0;
+                J[18 * (start + i) + 12] = 0;
+                J[18 * (start + i) + 13] = 0;
+                J[18 * (start + i) + 14] = 0;
+                J[18 * (start + i) + 15] = 1;
+                J[18 * (start + i) + 16] = 0.5;
+                J[18 * (start + i) + 17] = 0;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 18; k += 2) {
+                    _mm_stream_pd(J + 18 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_jacobian(q + 3 * i, params, J + 18 * i);
     }
+#endif
 }
 
 /* Task coordinates T, R, Z, shape (..., 3). */
@@ -258,17 +877,55 @@ void avr3000_task(const double *restrict q, const avr3000_params *restrict param
     }
     const double a = params->a;
     const double _t0 = (0.5)*q2;
+    double _c0;
+    _c0 = cos(_t0);
     x[0] = -_t0 - q1 + 1.5707963267948966;
-    x[1] = 2*a*cos(_t0);
+    x[1] = 2*_c0*a;
     x[2] = q3;
 }
 
+/* task of `count` items, stored one after the other in each argument and output. */
 void avr3000_task_batch(size_t count, const double *restrict q, const avr3000_params *restrict params, double *restrict x)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double a = params->a;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+            q3[i] = q[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = (0.5)*q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            x[3 * (start + i) + 0] = -_t0[i] - q1[i] + 1.5707963267948966;
+            x[3 * (start + i) + 1] = 2*_c0[i]*a;
+            x[3 * (start + i) + 2] = q3[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_task(q + 3 * i, params, x + 3 * i);
     }
+#endif
 }
 
 /* d task / d q, shape (..., 3, 3). */
@@ -279,23 +936,86 @@ void avr3000_task_jacobian(const double *restrict q, const avr3000_params *restr
         params = &avr3000_default_params;
     }
     const double a = params->a;
+    const double _a0 = (0.5)*q2;
+    double _s0;
+    _s0 = sin(_a0);
     Jx[0] = -1;
     Jx[1] = -0.5;
     Jx[2] = 0;
     Jx[3] = 0;
-    Jx[4] = -a*sin((0.5)*q2);
+    Jx[4] = -_s0*a;
     Jx[5] = 0;
     Jx[6] = 0;
     Jx[7] = 0;
     Jx[8] = 1;
 }
 
+/* task_jacobian of `count` items, stored one after the other in each argument and output. */
 void avr3000_task_jacobian_batch(size_t count, const double *restrict q, const avr3000_params *restrict params, double *restrict Jx)
 {
+#ifdef KINEGEN_BLOCKED
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _a0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double a = params->a;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q2[i] = q[3 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _a0[i] = (0.5)*q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_a0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            Jx[9 * (start + i) + 0] = -1;
+            Jx[9 * (start + i) + 1] = -0.5;
+            Jx[9 * (start + i) + 2] = 0;
+            Jx[9 * (start + i) + 3] = 0;
+            Jx[9 * (start + i) + 4] = -_s0[i]*a;
+            Jx[9 * (start + i) + 5] = 0;
+            Jx[9 * (start + i) + 6] = 0;
+            Jx[9 * (start + i) + 7] = 0;
+            Jx[9 * (start + i) + 8] = 1;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_task_jacobian(q + 3 * i, params, Jx + 9 * i);
     }
+#endif
+}
+
+/* The checks after an ik of one target x: a branch with a joint value that is not
+   finite, or of a target that is not, is not valid; returns the number of valid branches. */
+static int avr3000_ik_checks(const double *restrict x, const double *restrict Q, int *restrict valid)
+{
+    int branch, joint, finite_target = 1, valid_branches = 0;
+    for (joint = 0; joint < 3; ++joint) {
+        finite_target = finite_target && isfinite(x[joint]);  /* a NaN or inf target has no answer */
+    }
+    for (branch = 0; branch < 1; ++branch) {
+        if (!finite_target) {
+            valid[branch] = 0;
+        }
+        for (joint = 0; joint < 3; ++joint) {
+            if (!isfinite(Q[3 * branch + joint])) {
+                valid[branch] = 0;  /* no NaN leaks out as a valid answer */
+            }
+        }
+        valid_branches += valid[branch] != 0;
+    }
+    return valid_branches;
 }
 
 /* Inverse kinematics: joint coordinates of each branch (principal), shape (..., 1, 3), and whether each exists, shape (..., 1).
@@ -311,36 +1031,76 @@ int avr3000_ik(const double *restrict x, const avr3000_params *restrict params, 
     }
     const double a = params->a;
     const double _t0 = (0.5)*R/a;
-    const double _t1 = acos(fmax(-1, fmin(1, _t0)));
-    Q[0] = kinegen_wrap_angle(-T - _t1 + 1.5707963267948966);
-    Q[1] = 2*_t1;
+    const double _a0 = kinegen_max(-1, kinegen_min(1, _t0));
+    double _f0;
+    _f0 = acos(_a0);
+    Q[0] = kinegen_wrap_angle(-T - _f0 + 1.5707963267948966);
+    Q[1] = 2*_f0;
     Q[2] = Z;
     valid[0] = _t0 >= -1 && _t0 <= 1;
-    {
-        int branch, joint, finite_target = 1, valid_branches = 0;
-        for (joint = 0; joint < 3; ++joint) {
-            finite_target = finite_target && isfinite(x[joint]);  /* a NaN or inf target has no answer */
-        }
-        for (branch = 0; branch < 1; ++branch) {
-            if (!finite_target) {
-                valid[branch] = 0;
-            }
-            for (joint = 0; joint < 3; ++joint) {
-                if (!isfinite(Q[3 * branch + joint])) {
-                    valid[branch] = 0;  /* no NaN leaks out as a valid answer */
-                }
-            }
-            valid_branches += valid[branch] != 0;
-        }
-        return valid_branches;
-    }
+    return avr3000_ik_checks(x, Q, valid);
 }
 
+/* ik of `count` items, stored one after the other in each argument and output.   Returns the total number of valid branches, or -1 if any item was refused. */
 long avr3000_ik_batch(size_t count, const double *restrict x, const avr3000_params *restrict params, double *restrict Q, int *restrict valid)
 {
-    size_t i;
     long valid_branches = 0;
     int refused = 0;
+#ifdef KINEGEN_BLOCKED
+    double T[KINEGEN_BLOCK_OF(64)];
+    double R[KINEGEN_BLOCK_OF(64)];
+    double Z[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _a0[KINEGEN_BLOCK_OF(64)];
+    double _f0[KINEGEN_BLOCK_OF(64)];
+    double _Q_block[3][KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double a = params->a;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            T[i] = x[3 * (start + i) + 0];
+            R[i] = x[3 * (start + i) + 1];
+            Z[i] = x[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = (0.5)*R[i]/a;
+            _a0[i] = kinegen_max(-1, kinegen_min(1, _t0[i]));
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f0[i] = acos(_a0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _Q_block[0][i] = kinegen_wrap_angle(-T[i] - _f0[i] + 1.5707963267948966);
+            _Q_block[1][i] = 2*_f0[i];
+            _Q_block[2][i] = Z[i];
+            valid[1 * (start + i) + 0] = _t0[i] >= -1 && _t0[i] <= 1;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 3; ++k) {
+                    Q[3 * (start + i) + k] = _Q_block[k][i];
+                }
+            }
+        }
+        for (i = 0; i < n; ++i) {
+            const int found = avr3000_ik_checks(x + 3 * (start + i), Q + 3 * (start + i), valid + 1 * (start + i));
+            if (found < 0) {
+                refused = 1;
+            } else {
+                valid_branches += found;
+            }
+        }
+    }
+#else
+    size_t i;
     for (i = 0; i < count; ++i) {
         const int found = avr3000_ik(x + 3 * i, params, Q + 3 * i, valid + 1 * i);
         if (found < 0) {
@@ -349,6 +1109,7 @@ long avr3000_ik_batch(size_t count, const double *restrict x, const avr3000_para
             valid_branches += found;
         }
     }
+#endif
     return refused ? -1 : valid_branches;
 }
 
@@ -370,12 +1131,41 @@ void avr3000_motor_to_joint(const double *restrict motor, const avr3000_params *
     joint[2] = J33*theta3;
 }
 
+/* motor_to_joint of `count` items, stored one after the other in each argument and output. */
 void avr3000_motor_to_joint_batch(size_t count, const double *restrict motor, const avr3000_params *restrict params, double *restrict joint)
 {
+#ifdef KINEGEN_BLOCKED
+    double theta1[KINEGEN_BLOCK_OF(64)];
+    double theta2[KINEGEN_BLOCK_OF(64)];
+    double theta3[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double J11 = params->J11;
+    const double J21 = params->J21;
+    const double J22 = params->J22;
+    const double J33 = params->J33;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            theta1[i] = motor[3 * (start + i) + 0];
+            theta2[i] = motor[3 * (start + i) + 1];
+            theta3[i] = motor[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            joint[3 * (start + i) + 0] = J11*theta1[i];
+            joint[3 * (start + i) + 1] = J21*theta1[i] + J22*theta2[i] + 3.141592653589793;
+            joint[3 * (start + i) + 2] = J33*theta3[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_motor_to_joint(motor + 3 * i, params, joint + 3 * i);
     }
+#endif
 }
 
 /* Motor -> joint velocity (Sotirov Eq. 2). */
@@ -397,12 +1187,42 @@ void avr3000_motor_to_joint_velocity(const double *restrict motor, const double 
     joint_velocity[2] = J33*thetadot3;
 }
 
+/* motor_to_joint_velocity of `count` items, stored one after the other in each argument and output. */
 void avr3000_motor_to_joint_velocity_batch(size_t count, const double *restrict motor, const double *restrict motor_velocity, const avr3000_params *restrict params, double *restrict joint_velocity)
 {
+#ifdef KINEGEN_BLOCKED
+    double thetadot1[KINEGEN_BLOCK_OF(64)];
+    double thetadot2[KINEGEN_BLOCK_OF(64)];
+    double thetadot3[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    (void)motor;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double J11 = params->J11;
+    const double J21 = params->J21;
+    const double J22 = params->J22;
+    const double J33 = params->J33;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            thetadot1[i] = motor_velocity[3 * (start + i) + 0];
+            thetadot2[i] = motor_velocity[3 * (start + i) + 1];
+            thetadot3[i] = motor_velocity[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            joint_velocity[3 * (start + i) + 0] = J11*thetadot1[i];
+            joint_velocity[3 * (start + i) + 1] = J21*thetadot1[i] + J22*thetadot2[i];
+            joint_velocity[3 * (start + i) + 2] = J33*thetadot3[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_motor_to_joint_velocity(motor + 3 * i, motor_velocity + 3 * i, params, joint_velocity + 3 * i);
     }
+#endif
 }
 
 /* Motor -> joint acceleration (Sotirov Eq. 3). */
@@ -425,12 +1245,43 @@ void avr3000_motor_to_joint_acceleration(const double *restrict motor, const dou
     joint_acceleration[2] = J33*thetaddot3;
 }
 
+/* motor_to_joint_acceleration of `count` items, stored one after the other in each argument and output. */
 void avr3000_motor_to_joint_acceleration_batch(size_t count, const double *restrict motor, const double *restrict motor_velocity, const double *restrict motor_acceleration, const avr3000_params *restrict params, double *restrict joint_acceleration)
 {
+#ifdef KINEGEN_BLOCKED
+    double thetaddot1[KINEGEN_BLOCK_OF(64)];
+    double thetaddot2[KINEGEN_BLOCK_OF(64)];
+    double thetaddot3[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    (void)motor;
+    (void)motor_velocity;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double J11 = params->J11;
+    const double J21 = params->J21;
+    const double J22 = params->J22;
+    const double J33 = params->J33;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            thetaddot1[i] = motor_acceleration[3 * (start + i) + 0];
+            thetaddot2[i] = motor_acceleration[3 * (start + i) + 1];
+            thetaddot3[i] = motor_acceleration[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            joint_acceleration[3 * (start + i) + 0] = J11*thetaddot1[i];
+            joint_acceleration[3 * (start + i) + 1] = J21*thetaddot1[i] + J22*thetaddot2[i];
+            joint_acceleration[3 * (start + i) + 2] = J33*thetaddot3[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_motor_to_joint_acceleration(motor + 3 * i, motor_velocity + 3 * i, motor_acceleration + 3 * i, params, joint_acceleration + 3 * i);
     }
+#endif
 }
 
 /* Joint -> tool position (Sotirov Eq. 4). */
@@ -444,17 +1295,55 @@ void avr3000_joint_to_tool(const double *restrict joint, const avr3000_params *r
     }
     const double a = params->a;
     const double _t0 = (0.5)*q2;
+    double _c0;
+    _c0 = cos(_t0);
     tool[0] = -_t0 - q1 + 1.5707963267948966;
-    tool[1] = 2*a*cos(_t0);
+    tool[1] = 2*_c0*a;
     tool[2] = q3;
 }
 
+/* joint_to_tool of `count` items, stored one after the other in each argument and output. */
 void avr3000_joint_to_tool_batch(size_t count, const double *restrict joint, const avr3000_params *restrict params, double *restrict tool)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double a = params->a;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = joint[3 * (start + i) + 0];
+            q2[i] = joint[3 * (start + i) + 1];
+            q3[i] = joint[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = (0.5)*q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            tool[3 * (start + i) + 0] = -_t0[i] - q1[i] + 1.5707963267948966;
+            tool[3 * (start + i) + 1] = 2*_c0[i]*a;
+            tool[3 * (start + i) + 2] = q3[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_joint_to_tool(joint + 3 * i, params, tool + 3 * i);
     }
+#endif
 }
 
 /* Joint -> tool velocity (Sotirov Eq. 5). */
@@ -468,17 +1357,58 @@ void avr3000_joint_to_tool_velocity(const double *restrict joint, const double *
         params = &avr3000_default_params;
     }
     const double a = params->a;
+    const double _a0 = (0.5)*q2;
+    double _s0;
+    _s0 = sin(_a0);
     tool_velocity[0] = -qdot1 - 0.5*qdot2;
-    tool_velocity[1] = -a*qdot2*sin((0.5)*q2);
+    tool_velocity[1] = -_s0*a*qdot2;
     tool_velocity[2] = qdot3;
 }
 
+/* joint_to_tool_velocity of `count` items, stored one after the other in each argument and output. */
 void avr3000_joint_to_tool_velocity_batch(size_t count, const double *restrict joint, const double *restrict joint_velocity, const avr3000_params *restrict params, double *restrict tool_velocity)
 {
+#ifdef KINEGEN_BLOCKED
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double qdot1[KINEGEN_BLOCK_OF(64)];
+    double qdot2[KINEGEN_BLOCK_OF(64)];
+    double qdot3[KINEGEN_BLOCK_OF(64)];
+    double _a0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double a = params->a;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q2[i] = joint[3 * (start + i) + 1];
+            qdot1[i] = joint_velocity[3 * (start + i) + 0];
+            qdot2[i] = joint_velocity[3 * (start + i) + 1];
+            qdot3[i] = joint_velocity[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _a0[i] = (0.5)*q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_a0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            tool_velocity[3 * (start + i) + 0] = -qdot1[i] - 0.5*qdot2[i];
+            tool_velocity[3 * (start + i) + 1] = -_s0[i]*a*qdot2[i];
+            tool_velocity[3 * (start + i) + 2] = qdot3[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_joint_to_tool_velocity(joint + 3 * i, joint_velocity + 3 * i, params, tool_velocity + 3 * i);
     }
+#endif
 }
 
 /* Joint -> tool acceleration (Sotirov Eq. 6). */
@@ -494,17 +1424,65 @@ void avr3000_joint_to_tool_acceleration(const double *restrict joint, const doub
     }
     const double a = params->a;
     const double _t0 = (0.5)*q2;
+    double _s0, _c0;
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
     tool_acceleration[0] = -qddot1 - 0.5*qddot2;
-    tool_acceleration[1] = -a*qddot2*sin(_t0) - 0.5*a*(qdot2*qdot2)*cos(_t0);
+    tool_acceleration[1] = -0.5*_c0*a*(qdot2*qdot2) - _s0*a*qddot2;
     tool_acceleration[2] = qddot3;
 }
 
+/* joint_to_tool_acceleration of `count` items, stored one after the other in each argument and output. */
 void avr3000_joint_to_tool_acceleration_batch(size_t count, const double *restrict joint, const double *restrict joint_velocity, const double *restrict joint_acceleration, const avr3000_params *restrict params, double *restrict tool_acceleration)
 {
+#ifdef KINEGEN_BLOCKED
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double qdot2[KINEGEN_BLOCK_OF(64)];
+    double qddot1[KINEGEN_BLOCK_OF(64)];
+    double qddot2[KINEGEN_BLOCK_OF(64)];
+    double qddot3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double a = params->a;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q2[i] = joint[3 * (start + i) + 1];
+            qdot2[i] = joint_velocity[3 * (start + i) + 1];
+            qddot1[i] = joint_acceleration[3 * (start + i) + 0];
+            qddot2[i] = joint_acceleration[3 * (start + i) + 1];
+            qddot3[i] = joint_acceleration[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = (0.5)*q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            tool_acceleration[3 * (start + i) + 0] = -qddot1[i] - 0.5*qddot2[i];
+            tool_acceleration[3 * (start + i) + 1] = -0.5*_c0[i]*a*(qdot2[i]*qdot2[i]) - _s0[i]*a*qddot2[i];
+            tool_acceleration[3 * (start + i) + 2] = qddot3[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_joint_to_tool_acceleration(joint + 3 * i, joint_velocity + 3 * i, joint_acceleration + 3 * i, params, tool_acceleration + 3 * i);
     }
+#endif
 }
 
 /* Joint -> cartesian position (Sotirov Eq. 7). */
@@ -520,17 +1498,111 @@ void avr3000_joint_to_cartesian(const double *restrict joint, const avr3000_para
     const double e = params->e;
     const double _t0 = q1 + q2;
     const double _t1 = q1 + (0.5)*q2;
-    cartesian[0] = a*cos(_t0) + a*cos(q1) - e*cos(_t1);
-    cartesian[1] = a*sin(_t0) + a*sin(q1) - e*sin(_t1);
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, _t1, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+    _s2 = sin(_t1);
+    _c2 = cos(_t1);
+#endif
+    cartesian[0] = _c0*a + _c1*a - _c2*e;
+    cartesian[1] = _s0*a + _s1*a - _s2*e;
     cartesian[2] = q3;
 }
 
+/* joint_to_cartesian of `count` items, stored one after the other in each argument and output. */
 void avr3000_joint_to_cartesian_batch(size_t count, const double *restrict joint, const avr3000_params *restrict params, double *restrict cartesian)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double a = params->a;
+    const double e = params->e;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = joint[3 * (start + i) + 0];
+            q2[i] = joint[3 * (start + i) + 1];
+            q3[i] = joint[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+            _t1[i] = q1[i] + (0.5)*q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            cartesian[3 * (start + i) + 0] = _c0[i]*a + _c1[i]*a - _c2[i]*e;
+            cartesian[3 * (start + i) + 1] = _s0[i]*a + _s1[i]*a - _s2[i]*e;
+            cartesian[3 * (start + i) + 2] = q3[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_joint_to_cartesian(joint + 3 * i, params, cartesian + 3 * i);
     }
+#endif
 }
 
 /* Joint -> cartesian velocity (Sotirov section 2.3.2, J^x). */
@@ -547,22 +1619,122 @@ void avr3000_joint_to_cartesian_velocity(const double *restrict joint, const dou
     const double a = params->a;
     const double e = params->e;
     const double _t0 = q1 + q2;
-    const double _t1 = a*sin(_t0);
     const double _t2 = q1 + (0.5)*q2;
-    const double _t3 = sin(_t2);
-    const double _t4 = a*cos(_t0);
-    const double _t5 = e*cos(_t2);
-    cartesian_velocity[0] = qdot1*(-_t1 + _t3*e - a*sin(q1)) + qdot2*(-_t1 + (0.5)*_t3*e);
-    cartesian_velocity[1] = qdot1*(_t4 - _t5 + a*cos(q1)) + qdot2*(_t4 - 0.5*_t5);
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, _t2, q1, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(_t2);
+    _c1 = cos(_t2);
+    _s2 = sin(q1);
+    _c2 = cos(q1);
+#endif
+    const double _t1 = _s0*a;
+    const double _t4 = _c0*a;
+    const double _t5 = _c1*e;
+    cartesian_velocity[0] = qdot1*(_s1*e - _s2*a - _t1) + qdot2*((0.5)*_s1*e - _t1);
+    cartesian_velocity[1] = qdot1*(_c2*a + _t4 - _t5) + qdot2*(_t4 - 0.5*_t5);
     cartesian_velocity[2] = qdot3;
 }
 
+/* joint_to_cartesian_velocity of `count` items, stored one after the other in each argument and output. */
 void avr3000_joint_to_cartesian_velocity_batch(size_t count, const double *restrict joint, const double *restrict joint_velocity, const avr3000_params *restrict params, double *restrict cartesian_velocity)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double qdot1[KINEGEN_BLOCK_OF(64)];
+    double qdot2[KINEGEN_BLOCK_OF(64)];
+    double qdot3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double a = params->a;
+    const double e = params->e;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = joint[3 * (start + i) + 0];
+            q2[i] = joint[3 * (start + i) + 1];
+            qdot1[i] = joint_velocity[3 * (start + i) + 0];
+            qdot2[i] = joint_velocity[3 * (start + i) + 1];
+            qdot3[i] = joint_velocity[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+            _t2[i] = q1[i] + (0.5)*q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t1 = _s0[i]*a;
+            const double _t4 = _c0[i]*a;
+            const double _t5 = _c1[i]*e;
+            cartesian_velocity[3 * (start + i) + 0] = qdot1[i]*(_s1[i]*e - _s2[i]*a - _t1) + qdot2[i]*((0.5)*_s1[i]*e - _t1);
+            cartesian_velocity[3 * (start + i) + 1] = qdot1[i]*(_c2[i]*a + _t4 - _t5) + qdot2[i]*(_t4 - 0.5*_t5);
+            cartesian_velocity[3 * (start + i) + 2] = qdot3[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_joint_to_cartesian_velocity(joint + 3 * i, joint_velocity + 3 * i, params, cartesian_velocity + 3 * i);
     }
+#endif
 }
 
 /* Joint -> cartesian acceleration. */
@@ -581,27 +1753,134 @@ void avr3000_joint_to_cartesian_acceleration(const double *restrict joint, const
     const double a = params->a;
     const double e = params->e;
     const double _t0 = q1 + q2;
-    const double _t1 = a*sin(_t0);
     const double _t2 = q1 + (0.5)*q2;
-    const double _t3 = sin(_t2);
-    const double _t4 = -_t1 + (0.5)*_t3*e;
-    const double _t5 = -_t1 + _t3*e - a*sin(q1);
-    const double _t6 = a*cos(_t0);
-    const double _t7 = cos(_t2);
-    const double _t8 = _t6 - 0.5*_t7*e;
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, _t2, q1, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(_t2);
+    _c1 = cos(_t2);
+    _s2 = sin(q1);
+    _c2 = cos(q1);
+#endif
+    const double _t1 = _s0*a;
+    const double _t4 = (0.5)*_s1*e - _t1;
+    const double _t5 = _s1*e - _s2*a - _t1;
+    const double _t6 = _c0*a;
+    const double _t8 = -0.5*_c1*e + _t6;
     const double _t9 = -_t8;
-    const double _t10 = _t6 - _t7*e + a*cos(q1);
-    cartesian_acceleration[0] = _t4*qddot2 + _t5*qddot1 + qdot1*(-_t10*qdot1 + _t9*qdot2) + qdot2*(_t9*qdot1 + qdot2*(-_t6 + (0.25)*_t7*e));
-    cartesian_acceleration[1] = _t10*qddot1 + _t8*qddot2 + qdot1*(_t4*qdot2 + _t5*qdot1) + qdot2*(_t4*qdot1 + qdot2*(-_t1 + (0.25)*_t3*e));
+    const double _t10 = -_c1*e + _c2*a + _t6;
+    cartesian_acceleration[0] = _t4*qddot2 + _t5*qddot1 + qdot1*(-_t10*qdot1 + _t9*qdot2) + qdot2*(_t9*qdot1 + qdot2*((0.25)*_c1*e - _t6));
+    cartesian_acceleration[1] = _t10*qddot1 + _t8*qddot2 + qdot1*(_t4*qdot2 + _t5*qdot1) + qdot2*(_t4*qdot1 + qdot2*((0.25)*_s1*e - _t1));
     cartesian_acceleration[2] = qddot3;
 }
 
+/* joint_to_cartesian_acceleration of `count` items, stored one after the other in each argument and output. */
 void avr3000_joint_to_cartesian_acceleration_batch(size_t count, const double *restrict joint, const double *restrict joint_velocity, const double *restrict joint_acceleration, const avr3000_params *restrict params, double *restrict cartesian_acceleration)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double qdot1[KINEGEN_BLOCK_OF(64)];
+    double qdot2[KINEGEN_BLOCK_OF(64)];
+    double qddot1[KINEGEN_BLOCK_OF(64)];
+    double qddot2[KINEGEN_BLOCK_OF(64)];
+    double qddot3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double a = params->a;
+    const double e = params->e;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = joint[3 * (start + i) + 0];
+            q2[i] = joint[3 * (start + i) + 1];
+            qdot1[i] = joint_velocity[3 * (start + i) + 0];
+            qdot2[i] = joint_velocity[3 * (start + i) + 1];
+            qddot1[i] = joint_acceleration[3 * (start + i) + 0];
+            qddot2[i] = joint_acceleration[3 * (start + i) + 1];
+            qddot3[i] = joint_acceleration[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+            _t2[i] = q1[i] + (0.5)*q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t1 = _s0[i]*a;
+            const double _t4 = (0.5)*_s1[i]*e - _t1;
+            const double _t5 = _s1[i]*e - _s2[i]*a - _t1;
+            const double _t6 = _c0[i]*a;
+            const double _t8 = -0.5*_c1[i]*e + _t6;
+            const double _t9 = -_t8;
+            const double _t10 = -_c1[i]*e + _c2[i]*a + _t6;
+            cartesian_acceleration[3 * (start + i) + 0] = _t4*qddot2[i] + _t5*qddot1[i] + qdot1[i]*(-_t10*qdot1[i] + _t9*qdot2[i]) + qdot2[i]*(_t9*qdot1[i] + qdot2[i]*((0.25)*_c1[i]*e - _t6));
+            cartesian_acceleration[3 * (start + i) + 1] = _t10*qddot1[i] + _t8*qddot2[i] + qdot1[i]*(_t4*qdot2[i] + _t5*qdot1[i]) + qdot2[i]*(_t4*qdot1[i] + qdot2[i]*((0.25)*_s1[i]*e - _t1));
+            cartesian_acceleration[3 * (start + i) + 2] = qddot3[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_joint_to_cartesian_acceleration(joint + 3 * i, joint_velocity + 3 * i, joint_acceleration + 3 * i, params, cartesian_acceleration + 3 * i);
     }
+#endif
 }
 
 /* Tool -> cartesian position (Sotirov Eqs. 7 and 8; the Matlab JX). */
@@ -614,18 +1893,58 @@ void avr3000_tool_to_cartesian(const double *restrict tool, const avr3000_params
         params = &avr3000_default_params;
     }
     const double e = params->e;
+    double _s0, _c0;
+    _s0 = sin(T);
+    _c0 = cos(T);
     const double _t0 = R - e;
-    cartesian[0] = _t0*sin(T);
-    cartesian[1] = _t0*cos(T);
+    cartesian[0] = _s0*_t0;
+    cartesian[1] = _c0*_t0;
     cartesian[2] = Z;
 }
 
+/* tool_to_cartesian of `count` items, stored one after the other in each argument and output. */
 void avr3000_tool_to_cartesian_batch(size_t count, const double *restrict tool, const avr3000_params *restrict params, double *restrict cartesian)
 {
+#ifdef KINEGEN_BLOCKED
+    double T[KINEGEN_BLOCK_OF(64)];
+    double R[KINEGEN_BLOCK_OF(64)];
+    double Z[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double e = params->e;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            T[i] = tool[3 * (start + i) + 0];
+            R[i] = tool[3 * (start + i) + 1];
+            Z[i] = tool[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(T[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(T[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t0 = R[i] - e;
+            cartesian[3 * (start + i) + 0] = _s0[i]*_t0;
+            cartesian[3 * (start + i) + 1] = _c0[i]*_t0;
+            cartesian[3 * (start + i) + 2] = Z[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_tool_to_cartesian(tool + 3 * i, params, cartesian + 3 * i);
     }
+#endif
 }
 
 /* Tool -> cartesian velocity (the Matlab JX). */
@@ -640,20 +1959,62 @@ void avr3000_tool_to_cartesian_velocity(const double *restrict tool, const doubl
         params = &avr3000_default_params;
     }
     const double e = params->e;
-    const double _t0 = sin(T);
-    const double _t1 = cos(T);
+    double _s0, _c0;
+    _s0 = sin(T);
+    _c0 = cos(T);
     const double _t2 = Tdot*(R - e);
-    cartesian_velocity[0] = Rdot*_t0 + _t1*_t2;
-    cartesian_velocity[1] = Rdot*_t1 - _t0*_t2;
+    cartesian_velocity[0] = Rdot*_s0 + _c0*_t2;
+    cartesian_velocity[1] = Rdot*_c0 - _s0*_t2;
     cartesian_velocity[2] = Zdot;
 }
 
+/* tool_to_cartesian_velocity of `count` items, stored one after the other in each argument and output. */
 void avr3000_tool_to_cartesian_velocity_batch(size_t count, const double *restrict tool, const double *restrict tool_velocity, const avr3000_params *restrict params, double *restrict cartesian_velocity)
 {
+#ifdef KINEGEN_BLOCKED
+    double T[KINEGEN_BLOCK_OF(64)];
+    double R[KINEGEN_BLOCK_OF(64)];
+    double Tdot[KINEGEN_BLOCK_OF(64)];
+    double Rdot[KINEGEN_BLOCK_OF(64)];
+    double Zdot[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double e = params->e;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            T[i] = tool[3 * (start + i) + 0];
+            R[i] = tool[3 * (start + i) + 1];
+            Tdot[i] = tool_velocity[3 * (start + i) + 0];
+            Rdot[i] = tool_velocity[3 * (start + i) + 1];
+            Zdot[i] = tool_velocity[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(T[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(T[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t2 = Tdot[i]*(R[i] - e);
+            cartesian_velocity[3 * (start + i) + 0] = Rdot[i]*_s0[i] + _c0[i]*_t2;
+            cartesian_velocity[3 * (start + i) + 1] = Rdot[i]*_c0[i] - _s0[i]*_t2;
+            cartesian_velocity[3 * (start + i) + 2] = Zdot[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_tool_to_cartesian_velocity(tool + 3 * i, tool_velocity + 3 * i, params, cartesian_velocity + 3 * i);
     }
+#endif
 }
 
 /* Tool -> cartesian acceleration. */
@@ -670,24 +2031,74 @@ void avr3000_tool_to_cartesian_acceleration(const double *restrict tool, const d
         params = &avr3000_default_params;
     }
     const double e = params->e;
-    const double _t0 = sin(T);
-    const double _t1 = cos(T);
-    const double _t2 = Rdot*_t1;
+    double _s0, _c0;
+    _s0 = sin(T);
+    _c0 = cos(T);
+    const double _t2 = Rdot*_c0;
     const double _t3 = R - e;
     const double _t4 = Tddot*_t3;
     const double _t5 = Tdot*_t3;
-    const double _t6 = Rdot*_t0;
-    cartesian_acceleration[0] = Rddot*_t0 + Tdot*_t2 + Tdot*(-_t0*_t5 + _t2) + _t1*_t4;
-    cartesian_acceleration[1] = Rddot*_t1 - Tdot*_t6 + Tdot*(-_t1*_t5 - _t6) - _t0*_t4;
+    const double _t6 = Rdot*_s0;
+    cartesian_acceleration[0] = Rddot*_s0 + Tdot*_t2 + Tdot*(-_s0*_t5 + _t2) + _c0*_t4;
+    cartesian_acceleration[1] = Rddot*_c0 - Tdot*_t6 + Tdot*(-_c0*_t5 - _t6) - _s0*_t4;
     cartesian_acceleration[2] = Zddot;
 }
 
+/* tool_to_cartesian_acceleration of `count` items, stored one after the other in each argument and output. */
 void avr3000_tool_to_cartesian_acceleration_batch(size_t count, const double *restrict tool, const double *restrict tool_velocity, const double *restrict tool_acceleration, const avr3000_params *restrict params, double *restrict cartesian_acceleration)
 {
+#ifdef KINEGEN_BLOCKED
+    double T[KINEGEN_BLOCK_OF(64)];
+    double R[KINEGEN_BLOCK_OF(64)];
+    double Tdot[KINEGEN_BLOCK_OF(64)];
+    double Rdot[KINEGEN_BLOCK_OF(64)];
+    double Tddot[KINEGEN_BLOCK_OF(64)];
+    double Rddot[KINEGEN_BLOCK_OF(64)];
+    double Zddot[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double e = params->e;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            T[i] = tool[3 * (start + i) + 0];
+            R[i] = tool[3 * (start + i) + 1];
+            Tdot[i] = tool_velocity[3 * (start + i) + 0];
+            Rdot[i] = tool_velocity[3 * (start + i) + 1];
+            Tddot[i] = tool_acceleration[3 * (start + i) + 0];
+            Rddot[i] = tool_acceleration[3 * (start + i) + 1];
+            Zddot[i] = tool_acceleration[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(T[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(T[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t2 = Rdot[i]*_c0[i];
+            const double _t3 = R[i] - e;
+            const double _t4 = Tddot[i]*_t3;
+            const double _t5 = Tdot[i]*_t3;
+            const double _t6 = Rdot[i]*_s0[i];
+            cartesian_acceleration[3 * (start + i) + 0] = Rddot[i]*_s0[i] + Tdot[i]*_t2 + Tdot[i]*(-_s0[i]*_t5 + _t2) + _c0[i]*_t4;
+            cartesian_acceleration[3 * (start + i) + 1] = Rddot[i]*_c0[i] - Tdot[i]*_t6 + Tdot[i]*(-_c0[i]*_t5 - _t6) - _s0[i]*_t4;
+            cartesian_acceleration[3 * (start + i) + 2] = Zddot[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_tool_to_cartesian_acceleration(tool + 3 * i, tool_velocity + 3 * i, tool_acceleration + 3 * i, params, cartesian_acceleration + 3 * i);
     }
+#endif
 }
 
 /* Motor -> tool position (Sotirov Eq. 14; the Matlab JMT). */
@@ -705,17 +2116,59 @@ void avr3000_motor_to_tool(const double *restrict motor, const avr3000_params *r
     const double J22 = params->J22;
     const double J33 = params->J33;
     const double _t0 = (0.5)*J21*theta1 + (0.5)*J22*theta2;
+    double _s0;
+    _s0 = sin(_t0);
     tool[0] = -J11*theta1 - _t0;
-    tool[1] = -2*a*sin(_t0);
+    tool[1] = -2*_s0*a;
     tool[2] = J33*theta3;
 }
 
+/* motor_to_tool of `count` items, stored one after the other in each argument and output. */
 void avr3000_motor_to_tool_batch(size_t count, const double *restrict motor, const avr3000_params *restrict params, double *restrict tool)
 {
+#ifdef KINEGEN_BLOCKED
+    double theta1[KINEGEN_BLOCK_OF(64)];
+    double theta2[KINEGEN_BLOCK_OF(64)];
+    double theta3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double a = params->a;
+    const double J11 = params->J11;
+    const double J21 = params->J21;
+    const double J22 = params->J22;
+    const double J33 = params->J33;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            theta1[i] = motor[3 * (start + i) + 0];
+            theta2[i] = motor[3 * (start + i) + 1];
+            theta3[i] = motor[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = (0.5)*J21*theta1[i] + (0.5)*J22*theta2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            tool[3 * (start + i) + 0] = -J11*theta1[i] - _t0[i];
+            tool[3 * (start + i) + 1] = -2*_s0[i]*a;
+            tool[3 * (start + i) + 2] = J33*theta3[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_motor_to_tool(motor + 3 * i, params, tool + 3 * i);
     }
+#endif
 }
 
 /* Motor -> tool velocity (Sotirov Eq. 14; the Matlab JMT). */
@@ -736,18 +2189,68 @@ void avr3000_motor_to_tool_velocity(const double *restrict motor, const double *
     const double J33 = params->J33;
     const double _t0 = (0.5)*J22;
     const double _t1 = (0.5)*J21;
-    const double _t2 = a*cos(_t0*theta2 + _t1*theta1);
+    const double _a0 = _t0*theta2 + _t1*theta1;
+    double _c0;
+    _c0 = cos(_a0);
+    const double _t2 = _c0*a;
     tool_velocity[0] = -_t0*thetadot2 + thetadot1*(-J11 - _t1);
     tool_velocity[1] = -J21*_t2*thetadot1 - J22*_t2*thetadot2;
     tool_velocity[2] = J33*thetadot3;
 }
 
+/* motor_to_tool_velocity of `count` items, stored one after the other in each argument and output. */
 void avr3000_motor_to_tool_velocity_batch(size_t count, const double *restrict motor, const double *restrict motor_velocity, const avr3000_params *restrict params, double *restrict tool_velocity)
 {
+#ifdef KINEGEN_BLOCKED
+    double theta1[KINEGEN_BLOCK_OF(64)];
+    double theta2[KINEGEN_BLOCK_OF(64)];
+    double thetadot1[KINEGEN_BLOCK_OF(64)];
+    double thetadot2[KINEGEN_BLOCK_OF(64)];
+    double thetadot3[KINEGEN_BLOCK_OF(64)];
+    double _a0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double a = params->a;
+    const double J11 = params->J11;
+    const double J21 = params->J21;
+    const double J22 = params->J22;
+    const double J33 = params->J33;
+    const double _t0 = (0.5)*J22;
+    const double _t1 = (0.5)*J21;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            theta1[i] = motor[3 * (start + i) + 0];
+            theta2[i] = motor[3 * (start + i) + 1];
+            thetadot1[i] = motor_velocity[3 * (start + i) + 0];
+            thetadot2[i] = motor_velocity[3 * (start + i) + 1];
+            thetadot3[i] = motor_velocity[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _a0[i] = _t0*theta2[i] + _t1*theta1[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_a0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t2 = _c0[i]*a;
+            tool_velocity[3 * (start + i) + 0] = -_t0*thetadot2[i] + thetadot1[i]*(-J11 - _t1);
+            tool_velocity[3 * (start + i) + 1] = -J21*_t2*thetadot1[i] - J22*_t2*thetadot2[i];
+            tool_velocity[3 * (start + i) + 2] = J33*thetadot3[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_motor_to_tool_velocity(motor + 3 * i, motor_velocity + 3 * i, params, tool_velocity + 3 * i);
     }
+#endif
 }
 
 /* Motor -> tool acceleration. */
@@ -771,8 +2274,11 @@ void avr3000_motor_to_tool_acceleration(const double *restrict motor, const doub
     const double _t0 = (0.5)*J22;
     const double _t1 = (0.5)*J21;
     const double _t2 = _t0*theta2 + _t1*theta1;
-    const double _t3 = a*cos(_t2);
-    const double _t4 = a*sin(_t2);
+    double _s0, _c0;
+    _s0 = sin(_t2);
+    _c0 = cos(_t2);
+    const double _t3 = _c0*a;
+    const double _t4 = _s0*a;
     const double _t5 = J22*_t1*_t4;
     const double _t6 = (0.5)*_t4;
     tool_acceleration[0] = -_t0*thetaddot2 + thetaddot1*(-J11 - _t1);
@@ -780,12 +2286,71 @@ void avr3000_motor_to_tool_acceleration(const double *restrict motor, const doub
     tool_acceleration[2] = J33*thetaddot3;
 }
 
+/* motor_to_tool_acceleration of `count` items, stored one after the other in each argument and output. */
 void avr3000_motor_to_tool_acceleration_batch(size_t count, const double *restrict motor, const double *restrict motor_velocity, const double *restrict motor_acceleration, const avr3000_params *restrict params, double *restrict tool_acceleration)
 {
+#ifdef KINEGEN_BLOCKED
+    double theta1[KINEGEN_BLOCK_OF(64)];
+    double theta2[KINEGEN_BLOCK_OF(64)];
+    double thetadot1[KINEGEN_BLOCK_OF(64)];
+    double thetadot2[KINEGEN_BLOCK_OF(64)];
+    double thetaddot1[KINEGEN_BLOCK_OF(64)];
+    double thetaddot2[KINEGEN_BLOCK_OF(64)];
+    double thetaddot3[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double a = params->a;
+    const double J11 = params->J11;
+    const double J21 = params->J21;
+    const double J22 = params->J22;
+    const double J33 = params->J33;
+    const double _t0 = (0.5)*J22;
+    const double _t1 = (0.5)*J21;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            theta1[i] = motor[3 * (start + i) + 0];
+            theta2[i] = motor[3 * (start + i) + 1];
+            thetadot1[i] = motor_velocity[3 * (start + i) + 0];
+            thetadot2[i] = motor_velocity[3 * (start + i) + 1];
+            thetaddot1[i] = motor_acceleration[3 * (start + i) + 0];
+            thetaddot2[i] = motor_acceleration[3 * (start + i) + 1];
+            thetaddot3[i] = motor_acceleration[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t2[i] = _t0*theta2[i] + _t1*theta1[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t3 = _c0[i]*a;
+            const double _t4 = _s0[i]*a;
+            const double _t5 = J22*_t1*_t4;
+            const double _t6 = (0.5)*_t4;
+            tool_acceleration[3 * (start + i) + 0] = -_t0*thetaddot2[i] + thetaddot1[i]*(-J11 - _t1);
+            tool_acceleration[3 * (start + i) + 1] = -J21*_t3*thetaddot1[i] - J22*_t3*thetaddot2[i] + thetadot1[i]*((J21*J21)*_t6*thetadot1[i] + _t5*thetadot2[i]) + thetadot2[i]*((J22*J22)*_t6*thetadot2[i] + _t5*thetadot1[i]);
+            tool_acceleration[3 * (start + i) + 2] = J33*thetaddot3[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_motor_to_tool_acceleration(motor + 3 * i, motor_velocity + 3 * i, motor_acceleration + 3 * i, params, tool_acceleration + 3 * i);
     }
+#endif
 }
 
 /* Motor -> cartesian position (the Matlab JMC). */
@@ -808,17 +2373,119 @@ void avr3000_motor_to_cartesian(const double *restrict motor, const avr3000_para
     const double _t2 = J22*theta2;
     const double _t3 = _t0 + _t1 + _t2;
     const double _t4 = _t0 + (0.5)*_t1 + (0.5)*_t2;
-    cartesian[0] = a*cos(_t0) - a*cos(_t3) + e*sin(_t4);
-    cartesian[1] = a*sin(_t0) - a*sin(_t3) - e*cos(_t4);
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t4, _t0, _t3, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t4);
+    _c0 = cos(_t4);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+    _s2 = sin(_t3);
+    _c2 = cos(_t3);
+#endif
+    cartesian[0] = _c1*a - _c2*a + _s0*e;
+    cartesian[1] = -_c0*e + _s1*a - _s2*a;
     cartesian[2] = J33*theta3;
 }
 
+/* motor_to_cartesian of `count` items, stored one after the other in each argument and output. */
 void avr3000_motor_to_cartesian_batch(size_t count, const double *restrict motor, const avr3000_params *restrict params, double *restrict cartesian)
 {
+#ifdef KINEGEN_BLOCKED
+    double theta1[KINEGEN_BLOCK_OF(64)];
+    double theta2[KINEGEN_BLOCK_OF(64)];
+    double theta3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t3[KINEGEN_BLOCK_OF(64)];
+    double _t4[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double a = params->a;
+    const double e = params->e;
+    const double J11 = params->J11;
+    const double J21 = params->J21;
+    const double J22 = params->J22;
+    const double J33 = params->J33;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            theta1[i] = motor[3 * (start + i) + 0];
+            theta2[i] = motor[3 * (start + i) + 1];
+            theta3[i] = motor[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = J11*theta1[i];
+            const double _t1 = J21*theta1[i];
+            const double _t2 = J22*theta2[i];
+            _t3[i] = _t0[i] + _t1 + _t2;
+            _t4[i] = _t0[i] + (0.5)*_t1 + (0.5)*_t2;
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            cartesian[3 * (start + i) + 0] = _c1[i]*a - _c2[i]*a + _s0[i]*e;
+            cartesian[3 * (start + i) + 1] = -_c0[i]*e + _s1[i]*a - _s2[i]*a;
+            cartesian[3 * (start + i) + 2] = J33*theta3[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_motor_to_cartesian(motor + 3 * i, params, cartesian + 3 * i);
     }
+#endif
 }
 
 /* Motor -> cartesian velocity (the Matlab JMC). */
@@ -838,29 +2505,138 @@ void avr3000_motor_to_cartesian_velocity(const double *restrict motor, const dou
     const double J21 = params->J21;
     const double J22 = params->J22;
     const double J33 = params->J33;
-    const double _t0 = J11*theta1;
-    const double _t1 = J22*theta2;
-    const double _t2 = J21*theta1 + _t0 + _t1;
-    const double _t3 = a*sin(_t2);
     const double _t4 = (0.5)*J21;
-    const double _t5 = _t0 + (0.5)*_t1 + _t4*theta1;
-    const double _t6 = cos(_t5);
     const double _t7 = J11*a;
     const double _t8 = J11 + J21;
     const double _t9 = e*(J11 + _t4);
-    const double _t10 = a*cos(_t2);
-    const double _t11 = sin(_t5);
-    cartesian_velocity[0] = thetadot1*(_t3*_t8 + _t6*_t9 - _t7*sin(_t0)) + thetadot2*(J22*_t3 + (0.5)*J22*_t6*e);
-    cartesian_velocity[1] = thetadot1*(-_t10*_t8 + _t11*_t9 + _t7*cos(_t0)) + thetadot2*(-J22*_t10 + (0.5)*J22*_t11*e);
+    const double _t0 = J11*theta1;
+    const double _t1 = J22*theta2;
+    const double _t2 = J21*theta1 + _t0 + _t1;
+    const double _t5 = _t0 + (0.5)*_t1 + _t4*theta1;
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t2, _t5, _t0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t2);
+    _c0 = cos(_t2);
+    _s1 = sin(_t5);
+    _c1 = cos(_t5);
+    _s2 = sin(_t0);
+    _c2 = cos(_t0);
+#endif
+    const double _t3 = _s0*a;
+    const double _t10 = _c0*a;
+    cartesian_velocity[0] = thetadot1*(_c1*_t9 - _s2*_t7 + _t3*_t8) + thetadot2*((0.5)*J22*_c1*e + J22*_t3);
+    cartesian_velocity[1] = thetadot1*(_c2*_t7 + _s1*_t9 - _t10*_t8) + thetadot2*((0.5)*J22*_s1*e - J22*_t10);
     cartesian_velocity[2] = J33*thetadot3;
 }
 
+/* motor_to_cartesian_velocity of `count` items, stored one after the other in each argument and output. */
 void avr3000_motor_to_cartesian_velocity_batch(size_t count, const double *restrict motor, const double *restrict motor_velocity, const avr3000_params *restrict params, double *restrict cartesian_velocity)
 {
+#ifdef KINEGEN_BLOCKED
+    double theta1[KINEGEN_BLOCK_OF(64)];
+    double theta2[KINEGEN_BLOCK_OF(64)];
+    double thetadot1[KINEGEN_BLOCK_OF(64)];
+    double thetadot2[KINEGEN_BLOCK_OF(64)];
+    double thetadot3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
+    double _t5[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double a = params->a;
+    const double e = params->e;
+    const double J11 = params->J11;
+    const double J21 = params->J21;
+    const double J22 = params->J22;
+    const double J33 = params->J33;
+    const double _t4 = (0.5)*J21;
+    const double _t7 = J11*a;
+    const double _t8 = J11 + J21;
+    const double _t9 = e*(J11 + _t4);
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            theta1[i] = motor[3 * (start + i) + 0];
+            theta2[i] = motor[3 * (start + i) + 1];
+            thetadot1[i] = motor_velocity[3 * (start + i) + 0];
+            thetadot2[i] = motor_velocity[3 * (start + i) + 1];
+            thetadot3[i] = motor_velocity[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = J11*theta1[i];
+            const double _t1 = J22*theta2[i];
+            _t2[i] = J21*theta1[i] + _t0[i] + _t1;
+            _t5[i] = _t0[i] + (0.5)*_t1 + _t4*theta1[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t3 = _s0[i]*a;
+            const double _t10 = _c0[i]*a;
+            cartesian_velocity[3 * (start + i) + 0] = thetadot1[i]*(_c1[i]*_t9 - _s2[i]*_t7 + _t3*_t8) + thetadot2[i]*((0.5)*J22*_c1[i]*e + J22*_t3);
+            cartesian_velocity[3 * (start + i) + 1] = thetadot1[i]*(_c2[i]*_t7 + _s1[i]*_t9 - _t10*_t8) + thetadot2[i]*((0.5)*J22*_s1[i]*e - J22*_t10);
+            cartesian_velocity[3 * (start + i) + 2] = J33*thetadot3[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_motor_to_cartesian_velocity(motor + 3 * i, motor_velocity + 3 * i, params, cartesian_velocity + 3 * i);
     }
+#endif
 }
 
 /* Motor -> cartesian acceleration. */
@@ -882,46 +2658,170 @@ void avr3000_motor_to_cartesian_acceleration(const double *restrict motor, const
     const double J21 = params->J21;
     const double J22 = params->J22;
     const double J33 = params->J33;
-    const double _t0 = J11*theta1;
-    const double _t1 = J22*theta2;
-    const double _t2 = J21*theta1 + _t0 + _t1;
-    const double _t3 = a*sin(_t2);
     const double _t4 = (0.5)*J21;
-    const double _t5 = _t0 + (0.5)*_t1 + _t4*theta1;
-    const double _t6 = cos(_t5);
-    const double _t7 = _t6*e;
     const double _t8 = (0.5)*J22;
-    const double _t9 = sin(_t0);
     const double _t10 = J11*a;
     const double _t11 = J11 + J21;
-    const double _t12 = _t11*_t3;
     const double _t13 = J11 + _t4;
     const double _t14 = _t13*e;
-    const double _t15 = _t14*_t6;
     const double _t16 = (J22*J22);
-    const double _t17 = cos(_t2);
-    const double _t18 = _t17*a;
-    const double _t19 = sin(_t5);
     const double _t20 = (0.25)*_t16;
-    const double _t21 = _t11*_t18;
-    const double _t22 = _t14*_t19;
-    const double _t23 = J22*_t21 - _t22*_t8;
-    const double _t24 = cos(_t0);
     const double _t25 = (J11*J11)*a;
     const double _t26 = (_t11*_t11);
     const double _t27 = (_t13*_t13)*e;
+    const double _t0 = J11*theta1;
+    const double _t1 = J22*theta2;
+    const double _t2 = J21*theta1 + _t0 + _t1;
+    const double _t5 = _t0 + (0.5)*_t1 + _t4*theta1;
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t2, _t5, _t0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t2);
+    _c0 = cos(_t2);
+    _s1 = sin(_t5);
+    _c1 = cos(_t5);
+    _s2 = sin(_t0);
+    _c2 = cos(_t0);
+#endif
+    const double _t3 = _s0*a;
+    const double _t7 = _c1*e;
+    const double _t12 = _t11*_t3;
+    const double _t15 = _c1*_t14;
+    const double _t18 = _c0*a;
+    const double _t21 = _t11*_t18;
+    const double _t22 = _s1*_t14;
+    const double _t23 = J22*_t21 - _t22*_t8;
     const double _t28 = J22*_t12 + _t15*_t8;
-    cartesian_acceleration[0] = thetaddot1*(-_t10*_t9 + _t12 + _t15) + thetaddot2*(J22*_t3 + _t7*_t8) + thetadot1*(_t23*thetadot2 + thetadot1*(_t17*_t26*a - _t19*_t27 - _t24*_t25)) + thetadot2*(_t23*thetadot1 + thetadot2*(_t16*_t18 - _t19*_t20*e));
-    cartesian_acceleration[1] = thetaddot1*(_t10*_t24 - _t21 + _t22) + thetaddot2*(-J22*_t18 + (0.5)*J22*_t19*e) + thetadot1*(_t28*thetadot2 + thetadot1*(-_t25*_t9 + _t26*_t3 + _t27*_t6)) + thetadot2*(_t28*thetadot1 + thetadot2*(_t16*_t3 + _t20*_t7));
+    cartesian_acceleration[0] = thetaddot1*(-_s2*_t10 + _t12 + _t15) + thetaddot2*(J22*_t3 + _t7*_t8) + thetadot1*(_t23*thetadot2 + thetadot1*(_c0*_t26*a - _c2*_t25 - _s1*_t27)) + thetadot2*(_t23*thetadot1 + thetadot2*(-_s1*_t20*e + _t16*_t18));
+    cartesian_acceleration[1] = thetaddot1*(_c2*_t10 - _t21 + _t22) + thetaddot2*((0.5)*J22*_s1*e - J22*_t18) + thetadot1*(_t28*thetadot2 + thetadot1*(_c1*_t27 - _s2*_t25 + _t26*_t3)) + thetadot2*(_t28*thetadot1 + thetadot2*(_t16*_t3 + _t20*_t7));
     cartesian_acceleration[2] = J33*thetaddot3;
 }
 
+/* motor_to_cartesian_acceleration of `count` items, stored one after the other in each argument and output. */
 void avr3000_motor_to_cartesian_acceleration_batch(size_t count, const double *restrict motor, const double *restrict motor_velocity, const double *restrict motor_acceleration, const avr3000_params *restrict params, double *restrict cartesian_acceleration)
 {
+#ifdef KINEGEN_BLOCKED
+    double theta1[KINEGEN_BLOCK_OF(64)];
+    double theta2[KINEGEN_BLOCK_OF(64)];
+    double thetadot1[KINEGEN_BLOCK_OF(64)];
+    double thetadot2[KINEGEN_BLOCK_OF(64)];
+    double thetaddot1[KINEGEN_BLOCK_OF(64)];
+    double thetaddot2[KINEGEN_BLOCK_OF(64)];
+    double thetaddot3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
+    double _t5[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double a = params->a;
+    const double e = params->e;
+    const double J11 = params->J11;
+    const double J21 = params->J21;
+    const double J22 = params->J22;
+    const double J33 = params->J33;
+    const double _t4 = (0.5)*J21;
+    const double _t8 = (0.5)*J22;
+    const double _t10 = J11*a;
+    const double _t11 = J11 + J21;
+    const double _t13 = J11 + _t4;
+    const double _t14 = _t13*e;
+    const double _t16 = (J22*J22);
+    const double _t20 = (0.25)*_t16;
+    const double _t25 = (J11*J11)*a;
+    const double _t26 = (_t11*_t11);
+    const double _t27 = (_t13*_t13)*e;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            theta1[i] = motor[3 * (start + i) + 0];
+            theta2[i] = motor[3 * (start + i) + 1];
+            thetadot1[i] = motor_velocity[3 * (start + i) + 0];
+            thetadot2[i] = motor_velocity[3 * (start + i) + 1];
+            thetaddot1[i] = motor_acceleration[3 * (start + i) + 0];
+            thetaddot2[i] = motor_acceleration[3 * (start + i) + 1];
+            thetaddot3[i] = motor_acceleration[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = J11*theta1[i];
+            const double _t1 = J22*theta2[i];
+            _t2[i] = J21*theta1[i] + _t0[i] + _t1;
+            _t5[i] = _t0[i] + (0.5)*_t1 + _t4*theta1[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t3 = _s0[i]*a;
+            const double _t7 = _c1[i]*e;
+            const double _t12 = _t11*_t3;
+            const double _t15 = _c1[i]*_t14;
+            const double _t18 = _c0[i]*a;
+            const double _t21 = _t11*_t18;
+            const double _t22 = _s1[i]*_t14;
+            const double _t23 = J22*_t21 - _t22*_t8;
+            const double _t28 = J22*_t12 + _t15*_t8;
+            cartesian_acceleration[3 * (start + i) + 0] = thetaddot1[i]*(-_s2[i]*_t10 + _t12 + _t15) + thetaddot2[i]*(J22*_t3 + _t7*_t8) + thetadot1[i]*(_t23*thetadot2[i] + thetadot1[i]*(_c0[i]*_t26*a - _c2[i]*_t25 - _s1[i]*_t27)) + thetadot2[i]*(_t23*thetadot1[i] + thetadot2[i]*(-_s1[i]*_t20*e + _t16*_t18));
+            cartesian_acceleration[3 * (start + i) + 1] = thetaddot1[i]*(_c2[i]*_t10 - _t21 + _t22) + thetaddot2[i]*((0.5)*J22*_s1[i]*e - J22*_t18) + thetadot1[i]*(_t28*thetadot2[i] + thetadot1[i]*(_c1[i]*_t27 - _s2[i]*_t25 + _t26*_t3)) + thetadot2[i]*(_t28*thetadot1[i] + thetadot2[i]*(_t16*_t3 + _t20*_t7));
+            cartesian_acceleration[3 * (start + i) + 2] = J33*thetaddot3[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_motor_to_cartesian_acceleration(motor + 3 * i, motor_velocity + 3 * i, motor_acceleration + 3 * i, params, cartesian_acceleration + 3 * i);
     }
+#endif
 }
 
 /* Joint -> motor position (Sotirov Eq. 11). */
@@ -937,19 +2837,50 @@ void avr3000_joint_to_motor(const double *restrict joint, const avr3000_params *
     const double J21 = params->J21;
     const double J22 = params->J22;
     const double J33 = params->J33;
-    const double _t0 = q1/J11;
     const double _t1 = 1.0/J22;
+    const double _t0 = q1/J11;
     motor[0] = _t0;
     motor[1] = -J21*_t0*_t1 + _t1*q2 - 3.141592653589793*_t1;
     motor[2] = q3/J33;
 }
 
+/* joint_to_motor of `count` items, stored one after the other in each argument and output. */
 void avr3000_joint_to_motor_batch(size_t count, const double *restrict joint, const avr3000_params *restrict params, double *restrict motor)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double J11 = params->J11;
+    const double J21 = params->J21;
+    const double J22 = params->J22;
+    const double J33 = params->J33;
+    const double _t1 = 1.0/J22;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = joint[3 * (start + i) + 0];
+            q2[i] = joint[3 * (start + i) + 1];
+            q3[i] = joint[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t0 = q1[i]/J11;
+            motor[3 * (start + i) + 0] = _t0;
+            motor[3 * (start + i) + 1] = -J21*_t0*_t1 + _t1*q2[i] - 3.141592653589793*_t1;
+            motor[3 * (start + i) + 2] = q3[i]/J33;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_joint_to_motor(joint + 3 * i, params, motor + 3 * i);
     }
+#endif
 }
 
 /* Joint -> motor velocity (Sotirov Eq. 12). */
@@ -966,19 +2897,51 @@ void avr3000_joint_to_motor_velocity(const double *restrict joint, const double 
     const double J21 = params->J21;
     const double J22 = params->J22;
     const double J33 = params->J33;
-    const double _t0 = qdot1/J11;
     const double _t1 = 1.0/J22;
+    const double _t0 = qdot1/J11;
     motor_velocity[0] = _t0;
     motor_velocity[1] = -J21*_t0*_t1 + _t1*qdot2;
     motor_velocity[2] = qdot3/J33;
 }
 
+/* joint_to_motor_velocity of `count` items, stored one after the other in each argument and output. */
 void avr3000_joint_to_motor_velocity_batch(size_t count, const double *restrict joint, const double *restrict joint_velocity, const avr3000_params *restrict params, double *restrict motor_velocity)
 {
+#ifdef KINEGEN_BLOCKED
+    double qdot1[KINEGEN_BLOCK_OF(64)];
+    double qdot2[KINEGEN_BLOCK_OF(64)];
+    double qdot3[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    (void)joint;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double J11 = params->J11;
+    const double J21 = params->J21;
+    const double J22 = params->J22;
+    const double J33 = params->J33;
+    const double _t1 = 1.0/J22;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            qdot1[i] = joint_velocity[3 * (start + i) + 0];
+            qdot2[i] = joint_velocity[3 * (start + i) + 1];
+            qdot3[i] = joint_velocity[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t0 = qdot1[i]/J11;
+            motor_velocity[3 * (start + i) + 0] = _t0;
+            motor_velocity[3 * (start + i) + 1] = -J21*_t0*_t1 + _t1*qdot2[i];
+            motor_velocity[3 * (start + i) + 2] = qdot3[i]/J33;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_joint_to_motor_velocity(joint + 3 * i, joint_velocity + 3 * i, params, motor_velocity + 3 * i);
     }
+#endif
 }
 
 /* Joint -> motor acceleration (Sotirov Eq. 13). */
@@ -996,19 +2959,52 @@ void avr3000_joint_to_motor_acceleration(const double *restrict joint, const dou
     const double J21 = params->J21;
     const double J22 = params->J22;
     const double J33 = params->J33;
-    const double _t0 = qddot1/J11;
     const double _t1 = 1.0/J22;
+    const double _t0 = qddot1/J11;
     motor_acceleration[0] = _t0;
     motor_acceleration[1] = -J21*_t0*_t1 + _t1*qddot2;
     motor_acceleration[2] = qddot3/J33;
 }
 
+/* joint_to_motor_acceleration of `count` items, stored one after the other in each argument and output. */
 void avr3000_joint_to_motor_acceleration_batch(size_t count, const double *restrict joint, const double *restrict joint_velocity, const double *restrict joint_acceleration, const avr3000_params *restrict params, double *restrict motor_acceleration)
 {
+#ifdef KINEGEN_BLOCKED
+    double qddot1[KINEGEN_BLOCK_OF(64)];
+    double qddot2[KINEGEN_BLOCK_OF(64)];
+    double qddot3[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    (void)joint;
+    (void)joint_velocity;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double J11 = params->J11;
+    const double J21 = params->J21;
+    const double J22 = params->J22;
+    const double J33 = params->J33;
+    const double _t1 = 1.0/J22;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            qddot1[i] = joint_acceleration[3 * (start + i) + 0];
+            qddot2[i] = joint_acceleration[3 * (start + i) + 1];
+            qddot3[i] = joint_acceleration[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t0 = qddot1[i]/J11;
+            motor_acceleration[3 * (start + i) + 0] = _t0;
+            motor_acceleration[3 * (start + i) + 1] = -J21*_t0*_t1 + _t1*qddot2[i];
+            motor_acceleration[3 * (start + i) + 2] = qddot3[i]/J33;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_joint_to_motor_acceleration(joint + 3 * i, joint_velocity + 3 * i, joint_acceleration + 3 * i, params, motor_acceleration + 3 * i);
     }
+#endif
 }
 
 /* Tool -> joint position (Sotirov Eq. 8). Returns 0, or AVR3000_UNREACHABLE (the links reach |R| <= 2a only (R in [-2a, 2a])) with no output written. */
@@ -1023,15 +3019,19 @@ int avr3000_tool_to_joint(const double *restrict tool, const avr3000_params *res
     const double a = params->a;
     const double _t0 = (0.5)*R/a;
     if (!(_t0 >= -1 && _t0 <= 1)) {
-        return AVR3000_UNREACHABLE;
+        return AVR3000_UNREACHABLE;  /* before any output is written */
     }
-    const double _t1 = acos(_t0);
-    joint[0] = -T - _t1 + 1.5707963267948966;
-    joint[1] = 2*_t1;
+    double _f0;
+    _f0 = acos(_t0);
+    joint[0] = -T - _f0 + 1.5707963267948966;
+    joint[1] = 2*_f0;
     joint[2] = Z;
     return 0;
 }
 
+/* tool_to_joint of `count` items, one after the other in each argument and output: a plain loop over
+   the single point, which checks its requirements before writing anything.  Returns the number of
+   items that failed; status (if not NULL) receives each item's code. */
 size_t avr3000_tool_to_joint_batch(size_t count, const double *restrict tool, const avr3000_params *restrict params, double *restrict joint, int *restrict status)
 {
     size_t i, failed = 0;
@@ -1061,11 +3061,11 @@ int avr3000_tool_to_joint_velocity(const double *restrict tool, const double *re
     const double _t0 = 1.0/a;
     const double _t3 = (0.5)*R*_t0;
     if (!(_t3 >= -1 && _t3 <= 1)) {
-        return AVR3000_UNREACHABLE;
+        return AVR3000_UNREACHABLE;  /* before any output is written */
     }
     const double _t1 = -0.25*(R*R)/(a*a) + 1;
     if (!(_t1 > 0)) {
-        return AVR3000_SINGULAR;
+        return AVR3000_SINGULAR;  /* before any output is written */
     }
     const double _t2 = Rdot*_t0/sqrt(_t1);
     joint_velocity[0] = -Tdot + (0.5)*_t2;
@@ -1074,6 +3074,9 @@ int avr3000_tool_to_joint_velocity(const double *restrict tool, const double *re
     return 0;
 }
 
+/* tool_to_joint_velocity of `count` items, one after the other in each argument and output: a plain loop over
+   the single point, which checks its requirements before writing anything.  Returns the number of
+   items that failed; status (if not NULL) receives each item's code. */
 size_t avr3000_tool_to_joint_velocity_batch(size_t count, const double *restrict tool, const double *restrict tool_velocity, const avr3000_params *restrict params, double *restrict joint_velocity, int *restrict status)
 {
     size_t i, failed = 0;
@@ -1104,11 +3107,11 @@ int avr3000_tool_to_joint_acceleration(const double *restrict tool, const double
     const double _t0 = 1.0/a;
     const double _t4 = (0.5)*R*_t0;
     if (!(_t4 >= -1 && _t4 <= 1)) {
-        return AVR3000_UNREACHABLE;
+        return AVR3000_UNREACHABLE;  /* before any output is written */
     }
     const double _t1 = -0.25*(R*R)/(a*a) + 1;
     if (!(_t1 > 0)) {
-        return AVR3000_SINGULAR;
+        return AVR3000_SINGULAR;  /* before any output is written */
     }
     const double _t2 = Rddot*_t0/sqrt(_t1);
     const double _t3 = R*(Rdot*Rdot)/((_t1*sqrt(_t1))*(a*a*a));
@@ -1118,6 +3121,9 @@ int avr3000_tool_to_joint_acceleration(const double *restrict tool, const double
     return 0;
 }
 
+/* tool_to_joint_acceleration of `count` items, one after the other in each argument and output: a plain loop over
+   the single point, which checks its requirements before writing anything.  Returns the number of
+   items that failed; status (if not NULL) receives each item's code. */
 size_t avr3000_tool_to_joint_acceleration_batch(size_t count, const double *restrict tool, const double *restrict tool_velocity, const double *restrict tool_acceleration, const avr3000_params *restrict params, double *restrict joint_acceleration, int *restrict status)
 {
     size_t i, failed = 0;
@@ -1149,17 +3155,21 @@ int avr3000_tool_to_motor(const double *restrict tool, const avr3000_params *res
     const double J33 = params->J33;
     const double _t0 = (0.5)*R/a;
     if (!(_t0 >= -1 && _t0 <= 1)) {
-        return AVR3000_UNREACHABLE;
+        return AVR3000_UNREACHABLE;  /* before any output is written */
     }
-    const double _t1 = acos(_t0);
-    const double _t2 = (-T - _t1 + 1.5707963267948966)/J11;
     const double _t3 = 1.0/J22;
+    double _f0;
+    _f0 = acos(_t0);
+    const double _t2 = (-T - _f0 + 1.5707963267948966)/J11;
     motor[0] = _t2;
-    motor[1] = -J21*_t2*_t3 + 2*_t1*_t3 - 3.141592653589793*_t3;
+    motor[1] = -J21*_t2*_t3 + 2*_f0*_t3 - 3.141592653589793*_t3;
     motor[2] = Z/J33;
     return 0;
 }
 
+/* tool_to_motor of `count` items, one after the other in each argument and output: a plain loop over
+   the single point, which checks its requirements before writing anything.  Returns the number of
+   items that failed; status (if not NULL) receives each item's code. */
 size_t avr3000_tool_to_motor_batch(size_t count, const double *restrict tool, const avr3000_params *restrict params, double *restrict motor, int *restrict status)
 {
     size_t i, failed = 0;
@@ -1193,17 +3203,17 @@ int avr3000_tool_to_motor_velocity(const double *restrict tool, const double *re
     const double _t2 = 1.0/a;
     const double _t8 = (0.5)*R*_t2;
     if (!(_t8 >= -1 && _t8 <= 1)) {
-        return AVR3000_UNREACHABLE;
+        return AVR3000_UNREACHABLE;  /* before any output is written */
     }
     const double _t3 = -0.25*(R*R)/(a*a) + 1;
     if (!(_t3 > 0)) {
-        return AVR3000_SINGULAR;
+        return AVR3000_SINGULAR;  /* before any output is written */
     }
     const double _t0 = 1.0/J11;
-    const double _t1 = Tdot*_t0;
-    const double _t4 = _t2/sqrt(_t3);
     const double _t5 = (0.5)*_t0;
     const double _t6 = 1.0/J22;
+    const double _t1 = Tdot*_t0;
+    const double _t4 = _t2/sqrt(_t3);
     const double _t7 = _t4*_t6;
     motor_velocity[0] = Rdot*_t4*_t5 - _t1;
     motor_velocity[1] = J21*_t1*_t6 + Rdot*(-J21*_t5*_t7 - _t7);
@@ -1211,6 +3221,9 @@ int avr3000_tool_to_motor_velocity(const double *restrict tool, const double *re
     return 0;
 }
 
+/* tool_to_motor_velocity of `count` items, one after the other in each argument and output: a plain loop over
+   the single point, which checks its requirements before writing anything.  Returns the number of
+   items that failed; status (if not NULL) receives each item's code. */
 size_t avr3000_tool_to_motor_velocity_batch(size_t count, const double *restrict tool, const double *restrict tool_velocity, const avr3000_params *restrict params, double *restrict motor_velocity, int *restrict status)
 {
     size_t i, failed = 0;
@@ -1245,21 +3258,21 @@ int avr3000_tool_to_motor_acceleration(const double *restrict tool, const double
     const double _t2 = 1.0/a;
     const double _t12 = (0.5)*R*_t2;
     if (!(_t12 >= -1 && _t12 <= 1)) {
-        return AVR3000_UNREACHABLE;
+        return AVR3000_UNREACHABLE;  /* before any output is written */
     }
     const double _t3 = -0.25*(R*R)/(a*a) + 1;
     if (!(_t3 > 0)) {
-        return AVR3000_SINGULAR;
+        return AVR3000_SINGULAR;  /* before any output is written */
     }
     const double _t0 = 1.0/J11;
+    const double _t5 = (0.5)*_t0;
+    const double _t9 = 1.0/J22;
+    const double _t10 = J21*_t9;
     const double _t1 = Tddot*_t0;
     const double _t4 = _t2/sqrt(_t3);
-    const double _t5 = (0.5)*_t0;
     const double _t6 = (Rdot*Rdot);
     const double _t7 = R/((_t3*sqrt(_t3))*(a*a*a));
     const double _t8 = (0.125)*_t0*_t7;
-    const double _t9 = 1.0/J22;
-    const double _t10 = J21*_t9;
     const double _t11 = _t4*_t9;
     motor_acceleration[0] = Rddot*_t4*_t5 - _t1 + _t6*_t8;
     motor_acceleration[1] = Rddot*(-J21*_t11*_t5 - _t11) + _t1*_t10 + _t6*(-_t10*_t8 - 0.25*_t7*_t9);
@@ -1267,6 +3280,9 @@ int avr3000_tool_to_motor_acceleration(const double *restrict tool, const double
     return 0;
 }
 
+/* tool_to_motor_acceleration of `count` items, one after the other in each argument and output: a plain loop over
+   the single point, which checks its requirements before writing anything.  Returns the number of
+   items that failed; status (if not NULL) receives each item's code. */
 size_t avr3000_tool_to_motor_acceleration_batch(size_t count, const double *restrict tool, const double *restrict tool_velocity, const double *restrict tool_acceleration, const avr3000_params *restrict params, double *restrict motor_acceleration, int *restrict status)
 {
     size_t i, failed = 0;
@@ -1294,14 +3310,19 @@ int avr3000_cartesian_to_tool(const double *restrict cartesian, const avr3000_pa
     const double e = params->e;
     const double _t0 = (x*x) + (y*y);
     if (!(_t0 > 0)) {
-        return AVR3000_SINGULAR;
+        return AVR3000_SINGULAR;  /* before any output is written */
     }
-    tool[0] = atan2(x, y);
+    double _f0;
+    _f0 = atan2(x, y);
+    tool[0] = _f0;
     tool[1] = sqrt(_t0) + e;
     tool[2] = z;
     return 0;
 }
 
+/* cartesian_to_tool of `count` items, one after the other in each argument and output: a plain loop over
+   the single point, which checks its requirements before writing anything.  Returns the number of
+   items that failed; status (if not NULL) receives each item's code. */
 size_t avr3000_cartesian_to_tool_batch(size_t count, const double *restrict cartesian, const avr3000_params *restrict params, double *restrict tool, int *restrict status)
 {
     size_t i, failed = 0;
@@ -1328,7 +3349,7 @@ int avr3000_cartesian_to_tool_velocity(const double *restrict cartesian, const d
     (void)params;
     const double _t0 = (x*x) + (y*y);
     if (!(_t0 > 0)) {
-        return AVR3000_SINGULAR;
+        return AVR3000_SINGULAR;  /* before any output is written */
     }
     const double _t1 = 1.0/_t0;
     const double _t2 = 1.0/sqrt(_t0);
@@ -1338,6 +3359,9 @@ int avr3000_cartesian_to_tool_velocity(const double *restrict cartesian, const d
     return 0;
 }
 
+/* cartesian_to_tool_velocity of `count` items, one after the other in each argument and output: a plain loop over
+   the single point, which checks its requirements before writing anything.  Returns the number of
+   items that failed; status (if not NULL) receives each item's code. */
 size_t avr3000_cartesian_to_tool_velocity_batch(size_t count, const double *restrict cartesian, const double *restrict cartesian_velocity, const avr3000_params *restrict params, double *restrict tool_velocity, int *restrict status)
 {
     size_t i, failed = 0;
@@ -1368,7 +3392,7 @@ int avr3000_cartesian_to_tool_acceleration(const double *restrict cartesian, con
     const double _t1 = (y*y);
     const double _t2 = _t0 + _t1;
     if (!(_t2 > 0)) {
-        return AVR3000_SINGULAR;
+        return AVR3000_SINGULAR;  /* before any output is written */
     }
     const double _t3 = 1.0/_t2;
     const double _t4 = 1.0/(_t2*_t2);
@@ -1385,6 +3409,9 @@ int avr3000_cartesian_to_tool_acceleration(const double *restrict cartesian, con
     return 0;
 }
 
+/* cartesian_to_tool_acceleration of `count` items, one after the other in each argument and output: a plain loop over
+   the single point, which checks its requirements before writing anything.  Returns the number of
+   items that failed; status (if not NULL) receives each item's code. */
 size_t avr3000_cartesian_to_tool_acceleration_batch(size_t count, const double *restrict cartesian, const double *restrict cartesian_velocity, const double *restrict cartesian_acceleration, const avr3000_params *restrict params, double *restrict tool_acceleration, int *restrict status)
 {
     size_t i, failed = 0;
@@ -1413,19 +3440,24 @@ int avr3000_cartesian_to_joint(const double *restrict cartesian, const avr3000_p
     const double e = params->e;
     const double _t0 = (x*x) + (y*y);
     if (!(_t0 > 0)) {
-        return AVR3000_SINGULAR;
+        return AVR3000_SINGULAR;  /* before any output is written */
     }
     const double _t1 = (0.5)*(sqrt(_t0) + e)/a;
     if (!(_t1 >= -1 && _t1 <= 1)) {
-        return AVR3000_UNREACHABLE;
+        return AVR3000_UNREACHABLE;  /* before any output is written */
     }
-    const double _t2 = acos(_t1);
-    joint[0] = -_t2 - atan2(x, y) + 1.5707963267948966;
-    joint[1] = 2*_t2;
+    double _f0, _f1;
+    _f0 = acos(_t1);
+    _f1 = atan2(x, y);
+    joint[0] = -_f0 - _f1 + 1.5707963267948966;
+    joint[1] = 2*_f0;
     joint[2] = z;
     return 0;
 }
 
+/* cartesian_to_joint of `count` items, one after the other in each argument and output: a plain loop over
+   the single point, which checks its requirements before writing anything.  Returns the number of
+   items that failed; status (if not NULL) receives each item's code. */
 size_t avr3000_cartesian_to_joint_batch(size_t count, const double *restrict cartesian, const avr3000_params *restrict params, double *restrict joint, int *restrict status)
 {
     size_t i, failed = 0;
@@ -1456,7 +3488,7 @@ int avr3000_cartesian_to_joint_velocity(const double *restrict cartesian, const 
     const double e = params->e;
     const double _t0 = (x*x) + (y*y);
     if (!(_t0 > 0)) {
-        return AVR3000_SINGULAR;
+        return AVR3000_SINGULAR;  /* before any output is written */
     }
     const double _t2 = 1.0/a;
     const double _t3 = (0.5)*_t2;
@@ -1464,11 +3496,11 @@ int avr3000_cartesian_to_joint_velocity(const double *restrict cartesian, const 
     const double _t5 = _t4 + e;
     const double _t11 = _t3*_t5;
     if (!(_t11 >= -1 && _t11 <= 1)) {
-        return AVR3000_UNREACHABLE;
+        return AVR3000_UNREACHABLE;  /* before any output is written */
     }
     const double _t6 = -0.25*(_t5*_t5)/(a*a) + 1;
     if (!(_t6 > 0)) {
-        return AVR3000_SINGULAR;
+        return AVR3000_SINGULAR;  /* before any output is written */
     }
     const double _t1 = 1.0/_t0;
     const double _t7 = 1.0/sqrt(_t6);
@@ -1481,6 +3513,9 @@ int avr3000_cartesian_to_joint_velocity(const double *restrict cartesian, const 
     return 0;
 }
 
+/* cartesian_to_joint_velocity of `count` items, one after the other in each argument and output: a plain loop over
+   the single point, which checks its requirements before writing anything.  Returns the number of
+   items that failed; status (if not NULL) receives each item's code. */
 size_t avr3000_cartesian_to_joint_velocity_batch(size_t count, const double *restrict cartesian, const double *restrict cartesian_velocity, const avr3000_params *restrict params, double *restrict joint_velocity, int *restrict status)
 {
     size_t i, failed = 0;
@@ -1515,7 +3550,7 @@ int avr3000_cartesian_to_joint_acceleration(const double *restrict cartesian, co
     const double _t1 = (y*y);
     const double _t2 = _t0 + _t1;
     if (!(_t2 > 0)) {
-        return AVR3000_SINGULAR;
+        return AVR3000_SINGULAR;  /* before any output is written */
     }
     const double _t4 = 1.0/a;
     const double _t5 = (0.5)*_t4;
@@ -1523,12 +3558,13 @@ int avr3000_cartesian_to_joint_acceleration(const double *restrict cartesian, co
     const double _t7 = _t6 + e;
     const double _t30 = _t5*_t7;
     if (!(_t30 >= -1 && _t30 <= 1)) {
-        return AVR3000_UNREACHABLE;
+        return AVR3000_UNREACHABLE;  /* before any output is written */
     }
     const double _t8 = -0.25*(_t7*_t7)/(a*a) + 1;
     if (!(_t8 > 0)) {
-        return AVR3000_SINGULAR;
+        return AVR3000_SINGULAR;  /* before any output is written */
     }
+    const double _t20 = 1.0/(a*a*a);
     const double _t3 = 1.0/_t2;
     const double _t9 = 1.0/sqrt(_t8);
     const double _t10 = 1.0/_t6;
@@ -1541,7 +3577,6 @@ int avr3000_cartesian_to_joint_acceleration(const double *restrict cartesian, co
     const double _t17 = 1.0/(_t2*sqrt(_t2));
     const double _t18 = _t17*_t5*_t9;
     const double _t19 = _t16*_t18;
-    const double _t20 = 1.0/(a*a*a);
     const double _t21 = 1.0/(_t8*sqrt(_t8));
     const double _t22 = _t15*_t16;
     const double _t23 = _t20*_t21*_t7;
@@ -1557,6 +3592,9 @@ int avr3000_cartesian_to_joint_acceleration(const double *restrict cartesian, co
     return 0;
 }
 
+/* cartesian_to_joint_acceleration of `count` items, one after the other in each argument and output: a plain loop over
+   the single point, which checks its requirements before writing anything.  Returns the number of
+   items that failed; status (if not NULL) receives each item's code. */
 size_t avr3000_cartesian_to_joint_acceleration_batch(size_t count, const double *restrict cartesian, const double *restrict cartesian_velocity, const double *restrict cartesian_acceleration, const avr3000_params *restrict params, double *restrict joint_acceleration, int *restrict status)
 {
     size_t i, failed = 0;
@@ -1589,21 +3627,26 @@ int avr3000_cartesian_to_motor(const double *restrict cartesian, const avr3000_p
     const double J33 = params->J33;
     const double _t0 = (x*x) + (y*y);
     if (!(_t0 > 0)) {
-        return AVR3000_SINGULAR;
+        return AVR3000_SINGULAR;  /* before any output is written */
     }
     const double _t1 = (0.5)*(sqrt(_t0) + e)/a;
     if (!(_t1 >= -1 && _t1 <= 1)) {
-        return AVR3000_UNREACHABLE;
+        return AVR3000_UNREACHABLE;  /* before any output is written */
     }
-    const double _t2 = acos(_t1);
-    const double _t3 = (-_t2 - atan2(x, y) + 1.5707963267948966)/J11;
     const double _t4 = 1.0/J22;
+    double _f0, _f1;
+    _f0 = acos(_t1);
+    _f1 = atan2(x, y);
+    const double _t3 = (-_f0 - _f1 + 1.5707963267948966)/J11;
     motor[0] = _t3;
-    motor[1] = -J21*_t3*_t4 + 2*_t2*_t4 - 3.141592653589793*_t4;
+    motor[1] = -J21*_t3*_t4 + 2*_f0*_t4 - 3.141592653589793*_t4;
     motor[2] = z/J33;
     return 0;
 }
 
+/* cartesian_to_motor of `count` items, one after the other in each argument and output: a plain loop over
+   the single point, which checks its requirements before writing anything.  Returns the number of
+   items that failed; status (if not NULL) receives each item's code. */
 size_t avr3000_cartesian_to_motor_batch(size_t count, const double *restrict cartesian, const avr3000_params *restrict params, double *restrict motor, int *restrict status)
 {
     size_t i, failed = 0;
@@ -1638,7 +3681,7 @@ int avr3000_cartesian_to_motor_velocity(const double *restrict cartesian, const 
     const double J33 = params->J33;
     const double _t1 = (x*x) + (y*y);
     if (!(_t1 > 0)) {
-        return AVR3000_SINGULAR;
+        return AVR3000_SINGULAR;  /* before any output is written */
     }
     const double _t3 = 1.0/a;
     const double _t4 = (0.5)*_t3;
@@ -1646,28 +3689,31 @@ int avr3000_cartesian_to_motor_velocity(const double *restrict cartesian, const 
     const double _t6 = _t5 + e;
     const double _t16 = _t4*_t6;
     if (!(_t16 >= -1 && _t16 <= 1)) {
-        return AVR3000_UNREACHABLE;
+        return AVR3000_UNREACHABLE;  /* before any output is written */
     }
     const double _t7 = -0.25*(_t6*_t6)/(a*a) + 1;
     if (!(_t7 > 0)) {
-        return AVR3000_SINGULAR;
+        return AVR3000_SINGULAR;  /* before any output is written */
     }
     const double _t0 = 1.0/J11;
+    const double _t13 = 1.0/J22;
+    const double _t15 = J21*_t13;
     const double _t2 = 1.0/_t1;
     const double _t8 = 1.0/sqrt(_t7);
     const double _t9 = 1.0/_t5;
     const double _t10 = _t8*_t9;
     const double _t11 = _t0*(_t10*_t4*y + _t2*x);
     const double _t12 = _t0*(-_t2*y + (0.5)*_t3*_t8*_t9*x);
-    const double _t13 = 1.0/J22;
     const double _t14 = _t10*_t13*_t3;
-    const double _t15 = J21*_t13;
     motor_velocity[0] = _t11*ydot + _t12*xdot;
     motor_velocity[1] = xdot*(-_t12*_t15 - _t14*x) + ydot*(-_t11*_t15 - _t14*y);
     motor_velocity[2] = zdot/J33;
     return 0;
 }
 
+/* cartesian_to_motor_velocity of `count` items, one after the other in each argument and output: a plain loop over
+   the single point, which checks its requirements before writing anything.  Returns the number of
+   items that failed; status (if not NULL) receives each item's code. */
 size_t avr3000_cartesian_to_motor_velocity_batch(size_t count, const double *restrict cartesian, const double *restrict cartesian_velocity, const avr3000_params *restrict params, double *restrict motor_velocity, int *restrict status)
 {
     size_t i, failed = 0;
@@ -1706,7 +3752,7 @@ int avr3000_cartesian_to_motor_acceleration(const double *restrict cartesian, co
     const double _t2 = (y*y);
     const double _t3 = _t1 + _t2;
     if (!(_t3 > 0)) {
-        return AVR3000_SINGULAR;
+        return AVR3000_SINGULAR;  /* before any output is written */
     }
     const double _t5 = 1.0/a;
     const double _t6 = (0.5)*_t5;
@@ -1714,13 +3760,17 @@ int avr3000_cartesian_to_motor_acceleration(const double *restrict cartesian, co
     const double _t8 = _t7 + e;
     const double _t42 = _t6*_t8;
     if (!(_t42 >= -1 && _t42 <= 1)) {
-        return AVR3000_UNREACHABLE;
+        return AVR3000_UNREACHABLE;  /* before any output is written */
     }
     const double _t9 = -0.25*(_t8*_t8)/(a*a) + 1;
     if (!(_t9 > 0)) {
-        return AVR3000_SINGULAR;
+        return AVR3000_SINGULAR;  /* before any output is written */
     }
     const double _t0 = 1.0/J11;
+    const double _t23 = 1.0/(a*a*a);
+    const double _t35 = 1.0/J22;
+    const double _t37 = J21*_t35;
+    const double _t38 = _t0*_t37;
     const double _t4 = 1.0/_t3;
     const double _t10 = 1.0/sqrt(_t9);
     const double _t11 = 1.0/_t7;
@@ -1735,7 +3785,6 @@ int avr3000_cartesian_to_motor_acceleration(const double *restrict cartesian, co
     const double _t20 = 1.0/(_t3*sqrt(_t3));
     const double _t21 = _t10*_t20*_t6;
     const double _t22 = _t19*_t21;
-    const double _t23 = 1.0/(a*a*a);
     const double _t24 = 1.0/(_t9*sqrt(_t9));
     const double _t25 = -_t1*_t18 - _t17 - _t22 + (0.125)*_t23*_t24*_t4*_t8*x*y;
     const double _t26 = _t0*ydot;
@@ -1747,10 +3796,7 @@ int avr3000_cartesian_to_motor_acceleration(const double *restrict cartesian, co
     const double _t32 = _t15*x;
     const double _t33 = _t17 + _t18*_t2 - _t22 + _t29*_t32;
     const double _t34 = (0.5)*_t10*_t11*_t5 - _t2*_t21 + (0.125)*_t2*_t23*_t24*_t4*_t8 - _t27;
-    const double _t35 = 1.0/J22;
     const double _t36 = _t12*_t35*_t5;
-    const double _t37 = J21*_t35;
-    const double _t38 = _t0*_t37;
     const double _t39 = (0.25)*_t28*_t35;
     const double _t40 = -_t10*_t20*_t35*_t5*x*y + _t32*_t39;
     const double _t41 = _t39*_t4;
@@ -1760,6 +3806,9 @@ int avr3000_cartesian_to_motor_acceleration(const double *restrict cartesian, co
     return 0;
 }
 
+/* cartesian_to_motor_acceleration of `count` items, one after the other in each argument and output: a plain loop over
+   the single point, which checks its requirements before writing anything.  Returns the number of
+   items that failed; status (if not NULL) receives each item's code. */
 size_t avr3000_cartesian_to_motor_acceleration_batch(size_t count, const double *restrict cartesian, const double *restrict cartesian_velocity, const double *restrict cartesian_acceleration, const avr3000_params *restrict params, double *restrict motor_acceleration, int *restrict status)
 {
     size_t i, failed = 0;

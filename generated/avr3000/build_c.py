@@ -6,8 +6,11 @@ Run `python build_c.py` (needs cffi and a C compiler); `make build` does it for 
 """
 import os
 import pathlib
+import shlex
 import shutil
+import subprocess
 import sys
+import sysconfig
 import tempfile
 
 from cffi import FFI
@@ -15,6 +18,610 @@ from cffi import FFI
 HERE = pathlib.Path(__file__).resolve().parent
 MODULE = "_avr3000_c"
 CFLAGS = ["-std=c99", "-O3"]
+# Where the compiler and C library allow: vectorised batch loops (see avr3000.c) with
+# glibc's vector sin/cos, sqrt as an instruction (no errno), code for this machine's CPU.
+# None of these flags changes a result beyond the vector sin/cos (at most 4 ulp, glibc's
+# bound) nor deletes a NaN or infinity check, which -ffast-math would.  With -march=native
+# GCC 12's basic-block (SLP) vectoriser fuses pairs of a*b - c and d*e + f into one
+# vfmsubadd (an FMA: one rounding fewer) even under -ffp-contract=off, so terms that cancel
+# exactly as printed (the AVR 3000's Rdot = 0 under pure T motion) left a 6e-17 residue in
+# the single point: -fno-tree-slp-vectorize (the batch loops are vectorised by the loop
+# vectoriser, which keeps the contract) and -ffp-contract=off for compilers that contract.
+FAST_CFLAGS = ["-fno-math-errno", "-fno-trapping-math", "-ffp-contract=off", "-fno-tree-slp-vectorize",
+               "-fopenmp-simd", "-march=native", "-DKINEGEN_SIMD"]
+PROBE = r"""
+#include <math.h>
+#include <stdio.h>
+#pragma omp declare simd notinbranch
+double sin(double);
+#pragma omp declare simd notinbranch
+double cos(double);
+int main(void)
+{
+    double x[64], y[64];
+    int i;
+    for (i = 0; i < 64; ++i) x[i] = 0.01 * i;
+    _Pragma("omp simd")
+    for (i = 0; i < 64; ++i) y[i] = sin(x[i]) * sin(x[i]) + cos(x[i]) * cos(x[i]);
+    printf("%.6f\n", y[63]);
+    return 0;
+}
+"""
+# The entry points the Python binding calls: a kernel of `count` items (the single-point
+# function for one) after checking in C, where -ffinite-math-only never applies, that no
+# input is NaN or inf; 1 means one is, and nothing was computed.  ik takes NaN and inf
+# (valid says there is no answer) and returns -1 when it refused a pose.  A kernel with
+# requirements also fills `status` with each item's code (<NAME>_UNREACHABLE ...).
+CHECKED = """
+#include <math.h>
+#include "avr3000.h"
+
+static int kinegen_nonfinite(size_t n, const double *x)
+{
+    size_t i;
+    int bad = 0;
+    for (i = 0; i < n; ++i) {
+        bad |= !isfinite(x[i]);
+    }
+    return bad;
+}
+
+int avr3000_fk_checked(size_t count, const double *q, const avr3000_params *params, double *T)
+{
+    if (kinegen_nonfinite(count * 3, q)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_fk(q, params, T);
+    } else {
+        avr3000_fk_batch(count, q, params, T);
+    }
+    return 0;
+}
+
+int avr3000_frames_checked(size_t count, const double *q, const avr3000_params *params, double *frames)
+{
+    if (kinegen_nonfinite(count * 3, q)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_frames(q, params, frames);
+    } else {
+        avr3000_frames_batch(count, q, params, frames);
+    }
+    return 0;
+}
+
+int avr3000_jacobian_checked(size_t count, const double *q, const avr3000_params *params, double *J)
+{
+    if (kinegen_nonfinite(count * 3, q)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_jacobian(q, params, J);
+    } else {
+        avr3000_jacobian_batch(count, q, params, J);
+    }
+    return 0;
+}
+
+int avr3000_task_checked(size_t count, const double *q, const avr3000_params *params, double *x)
+{
+    if (kinegen_nonfinite(count * 3, q)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_task(q, params, x);
+    } else {
+        avr3000_task_batch(count, q, params, x);
+    }
+    return 0;
+}
+
+int avr3000_task_jacobian_checked(size_t count, const double *q, const avr3000_params *params, double *Jx)
+{
+    if (kinegen_nonfinite(count * 3, q)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_task_jacobian(q, params, Jx);
+    } else {
+        avr3000_task_jacobian_batch(count, q, params, Jx);
+    }
+    return 0;
+}
+
+int avr3000_ik_checked(size_t count, const double *x, const avr3000_params *params, double *Q, int *valid)
+{
+    if (count == 1) {
+        return avr3000_ik(x, params, Q, valid) < 0 ? -1 : 0;
+    }
+    return avr3000_ik_batch(count, x, params, Q, valid) < 0 ? -1 : 0;
+}
+
+int avr3000_motor_to_joint_checked(size_t count, const double *motor, const avr3000_params *params, double *joint)
+{
+    if (kinegen_nonfinite(count * 3, motor)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_motor_to_joint(motor, params, joint);
+    } else {
+        avr3000_motor_to_joint_batch(count, motor, params, joint);
+    }
+    return 0;
+}
+
+int avr3000_motor_to_joint_velocity_checked(size_t count, const double *motor, const double *motor_velocity, const avr3000_params *params, double *joint_velocity)
+{
+    if (kinegen_nonfinite(count * 3, motor) || kinegen_nonfinite(count * 3, motor_velocity)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_motor_to_joint_velocity(motor, motor_velocity, params, joint_velocity);
+    } else {
+        avr3000_motor_to_joint_velocity_batch(count, motor, motor_velocity, params, joint_velocity);
+    }
+    return 0;
+}
+
+int avr3000_motor_to_joint_acceleration_checked(size_t count, const double *motor, const double *motor_velocity, const double *motor_acceleration, const avr3000_params *params, double *joint_acceleration)
+{
+    if (kinegen_nonfinite(count * 3, motor) || kinegen_nonfinite(count * 3, motor_velocity) || kinegen_nonfinite(count * 3, motor_acceleration)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_motor_to_joint_acceleration(motor, motor_velocity, motor_acceleration, params, joint_acceleration);
+    } else {
+        avr3000_motor_to_joint_acceleration_batch(count, motor, motor_velocity, motor_acceleration, params, joint_acceleration);
+    }
+    return 0;
+}
+
+int avr3000_joint_to_tool_checked(size_t count, const double *joint, const avr3000_params *params, double *tool)
+{
+    if (kinegen_nonfinite(count * 3, joint)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_joint_to_tool(joint, params, tool);
+    } else {
+        avr3000_joint_to_tool_batch(count, joint, params, tool);
+    }
+    return 0;
+}
+
+int avr3000_joint_to_tool_velocity_checked(size_t count, const double *joint, const double *joint_velocity, const avr3000_params *params, double *tool_velocity)
+{
+    if (kinegen_nonfinite(count * 3, joint) || kinegen_nonfinite(count * 3, joint_velocity)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_joint_to_tool_velocity(joint, joint_velocity, params, tool_velocity);
+    } else {
+        avr3000_joint_to_tool_velocity_batch(count, joint, joint_velocity, params, tool_velocity);
+    }
+    return 0;
+}
+
+int avr3000_joint_to_tool_acceleration_checked(size_t count, const double *joint, const double *joint_velocity, const double *joint_acceleration, const avr3000_params *params, double *tool_acceleration)
+{
+    if (kinegen_nonfinite(count * 3, joint) || kinegen_nonfinite(count * 3, joint_velocity) || kinegen_nonfinite(count * 3, joint_acceleration)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_joint_to_tool_acceleration(joint, joint_velocity, joint_acceleration, params, tool_acceleration);
+    } else {
+        avr3000_joint_to_tool_acceleration_batch(count, joint, joint_velocity, joint_acceleration, params, tool_acceleration);
+    }
+    return 0;
+}
+
+int avr3000_joint_to_cartesian_checked(size_t count, const double *joint, const avr3000_params *params, double *cartesian)
+{
+    if (kinegen_nonfinite(count * 3, joint)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_joint_to_cartesian(joint, params, cartesian);
+    } else {
+        avr3000_joint_to_cartesian_batch(count, joint, params, cartesian);
+    }
+    return 0;
+}
+
+int avr3000_joint_to_cartesian_velocity_checked(size_t count, const double *joint, const double *joint_velocity, const avr3000_params *params, double *cartesian_velocity)
+{
+    if (kinegen_nonfinite(count * 3, joint) || kinegen_nonfinite(count * 3, joint_velocity)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_joint_to_cartesian_velocity(joint, joint_velocity, params, cartesian_velocity);
+    } else {
+        avr3000_joint_to_cartesian_velocity_batch(count, joint, joint_velocity, params, cartesian_velocity);
+    }
+    return 0;
+}
+
+int avr3000_joint_to_cartesian_acceleration_checked(size_t count, const double *joint, const double *joint_velocity, const double *joint_acceleration, const avr3000_params *params, double *cartesian_acceleration)
+{
+    if (kinegen_nonfinite(count * 3, joint) || kinegen_nonfinite(count * 3, joint_velocity) || kinegen_nonfinite(count * 3, joint_acceleration)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_joint_to_cartesian_acceleration(joint, joint_velocity, joint_acceleration, params, cartesian_acceleration);
+    } else {
+        avr3000_joint_to_cartesian_acceleration_batch(count, joint, joint_velocity, joint_acceleration, params, cartesian_acceleration);
+    }
+    return 0;
+}
+
+int avr3000_tool_to_cartesian_checked(size_t count, const double *tool, const avr3000_params *params, double *cartesian)
+{
+    if (kinegen_nonfinite(count * 3, tool)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_tool_to_cartesian(tool, params, cartesian);
+    } else {
+        avr3000_tool_to_cartesian_batch(count, tool, params, cartesian);
+    }
+    return 0;
+}
+
+int avr3000_tool_to_cartesian_velocity_checked(size_t count, const double *tool, const double *tool_velocity, const avr3000_params *params, double *cartesian_velocity)
+{
+    if (kinegen_nonfinite(count * 3, tool) || kinegen_nonfinite(count * 3, tool_velocity)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_tool_to_cartesian_velocity(tool, tool_velocity, params, cartesian_velocity);
+    } else {
+        avr3000_tool_to_cartesian_velocity_batch(count, tool, tool_velocity, params, cartesian_velocity);
+    }
+    return 0;
+}
+
+int avr3000_tool_to_cartesian_acceleration_checked(size_t count, const double *tool, const double *tool_velocity, const double *tool_acceleration, const avr3000_params *params, double *cartesian_acceleration)
+{
+    if (kinegen_nonfinite(count * 3, tool) || kinegen_nonfinite(count * 3, tool_velocity) || kinegen_nonfinite(count * 3, tool_acceleration)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_tool_to_cartesian_acceleration(tool, tool_velocity, tool_acceleration, params, cartesian_acceleration);
+    } else {
+        avr3000_tool_to_cartesian_acceleration_batch(count, tool, tool_velocity, tool_acceleration, params, cartesian_acceleration);
+    }
+    return 0;
+}
+
+int avr3000_motor_to_tool_checked(size_t count, const double *motor, const avr3000_params *params, double *tool)
+{
+    if (kinegen_nonfinite(count * 3, motor)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_motor_to_tool(motor, params, tool);
+    } else {
+        avr3000_motor_to_tool_batch(count, motor, params, tool);
+    }
+    return 0;
+}
+
+int avr3000_motor_to_tool_velocity_checked(size_t count, const double *motor, const double *motor_velocity, const avr3000_params *params, double *tool_velocity)
+{
+    if (kinegen_nonfinite(count * 3, motor) || kinegen_nonfinite(count * 3, motor_velocity)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_motor_to_tool_velocity(motor, motor_velocity, params, tool_velocity);
+    } else {
+        avr3000_motor_to_tool_velocity_batch(count, motor, motor_velocity, params, tool_velocity);
+    }
+    return 0;
+}
+
+int avr3000_motor_to_tool_acceleration_checked(size_t count, const double *motor, const double *motor_velocity, const double *motor_acceleration, const avr3000_params *params, double *tool_acceleration)
+{
+    if (kinegen_nonfinite(count * 3, motor) || kinegen_nonfinite(count * 3, motor_velocity) || kinegen_nonfinite(count * 3, motor_acceleration)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_motor_to_tool_acceleration(motor, motor_velocity, motor_acceleration, params, tool_acceleration);
+    } else {
+        avr3000_motor_to_tool_acceleration_batch(count, motor, motor_velocity, motor_acceleration, params, tool_acceleration);
+    }
+    return 0;
+}
+
+int avr3000_motor_to_cartesian_checked(size_t count, const double *motor, const avr3000_params *params, double *cartesian)
+{
+    if (kinegen_nonfinite(count * 3, motor)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_motor_to_cartesian(motor, params, cartesian);
+    } else {
+        avr3000_motor_to_cartesian_batch(count, motor, params, cartesian);
+    }
+    return 0;
+}
+
+int avr3000_motor_to_cartesian_velocity_checked(size_t count, const double *motor, const double *motor_velocity, const avr3000_params *params, double *cartesian_velocity)
+{
+    if (kinegen_nonfinite(count * 3, motor) || kinegen_nonfinite(count * 3, motor_velocity)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_motor_to_cartesian_velocity(motor, motor_velocity, params, cartesian_velocity);
+    } else {
+        avr3000_motor_to_cartesian_velocity_batch(count, motor, motor_velocity, params, cartesian_velocity);
+    }
+    return 0;
+}
+
+int avr3000_motor_to_cartesian_acceleration_checked(size_t count, const double *motor, const double *motor_velocity, const double *motor_acceleration, const avr3000_params *params, double *cartesian_acceleration)
+{
+    if (kinegen_nonfinite(count * 3, motor) || kinegen_nonfinite(count * 3, motor_velocity) || kinegen_nonfinite(count * 3, motor_acceleration)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_motor_to_cartesian_acceleration(motor, motor_velocity, motor_acceleration, params, cartesian_acceleration);
+    } else {
+        avr3000_motor_to_cartesian_acceleration_batch(count, motor, motor_velocity, motor_acceleration, params, cartesian_acceleration);
+    }
+    return 0;
+}
+
+int avr3000_joint_to_motor_checked(size_t count, const double *joint, const avr3000_params *params, double *motor)
+{
+    if (kinegen_nonfinite(count * 3, joint)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_joint_to_motor(joint, params, motor);
+    } else {
+        avr3000_joint_to_motor_batch(count, joint, params, motor);
+    }
+    return 0;
+}
+
+int avr3000_joint_to_motor_velocity_checked(size_t count, const double *joint, const double *joint_velocity, const avr3000_params *params, double *motor_velocity)
+{
+    if (kinegen_nonfinite(count * 3, joint) || kinegen_nonfinite(count * 3, joint_velocity)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_joint_to_motor_velocity(joint, joint_velocity, params, motor_velocity);
+    } else {
+        avr3000_joint_to_motor_velocity_batch(count, joint, joint_velocity, params, motor_velocity);
+    }
+    return 0;
+}
+
+int avr3000_joint_to_motor_acceleration_checked(size_t count, const double *joint, const double *joint_velocity, const double *joint_acceleration, const avr3000_params *params, double *motor_acceleration)
+{
+    if (kinegen_nonfinite(count * 3, joint) || kinegen_nonfinite(count * 3, joint_velocity) || kinegen_nonfinite(count * 3, joint_acceleration)) {
+        return 1;
+    }
+    if (count == 1) {
+        avr3000_joint_to_motor_acceleration(joint, joint_velocity, joint_acceleration, params, motor_acceleration);
+    } else {
+        avr3000_joint_to_motor_acceleration_batch(count, joint, joint_velocity, joint_acceleration, params, motor_acceleration);
+    }
+    return 0;
+}
+
+int avr3000_tool_to_joint_checked(size_t count, const double *tool, const avr3000_params *params, double *joint, int *status)
+{
+    if (kinegen_nonfinite(count * 3, tool)) {
+        return 1;
+    }
+    /* Each item's requirement status goes to status (0, or a code with that item's outputs unwritten). */
+    if (count == 1) {
+        status[0] = avr3000_tool_to_joint(tool, params, joint);
+    } else {
+        avr3000_tool_to_joint_batch(count, tool, params, joint, status);
+    }
+    return 0;
+}
+
+int avr3000_tool_to_joint_velocity_checked(size_t count, const double *tool, const double *tool_velocity, const avr3000_params *params, double *joint_velocity, int *status)
+{
+    if (kinegen_nonfinite(count * 3, tool) || kinegen_nonfinite(count * 3, tool_velocity)) {
+        return 1;
+    }
+    /* Each item's requirement status goes to status (0, or a code with that item's outputs unwritten). */
+    if (count == 1) {
+        status[0] = avr3000_tool_to_joint_velocity(tool, tool_velocity, params, joint_velocity);
+    } else {
+        avr3000_tool_to_joint_velocity_batch(count, tool, tool_velocity, params, joint_velocity, status);
+    }
+    return 0;
+}
+
+int avr3000_tool_to_joint_acceleration_checked(size_t count, const double *tool, const double *tool_velocity, const double *tool_acceleration, const avr3000_params *params, double *joint_acceleration, int *status)
+{
+    if (kinegen_nonfinite(count * 3, tool) || kinegen_nonfinite(count * 3, tool_velocity) || kinegen_nonfinite(count * 3, tool_acceleration)) {
+        return 1;
+    }
+    /* Each item's requirement status goes to status (0, or a code with that item's outputs unwritten). */
+    if (count == 1) {
+        status[0] = avr3000_tool_to_joint_acceleration(tool, tool_velocity, tool_acceleration, params, joint_acceleration);
+    } else {
+        avr3000_tool_to_joint_acceleration_batch(count, tool, tool_velocity, tool_acceleration, params, joint_acceleration, status);
+    }
+    return 0;
+}
+
+int avr3000_tool_to_motor_checked(size_t count, const double *tool, const avr3000_params *params, double *motor, int *status)
+{
+    if (kinegen_nonfinite(count * 3, tool)) {
+        return 1;
+    }
+    /* Each item's requirement status goes to status (0, or a code with that item's outputs unwritten). */
+    if (count == 1) {
+        status[0] = avr3000_tool_to_motor(tool, params, motor);
+    } else {
+        avr3000_tool_to_motor_batch(count, tool, params, motor, status);
+    }
+    return 0;
+}
+
+int avr3000_tool_to_motor_velocity_checked(size_t count, const double *tool, const double *tool_velocity, const avr3000_params *params, double *motor_velocity, int *status)
+{
+    if (kinegen_nonfinite(count * 3, tool) || kinegen_nonfinite(count * 3, tool_velocity)) {
+        return 1;
+    }
+    /* Each item's requirement status goes to status (0, or a code with that item's outputs unwritten). */
+    if (count == 1) {
+        status[0] = avr3000_tool_to_motor_velocity(tool, tool_velocity, params, motor_velocity);
+    } else {
+        avr3000_tool_to_motor_velocity_batch(count, tool, tool_velocity, params, motor_velocity, status);
+    }
+    return 0;
+}
+
+int avr3000_tool_to_motor_acceleration_checked(size_t count, const double *tool, const double *tool_velocity, const double *tool_acceleration, const avr3000_params *params, double *motor_acceleration, int *status)
+{
+    if (kinegen_nonfinite(count * 3, tool) || kinegen_nonfinite(count * 3, tool_velocity) || kinegen_nonfinite(count * 3, tool_acceleration)) {
+        return 1;
+    }
+    /* Each item's requirement status goes to status (0, or a code with that item's outputs unwritten). */
+    if (count == 1) {
+        status[0] = avr3000_tool_to_motor_acceleration(tool, tool_velocity, tool_acceleration, params, motor_acceleration);
+    } else {
+        avr3000_tool_to_motor_acceleration_batch(count, tool, tool_velocity, tool_acceleration, params, motor_acceleration, status);
+    }
+    return 0;
+}
+
+int avr3000_cartesian_to_tool_checked(size_t count, const double *cartesian, const avr3000_params *params, double *tool, int *status)
+{
+    if (kinegen_nonfinite(count * 3, cartesian)) {
+        return 1;
+    }
+    /* Each item's requirement status goes to status (0, or a code with that item's outputs unwritten). */
+    if (count == 1) {
+        status[0] = avr3000_cartesian_to_tool(cartesian, params, tool);
+    } else {
+        avr3000_cartesian_to_tool_batch(count, cartesian, params, tool, status);
+    }
+    return 0;
+}
+
+int avr3000_cartesian_to_tool_velocity_checked(size_t count, const double *cartesian, const double *cartesian_velocity, const avr3000_params *params, double *tool_velocity, int *status)
+{
+    if (kinegen_nonfinite(count * 3, cartesian) || kinegen_nonfinite(count * 3, cartesian_velocity)) {
+        return 1;
+    }
+    /* Each item's requirement status goes to status (0, or a code with that item's outputs unwritten). */
+    if (count == 1) {
+        status[0] = avr3000_cartesian_to_tool_velocity(cartesian, cartesian_velocity, params, tool_velocity);
+    } else {
+        avr3000_cartesian_to_tool_velocity_batch(count, cartesian, cartesian_velocity, params, tool_velocity, status);
+    }
+    return 0;
+}
+
+int avr3000_cartesian_to_tool_acceleration_checked(size_t count, const double *cartesian, const double *cartesian_velocity, const double *cartesian_acceleration, const avr3000_params *params, double *tool_acceleration, int *status)
+{
+    if (kinegen_nonfinite(count * 3, cartesian) || kinegen_nonfinite(count * 3, cartesian_velocity) || kinegen_nonfinite(count * 3, cartesian_acceleration)) {
+        return 1;
+    }
+    /* Each item's requirement status goes to status (0, or a code with that item's outputs unwritten). */
+    if (count == 1) {
+        status[0] = avr3000_cartesian_to_tool_acceleration(cartesian, cartesian_velocity, cartesian_acceleration, params, tool_acceleration);
+    } else {
+        avr3000_cartesian_to_tool_acceleration_batch(count, cartesian, cartesian_velocity, cartesian_acceleration, params, tool_acceleration, status);
+    }
+    return 0;
+}
+
+int avr3000_cartesian_to_joint_checked(size_t count, const double *cartesian, const avr3000_params *params, double *joint, int *status)
+{
+    if (kinegen_nonfinite(count * 3, cartesian)) {
+        return 1;
+    }
+    /* Each item's requirement status goes to status (0, or a code with that item's outputs unwritten). */
+    if (count == 1) {
+        status[0] = avr3000_cartesian_to_joint(cartesian, params, joint);
+    } else {
+        avr3000_cartesian_to_joint_batch(count, cartesian, params, joint, status);
+    }
+    return 0;
+}
+
+int avr3000_cartesian_to_joint_velocity_checked(size_t count, const double *cartesian, const double *cartesian_velocity, const avr3000_params *params, double *joint_velocity, int *status)
+{
+    if (kinegen_nonfinite(count * 3, cartesian) || kinegen_nonfinite(count * 3, cartesian_velocity)) {
+        return 1;
+    }
+    /* Each item's requirement status goes to status (0, or a code with that item's outputs unwritten). */
+    if (count == 1) {
+        status[0] = avr3000_cartesian_to_joint_velocity(cartesian, cartesian_velocity, params, joint_velocity);
+    } else {
+        avr3000_cartesian_to_joint_velocity_batch(count, cartesian, cartesian_velocity, params, joint_velocity, status);
+    }
+    return 0;
+}
+
+int avr3000_cartesian_to_joint_acceleration_checked(size_t count, const double *cartesian, const double *cartesian_velocity, const double *cartesian_acceleration, const avr3000_params *params, double *joint_acceleration, int *status)
+{
+    if (kinegen_nonfinite(count * 3, cartesian) || kinegen_nonfinite(count * 3, cartesian_velocity) || kinegen_nonfinite(count * 3, cartesian_acceleration)) {
+        return 1;
+    }
+    /* Each item's requirement status goes to status (0, or a code with that item's outputs unwritten). */
+    if (count == 1) {
+        status[0] = avr3000_cartesian_to_joint_acceleration(cartesian, cartesian_velocity, cartesian_acceleration, params, joint_acceleration);
+    } else {
+        avr3000_cartesian_to_joint_acceleration_batch(count, cartesian, cartesian_velocity, cartesian_acceleration, params, joint_acceleration, status);
+    }
+    return 0;
+}
+
+int avr3000_cartesian_to_motor_checked(size_t count, const double *cartesian, const avr3000_params *params, double *motor, int *status)
+{
+    if (kinegen_nonfinite(count * 3, cartesian)) {
+        return 1;
+    }
+    /* Each item's requirement status goes to status (0, or a code with that item's outputs unwritten). */
+    if (count == 1) {
+        status[0] = avr3000_cartesian_to_motor(cartesian, params, motor);
+    } else {
+        avr3000_cartesian_to_motor_batch(count, cartesian, params, motor, status);
+    }
+    return 0;
+}
+
+int avr3000_cartesian_to_motor_velocity_checked(size_t count, const double *cartesian, const double *cartesian_velocity, const avr3000_params *params, double *motor_velocity, int *status)
+{
+    if (kinegen_nonfinite(count * 3, cartesian) || kinegen_nonfinite(count * 3, cartesian_velocity)) {
+        return 1;
+    }
+    /* Each item's requirement status goes to status (0, or a code with that item's outputs unwritten). */
+    if (count == 1) {
+        status[0] = avr3000_cartesian_to_motor_velocity(cartesian, cartesian_velocity, params, motor_velocity);
+    } else {
+        avr3000_cartesian_to_motor_velocity_batch(count, cartesian, cartesian_velocity, params, motor_velocity, status);
+    }
+    return 0;
+}
+
+int avr3000_cartesian_to_motor_acceleration_checked(size_t count, const double *cartesian, const double *cartesian_velocity, const double *cartesian_acceleration, const avr3000_params *params, double *motor_acceleration, int *status)
+{
+    if (kinegen_nonfinite(count * 3, cartesian) || kinegen_nonfinite(count * 3, cartesian_velocity) || kinegen_nonfinite(count * 3, cartesian_acceleration)) {
+        return 1;
+    }
+    /* Each item's requirement status goes to status (0, or a code with that item's outputs unwritten). */
+    if (count == 1) {
+        status[0] = avr3000_cartesian_to_motor_acceleration(cartesian, cartesian_velocity, cartesian_acceleration, params, motor_acceleration);
+    } else {
+        avr3000_cartesian_to_motor_acceleration_batch(count, cartesian, cartesian_velocity, cartesian_acceleration, params, motor_acceleration, status);
+    }
+    return 0;
+}
+"""
 CDEF = """
 /* Robot parameters (SI units). */
 typedef struct avr3000_params { double a; double e; double J11; double J21; double J22; double J33; } avr3000_params;
@@ -151,18 +758,80 @@ size_t avr3000_cartesian_to_motor_acceleration_batch(size_t count, const double 
 /* within_limits: q[3] -> 1 when every joint lies within its limits (revolute joints modulo 2 pi), else 0. */
 int avr3000_within_limits(const double *q);
 void avr3000_within_limits_batch(size_t count, const double *q, int *inside);
+int avr3000_fk_checked(size_t count, const double *q, const avr3000_params *params, double *T);
+int avr3000_frames_checked(size_t count, const double *q, const avr3000_params *params, double *frames);
+int avr3000_jacobian_checked(size_t count, const double *q, const avr3000_params *params, double *J);
+int avr3000_task_checked(size_t count, const double *q, const avr3000_params *params, double *x);
+int avr3000_task_jacobian_checked(size_t count, const double *q, const avr3000_params *params, double *Jx);
+int avr3000_ik_checked(size_t count, const double *x, const avr3000_params *params, double *Q, int *valid);
+int avr3000_motor_to_joint_checked(size_t count, const double *motor, const avr3000_params *params, double *joint);
+int avr3000_motor_to_joint_velocity_checked(size_t count, const double *motor, const double *motor_velocity, const avr3000_params *params, double *joint_velocity);
+int avr3000_motor_to_joint_acceleration_checked(size_t count, const double *motor, const double *motor_velocity, const double *motor_acceleration, const avr3000_params *params, double *joint_acceleration);
+int avr3000_joint_to_tool_checked(size_t count, const double *joint, const avr3000_params *params, double *tool);
+int avr3000_joint_to_tool_velocity_checked(size_t count, const double *joint, const double *joint_velocity, const avr3000_params *params, double *tool_velocity);
+int avr3000_joint_to_tool_acceleration_checked(size_t count, const double *joint, const double *joint_velocity, const double *joint_acceleration, const avr3000_params *params, double *tool_acceleration);
+int avr3000_joint_to_cartesian_checked(size_t count, const double *joint, const avr3000_params *params, double *cartesian);
+int avr3000_joint_to_cartesian_velocity_checked(size_t count, const double *joint, const double *joint_velocity, const avr3000_params *params, double *cartesian_velocity);
+int avr3000_joint_to_cartesian_acceleration_checked(size_t count, const double *joint, const double *joint_velocity, const double *joint_acceleration, const avr3000_params *params, double *cartesian_acceleration);
+int avr3000_tool_to_cartesian_checked(size_t count, const double *tool, const avr3000_params *params, double *cartesian);
+int avr3000_tool_to_cartesian_velocity_checked(size_t count, const double *tool, const double *tool_velocity, const avr3000_params *params, double *cartesian_velocity);
+int avr3000_tool_to_cartesian_acceleration_checked(size_t count, const double *tool, const double *tool_velocity, const double *tool_acceleration, const avr3000_params *params, double *cartesian_acceleration);
+int avr3000_motor_to_tool_checked(size_t count, const double *motor, const avr3000_params *params, double *tool);
+int avr3000_motor_to_tool_velocity_checked(size_t count, const double *motor, const double *motor_velocity, const avr3000_params *params, double *tool_velocity);
+int avr3000_motor_to_tool_acceleration_checked(size_t count, const double *motor, const double *motor_velocity, const double *motor_acceleration, const avr3000_params *params, double *tool_acceleration);
+int avr3000_motor_to_cartesian_checked(size_t count, const double *motor, const avr3000_params *params, double *cartesian);
+int avr3000_motor_to_cartesian_velocity_checked(size_t count, const double *motor, const double *motor_velocity, const avr3000_params *params, double *cartesian_velocity);
+int avr3000_motor_to_cartesian_acceleration_checked(size_t count, const double *motor, const double *motor_velocity, const double *motor_acceleration, const avr3000_params *params, double *cartesian_acceleration);
+int avr3000_joint_to_motor_checked(size_t count, const double *joint, const avr3000_params *params, double *motor);
+int avr3000_joint_to_motor_velocity_checked(size_t count, const double *joint, const double *joint_velocity, const avr3000_params *params, double *motor_velocity);
+int avr3000_joint_to_motor_acceleration_checked(size_t count, const double *joint, const double *joint_velocity, const double *joint_acceleration, const avr3000_params *params, double *motor_acceleration);
+int avr3000_tool_to_joint_checked(size_t count, const double *tool, const avr3000_params *params, double *joint, int *status);
+int avr3000_tool_to_joint_velocity_checked(size_t count, const double *tool, const double *tool_velocity, const avr3000_params *params, double *joint_velocity, int *status);
+int avr3000_tool_to_joint_acceleration_checked(size_t count, const double *tool, const double *tool_velocity, const double *tool_acceleration, const avr3000_params *params, double *joint_acceleration, int *status);
+int avr3000_tool_to_motor_checked(size_t count, const double *tool, const avr3000_params *params, double *motor, int *status);
+int avr3000_tool_to_motor_velocity_checked(size_t count, const double *tool, const double *tool_velocity, const avr3000_params *params, double *motor_velocity, int *status);
+int avr3000_tool_to_motor_acceleration_checked(size_t count, const double *tool, const double *tool_velocity, const double *tool_acceleration, const avr3000_params *params, double *motor_acceleration, int *status);
+int avr3000_cartesian_to_tool_checked(size_t count, const double *cartesian, const avr3000_params *params, double *tool, int *status);
+int avr3000_cartesian_to_tool_velocity_checked(size_t count, const double *cartesian, const double *cartesian_velocity, const avr3000_params *params, double *tool_velocity, int *status);
+int avr3000_cartesian_to_tool_acceleration_checked(size_t count, const double *cartesian, const double *cartesian_velocity, const double *cartesian_acceleration, const avr3000_params *params, double *tool_acceleration, int *status);
+int avr3000_cartesian_to_joint_checked(size_t count, const double *cartesian, const avr3000_params *params, double *joint, int *status);
+int avr3000_cartesian_to_joint_velocity_checked(size_t count, const double *cartesian, const double *cartesian_velocity, const avr3000_params *params, double *joint_velocity, int *status);
+int avr3000_cartesian_to_joint_acceleration_checked(size_t count, const double *cartesian, const double *cartesian_velocity, const double *cartesian_acceleration, const avr3000_params *params, double *joint_acceleration, int *status);
+int avr3000_cartesian_to_motor_checked(size_t count, const double *cartesian, const avr3000_params *params, double *motor, int *status);
+int avr3000_cartesian_to_motor_velocity_checked(size_t count, const double *cartesian, const double *cartesian_velocity, const avr3000_params *params, double *motor_velocity, int *status);
+int avr3000_cartesian_to_motor_acceleration_checked(size_t count, const double *cartesian, const double *cartesian_velocity, const double *cartesian_acceleration, const avr3000_params *params, double *motor_acceleration, int *status);
 """
 
 
-def ffibuilder():
+def compile_flags():
+    """CFLAGS plus FAST_CFLAGS if a probe program builds and runs with them here.
+
+    Set KINEGEN_PORTABLE=1 for plain C99 -O3 (results then equal the single-point kernels bit for bit).
+    """
+    if os.environ.get("KINEGEN_PORTABLE"):
+        return list(CFLAGS)
+    compiler = shlex.split(os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc")
+    with tempfile.TemporaryDirectory(prefix="kinegen-probe-") as scratch:
+        source, program = pathlib.Path(scratch) / "probe.c", pathlib.Path(scratch) / "probe"
+        source.write_text(PROBE)
+        try:
+            subprocess.run([*compiler, *CFLAGS, *FAST_CFLAGS, str(source), "-o", str(program), "-lm"],
+                           check=True, capture_output=True, timeout=60)
+            ran = subprocess.run([str(program)], check=True, capture_output=True, text=True, timeout=60)
+        except (OSError, subprocess.SubprocessError):
+            return list(CFLAGS)
+    return [*CFLAGS, *FAST_CFLAGS] if ran.stdout.strip() == "1.000000" else list(CFLAGS)
+
+
+def ffibuilder(flags=None):
     ffi = FFI()
     ffi.cdef(CDEF)
     ffi.set_source(
         MODULE,
-        '#include "avr3000.h"',
+        CHECKED,
         sources=[str(HERE / "avr3000.c")],
         include_dirs=[str(HERE)],
-        extra_compile_args=CFLAGS,
+        extra_compile_args=compile_flags() if flags is None else flags,
         libraries=["m"],
     )
     return ffi

@@ -20,6 +20,12 @@ TASK = ("T", "R", "Z", )
 BRANCHES = ("principal", )
 PARAMS = {"a": 0.2667, "e": 0.0, "J11": -4.0175691732e-05, "J21": 2.6036376953e-05, "J22": -2.6036376953e-05, "J33": 1.6666666692e-07}
 LIMITS = (None, (0.0, 6.283185307179586), (0.0, 0.1524), )
+# Batches are worked through CHUNK items at a time, so that the temporaries stay in cache.
+# The sine and cosine of an angle come from one tangent of the half angle,
+# sin = 2h/(1 + h^2), cos = (1 - h^2)/(1 + h^2) with h = tan(angle/2): numpy
+# vectorises float64 tan but not sin and cos (about 3 ns an angle for both,
+# against 17 ns for each); the error stays within 2.2e-16 (absolute) of libm's.
+CHUNK = 4096
 OPERATIONS = {"fk": 20, "frames": 22, "jacobian": 25, "task": 6, "task_jacobian": 7, "ik": 14, "motor_to_joint": 6, "motor_to_joint_velocity": 5, "motor_to_joint_acceleration": 5, "joint_to_tool": 6, "joint_to_tool_velocity": 8, "joint_to_tool_acceleration": 14, "joint_to_cartesian": 19, "joint_to_cartesian_velocity": 30, "joint_to_cartesian_acceleration": 58, "tool_to_cartesian": 5, "tool_to_cartesian_velocity": 10, "tool_to_cartesian_acceleration": 26, "motor_to_tool": 13, "motor_to_tool_velocity": 19, "motor_to_tool_acceleration": 37, "motor_to_cartesian": 26, "motor_to_cartesian_velocity": 49, "motor_to_cartesian_acceleration": 100, "joint_to_motor": 9, "joint_to_motor_velocity": 7, "joint_to_motor_acceleration": 7, "tool_to_joint": 10, "tool_to_joint_velocity": 20, "tool_to_joint_acceleration": 31, "tool_to_motor": 19, "tool_to_motor_velocity": 33, "tool_to_motor_acceleration": 50, "cartesian_to_tool": 8, "cartesian_to_tool_velocity": 18, "cartesian_to_tool_acceleration": 59, "cartesian_to_joint": 18, "cartesian_to_joint_velocity": 46, "cartesian_to_joint_acceleration": 149, "cartesian_to_motor": 27, "cartesian_to_motor_velocity": 58, "cartesian_to_motor_acceleration": 168}
 GEAR_T = 1.0
 GEAR_R = -0.4793588112288461
@@ -39,24 +45,49 @@ def fk(q, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    q3 = q[..., 2]
-    _t0 = q1 + (0.5)*q2
-    _t1 = numpy.cos(_t0)
-    _t2 = numpy.sin(_t0)
-    _t3 = q1 + q2
-    T = numpy.zeros(_batch + (4, 4))
-    T[..., 0, 0] = _t1
-    T[..., 0, 1] = -_t2
-    T[..., 0, 3] = -_t1*e + a*numpy.cos(_t3) + a*numpy.cos(q1)
-    T[..., 1, 0] = _t2
-    T[..., 1, 1] = _t1
-    T[..., 1, 3] = -_t2*e + a*numpy.sin(_t3) + a*numpy.sin(q1)
-    T[..., 2, 2] = 1
-    T[..., 2, 3] = q3
-    T[..., 3, 3] = 1
-    return T
+    _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
+    _count = _all_q.shape[0]
+    T = numpy.empty((_count, 16))
+    T[:, 2] = 0
+    T[:, 6] = 0
+    T[:, 8] = 0
+    T[:, 9] = 0
+    T[:, 10] = 1
+    T[:, 12] = 0
+    T[:, 13] = 0
+    T[:, 14] = 0
+    T[:, 15] = 1
+    for _start in range(0, _count, CHUNK):
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
+        _t0 = q1 + (0.5)*q2
+        _t3 = q1 + q2
+        _h0 = numpy.tan(0.5*_t0)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _c0 = (1.0 - _u0)*_r0
+        _h1 = numpy.tan(0.5*_t3)
+        _u1 = _h1*_h1
+        _r1 = 1.0/(1.0 + _u1)
+        _s1 = (_h1 + _h1)*_r1
+        _c1 = (1.0 - _u1)*_r1
+        _h2 = numpy.tan(0.5*q1)
+        _u2 = _h2*_h2
+        _r2 = 1.0/(1.0 + _u2)
+        _s2 = (_h2 + _h2)*_r2
+        _c2 = (1.0 - _u2)*_r2
+        _T = T[_start:_start + CHUNK].T
+        _T[0] = _c0
+        _T[1] = -_s0
+        _T[3] = -_c0*e + _c1*a + _c2*a
+        _T[4] = _s0
+        _T[5] = _c0
+        _T[7] = -_s0*e + _s1*a + _s2*a
+        _T[11] = q3
+    return T.reshape(_batch + (4, 4))
 
 
 def frames(q, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -73,50 +104,99 @@ def frames(q, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    q3 = q[..., 2]
-    _t0 = numpy.cos(q1)
-    _t1 = numpy.sin(q1)
-    _t2 = q1 + q2
-    _t3 = numpy.cos(_t2)
-    _t4 = numpy.sin(_t2)
-    _t5 = _t0*a
-    _t6 = _t1*a
-    _t7 = q1 + (0.5)*q2
-    _t8 = numpy.cos(_t7)
-    _t9 = numpy.sin(_t7)
-    frames = numpy.zeros(_batch + (4, 4, 4))
-    frames[..., 0, 0, 0] = 1
-    frames[..., 0, 1, 1] = 1
-    frames[..., 0, 2, 2] = 1
-    frames[..., 0, 3, 3] = 1
-    frames[..., 1, 0, 0] = _t0
-    frames[..., 1, 0, 1] = -_t1
-    frames[..., 1, 1, 0] = _t1
-    frames[..., 1, 1, 1] = _t0
-    frames[..., 1, 2, 2] = 1
-    frames[..., 1, 2, 3] = q3
-    frames[..., 1, 3, 3] = 1
-    frames[..., 2, 0, 0] = _t3
-    frames[..., 2, 0, 1] = -_t4
-    frames[..., 2, 0, 3] = _t5
-    frames[..., 2, 1, 0] = _t4
-    frames[..., 2, 1, 1] = _t3
-    frames[..., 2, 1, 3] = _t6
-    frames[..., 2, 2, 2] = 1
-    frames[..., 2, 2, 3] = q3
-    frames[..., 2, 3, 3] = 1
-    frames[..., 3, 0, 0] = _t8
-    frames[..., 3, 0, 1] = -_t9
-    frames[..., 3, 0, 3] = _t3*a + _t5 - _t8*e
-    frames[..., 3, 1, 0] = _t9
-    frames[..., 3, 1, 1] = _t8
-    frames[..., 3, 1, 3] = _t4*a + _t6 - _t9*e
-    frames[..., 3, 2, 2] = 1
-    frames[..., 3, 2, 3] = q3
-    frames[..., 3, 3, 3] = 1
-    return frames
+    _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
+    _count = _all_q.shape[0]
+    frames = numpy.empty((_count, 64))
+    frames[:, 0] = 1
+    frames[:, 1] = 0
+    frames[:, 2] = 0
+    frames[:, 3] = 0
+    frames[:, 4] = 0
+    frames[:, 5] = 1
+    frames[:, 6] = 0
+    frames[:, 7] = 0
+    frames[:, 8] = 0
+    frames[:, 9] = 0
+    frames[:, 10] = 1
+    frames[:, 11] = 0
+    frames[:, 12] = 0
+    frames[:, 13] = 0
+    frames[:, 14] = 0
+    frames[:, 15] = 1
+    frames[:, 18] = 0
+    frames[:, 19] = 0
+    frames[:, 22] = 0
+    frames[:, 23] = 0
+    frames[:, 24] = 0
+    frames[:, 25] = 0
+    frames[:, 26] = 1
+    frames[:, 28] = 0
+    frames[:, 29] = 0
+    frames[:, 30] = 0
+    frames[:, 31] = 1
+    frames[:, 34] = 0
+    frames[:, 38] = 0
+    frames[:, 40] = 0
+    frames[:, 41] = 0
+    frames[:, 42] = 1
+    frames[:, 44] = 0
+    frames[:, 45] = 0
+    frames[:, 46] = 0
+    frames[:, 47] = 1
+    frames[:, 50] = 0
+    frames[:, 54] = 0
+    frames[:, 56] = 0
+    frames[:, 57] = 0
+    frames[:, 58] = 1
+    frames[:, 60] = 0
+    frames[:, 61] = 0
+    frames[:, 62] = 0
+    frames[:, 63] = 1
+    for _start in range(0, _count, CHUNK):
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
+        _t2 = q1 + q2
+        _t7 = q1 + (0.5)*q2
+        _h0 = numpy.tan(0.5*q1)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _c0 = (1.0 - _u0)*_r0
+        _h1 = numpy.tan(0.5*_t2)
+        _u1 = _h1*_h1
+        _r1 = 1.0/(1.0 + _u1)
+        _s1 = (_h1 + _h1)*_r1
+        _c1 = (1.0 - _u1)*_r1
+        _h2 = numpy.tan(0.5*_t7)
+        _u2 = _h2*_h2
+        _r2 = 1.0/(1.0 + _u2)
+        _s2 = (_h2 + _h2)*_r2
+        _c2 = (1.0 - _u2)*_r2
+        _t5 = _c0*a
+        _t6 = _s0*a
+        _frames = frames[_start:_start + CHUNK].T
+        _frames[16] = _c0
+        _frames[17] = -_s0
+        _frames[20] = _s0
+        _frames[21] = _c0
+        _frames[27] = q3
+        _frames[32] = _c1
+        _frames[33] = -_s1
+        _frames[35] = _t5
+        _frames[36] = _s1
+        _frames[37] = _c1
+        _frames[39] = _t6
+        _frames[43] = q3
+        _frames[48] = _c2
+        _frames[49] = -_s2
+        _frames[51] = _c1*a - _c2*e + _t5
+        _frames[52] = _s2
+        _frames[53] = _c2
+        _frames[55] = _s1*a - _s2*e + _t6
+        _frames[59] = q3
+    return frames.reshape(_batch + (4, 4, 4))
 
 
 def jacobian(q, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -133,23 +213,53 @@ def jacobian(q, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05,
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    _t0 = q1 + q2
-    _t1 = a*numpy.sin(_t0)
-    _t2 = q1 + (0.5)*q2
-    _t3 = numpy.sin(_t2)
-    _t4 = a*numpy.cos(_t0)
-    _t5 = e*numpy.cos(_t2)
-    J = numpy.zeros(_batch + (6, 3))
-    J[..., 0, 0] = -_t1 + _t3*e - a*numpy.sin(q1)
-    J[..., 0, 1] = -_t1 + (0.5)*_t3*e
-    J[..., 1, 0] = _t4 - _t5 + a*numpy.cos(q1)
-    J[..., 1, 1] = _t4 - 0.5*_t5
-    J[..., 2, 2] = 1
-    J[..., 5, 0] = 1
-    J[..., 5, 1] = 0.5
-    return J
+    _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
+    _count = _all_q.shape[0]
+    J = numpy.empty((_count, 18))
+    J[:, 2] = 0
+    J[:, 5] = 0
+    J[:, 6] = 0
+    J[:, 7] = 0
+    J[:, 8] = 1
+    J[:, 9] = 0
+    J[:, 10] = 0
+    J[:, 11] = 0
+    J[:, 12] = 0
+    J[:, 13] = 0
+    J[:, 14] = 0
+    J[:, 15] = 1
+    J[:, 16] = 0.5
+    J[:, 17] = 0
+    for _start in range(0, _count, CHUNK):
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        _t0 = q1 + q2
+        _t2 = q1 + (0.5)*q2
+        _h0 = numpy.tan(0.5*_t0)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _c0 = (1.0 - _u0)*_r0
+        _h1 = numpy.tan(0.5*_t2)
+        _u1 = _h1*_h1
+        _r1 = 1.0/(1.0 + _u1)
+        _s1 = (_h1 + _h1)*_r1
+        _c1 = (1.0 - _u1)*_r1
+        _h2 = numpy.tan(0.5*q1)
+        _u2 = _h2*_h2
+        _r2 = 1.0/(1.0 + _u2)
+        _s2 = (_h2 + _h2)*_r2
+        _c2 = (1.0 - _u2)*_r2
+        _t1 = _s0*a
+        _t4 = _c0*a
+        _t5 = _c1*e
+        _J = J[_start:_start + CHUNK].T
+        _J[0] = _s1*e - _s2*a - _t1
+        _J[1] = (0.5)*_s1*e - _t1
+        _J[3] = _c2*a + _t4 - _t5
+        _J[4] = _t4 - 0.5*_t5
+    return J.reshape(_batch + (6, 3))
 
 
 def task(q, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -166,15 +276,24 @@ def task(q, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    q3 = q[..., 2]
-    _t0 = (0.5)*q2
-    x = numpy.empty(_batch + (3,))
-    x[..., 0] = -_t0 - q1 + 1.5707963267948966
-    x[..., 1] = 2*a*numpy.cos(_t0)
-    x[..., 2] = q3
-    return x
+    _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
+    _count = _all_q.shape[0]
+    x = numpy.empty((_count, 3))
+    for _start in range(0, _count, CHUNK):
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
+        _t0 = (0.5)*q2
+        _h0 = numpy.tan(0.5*_t0)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _c0 = (1.0 - _u0)*_r0
+        _x = x[_start:_start + CHUNK].T
+        _x[0] = -_t0 - q1 + 1.5707963267948966
+        _x[1] = 2*_c0*a
+        _x[2] = q3
+    return x.reshape(_batch + (3,))
 
 
 def task_jacobian(q, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -191,13 +310,28 @@ def task_jacobian(q, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(q)
-    q2 = q[..., 1]
-    Jx = numpy.zeros(_batch + (3, 3))
-    Jx[..., 0, 0] = -1
-    Jx[..., 0, 1] = -0.5
-    Jx[..., 1, 1] = -a*numpy.sin((0.5)*q2)
-    Jx[..., 2, 2] = 1
-    return Jx
+    _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
+    _count = _all_q.shape[0]
+    Jx = numpy.empty((_count, 9))
+    Jx[:, 0] = -1
+    Jx[:, 1] = -0.5
+    Jx[:, 2] = 0
+    Jx[:, 3] = 0
+    Jx[:, 5] = 0
+    Jx[:, 6] = 0
+    Jx[:, 7] = 0
+    Jx[:, 8] = 1
+    for _start in range(0, _count, CHUNK):
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q2 = _columns_q[1]
+        _a0 = (0.5)*q2
+        _h0 = numpy.tan(0.5*_a0)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _Jx = Jx[_start:_start + CHUNK].T
+        _Jx[4] = -_s0*a
+    return Jx.reshape(_batch + (3, 3))
 
 
 @numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
@@ -218,20 +352,28 @@ def ik(x, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(x)
-    T = x[..., 0]
-    R = x[..., 1]
-    Z = x[..., 2]
-    _t0 = (0.5)*R/a
-    _t1 = numpy.arccos(numpy.maximum(-1, numpy.minimum(1, _t0)))
-    Q = numpy.empty(_batch + (1, 3))
-    Q[..., 0, 0] = _runtime.wrap_angle(-T - _t1 + 1.5707963267948966)
-    Q[..., 0, 1] = 2*_t1
-    Q[..., 0, 2] = Z
-    valid = numpy.empty(_batch + (1,), dtype=bool)
-    valid[..., 0] = numpy.logical_and(numpy.greater_equal(_t0, -1), numpy.less_equal(_t0, 1))
+    _all_x = numpy.broadcast_to(x, _batch + (3,)).reshape(-1, 3)
+    _count = _all_x.shape[0]
+    Q = numpy.empty((_count, 3))
+    valid = numpy.empty((_count, 1), dtype=bool)
+    for _start in range(0, _count, CHUNK):
+        _columns_x = numpy.ascontiguousarray(_all_x[_start:_start + CHUNK].T)
+        T = _columns_x[0]
+        R = _columns_x[1]
+        Z = _columns_x[2]
+        _t0 = (0.5)*R/a
+        _a0 = numpy.maximum(-1, numpy.minimum(1, _t0))
+        _f0 = numpy.arccos(_a0)
+        _Q = Q[_start:_start + CHUNK].T
+        _Q[0] = _runtime.wrap_angle(-T - _f0 + 1.5707963267948966)
+        _Q[1] = 2*_f0
+        _Q[2] = Z
+        _valid = valid[_start:_start + CHUNK].T
+        _valid[0] = numpy.logical_and(numpy.greater_equal(_t0, -1), numpy.less_equal(_t0, 1))
     # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
-    valid &= numpy.isfinite(Q).all(axis=-1) & numpy.isfinite(x).all(axis=-1)[..., None]
-    return Q, valid
+    valid &= (numpy.isfinite(Q.reshape((_count,) + (1, 3))).all(axis=-1)
+              & numpy.isfinite(_all_x).all(axis=-1)[:, None])
+    return Q.reshape(_batch + (1, 3)), valid.reshape(_batch + (1,))
 
 
 def motor_to_joint(motor, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -248,14 +390,19 @@ def motor_to_joint(motor, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.60363
     _runtime.as_param(a, "a")
     _runtime.as_param(e, "e")
     _batch = _runtime.batch_shape(motor)
-    theta1 = motor[..., 0]
-    theta2 = motor[..., 1]
-    theta3 = motor[..., 2]
-    joint = numpy.empty(_batch + (3,))
-    joint[..., 0] = J11*theta1
-    joint[..., 1] = J21*theta1 + J22*theta2 + 3.141592653589793
-    joint[..., 2] = J33*theta3
-    return joint
+    _all_motor = numpy.broadcast_to(motor, _batch + (3,)).reshape(-1, 3)
+    _count = _all_motor.shape[0]
+    joint = numpy.empty((_count, 3))
+    for _start in range(0, _count, CHUNK):
+        _columns_motor = numpy.ascontiguousarray(_all_motor[_start:_start + CHUNK].T)
+        theta1 = _columns_motor[0]
+        theta2 = _columns_motor[1]
+        theta3 = _columns_motor[2]
+        _joint = joint[_start:_start + CHUNK].T
+        _joint[0] = J11*theta1
+        _joint[1] = J21*theta1 + J22*theta2 + 3.141592653589793
+        _joint[2] = J33*theta3
+    return joint.reshape(_batch + (3,))
 
 
 def motor_to_joint_velocity(motor, motor_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -274,14 +421,20 @@ def motor_to_joint_velocity(motor, motor_velocity, *, a=0.2667, e=0.0, J11=-4.01
     _runtime.as_param(a, "a")
     _runtime.as_param(e, "e")
     _batch = _runtime.batch_shape(motor, motor_velocity)
-    thetadot1 = motor_velocity[..., 0]
-    thetadot2 = motor_velocity[..., 1]
-    thetadot3 = motor_velocity[..., 2]
-    joint_velocity = numpy.empty(_batch + (3,))
-    joint_velocity[..., 0] = J11*thetadot1
-    joint_velocity[..., 1] = J21*thetadot1 + J22*thetadot2
-    joint_velocity[..., 2] = J33*thetadot3
-    return joint_velocity
+    _all_motor = numpy.broadcast_to(motor, _batch + (3,)).reshape(-1, 3)
+    _all_motor_velocity = numpy.broadcast_to(motor_velocity, _batch + (3,)).reshape(-1, 3)
+    _count = _all_motor.shape[0]
+    joint_velocity = numpy.empty((_count, 3))
+    for _start in range(0, _count, CHUNK):
+        _columns_motor_velocity = numpy.ascontiguousarray(_all_motor_velocity[_start:_start + CHUNK].T)
+        thetadot1 = _columns_motor_velocity[0]
+        thetadot2 = _columns_motor_velocity[1]
+        thetadot3 = _columns_motor_velocity[2]
+        _joint_velocity = joint_velocity[_start:_start + CHUNK].T
+        _joint_velocity[0] = J11*thetadot1
+        _joint_velocity[1] = J21*thetadot1 + J22*thetadot2
+        _joint_velocity[2] = J33*thetadot3
+    return joint_velocity.reshape(_batch + (3,))
 
 
 def motor_to_joint_acceleration(motor, motor_velocity, motor_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -302,14 +455,21 @@ def motor_to_joint_acceleration(motor, motor_velocity, motor_acceleration, *, a=
     _runtime.as_param(a, "a")
     _runtime.as_param(e, "e")
     _batch = _runtime.batch_shape(motor, motor_velocity, motor_acceleration)
-    thetaddot1 = motor_acceleration[..., 0]
-    thetaddot2 = motor_acceleration[..., 1]
-    thetaddot3 = motor_acceleration[..., 2]
-    joint_acceleration = numpy.empty(_batch + (3,))
-    joint_acceleration[..., 0] = J11*thetaddot1
-    joint_acceleration[..., 1] = J21*thetaddot1 + J22*thetaddot2
-    joint_acceleration[..., 2] = J33*thetaddot3
-    return joint_acceleration
+    _all_motor = numpy.broadcast_to(motor, _batch + (3,)).reshape(-1, 3)
+    _all_motor_velocity = numpy.broadcast_to(motor_velocity, _batch + (3,)).reshape(-1, 3)
+    _all_motor_acceleration = numpy.broadcast_to(motor_acceleration, _batch + (3,)).reshape(-1, 3)
+    _count = _all_motor.shape[0]
+    joint_acceleration = numpy.empty((_count, 3))
+    for _start in range(0, _count, CHUNK):
+        _columns_motor_acceleration = numpy.ascontiguousarray(_all_motor_acceleration[_start:_start + CHUNK].T)
+        thetaddot1 = _columns_motor_acceleration[0]
+        thetaddot2 = _columns_motor_acceleration[1]
+        thetaddot3 = _columns_motor_acceleration[2]
+        _joint_acceleration = joint_acceleration[_start:_start + CHUNK].T
+        _joint_acceleration[0] = J11*thetaddot1
+        _joint_acceleration[1] = J21*thetaddot1 + J22*thetaddot2
+        _joint_acceleration[2] = J33*thetaddot3
+    return joint_acceleration.reshape(_batch + (3,))
 
 
 def joint_to_tool(joint, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -326,15 +486,24 @@ def joint_to_tool(joint, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.603637
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(joint)
-    q1 = joint[..., 0]
-    q2 = joint[..., 1]
-    q3 = joint[..., 2]
-    _t0 = (0.5)*q2
-    tool = numpy.empty(_batch + (3,))
-    tool[..., 0] = -_t0 - q1 + 1.5707963267948966
-    tool[..., 1] = 2*a*numpy.cos(_t0)
-    tool[..., 2] = q3
-    return tool
+    _all_joint = numpy.broadcast_to(joint, _batch + (3,)).reshape(-1, 3)
+    _count = _all_joint.shape[0]
+    tool = numpy.empty((_count, 3))
+    for _start in range(0, _count, CHUNK):
+        _columns_joint = numpy.ascontiguousarray(_all_joint[_start:_start + CHUNK].T)
+        q1 = _columns_joint[0]
+        q2 = _columns_joint[1]
+        q3 = _columns_joint[2]
+        _t0 = (0.5)*q2
+        _h0 = numpy.tan(0.5*_t0)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _c0 = (1.0 - _u0)*_r0
+        _tool = tool[_start:_start + CHUNK].T
+        _tool[0] = -_t0 - q1 + 1.5707963267948966
+        _tool[1] = 2*_c0*a
+        _tool[2] = q3
+    return tool.reshape(_batch + (3,))
 
 
 def joint_to_tool_velocity(joint, joint_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -353,15 +522,27 @@ def joint_to_tool_velocity(joint, joint_velocity, *, a=0.2667, e=0.0, J11=-4.017
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(joint, joint_velocity)
-    q2 = joint[..., 1]
-    qdot1 = joint_velocity[..., 0]
-    qdot2 = joint_velocity[..., 1]
-    qdot3 = joint_velocity[..., 2]
-    tool_velocity = numpy.empty(_batch + (3,))
-    tool_velocity[..., 0] = -qdot1 - 0.5*qdot2
-    tool_velocity[..., 1] = -a*qdot2*numpy.sin((0.5)*q2)
-    tool_velocity[..., 2] = qdot3
-    return tool_velocity
+    _all_joint = numpy.broadcast_to(joint, _batch + (3,)).reshape(-1, 3)
+    _all_joint_velocity = numpy.broadcast_to(joint_velocity, _batch + (3,)).reshape(-1, 3)
+    _count = _all_joint.shape[0]
+    tool_velocity = numpy.empty((_count, 3))
+    for _start in range(0, _count, CHUNK):
+        _columns_joint = numpy.ascontiguousarray(_all_joint[_start:_start + CHUNK].T)
+        q2 = _columns_joint[1]
+        _columns_joint_velocity = numpy.ascontiguousarray(_all_joint_velocity[_start:_start + CHUNK].T)
+        qdot1 = _columns_joint_velocity[0]
+        qdot2 = _columns_joint_velocity[1]
+        qdot3 = _columns_joint_velocity[2]
+        _a0 = (0.5)*q2
+        _h0 = numpy.tan(0.5*_a0)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _tool_velocity = tool_velocity[_start:_start + CHUNK].T
+        _tool_velocity[0] = -qdot1 - 0.5*qdot2
+        _tool_velocity[1] = -_s0*a*qdot2
+        _tool_velocity[2] = qdot3
+    return tool_velocity.reshape(_batch + (3,))
 
 
 def joint_to_tool_acceleration(joint, joint_velocity, joint_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -382,17 +563,31 @@ def joint_to_tool_acceleration(joint, joint_velocity, joint_acceleration, *, a=0
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(joint, joint_velocity, joint_acceleration)
-    q2 = joint[..., 1]
-    qdot2 = joint_velocity[..., 1]
-    qddot1 = joint_acceleration[..., 0]
-    qddot2 = joint_acceleration[..., 1]
-    qddot3 = joint_acceleration[..., 2]
-    _t0 = (0.5)*q2
-    tool_acceleration = numpy.empty(_batch + (3,))
-    tool_acceleration[..., 0] = -qddot1 - 0.5*qddot2
-    tool_acceleration[..., 1] = -a*qddot2*numpy.sin(_t0) - 0.5*a*(qdot2*qdot2)*numpy.cos(_t0)
-    tool_acceleration[..., 2] = qddot3
-    return tool_acceleration
+    _all_joint = numpy.broadcast_to(joint, _batch + (3,)).reshape(-1, 3)
+    _all_joint_velocity = numpy.broadcast_to(joint_velocity, _batch + (3,)).reshape(-1, 3)
+    _all_joint_acceleration = numpy.broadcast_to(joint_acceleration, _batch + (3,)).reshape(-1, 3)
+    _count = _all_joint.shape[0]
+    tool_acceleration = numpy.empty((_count, 3))
+    for _start in range(0, _count, CHUNK):
+        _columns_joint = numpy.ascontiguousarray(_all_joint[_start:_start + CHUNK].T)
+        q2 = _columns_joint[1]
+        _columns_joint_velocity = numpy.ascontiguousarray(_all_joint_velocity[_start:_start + CHUNK].T)
+        qdot2 = _columns_joint_velocity[1]
+        _columns_joint_acceleration = numpy.ascontiguousarray(_all_joint_acceleration[_start:_start + CHUNK].T)
+        qddot1 = _columns_joint_acceleration[0]
+        qddot2 = _columns_joint_acceleration[1]
+        qddot3 = _columns_joint_acceleration[2]
+        _t0 = (0.5)*q2
+        _h0 = numpy.tan(0.5*_t0)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _c0 = (1.0 - _u0)*_r0
+        _tool_acceleration = tool_acceleration[_start:_start + CHUNK].T
+        _tool_acceleration[0] = -qddot1 - 0.5*qddot2
+        _tool_acceleration[1] = -0.5*_c0*a*(qdot2*qdot2) - _s0*a*qddot2
+        _tool_acceleration[2] = qddot3
+    return tool_acceleration.reshape(_batch + (3,))
 
 
 def joint_to_cartesian(joint, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -409,16 +604,36 @@ def joint_to_cartesian(joint, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(joint)
-    q1 = joint[..., 0]
-    q2 = joint[..., 1]
-    q3 = joint[..., 2]
-    _t0 = q1 + q2
-    _t1 = q1 + (0.5)*q2
-    cartesian = numpy.empty(_batch + (3,))
-    cartesian[..., 0] = a*numpy.cos(_t0) + a*numpy.cos(q1) - e*numpy.cos(_t1)
-    cartesian[..., 1] = a*numpy.sin(_t0) + a*numpy.sin(q1) - e*numpy.sin(_t1)
-    cartesian[..., 2] = q3
-    return cartesian
+    _all_joint = numpy.broadcast_to(joint, _batch + (3,)).reshape(-1, 3)
+    _count = _all_joint.shape[0]
+    cartesian = numpy.empty((_count, 3))
+    for _start in range(0, _count, CHUNK):
+        _columns_joint = numpy.ascontiguousarray(_all_joint[_start:_start + CHUNK].T)
+        q1 = _columns_joint[0]
+        q2 = _columns_joint[1]
+        q3 = _columns_joint[2]
+        _t0 = q1 + q2
+        _t1 = q1 + (0.5)*q2
+        _h0 = numpy.tan(0.5*_t0)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _c0 = (1.0 - _u0)*_r0
+        _h1 = numpy.tan(0.5*q1)
+        _u1 = _h1*_h1
+        _r1 = 1.0/(1.0 + _u1)
+        _s1 = (_h1 + _h1)*_r1
+        _c1 = (1.0 - _u1)*_r1
+        _h2 = numpy.tan(0.5*_t1)
+        _u2 = _h2*_h2
+        _r2 = 1.0/(1.0 + _u2)
+        _s2 = (_h2 + _h2)*_r2
+        _c2 = (1.0 - _u2)*_r2
+        _cartesian = cartesian[_start:_start + CHUNK].T
+        _cartesian[0] = _c0*a + _c1*a - _c2*e
+        _cartesian[1] = _s0*a + _s1*a - _s2*e
+        _cartesian[2] = q3
+    return cartesian.reshape(_batch + (3,))
 
 
 def joint_to_cartesian_velocity(joint, joint_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -437,22 +652,43 @@ def joint_to_cartesian_velocity(joint, joint_velocity, *, a=0.2667, e=0.0, J11=-
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(joint, joint_velocity)
-    q1 = joint[..., 0]
-    q2 = joint[..., 1]
-    qdot1 = joint_velocity[..., 0]
-    qdot2 = joint_velocity[..., 1]
-    qdot3 = joint_velocity[..., 2]
-    _t0 = q1 + q2
-    _t1 = a*numpy.sin(_t0)
-    _t2 = q1 + (0.5)*q2
-    _t3 = numpy.sin(_t2)
-    _t4 = a*numpy.cos(_t0)
-    _t5 = e*numpy.cos(_t2)
-    cartesian_velocity = numpy.empty(_batch + (3,))
-    cartesian_velocity[..., 0] = qdot1*(-_t1 + _t3*e - a*numpy.sin(q1)) + qdot2*(-_t1 + (0.5)*_t3*e)
-    cartesian_velocity[..., 1] = qdot1*(_t4 - _t5 + a*numpy.cos(q1)) + qdot2*(_t4 - 0.5*_t5)
-    cartesian_velocity[..., 2] = qdot3
-    return cartesian_velocity
+    _all_joint = numpy.broadcast_to(joint, _batch + (3,)).reshape(-1, 3)
+    _all_joint_velocity = numpy.broadcast_to(joint_velocity, _batch + (3,)).reshape(-1, 3)
+    _count = _all_joint.shape[0]
+    cartesian_velocity = numpy.empty((_count, 3))
+    for _start in range(0, _count, CHUNK):
+        _columns_joint = numpy.ascontiguousarray(_all_joint[_start:_start + CHUNK].T)
+        q1 = _columns_joint[0]
+        q2 = _columns_joint[1]
+        _columns_joint_velocity = numpy.ascontiguousarray(_all_joint_velocity[_start:_start + CHUNK].T)
+        qdot1 = _columns_joint_velocity[0]
+        qdot2 = _columns_joint_velocity[1]
+        qdot3 = _columns_joint_velocity[2]
+        _t0 = q1 + q2
+        _t2 = q1 + (0.5)*q2
+        _h0 = numpy.tan(0.5*_t0)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _c0 = (1.0 - _u0)*_r0
+        _h1 = numpy.tan(0.5*_t2)
+        _u1 = _h1*_h1
+        _r1 = 1.0/(1.0 + _u1)
+        _s1 = (_h1 + _h1)*_r1
+        _c1 = (1.0 - _u1)*_r1
+        _h2 = numpy.tan(0.5*q1)
+        _u2 = _h2*_h2
+        _r2 = 1.0/(1.0 + _u2)
+        _s2 = (_h2 + _h2)*_r2
+        _c2 = (1.0 - _u2)*_r2
+        _t1 = _s0*a
+        _t4 = _c0*a
+        _t5 = _c1*e
+        _cartesian_velocity = cartesian_velocity[_start:_start + CHUNK].T
+        _cartesian_velocity[0] = qdot1*(_s1*e - _s2*a - _t1) + qdot2*((0.5)*_s1*e - _t1)
+        _cartesian_velocity[1] = qdot1*(_c2*a + _t4 - _t5) + qdot2*(_t4 - 0.5*_t5)
+        _cartesian_velocity[2] = qdot3
+    return cartesian_velocity.reshape(_batch + (3,))
 
 
 def joint_to_cartesian_acceleration(joint, joint_velocity, joint_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -473,29 +709,51 @@ def joint_to_cartesian_acceleration(joint, joint_velocity, joint_acceleration, *
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(joint, joint_velocity, joint_acceleration)
-    q1 = joint[..., 0]
-    q2 = joint[..., 1]
-    qdot1 = joint_velocity[..., 0]
-    qdot2 = joint_velocity[..., 1]
-    qddot1 = joint_acceleration[..., 0]
-    qddot2 = joint_acceleration[..., 1]
-    qddot3 = joint_acceleration[..., 2]
-    _t0 = q1 + q2
-    _t1 = a*numpy.sin(_t0)
-    _t2 = q1 + (0.5)*q2
-    _t3 = numpy.sin(_t2)
-    _t4 = -_t1 + (0.5)*_t3*e
-    _t5 = -_t1 + _t3*e - a*numpy.sin(q1)
-    _t6 = a*numpy.cos(_t0)
-    _t7 = numpy.cos(_t2)
-    _t8 = _t6 - 0.5*_t7*e
-    _t9 = -_t8
-    _t10 = _t6 - _t7*e + a*numpy.cos(q1)
-    cartesian_acceleration = numpy.empty(_batch + (3,))
-    cartesian_acceleration[..., 0] = _t4*qddot2 + _t5*qddot1 + qdot1*(-_t10*qdot1 + _t9*qdot2) + qdot2*(_t9*qdot1 + qdot2*(-_t6 + (0.25)*_t7*e))
-    cartesian_acceleration[..., 1] = _t10*qddot1 + _t8*qddot2 + qdot1*(_t4*qdot2 + _t5*qdot1) + qdot2*(_t4*qdot1 + qdot2*(-_t1 + (0.25)*_t3*e))
-    cartesian_acceleration[..., 2] = qddot3
-    return cartesian_acceleration
+    _all_joint = numpy.broadcast_to(joint, _batch + (3,)).reshape(-1, 3)
+    _all_joint_velocity = numpy.broadcast_to(joint_velocity, _batch + (3,)).reshape(-1, 3)
+    _all_joint_acceleration = numpy.broadcast_to(joint_acceleration, _batch + (3,)).reshape(-1, 3)
+    _count = _all_joint.shape[0]
+    cartesian_acceleration = numpy.empty((_count, 3))
+    for _start in range(0, _count, CHUNK):
+        _columns_joint = numpy.ascontiguousarray(_all_joint[_start:_start + CHUNK].T)
+        q1 = _columns_joint[0]
+        q2 = _columns_joint[1]
+        _columns_joint_velocity = numpy.ascontiguousarray(_all_joint_velocity[_start:_start + CHUNK].T)
+        qdot1 = _columns_joint_velocity[0]
+        qdot2 = _columns_joint_velocity[1]
+        _columns_joint_acceleration = numpy.ascontiguousarray(_all_joint_acceleration[_start:_start + CHUNK].T)
+        qddot1 = _columns_joint_acceleration[0]
+        qddot2 = _columns_joint_acceleration[1]
+        qddot3 = _columns_joint_acceleration[2]
+        _t0 = q1 + q2
+        _t2 = q1 + (0.5)*q2
+        _h0 = numpy.tan(0.5*_t0)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _c0 = (1.0 - _u0)*_r0
+        _h1 = numpy.tan(0.5*_t2)
+        _u1 = _h1*_h1
+        _r1 = 1.0/(1.0 + _u1)
+        _s1 = (_h1 + _h1)*_r1
+        _c1 = (1.0 - _u1)*_r1
+        _h2 = numpy.tan(0.5*q1)
+        _u2 = _h2*_h2
+        _r2 = 1.0/(1.0 + _u2)
+        _s2 = (_h2 + _h2)*_r2
+        _c2 = (1.0 - _u2)*_r2
+        _t1 = _s0*a
+        _t4 = (0.5)*_s1*e - _t1
+        _t5 = _s1*e - _s2*a - _t1
+        _t6 = _c0*a
+        _t8 = -0.5*_c1*e + _t6
+        _t9 = -_t8
+        _t10 = -_c1*e + _c2*a + _t6
+        _cartesian_acceleration = cartesian_acceleration[_start:_start + CHUNK].T
+        _cartesian_acceleration[0] = _t4*qddot2 + _t5*qddot1 + qdot1*(-_t10*qdot1 + _t9*qdot2) + qdot2*(_t9*qdot1 + qdot2*((0.25)*_c1*e - _t6))
+        _cartesian_acceleration[1] = _t10*qddot1 + _t8*qddot2 + qdot1*(_t4*qdot2 + _t5*qdot1) + qdot2*(_t4*qdot1 + qdot2*((0.25)*_s1*e - _t1))
+        _cartesian_acceleration[2] = qddot3
+    return cartesian_acceleration.reshape(_batch + (3,))
 
 
 def tool_to_cartesian(tool, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -512,15 +770,25 @@ def tool_to_cartesian(tool, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.603
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(tool)
-    T = tool[..., 0]
-    R = tool[..., 1]
-    Z = tool[..., 2]
-    _t0 = R - e
-    cartesian = numpy.empty(_batch + (3,))
-    cartesian[..., 0] = _t0*numpy.sin(T)
-    cartesian[..., 1] = _t0*numpy.cos(T)
-    cartesian[..., 2] = Z
-    return cartesian
+    _all_tool = numpy.broadcast_to(tool, _batch + (3,)).reshape(-1, 3)
+    _count = _all_tool.shape[0]
+    cartesian = numpy.empty((_count, 3))
+    for _start in range(0, _count, CHUNK):
+        _columns_tool = numpy.ascontiguousarray(_all_tool[_start:_start + CHUNK].T)
+        T = _columns_tool[0]
+        R = _columns_tool[1]
+        Z = _columns_tool[2]
+        _h0 = numpy.tan(0.5*T)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _c0 = (1.0 - _u0)*_r0
+        _t0 = R - e
+        _cartesian = cartesian[_start:_start + CHUNK].T
+        _cartesian[0] = _s0*_t0
+        _cartesian[1] = _c0*_t0
+        _cartesian[2] = Z
+    return cartesian.reshape(_batch + (3,))
 
 
 def tool_to_cartesian_velocity(tool, tool_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -539,19 +807,29 @@ def tool_to_cartesian_velocity(tool, tool_velocity, *, a=0.2667, e=0.0, J11=-4.0
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(tool, tool_velocity)
-    T = tool[..., 0]
-    R = tool[..., 1]
-    Tdot = tool_velocity[..., 0]
-    Rdot = tool_velocity[..., 1]
-    Zdot = tool_velocity[..., 2]
-    _t0 = numpy.sin(T)
-    _t1 = numpy.cos(T)
-    _t2 = Tdot*(R - e)
-    cartesian_velocity = numpy.empty(_batch + (3,))
-    cartesian_velocity[..., 0] = Rdot*_t0 + _t1*_t2
-    cartesian_velocity[..., 1] = Rdot*_t1 - _t0*_t2
-    cartesian_velocity[..., 2] = Zdot
-    return cartesian_velocity
+    _all_tool = numpy.broadcast_to(tool, _batch + (3,)).reshape(-1, 3)
+    _all_tool_velocity = numpy.broadcast_to(tool_velocity, _batch + (3,)).reshape(-1, 3)
+    _count = _all_tool.shape[0]
+    cartesian_velocity = numpy.empty((_count, 3))
+    for _start in range(0, _count, CHUNK):
+        _columns_tool = numpy.ascontiguousarray(_all_tool[_start:_start + CHUNK].T)
+        T = _columns_tool[0]
+        R = _columns_tool[1]
+        _columns_tool_velocity = numpy.ascontiguousarray(_all_tool_velocity[_start:_start + CHUNK].T)
+        Tdot = _columns_tool_velocity[0]
+        Rdot = _columns_tool_velocity[1]
+        Zdot = _columns_tool_velocity[2]
+        _h0 = numpy.tan(0.5*T)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _c0 = (1.0 - _u0)*_r0
+        _t2 = Tdot*(R - e)
+        _cartesian_velocity = cartesian_velocity[_start:_start + CHUNK].T
+        _cartesian_velocity[0] = Rdot*_s0 + _c0*_t2
+        _cartesian_velocity[1] = Rdot*_c0 - _s0*_t2
+        _cartesian_velocity[2] = Zdot
+    return cartesian_velocity.reshape(_batch + (3,))
 
 
 def tool_to_cartesian_acceleration(tool, tool_velocity, tool_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -572,25 +850,37 @@ def tool_to_cartesian_acceleration(tool, tool_velocity, tool_acceleration, *, a=
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(tool, tool_velocity, tool_acceleration)
-    T = tool[..., 0]
-    R = tool[..., 1]
-    Tdot = tool_velocity[..., 0]
-    Rdot = tool_velocity[..., 1]
-    Tddot = tool_acceleration[..., 0]
-    Rddot = tool_acceleration[..., 1]
-    Zddot = tool_acceleration[..., 2]
-    _t0 = numpy.sin(T)
-    _t1 = numpy.cos(T)
-    _t2 = Rdot*_t1
-    _t3 = R - e
-    _t4 = Tddot*_t3
-    _t5 = Tdot*_t3
-    _t6 = Rdot*_t0
-    cartesian_acceleration = numpy.empty(_batch + (3,))
-    cartesian_acceleration[..., 0] = Rddot*_t0 + Tdot*_t2 + Tdot*(-_t0*_t5 + _t2) + _t1*_t4
-    cartesian_acceleration[..., 1] = Rddot*_t1 - Tdot*_t6 + Tdot*(-_t1*_t5 - _t6) - _t0*_t4
-    cartesian_acceleration[..., 2] = Zddot
-    return cartesian_acceleration
+    _all_tool = numpy.broadcast_to(tool, _batch + (3,)).reshape(-1, 3)
+    _all_tool_velocity = numpy.broadcast_to(tool_velocity, _batch + (3,)).reshape(-1, 3)
+    _all_tool_acceleration = numpy.broadcast_to(tool_acceleration, _batch + (3,)).reshape(-1, 3)
+    _count = _all_tool.shape[0]
+    cartesian_acceleration = numpy.empty((_count, 3))
+    for _start in range(0, _count, CHUNK):
+        _columns_tool = numpy.ascontiguousarray(_all_tool[_start:_start + CHUNK].T)
+        T = _columns_tool[0]
+        R = _columns_tool[1]
+        _columns_tool_velocity = numpy.ascontiguousarray(_all_tool_velocity[_start:_start + CHUNK].T)
+        Tdot = _columns_tool_velocity[0]
+        Rdot = _columns_tool_velocity[1]
+        _columns_tool_acceleration = numpy.ascontiguousarray(_all_tool_acceleration[_start:_start + CHUNK].T)
+        Tddot = _columns_tool_acceleration[0]
+        Rddot = _columns_tool_acceleration[1]
+        Zddot = _columns_tool_acceleration[2]
+        _h0 = numpy.tan(0.5*T)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _c0 = (1.0 - _u0)*_r0
+        _t2 = Rdot*_c0
+        _t3 = R - e
+        _t4 = Tddot*_t3
+        _t5 = Tdot*_t3
+        _t6 = Rdot*_s0
+        _cartesian_acceleration = cartesian_acceleration[_start:_start + CHUNK].T
+        _cartesian_acceleration[0] = Rddot*_s0 + Tdot*_t2 + Tdot*(-_s0*_t5 + _t2) + _c0*_t4
+        _cartesian_acceleration[1] = Rddot*_c0 - Tdot*_t6 + Tdot*(-_c0*_t5 - _t6) - _s0*_t4
+        _cartesian_acceleration[2] = Zddot
+    return cartesian_acceleration.reshape(_batch + (3,))
 
 
 def motor_to_tool(motor, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -607,15 +897,24 @@ def motor_to_tool(motor, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.603637
     J33 = _runtime.as_param(J33, "J33")
     _runtime.as_param(e, "e")
     _batch = _runtime.batch_shape(motor)
-    theta1 = motor[..., 0]
-    theta2 = motor[..., 1]
-    theta3 = motor[..., 2]
-    _t0 = (0.5)*J21*theta1 + (0.5)*J22*theta2
-    tool = numpy.empty(_batch + (3,))
-    tool[..., 0] = -J11*theta1 - _t0
-    tool[..., 1] = -2*a*numpy.sin(_t0)
-    tool[..., 2] = J33*theta3
-    return tool
+    _all_motor = numpy.broadcast_to(motor, _batch + (3,)).reshape(-1, 3)
+    _count = _all_motor.shape[0]
+    tool = numpy.empty((_count, 3))
+    for _start in range(0, _count, CHUNK):
+        _columns_motor = numpy.ascontiguousarray(_all_motor[_start:_start + CHUNK].T)
+        theta1 = _columns_motor[0]
+        theta2 = _columns_motor[1]
+        theta3 = _columns_motor[2]
+        _t0 = (0.5)*J21*theta1 + (0.5)*J22*theta2
+        _h0 = numpy.tan(0.5*_t0)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _tool = tool[_start:_start + CHUNK].T
+        _tool[0] = -J11*theta1 - _t0
+        _tool[1] = -2*_s0*a
+        _tool[2] = J33*theta3
+    return tool.reshape(_batch + (3,))
 
 
 def motor_to_tool_velocity(motor, motor_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -634,19 +933,31 @@ def motor_to_tool_velocity(motor, motor_velocity, *, a=0.2667, e=0.0, J11=-4.017
     J33 = _runtime.as_param(J33, "J33")
     _runtime.as_param(e, "e")
     _batch = _runtime.batch_shape(motor, motor_velocity)
-    theta1 = motor[..., 0]
-    theta2 = motor[..., 1]
-    thetadot1 = motor_velocity[..., 0]
-    thetadot2 = motor_velocity[..., 1]
-    thetadot3 = motor_velocity[..., 2]
+    _all_motor = numpy.broadcast_to(motor, _batch + (3,)).reshape(-1, 3)
+    _all_motor_velocity = numpy.broadcast_to(motor_velocity, _batch + (3,)).reshape(-1, 3)
+    _count = _all_motor.shape[0]
+    tool_velocity = numpy.empty((_count, 3))
     _t0 = (0.5)*J22
     _t1 = (0.5)*J21
-    _t2 = a*numpy.cos(_t0*theta2 + _t1*theta1)
-    tool_velocity = numpy.empty(_batch + (3,))
-    tool_velocity[..., 0] = -_t0*thetadot2 + thetadot1*(-J11 - _t1)
-    tool_velocity[..., 1] = -J21*_t2*thetadot1 - J22*_t2*thetadot2
-    tool_velocity[..., 2] = J33*thetadot3
-    return tool_velocity
+    for _start in range(0, _count, CHUNK):
+        _columns_motor = numpy.ascontiguousarray(_all_motor[_start:_start + CHUNK].T)
+        theta1 = _columns_motor[0]
+        theta2 = _columns_motor[1]
+        _columns_motor_velocity = numpy.ascontiguousarray(_all_motor_velocity[_start:_start + CHUNK].T)
+        thetadot1 = _columns_motor_velocity[0]
+        thetadot2 = _columns_motor_velocity[1]
+        thetadot3 = _columns_motor_velocity[2]
+        _a0 = _t0*theta2 + _t1*theta1
+        _h0 = numpy.tan(0.5*_a0)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _c0 = (1.0 - _u0)*_r0
+        _t2 = _c0*a
+        _tool_velocity = tool_velocity[_start:_start + CHUNK].T
+        _tool_velocity[0] = -_t0*thetadot2 + thetadot1*(-J11 - _t1)
+        _tool_velocity[1] = -J21*_t2*thetadot1 - J22*_t2*thetadot2
+        _tool_velocity[2] = J33*thetadot3
+    return tool_velocity.reshape(_batch + (3,))
 
 
 def motor_to_tool_acceleration(motor, motor_velocity, motor_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -667,25 +978,39 @@ def motor_to_tool_acceleration(motor, motor_velocity, motor_acceleration, *, a=0
     J33 = _runtime.as_param(J33, "J33")
     _runtime.as_param(e, "e")
     _batch = _runtime.batch_shape(motor, motor_velocity, motor_acceleration)
-    theta1 = motor[..., 0]
-    theta2 = motor[..., 1]
-    thetadot1 = motor_velocity[..., 0]
-    thetadot2 = motor_velocity[..., 1]
-    thetaddot1 = motor_acceleration[..., 0]
-    thetaddot2 = motor_acceleration[..., 1]
-    thetaddot3 = motor_acceleration[..., 2]
+    _all_motor = numpy.broadcast_to(motor, _batch + (3,)).reshape(-1, 3)
+    _all_motor_velocity = numpy.broadcast_to(motor_velocity, _batch + (3,)).reshape(-1, 3)
+    _all_motor_acceleration = numpy.broadcast_to(motor_acceleration, _batch + (3,)).reshape(-1, 3)
+    _count = _all_motor.shape[0]
+    tool_acceleration = numpy.empty((_count, 3))
     _t0 = (0.5)*J22
     _t1 = (0.5)*J21
-    _t2 = _t0*theta2 + _t1*theta1
-    _t3 = a*numpy.cos(_t2)
-    _t4 = a*numpy.sin(_t2)
-    _t5 = J22*_t1*_t4
-    _t6 = (0.5)*_t4
-    tool_acceleration = numpy.empty(_batch + (3,))
-    tool_acceleration[..., 0] = -_t0*thetaddot2 + thetaddot1*(-J11 - _t1)
-    tool_acceleration[..., 1] = -J21*_t3*thetaddot1 - J22*_t3*thetaddot2 + thetadot1*((J21*J21)*_t6*thetadot1 + _t5*thetadot2) + thetadot2*((J22*J22)*_t6*thetadot2 + _t5*thetadot1)
-    tool_acceleration[..., 2] = J33*thetaddot3
-    return tool_acceleration
+    for _start in range(0, _count, CHUNK):
+        _columns_motor = numpy.ascontiguousarray(_all_motor[_start:_start + CHUNK].T)
+        theta1 = _columns_motor[0]
+        theta2 = _columns_motor[1]
+        _columns_motor_velocity = numpy.ascontiguousarray(_all_motor_velocity[_start:_start + CHUNK].T)
+        thetadot1 = _columns_motor_velocity[0]
+        thetadot2 = _columns_motor_velocity[1]
+        _columns_motor_acceleration = numpy.ascontiguousarray(_all_motor_acceleration[_start:_start + CHUNK].T)
+        thetaddot1 = _columns_motor_acceleration[0]
+        thetaddot2 = _columns_motor_acceleration[1]
+        thetaddot3 = _columns_motor_acceleration[2]
+        _t2 = _t0*theta2 + _t1*theta1
+        _h0 = numpy.tan(0.5*_t2)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _c0 = (1.0 - _u0)*_r0
+        _t3 = _c0*a
+        _t4 = _s0*a
+        _t5 = J22*_t1*_t4
+        _t6 = (0.5)*_t4
+        _tool_acceleration = tool_acceleration[_start:_start + CHUNK].T
+        _tool_acceleration[0] = -_t0*thetaddot2 + thetaddot1*(-J11 - _t1)
+        _tool_acceleration[1] = -J21*_t3*thetaddot1 - J22*_t3*thetaddot2 + thetadot1*((J21*J21)*_t6*thetadot1 + _t5*thetadot2) + thetadot2*((J22*J22)*_t6*thetadot2 + _t5*thetadot1)
+        _tool_acceleration[2] = J33*thetaddot3
+    return tool_acceleration.reshape(_batch + (3,))
 
 
 def motor_to_cartesian(motor, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -702,19 +1027,39 @@ def motor_to_cartesian(motor, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6
     J22 = _runtime.as_param(J22, "J22")
     J33 = _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(motor)
-    theta1 = motor[..., 0]
-    theta2 = motor[..., 1]
-    theta3 = motor[..., 2]
-    _t0 = J11*theta1
-    _t1 = J21*theta1
-    _t2 = J22*theta2
-    _t3 = _t0 + _t1 + _t2
-    _t4 = _t0 + (0.5)*_t1 + (0.5)*_t2
-    cartesian = numpy.empty(_batch + (3,))
-    cartesian[..., 0] = a*numpy.cos(_t0) - a*numpy.cos(_t3) + e*numpy.sin(_t4)
-    cartesian[..., 1] = a*numpy.sin(_t0) - a*numpy.sin(_t3) - e*numpy.cos(_t4)
-    cartesian[..., 2] = J33*theta3
-    return cartesian
+    _all_motor = numpy.broadcast_to(motor, _batch + (3,)).reshape(-1, 3)
+    _count = _all_motor.shape[0]
+    cartesian = numpy.empty((_count, 3))
+    for _start in range(0, _count, CHUNK):
+        _columns_motor = numpy.ascontiguousarray(_all_motor[_start:_start + CHUNK].T)
+        theta1 = _columns_motor[0]
+        theta2 = _columns_motor[1]
+        theta3 = _columns_motor[2]
+        _t0 = J11*theta1
+        _t1 = J21*theta1
+        _t2 = J22*theta2
+        _t3 = _t0 + _t1 + _t2
+        _t4 = _t0 + (0.5)*_t1 + (0.5)*_t2
+        _h0 = numpy.tan(0.5*_t4)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _c0 = (1.0 - _u0)*_r0
+        _h1 = numpy.tan(0.5*_t0)
+        _u1 = _h1*_h1
+        _r1 = 1.0/(1.0 + _u1)
+        _s1 = (_h1 + _h1)*_r1
+        _c1 = (1.0 - _u1)*_r1
+        _h2 = numpy.tan(0.5*_t3)
+        _u2 = _h2*_h2
+        _r2 = 1.0/(1.0 + _u2)
+        _s2 = (_h2 + _h2)*_r2
+        _c2 = (1.0 - _u2)*_r2
+        _cartesian = cartesian[_start:_start + CHUNK].T
+        _cartesian[0] = _c1*a - _c2*a + _s0*e
+        _cartesian[1] = -_c0*e + _s1*a - _s2*a
+        _cartesian[2] = J33*theta3
+    return cartesian.reshape(_batch + (3,))
 
 
 def motor_to_cartesian_velocity(motor, motor_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -733,28 +1078,48 @@ def motor_to_cartesian_velocity(motor, motor_velocity, *, a=0.2667, e=0.0, J11=-
     J22 = _runtime.as_param(J22, "J22")
     J33 = _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(motor, motor_velocity)
-    theta1 = motor[..., 0]
-    theta2 = motor[..., 1]
-    thetadot1 = motor_velocity[..., 0]
-    thetadot2 = motor_velocity[..., 1]
-    thetadot3 = motor_velocity[..., 2]
-    _t0 = J11*theta1
-    _t1 = J22*theta2
-    _t2 = J21*theta1 + _t0 + _t1
-    _t3 = a*numpy.sin(_t2)
+    _all_motor = numpy.broadcast_to(motor, _batch + (3,)).reshape(-1, 3)
+    _all_motor_velocity = numpy.broadcast_to(motor_velocity, _batch + (3,)).reshape(-1, 3)
+    _count = _all_motor.shape[0]
+    cartesian_velocity = numpy.empty((_count, 3))
     _t4 = (0.5)*J21
-    _t5 = _t0 + (0.5)*_t1 + _t4*theta1
-    _t6 = numpy.cos(_t5)
     _t7 = J11*a
     _t8 = J11 + J21
     _t9 = e*(J11 + _t4)
-    _t10 = a*numpy.cos(_t2)
-    _t11 = numpy.sin(_t5)
-    cartesian_velocity = numpy.empty(_batch + (3,))
-    cartesian_velocity[..., 0] = thetadot1*(_t3*_t8 + _t6*_t9 - _t7*numpy.sin(_t0)) + thetadot2*(J22*_t3 + (0.5)*J22*_t6*e)
-    cartesian_velocity[..., 1] = thetadot1*(-_t10*_t8 + _t11*_t9 + _t7*numpy.cos(_t0)) + thetadot2*(-J22*_t10 + (0.5)*J22*_t11*e)
-    cartesian_velocity[..., 2] = J33*thetadot3
-    return cartesian_velocity
+    for _start in range(0, _count, CHUNK):
+        _columns_motor = numpy.ascontiguousarray(_all_motor[_start:_start + CHUNK].T)
+        theta1 = _columns_motor[0]
+        theta2 = _columns_motor[1]
+        _columns_motor_velocity = numpy.ascontiguousarray(_all_motor_velocity[_start:_start + CHUNK].T)
+        thetadot1 = _columns_motor_velocity[0]
+        thetadot2 = _columns_motor_velocity[1]
+        thetadot3 = _columns_motor_velocity[2]
+        _t0 = J11*theta1
+        _t1 = J22*theta2
+        _t2 = J21*theta1 + _t0 + _t1
+        _t5 = _t0 + (0.5)*_t1 + _t4*theta1
+        _h0 = numpy.tan(0.5*_t2)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _c0 = (1.0 - _u0)*_r0
+        _h1 = numpy.tan(0.5*_t5)
+        _u1 = _h1*_h1
+        _r1 = 1.0/(1.0 + _u1)
+        _s1 = (_h1 + _h1)*_r1
+        _c1 = (1.0 - _u1)*_r1
+        _h2 = numpy.tan(0.5*_t0)
+        _u2 = _h2*_h2
+        _r2 = 1.0/(1.0 + _u2)
+        _s2 = (_h2 + _h2)*_r2
+        _c2 = (1.0 - _u2)*_r2
+        _t3 = _s0*a
+        _t10 = _c0*a
+        _cartesian_velocity = cartesian_velocity[_start:_start + CHUNK].T
+        _cartesian_velocity[0] = thetadot1*(_c1*_t9 - _s2*_t7 + _t3*_t8) + thetadot2*((0.5)*J22*_c1*e + J22*_t3)
+        _cartesian_velocity[1] = thetadot1*(_c2*_t7 + _s1*_t9 - _t10*_t8) + thetadot2*((0.5)*J22*_s1*e - J22*_t10)
+        _cartesian_velocity[2] = J33*thetadot3
+    return cartesian_velocity.reshape(_batch + (3,))
 
 
 def motor_to_cartesian_acceleration(motor, motor_velocity, motor_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -775,47 +1140,66 @@ def motor_to_cartesian_acceleration(motor, motor_velocity, motor_acceleration, *
     J22 = _runtime.as_param(J22, "J22")
     J33 = _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(motor, motor_velocity, motor_acceleration)
-    theta1 = motor[..., 0]
-    theta2 = motor[..., 1]
-    thetadot1 = motor_velocity[..., 0]
-    thetadot2 = motor_velocity[..., 1]
-    thetaddot1 = motor_acceleration[..., 0]
-    thetaddot2 = motor_acceleration[..., 1]
-    thetaddot3 = motor_acceleration[..., 2]
-    _t0 = J11*theta1
-    _t1 = J22*theta2
-    _t2 = J21*theta1 + _t0 + _t1
-    _t3 = a*numpy.sin(_t2)
+    _all_motor = numpy.broadcast_to(motor, _batch + (3,)).reshape(-1, 3)
+    _all_motor_velocity = numpy.broadcast_to(motor_velocity, _batch + (3,)).reshape(-1, 3)
+    _all_motor_acceleration = numpy.broadcast_to(motor_acceleration, _batch + (3,)).reshape(-1, 3)
+    _count = _all_motor.shape[0]
+    cartesian_acceleration = numpy.empty((_count, 3))
     _t4 = (0.5)*J21
-    _t5 = _t0 + (0.5)*_t1 + _t4*theta1
-    _t6 = numpy.cos(_t5)
-    _t7 = _t6*e
     _t8 = (0.5)*J22
-    _t9 = numpy.sin(_t0)
     _t10 = J11*a
     _t11 = J11 + J21
-    _t12 = _t11*_t3
     _t13 = J11 + _t4
     _t14 = _t13*e
-    _t15 = _t14*_t6
     _t16 = (J22*J22)
-    _t17 = numpy.cos(_t2)
-    _t18 = _t17*a
-    _t19 = numpy.sin(_t5)
     _t20 = (0.25)*_t16
-    _t21 = _t11*_t18
-    _t22 = _t14*_t19
-    _t23 = J22*_t21 - _t22*_t8
-    _t24 = numpy.cos(_t0)
     _t25 = (J11*J11)*a
     _t26 = (_t11*_t11)
     _t27 = (_t13*_t13)*e
-    _t28 = J22*_t12 + _t15*_t8
-    cartesian_acceleration = numpy.empty(_batch + (3,))
-    cartesian_acceleration[..., 0] = thetaddot1*(-_t10*_t9 + _t12 + _t15) + thetaddot2*(J22*_t3 + _t7*_t8) + thetadot1*(_t23*thetadot2 + thetadot1*(_t17*_t26*a - _t19*_t27 - _t24*_t25)) + thetadot2*(_t23*thetadot1 + thetadot2*(_t16*_t18 - _t19*_t20*e))
-    cartesian_acceleration[..., 1] = thetaddot1*(_t10*_t24 - _t21 + _t22) + thetaddot2*(-J22*_t18 + (0.5)*J22*_t19*e) + thetadot1*(_t28*thetadot2 + thetadot1*(-_t25*_t9 + _t26*_t3 + _t27*_t6)) + thetadot2*(_t28*thetadot1 + thetadot2*(_t16*_t3 + _t20*_t7))
-    cartesian_acceleration[..., 2] = J33*thetaddot3
-    return cartesian_acceleration
+    for _start in range(0, _count, CHUNK):
+        _columns_motor = numpy.ascontiguousarray(_all_motor[_start:_start + CHUNK].T)
+        theta1 = _columns_motor[0]
+        theta2 = _columns_motor[1]
+        _columns_motor_velocity = numpy.ascontiguousarray(_all_motor_velocity[_start:_start + CHUNK].T)
+        thetadot1 = _columns_motor_velocity[0]
+        thetadot2 = _columns_motor_velocity[1]
+        _columns_motor_acceleration = numpy.ascontiguousarray(_all_motor_acceleration[_start:_start + CHUNK].T)
+        thetaddot1 = _columns_motor_acceleration[0]
+        thetaddot2 = _columns_motor_acceleration[1]
+        thetaddot3 = _columns_motor_acceleration[2]
+        _t0 = J11*theta1
+        _t1 = J22*theta2
+        _t2 = J21*theta1 + _t0 + _t1
+        _t5 = _t0 + (0.5)*_t1 + _t4*theta1
+        _h0 = numpy.tan(0.5*_t2)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _c0 = (1.0 - _u0)*_r0
+        _h1 = numpy.tan(0.5*_t5)
+        _u1 = _h1*_h1
+        _r1 = 1.0/(1.0 + _u1)
+        _s1 = (_h1 + _h1)*_r1
+        _c1 = (1.0 - _u1)*_r1
+        _h2 = numpy.tan(0.5*_t0)
+        _u2 = _h2*_h2
+        _r2 = 1.0/(1.0 + _u2)
+        _s2 = (_h2 + _h2)*_r2
+        _c2 = (1.0 - _u2)*_r2
+        _t3 = _s0*a
+        _t7 = _c1*e
+        _t12 = _t11*_t3
+        _t15 = _c1*_t14
+        _t18 = _c0*a
+        _t21 = _t11*_t18
+        _t22 = _s1*_t14
+        _t23 = J22*_t21 - _t22*_t8
+        _t28 = J22*_t12 + _t15*_t8
+        _cartesian_acceleration = cartesian_acceleration[_start:_start + CHUNK].T
+        _cartesian_acceleration[0] = thetaddot1*(-_s2*_t10 + _t12 + _t15) + thetaddot2*(J22*_t3 + _t7*_t8) + thetadot1*(_t23*thetadot2 + thetadot1*(_c0*_t26*a - _c2*_t25 - _s1*_t27)) + thetadot2*(_t23*thetadot1 + thetadot2*(-_s1*_t20*e + _t16*_t18))
+        _cartesian_acceleration[1] = thetaddot1*(_c2*_t10 - _t21 + _t22) + thetaddot2*((0.5)*J22*_s1*e - J22*_t18) + thetadot1*(_t28*thetadot2 + thetadot1*(_c1*_t27 - _s2*_t25 + _t26*_t3)) + thetadot2*(_t28*thetadot1 + thetadot2*(_t16*_t3 + _t20*_t7))
+        _cartesian_acceleration[2] = J33*thetaddot3
+    return cartesian_acceleration.reshape(_batch + (3,))
 
 
 def joint_to_motor(joint, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -832,16 +1216,21 @@ def joint_to_motor(joint, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.60363
     _runtime.as_param(a, "a")
     _runtime.as_param(e, "e")
     _batch = _runtime.batch_shape(joint)
-    q1 = joint[..., 0]
-    q2 = joint[..., 1]
-    q3 = joint[..., 2]
-    _t0 = q1/J11
+    _all_joint = numpy.broadcast_to(joint, _batch + (3,)).reshape(-1, 3)
+    _count = _all_joint.shape[0]
+    motor = numpy.empty((_count, 3))
     _t1 = 1.0/J22
-    motor = numpy.empty(_batch + (3,))
-    motor[..., 0] = _t0
-    motor[..., 1] = -J21*_t0*_t1 + _t1*q2 - 3.141592653589793*_t1
-    motor[..., 2] = q3/J33
-    return motor
+    for _start in range(0, _count, CHUNK):
+        _columns_joint = numpy.ascontiguousarray(_all_joint[_start:_start + CHUNK].T)
+        q1 = _columns_joint[0]
+        q2 = _columns_joint[1]
+        q3 = _columns_joint[2]
+        _t0 = q1/J11
+        _motor = motor[_start:_start + CHUNK].T
+        _motor[0] = _t0
+        _motor[1] = -J21*_t0*_t1 + _t1*q2 - 3.141592653589793*_t1
+        _motor[2] = q3/J33
+    return motor.reshape(_batch + (3,))
 
 
 def joint_to_motor_velocity(joint, joint_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -860,16 +1249,22 @@ def joint_to_motor_velocity(joint, joint_velocity, *, a=0.2667, e=0.0, J11=-4.01
     _runtime.as_param(a, "a")
     _runtime.as_param(e, "e")
     _batch = _runtime.batch_shape(joint, joint_velocity)
-    qdot1 = joint_velocity[..., 0]
-    qdot2 = joint_velocity[..., 1]
-    qdot3 = joint_velocity[..., 2]
-    _t0 = qdot1/J11
+    _all_joint = numpy.broadcast_to(joint, _batch + (3,)).reshape(-1, 3)
+    _all_joint_velocity = numpy.broadcast_to(joint_velocity, _batch + (3,)).reshape(-1, 3)
+    _count = _all_joint.shape[0]
+    motor_velocity = numpy.empty((_count, 3))
     _t1 = 1.0/J22
-    motor_velocity = numpy.empty(_batch + (3,))
-    motor_velocity[..., 0] = _t0
-    motor_velocity[..., 1] = -J21*_t0*_t1 + _t1*qdot2
-    motor_velocity[..., 2] = qdot3/J33
-    return motor_velocity
+    for _start in range(0, _count, CHUNK):
+        _columns_joint_velocity = numpy.ascontiguousarray(_all_joint_velocity[_start:_start + CHUNK].T)
+        qdot1 = _columns_joint_velocity[0]
+        qdot2 = _columns_joint_velocity[1]
+        qdot3 = _columns_joint_velocity[2]
+        _t0 = qdot1/J11
+        _motor_velocity = motor_velocity[_start:_start + CHUNK].T
+        _motor_velocity[0] = _t0
+        _motor_velocity[1] = -J21*_t0*_t1 + _t1*qdot2
+        _motor_velocity[2] = qdot3/J33
+    return motor_velocity.reshape(_batch + (3,))
 
 
 def joint_to_motor_acceleration(joint, joint_velocity, joint_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -890,16 +1285,23 @@ def joint_to_motor_acceleration(joint, joint_velocity, joint_acceleration, *, a=
     _runtime.as_param(a, "a")
     _runtime.as_param(e, "e")
     _batch = _runtime.batch_shape(joint, joint_velocity, joint_acceleration)
-    qddot1 = joint_acceleration[..., 0]
-    qddot2 = joint_acceleration[..., 1]
-    qddot3 = joint_acceleration[..., 2]
-    _t0 = qddot1/J11
+    _all_joint = numpy.broadcast_to(joint, _batch + (3,)).reshape(-1, 3)
+    _all_joint_velocity = numpy.broadcast_to(joint_velocity, _batch + (3,)).reshape(-1, 3)
+    _all_joint_acceleration = numpy.broadcast_to(joint_acceleration, _batch + (3,)).reshape(-1, 3)
+    _count = _all_joint.shape[0]
+    motor_acceleration = numpy.empty((_count, 3))
     _t1 = 1.0/J22
-    motor_acceleration = numpy.empty(_batch + (3,))
-    motor_acceleration[..., 0] = _t0
-    motor_acceleration[..., 1] = -J21*_t0*_t1 + _t1*qddot2
-    motor_acceleration[..., 2] = qddot3/J33
-    return motor_acceleration
+    for _start in range(0, _count, CHUNK):
+        _columns_joint_acceleration = numpy.ascontiguousarray(_all_joint_acceleration[_start:_start + CHUNK].T)
+        qddot1 = _columns_joint_acceleration[0]
+        qddot2 = _columns_joint_acceleration[1]
+        qddot3 = _columns_joint_acceleration[2]
+        _t0 = qddot1/J11
+        _motor_acceleration = motor_acceleration[_start:_start + CHUNK].T
+        _motor_acceleration[0] = _t0
+        _motor_acceleration[1] = -J21*_t0*_t1 + _t1*qddot2
+        _motor_acceleration[2] = qddot3/J33
+    return motor_acceleration.reshape(_batch + (3,))
 
 
 def tool_to_joint(tool, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -916,17 +1318,27 @@ def tool_to_joint(tool, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(tool)
+    _all_tool = numpy.broadcast_to(tool, _batch + (3,)).reshape(-1, 3)
+    _count = _all_tool.shape[0]
+    joint = numpy.empty((_count, 3))
+    # The requirements, over the whole batch before any output is computed: a failing item raises.
     T = tool[..., 0]
     R = tool[..., 1]
     Z = tool[..., 2]
     _t0 = (0.5)*R/a
     _runtime.require(numpy.logical_and(numpy.greater_equal(_t0, -1), numpy.less_equal(_t0, 1)), _batch, "tool_to_joint", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "tool", tool)
-    _t1 = numpy.arccos(_t0)
-    joint = numpy.empty(_batch + (3,))
-    joint[..., 0] = -T - _t1 + 1.5707963267948966
-    joint[..., 1] = 2*_t1
-    joint[..., 2] = Z
-    return joint
+    for _start in range(0, _count, CHUNK):
+        _columns_tool = numpy.ascontiguousarray(_all_tool[_start:_start + CHUNK].T)
+        T = _columns_tool[0]
+        R = _columns_tool[1]
+        Z = _columns_tool[2]
+        _t0 = (0.5)*R/a  # this chunk's share, for the stages below
+        _f0 = numpy.arccos(_t0)
+        _joint = joint[_start:_start + CHUNK].T
+        _joint[0] = -T - _f0 + 1.5707963267948966
+        _joint[1] = 2*_f0
+        _joint[2] = Z
+    return joint.reshape(_batch + (3,))
 
 
 def tool_to_joint_velocity(tool, tool_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -945,6 +1357,11 @@ def tool_to_joint_velocity(tool, tool_velocity, *, a=0.2667, e=0.0, J11=-4.01756
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(tool, tool_velocity)
+    _all_tool = numpy.broadcast_to(tool, _batch + (3,)).reshape(-1, 3)
+    _all_tool_velocity = numpy.broadcast_to(tool_velocity, _batch + (3,)).reshape(-1, 3)
+    _count = _all_tool.shape[0]
+    joint_velocity = numpy.empty((_count, 3))
+    # The requirements, over the whole batch before any output is computed: a failing item raises.
     R = tool[..., 1]
     Tdot = tool_velocity[..., 0]
     Rdot = tool_velocity[..., 1]
@@ -954,12 +1371,22 @@ def tool_to_joint_velocity(tool, tool_velocity, *, a=0.2667, e=0.0, J11=-4.01756
     _runtime.require(numpy.logical_and(numpy.greater_equal(_t3, -1), numpy.less_equal(_t3, 1)), _batch, "tool_to_joint_velocity", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "tool", tool)
     _t1 = -0.25*(R*R)/(a*a) + 1
     _runtime.require(numpy.greater(_t1, 0), _batch, "tool_to_joint_velocity", "singular", "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "tool", tool)
-    _t2 = Rdot*_t0/numpy.sqrt(_t1)
-    joint_velocity = numpy.empty(_batch + (3,))
-    joint_velocity[..., 0] = -Tdot + (0.5)*_t2
-    joint_velocity[..., 1] = -_t2
-    joint_velocity[..., 2] = Zdot
-    return joint_velocity
+    for _start in range(0, _count, CHUNK):
+        _columns_tool = numpy.ascontiguousarray(_all_tool[_start:_start + CHUNK].T)
+        R = _columns_tool[1]
+        _columns_tool_velocity = numpy.ascontiguousarray(_all_tool_velocity[_start:_start + CHUNK].T)
+        Tdot = _columns_tool_velocity[0]
+        Rdot = _columns_tool_velocity[1]
+        Zdot = _columns_tool_velocity[2]
+        _t0 = 1.0/a  # this chunk's share, for the stages below
+        _t3 = (0.5)*R*_t0  # this chunk's share, for the stages below
+        _t1 = -0.25*(R*R)/(a*a) + 1  # this chunk's share, for the stages below
+        _t2 = Rdot*_t0/numpy.sqrt(_t1)
+        _joint_velocity = joint_velocity[_start:_start + CHUNK].T
+        _joint_velocity[0] = -Tdot + (0.5)*_t2
+        _joint_velocity[1] = -_t2
+        _joint_velocity[2] = Zdot
+    return joint_velocity.reshape(_batch + (3,))
 
 
 def tool_to_joint_acceleration(tool, tool_velocity, tool_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -980,6 +1407,12 @@ def tool_to_joint_acceleration(tool, tool_velocity, tool_acceleration, *, a=0.26
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(tool, tool_velocity, tool_acceleration)
+    _all_tool = numpy.broadcast_to(tool, _batch + (3,)).reshape(-1, 3)
+    _all_tool_velocity = numpy.broadcast_to(tool_velocity, _batch + (3,)).reshape(-1, 3)
+    _all_tool_acceleration = numpy.broadcast_to(tool_acceleration, _batch + (3,)).reshape(-1, 3)
+    _count = _all_tool.shape[0]
+    joint_acceleration = numpy.empty((_count, 3))
+    # The requirements, over the whole batch before any output is computed: a failing item raises.
     R = tool[..., 1]
     Rdot = tool_velocity[..., 1]
     Tddot = tool_acceleration[..., 0]
@@ -990,13 +1423,25 @@ def tool_to_joint_acceleration(tool, tool_velocity, tool_acceleration, *, a=0.26
     _runtime.require(numpy.logical_and(numpy.greater_equal(_t4, -1), numpy.less_equal(_t4, 1)), _batch, "tool_to_joint_acceleration", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "tool", tool)
     _t1 = -0.25*(R*R)/(a*a) + 1
     _runtime.require(numpy.greater(_t1, 0), _batch, "tool_to_joint_acceleration", "singular", "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "tool", tool)
-    _t2 = Rddot*_t0/numpy.sqrt(_t1)
-    _t3 = R*(Rdot*Rdot)/((_t1*numpy.sqrt(_t1))*(a*a*a))
-    joint_acceleration = numpy.empty(_batch + (3,))
-    joint_acceleration[..., 0] = -Tddot + (0.5)*_t2 + (0.125)*_t3
-    joint_acceleration[..., 1] = -_t2 - 0.25*_t3
-    joint_acceleration[..., 2] = Zddot
-    return joint_acceleration
+    for _start in range(0, _count, CHUNK):
+        _columns_tool = numpy.ascontiguousarray(_all_tool[_start:_start + CHUNK].T)
+        R = _columns_tool[1]
+        _columns_tool_velocity = numpy.ascontiguousarray(_all_tool_velocity[_start:_start + CHUNK].T)
+        Rdot = _columns_tool_velocity[1]
+        _columns_tool_acceleration = numpy.ascontiguousarray(_all_tool_acceleration[_start:_start + CHUNK].T)
+        Tddot = _columns_tool_acceleration[0]
+        Rddot = _columns_tool_acceleration[1]
+        Zddot = _columns_tool_acceleration[2]
+        _t0 = 1.0/a  # this chunk's share, for the stages below
+        _t4 = (0.5)*R*_t0  # this chunk's share, for the stages below
+        _t1 = -0.25*(R*R)/(a*a) + 1  # this chunk's share, for the stages below
+        _t2 = Rddot*_t0/numpy.sqrt(_t1)
+        _t3 = R*(Rdot*Rdot)/((_t1*numpy.sqrt(_t1))*(a*a*a))
+        _joint_acceleration = joint_acceleration[_start:_start + CHUNK].T
+        _joint_acceleration[0] = -Tddot + (0.5)*_t2 + (0.125)*_t3
+        _joint_acceleration[1] = -_t2 - 0.25*_t3
+        _joint_acceleration[2] = Zddot
+    return joint_acceleration.reshape(_batch + (3,))
 
 
 def tool_to_motor(tool, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -1013,19 +1458,29 @@ def tool_to_motor(tool, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376
     J33 = _runtime.as_param(J33, "J33")
     _runtime.as_param(e, "e")
     _batch = _runtime.batch_shape(tool)
+    _all_tool = numpy.broadcast_to(tool, _batch + (3,)).reshape(-1, 3)
+    _count = _all_tool.shape[0]
+    motor = numpy.empty((_count, 3))
+    # The requirements, over the whole batch before any output is computed: a failing item raises.
     T = tool[..., 0]
     R = tool[..., 1]
     Z = tool[..., 2]
     _t0 = (0.5)*R/a
     _runtime.require(numpy.logical_and(numpy.greater_equal(_t0, -1), numpy.less_equal(_t0, 1)), _batch, "tool_to_motor", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "tool", tool)
-    _t1 = numpy.arccos(_t0)
-    _t2 = (-T - _t1 + 1.5707963267948966)/J11
     _t3 = 1.0/J22
-    motor = numpy.empty(_batch + (3,))
-    motor[..., 0] = _t2
-    motor[..., 1] = -J21*_t2*_t3 + 2*_t1*_t3 - 3.141592653589793*_t3
-    motor[..., 2] = Z/J33
-    return motor
+    for _start in range(0, _count, CHUNK):
+        _columns_tool = numpy.ascontiguousarray(_all_tool[_start:_start + CHUNK].T)
+        T = _columns_tool[0]
+        R = _columns_tool[1]
+        Z = _columns_tool[2]
+        _t0 = (0.5)*R/a  # this chunk's share, for the stages below
+        _f0 = numpy.arccos(_t0)
+        _t2 = (-T - _f0 + 1.5707963267948966)/J11
+        _motor = motor[_start:_start + CHUNK].T
+        _motor[0] = _t2
+        _motor[1] = -J21*_t2*_t3 + 2*_f0*_t3 - 3.141592653589793*_t3
+        _motor[2] = Z/J33
+    return motor.reshape(_batch + (3,))
 
 
 def tool_to_motor_velocity(tool, tool_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -1044,6 +1499,11 @@ def tool_to_motor_velocity(tool, tool_velocity, *, a=0.2667, e=0.0, J11=-4.01756
     J33 = _runtime.as_param(J33, "J33")
     _runtime.as_param(e, "e")
     _batch = _runtime.batch_shape(tool, tool_velocity)
+    _all_tool = numpy.broadcast_to(tool, _batch + (3,)).reshape(-1, 3)
+    _all_tool_velocity = numpy.broadcast_to(tool_velocity, _batch + (3,)).reshape(-1, 3)
+    _count = _all_tool.shape[0]
+    motor_velocity = numpy.empty((_count, 3))
+    # The requirements, over the whole batch before any output is computed: a failing item raises.
     R = tool[..., 1]
     Tdot = tool_velocity[..., 0]
     Rdot = tool_velocity[..., 1]
@@ -1054,16 +1514,26 @@ def tool_to_motor_velocity(tool, tool_velocity, *, a=0.2667, e=0.0, J11=-4.01756
     _t3 = -0.25*(R*R)/(a*a) + 1
     _runtime.require(numpy.greater(_t3, 0), _batch, "tool_to_motor_velocity", "singular", "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "tool", tool)
     _t0 = 1.0/J11
-    _t1 = Tdot*_t0
-    _t4 = _t2/numpy.sqrt(_t3)
     _t5 = (0.5)*_t0
     _t6 = 1.0/J22
-    _t7 = _t4*_t6
-    motor_velocity = numpy.empty(_batch + (3,))
-    motor_velocity[..., 0] = Rdot*_t4*_t5 - _t1
-    motor_velocity[..., 1] = J21*_t1*_t6 + Rdot*(-J21*_t5*_t7 - _t7)
-    motor_velocity[..., 2] = Zdot/J33
-    return motor_velocity
+    for _start in range(0, _count, CHUNK):
+        _columns_tool = numpy.ascontiguousarray(_all_tool[_start:_start + CHUNK].T)
+        R = _columns_tool[1]
+        _columns_tool_velocity = numpy.ascontiguousarray(_all_tool_velocity[_start:_start + CHUNK].T)
+        Tdot = _columns_tool_velocity[0]
+        Rdot = _columns_tool_velocity[1]
+        Zdot = _columns_tool_velocity[2]
+        _t2 = 1.0/a  # this chunk's share, for the stages below
+        _t8 = (0.5)*R*_t2  # this chunk's share, for the stages below
+        _t3 = -0.25*(R*R)/(a*a) + 1  # this chunk's share, for the stages below
+        _t1 = Tdot*_t0
+        _t4 = _t2/numpy.sqrt(_t3)
+        _t7 = _t4*_t6
+        _motor_velocity = motor_velocity[_start:_start + CHUNK].T
+        _motor_velocity[0] = Rdot*_t4*_t5 - _t1
+        _motor_velocity[1] = J21*_t1*_t6 + Rdot*(-J21*_t5*_t7 - _t7)
+        _motor_velocity[2] = Zdot/J33
+    return motor_velocity.reshape(_batch + (3,))
 
 
 def tool_to_motor_acceleration(tool, tool_velocity, tool_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -1084,6 +1554,12 @@ def tool_to_motor_acceleration(tool, tool_velocity, tool_acceleration, *, a=0.26
     J33 = _runtime.as_param(J33, "J33")
     _runtime.as_param(e, "e")
     _batch = _runtime.batch_shape(tool, tool_velocity, tool_acceleration)
+    _all_tool = numpy.broadcast_to(tool, _batch + (3,)).reshape(-1, 3)
+    _all_tool_velocity = numpy.broadcast_to(tool_velocity, _batch + (3,)).reshape(-1, 3)
+    _all_tool_acceleration = numpy.broadcast_to(tool_acceleration, _batch + (3,)).reshape(-1, 3)
+    _count = _all_tool.shape[0]
+    motor_acceleration = numpy.empty((_count, 3))
+    # The requirements, over the whole batch before any output is computed: a failing item raises.
     R = tool[..., 1]
     Rdot = tool_velocity[..., 1]
     Tddot = tool_acceleration[..., 0]
@@ -1095,20 +1571,32 @@ def tool_to_motor_acceleration(tool, tool_velocity, tool_acceleration, *, a=0.26
     _t3 = -0.25*(R*R)/(a*a) + 1
     _runtime.require(numpy.greater(_t3, 0), _batch, "tool_to_motor_acceleration", "singular", "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "tool", tool)
     _t0 = 1.0/J11
-    _t1 = Tddot*_t0
-    _t4 = _t2/numpy.sqrt(_t3)
     _t5 = (0.5)*_t0
-    _t6 = (Rdot*Rdot)
-    _t7 = R/((_t3*numpy.sqrt(_t3))*(a*a*a))
-    _t8 = (0.125)*_t0*_t7
     _t9 = 1.0/J22
     _t10 = J21*_t9
-    _t11 = _t4*_t9
-    motor_acceleration = numpy.empty(_batch + (3,))
-    motor_acceleration[..., 0] = Rddot*_t4*_t5 - _t1 + _t6*_t8
-    motor_acceleration[..., 1] = Rddot*(-J21*_t11*_t5 - _t11) + _t1*_t10 + _t6*(-_t10*_t8 - 0.25*_t7*_t9)
-    motor_acceleration[..., 2] = Zddot/J33
-    return motor_acceleration
+    for _start in range(0, _count, CHUNK):
+        _columns_tool = numpy.ascontiguousarray(_all_tool[_start:_start + CHUNK].T)
+        R = _columns_tool[1]
+        _columns_tool_velocity = numpy.ascontiguousarray(_all_tool_velocity[_start:_start + CHUNK].T)
+        Rdot = _columns_tool_velocity[1]
+        _columns_tool_acceleration = numpy.ascontiguousarray(_all_tool_acceleration[_start:_start + CHUNK].T)
+        Tddot = _columns_tool_acceleration[0]
+        Rddot = _columns_tool_acceleration[1]
+        Zddot = _columns_tool_acceleration[2]
+        _t2 = 1.0/a  # this chunk's share, for the stages below
+        _t12 = (0.5)*R*_t2  # this chunk's share, for the stages below
+        _t3 = -0.25*(R*R)/(a*a) + 1  # this chunk's share, for the stages below
+        _t1 = Tddot*_t0
+        _t4 = _t2/numpy.sqrt(_t3)
+        _t6 = (Rdot*Rdot)
+        _t7 = R/((_t3*numpy.sqrt(_t3))*(a*a*a))
+        _t8 = (0.125)*_t0*_t7
+        _t11 = _t4*_t9
+        _motor_acceleration = motor_acceleration[_start:_start + CHUNK].T
+        _motor_acceleration[0] = Rddot*_t4*_t5 - _t1 + _t6*_t8
+        _motor_acceleration[1] = Rddot*(-J21*_t11*_t5 - _t11) + _t1*_t10 + _t6*(-_t10*_t8 - 0.25*_t7*_t9)
+        _motor_acceleration[2] = Zddot/J33
+    return motor_acceleration.reshape(_batch + (3,))
 
 
 def cartesian_to_tool(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -1125,16 +1613,27 @@ def cartesian_to_tool(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(cartesian)
+    _all_cartesian = numpy.broadcast_to(cartesian, _batch + (3,)).reshape(-1, 3)
+    _count = _all_cartesian.shape[0]
+    tool = numpy.empty((_count, 3))
+    # The requirements, over the whole batch before any output is computed: a failing item raises.
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     z = cartesian[..., 2]
     _t0 = (x*x) + (y*y)
     _runtime.require(numpy.greater(_t0, 0), _batch, "cartesian_to_tool", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
-    tool = numpy.empty(_batch + (3,))
-    tool[..., 0] = numpy.arctan2(x, y)
-    tool[..., 1] = numpy.sqrt(_t0) + e
-    tool[..., 2] = z
-    return tool
+    for _start in range(0, _count, CHUNK):
+        _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
+        x = _columns_cartesian[0]
+        y = _columns_cartesian[1]
+        z = _columns_cartesian[2]
+        _t0 = (x*x) + (y*y)  # this chunk's share, for the stages below
+        _f0 = numpy.arctan2(x, y)
+        _tool = tool[_start:_start + CHUNK].T
+        _tool[0] = _f0
+        _tool[1] = numpy.sqrt(_t0) + e
+        _tool[2] = z
+    return tool.reshape(_batch + (3,))
 
 
 def cartesian_to_tool_velocity(cartesian, cartesian_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -1153,6 +1652,11 @@ def cartesian_to_tool_velocity(cartesian, cartesian_velocity, *, a=0.2667, e=0.0
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(cartesian, cartesian_velocity)
+    _all_cartesian = numpy.broadcast_to(cartesian, _batch + (3,)).reshape(-1, 3)
+    _all_cartesian_velocity = numpy.broadcast_to(cartesian_velocity, _batch + (3,)).reshape(-1, 3)
+    _count = _all_cartesian.shape[0]
+    tool_velocity = numpy.empty((_count, 3))
+    # The requirements, over the whole batch before any output is computed: a failing item raises.
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     xdot = cartesian_velocity[..., 0]
@@ -1160,13 +1664,22 @@ def cartesian_to_tool_velocity(cartesian, cartesian_velocity, *, a=0.2667, e=0.0
     zdot = cartesian_velocity[..., 2]
     _t0 = (x*x) + (y*y)
     _runtime.require(numpy.greater(_t0, 0), _batch, "cartesian_to_tool_velocity", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
-    _t1 = 1.0/_t0
-    _t2 = 1.0/numpy.sqrt(_t0)
-    tool_velocity = numpy.empty(_batch + (3,))
-    tool_velocity[..., 0] = -_t1*x*ydot + _t1*xdot*y
-    tool_velocity[..., 1] = _t2*x*xdot + _t2*y*ydot
-    tool_velocity[..., 2] = zdot
-    return tool_velocity
+    for _start in range(0, _count, CHUNK):
+        _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
+        x = _columns_cartesian[0]
+        y = _columns_cartesian[1]
+        _columns_cartesian_velocity = numpy.ascontiguousarray(_all_cartesian_velocity[_start:_start + CHUNK].T)
+        xdot = _columns_cartesian_velocity[0]
+        ydot = _columns_cartesian_velocity[1]
+        zdot = _columns_cartesian_velocity[2]
+        _t0 = (x*x) + (y*y)  # this chunk's share, for the stages below
+        _t1 = 1.0/_t0
+        _t2 = 1.0/numpy.sqrt(_t0)
+        _tool_velocity = tool_velocity[_start:_start + CHUNK].T
+        _tool_velocity[0] = -_t1*x*ydot + _t1*xdot*y
+        _tool_velocity[1] = _t2*x*xdot + _t2*y*ydot
+        _tool_velocity[2] = zdot
+    return tool_velocity.reshape(_batch + (3,))
 
 
 def cartesian_to_tool_acceleration(cartesian, cartesian_velocity, cartesian_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -1187,6 +1700,12 @@ def cartesian_to_tool_acceleration(cartesian, cartesian_velocity, cartesian_acce
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(cartesian, cartesian_velocity, cartesian_acceleration)
+    _all_cartesian = numpy.broadcast_to(cartesian, _batch + (3,)).reshape(-1, 3)
+    _all_cartesian_velocity = numpy.broadcast_to(cartesian_velocity, _batch + (3,)).reshape(-1, 3)
+    _all_cartesian_acceleration = numpy.broadcast_to(cartesian_acceleration, _batch + (3,)).reshape(-1, 3)
+    _count = _all_cartesian.shape[0]
+    tool_acceleration = numpy.empty((_count, 3))
+    # The requirements, over the whole batch before any output is computed: a failing item raises.
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     xdot = cartesian_velocity[..., 0]
@@ -1198,20 +1717,34 @@ def cartesian_to_tool_acceleration(cartesian, cartesian_velocity, cartesian_acce
     _t1 = (y*y)
     _t2 = _t0 + _t1
     _runtime.require(numpy.greater(_t2, 0), _batch, "cartesian_to_tool_acceleration", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
-    _t3 = 1.0/_t2
-    _t4 = 1.0/(_t2*_t2)
-    _t5 = 2*_t4
-    _t6 = x*y
-    _t7 = _t5*xdot
-    _t8 = 1.0/numpy.sqrt(_t2)
-    _t9 = 1.0/(_t2*numpy.sqrt(_t2))
-    _t10 = _t9*ydot
-    _t11 = _t9*xdot
-    tool_acceleration = numpy.empty(_batch + (3,))
-    tool_acceleration[..., 0] = -_t3*x*yddot + _t3*xddot*y + xdot*(2*_t0*_t4*ydot - _t3*ydot - _t6*_t7) + ydot*(-_t1*_t7 + _t3*xdot + _t5*_t6*ydot)
-    tool_acceleration[..., 1] = _t8*x*xddot + _t8*y*yddot + xdot*(-_t0*_t11 - _t10*_t6 + _t8*xdot) + ydot*(-_t1*_t10 - _t11*_t6 + _t8*ydot)
-    tool_acceleration[..., 2] = zddot
-    return tool_acceleration
+    for _start in range(0, _count, CHUNK):
+        _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
+        x = _columns_cartesian[0]
+        y = _columns_cartesian[1]
+        _columns_cartesian_velocity = numpy.ascontiguousarray(_all_cartesian_velocity[_start:_start + CHUNK].T)
+        xdot = _columns_cartesian_velocity[0]
+        ydot = _columns_cartesian_velocity[1]
+        _columns_cartesian_acceleration = numpy.ascontiguousarray(_all_cartesian_acceleration[_start:_start + CHUNK].T)
+        xddot = _columns_cartesian_acceleration[0]
+        yddot = _columns_cartesian_acceleration[1]
+        zddot = _columns_cartesian_acceleration[2]
+        _t0 = (x*x)  # this chunk's share, for the stages below
+        _t1 = (y*y)  # this chunk's share, for the stages below
+        _t2 = _t0 + _t1  # this chunk's share, for the stages below
+        _t3 = 1.0/_t2
+        _t4 = 1.0/(_t2*_t2)
+        _t5 = 2*_t4
+        _t6 = x*y
+        _t7 = _t5*xdot
+        _t8 = 1.0/numpy.sqrt(_t2)
+        _t9 = 1.0/(_t2*numpy.sqrt(_t2))
+        _t10 = _t9*ydot
+        _t11 = _t9*xdot
+        _tool_acceleration = tool_acceleration[_start:_start + CHUNK].T
+        _tool_acceleration[0] = -_t3*x*yddot + _t3*xddot*y + xdot*(2*_t0*_t4*ydot - _t3*ydot - _t6*_t7) + ydot*(-_t1*_t7 + _t3*xdot + _t5*_t6*ydot)
+        _tool_acceleration[1] = _t8*x*xddot + _t8*y*yddot + xdot*(-_t0*_t11 - _t10*_t6 + _t8*xdot) + ydot*(-_t1*_t10 - _t11*_t6 + _t8*ydot)
+        _tool_acceleration[2] = zddot
+    return tool_acceleration.reshape(_batch + (3,))
 
 
 def cartesian_to_joint(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -1228,6 +1761,10 @@ def cartesian_to_joint(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(cartesian)
+    _all_cartesian = numpy.broadcast_to(cartesian, _batch + (3,)).reshape(-1, 3)
+    _count = _all_cartesian.shape[0]
+    joint = numpy.empty((_count, 3))
+    # The requirements, over the whole batch before any output is computed: a failing item raises.
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     z = cartesian[..., 2]
@@ -1235,12 +1772,20 @@ def cartesian_to_joint(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21
     _runtime.require(numpy.greater(_t0, 0), _batch, "cartesian_to_joint", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
     _t1 = (0.5)*(numpy.sqrt(_t0) + e)/a
     _runtime.require(numpy.logical_and(numpy.greater_equal(_t1, -1), numpy.less_equal(_t1, 1)), _batch, "cartesian_to_joint", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "cartesian", cartesian)
-    _t2 = numpy.arccos(_t1)
-    joint = numpy.empty(_batch + (3,))
-    joint[..., 0] = -_t2 - numpy.arctan2(x, y) + 1.5707963267948966
-    joint[..., 1] = 2*_t2
-    joint[..., 2] = z
-    return joint
+    for _start in range(0, _count, CHUNK):
+        _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
+        x = _columns_cartesian[0]
+        y = _columns_cartesian[1]
+        z = _columns_cartesian[2]
+        _t0 = (x*x) + (y*y)  # this chunk's share, for the stages below
+        _t1 = (0.5)*(numpy.sqrt(_t0) + e)/a  # this chunk's share, for the stages below
+        _f0 = numpy.arccos(_t1)
+        _f1 = numpy.arctan2(x, y)
+        _joint = joint[_start:_start + CHUNK].T
+        _joint[0] = -_f0 - _f1 + 1.5707963267948966
+        _joint[1] = 2*_f0
+        _joint[2] = z
+    return joint.reshape(_batch + (3,))
 
 
 def cartesian_to_joint_velocity(cartesian, cartesian_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -1259,6 +1804,11 @@ def cartesian_to_joint_velocity(cartesian, cartesian_velocity, *, a=0.2667, e=0.
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(cartesian, cartesian_velocity)
+    _all_cartesian = numpy.broadcast_to(cartesian, _batch + (3,)).reshape(-1, 3)
+    _all_cartesian_velocity = numpy.broadcast_to(cartesian_velocity, _batch + (3,)).reshape(-1, 3)
+    _count = _all_cartesian.shape[0]
+    joint_velocity = numpy.empty((_count, 3))
+    # The requirements, over the whole batch before any output is computed: a failing item raises.
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     xdot = cartesian_velocity[..., 0]
@@ -1274,16 +1824,31 @@ def cartesian_to_joint_velocity(cartesian, cartesian_velocity, *, a=0.2667, e=0.
     _runtime.require(numpy.logical_and(numpy.greater_equal(_t11, -1), numpy.less_equal(_t11, 1)), _batch, "cartesian_to_joint_velocity", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "cartesian", cartesian)
     _t6 = -0.25*(_t5*_t5)/(a*a) + 1
     _runtime.require(numpy.greater(_t6, 0), _batch, "cartesian_to_joint_velocity", "singular", "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "cartesian", cartesian)
-    _t1 = 1.0/_t0
-    _t7 = 1.0/numpy.sqrt(_t6)
-    _t8 = 1.0/_t4
-    _t9 = _t7*_t8
-    _t10 = _t2*_t9
-    joint_velocity = numpy.empty(_batch + (3,))
-    joint_velocity[..., 0] = xdot*(-_t1*y + (0.5)*_t2*_t7*_t8*x) + ydot*(_t1*x + _t3*_t9*y)
-    joint_velocity[..., 1] = -_t10*x*xdot - _t10*y*ydot
-    joint_velocity[..., 2] = zdot
-    return joint_velocity
+    for _start in range(0, _count, CHUNK):
+        _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
+        x = _columns_cartesian[0]
+        y = _columns_cartesian[1]
+        _columns_cartesian_velocity = numpy.ascontiguousarray(_all_cartesian_velocity[_start:_start + CHUNK].T)
+        xdot = _columns_cartesian_velocity[0]
+        ydot = _columns_cartesian_velocity[1]
+        zdot = _columns_cartesian_velocity[2]
+        _t0 = (x*x) + (y*y)  # this chunk's share, for the stages below
+        _t2 = 1.0/a  # this chunk's share, for the stages below
+        _t3 = (0.5)*_t2  # this chunk's share, for the stages below
+        _t4 = numpy.sqrt(_t0)  # this chunk's share, for the stages below
+        _t5 = _t4 + e  # this chunk's share, for the stages below
+        _t11 = _t3*_t5  # this chunk's share, for the stages below
+        _t6 = -0.25*(_t5*_t5)/(a*a) + 1  # this chunk's share, for the stages below
+        _t1 = 1.0/_t0
+        _t7 = 1.0/numpy.sqrt(_t6)
+        _t8 = 1.0/_t4
+        _t9 = _t7*_t8
+        _t10 = _t2*_t9
+        _joint_velocity = joint_velocity[_start:_start + CHUNK].T
+        _joint_velocity[0] = xdot*(-_t1*y + (0.5)*_t2*_t7*_t8*x) + ydot*(_t1*x + _t3*_t9*y)
+        _joint_velocity[1] = -_t10*x*xdot - _t10*y*ydot
+        _joint_velocity[2] = zdot
+    return joint_velocity.reshape(_batch + (3,))
 
 
 def cartesian_to_joint_acceleration(cartesian, cartesian_velocity, cartesian_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -1304,6 +1869,12 @@ def cartesian_to_joint_acceleration(cartesian, cartesian_velocity, cartesian_acc
     _runtime.as_param(J22, "J22")
     _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(cartesian, cartesian_velocity, cartesian_acceleration)
+    _all_cartesian = numpy.broadcast_to(cartesian, _batch + (3,)).reshape(-1, 3)
+    _all_cartesian_velocity = numpy.broadcast_to(cartesian_velocity, _batch + (3,)).reshape(-1, 3)
+    _all_cartesian_acceleration = numpy.broadcast_to(cartesian_acceleration, _batch + (3,)).reshape(-1, 3)
+    _count = _all_cartesian.shape[0]
+    joint_acceleration = numpy.empty((_count, 3))
+    # The requirements, over the whole batch before any output is computed: a failing item raises.
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     xdot = cartesian_velocity[..., 0]
@@ -1323,33 +1894,53 @@ def cartesian_to_joint_acceleration(cartesian, cartesian_velocity, cartesian_acc
     _runtime.require(numpy.logical_and(numpy.greater_equal(_t30, -1), numpy.less_equal(_t30, 1)), _batch, "cartesian_to_joint_acceleration", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "cartesian", cartesian)
     _t8 = -0.25*(_t7*_t7)/(a*a) + 1
     _runtime.require(numpy.greater(_t8, 0), _batch, "cartesian_to_joint_acceleration", "singular", "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "cartesian", cartesian)
-    _t3 = 1.0/_t2
-    _t9 = 1.0/numpy.sqrt(_t8)
-    _t10 = 1.0/_t6
-    _t11 = _t10*_t9
-    _t12 = _t11*_t5
-    _t13 = _t3*y
-    _t14 = -_t3
-    _t15 = 2/(_t2*_t2)
-    _t16 = x*y
-    _t17 = 1.0/(_t2*numpy.sqrt(_t2))
-    _t18 = _t17*_t5*_t9
-    _t19 = _t16*_t18
     _t20 = 1.0/(a*a*a)
-    _t21 = 1.0/(_t8*numpy.sqrt(_t8))
-    _t22 = _t15*_t16
-    _t23 = _t20*_t21*_t7
-    _t24 = (0.125)*_t23
-    _t25 = _t13*x
-    _t26 = _t11*_t4
-    _t27 = (0.25)*_t23
-    _t28 = _t25*_t27
-    _t29 = _t27*_t3
-    joint_acceleration = numpy.empty(_batch + (3,))
-    joint_acceleration[..., 0] = xddot*((0.5)*_t10*_t4*_t9*x - _t13) + xdot*(xdot*(-_t0*_t18 + _t0*_t24*_t3 + _t12 + _t22) + ydot*(-_t0*_t15 - _t14 - _t19 + (0.125)*_t20*_t21*_t3*_t7*x*y)) + yddot*(_t12*y + _t3*x) + ydot*(xdot*(_t1*_t15 + _t14 - _t19 + _t24*_t25) + ydot*(-_t1*_t18 + (0.125)*_t1*_t20*_t21*_t3*_t7 + (0.5)*_t10*_t4*_t9 - _t22))
-    joint_acceleration[..., 1] = -_t26*x*xddot - _t26*y*yddot + xdot*(_t0*_t17*_t4*_t9*xdot - _t0*_t29*xdot + _t17*_t4*_t9*x*y*ydot - _t26*xdot - _t28*ydot) + ydot*(_t1*_t17*_t4*_t9*ydot - _t1*_t29*ydot + _t17*_t4*_t9*x*xdot*y - _t26*ydot - _t28*xdot)
-    joint_acceleration[..., 2] = zddot
-    return joint_acceleration
+    for _start in range(0, _count, CHUNK):
+        _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
+        x = _columns_cartesian[0]
+        y = _columns_cartesian[1]
+        _columns_cartesian_velocity = numpy.ascontiguousarray(_all_cartesian_velocity[_start:_start + CHUNK].T)
+        xdot = _columns_cartesian_velocity[0]
+        ydot = _columns_cartesian_velocity[1]
+        _columns_cartesian_acceleration = numpy.ascontiguousarray(_all_cartesian_acceleration[_start:_start + CHUNK].T)
+        xddot = _columns_cartesian_acceleration[0]
+        yddot = _columns_cartesian_acceleration[1]
+        zddot = _columns_cartesian_acceleration[2]
+        _t0 = (x*x)  # this chunk's share, for the stages below
+        _t1 = (y*y)  # this chunk's share, for the stages below
+        _t2 = _t0 + _t1  # this chunk's share, for the stages below
+        _t4 = 1.0/a  # this chunk's share, for the stages below
+        _t5 = (0.5)*_t4  # this chunk's share, for the stages below
+        _t6 = numpy.sqrt(_t2)  # this chunk's share, for the stages below
+        _t7 = _t6 + e  # this chunk's share, for the stages below
+        _t30 = _t5*_t7  # this chunk's share, for the stages below
+        _t8 = -0.25*(_t7*_t7)/(a*a) + 1  # this chunk's share, for the stages below
+        _t3 = 1.0/_t2
+        _t9 = 1.0/numpy.sqrt(_t8)
+        _t10 = 1.0/_t6
+        _t11 = _t10*_t9
+        _t12 = _t11*_t5
+        _t13 = _t3*y
+        _t14 = -_t3
+        _t15 = 2/(_t2*_t2)
+        _t16 = x*y
+        _t17 = 1.0/(_t2*numpy.sqrt(_t2))
+        _t18 = _t17*_t5*_t9
+        _t19 = _t16*_t18
+        _t21 = 1.0/(_t8*numpy.sqrt(_t8))
+        _t22 = _t15*_t16
+        _t23 = _t20*_t21*_t7
+        _t24 = (0.125)*_t23
+        _t25 = _t13*x
+        _t26 = _t11*_t4
+        _t27 = (0.25)*_t23
+        _t28 = _t25*_t27
+        _t29 = _t27*_t3
+        _joint_acceleration = joint_acceleration[_start:_start + CHUNK].T
+        _joint_acceleration[0] = xddot*((0.5)*_t10*_t4*_t9*x - _t13) + xdot*(xdot*(-_t0*_t18 + _t0*_t24*_t3 + _t12 + _t22) + ydot*(-_t0*_t15 - _t14 - _t19 + (0.125)*_t20*_t21*_t3*_t7*x*y)) + yddot*(_t12*y + _t3*x) + ydot*(xdot*(_t1*_t15 + _t14 - _t19 + _t24*_t25) + ydot*(-_t1*_t18 + (0.125)*_t1*_t20*_t21*_t3*_t7 + (0.5)*_t10*_t4*_t9 - _t22))
+        _joint_acceleration[1] = -_t26*x*xddot - _t26*y*yddot + xdot*(_t0*_t17*_t4*_t9*xdot - _t0*_t29*xdot + _t17*_t4*_t9*x*y*ydot - _t26*xdot - _t28*ydot) + ydot*(_t1*_t17*_t4*_t9*ydot - _t1*_t29*ydot + _t17*_t4*_t9*x*xdot*y - _t26*ydot - _t28*xdot)
+        _joint_acceleration[2] = zddot
+    return joint_acceleration.reshape(_batch + (3,))
 
 
 def cartesian_to_motor(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -1366,6 +1957,10 @@ def cartesian_to_motor(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21
     J22 = _runtime.as_param(J22, "J22")
     J33 = _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(cartesian)
+    _all_cartesian = numpy.broadcast_to(cartesian, _batch + (3,)).reshape(-1, 3)
+    _count = _all_cartesian.shape[0]
+    motor = numpy.empty((_count, 3))
+    # The requirements, over the whole batch before any output is computed: a failing item raises.
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     z = cartesian[..., 2]
@@ -1373,14 +1968,22 @@ def cartesian_to_motor(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21
     _runtime.require(numpy.greater(_t0, 0), _batch, "cartesian_to_motor", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
     _t1 = (0.5)*(numpy.sqrt(_t0) + e)/a
     _runtime.require(numpy.logical_and(numpy.greater_equal(_t1, -1), numpy.less_equal(_t1, 1)), _batch, "cartesian_to_motor", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "cartesian", cartesian)
-    _t2 = numpy.arccos(_t1)
-    _t3 = (-_t2 - numpy.arctan2(x, y) + 1.5707963267948966)/J11
     _t4 = 1.0/J22
-    motor = numpy.empty(_batch + (3,))
-    motor[..., 0] = _t3
-    motor[..., 1] = -J21*_t3*_t4 + 2*_t2*_t4 - 3.141592653589793*_t4
-    motor[..., 2] = z/J33
-    return motor
+    for _start in range(0, _count, CHUNK):
+        _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
+        x = _columns_cartesian[0]
+        y = _columns_cartesian[1]
+        z = _columns_cartesian[2]
+        _t0 = (x*x) + (y*y)  # this chunk's share, for the stages below
+        _t1 = (0.5)*(numpy.sqrt(_t0) + e)/a  # this chunk's share, for the stages below
+        _f0 = numpy.arccos(_t1)
+        _f1 = numpy.arctan2(x, y)
+        _t3 = (-_f0 - _f1 + 1.5707963267948966)/J11
+        _motor = motor[_start:_start + CHUNK].T
+        _motor[0] = _t3
+        _motor[1] = -J21*_t3*_t4 + 2*_f0*_t4 - 3.141592653589793*_t4
+        _motor[2] = z/J33
+    return motor.reshape(_batch + (3,))
 
 
 def cartesian_to_motor_velocity(cartesian, cartesian_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -1399,6 +2002,11 @@ def cartesian_to_motor_velocity(cartesian, cartesian_velocity, *, a=0.2667, e=0.
     J22 = _runtime.as_param(J22, "J22")
     J33 = _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(cartesian, cartesian_velocity)
+    _all_cartesian = numpy.broadcast_to(cartesian, _batch + (3,)).reshape(-1, 3)
+    _all_cartesian_velocity = numpy.broadcast_to(cartesian_velocity, _batch + (3,)).reshape(-1, 3)
+    _count = _all_cartesian.shape[0]
+    motor_velocity = numpy.empty((_count, 3))
+    # The requirements, over the whole batch before any output is computed: a failing item raises.
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     xdot = cartesian_velocity[..., 0]
@@ -1415,20 +2023,35 @@ def cartesian_to_motor_velocity(cartesian, cartesian_velocity, *, a=0.2667, e=0.
     _t7 = -0.25*(_t6*_t6)/(a*a) + 1
     _runtime.require(numpy.greater(_t7, 0), _batch, "cartesian_to_motor_velocity", "singular", "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "cartesian", cartesian)
     _t0 = 1.0/J11
-    _t2 = 1.0/_t1
-    _t8 = 1.0/numpy.sqrt(_t7)
-    _t9 = 1.0/_t5
-    _t10 = _t8*_t9
-    _t11 = _t0*(_t10*_t4*y + _t2*x)
-    _t12 = _t0*(-_t2*y + (0.5)*_t3*_t8*_t9*x)
     _t13 = 1.0/J22
-    _t14 = _t10*_t13*_t3
     _t15 = J21*_t13
-    motor_velocity = numpy.empty(_batch + (3,))
-    motor_velocity[..., 0] = _t11*ydot + _t12*xdot
-    motor_velocity[..., 1] = xdot*(-_t12*_t15 - _t14*x) + ydot*(-_t11*_t15 - _t14*y)
-    motor_velocity[..., 2] = zdot/J33
-    return motor_velocity
+    for _start in range(0, _count, CHUNK):
+        _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
+        x = _columns_cartesian[0]
+        y = _columns_cartesian[1]
+        _columns_cartesian_velocity = numpy.ascontiguousarray(_all_cartesian_velocity[_start:_start + CHUNK].T)
+        xdot = _columns_cartesian_velocity[0]
+        ydot = _columns_cartesian_velocity[1]
+        zdot = _columns_cartesian_velocity[2]
+        _t1 = (x*x) + (y*y)  # this chunk's share, for the stages below
+        _t3 = 1.0/a  # this chunk's share, for the stages below
+        _t4 = (0.5)*_t3  # this chunk's share, for the stages below
+        _t5 = numpy.sqrt(_t1)  # this chunk's share, for the stages below
+        _t6 = _t5 + e  # this chunk's share, for the stages below
+        _t16 = _t4*_t6  # this chunk's share, for the stages below
+        _t7 = -0.25*(_t6*_t6)/(a*a) + 1  # this chunk's share, for the stages below
+        _t2 = 1.0/_t1
+        _t8 = 1.0/numpy.sqrt(_t7)
+        _t9 = 1.0/_t5
+        _t10 = _t8*_t9
+        _t11 = _t0*(_t10*_t4*y + _t2*x)
+        _t12 = _t0*(-_t2*y + (0.5)*_t3*_t8*_t9*x)
+        _t14 = _t10*_t13*_t3
+        _motor_velocity = motor_velocity[_start:_start + CHUNK].T
+        _motor_velocity[0] = _t11*ydot + _t12*xdot
+        _motor_velocity[1] = xdot*(-_t12*_t15 - _t14*x) + ydot*(-_t11*_t15 - _t14*y)
+        _motor_velocity[2] = zdot/J33
+    return motor_velocity.reshape(_batch + (3,))
 
 
 def cartesian_to_motor_acceleration(cartesian, cartesian_velocity, cartesian_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
@@ -1449,6 +2072,12 @@ def cartesian_to_motor_acceleration(cartesian, cartesian_velocity, cartesian_acc
     J22 = _runtime.as_param(J22, "J22")
     J33 = _runtime.as_param(J33, "J33")
     _batch = _runtime.batch_shape(cartesian, cartesian_velocity, cartesian_acceleration)
+    _all_cartesian = numpy.broadcast_to(cartesian, _batch + (3,)).reshape(-1, 3)
+    _all_cartesian_velocity = numpy.broadcast_to(cartesian_velocity, _batch + (3,)).reshape(-1, 3)
+    _all_cartesian_acceleration = numpy.broadcast_to(cartesian_acceleration, _batch + (3,)).reshape(-1, 3)
+    _count = _all_cartesian.shape[0]
+    motor_acceleration = numpy.empty((_count, 3))
+    # The requirements, over the whole batch before any output is computed: a failing item raises.
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     xdot = cartesian_velocity[..., 0]
@@ -1469,44 +2098,64 @@ def cartesian_to_motor_acceleration(cartesian, cartesian_velocity, cartesian_acc
     _t9 = -0.25*(_t8*_t8)/(a*a) + 1
     _runtime.require(numpy.greater(_t9, 0), _batch, "cartesian_to_motor_acceleration", "singular", "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "cartesian", cartesian)
     _t0 = 1.0/J11
-    _t4 = 1.0/_t3
-    _t10 = 1.0/numpy.sqrt(_t9)
-    _t11 = 1.0/_t7
-    _t12 = _t10*_t11
-    _t13 = _t12*_t6
-    _t14 = _t0*(_t13*y + _t4*x)
-    _t15 = _t4*y
-    _t16 = _t0*((0.5)*_t10*_t11*_t5*x - _t15)
-    _t17 = -_t4
-    _t18 = 2/(_t3*_t3)
-    _t19 = x*y
-    _t20 = 1.0/(_t3*numpy.sqrt(_t3))
-    _t21 = _t10*_t20*_t6
-    _t22 = _t19*_t21
     _t23 = 1.0/(a*a*a)
-    _t24 = 1.0/(_t9*numpy.sqrt(_t9))
-    _t25 = -_t1*_t18 - _t17 - _t22 + (0.125)*_t23*_t24*_t4*_t8*x*y
-    _t26 = _t0*ydot
-    _t27 = _t18*_t19
-    _t28 = _t23*_t24*_t8
-    _t29 = (0.125)*_t28
-    _t30 = -_t1*_t21 + _t1*_t29*_t4 + _t13 + _t27
-    _t31 = _t0*xdot
-    _t32 = _t15*x
-    _t33 = _t17 + _t18*_t2 - _t22 + _t29*_t32
-    _t34 = (0.5)*_t10*_t11*_t5 - _t2*_t21 + (0.125)*_t2*_t23*_t24*_t4*_t8 - _t27
     _t35 = 1.0/J22
-    _t36 = _t12*_t35*_t5
     _t37 = J21*_t35
     _t38 = _t0*_t37
-    _t39 = (0.25)*_t28*_t35
-    _t40 = -_t10*_t20*_t35*_t5*x*y + _t32*_t39
-    _t41 = _t39*_t4
-    motor_acceleration = numpy.empty(_batch + (3,))
-    motor_acceleration[..., 0] = _t14*yddot + _t16*xddot + xdot*(_t25*_t26 + _t30*_t31) + ydot*(_t26*_t34 + _t31*_t33)
-    motor_acceleration[..., 1] = xddot*(-_t16*_t37 - _t36*x) + xdot*(xdot*(_t1*_t10*_t20*_t35*_t5 - _t1*_t41 - _t30*_t38 - _t36) + ydot*(-_t25*_t38 - _t40)) + yddot*(-_t14*_t37 - _t36*y) + ydot*(xdot*(-_t33*_t38 - _t40) + ydot*(_t10*_t2*_t20*_t35*_t5 - _t2*_t41 - _t34*_t38 - _t36))
-    motor_acceleration[..., 2] = zddot/J33
-    return motor_acceleration
+    for _start in range(0, _count, CHUNK):
+        _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
+        x = _columns_cartesian[0]
+        y = _columns_cartesian[1]
+        _columns_cartesian_velocity = numpy.ascontiguousarray(_all_cartesian_velocity[_start:_start + CHUNK].T)
+        xdot = _columns_cartesian_velocity[0]
+        ydot = _columns_cartesian_velocity[1]
+        _columns_cartesian_acceleration = numpy.ascontiguousarray(_all_cartesian_acceleration[_start:_start + CHUNK].T)
+        xddot = _columns_cartesian_acceleration[0]
+        yddot = _columns_cartesian_acceleration[1]
+        zddot = _columns_cartesian_acceleration[2]
+        _t1 = (x*x)  # this chunk's share, for the stages below
+        _t2 = (y*y)  # this chunk's share, for the stages below
+        _t3 = _t1 + _t2  # this chunk's share, for the stages below
+        _t5 = 1.0/a  # this chunk's share, for the stages below
+        _t6 = (0.5)*_t5  # this chunk's share, for the stages below
+        _t7 = numpy.sqrt(_t3)  # this chunk's share, for the stages below
+        _t8 = _t7 + e  # this chunk's share, for the stages below
+        _t42 = _t6*_t8  # this chunk's share, for the stages below
+        _t9 = -0.25*(_t8*_t8)/(a*a) + 1  # this chunk's share, for the stages below
+        _t4 = 1.0/_t3
+        _t10 = 1.0/numpy.sqrt(_t9)
+        _t11 = 1.0/_t7
+        _t12 = _t10*_t11
+        _t13 = _t12*_t6
+        _t14 = _t0*(_t13*y + _t4*x)
+        _t15 = _t4*y
+        _t16 = _t0*((0.5)*_t10*_t11*_t5*x - _t15)
+        _t17 = -_t4
+        _t18 = 2/(_t3*_t3)
+        _t19 = x*y
+        _t20 = 1.0/(_t3*numpy.sqrt(_t3))
+        _t21 = _t10*_t20*_t6
+        _t22 = _t19*_t21
+        _t24 = 1.0/(_t9*numpy.sqrt(_t9))
+        _t25 = -_t1*_t18 - _t17 - _t22 + (0.125)*_t23*_t24*_t4*_t8*x*y
+        _t26 = _t0*ydot
+        _t27 = _t18*_t19
+        _t28 = _t23*_t24*_t8
+        _t29 = (0.125)*_t28
+        _t30 = -_t1*_t21 + _t1*_t29*_t4 + _t13 + _t27
+        _t31 = _t0*xdot
+        _t32 = _t15*x
+        _t33 = _t17 + _t18*_t2 - _t22 + _t29*_t32
+        _t34 = (0.5)*_t10*_t11*_t5 - _t2*_t21 + (0.125)*_t2*_t23*_t24*_t4*_t8 - _t27
+        _t36 = _t12*_t35*_t5
+        _t39 = (0.25)*_t28*_t35
+        _t40 = -_t10*_t20*_t35*_t5*x*y + _t32*_t39
+        _t41 = _t39*_t4
+        _motor_acceleration = motor_acceleration[_start:_start + CHUNK].T
+        _motor_acceleration[0] = _t14*yddot + _t16*xddot + xdot*(_t25*_t26 + _t30*_t31) + ydot*(_t26*_t34 + _t31*_t33)
+        _motor_acceleration[1] = xddot*(-_t16*_t37 - _t36*x) + xdot*(xdot*(_t1*_t10*_t20*_t35*_t5 - _t1*_t41 - _t30*_t38 - _t36) + ydot*(-_t25*_t38 - _t40)) + yddot*(-_t14*_t37 - _t36*y) + ydot*(xdot*(-_t33*_t38 - _t40) + ydot*(_t10*_t2*_t20*_t35*_t5 - _t2*_t41 - _t34*_t38 - _t36))
+        _motor_acceleration[2] = zddot/J33
+    return motor_acceleration.reshape(_batch + (3,))
 
 
 def within_limits(q):

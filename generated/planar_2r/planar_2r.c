@@ -23,7 +23,71 @@
 
 #include <math.h>
 
+/*
+ * Batched entry points.  Plain C99 loops over the single-point entry point by
+ * default.  With -DKINEGEN_BLOCKED they work through their items in blocks of
+ * KINEGEN_BLOCK instead: the inputs of a block are copied into one array per
+ * coordinate, every sine and every cosine is taken in a loop of its own, and the
+ * arithmetic runs in one loop per stage, from the same expressions as the single
+ * point (so the results are bit-identical).  -DKINEGEN_SIMD -fopenmp-simd (what
+ * build_c.py uses where the compiler and C library allow) adds to that SIMD
+ * declarations of the math functions, so that the loops vectorise and call
+ * glibc's vector math library (libmvec, at most 4 ulp), and the single point
+ * takes the sines and cosines of a stage's angles as one vector.  No NaN or
+ * infinity check is affected: no -ffast-math is involved.
+ */
+#ifdef KINEGEN_SIMD
+#pragma omp declare simd notinbranch
+double sin(double);
+#pragma omp declare simd notinbranch
+double cos(double);
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+/* libmvec has these from glibc 2.35 on. */
+#pragma omp declare simd notinbranch
+double atan2(double, double);
+#pragma omp declare simd notinbranch
+double acos(double);
+#pragma omp declare simd notinbranch
+double asin(double);
+#endif
+#define KINEGEN_VECTOR_LOOP _Pragma("omp simd")
+#ifndef KINEGEN_BLOCKED
+#define KINEGEN_BLOCKED
+#endif
+#else
+#define KINEGEN_VECTOR_LOOP
+#endif
+#ifndef KINEGEN_BLOCK
+#define KINEGEN_BLOCK 64
+#endif
+/* Each kernel's block: at most KINEGEN_BLOCK items, fewer where its arrays would pass 32 KiB of stack. */
+#define KINEGEN_BLOCK_OF(items) ((items) < KINEGEN_BLOCK ? (items) : KINEGEN_BLOCK)
+#if defined(KINEGEN_SIMD) && defined(__SSE2__) && !defined(KINEGEN_NO_STREAM)
+/* Batches whose outputs exceed KINEGEN_STREAM_BYTES write them with SSE2 streaming
+   stores: a plain store first reads the line it overwrites, which doubles the memory
+   traffic of a batch too large for the caches. */
+#include <emmintrin.h>
+#include <stdint.h>
+#define KINEGEN_STREAM
+#ifndef KINEGEN_STREAM_BYTES
+#define KINEGEN_STREAM_BYTES 1048576
+#endif
+#endif
+
 const planar_2r_params planar_2r_default_params = { 0.559, 0.508 };
+
+/* min and max that pass a NaN on, like numpy.minimum and numpy.maximum: C99's fmin and
+   fmax would turn an acos argument of NaN into +-1 and a valid-looking angle.  Each is
+   emitted only where a kernel uses it (static: -Werror=unused-function). */
+static double kinegen_min(double a, double b)
+{
+    return isnan(a) || a < b ? a : b;
+}
+
+static double kinegen_max(double a, double b)
+{
+    return isnan(a) || a > b ? a : b;
+}
 
 /* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi. */
 static double kinegen_wrap_angle(double angle)
@@ -50,16 +114,40 @@ void planar_2r_fk(const double *restrict q, const planar_2r_params *restrict par
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _t1 = cos(_t0);
-    const double _t2 = sin(_t0);
-    T[0] = _t1;
-    T[1] = -_t2;
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+#endif
+    T[0] = _c0;
+    T[1] = -_s0;
     T[2] = 0;
-    T[3] = _t1*l2 + l1*cos(q1);
-    T[4] = _t2;
-    T[5] = _t1;
+    T[3] = _c0*l2 + _c1*l1;
+    T[4] = _s0;
+    T[5] = _c0;
     T[6] = 0;
-    T[7] = _t2*l2 + l1*sin(q1);
+    T[7] = _s0*l2 + _s1*l1;
     T[8] = 0;
     T[9] = 0;
     T[10] = 1;
@@ -70,12 +158,120 @@ void planar_2r_fk(const double *restrict q, const planar_2r_params *restrict par
     T[15] = 1;
 }
 
+/* fk of `count` items, stored one after the other in each argument and output. */
 void planar_2r_fk_batch(size_t count, const double *restrict q, const planar_2r_params *restrict params, double *restrict T)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _T_block[16][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _T_block[0][i] = _c0[i];
+                _T_block[1][i] = -_s0[i];
+                _T_block[2][i] = 0;
+                _T_block[3][i] = _c0[i]*l2 + _c1[i]*l1;
+                _T_block[4][i] = _s0[i];
+                _T_block[5][i] = _c0[i];
+                _T_block[6][i] = 0;
+                _T_block[7][i] = _s0[i]*l2 + _s1[i]*l1;
+                _T_block[8][i] = 0;
+                _T_block[9][i] = 0;
+                _T_block[10][i] = 1;
+                _T_block[11][i] = 0;
+                _T_block[12][i] = 0;
+                _T_block[13][i] = 0;
+                _T_block[14][i] = 0;
+                _T_block[15][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                T[16 * (start + i) + 0] = _c0[i];
+                T[16 * (start + i) + 1] = -_s0[i];
+                T[16 * (start + i) + 2] = 0;
+                T[16 * (start + i) + 3] = _c0[i]*l2 + _c1[i]*l1;
+                T[16 * (start + i) + 4] = _s0[i];
+                T[16 * (start + i) + 5] = _c0[i];
+                T[16 * (start + i) + 6] = 0;
+                T[16 * (start + i) + 7] = _s0[i]*l2 + _s1[i]*l1;
+                T[16 * (start + i) + 8] = 0;
+                T[16 * (start + i) + 9] = 0;
+                T[16 * (start + i) + 10] = 1;
+                T[16 * (start + i) + 11] = 0;
+                T[16 * (start + i) + 12] = 0;
+                T[16 * (start + i) + 13] = 0;
+                T[16 * (start + i) + 14] = 0;
+                T[16 * (start + i) + 15] = 1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 16; k += 2) {
+                    _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_2r_fk(q + 2 * i, params, T + 16 * i);
     }
+#endif
 }
 
 /* Frames T_0 (base) .. T_2 (tool), shape (..., 3, 4, 4). */
@@ -88,13 +284,35 @@ void planar_2r_frames(const double *restrict q, const planar_2r_params *restrict
     }
     const double l1 = params->l1;
     const double l2 = params->l2;
-    const double _t0 = cos(q1);
-    const double _t1 = sin(q1);
-    const double _t2 = _t0*l1;
-    const double _t3 = _t1*l1;
     const double _t4 = q1 + q2;
-    const double _t5 = cos(_t4);
-    const double _t6 = sin(_t4);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q1, _t4, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t4);
+    _c1 = cos(_t4);
+#endif
+    const double _t2 = _c0*l1;
+    const double _t3 = _s0*l1;
     frames[0] = 1;
     frames[1] = 0;
     frames[2] = 0;
@@ -111,12 +329,12 @@ void planar_2r_frames(const double *restrict q, const planar_2r_params *restrict
     frames[13] = 0;
     frames[14] = 0;
     frames[15] = 1;
-    frames[16] = _t0;
-    frames[17] = -_t1;
+    frames[16] = _c0;
+    frames[17] = -_s0;
     frames[18] = 0;
     frames[19] = _t2;
-    frames[20] = _t1;
-    frames[21] = _t0;
+    frames[20] = _s0;
+    frames[21] = _c0;
     frames[22] = 0;
     frames[23] = _t3;
     frames[24] = 0;
@@ -127,14 +345,14 @@ void planar_2r_frames(const double *restrict q, const planar_2r_params *restrict
     frames[29] = 0;
     frames[30] = 0;
     frames[31] = 1;
-    frames[32] = _t5;
-    frames[33] = -_t6;
+    frames[32] = _c1;
+    frames[33] = -_s1;
     frames[34] = 0;
-    frames[35] = _t2 + _t5*l2;
-    frames[36] = _t6;
-    frames[37] = _t5;
+    frames[35] = _c1*l2 + _t2;
+    frames[36] = _s1;
+    frames[37] = _c1;
     frames[38] = 0;
-    frames[39] = _t3 + _t6*l2;
+    frames[39] = _s1*l2 + _t3;
     frames[40] = 0;
     frames[41] = 0;
     frames[42] = 1;
@@ -145,12 +363,188 @@ void planar_2r_frames(const double *restrict q, const planar_2r_params *restrict
     frames[47] = 1;
 }
 
+/* frames of `count` items, stored one after the other in each argument and output. */
 void planar_2r_frames_batch(size_t count, const double *restrict q, const planar_2r_params *restrict params, double *restrict frames)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _t4[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _frames_block[48][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 48 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t4[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t4[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c0[i]*l1;
+                const double _t3 = _s0[i]*l1;
+                _frames_block[0][i] = 1;
+                _frames_block[1][i] = 0;
+                _frames_block[2][i] = 0;
+                _frames_block[3][i] = 0;
+                _frames_block[4][i] = 0;
+                _frames_block[5][i] = 1;
+                _frames_block[6][i] = 0;
+                _frames_block[7][i] = 0;
+                _frames_block[8][i] = 0;
+                _frames_block[9][i] = 0;
+                _frames_block[10][i] = 1;
+                _frames_block[11][i] = 0;
+                _frames_block[12][i] = 0;
+                _frames_block[13][i] = 0;
+                _frames_block[14][i] = 0;
+                _frames_block[15][i] = 1;
+                _frames_block[16][i] = _c0[i];
+                _frames_block[17][i] = -_s0[i];
+                _frames_block[18][i] = 0;
+                _frames_block[19][i] = _t2;
+                _frames_block[20][i] = _s0[i];
+                _frames_block[21][i] = _c0[i];
+                _frames_block[22][i] = 0;
+                _frames_block[23][i] = _t3;
+                _frames_block[24][i] = 0;
+                _frames_block[25][i] = 0;
+                _frames_block[26][i] = 1;
+                _frames_block[27][i] = 0;
+                _frames_block[28][i] = 0;
+                _frames_block[29][i] = 0;
+                _frames_block[30][i] = 0;
+                _frames_block[31][i] = 1;
+                _frames_block[32][i] = _c1[i];
+                _frames_block[33][i] = -_s1[i];
+                _frames_block[34][i] = 0;
+                _frames_block[35][i] = _c1[i]*l2 + _t2;
+                _frames_block[36][i] = _s1[i];
+                _frames_block[37][i] = _c1[i];
+                _frames_block[38][i] = 0;
+                _frames_block[39][i] = _s1[i]*l2 + _t3;
+                _frames_block[40][i] = 0;
+                _frames_block[41][i] = 0;
+                _frames_block[42][i] = 1;
+                _frames_block[43][i] = 0;
+                _frames_block[44][i] = 0;
+                _frames_block[45][i] = 0;
+                _frames_block[46][i] = 0;
+                _frames_block[47][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c0[i]*l1;
+                const double _t3 = _s0[i]*l1;
+                frames[48 * (start + i) + 0] = 1;
+                frames[48 * (start + i) + 1] = 0;
+                frames[48 * (start + i) + 2] = 0;
+                frames[48 * (start + i) + 3] = 0;
+                frames[48 * (start + i) + 4] = 0;
+                frames[48 * (start + i) + 5] = 1;
+                frames[48 * (start + i) + 6] = 0;
+                frames[48 * (start + i) + 7] = 0;
+                frames[48 * (start + i) + 8] = 0;
+                frames[48 * (start + i) + 9] = 0;
+                frames[48 * (start + i) + 10] = 1;
+                frames[48 * (start + i) + 11] = 0;
+                frames[48 * (start + i) + 12] = 0;
+                frames[48 * (start + i) + 13] = 0;
+                frames[48 * (start + i) + 14] = 0;
+                frames[48 * (start + i) + 15] = 1;
+                frames[48 * (start + i) + 16] = _c0[i];
+                frames[48 * (start + i) + 17] = -_s0[i];
+                frames[48 * (start + i) + 18] = 0;
+                frames[48 * (start + i) + 19] = _t2;
+                frames[48 * (start + i) + 20] = _s0[i];
+                frames[48 * (start + i) + 21] = _c0[i];
+                frames[48 * (start + i) + 22] = 0;
+                frames[48 * (start + i) + 23] = _t3;
+                frames[48 * (start + i) + 24] = 0;
+                frames[48 * (start + i) + 25] = 0;
+                frames[48 * (start + i) + 26] = 1;
+                frames[48 * (start + i) + 27] = 0;
+                frames[48 * (start + i) + 28] = 0;
+                frames[48 * (start + i) + 29] = 0;
+                frames[48 * (start + i) + 30] = 0;
+                frames[48 * (start + i) + 31] = 1;
+                frames[48 * (start + i) + 32] = _c1[i];
+                frames[48 * (start + i) + 33] = -_s1[i];
+                frames[48 * (start + i) + 34] = 0;
+                frames[48 * (start + i) + 35] = _c1[i]*l2 + _t2;
+                frames[48 * (start + i) + 36] = _s1[i];
+                frames[48 * (start + i) + 37] = _c1[i];
+                frames[48 * (start + i) + 38] = 0;
+                frames[48 * (start + i) + 39] = _s1[i]*l2 + _t3;
+                frames[48 * (start + i) + 40] = 0;
+                frames[48 * (start + i) + 41] = 0;
+                frames[48 * (start + i) + 42] = 1;
+                frames[48 * (start + i) + 43] = 0;
+                frames[48 * (start + i) + 44] = 0;
+                frames[48 * (start + i) + 45] = 0;
+                frames[48 * (start + i) + 46] = 0;
+                frames[48 * (start + i) + 47] = 1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 48; k += 2) {
+                    _mm_stream_pd(frames + 48 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_2r_frames(q + 2 * i, params, frames + 48 * i);
     }
+#endif
 }
 
 /* Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 2). */
@@ -164,11 +558,37 @@ void planar_2r_jacobian(const double *restrict q, const planar_2r_params *restri
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _t1 = l2*sin(_t0);
-    const double _t2 = l2*cos(_t0);
-    J[0] = -_t1 - l1*sin(q1);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+#endif
+    const double _t1 = _s0*l2;
+    const double _t2 = _c0*l2;
+    J[0] = -_s1*l1 - _t1;
     J[1] = -_t1;
-    J[2] = _t2 + l1*cos(q1);
+    J[2] = _c1*l1 + _t2;
     J[3] = _t2;
     J[4] = 0;
     J[5] = 0;
@@ -180,12 +600,116 @@ void planar_2r_jacobian(const double *restrict q, const planar_2r_params *restri
     J[11] = 1;
 }
 
+/* jacobian of `count` items, stored one after the other in each argument and output. */
 void planar_2r_jacobian_batch(size_t count, const double *restrict q, const planar_2r_params *restrict params, double *restrict J)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _J_block[12][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = _c0[i]*l2;
+                _J_block[0][i] = -_s1[i]*l1 - _t1;
+                _J_block[1][i] = -_t1;
+                _J_block[2][i] = _c1[i]*l1 + _t2;
+                _J_block[3][i] = _t2;
+                _J_block[4][i] = 0;
+                _J_block[5][i] = 0;
+                _J_block[6][i] = 0;
+                _J_block[7][i] = 0;
+                _J_block[8][i] = 0;
+                _J_block[9][i] = 0;
+                _J_block[10][i] = 1;
+                _J_block[11][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = _c0[i]*l2;
+                J[12 * (start + i) + 0] = -_s1[i]*l1 - _t1;
+                J[12 * (start + i) + 1] = -_t1;
+                J[12 * (start + i) + 2] = _c1[i]*l1 + _t2;
+                J[12 * (start + i) + 3] = _t2;
+                J[12 * (start + i) + 4] = 0;
+                J[12 * (start + i) + 5] = 0;
+                J[12 * (start + i) + 6] = 0;
+                J[12 * (start + i) + 7] = 0;
+                J[12 * (start + i) + 8] = 0;
+                J[12 * (start + i) + 9] = 0;
+                J[12 * (start + i) + 10] = 1;
+                J[12 * (start + i) + 11] = 1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 12; k += 2) {
+                    _mm_stream_pd(J + 12 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_2r_jacobian(q + 2 * i, params, J + 12 * i);
     }
+#endif
 }
 
 /* Task coordinates x, y, shape (..., 2). */
@@ -199,16 +723,122 @@ void planar_2r_task(const double *restrict q, const planar_2r_params *restrict p
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    x[0] = l1*cos(q1) + l2*cos(_t0);
-    x[1] = l1*sin(q1) + l2*sin(_t0);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q1, _t0, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+#endif
+    x[0] = _c0*l1 + _c1*l2;
+    x[1] = _s0*l1 + _s1*l2;
 }
 
+/* task of `count` items, stored one after the other in each argument and output. */
 void planar_2r_task_batch(size_t count, const double *restrict q, const planar_2r_params *restrict params, double *restrict x)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _x_block[2][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)x & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t0[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _x_block[0][i] = _c0[i]*l1 + _c1[i]*l2;
+                _x_block[1][i] = _s0[i]*l1 + _s1[i]*l2;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                x[2 * (start + i) + 0] = _c0[i]*l1 + _c1[i]*l2;
+                x[2 * (start + i) + 1] = _s0[i]*l1 + _s1[i]*l2;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 2; k += 2) {
+                    _mm_stream_pd(x + 2 * (start + i) + k, _mm_set_pd(_x_block[k + 1][i], _x_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_2r_task(q + 2 * i, params, x + 2 * i);
     }
+#endif
 }
 
 /* d task / d q, shape (..., 2, 2). */
@@ -222,20 +852,156 @@ void planar_2r_task_jacobian(const double *restrict q, const planar_2r_params *r
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _t1 = l2*sin(_t0);
-    const double _t2 = l2*cos(_t0);
-    Jx[0] = -_t1 - l1*sin(q1);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+#endif
+    const double _t1 = _s0*l2;
+    const double _t2 = _c0*l2;
+    Jx[0] = -_s1*l1 - _t1;
     Jx[1] = -_t1;
-    Jx[2] = _t2 + l1*cos(q1);
+    Jx[2] = _c1*l1 + _t2;
     Jx[3] = _t2;
 }
 
+/* task_jacobian of `count` items, stored one after the other in each argument and output. */
 void planar_2r_task_jacobian_batch(size_t count, const double *restrict q, const planar_2r_params *restrict params, double *restrict Jx)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _Jx_block[4][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = _c0[i]*l2;
+                _Jx_block[0][i] = -_s1[i]*l1 - _t1;
+                _Jx_block[1][i] = -_t1;
+                _Jx_block[2][i] = _c1[i]*l1 + _t2;
+                _Jx_block[3][i] = _t2;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = _c0[i]*l2;
+                Jx[4 * (start + i) + 0] = -_s1[i]*l1 - _t1;
+                Jx[4 * (start + i) + 1] = -_t1;
+                Jx[4 * (start + i) + 2] = _c1[i]*l1 + _t2;
+                Jx[4 * (start + i) + 3] = _t2;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 4; k += 2) {
+                    _mm_stream_pd(Jx + 4 * (start + i) + k, _mm_set_pd(_Jx_block[k + 1][i], _Jx_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_2r_task_jacobian(q + 2 * i, params, Jx + 4 * i);
     }
+#endif
+}
+
+/* The checks after an ik of one target x: a branch with a joint value that is not
+   finite, or of a target that is not, is not valid; returns the number of valid branches. */
+static int planar_2r_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
+{
+    int branch, joint, finite_target = 1, valid_branches = 0;
+    for (joint = 0; joint < 2; ++joint) {
+        finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
+    }
+    for (branch = 0; branch < 2; ++branch) {
+        if (!finite_target) {
+            valid[branch] = 0;
+        }
+        for (joint = 0; joint < 2; ++joint) {
+            if (!isfinite(Q[2 * branch + joint])) {
+                valid[branch] = 0;  /* no NaN leaks out as a valid answer */
+            }
+        }
+        valid_branches += valid[branch] != 0;
+    }
+    return valid_branches;
 }
 
 /* Inverse kinematics, all 2 branches (elbow_up, elbow_down): Q (..., 2, 2), valid (..., 2).
@@ -250,53 +1016,137 @@ int planar_2r_ik(const double *restrict _x, const planar_2r_params *restrict par
     }
     const double l1 = params->l1;
     const double l2 = params->l2;
-    const double _t0 = atan2(y, x);
-    const double _t1 = (l1*l1) + (l2*l2) - (x*x) - (y*y);
     const double _t2 = 1/(l1*l2);
-    const double _t3 = fmin(1, fmax(-1, -0.5*_t1*_t2));
+    const double _t1 = (l1*l1) + (l2*l2) - (x*x) - (y*y);
+    const double _t3 = kinegen_min(1, kinegen_max(-1, -0.5*_t1*_t2));
     const double _t4 = l2*sqrt(1 - (_t3*_t3));
     const double _t5 = _t3*l2 + l1;
-    const double _t6 = acos(_t3);
+    const double _a0 = -_t4;
+    double _f0, _f1, _f2, _f3;
+#if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+    {
+        /* The atan2 arguments side by side: one vector call. */
+        const double argument0[4] = { y, _a0, _t4, 0.0 };
+        const double argument1[4] = { x, _t5, _t5, 1.0 };
+        double result[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            result[k] = atan2(argument0[k], argument1[k]);
+        }
+        _f0 = result[0];
+        _f2 = result[1];
+        _f3 = result[2];
+    }
+#else
+    _f0 = atan2(y, x);
+    _f2 = atan2(_a0, _t5);
+    _f3 = atan2(_t4, _t5);
+#endif
+    _f1 = acos(_t3);
     const int _t7 = (0.5)*fabs(_t1*_t2) <= 1.000000000001;
-    Q[0] = kinegen_wrap_angle(_t0 - atan2(-_t4, _t5));
-    Q[1] = kinegen_wrap_angle(-_t6);
-    Q[2] = kinegen_wrap_angle(_t0 - atan2(_t4, _t5));
-    Q[3] = kinegen_wrap_angle(_t6);
+    Q[0] = kinegen_wrap_angle(_f0 - _f2);
+    Q[1] = kinegen_wrap_angle(-_f1);
+    Q[2] = kinegen_wrap_angle(_f0 - _f3);
+    Q[3] = kinegen_wrap_angle(_f1);
     valid[0] = _t7;
     valid[1] = _t7;
-    {
-        int branch, joint, finite_target = 1, valid_branches = 0;
-        for (joint = 0; joint < 2; ++joint) {
-            finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
-        }
-        for (branch = 0; branch < 2; ++branch) {
-            if (!finite_target) {
-                valid[branch] = 0;
-            }
-            for (joint = 0; joint < 2; ++joint) {
-                if (!isfinite(Q[2 * branch + joint])) {
-                    valid[branch] = 0;  /* no NaN leaks out as a valid answer */
-                }
-            }
-            valid_branches += valid[branch] != 0;
-        }
-        return valid_branches;
-    }
+    return planar_2r_ik_checks(_x, Q, valid);
 }
 
-long planar_2r_ik_batch(size_t count, const double *restrict x, const planar_2r_params *restrict params, double *restrict Q, int *restrict valid)
+/* ik of `count` items, stored one after the other in each argument and output.   Returns the total number of valid branches, or -1 if any item was refused. */
+long planar_2r_ik_batch(size_t count, const double *restrict _x, const planar_2r_params *restrict params, double *restrict Q, int *restrict valid)
 {
-    size_t i;
     long valid_branches = 0;
     int refused = 0;
+#ifdef KINEGEN_BLOCKED
+    double x[KINEGEN_BLOCK_OF(64)];
+    double y[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _t3[KINEGEN_BLOCK_OF(64)];
+    double _t4[KINEGEN_BLOCK_OF(64)];
+    double _t5[KINEGEN_BLOCK_OF(64)];
+    double _a0[KINEGEN_BLOCK_OF(64)];
+    double _f0[KINEGEN_BLOCK_OF(64)];
+    double _f1[KINEGEN_BLOCK_OF(64)];
+    double _f2[KINEGEN_BLOCK_OF(64)];
+    double _f3[KINEGEN_BLOCK_OF(64)];
+    double _Q_block[4][KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double _t2 = 1/(l1*l2);
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            x[i] = _x[2 * (start + i) + 0];
+            y[i] = _x[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t1[i] = (l1*l1) + (l2*l2) - (x[i]*x[i]) - (y[i]*y[i]);
+            _t3[i] = kinegen_min(1, kinegen_max(-1, -0.5*_t1[i]*_t2));
+            _t4[i] = l2*sqrt(1 - (_t3[i]*_t3[i]));
+            _t5[i] = _t3[i]*l2 + l1;
+            _a0[i] = -_t4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f0[i] = atan2(y[i], x[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f1[i] = acos(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f2[i] = atan2(_a0[i], _t5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f3[i] = atan2(_t4[i], _t5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const int _t7 = (0.5)*fabs(_t1[i]*_t2) <= 1.000000000001;
+            _Q_block[0][i] = kinegen_wrap_angle(_f0[i] - _f2[i]);
+            _Q_block[1][i] = kinegen_wrap_angle(-_f1[i]);
+            _Q_block[2][i] = kinegen_wrap_angle(_f0[i] - _f3[i]);
+            _Q_block[3][i] = kinegen_wrap_angle(_f1[i]);
+            valid[2 * (start + i) + 0] = _t7;
+            valid[2 * (start + i) + 1] = _t7;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 4; ++k) {
+                    Q[4 * (start + i) + k] = _Q_block[k][i];
+                }
+            }
+        }
+        for (i = 0; i < n; ++i) {
+            const int found = planar_2r_ik_checks(_x + 2 * (start + i), Q + 4 * (start + i), valid + 2 * (start + i));
+            if (found < 0) {
+                refused = 1;
+            } else {
+                valid_branches += found;
+            }
+        }
+    }
+#else
+    size_t i;
     for (i = 0; i < count; ++i) {
-        const int found = planar_2r_ik(x + 2 * i, params, Q + 4 * i, valid + 2 * i);
+        const int found = planar_2r_ik(_x + 2 * i, params, Q + 4 * i, valid + 2 * i);
         if (found < 0) {
             refused = 1;
         } else {
             valid_branches += found;
         }
     }
+#endif
     return refused ? -1 : valid_branches;
 }
 
@@ -313,18 +1163,132 @@ void planar_2r_task_velocity(const double *restrict q, const double *restrict qd
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _t1 = l2*sin(_t0);
-    const double _t2 = l2*cos(_t0);
-    xd[0] = -_t1*qd2 + qd1*(-_t1 - l1*sin(q1));
-    xd[1] = _t2*qd2 + qd1*(_t2 + l1*cos(q1));
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+#endif
+    const double _t1 = _s0*l2;
+    const double _t2 = _c0*l2;
+    xd[0] = -_t1*qd2 + qd1*(-_s1*l1 - _t1);
+    xd[1] = _t2*qd2 + qd1*(_c1*l1 + _t2);
 }
 
+/* task_velocity of `count` items, stored one after the other in each argument and output. */
 void planar_2r_task_velocity_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_2r_params *restrict params, double *restrict xd)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _xd_block[2][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)xd & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+            qd1[i] = qd[2 * (start + i) + 0];
+            qd2[i] = qd[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = _c0[i]*l2;
+                _xd_block[0][i] = -_t1*qd2[i] + qd1[i]*(-_s1[i]*l1 - _t1);
+                _xd_block[1][i] = _t2*qd2[i] + qd1[i]*(_c1[i]*l1 + _t2);
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = _c0[i]*l2;
+                xd[2 * (start + i) + 0] = -_t1*qd2[i] + qd1[i]*(-_s1[i]*l1 - _t1);
+                xd[2 * (start + i) + 1] = _t2*qd2[i] + qd1[i]*(_c1[i]*l1 + _t2);
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 2; k += 2) {
+                    _mm_stream_pd(xd + 2 * (start + i) + k, _mm_set_pd(_xd_block[k + 1][i], _xd_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_2r_task_velocity(q + 2 * i, qd + 2 * i, params, xd + 2 * i);
     }
+#endif
 }
 
 /* Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s. */
@@ -340,22 +1304,144 @@ void planar_2r_twist(const double *restrict q, const double *restrict qd, const 
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _t1 = l2*sin(_t0);
-    const double _t2 = l2*cos(_t0);
-    twist[0] = -_t1*qd2 + qd1*(-_t1 - l1*sin(q1));
-    twist[1] = _t2*qd2 + qd1*(_t2 + l1*cos(q1));
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+#endif
+    const double _t1 = _s0*l2;
+    const double _t2 = _c0*l2;
+    twist[0] = -_t1*qd2 + qd1*(-_s1*l1 - _t1);
+    twist[1] = _t2*qd2 + qd1*(_c1*l1 + _t2);
     twist[2] = 0;
     twist[3] = 0;
     twist[4] = 0;
     twist[5] = qd1 + qd2;
 }
 
+/* twist of `count` items, stored one after the other in each argument and output. */
 void planar_2r_twist_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_2r_params *restrict params, double *restrict twist)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _twist_block[6][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)twist & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+            qd1[i] = qd[2 * (start + i) + 0];
+            qd2[i] = qd[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = _c0[i]*l2;
+                _twist_block[0][i] = -_t1*qd2[i] + qd1[i]*(-_s1[i]*l1 - _t1);
+                _twist_block[1][i] = _t2*qd2[i] + qd1[i]*(_c1[i]*l1 + _t2);
+                _twist_block[2][i] = 0;
+                _twist_block[3][i] = 0;
+                _twist_block[4][i] = 0;
+                _twist_block[5][i] = qd1[i] + qd2[i];
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = _c0[i]*l2;
+                twist[6 * (start + i) + 0] = -_t1*qd2[i] + qd1[i]*(-_s1[i]*l1 - _t1);
+                twist[6 * (start + i) + 1] = _t2*qd2[i] + qd1[i]*(_c1[i]*l1 + _t2);
+                twist[6 * (start + i) + 2] = 0;
+                twist[6 * (start + i) + 3] = 0;
+                twist[6 * (start + i) + 4] = 0;
+                twist[6 * (start + i) + 5] = qd1[i] + qd2[i];
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 6; k += 2) {
+                    _mm_stream_pd(twist + 6 * (start + i) + k, _mm_set_pd(_twist_block[k + 1][i], _twist_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_2r_twist(q + 2 * i, qd + 2 * i, params, twist + 6 * i);
     }
+#endif
 }
 
 /* d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 2, 2). */
@@ -371,22 +1457,144 @@ void planar_2r_task_jacobian_dot(const double *restrict q, const double *restric
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _t1 = l2*cos(_t0);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+#endif
+    const double _t1 = _c0*l2;
     const double _t2 = _t1*qd2;
-    const double _t3 = l2*sin(_t0);
+    const double _t3 = _s0*l2;
     const double _t4 = _t3*qd2;
-    Jx_dot[0] = -_t2 + qd1*(-_t1 - l1*cos(q1));
+    Jx_dot[0] = -_t2 + qd1*(-_c1*l1 - _t1);
     Jx_dot[1] = -_t1*qd1 - _t2;
-    Jx_dot[2] = -_t4 + qd1*(-_t3 - l1*sin(q1));
+    Jx_dot[2] = -_t4 + qd1*(-_s1*l1 - _t3);
     Jx_dot[3] = -_t3*qd1 - _t4;
 }
 
+/* task_jacobian_dot of `count` items, stored one after the other in each argument and output. */
 void planar_2r_task_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_2r_params *restrict params, double *restrict Jx_dot)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _Jx_dot_block[4][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx_dot & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+            qd1[i] = qd[2 * (start + i) + 0];
+            qd2[i] = qd[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _c0[i]*l2;
+                const double _t2 = _t1*qd2[i];
+                const double _t3 = _s0[i]*l2;
+                const double _t4 = _t3*qd2[i];
+                _Jx_dot_block[0][i] = -_t2 + qd1[i]*(-_c1[i]*l1 - _t1);
+                _Jx_dot_block[1][i] = -_t1*qd1[i] - _t2;
+                _Jx_dot_block[2][i] = -_t4 + qd1[i]*(-_s1[i]*l1 - _t3);
+                _Jx_dot_block[3][i] = -_t3*qd1[i] - _t4;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _c0[i]*l2;
+                const double _t2 = _t1*qd2[i];
+                const double _t3 = _s0[i]*l2;
+                const double _t4 = _t3*qd2[i];
+                Jx_dot[4 * (start + i) + 0] = -_t2 + qd1[i]*(-_c1[i]*l1 - _t1);
+                Jx_dot[4 * (start + i) + 1] = -_t1*qd1[i] - _t2;
+                Jx_dot[4 * (start + i) + 2] = -_t4 + qd1[i]*(-_s1[i]*l1 - _t3);
+                Jx_dot[4 * (start + i) + 3] = -_t3*qd1[i] - _t4;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 4; k += 2) {
+                    _mm_stream_pd(Jx_dot + 4 * (start + i) + k, _mm_set_pd(_Jx_dot_block[k + 1][i], _Jx_dot_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_2r_task_jacobian_dot(q + 2 * i, qd + 2 * i, params, Jx_dot + 4 * i);
     }
+#endif
 }
 
 /* d(J)/dt of the geometric Jacobian, shape (..., 6, 2). */
@@ -402,13 +1610,39 @@ void planar_2r_jacobian_dot(const double *restrict q, const double *restrict qd,
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _t1 = l2*cos(_t0);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+#endif
+    const double _t1 = _c0*l2;
     const double _t2 = _t1*qd2;
-    const double _t3 = l2*sin(_t0);
+    const double _t3 = _s0*l2;
     const double _t4 = _t3*qd2;
-    J_dot[0] = -_t2 + qd1*(-_t1 - l1*cos(q1));
+    J_dot[0] = -_t2 + qd1*(-_c1*l1 - _t1);
     J_dot[1] = -_t1*qd1 - _t2;
-    J_dot[2] = -_t4 + qd1*(-_t3 - l1*sin(q1));
+    J_dot[2] = -_t4 + qd1*(-_s1*l1 - _t3);
     J_dot[3] = -_t3*qd1 - _t4;
     J_dot[4] = 0;
     J_dot[5] = 0;
@@ -420,12 +1654,124 @@ void planar_2r_jacobian_dot(const double *restrict q, const double *restrict qd,
     J_dot[11] = 0;
 }
 
+/* jacobian_dot of `count` items, stored one after the other in each argument and output. */
 void planar_2r_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_2r_params *restrict params, double *restrict J_dot)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _J_dot_block[12][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_dot & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+            qd1[i] = qd[2 * (start + i) + 0];
+            qd2[i] = qd[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _c0[i]*l2;
+                const double _t2 = _t1*qd2[i];
+                const double _t3 = _s0[i]*l2;
+                const double _t4 = _t3*qd2[i];
+                _J_dot_block[0][i] = -_t2 + qd1[i]*(-_c1[i]*l1 - _t1);
+                _J_dot_block[1][i] = -_t1*qd1[i] - _t2;
+                _J_dot_block[2][i] = -_t4 + qd1[i]*(-_s1[i]*l1 - _t3);
+                _J_dot_block[3][i] = -_t3*qd1[i] - _t4;
+                _J_dot_block[4][i] = 0;
+                _J_dot_block[5][i] = 0;
+                _J_dot_block[6][i] = 0;
+                _J_dot_block[7][i] = 0;
+                _J_dot_block[8][i] = 0;
+                _J_dot_block[9][i] = 0;
+                _J_dot_block[10][i] = 0;
+                _J_dot_block[11][i] = 0;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _c0[i]*l2;
+                const double _t2 = _t1*qd2[i];
+                const double _t3 = _s0[i]*l2;
+                const double _t4 = _t3*qd2[i];
+                J_dot[12 * (start + i) + 0] = -_t2 + qd1[i]*(-_c1[i]*l1 - _t1);
+                J_dot[12 * (start + i) + 1] = -_t1*qd1[i] - _t2;
+                J_dot[12 * (start + i) + 2] = -_t4 + qd1[i]*(-_s1[i]*l1 - _t3);
+                J_dot[12 * (start + i) + 3] = -_t3*qd1[i] - _t4;
+                J_dot[12 * (start + i) + 4] = 0;
+                J_dot[12 * (start + i) + 5] = 0;
+                J_dot[12 * (start + i) + 6] = 0;
+                J_dot[12 * (start + i) + 7] = 0;
+                J_dot[12 * (start + i) + 8] = 0;
+                J_dot[12 * (start + i) + 9] = 0;
+                J_dot[12 * (start + i) + 10] = 0;
+                J_dot[12 * (start + i) + 11] = 0;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 12; k += 2) {
+                    _mm_stream_pd(J_dot + 12 * (start + i) + k, _mm_set_pd(_J_dot_block[k + 1][i], _J_dot_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_2r_jacobian_dot(q + 2 * i, qd + 2 * i, params, J_dot + 12 * i);
     }
+#endif
 }
 
 /* Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 2). */
@@ -443,22 +1789,148 @@ void planar_2r_task_acceleration(const double *restrict q, const double *restric
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double _t0 = q1 + q2;
-    const double _t1 = l2*sin(_t0);
-    const double _t2 = -_t1 - l1*sin(q1);
-    const double _t3 = l2*cos(_t0);
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+#endif
+    const double _t1 = _s0*l2;
+    const double _t2 = -_s1*l1 - _t1;
+    const double _t3 = _c0*l2;
     const double _t4 = _t3*qd2;
-    const double _t5 = _t3 + l1*cos(q1);
+    const double _t5 = _c1*l1 + _t3;
     const double _t6 = _t1*qd2;
     xdd[0] = -_t1*qdd2 + _t2*qdd1 + qd1*(-_t4 - _t5*qd1) + qd2*(-_t3*qd1 - _t4);
     xdd[1] = _t3*qdd2 + _t5*qdd1 + qd1*(_t2*qd1 - _t6) + qd2*(-_t1*qd1 - _t6);
 }
 
+/* task_acceleration of `count` items, stored one after the other in each argument and output. */
 void planar_2r_task_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict qdd, const planar_2r_params *restrict params, double *restrict xdd)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double qdd1[KINEGEN_BLOCK_OF(64)];
+    double qdd2[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _xdd_block[2][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)xdd & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+            qd1[i] = qd[2 * (start + i) + 0];
+            qd2[i] = qd[2 * (start + i) + 1];
+            qdd1[i] = qdd[2 * (start + i) + 0];
+            qdd2[i] = qdd[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = -_s1[i]*l1 - _t1;
+                const double _t3 = _c0[i]*l2;
+                const double _t4 = _t3*qd2[i];
+                const double _t5 = _c1[i]*l1 + _t3;
+                const double _t6 = _t1*qd2[i];
+                _xdd_block[0][i] = -_t1*qdd2[i] + _t2*qdd1[i] + qd1[i]*(-_t4 - _t5*qd1[i]) + qd2[i]*(-_t3*qd1[i] - _t4);
+                _xdd_block[1][i] = _t3*qdd2[i] + _t5*qdd1[i] + qd1[i]*(_t2*qd1[i] - _t6) + qd2[i]*(-_t1*qd1[i] - _t6);
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*l2;
+                const double _t2 = -_s1[i]*l1 - _t1;
+                const double _t3 = _c0[i]*l2;
+                const double _t4 = _t3*qd2[i];
+                const double _t5 = _c1[i]*l1 + _t3;
+                const double _t6 = _t1*qd2[i];
+                xdd[2 * (start + i) + 0] = -_t1*qdd2[i] + _t2*qdd1[i] + qd1[i]*(-_t4 - _t5*qd1[i]) + qd2[i]*(-_t3*qd1[i] - _t4);
+                xdd[2 * (start + i) + 1] = _t3*qdd2[i] + _t5*qdd1[i] + qd1[i]*(_t2*qd1[i] - _t6) + qd2[i]*(-_t1*qd1[i] - _t6);
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 2; k += 2) {
+                    _mm_stream_pd(xdd + 2 * (start + i) + k, _mm_set_pd(_xdd_block[k + 1][i], _xdd_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_2r_task_acceleration(q + 2 * i, qd + 2 * i, qdd + 2 * i, params, xdd + 2 * i);
     }
+#endif
 }
 
 /* Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...). */
@@ -470,17 +1942,45 @@ void planar_2r_manipulability(const double *restrict q, const planar_2r_params *
     }
     const double l1 = params->l1;
     const double l2 = params->l2;
-    const double _t0 = sin(q2);
-    manipulability[0] = fabs(_t0*l1*l2);
-    singular[0] = (_t0*_t0)*(l1*l1)*(l2*l2)/((fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))) < 1e-06;
+    double _s0;
+    _s0 = sin(q2);
+    manipulability[0] = fabs(_s0*l1*l2);
+    singular[0] = (_s0*_s0)*(l1*l1)*(l2*l2)/((fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))) < 1e-06;
 }
 
+/* manipulability of `count` items, stored one after the other in each argument and output. */
 void planar_2r_manipulability_batch(size_t count, const double *restrict q, const planar_2r_params *restrict params, double *restrict manipulability, int *restrict singular)
 {
+#ifdef KINEGEN_BLOCKED
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q2[i] = q[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            manipulability[1 * (start + i) + 0] = fabs(_s0[i]*l1*l2);
+            singular[1 * (start + i) + 0] = (_s0[i]*_s0[i])*(l1*l1)*(l2*l2)/((fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))) < 1e-06;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_2r_manipulability(q + 2 * i, params, manipulability + 1 * i, singular + 1 * i);
     }
+#endif
 }
 
 /* Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 2) and (...). */
@@ -498,31 +1998,56 @@ void planar_2r_joint_velocity(const double *restrict q, const double *restrict x
     const double _t0 = fabs(l1) + fabs(l2);
     const double _t1 = (_t0*_t0*_t0*_t0);
     const double _t2 = (l2*l2);
-    const double _t3 = sin(q2);
-    const double _t4 = _t2*(_t3*_t3)*(l1*l1);
-    const double _t5 = _t4/_t1;
-    const double _t6 = fmax(0, 1 - 1000000*_t5);
-    const double _t7 = q1 + q2;
-    const double _t8 = cos(_t7);
     const double _t9 = 1.0/(_t0*_t0);
     const double _t10 = _t2*_t9;
-    const double _t11 = _t8*l2;
-    const double _t12 = _t11 + l1*cos(q1);
-    const double _t13 = _t10*(_t8*_t8) + (_t12*_t12)*_t9;
-    const double _t14 = (0.0001)*_t6;
-    const double _t15 = sin(_t7);
-    const double _t16 = _t15*l2;
-    const double _t17 = -_t16 - l1*sin(q1);
-    const double _t18 = _t10*(_t15*_t15) + (_t17*_t17)*_t9;
-    const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-08)*(_t6*_t6));
     const double _t20 = 1.0/_t0;
-    const double _t21 = _t10*_t15*_t8 - _t12*_t17*_t9;
+    const double _t7 = q1 + q2;
+    double _s0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q2, _t7, q1, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(q2);
+    _s1 = sin(_t7);
+    _c1 = cos(_t7);
+    _s2 = sin(q1);
+    _c2 = cos(q1);
+#endif
+    const double _t4 = (_s0*_s0)*_t2*(l1*l1);
+    const double _t5 = _t4/_t1;
+    const double _t6 = kinegen_max(0, 1 - 1000000*_t5);
+    const double _t11 = _c1*l2;
+    const double _t12 = _c2*l1 + _t11;
+    const double _t13 = (_c1*_c1)*_t10 + (_t12*_t12)*_t9;
+    const double _t14 = (0.0001)*_t6;
+    const double _t16 = _s1*l2;
+    const double _t17 = -_s2*l1 - _t16;
+    const double _t18 = (_s1*_s1)*_t10 + (_t17*_t17)*_t9;
+    const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-08)*(_t6*_t6));
+    const double _t21 = _c1*_s1*_t10 - _t12*_t17*_t9;
     const double _t22 = _t20*xd_y;
     const double _t23 = _t20*xd_x;
     const double _t24 = _t20*(_t21*_t22 + _t23*(_t13 + _t14));
     const double _t25 = _t20*(_t21*_t23 + _t22*(_t14 + _t18));
     const int _t26 = _t5 < 1e-06;
-    const double _t27 = _t3*l1*l2/fmax(_t4, (1e-06)*_t1);
+    const double _t27 = _s0*l1*l2/kinegen_max(_t4, (1e-06)*_t1);
     qd[0] = ((_t26) ? (
    _t19*(_t12*_t25 + _t17*_t24)
 )
@@ -538,12 +2063,165 @@ void planar_2r_joint_velocity(const double *restrict q, const double *restrict x
     singular[0] = _t26;
 }
 
+/* joint_velocity of `count` items, stored one after the other in each argument and output. */
 void planar_2r_joint_velocity_batch(size_t count, const double *restrict q, const double *restrict xd, const planar_2r_params *restrict params, double *restrict qd, int *restrict singular)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double xd_x[KINEGEN_BLOCK_OF(64)];
+    double xd_y[KINEGEN_BLOCK_OF(64)];
+    double _t7[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _qd_block[2][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)qd & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double _t0 = fabs(l1) + fabs(l2);
+    const double _t1 = (_t0*_t0*_t0*_t0);
+    const double _t2 = (l2*l2);
+    const double _t9 = 1.0/(_t0*_t0);
+    const double _t10 = _t2*_t9;
+    const double _t20 = 1.0/_t0;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+            xd_x[i] = xd[2 * (start + i) + 0];
+            xd_y[i] = xd[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t7[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t7[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t7[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t4 = (_s0[i]*_s0[i])*_t2*(l1*l1);
+                const double _t5 = _t4/_t1;
+                const double _t6 = kinegen_max(0, 1 - 1000000*_t5);
+                const double _t11 = _c1[i]*l2;
+                const double _t12 = _c2[i]*l1 + _t11;
+                const double _t13 = (_c1[i]*_c1[i])*_t10 + (_t12*_t12)*_t9;
+                const double _t14 = (0.0001)*_t6;
+                const double _t16 = _s1[i]*l2;
+                const double _t17 = -_s2[i]*l1 - _t16;
+                const double _t18 = (_s1[i]*_s1[i])*_t10 + (_t17*_t17)*_t9;
+                const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-08)*(_t6*_t6));
+                const double _t21 = _c1[i]*_s1[i]*_t10 - _t12*_t17*_t9;
+                const double _t22 = _t20*xd_y[i];
+                const double _t23 = _t20*xd_x[i];
+                const double _t24 = _t20*(_t21*_t22 + _t23*(_t13 + _t14));
+                const double _t25 = _t20*(_t21*_t23 + _t22*(_t14 + _t18));
+                const int _t26 = _t5 < 1e-06;
+                const double _t27 = _s0[i]*l1*l2/kinegen_max(_t4, (1e-06)*_t1);
+                _qd_block[0][i] = ((_t26) ? (
+   _t19*(_t12*_t25 + _t17*_t24)
+)
+: (
+   _t27*(_t11*xd_x[i] + _t16*xd_y[i])
+));
+                _qd_block[1][i] = ((_t26) ? (
+   _t19*(_t11*_t25 - _t16*_t24)
+)
+: (
+   _t27*(-_t12*xd_x[i] + _t17*xd_y[i])
+));
+                singular[1 * (start + i) + 0] = _t26;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t4 = (_s0[i]*_s0[i])*_t2*(l1*l1);
+                const double _t5 = _t4/_t1;
+                const double _t6 = kinegen_max(0, 1 - 1000000*_t5);
+                const double _t11 = _c1[i]*l2;
+                const double _t12 = _c2[i]*l1 + _t11;
+                const double _t13 = (_c1[i]*_c1[i])*_t10 + (_t12*_t12)*_t9;
+                const double _t14 = (0.0001)*_t6;
+                const double _t16 = _s1[i]*l2;
+                const double _t17 = -_s2[i]*l1 - _t16;
+                const double _t18 = (_s1[i]*_s1[i])*_t10 + (_t17*_t17)*_t9;
+                const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-08)*(_t6*_t6));
+                const double _t21 = _c1[i]*_s1[i]*_t10 - _t12*_t17*_t9;
+                const double _t22 = _t20*xd_y[i];
+                const double _t23 = _t20*xd_x[i];
+                const double _t24 = _t20*(_t21*_t22 + _t23*(_t13 + _t14));
+                const double _t25 = _t20*(_t21*_t23 + _t22*(_t14 + _t18));
+                const int _t26 = _t5 < 1e-06;
+                const double _t27 = _s0[i]*l1*l2/kinegen_max(_t4, (1e-06)*_t1);
+                qd[2 * (start + i) + 0] = ((_t26) ? (
+   _t19*(_t12*_t25 + _t17*_t24)
+)
+: (
+   _t27*(_t11*xd_x[i] + _t16*xd_y[i])
+));
+                qd[2 * (start + i) + 1] = ((_t26) ? (
+   _t19*(_t11*_t25 - _t16*_t24)
+)
+: (
+   _t27*(-_t12*xd_x[i] + _t17*xd_y[i])
+));
+                singular[1 * (start + i) + 0] = _t26;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 2; k += 2) {
+                    _mm_stream_pd(qd + 2 * (start + i) + k, _mm_set_pd(_qd_block[k + 1][i], _qd_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_2r_joint_velocity(q + 2 * i, xd + 2 * i, params, qd + 2 * i, singular + 1 * i);
     }
+#endif
 }
 
 /* Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 2) and (...). */
@@ -563,34 +2241,59 @@ void planar_2r_joint_acceleration(const double *restrict q, const double *restri
     const double _t0 = fabs(l1) + fabs(l2);
     const double _t1 = (_t0*_t0*_t0*_t0);
     const double _t2 = (l2*l2);
-    const double _t3 = sin(q2);
-    const double _t4 = _t2*(_t3*_t3)*(l1*l1);
-    const double _t5 = _t4/_t1;
-    const double _t6 = fmax(0, 1 - 1000000*_t5);
-    const double _t7 = q1 + q2;
-    const double _t8 = cos(_t7);
     const double _t9 = 1.0/(_t0*_t0);
     const double _t10 = _t2*_t9;
-    const double _t11 = _t8*l2;
-    const double _t12 = _t11 + l1*cos(q1);
-    const double _t13 = _t10*(_t8*_t8) + (_t12*_t12)*_t9;
-    const double _t14 = (0.0001)*_t6;
-    const double _t15 = sin(_t7);
-    const double _t16 = _t15*l2;
-    const double _t17 = -_t16 - l1*sin(q1);
-    const double _t18 = _t10*(_t15*_t15) + (_t17*_t17)*_t9;
-    const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-08)*(_t6*_t6));
     const double _t20 = 1.0/_t0;
+    const double _t7 = q1 + q2;
+    double _s0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q2, _t7, q1, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(q2);
+    _s1 = sin(_t7);
+    _c1 = cos(_t7);
+    _s2 = sin(q1);
+    _c2 = cos(q1);
+#endif
+    const double _t4 = (_s0*_s0)*_t2*(l1*l1);
+    const double _t5 = _t4/_t1;
+    const double _t6 = kinegen_max(0, 1 - 1000000*_t5);
+    const double _t11 = _c1*l2;
+    const double _t12 = _c2*l1 + _t11;
+    const double _t13 = (_c1*_c1)*_t10 + (_t12*_t12)*_t9;
+    const double _t14 = (0.0001)*_t6;
+    const double _t16 = _s1*l2;
+    const double _t17 = -_s2*l1 - _t16;
+    const double _t18 = (_s1*_s1)*_t10 + (_t17*_t17)*_t9;
+    const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-08)*(_t6*_t6));
     const double _t21 = _t16*qd2;
     const double _t22 = -qd1*(_t17*qd1 - _t21) - qd2*(-_t16*qd1 - _t21) + xdd_y;
-    const double _t23 = _t20*(_t10*_t15*_t8 - _t12*_t17*_t9);
+    const double _t23 = _t20*(_c1*_s1*_t10 - _t12*_t17*_t9);
     const double _t24 = _t11*qd2;
     const double _t25 = -_t12;
     const double _t26 = -qd1*(-_t24 + _t25*qd1) - qd2*(-_t11*qd1 - _t24) + xdd_x;
     const double _t27 = _t20*(_t20*_t26*(_t13 + _t14) + _t22*_t23);
     const double _t28 = _t20*_t22*(_t14 + _t18) + _t23*_t26;
     const int _t29 = _t5 < 1e-06;
-    const double _t30 = _t3*l1*l2/fmax(_t4, (1e-06)*_t1);
+    const double _t30 = _s0*l1*l2/kinegen_max(_t4, (1e-06)*_t1);
     qdd[0] = ((_t29) ? (
    _t19*(_t12*_t20*_t28 + _t17*_t27)
 )
@@ -598,7 +2301,7 @@ void planar_2r_joint_acceleration(const double *restrict q, const double *restri
    _t30*(_t11*_t26 + _t16*_t22)
 ));
     qdd[1] = ((_t29) ? (
-   _t19*(-_t16*_t27 + _t20*_t28*_t8*l2)
+   _t19*(_c1*_t20*_t28*l2 - _t16*_t27)
 )
 : (
    _t30*(_t17*_t22 + _t25*_t26)
@@ -606,12 +2309,175 @@ void planar_2r_joint_acceleration(const double *restrict q, const double *restri
     singular[0] = _t29;
 }
 
+/* joint_acceleration of `count` items, stored one after the other in each argument and output. */
 void planar_2r_joint_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict xdd, const planar_2r_params *restrict params, double *restrict qdd, int *restrict singular)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double xdd_x[KINEGEN_BLOCK_OF(64)];
+    double xdd_y[KINEGEN_BLOCK_OF(64)];
+    double _t7[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _qdd_block[2][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)qdd & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double _t0 = fabs(l1) + fabs(l2);
+    const double _t1 = (_t0*_t0*_t0*_t0);
+    const double _t2 = (l2*l2);
+    const double _t9 = 1.0/(_t0*_t0);
+    const double _t10 = _t2*_t9;
+    const double _t20 = 1.0/_t0;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+            qd1[i] = qd[2 * (start + i) + 0];
+            qd2[i] = qd[2 * (start + i) + 1];
+            xdd_x[i] = xdd[2 * (start + i) + 0];
+            xdd_y[i] = xdd[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t7[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t7[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t7[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t4 = (_s0[i]*_s0[i])*_t2*(l1*l1);
+                const double _t5 = _t4/_t1;
+                const double _t6 = kinegen_max(0, 1 - 1000000*_t5);
+                const double _t11 = _c1[i]*l2;
+                const double _t12 = _c2[i]*l1 + _t11;
+                const double _t13 = (_c1[i]*_c1[i])*_t10 + (_t12*_t12)*_t9;
+                const double _t14 = (0.0001)*_t6;
+                const double _t16 = _s1[i]*l2;
+                const double _t17 = -_s2[i]*l1 - _t16;
+                const double _t18 = (_s1[i]*_s1[i])*_t10 + (_t17*_t17)*_t9;
+                const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-08)*(_t6*_t6));
+                const double _t21 = _t16*qd2[i];
+                const double _t22 = -qd1[i]*(_t17*qd1[i] - _t21) - qd2[i]*(-_t16*qd1[i] - _t21) + xdd_y[i];
+                const double _t23 = _t20*(_c1[i]*_s1[i]*_t10 - _t12*_t17*_t9);
+                const double _t24 = _t11*qd2[i];
+                const double _t25 = -_t12;
+                const double _t26 = -qd1[i]*(-_t24 + _t25*qd1[i]) - qd2[i]*(-_t11*qd1[i] - _t24) + xdd_x[i];
+                const double _t27 = _t20*(_t20*_t26*(_t13 + _t14) + _t22*_t23);
+                const double _t28 = _t20*_t22*(_t14 + _t18) + _t23*_t26;
+                const int _t29 = _t5 < 1e-06;
+                const double _t30 = _s0[i]*l1*l2/kinegen_max(_t4, (1e-06)*_t1);
+                _qdd_block[0][i] = ((_t29) ? (
+   _t19*(_t12*_t20*_t28 + _t17*_t27)
+)
+: (
+   _t30*(_t11*_t26 + _t16*_t22)
+));
+                _qdd_block[1][i] = ((_t29) ? (
+   _t19*(_c1[i]*_t20*_t28*l2 - _t16*_t27)
+)
+: (
+   _t30*(_t17*_t22 + _t25*_t26)
+));
+                singular[1 * (start + i) + 0] = _t29;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t4 = (_s0[i]*_s0[i])*_t2*(l1*l1);
+                const double _t5 = _t4/_t1;
+                const double _t6 = kinegen_max(0, 1 - 1000000*_t5);
+                const double _t11 = _c1[i]*l2;
+                const double _t12 = _c2[i]*l1 + _t11;
+                const double _t13 = (_c1[i]*_c1[i])*_t10 + (_t12*_t12)*_t9;
+                const double _t14 = (0.0001)*_t6;
+                const double _t16 = _s1[i]*l2;
+                const double _t17 = -_s2[i]*l1 - _t16;
+                const double _t18 = (_s1[i]*_s1[i])*_t10 + (_t17*_t17)*_t9;
+                const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-08)*(_t6*_t6));
+                const double _t21 = _t16*qd2[i];
+                const double _t22 = -qd1[i]*(_t17*qd1[i] - _t21) - qd2[i]*(-_t16*qd1[i] - _t21) + xdd_y[i];
+                const double _t23 = _t20*(_c1[i]*_s1[i]*_t10 - _t12*_t17*_t9);
+                const double _t24 = _t11*qd2[i];
+                const double _t25 = -_t12;
+                const double _t26 = -qd1[i]*(-_t24 + _t25*qd1[i]) - qd2[i]*(-_t11*qd1[i] - _t24) + xdd_x[i];
+                const double _t27 = _t20*(_t20*_t26*(_t13 + _t14) + _t22*_t23);
+                const double _t28 = _t20*_t22*(_t14 + _t18) + _t23*_t26;
+                const int _t29 = _t5 < 1e-06;
+                const double _t30 = _s0[i]*l1*l2/kinegen_max(_t4, (1e-06)*_t1);
+                qdd[2 * (start + i) + 0] = ((_t29) ? (
+   _t19*(_t12*_t20*_t28 + _t17*_t27)
+)
+: (
+   _t30*(_t11*_t26 + _t16*_t22)
+));
+                qdd[2 * (start + i) + 1] = ((_t29) ? (
+   _t19*(_c1[i]*_t20*_t28*l2 - _t16*_t27)
+)
+: (
+   _t30*(_t17*_t22 + _t25*_t26)
+));
+                singular[1 * (start + i) + 0] = _t29;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 2; k += 2) {
+                    _mm_stream_pd(qdd + 2 * (start + i) + k, _mm_set_pd(_qdd_block[k + 1][i], _qdd_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_2r_joint_acceleration(q + 2 * i, qd + 2 * i, xdd + 2 * i, params, qdd + 2 * i, singular + 1 * i);
     }
+#endif
 }
 
 /* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */

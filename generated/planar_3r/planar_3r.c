@@ -23,7 +23,71 @@
 
 #include <math.h>
 
+/*
+ * Batched entry points.  Plain C99 loops over the single-point entry point by
+ * default.  With -DKINEGEN_BLOCKED they work through their items in blocks of
+ * KINEGEN_BLOCK instead: the inputs of a block are copied into one array per
+ * coordinate, every sine and every cosine is taken in a loop of its own, and the
+ * arithmetic runs in one loop per stage, from the same expressions as the single
+ * point (so the results are bit-identical).  -DKINEGEN_SIMD -fopenmp-simd (what
+ * build_c.py uses where the compiler and C library allow) adds to that SIMD
+ * declarations of the math functions, so that the loops vectorise and call
+ * glibc's vector math library (libmvec, at most 4 ulp), and the single point
+ * takes the sines and cosines of a stage's angles as one vector.  No NaN or
+ * infinity check is affected: no -ffast-math is involved.
+ */
+#ifdef KINEGEN_SIMD
+#pragma omp declare simd notinbranch
+double sin(double);
+#pragma omp declare simd notinbranch
+double cos(double);
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+/* libmvec has these from glibc 2.35 on. */
+#pragma omp declare simd notinbranch
+double atan2(double, double);
+#pragma omp declare simd notinbranch
+double acos(double);
+#pragma omp declare simd notinbranch
+double asin(double);
+#endif
+#define KINEGEN_VECTOR_LOOP _Pragma("omp simd")
+#ifndef KINEGEN_BLOCKED
+#define KINEGEN_BLOCKED
+#endif
+#else
+#define KINEGEN_VECTOR_LOOP
+#endif
+#ifndef KINEGEN_BLOCK
+#define KINEGEN_BLOCK 64
+#endif
+/* Each kernel's block: at most KINEGEN_BLOCK items, fewer where its arrays would pass 32 KiB of stack. */
+#define KINEGEN_BLOCK_OF(items) ((items) < KINEGEN_BLOCK ? (items) : KINEGEN_BLOCK)
+#if defined(KINEGEN_SIMD) && defined(__SSE2__) && !defined(KINEGEN_NO_STREAM)
+/* Batches whose outputs exceed KINEGEN_STREAM_BYTES write them with SSE2 streaming
+   stores: a plain store first reads the line it overwrites, which doubles the memory
+   traffic of a batch too large for the caches. */
+#include <emmintrin.h>
+#include <stdint.h>
+#define KINEGEN_STREAM
+#ifndef KINEGEN_STREAM_BYTES
+#define KINEGEN_STREAM_BYTES 1048576
+#endif
+#endif
+
 const planar_3r_params planar_3r_default_params = { 0.5, 0.4, 0.2 };
+
+/* min and max that pass a NaN on, like numpy.minimum and numpy.maximum: C99's fmin and
+   fmax would turn an acos argument of NaN into +-1 and a valid-looking angle.  Each is
+   emitted only where a kernel uses it (static: -Werror=unused-function). */
+static double kinegen_min(double a, double b)
+{
+    return isnan(a) || a < b ? a : b;
+}
+
+static double kinegen_max(double a, double b)
+{
+    return isnan(a) || a > b ? a : b;
+}
 
 /* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi. */
 static double kinegen_wrap_angle(double angle)
@@ -53,16 +117,44 @@ void planar_3r_fk(const double *restrict q, const planar_3r_params *restrict par
     const double l3 = params->l3;
     const double _t0 = q1 + q2;
     const double _t1 = _t0 + q3;
-    const double _t2 = cos(_t1);
-    const double _t3 = sin(_t1);
-    T[0] = _t2;
-    T[1] = -_t3;
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t1, q1, _t0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t1);
+    _c0 = cos(_t1);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+    _s2 = sin(_t0);
+    _c2 = cos(_t0);
+#endif
+    T[0] = _c0;
+    T[1] = -_s0;
     T[2] = 0;
-    T[3] = _t2*l3 + l1*cos(q1) + l2*cos(_t0);
-    T[4] = _t3;
-    T[5] = _t2;
+    T[3] = _c0*l3 + _c1*l1 + _c2*l2;
+    T[4] = _s0;
+    T[5] = _c0;
     T[6] = 0;
-    T[7] = _t3*l3 + l1*sin(q1) + l2*sin(_t0);
+    T[7] = _s0*l3 + _s1*l1 + _s2*l2;
     T[8] = 0;
     T[9] = 0;
     T[10] = 1;
@@ -73,12 +165,135 @@ void planar_3r_fk(const double *restrict q, const planar_3r_params *restrict par
     T[15] = 1;
 }
 
+/* fk of `count` items, stored one after the other in each argument and output. */
 void planar_3r_fk_batch(size_t count, const double *restrict q, const planar_3r_params *restrict params, double *restrict T)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _T_block[16][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+            q3[i] = q[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+            _t1[i] = _t0[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t0[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _T_block[0][i] = _c0[i];
+                _T_block[1][i] = -_s0[i];
+                _T_block[2][i] = 0;
+                _T_block[3][i] = _c0[i]*l3 + _c1[i]*l1 + _c2[i]*l2;
+                _T_block[4][i] = _s0[i];
+                _T_block[5][i] = _c0[i];
+                _T_block[6][i] = 0;
+                _T_block[7][i] = _s0[i]*l3 + _s1[i]*l1 + _s2[i]*l2;
+                _T_block[8][i] = 0;
+                _T_block[9][i] = 0;
+                _T_block[10][i] = 1;
+                _T_block[11][i] = 0;
+                _T_block[12][i] = 0;
+                _T_block[13][i] = 0;
+                _T_block[14][i] = 0;
+                _T_block[15][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                T[16 * (start + i) + 0] = _c0[i];
+                T[16 * (start + i) + 1] = -_s0[i];
+                T[16 * (start + i) + 2] = 0;
+                T[16 * (start + i) + 3] = _c0[i]*l3 + _c1[i]*l1 + _c2[i]*l2;
+                T[16 * (start + i) + 4] = _s0[i];
+                T[16 * (start + i) + 5] = _c0[i];
+                T[16 * (start + i) + 6] = 0;
+                T[16 * (start + i) + 7] = _s0[i]*l3 + _s1[i]*l1 + _s2[i]*l2;
+                T[16 * (start + i) + 8] = 0;
+                T[16 * (start + i) + 9] = 0;
+                T[16 * (start + i) + 10] = 1;
+                T[16 * (start + i) + 11] = 0;
+                T[16 * (start + i) + 12] = 0;
+                T[16 * (start + i) + 13] = 0;
+                T[16 * (start + i) + 14] = 0;
+                T[16 * (start + i) + 15] = 1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 16; k += 2) {
+                    _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_3r_fk(q + 3 * i, params, T + 16 * i);
     }
+#endif
 }
 
 /* Frames T_0 (base) .. T_3 (tool), shape (..., 4, 4, 4). */
@@ -93,18 +308,42 @@ void planar_3r_frames(const double *restrict q, const planar_3r_params *restrict
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double l3 = params->l3;
-    const double _t0 = cos(q1);
-    const double _t1 = sin(q1);
-    const double _t2 = _t0*l1;
-    const double _t3 = _t1*l1;
     const double _t4 = q1 + q2;
-    const double _t5 = cos(_t4);
-    const double _t6 = sin(_t4);
-    const double _t7 = _t2 + _t5*l2;
-    const double _t8 = _t3 + _t6*l2;
     const double _t9 = _t4 + q3;
-    const double _t10 = cos(_t9);
-    const double _t11 = sin(_t9);
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q1, _t4, _t9, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t4);
+    _c1 = cos(_t4);
+    _s2 = sin(_t9);
+    _c2 = cos(_t9);
+#endif
+    const double _t2 = _c0*l1;
+    const double _t3 = _s0*l1;
+    const double _t7 = _c1*l2 + _t2;
+    const double _t8 = _s1*l2 + _t3;
     frames[0] = 1;
     frames[1] = 0;
     frames[2] = 0;
@@ -121,12 +360,12 @@ void planar_3r_frames(const double *restrict q, const planar_3r_params *restrict
     frames[13] = 0;
     frames[14] = 0;
     frames[15] = 1;
-    frames[16] = _t0;
-    frames[17] = -_t1;
+    frames[16] = _c0;
+    frames[17] = -_s0;
     frames[18] = 0;
     frames[19] = _t2;
-    frames[20] = _t1;
-    frames[21] = _t0;
+    frames[20] = _s0;
+    frames[21] = _c0;
     frames[22] = 0;
     frames[23] = _t3;
     frames[24] = 0;
@@ -137,12 +376,12 @@ void planar_3r_frames(const double *restrict q, const planar_3r_params *restrict
     frames[29] = 0;
     frames[30] = 0;
     frames[31] = 1;
-    frames[32] = _t5;
-    frames[33] = -_t6;
+    frames[32] = _c1;
+    frames[33] = -_s1;
     frames[34] = 0;
     frames[35] = _t7;
-    frames[36] = _t6;
-    frames[37] = _t5;
+    frames[36] = _s1;
+    frames[37] = _c1;
     frames[38] = 0;
     frames[39] = _t8;
     frames[40] = 0;
@@ -153,14 +392,14 @@ void planar_3r_frames(const double *restrict q, const planar_3r_params *restrict
     frames[45] = 0;
     frames[46] = 0;
     frames[47] = 1;
-    frames[48] = _t10;
-    frames[49] = -_t11;
+    frames[48] = _c2;
+    frames[49] = -_s2;
     frames[50] = 0;
-    frames[51] = _t10*l3 + _t7;
-    frames[52] = _t11;
-    frames[53] = _t10;
+    frames[51] = _c2*l3 + _t7;
+    frames[52] = _s2;
+    frames[53] = _c2;
     frames[54] = 0;
-    frames[55] = _t11*l3 + _t8;
+    frames[55] = _s2*l3 + _t8;
     frames[56] = 0;
     frames[57] = 0;
     frames[58] = 1;
@@ -171,12 +410,239 @@ void planar_3r_frames(const double *restrict q, const planar_3r_params *restrict
     frames[63] = 1;
 }
 
+/* frames of `count` items, stored one after the other in each argument and output. */
 void planar_3r_frames_batch(size_t count, const double *restrict q, const planar_3r_params *restrict params, double *restrict frames)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(32)];
+    double q2[KINEGEN_BLOCK_OF(32)];
+    double q3[KINEGEN_BLOCK_OF(32)];
+    double _t4[KINEGEN_BLOCK_OF(32)];
+    double _t9[KINEGEN_BLOCK_OF(32)];
+    double _s0[KINEGEN_BLOCK_OF(32)];
+    double _c0[KINEGEN_BLOCK_OF(32)];
+    double _s1[KINEGEN_BLOCK_OF(32)];
+    double _c1[KINEGEN_BLOCK_OF(32)];
+    double _s2[KINEGEN_BLOCK_OF(32)];
+    double _c2[KINEGEN_BLOCK_OF(32)];
+#ifdef KINEGEN_STREAM
+    double _frames_block[64][KINEGEN_BLOCK_OF(32)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 64 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(32) ? count - start : KINEGEN_BLOCK_OF(32);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+            q3[i] = q[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t4[i] = q1[i] + q2[i];
+            _t9[i] = _t4[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t9[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t9[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c0[i]*l1;
+                const double _t3 = _s0[i]*l1;
+                const double _t7 = _c1[i]*l2 + _t2;
+                const double _t8 = _s1[i]*l2 + _t3;
+                _frames_block[0][i] = 1;
+                _frames_block[1][i] = 0;
+                _frames_block[2][i] = 0;
+                _frames_block[3][i] = 0;
+                _frames_block[4][i] = 0;
+                _frames_block[5][i] = 1;
+                _frames_block[6][i] = 0;
+                _frames_block[7][i] = 0;
+                _frames_block[8][i] = 0;
+                _frames_block[9][i] = 0;
+                _frames_block[10][i] = 1;
+                _frames_block[11][i] = 0;
+                _frames_block[12][i] = 0;
+                _frames_block[13][i] = 0;
+                _frames_block[14][i] = 0;
+                _frames_block[15][i] = 1;
+                _frames_block[16][i] = _c0[i];
+                _frames_block[17][i] = -_s0[i];
+                _frames_block[18][i] = 0;
+                _frames_block[19][i] = _t2;
+                _frames_block[20][i] = _s0[i];
+                _frames_block[21][i] = _c0[i];
+                _frames_block[22][i] = 0;
+                _frames_block[23][i] = _t3;
+                _frames_block[24][i] = 0;
+                _frames_block[25][i] = 0;
+                _frames_block[26][i] = 1;
+                _frames_block[27][i] = 0;
+                _frames_block[28][i] = 0;
+                _frames_block[29][i] = 0;
+                _frames_block[30][i] = 0;
+                _frames_block[31][i] = 1;
+                _frames_block[32][i] = _c1[i];
+                _frames_block[33][i] = -_s1[i];
+                _frames_block[34][i] = 0;
+                _frames_block[35][i] = _t7;
+                _frames_block[36][i] = _s1[i];
+                _frames_block[37][i] = _c1[i];
+                _frames_block[38][i] = 0;
+                _frames_block[39][i] = _t8;
+                _frames_block[40][i] = 0;
+                _frames_block[41][i] = 0;
+                _frames_block[42][i] = 1;
+                _frames_block[43][i] = 0;
+                _frames_block[44][i] = 0;
+                _frames_block[45][i] = 0;
+                _frames_block[46][i] = 0;
+                _frames_block[47][i] = 1;
+                _frames_block[48][i] = _c2[i];
+                _frames_block[49][i] = -_s2[i];
+                _frames_block[50][i] = 0;
+                _frames_block[51][i] = _c2[i]*l3 + _t7;
+                _frames_block[52][i] = _s2[i];
+                _frames_block[53][i] = _c2[i];
+                _frames_block[54][i] = 0;
+                _frames_block[55][i] = _s2[i]*l3 + _t8;
+                _frames_block[56][i] = 0;
+                _frames_block[57][i] = 0;
+                _frames_block[58][i] = 1;
+                _frames_block[59][i] = 0;
+                _frames_block[60][i] = 0;
+                _frames_block[61][i] = 0;
+                _frames_block[62][i] = 0;
+                _frames_block[63][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c0[i]*l1;
+                const double _t3 = _s0[i]*l1;
+                const double _t7 = _c1[i]*l2 + _t2;
+                const double _t8 = _s1[i]*l2 + _t3;
+                frames[64 * (start + i) + 0] = 1;
+                frames[64 * (start + i) + 1] = 0;
+                frames[64 * (start + i) + 2] = 0;
+                frames[64 * (start + i) + 3] = 0;
+                frames[64 * (start + i) + 4] = 0;
+                frames[64 * (start + i) + 5] = 1;
+                frames[64 * (start + i) + 6] = 0;
+                frames[64 * (start + i) + 7] = 0;
+                frames[64 * (start + i) + 8] = 0;
+                frames[64 * (start + i) + 9] = 0;
+                frames[64 * (start + i) + 10] = 1;
+                frames[64 * (start + i) + 11] = 0;
+                frames[64 * (start + i) + 12] = 0;
+                frames[64 * (start + i) + 13] = 0;
+                frames[64 * (start + i) + 14] = 0;
+                frames[64 * (start + i) + 15] = 1;
+                frames[64 * (start + i) + 16] = _c0[i];
+                frames[64 * (start + i) + 17] = -_s0[i];
+                frames[64 * (start + i) + 18] = 0;
+                frames[64 * (start + i) + 19] = _t2;
+                frames[64 * (start + i) + 20] = _s0[i];
+                frames[64 * (start + i) + 21] = _c0[i];
+                frames[64 * (start + i) + 22] = 0;
+                frames[64 * (start + i) + 23] = _t3;
+                frames[64 * (start + i) + 24] = 0;
+                frames[64 * (start + i) + 25] = 0;
+                frames[64 * (start + i) + 26] = 1;
+                frames[64 * (start + i) + 27] = 0;
+                frames[64 * (start + i) + 28] = 0;
+                frames[64 * (start + i) + 29] = 0;
+                frames[64 * (start + i) + 30] = 0;
+                frames[64 * (start + i) + 31] = 1;
+                frames[64 * (start + i) + 32] = _c1[i];
+                frames[64 * (start + i) + 33] = -_s1[i];
+                frames[64 * (start + i) + 34] = 0;
+                frames[64 * (start + i) + 35] = _t7;
+                frames[64 * (start + i) + 36] = _s1[i];
+                frames[64 * (start + i) + 37] = _c1[i];
+                frames[64 * (start + i) + 38] = 0;
+                frames[64 * (start + i) + 39] = _t8;
+                frames[64 * (start + i) + 40] = 0;
+                frames[64 * (start + i) + 41] = 0;
+                frames[64 * (start + i) + 42] = 1;
+                frames[64 * (start + i) + 43] = 0;
+                frames[64 * (start + i) + 44] = 0;
+                frames[64 * (start + i) + 45] = 0;
+                frames[64 * (start + i) + 46] = 0;
+                frames[64 * (start + i) + 47] = 1;
+                frames[64 * (start + i) + 48] = _c2[i];
+                frames[64 * (start + i) + 49] = -_s2[i];
+                frames[64 * (start + i) + 50] = 0;
+                frames[64 * (start + i) + 51] = _c2[i]*l3 + _t7;
+                frames[64 * (start + i) + 52] = _s2[i];
+                frames[64 * (start + i) + 53] = _c2[i];
+                frames[64 * (start + i) + 54] = 0;
+                frames[64 * (start + i) + 55] = _s2[i]*l3 + _t8;
+                frames[64 * (start + i) + 56] = 0;
+                frames[64 * (start + i) + 57] = 0;
+                frames[64 * (start + i) + 58] = 1;
+                frames[64 * (start + i) + 59] = 0;
+                frames[64 * (start + i) + 60] = 0;
+                frames[64 * (start + i) + 61] = 0;
+                frames[64 * (start + i) + 62] = 0;
+                frames[64 * (start + i) + 63] = 1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 64; k += 2) {
+                    _mm_stream_pd(frames + 64 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_3r_frames(q + 3 * i, params, frames + 64 * i);
     }
+#endif
 }
 
 /* Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 3). */
@@ -193,14 +659,44 @@ void planar_3r_jacobian(const double *restrict q, const planar_3r_params *restri
     const double l3 = params->l3;
     const double _t0 = q1 + q2;
     const double _t1 = _t0 + q3;
-    const double _t2 = l3*sin(_t1);
-    const double _t3 = _t2 + l2*sin(_t0);
-    const double _t4 = l3*cos(_t1);
-    const double _t5 = _t4 + l2*cos(_t0);
-    J[0] = -_t3 - l1*sin(q1);
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t1, _t0, q1, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t1);
+    _c0 = cos(_t1);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+    _s2 = sin(q1);
+    _c2 = cos(q1);
+#endif
+    const double _t2 = _s0*l3;
+    const double _t3 = _s1*l2 + _t2;
+    const double _t4 = _c0*l3;
+    const double _t5 = _c1*l2 + _t4;
+    J[0] = -_s2*l1 - _t3;
     J[1] = -_t3;
     J[2] = -_t2;
-    J[3] = _t5 + l1*cos(q1);
+    J[3] = _c2*l1 + _t5;
     J[4] = _t5;
     J[5] = _t4;
     J[6] = 0;
@@ -217,12 +713,147 @@ void planar_3r_jacobian(const double *restrict q, const planar_3r_params *restri
     J[17] = 1;
 }
 
+/* jacobian of `count` items, stored one after the other in each argument and output. */
 void planar_3r_jacobian_batch(size_t count, const double *restrict q, const planar_3r_params *restrict params, double *restrict J)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _J_block[18][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 18 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+            q3[i] = q[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+            _t1[i] = _t0[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _s0[i]*l3;
+                const double _t3 = _s1[i]*l2 + _t2;
+                const double _t4 = _c0[i]*l3;
+                const double _t5 = _c1[i]*l2 + _t4;
+                _J_block[0][i] = -_s2[i]*l1 - _t3;
+                _J_block[1][i] = -_t3;
+                _J_block[2][i] = -_t2;
+                _J_block[3][i] = _c2[i]*l1 + _t5;
+                _J_block[4][i] = _t5;
+                _J_block[5][i] = _t4;
+                _J_block[6][i] = 0;
+                _J_block[7][i] = 0;
+                _J_block[8][i] = 0;
+                _J_block[9][i] = 0;
+                _J_block[10][i] = 0;
+                _J_block[11][i] = 0;
+                _J_block[12][i] = 0;
+                _J_block[13][i] = 0;
+                _J_block[14][i] = 0;
+                _J_block[15][i] = 1;
+                _J_block[16][i] = 1;
+                _J_block[17][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _s0[i]*l3;
+                const double _t3 = _s1[i]*l2 + _t2;
+                const double _t4 = _c0[i]*l3;
+                const double _t5 = _c1[i]*l2 + _t4;
+                J[18 * (start + i) + 0] = -_s2[i]*l1 - _t3;
+                J[18 * (start + i) + 1] = -_t3;
+                J[18 * (start + i) + 2] = -_t2;
+                J[18 * (start + i) + 3] = _c2[i]*l1 + _t5;
+                J[18 * (start + i) + 4] = _t5;
+                J[18 * (start + i) + 5] = _t4;
+                J[18 * (start + i) + 6] = 0;
+                J[18 * (start + i) + 7] = 0;
+                J[18 * (start + i) + 8] = 0;
+                J[18 * (start + i) + 9] = 0;
+                J[18 * (start + i) + 10] = 0;
+                J[18 * (start + i) + 11] = 0;
+                J[18 * (start + i) + 12] = 0;
+                J[18 * (start + i) + 13] = 0;
+                J[18 * (start + i) + 14] = 0;
+                J[18 * (start + i) + 15] = 1;
+                J[18 * (start + i) + 16] = 1;
+                J[18 * (start + i) + 17] = 1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 18; k += 2) {
+                    _mm_stream_pd(J + 18 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_3r_jacobian(q + 3 * i, params, J + 18 * i);
     }
+#endif
 }
 
 /* Task coordinates x, y, phi, shape (..., 3). */
@@ -239,17 +870,112 @@ void planar_3r_task(const double *restrict q, const planar_3r_params *restrict p
     const double l3 = params->l3;
     const double _t0 = q1 + q2;
     const double _t1 = _t0 + q3;
-    x[0] = l1*cos(q1) + l2*cos(_t0) + l3*cos(_t1);
-    x[1] = l1*sin(q1) + l2*sin(_t0) + l3*sin(_t1);
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q1, _t0, _t1, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+    _s2 = sin(_t1);
+    _c2 = cos(_t1);
+#endif
+    x[0] = _c0*l1 + _c1*l2 + _c2*l3;
+    x[1] = _s0*l1 + _s1*l2 + _s2*l3;
     x[2] = _t1;
 }
 
+/* task of `count` items, stored one after the other in each argument and output. */
 void planar_3r_task_batch(size_t count, const double *restrict q, const planar_3r_params *restrict params, double *restrict x)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+            q3[i] = q[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+            _t1[i] = _t0[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            x[3 * (start + i) + 0] = _c0[i]*l1 + _c1[i]*l2 + _c2[i]*l3;
+            x[3 * (start + i) + 1] = _s0[i]*l1 + _s1[i]*l2 + _s2[i]*l3;
+            x[3 * (start + i) + 2] = _t1[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_3r_task(q + 3 * i, params, x + 3 * i);
     }
+#endif
 }
 
 /* d task / d q, shape (..., 3, 3). */
@@ -266,14 +992,44 @@ void planar_3r_task_jacobian(const double *restrict q, const planar_3r_params *r
     const double l3 = params->l3;
     const double _t0 = q1 + q2;
     const double _t1 = _t0 + q3;
-    const double _t2 = l3*sin(_t1);
-    const double _t3 = _t2 + l2*sin(_t0);
-    const double _t4 = l3*cos(_t1);
-    const double _t5 = _t4 + l2*cos(_t0);
-    Jx[0] = -_t3 - l1*sin(q1);
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t1, _t0, q1, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t1);
+    _c0 = cos(_t1);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+    _s2 = sin(q1);
+    _c2 = cos(q1);
+#endif
+    const double _t2 = _s0*l3;
+    const double _t3 = _s1*l2 + _t2;
+    const double _t4 = _c0*l3;
+    const double _t5 = _c1*l2 + _t4;
+    Jx[0] = -_s2*l1 - _t3;
     Jx[1] = -_t3;
     Jx[2] = -_t2;
-    Jx[3] = _t5 + l1*cos(q1);
+    Jx[3] = _c2*l1 + _t5;
     Jx[4] = _t5;
     Jx[5] = _t4;
     Jx[6] = 1;
@@ -281,12 +1037,109 @@ void planar_3r_task_jacobian(const double *restrict q, const planar_3r_params *r
     Jx[8] = 1;
 }
 
+/* task_jacobian of `count` items, stored one after the other in each argument and output. */
 void planar_3r_task_jacobian_batch(size_t count, const double *restrict q, const planar_3r_params *restrict params, double *restrict Jx)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+            q3[i] = q[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+            _t1[i] = _t0[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t2 = _s0[i]*l3;
+            const double _t3 = _s1[i]*l2 + _t2;
+            const double _t4 = _c0[i]*l3;
+            const double _t5 = _c1[i]*l2 + _t4;
+            Jx[9 * (start + i) + 0] = -_s2[i]*l1 - _t3;
+            Jx[9 * (start + i) + 1] = -_t3;
+            Jx[9 * (start + i) + 2] = -_t2;
+            Jx[9 * (start + i) + 3] = _c2[i]*l1 + _t5;
+            Jx[9 * (start + i) + 4] = _t5;
+            Jx[9 * (start + i) + 5] = _t4;
+            Jx[9 * (start + i) + 6] = 1;
+            Jx[9 * (start + i) + 7] = 1;
+            Jx[9 * (start + i) + 8] = 1;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_3r_task_jacobian(q + 3 * i, params, Jx + 9 * i);
     }
+#endif
+}
+
+/* The checks after an ik of one target x: a branch with a joint value that is not
+   finite, or of a target that is not, is not valid; returns the number of valid branches. */
+static int planar_3r_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
+{
+    int branch, joint, finite_target = 1, valid_branches = 0;
+    for (joint = 0; joint < 3; ++joint) {
+        finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
+    }
+    for (branch = 0; branch < 2; ++branch) {
+        if (!finite_target) {
+            valid[branch] = 0;
+        }
+        for (joint = 0; joint < 3; ++joint) {
+            if (!isfinite(Q[3 * branch + joint])) {
+                valid[branch] = 0;  /* no NaN leaks out as a valid answer */
+            }
+        }
+        valid_branches += valid[branch] != 0;
+    }
+    return valid_branches;
 }
 
 /* Inverse kinematics, all 2 branches (elbow_up, elbow_down): Q (..., 2, 3), valid (..., 2).
@@ -303,68 +1156,255 @@ int planar_3r_ik(const double *restrict _x, const planar_3r_params *restrict par
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double l3 = params->l3;
-    const double _t0 = l3*sin(phi);
-    const double _t1 = _t0 - y;
-    const double _t2 = -_t1;
     const double _t3 = 2*l1;
-    const double _t4 = l3*cos(phi) - x;
-    const double _t5 = -_t4;
-    const double _t6 = atan2(-_t2*_t3, -_t3*_t5);
-    const double _t7 = (_t2*_t2);
     const double _t8 = (l1*l1);
     const double _t9 = 4*_t8;
+    const double _t16 = 1.0/l2;
+    double _s0, _c0;
+    _s0 = sin(phi);
+    _c0 = cos(phi);
+    const double _t0 = _s0*l3;
+    const double _t1 = _t0 - y;
+    const double _t2 = -_t1;
+    const double _t4 = _c0*l3 - x;
+    const double _t5 = -_t4;
+    const double _a0 = -_t2*_t3;
+    const double _a1 = -_t3*_t5;
+    const double _t7 = (_t2*_t2);
     const double _t10 = (_t5*_t5);
     const double _t11 = _t10*_t9 + _t7*_t9;
     const double _t12 = 1.0/sqrt(_t11);
     const double _t13 = _t10 + _t7 + _t8 - (l2*l2);
-    const double _t14 = acos(fmin(1, fmax(-1, -_t12*_t13)));
-    const double _t15 = _t14 - _t6;
-    const double _t16 = 1.0/l2;
-    const double _t17 = atan2(_t16*(-_t0 + l1*sin(_t15) + y), _t16*(-_t4 - l1*cos(_t15)));
-    const double _t18 = _t14 + _t6;
-    const double _t19 = -atan2(_t16*(-_t1 - l1*sin(_t18)), _t16*(-_t4 - l1*cos(_t18)));
+    const double _a2 = kinegen_min(1, kinegen_max(-1, -_t12*_t13));
+    double _f0, _f1;
+    _f0 = atan2(_a0, _a1);
+    _f1 = acos(_a2);
+    const double _t15 = -_f0 + _f1;
+    const double _t18 = _f0 + _f1;
+    double _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t15, _t18, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s1 = sine[0];
+        _c1 = cosine[0];
+        _s2 = sine[1];
+        _c2 = cosine[1];
+    }
+#else
+    _s1 = sin(_t15);
+    _c1 = cos(_t15);
+    _s2 = sin(_t18);
+    _c2 = cos(_t18);
+#endif
+    const double _a3 = _t16*(_s1*l1 - _t0 + y);
+    const double _a4 = _t16*(-_c1*l1 - _t4);
+    const double _a5 = _t16*(-_s2*l1 - _t1);
+    const double _a6 = _t16*(-_c2*l1 - _t4);
+    double _f2, _f3;
+#if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+    {
+        /* The atan2 arguments side by side: one vector call. */
+        const double argument0[4] = { _a3, _a5, 0.0, 0.0 };
+        const double argument1[4] = { _a4, _a6, 1.0, 1.0 };
+        double result[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            result[k] = atan2(argument0[k], argument1[k]);
+        }
+        _f2 = result[0];
+        _f3 = result[1];
+    }
+#else
+    _f2 = atan2(_a3, _a4);
+    _f3 = atan2(_a5, _a6);
+#endif
+    const double _t19 = -_f3;
     const int _t20 = _t12*fabs(_t13) <= 1.000000000001 && _t11 > 0;
     Q[0] = kinegen_wrap_angle(-_t15);
-    Q[1] = kinegen_wrap_angle(_t15 + _t17);
-    Q[2] = kinegen_wrap_angle(-_t17 + phi);
+    Q[1] = kinegen_wrap_angle(_f2 + _t15);
+    Q[2] = kinegen_wrap_angle(-_f2 + phi);
     Q[3] = kinegen_wrap_angle(_t18);
     Q[4] = kinegen_wrap_angle(-_t18 - _t19);
     Q[5] = kinegen_wrap_angle(_t19 + phi);
     valid[0] = _t20;
     valid[1] = _t20;
-    {
-        int branch, joint, finite_target = 1, valid_branches = 0;
-        for (joint = 0; joint < 3; ++joint) {
-            finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
-        }
-        for (branch = 0; branch < 2; ++branch) {
-            if (!finite_target) {
-                valid[branch] = 0;
-            }
-            for (joint = 0; joint < 3; ++joint) {
-                if (!isfinite(Q[3 * branch + joint])) {
-                    valid[branch] = 0;  /* no NaN leaks out as a valid answer */
-                }
-            }
-            valid_branches += valid[branch] != 0;
-        }
-        return valid_branches;
-    }
+    return planar_3r_ik_checks(_x, Q, valid);
 }
 
-long planar_3r_ik_batch(size_t count, const double *restrict x, const planar_3r_params *restrict params, double *restrict Q, int *restrict valid)
+/* ik of `count` items, stored one after the other in each argument and output.   Returns the total number of valid branches, or -1 if any item was refused. */
+long planar_3r_ik_batch(size_t count, const double *restrict _x, const planar_3r_params *restrict params, double *restrict Q, int *restrict valid)
 {
-    size_t i;
     long valid_branches = 0;
     int refused = 0;
+#ifdef KINEGEN_BLOCKED
+    double x[KINEGEN_BLOCK_OF(64)];
+    double y[KINEGEN_BLOCK_OF(64)];
+    double phi[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _t4[KINEGEN_BLOCK_OF(64)];
+    double _a0[KINEGEN_BLOCK_OF(64)];
+    double _a1[KINEGEN_BLOCK_OF(64)];
+    double _t11[KINEGEN_BLOCK_OF(64)];
+    double _t12[KINEGEN_BLOCK_OF(64)];
+    double _t13[KINEGEN_BLOCK_OF(64)];
+    double _a2[KINEGEN_BLOCK_OF(64)];
+    double _f0[KINEGEN_BLOCK_OF(64)];
+    double _f1[KINEGEN_BLOCK_OF(64)];
+    double _t15[KINEGEN_BLOCK_OF(64)];
+    double _t18[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _a3[KINEGEN_BLOCK_OF(64)];
+    double _a4[KINEGEN_BLOCK_OF(64)];
+    double _a5[KINEGEN_BLOCK_OF(64)];
+    double _a6[KINEGEN_BLOCK_OF(64)];
+    double _f2[KINEGEN_BLOCK_OF(64)];
+    double _f3[KINEGEN_BLOCK_OF(64)];
+    double _Q_block[6][KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    const double _t3 = 2*l1;
+    const double _t8 = (l1*l1);
+    const double _t9 = 4*_t8;
+    const double _t16 = 1.0/l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            x[i] = _x[3 * (start + i) + 0];
+            y[i] = _x[3 * (start + i) + 1];
+            phi[i] = _x[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(phi[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(phi[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = _s0[i]*l3;
+            _t1[i] = _t0[i] - y[i];
+            const double _t2 = -_t1[i];
+            _t4[i] = _c0[i]*l3 - x[i];
+            const double _t5 = -_t4[i];
+            _a0[i] = -_t2*_t3;
+            _a1[i] = -_t3*_t5;
+            const double _t7 = (_t2*_t2);
+            const double _t10 = (_t5*_t5);
+            _t11[i] = _t10*_t9 + _t7*_t9;
+            _t12[i] = 1.0/sqrt(_t11[i]);
+            _t13[i] = _t10 + _t7 + _t8 - (l2*l2);
+            _a2[i] = kinegen_min(1, kinegen_max(-1, -_t12[i]*_t13[i]));
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f0[i] = atan2(_a0[i], _a1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f1[i] = acos(_a2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t15[i] = -_f0[i] + _f1[i];
+            _t18[i] = _f0[i] + _f1[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t15[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t15[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t18[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t18[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _a3[i] = _t16*(_s1[i]*l1 - _t0[i] + y[i]);
+            _a4[i] = _t16*(-_c1[i]*l1 - _t4[i]);
+            _a5[i] = _t16*(-_s2[i]*l1 - _t1[i]);
+            _a6[i] = _t16*(-_c2[i]*l1 - _t4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f2[i] = atan2(_a3[i], _a4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f3[i] = atan2(_a5[i], _a6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t19 = -_f3[i];
+            const int _t20 = _t12[i]*fabs(_t13[i]) <= 1.000000000001 && _t11[i] > 0;
+            _Q_block[0][i] = kinegen_wrap_angle(-_t15[i]);
+            _Q_block[1][i] = kinegen_wrap_angle(_f2[i] + _t15[i]);
+            _Q_block[2][i] = kinegen_wrap_angle(-_f2[i] + phi[i]);
+            _Q_block[3][i] = kinegen_wrap_angle(_t18[i]);
+            _Q_block[4][i] = kinegen_wrap_angle(-_t18[i] - _t19);
+            _Q_block[5][i] = kinegen_wrap_angle(_t19 + phi[i]);
+            valid[2 * (start + i) + 0] = _t20;
+            valid[2 * (start + i) + 1] = _t20;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 6; ++k) {
+                    Q[6 * (start + i) + k] = _Q_block[k][i];
+                }
+            }
+        }
+        for (i = 0; i < n; ++i) {
+            const int found = planar_3r_ik_checks(_x + 3 * (start + i), Q + 6 * (start + i), valid + 2 * (start + i));
+            if (found < 0) {
+                refused = 1;
+            } else {
+                valid_branches += found;
+            }
+        }
+    }
+#else
+    size_t i;
     for (i = 0; i < count; ++i) {
-        const int found = planar_3r_ik(x + 3 * i, params, Q + 6 * i, valid + 2 * i);
+        const int found = planar_3r_ik(_x + 3 * i, params, Q + 6 * i, valid + 2 * i);
         if (found < 0) {
             refused = 1;
         } else {
             valid_branches += found;
         }
     }
+#endif
     return refused ? -1 : valid_branches;
 }
 
@@ -385,21 +1425,126 @@ void planar_3r_task_velocity(const double *restrict q, const double *restrict qd
     const double l3 = params->l3;
     const double _t0 = q1 + q2;
     const double _t1 = _t0 + q3;
-    const double _t2 = l3*sin(_t1);
-    const double _t3 = _t2 + l2*sin(_t0);
-    const double _t4 = l3*cos(_t1);
-    const double _t5 = _t4 + l2*cos(_t0);
-    xd[0] = -_t2*qd3 - _t3*qd2 + qd1*(-_t3 - l1*sin(q1));
-    xd[1] = _t4*qd3 + _t5*qd2 + qd1*(_t5 + l1*cos(q1));
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t1, _t0, q1, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t1);
+    _c0 = cos(_t1);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+    _s2 = sin(q1);
+    _c2 = cos(q1);
+#endif
+    const double _t2 = _s0*l3;
+    const double _t3 = _s1*l2 + _t2;
+    const double _t4 = _c0*l3;
+    const double _t5 = _c1*l2 + _t4;
+    xd[0] = -_t2*qd3 - _t3*qd2 + qd1*(-_s2*l1 - _t3);
+    xd[1] = _t4*qd3 + _t5*qd2 + qd1*(_c2*l1 + _t5);
     xd[2] = qd1 + qd2 + qd3;
 }
 
+/* task_velocity of `count` items, stored one after the other in each argument and output. */
 void planar_3r_task_velocity_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_3r_params *restrict params, double *restrict xd)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double qd3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+            q3[i] = q[3 * (start + i) + 2];
+            qd1[i] = qd[3 * (start + i) + 0];
+            qd2[i] = qd[3 * (start + i) + 1];
+            qd3[i] = qd[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+            _t1[i] = _t0[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t2 = _s0[i]*l3;
+            const double _t3 = _s1[i]*l2 + _t2;
+            const double _t4 = _c0[i]*l3;
+            const double _t5 = _c1[i]*l2 + _t4;
+            xd[3 * (start + i) + 0] = -_t2*qd3[i] - _t3*qd2[i] + qd1[i]*(-_s2[i]*l1 - _t3);
+            xd[3 * (start + i) + 1] = _t4*qd3[i] + _t5*qd2[i] + qd1[i]*(_c2[i]*l1 + _t5);
+            xd[3 * (start + i) + 2] = qd1[i] + qd2[i] + qd3[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_3r_task_velocity(q + 3 * i, qd + 3 * i, params, xd + 3 * i);
     }
+#endif
 }
 
 /* Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s. */
@@ -419,24 +1564,171 @@ void planar_3r_twist(const double *restrict q, const double *restrict qd, const 
     const double l3 = params->l3;
     const double _t0 = q1 + q2;
     const double _t1 = _t0 + q3;
-    const double _t2 = l3*sin(_t1);
-    const double _t3 = _t2 + l2*sin(_t0);
-    const double _t4 = l3*cos(_t1);
-    const double _t5 = _t4 + l2*cos(_t0);
-    twist[0] = -_t2*qd3 - _t3*qd2 + qd1*(-_t3 - l1*sin(q1));
-    twist[1] = _t4*qd3 + _t5*qd2 + qd1*(_t5 + l1*cos(q1));
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t1, _t0, q1, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t1);
+    _c0 = cos(_t1);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+    _s2 = sin(q1);
+    _c2 = cos(q1);
+#endif
+    const double _t2 = _s0*l3;
+    const double _t3 = _s1*l2 + _t2;
+    const double _t4 = _c0*l3;
+    const double _t5 = _c1*l2 + _t4;
+    twist[0] = -_t2*qd3 - _t3*qd2 + qd1*(-_s2*l1 - _t3);
+    twist[1] = _t4*qd3 + _t5*qd2 + qd1*(_c2*l1 + _t5);
     twist[2] = 0;
     twist[3] = 0;
     twist[4] = 0;
     twist[5] = qd1 + qd2 + qd3;
 }
 
+/* twist of `count` items, stored one after the other in each argument and output. */
 void planar_3r_twist_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_3r_params *restrict params, double *restrict twist)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double qd3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _twist_block[6][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)twist & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+            q3[i] = q[3 * (start + i) + 2];
+            qd1[i] = qd[3 * (start + i) + 0];
+            qd2[i] = qd[3 * (start + i) + 1];
+            qd3[i] = qd[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+            _t1[i] = _t0[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _s0[i]*l3;
+                const double _t3 = _s1[i]*l2 + _t2;
+                const double _t4 = _c0[i]*l3;
+                const double _t5 = _c1[i]*l2 + _t4;
+                _twist_block[0][i] = -_t2*qd3[i] - _t3*qd2[i] + qd1[i]*(-_s2[i]*l1 - _t3);
+                _twist_block[1][i] = _t4*qd3[i] + _t5*qd2[i] + qd1[i]*(_c2[i]*l1 + _t5);
+                _twist_block[2][i] = 0;
+                _twist_block[3][i] = 0;
+                _twist_block[4][i] = 0;
+                _twist_block[5][i] = qd1[i] + qd2[i] + qd3[i];
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _s0[i]*l3;
+                const double _t3 = _s1[i]*l2 + _t2;
+                const double _t4 = _c0[i]*l3;
+                const double _t5 = _c1[i]*l2 + _t4;
+                twist[6 * (start + i) + 0] = -_t2*qd3[i] - _t3*qd2[i] + qd1[i]*(-_s2[i]*l1 - _t3);
+                twist[6 * (start + i) + 1] = _t4*qd3[i] + _t5*qd2[i] + qd1[i]*(_c2[i]*l1 + _t5);
+                twist[6 * (start + i) + 2] = 0;
+                twist[6 * (start + i) + 3] = 0;
+                twist[6 * (start + i) + 4] = 0;
+                twist[6 * (start + i) + 5] = qd1[i] + qd2[i] + qd3[i];
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 6; k += 2) {
+                    _mm_stream_pd(twist + 6 * (start + i) + k, _mm_set_pd(_twist_block[k + 1][i], _twist_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_3r_twist(q + 3 * i, qd + 3 * i, params, twist + 6 * i);
     }
+#endif
 }
 
 /* d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 3, 3). */
@@ -456,20 +1748,50 @@ void planar_3r_task_jacobian_dot(const double *restrict q, const double *restric
     const double l3 = params->l3;
     const double _t0 = q1 + q2;
     const double _t1 = _t0 + q3;
-    const double _t2 = l3*cos(_t1);
-    const double _t3 = _t2 + l2*cos(_t0);
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t1, _t0, q1, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t1);
+    _c0 = cos(_t1);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+    _s2 = sin(q1);
+    _c2 = cos(q1);
+#endif
+    const double _t2 = _c0*l3;
+    const double _t3 = _c1*l2 + _t2;
     const double _t4 = -_t3;
     const double _t5 = _t2*qd3;
     const double _t6 = _t4*qd2 - _t5;
-    const double _t7 = l3*sin(_t1);
-    const double _t8 = _t7 + l2*sin(_t0);
+    const double _t7 = _s0*l3;
+    const double _t8 = _s1*l2 + _t7;
     const double _t9 = -_t8;
     const double _t10 = _t7*qd3;
     const double _t11 = -_t10 + _t9*qd2;
-    Jx_dot[0] = _t6 + qd1*(-_t3 - l1*cos(q1));
+    Jx_dot[0] = _t6 + qd1*(-_c2*l1 - _t3);
     Jx_dot[1] = _t4*qd1 + _t6;
     Jx_dot[2] = -_t2*qd1 - _t2*qd2 - _t5;
-    Jx_dot[3] = _t11 + qd1*(-_t8 - l1*sin(q1));
+    Jx_dot[3] = _t11 + qd1*(-_s2*l1 - _t8);
     Jx_dot[4] = _t11 + _t9*qd1;
     Jx_dot[5] = -_t10 - _t7*qd1 - _t7*qd2;
     Jx_dot[6] = 0;
@@ -477,12 +1799,99 @@ void planar_3r_task_jacobian_dot(const double *restrict q, const double *restric
     Jx_dot[8] = 0;
 }
 
+/* task_jacobian_dot of `count` items, stored one after the other in each argument and output. */
 void planar_3r_task_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_3r_params *restrict params, double *restrict Jx_dot)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double qd3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+            q3[i] = q[3 * (start + i) + 2];
+            qd1[i] = qd[3 * (start + i) + 0];
+            qd2[i] = qd[3 * (start + i) + 1];
+            qd3[i] = qd[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+            _t1[i] = _t0[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t2 = _c0[i]*l3;
+            const double _t3 = _c1[i]*l2 + _t2;
+            const double _t4 = -_t3;
+            const double _t5 = _t2*qd3[i];
+            const double _t6 = _t4*qd2[i] - _t5;
+            const double _t7 = _s0[i]*l3;
+            const double _t8 = _s1[i]*l2 + _t7;
+            const double _t9 = -_t8;
+            const double _t10 = _t7*qd3[i];
+            const double _t11 = -_t10 + _t9*qd2[i];
+            Jx_dot[9 * (start + i) + 0] = _t6 + qd1[i]*(-_c2[i]*l1 - _t3);
+            Jx_dot[9 * (start + i) + 1] = _t4*qd1[i] + _t6;
+            Jx_dot[9 * (start + i) + 2] = -_t2*qd1[i] - _t2*qd2[i] - _t5;
+            Jx_dot[9 * (start + i) + 3] = _t11 + qd1[i]*(-_s2[i]*l1 - _t8);
+            Jx_dot[9 * (start + i) + 4] = _t11 + _t9*qd1[i];
+            Jx_dot[9 * (start + i) + 5] = -_t10 - _t7*qd1[i] - _t7*qd2[i];
+            Jx_dot[9 * (start + i) + 6] = 0;
+            Jx_dot[9 * (start + i) + 7] = 0;
+            Jx_dot[9 * (start + i) + 8] = 0;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_3r_task_jacobian_dot(q + 3 * i, qd + 3 * i, params, Jx_dot + 9 * i);
     }
+#endif
 }
 
 /* d(J)/dt of the geometric Jacobian, shape (..., 6, 3). */
@@ -502,20 +1911,50 @@ void planar_3r_jacobian_dot(const double *restrict q, const double *restrict qd,
     const double l3 = params->l3;
     const double _t0 = q1 + q2;
     const double _t1 = _t0 + q3;
-    const double _t2 = l3*cos(_t1);
-    const double _t3 = _t2 + l2*cos(_t0);
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t1, _t0, q1, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t1);
+    _c0 = cos(_t1);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+    _s2 = sin(q1);
+    _c2 = cos(q1);
+#endif
+    const double _t2 = _c0*l3;
+    const double _t3 = _c1*l2 + _t2;
     const double _t4 = -_t3;
     const double _t5 = _t2*qd3;
     const double _t6 = _t4*qd2 - _t5;
-    const double _t7 = l3*sin(_t1);
-    const double _t8 = _t7 + l2*sin(_t0);
+    const double _t7 = _s0*l3;
+    const double _t8 = _s1*l2 + _t7;
     const double _t9 = -_t8;
     const double _t10 = _t7*qd3;
     const double _t11 = -_t10 + _t9*qd2;
-    J_dot[0] = _t6 + qd1*(-_t3 - l1*cos(q1));
+    J_dot[0] = _t6 + qd1*(-_c2*l1 - _t3);
     J_dot[1] = _t4*qd1 + _t6;
     J_dot[2] = -_t2*qd1 - _t2*qd2 - _t5;
-    J_dot[3] = _t11 + qd1*(-_t8 - l1*sin(q1));
+    J_dot[3] = _t11 + qd1*(-_s2*l1 - _t8);
     J_dot[4] = _t11 + _t9*qd1;
     J_dot[5] = -_t10 - _t7*qd1 - _t7*qd2;
     J_dot[6] = 0;
@@ -532,12 +1971,165 @@ void planar_3r_jacobian_dot(const double *restrict q, const double *restrict qd,
     J_dot[17] = 0;
 }
 
+/* jacobian_dot of `count` items, stored one after the other in each argument and output. */
 void planar_3r_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_3r_params *restrict params, double *restrict J_dot)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double qd3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _J_dot_block[18][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 18 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_dot & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+            q3[i] = q[3 * (start + i) + 2];
+            qd1[i] = qd[3 * (start + i) + 0];
+            qd2[i] = qd[3 * (start + i) + 1];
+            qd3[i] = qd[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+            _t1[i] = _t0[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c0[i]*l3;
+                const double _t3 = _c1[i]*l2 + _t2;
+                const double _t4 = -_t3;
+                const double _t5 = _t2*qd3[i];
+                const double _t6 = _t4*qd2[i] - _t5;
+                const double _t7 = _s0[i]*l3;
+                const double _t8 = _s1[i]*l2 + _t7;
+                const double _t9 = -_t8;
+                const double _t10 = _t7*qd3[i];
+                const double _t11 = -_t10 + _t9*qd2[i];
+                _J_dot_block[0][i] = _t6 + qd1[i]*(-_c2[i]*l1 - _t3);
+                _J_dot_block[1][i] = _t4*qd1[i] + _t6;
+                _J_dot_block[2][i] = -_t2*qd1[i] - _t2*qd2[i] - _t5;
+                _J_dot_block[3][i] = _t11 + qd1[i]*(-_s2[i]*l1 - _t8);
+                _J_dot_block[4][i] = _t11 + _t9*qd1[i];
+                _J_dot_block[5][i] = -_t10 - _t7*qd1[i] - _t7*qd2[i];
+                _J_dot_block[6][i] = 0;
+                _J_dot_block[7][i] = 0;
+                _J_dot_block[8][i] = 0;
+                _J_dot_block[9][i] = 0;
+                _J_dot_block[10][i] = 0;
+                _J_dot_block[11][i] = 0;
+                _J_dot_block[12][i] = 0;
+                _J_dot_block[13][i] = 0;
+                _J_dot_block[14][i] = 0;
+                _J_dot_block[15][i] = 0;
+                _J_dot_block[16][i] = 0;
+                _J_dot_block[17][i] = 0;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c0[i]*l3;
+                const double _t3 = _c1[i]*l2 + _t2;
+                const double _t4 = -_t3;
+                const double _t5 = _t2*qd3[i];
+                const double _t6 = _t4*qd2[i] - _t5;
+                const double _t7 = _s0[i]*l3;
+                const double _t8 = _s1[i]*l2 + _t7;
+                const double _t9 = -_t8;
+                const double _t10 = _t7*qd3[i];
+                const double _t11 = -_t10 + _t9*qd2[i];
+                J_dot[18 * (start + i) + 0] = _t6 + qd1[i]*(-_c2[i]*l1 - _t3);
+                J_dot[18 * (start + i) + 1] = _t4*qd1[i] + _t6;
+                J_dot[18 * (start + i) + 2] = -_t2*qd1[i] - _t2*qd2[i] - _t5;
+                J_dot[18 * (start + i) + 3] = _t11 + qd1[i]*(-_s2[i]*l1 - _t8);
+                J_dot[18 * (start + i) + 4] = _t11 + _t9*qd1[i];
+                J_dot[18 * (start + i) + 5] = -_t10 - _t7*qd1[i] - _t7*qd2[i];
+                J_dot[18 * (start + i) + 6] = 0;
+                J_dot[18 * (start + i) + 7] = 0;
+                J_dot[18 * (start + i) + 8] = 0;
+                J_dot[18 * (start + i) + 9] = 0;
+                J_dot[18 * (start + i) + 10] = 0;
+                J_dot[18 * (start + i) + 11] = 0;
+                J_dot[18 * (start + i) + 12] = 0;
+                J_dot[18 * (start + i) + 13] = 0;
+                J_dot[18 * (start + i) + 14] = 0;
+                J_dot[18 * (start + i) + 15] = 0;
+                J_dot[18 * (start + i) + 16] = 0;
+                J_dot[18 * (start + i) + 17] = 0;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 18; k += 2) {
+                    _mm_stream_pd(J_dot + 18 * (start + i) + k, _mm_set_pd(_J_dot_block[k + 1][i], _J_dot_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_3r_jacobian_dot(q + 3 * i, qd + 3 * i, params, J_dot + 18 * i);
     }
+#endif
 }
 
 /* Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 3). */
@@ -560,16 +2152,46 @@ void planar_3r_task_acceleration(const double *restrict q, const double *restric
     const double l3 = params->l3;
     const double _t0 = q1 + q2;
     const double _t1 = _t0 + q3;
-    const double _t2 = l3*sin(_t1);
-    const double _t3 = _t2 + l2*sin(_t0);
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t1, _t0, q1, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t1);
+    _c0 = cos(_t1);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+    _s2 = sin(q1);
+    _c2 = cos(q1);
+#endif
+    const double _t2 = _s0*l3;
+    const double _t3 = _s1*l2 + _t2;
     const double _t4 = -_t3;
-    const double _t5 = -_t3 - l1*sin(q1);
-    const double _t6 = l3*cos(_t1);
+    const double _t5 = -_s2*l1 - _t3;
+    const double _t6 = _c0*l3;
     const double _t7 = _t6*qd3;
-    const double _t8 = _t6 + l2*cos(_t0);
+    const double _t8 = _c1*l2 + _t6;
     const double _t9 = -_t8;
     const double _t10 = -_t7 + _t9*qd2;
-    const double _t11 = _t8 + l1*cos(q1);
+    const double _t11 = _c2*l1 + _t8;
     const double _t12 = _t2*qd3;
     const double _t13 = -_t12 + _t4*qd2;
     xdd[0] = -_t2*qdd3 + _t4*qdd2 + _t5*qdd1 + qd1*(_t10 - _t11*qd1) + qd2*(_t10 + _t9*qd1) + qd3*(-_t6*qd1 - _t6*qd2 - _t7);
@@ -577,12 +2199,101 @@ void planar_3r_task_acceleration(const double *restrict q, const double *restric
     xdd[2] = qdd1 + qdd2 + qdd3;
 }
 
+/* task_acceleration of `count` items, stored one after the other in each argument and output. */
 void planar_3r_task_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict qdd, const planar_3r_params *restrict params, double *restrict xdd)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double qd3[KINEGEN_BLOCK_OF(64)];
+    double qdd1[KINEGEN_BLOCK_OF(64)];
+    double qdd2[KINEGEN_BLOCK_OF(64)];
+    double qdd3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+            q3[i] = q[3 * (start + i) + 2];
+            qd1[i] = qd[3 * (start + i) + 0];
+            qd2[i] = qd[3 * (start + i) + 1];
+            qd3[i] = qd[3 * (start + i) + 2];
+            qdd1[i] = qdd[3 * (start + i) + 0];
+            qdd2[i] = qdd[3 * (start + i) + 1];
+            qdd3[i] = qdd[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+            _t1[i] = _t0[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t2 = _s0[i]*l3;
+            const double _t3 = _s1[i]*l2 + _t2;
+            const double _t4 = -_t3;
+            const double _t5 = -_s2[i]*l1 - _t3;
+            const double _t6 = _c0[i]*l3;
+            const double _t7 = _t6*qd3[i];
+            const double _t8 = _c1[i]*l2 + _t6;
+            const double _t9 = -_t8;
+            const double _t10 = -_t7 + _t9*qd2[i];
+            const double _t11 = _c2[i]*l1 + _t8;
+            const double _t12 = _t2*qd3[i];
+            const double _t13 = -_t12 + _t4*qd2[i];
+            xdd[3 * (start + i) + 0] = -_t2*qdd3[i] + _t4*qdd2[i] + _t5*qdd1[i] + qd1[i]*(_t10 - _t11*qd1[i]) + qd2[i]*(_t10 + _t9*qd1[i]) + qd3[i]*(-_t6*qd1[i] - _t6*qd2[i] - _t7);
+            xdd[3 * (start + i) + 1] = _t11*qdd1[i] + _t6*qdd3[i] + _t8*qdd2[i] + qd1[i]*(_t13 + _t5*qd1[i]) + qd2[i]*(_t13 + _t4*qd1[i]) + qd3[i]*(-_t12 - _t2*qd1[i] - _t2*qd2[i]);
+            xdd[3 * (start + i) + 2] = qdd1[i] + qdd2[i] + qdd3[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_3r_task_acceleration(q + 3 * i, qd + 3 * i, qdd + 3 * i, params, xdd + 3 * i);
     }
+#endif
 }
 
 /* Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...). */
@@ -595,17 +2306,46 @@ void planar_3r_manipulability(const double *restrict q, const planar_3r_params *
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double l3 = params->l3;
-    const double _t0 = sin(q2);
-    manipulability[0] = fabs(_t0*l1*l2);
-    singular[0] = (_t0*_t0)*(l1*l1)*(l2*l2)/((fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))) < 1e-06;
+    double _s0;
+    _s0 = sin(q2);
+    manipulability[0] = fabs(_s0*l1*l2);
+    singular[0] = (_s0*_s0)*(l1*l1)*(l2*l2)/((fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))) < 1e-06;
 }
 
+/* manipulability of `count` items, stored one after the other in each argument and output. */
 void planar_3r_manipulability_batch(size_t count, const double *restrict q, const planar_3r_params *restrict params, double *restrict manipulability, int *restrict singular)
 {
+#ifdef KINEGEN_BLOCKED
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q2[i] = q[3 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            manipulability[1 * (start + i) + 0] = fabs(_s0[i]*l1*l2);
+            singular[1 * (start + i) + 0] = (_s0[i]*_s0[i])*(l1*l1)*(l2*l2)/((fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))) < 1e-06;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_3r_manipulability(q + 3 * i, params, manipulability + 1 * i, singular + 1 * i);
     }
+#endif
 }
 
 /* Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 3) and (...). */
@@ -629,63 +2369,91 @@ void planar_3r_joint_velocity(const double *restrict q, const double *restrict x
     const double _t3 = 1.0/_t2;
     const double _t4 = _t0*_t3;
     const double _t5 = (l2*l2);
-    const double _t6 = sin(q2);
-    const double _t7 = _t5*(_t6*_t6);
-    const double _t8 = _t4*_t7;
-    const double _t9 = fmax(0, 1 - 1000000*_t8);
-    const double _t10 = (_t9*_t9);
-    const double _t11 = cos(q1);
     const double _t12 = 1.0/(_t1*_t1);
     const double _t13 = _t0*_t12;
-    const double _t14 = q1 + q2;
-    const double _t15 = cos(_t14);
     const double _t16 = _t12*_t5;
-    const double _t17 = _t11*l1;
-    const double _t18 = _t15*l2;
-    const double _t19 = _t17 + _t18;
-    const double _t20 = (_t11*_t11)*_t13 + _t12*(_t19*_t19) + (_t15*_t15)*_t16;
-    const double _t21 = (0.0001)*_t9;
-    const double _t22 = sin(q1);
-    const double _t23 = sin(_t14);
-    const double _t24 = _t22*l1;
-    const double _t25 = _t23*l2;
-    const double _t26 = _t24 + _t25;
-    const double _t27 = -_t26;
-    const double _t28 = _t12*(_t27*_t27) + _t13*(_t22*_t22) + _t16*(_t23*_t23);
-    const double _t29 = sin(q3);
     const double _t30 = (l3*l3);
     const double _t31 = _t3*_t30;
-    const double _t32 = _t6*l2;
-    const double _t33 = sin(q2 + q3);
-    const double _t34 = _t32 + _t33*l3;
-    const double _t35 = _t29*l2;
-    const double _t36 = _t33*l1 + _t35;
-    const double _t37 = (_t29*_t29)*_t31*_t5 + _t31*(_t36*_t36) + (_t34*_t34)*_t4;
-    const double _t38 = _t14 + q3;
-    const double _t39 = cos(_t38);
     const double _t40 = _t12*_t30;
-    const double _t41 = _t39*l3;
+    const double _t52 = 1.0/(_t1*_t1*_t1);
+    const double _t57 = 1.0/_t1;
+    const double _t14 = q1 + q2;
+    const double _a0 = q2 + q3;
+    const double _t38 = _t14 + q3;
+    double _s0, _s1, _c1, _s2, _c2, _s3, _s4, _s5, _c5;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { q2, q1, _t14, q3, _a0, _t38, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _s4 = sine[4];
+        _s5 = sine[5];
+        _c5 = cosine[5];
+    }
+#else
+    _s0 = sin(q2);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+    _s2 = sin(_t14);
+    _c2 = cos(_t14);
+    _s3 = sin(q3);
+    _s4 = sin(_a0);
+    _s5 = sin(_t38);
+    _c5 = cos(_t38);
+#endif
+    const double _t7 = (_s0*_s0)*_t5;
+    const double _t8 = _t4*_t7;
+    const double _t9 = kinegen_max(0, 1 - 1000000*_t8);
+    const double _t10 = (_t9*_t9);
+    const double _t17 = _c1*l1;
+    const double _t18 = _c2*l2;
+    const double _t19 = _t17 + _t18;
+    const double _t20 = (_c1*_c1)*_t13 + (_c2*_c2)*_t16 + _t12*(_t19*_t19);
+    const double _t21 = (0.0001)*_t9;
+    const double _t24 = _s1*l1;
+    const double _t25 = _s2*l2;
+    const double _t26 = _t24 + _t25;
+    const double _t27 = -_t26;
+    const double _t28 = (_s1*_s1)*_t13 + (_s2*_s2)*_t16 + _t12*(_t27*_t27);
+    const double _t32 = _s0*l2;
+    const double _t34 = _s4*l3 + _t32;
+    const double _t35 = _s3*l2;
+    const double _t36 = _s4*l1 + _t35;
+    const double _t37 = (_s3*_s3)*_t31*_t5 + _t31*(_t36*_t36) + (_t34*_t34)*_t4;
+    const double _t41 = _c5*l3;
     const double _t42 = _t18 + _t41;
     const double _t43 = _t19 + _t41;
-    const double _t44 = _t12*(_t42*_t42) + _t12*(_t43*_t43) + (_t39*_t39)*_t40;
+    const double _t44 = (_c5*_c5)*_t40 + _t12*(_t42*_t42) + _t12*(_t43*_t43);
     const double _t45 = (1e-08)*_t10;
-    const double _t46 = sin(_t38);
-    const double _t47 = _t46*l3;
+    const double _t47 = _s5*l3;
     const double _t48 = -_t25 - _t47;
     const double _t49 = -_t26 - _t47;
-    const double _t50 = _t12*(_t48*_t48) + _t12*(_t49*_t49) + _t40*(_t46*_t46);
+    const double _t50 = (_s5*_s5)*_t40 + _t12*(_t48*_t48) + _t12*(_t49*_t49);
     const double _t51 = 1.0/((3e-08)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-12)*(_t9*_t9*_t9));
-    const double _t52 = 1.0/(_t1*_t1*_t1);
-    const double _t53 = _t29*_t5*_t52*l3;
+    const double _t53 = _s3*_t5*_t52*l3;
     const double _t54 = _t0*_t34*_t52;
     const double _t55 = _t36*l3;
     const double _t56 = _t52*_t55;
-    const double _t57 = 1.0/_t1;
     const double _t58 = _t41*_t57;
     const double _t59 = _t42*_t57;
     const double _t60 = _t43*_t57;
-    const double _t61 = -_t21*(_t58 + _t59 + _t60) + _t22*_t54 + _t23*_t53 - _t27*_t56;
-    const double _t62 = _t11*_t13*_t22 - _t12*_t19*_t27 + _t15*_t16*_t23 - _t21*(_t12*_t42*_t48 + _t12*_t43*_t49 - _t39*_t40*_t46);
+    const double _t61 = _s1*_t54 + _s2*_t53 - _t21*(_t58 + _t59 + _t60) - _t27*_t56;
+    const double _t62 = _c1*_s1*_t13 + _c2*_s2*_t16 - _t12*_t19*_t27 - _t21*(-_c5*_s5*_t40 + _t12*_t42*_t48 + _t12*_t43*_t49);
     const double _t63 = _t57*xd_x;
     const double _t64 = (0.0003)*_t9;
     const double _t65 = _t21*_t50 + _t45;
@@ -694,12 +2462,12 @@ void planar_3r_joint_velocity(const double *restrict q, const double *restrict x
     const double _t68 = _t47*_t57;
     const double _t69 = _t48*_t57;
     const double _t70 = _t49*_t57;
-    const double _t71 = _t11*_t54 + _t15*_t53 + _t19*_t56 - _t21*(-_t68 + _t69 + _t70);
+    const double _t71 = _c1*_t54 + _c2*_t53 + _t19*_t56 - _t21*(-_t68 + _t69 + _t70);
     const double _t72 = _t21*_t44;
     const double _t73 = _t62*_t66 + _t63*(_t20 + _t45 + _t64 + _t72) + _t71*xd_phi;
     const double _t74 = _t61*_t66 + _t63*_t71 + xd_phi*(_t37 + _t65 + _t72);
     const int _t75 = _t8 < 1e-06;
-    const double _t76 = _t32*l1/fmax((1e-06)*_t2, _t0*_t7);
+    const double _t76 = _t32*l1/kinegen_max((1e-06)*_t2, _t0*_t7);
     qd[0] = ((_t75) ? (
    _t51*(_t60*_t67 + _t70*_t73 + _t74)
 )
@@ -721,12 +2489,182 @@ void planar_3r_joint_velocity(const double *restrict q, const double *restrict x
     singular[0] = _t75;
 }
 
+/* joint_velocity of `count` items, stored one after the other in each argument and output. */
 void planar_3r_joint_velocity_batch(size_t count, const double *restrict q, const double *restrict xd, const planar_3r_params *restrict params, double *restrict qd, int *restrict singular)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double xd_x[KINEGEN_BLOCK_OF(64)];
+    double xd_y[KINEGEN_BLOCK_OF(64)];
+    double xd_phi[KINEGEN_BLOCK_OF(64)];
+    double _t14[KINEGEN_BLOCK_OF(64)];
+    double _a0[KINEGEN_BLOCK_OF(64)];
+    double _t38[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _s4[KINEGEN_BLOCK_OF(64)];
+    double _s5[KINEGEN_BLOCK_OF(64)];
+    double _c5[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    const double _t0 = (l1*l1);
+    const double _t1 = fabs(l1) + fabs(l2) + fabs(l3);
+    const double _t2 = (_t1*_t1*_t1*_t1);
+    const double _t3 = 1.0/_t2;
+    const double _t4 = _t0*_t3;
+    const double _t5 = (l2*l2);
+    const double _t12 = 1.0/(_t1*_t1);
+    const double _t13 = _t0*_t12;
+    const double _t16 = _t12*_t5;
+    const double _t30 = (l3*l3);
+    const double _t31 = _t3*_t30;
+    const double _t40 = _t12*_t30;
+    const double _t52 = 1.0/(_t1*_t1*_t1);
+    const double _t57 = 1.0/_t1;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+            q3[i] = q[3 * (start + i) + 2];
+            xd_x[i] = xd[3 * (start + i) + 0];
+            xd_y[i] = xd[3 * (start + i) + 1];
+            xd_phi[i] = xd[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t14[i] = q1[i] + q2[i];
+            _a0[i] = q2[i] + q3[i];
+            _t38[i] = _t14[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t14[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t14[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(_a0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s5[i] = sin(_t38[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c5[i] = cos(_t38[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t7 = (_s0[i]*_s0[i])*_t5;
+            const double _t8 = _t4*_t7;
+            const double _t9 = kinegen_max(0, 1 - 1000000*_t8);
+            const double _t10 = (_t9*_t9);
+            const double _t17 = _c1[i]*l1;
+            const double _t18 = _c2[i]*l2;
+            const double _t19 = _t17 + _t18;
+            const double _t20 = (_c1[i]*_c1[i])*_t13 + (_c2[i]*_c2[i])*_t16 + _t12*(_t19*_t19);
+            const double _t21 = (0.0001)*_t9;
+            const double _t24 = _s1[i]*l1;
+            const double _t25 = _s2[i]*l2;
+            const double _t26 = _t24 + _t25;
+            const double _t27 = -_t26;
+            const double _t28 = (_s1[i]*_s1[i])*_t13 + (_s2[i]*_s2[i])*_t16 + _t12*(_t27*_t27);
+            const double _t32 = _s0[i]*l2;
+            const double _t34 = _s4[i]*l3 + _t32;
+            const double _t35 = _s3[i]*l2;
+            const double _t36 = _s4[i]*l1 + _t35;
+            const double _t37 = (_s3[i]*_s3[i])*_t31*_t5 + _t31*(_t36*_t36) + (_t34*_t34)*_t4;
+            const double _t41 = _c5[i]*l3;
+            const double _t42 = _t18 + _t41;
+            const double _t43 = _t19 + _t41;
+            const double _t44 = (_c5[i]*_c5[i])*_t40 + _t12*(_t42*_t42) + _t12*(_t43*_t43);
+            const double _t45 = (1e-08)*_t10;
+            const double _t47 = _s5[i]*l3;
+            const double _t48 = -_t25 - _t47;
+            const double _t49 = -_t26 - _t47;
+            const double _t50 = (_s5[i]*_s5[i])*_t40 + _t12*(_t48*_t48) + _t12*(_t49*_t49);
+            const double _t51 = 1.0/((3e-08)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-12)*(_t9*_t9*_t9));
+            const double _t53 = _s3[i]*_t5*_t52*l3;
+            const double _t54 = _t0*_t34*_t52;
+            const double _t55 = _t36*l3;
+            const double _t56 = _t52*_t55;
+            const double _t58 = _t41*_t57;
+            const double _t59 = _t42*_t57;
+            const double _t60 = _t43*_t57;
+            const double _t61 = _s1[i]*_t54 + _s2[i]*_t53 - _t21*(_t58 + _t59 + _t60) - _t27*_t56;
+            const double _t62 = _c1[i]*_s1[i]*_t13 + _c2[i]*_s2[i]*_t16 - _t12*_t19*_t27 - _t21*(-_c5[i]*_s5[i]*_t40 + _t12*_t42*_t48 + _t12*_t43*_t49);
+            const double _t63 = _t57*xd_x[i];
+            const double _t64 = (0.0003)*_t9;
+            const double _t65 = _t21*_t50 + _t45;
+            const double _t66 = _t57*xd_y[i];
+            const double _t67 = _t61*xd_phi[i] + _t62*_t63 + _t66*(_t28 + _t64 + _t65);
+            const double _t68 = _t47*_t57;
+            const double _t69 = _t48*_t57;
+            const double _t70 = _t49*_t57;
+            const double _t71 = _c1[i]*_t54 + _c2[i]*_t53 + _t19*_t56 - _t21*(-_t68 + _t69 + _t70);
+            const double _t72 = _t21*_t44;
+            const double _t73 = _t62*_t66 + _t63*(_t20 + _t45 + _t64 + _t72) + _t71*xd_phi[i];
+            const double _t74 = _t61*_t66 + _t63*_t71 + xd_phi[i]*(_t37 + _t65 + _t72);
+            const int _t75 = _t8 < 1e-06;
+            const double _t76 = _t32*l1/kinegen_max((1e-06)*_t2, _t0*_t7);
+            qd[3 * (start + i) + 0] = ((_t75) ? (
+   _t51*(_t60*_t67 + _t70*_t73 + _t74)
+)
+: (
+   _t76*(_t18*xd_x[i] + _t25*xd_y[i] + _t35*l3*xd_phi[i])
+));
+            qd[3 * (start + i) + 1] = ((_t75) ? (
+   _t51*(_t59*_t67 + _t69*_t73 + _t74)
+)
+: (
+   _t76*(-_t19*xd_x[i] + _t27*xd_y[i] - _t55*xd_phi[i])
+));
+            qd[3 * (start + i) + 2] = ((_t75) ? (
+   _t51*(_t58*_t67 - _t68*_t73 + _t74)
+)
+: (
+   _t76*(_t17*xd_x[i] + _t24*xd_y[i] + _t34*l1*xd_phi[i])
+));
+            singular[1 * (start + i) + 0] = _t75;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_3r_joint_velocity(q + 3 * i, xd + 3 * i, params, qd + 3 * i, singular + 1 * i);
     }
+#endif
 }
 
 /* Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 3) and (...). */
@@ -753,63 +2691,91 @@ void planar_3r_joint_acceleration(const double *restrict q, const double *restri
     const double _t3 = 1.0/_t2;
     const double _t4 = _t0*_t3;
     const double _t5 = (l2*l2);
-    const double _t6 = sin(q2);
-    const double _t7 = _t5*(_t6*_t6);
-    const double _t8 = _t4*_t7;
-    const double _t9 = fmax(0, 1 - 1000000*_t8);
-    const double _t10 = (_t9*_t9);
-    const double _t11 = cos(q1);
     const double _t12 = 1.0/(_t1*_t1);
     const double _t13 = _t0*_t12;
-    const double _t14 = q1 + q2;
-    const double _t15 = cos(_t14);
     const double _t16 = _t12*_t5;
-    const double _t17 = _t11*l1;
-    const double _t18 = _t15*l2;
-    const double _t19 = _t17 + _t18;
-    const double _t20 = (_t11*_t11)*_t13 + _t12*(_t19*_t19) + (_t15*_t15)*_t16;
-    const double _t21 = (0.0001)*_t9;
-    const double _t22 = sin(q1);
-    const double _t23 = sin(_t14);
-    const double _t24 = _t22*l1;
-    const double _t25 = _t23*l2;
-    const double _t26 = _t24 + _t25;
-    const double _t27 = -_t26;
-    const double _t28 = _t12*(_t27*_t27) + _t13*(_t22*_t22) + _t16*(_t23*_t23);
-    const double _t29 = sin(q3);
     const double _t30 = (l3*l3);
     const double _t31 = _t3*_t30;
-    const double _t32 = _t6*l2;
-    const double _t33 = sin(q2 + q3);
-    const double _t34 = _t32 + _t33*l3;
-    const double _t35 = _t29*l2;
-    const double _t36 = _t33*l1 + _t35;
-    const double _t37 = (_t29*_t29)*_t31*_t5 + _t31*(_t36*_t36) + (_t34*_t34)*_t4;
-    const double _t38 = _t14 + q3;
-    const double _t39 = cos(_t38);
     const double _t40 = _t12*_t30;
-    const double _t41 = _t39*l3;
+    const double _t52 = 1.0/(_t1*_t1*_t1);
+    const double _t57 = 1.0/_t1;
+    const double _t14 = q1 + q2;
+    const double _a0 = q2 + q3;
+    const double _t38 = _t14 + q3;
+    double _s0, _s1, _c1, _s2, _c2, _s3, _s4, _s5, _c5;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { q2, q1, _t14, q3, _a0, _t38, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _s4 = sine[4];
+        _s5 = sine[5];
+        _c5 = cosine[5];
+    }
+#else
+    _s0 = sin(q2);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+    _s2 = sin(_t14);
+    _c2 = cos(_t14);
+    _s3 = sin(q3);
+    _s4 = sin(_a0);
+    _s5 = sin(_t38);
+    _c5 = cos(_t38);
+#endif
+    const double _t7 = (_s0*_s0)*_t5;
+    const double _t8 = _t4*_t7;
+    const double _t9 = kinegen_max(0, 1 - 1000000*_t8);
+    const double _t10 = (_t9*_t9);
+    const double _t17 = _c1*l1;
+    const double _t18 = _c2*l2;
+    const double _t19 = _t17 + _t18;
+    const double _t20 = (_c1*_c1)*_t13 + (_c2*_c2)*_t16 + _t12*(_t19*_t19);
+    const double _t21 = (0.0001)*_t9;
+    const double _t24 = _s1*l1;
+    const double _t25 = _s2*l2;
+    const double _t26 = _t24 + _t25;
+    const double _t27 = -_t26;
+    const double _t28 = (_s1*_s1)*_t13 + (_s2*_s2)*_t16 + _t12*(_t27*_t27);
+    const double _t32 = _s0*l2;
+    const double _t34 = _s4*l3 + _t32;
+    const double _t35 = _s3*l2;
+    const double _t36 = _s4*l1 + _t35;
+    const double _t37 = (_s3*_s3)*_t31*_t5 + _t31*(_t36*_t36) + (_t34*_t34)*_t4;
+    const double _t41 = _c5*l3;
     const double _t42 = _t18 + _t41;
     const double _t43 = _t19 + _t41;
-    const double _t44 = _t12*(_t42*_t42) + _t12*(_t43*_t43) + (_t39*_t39)*_t40;
+    const double _t44 = (_c5*_c5)*_t40 + _t12*(_t42*_t42) + _t12*(_t43*_t43);
     const double _t45 = (1e-08)*_t10;
-    const double _t46 = sin(_t38);
-    const double _t47 = _t46*l3;
+    const double _t47 = _s5*l3;
     const double _t48 = -_t25 - _t47;
     const double _t49 = -_t26 - _t47;
-    const double _t50 = _t12*(_t48*_t48) + _t12*(_t49*_t49) + _t40*(_t46*_t46);
+    const double _t50 = (_s5*_s5)*_t40 + _t12*(_t48*_t48) + _t12*(_t49*_t49);
     const double _t51 = 1.0/((3e-08)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-12)*(_t9*_t9*_t9));
-    const double _t52 = 1.0/(_t1*_t1*_t1);
-    const double _t53 = _t29*_t5*_t52*l3;
+    const double _t53 = _s3*_t5*_t52*l3;
     const double _t54 = _t0*_t34*_t52;
     const double _t55 = _t36*l3;
     const double _t56 = _t52*_t55;
-    const double _t57 = 1.0/_t1;
     const double _t58 = _t41*_t57;
     const double _t59 = _t42*_t57;
     const double _t60 = _t43*_t57;
-    const double _t61 = -_t21*(_t58 + _t59 + _t60) + _t22*_t54 + _t23*_t53 - _t27*_t56;
-    const double _t62 = _t11*_t13*_t22 - _t12*_t19*_t27 + _t15*_t16*_t23 - _t21*(_t12*_t42*_t48 + _t12*_t43*_t49 - _t39*_t40*_t46);
+    const double _t61 = _s1*_t54 + _s2*_t53 - _t21*(_t58 + _t59 + _t60) - _t27*_t56;
+    const double _t62 = _c1*_s1*_t13 + _c2*_s2*_t16 - _t12*_t19*_t27 - _t21*(-_c5*_s5*_t40 + _t12*_t42*_t48 + _t12*_t43*_t49);
     const double _t63 = _t41*qd3;
     const double _t64 = -_t42;
     const double _t65 = -_t63 + _t64*qd2;
@@ -825,12 +2791,12 @@ void planar_3r_joint_acceleration(const double *restrict q, const double *restri
     const double _t75 = _t47*_t57;
     const double _t76 = _t48*_t57;
     const double _t77 = _t49*_t57;
-    const double _t78 = _t11*_t54 + _t15*_t53 + _t19*_t56 - _t21*(-_t75 + _t76 + _t77);
+    const double _t78 = _c1*_t54 + _c2*_t53 + _t19*_t56 - _t21*(-_t75 + _t76 + _t77);
     const double _t79 = _t21*_t44;
     const double _t80 = _t62*_t73 + _t67*(_t20 + _t45 + _t68 + _t79) + _t78*xdd_phi;
     const double _t81 = _t61*_t73 + _t67*_t78 + xdd_phi*(_t37 + _t69 + _t79);
     const int _t82 = _t8 < 1e-06;
-    const double _t83 = _t32*l1/fmax((1e-06)*_t2, _t0*_t7);
+    const double _t83 = _t32*l1/kinegen_max((1e-06)*_t2, _t0*_t7);
     qdd[0] = ((_t82) ? (
    _t51*(_t60*_t74 + _t77*_t80 + _t81)
 )
@@ -852,12 +2818,195 @@ void planar_3r_joint_acceleration(const double *restrict q, const double *restri
     singular[0] = _t82;
 }
 
+/* joint_acceleration of `count` items, stored one after the other in each argument and output. */
 void planar_3r_joint_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict xdd, const planar_3r_params *restrict params, double *restrict qdd, int *restrict singular)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double qd3[KINEGEN_BLOCK_OF(64)];
+    double xdd_x[KINEGEN_BLOCK_OF(64)];
+    double xdd_y[KINEGEN_BLOCK_OF(64)];
+    double xdd_phi[KINEGEN_BLOCK_OF(64)];
+    double _t14[KINEGEN_BLOCK_OF(64)];
+    double _a0[KINEGEN_BLOCK_OF(64)];
+    double _t38[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _s4[KINEGEN_BLOCK_OF(64)];
+    double _s5[KINEGEN_BLOCK_OF(64)];
+    double _c5[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    const double _t0 = (l1*l1);
+    const double _t1 = fabs(l1) + fabs(l2) + fabs(l3);
+    const double _t2 = (_t1*_t1*_t1*_t1);
+    const double _t3 = 1.0/_t2;
+    const double _t4 = _t0*_t3;
+    const double _t5 = (l2*l2);
+    const double _t12 = 1.0/(_t1*_t1);
+    const double _t13 = _t0*_t12;
+    const double _t16 = _t12*_t5;
+    const double _t30 = (l3*l3);
+    const double _t31 = _t3*_t30;
+    const double _t40 = _t12*_t30;
+    const double _t52 = 1.0/(_t1*_t1*_t1);
+    const double _t57 = 1.0/_t1;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+            q3[i] = q[3 * (start + i) + 2];
+            qd1[i] = qd[3 * (start + i) + 0];
+            qd2[i] = qd[3 * (start + i) + 1];
+            qd3[i] = qd[3 * (start + i) + 2];
+            xdd_x[i] = xdd[3 * (start + i) + 0];
+            xdd_y[i] = xdd[3 * (start + i) + 1];
+            xdd_phi[i] = xdd[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t14[i] = q1[i] + q2[i];
+            _a0[i] = q2[i] + q3[i];
+            _t38[i] = _t14[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t14[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t14[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(_a0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s5[i] = sin(_t38[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c5[i] = cos(_t38[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t7 = (_s0[i]*_s0[i])*_t5;
+            const double _t8 = _t4*_t7;
+            const double _t9 = kinegen_max(0, 1 - 1000000*_t8);
+            const double _t10 = (_t9*_t9);
+            const double _t17 = _c1[i]*l1;
+            const double _t18 = _c2[i]*l2;
+            const double _t19 = _t17 + _t18;
+            const double _t20 = (_c1[i]*_c1[i])*_t13 + (_c2[i]*_c2[i])*_t16 + _t12*(_t19*_t19);
+            const double _t21 = (0.0001)*_t9;
+            const double _t24 = _s1[i]*l1;
+            const double _t25 = _s2[i]*l2;
+            const double _t26 = _t24 + _t25;
+            const double _t27 = -_t26;
+            const double _t28 = (_s1[i]*_s1[i])*_t13 + (_s2[i]*_s2[i])*_t16 + _t12*(_t27*_t27);
+            const double _t32 = _s0[i]*l2;
+            const double _t34 = _s4[i]*l3 + _t32;
+            const double _t35 = _s3[i]*l2;
+            const double _t36 = _s4[i]*l1 + _t35;
+            const double _t37 = (_s3[i]*_s3[i])*_t31*_t5 + _t31*(_t36*_t36) + (_t34*_t34)*_t4;
+            const double _t41 = _c5[i]*l3;
+            const double _t42 = _t18 + _t41;
+            const double _t43 = _t19 + _t41;
+            const double _t44 = (_c5[i]*_c5[i])*_t40 + _t12*(_t42*_t42) + _t12*(_t43*_t43);
+            const double _t45 = (1e-08)*_t10;
+            const double _t47 = _s5[i]*l3;
+            const double _t48 = -_t25 - _t47;
+            const double _t49 = -_t26 - _t47;
+            const double _t50 = (_s5[i]*_s5[i])*_t40 + _t12*(_t48*_t48) + _t12*(_t49*_t49);
+            const double _t51 = 1.0/((3e-08)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-12)*(_t9*_t9*_t9));
+            const double _t53 = _s3[i]*_t5*_t52*l3;
+            const double _t54 = _t0*_t34*_t52;
+            const double _t55 = _t36*l3;
+            const double _t56 = _t52*_t55;
+            const double _t58 = _t41*_t57;
+            const double _t59 = _t42*_t57;
+            const double _t60 = _t43*_t57;
+            const double _t61 = _s1[i]*_t54 + _s2[i]*_t53 - _t21*(_t58 + _t59 + _t60) - _t27*_t56;
+            const double _t62 = _c1[i]*_s1[i]*_t13 + _c2[i]*_s2[i]*_t16 - _t12*_t19*_t27 - _t21*(-_c5[i]*_s5[i]*_t40 + _t12*_t42*_t48 + _t12*_t43*_t49);
+            const double _t63 = _t41*qd3[i];
+            const double _t64 = -_t42;
+            const double _t65 = -_t63 + _t64*qd2[i];
+            const double _t66 = -qd1[i]*(-_t43*qd1[i] + _t65) - qd2[i]*(_t64*qd1[i] + _t65) - qd3[i]*(-_t41*qd1[i] - _t41*qd2[i] - _t63) + xdd_x[i];
+            const double _t67 = _t57*_t66;
+            const double _t68 = (0.0003)*_t9;
+            const double _t69 = _t21*_t50 + _t45;
+            const double _t70 = _t47*qd3[i];
+            const double _t71 = _t48*qd2[i] - _t70;
+            const double _t72 = -qd1[i]*(_t49*qd1[i] + _t71) - qd2[i]*(_t48*qd1[i] + _t71) - qd3[i]*(-_t47*qd1[i] - _t47*qd2[i] - _t70) + xdd_y[i];
+            const double _t73 = _t57*_t72;
+            const double _t74 = _t61*xdd_phi[i] + _t62*_t67 + _t73*(_t28 + _t68 + _t69);
+            const double _t75 = _t47*_t57;
+            const double _t76 = _t48*_t57;
+            const double _t77 = _t49*_t57;
+            const double _t78 = _c1[i]*_t54 + _c2[i]*_t53 + _t19*_t56 - _t21*(-_t75 + _t76 + _t77);
+            const double _t79 = _t21*_t44;
+            const double _t80 = _t62*_t73 + _t67*(_t20 + _t45 + _t68 + _t79) + _t78*xdd_phi[i];
+            const double _t81 = _t61*_t73 + _t67*_t78 + xdd_phi[i]*(_t37 + _t69 + _t79);
+            const int _t82 = _t8 < 1e-06;
+            const double _t83 = _t32*l1/kinegen_max((1e-06)*_t2, _t0*_t7);
+            qdd[3 * (start + i) + 0] = ((_t82) ? (
+   _t51*(_t60*_t74 + _t77*_t80 + _t81)
+)
+: (
+   _t83*(_t18*_t66 + _t25*_t72 + _t35*l3*xdd_phi[i])
+));
+            qdd[3 * (start + i) + 1] = ((_t82) ? (
+   _t51*(_t59*_t74 + _t76*_t80 + _t81)
+)
+: (
+   _t83*(-_t19*_t66 + _t27*_t72 - _t55*xdd_phi[i])
+));
+            qdd[3 * (start + i) + 2] = ((_t82) ? (
+   _t51*(_t58*_t74 - _t75*_t80 + _t81)
+)
+: (
+   _t83*(_t17*_t66 + _t24*_t72 + _t34*l1*xdd_phi[i])
+));
+            singular[1 * (start + i) + 0] = _t82;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_3r_joint_acceleration(q + 3 * i, qd + 3 * i, xdd + 3 * i, params, qdd + 3 * i, singular + 1 * i);
     }
+#endif
 }
 
 /* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */

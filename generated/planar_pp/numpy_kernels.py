@@ -20,6 +20,12 @@ TASK = ("x", "y", )
 BRANCHES = ("unique", )
 PARAMS = {}
 LIMITS = (None, None, )
+# Batches are worked through CHUNK items at a time, so that the temporaries stay in cache.
+# The sine and cosine of an angle come from one tangent of the half angle,
+# sin = 2h/(1 + h^2), cos = (1 - h^2)/(1 + h^2) with h = tan(angle/2): numpy
+# vectorises float64 tan but not sin and cos (about 3 ns an angle for both,
+# against 17 ns for each); the error stays within 2.2e-16 (absolute) of libm's.
+CHUNK = 4096
 OPERATIONS = {"fk": 1, "frames": 3, "jacobian": 0, "task": 0, "task_jacobian": 0, "ik": 0, "task_velocity": 0, "twist": 0, "task_jacobian_dot": 0, "jacobian_dot": 0, "task_acceleration": 0, "manipulability": 0, "joint_velocity": 0, "joint_acceleration": 0}
 
 
@@ -31,16 +37,31 @@ def fk(q):
     """
     q = _runtime.as_batch(q, 2, "fk", "q")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    T = numpy.zeros(_batch + (4, 4))
-    T[..., 0, 2] = 1
-    T[..., 0, 3] = q2
-    T[..., 1, 1] = 1
-    T[..., 1, 3] = q1
-    T[..., 2, 0] = -1
-    T[..., 3, 3] = 1
-    return T
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
+    T = numpy.empty((_count, 16))
+    T[:, 0] = 0
+    T[:, 1] = 0
+    T[:, 2] = 1
+    T[:, 4] = 0
+    T[:, 5] = 1
+    T[:, 6] = 0
+    T[:, 8] = -1
+    T[:, 9] = 0
+    T[:, 10] = 0
+    T[:, 11] = 0
+    T[:, 12] = 0
+    T[:, 13] = 0
+    T[:, 14] = 0
+    T[:, 15] = 1
+    for _start in range(0, _count, CHUNK):
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        _T = T[_start:_start + CHUNK].T
+        _T[3] = q2
+        _T[7] = q1
+    return T.reshape(_batch + (4, 4))
 
 
 def frames(q):
@@ -51,25 +72,63 @@ def frames(q):
     """
     q = _runtime.as_batch(q, 2, "frames", "q")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    frames = numpy.zeros(_batch + (3, 4, 4))
-    frames[..., 0, 0, 0] = 1
-    frames[..., 0, 1, 1] = 1
-    frames[..., 0, 2, 2] = 1
-    frames[..., 0, 3, 3] = 1
-    frames[..., 1, 0, 1] = -1
-    frames[..., 1, 1, 2] = 1
-    frames[..., 1, 1, 3] = q1
-    frames[..., 1, 2, 0] = -1
-    frames[..., 1, 3, 3] = 1
-    frames[..., 2, 0, 2] = 1
-    frames[..., 2, 0, 3] = q2
-    frames[..., 2, 1, 1] = 1
-    frames[..., 2, 1, 3] = q1
-    frames[..., 2, 2, 0] = -1
-    frames[..., 2, 3, 3] = 1
-    return frames
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
+    frames = numpy.empty((_count, 48))
+    frames[:, 0] = 1
+    frames[:, 1] = 0
+    frames[:, 2] = 0
+    frames[:, 3] = 0
+    frames[:, 4] = 0
+    frames[:, 5] = 1
+    frames[:, 6] = 0
+    frames[:, 7] = 0
+    frames[:, 8] = 0
+    frames[:, 9] = 0
+    frames[:, 10] = 1
+    frames[:, 11] = 0
+    frames[:, 12] = 0
+    frames[:, 13] = 0
+    frames[:, 14] = 0
+    frames[:, 15] = 1
+    frames[:, 16] = 0
+    frames[:, 17] = -1
+    frames[:, 18] = 0
+    frames[:, 19] = 0
+    frames[:, 20] = 0
+    frames[:, 21] = 0
+    frames[:, 22] = 1
+    frames[:, 24] = -1
+    frames[:, 25] = 0
+    frames[:, 26] = 0
+    frames[:, 27] = 0
+    frames[:, 28] = 0
+    frames[:, 29] = 0
+    frames[:, 30] = 0
+    frames[:, 31] = 1
+    frames[:, 32] = 0
+    frames[:, 33] = 0
+    frames[:, 34] = 1
+    frames[:, 36] = 0
+    frames[:, 37] = 1
+    frames[:, 38] = 0
+    frames[:, 40] = -1
+    frames[:, 41] = 0
+    frames[:, 42] = 0
+    frames[:, 43] = 0
+    frames[:, 44] = 0
+    frames[:, 45] = 0
+    frames[:, 46] = 0
+    frames[:, 47] = 1
+    for _start in range(0, _count, CHUNK):
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        _frames = frames[_start:_start + CHUNK].T
+        _frames[23] = q1
+        _frames[35] = q2
+        _frames[39] = q1
+    return frames.reshape(_batch + (3, 4, 4))
 
 
 def jacobian(q):
@@ -80,10 +139,24 @@ def jacobian(q):
     """
     q = _runtime.as_batch(q, 2, "jacobian", "q")
     _batch = _runtime.batch_shape(q)
-    J = numpy.zeros(_batch + (6, 2))
-    J[..., 0, 1] = 1
-    J[..., 1, 0] = 1
-    return J
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
+    J = numpy.empty((_count, 12))
+    J[:, 0] = 0
+    J[:, 1] = 1
+    J[:, 2] = 1
+    J[:, 3] = 0
+    J[:, 4] = 0
+    J[:, 5] = 0
+    J[:, 6] = 0
+    J[:, 7] = 0
+    J[:, 8] = 0
+    J[:, 9] = 0
+    J[:, 10] = 0
+    J[:, 11] = 0
+    for _start in range(0, _count, CHUNK):
+        _J = J[_start:_start + CHUNK].T
+    return J.reshape(_batch + (6, 2))
 
 
 def task(q):
@@ -94,12 +167,17 @@ def task(q):
     """
     q = _runtime.as_batch(q, 2, "task", "q")
     _batch = _runtime.batch_shape(q)
-    q1 = q[..., 0]
-    q2 = q[..., 1]
-    x = numpy.empty(_batch + (2,))
-    x[..., 0] = q2
-    x[..., 1] = q1
-    return x
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
+    x = numpy.empty((_count, 2))
+    for _start in range(0, _count, CHUNK):
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        _x = x[_start:_start + CHUNK].T
+        _x[0] = q2
+        _x[1] = q1
+    return x.reshape(_batch + (2,))
 
 
 def task_jacobian(q):
@@ -110,10 +188,16 @@ def task_jacobian(q):
     """
     q = _runtime.as_batch(q, 2, "task_jacobian", "q")
     _batch = _runtime.batch_shape(q)
-    Jx = numpy.zeros(_batch + (2, 2))
-    Jx[..., 0, 1] = 1
-    Jx[..., 1, 0] = 1
-    return Jx
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
+    Jx = numpy.empty((_count, 4))
+    Jx[:, 0] = 0
+    Jx[:, 1] = 1
+    Jx[:, 2] = 1
+    Jx[:, 3] = 0
+    for _start in range(0, _count, CHUNK):
+        _Jx = Jx[_start:_start + CHUNK].T
+    return Jx.reshape(_batch + (2, 2))
 
 
 @numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
@@ -128,17 +212,23 @@ def ik(x):
     """
     x = _runtime.as_batch(x, 2, "ik", "x", finite=False)
     _batch = _runtime.batch_shape(x)
-    _x = x
-    x = _x[..., 0]
-    y = _x[..., 1]
-    Q = numpy.empty(_batch + (1, 2))
-    Q[..., 0, 0] = y
-    Q[..., 0, 1] = x
-    valid = numpy.empty(_batch + (1,), dtype=bool)
-    valid[..., 0] = True
+    _all_x = numpy.broadcast_to(x, _batch + (2,)).reshape(-1, 2)
+    _count = _all_x.shape[0]
+    Q = numpy.empty((_count, 2))
+    valid = numpy.empty((_count, 1), dtype=bool)
+    valid[:, 0] = True
+    for _start in range(0, _count, CHUNK):
+        _columns_x = numpy.ascontiguousarray(_all_x[_start:_start + CHUNK].T)
+        x = _columns_x[0]
+        y = _columns_x[1]
+        _Q = Q[_start:_start + CHUNK].T
+        _Q[0] = y
+        _Q[1] = x
+        _valid = valid[_start:_start + CHUNK].T
     # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
-    valid &= numpy.isfinite(Q).all(axis=-1) & numpy.isfinite(_x).all(axis=-1)[..., None]
-    return Q, valid
+    valid &= (numpy.isfinite(Q.reshape((_count,) + (1, 2))).all(axis=-1)
+              & numpy.isfinite(_all_x).all(axis=-1)[:, None])
+    return Q.reshape(_batch + (1, 2)), valid.reshape(_batch + (1,))
 
 
 def task_velocity(q, qd):
@@ -151,12 +241,18 @@ def task_velocity(q, qd):
     q = _runtime.as_batch(q, 2, "task_velocity", "q")
     qd = _runtime.as_batch(qd, 2, "task_velocity", "qd")
     _batch = _runtime.batch_shape(q, qd)
-    qd1 = qd[..., 0]
-    qd2 = qd[..., 1]
-    xd = numpy.empty(_batch + (2,))
-    xd[..., 0] = qd2
-    xd[..., 1] = qd1
-    return xd
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _all_qd = numpy.broadcast_to(qd, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
+    xd = numpy.empty((_count, 2))
+    for _start in range(0, _count, CHUNK):
+        _columns_qd = numpy.ascontiguousarray(_all_qd[_start:_start + CHUNK].T)
+        qd1 = _columns_qd[0]
+        qd2 = _columns_qd[1]
+        _xd = xd[_start:_start + CHUNK].T
+        _xd[0] = qd2
+        _xd[1] = qd1
+    return xd.reshape(_batch + (2,))
 
 
 def twist(q, qd):
@@ -169,12 +265,22 @@ def twist(q, qd):
     q = _runtime.as_batch(q, 2, "twist", "q")
     qd = _runtime.as_batch(qd, 2, "twist", "qd")
     _batch = _runtime.batch_shape(q, qd)
-    qd1 = qd[..., 0]
-    qd2 = qd[..., 1]
-    twist = numpy.zeros(_batch + (6,))
-    twist[..., 0] = qd2
-    twist[..., 1] = qd1
-    return twist
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _all_qd = numpy.broadcast_to(qd, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
+    twist = numpy.empty((_count, 6))
+    twist[:, 2] = 0
+    twist[:, 3] = 0
+    twist[:, 4] = 0
+    twist[:, 5] = 0
+    for _start in range(0, _count, CHUNK):
+        _columns_qd = numpy.ascontiguousarray(_all_qd[_start:_start + CHUNK].T)
+        qd1 = _columns_qd[0]
+        qd2 = _columns_qd[1]
+        _twist = twist[_start:_start + CHUNK].T
+        _twist[0] = qd2
+        _twist[1] = qd1
+    return twist.reshape(_batch + (6,))
 
 
 def task_jacobian_dot(q, qd):
@@ -187,8 +293,17 @@ def task_jacobian_dot(q, qd):
     q = _runtime.as_batch(q, 2, "task_jacobian_dot", "q")
     qd = _runtime.as_batch(qd, 2, "task_jacobian_dot", "qd")
     _batch = _runtime.batch_shape(q, qd)
-    Jx_dot = numpy.zeros(_batch + (2, 2))
-    return Jx_dot
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _all_qd = numpy.broadcast_to(qd, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
+    Jx_dot = numpy.empty((_count, 4))
+    Jx_dot[:, 0] = 0
+    Jx_dot[:, 1] = 0
+    Jx_dot[:, 2] = 0
+    Jx_dot[:, 3] = 0
+    for _start in range(0, _count, CHUNK):
+        _Jx_dot = Jx_dot[_start:_start + CHUNK].T
+    return Jx_dot.reshape(_batch + (2, 2))
 
 
 def jacobian_dot(q, qd):
@@ -201,8 +316,25 @@ def jacobian_dot(q, qd):
     q = _runtime.as_batch(q, 2, "jacobian_dot", "q")
     qd = _runtime.as_batch(qd, 2, "jacobian_dot", "qd")
     _batch = _runtime.batch_shape(q, qd)
-    J_dot = numpy.zeros(_batch + (6, 2))
-    return J_dot
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _all_qd = numpy.broadcast_to(qd, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
+    J_dot = numpy.empty((_count, 12))
+    J_dot[:, 0] = 0
+    J_dot[:, 1] = 0
+    J_dot[:, 2] = 0
+    J_dot[:, 3] = 0
+    J_dot[:, 4] = 0
+    J_dot[:, 5] = 0
+    J_dot[:, 6] = 0
+    J_dot[:, 7] = 0
+    J_dot[:, 8] = 0
+    J_dot[:, 9] = 0
+    J_dot[:, 10] = 0
+    J_dot[:, 11] = 0
+    for _start in range(0, _count, CHUNK):
+        _J_dot = J_dot[_start:_start + CHUNK].T
+    return J_dot.reshape(_batch + (6, 2))
 
 
 def task_acceleration(q, qd, qdd):
@@ -217,12 +349,19 @@ def task_acceleration(q, qd, qdd):
     qd = _runtime.as_batch(qd, 2, "task_acceleration", "qd")
     qdd = _runtime.as_batch(qdd, 2, "task_acceleration", "qdd")
     _batch = _runtime.batch_shape(q, qd, qdd)
-    qdd1 = qdd[..., 0]
-    qdd2 = qdd[..., 1]
-    xdd = numpy.empty(_batch + (2,))
-    xdd[..., 0] = qdd2
-    xdd[..., 1] = qdd1
-    return xdd
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _all_qd = numpy.broadcast_to(qd, _batch + (2,)).reshape(-1, 2)
+    _all_qdd = numpy.broadcast_to(qdd, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
+    xdd = numpy.empty((_count, 2))
+    for _start in range(0, _count, CHUNK):
+        _columns_qdd = numpy.ascontiguousarray(_all_qdd[_start:_start + CHUNK].T)
+        qdd1 = _columns_qdd[0]
+        qdd2 = _columns_qdd[1]
+        _xdd = xdd[_start:_start + CHUNK].T
+        _xdd[0] = qdd2
+        _xdd[1] = qdd1
+    return xdd.reshape(_batch + (2,))
 
 
 def manipulability(q):
@@ -233,11 +372,16 @@ def manipulability(q):
     """
     q = _runtime.as_batch(q, 2, "manipulability", "q")
     _batch = _runtime.batch_shape(q)
-    manipulability = numpy.empty(_batch + ())
-    manipulability[..., ] = 1
-    singular = numpy.empty(_batch + (), dtype=bool)
-    singular[..., ] = False
-    return manipulability, singular
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
+    manipulability = numpy.empty((_count, 1))
+    manipulability[:, 0] = 1
+    singular = numpy.empty((_count, 1), dtype=bool)
+    singular[:, 0] = False
+    for _start in range(0, _count, CHUNK):
+        _manipulability = manipulability[_start:_start + CHUNK].T
+        _singular = singular[_start:_start + CHUNK].T
+    return manipulability.reshape(_batch + ()), singular.reshape(_batch + ())
 
 
 def joint_velocity(q, xd):
@@ -250,14 +394,21 @@ def joint_velocity(q, xd):
     q = _runtime.as_batch(q, 2, "joint_velocity", "q")
     xd = _runtime.as_batch(xd, 2, "joint_velocity", "xd")
     _batch = _runtime.batch_shape(q, xd)
-    xd_x = xd[..., 0]
-    xd_y = xd[..., 1]
-    qd = numpy.empty(_batch + (2,))
-    qd[..., 0] = xd_y
-    qd[..., 1] = xd_x
-    singular = numpy.empty(_batch + (), dtype=bool)
-    singular[..., ] = False
-    return qd, singular
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _all_xd = numpy.broadcast_to(xd, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
+    qd = numpy.empty((_count, 2))
+    singular = numpy.empty((_count, 1), dtype=bool)
+    singular[:, 0] = False
+    for _start in range(0, _count, CHUNK):
+        _columns_xd = numpy.ascontiguousarray(_all_xd[_start:_start + CHUNK].T)
+        xd_x = _columns_xd[0]
+        xd_y = _columns_xd[1]
+        _qd = qd[_start:_start + CHUNK].T
+        _qd[0] = xd_y
+        _qd[1] = xd_x
+        _singular = singular[_start:_start + CHUNK].T
+    return qd.reshape(_batch + (2,)), singular.reshape(_batch + ())
 
 
 def joint_acceleration(q, qd, xdd):
@@ -272,14 +423,22 @@ def joint_acceleration(q, qd, xdd):
     qd = _runtime.as_batch(qd, 2, "joint_acceleration", "qd")
     xdd = _runtime.as_batch(xdd, 2, "joint_acceleration", "xdd")
     _batch = _runtime.batch_shape(q, qd, xdd)
-    xdd_x = xdd[..., 0]
-    xdd_y = xdd[..., 1]
-    qdd = numpy.empty(_batch + (2,))
-    qdd[..., 0] = xdd_y
-    qdd[..., 1] = xdd_x
-    singular = numpy.empty(_batch + (), dtype=bool)
-    singular[..., ] = False
-    return qdd, singular
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _all_qd = numpy.broadcast_to(qd, _batch + (2,)).reshape(-1, 2)
+    _all_xdd = numpy.broadcast_to(xdd, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
+    qdd = numpy.empty((_count, 2))
+    singular = numpy.empty((_count, 1), dtype=bool)
+    singular[:, 0] = False
+    for _start in range(0, _count, CHUNK):
+        _columns_xdd = numpy.ascontiguousarray(_all_xdd[_start:_start + CHUNK].T)
+        xdd_x = _columns_xdd[0]
+        xdd_y = _columns_xdd[1]
+        _qdd = qdd[_start:_start + CHUNK].T
+        _qdd[0] = xdd_y
+        _qdd[1] = xdd_x
+        _singular = singular[_start:_start + CHUNK].T
+    return qdd.reshape(_batch + (2,)), singular.reshape(_batch + ())
 
 
 def within_limits(q):

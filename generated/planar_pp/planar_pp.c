@@ -23,6 +23,57 @@
 
 #include <math.h>
 
+/*
+ * Batched entry points.  Plain C99 loops over the single-point entry point by
+ * default.  With -DKINEGEN_BLOCKED they work through their items in blocks of
+ * KINEGEN_BLOCK instead: the inputs of a block are copied into one array per
+ * coordinate, every sine and every cosine is taken in a loop of its own, and the
+ * arithmetic runs in one loop per stage, from the same expressions as the single
+ * point (so the results are bit-identical).  -DKINEGEN_SIMD -fopenmp-simd (what
+ * build_c.py uses where the compiler and C library allow) adds to that SIMD
+ * declarations of the math functions, so that the loops vectorise and call
+ * glibc's vector math library (libmvec, at most 4 ulp), and the single point
+ * takes the sines and cosines of a stage's angles as one vector.  No NaN or
+ * infinity check is affected: no -ffast-math is involved.
+ */
+#ifdef KINEGEN_SIMD
+#pragma omp declare simd notinbranch
+double sin(double);
+#pragma omp declare simd notinbranch
+double cos(double);
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+/* libmvec has these from glibc 2.35 on. */
+#pragma omp declare simd notinbranch
+double atan2(double, double);
+#pragma omp declare simd notinbranch
+double acos(double);
+#pragma omp declare simd notinbranch
+double asin(double);
+#endif
+#define KINEGEN_VECTOR_LOOP _Pragma("omp simd")
+#ifndef KINEGEN_BLOCKED
+#define KINEGEN_BLOCKED
+#endif
+#else
+#define KINEGEN_VECTOR_LOOP
+#endif
+#ifndef KINEGEN_BLOCK
+#define KINEGEN_BLOCK 64
+#endif
+/* Each kernel's block: at most KINEGEN_BLOCK items, fewer where its arrays would pass 32 KiB of stack. */
+#define KINEGEN_BLOCK_OF(items) ((items) < KINEGEN_BLOCK ? (items) : KINEGEN_BLOCK)
+#if defined(KINEGEN_SIMD) && defined(__SSE2__) && !defined(KINEGEN_NO_STREAM)
+/* Batches whose outputs exceed KINEGEN_STREAM_BYTES write them with SSE2 streaming
+   stores: a plain store first reads the line it overwrites, which doubles the memory
+   traffic of a batch too large for the caches. */
+#include <emmintrin.h>
+#include <stdint.h>
+#define KINEGEN_STREAM
+#ifndef KINEGEN_STREAM_BYTES
+#define KINEGEN_STREAM_BYTES 1048576
+#endif
+#endif
+
 const planar_pp_params planar_pp_default_params = { 0.0 };
 
 /* Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. */
@@ -49,12 +100,91 @@ void planar_pp_fk(const double *restrict q, const planar_pp_params *restrict par
     T[15] = 1;
 }
 
+/* fk of `count` items, stored one after the other in each argument and output. */
 void planar_pp_fk_batch(size_t count, const double *restrict q, const planar_pp_params *restrict params, double *restrict T)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _T_block[16][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _T_block[0][i] = 0;
+                _T_block[1][i] = 0;
+                _T_block[2][i] = 1;
+                _T_block[3][i] = q2[i];
+                _T_block[4][i] = 0;
+                _T_block[5][i] = 1;
+                _T_block[6][i] = 0;
+                _T_block[7][i] = q1[i];
+                _T_block[8][i] = -1;
+                _T_block[9][i] = 0;
+                _T_block[10][i] = 0;
+                _T_block[11][i] = 0;
+                _T_block[12][i] = 0;
+                _T_block[13][i] = 0;
+                _T_block[14][i] = 0;
+                _T_block[15][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                T[16 * (start + i) + 0] = 0;
+                T[16 * (start + i) + 1] = 0;
+                T[16 * (start + i) + 2] = 1;
+                T[16 * (start + i) + 3] = q2[i];
+                T[16 * (start + i) + 4] = 0;
+                T[16 * (start + i) + 5] = 1;
+                T[16 * (start + i) + 6] = 0;
+                T[16 * (start + i) + 7] = q1[i];
+                T[16 * (start + i) + 8] = -1;
+                T[16 * (start + i) + 9] = 0;
+                T[16 * (start + i) + 10] = 0;
+                T[16 * (start + i) + 11] = 0;
+                T[16 * (start + i) + 12] = 0;
+                T[16 * (start + i) + 13] = 0;
+                T[16 * (start + i) + 14] = 0;
+                T[16 * (start + i) + 15] = 1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 16; k += 2) {
+                    _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_pp_fk(q + 2 * i, params, T + 16 * i);
     }
+#endif
 }
 
 /* Frames T_0 (base) .. T_2 (tool), shape (..., 3, 4, 4). */
@@ -113,12 +243,155 @@ void planar_pp_frames(const double *restrict q, const planar_pp_params *restrict
     frames[47] = 1;
 }
 
+/* frames of `count` items, stored one after the other in each argument and output. */
 void planar_pp_frames_batch(size_t count, const double *restrict q, const planar_pp_params *restrict params, double *restrict frames)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _frames_block[48][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 48 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _frames_block[0][i] = 1;
+                _frames_block[1][i] = 0;
+                _frames_block[2][i] = 0;
+                _frames_block[3][i] = 0;
+                _frames_block[4][i] = 0;
+                _frames_block[5][i] = 1;
+                _frames_block[6][i] = 0;
+                _frames_block[7][i] = 0;
+                _frames_block[8][i] = 0;
+                _frames_block[9][i] = 0;
+                _frames_block[10][i] = 1;
+                _frames_block[11][i] = 0;
+                _frames_block[12][i] = 0;
+                _frames_block[13][i] = 0;
+                _frames_block[14][i] = 0;
+                _frames_block[15][i] = 1;
+                _frames_block[16][i] = 0;
+                _frames_block[17][i] = -1;
+                _frames_block[18][i] = 0;
+                _frames_block[19][i] = 0;
+                _frames_block[20][i] = 0;
+                _frames_block[21][i] = 0;
+                _frames_block[22][i] = 1;
+                _frames_block[23][i] = q1[i];
+                _frames_block[24][i] = -1;
+                _frames_block[25][i] = 0;
+                _frames_block[26][i] = 0;
+                _frames_block[27][i] = 0;
+                _frames_block[28][i] = 0;
+                _frames_block[29][i] = 0;
+                _frames_block[30][i] = 0;
+                _frames_block[31][i] = 1;
+                _frames_block[32][i] = 0;
+                _frames_block[33][i] = 0;
+                _frames_block[34][i] = 1;
+                _frames_block[35][i] = q2[i];
+                _frames_block[36][i] = 0;
+                _frames_block[37][i] = 1;
+                _frames_block[38][i] = 0;
+                _frames_block[39][i] = q1[i];
+                _frames_block[40][i] = -1;
+                _frames_block[41][i] = 0;
+                _frames_block[42][i] = 0;
+                _frames_block[43][i] = 0;
+                _frames_block[44][i] = 0;
+                _frames_block[45][i] = 0;
+                _frames_block[46][i] = 0;
+                _frames_block[47][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                frames[48 * (start + i) + 0] = 1;
+                frames[48 * (start + i) + 1] = 0;
+                frames[48 * (start + i) + 2] = 0;
+                frames[48 * (start + i) + 3] = 0;
+                frames[48 * (start + i) + 4] = 0;
+                frames[48 * (start + i) + 5] = 1;
+                frames[48 * (start + i) + 6] = 0;
+                frames[48 * (start + i) + 7] = 0;
+                frames[48 * (start + i) + 8] = 0;
+                frames[48 * (start + i) + 9] = 0;
+                frames[48 * (start + i) + 10] = 1;
+                frames[48 * (start + i) + 11] = 0;
+                frames[48 * (start + i) + 12] = 0;
+                frames[48 * (start + i) + 13] = 0;
+                frames[48 * (start + i) + 14] = 0;
+                frames[48 * (start + i) + 15] = 1;
+                frames[48 * (start + i) + 16] = 0;
+                frames[48 * (start + i) + 17] = -1;
+                frames[48 * (start + i) + 18] = 0;
+                frames[48 * (start + i) + 19] = 0;
+                frames[48 * (start + i) + 20] = 0;
+                frames[48 * (start + i) + 21] = 0;
+                frames[48 * (start + i) + 22] = 1;
+                frames[48 * (start + i) + 23] = q1[i];
+                frames[48 * (start + i) + 24] = -1;
+                frames[48 * (start + i) + 25] = 0;
+                frames[48 * (start + i) + 26] = 0;
+                frames[48 * (start + i) + 27] = 0;
+                frames[48 * (start + i) + 28] = 0;
+                frames[48 * (start + i) + 29] = 0;
+                frames[48 * (start + i) + 30] = 0;
+                frames[48 * (start + i) + 31] = 1;
+                frames[48 * (start + i) + 32] = 0;
+                frames[48 * (start + i) + 33] = 0;
+                frames[48 * (start + i) + 34] = 1;
+                frames[48 * (start + i) + 35] = q2[i];
+                frames[48 * (start + i) + 36] = 0;
+                frames[48 * (start + i) + 37] = 1;
+                frames[48 * (start + i) + 38] = 0;
+                frames[48 * (start + i) + 39] = q1[i];
+                frames[48 * (start + i) + 40] = -1;
+                frames[48 * (start + i) + 41] = 0;
+                frames[48 * (start + i) + 42] = 0;
+                frames[48 * (start + i) + 43] = 0;
+                frames[48 * (start + i) + 44] = 0;
+                frames[48 * (start + i) + 45] = 0;
+                frames[48 * (start + i) + 46] = 0;
+                frames[48 * (start + i) + 47] = 1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 48; k += 2) {
+                    _mm_stream_pd(frames + 48 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_pp_frames(q + 2 * i, params, frames + 48 * i);
     }
+#endif
 }
 
 /* Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 2). */
@@ -140,12 +413,78 @@ void planar_pp_jacobian(const double *restrict q, const planar_pp_params *restri
     J[11] = 0;
 }
 
+/* jacobian of `count` items, stored one after the other in each argument and output. */
 void planar_pp_jacobian_batch(size_t count, const double *restrict q, const planar_pp_params *restrict params, double *restrict J)
 {
+#ifdef KINEGEN_BLOCKED
+#ifdef KINEGEN_STREAM
+    double _J_block[12][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)q;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _J_block[0][i] = 0;
+                _J_block[1][i] = 1;
+                _J_block[2][i] = 1;
+                _J_block[3][i] = 0;
+                _J_block[4][i] = 0;
+                _J_block[5][i] = 0;
+                _J_block[6][i] = 0;
+                _J_block[7][i] = 0;
+                _J_block[8][i] = 0;
+                _J_block[9][i] = 0;
+                _J_block[10][i] = 0;
+                _J_block[11][i] = 0;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                J[12 * (start + i) + 0] = 0;
+                J[12 * (start + i) + 1] = 1;
+                J[12 * (start + i) + 2] = 1;
+                J[12 * (start + i) + 3] = 0;
+                J[12 * (start + i) + 4] = 0;
+                J[12 * (start + i) + 5] = 0;
+                J[12 * (start + i) + 6] = 0;
+                J[12 * (start + i) + 7] = 0;
+                J[12 * (start + i) + 8] = 0;
+                J[12 * (start + i) + 9] = 0;
+                J[12 * (start + i) + 10] = 0;
+                J[12 * (start + i) + 11] = 0;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 12; k += 2) {
+                    _mm_stream_pd(J + 12 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_pp_jacobian(q + 2 * i, params, J + 12 * i);
     }
+#endif
 }
 
 /* Task coordinates x, y, shape (..., 2). */
@@ -158,12 +497,63 @@ void planar_pp_task(const double *restrict q, const planar_pp_params *restrict p
     x[1] = q1;
 }
 
+/* task of `count` items, stored one after the other in each argument and output. */
 void planar_pp_task_batch(size_t count, const double *restrict q, const planar_pp_params *restrict params, double *restrict x)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _x_block[2][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)x & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _x_block[0][i] = q2[i];
+                _x_block[1][i] = q1[i];
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                x[2 * (start + i) + 0] = q2[i];
+                x[2 * (start + i) + 1] = q1[i];
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 2; k += 2) {
+                    _mm_stream_pd(x + 2 * (start + i) + k, _mm_set_pd(_x_block[k + 1][i], _x_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_pp_task(q + 2 * i, params, x + 2 * i);
     }
+#endif
 }
 
 /* d task / d q, shape (..., 2, 2). */
@@ -177,12 +567,84 @@ void planar_pp_task_jacobian(const double *restrict q, const planar_pp_params *r
     Jx[3] = 0;
 }
 
+/* task_jacobian of `count` items, stored one after the other in each argument and output. */
 void planar_pp_task_jacobian_batch(size_t count, const double *restrict q, const planar_pp_params *restrict params, double *restrict Jx)
 {
+#ifdef KINEGEN_BLOCKED
+#ifdef KINEGEN_STREAM
+    double _Jx_block[4][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)q;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _Jx_block[0][i] = 0;
+                _Jx_block[1][i] = 1;
+                _Jx_block[2][i] = 1;
+                _Jx_block[3][i] = 0;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                Jx[4 * (start + i) + 0] = 0;
+                Jx[4 * (start + i) + 1] = 1;
+                Jx[4 * (start + i) + 2] = 1;
+                Jx[4 * (start + i) + 3] = 0;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 4; k += 2) {
+                    _mm_stream_pd(Jx + 4 * (start + i) + k, _mm_set_pd(_Jx_block[k + 1][i], _Jx_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_pp_task_jacobian(q + 2 * i, params, Jx + 4 * i);
     }
+#endif
+}
+
+/* The checks after an ik of one target x: a branch with a joint value that is not
+   finite, or of a target that is not, is not valid; returns the number of valid branches. */
+static int planar_pp_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
+{
+    int branch, joint, finite_target = 1, valid_branches = 0;
+    for (joint = 0; joint < 2; ++joint) {
+        finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
+    }
+    for (branch = 0; branch < 1; ++branch) {
+        if (!finite_target) {
+            valid[branch] = 0;
+        }
+        for (joint = 0; joint < 2; ++joint) {
+            if (!isfinite(Q[2 * branch + joint])) {
+                valid[branch] = 0;  /* no NaN leaks out as a valid answer */
+            }
+        }
+        valid_branches += valid[branch] != 0;
+    }
+    return valid_branches;
 }
 
 /* Inverse kinematics, all 1 branches (unique): Q (..., 1, 2), valid (..., 1).
@@ -196,39 +658,60 @@ int planar_pp_ik(const double *restrict _x, const planar_pp_params *restrict par
     Q[0] = y;
     Q[1] = x;
     valid[0] = 1;
-    {
-        int branch, joint, finite_target = 1, valid_branches = 0;
-        for (joint = 0; joint < 2; ++joint) {
-            finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
-        }
-        for (branch = 0; branch < 1; ++branch) {
-            if (!finite_target) {
-                valid[branch] = 0;
-            }
-            for (joint = 0; joint < 2; ++joint) {
-                if (!isfinite(Q[2 * branch + joint])) {
-                    valid[branch] = 0;  /* no NaN leaks out as a valid answer */
-                }
-            }
-            valid_branches += valid[branch] != 0;
-        }
-        return valid_branches;
-    }
+    return planar_pp_ik_checks(_x, Q, valid);
 }
 
-long planar_pp_ik_batch(size_t count, const double *restrict x, const planar_pp_params *restrict params, double *restrict Q, int *restrict valid)
+/* ik of `count` items, stored one after the other in each argument and output.   Returns the total number of valid branches, or -1 if any item was refused. */
+long planar_pp_ik_batch(size_t count, const double *restrict _x, const planar_pp_params *restrict params, double *restrict Q, int *restrict valid)
 {
-    size_t i;
     long valid_branches = 0;
     int refused = 0;
+#ifdef KINEGEN_BLOCKED
+    double x[KINEGEN_BLOCK_OF(64)];
+    double y[KINEGEN_BLOCK_OF(64)];
+    double _Q_block[2][KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            x[i] = _x[2 * (start + i) + 0];
+            y[i] = _x[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _Q_block[0][i] = y[i];
+            _Q_block[1][i] = x[i];
+            valid[1 * (start + i) + 0] = 1;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 2; ++k) {
+                    Q[2 * (start + i) + k] = _Q_block[k][i];
+                }
+            }
+        }
+        for (i = 0; i < n; ++i) {
+            const int found = planar_pp_ik_checks(_x + 2 * (start + i), Q + 2 * (start + i), valid + 1 * (start + i));
+            if (found < 0) {
+                refused = 1;
+            } else {
+                valid_branches += found;
+            }
+        }
+    }
+#else
+    size_t i;
     for (i = 0; i < count; ++i) {
-        const int found = planar_pp_ik(x + 2 * i, params, Q + 2 * i, valid + 1 * i);
+        const int found = planar_pp_ik(_x + 2 * i, params, Q + 2 * i, valid + 1 * i);
         if (found < 0) {
             refused = 1;
         } else {
             valid_branches += found;
         }
     }
+#endif
     return refused ? -1 : valid_branches;
 }
 
@@ -243,12 +726,64 @@ void planar_pp_task_velocity(const double *restrict q, const double *restrict qd
     xd[1] = qd1;
 }
 
+/* task_velocity of `count` items, stored one after the other in each argument and output. */
 void planar_pp_task_velocity_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_pp_params *restrict params, double *restrict xd)
 {
+#ifdef KINEGEN_BLOCKED
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _xd_block[2][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)xd & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)q;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            qd1[i] = qd[2 * (start + i) + 0];
+            qd2[i] = qd[2 * (start + i) + 1];
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _xd_block[0][i] = qd2[i];
+                _xd_block[1][i] = qd1[i];
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                xd[2 * (start + i) + 0] = qd2[i];
+                xd[2 * (start + i) + 1] = qd1[i];
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 2; k += 2) {
+                    _mm_stream_pd(xd + 2 * (start + i) + k, _mm_set_pd(_xd_block[k + 1][i], _xd_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_pp_task_velocity(q + 2 * i, qd + 2 * i, params, xd + 2 * i);
     }
+#endif
 }
 
 /* Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s. */
@@ -266,12 +801,72 @@ void planar_pp_twist(const double *restrict q, const double *restrict qd, const 
     twist[5] = 0;
 }
 
+/* twist of `count` items, stored one after the other in each argument and output. */
 void planar_pp_twist_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_pp_params *restrict params, double *restrict twist)
 {
+#ifdef KINEGEN_BLOCKED
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _twist_block[6][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)twist & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)q;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            qd1[i] = qd[2 * (start + i) + 0];
+            qd2[i] = qd[2 * (start + i) + 1];
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _twist_block[0][i] = qd2[i];
+                _twist_block[1][i] = qd1[i];
+                _twist_block[2][i] = 0;
+                _twist_block[3][i] = 0;
+                _twist_block[4][i] = 0;
+                _twist_block[5][i] = 0;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                twist[6 * (start + i) + 0] = qd2[i];
+                twist[6 * (start + i) + 1] = qd1[i];
+                twist[6 * (start + i) + 2] = 0;
+                twist[6 * (start + i) + 3] = 0;
+                twist[6 * (start + i) + 4] = 0;
+                twist[6 * (start + i) + 5] = 0;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 6; k += 2) {
+                    _mm_stream_pd(twist + 6 * (start + i) + k, _mm_set_pd(_twist_block[k + 1][i], _twist_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_pp_twist(q + 2 * i, qd + 2 * i, params, twist + 6 * i);
     }
+#endif
 }
 
 /* d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 2, 2). */
@@ -286,12 +881,63 @@ void planar_pp_task_jacobian_dot(const double *restrict q, const double *restric
     Jx_dot[3] = 0;
 }
 
+/* task_jacobian_dot of `count` items, stored one after the other in each argument and output. */
 void planar_pp_task_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_pp_params *restrict params, double *restrict Jx_dot)
 {
+#ifdef KINEGEN_BLOCKED
+#ifdef KINEGEN_STREAM
+    double _Jx_dot_block[4][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx_dot & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)q;
+    (void)qd;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _Jx_dot_block[0][i] = 0;
+                _Jx_dot_block[1][i] = 0;
+                _Jx_dot_block[2][i] = 0;
+                _Jx_dot_block[3][i] = 0;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                Jx_dot[4 * (start + i) + 0] = 0;
+                Jx_dot[4 * (start + i) + 1] = 0;
+                Jx_dot[4 * (start + i) + 2] = 0;
+                Jx_dot[4 * (start + i) + 3] = 0;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 4; k += 2) {
+                    _mm_stream_pd(Jx_dot + 4 * (start + i) + k, _mm_set_pd(_Jx_dot_block[k + 1][i], _Jx_dot_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_pp_task_jacobian_dot(q + 2 * i, qd + 2 * i, params, Jx_dot + 4 * i);
     }
+#endif
 }
 
 /* d(J)/dt of the geometric Jacobian, shape (..., 6, 2). */
@@ -314,12 +960,79 @@ void planar_pp_jacobian_dot(const double *restrict q, const double *restrict qd,
     J_dot[11] = 0;
 }
 
+/* jacobian_dot of `count` items, stored one after the other in each argument and output. */
 void planar_pp_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_pp_params *restrict params, double *restrict J_dot)
 {
+#ifdef KINEGEN_BLOCKED
+#ifdef KINEGEN_STREAM
+    double _J_dot_block[12][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_dot & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)q;
+    (void)qd;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _J_dot_block[0][i] = 0;
+                _J_dot_block[1][i] = 0;
+                _J_dot_block[2][i] = 0;
+                _J_dot_block[3][i] = 0;
+                _J_dot_block[4][i] = 0;
+                _J_dot_block[5][i] = 0;
+                _J_dot_block[6][i] = 0;
+                _J_dot_block[7][i] = 0;
+                _J_dot_block[8][i] = 0;
+                _J_dot_block[9][i] = 0;
+                _J_dot_block[10][i] = 0;
+                _J_dot_block[11][i] = 0;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                J_dot[12 * (start + i) + 0] = 0;
+                J_dot[12 * (start + i) + 1] = 0;
+                J_dot[12 * (start + i) + 2] = 0;
+                J_dot[12 * (start + i) + 3] = 0;
+                J_dot[12 * (start + i) + 4] = 0;
+                J_dot[12 * (start + i) + 5] = 0;
+                J_dot[12 * (start + i) + 6] = 0;
+                J_dot[12 * (start + i) + 7] = 0;
+                J_dot[12 * (start + i) + 8] = 0;
+                J_dot[12 * (start + i) + 9] = 0;
+                J_dot[12 * (start + i) + 10] = 0;
+                J_dot[12 * (start + i) + 11] = 0;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 12; k += 2) {
+                    _mm_stream_pd(J_dot + 12 * (start + i) + k, _mm_set_pd(_J_dot_block[k + 1][i], _J_dot_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_pp_jacobian_dot(q + 2 * i, qd + 2 * i, params, J_dot + 12 * i);
     }
+#endif
 }
 
 /* Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 2). */
@@ -334,12 +1047,65 @@ void planar_pp_task_acceleration(const double *restrict q, const double *restric
     xdd[1] = qdd1;
 }
 
+/* task_acceleration of `count` items, stored one after the other in each argument and output. */
 void planar_pp_task_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict qdd, const planar_pp_params *restrict params, double *restrict xdd)
 {
+#ifdef KINEGEN_BLOCKED
+    double qdd1[KINEGEN_BLOCK_OF(64)];
+    double qdd2[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _xdd_block[2][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)xdd & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)q;
+    (void)qd;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            qdd1[i] = qdd[2 * (start + i) + 0];
+            qdd2[i] = qdd[2 * (start + i) + 1];
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _xdd_block[0][i] = qdd2[i];
+                _xdd_block[1][i] = qdd1[i];
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                xdd[2 * (start + i) + 0] = qdd2[i];
+                xdd[2 * (start + i) + 1] = qdd1[i];
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 2; k += 2) {
+                    _mm_stream_pd(xdd + 2 * (start + i) + k, _mm_set_pd(_xdd_block[k + 1][i], _xdd_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_pp_task_acceleration(q + 2 * i, qd + 2 * i, qdd + 2 * i, params, xdd + 2 * i);
     }
+#endif
 }
 
 /* Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...). */
@@ -351,12 +1117,27 @@ void planar_pp_manipulability(const double *restrict q, const planar_pp_params *
     singular[0] = 0;
 }
 
+/* manipulability of `count` items, stored one after the other in each argument and output. */
 void planar_pp_manipulability_batch(size_t count, const double *restrict q, const planar_pp_params *restrict params, double *restrict manipulability, int *restrict singular)
 {
+#ifdef KINEGEN_BLOCKED
+    size_t start, i, n;
+    (void)q;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            manipulability[1 * (start + i) + 0] = 1;
+            singular[1 * (start + i) + 0] = 0;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_pp_manipulability(q + 2 * i, params, manipulability + 1 * i, singular + 1 * i);
     }
+#endif
 }
 
 /* Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 2) and (...). */
@@ -371,12 +1152,66 @@ void planar_pp_joint_velocity(const double *restrict q, const double *restrict x
     singular[0] = 0;
 }
 
+/* joint_velocity of `count` items, stored one after the other in each argument and output. */
 void planar_pp_joint_velocity_batch(size_t count, const double *restrict q, const double *restrict xd, const planar_pp_params *restrict params, double *restrict qd, int *restrict singular)
 {
+#ifdef KINEGEN_BLOCKED
+    double xd_x[KINEGEN_BLOCK_OF(64)];
+    double xd_y[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _qd_block[2][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)qd & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)q;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            xd_x[i] = xd[2 * (start + i) + 0];
+            xd_y[i] = xd[2 * (start + i) + 1];
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _qd_block[0][i] = xd_y[i];
+                _qd_block[1][i] = xd_x[i];
+                singular[1 * (start + i) + 0] = 0;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                qd[2 * (start + i) + 0] = xd_y[i];
+                qd[2 * (start + i) + 1] = xd_x[i];
+                singular[1 * (start + i) + 0] = 0;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 2; k += 2) {
+                    _mm_stream_pd(qd + 2 * (start + i) + k, _mm_set_pd(_qd_block[k + 1][i], _qd_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_pp_joint_velocity(q + 2 * i, xd + 2 * i, params, qd + 2 * i, singular + 1 * i);
     }
+#endif
 }
 
 /* Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 2) and (...). */
@@ -392,12 +1227,67 @@ void planar_pp_joint_acceleration(const double *restrict q, const double *restri
     singular[0] = 0;
 }
 
+/* joint_acceleration of `count` items, stored one after the other in each argument and output. */
 void planar_pp_joint_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict xdd, const planar_pp_params *restrict params, double *restrict qdd, int *restrict singular)
 {
+#ifdef KINEGEN_BLOCKED
+    double xdd_x[KINEGEN_BLOCK_OF(64)];
+    double xdd_y[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _qdd_block[2][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)qdd & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)q;
+    (void)qd;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            xdd_x[i] = xdd[2 * (start + i) + 0];
+            xdd_y[i] = xdd[2 * (start + i) + 1];
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _qdd_block[0][i] = xdd_y[i];
+                _qdd_block[1][i] = xdd_x[i];
+                singular[1 * (start + i) + 0] = 0;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                qdd[2 * (start + i) + 0] = xdd_y[i];
+                qdd[2 * (start + i) + 1] = xdd_x[i];
+                singular[1 * (start + i) + 0] = 0;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 2; k += 2) {
+                    _mm_stream_pd(qdd + 2 * (start + i) + k, _mm_set_pd(_qdd_block[k + 1][i], _qdd_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_pp_joint_acceleration(q + 2 * i, qd + 2 * i, xdd + 2 * i, params, qdd + 2 * i, singular + 1 * i);
     }
+#endif
 }
 
 /* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */

@@ -23,7 +23,66 @@
 
 #include <math.h>
 
+/*
+ * Batched entry points.  Plain C99 loops over the single-point entry point by
+ * default.  With -DKINEGEN_BLOCKED they work through their items in blocks of
+ * KINEGEN_BLOCK instead: the inputs of a block are copied into one array per
+ * coordinate, every sine and every cosine is taken in a loop of its own, and the
+ * arithmetic runs in one loop per stage, from the same expressions as the single
+ * point (so the results are bit-identical).  -DKINEGEN_SIMD -fopenmp-simd (what
+ * build_c.py uses where the compiler and C library allow) adds to that SIMD
+ * declarations of the math functions, so that the loops vectorise and call
+ * glibc's vector math library (libmvec, at most 4 ulp), and the single point
+ * takes the sines and cosines of a stage's angles as one vector.  No NaN or
+ * infinity check is affected: no -ffast-math is involved.
+ */
+#ifdef KINEGEN_SIMD
+#pragma omp declare simd notinbranch
+double sin(double);
+#pragma omp declare simd notinbranch
+double cos(double);
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+/* libmvec has these from glibc 2.35 on. */
+#pragma omp declare simd notinbranch
+double atan2(double, double);
+#pragma omp declare simd notinbranch
+double acos(double);
+#pragma omp declare simd notinbranch
+double asin(double);
+#endif
+#define KINEGEN_VECTOR_LOOP _Pragma("omp simd")
+#ifndef KINEGEN_BLOCKED
+#define KINEGEN_BLOCKED
+#endif
+#else
+#define KINEGEN_VECTOR_LOOP
+#endif
+#ifndef KINEGEN_BLOCK
+#define KINEGEN_BLOCK 64
+#endif
+/* Each kernel's block: at most KINEGEN_BLOCK items, fewer where its arrays would pass 32 KiB of stack. */
+#define KINEGEN_BLOCK_OF(items) ((items) < KINEGEN_BLOCK ? (items) : KINEGEN_BLOCK)
+#if defined(KINEGEN_SIMD) && defined(__SSE2__) && !defined(KINEGEN_NO_STREAM)
+/* Batches whose outputs exceed KINEGEN_STREAM_BYTES write them with SSE2 streaming
+   stores: a plain store first reads the line it overwrites, which doubles the memory
+   traffic of a batch too large for the caches. */
+#include <emmintrin.h>
+#include <stdint.h>
+#define KINEGEN_STREAM
+#ifndef KINEGEN_STREAM_BYTES
+#define KINEGEN_STREAM_BYTES 1048576
+#endif
+#endif
+
 const planar_rp_params planar_rp_default_params = { 0.0 };
+
+/* min and max that pass a NaN on, like numpy.minimum and numpy.maximum: C99's fmin and
+   fmax would turn an acos argument of NaN into +-1 and a valid-looking angle.  Each is
+   emitted only where a kernel uses it (static: -Werror=unused-function). */
+static double kinegen_max(double a, double b)
+{
+    return isnan(a) || a > b ? a : b;
+}
 
 /* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi. */
 static double kinegen_wrap_angle(double angle)
@@ -45,16 +104,17 @@ void planar_rp_fk(const double *restrict q, const planar_rp_params *restrict par
     const double q1 = q[0];
     const double q2 = q[1];
     (void)params;
-    const double _t0 = sin(q1);
-    const double _t1 = cos(q1);
-    T[0] = _t0;
+    double _s0, _c0;
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    T[0] = _s0;
     T[1] = 0;
-    T[2] = _t1;
-    T[3] = _t1*q2;
-    T[4] = -_t1;
+    T[2] = _c0;
+    T[3] = _c0*q2;
+    T[4] = -_c0;
     T[5] = 0;
-    T[6] = _t0;
-    T[7] = _t0*q2;
+    T[6] = _s0;
+    T[7] = _s0*q2;
     T[8] = 0;
     T[9] = -1;
     T[10] = 0;
@@ -65,12 +125,101 @@ void planar_rp_fk(const double *restrict q, const planar_rp_params *restrict par
     T[15] = 1;
 }
 
+/* fk of `count` items, stored one after the other in each argument and output. */
 void planar_rp_fk_batch(size_t count, const double *restrict q, const planar_rp_params *restrict params, double *restrict T)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _T_block[16][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _T_block[0][i] = _s0[i];
+                _T_block[1][i] = 0;
+                _T_block[2][i] = _c0[i];
+                _T_block[3][i] = _c0[i]*q2[i];
+                _T_block[4][i] = -_c0[i];
+                _T_block[5][i] = 0;
+                _T_block[6][i] = _s0[i];
+                _T_block[7][i] = _s0[i]*q2[i];
+                _T_block[8][i] = 0;
+                _T_block[9][i] = -1;
+                _T_block[10][i] = 0;
+                _T_block[11][i] = 0;
+                _T_block[12][i] = 0;
+                _T_block[13][i] = 0;
+                _T_block[14][i] = 0;
+                _T_block[15][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                T[16 * (start + i) + 0] = _s0[i];
+                T[16 * (start + i) + 1] = 0;
+                T[16 * (start + i) + 2] = _c0[i];
+                T[16 * (start + i) + 3] = _c0[i]*q2[i];
+                T[16 * (start + i) + 4] = -_c0[i];
+                T[16 * (start + i) + 5] = 0;
+                T[16 * (start + i) + 6] = _s0[i];
+                T[16 * (start + i) + 7] = _s0[i]*q2[i];
+                T[16 * (start + i) + 8] = 0;
+                T[16 * (start + i) + 9] = -1;
+                T[16 * (start + i) + 10] = 0;
+                T[16 * (start + i) + 11] = 0;
+                T[16 * (start + i) + 12] = 0;
+                T[16 * (start + i) + 13] = 0;
+                T[16 * (start + i) + 14] = 0;
+                T[16 * (start + i) + 15] = 1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 16; k += 2) {
+                    _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_rp_fk(q + 2 * i, params, T + 16 * i);
     }
+#endif
 }
 
 /* Frames T_0 (base) .. T_2 (tool), shape (..., 3, 4, 4). */
@@ -79,9 +228,10 @@ void planar_rp_frames(const double *restrict q, const planar_rp_params *restrict
     const double q1 = q[0];
     const double q2 = q[1];
     (void)params;
-    const double _t0 = sin(q1);
-    const double _t1 = cos(q1);
-    const double _t2 = -_t1;
+    double _s0, _c0;
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    const double _t2 = -_c0;
     frames[0] = 1;
     frames[1] = 0;
     frames[2] = 0;
@@ -98,12 +248,12 @@ void planar_rp_frames(const double *restrict q, const planar_rp_params *restrict
     frames[13] = 0;
     frames[14] = 0;
     frames[15] = 1;
-    frames[16] = _t0;
-    frames[17] = _t1;
+    frames[16] = _s0;
+    frames[17] = _c0;
     frames[18] = 0;
     frames[19] = 0;
     frames[20] = _t2;
-    frames[21] = _t0;
+    frames[21] = _s0;
     frames[22] = 0;
     frames[23] = 0;
     frames[24] = 0;
@@ -114,14 +264,14 @@ void planar_rp_frames(const double *restrict q, const planar_rp_params *restrict
     frames[29] = 0;
     frames[30] = 0;
     frames[31] = 1;
-    frames[32] = _t0;
+    frames[32] = _s0;
     frames[33] = 0;
-    frames[34] = _t1;
-    frames[35] = _t1*q2;
+    frames[34] = _c0;
+    frames[35] = _c0*q2;
     frames[36] = _t2;
     frames[37] = 0;
-    frames[38] = _t0;
-    frames[39] = _t0*q2;
+    frames[38] = _s0;
+    frames[39] = _s0*q2;
     frames[40] = 0;
     frames[41] = -1;
     frames[42] = 0;
@@ -132,12 +282,167 @@ void planar_rp_frames(const double *restrict q, const planar_rp_params *restrict
     frames[47] = 1;
 }
 
+/* frames of `count` items, stored one after the other in each argument and output. */
 void planar_rp_frames_batch(size_t count, const double *restrict q, const planar_rp_params *restrict params, double *restrict frames)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _frames_block[48][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 48 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = -_c0[i];
+                _frames_block[0][i] = 1;
+                _frames_block[1][i] = 0;
+                _frames_block[2][i] = 0;
+                _frames_block[3][i] = 0;
+                _frames_block[4][i] = 0;
+                _frames_block[5][i] = 1;
+                _frames_block[6][i] = 0;
+                _frames_block[7][i] = 0;
+                _frames_block[8][i] = 0;
+                _frames_block[9][i] = 0;
+                _frames_block[10][i] = 1;
+                _frames_block[11][i] = 0;
+                _frames_block[12][i] = 0;
+                _frames_block[13][i] = 0;
+                _frames_block[14][i] = 0;
+                _frames_block[15][i] = 1;
+                _frames_block[16][i] = _s0[i];
+                _frames_block[17][i] = _c0[i];
+                _frames_block[18][i] = 0;
+                _frames_block[19][i] = 0;
+                _frames_block[20][i] = _t2;
+                _frames_block[21][i] = _s0[i];
+                _frames_block[22][i] = 0;
+                _frames_block[23][i] = 0;
+                _frames_block[24][i] = 0;
+                _frames_block[25][i] = 0;
+                _frames_block[26][i] = 1;
+                _frames_block[27][i] = 0;
+                _frames_block[28][i] = 0;
+                _frames_block[29][i] = 0;
+                _frames_block[30][i] = 0;
+                _frames_block[31][i] = 1;
+                _frames_block[32][i] = _s0[i];
+                _frames_block[33][i] = 0;
+                _frames_block[34][i] = _c0[i];
+                _frames_block[35][i] = _c0[i]*q2[i];
+                _frames_block[36][i] = _t2;
+                _frames_block[37][i] = 0;
+                _frames_block[38][i] = _s0[i];
+                _frames_block[39][i] = _s0[i]*q2[i];
+                _frames_block[40][i] = 0;
+                _frames_block[41][i] = -1;
+                _frames_block[42][i] = 0;
+                _frames_block[43][i] = 0;
+                _frames_block[44][i] = 0;
+                _frames_block[45][i] = 0;
+                _frames_block[46][i] = 0;
+                _frames_block[47][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = -_c0[i];
+                frames[48 * (start + i) + 0] = 1;
+                frames[48 * (start + i) + 1] = 0;
+                frames[48 * (start + i) + 2] = 0;
+                frames[48 * (start + i) + 3] = 0;
+                frames[48 * (start + i) + 4] = 0;
+                frames[48 * (start + i) + 5] = 1;
+                frames[48 * (start + i) + 6] = 0;
+                frames[48 * (start + i) + 7] = 0;
+                frames[48 * (start + i) + 8] = 0;
+                frames[48 * (start + i) + 9] = 0;
+                frames[48 * (start + i) + 10] = 1;
+                frames[48 * (start + i) + 11] = 0;
+                frames[48 * (start + i) + 12] = 0;
+                frames[48 * (start + i) + 13] = 0;
+                frames[48 * (start + i) + 14] = 0;
+                frames[48 * (start + i) + 15] = 1;
+                frames[48 * (start + i) + 16] = _s0[i];
+                frames[48 * (start + i) + 17] = _c0[i];
+                frames[48 * (start + i) + 18] = 0;
+                frames[48 * (start + i) + 19] = 0;
+                frames[48 * (start + i) + 20] = _t2;
+                frames[48 * (start + i) + 21] = _s0[i];
+                frames[48 * (start + i) + 22] = 0;
+                frames[48 * (start + i) + 23] = 0;
+                frames[48 * (start + i) + 24] = 0;
+                frames[48 * (start + i) + 25] = 0;
+                frames[48 * (start + i) + 26] = 1;
+                frames[48 * (start + i) + 27] = 0;
+                frames[48 * (start + i) + 28] = 0;
+                frames[48 * (start + i) + 29] = 0;
+                frames[48 * (start + i) + 30] = 0;
+                frames[48 * (start + i) + 31] = 1;
+                frames[48 * (start + i) + 32] = _s0[i];
+                frames[48 * (start + i) + 33] = 0;
+                frames[48 * (start + i) + 34] = _c0[i];
+                frames[48 * (start + i) + 35] = _c0[i]*q2[i];
+                frames[48 * (start + i) + 36] = _t2;
+                frames[48 * (start + i) + 37] = 0;
+                frames[48 * (start + i) + 38] = _s0[i];
+                frames[48 * (start + i) + 39] = _s0[i]*q2[i];
+                frames[48 * (start + i) + 40] = 0;
+                frames[48 * (start + i) + 41] = -1;
+                frames[48 * (start + i) + 42] = 0;
+                frames[48 * (start + i) + 43] = 0;
+                frames[48 * (start + i) + 44] = 0;
+                frames[48 * (start + i) + 45] = 0;
+                frames[48 * (start + i) + 46] = 0;
+                frames[48 * (start + i) + 47] = 1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 48; k += 2) {
+                    _mm_stream_pd(frames + 48 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_rp_frames(q + 2 * i, params, frames + 48 * i);
     }
+#endif
 }
 
 /* Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 2). */
@@ -146,12 +451,13 @@ void planar_rp_jacobian(const double *restrict q, const planar_rp_params *restri
     const double q1 = q[0];
     const double q2 = q[1];
     (void)params;
-    const double _t0 = sin(q1);
-    const double _t1 = cos(q1);
-    J[0] = -_t0*q2;
-    J[1] = _t1;
-    J[2] = _t1*q2;
-    J[3] = _t0;
+    double _s0, _c0;
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    J[0] = -_s0*q2;
+    J[1] = _c0;
+    J[2] = _c0*q2;
+    J[3] = _s0;
     J[4] = 0;
     J[5] = 0;
     J[6] = 0;
@@ -162,12 +468,93 @@ void planar_rp_jacobian(const double *restrict q, const planar_rp_params *restri
     J[11] = 0;
 }
 
+/* jacobian of `count` items, stored one after the other in each argument and output. */
 void planar_rp_jacobian_batch(size_t count, const double *restrict q, const planar_rp_params *restrict params, double *restrict J)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _J_block[12][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _J_block[0][i] = -_s0[i]*q2[i];
+                _J_block[1][i] = _c0[i];
+                _J_block[2][i] = _c0[i]*q2[i];
+                _J_block[3][i] = _s0[i];
+                _J_block[4][i] = 0;
+                _J_block[5][i] = 0;
+                _J_block[6][i] = 0;
+                _J_block[7][i] = 0;
+                _J_block[8][i] = 0;
+                _J_block[9][i] = 0;
+                _J_block[10][i] = 1;
+                _J_block[11][i] = 0;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                J[12 * (start + i) + 0] = -_s0[i]*q2[i];
+                J[12 * (start + i) + 1] = _c0[i];
+                J[12 * (start + i) + 2] = _c0[i]*q2[i];
+                J[12 * (start + i) + 3] = _s0[i];
+                J[12 * (start + i) + 4] = 0;
+                J[12 * (start + i) + 5] = 0;
+                J[12 * (start + i) + 6] = 0;
+                J[12 * (start + i) + 7] = 0;
+                J[12 * (start + i) + 8] = 0;
+                J[12 * (start + i) + 9] = 0;
+                J[12 * (start + i) + 10] = 1;
+                J[12 * (start + i) + 11] = 0;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 12; k += 2) {
+                    _mm_stream_pd(J + 12 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_rp_jacobian(q + 2 * i, params, J + 12 * i);
     }
+#endif
 }
 
 /* Task coordinates x, y, shape (..., 2). */
@@ -176,16 +563,80 @@ void planar_rp_task(const double *restrict q, const planar_rp_params *restrict p
     const double q1 = q[0];
     const double q2 = q[1];
     (void)params;
-    x[0] = q2*cos(q1);
-    x[1] = q2*sin(q1);
+    double _s0, _c0;
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    x[0] = _c0*q2;
+    x[1] = _s0*q2;
 }
 
+/* task of `count` items, stored one after the other in each argument and output. */
 void planar_rp_task_batch(size_t count, const double *restrict q, const planar_rp_params *restrict params, double *restrict x)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _x_block[2][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)x & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _x_block[0][i] = _c0[i]*q2[i];
+                _x_block[1][i] = _s0[i]*q2[i];
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                x[2 * (start + i) + 0] = _c0[i]*q2[i];
+                x[2 * (start + i) + 1] = _s0[i]*q2[i];
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 2; k += 2) {
+                    _mm_stream_pd(x + 2 * (start + i) + k, _mm_set_pd(_x_block[k + 1][i], _x_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_rp_task(q + 2 * i, params, x + 2 * i);
     }
+#endif
 }
 
 /* d task / d q, shape (..., 2, 2). */
@@ -194,20 +645,108 @@ void planar_rp_task_jacobian(const double *restrict q, const planar_rp_params *r
     const double q1 = q[0];
     const double q2 = q[1];
     (void)params;
-    const double _t0 = sin(q1);
-    const double _t1 = cos(q1);
-    Jx[0] = -_t0*q2;
-    Jx[1] = _t1;
-    Jx[2] = _t1*q2;
-    Jx[3] = _t0;
+    double _s0, _c0;
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    Jx[0] = -_s0*q2;
+    Jx[1] = _c0;
+    Jx[2] = _c0*q2;
+    Jx[3] = _s0;
 }
 
+/* task_jacobian of `count` items, stored one after the other in each argument and output. */
 void planar_rp_task_jacobian_batch(size_t count, const double *restrict q, const planar_rp_params *restrict params, double *restrict Jx)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _Jx_block[4][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _Jx_block[0][i] = -_s0[i]*q2[i];
+                _Jx_block[1][i] = _c0[i];
+                _Jx_block[2][i] = _c0[i]*q2[i];
+                _Jx_block[3][i] = _s0[i];
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                Jx[4 * (start + i) + 0] = -_s0[i]*q2[i];
+                Jx[4 * (start + i) + 1] = _c0[i];
+                Jx[4 * (start + i) + 2] = _c0[i]*q2[i];
+                Jx[4 * (start + i) + 3] = _s0[i];
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 4; k += 2) {
+                    _mm_stream_pd(Jx + 4 * (start + i) + k, _mm_set_pd(_Jx_block[k + 1][i], _Jx_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_rp_task_jacobian(q + 2 * i, params, Jx + 4 * i);
     }
+#endif
+}
+
+/* The checks after an ik of one target x: a branch with a joint value that is not
+   finite, or of a target that is not, is not valid; returns the number of valid branches. */
+static int planar_rp_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
+{
+    int branch, joint, finite_target = 1, valid_branches = 0;
+    for (joint = 0; joint < 2; ++joint) {
+        finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
+    }
+    for (branch = 0; branch < 2; ++branch) {
+        if (!finite_target) {
+            valid[branch] = 0;
+        }
+        for (joint = 0; joint < 2; ++joint) {
+            if (!isfinite(Q[2 * branch + joint])) {
+                valid[branch] = 0;  /* no NaN leaks out as a valid answer */
+            }
+        }
+        valid_branches += valid[branch] != 0;
+    }
+    return valid_branches;
 }
 
 /* Inverse kinematics, all 2 branches (d2_positive, d2_negative): Q (..., 2, 2), valid (..., 2).
@@ -218,46 +757,109 @@ int planar_rp_ik(const double *restrict _x, const planar_rp_params *restrict par
     const double x = _x[0];
     const double y = _x[1];
     (void)params;
+    const double _a0 = -y;
+    const double _a1 = -x;
+    double _f0, _f1;
+#if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+    {
+        /* The atan2 arguments side by side: one vector call. */
+        const double argument0[4] = { y, _a0, 0.0, 0.0 };
+        const double argument1[4] = { x, _a1, 1.0, 1.0 };
+        double result[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            result[k] = atan2(argument0[k], argument1[k]);
+        }
+        _f0 = result[0];
+        _f1 = result[1];
+    }
+#else
+    _f0 = atan2(y, x);
+    _f1 = atan2(_a0, _a1);
+#endif
     const double _t0 = sqrt((x*x) + (y*y));
-    Q[0] = kinegen_wrap_angle(atan2(y, x));
+    Q[0] = kinegen_wrap_angle(_f0);
     Q[1] = _t0;
-    Q[2] = kinegen_wrap_angle(atan2(-y, -x));
+    Q[2] = kinegen_wrap_angle(_f1);
     Q[3] = -_t0;
     valid[0] = 1;
     valid[1] = 1;
-    {
-        int branch, joint, finite_target = 1, valid_branches = 0;
-        for (joint = 0; joint < 2; ++joint) {
-            finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
-        }
-        for (branch = 0; branch < 2; ++branch) {
-            if (!finite_target) {
-                valid[branch] = 0;
-            }
-            for (joint = 0; joint < 2; ++joint) {
-                if (!isfinite(Q[2 * branch + joint])) {
-                    valid[branch] = 0;  /* no NaN leaks out as a valid answer */
-                }
-            }
-            valid_branches += valid[branch] != 0;
-        }
-        return valid_branches;
-    }
+    return planar_rp_ik_checks(_x, Q, valid);
 }
 
-long planar_rp_ik_batch(size_t count, const double *restrict x, const planar_rp_params *restrict params, double *restrict Q, int *restrict valid)
+/* ik of `count` items, stored one after the other in each argument and output.   Returns the total number of valid branches, or -1 if any item was refused. */
+long planar_rp_ik_batch(size_t count, const double *restrict _x, const planar_rp_params *restrict params, double *restrict Q, int *restrict valid)
 {
-    size_t i;
     long valid_branches = 0;
     int refused = 0;
+#ifdef KINEGEN_BLOCKED
+    double x[KINEGEN_BLOCK_OF(64)];
+    double y[KINEGEN_BLOCK_OF(64)];
+    double _a0[KINEGEN_BLOCK_OF(64)];
+    double _a1[KINEGEN_BLOCK_OF(64)];
+    double _f0[KINEGEN_BLOCK_OF(64)];
+    double _f1[KINEGEN_BLOCK_OF(64)];
+    double _Q_block[4][KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            x[i] = _x[2 * (start + i) + 0];
+            y[i] = _x[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _a0[i] = -y[i];
+            _a1[i] = -x[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f0[i] = atan2(y[i], x[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f1[i] = atan2(_a0[i], _a1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t0 = sqrt((x[i]*x[i]) + (y[i]*y[i]));
+            _Q_block[0][i] = kinegen_wrap_angle(_f0[i]);
+            _Q_block[1][i] = _t0;
+            _Q_block[2][i] = kinegen_wrap_angle(_f1[i]);
+            _Q_block[3][i] = -_t0;
+            valid[2 * (start + i) + 0] = 1;
+            valid[2 * (start + i) + 1] = 1;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 4; ++k) {
+                    Q[4 * (start + i) + k] = _Q_block[k][i];
+                }
+            }
+        }
+        for (i = 0; i < n; ++i) {
+            const int found = planar_rp_ik_checks(_x + 2 * (start + i), Q + 4 * (start + i), valid + 2 * (start + i));
+            if (found < 0) {
+                refused = 1;
+            } else {
+                valid_branches += found;
+            }
+        }
+    }
+#else
+    size_t i;
     for (i = 0; i < count; ++i) {
-        const int found = planar_rp_ik(x + 2 * i, params, Q + 4 * i, valid + 2 * i);
+        const int found = planar_rp_ik(_x + 2 * i, params, Q + 4 * i, valid + 2 * i);
         if (found < 0) {
             refused = 1;
         } else {
             valid_branches += found;
         }
     }
+#endif
     return refused ? -1 : valid_branches;
 }
 
@@ -269,19 +871,87 @@ void planar_rp_task_velocity(const double *restrict q, const double *restrict qd
     const double qd1 = qd[0];
     const double qd2 = qd[1];
     (void)params;
-    const double _t0 = cos(q1);
-    const double _t1 = sin(q1);
+    double _s0, _c0;
+    _s0 = sin(q1);
+    _c0 = cos(q1);
     const double _t2 = q2*qd1;
-    xd[0] = _t0*qd2 - _t1*_t2;
-    xd[1] = _t0*_t2 + _t1*qd2;
+    xd[0] = _c0*qd2 - _s0*_t2;
+    xd[1] = _c0*_t2 + _s0*qd2;
 }
 
+/* task_velocity of `count` items, stored one after the other in each argument and output. */
 void planar_rp_task_velocity_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_rp_params *restrict params, double *restrict xd)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _xd_block[2][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)xd & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+            qd1[i] = qd[2 * (start + i) + 0];
+            qd2[i] = qd[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = q2[i]*qd1[i];
+                _xd_block[0][i] = _c0[i]*qd2[i] - _s0[i]*_t2;
+                _xd_block[1][i] = _c0[i]*_t2 + _s0[i]*qd2[i];
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = q2[i]*qd1[i];
+                xd[2 * (start + i) + 0] = _c0[i]*qd2[i] - _s0[i]*_t2;
+                xd[2 * (start + i) + 1] = _c0[i]*_t2 + _s0[i]*qd2[i];
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 2; k += 2) {
+                    _mm_stream_pd(xd + 2 * (start + i) + k, _mm_set_pd(_xd_block[k + 1][i], _xd_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_rp_task_velocity(q + 2 * i, qd + 2 * i, params, xd + 2 * i);
     }
+#endif
 }
 
 /* Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s. */
@@ -292,23 +962,99 @@ void planar_rp_twist(const double *restrict q, const double *restrict qd, const 
     const double qd1 = qd[0];
     const double qd2 = qd[1];
     (void)params;
-    const double _t0 = cos(q1);
-    const double _t1 = sin(q1);
+    double _s0, _c0;
+    _s0 = sin(q1);
+    _c0 = cos(q1);
     const double _t2 = q2*qd1;
-    twist[0] = _t0*qd2 - _t1*_t2;
-    twist[1] = _t0*_t2 + _t1*qd2;
+    twist[0] = _c0*qd2 - _s0*_t2;
+    twist[1] = _c0*_t2 + _s0*qd2;
     twist[2] = 0;
     twist[3] = 0;
     twist[4] = 0;
     twist[5] = qd1;
 }
 
+/* twist of `count` items, stored one after the other in each argument and output. */
 void planar_rp_twist_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_rp_params *restrict params, double *restrict twist)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _twist_block[6][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)twist & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+            qd1[i] = qd[2 * (start + i) + 0];
+            qd2[i] = qd[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = q2[i]*qd1[i];
+                _twist_block[0][i] = _c0[i]*qd2[i] - _s0[i]*_t2;
+                _twist_block[1][i] = _c0[i]*_t2 + _s0[i]*qd2[i];
+                _twist_block[2][i] = 0;
+                _twist_block[3][i] = 0;
+                _twist_block[4][i] = 0;
+                _twist_block[5][i] = qd1[i];
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = q2[i]*qd1[i];
+                twist[6 * (start + i) + 0] = _c0[i]*qd2[i] - _s0[i]*_t2;
+                twist[6 * (start + i) + 1] = _c0[i]*_t2 + _s0[i]*qd2[i];
+                twist[6 * (start + i) + 2] = 0;
+                twist[6 * (start + i) + 3] = 0;
+                twist[6 * (start + i) + 4] = 0;
+                twist[6 * (start + i) + 5] = qd1[i];
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 6; k += 2) {
+                    _mm_stream_pd(twist + 6 * (start + i) + k, _mm_set_pd(_twist_block[k + 1][i], _twist_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_rp_twist(q + 2 * i, qd + 2 * i, params, twist + 6 * i);
     }
+#endif
 }
 
 /* d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 2, 2). */
@@ -319,22 +1065,96 @@ void planar_rp_task_jacobian_dot(const double *restrict q, const double *restric
     const double qd1 = qd[0];
     const double qd2 = qd[1];
     (void)params;
-    const double _t0 = sin(q1);
-    const double _t1 = cos(q1);
-    const double _t2 = _t1*qd1;
-    const double _t3 = _t0*qd1;
-    Jx_dot[0] = -_t0*qd2 - _t2*q2;
+    double _s0, _c0;
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    const double _t2 = _c0*qd1;
+    const double _t3 = _s0*qd1;
+    Jx_dot[0] = -_s0*qd2 - _t2*q2;
     Jx_dot[1] = -_t3;
-    Jx_dot[2] = _t1*qd2 - _t3*q2;
+    Jx_dot[2] = _c0*qd2 - _t3*q2;
     Jx_dot[3] = _t2;
 }
 
+/* task_jacobian_dot of `count` items, stored one after the other in each argument and output. */
 void planar_rp_task_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_rp_params *restrict params, double *restrict Jx_dot)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _Jx_dot_block[4][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx_dot & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+            qd1[i] = qd[2 * (start + i) + 0];
+            qd2[i] = qd[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c0[i]*qd1[i];
+                const double _t3 = _s0[i]*qd1[i];
+                _Jx_dot_block[0][i] = -_s0[i]*qd2[i] - _t2*q2[i];
+                _Jx_dot_block[1][i] = -_t3;
+                _Jx_dot_block[2][i] = _c0[i]*qd2[i] - _t3*q2[i];
+                _Jx_dot_block[3][i] = _t2;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c0[i]*qd1[i];
+                const double _t3 = _s0[i]*qd1[i];
+                Jx_dot[4 * (start + i) + 0] = -_s0[i]*qd2[i] - _t2*q2[i];
+                Jx_dot[4 * (start + i) + 1] = -_t3;
+                Jx_dot[4 * (start + i) + 2] = _c0[i]*qd2[i] - _t3*q2[i];
+                Jx_dot[4 * (start + i) + 3] = _t2;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 4; k += 2) {
+                    _mm_stream_pd(Jx_dot + 4 * (start + i) + k, _mm_set_pd(_Jx_dot_block[k + 1][i], _Jx_dot_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_rp_task_jacobian_dot(q + 2 * i, qd + 2 * i, params, Jx_dot + 4 * i);
     }
+#endif
 }
 
 /* d(J)/dt of the geometric Jacobian, shape (..., 6, 2). */
@@ -345,13 +1165,14 @@ void planar_rp_jacobian_dot(const double *restrict q, const double *restrict qd,
     const double qd1 = qd[0];
     const double qd2 = qd[1];
     (void)params;
-    const double _t0 = sin(q1);
-    const double _t1 = cos(q1);
-    const double _t2 = _t1*qd1;
-    const double _t3 = _t0*qd1;
-    J_dot[0] = -_t0*qd2 - _t2*q2;
+    double _s0, _c0;
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    const double _t2 = _c0*qd1;
+    const double _t3 = _s0*qd1;
+    J_dot[0] = -_s0*qd2 - _t2*q2;
     J_dot[1] = -_t3;
-    J_dot[2] = _t1*qd2 - _t3*q2;
+    J_dot[2] = _c0*qd2 - _t3*q2;
     J_dot[3] = _t2;
     J_dot[4] = 0;
     J_dot[5] = 0;
@@ -363,12 +1184,101 @@ void planar_rp_jacobian_dot(const double *restrict q, const double *restrict qd,
     J_dot[11] = 0;
 }
 
+/* jacobian_dot of `count` items, stored one after the other in each argument and output. */
 void planar_rp_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_rp_params *restrict params, double *restrict J_dot)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _J_dot_block[12][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_dot & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+            qd1[i] = qd[2 * (start + i) + 0];
+            qd2[i] = qd[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c0[i]*qd1[i];
+                const double _t3 = _s0[i]*qd1[i];
+                _J_dot_block[0][i] = -_s0[i]*qd2[i] - _t2*q2[i];
+                _J_dot_block[1][i] = -_t3;
+                _J_dot_block[2][i] = _c0[i]*qd2[i] - _t3*q2[i];
+                _J_dot_block[3][i] = _t2;
+                _J_dot_block[4][i] = 0;
+                _J_dot_block[5][i] = 0;
+                _J_dot_block[6][i] = 0;
+                _J_dot_block[7][i] = 0;
+                _J_dot_block[8][i] = 0;
+                _J_dot_block[9][i] = 0;
+                _J_dot_block[10][i] = 0;
+                _J_dot_block[11][i] = 0;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c0[i]*qd1[i];
+                const double _t3 = _s0[i]*qd1[i];
+                J_dot[12 * (start + i) + 0] = -_s0[i]*qd2[i] - _t2*q2[i];
+                J_dot[12 * (start + i) + 1] = -_t3;
+                J_dot[12 * (start + i) + 2] = _c0[i]*qd2[i] - _t3*q2[i];
+                J_dot[12 * (start + i) + 3] = _t2;
+                J_dot[12 * (start + i) + 4] = 0;
+                J_dot[12 * (start + i) + 5] = 0;
+                J_dot[12 * (start + i) + 6] = 0;
+                J_dot[12 * (start + i) + 7] = 0;
+                J_dot[12 * (start + i) + 8] = 0;
+                J_dot[12 * (start + i) + 9] = 0;
+                J_dot[12 * (start + i) + 10] = 0;
+                J_dot[12 * (start + i) + 11] = 0;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 12; k += 2) {
+                    _mm_stream_pd(J_dot + 12 * (start + i) + k, _mm_set_pd(_J_dot_block[k + 1][i], _J_dot_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_rp_jacobian_dot(q + 2 * i, qd + 2 * i, params, J_dot + 12 * i);
     }
+#endif
 }
 
 /* Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 2). */
@@ -381,21 +1291,97 @@ void planar_rp_task_acceleration(const double *restrict q, const double *restric
     const double qdd1 = qdd[0];
     const double qdd2 = qdd[1];
     (void)params;
-    const double _t0 = cos(q1);
-    const double _t1 = sin(q1);
+    double _s0, _c0;
+    _s0 = sin(q1);
+    _c0 = cos(q1);
     const double _t2 = q2*qdd1;
-    const double _t3 = _t1*qd2;
+    const double _t3 = _s0*qd2;
     const double _t4 = q2*qd1;
-    xdd[0] = _t0*qdd2 - _t1*_t2 - _t3*qd1 + qd1*(-_t0*_t4 - _t3);
-    xdd[1] = _t0*_t2 + _t0*qd1*qd2 + _t1*qdd2 + qd1*(_t0*qd2 - _t1*_t4);
+    xdd[0] = _c0*qdd2 - _s0*_t2 - _t3*qd1 + qd1*(-_c0*_t4 - _t3);
+    xdd[1] = _c0*_t2 + _c0*qd1*qd2 + _s0*qdd2 + qd1*(_c0*qd2 - _s0*_t4);
 }
 
+/* task_acceleration of `count` items, stored one after the other in each argument and output. */
 void planar_rp_task_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict qdd, const planar_rp_params *restrict params, double *restrict xdd)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double qdd1[KINEGEN_BLOCK_OF(64)];
+    double qdd2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _xdd_block[2][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)xdd & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+            qd1[i] = qd[2 * (start + i) + 0];
+            qd2[i] = qd[2 * (start + i) + 1];
+            qdd1[i] = qdd[2 * (start + i) + 0];
+            qdd2[i] = qdd[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = q2[i]*qdd1[i];
+                const double _t3 = _s0[i]*qd2[i];
+                const double _t4 = q2[i]*qd1[i];
+                _xdd_block[0][i] = _c0[i]*qdd2[i] - _s0[i]*_t2 - _t3*qd1[i] + qd1[i]*(-_c0[i]*_t4 - _t3);
+                _xdd_block[1][i] = _c0[i]*_t2 + _c0[i]*qd1[i]*qd2[i] + _s0[i]*qdd2[i] + qd1[i]*(_c0[i]*qd2[i] - _s0[i]*_t4);
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = q2[i]*qdd1[i];
+                const double _t3 = _s0[i]*qd2[i];
+                const double _t4 = q2[i]*qd1[i];
+                xdd[2 * (start + i) + 0] = _c0[i]*qdd2[i] - _s0[i]*_t2 - _t3*qd1[i] + qd1[i]*(-_c0[i]*_t4 - _t3);
+                xdd[2 * (start + i) + 1] = _c0[i]*_t2 + _c0[i]*qd1[i]*qd2[i] + _s0[i]*qdd2[i] + qd1[i]*(_c0[i]*qd2[i] - _s0[i]*_t4);
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 2; k += 2) {
+                    _mm_stream_pd(xdd + 2 * (start + i) + k, _mm_set_pd(_xdd_block[k + 1][i], _xdd_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_rp_task_acceleration(q + 2 * i, qd + 2 * i, qdd + 2 * i, params, xdd + 2 * i);
     }
+#endif
 }
 
 /* Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...). */
@@ -407,12 +1393,30 @@ void planar_rp_manipulability(const double *restrict q, const planar_rp_params *
     singular[0] = (q2*q2) < 1e-06;
 }
 
+/* manipulability of `count` items, stored one after the other in each argument and output. */
 void planar_rp_manipulability_batch(size_t count, const double *restrict q, const planar_rp_params *restrict params, double *restrict manipulability, int *restrict singular)
 {
+#ifdef KINEGEN_BLOCKED
+    double q2[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q2[i] = q[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            manipulability[1 * (start + i) + 0] = fabs(q2[i]);
+            singular[1 * (start + i) + 0] = (q2[i]*q2[i]) < 1e-06;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_rp_manipulability(q + 2 * i, params, manipulability + 1 * i, singular + 1 * i);
     }
+#endif
 }
 
 /* Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 2) and (...). */
@@ -423,32 +1427,33 @@ void planar_rp_joint_velocity(const double *restrict q, const double *restrict x
     const double xd_x = xd[0];
     const double xd_y = xd[1];
     (void)params;
+    double _s0, _c0;
+    _s0 = sin(q1);
+    _c0 = cos(q1);
     const double _t0 = (q2*q2);
-    const double _t1 = fmax(0, 1 - 1000000*_t0);
-    const double _t2 = cos(q1);
-    const double _t3 = (_t2*_t2);
-    const double _t4 = sin(q1);
-    const double _t5 = (_t4*_t4);
+    const double _t1 = kinegen_max(0, 1 - 1000000*_t0);
+    const double _t3 = (_c0*_c0);
+    const double _t5 = (_s0*_s0);
     const double _t6 = _t0*_t5 + _t3;
     const double _t7 = (0.0001)*_t1;
     const double _t8 = _t0*_t3 + _t5;
     const double _t9 = 1.0/(_t0 + (1e-08)*(_t1*_t1) + _t6*_t7 + _t7*_t8);
-    const double _t10 = _t2*_t4;
+    const double _t10 = _c0*_s0;
     const double _t11 = _t0*_t10 - _t10;
     const double _t12 = _t11*xd_x + xd_y*(_t6 + _t7);
-    const double _t13 = _t2*q2;
+    const double _t13 = _c0*q2;
     const double _t14 = _t11*xd_y + xd_x*(_t7 + _t8);
-    const double _t15 = _t4*q2;
+    const double _t15 = _s0*q2;
     const int _t16 = _t0 < 1e-06;
-    const double _t17 = q2/fmax(1e-06, _t0);
+    const double _t17 = q2/kinegen_max(1e-06, _t0);
     qd[0] = ((_t16) ? (
    _t9*(_t12*_t13 - _t14*_t15)
 )
 : (
-   -_t17*(-_t2*xd_y + _t4*xd_x)
+   -_t17*(-_c0*xd_y + _s0*xd_x)
 ));
     qd[1] = ((_t16) ? (
-   _t9*(_t12*_t4 + _t14*_t2)
+   _t9*(_c0*_t14 + _s0*_t12)
 )
 : (
    -_t17*(-_t13*xd_x - _t15*xd_y)
@@ -456,12 +1461,131 @@ void planar_rp_joint_velocity(const double *restrict q, const double *restrict x
     singular[0] = _t16;
 }
 
+/* joint_velocity of `count` items, stored one after the other in each argument and output. */
 void planar_rp_joint_velocity_batch(size_t count, const double *restrict q, const double *restrict xd, const planar_rp_params *restrict params, double *restrict qd, int *restrict singular)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double xd_x[KINEGEN_BLOCK_OF(64)];
+    double xd_y[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _qd_block[2][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)qd & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+            xd_x[i] = xd[2 * (start + i) + 0];
+            xd_y[i] = xd[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t0 = (q2[i]*q2[i]);
+                const double _t1 = kinegen_max(0, 1 - 1000000*_t0);
+                const double _t3 = (_c0[i]*_c0[i]);
+                const double _t5 = (_s0[i]*_s0[i]);
+                const double _t6 = _t0*_t5 + _t3;
+                const double _t7 = (0.0001)*_t1;
+                const double _t8 = _t0*_t3 + _t5;
+                const double _t9 = 1.0/(_t0 + (1e-08)*(_t1*_t1) + _t6*_t7 + _t7*_t8);
+                const double _t10 = _c0[i]*_s0[i];
+                const double _t11 = _t0*_t10 - _t10;
+                const double _t12 = _t11*xd_x[i] + xd_y[i]*(_t6 + _t7);
+                const double _t13 = _c0[i]*q2[i];
+                const double _t14 = _t11*xd_y[i] + xd_x[i]*(_t7 + _t8);
+                const double _t15 = _s0[i]*q2[i];
+                const int _t16 = _t0 < 1e-06;
+                const double _t17 = q2[i]/kinegen_max(1e-06, _t0);
+                _qd_block[0][i] = ((_t16) ? (
+   _t9*(_t12*_t13 - _t14*_t15)
+)
+: (
+   -_t17*(-_c0[i]*xd_y[i] + _s0[i]*xd_x[i])
+));
+                _qd_block[1][i] = ((_t16) ? (
+   _t9*(_c0[i]*_t14 + _s0[i]*_t12)
+)
+: (
+   -_t17*(-_t13*xd_x[i] - _t15*xd_y[i])
+));
+                singular[1 * (start + i) + 0] = _t16;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t0 = (q2[i]*q2[i]);
+                const double _t1 = kinegen_max(0, 1 - 1000000*_t0);
+                const double _t3 = (_c0[i]*_c0[i]);
+                const double _t5 = (_s0[i]*_s0[i]);
+                const double _t6 = _t0*_t5 + _t3;
+                const double _t7 = (0.0001)*_t1;
+                const double _t8 = _t0*_t3 + _t5;
+                const double _t9 = 1.0/(_t0 + (1e-08)*(_t1*_t1) + _t6*_t7 + _t7*_t8);
+                const double _t10 = _c0[i]*_s0[i];
+                const double _t11 = _t0*_t10 - _t10;
+                const double _t12 = _t11*xd_x[i] + xd_y[i]*(_t6 + _t7);
+                const double _t13 = _c0[i]*q2[i];
+                const double _t14 = _t11*xd_y[i] + xd_x[i]*(_t7 + _t8);
+                const double _t15 = _s0[i]*q2[i];
+                const int _t16 = _t0 < 1e-06;
+                const double _t17 = q2[i]/kinegen_max(1e-06, _t0);
+                qd[2 * (start + i) + 0] = ((_t16) ? (
+   _t9*(_t12*_t13 - _t14*_t15)
+)
+: (
+   -_t17*(-_c0[i]*xd_y[i] + _s0[i]*xd_x[i])
+));
+                qd[2 * (start + i) + 1] = ((_t16) ? (
+   _t9*(_c0[i]*_t14 + _s0[i]*_t12)
+)
+: (
+   -_t17*(-_t13*xd_x[i] - _t15*xd_y[i])
+));
+                singular[1 * (start + i) + 0] = _t16;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 2; k += 2) {
+                    _mm_stream_pd(qd + 2 * (start + i) + k, _mm_set_pd(_qd_block[k + 1][i], _qd_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_rp_joint_velocity(q + 2 * i, xd + 2 * i, params, qd + 2 * i, singular + 1 * i);
     }
+#endif
 }
 
 /* Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 2) and (...). */
@@ -474,36 +1598,37 @@ void planar_rp_joint_acceleration(const double *restrict q, const double *restri
     const double xdd_x = xdd[0];
     const double xdd_y = xdd[1];
     (void)params;
+    double _s0, _c0;
+    _s0 = sin(q1);
+    _c0 = cos(q1);
     const double _t0 = (q2*q2);
-    const double _t1 = fmax(0, 1 - 1000000*_t0);
-    const double _t2 = cos(q1);
-    const double _t3 = (_t2*_t2);
-    const double _t4 = sin(q1);
-    const double _t5 = (_t4*_t4);
+    const double _t1 = kinegen_max(0, 1 - 1000000*_t0);
+    const double _t3 = (_c0*_c0);
+    const double _t5 = (_s0*_s0);
     const double _t6 = _t0*_t5 + _t3;
     const double _t7 = (0.0001)*_t1;
     const double _t8 = _t0*_t3 + _t5;
     const double _t9 = 1.0/(_t0 + (1e-08)*(_t1*_t1) + _t6*_t7 + _t7*_t8);
-    const double _t10 = _t2*_t4;
+    const double _t10 = _c0*_s0;
     const double _t11 = _t0*_t10 - _t10;
-    const double _t12 = _t4*qd2;
+    const double _t12 = _s0*qd2;
     const double _t13 = q2*qd1;
-    const double _t14 = _t12*qd1 - qd1*(-_t12 - _t13*_t2) + xdd_x;
-    const double _t15 = -_t2*qd1*qd2 - qd1*(-_t13*_t4 + _t2*qd2) + xdd_y;
+    const double _t14 = _t12*qd1 - qd1*(-_c0*_t13 - _t12) + xdd_x;
+    const double _t15 = -_c0*qd1*qd2 - qd1*(_c0*qd2 - _s0*_t13) + xdd_y;
     const double _t16 = _t11*_t14 + _t15*(_t6 + _t7);
-    const double _t17 = _t2*q2;
+    const double _t17 = _c0*q2;
     const double _t18 = _t11*_t15 + _t14*(_t7 + _t8);
-    const double _t19 = _t4*q2;
+    const double _t19 = _s0*q2;
     const int _t20 = _t0 < 1e-06;
-    const double _t21 = q2/fmax(1e-06, _t0);
+    const double _t21 = q2/kinegen_max(1e-06, _t0);
     qdd[0] = ((_t20) ? (
    _t9*(_t16*_t17 - _t18*_t19)
 )
 : (
-   -_t21*(_t14*_t4 - _t15*_t2)
+   -_t21*(-_c0*_t15 + _s0*_t14)
 ));
     qdd[1] = ((_t20) ? (
-   _t9*(_t16*_t4 + _t18*_t2)
+   _t9*(_c0*_t18 + _s0*_t16)
 )
 : (
    -_t21*(-_t14*_t17 - _t15*_t19)
@@ -511,12 +1636,143 @@ void planar_rp_joint_acceleration(const double *restrict q, const double *restri
     singular[0] = _t20;
 }
 
+/* joint_acceleration of `count` items, stored one after the other in each argument and output. */
 void planar_rp_joint_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict xdd, const planar_rp_params *restrict params, double *restrict qdd, int *restrict singular)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double xdd_x[KINEGEN_BLOCK_OF(64)];
+    double xdd_y[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _qdd_block[2][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)qdd & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+            qd1[i] = qd[2 * (start + i) + 0];
+            qd2[i] = qd[2 * (start + i) + 1];
+            xdd_x[i] = xdd[2 * (start + i) + 0];
+            xdd_y[i] = xdd[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t0 = (q2[i]*q2[i]);
+                const double _t1 = kinegen_max(0, 1 - 1000000*_t0);
+                const double _t3 = (_c0[i]*_c0[i]);
+                const double _t5 = (_s0[i]*_s0[i]);
+                const double _t6 = _t0*_t5 + _t3;
+                const double _t7 = (0.0001)*_t1;
+                const double _t8 = _t0*_t3 + _t5;
+                const double _t9 = 1.0/(_t0 + (1e-08)*(_t1*_t1) + _t6*_t7 + _t7*_t8);
+                const double _t10 = _c0[i]*_s0[i];
+                const double _t11 = _t0*_t10 - _t10;
+                const double _t12 = _s0[i]*qd2[i];
+                const double _t13 = q2[i]*qd1[i];
+                const double _t14 = _t12*qd1[i] - qd1[i]*(-_c0[i]*_t13 - _t12) + xdd_x[i];
+                const double _t15 = -_c0[i]*qd1[i]*qd2[i] - qd1[i]*(_c0[i]*qd2[i] - _s0[i]*_t13) + xdd_y[i];
+                const double _t16 = _t11*_t14 + _t15*(_t6 + _t7);
+                const double _t17 = _c0[i]*q2[i];
+                const double _t18 = _t11*_t15 + _t14*(_t7 + _t8);
+                const double _t19 = _s0[i]*q2[i];
+                const int _t20 = _t0 < 1e-06;
+                const double _t21 = q2[i]/kinegen_max(1e-06, _t0);
+                _qdd_block[0][i] = ((_t20) ? (
+   _t9*(_t16*_t17 - _t18*_t19)
+)
+: (
+   -_t21*(-_c0[i]*_t15 + _s0[i]*_t14)
+));
+                _qdd_block[1][i] = ((_t20) ? (
+   _t9*(_c0[i]*_t18 + _s0[i]*_t16)
+)
+: (
+   -_t21*(-_t14*_t17 - _t15*_t19)
+));
+                singular[1 * (start + i) + 0] = _t20;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t0 = (q2[i]*q2[i]);
+                const double _t1 = kinegen_max(0, 1 - 1000000*_t0);
+                const double _t3 = (_c0[i]*_c0[i]);
+                const double _t5 = (_s0[i]*_s0[i]);
+                const double _t6 = _t0*_t5 + _t3;
+                const double _t7 = (0.0001)*_t1;
+                const double _t8 = _t0*_t3 + _t5;
+                const double _t9 = 1.0/(_t0 + (1e-08)*(_t1*_t1) + _t6*_t7 + _t7*_t8);
+                const double _t10 = _c0[i]*_s0[i];
+                const double _t11 = _t0*_t10 - _t10;
+                const double _t12 = _s0[i]*qd2[i];
+                const double _t13 = q2[i]*qd1[i];
+                const double _t14 = _t12*qd1[i] - qd1[i]*(-_c0[i]*_t13 - _t12) + xdd_x[i];
+                const double _t15 = -_c0[i]*qd1[i]*qd2[i] - qd1[i]*(_c0[i]*qd2[i] - _s0[i]*_t13) + xdd_y[i];
+                const double _t16 = _t11*_t14 + _t15*(_t6 + _t7);
+                const double _t17 = _c0[i]*q2[i];
+                const double _t18 = _t11*_t15 + _t14*(_t7 + _t8);
+                const double _t19 = _s0[i]*q2[i];
+                const int _t20 = _t0 < 1e-06;
+                const double _t21 = q2[i]/kinegen_max(1e-06, _t0);
+                qdd[2 * (start + i) + 0] = ((_t20) ? (
+   _t9*(_t16*_t17 - _t18*_t19)
+)
+: (
+   -_t21*(-_c0[i]*_t15 + _s0[i]*_t14)
+));
+                qdd[2 * (start + i) + 1] = ((_t20) ? (
+   _t9*(_c0[i]*_t18 + _s0[i]*_t16)
+)
+: (
+   -_t21*(-_t14*_t17 - _t15*_t19)
+));
+                singular[1 * (start + i) + 0] = _t20;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 2; k += 2) {
+                    _mm_stream_pd(qdd + 2 * (start + i) + k, _mm_set_pd(_qdd_block[k + 1][i], _qdd_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_rp_joint_acceleration(q + 2 * i, qd + 2 * i, xdd + 2 * i, params, qdd + 2 * i, singular + 1 * i);
     }
+#endif
 }
 
 /* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */

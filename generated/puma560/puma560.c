@@ -24,7 +24,71 @@
 
 #include <math.h>
 
+/*
+ * Batched entry points.  Plain C99 loops over the single-point entry point by
+ * default.  With -DKINEGEN_BLOCKED they work through their items in blocks of
+ * KINEGEN_BLOCK instead: the inputs of a block are copied into one array per
+ * coordinate, every sine and every cosine is taken in a loop of its own, and the
+ * arithmetic runs in one loop per stage, from the same expressions as the single
+ * point (so the results are bit-identical).  -DKINEGEN_SIMD -fopenmp-simd (what
+ * build_c.py uses where the compiler and C library allow) adds to that SIMD
+ * declarations of the math functions, so that the loops vectorise and call
+ * glibc's vector math library (libmvec, at most 4 ulp), and the single point
+ * takes the sines and cosines of a stage's angles as one vector.  No NaN or
+ * infinity check is affected: no -ffast-math is involved.
+ */
+#ifdef KINEGEN_SIMD
+#pragma omp declare simd notinbranch
+double sin(double);
+#pragma omp declare simd notinbranch
+double cos(double);
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+/* libmvec has these from glibc 2.35 on. */
+#pragma omp declare simd notinbranch
+double atan2(double, double);
+#pragma omp declare simd notinbranch
+double acos(double);
+#pragma omp declare simd notinbranch
+double asin(double);
+#endif
+#define KINEGEN_VECTOR_LOOP _Pragma("omp simd")
+#ifndef KINEGEN_BLOCKED
+#define KINEGEN_BLOCKED
+#endif
+#else
+#define KINEGEN_VECTOR_LOOP
+#endif
+#ifndef KINEGEN_BLOCK
+#define KINEGEN_BLOCK 64
+#endif
+/* Each kernel's block: at most KINEGEN_BLOCK items, fewer where its arrays would pass 32 KiB of stack. */
+#define KINEGEN_BLOCK_OF(items) ((items) < KINEGEN_BLOCK ? (items) : KINEGEN_BLOCK)
+#if defined(KINEGEN_SIMD) && defined(__SSE2__) && !defined(KINEGEN_NO_STREAM)
+/* Batches whose outputs exceed KINEGEN_STREAM_BYTES write them with SSE2 streaming
+   stores: a plain store first reads the line it overwrites, which doubles the memory
+   traffic of a batch too large for the caches. */
+#include <emmintrin.h>
+#include <stdint.h>
+#define KINEGEN_STREAM
+#ifndef KINEGEN_STREAM_BYTES
+#define KINEGEN_STREAM_BYTES 1048576
+#endif
+#endif
+
 const puma560_params puma560_default_params = { 0.67183, 0.4318, 0.0203, 0.15005, 0.4318 };
+
+/* min and max that pass a NaN on, like numpy.minimum and numpy.maximum: C99's fmin and
+   fmax would turn an acos argument of NaN into +-1 and a valid-looking angle.  Each is
+   emitted only where a kernel uses it (static: -Werror=unused-function). */
+static double kinegen_min(double a, double b)
+{
+    return isnan(a) || a < b ? a : b;
+}
+
+static double kinegen_max(double a, double b)
+{
+    return isnan(a) || a > b ? a : b;
+}
 
 /* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi. */
 static double kinegen_wrap_angle(double angle)
@@ -80,60 +144,289 @@ void puma560_fk(const double *restrict q, const puma560_params *restrict params,
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t0 = sin(q6);
-    const double _t1 = sin(q1);
-    const double _t2 = cos(q4);
-    const double _t3 = _t1*_t2;
-    const double _t4 = _t0*_t3;
-    const double _t5 = cos(q5);
-    const double _t6 = cos(q6);
-    const double _t7 = sin(q4);
-    const double _t8 = _t6*_t7;
-    const double _t9 = _t0*_t7;
-    const double _t10 = cos(q1);
     const double _t11 = q2 + q3;
-    const double _t12 = cos(_t11);
-    const double _t13 = _t10*_t12;
-    const double _t14 = sin(q5);
-    const double _t15 = sin(_t11);
-    const double _t16 = _t10*_t15;
-    const double _t17 = _t3*_t6;
-    const double _t18 = _t12*_t5;
-    const double _t19 = _t10*_t2;
-    const double _t20 = _t0*_t19;
-    const double _t21 = _t12*_t14;
-    const double _t22 = a2*cos(q2);
-    const double _t23 = _t12*a3;
-    const double _t24 = _t10*_t5;
-    const double _t25 = _t1*_t12;
-    const double _t26 = _t1*_t15;
-    const double _t27 = _t15*_t7;
-    const double _t28 = _t15*_t2;
-    const double _t29 = _t28*_t5;
-    T[0] = -_t1*_t5*_t8 + _t10*_t12*_t2*_t5*_t6 - _t13*_t9 - _t14*_t16*_t6 - _t4;
-    T[1] = _t0*_t1*_t5*_t7 + _t0*_t10*_t14*_t15 - _t13*_t8 - _t17 - _t18*_t20;
-    T[2] = _t1*_t14*_t7 - _t16*_t5 - _t19*_t21;
-    T[3] = _t1*d3 + _t10*_t22 + _t10*_t23 - _t16*d4;
-    T[4] = -_t14*_t26*_t6 + _t17*_t18 + _t20 + _t24*_t8 - _t25*_t9;
-    T[5] = _t0*_t1*_t14*_t15 + _t10*_t2*_t6 - _t18*_t4 - _t24*_t9 - _t25*_t8;
-    T[6] = -_t10*_t14*_t7 - _t21*_t3 - _t26*_t5;
-    T[7] = _t1*_t22 + _t1*_t23 - _t10*d3 - _t26*d4;
-    T[8] = -_t0*_t27 + _t21*_t6 + _t29*_t6;
-    T[9] = -_t0*_t21 - _t0*_t29 - _t27*_t6;
-    T[10] = _t12*_t5 - _t14*_t28;
-    T[11] = _t12*d4 + _t15*a3 + a2*sin(q2) + d1;
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { q6, q1, q4, q5, _t11, q2, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+        _s5 = sine[5];
+        _c5 = cosine[5];
+    }
+#else
+    _s0 = sin(q6);
+    _c0 = cos(q6);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+    _s2 = sin(q4);
+    _c2 = cos(q4);
+    _s3 = sin(q5);
+    _c3 = cos(q5);
+    _s4 = sin(_t11);
+    _c4 = cos(_t11);
+    _s5 = sin(q2);
+    _c5 = cos(q2);
+#endif
+    const double _t3 = _c2*_s1;
+    const double _t4 = _s0*_t3;
+    const double _t8 = _c0*_s2;
+    const double _t9 = _s0*_s2;
+    const double _t13 = _c1*_c4;
+    const double _t16 = _c1*_s4;
+    const double _t17 = _c0*_t3;
+    const double _t18 = _c3*_c4;
+    const double _t19 = _c1*_c2;
+    const double _t20 = _s0*_t19;
+    const double _t21 = _c4*_s3;
+    const double _t22 = _c5*a2;
+    const double _t23 = _c4*a3;
+    const double _t24 = _c1*_c3;
+    const double _t25 = _c4*_s1;
+    const double _t26 = _s1*_s4;
+    const double _t27 = _s2*_s4;
+    const double _t28 = _c2*_s4;
+    const double _t29 = _c3*_t28;
+    T[0] = _c0*_c1*_c2*_c3*_c4 - _c0*_s3*_t16 - _c3*_s1*_t8 - _t13*_t9 - _t4;
+    T[1] = _c1*_s0*_s3*_s4 + _c3*_s0*_s1*_s2 - _t13*_t8 - _t17 - _t18*_t20;
+    T[2] = -_c3*_t16 + _s1*_s2*_s3 - _t19*_t21;
+    T[3] = _c1*_t22 + _c1*_t23 + _s1*d3 - _t16*d4;
+    T[4] = -_c0*_s3*_t26 + _t17*_t18 + _t20 + _t24*_t8 - _t25*_t9;
+    T[5] = _c0*_c1*_c2 + _s0*_s1*_s3*_s4 - _t18*_t4 - _t24*_t9 - _t25*_t8;
+    T[6] = -_c1*_s2*_s3 - _c3*_t26 - _t21*_t3;
+    T[7] = -_c1*d3 + _s1*_t22 + _s1*_t23 - _t26*d4;
+    T[8] = _c0*_t21 + _c0*_t29 - _s0*_t27;
+    T[9] = -_c0*_t27 - _s0*_t21 - _s0*_t29;
+    T[10] = _c3*_c4 - _s3*_t28;
+    T[11] = _c4*d4 + _s4*a3 + _s5*a2 + d1;
     T[12] = 0;
     T[13] = 0;
     T[14] = 0;
     T[15] = 1;
 }
 
+/* fk of `count` items, stored one after the other in each argument and output. */
 void puma560_fk_batch(size_t count, const double *restrict q, const puma560_params *restrict params, double *restrict T)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double q5[KINEGEN_BLOCK_OF(64)];
+    double q6[KINEGEN_BLOCK_OF(64)];
+    double _t11[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    double _s4[KINEGEN_BLOCK_OF(64)];
+    double _c4[KINEGEN_BLOCK_OF(64)];
+    double _s5[KINEGEN_BLOCK_OF(64)];
+    double _c5[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _T_block[16][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double d1 = params->d1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[6 * (start + i) + 0];
+            q2[i] = q[6 * (start + i) + 1];
+            q3[i] = q[6 * (start + i) + 2];
+            q4[i] = q[6 * (start + i) + 3];
+            q5[i] = q[6 * (start + i) + 4];
+            q6[i] = q[6 * (start + i) + 5];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t11[i] = q2[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(_t11[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(_t11[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s5[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c5[i] = cos(q2[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _c2[i]*_s1[i];
+                const double _t4 = _s0[i]*_t3;
+                const double _t8 = _c0[i]*_s2[i];
+                const double _t9 = _s0[i]*_s2[i];
+                const double _t13 = _c1[i]*_c4[i];
+                const double _t16 = _c1[i]*_s4[i];
+                const double _t17 = _c0[i]*_t3;
+                const double _t18 = _c3[i]*_c4[i];
+                const double _t19 = _c1[i]*_c2[i];
+                const double _t20 = _s0[i]*_t19;
+                const double _t21 = _c4[i]*_s3[i];
+                const double _t22 = _c5[i]*a2;
+                const double _t23 = _c4[i]*a3;
+                const double _t24 = _c1[i]*_c3[i];
+                const double _t25 = _c4[i]*_s1[i];
+                const double _t26 = _s1[i]*_s4[i];
+                const double _t27 = _s2[i]*_s4[i];
+                const double _t28 = _c2[i]*_s4[i];
+                const double _t29 = _c3[i]*_t28;
+                _T_block[0][i] = _c0[i]*_c1[i]*_c2[i]*_c3[i]*_c4[i] - _c0[i]*_s3[i]*_t16 - _c3[i]*_s1[i]*_t8 - _t13*_t9 - _t4;
+                _T_block[1][i] = _c1[i]*_s0[i]*_s3[i]*_s4[i] + _c3[i]*_s0[i]*_s1[i]*_s2[i] - _t13*_t8 - _t17 - _t18*_t20;
+                _T_block[2][i] = -_c3[i]*_t16 + _s1[i]*_s2[i]*_s3[i] - _t19*_t21;
+                _T_block[3][i] = _c1[i]*_t22 + _c1[i]*_t23 + _s1[i]*d3 - _t16*d4;
+                _T_block[4][i] = -_c0[i]*_s3[i]*_t26 + _t17*_t18 + _t20 + _t24*_t8 - _t25*_t9;
+                _T_block[5][i] = _c0[i]*_c1[i]*_c2[i] + _s0[i]*_s1[i]*_s3[i]*_s4[i] - _t18*_t4 - _t24*_t9 - _t25*_t8;
+                _T_block[6][i] = -_c1[i]*_s2[i]*_s3[i] - _c3[i]*_t26 - _t21*_t3;
+                _T_block[7][i] = -_c1[i]*d3 + _s1[i]*_t22 + _s1[i]*_t23 - _t26*d4;
+                _T_block[8][i] = _c0[i]*_t21 + _c0[i]*_t29 - _s0[i]*_t27;
+                _T_block[9][i] = -_c0[i]*_t27 - _s0[i]*_t21 - _s0[i]*_t29;
+                _T_block[10][i] = _c3[i]*_c4[i] - _s3[i]*_t28;
+                _T_block[11][i] = _c4[i]*d4 + _s4[i]*a3 + _s5[i]*a2 + d1;
+                _T_block[12][i] = 0;
+                _T_block[13][i] = 0;
+                _T_block[14][i] = 0;
+                _T_block[15][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _c2[i]*_s1[i];
+                const double _t4 = _s0[i]*_t3;
+                const double _t8 = _c0[i]*_s2[i];
+                const double _t9 = _s0[i]*_s2[i];
+                const double _t13 = _c1[i]*_c4[i];
+                const double _t16 = _c1[i]*_s4[i];
+                const double _t17 = _c0[i]*_t3;
+                const double _t18 = _c3[i]*_c4[i];
+                const double _t19 = _c1[i]*_c2[i];
+                const double _t20 = _s0[i]*_t19;
+                const double _t21 = _c4[i]*_s3[i];
+                const double _t22 = _c5[i]*a2;
+                const double _t23 = _c4[i]*a3;
+                const double _t24 = _c1[i]*_c3[i];
+                const double _t25 = _c4[i]*_s1[i];
+                const double _t26 = _s1[i]*_s4[i];
+                const double _t27 = _s2[i]*_s4[i];
+                const double _t28 = _c2[i]*_s4[i];
+                const double _t29 = _c3[i]*_t28;
+                T[16 * (start + i) + 0] = _c0[i]*_c1[i]*_c2[i]*_c3[i]*_c4[i] - _c0[i]*_s3[i]*_t16 - _c3[i]*_s1[i]*_t8 - _t13*_t9 - _t4;
+                T[16 * (start + i) + 1] = _c1[i]*_s0[i]*_s3[i]*_s4[i] + _c3[i]*_s0[i]*_s1[i]*_s2[i] - _t13*_t8 - _t17 - _t18*_t20;
+                T[16 * (start + i) + 2] = -_c3[i]*_t16 + _s1[i]*_s2[i]*_s3[i] - _t19*_t21;
+                T[16 * (start + i) + 3] = _c1[i]*_t22 + _c1[i]*_t23 + _s1[i]*d3 - _t16*d4;
+                T[16 * (start + i) + 4] = -_c0[i]*_s3[i]*_t26 + _t17*_t18 + _t20 + _t24*_t8 - _t25*_t9;
+                T[16 * (start + i) + 5] = _c0[i]*_c1[i]*_c2[i] + _s0[i]*_s1[i]*_s3[i]*_s4[i] - _t18*_t4 - _t24*_t9 - _t25*_t8;
+                T[16 * (start + i) + 6] = -_c1[i]*_s2[i]*_s3[i] - _c3[i]*_t26 - _t21*_t3;
+                T[16 * (start + i) + 7] = -_c1[i]*d3 + _s1[i]*_t22 + _s1[i]*_t23 - _t26*d4;
+                T[16 * (start + i) + 8] = _c0[i]*_t21 + _c0[i]*_t29 - _s0[i]*_t27;
+                T[16 * (start + i) + 9] = -_c0[i]*_t27 - _s0[i]*_t21 - _s0[i]*_t29;
+                T[16 * (start + i) + 10] = _c3[i]*_c4[i] - _s3[i]*_t28;
+                T[16 * (start + i) + 11] = _c4[i]*d4 + _s4[i]*a3 + _s5[i]*a2 + d1;
+                T[16 * (start + i) + 12] = 0;
+                T[16 * (start + i) + 13] = 0;
+                T[16 * (start + i) + 14] = 0;
+                T[16 * (start + i) + 15] = 1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 16; k += 2) {
+                    _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         puma560_fk(q + 6 * i, params, T + 16 * i);
     }
+#endif
 }
 
 /* Frames T_0 (base) .. T_6 (tool), shape (..., 7, 4, 4). */
@@ -153,59 +446,89 @@ void puma560_frames(const double *restrict q, const puma560_params *restrict par
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t0 = cos(q1);
-    const double _t1 = sin(q1);
-    const double _t2 = -_t0;
-    const double _t3 = cos(q2);
-    const double _t4 = _t0*_t3;
-    const double _t5 = sin(q2);
-    const double _t6 = _t4*a2;
-    const double _t7 = _t1*_t3;
-    const double _t8 = _t7*a2;
-    const double _t9 = _t5*a2 + d1;
     const double _t10 = q2 + q3;
-    const double _t11 = cos(_t10);
-    const double _t12 = _t0*_t11;
-    const double _t13 = sin(_t10);
-    const double _t14 = _t0*_t13;
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { q1, q2, _t10, q4, q5, q6, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+        _s5 = sine[5];
+        _c5 = cosine[5];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(q2);
+    _c1 = cos(q2);
+    _s2 = sin(_t10);
+    _c2 = cos(_t10);
+    _s3 = sin(q4);
+    _c3 = cos(q4);
+    _s4 = sin(q5);
+    _c4 = cos(q5);
+    _s5 = sin(q6);
+    _c5 = cos(q6);
+#endif
+    const double _t2 = -_c0;
+    const double _t4 = _c0*_c1;
+    const double _t6 = _t4*a2;
+    const double _t7 = _c1*_s0;
+    const double _t8 = _t7*a2;
+    const double _t9 = _s1*a2 + d1;
+    const double _t12 = _c0*_c2;
+    const double _t14 = _c0*_s2;
     const double _t15 = -_t14;
-    const double _t16 = _t1*d3 + _t12*a3 + _t6;
-    const double _t17 = _t1*_t11;
-    const double _t18 = _t1*_t13;
+    const double _t16 = _s0*d3 + _t12*a3 + _t6;
+    const double _t17 = _c2*_s0;
+    const double _t18 = _s0*_s2;
     const double _t19 = -_t18;
-    const double _t20 = -_t0*d3 + _t17*a3 + _t8;
-    const double _t21 = _t13*a3 + _t9;
-    const double _t22 = sin(q4);
-    const double _t23 = _t1*_t22;
-    const double _t24 = cos(q4);
-    const double _t25 = _t1*_t24;
-    const double _t26 = _t12*_t22;
+    const double _t20 = -_c0*d3 + _t17*a3 + _t8;
+    const double _t21 = _s2*a3 + _t9;
+    const double _t23 = _s0*_s3;
+    const double _t25 = _c3*_s0;
+    const double _t26 = _s3*_t12;
     const double _t27 = _t25 + _t26;
     const double _t28 = -_t14*d4 + _t16;
-    const double _t29 = _t0*_t22;
-    const double _t30 = _t17*_t24;
-    const double _t31 = _t0*_t24;
-    const double _t32 = _t17*_t22;
+    const double _t29 = _c0*_s3;
+    const double _t30 = _c3*_t17;
+    const double _t31 = _c0*_c3;
+    const double _t32 = _s3*_t17;
     const double _t33 = -_t31 + _t32;
     const double _t34 = -_t18*d4 + _t20;
-    const double _t35 = _t13*_t24;
-    const double _t36 = _t13*_t22;
-    const double _t37 = _t11*d4 + _t21;
-    const double _t38 = cos(q5);
-    const double _t39 = _t23*_t38;
-    const double _t40 = sin(q5);
-    const double _t41 = _t14*_t40;
-    const double _t42 = _t12*_t24;
-    const double _t43 = _t1*_t22*_t40 - _t14*_t38 - _t40*_t42;
-    const double _t44 = _t29*_t38;
-    const double _t45 = _t18*_t40;
-    const double _t46 = _t30*_t38;
-    const double _t47 = -_t18*_t38 - _t29*_t40 - _t30*_t40;
-    const double _t48 = _t11*_t40;
-    const double _t49 = _t35*_t38;
-    const double _t50 = _t11*_t38 - _t35*_t40;
-    const double _t51 = sin(q6);
-    const double _t52 = cos(q6);
+    const double _t35 = _c3*_s2;
+    const double _t36 = _s2*_s3;
+    const double _t37 = _c2*d4 + _t21;
+    const double _t39 = _c4*_t23;
+    const double _t41 = _s4*_t14;
+    const double _t42 = _c3*_t12;
+    const double _t43 = -_c4*_t14 + _s0*_s3*_s4 - _s4*_t42;
+    const double _t44 = _c4*_t29;
+    const double _t45 = _s4*_t18;
+    const double _t46 = _c4*_t30;
+    const double _t47 = -_c4*_t18 - _s4*_t29 - _s4*_t30;
+    const double _t48 = _c2*_s4;
+    const double _t49 = _c4*_t35;
+    const double _t50 = _c2*_c4 - _s4*_t35;
     frames[0] = 1;
     frames[1] = 0;
     frames[2] = 0;
@@ -222,11 +545,11 @@ void puma560_frames(const double *restrict q, const puma560_params *restrict par
     frames[13] = 0;
     frames[14] = 0;
     frames[15] = 1;
-    frames[16] = _t0;
+    frames[16] = _c0;
     frames[17] = 0;
-    frames[18] = _t1;
+    frames[18] = _s0;
     frames[19] = 0;
-    frames[20] = _t1;
+    frames[20] = _s0;
     frames[21] = 0;
     frames[22] = _t2;
     frames[23] = 0;
@@ -239,15 +562,15 @@ void puma560_frames(const double *restrict q, const puma560_params *restrict par
     frames[30] = 0;
     frames[31] = 1;
     frames[32] = _t4;
-    frames[33] = -_t0*_t5;
-    frames[34] = _t1;
+    frames[33] = -_c0*_s1;
+    frames[34] = _s0;
     frames[35] = _t6;
     frames[36] = _t7;
-    frames[37] = -_t1*_t5;
+    frames[37] = -_s0*_s1;
     frames[38] = _t2;
     frames[39] = _t8;
-    frames[40] = _t5;
-    frames[41] = _t3;
+    frames[40] = _s1;
+    frames[41] = _c1;
     frames[42] = 0;
     frames[43] = _t9;
     frames[44] = 0;
@@ -255,22 +578,22 @@ void puma560_frames(const double *restrict q, const puma560_params *restrict par
     frames[46] = 0;
     frames[47] = 1;
     frames[48] = _t12;
-    frames[49] = -_t1;
+    frames[49] = -_s0;
     frames[50] = _t15;
     frames[51] = _t16;
     frames[52] = _t17;
-    frames[53] = _t0;
+    frames[53] = _c0;
     frames[54] = _t19;
     frames[55] = _t20;
-    frames[56] = _t13;
+    frames[56] = _s2;
     frames[57] = 0;
-    frames[58] = _t11;
+    frames[58] = _c2;
     frames[59] = _t21;
     frames[60] = 0;
     frames[61] = 0;
     frames[62] = 0;
     frames[63] = 1;
-    frames[64] = _t0*_t11*_t24 - _t23;
+    frames[64] = _c0*_c2*_c3 - _t23;
     frames[65] = _t15;
     frames[66] = _t27;
     frames[67] = _t28;
@@ -279,14 +602,14 @@ void puma560_frames(const double *restrict q, const puma560_params *restrict par
     frames[70] = _t33;
     frames[71] = _t34;
     frames[72] = _t35;
-    frames[73] = _t11;
+    frames[73] = _c2;
     frames[74] = _t36;
     frames[75] = _t37;
     frames[76] = 0;
     frames[77] = 0;
     frames[78] = 0;
     frames[79] = 1;
-    frames[80] = _t0*_t11*_t24*_t38 - _t39 - _t41;
+    frames[80] = _c0*_c2*_c3*_c4 - _t39 - _t41;
     frames[81] = -_t27;
     frames[82] = _t43;
     frames[83] = _t28;
@@ -302,16 +625,16 @@ void puma560_frames(const double *restrict q, const puma560_params *restrict par
     frames[93] = 0;
     frames[94] = 0;
     frames[95] = 1;
-    frames[96] = _t0*_t11*_t24*_t38*_t52 - _t25*_t51 - _t26*_t51 - _t39*_t52 - _t41*_t52;
-    frames[97] = _t0*_t13*_t40*_t51 + _t1*_t22*_t38*_t51 - _t25*_t52 - _t26*_t52 - _t38*_t42*_t51;
+    frames[96] = _c0*_c2*_c3*_c4*_c5 - _c5*_t39 - _c5*_t41 - _s5*_t25 - _s5*_t26;
+    frames[97] = _c0*_s2*_s4*_s5 + _c4*_s0*_s3*_s5 - _c4*_s5*_t42 - _c5*_t25 - _c5*_t26;
     frames[98] = _t43;
     frames[99] = _t28;
-    frames[100] = _t31*_t51 - _t32*_t51 + _t44*_t52 - _t45*_t52 + _t46*_t52;
-    frames[101] = _t0*_t24*_t52 + _t1*_t13*_t40*_t51 - _t32*_t52 - _t44*_t51 - _t46*_t51;
+    frames[100] = _c5*_t44 - _c5*_t45 + _c5*_t46 + _s5*_t31 - _s5*_t32;
+    frames[101] = _c0*_c3*_c5 - _c5*_t32 + _s0*_s2*_s4*_s5 - _s5*_t44 - _s5*_t46;
     frames[102] = _t47;
     frames[103] = _t34;
-    frames[104] = -_t36*_t51 + _t48*_t52 + _t49*_t52;
-    frames[105] = -_t36*_t52 - _t48*_t51 - _t49*_t51;
+    frames[104] = _c5*_t48 + _c5*_t49 - _s5*_t36;
+    frames[105] = -_c5*_t36 - _s5*_t48 - _s5*_t49;
     frames[106] = _t50;
     frames[107] = _t37;
     frames[108] = 0;
@@ -320,12 +643,443 @@ void puma560_frames(const double *restrict q, const puma560_params *restrict par
     frames[111] = 1;
 }
 
+/* frames of `count` items, stored one after the other in each argument and output. */
 void puma560_frames_batch(size_t count, const double *restrict q, const puma560_params *restrict params, double *restrict frames)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(16)];
+    double q2[KINEGEN_BLOCK_OF(16)];
+    double q3[KINEGEN_BLOCK_OF(16)];
+    double q4[KINEGEN_BLOCK_OF(16)];
+    double q5[KINEGEN_BLOCK_OF(16)];
+    double q6[KINEGEN_BLOCK_OF(16)];
+    double _t10[KINEGEN_BLOCK_OF(16)];
+    double _s0[KINEGEN_BLOCK_OF(16)];
+    double _c0[KINEGEN_BLOCK_OF(16)];
+    double _s1[KINEGEN_BLOCK_OF(16)];
+    double _c1[KINEGEN_BLOCK_OF(16)];
+    double _s2[KINEGEN_BLOCK_OF(16)];
+    double _c2[KINEGEN_BLOCK_OF(16)];
+    double _s3[KINEGEN_BLOCK_OF(16)];
+    double _c3[KINEGEN_BLOCK_OF(16)];
+    double _s4[KINEGEN_BLOCK_OF(16)];
+    double _c4[KINEGEN_BLOCK_OF(16)];
+    double _s5[KINEGEN_BLOCK_OF(16)];
+    double _c5[KINEGEN_BLOCK_OF(16)];
+#ifdef KINEGEN_STREAM
+    double _frames_block[112][KINEGEN_BLOCK_OF(16)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 112 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double d1 = params->d1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(16) ? count - start : KINEGEN_BLOCK_OF(16);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[6 * (start + i) + 0];
+            q2[i] = q[6 * (start + i) + 1];
+            q3[i] = q[6 * (start + i) + 2];
+            q4[i] = q[6 * (start + i) + 3];
+            q5[i] = q[6 * (start + i) + 4];
+            q6[i] = q[6 * (start + i) + 5];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t10[i] = q2[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t10[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t10[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s5[i] = sin(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c5[i] = cos(q6[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = -_c0[i];
+                const double _t4 = _c0[i]*_c1[i];
+                const double _t6 = _t4*a2;
+                const double _t7 = _c1[i]*_s0[i];
+                const double _t8 = _t7*a2;
+                const double _t9 = _s1[i]*a2 + d1;
+                const double _t12 = _c0[i]*_c2[i];
+                const double _t14 = _c0[i]*_s2[i];
+                const double _t15 = -_t14;
+                const double _t16 = _s0[i]*d3 + _t12*a3 + _t6;
+                const double _t17 = _c2[i]*_s0[i];
+                const double _t18 = _s0[i]*_s2[i];
+                const double _t19 = -_t18;
+                const double _t20 = -_c0[i]*d3 + _t17*a3 + _t8;
+                const double _t21 = _s2[i]*a3 + _t9;
+                const double _t23 = _s0[i]*_s3[i];
+                const double _t25 = _c3[i]*_s0[i];
+                const double _t26 = _s3[i]*_t12;
+                const double _t27 = _t25 + _t26;
+                const double _t28 = -_t14*d4 + _t16;
+                const double _t29 = _c0[i]*_s3[i];
+                const double _t30 = _c3[i]*_t17;
+                const double _t31 = _c0[i]*_c3[i];
+                const double _t32 = _s3[i]*_t17;
+                const double _t33 = -_t31 + _t32;
+                const double _t34 = -_t18*d4 + _t20;
+                const double _t35 = _c3[i]*_s2[i];
+                const double _t36 = _s2[i]*_s3[i];
+                const double _t37 = _c2[i]*d4 + _t21;
+                const double _t39 = _c4[i]*_t23;
+                const double _t41 = _s4[i]*_t14;
+                const double _t42 = _c3[i]*_t12;
+                const double _t43 = -_c4[i]*_t14 + _s0[i]*_s3[i]*_s4[i] - _s4[i]*_t42;
+                const double _t44 = _c4[i]*_t29;
+                const double _t45 = _s4[i]*_t18;
+                const double _t46 = _c4[i]*_t30;
+                const double _t47 = -_c4[i]*_t18 - _s4[i]*_t29 - _s4[i]*_t30;
+                const double _t48 = _c2[i]*_s4[i];
+                const double _t49 = _c4[i]*_t35;
+                const double _t50 = _c2[i]*_c4[i] - _s4[i]*_t35;
+                _frames_block[0][i] = 1;
+                _frames_block[1][i] = 0;
+                _frames_block[2][i] = 0;
+                _frames_block[3][i] = 0;
+                _frames_block[4][i] = 0;
+                _frames_block[5][i] = 1;
+                _frames_block[6][i] = 0;
+                _frames_block[7][i] = 0;
+                _frames_block[8][i] = 0;
+                _frames_block[9][i] = 0;
+                _frames_block[10][i] = 1;
+                _frames_block[11][i] = 0;
+                _frames_block[12][i] = 0;
+                _frames_block[13][i] = 0;
+                _frames_block[14][i] = 0;
+                _frames_block[15][i] = 1;
+                _frames_block[16][i] = _c0[i];
+                _frames_block[17][i] = 0;
+                _frames_block[18][i] = _s0[i];
+                _frames_block[19][i] = 0;
+                _frames_block[20][i] = _s0[i];
+                _frames_block[21][i] = 0;
+                _frames_block[22][i] = _t2;
+                _frames_block[23][i] = 0;
+                _frames_block[24][i] = 0;
+                _frames_block[25][i] = 1;
+                _frames_block[26][i] = 0;
+                _frames_block[27][i] = d1;
+                _frames_block[28][i] = 0;
+                _frames_block[29][i] = 0;
+                _frames_block[30][i] = 0;
+                _frames_block[31][i] = 1;
+                _frames_block[32][i] = _t4;
+                _frames_block[33][i] = -_c0[i]*_s1[i];
+                _frames_block[34][i] = _s0[i];
+                _frames_block[35][i] = _t6;
+                _frames_block[36][i] = _t7;
+                _frames_block[37][i] = -_s0[i]*_s1[i];
+                _frames_block[38][i] = _t2;
+                _frames_block[39][i] = _t8;
+                _frames_block[40][i] = _s1[i];
+                _frames_block[41][i] = _c1[i];
+                _frames_block[42][i] = 0;
+                _frames_block[43][i] = _t9;
+                _frames_block[44][i] = 0;
+                _frames_block[45][i] = 0;
+                _frames_block[46][i] = 0;
+                _frames_block[47][i] = 1;
+                _frames_block[48][i] = _t12;
+                _frames_block[49][i] = -_s0[i];
+                _frames_block[50][i] = _t15;
+                _frames_block[51][i] = _t16;
+                _frames_block[52][i] = _t17;
+                _frames_block[53][i] = _c0[i];
+                _frames_block[54][i] = _t19;
+                _frames_block[55][i] = _t20;
+                _frames_block[56][i] = _s2[i];
+                _frames_block[57][i] = 0;
+                _frames_block[58][i] = _c2[i];
+                _frames_block[59][i] = _t21;
+                _frames_block[60][i] = 0;
+                _frames_block[61][i] = 0;
+                _frames_block[62][i] = 0;
+                _frames_block[63][i] = 1;
+                _frames_block[64][i] = _c0[i]*_c2[i]*_c3[i] - _t23;
+                _frames_block[65][i] = _t15;
+                _frames_block[66][i] = _t27;
+                _frames_block[67][i] = _t28;
+                _frames_block[68][i] = _t29 + _t30;
+                _frames_block[69][i] = _t19;
+                _frames_block[70][i] = _t33;
+                _frames_block[71][i] = _t34;
+                _frames_block[72][i] = _t35;
+                _frames_block[73][i] = _c2[i];
+                _frames_block[74][i] = _t36;
+                _frames_block[75][i] = _t37;
+                _frames_block[76][i] = 0;
+                _frames_block[77][i] = 0;
+                _frames_block[78][i] = 0;
+                _frames_block[79][i] = 1;
+                _frames_block[80][i] = _c0[i]*_c2[i]*_c3[i]*_c4[i] - _t39 - _t41;
+                _frames_block[81][i] = -_t27;
+                _frames_block[82][i] = _t43;
+                _frames_block[83][i] = _t28;
+                _frames_block[84][i] = _t44 - _t45 + _t46;
+                _frames_block[85][i] = -_t33;
+                _frames_block[86][i] = _t47;
+                _frames_block[87][i] = _t34;
+                _frames_block[88][i] = _t48 + _t49;
+                _frames_block[89][i] = -_t36;
+                _frames_block[90][i] = _t50;
+                _frames_block[91][i] = _t37;
+                _frames_block[92][i] = 0;
+                _frames_block[93][i] = 0;
+                _frames_block[94][i] = 0;
+                _frames_block[95][i] = 1;
+                _frames_block[96][i] = _c0[i]*_c2[i]*_c3[i]*_c4[i]*_c5[i] - _c5[i]*_t39 - _c5[i]*_t41 - _s5[i]*_t25 - _s5[i]*_t26;
+                _frames_block[97][i] = _c0[i]*_s2[i]*_s4[i]*_s5[i] + _c4[i]*_s0[i]*_s3[i]*_s5[i] - _c4[i]*_s5[i]*_t42 - _c5[i]*_t25 - _c5[i]*_t26;
+                _frames_block[98][i] = _t43;
+                _frames_block[99][i] = _t28;
+                _frames_block[100][i] = _c5[i]*_t44 - _c5[i]*_t45 + _c5[i]*_t46 + _s5[i]*_t31 - _s5[i]*_t32;
+                _frames_block[101][i] = _c0[i]*_c3[i]*_c5[i] - _c5[i]*_t32 + _s0[i]*_s2[i]*_s4[i]*_s5[i] - _s5[i]*_t44 - _s5[i]*_t46;
+                _frames_block[102][i] = _t47;
+                _frames_block[103][i] = _t34;
+                _frames_block[104][i] = _c5[i]*_t48 + _c5[i]*_t49 - _s5[i]*_t36;
+                _frames_block[105][i] = -_c5[i]*_t36 - _s5[i]*_t48 - _s5[i]*_t49;
+                _frames_block[106][i] = _t50;
+                _frames_block[107][i] = _t37;
+                _frames_block[108][i] = 0;
+                _frames_block[109][i] = 0;
+                _frames_block[110][i] = 0;
+                _frames_block[111][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = -_c0[i];
+                const double _t4 = _c0[i]*_c1[i];
+                const double _t6 = _t4*a2;
+                const double _t7 = _c1[i]*_s0[i];
+                const double _t8 = _t7*a2;
+                const double _t9 = _s1[i]*a2 + d1;
+                const double _t12 = _c0[i]*_c2[i];
+                const double _t14 = _c0[i]*_s2[i];
+                const double _t15 = -_t14;
+                const double _t16 = _s0[i]*d3 + _t12*a3 + _t6;
+                const double _t17 = _c2[i]*_s0[i];
+                const double _t18 = _s0[i]*_s2[i];
+                const double _t19 = -_t18;
+                const double _t20 = -_c0[i]*d3 + _t17*a3 + _t8;
+                const double _t21 = _s2[i]*a3 + _t9;
+                const double _t23 = _s0[i]*_s3[i];
+                const double _t25 = _c3[i]*_s0[i];
+                const double _t26 = _s3[i]*_t12;
+                const double _t27 = _t25 + _t26;
+                const double _t28 = -_t14*d4 + _t16;
+                const double _t29 = _c0[i]*_s3[i];
+                const double _t30 = _c3[i]*_t17;
+                const double _t31 = _c0[i]*_c3[i];
+                const double _t32 = _s3[i]*_t17;
+                const double _t33 = -_t31 + _t32;
+                const double _t34 = -_t18*d4 + _t20;
+                const double _t35 = _c3[i]*_s2[i];
+                const double _t36 = _s2[i]*_s3[i];
+                const double _t37 = _c2[i]*d4 + _t21;
+                const double _t39 = _c4[i]*_t23;
+                const double _t41 = _s4[i]*_t14;
+                const double _t42 = _c3[i]*_t12;
+                const double _t43 = -_c4[i]*_t14 + _s0[i]*_s3[i]*_s4[i] - _s4[i]*_t42;
+                const double _t44 = _c4[i]*_t29;
+                const double _t45 = _s4[i]*_t18;
+                const double _t46 = _c4[i]*_t30;
+                const double _t47 = -_c4[i]*_t18 - _s4[i]*_t29 - _s4[i]*_t30;
+                const double _t48 = _c2[i]*_s4[i];
+                const double _t49 = _c4[i]*_t35;
+                const double _t50 = _c2[i]*_c4[i] - _s4[i]*_t35;
+                frames[112 * (start + i) + 0] = 1;
+                frames[112 * (start + i) + 1] = 0;
+                frames[112 * (start + i) + 2] = 0;
+                frames[112 * (start + i) + 3] = 0;
+                frames[112 * (start + i) + 4] = 0;
+                frames[112 * (start + i) + 5] = 1;
+                frames[112 * (start + i) + 6] = 0;
+                frames[112 * (start + i) + 7] = 0;
+                frames[112 * (start + i) + 8] = 0;
+                frames[112 * (start + i) + 9] = 0;
+                frames[112 * (start + i) + 10] = 1;
+                frames[112 * (start + i) + 11] = 0;
+                frames[112 * (start + i) + 12] = 0;
+                frames[112 * (start + i) + 13] = 0;
+                frames[112 * (start + i) + 14] = 0;
+                frames[112 * (start + i) + 15] = 1;
+                frames[112 * (start + i) + 16] = _c0[i];
+                frames[112 * (start + i) + 17] = 0;
+                frames[112 * (start + i) + 18] = _s0[i];
+                frames[112 * (start + i) + 19] = 0;
+                frames[112 * (start + i) + 20] = _s0[i];
+                frames[112 * (start + i) + 21] = 0;
+                frames[112 * (start + i) + 22] = _t2;
+                frames[112 * (start + i) + 23] = 0;
+                frames[112 * (start + i) + 24] = 0;
+                frames[112 * (start + i) + 25] = 1;
+                frames[112 * (start + i) + 26] = 0;
+                frames[112 * (start + i) + 27] = d1;
+                frames[112 * (start + i) + 28] = 0;
+                frames[112 * (start + i) + 29] = 0;
+                frames[112 * (start + i) + 30] = 0;
+                frames[112 * (start + i) + 31] = 1;
+                frames[112 * (start + i) + 32] = _t4;
+                frames[112 * (start + i) + 33] = -_c0[i]*_s1[i];
+                frames[112 * (start + i) + 34] = _s0[i];
+                frames[112 * (start + i) + 35] = _t6;
+                frames[112 * (start + i) + 36] = _t7;
+                frames[112 * (start + i) + 37] = -_s0[i]*_s1[i];
+                frames[112 * (start + i) + 38] = _t2;
+                frames[112 * (start + i) + 39] = _t8;
+                frames[112 * (start + i) + 40] = _s1[i];
+                frames[112 * (start + i) + 41] = _c1[i];
+                frames[112 * (start + i) + 42] = 0;
+                frames[112 * (start + i) + 43] = _t9;
+                frames[112 * (start + i) + 44] = 0;
+                frames[112 * (start + i) + 45] = 0;
+                frames[112 * (start + i) + 46] = 0;
+                frames[112 * (start + i) + 47] = 1;
+                frames[112 * (start + i) + 48] = _t12;
+                frames[112 * (start + i) + 49] = -_s0[i];
+                frames[112 * (start + i) + 50] = _t15;
+                frames[112 * (start + i) + 51] = _t16;
+                frames[112 * (start + i) + 52] = _t17;
+                frames[112 * (start + i) + 53] = _c0[i];
+                frames[112 * (start + i) + 54] = _t19;
+                frames[112 * (start + i) + 55] = _t20;
+                frames[112 * (start + i) + 56] = _s2[i];
+                frames[112 * (start + i) + 57] = 0;
+                frames[112 * (start + i) + 58] = _c2[i];
+                frames[112 * (start + i) + 59] = _t21;
+                frames[112 * (start + i) + 60] = 0;
+                frames[112 * (start + i) + 61] = 0;
+                frames[112 * (start + i) + 62] = 0;
+                frames[112 * (start + i) + 63] = 1;
+                frames[112 * (start + i) + 64] = _c0[i]*_c2[i]*_c3[i] - _t23;
+                frames[112 * (start + i) + 65] = _t15;
+                frames[112 * (start + i) + 66] = _t27;
+                frames[112 * (start + i) + 67] = _t28;
+                frames[112 * (start + i) + 68] = _t29 + _t30;
+                frames[112 * (start + i) + 69] = _t19;
+                frames[112 * (start + i) + 70] = _t33;
+                frames[112 * (start + i) + 71] = _t34;
+                frames[112 * (start + i) + 72] = _t35;
+                frames[112 * (start + i) + 73] = _c2[i];
+                frames[112 * (start + i) + 74] = _t36;
+                frames[112 * (start + i) + 75] = _t37;
+                frames[112 * (start + i) + 76] = 0;
+                frames[112 * (start + i) + 77] = 0;
+                frames[112 * (start + i) + 78] = 0;
+                frames[112 * (start + i) + 79] = 1;
+                frames[112 * (start + i) + 80] = _c0[i]*_c2[i]*_c3[i]*_c4[i] - _t39 - _t41;
+                frames[112 * (start + i) + 81] = -_t27;
+                frames[112 * (start + i) + 82] = _t43;
+                frames[112 * (start + i) + 83] = _t28;
+                frames[112 * (start + i) + 84] = _t44 - _t45 + _t46;
+                frames[112 * (start + i) + 85] = -_t33;
+                frames[112 * (start + i) + 86] = _t47;
+                frames[112 * (start + i) + 87] = _t34;
+                frames[112 * (start + i) + 88] = _t48 + _t49;
+                frames[112 * (start + i) + 89] = -_t36;
+                frames[112 * (start + i) + 90] = _t50;
+                frames[112 * (start + i) + 91] = _t37;
+                frames[112 * (start + i) + 92] = 0;
+                frames[112 * (start + i) + 93] = 0;
+                frames[112 * (start + i) + 94] = 0;
+                frames[112 * (start + i) + 95] = 1;
+                frames[112 * (start + i) + 96] = _c0[i]*_c2[i]*_c3[i]*_c4[i]*_c5[i] - _c5[i]*_t39 - _c5[i]*_t41 - _s5[i]*_t25 - _s5[i]*_t26;
+                frames[112 * (start + i) + 97] = _c0[i]*_s2[i]*_s4[i]*_s5[i] + _c4[i]*_s0[i]*_s3[i]*_s5[i] - _c4[i]*_s5[i]*_t42 - _c5[i]*_t25 - _c5[i]*_t26;
+                frames[112 * (start + i) + 98] = _t43;
+                frames[112 * (start + i) + 99] = _t28;
+                frames[112 * (start + i) + 100] = _c5[i]*_t44 - _c5[i]*_t45 + _c5[i]*_t46 + _s5[i]*_t31 - _s5[i]*_t32;
+                frames[112 * (start + i) + 101] = _c0[i]*_c3[i]*_c5[i] - _c5[i]*_t32 + _s0[i]*_s2[i]*_s4[i]*_s5[i] - _s5[i]*_t44 - _s5[i]*_t46;
+                frames[112 * (start + i) + 102] = _t47;
+                frames[112 * (start + i) + 103] = _t34;
+                frames[112 * (start + i) + 104] = _c5[i]*_t48 + _c5[i]*_t49 - _s5[i]*_t36;
+                frames[112 * (start + i) + 105] = -_c5[i]*_t36 - _s5[i]*_t48 - _s5[i]*_t49;
+                frames[112 * (start + i) + 106] = _t50;
+                frames[112 * (start + i) + 107] = _t37;
+                frames[112 * (start + i) + 108] = 0;
+                frames[112 * (start + i) + 109] = 0;
+                frames[112 * (start + i) + 110] = 0;
+                frames[112 * (start + i) + 111] = 1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 112; k += 2) {
+                    _mm_stream_pd(frames + 112 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         puma560_frames(q + 6 * i, params, frames + 112 * i);
     }
+#endif
 }
 
 /* Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 6). */
@@ -343,37 +1097,67 @@ void puma560_jacobian(const double *restrict q, const puma560_params *restrict p
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t0 = cos(q1);
-    const double _t1 = sin(q1);
-    const double _t2 = a2*cos(q2);
     const double _t3 = q2 + q3;
-    const double _t4 = cos(_t3);
-    const double _t5 = _t4*a3;
-    const double _t6 = sin(_t3);
-    const double _t7 = _t4*d4 + _t6*a3;
-    const double _t8 = _t7 + a2*sin(q2);
-    const double _t9 = _t6*d4;
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { q1, q2, _t3, q4, q5, 0.0, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(q2);
+    _c1 = cos(q2);
+    _s2 = sin(_t3);
+    _c2 = cos(_t3);
+    _s3 = sin(q4);
+    _c3 = cos(q4);
+    _s4 = sin(q5);
+    _c4 = cos(q5);
+#endif
+    const double _t2 = _c1*a2;
+    const double _t5 = _c2*a3;
+    const double _t7 = _c2*d4 + _s2*a3;
+    const double _t8 = _s1*a2 + _t7;
+    const double _t9 = _s2*d4;
     const double _t10 = _t5 - _t9;
-    const double _t11 = _t0*_t6;
-    const double _t12 = cos(q4);
-    const double _t13 = _t1*_t12;
-    const double _t14 = sin(q4);
-    const double _t15 = _t14*_t4;
-    const double _t16 = sin(q5);
-    const double _t17 = cos(q5);
-    const double _t18 = _t0*_t12;
-    const double _t19 = _t16*_t4;
-    const double _t20 = -_t0;
-    const double _t21 = _t1*_t6;
-    J[0] = _t0*d3 - _t1*_t2 - _t1*_t5 + _t1*_t6*d4;
-    J[1] = -_t0*_t8;
-    J[2] = -_t0*_t7;
+    const double _t11 = _c0*_s2;
+    const double _t13 = _c3*_s0;
+    const double _t15 = _c2*_s3;
+    const double _t18 = _c0*_c3;
+    const double _t19 = _c2*_s4;
+    const double _t20 = -_c0;
+    const double _t21 = _s0*_s2;
+    J[0] = _c0*d3 + _s0*_s2*d4 - _s0*_t2 - _s0*_t5;
+    J[1] = -_c0*_t8;
+    J[2] = -_c0*_t7;
     J[3] = 0;
     J[4] = 0;
     J[5] = 0;
-    J[6] = _t0*_t2 + _t0*_t5 - _t0*_t9 + _t1*d3;
-    J[7] = -_t1*_t8;
-    J[8] = -_t1*_t7;
+    J[6] = _c0*_t2 + _c0*_t5 - _c0*_t9 + _s0*d3;
+    J[7] = -_s0*_t8;
+    J[8] = -_s0*_t7;
     J[9] = 0;
     J[10] = 0;
     J[11] = 0;
@@ -384,31 +1168,243 @@ void puma560_jacobian(const double *restrict q, const puma560_params *restrict p
     J[16] = 0;
     J[17] = 0;
     J[18] = 0;
-    J[19] = _t1;
-    J[20] = _t1;
+    J[19] = _s0;
+    J[20] = _s0;
     J[21] = -_t11;
-    J[22] = _t0*_t15 + _t13;
-    J[23] = _t1*_t14*_t16 - _t11*_t17 - _t18*_t19;
+    J[22] = _c0*_t15 + _t13;
+    J[23] = -_c4*_t11 + _s0*_s3*_s4 - _t18*_t19;
     J[24] = 0;
     J[25] = _t20;
     J[26] = _t20;
     J[27] = -_t21;
-    J[28] = _t1*_t15 - _t18;
-    J[29] = -_t0*_t14*_t16 - _t13*_t19 - _t17*_t21;
+    J[28] = _s0*_t15 - _t18;
+    J[29] = -_c0*_s3*_s4 - _c4*_t21 - _t13*_t19;
     J[30] = 1;
     J[31] = 0;
     J[32] = 0;
-    J[33] = _t4;
-    J[34] = _t14*_t6;
-    J[35] = -_t12*_t16*_t6 + _t17*_t4;
+    J[33] = _c2;
+    J[34] = _s2*_s3;
+    J[35] = _c2*_c4 - _c3*_s2*_s4;
 }
 
+/* jacobian of `count` items, stored one after the other in each argument and output. */
 void puma560_jacobian_batch(size_t count, const double *restrict q, const puma560_params *restrict params, double *restrict J)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double q5[KINEGEN_BLOCK_OF(64)];
+    double _t3[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    double _s4[KINEGEN_BLOCK_OF(64)];
+    double _c4[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _J_block[36][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 36 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[6 * (start + i) + 0];
+            q2[i] = q[6 * (start + i) + 1];
+            q3[i] = q[6 * (start + i) + 2];
+            q4[i] = q[6 * (start + i) + 3];
+            q5[i] = q[6 * (start + i) + 4];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t3[i] = q2[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(q5[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = _c2[i]*d4 + _s2[i]*a3;
+                const double _t8 = _s1[i]*a2 + _t7;
+                const double _t9 = _s2[i]*d4;
+                const double _t10 = _t5 - _t9;
+                const double _t11 = _c0[i]*_s2[i];
+                const double _t13 = _c3[i]*_s0[i];
+                const double _t15 = _c2[i]*_s3[i];
+                const double _t18 = _c0[i]*_c3[i];
+                const double _t19 = _c2[i]*_s4[i];
+                const double _t20 = -_c0[i];
+                const double _t21 = _s0[i]*_s2[i];
+                _J_block[0][i] = _c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5;
+                _J_block[1][i] = -_c0[i]*_t8;
+                _J_block[2][i] = -_c0[i]*_t7;
+                _J_block[3][i] = 0;
+                _J_block[4][i] = 0;
+                _J_block[5][i] = 0;
+                _J_block[6][i] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t9 + _s0[i]*d3;
+                _J_block[7][i] = -_s0[i]*_t8;
+                _J_block[8][i] = -_s0[i]*_t7;
+                _J_block[9][i] = 0;
+                _J_block[10][i] = 0;
+                _J_block[11][i] = 0;
+                _J_block[12][i] = 0;
+                _J_block[13][i] = _t10 + _t2;
+                _J_block[14][i] = _t10;
+                _J_block[15][i] = 0;
+                _J_block[16][i] = 0;
+                _J_block[17][i] = 0;
+                _J_block[18][i] = 0;
+                _J_block[19][i] = _s0[i];
+                _J_block[20][i] = _s0[i];
+                _J_block[21][i] = -_t11;
+                _J_block[22][i] = _c0[i]*_t15 + _t13;
+                _J_block[23][i] = -_c4[i]*_t11 + _s0[i]*_s3[i]*_s4[i] - _t18*_t19;
+                _J_block[24][i] = 0;
+                _J_block[25][i] = _t20;
+                _J_block[26][i] = _t20;
+                _J_block[27][i] = -_t21;
+                _J_block[28][i] = _s0[i]*_t15 - _t18;
+                _J_block[29][i] = -_c0[i]*_s3[i]*_s4[i] - _c4[i]*_t21 - _t13*_t19;
+                _J_block[30][i] = 1;
+                _J_block[31][i] = 0;
+                _J_block[32][i] = 0;
+                _J_block[33][i] = _c2[i];
+                _J_block[34][i] = _s2[i]*_s3[i];
+                _J_block[35][i] = _c2[i]*_c4[i] - _c3[i]*_s2[i]*_s4[i];
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = _c2[i]*d4 + _s2[i]*a3;
+                const double _t8 = _s1[i]*a2 + _t7;
+                const double _t9 = _s2[i]*d4;
+                const double _t10 = _t5 - _t9;
+                const double _t11 = _c0[i]*_s2[i];
+                const double _t13 = _c3[i]*_s0[i];
+                const double _t15 = _c2[i]*_s3[i];
+                const double _t18 = _c0[i]*_c3[i];
+                const double _t19 = _c2[i]*_s4[i];
+                const double _t20 = -_c0[i];
+                const double _t21 = _s0[i]*_s2[i];
+                J[36 * (start + i) + 0] = _c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5;
+                J[36 * (start + i) + 1] = -_c0[i]*_t8;
+                J[36 * (start + i) + 2] = -_c0[i]*_t7;
+                J[36 * (start + i) + 3] = 0;
+                J[36 * (start + i) + 4] = 0;
+                J[36 * (start + i) + 5] = 0;
+                J[36 * (start + i) + 6] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t9 + _s0[i]*d3;
+                J[36 * (start + i) + 7] = -_s0[i]*_t8;
+                J[36 * (start + i) + 8] = -_s0[i]*_t7;
+                J[36 * (start + i) + 9] = 0;
+                J[36 * (start + i) + 10] = 0;
+                J[36 * (start + i) + 11] = 0;
+                J[36 * (start + i) + 12] = 0;
+                J[36 * (start + i) + 13] = _t10 + _t2;
+                J[36 * (start + i) + 14] = _t10;
+                J[36 * (start + i) + 15] = 0;
+                J[36 * (start + i) + 16] = 0;
+                J[36 * (start + i) + 17] = 0;
+                J[36 * (start + i) + 18] = 0;
+                J[36 * (start + i) + 19] = _s0[i];
+                J[36 * (start + i) + 20] = _s0[i];
+                J[36 * (start + i) + 21] = -_t11;
+                J[36 * (start + i) + 22] = _c0[i]*_t15 + _t13;
+                J[36 * (start + i) + 23] = -_c4[i]*_t11 + _s0[i]*_s3[i]*_s4[i] - _t18*_t19;
+                J[36 * (start + i) + 24] = 0;
+                J[36 * (start + i) + 25] = _t20;
+                J[36 * (start + i) + 26] = _t20;
+                J[36 * (start + i) + 27] = -_t21;
+                J[36 * (start + i) + 28] = _s0[i]*_t15 - _t18;
+                J[36 * (start + i) + 29] = -_c0[i]*_s3[i]*_s4[i] - _c4[i]*_t21 - _t13*_t19;
+                J[36 * (start + i) + 30] = 1;
+                J[36 * (start + i) + 31] = 0;
+                J[36 * (start + i) + 32] = 0;
+                J[36 * (start + i) + 33] = _c2[i];
+                J[36 * (start + i) + 34] = _s2[i]*_s3[i];
+                J[36 * (start + i) + 35] = _c2[i]*_c4[i] - _c3[i]*_s2[i]*_s4[i];
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 36; k += 2) {
+                    _mm_stream_pd(J + 36 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         puma560_jacobian(q + 6 * i, params, J + 36 * i);
     }
+#endif
 }
 
 /* Task coordinates x, y, z, r11, r12, r13, r21, r22, r23, r31, r32, r33, shape (..., 12). */
@@ -428,56 +1424,277 @@ void puma560_task(const double *restrict q, const puma560_params *restrict param
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t0 = sin(q1);
-    const double _t1 = cos(q1);
-    const double _t2 = a2*cos(q2);
     const double _t3 = q2 + q3;
-    const double _t4 = cos(_t3);
-    const double _t5 = _t4*a3;
-    const double _t6 = sin(_t3);
-    const double _t7 = _t6*d4;
-    const double _t8 = sin(q6);
-    const double _t9 = cos(q4);
-    const double _t10 = _t0*_t9;
-    const double _t11 = _t10*_t8;
-    const double _t12 = cos(q5);
-    const double _t13 = cos(q6);
-    const double _t14 = sin(q4);
-    const double _t15 = _t13*_t14;
-    const double _t16 = _t14*_t8;
-    const double _t17 = _t1*_t4;
-    const double _t18 = sin(q5);
-    const double _t19 = _t18*_t6;
-    const double _t20 = _t10*_t13;
-    const double _t21 = _t12*_t4;
-    const double _t22 = _t1*_t9;
-    const double _t23 = _t22*_t8;
-    const double _t24 = _t12*_t6;
-    const double _t25 = _t18*_t4;
-    const double _t26 = _t1*_t12;
-    const double _t27 = _t0*_t4;
-    const double _t28 = _t14*_t6;
-    const double _t29 = _t24*_t9;
-    x[0] = _t0*d3 + _t1*_t2 + _t1*_t5 - _t1*_t7;
-    x[1] = _t0*_t2 + _t0*_t5 - _t0*_t7 - _t1*d3;
-    x[2] = _t4*d4 + _t6*a3 + a2*sin(q2) + d1;
-    x[3] = -_t0*_t12*_t15 + _t1*_t12*_t13*_t4*_t9 - _t1*_t13*_t19 - _t11 - _t16*_t17;
-    x[4] = _t0*_t12*_t14*_t8 + _t1*_t18*_t6*_t8 - _t15*_t17 - _t20 - _t21*_t23;
-    x[5] = _t0*_t14*_t18 - _t1*_t24 - _t22*_t25;
-    x[6] = -_t0*_t13*_t19 + _t15*_t26 - _t16*_t27 + _t20*_t21 + _t23;
-    x[7] = _t0*_t18*_t6*_t8 + _t1*_t13*_t9 - _t11*_t21 - _t15*_t27 - _t16*_t26;
-    x[8] = -_t0*_t24 - _t1*_t14*_t18 - _t10*_t25;
-    x[9] = _t13*_t25 + _t13*_t29 - _t28*_t8;
-    x[10] = -_t13*_t28 - _t25*_t8 - _t29*_t8;
-    x[11] = _t12*_t4 - _t19*_t9;
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { q1, q2, _t3, q6, q4, q5, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+        _s5 = sine[5];
+        _c5 = cosine[5];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(q2);
+    _c1 = cos(q2);
+    _s2 = sin(_t3);
+    _c2 = cos(_t3);
+    _s3 = sin(q6);
+    _c3 = cos(q6);
+    _s4 = sin(q4);
+    _c4 = cos(q4);
+    _s5 = sin(q5);
+    _c5 = cos(q5);
+#endif
+    const double _t2 = _c1*a2;
+    const double _t5 = _c2*a3;
+    const double _t7 = _s2*d4;
+    const double _t10 = _c4*_s0;
+    const double _t11 = _s3*_t10;
+    const double _t15 = _c3*_s4;
+    const double _t16 = _s3*_s4;
+    const double _t17 = _c0*_c2;
+    const double _t19 = _s2*_s5;
+    const double _t20 = _c3*_t10;
+    const double _t21 = _c2*_c5;
+    const double _t22 = _c0*_c4;
+    const double _t23 = _s3*_t22;
+    const double _t24 = _c5*_s2;
+    const double _t25 = _c2*_s5;
+    const double _t26 = _c0*_c5;
+    const double _t27 = _c2*_s0;
+    const double _t28 = _s2*_s4;
+    const double _t29 = _c4*_t24;
+    x[0] = _c0*_t2 + _c0*_t5 - _c0*_t7 + _s0*d3;
+    x[1] = -_c0*d3 + _s0*_t2 + _s0*_t5 - _s0*_t7;
+    x[2] = _c2*d4 + _s1*a2 + _s2*a3 + d1;
+    x[3] = _c0*_c2*_c3*_c4*_c5 - _c0*_c3*_t19 - _c5*_s0*_t15 - _t11 - _t16*_t17;
+    x[4] = _c0*_s2*_s3*_s5 + _c5*_s0*_s3*_s4 - _t15*_t17 - _t20 - _t21*_t23;
+    x[5] = -_c0*_t24 + _s0*_s4*_s5 - _t22*_t25;
+    x[6] = -_c3*_s0*_t19 + _t15*_t26 - _t16*_t27 + _t20*_t21 + _t23;
+    x[7] = _c0*_c3*_c4 + _s0*_s2*_s3*_s5 - _t11*_t21 - _t15*_t27 - _t16*_t26;
+    x[8] = -_c0*_s4*_s5 - _s0*_t24 - _t10*_t25;
+    x[9] = _c3*_t25 + _c3*_t29 - _s3*_t28;
+    x[10] = -_c3*_t28 - _s3*_t25 - _s3*_t29;
+    x[11] = _c2*_c5 - _c4*_t19;
 }
 
+/* task of `count` items, stored one after the other in each argument and output. */
 void puma560_task_batch(size_t count, const double *restrict q, const puma560_params *restrict params, double *restrict x)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double q5[KINEGEN_BLOCK_OF(64)];
+    double q6[KINEGEN_BLOCK_OF(64)];
+    double _t3[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    double _s4[KINEGEN_BLOCK_OF(64)];
+    double _c4[KINEGEN_BLOCK_OF(64)];
+    double _s5[KINEGEN_BLOCK_OF(64)];
+    double _c5[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _x_block[12][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)x & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double d1 = params->d1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[6 * (start + i) + 0];
+            q2[i] = q[6 * (start + i) + 1];
+            q3[i] = q[6 * (start + i) + 2];
+            q4[i] = q[6 * (start + i) + 3];
+            q5[i] = q[6 * (start + i) + 4];
+            q6[i] = q[6 * (start + i) + 5];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t3[i] = q2[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s5[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c5[i] = cos(q5[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = _s2[i]*d4;
+                const double _t10 = _c4[i]*_s0[i];
+                const double _t11 = _s3[i]*_t10;
+                const double _t15 = _c3[i]*_s4[i];
+                const double _t16 = _s3[i]*_s4[i];
+                const double _t17 = _c0[i]*_c2[i];
+                const double _t19 = _s2[i]*_s5[i];
+                const double _t20 = _c3[i]*_t10;
+                const double _t21 = _c2[i]*_c5[i];
+                const double _t22 = _c0[i]*_c4[i];
+                const double _t23 = _s3[i]*_t22;
+                const double _t24 = _c5[i]*_s2[i];
+                const double _t25 = _c2[i]*_s5[i];
+                const double _t26 = _c0[i]*_c5[i];
+                const double _t27 = _c2[i]*_s0[i];
+                const double _t28 = _s2[i]*_s4[i];
+                const double _t29 = _c4[i]*_t24;
+                _x_block[0][i] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t7 + _s0[i]*d3;
+                _x_block[1][i] = -_c0[i]*d3 + _s0[i]*_t2 + _s0[i]*_t5 - _s0[i]*_t7;
+                _x_block[2][i] = _c2[i]*d4 + _s1[i]*a2 + _s2[i]*a3 + d1;
+                _x_block[3][i] = _c0[i]*_c2[i]*_c3[i]*_c4[i]*_c5[i] - _c0[i]*_c3[i]*_t19 - _c5[i]*_s0[i]*_t15 - _t11 - _t16*_t17;
+                _x_block[4][i] = _c0[i]*_s2[i]*_s3[i]*_s5[i] + _c5[i]*_s0[i]*_s3[i]*_s4[i] - _t15*_t17 - _t20 - _t21*_t23;
+                _x_block[5][i] = -_c0[i]*_t24 + _s0[i]*_s4[i]*_s5[i] - _t22*_t25;
+                _x_block[6][i] = -_c3[i]*_s0[i]*_t19 + _t15*_t26 - _t16*_t27 + _t20*_t21 + _t23;
+                _x_block[7][i] = _c0[i]*_c3[i]*_c4[i] + _s0[i]*_s2[i]*_s3[i]*_s5[i] - _t11*_t21 - _t15*_t27 - _t16*_t26;
+                _x_block[8][i] = -_c0[i]*_s4[i]*_s5[i] - _s0[i]*_t24 - _t10*_t25;
+                _x_block[9][i] = _c3[i]*_t25 + _c3[i]*_t29 - _s3[i]*_t28;
+                _x_block[10][i] = -_c3[i]*_t28 - _s3[i]*_t25 - _s3[i]*_t29;
+                _x_block[11][i] = _c2[i]*_c5[i] - _c4[i]*_t19;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = _s2[i]*d4;
+                const double _t10 = _c4[i]*_s0[i];
+                const double _t11 = _s3[i]*_t10;
+                const double _t15 = _c3[i]*_s4[i];
+                const double _t16 = _s3[i]*_s4[i];
+                const double _t17 = _c0[i]*_c2[i];
+                const double _t19 = _s2[i]*_s5[i];
+                const double _t20 = _c3[i]*_t10;
+                const double _t21 = _c2[i]*_c5[i];
+                const double _t22 = _c0[i]*_c4[i];
+                const double _t23 = _s3[i]*_t22;
+                const double _t24 = _c5[i]*_s2[i];
+                const double _t25 = _c2[i]*_s5[i];
+                const double _t26 = _c0[i]*_c5[i];
+                const double _t27 = _c2[i]*_s0[i];
+                const double _t28 = _s2[i]*_s4[i];
+                const double _t29 = _c4[i]*_t24;
+                x[12 * (start + i) + 0] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t7 + _s0[i]*d3;
+                x[12 * (start + i) + 1] = -_c0[i]*d3 + _s0[i]*_t2 + _s0[i]*_t5 - _s0[i]*_t7;
+                x[12 * (start + i) + 2] = _c2[i]*d4 + _s1[i]*a2 + _s2[i]*a3 + d1;
+                x[12 * (start + i) + 3] = _c0[i]*_c2[i]*_c3[i]*_c4[i]*_c5[i] - _c0[i]*_c3[i]*_t19 - _c5[i]*_s0[i]*_t15 - _t11 - _t16*_t17;
+                x[12 * (start + i) + 4] = _c0[i]*_s2[i]*_s3[i]*_s5[i] + _c5[i]*_s0[i]*_s3[i]*_s4[i] - _t15*_t17 - _t20 - _t21*_t23;
+                x[12 * (start + i) + 5] = -_c0[i]*_t24 + _s0[i]*_s4[i]*_s5[i] - _t22*_t25;
+                x[12 * (start + i) + 6] = -_c3[i]*_s0[i]*_t19 + _t15*_t26 - _t16*_t27 + _t20*_t21 + _t23;
+                x[12 * (start + i) + 7] = _c0[i]*_c3[i]*_c4[i] + _s0[i]*_s2[i]*_s3[i]*_s5[i] - _t11*_t21 - _t15*_t27 - _t16*_t26;
+                x[12 * (start + i) + 8] = -_c0[i]*_s4[i]*_s5[i] - _s0[i]*_t24 - _t10*_t25;
+                x[12 * (start + i) + 9] = _c3[i]*_t25 + _c3[i]*_t29 - _s3[i]*_t28;
+                x[12 * (start + i) + 10] = -_c3[i]*_t28 - _s3[i]*_t25 - _s3[i]*_t29;
+                x[12 * (start + i) + 11] = _c2[i]*_c5[i] - _c4[i]*_t19;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 12; k += 2) {
+                    _mm_stream_pd(x + 12 * (start + i) + k, _mm_set_pd(_x_block[k + 1][i], _x_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         puma560_task(q + 6 * i, params, x + 12 * i);
     }
+#endif
 }
 
 /* d task / d q, shape (..., 12, 6). */
@@ -496,71 +1713,103 @@ void puma560_task_jacobian(const double *restrict q, const puma560_params *restr
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t0 = cos(q1);
-    const double _t1 = sin(q1);
-    const double _t2 = a2*cos(q2);
     const double _t3 = q2 + q3;
-    const double _t4 = cos(_t3);
-    const double _t5 = _t4*a3;
-    const double _t6 = sin(_t3);
-    const double _t7 = _t4*d4 + _t6*a3;
-    const double _t8 = _t7 + a2*sin(q2);
-    const double _t9 = _t6*d4;
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { q1, q2, _t3, q6, q4, q5, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+        _s5 = sine[5];
+        _c5 = cosine[5];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(q2);
+    _c1 = cos(q2);
+    _s2 = sin(_t3);
+    _c2 = cos(_t3);
+    _s3 = sin(q6);
+    _c3 = cos(q6);
+    _s4 = sin(q4);
+    _c4 = cos(q4);
+    _s5 = sin(q5);
+    _c5 = cos(q5);
+#endif
+    const double _t2 = _c1*a2;
+    const double _t5 = _c2*a3;
+    const double _t7 = _c2*d4 + _s2*a3;
+    const double _t8 = _s1*a2 + _t7;
+    const double _t9 = _s2*d4;
     const double _t10 = _t5 - _t9;
-    const double _t11 = sin(q6);
-    const double _t12 = cos(q4);
-    const double _t13 = _t0*_t12;
-    const double _t14 = _t11*_t13;
-    const double _t15 = cos(q5);
-    const double _t16 = cos(q6);
-    const double _t17 = sin(q4);
-    const double _t18 = _t16*_t17;
-    const double _t19 = _t0*_t18;
-    const double _t20 = sin(q5);
-    const double _t21 = _t15*_t4;
-    const double _t22 = _t1*_t12;
-    const double _t23 = _t16*_t22;
-    const double _t24 = _t1*_t11*_t17*_t4 + _t1*_t16*_t20*_t6 - _t14 - _t15*_t19 - _t21*_t23;
-    const double _t25 = _t20*_t4;
-    const double _t26 = _t12*_t16;
-    const double _t27 = _t15*_t6;
-    const double _t28 = _t11*_t17*_t6 - _t16*_t25 - _t26*_t27;
-    const double _t29 = _t0*_t28;
-    const double _t30 = _t0*_t27 - _t1*_t17*_t20 + _t13*_t25;
+    const double _t13 = _c0*_c4;
+    const double _t14 = _s3*_t13;
+    const double _t18 = _c3*_s4;
+    const double _t19 = _c0*_t18;
+    const double _t21 = _c2*_c5;
+    const double _t22 = _c4*_s0;
+    const double _t23 = _c3*_t22;
+    const double _t24 = _c2*_s0*_s3*_s4 + _c3*_s0*_s2*_s5 - _c5*_t19 - _t14 - _t21*_t23;
+    const double _t25 = _c2*_s5;
+    const double _t26 = _c3*_c4;
+    const double _t27 = _c5*_s2;
+    const double _t28 = -_c3*_t25 + _s2*_s3*_s4 - _t26*_t27;
+    const double _t29 = _c0*_t28;
+    const double _t30 = _c0*_t27 - _s0*_s4*_s5 + _t13*_t25;
     const double _t31 = -_t30;
-    const double _t32 = _t0*_t11*_t20*_t6 + _t1*_t11*_t15*_t17 - _t14*_t21 - _t19*_t4 - _t23;
-    const double _t33 = _t13*_t16;
-    const double _t34 = _t11*_t17;
-    const double _t35 = _t0*_t34;
-    const double _t36 = _t1*_t17;
-    const double _t37 = _t16*_t36;
-    const double _t38 = _t20*_t6;
-    const double _t39 = _t11*_t22;
-    const double _t40 = -_t1*_t11*_t38 + _t15*_t35 + _t21*_t39 - _t33 + _t37*_t4;
-    const double _t41 = _t11*_t12;
-    const double _t42 = _t11*_t25 + _t18*_t6 + _t27*_t41;
-    const double _t43 = _t0*_t42;
-    const double _t44 = _t0*_t38;
-    const double _t45 = _t15*_t37 + _t16*_t44 - _t21*_t33 + _t35*_t4 + _t39;
-    const double _t46 = _t0*_t17;
-    const double _t47 = _t1*_t27 + _t20*_t46 + _t22*_t25;
-    const double _t48 = _t12*_t38 - _t21;
-    const double _t49 = _t0*_t48;
-    const double _t50 = _t1*_t28;
-    const double _t51 = _t1*_t42;
-    const double _t52 = _t1*_t48;
-    const double _t53 = _t12*_t15*_t16*_t4 - _t16*_t38 - _t34*_t4;
-    const double _t54 = _t11*_t20*_t6 - _t18*_t4 - _t21*_t41;
-    const double _t55 = -_t12*_t25 - _t27;
-    Jx[0] = _t0*d3 - _t1*_t2 - _t1*_t5 + _t1*_t6*d4;
-    Jx[1] = -_t0*_t8;
-    Jx[2] = -_t0*_t7;
+    const double _t32 = _c0*_s2*_s3*_s5 - _c2*_t19 + _c5*_s0*_s3*_s4 - _t14*_t21 - _t23;
+    const double _t33 = _c3*_t13;
+    const double _t34 = _s3*_s4;
+    const double _t35 = _c0*_t34;
+    const double _t36 = _s0*_s4;
+    const double _t37 = _c3*_t36;
+    const double _t38 = _s2*_s5;
+    const double _t39 = _s3*_t22;
+    const double _t40 = _c2*_t37 + _c5*_t35 - _s0*_s3*_t38 + _t21*_t39 - _t33;
+    const double _t41 = _c4*_s3;
+    const double _t42 = _s2*_t18 + _s3*_t25 + _t27*_t41;
+    const double _t43 = _c0*_t42;
+    const double _t44 = _c0*_t38;
+    const double _t45 = _c2*_t35 + _c3*_t44 + _c5*_t37 - _t21*_t33 + _t39;
+    const double _t46 = _c0*_s4;
+    const double _t47 = _s0*_t27 + _s5*_t46 + _t22*_t25;
+    const double _t48 = _c4*_t38 - _t21;
+    const double _t49 = _c0*_t48;
+    const double _t50 = _s0*_t28;
+    const double _t51 = _s0*_t42;
+    const double _t52 = _s0*_t48;
+    const double _t53 = _c2*_c3*_c4*_c5 - _c2*_t34 - _c3*_t38;
+    const double _t54 = -_c2*_t18 + _s2*_s3*_s5 - _t21*_t41;
+    const double _t55 = -_c4*_t25 - _t27;
+    Jx[0] = _c0*d3 + _s0*_s2*d4 - _s0*_t2 - _s0*_t5;
+    Jx[1] = -_c0*_t8;
+    Jx[2] = -_c0*_t7;
     Jx[3] = 0;
     Jx[4] = 0;
     Jx[5] = 0;
-    Jx[6] = _t0*_t2 + _t0*_t5 - _t0*_t9 + _t1*d3;
-    Jx[7] = -_t1*_t8;
-    Jx[8] = -_t1*_t7;
+    Jx[6] = _c0*_t2 + _c0*_t5 - _c0*_t9 + _s0*d3;
+    Jx[7] = -_s0*_t8;
+    Jx[8] = -_s0*_t7;
     Jx[9] = 0;
     Jx[10] = 0;
     Jx[11] = 0;
@@ -573,65 +1822,454 @@ void puma560_task_jacobian(const double *restrict q, const puma560_params *restr
     Jx[18] = _t24;
     Jx[19] = _t29;
     Jx[20] = _t29;
-    Jx[21] = _t1*_t11*_t17 - _t14*_t4 - _t15*_t23 - _t19*_t21;
-    Jx[22] = _t16*_t31;
+    Jx[21] = -_c2*_t14 - _c5*_t23 + _s0*_s3*_s4 - _t19*_t21;
+    Jx[22] = _c3*_t31;
     Jx[23] = _t32;
     Jx[24] = _t40;
     Jx[25] = _t43;
     Jx[26] = _t43;
-    Jx[27] = _t15*_t39 + _t21*_t35 - _t33*_t4 + _t37;
-    Jx[28] = _t11*_t30;
+    Jx[27] = -_c2*_t33 + _c5*_t39 + _t21*_t35 + _t37;
+    Jx[28] = _s3*_t30;
     Jx[29] = _t45;
     Jx[30] = _t47;
     Jx[31] = _t49;
     Jx[32] = _t49;
-    Jx[33] = _t20*(_t22 + _t4*_t46);
-    Jx[34] = -_t13*_t21 + _t15*_t36 + _t44;
+    Jx[33] = _s5*(_c2*_t46 + _t22);
+    Jx[34] = _c5*_t36 - _t13*_t21 + _t44;
     Jx[35] = 0;
     Jx[36] = -_t45;
     Jx[37] = _t50;
     Jx[38] = _t50;
-    Jx[39] = _t0*_t12*_t15*_t16 - _t21*_t37 - _t35 - _t39*_t4;
-    Jx[40] = -_t16*_t47;
+    Jx[39] = _c0*_c3*_c4*_c5 - _c2*_t39 - _t21*_t37 - _t35;
+    Jx[40] = -_c3*_t47;
     Jx[41] = -_t40;
     Jx[42] = _t32;
     Jx[43] = _t51;
     Jx[44] = _t51;
-    Jx[45] = _t1*_t11*_t15*_t17*_t4 - _t14*_t15 - _t19 - _t23*_t4;
-    Jx[46] = _t11*_t47;
+    Jx[45] = _c2*_c5*_s0*_s3*_s4 - _c2*_t23 - _c5*_t14 - _t19;
+    Jx[46] = _s3*_t47;
     Jx[47] = _t24;
     Jx[48] = _t31;
     Jx[49] = _t52;
     Jx[50] = _t52;
-    Jx[51] = _t20*(-_t13 + _t36*_t4);
-    Jx[52] = _t1*_t20*_t6 - _t15*_t46 - _t21*_t22;
+    Jx[51] = _s5*(_c2*_t36 - _t13);
+    Jx[52] = -_c5*_t46 + _s0*_s2*_s5 - _t21*_t22;
     Jx[53] = 0;
     Jx[54] = 0;
     Jx[55] = _t53;
     Jx[56] = _t53;
-    Jx[57] = -_t6*(_t15*_t18 + _t41);
-    Jx[58] = -_t16*_t48;
+    Jx[57] = -_s2*(_c5*_t18 + _t41);
+    Jx[58] = -_c3*_t48;
     Jx[59] = -_t42;
     Jx[60] = 0;
     Jx[61] = _t54;
     Jx[62] = _t54;
-    Jx[63] = _t6*(_t15*_t34 - _t26);
-    Jx[64] = _t11*_t48;
+    Jx[63] = _s2*(_c5*_t34 - _t26);
+    Jx[64] = _s3*_t48;
     Jx[65] = _t28;
     Jx[66] = 0;
     Jx[67] = _t55;
     Jx[68] = _t55;
-    Jx[69] = _t17*_t38;
-    Jx[70] = -_t12*_t27 - _t25;
+    Jx[69] = _s4*_t38;
+    Jx[70] = -_c4*_t27 - _t25;
     Jx[71] = 0;
 }
 
+/* task_jacobian of `count` items, stored one after the other in each argument and output. */
 void puma560_task_jacobian_batch(size_t count, const double *restrict q, const puma560_params *restrict params, double *restrict Jx)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(32)];
+    double q2[KINEGEN_BLOCK_OF(32)];
+    double q3[KINEGEN_BLOCK_OF(32)];
+    double q4[KINEGEN_BLOCK_OF(32)];
+    double q5[KINEGEN_BLOCK_OF(32)];
+    double q6[KINEGEN_BLOCK_OF(32)];
+    double _t3[KINEGEN_BLOCK_OF(32)];
+    double _s0[KINEGEN_BLOCK_OF(32)];
+    double _c0[KINEGEN_BLOCK_OF(32)];
+    double _s1[KINEGEN_BLOCK_OF(32)];
+    double _c1[KINEGEN_BLOCK_OF(32)];
+    double _s2[KINEGEN_BLOCK_OF(32)];
+    double _c2[KINEGEN_BLOCK_OF(32)];
+    double _s3[KINEGEN_BLOCK_OF(32)];
+    double _c3[KINEGEN_BLOCK_OF(32)];
+    double _s4[KINEGEN_BLOCK_OF(32)];
+    double _c4[KINEGEN_BLOCK_OF(32)];
+    double _s5[KINEGEN_BLOCK_OF(32)];
+    double _c5[KINEGEN_BLOCK_OF(32)];
+#ifdef KINEGEN_STREAM
+    double _Jx_block[72][KINEGEN_BLOCK_OF(32)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 72 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(32) ? count - start : KINEGEN_BLOCK_OF(32);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[6 * (start + i) + 0];
+            q2[i] = q[6 * (start + i) + 1];
+            q3[i] = q[6 * (start + i) + 2];
+            q4[i] = q[6 * (start + i) + 3];
+            q5[i] = q[6 * (start + i) + 4];
+            q6[i] = q[6 * (start + i) + 5];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t3[i] = q2[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s5[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c5[i] = cos(q5[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = _c2[i]*d4 + _s2[i]*a3;
+                const double _t8 = _s1[i]*a2 + _t7;
+                const double _t9 = _s2[i]*d4;
+                const double _t10 = _t5 - _t9;
+                const double _t13 = _c0[i]*_c4[i];
+                const double _t14 = _s3[i]*_t13;
+                const double _t18 = _c3[i]*_s4[i];
+                const double _t19 = _c0[i]*_t18;
+                const double _t21 = _c2[i]*_c5[i];
+                const double _t22 = _c4[i]*_s0[i];
+                const double _t23 = _c3[i]*_t22;
+                const double _t24 = _c2[i]*_s0[i]*_s3[i]*_s4[i] + _c3[i]*_s0[i]*_s2[i]*_s5[i] - _c5[i]*_t19 - _t14 - _t21*_t23;
+                const double _t25 = _c2[i]*_s5[i];
+                const double _t26 = _c3[i]*_c4[i];
+                const double _t27 = _c5[i]*_s2[i];
+                const double _t28 = -_c3[i]*_t25 + _s2[i]*_s3[i]*_s4[i] - _t26*_t27;
+                const double _t29 = _c0[i]*_t28;
+                const double _t30 = _c0[i]*_t27 - _s0[i]*_s4[i]*_s5[i] + _t13*_t25;
+                const double _t31 = -_t30;
+                const double _t32 = _c0[i]*_s2[i]*_s3[i]*_s5[i] - _c2[i]*_t19 + _c5[i]*_s0[i]*_s3[i]*_s4[i] - _t14*_t21 - _t23;
+                const double _t33 = _c3[i]*_t13;
+                const double _t34 = _s3[i]*_s4[i];
+                const double _t35 = _c0[i]*_t34;
+                const double _t36 = _s0[i]*_s4[i];
+                const double _t37 = _c3[i]*_t36;
+                const double _t38 = _s2[i]*_s5[i];
+                const double _t39 = _s3[i]*_t22;
+                const double _t40 = _c2[i]*_t37 + _c5[i]*_t35 - _s0[i]*_s3[i]*_t38 + _t21*_t39 - _t33;
+                const double _t41 = _c4[i]*_s3[i];
+                const double _t42 = _s2[i]*_t18 + _s3[i]*_t25 + _t27*_t41;
+                const double _t43 = _c0[i]*_t42;
+                const double _t44 = _c0[i]*_t38;
+                const double _t45 = _c2[i]*_t35 + _c3[i]*_t44 + _c5[i]*_t37 - _t21*_t33 + _t39;
+                const double _t46 = _c0[i]*_s4[i];
+                const double _t47 = _s0[i]*_t27 + _s5[i]*_t46 + _t22*_t25;
+                const double _t48 = _c4[i]*_t38 - _t21;
+                const double _t49 = _c0[i]*_t48;
+                const double _t50 = _s0[i]*_t28;
+                const double _t51 = _s0[i]*_t42;
+                const double _t52 = _s0[i]*_t48;
+                const double _t53 = _c2[i]*_c3[i]*_c4[i]*_c5[i] - _c2[i]*_t34 - _c3[i]*_t38;
+                const double _t54 = -_c2[i]*_t18 + _s2[i]*_s3[i]*_s5[i] - _t21*_t41;
+                const double _t55 = -_c4[i]*_t25 - _t27;
+                _Jx_block[0][i] = _c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5;
+                _Jx_block[1][i] = -_c0[i]*_t8;
+                _Jx_block[2][i] = -_c0[i]*_t7;
+                _Jx_block[3][i] = 0;
+                _Jx_block[4][i] = 0;
+                _Jx_block[5][i] = 0;
+                _Jx_block[6][i] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t9 + _s0[i]*d3;
+                _Jx_block[7][i] = -_s0[i]*_t8;
+                _Jx_block[8][i] = -_s0[i]*_t7;
+                _Jx_block[9][i] = 0;
+                _Jx_block[10][i] = 0;
+                _Jx_block[11][i] = 0;
+                _Jx_block[12][i] = 0;
+                _Jx_block[13][i] = _t10 + _t2;
+                _Jx_block[14][i] = _t10;
+                _Jx_block[15][i] = 0;
+                _Jx_block[16][i] = 0;
+                _Jx_block[17][i] = 0;
+                _Jx_block[18][i] = _t24;
+                _Jx_block[19][i] = _t29;
+                _Jx_block[20][i] = _t29;
+                _Jx_block[21][i] = -_c2[i]*_t14 - _c5[i]*_t23 + _s0[i]*_s3[i]*_s4[i] - _t19*_t21;
+                _Jx_block[22][i] = _c3[i]*_t31;
+                _Jx_block[23][i] = _t32;
+                _Jx_block[24][i] = _t40;
+                _Jx_block[25][i] = _t43;
+                _Jx_block[26][i] = _t43;
+                _Jx_block[27][i] = -_c2[i]*_t33 + _c5[i]*_t39 + _t21*_t35 + _t37;
+                _Jx_block[28][i] = _s3[i]*_t30;
+                _Jx_block[29][i] = _t45;
+                _Jx_block[30][i] = _t47;
+                _Jx_block[31][i] = _t49;
+                _Jx_block[32][i] = _t49;
+                _Jx_block[33][i] = _s5[i]*(_c2[i]*_t46 + _t22);
+                _Jx_block[34][i] = _c5[i]*_t36 - _t13*_t21 + _t44;
+                _Jx_block[35][i] = 0;
+                _Jx_block[36][i] = -_t45;
+                _Jx_block[37][i] = _t50;
+                _Jx_block[38][i] = _t50;
+                _Jx_block[39][i] = _c0[i]*_c3[i]*_c4[i]*_c5[i] - _c2[i]*_t39 - _t21*_t37 - _t35;
+                _Jx_block[40][i] = -_c3[i]*_t47;
+                _Jx_block[41][i] = -_t40;
+                _Jx_block[42][i] = _t32;
+                _Jx_block[43][i] = _t51;
+                _Jx_block[44][i] = _t51;
+                _Jx_block[45][i] = _c2[i]*_c5[i]*_s0[i]*_s3[i]*_s4[i] - _c2[i]*_t23 - _c5[i]*_t14 - _t19;
+                _Jx_block[46][i] = _s3[i]*_t47;
+                _Jx_block[47][i] = _t24;
+                _Jx_block[48][i] = _t31;
+                _Jx_block[49][i] = _t52;
+                _Jx_block[50][i] = _t52;
+                _Jx_block[51][i] = _s5[i]*(_c2[i]*_t36 - _t13);
+                _Jx_block[52][i] = -_c5[i]*_t46 + _s0[i]*_s2[i]*_s5[i] - _t21*_t22;
+                _Jx_block[53][i] = 0;
+                _Jx_block[54][i] = 0;
+                _Jx_block[55][i] = _t53;
+                _Jx_block[56][i] = _t53;
+                _Jx_block[57][i] = -_s2[i]*(_c5[i]*_t18 + _t41);
+                _Jx_block[58][i] = -_c3[i]*_t48;
+                _Jx_block[59][i] = -_t42;
+                _Jx_block[60][i] = 0;
+                _Jx_block[61][i] = _t54;
+                _Jx_block[62][i] = _t54;
+                _Jx_block[63][i] = _s2[i]*(_c5[i]*_t34 - _t26);
+                _Jx_block[64][i] = _s3[i]*_t48;
+                _Jx_block[65][i] = _t28;
+                _Jx_block[66][i] = 0;
+                _Jx_block[67][i] = _t55;
+                _Jx_block[68][i] = _t55;
+                _Jx_block[69][i] = _s4[i]*_t38;
+                _Jx_block[70][i] = -_c4[i]*_t27 - _t25;
+                _Jx_block[71][i] = 0;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = _c2[i]*d4 + _s2[i]*a3;
+                const double _t8 = _s1[i]*a2 + _t7;
+                const double _t9 = _s2[i]*d4;
+                const double _t10 = _t5 - _t9;
+                const double _t13 = _c0[i]*_c4[i];
+                const double _t14 = _s3[i]*_t13;
+                const double _t18 = _c3[i]*_s4[i];
+                const double _t19 = _c0[i]*_t18;
+                const double _t21 = _c2[i]*_c5[i];
+                const double _t22 = _c4[i]*_s0[i];
+                const double _t23 = _c3[i]*_t22;
+                const double _t24 = _c2[i]*_s0[i]*_s3[i]*_s4[i] + _c3[i]*_s0[i]*_s2[i]*_s5[i] - _c5[i]*_t19 - _t14 - _t21*_t23;
+                const double _t25 = _c2[i]*_s5[i];
+                const double _t26 = _c3[i]*_c4[i];
+                const double _t27 = _c5[i]*_s2[i];
+                const double _t28 = -_c3[i]*_t25 + _s2[i]*_s3[i]*_s4[i] - _t26*_t27;
+                const double _t29 = _c0[i]*_t28;
+                const double _t30 = _c0[i]*_t27 - _s0[i]*_s4[i]*_s5[i] + _t13*_t25;
+                const double _t31 = -_t30;
+                const double _t32 = _c0[i]*_s2[i]*_s3[i]*_s5[i] - _c2[i]*_t19 + _c5[i]*_s0[i]*_s3[i]*_s4[i] - _t14*_t21 - _t23;
+                const double _t33 = _c3[i]*_t13;
+                const double _t34 = _s3[i]*_s4[i];
+                const double _t35 = _c0[i]*_t34;
+                const double _t36 = _s0[i]*_s4[i];
+                const double _t37 = _c3[i]*_t36;
+                const double _t38 = _s2[i]*_s5[i];
+                const double _t39 = _s3[i]*_t22;
+                const double _t40 = _c2[i]*_t37 + _c5[i]*_t35 - _s0[i]*_s3[i]*_t38 + _t21*_t39 - _t33;
+                const double _t41 = _c4[i]*_s3[i];
+                const double _t42 = _s2[i]*_t18 + _s3[i]*_t25 + _t27*_t41;
+                const double _t43 = _c0[i]*_t42;
+                const double _t44 = _c0[i]*_t38;
+                const double _t45 = _c2[i]*_t35 + _c3[i]*_t44 + _c5[i]*_t37 - _t21*_t33 + _t39;
+                const double _t46 = _c0[i]*_s4[i];
+                const double _t47 = _s0[i]*_t27 + _s5[i]*_t46 + _t22*_t25;
+                const double _t48 = _c4[i]*_t38 - _t21;
+                const double _t49 = _c0[i]*_t48;
+                const double _t50 = _s0[i]*_t28;
+                const double _t51 = _s0[i]*_t42;
+                const double _t52 = _s0[i]*_t48;
+                const double _t53 = _c2[i]*_c3[i]*_c4[i]*_c5[i] - _c2[i]*_t34 - _c3[i]*_t38;
+                const double _t54 = -_c2[i]*_t18 + _s2[i]*_s3[i]*_s5[i] - _t21*_t41;
+                const double _t55 = -_c4[i]*_t25 - _t27;
+                Jx[72 * (start + i) + 0] = _c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5;
+                Jx[72 * (start + i) + 1] = -_c0[i]*_t8;
+                Jx[72 * (start + i) + 2] = -_c0[i]*_t7;
+                Jx[72 * (start + i) + 3] = 0;
+                Jx[72 * (start + i) + 4] = 0;
+                Jx[72 * (start + i) + 5] = 0;
+                Jx[72 * (start + i) + 6] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t9 + _s0[i]*d3;
+                Jx[72 * (start + i) + 7] = -_s0[i]*_t8;
+                Jx[72 * (start + i) + 8] = -_s0[i]*_t7;
+                Jx[72 * (start + i) + 9] = 0;
+                Jx[72 * (start + i) + 10] = 0;
+                Jx[72 * (start + i) + 11] = 0;
+                Jx[72 * (start + i) + 12] = 0;
+                Jx[72 * (start + i) + 13] = _t10 + _t2;
+                Jx[72 * (start + i) + 14] = _t10;
+                Jx[72 * (start + i) + 15] = 0;
+                Jx[72 * (start + i) + 16] = 0;
+                Jx[72 * (start + i) + 17] = 0;
+                Jx[72 * (start + i) + 18] = _t24;
+                Jx[72 * (start + i) + 19] = _t29;
+                Jx[72 * (start + i) + 20] = _t29;
+                Jx[72 * (start + i) + 21] = -_c2[i]*_t14 - _c5[i]*_t23 + _s0[i]*_s3[i]*_s4[i] - _t19*_t21;
+                Jx[72 * (start + i) + 22] = _c3[i]*_t31;
+                Jx[72 * (start + i) + 23] = _t32;
+                Jx[72 * (start + i) + 24] = _t40;
+                Jx[72 * (start + i) + 25] = _t43;
+                Jx[72 * (start + i) + 26] = _t43;
+                Jx[72 * (start + i) + 27] = -_c2[i]*_t33 + _c5[i]*_t39 + _t21*_t35 + _t37;
+                Jx[72 * (start + i) + 28] = _s3[i]*_t30;
+                Jx[72 * (start + i) + 29] = _t45;
+                Jx[72 * (start + i) + 30] = _t47;
+                Jx[72 * (start + i) + 31] = _t49;
+                Jx[72 * (start + i) + 32] = _t49;
+                Jx[72 * (start + i) + 33] = _s5[i]*(_c2[i]*_t46 + _t22);
+                Jx[72 * (start + i) + 34] = _c5[i]*_t36 - _t13*_t21 + _t44;
+                Jx[72 * (start + i) + 35] = 0;
+                Jx[72 * (start + i) + 36] = -_t45;
+                Jx[72 * (start + i) + 37] = _t50;
+                Jx[72 * (start + i) + 38] = _t50;
+                Jx[72 * (start + i) + 39] = _c0[i]*_c3[i]*_c4[i]*_c5[i] - _c2[i]*_t39 - _t21*_t37 - _t35;
+                Jx[72 * (start + i) + 40] = -_c3[i]*_t47;
+                Jx[72 * (start + i) + 41] = -_t40;
+                Jx[72 * (start + i) + 42] = _t32;
+                Jx[72 * (start + i) + 43] = _t51;
+                Jx[72 * (start + i) + 44] = _t51;
+                Jx[72 * (start + i) + 45] = _c2[i]*_c5[i]*_s0[i]*_s3[i]*_s4[i] - _c2[i]*_t23 - _c5[i]*_t14 - _t19;
+                Jx[72 * (start + i) + 46] = _s3[i]*_t47;
+                Jx[72 * (start + i) + 47] = _t24;
+                Jx[72 * (start + i) + 48] = _t31;
+                Jx[72 * (start + i) + 49] = _t52;
+                Jx[72 * (start + i) + 50] = _t52;
+                Jx[72 * (start + i) + 51] = _s5[i]*(_c2[i]*_t36 - _t13);
+                Jx[72 * (start + i) + 52] = -_c5[i]*_t46 + _s0[i]*_s2[i]*_s5[i] - _t21*_t22;
+                Jx[72 * (start + i) + 53] = 0;
+                Jx[72 * (start + i) + 54] = 0;
+                Jx[72 * (start + i) + 55] = _t53;
+                Jx[72 * (start + i) + 56] = _t53;
+                Jx[72 * (start + i) + 57] = -_s2[i]*(_c5[i]*_t18 + _t41);
+                Jx[72 * (start + i) + 58] = -_c3[i]*_t48;
+                Jx[72 * (start + i) + 59] = -_t42;
+                Jx[72 * (start + i) + 60] = 0;
+                Jx[72 * (start + i) + 61] = _t54;
+                Jx[72 * (start + i) + 62] = _t54;
+                Jx[72 * (start + i) + 63] = _s2[i]*(_c5[i]*_t34 - _t26);
+                Jx[72 * (start + i) + 64] = _s3[i]*_t48;
+                Jx[72 * (start + i) + 65] = _t28;
+                Jx[72 * (start + i) + 66] = 0;
+                Jx[72 * (start + i) + 67] = _t55;
+                Jx[72 * (start + i) + 68] = _t55;
+                Jx[72 * (start + i) + 69] = _s4[i]*_t38;
+                Jx[72 * (start + i) + 70] = -_c4[i]*_t27 - _t25;
+                Jx[72 * (start + i) + 71] = 0;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 72; k += 2) {
+                    _mm_stream_pd(Jx + 72 * (start + i) + k, _mm_set_pd(_Jx_block[k + 1][i], _Jx_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         puma560_task_jacobian(q + 6 * i, params, Jx + 72 * i);
     }
+#endif
+}
+
+/* The checks after an ik of one target x: a branch with a joint value that is not
+   finite, or of a target that is not, is not valid; returns the number of valid branches,
+   or -1 (and no branch valid) when x is a finite pose that is not a rigid transform. */
+static int puma560_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
+{
+    int branch, joint, finite_target = 1, valid_branches = 0;
+    for (joint = 0; joint < 12; ++joint) {
+        finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
+    }
+    for (branch = 0; branch < 8; ++branch) {
+        if (!finite_target) {
+            valid[branch] = 0;
+        }
+        for (joint = 0; joint < 6; ++joint) {
+            if (!isfinite(Q[6 * branch + joint])) {
+                valid[branch] = 0;  /* no NaN leaks out as a valid answer */
+            }
+        }
+        valid_branches += valid[branch] != 0;
+    }
+    if (!puma560_is_refused_pose(_x)) {
+        return valid_branches;
+    }
+    for (branch = 0; branch < 8; ++branch) {
+        valid[branch] = 0;
+    }
+    return -1;
 }
 
 /* Inverse kinematics, all 8 branches (right_elbow_up_noflip, right_elbow_up_flip, right_elbow_down_noflip, right_elbow_down_flip, left_elbow_up_noflip, left_elbow_up_flip, left_elbow_down_noflip, left_elbow_down_flip): Q (..., 8, 6), valid (..., 8).
@@ -660,184 +2298,412 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t0 = atan2(-x, y);
-    const double _t1 = (x*x);
-    const double _t2 = (y*y);
-    const double _t3 = _t1 + _t2;
-    const double _t4 = 1.0/sqrt(_t3);
-    const double _t5 = acos(fmin(1, fmax(-1, -_t4*d3)));
-    const double _t6 = _t0 + _t5;
-    const double _t7 = kinegen_wrap_angle(_t6);
-    const double _t8 = d1 - z;
-    const double _t9 = -_t8;
     const double _t10 = 2*a2;
-    const double _t11 = atan2(-_t10*d4, _t10*a3);
+    const double _a2 = -_t10*d4;
+    const double _a3 = _t10*a3;
     const double _t12 = (a3*a3);
     const double _t13 = (a2*a2);
     const double _t14 = 4*_t13;
     const double _t15 = (d4*d4);
     const double _t16 = _t12*_t14 + _t14*_t15;
     const double _t17 = 1.0/sqrt(_t16);
+    const int _t137 = _t16 > 0;
+    const double _f2 = atan2(_a2, _a3);
+    const double _a0 = -x;
+    const double _t1 = (x*x);
+    const double _t2 = (y*y);
+    const double _t3 = _t1 + _t2;
+    const double _t4 = 1.0/sqrt(_t3);
+    const double _a1 = kinegen_min(1, kinegen_max(-1, -_t4*d3));
+    const double _t8 = d1 - z;
+    const double _t9 = -_t8;
     const double _t18 = -_t1 + _t12 + _t13 + _t15 - _t2 + (d3*d3);
-    const double _t19 = acos(fmin(1, fmax(-1, _t17*(-_t18 + (_t9*_t9)))));
-    const double _t20 = -_t11 + _t19;
-    const double _t21 = cos(_t20);
-    const double _t22 = sin(_t20);
-    const double _t23 = _t21*a3 + _t22*d4 + a2;
+    const double _a4 = kinegen_min(1, kinegen_max(-1, _t17*(-_t18 + (_t9*_t9))));
+    double _f0, _f1, _f3;
+    _f0 = atan2(_a0, y);
+#if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+    {
+        /* The acos arguments side by side: one vector call. */
+        const double argument0[4] = { _a1, _a4, 1.0, 1.0 };
+        double result[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            result[k] = acos(argument0[k]);
+        }
+        _f1 = result[0];
+        _f3 = result[1];
+    }
+#else
+    _f1 = acos(_a1);
+    _f3 = acos(_a4);
+#endif
+    const double _t6 = _f0 + _f1;
+    const double _t20 = -_f2 + _f3;
+    const double _t58 = _f2 + _f3;
+    const double _t85 = -_f0 + _f1;
+    double _s0, _c0, _s1, _c1, _s5, _c5, _s9, _c9;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t20, _t6, _t58, _t85,  };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s5 = sine[2];
+        _c5 = cosine[2];
+        _s9 = sine[3];
+        _c9 = cosine[3];
+    }
+#else
+    _s0 = sin(_t20);
+    _c0 = cos(_t20);
+    _s1 = sin(_t6);
+    _c1 = cos(_t6);
+    _s5 = sin(_t58);
+    _c5 = cos(_t58);
+    _s9 = sin(_t85);
+    _c9 = cos(_t85);
+#endif
+    const double _t23 = _c0*a3 + _s0*d4 + a2;
     const double _t24 = _t23*_t9;
-    const double _t25 = cos(_t6);
-    const double _t26 = sin(_t6);
-    const double _t27 = _t25*x + _t26*y;
-    const double _t28 = _t21*d4 - _t22*a3;
+    const double _t27 = _c1*x + _s1*y;
+    const double _t28 = _c0*d4 - _s0*a3;
     const double _t29 = _t28*_t9;
-    const double _t30 = atan2(_t24 - _t27*_t28, _t23*_t27 + _t29);
-    const double _t31 = kinegen_wrap_angle(_t30);
-    const double _t32 = kinegen_wrap_angle(-_t20);
-    const double _t33 = -_t25*r23 + _t26*r13;
+    const double _a5 = _t24 - _t27*_t28;
+    const double _a6 = _t23*_t27 + _t29;
+    const double _t61 = _c5*a3 - _s5*d4 + a2;
+    const double _t62 = _t61*_t9;
+    const double _t63 = _c5*d4 + _s5*a3;
+    const double _t64 = _t63*_t9;
+    const double _a8 = -_t27*_t63 + _t62;
+    const double _a9 = _t27*_t61 + _t64;
+    const double _t89 = _c9*x - _s9*y;
+    const double _a11 = _t62 - _t63*_t89;
+    const double _a12 = _t61*_t89 + _t64;
+    const double _a14 = _t24 - _t28*_t89;
+    const double _a15 = _t23*_t89 + _t29;
+    double _f4, _f6, _f8, _f10;
+#if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+    {
+        /* The atan2 arguments side by side: one vector call. */
+        const double argument0[4] = { _a5, _a8, _a11, _a14,  };
+        const double argument1[4] = { _a6, _a9, _a12, _a15,  };
+        double result[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            result[k] = atan2(argument0[k], argument1[k]);
+        }
+        _f4 = result[0];
+        _f6 = result[1];
+        _f8 = result[2];
+        _f10 = result[3];
+    }
+#else
+    _f4 = atan2(_a5, _a6);
+    _f6 = atan2(_a8, _a9);
+    _f8 = atan2(_a11, _a12);
+    _f10 = atan2(_a14, _a15);
+#endif
+    const double _t36 = _f2 - _f3;
+    const double _t37 = _f4 + _t36;
+    const double _t68 = _f6 + _t58;
+    const double _t94 = _f8 + _t58;
+    const double _t118 = _f10 + _t36;
+    double _s2, _c2, _s6, _c6, _s10, _c10, _s13, _c13;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t37, _t68, _t94, _t118,  };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s2 = sine[0];
+        _c2 = cosine[0];
+        _s6 = sine[1];
+        _c6 = cosine[1];
+        _s10 = sine[2];
+        _c10 = cosine[2];
+        _s13 = sine[3];
+        _c13 = cosine[3];
+    }
+#else
+    _s2 = sin(_t37);
+    _c2 = cos(_t37);
+    _s6 = sin(_t68);
+    _c6 = cos(_t68);
+    _s10 = sin(_t94);
+    _c10 = cos(_t94);
+    _s13 = sin(_t118);
+    _c13 = cos(_t118);
+#endif
+    const double _t33 = -_c1*r23 + _s1*r13;
+    const double _t40 = _c1*r13;
+    const double _t41 = _s1*r23;
+    const double _t42 = _c2*_t40 + _c2*_t41 + _s2*r33;
+    const double _a7 = -_t42;
+    const double _t71 = _c6*_t40 + _c6*_t41 + _s6*r33;
+    const double _a10 = -_t71;
+    const double _t92 = _c9*r23 + _s9*r13;
+    const double _t97 = _c9*r13;
+    const double _t98 = _s9*r23;
+    const double _t99 = _c10*_t97 - _c10*_t98 + _s10*r33;
+    const double _t101 = -_t92;
+    const double _a13 = -_t99;
+    const double _t121 = _c13*_t97 - _c13*_t98 + _s13*r33;
+    const double _a16 = -_t121;
+    double _f5, _f7, _f9, _f11;
+#if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+    {
+        /* The atan2 arguments side by side: one vector call. */
+        const double argument0[4] = { _t33, _t33, _t101, _t101,  };
+        const double argument1[4] = { _a7, _a10, _a13, _a16,  };
+        double result[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            result[k] = atan2(argument0[k], argument1[k]);
+        }
+        _f5 = result[0];
+        _f7 = result[1];
+        _f9 = result[2];
+        _f11 = result[3];
+    }
+#else
+    _f5 = atan2(_t33, _a7);
+    _f7 = atan2(_t33, _a10);
+    _f9 = atan2(_t101, _a13);
+    _f11 = atan2(_t101, _a16);
+#endif
     const double _t34 = -_t33;
     const double _t35 = (_t34*_t34);
-    const double _t36 = _t11 - _t19;
-    const double _t37 = _t30 + _t36;
-    const double _t38 = sin(_t37);
-    const double _t39 = cos(_t37);
-    const double _t40 = _t25*r13;
-    const double _t41 = _t26*r23;
-    const double _t42 = _t38*r33 + _t39*_t40 + _t39*_t41;
     const int _t43 = _t35 + (_t42*_t42) <= 1e-24;
-    const double _t44 = atan2(_t33, -_t42);
     const double _t45 = ((_t43) ? (
    0
 )
 : (
-   _t44
+   _f5
 ));
-    const double _t46 = sin(_t45);
-    const double _t47 = cos(_t45);
-    const double _t48 = -_t38*_t40 - _t38*_t41 + _t39*r33;
-    const double _t49 = _t25*r21 - _t26*r11;
-    const double _t50 = _t25*_t39;
-    const double _t51 = _t26*_t39;
-    const double _t52 = _t38*r31 + _t50*r11 + _t51*r21;
-    const double _t53 = _t25*r22 - _t26*r12;
-    const double _t54 = _t38*r32 + _t50*r12 + _t51*r22;
     const double _t55 = ((_t43) ? (
    3.141592653589793
 )
 : (
-   _t44 + 3.141592653589793
+   _f5 + 3.141592653589793
 ));
-    const double _t56 = sin(_t55);
-    const double _t57 = cos(_t55);
-    const double _t58 = _t11 + _t19;
-    const double _t59 = cos(_t58);
-    const double _t60 = sin(_t58);
-    const double _t61 = _t59*a3 - _t60*d4 + a2;
-    const double _t62 = _t61*_t9;
-    const double _t63 = _t59*d4 + _t60*a3;
-    const double _t64 = _t63*_t9;
-    const double _t65 = atan2(-_t27*_t63 + _t62, _t27*_t61 + _t64);
-    const double _t66 = kinegen_wrap_angle(_t65);
-    const double _t67 = kinegen_wrap_angle(_t58);
-    const double _t68 = _t58 + _t65;
-    const double _t69 = sin(_t68);
-    const double _t70 = cos(_t68);
-    const double _t71 = _t40*_t70 + _t41*_t70 + _t69*r33;
     const int _t72 = _t35 + (_t71*_t71) <= 1e-24;
-    const double _t73 = atan2(_t33, -_t71);
     const double _t74 = ((_t72) ? (
    0
 )
 : (
-   _t73
+   _f7
 ));
-    const double _t75 = sin(_t74);
-    const double _t76 = cos(_t74);
-    const double _t77 = -_t40*_t69 - _t41*_t69 + _t70*r33;
-    const double _t78 = _t25*_t70;
-    const double _t79 = _t26*_t70;
-    const double _t80 = _t69*r31 + _t78*r11 + _t79*r21;
-    const double _t81 = _t69*r32 + _t78*r12 + _t79*r22;
     const double _t82 = ((_t72) ? (
    3.141592653589793
 )
 : (
-   _t73 + 3.141592653589793
+   _f7 + 3.141592653589793
 ));
-    const double _t83 = sin(_t82);
-    const double _t84 = cos(_t82);
-    const double _t85 = -_t0 + _t5;
-    const double _t86 = kinegen_wrap_angle(-_t85);
-    const double _t87 = cos(_t85);
-    const double _t88 = sin(_t85);
-    const double _t89 = _t87*x - _t88*y;
-    const double _t90 = atan2(_t62 - _t63*_t89, _t61*_t89 + _t64);
-    const double _t91 = kinegen_wrap_angle(_t90);
-    const double _t92 = _t87*r23 + _t88*r13;
     const double _t93 = (_t92*_t92);
-    const double _t94 = _t58 + _t90;
-    const double _t95 = sin(_t94);
-    const double _t96 = cos(_t94);
-    const double _t97 = _t87*r13;
-    const double _t98 = _t88*r23;
-    const double _t99 = _t95*r33 + _t96*_t97 - _t96*_t98;
     const int _t100 = _t93 + (_t99*_t99) <= 1e-24;
-    const double _t101 = -_t92;
-    const double _t102 = atan2(_t101, -_t99);
     const double _t103 = ((_t100) ? (
    0
 )
 : (
-   _t102
+   _f9
 ));
-    const double _t104 = sin(_t103);
-    const double _t105 = cos(_t103);
-    const double _t106 = -_t95*_t97 + _t95*_t98 + _t96*r33;
-    const double _t107 = _t87*r21 + _t88*r11;
-    const double _t108 = _t87*_t96;
-    const double _t109 = _t88*_t96;
-    const double _t110 = _t108*r11 - _t109*r21 + _t95*r31;
-    const double _t111 = _t87*r22 + _t88*r12;
-    const double _t112 = _t108*r12 - _t109*r22 + _t95*r32;
     const double _t113 = ((_t100) ? (
    3.141592653589793
 )
 : (
-   _t102 + 3.141592653589793
+   _f9 + 3.141592653589793
 ));
-    const double _t114 = sin(_t113);
-    const double _t115 = cos(_t113);
-    const double _t116 = atan2(_t24 - _t28*_t89, _t23*_t89 + _t29);
-    const double _t117 = kinegen_wrap_angle(_t116);
-    const double _t118 = _t116 + _t36;
-    const double _t119 = sin(_t118);
-    const double _t120 = cos(_t118);
-    const double _t121 = _t119*r33 + _t120*_t97 - _t120*_t98;
     const int _t122 = (_t121*_t121) + _t93 <= 1e-24;
-    const double _t123 = atan2(_t101, -_t121);
     const double _t124 = ((_t122) ? (
    0
 )
 : (
-   _t123
+   _f11
 ));
-    const double _t125 = sin(_t124);
-    const double _t126 = cos(_t124);
-    const double _t127 = -_t119*_t97 + _t119*_t98 + _t120*r33;
-    const double _t128 = _t120*_t87;
-    const double _t129 = _t120*_t88;
-    const double _t130 = _t119*r31 + _t128*r11 - _t129*r21;
-    const double _t131 = _t119*r32 + _t128*r12 - _t129*r22;
     const double _t132 = ((_t122) ? (
    3.141592653589793
 )
 : (
-   _t123 + 3.141592653589793
+   _f11 + 3.141592653589793
 ));
-    const double _t133 = sin(_t132);
-    const double _t134 = cos(_t132);
+    double _s3, _c3, _s4, _c4, _s7, _c7, _s8, _c8, _s11, _c11, _s12, _c12, _s14, _c14, _s15, _c15;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { _t45, _t55, _t74, _t82, _t103, _t113, _t124, _t132,  };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s3 = sine[0];
+        _c3 = cosine[0];
+        _s4 = sine[1];
+        _c4 = cosine[1];
+        _s7 = sine[2];
+        _c7 = cosine[2];
+        _s8 = sine[3];
+        _c8 = cosine[3];
+        _s11 = sine[4];
+        _c11 = cosine[4];
+        _s12 = sine[5];
+        _c12 = cosine[5];
+        _s14 = sine[6];
+        _c14 = cosine[6];
+        _s15 = sine[7];
+        _c15 = cosine[7];
+    }
+#else
+    _s3 = sin(_t45);
+    _c3 = cos(_t45);
+    _s4 = sin(_t55);
+    _c4 = cos(_t55);
+    _s7 = sin(_t74);
+    _c7 = cos(_t74);
+    _s8 = sin(_t82);
+    _c8 = cos(_t82);
+    _s11 = sin(_t103);
+    _c11 = cos(_t103);
+    _s12 = sin(_t113);
+    _c12 = cos(_t113);
+    _s14 = sin(_t124);
+    _c14 = cos(_t124);
+    _s15 = sin(_t132);
+    _c15 = cos(_t132);
+#endif
+    const double _t48 = _c2*r33 - _s2*_t40 - _s2*_t41;
+    const double _t49 = _c1*r21 - _s1*r11;
+    const double _t50 = _c1*_c2;
+    const double _t51 = _c2*_s1;
+    const double _t52 = _s2*r31 + _t50*r11 + _t51*r21;
+    const double _t53 = _c1*r22 - _s1*r12;
+    const double _t54 = _s2*r32 + _t50*r12 + _t51*r22;
+    const double _t77 = _c6*r33 - _s6*_t40 - _s6*_t41;
+    const double _t78 = _c1*_c6;
+    const double _t79 = _c6*_s1;
+    const double _t80 = _s6*r31 + _t78*r11 + _t79*r21;
+    const double _t81 = _s6*r32 + _t78*r12 + _t79*r22;
+    const double _t106 = _c10*r33 - _s10*_t97 + _s10*_t98;
+    const double _t107 = _c9*r21 + _s9*r11;
+    const double _t108 = _c10*_c9;
+    const double _t109 = _c10*_s9;
+    const double _t110 = _s10*r31 + _t108*r11 - _t109*r21;
+    const double _t111 = _c9*r22 + _s9*r12;
+    const double _t112 = _s10*r32 + _t108*r12 - _t109*r22;
+    const double _t127 = _c13*r33 - _s13*_t97 + _s13*_t98;
+    const double _t128 = _c13*_c9;
+    const double _t129 = _c13*_s9;
+    const double _t130 = _s13*r31 + _t128*r11 - _t129*r21;
+    const double _t131 = _s13*r32 + _t128*r12 - _t129*r22;
+    const double _a17 = -_c3*_t42 - _s3*_t34;
+    const double _a18 = _c3*_t49 - _s3*_t52;
+    const double _a19 = _c3*_t53 - _s3*_t54;
+    const double _a20 = -_c4*_t42 - _s4*_t34;
+    const double _a21 = _c4*_t49 - _s4*_t52;
+    const double _a22 = _c4*_t53 - _s4*_t54;
+    const double _a23 = -_c7*_t71 - _s7*_t34;
+    const double _a24 = _c7*_t49 - _s7*_t80;
+    const double _a25 = _c7*_t53 - _s7*_t81;
+    const double _a26 = -_c8*_t71 - _s8*_t34;
+    const double _a27 = _c8*_t49 - _s8*_t80;
+    const double _a28 = _c8*_t53 - _s8*_t81;
+    const double _a29 = -_c11*_t99 - _s11*_t92;
+    const double _a30 = _c11*_t107 - _s11*_t110;
+    const double _a31 = _c11*_t111 - _s11*_t112;
+    const double _a32 = -_c12*_t99 - _s12*_t92;
+    const double _a33 = _c12*_t107 - _s12*_t110;
+    const double _a34 = _c12*_t111 - _s12*_t112;
+    const double _a35 = -_c14*_t121 - _s14*_t92;
+    const double _a36 = _c14*_t107 - _s14*_t130;
+    const double _a37 = _c14*_t111 - _s14*_t131;
+    const double _a38 = -_c15*_t121 - _s15*_t92;
+    const double _a39 = _c15*_t107 - _s15*_t130;
+    const double _a40 = _c15*_t111 - _s15*_t131;
+    double _f12, _f13, _f14, _f15, _f16, _f17, _f18, _f19, _f20, _f21, _f22, _f23, _f24, _f25, _f26, _f27;
+#if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+    {
+        /* The atan2 arguments side by side: one vector call. */
+        const double argument0[16] = { _a17, _a18, _a20, _a21, _a23, _a24, _a26, _a27, _a29, _a30, _a32, _a33, _a35, _a36, _a38, _a39,  };
+        const double argument1[16] = { _t48, _a19, _t48, _a22, _t77, _a25, _t77, _a28, _t106, _a31, _t106, _a34, _t127, _a37, _t127, _a40,  };
+        double result[16];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 16; ++k) {
+            result[k] = atan2(argument0[k], argument1[k]);
+        }
+        _f12 = result[0];
+        _f13 = result[1];
+        _f14 = result[2];
+        _f15 = result[3];
+        _f16 = result[4];
+        _f17 = result[5];
+        _f18 = result[6];
+        _f19 = result[7];
+        _f20 = result[8];
+        _f21 = result[9];
+        _f22 = result[10];
+        _f23 = result[11];
+        _f24 = result[12];
+        _f25 = result[13];
+        _f26 = result[14];
+        _f27 = result[15];
+    }
+#else
+    _f12 = atan2(_a17, _t48);
+    _f13 = atan2(_a18, _a19);
+    _f14 = atan2(_a20, _t48);
+    _f15 = atan2(_a21, _a22);
+    _f16 = atan2(_a23, _t77);
+    _f17 = atan2(_a24, _a25);
+    _f18 = atan2(_a26, _t77);
+    _f19 = atan2(_a27, _a28);
+    _f20 = atan2(_a29, _t106);
+    _f21 = atan2(_a30, _a31);
+    _f22 = atan2(_a32, _t106);
+    _f23 = atan2(_a33, _a34);
+    _f24 = atan2(_a35, _t127);
+    _f25 = atan2(_a36, _a37);
+    _f26 = atan2(_a38, _t127);
+    _f27 = atan2(_a39, _a40);
+#endif
+    const double _t7 = kinegen_wrap_angle(_t6);
+    const double _t31 = kinegen_wrap_angle(_f4);
+    const double _t32 = kinegen_wrap_angle(-_t20);
+    const double _t66 = kinegen_wrap_angle(_f6);
+    const double _t67 = kinegen_wrap_angle(_t58);
+    const double _t86 = kinegen_wrap_angle(-_t85);
+    const double _t91 = kinegen_wrap_angle(_f8);
+    const double _t117 = kinegen_wrap_angle(_f10);
     const int _t135 = _t3 > 0;
     const int _t136 = _t4*fabs(d3) <= 1.000000000001;
-    const int _t137 = _t16 > 0;
     const int _t138 = _t17*fabs(_t18 - (_t8*_t8)) <= 1.000000000001;
     const int _t139 = _t135 && _t136 && _t137 && _t138 && (_t23*_t23) + (_t28*_t28) > 0;
     const int _t140 = _t135 && _t136 && _t137 && _t138 && (_t61*_t61) + (_t63*_t63) > 0;
@@ -845,50 +2711,50 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
     Q[1] = _t31;
     Q[2] = _t32;
     Q[3] = kinegen_wrap_angle(_t45);
-    Q[4] = kinegen_wrap_angle(atan2(-_t34*_t46 - _t42*_t47, _t48));
-    Q[5] = kinegen_wrap_angle(atan2(-_t46*_t52 + _t47*_t49, -_t46*_t54 + _t47*_t53));
+    Q[4] = kinegen_wrap_angle(_f12);
+    Q[5] = kinegen_wrap_angle(_f13);
     Q[6] = _t7;
     Q[7] = _t31;
     Q[8] = _t32;
     Q[9] = kinegen_wrap_angle(_t55);
-    Q[10] = kinegen_wrap_angle(atan2(-_t34*_t56 - _t42*_t57, _t48));
-    Q[11] = kinegen_wrap_angle(atan2(_t49*_t57 - _t52*_t56, _t53*_t57 - _t54*_t56));
+    Q[10] = kinegen_wrap_angle(_f14);
+    Q[11] = kinegen_wrap_angle(_f15);
     Q[12] = _t7;
     Q[13] = _t66;
     Q[14] = _t67;
     Q[15] = kinegen_wrap_angle(_t74);
-    Q[16] = kinegen_wrap_angle(atan2(-_t34*_t75 - _t71*_t76, _t77));
-    Q[17] = kinegen_wrap_angle(atan2(_t49*_t76 - _t75*_t80, _t53*_t76 - _t75*_t81));
+    Q[16] = kinegen_wrap_angle(_f16);
+    Q[17] = kinegen_wrap_angle(_f17);
     Q[18] = _t7;
     Q[19] = _t66;
     Q[20] = _t67;
     Q[21] = kinegen_wrap_angle(_t82);
-    Q[22] = kinegen_wrap_angle(atan2(-_t34*_t83 - _t71*_t84, _t77));
-    Q[23] = kinegen_wrap_angle(atan2(_t49*_t84 - _t80*_t83, _t53*_t84 - _t81*_t83));
+    Q[22] = kinegen_wrap_angle(_f18);
+    Q[23] = kinegen_wrap_angle(_f19);
     Q[24] = _t86;
     Q[25] = _t91;
     Q[26] = _t67;
     Q[27] = kinegen_wrap_angle(_t103);
-    Q[28] = kinegen_wrap_angle(atan2(-_t104*_t92 - _t105*_t99, _t106));
-    Q[29] = kinegen_wrap_angle(atan2(-_t104*_t110 + _t105*_t107, -_t104*_t112 + _t105*_t111));
+    Q[28] = kinegen_wrap_angle(_f20);
+    Q[29] = kinegen_wrap_angle(_f21);
     Q[30] = _t86;
     Q[31] = _t91;
     Q[32] = _t67;
     Q[33] = kinegen_wrap_angle(_t113);
-    Q[34] = kinegen_wrap_angle(atan2(-_t114*_t92 - _t115*_t99, _t106));
-    Q[35] = kinegen_wrap_angle(atan2(_t107*_t115 - _t110*_t114, _t111*_t115 - _t112*_t114));
+    Q[34] = kinegen_wrap_angle(_f22);
+    Q[35] = kinegen_wrap_angle(_f23);
     Q[36] = _t86;
     Q[37] = _t117;
     Q[38] = _t32;
     Q[39] = kinegen_wrap_angle(_t124);
-    Q[40] = kinegen_wrap_angle(atan2(-_t121*_t126 - _t125*_t92, _t127));
-    Q[41] = kinegen_wrap_angle(atan2(_t107*_t126 - _t125*_t130, _t111*_t126 - _t125*_t131));
+    Q[40] = kinegen_wrap_angle(_f24);
+    Q[41] = kinegen_wrap_angle(_f25);
     Q[42] = _t86;
     Q[43] = _t117;
     Q[44] = _t32;
     Q[45] = kinegen_wrap_angle(_t132);
-    Q[46] = kinegen_wrap_angle(atan2(-_t121*_t134 - _t133*_t92, _t127));
-    Q[47] = kinegen_wrap_angle(atan2(_t107*_t134 - _t130*_t133, _t111*_t134 - _t131*_t133));
+    Q[46] = kinegen_wrap_angle(_f26);
+    Q[47] = kinegen_wrap_angle(_f27);
     valid[0] = _t139;
     valid[1] = _t139;
     valid[2] = _t140;
@@ -897,45 +2763,715 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
     valid[5] = _t140;
     valid[6] = _t139;
     valid[7] = _t139;
-    {
-        int branch, joint, finite_target = 1, valid_branches = 0;
-        for (joint = 0; joint < 12; ++joint) {
-            finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
-        }
-        for (branch = 0; branch < 8; ++branch) {
-            if (!finite_target) {
-                valid[branch] = 0;
-            }
-            for (joint = 0; joint < 6; ++joint) {
-                if (!isfinite(Q[6 * branch + joint])) {
-                    valid[branch] = 0;  /* no NaN leaks out as a valid answer */
-                }
-            }
-            valid_branches += valid[branch] != 0;
-        }
-        if (!puma560_is_refused_pose(_x)) {
-            return valid_branches;
-        }
-        for (branch = 0; branch < 8; ++branch) {
-            valid[branch] = 0;
-        }
-        return -1;
-    }
+    return puma560_ik_checks(_x, Q, valid);
 }
 
-long puma560_ik_batch(size_t count, const double *restrict x, const puma560_params *restrict params, double *restrict Q, int *restrict valid)
+/* ik of `count` items, stored one after the other in each argument and output.   Returns the total number of valid branches, or -1 if any item was refused. */
+long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_params *restrict params, double *restrict Q, int *restrict valid)
 {
-    size_t i;
     long valid_branches = 0;
     int refused = 0;
+#ifdef KINEGEN_BLOCKED
+    double x[KINEGEN_BLOCK_OF(16)];
+    double y[KINEGEN_BLOCK_OF(16)];
+    double z[KINEGEN_BLOCK_OF(16)];
+    double r11[KINEGEN_BLOCK_OF(16)];
+    double r12[KINEGEN_BLOCK_OF(16)];
+    double r13[KINEGEN_BLOCK_OF(16)];
+    double r21[KINEGEN_BLOCK_OF(16)];
+    double r22[KINEGEN_BLOCK_OF(16)];
+    double r23[KINEGEN_BLOCK_OF(16)];
+    double r31[KINEGEN_BLOCK_OF(16)];
+    double r32[KINEGEN_BLOCK_OF(16)];
+    double r33[KINEGEN_BLOCK_OF(16)];
+    double _a0[KINEGEN_BLOCK_OF(16)];
+    double _t3[KINEGEN_BLOCK_OF(16)];
+    double _t4[KINEGEN_BLOCK_OF(16)];
+    double _a1[KINEGEN_BLOCK_OF(16)];
+    double _t8[KINEGEN_BLOCK_OF(16)];
+    double _t9[KINEGEN_BLOCK_OF(16)];
+    double _t18[KINEGEN_BLOCK_OF(16)];
+    double _a4[KINEGEN_BLOCK_OF(16)];
+    double _f0[KINEGEN_BLOCK_OF(16)];
+    double _f1[KINEGEN_BLOCK_OF(16)];
+    double _f3[KINEGEN_BLOCK_OF(16)];
+    double _t6[KINEGEN_BLOCK_OF(16)];
+    double _t20[KINEGEN_BLOCK_OF(16)];
+    double _t58[KINEGEN_BLOCK_OF(16)];
+    double _t85[KINEGEN_BLOCK_OF(16)];
+    double _s0[KINEGEN_BLOCK_OF(16)];
+    double _c0[KINEGEN_BLOCK_OF(16)];
+    double _s1[KINEGEN_BLOCK_OF(16)];
+    double _c1[KINEGEN_BLOCK_OF(16)];
+    double _s5[KINEGEN_BLOCK_OF(16)];
+    double _c5[KINEGEN_BLOCK_OF(16)];
+    double _s9[KINEGEN_BLOCK_OF(16)];
+    double _c9[KINEGEN_BLOCK_OF(16)];
+    double _t23[KINEGEN_BLOCK_OF(16)];
+    double _t28[KINEGEN_BLOCK_OF(16)];
+    double _a5[KINEGEN_BLOCK_OF(16)];
+    double _a6[KINEGEN_BLOCK_OF(16)];
+    double _t61[KINEGEN_BLOCK_OF(16)];
+    double _t63[KINEGEN_BLOCK_OF(16)];
+    double _a8[KINEGEN_BLOCK_OF(16)];
+    double _a9[KINEGEN_BLOCK_OF(16)];
+    double _a11[KINEGEN_BLOCK_OF(16)];
+    double _a12[KINEGEN_BLOCK_OF(16)];
+    double _a14[KINEGEN_BLOCK_OF(16)];
+    double _a15[KINEGEN_BLOCK_OF(16)];
+    double _f4[KINEGEN_BLOCK_OF(16)];
+    double _f6[KINEGEN_BLOCK_OF(16)];
+    double _f8[KINEGEN_BLOCK_OF(16)];
+    double _f10[KINEGEN_BLOCK_OF(16)];
+    double _t37[KINEGEN_BLOCK_OF(16)];
+    double _t68[KINEGEN_BLOCK_OF(16)];
+    double _t94[KINEGEN_BLOCK_OF(16)];
+    double _t118[KINEGEN_BLOCK_OF(16)];
+    double _s2[KINEGEN_BLOCK_OF(16)];
+    double _c2[KINEGEN_BLOCK_OF(16)];
+    double _s6[KINEGEN_BLOCK_OF(16)];
+    double _c6[KINEGEN_BLOCK_OF(16)];
+    double _s10[KINEGEN_BLOCK_OF(16)];
+    double _c10[KINEGEN_BLOCK_OF(16)];
+    double _s13[KINEGEN_BLOCK_OF(16)];
+    double _c13[KINEGEN_BLOCK_OF(16)];
+    double _t33[KINEGEN_BLOCK_OF(16)];
+    double _t40[KINEGEN_BLOCK_OF(16)];
+    double _t41[KINEGEN_BLOCK_OF(16)];
+    double _t42[KINEGEN_BLOCK_OF(16)];
+    double _a7[KINEGEN_BLOCK_OF(16)];
+    double _t71[KINEGEN_BLOCK_OF(16)];
+    double _a10[KINEGEN_BLOCK_OF(16)];
+    double _t92[KINEGEN_BLOCK_OF(16)];
+    double _t97[KINEGEN_BLOCK_OF(16)];
+    double _t98[KINEGEN_BLOCK_OF(16)];
+    double _t99[KINEGEN_BLOCK_OF(16)];
+    double _t101[KINEGEN_BLOCK_OF(16)];
+    double _a13[KINEGEN_BLOCK_OF(16)];
+    double _t121[KINEGEN_BLOCK_OF(16)];
+    double _a16[KINEGEN_BLOCK_OF(16)];
+    double _f5[KINEGEN_BLOCK_OF(16)];
+    double _f7[KINEGEN_BLOCK_OF(16)];
+    double _f9[KINEGEN_BLOCK_OF(16)];
+    double _f11[KINEGEN_BLOCK_OF(16)];
+    double _t34[KINEGEN_BLOCK_OF(16)];
+    double _t45[KINEGEN_BLOCK_OF(16)];
+    double _t55[KINEGEN_BLOCK_OF(16)];
+    double _t74[KINEGEN_BLOCK_OF(16)];
+    double _t82[KINEGEN_BLOCK_OF(16)];
+    double _t103[KINEGEN_BLOCK_OF(16)];
+    double _t113[KINEGEN_BLOCK_OF(16)];
+    double _t124[KINEGEN_BLOCK_OF(16)];
+    double _t132[KINEGEN_BLOCK_OF(16)];
+    double _s3[KINEGEN_BLOCK_OF(16)];
+    double _c3[KINEGEN_BLOCK_OF(16)];
+    double _s4[KINEGEN_BLOCK_OF(16)];
+    double _c4[KINEGEN_BLOCK_OF(16)];
+    double _s7[KINEGEN_BLOCK_OF(16)];
+    double _c7[KINEGEN_BLOCK_OF(16)];
+    double _s8[KINEGEN_BLOCK_OF(16)];
+    double _c8[KINEGEN_BLOCK_OF(16)];
+    double _s11[KINEGEN_BLOCK_OF(16)];
+    double _c11[KINEGEN_BLOCK_OF(16)];
+    double _s12[KINEGEN_BLOCK_OF(16)];
+    double _c12[KINEGEN_BLOCK_OF(16)];
+    double _s14[KINEGEN_BLOCK_OF(16)];
+    double _c14[KINEGEN_BLOCK_OF(16)];
+    double _s15[KINEGEN_BLOCK_OF(16)];
+    double _c15[KINEGEN_BLOCK_OF(16)];
+    double _t48[KINEGEN_BLOCK_OF(16)];
+    double _t77[KINEGEN_BLOCK_OF(16)];
+    double _t106[KINEGEN_BLOCK_OF(16)];
+    double _t127[KINEGEN_BLOCK_OF(16)];
+    double _a17[KINEGEN_BLOCK_OF(16)];
+    double _a18[KINEGEN_BLOCK_OF(16)];
+    double _a19[KINEGEN_BLOCK_OF(16)];
+    double _a20[KINEGEN_BLOCK_OF(16)];
+    double _a21[KINEGEN_BLOCK_OF(16)];
+    double _a22[KINEGEN_BLOCK_OF(16)];
+    double _a23[KINEGEN_BLOCK_OF(16)];
+    double _a24[KINEGEN_BLOCK_OF(16)];
+    double _a25[KINEGEN_BLOCK_OF(16)];
+    double _a26[KINEGEN_BLOCK_OF(16)];
+    double _a27[KINEGEN_BLOCK_OF(16)];
+    double _a28[KINEGEN_BLOCK_OF(16)];
+    double _a29[KINEGEN_BLOCK_OF(16)];
+    double _a30[KINEGEN_BLOCK_OF(16)];
+    double _a31[KINEGEN_BLOCK_OF(16)];
+    double _a32[KINEGEN_BLOCK_OF(16)];
+    double _a33[KINEGEN_BLOCK_OF(16)];
+    double _a34[KINEGEN_BLOCK_OF(16)];
+    double _a35[KINEGEN_BLOCK_OF(16)];
+    double _a36[KINEGEN_BLOCK_OF(16)];
+    double _a37[KINEGEN_BLOCK_OF(16)];
+    double _a38[KINEGEN_BLOCK_OF(16)];
+    double _a39[KINEGEN_BLOCK_OF(16)];
+    double _a40[KINEGEN_BLOCK_OF(16)];
+    double _f12[KINEGEN_BLOCK_OF(16)];
+    double _f13[KINEGEN_BLOCK_OF(16)];
+    double _f14[KINEGEN_BLOCK_OF(16)];
+    double _f15[KINEGEN_BLOCK_OF(16)];
+    double _f16[KINEGEN_BLOCK_OF(16)];
+    double _f17[KINEGEN_BLOCK_OF(16)];
+    double _f18[KINEGEN_BLOCK_OF(16)];
+    double _f19[KINEGEN_BLOCK_OF(16)];
+    double _f20[KINEGEN_BLOCK_OF(16)];
+    double _f21[KINEGEN_BLOCK_OF(16)];
+    double _f22[KINEGEN_BLOCK_OF(16)];
+    double _f23[KINEGEN_BLOCK_OF(16)];
+    double _f24[KINEGEN_BLOCK_OF(16)];
+    double _f25[KINEGEN_BLOCK_OF(16)];
+    double _f26[KINEGEN_BLOCK_OF(16)];
+    double _f27[KINEGEN_BLOCK_OF(16)];
+    double _Q_block[48][KINEGEN_BLOCK_OF(16)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double d1 = params->d1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    const double _t10 = 2*a2;
+    const double _a2 = -_t10*d4;
+    const double _a3 = _t10*a3;
+    const double _t12 = (a3*a3);
+    const double _t13 = (a2*a2);
+    const double _t14 = 4*_t13;
+    const double _t15 = (d4*d4);
+    const double _t16 = _t12*_t14 + _t14*_t15;
+    const double _t17 = 1.0/sqrt(_t16);
+    const int _t137 = _t16 > 0;
+    const double _f2 = atan2(_a2, _a3);
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(16) ? count - start : KINEGEN_BLOCK_OF(16);
+        for (i = 0; i < n; ++i) {
+            x[i] = _x[12 * (start + i) + 0];
+            y[i] = _x[12 * (start + i) + 1];
+            z[i] = _x[12 * (start + i) + 2];
+            r11[i] = _x[12 * (start + i) + 3];
+            r12[i] = _x[12 * (start + i) + 4];
+            r13[i] = _x[12 * (start + i) + 5];
+            r21[i] = _x[12 * (start + i) + 6];
+            r22[i] = _x[12 * (start + i) + 7];
+            r23[i] = _x[12 * (start + i) + 8];
+            r31[i] = _x[12 * (start + i) + 9];
+            r32[i] = _x[12 * (start + i) + 10];
+            r33[i] = _x[12 * (start + i) + 11];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _a0[i] = -x[i];
+            const double _t1 = (x[i]*x[i]);
+            const double _t2 = (y[i]*y[i]);
+            _t3[i] = _t1 + _t2;
+            _t4[i] = 1.0/sqrt(_t3[i]);
+            _a1[i] = kinegen_min(1, kinegen_max(-1, -_t4[i]*d3));
+            _t8[i] = d1 - z[i];
+            _t9[i] = -_t8[i];
+            _t18[i] = -_t1 + _t12 + _t13 + _t15 - _t2 + (d3*d3);
+            _a4[i] = kinegen_min(1, kinegen_max(-1, _t17*(-_t18[i] + (_t9[i]*_t9[i]))));
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f0[i] = atan2(_a0[i], y[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f1[i] = acos(_a1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f3[i] = acos(_a4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t6[i] = _f0[i] + _f1[i];
+            _t20[i] = -_f2 + _f3[i];
+            _t58[i] = _f2 + _f3[i];
+            _t85[i] = -_f0[i] + _f1[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t20[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t20[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s5[i] = sin(_t58[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c5[i] = cos(_t58[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s9[i] = sin(_t85[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c9[i] = cos(_t85[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t23[i] = _c0[i]*a3 + _s0[i]*d4 + a2;
+            const double _t24 = _t23[i]*_t9[i];
+            const double _t27 = _c1[i]*x[i] + _s1[i]*y[i];
+            _t28[i] = _c0[i]*d4 - _s0[i]*a3;
+            const double _t29 = _t28[i]*_t9[i];
+            _a5[i] = _t24 - _t27*_t28[i];
+            _a6[i] = _t23[i]*_t27 + _t29;
+            _t61[i] = _c5[i]*a3 - _s5[i]*d4 + a2;
+            const double _t62 = _t61[i]*_t9[i];
+            _t63[i] = _c5[i]*d4 + _s5[i]*a3;
+            const double _t64 = _t63[i]*_t9[i];
+            _a8[i] = -_t27*_t63[i] + _t62;
+            _a9[i] = _t27*_t61[i] + _t64;
+            const double _t89 = _c9[i]*x[i] - _s9[i]*y[i];
+            _a11[i] = _t62 - _t63[i]*_t89;
+            _a12[i] = _t61[i]*_t89 + _t64;
+            _a14[i] = _t24 - _t28[i]*_t89;
+            _a15[i] = _t23[i]*_t89 + _t29;
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f4[i] = atan2(_a5[i], _a6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f6[i] = atan2(_a8[i], _a9[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f8[i] = atan2(_a11[i], _a12[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f10[i] = atan2(_a14[i], _a15[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t36 = _f2 - _f3[i];
+            _t37[i] = _f4[i] + _t36;
+            _t68[i] = _f6[i] + _t58[i];
+            _t94[i] = _f8[i] + _t58[i];
+            _t118[i] = _f10[i] + _t36;
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t37[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t37[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s6[i] = sin(_t68[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c6[i] = cos(_t68[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s10[i] = sin(_t94[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c10[i] = cos(_t94[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s13[i] = sin(_t118[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c13[i] = cos(_t118[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t33[i] = -_c1[i]*r23[i] + _s1[i]*r13[i];
+            _t40[i] = _c1[i]*r13[i];
+            _t41[i] = _s1[i]*r23[i];
+            _t42[i] = _c2[i]*_t40[i] + _c2[i]*_t41[i] + _s2[i]*r33[i];
+            _a7[i] = -_t42[i];
+            _t71[i] = _c6[i]*_t40[i] + _c6[i]*_t41[i] + _s6[i]*r33[i];
+            _a10[i] = -_t71[i];
+            _t92[i] = _c9[i]*r23[i] + _s9[i]*r13[i];
+            _t97[i] = _c9[i]*r13[i];
+            _t98[i] = _s9[i]*r23[i];
+            _t99[i] = _c10[i]*_t97[i] - _c10[i]*_t98[i] + _s10[i]*r33[i];
+            _t101[i] = -_t92[i];
+            _a13[i] = -_t99[i];
+            _t121[i] = _c13[i]*_t97[i] - _c13[i]*_t98[i] + _s13[i]*r33[i];
+            _a16[i] = -_t121[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f5[i] = atan2(_t33[i], _a7[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f7[i] = atan2(_t33[i], _a10[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f9[i] = atan2(_t101[i], _a13[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f11[i] = atan2(_t101[i], _a16[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t34[i] = -_t33[i];
+            const double _t35 = (_t34[i]*_t34[i]);
+            const int _t43 = _t35 + (_t42[i]*_t42[i]) <= 1e-24;
+            _t45[i] = ((_t43) ? (
+   0
+)
+: (
+   _f5[i]
+));
+            _t55[i] = ((_t43) ? (
+   3.141592653589793
+)
+: (
+   _f5[i] + 3.141592653589793
+));
+            const int _t72 = _t35 + (_t71[i]*_t71[i]) <= 1e-24;
+            _t74[i] = ((_t72) ? (
+   0
+)
+: (
+   _f7[i]
+));
+            _t82[i] = ((_t72) ? (
+   3.141592653589793
+)
+: (
+   _f7[i] + 3.141592653589793
+));
+            const double _t93 = (_t92[i]*_t92[i]);
+            const int _t100 = _t93 + (_t99[i]*_t99[i]) <= 1e-24;
+            _t103[i] = ((_t100) ? (
+   0
+)
+: (
+   _f9[i]
+));
+            _t113[i] = ((_t100) ? (
+   3.141592653589793
+)
+: (
+   _f9[i] + 3.141592653589793
+));
+            const int _t122 = (_t121[i]*_t121[i]) + _t93 <= 1e-24;
+            _t124[i] = ((_t122) ? (
+   0
+)
+: (
+   _f11[i]
+));
+            _t132[i] = ((_t122) ? (
+   3.141592653589793
+)
+: (
+   _f11[i] + 3.141592653589793
+));
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(_t45[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(_t45[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(_t55[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(_t55[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s7[i] = sin(_t74[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c7[i] = cos(_t74[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s8[i] = sin(_t82[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c8[i] = cos(_t82[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s11[i] = sin(_t103[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c11[i] = cos(_t103[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s12[i] = sin(_t113[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c12[i] = cos(_t113[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s14[i] = sin(_t124[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c14[i] = cos(_t124[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s15[i] = sin(_t132[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c15[i] = cos(_t132[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t48[i] = _c2[i]*r33[i] - _s2[i]*_t40[i] - _s2[i]*_t41[i];
+            const double _t49 = _c1[i]*r21[i] - _s1[i]*r11[i];
+            const double _t50 = _c1[i]*_c2[i];
+            const double _t51 = _c2[i]*_s1[i];
+            const double _t52 = _s2[i]*r31[i] + _t50*r11[i] + _t51*r21[i];
+            const double _t53 = _c1[i]*r22[i] - _s1[i]*r12[i];
+            const double _t54 = _s2[i]*r32[i] + _t50*r12[i] + _t51*r22[i];
+            _t77[i] = _c6[i]*r33[i] - _s6[i]*_t40[i] - _s6[i]*_t41[i];
+            const double _t78 = _c1[i]*_c6[i];
+            const double _t79 = _c6[i]*_s1[i];
+            const double _t80 = _s6[i]*r31[i] + _t78*r11[i] + _t79*r21[i];
+            const double _t81 = _s6[i]*r32[i] + _t78*r12[i] + _t79*r22[i];
+            _t106[i] = _c10[i]*r33[i] - _s10[i]*_t97[i] + _s10[i]*_t98[i];
+            const double _t107 = _c9[i]*r21[i] + _s9[i]*r11[i];
+            const double _t108 = _c10[i]*_c9[i];
+            const double _t109 = _c10[i]*_s9[i];
+            const double _t110 = _s10[i]*r31[i] + _t108*r11[i] - _t109*r21[i];
+            const double _t111 = _c9[i]*r22[i] + _s9[i]*r12[i];
+            const double _t112 = _s10[i]*r32[i] + _t108*r12[i] - _t109*r22[i];
+            _t127[i] = _c13[i]*r33[i] - _s13[i]*_t97[i] + _s13[i]*_t98[i];
+            const double _t128 = _c13[i]*_c9[i];
+            const double _t129 = _c13[i]*_s9[i];
+            const double _t130 = _s13[i]*r31[i] + _t128*r11[i] - _t129*r21[i];
+            const double _t131 = _s13[i]*r32[i] + _t128*r12[i] - _t129*r22[i];
+            _a17[i] = -_c3[i]*_t42[i] - _s3[i]*_t34[i];
+            _a18[i] = _c3[i]*_t49 - _s3[i]*_t52;
+            _a19[i] = _c3[i]*_t53 - _s3[i]*_t54;
+            _a20[i] = -_c4[i]*_t42[i] - _s4[i]*_t34[i];
+            _a21[i] = _c4[i]*_t49 - _s4[i]*_t52;
+            _a22[i] = _c4[i]*_t53 - _s4[i]*_t54;
+            _a23[i] = -_c7[i]*_t71[i] - _s7[i]*_t34[i];
+            _a24[i] = _c7[i]*_t49 - _s7[i]*_t80;
+            _a25[i] = _c7[i]*_t53 - _s7[i]*_t81;
+            _a26[i] = -_c8[i]*_t71[i] - _s8[i]*_t34[i];
+            _a27[i] = _c8[i]*_t49 - _s8[i]*_t80;
+            _a28[i] = _c8[i]*_t53 - _s8[i]*_t81;
+            _a29[i] = -_c11[i]*_t99[i] - _s11[i]*_t92[i];
+            _a30[i] = _c11[i]*_t107 - _s11[i]*_t110;
+            _a31[i] = _c11[i]*_t111 - _s11[i]*_t112;
+            _a32[i] = -_c12[i]*_t99[i] - _s12[i]*_t92[i];
+            _a33[i] = _c12[i]*_t107 - _s12[i]*_t110;
+            _a34[i] = _c12[i]*_t111 - _s12[i]*_t112;
+            _a35[i] = -_c14[i]*_t121[i] - _s14[i]*_t92[i];
+            _a36[i] = _c14[i]*_t107 - _s14[i]*_t130;
+            _a37[i] = _c14[i]*_t111 - _s14[i]*_t131;
+            _a38[i] = -_c15[i]*_t121[i] - _s15[i]*_t92[i];
+            _a39[i] = _c15[i]*_t107 - _s15[i]*_t130;
+            _a40[i] = _c15[i]*_t111 - _s15[i]*_t131;
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f12[i] = atan2(_a17[i], _t48[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f13[i] = atan2(_a18[i], _a19[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f14[i] = atan2(_a20[i], _t48[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f15[i] = atan2(_a21[i], _a22[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f16[i] = atan2(_a23[i], _t77[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f17[i] = atan2(_a24[i], _a25[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f18[i] = atan2(_a26[i], _t77[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f19[i] = atan2(_a27[i], _a28[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f20[i] = atan2(_a29[i], _t106[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f21[i] = atan2(_a30[i], _a31[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f22[i] = atan2(_a32[i], _t106[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f23[i] = atan2(_a33[i], _a34[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f24[i] = atan2(_a35[i], _t127[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f25[i] = atan2(_a36[i], _a37[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f26[i] = atan2(_a38[i], _t127[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f27[i] = atan2(_a39[i], _a40[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t7 = kinegen_wrap_angle(_t6[i]);
+            const double _t31 = kinegen_wrap_angle(_f4[i]);
+            const double _t32 = kinegen_wrap_angle(-_t20[i]);
+            const double _t66 = kinegen_wrap_angle(_f6[i]);
+            const double _t67 = kinegen_wrap_angle(_t58[i]);
+            const double _t86 = kinegen_wrap_angle(-_t85[i]);
+            const double _t91 = kinegen_wrap_angle(_f8[i]);
+            const double _t117 = kinegen_wrap_angle(_f10[i]);
+            const int _t135 = _t3[i] > 0;
+            const int _t136 = _t4[i]*fabs(d3) <= 1.000000000001;
+            const int _t138 = _t17*fabs(_t18[i] - (_t8[i]*_t8[i])) <= 1.000000000001;
+            const int _t139 = _t135 && _t136 && _t137 && _t138 && (_t23[i]*_t23[i]) + (_t28[i]*_t28[i]) > 0;
+            const int _t140 = _t135 && _t136 && _t137 && _t138 && (_t61[i]*_t61[i]) + (_t63[i]*_t63[i]) > 0;
+            _Q_block[0][i] = _t7;
+            _Q_block[1][i] = _t31;
+            _Q_block[2][i] = _t32;
+            _Q_block[3][i] = kinegen_wrap_angle(_t45[i]);
+            _Q_block[4][i] = kinegen_wrap_angle(_f12[i]);
+            _Q_block[5][i] = kinegen_wrap_angle(_f13[i]);
+            _Q_block[6][i] = _t7;
+            _Q_block[7][i] = _t31;
+            _Q_block[8][i] = _t32;
+            _Q_block[9][i] = kinegen_wrap_angle(_t55[i]);
+            _Q_block[10][i] = kinegen_wrap_angle(_f14[i]);
+            _Q_block[11][i] = kinegen_wrap_angle(_f15[i]);
+            _Q_block[12][i] = _t7;
+            _Q_block[13][i] = _t66;
+            _Q_block[14][i] = _t67;
+            _Q_block[15][i] = kinegen_wrap_angle(_t74[i]);
+            _Q_block[16][i] = kinegen_wrap_angle(_f16[i]);
+            _Q_block[17][i] = kinegen_wrap_angle(_f17[i]);
+            _Q_block[18][i] = _t7;
+            _Q_block[19][i] = _t66;
+            _Q_block[20][i] = _t67;
+            _Q_block[21][i] = kinegen_wrap_angle(_t82[i]);
+            _Q_block[22][i] = kinegen_wrap_angle(_f18[i]);
+            _Q_block[23][i] = kinegen_wrap_angle(_f19[i]);
+            _Q_block[24][i] = _t86;
+            _Q_block[25][i] = _t91;
+            _Q_block[26][i] = _t67;
+            _Q_block[27][i] = kinegen_wrap_angle(_t103[i]);
+            _Q_block[28][i] = kinegen_wrap_angle(_f20[i]);
+            _Q_block[29][i] = kinegen_wrap_angle(_f21[i]);
+            _Q_block[30][i] = _t86;
+            _Q_block[31][i] = _t91;
+            _Q_block[32][i] = _t67;
+            _Q_block[33][i] = kinegen_wrap_angle(_t113[i]);
+            _Q_block[34][i] = kinegen_wrap_angle(_f22[i]);
+            _Q_block[35][i] = kinegen_wrap_angle(_f23[i]);
+            _Q_block[36][i] = _t86;
+            _Q_block[37][i] = _t117;
+            _Q_block[38][i] = _t32;
+            _Q_block[39][i] = kinegen_wrap_angle(_t124[i]);
+            _Q_block[40][i] = kinegen_wrap_angle(_f24[i]);
+            _Q_block[41][i] = kinegen_wrap_angle(_f25[i]);
+            _Q_block[42][i] = _t86;
+            _Q_block[43][i] = _t117;
+            _Q_block[44][i] = _t32;
+            _Q_block[45][i] = kinegen_wrap_angle(_t132[i]);
+            _Q_block[46][i] = kinegen_wrap_angle(_f26[i]);
+            _Q_block[47][i] = kinegen_wrap_angle(_f27[i]);
+            valid[8 * (start + i) + 0] = _t139;
+            valid[8 * (start + i) + 1] = _t139;
+            valid[8 * (start + i) + 2] = _t140;
+            valid[8 * (start + i) + 3] = _t140;
+            valid[8 * (start + i) + 4] = _t140;
+            valid[8 * (start + i) + 5] = _t140;
+            valid[8 * (start + i) + 6] = _t139;
+            valid[8 * (start + i) + 7] = _t139;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 48; ++k) {
+                    Q[48 * (start + i) + k] = _Q_block[k][i];
+                }
+            }
+        }
+        for (i = 0; i < n; ++i) {
+            const int found = puma560_ik_checks(_x + 12 * (start + i), Q + 48 * (start + i), valid + 8 * (start + i));
+            if (found < 0) {
+                refused = 1;
+            } else {
+                valid_branches += found;
+            }
+        }
+    }
+#else
+    size_t i;
     for (i = 0; i < count; ++i) {
-        const int found = puma560_ik(x + 12 * i, params, Q + 48 * i, valid + 8 * i);
+        const int found = puma560_ik(_x + 12 * i, params, Q + 48 * i, valid + 8 * i);
         if (found < 0) {
             refused = 1;
         } else {
             valid_branches += found;
         }
     }
+#endif
     return refused ? -1 : valid_branches;
 }
 
@@ -961,88 +3497,384 @@ void puma560_task_velocity(const double *restrict q, const double *restrict qd, 
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t0 = cos(q1);
     const double _t1 = q2 + q3;
-    const double _t2 = sin(_t1);
-    const double _t3 = cos(_t1);
-    const double _t4 = _t2*a3 + _t3*d4;
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { q1, _t1, q2, q4, q5, q6, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+        _s5 = sine[5];
+        _c5 = cosine[5];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t1);
+    _c1 = cos(_t1);
+    _s2 = sin(q2);
+    _c2 = cos(q2);
+    _s3 = sin(q4);
+    _c3 = cos(q4);
+    _s4 = sin(q5);
+    _c4 = cos(q5);
+    _s5 = sin(q6);
+    _c5 = cos(q6);
+#endif
+    const double _t4 = _c1*d4 + _s1*a3;
     const double _t5 = _t4*qd3;
-    const double _t6 = qd2*(_t4 + a2*sin(q2));
-    const double _t7 = sin(q1);
-    const double _t8 = a2*cos(q2);
-    const double _t9 = _t3*a3;
-    const double _t10 = _t2*d4;
+    const double _t6 = qd2*(_s2*a2 + _t4);
+    const double _t8 = _c2*a2;
+    const double _t9 = _c1*a3;
+    const double _t10 = _s1*d4;
     const double _t11 = -_t10 + _t9;
-    const double _t12 = sin(q4);
-    const double _t13 = sin(q5);
-    const double _t14 = cos(q5);
-    const double _t15 = _t14*_t2;
-    const double _t16 = cos(q4);
-    const double _t17 = _t0*_t16;
-    const double _t18 = _t13*_t3;
-    const double _t19 = _t0*_t15 - _t12*_t13*_t7 + _t17*_t18;
+    const double _t15 = _c4*_s1;
+    const double _t17 = _c0*_c3;
+    const double _t18 = _c1*_s4;
+    const double _t19 = _c0*_t15 - _s0*_s3*_s4 + _t17*_t18;
     const double _t20 = -_t19;
-    const double _t21 = cos(q6);
-    const double _t22 = _t21*qd5;
-    const double _t23 = sin(q6);
-    const double _t24 = _t16*_t21;
-    const double _t25 = _t12*_t2*_t23 - _t15*_t24 - _t18*_t21;
-    const double _t26 = _t0*_t25;
-    const double _t27 = _t16*_t7;
-    const double _t28 = _t21*_t27;
-    const double _t29 = _t17*_t23;
-    const double _t30 = _t14*_t3;
-    const double _t31 = _t12*_t21;
-    const double _t32 = _t0*_t31;
-    const double _t33 = _t12*_t23*_t3*_t7 + _t13*_t2*_t21*_t7 - _t14*_t32 - _t28*_t30 - _t29;
-    const double _t34 = _t0*_t13*_t2*_t23 + _t12*_t14*_t23*_t7 - _t28 - _t29*_t30 - _t3*_t32;
-    const double _t35 = _t23*qd5;
-    const double _t36 = _t16*_t23;
-    const double _t37 = _t15*_t36 + _t18*_t23 + _t2*_t31;
-    const double _t38 = _t0*_t37;
-    const double _t39 = _t12*_t7;
-    const double _t40 = _t21*_t39;
-    const double _t41 = _t23*_t27;
-    const double _t42 = _t17*_t21;
-    const double _t43 = _t12*_t23;
-    const double _t44 = _t0*_t43;
-    const double _t45 = _t0*_t13;
-    const double _t46 = _t2*_t45;
-    const double _t47 = _t14*_t40 + _t21*_t46 + _t3*_t44 - _t30*_t42 + _t41;
-    const double _t48 = _t13*_t2;
-    const double _t49 = _t14*_t44 - _t23*_t48*_t7 + _t3*_t40 + _t30*_t41 - _t42;
-    const double _t50 = _t0*_t12;
-    const double _t51 = _t13*qd4;
-    const double _t52 = _t16*_t48 - _t30;
-    const double _t53 = _t0*_t52;
-    const double _t54 = _t12*_t45 + _t15*_t7 + _t18*_t27;
-    const double _t55 = _t25*_t7;
-    const double _t56 = _t37*_t7;
-    const double _t57 = _t52*_t7;
-    const double _t58 = _t2*qd4;
-    const double _t59 = _t14*_t16*_t21*_t3 - _t21*_t48 - _t3*_t43;
-    const double _t60 = _t13*_t2*_t23 - _t3*_t31 - _t30*_t36;
-    const double _t61 = -_t15 - _t16*_t18;
-    xd[0] = -_t0*_t5 - _t0*_t6 + qd1*(_t0*d3 + _t2*_t7*d4 - _t7*_t8 - _t7*_t9);
-    xd[1] = -_t5*_t7 - _t6*_t7 + qd1*(-_t0*_t10 + _t0*_t8 + _t0*_t9 + _t7*d3);
+    const double _t22 = _c5*qd5;
+    const double _t24 = _c3*_c5;
+    const double _t25 = -_c5*_t18 + _s1*_s3*_s5 - _t15*_t24;
+    const double _t26 = _c0*_t25;
+    const double _t27 = _c3*_s0;
+    const double _t28 = _c5*_t27;
+    const double _t29 = _s5*_t17;
+    const double _t30 = _c1*_c4;
+    const double _t31 = _c5*_s3;
+    const double _t32 = _c0*_t31;
+    const double _t33 = _c1*_s0*_s3*_s5 - _c4*_t32 + _c5*_s0*_s1*_s4 - _t28*_t30 - _t29;
+    const double _t34 = _c0*_s1*_s4*_s5 - _c1*_t32 + _c4*_s0*_s3*_s5 - _t28 - _t29*_t30;
+    const double _t35 = _s5*qd5;
+    const double _t36 = _c3*_s5;
+    const double _t37 = _s1*_t31 + _s5*_t18 + _t15*_t36;
+    const double _t38 = _c0*_t37;
+    const double _t39 = _s0*_s3;
+    const double _t40 = _c5*_t39;
+    const double _t41 = _s5*_t27;
+    const double _t42 = _c5*_t17;
+    const double _t43 = _s3*_s5;
+    const double _t44 = _c0*_t43;
+    const double _t45 = _c0*_s4;
+    const double _t46 = _s1*_t45;
+    const double _t47 = _c1*_t44 + _c4*_t40 + _c5*_t46 - _t30*_t42 + _t41;
+    const double _t48 = _s1*_s4;
+    const double _t49 = _c1*_t40 + _c4*_t44 - _s0*_s5*_t48 + _t30*_t41 - _t42;
+    const double _t50 = _c0*_s3;
+    const double _t51 = _s4*qd4;
+    const double _t52 = _c3*_t48 - _t30;
+    const double _t53 = _c0*_t52;
+    const double _t54 = _s0*_t15 + _s3*_t45 + _t18*_t27;
+    const double _t55 = _s0*_t25;
+    const double _t56 = _s0*_t37;
+    const double _t57 = _s0*_t52;
+    const double _t58 = _s1*qd4;
+    const double _t59 = _c1*_c3*_c4*_c5 - _c1*_t43 - _c5*_t48;
+    const double _t60 = -_c1*_t31 + _s1*_s4*_s5 - _t30*_t36;
+    const double _t61 = -_c3*_t18 - _t15;
+    xd[0] = -_c0*_t5 - _c0*_t6 + qd1*(_c0*d3 + _s0*_s1*d4 - _s0*_t8 - _s0*_t9);
+    xd[1] = -_s0*_t5 - _s0*_t6 + qd1*(-_c0*_t10 + _c0*_t8 + _c0*_t9 + _s0*d3);
     xd[2] = _t11*qd3 + qd2*(_t11 + _t8);
-    xd[3] = _t20*_t22 + _t26*qd2 + _t26*qd3 + _t33*qd1 + _t34*qd6 + qd4*(_t12*_t23*_t7 - _t14*_t28 - _t29*_t3 - _t30*_t32);
-    xd[4] = _t19*_t35 + _t38*qd2 + _t38*qd3 + _t47*qd6 + _t49*qd1 + qd4*(_t14*_t41 - _t3*_t42 + _t30*_t44 + _t40);
-    xd[5] = _t51*(_t27 + _t3*_t50) + _t53*qd2 + _t53*qd3 + _t54*qd1 + qd5*(_t14*_t39 - _t17*_t30 + _t46);
-    xd[6] = -_t22*_t54 - _t47*qd1 - _t49*qd6 + _t55*qd2 + _t55*qd3 + qd4*(_t0*_t14*_t16*_t21 - _t3*_t41 - _t30*_t40 - _t44);
-    xd[7] = _t33*qd6 + _t34*qd1 + _t35*_t54 + _t56*qd2 + _t56*qd3 + qd4*(_t12*_t14*_t23*_t3*_t7 - _t14*_t29 - _t28*_t3 - _t32);
-    xd[8] = _t20*qd1 + _t51*(-_t17 + _t3*_t39) + _t57*qd2 + _t57*qd3 + qd5*(_t13*_t2*_t7 - _t14*_t50 - _t27*_t30);
-    xd[9] = -_t22*_t52 - _t37*qd6 - _t58*(_t14*_t31 + _t36) + _t59*qd2 + _t59*qd3;
-    xd[10] = _t25*qd6 + _t35*_t52 + _t58*(_t14*_t43 - _t24) + _t60*qd2 + _t60*qd3;
-    xd[11] = _t12*_t48*qd4 + _t61*qd2 + _t61*qd3 + qd5*(-_t15*_t16 - _t18);
+    xd[3] = _t20*_t22 + _t26*qd2 + _t26*qd3 + _t33*qd1 + _t34*qd6 + qd4*(-_c1*_t29 - _c4*_t28 + _s0*_s3*_s5 - _t30*_t32);
+    xd[4] = _t19*_t35 + _t38*qd2 + _t38*qd3 + _t47*qd6 + _t49*qd1 + qd4*(-_c1*_t42 + _c4*_t41 + _t30*_t44 + _t40);
+    xd[5] = _t51*(_c1*_t50 + _t27) + _t53*qd2 + _t53*qd3 + _t54*qd1 + qd5*(_c4*_t39 - _t17*_t30 + _t46);
+    xd[6] = -_t22*_t54 - _t47*qd1 - _t49*qd6 + _t55*qd2 + _t55*qd3 + qd4*(_c0*_c3*_c4*_c5 - _c1*_t41 - _t30*_t40 - _t44);
+    xd[7] = _t33*qd6 + _t34*qd1 + _t35*_t54 + _t56*qd2 + _t56*qd3 + qd4*(_c1*_c4*_s0*_s3*_s5 - _c1*_t28 - _c4*_t29 - _t32);
+    xd[8] = _t20*qd1 + _t51*(_c1*_t39 - _t17) + _t57*qd2 + _t57*qd3 + qd5*(-_c4*_t50 + _s0*_s1*_s4 - _t27*_t30);
+    xd[9] = -_t22*_t52 - _t37*qd6 - _t58*(_c4*_t31 + _t36) + _t59*qd2 + _t59*qd3;
+    xd[10] = _t25*qd6 + _t35*_t52 + _t58*(_c4*_t43 - _t24) + _t60*qd2 + _t60*qd3;
+    xd[11] = _s3*_t48*qd4 + _t61*qd2 + _t61*qd3 + qd5*(-_c3*_t15 - _t18);
 }
 
+/* task_velocity of `count` items, stored one after the other in each argument and output. */
 void puma560_task_velocity_batch(size_t count, const double *restrict q, const double *restrict qd, const puma560_params *restrict params, double *restrict xd)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double q5[KINEGEN_BLOCK_OF(64)];
+    double q6[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double qd3[KINEGEN_BLOCK_OF(64)];
+    double qd4[KINEGEN_BLOCK_OF(64)];
+    double qd5[KINEGEN_BLOCK_OF(64)];
+    double qd6[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    double _s4[KINEGEN_BLOCK_OF(64)];
+    double _c4[KINEGEN_BLOCK_OF(64)];
+    double _s5[KINEGEN_BLOCK_OF(64)];
+    double _c5[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _xd_block[12][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)xd & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[6 * (start + i) + 0];
+            q2[i] = q[6 * (start + i) + 1];
+            q3[i] = q[6 * (start + i) + 2];
+            q4[i] = q[6 * (start + i) + 3];
+            q5[i] = q[6 * (start + i) + 4];
+            q6[i] = q[6 * (start + i) + 5];
+            qd1[i] = qd[6 * (start + i) + 0];
+            qd2[i] = qd[6 * (start + i) + 1];
+            qd3[i] = qd[6 * (start + i) + 2];
+            qd4[i] = qd[6 * (start + i) + 3];
+            qd5[i] = qd[6 * (start + i) + 4];
+            qd6[i] = qd[6 * (start + i) + 5];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t1[i] = q2[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s5[i] = sin(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c5[i] = cos(q6[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t4 = _c1[i]*d4 + _s1[i]*a3;
+                const double _t5 = _t4*qd3[i];
+                const double _t6 = qd2[i]*(_s2[i]*a2 + _t4);
+                const double _t8 = _c2[i]*a2;
+                const double _t9 = _c1[i]*a3;
+                const double _t10 = _s1[i]*d4;
+                const double _t11 = -_t10 + _t9;
+                const double _t15 = _c4[i]*_s1[i];
+                const double _t17 = _c0[i]*_c3[i];
+                const double _t18 = _c1[i]*_s4[i];
+                const double _t19 = _c0[i]*_t15 - _s0[i]*_s3[i]*_s4[i] + _t17*_t18;
+                const double _t20 = -_t19;
+                const double _t22 = _c5[i]*qd5[i];
+                const double _t24 = _c3[i]*_c5[i];
+                const double _t25 = -_c5[i]*_t18 + _s1[i]*_s3[i]*_s5[i] - _t15*_t24;
+                const double _t26 = _c0[i]*_t25;
+                const double _t27 = _c3[i]*_s0[i];
+                const double _t28 = _c5[i]*_t27;
+                const double _t29 = _s5[i]*_t17;
+                const double _t30 = _c1[i]*_c4[i];
+                const double _t31 = _c5[i]*_s3[i];
+                const double _t32 = _c0[i]*_t31;
+                const double _t33 = _c1[i]*_s0[i]*_s3[i]*_s5[i] - _c4[i]*_t32 + _c5[i]*_s0[i]*_s1[i]*_s4[i] - _t28*_t30 - _t29;
+                const double _t34 = _c0[i]*_s1[i]*_s4[i]*_s5[i] - _c1[i]*_t32 + _c4[i]*_s0[i]*_s3[i]*_s5[i] - _t28 - _t29*_t30;
+                const double _t35 = _s5[i]*qd5[i];
+                const double _t36 = _c3[i]*_s5[i];
+                const double _t37 = _s1[i]*_t31 + _s5[i]*_t18 + _t15*_t36;
+                const double _t38 = _c0[i]*_t37;
+                const double _t39 = _s0[i]*_s3[i];
+                const double _t40 = _c5[i]*_t39;
+                const double _t41 = _s5[i]*_t27;
+                const double _t42 = _c5[i]*_t17;
+                const double _t43 = _s3[i]*_s5[i];
+                const double _t44 = _c0[i]*_t43;
+                const double _t45 = _c0[i]*_s4[i];
+                const double _t46 = _s1[i]*_t45;
+                const double _t47 = _c1[i]*_t44 + _c4[i]*_t40 + _c5[i]*_t46 - _t30*_t42 + _t41;
+                const double _t48 = _s1[i]*_s4[i];
+                const double _t49 = _c1[i]*_t40 + _c4[i]*_t44 - _s0[i]*_s5[i]*_t48 + _t30*_t41 - _t42;
+                const double _t50 = _c0[i]*_s3[i];
+                const double _t51 = _s4[i]*qd4[i];
+                const double _t52 = _c3[i]*_t48 - _t30;
+                const double _t53 = _c0[i]*_t52;
+                const double _t54 = _s0[i]*_t15 + _s3[i]*_t45 + _t18*_t27;
+                const double _t55 = _s0[i]*_t25;
+                const double _t56 = _s0[i]*_t37;
+                const double _t57 = _s0[i]*_t52;
+                const double _t58 = _s1[i]*qd4[i];
+                const double _t59 = _c1[i]*_c3[i]*_c4[i]*_c5[i] - _c1[i]*_t43 - _c5[i]*_t48;
+                const double _t60 = -_c1[i]*_t31 + _s1[i]*_s4[i]*_s5[i] - _t30*_t36;
+                const double _t61 = -_c3[i]*_t18 - _t15;
+                _xd_block[0][i] = -_c0[i]*_t5 - _c0[i]*_t6 + qd1[i]*(_c0[i]*d3 + _s0[i]*_s1[i]*d4 - _s0[i]*_t8 - _s0[i]*_t9);
+                _xd_block[1][i] = -_s0[i]*_t5 - _s0[i]*_t6 + qd1[i]*(-_c0[i]*_t10 + _c0[i]*_t8 + _c0[i]*_t9 + _s0[i]*d3);
+                _xd_block[2][i] = _t11*qd3[i] + qd2[i]*(_t11 + _t8);
+                _xd_block[3][i] = _t20*_t22 + _t26*qd2[i] + _t26*qd3[i] + _t33*qd1[i] + _t34*qd6[i] + qd4[i]*(-_c1[i]*_t29 - _c4[i]*_t28 + _s0[i]*_s3[i]*_s5[i] - _t30*_t32);
+                _xd_block[4][i] = _t19*_t35 + _t38*qd2[i] + _t38*qd3[i] + _t47*qd6[i] + _t49*qd1[i] + qd4[i]*(-_c1[i]*_t42 + _c4[i]*_t41 + _t30*_t44 + _t40);
+                _xd_block[5][i] = _t51*(_c1[i]*_t50 + _t27) + _t53*qd2[i] + _t53*qd3[i] + _t54*qd1[i] + qd5[i]*(_c4[i]*_t39 - _t17*_t30 + _t46);
+                _xd_block[6][i] = -_t22*_t54 - _t47*qd1[i] - _t49*qd6[i] + _t55*qd2[i] + _t55*qd3[i] + qd4[i]*(_c0[i]*_c3[i]*_c4[i]*_c5[i] - _c1[i]*_t41 - _t30*_t40 - _t44);
+                _xd_block[7][i] = _t33*qd6[i] + _t34*qd1[i] + _t35*_t54 + _t56*qd2[i] + _t56*qd3[i] + qd4[i]*(_c1[i]*_c4[i]*_s0[i]*_s3[i]*_s5[i] - _c1[i]*_t28 - _c4[i]*_t29 - _t32);
+                _xd_block[8][i] = _t20*qd1[i] + _t51*(_c1[i]*_t39 - _t17) + _t57*qd2[i] + _t57*qd3[i] + qd5[i]*(-_c4[i]*_t50 + _s0[i]*_s1[i]*_s4[i] - _t27*_t30);
+                _xd_block[9][i] = -_t22*_t52 - _t37*qd6[i] - _t58*(_c4[i]*_t31 + _t36) + _t59*qd2[i] + _t59*qd3[i];
+                _xd_block[10][i] = _t25*qd6[i] + _t35*_t52 + _t58*(_c4[i]*_t43 - _t24) + _t60*qd2[i] + _t60*qd3[i];
+                _xd_block[11][i] = _s3[i]*_t48*qd4[i] + _t61*qd2[i] + _t61*qd3[i] + qd5[i]*(-_c3[i]*_t15 - _t18);
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t4 = _c1[i]*d4 + _s1[i]*a3;
+                const double _t5 = _t4*qd3[i];
+                const double _t6 = qd2[i]*(_s2[i]*a2 + _t4);
+                const double _t8 = _c2[i]*a2;
+                const double _t9 = _c1[i]*a3;
+                const double _t10 = _s1[i]*d4;
+                const double _t11 = -_t10 + _t9;
+                const double _t15 = _c4[i]*_s1[i];
+                const double _t17 = _c0[i]*_c3[i];
+                const double _t18 = _c1[i]*_s4[i];
+                const double _t19 = _c0[i]*_t15 - _s0[i]*_s3[i]*_s4[i] + _t17*_t18;
+                const double _t20 = -_t19;
+                const double _t22 = _c5[i]*qd5[i];
+                const double _t24 = _c3[i]*_c5[i];
+                const double _t25 = -_c5[i]*_t18 + _s1[i]*_s3[i]*_s5[i] - _t15*_t24;
+                const double _t26 = _c0[i]*_t25;
+                const double _t27 = _c3[i]*_s0[i];
+                const double _t28 = _c5[i]*_t27;
+                const double _t29 = _s5[i]*_t17;
+                const double _t30 = _c1[i]*_c4[i];
+                const double _t31 = _c5[i]*_s3[i];
+                const double _t32 = _c0[i]*_t31;
+                const double _t33 = _c1[i]*_s0[i]*_s3[i]*_s5[i] - _c4[i]*_t32 + _c5[i]*_s0[i]*_s1[i]*_s4[i] - _t28*_t30 - _t29;
+                const double _t34 = _c0[i]*_s1[i]*_s4[i]*_s5[i] - _c1[i]*_t32 + _c4[i]*_s0[i]*_s3[i]*_s5[i] - _t28 - _t29*_t30;
+                const double _t35 = _s5[i]*qd5[i];
+                const double _t36 = _c3[i]*_s5[i];
+                const double _t37 = _s1[i]*_t31 + _s5[i]*_t18 + _t15*_t36;
+                const double _t38 = _c0[i]*_t37;
+                const double _t39 = _s0[i]*_s3[i];
+                const double _t40 = _c5[i]*_t39;
+                const double _t41 = _s5[i]*_t27;
+                const double _t42 = _c5[i]*_t17;
+                const double _t43 = _s3[i]*_s5[i];
+                const double _t44 = _c0[i]*_t43;
+                const double _t45 = _c0[i]*_s4[i];
+                const double _t46 = _s1[i]*_t45;
+                const double _t47 = _c1[i]*_t44 + _c4[i]*_t40 + _c5[i]*_t46 - _t30*_t42 + _t41;
+                const double _t48 = _s1[i]*_s4[i];
+                const double _t49 = _c1[i]*_t40 + _c4[i]*_t44 - _s0[i]*_s5[i]*_t48 + _t30*_t41 - _t42;
+                const double _t50 = _c0[i]*_s3[i];
+                const double _t51 = _s4[i]*qd4[i];
+                const double _t52 = _c3[i]*_t48 - _t30;
+                const double _t53 = _c0[i]*_t52;
+                const double _t54 = _s0[i]*_t15 + _s3[i]*_t45 + _t18*_t27;
+                const double _t55 = _s0[i]*_t25;
+                const double _t56 = _s0[i]*_t37;
+                const double _t57 = _s0[i]*_t52;
+                const double _t58 = _s1[i]*qd4[i];
+                const double _t59 = _c1[i]*_c3[i]*_c4[i]*_c5[i] - _c1[i]*_t43 - _c5[i]*_t48;
+                const double _t60 = -_c1[i]*_t31 + _s1[i]*_s4[i]*_s5[i] - _t30*_t36;
+                const double _t61 = -_c3[i]*_t18 - _t15;
+                xd[12 * (start + i) + 0] = -_c0[i]*_t5 - _c0[i]*_t6 + qd1[i]*(_c0[i]*d3 + _s0[i]*_s1[i]*d4 - _s0[i]*_t8 - _s0[i]*_t9);
+                xd[12 * (start + i) + 1] = -_s0[i]*_t5 - _s0[i]*_t6 + qd1[i]*(-_c0[i]*_t10 + _c0[i]*_t8 + _c0[i]*_t9 + _s0[i]*d3);
+                xd[12 * (start + i) + 2] = _t11*qd3[i] + qd2[i]*(_t11 + _t8);
+                xd[12 * (start + i) + 3] = _t20*_t22 + _t26*qd2[i] + _t26*qd3[i] + _t33*qd1[i] + _t34*qd6[i] + qd4[i]*(-_c1[i]*_t29 - _c4[i]*_t28 + _s0[i]*_s3[i]*_s5[i] - _t30*_t32);
+                xd[12 * (start + i) + 4] = _t19*_t35 + _t38*qd2[i] + _t38*qd3[i] + _t47*qd6[i] + _t49*qd1[i] + qd4[i]*(-_c1[i]*_t42 + _c4[i]*_t41 + _t30*_t44 + _t40);
+                xd[12 * (start + i) + 5] = _t51*(_c1[i]*_t50 + _t27) + _t53*qd2[i] + _t53*qd3[i] + _t54*qd1[i] + qd5[i]*(_c4[i]*_t39 - _t17*_t30 + _t46);
+                xd[12 * (start + i) + 6] = -_t22*_t54 - _t47*qd1[i] - _t49*qd6[i] + _t55*qd2[i] + _t55*qd3[i] + qd4[i]*(_c0[i]*_c3[i]*_c4[i]*_c5[i] - _c1[i]*_t41 - _t30*_t40 - _t44);
+                xd[12 * (start + i) + 7] = _t33*qd6[i] + _t34*qd1[i] + _t35*_t54 + _t56*qd2[i] + _t56*qd3[i] + qd4[i]*(_c1[i]*_c4[i]*_s0[i]*_s3[i]*_s5[i] - _c1[i]*_t28 - _c4[i]*_t29 - _t32);
+                xd[12 * (start + i) + 8] = _t20*qd1[i] + _t51*(_c1[i]*_t39 - _t17) + _t57*qd2[i] + _t57*qd3[i] + qd5[i]*(-_c4[i]*_t50 + _s0[i]*_s1[i]*_s4[i] - _t27*_t30);
+                xd[12 * (start + i) + 9] = -_t22*_t52 - _t37*qd6[i] - _t58*(_c4[i]*_t31 + _t36) + _t59*qd2[i] + _t59*qd3[i];
+                xd[12 * (start + i) + 10] = _t25*qd6[i] + _t35*_t52 + _t58*(_c4[i]*_t43 - _t24) + _t60*qd2[i] + _t60*qd3[i];
+                xd[12 * (start + i) + 11] = _s3[i]*_t48*qd4[i] + _t61*qd2[i] + _t61*qd3[i] + qd5[i]*(-_c3[i]*_t15 - _t18);
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 12; k += 2) {
+                    _mm_stream_pd(xd + 12 * (start + i) + k, _mm_set_pd(_xd_block[k + 1][i], _xd_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         puma560_task_velocity(q + 6 * i, qd + 6 * i, params, xd + 12 * i);
     }
+#endif
 }
 
 /* Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s. */
@@ -1067,44 +3899,244 @@ void puma560_twist(const double *restrict q, const double *restrict qd, const pu
     const double d3 = params->d3;
     const double d4 = params->d4;
     const double _t0 = q2 + q3;
-    const double _t1 = sin(_t0);
-    const double _t2 = cos(_t0);
-    const double _t3 = _t1*a3 + _t2*d4;
-    const double _t4 = cos(q1);
-    const double _t5 = _t4*qd3;
-    const double _t6 = _t3 + a2*sin(q2);
-    const double _t7 = _t4*qd2;
-    const double _t8 = sin(q1);
-    const double _t9 = a2*cos(q2);
-    const double _t10 = _t2*a3;
-    const double _t11 = _t8*qd3;
-    const double _t12 = _t8*qd2;
-    const double _t13 = _t1*d4;
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { _t0, q1, q2, q4, q5, 0.0, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+    _s2 = sin(q2);
+    _c2 = cos(q2);
+    _s3 = sin(q4);
+    _c3 = cos(q4);
+    _s4 = sin(q5);
+    _c4 = cos(q5);
+#endif
+    const double _t3 = _c0*d4 + _s0*a3;
+    const double _t5 = _c1*qd3;
+    const double _t6 = _s2*a2 + _t3;
+    const double _t7 = _c1*qd2;
+    const double _t9 = _c2*a2;
+    const double _t10 = _c0*a3;
+    const double _t11 = _s1*qd3;
+    const double _t12 = _s1*qd2;
+    const double _t13 = _s0*d4;
     const double _t14 = _t10 - _t13;
-    const double _t15 = _t1*_t4;
-    const double _t16 = cos(q4);
-    const double _t17 = _t16*_t8;
-    const double _t18 = sin(q4);
-    const double _t19 = _t18*_t2;
-    const double _t20 = sin(q5);
-    const double _t21 = cos(q5);
-    const double _t22 = _t16*_t4;
-    const double _t23 = _t2*_t20;
-    const double _t24 = _t1*_t8;
-    twist[0] = -_t3*_t5 - _t6*_t7 + qd1*(_t1*_t8*d4 - _t10*_t8 + _t4*d3 - _t8*_t9);
-    twist[1] = -_t11*_t3 - _t12*_t6 + qd1*(_t10*_t4 - _t13*_t4 + _t4*_t9 + _t8*d3);
+    const double _t15 = _c1*_s0;
+    const double _t17 = _c3*_s1;
+    const double _t19 = _c0*_s3;
+    const double _t22 = _c1*_c3;
+    const double _t23 = _c0*_s4;
+    const double _t24 = _s0*_s1;
+    twist[0] = -_t3*_t5 - _t6*_t7 + qd1*(_c1*d3 + _s0*_s1*d4 - _s1*_t10 - _s1*_t9);
+    twist[1] = -_t11*_t3 - _t12*_t6 + qd1*(_c1*_t10 - _c1*_t13 + _c1*_t9 + _s1*d3);
     twist[2] = _t14*qd3 + qd2*(_t14 + _t9);
-    twist[3] = _t11 + _t12 - _t15*qd4 + qd5*(_t17 + _t19*_t4) + qd6*(-_t15*_t21 + _t18*_t20*_t8 - _t22*_t23);
-    twist[4] = -_t24*qd4 - _t5 - _t7 + qd5*(_t19*_t8 - _t22) + qd6*(-_t17*_t23 - _t18*_t20*_t4 - _t21*_t24);
-    twist[5] = _t1*_t18*qd5 + _t2*qd4 + qd1 + qd6*(-_t1*_t16*_t20 + _t2*_t21);
+    twist[3] = _t11 + _t12 - _t15*qd4 + qd5*(_c1*_t19 + _t17) + qd6*(-_c4*_t15 + _s1*_s3*_s4 - _t22*_t23);
+    twist[4] = -_t24*qd4 - _t5 - _t7 + qd5*(_s1*_t19 - _t22) + qd6*(-_c1*_s3*_s4 - _c4*_t24 - _t17*_t23);
+    twist[5] = _c0*qd4 + _s0*_s3*qd5 + qd1 + qd6*(_c0*_c4 - _c3*_s0*_s4);
 }
 
+/* twist of `count` items, stored one after the other in each argument and output. */
 void puma560_twist_batch(size_t count, const double *restrict q, const double *restrict qd, const puma560_params *restrict params, double *restrict twist)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double q5[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double qd3[KINEGEN_BLOCK_OF(64)];
+    double qd4[KINEGEN_BLOCK_OF(64)];
+    double qd5[KINEGEN_BLOCK_OF(64)];
+    double qd6[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    double _s4[KINEGEN_BLOCK_OF(64)];
+    double _c4[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _twist_block[6][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)twist & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[6 * (start + i) + 0];
+            q2[i] = q[6 * (start + i) + 1];
+            q3[i] = q[6 * (start + i) + 2];
+            q4[i] = q[6 * (start + i) + 3];
+            q5[i] = q[6 * (start + i) + 4];
+            qd1[i] = qd[6 * (start + i) + 0];
+            qd2[i] = qd[6 * (start + i) + 1];
+            qd3[i] = qd[6 * (start + i) + 2];
+            qd4[i] = qd[6 * (start + i) + 3];
+            qd5[i] = qd[6 * (start + i) + 4];
+            qd6[i] = qd[6 * (start + i) + 5];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q2[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(q5[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _c0[i]*d4 + _s0[i]*a3;
+                const double _t5 = _c1[i]*qd3[i];
+                const double _t6 = _s2[i]*a2 + _t3;
+                const double _t7 = _c1[i]*qd2[i];
+                const double _t9 = _c2[i]*a2;
+                const double _t10 = _c0[i]*a3;
+                const double _t11 = _s1[i]*qd3[i];
+                const double _t12 = _s1[i]*qd2[i];
+                const double _t13 = _s0[i]*d4;
+                const double _t14 = _t10 - _t13;
+                const double _t15 = _c1[i]*_s0[i];
+                const double _t17 = _c3[i]*_s1[i];
+                const double _t19 = _c0[i]*_s3[i];
+                const double _t22 = _c1[i]*_c3[i];
+                const double _t23 = _c0[i]*_s4[i];
+                const double _t24 = _s0[i]*_s1[i];
+                _twist_block[0][i] = -_t3*_t5 - _t6*_t7 + qd1[i]*(_c1[i]*d3 + _s0[i]*_s1[i]*d4 - _s1[i]*_t10 - _s1[i]*_t9);
+                _twist_block[1][i] = -_t11*_t3 - _t12*_t6 + qd1[i]*(_c1[i]*_t10 - _c1[i]*_t13 + _c1[i]*_t9 + _s1[i]*d3);
+                _twist_block[2][i] = _t14*qd3[i] + qd2[i]*(_t14 + _t9);
+                _twist_block[3][i] = _t11 + _t12 - _t15*qd4[i] + qd5[i]*(_c1[i]*_t19 + _t17) + qd6[i]*(-_c4[i]*_t15 + _s1[i]*_s3[i]*_s4[i] - _t22*_t23);
+                _twist_block[4][i] = -_t24*qd4[i] - _t5 - _t7 + qd5[i]*(_s1[i]*_t19 - _t22) + qd6[i]*(-_c1[i]*_s3[i]*_s4[i] - _c4[i]*_t24 - _t17*_t23);
+                _twist_block[5][i] = _c0[i]*qd4[i] + _s0[i]*_s3[i]*qd5[i] + qd1[i] + qd6[i]*(_c0[i]*_c4[i] - _c3[i]*_s0[i]*_s4[i]);
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _c0[i]*d4 + _s0[i]*a3;
+                const double _t5 = _c1[i]*qd3[i];
+                const double _t6 = _s2[i]*a2 + _t3;
+                const double _t7 = _c1[i]*qd2[i];
+                const double _t9 = _c2[i]*a2;
+                const double _t10 = _c0[i]*a3;
+                const double _t11 = _s1[i]*qd3[i];
+                const double _t12 = _s1[i]*qd2[i];
+                const double _t13 = _s0[i]*d4;
+                const double _t14 = _t10 - _t13;
+                const double _t15 = _c1[i]*_s0[i];
+                const double _t17 = _c3[i]*_s1[i];
+                const double _t19 = _c0[i]*_s3[i];
+                const double _t22 = _c1[i]*_c3[i];
+                const double _t23 = _c0[i]*_s4[i];
+                const double _t24 = _s0[i]*_s1[i];
+                twist[6 * (start + i) + 0] = -_t3*_t5 - _t6*_t7 + qd1[i]*(_c1[i]*d3 + _s0[i]*_s1[i]*d4 - _s1[i]*_t10 - _s1[i]*_t9);
+                twist[6 * (start + i) + 1] = -_t11*_t3 - _t12*_t6 + qd1[i]*(_c1[i]*_t10 - _c1[i]*_t13 + _c1[i]*_t9 + _s1[i]*d3);
+                twist[6 * (start + i) + 2] = _t14*qd3[i] + qd2[i]*(_t14 + _t9);
+                twist[6 * (start + i) + 3] = _t11 + _t12 - _t15*qd4[i] + qd5[i]*(_c1[i]*_t19 + _t17) + qd6[i]*(-_c4[i]*_t15 + _s1[i]*_s3[i]*_s4[i] - _t22*_t23);
+                twist[6 * (start + i) + 4] = -_t24*qd4[i] - _t5 - _t7 + qd5[i]*(_s1[i]*_t19 - _t22) + qd6[i]*(-_c1[i]*_s3[i]*_s4[i] - _c4[i]*_t24 - _t17*_t23);
+                twist[6 * (start + i) + 5] = _c0[i]*qd4[i] + _s0[i]*_s3[i]*qd5[i] + qd1[i] + qd6[i]*(_c0[i]*_c4[i] - _c3[i]*_s0[i]*_s4[i]);
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 6; k += 2) {
+                    _mm_stream_pd(twist + 6 * (start + i) + k, _mm_set_pd(_twist_block[k + 1][i], _twist_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         puma560_twist(q + 6 * i, qd + 6 * i, params, twist + 6 * i);
     }
+#endif
 }
 
 /* d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 12, 6). */
@@ -1129,180 +4161,212 @@ void puma560_task_jacobian_dot(const double *restrict q, const double *restrict 
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t0 = sin(q1);
     const double _t1 = q2 + q3;
-    const double _t2 = sin(_t1);
-    const double _t3 = _t2*a3;
-    const double _t4 = cos(_t1);
-    const double _t5 = _t4*d4;
-    const double _t6 = _t0*_t3 + _t0*_t5;
-    const double _t7 = a2*sin(q2);
-    const double _t8 = cos(q1);
-    const double _t9 = a2*cos(q2);
-    const double _t10 = _t4*a3;
-    const double _t11 = _t10 - _t2*d4;
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { q1, _t1, q2, q6, q5, q4, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+        _s5 = sine[5];
+        _c5 = cosine[5];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t1);
+    _c1 = cos(_t1);
+    _s2 = sin(q2);
+    _c2 = cos(q2);
+    _s3 = sin(q6);
+    _c3 = cos(q6);
+    _s4 = sin(q5);
+    _c4 = cos(q5);
+    _s5 = sin(q4);
+    _c5 = cos(q4);
+#endif
+    const double _t3 = _s1*a3;
+    const double _t5 = _c1*d4;
+    const double _t6 = _s0*_t3 + _s0*_t5;
+    const double _t7 = _s2*a2;
+    const double _t9 = _c2*a2;
+    const double _t10 = _c1*a3;
+    const double _t11 = -_s1*d4 + _t10;
     const double _t12 = _t11*qd3;
-    const double _t13 = _t12*_t8;
+    const double _t13 = _c0*_t12;
     const double _t14 = _t3 + _t5;
     const double _t15 = _t14 + _t7;
     const double _t16 = _t11 + _t9;
-    const double _t17 = _t8*qd2;
-    const double _t18 = _t3*_t8 + _t5*_t8;
-    const double _t19 = _t0*_t12;
-    const double _t20 = _t8*qd1;
-    const double _t21 = _t0*qd2;
+    const double _t17 = _c0*qd2;
+    const double _t18 = _c0*_t3 + _c0*_t5;
+    const double _t19 = _s0*_t12;
+    const double _t20 = _c0*qd1;
+    const double _t21 = _s0*qd2;
     const double _t22 = -_t14;
     const double _t23 = _t22*qd3;
-    const double _t24 = cos(q6);
-    const double _t25 = sin(q5);
-    const double _t26 = sin(q4);
-    const double _t27 = _t26*_t8;
-    const double _t28 = _t25*_t27;
-    const double _t29 = cos(q5);
-    const double _t30 = _t2*_t29;
-    const double _t31 = _t0*_t30;
-    const double _t32 = cos(q4);
-    const double _t33 = _t0*_t32;
-    const double _t34 = _t25*_t4;
-    const double _t35 = _t24*_t34;
-    const double _t36 = sin(q6);
-    const double _t37 = _t0*_t26;
-    const double _t38 = _t36*_t37;
-    const double _t39 = _t24*_t33;
-    const double _t40 = _t0*_t35 - _t2*_t38 + _t30*_t39;
-    const double _t41 = _t27*_t36;
-    const double _t42 = _t32*_t8;
-    const double _t43 = _t24*_t42;
-    const double _t44 = _t33*_t36;
-    const double _t45 = _t29*_t4;
-    const double _t46 = _t24*_t45;
-    const double _t47 = -_t29*_t43 + _t37*_t46 + _t4*_t44 + _t41;
-    const double _t48 = _t2*_t25;
-    const double _t49 = _t24*_t48;
-    const double _t50 = _t24*_t37;
-    const double _t51 = _t29*_t50 + _t4*_t41 - _t43*_t45 + _t44;
-    const double _t52 = _t49*_t8 + _t51;
-    const double _t53 = _t36*_t48;
-    const double _t54 = _t29*_t41 + _t4*_t50 - _t43 + _t44*_t45;
-    const double _t55 = -_t0*_t53 + _t54;
-    const double _t56 = _t40*qd2 + _t40*qd3 + _t47*qd4 + _t52*qd1 + _t55*qd6 + qd5*(_t24*_t28 + _t24*_t31 + _t33*_t35);
-    const double _t57 = _t32*_t36;
-    const double _t58 = _t24*_t26;
-    const double _t59 = qd4*(_t2*_t57 + _t30*_t58);
-    const double _t60 = _t24*_t32;
+    const double _t27 = _c0*_s5;
+    const double _t28 = _s4*_t27;
+    const double _t30 = _c4*_s1;
+    const double _t31 = _s0*_t30;
+    const double _t33 = _c5*_s0;
+    const double _t34 = _c1*_s4;
+    const double _t35 = _c3*_t34;
+    const double _t37 = _s0*_s5;
+    const double _t38 = _s3*_t37;
+    const double _t39 = _c3*_t33;
+    const double _t40 = _s0*_t35 - _s1*_t38 + _t30*_t39;
+    const double _t41 = _s3*_t27;
+    const double _t42 = _c0*_c5;
+    const double _t43 = _c3*_t42;
+    const double _t44 = _s3*_t33;
+    const double _t45 = _c1*_c4;
+    const double _t46 = _c3*_t45;
+    const double _t47 = _c1*_t44 - _c4*_t43 + _t37*_t46 + _t41;
+    const double _t48 = _s1*_s4;
+    const double _t49 = _c3*_t48;
+    const double _t50 = _c3*_t37;
+    const double _t51 = _c1*_t41 + _c4*_t50 - _t43*_t45 + _t44;
+    const double _t52 = _c0*_t49 + _t51;
+    const double _t53 = _s3*_t48;
+    const double _t54 = _c1*_t50 + _c4*_t41 - _t43 + _t44*_t45;
+    const double _t55 = -_s0*_t53 + _t54;
+    const double _t56 = _t40*qd2 + _t40*qd3 + _t47*qd4 + _t52*qd1 + _t55*qd6 + qd5*(_c3*_t28 + _c3*_t31 + _t33*_t35);
+    const double _t57 = _c5*_s3;
+    const double _t58 = _c3*_s5;
+    const double _t59 = qd4*(_s1*_t57 + _t30*_t58);
+    const double _t60 = _c3*_c5;
     const double _t61 = qd5*(-_t46 + _t48*_t60);
-    const double _t62 = _t34*_t36;
-    const double _t63 = _t2*_t58 + _t30*_t57 + _t62;
+    const double _t62 = _s3*_t34;
+    const double _t63 = _s1*_t58 + _t30*_t57 + _t62;
     const double _t64 = _t63*qd6;
-    const double _t65 = _t26*_t36;
-    const double _t66 = _t4*_t65 - _t45*_t60 + _t49;
+    const double _t65 = _s3*_s5;
+    const double _t66 = _c1*_t65 - _t45*_t60 + _t49;
     const double _t67 = _t66*qd2;
     const double _t68 = _t66*qd3;
-    const double _t69 = -_t2*_t26*_t36 + _t30*_t60 + _t35;
+    const double _t69 = -_s1*_s3*_s5 + _t30*_t60 + _t35;
     const double _t70 = -_t69;
-    const double _t71 = _t0*qd1;
-    const double _t72 = _t59*_t8 + _t61*_t8 + _t64*_t8 + _t67*_t8 + _t68*_t8 - _t70*_t71;
-    const double _t73 = _t25*_t33;
-    const double _t74 = _t36*_t42;
-    const double _t75 = _t24*_t27;
-    const double _t76 = _t2*_t74 + _t30*_t75;
-    const double _t77 = _t29*_t44 - _t4*_t43 + _t41*_t45 + _t50;
+    const double _t71 = _s0*qd1;
+    const double _t72 = _c0*_t59 + _c0*_t61 + _c0*_t64 + _c0*_t67 + _c0*_t68 - _t70*_t71;
+    const double _t73 = _s4*_t33;
+    const double _t74 = _s3*_t42;
+    const double _t75 = _c3*_t27;
+    const double _t76 = _s1*_t74 + _t30*_t75;
+    const double _t77 = -_c1*_t43 + _c4*_t44 + _t41*_t45 + _t50;
     const double _t78 = _t27*_t34 + _t73;
     const double _t79 = _t78*qd4;
-    const double _t80 = _t42*_t48 - _t45*_t8;
+    const double _t80 = -_c0*_t45 + _t42*_t48;
     const double _t81 = _t80*qd2;
     const double _t82 = _t80*qd3;
     const double _t83 = _t28 + _t31 + _t33*_t34;
     const double _t84 = _t83*qd1;
-    const double _t85 = _t29*_t37;
-    const double _t86 = _t48*_t8;
+    const double _t85 = _c4*_t37;
+    const double _t86 = _c0*_t48;
     const double _t87 = -_t42*_t45 + _t85 + _t86;
     const double _t88 = _t87*qd5;
-    const double _t89 = _t30*_t8;
-    const double _t90 = -_t0*_t25*_t26 + _t34*_t42 + _t89;
-    const double _t91 = _t36*qd6;
-    const double _t92 = _t2*_t75 + _t30*_t74 + _t62*_t8;
-    const double _t93 = _t52*qd6 + _t55*qd1 + _t77*qd4 + _t92*qd2 + _t92*qd3 + qd5*(-_t25*_t36*_t37 + _t36*_t89 + _t42*_t62);
-    const double _t94 = _t25*_t41 + _t31*_t36 + _t34*_t44;
-    const double _t95 = _t0*_t62 + _t2*_t50 + _t30*_t44;
+    const double _t89 = _c0*_t30;
+    const double _t90 = -_s0*_s4*_s5 + _t34*_t42 + _t89;
+    const double _t91 = _s3*qd6;
+    const double _t92 = _c0*_t62 + _s1*_t75 + _t30*_t74;
+    const double _t93 = _t52*qd6 + _t55*qd1 + _t77*qd4 + _t92*qd2 + _t92*qd3 + qd5*(-_s3*_s4*_t37 + _s3*_t89 + _t42*_t62);
+    const double _t94 = _s3*_t31 + _s4*_t41 + _t34*_t44;
+    const double _t95 = _s0*_t62 + _s1*_t50 + _t30*_t44;
     const double _t96 = -_t95;
-    const double _t97 = _t29*_t74 - _t36*_t37*_t45 + _t39*_t4 + _t75;
-    const double _t98 = -_t36*_t85 + _t39 + _t4*_t75 + _t45*_t74;
-    const double _t99 = -_t36*_t86 + _t98;
-    const double _t100 = _t29*_t75 + _t33*_t46 - _t38*_t4 + _t74;
-    const double _t101 = -_t0*_t49 + _t100;
-    const double _t102 = -_t2*_t24*_t32 + _t30*_t65;
+    const double _t97 = _c1*_t39 + _c4*_t74 - _s3*_t37*_t45 + _t75;
+    const double _t98 = _c1*_t75 - _s3*_t85 + _t39 + _t45*_t74;
+    const double _t99 = -_s3*_t86 + _t98;
+    const double _t100 = -_c1*_t38 + _c4*_t75 + _t33*_t46 + _t74;
+    const double _t101 = -_s0*_t49 + _t100;
+    const double _t102 = -_c3*_c5*_s1 + _t30*_t65;
     const double _t103 = -_t102*qd4;
-    const double _t104 = -_t29*_t36*_t4 + _t48*_t57;
+    const double _t104 = -_c1*_c4*_s3 + _t48*_t57;
     const double _t105 = -_t104;
-    const double _t106 = _t8*qd5;
-    const double _t107 = _t4*_t58 + _t45*_t57 - _t53;
-    const double _t108 = _t8*qd3;
+    const double _t106 = _c0*qd5;
+    const double _t107 = _c1*_t58 + _t45*_t57 - _t53;
+    const double _t108 = _c0*qd3;
     const double _t109 = _t69*qd6;
-    const double _t110 = _t103*_t8 + _t105*_t106 + _t107*_t108 + _t107*_t17 + _t109*_t8 - _t63*_t71;
-    const double _t111 = _t2*_t24*_t32*_t8 - _t30*_t41;
-    const double _t112 = _t27*_t46 + _t29*_t39 - _t38 + _t4*_t74;
-    const double _t113 = -_t36*_t80;
-    const double _t114 = _t24*qd6;
-    const double _t115 = _t36*qd5;
-    const double _t116 = _t24*_t89 - _t25*_t50 + _t34*_t43;
-    const double _t117 = -_t2*_t41 + _t30*_t43 + _t35*_t8;
-    const double _t118 = qd4*(_t25*_t32*_t8 - _t34*_t37);
-    const double _t119 = _t0*_t29*_t4 - _t33*_t48;
+    const double _t110 = _c0*_t103 + _c0*_t109 + _t105*_t106 + _t107*_t108 + _t107*_t17 - _t63*_t71;
+    const double _t111 = _c0*_c3*_c5*_s1 - _t30*_t41;
+    const double _t112 = _c1*_t74 + _c4*_t39 + _t27*_t46 - _t38;
+    const double _t113 = -_s3*_t80;
+    const double _t114 = _c3*qd6;
+    const double _t115 = _s3*qd5;
+    const double _t116 = _c3*_t89 - _s4*_t50 + _t34*_t43;
+    const double _t117 = _c0*_t35 - _s1*_t41 + _t30*_t43;
+    const double _t118 = qd4*(_c0*_c5*_s4 - _t34*_t37);
+    const double _t119 = _c1*_c4*_s0 - _t33*_t48;
     const double _t120 = _t119*qd2;
     const double _t121 = _t119*qd3;
     const double _t122 = _t90*qd1;
-    const double _t123 = -_t0*_t48 + _t27*_t29 + _t33*_t45;
+    const double _t123 = _c4*_t27 - _s0*_t48 + _t33*_t45;
     const double _t124 = _t123*qd5;
     const double _t125 = _t27*_t48;
-    const double _t126 = _t30 + _t32*_t34;
-    const double _t127 = _t30*_t32 + _t34;
-    const double _t128 = _t32*_t48;
+    const double _t126 = _c5*_t34 + _t30;
+    const double _t127 = _c5*_t30 + _t34;
+    const double _t128 = _c5*_t48;
     const double _t129 = _t128 - _t45;
     const double _t130 = _t106*_t127 + _t108*_t126 - _t125*qd4 + _t126*_t17 - _t129*_t71;
-    const double _t131 = _t27*_t4 + _t33;
-    const double _t132 = _t29*qd5;
-    const double _t133 = -_t32*_t8 + _t37*_t4;
-    const double _t134 = _t25*qd1;
-    const double _t135 = _t25*qd4;
-    const double _t136 = _t30*_t42 + _t34*_t8;
+    const double _t131 = _c1*_t27 + _t33;
+    const double _t132 = _c4*qd5;
+    const double _t133 = -_c0*_c5 + _c1*_t37;
+    const double _t134 = _s4*qd1;
+    const double _t135 = _s4*qd4;
+    const double _t136 = _c0*_t34 + _t30*_t42;
     const double _t137 = -_t117;
     const double _t138 = -_t112;
     const double _t139 = -_t101;
     const double _t140 = -_t99;
-    const double _t141 = _t0*_t59 + _t0*_t61 + _t0*_t64 + _t0*_t67 + _t0*_t68 + _t20*_t70;
-    const double _t142 = _t2*_t44 + _t30*_t50;
+    const double _t141 = _s0*_t59 + _s0*_t61 + _s0*_t64 + _s0*_t67 + _s0*_t68 + _t20*_t70;
+    const double _t142 = _s1*_t44 + _t30*_t50;
     const double _t143 = -_t97;
-    const double _t144 = _t0*qd5;
-    const double _t145 = _t0*qd3;
-    const double _t146 = _t0*_t103 + _t0*_t109 + _t105*_t144 + _t107*_t145 + _t107*_t21 + _t20*_t63;
-    const double _t147 = _t0*_t2*_t24*_t32 - _t30*_t38;
+    const double _t144 = _s0*qd5;
+    const double _t145 = _s0*qd3;
+    const double _t146 = _s0*_t103 + _s0*_t109 + _t105*_t144 + _t107*_t145 + _t107*_t21 + _t20*_t63;
+    const double _t147 = _c3*_c5*_s0*_s1 - _t30*_t38;
     const double _t148 = _t37*_t48;
     const double _t149 = _t126*_t145 + _t126*_t21 + _t127*_t144 + _t129*_t20 - _t148*qd4;
-    const double _t150 = _t0*_t34 + _t30*_t33;
+    const double _t150 = _s0*_t34 + _t30*_t33;
     const double _t151 = -_t107;
-    const double _t152 = _t151*qd6 + _t70*qd2 + _t70*qd3 + qd4*(-_t4*_t57 - _t45*_t58) + qd5*(-_t24*_t30 - _t34*_t60);
-    const double _t153 = _t29*_t58 + _t57;
-    const double _t154 = _t153*_t4;
-    const double _t155 = _t2*qd4;
-    const double _t156 = -_t24*_t32 + _t29*_t65;
-    const double _t157 = _t2*qd6;
-    const double _t158 = -_t126*_t24;
-    const double _t159 = _t63*qd2 + _t63*qd3 + _t66*qd6 + qd4*(-_t4*_t60 + _t45*_t65) + qd5*(_t30*_t36 + _t34*_t57);
+    const double _t152 = _t151*qd6 + _t70*qd2 + _t70*qd3 + qd4*(-_c1*_t57 - _t45*_t58) + qd5*(-_c3*_t30 - _t34*_t60);
+    const double _t153 = _c4*_t58 + _t57;
+    const double _t154 = _c1*_t153;
+    const double _t155 = _s1*qd4;
+    const double _t156 = -_c3*_c5 + _c4*_t65;
+    const double _t157 = _s1*qd6;
+    const double _t158 = -_c3*_t126;
+    const double _t159 = _t63*qd2 + _t63*qd3 + _t66*qd6 + qd4*(-_c1*_t60 + _t45*_t65) + qd5*(_s3*_t30 + _t34*_t57);
     const double _t160 = _t48*_t65;
-    const double _t161 = _t156*_t4;
-    const double _t162 = _t126*_t36;
-    const double _t163 = _t26*_t34;
-    const double _t164 = -_t32*_t45 + _t48;
+    const double _t161 = _c1*_t156;
+    const double _t162 = _s3*_t126;
+    const double _t163 = _s5*_t34;
+    const double _t164 = -_c5*_t45 + _t48;
     const double _t165 = _t129*qd2 + _t129*qd3 + _t163*qd4 + _t164*qd5;
-    const double _t166 = _t26*_t30;
-    Jx_dot[0] = _t6*qd3 + qd1*(-_t0*d3 - _t10*_t8 + _t2*_t8*d4 - _t8*_t9) + qd2*(_t0*_t7 + _t6);
-    Jx_dot[1] = _t0*_t15*qd1 - _t13 - _t16*_t17;
-    Jx_dot[2] = _t0*_t14*qd1 - _t11*_t17 - _t13;
+    const double _t166 = _s5*_t30;
+    Jx_dot[0] = _t6*qd3 + qd1*(_c0*_s1*d4 - _c0*_t10 - _c0*_t9 - _s0*d3) + qd2*(_s0*_t7 + _t6);
+    Jx_dot[1] = _s0*_t15*qd1 - _t13 - _t16*_t17;
+    Jx_dot[2] = _s0*_t14*qd1 - _t11*_t17 - _t13;
     Jx_dot[3] = 0;
     Jx_dot[4] = 0;
     Jx_dot[5] = 0;
-    Jx_dot[6] = -_t18*qd3 + qd1*(-_t0*_t10 + _t0*_t2*d4 - _t0*_t9 + _t8*d3) + qd2*(-_t18 - _t7*_t8);
+    Jx_dot[6] = -_t18*qd3 + qd1*(_c0*d3 + _s0*_s1*d4 - _s0*_t10 - _s0*_t9) + qd2*(-_c0*_t7 - _t18);
     Jx_dot[7] = -_t15*_t20 - _t16*_t21 - _t19;
     Jx_dot[8] = -_t11*_t21 - _t14*_t20 - _t19;
     Jx_dot[9] = 0;
@@ -1317,49 +4381,49 @@ void puma560_task_jacobian_dot(const double *restrict q, const double *restrict 
     Jx_dot[18] = _t56;
     Jx_dot[19] = _t72;
     Jx_dot[20] = _t72;
-    Jx_dot[21] = _t47*qd1 + _t51*qd4 + _t76*qd2 + _t76*qd3 + _t77*qd6 + qd5*(_t24*_t73 + _t27*_t35);
-    Jx_dot[22] = _t24*_t79 + _t24*_t81 + _t24*_t82 + _t24*_t84 + _t24*_t88 + _t90*_t91;
+    Jx_dot[21] = _t47*qd1 + _t51*qd4 + _t76*qd2 + _t76*qd3 + _t77*qd6 + qd5*(_c3*_t73 + _t27*_t35);
+    Jx_dot[22] = _c3*_t79 + _c3*_t81 + _c3*_t82 + _c3*_t84 + _c3*_t88 + _t90*_t91;
     Jx_dot[23] = _t93;
     Jx_dot[24] = _t101*qd6 - _t94*qd5 + _t96*qd2 + _t96*qd3 + _t97*qd4 + _t99*qd1;
     Jx_dot[25] = _t110;
     Jx_dot[26] = _t110;
-    Jx_dot[27] = _t111*qd2 + _t111*qd3 + _t112*qd6 + _t97*qd1 + _t98*qd4 + qd5*(-_t25*_t44 - _t34*_t41);
-    Jx_dot[28] = _t113*qd2 + _t113*qd3 + _t114*_t90 - _t115*_t87 - _t36*_t78*qd4 - _t36*_t83*qd1;
+    Jx_dot[27] = _t111*qd2 + _t111*qd3 + _t112*qd6 + _t97*qd1 + _t98*qd4 + qd5*(-_s4*_t44 - _t34*_t41);
+    Jx_dot[28] = -_s3*_t78*qd4 - _s3*_t83*qd1 + _t113*qd2 + _t113*qd3 + _t114*_t90 - _t115*_t87;
     Jx_dot[29] = _t101*qd1 + _t112*qd4 + _t116*qd5 + _t117*qd2 + _t117*qd3 + _t99*qd6;
     Jx_dot[30] = _t118 + _t120 + _t121 + _t122 + _t124;
     Jx_dot[31] = _t130;
     Jx_dot[32] = _t130;
-    Jx_dot[33] = -_t125*qd2 - _t125*qd3 + _t131*_t132 - _t133*_t134 + _t135*(_t32*_t4*_t8 - _t37);
-    Jx_dot[34] = _t123*qd1 + _t136*qd2 + _t136*qd3 + _t90*qd5 + qd4*(_t27*_t45 + _t29*_t33);
+    Jx_dot[33] = -_t125*qd2 - _t125*qd3 + _t131*_t132 - _t133*_t134 + _t135*(_c0*_c1*_c5 - _t37);
+    Jx_dot[34] = _t123*qd1 + _t136*qd2 + _t136*qd3 + _t90*qd5 + qd4*(_c4*_t33 + _t27*_t45);
     Jx_dot[35] = 0;
     Jx_dot[36] = -_t116*qd5 + _t137*qd2 + _t137*qd3 + _t138*qd4 + _t139*qd1 + _t140*qd6;
     Jx_dot[37] = _t141;
     Jx_dot[38] = _t141;
-    Jx_dot[39] = -_t100*qd4 + _t138*qd1 + _t142*qd2 + _t142*qd3 + _t143*qd6 + qd5*(-_t25*_t43 + _t35*_t37);
-    Jx_dot[40] = -_t118*_t24 - _t120*_t24 - _t121*_t24 - _t122*_t24 - _t124*_t24 + _t36*_t83*qd6;
+    Jx_dot[39] = -_t100*qd4 + _t138*qd1 + _t142*qd2 + _t142*qd3 + _t143*qd6 + qd5*(-_s4*_t43 + _t35*_t37);
+    Jx_dot[40] = -_c3*_t118 - _c3*_t120 - _c3*_t121 - _c3*_t122 - _c3*_t124 + _s3*_t83*qd6;
     Jx_dot[41] = _t139*qd6 + _t140*qd1 + _t143*qd4 + _t94*qd5 + _t95*qd2 + _t95*qd3;
     Jx_dot[42] = _t93;
     Jx_dot[43] = _t146;
     Jx_dot[44] = _t146;
-    Jx_dot[45] = _t147*qd2 + _t147*qd3 + _t47*qd6 + _t54*qd4 + _t77*qd1 + qd5*(_t25*_t32*_t36*_t8 - _t37*_t62);
-    Jx_dot[46] = _t114*_t83 + _t118*_t36 + _t120*_t36 + _t121*_t36 + _t122*_t36 + _t124*_t36;
+    Jx_dot[45] = _t147*qd2 + _t147*qd3 + _t47*qd6 + _t54*qd4 + _t77*qd1 + qd5*(_c0*_c5*_s3*_s4 - _t37*_t62);
+    Jx_dot[46] = _s3*_t118 + _s3*_t120 + _s3*_t121 + _s3*_t122 + _s3*_t124 + _t114*_t83;
     Jx_dot[47] = _t56;
     Jx_dot[48] = _t79 + _t81 + _t82 + _t84 + _t88;
     Jx_dot[49] = _t149;
     Jx_dot[50] = _t149;
-    Jx_dot[51] = _t131*_t134 + _t132*_t133 + _t135*(_t27 + _t33*_t4) - _t148*qd2 - _t148*qd3;
-    Jx_dot[52] = _t150*qd2 + _t150*qd3 + _t83*qd5 + _t87*qd1 + qd4*(-_t29*_t42 + _t37*_t45);
+    Jx_dot[51] = _t131*_t134 + _t132*_t133 + _t135*(_c1*_t33 + _t27) - _t148*qd2 - _t148*qd3;
+    Jx_dot[52] = _t150*qd2 + _t150*qd3 + _t83*qd5 + _t87*qd1 + qd4*(-_c4*_t42 + _t37*_t45);
     Jx_dot[53] = 0;
     Jx_dot[54] = 0;
     Jx_dot[55] = _t152;
     Jx_dot[56] = _t152;
-    Jx_dot[57] = -_t154*qd2 - _t154*qd3 - _t155*(_t24*_t29*_t32 - _t65) + _t156*_t157 + _t2*_t24*_t25*_t26*qd5;
-    Jx_dot[58] = -_t127*_t24*qd5 + _t129*_t91 + _t158*qd2 + _t158*qd3 + _t48*_t58*qd4;
+    Jx_dot[57] = _c3*_s1*_s4*_s5*qd5 - _t154*qd2 - _t154*qd3 - _t155*(_c3*_c4*_c5 - _t65) + _t156*_t157;
+    Jx_dot[58] = -_c3*_t127*qd5 + _t129*_t91 + _t158*qd2 + _t158*qd3 + _t48*_t58*qd4;
     Jx_dot[59] = _t102*qd4 + _t104*qd5 + _t151*qd2 + _t151*qd3 + _t70*qd6;
     Jx_dot[60] = 0;
     Jx_dot[61] = _t159;
     Jx_dot[62] = _t159;
-    Jx_dot[63] = _t153*_t157 + _t155*(_t29*_t57 + _t58) - _t160*qd5 + _t161*qd2 + _t161*qd3;
+    Jx_dot[63] = _t153*_t157 + _t155*(_c4*_t57 + _t58) - _t160*qd5 + _t161*qd2 + _t161*qd3;
     Jx_dot[64] = _t114*_t129 + _t115*_t127 - _t160*qd4 + _t162*qd2 + _t162*qd3;
     Jx_dot[65] = _t59 + _t61 + _t64 + _t67 + _t68;
     Jx_dot[66] = 0;
@@ -1370,12 +4434,606 @@ void puma560_task_jacobian_dot(const double *restrict q, const double *restrict 
     Jx_dot[71] = 0;
 }
 
+/* task_jacobian_dot of `count` items, stored one after the other in each argument and output. */
 void puma560_task_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const puma560_params *restrict params, double *restrict Jx_dot)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(32)];
+    double q2[KINEGEN_BLOCK_OF(32)];
+    double q3[KINEGEN_BLOCK_OF(32)];
+    double q4[KINEGEN_BLOCK_OF(32)];
+    double q5[KINEGEN_BLOCK_OF(32)];
+    double q6[KINEGEN_BLOCK_OF(32)];
+    double qd1[KINEGEN_BLOCK_OF(32)];
+    double qd2[KINEGEN_BLOCK_OF(32)];
+    double qd3[KINEGEN_BLOCK_OF(32)];
+    double qd4[KINEGEN_BLOCK_OF(32)];
+    double qd5[KINEGEN_BLOCK_OF(32)];
+    double qd6[KINEGEN_BLOCK_OF(32)];
+    double _t1[KINEGEN_BLOCK_OF(32)];
+    double _s0[KINEGEN_BLOCK_OF(32)];
+    double _c0[KINEGEN_BLOCK_OF(32)];
+    double _s1[KINEGEN_BLOCK_OF(32)];
+    double _c1[KINEGEN_BLOCK_OF(32)];
+    double _s2[KINEGEN_BLOCK_OF(32)];
+    double _c2[KINEGEN_BLOCK_OF(32)];
+    double _s3[KINEGEN_BLOCK_OF(32)];
+    double _c3[KINEGEN_BLOCK_OF(32)];
+    double _s4[KINEGEN_BLOCK_OF(32)];
+    double _c4[KINEGEN_BLOCK_OF(32)];
+    double _s5[KINEGEN_BLOCK_OF(32)];
+    double _c5[KINEGEN_BLOCK_OF(32)];
+#ifdef KINEGEN_STREAM
+    double _Jx_dot_block[72][KINEGEN_BLOCK_OF(32)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 72 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx_dot & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(32) ? count - start : KINEGEN_BLOCK_OF(32);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[6 * (start + i) + 0];
+            q2[i] = q[6 * (start + i) + 1];
+            q3[i] = q[6 * (start + i) + 2];
+            q4[i] = q[6 * (start + i) + 3];
+            q5[i] = q[6 * (start + i) + 4];
+            q6[i] = q[6 * (start + i) + 5];
+            qd1[i] = qd[6 * (start + i) + 0];
+            qd2[i] = qd[6 * (start + i) + 1];
+            qd3[i] = qd[6 * (start + i) + 2];
+            qd4[i] = qd[6 * (start + i) + 3];
+            qd5[i] = qd[6 * (start + i) + 4];
+            qd6[i] = qd[6 * (start + i) + 5];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t1[i] = q2[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s5[i] = sin(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c5[i] = cos(q4[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _s1[i]*a3;
+                const double _t5 = _c1[i]*d4;
+                const double _t6 = _s0[i]*_t3 + _s0[i]*_t5;
+                const double _t7 = _s2[i]*a2;
+                const double _t9 = _c2[i]*a2;
+                const double _t10 = _c1[i]*a3;
+                const double _t11 = -_s1[i]*d4 + _t10;
+                const double _t12 = _t11*qd3[i];
+                const double _t13 = _c0[i]*_t12;
+                const double _t14 = _t3 + _t5;
+                const double _t15 = _t14 + _t7;
+                const double _t16 = _t11 + _t9;
+                const double _t17 = _c0[i]*qd2[i];
+                const double _t18 = _c0[i]*_t3 + _c0[i]*_t5;
+                const double _t19 = _s0[i]*_t12;
+                const double _t20 = _c0[i]*qd1[i];
+                const double _t21 = _s0[i]*qd2[i];
+                const double _t22 = -_t14;
+                const double _t23 = _t22*qd3[i];
+                const double _t27 = _c0[i]*_s5[i];
+                const double _t28 = _s4[i]*_t27;
+                const double _t30 = _c4[i]*_s1[i];
+                const double _t31 = _s0[i]*_t30;
+                const double _t33 = _c5[i]*_s0[i];
+                const double _t34 = _c1[i]*_s4[i];
+                const double _t35 = _c3[i]*_t34;
+                const double _t37 = _s0[i]*_s5[i];
+                const double _t38 = _s3[i]*_t37;
+                const double _t39 = _c3[i]*_t33;
+                const double _t40 = _s0[i]*_t35 - _s1[i]*_t38 + _t30*_t39;
+                const double _t41 = _s3[i]*_t27;
+                const double _t42 = _c0[i]*_c5[i];
+                const double _t43 = _c3[i]*_t42;
+                const double _t44 = _s3[i]*_t33;
+                const double _t45 = _c1[i]*_c4[i];
+                const double _t46 = _c3[i]*_t45;
+                const double _t47 = _c1[i]*_t44 - _c4[i]*_t43 + _t37*_t46 + _t41;
+                const double _t48 = _s1[i]*_s4[i];
+                const double _t49 = _c3[i]*_t48;
+                const double _t50 = _c3[i]*_t37;
+                const double _t51 = _c1[i]*_t41 + _c4[i]*_t50 - _t43*_t45 + _t44;
+                const double _t52 = _c0[i]*_t49 + _t51;
+                const double _t53 = _s3[i]*_t48;
+                const double _t54 = _c1[i]*_t50 + _c4[i]*_t41 - _t43 + _t44*_t45;
+                const double _t55 = -_s0[i]*_t53 + _t54;
+                const double _t56 = _t40*qd2[i] + _t40*qd3[i] + _t47*qd4[i] + _t52*qd1[i] + _t55*qd6[i] + qd5[i]*(_c3[i]*_t28 + _c3[i]*_t31 + _t33*_t35);
+                const double _t57 = _c5[i]*_s3[i];
+                const double _t58 = _c3[i]*_s5[i];
+                const double _t59 = qd4[i]*(_s1[i]*_t57 + _t30*_t58);
+                const double _t60 = _c3[i]*_c5[i];
+                const double _t61 = qd5[i]*(-_t46 + _t48*_t60);
+                const double _t62 = _s3[i]*_t34;
+                const double _t63 = _s1[i]*_t58 + _t30*_t57 + _t62;
+                const double _t64 = _t63*qd6[i];
+                const double _t65 = _s3[i]*_s5[i];
+                const double _t66 = _c1[i]*_t65 - _t45*_t60 + _t49;
+                const double _t67 = _t66*qd2[i];
+                const double _t68 = _t66*qd3[i];
+                const double _t69 = -_s1[i]*_s3[i]*_s5[i] + _t30*_t60 + _t35;
+                const double _t70 = -_t69;
+                const double _t71 = _s0[i]*qd1[i];
+                const double _t72 = _c0[i]*_t59 + _c0[i]*_t61 + _c0[i]*_t64 + _c0[i]*_t67 + _c0[i]*_t68 - _t70*_t71;
+                const double _t73 = _s4[i]*_t33;
+                const double _t74 = _s3[i]*_t42;
+                const double _t75 = _c3[i]*_t27;
+                const double _t76 = _s1[i]*_t74 + _t30*_t75;
+                const double _t77 = -_c1[i]*_t43 + _c4[i]*_t44 + _t41*_t45 + _t50;
+                const double _t78 = _t27*_t34 + _t73;
+                const double _t79 = _t78*qd4[i];
+                const double _t80 = -_c0[i]*_t45 + _t42*_t48;
+                const double _t81 = _t80*qd2[i];
+                const double _t82 = _t80*qd3[i];
+                const double _t83 = _t28 + _t31 + _t33*_t34;
+                const double _t84 = _t83*qd1[i];
+                const double _t85 = _c4[i]*_t37;
+                const double _t86 = _c0[i]*_t48;
+                const double _t87 = -_t42*_t45 + _t85 + _t86;
+                const double _t88 = _t87*qd5[i];
+                const double _t89 = _c0[i]*_t30;
+                const double _t90 = -_s0[i]*_s4[i]*_s5[i] + _t34*_t42 + _t89;
+                const double _t91 = _s3[i]*qd6[i];
+                const double _t92 = _c0[i]*_t62 + _s1[i]*_t75 + _t30*_t74;
+                const double _t93 = _t52*qd6[i] + _t55*qd1[i] + _t77*qd4[i] + _t92*qd2[i] + _t92*qd3[i] + qd5[i]*(-_s3[i]*_s4[i]*_t37 + _s3[i]*_t89 + _t42*_t62);
+                const double _t94 = _s3[i]*_t31 + _s4[i]*_t41 + _t34*_t44;
+                const double _t95 = _s0[i]*_t62 + _s1[i]*_t50 + _t30*_t44;
+                const double _t96 = -_t95;
+                const double _t97 = _c1[i]*_t39 + _c4[i]*_t74 - _s3[i]*_t37*_t45 + _t75;
+                const double _t98 = _c1[i]*_t75 - _s3[i]*_t85 + _t39 + _t45*_t74;
+                const double _t99 = -_s3[i]*_t86 + _t98;
+                const double _t100 = -_c1[i]*_t38 + _c4[i]*_t75 + _t33*_t46 + _t74;
+                const double _t101 = -_s0[i]*_t49 + _t100;
+                const double _t102 = -_c3[i]*_c5[i]*_s1[i] + _t30*_t65;
+                const double _t103 = -_t102*qd4[i];
+                const double _t104 = -_c1[i]*_c4[i]*_s3[i] + _t48*_t57;
+                const double _t105 = -_t104;
+                const double _t106 = _c0[i]*qd5[i];
+                const double _t107 = _c1[i]*_t58 + _t45*_t57 - _t53;
+                const double _t108 = _c0[i]*qd3[i];
+                const double _t109 = _t69*qd6[i];
+                const double _t110 = _c0[i]*_t103 + _c0[i]*_t109 + _t105*_t106 + _t107*_t108 + _t107*_t17 - _t63*_t71;
+                const double _t111 = _c0[i]*_c3[i]*_c5[i]*_s1[i] - _t30*_t41;
+                const double _t112 = _c1[i]*_t74 + _c4[i]*_t39 + _t27*_t46 - _t38;
+                const double _t113 = -_s3[i]*_t80;
+                const double _t114 = _c3[i]*qd6[i];
+                const double _t115 = _s3[i]*qd5[i];
+                const double _t116 = _c3[i]*_t89 - _s4[i]*_t50 + _t34*_t43;
+                const double _t117 = _c0[i]*_t35 - _s1[i]*_t41 + _t30*_t43;
+                const double _t118 = qd4[i]*(_c0[i]*_c5[i]*_s4[i] - _t34*_t37);
+                const double _t119 = _c1[i]*_c4[i]*_s0[i] - _t33*_t48;
+                const double _t120 = _t119*qd2[i];
+                const double _t121 = _t119*qd3[i];
+                const double _t122 = _t90*qd1[i];
+                const double _t123 = _c4[i]*_t27 - _s0[i]*_t48 + _t33*_t45;
+                const double _t124 = _t123*qd5[i];
+                const double _t125 = _t27*_t48;
+                const double _t126 = _c5[i]*_t34 + _t30;
+                const double _t127 = _c5[i]*_t30 + _t34;
+                const double _t128 = _c5[i]*_t48;
+                const double _t129 = _t128 - _t45;
+                const double _t130 = _t106*_t127 + _t108*_t126 - _t125*qd4[i] + _t126*_t17 - _t129*_t71;
+                const double _t131 = _c1[i]*_t27 + _t33;
+                const double _t132 = _c4[i]*qd5[i];
+                const double _t133 = -_c0[i]*_c5[i] + _c1[i]*_t37;
+                const double _t134 = _s4[i]*qd1[i];
+                const double _t135 = _s4[i]*qd4[i];
+                const double _t136 = _c0[i]*_t34 + _t30*_t42;
+                const double _t137 = -_t117;
+                const double _t138 = -_t112;
+                const double _t139 = -_t101;
+                const double _t140 = -_t99;
+                const double _t141 = _s0[i]*_t59 + _s0[i]*_t61 + _s0[i]*_t64 + _s0[i]*_t67 + _s0[i]*_t68 + _t20*_t70;
+                const double _t142 = _s1[i]*_t44 + _t30*_t50;
+                const double _t143 = -_t97;
+                const double _t144 = _s0[i]*qd5[i];
+                const double _t145 = _s0[i]*qd3[i];
+                const double _t146 = _s0[i]*_t103 + _s0[i]*_t109 + _t105*_t144 + _t107*_t145 + _t107*_t21 + _t20*_t63;
+                const double _t147 = _c3[i]*_c5[i]*_s0[i]*_s1[i] - _t30*_t38;
+                const double _t148 = _t37*_t48;
+                const double _t149 = _t126*_t145 + _t126*_t21 + _t127*_t144 + _t129*_t20 - _t148*qd4[i];
+                const double _t150 = _s0[i]*_t34 + _t30*_t33;
+                const double _t151 = -_t107;
+                const double _t152 = _t151*qd6[i] + _t70*qd2[i] + _t70*qd3[i] + qd4[i]*(-_c1[i]*_t57 - _t45*_t58) + qd5[i]*(-_c3[i]*_t30 - _t34*_t60);
+                const double _t153 = _c4[i]*_t58 + _t57;
+                const double _t154 = _c1[i]*_t153;
+                const double _t155 = _s1[i]*qd4[i];
+                const double _t156 = -_c3[i]*_c5[i] + _c4[i]*_t65;
+                const double _t157 = _s1[i]*qd6[i];
+                const double _t158 = -_c3[i]*_t126;
+                const double _t159 = _t63*qd2[i] + _t63*qd3[i] + _t66*qd6[i] + qd4[i]*(-_c1[i]*_t60 + _t45*_t65) + qd5[i]*(_s3[i]*_t30 + _t34*_t57);
+                const double _t160 = _t48*_t65;
+                const double _t161 = _c1[i]*_t156;
+                const double _t162 = _s3[i]*_t126;
+                const double _t163 = _s5[i]*_t34;
+                const double _t164 = -_c5[i]*_t45 + _t48;
+                const double _t165 = _t129*qd2[i] + _t129*qd3[i] + _t163*qd4[i] + _t164*qd5[i];
+                const double _t166 = _s5[i]*_t30;
+                _Jx_dot_block[0][i] = _t6*qd3[i] + qd1[i]*(_c0[i]*_s1[i]*d4 - _c0[i]*_t10 - _c0[i]*_t9 - _s0[i]*d3) + qd2[i]*(_s0[i]*_t7 + _t6);
+                _Jx_dot_block[1][i] = _s0[i]*_t15*qd1[i] - _t13 - _t16*_t17;
+                _Jx_dot_block[2][i] = _s0[i]*_t14*qd1[i] - _t11*_t17 - _t13;
+                _Jx_dot_block[3][i] = 0;
+                _Jx_dot_block[4][i] = 0;
+                _Jx_dot_block[5][i] = 0;
+                _Jx_dot_block[6][i] = -_t18*qd3[i] + qd1[i]*(_c0[i]*d3 + _s0[i]*_s1[i]*d4 - _s0[i]*_t10 - _s0[i]*_t9) + qd2[i]*(-_c0[i]*_t7 - _t18);
+                _Jx_dot_block[7][i] = -_t15*_t20 - _t16*_t21 - _t19;
+                _Jx_dot_block[8][i] = -_t11*_t21 - _t14*_t20 - _t19;
+                _Jx_dot_block[9][i] = 0;
+                _Jx_dot_block[10][i] = 0;
+                _Jx_dot_block[11][i] = 0;
+                _Jx_dot_block[12][i] = 0;
+                _Jx_dot_block[13][i] = -_t15*qd2[i] + _t23;
+                _Jx_dot_block[14][i] = _t22*qd2[i] + _t23;
+                _Jx_dot_block[15][i] = 0;
+                _Jx_dot_block[16][i] = 0;
+                _Jx_dot_block[17][i] = 0;
+                _Jx_dot_block[18][i] = _t56;
+                _Jx_dot_block[19][i] = _t72;
+                _Jx_dot_block[20][i] = _t72;
+                _Jx_dot_block[21][i] = _t47*qd1[i] + _t51*qd4[i] + _t76*qd2[i] + _t76*qd3[i] + _t77*qd6[i] + qd5[i]*(_c3[i]*_t73 + _t27*_t35);
+                _Jx_dot_block[22][i] = _c3[i]*_t79 + _c3[i]*_t81 + _c3[i]*_t82 + _c3[i]*_t84 + _c3[i]*_t88 + _t90*_t91;
+                _Jx_dot_block[23][i] = _t93;
+                _Jx_dot_block[24][i] = _t101*qd6[i] - _t94*qd5[i] + _t96*qd2[i] + _t96*qd3[i] + _t97*qd4[i] + _t99*qd1[i];
+                _Jx_dot_block[25][i] = _t110;
+                _Jx_dot_block[26][i] = _t110;
+                _Jx_dot_block[27][i] = _t111*qd2[i] + _t111*qd3[i] + _t112*qd6[i] + _t97*qd1[i] + _t98*qd4[i] + qd5[i]*(-_s4[i]*_t44 - _t34*_t41);
+                _Jx_dot_block[28][i] = -_s3[i]*_t78*qd4[i] - _s3[i]*_t83*qd1[i] + _t113*qd2[i] + _t113*qd3[i] + _t114*_t90 - _t115*_t87;
+                _Jx_dot_block[29][i] = _t101*qd1[i] + _t112*qd4[i] + _t116*qd5[i] + _t117*qd2[i] + _t117*qd3[i] + _t99*qd6[i];
+                _Jx_dot_block[30][i] = _t118 + _t120 + _t121 + _t122 + _t124;
+                _Jx_dot_block[31][i] = _t130;
+                _Jx_dot_block[32][i] = _t130;
+                _Jx_dot_block[33][i] = -_t125*qd2[i] - _t125*qd3[i] + _t131*_t132 - _t133*_t134 + _t135*(_c0[i]*_c1[i]*_c5[i] - _t37);
+                _Jx_dot_block[34][i] = _t123*qd1[i] + _t136*qd2[i] + _t136*qd3[i] + _t90*qd5[i] + qd4[i]*(_c4[i]*_t33 + _t27*_t45);
+                _Jx_dot_block[35][i] = 0;
+                _Jx_dot_block[36][i] = -_t116*qd5[i] + _t137*qd2[i] + _t137*qd3[i] + _t138*qd4[i] + _t139*qd1[i] + _t140*qd6[i];
+                _Jx_dot_block[37][i] = _t141;
+                _Jx_dot_block[38][i] = _t141;
+                _Jx_dot_block[39][i] = -_t100*qd4[i] + _t138*qd1[i] + _t142*qd2[i] + _t142*qd3[i] + _t143*qd6[i] + qd5[i]*(-_s4[i]*_t43 + _t35*_t37);
+                _Jx_dot_block[40][i] = -_c3[i]*_t118 - _c3[i]*_t120 - _c3[i]*_t121 - _c3[i]*_t122 - _c3[i]*_t124 + _s3[i]*_t83*qd6[i];
+                _Jx_dot_block[41][i] = _t139*qd6[i] + _t140*qd1[i] + _t143*qd4[i] + _t94*qd5[i] + _t95*qd2[i] + _t95*qd3[i];
+                _Jx_dot_block[42][i] = _t93;
+                _Jx_dot_block[43][i] = _t146;
+                _Jx_dot_block[44][i] = _t146;
+                _Jx_dot_block[45][i] = _t147*qd2[i] + _t147*qd3[i] + _t47*qd6[i] + _t54*qd4[i] + _t77*qd1[i] + qd5[i]*(_c0[i]*_c5[i]*_s3[i]*_s4[i] - _t37*_t62);
+                _Jx_dot_block[46][i] = _s3[i]*_t118 + _s3[i]*_t120 + _s3[i]*_t121 + _s3[i]*_t122 + _s3[i]*_t124 + _t114*_t83;
+                _Jx_dot_block[47][i] = _t56;
+                _Jx_dot_block[48][i] = _t79 + _t81 + _t82 + _t84 + _t88;
+                _Jx_dot_block[49][i] = _t149;
+                _Jx_dot_block[50][i] = _t149;
+                _Jx_dot_block[51][i] = _t131*_t134 + _t132*_t133 + _t135*(_c1[i]*_t33 + _t27) - _t148*qd2[i] - _t148*qd3[i];
+                _Jx_dot_block[52][i] = _t150*qd2[i] + _t150*qd3[i] + _t83*qd5[i] + _t87*qd1[i] + qd4[i]*(-_c4[i]*_t42 + _t37*_t45);
+                _Jx_dot_block[53][i] = 0;
+                _Jx_dot_block[54][i] = 0;
+                _Jx_dot_block[55][i] = _t152;
+                _Jx_dot_block[56][i] = _t152;
+                _Jx_dot_block[57][i] = _c3[i]*_s1[i]*_s4[i]*_s5[i]*qd5[i] - _t154*qd2[i] - _t154*qd3[i] - _t155*(_c3[i]*_c4[i]*_c5[i] - _t65) + _t156*_t157;
+                _Jx_dot_block[58][i] = -_c3[i]*_t127*qd5[i] + _t129*_t91 + _t158*qd2[i] + _t158*qd3[i] + _t48*_t58*qd4[i];
+                _Jx_dot_block[59][i] = _t102*qd4[i] + _t104*qd5[i] + _t151*qd2[i] + _t151*qd3[i] + _t70*qd6[i];
+                _Jx_dot_block[60][i] = 0;
+                _Jx_dot_block[61][i] = _t159;
+                _Jx_dot_block[62][i] = _t159;
+                _Jx_dot_block[63][i] = _t153*_t157 + _t155*(_c4[i]*_t57 + _t58) - _t160*qd5[i] + _t161*qd2[i] + _t161*qd3[i];
+                _Jx_dot_block[64][i] = _t114*_t129 + _t115*_t127 - _t160*qd4[i] + _t162*qd2[i] + _t162*qd3[i];
+                _Jx_dot_block[65][i] = _t59 + _t61 + _t64 + _t67 + _t68;
+                _Jx_dot_block[66][i] = 0;
+                _Jx_dot_block[67][i] = _t165;
+                _Jx_dot_block[68][i] = _t165;
+                _Jx_dot_block[69][i] = _t128*qd4[i] + _t163*qd2[i] + _t163*qd3[i] + _t166*qd5[i];
+                _Jx_dot_block[70][i] = _t129*qd5[i] + _t164*qd2[i] + _t164*qd3[i] + _t166*qd4[i];
+                _Jx_dot_block[71][i] = 0;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _s1[i]*a3;
+                const double _t5 = _c1[i]*d4;
+                const double _t6 = _s0[i]*_t3 + _s0[i]*_t5;
+                const double _t7 = _s2[i]*a2;
+                const double _t9 = _c2[i]*a2;
+                const double _t10 = _c1[i]*a3;
+                const double _t11 = -_s1[i]*d4 + _t10;
+                const double _t12 = _t11*qd3[i];
+                const double _t13 = _c0[i]*_t12;
+                const double _t14 = _t3 + _t5;
+                const double _t15 = _t14 + _t7;
+                const double _t16 = _t11 + _t9;
+                const double _t17 = _c0[i]*qd2[i];
+                const double _t18 = _c0[i]*_t3 + _c0[i]*_t5;
+                const double _t19 = _s0[i]*_t12;
+                const double _t20 = _c0[i]*qd1[i];
+                const double _t21 = _s0[i]*qd2[i];
+                const double _t22 = -_t14;
+                const double _t23 = _t22*qd3[i];
+                const double _t27 = _c0[i]*_s5[i];
+                const double _t28 = _s4[i]*_t27;
+                const double _t30 = _c4[i]*_s1[i];
+                const double _t31 = _s0[i]*_t30;
+                const double _t33 = _c5[i]*_s0[i];
+                const double _t34 = _c1[i]*_s4[i];
+                const double _t35 = _c3[i]*_t34;
+                const double _t37 = _s0[i]*_s5[i];
+                const double _t38 = _s3[i]*_t37;
+                const double _t39 = _c3[i]*_t33;
+                const double _t40 = _s0[i]*_t35 - _s1[i]*_t38 + _t30*_t39;
+                const double _t41 = _s3[i]*_t27;
+                const double _t42 = _c0[i]*_c5[i];
+                const double _t43 = _c3[i]*_t42;
+                const double _t44 = _s3[i]*_t33;
+                const double _t45 = _c1[i]*_c4[i];
+                const double _t46 = _c3[i]*_t45;
+                const double _t47 = _c1[i]*_t44 - _c4[i]*_t43 + _t37*_t46 + _t41;
+                const double _t48 = _s1[i]*_s4[i];
+                const double _t49 = _c3[i]*_t48;
+                const double _t50 = _c3[i]*_t37;
+                const double _t51 = _c1[i]*_t41 + _c4[i]*_t50 - _t43*_t45 + _t44;
+                const double _t52 = _c0[i]*_t49 + _t51;
+                const double _t53 = _s3[i]*_t48;
+                const double _t54 = _c1[i]*_t50 + _c4[i]*_t41 - _t43 + _t44*_t45;
+                const double _t55 = -_s0[i]*_t53 + _t54;
+                const double _t56 = _t40*qd2[i] + _t40*qd3[i] + _t47*qd4[i] + _t52*qd1[i] + _t55*qd6[i] + qd5[i]*(_c3[i]*_t28 + _c3[i]*_t31 + _t33*_t35);
+                const double _t57 = _c5[i]*_s3[i];
+                const double _t58 = _c3[i]*_s5[i];
+                const double _t59 = qd4[i]*(_s1[i]*_t57 + _t30*_t58);
+                const double _t60 = _c3[i]*_c5[i];
+                const double _t61 = qd5[i]*(-_t46 + _t48*_t60);
+                const double _t62 = _s3[i]*_t34;
+                const double _t63 = _s1[i]*_t58 + _t30*_t57 + _t62;
+                const double _t64 = _t63*qd6[i];
+                const double _t65 = _s3[i]*_s5[i];
+                const double _t66 = _c1[i]*_t65 - _t45*_t60 + _t49;
+                const double _t67 = _t66*qd2[i];
+                const double _t68 = _t66*qd3[i];
+                const double _t69 = -_s1[i]*_s3[i]*_s5[i] + _t30*_t60 + _t35;
+                const double _t70 = -_t69;
+                const double _t71 = _s0[i]*qd1[i];
+                const double _t72 = _c0[i]*_t59 + _c0[i]*_t61 + _c0[i]*_t64 + _c0[i]*_t67 + _c0[i]*_t68 - _t70*_t71;
+                const double _t73 = _s4[i]*_t33;
+                const double _t74 = _s3[i]*_t42;
+                const double _t75 = _c3[i]*_t27;
+                const double _t76 = _s1[i]*_t74 + _t30*_t75;
+                const double _t77 = -_c1[i]*_t43 + _c4[i]*_t44 + _t41*_t45 + _t50;
+                const double _t78 = _t27*_t34 + _t73;
+                const double _t79 = _t78*qd4[i];
+                const double _t80 = -_c0[i]*_t45 + _t42*_t48;
+                const double _t81 = _t80*qd2[i];
+                const double _t82 = _t80*qd3[i];
+                const double _t83 = _t28 + _t31 + _t33*_t34;
+                const double _t84 = _t83*qd1[i];
+                const double _t85 = _c4[i]*_t37;
+                const double _t86 = _c0[i]*_t48;
+                const double _t87 = -_t42*_t45 + _t85 + _t86;
+                const double _t88 = _t87*qd5[i];
+                const double _t89 = _c0[i]*_t30;
+                const double _t90 = -_s0[i]*_s4[i]*_s5[i] + _t34*_t42 + _t89;
+                const double _t91 = _s3[i]*qd6[i];
+                const double _t92 = _c0[i]*_t62 + _s1[i]*_t75 + _t30*_t74;
+                const double _t93 = _t52*qd6[i] + _t55*qd1[i] + _t77*qd4[i] + _t92*qd2[i] + _t92*qd3[i] + qd5[i]*(-_s3[i]*_s4[i]*_t37 + _s3[i]*_t89 + _t42*_t62);
+                const double _t94 = _s3[i]*_t31 + _s4[i]*_t41 + _t34*_t44;
+                const double _t95 = _s0[i]*_t62 + _s1[i]*_t50 + _t30*_t44;
+                const double _t96 = -_t95;
+                const double _t97 = _c1[i]*_t39 + _c4[i]*_t74 - _s3[i]*_t37*_t45 + _t75;
+                const double _t98 = _c1[i]*_t75 - _s3[i]*_t85 + _t39 + _t45*_t74;
+                const double _t99 = -_s3[i]*_t86 + _t98;
+                const double _t100 = -_c1[i]*_t38 + _c4[i]*_t75 + _t33*_t46 + _t74;
+                const double _t101 = -_s0[i]*_t49 + _t100;
+                const double _t102 = -_c3[i]*_c5[i]*_s1[i] + _t30*_t65;
+                const double _t103 = -_t102*qd4[i];
+                const double _t104 = -_c1[i]*_c4[i]*_s3[i] + _t48*_t57;
+                const double _t105 = -_t104;
+                const double _t106 = _c0[i]*qd5[i];
+                const double _t107 = _c1[i]*_t58 + _t45*_t57 - _t53;
+                const double _t108 = _c0[i]*qd3[i];
+                const double _t109 = _t69*qd6[i];
+                const double _t110 = _c0[i]*_t103 + _c0[i]*_t109 + _t105*_t106 + _t107*_t108 + _t107*_t17 - _t63*_t71;
+                const double _t111 = _c0[i]*_c3[i]*_c5[i]*_s1[i] - _t30*_t41;
+                const double _t112 = _c1[i]*_t74 + _c4[i]*_t39 + _t27*_t46 - _t38;
+                const double _t113 = -_s3[i]*_t80;
+                const double _t114 = _c3[i]*qd6[i];
+                const double _t115 = _s3[i]*qd5[i];
+                const double _t116 = _c3[i]*_t89 - _s4[i]*_t50 + _t34*_t43;
+                const double _t117 = _c0[i]*_t35 - _s1[i]*_t41 + _t30*_t43;
+                const double _t118 = qd4[i]*(_c0[i]*_c5[i]*_s4[i] - _t34*_t37);
+                const double _t119 = _c1[i]*_c4[i]*_s0[i] - _t33*_t48;
+                const double _t120 = _t119*qd2[i];
+                const double _t121 = _t119*qd3[i];
+                const double _t122 = _t90*qd1[i];
+                const double _t123 = _c4[i]*_t27 - _s0[i]*_t48 + _t33*_t45;
+                const double _t124 = _t123*qd5[i];
+                const double _t125 = _t27*_t48;
+                const double _t126 = _c5[i]*_t34 + _t30;
+                const double _t127 = _c5[i]*_t30 + _t34;
+                const double _t128 = _c5[i]*_t48;
+                const double _t129 = _t128 - _t45;
+                const double _t130 = _t106*_t127 + _t108*_t126 - _t125*qd4[i] + _t126*_t17 - _t129*_t71;
+                const double _t131 = _c1[i]*_t27 + _t33;
+                const double _t132 = _c4[i]*qd5[i];
+                const double _t133 = -_c0[i]*_c5[i] + _c1[i]*_t37;
+                const double _t134 = _s4[i]*qd1[i];
+                const double _t135 = _s4[i]*qd4[i];
+                const double _t136 = _c0[i]*_t34 + _t30*_t42;
+                const double _t137 = -_t117;
+                const double _t138 = -_t112;
+                const double _t139 = -_t101;
+                const double _t140 = -_t99;
+                const double _t141 = _s0[i]*_t59 + _s0[i]*_t61 + _s0[i]*_t64 + _s0[i]*_t67 + _s0[i]*_t68 + _t20*_t70;
+                const double _t142 = _s1[i]*_t44 + _t30*_t50;
+                const double _t143 = -_t97;
+                const double _t144 = _s0[i]*qd5[i];
+                const double _t145 = _s0[i]*qd3[i];
+                const double _t146 = _s0[i]*_t103 + _s0[i]*_t109 + _t105*_t144 + _t107*_t145 + _t107*_t21 + _t20*_t63;
+                const double _t147 = _c3[i]*_c5[i]*_s0[i]*_s1[i] - _t30*_t38;
+                const double _t148 = _t37*_t48;
+                const double _t149 = _t126*_t145 + _t126*_t21 + _t127*_t144 + _t129*_t20 - _t148*qd4[i];
+                const double _t150 = _s0[i]*_t34 + _t30*_t33;
+                const double _t151 = -_t107;
+                const double _t152 = _t151*qd6[i] + _t70*qd2[i] + _t70*qd3[i] + qd4[i]*(-_c1[i]*_t57 - _t45*_t58) + qd5[i]*(-_c3[i]*_t30 - _t34*_t60);
+                const double _t153 = _c4[i]*_t58 + _t57;
+                const double _t154 = _c1[i]*_t153;
+                const double _t155 = _s1[i]*qd4[i];
+                const double _t156 = -_c3[i]*_c5[i] + _c4[i]*_t65;
+                const double _t157 = _s1[i]*qd6[i];
+                const double _t158 = -_c3[i]*_t126;
+                const double _t159 = _t63*qd2[i] + _t63*qd3[i] + _t66*qd6[i] + qd4[i]*(-_c1[i]*_t60 + _t45*_t65) + qd5[i]*(_s3[i]*_t30 + _t34*_t57);
+                const double _t160 = _t48*_t65;
+                const double _t161 = _c1[i]*_t156;
+                const double _t162 = _s3[i]*_t126;
+                const double _t163 = _s5[i]*_t34;
+                const double _t164 = -_c5[i]*_t45 + _t48;
+                const double _t165 = _t129*qd2[i] + _t129*qd3[i] + _t163*qd4[i] + _t164*qd5[i];
+                const double _t166 = _s5[i]*_t30;
+                Jx_dot[72 * (start + i) + 0] = _t6*qd3[i] + qd1[i]*(_c0[i]*_s1[i]*d4 - _c0[i]*_t10 - _c0[i]*_t9 - _s0[i]*d3) + qd2[i]*(_s0[i]*_t7 + _t6);
+                Jx_dot[72 * (start + i) + 1] = _s0[i]*_t15*qd1[i] - _t13 - _t16*_t17;
+                Jx_dot[72 * (start + i) + 2] = _s0[i]*_t14*qd1[i] - _t11*_t17 - _t13;
+                Jx_dot[72 * (start + i) + 3] = 0;
+                Jx_dot[72 * (start + i) + 4] = 0;
+                Jx_dot[72 * (start + i) + 5] = 0;
+                Jx_dot[72 * (start + i) + 6] = -_t18*qd3[i] + qd1[i]*(_c0[i]*d3 + _s0[i]*_s1[i]*d4 - _s0[i]*_t10 - _s0[i]*_t9) + qd2[i]*(-_c0[i]*_t7 - _t18);
+                Jx_dot[72 * (start + i) + 7] = -_t15*_t20 - _t16*_t21 - _t19;
+                Jx_dot[72 * (start + i) + 8] = -_t11*_t21 - _t14*_t20 - _t19;
+                Jx_dot[72 * (start + i) + 9] = 0;
+                Jx_dot[72 * (start + i) + 10] = 0;
+                Jx_dot[72 * (start + i) + 11] = 0;
+                Jx_dot[72 * (start + i) + 12] = 0;
+                Jx_dot[72 * (start + i) + 13] = -_t15*qd2[i] + _t23;
+                Jx_dot[72 * (start + i) + 14] = _t22*qd2[i] + _t23;
+                Jx_dot[72 * (start + i) + 15] = 0;
+                Jx_dot[72 * (start + i) + 16] = 0;
+                Jx_dot[72 * (start + i) + 17] = 0;
+                Jx_dot[72 * (start + i) + 18] = _t56;
+                Jx_dot[72 * (start + i) + 19] = _t72;
+                Jx_dot[72 * (start + i) + 20] = _t72;
+                Jx_dot[72 * (start + i) + 21] = _t47*qd1[i] + _t51*qd4[i] + _t76*qd2[i] + _t76*qd3[i] + _t77*qd6[i] + qd5[i]*(_c3[i]*_t73 + _t27*_t35);
+                Jx_dot[72 * (start + i) + 22] = _c3[i]*_t79 + _c3[i]*_t81 + _c3[i]*_t82 + _c3[i]*_t84 + _c3[i]*_t88 + _t90*_t91;
+                Jx_dot[72 * (start + i) + 23] = _t93;
+                Jx_dot[72 * (start + i) + 24] = _t101*qd6[i] - _t94*qd5[i] + _t96*qd2[i] + _t96*qd3[i] + _t97*qd4[i] + _t99*qd1[i];
+                Jx_dot[72 * (start + i) + 25] = _t110;
+                Jx_dot[72 * (start + i) + 26] = _t110;
+                Jx_dot[72 * (start + i) + 27] = _t111*qd2[i] + _t111*qd3[i] + _t112*qd6[i] + _t97*qd1[i] + _t98*qd4[i] + qd5[i]*(-_s4[i]*_t44 - _t34*_t41);
+                Jx_dot[72 * (start + i) + 28] = -_s3[i]*_t78*qd4[i] - _s3[i]*_t83*qd1[i] + _t113*qd2[i] + _t113*qd3[i] + _t114*_t90 - _t115*_t87;
+                Jx_dot[72 * (start + i) + 29] = _t101*qd1[i] + _t112*qd4[i] + _t116*qd5[i] + _t117*qd2[i] + _t117*qd3[i] + _t99*qd6[i];
+                Jx_dot[72 * (start + i) + 30] = _t118 + _t120 + _t121 + _t122 + _t124;
+                Jx_dot[72 * (start + i) + 31] = _t130;
+                Jx_dot[72 * (start + i) + 32] = _t130;
+                Jx_dot[72 * (start + i) + 33] = -_t125*qd2[i] - _t125*qd3[i] + _t131*_t132 - _t133*_t134 + _t135*(_c0[i]*_c1[i]*_c5[i] - _t37);
+                Jx_dot[72 * (start + i) + 34] = _t123*qd1[i] + _t136*qd2[i] + _t136*qd3[i] + _t90*qd5[i] + qd4[i]*(_c4[i]*_t33 + _t27*_t45);
+                Jx_dot[72 * (start + i) + 35] = 0;
+                Jx_dot[72 * (start + i) + 36] = -_t116*qd5[i] + _t137*qd2[i] + _t137*qd3[i] + _t138*qd4[i] + _t139*qd1[i] + _t140*qd6[i];
+                Jx_dot[72 * (start + i) + 37] = _t141;
+                Jx_dot[72 * (start + i) + 38] = _t141;
+                Jx_dot[72 * (start + i) + 39] = -_t100*qd4[i] + _t138*qd1[i] + _t142*qd2[i] + _t142*qd3[i] + _t143*qd6[i] + qd5[i]*(-_s4[i]*_t43 + _t35*_t37);
+                Jx_dot[72 * (start + i) + 40] = -_c3[i]*_t118 - _c3[i]*_t120 - _c3[i]*_t121 - _c3[i]*_t122 - _c3[i]*_t124 + _s3[i]*_t83*qd6[i];
+                Jx_dot[72 * (start + i) + 41] = _t139*qd6[i] + _t140*qd1[i] + _t143*qd4[i] + _t94*qd5[i] + _t95*qd2[i] + _t95*qd3[i];
+                Jx_dot[72 * (start + i) + 42] = _t93;
+                Jx_dot[72 * (start + i) + 43] = _t146;
+                Jx_dot[72 * (start + i) + 44] = _t146;
+                Jx_dot[72 * (start + i) + 45] = _t147*qd2[i] + _t147*qd3[i] + _t47*qd6[i] + _t54*qd4[i] + _t77*qd1[i] + qd5[i]*(_c0[i]*_c5[i]*_s3[i]*_s4[i] - _t37*_t62);
+                Jx_dot[72 * (start + i) + 46] = _s3[i]*_t118 + _s3[i]*_t120 + _s3[i]*_t121 + _s3[i]*_t122 + _s3[i]*_t124 + _t114*_t83;
+                Jx_dot[72 * (start + i) + 47] = _t56;
+                Jx_dot[72 * (start + i) + 48] = _t79 + _t81 + _t82 + _t84 + _t88;
+                Jx_dot[72 * (start + i) + 49] = _t149;
+                Jx_dot[72 * (start + i) + 50] = _t149;
+                Jx_dot[72 * (start + i) + 51] = _t131*_t134 + _t132*_t133 + _t135*(_c1[i]*_t33 + _t27) - _t148*qd2[i] - _t148*qd3[i];
+                Jx_dot[72 * (start + i) + 52] = _t150*qd2[i] + _t150*qd3[i] + _t83*qd5[i] + _t87*qd1[i] + qd4[i]*(-_c4[i]*_t42 + _t37*_t45);
+                Jx_dot[72 * (start + i) + 53] = 0;
+                Jx_dot[72 * (start + i) + 54] = 0;
+                Jx_dot[72 * (start + i) + 55] = _t152;
+                Jx_dot[72 * (start + i) + 56] = _t152;
+                Jx_dot[72 * (start + i) + 57] = _c3[i]*_s1[i]*_s4[i]*_s5[i]*qd5[i] - _t154*qd2[i] - _t154*qd3[i] - _t155*(_c3[i]*_c4[i]*_c5[i] - _t65) + _t156*_t157;
+                Jx_dot[72 * (start + i) + 58] = -_c3[i]*_t127*qd5[i] + _t129*_t91 + _t158*qd2[i] + _t158*qd3[i] + _t48*_t58*qd4[i];
+                Jx_dot[72 * (start + i) + 59] = _t102*qd4[i] + _t104*qd5[i] + _t151*qd2[i] + _t151*qd3[i] + _t70*qd6[i];
+                Jx_dot[72 * (start + i) + 60] = 0;
+                Jx_dot[72 * (start + i) + 61] = _t159;
+                Jx_dot[72 * (start + i) + 62] = _t159;
+                Jx_dot[72 * (start + i) + 63] = _t153*_t157 + _t155*(_c4[i]*_t57 + _t58) - _t160*qd5[i] + _t161*qd2[i] + _t161*qd3[i];
+                Jx_dot[72 * (start + i) + 64] = _t114*_t129 + _t115*_t127 - _t160*qd4[i] + _t162*qd2[i] + _t162*qd3[i];
+                Jx_dot[72 * (start + i) + 65] = _t59 + _t61 + _t64 + _t67 + _t68;
+                Jx_dot[72 * (start + i) + 66] = 0;
+                Jx_dot[72 * (start + i) + 67] = _t165;
+                Jx_dot[72 * (start + i) + 68] = _t165;
+                Jx_dot[72 * (start + i) + 69] = _t128*qd4[i] + _t163*qd2[i] + _t163*qd3[i] + _t166*qd5[i];
+                Jx_dot[72 * (start + i) + 70] = _t129*qd5[i] + _t164*qd2[i] + _t164*qd3[i] + _t166*qd4[i];
+                Jx_dot[72 * (start + i) + 71] = 0;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 72; k += 2) {
+                    _mm_stream_pd(Jx_dot + 72 * (start + i) + k, _mm_set_pd(_Jx_dot_block[k + 1][i], _Jx_dot_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         puma560_task_jacobian_dot(q + 6 * i, qd + 6 * i, params, Jx_dot + 72 * i);
     }
+#endif
 }
 
 /* d(J)/dt of the geometric Jacobian, shape (..., 6, 6). */
@@ -1398,59 +5056,89 @@ void puma560_jacobian_dot(const double *restrict q, const double *restrict qd, c
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t0 = sin(q1);
     const double _t1 = q2 + q3;
-    const double _t2 = sin(_t1);
-    const double _t3 = _t2*a3;
-    const double _t4 = cos(_t1);
-    const double _t5 = _t4*d4;
-    const double _t6 = _t0*_t3 + _t0*_t5;
-    const double _t7 = a2*sin(q2);
-    const double _t8 = cos(q1);
-    const double _t9 = a2*cos(q2);
-    const double _t10 = _t4*a3;
-    const double _t11 = _t10 - _t2*d4;
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { q1, _t1, q2, q4, q5, 0.0, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t1);
+    _c1 = cos(_t1);
+    _s2 = sin(q2);
+    _c2 = cos(q2);
+    _s3 = sin(q4);
+    _c3 = cos(q4);
+    _s4 = sin(q5);
+    _c4 = cos(q5);
+#endif
+    const double _t3 = _s1*a3;
+    const double _t5 = _c1*d4;
+    const double _t6 = _s0*_t3 + _s0*_t5;
+    const double _t7 = _s2*a2;
+    const double _t9 = _c2*a2;
+    const double _t10 = _c1*a3;
+    const double _t11 = -_s1*d4 + _t10;
     const double _t12 = _t11*qd3;
-    const double _t13 = _t12*_t8;
+    const double _t13 = _c0*_t12;
     const double _t14 = _t3 + _t5;
     const double _t15 = _t14 + _t7;
     const double _t16 = _t11 + _t9;
-    const double _t17 = _t8*qd2;
-    const double _t18 = _t3*_t8 + _t5*_t8;
-    const double _t19 = _t0*_t12;
-    const double _t20 = _t8*qd1;
-    const double _t21 = _t0*qd2;
+    const double _t17 = _c0*qd2;
+    const double _t18 = _c0*_t3 + _c0*_t5;
+    const double _t19 = _s0*_t12;
+    const double _t20 = _c0*qd1;
+    const double _t21 = _s0*qd2;
     const double _t22 = -_t14;
     const double _t23 = _t22*qd3;
-    const double _t24 = _t4*_t8;
-    const double _t25 = sin(q4);
-    const double _t26 = _t25*_t8;
-    const double _t27 = _t2*qd2;
-    const double _t28 = _t2*qd3;
-    const double _t29 = cos(q4);
-    const double _t30 = _t0*_t25;
-    const double _t31 = sin(q5);
-    const double _t32 = _t0*_t29;
-    const double _t33 = _t31*_t32;
-    const double _t34 = _t31*_t4;
-    const double _t35 = cos(q5);
-    const double _t36 = _t29*_t8;
-    const double _t37 = _t2*_t31;
-    const double _t38 = -_t24*_t35 + _t36*_t37;
-    const double _t39 = _t2*_t35;
-    const double _t40 = _t0*qd1;
-    const double _t41 = _t0*_t4;
-    const double _t42 = _t32*_t4;
-    const double _t43 = _t2*_t33 - _t35*_t41;
-    const double _t44 = _t25*_t4;
-    const double _t45 = -_t29*_t34 - _t39;
-    J_dot[0] = _t6*qd3 + qd1*(-_t0*d3 - _t10*_t8 + _t2*_t8*d4 - _t8*_t9) + qd2*(_t0*_t7 + _t6);
-    J_dot[1] = _t0*_t15*qd1 - _t13 - _t16*_t17;
-    J_dot[2] = _t0*_t14*qd1 - _t11*_t17 - _t13;
+    const double _t24 = _c0*_c1;
+    const double _t26 = _c0*_s3;
+    const double _t27 = _s1*qd2;
+    const double _t28 = _s1*qd3;
+    const double _t30 = _s0*_s3;
+    const double _t32 = _c3*_s0;
+    const double _t33 = _s4*_t32;
+    const double _t34 = _c1*_s4;
+    const double _t36 = _c0*_c3;
+    const double _t37 = _s1*_s4;
+    const double _t38 = -_c4*_t24 + _t36*_t37;
+    const double _t39 = _c4*_s1;
+    const double _t40 = _s0*qd1;
+    const double _t41 = _c1*_s0;
+    const double _t42 = _c1*_t32;
+    const double _t43 = -_c4*_t41 + _s1*_t33;
+    const double _t44 = _c1*_s3;
+    const double _t45 = -_c3*_t34 - _t39;
+    J_dot[0] = _t6*qd3 + qd1*(_c0*_s1*d4 - _c0*_t10 - _c0*_t9 - _s0*d3) + qd2*(_s0*_t7 + _t6);
+    J_dot[1] = _s0*_t15*qd1 - _t13 - _t16*_t17;
+    J_dot[2] = _s0*_t14*qd1 - _t11*_t17 - _t13;
     J_dot[3] = 0;
     J_dot[4] = 0;
     J_dot[5] = 0;
-    J_dot[6] = -_t18*qd3 + qd1*(-_t0*_t10 + _t0*_t2*d4 - _t0*_t9 + _t8*d3) + qd2*(-_t18 - _t7*_t8);
+    J_dot[6] = -_t18*qd3 + qd1*(_c0*d3 + _s0*_s1*d4 - _s0*_t10 - _s0*_t9) + qd2*(-_c0*_t7 - _t18);
     J_dot[7] = -_t15*_t20 - _t16*_t21 - _t19;
     J_dot[8] = -_t11*_t21 - _t14*_t20 - _t19;
     J_dot[9] = 0;
@@ -1465,29 +5153,299 @@ void puma560_jacobian_dot(const double *restrict q, const double *restrict qd, c
     J_dot[18] = 0;
     J_dot[19] = _t20;
     J_dot[20] = _t20;
-    J_dot[21] = _t0*_t2*qd1 - _t17*_t4 - _t24*qd3;
-    J_dot[22] = -_t26*_t27 - _t26*_t28 + qd1*(_t29*_t8 - _t30*_t4) + qd4*(_t29*_t4*_t8 - _t30);
-    J_dot[23] = _t38*qd2 + _t38*qd3 + qd1*(_t0*_t39 + _t26*_t31 + _t32*_t34) + qd4*(_t26*_t34 + _t33) + qd5*(_t30*_t35 - _t35*_t36*_t4 + _t37*_t8);
+    J_dot[21] = -_c1*_t17 + _s0*_s1*qd1 - _t24*qd3;
+    J_dot[22] = -_t26*_t27 - _t26*_t28 + qd1*(_c0*_c3 - _c1*_t30) + qd4*(_c0*_c1*_c3 - _t30);
+    J_dot[23] = _t38*qd2 + _t38*qd3 + qd1*(_s0*_t39 + _s4*_t26 + _t32*_t34) + qd4*(_t26*_t34 + _t33) + qd5*(_c0*_t37 - _c1*_c4*_t36 + _c4*_t30);
     J_dot[24] = 0;
     J_dot[25] = _t40;
     J_dot[26] = _t40;
-    J_dot[27] = -_t2*_t20 - _t21*_t4 - _t41*qd3;
-    J_dot[28] = -_t27*_t30 - _t28*_t30 + qd1*(_t26*_t4 + _t32) + qd4*(_t26 + _t42);
-    J_dot[29] = _t43*qd2 + _t43*qd3 + qd1*(_t0*_t25*_t31 - _t34*_t36 - _t39*_t8) + qd4*(_t30*_t34 - _t31*_t36) + qd5*(_t0*_t2*_t31 - _t26*_t35 - _t35*_t42);
+    J_dot[27] = -_c1*_t21 - _s1*_t20 - _t41*qd3;
+    J_dot[28] = -_t27*_t30 - _t28*_t30 + qd1*(_c1*_t26 + _t32) + qd4*(_t26 + _t42);
+    J_dot[29] = _t43*qd2 + _t43*qd3 + qd1*(-_c0*_t39 + _s0*_s3*_s4 - _t34*_t36) + qd4*(-_s4*_t36 + _t30*_t34) + qd5*(-_c4*_t26 - _c4*_t42 + _s0*_s1*_s4);
     J_dot[30] = 0;
     J_dot[31] = 0;
     J_dot[32] = 0;
     J_dot[33] = -_t27 - _t28;
-    J_dot[34] = _t2*_t29*qd4 + _t44*qd2 + _t44*qd3;
-    J_dot[35] = _t25*_t37*qd4 + _t45*qd2 + _t45*qd3 + qd5*(-_t29*_t39 - _t34);
+    J_dot[34] = _c3*_s1*qd4 + _t44*qd2 + _t44*qd3;
+    J_dot[35] = _s3*_t37*qd4 + _t45*qd2 + _t45*qd3 + qd5*(-_c3*_t39 - _t34);
 }
 
+/* jacobian_dot of `count` items, stored one after the other in each argument and output. */
 void puma560_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const puma560_params *restrict params, double *restrict J_dot)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double q5[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double qd3[KINEGEN_BLOCK_OF(64)];
+    double qd4[KINEGEN_BLOCK_OF(64)];
+    double qd5[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    double _s4[KINEGEN_BLOCK_OF(64)];
+    double _c4[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _J_dot_block[36][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 36 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_dot & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[6 * (start + i) + 0];
+            q2[i] = q[6 * (start + i) + 1];
+            q3[i] = q[6 * (start + i) + 2];
+            q4[i] = q[6 * (start + i) + 3];
+            q5[i] = q[6 * (start + i) + 4];
+            qd1[i] = qd[6 * (start + i) + 0];
+            qd2[i] = qd[6 * (start + i) + 1];
+            qd3[i] = qd[6 * (start + i) + 2];
+            qd4[i] = qd[6 * (start + i) + 3];
+            qd5[i] = qd[6 * (start + i) + 4];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t1[i] = q2[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(q5[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _s1[i]*a3;
+                const double _t5 = _c1[i]*d4;
+                const double _t6 = _s0[i]*_t3 + _s0[i]*_t5;
+                const double _t7 = _s2[i]*a2;
+                const double _t9 = _c2[i]*a2;
+                const double _t10 = _c1[i]*a3;
+                const double _t11 = -_s1[i]*d4 + _t10;
+                const double _t12 = _t11*qd3[i];
+                const double _t13 = _c0[i]*_t12;
+                const double _t14 = _t3 + _t5;
+                const double _t15 = _t14 + _t7;
+                const double _t16 = _t11 + _t9;
+                const double _t17 = _c0[i]*qd2[i];
+                const double _t18 = _c0[i]*_t3 + _c0[i]*_t5;
+                const double _t19 = _s0[i]*_t12;
+                const double _t20 = _c0[i]*qd1[i];
+                const double _t21 = _s0[i]*qd2[i];
+                const double _t22 = -_t14;
+                const double _t23 = _t22*qd3[i];
+                const double _t24 = _c0[i]*_c1[i];
+                const double _t26 = _c0[i]*_s3[i];
+                const double _t27 = _s1[i]*qd2[i];
+                const double _t28 = _s1[i]*qd3[i];
+                const double _t30 = _s0[i]*_s3[i];
+                const double _t32 = _c3[i]*_s0[i];
+                const double _t33 = _s4[i]*_t32;
+                const double _t34 = _c1[i]*_s4[i];
+                const double _t36 = _c0[i]*_c3[i];
+                const double _t37 = _s1[i]*_s4[i];
+                const double _t38 = -_c4[i]*_t24 + _t36*_t37;
+                const double _t39 = _c4[i]*_s1[i];
+                const double _t40 = _s0[i]*qd1[i];
+                const double _t41 = _c1[i]*_s0[i];
+                const double _t42 = _c1[i]*_t32;
+                const double _t43 = -_c4[i]*_t41 + _s1[i]*_t33;
+                const double _t44 = _c1[i]*_s3[i];
+                const double _t45 = -_c3[i]*_t34 - _t39;
+                _J_dot_block[0][i] = _t6*qd3[i] + qd1[i]*(_c0[i]*_s1[i]*d4 - _c0[i]*_t10 - _c0[i]*_t9 - _s0[i]*d3) + qd2[i]*(_s0[i]*_t7 + _t6);
+                _J_dot_block[1][i] = _s0[i]*_t15*qd1[i] - _t13 - _t16*_t17;
+                _J_dot_block[2][i] = _s0[i]*_t14*qd1[i] - _t11*_t17 - _t13;
+                _J_dot_block[3][i] = 0;
+                _J_dot_block[4][i] = 0;
+                _J_dot_block[5][i] = 0;
+                _J_dot_block[6][i] = -_t18*qd3[i] + qd1[i]*(_c0[i]*d3 + _s0[i]*_s1[i]*d4 - _s0[i]*_t10 - _s0[i]*_t9) + qd2[i]*(-_c0[i]*_t7 - _t18);
+                _J_dot_block[7][i] = -_t15*_t20 - _t16*_t21 - _t19;
+                _J_dot_block[8][i] = -_t11*_t21 - _t14*_t20 - _t19;
+                _J_dot_block[9][i] = 0;
+                _J_dot_block[10][i] = 0;
+                _J_dot_block[11][i] = 0;
+                _J_dot_block[12][i] = 0;
+                _J_dot_block[13][i] = -_t15*qd2[i] + _t23;
+                _J_dot_block[14][i] = _t22*qd2[i] + _t23;
+                _J_dot_block[15][i] = 0;
+                _J_dot_block[16][i] = 0;
+                _J_dot_block[17][i] = 0;
+                _J_dot_block[18][i] = 0;
+                _J_dot_block[19][i] = _t20;
+                _J_dot_block[20][i] = _t20;
+                _J_dot_block[21][i] = -_c1[i]*_t17 + _s0[i]*_s1[i]*qd1[i] - _t24*qd3[i];
+                _J_dot_block[22][i] = -_t26*_t27 - _t26*_t28 + qd1[i]*(_c0[i]*_c3[i] - _c1[i]*_t30) + qd4[i]*(_c0[i]*_c1[i]*_c3[i] - _t30);
+                _J_dot_block[23][i] = _t38*qd2[i] + _t38*qd3[i] + qd1[i]*(_s0[i]*_t39 + _s4[i]*_t26 + _t32*_t34) + qd4[i]*(_t26*_t34 + _t33) + qd5[i]*(_c0[i]*_t37 - _c1[i]*_c4[i]*_t36 + _c4[i]*_t30);
+                _J_dot_block[24][i] = 0;
+                _J_dot_block[25][i] = _t40;
+                _J_dot_block[26][i] = _t40;
+                _J_dot_block[27][i] = -_c1[i]*_t21 - _s1[i]*_t20 - _t41*qd3[i];
+                _J_dot_block[28][i] = -_t27*_t30 - _t28*_t30 + qd1[i]*(_c1[i]*_t26 + _t32) + qd4[i]*(_t26 + _t42);
+                _J_dot_block[29][i] = _t43*qd2[i] + _t43*qd3[i] + qd1[i]*(-_c0[i]*_t39 + _s0[i]*_s3[i]*_s4[i] - _t34*_t36) + qd4[i]*(-_s4[i]*_t36 + _t30*_t34) + qd5[i]*(-_c4[i]*_t26 - _c4[i]*_t42 + _s0[i]*_s1[i]*_s4[i]);
+                _J_dot_block[30][i] = 0;
+                _J_dot_block[31][i] = 0;
+                _J_dot_block[32][i] = 0;
+                _J_dot_block[33][i] = -_t27 - _t28;
+                _J_dot_block[34][i] = _c3[i]*_s1[i]*qd4[i] + _t44*qd2[i] + _t44*qd3[i];
+                _J_dot_block[35][i] = _s3[i]*_t37*qd4[i] + _t45*qd2[i] + _t45*qd3[i] + qd5[i]*(-_c3[i]*_t39 - _t34);
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _s1[i]*a3;
+                const double _t5 = _c1[i]*d4;
+                const double _t6 = _s0[i]*_t3 + _s0[i]*_t5;
+                const double _t7 = _s2[i]*a2;
+                const double _t9 = _c2[i]*a2;
+                const double _t10 = _c1[i]*a3;
+                const double _t11 = -_s1[i]*d4 + _t10;
+                const double _t12 = _t11*qd3[i];
+                const double _t13 = _c0[i]*_t12;
+                const double _t14 = _t3 + _t5;
+                const double _t15 = _t14 + _t7;
+                const double _t16 = _t11 + _t9;
+                const double _t17 = _c0[i]*qd2[i];
+                const double _t18 = _c0[i]*_t3 + _c0[i]*_t5;
+                const double _t19 = _s0[i]*_t12;
+                const double _t20 = _c0[i]*qd1[i];
+                const double _t21 = _s0[i]*qd2[i];
+                const double _t22 = -_t14;
+                const double _t23 = _t22*qd3[i];
+                const double _t24 = _c0[i]*_c1[i];
+                const double _t26 = _c0[i]*_s3[i];
+                const double _t27 = _s1[i]*qd2[i];
+                const double _t28 = _s1[i]*qd3[i];
+                const double _t30 = _s0[i]*_s3[i];
+                const double _t32 = _c3[i]*_s0[i];
+                const double _t33 = _s4[i]*_t32;
+                const double _t34 = _c1[i]*_s4[i];
+                const double _t36 = _c0[i]*_c3[i];
+                const double _t37 = _s1[i]*_s4[i];
+                const double _t38 = -_c4[i]*_t24 + _t36*_t37;
+                const double _t39 = _c4[i]*_s1[i];
+                const double _t40 = _s0[i]*qd1[i];
+                const double _t41 = _c1[i]*_s0[i];
+                const double _t42 = _c1[i]*_t32;
+                const double _t43 = -_c4[i]*_t41 + _s1[i]*_t33;
+                const double _t44 = _c1[i]*_s3[i];
+                const double _t45 = -_c3[i]*_t34 - _t39;
+                J_dot[36 * (start + i) + 0] = _t6*qd3[i] + qd1[i]*(_c0[i]*_s1[i]*d4 - _c0[i]*_t10 - _c0[i]*_t9 - _s0[i]*d3) + qd2[i]*(_s0[i]*_t7 + _t6);
+                J_dot[36 * (start + i) + 1] = _s0[i]*_t15*qd1[i] - _t13 - _t16*_t17;
+                J_dot[36 * (start + i) + 2] = _s0[i]*_t14*qd1[i] - _t11*_t17 - _t13;
+                J_dot[36 * (start + i) + 3] = 0;
+                J_dot[36 * (start + i) + 4] = 0;
+                J_dot[36 * (start + i) + 5] = 0;
+                J_dot[36 * (start + i) + 6] = -_t18*qd3[i] + qd1[i]*(_c0[i]*d3 + _s0[i]*_s1[i]*d4 - _s0[i]*_t10 - _s0[i]*_t9) + qd2[i]*(-_c0[i]*_t7 - _t18);
+                J_dot[36 * (start + i) + 7] = -_t15*_t20 - _t16*_t21 - _t19;
+                J_dot[36 * (start + i) + 8] = -_t11*_t21 - _t14*_t20 - _t19;
+                J_dot[36 * (start + i) + 9] = 0;
+                J_dot[36 * (start + i) + 10] = 0;
+                J_dot[36 * (start + i) + 11] = 0;
+                J_dot[36 * (start + i) + 12] = 0;
+                J_dot[36 * (start + i) + 13] = -_t15*qd2[i] + _t23;
+                J_dot[36 * (start + i) + 14] = _t22*qd2[i] + _t23;
+                J_dot[36 * (start + i) + 15] = 0;
+                J_dot[36 * (start + i) + 16] = 0;
+                J_dot[36 * (start + i) + 17] = 0;
+                J_dot[36 * (start + i) + 18] = 0;
+                J_dot[36 * (start + i) + 19] = _t20;
+                J_dot[36 * (start + i) + 20] = _t20;
+                J_dot[36 * (start + i) + 21] = -_c1[i]*_t17 + _s0[i]*_s1[i]*qd1[i] - _t24*qd3[i];
+                J_dot[36 * (start + i) + 22] = -_t26*_t27 - _t26*_t28 + qd1[i]*(_c0[i]*_c3[i] - _c1[i]*_t30) + qd4[i]*(_c0[i]*_c1[i]*_c3[i] - _t30);
+                J_dot[36 * (start + i) + 23] = _t38*qd2[i] + _t38*qd3[i] + qd1[i]*(_s0[i]*_t39 + _s4[i]*_t26 + _t32*_t34) + qd4[i]*(_t26*_t34 + _t33) + qd5[i]*(_c0[i]*_t37 - _c1[i]*_c4[i]*_t36 + _c4[i]*_t30);
+                J_dot[36 * (start + i) + 24] = 0;
+                J_dot[36 * (start + i) + 25] = _t40;
+                J_dot[36 * (start + i) + 26] = _t40;
+                J_dot[36 * (start + i) + 27] = -_c1[i]*_t21 - _s1[i]*_t20 - _t41*qd3[i];
+                J_dot[36 * (start + i) + 28] = -_t27*_t30 - _t28*_t30 + qd1[i]*(_c1[i]*_t26 + _t32) + qd4[i]*(_t26 + _t42);
+                J_dot[36 * (start + i) + 29] = _t43*qd2[i] + _t43*qd3[i] + qd1[i]*(-_c0[i]*_t39 + _s0[i]*_s3[i]*_s4[i] - _t34*_t36) + qd4[i]*(-_s4[i]*_t36 + _t30*_t34) + qd5[i]*(-_c4[i]*_t26 - _c4[i]*_t42 + _s0[i]*_s1[i]*_s4[i]);
+                J_dot[36 * (start + i) + 30] = 0;
+                J_dot[36 * (start + i) + 31] = 0;
+                J_dot[36 * (start + i) + 32] = 0;
+                J_dot[36 * (start + i) + 33] = -_t27 - _t28;
+                J_dot[36 * (start + i) + 34] = _c3[i]*_s1[i]*qd4[i] + _t44*qd2[i] + _t44*qd3[i];
+                J_dot[36 * (start + i) + 35] = _s3[i]*_t37*qd4[i] + _t45*qd2[i] + _t45*qd3[i] + qd5[i]*(-_c3[i]*_t39 - _t34);
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 36; k += 2) {
+                    _mm_stream_pd(J_dot + 36 * (start + i) + k, _mm_set_pd(_J_dot_block[k + 1][i], _J_dot_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         puma560_jacobian_dot(q + 6 * i, qd + 6 * i, params, J_dot + 36 * i);
     }
+#endif
 }
 
 /* Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 12). */
@@ -1518,209 +5476,759 @@ void puma560_task_acceleration(const double *restrict q, const double *restrict 
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t0 = cos(q1);
     const double _t1 = q2 + q3;
-    const double _t2 = sin(_t1);
-    const double _t3 = _t2*a3;
-    const double _t4 = cos(_t1);
-    const double _t5 = _t4*d4;
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { q1, _t1, q2, q4, q5, q6, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+        _s5 = sine[5];
+        _c5 = cosine[5];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t1);
+    _c1 = cos(_t1);
+    _s2 = sin(q2);
+    _c2 = cos(q2);
+    _s3 = sin(q4);
+    _c3 = cos(q4);
+    _s4 = sin(q5);
+    _c4 = cos(q5);
+    _s5 = sin(q6);
+    _c5 = cos(q6);
+#endif
+    const double _t3 = _s1*a3;
+    const double _t5 = _c1*d4;
     const double _t6 = _t3 + _t5;
-    const double _t7 = _t0*_t6;
-    const double _t8 = a2*sin(q2);
+    const double _t7 = _c0*_t6;
+    const double _t8 = _s2*a2;
     const double _t9 = _t6 + _t8;
-    const double _t10 = _t0*_t9;
-    const double _t11 = sin(q1);
-    const double _t12 = a2*cos(q2);
-    const double _t13 = _t4*a3;
-    const double _t14 = _t0*d3 - _t11*_t12 - _t11*_t13 + _t11*_t2*d4;
-    const double _t15 = _t13 - _t2*d4;
-    const double _t16 = _t0*qd2;
+    const double _t10 = _c0*_t9;
+    const double _t12 = _c2*a2;
+    const double _t13 = _c1*a3;
+    const double _t14 = _c0*d3 + _s0*_s1*d4 - _s0*_t12 - _s0*_t13;
+    const double _t15 = -_s1*d4 + _t13;
+    const double _t16 = _c0*qd2;
     const double _t17 = _t15*qd3;
-    const double _t18 = _t0*_t17;
+    const double _t18 = _c0*_t17;
     const double _t19 = _t12 + _t15;
-    const double _t20 = _t11*_t3 + _t11*_t5;
-    const double _t21 = _t0*_t12 + _t0*_t13 - _t0*_t2*d4 + _t11*d3;
-    const double _t22 = _t11*qdd3;
-    const double _t23 = _t11*qdd2;
-    const double _t24 = _t11*qd2;
-    const double _t25 = _t11*_t17;
-    const double _t26 = _t0*_t3 + _t0*_t5;
+    const double _t20 = _s0*_t3 + _s0*_t5;
+    const double _t21 = -_c0*_s1*d4 + _c0*_t12 + _c0*_t13 + _s0*d3;
+    const double _t22 = _s0*qdd3;
+    const double _t23 = _s0*qdd2;
+    const double _t24 = _s0*qd2;
+    const double _t25 = _s0*_t17;
+    const double _t26 = _c0*_t3 + _c0*_t5;
     const double _t27 = -_t6;
     const double _t28 = _t27*qd3;
-    const double _t29 = sin(q4);
-    const double _t30 = sin(q5);
-    const double _t31 = cos(q5);
-    const double _t32 = _t2*_t31;
-    const double _t33 = _t0*_t32;
-    const double _t34 = _t30*_t4;
-    const double _t35 = cos(q4);
-    const double _t36 = _t0*_t35;
-    const double _t37 = -_t11*_t29*_t30 + _t33 + _t34*_t36;
+    const double _t32 = _c4*_s1;
+    const double _t33 = _c0*_t32;
+    const double _t34 = _c1*_s4;
+    const double _t36 = _c0*_c3;
+    const double _t37 = -_s0*_s3*_s4 + _t33 + _t34*_t36;
     const double _t38 = -_t37;
-    const double _t39 = cos(q6);
-    const double _t40 = _t39*qdd5;
-    const double _t41 = _t34*_t39;
-    const double _t42 = sin(q6);
-    const double _t43 = _t35*_t39;
-    const double _t44 = -_t2*_t29*_t42 + _t32*_t43 + _t41;
+    const double _t40 = _c5*qdd5;
+    const double _t41 = _c5*_t34;
+    const double _t43 = _c3*_c5;
+    const double _t44 = -_s1*_s3*_s5 + _t32*_t43 + _t41;
     const double _t45 = -_t44;
-    const double _t46 = _t0*_t45;
-    const double _t47 = _t11*_t35;
-    const double _t48 = _t39*_t47;
-    const double _t49 = _t36*_t42;
-    const double _t50 = _t0*_t29;
-    const double _t51 = _t31*_t4;
-    const double _t52 = _t39*_t51;
-    const double _t53 = -_t11*_t29*_t42 + _t31*_t48 + _t4*_t49 + _t50*_t52;
+    const double _t46 = _c0*_t45;
+    const double _t47 = _c3*_s0;
+    const double _t48 = _c5*_t47;
+    const double _t49 = _s5*_t36;
+    const double _t50 = _c0*_s3;
+    const double _t51 = _c1*_c4;
+    const double _t52 = _c5*_t51;
+    const double _t53 = _c1*_t49 + _c4*_t48 - _s0*_s3*_s5 + _t50*_t52;
     const double _t54 = -_t53;
-    const double _t55 = _t39*_t50;
-    const double _t56 = -_t11*_t29*_t4*_t42 + _t31*_t55 + _t47*_t52 + _t49;
-    const double _t57 = -_t11*_t2*_t30*_t39 + _t56;
+    const double _t55 = _c5*_t50;
+    const double _t56 = -_c1*_s0*_s3*_s5 + _c4*_t55 + _t47*_t52 + _t49;
+    const double _t57 = -_c5*_s0*_s1*_s4 + _t56;
     const double _t58 = -_t57;
-    const double _t59 = _t11*_t29;
-    const double _t60 = _t31*_t59;
-    const double _t61 = _t4*_t55 - _t42*_t60 + _t48 + _t49*_t51;
-    const double _t62 = -_t0*_t2*_t30*_t42 + _t61;
+    const double _t59 = _s0*_s3;
+    const double _t60 = _c4*_t59;
+    const double _t61 = _c1*_t55 - _s5*_t60 + _t48 + _t49*_t51;
+    const double _t62 = -_c0*_s1*_s4*_s5 + _t61;
     const double _t63 = -_t62;
-    const double _t64 = _t30*_t47;
+    const double _t64 = _s4*_t47;
     const double _t65 = _t34*_t50 + _t64;
     const double _t66 = _t65*qd4;
-    const double _t67 = _t2*_t30;
-    const double _t68 = -_t0*_t51 + _t36*_t67;
+    const double _t67 = _s1*_s4;
+    const double _t68 = -_c0*_t51 + _t36*_t67;
     const double _t69 = _t68*qd2;
     const double _t70 = _t68*qd3;
-    const double _t71 = _t30*_t50;
-    const double _t72 = _t11*_t32;
+    const double _t71 = _s4*_t50;
+    const double _t72 = _s0*_t32;
     const double _t73 = _t34*_t47 + _t71 + _t72;
     const double _t74 = _t73*qd1;
-    const double _t75 = _t0*_t67 - _t36*_t51 + _t60;
+    const double _t75 = _c0*_t67 - _t36*_t51 + _t60;
     const double _t76 = _t75*qd5;
-    const double _t77 = _t42*qd6;
-    const double _t78 = _t35*_t42;
-    const double _t79 = _t29*_t39;
-    const double _t80 = qd4*(_t2*_t78 + _t32*_t79);
+    const double _t77 = _s5*qd6;
+    const double _t78 = _c3*_s5;
+    const double _t79 = _c5*_s3;
+    const double _t80 = qd4*(_s1*_t78 + _t32*_t79);
     const double _t81 = qd5*(_t43*_t67 - _t52);
-    const double _t82 = _t34*_t42;
-    const double _t83 = _t2*_t79 + _t32*_t78 + _t82;
+    const double _t82 = _s5*_t34;
+    const double _t83 = _s1*_t79 + _t32*_t78 + _t82;
     const double _t84 = _t83*qd6;
-    const double _t85 = _t29*_t42;
-    const double _t86 = _t39*_t67;
-    const double _t87 = _t4*_t85 - _t43*_t51 + _t86;
+    const double _t85 = _s3*_s5;
+    const double _t86 = _c5*_t67;
+    const double _t87 = _c1*_t85 - _t43*_t51 + _t86;
     const double _t88 = _t87*qd2;
     const double _t89 = _t87*qd3;
-    const double _t90 = _t11*qd1;
-    const double _t91 = _t0*_t80 + _t0*_t81 + _t0*_t84 + _t0*_t88 + _t0*_t89 - _t45*_t90;
-    const double _t92 = _t2*_t49 + _t32*_t55;
-    const double _t93 = _t42*_t50;
-    const double _t94 = _t36*_t39;
-    const double _t95 = _t42*_t47;
-    const double _t96 = -_t31*_t94 + _t4*_t95 + _t52*_t59 + _t93;
-    const double _t97 = _t39*_t59;
-    const double _t98 = _t31*_t97 + _t4*_t93 - _t51*_t94 + _t95;
-    const double _t99 = _t31*_t95 - _t4*_t94 + _t51*_t93 + _t97;
-    const double _t100 = _t0*_t82 + _t2*_t55 + _t32*_t49;
-    const double _t101 = _t0*_t86 + _t98;
-    const double _t102 = _t42*_t67;
-    const double _t103 = _t31*_t93 + _t4*_t97 + _t51*_t95 - _t94;
-    const double _t104 = -_t102*_t11 + _t103;
-    const double _t105 = _t100*qd2 + _t100*qd3 + _t101*qd6 + _t104*qd1 + _t99*qd4 + qd5*(-_t30*_t42*_t59 + _t33*_t42 + _t36*_t82);
-    const double _t106 = _t42*_t59;
-    const double _t107 = -_t106*_t2 + _t11*_t41 + _t32*_t48;
-    const double _t108 = _t101*qd1 + _t104*qd6 + _t107*qd2 + _t107*qd3 + _t96*qd4 + qd5*(_t39*_t71 + _t39*_t72 + _t41*_t47);
-    const double _t109 = _t42*qdd5;
-    const double _t110 = _t0*_t83;
-    const double _t111 = -_t42*_t68;
-    const double _t112 = _t39*qd6;
-    const double _t113 = _t42*qd5;
-    const double _t114 = -_t2*_t35*_t39 + _t32*_t85;
+    const double _t90 = _s0*qd1;
+    const double _t91 = _c0*_t80 + _c0*_t81 + _c0*_t84 + _c0*_t88 + _c0*_t89 - _t45*_t90;
+    const double _t92 = _s1*_t49 + _t32*_t55;
+    const double _t93 = _s5*_t50;
+    const double _t94 = _c5*_t36;
+    const double _t95 = _s5*_t47;
+    const double _t96 = _c1*_t95 - _c4*_t94 + _t52*_t59 + _t93;
+    const double _t97 = _c5*_t59;
+    const double _t98 = _c1*_t93 + _c4*_t97 - _t51*_t94 + _t95;
+    const double _t99 = -_c1*_t94 + _c4*_t95 + _t51*_t93 + _t97;
+    const double _t100 = _c0*_t82 + _s1*_t55 + _t32*_t49;
+    const double _t101 = _c0*_t86 + _t98;
+    const double _t102 = _s5*_t67;
+    const double _t103 = _c1*_t97 + _c4*_t93 + _t51*_t95 - _t94;
+    const double _t104 = -_s0*_t102 + _t103;
+    const double _t105 = _t100*qd2 + _t100*qd3 + _t101*qd6 + _t104*qd1 + _t99*qd4 + qd5*(-_s4*_s5*_t59 + _s5*_t33 + _t36*_t82);
+    const double _t106 = _s5*_t59;
+    const double _t107 = _s0*_t41 - _s1*_t106 + _t32*_t48;
+    const double _t108 = _t101*qd1 + _t104*qd6 + _t107*qd2 + _t107*qd3 + _t96*qd4 + qd5*(_c5*_t71 + _c5*_t72 + _t41*_t47);
+    const double _t109 = _s5*qdd5;
+    const double _t110 = _c0*_t83;
+    const double _t111 = -_s5*_t68;
+    const double _t112 = _c5*qd6;
+    const double _t113 = _s5*qd5;
+    const double _t114 = -_c3*_c5*_s1 + _t32*_t85;
     const double _t115 = -_t114*qd4;
-    const double _t116 = -_t31*_t4*_t42 + _t67*_t78;
+    const double _t116 = -_c1*_c4*_s5 + _t67*_t78;
     const double _t117 = -_t116;
-    const double _t118 = _t0*qd5;
-    const double _t119 = -_t102 + _t4*_t79 + _t51*_t78;
-    const double _t120 = _t0*qd3;
+    const double _t118 = _c0*qd5;
+    const double _t119 = _c1*_t79 - _t102 + _t51*_t78;
+    const double _t120 = _c0*qd3;
     const double _t121 = _t44*qd6;
-    const double _t122 = _t0*_t115 + _t0*_t121 + _t117*_t118 + _t119*_t120 + _t119*_t16 - _t83*_t90;
-    const double _t123 = _t0*_t2*_t35*_t39 - _t32*_t93;
-    const double _t124 = -_t106*_t51 + _t31*_t49 + _t4*_t48 + _t55;
-    const double _t125 = -_t30*_t97 + _t33*_t39 + _t34*_t94;
-    const double _t126 = _t0*_t41 - _t2*_t93 + _t32*_t94;
-    const double _t127 = _t30*_t93 + _t34*_t95 + _t42*_t72;
-    const double _t128 = _t11*_t82 + _t2*_t97 + _t32*_t95;
+    const double _t122 = _c0*_t115 + _c0*_t121 + _t117*_t118 + _t119*_t120 + _t119*_t16 - _t83*_t90;
+    const double _t123 = _c0*_c3*_c5*_s1 - _t32*_t93;
+    const double _t124 = _c1*_t48 + _c4*_t49 - _t106*_t51 + _t55;
+    const double _t125 = _c5*_t33 - _s4*_t97 + _t34*_t94;
+    const double _t126 = _c0*_t41 - _s1*_t93 + _t32*_t94;
+    const double _t127 = _s4*_t93 + _s5*_t72 + _t34*_t95;
+    const double _t128 = _s0*_t82 + _s1*_t97 + _t32*_t95;
     const double _t129 = -_t128;
-    const double _t130 = _t4*_t50 + _t47;
-    const double _t131 = _t30*qdd4;
-    const double _t132 = _t35*_t67;
+    const double _t130 = _c1*_t50 + _t47;
+    const double _t131 = _s4*qdd4;
+    const double _t132 = _c3*_t67;
     const double _t133 = _t132 - _t51;
-    const double _t134 = _t0*_t133;
+    const double _t134 = _c0*_t133;
     const double _t135 = _t50*_t67;
-    const double _t136 = _t31*qd5;
-    const double _t137 = -_t0*_t35 + _t4*_t59;
-    const double _t138 = _t30*qd1;
-    const double _t139 = _t30*qd4;
-    const double _t140 = _t32 + _t34*_t35;
-    const double _t141 = _t32*_t35 + _t34;
+    const double _t136 = _c4*qd5;
+    const double _t137 = -_c0*_c3 + _c1*_t59;
+    const double _t138 = _s4*qd1;
+    const double _t139 = _s4*qd4;
+    const double _t140 = _c3*_t34 + _t32;
+    const double _t141 = _c3*_t32 + _t34;
     const double _t142 = _t118*_t141 + _t120*_t140 - _t133*_t90 - _t135*qd4 + _t140*_t16;
-    const double _t143 = _t0*_t34 + _t32*_t36;
-    const double _t144 = -_t11*_t67 + _t31*_t50 + _t47*_t51;
-    const double _t145 = qd4*(_t0*_t30*_t35 - _t34*_t59);
-    const double _t146 = _t11*_t31*_t4 - _t47*_t67;
+    const double _t143 = _c0*_t34 + _t32*_t36;
+    const double _t144 = _c4*_t50 - _s0*_t67 + _t47*_t51;
+    const double _t145 = qd4*(_c0*_c3*_s4 - _t34*_t59);
+    const double _t146 = _c1*_c4*_s0 - _t47*_t67;
     const double _t147 = _t146*qd2;
     const double _t148 = _t146*qd3;
     const double _t149 = _t37*qd1;
     const double _t150 = _t144*qd5;
-    const double _t151 = _t11*_t80 + _t11*_t81 + _t11*_t84 + _t11*_t88 + _t11*_t89 + _t46*qd1;
-    const double _t152 = _t2*_t95 + _t32*_t97;
+    const double _t151 = _s0*_t80 + _s0*_t81 + _s0*_t84 + _s0*_t88 + _s0*_t89 + _t46*qd1;
+    const double _t152 = _s1*_t95 + _t32*_t97;
     const double _t153 = -_t124;
     const double _t154 = -_t126;
-    const double _t155 = _t11*qd5;
-    const double _t156 = _t11*qd3;
-    const double _t157 = _t11*_t115 + _t11*_t121 + _t110*qd1 + _t117*_t155 + _t119*_t156 + _t119*_t24;
-    const double _t158 = -_t106*_t32 + _t11*_t2*_t35*_t39;
+    const double _t155 = _s0*qd5;
+    const double _t156 = _s0*qd3;
+    const double _t157 = _s0*_t115 + _s0*_t121 + _t110*qd1 + _t117*_t155 + _t119*_t156 + _t119*_t24;
+    const double _t158 = _c3*_c5*_s0*_s1 - _t106*_t32;
     const double _t159 = _t59*_t67;
     const double _t160 = _t134*qd1 + _t140*_t156 + _t140*_t24 + _t141*_t155 - _t159*qd4;
-    const double _t161 = _t11*_t34 + _t32*_t47;
-    const double _t162 = _t31*_t79 + _t78;
-    const double _t163 = _t2*qdd4;
+    const double _t161 = _s0*_t34 + _t32*_t47;
+    const double _t162 = _c4*_t79 + _t78;
+    const double _t163 = _s1*qdd4;
     const double _t164 = -_t133;
     const double _t165 = -_t87;
-    const double _t166 = _t162*_t4;
-    const double _t167 = _t2*qd4;
-    const double _t168 = _t31*_t85 - _t35*_t39;
-    const double _t169 = _t2*qd6;
+    const double _t166 = _c1*_t162;
+    const double _t167 = _s1*qd4;
+    const double _t168 = -_c3*_c5 + _c4*_t85;
+    const double _t169 = _s1*qd6;
     const double _t170 = -_t140;
-    const double _t171 = _t170*_t39;
+    const double _t171 = _c5*_t170;
     const double _t172 = -_t141;
     const double _t173 = -_t119;
-    const double _t174 = _t173*qd6 + _t45*qd2 + _t45*qd3 + qd4*(-_t4*_t78 - _t51*_t79) + qd5*(-_t32*_t39 - _t34*_t43);
+    const double _t174 = _t173*qd6 + _t45*qd2 + _t45*qd3 + qd4*(-_c1*_t78 - _t51*_t79) + qd5*(-_c5*_t32 - _t34*_t43);
     const double _t175 = _t67*_t85;
-    const double _t176 = _t168*_t4;
-    const double _t177 = _t140*_t42;
-    const double _t178 = _t83*qd2 + _t83*qd3 + _t87*qd6 + qd4*(-_t4*_t43 + _t51*_t85) + qd5*(_t32*_t42 + _t34*_t78);
-    const double _t179 = _t29*_t34;
-    const double _t180 = _t29*_t32;
-    const double _t181 = -_t35*_t51 + _t67;
+    const double _t176 = _c1*_t168;
+    const double _t177 = _s5*_t140;
+    const double _t178 = _t83*qd2 + _t83*qd3 + _t87*qd6 + qd4*(-_c1*_t43 + _t51*_t85) + qd5*(_s5*_t32 + _t34*_t78);
+    const double _t179 = _s3*_t34;
+    const double _t180 = _s3*_t32;
+    const double _t181 = -_c3*_t51 + _t67;
     const double _t182 = _t133*qd2 + _t133*qd3 + _t179*qd4 + _t181*qd5;
-    xdd[0] = -_t10*qdd2 + _t14*qdd1 - _t7*qdd3 + qd1*(_t20*qd3 - _t21*qd1 + qd2*(_t11*_t8 + _t20)) + qd2*(_t11*_t9*qd1 - _t16*_t19 - _t18) + qd3*(_t11*_t6*qd1 - _t15*_t16 - _t18);
-    xdd[1] = _t21*qdd1 - _t22*_t6 - _t23*_t9 + qd1*(_t14*qd1 - _t26*qd3 + qd2*(-_t0*_t8 - _t26)) + qd2*(-_t10*qd1 - _t19*_t24 - _t25) + qd3*(-_t15*_t24 - _t25 - _t7*qd1);
+    xdd[0] = -_t10*qdd2 + _t14*qdd1 - _t7*qdd3 + qd1*(_t20*qd3 - _t21*qd1 + qd2*(_s0*_t8 + _t20)) + qd2*(_s0*_t9*qd1 - _t16*_t19 - _t18) + qd3*(_s0*_t6*qd1 - _t15*_t16 - _t18);
+    xdd[1] = _t21*qdd1 - _t22*_t6 - _t23*_t9 + qd1*(_t14*qd1 - _t26*qd3 + qd2*(-_c0*_t8 - _t26)) + qd2*(-_t10*qd1 - _t19*_t24 - _t25) + qd3*(-_t15*_t24 - _t25 - _t7*qd1);
     xdd[2] = _t15*qdd3 + _t19*qdd2 + qd2*(_t28 - _t9*qd2) + qd3*(_t27*qd2 + _t28);
-    xdd[3] = _t105*qd6 + _t108*qd1 + _t38*_t40 + _t46*qdd2 + _t46*qdd3 + _t54*qdd4 + _t58*qdd1 + _t63*qdd6 + _t91*qd2 + _t91*qd3 + qd4*(_t92*qd2 + _t92*qd3 + _t96*qd1 + _t98*qd4 + _t99*qd6 + qd5*(_t39*_t64 + _t41*_t50)) + qd5*(-_t38*_t77 + _t39*_t66 + _t39*_t69 + _t39*_t70 + _t39*_t74 + _t39*_t76);
-    xdd[4] = _t101*qdd6 + _t104*qdd1 + _t109*_t37 + _t110*qdd2 + _t110*qdd3 + _t122*qd2 + _t122*qd3 + _t99*qdd4 + qd1*(_t124*qd4 - _t127*qd5 + _t129*qd2 + _t129*qd3 + _t57*qd6 + _t62*qd1) + qd4*(_t123*qd2 + _t123*qd3 + _t124*qd1 + _t53*qd6 + _t61*qd4 + qd5*(-_t30*_t95 - _t34*_t93)) + qd5*(_t111*qd2 + _t111*qd3 + _t112*_t37 - _t113*_t75 - _t42*_t65*qd4 - _t42*_t73*qd1) + qd6*(_t125*qd5 + _t126*qd2 + _t126*qd3 + _t53*qd4 + _t57*qd1 + _t62*qd6);
-    xdd[5] = _t130*_t131 + _t134*qdd2 + _t134*qdd3 + _t142*qd2 + _t142*qd3 + _t73*qdd1 + _t75*qdd5 + qd1*(_t145 + _t147 + _t148 + _t149 + _t150) + qd4*(_t130*_t136 - _t135*qd2 - _t135*qd3 - _t137*_t138 + _t139*(_t0*_t35*_t4 - _t59)) + qd5*(_t143*qd2 + _t143*qd3 + _t144*qd1 + _t37*qd5 + qd4*(_t31*_t47 + _t50*_t51));
-    xdd[6] = -_t101*qdd1 - _t104*qdd6 + _t151*qd2 + _t151*qd3 + _t22*_t45 + _t23*_t45 - _t40*_t73 - _t96*qdd4 + qd1*(-_t125*qd5 + _t154*qd2 + _t154*qd3 + _t54*qd4 + _t58*qd1 + _t63*qd6) + qd4*(_t152*qd2 + _t152*qd3 + _t153*qd6 + _t54*qd1 - _t56*qd4 + qd5*(-_t30*_t94 + _t41*_t59)) + qd5*(-_t145*_t39 - _t147*_t39 - _t148*_t39 - _t149*_t39 - _t150*_t39 + _t42*_t73*qd6) + qd6*(_t127*qd5 + _t128*qd2 + _t128*qd3 + _t153*qd4 + _t58*qd6 + _t63*qd1);
-    xdd[7] = _t105*qd1 + _t108*qd6 + _t109*_t73 + _t153*qdd4 + _t157*qd2 + _t157*qd3 + _t22*_t83 + _t23*_t83 + _t58*qdd6 + _t63*qdd1 + qd4*(_t103*qd4 + _t158*qd2 + _t158*qd3 + _t96*qd6 + _t99*qd1 + qd5*(_t0*_t30*_t35*_t42 - _t59*_t82)) + qd5*(_t112*_t73 + _t145*_t42 + _t147*_t42 + _t148*_t42 + _t149*_t42 + _t150*_t42);
-    xdd[8] = _t131*_t137 + _t133*_t22 + _t133*_t23 - _t144*qdd5 + _t160*qd2 + _t160*qd3 + _t38*qdd1 + qd1*(_t66 + _t69 + _t70 + _t74 + _t76) + qd4*(_t130*_t138 + _t136*_t137 + _t139*(_t4*_t47 + _t50) - _t159*qd2 - _t159*qd3) + qd5*(_t161*qd2 + _t161*qd3 + _t73*qd5 + _t75*qd1 + qd4*(-_t31*_t36 + _t51*_t59));
-    xdd[9] = -_t162*_t163 + _t164*_t40 + _t165*qdd2 + _t165*qdd3 + _t174*qd2 + _t174*qd3 - _t83*qdd6 + qd4*(-_t166*qd2 - _t166*qd3 - _t167*(_t31*_t35*_t39 - _t85) + _t168*_t169 + _t2*_t29*_t30*_t39*qd5) + qd5*(-_t164*_t77 + _t171*qd2 + _t171*qd3 + _t172*_t39*qd5 + _t67*_t79*qd4) + qd6*(_t114*qd4 + _t116*qd5 + _t173*qd2 + _t173*qd3 + _t45*qd6);
-    xdd[10] = _t109*_t133 + _t163*_t168 + _t173*qdd2 + _t173*qdd3 + _t178*qd2 + _t178*qd3 + _t45*qdd6 + qd4*(_t162*_t169 + _t167*(_t31*_t78 + _t79) - _t175*qd5 + _t176*qd2 + _t176*qd3) + qd5*(_t112*_t133 + _t113*_t141 - _t175*qd4 + _t177*qd2 + _t177*qd3) + qd6*(_t80 + _t81 + _t84 + _t88 + _t89);
-    xdd[11] = _t170*qdd2 + _t170*qdd3 + _t172*qdd5 + _t182*qd2 + _t182*qd3 + _t29*_t67*qdd4 + qd4*(_t132*qd4 + _t179*qd2 + _t179*qd3 + _t180*qd5) + qd5*(_t133*qd5 + _t180*qd4 + _t181*qd2 + _t181*qd3);
+    xdd[3] = _t105*qd6 + _t108*qd1 + _t38*_t40 + _t46*qdd2 + _t46*qdd3 + _t54*qdd4 + _t58*qdd1 + _t63*qdd6 + _t91*qd2 + _t91*qd3 + qd4*(_t92*qd2 + _t92*qd3 + _t96*qd1 + _t98*qd4 + _t99*qd6 + qd5*(_c5*_t64 + _t41*_t50)) + qd5*(_c5*_t66 + _c5*_t69 + _c5*_t70 + _c5*_t74 + _c5*_t76 - _t38*_t77);
+    xdd[4] = _t101*qdd6 + _t104*qdd1 + _t109*_t37 + _t110*qdd2 + _t110*qdd3 + _t122*qd2 + _t122*qd3 + _t99*qdd4 + qd1*(_t124*qd4 - _t127*qd5 + _t129*qd2 + _t129*qd3 + _t57*qd6 + _t62*qd1) + qd4*(_t123*qd2 + _t123*qd3 + _t124*qd1 + _t53*qd6 + _t61*qd4 + qd5*(-_s4*_t95 - _t34*_t93)) + qd5*(-_s5*_t65*qd4 - _s5*_t73*qd1 + _t111*qd2 + _t111*qd3 + _t112*_t37 - _t113*_t75) + qd6*(_t125*qd5 + _t126*qd2 + _t126*qd3 + _t53*qd4 + _t57*qd1 + _t62*qd6);
+    xdd[5] = _t130*_t131 + _t134*qdd2 + _t134*qdd3 + _t142*qd2 + _t142*qd3 + _t73*qdd1 + _t75*qdd5 + qd1*(_t145 + _t147 + _t148 + _t149 + _t150) + qd4*(_t130*_t136 - _t135*qd2 - _t135*qd3 - _t137*_t138 + _t139*(_c0*_c1*_c3 - _t59)) + qd5*(_t143*qd2 + _t143*qd3 + _t144*qd1 + _t37*qd5 + qd4*(_c4*_t47 + _t50*_t51));
+    xdd[6] = -_t101*qdd1 - _t104*qdd6 + _t151*qd2 + _t151*qd3 + _t22*_t45 + _t23*_t45 - _t40*_t73 - _t96*qdd4 + qd1*(-_t125*qd5 + _t154*qd2 + _t154*qd3 + _t54*qd4 + _t58*qd1 + _t63*qd6) + qd4*(_t152*qd2 + _t152*qd3 + _t153*qd6 + _t54*qd1 - _t56*qd4 + qd5*(-_s4*_t94 + _t41*_t59)) + qd5*(-_c5*_t145 - _c5*_t147 - _c5*_t148 - _c5*_t149 - _c5*_t150 + _s5*_t73*qd6) + qd6*(_t127*qd5 + _t128*qd2 + _t128*qd3 + _t153*qd4 + _t58*qd6 + _t63*qd1);
+    xdd[7] = _t105*qd1 + _t108*qd6 + _t109*_t73 + _t153*qdd4 + _t157*qd2 + _t157*qd3 + _t22*_t83 + _t23*_t83 + _t58*qdd6 + _t63*qdd1 + qd4*(_t103*qd4 + _t158*qd2 + _t158*qd3 + _t96*qd6 + _t99*qd1 + qd5*(_c0*_c3*_s4*_s5 - _t59*_t82)) + qd5*(_s5*_t145 + _s5*_t147 + _s5*_t148 + _s5*_t149 + _s5*_t150 + _t112*_t73);
+    xdd[8] = _t131*_t137 + _t133*_t22 + _t133*_t23 - _t144*qdd5 + _t160*qd2 + _t160*qd3 + _t38*qdd1 + qd1*(_t66 + _t69 + _t70 + _t74 + _t76) + qd4*(_t130*_t138 + _t136*_t137 + _t139*(_c1*_t47 + _t50) - _t159*qd2 - _t159*qd3) + qd5*(_t161*qd2 + _t161*qd3 + _t73*qd5 + _t75*qd1 + qd4*(-_c4*_t36 + _t51*_t59));
+    xdd[9] = -_t162*_t163 + _t164*_t40 + _t165*qdd2 + _t165*qdd3 + _t174*qd2 + _t174*qd3 - _t83*qdd6 + qd4*(_c5*_s1*_s3*_s4*qd5 - _t166*qd2 - _t166*qd3 - _t167*(_c3*_c4*_c5 - _t85) + _t168*_t169) + qd5*(_c5*_t172*qd5 - _t164*_t77 + _t171*qd2 + _t171*qd3 + _t67*_t79*qd4) + qd6*(_t114*qd4 + _t116*qd5 + _t173*qd2 + _t173*qd3 + _t45*qd6);
+    xdd[10] = _t109*_t133 + _t163*_t168 + _t173*qdd2 + _t173*qdd3 + _t178*qd2 + _t178*qd3 + _t45*qdd6 + qd4*(_t162*_t169 + _t167*(_c4*_t78 + _t79) - _t175*qd5 + _t176*qd2 + _t176*qd3) + qd5*(_t112*_t133 + _t113*_t141 - _t175*qd4 + _t177*qd2 + _t177*qd3) + qd6*(_t80 + _t81 + _t84 + _t88 + _t89);
+    xdd[11] = _s3*_t67*qdd4 + _t170*qdd2 + _t170*qdd3 + _t172*qdd5 + _t182*qd2 + _t182*qd3 + qd4*(_t132*qd4 + _t179*qd2 + _t179*qd3 + _t180*qd5) + qd5*(_t133*qd5 + _t180*qd4 + _t181*qd2 + _t181*qd3);
 }
 
+/* task_acceleration of `count` items, stored one after the other in each argument and output. */
 void puma560_task_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict qdd, const puma560_params *restrict params, double *restrict xdd)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double q5[KINEGEN_BLOCK_OF(64)];
+    double q6[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double qd3[KINEGEN_BLOCK_OF(64)];
+    double qd4[KINEGEN_BLOCK_OF(64)];
+    double qd5[KINEGEN_BLOCK_OF(64)];
+    double qd6[KINEGEN_BLOCK_OF(64)];
+    double qdd1[KINEGEN_BLOCK_OF(64)];
+    double qdd2[KINEGEN_BLOCK_OF(64)];
+    double qdd3[KINEGEN_BLOCK_OF(64)];
+    double qdd4[KINEGEN_BLOCK_OF(64)];
+    double qdd5[KINEGEN_BLOCK_OF(64)];
+    double qdd6[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    double _s4[KINEGEN_BLOCK_OF(64)];
+    double _c4[KINEGEN_BLOCK_OF(64)];
+    double _s5[KINEGEN_BLOCK_OF(64)];
+    double _c5[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _xdd_block[12][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)xdd & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[6 * (start + i) + 0];
+            q2[i] = q[6 * (start + i) + 1];
+            q3[i] = q[6 * (start + i) + 2];
+            q4[i] = q[6 * (start + i) + 3];
+            q5[i] = q[6 * (start + i) + 4];
+            q6[i] = q[6 * (start + i) + 5];
+            qd1[i] = qd[6 * (start + i) + 0];
+            qd2[i] = qd[6 * (start + i) + 1];
+            qd3[i] = qd[6 * (start + i) + 2];
+            qd4[i] = qd[6 * (start + i) + 3];
+            qd5[i] = qd[6 * (start + i) + 4];
+            qd6[i] = qd[6 * (start + i) + 5];
+            qdd1[i] = qdd[6 * (start + i) + 0];
+            qdd2[i] = qdd[6 * (start + i) + 1];
+            qdd3[i] = qdd[6 * (start + i) + 2];
+            qdd4[i] = qdd[6 * (start + i) + 3];
+            qdd5[i] = qdd[6 * (start + i) + 4];
+            qdd6[i] = qdd[6 * (start + i) + 5];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t1[i] = q2[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s5[i] = sin(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c5[i] = cos(q6[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _s1[i]*a3;
+                const double _t5 = _c1[i]*d4;
+                const double _t6 = _t3 + _t5;
+                const double _t7 = _c0[i]*_t6;
+                const double _t8 = _s2[i]*a2;
+                const double _t9 = _t6 + _t8;
+                const double _t10 = _c0[i]*_t9;
+                const double _t12 = _c2[i]*a2;
+                const double _t13 = _c1[i]*a3;
+                const double _t14 = _c0[i]*d3 + _s0[i]*_s1[i]*d4 - _s0[i]*_t12 - _s0[i]*_t13;
+                const double _t15 = -_s1[i]*d4 + _t13;
+                const double _t16 = _c0[i]*qd2[i];
+                const double _t17 = _t15*qd3[i];
+                const double _t18 = _c0[i]*_t17;
+                const double _t19 = _t12 + _t15;
+                const double _t20 = _s0[i]*_t3 + _s0[i]*_t5;
+                const double _t21 = -_c0[i]*_s1[i]*d4 + _c0[i]*_t12 + _c0[i]*_t13 + _s0[i]*d3;
+                const double _t22 = _s0[i]*qdd3[i];
+                const double _t23 = _s0[i]*qdd2[i];
+                const double _t24 = _s0[i]*qd2[i];
+                const double _t25 = _s0[i]*_t17;
+                const double _t26 = _c0[i]*_t3 + _c0[i]*_t5;
+                const double _t27 = -_t6;
+                const double _t28 = _t27*qd3[i];
+                const double _t32 = _c4[i]*_s1[i];
+                const double _t33 = _c0[i]*_t32;
+                const double _t34 = _c1[i]*_s4[i];
+                const double _t36 = _c0[i]*_c3[i];
+                const double _t37 = -_s0[i]*_s3[i]*_s4[i] + _t33 + _t34*_t36;
+                const double _t38 = -_t37;
+                const double _t40 = _c5[i]*qdd5[i];
+                const double _t41 = _c5[i]*_t34;
+                const double _t43 = _c3[i]*_c5[i];
+                const double _t44 = -_s1[i]*_s3[i]*_s5[i] + _t32*_t43 + _t41;
+                const double _t45 = -_t44;
+                const double _t46 = _c0[i]*_t45;
+                const double _t47 = _c3[i]*_s0[i];
+                const double _t48 = _c5[i]*_t47;
+                const double _t49 = _s5[i]*_t36;
+                const double _t50 = _c0[i]*_s3[i];
+                const double _t51 = _c1[i]*_c4[i];
+                const double _t52 = _c5[i]*_t51;
+                const double _t53 = _c1[i]*_t49 + _c4[i]*_t48 - _s0[i]*_s3[i]*_s5[i] + _t50*_t52;
+                const double _t54 = -_t53;
+                const double _t55 = _c5[i]*_t50;
+                const double _t56 = -_c1[i]*_s0[i]*_s3[i]*_s5[i] + _c4[i]*_t55 + _t47*_t52 + _t49;
+                const double _t57 = -_c5[i]*_s0[i]*_s1[i]*_s4[i] + _t56;
+                const double _t58 = -_t57;
+                const double _t59 = _s0[i]*_s3[i];
+                const double _t60 = _c4[i]*_t59;
+                const double _t61 = _c1[i]*_t55 - _s5[i]*_t60 + _t48 + _t49*_t51;
+                const double _t62 = -_c0[i]*_s1[i]*_s4[i]*_s5[i] + _t61;
+                const double _t63 = -_t62;
+                const double _t64 = _s4[i]*_t47;
+                const double _t65 = _t34*_t50 + _t64;
+                const double _t66 = _t65*qd4[i];
+                const double _t67 = _s1[i]*_s4[i];
+                const double _t68 = -_c0[i]*_t51 + _t36*_t67;
+                const double _t69 = _t68*qd2[i];
+                const double _t70 = _t68*qd3[i];
+                const double _t71 = _s4[i]*_t50;
+                const double _t72 = _s0[i]*_t32;
+                const double _t73 = _t34*_t47 + _t71 + _t72;
+                const double _t74 = _t73*qd1[i];
+                const double _t75 = _c0[i]*_t67 - _t36*_t51 + _t60;
+                const double _t76 = _t75*qd5[i];
+                const double _t77 = _s5[i]*qd6[i];
+                const double _t78 = _c3[i]*_s5[i];
+                const double _t79 = _c5[i]*_s3[i];
+                const double _t80 = qd4[i]*(_s1[i]*_t78 + _t32*_t79);
+                const double _t81 = qd5[i]*(_t43*_t67 - _t52);
+                const double _t82 = _s5[i]*_t34;
+                const double _t83 = _s1[i]*_t79 + _t32*_t78 + _t82;
+                const double _t84 = _t83*qd6[i];
+                const double _t85 = _s3[i]*_s5[i];
+                const double _t86 = _c5[i]*_t67;
+                const double _t87 = _c1[i]*_t85 - _t43*_t51 + _t86;
+                const double _t88 = _t87*qd2[i];
+                const double _t89 = _t87*qd3[i];
+                const double _t90 = _s0[i]*qd1[i];
+                const double _t91 = _c0[i]*_t80 + _c0[i]*_t81 + _c0[i]*_t84 + _c0[i]*_t88 + _c0[i]*_t89 - _t45*_t90;
+                const double _t92 = _s1[i]*_t49 + _t32*_t55;
+                const double _t93 = _s5[i]*_t50;
+                const double _t94 = _c5[i]*_t36;
+                const double _t95 = _s5[i]*_t47;
+                const double _t96 = _c1[i]*_t95 - _c4[i]*_t94 + _t52*_t59 + _t93;
+                const double _t97 = _c5[i]*_t59;
+                const double _t98 = _c1[i]*_t93 + _c4[i]*_t97 - _t51*_t94 + _t95;
+                const double _t99 = -_c1[i]*_t94 + _c4[i]*_t95 + _t51*_t93 + _t97;
+                const double _t100 = _c0[i]*_t82 + _s1[i]*_t55 + _t32*_t49;
+                const double _t101 = _c0[i]*_t86 + _t98;
+                const double _t102 = _s5[i]*_t67;
+                const double _t103 = _c1[i]*_t97 + _c4[i]*_t93 + _t51*_t95 - _t94;
+                const double _t104 = -_s0[i]*_t102 + _t103;
+                const double _t105 = _t100*qd2[i] + _t100*qd3[i] + _t101*qd6[i] + _t104*qd1[i] + _t99*qd4[i] + qd5[i]*(-_s4[i]*_s5[i]*_t59 + _s5[i]*_t33 + _t36*_t82);
+                const double _t106 = _s5[i]*_t59;
+                const double _t107 = _s0[i]*_t41 - _s1[i]*_t106 + _t32*_t48;
+                const double _t108 = _t101*qd1[i] + _t104*qd6[i] + _t107*qd2[i] + _t107*qd3[i] + _t96*qd4[i] + qd5[i]*(_c5[i]*_t71 + _c5[i]*_t72 + _t41*_t47);
+                const double _t109 = _s5[i]*qdd5[i];
+                const double _t110 = _c0[i]*_t83;
+                const double _t111 = -_s5[i]*_t68;
+                const double _t112 = _c5[i]*qd6[i];
+                const double _t113 = _s5[i]*qd5[i];
+                const double _t114 = -_c3[i]*_c5[i]*_s1[i] + _t32*_t85;
+                const double _t115 = -_t114*qd4[i];
+                const double _t116 = -_c1[i]*_c4[i]*_s5[i] + _t67*_t78;
+                const double _t117 = -_t116;
+                const double _t118 = _c0[i]*qd5[i];
+                const double _t119 = _c1[i]*_t79 - _t102 + _t51*_t78;
+                const double _t120 = _c0[i]*qd3[i];
+                const double _t121 = _t44*qd6[i];
+                const double _t122 = _c0[i]*_t115 + _c0[i]*_t121 + _t117*_t118 + _t119*_t120 + _t119*_t16 - _t83*_t90;
+                const double _t123 = _c0[i]*_c3[i]*_c5[i]*_s1[i] - _t32*_t93;
+                const double _t124 = _c1[i]*_t48 + _c4[i]*_t49 - _t106*_t51 + _t55;
+                const double _t125 = _c5[i]*_t33 - _s4[i]*_t97 + _t34*_t94;
+                const double _t126 = _c0[i]*_t41 - _s1[i]*_t93 + _t32*_t94;
+                const double _t127 = _s4[i]*_t93 + _s5[i]*_t72 + _t34*_t95;
+                const double _t128 = _s0[i]*_t82 + _s1[i]*_t97 + _t32*_t95;
+                const double _t129 = -_t128;
+                const double _t130 = _c1[i]*_t50 + _t47;
+                const double _t131 = _s4[i]*qdd4[i];
+                const double _t132 = _c3[i]*_t67;
+                const double _t133 = _t132 - _t51;
+                const double _t134 = _c0[i]*_t133;
+                const double _t135 = _t50*_t67;
+                const double _t136 = _c4[i]*qd5[i];
+                const double _t137 = -_c0[i]*_c3[i] + _c1[i]*_t59;
+                const double _t138 = _s4[i]*qd1[i];
+                const double _t139 = _s4[i]*qd4[i];
+                const double _t140 = _c3[i]*_t34 + _t32;
+                const double _t141 = _c3[i]*_t32 + _t34;
+                const double _t142 = _t118*_t141 + _t120*_t140 - _t133*_t90 - _t135*qd4[i] + _t140*_t16;
+                const double _t143 = _c0[i]*_t34 + _t32*_t36;
+                const double _t144 = _c4[i]*_t50 - _s0[i]*_t67 + _t47*_t51;
+                const double _t145 = qd4[i]*(_c0[i]*_c3[i]*_s4[i] - _t34*_t59);
+                const double _t146 = _c1[i]*_c4[i]*_s0[i] - _t47*_t67;
+                const double _t147 = _t146*qd2[i];
+                const double _t148 = _t146*qd3[i];
+                const double _t149 = _t37*qd1[i];
+                const double _t150 = _t144*qd5[i];
+                const double _t151 = _s0[i]*_t80 + _s0[i]*_t81 + _s0[i]*_t84 + _s0[i]*_t88 + _s0[i]*_t89 + _t46*qd1[i];
+                const double _t152 = _s1[i]*_t95 + _t32*_t97;
+                const double _t153 = -_t124;
+                const double _t154 = -_t126;
+                const double _t155 = _s0[i]*qd5[i];
+                const double _t156 = _s0[i]*qd3[i];
+                const double _t157 = _s0[i]*_t115 + _s0[i]*_t121 + _t110*qd1[i] + _t117*_t155 + _t119*_t156 + _t119*_t24;
+                const double _t158 = _c3[i]*_c5[i]*_s0[i]*_s1[i] - _t106*_t32;
+                const double _t159 = _t59*_t67;
+                const double _t160 = _t134*qd1[i] + _t140*_t156 + _t140*_t24 + _t141*_t155 - _t159*qd4[i];
+                const double _t161 = _s0[i]*_t34 + _t32*_t47;
+                const double _t162 = _c4[i]*_t79 + _t78;
+                const double _t163 = _s1[i]*qdd4[i];
+                const double _t164 = -_t133;
+                const double _t165 = -_t87;
+                const double _t166 = _c1[i]*_t162;
+                const double _t167 = _s1[i]*qd4[i];
+                const double _t168 = -_c3[i]*_c5[i] + _c4[i]*_t85;
+                const double _t169 = _s1[i]*qd6[i];
+                const double _t170 = -_t140;
+                const double _t171 = _c5[i]*_t170;
+                const double _t172 = -_t141;
+                const double _t173 = -_t119;
+                const double _t174 = _t173*qd6[i] + _t45*qd2[i] + _t45*qd3[i] + qd4[i]*(-_c1[i]*_t78 - _t51*_t79) + qd5[i]*(-_c5[i]*_t32 - _t34*_t43);
+                const double _t175 = _t67*_t85;
+                const double _t176 = _c1[i]*_t168;
+                const double _t177 = _s5[i]*_t140;
+                const double _t178 = _t83*qd2[i] + _t83*qd3[i] + _t87*qd6[i] + qd4[i]*(-_c1[i]*_t43 + _t51*_t85) + qd5[i]*(_s5[i]*_t32 + _t34*_t78);
+                const double _t179 = _s3[i]*_t34;
+                const double _t180 = _s3[i]*_t32;
+                const double _t181 = -_c3[i]*_t51 + _t67;
+                const double _t182 = _t133*qd2[i] + _t133*qd3[i] + _t179*qd4[i] + _t181*qd5[i];
+                _xdd_block[0][i] = -_t10*qdd2[i] + _t14*qdd1[i] - _t7*qdd3[i] + qd1[i]*(_t20*qd3[i] - _t21*qd1[i] + qd2[i]*(_s0[i]*_t8 + _t20)) + qd2[i]*(_s0[i]*_t9*qd1[i] - _t16*_t19 - _t18) + qd3[i]*(_s0[i]*_t6*qd1[i] - _t15*_t16 - _t18);
+                _xdd_block[1][i] = _t21*qdd1[i] - _t22*_t6 - _t23*_t9 + qd1[i]*(_t14*qd1[i] - _t26*qd3[i] + qd2[i]*(-_c0[i]*_t8 - _t26)) + qd2[i]*(-_t10*qd1[i] - _t19*_t24 - _t25) + qd3[i]*(-_t15*_t24 - _t25 - _t7*qd1[i]);
+                _xdd_block[2][i] = _t15*qdd3[i] + _t19*qdd2[i] + qd2[i]*(_t28 - _t9*qd2[i]) + qd3[i]*(_t27*qd2[i] + _t28);
+                _xdd_block[3][i] = _t105*qd6[i] + _t108*qd1[i] + _t38*_t40 + _t46*qdd2[i] + _t46*qdd3[i] + _t54*qdd4[i] + _t58*qdd1[i] + _t63*qdd6[i] + _t91*qd2[i] + _t91*qd3[i] + qd4[i]*(_t92*qd2[i] + _t92*qd3[i] + _t96*qd1[i] + _t98*qd4[i] + _t99*qd6[i] + qd5[i]*(_c5[i]*_t64 + _t41*_t50)) + qd5[i]*(_c5[i]*_t66 + _c5[i]*_t69 + _c5[i]*_t70 + _c5[i]*_t74 + _c5[i]*_t76 - _t38*_t77);
+                _xdd_block[4][i] = _t101*qdd6[i] + _t104*qdd1[i] + _t109*_t37 + _t110*qdd2[i] + _t110*qdd3[i] + _t122*qd2[i] + _t122*qd3[i] + _t99*qdd4[i] + qd1[i]*(_t124*qd4[i] - _t127*qd5[i] + _t129*qd2[i] + _t129*qd3[i] + _t57*qd6[i] + _t62*qd1[i]) + qd4[i]*(_t123*qd2[i] + _t123*qd3[i] + _t124*qd1[i] + _t53*qd6[i] + _t61*qd4[i] + qd5[i]*(-_s4[i]*_t95 - _t34*_t93)) + qd5[i]*(-_s5[i]*_t65*qd4[i] - _s5[i]*_t73*qd1[i] + _t111*qd2[i] + _t111*qd3[i] + _t112*_t37 - _t113*_t75) + qd6[i]*(_t125*qd5[i] + _t126*qd2[i] + _t126*qd3[i] + _t53*qd4[i] + _t57*qd1[i] + _t62*qd6[i]);
+                _xdd_block[5][i] = _t130*_t131 + _t134*qdd2[i] + _t134*qdd3[i] + _t142*qd2[i] + _t142*qd3[i] + _t73*qdd1[i] + _t75*qdd5[i] + qd1[i]*(_t145 + _t147 + _t148 + _t149 + _t150) + qd4[i]*(_t130*_t136 - _t135*qd2[i] - _t135*qd3[i] - _t137*_t138 + _t139*(_c0[i]*_c1[i]*_c3[i] - _t59)) + qd5[i]*(_t143*qd2[i] + _t143*qd3[i] + _t144*qd1[i] + _t37*qd5[i] + qd4[i]*(_c4[i]*_t47 + _t50*_t51));
+                _xdd_block[6][i] = -_t101*qdd1[i] - _t104*qdd6[i] + _t151*qd2[i] + _t151*qd3[i] + _t22*_t45 + _t23*_t45 - _t40*_t73 - _t96*qdd4[i] + qd1[i]*(-_t125*qd5[i] + _t154*qd2[i] + _t154*qd3[i] + _t54*qd4[i] + _t58*qd1[i] + _t63*qd6[i]) + qd4[i]*(_t152*qd2[i] + _t152*qd3[i] + _t153*qd6[i] + _t54*qd1[i] - _t56*qd4[i] + qd5[i]*(-_s4[i]*_t94 + _t41*_t59)) + qd5[i]*(-_c5[i]*_t145 - _c5[i]*_t147 - _c5[i]*_t148 - _c5[i]*_t149 - _c5[i]*_t150 + _s5[i]*_t73*qd6[i]) + qd6[i]*(_t127*qd5[i] + _t128*qd2[i] + _t128*qd3[i] + _t153*qd4[i] + _t58*qd6[i] + _t63*qd1[i]);
+                _xdd_block[7][i] = _t105*qd1[i] + _t108*qd6[i] + _t109*_t73 + _t153*qdd4[i] + _t157*qd2[i] + _t157*qd3[i] + _t22*_t83 + _t23*_t83 + _t58*qdd6[i] + _t63*qdd1[i] + qd4[i]*(_t103*qd4[i] + _t158*qd2[i] + _t158*qd3[i] + _t96*qd6[i] + _t99*qd1[i] + qd5[i]*(_c0[i]*_c3[i]*_s4[i]*_s5[i] - _t59*_t82)) + qd5[i]*(_s5[i]*_t145 + _s5[i]*_t147 + _s5[i]*_t148 + _s5[i]*_t149 + _s5[i]*_t150 + _t112*_t73);
+                _xdd_block[8][i] = _t131*_t137 + _t133*_t22 + _t133*_t23 - _t144*qdd5[i] + _t160*qd2[i] + _t160*qd3[i] + _t38*qdd1[i] + qd1[i]*(_t66 + _t69 + _t70 + _t74 + _t76) + qd4[i]*(_t130*_t138 + _t136*_t137 + _t139*(_c1[i]*_t47 + _t50) - _t159*qd2[i] - _t159*qd3[i]) + qd5[i]*(_t161*qd2[i] + _t161*qd3[i] + _t73*qd5[i] + _t75*qd1[i] + qd4[i]*(-_c4[i]*_t36 + _t51*_t59));
+                _xdd_block[9][i] = -_t162*_t163 + _t164*_t40 + _t165*qdd2[i] + _t165*qdd3[i] + _t174*qd2[i] + _t174*qd3[i] - _t83*qdd6[i] + qd4[i]*(_c5[i]*_s1[i]*_s3[i]*_s4[i]*qd5[i] - _t166*qd2[i] - _t166*qd3[i] - _t167*(_c3[i]*_c4[i]*_c5[i] - _t85) + _t168*_t169) + qd5[i]*(_c5[i]*_t172*qd5[i] - _t164*_t77 + _t171*qd2[i] + _t171*qd3[i] + _t67*_t79*qd4[i]) + qd6[i]*(_t114*qd4[i] + _t116*qd5[i] + _t173*qd2[i] + _t173*qd3[i] + _t45*qd6[i]);
+                _xdd_block[10][i] = _t109*_t133 + _t163*_t168 + _t173*qdd2[i] + _t173*qdd3[i] + _t178*qd2[i] + _t178*qd3[i] + _t45*qdd6[i] + qd4[i]*(_t162*_t169 + _t167*(_c4[i]*_t78 + _t79) - _t175*qd5[i] + _t176*qd2[i] + _t176*qd3[i]) + qd5[i]*(_t112*_t133 + _t113*_t141 - _t175*qd4[i] + _t177*qd2[i] + _t177*qd3[i]) + qd6[i]*(_t80 + _t81 + _t84 + _t88 + _t89);
+                _xdd_block[11][i] = _s3[i]*_t67*qdd4[i] + _t170*qdd2[i] + _t170*qdd3[i] + _t172*qdd5[i] + _t182*qd2[i] + _t182*qd3[i] + qd4[i]*(_t132*qd4[i] + _t179*qd2[i] + _t179*qd3[i] + _t180*qd5[i]) + qd5[i]*(_t133*qd5[i] + _t180*qd4[i] + _t181*qd2[i] + _t181*qd3[i]);
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _s1[i]*a3;
+                const double _t5 = _c1[i]*d4;
+                const double _t6 = _t3 + _t5;
+                const double _t7 = _c0[i]*_t6;
+                const double _t8 = _s2[i]*a2;
+                const double _t9 = _t6 + _t8;
+                const double _t10 = _c0[i]*_t9;
+                const double _t12 = _c2[i]*a2;
+                const double _t13 = _c1[i]*a3;
+                const double _t14 = _c0[i]*d3 + _s0[i]*_s1[i]*d4 - _s0[i]*_t12 - _s0[i]*_t13;
+                const double _t15 = -_s1[i]*d4 + _t13;
+                const double _t16 = _c0[i]*qd2[i];
+                const double _t17 = _t15*qd3[i];
+                const double _t18 = _c0[i]*_t17;
+                const double _t19 = _t12 + _t15;
+                const double _t20 = _s0[i]*_t3 + _s0[i]*_t5;
+                const double _t21 = -_c0[i]*_s1[i]*d4 + _c0[i]*_t12 + _c0[i]*_t13 + _s0[i]*d3;
+                const double _t22 = _s0[i]*qdd3[i];
+                const double _t23 = _s0[i]*qdd2[i];
+                const double _t24 = _s0[i]*qd2[i];
+                const double _t25 = _s0[i]*_t17;
+                const double _t26 = _c0[i]*_t3 + _c0[i]*_t5;
+                const double _t27 = -_t6;
+                const double _t28 = _t27*qd3[i];
+                const double _t32 = _c4[i]*_s1[i];
+                const double _t33 = _c0[i]*_t32;
+                const double _t34 = _c1[i]*_s4[i];
+                const double _t36 = _c0[i]*_c3[i];
+                const double _t37 = -_s0[i]*_s3[i]*_s4[i] + _t33 + _t34*_t36;
+                const double _t38 = -_t37;
+                const double _t40 = _c5[i]*qdd5[i];
+                const double _t41 = _c5[i]*_t34;
+                const double _t43 = _c3[i]*_c5[i];
+                const double _t44 = -_s1[i]*_s3[i]*_s5[i] + _t32*_t43 + _t41;
+                const double _t45 = -_t44;
+                const double _t46 = _c0[i]*_t45;
+                const double _t47 = _c3[i]*_s0[i];
+                const double _t48 = _c5[i]*_t47;
+                const double _t49 = _s5[i]*_t36;
+                const double _t50 = _c0[i]*_s3[i];
+                const double _t51 = _c1[i]*_c4[i];
+                const double _t52 = _c5[i]*_t51;
+                const double _t53 = _c1[i]*_t49 + _c4[i]*_t48 - _s0[i]*_s3[i]*_s5[i] + _t50*_t52;
+                const double _t54 = -_t53;
+                const double _t55 = _c5[i]*_t50;
+                const double _t56 = -_c1[i]*_s0[i]*_s3[i]*_s5[i] + _c4[i]*_t55 + _t47*_t52 + _t49;
+                const double _t57 = -_c5[i]*_s0[i]*_s1[i]*_s4[i] + _t56;
+                const double _t58 = -_t57;
+                const double _t59 = _s0[i]*_s3[i];
+                const double _t60 = _c4[i]*_t59;
+                const double _t61 = _c1[i]*_t55 - _s5[i]*_t60 + _t48 + _t49*_t51;
+                const double _t62 = -_c0[i]*_s1[i]*_s4[i]*_s5[i] + _t61;
+                const double _t63 = -_t62;
+                const double _t64 = _s4[i]*_t47;
+                const double _t65 = _t34*_t50 + _t64;
+                const double _t66 = _t65*qd4[i];
+                const double _t67 = _s1[i]*_s4[i];
+                const double _t68 = -_c0[i]*_t51 + _t36*_t67;
+                const double _t69 = _t68*qd2[i];
+                const double _t70 = _t68*qd3[i];
+                const double _t71 = _s4[i]*_t50;
+                const double _t72 = _s0[i]*_t32;
+                const double _t73 = _t34*_t47 + _t71 + _t72;
+                const double _t74 = _t73*qd1[i];
+                const double _t75 = _c0[i]*_t67 - _t36*_t51 + _t60;
+                const double _t76 = _t75*qd5[i];
+                const double _t77 = _s5[i]*qd6[i];
+                const double _t78 = _c3[i]*_s5[i];
+                const double _t79 = _c5[i]*_s3[i];
+                const double _t80 = qd4[i]*(_s1[i]*_t78 + _t32*_t79);
+                const double _t81 = qd5[i]*(_t43*_t67 - _t52);
+                const double _t82 = _s5[i]*_t34;
+                const double _t83 = _s1[i]*_t79 + _t32*_t78 + _t82;
+                const double _t84 = _t83*qd6[i];
+                const double _t85 = _s3[i]*_s5[i];
+                const double _t86 = _c5[i]*_t67;
+                const double _t87 = _c1[i]*_t85 - _t43*_t51 + _t86;
+                const double _t88 = _t87*qd2[i];
+                const double _t89 = _t87*qd3[i];
+                const double _t90 = _s0[i]*qd1[i];
+                const double _t91 = _c0[i]*_t80 + _c0[i]*_t81 + _c0[i]*_t84 + _c0[i]*_t88 + _c0[i]*_t89 - _t45*_t90;
+                const double _t92 = _s1[i]*_t49 + _t32*_t55;
+                const double _t93 = _s5[i]*_t50;
+                const double _t94 = _c5[i]*_t36;
+                const double _t95 = _s5[i]*_t47;
+                const double _t96 = _c1[i]*_t95 - _c4[i]*_t94 + _t52*_t59 + _t93;
+                const double _t97 = _c5[i]*_t59;
+                const double _t98 = _c1[i]*_t93 + _c4[i]*_t97 - _t51*_t94 + _t95;
+                const double _t99 = -_c1[i]*_t94 + _c4[i]*_t95 + _t51*_t93 + _t97;
+                const double _t100 = _c0[i]*_t82 + _s1[i]*_t55 + _t32*_t49;
+                const double _t101 = _c0[i]*_t86 + _t98;
+                const double _t102 = _s5[i]*_t67;
+                const double _t103 = _c1[i]*_t97 + _c4[i]*_t93 + _t51*_t95 - _t94;
+                const double _t104 = -_s0[i]*_t102 + _t103;
+                const double _t105 = _t100*qd2[i] + _t100*qd3[i] + _t101*qd6[i] + _t104*qd1[i] + _t99*qd4[i] + qd5[i]*(-_s4[i]*_s5[i]*_t59 + _s5[i]*_t33 + _t36*_t82);
+                const double _t106 = _s5[i]*_t59;
+                const double _t107 = _s0[i]*_t41 - _s1[i]*_t106 + _t32*_t48;
+                const double _t108 = _t101*qd1[i] + _t104*qd6[i] + _t107*qd2[i] + _t107*qd3[i] + _t96*qd4[i] + qd5[i]*(_c5[i]*_t71 + _c5[i]*_t72 + _t41*_t47);
+                const double _t109 = _s5[i]*qdd5[i];
+                const double _t110 = _c0[i]*_t83;
+                const double _t111 = -_s5[i]*_t68;
+                const double _t112 = _c5[i]*qd6[i];
+                const double _t113 = _s5[i]*qd5[i];
+                const double _t114 = -_c3[i]*_c5[i]*_s1[i] + _t32*_t85;
+                const double _t115 = -_t114*qd4[i];
+                const double _t116 = -_c1[i]*_c4[i]*_s5[i] + _t67*_t78;
+                const double _t117 = -_t116;
+                const double _t118 = _c0[i]*qd5[i];
+                const double _t119 = _c1[i]*_t79 - _t102 + _t51*_t78;
+                const double _t120 = _c0[i]*qd3[i];
+                const double _t121 = _t44*qd6[i];
+                const double _t122 = _c0[i]*_t115 + _c0[i]*_t121 + _t117*_t118 + _t119*_t120 + _t119*_t16 - _t83*_t90;
+                const double _t123 = _c0[i]*_c3[i]*_c5[i]*_s1[i] - _t32*_t93;
+                const double _t124 = _c1[i]*_t48 + _c4[i]*_t49 - _t106*_t51 + _t55;
+                const double _t125 = _c5[i]*_t33 - _s4[i]*_t97 + _t34*_t94;
+                const double _t126 = _c0[i]*_t41 - _s1[i]*_t93 + _t32*_t94;
+                const double _t127 = _s4[i]*_t93 + _s5[i]*_t72 + _t34*_t95;
+                const double _t128 = _s0[i]*_t82 + _s1[i]*_t97 + _t32*_t95;
+                const double _t129 = -_t128;
+                const double _t130 = _c1[i]*_t50 + _t47;
+                const double _t131 = _s4[i]*qdd4[i];
+                const double _t132 = _c3[i]*_t67;
+                const double _t133 = _t132 - _t51;
+                const double _t134 = _c0[i]*_t133;
+                const double _t135 = _t50*_t67;
+                const double _t136 = _c4[i]*qd5[i];
+                const double _t137 = -_c0[i]*_c3[i] + _c1[i]*_t59;
+                const double _t138 = _s4[i]*qd1[i];
+                const double _t139 = _s4[i]*qd4[i];
+                const double _t140 = _c3[i]*_t34 + _t32;
+                const double _t141 = _c3[i]*_t32 + _t34;
+                const double _t142 = _t118*_t141 + _t120*_t140 - _t133*_t90 - _t135*qd4[i] + _t140*_t16;
+                const double _t143 = _c0[i]*_t34 + _t32*_t36;
+                const double _t144 = _c4[i]*_t50 - _s0[i]*_t67 + _t47*_t51;
+                const double _t145 = qd4[i]*(_c0[i]*_c3[i]*_s4[i] - _t34*_t59);
+                const double _t146 = _c1[i]*_c4[i]*_s0[i] - _t47*_t67;
+                const double _t147 = _t146*qd2[i];
+                const double _t148 = _t146*qd3[i];
+                const double _t149 = _t37*qd1[i];
+                const double _t150 = _t144*qd5[i];
+                const double _t151 = _s0[i]*_t80 + _s0[i]*_t81 + _s0[i]*_t84 + _s0[i]*_t88 + _s0[i]*_t89 + _t46*qd1[i];
+                const double _t152 = _s1[i]*_t95 + _t32*_t97;
+                const double _t153 = -_t124;
+                const double _t154 = -_t126;
+                const double _t155 = _s0[i]*qd5[i];
+                const double _t156 = _s0[i]*qd3[i];
+                const double _t157 = _s0[i]*_t115 + _s0[i]*_t121 + _t110*qd1[i] + _t117*_t155 + _t119*_t156 + _t119*_t24;
+                const double _t158 = _c3[i]*_c5[i]*_s0[i]*_s1[i] - _t106*_t32;
+                const double _t159 = _t59*_t67;
+                const double _t160 = _t134*qd1[i] + _t140*_t156 + _t140*_t24 + _t141*_t155 - _t159*qd4[i];
+                const double _t161 = _s0[i]*_t34 + _t32*_t47;
+                const double _t162 = _c4[i]*_t79 + _t78;
+                const double _t163 = _s1[i]*qdd4[i];
+                const double _t164 = -_t133;
+                const double _t165 = -_t87;
+                const double _t166 = _c1[i]*_t162;
+                const double _t167 = _s1[i]*qd4[i];
+                const double _t168 = -_c3[i]*_c5[i] + _c4[i]*_t85;
+                const double _t169 = _s1[i]*qd6[i];
+                const double _t170 = -_t140;
+                const double _t171 = _c5[i]*_t170;
+                const double _t172 = -_t141;
+                const double _t173 = -_t119;
+                const double _t174 = _t173*qd6[i] + _t45*qd2[i] + _t45*qd3[i] + qd4[i]*(-_c1[i]*_t78 - _t51*_t79) + qd5[i]*(-_c5[i]*_t32 - _t34*_t43);
+                const double _t175 = _t67*_t85;
+                const double _t176 = _c1[i]*_t168;
+                const double _t177 = _s5[i]*_t140;
+                const double _t178 = _t83*qd2[i] + _t83*qd3[i] + _t87*qd6[i] + qd4[i]*(-_c1[i]*_t43 + _t51*_t85) + qd5[i]*(_s5[i]*_t32 + _t34*_t78);
+                const double _t179 = _s3[i]*_t34;
+                const double _t180 = _s3[i]*_t32;
+                const double _t181 = -_c3[i]*_t51 + _t67;
+                const double _t182 = _t133*qd2[i] + _t133*qd3[i] + _t179*qd4[i] + _t181*qd5[i];
+                xdd[12 * (start + i) + 0] = -_t10*qdd2[i] + _t14*qdd1[i] - _t7*qdd3[i] + qd1[i]*(_t20*qd3[i] - _t21*qd1[i] + qd2[i]*(_s0[i]*_t8 + _t20)) + qd2[i]*(_s0[i]*_t9*qd1[i] - _t16*_t19 - _t18) + qd3[i]*(_s0[i]*_t6*qd1[i] - _t15*_t16 - _t18);
+                xdd[12 * (start + i) + 1] = _t21*qdd1[i] - _t22*_t6 - _t23*_t9 + qd1[i]*(_t14*qd1[i] - _t26*qd3[i] + qd2[i]*(-_c0[i]*_t8 - _t26)) + qd2[i]*(-_t10*qd1[i] - _t19*_t24 - _t25) + qd3[i]*(-_t15*_t24 - _t25 - _t7*qd1[i]);
+                xdd[12 * (start + i) + 2] = _t15*qdd3[i] + _t19*qdd2[i] + qd2[i]*(_t28 - _t9*qd2[i]) + qd3[i]*(_t27*qd2[i] + _t28);
+                xdd[12 * (start + i) + 3] = _t105*qd6[i] + _t108*qd1[i] + _t38*_t40 + _t46*qdd2[i] + _t46*qdd3[i] + _t54*qdd4[i] + _t58*qdd1[i] + _t63*qdd6[i] + _t91*qd2[i] + _t91*qd3[i] + qd4[i]*(_t92*qd2[i] + _t92*qd3[i] + _t96*qd1[i] + _t98*qd4[i] + _t99*qd6[i] + qd5[i]*(_c5[i]*_t64 + _t41*_t50)) + qd5[i]*(_c5[i]*_t66 + _c5[i]*_t69 + _c5[i]*_t70 + _c5[i]*_t74 + _c5[i]*_t76 - _t38*_t77);
+                xdd[12 * (start + i) + 4] = _t101*qdd6[i] + _t104*qdd1[i] + _t109*_t37 + _t110*qdd2[i] + _t110*qdd3[i] + _t122*qd2[i] + _t122*qd3[i] + _t99*qdd4[i] + qd1[i]*(_t124*qd4[i] - _t127*qd5[i] + _t129*qd2[i] + _t129*qd3[i] + _t57*qd6[i] + _t62*qd1[i]) + qd4[i]*(_t123*qd2[i] + _t123*qd3[i] + _t124*qd1[i] + _t53*qd6[i] + _t61*qd4[i] + qd5[i]*(-_s4[i]*_t95 - _t34*_t93)) + qd5[i]*(-_s5[i]*_t65*qd4[i] - _s5[i]*_t73*qd1[i] + _t111*qd2[i] + _t111*qd3[i] + _t112*_t37 - _t113*_t75) + qd6[i]*(_t125*qd5[i] + _t126*qd2[i] + _t126*qd3[i] + _t53*qd4[i] + _t57*qd1[i] + _t62*qd6[i]);
+                xdd[12 * (start + i) + 5] = _t130*_t131 + _t134*qdd2[i] + _t134*qdd3[i] + _t142*qd2[i] + _t142*qd3[i] + _t73*qdd1[i] + _t75*qdd5[i] + qd1[i]*(_t145 + _t147 + _t148 + _t149 + _t150) + qd4[i]*(_t130*_t136 - _t135*qd2[i] - _t135*qd3[i] - _t137*_t138 + _t139*(_c0[i]*_c1[i]*_c3[i] - _t59)) + qd5[i]*(_t143*qd2[i] + _t143*qd3[i] + _t144*qd1[i] + _t37*qd5[i] + qd4[i]*(_c4[i]*_t47 + _t50*_t51));
+                xdd[12 * (start + i) + 6] = -_t101*qdd1[i] - _t104*qdd6[i] + _t151*qd2[i] + _t151*qd3[i] + _t22*_t45 + _t23*_t45 - _t40*_t73 - _t96*qdd4[i] + qd1[i]*(-_t125*qd5[i] + _t154*qd2[i] + _t154*qd3[i] + _t54*qd4[i] + _t58*qd1[i] + _t63*qd6[i]) + qd4[i]*(_t152*qd2[i] + _t152*qd3[i] + _t153*qd6[i] + _t54*qd1[i] - _t56*qd4[i] + qd5[i]*(-_s4[i]*_t94 + _t41*_t59)) + qd5[i]*(-_c5[i]*_t145 - _c5[i]*_t147 - _c5[i]*_t148 - _c5[i]*_t149 - _c5[i]*_t150 + _s5[i]*_t73*qd6[i]) + qd6[i]*(_t127*qd5[i] + _t128*qd2[i] + _t128*qd3[i] + _t153*qd4[i] + _t58*qd6[i] + _t63*qd1[i]);
+                xdd[12 * (start + i) + 7] = _t105*qd1[i] + _t108*qd6[i] + _t109*_t73 + _t153*qdd4[i] + _t157*qd2[i] + _t157*qd3[i] + _t22*_t83 + _t23*_t83 + _t58*qdd6[i] + _t63*qdd1[i] + qd4[i]*(_t103*qd4[i] + _t158*qd2[i] + _t158*qd3[i] + _t96*qd6[i] + _t99*qd1[i] + qd5[i]*(_c0[i]*_c3[i]*_s4[i]*_s5[i] - _t59*_t82)) + qd5[i]*(_s5[i]*_t145 + _s5[i]*_t147 + _s5[i]*_t148 + _s5[i]*_t149 + _s5[i]*_t150 + _t112*_t73);
+                xdd[12 * (start + i) + 8] = _t131*_t137 + _t133*_t22 + _t133*_t23 - _t144*qdd5[i] + _t160*qd2[i] + _t160*qd3[i] + _t38*qdd1[i] + qd1[i]*(_t66 + _t69 + _t70 + _t74 + _t76) + qd4[i]*(_t130*_t138 + _t136*_t137 + _t139*(_c1[i]*_t47 + _t50) - _t159*qd2[i] - _t159*qd3[i]) + qd5[i]*(_t161*qd2[i] + _t161*qd3[i] + _t73*qd5[i] + _t75*qd1[i] + qd4[i]*(-_c4[i]*_t36 + _t51*_t59));
+                xdd[12 * (start + i) + 9] = -_t162*_t163 + _t164*_t40 + _t165*qdd2[i] + _t165*qdd3[i] + _t174*qd2[i] + _t174*qd3[i] - _t83*qdd6[i] + qd4[i]*(_c5[i]*_s1[i]*_s3[i]*_s4[i]*qd5[i] - _t166*qd2[i] - _t166*qd3[i] - _t167*(_c3[i]*_c4[i]*_c5[i] - _t85) + _t168*_t169) + qd5[i]*(_c5[i]*_t172*qd5[i] - _t164*_t77 + _t171*qd2[i] + _t171*qd3[i] + _t67*_t79*qd4[i]) + qd6[i]*(_t114*qd4[i] + _t116*qd5[i] + _t173*qd2[i] + _t173*qd3[i] + _t45*qd6[i]);
+                xdd[12 * (start + i) + 10] = _t109*_t133 + _t163*_t168 + _t173*qdd2[i] + _t173*qdd3[i] + _t178*qd2[i] + _t178*qd3[i] + _t45*qdd6[i] + qd4[i]*(_t162*_t169 + _t167*(_c4[i]*_t78 + _t79) - _t175*qd5[i] + _t176*qd2[i] + _t176*qd3[i]) + qd5[i]*(_t112*_t133 + _t113*_t141 - _t175*qd4[i] + _t177*qd2[i] + _t177*qd3[i]) + qd6[i]*(_t80 + _t81 + _t84 + _t88 + _t89);
+                xdd[12 * (start + i) + 11] = _s3[i]*_t67*qdd4[i] + _t170*qdd2[i] + _t170*qdd3[i] + _t172*qdd5[i] + _t182*qd2[i] + _t182*qd3[i] + qd4[i]*(_t132*qd4[i] + _t179*qd2[i] + _t179*qd3[i] + _t180*qd5[i]) + qd5[i]*(_t133*qd5[i] + _t180*qd4[i] + _t181*qd2[i] + _t181*qd3[i]);
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 12; k += 2) {
+                    _mm_stream_pd(xdd + 12 * (start + i) + k, _mm_set_pd(_xdd_block[k + 1][i], _xdd_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         puma560_task_acceleration(q + 6 * i, qd + 6 * i, qdd + 6 * i, params, xdd + 12 * i);
     }
+#endif
 }
 
 /* Manipulability w (det J = det A det D; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...). */
@@ -1737,20 +6245,115 @@ void puma560_manipulability(const double *restrict q, const puma560_params *rest
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t0 = sin(q5);
-    const double _t1 = a3*sin(q3) + d4*cos(q3);
     const double _t2 = q2 + q3;
-    const double _t3 = a2*cos(q2) + a3*cos(_t2) - d4*sin(_t2);
-    manipulability[0] = fabs(_t0*_t1*_t3*a2);
-    singular[0] = (_t0*_t0) < 1e-06 || (_t1*_t1)*(_t3*_t3)*(a2*a2)/((fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))) < 1e-06;
+    double _s0, _s1, _c1, _c2, _s3, _c3;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q5, q3, q2, _t2,  };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+    }
+#else
+    _s0 = sin(q5);
+    _s1 = sin(q3);
+    _c1 = cos(q3);
+    _c2 = cos(q2);
+    _s3 = sin(_t2);
+    _c3 = cos(_t2);
+#endif
+    const double _t1 = _c1*d4 + _s1*a3;
+    const double _t3 = _c2*a2 + _c3*a3 - _s3*d4;
+    manipulability[0] = fabs(_s0*_t1*_t3*a2);
+    singular[0] = (_s0*_s0) < 1e-06 || (_t1*_t1)*(_t3*_t3)*(a2*a2)/((fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))) < 1e-06;
 }
 
+/* manipulability of `count` items, stored one after the other in each argument and output. */
 void puma560_manipulability_batch(size_t count, const double *restrict q, const puma560_params *restrict params, double *restrict manipulability, int *restrict singular)
 {
+#ifdef KINEGEN_BLOCKED
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q5[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double d1 = params->d1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q2[i] = q[6 * (start + i) + 1];
+            q3[i] = q[6 * (start + i) + 2];
+            q5[i] = q[6 * (start + i) + 4];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t2[i] = q2[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t1 = _c1[i]*d4 + _s1[i]*a3;
+            const double _t3 = _c2[i]*a2 + _c3[i]*a3 - _s3[i]*d4;
+            manipulability[1 * (start + i) + 0] = fabs(_s0[i]*_t1*_t3*a2);
+            singular[1 * (start + i) + 0] = (_s0[i]*_s0[i]) < 1e-06 || (_t1*_t1)*(_t3*_t3)*(a2*a2)/((fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))) < 1e-06;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         puma560_manipulability(q + 6 * i, params, manipulability + 1 * i, singular + 1 * i);
     }
+#endif
 }
 
 /* Joint rates from task rates: twist from the pose rates, then Paul's partitioned inverse; damped least squares where singular. Shapes (..., 6) and (...). */
@@ -1785,106 +6388,158 @@ void puma560_joint_velocity(const double *restrict q, const double *restrict xd,
     const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
     const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
     const double _t2 = (a2*a2);
-    const double _t3 = a3*sin(q3) + d4*cos(q3);
-    const double _t4 = cos(q2);
-    const double _t5 = _t4*a2;
+    const double _t17 = 1.0/(_t0*_t0);
+    const double _t41 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t42 = a3*d4;
+    const double _t44 = (a3*a3);
+    const double _t46 = (d4*d4);
+    const double _t58 = (0.25)*_t2*_t41;
+    const double _t80 = 1.0/_t0;
+    const double _t101 = (0.5)*a2;
     const double _t6 = q2 + q3;
-    const double _t7 = cos(_t6);
-    const double _t8 = _t7*a3;
-    const double _t9 = sin(_t6);
-    const double _t10 = _t9*d4;
+    const double _t51 = q1 + q3;
+    const double _t54 = q1 - q3;
+    const double _t64 = 2*q2 + 2*q3;
+    const double _t65 = _t64 + q1;
+    const double _t66 = _t64 - q1;
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5, _s6, _c6, _s7, _c7, _s8, _c8, _s9, _c9, _s10, _c10;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[12] = { q3, q2, _t6, q1, _t51, _t54, _t65, _t66, q5, q4, q6, 0.0 };
+        double sine[12], cosine[12];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 12; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 12; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+        _s5 = sine[5];
+        _c5 = cosine[5];
+        _s6 = sine[6];
+        _c6 = cosine[6];
+        _s7 = sine[7];
+        _c7 = cosine[7];
+        _s8 = sine[8];
+        _c8 = cosine[8];
+        _s9 = sine[9];
+        _c9 = cosine[9];
+        _s10 = sine[10];
+        _c10 = cosine[10];
+    }
+#else
+    _s0 = sin(q3);
+    _c0 = cos(q3);
+    _s1 = sin(q2);
+    _c1 = cos(q2);
+    _s2 = sin(_t6);
+    _c2 = cos(_t6);
+    _s3 = sin(q1);
+    _c3 = cos(q1);
+    _s4 = sin(_t51);
+    _c4 = cos(_t51);
+    _s5 = sin(_t54);
+    _c5 = cos(_t54);
+    _s6 = sin(_t65);
+    _c6 = cos(_t65);
+    _s7 = sin(_t66);
+    _c7 = cos(_t66);
+    _s8 = sin(q5);
+    _c8 = cos(q5);
+    _s9 = sin(q4);
+    _c9 = cos(q4);
+    _s10 = sin(q6);
+    _c10 = cos(q6);
+#endif
+    const double _t3 = _c0*d4 + _s0*a3;
+    const double _t5 = _c1*a2;
+    const double _t8 = _c2*a3;
+    const double _t10 = _s2*d4;
     const double _t11 = -_t10 + _t8;
     const double _t12 = _t11 + _t5;
     const double _t13 = (_t12*_t12);
     const double _t14 = _t13*_t2*(_t3*_t3);
     const double _t15 = _t14/_t1;
-    const double _t16 = fmax(0, 1 - 1000000*_t15);
-    const double _t17 = 1.0/(_t0*_t0);
+    const double _t16 = kinegen_max(0, 1 - 1000000*_t15);
     const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
     const double _t19 = (1e-08)*(_t16*_t16);
-    const double _t20 = _t9*a3;
-    const double _t21 = _t7*d4;
+    const double _t20 = _s2*a3;
+    const double _t21 = _c2*d4;
     const double _t22 = _t20 + _t21;
     const double _t23 = (_t22*_t22);
-    const double _t24 = sin(q1);
-    const double _t25 = (_t24*_t24);
+    const double _t25 = (_s3*_s3);
     const double _t26 = _t17*_t25;
-    const double _t27 = sin(q2);
-    const double _t28 = _t27*a2;
+    const double _t28 = _s1*a2;
     const double _t29 = _t22 + _t28;
     const double _t30 = (_t29*_t29);
-    const double _t31 = _t24*d3;
-    const double _t32 = cos(q1);
-    const double _t33 = _t32*_t5;
-    const double _t34 = -_t10*_t32 + _t31 + _t32*_t8 + _t33;
+    const double _t31 = _s3*d3;
+    const double _t33 = _c3*_t5;
+    const double _t34 = -_c3*_t10 + _c3*_t8 + _t31 + _t33;
     const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
-    const double _t36 = (_t32*_t32);
+    const double _t36 = (_c3*_c3);
     const double _t37 = _t17*_t36;
-    const double _t38 = _t24*_t5;
-    const double _t39 = -_t24*_t8 + _t24*_t9*d4 + _t32*d3 - _t38;
+    const double _t38 = _s3*_t5;
+    const double _t39 = _c3*d3 + _s2*_s3*d4 - _s3*_t8 - _t38;
     const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
-    const double _t41 = 1.0/(_t0*_t0*_t0*_t0);
-    const double _t42 = a3*d4;
-    const double _t43 = (_t9*_t9);
-    const double _t44 = (a3*a3);
-    const double _t45 = _t7*_t9;
-    const double _t46 = (d4*d4);
+    const double _t43 = (_s2*_s2);
+    const double _t45 = _c2*_s2;
     const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
-    const double _t48 = -_t10*_t28 + _t2*_t27*_t4 + _t28*_t8 + _t47;
+    const double _t48 = _c1*_s1*_t2 - _t10*_t28 + _t28*_t8 + _t47;
     const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
     const double _t50 = (0.0001)*_t16;
-    const double _t51 = q1 + q3;
-    const double _t52 = sin(_t51);
-    const double _t53 = cos(_t51);
-    const double _t54 = q1 - q3;
-    const double _t55 = cos(_t54);
-    const double _t56 = sin(_t54);
-    const double _t57 = _t52*d4 - _t53*a3 + _t55*a3 + _t56*d4;
-    const double _t58 = (0.25)*_t2*_t41;
+    const double _t57 = -_c4*a3 + _c5*a3 + _s4*d4 + _s5*d4;
     const double _t59 = _t33*_t8;
     const double _t60 = _t10*_t33;
-    const double _t61 = (_t7*_t7);
+    const double _t61 = (_c2*_c2);
     const double _t62 = _t44*_t61;
     const double _t63 = _t43*_t46;
-    const double _t64 = 2*q2 + 2*q3;
-    const double _t65 = _t64 + q1;
-    const double _t66 = _t64 - q1;
-    const double _t67 = -_t10*_t31 + _t31*_t8 + _t32*_t62 + _t32*_t63 - 0.5*_t42*(sin(_t65) + sin(_t66));
+    const double _t67 = _c3*_t62 + _c3*_t63 - _t10*_t31 + _t31*_t8 - 0.5*_t42*(_s6 + _s7);
     const double _t68 = _t59 - _t60 + _t67;
-    const double _t69 = _t2*(_t4*_t4);
-    const double _t70 = _t31*_t5 + _t32*_t69 + 2*_t59 - 2*_t60 + _t67;
+    const double _t69 = (_c1*_c1)*_t2;
+    const double _t70 = _c3*_t69 + _t31*_t5 + 2*_t59 - 2*_t60 + _t67;
     const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
-    const double _t72 = -_t52*a3 - _t53*d4 - _t55*d4 + _t56*a3;
+    const double _t72 = -_c4*d4 - _c5*d4 - _s4*a3 + _s5*a3;
     const double _t73 = _t38*_t8;
-    const double _t74 = _t10*_t32*d3 + _t24*_t62 + _t24*_t63 - _t32*_t7*a3*d3 - 0.5*a3*d4*(-cos(_t65) + cos(_t66));
-    const double _t75 = _t24*_t4*_t9*a2*d4 - _t73 - _t74;
-    const double _t76 = -2*_t24*_t4*_t9*a2*d4 + _t24*_t69 - _t32*_t4*a2*d3 + 2*_t73 + _t74;
+    const double _t74 = -_c2*_c3*a3*d3 + _c3*_t10*d3 + _s3*_t62 + _s3*_t63 - 0.5*a3*d4*(-_c6 + _c7);
+    const double _t75 = _c1*_s2*_s3*a2*d4 - _t73 - _t74;
+    const double _t76 = -_c1*_c3*a2*d3 - 2*_c1*_s2*_s3*a2*d4 + _s3*_t69 + 2*_t73 + _t74;
     const double _t77 = -_t76;
     const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
     const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
-    const double _t80 = 1.0/_t0;
     const double _t81 = _t11*_t22;
-    const double _t82 = _t17*_t32;
+    const double _t82 = _c3*_t17;
     const double _t83 = _t12*_t29;
     const double _t84 = _t41*_t47*_t68 + _t41*_t48*_t70 - _t50*(-_t81*_t82 - _t82*_t83);
     const double _t85 = _t80*xd_z;
     const double _t86 = _t35*_t50;
     const double _t87 = _t18*_t50;
     const double _t88 = _t80*xd_x;
-    const double _t89 = _t24*_t32;
+    const double _t89 = _c3*_s3;
     const double _t90 = _t17*_t89;
     const double _t91 = _t41*_t75;
     const double _t92 = _t41*_t77;
     const double _t93 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t17*_t34*_t39 + _t23*_t90 + _t30*_t90) - _t68*_t91 - _t70*_t92;
     const double _t94 = _t80*xd_y;
     const double _t95 = _t80*(_t84*_t85 + _t88*(_t19 + _t71 + _t86 + _t87) + _t93*_t94);
-    const double _t96 = _t17*_t24;
+    const double _t96 = _s3*_t17;
     const double _t97 = -_t47*_t91 - _t48*_t92 - _t50*(-_t81*_t96 - _t83*_t96);
     const double _t98 = _t19 + _t40*_t50;
     const double _t99 = _t80*(_t85*_t97 + _t88*_t93 + _t94*(_t78 + _t87 + _t98));
     const int _t100 = _t15 < 1e-06;
-    const double _t101 = (0.5)*a2;
-    const double _t102 = _t12*_t3*a2/fmax(_t14, (1e-06)*_t1);
+    const double _t102 = _t12*_t3*a2/kinegen_max(_t14, (1e-06)*_t1);
     const double _t103 = ((_t100) ? (
    _t79*(_t34*_t99 + _t39*_t95)
 )
@@ -1892,8 +6547,8 @@ void puma560_joint_velocity(const double *restrict q, const double *restrict xd,
    -_t102*(_t101*_t57*xd_x + _t101*_t72*xd_y)
 ));
     const double _t104 = _t84*_t88 + _t85*(_t49 + _t86 + _t98) + _t94*_t97;
-    const double _t105 = _t32*_t95;
-    const double _t106 = _t24*_t99;
+    const double _t105 = _c3*_t95;
+    const double _t106 = _s3*_t99;
     const double _t107 = ((_t100) ? (
    _t79*(_t104*_t12*_t80 - _t105*_t29 - _t106*_t29)
 )
@@ -1906,85 +6561,79 @@ void puma560_joint_velocity(const double *restrict q, const double *restrict xd,
 : (
    -_t102*(_t48*xd_z + _t70*xd_x + _t76*xd_y)
 ));
-    const double _t109 = sin(q5);
-    const double _t110 = (_t109*_t109);
-    const double _t111 = fmax(0, 1 - 1000000*_t110);
-    const double _t112 = sin(q4);
-    const double _t113 = (_t112*_t112)*_t43;
-    const double _t114 = cos(q5);
-    const double _t115 = cos(q4);
-    const double _t116 = _t109*_t9;
-    const double _t117 = _t114*_t7 - _t115*_t116;
+    const double _t110 = (_s8*_s8);
+    const double _t111 = kinegen_max(0, 1 - 1000000*_t110);
+    const double _t113 = (_s9*_s9)*_t43;
+    const double _t116 = _s2*_s8;
+    const double _t117 = _c2*_c8 - _c9*_t116;
     const double _t118 = _t113 + (_t117*_t117) + _t61;
     const double _t119 = (1e-08)*(_t111*_t111);
-    const double _t120 = _t109*_t7;
-    const double _t121 = _t114*_t9;
-    const double _t122 = _t115*_t121;
+    const double _t120 = _c2*_s8;
+    const double _t121 = _c8*_s2;
+    const double _t122 = _c9*_t121;
     const double _t123 = -_t120 - _t122;
-    const double _t124 = _t110*_t113 + (_t115*_t115)*_t43 + (_t123*_t123);
+    const double _t124 = (_c9*_c9)*_t43 + _t110*_t113 + (_t123*_t123);
     const double _t125 = (0.0001)*_t111;
-    const double _t126 = _t115*_t24;
-    const double _t127 = _t112*_t32;
-    const double _t128 = _t127*_t7;
+    const double _t126 = _c9*_s3;
+    const double _t127 = _c3*_s9;
+    const double _t128 = _c2*_t127;
     const double _t129 = _t126 + _t128;
     const double _t130 = (_t129*_t129);
-    const double _t131 = _t115*_t32;
-    const double _t132 = _t109*_t112*_t24 - _t120*_t131 - _t121*_t32;
+    const double _t131 = _c3*_c9;
+    const double _t132 = -_c3*_t121 + _s3*_s8*_s9 - _t120*_t131;
     const double _t133 = _t130 + (_t132*_t132) + _t36*_t43;
-    const double _t134 = _t112*_t24;
-    const double _t135 = _t134*_t7;
-    const double _t136 = -_t115*_t32 + _t135;
-    const double _t137 = -_t109*_t127 - _t120*_t126 - _t121*_t24;
+    const double _t134 = _s3*_s9;
+    const double _t135 = _c2*_t134;
+    const double _t136 = -_c3*_c9 + _t135;
+    const double _t137 = -_s3*_t121 - _s8*_t127 - _t120*_t126;
     const double _t138 = (_t136*_t136) + (_t137*_t137) + _t25*_t43;
-    const double _t139 = _t115*_t32*_t7 - _t134;
-    const double _t140 = _t114*_t134;
-    const double _t141 = _t116*_t32;
-    const double _t142 = _t114*_t7;
+    const double _t139 = _c2*_c3*_c9 - _t134;
+    const double _t140 = _c8*_t134;
+    const double _t141 = _c3*_t116;
+    const double _t142 = _c2*_c8;
     const double _t143 = -_t131*_t142 + _t140 + _t141;
     const double _t144 = _t110*_t130 + (_t139*_t139) + (_t143*_t143);
-    const double _t145 = _t126*_t7 + _t127;
+    const double _t145 = _c2*_t126 + _t127;
     const double _t146 = -_t145;
     const double _t147 = -_t136;
-    const double _t148 = _t114*_t127;
-    const double _t149 = _t116*_t24;
+    const double _t148 = _c8*_t127;
+    const double _t149 = _s3*_t116;
     const double _t150 = _t126*_t142 + _t148 - _t149;
     const double _t151 = _t110*(_t147*_t147) + (_t146*_t146) + (_t150*_t150);
     const double _t152 = 1.0/(_t110 + (1e-12)*(_t111*_t111*_t111) + _t118*_t119 + _t119*_t133 + _t119*_t138 + _t124*_t125 + _t125*_t144 + _t125*_t151);
     const double _t153 = _t125*_t133;
     const double _t154 = _t119 + _t125*_t138;
-    const double _t155 = sin(q6);
-    const double _t156 = _t131*_t155;
-    const double _t157 = cos(q6);
-    const double _t158 = _t126*_t157;
-    const double _t159 = -_t135*_t155 + _t142*_t158 + _t148*_t157 - _t149*_t157 + _t156;
-    const double _t160 = _t126*_t155;
-    const double _t161 = _t109*_t155*_t24*_t9 + _t115*_t157*_t32 - _t135*_t157 - _t142*_t160 - _t148*_t155;
-    const double _t162 = _t109*_t155*_t32*_t9 + _t112*_t114*_t155*_t24 - _t128*_t157 - _t142*_t156 - _t158;
-    const double _t163 = _t114*_t115*_t157*_t32*_t7 - _t128*_t155 - _t140*_t157 - _t141*_t157 - _t160;
+    const double _t156 = _s10*_t131;
+    const double _t158 = _c10*_t126;
+    const double _t159 = _c10*_t148 - _c10*_t149 - _s10*_t135 + _t142*_t158 + _t156;
+    const double _t160 = _s10*_t126;
+    const double _t161 = _c10*_c3*_c9 - _c10*_t135 + _s10*_s2*_s3*_s8 - _s10*_t148 - _t142*_t160;
+    const double _t162 = -_c10*_t128 + _c3*_s10*_s2*_s8 + _c8*_s10*_s3*_s9 - _t142*_t156 - _t158;
+    const double _t163 = _c10*_c2*_c3*_c8*_c9 - _c10*_t140 - _c10*_t141 - _s10*_t128 - _t160;
     const double _t164 = -_t103 + (0.5)*_t132*xd_r23 - 0.5*_t137*xd_r13 - 0.5*_t159*xd_r11 - 0.5*_t161*xd_r12 + (0.5)*_t162*xd_r22 + (0.5)*_t163*xd_r21;
-    const double _t165 = _t115*_t9;
-    const double _t166 = _t112*_t9;
+    const double _t165 = _c9*_s2;
+    const double _t166 = _s2*_s9;
     const double _t167 = _t129*_t166;
-    const double _t168 = _t110*_t167 + _t123*_t143 - _t125*(_t117*_t132 + _t167 - _t32*_t45) + _t139*_t165;
+    const double _t168 = _t110*_t167 + _t123*_t143 - _t125*(-_c3*_t45 + _t117*_t132 + _t167) + _t139*_t165;
     const double _t169 = (0.5)*_t117;
-    const double _t170 = (0.5)*_t120*_t157 + (0.5)*_t122*_t157 - 0.5*_t155*_t166;
-    const double _t171 = -0.5*_t120*_t155 - 0.5*_t122*_t155 - 0.5*_t157*_t166;
-    const double _t172 = -_t107*_t24 - _t108*_t24 + (0.5)*_t137*xd_r33 + (0.5)*_t159*xd_r31 + (0.5)*_t161*xd_r32 - _t169*xd_r23 - _t170*xd_r21 - _t171*xd_r22;
+    const double _t170 = (0.5)*_c10*_t120 + (0.5)*_c10*_t122 - 0.5*_s10*_t166;
+    const double _t171 = -0.5*_c10*_t166 - 0.5*_s10*_t120 - 0.5*_s10*_t122;
+    const double _t172 = -_s3*_t107 - _s3*_t108 + (0.5)*_t137*xd_r33 + (0.5)*_t159*xd_r31 + (0.5)*_t161*xd_r32 - _t169*xd_r23 - _t170*xd_r21 - _t171*xd_r22;
     const double _t173 = _t110*_t147;
-    const double _t174 = -_t123*_t150 - _t125*(_t117*_t137 + _t136*_t166 - _t24*_t45) - _t146*_t165 - _t166*_t173;
-    const double _t175 = _t107*_t32 + _t108*_t32 - 0.5*_t132*xd_r33 - 0.5*_t162*xd_r32 - 0.5*_t163*xd_r31 + _t169*xd_r13 + _t170*xd_r11 + _t171*xd_r12;
+    const double _t174 = -_t123*_t150 - _t125*(-_s3*_t45 + _t117*_t137 + _t136*_t166) - _t146*_t165 - _t166*_t173;
+    const double _t175 = _c3*_t107 + _c3*_t108 - 0.5*_t132*xd_r33 - 0.5*_t162*xd_r32 - 0.5*_t163*xd_r31 + _t169*xd_r13 + _t170*xd_r11 + _t171*xd_r12;
     const double _t176 = _t164*(_t124 + _t153 + _t154) + _t168*_t172 + _t174*_t175;
     const double _t177 = _t118*_t125;
     const double _t178 = -_t125*(_t129*_t136 + _t132*_t137 + _t43*_t89) - _t129*_t173 - _t139*_t146 - _t143*_t150;
     const double _t179 = _t164*_t168 + _t172*(_t144 + _t154 + _t177) + _t175*_t178;
     const double _t180 = _t164*_t174 + _t172*_t178 + _t175*(_t119 + _t151 + _t153 + _t177);
     const int _t181 = _t110 < 1e-06;
-    const double _t182 = _t109/fmax(1e-06, _t110);
+    const double _t182 = _s8/kinegen_max(1e-06, _t110);
     qd[0] = _t103;
     qd[1] = _t107;
     qd[2] = _t108;
     qd[3] = ((_t181) ? (
-   _t152*(_t176*_t7 - _t179*_t32*_t9 - _t180*_t24*_t9)
+   _t152*(_c2*_t176 - _c3*_s2*_t179 - _s2*_s3*_t180)
 )
 : (
    -_t182*(_t123*_t164 + _t143*_t172 - _t150*_t175)
@@ -1993,7 +6642,7 @@ void puma560_joint_velocity(const double *restrict q, const double *restrict xd,
    _t152*(_t129*_t179 + _t136*_t180 + _t166*_t176)
 )
 : (
-   -_t182*(-_t109*_t129*_t172 + _t109*_t147*_t175 - _t112*_t116*_t164)
+   -_t182*(-_s8*_t129*_t172 + _s8*_t147*_t175 - _s9*_t116*_t164)
 ));
     qd[5] = ((_t181) ? (
    _t152*(_t117*_t176 + _t132*_t179 + _t137*_t180)
@@ -2004,12 +6653,607 @@ void puma560_joint_velocity(const double *restrict q, const double *restrict xd,
     singular[0] = _t100 || _t181;
 }
 
+/* joint_velocity of `count` items, stored one after the other in each argument and output. */
 void puma560_joint_velocity_batch(size_t count, const double *restrict q, const double *restrict xd, const puma560_params *restrict params, double *restrict qd, int *restrict singular)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double q5[KINEGEN_BLOCK_OF(64)];
+    double q6[KINEGEN_BLOCK_OF(64)];
+    double xd_x[KINEGEN_BLOCK_OF(64)];
+    double xd_y[KINEGEN_BLOCK_OF(64)];
+    double xd_z[KINEGEN_BLOCK_OF(64)];
+    double xd_r11[KINEGEN_BLOCK_OF(64)];
+    double xd_r12[KINEGEN_BLOCK_OF(64)];
+    double xd_r13[KINEGEN_BLOCK_OF(64)];
+    double xd_r21[KINEGEN_BLOCK_OF(64)];
+    double xd_r22[KINEGEN_BLOCK_OF(64)];
+    double xd_r23[KINEGEN_BLOCK_OF(64)];
+    double xd_r31[KINEGEN_BLOCK_OF(64)];
+    double xd_r32[KINEGEN_BLOCK_OF(64)];
+    double xd_r33[KINEGEN_BLOCK_OF(64)];
+    double _t6[KINEGEN_BLOCK_OF(64)];
+    double _t51[KINEGEN_BLOCK_OF(64)];
+    double _t54[KINEGEN_BLOCK_OF(64)];
+    double _t65[KINEGEN_BLOCK_OF(64)];
+    double _t66[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    double _s4[KINEGEN_BLOCK_OF(64)];
+    double _c4[KINEGEN_BLOCK_OF(64)];
+    double _s5[KINEGEN_BLOCK_OF(64)];
+    double _c5[KINEGEN_BLOCK_OF(64)];
+    double _s6[KINEGEN_BLOCK_OF(64)];
+    double _c6[KINEGEN_BLOCK_OF(64)];
+    double _s7[KINEGEN_BLOCK_OF(64)];
+    double _c7[KINEGEN_BLOCK_OF(64)];
+    double _s8[KINEGEN_BLOCK_OF(64)];
+    double _c8[KINEGEN_BLOCK_OF(64)];
+    double _s9[KINEGEN_BLOCK_OF(64)];
+    double _c9[KINEGEN_BLOCK_OF(64)];
+    double _s10[KINEGEN_BLOCK_OF(64)];
+    double _c10[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _qd_block[6][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)qd & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double d1 = params->d1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
+    const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
+    const double _t2 = (a2*a2);
+    const double _t17 = 1.0/(_t0*_t0);
+    const double _t41 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t42 = a3*d4;
+    const double _t44 = (a3*a3);
+    const double _t46 = (d4*d4);
+    const double _t58 = (0.25)*_t2*_t41;
+    const double _t80 = 1.0/_t0;
+    const double _t101 = (0.5)*a2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[6 * (start + i) + 0];
+            q2[i] = q[6 * (start + i) + 1];
+            q3[i] = q[6 * (start + i) + 2];
+            q4[i] = q[6 * (start + i) + 3];
+            q5[i] = q[6 * (start + i) + 4];
+            q6[i] = q[6 * (start + i) + 5];
+            xd_x[i] = xd[12 * (start + i) + 0];
+            xd_y[i] = xd[12 * (start + i) + 1];
+            xd_z[i] = xd[12 * (start + i) + 2];
+            xd_r11[i] = xd[12 * (start + i) + 3];
+            xd_r12[i] = xd[12 * (start + i) + 4];
+            xd_r13[i] = xd[12 * (start + i) + 5];
+            xd_r21[i] = xd[12 * (start + i) + 6];
+            xd_r22[i] = xd[12 * (start + i) + 7];
+            xd_r23[i] = xd[12 * (start + i) + 8];
+            xd_r31[i] = xd[12 * (start + i) + 9];
+            xd_r32[i] = xd[12 * (start + i) + 10];
+            xd_r33[i] = xd[12 * (start + i) + 11];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t6[i] = q2[i] + q3[i];
+            _t51[i] = q1[i] + q3[i];
+            _t54[i] = q1[i] - q3[i];
+            const double _t64 = 2*q2[i] + 2*q3[i];
+            _t65[i] = _t64 + q1[i];
+            _t66[i] = _t64 - q1[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(_t51[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(_t51[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s5[i] = sin(_t54[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c5[i] = cos(_t54[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s6[i] = sin(_t65[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c6[i] = cos(_t65[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s7[i] = sin(_t66[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c7[i] = cos(_t66[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s8[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c8[i] = cos(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s9[i] = sin(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c9[i] = cos(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s10[i] = sin(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c10[i] = cos(q6[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _c0[i]*d4 + _s0[i]*a3;
+                const double _t5 = _c1[i]*a2;
+                const double _t8 = _c2[i]*a3;
+                const double _t10 = _s2[i]*d4;
+                const double _t11 = -_t10 + _t8;
+                const double _t12 = _t11 + _t5;
+                const double _t13 = (_t12*_t12);
+                const double _t14 = _t13*_t2*(_t3*_t3);
+                const double _t15 = _t14/_t1;
+                const double _t16 = kinegen_max(0, 1 - 1000000*_t15);
+                const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
+                const double _t19 = (1e-08)*(_t16*_t16);
+                const double _t20 = _s2[i]*a3;
+                const double _t21 = _c2[i]*d4;
+                const double _t22 = _t20 + _t21;
+                const double _t23 = (_t22*_t22);
+                const double _t25 = (_s3[i]*_s3[i]);
+                const double _t26 = _t17*_t25;
+                const double _t28 = _s1[i]*a2;
+                const double _t29 = _t22 + _t28;
+                const double _t30 = (_t29*_t29);
+                const double _t31 = _s3[i]*d3;
+                const double _t33 = _c3[i]*_t5;
+                const double _t34 = -_c3[i]*_t10 + _c3[i]*_t8 + _t31 + _t33;
+                const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
+                const double _t36 = (_c3[i]*_c3[i]);
+                const double _t37 = _t17*_t36;
+                const double _t38 = _s3[i]*_t5;
+                const double _t39 = _c3[i]*d3 + _s2[i]*_s3[i]*d4 - _s3[i]*_t8 - _t38;
+                const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
+                const double _t43 = (_s2[i]*_s2[i]);
+                const double _t45 = _c2[i]*_s2[i];
+                const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
+                const double _t48 = _c1[i]*_s1[i]*_t2 - _t10*_t28 + _t28*_t8 + _t47;
+                const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
+                const double _t50 = (0.0001)*_t16;
+                const double _t57 = -_c4[i]*a3 + _c5[i]*a3 + _s4[i]*d4 + _s5[i]*d4;
+                const double _t59 = _t33*_t8;
+                const double _t60 = _t10*_t33;
+                const double _t61 = (_c2[i]*_c2[i]);
+                const double _t62 = _t44*_t61;
+                const double _t63 = _t43*_t46;
+                const double _t67 = _c3[i]*_t62 + _c3[i]*_t63 - _t10*_t31 + _t31*_t8 - 0.5*_t42*(_s6[i] + _s7[i]);
+                const double _t68 = _t59 - _t60 + _t67;
+                const double _t69 = (_c1[i]*_c1[i])*_t2;
+                const double _t70 = _c3[i]*_t69 + _t31*_t5 + 2*_t59 - 2*_t60 + _t67;
+                const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
+                const double _t72 = -_c4[i]*d4 - _c5[i]*d4 - _s4[i]*a3 + _s5[i]*a3;
+                const double _t73 = _t38*_t8;
+                const double _t74 = -_c2[i]*_c3[i]*a3*d3 + _c3[i]*_t10*d3 + _s3[i]*_t62 + _s3[i]*_t63 - 0.5*a3*d4*(-_c6[i] + _c7[i]);
+                const double _t75 = _c1[i]*_s2[i]*_s3[i]*a2*d4 - _t73 - _t74;
+                const double _t76 = -_c1[i]*_c3[i]*a2*d3 - 2*_c1[i]*_s2[i]*_s3[i]*a2*d4 + _s3[i]*_t69 + 2*_t73 + _t74;
+                const double _t77 = -_t76;
+                const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
+                const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
+                const double _t81 = _t11*_t22;
+                const double _t82 = _c3[i]*_t17;
+                const double _t83 = _t12*_t29;
+                const double _t84 = _t41*_t47*_t68 + _t41*_t48*_t70 - _t50*(-_t81*_t82 - _t82*_t83);
+                const double _t85 = _t80*xd_z[i];
+                const double _t86 = _t35*_t50;
+                const double _t87 = _t18*_t50;
+                const double _t88 = _t80*xd_x[i];
+                const double _t89 = _c3[i]*_s3[i];
+                const double _t90 = _t17*_t89;
+                const double _t91 = _t41*_t75;
+                const double _t92 = _t41*_t77;
+                const double _t93 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t17*_t34*_t39 + _t23*_t90 + _t30*_t90) - _t68*_t91 - _t70*_t92;
+                const double _t94 = _t80*xd_y[i];
+                const double _t95 = _t80*(_t84*_t85 + _t88*(_t19 + _t71 + _t86 + _t87) + _t93*_t94);
+                const double _t96 = _s3[i]*_t17;
+                const double _t97 = -_t47*_t91 - _t48*_t92 - _t50*(-_t81*_t96 - _t83*_t96);
+                const double _t98 = _t19 + _t40*_t50;
+                const double _t99 = _t80*(_t85*_t97 + _t88*_t93 + _t94*(_t78 + _t87 + _t98));
+                const int _t100 = _t15 < 1e-06;
+                const double _t102 = _t12*_t3*a2/kinegen_max(_t14, (1e-06)*_t1);
+                const double _t103 = ((_t100) ? (
+   _t79*(_t34*_t99 + _t39*_t95)
+)
+: (
+   -_t102*(_t101*_t57*xd_x[i] + _t101*_t72*xd_y[i])
+));
+                const double _t104 = _t84*_t88 + _t85*(_t49 + _t86 + _t98) + _t94*_t97;
+                const double _t105 = _c3[i]*_t95;
+                const double _t106 = _s3[i]*_t99;
+                const double _t107 = ((_t100) ? (
+   _t79*(_t104*_t12*_t80 - _t105*_t29 - _t106*_t29)
+)
+: (
+   -_t102*(-_t47*xd_z[i] - _t68*xd_x[i] + _t75*xd_y[i])
+));
+                const double _t108 = ((_t100) ? (
+   _t79*(_t104*_t11*_t80 - _t105*_t22 - _t106*_t22)
+)
+: (
+   -_t102*(_t48*xd_z[i] + _t70*xd_x[i] + _t76*xd_y[i])
+));
+                const double _t110 = (_s8[i]*_s8[i]);
+                const double _t111 = kinegen_max(0, 1 - 1000000*_t110);
+                const double _t113 = (_s9[i]*_s9[i])*_t43;
+                const double _t116 = _s2[i]*_s8[i];
+                const double _t117 = _c2[i]*_c8[i] - _c9[i]*_t116;
+                const double _t118 = _t113 + (_t117*_t117) + _t61;
+                const double _t119 = (1e-08)*(_t111*_t111);
+                const double _t120 = _c2[i]*_s8[i];
+                const double _t121 = _c8[i]*_s2[i];
+                const double _t122 = _c9[i]*_t121;
+                const double _t123 = -_t120 - _t122;
+                const double _t124 = (_c9[i]*_c9[i])*_t43 + _t110*_t113 + (_t123*_t123);
+                const double _t125 = (0.0001)*_t111;
+                const double _t126 = _c9[i]*_s3[i];
+                const double _t127 = _c3[i]*_s9[i];
+                const double _t128 = _c2[i]*_t127;
+                const double _t129 = _t126 + _t128;
+                const double _t130 = (_t129*_t129);
+                const double _t131 = _c3[i]*_c9[i];
+                const double _t132 = -_c3[i]*_t121 + _s3[i]*_s8[i]*_s9[i] - _t120*_t131;
+                const double _t133 = _t130 + (_t132*_t132) + _t36*_t43;
+                const double _t134 = _s3[i]*_s9[i];
+                const double _t135 = _c2[i]*_t134;
+                const double _t136 = -_c3[i]*_c9[i] + _t135;
+                const double _t137 = -_s3[i]*_t121 - _s8[i]*_t127 - _t120*_t126;
+                const double _t138 = (_t136*_t136) + (_t137*_t137) + _t25*_t43;
+                const double _t139 = _c2[i]*_c3[i]*_c9[i] - _t134;
+                const double _t140 = _c8[i]*_t134;
+                const double _t141 = _c3[i]*_t116;
+                const double _t142 = _c2[i]*_c8[i];
+                const double _t143 = -_t131*_t142 + _t140 + _t141;
+                const double _t144 = _t110*_t130 + (_t139*_t139) + (_t143*_t143);
+                const double _t145 = _c2[i]*_t126 + _t127;
+                const double _t146 = -_t145;
+                const double _t147 = -_t136;
+                const double _t148 = _c8[i]*_t127;
+                const double _t149 = _s3[i]*_t116;
+                const double _t150 = _t126*_t142 + _t148 - _t149;
+                const double _t151 = _t110*(_t147*_t147) + (_t146*_t146) + (_t150*_t150);
+                const double _t152 = 1.0/(_t110 + (1e-12)*(_t111*_t111*_t111) + _t118*_t119 + _t119*_t133 + _t119*_t138 + _t124*_t125 + _t125*_t144 + _t125*_t151);
+                const double _t153 = _t125*_t133;
+                const double _t154 = _t119 + _t125*_t138;
+                const double _t156 = _s10[i]*_t131;
+                const double _t158 = _c10[i]*_t126;
+                const double _t159 = _c10[i]*_t148 - _c10[i]*_t149 - _s10[i]*_t135 + _t142*_t158 + _t156;
+                const double _t160 = _s10[i]*_t126;
+                const double _t161 = _c10[i]*_c3[i]*_c9[i] - _c10[i]*_t135 + _s10[i]*_s2[i]*_s3[i]*_s8[i] - _s10[i]*_t148 - _t142*_t160;
+                const double _t162 = -_c10[i]*_t128 + _c3[i]*_s10[i]*_s2[i]*_s8[i] + _c8[i]*_s10[i]*_s3[i]*_s9[i] - _t142*_t156 - _t158;
+                const double _t163 = _c10[i]*_c2[i]*_c3[i]*_c8[i]*_c9[i] - _c10[i]*_t140 - _c10[i]*_t141 - _s10[i]*_t128 - _t160;
+                const double _t164 = -_t103 + (0.5)*_t132*xd_r23[i] - 0.5*_t137*xd_r13[i] - 0.5*_t159*xd_r11[i] - 0.5*_t161*xd_r12[i] + (0.5)*_t162*xd_r22[i] + (0.5)*_t163*xd_r21[i];
+                const double _t165 = _c9[i]*_s2[i];
+                const double _t166 = _s2[i]*_s9[i];
+                const double _t167 = _t129*_t166;
+                const double _t168 = _t110*_t167 + _t123*_t143 - _t125*(-_c3[i]*_t45 + _t117*_t132 + _t167) + _t139*_t165;
+                const double _t169 = (0.5)*_t117;
+                const double _t170 = (0.5)*_c10[i]*_t120 + (0.5)*_c10[i]*_t122 - 0.5*_s10[i]*_t166;
+                const double _t171 = -0.5*_c10[i]*_t166 - 0.5*_s10[i]*_t120 - 0.5*_s10[i]*_t122;
+                const double _t172 = -_s3[i]*_t107 - _s3[i]*_t108 + (0.5)*_t137*xd_r33[i] + (0.5)*_t159*xd_r31[i] + (0.5)*_t161*xd_r32[i] - _t169*xd_r23[i] - _t170*xd_r21[i] - _t171*xd_r22[i];
+                const double _t173 = _t110*_t147;
+                const double _t174 = -_t123*_t150 - _t125*(-_s3[i]*_t45 + _t117*_t137 + _t136*_t166) - _t146*_t165 - _t166*_t173;
+                const double _t175 = _c3[i]*_t107 + _c3[i]*_t108 - 0.5*_t132*xd_r33[i] - 0.5*_t162*xd_r32[i] - 0.5*_t163*xd_r31[i] + _t169*xd_r13[i] + _t170*xd_r11[i] + _t171*xd_r12[i];
+                const double _t176 = _t164*(_t124 + _t153 + _t154) + _t168*_t172 + _t174*_t175;
+                const double _t177 = _t118*_t125;
+                const double _t178 = -_t125*(_t129*_t136 + _t132*_t137 + _t43*_t89) - _t129*_t173 - _t139*_t146 - _t143*_t150;
+                const double _t179 = _t164*_t168 + _t172*(_t144 + _t154 + _t177) + _t175*_t178;
+                const double _t180 = _t164*_t174 + _t172*_t178 + _t175*(_t119 + _t151 + _t153 + _t177);
+                const int _t181 = _t110 < 1e-06;
+                const double _t182 = _s8[i]/kinegen_max(1e-06, _t110);
+                _qd_block[0][i] = _t103;
+                _qd_block[1][i] = _t107;
+                _qd_block[2][i] = _t108;
+                _qd_block[3][i] = ((_t181) ? (
+   _t152*(_c2[i]*_t176 - _c3[i]*_s2[i]*_t179 - _s2[i]*_s3[i]*_t180)
+)
+: (
+   -_t182*(_t123*_t164 + _t143*_t172 - _t150*_t175)
+));
+                _qd_block[4][i] = ((_t181) ? (
+   _t152*(_t129*_t179 + _t136*_t180 + _t166*_t176)
+)
+: (
+   -_t182*(-_s8[i]*_t129*_t172 + _s8[i]*_t147*_t175 - _s9[i]*_t116*_t164)
+));
+                _qd_block[5][i] = ((_t181) ? (
+   _t152*(_t117*_t176 + _t132*_t179 + _t137*_t180)
+)
+: (
+   -_t182*(_t139*_t172 + _t145*_t175 + _t164*_t165)
+));
+                singular[1 * (start + i) + 0] = _t100 || _t181;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _c0[i]*d4 + _s0[i]*a3;
+                const double _t5 = _c1[i]*a2;
+                const double _t8 = _c2[i]*a3;
+                const double _t10 = _s2[i]*d4;
+                const double _t11 = -_t10 + _t8;
+                const double _t12 = _t11 + _t5;
+                const double _t13 = (_t12*_t12);
+                const double _t14 = _t13*_t2*(_t3*_t3);
+                const double _t15 = _t14/_t1;
+                const double _t16 = kinegen_max(0, 1 - 1000000*_t15);
+                const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
+                const double _t19 = (1e-08)*(_t16*_t16);
+                const double _t20 = _s2[i]*a3;
+                const double _t21 = _c2[i]*d4;
+                const double _t22 = _t20 + _t21;
+                const double _t23 = (_t22*_t22);
+                const double _t25 = (_s3[i]*_s3[i]);
+                const double _t26 = _t17*_t25;
+                const double _t28 = _s1[i]*a2;
+                const double _t29 = _t22 + _t28;
+                const double _t30 = (_t29*_t29);
+                const double _t31 = _s3[i]*d3;
+                const double _t33 = _c3[i]*_t5;
+                const double _t34 = -_c3[i]*_t10 + _c3[i]*_t8 + _t31 + _t33;
+                const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
+                const double _t36 = (_c3[i]*_c3[i]);
+                const double _t37 = _t17*_t36;
+                const double _t38 = _s3[i]*_t5;
+                const double _t39 = _c3[i]*d3 + _s2[i]*_s3[i]*d4 - _s3[i]*_t8 - _t38;
+                const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
+                const double _t43 = (_s2[i]*_s2[i]);
+                const double _t45 = _c2[i]*_s2[i];
+                const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
+                const double _t48 = _c1[i]*_s1[i]*_t2 - _t10*_t28 + _t28*_t8 + _t47;
+                const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
+                const double _t50 = (0.0001)*_t16;
+                const double _t57 = -_c4[i]*a3 + _c5[i]*a3 + _s4[i]*d4 + _s5[i]*d4;
+                const double _t59 = _t33*_t8;
+                const double _t60 = _t10*_t33;
+                const double _t61 = (_c2[i]*_c2[i]);
+                const double _t62 = _t44*_t61;
+                const double _t63 = _t43*_t46;
+                const double _t67 = _c3[i]*_t62 + _c3[i]*_t63 - _t10*_t31 + _t31*_t8 - 0.5*_t42*(_s6[i] + _s7[i]);
+                const double _t68 = _t59 - _t60 + _t67;
+                const double _t69 = (_c1[i]*_c1[i])*_t2;
+                const double _t70 = _c3[i]*_t69 + _t31*_t5 + 2*_t59 - 2*_t60 + _t67;
+                const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
+                const double _t72 = -_c4[i]*d4 - _c5[i]*d4 - _s4[i]*a3 + _s5[i]*a3;
+                const double _t73 = _t38*_t8;
+                const double _t74 = -_c2[i]*_c3[i]*a3*d3 + _c3[i]*_t10*d3 + _s3[i]*_t62 + _s3[i]*_t63 - 0.5*a3*d4*(-_c6[i] + _c7[i]);
+                const double _t75 = _c1[i]*_s2[i]*_s3[i]*a2*d4 - _t73 - _t74;
+                const double _t76 = -_c1[i]*_c3[i]*a2*d3 - 2*_c1[i]*_s2[i]*_s3[i]*a2*d4 + _s3[i]*_t69 + 2*_t73 + _t74;
+                const double _t77 = -_t76;
+                const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
+                const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
+                const double _t81 = _t11*_t22;
+                const double _t82 = _c3[i]*_t17;
+                const double _t83 = _t12*_t29;
+                const double _t84 = _t41*_t47*_t68 + _t41*_t48*_t70 - _t50*(-_t81*_t82 - _t82*_t83);
+                const double _t85 = _t80*xd_z[i];
+                const double _t86 = _t35*_t50;
+                const double _t87 = _t18*_t50;
+                const double _t88 = _t80*xd_x[i];
+                const double _t89 = _c3[i]*_s3[i];
+                const double _t90 = _t17*_t89;
+                const double _t91 = _t41*_t75;
+                const double _t92 = _t41*_t77;
+                const double _t93 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t17*_t34*_t39 + _t23*_t90 + _t30*_t90) - _t68*_t91 - _t70*_t92;
+                const double _t94 = _t80*xd_y[i];
+                const double _t95 = _t80*(_t84*_t85 + _t88*(_t19 + _t71 + _t86 + _t87) + _t93*_t94);
+                const double _t96 = _s3[i]*_t17;
+                const double _t97 = -_t47*_t91 - _t48*_t92 - _t50*(-_t81*_t96 - _t83*_t96);
+                const double _t98 = _t19 + _t40*_t50;
+                const double _t99 = _t80*(_t85*_t97 + _t88*_t93 + _t94*(_t78 + _t87 + _t98));
+                const int _t100 = _t15 < 1e-06;
+                const double _t102 = _t12*_t3*a2/kinegen_max(_t14, (1e-06)*_t1);
+                const double _t103 = ((_t100) ? (
+   _t79*(_t34*_t99 + _t39*_t95)
+)
+: (
+   -_t102*(_t101*_t57*xd_x[i] + _t101*_t72*xd_y[i])
+));
+                const double _t104 = _t84*_t88 + _t85*(_t49 + _t86 + _t98) + _t94*_t97;
+                const double _t105 = _c3[i]*_t95;
+                const double _t106 = _s3[i]*_t99;
+                const double _t107 = ((_t100) ? (
+   _t79*(_t104*_t12*_t80 - _t105*_t29 - _t106*_t29)
+)
+: (
+   -_t102*(-_t47*xd_z[i] - _t68*xd_x[i] + _t75*xd_y[i])
+));
+                const double _t108 = ((_t100) ? (
+   _t79*(_t104*_t11*_t80 - _t105*_t22 - _t106*_t22)
+)
+: (
+   -_t102*(_t48*xd_z[i] + _t70*xd_x[i] + _t76*xd_y[i])
+));
+                const double _t110 = (_s8[i]*_s8[i]);
+                const double _t111 = kinegen_max(0, 1 - 1000000*_t110);
+                const double _t113 = (_s9[i]*_s9[i])*_t43;
+                const double _t116 = _s2[i]*_s8[i];
+                const double _t117 = _c2[i]*_c8[i] - _c9[i]*_t116;
+                const double _t118 = _t113 + (_t117*_t117) + _t61;
+                const double _t119 = (1e-08)*(_t111*_t111);
+                const double _t120 = _c2[i]*_s8[i];
+                const double _t121 = _c8[i]*_s2[i];
+                const double _t122 = _c9[i]*_t121;
+                const double _t123 = -_t120 - _t122;
+                const double _t124 = (_c9[i]*_c9[i])*_t43 + _t110*_t113 + (_t123*_t123);
+                const double _t125 = (0.0001)*_t111;
+                const double _t126 = _c9[i]*_s3[i];
+                const double _t127 = _c3[i]*_s9[i];
+                const double _t128 = _c2[i]*_t127;
+                const double _t129 = _t126 + _t128;
+                const double _t130 = (_t129*_t129);
+                const double _t131 = _c3[i]*_c9[i];
+                const double _t132 = -_c3[i]*_t121 + _s3[i]*_s8[i]*_s9[i] - _t120*_t131;
+                const double _t133 = _t130 + (_t132*_t132) + _t36*_t43;
+                const double _t134 = _s3[i]*_s9[i];
+                const double _t135 = _c2[i]*_t134;
+                const double _t136 = -_c3[i]*_c9[i] + _t135;
+                const double _t137 = -_s3[i]*_t121 - _s8[i]*_t127 - _t120*_t126;
+                const double _t138 = (_t136*_t136) + (_t137*_t137) + _t25*_t43;
+                const double _t139 = _c2[i]*_c3[i]*_c9[i] - _t134;
+                const double _t140 = _c8[i]*_t134;
+                const double _t141 = _c3[i]*_t116;
+                const double _t142 = _c2[i]*_c8[i];
+                const double _t143 = -_t131*_t142 + _t140 + _t141;
+                const double _t144 = _t110*_t130 + (_t139*_t139) + (_t143*_t143);
+                const double _t145 = _c2[i]*_t126 + _t127;
+                const double _t146 = -_t145;
+                const double _t147 = -_t136;
+                const double _t148 = _c8[i]*_t127;
+                const double _t149 = _s3[i]*_t116;
+                const double _t150 = _t126*_t142 + _t148 - _t149;
+                const double _t151 = _t110*(_t147*_t147) + (_t146*_t146) + (_t150*_t150);
+                const double _t152 = 1.0/(_t110 + (1e-12)*(_t111*_t111*_t111) + _t118*_t119 + _t119*_t133 + _t119*_t138 + _t124*_t125 + _t125*_t144 + _t125*_t151);
+                const double _t153 = _t125*_t133;
+                const double _t154 = _t119 + _t125*_t138;
+                const double _t156 = _s10[i]*_t131;
+                const double _t158 = _c10[i]*_t126;
+                const double _t159 = _c10[i]*_t148 - _c10[i]*_t149 - _s10[i]*_t135 + _t142*_t158 + _t156;
+                const double _t160 = _s10[i]*_t126;
+                const double _t161 = _c10[i]*_c3[i]*_c9[i] - _c10[i]*_t135 + _s10[i]*_s2[i]*_s3[i]*_s8[i] - _s10[i]*_t148 - _t142*_t160;
+                const double _t162 = -_c10[i]*_t128 + _c3[i]*_s10[i]*_s2[i]*_s8[i] + _c8[i]*_s10[i]*_s3[i]*_s9[i] - _t142*_t156 - _t158;
+                const double _t163 = _c10[i]*_c2[i]*_c3[i]*_c8[i]*_c9[i] - _c10[i]*_t140 - _c10[i]*_t141 - _s10[i]*_t128 - _t160;
+                const double _t164 = -_t103 + (0.5)*_t132*xd_r23[i] - 0.5*_t137*xd_r13[i] - 0.5*_t159*xd_r11[i] - 0.5*_t161*xd_r12[i] + (0.5)*_t162*xd_r22[i] + (0.5)*_t163*xd_r21[i];
+                const double _t165 = _c9[i]*_s2[i];
+                const double _t166 = _s2[i]*_s9[i];
+                const double _t167 = _t129*_t166;
+                const double _t168 = _t110*_t167 + _t123*_t143 - _t125*(-_c3[i]*_t45 + _t117*_t132 + _t167) + _t139*_t165;
+                const double _t169 = (0.5)*_t117;
+                const double _t170 = (0.5)*_c10[i]*_t120 + (0.5)*_c10[i]*_t122 - 0.5*_s10[i]*_t166;
+                const double _t171 = -0.5*_c10[i]*_t166 - 0.5*_s10[i]*_t120 - 0.5*_s10[i]*_t122;
+                const double _t172 = -_s3[i]*_t107 - _s3[i]*_t108 + (0.5)*_t137*xd_r33[i] + (0.5)*_t159*xd_r31[i] + (0.5)*_t161*xd_r32[i] - _t169*xd_r23[i] - _t170*xd_r21[i] - _t171*xd_r22[i];
+                const double _t173 = _t110*_t147;
+                const double _t174 = -_t123*_t150 - _t125*(-_s3[i]*_t45 + _t117*_t137 + _t136*_t166) - _t146*_t165 - _t166*_t173;
+                const double _t175 = _c3[i]*_t107 + _c3[i]*_t108 - 0.5*_t132*xd_r33[i] - 0.5*_t162*xd_r32[i] - 0.5*_t163*xd_r31[i] + _t169*xd_r13[i] + _t170*xd_r11[i] + _t171*xd_r12[i];
+                const double _t176 = _t164*(_t124 + _t153 + _t154) + _t168*_t172 + _t174*_t175;
+                const double _t177 = _t118*_t125;
+                const double _t178 = -_t125*(_t129*_t136 + _t132*_t137 + _t43*_t89) - _t129*_t173 - _t139*_t146 - _t143*_t150;
+                const double _t179 = _t164*_t168 + _t172*(_t144 + _t154 + _t177) + _t175*_t178;
+                const double _t180 = _t164*_t174 + _t172*_t178 + _t175*(_t119 + _t151 + _t153 + _t177);
+                const int _t181 = _t110 < 1e-06;
+                const double _t182 = _s8[i]/kinegen_max(1e-06, _t110);
+                qd[6 * (start + i) + 0] = _t103;
+                qd[6 * (start + i) + 1] = _t107;
+                qd[6 * (start + i) + 2] = _t108;
+                qd[6 * (start + i) + 3] = ((_t181) ? (
+   _t152*(_c2[i]*_t176 - _c3[i]*_s2[i]*_t179 - _s2[i]*_s3[i]*_t180)
+)
+: (
+   -_t182*(_t123*_t164 + _t143*_t172 - _t150*_t175)
+));
+                qd[6 * (start + i) + 4] = ((_t181) ? (
+   _t152*(_t129*_t179 + _t136*_t180 + _t166*_t176)
+)
+: (
+   -_t182*(-_s8[i]*_t129*_t172 + _s8[i]*_t147*_t175 - _s9[i]*_t116*_t164)
+));
+                qd[6 * (start + i) + 5] = ((_t181) ? (
+   _t152*(_t117*_t176 + _t132*_t179 + _t137*_t180)
+)
+: (
+   -_t182*(_t139*_t172 + _t145*_t175 + _t164*_t165)
+));
+                singular[1 * (start + i) + 0] = _t100 || _t181;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 6; k += 2) {
+                    _mm_stream_pd(qd + 6 * (start + i) + k, _mm_set_pd(_qd_block[k + 1][i], _qd_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         puma560_joint_velocity(q + 6 * i, xd + 12 * i, params, qd + 6 * i, singular + 1 * i);
     }
+#endif
 }
 
 /* Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 6) and (...). */
@@ -2050,85 +7294,138 @@ void puma560_joint_acceleration(const double *restrict q, const double *restrict
     const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
     const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
     const double _t2 = (a2*a2);
-    const double _t3 = a3*sin(q3) + d4*cos(q3);
-    const double _t4 = cos(q2);
-    const double _t5 = _t4*a2;
+    const double _t17 = 1.0/(_t0*_t0);
+    const double _t41 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t42 = a3*d4;
+    const double _t44 = (a3*a3);
+    const double _t46 = (d4*d4);
+    const double _t58 = (0.25)*_t2*_t41;
+    const double _t80 = 1.0/_t0;
+    const double _t114 = (0.5)*a2;
     const double _t6 = q2 + q3;
-    const double _t7 = cos(_t6);
-    const double _t8 = _t7*a3;
-    const double _t9 = sin(_t6);
-    const double _t10 = _t9*d4;
+    const double _t51 = q1 + q3;
+    const double _t54 = q1 - q3;
+    const double _t64 = 2*q2 + 2*q3;
+    const double _t65 = _t64 + q1;
+    const double _t66 = _t64 - q1;
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5, _s6, _c6, _s7, _c7, _s8, _c8, _s9, _c9, _s10, _c10;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[12] = { q3, q2, _t6, q1, _t51, _t54, _t65, _t66, q5, q4, q6, 0.0 };
+        double sine[12], cosine[12];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 12; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 12; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+        _s5 = sine[5];
+        _c5 = cosine[5];
+        _s6 = sine[6];
+        _c6 = cosine[6];
+        _s7 = sine[7];
+        _c7 = cosine[7];
+        _s8 = sine[8];
+        _c8 = cosine[8];
+        _s9 = sine[9];
+        _c9 = cosine[9];
+        _s10 = sine[10];
+        _c10 = cosine[10];
+    }
+#else
+    _s0 = sin(q3);
+    _c0 = cos(q3);
+    _s1 = sin(q2);
+    _c1 = cos(q2);
+    _s2 = sin(_t6);
+    _c2 = cos(_t6);
+    _s3 = sin(q1);
+    _c3 = cos(q1);
+    _s4 = sin(_t51);
+    _c4 = cos(_t51);
+    _s5 = sin(_t54);
+    _c5 = cos(_t54);
+    _s6 = sin(_t65);
+    _c6 = cos(_t65);
+    _s7 = sin(_t66);
+    _c7 = cos(_t66);
+    _s8 = sin(q5);
+    _c8 = cos(q5);
+    _s9 = sin(q4);
+    _c9 = cos(q4);
+    _s10 = sin(q6);
+    _c10 = cos(q6);
+#endif
+    const double _t3 = _c0*d4 + _s0*a3;
+    const double _t5 = _c1*a2;
+    const double _t8 = _c2*a3;
+    const double _t10 = _s2*d4;
     const double _t11 = -_t10 + _t8;
     const double _t12 = _t11 + _t5;
     const double _t13 = (_t12*_t12);
     const double _t14 = _t13*_t2*(_t3*_t3);
     const double _t15 = _t14/_t1;
-    const double _t16 = fmax(0, 1 - 1000000*_t15);
-    const double _t17 = 1.0/(_t0*_t0);
+    const double _t16 = kinegen_max(0, 1 - 1000000*_t15);
     const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
     const double _t19 = (1e-08)*(_t16*_t16);
-    const double _t20 = _t9*a3;
-    const double _t21 = _t7*d4;
+    const double _t20 = _s2*a3;
+    const double _t21 = _c2*d4;
     const double _t22 = _t20 + _t21;
     const double _t23 = (_t22*_t22);
-    const double _t24 = sin(q1);
-    const double _t25 = (_t24*_t24);
+    const double _t25 = (_s3*_s3);
     const double _t26 = _t17*_t25;
-    const double _t27 = sin(q2);
-    const double _t28 = _t27*a2;
+    const double _t28 = _s1*a2;
     const double _t29 = _t22 + _t28;
     const double _t30 = (_t29*_t29);
-    const double _t31 = _t24*d3;
-    const double _t32 = cos(q1);
-    const double _t33 = _t32*_t5;
-    const double _t34 = -_t10*_t32 + _t31 + _t32*_t8 + _t33;
+    const double _t31 = _s3*d3;
+    const double _t33 = _c3*_t5;
+    const double _t34 = -_c3*_t10 + _c3*_t8 + _t31 + _t33;
     const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
-    const double _t36 = (_t32*_t32);
+    const double _t36 = (_c3*_c3);
     const double _t37 = _t17*_t36;
-    const double _t38 = _t24*_t5;
-    const double _t39 = -_t24*_t8 + _t24*_t9*d4 + _t32*d3 - _t38;
+    const double _t38 = _s3*_t5;
+    const double _t39 = _c3*d3 + _s2*_s3*d4 - _s3*_t8 - _t38;
     const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
-    const double _t41 = 1.0/(_t0*_t0*_t0*_t0);
-    const double _t42 = a3*d4;
-    const double _t43 = (_t9*_t9);
-    const double _t44 = (a3*a3);
-    const double _t45 = _t7*_t9;
-    const double _t46 = (d4*d4);
+    const double _t43 = (_s2*_s2);
+    const double _t45 = _c2*_s2;
     const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
-    const double _t48 = -_t10*_t28 + _t2*_t27*_t4 + _t28*_t8 + _t47;
+    const double _t48 = _c1*_s1*_t2 - _t10*_t28 + _t28*_t8 + _t47;
     const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
     const double _t50 = (0.0001)*_t16;
-    const double _t51 = q1 + q3;
-    const double _t52 = sin(_t51);
-    const double _t53 = cos(_t51);
-    const double _t54 = q1 - q3;
-    const double _t55 = cos(_t54);
-    const double _t56 = sin(_t54);
-    const double _t57 = _t52*d4 - _t53*a3 + _t55*a3 + _t56*d4;
-    const double _t58 = (0.25)*_t2*_t41;
+    const double _t57 = -_c4*a3 + _c5*a3 + _s4*d4 + _s5*d4;
     const double _t59 = _t33*_t8;
     const double _t60 = _t10*_t33;
-    const double _t61 = (_t7*_t7);
+    const double _t61 = (_c2*_c2);
     const double _t62 = _t44*_t61;
     const double _t63 = _t43*_t46;
-    const double _t64 = 2*q2 + 2*q3;
-    const double _t65 = _t64 + q1;
-    const double _t66 = _t64 - q1;
-    const double _t67 = -_t10*_t31 + _t31*_t8 + _t32*_t62 + _t32*_t63 - 0.5*_t42*(sin(_t65) + sin(_t66));
+    const double _t67 = _c3*_t62 + _c3*_t63 - _t10*_t31 + _t31*_t8 - 0.5*_t42*(_s6 + _s7);
     const double _t68 = _t59 - _t60 + _t67;
-    const double _t69 = _t2*(_t4*_t4);
-    const double _t70 = _t31*_t5 + _t32*_t69 + 2*_t59 - 2*_t60 + _t67;
+    const double _t69 = (_c1*_c1)*_t2;
+    const double _t70 = _c3*_t69 + _t31*_t5 + 2*_t59 - 2*_t60 + _t67;
     const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
-    const double _t72 = -_t52*a3 - _t53*d4 - _t55*d4 + _t56*a3;
+    const double _t72 = -_c4*d4 - _c5*d4 - _s4*a3 + _s5*a3;
     const double _t73 = _t38*_t8;
-    const double _t74 = _t10*_t32*d3 + _t24*_t62 + _t24*_t63 - _t32*_t7*a3*d3 - 0.5*a3*d4*(-cos(_t65) + cos(_t66));
-    const double _t75 = _t24*_t4*_t9*a2*d4 - _t73 - _t74;
-    const double _t76 = -2*_t24*_t4*_t9*a2*d4 + _t24*_t69 - _t32*_t4*a2*d3 + 2*_t73 + _t74;
+    const double _t74 = -_c2*_c3*a3*d3 + _c3*_t10*d3 + _s3*_t62 + _s3*_t63 - 0.5*a3*d4*(-_c6 + _c7);
+    const double _t75 = _c1*_s2*_s3*a2*d4 - _t73 - _t74;
+    const double _t76 = -_c1*_c3*a2*d3 - 2*_c1*_s2*_s3*a2*d4 + _s3*_t69 + 2*_t73 + _t74;
     const double _t77 = -_t76;
     const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
     const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
-    const double _t80 = 1.0/_t0;
-    const double _t81 = _t17*_t32;
+    const double _t81 = _c3*_t17;
     const double _t82 = _t11*_t22;
     const double _t83 = _t12*_t29;
     const double _t84 = _t41*_t68;
@@ -2140,29 +7437,28 @@ void puma560_joint_acceleration(const double *restrict q, const double *restrict
     const double _t90 = _t80*_t89;
     const double _t91 = _t18*_t50;
     const double _t92 = _t19 + _t35*_t50;
-    const double _t93 = _t32*qd2;
+    const double _t93 = _c3*qd2;
     const double _t94 = _t11*qd3;
-    const double _t95 = _t32*_t94;
-    const double _t96 = _t20*_t24 + _t21*_t24;
-    const double _t97 = -qd1*(-_t34*qd1 + _t96*qd3 + qd2*(_t24*_t28 + _t96)) - qd2*(-_t12*_t93 + _t24*_t29*qd1 - _t95) - qd3*(-_t11*_t93 + _t22*_t24*qd1 - _t95) + xdd_x;
+    const double _t95 = _c3*_t94;
+    const double _t96 = _s3*_t20 + _s3*_t21;
+    const double _t97 = -qd1*(-_t34*qd1 + _t96*qd3 + qd2*(_s3*_t28 + _t96)) - qd2*(_s3*_t29*qd1 - _t12*_t93 - _t95) - qd3*(_s3*_t22*qd1 - _t11*_t93 - _t95) + xdd_x;
     const double _t98 = _t80*_t97;
-    const double _t99 = _t24*_t32;
+    const double _t99 = _c3*_s3;
     const double _t100 = _t17*_t99;
     const double _t101 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t100*_t23 + _t100*_t30 + _t17*_t34*_t39) - _t75*_t84 - _t77*_t85;
-    const double _t102 = _t32*qd1;
-    const double _t103 = _t24*qd2;
-    const double _t104 = _t24*_t94;
-    const double _t105 = _t20*_t32 + _t21*_t32;
-    const double _t106 = -qd1*(-_t105*qd3 + _t39*qd1 + qd2*(-_t105 - _t28*_t32)) - qd2*(-_t102*_t29 - _t103*_t12 - _t104) - qd3*(-_t102*_t22 - _t103*_t11 - _t104) + xdd_y;
+    const double _t102 = _c3*qd1;
+    const double _t103 = _s3*qd2;
+    const double _t104 = _s3*_t94;
+    const double _t105 = _c3*_t20 + _c3*_t21;
+    const double _t106 = -qd1*(-_t105*qd3 + _t39*qd1 + qd2*(-_c3*_t28 - _t105)) - qd2*(-_t102*_t29 - _t103*_t12 - _t104) - qd3*(-_t102*_t22 - _t103*_t11 - _t104) + xdd_y;
     const double _t107 = _t106*_t80;
     const double _t108 = _t80*(_t101*_t107 + _t86*_t90 + _t98*(_t71 + _t91 + _t92));
-    const double _t109 = _t17*_t24;
+    const double _t109 = _s3*_t17;
     const double _t110 = -_t41*_t47*_t75 - _t41*_t48*_t77 - _t50*(-_t109*_t82 - _t109*_t83);
     const double _t111 = _t40*_t50;
     const double _t112 = _t80*(_t101*_t98 + _t107*(_t111 + _t19 + _t78 + _t91) + _t110*_t90);
     const int _t113 = _t15 < 1e-06;
-    const double _t114 = (0.5)*a2;
-    const double _t115 = _t12*_t3*a2/fmax(_t14, (1e-06)*_t1);
+    const double _t115 = _t12*_t3*a2/kinegen_max(_t14, (1e-06)*_t1);
     const double _t116 = ((_t113) ? (
    _t79*(_t108*_t39 + _t112*_t34)
 )
@@ -2170,8 +7466,8 @@ void puma560_joint_acceleration(const double *restrict q, const double *restrict
    -_t115*(_t106*_t114*_t72 + _t114*_t57*_t97)
 ));
     const double _t117 = _t107*_t110 + _t86*_t98 + _t90*(_t111 + _t49 + _t92);
-    const double _t118 = _t108*_t32;
-    const double _t119 = _t112*_t24;
+    const double _t118 = _c3*_t108;
+    const double _t119 = _s3*_t112;
     const double _t120 = ((_t113) ? (
    _t79*(_t117*_t12*_t80 - _t118*_t29 - _t119*_t29)
 )
@@ -2184,94 +7480,88 @@ void puma560_joint_acceleration(const double *restrict q, const double *restrict
 : (
    -_t115*(_t106*_t76 + _t48*_t89 + _t70*_t97)
 ));
-    const double _t122 = sin(q5);
-    const double _t123 = (_t122*_t122);
-    const double _t124 = fmax(0, 1 - 1000000*_t123);
-    const double _t125 = sin(q4);
-    const double _t126 = (_t125*_t125)*_t43;
-    const double _t127 = cos(q5);
-    const double _t128 = cos(q4);
-    const double _t129 = _t122*_t9;
-    const double _t130 = _t127*_t7 - _t128*_t129;
+    const double _t123 = (_s8*_s8);
+    const double _t124 = kinegen_max(0, 1 - 1000000*_t123);
+    const double _t126 = (_s9*_s9)*_t43;
+    const double _t129 = _s2*_s8;
+    const double _t130 = _c2*_c8 - _c9*_t129;
     const double _t131 = _t126 + (_t130*_t130) + _t61;
     const double _t132 = (1e-08)*(_t124*_t124);
-    const double _t133 = _t122*_t7;
-    const double _t134 = _t127*_t9;
-    const double _t135 = _t128*_t134;
+    const double _t133 = _c2*_s8;
+    const double _t134 = _c8*_s2;
+    const double _t135 = _c9*_t134;
     const double _t136 = -_t133 - _t135;
-    const double _t137 = _t123*_t126 + (_t128*_t128)*_t43 + (_t136*_t136);
+    const double _t137 = (_c9*_c9)*_t43 + _t123*_t126 + (_t136*_t136);
     const double _t138 = (0.0001)*_t124;
-    const double _t139 = _t128*_t24;
-    const double _t140 = _t125*_t32;
-    const double _t141 = _t140*_t7;
+    const double _t139 = _c9*_s3;
+    const double _t140 = _c3*_s9;
+    const double _t141 = _c2*_t140;
     const double _t142 = _t139 + _t141;
     const double _t143 = (_t142*_t142);
-    const double _t144 = _t128*_t32;
-    const double _t145 = _t122*_t125*_t24 - _t133*_t144 - _t134*_t32;
+    const double _t144 = _c3*_c9;
+    const double _t145 = -_c3*_t134 + _s3*_s8*_s9 - _t133*_t144;
     const double _t146 = _t143 + (_t145*_t145) + _t36*_t43;
-    const double _t147 = _t125*_t24;
-    const double _t148 = _t147*_t7;
-    const double _t149 = -_t128*_t32 + _t148;
-    const double _t150 = _t122*_t140 + _t133*_t139 + _t134*_t24;
+    const double _t147 = _s3*_s9;
+    const double _t148 = _c2*_t147;
+    const double _t149 = -_c3*_c9 + _t148;
+    const double _t150 = _s3*_t134 + _s8*_t140 + _t133*_t139;
     const double _t151 = -_t150;
     const double _t152 = (_t149*_t149) + (_t151*_t151) + _t25*_t43;
-    const double _t153 = _t128*_t32*_t7 - _t147;
-    const double _t154 = _t127*_t147;
-    const double _t155 = _t129*_t32;
-    const double _t156 = _t127*_t7;
+    const double _t153 = _c2*_c3*_c9 - _t147;
+    const double _t154 = _c8*_t147;
+    const double _t155 = _c3*_t129;
+    const double _t156 = _c2*_c8;
     const double _t157 = -_t144*_t156 + _t154 + _t155;
     const double _t158 = _t123*_t143 + (_t153*_t153) + (_t157*_t157);
-    const double _t159 = _t139*_t7 + _t140;
+    const double _t159 = _c2*_t139 + _t140;
     const double _t160 = -_t159;
     const double _t161 = -_t149;
-    const double _t162 = _t127*_t140;
-    const double _t163 = _t129*_t24;
+    const double _t162 = _c8*_t140;
+    const double _t163 = _s3*_t129;
     const double _t164 = _t139*_t156 + _t162 - _t163;
     const double _t165 = _t123*(_t161*_t161) + (_t160*_t160) + (_t164*_t164);
     const double _t166 = 1.0/(_t123 + (1e-12)*(_t124*_t124*_t124) + _t131*_t132 + _t132*_t146 + _t132*_t152 + _t137*_t138 + _t138*_t158 + _t138*_t165);
     const double _t167 = _t138*_t146;
     const double _t168 = _t132 + _t138*_t152;
-    const double _t169 = _t9*qd2;
-    const double _t170 = _t9*qd3;
-    const double _t171 = _t7*qd3;
-    const double _t172 = _t128*_t9;
-    const double _t173 = sin(q6);
-    const double _t174 = _t144*_t173;
-    const double _t175 = cos(q6);
-    const double _t176 = _t139*_t175;
-    const double _t177 = -_t148*_t173 + _t156*_t176 + _t162*_t175 - _t163*_t175 + _t174;
-    const double _t178 = _t139*_t173;
-    const double _t179 = _t122*_t173*_t24*_t9 + _t128*_t175*_t32 - _t148*_t175 - _t156*_t178 - _t162*_t173;
-    const double _t180 = _t122*_t173*_t32*_t9 + _t125*_t127*_t173*_t24 - _t141*_t175 - _t156*_t174 - _t176;
-    const double _t181 = _t127*_t128*_t175*_t32*_t7 - _t141*_t173 - _t154*_t175 - _t155*_t175 - _t178;
-    const double _t182 = _t125*_t129;
-    const double _t183 = -_t128*_t133 - _t134;
-    const double _t184 = -_t116 + (0.5)*_t145*xdd_r23 - 0.5*_t151*xdd_r13 - 0.5*_t177*xdd_r11 - 0.5*_t179*xdd_r12 + (0.5)*_t180*xdd_r22 + (0.5)*_t181*xdd_r21 - qd4*(-_t169 - _t170) - qd5*(_t125*_t171 + _t125*_t7*qd2 + _t172*qd4) - qd6*(_t136*qd5 + _t182*qd4 + _t183*qd2 + _t183*qd3);
-    const double _t185 = _t125*_t9;
+    const double _t169 = _s2*qd2;
+    const double _t170 = _s2*qd3;
+    const double _t171 = _c2*qd3;
+    const double _t172 = _c9*_s2;
+    const double _t174 = _s10*_t144;
+    const double _t176 = _c10*_t139;
+    const double _t177 = _c10*_t162 - _c10*_t163 - _s10*_t148 + _t156*_t176 + _t174;
+    const double _t178 = _s10*_t139;
+    const double _t179 = _c10*_c3*_c9 - _c10*_t148 + _s10*_s2*_s3*_s8 - _s10*_t162 - _t156*_t178;
+    const double _t180 = -_c10*_t141 + _c3*_s10*_s2*_s8 + _c8*_s10*_s3*_s9 - _t156*_t174 - _t176;
+    const double _t181 = _c10*_c2*_c3*_c8*_c9 - _c10*_t154 - _c10*_t155 - _s10*_t141 - _t178;
+    const double _t182 = _s9*_t129;
+    const double _t183 = -_c9*_t133 - _t134;
+    const double _t184 = -_t116 + (0.5)*_t145*xdd_r23 - 0.5*_t151*xdd_r13 - 0.5*_t177*xdd_r11 - 0.5*_t179*xdd_r12 + (0.5)*_t180*xdd_r22 + (0.5)*_t181*xdd_r21 - qd4*(-_t169 - _t170) - qd5*(_c2*_s9*qd2 + _s9*_t171 + _t172*qd4) - qd6*(_t136*qd5 + _t182*qd4 + _t183*qd2 + _t183*qd3);
+    const double _t185 = _s2*_s9;
     const double _t186 = _t142*_t185;
-    const double _t187 = _t123*_t186 + _t136*_t157 - _t138*(_t130*_t145 + _t186 - _t32*_t45) + _t153*_t172;
-    const double _t188 = _t133*_t175 + _t135*_t175 - _t173*_t185;
-    const double _t189 = -_t133*_t173 - _t135*_t173 - _t175*_t185;
-    const double _t190 = _t129*_t144 - _t156*_t32;
-    const double _t191 = -_t102*qd3 - _t120*_t24 - _t121*_t24 - 0.5*_t130*xdd_r23 + (0.5)*_t151*xdd_r33 + (0.5)*_t177*xdd_r31 + (0.5)*_t179*xdd_r32 - 0.5*_t188*xdd_r21 - 0.5*_t189*xdd_r22 - _t93*qd1 - qd4*(-_t171*_t32 + _t24*_t9*qd1 - _t7*_t93) - qd5*(-_t140*_t169 - _t140*_t170 + _t153*qd4 + _t161*qd1) - qd6*(_t150*qd1 + _t157*qd5 + _t190*qd2 + _t190*qd3 + qd4*(_t122*_t139 + _t133*_t140));
+    const double _t187 = _t123*_t186 + _t136*_t157 - _t138*(-_c3*_t45 + _t130*_t145 + _t186) + _t153*_t172;
+    const double _t188 = _c10*_t133 + _c10*_t135 - _s10*_t185;
+    const double _t189 = -_c10*_t185 - _s10*_t133 - _s10*_t135;
+    const double _t190 = -_c3*_t156 + _t129*_t144;
+    const double _t191 = -_s3*_t120 - _s3*_t121 - _t102*qd3 - 0.5*_t130*xdd_r23 + (0.5)*_t151*xdd_r33 + (0.5)*_t177*xdd_r31 + (0.5)*_t179*xdd_r32 - 0.5*_t188*xdd_r21 - 0.5*_t189*xdd_r22 - _t93*qd1 - qd4*(-_c2*_t93 - _c3*_t171 + _s2*_s3*qd1) - qd5*(-_t140*_t169 - _t140*_t170 + _t153*qd4 + _t161*qd1) - qd6*(_t150*qd1 + _t157*qd5 + _t190*qd2 + _t190*qd3 + qd4*(_s8*_t139 + _t133*_t140));
     const double _t192 = _t123*_t161;
-    const double _t193 = -_t136*_t164 - _t138*(_t130*_t151 + _t149*_t185 - _t24*_t45) - _t160*_t172 - _t185*_t192;
-    const double _t194 = _t24*qd1;
-    const double _t195 = _t129*_t139 - _t156*_t24;
+    const double _t193 = -_t136*_t164 - _t138*(-_s3*_t45 + _t130*_t151 + _t149*_t185) - _t160*_t172 - _t185*_t192;
+    const double _t194 = _s3*qd1;
+    const double _t195 = -_s3*_t156 + _t129*_t139;
     const double _t196 = -_t164;
-    const double _t197 = _t120*_t32 + _t121*_t32 + (0.5)*_t130*xdd_r13 - 0.5*_t145*xdd_r33 - 0.5*_t180*xdd_r32 - 0.5*_t181*xdd_r31 + (0.5)*_t188*xdd_r11 + (0.5)*_t189*xdd_r12 - _t194*qd2 - _t194*qd3 - qd4*(-_t102*_t9 - _t103*_t7 - _t171*_t24) - qd5*(_t142*qd1 - _t147*_t169 - _t147*_t170 + _t159*qd4) - qd6*(_t145*qd1 + _t195*qd2 + _t195*qd3 + _t196*qd5 + qd4*(-_t122*_t144 + _t133*_t147));
+    const double _t197 = _c3*_t120 + _c3*_t121 + (0.5)*_t130*xdd_r13 - 0.5*_t145*xdd_r33 - 0.5*_t180*xdd_r32 - 0.5*_t181*xdd_r31 + (0.5)*_t188*xdd_r11 + (0.5)*_t189*xdd_r12 - _t194*qd2 - _t194*qd3 - qd4*(-_c2*_t103 - _s2*_t102 - _s3*_t171) - qd5*(_t142*qd1 - _t147*_t169 - _t147*_t170 + _t159*qd4) - qd6*(_t145*qd1 + _t195*qd2 + _t195*qd3 + _t196*qd5 + qd4*(-_s8*_t144 + _t133*_t147));
     const double _t198 = _t184*(_t137 + _t167 + _t168) + _t187*_t191 + _t193*_t197;
     const double _t199 = _t131*_t138;
     const double _t200 = -_t138*(_t142*_t149 + _t145*_t151 + _t43*_t99) - _t142*_t192 - _t153*_t160 - _t157*_t164;
     const double _t201 = _t184*_t187 + _t191*(_t158 + _t168 + _t199) + _t197*_t200;
     const double _t202 = _t184*_t193 + _t191*_t200 + _t197*(_t132 + _t165 + _t167 + _t199);
     const int _t203 = _t123 < 1e-06;
-    const double _t204 = _t122/fmax(1e-06, _t123);
+    const double _t204 = _s8/kinegen_max(1e-06, _t123);
     qdd[0] = _t116;
     qdd[1] = _t120;
     qdd[2] = _t121;
     qdd[3] = ((_t203) ? (
-   _t166*(_t198*_t7 - _t201*_t32*_t9 - _t202*_t24*_t9)
+   _t166*(_c2*_t198 - _c3*_s2*_t201 - _s2*_s3*_t202)
 )
 : (
    -_t204*(_t136*_t184 + _t157*_t191 + _t196*_t197)
@@ -2280,7 +7570,7 @@ void puma560_joint_acceleration(const double *restrict q, const double *restrict
    _t166*(_t142*_t201 + _t149*_t202 + _t185*_t198)
 )
 : (
-   -_t204*(-_t122*_t142*_t191 + _t122*_t161*_t197 - _t182*_t184)
+   -_t204*(-_s8*_t142*_t191 + _s8*_t161*_t197 - _t182*_t184)
 ));
     qdd[5] = ((_t203) ? (
    _t166*(_t130*_t198 + _t145*_t201 + _t151*_t202)
@@ -2291,12 +7581,663 @@ void puma560_joint_acceleration(const double *restrict q, const double *restrict
     singular[0] = _t113 || _t203;
 }
 
+/* joint_acceleration of `count` items, stored one after the other in each argument and output. */
 void puma560_joint_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict xdd, const puma560_params *restrict params, double *restrict qdd, int *restrict singular)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double q5[KINEGEN_BLOCK_OF(64)];
+    double q6[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double qd3[KINEGEN_BLOCK_OF(64)];
+    double qd4[KINEGEN_BLOCK_OF(64)];
+    double qd5[KINEGEN_BLOCK_OF(64)];
+    double qd6[KINEGEN_BLOCK_OF(64)];
+    double xdd_x[KINEGEN_BLOCK_OF(64)];
+    double xdd_y[KINEGEN_BLOCK_OF(64)];
+    double xdd_z[KINEGEN_BLOCK_OF(64)];
+    double xdd_r11[KINEGEN_BLOCK_OF(64)];
+    double xdd_r12[KINEGEN_BLOCK_OF(64)];
+    double xdd_r13[KINEGEN_BLOCK_OF(64)];
+    double xdd_r21[KINEGEN_BLOCK_OF(64)];
+    double xdd_r22[KINEGEN_BLOCK_OF(64)];
+    double xdd_r23[KINEGEN_BLOCK_OF(64)];
+    double xdd_r31[KINEGEN_BLOCK_OF(64)];
+    double xdd_r32[KINEGEN_BLOCK_OF(64)];
+    double xdd_r33[KINEGEN_BLOCK_OF(64)];
+    double _t6[KINEGEN_BLOCK_OF(64)];
+    double _t51[KINEGEN_BLOCK_OF(64)];
+    double _t54[KINEGEN_BLOCK_OF(64)];
+    double _t65[KINEGEN_BLOCK_OF(64)];
+    double _t66[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    double _s4[KINEGEN_BLOCK_OF(64)];
+    double _c4[KINEGEN_BLOCK_OF(64)];
+    double _s5[KINEGEN_BLOCK_OF(64)];
+    double _c5[KINEGEN_BLOCK_OF(64)];
+    double _s6[KINEGEN_BLOCK_OF(64)];
+    double _c6[KINEGEN_BLOCK_OF(64)];
+    double _s7[KINEGEN_BLOCK_OF(64)];
+    double _c7[KINEGEN_BLOCK_OF(64)];
+    double _s8[KINEGEN_BLOCK_OF(64)];
+    double _c8[KINEGEN_BLOCK_OF(64)];
+    double _s9[KINEGEN_BLOCK_OF(64)];
+    double _c9[KINEGEN_BLOCK_OF(64)];
+    double _s10[KINEGEN_BLOCK_OF(64)];
+    double _c10[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _qdd_block[6][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)qdd & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double d1 = params->d1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
+    const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
+    const double _t2 = (a2*a2);
+    const double _t17 = 1.0/(_t0*_t0);
+    const double _t41 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t42 = a3*d4;
+    const double _t44 = (a3*a3);
+    const double _t46 = (d4*d4);
+    const double _t58 = (0.25)*_t2*_t41;
+    const double _t80 = 1.0/_t0;
+    const double _t114 = (0.5)*a2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[6 * (start + i) + 0];
+            q2[i] = q[6 * (start + i) + 1];
+            q3[i] = q[6 * (start + i) + 2];
+            q4[i] = q[6 * (start + i) + 3];
+            q5[i] = q[6 * (start + i) + 4];
+            q6[i] = q[6 * (start + i) + 5];
+            qd1[i] = qd[6 * (start + i) + 0];
+            qd2[i] = qd[6 * (start + i) + 1];
+            qd3[i] = qd[6 * (start + i) + 2];
+            qd4[i] = qd[6 * (start + i) + 3];
+            qd5[i] = qd[6 * (start + i) + 4];
+            qd6[i] = qd[6 * (start + i) + 5];
+            xdd_x[i] = xdd[12 * (start + i) + 0];
+            xdd_y[i] = xdd[12 * (start + i) + 1];
+            xdd_z[i] = xdd[12 * (start + i) + 2];
+            xdd_r11[i] = xdd[12 * (start + i) + 3];
+            xdd_r12[i] = xdd[12 * (start + i) + 4];
+            xdd_r13[i] = xdd[12 * (start + i) + 5];
+            xdd_r21[i] = xdd[12 * (start + i) + 6];
+            xdd_r22[i] = xdd[12 * (start + i) + 7];
+            xdd_r23[i] = xdd[12 * (start + i) + 8];
+            xdd_r31[i] = xdd[12 * (start + i) + 9];
+            xdd_r32[i] = xdd[12 * (start + i) + 10];
+            xdd_r33[i] = xdd[12 * (start + i) + 11];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t6[i] = q2[i] + q3[i];
+            _t51[i] = q1[i] + q3[i];
+            _t54[i] = q1[i] - q3[i];
+            const double _t64 = 2*q2[i] + 2*q3[i];
+            _t65[i] = _t64 + q1[i];
+            _t66[i] = _t64 - q1[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(_t51[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(_t51[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s5[i] = sin(_t54[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c5[i] = cos(_t54[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s6[i] = sin(_t65[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c6[i] = cos(_t65[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s7[i] = sin(_t66[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c7[i] = cos(_t66[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s8[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c8[i] = cos(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s9[i] = sin(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c9[i] = cos(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s10[i] = sin(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c10[i] = cos(q6[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _c0[i]*d4 + _s0[i]*a3;
+                const double _t5 = _c1[i]*a2;
+                const double _t8 = _c2[i]*a3;
+                const double _t10 = _s2[i]*d4;
+                const double _t11 = -_t10 + _t8;
+                const double _t12 = _t11 + _t5;
+                const double _t13 = (_t12*_t12);
+                const double _t14 = _t13*_t2*(_t3*_t3);
+                const double _t15 = _t14/_t1;
+                const double _t16 = kinegen_max(0, 1 - 1000000*_t15);
+                const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
+                const double _t19 = (1e-08)*(_t16*_t16);
+                const double _t20 = _s2[i]*a3;
+                const double _t21 = _c2[i]*d4;
+                const double _t22 = _t20 + _t21;
+                const double _t23 = (_t22*_t22);
+                const double _t25 = (_s3[i]*_s3[i]);
+                const double _t26 = _t17*_t25;
+                const double _t28 = _s1[i]*a2;
+                const double _t29 = _t22 + _t28;
+                const double _t30 = (_t29*_t29);
+                const double _t31 = _s3[i]*d3;
+                const double _t33 = _c3[i]*_t5;
+                const double _t34 = -_c3[i]*_t10 + _c3[i]*_t8 + _t31 + _t33;
+                const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
+                const double _t36 = (_c3[i]*_c3[i]);
+                const double _t37 = _t17*_t36;
+                const double _t38 = _s3[i]*_t5;
+                const double _t39 = _c3[i]*d3 + _s2[i]*_s3[i]*d4 - _s3[i]*_t8 - _t38;
+                const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
+                const double _t43 = (_s2[i]*_s2[i]);
+                const double _t45 = _c2[i]*_s2[i];
+                const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
+                const double _t48 = _c1[i]*_s1[i]*_t2 - _t10*_t28 + _t28*_t8 + _t47;
+                const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
+                const double _t50 = (0.0001)*_t16;
+                const double _t57 = -_c4[i]*a3 + _c5[i]*a3 + _s4[i]*d4 + _s5[i]*d4;
+                const double _t59 = _t33*_t8;
+                const double _t60 = _t10*_t33;
+                const double _t61 = (_c2[i]*_c2[i]);
+                const double _t62 = _t44*_t61;
+                const double _t63 = _t43*_t46;
+                const double _t67 = _c3[i]*_t62 + _c3[i]*_t63 - _t10*_t31 + _t31*_t8 - 0.5*_t42*(_s6[i] + _s7[i]);
+                const double _t68 = _t59 - _t60 + _t67;
+                const double _t69 = (_c1[i]*_c1[i])*_t2;
+                const double _t70 = _c3[i]*_t69 + _t31*_t5 + 2*_t59 - 2*_t60 + _t67;
+                const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
+                const double _t72 = -_c4[i]*d4 - _c5[i]*d4 - _s4[i]*a3 + _s5[i]*a3;
+                const double _t73 = _t38*_t8;
+                const double _t74 = -_c2[i]*_c3[i]*a3*d3 + _c3[i]*_t10*d3 + _s3[i]*_t62 + _s3[i]*_t63 - 0.5*a3*d4*(-_c6[i] + _c7[i]);
+                const double _t75 = _c1[i]*_s2[i]*_s3[i]*a2*d4 - _t73 - _t74;
+                const double _t76 = -_c1[i]*_c3[i]*a2*d3 - 2*_c1[i]*_s2[i]*_s3[i]*a2*d4 + _s3[i]*_t69 + 2*_t73 + _t74;
+                const double _t77 = -_t76;
+                const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
+                const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
+                const double _t81 = _c3[i]*_t17;
+                const double _t82 = _t11*_t22;
+                const double _t83 = _t12*_t29;
+                const double _t84 = _t41*_t68;
+                const double _t85 = _t41*_t70;
+                const double _t86 = _t47*_t84 + _t48*_t85 - _t50*(-_t81*_t82 - _t81*_t83);
+                const double _t87 = -_t22;
+                const double _t88 = _t87*qd3[i];
+                const double _t89 = -qd2[i]*(-_t29*qd2[i] + _t88) - qd3[i]*(_t87*qd2[i] + _t88) + xdd_z[i];
+                const double _t90 = _t80*_t89;
+                const double _t91 = _t18*_t50;
+                const double _t92 = _t19 + _t35*_t50;
+                const double _t93 = _c3[i]*qd2[i];
+                const double _t94 = _t11*qd3[i];
+                const double _t95 = _c3[i]*_t94;
+                const double _t96 = _s3[i]*_t20 + _s3[i]*_t21;
+                const double _t97 = -qd1[i]*(-_t34*qd1[i] + _t96*qd3[i] + qd2[i]*(_s3[i]*_t28 + _t96)) - qd2[i]*(_s3[i]*_t29*qd1[i] - _t12*_t93 - _t95) - qd3[i]*(_s3[i]*_t22*qd1[i] - _t11*_t93 - _t95) + xdd_x[i];
+                const double _t98 = _t80*_t97;
+                const double _t99 = _c3[i]*_s3[i];
+                const double _t100 = _t17*_t99;
+                const double _t101 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t100*_t23 + _t100*_t30 + _t17*_t34*_t39) - _t75*_t84 - _t77*_t85;
+                const double _t102 = _c3[i]*qd1[i];
+                const double _t103 = _s3[i]*qd2[i];
+                const double _t104 = _s3[i]*_t94;
+                const double _t105 = _c3[i]*_t20 + _c3[i]*_t21;
+                const double _t106 = -qd1[i]*(-_t105*qd3[i] + _t39*qd1[i] + qd2[i]*(-_c3[i]*_t28 - _t105)) - qd2[i]*(-_t102*_t29 - _t103*_t12 - _t104) - qd3[i]*(-_t102*_t22 - _t103*_t11 - _t104) + xdd_y[i];
+                const double _t107 = _t106*_t80;
+                const double _t108 = _t80*(_t101*_t107 + _t86*_t90 + _t98*(_t71 + _t91 + _t92));
+                const double _t109 = _s3[i]*_t17;
+                const double _t110 = -_t41*_t47*_t75 - _t41*_t48*_t77 - _t50*(-_t109*_t82 - _t109*_t83);
+                const double _t111 = _t40*_t50;
+                const double _t112 = _t80*(_t101*_t98 + _t107*(_t111 + _t19 + _t78 + _t91) + _t110*_t90);
+                const int _t113 = _t15 < 1e-06;
+                const double _t115 = _t12*_t3*a2/kinegen_max(_t14, (1e-06)*_t1);
+                const double _t116 = ((_t113) ? (
+   _t79*(_t108*_t39 + _t112*_t34)
+)
+: (
+   -_t115*(_t106*_t114*_t72 + _t114*_t57*_t97)
+));
+                const double _t117 = _t107*_t110 + _t86*_t98 + _t90*(_t111 + _t49 + _t92);
+                const double _t118 = _c3[i]*_t108;
+                const double _t119 = _s3[i]*_t112;
+                const double _t120 = ((_t113) ? (
+   _t79*(_t117*_t12*_t80 - _t118*_t29 - _t119*_t29)
+)
+: (
+   -_t115*(_t106*_t75 - _t47*_t89 - _t68*_t97)
+));
+                const double _t121 = ((_t113) ? (
+   _t79*(_t11*_t117*_t80 - _t118*_t22 - _t119*_t22)
+)
+: (
+   -_t115*(_t106*_t76 + _t48*_t89 + _t70*_t97)
+));
+                const double _t123 = (_s8[i]*_s8[i]);
+                const double _t124 = kinegen_max(0, 1 - 1000000*_t123);
+                const double _t126 = (_s9[i]*_s9[i])*_t43;
+                const double _t129 = _s2[i]*_s8[i];
+                const double _t130 = _c2[i]*_c8[i] - _c9[i]*_t129;
+                const double _t131 = _t126 + (_t130*_t130) + _t61;
+                const double _t132 = (1e-08)*(_t124*_t124);
+                const double _t133 = _c2[i]*_s8[i];
+                const double _t134 = _c8[i]*_s2[i];
+                const double _t135 = _c9[i]*_t134;
+                const double _t136 = -_t133 - _t135;
+                const double _t137 = (_c9[i]*_c9[i])*_t43 + _t123*_t126 + (_t136*_t136);
+                const double _t138 = (0.0001)*_t124;
+                const double _t139 = _c9[i]*_s3[i];
+                const double _t140 = _c3[i]*_s9[i];
+                const double _t141 = _c2[i]*_t140;
+                const double _t142 = _t139 + _t141;
+                const double _t143 = (_t142*_t142);
+                const double _t144 = _c3[i]*_c9[i];
+                const double _t145 = -_c3[i]*_t134 + _s3[i]*_s8[i]*_s9[i] - _t133*_t144;
+                const double _t146 = _t143 + (_t145*_t145) + _t36*_t43;
+                const double _t147 = _s3[i]*_s9[i];
+                const double _t148 = _c2[i]*_t147;
+                const double _t149 = -_c3[i]*_c9[i] + _t148;
+                const double _t150 = _s3[i]*_t134 + _s8[i]*_t140 + _t133*_t139;
+                const double _t151 = -_t150;
+                const double _t152 = (_t149*_t149) + (_t151*_t151) + _t25*_t43;
+                const double _t153 = _c2[i]*_c3[i]*_c9[i] - _t147;
+                const double _t154 = _c8[i]*_t147;
+                const double _t155 = _c3[i]*_t129;
+                const double _t156 = _c2[i]*_c8[i];
+                const double _t157 = -_t144*_t156 + _t154 + _t155;
+                const double _t158 = _t123*_t143 + (_t153*_t153) + (_t157*_t157);
+                const double _t159 = _c2[i]*_t139 + _t140;
+                const double _t160 = -_t159;
+                const double _t161 = -_t149;
+                const double _t162 = _c8[i]*_t140;
+                const double _t163 = _s3[i]*_t129;
+                const double _t164 = _t139*_t156 + _t162 - _t163;
+                const double _t165 = _t123*(_t161*_t161) + (_t160*_t160) + (_t164*_t164);
+                const double _t166 = 1.0/(_t123 + (1e-12)*(_t124*_t124*_t124) + _t131*_t132 + _t132*_t146 + _t132*_t152 + _t137*_t138 + _t138*_t158 + _t138*_t165);
+                const double _t167 = _t138*_t146;
+                const double _t168 = _t132 + _t138*_t152;
+                const double _t169 = _s2[i]*qd2[i];
+                const double _t170 = _s2[i]*qd3[i];
+                const double _t171 = _c2[i]*qd3[i];
+                const double _t172 = _c9[i]*_s2[i];
+                const double _t174 = _s10[i]*_t144;
+                const double _t176 = _c10[i]*_t139;
+                const double _t177 = _c10[i]*_t162 - _c10[i]*_t163 - _s10[i]*_t148 + _t156*_t176 + _t174;
+                const double _t178 = _s10[i]*_t139;
+                const double _t179 = _c10[i]*_c3[i]*_c9[i] - _c10[i]*_t148 + _s10[i]*_s2[i]*_s3[i]*_s8[i] - _s10[i]*_t162 - _t156*_t178;
+                const double _t180 = -_c10[i]*_t141 + _c3[i]*_s10[i]*_s2[i]*_s8[i] + _c8[i]*_s10[i]*_s3[i]*_s9[i] - _t156*_t174 - _t176;
+                const double _t181 = _c10[i]*_c2[i]*_c3[i]*_c8[i]*_c9[i] - _c10[i]*_t154 - _c10[i]*_t155 - _s10[i]*_t141 - _t178;
+                const double _t182 = _s9[i]*_t129;
+                const double _t183 = -_c9[i]*_t133 - _t134;
+                const double _t184 = -_t116 + (0.5)*_t145*xdd_r23[i] - 0.5*_t151*xdd_r13[i] - 0.5*_t177*xdd_r11[i] - 0.5*_t179*xdd_r12[i] + (0.5)*_t180*xdd_r22[i] + (0.5)*_t181*xdd_r21[i] - qd4[i]*(-_t169 - _t170) - qd5[i]*(_c2[i]*_s9[i]*qd2[i] + _s9[i]*_t171 + _t172*qd4[i]) - qd6[i]*(_t136*qd5[i] + _t182*qd4[i] + _t183*qd2[i] + _t183*qd3[i]);
+                const double _t185 = _s2[i]*_s9[i];
+                const double _t186 = _t142*_t185;
+                const double _t187 = _t123*_t186 + _t136*_t157 - _t138*(-_c3[i]*_t45 + _t130*_t145 + _t186) + _t153*_t172;
+                const double _t188 = _c10[i]*_t133 + _c10[i]*_t135 - _s10[i]*_t185;
+                const double _t189 = -_c10[i]*_t185 - _s10[i]*_t133 - _s10[i]*_t135;
+                const double _t190 = -_c3[i]*_t156 + _t129*_t144;
+                const double _t191 = -_s3[i]*_t120 - _s3[i]*_t121 - _t102*qd3[i] - 0.5*_t130*xdd_r23[i] + (0.5)*_t151*xdd_r33[i] + (0.5)*_t177*xdd_r31[i] + (0.5)*_t179*xdd_r32[i] - 0.5*_t188*xdd_r21[i] - 0.5*_t189*xdd_r22[i] - _t93*qd1[i] - qd4[i]*(-_c2[i]*_t93 - _c3[i]*_t171 + _s2[i]*_s3[i]*qd1[i]) - qd5[i]*(-_t140*_t169 - _t140*_t170 + _t153*qd4[i] + _t161*qd1[i]) - qd6[i]*(_t150*qd1[i] + _t157*qd5[i] + _t190*qd2[i] + _t190*qd3[i] + qd4[i]*(_s8[i]*_t139 + _t133*_t140));
+                const double _t192 = _t123*_t161;
+                const double _t193 = -_t136*_t164 - _t138*(-_s3[i]*_t45 + _t130*_t151 + _t149*_t185) - _t160*_t172 - _t185*_t192;
+                const double _t194 = _s3[i]*qd1[i];
+                const double _t195 = -_s3[i]*_t156 + _t129*_t139;
+                const double _t196 = -_t164;
+                const double _t197 = _c3[i]*_t120 + _c3[i]*_t121 + (0.5)*_t130*xdd_r13[i] - 0.5*_t145*xdd_r33[i] - 0.5*_t180*xdd_r32[i] - 0.5*_t181*xdd_r31[i] + (0.5)*_t188*xdd_r11[i] + (0.5)*_t189*xdd_r12[i] - _t194*qd2[i] - _t194*qd3[i] - qd4[i]*(-_c2[i]*_t103 - _s2[i]*_t102 - _s3[i]*_t171) - qd5[i]*(_t142*qd1[i] - _t147*_t169 - _t147*_t170 + _t159*qd4[i]) - qd6[i]*(_t145*qd1[i] + _t195*qd2[i] + _t195*qd3[i] + _t196*qd5[i] + qd4[i]*(-_s8[i]*_t144 + _t133*_t147));
+                const double _t198 = _t184*(_t137 + _t167 + _t168) + _t187*_t191 + _t193*_t197;
+                const double _t199 = _t131*_t138;
+                const double _t200 = -_t138*(_t142*_t149 + _t145*_t151 + _t43*_t99) - _t142*_t192 - _t153*_t160 - _t157*_t164;
+                const double _t201 = _t184*_t187 + _t191*(_t158 + _t168 + _t199) + _t197*_t200;
+                const double _t202 = _t184*_t193 + _t191*_t200 + _t197*(_t132 + _t165 + _t167 + _t199);
+                const int _t203 = _t123 < 1e-06;
+                const double _t204 = _s8[i]/kinegen_max(1e-06, _t123);
+                _qdd_block[0][i] = _t116;
+                _qdd_block[1][i] = _t120;
+                _qdd_block[2][i] = _t121;
+                _qdd_block[3][i] = ((_t203) ? (
+   _t166*(_c2[i]*_t198 - _c3[i]*_s2[i]*_t201 - _s2[i]*_s3[i]*_t202)
+)
+: (
+   -_t204*(_t136*_t184 + _t157*_t191 + _t196*_t197)
+));
+                _qdd_block[4][i] = ((_t203) ? (
+   _t166*(_t142*_t201 + _t149*_t202 + _t185*_t198)
+)
+: (
+   -_t204*(-_s8[i]*_t142*_t191 + _s8[i]*_t161*_t197 - _t182*_t184)
+));
+                _qdd_block[5][i] = ((_t203) ? (
+   _t166*(_t130*_t198 + _t145*_t201 + _t151*_t202)
+)
+: (
+   -_t204*(_t153*_t191 + _t159*_t197 + _t172*_t184)
+));
+                singular[1 * (start + i) + 0] = _t113 || _t203;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _c0[i]*d4 + _s0[i]*a3;
+                const double _t5 = _c1[i]*a2;
+                const double _t8 = _c2[i]*a3;
+                const double _t10 = _s2[i]*d4;
+                const double _t11 = -_t10 + _t8;
+                const double _t12 = _t11 + _t5;
+                const double _t13 = (_t12*_t12);
+                const double _t14 = _t13*_t2*(_t3*_t3);
+                const double _t15 = _t14/_t1;
+                const double _t16 = kinegen_max(0, 1 - 1000000*_t15);
+                const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
+                const double _t19 = (1e-08)*(_t16*_t16);
+                const double _t20 = _s2[i]*a3;
+                const double _t21 = _c2[i]*d4;
+                const double _t22 = _t20 + _t21;
+                const double _t23 = (_t22*_t22);
+                const double _t25 = (_s3[i]*_s3[i]);
+                const double _t26 = _t17*_t25;
+                const double _t28 = _s1[i]*a2;
+                const double _t29 = _t22 + _t28;
+                const double _t30 = (_t29*_t29);
+                const double _t31 = _s3[i]*d3;
+                const double _t33 = _c3[i]*_t5;
+                const double _t34 = -_c3[i]*_t10 + _c3[i]*_t8 + _t31 + _t33;
+                const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
+                const double _t36 = (_c3[i]*_c3[i]);
+                const double _t37 = _t17*_t36;
+                const double _t38 = _s3[i]*_t5;
+                const double _t39 = _c3[i]*d3 + _s2[i]*_s3[i]*d4 - _s3[i]*_t8 - _t38;
+                const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
+                const double _t43 = (_s2[i]*_s2[i]);
+                const double _t45 = _c2[i]*_s2[i];
+                const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
+                const double _t48 = _c1[i]*_s1[i]*_t2 - _t10*_t28 + _t28*_t8 + _t47;
+                const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
+                const double _t50 = (0.0001)*_t16;
+                const double _t57 = -_c4[i]*a3 + _c5[i]*a3 + _s4[i]*d4 + _s5[i]*d4;
+                const double _t59 = _t33*_t8;
+                const double _t60 = _t10*_t33;
+                const double _t61 = (_c2[i]*_c2[i]);
+                const double _t62 = _t44*_t61;
+                const double _t63 = _t43*_t46;
+                const double _t67 = _c3[i]*_t62 + _c3[i]*_t63 - _t10*_t31 + _t31*_t8 - 0.5*_t42*(_s6[i] + _s7[i]);
+                const double _t68 = _t59 - _t60 + _t67;
+                const double _t69 = (_c1[i]*_c1[i])*_t2;
+                const double _t70 = _c3[i]*_t69 + _t31*_t5 + 2*_t59 - 2*_t60 + _t67;
+                const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
+                const double _t72 = -_c4[i]*d4 - _c5[i]*d4 - _s4[i]*a3 + _s5[i]*a3;
+                const double _t73 = _t38*_t8;
+                const double _t74 = -_c2[i]*_c3[i]*a3*d3 + _c3[i]*_t10*d3 + _s3[i]*_t62 + _s3[i]*_t63 - 0.5*a3*d4*(-_c6[i] + _c7[i]);
+                const double _t75 = _c1[i]*_s2[i]*_s3[i]*a2*d4 - _t73 - _t74;
+                const double _t76 = -_c1[i]*_c3[i]*a2*d3 - 2*_c1[i]*_s2[i]*_s3[i]*a2*d4 + _s3[i]*_t69 + 2*_t73 + _t74;
+                const double _t77 = -_t76;
+                const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
+                const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
+                const double _t81 = _c3[i]*_t17;
+                const double _t82 = _t11*_t22;
+                const double _t83 = _t12*_t29;
+                const double _t84 = _t41*_t68;
+                const double _t85 = _t41*_t70;
+                const double _t86 = _t47*_t84 + _t48*_t85 - _t50*(-_t81*_t82 - _t81*_t83);
+                const double _t87 = -_t22;
+                const double _t88 = _t87*qd3[i];
+                const double _t89 = -qd2[i]*(-_t29*qd2[i] + _t88) - qd3[i]*(_t87*qd2[i] + _t88) + xdd_z[i];
+                const double _t90 = _t80*_t89;
+                const double _t91 = _t18*_t50;
+                const double _t92 = _t19 + _t35*_t50;
+                const double _t93 = _c3[i]*qd2[i];
+                const double _t94 = _t11*qd3[i];
+                const double _t95 = _c3[i]*_t94;
+                const double _t96 = _s3[i]*_t20 + _s3[i]*_t21;
+                const double _t97 = -qd1[i]*(-_t34*qd1[i] + _t96*qd3[i] + qd2[i]*(_s3[i]*_t28 + _t96)) - qd2[i]*(_s3[i]*_t29*qd1[i] - _t12*_t93 - _t95) - qd3[i]*(_s3[i]*_t22*qd1[i] - _t11*_t93 - _t95) + xdd_x[i];
+                const double _t98 = _t80*_t97;
+                const double _t99 = _c3[i]*_s3[i];
+                const double _t100 = _t17*_t99;
+                const double _t101 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t100*_t23 + _t100*_t30 + _t17*_t34*_t39) - _t75*_t84 - _t77*_t85;
+                const double _t102 = _c3[i]*qd1[i];
+                const double _t103 = _s3[i]*qd2[i];
+                const double _t104 = _s3[i]*_t94;
+                const double _t105 = _c3[i]*_t20 + _c3[i]*_t21;
+                const double _t106 = -qd1[i]*(-_t105*qd3[i] + _t39*qd1[i] + qd2[i]*(-_c3[i]*_t28 - _t105)) - qd2[i]*(-_t102*_t29 - _t103*_t12 - _t104) - qd3[i]*(-_t102*_t22 - _t103*_t11 - _t104) + xdd_y[i];
+                const double _t107 = _t106*_t80;
+                const double _t108 = _t80*(_t101*_t107 + _t86*_t90 + _t98*(_t71 + _t91 + _t92));
+                const double _t109 = _s3[i]*_t17;
+                const double _t110 = -_t41*_t47*_t75 - _t41*_t48*_t77 - _t50*(-_t109*_t82 - _t109*_t83);
+                const double _t111 = _t40*_t50;
+                const double _t112 = _t80*(_t101*_t98 + _t107*(_t111 + _t19 + _t78 + _t91) + _t110*_t90);
+                const int _t113 = _t15 < 1e-06;
+                const double _t115 = _t12*_t3*a2/kinegen_max(_t14, (1e-06)*_t1);
+                const double _t116 = ((_t113) ? (
+   _t79*(_t108*_t39 + _t112*_t34)
+)
+: (
+   -_t115*(_t106*_t114*_t72 + _t114*_t57*_t97)
+));
+                const double _t117 = _t107*_t110 + _t86*_t98 + _t90*(_t111 + _t49 + _t92);
+                const double _t118 = _c3[i]*_t108;
+                const double _t119 = _s3[i]*_t112;
+                const double _t120 = ((_t113) ? (
+   _t79*(_t117*_t12*_t80 - _t118*_t29 - _t119*_t29)
+)
+: (
+   -_t115*(_t106*_t75 - _t47*_t89 - _t68*_t97)
+));
+                const double _t121 = ((_t113) ? (
+   _t79*(_t11*_t117*_t80 - _t118*_t22 - _t119*_t22)
+)
+: (
+   -_t115*(_t106*_t76 + _t48*_t89 + _t70*_t97)
+));
+                const double _t123 = (_s8[i]*_s8[i]);
+                const double _t124 = kinegen_max(0, 1 - 1000000*_t123);
+                const double _t126 = (_s9[i]*_s9[i])*_t43;
+                const double _t129 = _s2[i]*_s8[i];
+                const double _t130 = _c2[i]*_c8[i] - _c9[i]*_t129;
+                const double _t131 = _t126 + (_t130*_t130) + _t61;
+                const double _t132 = (1e-08)*(_t124*_t124);
+                const double _t133 = _c2[i]*_s8[i];
+                const double _t134 = _c8[i]*_s2[i];
+                const double _t135 = _c9[i]*_t134;
+                const double _t136 = -_t133 - _t135;
+                const double _t137 = (_c9[i]*_c9[i])*_t43 + _t123*_t126 + (_t136*_t136);
+                const double _t138 = (0.0001)*_t124;
+                const double _t139 = _c9[i]*_s3[i];
+                const double _t140 = _c3[i]*_s9[i];
+                const double _t141 = _c2[i]*_t140;
+                const double _t142 = _t139 + _t141;
+                const double _t143 = (_t142*_t142);
+                const double _t144 = _c3[i]*_c9[i];
+                const double _t145 = -_c3[i]*_t134 + _s3[i]*_s8[i]*_s9[i] - _t133*_t144;
+                const double _t146 = _t143 + (_t145*_t145) + _t36*_t43;
+                const double _t147 = _s3[i]*_s9[i];
+                const double _t148 = _c2[i]*_t147;
+                const double _t149 = -_c3[i]*_c9[i] + _t148;
+                const double _t150 = _s3[i]*_t134 + _s8[i]*_t140 + _t133*_t139;
+                const double _t151 = -_t150;
+                const double _t152 = (_t149*_t149) + (_t151*_t151) + _t25*_t43;
+                const double _t153 = _c2[i]*_c3[i]*_c9[i] - _t147;
+                const double _t154 = _c8[i]*_t147;
+                const double _t155 = _c3[i]*_t129;
+                const double _t156 = _c2[i]*_c8[i];
+                const double _t157 = -_t144*_t156 + _t154 + _t155;
+                const double _t158 = _t123*_t143 + (_t153*_t153) + (_t157*_t157);
+                const double _t159 = _c2[i]*_t139 + _t140;
+                const double _t160 = -_t159;
+                const double _t161 = -_t149;
+                const double _t162 = _c8[i]*_t140;
+                const double _t163 = _s3[i]*_t129;
+                const double _t164 = _t139*_t156 + _t162 - _t163;
+                const double _t165 = _t123*(_t161*_t161) + (_t160*_t160) + (_t164*_t164);
+                const double _t166 = 1.0/(_t123 + (1e-12)*(_t124*_t124*_t124) + _t131*_t132 + _t132*_t146 + _t132*_t152 + _t137*_t138 + _t138*_t158 + _t138*_t165);
+                const double _t167 = _t138*_t146;
+                const double _t168 = _t132 + _t138*_t152;
+                const double _t169 = _s2[i]*qd2[i];
+                const double _t170 = _s2[i]*qd3[i];
+                const double _t171 = _c2[i]*qd3[i];
+                const double _t172 = _c9[i]*_s2[i];
+                const double _t174 = _s10[i]*_t144;
+                const double _t176 = _c10[i]*_t139;
+                const double _t177 = _c10[i]*_t162 - _c10[i]*_t163 - _s10[i]*_t148 + _t156*_t176 + _t174;
+                const double _t178 = _s10[i]*_t139;
+                const double _t179 = _c10[i]*_c3[i]*_c9[i] - _c10[i]*_t148 + _s10[i]*_s2[i]*_s3[i]*_s8[i] - _s10[i]*_t162 - _t156*_t178;
+                const double _t180 = -_c10[i]*_t141 + _c3[i]*_s10[i]*_s2[i]*_s8[i] + _c8[i]*_s10[i]*_s3[i]*_s9[i] - _t156*_t174 - _t176;
+                const double _t181 = _c10[i]*_c2[i]*_c3[i]*_c8[i]*_c9[i] - _c10[i]*_t154 - _c10[i]*_t155 - _s10[i]*_t141 - _t178;
+                const double _t182 = _s9[i]*_t129;
+                const double _t183 = -_c9[i]*_t133 - _t134;
+                const double _t184 = -_t116 + (0.5)*_t145*xdd_r23[i] - 0.5*_t151*xdd_r13[i] - 0.5*_t177*xdd_r11[i] - 0.5*_t179*xdd_r12[i] + (0.5)*_t180*xdd_r22[i] + (0.5)*_t181*xdd_r21[i] - qd4[i]*(-_t169 - _t170) - qd5[i]*(_c2[i]*_s9[i]*qd2[i] + _s9[i]*_t171 + _t172*qd4[i]) - qd6[i]*(_t136*qd5[i] + _t182*qd4[i] + _t183*qd2[i] + _t183*qd3[i]);
+                const double _t185 = _s2[i]*_s9[i];
+                const double _t186 = _t142*_t185;
+                const double _t187 = _t123*_t186 + _t136*_t157 - _t138*(-_c3[i]*_t45 + _t130*_t145 + _t186) + _t153*_t172;
+                const double _t188 = _c10[i]*_t133 + _c10[i]*_t135 - _s10[i]*_t185;
+                const double _t189 = -_c10[i]*_t185 - _s10[i]*_t133 - _s10[i]*_t135;
+                const double _t190 = -_c3[i]*_t156 + _t129*_t144;
+                const double _t191 = -_s3[i]*_t120 - _s3[i]*_t121 - _t102*qd3[i] - 0.5*_t130*xdd_r23[i] + (0.5)*_t151*xdd_r33[i] + (0.5)*_t177*xdd_r31[i] + (0.5)*_t179*xdd_r32[i] - 0.5*_t188*xdd_r21[i] - 0.5*_t189*xdd_r22[i] - _t93*qd1[i] - qd4[i]*(-_c2[i]*_t93 - _c3[i]*_t171 + _s2[i]*_s3[i]*qd1[i]) - qd5[i]*(-_t140*_t169 - _t140*_t170 + _t153*qd4[i] + _t161*qd1[i]) - qd6[i]*(_t150*qd1[i] + _t157*qd5[i] + _t190*qd2[i] + _t190*qd3[i] + qd4[i]*(_s8[i]*_t139 + _t133*_t140));
+                const double _t192 = _t123*_t161;
+                const double _t193 = -_t136*_t164 - _t138*(-_s3[i]*_t45 + _t130*_t151 + _t149*_t185) - _t160*_t172 - _t185*_t192;
+                const double _t194 = _s3[i]*qd1[i];
+                const double _t195 = -_s3[i]*_t156 + _t129*_t139;
+                const double _t196 = -_t164;
+                const double _t197 = _c3[i]*_t120 + _c3[i]*_t121 + (0.5)*_t130*xdd_r13[i] - 0.5*_t145*xdd_r33[i] - 0.5*_t180*xdd_r32[i] - 0.5*_t181*xdd_r31[i] + (0.5)*_t188*xdd_r11[i] + (0.5)*_t189*xdd_r12[i] - _t194*qd2[i] - _t194*qd3[i] - qd4[i]*(-_c2[i]*_t103 - _s2[i]*_t102 - _s3[i]*_t171) - qd5[i]*(_t142*qd1[i] - _t147*_t169 - _t147*_t170 + _t159*qd4[i]) - qd6[i]*(_t145*qd1[i] + _t195*qd2[i] + _t195*qd3[i] + _t196*qd5[i] + qd4[i]*(-_s8[i]*_t144 + _t133*_t147));
+                const double _t198 = _t184*(_t137 + _t167 + _t168) + _t187*_t191 + _t193*_t197;
+                const double _t199 = _t131*_t138;
+                const double _t200 = -_t138*(_t142*_t149 + _t145*_t151 + _t43*_t99) - _t142*_t192 - _t153*_t160 - _t157*_t164;
+                const double _t201 = _t184*_t187 + _t191*(_t158 + _t168 + _t199) + _t197*_t200;
+                const double _t202 = _t184*_t193 + _t191*_t200 + _t197*(_t132 + _t165 + _t167 + _t199);
+                const int _t203 = _t123 < 1e-06;
+                const double _t204 = _s8[i]/kinegen_max(1e-06, _t123);
+                qdd[6 * (start + i) + 0] = _t116;
+                qdd[6 * (start + i) + 1] = _t120;
+                qdd[6 * (start + i) + 2] = _t121;
+                qdd[6 * (start + i) + 3] = ((_t203) ? (
+   _t166*(_c2[i]*_t198 - _c3[i]*_s2[i]*_t201 - _s2[i]*_s3[i]*_t202)
+)
+: (
+   -_t204*(_t136*_t184 + _t157*_t191 + _t196*_t197)
+));
+                qdd[6 * (start + i) + 4] = ((_t203) ? (
+   _t166*(_t142*_t201 + _t149*_t202 + _t185*_t198)
+)
+: (
+   -_t204*(-_s8[i]*_t142*_t191 + _s8[i]*_t161*_t197 - _t182*_t184)
+));
+                qdd[6 * (start + i) + 5] = ((_t203) ? (
+   _t166*(_t130*_t198 + _t145*_t201 + _t151*_t202)
+)
+: (
+   -_t204*(_t153*_t191 + _t159*_t197 + _t172*_t184)
+));
+                singular[1 * (start + i) + 0] = _t113 || _t203;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 6; k += 2) {
+                    _mm_stream_pd(qdd + 6 * (start + i) + k, _mm_set_pd(_qdd_block[k + 1][i], _qdd_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         puma560_joint_acceleration(q + 6 * i, qd + 6 * i, xdd + 12 * i, params, qdd + 6 * i, singular + 1 * i);
     }
+#endif
 }
 
 /* Joint rates from the tool twist by Paul's wrist partition (two 3 x 3 solves; damped least squares per block where singular). Shapes (..., 6) and (...). */
@@ -2324,106 +8265,154 @@ void puma560_joint_velocity_from_twist(const double *restrict q, const double *r
     const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
     const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
     const double _t2 = (a2*a2);
-    const double _t3 = a3*sin(q3) + d4*cos(q3);
-    const double _t4 = cos(q2);
-    const double _t5 = _t4*a2;
+    const double _t17 = 1.0/(_t0*_t0);
+    const double _t41 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t42 = a3*d4;
+    const double _t44 = (a3*a3);
+    const double _t46 = (d4*d4);
+    const double _t58 = (0.25)*_t2*_t41;
+    const double _t80 = 1.0/_t0;
+    const double _t101 = (0.5)*a2;
     const double _t6 = q2 + q3;
-    const double _t7 = cos(_t6);
-    const double _t8 = _t7*a3;
-    const double _t9 = sin(_t6);
-    const double _t10 = _t9*d4;
+    const double _t51 = q1 + q3;
+    const double _t54 = q1 - q3;
+    const double _t64 = 2*q2 + 2*q3;
+    const double _t65 = _t64 + q1;
+    const double _t66 = _t64 - q1;
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5, _s6, _c6, _s7, _c7, _s8, _c8, _s9, _c9;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[12] = { q3, q2, _t6, q1, _t51, _t54, _t65, _t66, q5, q4, 0.0, 0.0 };
+        double sine[12], cosine[12];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 12; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 12; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+        _s5 = sine[5];
+        _c5 = cosine[5];
+        _s6 = sine[6];
+        _c6 = cosine[6];
+        _s7 = sine[7];
+        _c7 = cosine[7];
+        _s8 = sine[8];
+        _c8 = cosine[8];
+        _s9 = sine[9];
+        _c9 = cosine[9];
+    }
+#else
+    _s0 = sin(q3);
+    _c0 = cos(q3);
+    _s1 = sin(q2);
+    _c1 = cos(q2);
+    _s2 = sin(_t6);
+    _c2 = cos(_t6);
+    _s3 = sin(q1);
+    _c3 = cos(q1);
+    _s4 = sin(_t51);
+    _c4 = cos(_t51);
+    _s5 = sin(_t54);
+    _c5 = cos(_t54);
+    _s6 = sin(_t65);
+    _c6 = cos(_t65);
+    _s7 = sin(_t66);
+    _c7 = cos(_t66);
+    _s8 = sin(q5);
+    _c8 = cos(q5);
+    _s9 = sin(q4);
+    _c9 = cos(q4);
+#endif
+    const double _t3 = _c0*d4 + _s0*a3;
+    const double _t5 = _c1*a2;
+    const double _t8 = _c2*a3;
+    const double _t10 = _s2*d4;
     const double _t11 = -_t10 + _t8;
     const double _t12 = _t11 + _t5;
     const double _t13 = (_t12*_t12);
     const double _t14 = _t13*_t2*(_t3*_t3);
     const double _t15 = _t14/_t1;
-    const double _t16 = fmax(0, 1 - 1000000*_t15);
-    const double _t17 = 1.0/(_t0*_t0);
+    const double _t16 = kinegen_max(0, 1 - 1000000*_t15);
     const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
     const double _t19 = (1e-08)*(_t16*_t16);
-    const double _t20 = _t9*a3;
-    const double _t21 = _t7*d4;
+    const double _t20 = _s2*a3;
+    const double _t21 = _c2*d4;
     const double _t22 = _t20 + _t21;
     const double _t23 = (_t22*_t22);
-    const double _t24 = sin(q1);
-    const double _t25 = (_t24*_t24);
+    const double _t25 = (_s3*_s3);
     const double _t26 = _t17*_t25;
-    const double _t27 = sin(q2);
-    const double _t28 = _t27*a2;
+    const double _t28 = _s1*a2;
     const double _t29 = _t22 + _t28;
     const double _t30 = (_t29*_t29);
-    const double _t31 = _t24*d3;
-    const double _t32 = cos(q1);
-    const double _t33 = _t32*_t5;
-    const double _t34 = -_t10*_t32 + _t31 + _t32*_t8 + _t33;
+    const double _t31 = _s3*d3;
+    const double _t33 = _c3*_t5;
+    const double _t34 = -_c3*_t10 + _c3*_t8 + _t31 + _t33;
     const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
-    const double _t36 = (_t32*_t32);
+    const double _t36 = (_c3*_c3);
     const double _t37 = _t17*_t36;
-    const double _t38 = _t24*_t5;
-    const double _t39 = -_t24*_t8 + _t24*_t9*d4 + _t32*d3 - _t38;
+    const double _t38 = _s3*_t5;
+    const double _t39 = _c3*d3 + _s2*_s3*d4 - _s3*_t8 - _t38;
     const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
-    const double _t41 = 1.0/(_t0*_t0*_t0*_t0);
-    const double _t42 = a3*d4;
-    const double _t43 = (_t9*_t9);
-    const double _t44 = (a3*a3);
-    const double _t45 = _t7*_t9;
-    const double _t46 = (d4*d4);
+    const double _t43 = (_s2*_s2);
+    const double _t45 = _c2*_s2;
     const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
-    const double _t48 = -_t10*_t28 + _t2*_t27*_t4 + _t28*_t8 + _t47;
+    const double _t48 = _c1*_s1*_t2 - _t10*_t28 + _t28*_t8 + _t47;
     const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
     const double _t50 = (0.0001)*_t16;
-    const double _t51 = q1 + q3;
-    const double _t52 = sin(_t51);
-    const double _t53 = cos(_t51);
-    const double _t54 = q1 - q3;
-    const double _t55 = cos(_t54);
-    const double _t56 = sin(_t54);
-    const double _t57 = _t52*d4 - _t53*a3 + _t55*a3 + _t56*d4;
-    const double _t58 = (0.25)*_t2*_t41;
+    const double _t57 = -_c4*a3 + _c5*a3 + _s4*d4 + _s5*d4;
     const double _t59 = _t33*_t8;
     const double _t60 = _t10*_t33;
-    const double _t61 = (_t7*_t7);
+    const double _t61 = (_c2*_c2);
     const double _t62 = _t44*_t61;
     const double _t63 = _t43*_t46;
-    const double _t64 = 2*q2 + 2*q3;
-    const double _t65 = _t64 + q1;
-    const double _t66 = _t64 - q1;
-    const double _t67 = -_t10*_t31 + _t31*_t8 + _t32*_t62 + _t32*_t63 - 0.5*_t42*(sin(_t65) + sin(_t66));
+    const double _t67 = _c3*_t62 + _c3*_t63 - _t10*_t31 + _t31*_t8 - 0.5*_t42*(_s6 + _s7);
     const double _t68 = _t59 - _t60 + _t67;
-    const double _t69 = _t2*(_t4*_t4);
-    const double _t70 = _t31*_t5 + _t32*_t69 + 2*_t59 - 2*_t60 + _t67;
+    const double _t69 = (_c1*_c1)*_t2;
+    const double _t70 = _c3*_t69 + _t31*_t5 + 2*_t59 - 2*_t60 + _t67;
     const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
-    const double _t72 = -_t52*a3 - _t53*d4 - _t55*d4 + _t56*a3;
+    const double _t72 = -_c4*d4 - _c5*d4 - _s4*a3 + _s5*a3;
     const double _t73 = _t38*_t8;
-    const double _t74 = _t10*_t32*d3 + _t24*_t62 + _t24*_t63 - _t32*_t7*a3*d3 - 0.5*a3*d4*(-cos(_t65) + cos(_t66));
-    const double _t75 = _t24*_t4*_t9*a2*d4 - _t73 - _t74;
-    const double _t76 = -2*_t24*_t4*_t9*a2*d4 + _t24*_t69 - _t32*_t4*a2*d3 + 2*_t73 + _t74;
+    const double _t74 = -_c2*_c3*a3*d3 + _c3*_t10*d3 + _s3*_t62 + _s3*_t63 - 0.5*a3*d4*(-_c6 + _c7);
+    const double _t75 = _c1*_s2*_s3*a2*d4 - _t73 - _t74;
+    const double _t76 = -_c1*_c3*a2*d3 - 2*_c1*_s2*_s3*a2*d4 + _s3*_t69 + 2*_t73 + _t74;
     const double _t77 = -_t76;
     const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
     const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
-    const double _t80 = 1.0/_t0;
     const double _t81 = _t11*_t22;
-    const double _t82 = _t17*_t32;
+    const double _t82 = _c3*_t17;
     const double _t83 = _t12*_t29;
     const double _t84 = _t41*_t47*_t68 + _t41*_t48*_t70 - _t50*(-_t81*_t82 - _t82*_t83);
     const double _t85 = _t80*twist_vz;
     const double _t86 = _t35*_t50;
     const double _t87 = _t18*_t50;
     const double _t88 = _t80*twist_vx;
-    const double _t89 = _t24*_t32;
+    const double _t89 = _c3*_s3;
     const double _t90 = _t17*_t89;
     const double _t91 = _t41*_t75;
     const double _t92 = _t41*_t77;
     const double _t93 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t17*_t34*_t39 + _t23*_t90 + _t30*_t90) - _t68*_t91 - _t70*_t92;
     const double _t94 = _t80*twist_vy;
     const double _t95 = _t80*(_t84*_t85 + _t88*(_t19 + _t71 + _t86 + _t87) + _t93*_t94);
-    const double _t96 = _t17*_t24;
+    const double _t96 = _s3*_t17;
     const double _t97 = -_t47*_t91 - _t48*_t92 - _t50*(-_t81*_t96 - _t83*_t96);
     const double _t98 = _t19 + _t40*_t50;
     const double _t99 = _t80*(_t85*_t97 + _t88*_t93 + _t94*(_t78 + _t87 + _t98));
     const int _t100 = _t15 < 1e-06;
-    const double _t101 = (0.5)*a2;
-    const double _t102 = _t12*_t3*a2/fmax(_t14, (1e-06)*_t1);
+    const double _t102 = _t12*_t3*a2/kinegen_max(_t14, (1e-06)*_t1);
     const double _t103 = ((_t100) ? (
    _t79*(_t34*_t99 + _t39*_t95)
 )
@@ -2431,8 +8420,8 @@ void puma560_joint_velocity_from_twist(const double *restrict q, const double *r
    -_t102*(_t101*_t57*twist_vx + _t101*_t72*twist_vy)
 ));
     const double _t104 = _t84*_t88 + _t85*(_t49 + _t86 + _t98) + _t94*_t97;
-    const double _t105 = _t32*_t95;
-    const double _t106 = _t24*_t99;
+    const double _t105 = _c3*_t95;
+    const double _t106 = _s3*_t99;
     const double _t107 = ((_t100) ? (
    _t79*(_t104*_t12*_t80 - _t105*_t29 - _t106*_t29)
 )
@@ -2445,66 +8434,62 @@ void puma560_joint_velocity_from_twist(const double *restrict q, const double *r
 : (
    -_t102*(_t48*twist_vz + _t70*twist_vx + _t76*twist_vy)
 ));
-    const double _t109 = sin(q5);
-    const double _t110 = (_t109*_t109);
-    const double _t111 = fmax(0, 1 - 1000000*_t110);
-    const double _t112 = sin(q4);
-    const double _t113 = (_t112*_t112)*_t43;
-    const double _t114 = cos(q5);
-    const double _t115 = cos(q4);
-    const double _t116 = _t109*_t9;
-    const double _t117 = _t114*_t7 - _t115*_t116;
+    const double _t110 = (_s8*_s8);
+    const double _t111 = kinegen_max(0, 1 - 1000000*_t110);
+    const double _t113 = (_s9*_s9)*_t43;
+    const double _t116 = _s2*_s8;
+    const double _t117 = _c2*_c8 - _c9*_t116;
     const double _t118 = _t113 + (_t117*_t117) + _t61;
     const double _t119 = (1e-08)*(_t111*_t111);
-    const double _t120 = _t109*_t7;
-    const double _t121 = _t114*_t9;
-    const double _t122 = -_t115*_t121 - _t120;
-    const double _t123 = _t110*_t113 + (_t115*_t115)*_t43 + (_t122*_t122);
+    const double _t120 = _c2*_s8;
+    const double _t121 = _c8*_s2;
+    const double _t122 = -_c9*_t121 - _t120;
+    const double _t123 = (_c9*_c9)*_t43 + _t110*_t113 + (_t122*_t122);
     const double _t124 = (0.0001)*_t111;
-    const double _t125 = _t115*_t24;
-    const double _t126 = _t112*_t32;
-    const double _t127 = _t125 + _t126*_t7;
+    const double _t125 = _c9*_s3;
+    const double _t126 = _c3*_s9;
+    const double _t127 = _c2*_t126 + _t125;
     const double _t128 = (_t127*_t127);
-    const double _t129 = _t115*_t32;
-    const double _t130 = _t109*_t112*_t24 - _t120*_t129 - _t121*_t32;
+    const double _t129 = _c3*_c9;
+    const double _t130 = -_c3*_t121 + _s3*_s8*_s9 - _t120*_t129;
     const double _t131 = _t128 + (_t130*_t130) + _t36*_t43;
-    const double _t132 = _t112*_t24;
-    const double _t133 = -_t115*_t32 + _t132*_t7;
-    const double _t134 = -_t109*_t126 - _t120*_t125 - _t121*_t24;
+    const double _t132 = _s3*_s9;
+    const double _t133 = _c2*_t132 - _c3*_c9;
+    const double _t134 = -_s3*_t121 - _s8*_t126 - _t120*_t125;
     const double _t135 = (_t133*_t133) + (_t134*_t134) + _t25*_t43;
-    const double _t136 = _t115*_t32*_t7 - _t132;
-    const double _t137 = _t114*_t7;
-    const double _t138 = _t114*_t132 + _t116*_t32 - _t129*_t137;
+    const double _t136 = _c2*_c3*_c9 - _t132;
+    const double _t137 = _c2*_c8;
+    const double _t138 = _c3*_t116 + _c8*_t132 - _t129*_t137;
     const double _t139 = _t110*_t128 + (_t136*_t136) + (_t138*_t138);
-    const double _t140 = _t125*_t7 + _t126;
+    const double _t140 = _c2*_t125 + _t126;
     const double _t141 = -_t140;
     const double _t142 = -_t133;
-    const double _t143 = _t114*_t126 - _t116*_t24 + _t125*_t137;
+    const double _t143 = _c8*_t126 - _s3*_t116 + _t125*_t137;
     const double _t144 = _t110*(_t142*_t142) + (_t141*_t141) + (_t143*_t143);
     const double _t145 = 1.0/(_t110 + (1e-12)*(_t111*_t111*_t111) + _t118*_t119 + _t119*_t131 + _t119*_t135 + _t123*_t124 + _t124*_t139 + _t124*_t144);
     const double _t146 = _t124*_t131;
     const double _t147 = _t119 + _t124*_t135;
     const double _t148 = -_t103 + twist_wz;
-    const double _t149 = _t115*_t9;
-    const double _t150 = _t112*_t9;
+    const double _t149 = _c9*_s2;
+    const double _t150 = _s2*_s9;
     const double _t151 = _t127*_t150;
-    const double _t152 = _t110*_t151 + _t122*_t138 - _t124*(_t117*_t130 + _t151 - _t32*_t45) + _t136*_t149;
-    const double _t153 = -_t107*_t24 - _t108*_t24 + twist_wx;
+    const double _t152 = _t110*_t151 + _t122*_t138 - _t124*(-_c3*_t45 + _t117*_t130 + _t151) + _t136*_t149;
+    const double _t153 = -_s3*_t107 - _s3*_t108 + twist_wx;
     const double _t154 = _t110*_t142;
-    const double _t155 = -_t122*_t143 - _t124*(_t117*_t134 + _t133*_t150 - _t24*_t45) - _t141*_t149 - _t150*_t154;
-    const double _t156 = _t107*_t32 + _t108*_t32 + twist_wy;
+    const double _t155 = -_t122*_t143 - _t124*(-_s3*_t45 + _t117*_t134 + _t133*_t150) - _t141*_t149 - _t150*_t154;
+    const double _t156 = _c3*_t107 + _c3*_t108 + twist_wy;
     const double _t157 = _t148*(_t123 + _t146 + _t147) + _t152*_t153 + _t155*_t156;
     const double _t158 = _t118*_t124;
     const double _t159 = -_t124*(_t127*_t133 + _t130*_t134 + _t43*_t89) - _t127*_t154 - _t136*_t141 - _t138*_t143;
     const double _t160 = _t148*_t152 + _t153*(_t139 + _t147 + _t158) + _t156*_t159;
     const double _t161 = _t148*_t155 + _t153*_t159 + _t156*(_t119 + _t144 + _t146 + _t158);
     const int _t162 = _t110 < 1e-06;
-    const double _t163 = _t109/fmax(1e-06, _t110);
+    const double _t163 = _s8/kinegen_max(1e-06, _t110);
     qd[0] = _t103;
     qd[1] = _t107;
     qd[2] = _t108;
     qd[3] = ((_t162) ? (
-   _t145*(_t157*_t7 - _t160*_t32*_t9 - _t161*_t24*_t9)
+   _t145*(_c2*_t157 - _c3*_s2*_t160 - _s2*_s3*_t161)
 )
 : (
    -_t163*(_t122*_t148 + _t138*_t153 - _t143*_t156)
@@ -2513,7 +8498,7 @@ void puma560_joint_velocity_from_twist(const double *restrict q, const double *r
    _t145*(_t127*_t160 + _t133*_t161 + _t150*_t157)
 )
 : (
-   -_t163*(-_t109*_t127*_t153 + _t109*_t142*_t156 - _t112*_t116*_t148)
+   -_t163*(-_s8*_t127*_t153 + _s8*_t142*_t156 - _s9*_t116*_t148)
 ));
     qd[5] = ((_t162) ? (
    _t145*(_t117*_t157 + _t130*_t160 + _t134*_t161)
@@ -2524,12 +8509,549 @@ void puma560_joint_velocity_from_twist(const double *restrict q, const double *r
     singular[0] = _t100 || _t162;
 }
 
+/* joint_velocity_from_twist of `count` items, stored one after the other in each argument and output. */
 void puma560_joint_velocity_from_twist_batch(size_t count, const double *restrict q, const double *restrict twist, const puma560_params *restrict params, double *restrict qd, int *restrict singular)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double q5[KINEGEN_BLOCK_OF(64)];
+    double twist_vx[KINEGEN_BLOCK_OF(64)];
+    double twist_vy[KINEGEN_BLOCK_OF(64)];
+    double twist_vz[KINEGEN_BLOCK_OF(64)];
+    double twist_wx[KINEGEN_BLOCK_OF(64)];
+    double twist_wy[KINEGEN_BLOCK_OF(64)];
+    double twist_wz[KINEGEN_BLOCK_OF(64)];
+    double _t6[KINEGEN_BLOCK_OF(64)];
+    double _t51[KINEGEN_BLOCK_OF(64)];
+    double _t54[KINEGEN_BLOCK_OF(64)];
+    double _t65[KINEGEN_BLOCK_OF(64)];
+    double _t66[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    double _s4[KINEGEN_BLOCK_OF(64)];
+    double _c4[KINEGEN_BLOCK_OF(64)];
+    double _s5[KINEGEN_BLOCK_OF(64)];
+    double _c5[KINEGEN_BLOCK_OF(64)];
+    double _s6[KINEGEN_BLOCK_OF(64)];
+    double _c6[KINEGEN_BLOCK_OF(64)];
+    double _s7[KINEGEN_BLOCK_OF(64)];
+    double _c7[KINEGEN_BLOCK_OF(64)];
+    double _s8[KINEGEN_BLOCK_OF(64)];
+    double _c8[KINEGEN_BLOCK_OF(64)];
+    double _s9[KINEGEN_BLOCK_OF(64)];
+    double _c9[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _qd_block[6][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)qd & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double d1 = params->d1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
+    const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
+    const double _t2 = (a2*a2);
+    const double _t17 = 1.0/(_t0*_t0);
+    const double _t41 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t42 = a3*d4;
+    const double _t44 = (a3*a3);
+    const double _t46 = (d4*d4);
+    const double _t58 = (0.25)*_t2*_t41;
+    const double _t80 = 1.0/_t0;
+    const double _t101 = (0.5)*a2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[6 * (start + i) + 0];
+            q2[i] = q[6 * (start + i) + 1];
+            q3[i] = q[6 * (start + i) + 2];
+            q4[i] = q[6 * (start + i) + 3];
+            q5[i] = q[6 * (start + i) + 4];
+            twist_vx[i] = twist[6 * (start + i) + 0];
+            twist_vy[i] = twist[6 * (start + i) + 1];
+            twist_vz[i] = twist[6 * (start + i) + 2];
+            twist_wx[i] = twist[6 * (start + i) + 3];
+            twist_wy[i] = twist[6 * (start + i) + 4];
+            twist_wz[i] = twist[6 * (start + i) + 5];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t6[i] = q2[i] + q3[i];
+            _t51[i] = q1[i] + q3[i];
+            _t54[i] = q1[i] - q3[i];
+            const double _t64 = 2*q2[i] + 2*q3[i];
+            _t65[i] = _t64 + q1[i];
+            _t66[i] = _t64 - q1[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(_t51[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(_t51[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s5[i] = sin(_t54[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c5[i] = cos(_t54[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s6[i] = sin(_t65[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c6[i] = cos(_t65[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s7[i] = sin(_t66[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c7[i] = cos(_t66[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s8[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c8[i] = cos(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s9[i] = sin(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c9[i] = cos(q4[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _c0[i]*d4 + _s0[i]*a3;
+                const double _t5 = _c1[i]*a2;
+                const double _t8 = _c2[i]*a3;
+                const double _t10 = _s2[i]*d4;
+                const double _t11 = -_t10 + _t8;
+                const double _t12 = _t11 + _t5;
+                const double _t13 = (_t12*_t12);
+                const double _t14 = _t13*_t2*(_t3*_t3);
+                const double _t15 = _t14/_t1;
+                const double _t16 = kinegen_max(0, 1 - 1000000*_t15);
+                const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
+                const double _t19 = (1e-08)*(_t16*_t16);
+                const double _t20 = _s2[i]*a3;
+                const double _t21 = _c2[i]*d4;
+                const double _t22 = _t20 + _t21;
+                const double _t23 = (_t22*_t22);
+                const double _t25 = (_s3[i]*_s3[i]);
+                const double _t26 = _t17*_t25;
+                const double _t28 = _s1[i]*a2;
+                const double _t29 = _t22 + _t28;
+                const double _t30 = (_t29*_t29);
+                const double _t31 = _s3[i]*d3;
+                const double _t33 = _c3[i]*_t5;
+                const double _t34 = -_c3[i]*_t10 + _c3[i]*_t8 + _t31 + _t33;
+                const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
+                const double _t36 = (_c3[i]*_c3[i]);
+                const double _t37 = _t17*_t36;
+                const double _t38 = _s3[i]*_t5;
+                const double _t39 = _c3[i]*d3 + _s2[i]*_s3[i]*d4 - _s3[i]*_t8 - _t38;
+                const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
+                const double _t43 = (_s2[i]*_s2[i]);
+                const double _t45 = _c2[i]*_s2[i];
+                const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
+                const double _t48 = _c1[i]*_s1[i]*_t2 - _t10*_t28 + _t28*_t8 + _t47;
+                const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
+                const double _t50 = (0.0001)*_t16;
+                const double _t57 = -_c4[i]*a3 + _c5[i]*a3 + _s4[i]*d4 + _s5[i]*d4;
+                const double _t59 = _t33*_t8;
+                const double _t60 = _t10*_t33;
+                const double _t61 = (_c2[i]*_c2[i]);
+                const double _t62 = _t44*_t61;
+                const double _t63 = _t43*_t46;
+                const double _t67 = _c3[i]*_t62 + _c3[i]*_t63 - _t10*_t31 + _t31*_t8 - 0.5*_t42*(_s6[i] + _s7[i]);
+                const double _t68 = _t59 - _t60 + _t67;
+                const double _t69 = (_c1[i]*_c1[i])*_t2;
+                const double _t70 = _c3[i]*_t69 + _t31*_t5 + 2*_t59 - 2*_t60 + _t67;
+                const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
+                const double _t72 = -_c4[i]*d4 - _c5[i]*d4 - _s4[i]*a3 + _s5[i]*a3;
+                const double _t73 = _t38*_t8;
+                const double _t74 = -_c2[i]*_c3[i]*a3*d3 + _c3[i]*_t10*d3 + _s3[i]*_t62 + _s3[i]*_t63 - 0.5*a3*d4*(-_c6[i] + _c7[i]);
+                const double _t75 = _c1[i]*_s2[i]*_s3[i]*a2*d4 - _t73 - _t74;
+                const double _t76 = -_c1[i]*_c3[i]*a2*d3 - 2*_c1[i]*_s2[i]*_s3[i]*a2*d4 + _s3[i]*_t69 + 2*_t73 + _t74;
+                const double _t77 = -_t76;
+                const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
+                const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
+                const double _t81 = _t11*_t22;
+                const double _t82 = _c3[i]*_t17;
+                const double _t83 = _t12*_t29;
+                const double _t84 = _t41*_t47*_t68 + _t41*_t48*_t70 - _t50*(-_t81*_t82 - _t82*_t83);
+                const double _t85 = _t80*twist_vz[i];
+                const double _t86 = _t35*_t50;
+                const double _t87 = _t18*_t50;
+                const double _t88 = _t80*twist_vx[i];
+                const double _t89 = _c3[i]*_s3[i];
+                const double _t90 = _t17*_t89;
+                const double _t91 = _t41*_t75;
+                const double _t92 = _t41*_t77;
+                const double _t93 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t17*_t34*_t39 + _t23*_t90 + _t30*_t90) - _t68*_t91 - _t70*_t92;
+                const double _t94 = _t80*twist_vy[i];
+                const double _t95 = _t80*(_t84*_t85 + _t88*(_t19 + _t71 + _t86 + _t87) + _t93*_t94);
+                const double _t96 = _s3[i]*_t17;
+                const double _t97 = -_t47*_t91 - _t48*_t92 - _t50*(-_t81*_t96 - _t83*_t96);
+                const double _t98 = _t19 + _t40*_t50;
+                const double _t99 = _t80*(_t85*_t97 + _t88*_t93 + _t94*(_t78 + _t87 + _t98));
+                const int _t100 = _t15 < 1e-06;
+                const double _t102 = _t12*_t3*a2/kinegen_max(_t14, (1e-06)*_t1);
+                const double _t103 = ((_t100) ? (
+   _t79*(_t34*_t99 + _t39*_t95)
+)
+: (
+   -_t102*(_t101*_t57*twist_vx[i] + _t101*_t72*twist_vy[i])
+));
+                const double _t104 = _t84*_t88 + _t85*(_t49 + _t86 + _t98) + _t94*_t97;
+                const double _t105 = _c3[i]*_t95;
+                const double _t106 = _s3[i]*_t99;
+                const double _t107 = ((_t100) ? (
+   _t79*(_t104*_t12*_t80 - _t105*_t29 - _t106*_t29)
+)
+: (
+   -_t102*(-_t47*twist_vz[i] - _t68*twist_vx[i] + _t75*twist_vy[i])
+));
+                const double _t108 = ((_t100) ? (
+   _t79*(_t104*_t11*_t80 - _t105*_t22 - _t106*_t22)
+)
+: (
+   -_t102*(_t48*twist_vz[i] + _t70*twist_vx[i] + _t76*twist_vy[i])
+));
+                const double _t110 = (_s8[i]*_s8[i]);
+                const double _t111 = kinegen_max(0, 1 - 1000000*_t110);
+                const double _t113 = (_s9[i]*_s9[i])*_t43;
+                const double _t116 = _s2[i]*_s8[i];
+                const double _t117 = _c2[i]*_c8[i] - _c9[i]*_t116;
+                const double _t118 = _t113 + (_t117*_t117) + _t61;
+                const double _t119 = (1e-08)*(_t111*_t111);
+                const double _t120 = _c2[i]*_s8[i];
+                const double _t121 = _c8[i]*_s2[i];
+                const double _t122 = -_c9[i]*_t121 - _t120;
+                const double _t123 = (_c9[i]*_c9[i])*_t43 + _t110*_t113 + (_t122*_t122);
+                const double _t124 = (0.0001)*_t111;
+                const double _t125 = _c9[i]*_s3[i];
+                const double _t126 = _c3[i]*_s9[i];
+                const double _t127 = _c2[i]*_t126 + _t125;
+                const double _t128 = (_t127*_t127);
+                const double _t129 = _c3[i]*_c9[i];
+                const double _t130 = -_c3[i]*_t121 + _s3[i]*_s8[i]*_s9[i] - _t120*_t129;
+                const double _t131 = _t128 + (_t130*_t130) + _t36*_t43;
+                const double _t132 = _s3[i]*_s9[i];
+                const double _t133 = _c2[i]*_t132 - _c3[i]*_c9[i];
+                const double _t134 = -_s3[i]*_t121 - _s8[i]*_t126 - _t120*_t125;
+                const double _t135 = (_t133*_t133) + (_t134*_t134) + _t25*_t43;
+                const double _t136 = _c2[i]*_c3[i]*_c9[i] - _t132;
+                const double _t137 = _c2[i]*_c8[i];
+                const double _t138 = _c3[i]*_t116 + _c8[i]*_t132 - _t129*_t137;
+                const double _t139 = _t110*_t128 + (_t136*_t136) + (_t138*_t138);
+                const double _t140 = _c2[i]*_t125 + _t126;
+                const double _t141 = -_t140;
+                const double _t142 = -_t133;
+                const double _t143 = _c8[i]*_t126 - _s3[i]*_t116 + _t125*_t137;
+                const double _t144 = _t110*(_t142*_t142) + (_t141*_t141) + (_t143*_t143);
+                const double _t145 = 1.0/(_t110 + (1e-12)*(_t111*_t111*_t111) + _t118*_t119 + _t119*_t131 + _t119*_t135 + _t123*_t124 + _t124*_t139 + _t124*_t144);
+                const double _t146 = _t124*_t131;
+                const double _t147 = _t119 + _t124*_t135;
+                const double _t148 = -_t103 + twist_wz[i];
+                const double _t149 = _c9[i]*_s2[i];
+                const double _t150 = _s2[i]*_s9[i];
+                const double _t151 = _t127*_t150;
+                const double _t152 = _t110*_t151 + _t122*_t138 - _t124*(-_c3[i]*_t45 + _t117*_t130 + _t151) + _t136*_t149;
+                const double _t153 = -_s3[i]*_t107 - _s3[i]*_t108 + twist_wx[i];
+                const double _t154 = _t110*_t142;
+                const double _t155 = -_t122*_t143 - _t124*(-_s3[i]*_t45 + _t117*_t134 + _t133*_t150) - _t141*_t149 - _t150*_t154;
+                const double _t156 = _c3[i]*_t107 + _c3[i]*_t108 + twist_wy[i];
+                const double _t157 = _t148*(_t123 + _t146 + _t147) + _t152*_t153 + _t155*_t156;
+                const double _t158 = _t118*_t124;
+                const double _t159 = -_t124*(_t127*_t133 + _t130*_t134 + _t43*_t89) - _t127*_t154 - _t136*_t141 - _t138*_t143;
+                const double _t160 = _t148*_t152 + _t153*(_t139 + _t147 + _t158) + _t156*_t159;
+                const double _t161 = _t148*_t155 + _t153*_t159 + _t156*(_t119 + _t144 + _t146 + _t158);
+                const int _t162 = _t110 < 1e-06;
+                const double _t163 = _s8[i]/kinegen_max(1e-06, _t110);
+                _qd_block[0][i] = _t103;
+                _qd_block[1][i] = _t107;
+                _qd_block[2][i] = _t108;
+                _qd_block[3][i] = ((_t162) ? (
+   _t145*(_c2[i]*_t157 - _c3[i]*_s2[i]*_t160 - _s2[i]*_s3[i]*_t161)
+)
+: (
+   -_t163*(_t122*_t148 + _t138*_t153 - _t143*_t156)
+));
+                _qd_block[4][i] = ((_t162) ? (
+   _t145*(_t127*_t160 + _t133*_t161 + _t150*_t157)
+)
+: (
+   -_t163*(-_s8[i]*_t127*_t153 + _s8[i]*_t142*_t156 - _s9[i]*_t116*_t148)
+));
+                _qd_block[5][i] = ((_t162) ? (
+   _t145*(_t117*_t157 + _t130*_t160 + _t134*_t161)
+)
+: (
+   -_t163*(_t136*_t153 + _t140*_t156 + _t148*_t149)
+));
+                singular[1 * (start + i) + 0] = _t100 || _t162;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _c0[i]*d4 + _s0[i]*a3;
+                const double _t5 = _c1[i]*a2;
+                const double _t8 = _c2[i]*a3;
+                const double _t10 = _s2[i]*d4;
+                const double _t11 = -_t10 + _t8;
+                const double _t12 = _t11 + _t5;
+                const double _t13 = (_t12*_t12);
+                const double _t14 = _t13*_t2*(_t3*_t3);
+                const double _t15 = _t14/_t1;
+                const double _t16 = kinegen_max(0, 1 - 1000000*_t15);
+                const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
+                const double _t19 = (1e-08)*(_t16*_t16);
+                const double _t20 = _s2[i]*a3;
+                const double _t21 = _c2[i]*d4;
+                const double _t22 = _t20 + _t21;
+                const double _t23 = (_t22*_t22);
+                const double _t25 = (_s3[i]*_s3[i]);
+                const double _t26 = _t17*_t25;
+                const double _t28 = _s1[i]*a2;
+                const double _t29 = _t22 + _t28;
+                const double _t30 = (_t29*_t29);
+                const double _t31 = _s3[i]*d3;
+                const double _t33 = _c3[i]*_t5;
+                const double _t34 = -_c3[i]*_t10 + _c3[i]*_t8 + _t31 + _t33;
+                const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
+                const double _t36 = (_c3[i]*_c3[i]);
+                const double _t37 = _t17*_t36;
+                const double _t38 = _s3[i]*_t5;
+                const double _t39 = _c3[i]*d3 + _s2[i]*_s3[i]*d4 - _s3[i]*_t8 - _t38;
+                const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
+                const double _t43 = (_s2[i]*_s2[i]);
+                const double _t45 = _c2[i]*_s2[i];
+                const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
+                const double _t48 = _c1[i]*_s1[i]*_t2 - _t10*_t28 + _t28*_t8 + _t47;
+                const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
+                const double _t50 = (0.0001)*_t16;
+                const double _t57 = -_c4[i]*a3 + _c5[i]*a3 + _s4[i]*d4 + _s5[i]*d4;
+                const double _t59 = _t33*_t8;
+                const double _t60 = _t10*_t33;
+                const double _t61 = (_c2[i]*_c2[i]);
+                const double _t62 = _t44*_t61;
+                const double _t63 = _t43*_t46;
+                const double _t67 = _c3[i]*_t62 + _c3[i]*_t63 - _t10*_t31 + _t31*_t8 - 0.5*_t42*(_s6[i] + _s7[i]);
+                const double _t68 = _t59 - _t60 + _t67;
+                const double _t69 = (_c1[i]*_c1[i])*_t2;
+                const double _t70 = _c3[i]*_t69 + _t31*_t5 + 2*_t59 - 2*_t60 + _t67;
+                const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
+                const double _t72 = -_c4[i]*d4 - _c5[i]*d4 - _s4[i]*a3 + _s5[i]*a3;
+                const double _t73 = _t38*_t8;
+                const double _t74 = -_c2[i]*_c3[i]*a3*d3 + _c3[i]*_t10*d3 + _s3[i]*_t62 + _s3[i]*_t63 - 0.5*a3*d4*(-_c6[i] + _c7[i]);
+                const double _t75 = _c1[i]*_s2[i]*_s3[i]*a2*d4 - _t73 - _t74;
+                const double _t76 = -_c1[i]*_c3[i]*a2*d3 - 2*_c1[i]*_s2[i]*_s3[i]*a2*d4 + _s3[i]*_t69 + 2*_t73 + _t74;
+                const double _t77 = -_t76;
+                const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
+                const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
+                const double _t81 = _t11*_t22;
+                const double _t82 = _c3[i]*_t17;
+                const double _t83 = _t12*_t29;
+                const double _t84 = _t41*_t47*_t68 + _t41*_t48*_t70 - _t50*(-_t81*_t82 - _t82*_t83);
+                const double _t85 = _t80*twist_vz[i];
+                const double _t86 = _t35*_t50;
+                const double _t87 = _t18*_t50;
+                const double _t88 = _t80*twist_vx[i];
+                const double _t89 = _c3[i]*_s3[i];
+                const double _t90 = _t17*_t89;
+                const double _t91 = _t41*_t75;
+                const double _t92 = _t41*_t77;
+                const double _t93 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t17*_t34*_t39 + _t23*_t90 + _t30*_t90) - _t68*_t91 - _t70*_t92;
+                const double _t94 = _t80*twist_vy[i];
+                const double _t95 = _t80*(_t84*_t85 + _t88*(_t19 + _t71 + _t86 + _t87) + _t93*_t94);
+                const double _t96 = _s3[i]*_t17;
+                const double _t97 = -_t47*_t91 - _t48*_t92 - _t50*(-_t81*_t96 - _t83*_t96);
+                const double _t98 = _t19 + _t40*_t50;
+                const double _t99 = _t80*(_t85*_t97 + _t88*_t93 + _t94*(_t78 + _t87 + _t98));
+                const int _t100 = _t15 < 1e-06;
+                const double _t102 = _t12*_t3*a2/kinegen_max(_t14, (1e-06)*_t1);
+                const double _t103 = ((_t100) ? (
+   _t79*(_t34*_t99 + _t39*_t95)
+)
+: (
+   -_t102*(_t101*_t57*twist_vx[i] + _t101*_t72*twist_vy[i])
+));
+                const double _t104 = _t84*_t88 + _t85*(_t49 + _t86 + _t98) + _t94*_t97;
+                const double _t105 = _c3[i]*_t95;
+                const double _t106 = _s3[i]*_t99;
+                const double _t107 = ((_t100) ? (
+   _t79*(_t104*_t12*_t80 - _t105*_t29 - _t106*_t29)
+)
+: (
+   -_t102*(-_t47*twist_vz[i] - _t68*twist_vx[i] + _t75*twist_vy[i])
+));
+                const double _t108 = ((_t100) ? (
+   _t79*(_t104*_t11*_t80 - _t105*_t22 - _t106*_t22)
+)
+: (
+   -_t102*(_t48*twist_vz[i] + _t70*twist_vx[i] + _t76*twist_vy[i])
+));
+                const double _t110 = (_s8[i]*_s8[i]);
+                const double _t111 = kinegen_max(0, 1 - 1000000*_t110);
+                const double _t113 = (_s9[i]*_s9[i])*_t43;
+                const double _t116 = _s2[i]*_s8[i];
+                const double _t117 = _c2[i]*_c8[i] - _c9[i]*_t116;
+                const double _t118 = _t113 + (_t117*_t117) + _t61;
+                const double _t119 = (1e-08)*(_t111*_t111);
+                const double _t120 = _c2[i]*_s8[i];
+                const double _t121 = _c8[i]*_s2[i];
+                const double _t122 = -_c9[i]*_t121 - _t120;
+                const double _t123 = (_c9[i]*_c9[i])*_t43 + _t110*_t113 + (_t122*_t122);
+                const double _t124 = (0.0001)*_t111;
+                const double _t125 = _c9[i]*_s3[i];
+                const double _t126 = _c3[i]*_s9[i];
+                const double _t127 = _c2[i]*_t126 + _t125;
+                const double _t128 = (_t127*_t127);
+                const double _t129 = _c3[i]*_c9[i];
+                const double _t130 = -_c3[i]*_t121 + _s3[i]*_s8[i]*_s9[i] - _t120*_t129;
+                const double _t131 = _t128 + (_t130*_t130) + _t36*_t43;
+                const double _t132 = _s3[i]*_s9[i];
+                const double _t133 = _c2[i]*_t132 - _c3[i]*_c9[i];
+                const double _t134 = -_s3[i]*_t121 - _s8[i]*_t126 - _t120*_t125;
+                const double _t135 = (_t133*_t133) + (_t134*_t134) + _t25*_t43;
+                const double _t136 = _c2[i]*_c3[i]*_c9[i] - _t132;
+                const double _t137 = _c2[i]*_c8[i];
+                const double _t138 = _c3[i]*_t116 + _c8[i]*_t132 - _t129*_t137;
+                const double _t139 = _t110*_t128 + (_t136*_t136) + (_t138*_t138);
+                const double _t140 = _c2[i]*_t125 + _t126;
+                const double _t141 = -_t140;
+                const double _t142 = -_t133;
+                const double _t143 = _c8[i]*_t126 - _s3[i]*_t116 + _t125*_t137;
+                const double _t144 = _t110*(_t142*_t142) + (_t141*_t141) + (_t143*_t143);
+                const double _t145 = 1.0/(_t110 + (1e-12)*(_t111*_t111*_t111) + _t118*_t119 + _t119*_t131 + _t119*_t135 + _t123*_t124 + _t124*_t139 + _t124*_t144);
+                const double _t146 = _t124*_t131;
+                const double _t147 = _t119 + _t124*_t135;
+                const double _t148 = -_t103 + twist_wz[i];
+                const double _t149 = _c9[i]*_s2[i];
+                const double _t150 = _s2[i]*_s9[i];
+                const double _t151 = _t127*_t150;
+                const double _t152 = _t110*_t151 + _t122*_t138 - _t124*(-_c3[i]*_t45 + _t117*_t130 + _t151) + _t136*_t149;
+                const double _t153 = -_s3[i]*_t107 - _s3[i]*_t108 + twist_wx[i];
+                const double _t154 = _t110*_t142;
+                const double _t155 = -_t122*_t143 - _t124*(-_s3[i]*_t45 + _t117*_t134 + _t133*_t150) - _t141*_t149 - _t150*_t154;
+                const double _t156 = _c3[i]*_t107 + _c3[i]*_t108 + twist_wy[i];
+                const double _t157 = _t148*(_t123 + _t146 + _t147) + _t152*_t153 + _t155*_t156;
+                const double _t158 = _t118*_t124;
+                const double _t159 = -_t124*(_t127*_t133 + _t130*_t134 + _t43*_t89) - _t127*_t154 - _t136*_t141 - _t138*_t143;
+                const double _t160 = _t148*_t152 + _t153*(_t139 + _t147 + _t158) + _t156*_t159;
+                const double _t161 = _t148*_t155 + _t153*_t159 + _t156*(_t119 + _t144 + _t146 + _t158);
+                const int _t162 = _t110 < 1e-06;
+                const double _t163 = _s8[i]/kinegen_max(1e-06, _t110);
+                qd[6 * (start + i) + 0] = _t103;
+                qd[6 * (start + i) + 1] = _t107;
+                qd[6 * (start + i) + 2] = _t108;
+                qd[6 * (start + i) + 3] = ((_t162) ? (
+   _t145*(_c2[i]*_t157 - _c3[i]*_s2[i]*_t160 - _s2[i]*_s3[i]*_t161)
+)
+: (
+   -_t163*(_t122*_t148 + _t138*_t153 - _t143*_t156)
+));
+                qd[6 * (start + i) + 4] = ((_t162) ? (
+   _t145*(_t127*_t160 + _t133*_t161 + _t150*_t157)
+)
+: (
+   -_t163*(-_s8[i]*_t127*_t153 + _s8[i]*_t142*_t156 - _s9[i]*_t116*_t148)
+));
+                qd[6 * (start + i) + 5] = ((_t162) ? (
+   _t145*(_t117*_t157 + _t130*_t160 + _t134*_t161)
+)
+: (
+   -_t163*(_t136*_t153 + _t140*_t156 + _t148*_t149)
+));
+                singular[1 * (start + i) + 0] = _t100 || _t162;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 6; k += 2) {
+                    _mm_stream_pd(qd + 6 * (start + i) + k, _mm_set_pd(_qd_block[k + 1][i], _qd_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         puma560_joint_velocity_from_twist(q + 6 * i, twist + 6 * i, params, qd + 6 * i, singular + 1 * i);
     }
+#endif
 }
 
 /* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */

@@ -23,7 +23,71 @@
 
 #include <math.h>
 
+/*
+ * Batched entry points.  Plain C99 loops over the single-point entry point by
+ * default.  With -DKINEGEN_BLOCKED they work through their items in blocks of
+ * KINEGEN_BLOCK instead: the inputs of a block are copied into one array per
+ * coordinate, every sine and every cosine is taken in a loop of its own, and the
+ * arithmetic runs in one loop per stage, from the same expressions as the single
+ * point (so the results are bit-identical).  -DKINEGEN_SIMD -fopenmp-simd (what
+ * build_c.py uses where the compiler and C library allow) adds to that SIMD
+ * declarations of the math functions, so that the loops vectorise and call
+ * glibc's vector math library (libmvec, at most 4 ulp), and the single point
+ * takes the sines and cosines of a stage's angles as one vector.  No NaN or
+ * infinity check is affected: no -ffast-math is involved.
+ */
+#ifdef KINEGEN_SIMD
+#pragma omp declare simd notinbranch
+double sin(double);
+#pragma omp declare simd notinbranch
+double cos(double);
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+/* libmvec has these from glibc 2.35 on. */
+#pragma omp declare simd notinbranch
+double atan2(double, double);
+#pragma omp declare simd notinbranch
+double acos(double);
+#pragma omp declare simd notinbranch
+double asin(double);
+#endif
+#define KINEGEN_VECTOR_LOOP _Pragma("omp simd")
+#ifndef KINEGEN_BLOCKED
+#define KINEGEN_BLOCKED
+#endif
+#else
+#define KINEGEN_VECTOR_LOOP
+#endif
+#ifndef KINEGEN_BLOCK
+#define KINEGEN_BLOCK 64
+#endif
+/* Each kernel's block: at most KINEGEN_BLOCK items, fewer where its arrays would pass 32 KiB of stack. */
+#define KINEGEN_BLOCK_OF(items) ((items) < KINEGEN_BLOCK ? (items) : KINEGEN_BLOCK)
+#if defined(KINEGEN_SIMD) && defined(__SSE2__) && !defined(KINEGEN_NO_STREAM)
+/* Batches whose outputs exceed KINEGEN_STREAM_BYTES write them with SSE2 streaming
+   stores: a plain store first reads the line it overwrites, which doubles the memory
+   traffic of a batch too large for the caches. */
+#include <emmintrin.h>
+#include <stdint.h>
+#define KINEGEN_STREAM
+#ifndef KINEGEN_STREAM_BYTES
+#define KINEGEN_STREAM_BYTES 1048576
+#endif
+#endif
+
 const scorbot_er7_params scorbot_er7_default_params = { 0.05, 0.3, 0.25, 0.385, 0.212 };
+
+/* min and max that pass a NaN on, like numpy.minimum and numpy.maximum: C99's fmin and
+   fmax would turn an acos argument of NaN into +-1 and a valid-looking angle.  Each is
+   emitted only where a kernel uses it (static: -Werror=unused-function). */
+static double kinegen_min(double a, double b)
+{
+    return isnan(a) || a < b ? a : b;
+}
+
+static double kinegen_max(double a, double b)
+{
+    return isnan(a) || a > b ? a : b;
+}
 
 /* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi. */
 static double kinegen_wrap_angle(double angle)
@@ -55,43 +119,234 @@ void scorbot_er7_fk(const double *restrict q, const scorbot_er7_params *restrict
     const double a3 = params->a3;
     const double d1 = params->d1;
     const double d5 = params->d5;
-    const double _t0 = sin(q1);
-    const double _t1 = sin(q5);
-    const double _t2 = _t0*_t1;
     const double _t3 = q2 + q3;
     const double _t4 = _t3 + q4;
-    const double _t5 = sin(_t4);
-    const double _t6 = cos(q1);
-    const double _t7 = cos(q5);
-    const double _t8 = _t6*_t7;
-    const double _t9 = _t0*_t7;
-    const double _t10 = _t1*_t6;
-    const double _t11 = cos(_t4);
-    const double _t12 = _t11*d5 + a1 + a2*cos(q2) + a3*cos(_t3);
-    T[0] = _t2 - _t5*_t8;
-    T[1] = _t10*_t5 + _t9;
-    T[2] = _t11*_t6;
-    T[3] = _t12*_t6;
-    T[4] = -_t10 - _t5*_t9;
-    T[5] = _t2*_t5 - _t8;
-    T[6] = _t0*_t11;
-    T[7] = _t0*_t12;
-    T[8] = _t11*_t7;
-    T[9] = -_t1*_t11;
-    T[10] = _t5;
-    T[11] = _t5*d5 + a2*sin(q2) + a3*sin(_t3) + d1;
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { q1, q5, _t4, q2, _t3, 0.0, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(q5);
+    _c1 = cos(q5);
+    _s2 = sin(_t4);
+    _c2 = cos(_t4);
+    _s3 = sin(q2);
+    _c3 = cos(q2);
+    _s4 = sin(_t3);
+    _c4 = cos(_t3);
+#endif
+    const double _t2 = _s0*_s1;
+    const double _t8 = _c0*_c1;
+    const double _t9 = _c1*_s0;
+    const double _t10 = _c0*_s1;
+    const double _t12 = _c2*d5 + _c3*a2 + _c4*a3 + a1;
+    T[0] = -_s2*_t8 + _t2;
+    T[1] = _s2*_t10 + _t9;
+    T[2] = _c0*_c2;
+    T[3] = _c0*_t12;
+    T[4] = -_s2*_t9 - _t10;
+    T[5] = _s2*_t2 - _t8;
+    T[6] = _c2*_s0;
+    T[7] = _s0*_t12;
+    T[8] = _c1*_c2;
+    T[9] = -_c2*_s1;
+    T[10] = _s2;
+    T[11] = _s2*d5 + _s3*a2 + _s4*a3 + d1;
     T[12] = 0;
     T[13] = 0;
     T[14] = 0;
     T[15] = 1;
 }
 
+/* fk of `count` items, stored one after the other in each argument and output. */
 void scorbot_er7_fk_batch(size_t count, const double *restrict q, const scorbot_er7_params *restrict params, double *restrict T)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double q5[KINEGEN_BLOCK_OF(64)];
+    double _t3[KINEGEN_BLOCK_OF(64)];
+    double _t4[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    double _s4[KINEGEN_BLOCK_OF(64)];
+    double _c4[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _T_block[16][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d1 = params->d1;
+    const double d5 = params->d5;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[5 * (start + i) + 0];
+            q2[i] = q[5 * (start + i) + 1];
+            q3[i] = q[5 * (start + i) + 2];
+            q4[i] = q[5 * (start + i) + 3];
+            q5[i] = q[5 * (start + i) + 4];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t3[i] = q2[i] + q3[i];
+            _t4[i] = _t3[i] + q4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(_t3[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _s0[i]*_s1[i];
+                const double _t8 = _c0[i]*_c1[i];
+                const double _t9 = _c1[i]*_s0[i];
+                const double _t10 = _c0[i]*_s1[i];
+                const double _t12 = _c2[i]*d5 + _c3[i]*a2 + _c4[i]*a3 + a1;
+                _T_block[0][i] = -_s2[i]*_t8 + _t2;
+                _T_block[1][i] = _s2[i]*_t10 + _t9;
+                _T_block[2][i] = _c0[i]*_c2[i];
+                _T_block[3][i] = _c0[i]*_t12;
+                _T_block[4][i] = -_s2[i]*_t9 - _t10;
+                _T_block[5][i] = _s2[i]*_t2 - _t8;
+                _T_block[6][i] = _c2[i]*_s0[i];
+                _T_block[7][i] = _s0[i]*_t12;
+                _T_block[8][i] = _c1[i]*_c2[i];
+                _T_block[9][i] = -_c2[i]*_s1[i];
+                _T_block[10][i] = _s2[i];
+                _T_block[11][i] = _s2[i]*d5 + _s3[i]*a2 + _s4[i]*a3 + d1;
+                _T_block[12][i] = 0;
+                _T_block[13][i] = 0;
+                _T_block[14][i] = 0;
+                _T_block[15][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _s0[i]*_s1[i];
+                const double _t8 = _c0[i]*_c1[i];
+                const double _t9 = _c1[i]*_s0[i];
+                const double _t10 = _c0[i]*_s1[i];
+                const double _t12 = _c2[i]*d5 + _c3[i]*a2 + _c4[i]*a3 + a1;
+                T[16 * (start + i) + 0] = -_s2[i]*_t8 + _t2;
+                T[16 * (start + i) + 1] = _s2[i]*_t10 + _t9;
+                T[16 * (start + i) + 2] = _c0[i]*_c2[i];
+                T[16 * (start + i) + 3] = _c0[i]*_t12;
+                T[16 * (start + i) + 4] = -_s2[i]*_t9 - _t10;
+                T[16 * (start + i) + 5] = _s2[i]*_t2 - _t8;
+                T[16 * (start + i) + 6] = _c2[i]*_s0[i];
+                T[16 * (start + i) + 7] = _s0[i]*_t12;
+                T[16 * (start + i) + 8] = _c1[i]*_c2[i];
+                T[16 * (start + i) + 9] = -_c2[i]*_s1[i];
+                T[16 * (start + i) + 10] = _s2[i];
+                T[16 * (start + i) + 11] = _s2[i]*d5 + _s3[i]*a2 + _s4[i]*a3 + d1;
+                T[16 * (start + i) + 12] = 0;
+                T[16 * (start + i) + 13] = 0;
+                T[16 * (start + i) + 14] = 0;
+                T[16 * (start + i) + 15] = 1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 16; k += 2) {
+                    _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         scorbot_er7_fk(q + 5 * i, params, T + 16 * i);
     }
+#endif
 }
 
 /* Frames T_0 (base) .. T_5 (tool), shape (..., 6, 4, 4). */
@@ -110,30 +365,58 @@ void scorbot_er7_frames(const double *restrict q, const scorbot_er7_params *rest
     const double a3 = params->a3;
     const double d1 = params->d1;
     const double d5 = params->d5;
-    const double _t0 = cos(q1);
-    const double _t1 = sin(q1);
-    const double _t2 = -_t0;
-    const double _t3 = cos(q2);
-    const double _t4 = sin(q2);
-    const double _t5 = _t3*a2 + a1;
-    const double _t6 = _t4*a2 + d1;
     const double _t7 = q2 + q3;
-    const double _t8 = cos(_t7);
-    const double _t9 = sin(_t7);
-    const double _t10 = _t5 + _t8*a3;
-    const double _t11 = _t0*_t10;
-    const double _t12 = _t1*_t10;
-    const double _t13 = _t6 + _t9*a3;
     const double _t14 = _t7 + q4;
-    const double _t15 = sin(_t14);
-    const double _t16 = _t0*_t15;
-    const double _t17 = cos(_t14);
-    const double _t18 = _t0*_t17;
-    const double _t19 = _t1*_t15;
-    const double _t20 = _t1*_t17;
-    const double _t21 = sin(q5);
-    const double _t22 = cos(q5);
-    const double _t23 = _t10 + _t17*d5;
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { q1, q2, _t7, _t14, q5, 0.0, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(q2);
+    _c1 = cos(q2);
+    _s2 = sin(_t7);
+    _c2 = cos(_t7);
+    _s3 = sin(_t14);
+    _c3 = cos(_t14);
+    _s4 = sin(q5);
+    _c4 = cos(q5);
+#endif
+    const double _t2 = -_c0;
+    const double _t5 = _c1*a2 + a1;
+    const double _t6 = _s1*a2 + d1;
+    const double _t10 = _c2*a3 + _t5;
+    const double _t11 = _c0*_t10;
+    const double _t12 = _s0*_t10;
+    const double _t13 = _s2*a3 + _t6;
+    const double _t16 = _c0*_s3;
+    const double _t18 = _c0*_c3;
+    const double _t19 = _s0*_s3;
+    const double _t20 = _c3*_s0;
+    const double _t23 = _c3*d5 + _t10;
     frames[0] = 1;
     frames[1] = 0;
     frames[2] = 0;
@@ -150,14 +433,14 @@ void scorbot_er7_frames(const double *restrict q, const scorbot_er7_params *rest
     frames[13] = 0;
     frames[14] = 0;
     frames[15] = 1;
-    frames[16] = _t0;
+    frames[16] = _c0;
     frames[17] = 0;
-    frames[18] = _t1;
-    frames[19] = _t0*a1;
-    frames[20] = _t1;
+    frames[18] = _s0;
+    frames[19] = _c0*a1;
+    frames[20] = _s0;
     frames[21] = 0;
     frames[22] = _t2;
-    frames[23] = _t1*a1;
+    frames[23] = _s0*a1;
     frames[24] = 0;
     frames[25] = 1;
     frames[26] = 0;
@@ -166,32 +449,32 @@ void scorbot_er7_frames(const double *restrict q, const scorbot_er7_params *rest
     frames[29] = 0;
     frames[30] = 0;
     frames[31] = 1;
-    frames[32] = _t0*_t3;
-    frames[33] = -_t0*_t4;
-    frames[34] = _t1;
-    frames[35] = _t0*_t5;
-    frames[36] = _t1*_t3;
-    frames[37] = -_t1*_t4;
+    frames[32] = _c0*_c1;
+    frames[33] = -_c0*_s1;
+    frames[34] = _s0;
+    frames[35] = _c0*_t5;
+    frames[36] = _c1*_s0;
+    frames[37] = -_s0*_s1;
     frames[38] = _t2;
-    frames[39] = _t1*_t5;
-    frames[40] = _t4;
-    frames[41] = _t3;
+    frames[39] = _s0*_t5;
+    frames[40] = _s1;
+    frames[41] = _c1;
     frames[42] = 0;
     frames[43] = _t6;
     frames[44] = 0;
     frames[45] = 0;
     frames[46] = 0;
     frames[47] = 1;
-    frames[48] = _t0*_t8;
-    frames[49] = -_t0*_t9;
-    frames[50] = _t1;
+    frames[48] = _c0*_c2;
+    frames[49] = -_c0*_s2;
+    frames[50] = _s0;
     frames[51] = _t11;
-    frames[52] = _t1*_t8;
-    frames[53] = -_t1*_t9;
+    frames[52] = _c2*_s0;
+    frames[53] = -_s0*_s2;
     frames[54] = _t2;
     frames[55] = _t12;
-    frames[56] = _t9;
-    frames[57] = _t8;
+    frames[56] = _s2;
+    frames[57] = _c2;
     frames[58] = 0;
     frames[59] = _t13;
     frames[60] = 0;
@@ -199,45 +482,378 @@ void scorbot_er7_frames(const double *restrict q, const scorbot_er7_params *rest
     frames[62] = 0;
     frames[63] = 1;
     frames[64] = -_t16;
-    frames[65] = _t1;
+    frames[65] = _s0;
     frames[66] = _t18;
     frames[67] = _t11;
     frames[68] = -_t19;
     frames[69] = _t2;
     frames[70] = _t20;
     frames[71] = _t12;
-    frames[72] = _t17;
+    frames[72] = _c3;
     frames[73] = 0;
-    frames[74] = _t15;
+    frames[74] = _s3;
     frames[75] = _t13;
     frames[76] = 0;
     frames[77] = 0;
     frames[78] = 0;
     frames[79] = 1;
-    frames[80] = _t1*_t21 - _t16*_t22;
-    frames[81] = _t1*_t22 + _t16*_t21;
+    frames[80] = -_c4*_t16 + _s0*_s4;
+    frames[81] = _c4*_s0 + _s4*_t16;
     frames[82] = _t18;
-    frames[83] = _t0*_t23;
-    frames[84] = -_t0*_t21 - _t19*_t22;
-    frames[85] = -_t0*_t22 + _t19*_t21;
+    frames[83] = _c0*_t23;
+    frames[84] = -_c0*_s4 - _c4*_t19;
+    frames[85] = -_c0*_c4 + _s4*_t19;
     frames[86] = _t20;
-    frames[87] = _t1*_t23;
-    frames[88] = _t17*_t22;
-    frames[89] = -_t17*_t21;
-    frames[90] = _t15;
-    frames[91] = _t13 + _t15*d5;
+    frames[87] = _s0*_t23;
+    frames[88] = _c3*_c4;
+    frames[89] = -_c3*_s4;
+    frames[90] = _s3;
+    frames[91] = _s3*d5 + _t13;
     frames[92] = 0;
     frames[93] = 0;
     frames[94] = 0;
     frames[95] = 1;
 }
 
+/* frames of `count` items, stored one after the other in each argument and output. */
 void scorbot_er7_frames_batch(size_t count, const double *restrict q, const scorbot_er7_params *restrict params, double *restrict frames)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(32)];
+    double q2[KINEGEN_BLOCK_OF(32)];
+    double q3[KINEGEN_BLOCK_OF(32)];
+    double q4[KINEGEN_BLOCK_OF(32)];
+    double q5[KINEGEN_BLOCK_OF(32)];
+    double _t7[KINEGEN_BLOCK_OF(32)];
+    double _t14[KINEGEN_BLOCK_OF(32)];
+    double _s0[KINEGEN_BLOCK_OF(32)];
+    double _c0[KINEGEN_BLOCK_OF(32)];
+    double _s1[KINEGEN_BLOCK_OF(32)];
+    double _c1[KINEGEN_BLOCK_OF(32)];
+    double _s2[KINEGEN_BLOCK_OF(32)];
+    double _c2[KINEGEN_BLOCK_OF(32)];
+    double _s3[KINEGEN_BLOCK_OF(32)];
+    double _c3[KINEGEN_BLOCK_OF(32)];
+    double _s4[KINEGEN_BLOCK_OF(32)];
+    double _c4[KINEGEN_BLOCK_OF(32)];
+#ifdef KINEGEN_STREAM
+    double _frames_block[96][KINEGEN_BLOCK_OF(32)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 96 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d1 = params->d1;
+    const double d5 = params->d5;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(32) ? count - start : KINEGEN_BLOCK_OF(32);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[5 * (start + i) + 0];
+            q2[i] = q[5 * (start + i) + 1];
+            q3[i] = q[5 * (start + i) + 2];
+            q4[i] = q[5 * (start + i) + 3];
+            q5[i] = q[5 * (start + i) + 4];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t7[i] = q2[i] + q3[i];
+            _t14[i] = _t7[i] + q4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t7[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t7[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(_t14[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(_t14[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(q5[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = -_c0[i];
+                const double _t5 = _c1[i]*a2 + a1;
+                const double _t6 = _s1[i]*a2 + d1;
+                const double _t10 = _c2[i]*a3 + _t5;
+                const double _t11 = _c0[i]*_t10;
+                const double _t12 = _s0[i]*_t10;
+                const double _t13 = _s2[i]*a3 + _t6;
+                const double _t16 = _c0[i]*_s3[i];
+                const double _t18 = _c0[i]*_c3[i];
+                const double _t19 = _s0[i]*_s3[i];
+                const double _t20 = _c3[i]*_s0[i];
+                const double _t23 = _c3[i]*d5 + _t10;
+                _frames_block[0][i] = 1;
+                _frames_block[1][i] = 0;
+                _frames_block[2][i] = 0;
+                _frames_block[3][i] = 0;
+                _frames_block[4][i] = 0;
+                _frames_block[5][i] = 1;
+                _frames_block[6][i] = 0;
+                _frames_block[7][i] = 0;
+                _frames_block[8][i] = 0;
+                _frames_block[9][i] = 0;
+                _frames_block[10][i] = 1;
+                _frames_block[11][i] = 0;
+                _frames_block[12][i] = 0;
+                _frames_block[13][i] = 0;
+                _frames_block[14][i] = 0;
+                _frames_block[15][i] = 1;
+                _frames_block[16][i] = _c0[i];
+                _frames_block[17][i] = 0;
+                _frames_block[18][i] = _s0[i];
+                _frames_block[19][i] = _c0[i]*a1;
+                _frames_block[20][i] = _s0[i];
+                _frames_block[21][i] = 0;
+                _frames_block[22][i] = _t2;
+                _frames_block[23][i] = _s0[i]*a1;
+                _frames_block[24][i] = 0;
+                _frames_block[25][i] = 1;
+                _frames_block[26][i] = 0;
+                _frames_block[27][i] = d1;
+                _frames_block[28][i] = 0;
+                _frames_block[29][i] = 0;
+                _frames_block[30][i] = 0;
+                _frames_block[31][i] = 1;
+                _frames_block[32][i] = _c0[i]*_c1[i];
+                _frames_block[33][i] = -_c0[i]*_s1[i];
+                _frames_block[34][i] = _s0[i];
+                _frames_block[35][i] = _c0[i]*_t5;
+                _frames_block[36][i] = _c1[i]*_s0[i];
+                _frames_block[37][i] = -_s0[i]*_s1[i];
+                _frames_block[38][i] = _t2;
+                _frames_block[39][i] = _s0[i]*_t5;
+                _frames_block[40][i] = _s1[i];
+                _frames_block[41][i] = _c1[i];
+                _frames_block[42][i] = 0;
+                _frames_block[43][i] = _t6;
+                _frames_block[44][i] = 0;
+                _frames_block[45][i] = 0;
+                _frames_block[46][i] = 0;
+                _frames_block[47][i] = 1;
+                _frames_block[48][i] = _c0[i]*_c2[i];
+                _frames_block[49][i] = -_c0[i]*_s2[i];
+                _frames_block[50][i] = _s0[i];
+                _frames_block[51][i] = _t11;
+                _frames_block[52][i] = _c2[i]*_s0[i];
+                _frames_block[53][i] = -_s0[i]*_s2[i];
+                _frames_block[54][i] = _t2;
+                _frames_block[55][i] = _t12;
+                _frames_block[56][i] = _s2[i];
+                _frames_block[57][i] = _c2[i];
+                _frames_block[58][i] = 0;
+                _frames_block[59][i] = _t13;
+                _frames_block[60][i] = 0;
+                _frames_block[61][i] = 0;
+                _frames_block[62][i] = 0;
+                _frames_block[63][i] = 1;
+                _frames_block[64][i] = -_t16;
+                _frames_block[65][i] = _s0[i];
+                _frames_block[66][i] = _t18;
+                _frames_block[67][i] = _t11;
+                _frames_block[68][i] = -_t19;
+                _frames_block[69][i] = _t2;
+                _frames_block[70][i] = _t20;
+                _frames_block[71][i] = _t12;
+                _frames_block[72][i] = _c3[i];
+                _frames_block[73][i] = 0;
+                _frames_block[74][i] = _s3[i];
+                _frames_block[75][i] = _t13;
+                _frames_block[76][i] = 0;
+                _frames_block[77][i] = 0;
+                _frames_block[78][i] = 0;
+                _frames_block[79][i] = 1;
+                _frames_block[80][i] = -_c4[i]*_t16 + _s0[i]*_s4[i];
+                _frames_block[81][i] = _c4[i]*_s0[i] + _s4[i]*_t16;
+                _frames_block[82][i] = _t18;
+                _frames_block[83][i] = _c0[i]*_t23;
+                _frames_block[84][i] = -_c0[i]*_s4[i] - _c4[i]*_t19;
+                _frames_block[85][i] = -_c0[i]*_c4[i] + _s4[i]*_t19;
+                _frames_block[86][i] = _t20;
+                _frames_block[87][i] = _s0[i]*_t23;
+                _frames_block[88][i] = _c3[i]*_c4[i];
+                _frames_block[89][i] = -_c3[i]*_s4[i];
+                _frames_block[90][i] = _s3[i];
+                _frames_block[91][i] = _s3[i]*d5 + _t13;
+                _frames_block[92][i] = 0;
+                _frames_block[93][i] = 0;
+                _frames_block[94][i] = 0;
+                _frames_block[95][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = -_c0[i];
+                const double _t5 = _c1[i]*a2 + a1;
+                const double _t6 = _s1[i]*a2 + d1;
+                const double _t10 = _c2[i]*a3 + _t5;
+                const double _t11 = _c0[i]*_t10;
+                const double _t12 = _s0[i]*_t10;
+                const double _t13 = _s2[i]*a3 + _t6;
+                const double _t16 = _c0[i]*_s3[i];
+                const double _t18 = _c0[i]*_c3[i];
+                const double _t19 = _s0[i]*_s3[i];
+                const double _t20 = _c3[i]*_s0[i];
+                const double _t23 = _c3[i]*d5 + _t10;
+                frames[96 * (start + i) + 0] = 1;
+                frames[96 * (start + i) + 1] = 0;
+                frames[96 * (start + i) + 2] = 0;
+                frames[96 * (start + i) + 3] = 0;
+                frames[96 * (start + i) + 4] = 0;
+                frames[96 * (start + i) + 5] = 1;
+                frames[96 * (start + i) + 6] = 0;
+                frames[96 * (start + i) + 7] = 0;
+                frames[96 * (start + i) + 8] = 0;
+                frames[96 * (start + i) + 9] = 0;
+                frames[96 * (start + i) + 10] = 1;
+                frames[96 * (start + i) + 11] = 0;
+                frames[96 * (start + i) + 12] = 0;
+                frames[96 * (start + i) + 13] = 0;
+                frames[96 * (start + i) + 14] = 0;
+                frames[96 * (start + i) + 15] = 1;
+                frames[96 * (start + i) + 16] = _c0[i];
+                frames[96 * (start + i) + 17] = 0;
+                frames[96 * (start + i) + 18] = _s0[i];
+                frames[96 * (start + i) + 19] = _c0[i]*a1;
+                frames[96 * (start + i) + 20] = _s0[i];
+                frames[96 * (start + i) + 21] = 0;
+                frames[96 * (start + i) + 22] = _t2;
+                frames[96 * (start + i) + 23] = _s0[i]*a1;
+                frames[96 * (start + i) + 24] = 0;
+                frames[96 * (start + i) + 25] = 1;
+                frames[96 * (start + i) + 26] = 0;
+                frames[96 * (start + i) + 27] = d1;
+                frames[96 * (start + i) + 28] = 0;
+                frames[96 * (start + i) + 29] = 0;
+                frames[96 * (start + i) + 30] = 0;
+                frames[96 * (start + i) + 31] = 1;
+                frames[96 * (start + i) + 32] = _c0[i]*_c1[i];
+                frames[96 * (start + i) + 33] = -_c0[i]*_s1[i];
+                frames[96 * (start + i) + 34] = _s0[i];
+                frames[96 * (start + i) + 35] = _c0[i]*_t5;
+                frames[96 * (start + i) + 36] = _c1[i]*_s0[i];
+                frames[96 * (start + i) + 37] = -_s0[i]*_s1[i];
+                frames[96 * (start + i) + 38] = _t2;
+                frames[96 * (start + i) + 39] = _s0[i]*_t5;
+                frames[96 * (start + i) + 40] = _s1[i];
+                frames[96 * (start + i) + 41] = _c1[i];
+                frames[96 * (start + i) + 42] = 0;
+                frames[96 * (start + i) + 43] = _t6;
+                frames[96 * (start + i) + 44] = 0;
+                frames[96 * (start + i) + 45] = 0;
+                frames[96 * (start + i) + 46] = 0;
+                frames[96 * (start + i) + 47] = 1;
+                frames[96 * (start + i) + 48] = _c0[i]*_c2[i];
+                frames[96 * (start + i) + 49] = -_c0[i]*_s2[i];
+                frames[96 * (start + i) + 50] = _s0[i];
+                frames[96 * (start + i) + 51] = _t11;
+                frames[96 * (start + i) + 52] = _c2[i]*_s0[i];
+                frames[96 * (start + i) + 53] = -_s0[i]*_s2[i];
+                frames[96 * (start + i) + 54] = _t2;
+                frames[96 * (start + i) + 55] = _t12;
+                frames[96 * (start + i) + 56] = _s2[i];
+                frames[96 * (start + i) + 57] = _c2[i];
+                frames[96 * (start + i) + 58] = 0;
+                frames[96 * (start + i) + 59] = _t13;
+                frames[96 * (start + i) + 60] = 0;
+                frames[96 * (start + i) + 61] = 0;
+                frames[96 * (start + i) + 62] = 0;
+                frames[96 * (start + i) + 63] = 1;
+                frames[96 * (start + i) + 64] = -_t16;
+                frames[96 * (start + i) + 65] = _s0[i];
+                frames[96 * (start + i) + 66] = _t18;
+                frames[96 * (start + i) + 67] = _t11;
+                frames[96 * (start + i) + 68] = -_t19;
+                frames[96 * (start + i) + 69] = _t2;
+                frames[96 * (start + i) + 70] = _t20;
+                frames[96 * (start + i) + 71] = _t12;
+                frames[96 * (start + i) + 72] = _c3[i];
+                frames[96 * (start + i) + 73] = 0;
+                frames[96 * (start + i) + 74] = _s3[i];
+                frames[96 * (start + i) + 75] = _t13;
+                frames[96 * (start + i) + 76] = 0;
+                frames[96 * (start + i) + 77] = 0;
+                frames[96 * (start + i) + 78] = 0;
+                frames[96 * (start + i) + 79] = 1;
+                frames[96 * (start + i) + 80] = -_c4[i]*_t16 + _s0[i]*_s4[i];
+                frames[96 * (start + i) + 81] = _c4[i]*_s0[i] + _s4[i]*_t16;
+                frames[96 * (start + i) + 82] = _t18;
+                frames[96 * (start + i) + 83] = _c0[i]*_t23;
+                frames[96 * (start + i) + 84] = -_c0[i]*_s4[i] - _c4[i]*_t19;
+                frames[96 * (start + i) + 85] = -_c0[i]*_c4[i] + _s4[i]*_t19;
+                frames[96 * (start + i) + 86] = _t20;
+                frames[96 * (start + i) + 87] = _s0[i]*_t23;
+                frames[96 * (start + i) + 88] = _c3[i]*_c4[i];
+                frames[96 * (start + i) + 89] = -_c3[i]*_s4[i];
+                frames[96 * (start + i) + 90] = _s3[i];
+                frames[96 * (start + i) + 91] = _s3[i]*d5 + _t13;
+                frames[96 * (start + i) + 92] = 0;
+                frames[96 * (start + i) + 93] = 0;
+                frames[96 * (start + i) + 94] = 0;
+                frames[96 * (start + i) + 95] = 1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 96; k += 2) {
+                    _mm_stream_pd(frames + 96 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         scorbot_er7_frames(q + 5 * i, params, frames + 96 * i);
     }
+#endif
 }
 
 /* Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 5). */
@@ -254,29 +870,59 @@ void scorbot_er7_jacobian(const double *restrict q, const scorbot_er7_params *re
     const double a2 = params->a2;
     const double a3 = params->a3;
     const double d5 = params->d5;
-    const double _t0 = sin(q1);
     const double _t1 = q2 + q3;
     const double _t2 = _t1 + q4;
-    const double _t3 = cos(_t2);
-    const double _t4 = _t3*d5;
-    const double _t5 = _t4 + a3*cos(_t1);
-    const double _t6 = _t5 + a2*cos(q2);
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q1, _t2, _t1, q2,  };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t2);
+    _c1 = cos(_t2);
+    _s2 = sin(_t1);
+    _c2 = cos(_t1);
+    _s3 = sin(q2);
+    _c3 = cos(q2);
+#endif
+    const double _t4 = _c1*d5;
+    const double _t5 = _c2*a3 + _t4;
+    const double _t6 = _c3*a2 + _t5;
     const double _t7 = _t6 + a1;
-    const double _t8 = cos(q1);
-    const double _t9 = sin(_t2);
-    const double _t10 = _t9*d5;
-    const double _t11 = _t10 + a3*sin(_t1);
-    const double _t12 = _t11 + a2*sin(q2);
-    const double _t13 = -_t8;
-    J[0] = -_t0*_t7;
-    J[1] = -_t12*_t8;
-    J[2] = -_t11*_t8;
-    J[3] = -_t10*_t8;
+    const double _t10 = _s1*d5;
+    const double _t11 = _s2*a3 + _t10;
+    const double _t12 = _s3*a2 + _t11;
+    const double _t13 = -_c0;
+    J[0] = -_s0*_t7;
+    J[1] = -_c0*_t12;
+    J[2] = -_c0*_t11;
+    J[3] = -_c0*_t10;
     J[4] = 0;
-    J[5] = _t7*_t8;
-    J[6] = -_t0*_t12;
-    J[7] = -_t0*_t11;
-    J[8] = -_t0*_t10;
+    J[5] = _c0*_t7;
+    J[6] = -_s0*_t12;
+    J[7] = -_s0*_t11;
+    J[8] = -_s0*_t10;
     J[9] = 0;
     J[10] = 0;
     J[11] = _t6;
@@ -284,28 +930,208 @@ void scorbot_er7_jacobian(const double *restrict q, const scorbot_er7_params *re
     J[13] = _t4;
     J[14] = 0;
     J[15] = 0;
-    J[16] = _t0;
-    J[17] = _t0;
-    J[18] = _t0;
-    J[19] = _t3*_t8;
+    J[16] = _s0;
+    J[17] = _s0;
+    J[18] = _s0;
+    J[19] = _c0*_c1;
     J[20] = 0;
     J[21] = _t13;
     J[22] = _t13;
     J[23] = _t13;
-    J[24] = _t0*_t3;
+    J[24] = _c1*_s0;
     J[25] = 1;
     J[26] = 0;
     J[27] = 0;
     J[28] = 0;
-    J[29] = _t9;
+    J[29] = _s1;
 }
 
+/* jacobian of `count` items, stored one after the other in each argument and output. */
 void scorbot_er7_jacobian_batch(size_t count, const double *restrict q, const scorbot_er7_params *restrict params, double *restrict J)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _J_block[30][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 30 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d5 = params->d5;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[5 * (start + i) + 0];
+            q2[i] = q[5 * (start + i) + 1];
+            q3[i] = q[5 * (start + i) + 2];
+            q4[i] = q[5 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t1[i] = q2[i] + q3[i];
+            _t2[i] = _t1[i] + q4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q2[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t4 = _c1[i]*d5;
+                const double _t5 = _c2[i]*a3 + _t4;
+                const double _t6 = _c3[i]*a2 + _t5;
+                const double _t7 = _t6 + a1;
+                const double _t10 = _s1[i]*d5;
+                const double _t11 = _s2[i]*a3 + _t10;
+                const double _t12 = _s3[i]*a2 + _t11;
+                const double _t13 = -_c0[i];
+                _J_block[0][i] = -_s0[i]*_t7;
+                _J_block[1][i] = -_c0[i]*_t12;
+                _J_block[2][i] = -_c0[i]*_t11;
+                _J_block[3][i] = -_c0[i]*_t10;
+                _J_block[4][i] = 0;
+                _J_block[5][i] = _c0[i]*_t7;
+                _J_block[6][i] = -_s0[i]*_t12;
+                _J_block[7][i] = -_s0[i]*_t11;
+                _J_block[8][i] = -_s0[i]*_t10;
+                _J_block[9][i] = 0;
+                _J_block[10][i] = 0;
+                _J_block[11][i] = _t6;
+                _J_block[12][i] = _t5;
+                _J_block[13][i] = _t4;
+                _J_block[14][i] = 0;
+                _J_block[15][i] = 0;
+                _J_block[16][i] = _s0[i];
+                _J_block[17][i] = _s0[i];
+                _J_block[18][i] = _s0[i];
+                _J_block[19][i] = _c0[i]*_c1[i];
+                _J_block[20][i] = 0;
+                _J_block[21][i] = _t13;
+                _J_block[22][i] = _t13;
+                _J_block[23][i] = _t13;
+                _J_block[24][i] = _c1[i]*_s0[i];
+                _J_block[25][i] = 1;
+                _J_block[26][i] = 0;
+                _J_block[27][i] = 0;
+                _J_block[28][i] = 0;
+                _J_block[29][i] = _s1[i];
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t4 = _c1[i]*d5;
+                const double _t5 = _c2[i]*a3 + _t4;
+                const double _t6 = _c3[i]*a2 + _t5;
+                const double _t7 = _t6 + a1;
+                const double _t10 = _s1[i]*d5;
+                const double _t11 = _s2[i]*a3 + _t10;
+                const double _t12 = _s3[i]*a2 + _t11;
+                const double _t13 = -_c0[i];
+                J[30 * (start + i) + 0] = -_s0[i]*_t7;
+                J[30 * (start + i) + 1] = -_c0[i]*_t12;
+                J[30 * (start + i) + 2] = -_c0[i]*_t11;
+                J[30 * (start + i) + 3] = -_c0[i]*_t10;
+                J[30 * (start + i) + 4] = 0;
+                J[30 * (start + i) + 5] = _c0[i]*_t7;
+                J[30 * (start + i) + 6] = -_s0[i]*_t12;
+                J[30 * (start + i) + 7] = -_s0[i]*_t11;
+                J[30 * (start + i) + 8] = -_s0[i]*_t10;
+                J[30 * (start + i) + 9] = 0;
+                J[30 * (start + i) + 10] = 0;
+                J[30 * (start + i) + 11] = _t6;
+                J[30 * (start + i) + 12] = _t5;
+                J[30 * (start + i) + 13] = _t4;
+                J[30 * (start + i) + 14] = 0;
+                J[30 * (start + i) + 15] = 0;
+                J[30 * (start + i) + 16] = _s0[i];
+                J[30 * (start + i) + 17] = _s0[i];
+                J[30 * (start + i) + 18] = _s0[i];
+                J[30 * (start + i) + 19] = _c0[i]*_c1[i];
+                J[30 * (start + i) + 20] = 0;
+                J[30 * (start + i) + 21] = _t13;
+                J[30 * (start + i) + 22] = _t13;
+                J[30 * (start + i) + 23] = _t13;
+                J[30 * (start + i) + 24] = _c1[i]*_s0[i];
+                J[30 * (start + i) + 25] = 1;
+                J[30 * (start + i) + 26] = 0;
+                J[30 * (start + i) + 27] = 0;
+                J[30 * (start + i) + 28] = 0;
+                J[30 * (start + i) + 29] = _s1[i];
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 30; k += 2) {
+                    _mm_stream_pd(J + 30 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         scorbot_er7_jacobian(q + 5 * i, params, J + 30 * i);
     }
+#endif
 }
 
 /* Task coordinates x, y, z, shape (..., 3). */
@@ -325,18 +1151,132 @@ void scorbot_er7_task(const double *restrict q, const scorbot_er7_params *restri
     const double d5 = params->d5;
     const double _t0 = q2 + q3;
     const double _t1 = _t0 + q4;
-    const double _t2 = a1 + a2*cos(q2) + a3*cos(_t0) + d5*cos(_t1);
-    x[0] = _t2*cos(q1);
-    x[1] = _t2*sin(q1);
-    x[2] = a2*sin(q2) + a3*sin(_t0) + d1 + d5*sin(_t1);
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q2, _t0, _t1, q1,  };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+    }
+#else
+    _s0 = sin(q2);
+    _c0 = cos(q2);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+    _s2 = sin(_t1);
+    _c2 = cos(_t1);
+    _s3 = sin(q1);
+    _c3 = cos(q1);
+#endif
+    const double _t2 = _c0*a2 + _c1*a3 + _c2*d5 + a1;
+    x[0] = _c3*_t2;
+    x[1] = _s3*_t2;
+    x[2] = _s0*a2 + _s1*a3 + _s2*d5 + d1;
 }
 
+/* task of `count` items, stored one after the other in each argument and output. */
 void scorbot_er7_task_batch(size_t count, const double *restrict q, const scorbot_er7_params *restrict params, double *restrict x)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d1 = params->d1;
+    const double d5 = params->d5;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[5 * (start + i) + 0];
+            q2[i] = q[5 * (start + i) + 1];
+            q3[i] = q[5 * (start + i) + 2];
+            q4[i] = q[5 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q2[i] + q3[i];
+            _t1[i] = _t0[i] + q4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t2 = _c0[i]*a2 + _c1[i]*a3 + _c2[i]*d5 + a1;
+            x[3 * (start + i) + 0] = _c3[i]*_t2;
+            x[3 * (start + i) + 1] = _s3[i]*_t2;
+            x[3 * (start + i) + 2] = _s0[i]*a2 + _s1[i]*a3 + _s2[i]*d5 + d1;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         scorbot_er7_task(q + 5 * i, params, x + 3 * i);
     }
+#endif
 }
 
 /* d task / d q, shape (..., 3, 5). */
@@ -353,26 +1293,58 @@ void scorbot_er7_task_jacobian(const double *restrict q, const scorbot_er7_param
     const double a2 = params->a2;
     const double a3 = params->a3;
     const double d5 = params->d5;
-    const double _t0 = sin(q1);
     const double _t1 = q2 + q3;
     const double _t2 = _t1 + q4;
-    const double _t3 = d5*cos(_t2);
-    const double _t4 = _t3 + a3*cos(_t1);
-    const double _t5 = _t4 + a2*cos(q2);
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q1, _t2, _t1, q2,  };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t2);
+    _c1 = cos(_t2);
+    _s2 = sin(_t1);
+    _c2 = cos(_t1);
+    _s3 = sin(q2);
+    _c3 = cos(q2);
+#endif
+    const double _t3 = _c1*d5;
+    const double _t4 = _c2*a3 + _t3;
+    const double _t5 = _c3*a2 + _t4;
     const double _t6 = _t5 + a1;
-    const double _t7 = cos(q1);
-    const double _t8 = d5*sin(_t2);
-    const double _t9 = _t8 + a3*sin(_t1);
-    const double _t10 = _t9 + a2*sin(q2);
-    Jx[0] = -_t0*_t6;
-    Jx[1] = -_t10*_t7;
-    Jx[2] = -_t7*_t9;
-    Jx[3] = -_t7*_t8;
+    const double _t8 = _s1*d5;
+    const double _t9 = _s2*a3 + _t8;
+    const double _t10 = _s3*a2 + _t9;
+    Jx[0] = -_s0*_t6;
+    Jx[1] = -_c0*_t10;
+    Jx[2] = -_c0*_t9;
+    Jx[3] = -_c0*_t8;
     Jx[4] = 0;
-    Jx[5] = _t6*_t7;
-    Jx[6] = -_t0*_t10;
-    Jx[7] = -_t0*_t9;
-    Jx[8] = -_t0*_t8;
+    Jx[5] = _c0*_t6;
+    Jx[6] = -_s0*_t10;
+    Jx[7] = -_s0*_t9;
+    Jx[8] = -_s0*_t8;
     Jx[9] = 0;
     Jx[10] = 0;
     Jx[11] = _t5;
@@ -381,12 +1353,131 @@ void scorbot_er7_task_jacobian(const double *restrict q, const scorbot_er7_param
     Jx[14] = 0;
 }
 
+/* task_jacobian of `count` items, stored one after the other in each argument and output. */
 void scorbot_er7_task_jacobian_batch(size_t count, const double *restrict q, const scorbot_er7_params *restrict params, double *restrict Jx)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d5 = params->d5;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[5 * (start + i) + 0];
+            q2[i] = q[5 * (start + i) + 1];
+            q3[i] = q[5 * (start + i) + 2];
+            q4[i] = q[5 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t1[i] = q2[i] + q3[i];
+            _t2[i] = _t1[i] + q4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t3 = _c1[i]*d5;
+            const double _t4 = _c2[i]*a3 + _t3;
+            const double _t5 = _c3[i]*a2 + _t4;
+            const double _t6 = _t5 + a1;
+            const double _t8 = _s1[i]*d5;
+            const double _t9 = _s2[i]*a3 + _t8;
+            const double _t10 = _s3[i]*a2 + _t9;
+            Jx[15 * (start + i) + 0] = -_s0[i]*_t6;
+            Jx[15 * (start + i) + 1] = -_c0[i]*_t10;
+            Jx[15 * (start + i) + 2] = -_c0[i]*_t9;
+            Jx[15 * (start + i) + 3] = -_c0[i]*_t8;
+            Jx[15 * (start + i) + 4] = 0;
+            Jx[15 * (start + i) + 5] = _c0[i]*_t6;
+            Jx[15 * (start + i) + 6] = -_s0[i]*_t10;
+            Jx[15 * (start + i) + 7] = -_s0[i]*_t9;
+            Jx[15 * (start + i) + 8] = -_s0[i]*_t8;
+            Jx[15 * (start + i) + 9] = 0;
+            Jx[15 * (start + i) + 10] = 0;
+            Jx[15 * (start + i) + 11] = _t5;
+            Jx[15 * (start + i) + 12] = _t4;
+            Jx[15 * (start + i) + 13] = _t3;
+            Jx[15 * (start + i) + 14] = 0;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         scorbot_er7_task_jacobian(q + 5 * i, params, Jx + 15 * i);
     }
+#endif
+}
+
+/* The checks after an ik of one target x: a branch with a joint value that is not
+   finite, or of a target that is not, is not valid; returns the number of valid branches. */
+static int scorbot_er7_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
+{
+    int branch, joint, finite_target = 1, valid_branches = 0;
+    for (joint = 0; joint < 3; ++joint) {
+        finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
+    }
+    for (branch = 0; branch < 4; ++branch) {
+        if (!finite_target) {
+            valid[branch] = 0;
+        }
+        for (joint = 0; joint < 5; ++joint) {
+            if (!isfinite(Q[5 * branch + joint])) {
+                valid[branch] = 0;  /* no NaN leaks out as a valid answer */
+            }
+        }
+        valid_branches += valid[branch] != 0;
+    }
+    return valid_branches;
 }
 
 /* Inverse kinematics, all 4 branches (elbow_up, elbow_down, shoulder_flip_elbow_up, shoulder_flip_elbow_down): Q (..., 4, 5), valid (..., 4).
@@ -405,96 +1496,293 @@ int scorbot_er7_ik(const double *restrict _x, const scorbot_er7_params *restrict
     const double a3 = params->a3;
     const double d1 = params->d1;
     const double d5 = params->d5;
-    const double _t0 = kinegen_wrap_angle(atan2(y, x));
+    const double _t4 = a1 + d5;
+    const double _t9 = (a2*a2) + (a3*a3);
+    const double _t11 = 1/(a2*a3);
+    const double _t12 = (0.5)*_t11;
     const double _t1 = d1 - z;
     const double _t2 = -_t1;
     const double _t3 = sqrt((x*x) + (y*y));
-    const double _t4 = a1 + d5;
     const double _t5 = -_t3 + _t4;
     const double _t6 = -_t5;
-    const double _t7 = atan2(_t2, _t6);
-    const double _t8 = -_t7;
-    const double _t9 = (a2*a2) + (a3*a3);
     const double _t10 = -(_t2*_t2) + _t9;
-    const double _t11 = 1/(a2*a3);
-    const double _t12 = (0.5)*_t11;
-    const double _t13 = fmin(1, fmax(-1, _t12*(-_t10 + (_t6*_t6))));
+    const double _t13 = kinegen_min(1, kinegen_max(-1, _t12*(-_t10 + (_t6*_t6))));
     const double _t14 = a3*sqrt(1 - (_t13*_t13));
     const double _t15 = _t13*a3 + a2;
-    const double _t16 = _t8 + atan2(-_t14, _t15);
-    const double _t17 = acos(_t13);
-    const double _t18 = atan2(_t14, _t15);
-    const double _t19 = kinegen_wrap_angle(atan2(-y, -x));
+    const double _a0 = -_t14;
+    const double _a1 = -y;
+    const double _a2 = -x;
     const double _t20 = _t3 + _t4;
     const double _t21 = -_t20;
-    const double _t22 = atan2(_t2, _t21);
-    const double _t23 = -_t22;
-    const double _t24 = fmin(1, fmax(-1, _t12*(-_t10 + (_t21*_t21))));
+    const double _t24 = kinegen_min(1, kinegen_max(-1, _t12*(-_t10 + (_t21*_t21))));
     const double _t25 = a3*sqrt(1 - (_t24*_t24));
     const double _t26 = _t24*a3 + a2;
-    const double _t27 = atan2(_t25, _t26);
-    const double _t28 = acos(_t24);
-    const double _t29 = _t23 + atan2(-_t25, _t26);
+    const double _a3 = -_t25;
+    double _f0, _f1, _f2, _f3, _f4, _f5, _f6, _f7, _f8, _f9;
+#if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+    {
+        /* The atan2 arguments side by side: one vector call. */
+        const double argument0[8] = { y, _t2, _a0, _t14, _a1, _t2, _t25, _a3,  };
+        const double argument1[8] = { x, _t6, _t15, _t15, _a2, _t21, _t26, _t26,  };
+        double result[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            result[k] = atan2(argument0[k], argument1[k]);
+        }
+        _f0 = result[0];
+        _f1 = result[1];
+        _f2 = result[2];
+        _f4 = result[3];
+        _f5 = result[4];
+        _f6 = result[5];
+        _f7 = result[6];
+        _f9 = result[7];
+    }
+#else
+    _f0 = atan2(y, x);
+    _f1 = atan2(_t2, _t6);
+    _f2 = atan2(_a0, _t15);
+    _f4 = atan2(_t14, _t15);
+    _f5 = atan2(_a1, _a2);
+    _f6 = atan2(_t2, _t21);
+    _f7 = atan2(_t25, _t26);
+    _f9 = atan2(_a3, _t26);
+#endif
+#if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+    {
+        /* The acos arguments side by side: one vector call. */
+        const double argument0[4] = { _t13, _t24, 1.0, 1.0 };
+        double result[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            result[k] = acos(argument0[k]);
+        }
+        _f3 = result[0];
+        _f8 = result[1];
+    }
+#else
+    _f3 = acos(_t13);
+    _f8 = acos(_t24);
+#endif
+    const double _t0 = kinegen_wrap_angle(_f0);
+    const double _t8 = -_f1;
+    const double _t16 = _f2 + _t8;
+    const double _t19 = kinegen_wrap_angle(_f5);
+    const double _t23 = -_f6;
+    const double _t29 = _f9 + _t23;
     const double _t30 = -(_t1*_t1) + _t9;
     const int _t31 = (0.5)*fabs(_t11*(_t30 - (_t5*_t5))) <= 1.000000000001;
     const int _t32 = (0.5)*fabs(_t11*((_t20*_t20) - _t30)) <= 1.000000000001;
     Q[0] = _t0;
     Q[1] = kinegen_wrap_angle(-_t16);
-    Q[2] = kinegen_wrap_angle(-_t17);
-    Q[3] = kinegen_wrap_angle(_t16 + _t17);
+    Q[2] = kinegen_wrap_angle(-_f3);
+    Q[3] = kinegen_wrap_angle(_f3 + _t16);
     Q[4] = 0;
     Q[5] = _t0;
-    Q[6] = kinegen_wrap_angle(-_t18 - _t8);
-    Q[7] = kinegen_wrap_angle(_t17);
-    Q[8] = kinegen_wrap_angle(-_t17 + _t18 - _t7);
+    Q[6] = kinegen_wrap_angle(-_f4 - _t8);
+    Q[7] = kinegen_wrap_angle(_f3);
+    Q[8] = kinegen_wrap_angle(-_f1 - _f3 + _f4);
     Q[9] = 0;
     Q[10] = _t19;
-    Q[11] = kinegen_wrap_angle(-_t23 - _t27);
-    Q[12] = kinegen_wrap_angle(_t28);
-    Q[13] = kinegen_wrap_angle(-_t22 + _t27 - _t28);
+    Q[11] = kinegen_wrap_angle(-_f7 - _t23);
+    Q[12] = kinegen_wrap_angle(_f8);
+    Q[13] = kinegen_wrap_angle(-_f6 + _f7 - _f8);
     Q[14] = 0;
     Q[15] = _t19;
     Q[16] = kinegen_wrap_angle(-_t29);
-    Q[17] = kinegen_wrap_angle(-_t28);
-    Q[18] = kinegen_wrap_angle(_t28 + _t29);
+    Q[17] = kinegen_wrap_angle(-_f8);
+    Q[18] = kinegen_wrap_angle(_f8 + _t29);
     Q[19] = 0;
     valid[0] = _t31;
     valid[1] = _t31;
     valid[2] = _t32;
     valid[3] = _t32;
-    {
-        int branch, joint, finite_target = 1, valid_branches = 0;
-        for (joint = 0; joint < 3; ++joint) {
-            finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
-        }
-        for (branch = 0; branch < 4; ++branch) {
-            if (!finite_target) {
-                valid[branch] = 0;
-            }
-            for (joint = 0; joint < 5; ++joint) {
-                if (!isfinite(Q[5 * branch + joint])) {
-                    valid[branch] = 0;  /* no NaN leaks out as a valid answer */
-                }
-            }
-            valid_branches += valid[branch] != 0;
-        }
-        return valid_branches;
-    }
+    return scorbot_er7_ik_checks(_x, Q, valid);
 }
 
-long scorbot_er7_ik_batch(size_t count, const double *restrict x, const scorbot_er7_params *restrict params, double *restrict Q, int *restrict valid)
+/* ik of `count` items, stored one after the other in each argument and output.   Returns the total number of valid branches, or -1 if any item was refused. */
+long scorbot_er7_ik_batch(size_t count, const double *restrict _x, const scorbot_er7_params *restrict params, double *restrict Q, int *restrict valid)
 {
-    size_t i;
     long valid_branches = 0;
     int refused = 0;
+#ifdef KINEGEN_BLOCKED
+    double x[KINEGEN_BLOCK_OF(64)];
+    double y[KINEGEN_BLOCK_OF(64)];
+    double z[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
+    double _t5[KINEGEN_BLOCK_OF(64)];
+    double _t6[KINEGEN_BLOCK_OF(64)];
+    double _t13[KINEGEN_BLOCK_OF(64)];
+    double _t14[KINEGEN_BLOCK_OF(64)];
+    double _t15[KINEGEN_BLOCK_OF(64)];
+    double _a0[KINEGEN_BLOCK_OF(64)];
+    double _a1[KINEGEN_BLOCK_OF(64)];
+    double _a2[KINEGEN_BLOCK_OF(64)];
+    double _t20[KINEGEN_BLOCK_OF(64)];
+    double _t21[KINEGEN_BLOCK_OF(64)];
+    double _t24[KINEGEN_BLOCK_OF(64)];
+    double _t25[KINEGEN_BLOCK_OF(64)];
+    double _t26[KINEGEN_BLOCK_OF(64)];
+    double _a3[KINEGEN_BLOCK_OF(64)];
+    double _f0[KINEGEN_BLOCK_OF(64)];
+    double _f1[KINEGEN_BLOCK_OF(64)];
+    double _f2[KINEGEN_BLOCK_OF(64)];
+    double _f3[KINEGEN_BLOCK_OF(64)];
+    double _f4[KINEGEN_BLOCK_OF(64)];
+    double _f5[KINEGEN_BLOCK_OF(64)];
+    double _f6[KINEGEN_BLOCK_OF(64)];
+    double _f7[KINEGEN_BLOCK_OF(64)];
+    double _f8[KINEGEN_BLOCK_OF(64)];
+    double _f9[KINEGEN_BLOCK_OF(64)];
+    double _Q_block[20][KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d1 = params->d1;
+    const double d5 = params->d5;
+    const double _t4 = a1 + d5;
+    const double _t9 = (a2*a2) + (a3*a3);
+    const double _t11 = 1/(a2*a3);
+    const double _t12 = (0.5)*_t11;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            x[i] = _x[3 * (start + i) + 0];
+            y[i] = _x[3 * (start + i) + 1];
+            z[i] = _x[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t1[i] = d1 - z[i];
+            _t2[i] = -_t1[i];
+            const double _t3 = sqrt((x[i]*x[i]) + (y[i]*y[i]));
+            _t5[i] = -_t3 + _t4;
+            _t6[i] = -_t5[i];
+            const double _t10 = -(_t2[i]*_t2[i]) + _t9;
+            _t13[i] = kinegen_min(1, kinegen_max(-1, _t12*(-_t10 + (_t6[i]*_t6[i]))));
+            _t14[i] = a3*sqrt(1 - (_t13[i]*_t13[i]));
+            _t15[i] = _t13[i]*a3 + a2;
+            _a0[i] = -_t14[i];
+            _a1[i] = -y[i];
+            _a2[i] = -x[i];
+            _t20[i] = _t3 + _t4;
+            _t21[i] = -_t20[i];
+            _t24[i] = kinegen_min(1, kinegen_max(-1, _t12*(-_t10 + (_t21[i]*_t21[i]))));
+            _t25[i] = a3*sqrt(1 - (_t24[i]*_t24[i]));
+            _t26[i] = _t24[i]*a3 + a2;
+            _a3[i] = -_t25[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f0[i] = atan2(y[i], x[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f1[i] = atan2(_t2[i], _t6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f2[i] = atan2(_a0[i], _t15[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f3[i] = acos(_t13[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f4[i] = atan2(_t14[i], _t15[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f5[i] = atan2(_a1[i], _a2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f6[i] = atan2(_t2[i], _t21[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f7[i] = atan2(_t25[i], _t26[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f8[i] = acos(_t24[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f9[i] = atan2(_a3[i], _t26[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t0 = kinegen_wrap_angle(_f0[i]);
+            const double _t8 = -_f1[i];
+            const double _t16 = _f2[i] + _t8;
+            const double _t19 = kinegen_wrap_angle(_f5[i]);
+            const double _t23 = -_f6[i];
+            const double _t29 = _f9[i] + _t23;
+            const double _t30 = -(_t1[i]*_t1[i]) + _t9;
+            const int _t31 = (0.5)*fabs(_t11*(_t30 - (_t5[i]*_t5[i]))) <= 1.000000000001;
+            const int _t32 = (0.5)*fabs(_t11*((_t20[i]*_t20[i]) - _t30)) <= 1.000000000001;
+            _Q_block[0][i] = _t0;
+            _Q_block[1][i] = kinegen_wrap_angle(-_t16);
+            _Q_block[2][i] = kinegen_wrap_angle(-_f3[i]);
+            _Q_block[3][i] = kinegen_wrap_angle(_f3[i] + _t16);
+            _Q_block[4][i] = 0;
+            _Q_block[5][i] = _t0;
+            _Q_block[6][i] = kinegen_wrap_angle(-_f4[i] - _t8);
+            _Q_block[7][i] = kinegen_wrap_angle(_f3[i]);
+            _Q_block[8][i] = kinegen_wrap_angle(-_f1[i] - _f3[i] + _f4[i]);
+            _Q_block[9][i] = 0;
+            _Q_block[10][i] = _t19;
+            _Q_block[11][i] = kinegen_wrap_angle(-_f7[i] - _t23);
+            _Q_block[12][i] = kinegen_wrap_angle(_f8[i]);
+            _Q_block[13][i] = kinegen_wrap_angle(-_f6[i] + _f7[i] - _f8[i]);
+            _Q_block[14][i] = 0;
+            _Q_block[15][i] = _t19;
+            _Q_block[16][i] = kinegen_wrap_angle(-_t29);
+            _Q_block[17][i] = kinegen_wrap_angle(-_f8[i]);
+            _Q_block[18][i] = kinegen_wrap_angle(_f8[i] + _t29);
+            _Q_block[19][i] = 0;
+            valid[4 * (start + i) + 0] = _t31;
+            valid[4 * (start + i) + 1] = _t31;
+            valid[4 * (start + i) + 2] = _t32;
+            valid[4 * (start + i) + 3] = _t32;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 20; ++k) {
+                    Q[20 * (start + i) + k] = _Q_block[k][i];
+                }
+            }
+        }
+        for (i = 0; i < n; ++i) {
+            const int found = scorbot_er7_ik_checks(_x + 3 * (start + i), Q + 20 * (start + i), valid + 4 * (start + i));
+            if (found < 0) {
+                refused = 1;
+            } else {
+                valid_branches += found;
+            }
+        }
+    }
+#else
+    size_t i;
     for (i = 0; i < count; ++i) {
-        const int found = scorbot_er7_ik(x + 3 * i, params, Q + 20 * i, valid + 4 * i);
+        const int found = scorbot_er7_ik(_x + 3 * i, params, Q + 20 * i, valid + 4 * i);
         if (found < 0) {
             refused = 1;
         } else {
             valid_branches += found;
         }
     }
+#endif
     return refused ? -1 : valid_branches;
 }
 
@@ -516,30 +1804,157 @@ void scorbot_er7_task_velocity(const double *restrict q, const double *restrict 
     const double a2 = params->a2;
     const double a3 = params->a3;
     const double d5 = params->d5;
-    const double _t0 = cos(q1);
     const double _t1 = q2 + q3;
     const double _t2 = _t1 + q4;
-    const double _t3 = d5*sin(_t2);
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q1, _t2, _t1, q2,  };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t2);
+    _c1 = cos(_t2);
+    _s2 = sin(_t1);
+    _c2 = cos(_t1);
+    _s3 = sin(q2);
+    _c3 = cos(q2);
+#endif
+    const double _t3 = _s1*d5;
     const double _t4 = _t3*qd4;
-    const double _t5 = _t3 + a3*sin(_t1);
+    const double _t5 = _s2*a3 + _t3;
     const double _t6 = _t5*qd3;
-    const double _t7 = qd2*(_t5 + a2*sin(q2));
-    const double _t8 = sin(q1);
-    const double _t9 = d5*cos(_t2);
-    const double _t10 = _t9 + a3*cos(_t1);
-    const double _t11 = _t10 + a2*cos(q2);
+    const double _t7 = qd2*(_s3*a2 + _t5);
+    const double _t9 = _c1*d5;
+    const double _t10 = _c2*a3 + _t9;
+    const double _t11 = _c3*a2 + _t10;
     const double _t12 = _t11 + a1;
-    xd[0] = -_t0*_t4 - _t0*_t6 - _t0*_t7 - _t12*_t8*qd1;
-    xd[1] = _t0*_t12*qd1 - _t4*_t8 - _t6*_t8 - _t7*_t8;
+    xd[0] = -_c0*_t4 - _c0*_t6 - _c0*_t7 - _s0*_t12*qd1;
+    xd[1] = _c0*_t12*qd1 - _s0*_t4 - _s0*_t6 - _s0*_t7;
     xd[2] = _t10*qd3 + _t11*qd2 + _t9*qd4;
 }
 
+/* task_velocity of `count` items, stored one after the other in each argument and output. */
 void scorbot_er7_task_velocity_batch(size_t count, const double *restrict q, const double *restrict qd, const scorbot_er7_params *restrict params, double *restrict xd)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double qd3[KINEGEN_BLOCK_OF(64)];
+    double qd4[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d5 = params->d5;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[5 * (start + i) + 0];
+            q2[i] = q[5 * (start + i) + 1];
+            q3[i] = q[5 * (start + i) + 2];
+            q4[i] = q[5 * (start + i) + 3];
+            qd1[i] = qd[5 * (start + i) + 0];
+            qd2[i] = qd[5 * (start + i) + 1];
+            qd3[i] = qd[5 * (start + i) + 2];
+            qd4[i] = qd[5 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t1[i] = q2[i] + q3[i];
+            _t2[i] = _t1[i] + q4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t3 = _s1[i]*d5;
+            const double _t4 = _t3*qd4[i];
+            const double _t5 = _s2[i]*a3 + _t3;
+            const double _t6 = _t5*qd3[i];
+            const double _t7 = qd2[i]*(_s3[i]*a2 + _t5);
+            const double _t9 = _c1[i]*d5;
+            const double _t10 = _c2[i]*a3 + _t9;
+            const double _t11 = _c3[i]*a2 + _t10;
+            const double _t12 = _t11 + a1;
+            xd[3 * (start + i) + 0] = -_c0[i]*_t4 - _c0[i]*_t6 - _c0[i]*_t7 - _s0[i]*_t12*qd1[i];
+            xd[3 * (start + i) + 1] = _c0[i]*_t12*qd1[i] - _s0[i]*_t4 - _s0[i]*_t6 - _s0[i]*_t7;
+            xd[3 * (start + i) + 2] = _t10*qd3[i] + _t11*qd2[i] + _t9*qd4[i];
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         scorbot_er7_task_velocity(q + 5 * i, qd + 5 * i, params, xd + 3 * i);
     }
+#endif
 }
 
 /* Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s. */
@@ -563,37 +1978,219 @@ void scorbot_er7_twist(const double *restrict q, const double *restrict qd, cons
     const double d5 = params->d5;
     const double _t0 = q2 + q3;
     const double _t1 = _t0 + q4;
-    const double _t2 = sin(_t1);
-    const double _t3 = _t2*d5;
-    const double _t4 = cos(q1);
-    const double _t5 = _t4*qd4;
-    const double _t6 = _t3 + a3*sin(_t0);
-    const double _t7 = _t4*qd3;
-    const double _t8 = _t6 + a2*sin(q2);
-    const double _t9 = _t4*qd2;
-    const double _t10 = sin(q1);
-    const double _t11 = cos(_t1);
-    const double _t12 = _t11*d5;
-    const double _t13 = _t12 + a3*cos(_t0);
-    const double _t14 = _t13 + a2*cos(q2);
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t1, q1, _t0, q2,  };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+    }
+#else
+    _s0 = sin(_t1);
+    _c0 = cos(_t1);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+    _s2 = sin(_t0);
+    _c2 = cos(_t0);
+    _s3 = sin(q2);
+    _c3 = cos(q2);
+#endif
+    const double _t3 = _s0*d5;
+    const double _t5 = _c1*qd4;
+    const double _t6 = _s2*a3 + _t3;
+    const double _t7 = _c1*qd3;
+    const double _t8 = _s3*a2 + _t6;
+    const double _t9 = _c1*qd2;
+    const double _t12 = _c0*d5;
+    const double _t13 = _c2*a3 + _t12;
+    const double _t14 = _c3*a2 + _t13;
     const double _t15 = _t14 + a1;
-    const double _t16 = _t10*qd4;
-    const double _t17 = _t10*qd3;
-    const double _t18 = _t10*qd2;
-    twist[0] = -_t10*_t15*qd1 - _t3*_t5 - _t6*_t7 - _t8*_t9;
-    twist[1] = _t15*_t4*qd1 - _t16*_t3 - _t17*_t6 - _t18*_t8;
+    const double _t16 = _s1*qd4;
+    const double _t17 = _s1*qd3;
+    const double _t18 = _s1*qd2;
+    twist[0] = -_s1*_t15*qd1 - _t3*_t5 - _t6*_t7 - _t8*_t9;
+    twist[1] = _c1*_t15*qd1 - _t16*_t3 - _t17*_t6 - _t18*_t8;
     twist[2] = _t12*qd4 + _t13*qd3 + _t14*qd2;
-    twist[3] = _t11*_t4*qd5 + _t16 + _t17 + _t18;
-    twist[4] = _t10*_t11*qd5 - _t5 - _t7 - _t9;
-    twist[5] = _t2*qd5 + qd1;
+    twist[3] = _c0*_c1*qd5 + _t16 + _t17 + _t18;
+    twist[4] = _c0*_s1*qd5 - _t5 - _t7 - _t9;
+    twist[5] = _s0*qd5 + qd1;
 }
 
+/* twist of `count` items, stored one after the other in each argument and output. */
 void scorbot_er7_twist_batch(size_t count, const double *restrict q, const double *restrict qd, const scorbot_er7_params *restrict params, double *restrict twist)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double qd3[KINEGEN_BLOCK_OF(64)];
+    double qd4[KINEGEN_BLOCK_OF(64)];
+    double qd5[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _twist_block[6][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)twist & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d5 = params->d5;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[5 * (start + i) + 0];
+            q2[i] = q[5 * (start + i) + 1];
+            q3[i] = q[5 * (start + i) + 2];
+            q4[i] = q[5 * (start + i) + 3];
+            qd1[i] = qd[5 * (start + i) + 0];
+            qd2[i] = qd[5 * (start + i) + 1];
+            qd3[i] = qd[5 * (start + i) + 2];
+            qd4[i] = qd[5 * (start + i) + 3];
+            qd5[i] = qd[5 * (start + i) + 4];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q2[i] + q3[i];
+            _t1[i] = _t0[i] + q4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q2[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _s0[i]*d5;
+                const double _t5 = _c1[i]*qd4[i];
+                const double _t6 = _s2[i]*a3 + _t3;
+                const double _t7 = _c1[i]*qd3[i];
+                const double _t8 = _s3[i]*a2 + _t6;
+                const double _t9 = _c1[i]*qd2[i];
+                const double _t12 = _c0[i]*d5;
+                const double _t13 = _c2[i]*a3 + _t12;
+                const double _t14 = _c3[i]*a2 + _t13;
+                const double _t15 = _t14 + a1;
+                const double _t16 = _s1[i]*qd4[i];
+                const double _t17 = _s1[i]*qd3[i];
+                const double _t18 = _s1[i]*qd2[i];
+                _twist_block[0][i] = -_s1[i]*_t15*qd1[i] - _t3*_t5 - _t6*_t7 - _t8*_t9;
+                _twist_block[1][i] = _c1[i]*_t15*qd1[i] - _t16*_t3 - _t17*_t6 - _t18*_t8;
+                _twist_block[2][i] = _t12*qd4[i] + _t13*qd3[i] + _t14*qd2[i];
+                _twist_block[3][i] = _c0[i]*_c1[i]*qd5[i] + _t16 + _t17 + _t18;
+                _twist_block[4][i] = _c0[i]*_s1[i]*qd5[i] - _t5 - _t7 - _t9;
+                _twist_block[5][i] = _s0[i]*qd5[i] + qd1[i];
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _s0[i]*d5;
+                const double _t5 = _c1[i]*qd4[i];
+                const double _t6 = _s2[i]*a3 + _t3;
+                const double _t7 = _c1[i]*qd3[i];
+                const double _t8 = _s3[i]*a2 + _t6;
+                const double _t9 = _c1[i]*qd2[i];
+                const double _t12 = _c0[i]*d5;
+                const double _t13 = _c2[i]*a3 + _t12;
+                const double _t14 = _c3[i]*a2 + _t13;
+                const double _t15 = _t14 + a1;
+                const double _t16 = _s1[i]*qd4[i];
+                const double _t17 = _s1[i]*qd3[i];
+                const double _t18 = _s1[i]*qd2[i];
+                twist[6 * (start + i) + 0] = -_s1[i]*_t15*qd1[i] - _t3*_t5 - _t6*_t7 - _t8*_t9;
+                twist[6 * (start + i) + 1] = _c1[i]*_t15*qd1[i] - _t16*_t3 - _t17*_t6 - _t18*_t8;
+                twist[6 * (start + i) + 2] = _t12*qd4[i] + _t13*qd3[i] + _t14*qd2[i];
+                twist[6 * (start + i) + 3] = _c0[i]*_c1[i]*qd5[i] + _t16 + _t17 + _t18;
+                twist[6 * (start + i) + 4] = _c0[i]*_s1[i]*qd5[i] - _t5 - _t7 - _t9;
+                twist[6 * (start + i) + 5] = _s0[i]*qd5[i] + qd1[i];
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 6; k += 2) {
+                    _mm_stream_pd(twist + 6 * (start + i) + k, _mm_set_pd(_twist_block[k + 1][i], _twist_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         scorbot_er7_twist(q + 5 * i, qd + 5 * i, params, twist + 6 * i);
     }
+#endif
 }
 
 /* d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 3, 5). */
@@ -614,40 +2211,71 @@ void scorbot_er7_task_jacobian_dot(const double *restrict q, const double *restr
     const double a2 = params->a2;
     const double a3 = params->a3;
     const double d5 = params->d5;
-    const double _t0 = sin(q1);
     const double _t1 = q2 + q3;
     const double _t2 = _t1 + q4;
-    const double _t3 = sin(_t2);
-    const double _t4 = _t3*d5;
-    const double _t5 = _t4 + a3*sin(_t1);
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q1, _t2, _t1, q2,  };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t2);
+    _c1 = cos(_t2);
+    _s2 = sin(_t1);
+    _c2 = cos(_t1);
+    _s3 = sin(q2);
+    _c3 = cos(q2);
+#endif
+    const double _t4 = _s1*d5;
+    const double _t5 = _s2*a3 + _t4;
     const double _t6 = -_t5;
     const double _t7 = _t6*qd3;
-    const double _t8 = cos(q1);
-    const double _t9 = d5*cos(_t2);
-    const double _t10 = _t9 + a3*cos(_t1);
-    const double _t11 = _t10 + a2*cos(q2);
+    const double _t9 = _c1*d5;
+    const double _t10 = _c2*a3 + _t9;
+    const double _t11 = _c3*a2 + _t10;
     const double _t12 = qd1*(_t11 + a1);
-    const double _t13 = _t5 + a2*sin(q2);
+    const double _t13 = _s3*a2 + _t5;
     const double _t14 = -_t13;
     const double _t15 = _t14*qd2;
-    const double _t16 = _t8*qd2;
+    const double _t16 = _c0*qd2;
     const double _t17 = _t10*qd3;
-    const double _t18 = _t8*_t9;
+    const double _t18 = _c0*_t9;
     const double _t19 = _t18*qd4;
-    const double _t20 = _t17*_t8 + _t19;
+    const double _t20 = _c0*_t17 + _t19;
     const double _t21 = _t4*qd4;
-    const double _t22 = _t8*qd1;
-    const double _t23 = _t0*qd2;
-    const double _t24 = _t0*_t9;
+    const double _t22 = _c0*qd1;
+    const double _t23 = _s0*qd2;
+    const double _t24 = _s0*_t9;
     const double _t25 = _t24*qd4;
-    const double _t26 = _t0*_t17 + _t25;
+    const double _t26 = _s0*_t17 + _t25;
     const double _t27 = -_t21 + _t7;
-    Jx_dot[0] = -_t0*_t15 + _t0*_t3*d5*qd4 - _t0*_t7 - _t12*_t8;
-    Jx_dot[1] = _t0*_t13*qd1 - _t11*_t16 - _t20;
-    Jx_dot[2] = _t0*_t5*qd1 - _t10*_t16 - _t20;
-    Jx_dot[3] = _t0*_t3*d5*qd1 - _t16*_t9 - _t18*qd3 - _t19;
+    Jx_dot[0] = -_c0*_t12 + _s0*_s1*d5*qd4 - _s0*_t15 - _s0*_t7;
+    Jx_dot[1] = _s0*_t13*qd1 - _t11*_t16 - _t20;
+    Jx_dot[2] = _s0*_t5*qd1 - _t10*_t16 - _t20;
+    Jx_dot[3] = _s0*_s1*d5*qd1 - _t16*_t9 - _t18*qd3 - _t19;
     Jx_dot[4] = 0;
-    Jx_dot[5] = -_t0*_t12 + _t14*_t8*qd2 - _t21*_t8 + _t6*_t8*qd3;
+    Jx_dot[5] = _c0*_t14*qd2 - _c0*_t21 + _c0*_t6*qd3 - _s0*_t12;
     Jx_dot[6] = -_t11*_t23 - _t13*_t22 - _t26;
     Jx_dot[7] = -_t10*_t23 - _t22*_t5 - _t26;
     Jx_dot[8] = -_t22*_t4 - _t23*_t9 - _t24*qd3 - _t25;
@@ -659,12 +2287,133 @@ void scorbot_er7_task_jacobian_dot(const double *restrict q, const double *restr
     Jx_dot[14] = 0;
 }
 
+/* task_jacobian_dot of `count` items, stored one after the other in each argument and output. */
 void scorbot_er7_task_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const scorbot_er7_params *restrict params, double *restrict Jx_dot)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double qd3[KINEGEN_BLOCK_OF(64)];
+    double qd4[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d5 = params->d5;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[5 * (start + i) + 0];
+            q2[i] = q[5 * (start + i) + 1];
+            q3[i] = q[5 * (start + i) + 2];
+            q4[i] = q[5 * (start + i) + 3];
+            qd1[i] = qd[5 * (start + i) + 0];
+            qd2[i] = qd[5 * (start + i) + 1];
+            qd3[i] = qd[5 * (start + i) + 2];
+            qd4[i] = qd[5 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t1[i] = q2[i] + q3[i];
+            _t2[i] = _t1[i] + q4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t4 = _s1[i]*d5;
+            const double _t5 = _s2[i]*a3 + _t4;
+            const double _t6 = -_t5;
+            const double _t7 = _t6*qd3[i];
+            const double _t9 = _c1[i]*d5;
+            const double _t10 = _c2[i]*a3 + _t9;
+            const double _t11 = _c3[i]*a2 + _t10;
+            const double _t12 = qd1[i]*(_t11 + a1);
+            const double _t13 = _s3[i]*a2 + _t5;
+            const double _t14 = -_t13;
+            const double _t15 = _t14*qd2[i];
+            const double _t16 = _c0[i]*qd2[i];
+            const double _t17 = _t10*qd3[i];
+            const double _t18 = _c0[i]*_t9;
+            const double _t19 = _t18*qd4[i];
+            const double _t20 = _c0[i]*_t17 + _t19;
+            const double _t21 = _t4*qd4[i];
+            const double _t22 = _c0[i]*qd1[i];
+            const double _t23 = _s0[i]*qd2[i];
+            const double _t24 = _s0[i]*_t9;
+            const double _t25 = _t24*qd4[i];
+            const double _t26 = _s0[i]*_t17 + _t25;
+            const double _t27 = -_t21 + _t7;
+            Jx_dot[15 * (start + i) + 0] = -_c0[i]*_t12 + _s0[i]*_s1[i]*d5*qd4[i] - _s0[i]*_t15 - _s0[i]*_t7;
+            Jx_dot[15 * (start + i) + 1] = _s0[i]*_t13*qd1[i] - _t11*_t16 - _t20;
+            Jx_dot[15 * (start + i) + 2] = _s0[i]*_t5*qd1[i] - _t10*_t16 - _t20;
+            Jx_dot[15 * (start + i) + 3] = _s0[i]*_s1[i]*d5*qd1[i] - _t16*_t9 - _t18*qd3[i] - _t19;
+            Jx_dot[15 * (start + i) + 4] = 0;
+            Jx_dot[15 * (start + i) + 5] = _c0[i]*_t14*qd2[i] - _c0[i]*_t21 + _c0[i]*_t6*qd3[i] - _s0[i]*_t12;
+            Jx_dot[15 * (start + i) + 6] = -_t11*_t23 - _t13*_t22 - _t26;
+            Jx_dot[15 * (start + i) + 7] = -_t10*_t23 - _t22*_t5 - _t26;
+            Jx_dot[15 * (start + i) + 8] = -_t22*_t4 - _t23*_t9 - _t24*qd3[i] - _t25;
+            Jx_dot[15 * (start + i) + 9] = 0;
+            Jx_dot[15 * (start + i) + 10] = 0;
+            Jx_dot[15 * (start + i) + 11] = _t15 + _t27;
+            Jx_dot[15 * (start + i) + 12] = _t27 + _t6*qd2[i];
+            Jx_dot[15 * (start + i) + 13] = -_t21 - _t4*qd2[i] - _t4*qd3[i];
+            Jx_dot[15 * (start + i) + 14] = 0;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         scorbot_er7_task_jacobian_dot(q + 5 * i, qd + 5 * i, params, Jx_dot + 15 * i);
     }
+#endif
 }
 
 /* d(J)/dt of the geometric Jacobian, shape (..., 6, 5). */
@@ -685,44 +2434,74 @@ void scorbot_er7_jacobian_dot(const double *restrict q, const double *restrict q
     const double a2 = params->a2;
     const double a3 = params->a3;
     const double d5 = params->d5;
-    const double _t0 = sin(q1);
     const double _t1 = q2 + q3;
     const double _t2 = _t1 + q4;
-    const double _t3 = sin(_t2);
-    const double _t4 = _t3*d5;
-    const double _t5 = _t4 + a3*sin(_t1);
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q1, _t2, _t1, q2,  };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t2);
+    _c1 = cos(_t2);
+    _s2 = sin(_t1);
+    _c2 = cos(_t1);
+    _s3 = sin(q2);
+    _c3 = cos(q2);
+#endif
+    const double _t4 = _s1*d5;
+    const double _t5 = _s2*a3 + _t4;
     const double _t6 = -_t5;
     const double _t7 = _t6*qd3;
-    const double _t8 = cos(_t2);
-    const double _t9 = _t8*d5;
-    const double _t10 = _t9 + a3*cos(_t1);
-    const double _t11 = _t10 + a2*cos(q2);
+    const double _t9 = _c1*d5;
+    const double _t10 = _c2*a3 + _t9;
+    const double _t11 = _c3*a2 + _t10;
     const double _t12 = _t11 + a1;
-    const double _t13 = cos(q1);
-    const double _t14 = _t13*qd1;
-    const double _t15 = _t5 + a2*sin(q2);
+    const double _t14 = _c0*qd1;
+    const double _t15 = _s3*a2 + _t5;
     const double _t16 = -_t15;
     const double _t17 = _t16*qd2;
-    const double _t18 = _t13*qd2;
+    const double _t18 = _c0*qd2;
     const double _t19 = _t10*qd3;
-    const double _t20 = _t13*_t9;
+    const double _t20 = _c0*_t9;
     const double _t21 = _t20*qd4;
-    const double _t22 = _t13*_t19 + _t21;
+    const double _t22 = _c0*_t19 + _t21;
     const double _t23 = _t4*qd4;
-    const double _t24 = _t0*qd1;
-    const double _t25 = _t0*qd2;
-    const double _t26 = _t0*_t9;
+    const double _t24 = _s0*qd1;
+    const double _t25 = _s0*qd2;
+    const double _t26 = _s0*_t9;
     const double _t27 = _t26*qd4;
-    const double _t28 = _t0*_t19 + _t27;
+    const double _t28 = _s0*_t19 + _t27;
     const double _t29 = -_t23 + _t7;
-    const double _t30 = _t13*_t3;
-    const double _t31 = _t0*_t3;
-    J_dot[0] = -_t0*_t17 + _t0*_t3*d5*qd4 - _t0*_t7 - _t12*_t14;
-    J_dot[1] = _t0*_t15*qd1 - _t11*_t18 - _t22;
-    J_dot[2] = _t0*_t5*qd1 - _t10*_t18 - _t22;
-    J_dot[3] = _t0*_t3*d5*qd1 - _t18*_t9 - _t20*qd3 - _t21;
+    const double _t30 = _c0*_s1;
+    const double _t31 = _s0*_s1;
+    J_dot[0] = _s0*_s1*d5*qd4 - _s0*_t17 - _s0*_t7 - _t12*_t14;
+    J_dot[1] = _s0*_t15*qd1 - _t11*_t18 - _t22;
+    J_dot[2] = _s0*_t5*qd1 - _t10*_t18 - _t22;
+    J_dot[3] = _s0*_s1*d5*qd1 - _t18*_t9 - _t20*qd3 - _t21;
     J_dot[4] = 0;
-    J_dot[5] = -_t12*_t24 + _t13*_t16*qd2 - _t13*_t23 + _t13*_t6*qd3;
+    J_dot[5] = _c0*_t16*qd2 - _c0*_t23 + _c0*_t6*qd3 - _t12*_t24;
     J_dot[6] = -_t11*_t25 - _t14*_t15 - _t28;
     J_dot[7] = -_t10*_t25 - _t14*_t5 - _t28;
     J_dot[8] = -_t14*_t4 - _t25*_t9 - _t26*qd3 - _t27;
@@ -736,25 +2515,249 @@ void scorbot_er7_jacobian_dot(const double *restrict q, const double *restrict q
     J_dot[16] = _t14;
     J_dot[17] = _t14;
     J_dot[18] = _t14;
-    J_dot[19] = -_t18*_t3 - _t24*_t8 - _t30*qd3 - _t30*qd4;
+    J_dot[19] = -_c1*_t24 - _s1*_t18 - _t30*qd3 - _t30*qd4;
     J_dot[20] = 0;
     J_dot[21] = _t24;
     J_dot[22] = _t24;
     J_dot[23] = _t24;
-    J_dot[24] = _t13*_t8*qd1 - _t25*_t3 - _t31*qd3 - _t31*qd4;
+    J_dot[24] = _c0*_c1*qd1 - _s1*_t25 - _t31*qd3 - _t31*qd4;
     J_dot[25] = 0;
     J_dot[26] = 0;
     J_dot[27] = 0;
     J_dot[28] = 0;
-    J_dot[29] = _t8*qd2 + _t8*qd3 + _t8*qd4;
+    J_dot[29] = _c1*qd2 + _c1*qd3 + _c1*qd4;
 }
 
+/* jacobian_dot of `count` items, stored one after the other in each argument and output. */
 void scorbot_er7_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const scorbot_er7_params *restrict params, double *restrict J_dot)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double qd3[KINEGEN_BLOCK_OF(64)];
+    double qd4[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _J_dot_block[30][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 30 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_dot & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d5 = params->d5;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[5 * (start + i) + 0];
+            q2[i] = q[5 * (start + i) + 1];
+            q3[i] = q[5 * (start + i) + 2];
+            q4[i] = q[5 * (start + i) + 3];
+            qd1[i] = qd[5 * (start + i) + 0];
+            qd2[i] = qd[5 * (start + i) + 1];
+            qd3[i] = qd[5 * (start + i) + 2];
+            qd4[i] = qd[5 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t1[i] = q2[i] + q3[i];
+            _t2[i] = _t1[i] + q4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q2[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t4 = _s1[i]*d5;
+                const double _t5 = _s2[i]*a3 + _t4;
+                const double _t6 = -_t5;
+                const double _t7 = _t6*qd3[i];
+                const double _t9 = _c1[i]*d5;
+                const double _t10 = _c2[i]*a3 + _t9;
+                const double _t11 = _c3[i]*a2 + _t10;
+                const double _t12 = _t11 + a1;
+                const double _t14 = _c0[i]*qd1[i];
+                const double _t15 = _s3[i]*a2 + _t5;
+                const double _t16 = -_t15;
+                const double _t17 = _t16*qd2[i];
+                const double _t18 = _c0[i]*qd2[i];
+                const double _t19 = _t10*qd3[i];
+                const double _t20 = _c0[i]*_t9;
+                const double _t21 = _t20*qd4[i];
+                const double _t22 = _c0[i]*_t19 + _t21;
+                const double _t23 = _t4*qd4[i];
+                const double _t24 = _s0[i]*qd1[i];
+                const double _t25 = _s0[i]*qd2[i];
+                const double _t26 = _s0[i]*_t9;
+                const double _t27 = _t26*qd4[i];
+                const double _t28 = _s0[i]*_t19 + _t27;
+                const double _t29 = -_t23 + _t7;
+                const double _t30 = _c0[i]*_s1[i];
+                const double _t31 = _s0[i]*_s1[i];
+                _J_dot_block[0][i] = _s0[i]*_s1[i]*d5*qd4[i] - _s0[i]*_t17 - _s0[i]*_t7 - _t12*_t14;
+                _J_dot_block[1][i] = _s0[i]*_t15*qd1[i] - _t11*_t18 - _t22;
+                _J_dot_block[2][i] = _s0[i]*_t5*qd1[i] - _t10*_t18 - _t22;
+                _J_dot_block[3][i] = _s0[i]*_s1[i]*d5*qd1[i] - _t18*_t9 - _t20*qd3[i] - _t21;
+                _J_dot_block[4][i] = 0;
+                _J_dot_block[5][i] = _c0[i]*_t16*qd2[i] - _c0[i]*_t23 + _c0[i]*_t6*qd3[i] - _t12*_t24;
+                _J_dot_block[6][i] = -_t11*_t25 - _t14*_t15 - _t28;
+                _J_dot_block[7][i] = -_t10*_t25 - _t14*_t5 - _t28;
+                _J_dot_block[8][i] = -_t14*_t4 - _t25*_t9 - _t26*qd3[i] - _t27;
+                _J_dot_block[9][i] = 0;
+                _J_dot_block[10][i] = 0;
+                _J_dot_block[11][i] = _t17 + _t29;
+                _J_dot_block[12][i] = _t29 + _t6*qd2[i];
+                _J_dot_block[13][i] = -_t23 - _t4*qd2[i] - _t4*qd3[i];
+                _J_dot_block[14][i] = 0;
+                _J_dot_block[15][i] = 0;
+                _J_dot_block[16][i] = _t14;
+                _J_dot_block[17][i] = _t14;
+                _J_dot_block[18][i] = _t14;
+                _J_dot_block[19][i] = -_c1[i]*_t24 - _s1[i]*_t18 - _t30*qd3[i] - _t30*qd4[i];
+                _J_dot_block[20][i] = 0;
+                _J_dot_block[21][i] = _t24;
+                _J_dot_block[22][i] = _t24;
+                _J_dot_block[23][i] = _t24;
+                _J_dot_block[24][i] = _c0[i]*_c1[i]*qd1[i] - _s1[i]*_t25 - _t31*qd3[i] - _t31*qd4[i];
+                _J_dot_block[25][i] = 0;
+                _J_dot_block[26][i] = 0;
+                _J_dot_block[27][i] = 0;
+                _J_dot_block[28][i] = 0;
+                _J_dot_block[29][i] = _c1[i]*qd2[i] + _c1[i]*qd3[i] + _c1[i]*qd4[i];
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t4 = _s1[i]*d5;
+                const double _t5 = _s2[i]*a3 + _t4;
+                const double _t6 = -_t5;
+                const double _t7 = _t6*qd3[i];
+                const double _t9 = _c1[i]*d5;
+                const double _t10 = _c2[i]*a3 + _t9;
+                const double _t11 = _c3[i]*a2 + _t10;
+                const double _t12 = _t11 + a1;
+                const double _t14 = _c0[i]*qd1[i];
+                const double _t15 = _s3[i]*a2 + _t5;
+                const double _t16 = -_t15;
+                const double _t17 = _t16*qd2[i];
+                const double _t18 = _c0[i]*qd2[i];
+                const double _t19 = _t10*qd3[i];
+                const double _t20 = _c0[i]*_t9;
+                const double _t21 = _t20*qd4[i];
+                const double _t22 = _c0[i]*_t19 + _t21;
+                const double _t23 = _t4*qd4[i];
+                const double _t24 = _s0[i]*qd1[i];
+                const double _t25 = _s0[i]*qd2[i];
+                const double _t26 = _s0[i]*_t9;
+                const double _t27 = _t26*qd4[i];
+                const double _t28 = _s0[i]*_t19 + _t27;
+                const double _t29 = -_t23 + _t7;
+                const double _t30 = _c0[i]*_s1[i];
+                const double _t31 = _s0[i]*_s1[i];
+                J_dot[30 * (start + i) + 0] = _s0[i]*_s1[i]*d5*qd4[i] - _s0[i]*_t17 - _s0[i]*_t7 - _t12*_t14;
+                J_dot[30 * (start + i) + 1] = _s0[i]*_t15*qd1[i] - _t11*_t18 - _t22;
+                J_dot[30 * (start + i) + 2] = _s0[i]*_t5*qd1[i] - _t10*_t18 - _t22;
+                J_dot[30 * (start + i) + 3] = _s0[i]*_s1[i]*d5*qd1[i] - _t18*_t9 - _t20*qd3[i] - _t21;
+                J_dot[30 * (start + i) + 4] = 0;
+                J_dot[30 * (start + i) + 5] = _c0[i]*_t16*qd2[i] - _c0[i]*_t23 + _c0[i]*_t6*qd3[i] - _t12*_t24;
+                J_dot[30 * (start + i) + 6] = -_t11*_t25 - _t14*_t15 - _t28;
+                J_dot[30 * (start + i) + 7] = -_t10*_t25 - _t14*_t5 - _t28;
+                J_dot[30 * (start + i) + 8] = -_t14*_t4 - _t25*_t9 - _t26*qd3[i] - _t27;
+                J_dot[30 * (start + i) + 9] = 0;
+                J_dot[30 * (start + i) + 10] = 0;
+                J_dot[30 * (start + i) + 11] = _t17 + _t29;
+                J_dot[30 * (start + i) + 12] = _t29 + _t6*qd2[i];
+                J_dot[30 * (start + i) + 13] = -_t23 - _t4*qd2[i] - _t4*qd3[i];
+                J_dot[30 * (start + i) + 14] = 0;
+                J_dot[30 * (start + i) + 15] = 0;
+                J_dot[30 * (start + i) + 16] = _t14;
+                J_dot[30 * (start + i) + 17] = _t14;
+                J_dot[30 * (start + i) + 18] = _t14;
+                J_dot[30 * (start + i) + 19] = -_c1[i]*_t24 - _s1[i]*_t18 - _t30*qd3[i] - _t30*qd4[i];
+                J_dot[30 * (start + i) + 20] = 0;
+                J_dot[30 * (start + i) + 21] = _t24;
+                J_dot[30 * (start + i) + 22] = _t24;
+                J_dot[30 * (start + i) + 23] = _t24;
+                J_dot[30 * (start + i) + 24] = _c0[i]*_c1[i]*qd1[i] - _s1[i]*_t25 - _t31*qd3[i] - _t31*qd4[i];
+                J_dot[30 * (start + i) + 25] = 0;
+                J_dot[30 * (start + i) + 26] = 0;
+                J_dot[30 * (start + i) + 27] = 0;
+                J_dot[30 * (start + i) + 28] = 0;
+                J_dot[30 * (start + i) + 29] = _c1[i]*qd2[i] + _c1[i]*qd3[i] + _c1[i]*qd4[i];
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 30; k += 2) {
+                    _mm_stream_pd(J_dot + 30 * (start + i) + k, _mm_set_pd(_J_dot_block[k + 1][i], _J_dot_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         scorbot_er7_jacobian_dot(q + 5 * i, qd + 5 * i, params, J_dot + 30 * i);
     }
+#endif
 }
 
 /* Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 3). */
@@ -779,49 +2782,201 @@ void scorbot_er7_task_acceleration(const double *restrict q, const double *restr
     const double a2 = params->a2;
     const double a3 = params->a3;
     const double d5 = params->d5;
-    const double _t0 = cos(q1);
     const double _t1 = q2 + q3;
     const double _t2 = _t1 + q4;
-    const double _t3 = sin(_t2);
-    const double _t4 = _t3*d5;
-    const double _t5 = _t0*_t4;
-    const double _t6 = _t4 + a3*sin(_t1);
-    const double _t7 = _t0*_t6;
-    const double _t8 = _t6 + a2*sin(q2);
-    const double _t9 = _t0*_t8;
-    const double _t10 = sin(q1);
-    const double _t11 = d5*cos(_t2);
-    const double _t12 = _t11 + a3*cos(_t1);
-    const double _t13 = _t12 + a2*cos(q2);
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { q1, _t2, _t1, q2,  };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t2);
+    _c1 = cos(_t2);
+    _s2 = sin(_t1);
+    _c2 = cos(_t1);
+    _s3 = sin(q2);
+    _c3 = cos(q2);
+#endif
+    const double _t4 = _s1*d5;
+    const double _t5 = _c0*_t4;
+    const double _t6 = _s2*a3 + _t4;
+    const double _t7 = _c0*_t6;
+    const double _t8 = _s3*a2 + _t6;
+    const double _t9 = _c0*_t8;
+    const double _t11 = _c1*d5;
+    const double _t12 = _c2*a3 + _t11;
+    const double _t13 = _c3*a2 + _t12;
     const double _t14 = _t13 + a1;
     const double _t15 = _t14*qdd1;
-    const double _t16 = _t0*qd2;
-    const double _t17 = _t0*_t11;
+    const double _t16 = _c0*qd2;
+    const double _t17 = _c0*_t11;
     const double _t18 = _t17*qd4;
     const double _t19 = _t12*qd3;
-    const double _t20 = _t0*_t19 + _t18;
+    const double _t20 = _c0*_t19 + _t18;
     const double _t21 = -_t6;
     const double _t22 = _t21*qd3;
     const double _t23 = _t14*qd1;
     const double _t24 = -_t8;
     const double _t25 = _t24*qd2;
-    const double _t26 = _t10*qd2;
-    const double _t27 = _t10*_t11;
+    const double _t26 = _s0*qd2;
+    const double _t27 = _s0*_t11;
     const double _t28 = _t27*qd4;
-    const double _t29 = _t10*_t19 + _t28;
+    const double _t29 = _s0*_t19 + _t28;
     const double _t30 = _t4*qd4;
     const double _t31 = _t22 - _t30;
-    xdd[0] = -_t10*_t15 - _t5*qdd4 - _t7*qdd3 - _t9*qdd2 + qd1*(-_t0*_t23 - _t10*_t22 - _t10*_t25 + _t10*_t3*d5*qd4) + qd2*(_t10*_t8*qd1 - _t13*_t16 - _t20) + qd3*(_t10*_t6*qd1 - _t12*_t16 - _t20) + qd4*(_t10*_t3*d5*qd1 - _t11*_t16 - _t17*qd3 - _t18);
-    xdd[1] = _t0*_t15 - _t10*_t4*qdd4 - _t10*_t6*qdd3 - _t10*_t8*qdd2 + qd1*(_t0*_t21*qd3 + _t0*_t24*qd2 - _t0*_t30 - _t10*_t23) + qd2*(-_t13*_t26 - _t29 - _t9*qd1) + qd3*(-_t12*_t26 - _t29 - _t7*qd1) + qd4*(-_t11*_t26 - _t27*qd3 - _t28 - _t5*qd1);
+    xdd[0] = -_s0*_t15 - _t5*qdd4 - _t7*qdd3 - _t9*qdd2 + qd1*(-_c0*_t23 + _s0*_s1*d5*qd4 - _s0*_t22 - _s0*_t25) + qd2*(_s0*_t8*qd1 - _t13*_t16 - _t20) + qd3*(_s0*_t6*qd1 - _t12*_t16 - _t20) + qd4*(_s0*_s1*d5*qd1 - _t11*_t16 - _t17*qd3 - _t18);
+    xdd[1] = _c0*_t15 - _s0*_t4*qdd4 - _s0*_t6*qdd3 - _s0*_t8*qdd2 + qd1*(_c0*_t21*qd3 + _c0*_t24*qd2 - _c0*_t30 - _s0*_t23) + qd2*(-_t13*_t26 - _t29 - _t9*qd1) + qd3*(-_t12*_t26 - _t29 - _t7*qd1) + qd4*(-_t11*_t26 - _t27*qd3 - _t28 - _t5*qd1);
     xdd[2] = _t11*qdd4 + _t12*qdd3 + _t13*qdd2 + qd2*(_t25 + _t31) + qd3*(_t21*qd2 + _t31) + qd4*(-_t30 - _t4*qd2 - _t4*qd3);
 }
 
+/* task_acceleration of `count` items, stored one after the other in each argument and output. */
 void scorbot_er7_task_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict qdd, const scorbot_er7_params *restrict params, double *restrict xdd)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double qd3[KINEGEN_BLOCK_OF(64)];
+    double qd4[KINEGEN_BLOCK_OF(64)];
+    double qdd1[KINEGEN_BLOCK_OF(64)];
+    double qdd2[KINEGEN_BLOCK_OF(64)];
+    double qdd3[KINEGEN_BLOCK_OF(64)];
+    double qdd4[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d5 = params->d5;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[5 * (start + i) + 0];
+            q2[i] = q[5 * (start + i) + 1];
+            q3[i] = q[5 * (start + i) + 2];
+            q4[i] = q[5 * (start + i) + 3];
+            qd1[i] = qd[5 * (start + i) + 0];
+            qd2[i] = qd[5 * (start + i) + 1];
+            qd3[i] = qd[5 * (start + i) + 2];
+            qd4[i] = qd[5 * (start + i) + 3];
+            qdd1[i] = qdd[5 * (start + i) + 0];
+            qdd2[i] = qdd[5 * (start + i) + 1];
+            qdd3[i] = qdd[5 * (start + i) + 2];
+            qdd4[i] = qdd[5 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t1[i] = q2[i] + q3[i];
+            _t2[i] = _t1[i] + q4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t4 = _s1[i]*d5;
+            const double _t5 = _c0[i]*_t4;
+            const double _t6 = _s2[i]*a3 + _t4;
+            const double _t7 = _c0[i]*_t6;
+            const double _t8 = _s3[i]*a2 + _t6;
+            const double _t9 = _c0[i]*_t8;
+            const double _t11 = _c1[i]*d5;
+            const double _t12 = _c2[i]*a3 + _t11;
+            const double _t13 = _c3[i]*a2 + _t12;
+            const double _t14 = _t13 + a1;
+            const double _t15 = _t14*qdd1[i];
+            const double _t16 = _c0[i]*qd2[i];
+            const double _t17 = _c0[i]*_t11;
+            const double _t18 = _t17*qd4[i];
+            const double _t19 = _t12*qd3[i];
+            const double _t20 = _c0[i]*_t19 + _t18;
+            const double _t21 = -_t6;
+            const double _t22 = _t21*qd3[i];
+            const double _t23 = _t14*qd1[i];
+            const double _t24 = -_t8;
+            const double _t25 = _t24*qd2[i];
+            const double _t26 = _s0[i]*qd2[i];
+            const double _t27 = _s0[i]*_t11;
+            const double _t28 = _t27*qd4[i];
+            const double _t29 = _s0[i]*_t19 + _t28;
+            const double _t30 = _t4*qd4[i];
+            const double _t31 = _t22 - _t30;
+            xdd[3 * (start + i) + 0] = -_s0[i]*_t15 - _t5*qdd4[i] - _t7*qdd3[i] - _t9*qdd2[i] + qd1[i]*(-_c0[i]*_t23 + _s0[i]*_s1[i]*d5*qd4[i] - _s0[i]*_t22 - _s0[i]*_t25) + qd2[i]*(_s0[i]*_t8*qd1[i] - _t13*_t16 - _t20) + qd3[i]*(_s0[i]*_t6*qd1[i] - _t12*_t16 - _t20) + qd4[i]*(_s0[i]*_s1[i]*d5*qd1[i] - _t11*_t16 - _t17*qd3[i] - _t18);
+            xdd[3 * (start + i) + 1] = _c0[i]*_t15 - _s0[i]*_t4*qdd4[i] - _s0[i]*_t6*qdd3[i] - _s0[i]*_t8*qdd2[i] + qd1[i]*(_c0[i]*_t21*qd3[i] + _c0[i]*_t24*qd2[i] - _c0[i]*_t30 - _s0[i]*_t23) + qd2[i]*(-_t13*_t26 - _t29 - _t9*qd1[i]) + qd3[i]*(-_t12*_t26 - _t29 - _t7*qd1[i]) + qd4[i]*(-_t11*_t26 - _t27*qd3[i] - _t28 - _t5*qd1[i]);
+            xdd[3 * (start + i) + 2] = _t11*qdd4[i] + _t12*qdd3[i] + _t13*qdd2[i] + qd2[i]*(_t25 + _t31) + qd3[i]*(_t21*qd2[i] + _t31) + qd4[i]*(-_t30 - _t4*qd2[i] - _t4*qd3[i]);
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         scorbot_er7_task_acceleration(q + 5 * i, qd + 5 * i, qdd + 5 * i, params, xdd + 3 * i);
     }
+#endif
 }
 
 /* Manipulability w (det(J_x J_x^T); |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...). */
@@ -838,25 +2993,129 @@ void scorbot_er7_manipulability(const double *restrict q, const scorbot_er7_para
     const double a3 = params->a3;
     const double d1 = params->d1;
     const double d5 = params->d5;
-    const double _t0 = sin(q4);
-    const double _t1 = q3 + q4;
-    const double _t2 = ((a1 + a2*cos(q2) + a3*cos(q2 + q3) + d5*cos(_t1 + q2))*(a1 + a2*cos(q2) + a3*cos(q2 + q3) + d5*cos(_t1 + q2)));
-    const double _t3 = _t2*(d5*d5);
-    const double _t4 = (_t0*_t0)*_t3*(a3*a3);
-    const double _t5 = sin(_t1);
-    const double _t6 = _t2*(a2*a2)*((_t5*d5 + a3*sin(q3))*(_t5*d5 + a3*sin(q3)));
-    const double _t7 = _t3*((_t0*a3 + _t5*a2)*(_t0*a3 + _t5*a2));
     const double _t8 = 1.0/((fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5)));
+    const double _t1 = q3 + q4;
+    const double _a0 = q2 + q3;
+    const double _a1 = _t1 + q2;
+    double _s0, _c1, _c2, _c3, _s4, _s5;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { q4, q2, _a0, _a1, _t1, q3, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c1 = cosine[1];
+        _c2 = cosine[2];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _s5 = sine[5];
+    }
+#else
+    _s0 = sin(q4);
+    _c1 = cos(q2);
+    _c2 = cos(_a0);
+    _c3 = cos(_a1);
+    _s4 = sin(_t1);
+    _s5 = sin(q3);
+#endif
+    const double _t2 = ((_c1*a2 + _c2*a3 + _c3*d5 + a1)*(_c1*a2 + _c2*a3 + _c3*d5 + a1));
+    const double _t3 = _t2*(d5*d5);
+    const double _t4 = (_s0*_s0)*_t3*(a3*a3);
+    const double _t6 = _t2*(a2*a2)*((_s4*d5 + _s5*a3)*(_s4*d5 + _s5*a3));
+    const double _t7 = _t3*((_s0*a3 + _s4*a2)*(_s0*a3 + _s4*a2));
     manipulability[0] = sqrt(_t4 + _t6 + _t7);
     singular[0] = _t4*_t8 + _t6*_t8 + _t7*_t8 < 1e-06;
 }
 
+/* manipulability of `count` items, stored one after the other in each argument and output. */
 void scorbot_er7_manipulability_batch(size_t count, const double *restrict q, const scorbot_er7_params *restrict params, double *restrict manipulability, int *restrict singular)
 {
+#ifdef KINEGEN_BLOCKED
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _a0[KINEGEN_BLOCK_OF(64)];
+    double _a1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    double _s4[KINEGEN_BLOCK_OF(64)];
+    double _s5[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d1 = params->d1;
+    const double d5 = params->d5;
+    const double _t8 = 1.0/((fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5)));
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q2[i] = q[5 * (start + i) + 1];
+            q3[i] = q[5 * (start + i) + 2];
+            q4[i] = q[5 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t1[i] = q3[i] + q4[i];
+            _a0[i] = q2[i] + q3[i];
+            _a1[i] = _t1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_a0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(_a1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s5[i] = sin(q3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t2 = ((_c1[i]*a2 + _c2[i]*a3 + _c3[i]*d5 + a1)*(_c1[i]*a2 + _c2[i]*a3 + _c3[i]*d5 + a1));
+            const double _t3 = _t2*(d5*d5);
+            const double _t4 = (_s0[i]*_s0[i])*_t3*(a3*a3);
+            const double _t6 = _t2*(a2*a2)*((_s4[i]*d5 + _s5[i]*a3)*(_s4[i]*d5 + _s5[i]*a3));
+            const double _t7 = _t3*((_s0[i]*a3 + _s4[i]*a2)*(_s0[i]*a3 + _s4[i]*a2));
+            manipulability[1 * (start + i) + 0] = sqrt(_t4 + _t6 + _t7);
+            singular[1 * (start + i) + 0] = _t4*_t8 + _t6*_t8 + _t7*_t8 < 1e-06;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         scorbot_er7_manipulability(q + 5 * i, params, manipulability + 1 * i, singular + 1 * i);
     }
+#endif
 }
 
 /* Joint rates from task rates: minimum-norm J_x^T (J_x J_x^T)^-1 x_dot; damped least squares where singular. Shapes (..., 5) and (...). */
@@ -878,86 +3137,133 @@ void scorbot_er7_joint_velocity(const double *restrict q, const double *restrict
     const double d1 = params->d1;
     const double d5 = params->d5;
     const double _t0 = (a3*a3);
-    const double _t1 = sin(q4);
     const double _t2 = (d5*d5);
-    const double _t3 = cos(q2);
-    const double _t4 = _t3*a2;
+    const double _t16 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
+    const double _t20 = (a2*a2);
+    const double _t27 = 1.0/(_t16*_t16*_t16*_t16);
+    const double _t28 = _t2*_t27;
+    const double _t44 = (0.25)*_t28;
+    const double _t45 = _t0*_t44;
+    const double _t59 = (0.25)*_t20*_t27;
+    const double _t80 = 1.0/(_t16*_t16);
+    const double _t102 = 1.0/_t16;
     const double _t5 = q2 + q3;
-    const double _t6 = cos(_t5);
-    const double _t7 = _t6*a3;
     const double _t8 = q3 + q4;
     const double _t9 = _t8 + q2;
-    const double _t10 = cos(_t9);
-    const double _t11 = _t10*d5;
+    const double _t39 = q1 - q4;
+    const double _t41 = q1 + q4;
+    const double _t52 = q1 + q3;
+    const double _t53 = q1 - q3;
+    const double _t54 = _t8 + q1;
+    const double _t56 = _t8 - q1;
+    double _s0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _s5, _s6, _c6, _s7, _c7, _s8, _c8, _s9, _c9, _s10, _c10, _s11, _c11, _s12, _c12;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[16] = { q4, q2, _t5, _t9, _t8, q3, _t39, _t41, q1, _t54, _t56, _t53, _t52, 0.0, 0.0, 0.0 };
+        double sine[16], cosine[16];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 16; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 16; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _s5 = sine[5];
+        _s6 = sine[6];
+        _c6 = cosine[6];
+        _s7 = sine[7];
+        _c7 = cosine[7];
+        _s8 = sine[8];
+        _c8 = cosine[8];
+        _s9 = sine[9];
+        _c9 = cosine[9];
+        _s10 = sine[10];
+        _c10 = cosine[10];
+        _s11 = sine[11];
+        _c11 = cosine[11];
+        _s12 = sine[12];
+        _c12 = cosine[12];
+    }
+#else
+    _s0 = sin(q4);
+    _s1 = sin(q2);
+    _c1 = cos(q2);
+    _s2 = sin(_t5);
+    _c2 = cos(_t5);
+    _s3 = sin(_t9);
+    _c3 = cos(_t9);
+    _s4 = sin(_t8);
+    _s5 = sin(q3);
+    _s6 = sin(_t39);
+    _c6 = cos(_t39);
+    _s7 = sin(_t41);
+    _c7 = cos(_t41);
+    _s8 = sin(q1);
+    _c8 = cos(q1);
+    _s9 = sin(_t54);
+    _c9 = cos(_t54);
+    _s10 = sin(_t56);
+    _c10 = cos(_t56);
+    _s11 = sin(_t53);
+    _c11 = cos(_t53);
+    _s12 = sin(_t52);
+    _c12 = cos(_t52);
+#endif
+    const double _t4 = _c1*a2;
+    const double _t7 = _c2*a3;
+    const double _t11 = _c3*d5;
     const double _t12 = _t11 + _t7;
     const double _t13 = _t12 + _t4;
     const double _t14 = _t13 + a1;
     const double _t15 = (_t14*_t14);
-    const double _t16 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
     const double _t17 = _t15/(_t16*_t16*_t16*_t16*_t16*_t16);
     const double _t18 = _t17*_t2;
-    const double _t19 = _t0*(_t1*_t1)*_t18;
-    const double _t20 = (a2*a2);
-    const double _t21 = sin(_t8);
-    const double _t22 = _t17*_t20*((_t21*d5 + a3*sin(q3))*(_t21*d5 + a3*sin(q3)));
-    const double _t23 = _t18*((_t1*a3 + _t21*a2)*(_t1*a3 + _t21*a2));
-    const double _t24 = fmax(0, -1000000*_t19 - 1000000*_t22 - 1000000*_t23 + 1);
-    const double _t25 = sin(_t9);
-    const double _t26 = (_t25*_t25);
-    const double _t27 = 1.0/(_t16*_t16*_t16*_t16);
-    const double _t28 = _t2*_t27;
-    const double _t29 = sin(_t5);
-    const double _t30 = _t29*a3;
-    const double _t31 = _t25*d5;
-    const double _t32 = _t10*_t2*_t25;
-    const double _t33 = _t0*_t29*_t6 + _t11*_t30 + _t30*_t4 + _t30*a1 + _t31*_t4 + _t31*_t7 + _t31*a1 + _t32;
-    const double _t34 = sin(q2);
-    const double _t35 = _t34*a2;
-    const double _t36 = _t11*_t35 + _t20*_t3*_t34 + _t33 + _t35*_t7 + _t35*a1;
+    const double _t19 = (_s0*_s0)*_t0*_t18;
+    const double _t22 = _t17*_t20*((_s4*d5 + _s5*a3)*(_s4*d5 + _s5*a3));
+    const double _t23 = _t18*((_s0*a3 + _s4*a2)*(_s0*a3 + _s4*a2));
+    const double _t24 = kinegen_max(0, -1000000*_t19 - 1000000*_t22 - 1000000*_t23 + 1);
+    const double _t26 = (_s3*_s3);
+    const double _t30 = _s2*a3;
+    const double _t31 = _s3*d5;
+    const double _t32 = _c3*_s3*_t2;
+    const double _t33 = _c2*_s2*_t0 + _t11*_t30 + _t30*_t4 + _t30*a1 + _t31*_t4 + _t31*_t7 + _t31*a1 + _t32;
+    const double _t35 = _s1*a2;
+    const double _t36 = _c1*_s1*_t20 + _t11*_t35 + _t33 + _t35*_t7 + _t35*a1;
     const double _t37 = _t15*_t26*_t28 + _t27*(_t33*_t33) + _t27*(_t36*_t36);
     const double _t38 = (0.0001)*_t24;
-    const double _t39 = q1 - q4;
-    const double _t40 = cos(_t39);
-    const double _t41 = q1 + q4;
-    const double _t42 = cos(_t41);
-    const double _t43 = _t40 - _t42;
-    const double _t44 = (0.25)*_t28;
-    const double _t45 = _t0*_t44;
-    const double _t46 = cos(q1);
-    const double _t47 = (_t46*_t46);
+    const double _t43 = _c6 - _c7;
+    const double _t47 = (_c8*_c8);
     const double _t48 = _t27*_t47;
-    const double _t49 = (_t10*_t10);
+    const double _t49 = (_c3*_c3);
     const double _t50 = _t2*_t49;
     const double _t51 = _t15*_t50;
-    const double _t52 = q1 + q3;
-    const double _t53 = q1 - q3;
-    const double _t54 = _t8 + q1;
-    const double _t55 = cos(_t54);
-    const double _t56 = _t8 - q1;
-    const double _t57 = cos(_t56);
-    const double _t58 = -_t55*d5 + _t57*d5 - a3*cos(_t52) + a3*cos(_t53);
-    const double _t59 = (0.25)*_t20*_t27;
-    const double _t60 = _t40*a3 - _t42*a3 - _t55*a2 + _t57*a2;
+    const double _t58 = _c10*d5 + _c11*a3 - _c12*a3 - _c9*d5;
+    const double _t60 = _c10*a2 + _c6*a3 - _c7*a3 - _c9*a2;
     const double _t61 = _t4*_t7;
     const double _t62 = _t11*_t4;
-    const double _t63 = _t0*(_t6*_t6) + 2*_t11*_t7 + _t11*a1 + _t50 + _t7*a1;
+    const double _t63 = (_c2*_c2)*_t0 + 2*_t11*_t7 + _t11*a1 + _t50 + _t7*a1;
     const double _t64 = _t61 + _t62 + _t63;
     const double _t65 = (_t64*_t64);
-    const double _t66 = _t20*(_t3*_t3) + _t4*a1 + 2*_t61 + 2*_t62 + _t63;
+    const double _t66 = (_c1*_c1)*_t20 + _t4*a1 + 2*_t61 + 2*_t62 + _t63;
     const double _t67 = (_t66*_t66);
     const double _t68 = (_t43*_t43)*_t45 + _t44*(_t60*_t60) + _t48*_t51 + _t48*_t65 + _t48*_t67 + (_t58*_t58)*_t59;
-    const double _t69 = sin(_t39);
-    const double _t70 = sin(_t41);
-    const double _t71 = -_t69 + _t70;
-    const double _t72 = sin(q1);
-    const double _t73 = (_t72*_t72);
+    const double _t71 = -_s6 + _s7;
+    const double _t73 = (_s8*_s8);
     const double _t74 = _t27*_t73;
-    const double _t75 = sin(_t54);
-    const double _t76 = sin(_t56);
-    const double _t77 = _t75*d5 + _t76*d5 + a3*sin(_t52) - a3*sin(_t53);
-    const double _t78 = -_t69*a3 + _t70*a3 + _t75*a2 + _t76*a2;
+    const double _t77 = _s10*d5 - _s11*a3 + _s12*a3 + _s9*d5;
+    const double _t78 = _s10*a2 - _s6*a3 + _s7*a3 + _s9*a2;
     const double _t79 = _t44*(_t78*_t78) + _t45*(_t71*_t71) + _t51*_t74 + _t59*(_t77*_t77) + _t65*_t74 + _t67*_t74;
-    const double _t80 = 1.0/(_t16*_t16);
     const double _t81 = (_t12*_t12)*_t80 + (_t13*_t13)*_t80 + _t50*_t80;
     const double _t82 = (1e-08)*(_t24*_t24);
     const double _t83 = _t47*_t80;
@@ -971,49 +3277,321 @@ void scorbot_er7_joint_velocity(const double *restrict q, const double *restrict
     const double _t91 = _t15*_t83 + _t84*_t89 + _t86*_t89 + _t88*_t89;
     const double _t92 = _t19 + _t22 + _t23;
     const double _t93 = 1.0/((1e-12)*(_t24*_t24*_t24) + _t37*_t38 + _t38*_t68 + _t38*_t79 + _t81*_t82 + _t82*_t90 + _t82*_t91 + _t92);
-    const double _t94 = _t27*_t72;
+    const double _t94 = _s8*_t27;
     const double _t95 = _t15*_t32;
     const double _t96 = _t33*_t64;
     const double _t97 = _t36*_t66;
-    const double _t98 = _t72*_t80;
+    const double _t98 = _s8*_t80;
     const double _t99 = _t12*_t85;
     const double _t100 = _t13*_t87;
     const double _t101 = -_t38*(-_t100*_t98 - _t32*_t98 - _t98*_t99) + _t94*_t95 + _t94*_t96 + _t94*_t97;
-    const double _t102 = 1.0/_t16;
     const double _t103 = _t102*xd_z;
-    const double _t104 = _t46*_t72*_t80;
-    const double _t105 = _t15*_t2*_t27*_t46*_t49*_t72 + _t27*_t46*_t65*_t72 + _t27*_t46*_t67*_t72 - _t38*(-_t104*_t15 + _t104*_t84 + _t104*_t86 + _t104*_t88) - _t43*_t45*_t71 - _t44*_t60*_t78 - _t58*_t59*_t77;
+    const double _t104 = _c8*_s8*_t80;
+    const double _t105 = _c8*_s8*_t15*_t2*_t27*_t49 + _c8*_s8*_t27*_t65 + _c8*_s8*_t27*_t67 - _t38*(-_t104*_t15 + _t104*_t84 + _t104*_t86 + _t104*_t88) - _t43*_t45*_t71 - _t44*_t60*_t78 - _t58*_t59*_t77;
     const double _t106 = _t102*xd_x;
     const double _t107 = _t38*_t81;
     const double _t108 = _t38*_t90 + _t82;
     const double _t109 = _t102*xd_y;
     const double _t110 = _t101*_t103 + _t105*_t106 + _t109*(_t107 + _t108 + _t79);
     const double _t111 = _t102*_t14;
-    const double _t112 = _t27*_t46;
-    const double _t113 = _t46*_t80;
+    const double _t112 = _c8*_t27;
+    const double _t113 = _c8*_t80;
     const double _t114 = _t112*_t95 + _t112*_t96 + _t112*_t97 - _t38*(-_t100*_t113 - _t113*_t32 - _t113*_t99);
     const double _t115 = _t38*_t91;
     const double _t116 = _t103*_t114 + _t105*_t109 + _t106*(_t107 + _t115 + _t68 + _t82);
     const double _t117 = _t101*_t109 + _t103*(_t108 + _t115 + _t37) + _t106*_t114;
     const double _t118 = _t102*_t87;
-    const double _t119 = _t110*_t72;
-    const double _t120 = _t116*_t46;
+    const double _t119 = _s8*_t110;
+    const double _t120 = _c8*_t116;
     const double _t121 = _t102*_t85;
     const double _t122 = _t102*_t31;
-    qd[0] = _t93*(_t110*_t111*_t46 - _t111*_t116*_t72);
+    qd[0] = _t93*(_c8*_t110*_t111 - _s8*_t111*_t116);
     qd[1] = _t93*(_t102*_t117*_t13 - _t118*_t119 - _t118*_t120);
     qd[2] = _t93*(_t102*_t117*_t12 - _t119*_t121 - _t120*_t121);
-    qd[3] = _t93*(_t10*_t102*_t117*d5 - _t119*_t122 - _t120*_t122);
+    qd[3] = _t93*(_c3*_t102*_t117*d5 - _t119*_t122 - _t120*_t122);
     qd[4] = 0;
     singular[0] = _t92 < 1e-06;
 }
 
+/* joint_velocity of `count` items, stored one after the other in each argument and output. */
 void scorbot_er7_joint_velocity_batch(size_t count, const double *restrict q, const double *restrict xd, const scorbot_er7_params *restrict params, double *restrict qd, int *restrict singular)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double xd_x[KINEGEN_BLOCK_OF(64)];
+    double xd_y[KINEGEN_BLOCK_OF(64)];
+    double xd_z[KINEGEN_BLOCK_OF(64)];
+    double _t5[KINEGEN_BLOCK_OF(64)];
+    double _t8[KINEGEN_BLOCK_OF(64)];
+    double _t9[KINEGEN_BLOCK_OF(64)];
+    double _t39[KINEGEN_BLOCK_OF(64)];
+    double _t41[KINEGEN_BLOCK_OF(64)];
+    double _t52[KINEGEN_BLOCK_OF(64)];
+    double _t53[KINEGEN_BLOCK_OF(64)];
+    double _t54[KINEGEN_BLOCK_OF(64)];
+    double _t56[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    double _s4[KINEGEN_BLOCK_OF(64)];
+    double _s5[KINEGEN_BLOCK_OF(64)];
+    double _s6[KINEGEN_BLOCK_OF(64)];
+    double _c6[KINEGEN_BLOCK_OF(64)];
+    double _s7[KINEGEN_BLOCK_OF(64)];
+    double _c7[KINEGEN_BLOCK_OF(64)];
+    double _s8[KINEGEN_BLOCK_OF(64)];
+    double _c8[KINEGEN_BLOCK_OF(64)];
+    double _s9[KINEGEN_BLOCK_OF(64)];
+    double _c9[KINEGEN_BLOCK_OF(64)];
+    double _s10[KINEGEN_BLOCK_OF(64)];
+    double _c10[KINEGEN_BLOCK_OF(64)];
+    double _s11[KINEGEN_BLOCK_OF(64)];
+    double _c11[KINEGEN_BLOCK_OF(64)];
+    double _s12[KINEGEN_BLOCK_OF(64)];
+    double _c12[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d1 = params->d1;
+    const double d5 = params->d5;
+    const double _t0 = (a3*a3);
+    const double _t2 = (d5*d5);
+    const double _t16 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
+    const double _t20 = (a2*a2);
+    const double _t27 = 1.0/(_t16*_t16*_t16*_t16);
+    const double _t28 = _t2*_t27;
+    const double _t44 = (0.25)*_t28;
+    const double _t45 = _t0*_t44;
+    const double _t59 = (0.25)*_t20*_t27;
+    const double _t80 = 1.0/(_t16*_t16);
+    const double _t102 = 1.0/_t16;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[5 * (start + i) + 0];
+            q2[i] = q[5 * (start + i) + 1];
+            q3[i] = q[5 * (start + i) + 2];
+            q4[i] = q[5 * (start + i) + 3];
+            xd_x[i] = xd[3 * (start + i) + 0];
+            xd_y[i] = xd[3 * (start + i) + 1];
+            xd_z[i] = xd[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t5[i] = q2[i] + q3[i];
+            _t8[i] = q3[i] + q4[i];
+            _t9[i] = _t8[i] + q2[i];
+            _t39[i] = q1[i] - q4[i];
+            _t41[i] = q1[i] + q4[i];
+            _t52[i] = q1[i] + q3[i];
+            _t53[i] = q1[i] - q3[i];
+            _t54[i] = _t8[i] + q1[i];
+            _t56[i] = _t8[i] - q1[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(_t9[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(_t9[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(_t8[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s5[i] = sin(q3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s6[i] = sin(_t39[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c6[i] = cos(_t39[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s7[i] = sin(_t41[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c7[i] = cos(_t41[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s8[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c8[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s9[i] = sin(_t54[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c9[i] = cos(_t54[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s10[i] = sin(_t56[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c10[i] = cos(_t56[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s11[i] = sin(_t53[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c11[i] = cos(_t53[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s12[i] = sin(_t52[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c12[i] = cos(_t52[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t4 = _c1[i]*a2;
+            const double _t7 = _c2[i]*a3;
+            const double _t11 = _c3[i]*d5;
+            const double _t12 = _t11 + _t7;
+            const double _t13 = _t12 + _t4;
+            const double _t14 = _t13 + a1;
+            const double _t15 = (_t14*_t14);
+            const double _t17 = _t15/(_t16*_t16*_t16*_t16*_t16*_t16);
+            const double _t18 = _t17*_t2;
+            const double _t19 = (_s0[i]*_s0[i])*_t0*_t18;
+            const double _t22 = _t17*_t20*((_s4[i]*d5 + _s5[i]*a3)*(_s4[i]*d5 + _s5[i]*a3));
+            const double _t23 = _t18*((_s0[i]*a3 + _s4[i]*a2)*(_s0[i]*a3 + _s4[i]*a2));
+            const double _t24 = kinegen_max(0, -1000000*_t19 - 1000000*_t22 - 1000000*_t23 + 1);
+            const double _t26 = (_s3[i]*_s3[i]);
+            const double _t30 = _s2[i]*a3;
+            const double _t31 = _s3[i]*d5;
+            const double _t32 = _c3[i]*_s3[i]*_t2;
+            const double _t33 = _c2[i]*_s2[i]*_t0 + _t11*_t30 + _t30*_t4 + _t30*a1 + _t31*_t4 + _t31*_t7 + _t31*a1 + _t32;
+            const double _t35 = _s1[i]*a2;
+            const double _t36 = _c1[i]*_s1[i]*_t20 + _t11*_t35 + _t33 + _t35*_t7 + _t35*a1;
+            const double _t37 = _t15*_t26*_t28 + _t27*(_t33*_t33) + _t27*(_t36*_t36);
+            const double _t38 = (0.0001)*_t24;
+            const double _t43 = _c6[i] - _c7[i];
+            const double _t47 = (_c8[i]*_c8[i]);
+            const double _t48 = _t27*_t47;
+            const double _t49 = (_c3[i]*_c3[i]);
+            const double _t50 = _t2*_t49;
+            const double _t51 = _t15*_t50;
+            const double _t58 = _c10[i]*d5 + _c11[i]*a3 - _c12[i]*a3 - _c9[i]*d5;
+            const double _t60 = _c10[i]*a2 + _c6[i]*a3 - _c7[i]*a3 - _c9[i]*a2;
+            const double _t61 = _t4*_t7;
+            const double _t62 = _t11*_t4;
+            const double _t63 = (_c2[i]*_c2[i])*_t0 + 2*_t11*_t7 + _t11*a1 + _t50 + _t7*a1;
+            const double _t64 = _t61 + _t62 + _t63;
+            const double _t65 = (_t64*_t64);
+            const double _t66 = (_c1[i]*_c1[i])*_t20 + _t4*a1 + 2*_t61 + 2*_t62 + _t63;
+            const double _t67 = (_t66*_t66);
+            const double _t68 = (_t43*_t43)*_t45 + _t44*(_t60*_t60) + _t48*_t51 + _t48*_t65 + _t48*_t67 + (_t58*_t58)*_t59;
+            const double _t71 = -_s6[i] + _s7[i];
+            const double _t73 = (_s8[i]*_s8[i]);
+            const double _t74 = _t27*_t73;
+            const double _t77 = _s10[i]*d5 - _s11[i]*a3 + _s12[i]*a3 + _s9[i]*d5;
+            const double _t78 = _s10[i]*a2 - _s6[i]*a3 + _s7[i]*a3 + _s9[i]*a2;
+            const double _t79 = _t44*(_t78*_t78) + _t45*(_t71*_t71) + _t51*_t74 + _t59*(_t77*_t77) + _t65*_t74 + _t67*_t74;
+            const double _t81 = (_t12*_t12)*_t80 + (_t13*_t13)*_t80 + _t50*_t80;
+            const double _t82 = (1e-08)*(_t24*_t24);
+            const double _t83 = _t47*_t80;
+            const double _t84 = _t2*_t26;
+            const double _t85 = _t30 + _t31;
+            const double _t86 = (_t85*_t85);
+            const double _t87 = _t35 + _t85;
+            const double _t88 = (_t87*_t87);
+            const double _t89 = _t73*_t80;
+            const double _t90 = _t15*_t89 + _t83*_t84 + _t83*_t86 + _t83*_t88;
+            const double _t91 = _t15*_t83 + _t84*_t89 + _t86*_t89 + _t88*_t89;
+            const double _t92 = _t19 + _t22 + _t23;
+            const double _t93 = 1.0/((1e-12)*(_t24*_t24*_t24) + _t37*_t38 + _t38*_t68 + _t38*_t79 + _t81*_t82 + _t82*_t90 + _t82*_t91 + _t92);
+            const double _t94 = _s8[i]*_t27;
+            const double _t95 = _t15*_t32;
+            const double _t96 = _t33*_t64;
+            const double _t97 = _t36*_t66;
+            const double _t98 = _s8[i]*_t80;
+            const double _t99 = _t12*_t85;
+            const double _t100 = _t13*_t87;
+            const double _t101 = -_t38*(-_t100*_t98 - _t32*_t98 - _t98*_t99) + _t94*_t95 + _t94*_t96 + _t94*_t97;
+            const double _t103 = _t102*xd_z[i];
+            const double _t104 = _c8[i]*_s8[i]*_t80;
+            const double _t105 = _c8[i]*_s8[i]*_t15*_t2*_t27*_t49 + _c8[i]*_s8[i]*_t27*_t65 + _c8[i]*_s8[i]*_t27*_t67 - _t38*(-_t104*_t15 + _t104*_t84 + _t104*_t86 + _t104*_t88) - _t43*_t45*_t71 - _t44*_t60*_t78 - _t58*_t59*_t77;
+            const double _t106 = _t102*xd_x[i];
+            const double _t107 = _t38*_t81;
+            const double _t108 = _t38*_t90 + _t82;
+            const double _t109 = _t102*xd_y[i];
+            const double _t110 = _t101*_t103 + _t105*_t106 + _t109*(_t107 + _t108 + _t79);
+            const double _t111 = _t102*_t14;
+            const double _t112 = _c8[i]*_t27;
+            const double _t113 = _c8[i]*_t80;
+            const double _t114 = _t112*_t95 + _t112*_t96 + _t112*_t97 - _t38*(-_t100*_t113 - _t113*_t32 - _t113*_t99);
+            const double _t115 = _t38*_t91;
+            const double _t116 = _t103*_t114 + _t105*_t109 + _t106*(_t107 + _t115 + _t68 + _t82);
+            const double _t117 = _t101*_t109 + _t103*(_t108 + _t115 + _t37) + _t106*_t114;
+            const double _t118 = _t102*_t87;
+            const double _t119 = _s8[i]*_t110;
+            const double _t120 = _c8[i]*_t116;
+            const double _t121 = _t102*_t85;
+            const double _t122 = _t102*_t31;
+            qd[5 * (start + i) + 0] = _t93*(_c8[i]*_t110*_t111 - _s8[i]*_t111*_t116);
+            qd[5 * (start + i) + 1] = _t93*(_t102*_t117*_t13 - _t118*_t119 - _t118*_t120);
+            qd[5 * (start + i) + 2] = _t93*(_t102*_t117*_t12 - _t119*_t121 - _t120*_t121);
+            qd[5 * (start + i) + 3] = _t93*(_c3[i]*_t102*_t117*d5 - _t119*_t122 - _t120*_t122);
+            qd[5 * (start + i) + 4] = 0;
+            singular[1 * (start + i) + 0] = _t92 < 1e-06;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         scorbot_er7_joint_velocity(q + 5 * i, xd + 3 * i, params, qd + 5 * i, singular + 1 * i);
     }
+#endif
 }
 
 /* Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 5) and (...). */
@@ -1039,86 +3617,133 @@ void scorbot_er7_joint_acceleration(const double *restrict q, const double *rest
     const double d1 = params->d1;
     const double d5 = params->d5;
     const double _t0 = (a3*a3);
-    const double _t1 = sin(q4);
     const double _t2 = (d5*d5);
-    const double _t3 = cos(q2);
-    const double _t4 = _t3*a2;
+    const double _t16 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
+    const double _t20 = (a2*a2);
+    const double _t27 = 1.0/(_t16*_t16*_t16*_t16);
+    const double _t28 = _t2*_t27;
+    const double _t44 = (0.25)*_t28;
+    const double _t45 = _t0*_t44;
+    const double _t59 = (0.25)*_t20*_t27;
+    const double _t80 = 1.0/(_t16*_t16);
+    const double _t102 = 1.0/_t16;
     const double _t5 = q2 + q3;
-    const double _t6 = cos(_t5);
-    const double _t7 = _t6*a3;
     const double _t8 = q3 + q4;
     const double _t9 = _t8 + q2;
-    const double _t10 = cos(_t9);
-    const double _t11 = _t10*d5;
+    const double _t39 = q1 - q4;
+    const double _t41 = q1 + q4;
+    const double _t52 = q1 + q3;
+    const double _t53 = q1 - q3;
+    const double _t54 = _t8 + q1;
+    const double _t56 = _t8 - q1;
+    double _s0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _s5, _s6, _c6, _s7, _c7, _s8, _c8, _s9, _c9, _s10, _c10, _s11, _c11, _s12, _c12;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[16] = { q4, q2, _t5, _t9, _t8, q3, _t39, _t41, q1, _t54, _t56, _t53, _t52, 0.0, 0.0, 0.0 };
+        double sine[16], cosine[16];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 16; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 16; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _s5 = sine[5];
+        _s6 = sine[6];
+        _c6 = cosine[6];
+        _s7 = sine[7];
+        _c7 = cosine[7];
+        _s8 = sine[8];
+        _c8 = cosine[8];
+        _s9 = sine[9];
+        _c9 = cosine[9];
+        _s10 = sine[10];
+        _c10 = cosine[10];
+        _s11 = sine[11];
+        _c11 = cosine[11];
+        _s12 = sine[12];
+        _c12 = cosine[12];
+    }
+#else
+    _s0 = sin(q4);
+    _s1 = sin(q2);
+    _c1 = cos(q2);
+    _s2 = sin(_t5);
+    _c2 = cos(_t5);
+    _s3 = sin(_t9);
+    _c3 = cos(_t9);
+    _s4 = sin(_t8);
+    _s5 = sin(q3);
+    _s6 = sin(_t39);
+    _c6 = cos(_t39);
+    _s7 = sin(_t41);
+    _c7 = cos(_t41);
+    _s8 = sin(q1);
+    _c8 = cos(q1);
+    _s9 = sin(_t54);
+    _c9 = cos(_t54);
+    _s10 = sin(_t56);
+    _c10 = cos(_t56);
+    _s11 = sin(_t53);
+    _c11 = cos(_t53);
+    _s12 = sin(_t52);
+    _c12 = cos(_t52);
+#endif
+    const double _t4 = _c1*a2;
+    const double _t7 = _c2*a3;
+    const double _t11 = _c3*d5;
     const double _t12 = _t11 + _t7;
     const double _t13 = _t12 + _t4;
     const double _t14 = _t13 + a1;
     const double _t15 = (_t14*_t14);
-    const double _t16 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
     const double _t17 = _t15/(_t16*_t16*_t16*_t16*_t16*_t16);
     const double _t18 = _t17*_t2;
-    const double _t19 = _t0*(_t1*_t1)*_t18;
-    const double _t20 = (a2*a2);
-    const double _t21 = sin(_t8);
-    const double _t22 = _t17*_t20*((_t21*d5 + a3*sin(q3))*(_t21*d5 + a3*sin(q3)));
-    const double _t23 = _t18*((_t1*a3 + _t21*a2)*(_t1*a3 + _t21*a2));
-    const double _t24 = fmax(0, -1000000*_t19 - 1000000*_t22 - 1000000*_t23 + 1);
-    const double _t25 = sin(_t9);
-    const double _t26 = (_t25*_t25);
-    const double _t27 = 1.0/(_t16*_t16*_t16*_t16);
-    const double _t28 = _t2*_t27;
-    const double _t29 = sin(_t5);
-    const double _t30 = _t29*a3;
-    const double _t31 = _t25*d5;
-    const double _t32 = _t10*_t2*_t25;
-    const double _t33 = _t0*_t29*_t6 + _t11*_t30 + _t30*_t4 + _t30*a1 + _t31*_t4 + _t31*_t7 + _t31*a1 + _t32;
-    const double _t34 = sin(q2);
-    const double _t35 = _t34*a2;
-    const double _t36 = _t11*_t35 + _t20*_t3*_t34 + _t33 + _t35*_t7 + _t35*a1;
+    const double _t19 = (_s0*_s0)*_t0*_t18;
+    const double _t22 = _t17*_t20*((_s4*d5 + _s5*a3)*(_s4*d5 + _s5*a3));
+    const double _t23 = _t18*((_s0*a3 + _s4*a2)*(_s0*a3 + _s4*a2));
+    const double _t24 = kinegen_max(0, -1000000*_t19 - 1000000*_t22 - 1000000*_t23 + 1);
+    const double _t26 = (_s3*_s3);
+    const double _t30 = _s2*a3;
+    const double _t31 = _s3*d5;
+    const double _t32 = _c3*_s3*_t2;
+    const double _t33 = _c2*_s2*_t0 + _t11*_t30 + _t30*_t4 + _t30*a1 + _t31*_t4 + _t31*_t7 + _t31*a1 + _t32;
+    const double _t35 = _s1*a2;
+    const double _t36 = _c1*_s1*_t20 + _t11*_t35 + _t33 + _t35*_t7 + _t35*a1;
     const double _t37 = _t15*_t26*_t28 + _t27*(_t33*_t33) + _t27*(_t36*_t36);
     const double _t38 = (0.0001)*_t24;
-    const double _t39 = q1 - q4;
-    const double _t40 = cos(_t39);
-    const double _t41 = q1 + q4;
-    const double _t42 = cos(_t41);
-    const double _t43 = _t40 - _t42;
-    const double _t44 = (0.25)*_t28;
-    const double _t45 = _t0*_t44;
-    const double _t46 = cos(q1);
-    const double _t47 = (_t46*_t46);
+    const double _t43 = _c6 - _c7;
+    const double _t47 = (_c8*_c8);
     const double _t48 = _t27*_t47;
-    const double _t49 = (_t10*_t10);
+    const double _t49 = (_c3*_c3);
     const double _t50 = _t2*_t49;
     const double _t51 = _t15*_t50;
-    const double _t52 = q1 + q3;
-    const double _t53 = q1 - q3;
-    const double _t54 = _t8 + q1;
-    const double _t55 = cos(_t54);
-    const double _t56 = _t8 - q1;
-    const double _t57 = cos(_t56);
-    const double _t58 = -_t55*d5 + _t57*d5 - a3*cos(_t52) + a3*cos(_t53);
-    const double _t59 = (0.25)*_t20*_t27;
-    const double _t60 = _t40*a3 - _t42*a3 - _t55*a2 + _t57*a2;
+    const double _t58 = _c10*d5 + _c11*a3 - _c12*a3 - _c9*d5;
+    const double _t60 = _c10*a2 + _c6*a3 - _c7*a3 - _c9*a2;
     const double _t61 = _t4*_t7;
     const double _t62 = _t11*_t4;
-    const double _t63 = _t0*(_t6*_t6) + 2*_t11*_t7 + _t11*a1 + _t50 + _t7*a1;
+    const double _t63 = (_c2*_c2)*_t0 + 2*_t11*_t7 + _t11*a1 + _t50 + _t7*a1;
     const double _t64 = _t61 + _t62 + _t63;
     const double _t65 = (_t64*_t64);
-    const double _t66 = _t20*(_t3*_t3) + _t4*a1 + 2*_t61 + 2*_t62 + _t63;
+    const double _t66 = (_c1*_c1)*_t20 + _t4*a1 + 2*_t61 + 2*_t62 + _t63;
     const double _t67 = (_t66*_t66);
     const double _t68 = (_t43*_t43)*_t45 + _t44*(_t60*_t60) + _t48*_t51 + _t48*_t65 + _t48*_t67 + (_t58*_t58)*_t59;
-    const double _t69 = sin(_t39);
-    const double _t70 = sin(_t41);
-    const double _t71 = -_t69 + _t70;
-    const double _t72 = sin(q1);
-    const double _t73 = (_t72*_t72);
+    const double _t71 = -_s6 + _s7;
+    const double _t73 = (_s8*_s8);
     const double _t74 = _t27*_t73;
-    const double _t75 = sin(_t54);
-    const double _t76 = sin(_t56);
-    const double _t77 = _t75*d5 + _t76*d5 + a3*sin(_t52) - a3*sin(_t53);
-    const double _t78 = -_t69*a3 + _t70*a3 + _t75*a2 + _t76*a2;
+    const double _t77 = _s10*d5 - _s11*a3 + _s12*a3 + _s9*d5;
+    const double _t78 = _s10*a2 - _s6*a3 + _s7*a3 + _s9*a2;
     const double _t79 = _t44*(_t78*_t78) + _t45*(_t71*_t71) + _t51*_t74 + _t59*(_t77*_t77) + _t65*_t74 + _t67*_t74;
-    const double _t80 = 1.0/(_t16*_t16);
     const double _t81 = (_t12*_t12)*_t80 + (_t13*_t13)*_t80 + _t50*_t80;
     const double _t82 = (1e-08)*(_t24*_t24);
     const double _t83 = _t47*_t80;
@@ -1132,15 +3757,14 @@ void scorbot_er7_joint_acceleration(const double *restrict q, const double *rest
     const double _t91 = _t15*_t83 + _t84*_t89 + _t86*_t89 + _t88*_t89;
     const double _t92 = _t19 + _t22 + _t23;
     const double _t93 = 1.0/((1e-12)*(_t24*_t24*_t24) + _t37*_t38 + _t38*_t68 + _t38*_t79 + _t81*_t82 + _t82*_t90 + _t82*_t91 + _t92);
-    const double _t94 = _t27*_t72;
+    const double _t94 = _s8*_t27;
     const double _t95 = _t15*_t32;
     const double _t96 = _t33*_t64;
     const double _t97 = _t36*_t66;
-    const double _t98 = _t72*_t80;
+    const double _t98 = _s8*_t80;
     const double _t99 = _t12*_t85;
     const double _t100 = _t13*_t87;
     const double _t101 = -_t38*(-_t100*_t98 - _t32*_t98 - _t98*_t99) + _t94*_t95 + _t94*_t96 + _t94*_t97;
-    const double _t102 = 1.0/_t16;
     const double _t103 = _t31*qd4;
     const double _t104 = -_t85;
     const double _t105 = _t104*qd3;
@@ -1148,50 +3772,348 @@ void scorbot_er7_joint_acceleration(const double *restrict q, const double *rest
     const double _t107 = -_t87;
     const double _t108 = _t107*qd2;
     const double _t109 = _t102*(-qd2*(_t106 + _t108) - qd3*(_t104*qd2 + _t106) - qd4*(-_t103 - _t31*qd2 - _t31*qd3) + xdd_z);
-    const double _t110 = _t46*_t98;
-    const double _t111 = _t15*_t2*_t27*_t46*_t49*_t72 + _t27*_t46*_t65*_t72 + _t27*_t46*_t67*_t72 - _t38*(-_t110*_t15 + _t110*_t84 + _t110*_t86 + _t110*_t88) - _t43*_t45*_t71 - _t44*_t60*_t78 - _t58*_t59*_t77;
-    const double _t112 = _t46*qd2;
-    const double _t113 = _t11*_t46;
+    const double _t110 = _c8*_t98;
+    const double _t111 = _c8*_s8*_t15*_t2*_t27*_t49 + _c8*_s8*_t27*_t65 + _c8*_s8*_t27*_t67 - _t38*(-_t110*_t15 + _t110*_t84 + _t110*_t86 + _t110*_t88) - _t43*_t45*_t71 - _t44*_t60*_t78 - _t58*_t59*_t77;
+    const double _t112 = _c8*qd2;
+    const double _t113 = _c8*_t11;
     const double _t114 = _t113*qd4;
     const double _t115 = _t12*qd3;
-    const double _t116 = _t114 + _t115*_t46;
+    const double _t116 = _c8*_t115 + _t114;
     const double _t117 = _t14*qd1;
-    const double _t118 = _t102*(-qd1*(-_t105*_t72 - _t108*_t72 - _t117*_t46 + _t25*_t72*d5*qd4) - qd2*(-_t112*_t13 - _t116 + _t72*_t87*qd1) - qd3*(-_t112*_t12 - _t116 + _t72*_t85*qd1) - qd4*(-_t11*_t112 - _t113*qd3 - _t114 + _t25*_t72*d5*qd1) + xdd_x);
+    const double _t118 = _t102*(-qd1*(-_c8*_t117 + _s3*_s8*d5*qd4 - _s8*_t105 - _s8*_t108) - qd2*(_s8*_t87*qd1 - _t112*_t13 - _t116) - qd3*(_s8*_t85*qd1 - _t112*_t12 - _t116) - qd4*(_s3*_s8*d5*qd1 - _t11*_t112 - _t113*qd3 - _t114) + xdd_x);
     const double _t119 = _t38*_t81;
     const double _t120 = _t38*_t90 + _t82;
-    const double _t121 = _t46*qd1;
-    const double _t122 = _t72*qd2;
-    const double _t123 = _t11*_t72;
+    const double _t121 = _c8*qd1;
+    const double _t122 = _s8*qd2;
+    const double _t123 = _s8*_t11;
     const double _t124 = _t123*qd4;
-    const double _t125 = _t115*_t72 + _t124;
-    const double _t126 = _t102*(-qd1*(-_t103*_t46 + _t104*_t46*qd3 + _t107*_t46*qd2 - _t117*_t72) - qd2*(-_t121*_t87 - _t122*_t13 - _t125) - qd3*(-_t12*_t122 - _t121*_t85 - _t125) - qd4*(-_t11*_t122 - _t121*_t31 - _t123*qd3 - _t124) + xdd_y);
+    const double _t125 = _s8*_t115 + _t124;
+    const double _t126 = _t102*(-qd1*(-_c8*_t103 + _c8*_t104*qd3 + _c8*_t107*qd2 - _s8*_t117) - qd2*(-_t121*_t87 - _t122*_t13 - _t125) - qd3*(-_t12*_t122 - _t121*_t85 - _t125) - qd4*(-_t11*_t122 - _t121*_t31 - _t123*qd3 - _t124) + xdd_y);
     const double _t127 = _t101*_t109 + _t111*_t118 + _t126*(_t119 + _t120 + _t79);
     const double _t128 = _t102*_t14;
-    const double _t129 = _t27*_t46;
-    const double _t130 = _t46*_t80;
+    const double _t129 = _c8*_t27;
+    const double _t130 = _c8*_t80;
     const double _t131 = _t129*_t95 + _t129*_t96 + _t129*_t97 - _t38*(-_t100*_t130 - _t130*_t32 - _t130*_t99);
     const double _t132 = _t38*_t91;
     const double _t133 = _t109*_t131 + _t111*_t126 + _t118*(_t119 + _t132 + _t68 + _t82);
     const double _t134 = _t101*_t126 + _t109*(_t120 + _t132 + _t37) + _t118*_t131;
     const double _t135 = _t102*_t87;
-    const double _t136 = _t127*_t72;
-    const double _t137 = _t133*_t46;
+    const double _t136 = _s8*_t127;
+    const double _t137 = _c8*_t133;
     const double _t138 = _t102*_t85;
     const double _t139 = _t102*_t31;
-    qdd[0] = _t93*(_t127*_t128*_t46 - _t128*_t133*_t72);
+    qdd[0] = _t93*(_c8*_t127*_t128 - _s8*_t128*_t133);
     qdd[1] = _t93*(_t102*_t13*_t134 - _t135*_t136 - _t135*_t137);
     qdd[2] = _t93*(_t102*_t12*_t134 - _t136*_t138 - _t137*_t138);
-    qdd[3] = _t93*(_t10*_t102*_t134*d5 - _t136*_t139 - _t137*_t139);
+    qdd[3] = _t93*(_c3*_t102*_t134*d5 - _t136*_t139 - _t137*_t139);
     qdd[4] = 0;
     singular[0] = _t92 < 1e-06;
 }
 
+/* joint_acceleration of `count` items, stored one after the other in each argument and output. */
 void scorbot_er7_joint_acceleration_batch(size_t count, const double *restrict q, const double *restrict qd, const double *restrict xdd, const scorbot_er7_params *restrict params, double *restrict qdd, int *restrict singular)
 {
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double qd1[KINEGEN_BLOCK_OF(64)];
+    double qd2[KINEGEN_BLOCK_OF(64)];
+    double qd3[KINEGEN_BLOCK_OF(64)];
+    double qd4[KINEGEN_BLOCK_OF(64)];
+    double xdd_x[KINEGEN_BLOCK_OF(64)];
+    double xdd_y[KINEGEN_BLOCK_OF(64)];
+    double xdd_z[KINEGEN_BLOCK_OF(64)];
+    double _t5[KINEGEN_BLOCK_OF(64)];
+    double _t8[KINEGEN_BLOCK_OF(64)];
+    double _t9[KINEGEN_BLOCK_OF(64)];
+    double _t39[KINEGEN_BLOCK_OF(64)];
+    double _t41[KINEGEN_BLOCK_OF(64)];
+    double _t52[KINEGEN_BLOCK_OF(64)];
+    double _t53[KINEGEN_BLOCK_OF(64)];
+    double _t54[KINEGEN_BLOCK_OF(64)];
+    double _t56[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    double _s4[KINEGEN_BLOCK_OF(64)];
+    double _s5[KINEGEN_BLOCK_OF(64)];
+    double _s6[KINEGEN_BLOCK_OF(64)];
+    double _c6[KINEGEN_BLOCK_OF(64)];
+    double _s7[KINEGEN_BLOCK_OF(64)];
+    double _c7[KINEGEN_BLOCK_OF(64)];
+    double _s8[KINEGEN_BLOCK_OF(64)];
+    double _c8[KINEGEN_BLOCK_OF(64)];
+    double _s9[KINEGEN_BLOCK_OF(64)];
+    double _c9[KINEGEN_BLOCK_OF(64)];
+    double _s10[KINEGEN_BLOCK_OF(64)];
+    double _c10[KINEGEN_BLOCK_OF(64)];
+    double _s11[KINEGEN_BLOCK_OF(64)];
+    double _c11[KINEGEN_BLOCK_OF(64)];
+    double _s12[KINEGEN_BLOCK_OF(64)];
+    double _c12[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d1 = params->d1;
+    const double d5 = params->d5;
+    const double _t0 = (a3*a3);
+    const double _t2 = (d5*d5);
+    const double _t16 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
+    const double _t20 = (a2*a2);
+    const double _t27 = 1.0/(_t16*_t16*_t16*_t16);
+    const double _t28 = _t2*_t27;
+    const double _t44 = (0.25)*_t28;
+    const double _t45 = _t0*_t44;
+    const double _t59 = (0.25)*_t20*_t27;
+    const double _t80 = 1.0/(_t16*_t16);
+    const double _t102 = 1.0/_t16;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[5 * (start + i) + 0];
+            q2[i] = q[5 * (start + i) + 1];
+            q3[i] = q[5 * (start + i) + 2];
+            q4[i] = q[5 * (start + i) + 3];
+            qd1[i] = qd[5 * (start + i) + 0];
+            qd2[i] = qd[5 * (start + i) + 1];
+            qd3[i] = qd[5 * (start + i) + 2];
+            qd4[i] = qd[5 * (start + i) + 3];
+            xdd_x[i] = xdd[3 * (start + i) + 0];
+            xdd_y[i] = xdd[3 * (start + i) + 1];
+            xdd_z[i] = xdd[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t5[i] = q2[i] + q3[i];
+            _t8[i] = q3[i] + q4[i];
+            _t9[i] = _t8[i] + q2[i];
+            _t39[i] = q1[i] - q4[i];
+            _t41[i] = q1[i] + q4[i];
+            _t52[i] = q1[i] + q3[i];
+            _t53[i] = q1[i] - q3[i];
+            _t54[i] = _t8[i] + q1[i];
+            _t56[i] = _t8[i] - q1[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(_t9[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(_t9[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(_t8[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s5[i] = sin(q3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s6[i] = sin(_t39[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c6[i] = cos(_t39[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s7[i] = sin(_t41[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c7[i] = cos(_t41[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s8[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c8[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s9[i] = sin(_t54[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c9[i] = cos(_t54[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s10[i] = sin(_t56[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c10[i] = cos(_t56[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s11[i] = sin(_t53[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c11[i] = cos(_t53[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s12[i] = sin(_t52[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c12[i] = cos(_t52[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t4 = _c1[i]*a2;
+            const double _t7 = _c2[i]*a3;
+            const double _t11 = _c3[i]*d5;
+            const double _t12 = _t11 + _t7;
+            const double _t13 = _t12 + _t4;
+            const double _t14 = _t13 + a1;
+            const double _t15 = (_t14*_t14);
+            const double _t17 = _t15/(_t16*_t16*_t16*_t16*_t16*_t16);
+            const double _t18 = _t17*_t2;
+            const double _t19 = (_s0[i]*_s0[i])*_t0*_t18;
+            const double _t22 = _t17*_t20*((_s4[i]*d5 + _s5[i]*a3)*(_s4[i]*d5 + _s5[i]*a3));
+            const double _t23 = _t18*((_s0[i]*a3 + _s4[i]*a2)*(_s0[i]*a3 + _s4[i]*a2));
+            const double _t24 = kinegen_max(0, -1000000*_t19 - 1000000*_t22 - 1000000*_t23 + 1);
+            const double _t26 = (_s3[i]*_s3[i]);
+            const double _t30 = _s2[i]*a3;
+            const double _t31 = _s3[i]*d5;
+            const double _t32 = _c3[i]*_s3[i]*_t2;
+            const double _t33 = _c2[i]*_s2[i]*_t0 + _t11*_t30 + _t30*_t4 + _t30*a1 + _t31*_t4 + _t31*_t7 + _t31*a1 + _t32;
+            const double _t35 = _s1[i]*a2;
+            const double _t36 = _c1[i]*_s1[i]*_t20 + _t11*_t35 + _t33 + _t35*_t7 + _t35*a1;
+            const double _t37 = _t15*_t26*_t28 + _t27*(_t33*_t33) + _t27*(_t36*_t36);
+            const double _t38 = (0.0001)*_t24;
+            const double _t43 = _c6[i] - _c7[i];
+            const double _t47 = (_c8[i]*_c8[i]);
+            const double _t48 = _t27*_t47;
+            const double _t49 = (_c3[i]*_c3[i]);
+            const double _t50 = _t2*_t49;
+            const double _t51 = _t15*_t50;
+            const double _t58 = _c10[i]*d5 + _c11[i]*a3 - _c12[i]*a3 - _c9[i]*d5;
+            const double _t60 = _c10[i]*a2 + _c6[i]*a3 - _c7[i]*a3 - _c9[i]*a2;
+            const double _t61 = _t4*_t7;
+            const double _t62 = _t11*_t4;
+            const double _t63 = (_c2[i]*_c2[i])*_t0 + 2*_t11*_t7 + _t11*a1 + _t50 + _t7*a1;
+            const double _t64 = _t61 + _t62 + _t63;
+            const double _t65 = (_t64*_t64);
+            const double _t66 = (_c1[i]*_c1[i])*_t20 + _t4*a1 + 2*_t61 + 2*_t62 + _t63;
+            const double _t67 = (_t66*_t66);
+            const double _t68 = (_t43*_t43)*_t45 + _t44*(_t60*_t60) + _t48*_t51 + _t48*_t65 + _t48*_t67 + (_t58*_t58)*_t59;
+            const double _t71 = -_s6[i] + _s7[i];
+            const double _t73 = (_s8[i]*_s8[i]);
+            const double _t74 = _t27*_t73;
+            const double _t77 = _s10[i]*d5 - _s11[i]*a3 + _s12[i]*a3 + _s9[i]*d5;
+            const double _t78 = _s10[i]*a2 - _s6[i]*a3 + _s7[i]*a3 + _s9[i]*a2;
+            const double _t79 = _t44*(_t78*_t78) + _t45*(_t71*_t71) + _t51*_t74 + _t59*(_t77*_t77) + _t65*_t74 + _t67*_t74;
+            const double _t81 = (_t12*_t12)*_t80 + (_t13*_t13)*_t80 + _t50*_t80;
+            const double _t82 = (1e-08)*(_t24*_t24);
+            const double _t83 = _t47*_t80;
+            const double _t84 = _t2*_t26;
+            const double _t85 = _t30 + _t31;
+            const double _t86 = (_t85*_t85);
+            const double _t87 = _t35 + _t85;
+            const double _t88 = (_t87*_t87);
+            const double _t89 = _t73*_t80;
+            const double _t90 = _t15*_t89 + _t83*_t84 + _t83*_t86 + _t83*_t88;
+            const double _t91 = _t15*_t83 + _t84*_t89 + _t86*_t89 + _t88*_t89;
+            const double _t92 = _t19 + _t22 + _t23;
+            const double _t93 = 1.0/((1e-12)*(_t24*_t24*_t24) + _t37*_t38 + _t38*_t68 + _t38*_t79 + _t81*_t82 + _t82*_t90 + _t82*_t91 + _t92);
+            const double _t94 = _s8[i]*_t27;
+            const double _t95 = _t15*_t32;
+            const double _t96 = _t33*_t64;
+            const double _t97 = _t36*_t66;
+            const double _t98 = _s8[i]*_t80;
+            const double _t99 = _t12*_t85;
+            const double _t100 = _t13*_t87;
+            const double _t101 = -_t38*(-_t100*_t98 - _t32*_t98 - _t98*_t99) + _t94*_t95 + _t94*_t96 + _t94*_t97;
+            const double _t103 = _t31*qd4[i];
+            const double _t104 = -_t85;
+            const double _t105 = _t104*qd3[i];
+            const double _t106 = -_t103 + _t105;
+            const double _t107 = -_t87;
+            const double _t108 = _t107*qd2[i];
+            const double _t109 = _t102*(-qd2[i]*(_t106 + _t108) - qd3[i]*(_t104*qd2[i] + _t106) - qd4[i]*(-_t103 - _t31*qd2[i] - _t31*qd3[i]) + xdd_z[i]);
+            const double _t110 = _c8[i]*_t98;
+            const double _t111 = _c8[i]*_s8[i]*_t15*_t2*_t27*_t49 + _c8[i]*_s8[i]*_t27*_t65 + _c8[i]*_s8[i]*_t27*_t67 - _t38*(-_t110*_t15 + _t110*_t84 + _t110*_t86 + _t110*_t88) - _t43*_t45*_t71 - _t44*_t60*_t78 - _t58*_t59*_t77;
+            const double _t112 = _c8[i]*qd2[i];
+            const double _t113 = _c8[i]*_t11;
+            const double _t114 = _t113*qd4[i];
+            const double _t115 = _t12*qd3[i];
+            const double _t116 = _c8[i]*_t115 + _t114;
+            const double _t117 = _t14*qd1[i];
+            const double _t118 = _t102*(-qd1[i]*(-_c8[i]*_t117 + _s3[i]*_s8[i]*d5*qd4[i] - _s8[i]*_t105 - _s8[i]*_t108) - qd2[i]*(_s8[i]*_t87*qd1[i] - _t112*_t13 - _t116) - qd3[i]*(_s8[i]*_t85*qd1[i] - _t112*_t12 - _t116) - qd4[i]*(_s3[i]*_s8[i]*d5*qd1[i] - _t11*_t112 - _t113*qd3[i] - _t114) + xdd_x[i]);
+            const double _t119 = _t38*_t81;
+            const double _t120 = _t38*_t90 + _t82;
+            const double _t121 = _c8[i]*qd1[i];
+            const double _t122 = _s8[i]*qd2[i];
+            const double _t123 = _s8[i]*_t11;
+            const double _t124 = _t123*qd4[i];
+            const double _t125 = _s8[i]*_t115 + _t124;
+            const double _t126 = _t102*(-qd1[i]*(-_c8[i]*_t103 + _c8[i]*_t104*qd3[i] + _c8[i]*_t107*qd2[i] - _s8[i]*_t117) - qd2[i]*(-_t121*_t87 - _t122*_t13 - _t125) - qd3[i]*(-_t12*_t122 - _t121*_t85 - _t125) - qd4[i]*(-_t11*_t122 - _t121*_t31 - _t123*qd3[i] - _t124) + xdd_y[i]);
+            const double _t127 = _t101*_t109 + _t111*_t118 + _t126*(_t119 + _t120 + _t79);
+            const double _t128 = _t102*_t14;
+            const double _t129 = _c8[i]*_t27;
+            const double _t130 = _c8[i]*_t80;
+            const double _t131 = _t129*_t95 + _t129*_t96 + _t129*_t97 - _t38*(-_t100*_t130 - _t130*_t32 - _t130*_t99);
+            const double _t132 = _t38*_t91;
+            const double _t133 = _t109*_t131 + _t111*_t126 + _t118*(_t119 + _t132 + _t68 + _t82);
+            const double _t134 = _t101*_t126 + _t109*(_t120 + _t132 + _t37) + _t118*_t131;
+            const double _t135 = _t102*_t87;
+            const double _t136 = _s8[i]*_t127;
+            const double _t137 = _c8[i]*_t133;
+            const double _t138 = _t102*_t85;
+            const double _t139 = _t102*_t31;
+            qdd[5 * (start + i) + 0] = _t93*(_c8[i]*_t127*_t128 - _s8[i]*_t128*_t133);
+            qdd[5 * (start + i) + 1] = _t93*(_t102*_t13*_t134 - _t135*_t136 - _t135*_t137);
+            qdd[5 * (start + i) + 2] = _t93*(_t102*_t12*_t134 - _t136*_t138 - _t137*_t138);
+            qdd[5 * (start + i) + 3] = _t93*(_c3[i]*_t102*_t134*d5 - _t136*_t139 - _t137*_t139);
+            qdd[5 * (start + i) + 4] = 0;
+            singular[1 * (start + i) + 0] = _t92 < 1e-06;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         scorbot_er7_joint_acceleration(q + 5 * i, qd + 5 * i, xdd + 3 * i, params, qdd + 5 * i, singular + 1 * i);
     }
+#endif
 }
 
 /* 1 when every joint of q lies within its limits (revolute joints modulo 2 pi), else 0. */

@@ -6,8 +6,11 @@ Run `python build_c.py` (needs cffi and a C compiler); `make build` does it for 
 """
 import os
 import pathlib
+import shlex
 import shutil
+import subprocess
 import sys
+import sysconfig
 import tempfile
 
 from cffi import FFI
@@ -15,6 +18,80 @@ from cffi import FFI
 HERE = pathlib.Path(__file__).resolve().parent
 MODULE = "_scorbot_path_c"
 CFLAGS = ["-std=c99", "-O3"]
+# Where the compiler and C library allow: vectorised batch loops (see scorbot_path.c) with
+# glibc's vector sin/cos, sqrt as an instruction (no errno), code for this machine's CPU.
+# None of these flags changes a result beyond the vector sin/cos (at most 4 ulp, glibc's
+# bound) nor deletes a NaN or infinity check, which -ffast-math would.  With -march=native
+# GCC 12's basic-block (SLP) vectoriser fuses pairs of a*b - c and d*e + f into one
+# vfmsubadd (an FMA: one rounding fewer) even under -ffp-contract=off, so terms that cancel
+# exactly as printed (the AVR 3000's Rdot = 0 under pure T motion) left a 6e-17 residue in
+# the single point: -fno-tree-slp-vectorize (the batch loops are vectorised by the loop
+# vectoriser, which keeps the contract) and -ffp-contract=off for compilers that contract.
+FAST_CFLAGS = ["-fno-math-errno", "-fno-trapping-math", "-ffp-contract=off", "-fno-tree-slp-vectorize",
+               "-fopenmp-simd", "-march=native", "-DKINEGEN_SIMD"]
+PROBE = r"""
+#include <math.h>
+#include <stdio.h>
+#pragma omp declare simd notinbranch
+double sin(double);
+#pragma omp declare simd notinbranch
+double cos(double);
+int main(void)
+{
+    double x[64], y[64];
+    int i;
+    for (i = 0; i < 64; ++i) x[i] = 0.01 * i;
+    _Pragma("omp simd")
+    for (i = 0; i < 64; ++i) y[i] = sin(x[i]) * sin(x[i]) + cos(x[i]) * cos(x[i]);
+    printf("%.6f\n", y[63]);
+    return 0;
+}
+"""
+# The entry points the Python binding calls: a kernel of `count` items (the single-point
+# function for one) after checking in C, where -ffinite-math-only never applies, that no
+# input is NaN or inf; 1 means one is, and nothing was computed.  ik takes NaN and inf
+# (valid says there is no answer) and returns -1 when it refused a pose.  A kernel with
+# requirements also fills `status` with each item's code (<NAME>_UNREACHABLE ...).
+CHECKED = """
+#include <math.h>
+#include "scorbot_path.h"
+
+static int kinegen_nonfinite(size_t n, const double *x)
+{
+    size_t i;
+    int bad = 0;
+    for (i = 0; i < n; ++i) {
+        bad |= !isfinite(x[i]);
+    }
+    return bad;
+}
+
+int scorbot_path_tool_point_from_theta2_checked(size_t count, const double *theta2_state, const scorbot_path_params *params, double *p, int *valid)
+{
+    if (kinegen_nonfinite(count * 3, theta2_state)) {
+        return 1;
+    }
+    if (count == 1) {
+        scorbot_path_tool_point_from_theta2(theta2_state, params, p, valid);
+    } else {
+        scorbot_path_tool_point_from_theta2_batch(count, theta2_state, params, p, valid);
+    }
+    return 0;
+}
+
+int scorbot_path_joints_along_line_checked(size_t count, const double *path, const scorbot_path_params *params, double *q, int *valid)
+{
+    if (kinegen_nonfinite(count * 3, path)) {
+        return 1;
+    }
+    if (count == 1) {
+        scorbot_path_joints_along_line(path, params, q, valid);
+    } else {
+        scorbot_path_joints_along_line_batch(count, path, params, q, valid);
+    }
+    return 0;
+}
+"""
 CDEF = """
 /* Robot parameters (SI units). */
 typedef struct scorbot_path_params { double a1; double a2; double a3; double d1; double d5; double xM; double yM; double zM; double xN; double yN; double zN; } scorbot_path_params;
@@ -25,18 +102,40 @@ void scorbot_path_tool_point_from_theta2_batch(size_t count, const double *theta
 /* joints_along_line: path[3] -> q[15], valid[1] (row-major). Joint motion along P5 = M + s (N - M) on the IK branch elbow_up (the paper's): (q (..., 3, 5) rows angles, rates, accelerations; valid (...)). */
 void scorbot_path_joints_along_line(const double *path, const scorbot_path_params *params, double *q, int *valid);
 void scorbot_path_joints_along_line_batch(size_t count, const double *path, const scorbot_path_params *params, double *q, int *valid);
+int scorbot_path_tool_point_from_theta2_checked(size_t count, const double *theta2_state, const scorbot_path_params *params, double *p, int *valid);
+int scorbot_path_joints_along_line_checked(size_t count, const double *path, const scorbot_path_params *params, double *q, int *valid);
 """
 
 
-def ffibuilder():
+def compile_flags():
+    """CFLAGS plus FAST_CFLAGS if a probe program builds and runs with them here.
+
+    Set KINEGEN_PORTABLE=1 for plain C99 -O3 (results then equal the single-point kernels bit for bit).
+    """
+    if os.environ.get("KINEGEN_PORTABLE"):
+        return list(CFLAGS)
+    compiler = shlex.split(os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc")
+    with tempfile.TemporaryDirectory(prefix="kinegen-probe-") as scratch:
+        source, program = pathlib.Path(scratch) / "probe.c", pathlib.Path(scratch) / "probe"
+        source.write_text(PROBE)
+        try:
+            subprocess.run([*compiler, *CFLAGS, *FAST_CFLAGS, str(source), "-o", str(program), "-lm"],
+                           check=True, capture_output=True, timeout=60)
+            ran = subprocess.run([str(program)], check=True, capture_output=True, text=True, timeout=60)
+        except (OSError, subprocess.SubprocessError):
+            return list(CFLAGS)
+    return [*CFLAGS, *FAST_CFLAGS] if ran.stdout.strip() == "1.000000" else list(CFLAGS)
+
+
+def ffibuilder(flags=None):
     ffi = FFI()
     ffi.cdef(CDEF)
     ffi.set_source(
         MODULE,
-        '#include "scorbot_path.h"',
+        CHECKED,
         sources=[str(HERE / "scorbot_path.c")],
         include_dirs=[str(HERE)],
-        extra_compile_args=CFLAGS,
+        extra_compile_args=compile_flags() if flags is None else flags,
         libraries=["m"],
     )
     return ffi

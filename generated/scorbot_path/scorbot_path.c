@@ -11,7 +11,71 @@
 
 #include <math.h>
 
+/*
+ * Batched entry points.  Plain C99 loops over the single-point entry point by
+ * default.  With -DKINEGEN_BLOCKED they work through their items in blocks of
+ * KINEGEN_BLOCK instead: the inputs of a block are copied into one array per
+ * coordinate, every sine and every cosine is taken in a loop of its own, and the
+ * arithmetic runs in one loop per stage, from the same expressions as the single
+ * point (so the results are bit-identical).  -DKINEGEN_SIMD -fopenmp-simd (what
+ * build_c.py uses where the compiler and C library allow) adds to that SIMD
+ * declarations of the math functions, so that the loops vectorise and call
+ * glibc's vector math library (libmvec, at most 4 ulp), and the single point
+ * takes the sines and cosines of a stage's angles as one vector.  No NaN or
+ * infinity check is affected: no -ffast-math is involved.
+ */
+#ifdef KINEGEN_SIMD
+#pragma omp declare simd notinbranch
+double sin(double);
+#pragma omp declare simd notinbranch
+double cos(double);
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+/* libmvec has these from glibc 2.35 on. */
+#pragma omp declare simd notinbranch
+double atan2(double, double);
+#pragma omp declare simd notinbranch
+double acos(double);
+#pragma omp declare simd notinbranch
+double asin(double);
+#endif
+#define KINEGEN_VECTOR_LOOP _Pragma("omp simd")
+#ifndef KINEGEN_BLOCKED
+#define KINEGEN_BLOCKED
+#endif
+#else
+#define KINEGEN_VECTOR_LOOP
+#endif
+#ifndef KINEGEN_BLOCK
+#define KINEGEN_BLOCK 64
+#endif
+/* Each kernel's block: at most KINEGEN_BLOCK items, fewer where its arrays would pass 32 KiB of stack. */
+#define KINEGEN_BLOCK_OF(items) ((items) < KINEGEN_BLOCK ? (items) : KINEGEN_BLOCK)
+#if defined(KINEGEN_SIMD) && defined(__SSE2__) && !defined(KINEGEN_NO_STREAM)
+/* Batches whose outputs exceed KINEGEN_STREAM_BYTES write them with SSE2 streaming
+   stores: a plain store first reads the line it overwrites, which doubles the memory
+   traffic of a batch too large for the caches. */
+#include <emmintrin.h>
+#include <stdint.h>
+#define KINEGEN_STREAM
+#ifndef KINEGEN_STREAM_BYTES
+#define KINEGEN_STREAM_BYTES 1048576
+#endif
+#endif
+
 const scorbot_path_params scorbot_path_default_params = { 0.05, 0.3, 0.25, 0.385, 0.212, 0.75, 0.0, 0.3, 0.3, 0.0, 0.75 };
+
+/* min and max that pass a NaN on, like numpy.minimum and numpy.maximum: C99's fmin and
+   fmax would turn an acos argument of NaN into +-1 and a valid-looking angle.  Each is
+   emitted only where a kernel uses it (static: -Werror=unused-function). */
+static double kinegen_min(double a, double b)
+{
+    return isnan(a) || a < b ? a : b;
+}
+
+static double kinegen_max(double a, double b)
+{
+    return isnan(a) || a > b ? a : b;
+}
 
 /* P5 on the line MN for a theta2 state, by Predescu and Stroe Eqs. 4.2-4.7: (p (..., 3, 2) rows position, velocity, acceleration, columns x, z; valid (...)). */
 void scorbot_path_tool_point_from_theta2(const double *restrict theta2_state, const scorbot_path_params *restrict params, double *restrict p, int *restrict valid)
@@ -36,38 +100,39 @@ void scorbot_path_tool_point_from_theta2(const double *restrict theta2_state, co
     const double _t2 = zM - zN;
     const double _t3 = (_t2*_t2)/(_t1*_t1);
     const double _t4 = 1.0/(2*_t3 + 2);
-    const double _t5 = cos(theta2);
-    const double _t6 = _t5*a2;
-    const double _t7 = 2*_t6;
-    const double _t8 = sin(theta2);
-    const double _t9 = _t8*a2;
-    const double _t10 = _t9 + d1;
     const double _t11 = _t2/_t1;
     const double _t12 = 2*_t11;
     const double _t13 = _t11*(-_t0 - d5);
     const double _t14 = -_t13 + zN;
+    const double _t17 = 4*_t3 + 4;
+    const double _t19 = -2*_t13 + 2*zN;
+    const double _t25 = (0.5)*_t17;
+    const double _t35 = 2*(a2*a2);
+    double _s0, _c0;
+    _s0 = sin(theta2);
+    _c0 = cos(theta2);
+    const double _t6 = _c0*a2;
+    const double _t7 = 2*_t6;
+    const double _t9 = _s0*a2;
+    const double _t10 = _t9 + d1;
     const double _t15 = _t10*_t12 - _t12*_t14 + _t7 + 2*a1;
     const double _t16 = -_t15;
-    const double _t17 = 4*_t3 + 4;
     const double _t18 = _t6 + a1;
-    const double _t19 = -2*_t13 + 2*zN;
     const double _t20 = (_t16*_t16) - _t17*((_t10*_t10) - _t10*_t19 + (_t14*_t14) + (_t18*_t18) - (a3*a3));
     const double _t21 = sqrt(_t20);
     const double _t22 = _t4*(_t15 + _t21);
     const double _t23 = 2*_t9;
     const double _t24 = _t11*_t7;
-    const double _t25 = (0.5)*_t17;
     const double _t26 = 4*_t9;
     const double _t27 = 4*_t6;
     const double _t28 = -_t11*_t27 + _t26;
-    const double _t29 = -0.5*_t16*_t28 + _t25*(2*_t10*_t5*a2 - _t18*_t23 - _t19*_t6);
+    const double _t29 = -0.5*_t16*_t28 + _t25*(2*_c0*_t10*a2 - _t18*_t23 - _t19*_t6);
     const double _t30 = -_t29;
     const double _t31 = 1.0/_t21;
     const double _t32 = _t4*(-_t23 + _t24 + _t30*_t31);
     const double _t33 = _t32*theta2_rate;
     const double _t34 = _t32*theta2_accel;
-    const double _t35 = 2*(a2*a2);
-    const double _t36 = _t4*(theta2_rate*theta2_rate)*(-_t11*_t23 + _t31*((0.5)*_t16*(_t11*_t26 + _t27) - _t25*(-_t10*_t23 - _t18*_t7 + _t19*_t9 + _t35*(_t5*_t5) + _t35*(_t8*_t8)) + (0.5)*_t28*(_t23 - _t24)) - _t7 + _t29*_t30/(_t20*sqrt(_t20)));
+    const double _t36 = _t4*(theta2_rate*theta2_rate)*(-_t11*_t23 + _t31*((0.5)*_t16*(_t11*_t26 + _t27) - _t25*((_c0*_c0)*_t35 + (_s0*_s0)*_t35 - _t10*_t23 - _t18*_t7 + _t19*_t9) + (0.5)*_t28*(_t23 - _t24)) - _t7 + _t29*_t30/(_t20*sqrt(_t20)));
     p[0] = _t22 + d5;
     p[1] = _t11*_t22 + _t14;
     p[2] = _t33;
@@ -77,12 +142,153 @@ void scorbot_path_tool_point_from_theta2(const double *restrict theta2_state, co
     valid[0] = _t20 >= 0;
 }
 
+/* tool_point_from_theta2 of `count` items, stored one after the other in each argument and output. */
 void scorbot_path_tool_point_from_theta2_batch(size_t count, const double *restrict theta2_state, const scorbot_path_params *restrict params, double *restrict p, int *restrict valid)
 {
+#ifdef KINEGEN_BLOCKED
+    double theta2[KINEGEN_BLOCK_OF(64)];
+    double theta2_rate[KINEGEN_BLOCK_OF(64)];
+    double theta2_accel[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _p_block[6][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)p & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_path_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d1 = params->d1;
+    const double d5 = params->d5;
+    const double xM = params->xM;
+    const double zM = params->zM;
+    const double xN = params->xN;
+    const double zN = params->zN;
+    const double _t0 = -xN;
+    const double _t1 = _t0 + xM;
+    const double _t2 = zM - zN;
+    const double _t3 = (_t2*_t2)/(_t1*_t1);
+    const double _t4 = 1.0/(2*_t3 + 2);
+    const double _t11 = _t2/_t1;
+    const double _t12 = 2*_t11;
+    const double _t13 = _t11*(-_t0 - d5);
+    const double _t14 = -_t13 + zN;
+    const double _t17 = 4*_t3 + 4;
+    const double _t19 = -2*_t13 + 2*zN;
+    const double _t25 = (0.5)*_t17;
+    const double _t35 = 2*(a2*a2);
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            theta2[i] = theta2_state[3 * (start + i) + 0];
+            theta2_rate[i] = theta2_state[3 * (start + i) + 1];
+            theta2_accel[i] = theta2_state[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(theta2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(theta2[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t6 = _c0[i]*a2;
+                const double _t7 = 2*_t6;
+                const double _t9 = _s0[i]*a2;
+                const double _t10 = _t9 + d1;
+                const double _t15 = _t10*_t12 - _t12*_t14 + _t7 + 2*a1;
+                const double _t16 = -_t15;
+                const double _t18 = _t6 + a1;
+                const double _t20 = (_t16*_t16) - _t17*((_t10*_t10) - _t10*_t19 + (_t14*_t14) + (_t18*_t18) - (a3*a3));
+                const double _t21 = sqrt(_t20);
+                const double _t22 = _t4*(_t15 + _t21);
+                const double _t23 = 2*_t9;
+                const double _t24 = _t11*_t7;
+                const double _t26 = 4*_t9;
+                const double _t27 = 4*_t6;
+                const double _t28 = -_t11*_t27 + _t26;
+                const double _t29 = -0.5*_t16*_t28 + _t25*(2*_c0[i]*_t10*a2 - _t18*_t23 - _t19*_t6);
+                const double _t30 = -_t29;
+                const double _t31 = 1.0/_t21;
+                const double _t32 = _t4*(-_t23 + _t24 + _t30*_t31);
+                const double _t33 = _t32*theta2_rate[i];
+                const double _t34 = _t32*theta2_accel[i];
+                const double _t36 = _t4*(theta2_rate[i]*theta2_rate[i])*(-_t11*_t23 + _t31*((0.5)*_t16*(_t11*_t26 + _t27) - _t25*((_c0[i]*_c0[i])*_t35 + (_s0[i]*_s0[i])*_t35 - _t10*_t23 - _t18*_t7 + _t19*_t9) + (0.5)*_t28*(_t23 - _t24)) - _t7 + _t29*_t30/(_t20*sqrt(_t20)));
+                _p_block[0][i] = _t22 + d5;
+                _p_block[1][i] = _t11*_t22 + _t14;
+                _p_block[2][i] = _t33;
+                _p_block[3][i] = _t11*_t33;
+                _p_block[4][i] = _t34 + _t36;
+                _p_block[5][i] = _t11*_t34 + _t11*_t36;
+                valid[1 * (start + i) + 0] = _t20 >= 0;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t6 = _c0[i]*a2;
+                const double _t7 = 2*_t6;
+                const double _t9 = _s0[i]*a2;
+                const double _t10 = _t9 + d1;
+                const double _t15 = _t10*_t12 - _t12*_t14 + _t7 + 2*a1;
+                const double _t16 = -_t15;
+                const double _t18 = _t6 + a1;
+                const double _t20 = (_t16*_t16) - _t17*((_t10*_t10) - _t10*_t19 + (_t14*_t14) + (_t18*_t18) - (a3*a3));
+                const double _t21 = sqrt(_t20);
+                const double _t22 = _t4*(_t15 + _t21);
+                const double _t23 = 2*_t9;
+                const double _t24 = _t11*_t7;
+                const double _t26 = 4*_t9;
+                const double _t27 = 4*_t6;
+                const double _t28 = -_t11*_t27 + _t26;
+                const double _t29 = -0.5*_t16*_t28 + _t25*(2*_c0[i]*_t10*a2 - _t18*_t23 - _t19*_t6);
+                const double _t30 = -_t29;
+                const double _t31 = 1.0/_t21;
+                const double _t32 = _t4*(-_t23 + _t24 + _t30*_t31);
+                const double _t33 = _t32*theta2_rate[i];
+                const double _t34 = _t32*theta2_accel[i];
+                const double _t36 = _t4*(theta2_rate[i]*theta2_rate[i])*(-_t11*_t23 + _t31*((0.5)*_t16*(_t11*_t26 + _t27) - _t25*((_c0[i]*_c0[i])*_t35 + (_s0[i]*_s0[i])*_t35 - _t10*_t23 - _t18*_t7 + _t19*_t9) + (0.5)*_t28*(_t23 - _t24)) - _t7 + _t29*_t30/(_t20*sqrt(_t20)));
+                p[6 * (start + i) + 0] = _t22 + d5;
+                p[6 * (start + i) + 1] = _t11*_t22 + _t14;
+                p[6 * (start + i) + 2] = _t33;
+                p[6 * (start + i) + 3] = _t11*_t33;
+                p[6 * (start + i) + 4] = _t34 + _t36;
+                p[6 * (start + i) + 5] = _t11*_t34 + _t11*_t36;
+                valid[1 * (start + i) + 0] = _t20 >= 0;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                int k;
+                for (k = 0; k < 6; k += 2) {
+                    _mm_stream_pd(p + 6 * (start + i) + k, _mm_set_pd(_p_block[k + 1][i], _p_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         scorbot_path_tool_point_from_theta2(theta2_state + 3 * i, params, p + 6 * i, valid + 1 * i);
     }
+#endif
 }
 
 /* Joint motion along P5 = M + s (N - M) on the IK branch elbow_up (the paper's): (q (..., 3, 5) rows angles, rates, accelerations; valid (...)). */
@@ -107,30 +313,58 @@ void scorbot_path_joints_along_line(const double *restrict path, const scorbot_p
     const double zN = params->zN;
     const double _t0 = yM - yN;
     const double _t1 = -_t0;
-    const double _t2 = _t1*s + yM;
     const double _t3 = xM - xN;
     const double _t4 = -_t3;
-    const double _t5 = _t4*s + xM;
     const double _t6 = zM - zN;
     const double _t7 = -_t6;
-    const double _t8 = _t7*s - d1 + zM;
-    const double _t9 = (_t2*_t2) + (_t5*_t5);
-    const double _t10 = sqrt(_t9);
     const double _t11 = a1 + d5;
-    const double _t12 = _t10 - _t11;
     const double _t13 = 1.0/a3;
-    const double _t14 = (_t8*_t8);
-    const double _t15 = (_t12*_t12);
     const double _t16 = (a2*a2);
     const double _t17 = (a3*a3);
     const double _t18 = _t16 + _t17;
-    const double _t19 = _t14 + _t15 - _t18;
     const double _t20 = 1.0/a2;
     const double _t21 = (0.5)*_t20;
+    const double _t36 = -2*xM + 2*xN;
+    const double _t38 = -2*yM + 2*yN;
+    const double _t43 = -2*zM + 2*zN;
+    const double _t49 = 1.0/_t16;
+    const double _t72 = _t43*_t7;
+    const double _t2 = _t1*s + yM;
+    const double _t5 = _t4*s + xM;
+    const double _t8 = _t7*s - d1 + zM;
+    const double _t9 = (_t2*_t2) + (_t5*_t5);
+    const double _t10 = sqrt(_t9);
+    const double _t12 = _t10 - _t11;
+    const double _t14 = (_t8*_t8);
+    const double _t15 = (_t12*_t12);
+    const double _t19 = _t14 + _t15 - _t18;
     const double _t22 = _t19*_t21;
-    const double _t23 = fmin(1, fmax(-1, _t13*_t22));
-    const double _t24 = -atan2(_t8, _t12) + atan2(-a3*sqrt(1 - (_t23*_t23)), _t23*a3 + a2);
-    const double _t25 = acos(_t23);
+    const double _t23 = kinegen_min(1, kinegen_max(-1, _t13*_t22));
+    const double _a0 = -a3*sqrt(1 - (_t23*_t23));
+    const double _a1 = _t23*a3 + a2;
+    double _f0, _f1, _f2, _f3;
+#if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+    {
+        /* The atan2 arguments side by side: one vector call. */
+        const double argument0[4] = { _t8, _a0, _t2, 0.0 };
+        const double argument1[4] = { _t12, _a1, _t5, 1.0 };
+        double result[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            result[k] = atan2(argument0[k], argument1[k]);
+        }
+        _f0 = result[0];
+        _f1 = result[1];
+        _f3 = result[2];
+    }
+#else
+    _f0 = atan2(_t8, _t12);
+    _f1 = atan2(_a0, _a1);
+    _f3 = atan2(_t2, _t5);
+#endif
+    _f2 = acos(_t23);
+    const double _t24 = -_f0 + _f1;
     const double _t26 = 1.0/_t9;
     const double _t27 = _t1*_t26;
     const double _t28 = -_t2;
@@ -141,20 +375,16 @@ void scorbot_path_joints_along_line(const double *restrict path, const scorbot_p
     const double _t33 = _t32*_t7;
     const double _t34 = -_t8;
     const double _t35 = 1.0/_t10;
-    const double _t36 = -2*xM + 2*xN;
     const double _t37 = _t36*_t5;
-    const double _t38 = -2*yM + 2*yN;
     const double _t39 = _t2*_t38;
     const double _t40 = (0.5)*_t37 + (0.5)*_t39;
     const double _t41 = _t35*_t40;
     const double _t42 = _t32*_t41;
-    const double _t43 = -2*zM + 2*zN;
     const double _t44 = _t43*_t8;
     const double _t45 = _t12*_t41;
     const double _t46 = _t44 + 2*_t45;
     const double _t47 = _t21*_t46;
     const double _t48 = (_t19*_t19);
-    const double _t49 = 1.0/_t16;
     const double _t50 = 1 - 0.25*_t48*_t49/_t17;
     const double _t51 = sqrt(_t50);
     const double _t52 = _t22 + a2;
@@ -177,7 +407,6 @@ void scorbot_path_joints_along_line(const double *restrict path, const scorbot_p
     const double _t69 = -(_t40*_t40)/(_t9*sqrt(_t9));
     const double _t70 = -_t46/(_t31*_t31);
     const double _t71 = 1/((_t50*sqrt(_t50))*(a3*a3*a3));
-    const double _t72 = _t43*_t7;
     const double _t73 = _t26*(_t40*_t40);
     const double _t74 = _t12*_t67;
     const double _t75 = _t12*_t69;
@@ -186,10 +415,10 @@ void scorbot_path_joints_along_line(const double *restrict path, const scorbot_p
     const double _t78 = ((0.25)*_t19*_t49*_t56 - _t20*_t77)/(_t53*_t53);
     const double _t79 = _t12*_t7*_t70 - _t19*_t61*(2*_t72 + 4*_t73 + 4*_t74 + 4*_t75) + _t33*_t41 + _t34*_t41*_t70 + _t42*_t6 - _t47*_t51*_t78*a3 - 0.015625*_t48*(_t56*_t56)*_t58*_t71/(a2*a2*a2*a2) - _t52*_t57*_t60*_t78 - _t54*_t56*_t60*_t77 - _t55*_t76 + _t67*_t68 + _t68*_t69;
     const double _t80 = (0.0625)*_t46*_t57*_t71/(a2*a2*a2) + _t59*_t76;
-    q[0] = atan2(_t2, _t5);
+    q[0] = _f3;
     q[1] = -_t24;
-    q[2] = -_t25;
-    q[3] = _t24 + _t25;
+    q[2] = -_f2;
+    q[3] = _f2 + _t24;
     q[4] = 0;
     q[5] = _t30*s_rate;
     q[6] = _t62*s_rate;
@@ -204,11 +433,178 @@ void scorbot_path_joints_along_line(const double *restrict path, const scorbot_p
     valid[0] = (0.5)*fabs(_t13*_t20*(-_t18 + ((_t11 - sqrt(((_t0*s - yM)*(_t0*s - yM)) + ((_t3*s - xM)*(_t3*s - xM))))*(_t11 - sqrt(((_t0*s - yM)*(_t0*s - yM)) + ((_t3*s - xM)*(_t3*s - xM))))) + ((_t6*s + d1 - zM)*(_t6*s + d1 - zM)))) <= 1.000000000001;
 }
 
+/* joints_along_line of `count` items, stored one after the other in each argument and output. */
 void scorbot_path_joints_along_line_batch(size_t count, const double *restrict path, const scorbot_path_params *restrict params, double *restrict q, int *restrict valid)
 {
+#ifdef KINEGEN_BLOCKED
+    double s[KINEGEN_BLOCK_OF(64)];
+    double s_rate[KINEGEN_BLOCK_OF(64)];
+    double s_accel[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
+    double _t5[KINEGEN_BLOCK_OF(64)];
+    double _t8[KINEGEN_BLOCK_OF(64)];
+    double _t9[KINEGEN_BLOCK_OF(64)];
+    double _t10[KINEGEN_BLOCK_OF(64)];
+    double _t12[KINEGEN_BLOCK_OF(64)];
+    double _t14[KINEGEN_BLOCK_OF(64)];
+    double _t15[KINEGEN_BLOCK_OF(64)];
+    double _t19[KINEGEN_BLOCK_OF(64)];
+    double _t22[KINEGEN_BLOCK_OF(64)];
+    double _t23[KINEGEN_BLOCK_OF(64)];
+    double _a0[KINEGEN_BLOCK_OF(64)];
+    double _a1[KINEGEN_BLOCK_OF(64)];
+    double _f0[KINEGEN_BLOCK_OF(64)];
+    double _f1[KINEGEN_BLOCK_OF(64)];
+    double _f2[KINEGEN_BLOCK_OF(64)];
+    double _f3[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_path_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d1 = params->d1;
+    const double d5 = params->d5;
+    const double xM = params->xM;
+    const double yM = params->yM;
+    const double zM = params->zM;
+    const double xN = params->xN;
+    const double yN = params->yN;
+    const double zN = params->zN;
+    const double _t0 = yM - yN;
+    const double _t1 = -_t0;
+    const double _t3 = xM - xN;
+    const double _t4 = -_t3;
+    const double _t6 = zM - zN;
+    const double _t7 = -_t6;
+    const double _t11 = a1 + d5;
+    const double _t13 = 1.0/a3;
+    const double _t16 = (a2*a2);
+    const double _t17 = (a3*a3);
+    const double _t18 = _t16 + _t17;
+    const double _t20 = 1.0/a2;
+    const double _t21 = (0.5)*_t20;
+    const double _t36 = -2*xM + 2*xN;
+    const double _t38 = -2*yM + 2*yN;
+    const double _t43 = -2*zM + 2*zN;
+    const double _t49 = 1.0/_t16;
+    const double _t72 = _t43*_t7;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            s[i] = path[3 * (start + i) + 0];
+            s_rate[i] = path[3 * (start + i) + 1];
+            s_accel[i] = path[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t2[i] = _t1*s[i] + yM;
+            _t5[i] = _t4*s[i] + xM;
+            _t8[i] = _t7*s[i] - d1 + zM;
+            _t9[i] = (_t2[i]*_t2[i]) + (_t5[i]*_t5[i]);
+            _t10[i] = sqrt(_t9[i]);
+            _t12[i] = _t10[i] - _t11;
+            _t14[i] = (_t8[i]*_t8[i]);
+            _t15[i] = (_t12[i]*_t12[i]);
+            _t19[i] = _t14[i] + _t15[i] - _t18;
+            _t22[i] = _t19[i]*_t21;
+            _t23[i] = kinegen_min(1, kinegen_max(-1, _t13*_t22[i]));
+            _a0[i] = -a3*sqrt(1 - (_t23[i]*_t23[i]));
+            _a1[i] = _t23[i]*a3 + a2;
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f0[i] = atan2(_t8[i], _t12[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f1[i] = atan2(_a0[i], _a1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f2[i] = acos(_t23[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _f3[i] = atan2(_t2[i], _t5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t24 = -_f0[i] + _f1[i];
+            const double _t26 = 1.0/_t9[i];
+            const double _t27 = _t1*_t26;
+            const double _t28 = -_t2[i];
+            const double _t29 = _t26*_t4;
+            const double _t30 = _t27*_t5[i] + _t28*_t29;
+            const double _t31 = _t14[i] + _t15[i];
+            const double _t32 = 1.0/_t31;
+            const double _t33 = _t32*_t7;
+            const double _t34 = -_t8[i];
+            const double _t35 = 1.0/_t10[i];
+            const double _t37 = _t36*_t5[i];
+            const double _t39 = _t2[i]*_t38;
+            const double _t40 = (0.5)*_t37 + (0.5)*_t39;
+            const double _t41 = _t35*_t40;
+            const double _t42 = _t32*_t41;
+            const double _t44 = _t43*_t8[i];
+            const double _t45 = _t12[i]*_t41;
+            const double _t46 = _t44 + 2*_t45;
+            const double _t47 = _t21*_t46;
+            const double _t48 = (_t19[i]*_t19[i]);
+            const double _t50 = 1 - 0.25*_t48*_t49/_t17;
+            const double _t51 = sqrt(_t50);
+            const double _t52 = _t22[i] + a2;
+            const double _t53 = _t17*_t50 + (_t52*_t52);
+            const double _t54 = 1.0/_t53;
+            const double _t55 = _t51*_t54*a3;
+            const double _t56 = 2*_t44 + 4*_t45;
+            const double _t57 = _t19[i]*_t56;
+            const double _t58 = _t52*_t54;
+            const double _t59 = _t13/_t51;
+            const double _t60 = (0.125)*_t49*_t59;
+            const double _t61 = _t58*_t60;
+            const double _t62 = _t12[i]*_t33 + _t34*_t42 - _t47*_t55 - _t57*_t61;
+            const double _t63 = _t47*_t59;
+            const double _t64 = -_t62 - _t63;
+            const double _t65 = (s_rate[i]*s_rate[i]);
+            const double _t66 = (-_t37 - _t39)/(_t9[i]*_t9[i]);
+            const double _t67 = _t35*((0.5)*_t1*_t38 + (0.5)*_t36*_t4);
+            const double _t68 = _t32*_t34;
+            const double _t69 = -(_t40*_t40)/(_t9[i]*sqrt(_t9[i]));
+            const double _t70 = -_t46/(_t31*_t31);
+            const double _t71 = 1/((_t50*sqrt(_t50))*(a3*a3*a3));
+            const double _t73 = _t26*(_t40*_t40);
+            const double _t74 = _t12[i]*_t67;
+            const double _t75 = _t12[i]*_t69;
+            const double _t76 = _t21*(_t72 + 2*_t73 + 2*_t74 + 2*_t75);
+            const double _t77 = _t46*_t52;
+            const double _t78 = ((0.25)*_t19[i]*_t49*_t56 - _t20*_t77)/(_t53*_t53);
+            const double _t79 = _t12[i]*_t7*_t70 - _t19[i]*_t61*(2*_t72 + 4*_t73 + 4*_t74 + 4*_t75) + _t33*_t41 + _t34*_t41*_t70 + _t42*_t6 - _t47*_t51*_t78*a3 - 0.015625*_t48*(_t56*_t56)*_t58*_t71/(a2*a2*a2*a2) - _t52*_t57*_t60*_t78 - _t54*_t56*_t60*_t77 - _t55*_t76 + _t67*_t68 + _t68*_t69;
+            const double _t80 = (0.0625)*_t46*_t57*_t71/(a2*a2*a2) + _t59*_t76;
+            q[15 * (start + i) + 0] = _f3[i];
+            q[15 * (start + i) + 1] = -_t24;
+            q[15 * (start + i) + 2] = -_f2[i];
+            q[15 * (start + i) + 3] = _f2[i] + _t24;
+            q[15 * (start + i) + 4] = 0;
+            q[15 * (start + i) + 5] = _t30*s_rate[i];
+            q[15 * (start + i) + 6] = _t62*s_rate[i];
+            q[15 * (start + i) + 7] = _t63*s_rate[i];
+            q[15 * (start + i) + 8] = _t64*s_rate[i];
+            q[15 * (start + i) + 9] = 0;
+            q[15 * (start + i) + 10] = _t30*s_accel[i] + _t65*(_t0*_t29 + _t1*_t5[i]*_t66 + _t27*_t4 + _t28*_t4*_t66);
+            q[15 * (start + i) + 11] = _t62*s_accel[i] + _t65*_t79;
+            q[15 * (start + i) + 12] = _t63*s_accel[i] + _t65*_t80;
+            q[15 * (start + i) + 13] = _t64*s_accel[i] + _t65*(-_t79 - _t80);
+            q[15 * (start + i) + 14] = 0;
+            valid[1 * (start + i) + 0] = (0.5)*fabs(_t13*_t20*(-_t18 + ((_t11 - sqrt(((_t0*s[i] - yM)*(_t0*s[i] - yM)) + ((_t3*s[i] - xM)*(_t3*s[i] - xM))))*(_t11 - sqrt(((_t0*s[i] - yM)*(_t0*s[i] - yM)) + ((_t3*s[i] - xM)*(_t3*s[i] - xM))))) + ((_t6*s[i] + d1 - zM)*(_t6*s[i] + d1 - zM)))) <= 1.000000000001;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         scorbot_path_joints_along_line(path + 3 * i, params, q + 15 * i, valid + 1 * i);
     }
+#endif
 }
 

@@ -13,6 +13,57 @@
 
 #include <math.h>
 
+/*
+ * Batched entry points.  Plain C99 loops over the single-point entry point by
+ * default.  With -DKINEGEN_BLOCKED they work through their items in blocks of
+ * KINEGEN_BLOCK instead: the inputs of a block are copied into one array per
+ * coordinate, every sine and every cosine is taken in a loop of its own, and the
+ * arithmetic runs in one loop per stage, from the same expressions as the single
+ * point (so the results are bit-identical).  -DKINEGEN_SIMD -fopenmp-simd (what
+ * build_c.py uses where the compiler and C library allow) adds to that SIMD
+ * declarations of the math functions, so that the loops vectorise and call
+ * glibc's vector math library (libmvec, at most 4 ulp), and the single point
+ * takes the sines and cosines of a stage's angles as one vector.  No NaN or
+ * infinity check is affected: no -ffast-math is involved.
+ */
+#ifdef KINEGEN_SIMD
+#pragma omp declare simd notinbranch
+double sin(double);
+#pragma omp declare simd notinbranch
+double cos(double);
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+/* libmvec has these from glibc 2.35 on. */
+#pragma omp declare simd notinbranch
+double atan2(double, double);
+#pragma omp declare simd notinbranch
+double acos(double);
+#pragma omp declare simd notinbranch
+double asin(double);
+#endif
+#define KINEGEN_VECTOR_LOOP _Pragma("omp simd")
+#ifndef KINEGEN_BLOCKED
+#define KINEGEN_BLOCKED
+#endif
+#else
+#define KINEGEN_VECTOR_LOOP
+#endif
+#ifndef KINEGEN_BLOCK
+#define KINEGEN_BLOCK 64
+#endif
+/* Each kernel's block: at most KINEGEN_BLOCK items, fewer where its arrays would pass 32 KiB of stack. */
+#define KINEGEN_BLOCK_OF(items) ((items) < KINEGEN_BLOCK ? (items) : KINEGEN_BLOCK)
+#if defined(KINEGEN_SIMD) && defined(__SSE2__) && !defined(KINEGEN_NO_STREAM)
+/* Batches whose outputs exceed KINEGEN_STREAM_BYTES write them with SSE2 streaming
+   stores: a plain store first reads the line it overwrites, which doubles the memory
+   traffic of a batch too large for the caches. */
+#include <emmintrin.h>
+#include <stdint.h>
+#define KINEGEN_STREAM
+#ifndef KINEGEN_STREAM_BYTES
+#define KINEGEN_STREAM_BYTES 1048576
+#endif
+#endif
+
 const trajectory_params trajectory_default_params = { 0.0 };
 
 /* Cubic time law from q0 (velocity v0) at t = 0 to qf (velocity vf) at t = duration: (state (..., 3) position, velocity, acceleration; valid (...)). */
@@ -37,12 +88,48 @@ void trajectory_cubic(const double *restrict time, const double *restrict bounda
     valid[0] = duration > 0;
 }
 
+/* cubic of `count` items, stored one after the other in each argument and output. */
 void trajectory_cubic_batch(size_t count, const double *restrict time, const double *restrict boundary, const trajectory_params *restrict params, double *restrict state, int *restrict valid)
 {
+#ifdef KINEGEN_BLOCKED
+    double t[KINEGEN_BLOCK_OF(64)];
+    double q0[KINEGEN_BLOCK_OF(64)];
+    double qf[KINEGEN_BLOCK_OF(64)];
+    double duration[KINEGEN_BLOCK_OF(64)];
+    double v0[KINEGEN_BLOCK_OF(64)];
+    double vf[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            t[i] = time[1 * (start + i) + 0];
+            q0[i] = boundary[5 * (start + i) + 0];
+            qf[i] = boundary[5 * (start + i) + 1];
+            duration[i] = boundary[5 * (start + i) + 2];
+            v0[i] = boundary[5 * (start + i) + 3];
+            vf[i] = boundary[5 * (start + i) + 4];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t0 = duration[i]*v0[i];
+            const double _t1 = duration[i]*vf[i];
+            const double _t2 = 1.0/duration[i];
+            const double _t3 = _t2*t[i];
+            const double _t4 = 6*q0[i] - 6*qf[i];
+            const double _t5 = 4*_t0 + 2*_t1 + _t4;
+            state[3 * (start + i) + 0] = _t3*(_t0 + _t3*(-2*_t0 - _t1 + _t2*t[i]*(_t0 + _t1 + 2*q0[i] - 2*qf[i]) - 3*q0[i] + 3*qf[i])) + q0[i];
+            state[3 * (start + i) + 1] = _t2*(_t0 + _t3*(_t2*t[i]*(3*_t0 + 3*_t1 + _t4) - _t5));
+            state[3 * (start + i) + 2] = (_t2*t[i]*(6*_t0 + 6*_t1 + 12*q0[i] - 12*qf[i]) - _t5)/(duration[i]*duration[i]);
+            valid[1 * (start + i) + 0] = duration[i] > 0;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         trajectory_cubic(time + 1 * i, boundary + 5 * i, params, state + 3 * i, valid + 1 * i);
     }
+#endif
 }
 
 /* Quintic time law meeting position, velocity and acceleration at t = 0 and t = duration: (state (..., 3), valid (...)). */
@@ -75,12 +162,58 @@ void trajectory_quintic(const double *restrict time, const double *restrict boun
     valid[0] = duration > 0;
 }
 
+/* quintic of `count` items, stored one after the other in each argument and output. */
 void trajectory_quintic_batch(size_t count, const double *restrict time, const double *restrict boundary, const trajectory_params *restrict params, double *restrict state, int *restrict valid)
 {
+#ifdef KINEGEN_BLOCKED
+    double t[KINEGEN_BLOCK_OF(64)];
+    double q0[KINEGEN_BLOCK_OF(64)];
+    double qf[KINEGEN_BLOCK_OF(64)];
+    double duration[KINEGEN_BLOCK_OF(64)];
+    double v0[KINEGEN_BLOCK_OF(64)];
+    double vf[KINEGEN_BLOCK_OF(64)];
+    double a0[KINEGEN_BLOCK_OF(64)];
+    double af[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            t[i] = time[1 * (start + i) + 0];
+            q0[i] = boundary[7 * (start + i) + 0];
+            qf[i] = boundary[7 * (start + i) + 1];
+            duration[i] = boundary[7 * (start + i) + 2];
+            v0[i] = boundary[7 * (start + i) + 3];
+            vf[i] = boundary[7 * (start + i) + 4];
+            a0[i] = boundary[7 * (start + i) + 5];
+            af[i] = boundary[7 * (start + i) + 6];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t0 = duration[i]*v0[i];
+            const double _t1 = (duration[i]*duration[i]);
+            const double _t2 = _t1*a0[i];
+            const double _t3 = (0.5)*_t2;
+            const double _t4 = duration[i]*vf[i];
+            const double _t5 = (1.5)*_t2;
+            const double _t6 = -0.5*_t1*af[i];
+            const double _t7 = 1.0/duration[i];
+            const double _t8 = _t1*af[i];
+            const double _t9 = _t7*t[i];
+            const double _t10 = 30*q0[i] - 30*qf[i];
+            const double _t11 = 60*q0[i] - 60*qf[i];
+            state[3 * (start + i) + 0] = _t9*(_t0 + _t9*(_t3 + _t9*(-6*_t0 - 4*_t4 - _t5 - _t6 + _t7*t[i]*(8*_t0 + 7*_t4 + _t5 - _t8 + _t9*(-3*_t0 - _t3 - 3*_t4 - _t6 - 6*q0[i] + 6*qf[i]) + 15*q0[i] - 15*qf[i]) - 10*q0[i] + 10*qf[i]))) + q0[i];
+            state[3 * (start + i) + 1] = _t7*(_t0 + _t9*(_t2 + _t9*(-18*_t0 + (1.5)*_t1*af[i] - _t10 - 4.5*_t2 - 12*_t4 + _t7*t[i]*(32*_t0 + _t11 + 6*_t2 + 28*_t4 - 4*_t8 + _t9*(-15*_t0 + (2.5)*_t1*af[i] - _t10 - 2.5*_t2 - 15*_t4)))));
+            state[3 * (start + i) + 2] = (_t2 + _t9*(-36*_t0 + 3*_t1*af[i] - _t11 - 9*_t2 - 24*_t4 + _t7*t[i]*(96*_t0 + 18*_t2 + 84*_t4 - 12*_t8 + _t9*(-60*_t0 + 10*_t1*af[i] - 10*_t2 - 60*_t4 - 120*q0[i] + 120*qf[i]) + 180*q0[i] - 180*qf[i])))/_t1;
+            valid[1 * (start + i) + 0] = duration[i] > 0;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         trajectory_quintic(time + 1 * i, boundary + 7 * i, params, state + 3 * i, valid + 1 * i);
     }
+#endif
 }
 
 /* Cycloidal law of Predescu and Stroe Eq. 4.8, q0 + amplitude (omega t - sin(omega t)) / (2 pi), one period 2 pi / omega long: (state (..., 3), valid (...)). */
@@ -92,20 +225,64 @@ void trajectory_cycloidal(const double *restrict time, const double *restrict la
     const double omega = law[2];
     (void)params;
     const double _t0 = omega*t;
-    const double _t1 = sin(_t0);
+    double _s0, _c0;
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
     const double _t2 = 0.15915494309189535*amplitude;
-    state[0] = _t2*(_t0 - _t1) + q0;
-    state[1] = _t2*(-omega*cos(_t0) + omega);
-    state[2] = _t1*_t2*(omega*omega);
+    state[0] = _t2*(-_s0 + _t0) + q0;
+    state[1] = _t2*(-_c0*omega + omega);
+    state[2] = _s0*_t2*(omega*omega);
     valid[0] = omega > 0;
 }
 
+/* cycloidal of `count` items, stored one after the other in each argument and output. */
 void trajectory_cycloidal_batch(size_t count, const double *restrict time, const double *restrict law, const trajectory_params *restrict params, double *restrict state, int *restrict valid)
 {
+#ifdef KINEGEN_BLOCKED
+    double t[KINEGEN_BLOCK_OF(64)];
+    double q0[KINEGEN_BLOCK_OF(64)];
+    double amplitude[KINEGEN_BLOCK_OF(64)];
+    double omega[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            t[i] = time[1 * (start + i) + 0];
+            q0[i] = law[3 * (start + i) + 0];
+            amplitude[i] = law[3 * (start + i) + 1];
+            omega[i] = law[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = omega[i]*t[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const double _t2 = 0.15915494309189535*amplitude[i];
+            state[3 * (start + i) + 0] = _t2*(-_s0[i] + _t0[i]) + q0[i];
+            state[3 * (start + i) + 1] = _t2*(-_c0[i]*omega[i] + omega[i]);
+            state[3 * (start + i) + 2] = _s0[i]*_t2*(omega[i]*omega[i]);
+            valid[1 * (start + i) + 0] = omega[i] > 0;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         trajectory_cycloidal(time + 1 * i, law + 3 * i, params, state + 3 * i, valid + 1 * i);
     }
+#endif
 }
 
 /* Trapezoidal velocity profile from 0 to length (velocity-model slides): (state (..., 3), valid (...)); at rest before t = 0 and after the move. */
@@ -181,11 +358,97 @@ void trajectory_trapezoid(const double *restrict time, const double *restrict pr
     valid[0] = (0.5)*_t15*speed <= _t7 && accel_time > 0 && decel_time > 0 && speed > 0 && length != 0;
 }
 
+/* trapezoid of `count` items, stored one after the other in each argument and output. */
 void trajectory_trapezoid_batch(size_t count, const double *restrict time, const double *restrict profile, const trajectory_params *restrict params, double *restrict state, int *restrict valid)
 {
+#ifdef KINEGEN_BLOCKED
+    double t[KINEGEN_BLOCK_OF(64)];
+    double length[KINEGEN_BLOCK_OF(64)];
+    double speed[KINEGEN_BLOCK_OF(64)];
+    double accel_time[KINEGEN_BLOCK_OF(64)];
+    double decel_time[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            t[i] = time[1 * (start + i) + 0];
+            length[i] = profile[4 * (start + i) + 0];
+            speed[i] = profile[4 * (start + i) + 1];
+            accel_time[i] = profile[4 * (start + i) + 2];
+            decel_time[i] = profile[4 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            const int _t0 = t[i] < 0;
+            const double _t1 = speed[i]*(((length[i]) > 0) - ((length[i]) < 0));
+            const double _t2 = _t1/accel_time[i];
+            const int _t3 = accel_time[i] > t[i];
+            const double _t4 = (0.5)*accel_time[i];
+            const double _t5 = -t[i];
+            const double _t6 = (0.5)*decel_time[i];
+            const double _t7 = fabs(length[i]);
+            const double _t8 = _t7/speed[i];
+            const double _t9 = _t4 + _t8;
+            const int _t10 = t[i] < -_t6 + _t9;
+            const double _t11 = _t6 + _t9;
+            const double _t12 = _t1/decel_time[i];
+            const double _t13 = (0.5)*_t12;
+            const int _t14 = t[i] < _t11;
+            const double _t15 = accel_time[i] + decel_time[i];
+            state[3 * (start + i) + 0] = ((_t0) ? (
+   0
+)
+: ((_t3) ? (
+   (0.5)*_t2*(t[i]*t[i])
+)
+: ((_t10) ? (
+   _t1*_t4 + _t1*(-_t5 - accel_time[i])
+)
+: ((_t14) ? (
+   -_t13*((_t11 + _t5)*(_t11 + _t5)) + length[i]
+)
+: (
+   length[i]
+)))));
+            state[3 * (start + i) + 1] = ((_t0) ? (
+   0
+)
+: ((_t3) ? (
+   _t2*t[i]
+)
+: ((_t10) ? (
+   _t1
+)
+: ((_t14) ? (
+   -_t13*(-_t15 - 2*_t8 + 2*t[i])
+)
+: (
+   0
+)))));
+            state[3 * (start + i) + 2] = ((_t0) ? (
+   0
+)
+: ((_t3) ? (
+   _t2
+)
+: ((_t10) ? (
+   0
+)
+: ((_t14) ? (
+   -_t12
+)
+: (
+   0
+)))));
+            valid[1 * (start + i) + 0] = (0.5)*_t15*speed[i] <= _t7 && accel_time[i] > 0 && decel_time[i] > 0 && speed[i] > 0 && length[i] != 0;
+        }
+    }
+#else
     size_t i;
     for (i = 0; i < count; ++i) {
         trajectory_trapezoid(time + 1 * i, profile + 4 * i, params, state + 3 * i, valid + 1 * i);
     }
+#endif
 }
 

@@ -1,0 +1,221 @@
+"""The performance levers keep every result and every check: blocks, vector sin/cos, thin binding.
+
+Speed itself is never asserted here (`make bench` measures it); these tests
+check that the faster paths compute the same numbers and reject the same bad
+input as the plain ones.
+"""
+import importlib.util
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import generated
+from codegen import build, generate
+from conftest import kernels
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def build_module(name):
+    spec = importlib.util.spec_from_file_location(f"_test_build_{name}", generate.GENERATED / name / "build_c.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.parametrize("kernel", ["fk", "frames", "jacobian", "task", "task_jacobian"])
+def test_batches_across_block_boundaries_equal_single_calls(kernel):
+    """Batches of 1, a partial block, exactly a block and several blocks against one call per pose.
+
+    The built library's batches run vectorised (libmvec sin/cos, at most 4 ulp
+    from the scalar libm), the single poses in scalar C: equal to 1e-14.
+    """
+    k = kernels("puma560", "c")
+    rng = np.random.default_rng(3)
+    for count in (1, 5, 63, 64, 65, 200):
+        q = rng.uniform(-3, 3, (count, 6))
+        batch = getattr(k, kernel)(q)
+        single = np.stack([getattr(k, kernel)(qi) for qi in q])
+        np.testing.assert_allclose(batch, single, rtol=0, atol=1e-14)
+
+
+def test_nan_and_inf_are_caught_in_c_anywhere_in_a_batch():
+    """The finiteness check runs in C, over every value, wherever the bad one is."""
+    k = kernels("puma560", "c")
+    q = np.zeros((1000, 6))
+    for bad in (np.nan, np.inf, -np.inf):
+        for where in ((0, 0), (517, 3), (999, 5)):
+            q_bad = q.copy()
+            q_bad[where] = bad
+            with pytest.raises(ValueError, match="fk: q contains NaN or inf"):
+                k.fk(q_bad)
+            with pytest.raises(ValueError, match="jacobian: q contains NaN or inf"):
+                k.jacobian(q_bad)
+    assert np.isfinite(k.fk(q)).all()
+
+
+@pytest.mark.parametrize("q", [
+    np.zeros((4, 12))[:, ::2],  # not contiguous
+    np.zeros((4, 6), dtype=np.float32),  # another dtype
+    np.zeros((4, 6)).astype(">f8"),  # another byte order
+    [[0.0] * 6] * 4,  # a list
+    np.zeros((4, 6), dtype=np.int16),
+])
+def test_inputs_off_the_fast_path_give_the_same_results(q):
+    k = kernels("puma560", "c")
+    np.testing.assert_array_equal(k.fk(q), k.fk(np.zeros((4, 6))))
+
+
+def test_parameters_off_the_default_are_checked_and_cached_by_value():
+    k = kernels("puma560", "c")
+    q = np.random.default_rng(4).uniform(-1, 1, (3, 6))
+    longer = k.fk(q, a2=0.5)
+    assert not np.allclose(longer, k.fk(q))
+    np.testing.assert_array_equal(k.fk(q, a2=0.5), longer)  # from the cache
+    np.testing.assert_array_equal(k.fk(q, a2=np.float64(0.5)), longer)
+    np.testing.assert_array_equal(k.fk(q, a2=np.array(0.5)), longer)
+    np.testing.assert_array_equal(k.fk(q, a2=1), k.fk(q, a2=1.0))
+    # A bool equals 1.0 and hashes like it, so the cache must not let it through.
+    k.fk(q, d1=1.0)
+    with pytest.raises(ValueError, match="parameter d1 must be a real number, got bool"):
+        k.fk(q, d1=True)
+    with pytest.raises(ValueError, match="parameter d1 must be finite"):
+        k.fk(q, d1=float("nan"))
+    np.testing.assert_array_equal(k.fk(q, d1=0.67183), k.fk(q))  # an equal value, not the default object
+
+
+def test_adept_three_defaults_of_zero_are_not_taken_by_false():
+    k = kernels("adept_three", "c")
+    with pytest.raises(ValueError, match="parameter d4 must be a real number, got bool"):
+        k.fk(np.zeros(4), d4=False)
+
+
+def test_the_built_library_uses_the_fast_flags_only_when_they_work():
+    flags = build_module("puma560").compile_flags()
+    assert flags[:2] == ["-std=c99", "-O3"]
+    assert "-ffast-math" not in flags and "-ffinite-math-only" not in flags
+    portable = subprocess.run(
+        [sys.executable, "-c", "import runpy; print(runpy.run_path('build_c.py')['compile_flags']())"],
+        cwd=generate.GENERATED / "puma560", capture_output=True, text=True, check=True,
+        env={"KINEGEN_PORTABLE": "1", "PATH": "/usr/bin:/bin"})
+    assert portable.stdout.strip() == "['-std=c99', '-O3']"
+
+
+def test_every_layout_compiles_strictly_and_blocked_equals_plain_under_sanitizers():
+    """What `make build` and `make sanitize` check, for one small robot and a block of 4."""
+    package = generate.GENERATED / "planar_2r"
+    build.compile_strict(package, "planar_2r")
+    import derivations
+    model = derivations.load("planar_2r")
+    context = generate.robot_context(model, "")
+    assert build.sanitizer_run(package, "planar_2r", context["functions"], model.n)
+
+
+def test_numpy_chunks_equal_one_chunk():
+    """The numpy kernels work through big batches CHUNK poses at a time."""
+    k = kernels("puma560", "numpy")
+    q = np.random.default_rng(6).uniform(-2, 2, (2 * k.CHUNK + 3, 6))
+    whole = k.jacobian(q)
+    pieces = np.concatenate([k.jacobian(q[s:s + 7]) for s in range(0, len(q), 7)])
+    np.testing.assert_array_equal(whole, pieces)
+    grid = q[:len(q) // 3 * 3].reshape(-1, 3, 6)
+    np.testing.assert_array_equal(k.fk(grid).reshape(-1, 4, 4), k.fk(q[:len(grid) * 3]))
+
+
+def test_benchmark_quick_run_writes_a_table(tmp_path):
+    """`benchmarks/run.py --quick` runs (peers that are not installed say so) and writes its report."""
+    out = tmp_path / "results.md"
+    result = subprocess.run([sys.executable, str(REPO / "benchmarks" / "run.py"), "--quick", "--quiet",
+                             "--robots", "planar_3r", "--count", "300", "--out", str(out)],
+                            capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr
+    text = out.read_text()
+    assert "| planar_3r | fk |" in text and "## Inside C" in text and "## Targets" in text
+    row = next(line for line in text.splitlines() if line.startswith("| planar_3r | fk |"))
+    cells = [c.strip() for c in row.split("|")[3:-1]]
+    assert "×" in cells[0] and ("ns" in cells[0] or "µs" in cells[0])  # kinegen C: a time and ratios
+    assert math.isfinite(float(cells[2].split()[0]))  # lambdify measured
+
+
+@pytest.mark.parametrize("name", ["planar_3r", "adept_three", "scorbot_er7"])
+def test_cheap_derivative_simplification_gives_what_trigsimp_gives(models, name):
+    """The task Jacobian skips trigsimp (the Puma's cold derivation: 13 s of 20): same expressions.
+
+    The Puma is left out only for time (trigsimp takes 13 s there); its generated
+    code is byte-identical either way, which test_codegen's freshness check holds.
+    """
+    import sympy as sp
+    from derivations.chain import simplify_derivative, simplify_entry
+    m = models[name]
+    raw = m.task.jacobian(sp.Matrix(m.q))
+    assert raw.applyfunc(simplify_derivative) == raw.applyfunc(simplify_entry)
+
+
+def test_numpy_sine_and_cosine_from_the_half_angle_tangent_match_libm():
+    """numpy kernels take sin and cos from h = tan(angle/2); near 0, pi/2, pi and far out they match libm.
+
+    planar_2r's fk holds cos(q1 + q2) and sin(q1 + q2) as entries (0, 0) and (1, 0).
+    """
+    k = kernels("planar_2r", "numpy")
+    rng = np.random.default_rng(8)
+    angles = np.concatenate([rng.uniform(-4, 4, 2000), rng.uniform(-1e4, 1e4, 2000),
+                             np.pi / 2 + rng.uniform(-1e-7, 1e-7, 200), np.pi - rng.uniform(0, 1e-7, 200),
+                             -np.pi + rng.uniform(0, 1e-7, 200), rng.uniform(-1e-9, 1e-9, 200),
+                             [0.0, np.pi, -np.pi, np.pi / 2, 3 * np.pi]])
+    T = k.fk(np.stack([angles, np.zeros_like(angles)], axis=-1))
+    cos = np.array([math.cos(a) for a in angles])
+    sin = np.array([math.sin(a) for a in angles])
+    assert np.abs(T[:, 0, 0] - cos).max() <= 4.5e-16
+    assert np.abs(T[:, 1, 0] - sin).max() <= 4.5e-16
+    assert (np.abs(T[:, 1, 0] - sin) <= 4.5e-16 * np.abs(sin)).all()  # sin is relatively accurate, even near 0
+
+
+@pytest.mark.parametrize("kernel, size", [("fk", 16), ("jacobian", 36)])
+def test_batches_past_the_caches_stream_the_same_numbers_aligned_or_not(kernel, size):
+    """Outputs over KINEGEN_STREAM_BYTES (1 MiB) go out in streaming stores when 16-byte aligned.
+
+    Both the streamed path (a numpy output) and the plain one (an output 8 bytes
+    off alignment, through the C entry point) must give the per-pose results.
+    """
+    from generated.puma560._puma560_c import ffi, lib
+    k = kernels("puma560", "c")
+    count = 2 * (1 << 20) // (8 * size) + 5  # twice the threshold, and a partial block
+    q = np.random.default_rng(9).uniform(-3, 3, (count, 6))
+    streamed = getattr(k, kernel)(q)
+    picks = np.random.default_rng(10).choice(count, 300, replace=False)
+    single = np.stack([getattr(k, kernel)(q[i]) for i in picks])
+    np.testing.assert_allclose(streamed[picks], single, rtol=0, atol=1e-14)
+    buffer = np.zeros(count * size + 1)
+    shifted = ffi.from_buffer("double[]", buffer) + 1  # 8 bytes past a 16-byte boundary
+    assert int(ffi.cast("uintptr_t", shifted)) % 16 == 8
+    getattr(lib, f"puma560_{kernel}_batch")(count, ffi.from_buffer("double[]", q), ffi.NULL, shifted)
+    np.testing.assert_array_equal(buffer[1:].reshape(streamed.shape), streamed)
+
+
+@pytest.mark.parametrize("name", ["puma560", "adept_three"])
+def test_numpy_half_angle_stays_finite_and_exact_at_and_near_pi(models, name):
+    """At q = +-pi, tan(q/2) is large but finite (1.6e16: no double is exactly pi/2), so
+    h^2 (2.7e32) does not overflow and sin = 2h/(1 + h^2), cos = (1 - h^2)/(1 + h^2) are not
+    inf/inf.  fk and jacobian there, one ulp away and 1e-8 away, against SymPy at 30 digits
+    (the verifier's max-norm relative error), every revolute joint at once and one at a time.
+    """
+    from codegen.verify import reference, relative_error
+
+    model, k = models[name], kernels(name, "numpy")
+    revolute = np.array([t == "R" for t in model.joint_types])
+    functions = {f.name: f for f in model.functions()}
+    values = {s: float(v) for s, v in model.params.items()}
+    for angle in (np.pi, -np.pi, np.nextafter(np.pi, 0.0), np.nextafter(np.pi, 4.0), np.pi - 1e-8, -np.pi + 1e-8):
+        points = [np.where(revolute, angle, 0.3)] + [np.where(np.arange(len(revolute)) == j, angle, 0.3)
+                                                     for j in np.flatnonzero(revolute)[:2]]
+        for q in points:
+            point = {**values, **{s: float(v) for s, v in zip(model.q, q)}}
+            for kernel in ("fk", "jacobian"):
+                got = getattr(k, kernel)(q)
+                assert np.isfinite(got).all(), (kernel, q)
+                (want,) = reference(functions[kernel], point)
+                assert relative_error(got, want) < 1e-12, (kernel, q)
