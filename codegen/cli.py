@@ -29,6 +29,7 @@ from pathlib import Path
 import sympy as sp
 
 import derivations
+import generated
 
 from . import avr_limits
 from . import build as c_build
@@ -218,8 +219,7 @@ def cmd_verify(args, say) -> int:
         for name in _registered(args.robots):
             say(f"{name}: verifying against SymPy at 30 digits ({args.samples} points per kernel)")
             importlib.invalidate_caches()
-            modules = {b: importlib.import_module(f"generated.{name}.{'numpy_kernels' if b == 'numpy' else 'c_kernels'}")
-                       for b in args.backends}
+            modules = {b: generated.load(name, backend=b) for b in args.backends}
             checks.extend(verify_model(_symbolic(name), modules, samples=args.samples))
     print(format_table(checks))
     failed = [c for c in checks if not c.ok]

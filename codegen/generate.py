@@ -207,7 +207,8 @@ def render_tree(names=None, verbose: bool = False) -> dict[str, str]:
     """The whole ``generated/`` tree as {relative path: text}: every robot, then every kernel set."""
     names = list(derivations.ROBOTS) + list(derivations.KERNEL_SETS) if names is None else list(names)
     robots = [n for n in names if n not in derivations.KERNEL_SETS]
-    tree = {"__init__.py": TEMPLATES.get_template("generated_init.py.j2").render(robots=robots)}
+    tree = {"__init__.py": TEMPLATES.get_template("generated_init.py.j2").render(
+        robots=robots, kernel_sets=[n for n in names if n in derivations.KERNEL_SETS])}
     for name in names:
         if name in derivations.KERNEL_SETS:
             model, source = derivations.load_kernel_set(name), derivations.KERNEL_SETS[name]

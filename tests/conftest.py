@@ -1,8 +1,7 @@
-import importlib
-
 import pytest
 
 import derivations
+import generated
 
 ROBOT_NAMES = list(derivations.ROBOTS)
 
@@ -14,5 +13,4 @@ def models():
 
 
 def kernels(name, backend):
-    module = "numpy_kernels" if backend == "numpy" else "c_kernels"
-    return importlib.import_module(f"generated.{name}.{module}")
+    return generated.load(name, backend=backend)
