@@ -10,8 +10,9 @@ Each row times the same work with a lever off and on, in this process:
   (``-DKINEGEN_SIMD -fopenmp-simd`` and the rest of build_c.py's flags), with
   and without streaming stores; the single point with the vector calls of a
   stage's angles (vectorised builds) or one libm call each;
-* the cffi call from Python for one pose: the binding as first written (input
-  checks in numpy, a parameter struct allocated per call) against the thin path;
+* the call from Python for one pose: the binding as first written (input checks
+  in numpy, a parameter struct allocated per call), the thin cffi path, and the
+  one-point entry written against numpy's C API (``<name>_point.c``);
 * numpy: one pass over the whole batch against cache-sized chunks, and sin and
   cos from numpy.sin and numpy.cos against one tangent of the half angle;
 * derivation: the Puma's task Jacobian simplified with ``trigsimp`` against
@@ -73,7 +74,7 @@ def c_layouts(count: int, repeat: int) -> list[tuple[str, str, float, float]]:
 
 
 def binding(repeat: int, min_time: float) -> list[tuple[str, float]]:
-    """One pose through cffi: the first binding's steps against the generated thin path."""
+    """One pose from Python: the first binding's steps, the thin cffi path, the one-point C entry."""
     import generated
     from generated.puma560 import _runtime
     from generated.puma560._puma560_c import ffi, lib
@@ -91,10 +92,17 @@ def binding(repeat: int, min_time: float) -> list[tuple[str, float]]:
                              ffi.from_buffer("double[]", T, require_writable=True))
         return T
 
+    # A parameter equal to its default but not the default object takes the cffi path
+    # (the one-point C entry serves the default parameters only): the binding before it.
+    d1 = float(str(kernels.PARAMS["d1"]))
+    assert d1 == kernels.PARAMS["d1"] and d1 is not kernels._d1
     np.testing.assert_allclose(first_binding(q), kernels.fk(q), rtol=0, atol=1e-14)
+    np.testing.assert_array_equal(kernels.fk(q, d1=d1), kernels.fk(q))
     return [("numpy checks, parameter struct per call (the first binding)",
              seconds_per_pose(Run(lambda: first_binding(q), 1), repeat, min_time)),
-            ("checks in C, cached parameter struct (generated now)",
+            ("cffi: checks in C, cached parameter struct, from_buffer per array",
+             seconds_per_pose(Run(lambda: kernels.fk(q, d1=d1), 1), repeat, min_time)),
+            ("numpy's C API: puma560_point.c (generated now)",
              seconds_per_pose(Run(lambda: kernels.fk(q), 1), repeat, min_time))]
 
 
@@ -164,7 +172,7 @@ def main(argv=None) -> int:
     lines += [f"| {k} | {label} | {s:.1f} ns | {b:.1f} ns | {format_ratio(plain[k] / b)} |"
               for k, label, s, b in rows]
     rows = binding(repeat, min_time)
-    lines += ["", "## One pose from Python through cffi (fk)", "", "| binding | per call | speed-up |", "|---|---|---|"]
+    lines += ["", "## One pose from Python (fk)", "", "| binding | per call | speed-up |", "|---|---|---|"]
     lines += [f"| {label} | {format_time(t)} | {format_ratio(rows[0][1] / t)} |" for label, t in rows]
     rows = numpy_chunks(args.count, repeat, min_time)
     lines += ["", "## numpy kernels", "", f"{args.count} poses per batch.", "",

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import derivations
 import generated
 from codegen import build, generate
 from conftest import kernels
@@ -219,3 +220,126 @@ def test_numpy_half_angle_stays_finite_and_exact_at_and_near_pi(models, name):
                 assert np.isfinite(got).all(), (kernel, q)
                 (want,) = reference(functions[kernel], point)
                 assert relative_error(got, want) < 1e-12, (kernel, q)
+
+
+# -- one point from Python: <name>_point.c ------------------------------------------------------
+
+def _point_arguments(name, function, rng):
+    """Arguments of one point for ``function`` of robot or kernel set ``name`` (inputs of ik: poses of fk)."""
+    if name in derivations.KERNEL_SETS:
+        batch = derivations.load_kernel_set(name).sample_arguments(function, rng, 1)
+        return [np.ascontiguousarray(np.asarray(a, dtype=float).reshape(-1)) for a in batch]
+    k = kernels(name, "c")
+    if function.name == "ik":
+        q = rng.uniform(-1.2, 1.2, len(k.JOINTS))
+        return [np.ascontiguousarray(k.task(q))]
+    return [rng.uniform(-1.2, 1.2, len(a.symbols)) for a in function.arguments]
+
+
+def _functions(name):
+    if name in derivations.KERNEL_SETS:
+        return derivations.load_kernel_set(name).functions()
+    return derivations.load(name).functions()
+
+
+@pytest.mark.parametrize("name", list(derivations.ROBOTS) + list(derivations.KERNEL_SETS))
+def test_one_point_in_c_equals_the_batched_path_bit_for_bit(name):
+    """Every kernel without requirement statuses has a one-point entry (robot_point.c.j2).
+
+    Its result must be the batched entry's for a batch of one (the same C function,
+    reached through cffi), bit for bit, in the same dtypes, shapes and types.
+    """
+    k = kernels(name, "c")
+    rng = np.random.default_rng(12)
+    covered = 0
+    for function in _functions(name):
+        if function.requires:
+            assert not hasattr(k._point, function.name)  # statuses are checked in Python
+            continue
+        for _ in range(5):
+            args = _point_arguments(name, function, rng)
+            direct = getattr(k._point, function.name)(*args)
+            assert direct is not None, (name, function.name, args)
+            through = getattr(k, function.name)(*args)
+            batched = getattr(k, function.name)(*[a[None] for a in args])
+            direct, through, batched = (r if isinstance(r, tuple) else (r,) for r in (direct, through, batched))
+            for d, t, b in zip(direct, through, batched, strict=True):
+                assert type(d) is np.ndarray and d.dtype == b.dtype and d.shape == b.shape[1:]
+                assert d.flags.writeable and d.flags.c_contiguous and d.base is None
+                np.testing.assert_array_equal(d, b[0])
+                np.testing.assert_array_equal(t, b[0])
+        covered += 1
+    assert covered >= 1
+
+
+class _Subclass(np.ndarray):
+    pass
+
+
+@pytest.mark.parametrize("q", [
+    [0.5] * 6,  # a list
+    np.full(6, 0.5, dtype=np.float32),
+    np.full(6, 0.5).astype(">f8"),  # another byte order
+    np.full(12, 0.5)[::2],  # not contiguous
+    np.full((1, 6), 0.5),  # a batch of one
+    np.full(7, 0.5),  # the wrong size
+    np.full(6, 0.5).view(_Subclass),
+], ids=["list", "float32", "big-endian", "strided", "batch-of-one", "size-7", "subclass"])
+def test_anything_but_one_plain_point_leaves_c_to_the_general_path(q):
+    k = kernels("puma560", "c")
+    assert k._point.fk(q) is None
+    if np.shape(q)[-1] == 6:
+        np.testing.assert_array_equal(np.reshape(k.fk(q), (4, 4)), k.fk(np.full(6, 0.5)))
+    else:
+        with pytest.raises(ValueError, match=r"expected q of shape \(\.\.\., 6\)"):
+            k.fk(q)
+
+
+def test_one_point_refusals_are_explained_by_the_general_path():
+    k = kernels("puma560", "c")
+    for bad in (np.nan, np.inf):
+        q = np.zeros(6)
+        q[4] = bad
+        assert k._point.jacobian(q) is None
+        with pytest.raises(ValueError, match="jacobian: q contains NaN or inf"):
+            k.jacobian(q)
+    x = k.task(np.zeros(6))
+    x[3] = 2.0  # r11: no longer a rotation
+    assert k._point.ik(x) is None
+    with pytest.raises(ValueError, match="not a rigid transform"):
+        k.ik(x)
+    nan_pose = np.full(12, np.nan)  # ik takes NaN: no branch is valid
+    Q, valid = k.ik(nan_pose)
+    assert valid.dtype == bool and not valid.any()
+    with pytest.raises(TypeError, match="fk takes 1 array argument"):
+        k._point.fk()
+    # Other parameters than the defaults never reach the one-point entry.
+    q = np.full(6, 0.3)
+    assert not np.allclose(k.fk(q, a2=0.5), k.fk(q))
+    np.testing.assert_array_equal(k.fk(q, a2=0.5), k.fk(q[None], a2=0.5)[0])
+
+
+def test_one_point_calls_neither_leak_nor_keep_references():
+    """Outputs are freed when dropped, inputs keep their reference counts (tracemalloc sees numpy's buffers)."""
+    import tracemalloc
+
+    k = kernels("puma560", "c")
+    q, qd = np.full(6, 0.2), np.full(6, 0.1)
+    x = k.task(q)
+    before = sys.getrefcount(q), sys.getrefcount(x)
+    calls = [lambda: k.fk(q), lambda: k.ik(x), lambda: k.manipulability(q), lambda: k.twist(q, qd),
+             lambda: k.joint_velocity(q, np.ones(12))]
+    for call in calls:
+        call()
+    tracemalloc.start()
+    try:
+        start = tracemalloc.get_traced_memory()[0]
+        for _ in range(3000):
+            for call in calls:
+                call()
+        grown = tracemalloc.get_traced_memory()[0] - start
+    finally:
+        tracemalloc.stop()
+    assert grown < 50_000, grown  # 15,000 results of 48 to 384 bytes each, if they leaked
+    assert (sys.getrefcount(q), sys.getrefcount(x)) == before
+    assert sys.getrefcount(k.fk(q)) == 2  # the argument's reference and nothing else

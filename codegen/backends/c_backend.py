@@ -125,6 +125,11 @@ def render(context: dict) -> dict[str, str]:
     """Files of the C backend, by name, for one robot."""
     printer = CKernelPrinter()
     name = context["name"]
+    # One-point entry points for Python (robot_point.c.j2): kernels without requirement
+    # statuses, whose outputs have at most three axes.
+    functions = [dict(f, point=not f["checks"] and all(len(o["shape"]) <= 3 for o in f["outputs"]))
+                 for f in context["functions"]]
+    context = dict(context, functions=functions)
     context = dict(context, c_declarations=declarations(context, False), c_cdef=declarations(context, True),
                    c_checked=checked_prototypes(context), 
                    uses_min=_uses(context, sp.Min), uses_max=_uses(context, sp.Max))
@@ -132,6 +137,7 @@ def render(context: dict) -> dict[str, str]:
     for template, filename in (
         ("robot.h.j2", f"{name}.h"),
         ("robot.c.j2", f"{name}.c"),
+        ("robot_point.c.j2", f"{name}_point.c"),
         ("c_kernels.py.j2", "c_kernels.py"),
         ("build_c.py.j2", "build_c.py"),
     ):

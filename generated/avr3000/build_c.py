@@ -13,6 +13,7 @@ import sys
 import sysconfig
 import tempfile
 
+import numpy
 from cffi import FFI
 
 HERE = pathlib.Path(__file__).resolve().parent
@@ -829,8 +830,9 @@ def ffibuilder(flags=None):
     ffi.set_source(
         MODULE,
         CHECKED,
-        sources=[str(HERE / "avr3000.c")],
-        include_dirs=[str(HERE)],
+        # avr3000_point.c adds the module _avr3000_point (one-point calls, numpy's C API) to the same library.
+        sources=[str(HERE / "avr3000.c"), str(HERE / "avr3000_point.c")],
+        include_dirs=[str(HERE), numpy.get_include()],
         extra_compile_args=compile_flags() if flags is None else flags,
         libraries=["m"],
     )

@@ -13,6 +13,7 @@ import sys
 import sysconfig
 import tempfile
 
+import numpy
 from cffi import FFI
 
 HERE = pathlib.Path(__file__).resolve().parent
@@ -336,8 +337,9 @@ def ffibuilder(flags=None):
     ffi.set_source(
         MODULE,
         CHECKED,
-        sources=[str(HERE / "planar_3r.c")],
-        include_dirs=[str(HERE)],
+        # planar_3r_point.c adds the module _planar_3r_point (one-point calls, numpy's C API) to the same library.
+        sources=[str(HERE / "planar_3r.c"), str(HERE / "planar_3r_point.c")],
+        include_dirs=[str(HERE), numpy.get_include()],
         extra_compile_args=compile_flags() if flags is None else flags,
         libraries=["m"],
     )

@@ -13,6 +13,7 @@ import sys
 import sysconfig
 import tempfile
 
+import numpy
 from cffi import FFI
 
 HERE = pathlib.Path(__file__).resolve().parent
@@ -133,8 +134,9 @@ def ffibuilder(flags=None):
     ffi.set_source(
         MODULE,
         CHECKED,
-        sources=[str(HERE / "scorbot_path.c")],
-        include_dirs=[str(HERE)],
+        # scorbot_path_point.c adds the module _scorbot_path_point (one-point calls, numpy's C API) to the same library.
+        sources=[str(HERE / "scorbot_path.c"), str(HERE / "scorbot_path_point.c")],
+        include_dirs=[str(HERE), numpy.get_include()],
         extra_compile_args=compile_flags() if flags is None else flags,
         libraries=["m"],
     )
