@@ -329,7 +329,8 @@ def main(argv=None) -> int:
     say = Progress(args.quiet)
     try:
         return args.run(args, say)
-    except (derivations.DescriptionError, InputError, gen.OutputExistsError, derivations.UnknownRobotError) as exc:
+    except (derivations.DescriptionError, InputError, gen.OutputExistsError, gen.SettingError,
+            derivations.UnknownRobotError) as exc:
         print(f"kinegen: error: {exc}", file=sys.stderr)
         return 2
     except tex_report.ReportError as exc:

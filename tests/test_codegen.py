@@ -19,6 +19,17 @@ def test_generated_tree_is_up_to_date():
     assert generate.stale_files(generate.render_tree()) == []
 
 
+def test_the_tree_is_the_same_rendered_in_one_process_or_several(monkeypatch):
+    names = ["planar_pp", "planar_2r", "trajectory"]
+    assert generate.render_tree(names, jobs=2) == generate.render_tree(names, jobs=1)
+    monkeypatch.setenv("KINEGEN_JOBS", "3")
+    assert generate.default_jobs() == 3
+    for bad in ("0", "two"):
+        monkeypatch.setenv("KINEGEN_JOBS", bad)
+        with pytest.raises(ValueError, match="KINEGEN_JOBS must be a positive integer"):
+            generate.default_jobs()
+
+
 def test_stale_files_are_reported(tmp_path):
     tree = generate.render_tree(["planar_2r"])
     generate.write_tree(tree, tmp_path)
