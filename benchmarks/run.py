@@ -4,7 +4,8 @@
     python benchmarks/run.py --quick    # a small smoke run: few poses, no cold derivation
 
 Times, in one process on this machine, with a warm-up call and the median of
-repeated runs:
+repeated samples, the contenders of a row sampled in turn (so that a drift of
+the shared machine's speed does not land in their ratios):
 
 * batched, per pose: our C and numpy ``fk``, ``jacobian``, ``ik`` against
   ``sympy.lambdify(..., cse=True)`` of the same expressions, the Robotics Toolbox
@@ -51,8 +52,8 @@ NOT_COMPARED = ("RTB analytic_ik", "Pinocchio, result as numpy")  # no fk/Jacobi
 
 # -- timing -----------------------------------------------------------------------------------
 
-def seconds_per_pose(run: peers.Run, repeat: int, min_time: float) -> float:
-    """Median over ``repeat`` samples of the time per pose; each sample lasts at least ``min_time``."""
+def _calls_per_sample(run: peers.Run, min_time: float) -> tuple[int, float]:
+    """(calls, seconds): how many calls of ``run`` one sample makes to last at least ``min_time``."""
     run.call()  # warm-up: first-call caches, page faults of the outputs
     number, elapsed = 1, 0.0
     while True:
@@ -61,15 +62,35 @@ def seconds_per_pose(run: peers.Run, repeat: int, min_time: float) -> float:
             run.call()
         elapsed = time.perf_counter() - start
         if elapsed >= min_time or number >= 1 << 20:
-            break
+            return number, elapsed
         number = max(2 * number, int(number * 1.2 * min_time / max(elapsed, 1e-9)))
-    samples = []
-    for _ in range(repeat if elapsed < 1.0 else max(3, repeat // 2)):
-        start = time.perf_counter()
-        for _ in range(number):
-            run.call()
-        samples.append((time.perf_counter() - start) / number)
-    return statistics.median(samples) / run.items
+
+
+def interleaved(runs: list[peers.Run], repeat: int, min_time: float) -> list[float]:
+    """Median time per pose of each run, their samples taken in turn.
+
+    Each of ``repeat`` rounds takes one sample (at least ``min_time``) of every run,
+    so that all of them see the machine in the same states: on a shared machine
+    its speed drifts by tens of percent within a minute, which would otherwise
+    land in the ratios.  A run whose sample takes over a second stops after
+    ``max(3, repeat // 2)`` samples.
+    """
+    plans = [_calls_per_sample(run, min_time) for run in runs]
+    samples: list[list[float]] = [[] for _ in runs]
+    for round_ in range(repeat):
+        for run, (number, elapsed), taken in zip(runs, plans, samples):
+            if elapsed >= 1.0 and round_ >= max(3, repeat // 2):
+                continue
+            start = time.perf_counter()
+            for _ in range(number):
+                run.call()
+            taken.append((time.perf_counter() - start) / number)
+    return [statistics.median(taken) / run.items for run, taken in zip(runs, samples)]
+
+
+def seconds_per_pose(run: peers.Run, repeat: int, min_time: float) -> float:
+    """Median over ``repeat`` samples of the time per pose; each sample lasts at least ``min_time``."""
+    return interleaved([run], repeat, min_time)[0]
 
 
 def format_time(seconds: float) -> str:
@@ -123,15 +144,19 @@ def time_everything(robots, count, loop, slow_loop, repeat, min_time, say):
         agreement[robot] = peers.agreement(contenders, work)
         for mode in MODES:
             for kernel in peers.KERNELS:
+                runs = {}
                 for c in contenders:
                     try:
                         made = c.make(work, kernel, mode)
                         if isinstance(made, peers.Run):
-                            say(f"{mode:6s} {robot} {kernel} {c.name}")
-                            made = (seconds_per_pose(made, repeat, min_time), made.note)
-                    except Exception as exc:  # a peer that fails is reported, not fatal
+                            made.call()  # one call first: a peer that fails is reported, not fatal
+                            runs[c.name] = made
+                    except Exception as exc:
                         made = peers.Missing(f"failed: {type(exc).__name__}: {exc}"[:80])
                     figures[(mode, robot, kernel, c.name)] = made
+                say(f"{mode:6s} {robot} {kernel}: {', '.join(runs)}, in turn")
+                for name, seconds in zip(runs, interleaved(list(runs.values()), repeat, min_time)):
+                    figures[(mode, robot, kernel, name)] = (seconds, runs[name].note)
     return contenders, figures, agreement
 
 
@@ -258,7 +283,8 @@ def report(info, versions, settings, figures, names, agreement, in_c, rtb_c_note
         f"- compiler: {info['compiler']}; generated C built with `{' '.join(settings['flags'])}`",
         f"- batched: {settings['count']} poses per call (the peers' Python loops: "
         f"{settings['loop']} poses, numerical IK {settings['slow_loop']}); each figure is the median of "
-        f"{settings['repeat']} samples of at least {settings['min_time'] * 1e3:.0f} ms after a warm-up call",
+        f"{settings['repeat']} samples of at least {settings['min_time'] * 1e3:.0f} ms after a warm-up call, "
+        "the contenders of a row sampled in turn",
         f"- run time: {ended - started}",
         "",
         "Each cell: time · speed-up over lambdify(cse=True) · speed-up over the best peer "
