@@ -55,6 +55,15 @@ RESERVED = frozenset(
     y z phi r11 r12 r13 r21 r22 r23 r31 r32 r33
     twist singular manipulability Jx_dot J_dot w_tool Jw
     """.split()
+) | frozenset(
+    # What the generated C declares for itself: kernel outputs (a parameter named J
+    # would be redeclared beside jacobian's output J) and the locals of the batch
+    # loops and ik (a parameter named k would be shadowed inside a block, silently).
+    # tests/test_description.py holds this list to what generated/*.c declares.
+    """
+    T J Jx Q frames angle argument0 argument1 sine cosine found i k n s inside refused result start stream turn
+    valid_branches batch pointer status failed
+    """.split()
 )
 
 

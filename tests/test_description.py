@@ -104,3 +104,46 @@ def test_a_user_description_file_loads_like_a_registered_robot(tmp_path):
     assert model.task_names == ("x", "y", "z")
     assert sp.simplify(model.task - expected) == sp.zeros(3, 1)
     assert model.jacobian.shape == (6, 3)
+
+
+@pytest.mark.parametrize("name", [n for n, p in derivations.ROBOTS.items() if p.suffix == ".toml"])
+def test_every_name_the_generated_c_declares_is_reserved_or_the_robots_own(name):
+    """A description's parameter may not take a name the generated C declares for itself.
+
+    A parameter named J would be redeclared beside jacobian's output J (a compile
+    error, not a DescriptionError), and one named k shadowed by an ik loop's k
+    inside a block (wrong numbers, silently).  So every identifier declared in the
+    robot's C (variables, function parameters) is a parameter, an argument's entry
+    (q1, qd1, xd_x, ...), a name of the generated code (_*, kinegen_*, <name>_*), or
+    reserved.
+    """
+    import re
+
+    from codegen.generate import GENERATED
+    from derivations.expressions import RESERVED
+
+    model = derivations.load(name)
+    source = (GENERATED / name / f"{name}.c").read_text()
+    # File-scope helpers that take no parameter struct (kinegen_min(a, b), the pose check)
+    # have scopes of their own, apart from the parameters.
+    source = re.sub(r"^static [^\n(]*\((?:(?!params)[^)])*\)\n\{.*?^\}", "", source, flags=re.M | re.S)
+    types = r"\b(?:size_t|int|long|double|float|char|unsigned)"
+    declared = set()
+    for statement in re.findall(rf"^\s*(?:static\s+)?(?:const\s+)?{types}\s+([^;]*);", source, re.M):
+        while re.search(r"\([^()]*\)", statement):  # calls and casts in initialisers, prototypes' lists
+            statement = re.sub(r"\([^()]*\)", "", statement)
+        statement = re.sub(r"=\s*\{[^}]*\}|=[^,]*", "", statement)  # initialisers
+        for item in statement.split(","):
+            declared.add(re.sub(r"[*\s]|restrict|\[.*", "", item))
+    declared |= set(re.findall(rf"{types}\s*\*?\s*(?:restrict\s+)?(\w+)\s*[,)]", source))
+    own = {str(p) for p in model.params}
+    own |= {str(s) for f in model.functions() for a in f.arguments for s in a.symbols}
+    strangers = {d for d in declared if d and not d.startswith(("_", "kinegen_", f"{name}_")) and d not in own}
+    assert strangers <= RESERVED, sorted(strangers - RESERVED)
+
+
+@pytest.mark.parametrize("param", ["J", "T", "Jx", "frames", "i", "k", "start", "stream"])
+def test_a_parameter_named_like_generated_code_is_refused(param):
+    text = f'name = "arm"\n[params]\n{param} = 1.0\n[[joint]]\ntype = "R"\na = "{param}"\n'
+    with pytest.raises(DescriptionError, match=f"params: '{param}'.*reserved"):
+        parse_description(text, "arm.toml")
