@@ -99,11 +99,12 @@ class SpaceMap:
     derivative_requires: tuple[Requirement, ...] = ()
     cite: str = ""
     doc: str = field(default="", compare=False)
+    branch: str = ""  # names a second solution of an inverse map: <from>_to_<to>_<branch>
 
     @property
     def name(self) -> str:
-        """``<from>_to_<to>`` with ``_velocity`` / ``_acceleration`` for those levels."""
-        base = f"{self.source.name}_to_{self.target.name}"
+        """``<from>_to_<to>`` (``_<branch>`` for a named branch), with ``_velocity`` / ``_acceleration``."""
+        base = f"{self.source.name}_to_{self.target.name}" + (f"_{self.branch}" if self.branch else "")
         return base if self.level == "position" else f"{base}_{self.level}"
 
     @property
@@ -130,14 +131,14 @@ class SpaceMap:
 
 
 def position_map(source: CoordinateSpace, target: CoordinateSpace, values, requires=(), derivative_requires=(),
-                 cite: str = "", doc: str = "") -> SpaceMap:
+                 cite: str = "", doc: str = "", branch: str = "") -> SpaceMap:
     values = sp.Matrix(values)
     if values.shape != (len(target.position), 1):
         raise ValueError(f"{source.name} -> {target.name}: expected {len(target.position)} values, got {values.shape}")
     stray = values.free_symbols & (set(source.velocity) | set(source.acceleration) | set(target.position))
     if stray:
         raise ValueError(f"{source.name} -> {target.name}: position map uses {sorted(map(str, stray))}")
-    return SpaceMap(source, target, "position", values, tuple(requires), tuple(derivative_requires), cite, doc)
+    return SpaceMap(source, target, "position", values, tuple(requires), tuple(derivative_requires), cite, doc, branch)
 
 
 def _substitute(requirements, mapping):
@@ -145,15 +146,21 @@ def _substitute(requirements, mapping):
 
 
 def compose(outer: SpaceMap, inner: SpaceMap, cite: str = "", doc: str = "") -> SpaceMap:
-    """``outer`` after ``inner`` (both position maps): source of ``inner`` -> target of ``outer``."""
+    """``outer`` after ``inner`` (both position maps): source of ``inner`` -> target of ``outer``.
+
+    The composition keeps the branch of either (at most one of them may have one).
+    """
     if inner.level != "position" or outer.level != "position":
         raise ValueError("compose() takes position maps; differentiate the composition instead")
     if inner.target != outer.source:
         raise ValueError(f"cannot compose {outer.name} after {inner.name}")
+    if inner.branch and outer.branch:
+        raise ValueError(f"cannot compose two branches: {outer.name} after {inner.name}")
     mapping = dict(zip(outer.source.position, inner.values))
     return SpaceMap(inner.source, outer.target, "position", outer.values.xreplace(mapping),
                     inner.requires + _substitute(outer.requires, mapping),
-                    inner.derivative_requires + _substitute(outer.derivative_requires, mapping), cite, doc)
+                    inner.derivative_requires + _substitute(outer.derivative_requires, mapping), cite, doc,
+                    inner.branch or outer.branch)
 
 
 def differentiate(position: SpaceMap, level: str, cite: str = "") -> SpaceMap:
@@ -177,7 +184,7 @@ def differentiate(position: SpaceMap, level: str, cite: str = "") -> SpaceMap:
             raise ValueError(f"{position.name}_{level}: the condition {requirement.condition} "
                              "does not test a subexpression of the map")
     return SpaceMap(position.source, position.target, level, values,
-                    position.requires + position.derivative_requires, (), cite, position.doc)
+                    position.requires + position.derivative_requires, (), cite, position.doc, position.branch)
 
 
 @dataclass

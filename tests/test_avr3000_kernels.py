@@ -97,6 +97,53 @@ def test_round_trip_cartesian_motor_cartesian(k, level):
     assert relative(back, given[-1]) < 1e-12
 
 
+@pytest.mark.parametrize("level", ["position", "velocity", "acceleration"])
+def test_reversed_branch_round_trips_cartesian_motor_cartesian(k, level):
+    """The second Cartesian branch (R - e = -sqrt(x^2 + y^2)) reaches the same points, at every level."""
+    rng = np.random.default_rng(14)
+    angle, radius = rng.uniform(-math.pi, math.pi, 2000), rng.uniform(0.05, 1.9 * A, 2000)
+    cart = np.stack([radius * np.sin(angle), radius * np.cos(angle), rng.uniform(0, 0.15, 2000)], -1)
+    rates = [rng.uniform(-2, 2, (2000, 3)), rng.uniform(-20, 20, (2000, 3))]
+    count = {"position": 0, "velocity": 1, "acceleration": 2}[level]
+    suffix = "" if level == "position" else f"_{level}"
+    given = ([cart] + rates)[:count + 1]
+    motor = getattr(k, f"cartesian_to_motor_reversed{suffix}")(*given)
+    motor_args = ([k.cartesian_to_motor_reversed(cart)]
+                  + ([k.cartesian_to_motor_reversed_velocity(cart, rates[0])] if count else []))
+    back = getattr(k, f"motor_to_cartesian{suffix}")(*(motor_args[:count] + [motor]))
+    assert relative(back, given[-1]) < 1e-12
+
+
+def test_the_two_cartesian_branches_differ_by_half_a_turn_and_fold_through_the_axis(k):
+    rng = np.random.default_rng(15)
+    e = 0.02
+    angle, radius = rng.uniform(-math.pi, math.pi, 500), rng.uniform(0.01, 0.4, 500)
+    cart = np.stack([radius * np.sin(angle), radius * np.cos(angle), rng.uniform(0, 0.15, 500)], -1)
+    first, second = k.cartesian_to_tool(cart, e=e), k.cartesian_to_tool_reversed(cart, e=e)
+    np.testing.assert_allclose(first[:, 1] - e, radius, rtol=1e-14)
+    np.testing.assert_allclose(second[:, 1] - e, -radius, rtol=1e-14)  # R - e = -sqrt(x^2 + y^2)
+    turn = np.mod(second[:, 0] - first[:, 0], 2 * math.pi)
+    np.testing.assert_allclose(turn, math.pi, atol=1e-14)
+    assert (np.abs(second[:, 0]) <= math.pi).all()
+    np.testing.assert_allclose(second[:, 2], cart[:, 2], rtol=0, atol=0)
+    for tool in (first, second):
+        assert relative(k.tool_to_cartesian(tool, e=e), cart) < 1e-14
+    # Joints on the two branches: both reach the point.
+    for joints in (k.cartesian_to_joint(cart, e=e), k.cartesian_to_joint_reversed(cart, e=e)):
+        assert relative(k.joint_to_cartesian(joints, e=e), cart) < 1e-12
+
+
+def test_the_reversed_branch_reaches_where_the_first_cannot_with_an_end_effector(k):
+    """With e > 0 the first branch needs R = e + rho <= 2a; the reversed one R = e - rho >= -2a."""
+    point = [0.0, 2 * A - 0.01, 0.05]  # rho = 2a - 1 cm
+    with pytest.raises(ValueError, match="unreachable"):
+        k.cartesian_to_joint(point, e=0.02)
+    joints = k.cartesian_to_joint_reversed(point, e=0.02)
+    np.testing.assert_allclose(k.joint_to_cartesian(joints, e=0.02), point, rtol=0, atol=1e-14)
+    with pytest.raises(ValueError, match="singular: the tip is on the T axis"):
+        k.cartesian_to_tool_reversed([0.0, 0.0, 0.1])
+
+
 def test_velocity_maps_are_time_derivatives_of_the_position_maps(k):
     """Central differences along a path x(t) = x0 + v t + w t^2/2 check velocity and acceleration maps."""
     rng = np.random.default_rng(5)

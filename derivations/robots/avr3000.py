@@ -29,6 +29,8 @@ Eq. 8 (q2 = 2 acos(R / 2a) in [0, 2 pi]).
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import sympy as sp
 
 from derivations.chain import simplify_entry
@@ -115,7 +117,8 @@ def _check_identity(name, expressions, symbols):
 
 
 def position_maps() -> dict[str, SpaceMap]:
-    """The twelve position maps between the four spaces, by kernel name."""
+    """The twelve position maps between the four spaces, and the second branch of the three
+    Cartesian inverses (``*_reversed``), by kernel name."""
     theta1, theta2, theta3 = motor.position
     q1, q2, q3 = joint.position
     T, R, Z = tool.position
@@ -162,9 +165,24 @@ def position_maps() -> dict[str, SpaceMap]:
                               "the tip is on the T axis (x = y = 0), where T is undetermined")],
         doc="Branch R - e = +sqrt(x^2 + y^2), T = atan2(x, y) in (-pi, pi].")
 
+    # The other branch, R - e = -sqrt(x^2 + y^2): the arm turned half a turn, folded through the
+    # T axis (R < e), as the script's RMin = -10 in allows. T wrapped to (-pi, pi] like the first.
+    cartesian_to_tool_reversed = position_map(
+        cartesian, tool, [WrapAngle(sp.atan2(x, y) + sp.pi), e - sp.sqrt(radius_squared), z],
+        requires=[Requirement(radius_squared > 0, "singular",
+                              "the tip is on the T axis (x = y = 0), where T is undetermined")],
+        branch="reversed",
+        doc="Branch R - e = -sqrt(x^2 + y^2), T = atan2(x, y) + pi wrapped to (-pi, pi]: "
+            "the arm turned half a turn and folded through the T axis.")
+
     _check_identity("tool -> joint -> tool", compose(joint_to_tool, tool_to_joint).values, tool.position)
     _check_identity("motor -> joint -> motor", compose(joint_to_motor, motor_to_joint).values, motor.position)
     _check_identity("cartesian -> tool -> cartesian", compose(tool_to_cartesian, cartesian_to_tool).values,
+                    cartesian.position)
+    # The wrap changes T by whole turns only, which sin and cos of tool_to_cartesian do not see.
+    unwrapped = cartesian_to_tool_reversed.values.replace(WrapAngle, lambda angle: angle)
+    _check_identity("cartesian -> tool (reversed) -> cartesian",
+                    compose(tool_to_cartesian, replace(cartesian_to_tool_reversed, values=unwrapped)).values,
                     cartesian.position)
 
     maps = [motor_to_joint, joint_to_motor, joint_to_tool, tool_to_joint, joint_to_cartesian,
@@ -175,13 +193,16 @@ def position_maps() -> dict[str, SpaceMap]:
     cartesian_to_joint = compose(tool_to_joint, cartesian_to_tool)
     maps.append(cartesian_to_joint)
     maps.append(compose(joint_to_motor, cartesian_to_joint))
+    cartesian_to_joint_reversed = compose(tool_to_joint, cartesian_to_tool_reversed)
+    maps += [cartesian_to_tool_reversed, cartesian_to_joint_reversed, compose(joint_to_motor, cartesian_to_joint_reversed)]
     return {m.name: m for m in maps}
 
 
 # Order of the generated kernels: direct maps up the chain motor -> joint -> tool -> Cartesian, then inverses.
 MAP_ORDER = ("motor_to_joint", "joint_to_tool", "joint_to_cartesian", "tool_to_cartesian", "motor_to_tool",
              "motor_to_cartesian", "joint_to_motor", "tool_to_joint", "tool_to_motor", "cartesian_to_tool",
-             "cartesian_to_joint", "cartesian_to_motor")
+             "cartesian_to_joint", "cartesian_to_motor", "cartesian_to_tool_reversed", "cartesian_to_joint_reversed",
+             "cartesian_to_motor_reversed")
 
 DERIVATIVE_CITES = {
     "motor_to_joint": ("Sotirov Eq. 2", "Sotirov Eq. 3"),
