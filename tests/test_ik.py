@@ -365,6 +365,10 @@ def test_puma_wrist_singularity_takes_theta4_zero(backend):
             sign = 1 if np.cos(q[item, 4]) > 0 else -1
             kept = (Q[item, b, 3] + sign * Q[item, b, 5]) - (q[item, 3] + sign * q[item, 5])
             assert abs(np.sin(kept / 2 if wrist == "noflip" else kept)) < 1e-12
+    # manipulability flags exactly those branches: it is how a caller tells them from the others.
+    _, singular = k.manipulability(Q)
+    np.testing.assert_array_equal(singular, np.abs(np.sin(Q[..., 4])) < 1e-9)
+    assert singular.sum(-1).tolist() == [2, 2]
 
 
 # --- the contract -------------------------------------------------------------------------------------------
