@@ -313,10 +313,17 @@ def test_one_point_refusals_are_explained_by_the_general_path():
     assert valid.dtype == bool and not valid.any()
     with pytest.raises(TypeError, match="fk takes 1 array argument"):
         k._point.fk()
-    # Other parameters than the defaults never reach the one-point entry.
+    # Other parameters reach the one-point entry as a tuple of checked floats, and give the batch's numbers.
     q = np.full(6, 0.3)
     assert not np.allclose(k.fk(q, a2=0.5), k.fk(q))
     np.testing.assert_array_equal(k.fk(q, a2=0.5), k.fk(q[None], a2=0.5)[0])
+    values = tuple(k.PARAMS.values())
+    np.testing.assert_array_equal(k._point.fk(q, values), k.fk(q))
+    for bad in (list(values), values[:-1], values[:-1] + (1,)):
+        with pytest.raises(TypeError, match="parameter"):
+            k._point.fk(q, bad)
+    with pytest.raises(ValueError, match="parameter a2 must be finite"):
+        k.fk(q, a2=float("inf"))
 
 
 def test_one_point_calls_neither_leak_nor_keep_references():
