@@ -1,6 +1,7 @@
 """Building and checking the generated C: cffi extensions, strict warnings, sanitizers."""
 from __future__ import annotations
 
+import functools
 import importlib.util
 import os
 import random
@@ -58,7 +59,7 @@ def compile_strict(package: Path, name: str) -> None:
     """
     with tempfile.TemporaryDirectory(prefix="kinegen-strict-") as scratch:
         for layout, flags in LAYOUTS.items():
-            if layout == "simd" and not _accepts(["-fopenmp-simd"]):
+            if layout == "simd" and not _accepts(("-fopenmp-simd",)):
                 continue
             _run([CC, *STRICT_FLAGS, *flags, "-O2", "-c", str(package / f"{name}.c"),
                   "-o", str(Path(scratch) / f"{name}-{layout}.o")])
@@ -68,8 +69,9 @@ def compile_strict(package: Path, name: str) -> None:
                   "-isystem", numpy.get_include(), "-c", str(point), "-o", str(Path(scratch) / f"{name}_point.o")])
 
 
-def _accepts(flags: list[str]) -> bool:
-    """Whether the C compiler accepts ``flags``."""
+@functools.lru_cache(maxsize=None)
+def _accepts(flags: tuple[str, ...]) -> bool:
+    """Whether the C compiler accepts ``flags`` (probed once per process)."""
     with tempfile.TemporaryDirectory(prefix="kinegen-probe-") as scratch:
         source = Path(scratch) / "probe.c"
         source.write_text("int main(void) { return 0; }\n")

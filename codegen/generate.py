@@ -19,7 +19,6 @@ import sympy as sp
 
 import derivations
 from derivations.description import read_description
-from derivations.ik import WrapAngle
 from derivations.kernelset import KernelSet
 from derivations.model import POSE_NAMES, REVOLUTE, RobotModel
 
@@ -62,16 +61,16 @@ def describe_origin(model: RobotModel, description: Path | None) -> str:
     return safe_text(f"{shown} (sha256 {digest})")
 
 
-def template_function(prepared: PreparedFunction, accepts_nonfinite: bool = False) -> dict:
+def template_function(prepared: PreparedFunction) -> dict:
     """What the templates need of one kernel."""
+    # The inverse kinematics kernel takes NaN and inf (valid says there is no answer), returns
+    # the number of valid branches in C and marks a branch invalid where its joints are not finite.
+    is_ik = prepared.name == "ik"
     outputs = []
     for out in prepared.outputs:
-        zero_free = out.dtype == "float" and any(e == 0 for e in out.entries)
-        indices = [_index(k, out.shape) for k in range(out.size)]
-        assignments = [(i, e) for i, e in zip(indices, out.entries) if not (zero_free and e == 0)]
         outputs.append({
             "name": out.name, "shape": tuple(out.shape), "dtype": out.dtype, "size": out.size,
-            "has_zeros": zero_free, "assignments": assignments, "flat": list(enumerate(out.entries)),
+            "flat": list(enumerate(out.entries)),
             "constant": {k for k, e in enumerate(out.entries) if not getattr(e, "free_symbols", None)},
         })
     # Each argument as (name, symbol names, doc, storage): the storage name holds the
@@ -81,10 +80,10 @@ def template_function(prepared: PreparedFunction, accepts_nonfinite: bool = Fals
     staged = stage(prepared)
     for out, entries in zip(outputs, staged.outputs):
         out["staged"] = list(enumerate(entries))
-    block_outputs = [o.name for o in prepared.outputs if prepared.name == "ik" and o.dtype == "float"]
-    stream_outputs = [o.name for o in prepared.outputs if o.dtype == "float" and o.size % 2 == 0
-                      and prepared.name != "ik"]
-    inputs = {s for a in prepared.arguments for s in a[1]} & prepared.arguments_used
+    block_outputs = [o.name for o in prepared.outputs if is_ik and o.dtype == "float"]
+    stream_outputs = [o.name for o in prepared.outputs if o.dtype == "float" and o.size % 2 == 0 and not is_ik]
+    arguments_used = prepared.arguments_used  # a walk over every expression: once
+    inputs = {s for a in prepared.arguments for s in a[1]} & arguments_used
     per_item = len(inputs) + len(staged.arrays) + sum(o.size for o in prepared.outputs
                                                       if o.name in block_outputs or o.name in stream_outputs)
     block = 64  # items per block of the batched C, halved while its arrays would pass 32 KiB of stack
@@ -103,14 +102,10 @@ def template_function(prepared: PreparedFunction, accepts_nonfinite: bool = Fals
         "stages": [{"body": [(n, e, n in staged.arrays) for n, e in s.body], "calls": s.calls,
                     "angles": _angles(s.calls), "groups": _call_groups(s.calls)} for s in staged.stages],
         "arrays": staged.arrays,
-        "indexed": staged.arrays | (prepared.arguments_used & {s for a in prepared.arguments for s in a[1]}),
+        "indexed": staged.arrays | inputs,
         "name": prepared.name, "doc": prepared.doc, "arguments": arguments,
-        "params_used": prepared.params_used, "arguments_used": prepared.arguments_used,
-        "temporaries": prepared.temporaries, "outputs": outputs, "operations": prepared.operations,
-        "accepts_nonfinite": accepts_nonfinite, "checks": prepared.checks,
-        # The inverse kinematics kernel returns the number of valid branches in C
-        # and marks a branch invalid wherever its joint values are not finite.
-        "is_ik": prepared.name == "ik",
+        "params_used": prepared.params_used, "arguments_used": arguments_used,
+        "outputs": outputs, "operations": prepared.operations, "checks": prepared.checks, "is_ik": is_ik,
         # Temporaries holding a truth value (relations are Boolean but not is_Boolean in SymPy).
         "boolean_temporaries": frozenset(name for name, expr in prepared.temporaries
                                          if isinstance(expr, sp.logic.boolalg.Boolean)),
@@ -139,21 +134,13 @@ def _angles(calls) -> list[dict]:
     return list(angles.values())
 
 
-def _index(flat: int, shape: tuple[int, ...]) -> str:
-    parts = []
-    for n in reversed(shape):
-        parts.append(flat % n)
-        flat //= n
-    return ", ".join(str(p) for p in reversed(parts))
-
-
 def robot_context(model: RobotModel, origin: str, verbose: bool = False) -> dict:
     param_names = tuple(str(s) for s in model.params)
     functions = []
     for function in model.functions():
         start = time.perf_counter()
         prepared = prepare(function, param_names)
-        functions.append(template_function(prepared, accepts_nonfinite=function.name == "ik"))
+        functions.append(template_function(prepared))
         if verbose:
             print(f"[cse] {model.name}.{function.name}: {prepared.operations} ops, "
                   f"{time.perf_counter() - start:.2f} s", file=sys.stderr)
@@ -166,14 +153,7 @@ def robot_context(model: RobotModel, origin: str, verbose: bool = False) -> dict
         if lim is not None:
             joint_limits.append((i, float_literal(lim[0]), float_literal(lim[1]),
                                  model.joint_types[i] == REVOLUTE))
-    # The C wrap helper is static: emit it only where a kernel wraps an angle (-Werror=unused-function).
-    uses_wrap_angle = any(
-        sp.sympify(expr).has(WrapAngle)
-        for f in functions
-        for expr in [e for _, e in f["temporaries"]] + [e for out in f["outputs"] for _, e in out["flat"]]
-        + [e for c in f["checks"] for _, e in c.temporaries] + [c.condition for c in f["checks"]])
     return {
-        "uses_wrap_angle": uses_wrap_angle,
         "name": model.name, "title": safe_text(model.title), "source": safe_text(model.source), "origin": origin,
         "joints": [str(s) for s in model.q], "joint_types": list(model.joint_types),
         "task": list(model.task_names), "branches": [b.name for b in model.ik],

@@ -4,6 +4,8 @@ from __future__ import annotations
 import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
+from derivations.ik import WrapAngle
+
 from . import TEMPLATES, ExactArithmeticMixin
 
 __all__ = ["CKernelPrinter", "render", "STRICT_FLAGS"]
@@ -132,7 +134,9 @@ def render(context: dict) -> dict[str, str]:
     context = dict(context, functions=functions)
     context = dict(context, c_declarations=declarations(context, False), c_cdef=declarations(context, True),
                    c_checked=checked_prototypes(context), 
-                   uses_min=_uses(context, sp.Min), uses_max=_uses(context, sp.Max))
+                   uses_min=_uses(context, sp.Min), uses_max=_uses(context, sp.Max),
+                   # static helpers: emitted only where used (-Werror=unused-function)
+                   uses_wrap_angle=_uses(context, WrapAngle))
     files = {}
     for template, filename in (
         ("robot.h.j2", f"{name}.h"),

@@ -519,10 +519,6 @@ def robot_sections(model, citations: dict[str, str] | None = None, width: float 
     return [s for s in sections if s is not None]
 
 
-def _joint_list(w: _Writer) -> str:
-    return ", ".join(w.printer.joint_latex[qi] for qi in w.model.q)
-
-
 def _params(w: _Writer) -> Section:
     m = w.model
     kinds = {REVOLUTE: "revolute", PRISMATIC: "prismatic"}
