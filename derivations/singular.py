@@ -28,11 +28,13 @@ import sympy as sp
 
 from .cache import cached
 from .chain import PRISMATIC, simplify_entry
+from .velocity import MAX_CLOSED_FORM
 
 __all__ = ["JacobianDeterminant", "square_jacobian", "jacobian_determinant", "trig_factor", "inverse_rate_map"]
 
-# A symbolic adjugate of a larger Jacobian is pages long and buys the reader nothing.
-MAX_INVERSE_SIZE = 4
+# A symbolic adjugate of a larger Jacobian is pages long and buys the reader nothing: the
+# same bound as the rate kernels' closed-form inverse.
+MAX_INVERSE_SIZE = MAX_CLOSED_FORM
 
 
 @dataclass(frozen=True)
@@ -139,7 +141,7 @@ def _half_angle_factor(expr: sp.Expr, q) -> sp.Expr | None:
             budget[ti] -= int(power)
         trig = _from_half_angle(sp.Poly(base, *degrees.keys()).as_expr(), list(degrees.keys()),
                                 {ti: qi for qi, ti in t.items()}) if degrees else base
-        out.append(_tidy(trig) ** power)
+        out.append(simplify_entry(trig) ** power)
     if any(b != 0 for b in budget.values()):
         return None
     return sp.Mul(*out)
@@ -180,13 +182,8 @@ def _polynomial_factor(expr: sp.Expr, q) -> sp.Expr:
     out = []
     for factor in sp.Mul.make_args(sp.factor(poly)):
         base, power = factor.as_base_exp()
-        out.append(_tidy(base.xreplace(back)) ** power)
+        out.append(simplify_entry(base.xreplace(back)) ** power)
     return sp.Mul(*out)
-
-
-def _tidy(expr: sp.Expr) -> sp.Expr:
-    """Merge angle sums (``c2 c3 - s2 s3 -> cos(q2 + q3)``)."""
-    return simplify_entry(expr)
 
 
 def _zeros(factor: sp.Expr, q, joint_types) -> tuple[sp.Eq, ...]:
@@ -225,6 +222,10 @@ def inverse_rate_map(model, determinant: JacobianDeterminant | None = None):
         return None
     if determinant.value == 0:
         return None
+    rates = model.rates
+    if rates is not None and rates.strategy == "square":
+        # The rate kernels' closed form (damping.closed_form_inverse) already holds this adjugate.
+        return rates.inverse.adjugate, determinant.value
     J = model.task_jacobian
     key = sp.srepr((J, determinant.value)).encode()
     adjugate = cached(f"adjugate-{model.name}", key,
