@@ -216,9 +216,12 @@ def cmd_verify(args, say) -> int:
         say(f"{model.name}: verifying {package} against SymPy at 30 digits")
         checks = verify_model(model, _package_modules(package, args.backends), samples=args.samples)
     else:
+        # generated/__init__.py may have been rewritten in this process (`kinegen all` with a
+        # newly registered robot): read its ROBOTS afresh.
+        importlib.invalidate_caches()
+        importlib.reload(generated)
         for name in _registered(args.robots):
             say(f"{name}: verifying against SymPy at 30 digits ({args.samples} points per kernel)")
-            importlib.invalidate_caches()
             modules = {b: generated.load(name, backend=b) for b in args.backends}
             checks.extend(verify_model(_symbolic(name), modules, samples=args.samples))
     print(format_table(checks))
