@@ -213,7 +213,9 @@ def verify_model(model: RobotModel, modules: dict, samples: int = 6, seed: int =
     rng = np.random.default_rng(seed)
     checks = []
     param_symbols = {str(s): s for s in model.params}
-    for function in model.functions():
+    functions = model.functions()
+    names = {f.name for f in functions}
+    for function in functions:
         param_sets = [None] + [sample_params(model, rng) for _ in range(samples - 1)]
         points = sample_points(model, function, rng, samples, param_sets)
         worst = {backend: 0.0 for backend in modules}
@@ -239,13 +241,12 @@ def verify_model(model: RobotModel, modules: dict, samples: int = 6, seed: int =
                     worst[backend] = max(worst[backend], relative_error(got, want))
         for backend in modules:
             checks.append(Check(model.name, function.name, backend, worst[backend], compared))
-    if "jacobian" in {f.name for f in model.functions()}:
+    if "jacobian" in names:
         for backend, module in modules.items():
             q = sample_joints(model, rng, samples)
             error = float(np.max(np.abs(module.jacobian(q) - jacobian_by_finite_differences(module.fk, q))))
             checks.append(Check(model.name, "jacobian", backend, error, samples,
                                 "central differences of fk", FD_TOLERANCE))
-    names = {f.name for f in model.functions()}
     for rate, kernel in (("jacobian_dot", "jacobian"), ("task_jacobian_dot", "task_jacobian")):
         if rate not in names:
             continue
@@ -272,9 +273,7 @@ def jacobian_by_finite_differences(fk, q: np.ndarray, step: float = 1e-6) -> np.
     R = T[..., :3, :3]
     columns = []
     for i in range(n):
-        dq = np.zeros(n)
-        dq[i] = step
-        dT = (fk(q + dq) - fk(q - dq)) / (2 * step)
+        dT = derivative_along(fk, q, np.eye(n)[i], step)  # dT/dq_i
         v = dT[..., :3, 3]
         W = dT[..., :3, :3] @ np.swapaxes(R, -1, -2)
         w = np.stack([W[..., 2, 1] - W[..., 1, 2], W[..., 0, 2] - W[..., 2, 0], W[..., 1, 0] - W[..., 0, 1]], -1) / 2
