@@ -13,13 +13,13 @@ less the Python around it.
 """
 from __future__ import annotations
 
-import importlib.util
 import os
 import re
 import subprocess
 from pathlib import Path
 
 import generated
+from codegen.build import load_build_script
 
 GENERATED = Path(generated.__file__).resolve().parent
 CC = os.environ.get("CC", "cc")
@@ -118,10 +118,7 @@ def _fill(text: str, **values) -> str:
 
 def library_flags(robot: str) -> list[str]:
     """The compile flags of the robot's built C library (its build_c.py decides)."""
-    spec = importlib.util.spec_from_file_location(f"_bench_build_{robot}", GENERATED / robot / "build_c.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return list(module.compile_flags())
+    return list(load_build_script(GENERATED / robot).compile_flags())
 
 
 def driver_source(robot: str, count: int, repeat: int, rtb_ik: bool) -> str:

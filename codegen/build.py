@@ -18,7 +18,7 @@ from .backends import TEMPLATES
 from .backends.c_backend import STRICT_FLAGS
 from .generate import GENERATED
 
-__all__ = ["build_extension", "compile_strict", "sanitizer_run", "CompileError"]
+__all__ = ["load_build_script", "build_extension", "compile_strict", "sanitizer_run", "CompileError"]
 
 CC = os.environ.get("CC", "cc")
 # A small block in the sanitizer run, so that its batches span a full block and a partial one.
@@ -36,12 +36,18 @@ def _run(cmd: list[str], cwd: Path | None = None) -> subprocess.CompletedProcess
     return result
 
 
-def build_extension(package: Path) -> Path:
-    """Run the package's generated ``build_c.py``; returns the built extension."""
+def load_build_script(package: Path):
+    """The package's generated ``build_c.py`` as a module (its ``build()``, ``compile_flags()``, ...)."""
+    package = Path(package)
     spec = importlib.util.spec_from_file_location(f"_kinegen_build_{package.name}", package / "build_c.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    return module.build()
+    return module
+
+
+def build_extension(package: Path) -> Path:
+    """Run the package's generated ``build_c.py``; returns the built extension."""
+    return load_build_script(package).build()
 
 
 # The layouts of the batched entry points (see robot.c.j2): plain loops over the single

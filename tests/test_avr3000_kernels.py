@@ -83,33 +83,19 @@ def test_round_trip_motor_tool_motor(k, level):
 
 
 @pytest.mark.parametrize("level", ["position", "velocity", "acceleration"])
-def test_round_trip_cartesian_motor_cartesian(k, level):
-    rng = np.random.default_rng(4)
+@pytest.mark.parametrize("branch, seed", [("", 4), ("_reversed", 14)], ids=["first", "reversed"])
+def test_round_trip_cartesian_motor_cartesian(k, level, branch, seed):
+    """Both Cartesian branches (R - e = +-sqrt(x^2 + y^2)) reach the point back, at every level."""
+    rng = np.random.default_rng(seed)
     angle, radius = rng.uniform(-math.pi, math.pi, 2000), rng.uniform(0.05, 1.9 * A, 2000)
     cart = np.stack([radius * np.sin(angle), radius * np.cos(angle), rng.uniform(0, 0.15, 2000)], -1)
     rates = [rng.uniform(-2, 2, (2000, 3)), rng.uniform(-20, 20, (2000, 3))]
     count = {"position": 0, "velocity": 1, "acceleration": 2}[level]
     suffix = "" if level == "position" else f"_{level}"
     given = ([cart] + rates)[:count + 1]
-    motor = getattr(k, f"cartesian_to_motor{suffix}")(*given)
-    motor_args = [k.cartesian_to_motor(cart)] + ([k.cartesian_to_motor_velocity(cart, rates[0])] if count else [])
-    back = getattr(k, f"motor_to_cartesian{suffix}")(*(motor_args[:count] + [motor]))
-    assert relative(back, given[-1]) < 1e-12
-
-
-@pytest.mark.parametrize("level", ["position", "velocity", "acceleration"])
-def test_reversed_branch_round_trips_cartesian_motor_cartesian(k, level):
-    """The second Cartesian branch (R - e = -sqrt(x^2 + y^2)) reaches the same points, at every level."""
-    rng = np.random.default_rng(14)
-    angle, radius = rng.uniform(-math.pi, math.pi, 2000), rng.uniform(0.05, 1.9 * A, 2000)
-    cart = np.stack([radius * np.sin(angle), radius * np.cos(angle), rng.uniform(0, 0.15, 2000)], -1)
-    rates = [rng.uniform(-2, 2, (2000, 3)), rng.uniform(-20, 20, (2000, 3))]
-    count = {"position": 0, "velocity": 1, "acceleration": 2}[level]
-    suffix = "" if level == "position" else f"_{level}"
-    given = ([cart] + rates)[:count + 1]
-    motor = getattr(k, f"cartesian_to_motor_reversed{suffix}")(*given)
-    motor_args = ([k.cartesian_to_motor_reversed(cart)]
-                  + ([k.cartesian_to_motor_reversed_velocity(cart, rates[0])] if count else []))
+    to_motor = f"cartesian_to_motor{branch}"
+    motor = getattr(k, f"{to_motor}{suffix}")(*given)
+    motor_args = [getattr(k, to_motor)(cart)] + ([getattr(k, f"{to_motor}_velocity")(cart, rates[0])] if count else [])
     back = getattr(k, f"motor_to_cartesian{suffix}")(*(motor_args[:count] + [motor]))
     assert relative(back, given[-1]) < 1e-12
 

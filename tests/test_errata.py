@@ -14,6 +14,7 @@ import sympy as sp
 
 import derivations
 from derivations.chain import dh_standard
+from derivations.robots._common import parameters as params
 
 c, s = sp.cos, sp.sin
 RNG = np.random.default_rng(2011)
@@ -21,11 +22,6 @@ RNG = np.random.default_rng(2011)
 
 def numeric(expr, values):
     return np.array(sp.N(sp.sympify(expr).subs(values), 30), dtype=float)
-
-
-def params(model, *names):
-    by_name = {str(p): p for p in model.params}
-    return [by_name[n] for n in names]
 
 
 # --------------------------------------------------------------------------- Rehiara

@@ -4,7 +4,6 @@ Speed itself is never asserted here (`make bench` measures it); these tests
 check that the faster paths compute the same numbers and reject the same bad
 input as the plain ones.
 """
-import importlib.util
 import math
 import subprocess
 import sys
@@ -19,13 +18,6 @@ from codegen import build, generate
 from conftest import kernels
 
 REPO = Path(__file__).resolve().parent.parent
-
-
-def build_module(name):
-    spec = importlib.util.spec_from_file_location(f"_test_build_{name}", generate.GENERATED / name / "build_c.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 @pytest.mark.parametrize("kernel", ["fk", "frames", "jacobian", "task", "task_jacobian"])
@@ -96,7 +88,7 @@ def test_adept_three_defaults_of_zero_are_not_taken_by_false():
 
 
 def test_the_built_library_uses_the_fast_flags_only_when_they_work():
-    flags = build_module("puma560").compile_flags()
+    flags = build.load_build_script(generate.GENERATED / "puma560").compile_flags()
     assert flags[:2] == ["-std=c99", "-O3"]
     assert "-ffast-math" not in flags and "-ffinite-math-only" not in flags
     portable = subprocess.run(
@@ -104,16 +96,6 @@ def test_the_built_library_uses_the_fast_flags_only_when_they_work():
         cwd=generate.GENERATED / "puma560", capture_output=True, text=True, check=True,
         env={"KINEGEN_PORTABLE": "1", "PATH": "/usr/bin:/bin"})
     assert portable.stdout.strip() == "['-std=c99', '-O3']"
-
-
-def test_every_layout_compiles_strictly_and_blocked_equals_plain_under_sanitizers():
-    """What `make build` and `make sanitize` check, for one small robot and a block of 4."""
-    package = generate.GENERATED / "planar_2r"
-    build.compile_strict(package, "planar_2r")
-    import derivations
-    model = derivations.load("planar_2r")
-    context = generate.robot_context(model, "")
-    assert build.sanitizer_run(package, "planar_2r", context["functions"], model.n)
 
 
 def test_numpy_chunks_equal_one_chunk():

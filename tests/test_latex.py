@@ -15,6 +15,7 @@ from codegen.backends.latex_backend import (CITATIONS, KinematicsLatexPrinter, M
                                             math_width, robot_sections)
 from derivations.model import IKBranch
 from derivations.singular import inverse_rate_map, jacobian_determinant
+from derivations.robots._common import parameters as params
 from conftest import ROBOT_NAMES
 
 c, s = sp.cos, sp.sin
@@ -22,11 +23,6 @@ c, s = sp.cos, sp.sin
 
 def printer_for(model):
     return KinematicsLatexPrinter(model.q, model.joint_types, tuple(model.params))
-
-
-def params(model, *names):
-    by_name = {str(p): p for p in model.params}
-    return [by_name[n] for n in names]
 
 
 # --------------------------------------------------------------------------- notation

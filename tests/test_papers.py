@@ -10,17 +10,13 @@ import sympy as sp
 
 import derivations
 from derivations.chain import simplify_entry
+from derivations.robots._common import parameters as params
 
 c, s = sp.cos, sp.sin
 
 
 def same(a, b):
     return sp.simplify(sp.expand_trig(sp.Matrix(a) - sp.Matrix(b))) == sp.zeros(*sp.Matrix(a).shape)
-
-
-def params(model, *names):
-    by_name = {str(p): p for p in model.params}
-    return [by_name[n] for n in names]
 
 
 def test_kumar_eq4_planar_3r_position_and_orientation(models):

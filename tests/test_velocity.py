@@ -21,16 +21,12 @@ import derivations
 DH_ROBOTS = [n for n in ROBOT_NAMES if derivations.ROBOTS[n].suffix == ".toml"]
 from derivations.chain import simplify_entry
 from derivations.damping import MAX_DAMPING, SINGULAR_MEASURE
+from derivations.robots._common import parameters as params
 
 c, s = sp.cos, sp.sin
 BACKENDS = ["numpy", "c"]
 MU0, LAMBDA_MAX = float(SINGULAR_MEASURE), float(MAX_DAMPING)
 SQUARE = ["planar_2r", "planar_3r", "planar_rp", "planar_pp", "adept_three"]
-
-
-def params(model, *names):
-    by_name = {str(p): p for p in model.params}
-    return [by_name[n] for n in names]
 
 
 def function(model, name):
