@@ -14,8 +14,8 @@ joint rates of the PUMA 560:
 * 6 x 6: the generated ``jacobian`` kernel, then Gaussian elimination with partial
   pivoting (C, below) or ``numpy.linalg.solve`` (numpy).
 
-The C timings come from a driver compiled with the flags of the cffi build
-(``-std=c99 -O3``) and timed in C, so no Python overhead is counted; the numpy
+The C timings come from a driver compiled with the flags of the built library
+(``inside_c.library_flags``: those its build_c.py chose here) and timed in C, so no Python overhead is counted; the numpy
 timings are whole-batch calls.  A benchmark, not a test: nothing is asserted
 about speed; the routes are only checked to agree (largest relative difference
 from the 6 x 6 answer over the configurations not flagged singular).
@@ -35,6 +35,9 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 PACKAGE = REPO / "generated" / "puma560"
 sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import inside_c  # noqa: E402
 
 DRIVER = r"""
 #define _POSIX_C_SOURCE 199309L
@@ -161,7 +164,7 @@ def time_c(q: np.ndarray, twist: np.ndarray, repeat: int) -> tuple[float, ...]:
         data = scratch / "inputs.bin"
         data.write_bytes(np.ascontiguousarray(q).tobytes() + np.ascontiguousarray(twist).tobytes())
         exe = scratch / "driver"
-        subprocess.run([cc, "-std=c99", "-O3", "-I", str(PACKAGE), str(scratch / "driver.c"),
+        subprocess.run([cc, *inside_c.library_flags("puma560"), "-I", str(PACKAGE), str(scratch / "driver.c"),
                         str(PACKAGE / "puma560.c"), "-o", str(exe), "-lm"], check=True)
         out = subprocess.run([str(exe), str(len(q)), str(repeat), str(data)], check=True, capture_output=True,
                              text=True).stdout.split()
@@ -189,7 +192,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     q, twist = sample(args.count)
     partition, full, diff, undamped, undamped_diff = time_c(q, twist, args.repeat)
-    rows = [("C (-O3), per call", partition, full, diff),
+    rows = [("C (library flags), per call", partition, full, diff),
             ("C, closed form only", undamped, full, undamped_diff),
             ("numpy, per item of a batch", *time_numpy(q, twist, args.repeat))]
     print(f"PUMA 560 joint rates from a twist, {args.count} configurations, best of {args.repeat}")
