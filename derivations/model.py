@@ -13,7 +13,7 @@ from typing import Sequence
 
 import sympy as sp
 
-from .chain import PRISMATIC, REVOLUTE, Chain, simplify_derivative, simplify_entry
+from .chain import PRISMATIC, REVOLUTE, Chain, simplify_derivative, simplify_entry, simplify_product
 from .ik import kernel_form
 
 __all__ = ["Argument", "Output", "Requirement", "SymbolicFunction", "IKBranch", "RobotModel", "task_coordinates"]
@@ -274,7 +274,7 @@ def build_chain_model(name: str, title: str, source: str, chain: Chain, q, param
     tool = chain.tool
     frames = list(link_frames)
     if tool != sp.eye(4):
-        frames[-1] = (frames[-1] * tool).applyfunc(simplify_entry)
+        frames[-1] = (frames[-1] * tool).applyfunc(simplify_product)
     fk = frames[-1]
     jacobian = chain.geometric_jacobian(link_frames, fk[:3, 3])
     task_names, task = task_coordinates(task_spec, chain, q, fk, link_frames)
