@@ -26,15 +26,25 @@ from dataclasses import dataclass
 
 import sympy as sp
 
+from .budget import BudgetExceeded, budget
 from .cache import cached
 from .chain import PRISMATIC, simplify_entry
 from .velocity import MAX_CLOSED_FORM
 
-__all__ = ["JacobianDeterminant", "square_jacobian", "jacobian_determinant", "trig_factor", "inverse_rate_map"]
+__all__ = ["FACTOR_LIMIT", "JacobianDeterminant", "square_jacobian", "jacobian_determinant", "trig_factor", "inverse_rate_map"]
 
 # A symbolic adjugate of a larger Jacobian is pages long and buys the reader nothing: the
 # same bound as the rate kernels' closed-form inverse.
 MAX_INVERSE_SIZE = MAX_CLOSED_FORM
+# Factoring is tried on a block's determinant only while it has at most this many operations
+# as the Berkowitz algorithm gives it (unexpanded).  The PUMA 560's blocks have 281 and 96; a
+# UR5's 6 x 6 determinant 29106, whose factoring took 4 minutes.  Only the LaTeX reads the
+# factors (the kernels flag singular configurations numerically), so a larger determinant is
+# reported as not factored rather than holding up the kernels.  A count, not a clock: the
+# fragment is the same on any machine.
+FACTOR_LIMIT = 2000
+# A safety net behind FACTOR_LIMIT: factoring that still runs longer than this stops.
+FACTOR_BUDGET = 30.0
 
 
 @dataclass(frozen=True)
@@ -47,9 +57,13 @@ class JacobianDeterminant:
     """
 
     which: str
-    value: sp.Expr
+    value: sp.Expr | None
     factors: tuple[sp.Expr, ...]
     singular: tuple[tuple[sp.Expr, tuple[sp.Eq, ...]], ...]
+    # False when the determinant was too large to factor (see FACTOR_LIMIT): then ``value``
+    # is None, ``factors`` and ``singular`` are empty, and ``size`` is its operation count.
+    factored: bool = True
+    size: int = 0
 
 
 def square_jacobian(model) -> tuple[str, sp.Matrix] | None:
@@ -79,9 +93,17 @@ def _determinant(which: str, J: sp.Matrix, q, joint_types) -> JacobianDeterminan
         blocks = [J[:half, :half], J[half:, half:]]
     else:
         blocks = [J]
+    determinants = [block.det(method="berkowitz") for block in blocks]
+    size = sum(int(sp.count_ops(d)) for d in determinants)
+    if size > FACTOR_LIMIT:
+        return JacobianDeterminant(which, None, (), (), factored=False, size=size)
     factors: list[sp.Expr] = []
-    for block in blocks:
-        factors.extend(sp.Mul.make_args(trig_factor(block.det(method="berkowitz"), q)))
+    try:
+        with budget(FACTOR_BUDGET, f"factoring det {which}"):
+            for determinant in determinants:
+                factors.extend(sp.Mul.make_args(trig_factor(determinant, q)))
+    except BudgetExceeded:
+        return JacobianDeterminant(which, None, (), (), factored=False, size=size)
     coefficient = sp.Mul(*[f for f in factors if f.is_number])
     factors = [f for f in factors if not f.is_number]
     for k, f in enumerate(factors):
@@ -220,7 +242,7 @@ def inverse_rate_map(model, determinant: JacobianDeterminant | None = None):
     determinant = determinant or jacobian_determinant(model)
     if determinant is None or determinant.which != "task_jacobian" or model.n > MAX_INVERSE_SIZE:
         return None
-    if determinant.value == 0:
+    if not determinant.factored or determinant.value == 0:
         return None
     rates = model.rates
     if rates is not None and rates.strategy == "square":

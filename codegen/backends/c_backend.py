@@ -1,6 +1,8 @@
 """The C99 backend: a C99CodePrinter subclass, the header/source templates and a cffi binding."""
 from __future__ import annotations
 
+import re
+
 import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
@@ -8,7 +10,7 @@ from derivations.ik import WrapAngle
 
 from . import TEMPLATES, ExactArithmeticMixin
 
-__all__ = ["CKernelPrinter", "render", "STRICT_FLAGS"]
+__all__ = ["CKernelPrinter", "render", "prune_helpers", "STRICT_FLAGS"]
 
 # What every generated C file must compile cleanly with (checked by `make build`).
 STRICT_FLAGS = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic")
@@ -112,15 +114,27 @@ def declarations(context: dict, for_cffi: bool) -> str:
     return "\n".join(lines)
 
 
-def _uses(context: dict, *types) -> bool:
-    """Whether any expression a C kernel prints holds one of ``types``."""
-    for f in context["functions"]:
-        expressions = [e for _, e in f["prologue"]] + [e for s in f["stages"] for _, e, _ in s["body"]]
-        expressions += [e for out in f["outputs"] for _, e in out["staged"]]
-        expressions += [e for c in f["checks"] for _, e in c.temporaries] + [c.condition for c in f["checks"]]
-        if any(isinstance(e, sp.Basic) and e.has(*types) for e in expressions):
-            return True
-    return False
+_HELPER = re.compile(r"^@@helper (?P<name>\w+)@@\n(?P<body>.*?)^@@end@@\n", re.S | re.M)
+
+
+def prune_helpers(text: str) -> str:
+    """The C text with each static helper kept only where something else in it calls it.
+
+    The templates write every helper they may need between the lines ``@@helper NAME@@``
+    and ``@@end@@``.  A helper whose name appears nowhere outside its own block is
+    dropped (repeatedly, since a dropped helper may have been another's only caller),
+    and the marker lines go: a ``static`` function nobody calls would stop the build
+    under ``-Werror=unused-function``, whatever the robot, task or kernel set.
+    """
+    while True:
+        blocks = list(_HELPER.finditer(text))
+        unused = [b for b in blocks
+                  if not re.search(rf"\b{b['name']}\b", text[:b.start()] + text[b.end():])]
+        if not unused:
+            break
+        for block in reversed(unused):
+            text = text[:block.start()] + text[block.end():]
+    return _HELPER.sub(lambda b: b["body"], text)
 
 
 def render(context: dict) -> dict[str, str]:
@@ -133,10 +147,7 @@ def render(context: dict) -> dict[str, str]:
                  for f in context["functions"]]
     context = dict(context, functions=functions)
     context = dict(context, c_declarations=declarations(context, False), c_cdef=declarations(context, True),
-                   c_checked=checked_prototypes(context), 
-                   uses_min=_uses(context, sp.Min), uses_max=_uses(context, sp.Max),
-                   # static helpers: emitted only where used (-Werror=unused-function)
-                   uses_wrap_angle=_uses(context, WrapAngle))
+                   c_checked=checked_prototypes(context))
     files = {}
     for template, filename in (
         ("robot.h.j2", f"{name}.h"),
@@ -145,5 +156,6 @@ def render(context: dict) -> dict[str, str]:
         ("c_kernels.py.j2", "c_kernels.py"),
         ("build_c.py.j2", "build_c.py"),
     ):
-        files[filename] = TEMPLATES.get_template(template).render(context, printer=printer)
+        text = TEMPLATES.get_template(template).render(context, printer=printer)
+        files[filename] = prune_helpers(text) if filename.endswith(".c") else text
     return files

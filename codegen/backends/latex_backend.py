@@ -32,7 +32,7 @@ from sympy.core.parameters import distribute
 from sympy.printing.latex import LatexPrinter
 
 from derivations.chain import PRISMATIC, REVOLUTE, simplify_entry
-from derivations.singular import JacobianDeterminant, inverse_rate_map, jacobian_determinant
+from derivations.singular import FACTOR_LIMIT, JacobianDeterminant, inverse_rate_map, jacobian_determinant
 
 from . import TEMPLATES
 
@@ -642,6 +642,12 @@ def _det(w: _Writer, determinant: JacobianDeterminant | None) -> Section:
                 f"$6 \\times {m.n}$: neither is square, so there is no determinant to print.\n")
         return Section("det", "Singularities", text)
     name = "J_x" if determinant.which == "task_jacobian" else "J"
+    if not determinant.factored:
+        text = (f"$\\det {name}$ is not factored: as a polynomial in the sines and cosines of the joints it "
+                f"has {determinant.size} operations unexpanded, more than the {FACTOR_LIMIT} up to which the "
+                "singular families are worked out in closed form. The rate kernels find singular "
+                "configurations numerically, by the condition number of the normalised Jacobian.\n")
+        return Section("det", "Singularities", text)
     body = w.display(rf"\det {name}", determinant.value, key="det")
     if determinant.which == "jacobian":
         body = ("The determinant of the geometric Jacobian does not depend on the reference point or the frame; "

@@ -114,13 +114,13 @@ double asin(double);
 const avr3000_params avr3000_default_params = { 0.2667, 0.0, -4.0175691732e-05, 2.6036376953e-05, -2.6036376953e-05, 1.6666666692e-07 };
 
 /* min and max that pass a NaN on, like numpy.minimum and numpy.maximum: C99's fmin and
-   fmax would turn an acos argument of NaN into +-1 and a valid-looking angle.  Each is
-   emitted only where a kernel uses it (static: -Werror=unused-function). */
+   fmax would turn an acos argument of NaN into +-1 and a valid-looking angle. */
 static double kinegen_min(double a, double b)
 {
     return isnan(a) || a < b ? a : b;
 }
 
+/* max that passes a NaN on, like numpy.maximum. */
 static double kinegen_max(double a, double b)
 {
     return isnan(a) || a > b ? a : b;

@@ -76,9 +76,7 @@ double asin(double);
 
 const planar_rp_params planar_rp_default_params = { 0.0 };
 
-/* min and max that pass a NaN on, like numpy.minimum and numpy.maximum: C99's fmin and
-   fmax would turn an acos argument of NaN into +-1 and a valid-looking angle.  Each is
-   emitted only where a kernel uses it (static: -Werror=unused-function). */
+/* max that passes a NaN on, like numpy.maximum. */
 static double kinegen_max(double a, double b)
 {
     return isnan(a) || a > b ? a : b;

@@ -78,13 +78,13 @@ double asin(double);
 const puma560_params puma560_default_params = { 0.67183, 0.4318, 0.0203, 0.15005, 0.4318 };
 
 /* min and max that pass a NaN on, like numpy.minimum and numpy.maximum: C99's fmin and
-   fmax would turn an acos argument of NaN into +-1 and a valid-looking angle.  Each is
-   emitted only where a kernel uses it (static: -Werror=unused-function). */
+   fmax would turn an acos argument of NaN into +-1 and a valid-looking angle. */
 static double kinegen_min(double a, double b)
 {
     return isnan(a) || a < b ? a : b;
 }
 
+/* max that passes a NaN on, like numpy.maximum. */
 static double kinegen_max(double a, double b)
 {
     return isnan(a) || a > b ? a : b;

@@ -1,0 +1,92 @@
+"""Time budgets for symbolic work that could run long.
+
+SymPy has no cancellation, so a budget is enforced with an interval timer
+(``SIGALRM``): when the earliest open budget runs out, :class:`BudgetExceeded`
+is raised inside whatever SymPy call is running, naming the stage.  Budgets
+nest (the whole derivation has one, factoring ``det J`` for the LaTeX a shorter
+one inside it); the timer is always set for the earliest deadline.
+
+Only the main thread of a process may own ``SIGALRM``; elsewhere (a thread of a
+host application) :func:`budget` still records the stage but cannot interrupt,
+and says so in :data:`ENFORCED`.
+
+>>> with budget(120, "deriving ur5"):
+...     with budget(5, "factoring det J"):
+...         pass
+"""
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+import time
+
+__all__ = ["BudgetExceeded", "budget", "remaining", "ENFORCED"]
+
+
+class BudgetExceeded(Exception):
+    """A stage ran past its time budget; ``stage`` names it, ``seconds`` is the budget."""
+
+    def __init__(self, stage: str, seconds: float):
+        super().__init__(f"{stage}: stopped after its time budget of {seconds:g} s")
+        self.stage = stage
+        self.seconds = seconds
+
+
+# The open budgets, outermost first: (deadline on the monotonic clock, stage, seconds).
+_open: list[tuple[float, str, float]] = []
+
+
+def _enforceable() -> bool:
+    return threading.current_thread() is threading.main_thread() and hasattr(signal, "setitimer")
+
+
+ENFORCED = _enforceable()
+
+
+def _on_alarm(signum, frame):
+    now = time.monotonic()
+    expired = [entry for entry in _open if entry[0] <= now + 1e-3]
+    if not expired:
+        _arm()  # a late signal for a budget already closed: wait for the next deadline
+        return
+    deadline, stage, seconds = min(expired)
+    raise BudgetExceeded(stage, seconds)
+
+
+def _arm():
+    if not _open:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        return
+    delay = max(min(entry[0] for entry in _open) - time.monotonic(), 1e-3)
+    signal.setitimer(signal.ITIMER_REAL, delay)
+
+
+def remaining() -> float | None:
+    """Seconds left in the tightest open budget, or None when there is none."""
+    if not _open:
+        return None
+    return max(min(entry[0] for entry in _open) - time.monotonic(), 0.0)
+
+
+@contextlib.contextmanager
+def budget(seconds: float | None, stage: str):
+    """Run the body within ``seconds`` (None: no limit of its own), or raise :class:`BudgetExceeded`."""
+    if seconds is None or not _enforceable():
+        yield
+        return
+    if not seconds > 0:
+        raise ValueError(f"a time budget must be positive, got {seconds!r}")
+    previous = signal.getsignal(signal.SIGALRM)
+    if previous is not _on_alarm:
+        signal.signal(signal.SIGALRM, _on_alarm)
+    entry = (time.monotonic() + seconds, stage, seconds)
+    _open.append(entry)
+    try:
+        _arm()
+        yield
+    finally:
+        _open.remove(entry)
+        _arm()
+        if previous is not _on_alarm:
+            signal.signal(signal.SIGALRM, previous)
