@@ -15,6 +15,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
 import sympy as sp
 
 import derivations
@@ -106,6 +107,7 @@ def template_function(prepared: PreparedFunction) -> dict:
         "name": prepared.name, "doc": prepared.doc, "arguments": arguments,
         "params_used": prepared.params_used, "arguments_used": arguments_used,
         "outputs": outputs, "operations": prepared.operations, "checks": prepared.checks, "is_ik": is_ik,
+        "solve": None,
         # Temporaries holding a truth value (relations are Boolean but not is_Boolean in SymPy).
         "boolean_temporaries": frozenset(name for name, expr in prepared.temporaries
                                          if isinstance(expr, sp.logic.boolalg.Boolean)),
@@ -134,13 +136,35 @@ def _angles(calls) -> list[dict]:
     return list(angles.values())
 
 
+def solved_function(function, system: dict) -> dict:
+    """What the templates need of a kernel solved at run time (``function.solve``): its
+    public outputs, and the kernel ``system`` (already prepared) that forms its linear system."""
+    solve = function.solve
+    outputs = [{"name": out.name, "shape": tuple(out.shape), "dtype": out.dtype, "size": int(np.prod(out.shape)),
+                "flat": [], "staged": [], "constant": set()} for out in function.outputs]
+    return {
+        "name": function.name, "doc": function.doc, "arguments": system["arguments"],
+        "params_used": system["params_used"], "arguments_used": system["arguments_used"],
+        "outputs": outputs, "operations": system["operations"], "checks": (), "is_ik": False,
+        "solve": {"system": solve.system, "rows": solve.rows, "cols": solve.cols, "kind": solve.kind,
+                  "has_rhs": solve.kind == "solution", "cond_limit": float_literal(solve.COND_LIMIT)},
+        "prologue": [], "stages": [], "arrays": set(), "indexed": set(), "block": 1,
+        "block_outputs": [], "stream_outputs": [], "stream_size": 0, "boolean_temporaries": frozenset(),
+    }
+
+
 def robot_context(model: RobotModel, origin: str, verbose: bool = False) -> dict:
     param_names = tuple(str(s) for s in model.params)
     functions = []
+    by_name = {}
     for function in model.functions():
         start = time.perf_counter()
+        if function.solve is not None:
+            functions.append(solved_function(function, by_name[function.solve.system]))
+            continue
         prepared = prepare(function, param_names)
         functions.append(template_function(prepared))
+        by_name[function.name] = functions[-1]
         if verbose:
             print(f"[cse] {model.name}.{function.name}: {prepared.operations} ops, "
                   f"{time.perf_counter() - start:.2f} s", file=sys.stderr)

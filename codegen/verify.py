@@ -17,12 +17,13 @@ import functools
 import math
 from dataclasses import dataclass
 
+import mpmath
 import numpy as np
 import sympy as sp
 
 from derivations.model import RobotModel, SymbolicFunction
 
-__all__ = ["TOLERANCE", "FD_TOLERANCE", "Check", "sample_points", "reference", "verify_model",
+__all__ = ["TOLERANCE", "FD_TOLERANCE", "Check", "sample_points", "reference", "solve_reference", "verify_model",
            "jacobian_by_finite_differences", "derivative_along", "format_table"]
 
 TOLERANCE = 1e-12
@@ -149,12 +150,13 @@ def _evaluation_plan(function: SymbolicFunction):
     return sp.cse(flat, symbols=sp.numbered_symbols("_ref", real=True), order="canonical")
 
 
-def reference(function: SymbolicFunction, values: dict[sp.Symbol, float]) -> list[np.ndarray]:
+def reference(function: SymbolicFunction, values: dict[sp.Symbol, float], exact: bool = False) -> list[np.ndarray]:
     """Each output of ``function`` at ``values``: exact substitution, then evalf.
 
     The sample point enters exactly (each float64 as the rational it is); each
     common subexpression is evaluated with ``evalf`` at ``WORKING_DIGITS`` and the
-    outputs at ``DIGITS`` significant digits.
+    outputs at ``DIGITS`` significant digits (kept as ``mpmath.mpf`` in object
+    arrays with ``exact``, rounded to float64 otherwise).
     """
     known: dict[sp.Basic, sp.Basic] = {s: sp.Rational(float(v)) for s, v in values.items()}
     replacements, reduced = _evaluation_plan(function)
@@ -167,9 +169,50 @@ def reference(function: SymbolicFunction, values: dict[sp.Symbol, float]) -> lis
         start += len(out.values)
         if out.dtype == "bool":
             outputs.append(np.array([truth(e, {}) for e in entries], dtype=bool).reshape(out.shape))
+        elif exact:
+            numbers = [mpmath.mpf(sp.Float(e.evalf(DIGITS), DIGITS)._mpf_) for e in entries]
+            outputs.append(np.array(numbers, dtype=object).reshape(out.shape))
         else:
             outputs.append(np.array([float(e.evalf(DIGITS)) for e in entries], dtype=float).reshape(out.shape))
     return outputs
+
+
+def solve_reference(function: SymbolicFunction, system: SymbolicFunction,
+                    values: dict[sp.Symbol, float]) -> list[np.ndarray]:
+    """The outputs of a kernel solved at run time (``function.solve``), independently.
+
+    Its system (A, b, row_scale, col_scale: the closed forms of ``system``) is
+    evaluated at 30 digits and solved with mpmath's SVD at 40 digits by the rule of
+    :class:`derivations.model.NumericSolve`, not by the generated code's Jacobi
+    rotations or LAPACK.
+    """
+    solve = function.solve
+    parts = reference(system, values, exact=True)
+    A = parts[0]
+    b, row_scale, col_scale = (parts[1], parts[2], parts[3]) if solve.kind == "solution" else (None, *parts[1:3])
+    with mpmath.workdps(40):
+        if b is None:
+            measure = mpmath.fprod(mpmath.svd_r(mpmath.matrix(A.tolist()), compute_uv=False))
+        An = mpmath.matrix([[row_scale[i] * A[i, j] * col_scale[j] for j in range(A.shape[1])]
+                            for i in range(A.shape[0])])
+        U, S, V = mpmath.svd_r(An, full_matrices=False)
+        s = [S[i] for i in range(len(S))]
+        largest, smallest = max(s), min(s)
+        singular = not smallest > largest / solve.COND_LIMIT
+        if b is None:
+            return [np.array(float(measure)), np.array(singular)]
+        damping = max((largest / solve.COND_LIMIT)**2 - smallest**2, 0) if singular else 0
+        bn = [row_scale[i] * b[i] for i in range(len(b))]
+        x = []
+        for j in range(A.shape[1]):
+            total = mpmath.mpf(0)
+            for i, si in enumerate(s):
+                denominator = si**2 + damping
+                if denominator > 0:
+                    projection = mpmath.fsum(U[r, i] * bn[r] for r in range(len(bn)))
+                    total += si / denominator * projection * V[i, j]
+            x.append(float(col_scale[j] * total))
+    return [np.array(x), np.array(singular)]
 
 
 def relative_error(generated: np.ndarray, expected: np.ndarray) -> float:
@@ -215,6 +258,7 @@ def verify_model(model: RobotModel, modules: dict, samples: int = 6, seed: int =
     param_symbols = {str(s): s for s in model.params}
     functions = model.functions()
     names = {f.name for f in functions}
+    by_name = {f.name: f for f in functions}
     for function in functions:
         param_sets = [None] + [sample_params(model, rng) for _ in range(samples - 1)]
         points = sample_points(model, function, rng, samples, param_sets)
@@ -227,7 +271,10 @@ def verify_model(model: RobotModel, modules: dict, samples: int = 6, seed: int =
             params = param_sets[k]
             values.update({param_symbols[n]: v for n, v in (params or {n: float(model.params[s])
                                                                      for n, s in param_symbols.items()}).items()})
-            expected = reference(function, values)
+            if function.solve is not None:
+                expected = solve_reference(function, by_name[function.solve.system], values)
+            else:
+                expected = reference(function, values)
             mask = existence_mask(function, expected)
             compared += 1 if mask is None else int(mask.sum())
             for backend, module in modules.items():

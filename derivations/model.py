@@ -16,7 +16,7 @@ import sympy as sp
 from .chain import PRISMATIC, REVOLUTE, Chain, simplify_derivative, simplify_entry, simplify_product
 from .ik import kernel_form
 
-__all__ = ["Argument", "Output", "Requirement", "SymbolicFunction", "IKBranch", "RobotModel", "task_coordinates"]
+__all__ = ["Argument", "Output", "Requirement", "NumericSolve", "SymbolicFunction", "IKBranch", "RobotModel", "task_coordinates"]
 
 
 @dataclass(frozen=True)
@@ -75,11 +75,46 @@ class Requirement:
 
 
 @dataclass(frozen=True)
+class NumericSolve:
+    """A kernel whose outputs come from a small linear system solved at run time.
+
+    The system is the kernel ``system`` of the same model, whose outputs are
+    ``A`` (rows x cols), ``b`` (rows; absent when ``kind`` is ``"measure"``),
+    ``row_scale`` (rows) and ``col_scale`` (cols): every entry a closed form.
+    The generated code normalises ``An = diag(row_scale) A diag(col_scale)``
+    (lengths in units of the arm's reference length, so that the test below is
+    the same for an arm and for that arm scaled by 10), takes the singular values
+    of ``An`` by one-sided Jacobi rotations (C) or LAPACK (numpy), and answers:
+
+    * ``kind == "solution"``: ``x = diag(col_scale) y`` with
+      ``y = sum_i s_i / (s_i^2 + lambda^2) (u_i . bn) v_i``: the exact solution
+      (square), minimum-norm (wide) or least squares (tall) where the
+      configuration is regular, damped least squares where it is singular;
+    * ``kind == "measure"``: Yoshikawa's manipulability of ``A`` (the product
+      of its singular values, SI units).
+
+    Both also give ``singular``: ``s_min < s_max / COND_LIMIT`` on ``An``,
+    where an exact solve would lose more than 8 of the 16 digits; there
+    ``lambda^2 = (s_max / COND_LIMIT)^2 - s_min^2`` (continuous at the
+    threshold, zero off it), elsewhere 0.
+    """
+
+    system: str
+    rows: int
+    cols: int
+    kind: str = "solution"
+
+    COND_LIMIT = 1e8
+
+
+@dataclass(frozen=True)
 class SymbolicFunction:
     """One kernel to generate: ``name(arguments..., **params) -> outputs``.
 
     ``requires`` lists the conditions checked, in order, before any output is
-    computed (empty for maps defined everywhere).
+    computed (empty for maps defined everywhere).  With ``solve`` set, the
+    outputs carry no expressions: they come from the linear system that the
+    kernel ``solve.system`` computes, solved at run time (:class:`NumericSolve`).
     """
 
     name: str
@@ -87,6 +122,7 @@ class SymbolicFunction:
     outputs: tuple[Output, ...]
     doc: str = ""
     requires: tuple[Requirement, ...] = ()
+    solve: NumericSolve | None = None
 
 
 @dataclass(frozen=True)

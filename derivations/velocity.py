@@ -31,6 +31,7 @@ Everything here is derived once per robot and cached on disk
 """
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 
@@ -40,16 +41,20 @@ from .cache import cached
 from .chain import PRISMATIC
 from .damping import (ClosedFormInverse, Minors, Scaling, closed_form_inverse, factored, measure_squared,
                       reference_length, regularised_solve, singular_flag)
-from .model import POSE_NAMES, Argument, Output, SymbolicFunction
+from .model import POSE_NAMES, Argument, NumericSolve, Output, SymbolicFunction
 from .paul import WristPartition, wrist_partition
 from .tool_configuration import tool_configuration_functions
 
 __all__ = ["RateKinematics", "Singularities", "SingularCondition", "rate_kinematics", "derive_rates",
-           "time_derivative", "pose_rates_to_twist", "TWIST_NAMES", "MAX_CLOSED_FORM"]
+           "time_derivative", "pose_rates_to_twist", "closed_form_shape", "TWIST_NAMES", "MAX_CLOSED_FORM"]
 
 TWIST_NAMES = ("vx", "vy", "vz", "wx", "wy", "wz")
 # Closed-form (adjugate) inverses are derived up to this size; beyond it they grow too large.
 MAX_CLOSED_FORM = 4
+# A wide or tall task Jacobian gets closed forms while its maximal minors are at most
+# MAX_MINOR_SIZE x MAX_MINOR_SIZE and at most MAX_MINORS of them (the SCORBOT's 3 x 5: ten 3 x 3).
+MAX_MINOR_SIZE = 3
+MAX_MINORS = 10
 
 # Kernels particular to one robot, keyed by its registry name.
 ROBOT_EXTRAS = {"adept_three": tool_configuration_functions}
@@ -144,7 +149,7 @@ class Singularities:
 class RateKinematics:
     """Everything at rate level for one robot (see the module docstring).
 
-    ``strategy`` names how the inverse maps are built: ``"square"``, ``"wide"``,
+    ``strategy`` names how the inverse maps are built: ``"square"``, ``"wide"``, ``"numeric"``,
     ``"tall"``, ``"wrist partition"`` or ``None`` (no inverse kernels).
     """
 
@@ -197,33 +202,47 @@ def derive_rates(model) -> RateKinematics:
                       tuple(1 if t == PRISMATIC else 0 for t in model.joint_types))
 
     partition = wrist_partition(model, length) if model.task_names == POSE_NAMES else None
-    inverse, minors = None, None
-    if partition is not None:
-        strategy = "wrist partition"
-    elif m == n and n <= MAX_CLOSED_FORM:
-        strategy, inverse = "square", closed_form_inverse(Jx)
-        minors = Minors.of_square(Jx, inverse)
-    elif m < n or n <= MAX_CLOSED_FORM:
-        strategy, minors = ("wide" if m < n else "tall"), Minors(Jx)
-    else:
-        strategy = None
-    singularities = _singularities(model, strategy, scaling, inverse, partition, minors)
-
-    velocity = acceleration = None
     xd_col, xdd_col, qd_col = sp.Matrix(xd), sp.Matrix(xdd), sp.Matrix(qd)
-    if strategy == "wrist partition":
+    strategy = "wrist partition" if partition is not None else closed_form_shape(m, n)
+    inverse = minors = singularities = velocity = acceleration = None
+    if strategy in ("square", "wide", "tall"):
+        if strategy == "square":
+            inverse = closed_form_inverse(Jx)
+            minors = Minors.of_square(Jx, inverse)
+        else:
+            minors = Minors(Jx)
+        singularities = _singularities(model, strategy, scaling, inverse, partition, minors)
+        velocity = regularised_solve(Jx, xd_col, scaling, minors, inverse).solution
+        acceleration = regularised_solve(Jx, xdd_col - Jx_dot * qd_col, scaling, minors, inverse).solution
+    elif strategy == "wrist partition":
+        singularities = _singularities(model, strategy, scaling, inverse, partition, minors)
         R = model.fk[:3, :3]
         velocity, _ = partition.solve(pose_rates_to_twist(R, xd))
         acceleration, _ = partition.solve(pose_rates_to_twist(R, xdd) - J_dot * qd_col)
-    elif strategy is not None:
-        velocity = regularised_solve(Jx, xd_col, scaling, minors, inverse).solution
-        acceleration = regularised_solve(Jx, xdd_col - Jx_dot * qd_col, scaling, minors, inverse).solution
 
     rates = dict(qd=qd, qdd=qdd, xd=xd, xdd=xdd, twist=twist, task_jacobian_dot=Jx_dot, jacobian_dot=J_dot,
                  strategy=strategy, inverse=inverse, partition=partition, scaling=scaling,
                  singularities=singularities, joint_velocity=velocity, joint_acceleration=acceleration)
     functions = _functions(model, rates)
     return RateKinematics(**rates, functions=tuple(functions))
+
+
+def closed_form_shape(m: int, n: int) -> str:
+    """How the inverse rate maps of an m x n task Jacobian are built, by its size alone.
+
+    ``"square"`` (adjugate over determinant) up to ``MAX_CLOSED_FORM`` joints;
+    ``"wide"`` or ``"tall"`` (damped least squares from the maximal minors) while
+    there are at most ``MAX_MINORS`` of them, each at most ``MAX_MINOR_SIZE`` square;
+    otherwise ``"numeric"``: the kernels solve the system at run time
+    (:class:`derivations.model.NumericSolve`), which costs a few hundred operations
+    where a symbolic 6 x 6 adjugate costs minutes to derive and 10^5 operations to run.
+    """
+    if m == n:
+        return "square" if n <= MAX_CLOSED_FORM else "numeric"
+    k = min(m, n)
+    if k <= MAX_MINOR_SIZE and math.comb(max(m, n), k) <= MAX_MINORS:
+        return "wide" if m < n else "tall"
+    return "numeric"
 
 
 # --- singularities -------------------------------------------------------------------------------
@@ -394,7 +413,74 @@ def _functions(model, rates: dict) -> list[SymbolicFunction]:
             (Output("qd", tuple(solution), (n,)), Output("singular", (partition_flag,), (), "bool", flag_doc)),
             "Joint rates from the tool twist by Paul's wrist partition (two 3 x 3 solves; "
             f"damped least squares per block where singular). Shapes (..., {n}) and (...)."))
+    if rates["strategy"] == "numeric":
+        functions += _numeric_functions(model, rates, (q, qd, xd, xdd, twist))
     extras = ROBOT_EXTRAS.get(model.name)
     if extras is not None:
         functions += extras(model)
+    return functions
+
+
+def _numeric_functions(model, rates: dict, arguments) -> list[SymbolicFunction]:
+    """manipulability, joint_velocity, joint_acceleration and joint_velocity_from_twist as
+    linear systems solved at run time (``NumericSolve``), each beside the kernel that forms its
+    system in closed form (``<name>_system``).
+
+    The pose task goes through the tool twist, as the PUMA's wrist partition does: the 12 pose
+    rates become ``[v; w]`` and the 6 x n geometric Jacobian is solved; other tasks solve J_x.
+    """
+    q, qd, xd, xdd, twist = arguments
+    n = model.n
+    scaling = rates["scaling"]
+    qd_col = sp.Matrix(rates["qd"])
+    if model.task_names == POSE_NAMES:
+        R = model.fk[:3, :3]
+        A, A_dot, rows, what = model.jacobian, rates["jacobian_dot"], (1, 1, 1, 0, 0, 0), "J (the tool twist)"
+
+        def rhs(values):
+            return pose_rates_to_twist(R, values)
+    else:
+        A, A_dot, rows, what = model.task_jacobian, rates["task_jacobian_dot"], scaling.rows, "J_x"
+
+        def rhs(values):
+            return sp.Matrix(values)
+    m = A.rows
+    L = scaling.length
+    row_scale = Output("row_scale", tuple(L**-r for r in rows), (m,), doc="1/L on length rows, 1 on angle rows")
+    col_scale = Output("col_scale", tuple(L**c for c in scaling.columns), (n,),
+                       doc="L on prismatic columns, 1 on revolute ones")
+    geometric = (1, 1, 1, 0, 0, 0)
+    flag_doc = (f"true where cond(An) > {NumericSolve.COND_LIMIT:g} for the normalised An: an exact solve would "
+                "lose more than half the digits (derivations.model.NumericSolve)")
+    how = {"solution": "exact where regular (minimum norm when redundant, least squares when short of joints), "
+                       "damped least squares where singular; solved at run time",
+           "measure": "the product of the singular values, computed at run time"}
+
+    def pair(name, args, matrix, b, scales, result, doc, kind="solution"):
+        outputs = [Output.from_matrix("A", matrix, f"the {matrix.rows} x {matrix.cols} matrix of the system")]
+        if b is not None:
+            outputs.append(Output("b", tuple(b), (matrix.rows,), doc="the right-hand side"))
+        outputs += list(scales)
+        system = SymbolicFunction(
+            f"{name}_system", args, tuple(outputs),
+            f"The linear system that {name} solves at run time: A, "
+            + ("b, " if b is not None else "") + "row_scale, col_scale (closed forms).")
+        solved = SymbolicFunction(
+            name, args, (result, Output("singular", (), (), "bool", flag_doc)),
+            f"{doc}: {how[kind]}. Shapes {result.shape and f'(..., {result.shape[0]})' or '(...)'} and (...).",
+            solve=NumericSolve(system.name, matrix.rows, matrix.cols, kind))
+        return [system, solved]
+
+    scales = (row_scale, col_scale)
+    twist_scales = (Output("row_scale", tuple(L**-r for r in geometric), (6,), doc=row_scale.doc), col_scale)
+    functions = pair("manipulability", (q,), A, None, scales, Output("manipulability", (), ()),
+                     f"Manipulability w = sqrt(det(A A^T)) of A = {what} (SI units), and the singular flag",
+                     kind="measure")
+    functions += pair("joint_velocity", (q, xd), A, rhs(rates["xd"]), scales, Output("qd", (), (n,)),
+                      f"Joint rates from task rates, A q_dot = b with A = {what}")
+    functions += pair("joint_acceleration", (q, qd, xdd), A, rhs(rates["xdd"]) - A_dot * qd_col, scales,
+                      Output("qdd", (), (n,)),
+                      f"Joint accelerations, A q_ddot = b - A_dot q_dot with A = {what}")
+    functions += pair("joint_velocity_from_twist", (q, twist), model.jacobian, sp.Matrix(rates["twist"]),
+                      twist_scales, Output("qd", (), (n,)), "Joint rates from the tool twist, J q_dot = [v; w]")
     return functions

@@ -143,7 +143,7 @@ def render(context: dict) -> dict[str, str]:
     name = context["name"]
     # One-point entry points for Python (robot_point.c.j2): kernels without requirement
     # statuses, whose outputs have at most three axes.
-    functions = [dict(f, point=not f["checks"] and all(len(o["shape"]) <= 3 for o in f["outputs"]))
+    functions = [dict(f, point=not f["checks"] and not f.get("solve") and all(len(o["shape"]) <= 3 for o in f["outputs"]))
                  for f in context["functions"]]
     context = dict(context, functions=functions)
     context = dict(context, c_declarations=declarations(context, False), c_cdef=declarations(context, True),

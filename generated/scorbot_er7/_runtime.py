@@ -140,3 +140,31 @@ def wrap_angle(angle):
 
 PI = 3.141592653589793
 TWO_PI = 6.283185307179586
+
+
+def solve_system(A, b, row_scale, col_scale, cond_limit):
+    """The run-time solve of the kernels with a NumericSolve (derivations/model.py).
+
+    A (N, m, n), b (N, m) or None, row_scale (N, m), col_scale (N, n): the system that
+    the kernel's ``*_system`` companion forms in closed form.  With An = diag(row_scale) A
+    diag(col_scale) and its singular values s (LAPACK), returns (x, singular), where
+    singular = s_min < s_max / cond_limit and x = diag(col_scale) sum_i s_i / (s_i^2 +
+    lambda^2) (u_i . bn) v_i with lambda^2 = (s_max / cond_limit)^2 - s_min^2 where
+    singular, else 0 (the exact, minimum-norm or least-squares solution).  With b None,
+    x is the product of the singular values of A itself (Yoshikawa's manipulability).
+    """
+    An = row_scale[:, :, None] * A * col_scale[:, None, :]
+    if An.shape[0] == 0:
+        empty = numpy.zeros((0,) if b is None else (0, A.shape[2]))
+        return empty, numpy.zeros(0, dtype=bool)
+    U, s, Vt = numpy.linalg.svd(An, full_matrices=False)
+    largest, smallest = s[:, 0], s[:, -1]
+    singular = ~(smallest > largest / cond_limit)
+    if b is None:
+        return numpy.prod(numpy.linalg.svd(A, compute_uv=False), axis=-1), singular
+    damping = numpy.where(singular, numpy.maximum((largest / cond_limit) ** 2 - smallest ** 2, 0.0), 0.0)
+    denominator = s * s + damping[:, None]
+    with numpy.errstate(divide="ignore", invalid="ignore"):
+        gain = numpy.where(denominator > 0.0, s / denominator, 0.0)
+    coefficients = gain * numpy.einsum("kmi,km->ki", U, row_scale * b)
+    return col_scale * numpy.einsum("kin,ki->kn", Vt, coefficients), singular
