@@ -159,11 +159,17 @@ def simplify_derivative(expr: sp.Expr) -> sp.Expr:
 
 @dataclass
 class Chain:
-    """A serial chain: joints, convention, optional fixed tool transform."""
+    """A serial chain: joints, convention, optional fixed base and tool transforms.
+
+    ``base`` places the first joint's frame in the world (a UR mounted upside down,
+    an arm on a torso): every frame, axis and Jacobian is in the world frame.
+    ``tool`` follows the last joint's (flange) frame.
+    """
 
     joints: list[Joint]
     convention: str = "standard"
     tool: sp.Matrix = field(default_factory=lambda: sp.eye(4))
+    base: sp.Matrix = field(default_factory=lambda: sp.eye(4))
 
     def __post_init__(self):
         if self.convention not in ("standard", "modified"):
@@ -186,8 +192,8 @@ class Chain:
         return build(theta, d, j.a, j.alpha)
 
     def link_frames(self, q) -> list[sp.Matrix]:
-        """``[T_0 = I, T_1, ..., T_n]``: base-to-link-i transforms, simplified link by link."""
-        frames = [sp.eye(4)]
+        """``[T_0 = base, T_1, ..., T_n]``: world-to-link-i transforms, simplified link by link."""
+        frames = [sp.Matrix(self.base)]
         for i in range(self.n):
             product = frames[-1] * self.link_transform(i, q[i])
             frames.append(product.applyfunc(simplify_product))

@@ -18,6 +18,8 @@ a user's robot is described the same way::
     [tool]                           # optional fixed transform after the last joint
     xyz = [0, 0, 0.1]
     rpy = [0, 0, 0]
+    [base]                           # optional fixed transform before the first joint
+    rpy = ["pi", 0, 0]               # (a ceiling mount)
 
 Every error is a :class:`DescriptionError` naming the file, the joint and the
 field.
@@ -26,7 +28,7 @@ from __future__ import annotations
 
 import re
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -37,9 +39,9 @@ from .expressions import ExpressionError, is_identifier, parse_expression
 
 __all__ = ["DescriptionError", "Description", "read_description", "parse_description"]
 
-TOP_KEYS = {"name", "title", "source", "convention", "task", "params", "joint", "tool", "notes"}
+TOP_KEYS = {"name", "title", "source", "convention", "task", "params", "joint", "tool", "base", "notes"}
 JOINT_KEYS = {"type", "a", "alpha", "d", "theta", "offset", "limits", "name"}
-TOOL_KEYS = {"xyz", "rpy"}
+FRAME_KEYS = {"xyz", "rpy"}
 
 
 class DescriptionError(ValueError):
@@ -60,9 +62,10 @@ class Description:
     tool: sp.Matrix
     notes: dict[str, str]
     q: tuple[sp.Symbol, ...]
+    base: sp.Matrix = field(default_factory=lambda: sp.eye(4))
 
     def chain(self) -> Chain:
-        return Chain(self.joints, self.convention, self.tool)
+        return Chain(self.joints, self.convention, self.tool, self.base)
 
 
 def read_description(path: str | Path) -> Description:
@@ -117,7 +120,8 @@ class _Parser:
         q = tuple(sp.Symbol(f"q{i + 1}", real=True) for i in range(len(joints_data)))
         names = {str(s): s for s in params}
         joints = [self.parse_joint(i, j, names) for i, j in enumerate(joints_data)]
-        tool = self.parse_tool(data.get("tool"), names)
+        tool = self.parse_frame(data.get("tool"), names, "tool")
+        base = self.parse_frame(data.get("base"), names, "base")
 
         task = data.get("task", ["pose"])
         if not isinstance(task, list) or not task or not all(isinstance(t, str) for t in task):
@@ -131,7 +135,7 @@ class _Parser:
         return Description(
             name=name, title=data.get("title", name), source=data.get("source", ""),
             convention=convention, task=task, params=params, joints=joints, tool=tool,
-            notes=dict(notes), q=q,
+            notes=dict(notes), q=q, base=base,
         )
 
     def parse_params(self, raw) -> dict[sp.Symbol, float]:
@@ -185,20 +189,22 @@ class _Parser:
             limits = (low, high)
         return Joint(type=jtype, limits=limits, **fields)
 
-    def parse_tool(self, raw, names) -> sp.Matrix:
+    def parse_frame(self, raw, names, which: str) -> sp.Matrix:
+        """A fixed transform ``[tool]`` or ``[base]``: ``xyz`` (m) and ``rpy`` (rad; fixed-axis
+        roll, pitch, yaw: ``Rz(yaw) Ry(pitch) Rx(roll)``), each a list of three values."""
         if raw is None:
             return sp.eye(4)
         if not isinstance(raw, dict):
-            self.fail("field 'tool'", "expected a table with xyz and rpy")
-        unknown = sorted(set(raw) - TOOL_KEYS)
+            self.fail(f"field {which!r}", "expected a table with xyz and rpy")
+        unknown = sorted(set(raw) - FRAME_KEYS)
         if unknown:
-            self.fail("tool", f"unknown field {unknown[0]!r} (expected xyz, rpy)")
+            self.fail(which, f"unknown field {unknown[0]!r} (expected xyz, rpy)")
         vectors = {}
         for key in ("xyz", "rpy"):
             v = raw.get(key, [0, 0, 0])
             if not isinstance(v, list) or len(v) != 3:
-                self.fail(f"tool: field {key!r}", "expected a list of three values")
-            vectors[key] = [self.value(f"tool: field {key!r}", e, names) for e in v]
+                self.fail(f"{which}: field {key!r}", "expected a list of three values")
+            vectors[key] = [self.value(f"{which}: field {key!r}", e, names) for e in v]
         transform = sp.eye(4)
         transform[:3, :3] = rpy_matrix(*vectors["rpy"])
         transform[:3, 3] = sp.Matrix(vectors["xyz"])

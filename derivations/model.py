@@ -203,8 +203,8 @@ class RobotModel:
     """Symbolic kinematics of one robot (see DESIGN.md, "Symbolic contract").
 
     Attributes: ``q`` joint symbols q1..qn; ``params`` {Symbol: default float, SI};
-    ``frames`` [T_0, ..., T_n] (base to tool; the tool transform is part of the
-    last one); ``fk`` = ``frames[-1]``; ``jacobian`` 6 x n geometric ``[v; w]``;
+    ``frames`` [T_0 (the base), ..., T_n (the flange)], then the tool frame
+    ``T_n * tool`` when the chain has a tool transform; ``fk`` = ``frames[-1]``; ``jacobian`` 6 x n geometric ``[v; w]``;
     ``task`` m x 1; ``task_jacobian`` m x n; ``ik`` list of :class:`IKBranch`;
     ``constants`` {NAME: expression in the parameters}, emitted as module
     constants evaluated at the default parameters.
@@ -247,12 +247,14 @@ class RobotModel:
         """The kernels of the generated-code contract, in a fixed order."""
         n, m = self.n, len(self.task_names)
         q = Argument("q", self.q, f"joint coordinates, shape (..., {n}) ({self._units()})")
-        frames = sp.Array([list(f) for f in self.frames]).reshape(n + 1, 4, 4)
+        count = len(self.frames)
+        frames = sp.Array([list(f) for f in self.frames]).reshape(count, 4, 4)
         return [
             SymbolicFunction("fk", (q,), (Output.from_matrix("T", self.fk),),
                              "Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres."),
-            SymbolicFunction("frames", (q,), (Output("frames", tuple(sp.flatten(frames.tolist())), (n + 1, 4, 4)),),
-                             f"Frames T_0 (base) .. T_{n} (tool), shape (..., {n + 1}, 4, 4)."),
+            SymbolicFunction("frames", (q,), (Output("frames", tuple(sp.flatten(frames.tolist())), (count, 4, 4)),),
+                             f"Frames T_0 (base) .. T_{n} (" + ("flange), then the tool frame" if count > n + 1 else "tool")
+                             + f", shape (..., {count}, 4, 4)."),
             SymbolicFunction("jacobian", (q,), (Output.from_matrix("J", self.jacobian),),
                              f"Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, {n})."),
             SymbolicFunction("task", (q,), (Output("x", tuple(self.task), (m,)),),
@@ -309,8 +311,8 @@ def build_chain_model(name: str, title: str, source: str, chain: Chain, q, param
     link_frames = chain.link_frames(q)
     tool = chain.tool
     frames = list(link_frames)
-    if tool != sp.eye(4):
-        frames[-1] = (frames[-1] * tool).applyfunc(simplify_product)
+    if tool != sp.eye(4):  # the flange frame stays; the tool frame follows it
+        frames.append((frames[-1] * tool).applyfunc(simplify_product))
     fk = frames[-1]
     jacobian = chain.geometric_jacobian(link_frames, fk[:3, 3])
     task_names, task = task_coordinates(task_spec, chain, q, fk, link_frames)
