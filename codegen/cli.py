@@ -29,6 +29,7 @@ from pathlib import Path
 import sympy as sp
 
 import derivations
+from derivations.budget import BudgetExceeded, budget, set_stage
 import generated
 
 from . import avr_limits
@@ -45,6 +46,21 @@ SHOW = ("summary", "params", "dh", "fk", "frames", "jacobian", "task", "task_jac
 
 class InputError(ValueError):
     """Bad command-line input: reported with exit status 2."""
+
+
+# The budget of `generate FILE` for deriving and rendering (not compiling): a 6-joint arm
+# takes seconds; a description that would take longer stops with a message naming the stage.
+DEFAULT_TIME_LIMIT = 120.0
+
+
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
+    if not (value > 0 and value < 1e6):
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds below 1e6, got {text!r}")
+    return value
 
 
 class Progress:
@@ -155,11 +171,18 @@ def cmd_generate(args, say) -> int:
             raise InputError("generate with --out or a description file takes exactly one robot")
         if args.out and Path(args.out).exists() and not args.force:  # refuse before the slow derivation
             raise gen.OutputExistsError(f"{args.out}: output folder exists (use --force to replace it)")
-        model, path = _load(args.robots[0], say)
-        out = Path(args.out) if args.out else _default_out(model)
+        with budget(args.time_limit, f"{args.robots[0]}: derivation and rendering"):
+            set_stage("deriving the model")
+            model, path = _load(args.robots[0], say)
+            set_stage(None)
+            out = Path(args.out) if args.out else _default_out(model)
+            if not out.name.isidentifier():  # before the slow work, not after it
+                raise InputError(f"{out}: the package folder name must be a Python identifier to be importable")
+            files = gen.render_robot(model, path, backends=tuple(dict.fromkeys(("numpy", *backends))), say=say)
         build = None if args.no_build else (lambda folder: (c_build.compile_strict(folder, model.name),
                                                              c_build.build_extension(folder)))
-        written = gen.write_package(model, path, out, backends=backends, force=args.force, build=build, say=say)
+        written = gen.write_package(model, path, out, backends=backends, force=args.force, build=build, say=say,
+                                    files=files)
         say(f"wrote {written}")
         print(written)
         return 0
@@ -310,10 +333,12 @@ def parser() -> argparse.ArgumentParser:
         if name == "generate":
             s.add_argument("--force", action="store_true", help="replace an existing --out folder")
             s.add_argument("--no-build", action="store_true", help="do not compile the C extension")
+            s.add_argument("--time-limit", type=_seconds, default=DEFAULT_TIME_LIMIT, metavar="SECONDS",
+                           help=f"stop a derivation and rendering that runs longer (default {DEFAULT_TIME_LIMIT:g} s)")
         if name in ("verify", "all"):
             s.add_argument("--samples", type=int, default=6, help="points per kernel (default 6)")
         if name == "all":
-            s.set_defaults(out=None, backend=["numpy", "c"], force=False, no_build=False)
+            s.set_defaults(out=None, backend=["numpy", "c"], force=False, no_build=False, time_limit=DEFAULT_TIME_LIMIT)
         s.set_defaults(run=run)
     sub.add_parser("check", help="fail when generated/ is stale", parents=[common]).set_defaults(run=cmd_check)
     s = sub.add_parser("latex", help="print the LaTeX of a robot's derived equations", parents=[common])
@@ -335,6 +360,9 @@ def main(argv=None) -> int:
     except (derivations.DescriptionError, InputError, gen.OutputExistsError, gen.SettingError,
             derivations.UnknownRobotError) as exc:
         print(f"kinegen: error: {exc}", file=sys.stderr)
+        return 2
+    except BudgetExceeded as exc:
+        print(f"kinegen: error: {exc}; nothing was written (--time-limit SECONDS allows more)", file=sys.stderr)
         return 2
     except tex_report.ReportError as exc:
         print(f"kinegen: {exc}", file=sys.stderr)

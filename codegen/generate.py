@@ -7,6 +7,7 @@ writes it (each file atomically, stale generated files removed) and
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
 import hashlib
 import os
 import shutil
@@ -19,6 +20,7 @@ import numpy as np
 import sympy as sp
 
 import derivations
+from derivations.budget import set_stage
 from derivations.description import read_description
 from derivations.kernelset import KernelSet
 from derivations.model import POSE_NAMES, REVOLUTE, RobotModel
@@ -193,19 +195,45 @@ def robot_context(model: RobotModel, origin: str, verbose: bool = False) -> dict
     }
 
 
+class _Stages:
+    """Names each step for budget messages and reports it, with its time, through ``say``."""
+
+    def __init__(self, name: str, say):
+        self.name, self.say = name, say
+
+    @contextlib.contextmanager
+    def __call__(self, text: str):
+        set_stage(f"{text} ({self.name})")
+        start = time.perf_counter()
+        yield
+        set_stage(None)
+        if self.say is not None:
+            self.say(f"{self.name}: {text}: {time.perf_counter() - start:.1f} s")
+
+
 def render_robot(model: RobotModel, description: Path | None = None, backends=("numpy", "c"),
-                 verbose: bool = False, latex: bool = True) -> dict[str, str]:
-    """{file name: text} of one robot's package (kernels, and ``<name>.tex`` unless ``latex`` is off)."""
-    context = robot_context(model, describe_origin(model, description), verbose)
+                 verbose: bool = False, latex: bool = True, say=None) -> dict[str, str]:
+    """{file name: text} of one robot's package (kernels, and ``<name>.tex`` unless ``latex`` is off).
+
+    ``say`` (a callable taking a message) receives each stage with its time.
+    """
+    stage = _Stages(model.name, say)
+    if not isinstance(model, KernelSet):
+        with stage("rate kinematics"):
+            model.rates  # derived on first use (and cached on disk)
+    with stage("common subexpressions of every kernel"):
+        context = robot_context(model, describe_origin(model, description), verbose)
     init = "kernel_set_init.py.j2" if isinstance(model, KernelSet) else "package_init.py.j2"
     files = {
         "__init__.py": TEMPLATES.get_template(init).render(context),
         "_runtime.py": TEMPLATES.get_template("runtime.py.j2").render(context),
     }
     for backend in backends:
-        files.update(BACKENDS[backend].render(context))
+        with stage(f"{backend} kernels"):
+            files.update(BACKENDS[backend].render(context))
     if latex and not isinstance(model, KernelSet):  # the LaTeX fragment describes a robot
-        files.update(latex_backend.render(model, context["origin"]))
+        with stage("LaTeX"):
+            files.update(latex_backend.render(model, context["origin"]))
     return files
 
 
@@ -277,7 +305,7 @@ class OutputExistsError(ValueError):
 
 
 def write_package(model: RobotModel, description: Path | None, out: Path, backends=("numpy", "c"),
-                  force: bool = False, build=None, say=lambda message: None) -> Path:
+                  force: bool = False, build=None, say=lambda message: None, files=None) -> Path:
     """Write a self-contained package for ``model`` into the folder ``out``.
 
     The package holds the numpy kernels, the C header and source with their
@@ -292,8 +320,9 @@ def write_package(model: RobotModel, description: Path | None, out: Path, backen
     if not out.name.isidentifier():
         raise ValueError(f"{out}: the package folder name must be a Python identifier to be importable")
     backends = tuple(dict.fromkeys(("numpy", *backends)))  # the C binding reads the numpy module's constants
-    say(f"{model.name}: rendering {', '.join(backends)} kernels")
-    files = render_robot(model, description, backends=backends)
+    if files is None:  # (already rendered: files)
+        say(f"{model.name}: rendering {', '.join(backends)} kernels")
+        files = render_robot(model, description, backends=backends, say=say)
     out.parent.mkdir(parents=True, exist_ok=True)
     scratch = Path(tempfile.mkdtemp(prefix=f".{out.name}-", dir=out.parent))
     try:

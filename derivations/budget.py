@@ -21,16 +21,29 @@ import signal
 import threading
 import time
 
-__all__ = ["BudgetExceeded", "budget", "remaining", "ENFORCED"]
+__all__ = ["BudgetExceeded", "budget", "remaining", "set_stage", "ENFORCED"]
 
 
 class BudgetExceeded(Exception):
-    """A stage ran past its time budget; ``stage`` names it, ``seconds`` is the budget."""
+    """A budget ran out: ``what`` names the budgeted work, ``seconds`` its length and
+    ``stage`` the step it was in (see :func:`set_stage`), when one was set."""
 
-    def __init__(self, stage: str, seconds: float):
-        super().__init__(f"{stage}: stopped after its time budget of {seconds:g} s")
-        self.stage = stage
+    def __init__(self, what: str, seconds: float, stage: str | None = None):
+        where = f" while {stage}" if stage else ""
+        super().__init__(f"{what}: stopped after its time budget of {seconds:g} s{where}")
+        self.what = what
         self.seconds = seconds
+        self.stage = stage
+
+
+# The step now running, for the message of a budget that runs out (set_stage).
+_stage: str | None = None
+
+
+def set_stage(text: str | None) -> None:
+    """Name the step now running (``"deriving the rate kinematics"``), for budget messages."""
+    global _stage
+    _stage = text
 
 
 # The open budgets, outermost first: (deadline on the monotonic clock, stage, seconds).
@@ -50,8 +63,8 @@ def _on_alarm(signum, frame):
     if not expired:
         _arm()  # a late signal for a budget already closed: wait for the next deadline
         return
-    deadline, stage, seconds = min(expired)
-    raise BudgetExceeded(stage, seconds)
+    deadline, what, seconds = min(expired)
+    raise BudgetExceeded(what, seconds, _stage)
 
 
 def _arm():

@@ -253,7 +253,7 @@ class RobotModel:
             SymbolicFunction("fk", (q,), (Output.from_matrix("T", self.fk),),
                              "Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres."),
             SymbolicFunction("frames", (q,), (Output("frames", tuple(sp.flatten(frames.tolist())), (count, 4, 4)),),
-                             f"Frames T_0 (base) .. T_{n} (" + ("flange), then the tool frame" if count > n + 1 else "tool")
+                             f"Frames T_0 (base) .. T_{n} (" + ("flange), then the tool frame" if count > n + 1 else "tool)")
                              + f", shape (..., {count}, 4, 4)."),
             SymbolicFunction("jacobian", (q,), (Output.from_matrix("J", self.jacobian),),
                              f"Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, {n})."),

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .chain import PRISMATIC, REVOLUTE, simplify_entry
+from .chain import PRISMATIC, REVOLUTE, simplify_product
 from .damping import (ClosedFormInverse, Minors, Scaling, closed_form_inverse, measure_squared,
                       regularised_solve, singular_flag)
 
@@ -112,7 +112,7 @@ class WristBlocks:
         wrist = sp.Matrix.vstack(sp.Matrix.hstack(self.A, sp.zeros(3, 3)), sp.Matrix.hstack(self.C, self.D))
         shift = sp.Matrix.vstack(sp.Matrix.hstack(sp.eye(3), -skew(self.tool_offset)),
                                  sp.Matrix.hstack(sp.zeros(3, 3), sp.eye(3)))
-        return (shift * wrist).applyfunc(simplify_entry)
+        return (shift * wrist).applyfunc(simplify_product)
 
 
 def wrist_blocks(model) -> WristBlocks | None:
@@ -130,7 +130,7 @@ def wrist_blocks(model) -> WristBlocks | None:
     wrist_axes = axes[3:]
     centre = None
     for _, candidate in wrist_axes:
-        if all((z.cross(candidate - o)).applyfunc(simplify_entry) == sp.zeros(3, 1) for z, o in wrist_axes):
+        if all((z.cross(candidate - o)).applyfunc(simplify_product) == sp.zeros(3, 1) for z, o in wrist_axes):
             centre = candidate
             break
     if centre is None:
@@ -144,8 +144,8 @@ def wrist_blocks(model) -> WristBlocks | None:
             arm_linear.append(z.cross(centre - o))
             arm_angular.append(z)
     return WristBlocks(
-        wrist_centre=centre, tool_offset=(model.fk[:3, 3] - centre).applyfunc(simplify_entry),
-        A=sp.Matrix.hstack(*arm_linear).applyfunc(simplify_entry), C=sp.Matrix.hstack(*arm_angular),
+        wrist_centre=centre, tool_offset=(model.fk[:3, 3] - centre).applyfunc(simplify_product),
+        A=sp.Matrix.hstack(*arm_linear).applyfunc(simplify_product), C=sp.Matrix.hstack(*arm_angular),
         D=sp.Matrix.hstack(*[z for z, _ in wrist_axes]))
 
 

@@ -401,28 +401,7 @@ def test_ceiling_mounted_ur3_hangs_down():
 
 # --------------------------------------------------------------------------- path 2: the SymPy model
 
-def _base_supported() -> bool:
-    from derivations.description import DescriptionError, parse_description
-    try:
-        parse_description('name = "probe"\n[base]\nrpy = ["pi", 0, 0]\n[[joint]]\ntype = "R"\n')
-    except DescriptionError:
-        return False
-    return True
-
-
-BASE_SUPPORTED = _base_supported()
-
-
-def _needs_base(name):
-    """Arms with a [base] table wait for the parser's [base] (issue #14, item 4): a visible strict xfail."""
-    marks = []
-    if ARMS[name].has_base:
-        marks.append(pytest.mark.xfail(not BASE_SUPPORTED, strict=True,
-                                       reason="[base] is not parsed on this branch yet (issue #14, item 4)"))
-    return pytest.param(name, marks=marks, id=name)
-
-
-ARM_PARAMS = [_needs_base(name) for name in NAMES]
+ARM_PARAMS = [pytest.param(name, id=name) for name in NAMES]
 _MODELS: dict = {}
 LOAD_TIMES: dict = {}
 

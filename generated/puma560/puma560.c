@@ -16,9 +16,9 @@
  * jacobian_dot: 214 operations after common-subexpression elimination
  * task_acceleration: 1007 operations after common-subexpression elimination
  * manipulability: 41 operations after common-subexpression elimination
- * joint_velocity: 717 operations after common-subexpression elimination
- * joint_acceleration: 890 operations after common-subexpression elimination
- * joint_velocity_from_twist: 606 operations after common-subexpression elimination
+ * joint_velocity: 688 operations after common-subexpression elimination
+ * joint_acceleration: 862 operations after common-subexpression elimination
+ * joint_velocity_from_twist: 577 operations after common-subexpression elimination
  */
 #include "puma560.h"
 
@@ -6387,34 +6387,28 @@ void puma560_joint_velocity(const double *restrict q, const double *restrict xd,
     const double d4 = params->d4;
     const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
     const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
-    const double _t2 = (a2*a2);
-    const double _t17 = 1.0/(_t0*_t0);
-    const double _t41 = 1.0/(_t0*_t0*_t0*_t0);
-    const double _t42 = a3*d4;
-    const double _t44 = (a3*a3);
-    const double _t46 = (d4*d4);
-    const double _t58 = (0.25)*_t2*_t41;
-    const double _t80 = 1.0/_t0;
-    const double _t101 = (0.5)*a2;
-    const double _t6 = q2 + q3;
-    const double _t51 = q1 + q3;
-    const double _t54 = q1 - q3;
-    const double _t64 = 2*q2 + 2*q3;
-    const double _t65 = _t64 + q1;
-    const double _t66 = _t64 - q1;
-    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5, _s6, _c6, _s7, _c7, _s8, _c8, _s9, _c9, _s10, _c10;
+    const double _t12 = (a2*a2);
+    const double _t18 = 1.0/(_t0*_t0);
+    const double _t42 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t44 = a3*d4;
+    const double _t45 = (a3*a3);
+    const double _t48 = (d4*d4);
+    const double _t72 = 1.0/_t0;
+    const double _t4 = q2 + q3;
+    const double _t51 = 2*q2 + q3;
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5, _s6, _c6, _s7, _c7;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[12] = { q3, q2, _t6, q1, _t51, _t54, _t65, _t66, q5, q4, q6, 0.0 };
-        double sine[12], cosine[12];
+        const double angle[8] = { q2, _t4, q3, q1, _t51, q5, q4, q6,  };
+        double sine[8], cosine[8];
         int k;
         KINEGEN_VECTOR_LOOP
-        for (k = 0; k < 12; ++k) {
+        for (k = 0; k < 8; ++k) {
             sine[k] = sin(angle[k]);
         }
         KINEGEN_VECTOR_LOOP
-        for (k = 0; k < 12; ++k) {
+        for (k = 0; k < 8; ++k) {
             cosine[k] = cos(angle[k]);
         }
         _s0 = sine[0];
@@ -6433,224 +6427,214 @@ void puma560_joint_velocity(const double *restrict q, const double *restrict xd,
         _c6 = cosine[6];
         _s7 = sine[7];
         _c7 = cosine[7];
-        _s8 = sine[8];
-        _c8 = cosine[8];
-        _s9 = sine[9];
-        _c9 = cosine[9];
-        _s10 = sine[10];
-        _c10 = cosine[10];
     }
 #else
-    _s0 = sin(q3);
-    _c0 = cos(q3);
-    _s1 = sin(q2);
-    _c1 = cos(q2);
-    _s2 = sin(_t6);
-    _c2 = cos(_t6);
+    _s0 = sin(q2);
+    _c0 = cos(q2);
+    _s1 = sin(_t4);
+    _c1 = cos(_t4);
+    _s2 = sin(q3);
+    _c2 = cos(q3);
     _s3 = sin(q1);
     _c3 = cos(q1);
     _s4 = sin(_t51);
     _c4 = cos(_t51);
-    _s5 = sin(_t54);
-    _c5 = cos(_t54);
-    _s6 = sin(_t65);
-    _c6 = cos(_t65);
-    _s7 = sin(_t66);
-    _c7 = cos(_t66);
-    _s8 = sin(q5);
-    _c8 = cos(q5);
-    _s9 = sin(q4);
-    _c9 = cos(q4);
-    _s10 = sin(q6);
-    _c10 = cos(q6);
+    _s5 = sin(q5);
+    _c5 = cos(q5);
+    _s6 = sin(q4);
+    _c6 = cos(q4);
+    _s7 = sin(q6);
+    _c7 = cos(q6);
 #endif
-    const double _t3 = _c0*d4 + _s0*a3;
-    const double _t5 = _c1*a2;
-    const double _t8 = _c2*a3;
-    const double _t10 = _s2*d4;
-    const double _t11 = -_t10 + _t8;
-    const double _t12 = _t11 + _t5;
-    const double _t13 = (_t12*_t12);
-    const double _t14 = _t13*_t2*(_t3*_t3);
-    const double _t15 = _t14/_t1;
-    const double _t16 = kinegen_max(0, 1 - 1000000*_t15);
-    const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
-    const double _t19 = (1e-08)*(_t16*_t16);
-    const double _t20 = _s2*a3;
-    const double _t21 = _c2*d4;
-    const double _t22 = _t20 + _t21;
-    const double _t23 = (_t22*_t22);
-    const double _t25 = (_s3*_s3);
-    const double _t26 = _t17*_t25;
-    const double _t28 = _s1*a2;
-    const double _t29 = _t22 + _t28;
+    const double _t3 = _c0*a2;
+    const double _t6 = _c1*a3;
+    const double _t8 = _s1*d4;
+    const double _t9 = _t6 - _t8;
+    const double _t10 = _t3 + _t9;
+    const double _t11 = (_t10*_t10);
+    const double _t13 = _c2*d4 + _s2*a3;
+    const double _t14 = _t12*(_t13*_t13);
+    const double _t15 = _t11*_t14;
+    const double _t16 = _t15/_t1;
+    const double _t17 = kinegen_max(0, 1 - 1000000*_t16);
+    const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
+    const double _t20 = (1e-08)*(_t17*_t17);
+    const double _t21 = _s1*a3;
+    const double _t22 = _c1*d4;
+    const double _t23 = _t21 + _t22;
+    const double _t24 = (_t23*_t23);
+    const double _t26 = (_s3*_s3);
+    const double _t27 = _t18*_t26;
+    const double _t29 = _s0*a2 + _t23;
     const double _t30 = (_t29*_t29);
     const double _t31 = _s3*d3;
-    const double _t33 = _c3*_t5;
-    const double _t34 = -_c3*_t10 + _c3*_t8 + _t31 + _t33;
-    const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
-    const double _t36 = (_c3*_c3);
-    const double _t37 = _t17*_t36;
-    const double _t38 = _s3*_t5;
-    const double _t39 = _c3*d3 + _s2*_s3*d4 - _s3*_t8 - _t38;
-    const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
-    const double _t43 = (_s2*_s2);
-    const double _t45 = _c2*_s2;
-    const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
-    const double _t48 = _c1*_s1*_t2 - _t10*_t28 + _t28*_t8 + _t47;
-    const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
-    const double _t50 = (0.0001)*_t16;
-    const double _t57 = -_c4*a3 + _c5*a3 + _s4*d4 + _s5*d4;
-    const double _t59 = _t33*_t8;
-    const double _t60 = _t10*_t33;
-    const double _t61 = (_c2*_c2);
-    const double _t62 = _t44*_t61;
-    const double _t63 = _t43*_t46;
-    const double _t67 = _c3*_t62 + _c3*_t63 - _t10*_t31 + _t31*_t8 - 0.5*_t42*(_s6 + _s7);
-    const double _t68 = _t59 - _t60 + _t67;
-    const double _t69 = (_c1*_c1)*_t2;
-    const double _t70 = _c3*_t69 + _t31*_t5 + 2*_t59 - 2*_t60 + _t67;
-    const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
-    const double _t72 = -_c4*d4 - _c5*d4 - _s4*a3 + _s5*a3;
-    const double _t73 = _t38*_t8;
-    const double _t74 = -_c2*_c3*a3*d3 + _c3*_t10*d3 + _s3*_t62 + _s3*_t63 - 0.5*a3*d4*(-_c6 + _c7);
-    const double _t75 = _c1*_s2*_s3*a2*d4 - _t73 - _t74;
-    const double _t76 = -_c1*_c3*a2*d3 - 2*_c1*_s2*_s3*a2*d4 + _s3*_t69 + 2*_t73 + _t74;
-    const double _t77 = -_t76;
-    const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
-    const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
-    const double _t81 = _t11*_t22;
-    const double _t82 = _c3*_t17;
-    const double _t83 = _t12*_t29;
-    const double _t84 = _t41*_t47*_t68 + _t41*_t48*_t70 - _t50*(-_t81*_t82 - _t82*_t83);
-    const double _t85 = _t80*xd_z;
-    const double _t86 = _t35*_t50;
-    const double _t87 = _t18*_t50;
-    const double _t88 = _t80*xd_x;
-    const double _t89 = _c3*_s3;
-    const double _t90 = _t17*_t89;
-    const double _t91 = _t41*_t75;
-    const double _t92 = _t41*_t77;
-    const double _t93 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t17*_t34*_t39 + _t23*_t90 + _t30*_t90) - _t68*_t91 - _t70*_t92;
-    const double _t94 = _t80*xd_y;
-    const double _t95 = _t80*(_t84*_t85 + _t88*(_t19 + _t71 + _t86 + _t87) + _t93*_t94);
-    const double _t96 = _s3*_t17;
-    const double _t97 = -_t47*_t91 - _t48*_t92 - _t50*(-_t81*_t96 - _t83*_t96);
-    const double _t98 = _t19 + _t40*_t50;
-    const double _t99 = _t80*(_t85*_t97 + _t88*_t93 + _t94*(_t78 + _t87 + _t98));
-    const int _t100 = _t15 < 1e-06;
-    const double _t102 = _t12*_t3*a2/kinegen_max(_t14, (1e-06)*_t1);
-    const double _t103 = ((_t100) ? (
-   _t79*(_t34*_t99 + _t39*_t95)
+    const double _t33 = _c3*_t3;
+    const double _t34 = _c3*_t6;
+    const double _t35 = -_c3*_t8 + _t31 + _t33 + _t34;
+    const double _t36 = _t18*(_t35*_t35) + _t24*_t27 + _t27*_t30;
+    const double _t37 = (_c3*_c3);
+    const double _t38 = _t18*_t37;
+    const double _t39 = _s3*_t3;
+    const double _t40 = _c3*d3 + _s1*_s3*d4 - _s3*_t6 - _t39;
+    const double _t41 = _t18*(_t40*_t40) + _t24*_t38 + _t30*_t38;
+    const double _t43 = (_c1*_c1);
+    const double _t46 = _c1*_s1;
+    const double _t47 = (_s1*_s1);
+    const double _t49 = _t43*_t44 - _t44*_t47 + _t45*_t46 - _t46*_t48;
+    const double _t50 = _t21*_t3 + _t22*_t3 + _t49;
+    const double _t52 = _c0*_s0*_t12 + _c4*a2*d4 + _s4*a2*a3 + _t49;
+    const double _t53 = _t42*(_t50*_t50) + _t42*(_t52*_t52);
+    const double _t54 = (0.0001)*_t17;
+    const double _t55 = _t14*_t42;
+    const double _t56 = _t33*_t6;
+    const double _t57 = _t33*_t8;
+    const double _t58 = _t43*_t45;
+    const double _t59 = _t47*_t48;
+    const double _t60 = _c3*_t58 + _c3*_t59 + _t31*_t6 - _t31*_t8 - 2*_t34*_t8;
+    const double _t61 = _t56 - _t57 + _t60;
+    const double _t62 = (_c0*_c0)*_t12;
+    const double _t63 = _c3*_t62 + _t3*_t31 + 2*_t56 - 2*_t57 + _t60;
+    const double _t64 = _t26*_t55 + _t42*(_t61*_t61) + _t42*(_t63*_t63);
+    const double _t65 = _t39*_t6;
+    const double _t66 = -_c1*_c3*a3*d3 - 2*_c1*_s1*_s3*a3*d4 + _c3*_t8*d3 + _s3*_t58 + _s3*_t59;
+    const double _t67 = _c0*_s1*_s3*a2*d4 - _t65 - _t66;
+    const double _t68 = -_c0*_c3*a2*d3 - 2*_c0*_s1*_s3*a2*d4 + _s3*_t62 + 2*_t65 + _t66;
+    const double _t69 = -_t68;
+    const double _t70 = _t37*_t55 + _t42*(_t67*_t67) + _t42*(_t69*_t69);
+    const double _t71 = 1.0/(_t16 + (1e-12)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
+    const double _t73 = _t23*_t9;
+    const double _t74 = _c3*_t18;
+    const double _t75 = _t10*_t29;
+    const double _t76 = _t42*_t50*_t61 + _t42*_t52*_t63 - _t54*(-_t73*_t74 - _t74*_t75);
+    const double _t77 = _t72*xd_z;
+    const double _t78 = _t36*_t54;
+    const double _t79 = _t19*_t54;
+    const double _t80 = _t72*xd_x;
+    const double _t81 = _c3*_s3;
+    const double _t82 = _t42*_t67;
+    const double _t83 = _t18*_t81;
+    const double _t84 = _t42*_t69;
+    const double _t85 = -_t54*(_t18*_t35*_t40 + _t24*_t83 + _t30*_t83) - _t55*_t81 - _t61*_t82 - _t63*_t84;
+    const double _t86 = _t72*xd_y;
+    const double _t87 = _t72*(_t76*_t77 + _t80*(_t20 + _t64 + _t78 + _t79) + _t85*_t86);
+    const double _t88 = _s3*_t18;
+    const double _t89 = -_t50*_t82 - _t52*_t84 - _t54*(-_t73*_t88 - _t75*_t88);
+    const double _t90 = _t20 + _t41*_t54;
+    const double _t91 = _t72*(_t77*_t89 + _t80*_t85 + _t86*(_t70 + _t79 + _t90));
+    const int _t92 = _t16 < 1e-06;
+    const double _t93 = _t13*a2;
+    const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-06)*_t1);
+    const double _t95 = ((_t92) ? (
+   _t71*(_t35*_t91 + _t40*_t87)
 )
 : (
-   -_t102*(_t101*_t57*xd_x + _t101*_t72*xd_y)
+   -_t94*(-_c3*_t93*xd_y + _s3*_t93*xd_x)
 ));
-    const double _t104 = _t84*_t88 + _t85*(_t49 + _t86 + _t98) + _t94*_t97;
-    const double _t105 = _c3*_t95;
-    const double _t106 = _s3*_t99;
-    const double _t107 = ((_t100) ? (
-   _t79*(_t104*_t12*_t80 - _t105*_t29 - _t106*_t29)
+    const double _t96 = _t76*_t80 + _t77*(_t53 + _t78 + _t90) + _t86*_t89;
+    const double _t97 = _c3*_t87;
+    const double _t98 = _s3*_t91;
+    const double _t99 = ((_t92) ? (
+   _t71*(_t10*_t72*_t96 - _t29*_t97 - _t29*_t98)
 )
 : (
-   -_t102*(-_t47*xd_z - _t68*xd_x + _t75*xd_y)
+   -_t94*(-_t50*xd_z - _t61*xd_x + _t67*xd_y)
 ));
-    const double _t108 = ((_t100) ? (
-   _t79*(_t104*_t11*_t80 - _t105*_t22 - _t106*_t22)
+    const double _t100 = ((_t92) ? (
+   _t71*(-_t23*_t97 - _t23*_t98 + _t72*_t9*_t96)
 )
 : (
-   -_t102*(_t48*xd_z + _t70*xd_x + _t76*xd_y)
+   -_t94*(_t52*xd_z + _t63*xd_x + _t68*xd_y)
 ));
-    const double _t110 = (_s8*_s8);
-    const double _t111 = kinegen_max(0, 1 - 1000000*_t110);
-    const double _t113 = (_s9*_s9)*_t43;
-    const double _t116 = _s2*_s8;
-    const double _t117 = _c2*_c8 - _c9*_t116;
-    const double _t118 = _t113 + (_t117*_t117) + _t61;
-    const double _t119 = (1e-08)*(_t111*_t111);
-    const double _t120 = _c2*_s8;
-    const double _t121 = _c8*_s2;
-    const double _t122 = _c9*_t121;
-    const double _t123 = -_t120 - _t122;
-    const double _t124 = (_c9*_c9)*_t43 + _t110*_t113 + (_t123*_t123);
-    const double _t125 = (0.0001)*_t111;
-    const double _t126 = _c9*_s3;
-    const double _t127 = _c3*_s9;
-    const double _t128 = _c2*_t127;
-    const double _t129 = _t126 + _t128;
-    const double _t130 = (_t129*_t129);
-    const double _t131 = _c3*_c9;
-    const double _t132 = -_c3*_t121 + _s3*_s8*_s9 - _t120*_t131;
-    const double _t133 = _t130 + (_t132*_t132) + _t36*_t43;
-    const double _t134 = _s3*_s9;
-    const double _t135 = _c2*_t134;
-    const double _t136 = -_c3*_c9 + _t135;
-    const double _t137 = -_s3*_t121 - _s8*_t127 - _t120*_t126;
-    const double _t138 = (_t136*_t136) + (_t137*_t137) + _t25*_t43;
-    const double _t139 = _c2*_c3*_c9 - _t134;
-    const double _t140 = _c8*_t134;
-    const double _t141 = _c3*_t116;
-    const double _t142 = _c2*_c8;
-    const double _t143 = -_t131*_t142 + _t140 + _t141;
-    const double _t144 = _t110*_t130 + (_t139*_t139) + (_t143*_t143);
-    const double _t145 = _c2*_t126 + _t127;
-    const double _t146 = -_t145;
-    const double _t147 = -_t136;
-    const double _t148 = _c8*_t127;
-    const double _t149 = _s3*_t116;
-    const double _t150 = _t126*_t142 + _t148 - _t149;
-    const double _t151 = _t110*(_t147*_t147) + (_t146*_t146) + (_t150*_t150);
-    const double _t152 = 1.0/(_t110 + (1e-12)*(_t111*_t111*_t111) + _t118*_t119 + _t119*_t133 + _t119*_t138 + _t124*_t125 + _t125*_t144 + _t125*_t151);
-    const double _t153 = _t125*_t133;
-    const double _t154 = _t119 + _t125*_t138;
-    const double _t156 = _s10*_t131;
-    const double _t158 = _c10*_t126;
-    const double _t159 = _c10*_t148 - _c10*_t149 - _s10*_t135 + _t142*_t158 + _t156;
-    const double _t160 = _s10*_t126;
-    const double _t161 = _c10*_c3*_c9 - _c10*_t135 + _s10*_s2*_s3*_s8 - _s10*_t148 - _t142*_t160;
-    const double _t162 = -_c10*_t128 + _c3*_s10*_s2*_s8 + _c8*_s10*_s3*_s9 - _t142*_t156 - _t158;
-    const double _t163 = _c10*_c2*_c3*_c8*_c9 - _c10*_t140 - _c10*_t141 - _s10*_t128 - _t160;
-    const double _t164 = -_t103 + (0.5)*_t132*xd_r23 - 0.5*_t137*xd_r13 - 0.5*_t159*xd_r11 - 0.5*_t161*xd_r12 + (0.5)*_t162*xd_r22 + (0.5)*_t163*xd_r21;
-    const double _t165 = _c9*_s2;
-    const double _t166 = _s2*_s9;
-    const double _t167 = _t129*_t166;
-    const double _t168 = _t110*_t167 + _t123*_t143 - _t125*(-_c3*_t45 + _t117*_t132 + _t167) + _t139*_t165;
-    const double _t169 = (0.5)*_t117;
-    const double _t170 = (0.5)*_c10*_t120 + (0.5)*_c10*_t122 - 0.5*_s10*_t166;
-    const double _t171 = -0.5*_c10*_t166 - 0.5*_s10*_t120 - 0.5*_s10*_t122;
-    const double _t172 = -_s3*_t107 - _s3*_t108 + (0.5)*_t137*xd_r33 + (0.5)*_t159*xd_r31 + (0.5)*_t161*xd_r32 - _t169*xd_r23 - _t170*xd_r21 - _t171*xd_r22;
-    const double _t173 = _t110*_t147;
-    const double _t174 = -_t123*_t150 - _t125*(-_s3*_t45 + _t117*_t137 + _t136*_t166) - _t146*_t165 - _t166*_t173;
-    const double _t175 = _c3*_t107 + _c3*_t108 - 0.5*_t132*xd_r33 - 0.5*_t162*xd_r32 - 0.5*_t163*xd_r31 + _t169*xd_r13 + _t170*xd_r11 + _t171*xd_r12;
-    const double _t176 = _t164*(_t124 + _t153 + _t154) + _t168*_t172 + _t174*_t175;
-    const double _t177 = _t118*_t125;
-    const double _t178 = -_t125*(_t129*_t136 + _t132*_t137 + _t43*_t89) - _t129*_t173 - _t139*_t146 - _t143*_t150;
-    const double _t179 = _t164*_t168 + _t172*(_t144 + _t154 + _t177) + _t175*_t178;
-    const double _t180 = _t164*_t174 + _t172*_t178 + _t175*(_t119 + _t151 + _t153 + _t177);
-    const int _t181 = _t110 < 1e-06;
-    const double _t182 = _s8/kinegen_max(1e-06, _t110);
-    qd[0] = _t103;
-    qd[1] = _t107;
-    qd[2] = _t108;
-    qd[3] = ((_t181) ? (
-   _t152*(_c2*_t176 - _c3*_s2*_t179 - _s2*_s3*_t180)
+    const double _t102 = (_s5*_s5);
+    const double _t103 = kinegen_max(0, 1 - 1000000*_t102);
+    const double _t105 = (_s6*_s6)*_t47;
+    const double _t108 = _s1*_s5;
+    const double _t109 = _c1*_c5 - _c6*_t108;
+    const double _t110 = _t105 + (_t109*_t109) + _t43;
+    const double _t111 = (1e-08)*(_t103*_t103);
+    const double _t112 = _c1*_s5;
+    const double _t113 = _c5*_s1;
+    const double _t114 = _c6*_t113;
+    const double _t115 = -_t112 - _t114;
+    const double _t116 = (_c6*_c6)*_t47 + _t102*_t105 + (_t115*_t115);
+    const double _t117 = (0.0001)*_t103;
+    const double _t118 = _c6*_s3;
+    const double _t119 = _c3*_s6;
+    const double _t120 = _c1*_t119;
+    const double _t121 = _t118 + _t120;
+    const double _t122 = (_t121*_t121);
+    const double _t123 = _c3*_c6;
+    const double _t124 = -_c3*_t113 + _s3*_s5*_s6 - _t112*_t123;
+    const double _t125 = _t122 + (_t124*_t124) + _t37*_t47;
+    const double _t126 = _s3*_s6;
+    const double _t127 = _c1*_t126;
+    const double _t128 = -_c3*_c6 + _t127;
+    const double _t129 = -_s3*_t113 - _s5*_t119 - _t112*_t118;
+    const double _t130 = (_t128*_t128) + (_t129*_t129) + _t26*_t47;
+    const double _t131 = _c1*_c3*_c6 - _t126;
+    const double _t132 = _c5*_t126;
+    const double _t133 = _c3*_t108;
+    const double _t134 = _c1*_c5;
+    const double _t135 = -_t123*_t134 + _t132 + _t133;
+    const double _t136 = _t102*_t122 + (_t131*_t131) + (_t135*_t135);
+    const double _t137 = _c1*_t118 + _t119;
+    const double _t138 = -_t137;
+    const double _t139 = -_t128;
+    const double _t140 = _c5*_t119;
+    const double _t141 = _s3*_t108;
+    const double _t142 = _t118*_t134 + _t140 - _t141;
+    const double _t143 = _t102*(_t139*_t139) + (_t138*_t138) + (_t142*_t142);
+    const double _t144 = 1.0/(_t102 + (1e-12)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t125 + _t111*_t130 + _t116*_t117 + _t117*_t136 + _t117*_t143);
+    const double _t145 = _t117*_t125;
+    const double _t146 = _t111 + _t117*_t130;
+    const double _t148 = _s7*_t123;
+    const double _t150 = _c7*_t118;
+    const double _t151 = _c7*_t140 - _c7*_t141 - _s7*_t127 + _t134*_t150 + _t148;
+    const double _t152 = _s7*_t118;
+    const double _t153 = _c3*_c6*_c7 - _c7*_t127 + _s1*_s3*_s5*_s7 - _s7*_t140 - _t134*_t152;
+    const double _t154 = _c3*_s1*_s5*_s7 + _c5*_s3*_s6*_s7 - _c7*_t120 - _t134*_t148 - _t150;
+    const double _t155 = _c1*_c3*_c5*_c6*_c7 - _c7*_t132 - _c7*_t133 - _s7*_t120 - _t152;
+    const double _t156 = (0.5)*_t124*xd_r23 - 0.5*_t129*xd_r13 - 0.5*_t151*xd_r11 - 0.5*_t153*xd_r12 + (0.5)*_t154*xd_r22 + (0.5)*_t155*xd_r21 - _t95;
+    const double _t157 = _c6*_s1;
+    const double _t158 = _s1*_s6;
+    const double _t159 = _t121*_t158;
+    const double _t160 = _t102*_t159 + _t115*_t135 - _t117*(-_c3*_t46 + _t109*_t124 + _t159) + _t131*_t157;
+    const double _t161 = (0.5)*_t109;
+    const double _t162 = (0.5)*_c7*_t112 + (0.5)*_c7*_t114 - 0.5*_s7*_t158;
+    const double _t163 = -0.5*_c7*_t158 - 0.5*_s7*_t112 - 0.5*_s7*_t114;
+    const double _t164 = -_s3*_t100 - _s3*_t99 + (0.5)*_t129*xd_r33 + (0.5)*_t151*xd_r31 + (0.5)*_t153*xd_r32 - _t161*xd_r23 - _t162*xd_r21 - _t163*xd_r22;
+    const double _t165 = _t102*_t139;
+    const double _t166 = -_t115*_t142 - _t117*(-_s3*_t46 + _t109*_t129 + _t128*_t158) - _t138*_t157 - _t158*_t165;
+    const double _t167 = _c3*_t100 + _c3*_t99 - 0.5*_t124*xd_r33 - 0.5*_t154*xd_r32 - 0.5*_t155*xd_r31 + _t161*xd_r13 + _t162*xd_r11 + _t163*xd_r12;
+    const double _t168 = _t156*(_t116 + _t145 + _t146) + _t160*_t164 + _t166*_t167;
+    const double _t169 = _t110*_t117;
+    const double _t170 = -_t117*(_t121*_t128 + _t124*_t129 + _t47*_t81) - _t121*_t165 - _t131*_t138 - _t135*_t142;
+    const double _t171 = _t156*_t160 + _t164*(_t136 + _t146 + _t169) + _t167*_t170;
+    const double _t172 = _t156*_t166 + _t164*_t170 + _t167*(_t111 + _t143 + _t145 + _t169);
+    const int _t173 = _t102 < 1e-06;
+    const double _t174 = _s5/kinegen_max(1e-06, _t102);
+    qd[0] = _t95;
+    qd[1] = _t99;
+    qd[2] = _t100;
+    qd[3] = ((_t173) ? (
+   _t144*(_c1*_t168 - _c3*_s1*_t171 - _s1*_s3*_t172)
 )
 : (
-   -_t182*(_t123*_t164 + _t143*_t172 - _t150*_t175)
+   -_t174*(_t115*_t156 + _t135*_t164 - _t142*_t167)
 ));
-    qd[4] = ((_t181) ? (
-   _t152*(_t129*_t179 + _t136*_t180 + _t166*_t176)
+    qd[4] = ((_t173) ? (
+   _t144*(_t121*_t171 + _t128*_t172 + _t158*_t168)
 )
 : (
-   -_t182*(-_s8*_t129*_t172 + _s8*_t147*_t175 - _s9*_t116*_t164)
+   -_t174*(-_s5*_t121*_t164 + _s5*_t139*_t167 - _s6*_t108*_t156)
 ));
-    qd[5] = ((_t181) ? (
-   _t152*(_t117*_t176 + _t132*_t179 + _t137*_t180)
+    qd[5] = ((_t173) ? (
+   _t144*(_t109*_t168 + _t124*_t171 + _t129*_t172)
 )
 : (
-   -_t182*(_t139*_t172 + _t145*_t175 + _t164*_t165)
+   -_t174*(_t131*_t164 + _t137*_t167 + _t156*_t157)
 ));
-    singular[0] = _t100 || _t181;
+    singular[0] = _t173 || _t92;
 }
 
 /* joint_velocity of `count` items, stored one after the other in each argument and output. */
@@ -6675,11 +6659,8 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
     double xd_r31[KINEGEN_BLOCK_OF(64)];
     double xd_r32[KINEGEN_BLOCK_OF(64)];
     double xd_r33[KINEGEN_BLOCK_OF(64)];
-    double _t6[KINEGEN_BLOCK_OF(64)];
+    double _t4[KINEGEN_BLOCK_OF(64)];
     double _t51[KINEGEN_BLOCK_OF(64)];
-    double _t54[KINEGEN_BLOCK_OF(64)];
-    double _t65[KINEGEN_BLOCK_OF(64)];
-    double _t66[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
@@ -6696,12 +6677,6 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
     double _c6[KINEGEN_BLOCK_OF(64)];
     double _s7[KINEGEN_BLOCK_OF(64)];
     double _c7[KINEGEN_BLOCK_OF(64)];
-    double _s8[KINEGEN_BLOCK_OF(64)];
-    double _c8[KINEGEN_BLOCK_OF(64)];
-    double _s9[KINEGEN_BLOCK_OF(64)];
-    double _c9[KINEGEN_BLOCK_OF(64)];
-    double _s10[KINEGEN_BLOCK_OF(64)];
-    double _c10[KINEGEN_BLOCK_OF(64)];
 #ifdef KINEGEN_STREAM
     double _qd_block[6][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
@@ -6718,15 +6693,13 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
     const double d4 = params->d4;
     const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
     const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
-    const double _t2 = (a2*a2);
-    const double _t17 = 1.0/(_t0*_t0);
-    const double _t41 = 1.0/(_t0*_t0*_t0*_t0);
-    const double _t42 = a3*d4;
-    const double _t44 = (a3*a3);
-    const double _t46 = (d4*d4);
-    const double _t58 = (0.25)*_t2*_t41;
-    const double _t80 = 1.0/_t0;
-    const double _t101 = (0.5)*a2;
+    const double _t12 = (a2*a2);
+    const double _t18 = 1.0/(_t0*_t0);
+    const double _t42 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t44 = a3*d4;
+    const double _t45 = (a3*a3);
+    const double _t48 = (d4*d4);
+    const double _t72 = 1.0/_t0;
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
@@ -6751,36 +6724,32 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t6[i] = q2[i] + q3[i];
-            _t51[i] = q1[i] + q3[i];
-            _t54[i] = q1[i] - q3[i];
-            const double _t64 = 2*q2[i] + 2*q3[i];
-            _t65[i] = _t64 + q1[i];
-            _t66[i] = _t64 - q1[i];
+            _t4[i] = q2[i] + q3[i];
+            _t51[i] = 2*q2[i] + q3[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s0[i] = sin(q3[i]);
+            _s0[i] = sin(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c0[i] = cos(q3[i]);
+            _c0[i] = cos(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s1[i] = sin(q2[i]);
+            _s1[i] = sin(_t4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c1[i] = cos(q2[i]);
+            _c1[i] = cos(_t4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s2[i] = sin(_t6[i]);
+            _s2[i] = sin(q3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(_t6[i]);
+            _c2[i] = cos(q3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -6800,436 +6769,416 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s5[i] = sin(_t54[i]);
+            _s5[i] = sin(q5[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c5[i] = cos(_t54[i]);
+            _c5[i] = cos(q5[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s6[i] = sin(_t65[i]);
+            _s6[i] = sin(q4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c6[i] = cos(_t65[i]);
+            _c6[i] = cos(q4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s7[i] = sin(_t66[i]);
+            _s7[i] = sin(q6[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c7[i] = cos(_t66[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _s8[i] = sin(q5[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _c8[i] = cos(q5[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _s9[i] = sin(q4[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _c9[i] = cos(q4[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _s10[i] = sin(q6[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _c10[i] = cos(q6[i]);
+            _c7[i] = cos(q6[i]);
         }
 #ifdef KINEGEN_STREAM
         if (stream) {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t3 = _c0[i]*d4 + _s0[i]*a3;
-                const double _t5 = _c1[i]*a2;
-                const double _t8 = _c2[i]*a3;
-                const double _t10 = _s2[i]*d4;
-                const double _t11 = -_t10 + _t8;
-                const double _t12 = _t11 + _t5;
-                const double _t13 = (_t12*_t12);
-                const double _t14 = _t13*_t2*(_t3*_t3);
-                const double _t15 = _t14/_t1;
-                const double _t16 = kinegen_max(0, 1 - 1000000*_t15);
-                const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
-                const double _t19 = (1e-08)*(_t16*_t16);
-                const double _t20 = _s2[i]*a3;
-                const double _t21 = _c2[i]*d4;
-                const double _t22 = _t20 + _t21;
-                const double _t23 = (_t22*_t22);
-                const double _t25 = (_s3[i]*_s3[i]);
-                const double _t26 = _t17*_t25;
-                const double _t28 = _s1[i]*a2;
-                const double _t29 = _t22 + _t28;
+                const double _t3 = _c0[i]*a2;
+                const double _t6 = _c1[i]*a3;
+                const double _t8 = _s1[i]*d4;
+                const double _t9 = _t6 - _t8;
+                const double _t10 = _t3 + _t9;
+                const double _t11 = (_t10*_t10);
+                const double _t13 = _c2[i]*d4 + _s2[i]*a3;
+                const double _t14 = _t12*(_t13*_t13);
+                const double _t15 = _t11*_t14;
+                const double _t16 = _t15/_t1;
+                const double _t17 = kinegen_max(0, 1 - 1000000*_t16);
+                const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
+                const double _t20 = (1e-08)*(_t17*_t17);
+                const double _t21 = _s1[i]*a3;
+                const double _t22 = _c1[i]*d4;
+                const double _t23 = _t21 + _t22;
+                const double _t24 = (_t23*_t23);
+                const double _t26 = (_s3[i]*_s3[i]);
+                const double _t27 = _t18*_t26;
+                const double _t29 = _s0[i]*a2 + _t23;
                 const double _t30 = (_t29*_t29);
                 const double _t31 = _s3[i]*d3;
-                const double _t33 = _c3[i]*_t5;
-                const double _t34 = -_c3[i]*_t10 + _c3[i]*_t8 + _t31 + _t33;
-                const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
-                const double _t36 = (_c3[i]*_c3[i]);
-                const double _t37 = _t17*_t36;
-                const double _t38 = _s3[i]*_t5;
-                const double _t39 = _c3[i]*d3 + _s2[i]*_s3[i]*d4 - _s3[i]*_t8 - _t38;
-                const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
-                const double _t43 = (_s2[i]*_s2[i]);
-                const double _t45 = _c2[i]*_s2[i];
-                const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
-                const double _t48 = _c1[i]*_s1[i]*_t2 - _t10*_t28 + _t28*_t8 + _t47;
-                const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
-                const double _t50 = (0.0001)*_t16;
-                const double _t57 = -_c4[i]*a3 + _c5[i]*a3 + _s4[i]*d4 + _s5[i]*d4;
-                const double _t59 = _t33*_t8;
-                const double _t60 = _t10*_t33;
-                const double _t61 = (_c2[i]*_c2[i]);
-                const double _t62 = _t44*_t61;
-                const double _t63 = _t43*_t46;
-                const double _t67 = _c3[i]*_t62 + _c3[i]*_t63 - _t10*_t31 + _t31*_t8 - 0.5*_t42*(_s6[i] + _s7[i]);
-                const double _t68 = _t59 - _t60 + _t67;
-                const double _t69 = (_c1[i]*_c1[i])*_t2;
-                const double _t70 = _c3[i]*_t69 + _t31*_t5 + 2*_t59 - 2*_t60 + _t67;
-                const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
-                const double _t72 = -_c4[i]*d4 - _c5[i]*d4 - _s4[i]*a3 + _s5[i]*a3;
-                const double _t73 = _t38*_t8;
-                const double _t74 = -_c2[i]*_c3[i]*a3*d3 + _c3[i]*_t10*d3 + _s3[i]*_t62 + _s3[i]*_t63 - 0.5*a3*d4*(-_c6[i] + _c7[i]);
-                const double _t75 = _c1[i]*_s2[i]*_s3[i]*a2*d4 - _t73 - _t74;
-                const double _t76 = -_c1[i]*_c3[i]*a2*d3 - 2*_c1[i]*_s2[i]*_s3[i]*a2*d4 + _s3[i]*_t69 + 2*_t73 + _t74;
-                const double _t77 = -_t76;
-                const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
-                const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
-                const double _t81 = _t11*_t22;
-                const double _t82 = _c3[i]*_t17;
-                const double _t83 = _t12*_t29;
-                const double _t84 = _t41*_t47*_t68 + _t41*_t48*_t70 - _t50*(-_t81*_t82 - _t82*_t83);
-                const double _t85 = _t80*xd_z[i];
-                const double _t86 = _t35*_t50;
-                const double _t87 = _t18*_t50;
-                const double _t88 = _t80*xd_x[i];
-                const double _t89 = _c3[i]*_s3[i];
-                const double _t90 = _t17*_t89;
-                const double _t91 = _t41*_t75;
-                const double _t92 = _t41*_t77;
-                const double _t93 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t17*_t34*_t39 + _t23*_t90 + _t30*_t90) - _t68*_t91 - _t70*_t92;
-                const double _t94 = _t80*xd_y[i];
-                const double _t95 = _t80*(_t84*_t85 + _t88*(_t19 + _t71 + _t86 + _t87) + _t93*_t94);
-                const double _t96 = _s3[i]*_t17;
-                const double _t97 = -_t47*_t91 - _t48*_t92 - _t50*(-_t81*_t96 - _t83*_t96);
-                const double _t98 = _t19 + _t40*_t50;
-                const double _t99 = _t80*(_t85*_t97 + _t88*_t93 + _t94*(_t78 + _t87 + _t98));
-                const int _t100 = _t15 < 1e-06;
-                const double _t102 = _t12*_t3*a2/kinegen_max(_t14, (1e-06)*_t1);
-                const double _t103 = ((_t100) ? (
-   _t79*(_t34*_t99 + _t39*_t95)
+                const double _t33 = _c3[i]*_t3;
+                const double _t34 = _c3[i]*_t6;
+                const double _t35 = -_c3[i]*_t8 + _t31 + _t33 + _t34;
+                const double _t36 = _t18*(_t35*_t35) + _t24*_t27 + _t27*_t30;
+                const double _t37 = (_c3[i]*_c3[i]);
+                const double _t38 = _t18*_t37;
+                const double _t39 = _s3[i]*_t3;
+                const double _t40 = _c3[i]*d3 + _s1[i]*_s3[i]*d4 - _s3[i]*_t6 - _t39;
+                const double _t41 = _t18*(_t40*_t40) + _t24*_t38 + _t30*_t38;
+                const double _t43 = (_c1[i]*_c1[i]);
+                const double _t46 = _c1[i]*_s1[i];
+                const double _t47 = (_s1[i]*_s1[i]);
+                const double _t49 = _t43*_t44 - _t44*_t47 + _t45*_t46 - _t46*_t48;
+                const double _t50 = _t21*_t3 + _t22*_t3 + _t49;
+                const double _t52 = _c0[i]*_s0[i]*_t12 + _c4[i]*a2*d4 + _s4[i]*a2*a3 + _t49;
+                const double _t53 = _t42*(_t50*_t50) + _t42*(_t52*_t52);
+                const double _t54 = (0.0001)*_t17;
+                const double _t55 = _t14*_t42;
+                const double _t56 = _t33*_t6;
+                const double _t57 = _t33*_t8;
+                const double _t58 = _t43*_t45;
+                const double _t59 = _t47*_t48;
+                const double _t60 = _c3[i]*_t58 + _c3[i]*_t59 + _t31*_t6 - _t31*_t8 - 2*_t34*_t8;
+                const double _t61 = _t56 - _t57 + _t60;
+                const double _t62 = (_c0[i]*_c0[i])*_t12;
+                const double _t63 = _c3[i]*_t62 + _t3*_t31 + 2*_t56 - 2*_t57 + _t60;
+                const double _t64 = _t26*_t55 + _t42*(_t61*_t61) + _t42*(_t63*_t63);
+                const double _t65 = _t39*_t6;
+                const double _t66 = -_c1[i]*_c3[i]*a3*d3 - 2*_c1[i]*_s1[i]*_s3[i]*a3*d4 + _c3[i]*_t8*d3 + _s3[i]*_t58 + _s3[i]*_t59;
+                const double _t67 = _c0[i]*_s1[i]*_s3[i]*a2*d4 - _t65 - _t66;
+                const double _t68 = -_c0[i]*_c3[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s3[i]*a2*d4 + _s3[i]*_t62 + 2*_t65 + _t66;
+                const double _t69 = -_t68;
+                const double _t70 = _t37*_t55 + _t42*(_t67*_t67) + _t42*(_t69*_t69);
+                const double _t71 = 1.0/(_t16 + (1e-12)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
+                const double _t73 = _t23*_t9;
+                const double _t74 = _c3[i]*_t18;
+                const double _t75 = _t10*_t29;
+                const double _t76 = _t42*_t50*_t61 + _t42*_t52*_t63 - _t54*(-_t73*_t74 - _t74*_t75);
+                const double _t77 = _t72*xd_z[i];
+                const double _t78 = _t36*_t54;
+                const double _t79 = _t19*_t54;
+                const double _t80 = _t72*xd_x[i];
+                const double _t81 = _c3[i]*_s3[i];
+                const double _t82 = _t42*_t67;
+                const double _t83 = _t18*_t81;
+                const double _t84 = _t42*_t69;
+                const double _t85 = -_t54*(_t18*_t35*_t40 + _t24*_t83 + _t30*_t83) - _t55*_t81 - _t61*_t82 - _t63*_t84;
+                const double _t86 = _t72*xd_y[i];
+                const double _t87 = _t72*(_t76*_t77 + _t80*(_t20 + _t64 + _t78 + _t79) + _t85*_t86);
+                const double _t88 = _s3[i]*_t18;
+                const double _t89 = -_t50*_t82 - _t52*_t84 - _t54*(-_t73*_t88 - _t75*_t88);
+                const double _t90 = _t20 + _t41*_t54;
+                const double _t91 = _t72*(_t77*_t89 + _t80*_t85 + _t86*(_t70 + _t79 + _t90));
+                const int _t92 = _t16 < 1e-06;
+                const double _t93 = _t13*a2;
+                const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-06)*_t1);
+                const double _t95 = ((_t92) ? (
+   _t71*(_t35*_t91 + _t40*_t87)
 )
 : (
-   -_t102*(_t101*_t57*xd_x[i] + _t101*_t72*xd_y[i])
+   -_t94*(-_c3[i]*_t93*xd_y[i] + _s3[i]*_t93*xd_x[i])
 ));
-                const double _t104 = _t84*_t88 + _t85*(_t49 + _t86 + _t98) + _t94*_t97;
-                const double _t105 = _c3[i]*_t95;
-                const double _t106 = _s3[i]*_t99;
-                const double _t107 = ((_t100) ? (
-   _t79*(_t104*_t12*_t80 - _t105*_t29 - _t106*_t29)
+                const double _t96 = _t76*_t80 + _t77*(_t53 + _t78 + _t90) + _t86*_t89;
+                const double _t97 = _c3[i]*_t87;
+                const double _t98 = _s3[i]*_t91;
+                const double _t99 = ((_t92) ? (
+   _t71*(_t10*_t72*_t96 - _t29*_t97 - _t29*_t98)
 )
 : (
-   -_t102*(-_t47*xd_z[i] - _t68*xd_x[i] + _t75*xd_y[i])
+   -_t94*(-_t50*xd_z[i] - _t61*xd_x[i] + _t67*xd_y[i])
 ));
-                const double _t108 = ((_t100) ? (
-   _t79*(_t104*_t11*_t80 - _t105*_t22 - _t106*_t22)
+                const double _t100 = ((_t92) ? (
+   _t71*(-_t23*_t97 - _t23*_t98 + _t72*_t9*_t96)
 )
 : (
-   -_t102*(_t48*xd_z[i] + _t70*xd_x[i] + _t76*xd_y[i])
+   -_t94*(_t52*xd_z[i] + _t63*xd_x[i] + _t68*xd_y[i])
 ));
-                const double _t110 = (_s8[i]*_s8[i]);
-                const double _t111 = kinegen_max(0, 1 - 1000000*_t110);
-                const double _t113 = (_s9[i]*_s9[i])*_t43;
-                const double _t116 = _s2[i]*_s8[i];
-                const double _t117 = _c2[i]*_c8[i] - _c9[i]*_t116;
-                const double _t118 = _t113 + (_t117*_t117) + _t61;
-                const double _t119 = (1e-08)*(_t111*_t111);
-                const double _t120 = _c2[i]*_s8[i];
-                const double _t121 = _c8[i]*_s2[i];
-                const double _t122 = _c9[i]*_t121;
-                const double _t123 = -_t120 - _t122;
-                const double _t124 = (_c9[i]*_c9[i])*_t43 + _t110*_t113 + (_t123*_t123);
-                const double _t125 = (0.0001)*_t111;
-                const double _t126 = _c9[i]*_s3[i];
-                const double _t127 = _c3[i]*_s9[i];
-                const double _t128 = _c2[i]*_t127;
-                const double _t129 = _t126 + _t128;
-                const double _t130 = (_t129*_t129);
-                const double _t131 = _c3[i]*_c9[i];
-                const double _t132 = -_c3[i]*_t121 + _s3[i]*_s8[i]*_s9[i] - _t120*_t131;
-                const double _t133 = _t130 + (_t132*_t132) + _t36*_t43;
-                const double _t134 = _s3[i]*_s9[i];
-                const double _t135 = _c2[i]*_t134;
-                const double _t136 = -_c3[i]*_c9[i] + _t135;
-                const double _t137 = -_s3[i]*_t121 - _s8[i]*_t127 - _t120*_t126;
-                const double _t138 = (_t136*_t136) + (_t137*_t137) + _t25*_t43;
-                const double _t139 = _c2[i]*_c3[i]*_c9[i] - _t134;
-                const double _t140 = _c8[i]*_t134;
-                const double _t141 = _c3[i]*_t116;
-                const double _t142 = _c2[i]*_c8[i];
-                const double _t143 = -_t131*_t142 + _t140 + _t141;
-                const double _t144 = _t110*_t130 + (_t139*_t139) + (_t143*_t143);
-                const double _t145 = _c2[i]*_t126 + _t127;
-                const double _t146 = -_t145;
-                const double _t147 = -_t136;
-                const double _t148 = _c8[i]*_t127;
-                const double _t149 = _s3[i]*_t116;
-                const double _t150 = _t126*_t142 + _t148 - _t149;
-                const double _t151 = _t110*(_t147*_t147) + (_t146*_t146) + (_t150*_t150);
-                const double _t152 = 1.0/(_t110 + (1e-12)*(_t111*_t111*_t111) + _t118*_t119 + _t119*_t133 + _t119*_t138 + _t124*_t125 + _t125*_t144 + _t125*_t151);
-                const double _t153 = _t125*_t133;
-                const double _t154 = _t119 + _t125*_t138;
-                const double _t156 = _s10[i]*_t131;
-                const double _t158 = _c10[i]*_t126;
-                const double _t159 = _c10[i]*_t148 - _c10[i]*_t149 - _s10[i]*_t135 + _t142*_t158 + _t156;
-                const double _t160 = _s10[i]*_t126;
-                const double _t161 = _c10[i]*_c3[i]*_c9[i] - _c10[i]*_t135 + _s10[i]*_s2[i]*_s3[i]*_s8[i] - _s10[i]*_t148 - _t142*_t160;
-                const double _t162 = -_c10[i]*_t128 + _c3[i]*_s10[i]*_s2[i]*_s8[i] + _c8[i]*_s10[i]*_s3[i]*_s9[i] - _t142*_t156 - _t158;
-                const double _t163 = _c10[i]*_c2[i]*_c3[i]*_c8[i]*_c9[i] - _c10[i]*_t140 - _c10[i]*_t141 - _s10[i]*_t128 - _t160;
-                const double _t164 = -_t103 + (0.5)*_t132*xd_r23[i] - 0.5*_t137*xd_r13[i] - 0.5*_t159*xd_r11[i] - 0.5*_t161*xd_r12[i] + (0.5)*_t162*xd_r22[i] + (0.5)*_t163*xd_r21[i];
-                const double _t165 = _c9[i]*_s2[i];
-                const double _t166 = _s2[i]*_s9[i];
-                const double _t167 = _t129*_t166;
-                const double _t168 = _t110*_t167 + _t123*_t143 - _t125*(-_c3[i]*_t45 + _t117*_t132 + _t167) + _t139*_t165;
-                const double _t169 = (0.5)*_t117;
-                const double _t170 = (0.5)*_c10[i]*_t120 + (0.5)*_c10[i]*_t122 - 0.5*_s10[i]*_t166;
-                const double _t171 = -0.5*_c10[i]*_t166 - 0.5*_s10[i]*_t120 - 0.5*_s10[i]*_t122;
-                const double _t172 = -_s3[i]*_t107 - _s3[i]*_t108 + (0.5)*_t137*xd_r33[i] + (0.5)*_t159*xd_r31[i] + (0.5)*_t161*xd_r32[i] - _t169*xd_r23[i] - _t170*xd_r21[i] - _t171*xd_r22[i];
-                const double _t173 = _t110*_t147;
-                const double _t174 = -_t123*_t150 - _t125*(-_s3[i]*_t45 + _t117*_t137 + _t136*_t166) - _t146*_t165 - _t166*_t173;
-                const double _t175 = _c3[i]*_t107 + _c3[i]*_t108 - 0.5*_t132*xd_r33[i] - 0.5*_t162*xd_r32[i] - 0.5*_t163*xd_r31[i] + _t169*xd_r13[i] + _t170*xd_r11[i] + _t171*xd_r12[i];
-                const double _t176 = _t164*(_t124 + _t153 + _t154) + _t168*_t172 + _t174*_t175;
-                const double _t177 = _t118*_t125;
-                const double _t178 = -_t125*(_t129*_t136 + _t132*_t137 + _t43*_t89) - _t129*_t173 - _t139*_t146 - _t143*_t150;
-                const double _t179 = _t164*_t168 + _t172*(_t144 + _t154 + _t177) + _t175*_t178;
-                const double _t180 = _t164*_t174 + _t172*_t178 + _t175*(_t119 + _t151 + _t153 + _t177);
-                const int _t181 = _t110 < 1e-06;
-                const double _t182 = _s8[i]/kinegen_max(1e-06, _t110);
-                _qd_block[0][i] = _t103;
-                _qd_block[1][i] = _t107;
-                _qd_block[2][i] = _t108;
-                _qd_block[3][i] = ((_t181) ? (
-   _t152*(_c2[i]*_t176 - _c3[i]*_s2[i]*_t179 - _s2[i]*_s3[i]*_t180)
+                const double _t102 = (_s5[i]*_s5[i]);
+                const double _t103 = kinegen_max(0, 1 - 1000000*_t102);
+                const double _t105 = (_s6[i]*_s6[i])*_t47;
+                const double _t108 = _s1[i]*_s5[i];
+                const double _t109 = _c1[i]*_c5[i] - _c6[i]*_t108;
+                const double _t110 = _t105 + (_t109*_t109) + _t43;
+                const double _t111 = (1e-08)*(_t103*_t103);
+                const double _t112 = _c1[i]*_s5[i];
+                const double _t113 = _c5[i]*_s1[i];
+                const double _t114 = _c6[i]*_t113;
+                const double _t115 = -_t112 - _t114;
+                const double _t116 = (_c6[i]*_c6[i])*_t47 + _t102*_t105 + (_t115*_t115);
+                const double _t117 = (0.0001)*_t103;
+                const double _t118 = _c6[i]*_s3[i];
+                const double _t119 = _c3[i]*_s6[i];
+                const double _t120 = _c1[i]*_t119;
+                const double _t121 = _t118 + _t120;
+                const double _t122 = (_t121*_t121);
+                const double _t123 = _c3[i]*_c6[i];
+                const double _t124 = -_c3[i]*_t113 + _s3[i]*_s5[i]*_s6[i] - _t112*_t123;
+                const double _t125 = _t122 + (_t124*_t124) + _t37*_t47;
+                const double _t126 = _s3[i]*_s6[i];
+                const double _t127 = _c1[i]*_t126;
+                const double _t128 = -_c3[i]*_c6[i] + _t127;
+                const double _t129 = -_s3[i]*_t113 - _s5[i]*_t119 - _t112*_t118;
+                const double _t130 = (_t128*_t128) + (_t129*_t129) + _t26*_t47;
+                const double _t131 = _c1[i]*_c3[i]*_c6[i] - _t126;
+                const double _t132 = _c5[i]*_t126;
+                const double _t133 = _c3[i]*_t108;
+                const double _t134 = _c1[i]*_c5[i];
+                const double _t135 = -_t123*_t134 + _t132 + _t133;
+                const double _t136 = _t102*_t122 + (_t131*_t131) + (_t135*_t135);
+                const double _t137 = _c1[i]*_t118 + _t119;
+                const double _t138 = -_t137;
+                const double _t139 = -_t128;
+                const double _t140 = _c5[i]*_t119;
+                const double _t141 = _s3[i]*_t108;
+                const double _t142 = _t118*_t134 + _t140 - _t141;
+                const double _t143 = _t102*(_t139*_t139) + (_t138*_t138) + (_t142*_t142);
+                const double _t144 = 1.0/(_t102 + (1e-12)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t125 + _t111*_t130 + _t116*_t117 + _t117*_t136 + _t117*_t143);
+                const double _t145 = _t117*_t125;
+                const double _t146 = _t111 + _t117*_t130;
+                const double _t148 = _s7[i]*_t123;
+                const double _t150 = _c7[i]*_t118;
+                const double _t151 = _c7[i]*_t140 - _c7[i]*_t141 - _s7[i]*_t127 + _t134*_t150 + _t148;
+                const double _t152 = _s7[i]*_t118;
+                const double _t153 = _c3[i]*_c6[i]*_c7[i] - _c7[i]*_t127 + _s1[i]*_s3[i]*_s5[i]*_s7[i] - _s7[i]*_t140 - _t134*_t152;
+                const double _t154 = _c3[i]*_s1[i]*_s5[i]*_s7[i] + _c5[i]*_s3[i]*_s6[i]*_s7[i] - _c7[i]*_t120 - _t134*_t148 - _t150;
+                const double _t155 = _c1[i]*_c3[i]*_c5[i]*_c6[i]*_c7[i] - _c7[i]*_t132 - _c7[i]*_t133 - _s7[i]*_t120 - _t152;
+                const double _t156 = (0.5)*_t124*xd_r23[i] - 0.5*_t129*xd_r13[i] - 0.5*_t151*xd_r11[i] - 0.5*_t153*xd_r12[i] + (0.5)*_t154*xd_r22[i] + (0.5)*_t155*xd_r21[i] - _t95;
+                const double _t157 = _c6[i]*_s1[i];
+                const double _t158 = _s1[i]*_s6[i];
+                const double _t159 = _t121*_t158;
+                const double _t160 = _t102*_t159 + _t115*_t135 - _t117*(-_c3[i]*_t46 + _t109*_t124 + _t159) + _t131*_t157;
+                const double _t161 = (0.5)*_t109;
+                const double _t162 = (0.5)*_c7[i]*_t112 + (0.5)*_c7[i]*_t114 - 0.5*_s7[i]*_t158;
+                const double _t163 = -0.5*_c7[i]*_t158 - 0.5*_s7[i]*_t112 - 0.5*_s7[i]*_t114;
+                const double _t164 = -_s3[i]*_t100 - _s3[i]*_t99 + (0.5)*_t129*xd_r33[i] + (0.5)*_t151*xd_r31[i] + (0.5)*_t153*xd_r32[i] - _t161*xd_r23[i] - _t162*xd_r21[i] - _t163*xd_r22[i];
+                const double _t165 = _t102*_t139;
+                const double _t166 = -_t115*_t142 - _t117*(-_s3[i]*_t46 + _t109*_t129 + _t128*_t158) - _t138*_t157 - _t158*_t165;
+                const double _t167 = _c3[i]*_t100 + _c3[i]*_t99 - 0.5*_t124*xd_r33[i] - 0.5*_t154*xd_r32[i] - 0.5*_t155*xd_r31[i] + _t161*xd_r13[i] + _t162*xd_r11[i] + _t163*xd_r12[i];
+                const double _t168 = _t156*(_t116 + _t145 + _t146) + _t160*_t164 + _t166*_t167;
+                const double _t169 = _t110*_t117;
+                const double _t170 = -_t117*(_t121*_t128 + _t124*_t129 + _t47*_t81) - _t121*_t165 - _t131*_t138 - _t135*_t142;
+                const double _t171 = _t156*_t160 + _t164*(_t136 + _t146 + _t169) + _t167*_t170;
+                const double _t172 = _t156*_t166 + _t164*_t170 + _t167*(_t111 + _t143 + _t145 + _t169);
+                const int _t173 = _t102 < 1e-06;
+                const double _t174 = _s5[i]/kinegen_max(1e-06, _t102);
+                _qd_block[0][i] = _t95;
+                _qd_block[1][i] = _t99;
+                _qd_block[2][i] = _t100;
+                _qd_block[3][i] = ((_t173) ? (
+   _t144*(_c1[i]*_t168 - _c3[i]*_s1[i]*_t171 - _s1[i]*_s3[i]*_t172)
 )
 : (
-   -_t182*(_t123*_t164 + _t143*_t172 - _t150*_t175)
+   -_t174*(_t115*_t156 + _t135*_t164 - _t142*_t167)
 ));
-                _qd_block[4][i] = ((_t181) ? (
-   _t152*(_t129*_t179 + _t136*_t180 + _t166*_t176)
+                _qd_block[4][i] = ((_t173) ? (
+   _t144*(_t121*_t171 + _t128*_t172 + _t158*_t168)
 )
 : (
-   -_t182*(-_s8[i]*_t129*_t172 + _s8[i]*_t147*_t175 - _s9[i]*_t116*_t164)
+   -_t174*(-_s5[i]*_t121*_t164 + _s5[i]*_t139*_t167 - _s6[i]*_t108*_t156)
 ));
-                _qd_block[5][i] = ((_t181) ? (
-   _t152*(_t117*_t176 + _t132*_t179 + _t137*_t180)
+                _qd_block[5][i] = ((_t173) ? (
+   _t144*(_t109*_t168 + _t124*_t171 + _t129*_t172)
 )
 : (
-   -_t182*(_t139*_t172 + _t145*_t175 + _t164*_t165)
+   -_t174*(_t131*_t164 + _t137*_t167 + _t156*_t157)
 ));
-                singular[1 * (start + i) + 0] = _t100 || _t181;
+                singular[1 * (start + i) + 0] = _t173 || _t92;
             }
         } else
 #endif
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t3 = _c0[i]*d4 + _s0[i]*a3;
-                const double _t5 = _c1[i]*a2;
-                const double _t8 = _c2[i]*a3;
-                const double _t10 = _s2[i]*d4;
-                const double _t11 = -_t10 + _t8;
-                const double _t12 = _t11 + _t5;
-                const double _t13 = (_t12*_t12);
-                const double _t14 = _t13*_t2*(_t3*_t3);
-                const double _t15 = _t14/_t1;
-                const double _t16 = kinegen_max(0, 1 - 1000000*_t15);
-                const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
-                const double _t19 = (1e-08)*(_t16*_t16);
-                const double _t20 = _s2[i]*a3;
-                const double _t21 = _c2[i]*d4;
-                const double _t22 = _t20 + _t21;
-                const double _t23 = (_t22*_t22);
-                const double _t25 = (_s3[i]*_s3[i]);
-                const double _t26 = _t17*_t25;
-                const double _t28 = _s1[i]*a2;
-                const double _t29 = _t22 + _t28;
+                const double _t3 = _c0[i]*a2;
+                const double _t6 = _c1[i]*a3;
+                const double _t8 = _s1[i]*d4;
+                const double _t9 = _t6 - _t8;
+                const double _t10 = _t3 + _t9;
+                const double _t11 = (_t10*_t10);
+                const double _t13 = _c2[i]*d4 + _s2[i]*a3;
+                const double _t14 = _t12*(_t13*_t13);
+                const double _t15 = _t11*_t14;
+                const double _t16 = _t15/_t1;
+                const double _t17 = kinegen_max(0, 1 - 1000000*_t16);
+                const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
+                const double _t20 = (1e-08)*(_t17*_t17);
+                const double _t21 = _s1[i]*a3;
+                const double _t22 = _c1[i]*d4;
+                const double _t23 = _t21 + _t22;
+                const double _t24 = (_t23*_t23);
+                const double _t26 = (_s3[i]*_s3[i]);
+                const double _t27 = _t18*_t26;
+                const double _t29 = _s0[i]*a2 + _t23;
                 const double _t30 = (_t29*_t29);
                 const double _t31 = _s3[i]*d3;
-                const double _t33 = _c3[i]*_t5;
-                const double _t34 = -_c3[i]*_t10 + _c3[i]*_t8 + _t31 + _t33;
-                const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
-                const double _t36 = (_c3[i]*_c3[i]);
-                const double _t37 = _t17*_t36;
-                const double _t38 = _s3[i]*_t5;
-                const double _t39 = _c3[i]*d3 + _s2[i]*_s3[i]*d4 - _s3[i]*_t8 - _t38;
-                const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
-                const double _t43 = (_s2[i]*_s2[i]);
-                const double _t45 = _c2[i]*_s2[i];
-                const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
-                const double _t48 = _c1[i]*_s1[i]*_t2 - _t10*_t28 + _t28*_t8 + _t47;
-                const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
-                const double _t50 = (0.0001)*_t16;
-                const double _t57 = -_c4[i]*a3 + _c5[i]*a3 + _s4[i]*d4 + _s5[i]*d4;
-                const double _t59 = _t33*_t8;
-                const double _t60 = _t10*_t33;
-                const double _t61 = (_c2[i]*_c2[i]);
-                const double _t62 = _t44*_t61;
-                const double _t63 = _t43*_t46;
-                const double _t67 = _c3[i]*_t62 + _c3[i]*_t63 - _t10*_t31 + _t31*_t8 - 0.5*_t42*(_s6[i] + _s7[i]);
-                const double _t68 = _t59 - _t60 + _t67;
-                const double _t69 = (_c1[i]*_c1[i])*_t2;
-                const double _t70 = _c3[i]*_t69 + _t31*_t5 + 2*_t59 - 2*_t60 + _t67;
-                const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
-                const double _t72 = -_c4[i]*d4 - _c5[i]*d4 - _s4[i]*a3 + _s5[i]*a3;
-                const double _t73 = _t38*_t8;
-                const double _t74 = -_c2[i]*_c3[i]*a3*d3 + _c3[i]*_t10*d3 + _s3[i]*_t62 + _s3[i]*_t63 - 0.5*a3*d4*(-_c6[i] + _c7[i]);
-                const double _t75 = _c1[i]*_s2[i]*_s3[i]*a2*d4 - _t73 - _t74;
-                const double _t76 = -_c1[i]*_c3[i]*a2*d3 - 2*_c1[i]*_s2[i]*_s3[i]*a2*d4 + _s3[i]*_t69 + 2*_t73 + _t74;
-                const double _t77 = -_t76;
-                const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
-                const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
-                const double _t81 = _t11*_t22;
-                const double _t82 = _c3[i]*_t17;
-                const double _t83 = _t12*_t29;
-                const double _t84 = _t41*_t47*_t68 + _t41*_t48*_t70 - _t50*(-_t81*_t82 - _t82*_t83);
-                const double _t85 = _t80*xd_z[i];
-                const double _t86 = _t35*_t50;
-                const double _t87 = _t18*_t50;
-                const double _t88 = _t80*xd_x[i];
-                const double _t89 = _c3[i]*_s3[i];
-                const double _t90 = _t17*_t89;
-                const double _t91 = _t41*_t75;
-                const double _t92 = _t41*_t77;
-                const double _t93 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t17*_t34*_t39 + _t23*_t90 + _t30*_t90) - _t68*_t91 - _t70*_t92;
-                const double _t94 = _t80*xd_y[i];
-                const double _t95 = _t80*(_t84*_t85 + _t88*(_t19 + _t71 + _t86 + _t87) + _t93*_t94);
-                const double _t96 = _s3[i]*_t17;
-                const double _t97 = -_t47*_t91 - _t48*_t92 - _t50*(-_t81*_t96 - _t83*_t96);
-                const double _t98 = _t19 + _t40*_t50;
-                const double _t99 = _t80*(_t85*_t97 + _t88*_t93 + _t94*(_t78 + _t87 + _t98));
-                const int _t100 = _t15 < 1e-06;
-                const double _t102 = _t12*_t3*a2/kinegen_max(_t14, (1e-06)*_t1);
-                const double _t103 = ((_t100) ? (
-   _t79*(_t34*_t99 + _t39*_t95)
+                const double _t33 = _c3[i]*_t3;
+                const double _t34 = _c3[i]*_t6;
+                const double _t35 = -_c3[i]*_t8 + _t31 + _t33 + _t34;
+                const double _t36 = _t18*(_t35*_t35) + _t24*_t27 + _t27*_t30;
+                const double _t37 = (_c3[i]*_c3[i]);
+                const double _t38 = _t18*_t37;
+                const double _t39 = _s3[i]*_t3;
+                const double _t40 = _c3[i]*d3 + _s1[i]*_s3[i]*d4 - _s3[i]*_t6 - _t39;
+                const double _t41 = _t18*(_t40*_t40) + _t24*_t38 + _t30*_t38;
+                const double _t43 = (_c1[i]*_c1[i]);
+                const double _t46 = _c1[i]*_s1[i];
+                const double _t47 = (_s1[i]*_s1[i]);
+                const double _t49 = _t43*_t44 - _t44*_t47 + _t45*_t46 - _t46*_t48;
+                const double _t50 = _t21*_t3 + _t22*_t3 + _t49;
+                const double _t52 = _c0[i]*_s0[i]*_t12 + _c4[i]*a2*d4 + _s4[i]*a2*a3 + _t49;
+                const double _t53 = _t42*(_t50*_t50) + _t42*(_t52*_t52);
+                const double _t54 = (0.0001)*_t17;
+                const double _t55 = _t14*_t42;
+                const double _t56 = _t33*_t6;
+                const double _t57 = _t33*_t8;
+                const double _t58 = _t43*_t45;
+                const double _t59 = _t47*_t48;
+                const double _t60 = _c3[i]*_t58 + _c3[i]*_t59 + _t31*_t6 - _t31*_t8 - 2*_t34*_t8;
+                const double _t61 = _t56 - _t57 + _t60;
+                const double _t62 = (_c0[i]*_c0[i])*_t12;
+                const double _t63 = _c3[i]*_t62 + _t3*_t31 + 2*_t56 - 2*_t57 + _t60;
+                const double _t64 = _t26*_t55 + _t42*(_t61*_t61) + _t42*(_t63*_t63);
+                const double _t65 = _t39*_t6;
+                const double _t66 = -_c1[i]*_c3[i]*a3*d3 - 2*_c1[i]*_s1[i]*_s3[i]*a3*d4 + _c3[i]*_t8*d3 + _s3[i]*_t58 + _s3[i]*_t59;
+                const double _t67 = _c0[i]*_s1[i]*_s3[i]*a2*d4 - _t65 - _t66;
+                const double _t68 = -_c0[i]*_c3[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s3[i]*a2*d4 + _s3[i]*_t62 + 2*_t65 + _t66;
+                const double _t69 = -_t68;
+                const double _t70 = _t37*_t55 + _t42*(_t67*_t67) + _t42*(_t69*_t69);
+                const double _t71 = 1.0/(_t16 + (1e-12)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
+                const double _t73 = _t23*_t9;
+                const double _t74 = _c3[i]*_t18;
+                const double _t75 = _t10*_t29;
+                const double _t76 = _t42*_t50*_t61 + _t42*_t52*_t63 - _t54*(-_t73*_t74 - _t74*_t75);
+                const double _t77 = _t72*xd_z[i];
+                const double _t78 = _t36*_t54;
+                const double _t79 = _t19*_t54;
+                const double _t80 = _t72*xd_x[i];
+                const double _t81 = _c3[i]*_s3[i];
+                const double _t82 = _t42*_t67;
+                const double _t83 = _t18*_t81;
+                const double _t84 = _t42*_t69;
+                const double _t85 = -_t54*(_t18*_t35*_t40 + _t24*_t83 + _t30*_t83) - _t55*_t81 - _t61*_t82 - _t63*_t84;
+                const double _t86 = _t72*xd_y[i];
+                const double _t87 = _t72*(_t76*_t77 + _t80*(_t20 + _t64 + _t78 + _t79) + _t85*_t86);
+                const double _t88 = _s3[i]*_t18;
+                const double _t89 = -_t50*_t82 - _t52*_t84 - _t54*(-_t73*_t88 - _t75*_t88);
+                const double _t90 = _t20 + _t41*_t54;
+                const double _t91 = _t72*(_t77*_t89 + _t80*_t85 + _t86*(_t70 + _t79 + _t90));
+                const int _t92 = _t16 < 1e-06;
+                const double _t93 = _t13*a2;
+                const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-06)*_t1);
+                const double _t95 = ((_t92) ? (
+   _t71*(_t35*_t91 + _t40*_t87)
 )
 : (
-   -_t102*(_t101*_t57*xd_x[i] + _t101*_t72*xd_y[i])
+   -_t94*(-_c3[i]*_t93*xd_y[i] + _s3[i]*_t93*xd_x[i])
 ));
-                const double _t104 = _t84*_t88 + _t85*(_t49 + _t86 + _t98) + _t94*_t97;
-                const double _t105 = _c3[i]*_t95;
-                const double _t106 = _s3[i]*_t99;
-                const double _t107 = ((_t100) ? (
-   _t79*(_t104*_t12*_t80 - _t105*_t29 - _t106*_t29)
+                const double _t96 = _t76*_t80 + _t77*(_t53 + _t78 + _t90) + _t86*_t89;
+                const double _t97 = _c3[i]*_t87;
+                const double _t98 = _s3[i]*_t91;
+                const double _t99 = ((_t92) ? (
+   _t71*(_t10*_t72*_t96 - _t29*_t97 - _t29*_t98)
 )
 : (
-   -_t102*(-_t47*xd_z[i] - _t68*xd_x[i] + _t75*xd_y[i])
+   -_t94*(-_t50*xd_z[i] - _t61*xd_x[i] + _t67*xd_y[i])
 ));
-                const double _t108 = ((_t100) ? (
-   _t79*(_t104*_t11*_t80 - _t105*_t22 - _t106*_t22)
+                const double _t100 = ((_t92) ? (
+   _t71*(-_t23*_t97 - _t23*_t98 + _t72*_t9*_t96)
 )
 : (
-   -_t102*(_t48*xd_z[i] + _t70*xd_x[i] + _t76*xd_y[i])
+   -_t94*(_t52*xd_z[i] + _t63*xd_x[i] + _t68*xd_y[i])
 ));
-                const double _t110 = (_s8[i]*_s8[i]);
-                const double _t111 = kinegen_max(0, 1 - 1000000*_t110);
-                const double _t113 = (_s9[i]*_s9[i])*_t43;
-                const double _t116 = _s2[i]*_s8[i];
-                const double _t117 = _c2[i]*_c8[i] - _c9[i]*_t116;
-                const double _t118 = _t113 + (_t117*_t117) + _t61;
-                const double _t119 = (1e-08)*(_t111*_t111);
-                const double _t120 = _c2[i]*_s8[i];
-                const double _t121 = _c8[i]*_s2[i];
-                const double _t122 = _c9[i]*_t121;
-                const double _t123 = -_t120 - _t122;
-                const double _t124 = (_c9[i]*_c9[i])*_t43 + _t110*_t113 + (_t123*_t123);
-                const double _t125 = (0.0001)*_t111;
-                const double _t126 = _c9[i]*_s3[i];
-                const double _t127 = _c3[i]*_s9[i];
-                const double _t128 = _c2[i]*_t127;
-                const double _t129 = _t126 + _t128;
-                const double _t130 = (_t129*_t129);
-                const double _t131 = _c3[i]*_c9[i];
-                const double _t132 = -_c3[i]*_t121 + _s3[i]*_s8[i]*_s9[i] - _t120*_t131;
-                const double _t133 = _t130 + (_t132*_t132) + _t36*_t43;
-                const double _t134 = _s3[i]*_s9[i];
-                const double _t135 = _c2[i]*_t134;
-                const double _t136 = -_c3[i]*_c9[i] + _t135;
-                const double _t137 = -_s3[i]*_t121 - _s8[i]*_t127 - _t120*_t126;
-                const double _t138 = (_t136*_t136) + (_t137*_t137) + _t25*_t43;
-                const double _t139 = _c2[i]*_c3[i]*_c9[i] - _t134;
-                const double _t140 = _c8[i]*_t134;
-                const double _t141 = _c3[i]*_t116;
-                const double _t142 = _c2[i]*_c8[i];
-                const double _t143 = -_t131*_t142 + _t140 + _t141;
-                const double _t144 = _t110*_t130 + (_t139*_t139) + (_t143*_t143);
-                const double _t145 = _c2[i]*_t126 + _t127;
-                const double _t146 = -_t145;
-                const double _t147 = -_t136;
-                const double _t148 = _c8[i]*_t127;
-                const double _t149 = _s3[i]*_t116;
-                const double _t150 = _t126*_t142 + _t148 - _t149;
-                const double _t151 = _t110*(_t147*_t147) + (_t146*_t146) + (_t150*_t150);
-                const double _t152 = 1.0/(_t110 + (1e-12)*(_t111*_t111*_t111) + _t118*_t119 + _t119*_t133 + _t119*_t138 + _t124*_t125 + _t125*_t144 + _t125*_t151);
-                const double _t153 = _t125*_t133;
-                const double _t154 = _t119 + _t125*_t138;
-                const double _t156 = _s10[i]*_t131;
-                const double _t158 = _c10[i]*_t126;
-                const double _t159 = _c10[i]*_t148 - _c10[i]*_t149 - _s10[i]*_t135 + _t142*_t158 + _t156;
-                const double _t160 = _s10[i]*_t126;
-                const double _t161 = _c10[i]*_c3[i]*_c9[i] - _c10[i]*_t135 + _s10[i]*_s2[i]*_s3[i]*_s8[i] - _s10[i]*_t148 - _t142*_t160;
-                const double _t162 = -_c10[i]*_t128 + _c3[i]*_s10[i]*_s2[i]*_s8[i] + _c8[i]*_s10[i]*_s3[i]*_s9[i] - _t142*_t156 - _t158;
-                const double _t163 = _c10[i]*_c2[i]*_c3[i]*_c8[i]*_c9[i] - _c10[i]*_t140 - _c10[i]*_t141 - _s10[i]*_t128 - _t160;
-                const double _t164 = -_t103 + (0.5)*_t132*xd_r23[i] - 0.5*_t137*xd_r13[i] - 0.5*_t159*xd_r11[i] - 0.5*_t161*xd_r12[i] + (0.5)*_t162*xd_r22[i] + (0.5)*_t163*xd_r21[i];
-                const double _t165 = _c9[i]*_s2[i];
-                const double _t166 = _s2[i]*_s9[i];
-                const double _t167 = _t129*_t166;
-                const double _t168 = _t110*_t167 + _t123*_t143 - _t125*(-_c3[i]*_t45 + _t117*_t132 + _t167) + _t139*_t165;
-                const double _t169 = (0.5)*_t117;
-                const double _t170 = (0.5)*_c10[i]*_t120 + (0.5)*_c10[i]*_t122 - 0.5*_s10[i]*_t166;
-                const double _t171 = -0.5*_c10[i]*_t166 - 0.5*_s10[i]*_t120 - 0.5*_s10[i]*_t122;
-                const double _t172 = -_s3[i]*_t107 - _s3[i]*_t108 + (0.5)*_t137*xd_r33[i] + (0.5)*_t159*xd_r31[i] + (0.5)*_t161*xd_r32[i] - _t169*xd_r23[i] - _t170*xd_r21[i] - _t171*xd_r22[i];
-                const double _t173 = _t110*_t147;
-                const double _t174 = -_t123*_t150 - _t125*(-_s3[i]*_t45 + _t117*_t137 + _t136*_t166) - _t146*_t165 - _t166*_t173;
-                const double _t175 = _c3[i]*_t107 + _c3[i]*_t108 - 0.5*_t132*xd_r33[i] - 0.5*_t162*xd_r32[i] - 0.5*_t163*xd_r31[i] + _t169*xd_r13[i] + _t170*xd_r11[i] + _t171*xd_r12[i];
-                const double _t176 = _t164*(_t124 + _t153 + _t154) + _t168*_t172 + _t174*_t175;
-                const double _t177 = _t118*_t125;
-                const double _t178 = -_t125*(_t129*_t136 + _t132*_t137 + _t43*_t89) - _t129*_t173 - _t139*_t146 - _t143*_t150;
-                const double _t179 = _t164*_t168 + _t172*(_t144 + _t154 + _t177) + _t175*_t178;
-                const double _t180 = _t164*_t174 + _t172*_t178 + _t175*(_t119 + _t151 + _t153 + _t177);
-                const int _t181 = _t110 < 1e-06;
-                const double _t182 = _s8[i]/kinegen_max(1e-06, _t110);
-                qd[6 * (start + i) + 0] = _t103;
-                qd[6 * (start + i) + 1] = _t107;
-                qd[6 * (start + i) + 2] = _t108;
-                qd[6 * (start + i) + 3] = ((_t181) ? (
-   _t152*(_c2[i]*_t176 - _c3[i]*_s2[i]*_t179 - _s2[i]*_s3[i]*_t180)
+                const double _t102 = (_s5[i]*_s5[i]);
+                const double _t103 = kinegen_max(0, 1 - 1000000*_t102);
+                const double _t105 = (_s6[i]*_s6[i])*_t47;
+                const double _t108 = _s1[i]*_s5[i];
+                const double _t109 = _c1[i]*_c5[i] - _c6[i]*_t108;
+                const double _t110 = _t105 + (_t109*_t109) + _t43;
+                const double _t111 = (1e-08)*(_t103*_t103);
+                const double _t112 = _c1[i]*_s5[i];
+                const double _t113 = _c5[i]*_s1[i];
+                const double _t114 = _c6[i]*_t113;
+                const double _t115 = -_t112 - _t114;
+                const double _t116 = (_c6[i]*_c6[i])*_t47 + _t102*_t105 + (_t115*_t115);
+                const double _t117 = (0.0001)*_t103;
+                const double _t118 = _c6[i]*_s3[i];
+                const double _t119 = _c3[i]*_s6[i];
+                const double _t120 = _c1[i]*_t119;
+                const double _t121 = _t118 + _t120;
+                const double _t122 = (_t121*_t121);
+                const double _t123 = _c3[i]*_c6[i];
+                const double _t124 = -_c3[i]*_t113 + _s3[i]*_s5[i]*_s6[i] - _t112*_t123;
+                const double _t125 = _t122 + (_t124*_t124) + _t37*_t47;
+                const double _t126 = _s3[i]*_s6[i];
+                const double _t127 = _c1[i]*_t126;
+                const double _t128 = -_c3[i]*_c6[i] + _t127;
+                const double _t129 = -_s3[i]*_t113 - _s5[i]*_t119 - _t112*_t118;
+                const double _t130 = (_t128*_t128) + (_t129*_t129) + _t26*_t47;
+                const double _t131 = _c1[i]*_c3[i]*_c6[i] - _t126;
+                const double _t132 = _c5[i]*_t126;
+                const double _t133 = _c3[i]*_t108;
+                const double _t134 = _c1[i]*_c5[i];
+                const double _t135 = -_t123*_t134 + _t132 + _t133;
+                const double _t136 = _t102*_t122 + (_t131*_t131) + (_t135*_t135);
+                const double _t137 = _c1[i]*_t118 + _t119;
+                const double _t138 = -_t137;
+                const double _t139 = -_t128;
+                const double _t140 = _c5[i]*_t119;
+                const double _t141 = _s3[i]*_t108;
+                const double _t142 = _t118*_t134 + _t140 - _t141;
+                const double _t143 = _t102*(_t139*_t139) + (_t138*_t138) + (_t142*_t142);
+                const double _t144 = 1.0/(_t102 + (1e-12)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t125 + _t111*_t130 + _t116*_t117 + _t117*_t136 + _t117*_t143);
+                const double _t145 = _t117*_t125;
+                const double _t146 = _t111 + _t117*_t130;
+                const double _t148 = _s7[i]*_t123;
+                const double _t150 = _c7[i]*_t118;
+                const double _t151 = _c7[i]*_t140 - _c7[i]*_t141 - _s7[i]*_t127 + _t134*_t150 + _t148;
+                const double _t152 = _s7[i]*_t118;
+                const double _t153 = _c3[i]*_c6[i]*_c7[i] - _c7[i]*_t127 + _s1[i]*_s3[i]*_s5[i]*_s7[i] - _s7[i]*_t140 - _t134*_t152;
+                const double _t154 = _c3[i]*_s1[i]*_s5[i]*_s7[i] + _c5[i]*_s3[i]*_s6[i]*_s7[i] - _c7[i]*_t120 - _t134*_t148 - _t150;
+                const double _t155 = _c1[i]*_c3[i]*_c5[i]*_c6[i]*_c7[i] - _c7[i]*_t132 - _c7[i]*_t133 - _s7[i]*_t120 - _t152;
+                const double _t156 = (0.5)*_t124*xd_r23[i] - 0.5*_t129*xd_r13[i] - 0.5*_t151*xd_r11[i] - 0.5*_t153*xd_r12[i] + (0.5)*_t154*xd_r22[i] + (0.5)*_t155*xd_r21[i] - _t95;
+                const double _t157 = _c6[i]*_s1[i];
+                const double _t158 = _s1[i]*_s6[i];
+                const double _t159 = _t121*_t158;
+                const double _t160 = _t102*_t159 + _t115*_t135 - _t117*(-_c3[i]*_t46 + _t109*_t124 + _t159) + _t131*_t157;
+                const double _t161 = (0.5)*_t109;
+                const double _t162 = (0.5)*_c7[i]*_t112 + (0.5)*_c7[i]*_t114 - 0.5*_s7[i]*_t158;
+                const double _t163 = -0.5*_c7[i]*_t158 - 0.5*_s7[i]*_t112 - 0.5*_s7[i]*_t114;
+                const double _t164 = -_s3[i]*_t100 - _s3[i]*_t99 + (0.5)*_t129*xd_r33[i] + (0.5)*_t151*xd_r31[i] + (0.5)*_t153*xd_r32[i] - _t161*xd_r23[i] - _t162*xd_r21[i] - _t163*xd_r22[i];
+                const double _t165 = _t102*_t139;
+                const double _t166 = -_t115*_t142 - _t117*(-_s3[i]*_t46 + _t109*_t129 + _t128*_t158) - _t138*_t157 - _t158*_t165;
+                const double _t167 = _c3[i]*_t100 + _c3[i]*_t99 - 0.5*_t124*xd_r33[i] - 0.5*_t154*xd_r32[i] - 0.5*_t155*xd_r31[i] + _t161*xd_r13[i] + _t162*xd_r11[i] + _t163*xd_r12[i];
+                const double _t168 = _t156*(_t116 + _t145 + _t146) + _t160*_t164 + _t166*_t167;
+                const double _t169 = _t110*_t117;
+                const double _t170 = -_t117*(_t121*_t128 + _t124*_t129 + _t47*_t81) - _t121*_t165 - _t131*_t138 - _t135*_t142;
+                const double _t171 = _t156*_t160 + _t164*(_t136 + _t146 + _t169) + _t167*_t170;
+                const double _t172 = _t156*_t166 + _t164*_t170 + _t167*(_t111 + _t143 + _t145 + _t169);
+                const int _t173 = _t102 < 1e-06;
+                const double _t174 = _s5[i]/kinegen_max(1e-06, _t102);
+                qd[6 * (start + i) + 0] = _t95;
+                qd[6 * (start + i) + 1] = _t99;
+                qd[6 * (start + i) + 2] = _t100;
+                qd[6 * (start + i) + 3] = ((_t173) ? (
+   _t144*(_c1[i]*_t168 - _c3[i]*_s1[i]*_t171 - _s1[i]*_s3[i]*_t172)
 )
 : (
-   -_t182*(_t123*_t164 + _t143*_t172 - _t150*_t175)
+   -_t174*(_t115*_t156 + _t135*_t164 - _t142*_t167)
 ));
-                qd[6 * (start + i) + 4] = ((_t181) ? (
-   _t152*(_t129*_t179 + _t136*_t180 + _t166*_t176)
+                qd[6 * (start + i) + 4] = ((_t173) ? (
+   _t144*(_t121*_t171 + _t128*_t172 + _t158*_t168)
 )
 : (
-   -_t182*(-_s8[i]*_t129*_t172 + _s8[i]*_t147*_t175 - _s9[i]*_t116*_t164)
+   -_t174*(-_s5[i]*_t121*_t164 + _s5[i]*_t139*_t167 - _s6[i]*_t108*_t156)
 ));
-                qd[6 * (start + i) + 5] = ((_t181) ? (
-   _t152*(_t117*_t176 + _t132*_t179 + _t137*_t180)
+                qd[6 * (start + i) + 5] = ((_t173) ? (
+   _t144*(_t109*_t168 + _t124*_t171 + _t129*_t172)
 )
 : (
-   -_t182*(_t139*_t172 + _t145*_t175 + _t164*_t165)
+   -_t174*(_t131*_t164 + _t137*_t167 + _t156*_t157)
 ));
-                singular[1 * (start + i) + 0] = _t100 || _t181;
+                singular[1 * (start + i) + 0] = _t173 || _t92;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -7293,34 +7242,28 @@ void puma560_joint_acceleration(const double *restrict q, const double *restrict
     const double d4 = params->d4;
     const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
     const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
-    const double _t2 = (a2*a2);
-    const double _t17 = 1.0/(_t0*_t0);
-    const double _t41 = 1.0/(_t0*_t0*_t0*_t0);
-    const double _t42 = a3*d4;
-    const double _t44 = (a3*a3);
-    const double _t46 = (d4*d4);
-    const double _t58 = (0.25)*_t2*_t41;
-    const double _t80 = 1.0/_t0;
-    const double _t114 = (0.5)*a2;
-    const double _t6 = q2 + q3;
-    const double _t51 = q1 + q3;
-    const double _t54 = q1 - q3;
-    const double _t64 = 2*q2 + 2*q3;
-    const double _t65 = _t64 + q1;
-    const double _t66 = _t64 - q1;
-    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5, _s6, _c6, _s7, _c7, _s8, _c8, _s9, _c9, _s10, _c10;
+    const double _t12 = (a2*a2);
+    const double _t18 = 1.0/(_t0*_t0);
+    const double _t43 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t45 = a3*d4;
+    const double _t46 = (a3*a3);
+    const double _t49 = (d4*d4);
+    const double _t73 = 1.0/_t0;
+    const double _t4 = q2 + q3;
+    const double _t52 = 2*q2 + q3;
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5, _s6, _c6, _s7, _c7;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[12] = { q3, q2, _t6, q1, _t51, _t54, _t65, _t66, q5, q4, q6, 0.0 };
-        double sine[12], cosine[12];
+        const double angle[8] = { q2, _t4, q3, q1, _t52, q5, q4, q6,  };
+        double sine[8], cosine[8];
         int k;
         KINEGEN_VECTOR_LOOP
-        for (k = 0; k < 12; ++k) {
+        for (k = 0; k < 8; ++k) {
             sine[k] = sin(angle[k]);
         }
         KINEGEN_VECTOR_LOOP
-        for (k = 0; k < 12; ++k) {
+        for (k = 0; k < 8; ++k) {
             cosine[k] = cos(angle[k]);
         }
         _s0 = sine[0];
@@ -7339,246 +7282,237 @@ void puma560_joint_acceleration(const double *restrict q, const double *restrict
         _c6 = cosine[6];
         _s7 = sine[7];
         _c7 = cosine[7];
-        _s8 = sine[8];
-        _c8 = cosine[8];
-        _s9 = sine[9];
-        _c9 = cosine[9];
-        _s10 = sine[10];
-        _c10 = cosine[10];
     }
 #else
-    _s0 = sin(q3);
-    _c0 = cos(q3);
-    _s1 = sin(q2);
-    _c1 = cos(q2);
-    _s2 = sin(_t6);
-    _c2 = cos(_t6);
+    _s0 = sin(q2);
+    _c0 = cos(q2);
+    _s1 = sin(_t4);
+    _c1 = cos(_t4);
+    _s2 = sin(q3);
+    _c2 = cos(q3);
     _s3 = sin(q1);
     _c3 = cos(q1);
-    _s4 = sin(_t51);
-    _c4 = cos(_t51);
-    _s5 = sin(_t54);
-    _c5 = cos(_t54);
-    _s6 = sin(_t65);
-    _c6 = cos(_t65);
-    _s7 = sin(_t66);
-    _c7 = cos(_t66);
-    _s8 = sin(q5);
-    _c8 = cos(q5);
-    _s9 = sin(q4);
-    _c9 = cos(q4);
-    _s10 = sin(q6);
-    _c10 = cos(q6);
+    _s4 = sin(_t52);
+    _c4 = cos(_t52);
+    _s5 = sin(q5);
+    _c5 = cos(q5);
+    _s6 = sin(q4);
+    _c6 = cos(q4);
+    _s7 = sin(q6);
+    _c7 = cos(q6);
 #endif
-    const double _t3 = _c0*d4 + _s0*a3;
-    const double _t5 = _c1*a2;
-    const double _t8 = _c2*a3;
-    const double _t10 = _s2*d4;
-    const double _t11 = -_t10 + _t8;
-    const double _t12 = _t11 + _t5;
-    const double _t13 = (_t12*_t12);
-    const double _t14 = _t13*_t2*(_t3*_t3);
-    const double _t15 = _t14/_t1;
-    const double _t16 = kinegen_max(0, 1 - 1000000*_t15);
-    const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
-    const double _t19 = (1e-08)*(_t16*_t16);
-    const double _t20 = _s2*a3;
-    const double _t21 = _c2*d4;
-    const double _t22 = _t20 + _t21;
-    const double _t23 = (_t22*_t22);
-    const double _t25 = (_s3*_s3);
-    const double _t26 = _t17*_t25;
-    const double _t28 = _s1*a2;
-    const double _t29 = _t22 + _t28;
-    const double _t30 = (_t29*_t29);
-    const double _t31 = _s3*d3;
-    const double _t33 = _c3*_t5;
-    const double _t34 = -_c3*_t10 + _c3*_t8 + _t31 + _t33;
-    const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
-    const double _t36 = (_c3*_c3);
-    const double _t37 = _t17*_t36;
-    const double _t38 = _s3*_t5;
-    const double _t39 = _c3*d3 + _s2*_s3*d4 - _s3*_t8 - _t38;
-    const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
-    const double _t43 = (_s2*_s2);
-    const double _t45 = _c2*_s2;
-    const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
-    const double _t48 = _c1*_s1*_t2 - _t10*_t28 + _t28*_t8 + _t47;
-    const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
-    const double _t50 = (0.0001)*_t16;
-    const double _t57 = -_c4*a3 + _c5*a3 + _s4*d4 + _s5*d4;
-    const double _t59 = _t33*_t8;
-    const double _t60 = _t10*_t33;
-    const double _t61 = (_c2*_c2);
-    const double _t62 = _t44*_t61;
-    const double _t63 = _t43*_t46;
-    const double _t67 = _c3*_t62 + _c3*_t63 - _t10*_t31 + _t31*_t8 - 0.5*_t42*(_s6 + _s7);
-    const double _t68 = _t59 - _t60 + _t67;
-    const double _t69 = (_c1*_c1)*_t2;
-    const double _t70 = _c3*_t69 + _t31*_t5 + 2*_t59 - 2*_t60 + _t67;
-    const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
-    const double _t72 = -_c4*d4 - _c5*d4 - _s4*a3 + _s5*a3;
-    const double _t73 = _t38*_t8;
-    const double _t74 = -_c2*_c3*a3*d3 + _c3*_t10*d3 + _s3*_t62 + _s3*_t63 - 0.5*a3*d4*(-_c6 + _c7);
-    const double _t75 = _c1*_s2*_s3*a2*d4 - _t73 - _t74;
-    const double _t76 = -_c1*_c3*a2*d3 - 2*_c1*_s2*_s3*a2*d4 + _s3*_t69 + 2*_t73 + _t74;
-    const double _t77 = -_t76;
-    const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
-    const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
-    const double _t81 = _c3*_t17;
-    const double _t82 = _t11*_t22;
-    const double _t83 = _t12*_t29;
-    const double _t84 = _t41*_t68;
-    const double _t85 = _t41*_t70;
-    const double _t86 = _t47*_t84 + _t48*_t85 - _t50*(-_t81*_t82 - _t81*_t83);
-    const double _t87 = -_t22;
-    const double _t88 = _t87*qd3;
-    const double _t89 = -qd2*(-_t29*qd2 + _t88) - qd3*(_t87*qd2 + _t88) + xdd_z;
-    const double _t90 = _t80*_t89;
-    const double _t91 = _t18*_t50;
-    const double _t92 = _t19 + _t35*_t50;
-    const double _t93 = _c3*qd2;
-    const double _t94 = _t11*qd3;
-    const double _t95 = _c3*_t94;
-    const double _t96 = _s3*_t20 + _s3*_t21;
-    const double _t97 = -qd1*(-_t34*qd1 + _t96*qd3 + qd2*(_s3*_t28 + _t96)) - qd2*(_s3*_t29*qd1 - _t12*_t93 - _t95) - qd3*(_s3*_t22*qd1 - _t11*_t93 - _t95) + xdd_x;
-    const double _t98 = _t80*_t97;
-    const double _t99 = _c3*_s3;
-    const double _t100 = _t17*_t99;
-    const double _t101 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t100*_t23 + _t100*_t30 + _t17*_t34*_t39) - _t75*_t84 - _t77*_t85;
-    const double _t102 = _c3*qd1;
-    const double _t103 = _s3*qd2;
-    const double _t104 = _s3*_t94;
-    const double _t105 = _c3*_t20 + _c3*_t21;
-    const double _t106 = -qd1*(-_t105*qd3 + _t39*qd1 + qd2*(-_c3*_t28 - _t105)) - qd2*(-_t102*_t29 - _t103*_t12 - _t104) - qd3*(-_t102*_t22 - _t103*_t11 - _t104) + xdd_y;
-    const double _t107 = _t106*_t80;
-    const double _t108 = _t80*(_t101*_t107 + _t86*_t90 + _t98*(_t71 + _t91 + _t92));
-    const double _t109 = _s3*_t17;
-    const double _t110 = -_t41*_t47*_t75 - _t41*_t48*_t77 - _t50*(-_t109*_t82 - _t109*_t83);
-    const double _t111 = _t40*_t50;
-    const double _t112 = _t80*(_t101*_t98 + _t107*(_t111 + _t19 + _t78 + _t91) + _t110*_t90);
-    const int _t113 = _t15 < 1e-06;
-    const double _t115 = _t12*_t3*a2/kinegen_max(_t14, (1e-06)*_t1);
-    const double _t116 = ((_t113) ? (
-   _t79*(_t108*_t39 + _t112*_t34)
+    const double _t3 = _c0*a2;
+    const double _t6 = _c1*a3;
+    const double _t8 = _s1*d4;
+    const double _t9 = _t6 - _t8;
+    const double _t10 = _t3 + _t9;
+    const double _t11 = (_t10*_t10);
+    const double _t13 = _c2*d4 + _s2*a3;
+    const double _t14 = _t12*(_t13*_t13);
+    const double _t15 = _t11*_t14;
+    const double _t16 = _t15/_t1;
+    const double _t17 = kinegen_max(0, 1 - 1000000*_t16);
+    const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
+    const double _t20 = (1e-08)*(_t17*_t17);
+    const double _t21 = _s1*a3;
+    const double _t22 = _c1*d4;
+    const double _t23 = _t21 + _t22;
+    const double _t24 = (_t23*_t23);
+    const double _t26 = (_s3*_s3);
+    const double _t27 = _t18*_t26;
+    const double _t29 = _s0*a2;
+    const double _t30 = _t23 + _t29;
+    const double _t31 = (_t30*_t30);
+    const double _t32 = _s3*d3;
+    const double _t34 = _c3*_t3;
+    const double _t35 = _c3*_t6;
+    const double _t36 = -_c3*_t8 + _t32 + _t34 + _t35;
+    const double _t37 = _t18*(_t36*_t36) + _t24*_t27 + _t27*_t31;
+    const double _t38 = (_c3*_c3);
+    const double _t39 = _t18*_t38;
+    const double _t40 = _s3*_t3;
+    const double _t41 = _c3*d3 + _s1*_s3*d4 - _s3*_t6 - _t40;
+    const double _t42 = _t18*(_t41*_t41) + _t24*_t39 + _t31*_t39;
+    const double _t44 = (_c1*_c1);
+    const double _t47 = _c1*_s1;
+    const double _t48 = (_s1*_s1);
+    const double _t50 = _t44*_t45 - _t45*_t48 + _t46*_t47 - _t47*_t49;
+    const double _t51 = _t21*_t3 + _t22*_t3 + _t50;
+    const double _t53 = _c0*_s0*_t12 + _c4*a2*d4 + _s4*a2*a3 + _t50;
+    const double _t54 = _t43*(_t51*_t51) + _t43*(_t53*_t53);
+    const double _t55 = (0.0001)*_t17;
+    const double _t56 = _t14*_t43;
+    const double _t57 = _t34*_t6;
+    const double _t58 = _t34*_t8;
+    const double _t59 = _t44*_t46;
+    const double _t60 = _t48*_t49;
+    const double _t61 = _c3*_t59 + _c3*_t60 + _t32*_t6 - _t32*_t8 - 2*_t35*_t8;
+    const double _t62 = _t57 - _t58 + _t61;
+    const double _t63 = (_c0*_c0)*_t12;
+    const double _t64 = _c3*_t63 + _t3*_t32 + 2*_t57 - 2*_t58 + _t61;
+    const double _t65 = _t26*_t56 + _t43*(_t62*_t62) + _t43*(_t64*_t64);
+    const double _t66 = _t40*_t6;
+    const double _t67 = -_c1*_c3*a3*d3 - 2*_c1*_s1*_s3*a3*d4 + _c3*_t8*d3 + _s3*_t59 + _s3*_t60;
+    const double _t68 = _c0*_s1*_s3*a2*d4 - _t66 - _t67;
+    const double _t69 = -_c0*_c3*a2*d3 - 2*_c0*_s1*_s3*a2*d4 + _s3*_t63 + 2*_t66 + _t67;
+    const double _t70 = -_t69;
+    const double _t71 = _t38*_t56 + _t43*(_t68*_t68) + _t43*(_t70*_t70);
+    const double _t72 = 1.0/(_t16 + (1e-12)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t37 + _t20*_t42 + _t54*_t55 + _t55*_t65 + _t55*_t71);
+    const double _t74 = _c3*_t18;
+    const double _t75 = _t23*_t9;
+    const double _t76 = _t10*_t30;
+    const double _t77 = _t43*_t62;
+    const double _t78 = _t43*_t64;
+    const double _t79 = _t51*_t77 + _t53*_t78 - _t55*(-_t74*_t75 - _t74*_t76);
+    const double _t80 = -_t23;
+    const double _t81 = _t80*qd3;
+    const double _t82 = -qd2*(-_t30*qd2 + _t81) - qd3*(_t80*qd2 + _t81) + xdd_z;
+    const double _t83 = _t73*_t82;
+    const double _t84 = _t19*_t55;
+    const double _t85 = _t20 + _t37*_t55;
+    const double _t86 = _c3*qd2;
+    const double _t87 = _t9*qd3;
+    const double _t88 = _c3*_t87;
+    const double _t89 = _s3*_t21 + _s3*_t22;
+    const double _t90 = -qd1*(-_t36*qd1 + _t89*qd3 + qd2*(_s3*_t29 + _t89)) - qd2*(_s3*_t30*qd1 - _t10*_t86 - _t88) - qd3*(_s3*_t23*qd1 - _t86*_t9 - _t88) + xdd_x;
+    const double _t91 = _t73*_t90;
+    const double _t92 = _c3*_s3;
+    const double _t93 = _t18*_t92;
+    const double _t94 = -_t55*(_t18*_t36*_t41 + _t24*_t93 + _t31*_t93) - _t56*_t92 - _t68*_t77 - _t70*_t78;
+    const double _t95 = _c3*qd1;
+    const double _t96 = _s3*qd2;
+    const double _t97 = _s3*_t87;
+    const double _t98 = _c3*_t21 + _c3*_t22;
+    const double _t99 = -qd1*(_t41*qd1 - _t98*qd3 + qd2*(-_c3*_t29 - _t98)) - qd2*(-_t10*_t96 - _t30*_t95 - _t97) - qd3*(-_t23*_t95 - _t9*_t96 - _t97) + xdd_y;
+    const double _t100 = _t73*_t99;
+    const double _t101 = _t73*(_t100*_t94 + _t79*_t83 + _t91*(_t65 + _t84 + _t85));
+    const double _t102 = _s3*_t18;
+    const double _t103 = -_t43*_t51*_t68 - _t43*_t53*_t70 - _t55*(-_t102*_t75 - _t102*_t76);
+    const double _t104 = _t42*_t55;
+    const double _t105 = _t73*(_t100*(_t104 + _t20 + _t71 + _t84) + _t103*_t83 + _t91*_t94);
+    const int _t106 = _t16 < 1e-06;
+    const double _t107 = _t13*a2;
+    const double _t108 = _t10*_t107/kinegen_max(_t15, (1e-06)*_t1);
+    const double _t109 = ((_t106) ? (
+   _t72*(_t101*_t41 + _t105*_t36)
 )
 : (
-   -_t115*(_t106*_t114*_t72 + _t114*_t57*_t97)
+   -_t108*(-_c3*_t107*_t99 + _s3*_t13*_t90*a2)
 ));
-    const double _t117 = _t107*_t110 + _t86*_t98 + _t90*(_t111 + _t49 + _t92);
-    const double _t118 = _c3*_t108;
-    const double _t119 = _s3*_t112;
-    const double _t120 = ((_t113) ? (
-   _t79*(_t117*_t12*_t80 - _t118*_t29 - _t119*_t29)
+    const double _t110 = _t100*_t103 + _t79*_t91 + _t83*(_t104 + _t54 + _t85);
+    const double _t111 = _c3*_t101;
+    const double _t112 = _s3*_t105;
+    const double _t113 = ((_t106) ? (
+   _t72*(_t10*_t110*_t73 - _t111*_t30 - _t112*_t30)
 )
 : (
-   -_t115*(_t106*_t75 - _t47*_t89 - _t68*_t97)
+   -_t108*(-_t51*_t82 - _t62*_t90 + _t68*_t99)
 ));
-    const double _t121 = ((_t113) ? (
-   _t79*(_t11*_t117*_t80 - _t118*_t22 - _t119*_t22)
+    const double _t114 = ((_t106) ? (
+   _t72*(_t110*_t73*_t9 - _t111*_t23 - _t112*_t23)
 )
 : (
-   -_t115*(_t106*_t76 + _t48*_t89 + _t70*_t97)
+   -_t108*(_t53*_t82 + _t64*_t90 + _t69*_t99)
 ));
-    const double _t123 = (_s8*_s8);
-    const double _t124 = kinegen_max(0, 1 - 1000000*_t123);
-    const double _t126 = (_s9*_s9)*_t43;
-    const double _t129 = _s2*_s8;
-    const double _t130 = _c2*_c8 - _c9*_t129;
-    const double _t131 = _t126 + (_t130*_t130) + _t61;
-    const double _t132 = (1e-08)*(_t124*_t124);
-    const double _t133 = _c2*_s8;
-    const double _t134 = _c8*_s2;
-    const double _t135 = _c9*_t134;
-    const double _t136 = -_t133 - _t135;
-    const double _t137 = (_c9*_c9)*_t43 + _t123*_t126 + (_t136*_t136);
-    const double _t138 = (0.0001)*_t124;
-    const double _t139 = _c9*_s3;
-    const double _t140 = _c3*_s9;
-    const double _t141 = _c2*_t140;
-    const double _t142 = _t139 + _t141;
-    const double _t143 = (_t142*_t142);
-    const double _t144 = _c3*_c9;
-    const double _t145 = -_c3*_t134 + _s3*_s8*_s9 - _t133*_t144;
-    const double _t146 = _t143 + (_t145*_t145) + _t36*_t43;
-    const double _t147 = _s3*_s9;
-    const double _t148 = _c2*_t147;
-    const double _t149 = -_c3*_c9 + _t148;
-    const double _t150 = _s3*_t134 + _s8*_t140 + _t133*_t139;
-    const double _t151 = -_t150;
-    const double _t152 = (_t149*_t149) + (_t151*_t151) + _t25*_t43;
-    const double _t153 = _c2*_c3*_c9 - _t147;
-    const double _t154 = _c8*_t147;
-    const double _t155 = _c3*_t129;
-    const double _t156 = _c2*_c8;
-    const double _t157 = -_t144*_t156 + _t154 + _t155;
-    const double _t158 = _t123*_t143 + (_t153*_t153) + (_t157*_t157);
-    const double _t159 = _c2*_t139 + _t140;
-    const double _t160 = -_t159;
-    const double _t161 = -_t149;
-    const double _t162 = _c8*_t140;
-    const double _t163 = _s3*_t129;
-    const double _t164 = _t139*_t156 + _t162 - _t163;
-    const double _t165 = _t123*(_t161*_t161) + (_t160*_t160) + (_t164*_t164);
-    const double _t166 = 1.0/(_t123 + (1e-12)*(_t124*_t124*_t124) + _t131*_t132 + _t132*_t146 + _t132*_t152 + _t137*_t138 + _t138*_t158 + _t138*_t165);
-    const double _t167 = _t138*_t146;
-    const double _t168 = _t132 + _t138*_t152;
-    const double _t169 = _s2*qd2;
-    const double _t170 = _s2*qd3;
-    const double _t171 = _c2*qd3;
-    const double _t172 = _c9*_s2;
-    const double _t174 = _s10*_t144;
-    const double _t176 = _c10*_t139;
-    const double _t177 = _c10*_t162 - _c10*_t163 - _s10*_t148 + _t156*_t176 + _t174;
-    const double _t178 = _s10*_t139;
-    const double _t179 = _c10*_c3*_c9 - _c10*_t148 + _s10*_s2*_s3*_s8 - _s10*_t162 - _t156*_t178;
-    const double _t180 = -_c10*_t141 + _c3*_s10*_s2*_s8 + _c8*_s10*_s3*_s9 - _t156*_t174 - _t176;
-    const double _t181 = _c10*_c2*_c3*_c8*_c9 - _c10*_t154 - _c10*_t155 - _s10*_t141 - _t178;
-    const double _t182 = _s9*_t129;
-    const double _t183 = -_c9*_t133 - _t134;
-    const double _t184 = -_t116 + (0.5)*_t145*xdd_r23 - 0.5*_t151*xdd_r13 - 0.5*_t177*xdd_r11 - 0.5*_t179*xdd_r12 + (0.5)*_t180*xdd_r22 + (0.5)*_t181*xdd_r21 - qd4*(-_t169 - _t170) - qd5*(_c2*_s9*qd2 + _s9*_t171 + _t172*qd4) - qd6*(_t136*qd5 + _t182*qd4 + _t183*qd2 + _t183*qd3);
-    const double _t185 = _s2*_s9;
-    const double _t186 = _t142*_t185;
-    const double _t187 = _t123*_t186 + _t136*_t157 - _t138*(-_c3*_t45 + _t130*_t145 + _t186) + _t153*_t172;
-    const double _t188 = _c10*_t133 + _c10*_t135 - _s10*_t185;
-    const double _t189 = -_c10*_t185 - _s10*_t133 - _s10*_t135;
-    const double _t190 = -_c3*_t156 + _t129*_t144;
-    const double _t191 = -_s3*_t120 - _s3*_t121 - _t102*qd3 - 0.5*_t130*xdd_r23 + (0.5)*_t151*xdd_r33 + (0.5)*_t177*xdd_r31 + (0.5)*_t179*xdd_r32 - 0.5*_t188*xdd_r21 - 0.5*_t189*xdd_r22 - _t93*qd1 - qd4*(-_c2*_t93 - _c3*_t171 + _s2*_s3*qd1) - qd5*(-_t140*_t169 - _t140*_t170 + _t153*qd4 + _t161*qd1) - qd6*(_t150*qd1 + _t157*qd5 + _t190*qd2 + _t190*qd3 + qd4*(_s8*_t139 + _t133*_t140));
-    const double _t192 = _t123*_t161;
-    const double _t193 = -_t136*_t164 - _t138*(-_s3*_t45 + _t130*_t151 + _t149*_t185) - _t160*_t172 - _t185*_t192;
-    const double _t194 = _s3*qd1;
-    const double _t195 = -_s3*_t156 + _t129*_t139;
-    const double _t196 = -_t164;
-    const double _t197 = _c3*_t120 + _c3*_t121 + (0.5)*_t130*xdd_r13 - 0.5*_t145*xdd_r33 - 0.5*_t180*xdd_r32 - 0.5*_t181*xdd_r31 + (0.5)*_t188*xdd_r11 + (0.5)*_t189*xdd_r12 - _t194*qd2 - _t194*qd3 - qd4*(-_c2*_t103 - _s2*_t102 - _s3*_t171) - qd5*(_t142*qd1 - _t147*_t169 - _t147*_t170 + _t159*qd4) - qd6*(_t145*qd1 + _t195*qd2 + _t195*qd3 + _t196*qd5 + qd4*(-_s8*_t144 + _t133*_t147));
-    const double _t198 = _t184*(_t137 + _t167 + _t168) + _t187*_t191 + _t193*_t197;
-    const double _t199 = _t131*_t138;
-    const double _t200 = -_t138*(_t142*_t149 + _t145*_t151 + _t43*_t99) - _t142*_t192 - _t153*_t160 - _t157*_t164;
-    const double _t201 = _t184*_t187 + _t191*(_t158 + _t168 + _t199) + _t197*_t200;
-    const double _t202 = _t184*_t193 + _t191*_t200 + _t197*(_t132 + _t165 + _t167 + _t199);
-    const int _t203 = _t123 < 1e-06;
-    const double _t204 = _s8/kinegen_max(1e-06, _t123);
-    qdd[0] = _t116;
-    qdd[1] = _t120;
-    qdd[2] = _t121;
-    qdd[3] = ((_t203) ? (
-   _t166*(_c2*_t198 - _c3*_s2*_t201 - _s2*_s3*_t202)
+    const double _t116 = (_s5*_s5);
+    const double _t117 = kinegen_max(0, 1 - 1000000*_t116);
+    const double _t119 = (_s6*_s6)*_t48;
+    const double _t122 = _s1*_s5;
+    const double _t123 = _c1*_c5 - _c6*_t122;
+    const double _t124 = _t119 + (_t123*_t123) + _t44;
+    const double _t125 = (1e-08)*(_t117*_t117);
+    const double _t126 = _c1*_s5;
+    const double _t127 = _c5*_s1;
+    const double _t128 = _c6*_t127;
+    const double _t129 = -_t126 - _t128;
+    const double _t130 = (_c6*_c6)*_t48 + _t116*_t119 + (_t129*_t129);
+    const double _t131 = (0.0001)*_t117;
+    const double _t132 = _c6*_s3;
+    const double _t133 = _c3*_s6;
+    const double _t134 = _c1*_t133;
+    const double _t135 = _t132 + _t134;
+    const double _t136 = (_t135*_t135);
+    const double _t137 = _c3*_c6;
+    const double _t138 = -_c3*_t127 + _s3*_s5*_s6 - _t126*_t137;
+    const double _t139 = _t136 + (_t138*_t138) + _t38*_t48;
+    const double _t140 = _s3*_s6;
+    const double _t141 = _c1*_t140;
+    const double _t142 = -_c3*_c6 + _t141;
+    const double _t143 = _s3*_t127 + _s5*_t133 + _t126*_t132;
+    const double _t144 = -_t143;
+    const double _t145 = (_t142*_t142) + (_t144*_t144) + _t26*_t48;
+    const double _t146 = _c1*_c3*_c6 - _t140;
+    const double _t147 = _c5*_t140;
+    const double _t148 = _c3*_t122;
+    const double _t149 = _c1*_c5;
+    const double _t150 = -_t137*_t149 + _t147 + _t148;
+    const double _t151 = _t116*_t136 + (_t146*_t146) + (_t150*_t150);
+    const double _t152 = _c1*_t132 + _t133;
+    const double _t153 = -_t152;
+    const double _t154 = -_t142;
+    const double _t155 = _c5*_t133;
+    const double _t156 = _s3*_t122;
+    const double _t157 = _t132*_t149 + _t155 - _t156;
+    const double _t158 = _t116*(_t154*_t154) + (_t153*_t153) + (_t157*_t157);
+    const double _t159 = 1.0/(_t116 + (1e-12)*(_t117*_t117*_t117) + _t124*_t125 + _t125*_t139 + _t125*_t145 + _t130*_t131 + _t131*_t151 + _t131*_t158);
+    const double _t160 = _t131*_t139;
+    const double _t161 = _t125 + _t131*_t145;
+    const double _t162 = _s1*qd2;
+    const double _t163 = _s1*qd3;
+    const double _t164 = _c1*qd3;
+    const double _t165 = _c6*_s1;
+    const double _t167 = _s7*_t137;
+    const double _t169 = _c7*_t132;
+    const double _t170 = _c7*_t155 - _c7*_t156 - _s7*_t141 + _t149*_t169 + _t167;
+    const double _t171 = _s7*_t132;
+    const double _t172 = _c3*_c6*_c7 - _c7*_t141 + _s1*_s3*_s5*_s7 - _s7*_t155 - _t149*_t171;
+    const double _t173 = _c3*_s1*_s5*_s7 + _c5*_s3*_s6*_s7 - _c7*_t134 - _t149*_t167 - _t169;
+    const double _t174 = _c1*_c3*_c5*_c6*_c7 - _c7*_t147 - _c7*_t148 - _s7*_t134 - _t171;
+    const double _t175 = _s6*_t122;
+    const double _t176 = -_c6*_t126 - _t127;
+    const double _t177 = -_t109 + (0.5)*_t138*xdd_r23 - 0.5*_t144*xdd_r13 - 0.5*_t170*xdd_r11 - 0.5*_t172*xdd_r12 + (0.5)*_t173*xdd_r22 + (0.5)*_t174*xdd_r21 - qd4*(-_t162 - _t163) - qd5*(_c1*_s6*qd2 + _s6*_t164 + _t165*qd4) - qd6*(_t129*qd5 + _t175*qd4 + _t176*qd2 + _t176*qd3);
+    const double _t178 = _s1*_s6;
+    const double _t179 = _t135*_t178;
+    const double _t180 = _t116*_t179 + _t129*_t150 - _t131*(-_c3*_t47 + _t123*_t138 + _t179) + _t146*_t165;
+    const double _t181 = _c7*_t126 + _c7*_t128 - _s7*_t178;
+    const double _t182 = -_c7*_t178 - _s7*_t126 - _s7*_t128;
+    const double _t183 = -_c3*_t149 + _t122*_t137;
+    const double _t184 = -_s3*_t113 - _s3*_t114 - 0.5*_t123*xdd_r23 + (0.5)*_t144*xdd_r33 + (0.5)*_t170*xdd_r31 + (0.5)*_t172*xdd_r32 - 0.5*_t181*xdd_r21 - 0.5*_t182*xdd_r22 - _t86*qd1 - _t95*qd3 - qd4*(-_c1*_t86 - _c3*_t164 + _s1*_s3*qd1) - qd5*(-_t133*_t162 - _t133*_t163 + _t146*qd4 + _t154*qd1) - qd6*(_t143*qd1 + _t150*qd5 + _t183*qd2 + _t183*qd3 + qd4*(_s5*_t132 + _t126*_t133));
+    const double _t185 = _t116*_t154;
+    const double _t186 = -_t129*_t157 - _t131*(-_s3*_t47 + _t123*_t144 + _t142*_t178) - _t153*_t165 - _t178*_t185;
+    const double _t187 = _s3*qd1;
+    const double _t188 = -_s3*_t149 + _t122*_t132;
+    const double _t189 = -_t157;
+    const double _t190 = _c3*_t113 + _c3*_t114 + (0.5)*_t123*xdd_r13 - 0.5*_t138*xdd_r33 - 0.5*_t173*xdd_r32 - 0.5*_t174*xdd_r31 + (0.5)*_t181*xdd_r11 + (0.5)*_t182*xdd_r12 - _t187*qd2 - _t187*qd3 - qd4*(-_c1*_t96 - _s1*_t95 - _s3*_t164) - qd5*(_t135*qd1 - _t140*_t162 - _t140*_t163 + _t152*qd4) - qd6*(_t138*qd1 + _t188*qd2 + _t188*qd3 + _t189*qd5 + qd4*(-_s5*_t137 + _t126*_t140));
+    const double _t191 = _t177*(_t130 + _t160 + _t161) + _t180*_t184 + _t186*_t190;
+    const double _t192 = _t124*_t131;
+    const double _t193 = -_t131*(_t135*_t142 + _t138*_t144 + _t48*_t92) - _t135*_t185 - _t146*_t153 - _t150*_t157;
+    const double _t194 = _t177*_t180 + _t184*(_t151 + _t161 + _t192) + _t190*_t193;
+    const double _t195 = _t177*_t186 + _t184*_t193 + _t190*(_t125 + _t158 + _t160 + _t192);
+    const int _t196 = _t116 < 1e-06;
+    const double _t197 = _s5/kinegen_max(1e-06, _t116);
+    qdd[0] = _t109;
+    qdd[1] = _t113;
+    qdd[2] = _t114;
+    qdd[3] = ((_t196) ? (
+   _t159*(_c1*_t191 - _c3*_s1*_t194 - _s1*_s3*_t195)
 )
 : (
-   -_t204*(_t136*_t184 + _t157*_t191 + _t196*_t197)
+   -_t197*(_t129*_t177 + _t150*_t184 + _t189*_t190)
 ));
-    qdd[4] = ((_t203) ? (
-   _t166*(_t142*_t201 + _t149*_t202 + _t185*_t198)
+    qdd[4] = ((_t196) ? (
+   _t159*(_t135*_t194 + _t142*_t195 + _t178*_t191)
 )
 : (
-   -_t204*(-_s8*_t142*_t191 + _s8*_t161*_t197 - _t182*_t184)
+   -_t197*(-_s5*_t135*_t184 + _s5*_t154*_t190 - _t175*_t177)
 ));
-    qdd[5] = ((_t203) ? (
-   _t166*(_t130*_t198 + _t145*_t201 + _t151*_t202)
+    qdd[5] = ((_t196) ? (
+   _t159*(_t123*_t191 + _t138*_t194 + _t144*_t195)
 )
 : (
-   -_t204*(_t153*_t191 + _t159*_t197 + _t172*_t184)
+   -_t197*(_t146*_t184 + _t152*_t190 + _t165*_t177)
 ));
-    singular[0] = _t113 || _t203;
+    singular[0] = _t106 || _t196;
 }
 
 /* joint_acceleration of `count` items, stored one after the other in each argument and output. */
@@ -7609,11 +7543,8 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
     double xdd_r31[KINEGEN_BLOCK_OF(64)];
     double xdd_r32[KINEGEN_BLOCK_OF(64)];
     double xdd_r33[KINEGEN_BLOCK_OF(64)];
-    double _t6[KINEGEN_BLOCK_OF(64)];
-    double _t51[KINEGEN_BLOCK_OF(64)];
-    double _t54[KINEGEN_BLOCK_OF(64)];
-    double _t65[KINEGEN_BLOCK_OF(64)];
-    double _t66[KINEGEN_BLOCK_OF(64)];
+    double _t4[KINEGEN_BLOCK_OF(64)];
+    double _t52[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
@@ -7630,12 +7561,6 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
     double _c6[KINEGEN_BLOCK_OF(64)];
     double _s7[KINEGEN_BLOCK_OF(64)];
     double _c7[KINEGEN_BLOCK_OF(64)];
-    double _s8[KINEGEN_BLOCK_OF(64)];
-    double _c8[KINEGEN_BLOCK_OF(64)];
-    double _s9[KINEGEN_BLOCK_OF(64)];
-    double _c9[KINEGEN_BLOCK_OF(64)];
-    double _s10[KINEGEN_BLOCK_OF(64)];
-    double _c10[KINEGEN_BLOCK_OF(64)];
 #ifdef KINEGEN_STREAM
     double _qdd_block[6][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
@@ -7652,15 +7577,13 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
     const double d4 = params->d4;
     const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
     const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
-    const double _t2 = (a2*a2);
-    const double _t17 = 1.0/(_t0*_t0);
-    const double _t41 = 1.0/(_t0*_t0*_t0*_t0);
-    const double _t42 = a3*d4;
-    const double _t44 = (a3*a3);
-    const double _t46 = (d4*d4);
-    const double _t58 = (0.25)*_t2*_t41;
-    const double _t80 = 1.0/_t0;
-    const double _t114 = (0.5)*a2;
+    const double _t12 = (a2*a2);
+    const double _t18 = 1.0/(_t0*_t0);
+    const double _t43 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t45 = a3*d4;
+    const double _t46 = (a3*a3);
+    const double _t49 = (d4*d4);
+    const double _t73 = 1.0/_t0;
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
@@ -7691,36 +7614,32 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t6[i] = q2[i] + q3[i];
-            _t51[i] = q1[i] + q3[i];
-            _t54[i] = q1[i] - q3[i];
-            const double _t64 = 2*q2[i] + 2*q3[i];
-            _t65[i] = _t64 + q1[i];
-            _t66[i] = _t64 - q1[i];
+            _t4[i] = q2[i] + q3[i];
+            _t52[i] = 2*q2[i] + q3[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s0[i] = sin(q3[i]);
+            _s0[i] = sin(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c0[i] = cos(q3[i]);
+            _c0[i] = cos(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s1[i] = sin(q2[i]);
+            _s1[i] = sin(_t4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c1[i] = cos(q2[i]);
+            _c1[i] = cos(_t4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s2[i] = sin(_t6[i]);
+            _s2[i] = sin(q3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(_t6[i]);
+            _c2[i] = cos(q3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -7732,488 +7651,470 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s4[i] = sin(_t51[i]);
+            _s4[i] = sin(_t52[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c4[i] = cos(_t51[i]);
+            _c4[i] = cos(_t52[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s5[i] = sin(_t54[i]);
+            _s5[i] = sin(q5[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c5[i] = cos(_t54[i]);
+            _c5[i] = cos(q5[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s6[i] = sin(_t65[i]);
+            _s6[i] = sin(q4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c6[i] = cos(_t65[i]);
+            _c6[i] = cos(q4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s7[i] = sin(_t66[i]);
+            _s7[i] = sin(q6[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c7[i] = cos(_t66[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _s8[i] = sin(q5[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _c8[i] = cos(q5[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _s9[i] = sin(q4[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _c9[i] = cos(q4[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _s10[i] = sin(q6[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _c10[i] = cos(q6[i]);
+            _c7[i] = cos(q6[i]);
         }
 #ifdef KINEGEN_STREAM
         if (stream) {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t3 = _c0[i]*d4 + _s0[i]*a3;
-                const double _t5 = _c1[i]*a2;
-                const double _t8 = _c2[i]*a3;
-                const double _t10 = _s2[i]*d4;
-                const double _t11 = -_t10 + _t8;
-                const double _t12 = _t11 + _t5;
-                const double _t13 = (_t12*_t12);
-                const double _t14 = _t13*_t2*(_t3*_t3);
-                const double _t15 = _t14/_t1;
-                const double _t16 = kinegen_max(0, 1 - 1000000*_t15);
-                const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
-                const double _t19 = (1e-08)*(_t16*_t16);
-                const double _t20 = _s2[i]*a3;
-                const double _t21 = _c2[i]*d4;
-                const double _t22 = _t20 + _t21;
-                const double _t23 = (_t22*_t22);
-                const double _t25 = (_s3[i]*_s3[i]);
-                const double _t26 = _t17*_t25;
-                const double _t28 = _s1[i]*a2;
-                const double _t29 = _t22 + _t28;
-                const double _t30 = (_t29*_t29);
-                const double _t31 = _s3[i]*d3;
-                const double _t33 = _c3[i]*_t5;
-                const double _t34 = -_c3[i]*_t10 + _c3[i]*_t8 + _t31 + _t33;
-                const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
-                const double _t36 = (_c3[i]*_c3[i]);
-                const double _t37 = _t17*_t36;
-                const double _t38 = _s3[i]*_t5;
-                const double _t39 = _c3[i]*d3 + _s2[i]*_s3[i]*d4 - _s3[i]*_t8 - _t38;
-                const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
-                const double _t43 = (_s2[i]*_s2[i]);
-                const double _t45 = _c2[i]*_s2[i];
-                const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
-                const double _t48 = _c1[i]*_s1[i]*_t2 - _t10*_t28 + _t28*_t8 + _t47;
-                const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
-                const double _t50 = (0.0001)*_t16;
-                const double _t57 = -_c4[i]*a3 + _c5[i]*a3 + _s4[i]*d4 + _s5[i]*d4;
-                const double _t59 = _t33*_t8;
-                const double _t60 = _t10*_t33;
-                const double _t61 = (_c2[i]*_c2[i]);
-                const double _t62 = _t44*_t61;
-                const double _t63 = _t43*_t46;
-                const double _t67 = _c3[i]*_t62 + _c3[i]*_t63 - _t10*_t31 + _t31*_t8 - 0.5*_t42*(_s6[i] + _s7[i]);
-                const double _t68 = _t59 - _t60 + _t67;
-                const double _t69 = (_c1[i]*_c1[i])*_t2;
-                const double _t70 = _c3[i]*_t69 + _t31*_t5 + 2*_t59 - 2*_t60 + _t67;
-                const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
-                const double _t72 = -_c4[i]*d4 - _c5[i]*d4 - _s4[i]*a3 + _s5[i]*a3;
-                const double _t73 = _t38*_t8;
-                const double _t74 = -_c2[i]*_c3[i]*a3*d3 + _c3[i]*_t10*d3 + _s3[i]*_t62 + _s3[i]*_t63 - 0.5*a3*d4*(-_c6[i] + _c7[i]);
-                const double _t75 = _c1[i]*_s2[i]*_s3[i]*a2*d4 - _t73 - _t74;
-                const double _t76 = -_c1[i]*_c3[i]*a2*d3 - 2*_c1[i]*_s2[i]*_s3[i]*a2*d4 + _s3[i]*_t69 + 2*_t73 + _t74;
-                const double _t77 = -_t76;
-                const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
-                const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
-                const double _t81 = _c3[i]*_t17;
-                const double _t82 = _t11*_t22;
-                const double _t83 = _t12*_t29;
-                const double _t84 = _t41*_t68;
-                const double _t85 = _t41*_t70;
-                const double _t86 = _t47*_t84 + _t48*_t85 - _t50*(-_t81*_t82 - _t81*_t83);
-                const double _t87 = -_t22;
-                const double _t88 = _t87*qd3[i];
-                const double _t89 = -qd2[i]*(-_t29*qd2[i] + _t88) - qd3[i]*(_t87*qd2[i] + _t88) + xdd_z[i];
-                const double _t90 = _t80*_t89;
-                const double _t91 = _t18*_t50;
-                const double _t92 = _t19 + _t35*_t50;
-                const double _t93 = _c3[i]*qd2[i];
-                const double _t94 = _t11*qd3[i];
-                const double _t95 = _c3[i]*_t94;
-                const double _t96 = _s3[i]*_t20 + _s3[i]*_t21;
-                const double _t97 = -qd1[i]*(-_t34*qd1[i] + _t96*qd3[i] + qd2[i]*(_s3[i]*_t28 + _t96)) - qd2[i]*(_s3[i]*_t29*qd1[i] - _t12*_t93 - _t95) - qd3[i]*(_s3[i]*_t22*qd1[i] - _t11*_t93 - _t95) + xdd_x[i];
-                const double _t98 = _t80*_t97;
-                const double _t99 = _c3[i]*_s3[i];
-                const double _t100 = _t17*_t99;
-                const double _t101 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t100*_t23 + _t100*_t30 + _t17*_t34*_t39) - _t75*_t84 - _t77*_t85;
-                const double _t102 = _c3[i]*qd1[i];
-                const double _t103 = _s3[i]*qd2[i];
-                const double _t104 = _s3[i]*_t94;
-                const double _t105 = _c3[i]*_t20 + _c3[i]*_t21;
-                const double _t106 = -qd1[i]*(-_t105*qd3[i] + _t39*qd1[i] + qd2[i]*(-_c3[i]*_t28 - _t105)) - qd2[i]*(-_t102*_t29 - _t103*_t12 - _t104) - qd3[i]*(-_t102*_t22 - _t103*_t11 - _t104) + xdd_y[i];
-                const double _t107 = _t106*_t80;
-                const double _t108 = _t80*(_t101*_t107 + _t86*_t90 + _t98*(_t71 + _t91 + _t92));
-                const double _t109 = _s3[i]*_t17;
-                const double _t110 = -_t41*_t47*_t75 - _t41*_t48*_t77 - _t50*(-_t109*_t82 - _t109*_t83);
-                const double _t111 = _t40*_t50;
-                const double _t112 = _t80*(_t101*_t98 + _t107*(_t111 + _t19 + _t78 + _t91) + _t110*_t90);
-                const int _t113 = _t15 < 1e-06;
-                const double _t115 = _t12*_t3*a2/kinegen_max(_t14, (1e-06)*_t1);
-                const double _t116 = ((_t113) ? (
-   _t79*(_t108*_t39 + _t112*_t34)
+                const double _t3 = _c0[i]*a2;
+                const double _t6 = _c1[i]*a3;
+                const double _t8 = _s1[i]*d4;
+                const double _t9 = _t6 - _t8;
+                const double _t10 = _t3 + _t9;
+                const double _t11 = (_t10*_t10);
+                const double _t13 = _c2[i]*d4 + _s2[i]*a3;
+                const double _t14 = _t12*(_t13*_t13);
+                const double _t15 = _t11*_t14;
+                const double _t16 = _t15/_t1;
+                const double _t17 = kinegen_max(0, 1 - 1000000*_t16);
+                const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
+                const double _t20 = (1e-08)*(_t17*_t17);
+                const double _t21 = _s1[i]*a3;
+                const double _t22 = _c1[i]*d4;
+                const double _t23 = _t21 + _t22;
+                const double _t24 = (_t23*_t23);
+                const double _t26 = (_s3[i]*_s3[i]);
+                const double _t27 = _t18*_t26;
+                const double _t29 = _s0[i]*a2;
+                const double _t30 = _t23 + _t29;
+                const double _t31 = (_t30*_t30);
+                const double _t32 = _s3[i]*d3;
+                const double _t34 = _c3[i]*_t3;
+                const double _t35 = _c3[i]*_t6;
+                const double _t36 = -_c3[i]*_t8 + _t32 + _t34 + _t35;
+                const double _t37 = _t18*(_t36*_t36) + _t24*_t27 + _t27*_t31;
+                const double _t38 = (_c3[i]*_c3[i]);
+                const double _t39 = _t18*_t38;
+                const double _t40 = _s3[i]*_t3;
+                const double _t41 = _c3[i]*d3 + _s1[i]*_s3[i]*d4 - _s3[i]*_t6 - _t40;
+                const double _t42 = _t18*(_t41*_t41) + _t24*_t39 + _t31*_t39;
+                const double _t44 = (_c1[i]*_c1[i]);
+                const double _t47 = _c1[i]*_s1[i];
+                const double _t48 = (_s1[i]*_s1[i]);
+                const double _t50 = _t44*_t45 - _t45*_t48 + _t46*_t47 - _t47*_t49;
+                const double _t51 = _t21*_t3 + _t22*_t3 + _t50;
+                const double _t53 = _c0[i]*_s0[i]*_t12 + _c4[i]*a2*d4 + _s4[i]*a2*a3 + _t50;
+                const double _t54 = _t43*(_t51*_t51) + _t43*(_t53*_t53);
+                const double _t55 = (0.0001)*_t17;
+                const double _t56 = _t14*_t43;
+                const double _t57 = _t34*_t6;
+                const double _t58 = _t34*_t8;
+                const double _t59 = _t44*_t46;
+                const double _t60 = _t48*_t49;
+                const double _t61 = _c3[i]*_t59 + _c3[i]*_t60 + _t32*_t6 - _t32*_t8 - 2*_t35*_t8;
+                const double _t62 = _t57 - _t58 + _t61;
+                const double _t63 = (_c0[i]*_c0[i])*_t12;
+                const double _t64 = _c3[i]*_t63 + _t3*_t32 + 2*_t57 - 2*_t58 + _t61;
+                const double _t65 = _t26*_t56 + _t43*(_t62*_t62) + _t43*(_t64*_t64);
+                const double _t66 = _t40*_t6;
+                const double _t67 = -_c1[i]*_c3[i]*a3*d3 - 2*_c1[i]*_s1[i]*_s3[i]*a3*d4 + _c3[i]*_t8*d3 + _s3[i]*_t59 + _s3[i]*_t60;
+                const double _t68 = _c0[i]*_s1[i]*_s3[i]*a2*d4 - _t66 - _t67;
+                const double _t69 = -_c0[i]*_c3[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s3[i]*a2*d4 + _s3[i]*_t63 + 2*_t66 + _t67;
+                const double _t70 = -_t69;
+                const double _t71 = _t38*_t56 + _t43*(_t68*_t68) + _t43*(_t70*_t70);
+                const double _t72 = 1.0/(_t16 + (1e-12)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t37 + _t20*_t42 + _t54*_t55 + _t55*_t65 + _t55*_t71);
+                const double _t74 = _c3[i]*_t18;
+                const double _t75 = _t23*_t9;
+                const double _t76 = _t10*_t30;
+                const double _t77 = _t43*_t62;
+                const double _t78 = _t43*_t64;
+                const double _t79 = _t51*_t77 + _t53*_t78 - _t55*(-_t74*_t75 - _t74*_t76);
+                const double _t80 = -_t23;
+                const double _t81 = _t80*qd3[i];
+                const double _t82 = -qd2[i]*(-_t30*qd2[i] + _t81) - qd3[i]*(_t80*qd2[i] + _t81) + xdd_z[i];
+                const double _t83 = _t73*_t82;
+                const double _t84 = _t19*_t55;
+                const double _t85 = _t20 + _t37*_t55;
+                const double _t86 = _c3[i]*qd2[i];
+                const double _t87 = _t9*qd3[i];
+                const double _t88 = _c3[i]*_t87;
+                const double _t89 = _s3[i]*_t21 + _s3[i]*_t22;
+                const double _t90 = -qd1[i]*(-_t36*qd1[i] + _t89*qd3[i] + qd2[i]*(_s3[i]*_t29 + _t89)) - qd2[i]*(_s3[i]*_t30*qd1[i] - _t10*_t86 - _t88) - qd3[i]*(_s3[i]*_t23*qd1[i] - _t86*_t9 - _t88) + xdd_x[i];
+                const double _t91 = _t73*_t90;
+                const double _t92 = _c3[i]*_s3[i];
+                const double _t93 = _t18*_t92;
+                const double _t94 = -_t55*(_t18*_t36*_t41 + _t24*_t93 + _t31*_t93) - _t56*_t92 - _t68*_t77 - _t70*_t78;
+                const double _t95 = _c3[i]*qd1[i];
+                const double _t96 = _s3[i]*qd2[i];
+                const double _t97 = _s3[i]*_t87;
+                const double _t98 = _c3[i]*_t21 + _c3[i]*_t22;
+                const double _t99 = -qd1[i]*(_t41*qd1[i] - _t98*qd3[i] + qd2[i]*(-_c3[i]*_t29 - _t98)) - qd2[i]*(-_t10*_t96 - _t30*_t95 - _t97) - qd3[i]*(-_t23*_t95 - _t9*_t96 - _t97) + xdd_y[i];
+                const double _t100 = _t73*_t99;
+                const double _t101 = _t73*(_t100*_t94 + _t79*_t83 + _t91*(_t65 + _t84 + _t85));
+                const double _t102 = _s3[i]*_t18;
+                const double _t103 = -_t43*_t51*_t68 - _t43*_t53*_t70 - _t55*(-_t102*_t75 - _t102*_t76);
+                const double _t104 = _t42*_t55;
+                const double _t105 = _t73*(_t100*(_t104 + _t20 + _t71 + _t84) + _t103*_t83 + _t91*_t94);
+                const int _t106 = _t16 < 1e-06;
+                const double _t107 = _t13*a2;
+                const double _t108 = _t10*_t107/kinegen_max(_t15, (1e-06)*_t1);
+                const double _t109 = ((_t106) ? (
+   _t72*(_t101*_t41 + _t105*_t36)
 )
 : (
-   -_t115*(_t106*_t114*_t72 + _t114*_t57*_t97)
+   -_t108*(-_c3[i]*_t107*_t99 + _s3[i]*_t13*_t90*a2)
 ));
-                const double _t117 = _t107*_t110 + _t86*_t98 + _t90*(_t111 + _t49 + _t92);
-                const double _t118 = _c3[i]*_t108;
-                const double _t119 = _s3[i]*_t112;
-                const double _t120 = ((_t113) ? (
-   _t79*(_t117*_t12*_t80 - _t118*_t29 - _t119*_t29)
+                const double _t110 = _t100*_t103 + _t79*_t91 + _t83*(_t104 + _t54 + _t85);
+                const double _t111 = _c3[i]*_t101;
+                const double _t112 = _s3[i]*_t105;
+                const double _t113 = ((_t106) ? (
+   _t72*(_t10*_t110*_t73 - _t111*_t30 - _t112*_t30)
 )
 : (
-   -_t115*(_t106*_t75 - _t47*_t89 - _t68*_t97)
+   -_t108*(-_t51*_t82 - _t62*_t90 + _t68*_t99)
 ));
-                const double _t121 = ((_t113) ? (
-   _t79*(_t11*_t117*_t80 - _t118*_t22 - _t119*_t22)
+                const double _t114 = ((_t106) ? (
+   _t72*(_t110*_t73*_t9 - _t111*_t23 - _t112*_t23)
 )
 : (
-   -_t115*(_t106*_t76 + _t48*_t89 + _t70*_t97)
+   -_t108*(_t53*_t82 + _t64*_t90 + _t69*_t99)
 ));
-                const double _t123 = (_s8[i]*_s8[i]);
-                const double _t124 = kinegen_max(0, 1 - 1000000*_t123);
-                const double _t126 = (_s9[i]*_s9[i])*_t43;
-                const double _t129 = _s2[i]*_s8[i];
-                const double _t130 = _c2[i]*_c8[i] - _c9[i]*_t129;
-                const double _t131 = _t126 + (_t130*_t130) + _t61;
-                const double _t132 = (1e-08)*(_t124*_t124);
-                const double _t133 = _c2[i]*_s8[i];
-                const double _t134 = _c8[i]*_s2[i];
-                const double _t135 = _c9[i]*_t134;
-                const double _t136 = -_t133 - _t135;
-                const double _t137 = (_c9[i]*_c9[i])*_t43 + _t123*_t126 + (_t136*_t136);
-                const double _t138 = (0.0001)*_t124;
-                const double _t139 = _c9[i]*_s3[i];
-                const double _t140 = _c3[i]*_s9[i];
-                const double _t141 = _c2[i]*_t140;
-                const double _t142 = _t139 + _t141;
-                const double _t143 = (_t142*_t142);
-                const double _t144 = _c3[i]*_c9[i];
-                const double _t145 = -_c3[i]*_t134 + _s3[i]*_s8[i]*_s9[i] - _t133*_t144;
-                const double _t146 = _t143 + (_t145*_t145) + _t36*_t43;
-                const double _t147 = _s3[i]*_s9[i];
-                const double _t148 = _c2[i]*_t147;
-                const double _t149 = -_c3[i]*_c9[i] + _t148;
-                const double _t150 = _s3[i]*_t134 + _s8[i]*_t140 + _t133*_t139;
-                const double _t151 = -_t150;
-                const double _t152 = (_t149*_t149) + (_t151*_t151) + _t25*_t43;
-                const double _t153 = _c2[i]*_c3[i]*_c9[i] - _t147;
-                const double _t154 = _c8[i]*_t147;
-                const double _t155 = _c3[i]*_t129;
-                const double _t156 = _c2[i]*_c8[i];
-                const double _t157 = -_t144*_t156 + _t154 + _t155;
-                const double _t158 = _t123*_t143 + (_t153*_t153) + (_t157*_t157);
-                const double _t159 = _c2[i]*_t139 + _t140;
-                const double _t160 = -_t159;
-                const double _t161 = -_t149;
-                const double _t162 = _c8[i]*_t140;
-                const double _t163 = _s3[i]*_t129;
-                const double _t164 = _t139*_t156 + _t162 - _t163;
-                const double _t165 = _t123*(_t161*_t161) + (_t160*_t160) + (_t164*_t164);
-                const double _t166 = 1.0/(_t123 + (1e-12)*(_t124*_t124*_t124) + _t131*_t132 + _t132*_t146 + _t132*_t152 + _t137*_t138 + _t138*_t158 + _t138*_t165);
-                const double _t167 = _t138*_t146;
-                const double _t168 = _t132 + _t138*_t152;
-                const double _t169 = _s2[i]*qd2[i];
-                const double _t170 = _s2[i]*qd3[i];
-                const double _t171 = _c2[i]*qd3[i];
-                const double _t172 = _c9[i]*_s2[i];
-                const double _t174 = _s10[i]*_t144;
-                const double _t176 = _c10[i]*_t139;
-                const double _t177 = _c10[i]*_t162 - _c10[i]*_t163 - _s10[i]*_t148 + _t156*_t176 + _t174;
-                const double _t178 = _s10[i]*_t139;
-                const double _t179 = _c10[i]*_c3[i]*_c9[i] - _c10[i]*_t148 + _s10[i]*_s2[i]*_s3[i]*_s8[i] - _s10[i]*_t162 - _t156*_t178;
-                const double _t180 = -_c10[i]*_t141 + _c3[i]*_s10[i]*_s2[i]*_s8[i] + _c8[i]*_s10[i]*_s3[i]*_s9[i] - _t156*_t174 - _t176;
-                const double _t181 = _c10[i]*_c2[i]*_c3[i]*_c8[i]*_c9[i] - _c10[i]*_t154 - _c10[i]*_t155 - _s10[i]*_t141 - _t178;
-                const double _t182 = _s9[i]*_t129;
-                const double _t183 = -_c9[i]*_t133 - _t134;
-                const double _t184 = -_t116 + (0.5)*_t145*xdd_r23[i] - 0.5*_t151*xdd_r13[i] - 0.5*_t177*xdd_r11[i] - 0.5*_t179*xdd_r12[i] + (0.5)*_t180*xdd_r22[i] + (0.5)*_t181*xdd_r21[i] - qd4[i]*(-_t169 - _t170) - qd5[i]*(_c2[i]*_s9[i]*qd2[i] + _s9[i]*_t171 + _t172*qd4[i]) - qd6[i]*(_t136*qd5[i] + _t182*qd4[i] + _t183*qd2[i] + _t183*qd3[i]);
-                const double _t185 = _s2[i]*_s9[i];
-                const double _t186 = _t142*_t185;
-                const double _t187 = _t123*_t186 + _t136*_t157 - _t138*(-_c3[i]*_t45 + _t130*_t145 + _t186) + _t153*_t172;
-                const double _t188 = _c10[i]*_t133 + _c10[i]*_t135 - _s10[i]*_t185;
-                const double _t189 = -_c10[i]*_t185 - _s10[i]*_t133 - _s10[i]*_t135;
-                const double _t190 = -_c3[i]*_t156 + _t129*_t144;
-                const double _t191 = -_s3[i]*_t120 - _s3[i]*_t121 - _t102*qd3[i] - 0.5*_t130*xdd_r23[i] + (0.5)*_t151*xdd_r33[i] + (0.5)*_t177*xdd_r31[i] + (0.5)*_t179*xdd_r32[i] - 0.5*_t188*xdd_r21[i] - 0.5*_t189*xdd_r22[i] - _t93*qd1[i] - qd4[i]*(-_c2[i]*_t93 - _c3[i]*_t171 + _s2[i]*_s3[i]*qd1[i]) - qd5[i]*(-_t140*_t169 - _t140*_t170 + _t153*qd4[i] + _t161*qd1[i]) - qd6[i]*(_t150*qd1[i] + _t157*qd5[i] + _t190*qd2[i] + _t190*qd3[i] + qd4[i]*(_s8[i]*_t139 + _t133*_t140));
-                const double _t192 = _t123*_t161;
-                const double _t193 = -_t136*_t164 - _t138*(-_s3[i]*_t45 + _t130*_t151 + _t149*_t185) - _t160*_t172 - _t185*_t192;
-                const double _t194 = _s3[i]*qd1[i];
-                const double _t195 = -_s3[i]*_t156 + _t129*_t139;
-                const double _t196 = -_t164;
-                const double _t197 = _c3[i]*_t120 + _c3[i]*_t121 + (0.5)*_t130*xdd_r13[i] - 0.5*_t145*xdd_r33[i] - 0.5*_t180*xdd_r32[i] - 0.5*_t181*xdd_r31[i] + (0.5)*_t188*xdd_r11[i] + (0.5)*_t189*xdd_r12[i] - _t194*qd2[i] - _t194*qd3[i] - qd4[i]*(-_c2[i]*_t103 - _s2[i]*_t102 - _s3[i]*_t171) - qd5[i]*(_t142*qd1[i] - _t147*_t169 - _t147*_t170 + _t159*qd4[i]) - qd6[i]*(_t145*qd1[i] + _t195*qd2[i] + _t195*qd3[i] + _t196*qd5[i] + qd4[i]*(-_s8[i]*_t144 + _t133*_t147));
-                const double _t198 = _t184*(_t137 + _t167 + _t168) + _t187*_t191 + _t193*_t197;
-                const double _t199 = _t131*_t138;
-                const double _t200 = -_t138*(_t142*_t149 + _t145*_t151 + _t43*_t99) - _t142*_t192 - _t153*_t160 - _t157*_t164;
-                const double _t201 = _t184*_t187 + _t191*(_t158 + _t168 + _t199) + _t197*_t200;
-                const double _t202 = _t184*_t193 + _t191*_t200 + _t197*(_t132 + _t165 + _t167 + _t199);
-                const int _t203 = _t123 < 1e-06;
-                const double _t204 = _s8[i]/kinegen_max(1e-06, _t123);
-                _qdd_block[0][i] = _t116;
-                _qdd_block[1][i] = _t120;
-                _qdd_block[2][i] = _t121;
-                _qdd_block[3][i] = ((_t203) ? (
-   _t166*(_c2[i]*_t198 - _c3[i]*_s2[i]*_t201 - _s2[i]*_s3[i]*_t202)
+                const double _t116 = (_s5[i]*_s5[i]);
+                const double _t117 = kinegen_max(0, 1 - 1000000*_t116);
+                const double _t119 = (_s6[i]*_s6[i])*_t48;
+                const double _t122 = _s1[i]*_s5[i];
+                const double _t123 = _c1[i]*_c5[i] - _c6[i]*_t122;
+                const double _t124 = _t119 + (_t123*_t123) + _t44;
+                const double _t125 = (1e-08)*(_t117*_t117);
+                const double _t126 = _c1[i]*_s5[i];
+                const double _t127 = _c5[i]*_s1[i];
+                const double _t128 = _c6[i]*_t127;
+                const double _t129 = -_t126 - _t128;
+                const double _t130 = (_c6[i]*_c6[i])*_t48 + _t116*_t119 + (_t129*_t129);
+                const double _t131 = (0.0001)*_t117;
+                const double _t132 = _c6[i]*_s3[i];
+                const double _t133 = _c3[i]*_s6[i];
+                const double _t134 = _c1[i]*_t133;
+                const double _t135 = _t132 + _t134;
+                const double _t136 = (_t135*_t135);
+                const double _t137 = _c3[i]*_c6[i];
+                const double _t138 = -_c3[i]*_t127 + _s3[i]*_s5[i]*_s6[i] - _t126*_t137;
+                const double _t139 = _t136 + (_t138*_t138) + _t38*_t48;
+                const double _t140 = _s3[i]*_s6[i];
+                const double _t141 = _c1[i]*_t140;
+                const double _t142 = -_c3[i]*_c6[i] + _t141;
+                const double _t143 = _s3[i]*_t127 + _s5[i]*_t133 + _t126*_t132;
+                const double _t144 = -_t143;
+                const double _t145 = (_t142*_t142) + (_t144*_t144) + _t26*_t48;
+                const double _t146 = _c1[i]*_c3[i]*_c6[i] - _t140;
+                const double _t147 = _c5[i]*_t140;
+                const double _t148 = _c3[i]*_t122;
+                const double _t149 = _c1[i]*_c5[i];
+                const double _t150 = -_t137*_t149 + _t147 + _t148;
+                const double _t151 = _t116*_t136 + (_t146*_t146) + (_t150*_t150);
+                const double _t152 = _c1[i]*_t132 + _t133;
+                const double _t153 = -_t152;
+                const double _t154 = -_t142;
+                const double _t155 = _c5[i]*_t133;
+                const double _t156 = _s3[i]*_t122;
+                const double _t157 = _t132*_t149 + _t155 - _t156;
+                const double _t158 = _t116*(_t154*_t154) + (_t153*_t153) + (_t157*_t157);
+                const double _t159 = 1.0/(_t116 + (1e-12)*(_t117*_t117*_t117) + _t124*_t125 + _t125*_t139 + _t125*_t145 + _t130*_t131 + _t131*_t151 + _t131*_t158);
+                const double _t160 = _t131*_t139;
+                const double _t161 = _t125 + _t131*_t145;
+                const double _t162 = _s1[i]*qd2[i];
+                const double _t163 = _s1[i]*qd3[i];
+                const double _t164 = _c1[i]*qd3[i];
+                const double _t165 = _c6[i]*_s1[i];
+                const double _t167 = _s7[i]*_t137;
+                const double _t169 = _c7[i]*_t132;
+                const double _t170 = _c7[i]*_t155 - _c7[i]*_t156 - _s7[i]*_t141 + _t149*_t169 + _t167;
+                const double _t171 = _s7[i]*_t132;
+                const double _t172 = _c3[i]*_c6[i]*_c7[i] - _c7[i]*_t141 + _s1[i]*_s3[i]*_s5[i]*_s7[i] - _s7[i]*_t155 - _t149*_t171;
+                const double _t173 = _c3[i]*_s1[i]*_s5[i]*_s7[i] + _c5[i]*_s3[i]*_s6[i]*_s7[i] - _c7[i]*_t134 - _t149*_t167 - _t169;
+                const double _t174 = _c1[i]*_c3[i]*_c5[i]*_c6[i]*_c7[i] - _c7[i]*_t147 - _c7[i]*_t148 - _s7[i]*_t134 - _t171;
+                const double _t175 = _s6[i]*_t122;
+                const double _t176 = -_c6[i]*_t126 - _t127;
+                const double _t177 = -_t109 + (0.5)*_t138*xdd_r23[i] - 0.5*_t144*xdd_r13[i] - 0.5*_t170*xdd_r11[i] - 0.5*_t172*xdd_r12[i] + (0.5)*_t173*xdd_r22[i] + (0.5)*_t174*xdd_r21[i] - qd4[i]*(-_t162 - _t163) - qd5[i]*(_c1[i]*_s6[i]*qd2[i] + _s6[i]*_t164 + _t165*qd4[i]) - qd6[i]*(_t129*qd5[i] + _t175*qd4[i] + _t176*qd2[i] + _t176*qd3[i]);
+                const double _t178 = _s1[i]*_s6[i];
+                const double _t179 = _t135*_t178;
+                const double _t180 = _t116*_t179 + _t129*_t150 - _t131*(-_c3[i]*_t47 + _t123*_t138 + _t179) + _t146*_t165;
+                const double _t181 = _c7[i]*_t126 + _c7[i]*_t128 - _s7[i]*_t178;
+                const double _t182 = -_c7[i]*_t178 - _s7[i]*_t126 - _s7[i]*_t128;
+                const double _t183 = -_c3[i]*_t149 + _t122*_t137;
+                const double _t184 = -_s3[i]*_t113 - _s3[i]*_t114 - 0.5*_t123*xdd_r23[i] + (0.5)*_t144*xdd_r33[i] + (0.5)*_t170*xdd_r31[i] + (0.5)*_t172*xdd_r32[i] - 0.5*_t181*xdd_r21[i] - 0.5*_t182*xdd_r22[i] - _t86*qd1[i] - _t95*qd3[i] - qd4[i]*(-_c1[i]*_t86 - _c3[i]*_t164 + _s1[i]*_s3[i]*qd1[i]) - qd5[i]*(-_t133*_t162 - _t133*_t163 + _t146*qd4[i] + _t154*qd1[i]) - qd6[i]*(_t143*qd1[i] + _t150*qd5[i] + _t183*qd2[i] + _t183*qd3[i] + qd4[i]*(_s5[i]*_t132 + _t126*_t133));
+                const double _t185 = _t116*_t154;
+                const double _t186 = -_t129*_t157 - _t131*(-_s3[i]*_t47 + _t123*_t144 + _t142*_t178) - _t153*_t165 - _t178*_t185;
+                const double _t187 = _s3[i]*qd1[i];
+                const double _t188 = -_s3[i]*_t149 + _t122*_t132;
+                const double _t189 = -_t157;
+                const double _t190 = _c3[i]*_t113 + _c3[i]*_t114 + (0.5)*_t123*xdd_r13[i] - 0.5*_t138*xdd_r33[i] - 0.5*_t173*xdd_r32[i] - 0.5*_t174*xdd_r31[i] + (0.5)*_t181*xdd_r11[i] + (0.5)*_t182*xdd_r12[i] - _t187*qd2[i] - _t187*qd3[i] - qd4[i]*(-_c1[i]*_t96 - _s1[i]*_t95 - _s3[i]*_t164) - qd5[i]*(_t135*qd1[i] - _t140*_t162 - _t140*_t163 + _t152*qd4[i]) - qd6[i]*(_t138*qd1[i] + _t188*qd2[i] + _t188*qd3[i] + _t189*qd5[i] + qd4[i]*(-_s5[i]*_t137 + _t126*_t140));
+                const double _t191 = _t177*(_t130 + _t160 + _t161) + _t180*_t184 + _t186*_t190;
+                const double _t192 = _t124*_t131;
+                const double _t193 = -_t131*(_t135*_t142 + _t138*_t144 + _t48*_t92) - _t135*_t185 - _t146*_t153 - _t150*_t157;
+                const double _t194 = _t177*_t180 + _t184*(_t151 + _t161 + _t192) + _t190*_t193;
+                const double _t195 = _t177*_t186 + _t184*_t193 + _t190*(_t125 + _t158 + _t160 + _t192);
+                const int _t196 = _t116 < 1e-06;
+                const double _t197 = _s5[i]/kinegen_max(1e-06, _t116);
+                _qdd_block[0][i] = _t109;
+                _qdd_block[1][i] = _t113;
+                _qdd_block[2][i] = _t114;
+                _qdd_block[3][i] = ((_t196) ? (
+   _t159*(_c1[i]*_t191 - _c3[i]*_s1[i]*_t194 - _s1[i]*_s3[i]*_t195)
 )
 : (
-   -_t204*(_t136*_t184 + _t157*_t191 + _t196*_t197)
+   -_t197*(_t129*_t177 + _t150*_t184 + _t189*_t190)
 ));
-                _qdd_block[4][i] = ((_t203) ? (
-   _t166*(_t142*_t201 + _t149*_t202 + _t185*_t198)
+                _qdd_block[4][i] = ((_t196) ? (
+   _t159*(_t135*_t194 + _t142*_t195 + _t178*_t191)
 )
 : (
-   -_t204*(-_s8[i]*_t142*_t191 + _s8[i]*_t161*_t197 - _t182*_t184)
+   -_t197*(-_s5[i]*_t135*_t184 + _s5[i]*_t154*_t190 - _t175*_t177)
 ));
-                _qdd_block[5][i] = ((_t203) ? (
-   _t166*(_t130*_t198 + _t145*_t201 + _t151*_t202)
+                _qdd_block[5][i] = ((_t196) ? (
+   _t159*(_t123*_t191 + _t138*_t194 + _t144*_t195)
 )
 : (
-   -_t204*(_t153*_t191 + _t159*_t197 + _t172*_t184)
+   -_t197*(_t146*_t184 + _t152*_t190 + _t165*_t177)
 ));
-                singular[1 * (start + i) + 0] = _t113 || _t203;
+                singular[1 * (start + i) + 0] = _t106 || _t196;
             }
         } else
 #endif
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t3 = _c0[i]*d4 + _s0[i]*a3;
-                const double _t5 = _c1[i]*a2;
-                const double _t8 = _c2[i]*a3;
-                const double _t10 = _s2[i]*d4;
-                const double _t11 = -_t10 + _t8;
-                const double _t12 = _t11 + _t5;
-                const double _t13 = (_t12*_t12);
-                const double _t14 = _t13*_t2*(_t3*_t3);
-                const double _t15 = _t14/_t1;
-                const double _t16 = kinegen_max(0, 1 - 1000000*_t15);
-                const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
-                const double _t19 = (1e-08)*(_t16*_t16);
-                const double _t20 = _s2[i]*a3;
-                const double _t21 = _c2[i]*d4;
-                const double _t22 = _t20 + _t21;
-                const double _t23 = (_t22*_t22);
-                const double _t25 = (_s3[i]*_s3[i]);
-                const double _t26 = _t17*_t25;
-                const double _t28 = _s1[i]*a2;
-                const double _t29 = _t22 + _t28;
-                const double _t30 = (_t29*_t29);
-                const double _t31 = _s3[i]*d3;
-                const double _t33 = _c3[i]*_t5;
-                const double _t34 = -_c3[i]*_t10 + _c3[i]*_t8 + _t31 + _t33;
-                const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
-                const double _t36 = (_c3[i]*_c3[i]);
-                const double _t37 = _t17*_t36;
-                const double _t38 = _s3[i]*_t5;
-                const double _t39 = _c3[i]*d3 + _s2[i]*_s3[i]*d4 - _s3[i]*_t8 - _t38;
-                const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
-                const double _t43 = (_s2[i]*_s2[i]);
-                const double _t45 = _c2[i]*_s2[i];
-                const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
-                const double _t48 = _c1[i]*_s1[i]*_t2 - _t10*_t28 + _t28*_t8 + _t47;
-                const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
-                const double _t50 = (0.0001)*_t16;
-                const double _t57 = -_c4[i]*a3 + _c5[i]*a3 + _s4[i]*d4 + _s5[i]*d4;
-                const double _t59 = _t33*_t8;
-                const double _t60 = _t10*_t33;
-                const double _t61 = (_c2[i]*_c2[i]);
-                const double _t62 = _t44*_t61;
-                const double _t63 = _t43*_t46;
-                const double _t67 = _c3[i]*_t62 + _c3[i]*_t63 - _t10*_t31 + _t31*_t8 - 0.5*_t42*(_s6[i] + _s7[i]);
-                const double _t68 = _t59 - _t60 + _t67;
-                const double _t69 = (_c1[i]*_c1[i])*_t2;
-                const double _t70 = _c3[i]*_t69 + _t31*_t5 + 2*_t59 - 2*_t60 + _t67;
-                const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
-                const double _t72 = -_c4[i]*d4 - _c5[i]*d4 - _s4[i]*a3 + _s5[i]*a3;
-                const double _t73 = _t38*_t8;
-                const double _t74 = -_c2[i]*_c3[i]*a3*d3 + _c3[i]*_t10*d3 + _s3[i]*_t62 + _s3[i]*_t63 - 0.5*a3*d4*(-_c6[i] + _c7[i]);
-                const double _t75 = _c1[i]*_s2[i]*_s3[i]*a2*d4 - _t73 - _t74;
-                const double _t76 = -_c1[i]*_c3[i]*a2*d3 - 2*_c1[i]*_s2[i]*_s3[i]*a2*d4 + _s3[i]*_t69 + 2*_t73 + _t74;
-                const double _t77 = -_t76;
-                const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
-                const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
-                const double _t81 = _c3[i]*_t17;
-                const double _t82 = _t11*_t22;
-                const double _t83 = _t12*_t29;
-                const double _t84 = _t41*_t68;
-                const double _t85 = _t41*_t70;
-                const double _t86 = _t47*_t84 + _t48*_t85 - _t50*(-_t81*_t82 - _t81*_t83);
-                const double _t87 = -_t22;
-                const double _t88 = _t87*qd3[i];
-                const double _t89 = -qd2[i]*(-_t29*qd2[i] + _t88) - qd3[i]*(_t87*qd2[i] + _t88) + xdd_z[i];
-                const double _t90 = _t80*_t89;
-                const double _t91 = _t18*_t50;
-                const double _t92 = _t19 + _t35*_t50;
-                const double _t93 = _c3[i]*qd2[i];
-                const double _t94 = _t11*qd3[i];
-                const double _t95 = _c3[i]*_t94;
-                const double _t96 = _s3[i]*_t20 + _s3[i]*_t21;
-                const double _t97 = -qd1[i]*(-_t34*qd1[i] + _t96*qd3[i] + qd2[i]*(_s3[i]*_t28 + _t96)) - qd2[i]*(_s3[i]*_t29*qd1[i] - _t12*_t93 - _t95) - qd3[i]*(_s3[i]*_t22*qd1[i] - _t11*_t93 - _t95) + xdd_x[i];
-                const double _t98 = _t80*_t97;
-                const double _t99 = _c3[i]*_s3[i];
-                const double _t100 = _t17*_t99;
-                const double _t101 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t100*_t23 + _t100*_t30 + _t17*_t34*_t39) - _t75*_t84 - _t77*_t85;
-                const double _t102 = _c3[i]*qd1[i];
-                const double _t103 = _s3[i]*qd2[i];
-                const double _t104 = _s3[i]*_t94;
-                const double _t105 = _c3[i]*_t20 + _c3[i]*_t21;
-                const double _t106 = -qd1[i]*(-_t105*qd3[i] + _t39*qd1[i] + qd2[i]*(-_c3[i]*_t28 - _t105)) - qd2[i]*(-_t102*_t29 - _t103*_t12 - _t104) - qd3[i]*(-_t102*_t22 - _t103*_t11 - _t104) + xdd_y[i];
-                const double _t107 = _t106*_t80;
-                const double _t108 = _t80*(_t101*_t107 + _t86*_t90 + _t98*(_t71 + _t91 + _t92));
-                const double _t109 = _s3[i]*_t17;
-                const double _t110 = -_t41*_t47*_t75 - _t41*_t48*_t77 - _t50*(-_t109*_t82 - _t109*_t83);
-                const double _t111 = _t40*_t50;
-                const double _t112 = _t80*(_t101*_t98 + _t107*(_t111 + _t19 + _t78 + _t91) + _t110*_t90);
-                const int _t113 = _t15 < 1e-06;
-                const double _t115 = _t12*_t3*a2/kinegen_max(_t14, (1e-06)*_t1);
-                const double _t116 = ((_t113) ? (
-   _t79*(_t108*_t39 + _t112*_t34)
+                const double _t3 = _c0[i]*a2;
+                const double _t6 = _c1[i]*a3;
+                const double _t8 = _s1[i]*d4;
+                const double _t9 = _t6 - _t8;
+                const double _t10 = _t3 + _t9;
+                const double _t11 = (_t10*_t10);
+                const double _t13 = _c2[i]*d4 + _s2[i]*a3;
+                const double _t14 = _t12*(_t13*_t13);
+                const double _t15 = _t11*_t14;
+                const double _t16 = _t15/_t1;
+                const double _t17 = kinegen_max(0, 1 - 1000000*_t16);
+                const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
+                const double _t20 = (1e-08)*(_t17*_t17);
+                const double _t21 = _s1[i]*a3;
+                const double _t22 = _c1[i]*d4;
+                const double _t23 = _t21 + _t22;
+                const double _t24 = (_t23*_t23);
+                const double _t26 = (_s3[i]*_s3[i]);
+                const double _t27 = _t18*_t26;
+                const double _t29 = _s0[i]*a2;
+                const double _t30 = _t23 + _t29;
+                const double _t31 = (_t30*_t30);
+                const double _t32 = _s3[i]*d3;
+                const double _t34 = _c3[i]*_t3;
+                const double _t35 = _c3[i]*_t6;
+                const double _t36 = -_c3[i]*_t8 + _t32 + _t34 + _t35;
+                const double _t37 = _t18*(_t36*_t36) + _t24*_t27 + _t27*_t31;
+                const double _t38 = (_c3[i]*_c3[i]);
+                const double _t39 = _t18*_t38;
+                const double _t40 = _s3[i]*_t3;
+                const double _t41 = _c3[i]*d3 + _s1[i]*_s3[i]*d4 - _s3[i]*_t6 - _t40;
+                const double _t42 = _t18*(_t41*_t41) + _t24*_t39 + _t31*_t39;
+                const double _t44 = (_c1[i]*_c1[i]);
+                const double _t47 = _c1[i]*_s1[i];
+                const double _t48 = (_s1[i]*_s1[i]);
+                const double _t50 = _t44*_t45 - _t45*_t48 + _t46*_t47 - _t47*_t49;
+                const double _t51 = _t21*_t3 + _t22*_t3 + _t50;
+                const double _t53 = _c0[i]*_s0[i]*_t12 + _c4[i]*a2*d4 + _s4[i]*a2*a3 + _t50;
+                const double _t54 = _t43*(_t51*_t51) + _t43*(_t53*_t53);
+                const double _t55 = (0.0001)*_t17;
+                const double _t56 = _t14*_t43;
+                const double _t57 = _t34*_t6;
+                const double _t58 = _t34*_t8;
+                const double _t59 = _t44*_t46;
+                const double _t60 = _t48*_t49;
+                const double _t61 = _c3[i]*_t59 + _c3[i]*_t60 + _t32*_t6 - _t32*_t8 - 2*_t35*_t8;
+                const double _t62 = _t57 - _t58 + _t61;
+                const double _t63 = (_c0[i]*_c0[i])*_t12;
+                const double _t64 = _c3[i]*_t63 + _t3*_t32 + 2*_t57 - 2*_t58 + _t61;
+                const double _t65 = _t26*_t56 + _t43*(_t62*_t62) + _t43*(_t64*_t64);
+                const double _t66 = _t40*_t6;
+                const double _t67 = -_c1[i]*_c3[i]*a3*d3 - 2*_c1[i]*_s1[i]*_s3[i]*a3*d4 + _c3[i]*_t8*d3 + _s3[i]*_t59 + _s3[i]*_t60;
+                const double _t68 = _c0[i]*_s1[i]*_s3[i]*a2*d4 - _t66 - _t67;
+                const double _t69 = -_c0[i]*_c3[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s3[i]*a2*d4 + _s3[i]*_t63 + 2*_t66 + _t67;
+                const double _t70 = -_t69;
+                const double _t71 = _t38*_t56 + _t43*(_t68*_t68) + _t43*(_t70*_t70);
+                const double _t72 = 1.0/(_t16 + (1e-12)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t37 + _t20*_t42 + _t54*_t55 + _t55*_t65 + _t55*_t71);
+                const double _t74 = _c3[i]*_t18;
+                const double _t75 = _t23*_t9;
+                const double _t76 = _t10*_t30;
+                const double _t77 = _t43*_t62;
+                const double _t78 = _t43*_t64;
+                const double _t79 = _t51*_t77 + _t53*_t78 - _t55*(-_t74*_t75 - _t74*_t76);
+                const double _t80 = -_t23;
+                const double _t81 = _t80*qd3[i];
+                const double _t82 = -qd2[i]*(-_t30*qd2[i] + _t81) - qd3[i]*(_t80*qd2[i] + _t81) + xdd_z[i];
+                const double _t83 = _t73*_t82;
+                const double _t84 = _t19*_t55;
+                const double _t85 = _t20 + _t37*_t55;
+                const double _t86 = _c3[i]*qd2[i];
+                const double _t87 = _t9*qd3[i];
+                const double _t88 = _c3[i]*_t87;
+                const double _t89 = _s3[i]*_t21 + _s3[i]*_t22;
+                const double _t90 = -qd1[i]*(-_t36*qd1[i] + _t89*qd3[i] + qd2[i]*(_s3[i]*_t29 + _t89)) - qd2[i]*(_s3[i]*_t30*qd1[i] - _t10*_t86 - _t88) - qd3[i]*(_s3[i]*_t23*qd1[i] - _t86*_t9 - _t88) + xdd_x[i];
+                const double _t91 = _t73*_t90;
+                const double _t92 = _c3[i]*_s3[i];
+                const double _t93 = _t18*_t92;
+                const double _t94 = -_t55*(_t18*_t36*_t41 + _t24*_t93 + _t31*_t93) - _t56*_t92 - _t68*_t77 - _t70*_t78;
+                const double _t95 = _c3[i]*qd1[i];
+                const double _t96 = _s3[i]*qd2[i];
+                const double _t97 = _s3[i]*_t87;
+                const double _t98 = _c3[i]*_t21 + _c3[i]*_t22;
+                const double _t99 = -qd1[i]*(_t41*qd1[i] - _t98*qd3[i] + qd2[i]*(-_c3[i]*_t29 - _t98)) - qd2[i]*(-_t10*_t96 - _t30*_t95 - _t97) - qd3[i]*(-_t23*_t95 - _t9*_t96 - _t97) + xdd_y[i];
+                const double _t100 = _t73*_t99;
+                const double _t101 = _t73*(_t100*_t94 + _t79*_t83 + _t91*(_t65 + _t84 + _t85));
+                const double _t102 = _s3[i]*_t18;
+                const double _t103 = -_t43*_t51*_t68 - _t43*_t53*_t70 - _t55*(-_t102*_t75 - _t102*_t76);
+                const double _t104 = _t42*_t55;
+                const double _t105 = _t73*(_t100*(_t104 + _t20 + _t71 + _t84) + _t103*_t83 + _t91*_t94);
+                const int _t106 = _t16 < 1e-06;
+                const double _t107 = _t13*a2;
+                const double _t108 = _t10*_t107/kinegen_max(_t15, (1e-06)*_t1);
+                const double _t109 = ((_t106) ? (
+   _t72*(_t101*_t41 + _t105*_t36)
 )
 : (
-   -_t115*(_t106*_t114*_t72 + _t114*_t57*_t97)
+   -_t108*(-_c3[i]*_t107*_t99 + _s3[i]*_t13*_t90*a2)
 ));
-                const double _t117 = _t107*_t110 + _t86*_t98 + _t90*(_t111 + _t49 + _t92);
-                const double _t118 = _c3[i]*_t108;
-                const double _t119 = _s3[i]*_t112;
-                const double _t120 = ((_t113) ? (
-   _t79*(_t117*_t12*_t80 - _t118*_t29 - _t119*_t29)
+                const double _t110 = _t100*_t103 + _t79*_t91 + _t83*(_t104 + _t54 + _t85);
+                const double _t111 = _c3[i]*_t101;
+                const double _t112 = _s3[i]*_t105;
+                const double _t113 = ((_t106) ? (
+   _t72*(_t10*_t110*_t73 - _t111*_t30 - _t112*_t30)
 )
 : (
-   -_t115*(_t106*_t75 - _t47*_t89 - _t68*_t97)
+   -_t108*(-_t51*_t82 - _t62*_t90 + _t68*_t99)
 ));
-                const double _t121 = ((_t113) ? (
-   _t79*(_t11*_t117*_t80 - _t118*_t22 - _t119*_t22)
+                const double _t114 = ((_t106) ? (
+   _t72*(_t110*_t73*_t9 - _t111*_t23 - _t112*_t23)
 )
 : (
-   -_t115*(_t106*_t76 + _t48*_t89 + _t70*_t97)
+   -_t108*(_t53*_t82 + _t64*_t90 + _t69*_t99)
 ));
-                const double _t123 = (_s8[i]*_s8[i]);
-                const double _t124 = kinegen_max(0, 1 - 1000000*_t123);
-                const double _t126 = (_s9[i]*_s9[i])*_t43;
-                const double _t129 = _s2[i]*_s8[i];
-                const double _t130 = _c2[i]*_c8[i] - _c9[i]*_t129;
-                const double _t131 = _t126 + (_t130*_t130) + _t61;
-                const double _t132 = (1e-08)*(_t124*_t124);
-                const double _t133 = _c2[i]*_s8[i];
-                const double _t134 = _c8[i]*_s2[i];
-                const double _t135 = _c9[i]*_t134;
-                const double _t136 = -_t133 - _t135;
-                const double _t137 = (_c9[i]*_c9[i])*_t43 + _t123*_t126 + (_t136*_t136);
-                const double _t138 = (0.0001)*_t124;
-                const double _t139 = _c9[i]*_s3[i];
-                const double _t140 = _c3[i]*_s9[i];
-                const double _t141 = _c2[i]*_t140;
-                const double _t142 = _t139 + _t141;
-                const double _t143 = (_t142*_t142);
-                const double _t144 = _c3[i]*_c9[i];
-                const double _t145 = -_c3[i]*_t134 + _s3[i]*_s8[i]*_s9[i] - _t133*_t144;
-                const double _t146 = _t143 + (_t145*_t145) + _t36*_t43;
-                const double _t147 = _s3[i]*_s9[i];
-                const double _t148 = _c2[i]*_t147;
-                const double _t149 = -_c3[i]*_c9[i] + _t148;
-                const double _t150 = _s3[i]*_t134 + _s8[i]*_t140 + _t133*_t139;
-                const double _t151 = -_t150;
-                const double _t152 = (_t149*_t149) + (_t151*_t151) + _t25*_t43;
-                const double _t153 = _c2[i]*_c3[i]*_c9[i] - _t147;
-                const double _t154 = _c8[i]*_t147;
-                const double _t155 = _c3[i]*_t129;
-                const double _t156 = _c2[i]*_c8[i];
-                const double _t157 = -_t144*_t156 + _t154 + _t155;
-                const double _t158 = _t123*_t143 + (_t153*_t153) + (_t157*_t157);
-                const double _t159 = _c2[i]*_t139 + _t140;
-                const double _t160 = -_t159;
-                const double _t161 = -_t149;
-                const double _t162 = _c8[i]*_t140;
-                const double _t163 = _s3[i]*_t129;
-                const double _t164 = _t139*_t156 + _t162 - _t163;
-                const double _t165 = _t123*(_t161*_t161) + (_t160*_t160) + (_t164*_t164);
-                const double _t166 = 1.0/(_t123 + (1e-12)*(_t124*_t124*_t124) + _t131*_t132 + _t132*_t146 + _t132*_t152 + _t137*_t138 + _t138*_t158 + _t138*_t165);
-                const double _t167 = _t138*_t146;
-                const double _t168 = _t132 + _t138*_t152;
-                const double _t169 = _s2[i]*qd2[i];
-                const double _t170 = _s2[i]*qd3[i];
-                const double _t171 = _c2[i]*qd3[i];
-                const double _t172 = _c9[i]*_s2[i];
-                const double _t174 = _s10[i]*_t144;
-                const double _t176 = _c10[i]*_t139;
-                const double _t177 = _c10[i]*_t162 - _c10[i]*_t163 - _s10[i]*_t148 + _t156*_t176 + _t174;
-                const double _t178 = _s10[i]*_t139;
-                const double _t179 = _c10[i]*_c3[i]*_c9[i] - _c10[i]*_t148 + _s10[i]*_s2[i]*_s3[i]*_s8[i] - _s10[i]*_t162 - _t156*_t178;
-                const double _t180 = -_c10[i]*_t141 + _c3[i]*_s10[i]*_s2[i]*_s8[i] + _c8[i]*_s10[i]*_s3[i]*_s9[i] - _t156*_t174 - _t176;
-                const double _t181 = _c10[i]*_c2[i]*_c3[i]*_c8[i]*_c9[i] - _c10[i]*_t154 - _c10[i]*_t155 - _s10[i]*_t141 - _t178;
-                const double _t182 = _s9[i]*_t129;
-                const double _t183 = -_c9[i]*_t133 - _t134;
-                const double _t184 = -_t116 + (0.5)*_t145*xdd_r23[i] - 0.5*_t151*xdd_r13[i] - 0.5*_t177*xdd_r11[i] - 0.5*_t179*xdd_r12[i] + (0.5)*_t180*xdd_r22[i] + (0.5)*_t181*xdd_r21[i] - qd4[i]*(-_t169 - _t170) - qd5[i]*(_c2[i]*_s9[i]*qd2[i] + _s9[i]*_t171 + _t172*qd4[i]) - qd6[i]*(_t136*qd5[i] + _t182*qd4[i] + _t183*qd2[i] + _t183*qd3[i]);
-                const double _t185 = _s2[i]*_s9[i];
-                const double _t186 = _t142*_t185;
-                const double _t187 = _t123*_t186 + _t136*_t157 - _t138*(-_c3[i]*_t45 + _t130*_t145 + _t186) + _t153*_t172;
-                const double _t188 = _c10[i]*_t133 + _c10[i]*_t135 - _s10[i]*_t185;
-                const double _t189 = -_c10[i]*_t185 - _s10[i]*_t133 - _s10[i]*_t135;
-                const double _t190 = -_c3[i]*_t156 + _t129*_t144;
-                const double _t191 = -_s3[i]*_t120 - _s3[i]*_t121 - _t102*qd3[i] - 0.5*_t130*xdd_r23[i] + (0.5)*_t151*xdd_r33[i] + (0.5)*_t177*xdd_r31[i] + (0.5)*_t179*xdd_r32[i] - 0.5*_t188*xdd_r21[i] - 0.5*_t189*xdd_r22[i] - _t93*qd1[i] - qd4[i]*(-_c2[i]*_t93 - _c3[i]*_t171 + _s2[i]*_s3[i]*qd1[i]) - qd5[i]*(-_t140*_t169 - _t140*_t170 + _t153*qd4[i] + _t161*qd1[i]) - qd6[i]*(_t150*qd1[i] + _t157*qd5[i] + _t190*qd2[i] + _t190*qd3[i] + qd4[i]*(_s8[i]*_t139 + _t133*_t140));
-                const double _t192 = _t123*_t161;
-                const double _t193 = -_t136*_t164 - _t138*(-_s3[i]*_t45 + _t130*_t151 + _t149*_t185) - _t160*_t172 - _t185*_t192;
-                const double _t194 = _s3[i]*qd1[i];
-                const double _t195 = -_s3[i]*_t156 + _t129*_t139;
-                const double _t196 = -_t164;
-                const double _t197 = _c3[i]*_t120 + _c3[i]*_t121 + (0.5)*_t130*xdd_r13[i] - 0.5*_t145*xdd_r33[i] - 0.5*_t180*xdd_r32[i] - 0.5*_t181*xdd_r31[i] + (0.5)*_t188*xdd_r11[i] + (0.5)*_t189*xdd_r12[i] - _t194*qd2[i] - _t194*qd3[i] - qd4[i]*(-_c2[i]*_t103 - _s2[i]*_t102 - _s3[i]*_t171) - qd5[i]*(_t142*qd1[i] - _t147*_t169 - _t147*_t170 + _t159*qd4[i]) - qd6[i]*(_t145*qd1[i] + _t195*qd2[i] + _t195*qd3[i] + _t196*qd5[i] + qd4[i]*(-_s8[i]*_t144 + _t133*_t147));
-                const double _t198 = _t184*(_t137 + _t167 + _t168) + _t187*_t191 + _t193*_t197;
-                const double _t199 = _t131*_t138;
-                const double _t200 = -_t138*(_t142*_t149 + _t145*_t151 + _t43*_t99) - _t142*_t192 - _t153*_t160 - _t157*_t164;
-                const double _t201 = _t184*_t187 + _t191*(_t158 + _t168 + _t199) + _t197*_t200;
-                const double _t202 = _t184*_t193 + _t191*_t200 + _t197*(_t132 + _t165 + _t167 + _t199);
-                const int _t203 = _t123 < 1e-06;
-                const double _t204 = _s8[i]/kinegen_max(1e-06, _t123);
-                qdd[6 * (start + i) + 0] = _t116;
-                qdd[6 * (start + i) + 1] = _t120;
-                qdd[6 * (start + i) + 2] = _t121;
-                qdd[6 * (start + i) + 3] = ((_t203) ? (
-   _t166*(_c2[i]*_t198 - _c3[i]*_s2[i]*_t201 - _s2[i]*_s3[i]*_t202)
+                const double _t116 = (_s5[i]*_s5[i]);
+                const double _t117 = kinegen_max(0, 1 - 1000000*_t116);
+                const double _t119 = (_s6[i]*_s6[i])*_t48;
+                const double _t122 = _s1[i]*_s5[i];
+                const double _t123 = _c1[i]*_c5[i] - _c6[i]*_t122;
+                const double _t124 = _t119 + (_t123*_t123) + _t44;
+                const double _t125 = (1e-08)*(_t117*_t117);
+                const double _t126 = _c1[i]*_s5[i];
+                const double _t127 = _c5[i]*_s1[i];
+                const double _t128 = _c6[i]*_t127;
+                const double _t129 = -_t126 - _t128;
+                const double _t130 = (_c6[i]*_c6[i])*_t48 + _t116*_t119 + (_t129*_t129);
+                const double _t131 = (0.0001)*_t117;
+                const double _t132 = _c6[i]*_s3[i];
+                const double _t133 = _c3[i]*_s6[i];
+                const double _t134 = _c1[i]*_t133;
+                const double _t135 = _t132 + _t134;
+                const double _t136 = (_t135*_t135);
+                const double _t137 = _c3[i]*_c6[i];
+                const double _t138 = -_c3[i]*_t127 + _s3[i]*_s5[i]*_s6[i] - _t126*_t137;
+                const double _t139 = _t136 + (_t138*_t138) + _t38*_t48;
+                const double _t140 = _s3[i]*_s6[i];
+                const double _t141 = _c1[i]*_t140;
+                const double _t142 = -_c3[i]*_c6[i] + _t141;
+                const double _t143 = _s3[i]*_t127 + _s5[i]*_t133 + _t126*_t132;
+                const double _t144 = -_t143;
+                const double _t145 = (_t142*_t142) + (_t144*_t144) + _t26*_t48;
+                const double _t146 = _c1[i]*_c3[i]*_c6[i] - _t140;
+                const double _t147 = _c5[i]*_t140;
+                const double _t148 = _c3[i]*_t122;
+                const double _t149 = _c1[i]*_c5[i];
+                const double _t150 = -_t137*_t149 + _t147 + _t148;
+                const double _t151 = _t116*_t136 + (_t146*_t146) + (_t150*_t150);
+                const double _t152 = _c1[i]*_t132 + _t133;
+                const double _t153 = -_t152;
+                const double _t154 = -_t142;
+                const double _t155 = _c5[i]*_t133;
+                const double _t156 = _s3[i]*_t122;
+                const double _t157 = _t132*_t149 + _t155 - _t156;
+                const double _t158 = _t116*(_t154*_t154) + (_t153*_t153) + (_t157*_t157);
+                const double _t159 = 1.0/(_t116 + (1e-12)*(_t117*_t117*_t117) + _t124*_t125 + _t125*_t139 + _t125*_t145 + _t130*_t131 + _t131*_t151 + _t131*_t158);
+                const double _t160 = _t131*_t139;
+                const double _t161 = _t125 + _t131*_t145;
+                const double _t162 = _s1[i]*qd2[i];
+                const double _t163 = _s1[i]*qd3[i];
+                const double _t164 = _c1[i]*qd3[i];
+                const double _t165 = _c6[i]*_s1[i];
+                const double _t167 = _s7[i]*_t137;
+                const double _t169 = _c7[i]*_t132;
+                const double _t170 = _c7[i]*_t155 - _c7[i]*_t156 - _s7[i]*_t141 + _t149*_t169 + _t167;
+                const double _t171 = _s7[i]*_t132;
+                const double _t172 = _c3[i]*_c6[i]*_c7[i] - _c7[i]*_t141 + _s1[i]*_s3[i]*_s5[i]*_s7[i] - _s7[i]*_t155 - _t149*_t171;
+                const double _t173 = _c3[i]*_s1[i]*_s5[i]*_s7[i] + _c5[i]*_s3[i]*_s6[i]*_s7[i] - _c7[i]*_t134 - _t149*_t167 - _t169;
+                const double _t174 = _c1[i]*_c3[i]*_c5[i]*_c6[i]*_c7[i] - _c7[i]*_t147 - _c7[i]*_t148 - _s7[i]*_t134 - _t171;
+                const double _t175 = _s6[i]*_t122;
+                const double _t176 = -_c6[i]*_t126 - _t127;
+                const double _t177 = -_t109 + (0.5)*_t138*xdd_r23[i] - 0.5*_t144*xdd_r13[i] - 0.5*_t170*xdd_r11[i] - 0.5*_t172*xdd_r12[i] + (0.5)*_t173*xdd_r22[i] + (0.5)*_t174*xdd_r21[i] - qd4[i]*(-_t162 - _t163) - qd5[i]*(_c1[i]*_s6[i]*qd2[i] + _s6[i]*_t164 + _t165*qd4[i]) - qd6[i]*(_t129*qd5[i] + _t175*qd4[i] + _t176*qd2[i] + _t176*qd3[i]);
+                const double _t178 = _s1[i]*_s6[i];
+                const double _t179 = _t135*_t178;
+                const double _t180 = _t116*_t179 + _t129*_t150 - _t131*(-_c3[i]*_t47 + _t123*_t138 + _t179) + _t146*_t165;
+                const double _t181 = _c7[i]*_t126 + _c7[i]*_t128 - _s7[i]*_t178;
+                const double _t182 = -_c7[i]*_t178 - _s7[i]*_t126 - _s7[i]*_t128;
+                const double _t183 = -_c3[i]*_t149 + _t122*_t137;
+                const double _t184 = -_s3[i]*_t113 - _s3[i]*_t114 - 0.5*_t123*xdd_r23[i] + (0.5)*_t144*xdd_r33[i] + (0.5)*_t170*xdd_r31[i] + (0.5)*_t172*xdd_r32[i] - 0.5*_t181*xdd_r21[i] - 0.5*_t182*xdd_r22[i] - _t86*qd1[i] - _t95*qd3[i] - qd4[i]*(-_c1[i]*_t86 - _c3[i]*_t164 + _s1[i]*_s3[i]*qd1[i]) - qd5[i]*(-_t133*_t162 - _t133*_t163 + _t146*qd4[i] + _t154*qd1[i]) - qd6[i]*(_t143*qd1[i] + _t150*qd5[i] + _t183*qd2[i] + _t183*qd3[i] + qd4[i]*(_s5[i]*_t132 + _t126*_t133));
+                const double _t185 = _t116*_t154;
+                const double _t186 = -_t129*_t157 - _t131*(-_s3[i]*_t47 + _t123*_t144 + _t142*_t178) - _t153*_t165 - _t178*_t185;
+                const double _t187 = _s3[i]*qd1[i];
+                const double _t188 = -_s3[i]*_t149 + _t122*_t132;
+                const double _t189 = -_t157;
+                const double _t190 = _c3[i]*_t113 + _c3[i]*_t114 + (0.5)*_t123*xdd_r13[i] - 0.5*_t138*xdd_r33[i] - 0.5*_t173*xdd_r32[i] - 0.5*_t174*xdd_r31[i] + (0.5)*_t181*xdd_r11[i] + (0.5)*_t182*xdd_r12[i] - _t187*qd2[i] - _t187*qd3[i] - qd4[i]*(-_c1[i]*_t96 - _s1[i]*_t95 - _s3[i]*_t164) - qd5[i]*(_t135*qd1[i] - _t140*_t162 - _t140*_t163 + _t152*qd4[i]) - qd6[i]*(_t138*qd1[i] + _t188*qd2[i] + _t188*qd3[i] + _t189*qd5[i] + qd4[i]*(-_s5[i]*_t137 + _t126*_t140));
+                const double _t191 = _t177*(_t130 + _t160 + _t161) + _t180*_t184 + _t186*_t190;
+                const double _t192 = _t124*_t131;
+                const double _t193 = -_t131*(_t135*_t142 + _t138*_t144 + _t48*_t92) - _t135*_t185 - _t146*_t153 - _t150*_t157;
+                const double _t194 = _t177*_t180 + _t184*(_t151 + _t161 + _t192) + _t190*_t193;
+                const double _t195 = _t177*_t186 + _t184*_t193 + _t190*(_t125 + _t158 + _t160 + _t192);
+                const int _t196 = _t116 < 1e-06;
+                const double _t197 = _s5[i]/kinegen_max(1e-06, _t116);
+                qdd[6 * (start + i) + 0] = _t109;
+                qdd[6 * (start + i) + 1] = _t113;
+                qdd[6 * (start + i) + 2] = _t114;
+                qdd[6 * (start + i) + 3] = ((_t196) ? (
+   _t159*(_c1[i]*_t191 - _c3[i]*_s1[i]*_t194 - _s1[i]*_s3[i]*_t195)
 )
 : (
-   -_t204*(_t136*_t184 + _t157*_t191 + _t196*_t197)
+   -_t197*(_t129*_t177 + _t150*_t184 + _t189*_t190)
 ));
-                qdd[6 * (start + i) + 4] = ((_t203) ? (
-   _t166*(_t142*_t201 + _t149*_t202 + _t185*_t198)
+                qdd[6 * (start + i) + 4] = ((_t196) ? (
+   _t159*(_t135*_t194 + _t142*_t195 + _t178*_t191)
 )
 : (
-   -_t204*(-_s8[i]*_t142*_t191 + _s8[i]*_t161*_t197 - _t182*_t184)
+   -_t197*(-_s5[i]*_t135*_t184 + _s5[i]*_t154*_t190 - _t175*_t177)
 ));
-                qdd[6 * (start + i) + 5] = ((_t203) ? (
-   _t166*(_t130*_t198 + _t145*_t201 + _t151*_t202)
+                qdd[6 * (start + i) + 5] = ((_t196) ? (
+   _t159*(_t123*_t191 + _t138*_t194 + _t144*_t195)
 )
 : (
-   -_t204*(_t153*_t191 + _t159*_t197 + _t172*_t184)
+   -_t197*(_t146*_t184 + _t152*_t190 + _t165*_t177)
 ));
-                singular[1 * (start + i) + 0] = _t113 || _t203;
+                singular[1 * (start + i) + 0] = _t106 || _t196;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -8264,34 +8165,28 @@ void puma560_joint_velocity_from_twist(const double *restrict q, const double *r
     const double d4 = params->d4;
     const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
     const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
-    const double _t2 = (a2*a2);
-    const double _t17 = 1.0/(_t0*_t0);
-    const double _t41 = 1.0/(_t0*_t0*_t0*_t0);
-    const double _t42 = a3*d4;
-    const double _t44 = (a3*a3);
-    const double _t46 = (d4*d4);
-    const double _t58 = (0.25)*_t2*_t41;
-    const double _t80 = 1.0/_t0;
-    const double _t101 = (0.5)*a2;
-    const double _t6 = q2 + q3;
-    const double _t51 = q1 + q3;
-    const double _t54 = q1 - q3;
-    const double _t64 = 2*q2 + 2*q3;
-    const double _t65 = _t64 + q1;
-    const double _t66 = _t64 - q1;
-    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5, _s6, _c6, _s7, _c7, _s8, _c8, _s9, _c9;
+    const double _t12 = (a2*a2);
+    const double _t18 = 1.0/(_t0*_t0);
+    const double _t42 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t44 = a3*d4;
+    const double _t45 = (a3*a3);
+    const double _t48 = (d4*d4);
+    const double _t72 = 1.0/_t0;
+    const double _t4 = q2 + q3;
+    const double _t51 = 2*q2 + q3;
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5, _s6, _c6;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[12] = { q3, q2, _t6, q1, _t51, _t54, _t65, _t66, q5, q4, 0.0, 0.0 };
-        double sine[12], cosine[12];
+        const double angle[8] = { q2, _t4, q3, q1, _t51, q5, q4, 0.0 };
+        double sine[8], cosine[8];
         int k;
         KINEGEN_VECTOR_LOOP
-        for (k = 0; k < 12; ++k) {
+        for (k = 0; k < 8; ++k) {
             sine[k] = sin(angle[k]);
         }
         KINEGEN_VECTOR_LOOP
-        for (k = 0; k < 12; ++k) {
+        for (k = 0; k < 8; ++k) {
             cosine[k] = cos(angle[k]);
         }
         _s0 = sine[0];
@@ -8308,205 +8203,195 @@ void puma560_joint_velocity_from_twist(const double *restrict q, const double *r
         _c5 = cosine[5];
         _s6 = sine[6];
         _c6 = cosine[6];
-        _s7 = sine[7];
-        _c7 = cosine[7];
-        _s8 = sine[8];
-        _c8 = cosine[8];
-        _s9 = sine[9];
-        _c9 = cosine[9];
     }
 #else
-    _s0 = sin(q3);
-    _c0 = cos(q3);
-    _s1 = sin(q2);
-    _c1 = cos(q2);
-    _s2 = sin(_t6);
-    _c2 = cos(_t6);
+    _s0 = sin(q2);
+    _c0 = cos(q2);
+    _s1 = sin(_t4);
+    _c1 = cos(_t4);
+    _s2 = sin(q3);
+    _c2 = cos(q3);
     _s3 = sin(q1);
     _c3 = cos(q1);
     _s4 = sin(_t51);
     _c4 = cos(_t51);
-    _s5 = sin(_t54);
-    _c5 = cos(_t54);
-    _s6 = sin(_t65);
-    _c6 = cos(_t65);
-    _s7 = sin(_t66);
-    _c7 = cos(_t66);
-    _s8 = sin(q5);
-    _c8 = cos(q5);
-    _s9 = sin(q4);
-    _c9 = cos(q4);
+    _s5 = sin(q5);
+    _c5 = cos(q5);
+    _s6 = sin(q4);
+    _c6 = cos(q4);
 #endif
-    const double _t3 = _c0*d4 + _s0*a3;
-    const double _t5 = _c1*a2;
-    const double _t8 = _c2*a3;
-    const double _t10 = _s2*d4;
-    const double _t11 = -_t10 + _t8;
-    const double _t12 = _t11 + _t5;
-    const double _t13 = (_t12*_t12);
-    const double _t14 = _t13*_t2*(_t3*_t3);
-    const double _t15 = _t14/_t1;
-    const double _t16 = kinegen_max(0, 1 - 1000000*_t15);
-    const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
-    const double _t19 = (1e-08)*(_t16*_t16);
-    const double _t20 = _s2*a3;
-    const double _t21 = _c2*d4;
-    const double _t22 = _t20 + _t21;
-    const double _t23 = (_t22*_t22);
-    const double _t25 = (_s3*_s3);
-    const double _t26 = _t17*_t25;
-    const double _t28 = _s1*a2;
-    const double _t29 = _t22 + _t28;
+    const double _t3 = _c0*a2;
+    const double _t6 = _c1*a3;
+    const double _t8 = _s1*d4;
+    const double _t9 = _t6 - _t8;
+    const double _t10 = _t3 + _t9;
+    const double _t11 = (_t10*_t10);
+    const double _t13 = _c2*d4 + _s2*a3;
+    const double _t14 = _t12*(_t13*_t13);
+    const double _t15 = _t11*_t14;
+    const double _t16 = _t15/_t1;
+    const double _t17 = kinegen_max(0, 1 - 1000000*_t16);
+    const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
+    const double _t20 = (1e-08)*(_t17*_t17);
+    const double _t21 = _s1*a3;
+    const double _t22 = _c1*d4;
+    const double _t23 = _t21 + _t22;
+    const double _t24 = (_t23*_t23);
+    const double _t26 = (_s3*_s3);
+    const double _t27 = _t18*_t26;
+    const double _t29 = _s0*a2 + _t23;
     const double _t30 = (_t29*_t29);
     const double _t31 = _s3*d3;
-    const double _t33 = _c3*_t5;
-    const double _t34 = -_c3*_t10 + _c3*_t8 + _t31 + _t33;
-    const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
-    const double _t36 = (_c3*_c3);
-    const double _t37 = _t17*_t36;
-    const double _t38 = _s3*_t5;
-    const double _t39 = _c3*d3 + _s2*_s3*d4 - _s3*_t8 - _t38;
-    const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
-    const double _t43 = (_s2*_s2);
-    const double _t45 = _c2*_s2;
-    const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
-    const double _t48 = _c1*_s1*_t2 - _t10*_t28 + _t28*_t8 + _t47;
-    const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
-    const double _t50 = (0.0001)*_t16;
-    const double _t57 = -_c4*a3 + _c5*a3 + _s4*d4 + _s5*d4;
-    const double _t59 = _t33*_t8;
-    const double _t60 = _t10*_t33;
-    const double _t61 = (_c2*_c2);
-    const double _t62 = _t44*_t61;
-    const double _t63 = _t43*_t46;
-    const double _t67 = _c3*_t62 + _c3*_t63 - _t10*_t31 + _t31*_t8 - 0.5*_t42*(_s6 + _s7);
-    const double _t68 = _t59 - _t60 + _t67;
-    const double _t69 = (_c1*_c1)*_t2;
-    const double _t70 = _c3*_t69 + _t31*_t5 + 2*_t59 - 2*_t60 + _t67;
-    const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
-    const double _t72 = -_c4*d4 - _c5*d4 - _s4*a3 + _s5*a3;
-    const double _t73 = _t38*_t8;
-    const double _t74 = -_c2*_c3*a3*d3 + _c3*_t10*d3 + _s3*_t62 + _s3*_t63 - 0.5*a3*d4*(-_c6 + _c7);
-    const double _t75 = _c1*_s2*_s3*a2*d4 - _t73 - _t74;
-    const double _t76 = -_c1*_c3*a2*d3 - 2*_c1*_s2*_s3*a2*d4 + _s3*_t69 + 2*_t73 + _t74;
-    const double _t77 = -_t76;
-    const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
-    const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
-    const double _t81 = _t11*_t22;
-    const double _t82 = _c3*_t17;
-    const double _t83 = _t12*_t29;
-    const double _t84 = _t41*_t47*_t68 + _t41*_t48*_t70 - _t50*(-_t81*_t82 - _t82*_t83);
-    const double _t85 = _t80*twist_vz;
-    const double _t86 = _t35*_t50;
-    const double _t87 = _t18*_t50;
-    const double _t88 = _t80*twist_vx;
-    const double _t89 = _c3*_s3;
-    const double _t90 = _t17*_t89;
-    const double _t91 = _t41*_t75;
-    const double _t92 = _t41*_t77;
-    const double _t93 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t17*_t34*_t39 + _t23*_t90 + _t30*_t90) - _t68*_t91 - _t70*_t92;
-    const double _t94 = _t80*twist_vy;
-    const double _t95 = _t80*(_t84*_t85 + _t88*(_t19 + _t71 + _t86 + _t87) + _t93*_t94);
-    const double _t96 = _s3*_t17;
-    const double _t97 = -_t47*_t91 - _t48*_t92 - _t50*(-_t81*_t96 - _t83*_t96);
-    const double _t98 = _t19 + _t40*_t50;
-    const double _t99 = _t80*(_t85*_t97 + _t88*_t93 + _t94*(_t78 + _t87 + _t98));
-    const int _t100 = _t15 < 1e-06;
-    const double _t102 = _t12*_t3*a2/kinegen_max(_t14, (1e-06)*_t1);
-    const double _t103 = ((_t100) ? (
-   _t79*(_t34*_t99 + _t39*_t95)
+    const double _t33 = _c3*_t3;
+    const double _t34 = _c3*_t6;
+    const double _t35 = -_c3*_t8 + _t31 + _t33 + _t34;
+    const double _t36 = _t18*(_t35*_t35) + _t24*_t27 + _t27*_t30;
+    const double _t37 = (_c3*_c3);
+    const double _t38 = _t18*_t37;
+    const double _t39 = _s3*_t3;
+    const double _t40 = _c3*d3 + _s1*_s3*d4 - _s3*_t6 - _t39;
+    const double _t41 = _t18*(_t40*_t40) + _t24*_t38 + _t30*_t38;
+    const double _t43 = (_c1*_c1);
+    const double _t46 = _c1*_s1;
+    const double _t47 = (_s1*_s1);
+    const double _t49 = _t43*_t44 - _t44*_t47 + _t45*_t46 - _t46*_t48;
+    const double _t50 = _t21*_t3 + _t22*_t3 + _t49;
+    const double _t52 = _c0*_s0*_t12 + _c4*a2*d4 + _s4*a2*a3 + _t49;
+    const double _t53 = _t42*(_t50*_t50) + _t42*(_t52*_t52);
+    const double _t54 = (0.0001)*_t17;
+    const double _t55 = _t14*_t42;
+    const double _t56 = _t33*_t6;
+    const double _t57 = _t33*_t8;
+    const double _t58 = _t43*_t45;
+    const double _t59 = _t47*_t48;
+    const double _t60 = _c3*_t58 + _c3*_t59 + _t31*_t6 - _t31*_t8 - 2*_t34*_t8;
+    const double _t61 = _t56 - _t57 + _t60;
+    const double _t62 = (_c0*_c0)*_t12;
+    const double _t63 = _c3*_t62 + _t3*_t31 + 2*_t56 - 2*_t57 + _t60;
+    const double _t64 = _t26*_t55 + _t42*(_t61*_t61) + _t42*(_t63*_t63);
+    const double _t65 = _t39*_t6;
+    const double _t66 = -_c1*_c3*a3*d3 - 2*_c1*_s1*_s3*a3*d4 + _c3*_t8*d3 + _s3*_t58 + _s3*_t59;
+    const double _t67 = _c0*_s1*_s3*a2*d4 - _t65 - _t66;
+    const double _t68 = -_c0*_c3*a2*d3 - 2*_c0*_s1*_s3*a2*d4 + _s3*_t62 + 2*_t65 + _t66;
+    const double _t69 = -_t68;
+    const double _t70 = _t37*_t55 + _t42*(_t67*_t67) + _t42*(_t69*_t69);
+    const double _t71 = 1.0/(_t16 + (1e-12)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
+    const double _t73 = _t23*_t9;
+    const double _t74 = _c3*_t18;
+    const double _t75 = _t10*_t29;
+    const double _t76 = _t42*_t50*_t61 + _t42*_t52*_t63 - _t54*(-_t73*_t74 - _t74*_t75);
+    const double _t77 = _t72*twist_vz;
+    const double _t78 = _t36*_t54;
+    const double _t79 = _t19*_t54;
+    const double _t80 = _t72*twist_vx;
+    const double _t81 = _c3*_s3;
+    const double _t82 = _t42*_t67;
+    const double _t83 = _t18*_t81;
+    const double _t84 = _t42*_t69;
+    const double _t85 = -_t54*(_t18*_t35*_t40 + _t24*_t83 + _t30*_t83) - _t55*_t81 - _t61*_t82 - _t63*_t84;
+    const double _t86 = _t72*twist_vy;
+    const double _t87 = _t72*(_t76*_t77 + _t80*(_t20 + _t64 + _t78 + _t79) + _t85*_t86);
+    const double _t88 = _s3*_t18;
+    const double _t89 = -_t50*_t82 - _t52*_t84 - _t54*(-_t73*_t88 - _t75*_t88);
+    const double _t90 = _t20 + _t41*_t54;
+    const double _t91 = _t72*(_t77*_t89 + _t80*_t85 + _t86*(_t70 + _t79 + _t90));
+    const int _t92 = _t16 < 1e-06;
+    const double _t93 = _t13*a2;
+    const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-06)*_t1);
+    const double _t95 = ((_t92) ? (
+   _t71*(_t35*_t91 + _t40*_t87)
 )
 : (
-   -_t102*(_t101*_t57*twist_vx + _t101*_t72*twist_vy)
+   -_t94*(-_c3*_t93*twist_vy + _s3*_t93*twist_vx)
 ));
-    const double _t104 = _t84*_t88 + _t85*(_t49 + _t86 + _t98) + _t94*_t97;
-    const double _t105 = _c3*_t95;
-    const double _t106 = _s3*_t99;
-    const double _t107 = ((_t100) ? (
-   _t79*(_t104*_t12*_t80 - _t105*_t29 - _t106*_t29)
+    const double _t96 = _t76*_t80 + _t77*(_t53 + _t78 + _t90) + _t86*_t89;
+    const double _t97 = _c3*_t87;
+    const double _t98 = _s3*_t91;
+    const double _t99 = ((_t92) ? (
+   _t71*(_t10*_t72*_t96 - _t29*_t97 - _t29*_t98)
 )
 : (
-   -_t102*(-_t47*twist_vz - _t68*twist_vx + _t75*twist_vy)
+   -_t94*(-_t50*twist_vz - _t61*twist_vx + _t67*twist_vy)
 ));
-    const double _t108 = ((_t100) ? (
-   _t79*(_t104*_t11*_t80 - _t105*_t22 - _t106*_t22)
+    const double _t100 = ((_t92) ? (
+   _t71*(-_t23*_t97 - _t23*_t98 + _t72*_t9*_t96)
 )
 : (
-   -_t102*(_t48*twist_vz + _t70*twist_vx + _t76*twist_vy)
+   -_t94*(_t52*twist_vz + _t63*twist_vx + _t68*twist_vy)
 ));
-    const double _t110 = (_s8*_s8);
-    const double _t111 = kinegen_max(0, 1 - 1000000*_t110);
-    const double _t113 = (_s9*_s9)*_t43;
-    const double _t116 = _s2*_s8;
-    const double _t117 = _c2*_c8 - _c9*_t116;
-    const double _t118 = _t113 + (_t117*_t117) + _t61;
-    const double _t119 = (1e-08)*(_t111*_t111);
-    const double _t120 = _c2*_s8;
-    const double _t121 = _c8*_s2;
-    const double _t122 = -_c9*_t121 - _t120;
-    const double _t123 = (_c9*_c9)*_t43 + _t110*_t113 + (_t122*_t122);
-    const double _t124 = (0.0001)*_t111;
-    const double _t125 = _c9*_s3;
-    const double _t126 = _c3*_s9;
-    const double _t127 = _c2*_t126 + _t125;
-    const double _t128 = (_t127*_t127);
-    const double _t129 = _c3*_c9;
-    const double _t130 = -_c3*_t121 + _s3*_s8*_s9 - _t120*_t129;
-    const double _t131 = _t128 + (_t130*_t130) + _t36*_t43;
-    const double _t132 = _s3*_s9;
-    const double _t133 = _c2*_t132 - _c3*_c9;
-    const double _t134 = -_s3*_t121 - _s8*_t126 - _t120*_t125;
-    const double _t135 = (_t133*_t133) + (_t134*_t134) + _t25*_t43;
-    const double _t136 = _c2*_c3*_c9 - _t132;
-    const double _t137 = _c2*_c8;
-    const double _t138 = _c3*_t116 + _c8*_t132 - _t129*_t137;
-    const double _t139 = _t110*_t128 + (_t136*_t136) + (_t138*_t138);
-    const double _t140 = _c2*_t125 + _t126;
-    const double _t141 = -_t140;
-    const double _t142 = -_t133;
-    const double _t143 = _c8*_t126 - _s3*_t116 + _t125*_t137;
-    const double _t144 = _t110*(_t142*_t142) + (_t141*_t141) + (_t143*_t143);
-    const double _t145 = 1.0/(_t110 + (1e-12)*(_t111*_t111*_t111) + _t118*_t119 + _t119*_t131 + _t119*_t135 + _t123*_t124 + _t124*_t139 + _t124*_t144);
-    const double _t146 = _t124*_t131;
-    const double _t147 = _t119 + _t124*_t135;
-    const double _t148 = -_t103 + twist_wz;
-    const double _t149 = _c9*_s2;
-    const double _t150 = _s2*_s9;
-    const double _t151 = _t127*_t150;
-    const double _t152 = _t110*_t151 + _t122*_t138 - _t124*(-_c3*_t45 + _t117*_t130 + _t151) + _t136*_t149;
-    const double _t153 = -_s3*_t107 - _s3*_t108 + twist_wx;
-    const double _t154 = _t110*_t142;
-    const double _t155 = -_t122*_t143 - _t124*(-_s3*_t45 + _t117*_t134 + _t133*_t150) - _t141*_t149 - _t150*_t154;
-    const double _t156 = _c3*_t107 + _c3*_t108 + twist_wy;
-    const double _t157 = _t148*(_t123 + _t146 + _t147) + _t152*_t153 + _t155*_t156;
-    const double _t158 = _t118*_t124;
-    const double _t159 = -_t124*(_t127*_t133 + _t130*_t134 + _t43*_t89) - _t127*_t154 - _t136*_t141 - _t138*_t143;
-    const double _t160 = _t148*_t152 + _t153*(_t139 + _t147 + _t158) + _t156*_t159;
-    const double _t161 = _t148*_t155 + _t153*_t159 + _t156*(_t119 + _t144 + _t146 + _t158);
-    const int _t162 = _t110 < 1e-06;
-    const double _t163 = _s8/kinegen_max(1e-06, _t110);
-    qd[0] = _t103;
-    qd[1] = _t107;
-    qd[2] = _t108;
-    qd[3] = ((_t162) ? (
-   _t145*(_c2*_t157 - _c3*_s2*_t160 - _s2*_s3*_t161)
+    const double _t102 = (_s5*_s5);
+    const double _t103 = kinegen_max(0, 1 - 1000000*_t102);
+    const double _t105 = (_s6*_s6)*_t47;
+    const double _t108 = _s1*_s5;
+    const double _t109 = _c1*_c5 - _c6*_t108;
+    const double _t110 = _t105 + (_t109*_t109) + _t43;
+    const double _t111 = (1e-08)*(_t103*_t103);
+    const double _t112 = _c1*_s5;
+    const double _t113 = _c5*_s1;
+    const double _t114 = -_c6*_t113 - _t112;
+    const double _t115 = (_c6*_c6)*_t47 + _t102*_t105 + (_t114*_t114);
+    const double _t116 = (0.0001)*_t103;
+    const double _t117 = _c6*_s3;
+    const double _t118 = _c3*_s6;
+    const double _t119 = _c1*_t118 + _t117;
+    const double _t120 = (_t119*_t119);
+    const double _t121 = _c3*_c6;
+    const double _t122 = -_c3*_t113 + _s3*_s5*_s6 - _t112*_t121;
+    const double _t123 = _t120 + (_t122*_t122) + _t37*_t47;
+    const double _t124 = _s3*_s6;
+    const double _t125 = _c1*_t124 - _c3*_c6;
+    const double _t126 = -_s3*_t113 - _s5*_t118 - _t112*_t117;
+    const double _t127 = (_t125*_t125) + (_t126*_t126) + _t26*_t47;
+    const double _t128 = _c1*_c3*_c6 - _t124;
+    const double _t129 = _c1*_c5;
+    const double _t130 = _c3*_t108 + _c5*_t124 - _t121*_t129;
+    const double _t131 = _t102*_t120 + (_t128*_t128) + (_t130*_t130);
+    const double _t132 = _c1*_t117 + _t118;
+    const double _t133 = -_t132;
+    const double _t134 = -_t125;
+    const double _t135 = _c5*_t118 - _s3*_t108 + _t117*_t129;
+    const double _t136 = _t102*(_t134*_t134) + (_t133*_t133) + (_t135*_t135);
+    const double _t137 = 1.0/(_t102 + (1e-12)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t123 + _t111*_t127 + _t115*_t116 + _t116*_t131 + _t116*_t136);
+    const double _t138 = _t116*_t123;
+    const double _t139 = _t111 + _t116*_t127;
+    const double _t140 = -_t95 + twist_wz;
+    const double _t141 = _c6*_s1;
+    const double _t142 = _s1*_s6;
+    const double _t143 = _t119*_t142;
+    const double _t144 = _t102*_t143 + _t114*_t130 - _t116*(-_c3*_t46 + _t109*_t122 + _t143) + _t128*_t141;
+    const double _t145 = -_s3*_t100 - _s3*_t99 + twist_wx;
+    const double _t146 = _t102*_t134;
+    const double _t147 = -_t114*_t135 - _t116*(-_s3*_t46 + _t109*_t126 + _t125*_t142) - _t133*_t141 - _t142*_t146;
+    const double _t148 = _c3*_t100 + _c3*_t99 + twist_wy;
+    const double _t149 = _t140*(_t115 + _t138 + _t139) + _t144*_t145 + _t147*_t148;
+    const double _t150 = _t110*_t116;
+    const double _t151 = -_t116*(_t119*_t125 + _t122*_t126 + _t47*_t81) - _t119*_t146 - _t128*_t133 - _t130*_t135;
+    const double _t152 = _t140*_t144 + _t145*(_t131 + _t139 + _t150) + _t148*_t151;
+    const double _t153 = _t140*_t147 + _t145*_t151 + _t148*(_t111 + _t136 + _t138 + _t150);
+    const int _t154 = _t102 < 1e-06;
+    const double _t155 = _s5/kinegen_max(1e-06, _t102);
+    qd[0] = _t95;
+    qd[1] = _t99;
+    qd[2] = _t100;
+    qd[3] = ((_t154) ? (
+   _t137*(_c1*_t149 - _c3*_s1*_t152 - _s1*_s3*_t153)
 )
 : (
-   -_t163*(_t122*_t148 + _t138*_t153 - _t143*_t156)
+   -_t155*(_t114*_t140 + _t130*_t145 - _t135*_t148)
 ));
-    qd[4] = ((_t162) ? (
-   _t145*(_t127*_t160 + _t133*_t161 + _t150*_t157)
+    qd[4] = ((_t154) ? (
+   _t137*(_t119*_t152 + _t125*_t153 + _t142*_t149)
 )
 : (
-   -_t163*(-_s8*_t127*_t153 + _s8*_t142*_t156 - _s9*_t116*_t148)
+   -_t155*(-_s5*_t119*_t145 + _s5*_t134*_t148 - _s6*_t108*_t140)
 ));
-    qd[5] = ((_t162) ? (
-   _t145*(_t117*_t157 + _t130*_t160 + _t134*_t161)
+    qd[5] = ((_t154) ? (
+   _t137*(_t109*_t149 + _t122*_t152 + _t126*_t153)
 )
 : (
-   -_t163*(_t136*_t153 + _t140*_t156 + _t148*_t149)
+   -_t155*(_t128*_t145 + _t132*_t148 + _t140*_t141)
 ));
-    singular[0] = _t100 || _t162;
+    singular[0] = _t154 || _t92;
 }
 
 /* joint_velocity_from_twist of `count` items, stored one after the other in each argument and output. */
@@ -8524,11 +8409,8 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
     double twist_wx[KINEGEN_BLOCK_OF(64)];
     double twist_wy[KINEGEN_BLOCK_OF(64)];
     double twist_wz[KINEGEN_BLOCK_OF(64)];
-    double _t6[KINEGEN_BLOCK_OF(64)];
+    double _t4[KINEGEN_BLOCK_OF(64)];
     double _t51[KINEGEN_BLOCK_OF(64)];
-    double _t54[KINEGEN_BLOCK_OF(64)];
-    double _t65[KINEGEN_BLOCK_OF(64)];
-    double _t66[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
@@ -8543,12 +8425,6 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
     double _c5[KINEGEN_BLOCK_OF(64)];
     double _s6[KINEGEN_BLOCK_OF(64)];
     double _c6[KINEGEN_BLOCK_OF(64)];
-    double _s7[KINEGEN_BLOCK_OF(64)];
-    double _c7[KINEGEN_BLOCK_OF(64)];
-    double _s8[KINEGEN_BLOCK_OF(64)];
-    double _c8[KINEGEN_BLOCK_OF(64)];
-    double _s9[KINEGEN_BLOCK_OF(64)];
-    double _c9[KINEGEN_BLOCK_OF(64)];
 #ifdef KINEGEN_STREAM
     double _qd_block[6][KINEGEN_BLOCK_OF(64)];
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
@@ -8565,15 +8441,13 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
     const double d4 = params->d4;
     const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
     const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
-    const double _t2 = (a2*a2);
-    const double _t17 = 1.0/(_t0*_t0);
-    const double _t41 = 1.0/(_t0*_t0*_t0*_t0);
-    const double _t42 = a3*d4;
-    const double _t44 = (a3*a3);
-    const double _t46 = (d4*d4);
-    const double _t58 = (0.25)*_t2*_t41;
-    const double _t80 = 1.0/_t0;
-    const double _t101 = (0.5)*a2;
+    const double _t12 = (a2*a2);
+    const double _t18 = 1.0/(_t0*_t0);
+    const double _t42 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t44 = a3*d4;
+    const double _t45 = (a3*a3);
+    const double _t48 = (d4*d4);
+    const double _t72 = 1.0/_t0;
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
@@ -8591,36 +8465,32 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t6[i] = q2[i] + q3[i];
-            _t51[i] = q1[i] + q3[i];
-            _t54[i] = q1[i] - q3[i];
-            const double _t64 = 2*q2[i] + 2*q3[i];
-            _t65[i] = _t64 + q1[i];
-            _t66[i] = _t64 - q1[i];
+            _t4[i] = q2[i] + q3[i];
+            _t51[i] = 2*q2[i] + q3[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s0[i] = sin(q3[i]);
+            _s0[i] = sin(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c0[i] = cos(q3[i]);
+            _c0[i] = cos(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s1[i] = sin(q2[i]);
+            _s1[i] = sin(_t4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c1[i] = cos(q2[i]);
+            _c1[i] = cos(_t4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s2[i] = sin(_t6[i]);
+            _s2[i] = sin(q3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(_t6[i]);
+            _c2[i] = cos(q3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -8640,394 +8510,374 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s5[i] = sin(_t54[i]);
+            _s5[i] = sin(q5[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c5[i] = cos(_t54[i]);
+            _c5[i] = cos(q5[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s6[i] = sin(_t65[i]);
+            _s6[i] = sin(q4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c6[i] = cos(_t65[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _s7[i] = sin(_t66[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _c7[i] = cos(_t66[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _s8[i] = sin(q5[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _c8[i] = cos(q5[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _s9[i] = sin(q4[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _c9[i] = cos(q4[i]);
+            _c6[i] = cos(q4[i]);
         }
 #ifdef KINEGEN_STREAM
         if (stream) {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t3 = _c0[i]*d4 + _s0[i]*a3;
-                const double _t5 = _c1[i]*a2;
-                const double _t8 = _c2[i]*a3;
-                const double _t10 = _s2[i]*d4;
-                const double _t11 = -_t10 + _t8;
-                const double _t12 = _t11 + _t5;
-                const double _t13 = (_t12*_t12);
-                const double _t14 = _t13*_t2*(_t3*_t3);
-                const double _t15 = _t14/_t1;
-                const double _t16 = kinegen_max(0, 1 - 1000000*_t15);
-                const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
-                const double _t19 = (1e-08)*(_t16*_t16);
-                const double _t20 = _s2[i]*a3;
-                const double _t21 = _c2[i]*d4;
-                const double _t22 = _t20 + _t21;
-                const double _t23 = (_t22*_t22);
-                const double _t25 = (_s3[i]*_s3[i]);
-                const double _t26 = _t17*_t25;
-                const double _t28 = _s1[i]*a2;
-                const double _t29 = _t22 + _t28;
+                const double _t3 = _c0[i]*a2;
+                const double _t6 = _c1[i]*a3;
+                const double _t8 = _s1[i]*d4;
+                const double _t9 = _t6 - _t8;
+                const double _t10 = _t3 + _t9;
+                const double _t11 = (_t10*_t10);
+                const double _t13 = _c2[i]*d4 + _s2[i]*a3;
+                const double _t14 = _t12*(_t13*_t13);
+                const double _t15 = _t11*_t14;
+                const double _t16 = _t15/_t1;
+                const double _t17 = kinegen_max(0, 1 - 1000000*_t16);
+                const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
+                const double _t20 = (1e-08)*(_t17*_t17);
+                const double _t21 = _s1[i]*a3;
+                const double _t22 = _c1[i]*d4;
+                const double _t23 = _t21 + _t22;
+                const double _t24 = (_t23*_t23);
+                const double _t26 = (_s3[i]*_s3[i]);
+                const double _t27 = _t18*_t26;
+                const double _t29 = _s0[i]*a2 + _t23;
                 const double _t30 = (_t29*_t29);
                 const double _t31 = _s3[i]*d3;
-                const double _t33 = _c3[i]*_t5;
-                const double _t34 = -_c3[i]*_t10 + _c3[i]*_t8 + _t31 + _t33;
-                const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
-                const double _t36 = (_c3[i]*_c3[i]);
-                const double _t37 = _t17*_t36;
-                const double _t38 = _s3[i]*_t5;
-                const double _t39 = _c3[i]*d3 + _s2[i]*_s3[i]*d4 - _s3[i]*_t8 - _t38;
-                const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
-                const double _t43 = (_s2[i]*_s2[i]);
-                const double _t45 = _c2[i]*_s2[i];
-                const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
-                const double _t48 = _c1[i]*_s1[i]*_t2 - _t10*_t28 + _t28*_t8 + _t47;
-                const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
-                const double _t50 = (0.0001)*_t16;
-                const double _t57 = -_c4[i]*a3 + _c5[i]*a3 + _s4[i]*d4 + _s5[i]*d4;
-                const double _t59 = _t33*_t8;
-                const double _t60 = _t10*_t33;
-                const double _t61 = (_c2[i]*_c2[i]);
-                const double _t62 = _t44*_t61;
-                const double _t63 = _t43*_t46;
-                const double _t67 = _c3[i]*_t62 + _c3[i]*_t63 - _t10*_t31 + _t31*_t8 - 0.5*_t42*(_s6[i] + _s7[i]);
-                const double _t68 = _t59 - _t60 + _t67;
-                const double _t69 = (_c1[i]*_c1[i])*_t2;
-                const double _t70 = _c3[i]*_t69 + _t31*_t5 + 2*_t59 - 2*_t60 + _t67;
-                const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
-                const double _t72 = -_c4[i]*d4 - _c5[i]*d4 - _s4[i]*a3 + _s5[i]*a3;
-                const double _t73 = _t38*_t8;
-                const double _t74 = -_c2[i]*_c3[i]*a3*d3 + _c3[i]*_t10*d3 + _s3[i]*_t62 + _s3[i]*_t63 - 0.5*a3*d4*(-_c6[i] + _c7[i]);
-                const double _t75 = _c1[i]*_s2[i]*_s3[i]*a2*d4 - _t73 - _t74;
-                const double _t76 = -_c1[i]*_c3[i]*a2*d3 - 2*_c1[i]*_s2[i]*_s3[i]*a2*d4 + _s3[i]*_t69 + 2*_t73 + _t74;
-                const double _t77 = -_t76;
-                const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
-                const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
-                const double _t81 = _t11*_t22;
-                const double _t82 = _c3[i]*_t17;
-                const double _t83 = _t12*_t29;
-                const double _t84 = _t41*_t47*_t68 + _t41*_t48*_t70 - _t50*(-_t81*_t82 - _t82*_t83);
-                const double _t85 = _t80*twist_vz[i];
-                const double _t86 = _t35*_t50;
-                const double _t87 = _t18*_t50;
-                const double _t88 = _t80*twist_vx[i];
-                const double _t89 = _c3[i]*_s3[i];
-                const double _t90 = _t17*_t89;
-                const double _t91 = _t41*_t75;
-                const double _t92 = _t41*_t77;
-                const double _t93 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t17*_t34*_t39 + _t23*_t90 + _t30*_t90) - _t68*_t91 - _t70*_t92;
-                const double _t94 = _t80*twist_vy[i];
-                const double _t95 = _t80*(_t84*_t85 + _t88*(_t19 + _t71 + _t86 + _t87) + _t93*_t94);
-                const double _t96 = _s3[i]*_t17;
-                const double _t97 = -_t47*_t91 - _t48*_t92 - _t50*(-_t81*_t96 - _t83*_t96);
-                const double _t98 = _t19 + _t40*_t50;
-                const double _t99 = _t80*(_t85*_t97 + _t88*_t93 + _t94*(_t78 + _t87 + _t98));
-                const int _t100 = _t15 < 1e-06;
-                const double _t102 = _t12*_t3*a2/kinegen_max(_t14, (1e-06)*_t1);
-                const double _t103 = ((_t100) ? (
-   _t79*(_t34*_t99 + _t39*_t95)
+                const double _t33 = _c3[i]*_t3;
+                const double _t34 = _c3[i]*_t6;
+                const double _t35 = -_c3[i]*_t8 + _t31 + _t33 + _t34;
+                const double _t36 = _t18*(_t35*_t35) + _t24*_t27 + _t27*_t30;
+                const double _t37 = (_c3[i]*_c3[i]);
+                const double _t38 = _t18*_t37;
+                const double _t39 = _s3[i]*_t3;
+                const double _t40 = _c3[i]*d3 + _s1[i]*_s3[i]*d4 - _s3[i]*_t6 - _t39;
+                const double _t41 = _t18*(_t40*_t40) + _t24*_t38 + _t30*_t38;
+                const double _t43 = (_c1[i]*_c1[i]);
+                const double _t46 = _c1[i]*_s1[i];
+                const double _t47 = (_s1[i]*_s1[i]);
+                const double _t49 = _t43*_t44 - _t44*_t47 + _t45*_t46 - _t46*_t48;
+                const double _t50 = _t21*_t3 + _t22*_t3 + _t49;
+                const double _t52 = _c0[i]*_s0[i]*_t12 + _c4[i]*a2*d4 + _s4[i]*a2*a3 + _t49;
+                const double _t53 = _t42*(_t50*_t50) + _t42*(_t52*_t52);
+                const double _t54 = (0.0001)*_t17;
+                const double _t55 = _t14*_t42;
+                const double _t56 = _t33*_t6;
+                const double _t57 = _t33*_t8;
+                const double _t58 = _t43*_t45;
+                const double _t59 = _t47*_t48;
+                const double _t60 = _c3[i]*_t58 + _c3[i]*_t59 + _t31*_t6 - _t31*_t8 - 2*_t34*_t8;
+                const double _t61 = _t56 - _t57 + _t60;
+                const double _t62 = (_c0[i]*_c0[i])*_t12;
+                const double _t63 = _c3[i]*_t62 + _t3*_t31 + 2*_t56 - 2*_t57 + _t60;
+                const double _t64 = _t26*_t55 + _t42*(_t61*_t61) + _t42*(_t63*_t63);
+                const double _t65 = _t39*_t6;
+                const double _t66 = -_c1[i]*_c3[i]*a3*d3 - 2*_c1[i]*_s1[i]*_s3[i]*a3*d4 + _c3[i]*_t8*d3 + _s3[i]*_t58 + _s3[i]*_t59;
+                const double _t67 = _c0[i]*_s1[i]*_s3[i]*a2*d4 - _t65 - _t66;
+                const double _t68 = -_c0[i]*_c3[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s3[i]*a2*d4 + _s3[i]*_t62 + 2*_t65 + _t66;
+                const double _t69 = -_t68;
+                const double _t70 = _t37*_t55 + _t42*(_t67*_t67) + _t42*(_t69*_t69);
+                const double _t71 = 1.0/(_t16 + (1e-12)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
+                const double _t73 = _t23*_t9;
+                const double _t74 = _c3[i]*_t18;
+                const double _t75 = _t10*_t29;
+                const double _t76 = _t42*_t50*_t61 + _t42*_t52*_t63 - _t54*(-_t73*_t74 - _t74*_t75);
+                const double _t77 = _t72*twist_vz[i];
+                const double _t78 = _t36*_t54;
+                const double _t79 = _t19*_t54;
+                const double _t80 = _t72*twist_vx[i];
+                const double _t81 = _c3[i]*_s3[i];
+                const double _t82 = _t42*_t67;
+                const double _t83 = _t18*_t81;
+                const double _t84 = _t42*_t69;
+                const double _t85 = -_t54*(_t18*_t35*_t40 + _t24*_t83 + _t30*_t83) - _t55*_t81 - _t61*_t82 - _t63*_t84;
+                const double _t86 = _t72*twist_vy[i];
+                const double _t87 = _t72*(_t76*_t77 + _t80*(_t20 + _t64 + _t78 + _t79) + _t85*_t86);
+                const double _t88 = _s3[i]*_t18;
+                const double _t89 = -_t50*_t82 - _t52*_t84 - _t54*(-_t73*_t88 - _t75*_t88);
+                const double _t90 = _t20 + _t41*_t54;
+                const double _t91 = _t72*(_t77*_t89 + _t80*_t85 + _t86*(_t70 + _t79 + _t90));
+                const int _t92 = _t16 < 1e-06;
+                const double _t93 = _t13*a2;
+                const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-06)*_t1);
+                const double _t95 = ((_t92) ? (
+   _t71*(_t35*_t91 + _t40*_t87)
 )
 : (
-   -_t102*(_t101*_t57*twist_vx[i] + _t101*_t72*twist_vy[i])
+   -_t94*(-_c3[i]*_t93*twist_vy[i] + _s3[i]*_t93*twist_vx[i])
 ));
-                const double _t104 = _t84*_t88 + _t85*(_t49 + _t86 + _t98) + _t94*_t97;
-                const double _t105 = _c3[i]*_t95;
-                const double _t106 = _s3[i]*_t99;
-                const double _t107 = ((_t100) ? (
-   _t79*(_t104*_t12*_t80 - _t105*_t29 - _t106*_t29)
+                const double _t96 = _t76*_t80 + _t77*(_t53 + _t78 + _t90) + _t86*_t89;
+                const double _t97 = _c3[i]*_t87;
+                const double _t98 = _s3[i]*_t91;
+                const double _t99 = ((_t92) ? (
+   _t71*(_t10*_t72*_t96 - _t29*_t97 - _t29*_t98)
 )
 : (
-   -_t102*(-_t47*twist_vz[i] - _t68*twist_vx[i] + _t75*twist_vy[i])
+   -_t94*(-_t50*twist_vz[i] - _t61*twist_vx[i] + _t67*twist_vy[i])
 ));
-                const double _t108 = ((_t100) ? (
-   _t79*(_t104*_t11*_t80 - _t105*_t22 - _t106*_t22)
+                const double _t100 = ((_t92) ? (
+   _t71*(-_t23*_t97 - _t23*_t98 + _t72*_t9*_t96)
 )
 : (
-   -_t102*(_t48*twist_vz[i] + _t70*twist_vx[i] + _t76*twist_vy[i])
+   -_t94*(_t52*twist_vz[i] + _t63*twist_vx[i] + _t68*twist_vy[i])
 ));
-                const double _t110 = (_s8[i]*_s8[i]);
-                const double _t111 = kinegen_max(0, 1 - 1000000*_t110);
-                const double _t113 = (_s9[i]*_s9[i])*_t43;
-                const double _t116 = _s2[i]*_s8[i];
-                const double _t117 = _c2[i]*_c8[i] - _c9[i]*_t116;
-                const double _t118 = _t113 + (_t117*_t117) + _t61;
-                const double _t119 = (1e-08)*(_t111*_t111);
-                const double _t120 = _c2[i]*_s8[i];
-                const double _t121 = _c8[i]*_s2[i];
-                const double _t122 = -_c9[i]*_t121 - _t120;
-                const double _t123 = (_c9[i]*_c9[i])*_t43 + _t110*_t113 + (_t122*_t122);
-                const double _t124 = (0.0001)*_t111;
-                const double _t125 = _c9[i]*_s3[i];
-                const double _t126 = _c3[i]*_s9[i];
-                const double _t127 = _c2[i]*_t126 + _t125;
-                const double _t128 = (_t127*_t127);
-                const double _t129 = _c3[i]*_c9[i];
-                const double _t130 = -_c3[i]*_t121 + _s3[i]*_s8[i]*_s9[i] - _t120*_t129;
-                const double _t131 = _t128 + (_t130*_t130) + _t36*_t43;
-                const double _t132 = _s3[i]*_s9[i];
-                const double _t133 = _c2[i]*_t132 - _c3[i]*_c9[i];
-                const double _t134 = -_s3[i]*_t121 - _s8[i]*_t126 - _t120*_t125;
-                const double _t135 = (_t133*_t133) + (_t134*_t134) + _t25*_t43;
-                const double _t136 = _c2[i]*_c3[i]*_c9[i] - _t132;
-                const double _t137 = _c2[i]*_c8[i];
-                const double _t138 = _c3[i]*_t116 + _c8[i]*_t132 - _t129*_t137;
-                const double _t139 = _t110*_t128 + (_t136*_t136) + (_t138*_t138);
-                const double _t140 = _c2[i]*_t125 + _t126;
-                const double _t141 = -_t140;
-                const double _t142 = -_t133;
-                const double _t143 = _c8[i]*_t126 - _s3[i]*_t116 + _t125*_t137;
-                const double _t144 = _t110*(_t142*_t142) + (_t141*_t141) + (_t143*_t143);
-                const double _t145 = 1.0/(_t110 + (1e-12)*(_t111*_t111*_t111) + _t118*_t119 + _t119*_t131 + _t119*_t135 + _t123*_t124 + _t124*_t139 + _t124*_t144);
-                const double _t146 = _t124*_t131;
-                const double _t147 = _t119 + _t124*_t135;
-                const double _t148 = -_t103 + twist_wz[i];
-                const double _t149 = _c9[i]*_s2[i];
-                const double _t150 = _s2[i]*_s9[i];
-                const double _t151 = _t127*_t150;
-                const double _t152 = _t110*_t151 + _t122*_t138 - _t124*(-_c3[i]*_t45 + _t117*_t130 + _t151) + _t136*_t149;
-                const double _t153 = -_s3[i]*_t107 - _s3[i]*_t108 + twist_wx[i];
-                const double _t154 = _t110*_t142;
-                const double _t155 = -_t122*_t143 - _t124*(-_s3[i]*_t45 + _t117*_t134 + _t133*_t150) - _t141*_t149 - _t150*_t154;
-                const double _t156 = _c3[i]*_t107 + _c3[i]*_t108 + twist_wy[i];
-                const double _t157 = _t148*(_t123 + _t146 + _t147) + _t152*_t153 + _t155*_t156;
-                const double _t158 = _t118*_t124;
-                const double _t159 = -_t124*(_t127*_t133 + _t130*_t134 + _t43*_t89) - _t127*_t154 - _t136*_t141 - _t138*_t143;
-                const double _t160 = _t148*_t152 + _t153*(_t139 + _t147 + _t158) + _t156*_t159;
-                const double _t161 = _t148*_t155 + _t153*_t159 + _t156*(_t119 + _t144 + _t146 + _t158);
-                const int _t162 = _t110 < 1e-06;
-                const double _t163 = _s8[i]/kinegen_max(1e-06, _t110);
-                _qd_block[0][i] = _t103;
-                _qd_block[1][i] = _t107;
-                _qd_block[2][i] = _t108;
-                _qd_block[3][i] = ((_t162) ? (
-   _t145*(_c2[i]*_t157 - _c3[i]*_s2[i]*_t160 - _s2[i]*_s3[i]*_t161)
+                const double _t102 = (_s5[i]*_s5[i]);
+                const double _t103 = kinegen_max(0, 1 - 1000000*_t102);
+                const double _t105 = (_s6[i]*_s6[i])*_t47;
+                const double _t108 = _s1[i]*_s5[i];
+                const double _t109 = _c1[i]*_c5[i] - _c6[i]*_t108;
+                const double _t110 = _t105 + (_t109*_t109) + _t43;
+                const double _t111 = (1e-08)*(_t103*_t103);
+                const double _t112 = _c1[i]*_s5[i];
+                const double _t113 = _c5[i]*_s1[i];
+                const double _t114 = -_c6[i]*_t113 - _t112;
+                const double _t115 = (_c6[i]*_c6[i])*_t47 + _t102*_t105 + (_t114*_t114);
+                const double _t116 = (0.0001)*_t103;
+                const double _t117 = _c6[i]*_s3[i];
+                const double _t118 = _c3[i]*_s6[i];
+                const double _t119 = _c1[i]*_t118 + _t117;
+                const double _t120 = (_t119*_t119);
+                const double _t121 = _c3[i]*_c6[i];
+                const double _t122 = -_c3[i]*_t113 + _s3[i]*_s5[i]*_s6[i] - _t112*_t121;
+                const double _t123 = _t120 + (_t122*_t122) + _t37*_t47;
+                const double _t124 = _s3[i]*_s6[i];
+                const double _t125 = _c1[i]*_t124 - _c3[i]*_c6[i];
+                const double _t126 = -_s3[i]*_t113 - _s5[i]*_t118 - _t112*_t117;
+                const double _t127 = (_t125*_t125) + (_t126*_t126) + _t26*_t47;
+                const double _t128 = _c1[i]*_c3[i]*_c6[i] - _t124;
+                const double _t129 = _c1[i]*_c5[i];
+                const double _t130 = _c3[i]*_t108 + _c5[i]*_t124 - _t121*_t129;
+                const double _t131 = _t102*_t120 + (_t128*_t128) + (_t130*_t130);
+                const double _t132 = _c1[i]*_t117 + _t118;
+                const double _t133 = -_t132;
+                const double _t134 = -_t125;
+                const double _t135 = _c5[i]*_t118 - _s3[i]*_t108 + _t117*_t129;
+                const double _t136 = _t102*(_t134*_t134) + (_t133*_t133) + (_t135*_t135);
+                const double _t137 = 1.0/(_t102 + (1e-12)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t123 + _t111*_t127 + _t115*_t116 + _t116*_t131 + _t116*_t136);
+                const double _t138 = _t116*_t123;
+                const double _t139 = _t111 + _t116*_t127;
+                const double _t140 = -_t95 + twist_wz[i];
+                const double _t141 = _c6[i]*_s1[i];
+                const double _t142 = _s1[i]*_s6[i];
+                const double _t143 = _t119*_t142;
+                const double _t144 = _t102*_t143 + _t114*_t130 - _t116*(-_c3[i]*_t46 + _t109*_t122 + _t143) + _t128*_t141;
+                const double _t145 = -_s3[i]*_t100 - _s3[i]*_t99 + twist_wx[i];
+                const double _t146 = _t102*_t134;
+                const double _t147 = -_t114*_t135 - _t116*(-_s3[i]*_t46 + _t109*_t126 + _t125*_t142) - _t133*_t141 - _t142*_t146;
+                const double _t148 = _c3[i]*_t100 + _c3[i]*_t99 + twist_wy[i];
+                const double _t149 = _t140*(_t115 + _t138 + _t139) + _t144*_t145 + _t147*_t148;
+                const double _t150 = _t110*_t116;
+                const double _t151 = -_t116*(_t119*_t125 + _t122*_t126 + _t47*_t81) - _t119*_t146 - _t128*_t133 - _t130*_t135;
+                const double _t152 = _t140*_t144 + _t145*(_t131 + _t139 + _t150) + _t148*_t151;
+                const double _t153 = _t140*_t147 + _t145*_t151 + _t148*(_t111 + _t136 + _t138 + _t150);
+                const int _t154 = _t102 < 1e-06;
+                const double _t155 = _s5[i]/kinegen_max(1e-06, _t102);
+                _qd_block[0][i] = _t95;
+                _qd_block[1][i] = _t99;
+                _qd_block[2][i] = _t100;
+                _qd_block[3][i] = ((_t154) ? (
+   _t137*(_c1[i]*_t149 - _c3[i]*_s1[i]*_t152 - _s1[i]*_s3[i]*_t153)
 )
 : (
-   -_t163*(_t122*_t148 + _t138*_t153 - _t143*_t156)
+   -_t155*(_t114*_t140 + _t130*_t145 - _t135*_t148)
 ));
-                _qd_block[4][i] = ((_t162) ? (
-   _t145*(_t127*_t160 + _t133*_t161 + _t150*_t157)
+                _qd_block[4][i] = ((_t154) ? (
+   _t137*(_t119*_t152 + _t125*_t153 + _t142*_t149)
 )
 : (
-   -_t163*(-_s8[i]*_t127*_t153 + _s8[i]*_t142*_t156 - _s9[i]*_t116*_t148)
+   -_t155*(-_s5[i]*_t119*_t145 + _s5[i]*_t134*_t148 - _s6[i]*_t108*_t140)
 ));
-                _qd_block[5][i] = ((_t162) ? (
-   _t145*(_t117*_t157 + _t130*_t160 + _t134*_t161)
+                _qd_block[5][i] = ((_t154) ? (
+   _t137*(_t109*_t149 + _t122*_t152 + _t126*_t153)
 )
 : (
-   -_t163*(_t136*_t153 + _t140*_t156 + _t148*_t149)
+   -_t155*(_t128*_t145 + _t132*_t148 + _t140*_t141)
 ));
-                singular[1 * (start + i) + 0] = _t100 || _t162;
+                singular[1 * (start + i) + 0] = _t154 || _t92;
             }
         } else
 #endif
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t3 = _c0[i]*d4 + _s0[i]*a3;
-                const double _t5 = _c1[i]*a2;
-                const double _t8 = _c2[i]*a3;
-                const double _t10 = _s2[i]*d4;
-                const double _t11 = -_t10 + _t8;
-                const double _t12 = _t11 + _t5;
-                const double _t13 = (_t12*_t12);
-                const double _t14 = _t13*_t2*(_t3*_t3);
-                const double _t15 = _t14/_t1;
-                const double _t16 = kinegen_max(0, 1 - 1000000*_t15);
-                const double _t18 = (_t11*_t11)*_t17 + _t13*_t17;
-                const double _t19 = (1e-08)*(_t16*_t16);
-                const double _t20 = _s2[i]*a3;
-                const double _t21 = _c2[i]*d4;
-                const double _t22 = _t20 + _t21;
-                const double _t23 = (_t22*_t22);
-                const double _t25 = (_s3[i]*_s3[i]);
-                const double _t26 = _t17*_t25;
-                const double _t28 = _s1[i]*a2;
-                const double _t29 = _t22 + _t28;
+                const double _t3 = _c0[i]*a2;
+                const double _t6 = _c1[i]*a3;
+                const double _t8 = _s1[i]*d4;
+                const double _t9 = _t6 - _t8;
+                const double _t10 = _t3 + _t9;
+                const double _t11 = (_t10*_t10);
+                const double _t13 = _c2[i]*d4 + _s2[i]*a3;
+                const double _t14 = _t12*(_t13*_t13);
+                const double _t15 = _t11*_t14;
+                const double _t16 = _t15/_t1;
+                const double _t17 = kinegen_max(0, 1 - 1000000*_t16);
+                const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
+                const double _t20 = (1e-08)*(_t17*_t17);
+                const double _t21 = _s1[i]*a3;
+                const double _t22 = _c1[i]*d4;
+                const double _t23 = _t21 + _t22;
+                const double _t24 = (_t23*_t23);
+                const double _t26 = (_s3[i]*_s3[i]);
+                const double _t27 = _t18*_t26;
+                const double _t29 = _s0[i]*a2 + _t23;
                 const double _t30 = (_t29*_t29);
                 const double _t31 = _s3[i]*d3;
-                const double _t33 = _c3[i]*_t5;
-                const double _t34 = -_c3[i]*_t10 + _c3[i]*_t8 + _t31 + _t33;
-                const double _t35 = _t17*(_t34*_t34) + _t23*_t26 + _t26*_t30;
-                const double _t36 = (_c3[i]*_c3[i]);
-                const double _t37 = _t17*_t36;
-                const double _t38 = _s3[i]*_t5;
-                const double _t39 = _c3[i]*d3 + _s2[i]*_s3[i]*d4 - _s3[i]*_t8 - _t38;
-                const double _t40 = _t17*(_t39*_t39) + _t23*_t37 + _t30*_t37;
-                const double _t43 = (_s2[i]*_s2[i]);
-                const double _t45 = _c2[i]*_s2[i];
-                const double _t47 = _t20*_t5 + _t21*_t5 - 2*_t42*_t43 + _t42 + _t44*_t45 - _t45*_t46;
-                const double _t48 = _c1[i]*_s1[i]*_t2 - _t10*_t28 + _t28*_t8 + _t47;
-                const double _t49 = _t41*(_t47*_t47) + _t41*(_t48*_t48);
-                const double _t50 = (0.0001)*_t16;
-                const double _t57 = -_c4[i]*a3 + _c5[i]*a3 + _s4[i]*d4 + _s5[i]*d4;
-                const double _t59 = _t33*_t8;
-                const double _t60 = _t10*_t33;
-                const double _t61 = (_c2[i]*_c2[i]);
-                const double _t62 = _t44*_t61;
-                const double _t63 = _t43*_t46;
-                const double _t67 = _c3[i]*_t62 + _c3[i]*_t63 - _t10*_t31 + _t31*_t8 - 0.5*_t42*(_s6[i] + _s7[i]);
-                const double _t68 = _t59 - _t60 + _t67;
-                const double _t69 = (_c1[i]*_c1[i])*_t2;
-                const double _t70 = _c3[i]*_t69 + _t31*_t5 + 2*_t59 - 2*_t60 + _t67;
-                const double _t71 = _t41*(_t68*_t68) + _t41*(_t70*_t70) + (_t57*_t57)*_t58;
-                const double _t72 = -_c4[i]*d4 - _c5[i]*d4 - _s4[i]*a3 + _s5[i]*a3;
-                const double _t73 = _t38*_t8;
-                const double _t74 = -_c2[i]*_c3[i]*a3*d3 + _c3[i]*_t10*d3 + _s3[i]*_t62 + _s3[i]*_t63 - 0.5*a3*d4*(-_c6[i] + _c7[i]);
-                const double _t75 = _c1[i]*_s2[i]*_s3[i]*a2*d4 - _t73 - _t74;
-                const double _t76 = -_c1[i]*_c3[i]*a2*d3 - 2*_c1[i]*_s2[i]*_s3[i]*a2*d4 + _s3[i]*_t69 + 2*_t73 + _t74;
-                const double _t77 = -_t76;
-                const double _t78 = _t41*(_t75*_t75) + _t41*(_t77*_t77) + _t58*(_t72*_t72);
-                const double _t79 = 1.0/(_t15 + (1e-12)*(_t16*_t16*_t16) + _t18*_t19 + _t19*_t35 + _t19*_t40 + _t49*_t50 + _t50*_t71 + _t50*_t78);
-                const double _t81 = _t11*_t22;
-                const double _t82 = _c3[i]*_t17;
-                const double _t83 = _t12*_t29;
-                const double _t84 = _t41*_t47*_t68 + _t41*_t48*_t70 - _t50*(-_t81*_t82 - _t82*_t83);
-                const double _t85 = _t80*twist_vz[i];
-                const double _t86 = _t35*_t50;
-                const double _t87 = _t18*_t50;
-                const double _t88 = _t80*twist_vx[i];
-                const double _t89 = _c3[i]*_s3[i];
-                const double _t90 = _t17*_t89;
-                const double _t91 = _t41*_t75;
-                const double _t92 = _t41*_t77;
-                const double _t93 = (0.25)*_t2*_t41*_t57*_t72 - _t50*(_t17*_t34*_t39 + _t23*_t90 + _t30*_t90) - _t68*_t91 - _t70*_t92;
-                const double _t94 = _t80*twist_vy[i];
-                const double _t95 = _t80*(_t84*_t85 + _t88*(_t19 + _t71 + _t86 + _t87) + _t93*_t94);
-                const double _t96 = _s3[i]*_t17;
-                const double _t97 = -_t47*_t91 - _t48*_t92 - _t50*(-_t81*_t96 - _t83*_t96);
-                const double _t98 = _t19 + _t40*_t50;
-                const double _t99 = _t80*(_t85*_t97 + _t88*_t93 + _t94*(_t78 + _t87 + _t98));
-                const int _t100 = _t15 < 1e-06;
-                const double _t102 = _t12*_t3*a2/kinegen_max(_t14, (1e-06)*_t1);
-                const double _t103 = ((_t100) ? (
-   _t79*(_t34*_t99 + _t39*_t95)
+                const double _t33 = _c3[i]*_t3;
+                const double _t34 = _c3[i]*_t6;
+                const double _t35 = -_c3[i]*_t8 + _t31 + _t33 + _t34;
+                const double _t36 = _t18*(_t35*_t35) + _t24*_t27 + _t27*_t30;
+                const double _t37 = (_c3[i]*_c3[i]);
+                const double _t38 = _t18*_t37;
+                const double _t39 = _s3[i]*_t3;
+                const double _t40 = _c3[i]*d3 + _s1[i]*_s3[i]*d4 - _s3[i]*_t6 - _t39;
+                const double _t41 = _t18*(_t40*_t40) + _t24*_t38 + _t30*_t38;
+                const double _t43 = (_c1[i]*_c1[i]);
+                const double _t46 = _c1[i]*_s1[i];
+                const double _t47 = (_s1[i]*_s1[i]);
+                const double _t49 = _t43*_t44 - _t44*_t47 + _t45*_t46 - _t46*_t48;
+                const double _t50 = _t21*_t3 + _t22*_t3 + _t49;
+                const double _t52 = _c0[i]*_s0[i]*_t12 + _c4[i]*a2*d4 + _s4[i]*a2*a3 + _t49;
+                const double _t53 = _t42*(_t50*_t50) + _t42*(_t52*_t52);
+                const double _t54 = (0.0001)*_t17;
+                const double _t55 = _t14*_t42;
+                const double _t56 = _t33*_t6;
+                const double _t57 = _t33*_t8;
+                const double _t58 = _t43*_t45;
+                const double _t59 = _t47*_t48;
+                const double _t60 = _c3[i]*_t58 + _c3[i]*_t59 + _t31*_t6 - _t31*_t8 - 2*_t34*_t8;
+                const double _t61 = _t56 - _t57 + _t60;
+                const double _t62 = (_c0[i]*_c0[i])*_t12;
+                const double _t63 = _c3[i]*_t62 + _t3*_t31 + 2*_t56 - 2*_t57 + _t60;
+                const double _t64 = _t26*_t55 + _t42*(_t61*_t61) + _t42*(_t63*_t63);
+                const double _t65 = _t39*_t6;
+                const double _t66 = -_c1[i]*_c3[i]*a3*d3 - 2*_c1[i]*_s1[i]*_s3[i]*a3*d4 + _c3[i]*_t8*d3 + _s3[i]*_t58 + _s3[i]*_t59;
+                const double _t67 = _c0[i]*_s1[i]*_s3[i]*a2*d4 - _t65 - _t66;
+                const double _t68 = -_c0[i]*_c3[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s3[i]*a2*d4 + _s3[i]*_t62 + 2*_t65 + _t66;
+                const double _t69 = -_t68;
+                const double _t70 = _t37*_t55 + _t42*(_t67*_t67) + _t42*(_t69*_t69);
+                const double _t71 = 1.0/(_t16 + (1e-12)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
+                const double _t73 = _t23*_t9;
+                const double _t74 = _c3[i]*_t18;
+                const double _t75 = _t10*_t29;
+                const double _t76 = _t42*_t50*_t61 + _t42*_t52*_t63 - _t54*(-_t73*_t74 - _t74*_t75);
+                const double _t77 = _t72*twist_vz[i];
+                const double _t78 = _t36*_t54;
+                const double _t79 = _t19*_t54;
+                const double _t80 = _t72*twist_vx[i];
+                const double _t81 = _c3[i]*_s3[i];
+                const double _t82 = _t42*_t67;
+                const double _t83 = _t18*_t81;
+                const double _t84 = _t42*_t69;
+                const double _t85 = -_t54*(_t18*_t35*_t40 + _t24*_t83 + _t30*_t83) - _t55*_t81 - _t61*_t82 - _t63*_t84;
+                const double _t86 = _t72*twist_vy[i];
+                const double _t87 = _t72*(_t76*_t77 + _t80*(_t20 + _t64 + _t78 + _t79) + _t85*_t86);
+                const double _t88 = _s3[i]*_t18;
+                const double _t89 = -_t50*_t82 - _t52*_t84 - _t54*(-_t73*_t88 - _t75*_t88);
+                const double _t90 = _t20 + _t41*_t54;
+                const double _t91 = _t72*(_t77*_t89 + _t80*_t85 + _t86*(_t70 + _t79 + _t90));
+                const int _t92 = _t16 < 1e-06;
+                const double _t93 = _t13*a2;
+                const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-06)*_t1);
+                const double _t95 = ((_t92) ? (
+   _t71*(_t35*_t91 + _t40*_t87)
 )
 : (
-   -_t102*(_t101*_t57*twist_vx[i] + _t101*_t72*twist_vy[i])
+   -_t94*(-_c3[i]*_t93*twist_vy[i] + _s3[i]*_t93*twist_vx[i])
 ));
-                const double _t104 = _t84*_t88 + _t85*(_t49 + _t86 + _t98) + _t94*_t97;
-                const double _t105 = _c3[i]*_t95;
-                const double _t106 = _s3[i]*_t99;
-                const double _t107 = ((_t100) ? (
-   _t79*(_t104*_t12*_t80 - _t105*_t29 - _t106*_t29)
+                const double _t96 = _t76*_t80 + _t77*(_t53 + _t78 + _t90) + _t86*_t89;
+                const double _t97 = _c3[i]*_t87;
+                const double _t98 = _s3[i]*_t91;
+                const double _t99 = ((_t92) ? (
+   _t71*(_t10*_t72*_t96 - _t29*_t97 - _t29*_t98)
 )
 : (
-   -_t102*(-_t47*twist_vz[i] - _t68*twist_vx[i] + _t75*twist_vy[i])
+   -_t94*(-_t50*twist_vz[i] - _t61*twist_vx[i] + _t67*twist_vy[i])
 ));
-                const double _t108 = ((_t100) ? (
-   _t79*(_t104*_t11*_t80 - _t105*_t22 - _t106*_t22)
+                const double _t100 = ((_t92) ? (
+   _t71*(-_t23*_t97 - _t23*_t98 + _t72*_t9*_t96)
 )
 : (
-   -_t102*(_t48*twist_vz[i] + _t70*twist_vx[i] + _t76*twist_vy[i])
+   -_t94*(_t52*twist_vz[i] + _t63*twist_vx[i] + _t68*twist_vy[i])
 ));
-                const double _t110 = (_s8[i]*_s8[i]);
-                const double _t111 = kinegen_max(0, 1 - 1000000*_t110);
-                const double _t113 = (_s9[i]*_s9[i])*_t43;
-                const double _t116 = _s2[i]*_s8[i];
-                const double _t117 = _c2[i]*_c8[i] - _c9[i]*_t116;
-                const double _t118 = _t113 + (_t117*_t117) + _t61;
-                const double _t119 = (1e-08)*(_t111*_t111);
-                const double _t120 = _c2[i]*_s8[i];
-                const double _t121 = _c8[i]*_s2[i];
-                const double _t122 = -_c9[i]*_t121 - _t120;
-                const double _t123 = (_c9[i]*_c9[i])*_t43 + _t110*_t113 + (_t122*_t122);
-                const double _t124 = (0.0001)*_t111;
-                const double _t125 = _c9[i]*_s3[i];
-                const double _t126 = _c3[i]*_s9[i];
-                const double _t127 = _c2[i]*_t126 + _t125;
-                const double _t128 = (_t127*_t127);
-                const double _t129 = _c3[i]*_c9[i];
-                const double _t130 = -_c3[i]*_t121 + _s3[i]*_s8[i]*_s9[i] - _t120*_t129;
-                const double _t131 = _t128 + (_t130*_t130) + _t36*_t43;
-                const double _t132 = _s3[i]*_s9[i];
-                const double _t133 = _c2[i]*_t132 - _c3[i]*_c9[i];
-                const double _t134 = -_s3[i]*_t121 - _s8[i]*_t126 - _t120*_t125;
-                const double _t135 = (_t133*_t133) + (_t134*_t134) + _t25*_t43;
-                const double _t136 = _c2[i]*_c3[i]*_c9[i] - _t132;
-                const double _t137 = _c2[i]*_c8[i];
-                const double _t138 = _c3[i]*_t116 + _c8[i]*_t132 - _t129*_t137;
-                const double _t139 = _t110*_t128 + (_t136*_t136) + (_t138*_t138);
-                const double _t140 = _c2[i]*_t125 + _t126;
-                const double _t141 = -_t140;
-                const double _t142 = -_t133;
-                const double _t143 = _c8[i]*_t126 - _s3[i]*_t116 + _t125*_t137;
-                const double _t144 = _t110*(_t142*_t142) + (_t141*_t141) + (_t143*_t143);
-                const double _t145 = 1.0/(_t110 + (1e-12)*(_t111*_t111*_t111) + _t118*_t119 + _t119*_t131 + _t119*_t135 + _t123*_t124 + _t124*_t139 + _t124*_t144);
-                const double _t146 = _t124*_t131;
-                const double _t147 = _t119 + _t124*_t135;
-                const double _t148 = -_t103 + twist_wz[i];
-                const double _t149 = _c9[i]*_s2[i];
-                const double _t150 = _s2[i]*_s9[i];
-                const double _t151 = _t127*_t150;
-                const double _t152 = _t110*_t151 + _t122*_t138 - _t124*(-_c3[i]*_t45 + _t117*_t130 + _t151) + _t136*_t149;
-                const double _t153 = -_s3[i]*_t107 - _s3[i]*_t108 + twist_wx[i];
-                const double _t154 = _t110*_t142;
-                const double _t155 = -_t122*_t143 - _t124*(-_s3[i]*_t45 + _t117*_t134 + _t133*_t150) - _t141*_t149 - _t150*_t154;
-                const double _t156 = _c3[i]*_t107 + _c3[i]*_t108 + twist_wy[i];
-                const double _t157 = _t148*(_t123 + _t146 + _t147) + _t152*_t153 + _t155*_t156;
-                const double _t158 = _t118*_t124;
-                const double _t159 = -_t124*(_t127*_t133 + _t130*_t134 + _t43*_t89) - _t127*_t154 - _t136*_t141 - _t138*_t143;
-                const double _t160 = _t148*_t152 + _t153*(_t139 + _t147 + _t158) + _t156*_t159;
-                const double _t161 = _t148*_t155 + _t153*_t159 + _t156*(_t119 + _t144 + _t146 + _t158);
-                const int _t162 = _t110 < 1e-06;
-                const double _t163 = _s8[i]/kinegen_max(1e-06, _t110);
-                qd[6 * (start + i) + 0] = _t103;
-                qd[6 * (start + i) + 1] = _t107;
-                qd[6 * (start + i) + 2] = _t108;
-                qd[6 * (start + i) + 3] = ((_t162) ? (
-   _t145*(_c2[i]*_t157 - _c3[i]*_s2[i]*_t160 - _s2[i]*_s3[i]*_t161)
+                const double _t102 = (_s5[i]*_s5[i]);
+                const double _t103 = kinegen_max(0, 1 - 1000000*_t102);
+                const double _t105 = (_s6[i]*_s6[i])*_t47;
+                const double _t108 = _s1[i]*_s5[i];
+                const double _t109 = _c1[i]*_c5[i] - _c6[i]*_t108;
+                const double _t110 = _t105 + (_t109*_t109) + _t43;
+                const double _t111 = (1e-08)*(_t103*_t103);
+                const double _t112 = _c1[i]*_s5[i];
+                const double _t113 = _c5[i]*_s1[i];
+                const double _t114 = -_c6[i]*_t113 - _t112;
+                const double _t115 = (_c6[i]*_c6[i])*_t47 + _t102*_t105 + (_t114*_t114);
+                const double _t116 = (0.0001)*_t103;
+                const double _t117 = _c6[i]*_s3[i];
+                const double _t118 = _c3[i]*_s6[i];
+                const double _t119 = _c1[i]*_t118 + _t117;
+                const double _t120 = (_t119*_t119);
+                const double _t121 = _c3[i]*_c6[i];
+                const double _t122 = -_c3[i]*_t113 + _s3[i]*_s5[i]*_s6[i] - _t112*_t121;
+                const double _t123 = _t120 + (_t122*_t122) + _t37*_t47;
+                const double _t124 = _s3[i]*_s6[i];
+                const double _t125 = _c1[i]*_t124 - _c3[i]*_c6[i];
+                const double _t126 = -_s3[i]*_t113 - _s5[i]*_t118 - _t112*_t117;
+                const double _t127 = (_t125*_t125) + (_t126*_t126) + _t26*_t47;
+                const double _t128 = _c1[i]*_c3[i]*_c6[i] - _t124;
+                const double _t129 = _c1[i]*_c5[i];
+                const double _t130 = _c3[i]*_t108 + _c5[i]*_t124 - _t121*_t129;
+                const double _t131 = _t102*_t120 + (_t128*_t128) + (_t130*_t130);
+                const double _t132 = _c1[i]*_t117 + _t118;
+                const double _t133 = -_t132;
+                const double _t134 = -_t125;
+                const double _t135 = _c5[i]*_t118 - _s3[i]*_t108 + _t117*_t129;
+                const double _t136 = _t102*(_t134*_t134) + (_t133*_t133) + (_t135*_t135);
+                const double _t137 = 1.0/(_t102 + (1e-12)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t123 + _t111*_t127 + _t115*_t116 + _t116*_t131 + _t116*_t136);
+                const double _t138 = _t116*_t123;
+                const double _t139 = _t111 + _t116*_t127;
+                const double _t140 = -_t95 + twist_wz[i];
+                const double _t141 = _c6[i]*_s1[i];
+                const double _t142 = _s1[i]*_s6[i];
+                const double _t143 = _t119*_t142;
+                const double _t144 = _t102*_t143 + _t114*_t130 - _t116*(-_c3[i]*_t46 + _t109*_t122 + _t143) + _t128*_t141;
+                const double _t145 = -_s3[i]*_t100 - _s3[i]*_t99 + twist_wx[i];
+                const double _t146 = _t102*_t134;
+                const double _t147 = -_t114*_t135 - _t116*(-_s3[i]*_t46 + _t109*_t126 + _t125*_t142) - _t133*_t141 - _t142*_t146;
+                const double _t148 = _c3[i]*_t100 + _c3[i]*_t99 + twist_wy[i];
+                const double _t149 = _t140*(_t115 + _t138 + _t139) + _t144*_t145 + _t147*_t148;
+                const double _t150 = _t110*_t116;
+                const double _t151 = -_t116*(_t119*_t125 + _t122*_t126 + _t47*_t81) - _t119*_t146 - _t128*_t133 - _t130*_t135;
+                const double _t152 = _t140*_t144 + _t145*(_t131 + _t139 + _t150) + _t148*_t151;
+                const double _t153 = _t140*_t147 + _t145*_t151 + _t148*(_t111 + _t136 + _t138 + _t150);
+                const int _t154 = _t102 < 1e-06;
+                const double _t155 = _s5[i]/kinegen_max(1e-06, _t102);
+                qd[6 * (start + i) + 0] = _t95;
+                qd[6 * (start + i) + 1] = _t99;
+                qd[6 * (start + i) + 2] = _t100;
+                qd[6 * (start + i) + 3] = ((_t154) ? (
+   _t137*(_c1[i]*_t149 - _c3[i]*_s1[i]*_t152 - _s1[i]*_s3[i]*_t153)
 )
 : (
-   -_t163*(_t122*_t148 + _t138*_t153 - _t143*_t156)
+   -_t155*(_t114*_t140 + _t130*_t145 - _t135*_t148)
 ));
-                qd[6 * (start + i) + 4] = ((_t162) ? (
-   _t145*(_t127*_t160 + _t133*_t161 + _t150*_t157)
+                qd[6 * (start + i) + 4] = ((_t154) ? (
+   _t137*(_t119*_t152 + _t125*_t153 + _t142*_t149)
 )
 : (
-   -_t163*(-_s8[i]*_t127*_t153 + _s8[i]*_t142*_t156 - _s9[i]*_t116*_t148)
+   -_t155*(-_s5[i]*_t119*_t145 + _s5[i]*_t134*_t148 - _s6[i]*_t108*_t140)
 ));
-                qd[6 * (start + i) + 5] = ((_t162) ? (
-   _t145*(_t117*_t157 + _t130*_t160 + _t134*_t161)
+                qd[6 * (start + i) + 5] = ((_t154) ? (
+   _t137*(_t109*_t149 + _t122*_t152 + _t126*_t153)
 )
 : (
-   -_t163*(_t136*_t153 + _t140*_t156 + _t148*_t149)
+   -_t155*(_t128*_t145 + _t132*_t148 + _t140*_t141)
 ));
-                singular[1 * (start + i) + 0] = _t100 || _t162;
+                singular[1 * (start + i) + 0] = _t154 || _t92;
             }
         }
 #ifdef KINEGEN_STREAM

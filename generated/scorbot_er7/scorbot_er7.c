@@ -16,8 +16,8 @@
  * jacobian_dot: 124 operations after common-subexpression elimination
  * task_acceleration: 148 operations after common-subexpression elimination
  * manipulability: 56 operations after common-subexpression elimination
- * joint_velocity: 395 operations after common-subexpression elimination
- * joint_acceleration: 496 operations after common-subexpression elimination
+ * joint_velocity: 345 operations after common-subexpression elimination
+ * joint_acceleration: 447 operations after common-subexpression elimination
  */
 #include "scorbot_er7.h"
 
@@ -3136,181 +3136,156 @@ void scorbot_er7_joint_velocity(const double *restrict q, const double *restrict
     const double a3 = params->a3;
     const double d1 = params->d1;
     const double d5 = params->d5;
-    const double _t0 = (a3*a3);
-    const double _t2 = (d5*d5);
-    const double _t16 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
+    const double _t13 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
+    const double _t15 = (a3*a3);
+    const double _t16 = (d5*d5);
     const double _t20 = (a2*a2);
-    const double _t27 = 1.0/(_t16*_t16*_t16*_t16);
-    const double _t28 = _t2*_t27;
-    const double _t44 = (0.25)*_t28;
-    const double _t45 = _t0*_t44;
-    const double _t59 = (0.25)*_t20*_t27;
-    const double _t80 = 1.0/(_t16*_t16);
-    const double _t102 = 1.0/_t16;
-    const double _t5 = q2 + q3;
-    const double _t8 = q3 + q4;
-    const double _t9 = _t8 + q2;
-    const double _t39 = q1 - q4;
-    const double _t41 = q1 + q4;
-    const double _t52 = q1 + q3;
-    const double _t53 = q1 - q3;
-    const double _t54 = _t8 + q1;
-    const double _t56 = _t8 - q1;
-    double _s0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _s5, _s6, _c6, _s7, _c7, _s8, _c8, _s9, _c9, _s10, _c10, _s11, _c11, _s12, _c12;
+    const double _t29 = 1.0/(_t13*_t13*_t13*_t13);
+    const double _t61 = 1.0/(_t13*_t13);
+    const double _t78 = 1.0/_t13;
+    const double _t2 = q2 + q3;
+    const double _t5 = q3 + q4;
+    const double _t6 = _t5 + q2;
+    const double _t34 = 2*q2;
+    const double _a0 = _t34 + 2*q3 + q4;
+    const double _a1 = _t34 + q3;
+    const double _a2 = _t34 + _t5;
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _s4, _s5, _s6, _s7, _s8, _s9, _c9;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[16] = { q4, q2, _t5, _t9, _t8, q3, _t39, _t41, q1, _t54, _t56, _t53, _t52, 0.0, 0.0, 0.0 };
-        double sine[16], cosine[16];
+        const double angle[12] = { q2, _t2, _t6, q4, _t5, q3, _a0, _a1, _a2, q1, 0.0, 0.0 };
+        double sine[12], cosine[12];
         int k;
         KINEGEN_VECTOR_LOOP
-        for (k = 0; k < 16; ++k) {
+        for (k = 0; k < 12; ++k) {
             sine[k] = sin(angle[k]);
         }
         KINEGEN_VECTOR_LOOP
-        for (k = 0; k < 16; ++k) {
+        for (k = 0; k < 12; ++k) {
             cosine[k] = cos(angle[k]);
         }
         _s0 = sine[0];
+        _c0 = cosine[0];
         _s1 = sine[1];
         _c1 = cosine[1];
         _s2 = sine[2];
         _c2 = cosine[2];
         _s3 = sine[3];
-        _c3 = cosine[3];
         _s4 = sine[4];
         _s5 = sine[5];
         _s6 = sine[6];
-        _c6 = cosine[6];
         _s7 = sine[7];
-        _c7 = cosine[7];
         _s8 = sine[8];
-        _c8 = cosine[8];
         _s9 = sine[9];
         _c9 = cosine[9];
-        _s10 = sine[10];
-        _c10 = cosine[10];
-        _s11 = sine[11];
-        _c11 = cosine[11];
-        _s12 = sine[12];
-        _c12 = cosine[12];
     }
 #else
-    _s0 = sin(q4);
-    _s1 = sin(q2);
-    _c1 = cos(q2);
-    _s2 = sin(_t5);
-    _c2 = cos(_t5);
-    _s3 = sin(_t9);
-    _c3 = cos(_t9);
-    _s4 = sin(_t8);
+    _s0 = sin(q2);
+    _c0 = cos(q2);
+    _s1 = sin(_t2);
+    _c1 = cos(_t2);
+    _s2 = sin(_t6);
+    _c2 = cos(_t6);
+    _s3 = sin(q4);
+    _s4 = sin(_t5);
     _s5 = sin(q3);
-    _s6 = sin(_t39);
-    _c6 = cos(_t39);
-    _s7 = sin(_t41);
-    _c7 = cos(_t41);
-    _s8 = sin(q1);
-    _c8 = cos(q1);
-    _s9 = sin(_t54);
-    _c9 = cos(_t54);
-    _s10 = sin(_t56);
-    _c10 = cos(_t56);
-    _s11 = sin(_t53);
-    _c11 = cos(_t53);
-    _s12 = sin(_t52);
-    _c12 = cos(_t52);
+    _s6 = sin(_a0);
+    _s7 = sin(_a1);
+    _s8 = sin(_a2);
+    _s9 = sin(q1);
+    _c9 = cos(q1);
 #endif
-    const double _t4 = _c1*a2;
-    const double _t7 = _c2*a3;
-    const double _t11 = _c3*d5;
-    const double _t12 = _t11 + _t7;
-    const double _t13 = _t12 + _t4;
-    const double _t14 = _t13 + a1;
-    const double _t15 = (_t14*_t14);
-    const double _t17 = _t15/(_t16*_t16*_t16*_t16*_t16*_t16);
-    const double _t18 = _t17*_t2;
-    const double _t19 = (_s0*_s0)*_t0*_t18;
-    const double _t22 = _t17*_t20*((_s4*d5 + _s5*a3)*(_s4*d5 + _s5*a3));
-    const double _t23 = _t18*((_s0*a3 + _s4*a2)*(_s0*a3 + _s4*a2));
-    const double _t24 = kinegen_max(0, -1000000*_t19 - 1000000*_t22 - 1000000*_t23 + 1);
-    const double _t26 = (_s3*_s3);
-    const double _t30 = _s2*a3;
-    const double _t31 = _s3*d5;
-    const double _t32 = _c3*_s3*_t2;
-    const double _t33 = _c2*_s2*_t0 + _t11*_t30 + _t30*_t4 + _t30*a1 + _t31*_t4 + _t31*_t7 + _t31*a1 + _t32;
-    const double _t35 = _s1*a2;
-    const double _t36 = _c1*_s1*_t20 + _t11*_t35 + _t33 + _t35*_t7 + _t35*a1;
-    const double _t37 = _t15*_t26*_t28 + _t27*(_t33*_t33) + _t27*(_t36*_t36);
-    const double _t38 = (0.0001)*_t24;
-    const double _t43 = _c6 - _c7;
-    const double _t47 = (_c8*_c8);
-    const double _t48 = _t27*_t47;
-    const double _t49 = (_c3*_c3);
-    const double _t50 = _t2*_t49;
-    const double _t51 = _t15*_t50;
-    const double _t58 = _c10*d5 + _c11*a3 - _c12*a3 - _c9*d5;
-    const double _t60 = _c10*a2 + _c6*a3 - _c7*a3 - _c9*a2;
-    const double _t61 = _t4*_t7;
-    const double _t62 = _t11*_t4;
-    const double _t63 = (_c2*_c2)*_t0 + 2*_t11*_t7 + _t11*a1 + _t50 + _t7*a1;
-    const double _t64 = _t61 + _t62 + _t63;
-    const double _t65 = (_t64*_t64);
-    const double _t66 = (_c1*_c1)*_t20 + _t4*a1 + 2*_t61 + 2*_t62 + _t63;
-    const double _t67 = (_t66*_t66);
-    const double _t68 = (_t43*_t43)*_t45 + _t44*(_t60*_t60) + _t48*_t51 + _t48*_t65 + _t48*_t67 + (_t58*_t58)*_t59;
-    const double _t71 = -_s6 + _s7;
-    const double _t73 = (_s8*_s8);
-    const double _t74 = _t27*_t73;
-    const double _t77 = _s10*d5 - _s11*a3 + _s12*a3 + _s9*d5;
-    const double _t78 = _s10*a2 - _s6*a3 + _s7*a3 + _s9*a2;
-    const double _t79 = _t44*(_t78*_t78) + _t45*(_t71*_t71) + _t51*_t74 + _t59*(_t77*_t77) + _t65*_t74 + _t67*_t74;
-    const double _t81 = (_t12*_t12)*_t80 + (_t13*_t13)*_t80 + _t50*_t80;
-    const double _t82 = (1e-08)*(_t24*_t24);
-    const double _t83 = _t47*_t80;
-    const double _t84 = _t2*_t26;
-    const double _t85 = _t30 + _t31;
-    const double _t86 = (_t85*_t85);
-    const double _t87 = _t35 + _t85;
-    const double _t88 = (_t87*_t87);
-    const double _t89 = _t73*_t80;
-    const double _t90 = _t15*_t89 + _t83*_t84 + _t83*_t86 + _t83*_t88;
-    const double _t91 = _t15*_t83 + _t84*_t89 + _t86*_t89 + _t88*_t89;
-    const double _t92 = _t19 + _t22 + _t23;
-    const double _t93 = 1.0/((1e-12)*(_t24*_t24*_t24) + _t37*_t38 + _t38*_t68 + _t38*_t79 + _t81*_t82 + _t82*_t90 + _t82*_t91 + _t92);
-    const double _t94 = _s8*_t27;
-    const double _t95 = _t15*_t32;
-    const double _t96 = _t33*_t64;
-    const double _t97 = _t36*_t66;
-    const double _t98 = _s8*_t80;
-    const double _t99 = _t12*_t85;
-    const double _t100 = _t13*_t87;
-    const double _t101 = -_t38*(-_t100*_t98 - _t32*_t98 - _t98*_t99) + _t94*_t95 + _t94*_t96 + _t94*_t97;
-    const double _t103 = _t102*xd_z;
-    const double _t104 = _c8*_s8*_t80;
-    const double _t105 = _c8*_s8*_t15*_t2*_t27*_t49 + _c8*_s8*_t27*_t65 + _c8*_s8*_t27*_t67 - _t38*(-_t104*_t15 + _t104*_t84 + _t104*_t86 + _t104*_t88) - _t43*_t45*_t71 - _t44*_t60*_t78 - _t58*_t59*_t77;
-    const double _t106 = _t102*xd_x;
-    const double _t107 = _t38*_t81;
-    const double _t108 = _t38*_t90 + _t82;
-    const double _t109 = _t102*xd_y;
-    const double _t110 = _t101*_t103 + _t105*_t106 + _t109*(_t107 + _t108 + _t79);
-    const double _t111 = _t102*_t14;
-    const double _t112 = _c8*_t27;
-    const double _t113 = _c8*_t80;
-    const double _t114 = _t112*_t95 + _t112*_t96 + _t112*_t97 - _t38*(-_t100*_t113 - _t113*_t32 - _t113*_t99);
-    const double _t115 = _t38*_t91;
-    const double _t116 = _t103*_t114 + _t105*_t109 + _t106*(_t107 + _t115 + _t68 + _t82);
-    const double _t117 = _t101*_t109 + _t103*(_t108 + _t115 + _t37) + _t106*_t114;
-    const double _t118 = _t102*_t87;
-    const double _t119 = _s8*_t110;
-    const double _t120 = _c8*_t116;
-    const double _t121 = _t102*_t85;
-    const double _t122 = _t102*_t31;
-    qd[0] = _t93*(_c8*_t110*_t111 - _s8*_t111*_t116);
-    qd[1] = _t93*(_t102*_t117*_t13 - _t118*_t119 - _t118*_t120);
-    qd[2] = _t93*(_t102*_t117*_t12 - _t119*_t121 - _t120*_t121);
-    qd[3] = _t93*(_c3*_t102*_t117*d5 - _t119*_t122 - _t120*_t122);
+    const double _t1 = _c0*a2;
+    const double _t4 = _c1*a3;
+    const double _t8 = _c2*d5;
+    const double _t9 = _t4 + _t8;
+    const double _t10 = _t1 + _t9;
+    const double _t11 = _t10 + a1;
+    const double _t12 = (_t11*_t11);
+    const double _t14 = _t12/(_t13*_t13*_t13*_t13*_t13*_t13);
+    const double _t18 = (_s3*_s3)*_t15*_t16;
+    const double _t19 = _t14*_t18;
+    const double _t22 = _t20*((_s4*d5 + _s5*a3)*(_s4*d5 + _s5*a3));
+    const double _t23 = _t14*_t22;
+    const double _t24 = _t16*((_s3*a3 + _s4*a2)*(_s3*a3 + _s4*a2));
+    const double _t25 = _t14*_t24;
+    const double _t26 = kinegen_max(0, -1000000*_t19 - 1000000*_t23 - 1000000*_t25 + 1);
+    const double _t28 = (_s2*_s2)*_t16;
+    const double _t30 = _t12*_t29;
+    const double _t32 = _s1*a3;
+    const double _t33 = _s2*d5;
+    const double _t35 = _c2*_s2*_t16;
+    const double _t36 = _c1*_s1*_t15 + _s6*a3*d5 + _t32*a1 + _t33*a1 + _t35;
+    const double _t37 = _t1*_t32 + _t1*_t33 + _t36;
+    const double _t39 = _s0*a2;
+    const double _t40 = _c0*_s0*_t20 + _s7*a2*a3 + _s8*a2*d5 + _t36 + _t39*a1;
+    const double _t41 = _t28*_t30 + _t29*(_t37*_t37) + _t29*(_t40*_t40);
+    const double _t42 = (0.0001)*_t26;
+    const double _t44 = (_s9*_s9);
+    const double _t45 = _t29*_t44;
+    const double _t47 = (_c9*_c9);
+    const double _t48 = _t29*_t47;
+    const double _t49 = (_c2*_c2);
+    const double _t50 = _t16*_t49;
+    const double _t51 = _t12*_t50;
+    const double _t52 = _t1*_t4;
+    const double _t53 = _t1*_t8;
+    const double _t54 = (_c1*_c1)*_t15 + 2*_t4*_t8 + _t4*a1 + _t50 + _t8*a1;
+    const double _t55 = _t52 + _t53 + _t54;
+    const double _t56 = (_t55*_t55);
+    const double _t57 = (_c0*_c0)*_t20 + _t1*a1 + 2*_t52 + 2*_t53 + _t54;
+    const double _t58 = (_t57*_t57);
+    const double _t59 = _t18*_t45 + _t22*_t45 + _t24*_t45 + _t48*_t51 + _t48*_t56 + _t48*_t58;
+    const double _t60 = _t18*_t48 + _t22*_t48 + _t24*_t48 + _t45*_t51 + _t45*_t56 + _t45*_t58;
+    const double _t62 = (_t10*_t10)*_t61 + _t50*_t61 + _t61*(_t9*_t9);
+    const double _t63 = (1e-08)*(_t26*_t26);
+    const double _t64 = _t47*_t61;
+    const double _t65 = _t32 + _t33;
+    const double _t66 = (_t65*_t65);
+    const double _t67 = _t39 + _t65;
+    const double _t68 = (_t67*_t67);
+    const double _t69 = _t44*_t61;
+    const double _t70 = _t12*_t69 + _t28*_t64 + _t64*_t66 + _t64*_t68;
+    const double _t71 = _t12*_t64 + _t28*_t69 + _t66*_t69 + _t68*_t69;
+    const double _t72 = _t19 + _t23 + _t25;
+    const double _t73 = 1.0/((1e-12)*(_t26*_t26*_t26) + _t41*_t42 + _t42*_t59 + _t42*_t60 + _t62*_t63 + _t63*_t70 + _t63*_t71 + _t72);
+    const double _t74 = _c9*_s9;
+    const double _t75 = _t29*_t74;
+    const double _t76 = _t61*_t74;
+    const double _t77 = _c9*_s9*_t12*_t16*_t29*_t49 + _c9*_s9*_t29*_t56 + _c9*_s9*_t29*_t58 - _t18*_t75 - _t22*_t75 - _t24*_t75 - _t42*(-_t12*_t76 + _t28*_t76 + _t66*_t76 + _t68*_t76);
+    const double _t79 = _t78*xd_x;
+    const double _t80 = _t30*_t35;
+    const double _t81 = _s9*_t29;
+    const double _t82 = _t37*_t55;
+    const double _t83 = _t40*_t57;
+    const double _t84 = _s9*_t61;
+    const double _t85 = _t65*_t9;
+    const double _t86 = _t10*_t67;
+    const double _t87 = _s9*_t80 - _t42*(-_t35*_t84 - _t84*_t85 - _t84*_t86) + _t81*_t82 + _t81*_t83;
+    const double _t88 = _t78*xd_z;
+    const double _t89 = _t42*_t62;
+    const double _t90 = _t42*_t70 + _t63;
+    const double _t91 = _t78*xd_y;
+    const double _t92 = _t77*_t79 + _t87*_t88 + _t91*(_t60 + _t89 + _t90);
+    const double _t93 = _t11*_t78;
+    const double _t94 = _c9*_t29;
+    const double _t95 = _c9*_t61;
+    const double _t96 = _c9*_t80 - _t42*(-_t35*_t95 - _t85*_t95 - _t86*_t95) + _t82*_t94 + _t83*_t94;
+    const double _t97 = _t42*_t71;
+    const double _t98 = _t77*_t91 + _t79*(_t59 + _t63 + _t89 + _t97) + _t88*_t96;
+    const double _t99 = _t79*_t96 + _t87*_t91 + _t88*(_t41 + _t90 + _t97);
+    const double _t100 = _t67*_t78;
+    const double _t101 = _s9*_t92;
+    const double _t102 = _c9*_t98;
+    const double _t103 = _t65*_t78;
+    const double _t104 = _t33*_t78;
+    qd[0] = _t73*(_c9*_t92*_t93 - _s9*_t93*_t98);
+    qd[1] = _t73*(_t10*_t78*_t99 - _t100*_t101 - _t100*_t102);
+    qd[2] = _t73*(-_t101*_t103 - _t102*_t103 + _t78*_t9*_t99);
+    qd[3] = _t73*(_c2*_t78*_t99*d5 - _t101*_t104 - _t102*_t104);
     qd[4] = 0;
-    singular[0] = _t92 < 1e-06;
+    singular[0] = _t72 < 1e-06;
 }
 
 /* joint_velocity of `count` items, stored one after the other in each argument and output. */
@@ -3324,38 +3299,26 @@ void scorbot_er7_joint_velocity_batch(size_t count, const double *restrict q, co
     double xd_x[KINEGEN_BLOCK_OF(64)];
     double xd_y[KINEGEN_BLOCK_OF(64)];
     double xd_z[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
     double _t5[KINEGEN_BLOCK_OF(64)];
-    double _t8[KINEGEN_BLOCK_OF(64)];
-    double _t9[KINEGEN_BLOCK_OF(64)];
-    double _t39[KINEGEN_BLOCK_OF(64)];
-    double _t41[KINEGEN_BLOCK_OF(64)];
-    double _t52[KINEGEN_BLOCK_OF(64)];
-    double _t53[KINEGEN_BLOCK_OF(64)];
-    double _t54[KINEGEN_BLOCK_OF(64)];
-    double _t56[KINEGEN_BLOCK_OF(64)];
+    double _t6[KINEGEN_BLOCK_OF(64)];
+    double _a0[KINEGEN_BLOCK_OF(64)];
+    double _a1[KINEGEN_BLOCK_OF(64)];
+    double _a2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
     double _s3[KINEGEN_BLOCK_OF(64)];
-    double _c3[KINEGEN_BLOCK_OF(64)];
     double _s4[KINEGEN_BLOCK_OF(64)];
     double _s5[KINEGEN_BLOCK_OF(64)];
     double _s6[KINEGEN_BLOCK_OF(64)];
-    double _c6[KINEGEN_BLOCK_OF(64)];
     double _s7[KINEGEN_BLOCK_OF(64)];
-    double _c7[KINEGEN_BLOCK_OF(64)];
     double _s8[KINEGEN_BLOCK_OF(64)];
-    double _c8[KINEGEN_BLOCK_OF(64)];
     double _s9[KINEGEN_BLOCK_OF(64)];
     double _c9[KINEGEN_BLOCK_OF(64)];
-    double _s10[KINEGEN_BLOCK_OF(64)];
-    double _c10[KINEGEN_BLOCK_OF(64)];
-    double _s11[KINEGEN_BLOCK_OF(64)];
-    double _c11[KINEGEN_BLOCK_OF(64)];
-    double _s12[KINEGEN_BLOCK_OF(64)];
-    double _c12[KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &scorbot_er7_default_params;
@@ -3365,17 +3328,13 @@ void scorbot_er7_joint_velocity_batch(size_t count, const double *restrict q, co
     const double a3 = params->a3;
     const double d1 = params->d1;
     const double d5 = params->d5;
-    const double _t0 = (a3*a3);
-    const double _t2 = (d5*d5);
-    const double _t16 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
+    const double _t13 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
+    const double _t15 = (a3*a3);
+    const double _t16 = (d5*d5);
     const double _t20 = (a2*a2);
-    const double _t27 = 1.0/(_t16*_t16*_t16*_t16);
-    const double _t28 = _t2*_t27;
-    const double _t44 = (0.25)*_t28;
-    const double _t45 = _t0*_t44;
-    const double _t59 = (0.25)*_t20*_t27;
-    const double _t80 = 1.0/(_t16*_t16);
-    const double _t102 = 1.0/_t16;
+    const double _t29 = 1.0/(_t13*_t13*_t13*_t13);
+    const double _t61 = 1.0/(_t13*_t13);
+    const double _t78 = 1.0/_t13;
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
@@ -3389,47 +3348,45 @@ void scorbot_er7_joint_velocity_batch(size_t count, const double *restrict q, co
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t5[i] = q2[i] + q3[i];
-            _t8[i] = q3[i] + q4[i];
-            _t9[i] = _t8[i] + q2[i];
-            _t39[i] = q1[i] - q4[i];
-            _t41[i] = q1[i] + q4[i];
-            _t52[i] = q1[i] + q3[i];
-            _t53[i] = q1[i] - q3[i];
-            _t54[i] = _t8[i] + q1[i];
-            _t56[i] = _t8[i] - q1[i];
+            _t2[i] = q2[i] + q3[i];
+            _t5[i] = q3[i] + q4[i];
+            _t6[i] = _t5[i] + q2[i];
+            const double _t34 = 2*q2[i];
+            _a0[i] = _t34 + 2*q3[i] + q4[i];
+            _a1[i] = _t34 + q3[i];
+            _a2[i] = _t34 + _t5[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s0[i] = sin(q4[i]);
+            _s0[i] = sin(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s1[i] = sin(q2[i]);
+            _c0[i] = cos(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c1[i] = cos(q2[i]);
+            _s1[i] = sin(_t2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s2[i] = sin(_t5[i]);
+            _c1[i] = cos(_t2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(_t5[i]);
+            _s2[i] = sin(_t6[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s3[i] = sin(_t9[i]);
+            _c2[i] = cos(_t6[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c3[i] = cos(_t9[i]);
+            _s3[i] = sin(q4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s4[i] = sin(_t8[i]);
+            _s4[i] = sin(_t5[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -3437,153 +3394,116 @@ void scorbot_er7_joint_velocity_batch(size_t count, const double *restrict q, co
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s6[i] = sin(_t39[i]);
+            _s6[i] = sin(_a0[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c6[i] = cos(_t39[i]);
+            _s7[i] = sin(_a1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s7[i] = sin(_t41[i]);
+            _s8[i] = sin(_a2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c7[i] = cos(_t41[i]);
+            _s9[i] = sin(q1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s8[i] = sin(q1[i]);
+            _c9[i] = cos(q1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c8[i] = cos(q1[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _s9[i] = sin(_t54[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _c9[i] = cos(_t54[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _s10[i] = sin(_t56[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _c10[i] = cos(_t56[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _s11[i] = sin(_t53[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _c11[i] = cos(_t53[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _s12[i] = sin(_t52[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _c12[i] = cos(_t52[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            const double _t4 = _c1[i]*a2;
-            const double _t7 = _c2[i]*a3;
-            const double _t11 = _c3[i]*d5;
-            const double _t12 = _t11 + _t7;
-            const double _t13 = _t12 + _t4;
-            const double _t14 = _t13 + a1;
-            const double _t15 = (_t14*_t14);
-            const double _t17 = _t15/(_t16*_t16*_t16*_t16*_t16*_t16);
-            const double _t18 = _t17*_t2;
-            const double _t19 = (_s0[i]*_s0[i])*_t0*_t18;
-            const double _t22 = _t17*_t20*((_s4[i]*d5 + _s5[i]*a3)*(_s4[i]*d5 + _s5[i]*a3));
-            const double _t23 = _t18*((_s0[i]*a3 + _s4[i]*a2)*(_s0[i]*a3 + _s4[i]*a2));
-            const double _t24 = kinegen_max(0, -1000000*_t19 - 1000000*_t22 - 1000000*_t23 + 1);
-            const double _t26 = (_s3[i]*_s3[i]);
-            const double _t30 = _s2[i]*a3;
-            const double _t31 = _s3[i]*d5;
-            const double _t32 = _c3[i]*_s3[i]*_t2;
-            const double _t33 = _c2[i]*_s2[i]*_t0 + _t11*_t30 + _t30*_t4 + _t30*a1 + _t31*_t4 + _t31*_t7 + _t31*a1 + _t32;
-            const double _t35 = _s1[i]*a2;
-            const double _t36 = _c1[i]*_s1[i]*_t20 + _t11*_t35 + _t33 + _t35*_t7 + _t35*a1;
-            const double _t37 = _t15*_t26*_t28 + _t27*(_t33*_t33) + _t27*(_t36*_t36);
-            const double _t38 = (0.0001)*_t24;
-            const double _t43 = _c6[i] - _c7[i];
-            const double _t47 = (_c8[i]*_c8[i]);
-            const double _t48 = _t27*_t47;
-            const double _t49 = (_c3[i]*_c3[i]);
-            const double _t50 = _t2*_t49;
-            const double _t51 = _t15*_t50;
-            const double _t58 = _c10[i]*d5 + _c11[i]*a3 - _c12[i]*a3 - _c9[i]*d5;
-            const double _t60 = _c10[i]*a2 + _c6[i]*a3 - _c7[i]*a3 - _c9[i]*a2;
-            const double _t61 = _t4*_t7;
-            const double _t62 = _t11*_t4;
-            const double _t63 = (_c2[i]*_c2[i])*_t0 + 2*_t11*_t7 + _t11*a1 + _t50 + _t7*a1;
-            const double _t64 = _t61 + _t62 + _t63;
-            const double _t65 = (_t64*_t64);
-            const double _t66 = (_c1[i]*_c1[i])*_t20 + _t4*a1 + 2*_t61 + 2*_t62 + _t63;
-            const double _t67 = (_t66*_t66);
-            const double _t68 = (_t43*_t43)*_t45 + _t44*(_t60*_t60) + _t48*_t51 + _t48*_t65 + _t48*_t67 + (_t58*_t58)*_t59;
-            const double _t71 = -_s6[i] + _s7[i];
-            const double _t73 = (_s8[i]*_s8[i]);
-            const double _t74 = _t27*_t73;
-            const double _t77 = _s10[i]*d5 - _s11[i]*a3 + _s12[i]*a3 + _s9[i]*d5;
-            const double _t78 = _s10[i]*a2 - _s6[i]*a3 + _s7[i]*a3 + _s9[i]*a2;
-            const double _t79 = _t44*(_t78*_t78) + _t45*(_t71*_t71) + _t51*_t74 + _t59*(_t77*_t77) + _t65*_t74 + _t67*_t74;
-            const double _t81 = (_t12*_t12)*_t80 + (_t13*_t13)*_t80 + _t50*_t80;
-            const double _t82 = (1e-08)*(_t24*_t24);
-            const double _t83 = _t47*_t80;
-            const double _t84 = _t2*_t26;
-            const double _t85 = _t30 + _t31;
-            const double _t86 = (_t85*_t85);
-            const double _t87 = _t35 + _t85;
-            const double _t88 = (_t87*_t87);
-            const double _t89 = _t73*_t80;
-            const double _t90 = _t15*_t89 + _t83*_t84 + _t83*_t86 + _t83*_t88;
-            const double _t91 = _t15*_t83 + _t84*_t89 + _t86*_t89 + _t88*_t89;
-            const double _t92 = _t19 + _t22 + _t23;
-            const double _t93 = 1.0/((1e-12)*(_t24*_t24*_t24) + _t37*_t38 + _t38*_t68 + _t38*_t79 + _t81*_t82 + _t82*_t90 + _t82*_t91 + _t92);
-            const double _t94 = _s8[i]*_t27;
-            const double _t95 = _t15*_t32;
-            const double _t96 = _t33*_t64;
-            const double _t97 = _t36*_t66;
-            const double _t98 = _s8[i]*_t80;
-            const double _t99 = _t12*_t85;
-            const double _t100 = _t13*_t87;
-            const double _t101 = -_t38*(-_t100*_t98 - _t32*_t98 - _t98*_t99) + _t94*_t95 + _t94*_t96 + _t94*_t97;
-            const double _t103 = _t102*xd_z[i];
-            const double _t104 = _c8[i]*_s8[i]*_t80;
-            const double _t105 = _c8[i]*_s8[i]*_t15*_t2*_t27*_t49 + _c8[i]*_s8[i]*_t27*_t65 + _c8[i]*_s8[i]*_t27*_t67 - _t38*(-_t104*_t15 + _t104*_t84 + _t104*_t86 + _t104*_t88) - _t43*_t45*_t71 - _t44*_t60*_t78 - _t58*_t59*_t77;
-            const double _t106 = _t102*xd_x[i];
-            const double _t107 = _t38*_t81;
-            const double _t108 = _t38*_t90 + _t82;
-            const double _t109 = _t102*xd_y[i];
-            const double _t110 = _t101*_t103 + _t105*_t106 + _t109*(_t107 + _t108 + _t79);
-            const double _t111 = _t102*_t14;
-            const double _t112 = _c8[i]*_t27;
-            const double _t113 = _c8[i]*_t80;
-            const double _t114 = _t112*_t95 + _t112*_t96 + _t112*_t97 - _t38*(-_t100*_t113 - _t113*_t32 - _t113*_t99);
-            const double _t115 = _t38*_t91;
-            const double _t116 = _t103*_t114 + _t105*_t109 + _t106*(_t107 + _t115 + _t68 + _t82);
-            const double _t117 = _t101*_t109 + _t103*(_t108 + _t115 + _t37) + _t106*_t114;
-            const double _t118 = _t102*_t87;
-            const double _t119 = _s8[i]*_t110;
-            const double _t120 = _c8[i]*_t116;
-            const double _t121 = _t102*_t85;
-            const double _t122 = _t102*_t31;
-            qd[5 * (start + i) + 0] = _t93*(_c8[i]*_t110*_t111 - _s8[i]*_t111*_t116);
-            qd[5 * (start + i) + 1] = _t93*(_t102*_t117*_t13 - _t118*_t119 - _t118*_t120);
-            qd[5 * (start + i) + 2] = _t93*(_t102*_t117*_t12 - _t119*_t121 - _t120*_t121);
-            qd[5 * (start + i) + 3] = _t93*(_c3[i]*_t102*_t117*d5 - _t119*_t122 - _t120*_t122);
+            const double _t1 = _c0[i]*a2;
+            const double _t4 = _c1[i]*a3;
+            const double _t8 = _c2[i]*d5;
+            const double _t9 = _t4 + _t8;
+            const double _t10 = _t1 + _t9;
+            const double _t11 = _t10 + a1;
+            const double _t12 = (_t11*_t11);
+            const double _t14 = _t12/(_t13*_t13*_t13*_t13*_t13*_t13);
+            const double _t18 = (_s3[i]*_s3[i])*_t15*_t16;
+            const double _t19 = _t14*_t18;
+            const double _t22 = _t20*((_s4[i]*d5 + _s5[i]*a3)*(_s4[i]*d5 + _s5[i]*a3));
+            const double _t23 = _t14*_t22;
+            const double _t24 = _t16*((_s3[i]*a3 + _s4[i]*a2)*(_s3[i]*a3 + _s4[i]*a2));
+            const double _t25 = _t14*_t24;
+            const double _t26 = kinegen_max(0, -1000000*_t19 - 1000000*_t23 - 1000000*_t25 + 1);
+            const double _t28 = (_s2[i]*_s2[i])*_t16;
+            const double _t30 = _t12*_t29;
+            const double _t32 = _s1[i]*a3;
+            const double _t33 = _s2[i]*d5;
+            const double _t35 = _c2[i]*_s2[i]*_t16;
+            const double _t36 = _c1[i]*_s1[i]*_t15 + _s6[i]*a3*d5 + _t32*a1 + _t33*a1 + _t35;
+            const double _t37 = _t1*_t32 + _t1*_t33 + _t36;
+            const double _t39 = _s0[i]*a2;
+            const double _t40 = _c0[i]*_s0[i]*_t20 + _s7[i]*a2*a3 + _s8[i]*a2*d5 + _t36 + _t39*a1;
+            const double _t41 = _t28*_t30 + _t29*(_t37*_t37) + _t29*(_t40*_t40);
+            const double _t42 = (0.0001)*_t26;
+            const double _t44 = (_s9[i]*_s9[i]);
+            const double _t45 = _t29*_t44;
+            const double _t47 = (_c9[i]*_c9[i]);
+            const double _t48 = _t29*_t47;
+            const double _t49 = (_c2[i]*_c2[i]);
+            const double _t50 = _t16*_t49;
+            const double _t51 = _t12*_t50;
+            const double _t52 = _t1*_t4;
+            const double _t53 = _t1*_t8;
+            const double _t54 = (_c1[i]*_c1[i])*_t15 + 2*_t4*_t8 + _t4*a1 + _t50 + _t8*a1;
+            const double _t55 = _t52 + _t53 + _t54;
+            const double _t56 = (_t55*_t55);
+            const double _t57 = (_c0[i]*_c0[i])*_t20 + _t1*a1 + 2*_t52 + 2*_t53 + _t54;
+            const double _t58 = (_t57*_t57);
+            const double _t59 = _t18*_t45 + _t22*_t45 + _t24*_t45 + _t48*_t51 + _t48*_t56 + _t48*_t58;
+            const double _t60 = _t18*_t48 + _t22*_t48 + _t24*_t48 + _t45*_t51 + _t45*_t56 + _t45*_t58;
+            const double _t62 = (_t10*_t10)*_t61 + _t50*_t61 + _t61*(_t9*_t9);
+            const double _t63 = (1e-08)*(_t26*_t26);
+            const double _t64 = _t47*_t61;
+            const double _t65 = _t32 + _t33;
+            const double _t66 = (_t65*_t65);
+            const double _t67 = _t39 + _t65;
+            const double _t68 = (_t67*_t67);
+            const double _t69 = _t44*_t61;
+            const double _t70 = _t12*_t69 + _t28*_t64 + _t64*_t66 + _t64*_t68;
+            const double _t71 = _t12*_t64 + _t28*_t69 + _t66*_t69 + _t68*_t69;
+            const double _t72 = _t19 + _t23 + _t25;
+            const double _t73 = 1.0/((1e-12)*(_t26*_t26*_t26) + _t41*_t42 + _t42*_t59 + _t42*_t60 + _t62*_t63 + _t63*_t70 + _t63*_t71 + _t72);
+            const double _t74 = _c9[i]*_s9[i];
+            const double _t75 = _t29*_t74;
+            const double _t76 = _t61*_t74;
+            const double _t77 = _c9[i]*_s9[i]*_t12*_t16*_t29*_t49 + _c9[i]*_s9[i]*_t29*_t56 + _c9[i]*_s9[i]*_t29*_t58 - _t18*_t75 - _t22*_t75 - _t24*_t75 - _t42*(-_t12*_t76 + _t28*_t76 + _t66*_t76 + _t68*_t76);
+            const double _t79 = _t78*xd_x[i];
+            const double _t80 = _t30*_t35;
+            const double _t81 = _s9[i]*_t29;
+            const double _t82 = _t37*_t55;
+            const double _t83 = _t40*_t57;
+            const double _t84 = _s9[i]*_t61;
+            const double _t85 = _t65*_t9;
+            const double _t86 = _t10*_t67;
+            const double _t87 = _s9[i]*_t80 - _t42*(-_t35*_t84 - _t84*_t85 - _t84*_t86) + _t81*_t82 + _t81*_t83;
+            const double _t88 = _t78*xd_z[i];
+            const double _t89 = _t42*_t62;
+            const double _t90 = _t42*_t70 + _t63;
+            const double _t91 = _t78*xd_y[i];
+            const double _t92 = _t77*_t79 + _t87*_t88 + _t91*(_t60 + _t89 + _t90);
+            const double _t93 = _t11*_t78;
+            const double _t94 = _c9[i]*_t29;
+            const double _t95 = _c9[i]*_t61;
+            const double _t96 = _c9[i]*_t80 - _t42*(-_t35*_t95 - _t85*_t95 - _t86*_t95) + _t82*_t94 + _t83*_t94;
+            const double _t97 = _t42*_t71;
+            const double _t98 = _t77*_t91 + _t79*(_t59 + _t63 + _t89 + _t97) + _t88*_t96;
+            const double _t99 = _t79*_t96 + _t87*_t91 + _t88*(_t41 + _t90 + _t97);
+            const double _t100 = _t67*_t78;
+            const double _t101 = _s9[i]*_t92;
+            const double _t102 = _c9[i]*_t98;
+            const double _t103 = _t65*_t78;
+            const double _t104 = _t33*_t78;
+            qd[5 * (start + i) + 0] = _t73*(_c9[i]*_t92*_t93 - _s9[i]*_t93*_t98);
+            qd[5 * (start + i) + 1] = _t73*(_t10*_t78*_t99 - _t100*_t101 - _t100*_t102);
+            qd[5 * (start + i) + 2] = _t73*(-_t101*_t103 - _t102*_t103 + _t78*_t9*_t99);
+            qd[5 * (start + i) + 3] = _t73*(_c2[i]*_t78*_t99*d5 - _t101*_t104 - _t102*_t104);
             qd[5 * (start + i) + 4] = 0;
-            singular[1 * (start + i) + 0] = _t92 < 1e-06;
+            singular[1 * (start + i) + 0] = _t72 < 1e-06;
         }
     }
 #else
@@ -3616,198 +3536,171 @@ void scorbot_er7_joint_acceleration(const double *restrict q, const double *rest
     const double a3 = params->a3;
     const double d1 = params->d1;
     const double d5 = params->d5;
-    const double _t0 = (a3*a3);
-    const double _t2 = (d5*d5);
-    const double _t16 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
+    const double _t13 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
+    const double _t15 = (a3*a3);
+    const double _t16 = (d5*d5);
     const double _t20 = (a2*a2);
-    const double _t27 = 1.0/(_t16*_t16*_t16*_t16);
-    const double _t28 = _t2*_t27;
-    const double _t44 = (0.25)*_t28;
-    const double _t45 = _t0*_t44;
-    const double _t59 = (0.25)*_t20*_t27;
-    const double _t80 = 1.0/(_t16*_t16);
-    const double _t102 = 1.0/_t16;
-    const double _t5 = q2 + q3;
-    const double _t8 = q3 + q4;
-    const double _t9 = _t8 + q2;
-    const double _t39 = q1 - q4;
-    const double _t41 = q1 + q4;
-    const double _t52 = q1 + q3;
-    const double _t53 = q1 - q3;
-    const double _t54 = _t8 + q1;
-    const double _t56 = _t8 - q1;
-    double _s0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _s5, _s6, _c6, _s7, _c7, _s8, _c8, _s9, _c9, _s10, _c10, _s11, _c11, _s12, _c12;
+    const double _t29 = 1.0/(_t13*_t13*_t13*_t13);
+    const double _t61 = 1.0/(_t13*_t13);
+    const double _t81 = 1.0/_t13;
+    const double _t2 = q2 + q3;
+    const double _t5 = q3 + q4;
+    const double _t6 = _t5 + q2;
+    const double _t34 = 2*q2;
+    const double _a0 = _t34 + 2*q3 + q4;
+    const double _a1 = _t34 + q3;
+    const double _a2 = _t34 + _t5;
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _s4, _s5, _s6, _s7, _s8, _s9, _c9;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[16] = { q4, q2, _t5, _t9, _t8, q3, _t39, _t41, q1, _t54, _t56, _t53, _t52, 0.0, 0.0, 0.0 };
-        double sine[16], cosine[16];
+        const double angle[12] = { q2, _t2, _t6, q4, _t5, q3, _a0, _a1, _a2, q1, 0.0, 0.0 };
+        double sine[12], cosine[12];
         int k;
         KINEGEN_VECTOR_LOOP
-        for (k = 0; k < 16; ++k) {
+        for (k = 0; k < 12; ++k) {
             sine[k] = sin(angle[k]);
         }
         KINEGEN_VECTOR_LOOP
-        for (k = 0; k < 16; ++k) {
+        for (k = 0; k < 12; ++k) {
             cosine[k] = cos(angle[k]);
         }
         _s0 = sine[0];
+        _c0 = cosine[0];
         _s1 = sine[1];
         _c1 = cosine[1];
         _s2 = sine[2];
         _c2 = cosine[2];
         _s3 = sine[3];
-        _c3 = cosine[3];
         _s4 = sine[4];
         _s5 = sine[5];
         _s6 = sine[6];
-        _c6 = cosine[6];
         _s7 = sine[7];
-        _c7 = cosine[7];
         _s8 = sine[8];
-        _c8 = cosine[8];
         _s9 = sine[9];
         _c9 = cosine[9];
-        _s10 = sine[10];
-        _c10 = cosine[10];
-        _s11 = sine[11];
-        _c11 = cosine[11];
-        _s12 = sine[12];
-        _c12 = cosine[12];
     }
 #else
-    _s0 = sin(q4);
-    _s1 = sin(q2);
-    _c1 = cos(q2);
-    _s2 = sin(_t5);
-    _c2 = cos(_t5);
-    _s3 = sin(_t9);
-    _c3 = cos(_t9);
-    _s4 = sin(_t8);
+    _s0 = sin(q2);
+    _c0 = cos(q2);
+    _s1 = sin(_t2);
+    _c1 = cos(_t2);
+    _s2 = sin(_t6);
+    _c2 = cos(_t6);
+    _s3 = sin(q4);
+    _s4 = sin(_t5);
     _s5 = sin(q3);
-    _s6 = sin(_t39);
-    _c6 = cos(_t39);
-    _s7 = sin(_t41);
-    _c7 = cos(_t41);
-    _s8 = sin(q1);
-    _c8 = cos(q1);
-    _s9 = sin(_t54);
-    _c9 = cos(_t54);
-    _s10 = sin(_t56);
-    _c10 = cos(_t56);
-    _s11 = sin(_t53);
-    _c11 = cos(_t53);
-    _s12 = sin(_t52);
-    _c12 = cos(_t52);
+    _s6 = sin(_a0);
+    _s7 = sin(_a1);
+    _s8 = sin(_a2);
+    _s9 = sin(q1);
+    _c9 = cos(q1);
 #endif
-    const double _t4 = _c1*a2;
-    const double _t7 = _c2*a3;
-    const double _t11 = _c3*d5;
-    const double _t12 = _t11 + _t7;
-    const double _t13 = _t12 + _t4;
-    const double _t14 = _t13 + a1;
-    const double _t15 = (_t14*_t14);
-    const double _t17 = _t15/(_t16*_t16*_t16*_t16*_t16*_t16);
-    const double _t18 = _t17*_t2;
-    const double _t19 = (_s0*_s0)*_t0*_t18;
-    const double _t22 = _t17*_t20*((_s4*d5 + _s5*a3)*(_s4*d5 + _s5*a3));
-    const double _t23 = _t18*((_s0*a3 + _s4*a2)*(_s0*a3 + _s4*a2));
-    const double _t24 = kinegen_max(0, -1000000*_t19 - 1000000*_t22 - 1000000*_t23 + 1);
-    const double _t26 = (_s3*_s3);
-    const double _t30 = _s2*a3;
-    const double _t31 = _s3*d5;
-    const double _t32 = _c3*_s3*_t2;
-    const double _t33 = _c2*_s2*_t0 + _t11*_t30 + _t30*_t4 + _t30*a1 + _t31*_t4 + _t31*_t7 + _t31*a1 + _t32;
-    const double _t35 = _s1*a2;
-    const double _t36 = _c1*_s1*_t20 + _t11*_t35 + _t33 + _t35*_t7 + _t35*a1;
-    const double _t37 = _t15*_t26*_t28 + _t27*(_t33*_t33) + _t27*(_t36*_t36);
-    const double _t38 = (0.0001)*_t24;
-    const double _t43 = _c6 - _c7;
-    const double _t47 = (_c8*_c8);
-    const double _t48 = _t27*_t47;
-    const double _t49 = (_c3*_c3);
-    const double _t50 = _t2*_t49;
-    const double _t51 = _t15*_t50;
-    const double _t58 = _c10*d5 + _c11*a3 - _c12*a3 - _c9*d5;
-    const double _t60 = _c10*a2 + _c6*a3 - _c7*a3 - _c9*a2;
-    const double _t61 = _t4*_t7;
-    const double _t62 = _t11*_t4;
-    const double _t63 = (_c2*_c2)*_t0 + 2*_t11*_t7 + _t11*a1 + _t50 + _t7*a1;
-    const double _t64 = _t61 + _t62 + _t63;
-    const double _t65 = (_t64*_t64);
-    const double _t66 = (_c1*_c1)*_t20 + _t4*a1 + 2*_t61 + 2*_t62 + _t63;
-    const double _t67 = (_t66*_t66);
-    const double _t68 = (_t43*_t43)*_t45 + _t44*(_t60*_t60) + _t48*_t51 + _t48*_t65 + _t48*_t67 + (_t58*_t58)*_t59;
-    const double _t71 = -_s6 + _s7;
-    const double _t73 = (_s8*_s8);
-    const double _t74 = _t27*_t73;
-    const double _t77 = _s10*d5 - _s11*a3 + _s12*a3 + _s9*d5;
-    const double _t78 = _s10*a2 - _s6*a3 + _s7*a3 + _s9*a2;
-    const double _t79 = _t44*(_t78*_t78) + _t45*(_t71*_t71) + _t51*_t74 + _t59*(_t77*_t77) + _t65*_t74 + _t67*_t74;
-    const double _t81 = (_t12*_t12)*_t80 + (_t13*_t13)*_t80 + _t50*_t80;
-    const double _t82 = (1e-08)*(_t24*_t24);
-    const double _t83 = _t47*_t80;
-    const double _t84 = _t2*_t26;
-    const double _t85 = _t30 + _t31;
-    const double _t86 = (_t85*_t85);
-    const double _t87 = _t35 + _t85;
-    const double _t88 = (_t87*_t87);
-    const double _t89 = _t73*_t80;
-    const double _t90 = _t15*_t89 + _t83*_t84 + _t83*_t86 + _t83*_t88;
-    const double _t91 = _t15*_t83 + _t84*_t89 + _t86*_t89 + _t88*_t89;
-    const double _t92 = _t19 + _t22 + _t23;
-    const double _t93 = 1.0/((1e-12)*(_t24*_t24*_t24) + _t37*_t38 + _t38*_t68 + _t38*_t79 + _t81*_t82 + _t82*_t90 + _t82*_t91 + _t92);
-    const double _t94 = _s8*_t27;
-    const double _t95 = _t15*_t32;
-    const double _t96 = _t33*_t64;
-    const double _t97 = _t36*_t66;
-    const double _t98 = _s8*_t80;
-    const double _t99 = _t12*_t85;
-    const double _t100 = _t13*_t87;
-    const double _t101 = -_t38*(-_t100*_t98 - _t32*_t98 - _t98*_t99) + _t94*_t95 + _t94*_t96 + _t94*_t97;
-    const double _t103 = _t31*qd4;
-    const double _t104 = -_t85;
-    const double _t105 = _t104*qd3;
-    const double _t106 = -_t103 + _t105;
-    const double _t107 = -_t87;
-    const double _t108 = _t107*qd2;
-    const double _t109 = _t102*(-qd2*(_t106 + _t108) - qd3*(_t104*qd2 + _t106) - qd4*(-_t103 - _t31*qd2 - _t31*qd3) + xdd_z);
-    const double _t110 = _c8*_t98;
-    const double _t111 = _c8*_s8*_t15*_t2*_t27*_t49 + _c8*_s8*_t27*_t65 + _c8*_s8*_t27*_t67 - _t38*(-_t110*_t15 + _t110*_t84 + _t110*_t86 + _t110*_t88) - _t43*_t45*_t71 - _t44*_t60*_t78 - _t58*_t59*_t77;
-    const double _t112 = _c8*qd2;
-    const double _t113 = _c8*_t11;
-    const double _t114 = _t113*qd4;
-    const double _t115 = _t12*qd3;
-    const double _t116 = _c8*_t115 + _t114;
-    const double _t117 = _t14*qd1;
-    const double _t118 = _t102*(-qd1*(-_c8*_t117 + _s3*_s8*d5*qd4 - _s8*_t105 - _s8*_t108) - qd2*(_s8*_t87*qd1 - _t112*_t13 - _t116) - qd3*(_s8*_t85*qd1 - _t112*_t12 - _t116) - qd4*(_s3*_s8*d5*qd1 - _t11*_t112 - _t113*qd3 - _t114) + xdd_x);
-    const double _t119 = _t38*_t81;
-    const double _t120 = _t38*_t90 + _t82;
-    const double _t121 = _c8*qd1;
-    const double _t122 = _s8*qd2;
-    const double _t123 = _s8*_t11;
-    const double _t124 = _t123*qd4;
-    const double _t125 = _s8*_t115 + _t124;
-    const double _t126 = _t102*(-qd1*(-_c8*_t103 + _c8*_t104*qd3 + _c8*_t107*qd2 - _s8*_t117) - qd2*(-_t121*_t87 - _t122*_t13 - _t125) - qd3*(-_t12*_t122 - _t121*_t85 - _t125) - qd4*(-_t11*_t122 - _t121*_t31 - _t123*qd3 - _t124) + xdd_y);
-    const double _t127 = _t101*_t109 + _t111*_t118 + _t126*(_t119 + _t120 + _t79);
-    const double _t128 = _t102*_t14;
-    const double _t129 = _c8*_t27;
-    const double _t130 = _c8*_t80;
-    const double _t131 = _t129*_t95 + _t129*_t96 + _t129*_t97 - _t38*(-_t100*_t130 - _t130*_t32 - _t130*_t99);
-    const double _t132 = _t38*_t91;
-    const double _t133 = _t109*_t131 + _t111*_t126 + _t118*(_t119 + _t132 + _t68 + _t82);
-    const double _t134 = _t101*_t126 + _t109*(_t120 + _t132 + _t37) + _t118*_t131;
-    const double _t135 = _t102*_t87;
-    const double _t136 = _s8*_t127;
-    const double _t137 = _c8*_t133;
-    const double _t138 = _t102*_t85;
-    const double _t139 = _t102*_t31;
-    qdd[0] = _t93*(_c8*_t127*_t128 - _s8*_t128*_t133);
-    qdd[1] = _t93*(_t102*_t13*_t134 - _t135*_t136 - _t135*_t137);
-    qdd[2] = _t93*(_t102*_t12*_t134 - _t136*_t138 - _t137*_t138);
-    qdd[3] = _t93*(_c3*_t102*_t134*d5 - _t136*_t139 - _t137*_t139);
+    const double _t1 = _c0*a2;
+    const double _t4 = _c1*a3;
+    const double _t8 = _c2*d5;
+    const double _t9 = _t4 + _t8;
+    const double _t10 = _t1 + _t9;
+    const double _t11 = _t10 + a1;
+    const double _t12 = (_t11*_t11);
+    const double _t14 = _t12/(_t13*_t13*_t13*_t13*_t13*_t13);
+    const double _t18 = (_s3*_s3)*_t15*_t16;
+    const double _t19 = _t14*_t18;
+    const double _t22 = _t20*((_s4*d5 + _s5*a3)*(_s4*d5 + _s5*a3));
+    const double _t23 = _t14*_t22;
+    const double _t24 = _t16*((_s3*a3 + _s4*a2)*(_s3*a3 + _s4*a2));
+    const double _t25 = _t14*_t24;
+    const double _t26 = kinegen_max(0, -1000000*_t19 - 1000000*_t23 - 1000000*_t25 + 1);
+    const double _t28 = (_s2*_s2)*_t16;
+    const double _t30 = _t12*_t29;
+    const double _t32 = _s1*a3;
+    const double _t33 = _s2*d5;
+    const double _t35 = _c2*_s2*_t16;
+    const double _t36 = _c1*_s1*_t15 + _s6*a3*d5 + _t32*a1 + _t33*a1 + _t35;
+    const double _t37 = _t1*_t32 + _t1*_t33 + _t36;
+    const double _t39 = _s0*a2;
+    const double _t40 = _c0*_s0*_t20 + _s7*a2*a3 + _s8*a2*d5 + _t36 + _t39*a1;
+    const double _t41 = _t28*_t30 + _t29*(_t37*_t37) + _t29*(_t40*_t40);
+    const double _t42 = (0.0001)*_t26;
+    const double _t44 = (_s9*_s9);
+    const double _t45 = _t29*_t44;
+    const double _t47 = (_c9*_c9);
+    const double _t48 = _t29*_t47;
+    const double _t49 = (_c2*_c2);
+    const double _t50 = _t16*_t49;
+    const double _t51 = _t12*_t50;
+    const double _t52 = _t1*_t4;
+    const double _t53 = _t1*_t8;
+    const double _t54 = (_c1*_c1)*_t15 + 2*_t4*_t8 + _t4*a1 + _t50 + _t8*a1;
+    const double _t55 = _t52 + _t53 + _t54;
+    const double _t56 = (_t55*_t55);
+    const double _t57 = (_c0*_c0)*_t20 + _t1*a1 + 2*_t52 + 2*_t53 + _t54;
+    const double _t58 = (_t57*_t57);
+    const double _t59 = _t18*_t45 + _t22*_t45 + _t24*_t45 + _t48*_t51 + _t48*_t56 + _t48*_t58;
+    const double _t60 = _t18*_t48 + _t22*_t48 + _t24*_t48 + _t45*_t51 + _t45*_t56 + _t45*_t58;
+    const double _t62 = (_t10*_t10)*_t61 + _t50*_t61 + _t61*(_t9*_t9);
+    const double _t63 = (1e-08)*(_t26*_t26);
+    const double _t64 = _t47*_t61;
+    const double _t65 = _t32 + _t33;
+    const double _t66 = (_t65*_t65);
+    const double _t67 = _t39 + _t65;
+    const double _t68 = (_t67*_t67);
+    const double _t69 = _t44*_t61;
+    const double _t70 = _t12*_t69 + _t28*_t64 + _t64*_t66 + _t64*_t68;
+    const double _t71 = _t12*_t64 + _t28*_t69 + _t66*_t69 + _t68*_t69;
+    const double _t72 = _t19 + _t23 + _t25;
+    const double _t73 = 1.0/((1e-12)*(_t26*_t26*_t26) + _t41*_t42 + _t42*_t59 + _t42*_t60 + _t62*_t63 + _t63*_t70 + _t63*_t71 + _t72);
+    const double _t74 = _s9*_t29;
+    const double _t75 = _t37*_t55;
+    const double _t76 = _t40*_t57;
+    const double _t77 = _s9*_t61;
+    const double _t78 = _t65*_t9;
+    const double _t79 = _t10*_t67;
+    const double _t80 = _s9*_t30*_t35 - _t42*(-_t35*_t77 - _t77*_t78 - _t77*_t79) + _t74*_t75 + _t74*_t76;
+    const double _t82 = _t33*qd4;
+    const double _t83 = -_t65;
+    const double _t84 = _t83*qd3;
+    const double _t85 = -_t82 + _t84;
+    const double _t86 = -_t67;
+    const double _t87 = _t86*qd2;
+    const double _t88 = _t81*(-qd2*(_t85 + _t87) - qd3*(_t83*qd2 + _t85) - qd4*(-_t33*qd2 - _t33*qd3 - _t82) + xdd_z);
+    const double _t89 = _c9*_t74;
+    const double _t90 = _c9*_t77;
+    const double _t91 = _c9*_s9*_t12*_t16*_t29*_t49 + _c9*_s9*_t29*_t56 + _c9*_s9*_t29*_t58 - _t18*_t89 - _t22*_t89 - _t24*_t89 - _t42*(-_t12*_t90 + _t28*_t90 + _t66*_t90 + _t68*_t90);
+    const double _t92 = _c9*qd2;
+    const double _t93 = _c9*_t8;
+    const double _t94 = _t93*qd4;
+    const double _t95 = _t9*qd3;
+    const double _t96 = _c9*_t95 + _t94;
+    const double _t97 = _t11*qd1;
+    const double _t98 = _t81*(-qd1*(-_c9*_t97 + _s2*_s9*d5*qd4 - _s9*_t84 - _s9*_t87) - qd2*(_s9*_t67*qd1 - _t10*_t92 - _t96) - qd3*(_s9*_t65*qd1 - _t9*_t92 - _t96) - qd4*(_s2*_s9*d5*qd1 - _t8*_t92 - _t93*qd3 - _t94) + xdd_x);
+    const double _t99 = _t42*_t62;
+    const double _t100 = _t42*_t70 + _t63;
+    const double _t101 = _c9*qd1;
+    const double _t102 = _s9*qd2;
+    const double _t103 = _s9*_t8;
+    const double _t104 = _t103*qd4;
+    const double _t105 = _s9*_t95 + _t104;
+    const double _t106 = _t81*(-qd1*(-_c9*_t82 + _c9*_t83*qd3 + _c9*_t86*qd2 - _s9*_t97) - qd2*(-_t10*_t102 - _t101*_t67 - _t105) - qd3*(-_t101*_t65 - _t102*_t9 - _t105) - qd4*(-_t101*_t33 - _t102*_t8 - _t103*qd3 - _t104) + xdd_y);
+    const double _t107 = _t106*(_t100 + _t60 + _t99) + _t80*_t88 + _t91*_t98;
+    const double _t108 = _t11*_t81;
+    const double _t109 = _c9*_t29;
+    const double _t110 = _c9*_t61;
+    const double _t111 = _c9*_t30*_t35 + _t109*_t75 + _t109*_t76 - _t42*(-_t110*_t35 - _t110*_t78 - _t110*_t79);
+    const double _t112 = _t42*_t71;
+    const double _t113 = _t106*_t91 + _t111*_t88 + _t98*(_t112 + _t59 + _t63 + _t99);
+    const double _t114 = _t106*_t80 + _t111*_t98 + _t88*(_t100 + _t112 + _t41);
+    const double _t115 = _t67*_t81;
+    const double _t116 = _s9*_t107;
+    const double _t117 = _c9*_t113;
+    const double _t118 = _t65*_t81;
+    const double _t119 = _t33*_t81;
+    qdd[0] = _t73*(_c9*_t107*_t108 - _s9*_t108*_t113);
+    qdd[1] = _t73*(_t10*_t114*_t81 - _t115*_t116 - _t115*_t117);
+    qdd[2] = _t73*(_t114*_t81*_t9 - _t116*_t118 - _t117*_t118);
+    qdd[3] = _t73*(_c2*_t114*_t81*d5 - _t116*_t119 - _t117*_t119);
     qdd[4] = 0;
-    singular[0] = _t92 < 1e-06;
+    singular[0] = _t72 < 1e-06;
 }
 
 /* joint_acceleration of `count` items, stored one after the other in each argument and output. */
@@ -3825,38 +3718,26 @@ void scorbot_er7_joint_acceleration_batch(size_t count, const double *restrict q
     double xdd_x[KINEGEN_BLOCK_OF(64)];
     double xdd_y[KINEGEN_BLOCK_OF(64)];
     double xdd_z[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
     double _t5[KINEGEN_BLOCK_OF(64)];
-    double _t8[KINEGEN_BLOCK_OF(64)];
-    double _t9[KINEGEN_BLOCK_OF(64)];
-    double _t39[KINEGEN_BLOCK_OF(64)];
-    double _t41[KINEGEN_BLOCK_OF(64)];
-    double _t52[KINEGEN_BLOCK_OF(64)];
-    double _t53[KINEGEN_BLOCK_OF(64)];
-    double _t54[KINEGEN_BLOCK_OF(64)];
-    double _t56[KINEGEN_BLOCK_OF(64)];
+    double _t6[KINEGEN_BLOCK_OF(64)];
+    double _a0[KINEGEN_BLOCK_OF(64)];
+    double _a1[KINEGEN_BLOCK_OF(64)];
+    double _a2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
     double _s3[KINEGEN_BLOCK_OF(64)];
-    double _c3[KINEGEN_BLOCK_OF(64)];
     double _s4[KINEGEN_BLOCK_OF(64)];
     double _s5[KINEGEN_BLOCK_OF(64)];
     double _s6[KINEGEN_BLOCK_OF(64)];
-    double _c6[KINEGEN_BLOCK_OF(64)];
     double _s7[KINEGEN_BLOCK_OF(64)];
-    double _c7[KINEGEN_BLOCK_OF(64)];
     double _s8[KINEGEN_BLOCK_OF(64)];
-    double _c8[KINEGEN_BLOCK_OF(64)];
     double _s9[KINEGEN_BLOCK_OF(64)];
     double _c9[KINEGEN_BLOCK_OF(64)];
-    double _s10[KINEGEN_BLOCK_OF(64)];
-    double _c10[KINEGEN_BLOCK_OF(64)];
-    double _s11[KINEGEN_BLOCK_OF(64)];
-    double _c11[KINEGEN_BLOCK_OF(64)];
-    double _s12[KINEGEN_BLOCK_OF(64)];
-    double _c12[KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &scorbot_er7_default_params;
@@ -3866,17 +3747,13 @@ void scorbot_er7_joint_acceleration_batch(size_t count, const double *restrict q
     const double a3 = params->a3;
     const double d1 = params->d1;
     const double d5 = params->d5;
-    const double _t0 = (a3*a3);
-    const double _t2 = (d5*d5);
-    const double _t16 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
+    const double _t13 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
+    const double _t15 = (a3*a3);
+    const double _t16 = (d5*d5);
     const double _t20 = (a2*a2);
-    const double _t27 = 1.0/(_t16*_t16*_t16*_t16);
-    const double _t28 = _t2*_t27;
-    const double _t44 = (0.25)*_t28;
-    const double _t45 = _t0*_t44;
-    const double _t59 = (0.25)*_t20*_t27;
-    const double _t80 = 1.0/(_t16*_t16);
-    const double _t102 = 1.0/_t16;
+    const double _t29 = 1.0/(_t13*_t13*_t13*_t13);
+    const double _t61 = 1.0/(_t13*_t13);
+    const double _t81 = 1.0/_t13;
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
@@ -3894,47 +3771,45 @@ void scorbot_er7_joint_acceleration_batch(size_t count, const double *restrict q
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t5[i] = q2[i] + q3[i];
-            _t8[i] = q3[i] + q4[i];
-            _t9[i] = _t8[i] + q2[i];
-            _t39[i] = q1[i] - q4[i];
-            _t41[i] = q1[i] + q4[i];
-            _t52[i] = q1[i] + q3[i];
-            _t53[i] = q1[i] - q3[i];
-            _t54[i] = _t8[i] + q1[i];
-            _t56[i] = _t8[i] - q1[i];
+            _t2[i] = q2[i] + q3[i];
+            _t5[i] = q3[i] + q4[i];
+            _t6[i] = _t5[i] + q2[i];
+            const double _t34 = 2*q2[i];
+            _a0[i] = _t34 + 2*q3[i] + q4[i];
+            _a1[i] = _t34 + q3[i];
+            _a2[i] = _t34 + _t5[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s0[i] = sin(q4[i]);
+            _s0[i] = sin(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s1[i] = sin(q2[i]);
+            _c0[i] = cos(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c1[i] = cos(q2[i]);
+            _s1[i] = sin(_t2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s2[i] = sin(_t5[i]);
+            _c1[i] = cos(_t2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(_t5[i]);
+            _s2[i] = sin(_t6[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s3[i] = sin(_t9[i]);
+            _c2[i] = cos(_t6[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c3[i] = cos(_t9[i]);
+            _s3[i] = sin(q4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s4[i] = sin(_t8[i]);
+            _s4[i] = sin(_t5[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -3942,170 +3817,131 @@ void scorbot_er7_joint_acceleration_batch(size_t count, const double *restrict q
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s6[i] = sin(_t39[i]);
+            _s6[i] = sin(_a0[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c6[i] = cos(_t39[i]);
+            _s7[i] = sin(_a1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s7[i] = sin(_t41[i]);
+            _s8[i] = sin(_a2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c7[i] = cos(_t41[i]);
+            _s9[i] = sin(q1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s8[i] = sin(q1[i]);
+            _c9[i] = cos(q1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c8[i] = cos(q1[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _s9[i] = sin(_t54[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _c9[i] = cos(_t54[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _s10[i] = sin(_t56[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _c10[i] = cos(_t56[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _s11[i] = sin(_t53[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _c11[i] = cos(_t53[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _s12[i] = sin(_t52[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            _c12[i] = cos(_t52[i]);
-        }
-        KINEGEN_VECTOR_LOOP
-        for (i = 0; i < n; ++i) {
-            const double _t4 = _c1[i]*a2;
-            const double _t7 = _c2[i]*a3;
-            const double _t11 = _c3[i]*d5;
-            const double _t12 = _t11 + _t7;
-            const double _t13 = _t12 + _t4;
-            const double _t14 = _t13 + a1;
-            const double _t15 = (_t14*_t14);
-            const double _t17 = _t15/(_t16*_t16*_t16*_t16*_t16*_t16);
-            const double _t18 = _t17*_t2;
-            const double _t19 = (_s0[i]*_s0[i])*_t0*_t18;
-            const double _t22 = _t17*_t20*((_s4[i]*d5 + _s5[i]*a3)*(_s4[i]*d5 + _s5[i]*a3));
-            const double _t23 = _t18*((_s0[i]*a3 + _s4[i]*a2)*(_s0[i]*a3 + _s4[i]*a2));
-            const double _t24 = kinegen_max(0, -1000000*_t19 - 1000000*_t22 - 1000000*_t23 + 1);
-            const double _t26 = (_s3[i]*_s3[i]);
-            const double _t30 = _s2[i]*a3;
-            const double _t31 = _s3[i]*d5;
-            const double _t32 = _c3[i]*_s3[i]*_t2;
-            const double _t33 = _c2[i]*_s2[i]*_t0 + _t11*_t30 + _t30*_t4 + _t30*a1 + _t31*_t4 + _t31*_t7 + _t31*a1 + _t32;
-            const double _t35 = _s1[i]*a2;
-            const double _t36 = _c1[i]*_s1[i]*_t20 + _t11*_t35 + _t33 + _t35*_t7 + _t35*a1;
-            const double _t37 = _t15*_t26*_t28 + _t27*(_t33*_t33) + _t27*(_t36*_t36);
-            const double _t38 = (0.0001)*_t24;
-            const double _t43 = _c6[i] - _c7[i];
-            const double _t47 = (_c8[i]*_c8[i]);
-            const double _t48 = _t27*_t47;
-            const double _t49 = (_c3[i]*_c3[i]);
-            const double _t50 = _t2*_t49;
-            const double _t51 = _t15*_t50;
-            const double _t58 = _c10[i]*d5 + _c11[i]*a3 - _c12[i]*a3 - _c9[i]*d5;
-            const double _t60 = _c10[i]*a2 + _c6[i]*a3 - _c7[i]*a3 - _c9[i]*a2;
-            const double _t61 = _t4*_t7;
-            const double _t62 = _t11*_t4;
-            const double _t63 = (_c2[i]*_c2[i])*_t0 + 2*_t11*_t7 + _t11*a1 + _t50 + _t7*a1;
-            const double _t64 = _t61 + _t62 + _t63;
-            const double _t65 = (_t64*_t64);
-            const double _t66 = (_c1[i]*_c1[i])*_t20 + _t4*a1 + 2*_t61 + 2*_t62 + _t63;
-            const double _t67 = (_t66*_t66);
-            const double _t68 = (_t43*_t43)*_t45 + _t44*(_t60*_t60) + _t48*_t51 + _t48*_t65 + _t48*_t67 + (_t58*_t58)*_t59;
-            const double _t71 = -_s6[i] + _s7[i];
-            const double _t73 = (_s8[i]*_s8[i]);
-            const double _t74 = _t27*_t73;
-            const double _t77 = _s10[i]*d5 - _s11[i]*a3 + _s12[i]*a3 + _s9[i]*d5;
-            const double _t78 = _s10[i]*a2 - _s6[i]*a3 + _s7[i]*a3 + _s9[i]*a2;
-            const double _t79 = _t44*(_t78*_t78) + _t45*(_t71*_t71) + _t51*_t74 + _t59*(_t77*_t77) + _t65*_t74 + _t67*_t74;
-            const double _t81 = (_t12*_t12)*_t80 + (_t13*_t13)*_t80 + _t50*_t80;
-            const double _t82 = (1e-08)*(_t24*_t24);
-            const double _t83 = _t47*_t80;
-            const double _t84 = _t2*_t26;
-            const double _t85 = _t30 + _t31;
-            const double _t86 = (_t85*_t85);
-            const double _t87 = _t35 + _t85;
-            const double _t88 = (_t87*_t87);
-            const double _t89 = _t73*_t80;
-            const double _t90 = _t15*_t89 + _t83*_t84 + _t83*_t86 + _t83*_t88;
-            const double _t91 = _t15*_t83 + _t84*_t89 + _t86*_t89 + _t88*_t89;
-            const double _t92 = _t19 + _t22 + _t23;
-            const double _t93 = 1.0/((1e-12)*(_t24*_t24*_t24) + _t37*_t38 + _t38*_t68 + _t38*_t79 + _t81*_t82 + _t82*_t90 + _t82*_t91 + _t92);
-            const double _t94 = _s8[i]*_t27;
-            const double _t95 = _t15*_t32;
-            const double _t96 = _t33*_t64;
-            const double _t97 = _t36*_t66;
-            const double _t98 = _s8[i]*_t80;
-            const double _t99 = _t12*_t85;
-            const double _t100 = _t13*_t87;
-            const double _t101 = -_t38*(-_t100*_t98 - _t32*_t98 - _t98*_t99) + _t94*_t95 + _t94*_t96 + _t94*_t97;
-            const double _t103 = _t31*qd4[i];
-            const double _t104 = -_t85;
-            const double _t105 = _t104*qd3[i];
-            const double _t106 = -_t103 + _t105;
-            const double _t107 = -_t87;
-            const double _t108 = _t107*qd2[i];
-            const double _t109 = _t102*(-qd2[i]*(_t106 + _t108) - qd3[i]*(_t104*qd2[i] + _t106) - qd4[i]*(-_t103 - _t31*qd2[i] - _t31*qd3[i]) + xdd_z[i]);
-            const double _t110 = _c8[i]*_t98;
-            const double _t111 = _c8[i]*_s8[i]*_t15*_t2*_t27*_t49 + _c8[i]*_s8[i]*_t27*_t65 + _c8[i]*_s8[i]*_t27*_t67 - _t38*(-_t110*_t15 + _t110*_t84 + _t110*_t86 + _t110*_t88) - _t43*_t45*_t71 - _t44*_t60*_t78 - _t58*_t59*_t77;
-            const double _t112 = _c8[i]*qd2[i];
-            const double _t113 = _c8[i]*_t11;
-            const double _t114 = _t113*qd4[i];
-            const double _t115 = _t12*qd3[i];
-            const double _t116 = _c8[i]*_t115 + _t114;
-            const double _t117 = _t14*qd1[i];
-            const double _t118 = _t102*(-qd1[i]*(-_c8[i]*_t117 + _s3[i]*_s8[i]*d5*qd4[i] - _s8[i]*_t105 - _s8[i]*_t108) - qd2[i]*(_s8[i]*_t87*qd1[i] - _t112*_t13 - _t116) - qd3[i]*(_s8[i]*_t85*qd1[i] - _t112*_t12 - _t116) - qd4[i]*(_s3[i]*_s8[i]*d5*qd1[i] - _t11*_t112 - _t113*qd3[i] - _t114) + xdd_x[i]);
-            const double _t119 = _t38*_t81;
-            const double _t120 = _t38*_t90 + _t82;
-            const double _t121 = _c8[i]*qd1[i];
-            const double _t122 = _s8[i]*qd2[i];
-            const double _t123 = _s8[i]*_t11;
-            const double _t124 = _t123*qd4[i];
-            const double _t125 = _s8[i]*_t115 + _t124;
-            const double _t126 = _t102*(-qd1[i]*(-_c8[i]*_t103 + _c8[i]*_t104*qd3[i] + _c8[i]*_t107*qd2[i] - _s8[i]*_t117) - qd2[i]*(-_t121*_t87 - _t122*_t13 - _t125) - qd3[i]*(-_t12*_t122 - _t121*_t85 - _t125) - qd4[i]*(-_t11*_t122 - _t121*_t31 - _t123*qd3[i] - _t124) + xdd_y[i]);
-            const double _t127 = _t101*_t109 + _t111*_t118 + _t126*(_t119 + _t120 + _t79);
-            const double _t128 = _t102*_t14;
-            const double _t129 = _c8[i]*_t27;
-            const double _t130 = _c8[i]*_t80;
-            const double _t131 = _t129*_t95 + _t129*_t96 + _t129*_t97 - _t38*(-_t100*_t130 - _t130*_t32 - _t130*_t99);
-            const double _t132 = _t38*_t91;
-            const double _t133 = _t109*_t131 + _t111*_t126 + _t118*(_t119 + _t132 + _t68 + _t82);
-            const double _t134 = _t101*_t126 + _t109*(_t120 + _t132 + _t37) + _t118*_t131;
-            const double _t135 = _t102*_t87;
-            const double _t136 = _s8[i]*_t127;
-            const double _t137 = _c8[i]*_t133;
-            const double _t138 = _t102*_t85;
-            const double _t139 = _t102*_t31;
-            qdd[5 * (start + i) + 0] = _t93*(_c8[i]*_t127*_t128 - _s8[i]*_t128*_t133);
-            qdd[5 * (start + i) + 1] = _t93*(_t102*_t13*_t134 - _t135*_t136 - _t135*_t137);
-            qdd[5 * (start + i) + 2] = _t93*(_t102*_t12*_t134 - _t136*_t138 - _t137*_t138);
-            qdd[5 * (start + i) + 3] = _t93*(_c3[i]*_t102*_t134*d5 - _t136*_t139 - _t137*_t139);
+            const double _t1 = _c0[i]*a2;
+            const double _t4 = _c1[i]*a3;
+            const double _t8 = _c2[i]*d5;
+            const double _t9 = _t4 + _t8;
+            const double _t10 = _t1 + _t9;
+            const double _t11 = _t10 + a1;
+            const double _t12 = (_t11*_t11);
+            const double _t14 = _t12/(_t13*_t13*_t13*_t13*_t13*_t13);
+            const double _t18 = (_s3[i]*_s3[i])*_t15*_t16;
+            const double _t19 = _t14*_t18;
+            const double _t22 = _t20*((_s4[i]*d5 + _s5[i]*a3)*(_s4[i]*d5 + _s5[i]*a3));
+            const double _t23 = _t14*_t22;
+            const double _t24 = _t16*((_s3[i]*a3 + _s4[i]*a2)*(_s3[i]*a3 + _s4[i]*a2));
+            const double _t25 = _t14*_t24;
+            const double _t26 = kinegen_max(0, -1000000*_t19 - 1000000*_t23 - 1000000*_t25 + 1);
+            const double _t28 = (_s2[i]*_s2[i])*_t16;
+            const double _t30 = _t12*_t29;
+            const double _t32 = _s1[i]*a3;
+            const double _t33 = _s2[i]*d5;
+            const double _t35 = _c2[i]*_s2[i]*_t16;
+            const double _t36 = _c1[i]*_s1[i]*_t15 + _s6[i]*a3*d5 + _t32*a1 + _t33*a1 + _t35;
+            const double _t37 = _t1*_t32 + _t1*_t33 + _t36;
+            const double _t39 = _s0[i]*a2;
+            const double _t40 = _c0[i]*_s0[i]*_t20 + _s7[i]*a2*a3 + _s8[i]*a2*d5 + _t36 + _t39*a1;
+            const double _t41 = _t28*_t30 + _t29*(_t37*_t37) + _t29*(_t40*_t40);
+            const double _t42 = (0.0001)*_t26;
+            const double _t44 = (_s9[i]*_s9[i]);
+            const double _t45 = _t29*_t44;
+            const double _t47 = (_c9[i]*_c9[i]);
+            const double _t48 = _t29*_t47;
+            const double _t49 = (_c2[i]*_c2[i]);
+            const double _t50 = _t16*_t49;
+            const double _t51 = _t12*_t50;
+            const double _t52 = _t1*_t4;
+            const double _t53 = _t1*_t8;
+            const double _t54 = (_c1[i]*_c1[i])*_t15 + 2*_t4*_t8 + _t4*a1 + _t50 + _t8*a1;
+            const double _t55 = _t52 + _t53 + _t54;
+            const double _t56 = (_t55*_t55);
+            const double _t57 = (_c0[i]*_c0[i])*_t20 + _t1*a1 + 2*_t52 + 2*_t53 + _t54;
+            const double _t58 = (_t57*_t57);
+            const double _t59 = _t18*_t45 + _t22*_t45 + _t24*_t45 + _t48*_t51 + _t48*_t56 + _t48*_t58;
+            const double _t60 = _t18*_t48 + _t22*_t48 + _t24*_t48 + _t45*_t51 + _t45*_t56 + _t45*_t58;
+            const double _t62 = (_t10*_t10)*_t61 + _t50*_t61 + _t61*(_t9*_t9);
+            const double _t63 = (1e-08)*(_t26*_t26);
+            const double _t64 = _t47*_t61;
+            const double _t65 = _t32 + _t33;
+            const double _t66 = (_t65*_t65);
+            const double _t67 = _t39 + _t65;
+            const double _t68 = (_t67*_t67);
+            const double _t69 = _t44*_t61;
+            const double _t70 = _t12*_t69 + _t28*_t64 + _t64*_t66 + _t64*_t68;
+            const double _t71 = _t12*_t64 + _t28*_t69 + _t66*_t69 + _t68*_t69;
+            const double _t72 = _t19 + _t23 + _t25;
+            const double _t73 = 1.0/((1e-12)*(_t26*_t26*_t26) + _t41*_t42 + _t42*_t59 + _t42*_t60 + _t62*_t63 + _t63*_t70 + _t63*_t71 + _t72);
+            const double _t74 = _s9[i]*_t29;
+            const double _t75 = _t37*_t55;
+            const double _t76 = _t40*_t57;
+            const double _t77 = _s9[i]*_t61;
+            const double _t78 = _t65*_t9;
+            const double _t79 = _t10*_t67;
+            const double _t80 = _s9[i]*_t30*_t35 - _t42*(-_t35*_t77 - _t77*_t78 - _t77*_t79) + _t74*_t75 + _t74*_t76;
+            const double _t82 = _t33*qd4[i];
+            const double _t83 = -_t65;
+            const double _t84 = _t83*qd3[i];
+            const double _t85 = -_t82 + _t84;
+            const double _t86 = -_t67;
+            const double _t87 = _t86*qd2[i];
+            const double _t88 = _t81*(-qd2[i]*(_t85 + _t87) - qd3[i]*(_t83*qd2[i] + _t85) - qd4[i]*(-_t33*qd2[i] - _t33*qd3[i] - _t82) + xdd_z[i]);
+            const double _t89 = _c9[i]*_t74;
+            const double _t90 = _c9[i]*_t77;
+            const double _t91 = _c9[i]*_s9[i]*_t12*_t16*_t29*_t49 + _c9[i]*_s9[i]*_t29*_t56 + _c9[i]*_s9[i]*_t29*_t58 - _t18*_t89 - _t22*_t89 - _t24*_t89 - _t42*(-_t12*_t90 + _t28*_t90 + _t66*_t90 + _t68*_t90);
+            const double _t92 = _c9[i]*qd2[i];
+            const double _t93 = _c9[i]*_t8;
+            const double _t94 = _t93*qd4[i];
+            const double _t95 = _t9*qd3[i];
+            const double _t96 = _c9[i]*_t95 + _t94;
+            const double _t97 = _t11*qd1[i];
+            const double _t98 = _t81*(-qd1[i]*(-_c9[i]*_t97 + _s2[i]*_s9[i]*d5*qd4[i] - _s9[i]*_t84 - _s9[i]*_t87) - qd2[i]*(_s9[i]*_t67*qd1[i] - _t10*_t92 - _t96) - qd3[i]*(_s9[i]*_t65*qd1[i] - _t9*_t92 - _t96) - qd4[i]*(_s2[i]*_s9[i]*d5*qd1[i] - _t8*_t92 - _t93*qd3[i] - _t94) + xdd_x[i]);
+            const double _t99 = _t42*_t62;
+            const double _t100 = _t42*_t70 + _t63;
+            const double _t101 = _c9[i]*qd1[i];
+            const double _t102 = _s9[i]*qd2[i];
+            const double _t103 = _s9[i]*_t8;
+            const double _t104 = _t103*qd4[i];
+            const double _t105 = _s9[i]*_t95 + _t104;
+            const double _t106 = _t81*(-qd1[i]*(-_c9[i]*_t82 + _c9[i]*_t83*qd3[i] + _c9[i]*_t86*qd2[i] - _s9[i]*_t97) - qd2[i]*(-_t10*_t102 - _t101*_t67 - _t105) - qd3[i]*(-_t101*_t65 - _t102*_t9 - _t105) - qd4[i]*(-_t101*_t33 - _t102*_t8 - _t103*qd3[i] - _t104) + xdd_y[i]);
+            const double _t107 = _t106*(_t100 + _t60 + _t99) + _t80*_t88 + _t91*_t98;
+            const double _t108 = _t11*_t81;
+            const double _t109 = _c9[i]*_t29;
+            const double _t110 = _c9[i]*_t61;
+            const double _t111 = _c9[i]*_t30*_t35 + _t109*_t75 + _t109*_t76 - _t42*(-_t110*_t35 - _t110*_t78 - _t110*_t79);
+            const double _t112 = _t42*_t71;
+            const double _t113 = _t106*_t91 + _t111*_t88 + _t98*(_t112 + _t59 + _t63 + _t99);
+            const double _t114 = _t106*_t80 + _t111*_t98 + _t88*(_t100 + _t112 + _t41);
+            const double _t115 = _t67*_t81;
+            const double _t116 = _s9[i]*_t107;
+            const double _t117 = _c9[i]*_t113;
+            const double _t118 = _t65*_t81;
+            const double _t119 = _t33*_t81;
+            qdd[5 * (start + i) + 0] = _t73*(_c9[i]*_t107*_t108 - _s9[i]*_t108*_t113);
+            qdd[5 * (start + i) + 1] = _t73*(_t10*_t114*_t81 - _t115*_t116 - _t115*_t117);
+            qdd[5 * (start + i) + 2] = _t73*(_t114*_t81*_t9 - _t116*_t118 - _t117*_t118);
+            qdd[5 * (start + i) + 3] = _t73*(_c2[i]*_t114*_t81*d5 - _t116*_t119 - _t117*_t119);
             qdd[5 * (start + i) + 4] = 0;
-            singular[1 * (start + i) + 0] = _t92 < 1e-06;
+            singular[1 * (start + i) + 0] = _t72 < 1e-06;
         }
     }
 #else
