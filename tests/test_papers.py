@@ -104,7 +104,7 @@ def test_rehiara_eq14_position(models):
     assert m.params[l1] == 0.559 and m.params[l2] == 0.508 and m.params[d1] == 0.8763  # 559, 508, 876.3 mm
 
 
-def test_rehiara_eq13_erratum_rotation_block(models):
+def test_E1_rehiara_eq13_rotation_block(models):
     """Eq. 13 as printed has sign errors in three rotation entries (erratum E1)."""
     m = models["adept_three"]
     q1, q2, d3, q4 = m.q

@@ -5,7 +5,7 @@ cosines (Eqs. 15-18 geometric, 22-27 algebraic, the same result) and theta1 by
 the algebraic method (Eqs. 28-34) written as a sine/cosine pair solved with atan2
 (``derivations.ik.two_link``); ``geometric_method`` gives the geometric route
 (Eqs. 19-21), which the tests check gives the same angles.  Rehiara prints
-theta1 with arcsin and arctan(y/x), which lose the quadrant, and Eq. 21 with the wrong sign: README errata IK3, IK4.
+theta1 with arcsin and arctan(y/x), which lose the quadrant, and Eq. 21 with the wrong sign: README errata E4, E5.
 The quill (joint 3) is a slide along -z: ``d3 = d1 - d4 - z`` (Eq. 14), and the
 wrist closes the orientation: ``phi = q1 + q2 - q4`` gives ``q4 = q1 + q2 - phi``.
 

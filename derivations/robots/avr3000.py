@@ -20,7 +20,7 @@ geometry behind Eq. 7 (joint -> Cartesian, here from the link frames).  Every
 other map is derived: inverses are solved (Eqs. 8 and 11), longer maps composed
 (Eq. 14, the Matlab JMT and JMC), and every velocity and acceleration map
 differentiated from its position map (Eqs. 2, 3, 5, 6, 9, 10, 12, 13 and the
-J^x of section 2.3.2 come out and are checked in tests/test_avr3000.py).
+J^x of section 2.3.2 come out and are checked in tests/test_avr3000_paper.py).
 
 The DESIGN contract reads: ``q`` = (q1, q2, q3) (R, R, P); ``frames`` = base,
 link 1, link 2, end-effector tip (x along the hand's radial direction, the

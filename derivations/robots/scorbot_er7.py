@@ -34,7 +34,7 @@ name                           theta1                      theta3
 =============================  ==========================  ===============
 
 The paper's numbers (theta2 = 13.4685 deg at M, 126.62 deg at N, Eq. 4.1) are
-on ``elbow_up``, theta3 = -acos(...); Eq. 3.5 prints +acos (README, Errata IK1).
+on ``elbow_up``, theta3 = -acos(...); Eq. 3.5 prints +acos (README, erratum E11).
 """
 from __future__ import annotations
 
