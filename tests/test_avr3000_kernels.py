@@ -314,3 +314,32 @@ def test_limits_command_runs_as_a_module():
                              "--units", "in"], capture_output=True, text=True, check=True)
     assert "121.886" in result.stdout and "SI units" not in result.stdout
 
+
+
+def test_section5_ranges_are_the_tool_space_limits(k):
+    """Sotirov section 5, "Ranges": T 0 - 500 deg, R -8.9 in - 21 in, Z 0 - 6 in, in SI."""
+    (t_low, t_high), (r_low, r_high), (z_low, z_high) = k.SPACE_LIMITS["tool"]
+    assert (t_low, t_high) == (0.0, pytest.approx(500 * math.pi / 180, rel=1e-15))
+    assert r_low / INCH == pytest.approx(-8.9, rel=1e-14) and r_high / INCH == pytest.approx(21, rel=1e-14)
+    assert (z_low, z_high / INCH) == (0.0, pytest.approx(6, rel=1e-14))
+    # Through Eq. 4, R = 2a cos(q2/2) >= -8.9 in bounds q2; R <= 21 in = 2a bounds nothing; Z = q3.
+    assert k.LIMITS[0] is None
+    assert k.LIMITS[1] == (0.0, pytest.approx(2 * math.acos(-8.9 / 21), rel=1e-14))
+    assert k.LIMITS[2] == (0.0, pytest.approx(6 * INCH, rel=1e-14))
+
+
+def test_within_limits_follows_the_printed_ranges(k):
+    """A tool point inside section 5's ranges maps (Eq. 8) to joints within_limits accepts; R below -8.9 in
+    or Z outside 0 - 6 in is refused. T spans more than a turn, so every q1 is inside."""
+    inch = INCH
+    inside = np.array([[0.0, -8.9 * inch, 0.0], [1.0, -8.89 * inch, 3 * inch], [-3.0, 0.0, 6 * inch],
+                       [2.5, 20.99 * inch, 0.5 * inch], [0.0, 21 * inch, 0.0]])
+    outside = np.array([[0.0, -8.95 * inch, 0.0], [0.0, -10 * inch, 3 * inch], [0.0, 10 * inch, 6.01 * inch],
+                        [0.0, 10 * inch, -0.01 * inch]])
+    q_in = k.tool_to_joint(inside)
+    assert k.within_limits(q_in).all()
+    assert not k.within_limits(k.tool_to_joint(outside)).any()
+    # The edge itself, R = -8.9 in, is q2 = 2 acos(-8.9 / 21): on the limit, inside.
+    assert q_in[0, 1] == pytest.approx(2 * math.acos(-8.9 / 21), rel=1e-14)
+    q1_any = np.column_stack([np.linspace(-10, 10, 9), np.full(9, 1.0), np.full(9, 0.01)])
+    assert k.within_limits(q1_any).all()
