@@ -82,7 +82,7 @@ CITATIONS: dict[str, dict[str, str]] = {
         "fk": "Rehiara Eq.~13, corrected (E1)",
         "position": "Rehiara Eq.~14",
         "task_jacobian": "Rehiara Eq.~42, rows 1--3",
-        "ik": "Rehiara Eqs.~15--34",
+        # the IK steps carry their own tags, Rehiara Eqs. 14 and 27-34
     },
     "scorbot_er7": {
         "position": "Predescu--Stroe Fig.~3",  # the IK steps carry their own tags, Eqs. 3.1-3.11
@@ -864,7 +864,7 @@ def _ik(w: _Writer) -> Section | None:
             condition = unclamped(condition)
             args = condition.args if isinstance(condition, sp.And) else (condition,)
             rows = [rf"&{w.layout.tex(a)}" for a in args]
-            if branch.steps or sum(len(r) for r in rows) > 600:
+            if sum(len(r) for r in rows) > (200 if branch.steps else 600):
                 body += ("It exists where the square roots and inverse cosines of its steps are real "
                          "(the condition, written out, is in the generated kernels).\n")
             else:
