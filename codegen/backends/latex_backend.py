@@ -793,17 +793,21 @@ def _fraction_rows(w: _Writer, lhs: str, numerator: sp.Expr, denominator: sp.Exp
     return [f"{lhs} &= {parts[0]}"] + [rf"&\quad {p}" for p in parts[1:]]
 
 
+def _clamped_argument(e):
+    """``c`` if ``e`` is ``Min(1, Max(-1, c))`` (``derivations.ik.clamp_unit``), else None."""
+    if isinstance(e, sp.Min) and len(e.args) == 2 and sp.S.One in e.args:
+        (inner,) = [a for a in e.args if a != 1]
+        if isinstance(inner, sp.Max) and len(inner.args) == 2 and sp.S.NegativeOne in inner.args:
+            (c,) = [a for a in inner.args if a != -1]
+            return c
+    return None
+
+
 def unclamped(expr):
     """``expr`` as mathematics: an ``acos`` argument clamped for the kernels, ``Min(1, Max(-1, c))``, is ``c``;
     the existence tolerance ``|c| <= 1 + ACOS_TOLERANCE`` reads ``|c| <= 1``.  The IK section says once
     what the kernels do at the edge."""
-    def clamped(e):
-        if isinstance(e, sp.Min) and len(e.args) == 2 and sp.S.One in e.args:
-            inner = [a for a in e.args if a != 1][0]
-            if isinstance(inner, sp.Max) and len(inner.args) == 2 and sp.S.NegativeOne in inner.args:
-                return True
-        return False
-    expr = sp.sympify(expr).replace(clamped, lambda e: [a for a in [a for a in e.args if a != 1][0].args if a != -1][0])
+    expr = sp.sympify(expr).replace(lambda e: _clamped_argument(e) is not None, _clamped_argument)
     return expr.xreplace({1 + ACOS_TOLERANCE: sp.S.One})
 
 

@@ -41,7 +41,7 @@ def kumar_pose_functions(model) -> list[SymbolicFunction]:
     """``kumar_pose(q) -> (..., 3)``: x, y and Kumar's phi = theta1 (section 5.3)."""
     q = Argument("q", model.q, "joint coordinates, shape (..., 2) (q1: rad, q2: m)")
     values = (model.task[0], model.task[1], kumar_phi(model))
-    return [SymbolicFunction("kumar_pose", (q,), (Output("pose", values, (3,)),),
+    return [SymbolicFunction("kumar_pose", (q,), (Output("x", values, (3,)),),
                              "Kumar's end-effector coordinates of the R-P arm (section 5.3): x, y (m) and "
                              "phi = theta1 (rad), the direction of the slide, shape (..., 3).")]
 

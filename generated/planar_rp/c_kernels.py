@@ -400,16 +400,16 @@ def kumar_pose(q):
         q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "kumar_pose", "q", finite=False))
     batch = q.shape[:-1]
     count = q.size // 2
-    pose = _empty(batch + (3,))
+    x = _empty(batch + (3,))
     status = _lib.planar_rp_kumar_pose_checked(
         count,
         _from_buffer(_DOUBLES, q),
         params,
-        _from_buffer(_DOUBLES, pose),
+        _from_buffer(_DOUBLES, x),
     )
     if status:
         raise ValueError("kumar_pose: q contains NaN or inf")
-    return pose
+    return x
 
 
 def within_limits(q):

@@ -606,7 +606,7 @@ def kumar_pose(q):
     _batch = _runtime.batch_shape(q)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
-    pose = numpy.empty((_count, 3))
+    x = numpy.empty((_count, 3))
     for _start in range(0, _count, CHUNK):
         _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
         q1 = _columns_q[0]
@@ -616,11 +616,11 @@ def kumar_pose(q):
         _r0 = 1.0/(1.0 + _u0)
         _s0 = (_h0 + _h0)*_r0
         _c0 = (1.0 - _u0)*_r0
-        _pose = pose[_start:_start + CHUNK].T
-        _pose[0] = _c0*q2
-        _pose[1] = _s0*q2
-        _pose[2] = q1
-    return pose.reshape(_batch + (3,))
+        _x = x[_start:_start + CHUNK].T
+        _x[0] = _c0*q2
+        _x[1] = _s0*q2
+        _x[2] = q1
+    return x.reshape(_batch + (3,))
 
 
 def within_limits(q):

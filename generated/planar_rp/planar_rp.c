@@ -1777,7 +1777,7 @@ void planar_rp_joint_acceleration_batch(size_t count, const double *restrict q, 
 }
 
 /* Kumar's end-effector coordinates of the R-P arm (section 5.3): x, y (m) and phi = theta1 (rad), the direction of the slide, shape (..., 3). */
-void planar_rp_kumar_pose(const double *restrict q, const planar_rp_params *restrict params, double *restrict pose)
+void planar_rp_kumar_pose(const double *restrict q, const planar_rp_params *restrict params, double *restrict x)
 {
     const double q1 = q[0];
     const double q2 = q[1];
@@ -1785,13 +1785,13 @@ void planar_rp_kumar_pose(const double *restrict q, const planar_rp_params *rest
     double _s0, _c0;
     _s0 = sin(q1);
     _c0 = cos(q1);
-    pose[0] = _c0*q2;
-    pose[1] = _s0*q2;
-    pose[2] = q1;
+    x[0] = _c0*q2;
+    x[1] = _s0*q2;
+    x[2] = q1;
 }
 
 /* kumar_pose of `count` items, stored one after the other in each argument and output. */
-void planar_rp_kumar_pose_batch(size_t count, const double *restrict q, const planar_rp_params *restrict params, double *restrict pose)
+void planar_rp_kumar_pose_batch(size_t count, const double *restrict q, const planar_rp_params *restrict params, double *restrict x)
 {
 #ifdef KINEGEN_BLOCKED
     double q1[KINEGEN_BLOCK_OF(64)];
@@ -1816,15 +1816,15 @@ void planar_rp_kumar_pose_batch(size_t count, const double *restrict q, const pl
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            pose[3 * (start + i) + 0] = _c0[i]*q2[i];
-            pose[3 * (start + i) + 1] = _s0[i]*q2[i];
-            pose[3 * (start + i) + 2] = q1[i];
+            x[3 * (start + i) + 0] = _c0[i]*q2[i];
+            x[3 * (start + i) + 1] = _s0[i]*q2[i];
+            x[3 * (start + i) + 2] = q1[i];
         }
     }
 #else
     size_t i;
     for (i = 0; i < count; ++i) {
-        planar_rp_kumar_pose(q + 2 * i, params, pose + 3 * i);
+        planar_rp_kumar_pose(q + 2 * i, params, x + 3 * i);
     }
 #endif
 }

@@ -493,11 +493,11 @@ fail:
     return NULL;
 }
 
-/* kumar_pose(q, [parameters]) -> pose (3,), or None */
+/* kumar_pose(q, [parameters]) -> x (3,), or None */
 static PyObject *point_kumar_pose(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     const double *q;
-    PyObject *pose = NULL;
+    PyObject *x = NULL;
     const planar_rp_params *params = &planar_rp_default_params;
     (void)self;
     if (nargs != 1) {
@@ -508,14 +508,14 @@ static PyObject *point_kumar_pose(PyObject *self, PyObject *const *args, Py_ssiz
     if (q == NULL) {
         Py_RETURN_NONE;
     }
-    pose = kinegen_doubles(1, 3, 1, 1);
-    if (pose == NULL) {
+    x = kinegen_doubles(1, 3, 1, 1);
+    if (x == NULL) {
         goto fail;
     }
-    planar_rp_kumar_pose(q, params, (double *)PyArray_DATA((PyArrayObject *)pose));
-    return pose;
+    planar_rp_kumar_pose(q, params, (double *)PyArray_DATA((PyArrayObject *)x));
+    return x;
 fail:
-    Py_XDECREF(pose);
+    Py_XDECREF(x);
     return NULL;
 }
 
