@@ -185,6 +185,9 @@ def robot_context(model: RobotModel, origin: str, verbose: bool = False) -> dict
         "task": list(model.task_names), "branches": [b.name for b in model.ik],
         "params": [(str(s), float_literal(v)) for s, v in model.params.items()],
         "limits": limits, "functions": functions, "constants": constants,
+        # {space: ((low, high), ...)} of a model with coordinate spaces (SPACE_LIMITS)
+        "space_limits": [(space, [(float_literal(low), float_literal(high)) for low, high in ranges])
+                         for space, ranges in getattr(model, "space_limits", {}).items()],
         "status_codes": list(STATUS_CODES.items()) if any(f["checks"] for f in functions) else [],
         # (joint index, low, high, revolute) of each limited joint, for within_limits.
         "joint_limits": joint_limits,

@@ -136,7 +136,8 @@ class IKBranch:
     definitions ``(symbol, expression)``, each expression in the task symbols,
     the parameters and the symbols defined before it, the joint symbols q_i
     among them; substituting them in order (``derivations.ik.substitute_steps``)
-    gives ``solution``.
+    gives ``solution``.  ``step_cites``, if given, names the paper's equation of
+    each step (``"Kumar Eq.~(h)"``, ``""`` for none), one per step, for the LaTeX tags.
     """
 
     name: str
@@ -144,6 +145,11 @@ class IKBranch:
     condition: sp.Basic = sp.true
     doc: str = ""
     steps: tuple[tuple[sp.Symbol, sp.Expr], ...] = ()
+    step_cites: tuple[str, ...] = ()
+
+    def __post_init__(self):
+        if self.step_cites and len(self.step_cites) != len(self.steps):
+            raise ValueError(f"{self.name}: {len(self.step_cites)} step cites for {len(self.steps)} steps")
 
 
 POSE_NAMES = ("x", "y", "z", "r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33")

@@ -21,8 +21,10 @@ Where the script is ambiguous we follow the paper and say so:
   backwards, pure T is both motors forwards (GearT = 1), pure Z is M3 forwards;
   each is scaled so that no motor exceeds its limit.  With the model's signs
   (Eq. 1), the script's pure-R vector retracts the arm (Rdot < 0).
-* The Z motor limit is the script's 5500 rpm (section 2.1.2 says 6000 rpm);
-  the strokes are the script's (T 2 pi, R from -10 in to 20 in, Z 6 in).
+* The Z motor limit is the script's 5500 rpm; sections 2.1.2 and 5 say 6000 rpm
+  (``PAPER_RPM``), so pure Z motion is also evaluated at the paper's speed and
+  printed beside the script's (``AxisLimits.paper_z``).  The strokes are the
+  script's (T 2 pi, R from -10 in to 20 in, Z 6 in).
 """
 from __future__ import annotations
 
@@ -33,11 +35,13 @@ import sympy as sp
 
 from .robots.avr3000 import COUNTS_PER_REV
 
-__all__ = ["SCRIPT_RPM", "SCRIPT_STROKES", "AxisMotion", "AxisLimits", "axis_limits", "ramp_acceleration",
+__all__ = ["SCRIPT_RPM", "PAPER_RPM", "SCRIPT_STROKES", "AxisMotion", "AxisLimits", "axis_limits", "ramp_acceleration",
            "INCH"]
 
 INCH = 0.0254  # m
 SCRIPT_RPM = (4500.0, 4500.0, 5500.0)  # MaxMotorVel_T, _R, _Z of the script
+# Section 2.1.2: 4500 rpm = 471.23 rad/s for M1 and M2, 6000 rpm = 628.32 rad/s for M3 (section 5: 6000 rpm).
+PAPER_RPM = (4500.0, 4500.0, 6000.0)
 SCRIPT_STROKES = {"T": 2 * math.pi, "R": 30 * INCH, "Z": 6 * INCH}  # |TMax - TMin|, |RMax - RMin|, |ZMax - ZMin|
 SCRIPT_R = 18.3 * INCH
 
@@ -81,6 +85,11 @@ class AxisMotion:
     acceleration: float
     time_to_speed: float
 
+    @property
+    def motor_shaft_velocity(self) -> tuple[float, float, float]:
+        """Motor shaft speeds in rad/s, from the counts/s and the encoder counts per revolution."""
+        return tuple(v / n * 2 * math.pi for v, n in zip(self.motor_velocity, COUNTS_PER_REV))
+
 
 @dataclass(frozen=True)
 class AxisLimits:
@@ -91,6 +100,15 @@ class AxisLimits:
     gear_t: float
     gear_r: float
     motions: tuple[AxisMotion, ...]
+    paper_z: AxisMotion | None = None  # pure Z at the paper's M3 limit, where it differs from motor_rpm's
+
+    @property
+    def columns(self) -> tuple[tuple[str, AxisMotion], ...]:
+        """(header, motion) of each table column: pure T, R, Z, and Z at the paper's speed if it differs."""
+        columns = tuple((f"pure {m.axis}", m) for m in self.motions)
+        if self.paper_z is not None:
+            columns += ((f"pure Z, {self.paper_z.motor_rpm[2]:g} rpm", self.paper_z),)
+        return columns
 
     def motion(self, axis: str) -> AxisMotion:
         return next(m for m in self.motions if m.axis == axis)
@@ -103,6 +121,9 @@ class AxisLimits:
                 f"R = {self.R / INCH:g} in = {self.R:g} m, Z = {self.Z / INCH:g} in\n"
                 f"motor limits {', '.join(f'{r:g}' for r in self.motor_rpm_limits)} rpm; "
                 f"GearT = {self.gear_t:.8g}, GearR = {self.gear_r:.8g} (thetadot1 / thetadot2)")
+        if self.paper_z is not None:
+            head += (f"\nlast column: M3 at {self.paper_z.motor_rpm[2]:g} rpm, the paper's limit (sections 2.1.2 "
+                     f"and 5), beside the script's {self.motor_rpm_limits[2]:g} rpm")
         blocks = [head]
         for system in (("si", "in") if units == "both" else (units,)):
             blocks.append(self._block(system))
@@ -112,31 +133,35 @@ class AxisLimits:
         inch = system == "in"
         length = (lambda x: x / INCH) if inch else (lambda x: x)
         lu = "in" if inch else "m"
-        rows = [("quantity", "unit", "pure T", "pure R", "pure Z")]
+        columns = self.columns
+        motions = [m for _, m in columns]
+        rows = [("quantity", "unit") + tuple(h for h, _ in columns)]
 
         def row(label, unit, values):
             # Exact zeros come out of the 30-digit evaluation as rounding residues (1e-16 of GearR, say).
             rows.append((label, unit) + tuple("0" if abs(v) < 1e-12 else f"{v:.6g}" for v in values))
 
         for i in range(3):
-            row(f"motor M{i + 1}", "rpm", [m.motor_rpm[i] for m in self.motions])
+            row(f"motor M{i + 1}", "rpm", [m.motor_rpm[i] for m in motions])
         for i in range(3):
-            row(f"motor M{i + 1}", "counts/s", [m.motor_velocity[i] for m in self.motions])
+            row(f"motor M{i + 1}", "counts/s", [m.motor_velocity[i] for m in motions])
+        for i in range(3):  # the shaft speed, as section 2.1.2 prints it (4500 rpm = 471.23 rad/s)
+            row(f"motor M{i + 1}", "rad/s", [m.motor_shaft_velocity[i] for m in motions])
         for i, (name, linear) in enumerate((("q1", False), ("q2", False), ("q3", True))):
             row(f"joint {name}dot", f"{lu}/s" if linear else "rad/s",
-                [length(m.joint_velocity[i]) if linear else m.joint_velocity[i] for m in self.motions])
+                [length(m.joint_velocity[i]) if linear else m.joint_velocity[i] for m in motions])
         for i, (name, linear) in enumerate((("T", False), ("R", True), ("Z", True))):
             row(f"tool {name}dot", f"{lu}/s" if linear else "rad/s",
-                [length(m.tool_velocity[i]) if linear else m.tool_velocity[i] for m in self.motions])
+                [length(m.tool_velocity[i]) if linear else m.tool_velocity[i] for m in motions])
         for i, name in enumerate("xyz"):
-            row(f"cartesian {name}dot", f"{lu}/s", [length(m.cartesian_velocity[i]) for m in self.motions])
-        scale = [(lambda x: x) if m.axis == "T" else length for m in self.motions]
+            row(f"cartesian {name}dot", f"{lu}/s", [length(m.cartesian_velocity[i]) for m in motions])
+        scale = [(lambda x: x) if m.axis == "T" else length for m in motions]
         rows.append(("axis speed |v|", f"rad/s or {lu}/s") + tuple(
-            f"{f(m.velocity):.6g}" for f, m in zip(scale, self.motions)))
-        rows.append(("stroke", f"rad or {lu}") + tuple(f"{f(m.stroke):.6g}" for f, m in zip(scale, self.motions)))
+            f"{f(m.velocity):.6g}" for f, m in zip(scale, motions)))
+        rows.append(("stroke", f"rad or {lu}") + tuple(f"{f(m.stroke):.6g}" for f, m in zip(scale, motions)))
         rows.append(("acceleration 1.5 v^2/stroke", f"rad/s^2 or {lu}/s^2") + tuple(
-            f"{f(m.acceleration):.6g}" for f, m in zip(scale, self.motions)))
-        rows.append(("time to speed", "s") + tuple(f"{m.time_to_speed:.6g}" for m in self.motions))
+            f"{f(m.acceleration):.6g}" for f, m in zip(scale, motions)))
+        rows.append(("time to speed", "s") + tuple(f"{m.time_to_speed:.6g}" for m in motions))
         widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
         title = "SI units" if not inch else "inches (the paper's units)"
         lines = [title]
@@ -154,12 +179,14 @@ def _evaluate(expressions: sp.Matrix, values: dict) -> tuple[float, ...]:
 
 
 def axis_limits(model=None, *, R: float = SCRIPT_R, T: float = 0.0, Z: float = 0.0,
-                motor_rpm: tuple[float, float, float] = SCRIPT_RPM, strokes: dict | None = None) -> AxisLimits:
+                motor_rpm: tuple[float, float, float] = SCRIPT_RPM, strokes: dict | None = None,
+                paper_z_rpm: float | None = PAPER_RPM[2]) -> AxisLimits:
     """The Matlab script of Sotirov section 6, for the derived AVR 3000 model.
 
     ``R`` (m), ``T`` (rad), ``Z`` (m): where the arm is; ``motor_rpm``: the
     speed limits of M1, M2, M3; ``strokes``: {"T": rad, "R": m, "Z": m}
-    (default: the script's).  Raises ``ValueError`` for an unreachable R (|R| > 2a)
+    (default: the script's); ``paper_z_rpm``: M3's limit for the extra pure-Z
+    column (the paper's 6000 rpm; ``None``, or equal to ``motor_rpm[2]``, for none).  Raises ``ValueError`` for an unreachable R (|R| > 2a)
     or one where the arm is fully extended (|R| = 2a, no pure R motion).
     """
     if model is None:
@@ -193,10 +220,12 @@ def axis_limits(model=None, *, R: float = SCRIPT_R, T: float = 0.0, Z: float = 0
         w = min(limit[1], limit[0] / abs(ratio)) if ratio else limit[1]
         return ratio * sign * w, sign * w
 
-    vectors = {"T": (*pure(gear_t, 1.0), 0.0), "R": (*pure(gear_r, -1.0), 0.0), "Z": (0.0, 0.0, limit[2])}
+    vectors = [("T", (*pure(gear_t, 1.0), 0.0)), ("R", (*pure(gear_r, -1.0), 0.0)), ("Z", (0.0, 0.0, limit[2]))]
+    if paper_z_rpm is not None and paper_z_rpm != motor_rpm[2]:
+        vectors.append(("Z", (0.0, 0.0, paper_z_rpm / 60 * counts_per_rev[2])))
     peak, ramp_time, v_symbol, l_symbol = ramp_acceleration()
     motions = []
-    for axis, motor_velocity in vectors.items():
+    for axis, motor_velocity in vectors:
         values = {**dict(zip(motor.position, motor_position)), **dict(zip(motor.velocity, motor_velocity)), **params}
         joint_velocity = _evaluate(maps["motor_to_joint_velocity"].values, values)
         tool_velocity = _evaluate(maps["motor_to_tool_velocity"].values, values)
@@ -207,4 +236,5 @@ def axis_limits(model=None, *, R: float = SCRIPT_R, T: float = 0.0, Z: float = 0
             axis, tuple(v / n * 60 for v, n in zip(motor_velocity, counts_per_rev)), tuple(motor_velocity),
             joint_velocity, tool_velocity, cartesian_velocity, speed, strokes[axis],
             float(peak.evalf(30, subs=at)), float(ramp_time.evalf(30, subs=at)) if speed else math.inf))
-    return AxisLimits(T, R, Z, tuple(motor_rpm), gear_t, gear_r, tuple(motions))
+    return AxisLimits(T, R, Z, tuple(motor_rpm), gear_t, gear_r, tuple(motions[:3]),
+                      motions[3] if len(motions) > 3 else None)

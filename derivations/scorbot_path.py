@@ -21,7 +21,7 @@ theta1 = atan2(y, x) and the elbow above the shoulder-wrist line, theta3 < 0 in
 our angles (theta2 up from the horizontal, theta3 relative): only that one gives
 Eq. 4.1's starting value theta2(M) = 13.4685 deg.  Eq. 3.5 as printed, with the
 principal arccosine (theta3 >= 0), gives the other elbow and theta2(M) = -33.23 deg
-(erratum E3 in the README).
+(erratum E11 in the README).
 
 Angles in radians, lengths in metres, time in seconds; the paper's degrees are
 converted in :func:`eq_4_1_degrees` and the tests.

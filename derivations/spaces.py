@@ -197,12 +197,16 @@ class SpacesModel(RobotModel):
     name (``motor_to_joint``, ``tool_to_joint_velocity``, ...).
     ``sample_ranges`` gives, for a symbol, the interval ``(low, high)`` (SymPy
     expressions in the parameters) the verifier draws its values from, so that
-    the sample points of a map lie where the map is defined.
+    the sample points of a map lie where the map is defined.  ``space_limits``
+    gives, for a space name, the range ``(low, high)`` of each coordinate (SI
+    floats, the robot's working ranges), emitted as the module constant
+    ``SPACE_LIMITS``.
     """
 
     spaces: dict[str, CoordinateSpace] = field(default_factory=dict)
     maps: dict[str, SpaceMap] = field(default_factory=dict)
     sample_ranges: dict[sp.Symbol, tuple[sp.Expr, sp.Expr]] = field(default_factory=dict)
+    space_limits: dict[str, tuple[tuple[float, float], ...]] = field(default_factory=dict)
 
     def functions(self) -> list[SymbolicFunction]:
         functions = super().functions()

@@ -15,7 +15,7 @@ angular velocity ``w`` (for the AdeptThree ``w_z = q1_dot + q2_dot - q4_dot``).
 
 For the AdeptThree ``a = (0, 0, -1)`` (Eq. 13 and our derivation agree on the
 third column), so Eq. 39 gives ``w_6 = -exp(theta4 / pi)``; Eq. 40 prints
-``+exp(theta4 / pi)`` (erratum V3 in the README), and Eq. 42 is the derivative
+``+exp(theta4 / pi)`` (erratum E3 in the README), and Eq. 42 is the derivative
 of the printed Eq. 40.
 """
 from __future__ import annotations

@@ -57,7 +57,12 @@ MAX_MINOR_SIZE = 3
 MAX_MINORS = 10
 
 # Kernels particular to one robot, keyed by its registry name.
-ROBOT_EXTRAS = {"adept_three": tool_configuration_functions}
+def _planar_rp_extras(model):
+    from .robots.planar_rp import kumar_pose_functions  # the robot's own module (a late import: no cycle)
+    return kumar_pose_functions(model)
+
+
+ROBOT_EXTRAS = {"adept_three": tool_configuration_functions, "planar_rp": _planar_rp_extras}
 
 # What each singular factor means, keyed by robot and by the joints the factor involves.
 FACTOR_NAMES = {

@@ -254,6 +254,38 @@ def test_axis_limits_reproduce_the_script():
     assert r.motor_rpm == pytest.approx((0.479358811234781 * 4500, -4500, 0), rel=1e-10)
 
 
+def test_section_2_1_2_motor_speeds_in_rad_per_s():
+    """Sotirov section 2.1.2: "4500 RPM = 471.23 rad/s" (M1, M2) and "6000 RPM = 628.32 rad/s" (M3), to the
+    printed two decimals (the paper cuts 471.2389 to 471.23), from the counts/s the script's limits give."""
+    limits = axis_limits()
+    t_motion, paper_z = limits.motion("T"), limits.paper_z
+    assert t_motion.motor_rpm[:2] == (4500, 4500) and paper_z.motor_rpm[2] == 6000
+    assert t_motion.motor_shaft_velocity[0] == pytest.approx(471.23, abs=0.01)
+    assert t_motion.motor_shaft_velocity[1] == pytest.approx(471.23, abs=0.01)
+    assert math.floor(t_motion.motor_shaft_velocity[0] * 100) / 100 == 471.23
+    assert round(paper_z.motor_shaft_velocity[2], 2) == 628.32
+    # The counts: 2048 lines x 4 per revolution on M1 (section 5), 2500 x 4 on M3.
+    assert t_motion.motor_velocity[0] == pytest.approx(4500 / 60 * 8192, rel=1e-15)
+    assert paper_z.motor_velocity[2] == pytest.approx(6000 / 60 * 10000, rel=1e-15)
+
+
+def test_pure_z_at_the_papers_6000_rpm_beside_the_scripts_5500(capsys):
+    """Z speed = rpm / 60 x 10000 counts/rev x J33 (6.5616798e-6 in/count, Eq. 1): 6.01487 in/s at the
+    script's 5500 rpm, 6.56168 in/s at the 6000 rpm of sections 2.1.2 and 5; the command prints both."""
+    limits = axis_limits()
+    assert limits.motion("Z").velocity / INCH == pytest.approx(5500 / 60 * 10000 * 6.5616798e-6, rel=1e-12)
+    assert limits.paper_z.velocity / INCH == pytest.approx(6000 / 60 * 10000 * 6.5616798e-6, rel=1e-12)
+    assert f"{limits.paper_z.velocity / INCH:.6g}" == "6.56168"
+    assert axis_limits(paper_z_rpm=None).paper_z is None and axis_limits(paper_z_rpm=5500).paper_z is None
+    assert cli.main(["--quiet", "avr3000-limits", "--units", "in"]) == 0
+    out = capsys.readouterr().out
+    header = next(line for line in out.splitlines() if line.startswith("quantity"))
+    assert "pure Z  pure Z, 6000 rpm" in header
+    zdot = next(line for line in out.splitlines() if line.startswith("tool Zdot"))
+    assert zdot.split()[-2:] == ["6.01487", "6.56168"]
+    assert "471.239" in out and "628.319" in out
+
+
 def test_the_acceleration_rule_is_a_cubic_ramp_to_speed_at_mid_stroke():
     peak, ramp_time, v, L = ramp_acceleration()
     assert str(peak) == "3*v**2/(2*L)" and str(ramp_time) == "L/v"
@@ -282,3 +314,32 @@ def test_limits_command_runs_as_a_module():
                              "--units", "in"], capture_output=True, text=True, check=True)
     assert "121.886" in result.stdout and "SI units" not in result.stdout
 
+
+
+def test_section5_ranges_are_the_tool_space_limits(k):
+    """Sotirov section 5, "Ranges": T 0 - 500 deg, R -8.9 in - 21 in, Z 0 - 6 in, in SI."""
+    (t_low, t_high), (r_low, r_high), (z_low, z_high) = k.SPACE_LIMITS["tool"]
+    assert (t_low, t_high) == (0.0, pytest.approx(500 * math.pi / 180, rel=1e-15))
+    assert r_low / INCH == pytest.approx(-8.9, rel=1e-14) and r_high / INCH == pytest.approx(21, rel=1e-14)
+    assert (z_low, z_high / INCH) == (0.0, pytest.approx(6, rel=1e-14))
+    # Through Eq. 4, R = 2a cos(q2/2) >= -8.9 in bounds q2; R <= 21 in = 2a bounds nothing; Z = q3.
+    assert k.LIMITS[0] is None
+    assert k.LIMITS[1] == (0.0, pytest.approx(2 * math.acos(-8.9 / 21), rel=1e-14))
+    assert k.LIMITS[2] == (0.0, pytest.approx(6 * INCH, rel=1e-14))
+
+
+def test_within_limits_follows_the_printed_ranges(k):
+    """A tool point inside section 5's ranges maps (Eq. 8) to joints within_limits accepts; R below -8.9 in
+    or Z outside 0 - 6 in is refused. T spans more than a turn, so every q1 is inside."""
+    inch = INCH
+    inside = np.array([[0.0, -8.9 * inch, 0.0], [1.0, -8.89 * inch, 3 * inch], [-3.0, 0.0, 6 * inch],
+                       [2.5, 20.99 * inch, 0.5 * inch], [0.0, 21 * inch, 0.0]])
+    outside = np.array([[0.0, -8.95 * inch, 0.0], [0.0, -10 * inch, 3 * inch], [0.0, 10 * inch, 6.01 * inch],
+                        [0.0, 10 * inch, -0.01 * inch]])
+    q_in = k.tool_to_joint(inside)
+    assert k.within_limits(q_in).all()
+    assert not k.within_limits(k.tool_to_joint(outside)).any()
+    # The edge itself, R = -8.9 in, is q2 = 2 acos(-8.9 / 21): on the limit, inside.
+    assert q_in[0, 1] == pytest.approx(2 * math.acos(-8.9 / 21), rel=1e-14)
+    q1_any = np.column_stack([np.linspace(-10, 10, 9), np.full(9, 1.0), np.full(9, 0.01)])
+    assert k.within_limits(q1_any).all()

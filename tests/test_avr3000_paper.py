@@ -2,7 +2,7 @@
 
 Each test writes the paper's equation out by hand and checks that the model's
 derivation gives it; where the print is wrong the test shows the printed form
-failing and the derived one holding (README, "Errata", AVR1-AVR6).
+failing and the derived one holding (README, "Errata": E8-E10, AVR3, AVR4, AVR6).
 """
 import math
 
@@ -89,8 +89,8 @@ def test_eq7_position_from_the_link_frames(avr):
     assert vanishes(avr.fk[:2, 0] - sp.Matrix([c(q1 + q2 / 2), s(q1 + q2 / 2)]))
 
 
-def test_eq7_velocity_expanded_lines_and_the_jx_erratum(avr):
-    """AVR1: the collected J12^x, J22^x drop the factor 0.5 on the e term that the expanded line above them has."""
+def test_E8_eq7_velocity_expanded_lines_and_the_jx(avr):
+    """E8: the collected J12^x, J22^x drop the factor 0.5 on the e term that the expanded line above them has."""
     a, e = syms(avr)[:2]
     q1, q2, _ = avr.q
     qd1, qd2, _ = avr.spaces["joint"].velocity
@@ -180,8 +180,8 @@ def test_section4_gear_ratios(avr):
     assert abs(gear_r) == pytest.approx(0.479358811234781, rel=2e-11)
 
 
-def test_section4_erratum_gear_r_sign(avr):
-    """AVR2: GearR is printed positive; only the negative ratio keeps T still (Eq. 14, first row)."""
+def test_E9_section4_gear_r_sign(avr):
+    """E9: GearR is printed positive; only the negative ratio keeps T still (Eq. 14, first row)."""
     Tdot = avr.maps["motor_to_tool_velocity"].values[0]
     td = avr.spaces["motor"].velocity
     values = _eq1_values(avr)
@@ -191,7 +191,7 @@ def test_section4_erratum_gear_r_sign(avr):
         assert (abs(rate) < 1e-11 * abs(scale)) == still
 
 
-def test_section4_erratum_numbers_differ_from_eq1_but_keep_the_ratio(avr):
+def test_AVR3_section4_numbers_differ_from_eq1_but_keep_the_ratio(avr):
     """AVR3: section 4 substitutes J21 = 1.1634e-5, J11 = -1.795196e-5, not Eq. 1's values; the ratio J11/J21 agrees."""
     a, e, J11, J21, J22, J33 = syms(avr)
     eq1 = {k: float(v) for k, v in _eq1_values(avr).items()}
@@ -227,7 +227,7 @@ def test_matlab_script_position_numbers():
     assert ARM * (math.sin(q1) + math.sin(q1 + q2)) == pytest.approx(18.3, abs=1e-12)
 
 
-def test_matlab_erratum_jmj_sign(avr):
+def test_AVR4_matlab_jmj_sign(avr):
     """AVR4: the script's JMJ is -ECPR times Eq. 1's Jacobian in its T and R rows (same magnitudes)."""
     values = {k: float(v) for k, v in avr.params.items()}
     J = np.array(avr.maps["motor_to_joint_velocity"].values.jacobian(
@@ -249,8 +249,8 @@ def test_matlab_jjt_and_jx_are_the_derived_jacobians(avr):
     assert vanishes(jx - sp.Matrix([[R * c(T), s(T), 0], [-R * s(T), c(T), 0], [0, 0, 1]]))  # the script's JX
 
 
-def test_matlab_erratum_jjc_misses_the_link_length(avr):
-    """AVR5: the script's JJC (joint -> Cartesian) lacks the factor a = ArmLength in its x and y rows."""
+def test_E10_matlab_jjc_misses_the_link_length(avr):
+    """E10: the script's JJC (joint -> Cartesian) lacks the factor a = ArmLength in its x and y rows."""
     a, e = syms(avr)[:2]
     q1, q2, _ = avr.q
     derived = avr.maps["joint_to_cartesian_velocity"].values.jacobian(
@@ -273,7 +273,7 @@ def test_matlab_jmt_is_the_chain_rule_of_the_derived_maps(avr):
     assert vanishes(jmc - jjc.xreplace(dict(zip(avr.q, avr.maps["motor_to_joint"].values))) * J)
 
 
-def test_matlab_pure_r_motion_magnitude_matches_the_model(avr):
+def test_AVR4_matlab_pure_r_motion_magnitude_matches_the_model(avr):
     """At R = 18.3 in, [0.479.. x, -1 x] 4500 rpm: the script gives Rdot = +121.886 in/s, the model -121.886 in/s."""
     omega = 4500 * 2 * math.pi / 60
     motors = np.array([0.479358811234781 * omega, -omega, 0])
@@ -294,7 +294,7 @@ def test_matlab_pure_r_motion_magnitude_matches_the_model(avr):
     assert tool_rate[1] / IN == pytest.approx(-script_tool[1], rel=1e-9)  # AVR4: opposite sign, same magnitude
 
 
-def test_matlab_erratum_script_keeps_only_the_last_motor_vector():
+def test_AVR6_matlab_script_keeps_only_the_last_motor_vector():
     """AVR6: MaxMotorVel is assigned for R, T and Z motion in turn; as printed only Z survives, so the
     script's R-axis block computes VelMaxR = 0, AccMaxR = 0 and TimeAccR = 0/0."""
     omega_z = 5500 * 2 * math.pi / 60

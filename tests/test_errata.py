@@ -299,3 +299,60 @@ def test_E12_kumar_mobility_examples_cite_the_wrong_equation():
     assert grubler_planar(*stewart) == 3 * (19 - 24) + 36 == 21  # "According to Equation (3)"
     assert grubler_spatial(*stewart) == 6  # the printed arithmetic 6(19 - 24) + 36 is Eq. 2
     assert grubler_planar(7, [1] * 9) == 3  # Example 3 cites Eq. 3 rightly: M = 3
+
+
+# --------------------------------------------------------------------------- the documents agree
+
+REPO = __import__("pathlib").Path(__file__).resolve().parents[1]
+
+
+def readme_errata() -> dict[str, list[tuple[str, str]]]:
+    """{erratum id: [(test file, test name), ...]} from the README's "Errata found in the papers" table."""
+    text = (REPO / "README.md").read_text()
+    table = text.split("## Errata found in the papers", 1)[1].split("\n## ", 1)[0]
+    errata = {}
+    for line in table.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) < 5 or cells[0] in ("id", "") or set(cells[0]) <= set("-"):
+            continue
+        tests, current = [], None
+        for ref in __import__("re").findall(r"`((?:tests/[\w.]+)?::\w+)`", cells[-1]):
+            path, name = ref.split("::")
+            current = path or current
+            tests.append((current, name))
+        errata[cells[0]] = tests
+    return errata
+
+
+def report_errata_ids() -> dict[str, set[str]]:
+    """{chapter or table: ids of its errata rows}: the chapters' errata environments and the introduction's table."""
+    import re
+    out = {}
+    for chapter in sorted((REPO / "report" / "chapters").glob("*.tex")):
+        text = chapter.read_text()
+        blocks = re.findall(r"\\begin\{(errata|tabularx)\}(.*?)\\end\{\1\}", text, flags=re.S)
+        ids = {m for _, block in blocks for m in re.findall(r"^([A-Z]+\d+) &", block, flags=re.M)}
+        if ids:
+            out[chapter.stem] = ids
+    return out
+
+
+def test_every_readme_erratum_has_a_test_of_its_name_and_a_report_row():
+    """Issue 18, item 8: every erratum id of the README is the prefix of each test the README cites for it
+    (``test_<id>_...``, which exists in that file), and has a row in its chapter's errata table and in the
+    introduction's list; the report holds no erratum the README lacks."""
+    import ast
+    errata = readme_errata()
+    assert {"E1", "E12", "AVR3", "AVR4", "AVR6"} <= set(errata) and "IK2" not in errata
+    for erratum, tests in errata.items():
+        assert tests, f"README erratum {erratum} cites no test"
+        for path, name in tests:
+            assert name.startswith(f"test_{erratum}_"), f"{erratum}: the README cites {name}"
+            tree = ast.parse((REPO / path).read_text())
+            defined = {node.name for node in ast.walk(tree) if isinstance(node, ast.FunctionDef)}
+            assert name in defined, f"{erratum}: {path} has no test {name}"
+    report = report_errata_ids()
+    introduction = report.pop("introduction")
+    in_chapters = set().union(*report.values())
+    assert set(errata) == introduction, "the introduction's errata list and the README differ"
+    assert set(errata) == in_chapters, "the chapters' errata tables and the README differ"

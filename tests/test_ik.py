@@ -128,11 +128,11 @@ def test_kumar_eq_f_is_the_sum_of_squares_of_eqs_d_e(models):
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_kumar_sigma_plus_puts_the_elbow_right_of_the_wrist_line_erratum_ik2(models, backend):
+def test_kumar_sigma_plus_puts_the_elbow_right_of_the_wrist_line(models, backend):
     """Kumar Eq. (h): sigma = +1 gives theta2 in [0, pi] -- our elbow_down; Fig. 14's caption calls it elbow-up.
 
     For a wrist to the right of the base (x' > 0) the sigma = +1 elbow lies below
-    the line from the base to the wrist (erratum IK2).
+    the line from the base to the wrist (a naming choice, README "Choices the papers leave open").
     """
     k = kernels("planar_3r", backend)
     assert k.BRANCHES == ("elbow_up", "elbow_down")
@@ -170,7 +170,7 @@ def test_scorbot_points_m_and_n_section_4(backend):
     np.testing.assert_allclose(Q[:, up, 0], 0, atol=0)
 
 
-def test_scorbot_printed_eq_3_5_with_3_9_is_the_other_elbow_erratum_ik1(models):
+def test_E11_scorbot_printed_eq_3_5_with_3_9_is_the_other_elbow(models):
     """Eq. 3.5 takes theta3 = +acos(...); with Eq. 3.9 that gives theta2 = -33.23 deg at M, not 13.4685."""
     a1, a2, a3, d1, d5 = 0.050, 0.300, 0.250, 0.385, 0.212
     xp, yp, zp = 0.750, 0.0, 0.300
@@ -197,7 +197,7 @@ def rehiara_targets(k, rng, count):
     return q, k.task(q)
 
 
-def test_rehiara_eq21_as_printed_misses_the_target_erratum_ik3():
+def test_E4_rehiara_eq21_as_printed_misses_the_target():
     """Eqs. 18 and 21: theta2 = +arccos(...), theta1 = arcsin(l2 s2 / r) + arctan(y/x) reaches only at s2 = 0.
 
     With theta2 >= 0 the first link must sit clockwise of the target: theta1 = alpha - beta.
@@ -221,7 +221,7 @@ def test_rehiara_eq21_as_printed_misses_the_target_erratum_ik3():
     assert np.all(reach(corrected)[front] < 1e-12)
 
 
-def test_rehiara_arcsin_and_arctan_lose_the_quadrant_erratum_ik4():
+def test_E5_rehiara_arcsin_and_arctan_lose_the_quadrant():
     """Eq. 34 (theta1 = arcsin(...)) and Eq. 19 (alpha = arctan(y/x)) fail where theta1 or the target
     leave (-pi/2, pi/2); the atan2 forms of the same equations, which the kernels use, do not."""
     k = kernels("adept_three", "numpy")

@@ -1,6 +1,7 @@
 """The LaTeX backend: notation, line breaking, sections, citations, the CLI, and the
 determinants and rate maps it prints (checked against the papers and numerically)."""
 import copy
+import math
 import dataclasses
 import re
 
@@ -288,3 +289,140 @@ def test_cli_prints_a_users_description(tmp_path, capsys):
     assert cli.main(["latex", str(path), "--what", "dh"]) == 0
     out = capsys.readouterr().out
     assert r"$\theta_{1}$ & $d_{1}$" in out and "$d_{2}$" in out and "$d_{3}$" in out
+
+
+# --------------------------------------------------------------------------- issue 18: notation and order
+
+def multi_space_robots():
+    return [n for n in ROBOT_NAMES if len(getattr(derivations.load(n), "spaces", {})) > 1]
+
+
+def printed_across_spaces(model, printer) -> dict[str, set[str]]:
+    """{printed text: the spaces whose symbols print as it} (the joints and their rates in the joint space)."""
+    spaces = latex_backend.space_symbols(model)
+    printed: dict[str, set[str]] = {}
+    for space, symbols in spaces.items():
+        for symbol in symbols:
+            printed.setdefault(printer.doprint(symbol), set()).add(space)
+    joint_space = next(s for s, symbols in spaces.items() if set(model.q) <= set(symbols))
+    for qi in model.q:
+        printed.setdefault(printer.doprint(qi), set()).add(joint_space)
+        printed.setdefault(printer.doprint(latex_backend.rate_symbol(qi)), set()).add(joint_space)
+    return printed
+
+
+def test_the_space_check_catches_the_old_avr3000_notation():
+    """Printed as before issue 18 (joints as theta_i, blind to the motor space), q1 and the motor angle theta1
+    print alike, and the check below says so."""
+    model = derivations.load("avr3000")
+    printed = printed_across_spaces(model, printer_for(model))
+    assert printed[r"\theta_{1}"] == {"motor", "joint"}
+
+
+@pytest.mark.parametrize("name", multi_space_robots())
+def test_no_two_spaces_print_a_symbol_alike(name):
+    """Issue 18, item 1: in a robot with several coordinate spaces (the AVR 3000: motor, joint, tool,
+    Cartesian), every symbol of every space, at position, velocity and acceleration level, prints
+    differently from every symbol of another space, in the fragment's own printer; the joints (and their
+    rates, as the rate maps print them) belong to the joint space, and the tool pose's name is no
+    coordinate."""
+    model = derivations.load(name)
+    printed = printed_across_spaces(model, latex_backend.printer_for(model))
+    shared = {text: owners for text, owners in printed.items() if len(owners) > 1}
+    assert not shared, f"{name}: printed alike across spaces: {shared}"
+    assert latex_backend.pose_name(model) not in printed
+
+
+def test_the_avr3000_fragment_writes_sotirov_eq4_in_joint_symbols():
+    """Sotirov Eq. 4, T = pi/2 - q1 - q2/2, R = 2a cos(q2/2), Z = q3, as the fragment prints it: joints q_i,
+    the motors theta_i only where motor coordinates are meant (Eq. 1: q1 = J11 theta1)."""
+    text = (generate.GENERATED / "avr3000" / "avr3000.tex").read_text()
+    assert r"T &= - q_{1} - \frac{q_{2}}{2} + \frac{\pi}{2}" in text
+    assert r"R &= 2 a \cos(\frac{q_{2}}{2})" in text and r"Z &= q_{3}" in text
+    assert r"{}^{0}H_{\mathrm{tip}} = " in text and "\nT = " not in text
+    assert "Joint variables: $q_{1}$ (revolute), $q_{2}$ (revolute), $q_{3}$ (prismatic)" in text
+    assert r"\dot{T} &= - \dot{q}_{1} - \frac{\dot{q}_{2}}{2}" in text
+    assert r"J_{11} \theta_{1}" in text  # Eq. 1, motor -> joint
+    ik = text.split(r"\kinegenpart{Inverse kinematics}")[1].split(r"\kinegenpart{")[0]
+    assert r"\theta" not in ik  # Eq. 8 is in tool and joint coordinates only
+    assert r"$-\pi < q_i \le \pi$" in text
+
+
+def ik_rows(body: str) -> list[tuple[str, str, str]]:
+    """(lhs, rhs, tag) of each equation of an IK branch's align block (continuation lines joined)."""
+    rows = []
+    for line in body.split("\\\\\n"):
+        line = line.strip()
+        if "&=" in line:
+            lhs, rhs = line.split("&=", 1)
+            tag = re.search(r"\\tag\{([^}]*)\}", rhs)
+            rows.append((lhs.strip(), re.sub(r"\\tag\{[^}]*\}", "", rhs), tag.group(1) if tag else ""))
+        elif line.startswith(r"&\quad") and rows:
+            lhs, rhs, tag = rows[-1]
+            rows[-1] = (lhs, rhs + line, tag)
+    return rows
+
+
+@pytest.mark.parametrize("name", [n for n in ROBOT_NAMES if any(b.steps for b in derivations.load(n).ik)])
+def test_ik_steps_print_in_their_order_each_defined_before_use(name):
+    """Issue 18, item 2: the steps of a branch print in the order the paper gives them, one equation each,
+    each left side defined before any right side uses it, with no common-subexpression temporaries."""
+    model = derivations.load(name)
+    printer = latex_backend.printer_for(model)
+    body = {s.key: s.body for s in robot_sections(model)}["ik"]
+    known = {printer.doprint(p) for p in model.params} | {printer.doprint(s) for s in model.task_symbols}
+    for branch, block in zip(model.ik, body.split(r"\paragraph{Branch")[1:]):
+        align = block.split(r"\begin{align*}")[1].split(r"\end{align*}")[0]
+        rows = ik_rows(align)
+        names = [printer.joint_latex.get(sym, printer.doprint(sym)) for sym, _ in branch.steps]
+        assert [lhs for lhs, _, _ in rows] == names, branch.name
+        defined = set()
+        for lhs, rhs, _ in rows:
+            later = set(names) - defined - {lhs}
+            used = [n for n in later if re.search(re.escape(n) + r"(?![\w'{])", rhs)]
+            assert not used, f"{name}.{branch.name}: {lhs} uses {used} before their definition"
+            defined.add(lhs)
+        if branch.step_cites:
+            assert [tag for _, _, tag in rows] == list(branch.step_cites)
+    assert r"\kappa" not in body
+
+
+def test_kumar_3r_inverse_prints_eqs_d_to_j_in_order():
+    """Kumar section 5.4: x', y' (d, e), gamma and theta1 (h), theta2 (i), theta3 (j), tagged so."""
+    text = (generate.GENERATED / "planar_3r" / "planar_3r.tex").read_text()
+    ik = text.split(r"\kinegenpart{Inverse kinematics}")[1]
+    for branch in ik.split(r"\paragraph{Branch")[1:]:
+        rows = ik_rows(branch.split(r"\begin{align*}")[1].split(r"\end{align*}")[0])
+        assert [(lhs, tag) for lhs, _, tag in rows] == [
+            ("x'", "Kumar Eq.~(d)"), ("y'", "Kumar Eq.~(e)"), (r"\gamma", "Kumar Eq.~(h)"),
+            (r"\theta_{1}", "Kumar Eq.~(h)"), (r"\theta_{2}", "Kumar Eq.~(i)"), (r"\theta_{3}", "Kumar Eq.~(j)")]
+        gamma, theta1 = rows[2][1], rows[3][1]
+        assert r"\operatorname{atan2}\left(- \frac{y'}{\sqrt{x'^{2} + y'^{2}}},\, - \frac{x'}{\sqrt{x'^{2} + y'^{2}}}\right)" in gamma
+        assert r"{2 l_{1} \sqrt{x'^{2} + y'^{2}}}" in theta1 and theta1.strip().startswith(r"\gamma")
+
+
+@pytest.mark.parametrize("name", ROBOT_NAMES)
+def test_code_names_stay_out_of_the_latex(name):
+    """Issue 18, item 2: no helper of the generated code in print: no WrapAngle, no clamp of an arccos
+    argument, no CSE temporary, no tolerance spelt out in digits; the wrap is stated once in words."""
+    text = (generate.GENERATED / name / f"{name}.tex").read_text()
+    assert "WrapAngle" not in text and "wrap_angle" not in text
+    assert r"\min\left(1" not in text and r"\max\left(-1" not in text
+    assert r"\kappa" not in text and "1000000000001" not in text
+    if derivations.load(name).ik:
+        assert r"taken in $(-\pi, \pi]$" in text
+
+
+def test_the_wrap_prints_as_mathematics_inside_a_map():
+    """Where the wrap sits inside a longer expression (the AVR 3000's reversed Cartesian inverse), it prints
+    as theta + 2 pi floor((pi - theta) / (2 pi)), which the test evaluates against the wrap's definition."""
+    from derivations.ik import WrapAngle
+    model = derivations.load("avr3000")
+    printer = latex_backend.printer_for(model)
+    x_, y_ = sp.symbols("x y", real=True)
+    text = printer.doprint(WrapAngle(sp.atan2(x_, y_) + sp.pi))
+    assert "WrapAngle" not in text and r"\left\lfloor" in text
+    for theta in np.linspace(-7, 7, 29):
+        wrapped = float(WrapAngle.formula(sp.Float(theta)))
+        assert -math.pi < wrapped <= math.pi and math.isclose(math.remainder(wrapped - theta, 2 * math.pi), 0,
+                                                               abs_tol=1e-12)

@@ -36,7 +36,7 @@ def test_kumar_stewart_platform():
     assert mobility(19, ["R"] * 12 + ["P"] * 6 + ["S"] * 6) == 6
 
 
-def test_kumar_erratum_e2_equation_labels_are_swapped_in_examples_2_and_stewart():
+def test_E12_kumar_equation_labels_are_swapped_in_examples_2_and_stewart():
     """Kumar numbers the spatial count Eq. (2) and the planar one Eq. (3), then uses them the other way round:
     Example 2 says "Since it is a planar mechanism we use Equation (2)", and the Stewart platform
     "According to Equation (3), M = 6(19 - 24) + 36". Taken as labelled, neither gives the printed M."""

@@ -104,7 +104,7 @@ def test_rehiara_eq14_position(models):
     assert m.params[l1] == 0.559 and m.params[l2] == 0.508 and m.params[d1] == 0.8763  # 559, 508, 876.3 mm
 
 
-def test_rehiara_eq13_erratum_rotation_block(models):
+def test_E1_rehiara_eq13_rotation_block(models):
     """Eq. 13 as printed has sign errors in three rotation entries (erratum E1)."""
     m = models["adept_three"]
     q1, q2, d3, q4 = m.q
@@ -183,3 +183,29 @@ def test_frames_are_rigid_transforms(models, name):
             R = frame[:3, :3].evalf(30, subs=point)
             assert max(abs(e) for e in (R * R.T - sp.eye(3))) < 1e-25
             assert abs(R.det() - 1) < 1e-25
+
+
+# --------------------------------------------------------------------------- Kumar's R-P orientation
+
+@pytest.mark.parametrize("backend", ["numpy", "c"])
+def test_kumar_rp_pose_has_phi_equal_theta1(models, backend):
+    """Kumar section 5.3, the R-P arm: x = d2 cos(theta1), y = d2 sin(theta1), phi = theta1 (Eq. 5 and the
+    line after it). ``kumar_pose`` gives (x, y, phi) with that phi; the task stays (x, y). The tool frame's
+    x axis is at theta1 - pi/2 and its z axis along the slide (the direction phi names)."""
+    import generated
+    k = generated.load("planar_rp", backend=backend)
+    assert k.TASK == ("x", "y")
+    rng = np.random.default_rng(5)
+    q = np.column_stack([rng.uniform(-np.pi, np.pi, 500), rng.uniform(-2, 2, 500)])
+    pose = k.kumar_pose(q)
+    assert pose.shape == (500, 3)
+    np.testing.assert_allclose(pose[:, 2], q[:, 0], rtol=0, atol=1e-15)                 # phi = theta1
+    np.testing.assert_allclose(pose[:, 0], q[:, 1] * np.cos(q[:, 0]), rtol=0, atol=1e-14)  # x = d2 cos(theta1)
+    np.testing.assert_allclose(pose[:, 1], q[:, 1] * np.sin(q[:, 0]), rtol=0, atol=1e-14)  # y = d2 sin(theta1)
+    np.testing.assert_allclose(pose[:, :2], k.task(q), rtol=0, atol=1e-15)
+    T = k.fk(q)
+    np.testing.assert_allclose(np.arctan2(T[:, 1, 0], T[:, 0, 0]), np.angle(np.exp(1j * (q[:, 0] - np.pi / 2))),
+                               atol=1e-12)
+    np.testing.assert_allclose(T[:, :2, 2], np.column_stack([np.cos(q[:, 0]), np.sin(q[:, 0])]), atol=1e-15)
+    from derivations.robots.planar_rp import kumar_phi
+    assert kumar_phi(models["planar_rp"]) == models["planar_rp"].q[0]

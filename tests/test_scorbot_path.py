@@ -70,7 +70,7 @@ def test_eq_4_1_cubic_for_theta2(scorbot):
     assert at_n == pytest.approx(math.degrees(paper_ik(*N, -1)[1]), abs=1e-12)
 
 
-def test_erratum_e3_principal_arccosine_of_eq_3_5_gives_the_other_elbow():
+def test_E11_principal_arccosine_of_eq_3_5_gives_the_other_elbow():
     """Eqs. 3.5 and 3.9 as printed (acos in [0, pi]) give theta2(M) = -33.23 deg, not Eq. 4.1's 13.4685 deg."""
     printed = math.degrees(paper_ik(*M, theta3_sign=+1)[1])
     assert round(printed, 2) == -33.23

@@ -87,8 +87,8 @@ def test_slides_2r_inverse_velocity_closed_form(models):
         np.testing.assert_allclose(qd, expected, rtol=1e-12, atol=1e-12)
 
 
-def test_slides_2r_inverse_erratum_in_the_intermediate_step(models):
-    """Erratum V1: the slides' step before the closed form inverts the adjugate a second time.
+def test_E6_slides_2r_inverse_in_the_intermediate_step(models):
+    """Erratum E6: the slides' step before the closed form inverts the adjugate a second time.
 
     Printed: [t1_dot; t2_dot] = -1/(l1 l2 s2) [[-l2 c12, -l2 s12], [l1 c1 + l2 c12, l1 s1 + l2 s12]]^-1 [X; Y].
     Without the ^-1 the step is right (and gives the slides' final formulas).
@@ -112,8 +112,8 @@ def test_slides_2r_inverse_erratum_in_the_intermediate_step(models):
     assert abs(float((printed - derived)[0].subs(point))) > 0.1
 
 
-def test_slides_2r_dvm_matrix_has_six_rows(models):
-    """Erratum V2: the DVM slide prints J (6 x 2 on the previous slide) with five rows."""
+def test_E7_slides_2r_dvm_matrix_has_six_rows(models):
+    """Erratum E7: the DVM slide prints J (6 x 2 on the previous slide) with five rows."""
     m = models["planar_2r"]
     q1, q2 = m.q
     l1, l2 = params(m, "l1", "l2")
@@ -477,8 +477,8 @@ def test_rehiara_eq42_is_the_derivative_of_the_printed_eq40(models):
     assert rehiara_printed_eq40(m).jacobian(sp.Matrix(m.q)) == rehiara_printed_eq42(m)
 
 
-def test_rehiara_eq40_erratum_sign_of_the_scaled_approach_vector(models):
-    """Erratum V3: Eq. 39 with Eq. 13's approach vector a = (0, 0, -1) gives w6 = -exp(theta4/pi);
+def test_E3_rehiara_eq40_sign_of_the_scaled_approach_vector(models):
+    """Erratum E3: Eq. 39 with Eq. 13's approach vector a = (0, 0, -1) gives w6 = -exp(theta4/pi);
     Eq. 40 prints +exp(theta4/pi), and Eq. 42 inherits the sign."""
     m = models["adept_three"]
     q4 = m.q[3]

@@ -32,12 +32,14 @@ from sympy.core.parameters import distribute
 from sympy.printing.latex import LatexPrinter
 
 from derivations.chain import PRISMATIC, REVOLUTE, simplify_entry
+from derivations.ik import ACOS_TOLERANCE, WrapAngle
+from derivations.model import RobotModel
 from derivations.singular import FACTOR_LIMIT, JacobianDeterminant, inverse_rate_map, jacobian_determinant
 
 from . import TEMPLATES
 
 __all__ = ["KinematicsLatexPrinter", "MathLayout", "Section", "CITATIONS", "SECTION_KEYS", "math_width",
-           "robot_sections", "render", "latex_for", "escape_text"]
+           "robot_sections", "render", "latex_for", "escape_text", "printer_for", "space_symbols", "pose_name"]
 
 # Width of a display line in math_width units (about one italic letter at 11 pt):
 # the report's text block is 16 cm; the margin leaves room for a tag on the first line.
@@ -61,8 +63,7 @@ CITATIONS: dict[str, dict[str, str]] = {
         "task_jacobian": "Kumar Eq.~11",
         "det": "Kumar Eq.~13",
         "rates": "Kumar Eq.~11",
-        "inverse_rates": "Kumar Eq.~12",
-        "ik": "Kumar Eqs.~h--j",
+        "inverse_rates": "Kumar Eq.~12",  # the IK steps carry their own tags, Kumar Eqs. (d)-(j)
     },
     "planar_rp": {
         "position": "Kumar Eq.~5",
@@ -81,11 +82,10 @@ CITATIONS: dict[str, dict[str, str]] = {
         "fk": "Rehiara Eq.~13, corrected (E1)",
         "position": "Rehiara Eq.~14",
         "task_jacobian": "Rehiara Eq.~42, rows 1--3",
-        "ik": "Rehiara Eqs.~15--34",
+        # the IK steps carry their own tags, Rehiara Eqs. 14 and 27-34
     },
     "scorbot_er7": {
-        "position": "Predescu--Stroe Fig.~3",
-        "ik": "Predescu--Stroe Eqs.~3.1--3.11",
+        "position": "Predescu--Stroe Fig.~3",  # the IK steps carry their own tags, Eqs. 3.1-3.11
     },
     "puma560": {
         "dh": "Kumar Fig.~1; Paul, Craig",
@@ -109,14 +109,22 @@ class KinematicsLatexPrinter(LatexPrinter):
     ``joints`` are the joint symbols q1..qn and ``joint_types`` their kinds (R/P);
     ``params`` the robot's parameter symbols.  A joint prints as ``\\theta_i`` or
     ``d_i``; when that clashes with a parameter's printed name (a parameter
-    ``d3`` beside a prismatic joint 3) the joint keeps ``q_i``.  Trigonometric
+    ``d3`` beside a prismatic joint 3) the joint keeps ``q_i``.  ``others`` are
+    the symbols of a model's other coordinate spaces (the AVR 3000's motor
+    angles theta1..theta3, tool T, R, Z, ...): when any joint would print like
+    one of them, or like its rate, every joint keeps ``q_i`` (Sotirov writes
+    the joints q1, q2, q3 and the motors theta1, theta2, theta3).  Trigonometric
     abbreviations are switched off when a parameter would print like one
     (``c_{1}``, ``s_{2}``).
     """
 
-    def __init__(self, joints=(), joint_types=(), params=(), task_names=(), settings=None):
+    def __init__(self, joints=(), joint_types=(), params=(), task_names=(), settings=None, others=()):
         probe = LatexPrinter()
         taken = {probe.doprint(p) for p in params}
+        spoken_for = {probe.doprint(s) for s in others if s not in set(joints)}
+        plain = [rf"\theta_{{{i}}}" if kind == REVOLUTE else f"d_{{{i}}}"
+                 for i, kind in enumerate(joint_types, start=1)]
+        keep_q = any(text in spoken_for or _dotted(text) in spoken_for for text in plain)
         names: dict[sp.Symbol, str] = {}
         self.joint_latex: dict[sp.Symbol, str] = {}
         self.revolute: dict[sp.Symbol, int] = {}
@@ -124,7 +132,7 @@ class KinematicsLatexPrinter(LatexPrinter):
         self.rate_order: dict[str, int] = {}
         for i, (qi, kind) in enumerate(zip(joints, joint_types), start=1):
             text = rf"\theta_{{{i}}}" if kind == REVOLUTE else f"d_{{{i}}}"
-            if text in taken:
+            if text in taken or keep_q:
                 text = f"q_{{{i}}}"
             names[qi] = self.joint_latex[qi] = text
             names[rate_symbol(qi)] = _dotted(text)
@@ -186,6 +194,18 @@ class KinematicsLatexPrinter(LatexPrinter):
     def _print_Symbol(self, expr, style="plain"):
         rate = getattr(expr, "rate", None)
         return super()._print_Symbol(rate if rate is not None else expr, style)
+
+    def _print_WrapAngle(self, expr, exp=None):
+        """The kernels' wrap to (-pi, pi] written as mathematics, never as the helper's name:
+        ``theta + 2 pi floor((pi - theta) / (2 pi))``."""
+        text = self._print(WrapAngle.formula(expr.args[0]))
+        return rf"\left({text}\right)^{{{exp}}}" if exp is not None else text
+
+    def _print_Rational(self, expr):
+        """A tolerance such as 1/10^24 as a power of ten, not 25 digits."""
+        if expr.p in (1, -1) and expr.q >= 10**4 and 10 ** (len(str(expr.q)) - 1) == expr.q:
+            return f"{'-' if expr.p < 0 else ''}10^{{-{len(str(expr.q)) - 1}}}"
+        return super()._print_Rational(expr)
 
     def _print_BooleanTrue(self, expr):
         return r"\text{always}"
@@ -505,9 +525,29 @@ class _Writer:
         return "$" + " = ".join(names) + " = 0$"
 
 
+def space_symbols(model) -> dict[str, tuple[sp.Symbol, ...]]:
+    """{space name: its position, velocity and acceleration symbols} of a model with coordinate spaces
+    (empty for a single chain)."""
+    return {name: space.position + space.velocity + space.acceleration
+            for name, space in getattr(model, "spaces", {}).items()}
+
+
+def printer_for(model) -> KinematicsLatexPrinter:
+    """The printer of ``model``'s fragment: joints, parameters, task names, and the symbols of its other spaces."""
+    others = tuple(s for symbols in space_symbols(model).values() for s in symbols)
+    return KinematicsLatexPrinter(model.q, model.joint_types, tuple(model.params), model.task_names, others=others)
+
+
+def pose_name(model) -> str:
+    r"""The tool pose's name: ``T`` (the papers'), or ``{}^{0}H_{\mathrm{tip}}`` where ``T`` is a coordinate
+    (the AVR 3000's tool rotation T)."""
+    names = {str(s) for symbols in space_symbols(model).values() for s in symbols} | set(model.task_names)
+    return r"{}^{0}H_{\mathrm{tip}}" if "T" in names else "T"
+
+
 def robot_sections(model, citations: dict[str, str] | None = None, width: float = LINE_WIDTH) -> list[Section]:
     """Every derived equation of ``model``, as fragment sections in a fixed order."""
-    printer = KinematicsLatexPrinter(model.q, model.joint_types, tuple(model.params), model.task_names)
+    printer = printer_for(model)
     cites = dict(CITATIONS.get(model.name, {}))
     cites.update({k[len("cite_"):]: v for k, v in model.notes.items() if k.startswith("cite_")})
     cites.update(citations or {})
@@ -593,7 +633,7 @@ def _fk(w: _Writer) -> Section:
             product += r" T_{\mathrm{tool}}"
     else:
         product = ""
-    body = w.matrix_equation("T", m.fk, key="fk", skip_last_row=True, product=product)
+    body = w.matrix_equation(pose_name(m), m.fk, key="fk", skip_last_row=True, product=product)
     return Section("fk", "Tool pose", body + "\n")
 
 
@@ -664,7 +704,8 @@ def _det(w: _Writer, determinant: JacobianDeterminant | None) -> Section:
         else:
             conditions.append(f"{w.layout.tex(factor)} = 0")
     constant = [f for f in determinant.factors if not (f.free_symbols & set(m.q)) and not f.is_number]
-    lead = "Singular configurations (one turn, $-\\pi < \\theta_i \\le \\pi$)"
+    letter = "q_i" if any(text.startswith("q_") for text in w.printer.joint_latex.values()) else "\\theta_i"
+    lead = f"Singular configurations (one turn, $-\\pi < {letter} \\le \\pi$)"
     if constant:
         lead += " for nonzero " + ", ".join(f"${w.layout.tex(f)}$" for f in constant)
     rows = [rf"&{c}" for c in conditions]
@@ -758,39 +799,82 @@ def _fraction_rows(w: _Writer, lhs: str, numerator: sp.Expr, denominator: sp.Exp
     return [f"{lhs} &= {parts[0]}"] + [rf"&\quad {p}" for p in parts[1:]]
 
 
-def _shorten(w: _Writer, pairs):
-    """``pairs`` (lhs, expr) as they are when each fits a line, else with the repeated
-    pieces named ``kappa_1, kappa_2, ...`` and defined first (one CSE over all)."""
-    if max(len(w.layout.tex(e)) for _, e in pairs) <= 200:
-        return pairs
-    names = sp.numbered_symbols("kappa_", start=1, real=True)
-    shared, reduced = sp.cse([e for _, e in pairs], symbols=names, order="canonical")
-    return [(w.layout.tex(k), e) for k, e in shared] + [(lhs, e) for (lhs, _), e in zip(pairs, reduced)]
+def _clamped_argument(e):
+    """``c`` if ``e`` is ``Min(1, Max(-1, c))`` (``derivations.ik.clamp_unit``), else None."""
+    if isinstance(e, sp.Min) and len(e.args) == 2 and sp.S.One in e.args:
+        (inner,) = [a for a in e.args if a != 1]
+        if isinstance(inner, sp.Max) and len(inner.args) == 2 and sp.S.NegativeOne in inner.args:
+            (c,) = [a for a in inner.args if a != -1]
+            return c
+    return None
+
+
+def unclamped(expr):
+    """``expr`` as mathematics: an ``acos`` argument clamped for the kernels, ``Min(1, Max(-1, c))``, is ``c``;
+    the existence tolerance ``|c| <= 1 + ACOS_TOLERANCE`` reads ``|c| <= 1``.  The IK section says once
+    what the kernels do at the edge."""
+    expr = sp.sympify(expr).replace(lambda e: _clamped_argument(e) is not None, _clamped_argument)
+    return expr.xreplace({1 + ACOS_TOLERANCE: sp.S.One})
+
+
+def _joint_value(expr):
+    """A revolute joint's value as printed: the kernels' wrap to (-pi, pi] (stated once) left out."""
+    return expr.args[0] if isinstance(expr, WrapAngle) else expr
+
+
+_ACOS_EDGE = (r"An $\arccos$ whose argument lies within $10^{-12}$ beyond $\pm 1$ is taken at $\pm 1$, "
+              r"so that a target within rounding of the workspace edge solves.")
+
+
+def _ik_conventions(w: _Writer) -> str:
+    """What the kernels do that the printed solutions leave out, said once: the wrap of angles to (-pi, pi]
+    and the clamp of arccos arguments."""
+    m = w.model
+    if type(m).ik_function is RobotModel.ik_function:  # every revolute joint wrapped (derivations.ik.kernel_form)
+        return r"Revolute joint angles are taken in $(-\pi, \pi]$ (modulo $2\pi$). " + _ACOS_EDGE
+    wrapped = sorted({i for b in m.ik for i, e in enumerate(b.solution) if isinstance(e, WrapAngle)})
+    if not wrapped:
+        return _ACOS_EDGE
+    names = ", ".join(f"${w.printer.joint_latex[m.q[i]]}$" for i in wrapped)
+    return rf"The joint angle{'s' if len(wrapped) > 1 else ''} {names} {'are' if len(wrapped) > 1 else 'is'} " \
+           r"taken in $(-\pi, \pi]$ (modulo $2\pi$). " + _ACOS_EDGE
 
 
 def _ik(w: _Writer) -> Section | None:
     m = w.model
     if not m.ik:
         return None
-    parts = []
+    parts = [_ik_conventions(w) + "\n"]
     for branch in m.ik:
         header = rf"\paragraph{{Branch \texttt{{{escape_text(branch.name)}}}}}"
         if branch.doc:
-            header += " " + escape_text(branch.doc)
+            header += " " + escape_text(branch.doc).rstrip(".") + "."
         key = f"ik:{branch.name}" if f"ik:{branch.name}" in w.citations else "ik"
         if branch.steps:
-            # The derivation as the paper or textbook writes it: each step in the ones before
-            # (the flat solution of a 6R arm runs to kilobytes per joint).
-            pairs = [(w.printer.joint_latex.get(symbol, w.layout.tex(symbol)), expr) for symbol, expr in branch.steps]
-            body = header + " In steps, each using the ones before it:\n" + w.equations(_shorten(w, pairs), key=key) + "\n"
+            # The derivation as the paper or textbook writes it, in its order: each step in the ones
+            # before (the flat solution of a 6R arm runs to kilobytes per joint), each tagged with
+            # the paper's equation where the model names it.
+            cites = branch.step_cites or ("",) * len(branch.steps)
+            rows: list[str] = []
+            for (symbol, expr), cite in zip(branch.steps, cites):
+                lhs = w.printer.joint_latex.get(symbol, w.layout.tex(symbol))
+                step_rows = w.layout.align_rows(lhs, unclamped(_joint_value(expr)))
+                if cite:
+                    step_rows[0] += rf" \tag{{{cite}}}"
+                rows.extend(step_rows)
+            if not any(cites) and rows:
+                rows[0] += w.tag(key)
+            body = header + " In steps, each using the ones before it:\n" + _Writer._align(rows) + "\n"
         else:
-            pairs = [(w.printer.joint_latex[qi], expr) for qi, expr in zip(m.q, branch.solution)]
-            body = header + "\n" + w.equations(_shorten(w, pairs), key=key) + "\n"
+            pairs = [(w.printer.joint_latex[qi], unclamped(_joint_value(expr)))
+                     for qi, expr in zip(m.q, branch.solution)]
+            body = header + "\n" + w.equations(pairs, key=key) + "\n"
         condition = branch.condition
         if condition is not sp.true and condition != sp.true:
+            condition = unclamped(condition)
             args = condition.args if isinstance(condition, sp.And) else (condition,)
             rows = [rf"&{w.layout.tex(a)}" for a in args]
-            if branch.steps or sum(len(r) for r in rows) > 600:
+            if sum(len(r) for r in rows) > (200 if branch.steps else 600):
                 body += ("It exists where the square roots and inverse cosines of its steps are real "
                          "(the condition, written out, is in the generated kernels).\n")
             else:
@@ -809,11 +893,15 @@ def _notes(w: _Writer) -> Section | None:
 
 # --------------------------------------------------------------------------- extras
 
+# What a model carries for the verifier, not the reader: never printed.
+_NOT_PRINTED = {"sample_ranges"}
+
+
 def _extras(w: _Writer) -> list[Section]:
     """Sections for whatever else the model carries (rate maps, singularities, ...)."""
     sections = []
     for name, value in sorted(vars(w.model).items()):
-        if name in _KNOWN_ATTRIBUTES or name.startswith("_") or not _has_symbols(value):
+        if name in _KNOWN_ATTRIBUTES | _NOT_PRINTED or name.startswith("_") or not _has_symbols(value):
             continue
         body = _generic(w, name, value, depth=0)
         if body.strip():

@@ -20,7 +20,7 @@ geometry behind Eq. 7 (joint -> Cartesian, here from the link frames).  Every
 other map is derived: inverses are solved (Eqs. 8 and 11), longer maps composed
 (Eq. 14, the Matlab JMT and JMC), and every velocity and acceleration map
 differentiated from its position map (Eqs. 2, 3, 5, 6, 9, 10, 12, 13 and the
-J^x of section 2.3.2 come out and are checked in tests/test_avr3000.py).
+J^x of section 2.3.2 come out and are checked in tests/test_avr3000_paper.py).
 
 The DESIGN contract reads: ``q`` = (q1, q2, q3) (R, R, P); ``frames`` = base,
 link 1, link 2, end-effector tip (x along the hand's radial direction, the
@@ -58,6 +58,23 @@ PARAMS = {
     J33: sp.Rational("6.5616798e-6") * INCH,
 }
 Z_STROKE = 6 * INCH  # section 5: Z-axis 0 - 6 in
+# Section 5, "Ranges": T 0 - 500 deg, R -8.9 in - 21 in, Z 0 - 6 in (SI, exact). T spans more than a
+# turn: it is the range of a multi-turn axis, not of an angle modulo 2 pi.
+TOOL_RANGES = ((0, 500 * sp.pi / 180), (-sp.Rational(89, 10) * INCH, 21 * INCH), (0, Z_STROKE))
+
+
+def joint_limits(params=PARAMS):
+    """The joint ranges that keep the tool within section 5's ranges, through Eq. 4 (R = 2a cos(q2/2)).
+
+    R <= 21 in = 2a holds for every q2; R >= -8.9 in bounds q2 in [0, 2 acos(-8.9 in / 2a)] (q2 in
+    [0, 2 pi] is Eq. 8's range). Z = q3 in [0, 6 in]. T = pi/2 - q1 - q2/2 over 500 deg > one turn
+    leaves q1 (counted modulo 2 pi, like every revolute joint in ``within_limits``) free.
+    """
+    (r_low, r_high), (z_low, z_high) = TOOL_RANGES[1], TOOL_RANGES[2]
+    reach = 2 * params[a]
+    if not r_high <= reach:
+        raise ValueError("section 5's R range reaches beyond 2a")
+    return (None, (sp.S.Zero, 2 * sp.acos(r_low / reach)), (z_low, z_high))
 
 motor = coordinate_space("motor", ("theta1", "theta2", "theta3"), ("count", "count", "count"),
                          "motor positions of M1, M2 (T/R pair) and M3 (Z)")
@@ -275,14 +292,15 @@ def build() -> SpacesModel:
         frames=frames, jacobian=geometric_jacobian(frames[-1], q),
         task_names=tuple(str(s) for s in tool.position), task=joint_to_tool.values,
         task_jacobian=joint_to_tool.values.jacobian(sp.Matrix(q)),
-        # q2 in [0, 2 pi] is the range of Eq. 8 (R from 2a through 0 to -2a); Z 0 - 6 in (section 5).
-        limits=(None, (0.0, float(2 * sp.pi)), (0.0, float(Z_STROKE))),
+        # Section 5's ranges through Eq. 4: q2 in [0, 2 acos(-8.9 in / 2a)] (R >= -8.9 in), q3 = Z in [0, 6 in].
+        limits=tuple(None if lim is None else (float(lim[0]), float(lim[1])) for lim in joint_limits()),
         # q1 wrapped to (-pi, pi] like every revolute joint of an IK branch; q2 keeps Eq. 8's [0, 2 pi].
         ik=[IKBranch("principal", (WrapAngle(tool_to_joint.values[0]),) + tuple(tool_to_joint.values[1:]), reach,
                      "Sotirov Eq. 8: q2 = 2 acos(R / 2a) in [0, 2 pi], q1 = pi/2 - q2/2 - T wrapped to (-pi, pi], "
                      "q3 = Z")],
         constants=gear_ratios(maps["motor_to_tool_velocity"].values),
         spaces={s.name: s for s in SPACES}, maps=maps, sample_ranges=sample_ranges,
+        space_limits={"tool": tuple((float(low), float(high)) for low, high in TOOL_RANGES)},
     )
     model.notes.update({
         "counts_per_rev": "M1, M2: 2048 lines x 4 = 8192; M3: 2500 x 4 = 10000 (the Matlab script)",

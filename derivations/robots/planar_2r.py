@@ -10,23 +10,34 @@ is to the right of the base), ``elbow_down`` has theta2 in [0, pi].
 """
 from __future__ import annotations
 
-from derivations.ik import two_link
+import sympy as sp
+
+from derivations.ik import atan2_of_sine_cosine, law_of_cosines, substitute_steps
 from derivations.model import IKBranch
 
 from ._common import parameters
 
 NAMES = {"negative": "elbow_up", "positive": "elbow_down"}
+# Rehiara's alpha (the direction of the target, Eq. 19) and beta (the angle of the first link from it, Eq. 20).
+ALPHA, BETA = sp.symbols("alpha beta", real=True)
 
 
 def extend(model):
     x, y = model.task_symbols
+    q1, q2 = model.q
     l1, l2 = parameters(model, "l1", "l2")
     branches = {}
-    for root, q1, q2, condition in two_link(x, y, l1, l2, method="geometric"):
+    for elbow in law_of_cosines(x**2 + y**2, l1, l2):                         # Eqs. 15-18
+        root, condition = elbow.name, elbow.condition
+        # Rehiara's geometric steps in his order, with atan2 for arctan and arcsin (errata E4)
+        steps = ((q2, elbow.value),                                              # Eq. 18
+                 (ALPHA, atan2_of_sine_cosine(y, x)[0].value),                   # Eq. 19
+                 (BETA, atan2_of_sine_cosine(l2 * sp.sin(q2), l1 + l2 * sp.cos(q2))[0].value),  # Eq. 20
+                 (q1, ALPHA - BETA))                                             # Eq. 21, corrected
         sign = "<=" if root == "negative" else ">="
         branches[NAMES[root]] = IKBranch(
-            NAMES[root], (q1, q2), condition,
+            NAMES[root], tuple(substitute_steps(qi, steps) for qi in model.q), condition,
             f"Rehiara Eqs. 18 and 21 with atan2: q2 = {'-' if root == 'negative' else '+'}acos((x^2 + y^2 - l1^2 - l2^2)"
             f" / (2 l1 l2)) (q2 {sign} 0), q1 = atan2(y, x) - atan2(l2 sin q2, l1 + l2 cos q2); "
-            "exists while |l1 - l2| <= sqrt(x^2 + y^2) <= l1 + l2")
+            "exists while |l1 - l2| <= sqrt(x^2 + y^2) <= l1 + l2", steps)
     model.ik = [branches["elbow_up"], branches["elbow_down"]]

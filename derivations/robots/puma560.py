@@ -93,6 +93,8 @@ def extend(model):
     _check_structure(model, u_of_q, v_of_q)
 
     u = sp.Symbol("u", real=True)               # the wrist's reach ahead of the shoulder, in frame 1
+    # The wrist centre's height above the shoulder, and the pair (u, V) = (K1, K2) turned by theta2.
+    V, K1, K2 = sp.symbols("v k1 k2", real=True)
     W = sp.Matrix(3, 3, sp.symbols("w11:14 w21:24 w31:34", real=True))   # W = R36 = R03^T R
     m13, m23, m31, m32 = sp.symbols("m13 m23 m31 m32", real=True)       # entries of M = Rot(A4)^T R36
     shoulder = {("right" if root.name == "sigma_plus" else "left"): root
@@ -111,7 +113,7 @@ def extend(model):
             root3 = elbow_roots[up_root if elbow == "elbow_up" else down_root]
             A = a2 + a3 * sp.cos(q3) - d4 * sp.sin(q3)
             B = a3 * sp.sin(q3) + d4 * sp.cos(q3)
-            (pair,) = sine_cosine_pair(A, B, u, v)                                        # step 3
+            (pair,) = sine_cosine_pair(K1, K2, u, V)                                      # step 3
             singular = W[0, 2]**2 + W[1, 2]**2 <= WRIST_SINGULAR**2
             for wrist in ("noflip", "flip"):
                 turn = 0 if wrist == "noflip" else sp.pi
@@ -119,6 +121,7 @@ def extend(model):
                     (q1, shoulder[side].value),
                     (u, px * sp.cos(q1) + py * sp.sin(q1)),
                     (q3, root3.value),
+                    (V, v), (K1, A), (K2, B),
                     (q2, pair.value),
                     *((W[i, j], R36[i, j]) for i, j in ((0, 0), (0, 1), (0, 2), (1, 0), (1, 1), (1, 2), (2, 2))),
                     (q4, sp.Piecewise((turn, singular), (sp.atan2(-W[1, 2], -W[0, 2]) + turn, True))),  # step 4

@@ -34,7 +34,7 @@ name                           theta1                      theta3
 =============================  ==========================  ===============
 
 The paper's numbers (theta2 = 13.4685 deg at M, 126.62 deg at N, Eq. 4.1) are
-on ``elbow_up``, theta3 = -acos(...); Eq. 3.5 prints +acos (README, Errata IK1).
+on ``elbow_up``, theta3 = -acos(...); Eq. 3.5 prints +acos (README, erratum E11).
 """
 from __future__ import annotations
 
@@ -46,6 +46,9 @@ from derivations.model import IKBranch
 from ._common import parameters
 
 ORDER = ("elbow_up", "elbow_down", "shoulder_flip_elbow_up", "shoulder_flip_elbow_down")
+STEP_CITES = ("Predescu--Stroe Eq.~3.1", "Predescu--Stroe Fig.~3", "Predescu--Stroe Fig.~3",
+              "Predescu--Stroe Eq.~3.4", "Predescu--Stroe Eq.~3.6", "Predescu--Stroe Eq.~3.7",
+              "Predescu--Stroe Eq.~3.8", "Predescu--Stroe Eq.~3.11", "")
 
 
 # The paper's intermediate quantities (Fig. 3): the horizontal and vertical distances
@@ -79,5 +82,5 @@ def extend(model):
                 f"Predescu and Stroe Eqs. 3.1-3.11, theta1 = atan2({'-y, -x' if flip else 'y, x'}), "
                 f"theta3 = {'-' if root.name == 'negative' else '+'}acos(...), theta4 = -(theta2 + theta3), "
                 "theta5 = 0 (free: the position task does not fix it); exists while the wrist O4 lies between "
-                "|a2 - a3| and a2 + a3 from the shoulder O2", steps)
+                "|a2 - a3| and a2 + a3 from the shoulder O2", steps, STEP_CITES)
     model.ik = [branches[name] for name in ORDER]

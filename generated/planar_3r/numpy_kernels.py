@@ -26,7 +26,7 @@ LIMITS = (None, None, None, )
 # vectorises float64 tan but not sin and cos (about 3 ns an angle for both,
 # against 17 ns for each); the error stays within 2.2e-16 (absolute) of libm's.
 CHUNK = 4096
-OPERATIONS = {"fk": 19, "frames": 21, "jacobian": 21, "task": 18, "task_jacobian": 21, "ik": 78, "task_velocity": 31, "twist": 31, "task_jacobian_dot": 46, "jacobian_dot": 46, "task_acceleration": 69, "manipulability": 18, "joint_velocity": 243, "joint_acceleration": 280}
+OPERATIONS = {"fk": 19, "frames": 21, "jacobian": 21, "task": 18, "task_jacobian": 21, "ik": 81, "task_velocity": 31, "twist": 31, "task_jacobian_dot": 46, "jacobian_dot": 46, "task_acceleration": 69, "manipulability": 18, "joint_velocity": 243, "joint_acceleration": 280}
 
 
 def fk(q, *, l1=0.5, l2=0.4, l3=0.2):
@@ -359,7 +359,7 @@ def ik(x, *, l1=0.5, l2=0.4, l3=0.2):
     Branches, in order: BRANCHES. Revolute joints are wrapped to (-pi, pi]. A branch
     is valid where it exists; an unreachable, NaN or inf target gives valid False
     (never an exception). within_limits(Q) tells which solutions respect LIMITS.
-    (78 operations after common-subexpression elimination.)
+    (81 operations after common-subexpression elimination.)
     """
     x = _runtime.as_batch(x, 3, "ik", "x", finite=False)
     l1 = _runtime.as_param(l1, "l1")
@@ -370,10 +370,9 @@ def ik(x, *, l1=0.5, l2=0.4, l3=0.2):
     _count = _all_x.shape[0]
     Q = numpy.empty((_count, 6))
     valid = numpy.empty((_count, 2), dtype=bool)
-    _t3 = 2*l1
-    _t8 = (l1*l1)
-    _t9 = 4*_t8
-    _t16 = 1.0/l2
+    _t0 = 1.0/l1
+    _t7 = (l1*l1) - (l2*l2)
+    _t13 = 1.0/l2
     for _start in range(0, _count, CHUNK):
         _columns_x = numpy.ascontiguousarray(_all_x[_start:_start + CHUNK].T)
         x = _columns_x[0]
@@ -384,51 +383,49 @@ def ik(x, *, l1=0.5, l2=0.4, l3=0.2):
         _r0 = 1.0/(1.0 + _u0)
         _s0 = (_h0 + _h0)*_r0
         _c0 = (1.0 - _u0)*_r0
-        _t0 = _s0*l3
-        _t1 = _t0 - y
-        _t2 = -_t1
+        _t1 = _s0*l3
+        _t2 = _t1 - y
+        _t3 = -_t2
         _t4 = _c0*l3 - x
         _t5 = -_t4
-        _a0 = -_t2*_t3
-        _a1 = -_t3*_t5
-        _t7 = (_t2*_t2)
-        _t10 = (_t5*_t5)
-        _t11 = _t10*_t9 + _t7*_t9
-        _t12 = 1.0/numpy.sqrt(_t11)
-        _t13 = _t10 + _t7 + _t8 - (l2*l2)
-        _a2 = numpy.minimum(1, numpy.maximum(-1, -_t12*_t13))
-        _f0 = numpy.arctan2(_a0, _a1)
-        _f1 = numpy.arccos(_a2)
-        _t15 = -_f0 + _f1
-        _t18 = _f0 + _f1
-        _h1 = numpy.tan(0.5*_t15)
+        _t6 = (_t3*_t3) + (_t5*_t5)
+        _t8 = 1.0/numpy.sqrt(_t6)
+        _t9 = (0.5)*_t8
+        _a0 = numpy.minimum(1, numpy.maximum(-1, _t0*_t9*(-_t6 - _t7)))
+        _a1 = -_t3*_t8
+        _a2 = -_t5*_t8
+        _f0 = numpy.arccos(_a0)
+        _f1 = numpy.arctan2(_a1, _a2)
+        _t12 = _f0 - _f1
+        _t15 = _f0 + _f1
+        _h1 = numpy.tan(0.5*_t12)
         _u1 = _h1*_h1
         _r1 = 1.0/(1.0 + _u1)
         _s1 = (_h1 + _h1)*_r1
         _c1 = (1.0 - _u1)*_r1
-        _h2 = numpy.tan(0.5*_t18)
+        _h2 = numpy.tan(0.5*_t15)
         _u2 = _h2*_h2
         _r2 = 1.0/(1.0 + _u2)
         _s2 = (_h2 + _h2)*_r2
         _c2 = (1.0 - _u2)*_r2
-        _a3 = _t16*(_s1*l1 - _t0 + y)
-        _a4 = _t16*(-_c1*l1 - _t4)
-        _a5 = _t16*(-_s2*l1 - _t1)
-        _a6 = _t16*(-_c2*l1 - _t4)
+        _a3 = _t13*(_s1*l1 - _t1 + y)
+        _a4 = _t13*(-_c1*l1 - _t4)
+        _a5 = _t13*(-_s2*l1 - _t2)
+        _a6 = _t13*(-_c2*l1 - _t4)
         _f2 = numpy.arctan2(_a3, _a4)
         _f3 = numpy.arctan2(_a5, _a6)
-        _t19 = -_f3
-        _t20 = numpy.logical_and(numpy.greater(_t11, 0), numpy.less_equal(_t12*abs(_t13), 1.000000000001))
+        _t16 = -_f3
+        _t17 = numpy.logical_and(numpy.greater(_t6, 0), numpy.less_equal(_t9*abs(_t0*((_t2*_t2) + (_t4*_t4) + _t7)), 1.000000000001))
         _Q = Q[_start:_start + CHUNK].T
-        _Q[0] = _runtime.wrap_angle(-_t15)
-        _Q[1] = _runtime.wrap_angle(_f2 + _t15)
+        _Q[0] = _runtime.wrap_angle(-_t12)
+        _Q[1] = _runtime.wrap_angle(_f2 + _t12)
         _Q[2] = _runtime.wrap_angle(-_f2 + phi)
-        _Q[3] = _runtime.wrap_angle(_t18)
-        _Q[4] = _runtime.wrap_angle(-_t18 - _t19)
-        _Q[5] = _runtime.wrap_angle(_t19 + phi)
+        _Q[3] = _runtime.wrap_angle(_t15)
+        _Q[4] = _runtime.wrap_angle(-_t15 - _t16)
+        _Q[5] = _runtime.wrap_angle(_t16 + phi)
         _valid = valid[_start:_start + CHUNK].T
-        _valid[0] = _t20
-        _valid[1] = _t20
+        _valid[0] = _t17
+        _valid[1] = _t17
     # No NaN leaks out as a valid answer, and a target with a NaN or inf has no answer.
     valid &= (numpy.isfinite(Q.reshape((_count,) + (2, 3))).all(axis=-1)
               & numpy.isfinite(_all_x).all(axis=-1)[:, None])

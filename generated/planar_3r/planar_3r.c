@@ -9,7 +9,7 @@
  * jacobian: 21 operations after common-subexpression elimination
  * task: 18 operations after common-subexpression elimination
  * task_jacobian: 21 operations after common-subexpression elimination
- * ik: 78 operations after common-subexpression elimination
+ * ik: 81 operations after common-subexpression elimination
  * task_velocity: 31 operations after common-subexpression elimination
  * twist: 31 operations after common-subexpression elimination
  * task_jacobian_dot: 46 operations after common-subexpression elimination
@@ -1156,36 +1156,33 @@ int planar_3r_ik(const double *restrict _x, const planar_3r_params *restrict par
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double l3 = params->l3;
-    const double _t3 = 2*l1;
-    const double _t8 = (l1*l1);
-    const double _t9 = 4*_t8;
-    const double _t16 = 1.0/l2;
+    const double _t0 = 1.0/l1;
+    const double _t7 = (l1*l1) - (l2*l2);
+    const double _t13 = 1.0/l2;
     double _s0, _c0;
     _s0 = sin(phi);
     _c0 = cos(phi);
-    const double _t0 = _s0*l3;
-    const double _t1 = _t0 - y;
-    const double _t2 = -_t1;
+    const double _t1 = _s0*l3;
+    const double _t2 = _t1 - y;
+    const double _t3 = -_t2;
     const double _t4 = _c0*l3 - x;
     const double _t5 = -_t4;
-    const double _a0 = -_t2*_t3;
-    const double _a1 = -_t3*_t5;
-    const double _t7 = (_t2*_t2);
-    const double _t10 = (_t5*_t5);
-    const double _t11 = _t10*_t9 + _t7*_t9;
-    const double _t12 = 1.0/sqrt(_t11);
-    const double _t13 = _t10 + _t7 + _t8 - (l2*l2);
-    const double _a2 = kinegen_min(1, kinegen_max(-1, -_t12*_t13));
+    const double _t6 = (_t3*_t3) + (_t5*_t5);
+    const double _t8 = 1.0/sqrt(_t6);
+    const double _t9 = (0.5)*_t8;
+    const double _a0 = kinegen_min(1, kinegen_max(-1, _t0*_t9*(-_t6 - _t7)));
+    const double _a1 = -_t3*_t8;
+    const double _a2 = -_t5*_t8;
     double _f0, _f1;
-    _f0 = atan2(_a0, _a1);
-    _f1 = acos(_a2);
-    const double _t15 = -_f0 + _f1;
-    const double _t18 = _f0 + _f1;
+    _f0 = acos(_a0);
+    _f1 = atan2(_a1, _a2);
+    const double _t12 = _f0 - _f1;
+    const double _t15 = _f0 + _f1;
     double _s1, _c1, _s2, _c2;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[4] = { _t15, _t18, 0.0, 0.0 };
+        const double angle[4] = { _t12, _t15, 0.0, 0.0 };
         double sine[4], cosine[4];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -1202,15 +1199,15 @@ int planar_3r_ik(const double *restrict _x, const planar_3r_params *restrict par
         _c2 = cosine[1];
     }
 #else
-    _s1 = sin(_t15);
-    _c1 = cos(_t15);
-    _s2 = sin(_t18);
-    _c2 = cos(_t18);
+    _s1 = sin(_t12);
+    _c1 = cos(_t12);
+    _s2 = sin(_t15);
+    _c2 = cos(_t15);
 #endif
-    const double _a3 = _t16*(_s1*l1 - _t0 + y);
-    const double _a4 = _t16*(-_c1*l1 - _t4);
-    const double _a5 = _t16*(-_s2*l1 - _t1);
-    const double _a6 = _t16*(-_c2*l1 - _t4);
+    const double _a3 = _t13*(_s1*l1 - _t1 + y);
+    const double _a4 = _t13*(-_c1*l1 - _t4);
+    const double _a5 = _t13*(-_s2*l1 - _t2);
+    const double _a6 = _t13*(-_c2*l1 - _t4);
     double _f2, _f3;
 #if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
     {
@@ -1230,16 +1227,16 @@ int planar_3r_ik(const double *restrict _x, const planar_3r_params *restrict par
     _f2 = atan2(_a3, _a4);
     _f3 = atan2(_a5, _a6);
 #endif
-    const double _t19 = -_f3;
-    const int _t20 = _t12*fabs(_t13) <= 1.000000000001 && _t11 > 0;
-    Q[0] = kinegen_wrap_angle(-_t15);
-    Q[1] = kinegen_wrap_angle(_f2 + _t15);
+    const double _t16 = -_f3;
+    const int _t17 = _t9*fabs(_t0*((_t2*_t2) + (_t4*_t4) + _t7)) <= 1.000000000001 && _t6 > 0;
+    Q[0] = kinegen_wrap_angle(-_t12);
+    Q[1] = kinegen_wrap_angle(_f2 + _t12);
     Q[2] = kinegen_wrap_angle(-_f2 + phi);
-    Q[3] = kinegen_wrap_angle(_t18);
-    Q[4] = kinegen_wrap_angle(-_t18 - _t19);
-    Q[5] = kinegen_wrap_angle(_t19 + phi);
-    valid[0] = _t20;
-    valid[1] = _t20;
+    Q[3] = kinegen_wrap_angle(_t15);
+    Q[4] = kinegen_wrap_angle(-_t15 - _t16);
+    Q[5] = kinegen_wrap_angle(_t16 + phi);
+    valid[0] = _t17;
+    valid[1] = _t17;
     return planar_3r_ik_checks(_x, Q, valid);
 }
 
@@ -1254,19 +1251,18 @@ long planar_3r_ik_batch(size_t count, const double *restrict _x, const planar_3r
     double phi[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
-    double _t0[KINEGEN_BLOCK_OF(64)];
     double _t1[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
     double _t4[KINEGEN_BLOCK_OF(64)];
+    double _t6[KINEGEN_BLOCK_OF(64)];
+    double _t9[KINEGEN_BLOCK_OF(64)];
     double _a0[KINEGEN_BLOCK_OF(64)];
     double _a1[KINEGEN_BLOCK_OF(64)];
-    double _t11[KINEGEN_BLOCK_OF(64)];
-    double _t12[KINEGEN_BLOCK_OF(64)];
-    double _t13[KINEGEN_BLOCK_OF(64)];
     double _a2[KINEGEN_BLOCK_OF(64)];
     double _f0[KINEGEN_BLOCK_OF(64)];
     double _f1[KINEGEN_BLOCK_OF(64)];
+    double _t12[KINEGEN_BLOCK_OF(64)];
     double _t15[KINEGEN_BLOCK_OF(64)];
-    double _t18[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
@@ -1285,10 +1281,9 @@ long planar_3r_ik_batch(size_t count, const double *restrict _x, const planar_3r
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double l3 = params->l3;
-    const double _t3 = 2*l1;
-    const double _t8 = (l1*l1);
-    const double _t9 = 4*_t8;
-    const double _t16 = 1.0/l2;
+    const double _t0 = 1.0/l1;
+    const double _t7 = (l1*l1) - (l2*l2);
+    const double _t13 = 1.0/l2;
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
@@ -1306,55 +1301,53 @@ long planar_3r_ik_batch(size_t count, const double *restrict _x, const planar_3r
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t0[i] = _s0[i]*l3;
-            _t1[i] = _t0[i] - y[i];
-            const double _t2 = -_t1[i];
+            _t1[i] = _s0[i]*l3;
+            _t2[i] = _t1[i] - y[i];
+            const double _t3 = -_t2[i];
             _t4[i] = _c0[i]*l3 - x[i];
             const double _t5 = -_t4[i];
-            _a0[i] = -_t2*_t3;
-            _a1[i] = -_t3*_t5;
-            const double _t7 = (_t2*_t2);
-            const double _t10 = (_t5*_t5);
-            _t11[i] = _t10*_t9 + _t7*_t9;
-            _t12[i] = 1.0/sqrt(_t11[i]);
-            _t13[i] = _t10 + _t7 + _t8 - (l2*l2);
-            _a2[i] = kinegen_min(1, kinegen_max(-1, -_t12[i]*_t13[i]));
+            _t6[i] = (_t3*_t3) + (_t5*_t5);
+            const double _t8 = 1.0/sqrt(_t6[i]);
+            _t9[i] = (0.5)*_t8;
+            _a0[i] = kinegen_min(1, kinegen_max(-1, _t0*_t9[i]*(-_t6[i] - _t7)));
+            _a1[i] = -_t3*_t8;
+            _a2[i] = -_t5*_t8;
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f0[i] = atan2(_a0[i], _a1[i]);
+            _f0[i] = acos(_a0[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f1[i] = acos(_a2[i]);
+            _f1[i] = atan2(_a1[i], _a2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t15[i] = -_f0[i] + _f1[i];
-            _t18[i] = _f0[i] + _f1[i];
+            _t12[i] = _f0[i] - _f1[i];
+            _t15[i] = _f0[i] + _f1[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s1[i] = sin(_t15[i]);
+            _s1[i] = sin(_t12[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c1[i] = cos(_t15[i]);
+            _c1[i] = cos(_t12[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s2[i] = sin(_t18[i]);
+            _s2[i] = sin(_t15[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(_t18[i]);
+            _c2[i] = cos(_t15[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _a3[i] = _t16*(_s1[i]*l1 - _t0[i] + y[i]);
-            _a4[i] = _t16*(-_c1[i]*l1 - _t4[i]);
-            _a5[i] = _t16*(-_s2[i]*l1 - _t1[i]);
-            _a6[i] = _t16*(-_c2[i]*l1 - _t4[i]);
+            _a3[i] = _t13*(_s1[i]*l1 - _t1[i] + y[i]);
+            _a4[i] = _t13*(-_c1[i]*l1 - _t4[i]);
+            _a5[i] = _t13*(-_s2[i]*l1 - _t2[i]);
+            _a6[i] = _t13*(-_c2[i]*l1 - _t4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -1366,16 +1359,16 @@ long planar_3r_ik_batch(size_t count, const double *restrict _x, const planar_3r
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            const double _t19 = -_f3[i];
-            const int _t20 = _t12[i]*fabs(_t13[i]) <= 1.000000000001 && _t11[i] > 0;
-            _Q_block[0][i] = kinegen_wrap_angle(-_t15[i]);
-            _Q_block[1][i] = kinegen_wrap_angle(_f2[i] + _t15[i]);
+            const double _t16 = -_f3[i];
+            const int _t17 = _t9[i]*fabs(_t0*((_t2[i]*_t2[i]) + (_t4[i]*_t4[i]) + _t7)) <= 1.000000000001 && _t6[i] > 0;
+            _Q_block[0][i] = kinegen_wrap_angle(-_t12[i]);
+            _Q_block[1][i] = kinegen_wrap_angle(_f2[i] + _t12[i]);
             _Q_block[2][i] = kinegen_wrap_angle(-_f2[i] + phi[i]);
-            _Q_block[3][i] = kinegen_wrap_angle(_t18[i]);
-            _Q_block[4][i] = kinegen_wrap_angle(-_t18[i] - _t19);
-            _Q_block[5][i] = kinegen_wrap_angle(_t19 + phi[i]);
-            valid[2 * (start + i) + 0] = _t20;
-            valid[2 * (start + i) + 1] = _t20;
+            _Q_block[3][i] = kinegen_wrap_angle(_t15[i]);
+            _Q_block[4][i] = kinegen_wrap_angle(-_t15[i] - _t16);
+            _Q_block[5][i] = kinegen_wrap_angle(_t16 + phi[i]);
+            valid[2 * (start + i) + 0] = _t17;
+            valid[2 * (start + i) + 1] = _t17;
         }
         {
             for (i = 0; i < n; ++i) {

@@ -243,6 +243,19 @@ int planar_rp_joint_acceleration_checked(size_t count, const double *q, const do
     }
     return 0;
 }
+
+int planar_rp_kumar_pose_checked(size_t count, const double *q, const planar_rp_params *params, double *x)
+{
+    if (kinegen_nonfinite(count * 2, q)) {
+        return 1;
+    }
+    if (count == 1) {
+        planar_rp_kumar_pose(q, params, x);
+    } else {
+        planar_rp_kumar_pose_batch(count, q, params, x);
+    }
+    return 0;
+}
 """
 CDEF = """
 /* Robot parameters (SI units). */
@@ -291,6 +304,9 @@ void planar_rp_joint_velocity_batch(size_t count, const double *q, const double 
 /* joint_acceleration: q[2], qd[2], xdd[2] -> qdd[2], singular[1] (row-major). Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 2) and (...). */
 void planar_rp_joint_acceleration(const double *q, const double *qd, const double *xdd, const planar_rp_params *params, double *qdd, int *singular);
 void planar_rp_joint_acceleration_batch(size_t count, const double *q, const double *qd, const double *xdd, const planar_rp_params *params, double *qdd, int *singular);
+/* kumar_pose: q[2] -> x[3] (row-major). Kumar's end-effector coordinates of the R-P arm (section 5.3): x, y (m) and phi = theta1 (rad), the direction of the slide, shape (..., 3). */
+void planar_rp_kumar_pose(const double *q, const planar_rp_params *params, double *x);
+void planar_rp_kumar_pose_batch(size_t count, const double *q, const planar_rp_params *params, double *x);
 /* within_limits: q[2] -> 1 when every joint lies within its limits (revolute joints modulo 2 pi), else 0. */
 int planar_rp_within_limits(const double *q);
 void planar_rp_within_limits_batch(size_t count, const double *q, int *inside);
@@ -308,6 +324,7 @@ int planar_rp_task_acceleration_checked(size_t count, const double *q, const dou
 int planar_rp_manipulability_checked(size_t count, const double *q, const planar_rp_params *params, double *manipulability, int *singular);
 int planar_rp_joint_velocity_checked(size_t count, const double *q, const double *xd, const planar_rp_params *params, double *qd, int *singular);
 int planar_rp_joint_acceleration_checked(size_t count, const double *q, const double *qd, const double *xdd, const planar_rp_params *params, double *qdd, int *singular);
+int planar_rp_kumar_pose_checked(size_t count, const double *q, const planar_rp_params *params, double *x);
 """
 
 

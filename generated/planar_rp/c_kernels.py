@@ -390,6 +390,28 @@ def joint_acceleration(q, qd, xdd):
     return qdd, singular.astype(bool)
 
 
+def kumar_pose(q):
+    """Kumar's end-effector coordinates of the R-P arm (section 5.3): x, y (m) and phi = theta1 (rad), the direction of the slide, shape (..., 3). (C backend)"""
+    params, _out = _DEFAULT_PARAMS, _point.kumar_pose(q)
+    if _out is not None:  # one finite point as a float64 array: done in C
+        return _out
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 2 or not q.flags.c_contiguous):
+        q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "kumar_pose", "q", finite=False))
+    batch = q.shape[:-1]
+    count = q.size // 2
+    x = _empty(batch + (3,))
+    status = _lib.planar_rp_kumar_pose_checked(
+        count,
+        _from_buffer(_DOUBLES, q),
+        params,
+        _from_buffer(_DOUBLES, x),
+    )
+    if status:
+        raise ValueError("kumar_pose: q contains NaN or inf")
+    return x
+
+
 def within_limits(q):
     """True where every joint lies within LIMITS (revolute joints modulo 2 pi): (..., 2) -> (...). (C backend)"""
     q = numpy.ascontiguousarray(_runtime.as_batch(q, 2, "within_limits", "q", finite=False))

@@ -26,7 +26,7 @@ LIMITS = (None, None, )
 # vectorises float64 tan but not sin and cos (about 3 ns an angle for both,
 # against 17 ns for each); the error stays within 2.2e-16 (absolute) of libm's.
 CHUNK = 4096
-OPERATIONS = {"fk": 6, "frames": 6, "jacobian": 5, "task": 4, "task_jacobian": 5, "ik": 12, "task_velocity": 9, "twist": 9, "task_jacobian_dot": 12, "jacobian_dot": 12, "task_acceleration": 26, "manipulability": 4, "joint_velocity": 60, "joint_acceleration": 77}
+OPERATIONS = {"fk": 6, "frames": 6, "jacobian": 5, "task": 4, "task_jacobian": 5, "ik": 12, "task_velocity": 9, "twist": 9, "task_jacobian_dot": 12, "jacobian_dot": 12, "task_acceleration": 26, "manipulability": 4, "joint_velocity": 60, "joint_acceleration": 77, "kumar_pose": 4}
 
 
 def fk(q):
@@ -594,6 +594,33 @@ def joint_acceleration(q, qd, xdd):
         _singular = singular[_start:_start + CHUNK].T
         _singular[0] = _t20
     return qdd.reshape(_batch + (2,)), singular.reshape(_batch + ())
+
+
+def kumar_pose(q):
+    """Kumar's end-effector coordinates of the R-P arm (section 5.3): x, y (m) and phi = theta1 (rad), the direction of the slide, shape (..., 3).
+
+    q: joint coordinates, shape (..., 2) (q1: rad, q2: m)
+    (4 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 2, "kumar_pose", "q")
+    _batch = _runtime.batch_shape(q)
+    _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
+    _count = _all_q.shape[0]
+    x = numpy.empty((_count, 3))
+    for _start in range(0, _count, CHUNK):
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        _h0 = numpy.tan(0.5*q1)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _c0 = (1.0 - _u0)*_r0
+        _x = x[_start:_start + CHUNK].T
+        _x[0] = _c0*q2
+        _x[1] = _s0*q2
+        _x[2] = q1
+    return x.reshape(_batch + (3,))
 
 
 def within_limits(q):

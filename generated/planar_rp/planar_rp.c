@@ -18,6 +18,7 @@
  * manipulability: 4 operations after common-subexpression elimination
  * joint_velocity: 60 operations after common-subexpression elimination
  * joint_acceleration: 77 operations after common-subexpression elimination
+ * kumar_pose: 4 operations after common-subexpression elimination
  */
 #include "planar_rp.h"
 
@@ -1769,6 +1770,59 @@ void planar_rp_joint_acceleration_batch(size_t count, const double *restrict q, 
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_rp_joint_acceleration(q + 2 * i, qd + 2 * i, xdd + 2 * i, params, qdd + 2 * i, singular + 1 * i);
+    }
+#endif
+}
+
+/* Kumar's end-effector coordinates of the R-P arm (section 5.3): x, y (m) and phi = theta1 (rad), the direction of the slide, shape (..., 3). */
+void planar_rp_kumar_pose(const double *restrict q, const planar_rp_params *restrict params, double *restrict x)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    (void)params;
+    double _s0, _c0;
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    x[0] = _c0*q2;
+    x[1] = _s0*q2;
+    x[2] = q1;
+}
+
+/* kumar_pose of `count` items, stored one after the other in each argument and output. */
+void planar_rp_kumar_pose_batch(size_t count, const double *restrict q, const planar_rp_params *restrict params, double *restrict x)
+{
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    size_t start, i, n;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            x[3 * (start + i) + 0] = _c0[i]*q2[i];
+            x[3 * (start + i) + 1] = _s0[i]*q2[i];
+            x[3 * (start + i) + 2] = q1[i];
+        }
+    }
+#else
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_rp_kumar_pose(q + 2 * i, params, x + 3 * i);
     }
 #endif
 }

@@ -493,6 +493,32 @@ fail:
     return NULL;
 }
 
+/* kumar_pose(q, [parameters]) -> x (3,), or None */
+static PyObject *point_kumar_pose(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    const double *q;
+    PyObject *x = NULL;
+    const planar_rp_params *params = &planar_rp_default_params;
+    (void)self;
+    if (nargs != 1) {
+        PyErr_SetString(PyExc_TypeError, "kumar_pose takes 1 array argument");
+        return NULL;
+    }
+    q = kinegen_point(args[0], 2, 1);
+    if (q == NULL) {
+        Py_RETURN_NONE;
+    }
+    x = kinegen_doubles(1, 3, 1, 1);
+    if (x == NULL) {
+        goto fail;
+    }
+    planar_rp_kumar_pose(q, params, (double *)PyArray_DATA((PyArrayObject *)x));
+    return x;
+fail:
+    Py_XDECREF(x);
+    return NULL;
+}
+
 static PyMethodDef kinegen_methods[] = {
     {"fk", (PyCFunction)(void (*)(void))point_fk, METH_FASTCALL, "fk of one point with the default parameters, or None"},
     {"frames", (PyCFunction)(void (*)(void))point_frames, METH_FASTCALL, "frames of one point with the default parameters, or None"},
@@ -508,6 +534,7 @@ static PyMethodDef kinegen_methods[] = {
     {"manipulability", (PyCFunction)(void (*)(void))point_manipulability, METH_FASTCALL, "manipulability of one point with the default parameters, or None"},
     {"joint_velocity", (PyCFunction)(void (*)(void))point_joint_velocity, METH_FASTCALL, "joint_velocity of one point with the default parameters, or None"},
     {"joint_acceleration", (PyCFunction)(void (*)(void))point_joint_acceleration, METH_FASTCALL, "joint_acceleration of one point with the default parameters, or None"},
+    {"kumar_pose", (PyCFunction)(void (*)(void))point_kumar_pose, METH_FASTCALL, "kumar_pose of one point with the default parameters, or None"},
     {NULL, NULL, 0, NULL}
 };
 
