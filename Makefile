@@ -11,7 +11,8 @@
 #   make plots      trajectory plots as PNG files in plots/ (installs matplotlib, the 'plots' extra)
 #   make bench      time the kernels against lambdify, the Robotics Toolbox and Pinocchio
 #                   (installed into .venv-bench only; writes benchmarks/results.md), then
-#                   Paul's partitioned inverse against a 6x6 solve (PUMA 560)
+#                   Paul's partitioned inverse against a 6x6 solve (PUMA 560), then the cold
+#                   generation time of every zoo arm (benchmarks/zoo.md)
 #   make clean      remove the virtual environment, caches and built libraries
 
 PYTHON ?= python3
@@ -98,6 +99,7 @@ bench: $(BENCH_STAMP)
 	$(BENCH_PY) -m codegen build --quiet
 	$(BENCH_PY) benchmarks/run.py
 	$(BENCH_PY) benchmarks/wrist_partition.py
+	$(BENCH_PY) benchmarks/zoo_generation.py
 
 clean:
 	rm -rf $(VENV) $(BENCH_VENV) .cache build *.egg-info

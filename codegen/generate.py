@@ -149,7 +149,8 @@ def solved_function(function, system: dict) -> dict:
         "params_used": system["params_used"], "arguments_used": system["arguments_used"],
         "outputs": outputs, "operations": system["operations"], "checks": (), "is_ik": False,
         "solve": {"system": solve.system, "rows": solve.rows, "cols": solve.cols, "kind": solve.kind,
-                  "has_rhs": solve.kind == "solution", "cond_limit": float_literal(solve.COND_LIMIT)},
+                  "has_rhs": solve.kind == "solution", "cond_limit": float_literal(solve.COND_LIMIT),
+                  "damping": float_literal(solve.DAMPING)},
         "prologue": [], "stages": [], "arrays": set(), "indexed": set(), "block": 1,
         "block_outputs": [], "stream_outputs": [], "stream_size": 0, "boolean_temporaries": frozenset(),
     }

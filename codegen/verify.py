@@ -201,7 +201,9 @@ def solve_reference(function: SymbolicFunction, system: SymbolicFunction,
         singular = not smallest > largest / solve.COND_LIMIT
         if b is None:
             return [np.array(float(measure)), np.array(singular)]
-        damping = max((largest / solve.COND_LIMIT)**2 - smallest**2, 0) if singular else 0
+        threshold = largest / solve.COND_LIMIT
+        damping = ((solve.DAMPING * threshold)**2 * max(1 - (smallest / threshold)**2, 0)
+                   if singular and threshold > 0 else 0)
         bn = [row_scale[i] * b[i] for i in range(len(b))]
         x = []
         for j in range(A.shape[1]):

@@ -39,10 +39,19 @@ __all__ = ["SINGULAR_MEASURE", "MAX_DAMPING", "Scaling", "ClosedFormInverse", "R
            "Minors", "reference_length", "factored", "closed_form_inverse", "regularised_solve",
            "measure_squared", "damped_least_squares", "singular_flag", "damping_factor"]
 
-# mu_0: below this normalised manipulability a configuration counts as singular.
-SINGULAR_MEASURE = sp.Rational(1, 1000)
-# lambda_max: the damping at an exact singularity (on the normalised Jacobian).
-MAX_DAMPING = sp.Rational(1, 100)
+# mu_0: below this normalised manipulability a configuration counts as singular.  With the
+# largest singular value of Jn of order one, mu < 1e-4 means the smallest is below about
+# 1e-4: an exact solve would lose more than 4 of the 16 digits (the rule of the run-time
+# solves, derivations.model.NumericSolve, which test cond(Jn) > 1e4 directly).  Until
+# issue #14 this was 1e-3, which flagged a KR5-size arm at condition numbers of 30.  A
+# threshold much lower would not do: any damping that falls to zero at the threshold
+# rises from it with a slope of lambda_max^2 / mu_0, and its answer then swings with the
+# rounding of the configuration (at 1e-8, O(1) changes for 1e-16 ones).
+SINGULAR_MEASURE = sp.Rational(1, 10**4)
+# lambda_max: the damping at an exact singularity (on the normalised Jacobian): ten times
+# the threshold, as before (1e-2 against 1e-3), so that the damped answer is continuous at
+# mu_0 and an exact singularity amplifies rounding by at most eps / lambda_max^2 = 1e-10.
+MAX_DAMPING = sp.Rational(1, 10**3)
 
 
 def reference_length(chain: Chain | None) -> sp.Expr:

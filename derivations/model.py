@@ -93,10 +93,10 @@ class NumericSolve:
     * ``kind == "measure"``: Yoshikawa's manipulability of ``A`` (the product
       of its singular values, SI units).
 
-    Both also give ``singular``: ``s_min < s_max / COND_LIMIT`` on ``An``,
-    where an exact solve would lose more than 8 of the 16 digits; there
-    ``lambda^2 = (s_max / COND_LIMIT)^2 - s_min^2`` (continuous at the
-    threshold, zero off it), elsewhere 0.
+    Both also give ``singular``: ``s_min < t = s_max / COND_LIMIT`` on ``An``, where
+    an exact solve would lose more than 4 of the 16 digits; there ``lambda^2 =
+    (10 t)^2 (1 - (s_min / t)^2)`` (zero at the threshold, so continuous, and 10 t
+    at an exact singularity, as the closed forms' ``derivations.damping``), else 0.
     """
 
     system: str
@@ -104,7 +104,8 @@ class NumericSolve:
     cols: int
     kind: str = "solution"
 
-    COND_LIMIT = 1e8
+    COND_LIMIT = 1e4
+    DAMPING = 10.0  # lambda_max / t
 
 
 @dataclass(frozen=True)

@@ -55,6 +55,8 @@ MAX_CLOSED_FORM = 4
 # MAX_MINOR_SIZE x MAX_MINOR_SIZE and at most MAX_MINORS of them (the SCORBOT's 3 x 5: ten 3 x 3).
 MAX_MINOR_SIZE = 3
 MAX_MINORS = 10
+# ... and while J_x has at most this many operations (count_ops).
+MAX_CLOSED_FORM_OPS = 200
 
 # Kernels particular to one robot, keyed by its registry name.
 def _planar_rp_extras(model):
@@ -208,7 +210,7 @@ def derive_rates(model) -> RateKinematics:
 
     partition = wrist_partition(model, length) if model.task_names == POSE_NAMES else None
     xd_col, xdd_col, qd_col = sp.Matrix(xd), sp.Matrix(xdd), sp.Matrix(qd)
-    strategy = "wrist partition" if partition is not None else closed_form_shape(m, n)
+    strategy = "wrist partition" if partition is not None else closed_form_shape(m, n, int(sp.count_ops(Jx)))
     inverse = minors = singularities = velocity = acceleration = None
     if strategy in ("square", "wide", "tall"):
         if strategy == "square":
@@ -216,6 +218,11 @@ def derive_rates(model) -> RateKinematics:
             minors = Minors.of_square(Jx, inverse)
         else:
             minors = Minors(Jx)
+        if all(minor == 0 for minor in minors.maximal().values()):
+            # J_x loses rank everywhere (a z task of a planar arm): no closed form divides by a
+            # determinant that is identically zero; the run-time solve flags it and damps.
+            strategy, inverse, minors = "numeric", None, None
+    if strategy in ("square", "wide", "tall"):
         singularities = _singularities(model, strategy, scaling, inverse, partition, minors)
         velocity = regularised_solve(Jx, xd_col, scaling, minors, inverse).solution
         acceleration = regularised_solve(Jx, xdd_col - Jx_dot * qd_col, scaling, minors, inverse).solution
@@ -232,16 +239,20 @@ def derive_rates(model) -> RateKinematics:
     return RateKinematics(**rates, functions=tuple(functions))
 
 
-def closed_form_shape(m: int, n: int) -> str:
+def closed_form_shape(m: int, n: int, operations: int = 0) -> str:
     """How the inverse rate maps of an m x n task Jacobian are built, by its size alone.
 
     ``"square"`` (adjugate over determinant) up to ``MAX_CLOSED_FORM`` joints;
     ``"wide"`` or ``"tall"`` (damped least squares from the maximal minors) while
     there are at most ``MAX_MINORS`` of them, each at most ``MAX_MINOR_SIZE`` square;
-    otherwise ``"numeric"``: the kernels solve the system at run time
+    either only while ``J_x`` has at most ``MAX_CLOSED_FORM_OPS`` operations (the
+    SCORBOT's: 116; a 5-joint chain with twists of pi/3 has 1018 and its minors took
+    minutes).  Otherwise ``"numeric"``: the kernels solve the system at run time
     (:class:`derivations.model.NumericSolve`), which costs a few hundred operations
     where a symbolic 6 x 6 adjugate costs minutes to derive and 10^5 operations to run.
     """
+    if operations > MAX_CLOSED_FORM_OPS:
+        return "numeric"
     if m == n:
         return "square" if n <= MAX_CLOSED_FORM else "numeric"
     k = min(m, n)
@@ -456,7 +467,7 @@ def _numeric_functions(model, rates: dict, arguments) -> list[SymbolicFunction]:
                        doc="L on prismatic columns, 1 on revolute ones")
     geometric = (1, 1, 1, 0, 0, 0)
     flag_doc = (f"true where cond(An) > {NumericSolve.COND_LIMIT:g} for the normalised An: an exact solve would "
-                "lose more than half the digits (derivations.model.NumericSolve)")
+                "lose more than 4 of the 16 digits (derivations.model.NumericSolve)")
     how = {"solution": "exact where regular (minimum norm when redundant, least squares when short of joints), "
                        "damped least squares where singular; solved at run time",
            "measure": "the product of the singular values, computed at run time"}

@@ -2322,7 +2322,7 @@ void adept_three_manipulability(const double *restrict q, const adept_three_para
     double _s0;
     _s0 = sin(q2);
     manipulability[0] = fabs(_s0*l1*l2);
-    singular[0] = (_s0*_s0)*(l1*l1)*(l2*l2)/((fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))) < 1e-06;
+    singular[0] = (_s0*_s0)*(l1*l1)*(l2*l2)/((fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))) < 1e-08;
 }
 
 /* manipulability of `count` items, stored one after the other in each argument and output. */
@@ -2351,7 +2351,7 @@ void adept_three_manipulability_batch(size_t count, const double *restrict q, co
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             manipulability[1 * (start + i) + 0] = fabs(_s0[i]*l1*l2);
-            singular[1 * (start + i) + 0] = (_s0[i]*_s0[i])*(l1*l1)*(l2*l2)/((fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))) < 1e-06;
+            singular[1 * (start + i) + 0] = (_s0[i]*_s0[i])*(l1*l1)*(l2*l2)/((fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))*(fabs(d1) + fabs(d4) + fabs(l1) + fabs(l2))) < 1e-08;
         }
     }
 #else
@@ -2417,11 +2417,11 @@ void adept_three_joint_velocity(const double *restrict q, const double *restrict
 #endif
     const double _t5 = (_s0*_s0)*_t2*_t3;
     const double _t6 = _t5/_t1;
-    const double _t7 = kinegen_max(0, 1 - 1000000*_t6);
+    const double _t7 = kinegen_max(0, 1 - 100000000*_t6);
     const double _t8 = (_t7*_t7);
-    const double _t9 = (3e-08)*_t8;
+    const double _t9 = (3e-12)*_t8;
     const double _t10 = (_t7*_t7*_t7);
-    const double _t11 = (1e-08)*_t8;
+    const double _t11 = (1e-12)*_t8;
     const double _t16 = (_s1*_s1)*_t15;
     const double _t18 = _s2*l1;
     const double _t19 = _s1*l2;
@@ -2432,19 +2432,19 @@ void adept_three_joint_velocity(const double *restrict q, const double *restrict
     const double _t26 = _c1*l2;
     const double _t27 = _t25 + _t26;
     const double _t28 = _t14*(_t27*_t27) + _t23;
-    const double _t29 = (1e-12)*_t10;
+    const double _t29 = (1e-18)*_t10;
     const double _t30 = -_t20;
     const double _t31 = _t14*(_t30*_t30) + _t16;
     const double _t32 = -_t27;
     const double _t33 = _t14*(_t32*_t32) + _t23;
     const double _t35 = (_c2*_c2)*_t34;
     const double _t36 = _t28 + _t35;
-    const double _t37 = (0.0001)*_t7;
+    const double _t37 = (1e-06)*_t7;
     const double _t38 = (_s2*_s2)*_t34;
     const double _t39 = _t31 + _t38;
     const double _t40 = _t21 + _t38;
     const double _t41 = _t33 + _t35;
-    const double _t42 = 1.0/((4e-12)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (0.0002)*_t6*_t7 + _t6 + (1e-16)*(_t7*_t7*_t7*_t7) + _t9);
+    const double _t42 = 1.0/((4e-18)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (2e-06)*_t6*_t7 + _t6 + (1e-24)*(_t7*_t7*_t7*_t7) + _t9);
     const double _t43 = _s0*l2;
     const double _t44 = _t2*_t43/(_t0*_t0*_t0);
     const double _t45 = _s2*_t44;
@@ -2460,7 +2460,7 @@ void adept_three_joint_velocity(const double *restrict q, const double *restrict
     const double _t56 = _t37*_t40;
     const double _t57 = _t11*_t31;
     const double _t58 = _t21*_t37 + _t29 + _t57;
-    const double _t59 = (0.0003)*_t7 + (4e-08)*_t8;
+    const double _t59 = (3e-06)*_t7 + (4e-12)*_t8;
     const double _t60 = _t46*xd_y;
     const double _t61 = _t49*xd_phi + _t54*_t55 + _t60*(_t39 + _t56 + _t58 + _t59);
     const double _t62 = _c2*_t44;
@@ -2472,8 +2472,8 @@ void adept_three_joint_velocity(const double *restrict q, const double *restrict
     const double _t68 = _t54*_t60 + _t55*(_t36 + _t59 + _t66 + _t67) + _t64*xd_phi;
     const double _t69 = _t37*_t6 + _t6;
     const double _t70 = _t49*_t60 + _t55*_t64 + xd_phi*(_t11 + _t58 + _t66 + _t69);
-    const int _t71 = _t6 < 1e-06;
-    const double _t72 = 1.0/kinegen_max(_t5, (1e-06)*_t1);
+    const int _t71 = _t6 < 1e-08;
+    const double _t72 = 1.0/kinegen_max(_t5, (1e-08)*_t1);
     const double _t73 = _t43*l1;
     const double _t74 = _t72*_t73;
     qd[0] = ((_t71) ? (
@@ -2580,11 +2580,11 @@ void adept_three_joint_velocity_batch(size_t count, const double *restrict q, co
             for (i = 0; i < n; ++i) {
                 const double _t5 = (_s0[i]*_s0[i])*_t2*_t3;
                 const double _t6 = _t5/_t1;
-                const double _t7 = kinegen_max(0, 1 - 1000000*_t6);
+                const double _t7 = kinegen_max(0, 1 - 100000000*_t6);
                 const double _t8 = (_t7*_t7);
-                const double _t9 = (3e-08)*_t8;
+                const double _t9 = (3e-12)*_t8;
                 const double _t10 = (_t7*_t7*_t7);
-                const double _t11 = (1e-08)*_t8;
+                const double _t11 = (1e-12)*_t8;
                 const double _t16 = (_s1[i]*_s1[i])*_t15;
                 const double _t18 = _s2[i]*l1;
                 const double _t19 = _s1[i]*l2;
@@ -2595,19 +2595,19 @@ void adept_three_joint_velocity_batch(size_t count, const double *restrict q, co
                 const double _t26 = _c1[i]*l2;
                 const double _t27 = _t25 + _t26;
                 const double _t28 = _t14*(_t27*_t27) + _t23;
-                const double _t29 = (1e-12)*_t10;
+                const double _t29 = (1e-18)*_t10;
                 const double _t30 = -_t20;
                 const double _t31 = _t14*(_t30*_t30) + _t16;
                 const double _t32 = -_t27;
                 const double _t33 = _t14*(_t32*_t32) + _t23;
                 const double _t35 = (_c2[i]*_c2[i])*_t34;
                 const double _t36 = _t28 + _t35;
-                const double _t37 = (0.0001)*_t7;
+                const double _t37 = (1e-06)*_t7;
                 const double _t38 = (_s2[i]*_s2[i])*_t34;
                 const double _t39 = _t31 + _t38;
                 const double _t40 = _t21 + _t38;
                 const double _t41 = _t33 + _t35;
-                const double _t42 = 1.0/((4e-12)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (0.0002)*_t6*_t7 + _t6 + (1e-16)*(_t7*_t7*_t7*_t7) + _t9);
+                const double _t42 = 1.0/((4e-18)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (2e-06)*_t6*_t7 + _t6 + (1e-24)*(_t7*_t7*_t7*_t7) + _t9);
                 const double _t43 = _s0[i]*l2;
                 const double _t44 = _t2*_t43/(_t0*_t0*_t0);
                 const double _t45 = _s2[i]*_t44;
@@ -2623,7 +2623,7 @@ void adept_three_joint_velocity_batch(size_t count, const double *restrict q, co
                 const double _t56 = _t37*_t40;
                 const double _t57 = _t11*_t31;
                 const double _t58 = _t21*_t37 + _t29 + _t57;
-                const double _t59 = (0.0003)*_t7 + (4e-08)*_t8;
+                const double _t59 = (3e-06)*_t7 + (4e-12)*_t8;
                 const double _t60 = _t46*xd_y[i];
                 const double _t61 = _t49*xd_phi[i] + _t54*_t55 + _t60*(_t39 + _t56 + _t58 + _t59);
                 const double _t62 = _c2[i]*_t44;
@@ -2635,8 +2635,8 @@ void adept_three_joint_velocity_batch(size_t count, const double *restrict q, co
                 const double _t68 = _t54*_t60 + _t55*(_t36 + _t59 + _t66 + _t67) + _t64*xd_phi[i];
                 const double _t69 = _t37*_t6 + _t6;
                 const double _t70 = _t49*_t60 + _t55*_t64 + xd_phi[i]*(_t11 + _t58 + _t66 + _t69);
-                const int _t71 = _t6 < 1e-06;
-                const double _t72 = 1.0/kinegen_max(_t5, (1e-06)*_t1);
+                const int _t71 = _t6 < 1e-08;
+                const double _t72 = 1.0/kinegen_max(_t5, (1e-08)*_t1);
                 const double _t73 = _t43*l1;
                 const double _t74 = _t72*_t73;
                 _qd_block[0][i] = ((_t71) ? (
@@ -2672,11 +2672,11 @@ void adept_three_joint_velocity_batch(size_t count, const double *restrict q, co
             for (i = 0; i < n; ++i) {
                 const double _t5 = (_s0[i]*_s0[i])*_t2*_t3;
                 const double _t6 = _t5/_t1;
-                const double _t7 = kinegen_max(0, 1 - 1000000*_t6);
+                const double _t7 = kinegen_max(0, 1 - 100000000*_t6);
                 const double _t8 = (_t7*_t7);
-                const double _t9 = (3e-08)*_t8;
+                const double _t9 = (3e-12)*_t8;
                 const double _t10 = (_t7*_t7*_t7);
-                const double _t11 = (1e-08)*_t8;
+                const double _t11 = (1e-12)*_t8;
                 const double _t16 = (_s1[i]*_s1[i])*_t15;
                 const double _t18 = _s2[i]*l1;
                 const double _t19 = _s1[i]*l2;
@@ -2687,19 +2687,19 @@ void adept_three_joint_velocity_batch(size_t count, const double *restrict q, co
                 const double _t26 = _c1[i]*l2;
                 const double _t27 = _t25 + _t26;
                 const double _t28 = _t14*(_t27*_t27) + _t23;
-                const double _t29 = (1e-12)*_t10;
+                const double _t29 = (1e-18)*_t10;
                 const double _t30 = -_t20;
                 const double _t31 = _t14*(_t30*_t30) + _t16;
                 const double _t32 = -_t27;
                 const double _t33 = _t14*(_t32*_t32) + _t23;
                 const double _t35 = (_c2[i]*_c2[i])*_t34;
                 const double _t36 = _t28 + _t35;
-                const double _t37 = (0.0001)*_t7;
+                const double _t37 = (1e-06)*_t7;
                 const double _t38 = (_s2[i]*_s2[i])*_t34;
                 const double _t39 = _t31 + _t38;
                 const double _t40 = _t21 + _t38;
                 const double _t41 = _t33 + _t35;
-                const double _t42 = 1.0/((4e-12)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (0.0002)*_t6*_t7 + _t6 + (1e-16)*(_t7*_t7*_t7*_t7) + _t9);
+                const double _t42 = 1.0/((4e-18)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (2e-06)*_t6*_t7 + _t6 + (1e-24)*(_t7*_t7*_t7*_t7) + _t9);
                 const double _t43 = _s0[i]*l2;
                 const double _t44 = _t2*_t43/(_t0*_t0*_t0);
                 const double _t45 = _s2[i]*_t44;
@@ -2715,7 +2715,7 @@ void adept_three_joint_velocity_batch(size_t count, const double *restrict q, co
                 const double _t56 = _t37*_t40;
                 const double _t57 = _t11*_t31;
                 const double _t58 = _t21*_t37 + _t29 + _t57;
-                const double _t59 = (0.0003)*_t7 + (4e-08)*_t8;
+                const double _t59 = (3e-06)*_t7 + (4e-12)*_t8;
                 const double _t60 = _t46*xd_y[i];
                 const double _t61 = _t49*xd_phi[i] + _t54*_t55 + _t60*(_t39 + _t56 + _t58 + _t59);
                 const double _t62 = _c2[i]*_t44;
@@ -2727,8 +2727,8 @@ void adept_three_joint_velocity_batch(size_t count, const double *restrict q, co
                 const double _t68 = _t54*_t60 + _t55*(_t36 + _t59 + _t66 + _t67) + _t64*xd_phi[i];
                 const double _t69 = _t37*_t6 + _t6;
                 const double _t70 = _t49*_t60 + _t55*_t64 + xd_phi[i]*(_t11 + _t58 + _t66 + _t69);
-                const int _t71 = _t6 < 1e-06;
-                const double _t72 = 1.0/kinegen_max(_t5, (1e-06)*_t1);
+                const int _t71 = _t6 < 1e-08;
+                const double _t72 = 1.0/kinegen_max(_t5, (1e-08)*_t1);
                 const double _t73 = _t43*l1;
                 const double _t74 = _t72*_t73;
                 qd[4 * (start + i) + 0] = ((_t71) ? (
@@ -2839,11 +2839,11 @@ void adept_three_joint_acceleration(const double *restrict q, const double *rest
 #endif
     const double _t5 = (_s0*_s0)*_t2*_t3;
     const double _t6 = _t5/_t1;
-    const double _t7 = kinegen_max(0, 1 - 1000000*_t6);
+    const double _t7 = kinegen_max(0, 1 - 100000000*_t6);
     const double _t8 = (_t7*_t7);
-    const double _t9 = (3e-08)*_t8;
+    const double _t9 = (3e-12)*_t8;
     const double _t10 = (_t7*_t7*_t7);
-    const double _t11 = (1e-08)*_t8;
+    const double _t11 = (1e-12)*_t8;
     const double _t16 = (_s1*_s1)*_t15;
     const double _t18 = _s2*l1;
     const double _t19 = _s1*l2;
@@ -2854,19 +2854,19 @@ void adept_three_joint_acceleration(const double *restrict q, const double *rest
     const double _t26 = _c1*l2;
     const double _t27 = _t25 + _t26;
     const double _t28 = _t14*(_t27*_t27) + _t23;
-    const double _t29 = (1e-12)*_t10;
+    const double _t29 = (1e-18)*_t10;
     const double _t30 = -_t20;
     const double _t31 = _t14*(_t30*_t30) + _t16;
     const double _t32 = -_t27;
     const double _t33 = _t14*(_t32*_t32) + _t23;
     const double _t35 = (_c2*_c2)*_t34;
     const double _t36 = _t28 + _t35;
-    const double _t37 = (0.0001)*_t7;
+    const double _t37 = (1e-06)*_t7;
     const double _t38 = (_s2*_s2)*_t34;
     const double _t39 = _t31 + _t38;
     const double _t40 = _t21 + _t38;
     const double _t41 = _t33 + _t35;
-    const double _t42 = 1.0/((4e-12)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (0.0002)*_t6*_t7 + _t6 + (1e-16)*(_t7*_t7*_t7*_t7) + _t9);
+    const double _t42 = 1.0/((4e-18)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (2e-06)*_t6*_t7 + _t6 + (1e-24)*(_t7*_t7*_t7*_t7) + _t9);
     const double _t43 = _s0*l2;
     const double _t44 = _t2*_t43/(_t0*_t0*_t0);
     const double _t45 = _s2*_t44;
@@ -2884,7 +2884,7 @@ void adept_three_joint_acceleration(const double *restrict q, const double *rest
     const double _t58 = _t37*_t40;
     const double _t59 = _t11*_t31;
     const double _t60 = _t21*_t37 + _t29 + _t59;
-    const double _t61 = (0.0003)*_t7 + (4e-08)*_t8;
+    const double _t61 = (3e-06)*_t7 + (4e-12)*_t8;
     const double _t62 = _t19*qd2;
     const double _t63 = -qd1*(_t30*qd1 - _t62) - qd2*(-_t19*qd1 - _t62) + xdd_y;
     const double _t64 = _t46*_t63;
@@ -2898,8 +2898,8 @@ void adept_three_joint_acceleration(const double *restrict q, const double *rest
     const double _t72 = _t54*_t64 + _t57*(_t36 + _t61 + _t70 + _t71) + _t68*xdd_phi;
     const double _t73 = _t37*_t6 + _t6;
     const double _t74 = _t49*_t64 + _t57*_t68 + xdd_phi*(_t11 + _t60 + _t70 + _t73);
-    const int _t75 = _t6 < 1e-06;
-    const double _t76 = 1.0/kinegen_max(_t5, (1e-06)*_t1);
+    const int _t75 = _t6 < 1e-08;
+    const double _t76 = 1.0/kinegen_max(_t5, (1e-08)*_t1);
     const double _t77 = _t43*l1;
     const double _t78 = _t76*_t77;
     qdd[0] = ((_t75) ? (
@@ -3010,11 +3010,11 @@ void adept_three_joint_acceleration_batch(size_t count, const double *restrict q
             for (i = 0; i < n; ++i) {
                 const double _t5 = (_s0[i]*_s0[i])*_t2*_t3;
                 const double _t6 = _t5/_t1;
-                const double _t7 = kinegen_max(0, 1 - 1000000*_t6);
+                const double _t7 = kinegen_max(0, 1 - 100000000*_t6);
                 const double _t8 = (_t7*_t7);
-                const double _t9 = (3e-08)*_t8;
+                const double _t9 = (3e-12)*_t8;
                 const double _t10 = (_t7*_t7*_t7);
-                const double _t11 = (1e-08)*_t8;
+                const double _t11 = (1e-12)*_t8;
                 const double _t16 = (_s1[i]*_s1[i])*_t15;
                 const double _t18 = _s2[i]*l1;
                 const double _t19 = _s1[i]*l2;
@@ -3025,19 +3025,19 @@ void adept_three_joint_acceleration_batch(size_t count, const double *restrict q
                 const double _t26 = _c1[i]*l2;
                 const double _t27 = _t25 + _t26;
                 const double _t28 = _t14*(_t27*_t27) + _t23;
-                const double _t29 = (1e-12)*_t10;
+                const double _t29 = (1e-18)*_t10;
                 const double _t30 = -_t20;
                 const double _t31 = _t14*(_t30*_t30) + _t16;
                 const double _t32 = -_t27;
                 const double _t33 = _t14*(_t32*_t32) + _t23;
                 const double _t35 = (_c2[i]*_c2[i])*_t34;
                 const double _t36 = _t28 + _t35;
-                const double _t37 = (0.0001)*_t7;
+                const double _t37 = (1e-06)*_t7;
                 const double _t38 = (_s2[i]*_s2[i])*_t34;
                 const double _t39 = _t31 + _t38;
                 const double _t40 = _t21 + _t38;
                 const double _t41 = _t33 + _t35;
-                const double _t42 = 1.0/((4e-12)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (0.0002)*_t6*_t7 + _t6 + (1e-16)*(_t7*_t7*_t7*_t7) + _t9);
+                const double _t42 = 1.0/((4e-18)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (2e-06)*_t6*_t7 + _t6 + (1e-24)*(_t7*_t7*_t7*_t7) + _t9);
                 const double _t43 = _s0[i]*l2;
                 const double _t44 = _t2*_t43/(_t0*_t0*_t0);
                 const double _t45 = _s2[i]*_t44;
@@ -3055,7 +3055,7 @@ void adept_three_joint_acceleration_batch(size_t count, const double *restrict q
                 const double _t58 = _t37*_t40;
                 const double _t59 = _t11*_t31;
                 const double _t60 = _t21*_t37 + _t29 + _t59;
-                const double _t61 = (0.0003)*_t7 + (4e-08)*_t8;
+                const double _t61 = (3e-06)*_t7 + (4e-12)*_t8;
                 const double _t62 = _t19*qd2[i];
                 const double _t63 = -qd1[i]*(_t30*qd1[i] - _t62) - qd2[i]*(-_t19*qd1[i] - _t62) + xdd_y[i];
                 const double _t64 = _t46*_t63;
@@ -3069,8 +3069,8 @@ void adept_three_joint_acceleration_batch(size_t count, const double *restrict q
                 const double _t72 = _t54*_t64 + _t57*(_t36 + _t61 + _t70 + _t71) + _t68*xdd_phi[i];
                 const double _t73 = _t37*_t6 + _t6;
                 const double _t74 = _t49*_t64 + _t57*_t68 + xdd_phi[i]*(_t11 + _t60 + _t70 + _t73);
-                const int _t75 = _t6 < 1e-06;
-                const double _t76 = 1.0/kinegen_max(_t5, (1e-06)*_t1);
+                const int _t75 = _t6 < 1e-08;
+                const double _t76 = 1.0/kinegen_max(_t5, (1e-08)*_t1);
                 const double _t77 = _t43*l1;
                 const double _t78 = _t76*_t77;
                 _qdd_block[0][i] = ((_t75) ? (
@@ -3106,11 +3106,11 @@ void adept_three_joint_acceleration_batch(size_t count, const double *restrict q
             for (i = 0; i < n; ++i) {
                 const double _t5 = (_s0[i]*_s0[i])*_t2*_t3;
                 const double _t6 = _t5/_t1;
-                const double _t7 = kinegen_max(0, 1 - 1000000*_t6);
+                const double _t7 = kinegen_max(0, 1 - 100000000*_t6);
                 const double _t8 = (_t7*_t7);
-                const double _t9 = (3e-08)*_t8;
+                const double _t9 = (3e-12)*_t8;
                 const double _t10 = (_t7*_t7*_t7);
-                const double _t11 = (1e-08)*_t8;
+                const double _t11 = (1e-12)*_t8;
                 const double _t16 = (_s1[i]*_s1[i])*_t15;
                 const double _t18 = _s2[i]*l1;
                 const double _t19 = _s1[i]*l2;
@@ -3121,19 +3121,19 @@ void adept_three_joint_acceleration_batch(size_t count, const double *restrict q
                 const double _t26 = _c1[i]*l2;
                 const double _t27 = _t25 + _t26;
                 const double _t28 = _t14*(_t27*_t27) + _t23;
-                const double _t29 = (1e-12)*_t10;
+                const double _t29 = (1e-18)*_t10;
                 const double _t30 = -_t20;
                 const double _t31 = _t14*(_t30*_t30) + _t16;
                 const double _t32 = -_t27;
                 const double _t33 = _t14*(_t32*_t32) + _t23;
                 const double _t35 = (_c2[i]*_c2[i])*_t34;
                 const double _t36 = _t28 + _t35;
-                const double _t37 = (0.0001)*_t7;
+                const double _t37 = (1e-06)*_t7;
                 const double _t38 = (_s2[i]*_s2[i])*_t34;
                 const double _t39 = _t31 + _t38;
                 const double _t40 = _t21 + _t38;
                 const double _t41 = _t33 + _t35;
-                const double _t42 = 1.0/((4e-12)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (0.0002)*_t6*_t7 + _t6 + (1e-16)*(_t7*_t7*_t7*_t7) + _t9);
+                const double _t42 = 1.0/((4e-18)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (2e-06)*_t6*_t7 + _t6 + (1e-24)*(_t7*_t7*_t7*_t7) + _t9);
                 const double _t43 = _s0[i]*l2;
                 const double _t44 = _t2*_t43/(_t0*_t0*_t0);
                 const double _t45 = _s2[i]*_t44;
@@ -3151,7 +3151,7 @@ void adept_three_joint_acceleration_batch(size_t count, const double *restrict q
                 const double _t58 = _t37*_t40;
                 const double _t59 = _t11*_t31;
                 const double _t60 = _t21*_t37 + _t29 + _t59;
-                const double _t61 = (0.0003)*_t7 + (4e-08)*_t8;
+                const double _t61 = (3e-06)*_t7 + (4e-12)*_t8;
                 const double _t62 = _t19*qd2[i];
                 const double _t63 = -qd1[i]*(_t30*qd1[i] - _t62) - qd2[i]*(-_t19*qd1[i] - _t62) + xdd_y[i];
                 const double _t64 = _t46*_t63;
@@ -3165,8 +3165,8 @@ void adept_three_joint_acceleration_batch(size_t count, const double *restrict q
                 const double _t72 = _t54*_t64 + _t57*(_t36 + _t61 + _t70 + _t71) + _t68*xdd_phi[i];
                 const double _t73 = _t37*_t6 + _t6;
                 const double _t74 = _t49*_t64 + _t57*_t68 + xdd_phi[i]*(_t11 + _t60 + _t70 + _t73);
-                const int _t75 = _t6 < 1e-06;
-                const double _t76 = 1.0/kinegen_max(_t5, (1e-06)*_t1);
+                const int _t75 = _t6 < 1e-08;
+                const double _t76 = 1.0/kinegen_max(_t5, (1e-08)*_t1);
                 const double _t77 = _t43*l1;
                 const double _t78 = _t76*_t77;
                 qdd[4 * (start + i) + 0] = ((_t75) ? (

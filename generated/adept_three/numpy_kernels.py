@@ -736,7 +736,7 @@ def manipulability(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
         _manipulability = manipulability[_start:_start + CHUNK].T
         _manipulability[0] = abs(_s0*l1*l2)
         _singular = singular[_start:_start + CHUNK].T
-        _singular[0] = numpy.less((_s0*_s0)*(l1*l1)*(l2*l2)/((abs(d1) + abs(d4) + abs(l1) + abs(l2))*(abs(d1) + abs(d4) + abs(l1) + abs(l2))*(abs(d1) + abs(d4) + abs(l1) + abs(l2))*(abs(d1) + abs(d4) + abs(l1) + abs(l2))), 1e-06)
+        _singular[0] = numpy.less((_s0*_s0)*(l1*l1)*(l2*l2)/((abs(d1) + abs(d4) + abs(l1) + abs(l2))*(abs(d1) + abs(d4) + abs(l1) + abs(l2))*(abs(d1) + abs(d4) + abs(l1) + abs(l2))*(abs(d1) + abs(d4) + abs(l1) + abs(l2))), 1e-08)
     return manipulability.reshape(_batch + ()), singular.reshape(_batch + ())
 
 
@@ -793,11 +793,11 @@ def joint_velocity(q, xd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
         _c2 = (1.0 - _u2)*_r2
         _t5 = (_s0*_s0)*_t2*_t3
         _t6 = _t5/_t1
-        _t7 = numpy.maximum(0, 1 - 1000000*_t6)
+        _t7 = numpy.maximum(0, 1 - 100000000*_t6)
         _t8 = (_t7*_t7)
-        _t9 = (3e-08)*_t8
+        _t9 = (3e-12)*_t8
         _t10 = (_t7*_t7*_t7)
-        _t11 = (1e-08)*_t8
+        _t11 = (1e-12)*_t8
         _t16 = (_s1*_s1)*_t15
         _t18 = _s2*l1
         _t19 = _s1*l2
@@ -808,19 +808,19 @@ def joint_velocity(q, xd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
         _t26 = _c1*l2
         _t27 = _t25 + _t26
         _t28 = _t14*(_t27*_t27) + _t23
-        _t29 = (1e-12)*_t10
+        _t29 = (1e-18)*_t10
         _t30 = -_t20
         _t31 = _t14*(_t30*_t30) + _t16
         _t32 = -_t27
         _t33 = _t14*(_t32*_t32) + _t23
         _t35 = (_c2*_c2)*_t34
         _t36 = _t28 + _t35
-        _t37 = (0.0001)*_t7
+        _t37 = (1e-06)*_t7
         _t38 = (_s2*_s2)*_t34
         _t39 = _t31 + _t38
         _t40 = _t21 + _t38
         _t41 = _t33 + _t35
-        _t42 = 1.0/((4e-12)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (0.0002)*_t6*_t7 + _t6 + (1e-16)*(_t7*_t7*_t7*_t7) + _t9)
+        _t42 = 1.0/((4e-18)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (2e-06)*_t6*_t7 + _t6 + (1e-24)*(_t7*_t7*_t7*_t7) + _t9)
         _t43 = _s0*l2
         _t44 = _t2*_t43/(_t0*_t0*_t0)
         _t45 = _s2*_t44
@@ -836,7 +836,7 @@ def joint_velocity(q, xd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
         _t56 = _t37*_t40
         _t57 = _t11*_t31
         _t58 = _t21*_t37 + _t29 + _t57
-        _t59 = (0.0003)*_t7 + (4e-08)*_t8
+        _t59 = (3e-06)*_t7 + (4e-12)*_t8
         _t60 = _t46*xd_y
         _t61 = _t49*xd_phi + _t54*_t55 + _t60*(_t39 + _t56 + _t58 + _t59)
         _t62 = _c2*_t44
@@ -848,8 +848,8 @@ def joint_velocity(q, xd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
         _t68 = _t54*_t60 + _t55*(_t36 + _t59 + _t66 + _t67) + _t64*xd_phi
         _t69 = _t37*_t6 + _t6
         _t70 = _t49*_t60 + _t55*_t64 + xd_phi*(_t11 + _t58 + _t66 + _t69)
-        _t71 = numpy.less(_t6, 1e-06)
-        _t72 = 1.0/numpy.maximum(_t5, (1e-06)*_t1)
+        _t71 = numpy.less(_t6, 1e-08)
+        _t72 = 1.0/numpy.maximum(_t5, (1e-08)*_t1)
         _t73 = _t43*l1
         _t74 = _t72*_t73
         _qd = qd[_start:_start + CHUNK].T
@@ -921,11 +921,11 @@ def joint_acceleration(q, qd, xdd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
         _c2 = (1.0 - _u2)*_r2
         _t5 = (_s0*_s0)*_t2*_t3
         _t6 = _t5/_t1
-        _t7 = numpy.maximum(0, 1 - 1000000*_t6)
+        _t7 = numpy.maximum(0, 1 - 100000000*_t6)
         _t8 = (_t7*_t7)
-        _t9 = (3e-08)*_t8
+        _t9 = (3e-12)*_t8
         _t10 = (_t7*_t7*_t7)
-        _t11 = (1e-08)*_t8
+        _t11 = (1e-12)*_t8
         _t16 = (_s1*_s1)*_t15
         _t18 = _s2*l1
         _t19 = _s1*l2
@@ -936,19 +936,19 @@ def joint_acceleration(q, qd, xdd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
         _t26 = _c1*l2
         _t27 = _t25 + _t26
         _t28 = _t14*(_t27*_t27) + _t23
-        _t29 = (1e-12)*_t10
+        _t29 = (1e-18)*_t10
         _t30 = -_t20
         _t31 = _t14*(_t30*_t30) + _t16
         _t32 = -_t27
         _t33 = _t14*(_t32*_t32) + _t23
         _t35 = (_c2*_c2)*_t34
         _t36 = _t28 + _t35
-        _t37 = (0.0001)*_t7
+        _t37 = (1e-06)*_t7
         _t38 = (_s2*_s2)*_t34
         _t39 = _t31 + _t38
         _t40 = _t21 + _t38
         _t41 = _t33 + _t35
-        _t42 = 1.0/((4e-12)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (0.0002)*_t6*_t7 + _t6 + (1e-16)*(_t7*_t7*_t7*_t7) + _t9)
+        _t42 = 1.0/((4e-18)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (2e-06)*_t6*_t7 + _t6 + (1e-24)*(_t7*_t7*_t7*_t7) + _t9)
         _t43 = _s0*l2
         _t44 = _t2*_t43/(_t0*_t0*_t0)
         _t45 = _s2*_t44
@@ -966,7 +966,7 @@ def joint_acceleration(q, qd, xdd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
         _t58 = _t37*_t40
         _t59 = _t11*_t31
         _t60 = _t21*_t37 + _t29 + _t59
-        _t61 = (0.0003)*_t7 + (4e-08)*_t8
+        _t61 = (3e-06)*_t7 + (4e-12)*_t8
         _t62 = _t19*qd2
         _t63 = -qd1*(_t30*qd1 - _t62) - qd2*(-_t19*qd1 - _t62) + xdd_y
         _t64 = _t46*_t63
@@ -980,8 +980,8 @@ def joint_acceleration(q, qd, xdd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
         _t72 = _t54*_t64 + _t57*(_t36 + _t61 + _t70 + _t71) + _t68*xdd_phi
         _t73 = _t37*_t6 + _t6
         _t74 = _t49*_t64 + _t57*_t68 + xdd_phi*(_t11 + _t60 + _t70 + _t73)
-        _t75 = numpy.less(_t6, 1e-06)
-        _t76 = 1.0/numpy.maximum(_t5, (1e-06)*_t1)
+        _t75 = numpy.less(_t6, 1e-08)
+        _t76 = 1.0/numpy.maximum(_t5, (1e-08)*_t1)
         _t77 = _t43*l1
         _t78 = _t76*_t77
         _qdd = qdd[_start:_start + CHUNK].T

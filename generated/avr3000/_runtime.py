@@ -177,14 +177,14 @@ PI = 3.141592653589793
 TWO_PI = 6.283185307179586
 
 
-def solve_system(A, b, row_scale, col_scale, cond_limit):
+def solve_system(A, b, row_scale, col_scale, cond_limit, damping_ratio):
     """The run-time solve of the kernels with a NumericSolve (derivations/model.py).
 
     A (N, m, n), b (N, m) or None, row_scale (N, m), col_scale (N, n): the system that
     the kernel's ``*_system`` companion forms in closed form.  With An = diag(row_scale) A
     diag(col_scale) and its singular values s (LAPACK), returns (x, singular), where
-    singular = s_min < s_max / cond_limit and x = diag(col_scale) sum_i s_i / (s_i^2 +
-    lambda^2) (u_i . bn) v_i with lambda^2 = (s_max / cond_limit)^2 - s_min^2 where
+    singular = s_min < t = s_max / cond_limit and x = diag(col_scale) sum_i s_i / (s_i^2 +
+    lambda^2) (u_i . bn) v_i with lambda^2 = (damping_ratio t)^2 (1 - (s_min / t)^2) where
     singular, else 0 (the exact, minimum-norm or least-squares solution).  With b None,
     x is the product of the singular values of A itself (Yoshikawa's manipulability).
     """
@@ -197,7 +197,10 @@ def solve_system(A, b, row_scale, col_scale, cond_limit):
     singular = ~(smallest > largest / cond_limit)
     if b is None:
         return numpy.prod(numpy.linalg.svd(A, compute_uv=False), axis=-1), singular
-    damping = numpy.where(singular, numpy.maximum((largest / cond_limit) ** 2 - smallest ** 2, 0.0), 0.0)
+    threshold = largest / cond_limit
+    with numpy.errstate(divide="ignore", invalid="ignore"):
+        ratio = numpy.where(threshold > 0.0, smallest / threshold, 0.0)
+    damping = numpy.where(singular, (damping_ratio * threshold) ** 2 * numpy.maximum(1.0 - ratio * ratio, 0.0), 0.0)
     denominator = s * s + damping[:, None]
     with numpy.errstate(divide="ignore", invalid="ignore"):
         gain = numpy.where(denominator > 0.0, s / denominator, 0.0)

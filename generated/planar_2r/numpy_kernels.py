@@ -588,7 +588,7 @@ def manipulability(q, *, l1=0.559, l2=0.508):
         _manipulability = manipulability[_start:_start + CHUNK].T
         _manipulability[0] = abs(_s0*l1*l2)
         _singular = singular[_start:_start + CHUNK].T
-        _singular[0] = numpy.less((_s0*_s0)*(l1*l1)*(l2*l2)/((abs(l1) + abs(l2))*(abs(l1) + abs(l2))*(abs(l1) + abs(l2))*(abs(l1) + abs(l2))), 1e-06)
+        _singular[0] = numpy.less((_s0*_s0)*(l1*l1)*(l2*l2)/((abs(l1) + abs(l2))*(abs(l1) + abs(l2))*(abs(l1) + abs(l2))*(abs(l1) + abs(l2))), 1e-08)
     return manipulability.reshape(_batch + ()), singular.reshape(_batch + ())
 
 
@@ -639,22 +639,22 @@ def joint_velocity(q, xd, *, l1=0.559, l2=0.508):
         _c2 = (1.0 - _u2)*_r2
         _t4 = (_s0*_s0)*_t2*(l1*l1)
         _t5 = _t4/_t1
-        _t6 = numpy.maximum(0, 1 - 1000000*_t5)
+        _t6 = numpy.maximum(0, 1 - 100000000*_t5)
         _t11 = _c1*l2
         _t12 = _c2*l1 + _t11
         _t13 = (_c1*_c1)*_t10 + (_t12*_t12)*_t9
-        _t14 = (0.0001)*_t6
+        _t14 = (1e-06)*_t6
         _t16 = _s1*l2
         _t17 = -_s2*l1 - _t16
         _t18 = (_s1*_s1)*_t10 + (_t17*_t17)*_t9
-        _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-08)*(_t6*_t6))
+        _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-12)*(_t6*_t6))
         _t21 = _c1*_s1*_t10 - _t12*_t17*_t9
         _t22 = _t20*xd_y
         _t23 = _t20*xd_x
         _t24 = _t20*(_t21*_t22 + _t23*(_t13 + _t14))
         _t25 = _t20*(_t21*_t23 + _t22*(_t14 + _t18))
-        _t26 = numpy.less(_t5, 1e-06)
-        _t27 = _s0*l1*l2/numpy.maximum(_t4, (1e-06)*_t1)
+        _t26 = numpy.less(_t5, 1e-08)
+        _t27 = _s0*l1*l2/numpy.maximum(_t4, (1e-08)*_t1)
         _qd = qd[_start:_start + CHUNK].T
         _qd[0] = numpy.where(_t26, _t19*(_t12*_t25 + _t17*_t24), _t27*(_t11*xd_x + _t16*xd_y))
         _qd[1] = numpy.where(_t26, _t19*(_t11*_t25 - _t16*_t24), _t27*(-_t12*xd_x + _t17*xd_y))
@@ -716,15 +716,15 @@ def joint_acceleration(q, qd, xdd, *, l1=0.559, l2=0.508):
         _c2 = (1.0 - _u2)*_r2
         _t4 = (_s0*_s0)*_t2*(l1*l1)
         _t5 = _t4/_t1
-        _t6 = numpy.maximum(0, 1 - 1000000*_t5)
+        _t6 = numpy.maximum(0, 1 - 100000000*_t5)
         _t11 = _c1*l2
         _t12 = _c2*l1 + _t11
         _t13 = (_c1*_c1)*_t10 + (_t12*_t12)*_t9
-        _t14 = (0.0001)*_t6
+        _t14 = (1e-06)*_t6
         _t16 = _s1*l2
         _t17 = -_s2*l1 - _t16
         _t18 = (_s1*_s1)*_t10 + (_t17*_t17)*_t9
-        _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-08)*(_t6*_t6))
+        _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-12)*(_t6*_t6))
         _t21 = _t16*qd2
         _t22 = -qd1*(_t17*qd1 - _t21) - qd2*(-_t16*qd1 - _t21) + xdd_y
         _t23 = _t20*(_c1*_s1*_t10 - _t12*_t17*_t9)
@@ -733,8 +733,8 @@ def joint_acceleration(q, qd, xdd, *, l1=0.559, l2=0.508):
         _t26 = -qd1*(-_t24 + _t25*qd1) - qd2*(-_t11*qd1 - _t24) + xdd_x
         _t27 = _t20*(_t20*_t26*(_t13 + _t14) + _t22*_t23)
         _t28 = _t20*_t22*(_t14 + _t18) + _t23*_t26
-        _t29 = numpy.less(_t5, 1e-06)
-        _t30 = _s0*l1*l2/numpy.maximum(_t4, (1e-06)*_t1)
+        _t29 = numpy.less(_t5, 1e-08)
+        _t30 = _s0*l1*l2/numpy.maximum(_t4, (1e-08)*_t1)
         _qdd = qdd[_start:_start + CHUNK].T
         _qdd[0] = numpy.where(_t29, _t19*(_t12*_t20*_t28 + _t17*_t27), _t30*(_t11*_t26 + _t16*_t22))
         _qdd[1] = numpy.where(_t29, _t19*(_c1*_t20*_t28*l2 - _t16*_t27), _t30*(_t17*_t22 + _t25*_t26))

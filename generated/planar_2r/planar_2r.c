@@ -1945,7 +1945,7 @@ void planar_2r_manipulability(const double *restrict q, const planar_2r_params *
     double _s0;
     _s0 = sin(q2);
     manipulability[0] = fabs(_s0*l1*l2);
-    singular[0] = (_s0*_s0)*(l1*l1)*(l2*l2)/((fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))) < 1e-06;
+    singular[0] = (_s0*_s0)*(l1*l1)*(l2*l2)/((fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))) < 1e-08;
 }
 
 /* manipulability of `count` items, stored one after the other in each argument and output. */
@@ -1972,7 +1972,7 @@ void planar_2r_manipulability_batch(size_t count, const double *restrict q, cons
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             manipulability[1 * (start + i) + 0] = fabs(_s0[i]*l1*l2);
-            singular[1 * (start + i) + 0] = (_s0[i]*_s0[i])*(l1*l1)*(l2*l2)/((fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))) < 1e-06;
+            singular[1 * (start + i) + 0] = (_s0[i]*_s0[i])*(l1*l1)*(l2*l2)/((fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))*(fabs(l1) + fabs(l2))) < 1e-08;
         }
     }
 #else
@@ -2032,22 +2032,22 @@ void planar_2r_joint_velocity(const double *restrict q, const double *restrict x
 #endif
     const double _t4 = (_s0*_s0)*_t2*(l1*l1);
     const double _t5 = _t4/_t1;
-    const double _t6 = kinegen_max(0, 1 - 1000000*_t5);
+    const double _t6 = kinegen_max(0, 1 - 100000000*_t5);
     const double _t11 = _c1*l2;
     const double _t12 = _c2*l1 + _t11;
     const double _t13 = (_c1*_c1)*_t10 + (_t12*_t12)*_t9;
-    const double _t14 = (0.0001)*_t6;
+    const double _t14 = (1e-06)*_t6;
     const double _t16 = _s1*l2;
     const double _t17 = -_s2*l1 - _t16;
     const double _t18 = (_s1*_s1)*_t10 + (_t17*_t17)*_t9;
-    const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-08)*(_t6*_t6));
+    const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-12)*(_t6*_t6));
     const double _t21 = _c1*_s1*_t10 - _t12*_t17*_t9;
     const double _t22 = _t20*xd_y;
     const double _t23 = _t20*xd_x;
     const double _t24 = _t20*(_t21*_t22 + _t23*(_t13 + _t14));
     const double _t25 = _t20*(_t21*_t23 + _t22*(_t14 + _t18));
-    const int _t26 = _t5 < 1e-06;
-    const double _t27 = _s0*l1*l2/kinegen_max(_t4, (1e-06)*_t1);
+    const int _t26 = _t5 < 1e-08;
+    const double _t27 = _s0*l1*l2/kinegen_max(_t4, (1e-08)*_t1);
     qd[0] = ((_t26) ? (
    _t19*(_t12*_t25 + _t17*_t24)
 )
@@ -2132,22 +2132,22 @@ void planar_2r_joint_velocity_batch(size_t count, const double *restrict q, cons
             for (i = 0; i < n; ++i) {
                 const double _t4 = (_s0[i]*_s0[i])*_t2*(l1*l1);
                 const double _t5 = _t4/_t1;
-                const double _t6 = kinegen_max(0, 1 - 1000000*_t5);
+                const double _t6 = kinegen_max(0, 1 - 100000000*_t5);
                 const double _t11 = _c1[i]*l2;
                 const double _t12 = _c2[i]*l1 + _t11;
                 const double _t13 = (_c1[i]*_c1[i])*_t10 + (_t12*_t12)*_t9;
-                const double _t14 = (0.0001)*_t6;
+                const double _t14 = (1e-06)*_t6;
                 const double _t16 = _s1[i]*l2;
                 const double _t17 = -_s2[i]*l1 - _t16;
                 const double _t18 = (_s1[i]*_s1[i])*_t10 + (_t17*_t17)*_t9;
-                const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-08)*(_t6*_t6));
+                const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-12)*(_t6*_t6));
                 const double _t21 = _c1[i]*_s1[i]*_t10 - _t12*_t17*_t9;
                 const double _t22 = _t20*xd_y[i];
                 const double _t23 = _t20*xd_x[i];
                 const double _t24 = _t20*(_t21*_t22 + _t23*(_t13 + _t14));
                 const double _t25 = _t20*(_t21*_t23 + _t22*(_t14 + _t18));
-                const int _t26 = _t5 < 1e-06;
-                const double _t27 = _s0[i]*l1*l2/kinegen_max(_t4, (1e-06)*_t1);
+                const int _t26 = _t5 < 1e-08;
+                const double _t27 = _s0[i]*l1*l2/kinegen_max(_t4, (1e-08)*_t1);
                 _qd_block[0][i] = ((_t26) ? (
    _t19*(_t12*_t25 + _t17*_t24)
 )
@@ -2169,22 +2169,22 @@ void planar_2r_joint_velocity_batch(size_t count, const double *restrict q, cons
             for (i = 0; i < n; ++i) {
                 const double _t4 = (_s0[i]*_s0[i])*_t2*(l1*l1);
                 const double _t5 = _t4/_t1;
-                const double _t6 = kinegen_max(0, 1 - 1000000*_t5);
+                const double _t6 = kinegen_max(0, 1 - 100000000*_t5);
                 const double _t11 = _c1[i]*l2;
                 const double _t12 = _c2[i]*l1 + _t11;
                 const double _t13 = (_c1[i]*_c1[i])*_t10 + (_t12*_t12)*_t9;
-                const double _t14 = (0.0001)*_t6;
+                const double _t14 = (1e-06)*_t6;
                 const double _t16 = _s1[i]*l2;
                 const double _t17 = -_s2[i]*l1 - _t16;
                 const double _t18 = (_s1[i]*_s1[i])*_t10 + (_t17*_t17)*_t9;
-                const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-08)*(_t6*_t6));
+                const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-12)*(_t6*_t6));
                 const double _t21 = _c1[i]*_s1[i]*_t10 - _t12*_t17*_t9;
                 const double _t22 = _t20*xd_y[i];
                 const double _t23 = _t20*xd_x[i];
                 const double _t24 = _t20*(_t21*_t22 + _t23*(_t13 + _t14));
                 const double _t25 = _t20*(_t21*_t23 + _t22*(_t14 + _t18));
-                const int _t26 = _t5 < 1e-06;
-                const double _t27 = _s0[i]*l1*l2/kinegen_max(_t4, (1e-06)*_t1);
+                const int _t26 = _t5 < 1e-08;
+                const double _t27 = _s0[i]*l1*l2/kinegen_max(_t4, (1e-08)*_t1);
                 qd[2 * (start + i) + 0] = ((_t26) ? (
    _t19*(_t12*_t25 + _t17*_t24)
 )
@@ -2275,15 +2275,15 @@ void planar_2r_joint_acceleration(const double *restrict q, const double *restri
 #endif
     const double _t4 = (_s0*_s0)*_t2*(l1*l1);
     const double _t5 = _t4/_t1;
-    const double _t6 = kinegen_max(0, 1 - 1000000*_t5);
+    const double _t6 = kinegen_max(0, 1 - 100000000*_t5);
     const double _t11 = _c1*l2;
     const double _t12 = _c2*l1 + _t11;
     const double _t13 = (_c1*_c1)*_t10 + (_t12*_t12)*_t9;
-    const double _t14 = (0.0001)*_t6;
+    const double _t14 = (1e-06)*_t6;
     const double _t16 = _s1*l2;
     const double _t17 = -_s2*l1 - _t16;
     const double _t18 = (_s1*_s1)*_t10 + (_t17*_t17)*_t9;
-    const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-08)*(_t6*_t6));
+    const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-12)*(_t6*_t6));
     const double _t21 = _t16*qd2;
     const double _t22 = -qd1*(_t17*qd1 - _t21) - qd2*(-_t16*qd1 - _t21) + xdd_y;
     const double _t23 = _t20*(_c1*_s1*_t10 - _t12*_t17*_t9);
@@ -2292,8 +2292,8 @@ void planar_2r_joint_acceleration(const double *restrict q, const double *restri
     const double _t26 = -qd1*(-_t24 + _t25*qd1) - qd2*(-_t11*qd1 - _t24) + xdd_x;
     const double _t27 = _t20*(_t20*_t26*(_t13 + _t14) + _t22*_t23);
     const double _t28 = _t20*_t22*(_t14 + _t18) + _t23*_t26;
-    const int _t29 = _t5 < 1e-06;
-    const double _t30 = _s0*l1*l2/kinegen_max(_t4, (1e-06)*_t1);
+    const int _t29 = _t5 < 1e-08;
+    const double _t30 = _s0*l1*l2/kinegen_max(_t4, (1e-08)*_t1);
     qdd[0] = ((_t29) ? (
    _t19*(_t12*_t20*_t28 + _t17*_t27)
 )
@@ -2382,15 +2382,15 @@ void planar_2r_joint_acceleration_batch(size_t count, const double *restrict q, 
             for (i = 0; i < n; ++i) {
                 const double _t4 = (_s0[i]*_s0[i])*_t2*(l1*l1);
                 const double _t5 = _t4/_t1;
-                const double _t6 = kinegen_max(0, 1 - 1000000*_t5);
+                const double _t6 = kinegen_max(0, 1 - 100000000*_t5);
                 const double _t11 = _c1[i]*l2;
                 const double _t12 = _c2[i]*l1 + _t11;
                 const double _t13 = (_c1[i]*_c1[i])*_t10 + (_t12*_t12)*_t9;
-                const double _t14 = (0.0001)*_t6;
+                const double _t14 = (1e-06)*_t6;
                 const double _t16 = _s1[i]*l2;
                 const double _t17 = -_s2[i]*l1 - _t16;
                 const double _t18 = (_s1[i]*_s1[i])*_t10 + (_t17*_t17)*_t9;
-                const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-08)*(_t6*_t6));
+                const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-12)*(_t6*_t6));
                 const double _t21 = _t16*qd2[i];
                 const double _t22 = -qd1[i]*(_t17*qd1[i] - _t21) - qd2[i]*(-_t16*qd1[i] - _t21) + xdd_y[i];
                 const double _t23 = _t20*(_c1[i]*_s1[i]*_t10 - _t12*_t17*_t9);
@@ -2399,8 +2399,8 @@ void planar_2r_joint_acceleration_batch(size_t count, const double *restrict q, 
                 const double _t26 = -qd1[i]*(-_t24 + _t25*qd1[i]) - qd2[i]*(-_t11*qd1[i] - _t24) + xdd_x[i];
                 const double _t27 = _t20*(_t20*_t26*(_t13 + _t14) + _t22*_t23);
                 const double _t28 = _t20*_t22*(_t14 + _t18) + _t23*_t26;
-                const int _t29 = _t5 < 1e-06;
-                const double _t30 = _s0[i]*l1*l2/kinegen_max(_t4, (1e-06)*_t1);
+                const int _t29 = _t5 < 1e-08;
+                const double _t30 = _s0[i]*l1*l2/kinegen_max(_t4, (1e-08)*_t1);
                 _qdd_block[0][i] = ((_t29) ? (
    _t19*(_t12*_t20*_t28 + _t17*_t27)
 )
@@ -2422,15 +2422,15 @@ void planar_2r_joint_acceleration_batch(size_t count, const double *restrict q, 
             for (i = 0; i < n; ++i) {
                 const double _t4 = (_s0[i]*_s0[i])*_t2*(l1*l1);
                 const double _t5 = _t4/_t1;
-                const double _t6 = kinegen_max(0, 1 - 1000000*_t5);
+                const double _t6 = kinegen_max(0, 1 - 100000000*_t5);
                 const double _t11 = _c1[i]*l2;
                 const double _t12 = _c2[i]*l1 + _t11;
                 const double _t13 = (_c1[i]*_c1[i])*_t10 + (_t12*_t12)*_t9;
-                const double _t14 = (0.0001)*_t6;
+                const double _t14 = (1e-06)*_t6;
                 const double _t16 = _s1[i]*l2;
                 const double _t17 = -_s2[i]*l1 - _t16;
                 const double _t18 = (_s1[i]*_s1[i])*_t10 + (_t17*_t17)*_t9;
-                const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-08)*(_t6*_t6));
+                const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-12)*(_t6*_t6));
                 const double _t21 = _t16*qd2[i];
                 const double _t22 = -qd1[i]*(_t17*qd1[i] - _t21) - qd2[i]*(-_t16*qd1[i] - _t21) + xdd_y[i];
                 const double _t23 = _t20*(_c1[i]*_s1[i]*_t10 - _t12*_t17*_t9);
@@ -2439,8 +2439,8 @@ void planar_2r_joint_acceleration_batch(size_t count, const double *restrict q, 
                 const double _t26 = -qd1[i]*(-_t24 + _t25*qd1[i]) - qd2[i]*(-_t11*qd1[i] - _t24) + xdd_x[i];
                 const double _t27 = _t20*(_t20*_t26*(_t13 + _t14) + _t22*_t23);
                 const double _t28 = _t20*_t22*(_t14 + _t18) + _t23*_t26;
-                const int _t29 = _t5 < 1e-06;
-                const double _t30 = _s0[i]*l1*l2/kinegen_max(_t4, (1e-06)*_t1);
+                const int _t29 = _t5 < 1e-08;
+                const double _t30 = _s0[i]*l1*l2/kinegen_max(_t4, (1e-08)*_t1);
                 qdd[2 * (start + i) + 0] = ((_t29) ? (
    _t19*(_t12*_t20*_t28 + _t17*_t27)
 )

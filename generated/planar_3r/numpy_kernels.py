@@ -778,7 +778,7 @@ def manipulability(q, *, l1=0.5, l2=0.4, l3=0.2):
         _manipulability = manipulability[_start:_start + CHUNK].T
         _manipulability[0] = abs(_s0*l1*l2)
         _singular = singular[_start:_start + CHUNK].T
-        _singular[0] = numpy.less((_s0*_s0)*(l1*l1)*(l2*l2)/((abs(l1) + abs(l2) + abs(l3))*(abs(l1) + abs(l2) + abs(l3))*(abs(l1) + abs(l2) + abs(l3))*(abs(l1) + abs(l2) + abs(l3))), 1e-06)
+        _singular[0] = numpy.less((_s0*_s0)*(l1*l1)*(l2*l2)/((abs(l1) + abs(l2) + abs(l3))*(abs(l1) + abs(l2) + abs(l3))*(abs(l1) + abs(l2) + abs(l3))*(abs(l1) + abs(l2) + abs(l3))), 1e-08)
     return manipulability.reshape(_batch + ()), singular.reshape(_batch + ())
 
 
@@ -855,13 +855,13 @@ def joint_velocity(q, xd, *, l1=0.5, l2=0.4, l3=0.2):
         _c5 = (1.0 - _u5)*_r5
         _t7 = (_s0*_s0)*_t5
         _t8 = _t4*_t7
-        _t9 = numpy.maximum(0, 1 - 1000000*_t8)
+        _t9 = numpy.maximum(0, 1 - 100000000*_t8)
         _t10 = (_t9*_t9)
         _t17 = _c1*l1
         _t18 = _c2*l2
         _t19 = _t17 + _t18
         _t20 = (_c1*_c1)*_t13 + (_c2*_c2)*_t16 + _t12*(_t19*_t19)
-        _t21 = (0.0001)*_t9
+        _t21 = (1e-06)*_t9
         _t24 = _s1*l1
         _t25 = _s2*l2
         _t26 = _t24 + _t25
@@ -876,12 +876,12 @@ def joint_velocity(q, xd, *, l1=0.5, l2=0.4, l3=0.2):
         _t42 = _t18 + _t41
         _t43 = _t19 + _t41
         _t44 = (_c5*_c5)*_t40 + _t12*(_t42*_t42) + _t12*(_t43*_t43)
-        _t45 = (1e-08)*_t10
+        _t45 = (1e-12)*_t10
         _t47 = _s5*l3
         _t48 = -_t25 - _t47
         _t49 = -_t26 - _t47
         _t50 = (_s5*_s5)*_t40 + _t12*(_t48*_t48) + _t12*(_t49*_t49)
-        _t51 = 1.0/((3e-08)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-12)*(_t9*_t9*_t9))
+        _t51 = 1.0/((3e-12)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-18)*(_t9*_t9*_t9))
         _t53 = _s3*_t5*_t52*l3
         _t54 = _t0*_t34*_t52
         _t55 = _t36*l3
@@ -892,7 +892,7 @@ def joint_velocity(q, xd, *, l1=0.5, l2=0.4, l3=0.2):
         _t61 = _s1*_t54 + _s2*_t53 - _t21*(_t58 + _t59 + _t60) - _t27*_t56
         _t62 = _c1*_s1*_t13 + _c2*_s2*_t16 - _t12*_t19*_t27 - _t21*(-_c5*_s5*_t40 + _t12*_t42*_t48 + _t12*_t43*_t49)
         _t63 = _t57*xd_x
-        _t64 = (0.0003)*_t9
+        _t64 = (3e-06)*_t9
         _t65 = _t21*_t50 + _t45
         _t66 = _t57*xd_y
         _t67 = _t61*xd_phi + _t62*_t63 + _t66*(_t28 + _t64 + _t65)
@@ -903,8 +903,8 @@ def joint_velocity(q, xd, *, l1=0.5, l2=0.4, l3=0.2):
         _t72 = _t21*_t44
         _t73 = _t62*_t66 + _t63*(_t20 + _t45 + _t64 + _t72) + _t71*xd_phi
         _t74 = _t61*_t66 + _t63*_t71 + xd_phi*(_t37 + _t65 + _t72)
-        _t75 = numpy.less(_t8, 1e-06)
-        _t76 = _t32*l1/numpy.maximum((1e-06)*_t2, _t0*_t7)
+        _t75 = numpy.less(_t8, 1e-08)
+        _t76 = _t32*l1/numpy.maximum((1e-08)*_t2, _t0*_t7)
         _qd = qd[_start:_start + CHUNK].T
         _qd[0] = numpy.where(_t75, _t51*(_t60*_t67 + _t70*_t73 + _t74), _t76*(_t18*xd_x + _t25*xd_y + _t35*l3*xd_phi))
         _qd[1] = numpy.where(_t75, _t51*(_t59*_t67 + _t69*_t73 + _t74), _t76*(-_t19*xd_x + _t27*xd_y - _t55*xd_phi))
@@ -994,13 +994,13 @@ def joint_acceleration(q, qd, xdd, *, l1=0.5, l2=0.4, l3=0.2):
         _c5 = (1.0 - _u5)*_r5
         _t7 = (_s0*_s0)*_t5
         _t8 = _t4*_t7
-        _t9 = numpy.maximum(0, 1 - 1000000*_t8)
+        _t9 = numpy.maximum(0, 1 - 100000000*_t8)
         _t10 = (_t9*_t9)
         _t17 = _c1*l1
         _t18 = _c2*l2
         _t19 = _t17 + _t18
         _t20 = (_c1*_c1)*_t13 + (_c2*_c2)*_t16 + _t12*(_t19*_t19)
-        _t21 = (0.0001)*_t9
+        _t21 = (1e-06)*_t9
         _t24 = _s1*l1
         _t25 = _s2*l2
         _t26 = _t24 + _t25
@@ -1015,12 +1015,12 @@ def joint_acceleration(q, qd, xdd, *, l1=0.5, l2=0.4, l3=0.2):
         _t42 = _t18 + _t41
         _t43 = _t19 + _t41
         _t44 = (_c5*_c5)*_t40 + _t12*(_t42*_t42) + _t12*(_t43*_t43)
-        _t45 = (1e-08)*_t10
+        _t45 = (1e-12)*_t10
         _t47 = _s5*l3
         _t48 = -_t25 - _t47
         _t49 = -_t26 - _t47
         _t50 = (_s5*_s5)*_t40 + _t12*(_t48*_t48) + _t12*(_t49*_t49)
-        _t51 = 1.0/((3e-08)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-12)*(_t9*_t9*_t9))
+        _t51 = 1.0/((3e-12)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-18)*(_t9*_t9*_t9))
         _t53 = _s3*_t5*_t52*l3
         _t54 = _t0*_t34*_t52
         _t55 = _t36*l3
@@ -1035,7 +1035,7 @@ def joint_acceleration(q, qd, xdd, *, l1=0.5, l2=0.4, l3=0.2):
         _t65 = -_t63 + _t64*qd2
         _t66 = -qd1*(-_t43*qd1 + _t65) - qd2*(_t64*qd1 + _t65) - qd3*(-_t41*qd1 - _t41*qd2 - _t63) + xdd_x
         _t67 = _t57*_t66
-        _t68 = (0.0003)*_t9
+        _t68 = (3e-06)*_t9
         _t69 = _t21*_t50 + _t45
         _t70 = _t47*qd3
         _t71 = _t48*qd2 - _t70
@@ -1049,8 +1049,8 @@ def joint_acceleration(q, qd, xdd, *, l1=0.5, l2=0.4, l3=0.2):
         _t79 = _t21*_t44
         _t80 = _t62*_t73 + _t67*(_t20 + _t45 + _t68 + _t79) + _t78*xdd_phi
         _t81 = _t61*_t73 + _t67*_t78 + xdd_phi*(_t37 + _t69 + _t79)
-        _t82 = numpy.less(_t8, 1e-06)
-        _t83 = _t32*l1/numpy.maximum((1e-06)*_t2, _t0*_t7)
+        _t82 = numpy.less(_t8, 1e-08)
+        _t83 = _t32*l1/numpy.maximum((1e-08)*_t2, _t0*_t7)
         _qdd = qdd[_start:_start + CHUNK].T
         _qdd[0] = numpy.where(_t82, _t51*(_t60*_t74 + _t77*_t80 + _t81), _t83*(_t18*_t66 + _t25*_t72 + _t35*l3*xdd_phi))
         _qdd[1] = numpy.where(_t82, _t51*(_t59*_t74 + _t76*_t80 + _t81), _t83*(-_t19*_t66 + _t27*_t72 - _t55*xdd_phi))

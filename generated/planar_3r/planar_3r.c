@@ -2302,7 +2302,7 @@ void planar_3r_manipulability(const double *restrict q, const planar_3r_params *
     double _s0;
     _s0 = sin(q2);
     manipulability[0] = fabs(_s0*l1*l2);
-    singular[0] = (_s0*_s0)*(l1*l1)*(l2*l2)/((fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))) < 1e-06;
+    singular[0] = (_s0*_s0)*(l1*l1)*(l2*l2)/((fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))) < 1e-08;
 }
 
 /* manipulability of `count` items, stored one after the other in each argument and output. */
@@ -2330,7 +2330,7 @@ void planar_3r_manipulability_batch(size_t count, const double *restrict q, cons
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             manipulability[1 * (start + i) + 0] = fabs(_s0[i]*l1*l2);
-            singular[1 * (start + i) + 0] = (_s0[i]*_s0[i])*(l1*l1)*(l2*l2)/((fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))) < 1e-06;
+            singular[1 * (start + i) + 0] = (_s0[i]*_s0[i])*(l1*l1)*(l2*l2)/((fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))*(fabs(l1) + fabs(l2) + fabs(l3))) < 1e-08;
         }
     }
 #else
@@ -2411,13 +2411,13 @@ void planar_3r_joint_velocity(const double *restrict q, const double *restrict x
 #endif
     const double _t7 = (_s0*_s0)*_t5;
     const double _t8 = _t4*_t7;
-    const double _t9 = kinegen_max(0, 1 - 1000000*_t8);
+    const double _t9 = kinegen_max(0, 1 - 100000000*_t8);
     const double _t10 = (_t9*_t9);
     const double _t17 = _c1*l1;
     const double _t18 = _c2*l2;
     const double _t19 = _t17 + _t18;
     const double _t20 = (_c1*_c1)*_t13 + (_c2*_c2)*_t16 + _t12*(_t19*_t19);
-    const double _t21 = (0.0001)*_t9;
+    const double _t21 = (1e-06)*_t9;
     const double _t24 = _s1*l1;
     const double _t25 = _s2*l2;
     const double _t26 = _t24 + _t25;
@@ -2432,12 +2432,12 @@ void planar_3r_joint_velocity(const double *restrict q, const double *restrict x
     const double _t42 = _t18 + _t41;
     const double _t43 = _t19 + _t41;
     const double _t44 = (_c5*_c5)*_t40 + _t12*(_t42*_t42) + _t12*(_t43*_t43);
-    const double _t45 = (1e-08)*_t10;
+    const double _t45 = (1e-12)*_t10;
     const double _t47 = _s5*l3;
     const double _t48 = -_t25 - _t47;
     const double _t49 = -_t26 - _t47;
     const double _t50 = (_s5*_s5)*_t40 + _t12*(_t48*_t48) + _t12*(_t49*_t49);
-    const double _t51 = 1.0/((3e-08)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-12)*(_t9*_t9*_t9));
+    const double _t51 = 1.0/((3e-12)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-18)*(_t9*_t9*_t9));
     const double _t53 = _s3*_t5*_t52*l3;
     const double _t54 = _t0*_t34*_t52;
     const double _t55 = _t36*l3;
@@ -2448,7 +2448,7 @@ void planar_3r_joint_velocity(const double *restrict q, const double *restrict x
     const double _t61 = _s1*_t54 + _s2*_t53 - _t21*(_t58 + _t59 + _t60) - _t27*_t56;
     const double _t62 = _c1*_s1*_t13 + _c2*_s2*_t16 - _t12*_t19*_t27 - _t21*(-_c5*_s5*_t40 + _t12*_t42*_t48 + _t12*_t43*_t49);
     const double _t63 = _t57*xd_x;
-    const double _t64 = (0.0003)*_t9;
+    const double _t64 = (3e-06)*_t9;
     const double _t65 = _t21*_t50 + _t45;
     const double _t66 = _t57*xd_y;
     const double _t67 = _t61*xd_phi + _t62*_t63 + _t66*(_t28 + _t64 + _t65);
@@ -2459,8 +2459,8 @@ void planar_3r_joint_velocity(const double *restrict q, const double *restrict x
     const double _t72 = _t21*_t44;
     const double _t73 = _t62*_t66 + _t63*(_t20 + _t45 + _t64 + _t72) + _t71*xd_phi;
     const double _t74 = _t61*_t66 + _t63*_t71 + xd_phi*(_t37 + _t65 + _t72);
-    const int _t75 = _t8 < 1e-06;
-    const double _t76 = _t32*l1/kinegen_max((1e-06)*_t2, _t0*_t7);
+    const int _t75 = _t8 < 1e-08;
+    const double _t76 = _t32*l1/kinegen_max((1e-08)*_t2, _t0*_t7);
     qd[0] = ((_t75) ? (
    _t51*(_t60*_t67 + _t70*_t73 + _t74)
 )
@@ -2581,13 +2581,13 @@ void planar_3r_joint_velocity_batch(size_t count, const double *restrict q, cons
         for (i = 0; i < n; ++i) {
             const double _t7 = (_s0[i]*_s0[i])*_t5;
             const double _t8 = _t4*_t7;
-            const double _t9 = kinegen_max(0, 1 - 1000000*_t8);
+            const double _t9 = kinegen_max(0, 1 - 100000000*_t8);
             const double _t10 = (_t9*_t9);
             const double _t17 = _c1[i]*l1;
             const double _t18 = _c2[i]*l2;
             const double _t19 = _t17 + _t18;
             const double _t20 = (_c1[i]*_c1[i])*_t13 + (_c2[i]*_c2[i])*_t16 + _t12*(_t19*_t19);
-            const double _t21 = (0.0001)*_t9;
+            const double _t21 = (1e-06)*_t9;
             const double _t24 = _s1[i]*l1;
             const double _t25 = _s2[i]*l2;
             const double _t26 = _t24 + _t25;
@@ -2602,12 +2602,12 @@ void planar_3r_joint_velocity_batch(size_t count, const double *restrict q, cons
             const double _t42 = _t18 + _t41;
             const double _t43 = _t19 + _t41;
             const double _t44 = (_c5[i]*_c5[i])*_t40 + _t12*(_t42*_t42) + _t12*(_t43*_t43);
-            const double _t45 = (1e-08)*_t10;
+            const double _t45 = (1e-12)*_t10;
             const double _t47 = _s5[i]*l3;
             const double _t48 = -_t25 - _t47;
             const double _t49 = -_t26 - _t47;
             const double _t50 = (_s5[i]*_s5[i])*_t40 + _t12*(_t48*_t48) + _t12*(_t49*_t49);
-            const double _t51 = 1.0/((3e-08)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-12)*(_t9*_t9*_t9));
+            const double _t51 = 1.0/((3e-12)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-18)*(_t9*_t9*_t9));
             const double _t53 = _s3[i]*_t5*_t52*l3;
             const double _t54 = _t0*_t34*_t52;
             const double _t55 = _t36*l3;
@@ -2618,7 +2618,7 @@ void planar_3r_joint_velocity_batch(size_t count, const double *restrict q, cons
             const double _t61 = _s1[i]*_t54 + _s2[i]*_t53 - _t21*(_t58 + _t59 + _t60) - _t27*_t56;
             const double _t62 = _c1[i]*_s1[i]*_t13 + _c2[i]*_s2[i]*_t16 - _t12*_t19*_t27 - _t21*(-_c5[i]*_s5[i]*_t40 + _t12*_t42*_t48 + _t12*_t43*_t49);
             const double _t63 = _t57*xd_x[i];
-            const double _t64 = (0.0003)*_t9;
+            const double _t64 = (3e-06)*_t9;
             const double _t65 = _t21*_t50 + _t45;
             const double _t66 = _t57*xd_y[i];
             const double _t67 = _t61*xd_phi[i] + _t62*_t63 + _t66*(_t28 + _t64 + _t65);
@@ -2629,8 +2629,8 @@ void planar_3r_joint_velocity_batch(size_t count, const double *restrict q, cons
             const double _t72 = _t21*_t44;
             const double _t73 = _t62*_t66 + _t63*(_t20 + _t45 + _t64 + _t72) + _t71*xd_phi[i];
             const double _t74 = _t61*_t66 + _t63*_t71 + xd_phi[i]*(_t37 + _t65 + _t72);
-            const int _t75 = _t8 < 1e-06;
-            const double _t76 = _t32*l1/kinegen_max((1e-06)*_t2, _t0*_t7);
+            const int _t75 = _t8 < 1e-08;
+            const double _t76 = _t32*l1/kinegen_max((1e-08)*_t2, _t0*_t7);
             qd[3 * (start + i) + 0] = ((_t75) ? (
    _t51*(_t60*_t67 + _t70*_t73 + _t74)
 )
@@ -2733,13 +2733,13 @@ void planar_3r_joint_acceleration(const double *restrict q, const double *restri
 #endif
     const double _t7 = (_s0*_s0)*_t5;
     const double _t8 = _t4*_t7;
-    const double _t9 = kinegen_max(0, 1 - 1000000*_t8);
+    const double _t9 = kinegen_max(0, 1 - 100000000*_t8);
     const double _t10 = (_t9*_t9);
     const double _t17 = _c1*l1;
     const double _t18 = _c2*l2;
     const double _t19 = _t17 + _t18;
     const double _t20 = (_c1*_c1)*_t13 + (_c2*_c2)*_t16 + _t12*(_t19*_t19);
-    const double _t21 = (0.0001)*_t9;
+    const double _t21 = (1e-06)*_t9;
     const double _t24 = _s1*l1;
     const double _t25 = _s2*l2;
     const double _t26 = _t24 + _t25;
@@ -2754,12 +2754,12 @@ void planar_3r_joint_acceleration(const double *restrict q, const double *restri
     const double _t42 = _t18 + _t41;
     const double _t43 = _t19 + _t41;
     const double _t44 = (_c5*_c5)*_t40 + _t12*(_t42*_t42) + _t12*(_t43*_t43);
-    const double _t45 = (1e-08)*_t10;
+    const double _t45 = (1e-12)*_t10;
     const double _t47 = _s5*l3;
     const double _t48 = -_t25 - _t47;
     const double _t49 = -_t26 - _t47;
     const double _t50 = (_s5*_s5)*_t40 + _t12*(_t48*_t48) + _t12*(_t49*_t49);
-    const double _t51 = 1.0/((3e-08)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-12)*(_t9*_t9*_t9));
+    const double _t51 = 1.0/((3e-12)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-18)*(_t9*_t9*_t9));
     const double _t53 = _s3*_t5*_t52*l3;
     const double _t54 = _t0*_t34*_t52;
     const double _t55 = _t36*l3;
@@ -2774,7 +2774,7 @@ void planar_3r_joint_acceleration(const double *restrict q, const double *restri
     const double _t65 = -_t63 + _t64*qd2;
     const double _t66 = -qd1*(-_t43*qd1 + _t65) - qd2*(_t64*qd1 + _t65) - qd3*(-_t41*qd1 - _t41*qd2 - _t63) + xdd_x;
     const double _t67 = _t57*_t66;
-    const double _t68 = (0.0003)*_t9;
+    const double _t68 = (3e-06)*_t9;
     const double _t69 = _t21*_t50 + _t45;
     const double _t70 = _t47*qd3;
     const double _t71 = _t48*qd2 - _t70;
@@ -2788,8 +2788,8 @@ void planar_3r_joint_acceleration(const double *restrict q, const double *restri
     const double _t79 = _t21*_t44;
     const double _t80 = _t62*_t73 + _t67*(_t20 + _t45 + _t68 + _t79) + _t78*xdd_phi;
     const double _t81 = _t61*_t73 + _t67*_t78 + xdd_phi*(_t37 + _t69 + _t79);
-    const int _t82 = _t8 < 1e-06;
-    const double _t83 = _t32*l1/kinegen_max((1e-06)*_t2, _t0*_t7);
+    const int _t82 = _t8 < 1e-08;
+    const double _t83 = _t32*l1/kinegen_max((1e-08)*_t2, _t0*_t7);
     qdd[0] = ((_t82) ? (
    _t51*(_t60*_t74 + _t77*_t80 + _t81)
 )
@@ -2916,13 +2916,13 @@ void planar_3r_joint_acceleration_batch(size_t count, const double *restrict q, 
         for (i = 0; i < n; ++i) {
             const double _t7 = (_s0[i]*_s0[i])*_t5;
             const double _t8 = _t4*_t7;
-            const double _t9 = kinegen_max(0, 1 - 1000000*_t8);
+            const double _t9 = kinegen_max(0, 1 - 100000000*_t8);
             const double _t10 = (_t9*_t9);
             const double _t17 = _c1[i]*l1;
             const double _t18 = _c2[i]*l2;
             const double _t19 = _t17 + _t18;
             const double _t20 = (_c1[i]*_c1[i])*_t13 + (_c2[i]*_c2[i])*_t16 + _t12*(_t19*_t19);
-            const double _t21 = (0.0001)*_t9;
+            const double _t21 = (1e-06)*_t9;
             const double _t24 = _s1[i]*l1;
             const double _t25 = _s2[i]*l2;
             const double _t26 = _t24 + _t25;
@@ -2937,12 +2937,12 @@ void planar_3r_joint_acceleration_batch(size_t count, const double *restrict q, 
             const double _t42 = _t18 + _t41;
             const double _t43 = _t19 + _t41;
             const double _t44 = (_c5[i]*_c5[i])*_t40 + _t12*(_t42*_t42) + _t12*(_t43*_t43);
-            const double _t45 = (1e-08)*_t10;
+            const double _t45 = (1e-12)*_t10;
             const double _t47 = _s5[i]*l3;
             const double _t48 = -_t25 - _t47;
             const double _t49 = -_t26 - _t47;
             const double _t50 = (_s5[i]*_s5[i])*_t40 + _t12*(_t48*_t48) + _t12*(_t49*_t49);
-            const double _t51 = 1.0/((3e-08)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-12)*(_t9*_t9*_t9));
+            const double _t51 = 1.0/((3e-12)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-18)*(_t9*_t9*_t9));
             const double _t53 = _s3[i]*_t5*_t52*l3;
             const double _t54 = _t0*_t34*_t52;
             const double _t55 = _t36*l3;
@@ -2957,7 +2957,7 @@ void planar_3r_joint_acceleration_batch(size_t count, const double *restrict q, 
             const double _t65 = -_t63 + _t64*qd2[i];
             const double _t66 = -qd1[i]*(-_t43*qd1[i] + _t65) - qd2[i]*(_t64*qd1[i] + _t65) - qd3[i]*(-_t41*qd1[i] - _t41*qd2[i] - _t63) + xdd_x[i];
             const double _t67 = _t57*_t66;
-            const double _t68 = (0.0003)*_t9;
+            const double _t68 = (3e-06)*_t9;
             const double _t69 = _t21*_t50 + _t45;
             const double _t70 = _t47*qd3[i];
             const double _t71 = _t48*qd2[i] - _t70;
@@ -2971,8 +2971,8 @@ void planar_3r_joint_acceleration_batch(size_t count, const double *restrict q, 
             const double _t79 = _t21*_t44;
             const double _t80 = _t62*_t73 + _t67*(_t20 + _t45 + _t68 + _t79) + _t78*xdd_phi[i];
             const double _t81 = _t61*_t73 + _t67*_t78 + xdd_phi[i]*(_t37 + _t69 + _t79);
-            const int _t82 = _t8 < 1e-06;
-            const double _t83 = _t32*l1/kinegen_max((1e-06)*_t2, _t0*_t7);
+            const int _t82 = _t8 < 1e-08;
+            const double _t83 = _t32*l1/kinegen_max((1e-08)*_t2, _t0*_t7);
             qdd[3 * (start + i) + 0] = ((_t82) ? (
    _t51*(_t60*_t74 + _t77*_t80 + _t81)
 )

@@ -480,7 +480,7 @@ def manipulability(q):
         _manipulability = manipulability[_start:_start + CHUNK].T
         _manipulability[0] = abs(q2)
         _singular = singular[_start:_start + CHUNK].T
-        _singular[0] = numpy.less((q2*q2), 1e-06)
+        _singular[0] = numpy.less((q2*q2), 1e-08)
     return manipulability.reshape(_batch + ()), singular.reshape(_batch + ())
 
 
@@ -512,21 +512,21 @@ def joint_velocity(q, xd):
         _s0 = (_h0 + _h0)*_r0
         _c0 = (1.0 - _u0)*_r0
         _t0 = (q2*q2)
-        _t1 = numpy.maximum(0, 1 - 1000000*_t0)
+        _t1 = numpy.maximum(0, 1 - 100000000*_t0)
         _t3 = (_c0*_c0)
         _t5 = (_s0*_s0)
         _t6 = _t0*_t5 + _t3
-        _t7 = (0.0001)*_t1
+        _t7 = (1e-06)*_t1
         _t8 = _t0*_t3 + _t5
-        _t9 = 1.0/(_t0 + (1e-08)*(_t1*_t1) + _t6*_t7 + _t7*_t8)
+        _t9 = 1.0/(_t0 + (1e-12)*(_t1*_t1) + _t6*_t7 + _t7*_t8)
         _t10 = _c0*_s0
         _t11 = _t0*_t10 - _t10
         _t12 = _t11*xd_x + xd_y*(_t6 + _t7)
         _t13 = _c0*q2
         _t14 = _t11*xd_y + xd_x*(_t7 + _t8)
         _t15 = _s0*q2
-        _t16 = numpy.less(_t0, 1e-06)
-        _t17 = q2/numpy.maximum(1e-06, _t0)
+        _t16 = numpy.less(_t0, 1e-08)
+        _t17 = q2/numpy.maximum(1e-08, _t0)
         _qd = qd[_start:_start + CHUNK].T
         _qd[0] = numpy.where(_t16, _t9*(_t12*_t13 - _t14*_t15), -_t17*(-_c0*xd_y + _s0*xd_x))
         _qd[1] = numpy.where(_t16, _t9*(_c0*_t14 + _s0*_t12), -_t17*(-_t13*xd_x - _t15*xd_y))
@@ -569,13 +569,13 @@ def joint_acceleration(q, qd, xdd):
         _s0 = (_h0 + _h0)*_r0
         _c0 = (1.0 - _u0)*_r0
         _t0 = (q2*q2)
-        _t1 = numpy.maximum(0, 1 - 1000000*_t0)
+        _t1 = numpy.maximum(0, 1 - 100000000*_t0)
         _t3 = (_c0*_c0)
         _t5 = (_s0*_s0)
         _t6 = _t0*_t5 + _t3
-        _t7 = (0.0001)*_t1
+        _t7 = (1e-06)*_t1
         _t8 = _t0*_t3 + _t5
-        _t9 = 1.0/(_t0 + (1e-08)*(_t1*_t1) + _t6*_t7 + _t7*_t8)
+        _t9 = 1.0/(_t0 + (1e-12)*(_t1*_t1) + _t6*_t7 + _t7*_t8)
         _t10 = _c0*_s0
         _t11 = _t0*_t10 - _t10
         _t12 = _s0*qd2
@@ -586,8 +586,8 @@ def joint_acceleration(q, qd, xdd):
         _t17 = _c0*q2
         _t18 = _t11*_t15 + _t14*(_t7 + _t8)
         _t19 = _s0*q2
-        _t20 = numpy.less(_t0, 1e-06)
-        _t21 = q2/numpy.maximum(1e-06, _t0)
+        _t20 = numpy.less(_t0, 1e-08)
+        _t21 = q2/numpy.maximum(1e-08, _t0)
         _qdd = qdd[_start:_start + CHUNK].T
         _qdd[0] = numpy.where(_t20, _t9*(_t16*_t17 - _t18*_t19), -_t21*(-_c0*_t15 + _s0*_t14))
         _qdd[1] = numpy.where(_t20, _t9*(_c0*_t18 + _s0*_t16), -_t21*(-_t14*_t17 - _t15*_t19))

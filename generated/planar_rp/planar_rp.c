@@ -1389,7 +1389,7 @@ void planar_rp_manipulability(const double *restrict q, const planar_rp_params *
     const double q2 = q[1];
     (void)params;
     manipulability[0] = fabs(q2);
-    singular[0] = (q2*q2) < 1e-06;
+    singular[0] = (q2*q2) < 1e-08;
 }
 
 /* manipulability of `count` items, stored one after the other in each argument and output. */
@@ -1407,7 +1407,7 @@ void planar_rp_manipulability_batch(size_t count, const double *restrict q, cons
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             manipulability[1 * (start + i) + 0] = fabs(q2[i]);
-            singular[1 * (start + i) + 0] = (q2[i]*q2[i]) < 1e-06;
+            singular[1 * (start + i) + 0] = (q2[i]*q2[i]) < 1e-08;
         }
     }
 #else
@@ -1430,21 +1430,21 @@ void planar_rp_joint_velocity(const double *restrict q, const double *restrict x
     _s0 = sin(q1);
     _c0 = cos(q1);
     const double _t0 = (q2*q2);
-    const double _t1 = kinegen_max(0, 1 - 1000000*_t0);
+    const double _t1 = kinegen_max(0, 1 - 100000000*_t0);
     const double _t3 = (_c0*_c0);
     const double _t5 = (_s0*_s0);
     const double _t6 = _t0*_t5 + _t3;
-    const double _t7 = (0.0001)*_t1;
+    const double _t7 = (1e-06)*_t1;
     const double _t8 = _t0*_t3 + _t5;
-    const double _t9 = 1.0/(_t0 + (1e-08)*(_t1*_t1) + _t6*_t7 + _t7*_t8);
+    const double _t9 = 1.0/(_t0 + (1e-12)*(_t1*_t1) + _t6*_t7 + _t7*_t8);
     const double _t10 = _c0*_s0;
     const double _t11 = _t0*_t10 - _t10;
     const double _t12 = _t11*xd_x + xd_y*(_t6 + _t7);
     const double _t13 = _c0*q2;
     const double _t14 = _t11*xd_y + xd_x*(_t7 + _t8);
     const double _t15 = _s0*q2;
-    const int _t16 = _t0 < 1e-06;
-    const double _t17 = q2/kinegen_max(1e-06, _t0);
+    const int _t16 = _t0 < 1e-08;
+    const double _t17 = q2/kinegen_max(1e-08, _t0);
     qd[0] = ((_t16) ? (
    _t9*(_t12*_t13 - _t14*_t15)
 )
@@ -1498,21 +1498,21 @@ void planar_rp_joint_velocity_batch(size_t count, const double *restrict q, cons
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
                 const double _t0 = (q2[i]*q2[i]);
-                const double _t1 = kinegen_max(0, 1 - 1000000*_t0);
+                const double _t1 = kinegen_max(0, 1 - 100000000*_t0);
                 const double _t3 = (_c0[i]*_c0[i]);
                 const double _t5 = (_s0[i]*_s0[i]);
                 const double _t6 = _t0*_t5 + _t3;
-                const double _t7 = (0.0001)*_t1;
+                const double _t7 = (1e-06)*_t1;
                 const double _t8 = _t0*_t3 + _t5;
-                const double _t9 = 1.0/(_t0 + (1e-08)*(_t1*_t1) + _t6*_t7 + _t7*_t8);
+                const double _t9 = 1.0/(_t0 + (1e-12)*(_t1*_t1) + _t6*_t7 + _t7*_t8);
                 const double _t10 = _c0[i]*_s0[i];
                 const double _t11 = _t0*_t10 - _t10;
                 const double _t12 = _t11*xd_x[i] + xd_y[i]*(_t6 + _t7);
                 const double _t13 = _c0[i]*q2[i];
                 const double _t14 = _t11*xd_y[i] + xd_x[i]*(_t7 + _t8);
                 const double _t15 = _s0[i]*q2[i];
-                const int _t16 = _t0 < 1e-06;
-                const double _t17 = q2[i]/kinegen_max(1e-06, _t0);
+                const int _t16 = _t0 < 1e-08;
+                const double _t17 = q2[i]/kinegen_max(1e-08, _t0);
                 _qd_block[0][i] = ((_t16) ? (
    _t9*(_t12*_t13 - _t14*_t15)
 )
@@ -1533,21 +1533,21 @@ void planar_rp_joint_velocity_batch(size_t count, const double *restrict q, cons
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
                 const double _t0 = (q2[i]*q2[i]);
-                const double _t1 = kinegen_max(0, 1 - 1000000*_t0);
+                const double _t1 = kinegen_max(0, 1 - 100000000*_t0);
                 const double _t3 = (_c0[i]*_c0[i]);
                 const double _t5 = (_s0[i]*_s0[i]);
                 const double _t6 = _t0*_t5 + _t3;
-                const double _t7 = (0.0001)*_t1;
+                const double _t7 = (1e-06)*_t1;
                 const double _t8 = _t0*_t3 + _t5;
-                const double _t9 = 1.0/(_t0 + (1e-08)*(_t1*_t1) + _t6*_t7 + _t7*_t8);
+                const double _t9 = 1.0/(_t0 + (1e-12)*(_t1*_t1) + _t6*_t7 + _t7*_t8);
                 const double _t10 = _c0[i]*_s0[i];
                 const double _t11 = _t0*_t10 - _t10;
                 const double _t12 = _t11*xd_x[i] + xd_y[i]*(_t6 + _t7);
                 const double _t13 = _c0[i]*q2[i];
                 const double _t14 = _t11*xd_y[i] + xd_x[i]*(_t7 + _t8);
                 const double _t15 = _s0[i]*q2[i];
-                const int _t16 = _t0 < 1e-06;
-                const double _t17 = q2[i]/kinegen_max(1e-06, _t0);
+                const int _t16 = _t0 < 1e-08;
+                const double _t17 = q2[i]/kinegen_max(1e-08, _t0);
                 qd[2 * (start + i) + 0] = ((_t16) ? (
    _t9*(_t12*_t13 - _t14*_t15)
 )
@@ -1601,13 +1601,13 @@ void planar_rp_joint_acceleration(const double *restrict q, const double *restri
     _s0 = sin(q1);
     _c0 = cos(q1);
     const double _t0 = (q2*q2);
-    const double _t1 = kinegen_max(0, 1 - 1000000*_t0);
+    const double _t1 = kinegen_max(0, 1 - 100000000*_t0);
     const double _t3 = (_c0*_c0);
     const double _t5 = (_s0*_s0);
     const double _t6 = _t0*_t5 + _t3;
-    const double _t7 = (0.0001)*_t1;
+    const double _t7 = (1e-06)*_t1;
     const double _t8 = _t0*_t3 + _t5;
-    const double _t9 = 1.0/(_t0 + (1e-08)*(_t1*_t1) + _t6*_t7 + _t7*_t8);
+    const double _t9 = 1.0/(_t0 + (1e-12)*(_t1*_t1) + _t6*_t7 + _t7*_t8);
     const double _t10 = _c0*_s0;
     const double _t11 = _t0*_t10 - _t10;
     const double _t12 = _s0*qd2;
@@ -1618,8 +1618,8 @@ void planar_rp_joint_acceleration(const double *restrict q, const double *restri
     const double _t17 = _c0*q2;
     const double _t18 = _t11*_t15 + _t14*(_t7 + _t8);
     const double _t19 = _s0*q2;
-    const int _t20 = _t0 < 1e-06;
-    const double _t21 = q2/kinegen_max(1e-06, _t0);
+    const int _t20 = _t0 < 1e-08;
+    const double _t21 = q2/kinegen_max(1e-08, _t0);
     qdd[0] = ((_t20) ? (
    _t9*(_t16*_t17 - _t18*_t19)
 )
@@ -1677,13 +1677,13 @@ void planar_rp_joint_acceleration_batch(size_t count, const double *restrict q, 
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
                 const double _t0 = (q2[i]*q2[i]);
-                const double _t1 = kinegen_max(0, 1 - 1000000*_t0);
+                const double _t1 = kinegen_max(0, 1 - 100000000*_t0);
                 const double _t3 = (_c0[i]*_c0[i]);
                 const double _t5 = (_s0[i]*_s0[i]);
                 const double _t6 = _t0*_t5 + _t3;
-                const double _t7 = (0.0001)*_t1;
+                const double _t7 = (1e-06)*_t1;
                 const double _t8 = _t0*_t3 + _t5;
-                const double _t9 = 1.0/(_t0 + (1e-08)*(_t1*_t1) + _t6*_t7 + _t7*_t8);
+                const double _t9 = 1.0/(_t0 + (1e-12)*(_t1*_t1) + _t6*_t7 + _t7*_t8);
                 const double _t10 = _c0[i]*_s0[i];
                 const double _t11 = _t0*_t10 - _t10;
                 const double _t12 = _s0[i]*qd2[i];
@@ -1694,8 +1694,8 @@ void planar_rp_joint_acceleration_batch(size_t count, const double *restrict q, 
                 const double _t17 = _c0[i]*q2[i];
                 const double _t18 = _t11*_t15 + _t14*(_t7 + _t8);
                 const double _t19 = _s0[i]*q2[i];
-                const int _t20 = _t0 < 1e-06;
-                const double _t21 = q2[i]/kinegen_max(1e-06, _t0);
+                const int _t20 = _t0 < 1e-08;
+                const double _t21 = q2[i]/kinegen_max(1e-08, _t0);
                 _qdd_block[0][i] = ((_t20) ? (
    _t9*(_t16*_t17 - _t18*_t19)
 )
@@ -1716,13 +1716,13 @@ void planar_rp_joint_acceleration_batch(size_t count, const double *restrict q, 
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
                 const double _t0 = (q2[i]*q2[i]);
-                const double _t1 = kinegen_max(0, 1 - 1000000*_t0);
+                const double _t1 = kinegen_max(0, 1 - 100000000*_t0);
                 const double _t3 = (_c0[i]*_c0[i]);
                 const double _t5 = (_s0[i]*_s0[i]);
                 const double _t6 = _t0*_t5 + _t3;
-                const double _t7 = (0.0001)*_t1;
+                const double _t7 = (1e-06)*_t1;
                 const double _t8 = _t0*_t3 + _t5;
-                const double _t9 = 1.0/(_t0 + (1e-08)*(_t1*_t1) + _t6*_t7 + _t7*_t8);
+                const double _t9 = 1.0/(_t0 + (1e-12)*(_t1*_t1) + _t6*_t7 + _t7*_t8);
                 const double _t10 = _c0[i]*_s0[i];
                 const double _t11 = _t0*_t10 - _t10;
                 const double _t12 = _s0[i]*qd2[i];
@@ -1733,8 +1733,8 @@ void planar_rp_joint_acceleration_batch(size_t count, const double *restrict q, 
                 const double _t17 = _c0[i]*q2[i];
                 const double _t18 = _t11*_t15 + _t14*(_t7 + _t8);
                 const double _t19 = _s0[i]*q2[i];
-                const int _t20 = _t0 < 1e-06;
-                const double _t21 = q2[i]/kinegen_max(1e-06, _t0);
+                const int _t20 = _t0 < 1e-08;
+                const double _t21 = q2[i]/kinegen_max(1e-08, _t0);
                 qdd[2 * (start + i) + 0] = ((_t20) ? (
    _t9*(_t16*_t17 - _t18*_t19)
 )

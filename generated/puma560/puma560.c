@@ -6279,7 +6279,7 @@ void puma560_manipulability(const double *restrict q, const puma560_params *rest
     const double _t1 = _c1*d4 + _s1*a3;
     const double _t3 = _c2*a2 + _c3*a3 - _s3*d4;
     manipulability[0] = fabs(_s0*_t1*_t3*a2);
-    singular[0] = (_s0*_s0) < 1e-06 || (_t1*_t1)*(_t3*_t3)*(a2*a2)/((fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))) < 1e-06;
+    singular[0] = (_s0*_s0) < 1e-08 || (_t1*_t1)*(_t3*_t3)*(a2*a2)/((fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))) < 1e-08;
 }
 
 /* manipulability of `count` items, stored one after the other in each argument and output. */
@@ -6345,7 +6345,7 @@ void puma560_manipulability_batch(size_t count, const double *restrict q, const 
             const double _t1 = _c1[i]*d4 + _s1[i]*a3;
             const double _t3 = _c2[i]*a2 + _c3[i]*a3 - _s3[i]*d4;
             manipulability[1 * (start + i) + 0] = fabs(_s0[i]*_t1*_t3*a2);
-            singular[1 * (start + i) + 0] = (_s0[i]*_s0[i]) < 1e-06 || (_t1*_t1)*(_t3*_t3)*(a2*a2)/((fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))) < 1e-06;
+            singular[1 * (start + i) + 0] = (_s0[i]*_s0[i]) < 1e-08 || (_t1*_t1)*(_t3*_t3)*(a2*a2)/((fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))) < 1e-08;
         }
     }
 #else
@@ -6456,9 +6456,9 @@ void puma560_joint_velocity(const double *restrict q, const double *restrict xd,
     const double _t14 = _t12*(_t13*_t13);
     const double _t15 = _t11*_t14;
     const double _t16 = _t15/_t1;
-    const double _t17 = kinegen_max(0, 1 - 1000000*_t16);
+    const double _t17 = kinegen_max(0, 1 - 100000000*_t16);
     const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
-    const double _t20 = (1e-08)*(_t17*_t17);
+    const double _t20 = (1e-12)*(_t17*_t17);
     const double _t21 = _s1*a3;
     const double _t22 = _c1*d4;
     const double _t23 = _t21 + _t22;
@@ -6484,7 +6484,7 @@ void puma560_joint_velocity(const double *restrict q, const double *restrict xd,
     const double _t50 = _t21*_t3 + _t22*_t3 + _t49;
     const double _t52 = _c0*_s0*_t12 + _c4*a2*d4 + _s4*a2*a3 + _t49;
     const double _t53 = _t42*(_t50*_t50) + _t42*(_t52*_t52);
-    const double _t54 = (0.0001)*_t17;
+    const double _t54 = (1e-06)*_t17;
     const double _t55 = _t14*_t42;
     const double _t56 = _t33*_t6;
     const double _t57 = _t33*_t8;
@@ -6501,7 +6501,7 @@ void puma560_joint_velocity(const double *restrict q, const double *restrict xd,
     const double _t68 = -_c0*_c3*a2*d3 - 2*_c0*_s1*_s3*a2*d4 + _s3*_t62 + 2*_t65 + _t66;
     const double _t69 = -_t68;
     const double _t70 = _t37*_t55 + _t42*(_t67*_t67) + _t42*(_t69*_t69);
-    const double _t71 = 1.0/(_t16 + (1e-12)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
+    const double _t71 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
     const double _t73 = _t23*_t9;
     const double _t74 = _c3*_t18;
     const double _t75 = _t10*_t29;
@@ -6521,9 +6521,9 @@ void puma560_joint_velocity(const double *restrict q, const double *restrict xd,
     const double _t89 = -_t50*_t82 - _t52*_t84 - _t54*(-_t73*_t88 - _t75*_t88);
     const double _t90 = _t20 + _t41*_t54;
     const double _t91 = _t72*(_t77*_t89 + _t80*_t85 + _t86*(_t70 + _t79 + _t90));
-    const int _t92 = _t16 < 1e-06;
+    const int _t92 = _t16 < 1e-08;
     const double _t93 = _t13*a2;
-    const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-06)*_t1);
+    const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-08)*_t1);
     const double _t95 = ((_t92) ? (
    _t71*(_t35*_t91 + _t40*_t87)
 )
@@ -6546,18 +6546,18 @@ void puma560_joint_velocity(const double *restrict q, const double *restrict xd,
    -_t94*(_t52*xd_z + _t63*xd_x + _t68*xd_y)
 ));
     const double _t102 = (_s5*_s5);
-    const double _t103 = kinegen_max(0, 1 - 1000000*_t102);
+    const double _t103 = kinegen_max(0, 1 - 100000000*_t102);
     const double _t105 = (_s6*_s6)*_t47;
     const double _t108 = _s1*_s5;
     const double _t109 = _c1*_c5 - _c6*_t108;
     const double _t110 = _t105 + (_t109*_t109) + _t43;
-    const double _t111 = (1e-08)*(_t103*_t103);
+    const double _t111 = (1e-12)*(_t103*_t103);
     const double _t112 = _c1*_s5;
     const double _t113 = _c5*_s1;
     const double _t114 = _c6*_t113;
     const double _t115 = -_t112 - _t114;
     const double _t116 = (_c6*_c6)*_t47 + _t102*_t105 + (_t115*_t115);
-    const double _t117 = (0.0001)*_t103;
+    const double _t117 = (1e-06)*_t103;
     const double _t118 = _c6*_s3;
     const double _t119 = _c3*_s6;
     const double _t120 = _c1*_t119;
@@ -6584,7 +6584,7 @@ void puma560_joint_velocity(const double *restrict q, const double *restrict xd,
     const double _t141 = _s3*_t108;
     const double _t142 = _t118*_t134 + _t140 - _t141;
     const double _t143 = _t102*(_t139*_t139) + (_t138*_t138) + (_t142*_t142);
-    const double _t144 = 1.0/(_t102 + (1e-12)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t125 + _t111*_t130 + _t116*_t117 + _t117*_t136 + _t117*_t143);
+    const double _t144 = 1.0/(_t102 + (1e-18)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t125 + _t111*_t130 + _t116*_t117 + _t117*_t136 + _t117*_t143);
     const double _t145 = _t117*_t125;
     const double _t146 = _t111 + _t117*_t130;
     const double _t148 = _s7*_t123;
@@ -6611,8 +6611,8 @@ void puma560_joint_velocity(const double *restrict q, const double *restrict xd,
     const double _t170 = -_t117*(_t121*_t128 + _t124*_t129 + _t47*_t81) - _t121*_t165 - _t131*_t138 - _t135*_t142;
     const double _t171 = _t156*_t160 + _t164*(_t136 + _t146 + _t169) + _t167*_t170;
     const double _t172 = _t156*_t166 + _t164*_t170 + _t167*(_t111 + _t143 + _t145 + _t169);
-    const int _t173 = _t102 < 1e-06;
-    const double _t174 = _s5/kinegen_max(1e-06, _t102);
+    const int _t173 = _t102 < 1e-08;
+    const double _t174 = _s5/kinegen_max(1e-08, _t102);
     qd[0] = _t95;
     qd[1] = _t99;
     qd[2] = _t100;
@@ -6805,9 +6805,9 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
                 const double _t14 = _t12*(_t13*_t13);
                 const double _t15 = _t11*_t14;
                 const double _t16 = _t15/_t1;
-                const double _t17 = kinegen_max(0, 1 - 1000000*_t16);
+                const double _t17 = kinegen_max(0, 1 - 100000000*_t16);
                 const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
-                const double _t20 = (1e-08)*(_t17*_t17);
+                const double _t20 = (1e-12)*(_t17*_t17);
                 const double _t21 = _s1[i]*a3;
                 const double _t22 = _c1[i]*d4;
                 const double _t23 = _t21 + _t22;
@@ -6833,7 +6833,7 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
                 const double _t50 = _t21*_t3 + _t22*_t3 + _t49;
                 const double _t52 = _c0[i]*_s0[i]*_t12 + _c4[i]*a2*d4 + _s4[i]*a2*a3 + _t49;
                 const double _t53 = _t42*(_t50*_t50) + _t42*(_t52*_t52);
-                const double _t54 = (0.0001)*_t17;
+                const double _t54 = (1e-06)*_t17;
                 const double _t55 = _t14*_t42;
                 const double _t56 = _t33*_t6;
                 const double _t57 = _t33*_t8;
@@ -6850,7 +6850,7 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
                 const double _t68 = -_c0[i]*_c3[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s3[i]*a2*d4 + _s3[i]*_t62 + 2*_t65 + _t66;
                 const double _t69 = -_t68;
                 const double _t70 = _t37*_t55 + _t42*(_t67*_t67) + _t42*(_t69*_t69);
-                const double _t71 = 1.0/(_t16 + (1e-12)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
+                const double _t71 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
                 const double _t73 = _t23*_t9;
                 const double _t74 = _c3[i]*_t18;
                 const double _t75 = _t10*_t29;
@@ -6870,9 +6870,9 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
                 const double _t89 = -_t50*_t82 - _t52*_t84 - _t54*(-_t73*_t88 - _t75*_t88);
                 const double _t90 = _t20 + _t41*_t54;
                 const double _t91 = _t72*(_t77*_t89 + _t80*_t85 + _t86*(_t70 + _t79 + _t90));
-                const int _t92 = _t16 < 1e-06;
+                const int _t92 = _t16 < 1e-08;
                 const double _t93 = _t13*a2;
-                const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-06)*_t1);
+                const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-08)*_t1);
                 const double _t95 = ((_t92) ? (
    _t71*(_t35*_t91 + _t40*_t87)
 )
@@ -6895,18 +6895,18 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
    -_t94*(_t52*xd_z[i] + _t63*xd_x[i] + _t68*xd_y[i])
 ));
                 const double _t102 = (_s5[i]*_s5[i]);
-                const double _t103 = kinegen_max(0, 1 - 1000000*_t102);
+                const double _t103 = kinegen_max(0, 1 - 100000000*_t102);
                 const double _t105 = (_s6[i]*_s6[i])*_t47;
                 const double _t108 = _s1[i]*_s5[i];
                 const double _t109 = _c1[i]*_c5[i] - _c6[i]*_t108;
                 const double _t110 = _t105 + (_t109*_t109) + _t43;
-                const double _t111 = (1e-08)*(_t103*_t103);
+                const double _t111 = (1e-12)*(_t103*_t103);
                 const double _t112 = _c1[i]*_s5[i];
                 const double _t113 = _c5[i]*_s1[i];
                 const double _t114 = _c6[i]*_t113;
                 const double _t115 = -_t112 - _t114;
                 const double _t116 = (_c6[i]*_c6[i])*_t47 + _t102*_t105 + (_t115*_t115);
-                const double _t117 = (0.0001)*_t103;
+                const double _t117 = (1e-06)*_t103;
                 const double _t118 = _c6[i]*_s3[i];
                 const double _t119 = _c3[i]*_s6[i];
                 const double _t120 = _c1[i]*_t119;
@@ -6933,7 +6933,7 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
                 const double _t141 = _s3[i]*_t108;
                 const double _t142 = _t118*_t134 + _t140 - _t141;
                 const double _t143 = _t102*(_t139*_t139) + (_t138*_t138) + (_t142*_t142);
-                const double _t144 = 1.0/(_t102 + (1e-12)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t125 + _t111*_t130 + _t116*_t117 + _t117*_t136 + _t117*_t143);
+                const double _t144 = 1.0/(_t102 + (1e-18)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t125 + _t111*_t130 + _t116*_t117 + _t117*_t136 + _t117*_t143);
                 const double _t145 = _t117*_t125;
                 const double _t146 = _t111 + _t117*_t130;
                 const double _t148 = _s7[i]*_t123;
@@ -6960,8 +6960,8 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
                 const double _t170 = -_t117*(_t121*_t128 + _t124*_t129 + _t47*_t81) - _t121*_t165 - _t131*_t138 - _t135*_t142;
                 const double _t171 = _t156*_t160 + _t164*(_t136 + _t146 + _t169) + _t167*_t170;
                 const double _t172 = _t156*_t166 + _t164*_t170 + _t167*(_t111 + _t143 + _t145 + _t169);
-                const int _t173 = _t102 < 1e-06;
-                const double _t174 = _s5[i]/kinegen_max(1e-06, _t102);
+                const int _t173 = _t102 < 1e-08;
+                const double _t174 = _s5[i]/kinegen_max(1e-08, _t102);
                 _qd_block[0][i] = _t95;
                 _qd_block[1][i] = _t99;
                 _qd_block[2][i] = _t100;
@@ -7000,9 +7000,9 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
                 const double _t14 = _t12*(_t13*_t13);
                 const double _t15 = _t11*_t14;
                 const double _t16 = _t15/_t1;
-                const double _t17 = kinegen_max(0, 1 - 1000000*_t16);
+                const double _t17 = kinegen_max(0, 1 - 100000000*_t16);
                 const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
-                const double _t20 = (1e-08)*(_t17*_t17);
+                const double _t20 = (1e-12)*(_t17*_t17);
                 const double _t21 = _s1[i]*a3;
                 const double _t22 = _c1[i]*d4;
                 const double _t23 = _t21 + _t22;
@@ -7028,7 +7028,7 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
                 const double _t50 = _t21*_t3 + _t22*_t3 + _t49;
                 const double _t52 = _c0[i]*_s0[i]*_t12 + _c4[i]*a2*d4 + _s4[i]*a2*a3 + _t49;
                 const double _t53 = _t42*(_t50*_t50) + _t42*(_t52*_t52);
-                const double _t54 = (0.0001)*_t17;
+                const double _t54 = (1e-06)*_t17;
                 const double _t55 = _t14*_t42;
                 const double _t56 = _t33*_t6;
                 const double _t57 = _t33*_t8;
@@ -7045,7 +7045,7 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
                 const double _t68 = -_c0[i]*_c3[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s3[i]*a2*d4 + _s3[i]*_t62 + 2*_t65 + _t66;
                 const double _t69 = -_t68;
                 const double _t70 = _t37*_t55 + _t42*(_t67*_t67) + _t42*(_t69*_t69);
-                const double _t71 = 1.0/(_t16 + (1e-12)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
+                const double _t71 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
                 const double _t73 = _t23*_t9;
                 const double _t74 = _c3[i]*_t18;
                 const double _t75 = _t10*_t29;
@@ -7065,9 +7065,9 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
                 const double _t89 = -_t50*_t82 - _t52*_t84 - _t54*(-_t73*_t88 - _t75*_t88);
                 const double _t90 = _t20 + _t41*_t54;
                 const double _t91 = _t72*(_t77*_t89 + _t80*_t85 + _t86*(_t70 + _t79 + _t90));
-                const int _t92 = _t16 < 1e-06;
+                const int _t92 = _t16 < 1e-08;
                 const double _t93 = _t13*a2;
-                const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-06)*_t1);
+                const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-08)*_t1);
                 const double _t95 = ((_t92) ? (
    _t71*(_t35*_t91 + _t40*_t87)
 )
@@ -7090,18 +7090,18 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
    -_t94*(_t52*xd_z[i] + _t63*xd_x[i] + _t68*xd_y[i])
 ));
                 const double _t102 = (_s5[i]*_s5[i]);
-                const double _t103 = kinegen_max(0, 1 - 1000000*_t102);
+                const double _t103 = kinegen_max(0, 1 - 100000000*_t102);
                 const double _t105 = (_s6[i]*_s6[i])*_t47;
                 const double _t108 = _s1[i]*_s5[i];
                 const double _t109 = _c1[i]*_c5[i] - _c6[i]*_t108;
                 const double _t110 = _t105 + (_t109*_t109) + _t43;
-                const double _t111 = (1e-08)*(_t103*_t103);
+                const double _t111 = (1e-12)*(_t103*_t103);
                 const double _t112 = _c1[i]*_s5[i];
                 const double _t113 = _c5[i]*_s1[i];
                 const double _t114 = _c6[i]*_t113;
                 const double _t115 = -_t112 - _t114;
                 const double _t116 = (_c6[i]*_c6[i])*_t47 + _t102*_t105 + (_t115*_t115);
-                const double _t117 = (0.0001)*_t103;
+                const double _t117 = (1e-06)*_t103;
                 const double _t118 = _c6[i]*_s3[i];
                 const double _t119 = _c3[i]*_s6[i];
                 const double _t120 = _c1[i]*_t119;
@@ -7128,7 +7128,7 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
                 const double _t141 = _s3[i]*_t108;
                 const double _t142 = _t118*_t134 + _t140 - _t141;
                 const double _t143 = _t102*(_t139*_t139) + (_t138*_t138) + (_t142*_t142);
-                const double _t144 = 1.0/(_t102 + (1e-12)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t125 + _t111*_t130 + _t116*_t117 + _t117*_t136 + _t117*_t143);
+                const double _t144 = 1.0/(_t102 + (1e-18)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t125 + _t111*_t130 + _t116*_t117 + _t117*_t136 + _t117*_t143);
                 const double _t145 = _t117*_t125;
                 const double _t146 = _t111 + _t117*_t130;
                 const double _t148 = _s7[i]*_t123;
@@ -7155,8 +7155,8 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
                 const double _t170 = -_t117*(_t121*_t128 + _t124*_t129 + _t47*_t81) - _t121*_t165 - _t131*_t138 - _t135*_t142;
                 const double _t171 = _t156*_t160 + _t164*(_t136 + _t146 + _t169) + _t167*_t170;
                 const double _t172 = _t156*_t166 + _t164*_t170 + _t167*(_t111 + _t143 + _t145 + _t169);
-                const int _t173 = _t102 < 1e-06;
-                const double _t174 = _s5[i]/kinegen_max(1e-06, _t102);
+                const int _t173 = _t102 < 1e-08;
+                const double _t174 = _s5[i]/kinegen_max(1e-08, _t102);
                 qd[6 * (start + i) + 0] = _t95;
                 qd[6 * (start + i) + 1] = _t99;
                 qd[6 * (start + i) + 2] = _t100;
@@ -7311,9 +7311,9 @@ void puma560_joint_acceleration(const double *restrict q, const double *restrict
     const double _t14 = _t12*(_t13*_t13);
     const double _t15 = _t11*_t14;
     const double _t16 = _t15/_t1;
-    const double _t17 = kinegen_max(0, 1 - 1000000*_t16);
+    const double _t17 = kinegen_max(0, 1 - 100000000*_t16);
     const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
-    const double _t20 = (1e-08)*(_t17*_t17);
+    const double _t20 = (1e-12)*(_t17*_t17);
     const double _t21 = _s1*a3;
     const double _t22 = _c1*d4;
     const double _t23 = _t21 + _t22;
@@ -7340,7 +7340,7 @@ void puma560_joint_acceleration(const double *restrict q, const double *restrict
     const double _t51 = _t21*_t3 + _t22*_t3 + _t50;
     const double _t53 = _c0*_s0*_t12 + _c4*a2*d4 + _s4*a2*a3 + _t50;
     const double _t54 = _t43*(_t51*_t51) + _t43*(_t53*_t53);
-    const double _t55 = (0.0001)*_t17;
+    const double _t55 = (1e-06)*_t17;
     const double _t56 = _t14*_t43;
     const double _t57 = _t34*_t6;
     const double _t58 = _t34*_t8;
@@ -7357,7 +7357,7 @@ void puma560_joint_acceleration(const double *restrict q, const double *restrict
     const double _t69 = -_c0*_c3*a2*d3 - 2*_c0*_s1*_s3*a2*d4 + _s3*_t63 + 2*_t66 + _t67;
     const double _t70 = -_t69;
     const double _t71 = _t38*_t56 + _t43*(_t68*_t68) + _t43*(_t70*_t70);
-    const double _t72 = 1.0/(_t16 + (1e-12)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t37 + _t20*_t42 + _t54*_t55 + _t55*_t65 + _t55*_t71);
+    const double _t72 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t37 + _t20*_t42 + _t54*_t55 + _t55*_t65 + _t55*_t71);
     const double _t74 = _c3*_t18;
     const double _t75 = _t23*_t9;
     const double _t76 = _t10*_t30;
@@ -7390,9 +7390,9 @@ void puma560_joint_acceleration(const double *restrict q, const double *restrict
     const double _t103 = -_t43*_t51*_t68 - _t43*_t53*_t70 - _t55*(-_t102*_t75 - _t102*_t76);
     const double _t104 = _t42*_t55;
     const double _t105 = _t73*(_t100*(_t104 + _t20 + _t71 + _t84) + _t103*_t83 + _t91*_t94);
-    const int _t106 = _t16 < 1e-06;
+    const int _t106 = _t16 < 1e-08;
     const double _t107 = _t13*a2;
-    const double _t108 = _t10*_t107/kinegen_max(_t15, (1e-06)*_t1);
+    const double _t108 = _t10*_t107/kinegen_max(_t15, (1e-08)*_t1);
     const double _t109 = ((_t106) ? (
    _t72*(_t101*_t41 + _t105*_t36)
 )
@@ -7415,18 +7415,18 @@ void puma560_joint_acceleration(const double *restrict q, const double *restrict
    -_t108*(_t53*_t82 + _t64*_t90 + _t69*_t99)
 ));
     const double _t116 = (_s5*_s5);
-    const double _t117 = kinegen_max(0, 1 - 1000000*_t116);
+    const double _t117 = kinegen_max(0, 1 - 100000000*_t116);
     const double _t119 = (_s6*_s6)*_t48;
     const double _t122 = _s1*_s5;
     const double _t123 = _c1*_c5 - _c6*_t122;
     const double _t124 = _t119 + (_t123*_t123) + _t44;
-    const double _t125 = (1e-08)*(_t117*_t117);
+    const double _t125 = (1e-12)*(_t117*_t117);
     const double _t126 = _c1*_s5;
     const double _t127 = _c5*_s1;
     const double _t128 = _c6*_t127;
     const double _t129 = -_t126 - _t128;
     const double _t130 = (_c6*_c6)*_t48 + _t116*_t119 + (_t129*_t129);
-    const double _t131 = (0.0001)*_t117;
+    const double _t131 = (1e-06)*_t117;
     const double _t132 = _c6*_s3;
     const double _t133 = _c3*_s6;
     const double _t134 = _c1*_t133;
@@ -7454,7 +7454,7 @@ void puma560_joint_acceleration(const double *restrict q, const double *restrict
     const double _t156 = _s3*_t122;
     const double _t157 = _t132*_t149 + _t155 - _t156;
     const double _t158 = _t116*(_t154*_t154) + (_t153*_t153) + (_t157*_t157);
-    const double _t159 = 1.0/(_t116 + (1e-12)*(_t117*_t117*_t117) + _t124*_t125 + _t125*_t139 + _t125*_t145 + _t130*_t131 + _t131*_t151 + _t131*_t158);
+    const double _t159 = 1.0/(_t116 + (1e-18)*(_t117*_t117*_t117) + _t124*_t125 + _t125*_t139 + _t125*_t145 + _t130*_t131 + _t131*_t151 + _t131*_t158);
     const double _t160 = _t131*_t139;
     const double _t161 = _t125 + _t131*_t145;
     const double _t162 = _s1*qd2;
@@ -7489,8 +7489,8 @@ void puma560_joint_acceleration(const double *restrict q, const double *restrict
     const double _t193 = -_t131*(_t135*_t142 + _t138*_t144 + _t48*_t92) - _t135*_t185 - _t146*_t153 - _t150*_t157;
     const double _t194 = _t177*_t180 + _t184*(_t151 + _t161 + _t192) + _t190*_t193;
     const double _t195 = _t177*_t186 + _t184*_t193 + _t190*(_t125 + _t158 + _t160 + _t192);
-    const int _t196 = _t116 < 1e-06;
-    const double _t197 = _s5/kinegen_max(1e-06, _t116);
+    const int _t196 = _t116 < 1e-08;
+    const double _t197 = _s5/kinegen_max(1e-08, _t116);
     qdd[0] = _t109;
     qdd[1] = _t113;
     qdd[2] = _t114;
@@ -7695,9 +7695,9 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
                 const double _t14 = _t12*(_t13*_t13);
                 const double _t15 = _t11*_t14;
                 const double _t16 = _t15/_t1;
-                const double _t17 = kinegen_max(0, 1 - 1000000*_t16);
+                const double _t17 = kinegen_max(0, 1 - 100000000*_t16);
                 const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
-                const double _t20 = (1e-08)*(_t17*_t17);
+                const double _t20 = (1e-12)*(_t17*_t17);
                 const double _t21 = _s1[i]*a3;
                 const double _t22 = _c1[i]*d4;
                 const double _t23 = _t21 + _t22;
@@ -7724,7 +7724,7 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
                 const double _t51 = _t21*_t3 + _t22*_t3 + _t50;
                 const double _t53 = _c0[i]*_s0[i]*_t12 + _c4[i]*a2*d4 + _s4[i]*a2*a3 + _t50;
                 const double _t54 = _t43*(_t51*_t51) + _t43*(_t53*_t53);
-                const double _t55 = (0.0001)*_t17;
+                const double _t55 = (1e-06)*_t17;
                 const double _t56 = _t14*_t43;
                 const double _t57 = _t34*_t6;
                 const double _t58 = _t34*_t8;
@@ -7741,7 +7741,7 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
                 const double _t69 = -_c0[i]*_c3[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s3[i]*a2*d4 + _s3[i]*_t63 + 2*_t66 + _t67;
                 const double _t70 = -_t69;
                 const double _t71 = _t38*_t56 + _t43*(_t68*_t68) + _t43*(_t70*_t70);
-                const double _t72 = 1.0/(_t16 + (1e-12)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t37 + _t20*_t42 + _t54*_t55 + _t55*_t65 + _t55*_t71);
+                const double _t72 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t37 + _t20*_t42 + _t54*_t55 + _t55*_t65 + _t55*_t71);
                 const double _t74 = _c3[i]*_t18;
                 const double _t75 = _t23*_t9;
                 const double _t76 = _t10*_t30;
@@ -7774,9 +7774,9 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
                 const double _t103 = -_t43*_t51*_t68 - _t43*_t53*_t70 - _t55*(-_t102*_t75 - _t102*_t76);
                 const double _t104 = _t42*_t55;
                 const double _t105 = _t73*(_t100*(_t104 + _t20 + _t71 + _t84) + _t103*_t83 + _t91*_t94);
-                const int _t106 = _t16 < 1e-06;
+                const int _t106 = _t16 < 1e-08;
                 const double _t107 = _t13*a2;
-                const double _t108 = _t10*_t107/kinegen_max(_t15, (1e-06)*_t1);
+                const double _t108 = _t10*_t107/kinegen_max(_t15, (1e-08)*_t1);
                 const double _t109 = ((_t106) ? (
    _t72*(_t101*_t41 + _t105*_t36)
 )
@@ -7799,18 +7799,18 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
    -_t108*(_t53*_t82 + _t64*_t90 + _t69*_t99)
 ));
                 const double _t116 = (_s5[i]*_s5[i]);
-                const double _t117 = kinegen_max(0, 1 - 1000000*_t116);
+                const double _t117 = kinegen_max(0, 1 - 100000000*_t116);
                 const double _t119 = (_s6[i]*_s6[i])*_t48;
                 const double _t122 = _s1[i]*_s5[i];
                 const double _t123 = _c1[i]*_c5[i] - _c6[i]*_t122;
                 const double _t124 = _t119 + (_t123*_t123) + _t44;
-                const double _t125 = (1e-08)*(_t117*_t117);
+                const double _t125 = (1e-12)*(_t117*_t117);
                 const double _t126 = _c1[i]*_s5[i];
                 const double _t127 = _c5[i]*_s1[i];
                 const double _t128 = _c6[i]*_t127;
                 const double _t129 = -_t126 - _t128;
                 const double _t130 = (_c6[i]*_c6[i])*_t48 + _t116*_t119 + (_t129*_t129);
-                const double _t131 = (0.0001)*_t117;
+                const double _t131 = (1e-06)*_t117;
                 const double _t132 = _c6[i]*_s3[i];
                 const double _t133 = _c3[i]*_s6[i];
                 const double _t134 = _c1[i]*_t133;
@@ -7838,7 +7838,7 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
                 const double _t156 = _s3[i]*_t122;
                 const double _t157 = _t132*_t149 + _t155 - _t156;
                 const double _t158 = _t116*(_t154*_t154) + (_t153*_t153) + (_t157*_t157);
-                const double _t159 = 1.0/(_t116 + (1e-12)*(_t117*_t117*_t117) + _t124*_t125 + _t125*_t139 + _t125*_t145 + _t130*_t131 + _t131*_t151 + _t131*_t158);
+                const double _t159 = 1.0/(_t116 + (1e-18)*(_t117*_t117*_t117) + _t124*_t125 + _t125*_t139 + _t125*_t145 + _t130*_t131 + _t131*_t151 + _t131*_t158);
                 const double _t160 = _t131*_t139;
                 const double _t161 = _t125 + _t131*_t145;
                 const double _t162 = _s1[i]*qd2[i];
@@ -7873,8 +7873,8 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
                 const double _t193 = -_t131*(_t135*_t142 + _t138*_t144 + _t48*_t92) - _t135*_t185 - _t146*_t153 - _t150*_t157;
                 const double _t194 = _t177*_t180 + _t184*(_t151 + _t161 + _t192) + _t190*_t193;
                 const double _t195 = _t177*_t186 + _t184*_t193 + _t190*(_t125 + _t158 + _t160 + _t192);
-                const int _t196 = _t116 < 1e-06;
-                const double _t197 = _s5[i]/kinegen_max(1e-06, _t116);
+                const int _t196 = _t116 < 1e-08;
+                const double _t197 = _s5[i]/kinegen_max(1e-08, _t116);
                 _qdd_block[0][i] = _t109;
                 _qdd_block[1][i] = _t113;
                 _qdd_block[2][i] = _t114;
@@ -7913,9 +7913,9 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
                 const double _t14 = _t12*(_t13*_t13);
                 const double _t15 = _t11*_t14;
                 const double _t16 = _t15/_t1;
-                const double _t17 = kinegen_max(0, 1 - 1000000*_t16);
+                const double _t17 = kinegen_max(0, 1 - 100000000*_t16);
                 const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
-                const double _t20 = (1e-08)*(_t17*_t17);
+                const double _t20 = (1e-12)*(_t17*_t17);
                 const double _t21 = _s1[i]*a3;
                 const double _t22 = _c1[i]*d4;
                 const double _t23 = _t21 + _t22;
@@ -7942,7 +7942,7 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
                 const double _t51 = _t21*_t3 + _t22*_t3 + _t50;
                 const double _t53 = _c0[i]*_s0[i]*_t12 + _c4[i]*a2*d4 + _s4[i]*a2*a3 + _t50;
                 const double _t54 = _t43*(_t51*_t51) + _t43*(_t53*_t53);
-                const double _t55 = (0.0001)*_t17;
+                const double _t55 = (1e-06)*_t17;
                 const double _t56 = _t14*_t43;
                 const double _t57 = _t34*_t6;
                 const double _t58 = _t34*_t8;
@@ -7959,7 +7959,7 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
                 const double _t69 = -_c0[i]*_c3[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s3[i]*a2*d4 + _s3[i]*_t63 + 2*_t66 + _t67;
                 const double _t70 = -_t69;
                 const double _t71 = _t38*_t56 + _t43*(_t68*_t68) + _t43*(_t70*_t70);
-                const double _t72 = 1.0/(_t16 + (1e-12)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t37 + _t20*_t42 + _t54*_t55 + _t55*_t65 + _t55*_t71);
+                const double _t72 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t37 + _t20*_t42 + _t54*_t55 + _t55*_t65 + _t55*_t71);
                 const double _t74 = _c3[i]*_t18;
                 const double _t75 = _t23*_t9;
                 const double _t76 = _t10*_t30;
@@ -7992,9 +7992,9 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
                 const double _t103 = -_t43*_t51*_t68 - _t43*_t53*_t70 - _t55*(-_t102*_t75 - _t102*_t76);
                 const double _t104 = _t42*_t55;
                 const double _t105 = _t73*(_t100*(_t104 + _t20 + _t71 + _t84) + _t103*_t83 + _t91*_t94);
-                const int _t106 = _t16 < 1e-06;
+                const int _t106 = _t16 < 1e-08;
                 const double _t107 = _t13*a2;
-                const double _t108 = _t10*_t107/kinegen_max(_t15, (1e-06)*_t1);
+                const double _t108 = _t10*_t107/kinegen_max(_t15, (1e-08)*_t1);
                 const double _t109 = ((_t106) ? (
    _t72*(_t101*_t41 + _t105*_t36)
 )
@@ -8017,18 +8017,18 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
    -_t108*(_t53*_t82 + _t64*_t90 + _t69*_t99)
 ));
                 const double _t116 = (_s5[i]*_s5[i]);
-                const double _t117 = kinegen_max(0, 1 - 1000000*_t116);
+                const double _t117 = kinegen_max(0, 1 - 100000000*_t116);
                 const double _t119 = (_s6[i]*_s6[i])*_t48;
                 const double _t122 = _s1[i]*_s5[i];
                 const double _t123 = _c1[i]*_c5[i] - _c6[i]*_t122;
                 const double _t124 = _t119 + (_t123*_t123) + _t44;
-                const double _t125 = (1e-08)*(_t117*_t117);
+                const double _t125 = (1e-12)*(_t117*_t117);
                 const double _t126 = _c1[i]*_s5[i];
                 const double _t127 = _c5[i]*_s1[i];
                 const double _t128 = _c6[i]*_t127;
                 const double _t129 = -_t126 - _t128;
                 const double _t130 = (_c6[i]*_c6[i])*_t48 + _t116*_t119 + (_t129*_t129);
-                const double _t131 = (0.0001)*_t117;
+                const double _t131 = (1e-06)*_t117;
                 const double _t132 = _c6[i]*_s3[i];
                 const double _t133 = _c3[i]*_s6[i];
                 const double _t134 = _c1[i]*_t133;
@@ -8056,7 +8056,7 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
                 const double _t156 = _s3[i]*_t122;
                 const double _t157 = _t132*_t149 + _t155 - _t156;
                 const double _t158 = _t116*(_t154*_t154) + (_t153*_t153) + (_t157*_t157);
-                const double _t159 = 1.0/(_t116 + (1e-12)*(_t117*_t117*_t117) + _t124*_t125 + _t125*_t139 + _t125*_t145 + _t130*_t131 + _t131*_t151 + _t131*_t158);
+                const double _t159 = 1.0/(_t116 + (1e-18)*(_t117*_t117*_t117) + _t124*_t125 + _t125*_t139 + _t125*_t145 + _t130*_t131 + _t131*_t151 + _t131*_t158);
                 const double _t160 = _t131*_t139;
                 const double _t161 = _t125 + _t131*_t145;
                 const double _t162 = _s1[i]*qd2[i];
@@ -8091,8 +8091,8 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
                 const double _t193 = -_t131*(_t135*_t142 + _t138*_t144 + _t48*_t92) - _t135*_t185 - _t146*_t153 - _t150*_t157;
                 const double _t194 = _t177*_t180 + _t184*(_t151 + _t161 + _t192) + _t190*_t193;
                 const double _t195 = _t177*_t186 + _t184*_t193 + _t190*(_t125 + _t158 + _t160 + _t192);
-                const int _t196 = _t116 < 1e-06;
-                const double _t197 = _s5[i]/kinegen_max(1e-06, _t116);
+                const int _t196 = _t116 < 1e-08;
+                const double _t197 = _s5[i]/kinegen_max(1e-08, _t116);
                 qdd[6 * (start + i) + 0] = _t109;
                 qdd[6 * (start + i) + 1] = _t113;
                 qdd[6 * (start + i) + 2] = _t114;
@@ -8230,9 +8230,9 @@ void puma560_joint_velocity_from_twist(const double *restrict q, const double *r
     const double _t14 = _t12*(_t13*_t13);
     const double _t15 = _t11*_t14;
     const double _t16 = _t15/_t1;
-    const double _t17 = kinegen_max(0, 1 - 1000000*_t16);
+    const double _t17 = kinegen_max(0, 1 - 100000000*_t16);
     const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
-    const double _t20 = (1e-08)*(_t17*_t17);
+    const double _t20 = (1e-12)*(_t17*_t17);
     const double _t21 = _s1*a3;
     const double _t22 = _c1*d4;
     const double _t23 = _t21 + _t22;
@@ -8258,7 +8258,7 @@ void puma560_joint_velocity_from_twist(const double *restrict q, const double *r
     const double _t50 = _t21*_t3 + _t22*_t3 + _t49;
     const double _t52 = _c0*_s0*_t12 + _c4*a2*d4 + _s4*a2*a3 + _t49;
     const double _t53 = _t42*(_t50*_t50) + _t42*(_t52*_t52);
-    const double _t54 = (0.0001)*_t17;
+    const double _t54 = (1e-06)*_t17;
     const double _t55 = _t14*_t42;
     const double _t56 = _t33*_t6;
     const double _t57 = _t33*_t8;
@@ -8275,7 +8275,7 @@ void puma560_joint_velocity_from_twist(const double *restrict q, const double *r
     const double _t68 = -_c0*_c3*a2*d3 - 2*_c0*_s1*_s3*a2*d4 + _s3*_t62 + 2*_t65 + _t66;
     const double _t69 = -_t68;
     const double _t70 = _t37*_t55 + _t42*(_t67*_t67) + _t42*(_t69*_t69);
-    const double _t71 = 1.0/(_t16 + (1e-12)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
+    const double _t71 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
     const double _t73 = _t23*_t9;
     const double _t74 = _c3*_t18;
     const double _t75 = _t10*_t29;
@@ -8295,9 +8295,9 @@ void puma560_joint_velocity_from_twist(const double *restrict q, const double *r
     const double _t89 = -_t50*_t82 - _t52*_t84 - _t54*(-_t73*_t88 - _t75*_t88);
     const double _t90 = _t20 + _t41*_t54;
     const double _t91 = _t72*(_t77*_t89 + _t80*_t85 + _t86*(_t70 + _t79 + _t90));
-    const int _t92 = _t16 < 1e-06;
+    const int _t92 = _t16 < 1e-08;
     const double _t93 = _t13*a2;
-    const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-06)*_t1);
+    const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-08)*_t1);
     const double _t95 = ((_t92) ? (
    _t71*(_t35*_t91 + _t40*_t87)
 )
@@ -8320,17 +8320,17 @@ void puma560_joint_velocity_from_twist(const double *restrict q, const double *r
    -_t94*(_t52*twist_vz + _t63*twist_vx + _t68*twist_vy)
 ));
     const double _t102 = (_s5*_s5);
-    const double _t103 = kinegen_max(0, 1 - 1000000*_t102);
+    const double _t103 = kinegen_max(0, 1 - 100000000*_t102);
     const double _t105 = (_s6*_s6)*_t47;
     const double _t108 = _s1*_s5;
     const double _t109 = _c1*_c5 - _c6*_t108;
     const double _t110 = _t105 + (_t109*_t109) + _t43;
-    const double _t111 = (1e-08)*(_t103*_t103);
+    const double _t111 = (1e-12)*(_t103*_t103);
     const double _t112 = _c1*_s5;
     const double _t113 = _c5*_s1;
     const double _t114 = -_c6*_t113 - _t112;
     const double _t115 = (_c6*_c6)*_t47 + _t102*_t105 + (_t114*_t114);
-    const double _t116 = (0.0001)*_t103;
+    const double _t116 = (1e-06)*_t103;
     const double _t117 = _c6*_s3;
     const double _t118 = _c3*_s6;
     const double _t119 = _c1*_t118 + _t117;
@@ -8351,7 +8351,7 @@ void puma560_joint_velocity_from_twist(const double *restrict q, const double *r
     const double _t134 = -_t125;
     const double _t135 = _c5*_t118 - _s3*_t108 + _t117*_t129;
     const double _t136 = _t102*(_t134*_t134) + (_t133*_t133) + (_t135*_t135);
-    const double _t137 = 1.0/(_t102 + (1e-12)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t123 + _t111*_t127 + _t115*_t116 + _t116*_t131 + _t116*_t136);
+    const double _t137 = 1.0/(_t102 + (1e-18)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t123 + _t111*_t127 + _t115*_t116 + _t116*_t131 + _t116*_t136);
     const double _t138 = _t116*_t123;
     const double _t139 = _t111 + _t116*_t127;
     const double _t140 = -_t95 + twist_wz;
@@ -8368,8 +8368,8 @@ void puma560_joint_velocity_from_twist(const double *restrict q, const double *r
     const double _t151 = -_t116*(_t119*_t125 + _t122*_t126 + _t47*_t81) - _t119*_t146 - _t128*_t133 - _t130*_t135;
     const double _t152 = _t140*_t144 + _t145*(_t131 + _t139 + _t150) + _t148*_t151;
     const double _t153 = _t140*_t147 + _t145*_t151 + _t148*(_t111 + _t136 + _t138 + _t150);
-    const int _t154 = _t102 < 1e-06;
-    const double _t155 = _s5/kinegen_max(1e-06, _t102);
+    const int _t154 = _t102 < 1e-08;
+    const double _t155 = _s5/kinegen_max(1e-08, _t102);
     qd[0] = _t95;
     qd[1] = _t99;
     qd[2] = _t100;
@@ -8538,9 +8538,9 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
                 const double _t14 = _t12*(_t13*_t13);
                 const double _t15 = _t11*_t14;
                 const double _t16 = _t15/_t1;
-                const double _t17 = kinegen_max(0, 1 - 1000000*_t16);
+                const double _t17 = kinegen_max(0, 1 - 100000000*_t16);
                 const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
-                const double _t20 = (1e-08)*(_t17*_t17);
+                const double _t20 = (1e-12)*(_t17*_t17);
                 const double _t21 = _s1[i]*a3;
                 const double _t22 = _c1[i]*d4;
                 const double _t23 = _t21 + _t22;
@@ -8566,7 +8566,7 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
                 const double _t50 = _t21*_t3 + _t22*_t3 + _t49;
                 const double _t52 = _c0[i]*_s0[i]*_t12 + _c4[i]*a2*d4 + _s4[i]*a2*a3 + _t49;
                 const double _t53 = _t42*(_t50*_t50) + _t42*(_t52*_t52);
-                const double _t54 = (0.0001)*_t17;
+                const double _t54 = (1e-06)*_t17;
                 const double _t55 = _t14*_t42;
                 const double _t56 = _t33*_t6;
                 const double _t57 = _t33*_t8;
@@ -8583,7 +8583,7 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
                 const double _t68 = -_c0[i]*_c3[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s3[i]*a2*d4 + _s3[i]*_t62 + 2*_t65 + _t66;
                 const double _t69 = -_t68;
                 const double _t70 = _t37*_t55 + _t42*(_t67*_t67) + _t42*(_t69*_t69);
-                const double _t71 = 1.0/(_t16 + (1e-12)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
+                const double _t71 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
                 const double _t73 = _t23*_t9;
                 const double _t74 = _c3[i]*_t18;
                 const double _t75 = _t10*_t29;
@@ -8603,9 +8603,9 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
                 const double _t89 = -_t50*_t82 - _t52*_t84 - _t54*(-_t73*_t88 - _t75*_t88);
                 const double _t90 = _t20 + _t41*_t54;
                 const double _t91 = _t72*(_t77*_t89 + _t80*_t85 + _t86*(_t70 + _t79 + _t90));
-                const int _t92 = _t16 < 1e-06;
+                const int _t92 = _t16 < 1e-08;
                 const double _t93 = _t13*a2;
-                const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-06)*_t1);
+                const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-08)*_t1);
                 const double _t95 = ((_t92) ? (
    _t71*(_t35*_t91 + _t40*_t87)
 )
@@ -8628,17 +8628,17 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
    -_t94*(_t52*twist_vz[i] + _t63*twist_vx[i] + _t68*twist_vy[i])
 ));
                 const double _t102 = (_s5[i]*_s5[i]);
-                const double _t103 = kinegen_max(0, 1 - 1000000*_t102);
+                const double _t103 = kinegen_max(0, 1 - 100000000*_t102);
                 const double _t105 = (_s6[i]*_s6[i])*_t47;
                 const double _t108 = _s1[i]*_s5[i];
                 const double _t109 = _c1[i]*_c5[i] - _c6[i]*_t108;
                 const double _t110 = _t105 + (_t109*_t109) + _t43;
-                const double _t111 = (1e-08)*(_t103*_t103);
+                const double _t111 = (1e-12)*(_t103*_t103);
                 const double _t112 = _c1[i]*_s5[i];
                 const double _t113 = _c5[i]*_s1[i];
                 const double _t114 = -_c6[i]*_t113 - _t112;
                 const double _t115 = (_c6[i]*_c6[i])*_t47 + _t102*_t105 + (_t114*_t114);
-                const double _t116 = (0.0001)*_t103;
+                const double _t116 = (1e-06)*_t103;
                 const double _t117 = _c6[i]*_s3[i];
                 const double _t118 = _c3[i]*_s6[i];
                 const double _t119 = _c1[i]*_t118 + _t117;
@@ -8659,7 +8659,7 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
                 const double _t134 = -_t125;
                 const double _t135 = _c5[i]*_t118 - _s3[i]*_t108 + _t117*_t129;
                 const double _t136 = _t102*(_t134*_t134) + (_t133*_t133) + (_t135*_t135);
-                const double _t137 = 1.0/(_t102 + (1e-12)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t123 + _t111*_t127 + _t115*_t116 + _t116*_t131 + _t116*_t136);
+                const double _t137 = 1.0/(_t102 + (1e-18)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t123 + _t111*_t127 + _t115*_t116 + _t116*_t131 + _t116*_t136);
                 const double _t138 = _t116*_t123;
                 const double _t139 = _t111 + _t116*_t127;
                 const double _t140 = -_t95 + twist_wz[i];
@@ -8676,8 +8676,8 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
                 const double _t151 = -_t116*(_t119*_t125 + _t122*_t126 + _t47*_t81) - _t119*_t146 - _t128*_t133 - _t130*_t135;
                 const double _t152 = _t140*_t144 + _t145*(_t131 + _t139 + _t150) + _t148*_t151;
                 const double _t153 = _t140*_t147 + _t145*_t151 + _t148*(_t111 + _t136 + _t138 + _t150);
-                const int _t154 = _t102 < 1e-06;
-                const double _t155 = _s5[i]/kinegen_max(1e-06, _t102);
+                const int _t154 = _t102 < 1e-08;
+                const double _t155 = _s5[i]/kinegen_max(1e-08, _t102);
                 _qd_block[0][i] = _t95;
                 _qd_block[1][i] = _t99;
                 _qd_block[2][i] = _t100;
@@ -8716,9 +8716,9 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
                 const double _t14 = _t12*(_t13*_t13);
                 const double _t15 = _t11*_t14;
                 const double _t16 = _t15/_t1;
-                const double _t17 = kinegen_max(0, 1 - 1000000*_t16);
+                const double _t17 = kinegen_max(0, 1 - 100000000*_t16);
                 const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
-                const double _t20 = (1e-08)*(_t17*_t17);
+                const double _t20 = (1e-12)*(_t17*_t17);
                 const double _t21 = _s1[i]*a3;
                 const double _t22 = _c1[i]*d4;
                 const double _t23 = _t21 + _t22;
@@ -8744,7 +8744,7 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
                 const double _t50 = _t21*_t3 + _t22*_t3 + _t49;
                 const double _t52 = _c0[i]*_s0[i]*_t12 + _c4[i]*a2*d4 + _s4[i]*a2*a3 + _t49;
                 const double _t53 = _t42*(_t50*_t50) + _t42*(_t52*_t52);
-                const double _t54 = (0.0001)*_t17;
+                const double _t54 = (1e-06)*_t17;
                 const double _t55 = _t14*_t42;
                 const double _t56 = _t33*_t6;
                 const double _t57 = _t33*_t8;
@@ -8761,7 +8761,7 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
                 const double _t68 = -_c0[i]*_c3[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s3[i]*a2*d4 + _s3[i]*_t62 + 2*_t65 + _t66;
                 const double _t69 = -_t68;
                 const double _t70 = _t37*_t55 + _t42*(_t67*_t67) + _t42*(_t69*_t69);
-                const double _t71 = 1.0/(_t16 + (1e-12)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
+                const double _t71 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
                 const double _t73 = _t23*_t9;
                 const double _t74 = _c3[i]*_t18;
                 const double _t75 = _t10*_t29;
@@ -8781,9 +8781,9 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
                 const double _t89 = -_t50*_t82 - _t52*_t84 - _t54*(-_t73*_t88 - _t75*_t88);
                 const double _t90 = _t20 + _t41*_t54;
                 const double _t91 = _t72*(_t77*_t89 + _t80*_t85 + _t86*(_t70 + _t79 + _t90));
-                const int _t92 = _t16 < 1e-06;
+                const int _t92 = _t16 < 1e-08;
                 const double _t93 = _t13*a2;
-                const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-06)*_t1);
+                const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-08)*_t1);
                 const double _t95 = ((_t92) ? (
    _t71*(_t35*_t91 + _t40*_t87)
 )
@@ -8806,17 +8806,17 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
    -_t94*(_t52*twist_vz[i] + _t63*twist_vx[i] + _t68*twist_vy[i])
 ));
                 const double _t102 = (_s5[i]*_s5[i]);
-                const double _t103 = kinegen_max(0, 1 - 1000000*_t102);
+                const double _t103 = kinegen_max(0, 1 - 100000000*_t102);
                 const double _t105 = (_s6[i]*_s6[i])*_t47;
                 const double _t108 = _s1[i]*_s5[i];
                 const double _t109 = _c1[i]*_c5[i] - _c6[i]*_t108;
                 const double _t110 = _t105 + (_t109*_t109) + _t43;
-                const double _t111 = (1e-08)*(_t103*_t103);
+                const double _t111 = (1e-12)*(_t103*_t103);
                 const double _t112 = _c1[i]*_s5[i];
                 const double _t113 = _c5[i]*_s1[i];
                 const double _t114 = -_c6[i]*_t113 - _t112;
                 const double _t115 = (_c6[i]*_c6[i])*_t47 + _t102*_t105 + (_t114*_t114);
-                const double _t116 = (0.0001)*_t103;
+                const double _t116 = (1e-06)*_t103;
                 const double _t117 = _c6[i]*_s3[i];
                 const double _t118 = _c3[i]*_s6[i];
                 const double _t119 = _c1[i]*_t118 + _t117;
@@ -8837,7 +8837,7 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
                 const double _t134 = -_t125;
                 const double _t135 = _c5[i]*_t118 - _s3[i]*_t108 + _t117*_t129;
                 const double _t136 = _t102*(_t134*_t134) + (_t133*_t133) + (_t135*_t135);
-                const double _t137 = 1.0/(_t102 + (1e-12)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t123 + _t111*_t127 + _t115*_t116 + _t116*_t131 + _t116*_t136);
+                const double _t137 = 1.0/(_t102 + (1e-18)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t123 + _t111*_t127 + _t115*_t116 + _t116*_t131 + _t116*_t136);
                 const double _t138 = _t116*_t123;
                 const double _t139 = _t111 + _t116*_t127;
                 const double _t140 = -_t95 + twist_wz[i];
@@ -8854,8 +8854,8 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
                 const double _t151 = -_t116*(_t119*_t125 + _t122*_t126 + _t47*_t81) - _t119*_t146 - _t128*_t133 - _t130*_t135;
                 const double _t152 = _t140*_t144 + _t145*(_t131 + _t139 + _t150) + _t148*_t151;
                 const double _t153 = _t140*_t147 + _t145*_t151 + _t148*(_t111 + _t136 + _t138 + _t150);
-                const int _t154 = _t102 < 1e-06;
-                const double _t155 = _s5[i]/kinegen_max(1e-06, _t102);
+                const int _t154 = _t102 < 1e-08;
+                const double _t155 = _s5[i]/kinegen_max(1e-08, _t102);
                 qd[6 * (start + i) + 0] = _t95;
                 qd[6 * (start + i) + 1] = _t99;
                 qd[6 * (start + i) + 2] = _t100;

@@ -1075,7 +1075,7 @@ def manipulability(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
         _manipulability = manipulability[_start:_start + CHUNK].T
         _manipulability[0] = numpy.sqrt(_t4 + _t6 + _t7)
         _singular = singular[_start:_start + CHUNK].T
-        _singular[0] = numpy.less(_t4*_t8 + _t6*_t8 + _t7*_t8, 1e-06)
+        _singular[0] = numpy.less(_t4*_t8 + _t6*_t8 + _t7*_t8, 1e-08)
     return manipulability.reshape(_batch + ()), singular.reshape(_batch + ())
 
 
@@ -1182,7 +1182,7 @@ def joint_velocity(q, xd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
         _t23 = _t14*_t22
         _t24 = _t16*((_s3*a3 + _s4*a2)*(_s3*a3 + _s4*a2))
         _t25 = _t14*_t24
-        _t26 = numpy.maximum(0, -1000000*_t19 - 1000000*_t23 - 1000000*_t25 + 1)
+        _t26 = numpy.maximum(0, -100000000*_t19 - 100000000*_t23 - 100000000*_t25 + 1)
         _t28 = (_s2*_s2)*_t16
         _t30 = _t12*_t29
         _t32 = _s1*a3
@@ -1193,7 +1193,7 @@ def joint_velocity(q, xd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
         _t39 = _s0*a2
         _t40 = _c0*_s0*_t20 + _s7*a2*a3 + _s8*a2*d5 + _t36 + _t39*a1
         _t41 = _t28*_t30 + _t29*(_t37*_t37) + _t29*(_t40*_t40)
-        _t42 = (0.0001)*_t26
+        _t42 = (1e-06)*_t26
         _t44 = (_s9*_s9)
         _t45 = _t29*_t44
         _t47 = (_c9*_c9)
@@ -1211,7 +1211,7 @@ def joint_velocity(q, xd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
         _t59 = _t18*_t45 + _t22*_t45 + _t24*_t45 + _t48*_t51 + _t48*_t56 + _t48*_t58
         _t60 = _t18*_t48 + _t22*_t48 + _t24*_t48 + _t45*_t51 + _t45*_t56 + _t45*_t58
         _t62 = (_t10*_t10)*_t61 + _t50*_t61 + _t61*(_t9*_t9)
-        _t63 = (1e-08)*(_t26*_t26)
+        _t63 = (1e-12)*(_t26*_t26)
         _t64 = _t47*_t61
         _t65 = _t32 + _t33
         _t66 = (_t65*_t65)
@@ -1221,7 +1221,7 @@ def joint_velocity(q, xd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
         _t70 = _t12*_t69 + _t28*_t64 + _t64*_t66 + _t64*_t68
         _t71 = _t12*_t64 + _t28*_t69 + _t66*_t69 + _t68*_t69
         _t72 = _t19 + _t23 + _t25
-        _t73 = 1.0/((1e-12)*(_t26*_t26*_t26) + _t41*_t42 + _t42*_t59 + _t42*_t60 + _t62*_t63 + _t63*_t70 + _t63*_t71 + _t72)
+        _t73 = 1.0/((1e-18)*(_t26*_t26*_t26) + _t41*_t42 + _t42*_t59 + _t42*_t60 + _t62*_t63 + _t63*_t70 + _t63*_t71 + _t72)
         _t74 = _c9*_s9
         _t75 = _t29*_t74
         _t76 = _t61*_t74
@@ -1258,7 +1258,7 @@ def joint_velocity(q, xd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
         _qd[2] = _t73*(-_t101*_t103 - _t102*_t103 + _t78*_t9*_t99)
         _qd[3] = _t73*(_c2*_t78*_t99*d5 - _t101*_t104 - _t102*_t104)
         _singular = singular[_start:_start + CHUNK].T
-        _singular[0] = numpy.less(_t72, 1e-06)
+        _singular[0] = numpy.less(_t72, 1e-08)
     return qd.reshape(_batch + (5,)), singular.reshape(_batch + ())
 
 
@@ -1373,7 +1373,7 @@ def joint_acceleration(q, qd, xdd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.2
         _t23 = _t14*_t22
         _t24 = _t16*((_s3*a3 + _s4*a2)*(_s3*a3 + _s4*a2))
         _t25 = _t14*_t24
-        _t26 = numpy.maximum(0, -1000000*_t19 - 1000000*_t23 - 1000000*_t25 + 1)
+        _t26 = numpy.maximum(0, -100000000*_t19 - 100000000*_t23 - 100000000*_t25 + 1)
         _t28 = (_s2*_s2)*_t16
         _t30 = _t12*_t29
         _t32 = _s1*a3
@@ -1384,7 +1384,7 @@ def joint_acceleration(q, qd, xdd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.2
         _t39 = _s0*a2
         _t40 = _c0*_s0*_t20 + _s7*a2*a3 + _s8*a2*d5 + _t36 + _t39*a1
         _t41 = _t28*_t30 + _t29*(_t37*_t37) + _t29*(_t40*_t40)
-        _t42 = (0.0001)*_t26
+        _t42 = (1e-06)*_t26
         _t44 = (_s9*_s9)
         _t45 = _t29*_t44
         _t47 = (_c9*_c9)
@@ -1402,7 +1402,7 @@ def joint_acceleration(q, qd, xdd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.2
         _t59 = _t18*_t45 + _t22*_t45 + _t24*_t45 + _t48*_t51 + _t48*_t56 + _t48*_t58
         _t60 = _t18*_t48 + _t22*_t48 + _t24*_t48 + _t45*_t51 + _t45*_t56 + _t45*_t58
         _t62 = (_t10*_t10)*_t61 + _t50*_t61 + _t61*(_t9*_t9)
-        _t63 = (1e-08)*(_t26*_t26)
+        _t63 = (1e-12)*(_t26*_t26)
         _t64 = _t47*_t61
         _t65 = _t32 + _t33
         _t66 = (_t65*_t65)
@@ -1412,7 +1412,7 @@ def joint_acceleration(q, qd, xdd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.2
         _t70 = _t12*_t69 + _t28*_t64 + _t64*_t66 + _t64*_t68
         _t71 = _t12*_t64 + _t28*_t69 + _t66*_t69 + _t68*_t69
         _t72 = _t19 + _t23 + _t25
-        _t73 = 1.0/((1e-12)*(_t26*_t26*_t26) + _t41*_t42 + _t42*_t59 + _t42*_t60 + _t62*_t63 + _t63*_t70 + _t63*_t71 + _t72)
+        _t73 = 1.0/((1e-18)*(_t26*_t26*_t26) + _t41*_t42 + _t42*_t59 + _t42*_t60 + _t62*_t63 + _t63*_t70 + _t63*_t71 + _t72)
         _t74 = _s9*_t29
         _t75 = _t37*_t55
         _t76 = _t40*_t57
@@ -1464,7 +1464,7 @@ def joint_acceleration(q, qd, xdd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.2
         _qdd[2] = _t73*(_t114*_t81*_t9 - _t116*_t118 - _t117*_t118)
         _qdd[3] = _t73*(_c2*_t114*_t81*d5 - _t116*_t119 - _t117*_t119)
         _singular = singular[_start:_start + CHUNK].T
-        _singular[0] = numpy.less(_t72, 1e-06)
+        _singular[0] = numpy.less(_t72, 1e-08)
     return qdd.reshape(_batch + (5,)), singular.reshape(_batch + ())
 
 

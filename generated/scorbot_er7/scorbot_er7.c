@@ -3033,7 +3033,7 @@ void scorbot_er7_manipulability(const double *restrict q, const scorbot_er7_para
     const double _t6 = _t2*(a2*a2)*((_s4*d5 + _s5*a3)*(_s4*d5 + _s5*a3));
     const double _t7 = _t3*((_s0*a3 + _s4*a2)*(_s0*a3 + _s4*a2));
     manipulability[0] = sqrt(_t4 + _t6 + _t7);
-    singular[0] = _t4*_t8 + _t6*_t8 + _t7*_t8 < 1e-06;
+    singular[0] = _t4*_t8 + _t6*_t8 + _t7*_t8 < 1e-08;
 }
 
 /* manipulability of `count` items, stored one after the other in each argument and output. */
@@ -3107,7 +3107,7 @@ void scorbot_er7_manipulability_batch(size_t count, const double *restrict q, co
             const double _t6 = _t2*(a2*a2)*((_s4[i]*d5 + _s5[i]*a3)*(_s4[i]*d5 + _s5[i]*a3));
             const double _t7 = _t3*((_s0[i]*a3 + _s4[i]*a2)*(_s0[i]*a3 + _s4[i]*a2));
             manipulability[1 * (start + i) + 0] = sqrt(_t4 + _t6 + _t7);
-            singular[1 * (start + i) + 0] = _t4*_t8 + _t6*_t8 + _t7*_t8 < 1e-06;
+            singular[1 * (start + i) + 0] = _t4*_t8 + _t6*_t8 + _t7*_t8 < 1e-08;
         }
     }
 #else
@@ -3210,7 +3210,7 @@ void scorbot_er7_joint_velocity(const double *restrict q, const double *restrict
     const double _t23 = _t14*_t22;
     const double _t24 = _t16*((_s3*a3 + _s4*a2)*(_s3*a3 + _s4*a2));
     const double _t25 = _t14*_t24;
-    const double _t26 = kinegen_max(0, -1000000*_t19 - 1000000*_t23 - 1000000*_t25 + 1);
+    const double _t26 = kinegen_max(0, -100000000*_t19 - 100000000*_t23 - 100000000*_t25 + 1);
     const double _t28 = (_s2*_s2)*_t16;
     const double _t30 = _t12*_t29;
     const double _t32 = _s1*a3;
@@ -3221,7 +3221,7 @@ void scorbot_er7_joint_velocity(const double *restrict q, const double *restrict
     const double _t39 = _s0*a2;
     const double _t40 = _c0*_s0*_t20 + _s7*a2*a3 + _s8*a2*d5 + _t36 + _t39*a1;
     const double _t41 = _t28*_t30 + _t29*(_t37*_t37) + _t29*(_t40*_t40);
-    const double _t42 = (0.0001)*_t26;
+    const double _t42 = (1e-06)*_t26;
     const double _t44 = (_s9*_s9);
     const double _t45 = _t29*_t44;
     const double _t47 = (_c9*_c9);
@@ -3239,7 +3239,7 @@ void scorbot_er7_joint_velocity(const double *restrict q, const double *restrict
     const double _t59 = _t18*_t45 + _t22*_t45 + _t24*_t45 + _t48*_t51 + _t48*_t56 + _t48*_t58;
     const double _t60 = _t18*_t48 + _t22*_t48 + _t24*_t48 + _t45*_t51 + _t45*_t56 + _t45*_t58;
     const double _t62 = (_t10*_t10)*_t61 + _t50*_t61 + _t61*(_t9*_t9);
-    const double _t63 = (1e-08)*(_t26*_t26);
+    const double _t63 = (1e-12)*(_t26*_t26);
     const double _t64 = _t47*_t61;
     const double _t65 = _t32 + _t33;
     const double _t66 = (_t65*_t65);
@@ -3249,7 +3249,7 @@ void scorbot_er7_joint_velocity(const double *restrict q, const double *restrict
     const double _t70 = _t12*_t69 + _t28*_t64 + _t64*_t66 + _t64*_t68;
     const double _t71 = _t12*_t64 + _t28*_t69 + _t66*_t69 + _t68*_t69;
     const double _t72 = _t19 + _t23 + _t25;
-    const double _t73 = 1.0/((1e-12)*(_t26*_t26*_t26) + _t41*_t42 + _t42*_t59 + _t42*_t60 + _t62*_t63 + _t63*_t70 + _t63*_t71 + _t72);
+    const double _t73 = 1.0/((1e-18)*(_t26*_t26*_t26) + _t41*_t42 + _t42*_t59 + _t42*_t60 + _t62*_t63 + _t63*_t70 + _t63*_t71 + _t72);
     const double _t74 = _c9*_s9;
     const double _t75 = _t29*_t74;
     const double _t76 = _t61*_t74;
@@ -3285,7 +3285,7 @@ void scorbot_er7_joint_velocity(const double *restrict q, const double *restrict
     qd[2] = _t73*(-_t101*_t103 - _t102*_t103 + _t78*_t9*_t99);
     qd[3] = _t73*(_c2*_t78*_t99*d5 - _t101*_t104 - _t102*_t104);
     qd[4] = 0;
-    singular[0] = _t72 < 1e-06;
+    singular[0] = _t72 < 1e-08;
 }
 
 /* joint_velocity of `count` items, stored one after the other in each argument and output. */
@@ -3428,7 +3428,7 @@ void scorbot_er7_joint_velocity_batch(size_t count, const double *restrict q, co
             const double _t23 = _t14*_t22;
             const double _t24 = _t16*((_s3[i]*a3 + _s4[i]*a2)*(_s3[i]*a3 + _s4[i]*a2));
             const double _t25 = _t14*_t24;
-            const double _t26 = kinegen_max(0, -1000000*_t19 - 1000000*_t23 - 1000000*_t25 + 1);
+            const double _t26 = kinegen_max(0, -100000000*_t19 - 100000000*_t23 - 100000000*_t25 + 1);
             const double _t28 = (_s2[i]*_s2[i])*_t16;
             const double _t30 = _t12*_t29;
             const double _t32 = _s1[i]*a3;
@@ -3439,7 +3439,7 @@ void scorbot_er7_joint_velocity_batch(size_t count, const double *restrict q, co
             const double _t39 = _s0[i]*a2;
             const double _t40 = _c0[i]*_s0[i]*_t20 + _s7[i]*a2*a3 + _s8[i]*a2*d5 + _t36 + _t39*a1;
             const double _t41 = _t28*_t30 + _t29*(_t37*_t37) + _t29*(_t40*_t40);
-            const double _t42 = (0.0001)*_t26;
+            const double _t42 = (1e-06)*_t26;
             const double _t44 = (_s9[i]*_s9[i]);
             const double _t45 = _t29*_t44;
             const double _t47 = (_c9[i]*_c9[i]);
@@ -3457,7 +3457,7 @@ void scorbot_er7_joint_velocity_batch(size_t count, const double *restrict q, co
             const double _t59 = _t18*_t45 + _t22*_t45 + _t24*_t45 + _t48*_t51 + _t48*_t56 + _t48*_t58;
             const double _t60 = _t18*_t48 + _t22*_t48 + _t24*_t48 + _t45*_t51 + _t45*_t56 + _t45*_t58;
             const double _t62 = (_t10*_t10)*_t61 + _t50*_t61 + _t61*(_t9*_t9);
-            const double _t63 = (1e-08)*(_t26*_t26);
+            const double _t63 = (1e-12)*(_t26*_t26);
             const double _t64 = _t47*_t61;
             const double _t65 = _t32 + _t33;
             const double _t66 = (_t65*_t65);
@@ -3467,7 +3467,7 @@ void scorbot_er7_joint_velocity_batch(size_t count, const double *restrict q, co
             const double _t70 = _t12*_t69 + _t28*_t64 + _t64*_t66 + _t64*_t68;
             const double _t71 = _t12*_t64 + _t28*_t69 + _t66*_t69 + _t68*_t69;
             const double _t72 = _t19 + _t23 + _t25;
-            const double _t73 = 1.0/((1e-12)*(_t26*_t26*_t26) + _t41*_t42 + _t42*_t59 + _t42*_t60 + _t62*_t63 + _t63*_t70 + _t63*_t71 + _t72);
+            const double _t73 = 1.0/((1e-18)*(_t26*_t26*_t26) + _t41*_t42 + _t42*_t59 + _t42*_t60 + _t62*_t63 + _t63*_t70 + _t63*_t71 + _t72);
             const double _t74 = _c9[i]*_s9[i];
             const double _t75 = _t29*_t74;
             const double _t76 = _t61*_t74;
@@ -3503,7 +3503,7 @@ void scorbot_er7_joint_velocity_batch(size_t count, const double *restrict q, co
             qd[5 * (start + i) + 2] = _t73*(-_t101*_t103 - _t102*_t103 + _t78*_t9*_t99);
             qd[5 * (start + i) + 3] = _t73*(_c2[i]*_t78*_t99*d5 - _t101*_t104 - _t102*_t104);
             qd[5 * (start + i) + 4] = 0;
-            singular[1 * (start + i) + 0] = _t72 < 1e-06;
+            singular[1 * (start + i) + 0] = _t72 < 1e-08;
         }
     }
 #else
@@ -3610,7 +3610,7 @@ void scorbot_er7_joint_acceleration(const double *restrict q, const double *rest
     const double _t23 = _t14*_t22;
     const double _t24 = _t16*((_s3*a3 + _s4*a2)*(_s3*a3 + _s4*a2));
     const double _t25 = _t14*_t24;
-    const double _t26 = kinegen_max(0, -1000000*_t19 - 1000000*_t23 - 1000000*_t25 + 1);
+    const double _t26 = kinegen_max(0, -100000000*_t19 - 100000000*_t23 - 100000000*_t25 + 1);
     const double _t28 = (_s2*_s2)*_t16;
     const double _t30 = _t12*_t29;
     const double _t32 = _s1*a3;
@@ -3621,7 +3621,7 @@ void scorbot_er7_joint_acceleration(const double *restrict q, const double *rest
     const double _t39 = _s0*a2;
     const double _t40 = _c0*_s0*_t20 + _s7*a2*a3 + _s8*a2*d5 + _t36 + _t39*a1;
     const double _t41 = _t28*_t30 + _t29*(_t37*_t37) + _t29*(_t40*_t40);
-    const double _t42 = (0.0001)*_t26;
+    const double _t42 = (1e-06)*_t26;
     const double _t44 = (_s9*_s9);
     const double _t45 = _t29*_t44;
     const double _t47 = (_c9*_c9);
@@ -3639,7 +3639,7 @@ void scorbot_er7_joint_acceleration(const double *restrict q, const double *rest
     const double _t59 = _t18*_t45 + _t22*_t45 + _t24*_t45 + _t48*_t51 + _t48*_t56 + _t48*_t58;
     const double _t60 = _t18*_t48 + _t22*_t48 + _t24*_t48 + _t45*_t51 + _t45*_t56 + _t45*_t58;
     const double _t62 = (_t10*_t10)*_t61 + _t50*_t61 + _t61*(_t9*_t9);
-    const double _t63 = (1e-08)*(_t26*_t26);
+    const double _t63 = (1e-12)*(_t26*_t26);
     const double _t64 = _t47*_t61;
     const double _t65 = _t32 + _t33;
     const double _t66 = (_t65*_t65);
@@ -3649,7 +3649,7 @@ void scorbot_er7_joint_acceleration(const double *restrict q, const double *rest
     const double _t70 = _t12*_t69 + _t28*_t64 + _t64*_t66 + _t64*_t68;
     const double _t71 = _t12*_t64 + _t28*_t69 + _t66*_t69 + _t68*_t69;
     const double _t72 = _t19 + _t23 + _t25;
-    const double _t73 = 1.0/((1e-12)*(_t26*_t26*_t26) + _t41*_t42 + _t42*_t59 + _t42*_t60 + _t62*_t63 + _t63*_t70 + _t63*_t71 + _t72);
+    const double _t73 = 1.0/((1e-18)*(_t26*_t26*_t26) + _t41*_t42 + _t42*_t59 + _t42*_t60 + _t62*_t63 + _t63*_t70 + _t63*_t71 + _t72);
     const double _t74 = _s9*_t29;
     const double _t75 = _t37*_t55;
     const double _t76 = _t40*_t57;
@@ -3700,7 +3700,7 @@ void scorbot_er7_joint_acceleration(const double *restrict q, const double *rest
     qdd[2] = _t73*(_t114*_t81*_t9 - _t116*_t118 - _t117*_t118);
     qdd[3] = _t73*(_c2*_t114*_t81*d5 - _t116*_t119 - _t117*_t119);
     qdd[4] = 0;
-    singular[0] = _t72 < 1e-06;
+    singular[0] = _t72 < 1e-08;
 }
 
 /* joint_acceleration of `count` items, stored one after the other in each argument and output. */
@@ -3851,7 +3851,7 @@ void scorbot_er7_joint_acceleration_batch(size_t count, const double *restrict q
             const double _t23 = _t14*_t22;
             const double _t24 = _t16*((_s3[i]*a3 + _s4[i]*a2)*(_s3[i]*a3 + _s4[i]*a2));
             const double _t25 = _t14*_t24;
-            const double _t26 = kinegen_max(0, -1000000*_t19 - 1000000*_t23 - 1000000*_t25 + 1);
+            const double _t26 = kinegen_max(0, -100000000*_t19 - 100000000*_t23 - 100000000*_t25 + 1);
             const double _t28 = (_s2[i]*_s2[i])*_t16;
             const double _t30 = _t12*_t29;
             const double _t32 = _s1[i]*a3;
@@ -3862,7 +3862,7 @@ void scorbot_er7_joint_acceleration_batch(size_t count, const double *restrict q
             const double _t39 = _s0[i]*a2;
             const double _t40 = _c0[i]*_s0[i]*_t20 + _s7[i]*a2*a3 + _s8[i]*a2*d5 + _t36 + _t39*a1;
             const double _t41 = _t28*_t30 + _t29*(_t37*_t37) + _t29*(_t40*_t40);
-            const double _t42 = (0.0001)*_t26;
+            const double _t42 = (1e-06)*_t26;
             const double _t44 = (_s9[i]*_s9[i]);
             const double _t45 = _t29*_t44;
             const double _t47 = (_c9[i]*_c9[i]);
@@ -3880,7 +3880,7 @@ void scorbot_er7_joint_acceleration_batch(size_t count, const double *restrict q
             const double _t59 = _t18*_t45 + _t22*_t45 + _t24*_t45 + _t48*_t51 + _t48*_t56 + _t48*_t58;
             const double _t60 = _t18*_t48 + _t22*_t48 + _t24*_t48 + _t45*_t51 + _t45*_t56 + _t45*_t58;
             const double _t62 = (_t10*_t10)*_t61 + _t50*_t61 + _t61*(_t9*_t9);
-            const double _t63 = (1e-08)*(_t26*_t26);
+            const double _t63 = (1e-12)*(_t26*_t26);
             const double _t64 = _t47*_t61;
             const double _t65 = _t32 + _t33;
             const double _t66 = (_t65*_t65);
@@ -3890,7 +3890,7 @@ void scorbot_er7_joint_acceleration_batch(size_t count, const double *restrict q
             const double _t70 = _t12*_t69 + _t28*_t64 + _t64*_t66 + _t64*_t68;
             const double _t71 = _t12*_t64 + _t28*_t69 + _t66*_t69 + _t68*_t69;
             const double _t72 = _t19 + _t23 + _t25;
-            const double _t73 = 1.0/((1e-12)*(_t26*_t26*_t26) + _t41*_t42 + _t42*_t59 + _t42*_t60 + _t62*_t63 + _t63*_t70 + _t63*_t71 + _t72);
+            const double _t73 = 1.0/((1e-18)*(_t26*_t26*_t26) + _t41*_t42 + _t42*_t59 + _t42*_t60 + _t62*_t63 + _t63*_t70 + _t63*_t71 + _t72);
             const double _t74 = _s9[i]*_t29;
             const double _t75 = _t37*_t55;
             const double _t76 = _t40*_t57;
@@ -3941,7 +3941,7 @@ void scorbot_er7_joint_acceleration_batch(size_t count, const double *restrict q
             qdd[5 * (start + i) + 2] = _t73*(_t114*_t81*_t9 - _t116*_t118 - _t117*_t118);
             qdd[5 * (start + i) + 3] = _t73*(_c2[i]*_t114*_t81*d5 - _t116*_t119 - _t117*_t119);
             qdd[5 * (start + i) + 4] = 0;
-            singular[1 * (start + i) + 0] = _t72 < 1e-06;
+            singular[1 * (start + i) + 0] = _t72 < 1e-08;
         }
     }
 #else

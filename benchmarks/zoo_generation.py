@@ -1,0 +1,91 @@
+"""Cold derivation and rendering time of every arm of the zoo (issue #14's targets).
+
+Each arm runs in a fresh process with the derivation cache off (``KINEGEN_NO_CACHE=1``),
+pinned to one core where the machine allows it, as ``python -m codegen generate FILE
+--out DIR --no-build``: the model, the rate kinematics, the common subexpressions, the
+numpy and C text and the LaTeX, without the C compile (which `kinegen generate` adds,
+and which the build issue times).  The stage times come from the command's own progress
+lines.  Targets: a 6-joint arm in 10 s, a 7-joint arm in 20 s.
+
+    python benchmarks/zoo_generation.py [--out benchmarks/zoo.md] [ARM ...]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+import tomllib
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+ARMS = ROOT / "tests" / "data" / "arms"
+STAGE = re.compile(r"\] (?P<arm>\w+): (?P<stage>[^:]+): (?P<seconds>[\d.]+) s$")
+TARGETS = {6: 10.0, 7: 20.0}
+
+
+def time_arm(path: Path) -> dict:
+    with tempfile.TemporaryDirectory(prefix="kinegen-zoo-") as scratch:
+        command = [sys.executable, "-m", "codegen", "generate", str(path), "--out", str(Path(scratch) / "pkg"),
+                   "--no-build", "--time-limit", "600"]
+        if hasattr(os, "sched_setaffinity"):
+            command = ["taskset", "-c", "0"] + command if _has_taskset() else command
+        env = dict(os.environ, KINEGEN_NO_CACHE="1", PYTHONPATH=str(ROOT))
+        start = time.perf_counter()
+        result = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True)
+        total = time.perf_counter() - start
+    stages = {}
+    derive = None
+    for line in result.stderr.splitlines():
+        match = STAGE.search(line)
+        if match:
+            stages[match["stage"]] = float(match["seconds"])
+        found = re.search(r"\[derive\] \w+: ([\d.]+) s", line)
+        if found:
+            derive = float(found[1])
+    return {"ok": result.returncode == 0, "total": total, "model": derive, "stages": stages,
+            "error": result.stderr.strip().splitlines()[-1] if result.returncode else ""}
+
+
+def _has_taskset() -> bool:
+    return subprocess.run(["sh", "-c", "command -v taskset"], capture_output=True).returncode == 0
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("arms", nargs="*", help="arm names (default: every file in tests/data/arms)")
+    parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "zoo.md")
+    args = parser.parse_args(argv)
+    paths = sorted(ARMS.glob("*.toml")) if not args.arms else [ARMS / f"{a}.toml" for a in args.arms]
+    columns = ["model", "rate kinematics", "common subexpressions of every kernel", "numpy kernels",
+               "c kernels", "LaTeX"]
+    rows = []
+    for path in paths:
+        joints = len(tomllib.loads(path.read_text())["joint"])
+        timing = time_arm(path)
+        target = TARGETS.get(joints)
+        verdict = "-" if target is None else ("met" if timing["ok"] and timing["total"] <= target else "missed")
+        cells = [f"{timing['model']:.1f}" if timing["model"] is not None else "-"]
+        cells += [f"{timing['stages'][c]:.1f}" if c in timing["stages"] else "-" for c in columns[1:]]
+        rows.append(f"| {path.stem} | {joints} | " + " | ".join(cells)
+                    + f" | {timing['total']:.1f} | {target if target else '-'} | {verdict} |")
+        print(rows[-1], flush=True)
+        if not timing["ok"]:
+            print(f"  {path.stem}: {timing['error']}", file=sys.stderr)
+    load = os.getloadavg() if hasattr(os, "getloadavg") else ("?",) * 3
+    header = ("| arm | joints | model | rates | CSE | numpy | C | LaTeX | total (s) | target (s) | |\n"
+              "|---|---|---|---|---|---|---|---|---|---|---|")
+    text = (f"# Cold generation of the zoo ({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
+            f"load average {load[0]:.2f})\n\n`python benchmarks/zoo_generation.py`: each arm in a fresh process, "
+            "no cache, one core, without the C compile. Stage times in seconds; total includes Python's start "
+            "and imports.\n\n" + header + "\n" + "\n".join(rows) + "\n")
+    args.out.write_text(text)
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
