@@ -109,6 +109,14 @@ def _stamp_holds(stamp: Path, key: str) -> bool:
     return record.get("key") == key and [info.st_size, info.st_mtime_ns] == record.get("file")
 
 
+def stamp_text(package: Path, name: str) -> str:
+    """The build stamp of ``package`` ("" if there is none): what its extension was built from."""
+    try:
+        return _stamp_path(Path(package), name).read_text()
+    except OSError:
+        return ""
+
+
 def build_package(package: Path, name: str) -> tuple[str, float]:
     """Build the cffi extension of generated ``package`` unless its build stamp says it is up to date.
 
