@@ -93,14 +93,15 @@ check: $(STAMP)
 avr-limits: $(STAMP)
 	$(KINEGEN) --quiet avr3000-limits --R=$(or $(R),18.3in)
 
-# The whole suite, sanitizer runs included, in $(TEST_JOBS) processes.  matplotlib is
+# The whole suite, sanitizer runs included, in $(TEST_JOBS) processes (a worker that runs out
+# of tests takes some of the other's: the long ones do not leave a tail).  matplotlib is
 # installed when it can be; without it the plot tests skip, saying why.
 test:
 	@mkdir -p $(dir $(TIMES)) && : > $(TIMES)
 	@$(call timed,install,$(MAKE) --no-print-directory install WITH_PLOTS=1 && \
 		{ $(MAKE) --no-print-directory plots-install || echo "make test: matplotlib not installed; the plot tests will skip"; })
 	@$(call timed,build,$(KINEGEN) build)
-	@$(call timed,pytest,$(PY) -m pytest -n $(TEST_JOBS))
+	@$(call timed,pytest,$(PY) -m pytest -n $(TEST_JOBS) --dist worksteal)
 	@$(show_times)
 
 # The report needs pdflatex; `make test` does not (it skips the report build without it).
