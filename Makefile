@@ -1,9 +1,12 @@
 # kinegen: derive robot kinematics in SymPy, generate verified numpy and C kernels.
 #
 #   make            set up .venv, regenerate every kernel, build the C, verify, print the summary
-#   make test       set up if needed, build the C, run the whole test suite
+#                   (each stage skipped when its inputs did not change; the time of each at the end)
+#   make test       set up if needed, build the C, run the whole test suite on every core
+#                   (with the sanitizer runs); the time of each stage at the end
 #   make generate   regenerate generated/ from derivations/ (deterministic)
-#   make build      compile the generated C (strict warnings) and its cffi extensions
+#   make build      compile the generated C (strict warnings) and its cffi extensions (what changed)
+#   make sanitize   every C entry point under ASan and UBSan
 #   make verify     kernels against SymPy at 30 digits, as a table
 #   make check      fail when generated/ is out of date with derivations/ and codegen/
 #   make report     the PDF report (report/build/kinegen-report.pdf); installs TeX Live if missing
@@ -27,23 +30,51 @@ BENCH_PY := $(BENCH_VENV)/bin/python
 BENCH_STAMP := $(BENCH_VENV)/.installed
 BENCH_PEERS = $$($(BENCH_PY) -c "import tomllib; print(' '.join(tomllib.load(open('pyproject.toml', 'rb'))['project']['optional-dependencies']['bench']))")
 
-.PHONY: all install generate build sanitize verify check test report texlive plots bench clean avr-limits
+.PHONY: all install plots-install generate build sanitize verify check test report texlive plots bench clean avr-limits
 
-all: $(STAMP)
-	$(KINEGEN) all
+# How long each stage took, printed at the end of make and make test: $(call timed,STAGE,COMMAND)
+# runs COMMAND and, when it succeeds, adds "STAGE seconds" to $(TIMES).
+TIMES := .cache/stage-times
+timed = start=$$(date +%s.%N) && $(2) && \
+	awk -v s=$$start -v e=$$(date +%s.%N) 'BEGIN { printf "%-9s %6.1f s\n", "$(1)", e - s }' >> $(TIMES)
+show_times = echo "time per stage ($@):" && sed 's/^/  /' $(TIMES) && \
+	awk '{ t += $$2 } END { printf "  %-9s %6.1f s\n", "total", t }' $(TIMES)
+# The test suite's worker processes (pytest-xdist): one per CPU this process may use.
+TEST_JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 
+# `kinegen all` regenerates, builds and verifies, each only if its inputs changed since the
+# last run (content stamps in .cache/make and beside each extension); `make generate`,
+# `make build` and `make verify` always do theirs.
+all:
+	@mkdir -p $(dir $(TIMES)) && : > $(TIMES)
+	@$(call timed,install,$(MAKE) --no-print-directory install)
+	@$(KINEGEN) all --times $(TIMES)
+	@$(show_times)
+
+# pip as Python's venv brings it (no upgrade: it installs an editable pyproject.toml
+# project since pip 21.3).  WITH_PLOTS=1 (make test) adds the 'plots' extra in the same
+# resolve, and falls back to without it when matplotlib cannot be installed.
+PIP_INSTALL := $(PY) -m pip install --quiet --disable-pip-version-check
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --disable-pip-version-check --upgrade pip
-	$(PY) -m pip install --quiet --disable-pip-version-check -e '.[dev]'
-	touch $@
+	@plots=; if [ -n "$(WITH_PLOTS)" ]; then \
+		echo "$(PIP_INSTALL) -e '.[dev,plots]'"; \
+		if $(PIP_INSTALL) -e '.[dev,plots]'; then plots=1; else \
+		echo "make: matplotlib not installed; the plot tests will skip"; $(PIP_INSTALL) -e '.[dev]' || exit 1; fi; \
+	else echo "$(PIP_INSTALL) -e '.[dev]'"; $(PIP_INSTALL) -e '.[dev]' || exit 1; fi; \
+	touch $@; if [ -n "$$plots" ]; then touch $(PLOTS_STAMP); fi
 
 install: $(STAMP)
+	@:
 
-# matplotlib, for `make plots` and the plot tests (about 20 s to install, once)
+# matplotlib, for `make plots` and the plot tests (the 'plots' extra; about 20 s to install, once)
+PLOTS_REQUIREMENTS = $$($(PY) -c "import tomllib; print(' '.join(tomllib.load(open('pyproject.toml', 'rb'))['project']['optional-dependencies']['plots']))")
 $(PLOTS_STAMP): $(STAMP)
-	$(PY) -m pip install --quiet --disable-pip-version-check -e '.[dev,plots]'
+	$(PIP_INSTALL) $(PLOTS_REQUIREMENTS)
 	touch $@
+
+plots-install: $(PLOTS_STAMP)
+	@:
 
 generate: $(STAMP)
 	$(KINEGEN) generate
@@ -63,10 +94,16 @@ check: $(STAMP)
 avr-limits: $(STAMP)
 	$(KINEGEN) --quiet avr3000-limits --R=$(or $(R),18.3in)
 
-# matplotlib is installed when it can be; without it the plot tests skip, saying why.
-test: build
-	@$(MAKE) --no-print-directory $(PLOTS_STAMP) || echo "make test: matplotlib not installed; the plot tests will skip"
-	$(PY) -m pytest
+# The whole suite, sanitizer runs included, in $(TEST_JOBS) processes (a worker that runs out
+# of tests takes some of the other's: the long ones do not leave a tail).  matplotlib is
+# installed when it can be; without it the plot tests skip, saying why.
+test:
+	@mkdir -p $(dir $(TIMES)) && : > $(TIMES)
+	@$(call timed,install,$(MAKE) --no-print-directory install WITH_PLOTS=1 && \
+		{ $(MAKE) --no-print-directory plots-install || echo "make test: matplotlib not installed; the plot tests will skip"; })
+	@$(call timed,build,$(KINEGEN) build)
+	@$(call timed,pytest,$(PY) -m pytest -n $(TEST_JOBS) --dist worksteal)
+	@$(show_times)
 
 # The report needs pdflatex; `make test` does not (it skips the report build without it).
 # texlive-latex-base + texlive-latex-recommended hold every package the report loads.
@@ -103,4 +140,4 @@ bench: $(BENCH_STAMP)
 
 clean:
 	rm -rf $(VENV) $(BENCH_VENV) .cache build *.egg-info
-	find generated -name '*.so' -delete
+	find generated \( -name '*.so' -o -name '*.stamp' \) -delete

@@ -1,8 +1,11 @@
 """Building and checking the generated C: cffi extensions, strict warnings, sanitizers."""
 from __future__ import annotations
 
+import concurrent.futures
 import functools
+import hashlib
 import importlib.util
+import json
 import os
 import random
 import shutil
@@ -10,6 +13,7 @@ import subprocess
 import sys
 import sysconfig
 import tempfile
+import time
 from pathlib import Path
 
 import numpy
@@ -18,7 +22,8 @@ from .backends import TEMPLATES
 from .backends.c_backend import STRICT_FLAGS
 from .generate import GENERATED
 
-__all__ = ["load_build_script", "build_extension", "compile_strict", "sanitizer_run", "CompileError"]
+__all__ = ["load_build_script", "build_extension", "build_package", "compile_strict", "sanitizer_run",
+           "CompileError"]
 
 CC = os.environ.get("CC", "cc")
 # A small block in the sanitizer run, so that its batches span a full block and a partial one.
@@ -45,9 +50,125 @@ def load_build_script(package: Path):
     return module
 
 
-def build_extension(package: Path) -> Path:
-    """Run the package's generated ``build_c.py``; returns the built extension."""
-    return load_build_script(package).build()
+def build_extension(package: Path, warnings=()) -> Path:
+    """Run the package's generated ``build_c.py``; returns the built extension.
+
+    Each C source is compiled once, with ``warnings`` in front of the library's flags.
+    """
+    try:
+        return load_build_script(package).build(warnings=tuple(warnings))
+    except RuntimeError as exc:  # the build script's report of a failed compile
+        raise CompileError(str(exc)) from None
+
+
+@functools.lru_cache(maxsize=None)
+def _compiler_identity(command: tuple[str, ...]) -> str:
+    result = subprocess.run([*command, "--version"], capture_output=True, text=True)
+    return " ".join(command) + "\n" + result.stdout
+
+
+def _build_key(package: Path, name: str, script) -> str:
+    """What the built extension depends on: its C and its build script, flags, compiler, Python, numpy, cffi."""
+    import cffi
+    digest = hashlib.sha256()
+    for filename in (f"{name}.c", f"{name}.h", f"{name}_point.c", "build_c.py"):
+        path = package / filename
+        digest.update(filename.encode() + b"\0")
+        digest.update(path.read_bytes() if path.exists() else b"(absent)")
+    settings = [STRICT_FLAGS, _compile_flags(script), _compiler_identity(tuple(script.compiler())),
+                sys.version, sysconfig.get_config_var("EXT_SUFFIX"), numpy.__version__, cffi.__version__,
+                [os.environ.get(v, "") for v in ("CFLAGS", "CPPFLAGS", "LDFLAGS", "LDSHARED")]]
+    digest.update(json.dumps(settings, default=list).encode())
+    return digest.hexdigest()
+
+
+def _compile_flags(script) -> list[str]:
+    """``script.compile_flags()``, its probe run once per process for each distinct build script setting."""
+    key = (tuple(script.CFLAGS), tuple(script.FAST_CFLAGS), script.PROBE, tuple(script.compiler()),
+           os.environ.get("KINEGEN_PORTABLE", ""))
+    if key not in _FLAGS:
+        _FLAGS[key] = list(script.compile_flags())
+    return _FLAGS[key]
+
+
+_FLAGS: dict = {}
+
+
+def _stamp_path(package: Path, name: str) -> Path:
+    return package / f"_{name}_c.stamp"
+
+
+def _stamp_holds(stamp: Path, key: str) -> bool:
+    """The stamp names ``key`` and the extension it records is still the file it built."""
+    try:
+        record = json.loads(stamp.read_text())
+        extension = stamp.parent / record["extension"]
+        info = extension.stat()
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+    return record.get("key") == key and [info.st_size, info.st_mtime_ns] == record.get("file")
+
+
+def stamp_text(package: Path, name: str) -> str:
+    """The build stamp of ``package`` ("" if there is none): what its extension was built from."""
+    try:
+        return _stamp_path(Path(package), name).read_text()
+    except OSError:
+        return ""
+
+
+def build_package(package: Path, name: str) -> tuple[str, float]:
+    """Build the cffi extension of generated ``package`` unless its build stamp says it is up to date.
+
+    Returns ("built" or "up to date", seconds).  ``name.c`` is compiled once, with
+    the strict flags in front of the library's own (that object is linked into the
+    extension); the other layouts of its batched entry points are checked with the
+    strict flags by the compiler's front end (-fsyntax-only), and fully, optimised
+    and under the sanitizers, by ``make test`` and ``make sanitize``.  The stamp,
+    ``_<name>_c.stamp`` beside the extension, is keyed on the C sources, the build
+    script, the flags, the compiler, Python, numpy and cffi.
+    """
+    start = time.perf_counter()
+    package = Path(package)
+    script = load_build_script(package)
+    key = _build_key(package, name, script)
+    stamp = _stamp_path(package, name)
+    if _stamp_holds(stamp, key):
+        return "up to date", time.perf_counter() - start
+    stamp.unlink(missing_ok=True)
+    flags = _compile_flags(script)
+    built_layout = "simd" if "-DKINEGEN_SIMD" in flags else "plain"
+    check_syntax(package, name, [layout for layout in LAYOUTS if layout != built_layout])
+    extension = build_extension(package, warnings=STRICT_FLAGS)
+    info = extension.stat()
+    record = {"key": key, "extension": extension.name, "file": [info.st_size, info.st_mtime_ns]}
+    partial = stamp.with_name(stamp.name + ".part")
+    partial.write_text(json.dumps(record) + "\n")
+    os.replace(partial, stamp)
+    return "built", time.perf_counter() - start
+
+
+def build_packages(targets: list[tuple[Path, str]], jobs: int, report=lambda name, status, seconds: None) -> None:
+    """build_package for each (package, name), in ``jobs`` processes, the largest C source first.
+
+    ``report(name, status, seconds)`` is called in this process as each finishes, so
+    progress lines never interleave.  The first failure stops the builds not yet started
+    and is raised once the running ones are done.
+    """
+    ordered = sorted(targets, key=lambda t: -(Path(t[0]) / f"{t[1]}.c").stat().st_size)
+    if jobs <= 1 or len(ordered) <= 1:
+        for package, name in ordered:
+            report(name, *build_package(package, name))
+        return
+    with concurrent.futures.ProcessPoolExecutor(max_workers=min(jobs, len(ordered))) as pool:
+        futures = {pool.submit(build_package, package, name): name for package, name in ordered}
+        try:
+            for future in concurrent.futures.as_completed(futures):
+                report(futures[future], *future.result())
+        except BaseException:
+            for future in futures:
+                future.cancel()
+            raise
 
 
 # The layouts of the batched entry points (see robot.c.j2): plain loops over the single
@@ -85,6 +206,23 @@ def _accepts(flags: tuple[str, ...]) -> bool:
         return result.returncode == 0
 
 
+def check_syntax(package: Path, name: str, layouts) -> None:
+    """The strict flags on ``name.c`` in each of ``layouts``, front end only (-fsyntax-only: a fraction of a second)."""
+    for layout in layouts:
+        if layout == "simd" and not _accepts(("-fopenmp-simd",)):
+            continue
+        _run([CC, *STRICT_FLAGS, *LAYOUTS[layout], "-fsyntax-only", str(Path(package) / f"{name}.c")])
+
+
+# The sanitizer build: the kernels at -O1 (what ASan and UBSan are meant to run at: every
+# access still instrumented, and UBSan's object-size check needs the optimiser), line tables
+# only (-g1: the reports' file:line; full -g with variable tracking made the Puma's blocked
+# layout a 5-minute compile); the driver, which only calls and compares, at -O0.
+SANITIZE_FLAGS = ("-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer", "-g1")
+SANITIZE_KERNEL_FLAGS = ("-O1",)
+SANITIZE_DRIVER_FLAGS = ("-O0",)
+
+
 def sanitizer_run(package: Path, name: str, functions: list[dict], n_joints: int, seed: int = 1) -> str:
     """Compile a driver calling every entry point under ASan and UBSan; return its output.
 
@@ -93,26 +231,38 @@ def sanitizer_run(package: Path, name: str, functions: list[dict], n_joints: int
     abort on any out-of-bounds access or undefined behaviour.  It runs twice: with
     the plain batched loops and with the blocked layout (in scalar C, so that its
     results must equal the single point's exactly), with more items than a block.
+    The driver and the two layouts of the kernels compile side by side, and the two
+    programs run side by side.
     """
     rng = random.Random(seed)
     inputs = [[rng.uniform(-3.0, 3.0) for _ in range(64)] for _ in range(3)]
     source = TEMPLATES.get_template("sanitize_driver.c.j2").render(
         name=name, functions=functions, inputs=inputs, count=3 + SANITIZER_BLOCK, n_joints=n_joints)
-    outputs = []
+    layouts = ("plain", "blocked")
     with tempfile.TemporaryDirectory(prefix="kinegen-asan-") as scratch:
-        driver = Path(scratch) / "driver.c"
+        scratch = Path(scratch)
+        driver = scratch / "driver.c"
         driver.write_text(source)
-        for layout in ("plain", "blocked"):
-            exe = Path(scratch) / f"driver-{layout}"
-            _run([CC, *STRICT_FLAGS, *LAYOUTS[layout], f"-DKINEGEN_BLOCK={SANITIZER_BLOCK}", "-O1", "-g",
-                  "-fno-omit-frame-pointer", "-fsanitize=address,undefined", "-fno-sanitize-recover=all",
-                  "-I", str(package), str(driver), str(package / f"{name}.c"), "-o", str(exe), "-lm"])
-            env = dict(os.environ, ASAN_OPTIONS="detect_leaks=1:abort_on_error=0", UBSAN_OPTIONS="print_stacktrace=1")
-            result = subprocess.run([str(exe)], capture_output=True, text=True, env=env)
-            if result.returncode != 0 or "runtime error" in result.stderr or "Sanitizer" in result.stderr:
-                raise CompileError(f"sanitizer run of {name} ({layout} batches) failed (exit {result.returncode}):\n"
-                                   f"{result.stdout}{result.stderr}")
-            outputs.append(result.stdout)
+        compiles = [[CC, *STRICT_FLAGS, *SANITIZE_FLAGS, *SANITIZE_DRIVER_FLAGS, "-I", str(package),
+                     "-c", str(driver), "-o", str(scratch / "driver.o")]]
+        compiles += [[CC, *STRICT_FLAGS, *SANITIZE_FLAGS, *SANITIZE_KERNEL_FLAGS, *LAYOUTS[layout],
+                      f"-DKINEGEN_BLOCK={SANITIZER_BLOCK}", "-c", str(package / f"{name}.c"),
+                      "-o", str(scratch / f"{name}-{layout}.o")] for layout in layouts]
+        with concurrent.futures.ThreadPoolExecutor(max_workers=len(compiles)) as pool:
+            for done in [pool.submit(_run, command) for command in compiles]:
+                done.result()
+        for layout in layouts:
+            _run([CC, *SANITIZE_FLAGS, str(scratch / "driver.o"), str(scratch / f"{name}-{layout}.o"),
+                  "-o", str(scratch / f"driver-{layout}"), "-lm"])
+        env = dict(os.environ, ASAN_OPTIONS="detect_leaks=1:abort_on_error=0", UBSAN_OPTIONS="print_stacktrace=1")
+        running = {layout: subprocess.Popen([str(scratch / f"driver-{layout}")], stdout=subprocess.PIPE,
+                                            stderr=subprocess.PIPE, text=True, env=env) for layout in layouts}
+        finished = {layout: (*process.communicate(), process.returncode) for layout, process in running.items()}
+    outputs = []
+    for layout, (stdout, stderr, status) in finished.items():
+        if status != 0 or "runtime error" in stderr or "Sanitizer" in stderr:
+            raise CompileError(f"sanitizer run of {name} ({layout} batches) failed (exit {status}):\n{stdout}{stderr}")
+        outputs.append(stdout)
     if outputs[0] != outputs[1]:
         raise CompileError(f"{name}: the plain and blocked batched entry points print different results")
     return outputs[0]

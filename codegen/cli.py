@@ -9,7 +9,7 @@
     kinegen verify [ROBOT ...]                    kernels against SymPy at 30 digits; summary table
     kinegen verify FILE --out DIR                 the same for a package made by `generate`
     kinegen check                                 fail when generated/ is not what the derivations give
-    kinegen all                                   generate, build, sanitize, verify (what `make` runs)
+    kinegen all                                   generate, build, verify (what `make` runs, with a stamp)
     kinegen latex ROBOT|FILE [--what W]            the LaTeX of a robot's derived equations (W: fk, jacobian, ik, ...)
     kinegen report                                build report/build/kinegen-report.pdf with pdflatex
     kinegen avr3000-limits [--R 18.3in] [--T 0]   the AVR 3000 Matlab script: axis velocity and acceleration
@@ -21,11 +21,16 @@ Progress goes to stderr; ``--quiet`` silences it.  Exit status: 0 on success,
 from __future__ import annotations
 
 import argparse
+import concurrent.futures
+import contextlib
+import hashlib
 import importlib
+import io
 import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import sympy as sp
 
 import derivations
@@ -198,21 +203,41 @@ def cmd_generate(args, say) -> int:
 
 
 def cmd_build(args, say) -> int:
-    for name in _registered(args.robots):
-        package = gen.GENERATED / name
-        say(f"{name}: compiling with {' '.join(c_build.STRICT_FLAGS)}")
-        c_build.compile_strict(package, name)
-        say(f"{name}: building the cffi extension")
-        c_build.build_extension(package)
+    names = _registered(args.robots)
+    jobs = gen.default_jobs()
+    say(f"building {len(names)} C extension(s) in {min(jobs, len(names))} process(es), the largest first; "
+        f"each C file compiled once, with {' '.join(c_build.STRICT_FLAGS)}")
+    counts = {"built": 0, "up to date": 0}
+
+    def report(name, status, seconds):
+        counts[status] += 1
+        if status == "built":
+            say(f"{name}: built ({seconds:.1f} s)")
+
+    c_build.build_packages([(gen.GENERATED / name, name) for name in names], jobs, report)
+    say(f"build: {counts['built']} built, {counts['up to date']} up to date (their build stamps hold)")
     return 0
 
 
+def _sanitize_one(name: str) -> tuple[str, float]:
+    """The sanitizer run of a registered robot or kernel set (a worker of cmd_sanitize)."""
+    start = time.perf_counter()
+    model = _symbolic(name)
+    context = gen.robot_context(model, "")
+    c_build.sanitizer_run(gen.GENERATED / name, name, context["functions"], model.n)
+    return name, time.perf_counter() - start
+
+
 def cmd_sanitize(args, say) -> int:
-    for name in _registered(args.robots):
-        model = _symbolic(name)
-        context = gen.robot_context(model, "")
-        say(f"{name}: sanitizer run (ASan + UBSan) of every entry point")
-        c_build.sanitizer_run(gen.GENERATED / name, name, context["functions"], model.n)
+    names = _registered(args.robots)
+    # The largest C first: the Puma's instrumented compile is most of the run.
+    names.sort(key=lambda n: -(gen.GENERATED / n / f"{n}.c").stat().st_size)
+    jobs = min(gen.default_jobs(), len(names))
+    say(f"sanitizer runs (ASan + UBSan) of every entry point of {len(names)} package(s), {jobs} at a time")
+    with concurrent.futures.ProcessPoolExecutor(max_workers=jobs) as pool:
+        for done in concurrent.futures.as_completed([pool.submit(_sanitize_one, name) for name in names]):
+            name, seconds = done.result()
+            say(f"{name}: clean under ASan and UBSan ({seconds:.1f} s)")
     return 0
 
 
@@ -229,6 +254,34 @@ def _package_modules(package: Path, backends: list[str]) -> dict:
         sys.path.pop(0)
 
 
+def _verify_one(name: str, backends: list[str], samples: int) -> list:
+    """verify_model of a registered robot or kernel set in generated/ (a worker of _verify_registered)."""
+    modules = {b: generated.load(name, backend=b) for b in backends}
+    return verify_model(_symbolic(name), modules, samples=samples)
+
+
+def _verify_registered(names: list[str], backends: list[str], samples: int, say) -> list:
+    """The checks of ``names``, in that order; robots are verified in parallel processes, the largest first."""
+    jobs = min(gen.default_jobs(), len(names))
+    say(f"verifying {len(names)} package(s) against SymPy at 30 digits ({samples} points per kernel), "
+        f"{jobs} at a time")
+    if jobs <= 1:
+        results = {}
+        for name in names:
+            say(f"{name}: verifying")
+            results[name] = _verify_one(name, backends, samples)
+    else:
+        results = {}
+        largest_first = sorted(names, key=lambda n: -(gen.GENERATED / n / f"{n}.c").stat().st_size
+                               if (gen.GENERATED / n / f"{n}.c").exists() else 0)
+        with concurrent.futures.ProcessPoolExecutor(max_workers=jobs) as pool:
+            futures = {pool.submit(_verify_one, name, backends, samples): name for name in largest_first}
+            for done in concurrent.futures.as_completed(futures):
+                results[futures[done]] = done.result()
+                say(f"{futures[done]}: verified ({len(results[futures[done]])} checks)")
+    return [check for name in names for check in results[name]]
+
+
 def cmd_verify(args, say) -> int:
     checks = []
     if any(_is_file(t) for t in args.robots) or args.out:
@@ -243,10 +296,7 @@ def cmd_verify(args, say) -> int:
         # newly registered robot): read its ROBOTS afresh.
         importlib.invalidate_caches()
         importlib.reload(generated)
-        for name in _registered(args.robots):
-            say(f"{name}: verifying against SymPy at 30 digits ({args.samples} points per kernel)")
-            modules = {b: generated.load(name, backend=b) for b in args.backends}
-            checks.extend(verify_model(_symbolic(name), modules, samples=args.samples))
+        checks = _verify_registered(_registered(args.robots), args.backends, args.samples, say)
     print(format_table(checks))
     failed = [c for c in checks if not c.ok]
     print(f"\n{len(checks) - len(failed)} passed, {len(failed)} failed "
@@ -285,12 +335,96 @@ def cmd_report(args, say) -> int:
     return 1 if result.warnings else 0
 
 
+MAKE_STAMPS = gen.REPO / ".cache" / "make"
+
+
+def _generate_inputs() -> str:
+    """Digest of what `generate` reads and writes: derivations/, codegen/, generated/ and the versions that matter."""
+    import jinja2
+    digest = hashlib.sha256()
+    for root, suffixes in ((Path(derivations.__file__).parent, (".py", ".toml")),
+                           (Path(__file__).parent, (".py", ".j2")), (gen.GENERATED, gen.OWNED_SUFFIXES)):
+        for path in sorted(root.rglob("*")):
+            if path.suffix in suffixes and "__pycache__" not in path.parts and path.is_file():
+                digest.update(f"{path.relative_to(gen.REPO)}\0".encode() + path.read_bytes())
+    digest.update(f"{sys.version} sympy {sp.__version__} jinja2 {jinja2.__version__}".encode())
+    return digest.hexdigest()
+
+
+def _read_stamp(name: str) -> str | None:
+    try:
+        return (MAKE_STAMPS / name).read_text()
+    except OSError:
+        return None
+
+
+def _write_stamp(name: str, text: str) -> None:
+    MAKE_STAMPS.mkdir(parents=True, exist_ok=True)
+    partial = MAKE_STAMPS / f"{name}.part"
+    partial.write_text(text)
+    partial.replace(MAKE_STAMPS / name)
+
+
 def cmd_all(args, say) -> int:
-    for step in (cmd_generate, cmd_build, cmd_sanitize, cmd_verify):
-        status = step(args, say)
+    """generate, build, verify (the sanitizer runs are `make test`'s and `make sanitize`'s).
+
+    For the whole tree each stage runs only if its inputs changed since the last `all`:
+    generate when derivations/, codegen/ or generated/ did (a digest in .cache/make),
+    build per robot by its build stamp, verify when the generated files or a built
+    library did (it then prints the table of that run again).  Robots named on the
+    command line are always done.  Each stage's time is printed at the end, and
+    appended to the file --times names.
+    """
+    stages = []
+    whole = not args.robots
+
+    def finished(stage, start):
+        stages.append((stage, time.perf_counter() - start))
+
+    start = time.perf_counter()
+    if whole and _read_stamp("generate") == _generate_inputs():
+        say("generate: derivations/, codegen/ and generated/ unchanged since the last run: skipped "
+            "(`make generate` forces it)")
+    else:
+        # Without the per-kernel [derive]/[cse] lines (`make generate` prints them).
+        status = cmd_generate(argparse.Namespace(**{**vars(args), "quiet": True}), say)
         if status:
             return status
-    return 0
+        if whole:
+            _write_stamp("generate", _generate_inputs())
+    finished("generate", start)
+
+    start = time.perf_counter()
+    status = cmd_build(args, say)
+    finished("build", start)
+    if status:
+        return status
+
+    start = time.perf_counter()
+    names = _registered(args.robots)
+    built = "".join(c_build.stamp_text(gen.GENERATED / name, name) for name in names)
+    key = hashlib.sha256(f"{_read_stamp('generate')}\n{built}\n{args.samples} {args.backends} "
+                         f"numpy {np.__version__}".encode()).hexdigest()
+    table = _read_stamp("verify")
+    if whole and table is not None and table.startswith(key + "\n"):
+        say("verify: the kernels, their libraries and the derivations are those of the last run, which "
+            "passed: its table follows (`make verify` runs it again)")
+        print(table[len(key) + 1:], end="")
+        status = 0
+    else:
+        output = io.StringIO()
+        with contextlib.redirect_stdout(output):
+            status = cmd_verify(args, say)
+        print(output.getvalue(), end="")
+        if whole and status == 0:
+            _write_stamp("verify", f"{key}\n{output.getvalue()}")
+    finished("verify", start)
+
+    say("time per stage: " + ", ".join(f"{stage} {seconds:.1f} s" for stage, seconds in stages))
+    if args.times:
+        with open(args.times, "a") as handle:
+            handle.writelines(f"{stage:<9} {seconds:6.1f} s\n" for stage, seconds in stages)
+    return status
 
 
 def _backends(text: str) -> list[str]:
@@ -321,7 +455,7 @@ def parser() -> argparse.ArgumentParser:
         ("build", cmd_build, "compile the generated C (strict flags, cffi extension)"),
         ("sanitize", cmd_sanitize, "run every C entry point under ASan and UBSan"),
         ("verify", cmd_verify, "check the kernels against SymPy"),
-        ("all", cmd_all, "generate, build, sanitize and verify"),
+        ("all", cmd_all, "generate, build and verify"),
     ):
         s = sub.add_parser(name, help=text, parents=[common])
         s.add_argument("robots", nargs="*", metavar="robot", help="robot names or a .toml file (default: all)")
@@ -339,6 +473,7 @@ def parser() -> argparse.ArgumentParser:
             s.add_argument("--samples", type=int, default=6, help="points per kernel (default 6)")
         if name == "all":
             s.set_defaults(out=None, backend=["numpy", "c"], force=False, no_build=False, time_limit=DEFAULT_TIME_LIMIT)
+            s.add_argument("--times", metavar="FILE", help="append each stage's time to FILE (make does)")
         s.set_defaults(run=run)
     sub.add_parser("check", help="fail when generated/ is stale", parents=[common]).set_defaults(run=cmd_check)
     s = sub.add_parser("latex", help="print the LaTeX of a robot's derived equations", parents=[common])
