@@ -38,6 +38,7 @@ Tolerance: 1e-12 on the max-norm error of each output, relative to max(1, max |e
 from __future__ import annotations
 
 import ast
+import fcntl
 import importlib
 import math
 import os
@@ -467,14 +468,35 @@ _PACKAGES: dict = {}
 
 
 @pytest.fixture(scope="session")
-def generated_root(tmp_path_factory):
-    return tmp_path_factory.mktemp("zoo_packages")
+def generated_root(tmp_path_factory, worker_id):
+    """One folder of packages for the whole run: under pytest-xdist the workers share it
+    (each arm generated once, under a lock), instead of generating every arm per worker."""
+    base = tmp_path_factory.getbasetemp()
+    root = (base.parent if worker_id != "master" else base) / "zoo_packages"
+    root.mkdir(exist_ok=True)
+    return root
 
 
 def generated_package(name, root: Path):
     """Generate the arm's package once per session with the CLI, import it; an error names the stage."""
     if name not in _PACKAGES:
-        out = root / name
+        with open(root / f"{name}.lock", "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)  # another worker may be generating this arm
+            _generate_once(name, root)
+    package = _PACKAGES[name]
+    if isinstance(package, str):
+        pytest.fail(f"{name}: {package}", pytrace=False)
+    return package
+
+
+def _generate_once(name, root: Path):
+    """Generate ``name`` into ``root`` unless a worker already did, then import it into _PACKAGES."""
+    out = root / name
+    failure = root / f"{name}.failed"
+    if failure.exists():
+        _PACKAGES[name] = failure.read_text()
+        return
+    if not out.exists():
         env = dict(os.environ, PYTHONPATH=str(ROOT))
         if name not in VECTORISED:
             env["KINEGEN_PORTABLE"] = "1"
@@ -484,22 +506,21 @@ def generated_package(name, root: Path):
                                      "--out", str(out)], cwd=ROOT, env=env, capture_output=True, text=True,
                                     timeout=GENERATE_TIMEOUT)
         except subprocess.TimeoutExpired:
-            _PACKAGES[name] = f"generate did not finish in {GENERATE_TIMEOUT} s"
+            failure.write_text(f"generate did not finish in {GENERATE_TIMEOUT} s")
+            _PACKAGES[name] = failure.read_text()
+            return
         else:
             if result.returncode != 0:
-                _PACKAGES[name] = (f"generate exited {result.returncode} after {time.perf_counter() - start:.0f} s:\n"
+                failure.write_text(f"generate exited {result.returncode} after {time.perf_counter() - start:.0f} s:\n"
                                    + result.stderr[-3000:])
-            else:
-                sys.path.insert(0, str(root))
-                importlib.invalidate_caches()
-                try:
-                    _PACKAGES[name] = importlib.import_module(name)
-                finally:
-                    sys.path.remove(str(root))
-    package = _PACKAGES[name]
-    if isinstance(package, str):
-        pytest.fail(f"{name}: {package}", pytrace=False)
-    return package
+                _PACKAGES[name] = failure.read_text()
+                return
+    sys.path.insert(0, str(root))
+    importlib.invalidate_caches()
+    try:
+        _PACKAGES[name] = importlib.import_module(name)
+    finally:
+        sys.path.remove(str(root))
 
 
 @pytest.mark.parametrize("backend", ["numpy", "c"])
