@@ -2180,14 +2180,14 @@ void adept_three_task_acceleration(const double *restrict q, const double *restr
     _s1 = sin(q1);
     _c1 = cos(q1);
 #endif
-    const double _t1 = _s0*l2;
-    const double _t2 = -_s1*l1 - _t1;
-    const double _t3 = _c0*l2;
-    const double _t4 = _t3*qd2;
-    const double _t5 = _c1*l1 + _t3;
-    const double _t6 = _t1*qd2;
-    xdd[0] = -_t1*qdd2 + _t2*qdd1 + qd1*(-_t4 - _t5*qd1) + qd2*(-_t3*qd1 - _t4);
-    xdd[1] = _t3*qdd2 + _t5*qdd1 + qd1*(_t2*qd1 - _t6) + qd2*(-_t1*qd1 - _t6);
+    const double _t1 = _c0*l2;
+    const double _t2 = _c1*l1 + _t1;
+    const double _t3 = _t1*qd2;
+    const double _t4 = _s0*l2;
+    const double _t5 = -_s1*l1 - _t4;
+    const double _t6 = _t4*qd2;
+    xdd[0] = -_t4*qdd2 + _t5*qdd1 + qd1*(-_t2*qd1 - _t3) + qd2*(-_t1*qd1 - _t3);
+    xdd[1] = _t1*qdd2 + _t2*qdd1 + qd1*(_t5*qd1 - _t6) + qd2*(-_t4*qd1 - _t6);
     xdd[2] = -qdd3;
     xdd[3] = qdd1 + qdd2 - qdd4;
 }
@@ -2256,14 +2256,14 @@ void adept_three_task_acceleration_batch(size_t count, const double *restrict q,
         if (stream) {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t1 = _s0[i]*l2;
-                const double _t2 = -_s1[i]*l1 - _t1;
-                const double _t3 = _c0[i]*l2;
-                const double _t4 = _t3*qd2[i];
-                const double _t5 = _c1[i]*l1 + _t3;
-                const double _t6 = _t1*qd2[i];
-                _xdd_block[0][i] = -_t1*qdd2[i] + _t2*qdd1[i] + qd1[i]*(-_t4 - _t5*qd1[i]) + qd2[i]*(-_t3*qd1[i] - _t4);
-                _xdd_block[1][i] = _t3*qdd2[i] + _t5*qdd1[i] + qd1[i]*(_t2*qd1[i] - _t6) + qd2[i]*(-_t1*qd1[i] - _t6);
+                const double _t1 = _c0[i]*l2;
+                const double _t2 = _c1[i]*l1 + _t1;
+                const double _t3 = _t1*qd2[i];
+                const double _t4 = _s0[i]*l2;
+                const double _t5 = -_s1[i]*l1 - _t4;
+                const double _t6 = _t4*qd2[i];
+                _xdd_block[0][i] = -_t4*qdd2[i] + _t5*qdd1[i] + qd1[i]*(-_t2*qd1[i] - _t3) + qd2[i]*(-_t1*qd1[i] - _t3);
+                _xdd_block[1][i] = _t1*qdd2[i] + _t2*qdd1[i] + qd1[i]*(_t5*qd1[i] - _t6) + qd2[i]*(-_t4*qd1[i] - _t6);
                 _xdd_block[2][i] = -qdd3[i];
                 _xdd_block[3][i] = qdd1[i] + qdd2[i] - qdd4[i];
             }
@@ -2272,14 +2272,14 @@ void adept_three_task_acceleration_batch(size_t count, const double *restrict q,
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t1 = _s0[i]*l2;
-                const double _t2 = -_s1[i]*l1 - _t1;
-                const double _t3 = _c0[i]*l2;
-                const double _t4 = _t3*qd2[i];
-                const double _t5 = _c1[i]*l1 + _t3;
-                const double _t6 = _t1*qd2[i];
-                xdd[4 * (start + i) + 0] = -_t1*qdd2[i] + _t2*qdd1[i] + qd1[i]*(-_t4 - _t5*qd1[i]) + qd2[i]*(-_t3*qd1[i] - _t4);
-                xdd[4 * (start + i) + 1] = _t3*qdd2[i] + _t5*qdd1[i] + qd1[i]*(_t2*qd1[i] - _t6) + qd2[i]*(-_t1*qd1[i] - _t6);
+                const double _t1 = _c0[i]*l2;
+                const double _t2 = _c1[i]*l1 + _t1;
+                const double _t3 = _t1*qd2[i];
+                const double _t4 = _s0[i]*l2;
+                const double _t5 = -_s1[i]*l1 - _t4;
+                const double _t6 = _t4*qd2[i];
+                xdd[4 * (start + i) + 0] = -_t4*qdd2[i] + _t5*qdd1[i] + qd1[i]*(-_t2*qd1[i] - _t3) + qd2[i]*(-_t1*qd1[i] - _t3);
+                xdd[4 * (start + i) + 1] = _t1*qdd2[i] + _t2*qdd1[i] + qd1[i]*(_t5*qd1[i] - _t6) + qd2[i]*(-_t4*qd1[i] - _t6);
                 xdd[4 * (start + i) + 2] = -qdd3[i];
                 xdd[4 * (start + i) + 3] = qdd1[i] + qdd2[i] - qdd4[i];
             }
@@ -2382,16 +2382,16 @@ void adept_three_joint_velocity(const double *restrict q, const double *restrict
     const double _t1 = (_t0*_t0*_t0*_t0);
     const double _t2 = (l1*l1);
     const double _t3 = (l2*l2);
-    const double _t14 = 1.0/(_t0*_t0);
-    const double _t15 = _t14*_t3;
-    const double _t34 = _t14*_t2;
-    const double _t46 = 1.0/_t0;
-    const double _t12 = q1 + q2;
+    const double _t12 = 1.0/(_t0*_t0);
+    const double _t13 = _t12*_t2;
+    const double _t20 = _t12*_t3;
+    const double _t43 = 1.0/_t0;
+    const double _t16 = q1 + q2;
     double _s0, _s1, _c1, _s2, _c2;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[4] = { q2, _t12, q1, 0.0 };
+        const double angle[4] = { q2, q1, _t16, 0.0 };
         double sine[4], cosine[4];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -2410,86 +2410,86 @@ void adept_three_joint_velocity(const double *restrict q, const double *restrict
     }
 #else
     _s0 = sin(q2);
-    _s1 = sin(_t12);
-    _c1 = cos(_t12);
-    _s2 = sin(q1);
-    _c2 = cos(q1);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+    _s2 = sin(_t16);
+    _c2 = cos(_t16);
 #endif
     const double _t5 = (_s0*_s0)*_t2*_t3;
     const double _t6 = _t5/_t1;
     const double _t7 = kinegen_max(0, 1 - 100000000*_t6);
-    const double _t8 = (_t7*_t7);
-    const double _t9 = (3e-12)*_t8;
-    const double _t10 = (_t7*_t7*_t7);
-    const double _t11 = (1e-12)*_t8;
-    const double _t16 = (_s1*_s1)*_t15;
-    const double _t18 = _s2*l1;
-    const double _t19 = _s1*l2;
-    const double _t20 = _t18 + _t19;
-    const double _t21 = _t14*(_t20*_t20) + _t16;
-    const double _t23 = (_c1*_c1)*_t15;
-    const double _t25 = _c2*l1;
-    const double _t26 = _c1*l2;
-    const double _t27 = _t25 + _t26;
-    const double _t28 = _t14*(_t27*_t27) + _t23;
-    const double _t29 = (1e-18)*_t10;
-    const double _t30 = -_t20;
-    const double _t31 = _t14*(_t30*_t30) + _t16;
-    const double _t32 = -_t27;
-    const double _t33 = _t14*(_t32*_t32) + _t23;
-    const double _t35 = (_c2*_c2)*_t34;
-    const double _t36 = _t28 + _t35;
-    const double _t37 = (1e-06)*_t7;
-    const double _t38 = (_s2*_s2)*_t34;
-    const double _t39 = _t31 + _t38;
-    const double _t40 = _t21 + _t38;
-    const double _t41 = _t33 + _t35;
-    const double _t42 = 1.0/((4e-18)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (2e-06)*_t6*_t7 + _t6 + (1e-24)*(_t7*_t7*_t7*_t7) + _t9);
-    const double _t43 = _s0*l2;
-    const double _t44 = _t2*_t43/(_t0*_t0*_t0);
-    const double _t45 = _s2*_t44;
-    const double _t47 = _t26*_t46;
-    const double _t48 = _t27*_t46;
-    const double _t49 = -_t11*(_t47 + _t48) + _t37*_t45 + _t37*(_t32*_t46 - _t47) + _t45;
-    const double _t50 = _c2*_s2*_t34;
-    const double _t51 = _c1*_s1*_t15;
-    const double _t52 = _t14*_t27*_t30;
-    const double _t53 = -_t14*_t20*_t32 + _t51;
-    const double _t54 = -_t11*(-_t51 + _t52) + _t37*_t53 - _t37*(-_t50 - _t53) + _t50 + _t51 - _t52;
-    const double _t55 = _t46*xd_x;
-    const double _t56 = _t37*_t40;
-    const double _t57 = _t11*_t31;
-    const double _t58 = _t21*_t37 + _t29 + _t57;
-    const double _t59 = (3e-06)*_t7 + (4e-12)*_t8;
-    const double _t60 = _t46*xd_y;
-    const double _t61 = _t49*xd_phi + _t54*_t55 + _t60*(_t39 + _t56 + _t58 + _t59);
-    const double _t62 = _c2*_t44;
-    const double _t63 = _t19*_t46;
-    const double _t64 = -_t11*(_t30*_t46 - _t63) + _t37*_t62 + _t37*(_t20*_t46 + _t63) + _t62;
-    const double _t65 = _t11*_t28;
-    const double _t66 = _t33*_t37 + _t65;
-    const double _t67 = _t29 + _t37*_t41;
-    const double _t68 = _t54*_t60 + _t55*(_t36 + _t59 + _t66 + _t67) + _t64*xd_phi;
-    const double _t69 = _t37*_t6 + _t6;
-    const double _t70 = _t49*_t60 + _t55*_t64 + xd_phi*(_t11 + _t58 + _t66 + _t69);
+    const double _t8 = (_t7*_t7*_t7);
+    const double _t9 = (_t7*_t7);
+    const double _t10 = (3e-12)*_t9;
+    const double _t14 = (_c1*_c1)*_t13;
+    const double _t15 = _c1*l1;
+    const double _t18 = _c2*l2;
+    const double _t19 = _t15 + _t18;
+    const double _t21 = (_c2*_c2)*_t20;
+    const double _t22 = _t12*(_t19*_t19) + _t21;
+    const double _t23 = _t14 + _t22;
+    const double _t24 = (1e-06)*_t7;
+    const double _t26 = (_s1*_s1)*_t13;
+    const double _t27 = _s1*l1;
+    const double _t29 = _s2*l2;
+    const double _t30 = _t27 + _t29;
+    const double _t31 = -_t30;
+    const double _t32 = (_s2*_s2)*_t20;
+    const double _t33 = _t12*(_t31*_t31) + _t32;
+    const double _t34 = _t26 + _t33;
+    const double _t35 = _t12*(_t30*_t30) + _t32;
+    const double _t36 = (1e-12)*_t9;
+    const double _t37 = -_t19;
+    const double _t38 = _t12*(_t37*_t37) + _t21;
+    const double _t39 = _t26 + _t35;
+    const double _t40 = _t14 + _t38;
+    const double _t41 = (1e-18)*_t8;
+    const double _t42 = 1.0/(_t10 + _t22*_t41 + _t23*_t24 + _t24*_t34 + _t33*_t41 + _t35*_t36 + _t36*_t38 + _t36*_t39 + _t36*_t40 + _t36*_t6 + (2e-06)*_t6*_t7 + _t6 + (1e-24)*(_t7*_t7*_t7*_t7) + (4e-18)*_t8);
+    const double _t44 = _t19*_t43;
+    const double _t45 = _t18*_t43;
+    const double _t46 = _s0*l2;
+    const double _t47 = _t2*_t46/(_t0*_t0*_t0);
+    const double _t48 = _s1*_t47;
+    const double _t49 = _t24*_t48 + _t24*(_t37*_t43 - _t45) - _t36*(_t44 + _t45) + _t48;
+    const double _t50 = _c2*_s2*_t20;
+    const double _t51 = -_t12*_t30*_t37 + _t50;
+    const double _t52 = _c1*_s1*_t13;
+    const double _t53 = _t12*_t19*_t31;
+    const double _t54 = _t24*_t51 - _t24*(-_t51 - _t52) - _t36*(-_t50 + _t53) + _t50 + _t52 - _t53;
+    const double _t55 = _t43*xd_x;
+    const double _t56 = _t24*_t39;
+    const double _t57 = _t33*_t36;
+    const double _t58 = _t24*_t35 + _t41 + _t57;
+    const double _t59 = (3e-06)*_t7 + (4e-12)*_t9;
+    const double _t60 = _t43*xd_y;
+    const double _t61 = _t49*xd_phi + _t54*_t55 + _t60*(_t34 + _t56 + _t58 + _t59);
+    const double _t62 = _t29*_t43;
+    const double _t63 = _c1*_t47;
+    const double _t64 = _t24*_t63 + _t24*(_t30*_t43 + _t62) - _t36*(_t31*_t43 - _t62) + _t63;
+    const double _t65 = _t22*_t36;
+    const double _t66 = _t24*_t38 + _t65;
+    const double _t67 = _t24*_t40 + _t41;
+    const double _t68 = _t54*_t60 + _t55*(_t23 + _t59 + _t66 + _t67) + _t64*xd_phi;
+    const double _t69 = _t24*_t6 + _t6;
+    const double _t70 = _t49*_t60 + _t55*_t64 + xd_phi*(_t36 + _t58 + _t66 + _t69);
     const int _t71 = _t6 < 1e-08;
     const double _t72 = 1.0/kinegen_max(_t5, (1e-08)*_t1);
-    const double _t73 = _t43*l1;
+    const double _t73 = _t46*l1;
     const double _t74 = _t72*_t73;
     qd[0] = ((_t71) ? (
-   _t42*(_t30*_t46*_t68 + _t48*_t61 + _t70)
+   _t42*(_t31*_t43*_t68 + _t44*_t61 + _t70)
 )
 : (
-   _t74*(_t19*xd_y + _t26*xd_x)
+   _t74*(_t18*xd_x + _t29*xd_y)
 ));
     qd[1] = ((_t71) ? (
-   _t42*(_t47*_t61 - _t63*_t68 + _t70)
+   _t42*(_t45*_t61 - _t62*_t68 + _t70)
 )
 : (
-   _t74*(_t30*xd_y + _t32*xd_x)
+   _t74*(_t31*xd_y + _t37*xd_x)
 ));
     qd[2] = ((_t71) ? (
-   -_t42*xd_z*(_t56 + _t57 + _t65 + _t67 + _t69 + _t9)
+   -_t42*xd_z*(_t10 + _t56 + _t57 + _t65 + _t67 + _t69)
 )
 : (
    -_t5*_t72*xd_z
@@ -2498,7 +2498,7 @@ void adept_three_joint_velocity(const double *restrict q, const double *restrict
    -_t42*_t70
 )
 : (
-   _t74*(-_t18*xd_y - _t25*xd_x - _t73*xd_phi)
+   _t74*(-_t15*xd_x - _t27*xd_y - _t73*xd_phi)
 ));
     singular[0] = _t71;
 }
@@ -2513,7 +2513,7 @@ void adept_three_joint_velocity_batch(size_t count, const double *restrict q, co
     double xd_y[KINEGEN_BLOCK_OF(64)];
     double xd_z[KINEGEN_BLOCK_OF(64)];
     double xd_phi[KINEGEN_BLOCK_OF(64)];
-    double _t12[KINEGEN_BLOCK_OF(64)];
+    double _t16[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
@@ -2536,10 +2536,10 @@ void adept_three_joint_velocity_batch(size_t count, const double *restrict q, co
     const double _t1 = (_t0*_t0*_t0*_t0);
     const double _t2 = (l1*l1);
     const double _t3 = (l2*l2);
-    const double _t14 = 1.0/(_t0*_t0);
-    const double _t15 = _t14*_t3;
-    const double _t34 = _t14*_t2;
-    const double _t46 = 1.0/_t0;
+    const double _t12 = 1.0/(_t0*_t0);
+    const double _t13 = _t12*_t2;
+    const double _t20 = _t12*_t3;
+    const double _t43 = 1.0/_t0;
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
@@ -2552,7 +2552,7 @@ void adept_three_joint_velocity_batch(size_t count, const double *restrict q, co
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t12[i] = q1[i] + q2[i];
+            _t16[i] = q1[i] + q2[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -2560,19 +2560,19 @@ void adept_three_joint_velocity_batch(size_t count, const double *restrict q, co
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s1[i] = sin(_t12[i]);
+            _s1[i] = sin(q1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c1[i] = cos(_t12[i]);
+            _c1[i] = cos(q1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s2[i] = sin(q1[i]);
+            _s2[i] = sin(_t16[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(q1[i]);
+            _c2[i] = cos(_t16[i]);
         }
 #ifdef KINEGEN_STREAM
         if (stream) {
@@ -2581,78 +2581,78 @@ void adept_three_joint_velocity_batch(size_t count, const double *restrict q, co
                 const double _t5 = (_s0[i]*_s0[i])*_t2*_t3;
                 const double _t6 = _t5/_t1;
                 const double _t7 = kinegen_max(0, 1 - 100000000*_t6);
-                const double _t8 = (_t7*_t7);
-                const double _t9 = (3e-12)*_t8;
-                const double _t10 = (_t7*_t7*_t7);
-                const double _t11 = (1e-12)*_t8;
-                const double _t16 = (_s1[i]*_s1[i])*_t15;
-                const double _t18 = _s2[i]*l1;
-                const double _t19 = _s1[i]*l2;
-                const double _t20 = _t18 + _t19;
-                const double _t21 = _t14*(_t20*_t20) + _t16;
-                const double _t23 = (_c1[i]*_c1[i])*_t15;
-                const double _t25 = _c2[i]*l1;
-                const double _t26 = _c1[i]*l2;
-                const double _t27 = _t25 + _t26;
-                const double _t28 = _t14*(_t27*_t27) + _t23;
-                const double _t29 = (1e-18)*_t10;
-                const double _t30 = -_t20;
-                const double _t31 = _t14*(_t30*_t30) + _t16;
-                const double _t32 = -_t27;
-                const double _t33 = _t14*(_t32*_t32) + _t23;
-                const double _t35 = (_c2[i]*_c2[i])*_t34;
-                const double _t36 = _t28 + _t35;
-                const double _t37 = (1e-06)*_t7;
-                const double _t38 = (_s2[i]*_s2[i])*_t34;
-                const double _t39 = _t31 + _t38;
-                const double _t40 = _t21 + _t38;
-                const double _t41 = _t33 + _t35;
-                const double _t42 = 1.0/((4e-18)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (2e-06)*_t6*_t7 + _t6 + (1e-24)*(_t7*_t7*_t7*_t7) + _t9);
-                const double _t43 = _s0[i]*l2;
-                const double _t44 = _t2*_t43/(_t0*_t0*_t0);
-                const double _t45 = _s2[i]*_t44;
-                const double _t47 = _t26*_t46;
-                const double _t48 = _t27*_t46;
-                const double _t49 = -_t11*(_t47 + _t48) + _t37*_t45 + _t37*(_t32*_t46 - _t47) + _t45;
-                const double _t50 = _c2[i]*_s2[i]*_t34;
-                const double _t51 = _c1[i]*_s1[i]*_t15;
-                const double _t52 = _t14*_t27*_t30;
-                const double _t53 = -_t14*_t20*_t32 + _t51;
-                const double _t54 = -_t11*(-_t51 + _t52) + _t37*_t53 - _t37*(-_t50 - _t53) + _t50 + _t51 - _t52;
-                const double _t55 = _t46*xd_x[i];
-                const double _t56 = _t37*_t40;
-                const double _t57 = _t11*_t31;
-                const double _t58 = _t21*_t37 + _t29 + _t57;
-                const double _t59 = (3e-06)*_t7 + (4e-12)*_t8;
-                const double _t60 = _t46*xd_y[i];
-                const double _t61 = _t49*xd_phi[i] + _t54*_t55 + _t60*(_t39 + _t56 + _t58 + _t59);
-                const double _t62 = _c2[i]*_t44;
-                const double _t63 = _t19*_t46;
-                const double _t64 = -_t11*(_t30*_t46 - _t63) + _t37*_t62 + _t37*(_t20*_t46 + _t63) + _t62;
-                const double _t65 = _t11*_t28;
-                const double _t66 = _t33*_t37 + _t65;
-                const double _t67 = _t29 + _t37*_t41;
-                const double _t68 = _t54*_t60 + _t55*(_t36 + _t59 + _t66 + _t67) + _t64*xd_phi[i];
-                const double _t69 = _t37*_t6 + _t6;
-                const double _t70 = _t49*_t60 + _t55*_t64 + xd_phi[i]*(_t11 + _t58 + _t66 + _t69);
+                const double _t8 = (_t7*_t7*_t7);
+                const double _t9 = (_t7*_t7);
+                const double _t10 = (3e-12)*_t9;
+                const double _t14 = (_c1[i]*_c1[i])*_t13;
+                const double _t15 = _c1[i]*l1;
+                const double _t18 = _c2[i]*l2;
+                const double _t19 = _t15 + _t18;
+                const double _t21 = (_c2[i]*_c2[i])*_t20;
+                const double _t22 = _t12*(_t19*_t19) + _t21;
+                const double _t23 = _t14 + _t22;
+                const double _t24 = (1e-06)*_t7;
+                const double _t26 = (_s1[i]*_s1[i])*_t13;
+                const double _t27 = _s1[i]*l1;
+                const double _t29 = _s2[i]*l2;
+                const double _t30 = _t27 + _t29;
+                const double _t31 = -_t30;
+                const double _t32 = (_s2[i]*_s2[i])*_t20;
+                const double _t33 = _t12*(_t31*_t31) + _t32;
+                const double _t34 = _t26 + _t33;
+                const double _t35 = _t12*(_t30*_t30) + _t32;
+                const double _t36 = (1e-12)*_t9;
+                const double _t37 = -_t19;
+                const double _t38 = _t12*(_t37*_t37) + _t21;
+                const double _t39 = _t26 + _t35;
+                const double _t40 = _t14 + _t38;
+                const double _t41 = (1e-18)*_t8;
+                const double _t42 = 1.0/(_t10 + _t22*_t41 + _t23*_t24 + _t24*_t34 + _t33*_t41 + _t35*_t36 + _t36*_t38 + _t36*_t39 + _t36*_t40 + _t36*_t6 + (2e-06)*_t6*_t7 + _t6 + (1e-24)*(_t7*_t7*_t7*_t7) + (4e-18)*_t8);
+                const double _t44 = _t19*_t43;
+                const double _t45 = _t18*_t43;
+                const double _t46 = _s0[i]*l2;
+                const double _t47 = _t2*_t46/(_t0*_t0*_t0);
+                const double _t48 = _s1[i]*_t47;
+                const double _t49 = _t24*_t48 + _t24*(_t37*_t43 - _t45) - _t36*(_t44 + _t45) + _t48;
+                const double _t50 = _c2[i]*_s2[i]*_t20;
+                const double _t51 = -_t12*_t30*_t37 + _t50;
+                const double _t52 = _c1[i]*_s1[i]*_t13;
+                const double _t53 = _t12*_t19*_t31;
+                const double _t54 = _t24*_t51 - _t24*(-_t51 - _t52) - _t36*(-_t50 + _t53) + _t50 + _t52 - _t53;
+                const double _t55 = _t43*xd_x[i];
+                const double _t56 = _t24*_t39;
+                const double _t57 = _t33*_t36;
+                const double _t58 = _t24*_t35 + _t41 + _t57;
+                const double _t59 = (3e-06)*_t7 + (4e-12)*_t9;
+                const double _t60 = _t43*xd_y[i];
+                const double _t61 = _t49*xd_phi[i] + _t54*_t55 + _t60*(_t34 + _t56 + _t58 + _t59);
+                const double _t62 = _t29*_t43;
+                const double _t63 = _c1[i]*_t47;
+                const double _t64 = _t24*_t63 + _t24*(_t30*_t43 + _t62) - _t36*(_t31*_t43 - _t62) + _t63;
+                const double _t65 = _t22*_t36;
+                const double _t66 = _t24*_t38 + _t65;
+                const double _t67 = _t24*_t40 + _t41;
+                const double _t68 = _t54*_t60 + _t55*(_t23 + _t59 + _t66 + _t67) + _t64*xd_phi[i];
+                const double _t69 = _t24*_t6 + _t6;
+                const double _t70 = _t49*_t60 + _t55*_t64 + xd_phi[i]*(_t36 + _t58 + _t66 + _t69);
                 const int _t71 = _t6 < 1e-08;
                 const double _t72 = 1.0/kinegen_max(_t5, (1e-08)*_t1);
-                const double _t73 = _t43*l1;
+                const double _t73 = _t46*l1;
                 const double _t74 = _t72*_t73;
                 _qd_block[0][i] = ((_t71) ? (
-   _t42*(_t30*_t46*_t68 + _t48*_t61 + _t70)
+   _t42*(_t31*_t43*_t68 + _t44*_t61 + _t70)
 )
 : (
-   _t74*(_t19*xd_y[i] + _t26*xd_x[i])
+   _t74*(_t18*xd_x[i] + _t29*xd_y[i])
 ));
                 _qd_block[1][i] = ((_t71) ? (
-   _t42*(_t47*_t61 - _t63*_t68 + _t70)
+   _t42*(_t45*_t61 - _t62*_t68 + _t70)
 )
 : (
-   _t74*(_t30*xd_y[i] + _t32*xd_x[i])
+   _t74*(_t31*xd_y[i] + _t37*xd_x[i])
 ));
                 _qd_block[2][i] = ((_t71) ? (
-   -_t42*xd_z[i]*(_t56 + _t57 + _t65 + _t67 + _t69 + _t9)
+   -_t42*xd_z[i]*(_t10 + _t56 + _t57 + _t65 + _t67 + _t69)
 )
 : (
    -_t5*_t72*xd_z[i]
@@ -2661,7 +2661,7 @@ void adept_three_joint_velocity_batch(size_t count, const double *restrict q, co
    -_t42*_t70
 )
 : (
-   _t74*(-_t18*xd_y[i] - _t25*xd_x[i] - _t73*xd_phi[i])
+   _t74*(-_t15*xd_x[i] - _t27*xd_y[i] - _t73*xd_phi[i])
 ));
                 singular[1 * (start + i) + 0] = _t71;
             }
@@ -2673,78 +2673,78 @@ void adept_three_joint_velocity_batch(size_t count, const double *restrict q, co
                 const double _t5 = (_s0[i]*_s0[i])*_t2*_t3;
                 const double _t6 = _t5/_t1;
                 const double _t7 = kinegen_max(0, 1 - 100000000*_t6);
-                const double _t8 = (_t7*_t7);
-                const double _t9 = (3e-12)*_t8;
-                const double _t10 = (_t7*_t7*_t7);
-                const double _t11 = (1e-12)*_t8;
-                const double _t16 = (_s1[i]*_s1[i])*_t15;
-                const double _t18 = _s2[i]*l1;
-                const double _t19 = _s1[i]*l2;
-                const double _t20 = _t18 + _t19;
-                const double _t21 = _t14*(_t20*_t20) + _t16;
-                const double _t23 = (_c1[i]*_c1[i])*_t15;
-                const double _t25 = _c2[i]*l1;
-                const double _t26 = _c1[i]*l2;
-                const double _t27 = _t25 + _t26;
-                const double _t28 = _t14*(_t27*_t27) + _t23;
-                const double _t29 = (1e-18)*_t10;
-                const double _t30 = -_t20;
-                const double _t31 = _t14*(_t30*_t30) + _t16;
-                const double _t32 = -_t27;
-                const double _t33 = _t14*(_t32*_t32) + _t23;
-                const double _t35 = (_c2[i]*_c2[i])*_t34;
-                const double _t36 = _t28 + _t35;
-                const double _t37 = (1e-06)*_t7;
-                const double _t38 = (_s2[i]*_s2[i])*_t34;
-                const double _t39 = _t31 + _t38;
-                const double _t40 = _t21 + _t38;
-                const double _t41 = _t33 + _t35;
-                const double _t42 = 1.0/((4e-18)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (2e-06)*_t6*_t7 + _t6 + (1e-24)*(_t7*_t7*_t7*_t7) + _t9);
-                const double _t43 = _s0[i]*l2;
-                const double _t44 = _t2*_t43/(_t0*_t0*_t0);
-                const double _t45 = _s2[i]*_t44;
-                const double _t47 = _t26*_t46;
-                const double _t48 = _t27*_t46;
-                const double _t49 = -_t11*(_t47 + _t48) + _t37*_t45 + _t37*(_t32*_t46 - _t47) + _t45;
-                const double _t50 = _c2[i]*_s2[i]*_t34;
-                const double _t51 = _c1[i]*_s1[i]*_t15;
-                const double _t52 = _t14*_t27*_t30;
-                const double _t53 = -_t14*_t20*_t32 + _t51;
-                const double _t54 = -_t11*(-_t51 + _t52) + _t37*_t53 - _t37*(-_t50 - _t53) + _t50 + _t51 - _t52;
-                const double _t55 = _t46*xd_x[i];
-                const double _t56 = _t37*_t40;
-                const double _t57 = _t11*_t31;
-                const double _t58 = _t21*_t37 + _t29 + _t57;
-                const double _t59 = (3e-06)*_t7 + (4e-12)*_t8;
-                const double _t60 = _t46*xd_y[i];
-                const double _t61 = _t49*xd_phi[i] + _t54*_t55 + _t60*(_t39 + _t56 + _t58 + _t59);
-                const double _t62 = _c2[i]*_t44;
-                const double _t63 = _t19*_t46;
-                const double _t64 = -_t11*(_t30*_t46 - _t63) + _t37*_t62 + _t37*(_t20*_t46 + _t63) + _t62;
-                const double _t65 = _t11*_t28;
-                const double _t66 = _t33*_t37 + _t65;
-                const double _t67 = _t29 + _t37*_t41;
-                const double _t68 = _t54*_t60 + _t55*(_t36 + _t59 + _t66 + _t67) + _t64*xd_phi[i];
-                const double _t69 = _t37*_t6 + _t6;
-                const double _t70 = _t49*_t60 + _t55*_t64 + xd_phi[i]*(_t11 + _t58 + _t66 + _t69);
+                const double _t8 = (_t7*_t7*_t7);
+                const double _t9 = (_t7*_t7);
+                const double _t10 = (3e-12)*_t9;
+                const double _t14 = (_c1[i]*_c1[i])*_t13;
+                const double _t15 = _c1[i]*l1;
+                const double _t18 = _c2[i]*l2;
+                const double _t19 = _t15 + _t18;
+                const double _t21 = (_c2[i]*_c2[i])*_t20;
+                const double _t22 = _t12*(_t19*_t19) + _t21;
+                const double _t23 = _t14 + _t22;
+                const double _t24 = (1e-06)*_t7;
+                const double _t26 = (_s1[i]*_s1[i])*_t13;
+                const double _t27 = _s1[i]*l1;
+                const double _t29 = _s2[i]*l2;
+                const double _t30 = _t27 + _t29;
+                const double _t31 = -_t30;
+                const double _t32 = (_s2[i]*_s2[i])*_t20;
+                const double _t33 = _t12*(_t31*_t31) + _t32;
+                const double _t34 = _t26 + _t33;
+                const double _t35 = _t12*(_t30*_t30) + _t32;
+                const double _t36 = (1e-12)*_t9;
+                const double _t37 = -_t19;
+                const double _t38 = _t12*(_t37*_t37) + _t21;
+                const double _t39 = _t26 + _t35;
+                const double _t40 = _t14 + _t38;
+                const double _t41 = (1e-18)*_t8;
+                const double _t42 = 1.0/(_t10 + _t22*_t41 + _t23*_t24 + _t24*_t34 + _t33*_t41 + _t35*_t36 + _t36*_t38 + _t36*_t39 + _t36*_t40 + _t36*_t6 + (2e-06)*_t6*_t7 + _t6 + (1e-24)*(_t7*_t7*_t7*_t7) + (4e-18)*_t8);
+                const double _t44 = _t19*_t43;
+                const double _t45 = _t18*_t43;
+                const double _t46 = _s0[i]*l2;
+                const double _t47 = _t2*_t46/(_t0*_t0*_t0);
+                const double _t48 = _s1[i]*_t47;
+                const double _t49 = _t24*_t48 + _t24*(_t37*_t43 - _t45) - _t36*(_t44 + _t45) + _t48;
+                const double _t50 = _c2[i]*_s2[i]*_t20;
+                const double _t51 = -_t12*_t30*_t37 + _t50;
+                const double _t52 = _c1[i]*_s1[i]*_t13;
+                const double _t53 = _t12*_t19*_t31;
+                const double _t54 = _t24*_t51 - _t24*(-_t51 - _t52) - _t36*(-_t50 + _t53) + _t50 + _t52 - _t53;
+                const double _t55 = _t43*xd_x[i];
+                const double _t56 = _t24*_t39;
+                const double _t57 = _t33*_t36;
+                const double _t58 = _t24*_t35 + _t41 + _t57;
+                const double _t59 = (3e-06)*_t7 + (4e-12)*_t9;
+                const double _t60 = _t43*xd_y[i];
+                const double _t61 = _t49*xd_phi[i] + _t54*_t55 + _t60*(_t34 + _t56 + _t58 + _t59);
+                const double _t62 = _t29*_t43;
+                const double _t63 = _c1[i]*_t47;
+                const double _t64 = _t24*_t63 + _t24*(_t30*_t43 + _t62) - _t36*(_t31*_t43 - _t62) + _t63;
+                const double _t65 = _t22*_t36;
+                const double _t66 = _t24*_t38 + _t65;
+                const double _t67 = _t24*_t40 + _t41;
+                const double _t68 = _t54*_t60 + _t55*(_t23 + _t59 + _t66 + _t67) + _t64*xd_phi[i];
+                const double _t69 = _t24*_t6 + _t6;
+                const double _t70 = _t49*_t60 + _t55*_t64 + xd_phi[i]*(_t36 + _t58 + _t66 + _t69);
                 const int _t71 = _t6 < 1e-08;
                 const double _t72 = 1.0/kinegen_max(_t5, (1e-08)*_t1);
-                const double _t73 = _t43*l1;
+                const double _t73 = _t46*l1;
                 const double _t74 = _t72*_t73;
                 qd[4 * (start + i) + 0] = ((_t71) ? (
-   _t42*(_t30*_t46*_t68 + _t48*_t61 + _t70)
+   _t42*(_t31*_t43*_t68 + _t44*_t61 + _t70)
 )
 : (
-   _t74*(_t19*xd_y[i] + _t26*xd_x[i])
+   _t74*(_t18*xd_x[i] + _t29*xd_y[i])
 ));
                 qd[4 * (start + i) + 1] = ((_t71) ? (
-   _t42*(_t47*_t61 - _t63*_t68 + _t70)
+   _t42*(_t45*_t61 - _t62*_t68 + _t70)
 )
 : (
-   _t74*(_t30*xd_y[i] + _t32*xd_x[i])
+   _t74*(_t31*xd_y[i] + _t37*xd_x[i])
 ));
                 qd[4 * (start + i) + 2] = ((_t71) ? (
-   -_t42*xd_z[i]*(_t56 + _t57 + _t65 + _t67 + _t69 + _t9)
+   -_t42*xd_z[i]*(_t10 + _t56 + _t57 + _t65 + _t67 + _t69)
 )
 : (
    -_t5*_t72*xd_z[i]
@@ -2753,7 +2753,7 @@ void adept_three_joint_velocity_batch(size_t count, const double *restrict q, co
    -_t42*_t70
 )
 : (
-   _t74*(-_t18*xd_y[i] - _t25*xd_x[i] - _t73*xd_phi[i])
+   _t74*(-_t15*xd_x[i] - _t27*xd_y[i] - _t73*xd_phi[i])
 ));
                 singular[1 * (start + i) + 0] = _t71;
             }
@@ -2804,16 +2804,16 @@ void adept_three_joint_acceleration(const double *restrict q, const double *rest
     const double _t1 = (_t0*_t0*_t0*_t0);
     const double _t2 = (l1*l1);
     const double _t3 = (l2*l2);
-    const double _t14 = 1.0/(_t0*_t0);
-    const double _t15 = _t14*_t3;
-    const double _t34 = _t14*_t2;
-    const double _t46 = 1.0/_t0;
-    const double _t12 = q1 + q2;
+    const double _t12 = 1.0/(_t0*_t0);
+    const double _t13 = _t12*_t2;
+    const double _t20 = _t12*_t3;
+    const double _t43 = 1.0/_t0;
+    const double _t16 = q1 + q2;
     double _s0, _s1, _c1, _s2, _c2;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[4] = { q2, _t12, q1, 0.0 };
+        const double angle[4] = { q2, q1, _t16, 0.0 };
         double sine[4], cosine[4];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -2832,90 +2832,90 @@ void adept_three_joint_acceleration(const double *restrict q, const double *rest
     }
 #else
     _s0 = sin(q2);
-    _s1 = sin(_t12);
-    _c1 = cos(_t12);
-    _s2 = sin(q1);
-    _c2 = cos(q1);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+    _s2 = sin(_t16);
+    _c2 = cos(_t16);
 #endif
     const double _t5 = (_s0*_s0)*_t2*_t3;
     const double _t6 = _t5/_t1;
     const double _t7 = kinegen_max(0, 1 - 100000000*_t6);
-    const double _t8 = (_t7*_t7);
-    const double _t9 = (3e-12)*_t8;
-    const double _t10 = (_t7*_t7*_t7);
-    const double _t11 = (1e-12)*_t8;
-    const double _t16 = (_s1*_s1)*_t15;
-    const double _t18 = _s2*l1;
-    const double _t19 = _s1*l2;
-    const double _t20 = _t18 + _t19;
-    const double _t21 = _t14*(_t20*_t20) + _t16;
-    const double _t23 = (_c1*_c1)*_t15;
-    const double _t25 = _c2*l1;
-    const double _t26 = _c1*l2;
-    const double _t27 = _t25 + _t26;
-    const double _t28 = _t14*(_t27*_t27) + _t23;
-    const double _t29 = (1e-18)*_t10;
-    const double _t30 = -_t20;
-    const double _t31 = _t14*(_t30*_t30) + _t16;
-    const double _t32 = -_t27;
-    const double _t33 = _t14*(_t32*_t32) + _t23;
-    const double _t35 = (_c2*_c2)*_t34;
-    const double _t36 = _t28 + _t35;
-    const double _t37 = (1e-06)*_t7;
-    const double _t38 = (_s2*_s2)*_t34;
-    const double _t39 = _t31 + _t38;
-    const double _t40 = _t21 + _t38;
-    const double _t41 = _t33 + _t35;
-    const double _t42 = 1.0/((4e-18)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (2e-06)*_t6*_t7 + _t6 + (1e-24)*(_t7*_t7*_t7*_t7) + _t9);
-    const double _t43 = _s0*l2;
-    const double _t44 = _t2*_t43/(_t0*_t0*_t0);
-    const double _t45 = _s2*_t44;
-    const double _t47 = _t26*_t46;
-    const double _t48 = _t27*_t46;
-    const double _t49 = -_t11*(_t47 + _t48) + _t37*_t45 + _t37*(_t32*_t46 - _t47) + _t45;
-    const double _t50 = _c2*_s2*_t34;
-    const double _t51 = _c1*_s1*_t15;
-    const double _t52 = _t14*_t27*_t30;
-    const double _t53 = -_t14*_t20*_t32 + _t51;
-    const double _t54 = -_t11*(-_t51 + _t52) + _t37*_t53 - _t37*(-_t50 - _t53) + _t50 + _t51 - _t52;
-    const double _t55 = _t26*qd2;
-    const double _t56 = -qd1*(_t32*qd1 - _t55) - qd2*(-_t26*qd1 - _t55) + xdd_x;
-    const double _t57 = _t46*_t56;
-    const double _t58 = _t37*_t40;
-    const double _t59 = _t11*_t31;
-    const double _t60 = _t21*_t37 + _t29 + _t59;
-    const double _t61 = (3e-06)*_t7 + (4e-12)*_t8;
-    const double _t62 = _t19*qd2;
-    const double _t63 = -qd1*(_t30*qd1 - _t62) - qd2*(-_t19*qd1 - _t62) + xdd_y;
-    const double _t64 = _t46*_t63;
-    const double _t65 = _t49*xdd_phi + _t54*_t57 + _t64*(_t39 + _t58 + _t60 + _t61);
-    const double _t66 = _c2*_t44;
-    const double _t67 = _t19*_t46;
-    const double _t68 = -_t11*(_t30*_t46 - _t67) + _t37*_t66 + _t37*(_t20*_t46 + _t67) + _t66;
-    const double _t69 = _t11*_t28;
-    const double _t70 = _t33*_t37 + _t69;
-    const double _t71 = _t29 + _t37*_t41;
-    const double _t72 = _t54*_t64 + _t57*(_t36 + _t61 + _t70 + _t71) + _t68*xdd_phi;
-    const double _t73 = _t37*_t6 + _t6;
-    const double _t74 = _t49*_t64 + _t57*_t68 + xdd_phi*(_t11 + _t60 + _t70 + _t73);
+    const double _t8 = (_t7*_t7*_t7);
+    const double _t9 = (_t7*_t7);
+    const double _t10 = (3e-12)*_t9;
+    const double _t14 = (_c1*_c1)*_t13;
+    const double _t15 = _c1*l1;
+    const double _t18 = _c2*l2;
+    const double _t19 = _t15 + _t18;
+    const double _t21 = (_c2*_c2)*_t20;
+    const double _t22 = _t12*(_t19*_t19) + _t21;
+    const double _t23 = _t14 + _t22;
+    const double _t24 = (1e-06)*_t7;
+    const double _t26 = (_s1*_s1)*_t13;
+    const double _t27 = _s1*l1;
+    const double _t29 = _s2*l2;
+    const double _t30 = _t27 + _t29;
+    const double _t31 = -_t30;
+    const double _t32 = (_s2*_s2)*_t20;
+    const double _t33 = _t12*(_t31*_t31) + _t32;
+    const double _t34 = _t26 + _t33;
+    const double _t35 = _t12*(_t30*_t30) + _t32;
+    const double _t36 = (1e-12)*_t9;
+    const double _t37 = -_t19;
+    const double _t38 = _t12*(_t37*_t37) + _t21;
+    const double _t39 = _t26 + _t35;
+    const double _t40 = _t14 + _t38;
+    const double _t41 = (1e-18)*_t8;
+    const double _t42 = 1.0/(_t10 + _t22*_t41 + _t23*_t24 + _t24*_t34 + _t33*_t41 + _t35*_t36 + _t36*_t38 + _t36*_t39 + _t36*_t40 + _t36*_t6 + (2e-06)*_t6*_t7 + _t6 + (1e-24)*(_t7*_t7*_t7*_t7) + (4e-18)*_t8);
+    const double _t44 = _t19*_t43;
+    const double _t45 = _t18*_t43;
+    const double _t46 = _s0*l2;
+    const double _t47 = _t2*_t46/(_t0*_t0*_t0);
+    const double _t48 = _s1*_t47;
+    const double _t49 = _t24*_t48 + _t24*(_t37*_t43 - _t45) - _t36*(_t44 + _t45) + _t48;
+    const double _t50 = _c2*_s2*_t20;
+    const double _t51 = -_t12*_t30*_t37 + _t50;
+    const double _t52 = _c1*_s1*_t13;
+    const double _t53 = _t12*_t19*_t31;
+    const double _t54 = _t24*_t51 - _t24*(-_t51 - _t52) - _t36*(-_t50 + _t53) + _t50 + _t52 - _t53;
+    const double _t55 = _t18*qd2;
+    const double _t56 = -qd1*(_t37*qd1 - _t55) - qd2*(-_t18*qd1 - _t55) + xdd_x;
+    const double _t57 = _t43*_t56;
+    const double _t58 = _t24*_t39;
+    const double _t59 = _t33*_t36;
+    const double _t60 = _t24*_t35 + _t41 + _t59;
+    const double _t61 = (3e-06)*_t7 + (4e-12)*_t9;
+    const double _t62 = _t29*qd2;
+    const double _t63 = -qd1*(_t31*qd1 - _t62) - qd2*(-_t29*qd1 - _t62) + xdd_y;
+    const double _t64 = _t43*_t63;
+    const double _t65 = _t49*xdd_phi + _t54*_t57 + _t64*(_t34 + _t58 + _t60 + _t61);
+    const double _t66 = _t29*_t43;
+    const double _t67 = _c1*_t47;
+    const double _t68 = _t24*_t67 + _t24*(_t30*_t43 + _t66) - _t36*(_t31*_t43 - _t66) + _t67;
+    const double _t69 = _t22*_t36;
+    const double _t70 = _t24*_t38 + _t69;
+    const double _t71 = _t24*_t40 + _t41;
+    const double _t72 = _t54*_t64 + _t57*(_t23 + _t61 + _t70 + _t71) + _t68*xdd_phi;
+    const double _t73 = _t24*_t6 + _t6;
+    const double _t74 = _t49*_t64 + _t57*_t68 + xdd_phi*(_t36 + _t60 + _t70 + _t73);
     const int _t75 = _t6 < 1e-08;
     const double _t76 = 1.0/kinegen_max(_t5, (1e-08)*_t1);
-    const double _t77 = _t43*l1;
+    const double _t77 = _t46*l1;
     const double _t78 = _t76*_t77;
     qdd[0] = ((_t75) ? (
-   _t42*(_t30*_t46*_t72 + _t48*_t65 + _t74)
+   _t42*(_t31*_t43*_t72 + _t44*_t65 + _t74)
 )
 : (
-   _t78*(_t19*_t63 + _t26*_t56)
+   _t78*(_t18*_t56 + _t29*_t63)
 ));
     qdd[1] = ((_t75) ? (
-   _t42*(_t47*_t65 - _t67*_t72 + _t74)
+   _t42*(_t45*_t65 - _t66*_t72 + _t74)
 )
 : (
-   _t78*(_t30*_t63 + _t32*_t56)
+   _t78*(_t31*_t63 + _t37*_t56)
 ));
     qdd[2] = ((_t75) ? (
-   -_t42*xdd_z*(_t58 + _t59 + _t69 + _t71 + _t73 + _t9)
+   -_t42*xdd_z*(_t10 + _t58 + _t59 + _t69 + _t71 + _t73)
 )
 : (
    -_t5*_t76*xdd_z
@@ -2924,7 +2924,7 @@ void adept_three_joint_acceleration(const double *restrict q, const double *rest
    -_t42*_t74
 )
 : (
-   _t78*(-_t18*_t63 - _t25*_t56 - _t77*xdd_phi)
+   _t78*(-_t15*_t56 - _t27*_t63 - _t77*xdd_phi)
 ));
     singular[0] = _t75;
 }
@@ -2941,7 +2941,7 @@ void adept_three_joint_acceleration_batch(size_t count, const double *restrict q
     double xdd_y[KINEGEN_BLOCK_OF(64)];
     double xdd_z[KINEGEN_BLOCK_OF(64)];
     double xdd_phi[KINEGEN_BLOCK_OF(64)];
-    double _t12[KINEGEN_BLOCK_OF(64)];
+    double _t16[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
@@ -2964,10 +2964,10 @@ void adept_three_joint_acceleration_batch(size_t count, const double *restrict q
     const double _t1 = (_t0*_t0*_t0*_t0);
     const double _t2 = (l1*l1);
     const double _t3 = (l2*l2);
-    const double _t14 = 1.0/(_t0*_t0);
-    const double _t15 = _t14*_t3;
-    const double _t34 = _t14*_t2;
-    const double _t46 = 1.0/_t0;
+    const double _t12 = 1.0/(_t0*_t0);
+    const double _t13 = _t12*_t2;
+    const double _t20 = _t12*_t3;
+    const double _t43 = 1.0/_t0;
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
@@ -2982,7 +2982,7 @@ void adept_three_joint_acceleration_batch(size_t count, const double *restrict q
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t12[i] = q1[i] + q2[i];
+            _t16[i] = q1[i] + q2[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -2990,19 +2990,19 @@ void adept_three_joint_acceleration_batch(size_t count, const double *restrict q
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s1[i] = sin(_t12[i]);
+            _s1[i] = sin(q1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c1[i] = cos(_t12[i]);
+            _c1[i] = cos(q1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s2[i] = sin(q1[i]);
+            _s2[i] = sin(_t16[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(q1[i]);
+            _c2[i] = cos(_t16[i]);
         }
 #ifdef KINEGEN_STREAM
         if (stream) {
@@ -3011,82 +3011,82 @@ void adept_three_joint_acceleration_batch(size_t count, const double *restrict q
                 const double _t5 = (_s0[i]*_s0[i])*_t2*_t3;
                 const double _t6 = _t5/_t1;
                 const double _t7 = kinegen_max(0, 1 - 100000000*_t6);
-                const double _t8 = (_t7*_t7);
-                const double _t9 = (3e-12)*_t8;
-                const double _t10 = (_t7*_t7*_t7);
-                const double _t11 = (1e-12)*_t8;
-                const double _t16 = (_s1[i]*_s1[i])*_t15;
-                const double _t18 = _s2[i]*l1;
-                const double _t19 = _s1[i]*l2;
-                const double _t20 = _t18 + _t19;
-                const double _t21 = _t14*(_t20*_t20) + _t16;
-                const double _t23 = (_c1[i]*_c1[i])*_t15;
-                const double _t25 = _c2[i]*l1;
-                const double _t26 = _c1[i]*l2;
-                const double _t27 = _t25 + _t26;
-                const double _t28 = _t14*(_t27*_t27) + _t23;
-                const double _t29 = (1e-18)*_t10;
-                const double _t30 = -_t20;
-                const double _t31 = _t14*(_t30*_t30) + _t16;
-                const double _t32 = -_t27;
-                const double _t33 = _t14*(_t32*_t32) + _t23;
-                const double _t35 = (_c2[i]*_c2[i])*_t34;
-                const double _t36 = _t28 + _t35;
-                const double _t37 = (1e-06)*_t7;
-                const double _t38 = (_s2[i]*_s2[i])*_t34;
-                const double _t39 = _t31 + _t38;
-                const double _t40 = _t21 + _t38;
-                const double _t41 = _t33 + _t35;
-                const double _t42 = 1.0/((4e-18)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (2e-06)*_t6*_t7 + _t6 + (1e-24)*(_t7*_t7*_t7*_t7) + _t9);
-                const double _t43 = _s0[i]*l2;
-                const double _t44 = _t2*_t43/(_t0*_t0*_t0);
-                const double _t45 = _s2[i]*_t44;
-                const double _t47 = _t26*_t46;
-                const double _t48 = _t27*_t46;
-                const double _t49 = -_t11*(_t47 + _t48) + _t37*_t45 + _t37*(_t32*_t46 - _t47) + _t45;
-                const double _t50 = _c2[i]*_s2[i]*_t34;
-                const double _t51 = _c1[i]*_s1[i]*_t15;
-                const double _t52 = _t14*_t27*_t30;
-                const double _t53 = -_t14*_t20*_t32 + _t51;
-                const double _t54 = -_t11*(-_t51 + _t52) + _t37*_t53 - _t37*(-_t50 - _t53) + _t50 + _t51 - _t52;
-                const double _t55 = _t26*qd2[i];
-                const double _t56 = -qd1[i]*(_t32*qd1[i] - _t55) - qd2[i]*(-_t26*qd1[i] - _t55) + xdd_x[i];
-                const double _t57 = _t46*_t56;
-                const double _t58 = _t37*_t40;
-                const double _t59 = _t11*_t31;
-                const double _t60 = _t21*_t37 + _t29 + _t59;
-                const double _t61 = (3e-06)*_t7 + (4e-12)*_t8;
-                const double _t62 = _t19*qd2[i];
-                const double _t63 = -qd1[i]*(_t30*qd1[i] - _t62) - qd2[i]*(-_t19*qd1[i] - _t62) + xdd_y[i];
-                const double _t64 = _t46*_t63;
-                const double _t65 = _t49*xdd_phi[i] + _t54*_t57 + _t64*(_t39 + _t58 + _t60 + _t61);
-                const double _t66 = _c2[i]*_t44;
-                const double _t67 = _t19*_t46;
-                const double _t68 = -_t11*(_t30*_t46 - _t67) + _t37*_t66 + _t37*(_t20*_t46 + _t67) + _t66;
-                const double _t69 = _t11*_t28;
-                const double _t70 = _t33*_t37 + _t69;
-                const double _t71 = _t29 + _t37*_t41;
-                const double _t72 = _t54*_t64 + _t57*(_t36 + _t61 + _t70 + _t71) + _t68*xdd_phi[i];
-                const double _t73 = _t37*_t6 + _t6;
-                const double _t74 = _t49*_t64 + _t57*_t68 + xdd_phi[i]*(_t11 + _t60 + _t70 + _t73);
+                const double _t8 = (_t7*_t7*_t7);
+                const double _t9 = (_t7*_t7);
+                const double _t10 = (3e-12)*_t9;
+                const double _t14 = (_c1[i]*_c1[i])*_t13;
+                const double _t15 = _c1[i]*l1;
+                const double _t18 = _c2[i]*l2;
+                const double _t19 = _t15 + _t18;
+                const double _t21 = (_c2[i]*_c2[i])*_t20;
+                const double _t22 = _t12*(_t19*_t19) + _t21;
+                const double _t23 = _t14 + _t22;
+                const double _t24 = (1e-06)*_t7;
+                const double _t26 = (_s1[i]*_s1[i])*_t13;
+                const double _t27 = _s1[i]*l1;
+                const double _t29 = _s2[i]*l2;
+                const double _t30 = _t27 + _t29;
+                const double _t31 = -_t30;
+                const double _t32 = (_s2[i]*_s2[i])*_t20;
+                const double _t33 = _t12*(_t31*_t31) + _t32;
+                const double _t34 = _t26 + _t33;
+                const double _t35 = _t12*(_t30*_t30) + _t32;
+                const double _t36 = (1e-12)*_t9;
+                const double _t37 = -_t19;
+                const double _t38 = _t12*(_t37*_t37) + _t21;
+                const double _t39 = _t26 + _t35;
+                const double _t40 = _t14 + _t38;
+                const double _t41 = (1e-18)*_t8;
+                const double _t42 = 1.0/(_t10 + _t22*_t41 + _t23*_t24 + _t24*_t34 + _t33*_t41 + _t35*_t36 + _t36*_t38 + _t36*_t39 + _t36*_t40 + _t36*_t6 + (2e-06)*_t6*_t7 + _t6 + (1e-24)*(_t7*_t7*_t7*_t7) + (4e-18)*_t8);
+                const double _t44 = _t19*_t43;
+                const double _t45 = _t18*_t43;
+                const double _t46 = _s0[i]*l2;
+                const double _t47 = _t2*_t46/(_t0*_t0*_t0);
+                const double _t48 = _s1[i]*_t47;
+                const double _t49 = _t24*_t48 + _t24*(_t37*_t43 - _t45) - _t36*(_t44 + _t45) + _t48;
+                const double _t50 = _c2[i]*_s2[i]*_t20;
+                const double _t51 = -_t12*_t30*_t37 + _t50;
+                const double _t52 = _c1[i]*_s1[i]*_t13;
+                const double _t53 = _t12*_t19*_t31;
+                const double _t54 = _t24*_t51 - _t24*(-_t51 - _t52) - _t36*(-_t50 + _t53) + _t50 + _t52 - _t53;
+                const double _t55 = _t18*qd2[i];
+                const double _t56 = -qd1[i]*(_t37*qd1[i] - _t55) - qd2[i]*(-_t18*qd1[i] - _t55) + xdd_x[i];
+                const double _t57 = _t43*_t56;
+                const double _t58 = _t24*_t39;
+                const double _t59 = _t33*_t36;
+                const double _t60 = _t24*_t35 + _t41 + _t59;
+                const double _t61 = (3e-06)*_t7 + (4e-12)*_t9;
+                const double _t62 = _t29*qd2[i];
+                const double _t63 = -qd1[i]*(_t31*qd1[i] - _t62) - qd2[i]*(-_t29*qd1[i] - _t62) + xdd_y[i];
+                const double _t64 = _t43*_t63;
+                const double _t65 = _t49*xdd_phi[i] + _t54*_t57 + _t64*(_t34 + _t58 + _t60 + _t61);
+                const double _t66 = _t29*_t43;
+                const double _t67 = _c1[i]*_t47;
+                const double _t68 = _t24*_t67 + _t24*(_t30*_t43 + _t66) - _t36*(_t31*_t43 - _t66) + _t67;
+                const double _t69 = _t22*_t36;
+                const double _t70 = _t24*_t38 + _t69;
+                const double _t71 = _t24*_t40 + _t41;
+                const double _t72 = _t54*_t64 + _t57*(_t23 + _t61 + _t70 + _t71) + _t68*xdd_phi[i];
+                const double _t73 = _t24*_t6 + _t6;
+                const double _t74 = _t49*_t64 + _t57*_t68 + xdd_phi[i]*(_t36 + _t60 + _t70 + _t73);
                 const int _t75 = _t6 < 1e-08;
                 const double _t76 = 1.0/kinegen_max(_t5, (1e-08)*_t1);
-                const double _t77 = _t43*l1;
+                const double _t77 = _t46*l1;
                 const double _t78 = _t76*_t77;
                 _qdd_block[0][i] = ((_t75) ? (
-   _t42*(_t30*_t46*_t72 + _t48*_t65 + _t74)
+   _t42*(_t31*_t43*_t72 + _t44*_t65 + _t74)
 )
 : (
-   _t78*(_t19*_t63 + _t26*_t56)
+   _t78*(_t18*_t56 + _t29*_t63)
 ));
                 _qdd_block[1][i] = ((_t75) ? (
-   _t42*(_t47*_t65 - _t67*_t72 + _t74)
+   _t42*(_t45*_t65 - _t66*_t72 + _t74)
 )
 : (
-   _t78*(_t30*_t63 + _t32*_t56)
+   _t78*(_t31*_t63 + _t37*_t56)
 ));
                 _qdd_block[2][i] = ((_t75) ? (
-   -_t42*xdd_z[i]*(_t58 + _t59 + _t69 + _t71 + _t73 + _t9)
+   -_t42*xdd_z[i]*(_t10 + _t58 + _t59 + _t69 + _t71 + _t73)
 )
 : (
    -_t5*_t76*xdd_z[i]
@@ -3095,7 +3095,7 @@ void adept_three_joint_acceleration_batch(size_t count, const double *restrict q
    -_t42*_t74
 )
 : (
-   _t78*(-_t18*_t63 - _t25*_t56 - _t77*xdd_phi[i])
+   _t78*(-_t15*_t56 - _t27*_t63 - _t77*xdd_phi[i])
 ));
                 singular[1 * (start + i) + 0] = _t75;
             }
@@ -3107,82 +3107,82 @@ void adept_three_joint_acceleration_batch(size_t count, const double *restrict q
                 const double _t5 = (_s0[i]*_s0[i])*_t2*_t3;
                 const double _t6 = _t5/_t1;
                 const double _t7 = kinegen_max(0, 1 - 100000000*_t6);
-                const double _t8 = (_t7*_t7);
-                const double _t9 = (3e-12)*_t8;
-                const double _t10 = (_t7*_t7*_t7);
-                const double _t11 = (1e-12)*_t8;
-                const double _t16 = (_s1[i]*_s1[i])*_t15;
-                const double _t18 = _s2[i]*l1;
-                const double _t19 = _s1[i]*l2;
-                const double _t20 = _t18 + _t19;
-                const double _t21 = _t14*(_t20*_t20) + _t16;
-                const double _t23 = (_c1[i]*_c1[i])*_t15;
-                const double _t25 = _c2[i]*l1;
-                const double _t26 = _c1[i]*l2;
-                const double _t27 = _t25 + _t26;
-                const double _t28 = _t14*(_t27*_t27) + _t23;
-                const double _t29 = (1e-18)*_t10;
-                const double _t30 = -_t20;
-                const double _t31 = _t14*(_t30*_t30) + _t16;
-                const double _t32 = -_t27;
-                const double _t33 = _t14*(_t32*_t32) + _t23;
-                const double _t35 = (_c2[i]*_c2[i])*_t34;
-                const double _t36 = _t28 + _t35;
-                const double _t37 = (1e-06)*_t7;
-                const double _t38 = (_s2[i]*_s2[i])*_t34;
-                const double _t39 = _t31 + _t38;
-                const double _t40 = _t21 + _t38;
-                const double _t41 = _t33 + _t35;
-                const double _t42 = 1.0/((4e-18)*_t10 + _t11*_t21 + _t11*_t33 + _t11*_t40 + _t11*_t41 + _t11*_t6 + _t28*_t29 + _t29*_t31 + _t36*_t37 + _t37*_t39 + (2e-06)*_t6*_t7 + _t6 + (1e-24)*(_t7*_t7*_t7*_t7) + _t9);
-                const double _t43 = _s0[i]*l2;
-                const double _t44 = _t2*_t43/(_t0*_t0*_t0);
-                const double _t45 = _s2[i]*_t44;
-                const double _t47 = _t26*_t46;
-                const double _t48 = _t27*_t46;
-                const double _t49 = -_t11*(_t47 + _t48) + _t37*_t45 + _t37*(_t32*_t46 - _t47) + _t45;
-                const double _t50 = _c2[i]*_s2[i]*_t34;
-                const double _t51 = _c1[i]*_s1[i]*_t15;
-                const double _t52 = _t14*_t27*_t30;
-                const double _t53 = -_t14*_t20*_t32 + _t51;
-                const double _t54 = -_t11*(-_t51 + _t52) + _t37*_t53 - _t37*(-_t50 - _t53) + _t50 + _t51 - _t52;
-                const double _t55 = _t26*qd2[i];
-                const double _t56 = -qd1[i]*(_t32*qd1[i] - _t55) - qd2[i]*(-_t26*qd1[i] - _t55) + xdd_x[i];
-                const double _t57 = _t46*_t56;
-                const double _t58 = _t37*_t40;
-                const double _t59 = _t11*_t31;
-                const double _t60 = _t21*_t37 + _t29 + _t59;
-                const double _t61 = (3e-06)*_t7 + (4e-12)*_t8;
-                const double _t62 = _t19*qd2[i];
-                const double _t63 = -qd1[i]*(_t30*qd1[i] - _t62) - qd2[i]*(-_t19*qd1[i] - _t62) + xdd_y[i];
-                const double _t64 = _t46*_t63;
-                const double _t65 = _t49*xdd_phi[i] + _t54*_t57 + _t64*(_t39 + _t58 + _t60 + _t61);
-                const double _t66 = _c2[i]*_t44;
-                const double _t67 = _t19*_t46;
-                const double _t68 = -_t11*(_t30*_t46 - _t67) + _t37*_t66 + _t37*(_t20*_t46 + _t67) + _t66;
-                const double _t69 = _t11*_t28;
-                const double _t70 = _t33*_t37 + _t69;
-                const double _t71 = _t29 + _t37*_t41;
-                const double _t72 = _t54*_t64 + _t57*(_t36 + _t61 + _t70 + _t71) + _t68*xdd_phi[i];
-                const double _t73 = _t37*_t6 + _t6;
-                const double _t74 = _t49*_t64 + _t57*_t68 + xdd_phi[i]*(_t11 + _t60 + _t70 + _t73);
+                const double _t8 = (_t7*_t7*_t7);
+                const double _t9 = (_t7*_t7);
+                const double _t10 = (3e-12)*_t9;
+                const double _t14 = (_c1[i]*_c1[i])*_t13;
+                const double _t15 = _c1[i]*l1;
+                const double _t18 = _c2[i]*l2;
+                const double _t19 = _t15 + _t18;
+                const double _t21 = (_c2[i]*_c2[i])*_t20;
+                const double _t22 = _t12*(_t19*_t19) + _t21;
+                const double _t23 = _t14 + _t22;
+                const double _t24 = (1e-06)*_t7;
+                const double _t26 = (_s1[i]*_s1[i])*_t13;
+                const double _t27 = _s1[i]*l1;
+                const double _t29 = _s2[i]*l2;
+                const double _t30 = _t27 + _t29;
+                const double _t31 = -_t30;
+                const double _t32 = (_s2[i]*_s2[i])*_t20;
+                const double _t33 = _t12*(_t31*_t31) + _t32;
+                const double _t34 = _t26 + _t33;
+                const double _t35 = _t12*(_t30*_t30) + _t32;
+                const double _t36 = (1e-12)*_t9;
+                const double _t37 = -_t19;
+                const double _t38 = _t12*(_t37*_t37) + _t21;
+                const double _t39 = _t26 + _t35;
+                const double _t40 = _t14 + _t38;
+                const double _t41 = (1e-18)*_t8;
+                const double _t42 = 1.0/(_t10 + _t22*_t41 + _t23*_t24 + _t24*_t34 + _t33*_t41 + _t35*_t36 + _t36*_t38 + _t36*_t39 + _t36*_t40 + _t36*_t6 + (2e-06)*_t6*_t7 + _t6 + (1e-24)*(_t7*_t7*_t7*_t7) + (4e-18)*_t8);
+                const double _t44 = _t19*_t43;
+                const double _t45 = _t18*_t43;
+                const double _t46 = _s0[i]*l2;
+                const double _t47 = _t2*_t46/(_t0*_t0*_t0);
+                const double _t48 = _s1[i]*_t47;
+                const double _t49 = _t24*_t48 + _t24*(_t37*_t43 - _t45) - _t36*(_t44 + _t45) + _t48;
+                const double _t50 = _c2[i]*_s2[i]*_t20;
+                const double _t51 = -_t12*_t30*_t37 + _t50;
+                const double _t52 = _c1[i]*_s1[i]*_t13;
+                const double _t53 = _t12*_t19*_t31;
+                const double _t54 = _t24*_t51 - _t24*(-_t51 - _t52) - _t36*(-_t50 + _t53) + _t50 + _t52 - _t53;
+                const double _t55 = _t18*qd2[i];
+                const double _t56 = -qd1[i]*(_t37*qd1[i] - _t55) - qd2[i]*(-_t18*qd1[i] - _t55) + xdd_x[i];
+                const double _t57 = _t43*_t56;
+                const double _t58 = _t24*_t39;
+                const double _t59 = _t33*_t36;
+                const double _t60 = _t24*_t35 + _t41 + _t59;
+                const double _t61 = (3e-06)*_t7 + (4e-12)*_t9;
+                const double _t62 = _t29*qd2[i];
+                const double _t63 = -qd1[i]*(_t31*qd1[i] - _t62) - qd2[i]*(-_t29*qd1[i] - _t62) + xdd_y[i];
+                const double _t64 = _t43*_t63;
+                const double _t65 = _t49*xdd_phi[i] + _t54*_t57 + _t64*(_t34 + _t58 + _t60 + _t61);
+                const double _t66 = _t29*_t43;
+                const double _t67 = _c1[i]*_t47;
+                const double _t68 = _t24*_t67 + _t24*(_t30*_t43 + _t66) - _t36*(_t31*_t43 - _t66) + _t67;
+                const double _t69 = _t22*_t36;
+                const double _t70 = _t24*_t38 + _t69;
+                const double _t71 = _t24*_t40 + _t41;
+                const double _t72 = _t54*_t64 + _t57*(_t23 + _t61 + _t70 + _t71) + _t68*xdd_phi[i];
+                const double _t73 = _t24*_t6 + _t6;
+                const double _t74 = _t49*_t64 + _t57*_t68 + xdd_phi[i]*(_t36 + _t60 + _t70 + _t73);
                 const int _t75 = _t6 < 1e-08;
                 const double _t76 = 1.0/kinegen_max(_t5, (1e-08)*_t1);
-                const double _t77 = _t43*l1;
+                const double _t77 = _t46*l1;
                 const double _t78 = _t76*_t77;
                 qdd[4 * (start + i) + 0] = ((_t75) ? (
-   _t42*(_t30*_t46*_t72 + _t48*_t65 + _t74)
+   _t42*(_t31*_t43*_t72 + _t44*_t65 + _t74)
 )
 : (
-   _t78*(_t19*_t63 + _t26*_t56)
+   _t78*(_t18*_t56 + _t29*_t63)
 ));
                 qdd[4 * (start + i) + 1] = ((_t75) ? (
-   _t42*(_t47*_t65 - _t67*_t72 + _t74)
+   _t42*(_t45*_t65 - _t66*_t72 + _t74)
 )
 : (
-   _t78*(_t30*_t63 + _t32*_t56)
+   _t78*(_t31*_t63 + _t37*_t56)
 ));
                 qdd[4 * (start + i) + 2] = ((_t75) ? (
-   -_t42*xdd_z[i]*(_t58 + _t59 + _t69 + _t71 + _t73 + _t9)
+   -_t42*xdd_z[i]*(_t10 + _t58 + _t59 + _t69 + _t71 + _t73)
 )
 : (
    -_t5*_t76*xdd_z[i]
@@ -3191,7 +3191,7 @@ void adept_three_joint_acceleration_batch(size_t count, const double *restrict q
    -_t42*_t74
 )
 : (
-   _t78*(-_t18*_t63 - _t25*_t56 - _t77*xdd_phi[i])
+   _t78*(-_t15*_t56 - _t27*_t63 - _t77*xdd_phi[i])
 ));
                 singular[1 * (start + i) + 0] = _t75;
             }

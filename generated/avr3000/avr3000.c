@@ -1794,14 +1794,14 @@ void avr3000_joint_to_cartesian_acceleration(const double *restrict joint, const
     _c2 = cos(q1);
 #endif
     const double _t1 = _s0*a;
-    const double _t4 = (0.5)*_s1*e - _t1;
-    const double _t5 = _s1*e - _s2*a - _t1;
+    const double _t4 = _s1*e - _s2*a - _t1;
+    const double _t5 = (0.5)*_s1*e - _t1;
     const double _t6 = _c0*a;
-    const double _t8 = -0.5*_c1*e + _t6;
-    const double _t9 = -_t8;
-    const double _t10 = -_c1*e + _c2*a + _t6;
-    cartesian_acceleration[0] = _t4*qddot2 + _t5*qddot1 + qdot1*(-_t10*qdot1 + _t9*qdot2) + qdot2*(_t9*qdot1 + qdot2*((0.25)*_c1*e - _t6));
-    cartesian_acceleration[1] = _t10*qddot1 + _t8*qddot2 + qdot1*(_t4*qdot2 + _t5*qdot1) + qdot2*(_t4*qdot1 + qdot2*((0.25)*_s1*e - _t1));
+    const double _t8 = -_c1*e + _c2*a + _t6;
+    const double _t9 = -0.5*_c1*e + _t6;
+    const double _t10 = -_t9;
+    cartesian_acceleration[0] = _t4*qddot1 + _t5*qddot2 + qdot1*(_t10*qdot2 - _t8*qdot1) + qdot2*(_t10*qdot1 + qdot2*((0.25)*_c1*e - _t6));
+    cartesian_acceleration[1] = _t8*qddot1 + _t9*qddot2 + qdot1*(_t4*qdot1 + _t5*qdot2) + qdot2*(_t5*qdot1 + qdot2*((0.25)*_s1*e - _t1));
     cartesian_acceleration[2] = qddot3;
 }
 
@@ -1873,14 +1873,14 @@ void avr3000_joint_to_cartesian_acceleration_batch(size_t count, const double *r
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             const double _t1 = _s0[i]*a;
-            const double _t4 = (0.5)*_s1[i]*e - _t1;
-            const double _t5 = _s1[i]*e - _s2[i]*a - _t1;
+            const double _t4 = _s1[i]*e - _s2[i]*a - _t1;
+            const double _t5 = (0.5)*_s1[i]*e - _t1;
             const double _t6 = _c0[i]*a;
-            const double _t8 = -0.5*_c1[i]*e + _t6;
-            const double _t9 = -_t8;
-            const double _t10 = -_c1[i]*e + _c2[i]*a + _t6;
-            cartesian_acceleration[3 * (start + i) + 0] = _t4*qddot2[i] + _t5*qddot1[i] + qdot1[i]*(-_t10*qdot1[i] + _t9*qdot2[i]) + qdot2[i]*(_t9*qdot1[i] + qdot2[i]*((0.25)*_c1[i]*e - _t6));
-            cartesian_acceleration[3 * (start + i) + 1] = _t10*qddot1[i] + _t8*qddot2[i] + qdot1[i]*(_t4*qdot2[i] + _t5*qdot1[i]) + qdot2[i]*(_t4*qdot1[i] + qdot2[i]*((0.25)*_s1[i]*e - _t1));
+            const double _t8 = -_c1[i]*e + _c2[i]*a + _t6;
+            const double _t9 = -0.5*_c1[i]*e + _t6;
+            const double _t10 = -_t9;
+            cartesian_acceleration[3 * (start + i) + 0] = _t4*qddot1[i] + _t5*qddot2[i] + qdot1[i]*(_t10*qdot2[i] - _t8*qdot1[i]) + qdot2[i]*(_t10*qdot1[i] + qdot2[i]*((0.25)*_c1[i]*e - _t6));
+            cartesian_acceleration[3 * (start + i) + 1] = _t8*qddot1[i] + _t9*qddot2[i] + qdot1[i]*(_t4*qdot1[i] + _t5*qdot2[i]) + qdot2[i]*(_t5*qdot1[i] + qdot2[i]*((0.25)*_s1[i]*e - _t1));
             cartesian_acceleration[3 * (start + i) + 2] = qddot3[i];
         }
     }
@@ -2045,11 +2045,11 @@ void avr3000_tool_to_cartesian_acceleration(const double *restrict tool, const d
     _c0 = cos(T);
     const double _t2 = Rdot*_c0;
     const double _t3 = R - e;
-    const double _t4 = Tddot*_t3;
-    const double _t5 = Tdot*_t3;
+    const double _t4 = Tdot*_t3;
+    const double _t5 = Tddot*_t3;
     const double _t6 = Rdot*_s0;
-    cartesian_acceleration[0] = Rddot*_s0 + Tdot*_t2 + Tdot*(-_s0*_t5 + _t2) + _c0*_t4;
-    cartesian_acceleration[1] = Rddot*_c0 - Tdot*_t6 + Tdot*(-_c0*_t5 - _t6) - _s0*_t4;
+    cartesian_acceleration[0] = Rddot*_s0 + Tdot*_t2 + Tdot*(-_s0*_t4 + _t2) + _c0*_t5;
+    cartesian_acceleration[1] = Rddot*_c0 - Tdot*_t6 + Tdot*(-_c0*_t4 - _t6) - _s0*_t5;
     cartesian_acceleration[2] = Zddot;
 }
 
@@ -2094,11 +2094,11 @@ void avr3000_tool_to_cartesian_acceleration_batch(size_t count, const double *re
         for (i = 0; i < n; ++i) {
             const double _t2 = Rdot[i]*_c0[i];
             const double _t3 = R[i] - e;
-            const double _t4 = Tddot[i]*_t3;
-            const double _t5 = Tdot[i]*_t3;
+            const double _t4 = Tdot[i]*_t3;
+            const double _t5 = Tddot[i]*_t3;
             const double _t6 = Rdot[i]*_s0[i];
-            cartesian_acceleration[3 * (start + i) + 0] = Rddot[i]*_s0[i] + Tdot[i]*_t2 + Tdot[i]*(-_s0[i]*_t5 + _t2) + _c0[i]*_t4;
-            cartesian_acceleration[3 * (start + i) + 1] = Rddot[i]*_c0[i] - Tdot[i]*_t6 + Tdot[i]*(-_c0[i]*_t5 - _t6) - _s0[i]*_t4;
+            cartesian_acceleration[3 * (start + i) + 0] = Rddot[i]*_s0[i] + Tdot[i]*_t2 + Tdot[i]*(-_s0[i]*_t4 + _t2) + _c0[i]*_t5;
+            cartesian_acceleration[3 * (start + i) + 1] = Rddot[i]*_c0[i] - Tdot[i]*_t6 + Tdot[i]*(-_c0[i]*_t4 - _t6) - _s0[i]*_t5;
             cartesian_acceleration[3 * (start + i) + 2] = Zddot[i];
         }
     }
@@ -2286,12 +2286,12 @@ void avr3000_motor_to_tool_acceleration(const double *restrict motor, const doub
     double _s0, _c0;
     _s0 = sin(_t2);
     _c0 = cos(_t2);
-    const double _t3 = _c0*a;
-    const double _t4 = _s0*a;
-    const double _t5 = J22*_t1*_t4;
-    const double _t6 = (0.5)*_t4;
+    const double _t3 = _s0*a;
+    const double _t4 = (0.5)*_t3;
+    const double _t5 = J22*_t1*_t3;
+    const double _t6 = _c0*a;
     tool_acceleration[0] = -_t0*thetaddot2 + thetaddot1*(-J11 - _t1);
-    tool_acceleration[1] = -J21*_t3*thetaddot1 - J22*_t3*thetaddot2 + thetadot1*((J21*J21)*_t6*thetadot1 + _t5*thetadot2) + thetadot2*((J22*J22)*_t6*thetadot2 + _t5*thetadot1);
+    tool_acceleration[1] = -J21*_t6*thetaddot1 - J22*_t6*thetaddot2 + thetadot1*((J21*J21)*_t4*thetadot1 + _t5*thetadot2) + thetadot2*((J22*J22)*_t4*thetadot2 + _t5*thetadot1);
     tool_acceleration[2] = J33*thetaddot3;
 }
 
@@ -2345,12 +2345,12 @@ void avr3000_motor_to_tool_acceleration_batch(size_t count, const double *restri
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            const double _t3 = _c0[i]*a;
-            const double _t4 = _s0[i]*a;
-            const double _t5 = J22*_t1*_t4;
-            const double _t6 = (0.5)*_t4;
+            const double _t3 = _s0[i]*a;
+            const double _t4 = (0.5)*_t3;
+            const double _t5 = J22*_t1*_t3;
+            const double _t6 = _c0[i]*a;
             tool_acceleration[3 * (start + i) + 0] = -_t0*thetaddot2[i] + thetaddot1[i]*(-J11 - _t1);
-            tool_acceleration[3 * (start + i) + 1] = -J21*_t3*thetaddot1[i] - J22*_t3*thetaddot2[i] + thetadot1[i]*((J21*J21)*_t6*thetadot1[i] + _t5*thetadot2[i]) + thetadot2[i]*((J22*J22)*_t6*thetadot2[i] + _t5*thetadot1[i]);
+            tool_acceleration[3 * (start + i) + 1] = -J21*_t6*thetaddot1[i] - J22*_t6*thetaddot2[i] + thetadot1[i]*((J21*J21)*_t4*thetadot1[i] + _t5*thetadot2[i]) + thetadot2[i]*((J22*J22)*_t4*thetadot2[i] + _t5*thetadot1[i]);
             tool_acceleration[3 * (start + i) + 2] = J33*thetaddot3[i];
         }
     }
@@ -2380,13 +2380,13 @@ void avr3000_motor_to_cartesian(const double *restrict motor, const avr3000_para
     const double _t0 = J11*theta1;
     const double _t1 = J21*theta1;
     const double _t2 = J22*theta2;
-    const double _t3 = _t0 + _t1 + _t2;
-    const double _t4 = _t0 + (0.5)*_t1 + (0.5)*_t2;
+    const double _t3 = _t0 + (0.5)*_t1 + (0.5)*_t2;
+    const double _t4 = _t0 + _t1 + _t2;
     double _s0, _c0, _s1, _c1, _s2, _c2;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[4] = { _t4, _t0, _t3, 0.0 };
+        const double angle[4] = { _t3, _t0, _t4, 0.0 };
         double sine[4], cosine[4];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -2405,12 +2405,12 @@ void avr3000_motor_to_cartesian(const double *restrict motor, const avr3000_para
         _c2 = cosine[2];
     }
 #else
-    _s0 = sin(_t4);
-    _c0 = cos(_t4);
+    _s0 = sin(_t3);
+    _c0 = cos(_t3);
     _s1 = sin(_t0);
     _c1 = cos(_t0);
-    _s2 = sin(_t3);
-    _c2 = cos(_t3);
+    _s2 = sin(_t4);
+    _c2 = cos(_t4);
 #endif
     cartesian[0] = _c1*a - _c2*a + _s0*e;
     cartesian[1] = -_c0*e + _s1*a - _s2*a;
@@ -2455,16 +2455,16 @@ void avr3000_motor_to_cartesian_batch(size_t count, const double *restrict motor
             _t0[i] = J11*theta1[i];
             const double _t1 = J21*theta1[i];
             const double _t2 = J22*theta2[i];
-            _t3[i] = _t0[i] + _t1 + _t2;
-            _t4[i] = _t0[i] + (0.5)*_t1 + (0.5)*_t2;
+            _t3[i] = _t0[i] + (0.5)*_t1 + (0.5)*_t2;
+            _t4[i] = _t0[i] + _t1 + _t2;
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s0[i] = sin(_t4[i]);
+            _s0[i] = sin(_t3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c0[i] = cos(_t4[i]);
+            _c0[i] = cos(_t3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -2476,11 +2476,11 @@ void avr3000_motor_to_cartesian_batch(size_t count, const double *restrict motor
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s2[i] = sin(_t3[i]);
+            _s2[i] = sin(_t4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(_t3[i]);
+            _c2[i] = cos(_t4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -2514,19 +2514,19 @@ void avr3000_motor_to_cartesian_velocity(const double *restrict motor, const dou
     const double J21 = params->J21;
     const double J22 = params->J22;
     const double J33 = params->J33;
-    const double _t4 = (0.5)*J21;
-    const double _t7 = J11*a;
-    const double _t8 = J11 + J21;
-    const double _t9 = e*(J11 + _t4);
+    const double _t1 = (0.5)*J21;
+    const double _t5 = e*(J11 + _t1);
+    const double _t6 = J11 + J21;
+    const double _t9 = J11*a;
     const double _t0 = J11*theta1;
-    const double _t1 = J22*theta2;
-    const double _t2 = J21*theta1 + _t0 + _t1;
-    const double _t5 = _t0 + (0.5)*_t1 + _t4*theta1;
+    const double _t2 = J22*theta2;
+    const double _t3 = _t0 + _t1*theta1 + (0.5)*_t2;
+    const double _t7 = J21*theta1 + _t0 + _t2;
     double _s0, _c0, _s1, _c1, _s2, _c2;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[4] = { _t2, _t5, _t0, 0.0 };
+        const double angle[4] = { _t3, _t7, _t0, 0.0 };
         double sine[4], cosine[4];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -2545,17 +2545,17 @@ void avr3000_motor_to_cartesian_velocity(const double *restrict motor, const dou
         _c2 = cosine[2];
     }
 #else
-    _s0 = sin(_t2);
-    _c0 = cos(_t2);
-    _s1 = sin(_t5);
-    _c1 = cos(_t5);
+    _s0 = sin(_t3);
+    _c0 = cos(_t3);
+    _s1 = sin(_t7);
+    _c1 = cos(_t7);
     _s2 = sin(_t0);
     _c2 = cos(_t0);
 #endif
-    const double _t3 = _s0*a;
-    const double _t10 = _c0*a;
-    cartesian_velocity[0] = thetadot1*(_c1*_t9 - _s2*_t7 + _t3*_t8) + thetadot2*((0.5)*J22*_c1*e + J22*_t3);
-    cartesian_velocity[1] = thetadot1*(_c2*_t7 + _s1*_t9 - _t10*_t8) + thetadot2*((0.5)*J22*_s1*e - J22*_t10);
+    const double _t8 = _s1*a;
+    const double _t11 = _c1*a;
+    cartesian_velocity[0] = thetadot1*(_c0*_t5 - _s2*_t9 + _t6*_t8) + thetadot2*((0.5)*J22*_c0*e + J22*_t8);
+    cartesian_velocity[1] = thetadot1*(_c2*_t9 + _s0*_t5 - _t11*_t6) + thetadot2*((0.5)*J22*_s0*e - J22*_t11);
     cartesian_velocity[2] = J33*thetadot3;
 }
 
@@ -2569,8 +2569,8 @@ void avr3000_motor_to_cartesian_velocity_batch(size_t count, const double *restr
     double thetadot2[KINEGEN_BLOCK_OF(64)];
     double thetadot3[KINEGEN_BLOCK_OF(64)];
     double _t0[KINEGEN_BLOCK_OF(64)];
-    double _t2[KINEGEN_BLOCK_OF(64)];
-    double _t5[KINEGEN_BLOCK_OF(64)];
+    double _t3[KINEGEN_BLOCK_OF(64)];
+    double _t7[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
@@ -2587,10 +2587,10 @@ void avr3000_motor_to_cartesian_velocity_batch(size_t count, const double *restr
     const double J21 = params->J21;
     const double J22 = params->J22;
     const double J33 = params->J33;
-    const double _t4 = (0.5)*J21;
-    const double _t7 = J11*a;
-    const double _t8 = J11 + J21;
-    const double _t9 = e*(J11 + _t4);
+    const double _t1 = (0.5)*J21;
+    const double _t5 = e*(J11 + _t1);
+    const double _t6 = J11 + J21;
+    const double _t9 = J11*a;
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
@@ -2603,25 +2603,25 @@ void avr3000_motor_to_cartesian_velocity_batch(size_t count, const double *restr
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             _t0[i] = J11*theta1[i];
-            const double _t1 = J22*theta2[i];
-            _t2[i] = J21*theta1[i] + _t0[i] + _t1;
-            _t5[i] = _t0[i] + (0.5)*_t1 + _t4*theta1[i];
+            const double _t2 = J22*theta2[i];
+            _t3[i] = _t0[i] + _t1*theta1[i] + (0.5)*_t2;
+            _t7[i] = J21*theta1[i] + _t0[i] + _t2;
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s0[i] = sin(_t2[i]);
+            _s0[i] = sin(_t3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c0[i] = cos(_t2[i]);
+            _c0[i] = cos(_t3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s1[i] = sin(_t5[i]);
+            _s1[i] = sin(_t7[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c1[i] = cos(_t5[i]);
+            _c1[i] = cos(_t7[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -2633,10 +2633,10 @@ void avr3000_motor_to_cartesian_velocity_batch(size_t count, const double *restr
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            const double _t3 = _s0[i]*a;
-            const double _t10 = _c0[i]*a;
-            cartesian_velocity[3 * (start + i) + 0] = thetadot1[i]*(_c1[i]*_t9 - _s2[i]*_t7 + _t3*_t8) + thetadot2[i]*((0.5)*J22*_c1[i]*e + J22*_t3);
-            cartesian_velocity[3 * (start + i) + 1] = thetadot1[i]*(_c2[i]*_t7 + _s1[i]*_t9 - _t10*_t8) + thetadot2[i]*((0.5)*J22*_s1[i]*e - J22*_t10);
+            const double _t8 = _s1[i]*a;
+            const double _t11 = _c1[i]*a;
+            cartesian_velocity[3 * (start + i) + 0] = thetadot1[i]*(_c0[i]*_t5 - _s2[i]*_t9 + _t6*_t8) + thetadot2[i]*((0.5)*J22*_c0[i]*e + J22*_t8);
+            cartesian_velocity[3 * (start + i) + 1] = thetadot1[i]*(_c2[i]*_t9 + _s0[i]*_t5 - _t11*_t6) + thetadot2[i]*((0.5)*J22*_s0[i]*e - J22*_t11);
             cartesian_velocity[3 * (start + i) + 2] = J33*thetadot3[i];
         }
     }
@@ -2667,26 +2667,26 @@ void avr3000_motor_to_cartesian_acceleration(const double *restrict motor, const
     const double J21 = params->J21;
     const double J22 = params->J22;
     const double J33 = params->J33;
-    const double _t4 = (0.5)*J21;
-    const double _t8 = (0.5)*J22;
-    const double _t10 = J11*a;
-    const double _t11 = J11 + J21;
-    const double _t13 = J11 + _t4;
-    const double _t14 = _t13*e;
-    const double _t16 = (J22*J22);
-    const double _t20 = (0.25)*_t16;
-    const double _t25 = (J11*J11)*a;
-    const double _t26 = (_t11*_t11);
-    const double _t27 = (_t13*_t13)*e;
+    const double _t1 = (0.5)*J21;
+    const double _t5 = J11 + _t1;
+    const double _t6 = _t5*e;
+    const double _t8 = J11 + J21;
+    const double _t13 = J11*a;
+    const double _t15 = (0.5)*J22;
+    const double _t17 = (_t5*_t5)*e;
+    const double _t19 = (J11*J11)*a;
+    const double _t20 = (_t8*_t8);
+    const double _t26 = (J22*J22);
+    const double _t27 = (0.25)*_t26;
     const double _t0 = J11*theta1;
-    const double _t1 = J22*theta2;
-    const double _t2 = J21*theta1 + _t0 + _t1;
-    const double _t5 = _t0 + (0.5)*_t1 + _t4*theta1;
+    const double _t2 = J22*theta2;
+    const double _t3 = _t0 + _t1*theta1 + (0.5)*_t2;
+    const double _t9 = J21*theta1 + _t0 + _t2;
     double _s0, _c0, _s1, _c1, _s2, _c2;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[4] = { _t2, _t5, _t0, 0.0 };
+        const double angle[4] = { _t3, _t9, _t0, 0.0 };
         double sine[4], cosine[4];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -2705,24 +2705,24 @@ void avr3000_motor_to_cartesian_acceleration(const double *restrict motor, const
         _c2 = cosine[2];
     }
 #else
-    _s0 = sin(_t2);
-    _c0 = cos(_t2);
-    _s1 = sin(_t5);
-    _c1 = cos(_t5);
+    _s0 = sin(_t3);
+    _c0 = cos(_t3);
+    _s1 = sin(_t9);
+    _c1 = cos(_t9);
     _s2 = sin(_t0);
     _c2 = cos(_t0);
 #endif
-    const double _t3 = _s0*a;
-    const double _t7 = _c1*e;
-    const double _t12 = _t11*_t3;
-    const double _t15 = _c1*_t14;
-    const double _t18 = _c0*a;
-    const double _t21 = _t11*_t18;
-    const double _t22 = _s1*_t14;
-    const double _t23 = J22*_t21 - _t22*_t8;
-    const double _t28 = J22*_t12 + _t15*_t8;
-    cartesian_acceleration[0] = thetaddot1*(-_s2*_t10 + _t12 + _t15) + thetaddot2*(J22*_t3 + _t7*_t8) + thetadot1*(_t23*thetadot2 + thetadot1*(_c0*_t26*a - _c2*_t25 - _s1*_t27)) + thetadot2*(_t23*thetadot1 + thetadot2*(-_s1*_t20*e + _t16*_t18));
-    cartesian_acceleration[1] = thetaddot1*(_c2*_t10 - _t21 + _t22) + thetaddot2*((0.5)*J22*_s1*e - J22*_t18) + thetadot1*(_t28*thetadot2 + thetadot1*(_c1*_t27 - _s2*_t25 + _t26*_t3)) + thetadot2*(_t28*thetadot1 + thetadot2*(_t16*_t3 + _t20*_t7));
+    const double _t7 = _c0*_t6;
+    const double _t10 = _s1*a;
+    const double _t11 = _t10*_t8;
+    const double _t14 = _c0*e;
+    const double _t22 = _c1*a;
+    const double _t23 = _t22*_t8;
+    const double _t24 = _s0*_t6;
+    const double _t25 = J22*_t23 - _t15*_t24;
+    const double _t28 = J22*_t11 + _t15*_t7;
+    cartesian_acceleration[0] = thetaddot1*(-_s2*_t13 + _t11 + _t7) + thetaddot2*(J22*_t10 + _t14*_t15) + thetadot1*(_t25*thetadot2 + thetadot1*(_c1*_t20*a - _c2*_t19 - _s0*_t17)) + thetadot2*(_t25*thetadot1 + thetadot2*(-_s0*_t27*e + _t22*_t26));
+    cartesian_acceleration[1] = thetaddot1*(_c2*_t13 - _t23 + _t24) + thetaddot2*((0.5)*J22*_s0*e - J22*_t22) + thetadot1*(_t28*thetadot2 + thetadot1*(_c0*_t17 - _s2*_t19 + _t10*_t20)) + thetadot2*(_t28*thetadot1 + thetadot2*(_t10*_t26 + _t14*_t27));
     cartesian_acceleration[2] = J33*thetaddot3;
 }
 
@@ -2738,8 +2738,8 @@ void avr3000_motor_to_cartesian_acceleration_batch(size_t count, const double *r
     double thetaddot2[KINEGEN_BLOCK_OF(64)];
     double thetaddot3[KINEGEN_BLOCK_OF(64)];
     double _t0[KINEGEN_BLOCK_OF(64)];
-    double _t2[KINEGEN_BLOCK_OF(64)];
-    double _t5[KINEGEN_BLOCK_OF(64)];
+    double _t3[KINEGEN_BLOCK_OF(64)];
+    double _t9[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
@@ -2756,17 +2756,17 @@ void avr3000_motor_to_cartesian_acceleration_batch(size_t count, const double *r
     const double J21 = params->J21;
     const double J22 = params->J22;
     const double J33 = params->J33;
-    const double _t4 = (0.5)*J21;
-    const double _t8 = (0.5)*J22;
-    const double _t10 = J11*a;
-    const double _t11 = J11 + J21;
-    const double _t13 = J11 + _t4;
-    const double _t14 = _t13*e;
-    const double _t16 = (J22*J22);
-    const double _t20 = (0.25)*_t16;
-    const double _t25 = (J11*J11)*a;
-    const double _t26 = (_t11*_t11);
-    const double _t27 = (_t13*_t13)*e;
+    const double _t1 = (0.5)*J21;
+    const double _t5 = J11 + _t1;
+    const double _t6 = _t5*e;
+    const double _t8 = J11 + J21;
+    const double _t13 = J11*a;
+    const double _t15 = (0.5)*J22;
+    const double _t17 = (_t5*_t5)*e;
+    const double _t19 = (J11*J11)*a;
+    const double _t20 = (_t8*_t8);
+    const double _t26 = (J22*J22);
+    const double _t27 = (0.25)*_t26;
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
@@ -2781,25 +2781,25 @@ void avr3000_motor_to_cartesian_acceleration_batch(size_t count, const double *r
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             _t0[i] = J11*theta1[i];
-            const double _t1 = J22*theta2[i];
-            _t2[i] = J21*theta1[i] + _t0[i] + _t1;
-            _t5[i] = _t0[i] + (0.5)*_t1 + _t4*theta1[i];
+            const double _t2 = J22*theta2[i];
+            _t3[i] = _t0[i] + _t1*theta1[i] + (0.5)*_t2;
+            _t9[i] = J21*theta1[i] + _t0[i] + _t2;
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s0[i] = sin(_t2[i]);
+            _s0[i] = sin(_t3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c0[i] = cos(_t2[i]);
+            _c0[i] = cos(_t3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s1[i] = sin(_t5[i]);
+            _s1[i] = sin(_t9[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c1[i] = cos(_t5[i]);
+            _c1[i] = cos(_t9[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -2811,17 +2811,17 @@ void avr3000_motor_to_cartesian_acceleration_batch(size_t count, const double *r
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            const double _t3 = _s0[i]*a;
-            const double _t7 = _c1[i]*e;
-            const double _t12 = _t11*_t3;
-            const double _t15 = _c1[i]*_t14;
-            const double _t18 = _c0[i]*a;
-            const double _t21 = _t11*_t18;
-            const double _t22 = _s1[i]*_t14;
-            const double _t23 = J22*_t21 - _t22*_t8;
-            const double _t28 = J22*_t12 + _t15*_t8;
-            cartesian_acceleration[3 * (start + i) + 0] = thetaddot1[i]*(-_s2[i]*_t10 + _t12 + _t15) + thetaddot2[i]*(J22*_t3 + _t7*_t8) + thetadot1[i]*(_t23*thetadot2[i] + thetadot1[i]*(_c0[i]*_t26*a - _c2[i]*_t25 - _s1[i]*_t27)) + thetadot2[i]*(_t23*thetadot1[i] + thetadot2[i]*(-_s1[i]*_t20*e + _t16*_t18));
-            cartesian_acceleration[3 * (start + i) + 1] = thetaddot1[i]*(_c2[i]*_t10 - _t21 + _t22) + thetaddot2[i]*((0.5)*J22*_s1[i]*e - J22*_t18) + thetadot1[i]*(_t28*thetadot2[i] + thetadot1[i]*(_c1[i]*_t27 - _s2[i]*_t25 + _t26*_t3)) + thetadot2[i]*(_t28*thetadot1[i] + thetadot2[i]*(_t16*_t3 + _t20*_t7));
+            const double _t7 = _c0[i]*_t6;
+            const double _t10 = _s1[i]*a;
+            const double _t11 = _t10*_t8;
+            const double _t14 = _c0[i]*e;
+            const double _t22 = _c1[i]*a;
+            const double _t23 = _t22*_t8;
+            const double _t24 = _s0[i]*_t6;
+            const double _t25 = J22*_t23 - _t15*_t24;
+            const double _t28 = J22*_t11 + _t15*_t7;
+            cartesian_acceleration[3 * (start + i) + 0] = thetaddot1[i]*(-_s2[i]*_t13 + _t11 + _t7) + thetaddot2[i]*(J22*_t10 + _t14*_t15) + thetadot1[i]*(_t25*thetadot2[i] + thetadot1[i]*(_c1[i]*_t20*a - _c2[i]*_t19 - _s0[i]*_t17)) + thetadot2[i]*(_t25*thetadot1[i] + thetadot2[i]*(-_s0[i]*_t27*e + _t22*_t26));
+            cartesian_acceleration[3 * (start + i) + 1] = thetaddot1[i]*(_c2[i]*_t13 - _t23 + _t24) + thetaddot2[i]*((0.5)*J22*_s0[i]*e - J22*_t22) + thetadot1[i]*(_t28*thetadot2[i] + thetadot1[i]*(_c0[i]*_t17 - _s2[i]*_t19 + _t10*_t20)) + thetadot2[i]*(_t28*thetadot1[i] + thetadot2[i]*(_t10*_t26 + _t14*_t27));
             cartesian_acceleration[3 * (start + i) + 2] = J33*thetaddot3[i];
         }
     }
@@ -3276,15 +3276,15 @@ int avr3000_tool_to_motor_acceleration(const double *restrict tool, const double
     const double _t0 = 1.0/J11;
     const double _t5 = (0.5)*_t0;
     const double _t9 = 1.0/J22;
-    const double _t10 = J21*_t9;
+    const double _t11 = J21*_t9;
     const double _t1 = Tddot*_t0;
     const double _t4 = _t2/sqrt(_t3);
     const double _t6 = (Rdot*Rdot);
     const double _t7 = R/((_t3*sqrt(_t3))*(a*a*a));
     const double _t8 = (0.125)*_t0*_t7;
-    const double _t11 = _t4*_t9;
+    const double _t10 = _t4*_t9;
     motor_acceleration[0] = Rddot*_t4*_t5 - _t1 + _t6*_t8;
-    motor_acceleration[1] = Rddot*(-J21*_t11*_t5 - _t11) + _t1*_t10 + _t6*(-_t10*_t8 - 0.25*_t7*_t9);
+    motor_acceleration[1] = Rddot*(-J21*_t10*_t5 - _t10) + _t1*_t11 + _t6*(-_t11*_t8 - 0.25*_t7*_t9);
     motor_acceleration[2] = Zddot/J33;
     return 0;
 }
@@ -3406,14 +3406,14 @@ int avr3000_cartesian_to_tool_acceleration(const double *restrict cartesian, con
     const double _t3 = 1.0/_t2;
     const double _t4 = 1.0/(_t2*_t2);
     const double _t5 = 2*_t4;
-    const double _t6 = x*y;
-    const double _t7 = _t5*xdot;
+    const double _t6 = _t5*xdot;
+    const double _t7 = x*y;
     const double _t8 = 1.0/sqrt(_t2);
     const double _t9 = 1.0/(_t2*sqrt(_t2));
-    const double _t10 = _t9*ydot;
-    const double _t11 = _t9*xdot;
-    tool_acceleration[0] = -_t3*x*yddot + _t3*xddot*y + xdot*(2*_t0*_t4*ydot - _t3*ydot - _t6*_t7) + ydot*(-_t1*_t7 + _t3*xdot + _t5*_t6*ydot);
-    tool_acceleration[1] = _t8*x*xddot + _t8*y*yddot + xdot*(-_t0*_t11 - _t10*_t6 + _t8*xdot) + ydot*(-_t1*_t10 - _t11*_t6 + _t8*ydot);
+    const double _t10 = _t9*xdot;
+    const double _t11 = _t9*ydot;
+    tool_acceleration[0] = -_t3*x*yddot + _t3*xddot*y + xdot*(2*_t0*_t4*ydot - _t3*ydot - _t6*_t7) + ydot*(-_t1*_t6 + _t3*xdot + _t5*_t7*ydot);
+    tool_acceleration[1] = _t8*x*xddot + _t8*y*yddot + xdot*(-_t0*_t10 - _t11*_t7 + _t8*xdot) + ydot*(-_t1*_t11 - _t10*_t7 + _t8*ydot);
     tool_acceleration[2] = zddot;
     return 0;
 }
@@ -3500,23 +3500,23 @@ int avr3000_cartesian_to_joint_velocity(const double *restrict cartesian, const 
         return AVR3000_SINGULAR;  /* before any output is written */
     }
     const double _t2 = 1.0/a;
-    const double _t3 = (0.5)*_t2;
-    const double _t4 = sqrt(_t0);
-    const double _t5 = _t4 + e;
-    const double _t11 = _t3*_t5;
+    const double _t3 = sqrt(_t0);
+    const double _t4 = _t3 + e;
+    const double _t8 = (0.5)*_t2;
+    const double _t11 = _t4*_t8;
     if (!(_t11 >= -1 && _t11 <= 1)) {
         return AVR3000_UNREACHABLE;  /* before any output is written */
     }
-    const double _t6 = -0.25*(_t5*_t5)/(a*a) + 1;
-    if (!(_t6 > 0)) {
+    const double _t5 = -0.25*(_t4*_t4)/(a*a) + 1;
+    if (!(_t5 > 0)) {
         return AVR3000_SINGULAR;  /* before any output is written */
     }
     const double _t1 = 1.0/_t0;
-    const double _t7 = 1.0/sqrt(_t6);
-    const double _t8 = 1.0/_t4;
-    const double _t9 = _t7*_t8;
+    const double _t6 = 1.0/sqrt(_t5);
+    const double _t7 = 1.0/_t3;
+    const double _t9 = _t6*_t7;
     const double _t10 = _t2*_t9;
-    joint_velocity[0] = xdot*(-_t1*y + (0.5)*_t2*_t7*_t8*x) + ydot*(_t1*x + _t3*_t9*y);
+    joint_velocity[0] = xdot*(-_t1*y + (0.5)*_t2*_t6*_t7*x) + ydot*(_t1*x + _t8*_t9*y);
     joint_velocity[1] = -_t10*x*xdot - _t10*y*ydot;
     joint_velocity[2] = zdot;
     return 0;
@@ -3561,11 +3561,11 @@ int avr3000_cartesian_to_joint_acceleration(const double *restrict cartesian, co
     if (!(_t2 > 0)) {
         return AVR3000_SINGULAR;  /* before any output is written */
     }
-    const double _t4 = 1.0/a;
-    const double _t5 = (0.5)*_t4;
+    const double _t5 = 1.0/a;
     const double _t6 = sqrt(_t2);
     const double _t7 = _t6 + e;
-    const double _t30 = _t5*_t7;
+    const double _t11 = (0.5)*_t5;
+    const double _t30 = _t11*_t7;
     if (!(_t30 >= -1 && _t30 <= 1)) {
         return AVR3000_UNREACHABLE;  /* before any output is written */
     }
@@ -3573,30 +3573,30 @@ int avr3000_cartesian_to_joint_acceleration(const double *restrict cartesian, co
     if (!(_t8 > 0)) {
         return AVR3000_SINGULAR;  /* before any output is written */
     }
-    const double _t20 = 1.0/(a*a*a);
+    const double _t19 = 1.0/(a*a*a);
     const double _t3 = 1.0/_t2;
+    const double _t4 = _t3*y;
     const double _t9 = 1.0/sqrt(_t8);
     const double _t10 = 1.0/_t6;
-    const double _t11 = _t10*_t9;
-    const double _t12 = _t11*_t5;
-    const double _t13 = _t3*y;
-    const double _t14 = -_t3;
-    const double _t15 = 2/(_t2*_t2);
-    const double _t16 = x*y;
+    const double _t12 = _t10*_t9;
+    const double _t13 = _t11*_t12;
+    const double _t14 = 2/(_t2*_t2);
+    const double _t15 = x*y;
+    const double _t16 = _t14*_t15;
     const double _t17 = 1.0/(_t2*sqrt(_t2));
-    const double _t18 = _t17*_t5*_t9;
-    const double _t19 = _t16*_t18;
-    const double _t21 = 1.0/(_t8*sqrt(_t8));
-    const double _t22 = _t15*_t16;
-    const double _t23 = _t20*_t21*_t7;
-    const double _t24 = (0.125)*_t23;
-    const double _t25 = _t13*x;
-    const double _t26 = _t11*_t4;
-    const double _t27 = (0.25)*_t23;
-    const double _t28 = _t25*_t27;
-    const double _t29 = _t27*_t3;
-    joint_acceleration[0] = xddot*((0.5)*_t10*_t4*_t9*x - _t13) + xdot*(xdot*(-_t0*_t18 + _t0*_t24*_t3 + _t12 + _t22) + ydot*(-_t0*_t15 - _t14 - _t19 + (0.125)*_t20*_t21*_t3*_t7*x*y)) + yddot*(_t12*y + _t3*x) + ydot*(xdot*(_t1*_t15 + _t14 - _t19 + _t24*_t25) + ydot*(-_t1*_t18 + (0.125)*_t1*_t20*_t21*_t3*_t7 + (0.5)*_t10*_t4*_t9 - _t22));
-    joint_acceleration[1] = -_t26*x*xddot - _t26*y*yddot + xdot*(_t0*_t17*_t4*_t9*xdot - _t0*_t29*xdot + _t17*_t4*_t9*x*y*ydot - _t26*xdot - _t28*ydot) + ydot*(_t1*_t17*_t4*_t9*ydot - _t1*_t29*ydot + _t17*_t4*_t9*x*xdot*y - _t26*ydot - _t28*xdot);
+    const double _t18 = _t11*_t17*_t9;
+    const double _t20 = 1.0/(_t8*sqrt(_t8));
+    const double _t21 = _t19*_t20*_t7;
+    const double _t22 = (0.125)*_t21;
+    const double _t23 = -_t3;
+    const double _t24 = _t15*_t18;
+    const double _t25 = _t4*x;
+    const double _t26 = _t12*_t5;
+    const double _t27 = (0.25)*_t21;
+    const double _t28 = _t27*_t3;
+    const double _t29 = _t25*_t27;
+    joint_acceleration[0] = xddot*((0.5)*_t10*_t5*_t9*x - _t4) + xdot*(xdot*(-_t0*_t18 + _t0*_t22*_t3 + _t13 + _t16) + ydot*(-_t0*_t14 + (0.125)*_t19*_t20*_t3*_t7*x*y - _t23 - _t24)) + yddot*(_t13*y + _t3*x) + ydot*(xdot*(_t1*_t14 + _t22*_t25 + _t23 - _t24) + ydot*(-_t1*_t18 + (0.125)*_t1*_t19*_t20*_t3*_t7 + (0.5)*_t10*_t5*_t9 - _t16));
+    joint_acceleration[1] = -_t26*x*xddot - _t26*y*yddot + xdot*(_t0*_t17*_t5*_t9*xdot - _t0*_t28*xdot + _t17*_t5*_t9*x*y*ydot - _t26*xdot - _t29*ydot) + ydot*(_t1*_t17*_t5*_t9*ydot - _t1*_t28*ydot + _t17*_t5*_t9*x*xdot*y - _t26*ydot - _t29*xdot);
     joint_acceleration[2] = zddot;
     return 0;
 }
@@ -3693,29 +3693,29 @@ int avr3000_cartesian_to_motor_velocity(const double *restrict cartesian, const 
         return AVR3000_SINGULAR;  /* before any output is written */
     }
     const double _t3 = 1.0/a;
-    const double _t4 = (0.5)*_t3;
-    const double _t5 = sqrt(_t1);
-    const double _t6 = _t5 + e;
-    const double _t16 = _t4*_t6;
+    const double _t4 = sqrt(_t1);
+    const double _t5 = _t4 + e;
+    const double _t10 = (0.5)*_t3;
+    const double _t16 = _t10*_t5;
     if (!(_t16 >= -1 && _t16 <= 1)) {
         return AVR3000_UNREACHABLE;  /* before any output is written */
     }
-    const double _t7 = -0.25*(_t6*_t6)/(a*a) + 1;
-    if (!(_t7 > 0)) {
+    const double _t6 = -0.25*(_t5*_t5)/(a*a) + 1;
+    if (!(_t6 > 0)) {
         return AVR3000_SINGULAR;  /* before any output is written */
     }
     const double _t0 = 1.0/J11;
     const double _t13 = 1.0/J22;
-    const double _t15 = J21*_t13;
+    const double _t14 = J21*_t13;
     const double _t2 = 1.0/_t1;
-    const double _t8 = 1.0/sqrt(_t7);
-    const double _t9 = 1.0/_t5;
-    const double _t10 = _t8*_t9;
-    const double _t11 = _t0*(_t10*_t4*y + _t2*x);
-    const double _t12 = _t0*(-_t2*y + (0.5)*_t3*_t8*_t9*x);
-    const double _t14 = _t10*_t13*_t3;
-    motor_velocity[0] = _t11*ydot + _t12*xdot;
-    motor_velocity[1] = xdot*(-_t12*_t15 - _t14*x) + ydot*(-_t11*_t15 - _t14*y);
+    const double _t7 = 1.0/sqrt(_t6);
+    const double _t8 = 1.0/_t4;
+    const double _t9 = _t0*(-_t2*y + (0.5)*_t3*_t7*_t8*x);
+    const double _t11 = _t7*_t8;
+    const double _t12 = _t0*(_t10*_t11*y + _t2*x);
+    const double _t15 = _t11*_t13*_t3;
+    motor_velocity[0] = _t12*ydot + _t9*xdot;
+    motor_velocity[1] = xdot*(-_t14*_t9 - _t15*x) + ydot*(-_t12*_t14 - _t15*y);
     motor_velocity[2] = zdot/J33;
     return 0;
 }
@@ -3757,60 +3757,60 @@ int avr3000_cartesian_to_motor_acceleration(const double *restrict cartesian, co
     const double J21 = params->J21;
     const double J22 = params->J22;
     const double J33 = params->J33;
-    const double _t1 = (x*x);
-    const double _t2 = (y*y);
-    const double _t3 = _t1 + _t2;
-    if (!(_t3 > 0)) {
+    const double _t2 = (x*x);
+    const double _t3 = (y*y);
+    const double _t4 = _t2 + _t3;
+    if (!(_t4 > 0)) {
         return AVR3000_SINGULAR;  /* before any output is written */
     }
-    const double _t5 = 1.0/a;
-    const double _t6 = (0.5)*_t5;
-    const double _t7 = sqrt(_t3);
-    const double _t8 = _t7 + e;
-    const double _t42 = _t6*_t8;
+    const double _t0 = 1.0/a;
+    const double _t1 = (0.5)*_t0;
+    const double _t5 = sqrt(_t4);
+    const double _t6 = _t5 + e;
+    const double _t42 = _t1*_t6;
     if (!(_t42 >= -1 && _t42 <= 1)) {
         return AVR3000_UNREACHABLE;  /* before any output is written */
     }
-    const double _t9 = -0.25*(_t8*_t8)/(a*a) + 1;
-    if (!(_t9 > 0)) {
+    const double _t7 = -0.25*(_t6*_t6)/(a*a) + 1;
+    if (!(_t7 > 0)) {
         return AVR3000_SINGULAR;  /* before any output is written */
     }
-    const double _t0 = 1.0/J11;
-    const double _t23 = 1.0/(a*a*a);
+    const double _t18 = 1.0/(a*a*a);
+    const double _t23 = 1.0/J11;
     const double _t35 = 1.0/J22;
-    const double _t37 = J21*_t35;
-    const double _t38 = _t0*_t37;
-    const double _t4 = 1.0/_t3;
-    const double _t10 = 1.0/sqrt(_t9);
-    const double _t11 = 1.0/_t7;
-    const double _t12 = _t10*_t11;
-    const double _t13 = _t12*_t6;
-    const double _t14 = _t0*(_t13*y + _t4*x);
-    const double _t15 = _t4*y;
-    const double _t16 = _t0*((0.5)*_t10*_t11*_t5*x - _t15);
-    const double _t17 = -_t4;
-    const double _t18 = 2/(_t3*_t3);
-    const double _t19 = x*y;
-    const double _t20 = 1.0/(_t3*sqrt(_t3));
-    const double _t21 = _t10*_t20*_t6;
-    const double _t22 = _t19*_t21;
-    const double _t24 = 1.0/(_t9*sqrt(_t9));
-    const double _t25 = -_t1*_t18 - _t17 - _t22 + (0.125)*_t23*_t24*_t4*_t8*x*y;
-    const double _t26 = _t0*ydot;
-    const double _t27 = _t18*_t19;
-    const double _t28 = _t23*_t24*_t8;
-    const double _t29 = (0.125)*_t28;
-    const double _t30 = -_t1*_t21 + _t1*_t29*_t4 + _t13 + _t27;
-    const double _t31 = _t0*xdot;
-    const double _t32 = _t15*x;
-    const double _t33 = _t17 + _t18*_t2 - _t22 + _t29*_t32;
-    const double _t34 = (0.5)*_t10*_t11*_t5 - _t2*_t21 + (0.125)*_t2*_t23*_t24*_t4*_t8 - _t27;
-    const double _t36 = _t12*_t35*_t5;
-    const double _t39 = (0.25)*_t28*_t35;
-    const double _t40 = -_t10*_t20*_t35*_t5*x*y + _t32*_t39;
-    const double _t41 = _t39*_t4;
-    motor_acceleration[0] = _t14*yddot + _t16*xddot + xdot*(_t25*_t26 + _t30*_t31) + ydot*(_t26*_t34 + _t31*_t33);
-    motor_acceleration[1] = xddot*(-_t16*_t37 - _t36*x) + xdot*(xdot*(_t1*_t10*_t20*_t35*_t5 - _t1*_t41 - _t30*_t38 - _t36) + ydot*(-_t25*_t38 - _t40)) + yddot*(-_t14*_t37 - _t36*y) + ydot*(xdot*(-_t33*_t38 - _t40) + ydot*(_t10*_t2*_t20*_t35*_t5 - _t2*_t41 - _t34*_t38 - _t36));
+    const double _t36 = J21*_t35;
+    const double _t38 = _t23*_t36;
+    const double _t8 = 1.0/sqrt(_t7);
+    const double _t9 = 1.0/_t5;
+    const double _t10 = _t8*_t9;
+    const double _t11 = _t1*_t10;
+    const double _t12 = 2/(_t4*_t4);
+    const double _t13 = x*y;
+    const double _t14 = _t12*_t13;
+    const double _t15 = 1.0/(_t4*sqrt(_t4));
+    const double _t16 = _t1*_t15*_t8;
+    const double _t17 = 1.0/_t4;
+    const double _t19 = 1.0/(_t7*sqrt(_t7));
+    const double _t20 = _t18*_t19*_t6;
+    const double _t21 = (0.125)*_t20;
+    const double _t22 = _t11 + _t14 - _t16*_t2 + _t17*_t2*_t21;
+    const double _t24 = _t23*xdot;
+    const double _t25 = -_t17;
+    const double _t26 = _t13*_t16;
+    const double _t27 = -_t12*_t2 + (0.125)*_t17*_t18*_t19*_t6*x*y - _t25 - _t26;
+    const double _t28 = _t23*ydot;
+    const double _t29 = _t17*y;
+    const double _t30 = _t29*x;
+    const double _t31 = _t12*_t3 + _t21*_t30 + _t25 - _t26;
+    const double _t32 = (0.5)*_t0*_t8*_t9 - _t14 - _t16*_t3 + (0.125)*_t17*_t18*_t19*_t3*_t6;
+    const double _t33 = _t23*((0.5)*_t0*_t8*_t9*x - _t29);
+    const double _t34 = _t23*(_t11*y + _t17*x);
+    const double _t37 = _t0*_t10*_t35;
+    const double _t39 = (0.25)*_t20*_t35;
+    const double _t40 = _t17*_t39;
+    const double _t41 = -_t0*_t15*_t35*_t8*x*y + _t30*_t39;
+    motor_acceleration[0] = _t33*xddot + _t34*yddot + xdot*(_t22*_t24 + _t27*_t28) + ydot*(_t24*_t31 + _t28*_t32);
+    motor_acceleration[1] = xddot*(-_t33*_t36 - _t37*x) + xdot*(xdot*(_t0*_t15*_t2*_t35*_t8 - _t2*_t40 - _t22*_t38 - _t37) + ydot*(-_t27*_t38 - _t41)) + yddot*(-_t34*_t36 - _t37*y) + ydot*(xdot*(-_t31*_t38 - _t41) + ydot*(_t0*_t15*_t3*_t35*_t8 - _t3*_t40 - _t32*_t38 - _t37));
     motor_acceleration[2] = zddot/J33;
     return 0;
 }
@@ -3932,14 +3932,14 @@ int avr3000_cartesian_to_tool_reversed_acceleration(const double *restrict carte
     const double _t3 = 1.0/_t2;
     const double _t4 = 1.0/(_t2*_t2);
     const double _t5 = 2*_t4;
-    const double _t6 = x*y;
-    const double _t7 = _t5*xdot;
+    const double _t6 = _t5*xdot;
+    const double _t7 = x*y;
     const double _t8 = 1.0/sqrt(_t2);
     const double _t9 = 1.0/(_t2*sqrt(_t2));
-    const double _t10 = _t9*ydot;
-    const double _t11 = _t9*xdot;
-    tool_acceleration[0] = -_t3*x*yddot + _t3*xddot*y + xdot*(2*_t0*_t4*ydot - _t3*ydot - _t6*_t7) + ydot*(-_t1*_t7 + _t3*xdot + _t5*_t6*ydot);
-    tool_acceleration[1] = -_t8*x*xddot - _t8*y*yddot + xdot*(_t0*_t11 + _t10*_t6 - _t8*xdot) + ydot*(_t1*_t10 + _t11*_t6 - _t8*ydot);
+    const double _t10 = _t9*xdot;
+    const double _t11 = _t9*ydot;
+    tool_acceleration[0] = -_t3*x*yddot + _t3*xddot*y + xdot*(2*_t0*_t4*ydot - _t3*ydot - _t6*_t7) + ydot*(-_t1*_t6 + _t3*xdot + _t5*_t7*ydot);
+    tool_acceleration[1] = -_t8*x*xddot - _t8*y*yddot + xdot*(_t0*_t10 + _t11*_t7 - _t8*xdot) + ydot*(_t1*_t11 + _t10*_t7 - _t8*ydot);
     tool_acceleration[2] = zddot;
     return 0;
 }
@@ -4086,45 +4086,45 @@ int avr3000_cartesian_to_joint_reversed_acceleration(const double *restrict cart
     if (!(_t2 > 0)) {
         return AVR3000_SINGULAR;  /* before any output is written */
     }
-    const double _t4 = 1.0/a;
-    const double _t5 = (0.5)*_t4;
-    const double _t6 = sqrt(_t2);
-    const double _t7 = -_t6 + e;
-    const double _t33 = _t5*_t7;
+    const double _t5 = 1.0/a;
+    const double _t6 = (0.5)*_t5;
+    const double _t7 = sqrt(_t2);
+    const double _t8 = -_t7 + e;
+    const double _t33 = _t6*_t8;
     if (!(_t33 >= -1 && _t33 <= 1)) {
         return AVR3000_UNREACHABLE;  /* before any output is written */
     }
-    const double _t8 = -0.25*(_t7*_t7)/(a*a) + 1;
-    if (!(_t8 > 0)) {
+    const double _t9 = -0.25*(_t8*_t8)/(a*a) + 1;
+    if (!(_t9 > 0)) {
         return AVR3000_SINGULAR;  /* before any output is written */
     }
-    const double _t19 = 1.0/(a*a*a);
+    const double _t20 = 1.0/(a*a*a);
     const double _t3 = 1.0/_t2;
-    const double _t9 = 1.0/sqrt(_t8);
-    const double _t10 = 1.0/_t6;
-    const double _t11 = _t10*_t9;
-    const double _t12 = _t11*_t5;
-    const double _t13 = _t3*y;
+    const double _t4 = _t3*y;
+    const double _t10 = 1.0/sqrt(_t9);
+    const double _t11 = 1.0/_t7;
+    const double _t12 = _t10*_t11;
+    const double _t13 = _t12*_t6;
     const double _t14 = 2/(_t2*_t2);
     const double _t15 = x*y;
-    const double _t16 = 1.0/(_t2*sqrt(_t2));
-    const double _t17 = _t16*_t9;
-    const double _t18 = _t17*_t5;
-    const double _t20 = 1.0/(_t8*sqrt(_t8));
-    const double _t21 = _t19*_t20*_t7;
-    const double _t22 = (0.125)*_t21;
-    const double _t23 = _t13*x;
-    const double _t24 = _t15*_t18 + _t22*_t23;
-    const double _t25 = _t14*_t15;
-    const double _t26 = _t11*_t4;
-    const double _t27 = _t17*_t4;
-    const double _t28 = _t27*ydot;
-    const double _t29 = _t0*xdot;
-    const double _t30 = (0.25)*_t21;
-    const double _t31 = _t23*_t30;
-    const double _t32 = _t3*_t30;
-    joint_acceleration[0] = xddot*(-_t12*x - _t13) + xdot*(xdot*(_t0*_t18 + _t0*_t22*_t3 - _t12 + _t25) + ydot*(-_t0*_t14 + _t24 + _t3)) + yddot*(-_t12*y + _t3*x) + ydot*(xdot*(_t1*_t14 + _t24 - _t3) + ydot*((0.5)*_t1*_t16*_t4*_t9 + (0.125)*_t1*_t19*_t20*_t3*_t7 - _t12 - _t25));
-    joint_acceleration[1] = _t26*x*xddot + _t26*y*yddot + xdot*(_t10*_t4*_t9*xdot - _t15*_t28 - _t27*_t29 - _t29*_t32 - _t31*ydot) + ydot*(-_t1*_t28 - _t1*_t32*ydot + _t10*_t4*_t9*ydot - _t15*_t27*xdot - _t31*xdot);
+    const double _t16 = _t14*_t15;
+    const double _t17 = 1.0/(_t2*sqrt(_t2));
+    const double _t18 = _t10*_t17;
+    const double _t19 = _t18*_t6;
+    const double _t21 = 1.0/(_t9*sqrt(_t9));
+    const double _t22 = _t20*_t21*_t8;
+    const double _t23 = (0.125)*_t22;
+    const double _t24 = _t4*x;
+    const double _t25 = _t15*_t19 + _t23*_t24;
+    const double _t26 = _t18*_t5;
+    const double _t27 = _t0*xdot;
+    const double _t28 = _t26*ydot;
+    const double _t29 = (0.25)*_t22;
+    const double _t30 = _t29*_t3;
+    const double _t31 = _t24*_t29;
+    const double _t32 = _t12*_t5;
+    joint_acceleration[0] = xddot*(-_t13*x - _t4) + xdot*(xdot*(_t0*_t19 + _t0*_t23*_t3 - _t13 + _t16) + ydot*(-_t0*_t14 + _t25 + _t3)) + yddot*(-_t13*y + _t3*x) + ydot*(xdot*(_t1*_t14 + _t25 - _t3) + ydot*((0.5)*_t1*_t10*_t17*_t5 + (0.125)*_t1*_t20*_t21*_t3*_t8 - _t13 - _t16));
+    joint_acceleration[1] = _t32*x*xddot + _t32*y*yddot + xdot*(_t10*_t11*_t5*xdot - _t15*_t28 - _t26*_t27 - _t27*_t30 - _t31*ydot) + ydot*(-_t1*_t28 - _t1*_t30*ydot + _t10*_t11*_t5*ydot - _t15*_t26*xdot - _t31*xdot);
     joint_acceleration[2] = zddot;
     return 0;
 }
@@ -4234,15 +4234,15 @@ int avr3000_cartesian_to_motor_reversed_velocity(const double *restrict cartesia
     }
     const double _t0 = 1.0/J11;
     const double _t12 = 1.0/J22;
-    const double _t14 = J21*_t12;
+    const double _t13 = J21*_t12;
     const double _t2 = 1.0/_t1;
     const double _t8 = 1/(_t5*sqrt(_t7));
     const double _t9 = _t4*_t8;
-    const double _t10 = _t0*(_t2*x - _t9*y);
-    const double _t11 = _t0*(-_t2*y - _t9*x);
-    const double _t13 = _t12*_t3*_t8;
-    motor_velocity[0] = _t10*ydot + _t11*xdot;
-    motor_velocity[1] = xdot*(-_t11*_t14 + _t13*x) + ydot*(-_t10*_t14 + _t13*y);
+    const double _t10 = _t0*(-_t2*y - _t9*x);
+    const double _t11 = _t0*(_t2*x - _t9*y);
+    const double _t14 = _t12*_t3*_t8;
+    motor_velocity[0] = _t10*xdot + _t11*ydot;
+    motor_velocity[1] = xdot*(-_t10*_t13 + _t14*x) + ydot*(-_t11*_t13 + _t14*y);
     motor_velocity[2] = zdot/J33;
     return 0;
 }
@@ -4284,63 +4284,63 @@ int avr3000_cartesian_to_motor_reversed_acceleration(const double *restrict cart
     const double J21 = params->J21;
     const double J22 = params->J22;
     const double J33 = params->J33;
-    const double _t1 = (x*x);
-    const double _t2 = (y*y);
-    const double _t3 = _t1 + _t2;
-    if (!(_t3 > 0)) {
+    const double _t0 = (x*x);
+    const double _t1 = (y*y);
+    const double _t2 = _t0 + _t1;
+    if (!(_t2 > 0)) {
         return AVR3000_SINGULAR;  /* before any output is written */
     }
-    const double _t5 = 1.0/a;
-    const double _t6 = (0.5)*_t5;
-    const double _t7 = sqrt(_t3);
-    const double _t8 = -_t7 + e;
-    const double _t45 = _t6*_t8;
+    const double _t6 = 1.0/a;
+    const double _t7 = (0.5)*_t6;
+    const double _t8 = sqrt(_t2);
+    const double _t9 = -_t8 + e;
+    const double _t45 = _t7*_t9;
     if (!(_t45 >= -1 && _t45 <= 1)) {
         return AVR3000_UNREACHABLE;  /* before any output is written */
     }
-    const double _t9 = -0.25*(_t8*_t8)/(a*a) + 1;
-    if (!(_t9 > 0)) {
+    const double _t10 = -0.25*(_t9*_t9)/(a*a) + 1;
+    if (!(_t10 > 0)) {
         return AVR3000_SINGULAR;  /* before any output is written */
     }
-    const double _t0 = 1.0/J11;
-    const double _t22 = 1.0/(a*a*a);
+    const double _t19 = 1.0/(a*a*a);
+    const double _t24 = 1.0/J11;
     const double _t35 = 1.0/J22;
-    const double _t38 = J21*_t35;
-    const double _t39 = _t0*_t38;
-    const double _t4 = 1.0/_t3;
-    const double _t10 = 1.0/sqrt(_t9);
-    const double _t11 = 1.0/_t7;
-    const double _t12 = _t10*_t11;
-    const double _t13 = _t12*_t6;
-    const double _t14 = _t0*(-_t13*y + _t4*x);
-    const double _t15 = _t4*y;
-    const double _t16 = _t0*(-_t13*x - _t15);
-    const double _t17 = 2/(_t3*_t3);
-    const double _t18 = x*y;
-    const double _t19 = 1.0/(_t3*sqrt(_t3));
-    const double _t20 = _t10*_t19;
-    const double _t21 = _t20*_t6;
-    const double _t23 = 1.0/(_t9*sqrt(_t9));
-    const double _t24 = _t22*_t23*_t8;
-    const double _t25 = (0.125)*_t24;
-    const double _t26 = _t15*x;
-    const double _t27 = _t18*_t21 + _t25*_t26;
-    const double _t28 = -_t1*_t17 + _t27 + _t4;
-    const double _t29 = _t0*ydot;
-    const double _t30 = _t17*_t18;
-    const double _t31 = _t1*_t21 + _t1*_t25*_t4 - _t13 + _t30;
-    const double _t32 = _t0*xdot;
-    const double _t33 = _t17*_t2 + _t27 - _t4;
-    const double _t34 = (0.5)*_t10*_t19*_t2*_t5 - _t13 + (0.125)*_t2*_t22*_t23*_t4*_t8 - _t30;
-    const double _t36 = _t35*_t5;
-    const double _t37 = _t12*_t36;
-    const double _t40 = _t20*_t36;
-    const double _t41 = (0.25)*_t24*_t35;
-    const double _t42 = _t18*_t40 + _t26*_t41;
-    const double _t43 = -_t10*_t11*_t35*_t5;
-    const double _t44 = _t4*_t41;
-    motor_acceleration[0] = _t14*yddot + _t16*xddot + xdot*(_t28*_t29 + _t31*_t32) + ydot*(_t29*_t34 + _t32*_t33);
-    motor_acceleration[1] = xddot*(-_t16*_t38 + _t37*x) + xdot*(xdot*(-_t1*_t40 - _t1*_t44 - _t31*_t39 - _t43) + ydot*(-_t28*_t39 - _t42)) + yddot*(-_t14*_t38 + _t37*y) + ydot*(xdot*(-_t33*_t39 - _t42) + ydot*(-_t2*_t40 - _t2*_t44 - _t34*_t39 - _t43));
+    const double _t36 = J21*_t35;
+    const double _t39 = _t24*_t36;
+    const double _t3 = 2/(_t2*_t2);
+    const double _t4 = x*y;
+    const double _t5 = _t3*_t4;
+    const double _t11 = 1.0/sqrt(_t10);
+    const double _t12 = 1.0/_t8;
+    const double _t13 = _t11*_t12;
+    const double _t14 = _t13*_t7;
+    const double _t15 = 1.0/(_t2*sqrt(_t2));
+    const double _t16 = _t11*_t15;
+    const double _t17 = _t16*_t7;
+    const double _t18 = 1.0/_t2;
+    const double _t20 = 1.0/(_t10*sqrt(_t10));
+    const double _t21 = _t19*_t20*_t9;
+    const double _t22 = (0.125)*_t21;
+    const double _t23 = _t0*_t17 + _t0*_t18*_t22 - _t14 + _t5;
+    const double _t25 = _t24*xdot;
+    const double _t26 = _t18*y;
+    const double _t27 = _t26*x;
+    const double _t28 = _t17*_t4 + _t22*_t27;
+    const double _t29 = -_t0*_t3 + _t18 + _t28;
+    const double _t30 = _t24*ydot;
+    const double _t31 = _t1*_t3 - _t18 + _t28;
+    const double _t32 = (0.5)*_t1*_t11*_t15*_t6 + (0.125)*_t1*_t18*_t19*_t20*_t9 - _t14 - _t5;
+    const double _t33 = _t24*(-_t14*x - _t26);
+    const double _t34 = _t24*(-_t14*y + _t18*x);
+    const double _t37 = _t35*_t6;
+    const double _t38 = _t13*_t37;
+    const double _t40 = -_t11*_t12*_t35*_t6;
+    const double _t41 = _t16*_t37;
+    const double _t42 = (0.25)*_t21*_t35;
+    const double _t43 = _t18*_t42;
+    const double _t44 = _t27*_t42 + _t4*_t41;
+    motor_acceleration[0] = _t33*xddot + _t34*yddot + xdot*(_t23*_t25 + _t29*_t30) + ydot*(_t25*_t31 + _t30*_t32);
+    motor_acceleration[1] = xddot*(-_t33*_t36 + _t38*x) + xdot*(xdot*(-_t0*_t41 - _t0*_t43 - _t23*_t39 - _t40) + ydot*(-_t29*_t39 - _t44)) + yddot*(-_t34*_t36 + _t38*y) + ydot*(xdot*(-_t31*_t39 - _t44) + ydot*(-_t1*_t41 - _t1*_t43 - _t32*_t39 - _t40));
     motor_acceleration[2] = zddot/J33;
     return 0;
 }

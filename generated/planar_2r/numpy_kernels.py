@@ -295,21 +295,21 @@ def ik(x, *, l1=0.559, l2=0.508):
     _count = _all_x.shape[0]
     Q = numpy.empty((_count, 4))
     valid = numpy.empty((_count, 2), dtype=bool)
-    _t2 = 1/(l1*l2)
+    _t1 = 1/(l1*l2)
     for _start in range(0, _count, CHUNK):
         _columns_x = numpy.ascontiguousarray(_all_x[_start:_start + CHUNK].T)
         x = _columns_x[0]
         y = _columns_x[1]
-        _t1 = (l1*l1) + (l2*l2) - (x*x) - (y*y)
-        _t3 = numpy.minimum(1, numpy.maximum(-1, -0.5*_t1*_t2))
-        _t4 = l2*numpy.sqrt(1 - (_t3*_t3))
-        _t5 = _t3*l2 + l1
-        _a0 = -_t4
+        _t0 = (l1*l1) + (l2*l2) - (x*x) - (y*y)
+        _t2 = numpy.minimum(1, numpy.maximum(-1, -0.5*_t0*_t1))
+        _t3 = l2*numpy.sqrt(1 - (_t2*_t2))
+        _t4 = _t2*l2 + l1
+        _a0 = -_t3
         _f0 = numpy.arctan2(y, x)
-        _f2 = numpy.arctan2(_a0, _t5)
-        _f3 = numpy.arctan2(_t4, _t5)
-        _f1 = numpy.arccos(_t3)
-        _t7 = numpy.less_equal((0.5)*abs(_t1*_t2), 1.000000000001)
+        _f2 = numpy.arctan2(_a0, _t4)
+        _f3 = numpy.arctan2(_t3, _t4)
+        _f1 = numpy.arccos(_t2)
+        _t7 = numpy.less_equal((0.5)*abs(_t0*_t1), 1.000000000001)
         _Q = Q[_start:_start + CHUNK].T
         _Q[0] = _runtime.wrap_angle(_f0 - _f2)
         _Q[1] = _runtime.wrap_angle(-_f1)
@@ -552,15 +552,15 @@ def task_acceleration(q, qd, qdd, *, l1=0.559, l2=0.508):
         _r1 = 1.0/(1.0 + _u1)
         _s1 = (_h1 + _h1)*_r1
         _c1 = (1.0 - _u1)*_r1
-        _t1 = _s0*l2
-        _t2 = -_s1*l1 - _t1
-        _t3 = _c0*l2
-        _t4 = _t3*qd2
-        _t5 = _c1*l1 + _t3
-        _t6 = _t1*qd2
+        _t1 = _c0*l2
+        _t2 = _c1*l1 + _t1
+        _t3 = _t1*qd2
+        _t4 = _s0*l2
+        _t5 = -_s1*l1 - _t4
+        _t6 = _t4*qd2
         _xdd = xdd[_start:_start + CHUNK].T
-        _xdd[0] = -_t1*qdd2 + _t2*qdd1 + qd1*(-_t4 - _t5*qd1) + qd2*(-_t3*qd1 - _t4)
-        _xdd[1] = _t3*qdd2 + _t5*qdd1 + qd1*(_t2*qd1 - _t6) + qd2*(-_t1*qd1 - _t6)
+        _xdd[0] = -_t4*qdd2 + _t5*qdd1 + qd1*(-_t2*qd1 - _t3) + qd2*(-_t1*qd1 - _t3)
+        _xdd[1] = _t1*qdd2 + _t2*qdd1 + qd1*(_t5*qd1 - _t6) + qd2*(-_t4*qd1 - _t6)
     return xdd.reshape(_batch + (2,))
 
 
@@ -612,8 +612,8 @@ def joint_velocity(q, xd, *, l1=0.559, l2=0.508):
     _t0 = abs(l1) + abs(l2)
     _t1 = (_t0*_t0*_t0*_t0)
     _t2 = (l2*l2)
-    _t9 = 1.0/(_t0*_t0)
-    _t10 = _t2*_t9
+    _t11 = 1.0/(_t0*_t0)
+    _t12 = _t11*_t2
     _t20 = 1.0/_t0
     for _start in range(0, _count, CHUNK):
         _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
@@ -640,24 +640,24 @@ def joint_velocity(q, xd, *, l1=0.559, l2=0.508):
         _t4 = (_s0*_s0)*_t2*(l1*l1)
         _t5 = _t4/_t1
         _t6 = numpy.maximum(0, 1 - 100000000*_t5)
-        _t11 = _c1*l2
-        _t12 = _c2*l1 + _t11
-        _t13 = (_c1*_c1)*_t10 + (_t12*_t12)*_t9
+        _t9 = _c1*l2
+        _t10 = _c2*l1 + _t9
+        _t13 = (_c1*_c1)*_t12 + (_t10*_t10)*_t11
         _t14 = (1e-06)*_t6
         _t16 = _s1*l2
         _t17 = -_s2*l1 - _t16
-        _t18 = (_s1*_s1)*_t10 + (_t17*_t17)*_t9
+        _t18 = (_s1*_s1)*_t12 + _t11*(_t17*_t17)
         _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-12)*(_t6*_t6))
-        _t21 = _c1*_s1*_t10 - _t12*_t17*_t9
-        _t22 = _t20*xd_y
-        _t23 = _t20*xd_x
-        _t24 = _t20*(_t21*_t22 + _t23*(_t13 + _t14))
-        _t25 = _t20*(_t21*_t23 + _t22*(_t14 + _t18))
+        _t21 = _c1*_s1*_t12 - _t10*_t11*_t17
+        _t22 = _t20*xd_x
+        _t23 = _t20*xd_y
+        _t24 = _t20*(_t21*_t22 + _t23*(_t14 + _t18))
+        _t25 = _t20*(_t21*_t23 + _t22*(_t13 + _t14))
         _t26 = numpy.less(_t5, 1e-08)
         _t27 = _s0*l1*l2/numpy.maximum(_t4, (1e-08)*_t1)
         _qd = qd[_start:_start + CHUNK].T
-        _qd[0] = numpy.where(_t26, _t19*(_t12*_t25 + _t17*_t24), _t27*(_t11*xd_x + _t16*xd_y))
-        _qd[1] = numpy.where(_t26, _t19*(_t11*_t25 - _t16*_t24), _t27*(-_t12*xd_x + _t17*xd_y))
+        _qd[0] = numpy.where(_t26, _t19*(_t10*_t24 + _t17*_t25), _t27*(_t16*xd_y + _t9*xd_x))
+        _qd[1] = numpy.where(_t26, _t19*(-_t16*_t25 + _t24*_t9), _t27*(-_t10*xd_x + _t17*xd_y))
         _singular = singular[_start:_start + CHUNK].T
         _singular[0] = _t26
     return qd.reshape(_batch + (2,)), singular.reshape(_batch + ())
@@ -686,8 +686,8 @@ def joint_acceleration(q, qd, xdd, *, l1=0.559, l2=0.508):
     _t0 = abs(l1) + abs(l2)
     _t1 = (_t0*_t0*_t0*_t0)
     _t2 = (l2*l2)
-    _t9 = 1.0/(_t0*_t0)
-    _t10 = _t2*_t9
+    _t11 = 1.0/(_t0*_t0)
+    _t12 = _t11*_t2
     _t20 = 1.0/_t0
     for _start in range(0, _count, CHUNK):
         _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
@@ -717,27 +717,27 @@ def joint_acceleration(q, qd, xdd, *, l1=0.559, l2=0.508):
         _t4 = (_s0*_s0)*_t2*(l1*l1)
         _t5 = _t4/_t1
         _t6 = numpy.maximum(0, 1 - 100000000*_t5)
-        _t11 = _c1*l2
-        _t12 = _c2*l1 + _t11
-        _t13 = (_c1*_c1)*_t10 + (_t12*_t12)*_t9
+        _t9 = _c1*l2
+        _t10 = _c2*l1 + _t9
+        _t13 = (_c1*_c1)*_t12 + (_t10*_t10)*_t11
         _t14 = (1e-06)*_t6
         _t16 = _s1*l2
         _t17 = -_s2*l1 - _t16
-        _t18 = (_s1*_s1)*_t10 + (_t17*_t17)*_t9
+        _t18 = (_s1*_s1)*_t12 + _t11*(_t17*_t17)
         _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-12)*(_t6*_t6))
-        _t21 = _t16*qd2
-        _t22 = -qd1*(_t17*qd1 - _t21) - qd2*(-_t16*qd1 - _t21) + xdd_y
-        _t23 = _t20*(_c1*_s1*_t10 - _t12*_t17*_t9)
-        _t24 = _t11*qd2
-        _t25 = -_t12
-        _t26 = -qd1*(-_t24 + _t25*qd1) - qd2*(-_t11*qd1 - _t24) + xdd_x
-        _t27 = _t20*(_t20*_t26*(_t13 + _t14) + _t22*_t23)
-        _t28 = _t20*_t22*(_t14 + _t18) + _t23*_t26
+        _t21 = -_t10
+        _t22 = _t9*qd2
+        _t23 = -qd1*(_t21*qd1 - _t22) - qd2*(-_t22 - _t9*qd1) + xdd_x
+        _t24 = _t20*(_c1*_s1*_t12 - _t10*_t11*_t17)
+        _t25 = _t16*qd2
+        _t26 = -qd1*(_t17*qd1 - _t25) - qd2*(-_t16*qd1 - _t25) + xdd_y
+        _t27 = _t20*_t26*(_t14 + _t18) + _t23*_t24
+        _t28 = _t20*(_t20*_t23*(_t13 + _t14) + _t24*_t26)
         _t29 = numpy.less(_t5, 1e-08)
         _t30 = _s0*l1*l2/numpy.maximum(_t4, (1e-08)*_t1)
         _qdd = qdd[_start:_start + CHUNK].T
-        _qdd[0] = numpy.where(_t29, _t19*(_t12*_t20*_t28 + _t17*_t27), _t30*(_t11*_t26 + _t16*_t22))
-        _qdd[1] = numpy.where(_t29, _t19*(_c1*_t20*_t28*l2 - _t16*_t27), _t30*(_t17*_t22 + _t25*_t26))
+        _qdd[0] = numpy.where(_t29, _t19*(_t10*_t20*_t27 + _t17*_t28), _t30*(_t16*_t26 + _t23*_t9))
+        _qdd[1] = numpy.where(_t29, _t19*(_c1*_t20*_t27*l2 - _t16*_t28), _t30*(_t17*_t26 + _t21*_t23))
         _singular = singular[_start:_start + CHUNK].T
         _singular[0] = _t29
     return qdd.reshape(_batch + (2,)), singular.reshape(_batch + ())

@@ -1016,18 +1016,18 @@ int planar_2r_ik(const double *restrict _x, const planar_2r_params *restrict par
     }
     const double l1 = params->l1;
     const double l2 = params->l2;
-    const double _t2 = 1/(l1*l2);
-    const double _t1 = (l1*l1) + (l2*l2) - (x*x) - (y*y);
-    const double _t3 = kinegen_min(1, kinegen_max(-1, -0.5*_t1*_t2));
-    const double _t4 = l2*sqrt(1 - (_t3*_t3));
-    const double _t5 = _t3*l2 + l1;
-    const double _a0 = -_t4;
+    const double _t1 = 1/(l1*l2);
+    const double _t0 = (l1*l1) + (l2*l2) - (x*x) - (y*y);
+    const double _t2 = kinegen_min(1, kinegen_max(-1, -0.5*_t0*_t1));
+    const double _t3 = l2*sqrt(1 - (_t2*_t2));
+    const double _t4 = _t2*l2 + l1;
+    const double _a0 = -_t3;
     double _f0, _f1, _f2, _f3;
 #if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
     {
         /* The atan2 arguments side by side: one vector call. */
-        const double argument0[4] = { y, _a0, _t4, 0.0 };
-        const double argument1[4] = { x, _t5, _t5, 1.0 };
+        const double argument0[4] = { y, _a0, _t3, 0.0 };
+        const double argument1[4] = { x, _t4, _t4, 1.0 };
         double result[4];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -1040,11 +1040,11 @@ int planar_2r_ik(const double *restrict _x, const planar_2r_params *restrict par
     }
 #else
     _f0 = atan2(y, x);
-    _f2 = atan2(_a0, _t5);
-    _f3 = atan2(_t4, _t5);
+    _f2 = atan2(_a0, _t4);
+    _f3 = atan2(_t3, _t4);
 #endif
-    _f1 = acos(_t3);
-    const int _t7 = (0.5)*fabs(_t1*_t2) <= 1.000000000001;
+    _f1 = acos(_t2);
+    const int _t7 = (0.5)*fabs(_t0*_t1) <= 1.000000000001;
     Q[0] = kinegen_wrap_angle(_f0 - _f2);
     Q[1] = kinegen_wrap_angle(-_f1);
     Q[2] = kinegen_wrap_angle(_f0 - _f3);
@@ -1062,10 +1062,10 @@ long planar_2r_ik_batch(size_t count, const double *restrict _x, const planar_2r
 #ifdef KINEGEN_BLOCKED
     double x[KINEGEN_BLOCK_OF(64)];
     double y[KINEGEN_BLOCK_OF(64)];
-    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
     double _t3[KINEGEN_BLOCK_OF(64)];
     double _t4[KINEGEN_BLOCK_OF(64)];
-    double _t5[KINEGEN_BLOCK_OF(64)];
     double _a0[KINEGEN_BLOCK_OF(64)];
     double _f0[KINEGEN_BLOCK_OF(64)];
     double _f1[KINEGEN_BLOCK_OF(64)];
@@ -1078,7 +1078,7 @@ long planar_2r_ik_batch(size_t count, const double *restrict _x, const planar_2r
     }
     const double l1 = params->l1;
     const double l2 = params->l2;
-    const double _t2 = 1/(l1*l2);
+    const double _t1 = 1/(l1*l2);
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
@@ -1087,11 +1087,11 @@ long planar_2r_ik_batch(size_t count, const double *restrict _x, const planar_2r
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t1[i] = (l1*l1) + (l2*l2) - (x[i]*x[i]) - (y[i]*y[i]);
-            _t3[i] = kinegen_min(1, kinegen_max(-1, -0.5*_t1[i]*_t2));
-            _t4[i] = l2*sqrt(1 - (_t3[i]*_t3[i]));
-            _t5[i] = _t3[i]*l2 + l1;
-            _a0[i] = -_t4[i];
+            _t0[i] = (l1*l1) + (l2*l2) - (x[i]*x[i]) - (y[i]*y[i]);
+            _t2[i] = kinegen_min(1, kinegen_max(-1, -0.5*_t0[i]*_t1));
+            _t3[i] = l2*sqrt(1 - (_t2[i]*_t2[i]));
+            _t4[i] = _t2[i]*l2 + l1;
+            _a0[i] = -_t3[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -1099,19 +1099,19 @@ long planar_2r_ik_batch(size_t count, const double *restrict _x, const planar_2r
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f1[i] = acos(_t3[i]);
+            _f1[i] = acos(_t2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f2[i] = atan2(_a0[i], _t5[i]);
+            _f2[i] = atan2(_a0[i], _t4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f3[i] = atan2(_t4[i], _t5[i]);
+            _f3[i] = atan2(_t3[i], _t4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            const int _t7 = (0.5)*fabs(_t1[i]*_t2) <= 1.000000000001;
+            const int _t7 = (0.5)*fabs(_t0[i]*_t1) <= 1.000000000001;
             _Q_block[0][i] = kinegen_wrap_angle(_f0[i] - _f2[i]);
             _Q_block[1][i] = kinegen_wrap_angle(-_f1[i]);
             _Q_block[2][i] = kinegen_wrap_angle(_f0[i] - _f3[i]);
@@ -1815,14 +1815,14 @@ void planar_2r_task_acceleration(const double *restrict q, const double *restric
     _s1 = sin(q1);
     _c1 = cos(q1);
 #endif
-    const double _t1 = _s0*l2;
-    const double _t2 = -_s1*l1 - _t1;
-    const double _t3 = _c0*l2;
-    const double _t4 = _t3*qd2;
-    const double _t5 = _c1*l1 + _t3;
-    const double _t6 = _t1*qd2;
-    xdd[0] = -_t1*qdd2 + _t2*qdd1 + qd1*(-_t4 - _t5*qd1) + qd2*(-_t3*qd1 - _t4);
-    xdd[1] = _t3*qdd2 + _t5*qdd1 + qd1*(_t2*qd1 - _t6) + qd2*(-_t1*qd1 - _t6);
+    const double _t1 = _c0*l2;
+    const double _t2 = _c1*l1 + _t1;
+    const double _t3 = _t1*qd2;
+    const double _t4 = _s0*l2;
+    const double _t5 = -_s1*l1 - _t4;
+    const double _t6 = _t4*qd2;
+    xdd[0] = -_t4*qdd2 + _t5*qdd1 + qd1*(-_t2*qd1 - _t3) + qd2*(-_t1*qd1 - _t3);
+    xdd[1] = _t1*qdd2 + _t2*qdd1 + qd1*(_t5*qd1 - _t6) + qd2*(-_t4*qd1 - _t6);
 }
 
 /* task_acceleration of `count` items, stored one after the other in each argument and output. */
@@ -1885,28 +1885,28 @@ void planar_2r_task_acceleration_batch(size_t count, const double *restrict q, c
         if (stream) {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t1 = _s0[i]*l2;
-                const double _t2 = -_s1[i]*l1 - _t1;
-                const double _t3 = _c0[i]*l2;
-                const double _t4 = _t3*qd2[i];
-                const double _t5 = _c1[i]*l1 + _t3;
-                const double _t6 = _t1*qd2[i];
-                _xdd_block[0][i] = -_t1*qdd2[i] + _t2*qdd1[i] + qd1[i]*(-_t4 - _t5*qd1[i]) + qd2[i]*(-_t3*qd1[i] - _t4);
-                _xdd_block[1][i] = _t3*qdd2[i] + _t5*qdd1[i] + qd1[i]*(_t2*qd1[i] - _t6) + qd2[i]*(-_t1*qd1[i] - _t6);
+                const double _t1 = _c0[i]*l2;
+                const double _t2 = _c1[i]*l1 + _t1;
+                const double _t3 = _t1*qd2[i];
+                const double _t4 = _s0[i]*l2;
+                const double _t5 = -_s1[i]*l1 - _t4;
+                const double _t6 = _t4*qd2[i];
+                _xdd_block[0][i] = -_t4*qdd2[i] + _t5*qdd1[i] + qd1[i]*(-_t2*qd1[i] - _t3) + qd2[i]*(-_t1*qd1[i] - _t3);
+                _xdd_block[1][i] = _t1*qdd2[i] + _t2*qdd1[i] + qd1[i]*(_t5*qd1[i] - _t6) + qd2[i]*(-_t4*qd1[i] - _t6);
             }
         } else
 #endif
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t1 = _s0[i]*l2;
-                const double _t2 = -_s1[i]*l1 - _t1;
-                const double _t3 = _c0[i]*l2;
-                const double _t4 = _t3*qd2[i];
-                const double _t5 = _c1[i]*l1 + _t3;
-                const double _t6 = _t1*qd2[i];
-                xdd[2 * (start + i) + 0] = -_t1*qdd2[i] + _t2*qdd1[i] + qd1[i]*(-_t4 - _t5*qd1[i]) + qd2[i]*(-_t3*qd1[i] - _t4);
-                xdd[2 * (start + i) + 1] = _t3*qdd2[i] + _t5*qdd1[i] + qd1[i]*(_t2*qd1[i] - _t6) + qd2[i]*(-_t1*qd1[i] - _t6);
+                const double _t1 = _c0[i]*l2;
+                const double _t2 = _c1[i]*l1 + _t1;
+                const double _t3 = _t1*qd2[i];
+                const double _t4 = _s0[i]*l2;
+                const double _t5 = -_s1[i]*l1 - _t4;
+                const double _t6 = _t4*qd2[i];
+                xdd[2 * (start + i) + 0] = -_t4*qdd2[i] + _t5*qdd1[i] + qd1[i]*(-_t2*qd1[i] - _t3) + qd2[i]*(-_t1*qd1[i] - _t3);
+                xdd[2 * (start + i) + 1] = _t1*qdd2[i] + _t2*qdd1[i] + qd1[i]*(_t5*qd1[i] - _t6) + qd2[i]*(-_t4*qd1[i] - _t6);
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1998,8 +1998,8 @@ void planar_2r_joint_velocity(const double *restrict q, const double *restrict x
     const double _t0 = fabs(l1) + fabs(l2);
     const double _t1 = (_t0*_t0*_t0*_t0);
     const double _t2 = (l2*l2);
-    const double _t9 = 1.0/(_t0*_t0);
-    const double _t10 = _t2*_t9;
+    const double _t11 = 1.0/(_t0*_t0);
+    const double _t12 = _t11*_t2;
     const double _t20 = 1.0/_t0;
     const double _t7 = q1 + q2;
     double _s0, _s1, _c1, _s2, _c2;
@@ -2033,32 +2033,32 @@ void planar_2r_joint_velocity(const double *restrict q, const double *restrict x
     const double _t4 = (_s0*_s0)*_t2*(l1*l1);
     const double _t5 = _t4/_t1;
     const double _t6 = kinegen_max(0, 1 - 100000000*_t5);
-    const double _t11 = _c1*l2;
-    const double _t12 = _c2*l1 + _t11;
-    const double _t13 = (_c1*_c1)*_t10 + (_t12*_t12)*_t9;
+    const double _t9 = _c1*l2;
+    const double _t10 = _c2*l1 + _t9;
+    const double _t13 = (_c1*_c1)*_t12 + (_t10*_t10)*_t11;
     const double _t14 = (1e-06)*_t6;
     const double _t16 = _s1*l2;
     const double _t17 = -_s2*l1 - _t16;
-    const double _t18 = (_s1*_s1)*_t10 + (_t17*_t17)*_t9;
+    const double _t18 = (_s1*_s1)*_t12 + _t11*(_t17*_t17);
     const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-12)*(_t6*_t6));
-    const double _t21 = _c1*_s1*_t10 - _t12*_t17*_t9;
-    const double _t22 = _t20*xd_y;
-    const double _t23 = _t20*xd_x;
-    const double _t24 = _t20*(_t21*_t22 + _t23*(_t13 + _t14));
-    const double _t25 = _t20*(_t21*_t23 + _t22*(_t14 + _t18));
+    const double _t21 = _c1*_s1*_t12 - _t10*_t11*_t17;
+    const double _t22 = _t20*xd_x;
+    const double _t23 = _t20*xd_y;
+    const double _t24 = _t20*(_t21*_t22 + _t23*(_t14 + _t18));
+    const double _t25 = _t20*(_t21*_t23 + _t22*(_t13 + _t14));
     const int _t26 = _t5 < 1e-08;
     const double _t27 = _s0*l1*l2/kinegen_max(_t4, (1e-08)*_t1);
     qd[0] = ((_t26) ? (
-   _t19*(_t12*_t25 + _t17*_t24)
+   _t19*(_t10*_t24 + _t17*_t25)
 )
 : (
-   _t27*(_t11*xd_x + _t16*xd_y)
+   _t27*(_t16*xd_y + _t9*xd_x)
 ));
     qd[1] = ((_t26) ? (
-   _t19*(_t11*_t25 - _t16*_t24)
+   _t19*(-_t16*_t25 + _t24*_t9)
 )
 : (
-   _t27*(-_t12*xd_x + _t17*xd_y)
+   _t27*(-_t10*xd_x + _t17*xd_y)
 ));
     singular[0] = _t26;
 }
@@ -2091,8 +2091,8 @@ void planar_2r_joint_velocity_batch(size_t count, const double *restrict q, cons
     const double _t0 = fabs(l1) + fabs(l2);
     const double _t1 = (_t0*_t0*_t0*_t0);
     const double _t2 = (l2*l2);
-    const double _t9 = 1.0/(_t0*_t0);
-    const double _t10 = _t2*_t9;
+    const double _t11 = 1.0/(_t0*_t0);
+    const double _t12 = _t11*_t2;
     const double _t20 = 1.0/_t0;
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
@@ -2133,32 +2133,32 @@ void planar_2r_joint_velocity_batch(size_t count, const double *restrict q, cons
                 const double _t4 = (_s0[i]*_s0[i])*_t2*(l1*l1);
                 const double _t5 = _t4/_t1;
                 const double _t6 = kinegen_max(0, 1 - 100000000*_t5);
-                const double _t11 = _c1[i]*l2;
-                const double _t12 = _c2[i]*l1 + _t11;
-                const double _t13 = (_c1[i]*_c1[i])*_t10 + (_t12*_t12)*_t9;
+                const double _t9 = _c1[i]*l2;
+                const double _t10 = _c2[i]*l1 + _t9;
+                const double _t13 = (_c1[i]*_c1[i])*_t12 + (_t10*_t10)*_t11;
                 const double _t14 = (1e-06)*_t6;
                 const double _t16 = _s1[i]*l2;
                 const double _t17 = -_s2[i]*l1 - _t16;
-                const double _t18 = (_s1[i]*_s1[i])*_t10 + (_t17*_t17)*_t9;
+                const double _t18 = (_s1[i]*_s1[i])*_t12 + _t11*(_t17*_t17);
                 const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-12)*(_t6*_t6));
-                const double _t21 = _c1[i]*_s1[i]*_t10 - _t12*_t17*_t9;
-                const double _t22 = _t20*xd_y[i];
-                const double _t23 = _t20*xd_x[i];
-                const double _t24 = _t20*(_t21*_t22 + _t23*(_t13 + _t14));
-                const double _t25 = _t20*(_t21*_t23 + _t22*(_t14 + _t18));
+                const double _t21 = _c1[i]*_s1[i]*_t12 - _t10*_t11*_t17;
+                const double _t22 = _t20*xd_x[i];
+                const double _t23 = _t20*xd_y[i];
+                const double _t24 = _t20*(_t21*_t22 + _t23*(_t14 + _t18));
+                const double _t25 = _t20*(_t21*_t23 + _t22*(_t13 + _t14));
                 const int _t26 = _t5 < 1e-08;
                 const double _t27 = _s0[i]*l1*l2/kinegen_max(_t4, (1e-08)*_t1);
                 _qd_block[0][i] = ((_t26) ? (
-   _t19*(_t12*_t25 + _t17*_t24)
+   _t19*(_t10*_t24 + _t17*_t25)
 )
 : (
-   _t27*(_t11*xd_x[i] + _t16*xd_y[i])
+   _t27*(_t16*xd_y[i] + _t9*xd_x[i])
 ));
                 _qd_block[1][i] = ((_t26) ? (
-   _t19*(_t11*_t25 - _t16*_t24)
+   _t19*(-_t16*_t25 + _t24*_t9)
 )
 : (
-   _t27*(-_t12*xd_x[i] + _t17*xd_y[i])
+   _t27*(-_t10*xd_x[i] + _t17*xd_y[i])
 ));
                 singular[1 * (start + i) + 0] = _t26;
             }
@@ -2170,32 +2170,32 @@ void planar_2r_joint_velocity_batch(size_t count, const double *restrict q, cons
                 const double _t4 = (_s0[i]*_s0[i])*_t2*(l1*l1);
                 const double _t5 = _t4/_t1;
                 const double _t6 = kinegen_max(0, 1 - 100000000*_t5);
-                const double _t11 = _c1[i]*l2;
-                const double _t12 = _c2[i]*l1 + _t11;
-                const double _t13 = (_c1[i]*_c1[i])*_t10 + (_t12*_t12)*_t9;
+                const double _t9 = _c1[i]*l2;
+                const double _t10 = _c2[i]*l1 + _t9;
+                const double _t13 = (_c1[i]*_c1[i])*_t12 + (_t10*_t10)*_t11;
                 const double _t14 = (1e-06)*_t6;
                 const double _t16 = _s1[i]*l2;
                 const double _t17 = -_s2[i]*l1 - _t16;
-                const double _t18 = (_s1[i]*_s1[i])*_t10 + (_t17*_t17)*_t9;
+                const double _t18 = (_s1[i]*_s1[i])*_t12 + _t11*(_t17*_t17);
                 const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-12)*(_t6*_t6));
-                const double _t21 = _c1[i]*_s1[i]*_t10 - _t12*_t17*_t9;
-                const double _t22 = _t20*xd_y[i];
-                const double _t23 = _t20*xd_x[i];
-                const double _t24 = _t20*(_t21*_t22 + _t23*(_t13 + _t14));
-                const double _t25 = _t20*(_t21*_t23 + _t22*(_t14 + _t18));
+                const double _t21 = _c1[i]*_s1[i]*_t12 - _t10*_t11*_t17;
+                const double _t22 = _t20*xd_x[i];
+                const double _t23 = _t20*xd_y[i];
+                const double _t24 = _t20*(_t21*_t22 + _t23*(_t14 + _t18));
+                const double _t25 = _t20*(_t21*_t23 + _t22*(_t13 + _t14));
                 const int _t26 = _t5 < 1e-08;
                 const double _t27 = _s0[i]*l1*l2/kinegen_max(_t4, (1e-08)*_t1);
                 qd[2 * (start + i) + 0] = ((_t26) ? (
-   _t19*(_t12*_t25 + _t17*_t24)
+   _t19*(_t10*_t24 + _t17*_t25)
 )
 : (
-   _t27*(_t11*xd_x[i] + _t16*xd_y[i])
+   _t27*(_t16*xd_y[i] + _t9*xd_x[i])
 ));
                 qd[2 * (start + i) + 1] = ((_t26) ? (
-   _t19*(_t11*_t25 - _t16*_t24)
+   _t19*(-_t16*_t25 + _t24*_t9)
 )
 : (
-   _t27*(-_t12*xd_x[i] + _t17*xd_y[i])
+   _t27*(-_t10*xd_x[i] + _t17*xd_y[i])
 ));
                 singular[1 * (start + i) + 0] = _t26;
             }
@@ -2241,8 +2241,8 @@ void planar_2r_joint_acceleration(const double *restrict q, const double *restri
     const double _t0 = fabs(l1) + fabs(l2);
     const double _t1 = (_t0*_t0*_t0*_t0);
     const double _t2 = (l2*l2);
-    const double _t9 = 1.0/(_t0*_t0);
-    const double _t10 = _t2*_t9;
+    const double _t11 = 1.0/(_t0*_t0);
+    const double _t12 = _t11*_t2;
     const double _t20 = 1.0/_t0;
     const double _t7 = q1 + q2;
     double _s0, _s1, _c1, _s2, _c2;
@@ -2276,35 +2276,35 @@ void planar_2r_joint_acceleration(const double *restrict q, const double *restri
     const double _t4 = (_s0*_s0)*_t2*(l1*l1);
     const double _t5 = _t4/_t1;
     const double _t6 = kinegen_max(0, 1 - 100000000*_t5);
-    const double _t11 = _c1*l2;
-    const double _t12 = _c2*l1 + _t11;
-    const double _t13 = (_c1*_c1)*_t10 + (_t12*_t12)*_t9;
+    const double _t9 = _c1*l2;
+    const double _t10 = _c2*l1 + _t9;
+    const double _t13 = (_c1*_c1)*_t12 + (_t10*_t10)*_t11;
     const double _t14 = (1e-06)*_t6;
     const double _t16 = _s1*l2;
     const double _t17 = -_s2*l1 - _t16;
-    const double _t18 = (_s1*_s1)*_t10 + (_t17*_t17)*_t9;
+    const double _t18 = (_s1*_s1)*_t12 + _t11*(_t17*_t17);
     const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-12)*(_t6*_t6));
-    const double _t21 = _t16*qd2;
-    const double _t22 = -qd1*(_t17*qd1 - _t21) - qd2*(-_t16*qd1 - _t21) + xdd_y;
-    const double _t23 = _t20*(_c1*_s1*_t10 - _t12*_t17*_t9);
-    const double _t24 = _t11*qd2;
-    const double _t25 = -_t12;
-    const double _t26 = -qd1*(-_t24 + _t25*qd1) - qd2*(-_t11*qd1 - _t24) + xdd_x;
-    const double _t27 = _t20*(_t20*_t26*(_t13 + _t14) + _t22*_t23);
-    const double _t28 = _t20*_t22*(_t14 + _t18) + _t23*_t26;
+    const double _t21 = -_t10;
+    const double _t22 = _t9*qd2;
+    const double _t23 = -qd1*(_t21*qd1 - _t22) - qd2*(-_t22 - _t9*qd1) + xdd_x;
+    const double _t24 = _t20*(_c1*_s1*_t12 - _t10*_t11*_t17);
+    const double _t25 = _t16*qd2;
+    const double _t26 = -qd1*(_t17*qd1 - _t25) - qd2*(-_t16*qd1 - _t25) + xdd_y;
+    const double _t27 = _t20*_t26*(_t14 + _t18) + _t23*_t24;
+    const double _t28 = _t20*(_t20*_t23*(_t13 + _t14) + _t24*_t26);
     const int _t29 = _t5 < 1e-08;
     const double _t30 = _s0*l1*l2/kinegen_max(_t4, (1e-08)*_t1);
     qdd[0] = ((_t29) ? (
-   _t19*(_t12*_t20*_t28 + _t17*_t27)
+   _t19*(_t10*_t20*_t27 + _t17*_t28)
 )
 : (
-   _t30*(_t11*_t26 + _t16*_t22)
+   _t30*(_t16*_t26 + _t23*_t9)
 ));
     qdd[1] = ((_t29) ? (
-   _t19*(_c1*_t20*_t28*l2 - _t16*_t27)
+   _t19*(_c1*_t20*_t27*l2 - _t16*_t28)
 )
 : (
-   _t30*(_t17*_t22 + _t25*_t26)
+   _t30*(_t17*_t26 + _t21*_t23)
 ));
     singular[0] = _t29;
 }
@@ -2339,8 +2339,8 @@ void planar_2r_joint_acceleration_batch(size_t count, const double *restrict q, 
     const double _t0 = fabs(l1) + fabs(l2);
     const double _t1 = (_t0*_t0*_t0*_t0);
     const double _t2 = (l2*l2);
-    const double _t9 = 1.0/(_t0*_t0);
-    const double _t10 = _t2*_t9;
+    const double _t11 = 1.0/(_t0*_t0);
+    const double _t12 = _t11*_t2;
     const double _t20 = 1.0/_t0;
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
@@ -2383,35 +2383,35 @@ void planar_2r_joint_acceleration_batch(size_t count, const double *restrict q, 
                 const double _t4 = (_s0[i]*_s0[i])*_t2*(l1*l1);
                 const double _t5 = _t4/_t1;
                 const double _t6 = kinegen_max(0, 1 - 100000000*_t5);
-                const double _t11 = _c1[i]*l2;
-                const double _t12 = _c2[i]*l1 + _t11;
-                const double _t13 = (_c1[i]*_c1[i])*_t10 + (_t12*_t12)*_t9;
+                const double _t9 = _c1[i]*l2;
+                const double _t10 = _c2[i]*l1 + _t9;
+                const double _t13 = (_c1[i]*_c1[i])*_t12 + (_t10*_t10)*_t11;
                 const double _t14 = (1e-06)*_t6;
                 const double _t16 = _s1[i]*l2;
                 const double _t17 = -_s2[i]*l1 - _t16;
-                const double _t18 = (_s1[i]*_s1[i])*_t10 + (_t17*_t17)*_t9;
+                const double _t18 = (_s1[i]*_s1[i])*_t12 + _t11*(_t17*_t17);
                 const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-12)*(_t6*_t6));
-                const double _t21 = _t16*qd2[i];
-                const double _t22 = -qd1[i]*(_t17*qd1[i] - _t21) - qd2[i]*(-_t16*qd1[i] - _t21) + xdd_y[i];
-                const double _t23 = _t20*(_c1[i]*_s1[i]*_t10 - _t12*_t17*_t9);
-                const double _t24 = _t11*qd2[i];
-                const double _t25 = -_t12;
-                const double _t26 = -qd1[i]*(-_t24 + _t25*qd1[i]) - qd2[i]*(-_t11*qd1[i] - _t24) + xdd_x[i];
-                const double _t27 = _t20*(_t20*_t26*(_t13 + _t14) + _t22*_t23);
-                const double _t28 = _t20*_t22*(_t14 + _t18) + _t23*_t26;
+                const double _t21 = -_t10;
+                const double _t22 = _t9*qd2[i];
+                const double _t23 = -qd1[i]*(_t21*qd1[i] - _t22) - qd2[i]*(-_t22 - _t9*qd1[i]) + xdd_x[i];
+                const double _t24 = _t20*(_c1[i]*_s1[i]*_t12 - _t10*_t11*_t17);
+                const double _t25 = _t16*qd2[i];
+                const double _t26 = -qd1[i]*(_t17*qd1[i] - _t25) - qd2[i]*(-_t16*qd1[i] - _t25) + xdd_y[i];
+                const double _t27 = _t20*_t26*(_t14 + _t18) + _t23*_t24;
+                const double _t28 = _t20*(_t20*_t23*(_t13 + _t14) + _t24*_t26);
                 const int _t29 = _t5 < 1e-08;
                 const double _t30 = _s0[i]*l1*l2/kinegen_max(_t4, (1e-08)*_t1);
                 _qdd_block[0][i] = ((_t29) ? (
-   _t19*(_t12*_t20*_t28 + _t17*_t27)
+   _t19*(_t10*_t20*_t27 + _t17*_t28)
 )
 : (
-   _t30*(_t11*_t26 + _t16*_t22)
+   _t30*(_t16*_t26 + _t23*_t9)
 ));
                 _qdd_block[1][i] = ((_t29) ? (
-   _t19*(_c1[i]*_t20*_t28*l2 - _t16*_t27)
+   _t19*(_c1[i]*_t20*_t27*l2 - _t16*_t28)
 )
 : (
-   _t30*(_t17*_t22 + _t25*_t26)
+   _t30*(_t17*_t26 + _t21*_t23)
 ));
                 singular[1 * (start + i) + 0] = _t29;
             }
@@ -2423,35 +2423,35 @@ void planar_2r_joint_acceleration_batch(size_t count, const double *restrict q, 
                 const double _t4 = (_s0[i]*_s0[i])*_t2*(l1*l1);
                 const double _t5 = _t4/_t1;
                 const double _t6 = kinegen_max(0, 1 - 100000000*_t5);
-                const double _t11 = _c1[i]*l2;
-                const double _t12 = _c2[i]*l1 + _t11;
-                const double _t13 = (_c1[i]*_c1[i])*_t10 + (_t12*_t12)*_t9;
+                const double _t9 = _c1[i]*l2;
+                const double _t10 = _c2[i]*l1 + _t9;
+                const double _t13 = (_c1[i]*_c1[i])*_t12 + (_t10*_t10)*_t11;
                 const double _t14 = (1e-06)*_t6;
                 const double _t16 = _s1[i]*l2;
                 const double _t17 = -_s2[i]*l1 - _t16;
-                const double _t18 = (_s1[i]*_s1[i])*_t10 + (_t17*_t17)*_t9;
+                const double _t18 = (_s1[i]*_s1[i])*_t12 + _t11*(_t17*_t17);
                 const double _t19 = 1.0/(_t13*_t14 + _t14*_t18 + _t5 + (1e-12)*(_t6*_t6));
-                const double _t21 = _t16*qd2[i];
-                const double _t22 = -qd1[i]*(_t17*qd1[i] - _t21) - qd2[i]*(-_t16*qd1[i] - _t21) + xdd_y[i];
-                const double _t23 = _t20*(_c1[i]*_s1[i]*_t10 - _t12*_t17*_t9);
-                const double _t24 = _t11*qd2[i];
-                const double _t25 = -_t12;
-                const double _t26 = -qd1[i]*(-_t24 + _t25*qd1[i]) - qd2[i]*(-_t11*qd1[i] - _t24) + xdd_x[i];
-                const double _t27 = _t20*(_t20*_t26*(_t13 + _t14) + _t22*_t23);
-                const double _t28 = _t20*_t22*(_t14 + _t18) + _t23*_t26;
+                const double _t21 = -_t10;
+                const double _t22 = _t9*qd2[i];
+                const double _t23 = -qd1[i]*(_t21*qd1[i] - _t22) - qd2[i]*(-_t22 - _t9*qd1[i]) + xdd_x[i];
+                const double _t24 = _t20*(_c1[i]*_s1[i]*_t12 - _t10*_t11*_t17);
+                const double _t25 = _t16*qd2[i];
+                const double _t26 = -qd1[i]*(_t17*qd1[i] - _t25) - qd2[i]*(-_t16*qd1[i] - _t25) + xdd_y[i];
+                const double _t27 = _t20*_t26*(_t14 + _t18) + _t23*_t24;
+                const double _t28 = _t20*(_t20*_t23*(_t13 + _t14) + _t24*_t26);
                 const int _t29 = _t5 < 1e-08;
                 const double _t30 = _s0[i]*l1*l2/kinegen_max(_t4, (1e-08)*_t1);
                 qdd[2 * (start + i) + 0] = ((_t29) ? (
-   _t19*(_t12*_t20*_t28 + _t17*_t27)
+   _t19*(_t10*_t20*_t27 + _t17*_t28)
 )
 : (
-   _t30*(_t11*_t26 + _t16*_t22)
+   _t30*(_t16*_t26 + _t23*_t9)
 ));
                 qdd[2 * (start + i) + 1] = ((_t29) ? (
-   _t19*(_c1[i]*_t20*_t28*l2 - _t16*_t27)
+   _t19*(_c1[i]*_t20*_t27*l2 - _t16*_t28)
 )
 : (
-   _t30*(_t17*_t22 + _t25*_t26)
+   _t30*(_t17*_t26 + _t21*_t23)
 ));
                 singular[1 * (start + i) + 0] = _t29;
             }

@@ -1156,27 +1156,27 @@ int planar_3r_ik(const double *restrict _x, const planar_3r_params *restrict par
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double l3 = params->l3;
-    const double _t0 = 1.0/l1;
-    const double _t7 = (l1*l1) - (l2*l2);
+    const double _t8 = 1.0/l1;
+    const double _t9 = (l1*l1) - (l2*l2);
     const double _t13 = 1.0/l2;
     double _s0, _c0;
     _s0 = sin(phi);
     _c0 = cos(phi);
-    const double _t1 = _s0*l3;
-    const double _t2 = _t1 - y;
-    const double _t3 = -_t2;
-    const double _t4 = _c0*l3 - x;
-    const double _t5 = -_t4;
-    const double _t6 = (_t3*_t3) + (_t5*_t5);
-    const double _t8 = 1.0/sqrt(_t6);
-    const double _t9 = (0.5)*_t8;
-    const double _a0 = kinegen_min(1, kinegen_max(-1, _t0*_t9*(-_t6 - _t7)));
-    const double _a1 = -_t3*_t8;
-    const double _a2 = -_t5*_t8;
+    const double _t0 = _c0*l3 - x;
+    const double _t1 = -_t0;
+    const double _t2 = _s0*l3;
+    const double _t3 = _t2 - y;
+    const double _t4 = -_t3;
+    const double _t5 = (_t1*_t1) + (_t4*_t4);
+    const double _t6 = 1.0/sqrt(_t5);
+    const double _a0 = -_t4*_t6;
+    const double _a1 = -_t1*_t6;
+    const double _t10 = (0.5)*_t6;
+    const double _a2 = kinegen_min(1, kinegen_max(-1, _t10*_t8*(-_t5 - _t9)));
     double _f0, _f1;
-    _f0 = acos(_a0);
-    _f1 = atan2(_a1, _a2);
-    const double _t12 = _f0 - _f1;
+    _f0 = atan2(_a0, _a1);
+    _f1 = acos(_a2);
+    const double _t12 = -_f0 + _f1;
     const double _t15 = _f0 + _f1;
     double _s1, _c1, _s2, _c2;
 #ifdef KINEGEN_SIMD
@@ -1204,10 +1204,10 @@ int planar_3r_ik(const double *restrict _x, const planar_3r_params *restrict par
     _s2 = sin(_t15);
     _c2 = cos(_t15);
 #endif
-    const double _a3 = _t13*(_s1*l1 - _t1 + y);
-    const double _a4 = _t13*(-_c1*l1 - _t4);
-    const double _a5 = _t13*(-_s2*l1 - _t2);
-    const double _a6 = _t13*(-_c2*l1 - _t4);
+    const double _a3 = _t13*(_s1*l1 - _t2 + y);
+    const double _a4 = _t13*(-_c1*l1 - _t0);
+    const double _a5 = _t13*(-_s2*l1 - _t3);
+    const double _a6 = _t13*(-_c2*l1 - _t0);
     double _f2, _f3;
 #if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
     {
@@ -1228,7 +1228,7 @@ int planar_3r_ik(const double *restrict _x, const planar_3r_params *restrict par
     _f3 = atan2(_a5, _a6);
 #endif
     const double _t16 = -_f3;
-    const int _t17 = _t9*fabs(_t0*((_t2*_t2) + (_t4*_t4) + _t7)) <= 1.000000000001 && _t6 > 0;
+    const int _t17 = _t10*fabs(_t8*((_t0*_t0) + (_t3*_t3) + _t9)) <= 1.000000000001 && _t5 > 0;
     Q[0] = kinegen_wrap_angle(-_t12);
     Q[1] = kinegen_wrap_angle(_f2 + _t12);
     Q[2] = kinegen_wrap_angle(-_f2 + phi);
@@ -1251,13 +1251,13 @@ long planar_3r_ik_batch(size_t count, const double *restrict _x, const planar_3r
     double phi[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
-    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
     double _t2[KINEGEN_BLOCK_OF(64)];
-    double _t4[KINEGEN_BLOCK_OF(64)];
-    double _t6[KINEGEN_BLOCK_OF(64)];
-    double _t9[KINEGEN_BLOCK_OF(64)];
+    double _t3[KINEGEN_BLOCK_OF(64)];
+    double _t5[KINEGEN_BLOCK_OF(64)];
     double _a0[KINEGEN_BLOCK_OF(64)];
     double _a1[KINEGEN_BLOCK_OF(64)];
+    double _t10[KINEGEN_BLOCK_OF(64)];
     double _a2[KINEGEN_BLOCK_OF(64)];
     double _f0[KINEGEN_BLOCK_OF(64)];
     double _f1[KINEGEN_BLOCK_OF(64)];
@@ -1281,8 +1281,8 @@ long planar_3r_ik_batch(size_t count, const double *restrict _x, const planar_3r
     const double l1 = params->l1;
     const double l2 = params->l2;
     const double l3 = params->l3;
-    const double _t0 = 1.0/l1;
-    const double _t7 = (l1*l1) - (l2*l2);
+    const double _t8 = 1.0/l1;
+    const double _t9 = (l1*l1) - (l2*l2);
     const double _t13 = 1.0/l2;
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
@@ -1301,29 +1301,29 @@ long planar_3r_ik_batch(size_t count, const double *restrict _x, const planar_3r
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t1[i] = _s0[i]*l3;
-            _t2[i] = _t1[i] - y[i];
-            const double _t3 = -_t2[i];
-            _t4[i] = _c0[i]*l3 - x[i];
-            const double _t5 = -_t4[i];
-            _t6[i] = (_t3*_t3) + (_t5*_t5);
-            const double _t8 = 1.0/sqrt(_t6[i]);
-            _t9[i] = (0.5)*_t8;
-            _a0[i] = kinegen_min(1, kinegen_max(-1, _t0*_t9[i]*(-_t6[i] - _t7)));
-            _a1[i] = -_t3*_t8;
-            _a2[i] = -_t5*_t8;
+            _t0[i] = _c0[i]*l3 - x[i];
+            const double _t1 = -_t0[i];
+            _t2[i] = _s0[i]*l3;
+            _t3[i] = _t2[i] - y[i];
+            const double _t4 = -_t3[i];
+            _t5[i] = (_t1*_t1) + (_t4*_t4);
+            const double _t6 = 1.0/sqrt(_t5[i]);
+            _a0[i] = -_t4*_t6;
+            _a1[i] = -_t1*_t6;
+            _t10[i] = (0.5)*_t6;
+            _a2[i] = kinegen_min(1, kinegen_max(-1, _t10[i]*_t8*(-_t5[i] - _t9)));
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f0[i] = acos(_a0[i]);
+            _f0[i] = atan2(_a0[i], _a1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f1[i] = atan2(_a1[i], _a2[i]);
+            _f1[i] = acos(_a2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t12[i] = _f0[i] - _f1[i];
+            _t12[i] = -_f0[i] + _f1[i];
             _t15[i] = _f0[i] + _f1[i];
         }
         KINEGEN_VECTOR_LOOP
@@ -1344,10 +1344,10 @@ long planar_3r_ik_batch(size_t count, const double *restrict _x, const planar_3r
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _a3[i] = _t13*(_s1[i]*l1 - _t1[i] + y[i]);
-            _a4[i] = _t13*(-_c1[i]*l1 - _t4[i]);
-            _a5[i] = _t13*(-_s2[i]*l1 - _t2[i]);
-            _a6[i] = _t13*(-_c2[i]*l1 - _t4[i]);
+            _a3[i] = _t13*(_s1[i]*l1 - _t2[i] + y[i]);
+            _a4[i] = _t13*(-_c1[i]*l1 - _t0[i]);
+            _a5[i] = _t13*(-_s2[i]*l1 - _t3[i]);
+            _a6[i] = _t13*(-_c2[i]*l1 - _t0[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -1360,7 +1360,7 @@ long planar_3r_ik_batch(size_t count, const double *restrict _x, const planar_3r
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             const double _t16 = -_f3[i];
-            const int _t17 = _t9[i]*fabs(_t0*((_t2[i]*_t2[i]) + (_t4[i]*_t4[i]) + _t7)) <= 1.000000000001 && _t6[i] > 0;
+            const int _t17 = _t10[i]*fabs(_t8*((_t0[i]*_t0[i]) + (_t3[i]*_t3[i]) + _t9)) <= 1.000000000001 && _t5[i] > 0;
             _Q_block[0][i] = kinegen_wrap_angle(-_t12[i]);
             _Q_block[1][i] = kinegen_wrap_angle(_f2[i] + _t12[i]);
             _Q_block[2][i] = kinegen_wrap_angle(-_f2[i] + phi[i]);
@@ -2175,20 +2175,20 @@ void planar_3r_task_acceleration(const double *restrict q, const double *restric
     _s2 = sin(q1);
     _c2 = cos(q1);
 #endif
-    const double _t2 = _s0*l3;
-    const double _t3 = _s1*l2 + _t2;
-    const double _t4 = -_t3;
-    const double _t5 = -_s2*l1 - _t3;
-    const double _t6 = _c0*l3;
-    const double _t7 = _t6*qd3;
-    const double _t8 = _c1*l2 + _t6;
-    const double _t9 = -_t8;
-    const double _t10 = -_t7 + _t9*qd2;
-    const double _t11 = _c2*l1 + _t8;
-    const double _t12 = _t2*qd3;
-    const double _t13 = -_t12 + _t4*qd2;
-    xdd[0] = -_t2*qdd3 + _t4*qdd2 + _t5*qdd1 + qd1*(_t10 - _t11*qd1) + qd2*(_t10 + _t9*qd1) + qd3*(-_t6*qd1 - _t6*qd2 - _t7);
-    xdd[1] = _t11*qdd1 + _t6*qdd3 + _t8*qdd2 + qd1*(_t13 + _t5*qd1) + qd2*(_t13 + _t4*qd1) + qd3*(-_t12 - _t2*qd1 - _t2*qd2);
+    const double _t2 = _c0*l3;
+    const double _t3 = _c1*l2 + _t2;
+    const double _t4 = _c2*l1 + _t3;
+    const double _t5 = -_t3;
+    const double _t6 = _t2*qd3;
+    const double _t7 = _t5*qd2 - _t6;
+    const double _t8 = _s0*l3;
+    const double _t9 = _s1*l2 + _t8;
+    const double _t10 = -_s2*l1 - _t9;
+    const double _t11 = -_t9;
+    const double _t12 = _t8*qd3;
+    const double _t13 = _t11*qd2 - _t12;
+    xdd[0] = _t10*qdd1 + _t11*qdd2 - _t8*qdd3 + qd1*(-_t4*qd1 + _t7) + qd2*(_t5*qd1 + _t7) + qd3*(-_t2*qd1 - _t2*qd2 - _t6);
+    xdd[1] = _t2*qdd3 + _t3*qdd2 + _t4*qdd1 + qd1*(_t10*qd1 + _t13) + qd2*(_t11*qd1 + _t13) + qd3*(-_t12 - _t8*qd1 - _t8*qd2);
     xdd[2] = qdd1 + qdd2 + qdd3;
 }
 
@@ -2264,20 +2264,20 @@ void planar_3r_task_acceleration_batch(size_t count, const double *restrict q, c
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            const double _t2 = _s0[i]*l3;
-            const double _t3 = _s1[i]*l2 + _t2;
-            const double _t4 = -_t3;
-            const double _t5 = -_s2[i]*l1 - _t3;
-            const double _t6 = _c0[i]*l3;
-            const double _t7 = _t6*qd3[i];
-            const double _t8 = _c1[i]*l2 + _t6;
-            const double _t9 = -_t8;
-            const double _t10 = -_t7 + _t9*qd2[i];
-            const double _t11 = _c2[i]*l1 + _t8;
-            const double _t12 = _t2*qd3[i];
-            const double _t13 = -_t12 + _t4*qd2[i];
-            xdd[3 * (start + i) + 0] = -_t2*qdd3[i] + _t4*qdd2[i] + _t5*qdd1[i] + qd1[i]*(_t10 - _t11*qd1[i]) + qd2[i]*(_t10 + _t9*qd1[i]) + qd3[i]*(-_t6*qd1[i] - _t6*qd2[i] - _t7);
-            xdd[3 * (start + i) + 1] = _t11*qdd1[i] + _t6*qdd3[i] + _t8*qdd2[i] + qd1[i]*(_t13 + _t5*qd1[i]) + qd2[i]*(_t13 + _t4*qd1[i]) + qd3[i]*(-_t12 - _t2*qd1[i] - _t2*qd2[i]);
+            const double _t2 = _c0[i]*l3;
+            const double _t3 = _c1[i]*l2 + _t2;
+            const double _t4 = _c2[i]*l1 + _t3;
+            const double _t5 = -_t3;
+            const double _t6 = _t2*qd3[i];
+            const double _t7 = _t5*qd2[i] - _t6;
+            const double _t8 = _s0[i]*l3;
+            const double _t9 = _s1[i]*l2 + _t8;
+            const double _t10 = -_s2[i]*l1 - _t9;
+            const double _t11 = -_t9;
+            const double _t12 = _t8*qd3[i];
+            const double _t13 = _t11*qd2[i] - _t12;
+            xdd[3 * (start + i) + 0] = _t10*qdd1[i] + _t11*qdd2[i] - _t8*qdd3[i] + qd1[i]*(-_t4*qd1[i] + _t7) + qd2[i]*(_t5*qd1[i] + _t7) + qd3[i]*(-_t2*qd1[i] - _t2*qd2[i] - _t6);
+            xdd[3 * (start + i) + 1] = _t2*qdd3[i] + _t3*qdd2[i] + _t4*qdd1[i] + qd1[i]*(_t10*qd1[i] + _t13) + qd2[i]*(_t11*qd1[i] + _t13) + qd3[i]*(-_t12 - _t8*qd1[i] - _t8*qd2[i]);
             xdd[3 * (start + i) + 2] = qdd1[i] + qdd2[i] + qdd3[i];
         }
     }
@@ -2362,22 +2362,22 @@ void planar_3r_joint_velocity(const double *restrict q, const double *restrict x
     const double _t3 = 1.0/_t2;
     const double _t4 = _t0*_t3;
     const double _t5 = (l2*l2);
-    const double _t12 = 1.0/(_t1*_t1);
-    const double _t13 = _t0*_t12;
-    const double _t16 = _t12*_t5;
-    const double _t30 = (l3*l3);
-    const double _t31 = _t3*_t30;
-    const double _t40 = _t12*_t30;
-    const double _t52 = 1.0/(_t1*_t1*_t1);
-    const double _t57 = 1.0/_t1;
-    const double _t14 = q1 + q2;
+    const double _t17 = 1.0/(_t1*_t1);
+    const double _t18 = _t0*_t17;
+    const double _t19 = _t17*_t5;
+    const double _t35 = (l3*l3);
+    const double _t36 = _t3*_t35;
+    const double _t43 = _t17*_t35;
+    const double _t52 = 1.0/_t1;
+    const double _t56 = 1.0/(_t1*_t1*_t1);
+    const double _t13 = q1 + q2;
     const double _a0 = q2 + q3;
-    const double _t38 = _t14 + q3;
+    const double _t38 = _t13 + q3;
     double _s0, _s1, _c1, _s2, _c2, _s3, _s4, _s5, _c5;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[8] = { q2, q1, _t14, q3, _a0, _t38, 0.0, 0.0 };
+        const double angle[8] = { q2, q1, _t13, _a0, q3, _t38, 0.0, 0.0 };
         double sine[8], cosine[8];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -2402,10 +2402,10 @@ void planar_3r_joint_velocity(const double *restrict q, const double *restrict x
     _s0 = sin(q2);
     _s1 = sin(q1);
     _c1 = cos(q1);
-    _s2 = sin(_t14);
-    _c2 = cos(_t14);
-    _s3 = sin(q3);
-    _s4 = sin(_a0);
+    _s2 = sin(_t13);
+    _c2 = cos(_t13);
+    _s3 = sin(_a0);
+    _s4 = sin(q3);
     _s5 = sin(_t38);
     _c5 = cos(_t38);
 #endif
@@ -2413,71 +2413,71 @@ void planar_3r_joint_velocity(const double *restrict q, const double *restrict x
     const double _t8 = _t4*_t7;
     const double _t9 = kinegen_max(0, 1 - 100000000*_t8);
     const double _t10 = (_t9*_t9);
-    const double _t17 = _c1*l1;
-    const double _t18 = _c2*l2;
-    const double _t19 = _t17 + _t18;
-    const double _t20 = (_c1*_c1)*_t13 + (_c2*_c2)*_t16 + _t12*(_t19*_t19);
+    const double _t12 = _c1*l1;
+    const double _t15 = _c2*l2;
+    const double _t16 = _t12 + _t15;
+    const double _t20 = (_c1*_c1)*_t18 + (_c2*_c2)*_t19 + (_t16*_t16)*_t17;
     const double _t21 = (1e-06)*_t9;
-    const double _t24 = _s1*l1;
+    const double _t23 = _s1*l1;
     const double _t25 = _s2*l2;
-    const double _t26 = _t24 + _t25;
+    const double _t26 = _t23 + _t25;
     const double _t27 = -_t26;
-    const double _t28 = (_s1*_s1)*_t13 + (_s2*_s2)*_t16 + _t12*(_t27*_t27);
-    const double _t32 = _s0*l2;
-    const double _t34 = _s4*l3 + _t32;
-    const double _t35 = _s3*l2;
-    const double _t36 = _s4*l1 + _t35;
-    const double _t37 = (_s3*_s3)*_t31*_t5 + _t31*(_t36*_t36) + (_t34*_t34)*_t4;
-    const double _t41 = _c5*l3;
-    const double _t42 = _t18 + _t41;
-    const double _t43 = _t19 + _t41;
-    const double _t44 = (_c5*_c5)*_t40 + _t12*(_t42*_t42) + _t12*(_t43*_t43);
+    const double _t28 = (_s1*_s1)*_t18 + (_s2*_s2)*_t19 + _t17*(_t27*_t27);
+    const double _t29 = _s0*l2;
+    const double _t31 = _s3*l3 + _t29;
+    const double _t33 = _s4*l2;
+    const double _t34 = _s3*l1 + _t33;
+    const double _t37 = (_s4*_s4)*_t36*_t5 + (_t31*_t31)*_t4 + (_t34*_t34)*_t36;
+    const double _t40 = _c5*l3;
+    const double _t41 = _t15 + _t40;
+    const double _t42 = _t16 + _t40;
+    const double _t44 = (_c5*_c5)*_t43 + _t17*(_t41*_t41) + _t17*(_t42*_t42);
     const double _t45 = (1e-12)*_t10;
     const double _t47 = _s5*l3;
     const double _t48 = -_t25 - _t47;
     const double _t49 = -_t26 - _t47;
-    const double _t50 = (_s5*_s5)*_t40 + _t12*(_t48*_t48) + _t12*(_t49*_t49);
+    const double _t50 = (_s5*_s5)*_t43 + _t17*(_t48*_t48) + _t17*(_t49*_t49);
     const double _t51 = 1.0/((3e-12)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-18)*(_t9*_t9*_t9));
-    const double _t53 = _s3*_t5*_t52*l3;
-    const double _t54 = _t0*_t34*_t52;
-    const double _t55 = _t36*l3;
-    const double _t56 = _t52*_t55;
-    const double _t58 = _t41*_t57;
-    const double _t59 = _t42*_t57;
-    const double _t60 = _t43*_t57;
-    const double _t61 = _s1*_t54 + _s2*_t53 - _t21*(_t58 + _t59 + _t60) - _t27*_t56;
-    const double _t62 = _c1*_s1*_t13 + _c2*_s2*_t16 - _t12*_t19*_t27 - _t21*(-_c5*_s5*_t40 + _t12*_t42*_t48 + _t12*_t43*_t49);
-    const double _t63 = _t57*xd_x;
+    const double _t53 = _t41*_t52;
+    const double _t54 = _t42*_t52;
+    const double _t55 = _t40*_t52;
+    const double _t57 = _t0*_t31*_t56;
+    const double _t58 = _t34*l3;
+    const double _t59 = _t56*_t58;
+    const double _t60 = _s4*_t5*_t56*l3;
+    const double _t61 = _s1*_t57 + _s2*_t60 - _t21*(_t53 + _t54 + _t55) - _t27*_t59;
+    const double _t62 = _c1*_s1*_t18 + _c2*_s2*_t19 - _t16*_t17*_t27 - _t21*(-_c5*_s5*_t43 + _t17*_t41*_t48 + _t17*_t42*_t49);
+    const double _t63 = _t52*xd_x;
     const double _t64 = (3e-06)*_t9;
     const double _t65 = _t21*_t50 + _t45;
-    const double _t66 = _t57*xd_y;
+    const double _t66 = _t52*xd_y;
     const double _t67 = _t61*xd_phi + _t62*_t63 + _t66*(_t28 + _t64 + _t65);
-    const double _t68 = _t47*_t57;
-    const double _t69 = _t48*_t57;
-    const double _t70 = _t49*_t57;
-    const double _t71 = _c1*_t54 + _c2*_t53 + _t19*_t56 - _t21*(-_t68 + _t69 + _t70);
+    const double _t68 = _t48*_t52;
+    const double _t69 = _t49*_t52;
+    const double _t70 = _t47*_t52;
+    const double _t71 = _c1*_t57 + _c2*_t60 + _t16*_t59 - _t21*(_t68 + _t69 - _t70);
     const double _t72 = _t21*_t44;
     const double _t73 = _t62*_t66 + _t63*(_t20 + _t45 + _t64 + _t72) + _t71*xd_phi;
     const double _t74 = _t61*_t66 + _t63*_t71 + xd_phi*(_t37 + _t65 + _t72);
     const int _t75 = _t8 < 1e-08;
-    const double _t76 = _t32*l1/kinegen_max((1e-08)*_t2, _t0*_t7);
+    const double _t76 = _t29*l1/kinegen_max((1e-08)*_t2, _t0*_t7);
     qd[0] = ((_t75) ? (
-   _t51*(_t60*_t67 + _t70*_t73 + _t74)
+   _t51*(_t54*_t67 + _t69*_t73 + _t74)
 )
 : (
-   _t76*(_t18*xd_x + _t25*xd_y + _t35*l3*xd_phi)
+   _t76*(_t15*xd_x + _t25*xd_y + _t33*l3*xd_phi)
 ));
     qd[1] = ((_t75) ? (
-   _t51*(_t59*_t67 + _t69*_t73 + _t74)
+   _t51*(_t53*_t67 + _t68*_t73 + _t74)
 )
 : (
-   _t76*(-_t19*xd_x + _t27*xd_y - _t55*xd_phi)
+   _t76*(-_t16*xd_x + _t27*xd_y - _t58*xd_phi)
 ));
     qd[2] = ((_t75) ? (
-   _t51*(_t58*_t67 - _t68*_t73 + _t74)
+   _t51*(_t55*_t67 - _t70*_t73 + _t74)
 )
 : (
-   _t76*(_t17*xd_x + _t24*xd_y + _t34*l1*xd_phi)
+   _t76*(_t12*xd_x + _t23*xd_y + _t31*l1*xd_phi)
 ));
     singular[0] = _t75;
 }
@@ -2492,7 +2492,7 @@ void planar_3r_joint_velocity_batch(size_t count, const double *restrict q, cons
     double xd_x[KINEGEN_BLOCK_OF(64)];
     double xd_y[KINEGEN_BLOCK_OF(64)];
     double xd_phi[KINEGEN_BLOCK_OF(64)];
-    double _t14[KINEGEN_BLOCK_OF(64)];
+    double _t13[KINEGEN_BLOCK_OF(64)];
     double _a0[KINEGEN_BLOCK_OF(64)];
     double _t38[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
@@ -2517,14 +2517,14 @@ void planar_3r_joint_velocity_batch(size_t count, const double *restrict q, cons
     const double _t3 = 1.0/_t2;
     const double _t4 = _t0*_t3;
     const double _t5 = (l2*l2);
-    const double _t12 = 1.0/(_t1*_t1);
-    const double _t13 = _t0*_t12;
-    const double _t16 = _t12*_t5;
-    const double _t30 = (l3*l3);
-    const double _t31 = _t3*_t30;
-    const double _t40 = _t12*_t30;
-    const double _t52 = 1.0/(_t1*_t1*_t1);
-    const double _t57 = 1.0/_t1;
+    const double _t17 = 1.0/(_t1*_t1);
+    const double _t18 = _t0*_t17;
+    const double _t19 = _t17*_t5;
+    const double _t35 = (l3*l3);
+    const double _t36 = _t3*_t35;
+    const double _t43 = _t17*_t35;
+    const double _t52 = 1.0/_t1;
+    const double _t56 = 1.0/(_t1*_t1*_t1);
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
@@ -2537,9 +2537,9 @@ void planar_3r_joint_velocity_batch(size_t count, const double *restrict q, cons
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t14[i] = q1[i] + q2[i];
+            _t13[i] = q1[i] + q2[i];
             _a0[i] = q2[i] + q3[i];
-            _t38[i] = _t14[i] + q3[i];
+            _t38[i] = _t13[i] + q3[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -2555,19 +2555,19 @@ void planar_3r_joint_velocity_batch(size_t count, const double *restrict q, cons
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s2[i] = sin(_t14[i]);
+            _s2[i] = sin(_t13[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(_t14[i]);
+            _c2[i] = cos(_t13[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s3[i] = sin(q3[i]);
+            _s3[i] = sin(_a0[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s4[i] = sin(_a0[i]);
+            _s4[i] = sin(q3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -2583,71 +2583,71 @@ void planar_3r_joint_velocity_batch(size_t count, const double *restrict q, cons
             const double _t8 = _t4*_t7;
             const double _t9 = kinegen_max(0, 1 - 100000000*_t8);
             const double _t10 = (_t9*_t9);
-            const double _t17 = _c1[i]*l1;
-            const double _t18 = _c2[i]*l2;
-            const double _t19 = _t17 + _t18;
-            const double _t20 = (_c1[i]*_c1[i])*_t13 + (_c2[i]*_c2[i])*_t16 + _t12*(_t19*_t19);
+            const double _t12 = _c1[i]*l1;
+            const double _t15 = _c2[i]*l2;
+            const double _t16 = _t12 + _t15;
+            const double _t20 = (_c1[i]*_c1[i])*_t18 + (_c2[i]*_c2[i])*_t19 + (_t16*_t16)*_t17;
             const double _t21 = (1e-06)*_t9;
-            const double _t24 = _s1[i]*l1;
+            const double _t23 = _s1[i]*l1;
             const double _t25 = _s2[i]*l2;
-            const double _t26 = _t24 + _t25;
+            const double _t26 = _t23 + _t25;
             const double _t27 = -_t26;
-            const double _t28 = (_s1[i]*_s1[i])*_t13 + (_s2[i]*_s2[i])*_t16 + _t12*(_t27*_t27);
-            const double _t32 = _s0[i]*l2;
-            const double _t34 = _s4[i]*l3 + _t32;
-            const double _t35 = _s3[i]*l2;
-            const double _t36 = _s4[i]*l1 + _t35;
-            const double _t37 = (_s3[i]*_s3[i])*_t31*_t5 + _t31*(_t36*_t36) + (_t34*_t34)*_t4;
-            const double _t41 = _c5[i]*l3;
-            const double _t42 = _t18 + _t41;
-            const double _t43 = _t19 + _t41;
-            const double _t44 = (_c5[i]*_c5[i])*_t40 + _t12*(_t42*_t42) + _t12*(_t43*_t43);
+            const double _t28 = (_s1[i]*_s1[i])*_t18 + (_s2[i]*_s2[i])*_t19 + _t17*(_t27*_t27);
+            const double _t29 = _s0[i]*l2;
+            const double _t31 = _s3[i]*l3 + _t29;
+            const double _t33 = _s4[i]*l2;
+            const double _t34 = _s3[i]*l1 + _t33;
+            const double _t37 = (_s4[i]*_s4[i])*_t36*_t5 + (_t31*_t31)*_t4 + (_t34*_t34)*_t36;
+            const double _t40 = _c5[i]*l3;
+            const double _t41 = _t15 + _t40;
+            const double _t42 = _t16 + _t40;
+            const double _t44 = (_c5[i]*_c5[i])*_t43 + _t17*(_t41*_t41) + _t17*(_t42*_t42);
             const double _t45 = (1e-12)*_t10;
             const double _t47 = _s5[i]*l3;
             const double _t48 = -_t25 - _t47;
             const double _t49 = -_t26 - _t47;
-            const double _t50 = (_s5[i]*_s5[i])*_t40 + _t12*(_t48*_t48) + _t12*(_t49*_t49);
+            const double _t50 = (_s5[i]*_s5[i])*_t43 + _t17*(_t48*_t48) + _t17*(_t49*_t49);
             const double _t51 = 1.0/((3e-12)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-18)*(_t9*_t9*_t9));
-            const double _t53 = _s3[i]*_t5*_t52*l3;
-            const double _t54 = _t0*_t34*_t52;
-            const double _t55 = _t36*l3;
-            const double _t56 = _t52*_t55;
-            const double _t58 = _t41*_t57;
-            const double _t59 = _t42*_t57;
-            const double _t60 = _t43*_t57;
-            const double _t61 = _s1[i]*_t54 + _s2[i]*_t53 - _t21*(_t58 + _t59 + _t60) - _t27*_t56;
-            const double _t62 = _c1[i]*_s1[i]*_t13 + _c2[i]*_s2[i]*_t16 - _t12*_t19*_t27 - _t21*(-_c5[i]*_s5[i]*_t40 + _t12*_t42*_t48 + _t12*_t43*_t49);
-            const double _t63 = _t57*xd_x[i];
+            const double _t53 = _t41*_t52;
+            const double _t54 = _t42*_t52;
+            const double _t55 = _t40*_t52;
+            const double _t57 = _t0*_t31*_t56;
+            const double _t58 = _t34*l3;
+            const double _t59 = _t56*_t58;
+            const double _t60 = _s4[i]*_t5*_t56*l3;
+            const double _t61 = _s1[i]*_t57 + _s2[i]*_t60 - _t21*(_t53 + _t54 + _t55) - _t27*_t59;
+            const double _t62 = _c1[i]*_s1[i]*_t18 + _c2[i]*_s2[i]*_t19 - _t16*_t17*_t27 - _t21*(-_c5[i]*_s5[i]*_t43 + _t17*_t41*_t48 + _t17*_t42*_t49);
+            const double _t63 = _t52*xd_x[i];
             const double _t64 = (3e-06)*_t9;
             const double _t65 = _t21*_t50 + _t45;
-            const double _t66 = _t57*xd_y[i];
+            const double _t66 = _t52*xd_y[i];
             const double _t67 = _t61*xd_phi[i] + _t62*_t63 + _t66*(_t28 + _t64 + _t65);
-            const double _t68 = _t47*_t57;
-            const double _t69 = _t48*_t57;
-            const double _t70 = _t49*_t57;
-            const double _t71 = _c1[i]*_t54 + _c2[i]*_t53 + _t19*_t56 - _t21*(-_t68 + _t69 + _t70);
+            const double _t68 = _t48*_t52;
+            const double _t69 = _t49*_t52;
+            const double _t70 = _t47*_t52;
+            const double _t71 = _c1[i]*_t57 + _c2[i]*_t60 + _t16*_t59 - _t21*(_t68 + _t69 - _t70);
             const double _t72 = _t21*_t44;
             const double _t73 = _t62*_t66 + _t63*(_t20 + _t45 + _t64 + _t72) + _t71*xd_phi[i];
             const double _t74 = _t61*_t66 + _t63*_t71 + xd_phi[i]*(_t37 + _t65 + _t72);
             const int _t75 = _t8 < 1e-08;
-            const double _t76 = _t32*l1/kinegen_max((1e-08)*_t2, _t0*_t7);
+            const double _t76 = _t29*l1/kinegen_max((1e-08)*_t2, _t0*_t7);
             qd[3 * (start + i) + 0] = ((_t75) ? (
-   _t51*(_t60*_t67 + _t70*_t73 + _t74)
+   _t51*(_t54*_t67 + _t69*_t73 + _t74)
 )
 : (
-   _t76*(_t18*xd_x[i] + _t25*xd_y[i] + _t35*l3*xd_phi[i])
+   _t76*(_t15*xd_x[i] + _t25*xd_y[i] + _t33*l3*xd_phi[i])
 ));
             qd[3 * (start + i) + 1] = ((_t75) ? (
-   _t51*(_t59*_t67 + _t69*_t73 + _t74)
+   _t51*(_t53*_t67 + _t68*_t73 + _t74)
 )
 : (
-   _t76*(-_t19*xd_x[i] + _t27*xd_y[i] - _t55*xd_phi[i])
+   _t76*(-_t16*xd_x[i] + _t27*xd_y[i] - _t58*xd_phi[i])
 ));
             qd[3 * (start + i) + 2] = ((_t75) ? (
-   _t51*(_t58*_t67 - _t68*_t73 + _t74)
+   _t51*(_t55*_t67 - _t70*_t73 + _t74)
 )
 : (
-   _t76*(_t17*xd_x[i] + _t24*xd_y[i] + _t34*l1*xd_phi[i])
+   _t76*(_t12*xd_x[i] + _t23*xd_y[i] + _t31*l1*xd_phi[i])
 ));
             singular[1 * (start + i) + 0] = _t75;
         }
@@ -2684,22 +2684,22 @@ void planar_3r_joint_acceleration(const double *restrict q, const double *restri
     const double _t3 = 1.0/_t2;
     const double _t4 = _t0*_t3;
     const double _t5 = (l2*l2);
-    const double _t12 = 1.0/(_t1*_t1);
-    const double _t13 = _t0*_t12;
-    const double _t16 = _t12*_t5;
-    const double _t30 = (l3*l3);
-    const double _t31 = _t3*_t30;
-    const double _t40 = _t12*_t30;
-    const double _t52 = 1.0/(_t1*_t1*_t1);
-    const double _t57 = 1.0/_t1;
-    const double _t14 = q1 + q2;
+    const double _t17 = 1.0/(_t1*_t1);
+    const double _t18 = _t0*_t17;
+    const double _t19 = _t17*_t5;
+    const double _t35 = (l3*l3);
+    const double _t36 = _t3*_t35;
+    const double _t43 = _t17*_t35;
+    const double _t52 = 1.0/_t1;
+    const double _t56 = 1.0/(_t1*_t1*_t1);
+    const double _t13 = q1 + q2;
     const double _a0 = q2 + q3;
-    const double _t38 = _t14 + q3;
+    const double _t38 = _t13 + q3;
     double _s0, _s1, _c1, _s2, _c2, _s3, _s4, _s5, _c5;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[8] = { q2, q1, _t14, q3, _a0, _t38, 0.0, 0.0 };
+        const double angle[8] = { q2, q1, _t13, _a0, q3, _t38, 0.0, 0.0 };
         double sine[8], cosine[8];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -2724,10 +2724,10 @@ void planar_3r_joint_acceleration(const double *restrict q, const double *restri
     _s0 = sin(q2);
     _s1 = sin(q1);
     _c1 = cos(q1);
-    _s2 = sin(_t14);
-    _c2 = cos(_t14);
-    _s3 = sin(q3);
-    _s4 = sin(_a0);
+    _s2 = sin(_t13);
+    _c2 = cos(_t13);
+    _s3 = sin(_a0);
+    _s4 = sin(q3);
     _s5 = sin(_t38);
     _c5 = cos(_t38);
 #endif
@@ -2735,78 +2735,78 @@ void planar_3r_joint_acceleration(const double *restrict q, const double *restri
     const double _t8 = _t4*_t7;
     const double _t9 = kinegen_max(0, 1 - 100000000*_t8);
     const double _t10 = (_t9*_t9);
-    const double _t17 = _c1*l1;
-    const double _t18 = _c2*l2;
-    const double _t19 = _t17 + _t18;
-    const double _t20 = (_c1*_c1)*_t13 + (_c2*_c2)*_t16 + _t12*(_t19*_t19);
+    const double _t12 = _c1*l1;
+    const double _t15 = _c2*l2;
+    const double _t16 = _t12 + _t15;
+    const double _t20 = (_c1*_c1)*_t18 + (_c2*_c2)*_t19 + (_t16*_t16)*_t17;
     const double _t21 = (1e-06)*_t9;
-    const double _t24 = _s1*l1;
+    const double _t23 = _s1*l1;
     const double _t25 = _s2*l2;
-    const double _t26 = _t24 + _t25;
+    const double _t26 = _t23 + _t25;
     const double _t27 = -_t26;
-    const double _t28 = (_s1*_s1)*_t13 + (_s2*_s2)*_t16 + _t12*(_t27*_t27);
-    const double _t32 = _s0*l2;
-    const double _t34 = _s4*l3 + _t32;
-    const double _t35 = _s3*l2;
-    const double _t36 = _s4*l1 + _t35;
-    const double _t37 = (_s3*_s3)*_t31*_t5 + _t31*(_t36*_t36) + (_t34*_t34)*_t4;
-    const double _t41 = _c5*l3;
-    const double _t42 = _t18 + _t41;
-    const double _t43 = _t19 + _t41;
-    const double _t44 = (_c5*_c5)*_t40 + _t12*(_t42*_t42) + _t12*(_t43*_t43);
+    const double _t28 = (_s1*_s1)*_t18 + (_s2*_s2)*_t19 + _t17*(_t27*_t27);
+    const double _t29 = _s0*l2;
+    const double _t31 = _s3*l3 + _t29;
+    const double _t33 = _s4*l2;
+    const double _t34 = _s3*l1 + _t33;
+    const double _t37 = (_s4*_s4)*_t36*_t5 + (_t31*_t31)*_t4 + (_t34*_t34)*_t36;
+    const double _t40 = _c5*l3;
+    const double _t41 = _t15 + _t40;
+    const double _t42 = _t16 + _t40;
+    const double _t44 = (_c5*_c5)*_t43 + _t17*(_t41*_t41) + _t17*(_t42*_t42);
     const double _t45 = (1e-12)*_t10;
     const double _t47 = _s5*l3;
     const double _t48 = -_t25 - _t47;
     const double _t49 = -_t26 - _t47;
-    const double _t50 = (_s5*_s5)*_t40 + _t12*(_t48*_t48) + _t12*(_t49*_t49);
+    const double _t50 = (_s5*_s5)*_t43 + _t17*(_t48*_t48) + _t17*(_t49*_t49);
     const double _t51 = 1.0/((3e-12)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-18)*(_t9*_t9*_t9));
-    const double _t53 = _s3*_t5*_t52*l3;
-    const double _t54 = _t0*_t34*_t52;
-    const double _t55 = _t36*l3;
-    const double _t56 = _t52*_t55;
-    const double _t58 = _t41*_t57;
-    const double _t59 = _t42*_t57;
-    const double _t60 = _t43*_t57;
-    const double _t61 = _s1*_t54 + _s2*_t53 - _t21*(_t58 + _t59 + _t60) - _t27*_t56;
-    const double _t62 = _c1*_s1*_t13 + _c2*_s2*_t16 - _t12*_t19*_t27 - _t21*(-_c5*_s5*_t40 + _t12*_t42*_t48 + _t12*_t43*_t49);
-    const double _t63 = _t41*qd3;
-    const double _t64 = -_t42;
-    const double _t65 = -_t63 + _t64*qd2;
-    const double _t66 = -qd1*(-_t43*qd1 + _t65) - qd2*(_t64*qd1 + _t65) - qd3*(-_t41*qd1 - _t41*qd2 - _t63) + xdd_x;
-    const double _t67 = _t57*_t66;
+    const double _t53 = _t41*_t52;
+    const double _t54 = _t42*_t52;
+    const double _t55 = _t40*_t52;
+    const double _t57 = _t0*_t31*_t56;
+    const double _t58 = _t34*l3;
+    const double _t59 = _t56*_t58;
+    const double _t60 = _s4*_t5*_t56*l3;
+    const double _t61 = _s1*_t57 + _s2*_t60 - _t21*(_t53 + _t54 + _t55) - _t27*_t59;
+    const double _t62 = _c1*_s1*_t18 + _c2*_s2*_t19 - _t16*_t17*_t27 - _t21*(-_c5*_s5*_t43 + _t17*_t41*_t48 + _t17*_t42*_t49);
+    const double _t63 = -_t41;
+    const double _t64 = _t40*qd3;
+    const double _t65 = _t63*qd2 - _t64;
+    const double _t66 = -qd1*(-_t42*qd1 + _t65) - qd2*(_t63*qd1 + _t65) - qd3*(-_t40*qd1 - _t40*qd2 - _t64) + xdd_x;
+    const double _t67 = _t52*_t66;
     const double _t68 = (3e-06)*_t9;
     const double _t69 = _t21*_t50 + _t45;
     const double _t70 = _t47*qd3;
     const double _t71 = _t48*qd2 - _t70;
     const double _t72 = -qd1*(_t49*qd1 + _t71) - qd2*(_t48*qd1 + _t71) - qd3*(-_t47*qd1 - _t47*qd2 - _t70) + xdd_y;
-    const double _t73 = _t57*_t72;
+    const double _t73 = _t52*_t72;
     const double _t74 = _t61*xdd_phi + _t62*_t67 + _t73*(_t28 + _t68 + _t69);
-    const double _t75 = _t47*_t57;
-    const double _t76 = _t48*_t57;
-    const double _t77 = _t49*_t57;
-    const double _t78 = _c1*_t54 + _c2*_t53 + _t19*_t56 - _t21*(-_t75 + _t76 + _t77);
+    const double _t75 = _t48*_t52;
+    const double _t76 = _t49*_t52;
+    const double _t77 = _t47*_t52;
+    const double _t78 = _c1*_t57 + _c2*_t60 + _t16*_t59 - _t21*(_t75 + _t76 - _t77);
     const double _t79 = _t21*_t44;
     const double _t80 = _t62*_t73 + _t67*(_t20 + _t45 + _t68 + _t79) + _t78*xdd_phi;
     const double _t81 = _t61*_t73 + _t67*_t78 + xdd_phi*(_t37 + _t69 + _t79);
     const int _t82 = _t8 < 1e-08;
-    const double _t83 = _t32*l1/kinegen_max((1e-08)*_t2, _t0*_t7);
+    const double _t83 = _t29*l1/kinegen_max((1e-08)*_t2, _t0*_t7);
     qdd[0] = ((_t82) ? (
-   _t51*(_t60*_t74 + _t77*_t80 + _t81)
+   _t51*(_t54*_t74 + _t76*_t80 + _t81)
 )
 : (
-   _t83*(_t18*_t66 + _t25*_t72 + _t35*l3*xdd_phi)
+   _t83*(_t15*_t66 + _t25*_t72 + _t33*l3*xdd_phi)
 ));
     qdd[1] = ((_t82) ? (
-   _t51*(_t59*_t74 + _t76*_t80 + _t81)
+   _t51*(_t53*_t74 + _t75*_t80 + _t81)
 )
 : (
-   _t83*(-_t19*_t66 + _t27*_t72 - _t55*xdd_phi)
+   _t83*(-_t16*_t66 + _t27*_t72 - _t58*xdd_phi)
 ));
     qdd[2] = ((_t82) ? (
-   _t51*(_t58*_t74 - _t75*_t80 + _t81)
+   _t51*(_t55*_t74 - _t77*_t80 + _t81)
 )
 : (
-   _t83*(_t17*_t66 + _t24*_t72 + _t34*l1*xdd_phi)
+   _t83*(_t12*_t66 + _t23*_t72 + _t31*l1*xdd_phi)
 ));
     singular[0] = _t82;
 }
@@ -2824,7 +2824,7 @@ void planar_3r_joint_acceleration_batch(size_t count, const double *restrict q, 
     double xdd_x[KINEGEN_BLOCK_OF(64)];
     double xdd_y[KINEGEN_BLOCK_OF(64)];
     double xdd_phi[KINEGEN_BLOCK_OF(64)];
-    double _t14[KINEGEN_BLOCK_OF(64)];
+    double _t13[KINEGEN_BLOCK_OF(64)];
     double _a0[KINEGEN_BLOCK_OF(64)];
     double _t38[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
@@ -2849,14 +2849,14 @@ void planar_3r_joint_acceleration_batch(size_t count, const double *restrict q, 
     const double _t3 = 1.0/_t2;
     const double _t4 = _t0*_t3;
     const double _t5 = (l2*l2);
-    const double _t12 = 1.0/(_t1*_t1);
-    const double _t13 = _t0*_t12;
-    const double _t16 = _t12*_t5;
-    const double _t30 = (l3*l3);
-    const double _t31 = _t3*_t30;
-    const double _t40 = _t12*_t30;
-    const double _t52 = 1.0/(_t1*_t1*_t1);
-    const double _t57 = 1.0/_t1;
+    const double _t17 = 1.0/(_t1*_t1);
+    const double _t18 = _t0*_t17;
+    const double _t19 = _t17*_t5;
+    const double _t35 = (l3*l3);
+    const double _t36 = _t3*_t35;
+    const double _t43 = _t17*_t35;
+    const double _t52 = 1.0/_t1;
+    const double _t56 = 1.0/(_t1*_t1*_t1);
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
@@ -2872,9 +2872,9 @@ void planar_3r_joint_acceleration_batch(size_t count, const double *restrict q, 
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t14[i] = q1[i] + q2[i];
+            _t13[i] = q1[i] + q2[i];
             _a0[i] = q2[i] + q3[i];
-            _t38[i] = _t14[i] + q3[i];
+            _t38[i] = _t13[i] + q3[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -2890,19 +2890,19 @@ void planar_3r_joint_acceleration_batch(size_t count, const double *restrict q, 
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s2[i] = sin(_t14[i]);
+            _s2[i] = sin(_t13[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(_t14[i]);
+            _c2[i] = cos(_t13[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s3[i] = sin(q3[i]);
+            _s3[i] = sin(_a0[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s4[i] = sin(_a0[i]);
+            _s4[i] = sin(q3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -2918,78 +2918,78 @@ void planar_3r_joint_acceleration_batch(size_t count, const double *restrict q, 
             const double _t8 = _t4*_t7;
             const double _t9 = kinegen_max(0, 1 - 100000000*_t8);
             const double _t10 = (_t9*_t9);
-            const double _t17 = _c1[i]*l1;
-            const double _t18 = _c2[i]*l2;
-            const double _t19 = _t17 + _t18;
-            const double _t20 = (_c1[i]*_c1[i])*_t13 + (_c2[i]*_c2[i])*_t16 + _t12*(_t19*_t19);
+            const double _t12 = _c1[i]*l1;
+            const double _t15 = _c2[i]*l2;
+            const double _t16 = _t12 + _t15;
+            const double _t20 = (_c1[i]*_c1[i])*_t18 + (_c2[i]*_c2[i])*_t19 + (_t16*_t16)*_t17;
             const double _t21 = (1e-06)*_t9;
-            const double _t24 = _s1[i]*l1;
+            const double _t23 = _s1[i]*l1;
             const double _t25 = _s2[i]*l2;
-            const double _t26 = _t24 + _t25;
+            const double _t26 = _t23 + _t25;
             const double _t27 = -_t26;
-            const double _t28 = (_s1[i]*_s1[i])*_t13 + (_s2[i]*_s2[i])*_t16 + _t12*(_t27*_t27);
-            const double _t32 = _s0[i]*l2;
-            const double _t34 = _s4[i]*l3 + _t32;
-            const double _t35 = _s3[i]*l2;
-            const double _t36 = _s4[i]*l1 + _t35;
-            const double _t37 = (_s3[i]*_s3[i])*_t31*_t5 + _t31*(_t36*_t36) + (_t34*_t34)*_t4;
-            const double _t41 = _c5[i]*l3;
-            const double _t42 = _t18 + _t41;
-            const double _t43 = _t19 + _t41;
-            const double _t44 = (_c5[i]*_c5[i])*_t40 + _t12*(_t42*_t42) + _t12*(_t43*_t43);
+            const double _t28 = (_s1[i]*_s1[i])*_t18 + (_s2[i]*_s2[i])*_t19 + _t17*(_t27*_t27);
+            const double _t29 = _s0[i]*l2;
+            const double _t31 = _s3[i]*l3 + _t29;
+            const double _t33 = _s4[i]*l2;
+            const double _t34 = _s3[i]*l1 + _t33;
+            const double _t37 = (_s4[i]*_s4[i])*_t36*_t5 + (_t31*_t31)*_t4 + (_t34*_t34)*_t36;
+            const double _t40 = _c5[i]*l3;
+            const double _t41 = _t15 + _t40;
+            const double _t42 = _t16 + _t40;
+            const double _t44 = (_c5[i]*_c5[i])*_t43 + _t17*(_t41*_t41) + _t17*(_t42*_t42);
             const double _t45 = (1e-12)*_t10;
             const double _t47 = _s5[i]*l3;
             const double _t48 = -_t25 - _t47;
             const double _t49 = -_t26 - _t47;
-            const double _t50 = (_s5[i]*_s5[i])*_t40 + _t12*(_t48*_t48) + _t12*(_t49*_t49);
+            const double _t50 = (_s5[i]*_s5[i])*_t43 + _t17*(_t48*_t48) + _t17*(_t49*_t49);
             const double _t51 = 1.0/((3e-12)*_t10 + _t20*_t21 + _t21*_t28 + _t21*_t37 + _t44*_t45 + _t45*_t50 + _t8 + (1e-18)*(_t9*_t9*_t9));
-            const double _t53 = _s3[i]*_t5*_t52*l3;
-            const double _t54 = _t0*_t34*_t52;
-            const double _t55 = _t36*l3;
-            const double _t56 = _t52*_t55;
-            const double _t58 = _t41*_t57;
-            const double _t59 = _t42*_t57;
-            const double _t60 = _t43*_t57;
-            const double _t61 = _s1[i]*_t54 + _s2[i]*_t53 - _t21*(_t58 + _t59 + _t60) - _t27*_t56;
-            const double _t62 = _c1[i]*_s1[i]*_t13 + _c2[i]*_s2[i]*_t16 - _t12*_t19*_t27 - _t21*(-_c5[i]*_s5[i]*_t40 + _t12*_t42*_t48 + _t12*_t43*_t49);
-            const double _t63 = _t41*qd3[i];
-            const double _t64 = -_t42;
-            const double _t65 = -_t63 + _t64*qd2[i];
-            const double _t66 = -qd1[i]*(-_t43*qd1[i] + _t65) - qd2[i]*(_t64*qd1[i] + _t65) - qd3[i]*(-_t41*qd1[i] - _t41*qd2[i] - _t63) + xdd_x[i];
-            const double _t67 = _t57*_t66;
+            const double _t53 = _t41*_t52;
+            const double _t54 = _t42*_t52;
+            const double _t55 = _t40*_t52;
+            const double _t57 = _t0*_t31*_t56;
+            const double _t58 = _t34*l3;
+            const double _t59 = _t56*_t58;
+            const double _t60 = _s4[i]*_t5*_t56*l3;
+            const double _t61 = _s1[i]*_t57 + _s2[i]*_t60 - _t21*(_t53 + _t54 + _t55) - _t27*_t59;
+            const double _t62 = _c1[i]*_s1[i]*_t18 + _c2[i]*_s2[i]*_t19 - _t16*_t17*_t27 - _t21*(-_c5[i]*_s5[i]*_t43 + _t17*_t41*_t48 + _t17*_t42*_t49);
+            const double _t63 = -_t41;
+            const double _t64 = _t40*qd3[i];
+            const double _t65 = _t63*qd2[i] - _t64;
+            const double _t66 = -qd1[i]*(-_t42*qd1[i] + _t65) - qd2[i]*(_t63*qd1[i] + _t65) - qd3[i]*(-_t40*qd1[i] - _t40*qd2[i] - _t64) + xdd_x[i];
+            const double _t67 = _t52*_t66;
             const double _t68 = (3e-06)*_t9;
             const double _t69 = _t21*_t50 + _t45;
             const double _t70 = _t47*qd3[i];
             const double _t71 = _t48*qd2[i] - _t70;
             const double _t72 = -qd1[i]*(_t49*qd1[i] + _t71) - qd2[i]*(_t48*qd1[i] + _t71) - qd3[i]*(-_t47*qd1[i] - _t47*qd2[i] - _t70) + xdd_y[i];
-            const double _t73 = _t57*_t72;
+            const double _t73 = _t52*_t72;
             const double _t74 = _t61*xdd_phi[i] + _t62*_t67 + _t73*(_t28 + _t68 + _t69);
-            const double _t75 = _t47*_t57;
-            const double _t76 = _t48*_t57;
-            const double _t77 = _t49*_t57;
-            const double _t78 = _c1[i]*_t54 + _c2[i]*_t53 + _t19*_t56 - _t21*(-_t75 + _t76 + _t77);
+            const double _t75 = _t48*_t52;
+            const double _t76 = _t49*_t52;
+            const double _t77 = _t47*_t52;
+            const double _t78 = _c1[i]*_t57 + _c2[i]*_t60 + _t16*_t59 - _t21*(_t75 + _t76 - _t77);
             const double _t79 = _t21*_t44;
             const double _t80 = _t62*_t73 + _t67*(_t20 + _t45 + _t68 + _t79) + _t78*xdd_phi[i];
             const double _t81 = _t61*_t73 + _t67*_t78 + xdd_phi[i]*(_t37 + _t69 + _t79);
             const int _t82 = _t8 < 1e-08;
-            const double _t83 = _t32*l1/kinegen_max((1e-08)*_t2, _t0*_t7);
+            const double _t83 = _t29*l1/kinegen_max((1e-08)*_t2, _t0*_t7);
             qdd[3 * (start + i) + 0] = ((_t82) ? (
-   _t51*(_t60*_t74 + _t77*_t80 + _t81)
+   _t51*(_t54*_t74 + _t76*_t80 + _t81)
 )
 : (
-   _t83*(_t18*_t66 + _t25*_t72 + _t35*l3*xdd_phi[i])
+   _t83*(_t15*_t66 + _t25*_t72 + _t33*l3*xdd_phi[i])
 ));
             qdd[3 * (start + i) + 1] = ((_t82) ? (
-   _t51*(_t59*_t74 + _t76*_t80 + _t81)
+   _t51*(_t53*_t74 + _t75*_t80 + _t81)
 )
 : (
-   _t83*(-_t19*_t66 + _t27*_t72 - _t55*xdd_phi[i])
+   _t83*(-_t16*_t66 + _t27*_t72 - _t58*xdd_phi[i])
 ));
             qdd[3 * (start + i) + 2] = ((_t82) ? (
-   _t51*(_t58*_t74 - _t75*_t80 + _t81)
+   _t51*(_t55*_t74 - _t77*_t80 + _t81)
 )
 : (
-   _t83*(_t17*_t66 + _t24*_t72 + _t34*l1*xdd_phi[i])
+   _t83*(_t12*_t66 + _t23*_t72 + _t31*l1*xdd_phi[i])
 ));
             singular[1 * (start + i) + 0] = _t82;
         }

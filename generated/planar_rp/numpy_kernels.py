@@ -453,12 +453,12 @@ def task_acceleration(q, qd, qdd):
         _r0 = 1.0/(1.0 + _u0)
         _s0 = (_h0 + _h0)*_r0
         _c0 = (1.0 - _u0)*_r0
-        _t2 = q2*qdd1
-        _t3 = _s0*qd2
-        _t4 = q2*qd1
+        _t1 = _s0*qd2
+        _t3 = q2*qd1
+        _t4 = q2*qdd1
         _xdd = xdd[_start:_start + CHUNK].T
-        _xdd[0] = _c0*qdd2 - _s0*_t2 - _t3*qd1 + qd1*(-_c0*_t4 - _t3)
-        _xdd[1] = _c0*_t2 + _c0*qd1*qd2 + _s0*qdd2 + qd1*(_c0*qd2 - _s0*_t4)
+        _xdd[0] = _c0*qdd2 - _s0*_t4 - _t1*qd1 + qd1*(-_c0*_t3 - _t1)
+        _xdd[1] = _c0*_t4 + _c0*qd1*qd2 + _s0*qdd2 + qd1*(_c0*qd2 - _s0*_t3)
     return xdd.reshape(_batch + (2,))
 
 

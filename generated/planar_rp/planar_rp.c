@@ -1293,11 +1293,11 @@ void planar_rp_task_acceleration(const double *restrict q, const double *restric
     double _s0, _c0;
     _s0 = sin(q1);
     _c0 = cos(q1);
-    const double _t2 = q2*qdd1;
-    const double _t3 = _s0*qd2;
-    const double _t4 = q2*qd1;
-    xdd[0] = _c0*qdd2 - _s0*_t2 - _t3*qd1 + qd1*(-_c0*_t4 - _t3);
-    xdd[1] = _c0*_t2 + _c0*qd1*qd2 + _s0*qdd2 + qd1*(_c0*qd2 - _s0*_t4);
+    const double _t1 = _s0*qd2;
+    const double _t3 = q2*qd1;
+    const double _t4 = q2*qdd1;
+    xdd[0] = _c0*qdd2 - _s0*_t4 - _t1*qd1 + qd1*(-_c0*_t3 - _t1);
+    xdd[1] = _c0*_t4 + _c0*qd1*qd2 + _s0*qdd2 + qd1*(_c0*qd2 - _s0*_t3);
 }
 
 /* task_acceleration of `count` items, stored one after the other in each argument and output. */
@@ -1341,22 +1341,22 @@ void planar_rp_task_acceleration_batch(size_t count, const double *restrict q, c
         if (stream) {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t2 = q2[i]*qdd1[i];
-                const double _t3 = _s0[i]*qd2[i];
-                const double _t4 = q2[i]*qd1[i];
-                _xdd_block[0][i] = _c0[i]*qdd2[i] - _s0[i]*_t2 - _t3*qd1[i] + qd1[i]*(-_c0[i]*_t4 - _t3);
-                _xdd_block[1][i] = _c0[i]*_t2 + _c0[i]*qd1[i]*qd2[i] + _s0[i]*qdd2[i] + qd1[i]*(_c0[i]*qd2[i] - _s0[i]*_t4);
+                const double _t1 = _s0[i]*qd2[i];
+                const double _t3 = q2[i]*qd1[i];
+                const double _t4 = q2[i]*qdd1[i];
+                _xdd_block[0][i] = _c0[i]*qdd2[i] - _s0[i]*_t4 - _t1*qd1[i] + qd1[i]*(-_c0[i]*_t3 - _t1);
+                _xdd_block[1][i] = _c0[i]*_t4 + _c0[i]*qd1[i]*qd2[i] + _s0[i]*qdd2[i] + qd1[i]*(_c0[i]*qd2[i] - _s0[i]*_t3);
             }
         } else
 #endif
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t2 = q2[i]*qdd1[i];
-                const double _t3 = _s0[i]*qd2[i];
-                const double _t4 = q2[i]*qd1[i];
-                xdd[2 * (start + i) + 0] = _c0[i]*qdd2[i] - _s0[i]*_t2 - _t3*qd1[i] + qd1[i]*(-_c0[i]*_t4 - _t3);
-                xdd[2 * (start + i) + 1] = _c0[i]*_t2 + _c0[i]*qd1[i]*qd2[i] + _s0[i]*qdd2[i] + qd1[i]*(_c0[i]*qd2[i] - _s0[i]*_t4);
+                const double _t1 = _s0[i]*qd2[i];
+                const double _t3 = q2[i]*qd1[i];
+                const double _t4 = q2[i]*qdd1[i];
+                xdd[2 * (start + i) + 0] = _c0[i]*qdd2[i] - _s0[i]*_t4 - _t1*qd1[i] + qd1[i]*(-_c0[i]*_t3 - _t1);
+                xdd[2 * (start + i) + 1] = _c0[i]*_t4 + _c0[i]*qd1[i]*qd2[i] + _s0[i]*qdd2[i] + qd1[i]*(_c0[i]*qd2[i] - _s0[i]*_t3);
             }
         }
 #ifdef KINEGEN_STREAM

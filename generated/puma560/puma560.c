@@ -144,12 +144,12 @@ void puma560_fk(const double *restrict q, const puma560_params *restrict params,
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t11 = q2 + q3;
+    const double _t8 = q2 + q3;
     double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[8] = { q6, q1, q4, q5, _t11, q2, 0.0, 0.0 };
+        const double angle[8] = { q6, q1, q4, q5, _t8, q2, 0.0, 0.0 };
         double sine[8], cosine[8];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -182,17 +182,17 @@ void puma560_fk(const double *restrict q, const puma560_params *restrict params,
     _c2 = cos(q4);
     _s3 = sin(q5);
     _c3 = cos(q5);
-    _s4 = sin(_t11);
-    _c4 = cos(_t11);
+    _s4 = sin(_t8);
+    _c4 = cos(_t8);
     _s5 = sin(q2);
     _c5 = cos(q2);
 #endif
     const double _t3 = _c2*_s1;
     const double _t4 = _s0*_t3;
-    const double _t8 = _c0*_s2;
-    const double _t9 = _s0*_s2;
-    const double _t13 = _c1*_c4;
-    const double _t16 = _c1*_s4;
+    const double _t10 = _c1*_s4;
+    const double _t12 = _s0*_s2;
+    const double _t14 = _c1*_c4;
+    const double _t16 = _c0*_s2;
     const double _t17 = _c0*_t3;
     const double _t18 = _c3*_c4;
     const double _t19 = _c1*_c2;
@@ -201,19 +201,19 @@ void puma560_fk(const double *restrict q, const puma560_params *restrict params,
     const double _t22 = _c5*a2;
     const double _t23 = _c4*a3;
     const double _t24 = _c1*_c3;
-    const double _t25 = _c4*_s1;
-    const double _t26 = _s1*_s4;
+    const double _t25 = _s1*_s4;
+    const double _t26 = _c4*_s1;
     const double _t27 = _s2*_s4;
     const double _t28 = _c2*_s4;
     const double _t29 = _c3*_t28;
-    T[0] = _c0*_c1*_c2*_c3*_c4 - _c0*_s3*_t16 - _c3*_s1*_t8 - _t13*_t9 - _t4;
-    T[1] = _c1*_s0*_s3*_s4 + _c3*_s0*_s1*_s2 - _t13*_t8 - _t17 - _t18*_t20;
-    T[2] = -_c3*_t16 + _s1*_s2*_s3 - _t19*_t21;
-    T[3] = _c1*_t22 + _c1*_t23 + _s1*d3 - _t16*d4;
-    T[4] = -_c0*_s3*_t26 + _t17*_t18 + _t20 + _t24*_t8 - _t25*_t9;
-    T[5] = _c0*_c1*_c2 + _s0*_s1*_s3*_s4 - _t18*_t4 - _t24*_t9 - _t25*_t8;
-    T[6] = -_c1*_s2*_s3 - _c3*_t26 - _t21*_t3;
-    T[7] = -_c1*d3 + _s1*_t22 + _s1*_t23 - _t26*d4;
+    T[0] = _c0*_c1*_c2*_c3*_c4 - _c0*_s3*_t10 - _c3*_s1*_t16 - _t12*_t14 - _t4;
+    T[1] = _c1*_s0*_s3*_s4 + _c3*_s0*_s1*_s2 - _t14*_t16 - _t17 - _t18*_t20;
+    T[2] = -_c3*_t10 + _s1*_s2*_s3 - _t19*_t21;
+    T[3] = _c1*_t22 + _c1*_t23 + _s1*d3 - _t10*d4;
+    T[4] = -_c0*_s3*_t25 - _t12*_t26 + _t16*_t24 + _t17*_t18 + _t20;
+    T[5] = _c0*_c1*_c2 + _s0*_s1*_s3*_s4 - _t12*_t24 - _t16*_t26 - _t18*_t4;
+    T[6] = -_c1*_s2*_s3 - _c3*_t25 - _t21*_t3;
+    T[7] = -_c1*d3 + _s1*_t22 + _s1*_t23 - _t25*d4;
     T[8] = _c0*_t21 + _c0*_t29 - _s0*_t27;
     T[9] = -_c0*_t27 - _s0*_t21 - _s0*_t29;
     T[10] = _c3*_c4 - _s3*_t28;
@@ -234,7 +234,7 @@ void puma560_fk_batch(size_t count, const double *restrict q, const puma560_para
     double q4[KINEGEN_BLOCK_OF(64)];
     double q5[KINEGEN_BLOCK_OF(64)];
     double q6[KINEGEN_BLOCK_OF(64)];
-    double _t11[KINEGEN_BLOCK_OF(64)];
+    double _t8[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
@@ -273,7 +273,7 @@ void puma560_fk_batch(size_t count, const double *restrict q, const puma560_para
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t11[i] = q2[i] + q3[i];
+            _t8[i] = q2[i] + q3[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -309,11 +309,11 @@ void puma560_fk_batch(size_t count, const double *restrict q, const puma560_para
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s4[i] = sin(_t11[i]);
+            _s4[i] = sin(_t8[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c4[i] = cos(_t11[i]);
+            _c4[i] = cos(_t8[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -329,10 +329,10 @@ void puma560_fk_batch(size_t count, const double *restrict q, const puma560_para
             for (i = 0; i < n; ++i) {
                 const double _t3 = _c2[i]*_s1[i];
                 const double _t4 = _s0[i]*_t3;
-                const double _t8 = _c0[i]*_s2[i];
-                const double _t9 = _s0[i]*_s2[i];
-                const double _t13 = _c1[i]*_c4[i];
-                const double _t16 = _c1[i]*_s4[i];
+                const double _t10 = _c1[i]*_s4[i];
+                const double _t12 = _s0[i]*_s2[i];
+                const double _t14 = _c1[i]*_c4[i];
+                const double _t16 = _c0[i]*_s2[i];
                 const double _t17 = _c0[i]*_t3;
                 const double _t18 = _c3[i]*_c4[i];
                 const double _t19 = _c1[i]*_c2[i];
@@ -341,19 +341,19 @@ void puma560_fk_batch(size_t count, const double *restrict q, const puma560_para
                 const double _t22 = _c5[i]*a2;
                 const double _t23 = _c4[i]*a3;
                 const double _t24 = _c1[i]*_c3[i];
-                const double _t25 = _c4[i]*_s1[i];
-                const double _t26 = _s1[i]*_s4[i];
+                const double _t25 = _s1[i]*_s4[i];
+                const double _t26 = _c4[i]*_s1[i];
                 const double _t27 = _s2[i]*_s4[i];
                 const double _t28 = _c2[i]*_s4[i];
                 const double _t29 = _c3[i]*_t28;
-                _T_block[0][i] = _c0[i]*_c1[i]*_c2[i]*_c3[i]*_c4[i] - _c0[i]*_s3[i]*_t16 - _c3[i]*_s1[i]*_t8 - _t13*_t9 - _t4;
-                _T_block[1][i] = _c1[i]*_s0[i]*_s3[i]*_s4[i] + _c3[i]*_s0[i]*_s1[i]*_s2[i] - _t13*_t8 - _t17 - _t18*_t20;
-                _T_block[2][i] = -_c3[i]*_t16 + _s1[i]*_s2[i]*_s3[i] - _t19*_t21;
-                _T_block[3][i] = _c1[i]*_t22 + _c1[i]*_t23 + _s1[i]*d3 - _t16*d4;
-                _T_block[4][i] = -_c0[i]*_s3[i]*_t26 + _t17*_t18 + _t20 + _t24*_t8 - _t25*_t9;
-                _T_block[5][i] = _c0[i]*_c1[i]*_c2[i] + _s0[i]*_s1[i]*_s3[i]*_s4[i] - _t18*_t4 - _t24*_t9 - _t25*_t8;
-                _T_block[6][i] = -_c1[i]*_s2[i]*_s3[i] - _c3[i]*_t26 - _t21*_t3;
-                _T_block[7][i] = -_c1[i]*d3 + _s1[i]*_t22 + _s1[i]*_t23 - _t26*d4;
+                _T_block[0][i] = _c0[i]*_c1[i]*_c2[i]*_c3[i]*_c4[i] - _c0[i]*_s3[i]*_t10 - _c3[i]*_s1[i]*_t16 - _t12*_t14 - _t4;
+                _T_block[1][i] = _c1[i]*_s0[i]*_s3[i]*_s4[i] + _c3[i]*_s0[i]*_s1[i]*_s2[i] - _t14*_t16 - _t17 - _t18*_t20;
+                _T_block[2][i] = -_c3[i]*_t10 + _s1[i]*_s2[i]*_s3[i] - _t19*_t21;
+                _T_block[3][i] = _c1[i]*_t22 + _c1[i]*_t23 + _s1[i]*d3 - _t10*d4;
+                _T_block[4][i] = -_c0[i]*_s3[i]*_t25 - _t12*_t26 + _t16*_t24 + _t17*_t18 + _t20;
+                _T_block[5][i] = _c0[i]*_c1[i]*_c2[i] + _s0[i]*_s1[i]*_s3[i]*_s4[i] - _t12*_t24 - _t16*_t26 - _t18*_t4;
+                _T_block[6][i] = -_c1[i]*_s2[i]*_s3[i] - _c3[i]*_t25 - _t21*_t3;
+                _T_block[7][i] = -_c1[i]*d3 + _s1[i]*_t22 + _s1[i]*_t23 - _t25*d4;
                 _T_block[8][i] = _c0[i]*_t21 + _c0[i]*_t29 - _s0[i]*_t27;
                 _T_block[9][i] = -_c0[i]*_t27 - _s0[i]*_t21 - _s0[i]*_t29;
                 _T_block[10][i] = _c3[i]*_c4[i] - _s3[i]*_t28;
@@ -370,10 +370,10 @@ void puma560_fk_batch(size_t count, const double *restrict q, const puma560_para
             for (i = 0; i < n; ++i) {
                 const double _t3 = _c2[i]*_s1[i];
                 const double _t4 = _s0[i]*_t3;
-                const double _t8 = _c0[i]*_s2[i];
-                const double _t9 = _s0[i]*_s2[i];
-                const double _t13 = _c1[i]*_c4[i];
-                const double _t16 = _c1[i]*_s4[i];
+                const double _t10 = _c1[i]*_s4[i];
+                const double _t12 = _s0[i]*_s2[i];
+                const double _t14 = _c1[i]*_c4[i];
+                const double _t16 = _c0[i]*_s2[i];
                 const double _t17 = _c0[i]*_t3;
                 const double _t18 = _c3[i]*_c4[i];
                 const double _t19 = _c1[i]*_c2[i];
@@ -382,19 +382,19 @@ void puma560_fk_batch(size_t count, const double *restrict q, const puma560_para
                 const double _t22 = _c5[i]*a2;
                 const double _t23 = _c4[i]*a3;
                 const double _t24 = _c1[i]*_c3[i];
-                const double _t25 = _c4[i]*_s1[i];
-                const double _t26 = _s1[i]*_s4[i];
+                const double _t25 = _s1[i]*_s4[i];
+                const double _t26 = _c4[i]*_s1[i];
                 const double _t27 = _s2[i]*_s4[i];
                 const double _t28 = _c2[i]*_s4[i];
                 const double _t29 = _c3[i]*_t28;
-                T[16 * (start + i) + 0] = _c0[i]*_c1[i]*_c2[i]*_c3[i]*_c4[i] - _c0[i]*_s3[i]*_t16 - _c3[i]*_s1[i]*_t8 - _t13*_t9 - _t4;
-                T[16 * (start + i) + 1] = _c1[i]*_s0[i]*_s3[i]*_s4[i] + _c3[i]*_s0[i]*_s1[i]*_s2[i] - _t13*_t8 - _t17 - _t18*_t20;
-                T[16 * (start + i) + 2] = -_c3[i]*_t16 + _s1[i]*_s2[i]*_s3[i] - _t19*_t21;
-                T[16 * (start + i) + 3] = _c1[i]*_t22 + _c1[i]*_t23 + _s1[i]*d3 - _t16*d4;
-                T[16 * (start + i) + 4] = -_c0[i]*_s3[i]*_t26 + _t17*_t18 + _t20 + _t24*_t8 - _t25*_t9;
-                T[16 * (start + i) + 5] = _c0[i]*_c1[i]*_c2[i] + _s0[i]*_s1[i]*_s3[i]*_s4[i] - _t18*_t4 - _t24*_t9 - _t25*_t8;
-                T[16 * (start + i) + 6] = -_c1[i]*_s2[i]*_s3[i] - _c3[i]*_t26 - _t21*_t3;
-                T[16 * (start + i) + 7] = -_c1[i]*d3 + _s1[i]*_t22 + _s1[i]*_t23 - _t26*d4;
+                T[16 * (start + i) + 0] = _c0[i]*_c1[i]*_c2[i]*_c3[i]*_c4[i] - _c0[i]*_s3[i]*_t10 - _c3[i]*_s1[i]*_t16 - _t12*_t14 - _t4;
+                T[16 * (start + i) + 1] = _c1[i]*_s0[i]*_s3[i]*_s4[i] + _c3[i]*_s0[i]*_s1[i]*_s2[i] - _t14*_t16 - _t17 - _t18*_t20;
+                T[16 * (start + i) + 2] = -_c3[i]*_t10 + _s1[i]*_s2[i]*_s3[i] - _t19*_t21;
+                T[16 * (start + i) + 3] = _c1[i]*_t22 + _c1[i]*_t23 + _s1[i]*d3 - _t10*d4;
+                T[16 * (start + i) + 4] = -_c0[i]*_s3[i]*_t25 - _t12*_t26 + _t16*_t24 + _t17*_t18 + _t20;
+                T[16 * (start + i) + 5] = _c0[i]*_c1[i]*_c2[i] + _s0[i]*_s1[i]*_s3[i]*_s4[i] - _t12*_t24 - _t16*_t26 - _t18*_t4;
+                T[16 * (start + i) + 6] = -_c1[i]*_s2[i]*_s3[i] - _c3[i]*_t25 - _t21*_t3;
+                T[16 * (start + i) + 7] = -_c1[i]*d3 + _s1[i]*_t22 + _s1[i]*_t23 - _t25*d4;
                 T[16 * (start + i) + 8] = _c0[i]*_t21 + _c0[i]*_t29 - _s0[i]*_t27;
                 T[16 * (start + i) + 9] = -_c0[i]*_t27 - _s0[i]*_t21 - _s0[i]*_t29;
                 T[16 * (start + i) + 10] = _c3[i]*_c4[i] - _s3[i]*_t28;
@@ -518,8 +518,8 @@ void puma560_frames(const double *restrict q, const puma560_params *restrict par
     const double _t35 = _c3*_s2;
     const double _t36 = _s2*_s3;
     const double _t37 = _c2*d4 + _t21;
-    const double _t39 = _c4*_t23;
-    const double _t41 = _s4*_t14;
+    const double _t39 = _s4*_t14;
+    const double _t41 = _c4*_t23;
     const double _t42 = _c3*_t12;
     const double _t43 = -_c4*_t14 + _s0*_s3*_s4 - _s4*_t42;
     const double _t44 = _c4*_t29;
@@ -775,8 +775,8 @@ void puma560_frames_batch(size_t count, const double *restrict q, const puma560_
                 const double _t35 = _c3[i]*_s2[i];
                 const double _t36 = _s2[i]*_s3[i];
                 const double _t37 = _c2[i]*d4 + _t21;
-                const double _t39 = _c4[i]*_t23;
-                const double _t41 = _s4[i]*_t14;
+                const double _t39 = _s4[i]*_t14;
+                const double _t41 = _c4[i]*_t23;
                 const double _t42 = _c3[i]*_t12;
                 const double _t43 = -_c4[i]*_t14 + _s0[i]*_s3[i]*_s4[i] - _s4[i]*_t42;
                 const double _t44 = _c4[i]*_t29;
@@ -933,8 +933,8 @@ void puma560_frames_batch(size_t count, const double *restrict q, const puma560_
                 const double _t35 = _c3[i]*_s2[i];
                 const double _t36 = _s2[i]*_s3[i];
                 const double _t37 = _c2[i]*d4 + _t21;
-                const double _t39 = _c4[i]*_t23;
-                const double _t41 = _s4[i]*_t14;
+                const double _t39 = _s4[i]*_t14;
+                const double _t41 = _c4[i]*_t23;
                 const double _t42 = _c3[i]*_t12;
                 const double _t43 = -_c4[i]*_t14 + _s0[i]*_s3[i]*_s4[i] - _s4[i]*_t42;
                 const double _t44 = _c4[i]*_t29;
@@ -1472,10 +1472,10 @@ void puma560_task(const double *restrict q, const puma560_params *restrict param
     const double _t7 = _s2*d4;
     const double _t10 = _c4*_s0;
     const double _t11 = _s3*_t10;
-    const double _t15 = _c3*_s4;
+    const double _t14 = _s2*_s5;
     const double _t16 = _s3*_s4;
     const double _t17 = _c0*_c2;
-    const double _t19 = _s2*_s5;
+    const double _t19 = _c3*_s4;
     const double _t20 = _c3*_t10;
     const double _t21 = _c2*_c5;
     const double _t22 = _c0*_c4;
@@ -1489,15 +1489,15 @@ void puma560_task(const double *restrict q, const puma560_params *restrict param
     x[0] = _c0*_t2 + _c0*_t5 - _c0*_t7 + _s0*d3;
     x[1] = -_c0*d3 + _s0*_t2 + _s0*_t5 - _s0*_t7;
     x[2] = _c2*d4 + _s1*a2 + _s2*a3 + d1;
-    x[3] = _c0*_c2*_c3*_c4*_c5 - _c0*_c3*_t19 - _c5*_s0*_t15 - _t11 - _t16*_t17;
-    x[4] = _c0*_s2*_s3*_s5 + _c5*_s0*_s3*_s4 - _t15*_t17 - _t20 - _t21*_t23;
+    x[3] = _c0*_c2*_c3*_c4*_c5 - _c0*_c3*_t14 - _c5*_s0*_t19 - _t11 - _t16*_t17;
+    x[4] = _c0*_s2*_s3*_s5 + _c5*_s0*_s3*_s4 - _t17*_t19 - _t20 - _t21*_t23;
     x[5] = -_c0*_t24 + _s0*_s4*_s5 - _t22*_t25;
-    x[6] = -_c3*_s0*_t19 + _t15*_t26 - _t16*_t27 + _t20*_t21 + _t23;
-    x[7] = _c0*_c3*_c4 + _s0*_s2*_s3*_s5 - _t11*_t21 - _t15*_t27 - _t16*_t26;
+    x[6] = -_c3*_s0*_t14 - _t16*_t27 + _t19*_t26 + _t20*_t21 + _t23;
+    x[7] = _c0*_c3*_c4 + _s0*_s2*_s3*_s5 - _t11*_t21 - _t16*_t26 - _t19*_t27;
     x[8] = -_c0*_s4*_s5 - _s0*_t24 - _t10*_t25;
     x[9] = _c3*_t25 + _c3*_t29 - _s3*_t28;
     x[10] = -_c3*_t28 - _s3*_t25 - _s3*_t29;
-    x[11] = _c2*_c5 - _c4*_t19;
+    x[11] = _c2*_c5 - _c4*_t14;
 }
 
 /* task of `count` items, stored one after the other in each argument and output. */
@@ -1608,10 +1608,10 @@ void puma560_task_batch(size_t count, const double *restrict q, const puma560_pa
                 const double _t7 = _s2[i]*d4;
                 const double _t10 = _c4[i]*_s0[i];
                 const double _t11 = _s3[i]*_t10;
-                const double _t15 = _c3[i]*_s4[i];
+                const double _t14 = _s2[i]*_s5[i];
                 const double _t16 = _s3[i]*_s4[i];
                 const double _t17 = _c0[i]*_c2[i];
-                const double _t19 = _s2[i]*_s5[i];
+                const double _t19 = _c3[i]*_s4[i];
                 const double _t20 = _c3[i]*_t10;
                 const double _t21 = _c2[i]*_c5[i];
                 const double _t22 = _c0[i]*_c4[i];
@@ -1625,15 +1625,15 @@ void puma560_task_batch(size_t count, const double *restrict q, const puma560_pa
                 _x_block[0][i] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t7 + _s0[i]*d3;
                 _x_block[1][i] = -_c0[i]*d3 + _s0[i]*_t2 + _s0[i]*_t5 - _s0[i]*_t7;
                 _x_block[2][i] = _c2[i]*d4 + _s1[i]*a2 + _s2[i]*a3 + d1;
-                _x_block[3][i] = _c0[i]*_c2[i]*_c3[i]*_c4[i]*_c5[i] - _c0[i]*_c3[i]*_t19 - _c5[i]*_s0[i]*_t15 - _t11 - _t16*_t17;
-                _x_block[4][i] = _c0[i]*_s2[i]*_s3[i]*_s5[i] + _c5[i]*_s0[i]*_s3[i]*_s4[i] - _t15*_t17 - _t20 - _t21*_t23;
+                _x_block[3][i] = _c0[i]*_c2[i]*_c3[i]*_c4[i]*_c5[i] - _c0[i]*_c3[i]*_t14 - _c5[i]*_s0[i]*_t19 - _t11 - _t16*_t17;
+                _x_block[4][i] = _c0[i]*_s2[i]*_s3[i]*_s5[i] + _c5[i]*_s0[i]*_s3[i]*_s4[i] - _t17*_t19 - _t20 - _t21*_t23;
                 _x_block[5][i] = -_c0[i]*_t24 + _s0[i]*_s4[i]*_s5[i] - _t22*_t25;
-                _x_block[6][i] = -_c3[i]*_s0[i]*_t19 + _t15*_t26 - _t16*_t27 + _t20*_t21 + _t23;
-                _x_block[7][i] = _c0[i]*_c3[i]*_c4[i] + _s0[i]*_s2[i]*_s3[i]*_s5[i] - _t11*_t21 - _t15*_t27 - _t16*_t26;
+                _x_block[6][i] = -_c3[i]*_s0[i]*_t14 - _t16*_t27 + _t19*_t26 + _t20*_t21 + _t23;
+                _x_block[7][i] = _c0[i]*_c3[i]*_c4[i] + _s0[i]*_s2[i]*_s3[i]*_s5[i] - _t11*_t21 - _t16*_t26 - _t19*_t27;
                 _x_block[8][i] = -_c0[i]*_s4[i]*_s5[i] - _s0[i]*_t24 - _t10*_t25;
                 _x_block[9][i] = _c3[i]*_t25 + _c3[i]*_t29 - _s3[i]*_t28;
                 _x_block[10][i] = -_c3[i]*_t28 - _s3[i]*_t25 - _s3[i]*_t29;
-                _x_block[11][i] = _c2[i]*_c5[i] - _c4[i]*_t19;
+                _x_block[11][i] = _c2[i]*_c5[i] - _c4[i]*_t14;
             }
         } else
 #endif
@@ -1645,10 +1645,10 @@ void puma560_task_batch(size_t count, const double *restrict q, const puma560_pa
                 const double _t7 = _s2[i]*d4;
                 const double _t10 = _c4[i]*_s0[i];
                 const double _t11 = _s3[i]*_t10;
-                const double _t15 = _c3[i]*_s4[i];
+                const double _t14 = _s2[i]*_s5[i];
                 const double _t16 = _s3[i]*_s4[i];
                 const double _t17 = _c0[i]*_c2[i];
-                const double _t19 = _s2[i]*_s5[i];
+                const double _t19 = _c3[i]*_s4[i];
                 const double _t20 = _c3[i]*_t10;
                 const double _t21 = _c2[i]*_c5[i];
                 const double _t22 = _c0[i]*_c4[i];
@@ -1662,15 +1662,15 @@ void puma560_task_batch(size_t count, const double *restrict q, const puma560_pa
                 x[12 * (start + i) + 0] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t7 + _s0[i]*d3;
                 x[12 * (start + i) + 1] = -_c0[i]*d3 + _s0[i]*_t2 + _s0[i]*_t5 - _s0[i]*_t7;
                 x[12 * (start + i) + 2] = _c2[i]*d4 + _s1[i]*a2 + _s2[i]*a3 + d1;
-                x[12 * (start + i) + 3] = _c0[i]*_c2[i]*_c3[i]*_c4[i]*_c5[i] - _c0[i]*_c3[i]*_t19 - _c5[i]*_s0[i]*_t15 - _t11 - _t16*_t17;
-                x[12 * (start + i) + 4] = _c0[i]*_s2[i]*_s3[i]*_s5[i] + _c5[i]*_s0[i]*_s3[i]*_s4[i] - _t15*_t17 - _t20 - _t21*_t23;
+                x[12 * (start + i) + 3] = _c0[i]*_c2[i]*_c3[i]*_c4[i]*_c5[i] - _c0[i]*_c3[i]*_t14 - _c5[i]*_s0[i]*_t19 - _t11 - _t16*_t17;
+                x[12 * (start + i) + 4] = _c0[i]*_s2[i]*_s3[i]*_s5[i] + _c5[i]*_s0[i]*_s3[i]*_s4[i] - _t17*_t19 - _t20 - _t21*_t23;
                 x[12 * (start + i) + 5] = -_c0[i]*_t24 + _s0[i]*_s4[i]*_s5[i] - _t22*_t25;
-                x[12 * (start + i) + 6] = -_c3[i]*_s0[i]*_t19 + _t15*_t26 - _t16*_t27 + _t20*_t21 + _t23;
-                x[12 * (start + i) + 7] = _c0[i]*_c3[i]*_c4[i] + _s0[i]*_s2[i]*_s3[i]*_s5[i] - _t11*_t21 - _t15*_t27 - _t16*_t26;
+                x[12 * (start + i) + 6] = -_c3[i]*_s0[i]*_t14 - _t16*_t27 + _t19*_t26 + _t20*_t21 + _t23;
+                x[12 * (start + i) + 7] = _c0[i]*_c3[i]*_c4[i] + _s0[i]*_s2[i]*_s3[i]*_s5[i] - _t11*_t21 - _t16*_t26 - _t19*_t27;
                 x[12 * (start + i) + 8] = -_c0[i]*_s4[i]*_s5[i] - _s0[i]*_t24 - _t10*_t25;
                 x[12 * (start + i) + 9] = _c3[i]*_t25 + _c3[i]*_t29 - _s3[i]*_t28;
                 x[12 * (start + i) + 10] = -_c3[i]*_t28 - _s3[i]*_t25 - _s3[i]*_t29;
-                x[12 * (start + i) + 11] = _c2[i]*_c5[i] - _c4[i]*_t19;
+                x[12 * (start + i) + 11] = _c2[i]*_c5[i] - _c4[i]*_t14;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -2309,39 +2309,39 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
     const double _t17 = 1.0/sqrt(_t16);
     const int _t137 = _t16 > 0;
     const double _f2 = atan2(_a2, _a3);
-    const double _a0 = -x;
-    const double _t1 = (x*x);
-    const double _t2 = (y*y);
-    const double _t3 = _t1 + _t2;
-    const double _t4 = 1.0/sqrt(_t3);
-    const double _a1 = kinegen_min(1, kinegen_max(-1, -_t4*d3));
+    const double _t0 = (x*x);
+    const double _t1 = (y*y);
+    const double _t2 = _t0 + _t1;
+    const double _t3 = 1.0/sqrt(_t2);
+    const double _a0 = kinegen_min(1, kinegen_max(-1, -_t3*d3));
+    const double _a1 = -x;
     const double _t8 = d1 - z;
     const double _t9 = -_t8;
-    const double _t18 = -_t1 + _t12 + _t13 + _t15 - _t2 + (d3*d3);
+    const double _t18 = -_t0 - _t1 + _t12 + _t13 + _t15 + (d3*d3);
     const double _a4 = kinegen_min(1, kinegen_max(-1, _t17*(-_t18 + (_t9*_t9))));
     double _f0, _f1, _f3;
-    _f0 = atan2(_a0, y);
 #if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
     {
         /* The acos arguments side by side: one vector call. */
-        const double argument0[4] = { _a1, _a4, 1.0, 1.0 };
+        const double argument0[4] = { _a0, _a4, 1.0, 1.0 };
         double result[4];
         int k;
         KINEGEN_VECTOR_LOOP
         for (k = 0; k < 4; ++k) {
             result[k] = acos(argument0[k]);
         }
-        _f1 = result[0];
+        _f0 = result[0];
         _f3 = result[1];
     }
 #else
-    _f1 = acos(_a1);
+    _f0 = acos(_a0);
     _f3 = acos(_a4);
 #endif
+    _f1 = atan2(_a1, y);
     const double _t6 = _f0 + _f1;
     const double _t20 = -_f2 + _f3;
     const double _t58 = _f2 + _f3;
-    const double _t85 = -_f0 + _f1;
+    const double _t85 = _f0 - _f1;
     double _s0, _c0, _s1, _c1, _s5, _c5, _s9, _c9;
 #ifdef KINEGEN_SIMD
     {
@@ -2378,21 +2378,21 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
 #endif
     const double _t23 = _c0*a3 + _s0*d4 + a2;
     const double _t24 = _t23*_t9;
-    const double _t27 = _c1*x + _s1*y;
-    const double _t28 = _c0*d4 - _s0*a3;
-    const double _t29 = _t28*_t9;
-    const double _a5 = _t24 - _t27*_t28;
-    const double _a6 = _t23*_t27 + _t29;
+    const double _t25 = _c0*d4 - _s0*a3;
+    const double _t28 = _c1*x + _s1*y;
+    const double _t29 = _t25*_t9;
+    const double _a5 = _t24 - _t25*_t28;
+    const double _a6 = _t23*_t28 + _t29;
     const double _t61 = _c5*a3 - _s5*d4 + a2;
     const double _t62 = _t61*_t9;
     const double _t63 = _c5*d4 + _s5*a3;
     const double _t64 = _t63*_t9;
-    const double _a8 = -_t27*_t63 + _t62;
-    const double _a9 = _t27*_t61 + _t64;
+    const double _a8 = -_t28*_t63 + _t62;
+    const double _a9 = _t28*_t61 + _t64;
     const double _t89 = _c9*x - _s9*y;
     const double _a11 = _t62 - _t63*_t89;
     const double _a12 = _t61*_t89 + _t64;
-    const double _a14 = _t24 - _t28*_t89;
+    const double _a14 = _t24 - _t25*_t89;
     const double _a15 = _t23*_t89 + _t29;
     double _f4, _f6, _f8, _f10;
 #if defined(KINEGEN_SIMD) && defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
@@ -2702,10 +2702,10 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
     const double _t86 = kinegen_wrap_angle(-_t85);
     const double _t91 = kinegen_wrap_angle(_f8);
     const double _t117 = kinegen_wrap_angle(_f10);
-    const int _t135 = _t3 > 0;
-    const int _t136 = _t4*fabs(d3) <= 1.000000000001;
+    const int _t135 = _t2 > 0;
+    const int _t136 = _t3*fabs(d3) <= 1.000000000001;
     const int _t138 = _t17*fabs(_t18 - (_t8*_t8)) <= 1.000000000001;
-    const int _t139 = _t135 && _t136 && _t137 && _t138 && (_t23*_t23) + (_t28*_t28) > 0;
+    const int _t139 = _t135 && _t136 && _t137 && _t138 && (_t23*_t23) + (_t25*_t25) > 0;
     const int _t140 = _t135 && _t136 && _t137 && _t138 && (_t61*_t61) + (_t63*_t63) > 0;
     Q[0] = _t7;
     Q[1] = _t31;
@@ -2784,9 +2784,9 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
     double r31[KINEGEN_BLOCK_OF(16)];
     double r32[KINEGEN_BLOCK_OF(16)];
     double r33[KINEGEN_BLOCK_OF(16)];
-    double _a0[KINEGEN_BLOCK_OF(16)];
+    double _t2[KINEGEN_BLOCK_OF(16)];
     double _t3[KINEGEN_BLOCK_OF(16)];
-    double _t4[KINEGEN_BLOCK_OF(16)];
+    double _a0[KINEGEN_BLOCK_OF(16)];
     double _a1[KINEGEN_BLOCK_OF(16)];
     double _t8[KINEGEN_BLOCK_OF(16)];
     double _t9[KINEGEN_BLOCK_OF(16)];
@@ -2808,7 +2808,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
     double _s9[KINEGEN_BLOCK_OF(16)];
     double _c9[KINEGEN_BLOCK_OF(16)];
     double _t23[KINEGEN_BLOCK_OF(16)];
-    double _t28[KINEGEN_BLOCK_OF(16)];
+    double _t25[KINEGEN_BLOCK_OF(16)];
     double _a5[KINEGEN_BLOCK_OF(16)];
     double _a6[KINEGEN_BLOCK_OF(16)];
     double _t61[KINEGEN_BLOCK_OF(16)];
@@ -2962,24 +2962,24 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _a0[i] = -x[i];
-            const double _t1 = (x[i]*x[i]);
-            const double _t2 = (y[i]*y[i]);
-            _t3[i] = _t1 + _t2;
-            _t4[i] = 1.0/sqrt(_t3[i]);
-            _a1[i] = kinegen_min(1, kinegen_max(-1, -_t4[i]*d3));
+            const double _t0 = (x[i]*x[i]);
+            const double _t1 = (y[i]*y[i]);
+            _t2[i] = _t0 + _t1;
+            _t3[i] = 1.0/sqrt(_t2[i]);
+            _a0[i] = kinegen_min(1, kinegen_max(-1, -_t3[i]*d3));
+            _a1[i] = -x[i];
             _t8[i] = d1 - z[i];
             _t9[i] = -_t8[i];
-            _t18[i] = -_t1 + _t12 + _t13 + _t15 - _t2 + (d3*d3);
+            _t18[i] = -_t0 - _t1 + _t12 + _t13 + _t15 + (d3*d3);
             _a4[i] = kinegen_min(1, kinegen_max(-1, _t17*(-_t18[i] + (_t9[i]*_t9[i]))));
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f0[i] = atan2(_a0[i], y[i]);
+            _f0[i] = acos(_a0[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f1[i] = acos(_a1[i]);
+            _f1[i] = atan2(_a1[i], y[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -2990,7 +2990,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
             _t6[i] = _f0[i] + _f1[i];
             _t20[i] = -_f2 + _f3[i];
             _t58[i] = _f2 + _f3[i];
-            _t85[i] = -_f0[i] + _f1[i];
+            _t85[i] = _f0[i] - _f1[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -3028,21 +3028,21 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         for (i = 0; i < n; ++i) {
             _t23[i] = _c0[i]*a3 + _s0[i]*d4 + a2;
             const double _t24 = _t23[i]*_t9[i];
-            const double _t27 = _c1[i]*x[i] + _s1[i]*y[i];
-            _t28[i] = _c0[i]*d4 - _s0[i]*a3;
-            const double _t29 = _t28[i]*_t9[i];
-            _a5[i] = _t24 - _t27*_t28[i];
-            _a6[i] = _t23[i]*_t27 + _t29;
+            _t25[i] = _c0[i]*d4 - _s0[i]*a3;
+            const double _t28 = _c1[i]*x[i] + _s1[i]*y[i];
+            const double _t29 = _t25[i]*_t9[i];
+            _a5[i] = _t24 - _t25[i]*_t28;
+            _a6[i] = _t23[i]*_t28 + _t29;
             _t61[i] = _c5[i]*a3 - _s5[i]*d4 + a2;
             const double _t62 = _t61[i]*_t9[i];
             _t63[i] = _c5[i]*d4 + _s5[i]*a3;
             const double _t64 = _t63[i]*_t9[i];
-            _a8[i] = -_t27*_t63[i] + _t62;
-            _a9[i] = _t27*_t61[i] + _t64;
+            _a8[i] = -_t28*_t63[i] + _t62;
+            _a9[i] = _t28*_t61[i] + _t64;
             const double _t89 = _c9[i]*x[i] - _s9[i]*y[i];
             _a11[i] = _t62 - _t63[i]*_t89;
             _a12[i] = _t61[i]*_t89 + _t64;
-            _a14[i] = _t24 - _t28[i]*_t89;
+            _a14[i] = _t24 - _t25[i]*_t89;
             _a15[i] = _t23[i]*_t89 + _t29;
         }
         KINEGEN_VECTOR_LOOP
@@ -3382,10 +3382,10 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
             const double _t86 = kinegen_wrap_angle(-_t85[i]);
             const double _t91 = kinegen_wrap_angle(_f8[i]);
             const double _t117 = kinegen_wrap_angle(_f10[i]);
-            const int _t135 = _t3[i] > 0;
-            const int _t136 = _t4[i]*fabs(d3) <= 1.000000000001;
+            const int _t135 = _t2[i] > 0;
+            const int _t136 = _t3[i]*fabs(d3) <= 1.000000000001;
             const int _t138 = _t17*fabs(_t18[i] - (_t8[i]*_t8[i])) <= 1.000000000001;
-            const int _t139 = _t135 && _t136 && _t137 && _t138 && (_t23[i]*_t23[i]) + (_t28[i]*_t28[i]) > 0;
+            const int _t139 = _t135 && _t136 && _t137 && _t138 && (_t23[i]*_t23[i]) + (_t25[i]*_t25[i]) > 0;
             const int _t140 = _t135 && _t136 && _t137 && _t138 && (_t61[i]*_t61[i]) + (_t63[i]*_t63[i]) > 0;
             _Q_block[0][i] = _t7;
             _Q_block[1][i] = _t31;
@@ -3497,12 +3497,12 @@ void puma560_task_velocity(const double *restrict q, const double *restrict qd, 
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t1 = q2 + q3;
+    const double _t3 = q2 + q3;
     double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[8] = { q1, _t1, q2, q4, q5, q6, 0.0, 0.0 };
+        const double angle[8] = { q1, q2, _t3, q6, q4, q5, 0.0, 0.0 };
         double sine[8], cosine[8];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -3529,80 +3529,80 @@ void puma560_task_velocity(const double *restrict q, const double *restrict qd, 
 #else
     _s0 = sin(q1);
     _c0 = cos(q1);
-    _s1 = sin(_t1);
-    _c1 = cos(_t1);
-    _s2 = sin(q2);
-    _c2 = cos(q2);
-    _s3 = sin(q4);
-    _c3 = cos(q4);
-    _s4 = sin(q5);
-    _c4 = cos(q5);
-    _s5 = sin(q6);
-    _c5 = cos(q6);
+    _s1 = sin(q2);
+    _c1 = cos(q2);
+    _s2 = sin(_t3);
+    _c2 = cos(_t3);
+    _s3 = sin(q6);
+    _c3 = cos(q6);
+    _s4 = sin(q4);
+    _c4 = cos(q4);
+    _s5 = sin(q5);
+    _c5 = cos(q5);
 #endif
-    const double _t4 = _c1*d4 + _s1*a3;
-    const double _t5 = _t4*qd3;
-    const double _t6 = qd2*(_s2*a2 + _t4);
-    const double _t8 = _c2*a2;
-    const double _t9 = _c1*a3;
-    const double _t10 = _s1*d4;
-    const double _t11 = -_t10 + _t9;
-    const double _t15 = _c4*_s1;
-    const double _t17 = _c0*_c3;
-    const double _t18 = _c1*_s4;
-    const double _t19 = _c0*_t15 - _s0*_s3*_s4 + _t17*_t18;
-    const double _t20 = -_t19;
-    const double _t22 = _c5*qd5;
-    const double _t24 = _c3*_c5;
-    const double _t25 = -_c5*_t18 + _s1*_s3*_s5 - _t15*_t24;
-    const double _t26 = _c0*_t25;
-    const double _t27 = _c3*_s0;
-    const double _t28 = _c5*_t27;
-    const double _t29 = _s5*_t17;
-    const double _t30 = _c1*_c4;
-    const double _t31 = _c5*_s3;
-    const double _t32 = _c0*_t31;
-    const double _t33 = _c1*_s0*_s3*_s5 - _c4*_t32 + _c5*_s0*_s1*_s4 - _t28*_t30 - _t29;
-    const double _t34 = _c0*_s1*_s4*_s5 - _c1*_t32 + _c4*_s0*_s3*_s5 - _t28 - _t29*_t30;
-    const double _t35 = _s5*qd5;
-    const double _t36 = _c3*_s5;
-    const double _t37 = _s1*_t31 + _s5*_t18 + _t15*_t36;
-    const double _t38 = _c0*_t37;
-    const double _t39 = _s0*_s3;
-    const double _t40 = _c5*_t39;
-    const double _t41 = _s5*_t27;
-    const double _t42 = _c5*_t17;
-    const double _t43 = _s3*_s5;
-    const double _t44 = _c0*_t43;
-    const double _t45 = _c0*_s4;
-    const double _t46 = _s1*_t45;
-    const double _t47 = _c1*_t44 + _c4*_t40 + _c5*_t46 - _t30*_t42 + _t41;
-    const double _t48 = _s1*_s4;
-    const double _t49 = _c1*_t40 + _c4*_t44 - _s0*_s5*_t48 + _t30*_t41 - _t42;
-    const double _t50 = _c0*_s3;
-    const double _t51 = _s4*qd4;
-    const double _t52 = _c3*_t48 - _t30;
-    const double _t53 = _c0*_t52;
-    const double _t54 = _s0*_t15 + _s3*_t45 + _t18*_t27;
-    const double _t55 = _s0*_t25;
-    const double _t56 = _s0*_t37;
-    const double _t57 = _s0*_t52;
-    const double _t58 = _s1*qd4;
-    const double _t59 = _c1*_c3*_c4*_c5 - _c1*_t43 - _c5*_t48;
-    const double _t60 = -_c1*_t31 + _s1*_s4*_s5 - _t30*_t36;
-    const double _t61 = -_c3*_t18 - _t15;
-    xd[0] = -_c0*_t5 - _c0*_t6 + qd1*(_c0*d3 + _s0*_s1*d4 - _s0*_t8 - _s0*_t9);
-    xd[1] = -_s0*_t5 - _s0*_t6 + qd1*(-_c0*_t10 + _c0*_t8 + _c0*_t9 + _s0*d3);
-    xd[2] = _t11*qd3 + qd2*(_t11 + _t8);
-    xd[3] = _t20*_t22 + _t26*qd2 + _t26*qd3 + _t33*qd1 + _t34*qd6 + qd4*(-_c1*_t29 - _c4*_t28 + _s0*_s3*_s5 - _t30*_t32);
-    xd[4] = _t19*_t35 + _t38*qd2 + _t38*qd3 + _t47*qd6 + _t49*qd1 + qd4*(-_c1*_t42 + _c4*_t41 + _t30*_t44 + _t40);
-    xd[5] = _t51*(_c1*_t50 + _t27) + _t53*qd2 + _t53*qd3 + _t54*qd1 + qd5*(_c4*_t39 - _t17*_t30 + _t46);
-    xd[6] = -_t22*_t54 - _t47*qd1 - _t49*qd6 + _t55*qd2 + _t55*qd3 + qd4*(_c0*_c3*_c4*_c5 - _c1*_t41 - _t30*_t40 - _t44);
-    xd[7] = _t33*qd6 + _t34*qd1 + _t35*_t54 + _t56*qd2 + _t56*qd3 + qd4*(_c1*_c4*_s0*_s3*_s5 - _c1*_t28 - _c4*_t29 - _t32);
-    xd[8] = _t20*qd1 + _t51*(_c1*_t39 - _t17) + _t57*qd2 + _t57*qd3 + qd5*(-_c4*_t50 + _s0*_s1*_s4 - _t27*_t30);
-    xd[9] = -_t22*_t52 - _t37*qd6 - _t58*(_c4*_t31 + _t36) + _t59*qd2 + _t59*qd3;
-    xd[10] = _t25*qd6 + _t35*_t52 + _t58*(_c4*_t43 - _t24) + _t60*qd2 + _t60*qd3;
-    xd[11] = _s3*_t48*qd4 + _t61*qd2 + _t61*qd3 + qd5*(-_c3*_t15 - _t18);
+    const double _t2 = _c1*a2;
+    const double _t5 = _c2*a3;
+    const double _t7 = _c2*d4 + _s2*a3;
+    const double _t8 = qd2*(_s1*a2 + _t7);
+    const double _t9 = _t7*qd3;
+    const double _t10 = _s2*d4;
+    const double _t11 = -_t10 + _t5;
+    const double _t14 = _c0*_c4;
+    const double _t15 = _s3*_t14;
+    const double _t19 = _c3*_s4;
+    const double _t20 = _c0*_t19;
+    const double _t22 = _c2*_c5;
+    const double _t23 = _c4*_s0;
+    const double _t24 = _c3*_t23;
+    const double _t25 = _c2*_s0*_s3*_s4 + _c3*_s0*_s2*_s5 - _c5*_t20 - _t15 - _t22*_t24;
+    const double _t26 = _c0*_s2*_s3*_s5 - _c2*_t20 + _c5*_s0*_s3*_s4 - _t15*_t22 - _t24;
+    const double _t27 = _c2*_s5;
+    const double _t28 = _c3*_c4;
+    const double _t29 = _c5*_s2;
+    const double _t30 = -_c3*_t27 + _s2*_s3*_s4 - _t28*_t29;
+    const double _t31 = _c0*_t30;
+    const double _t32 = _c0*_t29 - _s0*_s4*_s5 + _t14*_t27;
+    const double _t33 = -_t32;
+    const double _t34 = _c3*qd5;
+    const double _t35 = _c3*_t14;
+    const double _t36 = _s3*_s4;
+    const double _t37 = _c0*_t36;
+    const double _t38 = _s0*_s4;
+    const double _t39 = _c3*_t38;
+    const double _t40 = _s2*_s5;
+    const double _t41 = _s3*_t23;
+    const double _t42 = _c2*_t39 + _c5*_t37 - _s0*_s3*_t40 + _t22*_t41 - _t35;
+    const double _t43 = _c0*_s5;
+    const double _t44 = _s2*_t43;
+    const double _t45 = _c2*_t37 + _c3*_t44 + _c5*_t39 - _t22*_t35 + _t41;
+    const double _t46 = _c4*_s3;
+    const double _t47 = _s2*_t19 + _s3*_t27 + _t29*_t46;
+    const double _t48 = _c0*_t47;
+    const double _t49 = _s3*qd5;
+    const double _t50 = _s0*_t29 + _s4*_t43 + _t23*_t27;
+    const double _t51 = _c4*_t40 - _t22;
+    const double _t52 = _c0*_t51;
+    const double _t53 = _c0*_s4;
+    const double _t54 = _s5*qd4;
+    const double _t55 = _s0*_t30;
+    const double _t56 = _s0*_t47;
+    const double _t57 = _s0*_t51;
+    const double _t58 = _c2*_c3*_c4*_c5 - _c2*_t36 - _c3*_t40;
+    const double _t59 = _s2*qd4;
+    const double _t60 = -_c2*_t19 + _s2*_s3*_s5 - _t22*_t46;
+    const double _t61 = -_c4*_t27 - _t29;
+    xd[0] = -_c0*_t8 - _c0*_t9 + qd1*(_c0*d3 + _s0*_s2*d4 - _s0*_t2 - _s0*_t5);
+    xd[1] = -_s0*_t8 - _s0*_t9 + qd1*(-_c0*_t10 + _c0*_t2 + _c0*_t5 + _s0*d3);
+    xd[2] = _t11*qd3 + qd2*(_t11 + _t2);
+    xd[3] = _t25*qd1 + _t26*qd6 + _t31*qd2 + _t31*qd3 + _t33*_t34 + qd4*(-_c2*_t15 - _c5*_t24 + _s0*_s3*_s4 - _t20*_t22);
+    xd[4] = _t32*_t49 + _t42*qd1 + _t45*qd6 + _t48*qd2 + _t48*qd3 + qd4*(-_c2*_t35 + _c5*_t41 + _t22*_t37 + _t39);
+    xd[5] = _t50*qd1 + _t52*qd2 + _t52*qd3 + _t54*(_c2*_t53 + _t23) + qd5*(_c5*_t38 - _t14*_t22 + _t44);
+    xd[6] = -_t34*_t50 - _t42*qd6 - _t45*qd1 + _t55*qd2 + _t55*qd3 + qd4*(_c0*_c3*_c4*_c5 - _c2*_t41 - _t22*_t39 - _t37);
+    xd[7] = _t25*qd6 + _t26*qd1 + _t49*_t50 + _t56*qd2 + _t56*qd3 + qd4*(_c2*_c5*_s0*_s3*_s4 - _c2*_t24 - _c5*_t15 - _t20);
+    xd[8] = _t33*qd1 + _t54*(_c2*_t38 - _t14) + _t57*qd2 + _t57*qd3 + qd5*(-_c5*_t53 + _s0*_s2*_s5 - _t22*_t23);
+    xd[9] = -_t34*_t51 - _t47*qd6 + _t58*qd2 + _t58*qd3 - _t59*(_c5*_t19 + _t46);
+    xd[10] = _t30*qd6 + _t49*_t51 + _t59*(_c5*_t36 - _t28) + _t60*qd2 + _t60*qd3;
+    xd[11] = _s4*_t40*qd4 + _t61*qd2 + _t61*qd3 + qd5*(-_c4*_t29 - _t27);
 }
 
 /* task_velocity of `count` items, stored one after the other in each argument and output. */
@@ -3621,7 +3621,7 @@ void puma560_task_velocity_batch(size_t count, const double *restrict q, const d
     double qd4[KINEGEN_BLOCK_OF(64)];
     double qd5[KINEGEN_BLOCK_OF(64)];
     double qd6[KINEGEN_BLOCK_OF(64)];
-    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _t3[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
@@ -3665,7 +3665,7 @@ void puma560_task_velocity_batch(size_t count, const double *restrict q, const d
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t1[i] = q2[i] + q3[i];
+            _t3[i] = q2[i] + q3[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -3677,180 +3677,180 @@ void puma560_task_velocity_batch(size_t count, const double *restrict q, const d
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s1[i] = sin(_t1[i]);
+            _s1[i] = sin(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c1[i] = cos(_t1[i]);
+            _c1[i] = cos(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s2[i] = sin(q2[i]);
+            _s2[i] = sin(_t3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(q2[i]);
+            _c2[i] = cos(_t3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s3[i] = sin(q4[i]);
+            _s3[i] = sin(q6[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c3[i] = cos(q4[i]);
+            _c3[i] = cos(q6[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s4[i] = sin(q5[i]);
+            _s4[i] = sin(q4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c4[i] = cos(q5[i]);
+            _c4[i] = cos(q4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s5[i] = sin(q6[i]);
+            _s5[i] = sin(q5[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c5[i] = cos(q6[i]);
+            _c5[i] = cos(q5[i]);
         }
 #ifdef KINEGEN_STREAM
         if (stream) {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t4 = _c1[i]*d4 + _s1[i]*a3;
-                const double _t5 = _t4*qd3[i];
-                const double _t6 = qd2[i]*(_s2[i]*a2 + _t4);
-                const double _t8 = _c2[i]*a2;
-                const double _t9 = _c1[i]*a3;
-                const double _t10 = _s1[i]*d4;
-                const double _t11 = -_t10 + _t9;
-                const double _t15 = _c4[i]*_s1[i];
-                const double _t17 = _c0[i]*_c3[i];
-                const double _t18 = _c1[i]*_s4[i];
-                const double _t19 = _c0[i]*_t15 - _s0[i]*_s3[i]*_s4[i] + _t17*_t18;
-                const double _t20 = -_t19;
-                const double _t22 = _c5[i]*qd5[i];
-                const double _t24 = _c3[i]*_c5[i];
-                const double _t25 = -_c5[i]*_t18 + _s1[i]*_s3[i]*_s5[i] - _t15*_t24;
-                const double _t26 = _c0[i]*_t25;
-                const double _t27 = _c3[i]*_s0[i];
-                const double _t28 = _c5[i]*_t27;
-                const double _t29 = _s5[i]*_t17;
-                const double _t30 = _c1[i]*_c4[i];
-                const double _t31 = _c5[i]*_s3[i];
-                const double _t32 = _c0[i]*_t31;
-                const double _t33 = _c1[i]*_s0[i]*_s3[i]*_s5[i] - _c4[i]*_t32 + _c5[i]*_s0[i]*_s1[i]*_s4[i] - _t28*_t30 - _t29;
-                const double _t34 = _c0[i]*_s1[i]*_s4[i]*_s5[i] - _c1[i]*_t32 + _c4[i]*_s0[i]*_s3[i]*_s5[i] - _t28 - _t29*_t30;
-                const double _t35 = _s5[i]*qd5[i];
-                const double _t36 = _c3[i]*_s5[i];
-                const double _t37 = _s1[i]*_t31 + _s5[i]*_t18 + _t15*_t36;
-                const double _t38 = _c0[i]*_t37;
-                const double _t39 = _s0[i]*_s3[i];
-                const double _t40 = _c5[i]*_t39;
-                const double _t41 = _s5[i]*_t27;
-                const double _t42 = _c5[i]*_t17;
-                const double _t43 = _s3[i]*_s5[i];
-                const double _t44 = _c0[i]*_t43;
-                const double _t45 = _c0[i]*_s4[i];
-                const double _t46 = _s1[i]*_t45;
-                const double _t47 = _c1[i]*_t44 + _c4[i]*_t40 + _c5[i]*_t46 - _t30*_t42 + _t41;
-                const double _t48 = _s1[i]*_s4[i];
-                const double _t49 = _c1[i]*_t40 + _c4[i]*_t44 - _s0[i]*_s5[i]*_t48 + _t30*_t41 - _t42;
-                const double _t50 = _c0[i]*_s3[i];
-                const double _t51 = _s4[i]*qd4[i];
-                const double _t52 = _c3[i]*_t48 - _t30;
-                const double _t53 = _c0[i]*_t52;
-                const double _t54 = _s0[i]*_t15 + _s3[i]*_t45 + _t18*_t27;
-                const double _t55 = _s0[i]*_t25;
-                const double _t56 = _s0[i]*_t37;
-                const double _t57 = _s0[i]*_t52;
-                const double _t58 = _s1[i]*qd4[i];
-                const double _t59 = _c1[i]*_c3[i]*_c4[i]*_c5[i] - _c1[i]*_t43 - _c5[i]*_t48;
-                const double _t60 = -_c1[i]*_t31 + _s1[i]*_s4[i]*_s5[i] - _t30*_t36;
-                const double _t61 = -_c3[i]*_t18 - _t15;
-                _xd_block[0][i] = -_c0[i]*_t5 - _c0[i]*_t6 + qd1[i]*(_c0[i]*d3 + _s0[i]*_s1[i]*d4 - _s0[i]*_t8 - _s0[i]*_t9);
-                _xd_block[1][i] = -_s0[i]*_t5 - _s0[i]*_t6 + qd1[i]*(-_c0[i]*_t10 + _c0[i]*_t8 + _c0[i]*_t9 + _s0[i]*d3);
-                _xd_block[2][i] = _t11*qd3[i] + qd2[i]*(_t11 + _t8);
-                _xd_block[3][i] = _t20*_t22 + _t26*qd2[i] + _t26*qd3[i] + _t33*qd1[i] + _t34*qd6[i] + qd4[i]*(-_c1[i]*_t29 - _c4[i]*_t28 + _s0[i]*_s3[i]*_s5[i] - _t30*_t32);
-                _xd_block[4][i] = _t19*_t35 + _t38*qd2[i] + _t38*qd3[i] + _t47*qd6[i] + _t49*qd1[i] + qd4[i]*(-_c1[i]*_t42 + _c4[i]*_t41 + _t30*_t44 + _t40);
-                _xd_block[5][i] = _t51*(_c1[i]*_t50 + _t27) + _t53*qd2[i] + _t53*qd3[i] + _t54*qd1[i] + qd5[i]*(_c4[i]*_t39 - _t17*_t30 + _t46);
-                _xd_block[6][i] = -_t22*_t54 - _t47*qd1[i] - _t49*qd6[i] + _t55*qd2[i] + _t55*qd3[i] + qd4[i]*(_c0[i]*_c3[i]*_c4[i]*_c5[i] - _c1[i]*_t41 - _t30*_t40 - _t44);
-                _xd_block[7][i] = _t33*qd6[i] + _t34*qd1[i] + _t35*_t54 + _t56*qd2[i] + _t56*qd3[i] + qd4[i]*(_c1[i]*_c4[i]*_s0[i]*_s3[i]*_s5[i] - _c1[i]*_t28 - _c4[i]*_t29 - _t32);
-                _xd_block[8][i] = _t20*qd1[i] + _t51*(_c1[i]*_t39 - _t17) + _t57*qd2[i] + _t57*qd3[i] + qd5[i]*(-_c4[i]*_t50 + _s0[i]*_s1[i]*_s4[i] - _t27*_t30);
-                _xd_block[9][i] = -_t22*_t52 - _t37*qd6[i] - _t58*(_c4[i]*_t31 + _t36) + _t59*qd2[i] + _t59*qd3[i];
-                _xd_block[10][i] = _t25*qd6[i] + _t35*_t52 + _t58*(_c4[i]*_t43 - _t24) + _t60*qd2[i] + _t60*qd3[i];
-                _xd_block[11][i] = _s3[i]*_t48*qd4[i] + _t61*qd2[i] + _t61*qd3[i] + qd5[i]*(-_c3[i]*_t15 - _t18);
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = _c2[i]*d4 + _s2[i]*a3;
+                const double _t8 = qd2[i]*(_s1[i]*a2 + _t7);
+                const double _t9 = _t7*qd3[i];
+                const double _t10 = _s2[i]*d4;
+                const double _t11 = -_t10 + _t5;
+                const double _t14 = _c0[i]*_c4[i];
+                const double _t15 = _s3[i]*_t14;
+                const double _t19 = _c3[i]*_s4[i];
+                const double _t20 = _c0[i]*_t19;
+                const double _t22 = _c2[i]*_c5[i];
+                const double _t23 = _c4[i]*_s0[i];
+                const double _t24 = _c3[i]*_t23;
+                const double _t25 = _c2[i]*_s0[i]*_s3[i]*_s4[i] + _c3[i]*_s0[i]*_s2[i]*_s5[i] - _c5[i]*_t20 - _t15 - _t22*_t24;
+                const double _t26 = _c0[i]*_s2[i]*_s3[i]*_s5[i] - _c2[i]*_t20 + _c5[i]*_s0[i]*_s3[i]*_s4[i] - _t15*_t22 - _t24;
+                const double _t27 = _c2[i]*_s5[i];
+                const double _t28 = _c3[i]*_c4[i];
+                const double _t29 = _c5[i]*_s2[i];
+                const double _t30 = -_c3[i]*_t27 + _s2[i]*_s3[i]*_s4[i] - _t28*_t29;
+                const double _t31 = _c0[i]*_t30;
+                const double _t32 = _c0[i]*_t29 - _s0[i]*_s4[i]*_s5[i] + _t14*_t27;
+                const double _t33 = -_t32;
+                const double _t34 = _c3[i]*qd5[i];
+                const double _t35 = _c3[i]*_t14;
+                const double _t36 = _s3[i]*_s4[i];
+                const double _t37 = _c0[i]*_t36;
+                const double _t38 = _s0[i]*_s4[i];
+                const double _t39 = _c3[i]*_t38;
+                const double _t40 = _s2[i]*_s5[i];
+                const double _t41 = _s3[i]*_t23;
+                const double _t42 = _c2[i]*_t39 + _c5[i]*_t37 - _s0[i]*_s3[i]*_t40 + _t22*_t41 - _t35;
+                const double _t43 = _c0[i]*_s5[i];
+                const double _t44 = _s2[i]*_t43;
+                const double _t45 = _c2[i]*_t37 + _c3[i]*_t44 + _c5[i]*_t39 - _t22*_t35 + _t41;
+                const double _t46 = _c4[i]*_s3[i];
+                const double _t47 = _s2[i]*_t19 + _s3[i]*_t27 + _t29*_t46;
+                const double _t48 = _c0[i]*_t47;
+                const double _t49 = _s3[i]*qd5[i];
+                const double _t50 = _s0[i]*_t29 + _s4[i]*_t43 + _t23*_t27;
+                const double _t51 = _c4[i]*_t40 - _t22;
+                const double _t52 = _c0[i]*_t51;
+                const double _t53 = _c0[i]*_s4[i];
+                const double _t54 = _s5[i]*qd4[i];
+                const double _t55 = _s0[i]*_t30;
+                const double _t56 = _s0[i]*_t47;
+                const double _t57 = _s0[i]*_t51;
+                const double _t58 = _c2[i]*_c3[i]*_c4[i]*_c5[i] - _c2[i]*_t36 - _c3[i]*_t40;
+                const double _t59 = _s2[i]*qd4[i];
+                const double _t60 = -_c2[i]*_t19 + _s2[i]*_s3[i]*_s5[i] - _t22*_t46;
+                const double _t61 = -_c4[i]*_t27 - _t29;
+                _xd_block[0][i] = -_c0[i]*_t8 - _c0[i]*_t9 + qd1[i]*(_c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5);
+                _xd_block[1][i] = -_s0[i]*_t8 - _s0[i]*_t9 + qd1[i]*(-_c0[i]*_t10 + _c0[i]*_t2 + _c0[i]*_t5 + _s0[i]*d3);
+                _xd_block[2][i] = _t11*qd3[i] + qd2[i]*(_t11 + _t2);
+                _xd_block[3][i] = _t25*qd1[i] + _t26*qd6[i] + _t31*qd2[i] + _t31*qd3[i] + _t33*_t34 + qd4[i]*(-_c2[i]*_t15 - _c5[i]*_t24 + _s0[i]*_s3[i]*_s4[i] - _t20*_t22);
+                _xd_block[4][i] = _t32*_t49 + _t42*qd1[i] + _t45*qd6[i] + _t48*qd2[i] + _t48*qd3[i] + qd4[i]*(-_c2[i]*_t35 + _c5[i]*_t41 + _t22*_t37 + _t39);
+                _xd_block[5][i] = _t50*qd1[i] + _t52*qd2[i] + _t52*qd3[i] + _t54*(_c2[i]*_t53 + _t23) + qd5[i]*(_c5[i]*_t38 - _t14*_t22 + _t44);
+                _xd_block[6][i] = -_t34*_t50 - _t42*qd6[i] - _t45*qd1[i] + _t55*qd2[i] + _t55*qd3[i] + qd4[i]*(_c0[i]*_c3[i]*_c4[i]*_c5[i] - _c2[i]*_t41 - _t22*_t39 - _t37);
+                _xd_block[7][i] = _t25*qd6[i] + _t26*qd1[i] + _t49*_t50 + _t56*qd2[i] + _t56*qd3[i] + qd4[i]*(_c2[i]*_c5[i]*_s0[i]*_s3[i]*_s4[i] - _c2[i]*_t24 - _c5[i]*_t15 - _t20);
+                _xd_block[8][i] = _t33*qd1[i] + _t54*(_c2[i]*_t38 - _t14) + _t57*qd2[i] + _t57*qd3[i] + qd5[i]*(-_c5[i]*_t53 + _s0[i]*_s2[i]*_s5[i] - _t22*_t23);
+                _xd_block[9][i] = -_t34*_t51 - _t47*qd6[i] + _t58*qd2[i] + _t58*qd3[i] - _t59*(_c5[i]*_t19 + _t46);
+                _xd_block[10][i] = _t30*qd6[i] + _t49*_t51 + _t59*(_c5[i]*_t36 - _t28) + _t60*qd2[i] + _t60*qd3[i];
+                _xd_block[11][i] = _s4[i]*_t40*qd4[i] + _t61*qd2[i] + _t61*qd3[i] + qd5[i]*(-_c4[i]*_t29 - _t27);
             }
         } else
 #endif
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t4 = _c1[i]*d4 + _s1[i]*a3;
-                const double _t5 = _t4*qd3[i];
-                const double _t6 = qd2[i]*(_s2[i]*a2 + _t4);
-                const double _t8 = _c2[i]*a2;
-                const double _t9 = _c1[i]*a3;
-                const double _t10 = _s1[i]*d4;
-                const double _t11 = -_t10 + _t9;
-                const double _t15 = _c4[i]*_s1[i];
-                const double _t17 = _c0[i]*_c3[i];
-                const double _t18 = _c1[i]*_s4[i];
-                const double _t19 = _c0[i]*_t15 - _s0[i]*_s3[i]*_s4[i] + _t17*_t18;
-                const double _t20 = -_t19;
-                const double _t22 = _c5[i]*qd5[i];
-                const double _t24 = _c3[i]*_c5[i];
-                const double _t25 = -_c5[i]*_t18 + _s1[i]*_s3[i]*_s5[i] - _t15*_t24;
-                const double _t26 = _c0[i]*_t25;
-                const double _t27 = _c3[i]*_s0[i];
-                const double _t28 = _c5[i]*_t27;
-                const double _t29 = _s5[i]*_t17;
-                const double _t30 = _c1[i]*_c4[i];
-                const double _t31 = _c5[i]*_s3[i];
-                const double _t32 = _c0[i]*_t31;
-                const double _t33 = _c1[i]*_s0[i]*_s3[i]*_s5[i] - _c4[i]*_t32 + _c5[i]*_s0[i]*_s1[i]*_s4[i] - _t28*_t30 - _t29;
-                const double _t34 = _c0[i]*_s1[i]*_s4[i]*_s5[i] - _c1[i]*_t32 + _c4[i]*_s0[i]*_s3[i]*_s5[i] - _t28 - _t29*_t30;
-                const double _t35 = _s5[i]*qd5[i];
-                const double _t36 = _c3[i]*_s5[i];
-                const double _t37 = _s1[i]*_t31 + _s5[i]*_t18 + _t15*_t36;
-                const double _t38 = _c0[i]*_t37;
-                const double _t39 = _s0[i]*_s3[i];
-                const double _t40 = _c5[i]*_t39;
-                const double _t41 = _s5[i]*_t27;
-                const double _t42 = _c5[i]*_t17;
-                const double _t43 = _s3[i]*_s5[i];
-                const double _t44 = _c0[i]*_t43;
-                const double _t45 = _c0[i]*_s4[i];
-                const double _t46 = _s1[i]*_t45;
-                const double _t47 = _c1[i]*_t44 + _c4[i]*_t40 + _c5[i]*_t46 - _t30*_t42 + _t41;
-                const double _t48 = _s1[i]*_s4[i];
-                const double _t49 = _c1[i]*_t40 + _c4[i]*_t44 - _s0[i]*_s5[i]*_t48 + _t30*_t41 - _t42;
-                const double _t50 = _c0[i]*_s3[i];
-                const double _t51 = _s4[i]*qd4[i];
-                const double _t52 = _c3[i]*_t48 - _t30;
-                const double _t53 = _c0[i]*_t52;
-                const double _t54 = _s0[i]*_t15 + _s3[i]*_t45 + _t18*_t27;
-                const double _t55 = _s0[i]*_t25;
-                const double _t56 = _s0[i]*_t37;
-                const double _t57 = _s0[i]*_t52;
-                const double _t58 = _s1[i]*qd4[i];
-                const double _t59 = _c1[i]*_c3[i]*_c4[i]*_c5[i] - _c1[i]*_t43 - _c5[i]*_t48;
-                const double _t60 = -_c1[i]*_t31 + _s1[i]*_s4[i]*_s5[i] - _t30*_t36;
-                const double _t61 = -_c3[i]*_t18 - _t15;
-                xd[12 * (start + i) + 0] = -_c0[i]*_t5 - _c0[i]*_t6 + qd1[i]*(_c0[i]*d3 + _s0[i]*_s1[i]*d4 - _s0[i]*_t8 - _s0[i]*_t9);
-                xd[12 * (start + i) + 1] = -_s0[i]*_t5 - _s0[i]*_t6 + qd1[i]*(-_c0[i]*_t10 + _c0[i]*_t8 + _c0[i]*_t9 + _s0[i]*d3);
-                xd[12 * (start + i) + 2] = _t11*qd3[i] + qd2[i]*(_t11 + _t8);
-                xd[12 * (start + i) + 3] = _t20*_t22 + _t26*qd2[i] + _t26*qd3[i] + _t33*qd1[i] + _t34*qd6[i] + qd4[i]*(-_c1[i]*_t29 - _c4[i]*_t28 + _s0[i]*_s3[i]*_s5[i] - _t30*_t32);
-                xd[12 * (start + i) + 4] = _t19*_t35 + _t38*qd2[i] + _t38*qd3[i] + _t47*qd6[i] + _t49*qd1[i] + qd4[i]*(-_c1[i]*_t42 + _c4[i]*_t41 + _t30*_t44 + _t40);
-                xd[12 * (start + i) + 5] = _t51*(_c1[i]*_t50 + _t27) + _t53*qd2[i] + _t53*qd3[i] + _t54*qd1[i] + qd5[i]*(_c4[i]*_t39 - _t17*_t30 + _t46);
-                xd[12 * (start + i) + 6] = -_t22*_t54 - _t47*qd1[i] - _t49*qd6[i] + _t55*qd2[i] + _t55*qd3[i] + qd4[i]*(_c0[i]*_c3[i]*_c4[i]*_c5[i] - _c1[i]*_t41 - _t30*_t40 - _t44);
-                xd[12 * (start + i) + 7] = _t33*qd6[i] + _t34*qd1[i] + _t35*_t54 + _t56*qd2[i] + _t56*qd3[i] + qd4[i]*(_c1[i]*_c4[i]*_s0[i]*_s3[i]*_s5[i] - _c1[i]*_t28 - _c4[i]*_t29 - _t32);
-                xd[12 * (start + i) + 8] = _t20*qd1[i] + _t51*(_c1[i]*_t39 - _t17) + _t57*qd2[i] + _t57*qd3[i] + qd5[i]*(-_c4[i]*_t50 + _s0[i]*_s1[i]*_s4[i] - _t27*_t30);
-                xd[12 * (start + i) + 9] = -_t22*_t52 - _t37*qd6[i] - _t58*(_c4[i]*_t31 + _t36) + _t59*qd2[i] + _t59*qd3[i];
-                xd[12 * (start + i) + 10] = _t25*qd6[i] + _t35*_t52 + _t58*(_c4[i]*_t43 - _t24) + _t60*qd2[i] + _t60*qd3[i];
-                xd[12 * (start + i) + 11] = _s3[i]*_t48*qd4[i] + _t61*qd2[i] + _t61*qd3[i] + qd5[i]*(-_c3[i]*_t15 - _t18);
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = _c2[i]*d4 + _s2[i]*a3;
+                const double _t8 = qd2[i]*(_s1[i]*a2 + _t7);
+                const double _t9 = _t7*qd3[i];
+                const double _t10 = _s2[i]*d4;
+                const double _t11 = -_t10 + _t5;
+                const double _t14 = _c0[i]*_c4[i];
+                const double _t15 = _s3[i]*_t14;
+                const double _t19 = _c3[i]*_s4[i];
+                const double _t20 = _c0[i]*_t19;
+                const double _t22 = _c2[i]*_c5[i];
+                const double _t23 = _c4[i]*_s0[i];
+                const double _t24 = _c3[i]*_t23;
+                const double _t25 = _c2[i]*_s0[i]*_s3[i]*_s4[i] + _c3[i]*_s0[i]*_s2[i]*_s5[i] - _c5[i]*_t20 - _t15 - _t22*_t24;
+                const double _t26 = _c0[i]*_s2[i]*_s3[i]*_s5[i] - _c2[i]*_t20 + _c5[i]*_s0[i]*_s3[i]*_s4[i] - _t15*_t22 - _t24;
+                const double _t27 = _c2[i]*_s5[i];
+                const double _t28 = _c3[i]*_c4[i];
+                const double _t29 = _c5[i]*_s2[i];
+                const double _t30 = -_c3[i]*_t27 + _s2[i]*_s3[i]*_s4[i] - _t28*_t29;
+                const double _t31 = _c0[i]*_t30;
+                const double _t32 = _c0[i]*_t29 - _s0[i]*_s4[i]*_s5[i] + _t14*_t27;
+                const double _t33 = -_t32;
+                const double _t34 = _c3[i]*qd5[i];
+                const double _t35 = _c3[i]*_t14;
+                const double _t36 = _s3[i]*_s4[i];
+                const double _t37 = _c0[i]*_t36;
+                const double _t38 = _s0[i]*_s4[i];
+                const double _t39 = _c3[i]*_t38;
+                const double _t40 = _s2[i]*_s5[i];
+                const double _t41 = _s3[i]*_t23;
+                const double _t42 = _c2[i]*_t39 + _c5[i]*_t37 - _s0[i]*_s3[i]*_t40 + _t22*_t41 - _t35;
+                const double _t43 = _c0[i]*_s5[i];
+                const double _t44 = _s2[i]*_t43;
+                const double _t45 = _c2[i]*_t37 + _c3[i]*_t44 + _c5[i]*_t39 - _t22*_t35 + _t41;
+                const double _t46 = _c4[i]*_s3[i];
+                const double _t47 = _s2[i]*_t19 + _s3[i]*_t27 + _t29*_t46;
+                const double _t48 = _c0[i]*_t47;
+                const double _t49 = _s3[i]*qd5[i];
+                const double _t50 = _s0[i]*_t29 + _s4[i]*_t43 + _t23*_t27;
+                const double _t51 = _c4[i]*_t40 - _t22;
+                const double _t52 = _c0[i]*_t51;
+                const double _t53 = _c0[i]*_s4[i];
+                const double _t54 = _s5[i]*qd4[i];
+                const double _t55 = _s0[i]*_t30;
+                const double _t56 = _s0[i]*_t47;
+                const double _t57 = _s0[i]*_t51;
+                const double _t58 = _c2[i]*_c3[i]*_c4[i]*_c5[i] - _c2[i]*_t36 - _c3[i]*_t40;
+                const double _t59 = _s2[i]*qd4[i];
+                const double _t60 = -_c2[i]*_t19 + _s2[i]*_s3[i]*_s5[i] - _t22*_t46;
+                const double _t61 = -_c4[i]*_t27 - _t29;
+                xd[12 * (start + i) + 0] = -_c0[i]*_t8 - _c0[i]*_t9 + qd1[i]*(_c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5);
+                xd[12 * (start + i) + 1] = -_s0[i]*_t8 - _s0[i]*_t9 + qd1[i]*(-_c0[i]*_t10 + _c0[i]*_t2 + _c0[i]*_t5 + _s0[i]*d3);
+                xd[12 * (start + i) + 2] = _t11*qd3[i] + qd2[i]*(_t11 + _t2);
+                xd[12 * (start + i) + 3] = _t25*qd1[i] + _t26*qd6[i] + _t31*qd2[i] + _t31*qd3[i] + _t33*_t34 + qd4[i]*(-_c2[i]*_t15 - _c5[i]*_t24 + _s0[i]*_s3[i]*_s4[i] - _t20*_t22);
+                xd[12 * (start + i) + 4] = _t32*_t49 + _t42*qd1[i] + _t45*qd6[i] + _t48*qd2[i] + _t48*qd3[i] + qd4[i]*(-_c2[i]*_t35 + _c5[i]*_t41 + _t22*_t37 + _t39);
+                xd[12 * (start + i) + 5] = _t50*qd1[i] + _t52*qd2[i] + _t52*qd3[i] + _t54*(_c2[i]*_t53 + _t23) + qd5[i]*(_c5[i]*_t38 - _t14*_t22 + _t44);
+                xd[12 * (start + i) + 6] = -_t34*_t50 - _t42*qd6[i] - _t45*qd1[i] + _t55*qd2[i] + _t55*qd3[i] + qd4[i]*(_c0[i]*_c3[i]*_c4[i]*_c5[i] - _c2[i]*_t41 - _t22*_t39 - _t37);
+                xd[12 * (start + i) + 7] = _t25*qd6[i] + _t26*qd1[i] + _t49*_t50 + _t56*qd2[i] + _t56*qd3[i] + qd4[i]*(_c2[i]*_c5[i]*_s0[i]*_s3[i]*_s4[i] - _c2[i]*_t24 - _c5[i]*_t15 - _t20);
+                xd[12 * (start + i) + 8] = _t33*qd1[i] + _t54*(_c2[i]*_t38 - _t14) + _t57*qd2[i] + _t57*qd3[i] + qd5[i]*(-_c5[i]*_t53 + _s0[i]*_s2[i]*_s5[i] - _t22*_t23);
+                xd[12 * (start + i) + 9] = -_t34*_t51 - _t47*qd6[i] + _t58*qd2[i] + _t58*qd3[i] - _t59*(_c5[i]*_t19 + _t46);
+                xd[12 * (start + i) + 10] = _t30*qd6[i] + _t49*_t51 + _t59*(_c5[i]*_t36 - _t28) + _t60*qd2[i] + _t60*qd3[i];
+                xd[12 * (start + i) + 11] = _s4[i]*_t40*qd4[i] + _t61*qd2[i] + _t61*qd3[i] + qd5[i]*(-_c4[i]*_t29 - _t27);
             }
         }
 #ifdef KINEGEN_STREAM
@@ -3898,12 +3898,12 @@ void puma560_twist(const double *restrict q, const double *restrict qd, const pu
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t0 = q2 + q3;
+    const double _t3 = q2 + q3;
     double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[8] = { _t0, q1, q2, q4, q5, 0.0, 0.0, 0.0 };
+        const double angle[8] = { q1, q2, _t3, q4, q5, 0.0, 0.0, 0.0 };
         double sine[8], cosine[8];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -3926,39 +3926,39 @@ void puma560_twist(const double *restrict q, const double *restrict qd, const pu
         _c4 = cosine[4];
     }
 #else
-    _s0 = sin(_t0);
-    _c0 = cos(_t0);
-    _s1 = sin(q1);
-    _c1 = cos(q1);
-    _s2 = sin(q2);
-    _c2 = cos(q2);
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(q2);
+    _c1 = cos(q2);
+    _s2 = sin(_t3);
+    _c2 = cos(_t3);
     _s3 = sin(q4);
     _c3 = cos(q4);
     _s4 = sin(q5);
     _c4 = cos(q5);
 #endif
-    const double _t3 = _c0*d4 + _s0*a3;
-    const double _t5 = _c1*qd3;
-    const double _t6 = _s2*a2 + _t3;
-    const double _t7 = _c1*qd2;
-    const double _t9 = _c2*a2;
-    const double _t10 = _c0*a3;
-    const double _t11 = _s1*qd3;
-    const double _t12 = _s1*qd2;
-    const double _t13 = _s0*d4;
-    const double _t14 = _t10 - _t13;
-    const double _t15 = _c1*_s0;
-    const double _t17 = _c3*_s1;
-    const double _t19 = _c0*_s3;
-    const double _t22 = _c1*_c3;
-    const double _t23 = _c0*_s4;
-    const double _t24 = _s0*_s1;
-    twist[0] = -_t3*_t5 - _t6*_t7 + qd1*(_c1*d3 + _s0*_s1*d4 - _s1*_t10 - _s1*_t9);
-    twist[1] = -_t11*_t3 - _t12*_t6 + qd1*(_c1*_t10 - _c1*_t13 + _c1*_t9 + _s1*d3);
-    twist[2] = _t14*qd3 + qd2*(_t14 + _t9);
-    twist[3] = _t11 + _t12 - _t15*qd4 + qd5*(_c1*_t19 + _t17) + qd6*(-_c4*_t15 + _s1*_s3*_s4 - _t22*_t23);
-    twist[4] = -_t24*qd4 - _t5 - _t7 + qd5*(_s1*_t19 - _t22) + qd6*(-_c1*_s3*_s4 - _c4*_t24 - _t17*_t23);
-    twist[5] = _c0*qd4 + _s0*_s3*qd5 + qd1 + qd6*(_c0*_c4 - _c3*_s0*_s4);
+    const double _t2 = _c1*a2;
+    const double _t5 = _c2*a3;
+    const double _t7 = _c2*d4 + _s2*a3;
+    const double _t8 = _s1*a2 + _t7;
+    const double _t9 = _c0*qd2;
+    const double _t10 = _c0*qd3;
+    const double _t11 = _s2*d4;
+    const double _t12 = _s0*qd2;
+    const double _t13 = _s0*qd3;
+    const double _t14 = -_t11 + _t5;
+    const double _t16 = _c3*_s0;
+    const double _t18 = _c2*_s3;
+    const double _t20 = _c0*_s2;
+    const double _t22 = _c0*_c3;
+    const double _t23 = _c2*_s4;
+    const double _t24 = _s0*_s2;
+    twist[0] = -_t10*_t7 - _t8*_t9 + qd1*(_c0*d3 + _s0*_s2*d4 - _s0*_t2 - _s0*_t5);
+    twist[1] = -_t12*_t8 - _t13*_t7 + qd1*(-_c0*_t11 + _c0*_t2 + _c0*_t5 + _s0*d3);
+    twist[2] = _t14*qd3 + qd2*(_t14 + _t2);
+    twist[3] = _t12 + _t13 - _t20*qd4 + qd5*(_c0*_t18 + _t16) + qd6*(-_c4*_t20 + _s0*_s3*_s4 - _t22*_t23);
+    twist[4] = -_t10 - _t24*qd4 - _t9 + qd5*(_s0*_t18 - _t22) + qd6*(-_c0*_s3*_s4 - _c4*_t24 - _t16*_t23);
+    twist[5] = _c2*qd4 + _s2*_s3*qd5 + qd1 + qd6*(_c2*_c4 - _c3*_s2*_s4);
 }
 
 /* twist of `count` items, stored one after the other in each argument and output. */
@@ -3976,7 +3976,7 @@ void puma560_twist_batch(size_t count, const double *restrict q, const double *r
     double qd4[KINEGEN_BLOCK_OF(64)];
     double qd5[KINEGEN_BLOCK_OF(64)];
     double qd6[KINEGEN_BLOCK_OF(64)];
-    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t3[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
@@ -4017,31 +4017,31 @@ void puma560_twist_batch(size_t count, const double *restrict q, const double *r
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t0[i] = q2[i] + q3[i];
+            _t3[i] = q2[i] + q3[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s0[i] = sin(_t0[i]);
+            _s0[i] = sin(q1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c0[i] = cos(_t0[i]);
+            _c0[i] = cos(q1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s1[i] = sin(q1[i]);
+            _s1[i] = sin(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c1[i] = cos(q1[i]);
+            _c1[i] = cos(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s2[i] = sin(q2[i]);
+            _s2[i] = sin(_t3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(q2[i]);
+            _c2[i] = cos(_t3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -4063,56 +4063,56 @@ void puma560_twist_batch(size_t count, const double *restrict q, const double *r
         if (stream) {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t3 = _c0[i]*d4 + _s0[i]*a3;
-                const double _t5 = _c1[i]*qd3[i];
-                const double _t6 = _s2[i]*a2 + _t3;
-                const double _t7 = _c1[i]*qd2[i];
-                const double _t9 = _c2[i]*a2;
-                const double _t10 = _c0[i]*a3;
-                const double _t11 = _s1[i]*qd3[i];
-                const double _t12 = _s1[i]*qd2[i];
-                const double _t13 = _s0[i]*d4;
-                const double _t14 = _t10 - _t13;
-                const double _t15 = _c1[i]*_s0[i];
-                const double _t17 = _c3[i]*_s1[i];
-                const double _t19 = _c0[i]*_s3[i];
-                const double _t22 = _c1[i]*_c3[i];
-                const double _t23 = _c0[i]*_s4[i];
-                const double _t24 = _s0[i]*_s1[i];
-                _twist_block[0][i] = -_t3*_t5 - _t6*_t7 + qd1[i]*(_c1[i]*d3 + _s0[i]*_s1[i]*d4 - _s1[i]*_t10 - _s1[i]*_t9);
-                _twist_block[1][i] = -_t11*_t3 - _t12*_t6 + qd1[i]*(_c1[i]*_t10 - _c1[i]*_t13 + _c1[i]*_t9 + _s1[i]*d3);
-                _twist_block[2][i] = _t14*qd3[i] + qd2[i]*(_t14 + _t9);
-                _twist_block[3][i] = _t11 + _t12 - _t15*qd4[i] + qd5[i]*(_c1[i]*_t19 + _t17) + qd6[i]*(-_c4[i]*_t15 + _s1[i]*_s3[i]*_s4[i] - _t22*_t23);
-                _twist_block[4][i] = -_t24*qd4[i] - _t5 - _t7 + qd5[i]*(_s1[i]*_t19 - _t22) + qd6[i]*(-_c1[i]*_s3[i]*_s4[i] - _c4[i]*_t24 - _t17*_t23);
-                _twist_block[5][i] = _c0[i]*qd4[i] + _s0[i]*_s3[i]*qd5[i] + qd1[i] + qd6[i]*(_c0[i]*_c4[i] - _c3[i]*_s0[i]*_s4[i]);
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = _c2[i]*d4 + _s2[i]*a3;
+                const double _t8 = _s1[i]*a2 + _t7;
+                const double _t9 = _c0[i]*qd2[i];
+                const double _t10 = _c0[i]*qd3[i];
+                const double _t11 = _s2[i]*d4;
+                const double _t12 = _s0[i]*qd2[i];
+                const double _t13 = _s0[i]*qd3[i];
+                const double _t14 = -_t11 + _t5;
+                const double _t16 = _c3[i]*_s0[i];
+                const double _t18 = _c2[i]*_s3[i];
+                const double _t20 = _c0[i]*_s2[i];
+                const double _t22 = _c0[i]*_c3[i];
+                const double _t23 = _c2[i]*_s4[i];
+                const double _t24 = _s0[i]*_s2[i];
+                _twist_block[0][i] = -_t10*_t7 - _t8*_t9 + qd1[i]*(_c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5);
+                _twist_block[1][i] = -_t12*_t8 - _t13*_t7 + qd1[i]*(-_c0[i]*_t11 + _c0[i]*_t2 + _c0[i]*_t5 + _s0[i]*d3);
+                _twist_block[2][i] = _t14*qd3[i] + qd2[i]*(_t14 + _t2);
+                _twist_block[3][i] = _t12 + _t13 - _t20*qd4[i] + qd5[i]*(_c0[i]*_t18 + _t16) + qd6[i]*(-_c4[i]*_t20 + _s0[i]*_s3[i]*_s4[i] - _t22*_t23);
+                _twist_block[4][i] = -_t10 - _t24*qd4[i] - _t9 + qd5[i]*(_s0[i]*_t18 - _t22) + qd6[i]*(-_c0[i]*_s3[i]*_s4[i] - _c4[i]*_t24 - _t16*_t23);
+                _twist_block[5][i] = _c2[i]*qd4[i] + _s2[i]*_s3[i]*qd5[i] + qd1[i] + qd6[i]*(_c2[i]*_c4[i] - _c3[i]*_s2[i]*_s4[i]);
             }
         } else
 #endif
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t3 = _c0[i]*d4 + _s0[i]*a3;
-                const double _t5 = _c1[i]*qd3[i];
-                const double _t6 = _s2[i]*a2 + _t3;
-                const double _t7 = _c1[i]*qd2[i];
-                const double _t9 = _c2[i]*a2;
-                const double _t10 = _c0[i]*a3;
-                const double _t11 = _s1[i]*qd3[i];
-                const double _t12 = _s1[i]*qd2[i];
-                const double _t13 = _s0[i]*d4;
-                const double _t14 = _t10 - _t13;
-                const double _t15 = _c1[i]*_s0[i];
-                const double _t17 = _c3[i]*_s1[i];
-                const double _t19 = _c0[i]*_s3[i];
-                const double _t22 = _c1[i]*_c3[i];
-                const double _t23 = _c0[i]*_s4[i];
-                const double _t24 = _s0[i]*_s1[i];
-                twist[6 * (start + i) + 0] = -_t3*_t5 - _t6*_t7 + qd1[i]*(_c1[i]*d3 + _s0[i]*_s1[i]*d4 - _s1[i]*_t10 - _s1[i]*_t9);
-                twist[6 * (start + i) + 1] = -_t11*_t3 - _t12*_t6 + qd1[i]*(_c1[i]*_t10 - _c1[i]*_t13 + _c1[i]*_t9 + _s1[i]*d3);
-                twist[6 * (start + i) + 2] = _t14*qd3[i] + qd2[i]*(_t14 + _t9);
-                twist[6 * (start + i) + 3] = _t11 + _t12 - _t15*qd4[i] + qd5[i]*(_c1[i]*_t19 + _t17) + qd6[i]*(-_c4[i]*_t15 + _s1[i]*_s3[i]*_s4[i] - _t22*_t23);
-                twist[6 * (start + i) + 4] = -_t24*qd4[i] - _t5 - _t7 + qd5[i]*(_s1[i]*_t19 - _t22) + qd6[i]*(-_c1[i]*_s3[i]*_s4[i] - _c4[i]*_t24 - _t17*_t23);
-                twist[6 * (start + i) + 5] = _c0[i]*qd4[i] + _s0[i]*_s3[i]*qd5[i] + qd1[i] + qd6[i]*(_c0[i]*_c4[i] - _c3[i]*_s0[i]*_s4[i]);
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = _c2[i]*d4 + _s2[i]*a3;
+                const double _t8 = _s1[i]*a2 + _t7;
+                const double _t9 = _c0[i]*qd2[i];
+                const double _t10 = _c0[i]*qd3[i];
+                const double _t11 = _s2[i]*d4;
+                const double _t12 = _s0[i]*qd2[i];
+                const double _t13 = _s0[i]*qd3[i];
+                const double _t14 = -_t11 + _t5;
+                const double _t16 = _c3[i]*_s0[i];
+                const double _t18 = _c2[i]*_s3[i];
+                const double _t20 = _c0[i]*_s2[i];
+                const double _t22 = _c0[i]*_c3[i];
+                const double _t23 = _c2[i]*_s4[i];
+                const double _t24 = _s0[i]*_s2[i];
+                twist[6 * (start + i) + 0] = -_t10*_t7 - _t8*_t9 + qd1[i]*(_c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5);
+                twist[6 * (start + i) + 1] = -_t12*_t8 - _t13*_t7 + qd1[i]*(-_c0[i]*_t11 + _c0[i]*_t2 + _c0[i]*_t5 + _s0[i]*d3);
+                twist[6 * (start + i) + 2] = _t14*qd3[i] + qd2[i]*(_t14 + _t2);
+                twist[6 * (start + i) + 3] = _t12 + _t13 - _t20*qd4[i] + qd5[i]*(_c0[i]*_t18 + _t16) + qd6[i]*(-_c4[i]*_t20 + _s0[i]*_s3[i]*_s4[i] - _t22*_t23);
+                twist[6 * (start + i) + 4] = -_t10 - _t24*qd4[i] - _t9 + qd5[i]*(_s0[i]*_t18 - _t22) + qd6[i]*(-_c0[i]*_s3[i]*_s4[i] - _c4[i]*_t24 - _t16*_t23);
+                twist[6 * (start + i) + 5] = _c2[i]*qd4[i] + _s2[i]*_s3[i]*qd5[i] + qd1[i] + qd6[i]*(_c2[i]*_c4[i] - _c3[i]*_s2[i]*_s4[i]);
             }
         }
 #ifdef KINEGEN_STREAM
@@ -4161,12 +4161,12 @@ void puma560_task_jacobian_dot(const double *restrict q, const double *restrict 
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t1 = q2 + q3;
+    const double _t3 = q2 + q3;
     double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[8] = { q1, _t1, q2, q6, q5, q4, 0.0, 0.0 };
+        const double angle[8] = { q1, q2, _t3, q6, q5, q4, 0.0, 0.0 };
         double sine[8], cosine[8];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -4193,10 +4193,10 @@ void puma560_task_jacobian_dot(const double *restrict q, const double *restrict 
 #else
     _s0 = sin(q1);
     _c0 = cos(q1);
-    _s1 = sin(_t1);
-    _c1 = cos(_t1);
-    _s2 = sin(q2);
-    _c2 = cos(q2);
+    _s1 = sin(q2);
+    _c1 = cos(q2);
+    _s2 = sin(_t3);
+    _c2 = cos(_t3);
     _s3 = sin(q6);
     _c3 = cos(q6);
     _s4 = sin(q5);
@@ -4204,176 +4204,176 @@ void puma560_task_jacobian_dot(const double *restrict q, const double *restrict 
     _s5 = sin(q4);
     _c5 = cos(q4);
 #endif
-    const double _t3 = _s1*a3;
-    const double _t5 = _c1*d4;
-    const double _t6 = _s0*_t3 + _s0*_t5;
-    const double _t7 = _s2*a2;
-    const double _t9 = _c2*a2;
-    const double _t10 = _c1*a3;
-    const double _t11 = -_s1*d4 + _t10;
-    const double _t12 = _t11*qd3;
-    const double _t13 = _c0*_t12;
-    const double _t14 = _t3 + _t5;
-    const double _t15 = _t14 + _t7;
-    const double _t16 = _t11 + _t9;
-    const double _t17 = _c0*qd2;
-    const double _t18 = _c0*_t3 + _c0*_t5;
-    const double _t19 = _s0*_t12;
-    const double _t20 = _c0*qd1;
-    const double _t21 = _s0*qd2;
-    const double _t22 = -_t14;
+    const double _t2 = _c1*a2;
+    const double _t5 = _c2*a3;
+    const double _t7 = _s1*a2;
+    const double _t8 = _s2*a3;
+    const double _t9 = _c2*d4;
+    const double _t10 = _s0*_t8 + _s0*_t9;
+    const double _t11 = -_s2*d4 + _t5;
+    const double _t12 = _t11 + _t2;
+    const double _t13 = _c0*qd2;
+    const double _t14 = _t11*qd3;
+    const double _t15 = _c0*_t14;
+    const double _t16 = _t8 + _t9;
+    const double _t17 = _t16 + _t7;
+    const double _t18 = _c0*_t8 + _c0*_t9;
+    const double _t19 = _c0*qd1;
+    const double _t20 = _s0*qd2;
+    const double _t21 = _s0*_t14;
+    const double _t22 = -_t16;
     const double _t23 = _t22*qd3;
-    const double _t27 = _c0*_s5;
-    const double _t28 = _s4*_t27;
-    const double _t30 = _c4*_s1;
-    const double _t31 = _s0*_t30;
-    const double _t33 = _c5*_s0;
-    const double _t34 = _c1*_s4;
-    const double _t35 = _c3*_t34;
-    const double _t37 = _s0*_s5;
-    const double _t38 = _s3*_t37;
-    const double _t39 = _c3*_t33;
-    const double _t40 = _s0*_t35 - _s1*_t38 + _t30*_t39;
-    const double _t41 = _s3*_t27;
-    const double _t42 = _c0*_c5;
-    const double _t43 = _c3*_t42;
-    const double _t44 = _s3*_t33;
-    const double _t45 = _c1*_c4;
-    const double _t46 = _c3*_t45;
-    const double _t47 = _c1*_t44 - _c4*_t43 + _t37*_t46 + _t41;
-    const double _t48 = _s1*_s4;
-    const double _t49 = _c3*_t48;
-    const double _t50 = _c3*_t37;
-    const double _t51 = _c1*_t41 + _c4*_t50 - _t43*_t45 + _t44;
-    const double _t52 = _c0*_t49 + _t51;
-    const double _t53 = _s3*_t48;
-    const double _t54 = _c1*_t50 + _c4*_t41 - _t43 + _t44*_t45;
+    const double _t26 = _s2*_s4;
+    const double _t27 = _c3*_t26;
+    const double _t30 = _c5*_s0;
+    const double _t31 = _s3*_t30;
+    const double _t33 = _c0*_s5;
+    const double _t34 = _s3*_t33;
+    const double _t36 = _s0*_s5;
+    const double _t37 = _c3*_t36;
+    const double _t38 = _c2*_c4;
+    const double _t39 = _c0*_c5;
+    const double _t40 = _c3*_t39;
+    const double _t41 = _c2*_t34 + _c4*_t37 + _t31 - _t38*_t40;
+    const double _t42 = _c0*_t27 + _t41;
+    const double _t43 = _c2*_s4;
+    const double _t44 = _c3*_t43;
+    const double _t45 = _s3*_t36;
+    const double _t46 = _c4*_s2;
+    const double _t47 = _c3*_t30;
+    const double _t48 = _s0*_t44 - _s2*_t45 + _t46*_t47;
+    const double _t49 = _c3*_t38;
+    const double _t50 = _c2*_t31 - _c4*_t40 + _t34 + _t36*_t49;
+    const double _t51 = _s4*_t33;
+    const double _t52 = _s0*_t46;
+    const double _t53 = _s3*_t26;
+    const double _t54 = _c2*_t37 + _c4*_t34 + _t31*_t38 - _t40;
     const double _t55 = -_s0*_t53 + _t54;
-    const double _t56 = _t40*qd2 + _t40*qd3 + _t47*qd4 + _t52*qd1 + _t55*qd6 + qd5*(_c3*_t28 + _c3*_t31 + _t33*_t35);
-    const double _t57 = _c5*_s3;
-    const double _t58 = _c3*_s5;
-    const double _t59 = qd4*(_s1*_t57 + _t30*_t58);
-    const double _t60 = _c3*_c5;
-    const double _t61 = qd5*(-_t46 + _t48*_t60);
-    const double _t62 = _s3*_t34;
-    const double _t63 = _s1*_t58 + _t30*_t57 + _t62;
-    const double _t64 = _t63*qd6;
-    const double _t65 = _s3*_s5;
-    const double _t66 = _c1*_t65 - _t45*_t60 + _t49;
-    const double _t67 = _t66*qd2;
-    const double _t68 = _t66*qd3;
-    const double _t69 = -_s1*_s3*_s5 + _t30*_t60 + _t35;
+    const double _t56 = _t42*qd1 + _t48*qd2 + _t48*qd3 + _t50*qd4 + _t55*qd6 + qd5*(_c3*_t51 + _c3*_t52 + _t30*_t44);
+    const double _t57 = _s3*_s5;
+    const double _t58 = _c3*_c5;
+    const double _t59 = _c2*_t57 + _t27 - _t38*_t58;
+    const double _t60 = _t59*qd2;
+    const double _t61 = _t59*qd3;
+    const double _t62 = _c5*_s3;
+    const double _t63 = _c3*_s5;
+    const double _t64 = qd4*(_s2*_t62 + _t46*_t63);
+    const double _t65 = qd5*(_t26*_t58 - _t49);
+    const double _t66 = _s3*_t43;
+    const double _t67 = _s2*_t63 + _t46*_t62 + _t66;
+    const double _t68 = _t67*qd6;
+    const double _t69 = -_s2*_s3*_s5 + _t44 + _t46*_t58;
     const double _t70 = -_t69;
     const double _t71 = _s0*qd1;
-    const double _t72 = _c0*_t59 + _c0*_t61 + _c0*_t64 + _c0*_t67 + _c0*_t68 - _t70*_t71;
-    const double _t73 = _s4*_t33;
-    const double _t74 = _s3*_t42;
-    const double _t75 = _c3*_t27;
-    const double _t76 = _s1*_t74 + _t30*_t75;
-    const double _t77 = -_c1*_t43 + _c4*_t44 + _t41*_t45 + _t50;
-    const double _t78 = _t27*_t34 + _t73;
-    const double _t79 = _t78*qd4;
-    const double _t80 = -_c0*_t45 + _t42*_t48;
+    const double _t72 = _c0*_t60 + _c0*_t61 + _c0*_t64 + _c0*_t65 + _c0*_t68 - _t70*_t71;
+    const double _t73 = _s3*_t39;
+    const double _t74 = _c3*_t33;
+    const double _t75 = _s2*_t73 + _t46*_t74;
+    const double _t76 = _s4*_t30;
+    const double _t77 = -_c2*_t40 + _c4*_t31 + _t34*_t38 + _t37;
+    const double _t78 = _t30*_t43 + _t51 + _t52;
+    const double _t79 = _t78*qd1;
+    const double _t80 = -_c0*_t38 + _t26*_t39;
     const double _t81 = _t80*qd2;
     const double _t82 = _t80*qd3;
-    const double _t83 = _t28 + _t31 + _t33*_t34;
-    const double _t84 = _t83*qd1;
-    const double _t85 = _c4*_t37;
-    const double _t86 = _c0*_t48;
-    const double _t87 = -_t42*_t45 + _t85 + _t86;
+    const double _t83 = _t33*_t43 + _t76;
+    const double _t84 = _t83*qd4;
+    const double _t85 = _c0*_t26;
+    const double _t86 = _c4*_t36;
+    const double _t87 = -_t38*_t39 + _t85 + _t86;
     const double _t88 = _t87*qd5;
-    const double _t89 = _c0*_t30;
-    const double _t90 = -_s0*_s4*_s5 + _t34*_t42 + _t89;
+    const double _t89 = _c0*_t46;
+    const double _t90 = -_s0*_s4*_s5 + _t39*_t43 + _t89;
     const double _t91 = _s3*qd6;
-    const double _t92 = _c0*_t62 + _s1*_t75 + _t30*_t74;
-    const double _t93 = _t52*qd6 + _t55*qd1 + _t77*qd4 + _t92*qd2 + _t92*qd3 + qd5*(-_s3*_s4*_t37 + _s3*_t89 + _t42*_t62);
-    const double _t94 = _s3*_t31 + _s4*_t41 + _t34*_t44;
-    const double _t95 = _s0*_t62 + _s1*_t50 + _t30*_t44;
-    const double _t96 = -_t95;
-    const double _t97 = _c1*_t39 + _c4*_t74 - _s3*_t37*_t45 + _t75;
-    const double _t98 = _c1*_t75 - _s3*_t85 + _t39 + _t45*_t74;
-    const double _t99 = -_s3*_t86 + _t98;
-    const double _t100 = -_c1*_t38 + _c4*_t75 + _t33*_t46 + _t74;
-    const double _t101 = -_s0*_t49 + _t100;
-    const double _t102 = -_c3*_c5*_s1 + _t30*_t65;
-    const double _t103 = -_t102*qd4;
-    const double _t104 = -_c1*_c4*_s3 + _t48*_t57;
-    const double _t105 = -_t104;
-    const double _t106 = _c0*qd5;
-    const double _t107 = _c1*_t58 + _t45*_t57 - _t53;
-    const double _t108 = _c0*qd3;
+    const double _t92 = _c0*_t66 + _s2*_t74 + _t46*_t73;
+    const double _t93 = _t42*qd6 + _t55*qd1 + _t77*qd4 + _t92*qd2 + _t92*qd3 + qd5*(-_s3*_s4*_t36 + _s3*_t89 + _t39*_t66);
+    const double _t94 = _c2*_t74 - _s3*_t86 + _t38*_t73 + _t47;
+    const double _t95 = -_s3*_t85 + _t94;
+    const double _t96 = _s0*_t66 + _s2*_t37 + _t31*_t46;
+    const double _t97 = -_t96;
+    const double _t98 = _c2*_t47 + _c4*_t73 - _s3*_t36*_t38 + _t74;
+    const double _t99 = _s3*_t52 + _s4*_t34 + _t31*_t43;
+    const double _t100 = -_c2*_t45 + _c4*_t74 + _t30*_t49 + _t73;
+    const double _t101 = -_s0*_t27 + _t100;
+    const double _t102 = _c2*_t63 + _t38*_t62 - _t53;
+    const double _t103 = _c0*qd3;
+    const double _t104 = -_c3*_c5*_s2 + _t46*_t57;
+    const double _t105 = -_t104*qd4;
+    const double _t106 = -_c2*_c4*_s3 + _t26*_t62;
+    const double _t107 = -_t106;
+    const double _t108 = _c0*qd5;
     const double _t109 = _t69*qd6;
-    const double _t110 = _c0*_t103 + _c0*_t109 + _t105*_t106 + _t107*_t108 + _t107*_t17 - _t63*_t71;
-    const double _t111 = _c0*_c3*_c5*_s1 - _t30*_t41;
-    const double _t112 = _c1*_t74 + _c4*_t39 + _t27*_t46 - _t38;
+    const double _t110 = _c0*_t105 + _c0*_t109 + _t102*_t103 + _t102*_t13 + _t107*_t108 - _t67*_t71;
+    const double _t111 = _c0*_c3*_c5*_s2 - _t34*_t46;
+    const double _t112 = _c2*_t73 + _c4*_t47 + _t33*_t49 - _t45;
     const double _t113 = -_s3*_t80;
-    const double _t114 = _c3*qd6;
-    const double _t115 = _s3*qd5;
-    const double _t116 = _c3*_t89 - _s4*_t50 + _t34*_t43;
-    const double _t117 = _c0*_t35 - _s1*_t41 + _t30*_t43;
-    const double _t118 = qd4*(_c0*_c5*_s4 - _t34*_t37);
-    const double _t119 = _c1*_c4*_s0 - _t33*_t48;
+    const double _t114 = _s3*qd5;
+    const double _t115 = _c3*qd6;
+    const double _t116 = _c0*_t44 - _s2*_t34 + _t40*_t46;
+    const double _t117 = _c3*_t89 - _s4*_t37 + _t40*_t43;
+    const double _t118 = _t90*qd1;
+    const double _t119 = _c2*_c4*_s0 - _t26*_t30;
     const double _t120 = _t119*qd2;
     const double _t121 = _t119*qd3;
-    const double _t122 = _t90*qd1;
-    const double _t123 = _c4*_t27 - _s0*_t48 + _t33*_t45;
+    const double _t122 = qd4*(_c0*_c5*_s4 - _t36*_t43);
+    const double _t123 = _c4*_t33 - _s0*_t26 + _t30*_t38;
     const double _t124 = _t123*qd5;
-    const double _t125 = _t27*_t48;
-    const double _t126 = _c5*_t34 + _t30;
-    const double _t127 = _c5*_t30 + _t34;
-    const double _t128 = _c5*_t48;
-    const double _t129 = _t128 - _t45;
-    const double _t130 = _t106*_t127 + _t108*_t126 - _t125*qd4 + _t126*_t17 - _t129*_t71;
-    const double _t131 = _c1*_t27 + _t33;
-    const double _t132 = _c4*qd5;
-    const double _t133 = -_c0*_c5 + _c1*_t37;
-    const double _t134 = _s4*qd1;
-    const double _t135 = _s4*qd4;
-    const double _t136 = _c0*_t34 + _t30*_t42;
-    const double _t137 = -_t117;
-    const double _t138 = -_t112;
-    const double _t139 = -_t101;
-    const double _t140 = -_t99;
-    const double _t141 = _s0*_t59 + _s0*_t61 + _s0*_t64 + _s0*_t67 + _s0*_t68 + _t20*_t70;
-    const double _t142 = _s1*_t44 + _t30*_t50;
-    const double _t143 = -_t97;
-    const double _t144 = _s0*qd5;
-    const double _t145 = _s0*qd3;
-    const double _t146 = _s0*_t103 + _s0*_t109 + _t105*_t144 + _t107*_t145 + _t107*_t21 + _t20*_t63;
-    const double _t147 = _c3*_c5*_s0*_s1 - _t30*_t38;
-    const double _t148 = _t37*_t48;
-    const double _t149 = _t126*_t145 + _t126*_t21 + _t127*_t144 + _t129*_t20 - _t148*qd4;
-    const double _t150 = _s0*_t34 + _t30*_t33;
-    const double _t151 = -_t107;
-    const double _t152 = _t151*qd6 + _t70*qd2 + _t70*qd3 + qd4*(-_c1*_t57 - _t45*_t58) + qd5*(-_c3*_t30 - _t34*_t60);
-    const double _t153 = _c4*_t58 + _t57;
-    const double _t154 = _c1*_t153;
-    const double _t155 = _s1*qd4;
-    const double _t156 = -_c3*_c5 + _c4*_t65;
-    const double _t157 = _s1*qd6;
-    const double _t158 = -_c3*_t126;
-    const double _t159 = _t63*qd2 + _t63*qd3 + _t66*qd6 + qd4*(-_c1*_t60 + _t45*_t65) + qd5*(_s3*_t30 + _t34*_t57);
-    const double _t160 = _t48*_t65;
-    const double _t161 = _c1*_t156;
-    const double _t162 = _s3*_t126;
-    const double _t163 = _s5*_t34;
-    const double _t164 = -_c5*_t45 + _t48;
-    const double _t165 = _t129*qd2 + _t129*qd3 + _t163*qd4 + _t164*qd5;
-    const double _t166 = _s5*_t30;
-    Jx_dot[0] = _t6*qd3 + qd1*(_c0*_s1*d4 - _c0*_t10 - _c0*_t9 - _s0*d3) + qd2*(_s0*_t7 + _t6);
-    Jx_dot[1] = _s0*_t15*qd1 - _t13 - _t16*_t17;
-    Jx_dot[2] = _s0*_t14*qd1 - _t11*_t17 - _t13;
+    const double _t125 = _c5*_t43 + _t46;
+    const double _t126 = _c5*_t46 + _t43;
+    const double _t127 = _c5*_t26;
+    const double _t128 = _t127 - _t38;
+    const double _t129 = _t26*_t33;
+    const double _t130 = _t103*_t125 + _t108*_t126 + _t125*_t13 - _t128*_t71 - _t129*qd4;
+    const double _t131 = -_c0*_c5 + _c2*_t36;
+    const double _t132 = _s4*qd1;
+    const double _t133 = _s4*qd4;
+    const double _t134 = _c2*_t33 + _t30;
+    const double _t135 = _c4*qd5;
+    const double _t136 = _c0*_t43 + _t39*_t46;
+    const double _t137 = -_t101;
+    const double _t138 = -_t116;
+    const double _t139 = -_t112;
+    const double _t140 = -_t95;
+    const double _t141 = _s0*_t60 + _s0*_t61 + _s0*_t64 + _s0*_t65 + _s0*_t68 + _t19*_t70;
+    const double _t142 = _s2*_t31 + _t37*_t46;
+    const double _t143 = -_t98;
+    const double _t144 = _s0*qd3;
+    const double _t145 = _s0*qd5;
+    const double _t146 = _s0*_t105 + _s0*_t109 + _t102*_t144 + _t102*_t20 + _t107*_t145 + _t19*_t67;
+    const double _t147 = _c3*_c5*_s0*_s2 - _t45*_t46;
+    const double _t148 = _t26*_t36;
+    const double _t149 = _t125*_t144 + _t125*_t20 + _t126*_t145 + _t128*_t19 - _t148*qd4;
+    const double _t150 = _s0*_t43 + _t30*_t46;
+    const double _t151 = -_t102;
+    const double _t152 = _t151*qd6 + _t70*qd2 + _t70*qd3 + qd4*(-_c2*_t62 - _t38*_t63) + qd5*(-_c3*_t46 - _t43*_t58);
+    const double _t153 = _c4*_t63 + _t62;
+    const double _t154 = _c2*_t153;
+    const double _t155 = _s2*qd4;
+    const double _t156 = -_c3*_c5 + _c4*_t57;
+    const double _t157 = _s2*qd6;
+    const double _t158 = -_c3*_t125;
+    const double _t159 = _t59*qd6 + _t67*qd2 + _t67*qd3 + qd4*(-_c2*_t58 + _t38*_t57) + qd5*(_s3*_t46 + _t43*_t62);
+    const double _t160 = _c2*_t156;
+    const double _t161 = _t26*_t57;
+    const double _t162 = _s3*_t125;
+    const double _t163 = -_c5*_t38 + _t26;
+    const double _t164 = _s5*_t43;
+    const double _t165 = _t128*qd2 + _t128*qd3 + _t163*qd5 + _t164*qd4;
+    const double _t166 = _s5*_t46;
+    Jx_dot[0] = _t10*qd3 + qd1*(_c0*_s2*d4 - _c0*_t2 - _c0*_t5 - _s0*d3) + qd2*(_s0*_t7 + _t10);
+    Jx_dot[1] = _s0*_t17*qd1 - _t12*_t13 - _t15;
+    Jx_dot[2] = _s0*_t16*qd1 - _t11*_t13 - _t15;
     Jx_dot[3] = 0;
     Jx_dot[4] = 0;
     Jx_dot[5] = 0;
-    Jx_dot[6] = -_t18*qd3 + qd1*(_c0*d3 + _s0*_s1*d4 - _s0*_t10 - _s0*_t9) + qd2*(-_c0*_t7 - _t18);
-    Jx_dot[7] = -_t15*_t20 - _t16*_t21 - _t19;
-    Jx_dot[8] = -_t11*_t21 - _t14*_t20 - _t19;
+    Jx_dot[6] = -_t18*qd3 + qd1*(_c0*d3 + _s0*_s2*d4 - _s0*_t2 - _s0*_t5) + qd2*(-_c0*_t7 - _t18);
+    Jx_dot[7] = -_t12*_t20 - _t17*_t19 - _t21;
+    Jx_dot[8] = -_t11*_t20 - _t16*_t19 - _t21;
     Jx_dot[9] = 0;
     Jx_dot[10] = 0;
     Jx_dot[11] = 0;
     Jx_dot[12] = 0;
-    Jx_dot[13] = -_t15*qd2 + _t23;
+    Jx_dot[13] = -_t17*qd2 + _t23;
     Jx_dot[14] = _t22*qd2 + _t23;
     Jx_dot[15] = 0;
     Jx_dot[16] = 0;
@@ -4381,56 +4381,56 @@ void puma560_task_jacobian_dot(const double *restrict q, const double *restrict 
     Jx_dot[18] = _t56;
     Jx_dot[19] = _t72;
     Jx_dot[20] = _t72;
-    Jx_dot[21] = _t47*qd1 + _t51*qd4 + _t76*qd2 + _t76*qd3 + _t77*qd6 + qd5*(_c3*_t73 + _t27*_t35);
+    Jx_dot[21] = _t41*qd4 + _t50*qd1 + _t75*qd2 + _t75*qd3 + _t77*qd6 + qd5*(_c3*_t76 + _t33*_t44);
     Jx_dot[22] = _c3*_t79 + _c3*_t81 + _c3*_t82 + _c3*_t84 + _c3*_t88 + _t90*_t91;
     Jx_dot[23] = _t93;
-    Jx_dot[24] = _t101*qd6 - _t94*qd5 + _t96*qd2 + _t96*qd3 + _t97*qd4 + _t99*qd1;
+    Jx_dot[24] = _t101*qd6 + _t95*qd1 + _t97*qd2 + _t97*qd3 + _t98*qd4 - _t99*qd5;
     Jx_dot[25] = _t110;
     Jx_dot[26] = _t110;
-    Jx_dot[27] = _t111*qd2 + _t111*qd3 + _t112*qd6 + _t97*qd1 + _t98*qd4 + qd5*(-_s4*_t44 - _t34*_t41);
-    Jx_dot[28] = -_s3*_t78*qd4 - _s3*_t83*qd1 + _t113*qd2 + _t113*qd3 + _t114*_t90 - _t115*_t87;
-    Jx_dot[29] = _t101*qd1 + _t112*qd4 + _t116*qd5 + _t117*qd2 + _t117*qd3 + _t99*qd6;
+    Jx_dot[27] = _t111*qd2 + _t111*qd3 + _t112*qd6 + _t94*qd4 + _t98*qd1 + qd5*(-_s4*_t31 - _t34*_t43);
+    Jx_dot[28] = -_s3*_t78*qd1 - _s3*_t83*qd4 + _t113*qd2 + _t113*qd3 - _t114*_t87 + _t115*_t90;
+    Jx_dot[29] = _t101*qd1 + _t112*qd4 + _t116*qd2 + _t116*qd3 + _t117*qd5 + _t95*qd6;
     Jx_dot[30] = _t118 + _t120 + _t121 + _t122 + _t124;
     Jx_dot[31] = _t130;
     Jx_dot[32] = _t130;
-    Jx_dot[33] = -_t125*qd2 - _t125*qd3 + _t131*_t132 - _t133*_t134 + _t135*(_c0*_c1*_c5 - _t37);
-    Jx_dot[34] = _t123*qd1 + _t136*qd2 + _t136*qd3 + _t90*qd5 + qd4*(_c4*_t33 + _t27*_t45);
+    Jx_dot[33] = -_t129*qd2 - _t129*qd3 - _t131*_t132 + _t133*(_c0*_c2*_c5 - _t36) + _t134*_t135;
+    Jx_dot[34] = _t123*qd1 + _t136*qd2 + _t136*qd3 + _t90*qd5 + qd4*(_c4*_t30 + _t33*_t38);
     Jx_dot[35] = 0;
-    Jx_dot[36] = -_t116*qd5 + _t137*qd2 + _t137*qd3 + _t138*qd4 + _t139*qd1 + _t140*qd6;
+    Jx_dot[36] = -_t117*qd5 + _t137*qd1 + _t138*qd2 + _t138*qd3 + _t139*qd4 + _t140*qd6;
     Jx_dot[37] = _t141;
     Jx_dot[38] = _t141;
-    Jx_dot[39] = -_t100*qd4 + _t138*qd1 + _t142*qd2 + _t142*qd3 + _t143*qd6 + qd5*(-_s4*_t43 + _t35*_t37);
-    Jx_dot[40] = -_c3*_t118 - _c3*_t120 - _c3*_t121 - _c3*_t122 - _c3*_t124 + _s3*_t83*qd6;
-    Jx_dot[41] = _t139*qd6 + _t140*qd1 + _t143*qd4 + _t94*qd5 + _t95*qd2 + _t95*qd3;
+    Jx_dot[39] = -_t100*qd4 + _t139*qd1 + _t142*qd2 + _t142*qd3 + _t143*qd6 + qd5*(-_s4*_t40 + _t36*_t44);
+    Jx_dot[40] = -_c3*_t118 - _c3*_t120 - _c3*_t121 - _c3*_t122 - _c3*_t124 + _s3*_t78*qd6;
+    Jx_dot[41] = _t137*qd6 + _t140*qd1 + _t143*qd4 + _t96*qd2 + _t96*qd3 + _t99*qd5;
     Jx_dot[42] = _t93;
     Jx_dot[43] = _t146;
     Jx_dot[44] = _t146;
-    Jx_dot[45] = _t147*qd2 + _t147*qd3 + _t47*qd6 + _t54*qd4 + _t77*qd1 + qd5*(_c0*_c5*_s3*_s4 - _t37*_t62);
-    Jx_dot[46] = _s3*_t118 + _s3*_t120 + _s3*_t121 + _s3*_t122 + _s3*_t124 + _t114*_t83;
+    Jx_dot[45] = _t147*qd2 + _t147*qd3 + _t50*qd6 + _t54*qd4 + _t77*qd1 + qd5*(_c0*_c5*_s3*_s4 - _t36*_t66);
+    Jx_dot[46] = _s3*_t118 + _s3*_t120 + _s3*_t121 + _s3*_t122 + _s3*_t124 + _t115*_t78;
     Jx_dot[47] = _t56;
     Jx_dot[48] = _t79 + _t81 + _t82 + _t84 + _t88;
     Jx_dot[49] = _t149;
     Jx_dot[50] = _t149;
-    Jx_dot[51] = _t131*_t134 + _t132*_t133 + _t135*(_c1*_t33 + _t27) - _t148*qd2 - _t148*qd3;
-    Jx_dot[52] = _t150*qd2 + _t150*qd3 + _t83*qd5 + _t87*qd1 + qd4*(-_c4*_t42 + _t37*_t45);
+    Jx_dot[51] = _t131*_t135 + _t132*_t134 + _t133*(_c2*_t30 + _t33) - _t148*qd2 - _t148*qd3;
+    Jx_dot[52] = _t150*qd2 + _t150*qd3 + _t78*qd5 + _t87*qd1 + qd4*(-_c4*_t39 + _t36*_t38);
     Jx_dot[53] = 0;
     Jx_dot[54] = 0;
     Jx_dot[55] = _t152;
     Jx_dot[56] = _t152;
-    Jx_dot[57] = _c3*_s1*_s4*_s5*qd5 - _t154*qd2 - _t154*qd3 - _t155*(_c3*_c4*_c5 - _t65) + _t156*_t157;
-    Jx_dot[58] = -_c3*_t127*qd5 + _t129*_t91 + _t158*qd2 + _t158*qd3 + _t48*_t58*qd4;
-    Jx_dot[59] = _t102*qd4 + _t104*qd5 + _t151*qd2 + _t151*qd3 + _t70*qd6;
+    Jx_dot[57] = _c3*_s2*_s4*_s5*qd5 - _t154*qd2 - _t154*qd3 - _t155*(_c3*_c4*_c5 - _t57) + _t156*_t157;
+    Jx_dot[58] = -_c3*_t126*qd5 + _t128*_t91 + _t158*qd2 + _t158*qd3 + _t26*_t63*qd4;
+    Jx_dot[59] = _t104*qd4 + _t106*qd5 + _t151*qd2 + _t151*qd3 + _t70*qd6;
     Jx_dot[60] = 0;
     Jx_dot[61] = _t159;
     Jx_dot[62] = _t159;
-    Jx_dot[63] = _t153*_t157 + _t155*(_c4*_t57 + _t58) - _t160*qd5 + _t161*qd2 + _t161*qd3;
-    Jx_dot[64] = _t114*_t129 + _t115*_t127 - _t160*qd4 + _t162*qd2 + _t162*qd3;
-    Jx_dot[65] = _t59 + _t61 + _t64 + _t67 + _t68;
+    Jx_dot[63] = _t153*_t157 + _t155*(_c4*_t62 + _t63) + _t160*qd2 + _t160*qd3 - _t161*qd5;
+    Jx_dot[64] = _t114*_t126 + _t115*_t128 - _t161*qd4 + _t162*qd2 + _t162*qd3;
+    Jx_dot[65] = _t60 + _t61 + _t64 + _t65 + _t68;
     Jx_dot[66] = 0;
     Jx_dot[67] = _t165;
     Jx_dot[68] = _t165;
-    Jx_dot[69] = _t128*qd4 + _t163*qd2 + _t163*qd3 + _t166*qd5;
-    Jx_dot[70] = _t129*qd5 + _t164*qd2 + _t164*qd3 + _t166*qd4;
+    Jx_dot[69] = _t127*qd4 + _t164*qd2 + _t164*qd3 + _t166*qd5;
+    Jx_dot[70] = _t128*qd5 + _t163*qd2 + _t163*qd3 + _t166*qd4;
     Jx_dot[71] = 0;
 }
 
@@ -4450,7 +4450,7 @@ void puma560_task_jacobian_dot_batch(size_t count, const double *restrict q, con
     double qd4[KINEGEN_BLOCK_OF(32)];
     double qd5[KINEGEN_BLOCK_OF(32)];
     double qd6[KINEGEN_BLOCK_OF(32)];
-    double _t1[KINEGEN_BLOCK_OF(32)];
+    double _t3[KINEGEN_BLOCK_OF(32)];
     double _s0[KINEGEN_BLOCK_OF(32)];
     double _c0[KINEGEN_BLOCK_OF(32)];
     double _s1[KINEGEN_BLOCK_OF(32)];
@@ -4494,7 +4494,7 @@ void puma560_task_jacobian_dot_batch(size_t count, const double *restrict q, con
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t1[i] = q2[i] + q3[i];
+            _t3[i] = q2[i] + q3[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -4506,19 +4506,19 @@ void puma560_task_jacobian_dot_batch(size_t count, const double *restrict q, con
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s1[i] = sin(_t1[i]);
+            _s1[i] = sin(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c1[i] = cos(_t1[i]);
+            _c1[i] = cos(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s2[i] = sin(q2[i]);
+            _s2[i] = sin(_t3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(q2[i]);
+            _c2[i] = cos(_t3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -4548,176 +4548,176 @@ void puma560_task_jacobian_dot_batch(size_t count, const double *restrict q, con
         if (stream) {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t3 = _s1[i]*a3;
-                const double _t5 = _c1[i]*d4;
-                const double _t6 = _s0[i]*_t3 + _s0[i]*_t5;
-                const double _t7 = _s2[i]*a2;
-                const double _t9 = _c2[i]*a2;
-                const double _t10 = _c1[i]*a3;
-                const double _t11 = -_s1[i]*d4 + _t10;
-                const double _t12 = _t11*qd3[i];
-                const double _t13 = _c0[i]*_t12;
-                const double _t14 = _t3 + _t5;
-                const double _t15 = _t14 + _t7;
-                const double _t16 = _t11 + _t9;
-                const double _t17 = _c0[i]*qd2[i];
-                const double _t18 = _c0[i]*_t3 + _c0[i]*_t5;
-                const double _t19 = _s0[i]*_t12;
-                const double _t20 = _c0[i]*qd1[i];
-                const double _t21 = _s0[i]*qd2[i];
-                const double _t22 = -_t14;
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = _s1[i]*a2;
+                const double _t8 = _s2[i]*a3;
+                const double _t9 = _c2[i]*d4;
+                const double _t10 = _s0[i]*_t8 + _s0[i]*_t9;
+                const double _t11 = -_s2[i]*d4 + _t5;
+                const double _t12 = _t11 + _t2;
+                const double _t13 = _c0[i]*qd2[i];
+                const double _t14 = _t11*qd3[i];
+                const double _t15 = _c0[i]*_t14;
+                const double _t16 = _t8 + _t9;
+                const double _t17 = _t16 + _t7;
+                const double _t18 = _c0[i]*_t8 + _c0[i]*_t9;
+                const double _t19 = _c0[i]*qd1[i];
+                const double _t20 = _s0[i]*qd2[i];
+                const double _t21 = _s0[i]*_t14;
+                const double _t22 = -_t16;
                 const double _t23 = _t22*qd3[i];
-                const double _t27 = _c0[i]*_s5[i];
-                const double _t28 = _s4[i]*_t27;
-                const double _t30 = _c4[i]*_s1[i];
-                const double _t31 = _s0[i]*_t30;
-                const double _t33 = _c5[i]*_s0[i];
-                const double _t34 = _c1[i]*_s4[i];
-                const double _t35 = _c3[i]*_t34;
-                const double _t37 = _s0[i]*_s5[i];
-                const double _t38 = _s3[i]*_t37;
-                const double _t39 = _c3[i]*_t33;
-                const double _t40 = _s0[i]*_t35 - _s1[i]*_t38 + _t30*_t39;
-                const double _t41 = _s3[i]*_t27;
-                const double _t42 = _c0[i]*_c5[i];
-                const double _t43 = _c3[i]*_t42;
-                const double _t44 = _s3[i]*_t33;
-                const double _t45 = _c1[i]*_c4[i];
-                const double _t46 = _c3[i]*_t45;
-                const double _t47 = _c1[i]*_t44 - _c4[i]*_t43 + _t37*_t46 + _t41;
-                const double _t48 = _s1[i]*_s4[i];
-                const double _t49 = _c3[i]*_t48;
-                const double _t50 = _c3[i]*_t37;
-                const double _t51 = _c1[i]*_t41 + _c4[i]*_t50 - _t43*_t45 + _t44;
-                const double _t52 = _c0[i]*_t49 + _t51;
-                const double _t53 = _s3[i]*_t48;
-                const double _t54 = _c1[i]*_t50 + _c4[i]*_t41 - _t43 + _t44*_t45;
+                const double _t26 = _s2[i]*_s4[i];
+                const double _t27 = _c3[i]*_t26;
+                const double _t30 = _c5[i]*_s0[i];
+                const double _t31 = _s3[i]*_t30;
+                const double _t33 = _c0[i]*_s5[i];
+                const double _t34 = _s3[i]*_t33;
+                const double _t36 = _s0[i]*_s5[i];
+                const double _t37 = _c3[i]*_t36;
+                const double _t38 = _c2[i]*_c4[i];
+                const double _t39 = _c0[i]*_c5[i];
+                const double _t40 = _c3[i]*_t39;
+                const double _t41 = _c2[i]*_t34 + _c4[i]*_t37 + _t31 - _t38*_t40;
+                const double _t42 = _c0[i]*_t27 + _t41;
+                const double _t43 = _c2[i]*_s4[i];
+                const double _t44 = _c3[i]*_t43;
+                const double _t45 = _s3[i]*_t36;
+                const double _t46 = _c4[i]*_s2[i];
+                const double _t47 = _c3[i]*_t30;
+                const double _t48 = _s0[i]*_t44 - _s2[i]*_t45 + _t46*_t47;
+                const double _t49 = _c3[i]*_t38;
+                const double _t50 = _c2[i]*_t31 - _c4[i]*_t40 + _t34 + _t36*_t49;
+                const double _t51 = _s4[i]*_t33;
+                const double _t52 = _s0[i]*_t46;
+                const double _t53 = _s3[i]*_t26;
+                const double _t54 = _c2[i]*_t37 + _c4[i]*_t34 + _t31*_t38 - _t40;
                 const double _t55 = -_s0[i]*_t53 + _t54;
-                const double _t56 = _t40*qd2[i] + _t40*qd3[i] + _t47*qd4[i] + _t52*qd1[i] + _t55*qd6[i] + qd5[i]*(_c3[i]*_t28 + _c3[i]*_t31 + _t33*_t35);
-                const double _t57 = _c5[i]*_s3[i];
-                const double _t58 = _c3[i]*_s5[i];
-                const double _t59 = qd4[i]*(_s1[i]*_t57 + _t30*_t58);
-                const double _t60 = _c3[i]*_c5[i];
-                const double _t61 = qd5[i]*(-_t46 + _t48*_t60);
-                const double _t62 = _s3[i]*_t34;
-                const double _t63 = _s1[i]*_t58 + _t30*_t57 + _t62;
-                const double _t64 = _t63*qd6[i];
-                const double _t65 = _s3[i]*_s5[i];
-                const double _t66 = _c1[i]*_t65 - _t45*_t60 + _t49;
-                const double _t67 = _t66*qd2[i];
-                const double _t68 = _t66*qd3[i];
-                const double _t69 = -_s1[i]*_s3[i]*_s5[i] + _t30*_t60 + _t35;
+                const double _t56 = _t42*qd1[i] + _t48*qd2[i] + _t48*qd3[i] + _t50*qd4[i] + _t55*qd6[i] + qd5[i]*(_c3[i]*_t51 + _c3[i]*_t52 + _t30*_t44);
+                const double _t57 = _s3[i]*_s5[i];
+                const double _t58 = _c3[i]*_c5[i];
+                const double _t59 = _c2[i]*_t57 + _t27 - _t38*_t58;
+                const double _t60 = _t59*qd2[i];
+                const double _t61 = _t59*qd3[i];
+                const double _t62 = _c5[i]*_s3[i];
+                const double _t63 = _c3[i]*_s5[i];
+                const double _t64 = qd4[i]*(_s2[i]*_t62 + _t46*_t63);
+                const double _t65 = qd5[i]*(_t26*_t58 - _t49);
+                const double _t66 = _s3[i]*_t43;
+                const double _t67 = _s2[i]*_t63 + _t46*_t62 + _t66;
+                const double _t68 = _t67*qd6[i];
+                const double _t69 = -_s2[i]*_s3[i]*_s5[i] + _t44 + _t46*_t58;
                 const double _t70 = -_t69;
                 const double _t71 = _s0[i]*qd1[i];
-                const double _t72 = _c0[i]*_t59 + _c0[i]*_t61 + _c0[i]*_t64 + _c0[i]*_t67 + _c0[i]*_t68 - _t70*_t71;
-                const double _t73 = _s4[i]*_t33;
-                const double _t74 = _s3[i]*_t42;
-                const double _t75 = _c3[i]*_t27;
-                const double _t76 = _s1[i]*_t74 + _t30*_t75;
-                const double _t77 = -_c1[i]*_t43 + _c4[i]*_t44 + _t41*_t45 + _t50;
-                const double _t78 = _t27*_t34 + _t73;
-                const double _t79 = _t78*qd4[i];
-                const double _t80 = -_c0[i]*_t45 + _t42*_t48;
+                const double _t72 = _c0[i]*_t60 + _c0[i]*_t61 + _c0[i]*_t64 + _c0[i]*_t65 + _c0[i]*_t68 - _t70*_t71;
+                const double _t73 = _s3[i]*_t39;
+                const double _t74 = _c3[i]*_t33;
+                const double _t75 = _s2[i]*_t73 + _t46*_t74;
+                const double _t76 = _s4[i]*_t30;
+                const double _t77 = -_c2[i]*_t40 + _c4[i]*_t31 + _t34*_t38 + _t37;
+                const double _t78 = _t30*_t43 + _t51 + _t52;
+                const double _t79 = _t78*qd1[i];
+                const double _t80 = -_c0[i]*_t38 + _t26*_t39;
                 const double _t81 = _t80*qd2[i];
                 const double _t82 = _t80*qd3[i];
-                const double _t83 = _t28 + _t31 + _t33*_t34;
-                const double _t84 = _t83*qd1[i];
-                const double _t85 = _c4[i]*_t37;
-                const double _t86 = _c0[i]*_t48;
-                const double _t87 = -_t42*_t45 + _t85 + _t86;
+                const double _t83 = _t33*_t43 + _t76;
+                const double _t84 = _t83*qd4[i];
+                const double _t85 = _c0[i]*_t26;
+                const double _t86 = _c4[i]*_t36;
+                const double _t87 = -_t38*_t39 + _t85 + _t86;
                 const double _t88 = _t87*qd5[i];
-                const double _t89 = _c0[i]*_t30;
-                const double _t90 = -_s0[i]*_s4[i]*_s5[i] + _t34*_t42 + _t89;
+                const double _t89 = _c0[i]*_t46;
+                const double _t90 = -_s0[i]*_s4[i]*_s5[i] + _t39*_t43 + _t89;
                 const double _t91 = _s3[i]*qd6[i];
-                const double _t92 = _c0[i]*_t62 + _s1[i]*_t75 + _t30*_t74;
-                const double _t93 = _t52*qd6[i] + _t55*qd1[i] + _t77*qd4[i] + _t92*qd2[i] + _t92*qd3[i] + qd5[i]*(-_s3[i]*_s4[i]*_t37 + _s3[i]*_t89 + _t42*_t62);
-                const double _t94 = _s3[i]*_t31 + _s4[i]*_t41 + _t34*_t44;
-                const double _t95 = _s0[i]*_t62 + _s1[i]*_t50 + _t30*_t44;
-                const double _t96 = -_t95;
-                const double _t97 = _c1[i]*_t39 + _c4[i]*_t74 - _s3[i]*_t37*_t45 + _t75;
-                const double _t98 = _c1[i]*_t75 - _s3[i]*_t85 + _t39 + _t45*_t74;
-                const double _t99 = -_s3[i]*_t86 + _t98;
-                const double _t100 = -_c1[i]*_t38 + _c4[i]*_t75 + _t33*_t46 + _t74;
-                const double _t101 = -_s0[i]*_t49 + _t100;
-                const double _t102 = -_c3[i]*_c5[i]*_s1[i] + _t30*_t65;
-                const double _t103 = -_t102*qd4[i];
-                const double _t104 = -_c1[i]*_c4[i]*_s3[i] + _t48*_t57;
-                const double _t105 = -_t104;
-                const double _t106 = _c0[i]*qd5[i];
-                const double _t107 = _c1[i]*_t58 + _t45*_t57 - _t53;
-                const double _t108 = _c0[i]*qd3[i];
+                const double _t92 = _c0[i]*_t66 + _s2[i]*_t74 + _t46*_t73;
+                const double _t93 = _t42*qd6[i] + _t55*qd1[i] + _t77*qd4[i] + _t92*qd2[i] + _t92*qd3[i] + qd5[i]*(-_s3[i]*_s4[i]*_t36 + _s3[i]*_t89 + _t39*_t66);
+                const double _t94 = _c2[i]*_t74 - _s3[i]*_t86 + _t38*_t73 + _t47;
+                const double _t95 = -_s3[i]*_t85 + _t94;
+                const double _t96 = _s0[i]*_t66 + _s2[i]*_t37 + _t31*_t46;
+                const double _t97 = -_t96;
+                const double _t98 = _c2[i]*_t47 + _c4[i]*_t73 - _s3[i]*_t36*_t38 + _t74;
+                const double _t99 = _s3[i]*_t52 + _s4[i]*_t34 + _t31*_t43;
+                const double _t100 = -_c2[i]*_t45 + _c4[i]*_t74 + _t30*_t49 + _t73;
+                const double _t101 = -_s0[i]*_t27 + _t100;
+                const double _t102 = _c2[i]*_t63 + _t38*_t62 - _t53;
+                const double _t103 = _c0[i]*qd3[i];
+                const double _t104 = -_c3[i]*_c5[i]*_s2[i] + _t46*_t57;
+                const double _t105 = -_t104*qd4[i];
+                const double _t106 = -_c2[i]*_c4[i]*_s3[i] + _t26*_t62;
+                const double _t107 = -_t106;
+                const double _t108 = _c0[i]*qd5[i];
                 const double _t109 = _t69*qd6[i];
-                const double _t110 = _c0[i]*_t103 + _c0[i]*_t109 + _t105*_t106 + _t107*_t108 + _t107*_t17 - _t63*_t71;
-                const double _t111 = _c0[i]*_c3[i]*_c5[i]*_s1[i] - _t30*_t41;
-                const double _t112 = _c1[i]*_t74 + _c4[i]*_t39 + _t27*_t46 - _t38;
+                const double _t110 = _c0[i]*_t105 + _c0[i]*_t109 + _t102*_t103 + _t102*_t13 + _t107*_t108 - _t67*_t71;
+                const double _t111 = _c0[i]*_c3[i]*_c5[i]*_s2[i] - _t34*_t46;
+                const double _t112 = _c2[i]*_t73 + _c4[i]*_t47 + _t33*_t49 - _t45;
                 const double _t113 = -_s3[i]*_t80;
-                const double _t114 = _c3[i]*qd6[i];
-                const double _t115 = _s3[i]*qd5[i];
-                const double _t116 = _c3[i]*_t89 - _s4[i]*_t50 + _t34*_t43;
-                const double _t117 = _c0[i]*_t35 - _s1[i]*_t41 + _t30*_t43;
-                const double _t118 = qd4[i]*(_c0[i]*_c5[i]*_s4[i] - _t34*_t37);
-                const double _t119 = _c1[i]*_c4[i]*_s0[i] - _t33*_t48;
+                const double _t114 = _s3[i]*qd5[i];
+                const double _t115 = _c3[i]*qd6[i];
+                const double _t116 = _c0[i]*_t44 - _s2[i]*_t34 + _t40*_t46;
+                const double _t117 = _c3[i]*_t89 - _s4[i]*_t37 + _t40*_t43;
+                const double _t118 = _t90*qd1[i];
+                const double _t119 = _c2[i]*_c4[i]*_s0[i] - _t26*_t30;
                 const double _t120 = _t119*qd2[i];
                 const double _t121 = _t119*qd3[i];
-                const double _t122 = _t90*qd1[i];
-                const double _t123 = _c4[i]*_t27 - _s0[i]*_t48 + _t33*_t45;
+                const double _t122 = qd4[i]*(_c0[i]*_c5[i]*_s4[i] - _t36*_t43);
+                const double _t123 = _c4[i]*_t33 - _s0[i]*_t26 + _t30*_t38;
                 const double _t124 = _t123*qd5[i];
-                const double _t125 = _t27*_t48;
-                const double _t126 = _c5[i]*_t34 + _t30;
-                const double _t127 = _c5[i]*_t30 + _t34;
-                const double _t128 = _c5[i]*_t48;
-                const double _t129 = _t128 - _t45;
-                const double _t130 = _t106*_t127 + _t108*_t126 - _t125*qd4[i] + _t126*_t17 - _t129*_t71;
-                const double _t131 = _c1[i]*_t27 + _t33;
-                const double _t132 = _c4[i]*qd5[i];
-                const double _t133 = -_c0[i]*_c5[i] + _c1[i]*_t37;
-                const double _t134 = _s4[i]*qd1[i];
-                const double _t135 = _s4[i]*qd4[i];
-                const double _t136 = _c0[i]*_t34 + _t30*_t42;
-                const double _t137 = -_t117;
-                const double _t138 = -_t112;
-                const double _t139 = -_t101;
-                const double _t140 = -_t99;
-                const double _t141 = _s0[i]*_t59 + _s0[i]*_t61 + _s0[i]*_t64 + _s0[i]*_t67 + _s0[i]*_t68 + _t20*_t70;
-                const double _t142 = _s1[i]*_t44 + _t30*_t50;
-                const double _t143 = -_t97;
-                const double _t144 = _s0[i]*qd5[i];
-                const double _t145 = _s0[i]*qd3[i];
-                const double _t146 = _s0[i]*_t103 + _s0[i]*_t109 + _t105*_t144 + _t107*_t145 + _t107*_t21 + _t20*_t63;
-                const double _t147 = _c3[i]*_c5[i]*_s0[i]*_s1[i] - _t30*_t38;
-                const double _t148 = _t37*_t48;
-                const double _t149 = _t126*_t145 + _t126*_t21 + _t127*_t144 + _t129*_t20 - _t148*qd4[i];
-                const double _t150 = _s0[i]*_t34 + _t30*_t33;
-                const double _t151 = -_t107;
-                const double _t152 = _t151*qd6[i] + _t70*qd2[i] + _t70*qd3[i] + qd4[i]*(-_c1[i]*_t57 - _t45*_t58) + qd5[i]*(-_c3[i]*_t30 - _t34*_t60);
-                const double _t153 = _c4[i]*_t58 + _t57;
-                const double _t154 = _c1[i]*_t153;
-                const double _t155 = _s1[i]*qd4[i];
-                const double _t156 = -_c3[i]*_c5[i] + _c4[i]*_t65;
-                const double _t157 = _s1[i]*qd6[i];
-                const double _t158 = -_c3[i]*_t126;
-                const double _t159 = _t63*qd2[i] + _t63*qd3[i] + _t66*qd6[i] + qd4[i]*(-_c1[i]*_t60 + _t45*_t65) + qd5[i]*(_s3[i]*_t30 + _t34*_t57);
-                const double _t160 = _t48*_t65;
-                const double _t161 = _c1[i]*_t156;
-                const double _t162 = _s3[i]*_t126;
-                const double _t163 = _s5[i]*_t34;
-                const double _t164 = -_c5[i]*_t45 + _t48;
-                const double _t165 = _t129*qd2[i] + _t129*qd3[i] + _t163*qd4[i] + _t164*qd5[i];
-                const double _t166 = _s5[i]*_t30;
-                _Jx_dot_block[0][i] = _t6*qd3[i] + qd1[i]*(_c0[i]*_s1[i]*d4 - _c0[i]*_t10 - _c0[i]*_t9 - _s0[i]*d3) + qd2[i]*(_s0[i]*_t7 + _t6);
-                _Jx_dot_block[1][i] = _s0[i]*_t15*qd1[i] - _t13 - _t16*_t17;
-                _Jx_dot_block[2][i] = _s0[i]*_t14*qd1[i] - _t11*_t17 - _t13;
+                const double _t125 = _c5[i]*_t43 + _t46;
+                const double _t126 = _c5[i]*_t46 + _t43;
+                const double _t127 = _c5[i]*_t26;
+                const double _t128 = _t127 - _t38;
+                const double _t129 = _t26*_t33;
+                const double _t130 = _t103*_t125 + _t108*_t126 + _t125*_t13 - _t128*_t71 - _t129*qd4[i];
+                const double _t131 = -_c0[i]*_c5[i] + _c2[i]*_t36;
+                const double _t132 = _s4[i]*qd1[i];
+                const double _t133 = _s4[i]*qd4[i];
+                const double _t134 = _c2[i]*_t33 + _t30;
+                const double _t135 = _c4[i]*qd5[i];
+                const double _t136 = _c0[i]*_t43 + _t39*_t46;
+                const double _t137 = -_t101;
+                const double _t138 = -_t116;
+                const double _t139 = -_t112;
+                const double _t140 = -_t95;
+                const double _t141 = _s0[i]*_t60 + _s0[i]*_t61 + _s0[i]*_t64 + _s0[i]*_t65 + _s0[i]*_t68 + _t19*_t70;
+                const double _t142 = _s2[i]*_t31 + _t37*_t46;
+                const double _t143 = -_t98;
+                const double _t144 = _s0[i]*qd3[i];
+                const double _t145 = _s0[i]*qd5[i];
+                const double _t146 = _s0[i]*_t105 + _s0[i]*_t109 + _t102*_t144 + _t102*_t20 + _t107*_t145 + _t19*_t67;
+                const double _t147 = _c3[i]*_c5[i]*_s0[i]*_s2[i] - _t45*_t46;
+                const double _t148 = _t26*_t36;
+                const double _t149 = _t125*_t144 + _t125*_t20 + _t126*_t145 + _t128*_t19 - _t148*qd4[i];
+                const double _t150 = _s0[i]*_t43 + _t30*_t46;
+                const double _t151 = -_t102;
+                const double _t152 = _t151*qd6[i] + _t70*qd2[i] + _t70*qd3[i] + qd4[i]*(-_c2[i]*_t62 - _t38*_t63) + qd5[i]*(-_c3[i]*_t46 - _t43*_t58);
+                const double _t153 = _c4[i]*_t63 + _t62;
+                const double _t154 = _c2[i]*_t153;
+                const double _t155 = _s2[i]*qd4[i];
+                const double _t156 = -_c3[i]*_c5[i] + _c4[i]*_t57;
+                const double _t157 = _s2[i]*qd6[i];
+                const double _t158 = -_c3[i]*_t125;
+                const double _t159 = _t59*qd6[i] + _t67*qd2[i] + _t67*qd3[i] + qd4[i]*(-_c2[i]*_t58 + _t38*_t57) + qd5[i]*(_s3[i]*_t46 + _t43*_t62);
+                const double _t160 = _c2[i]*_t156;
+                const double _t161 = _t26*_t57;
+                const double _t162 = _s3[i]*_t125;
+                const double _t163 = -_c5[i]*_t38 + _t26;
+                const double _t164 = _s5[i]*_t43;
+                const double _t165 = _t128*qd2[i] + _t128*qd3[i] + _t163*qd5[i] + _t164*qd4[i];
+                const double _t166 = _s5[i]*_t46;
+                _Jx_dot_block[0][i] = _t10*qd3[i] + qd1[i]*(_c0[i]*_s2[i]*d4 - _c0[i]*_t2 - _c0[i]*_t5 - _s0[i]*d3) + qd2[i]*(_s0[i]*_t7 + _t10);
+                _Jx_dot_block[1][i] = _s0[i]*_t17*qd1[i] - _t12*_t13 - _t15;
+                _Jx_dot_block[2][i] = _s0[i]*_t16*qd1[i] - _t11*_t13 - _t15;
                 _Jx_dot_block[3][i] = 0;
                 _Jx_dot_block[4][i] = 0;
                 _Jx_dot_block[5][i] = 0;
-                _Jx_dot_block[6][i] = -_t18*qd3[i] + qd1[i]*(_c0[i]*d3 + _s0[i]*_s1[i]*d4 - _s0[i]*_t10 - _s0[i]*_t9) + qd2[i]*(-_c0[i]*_t7 - _t18);
-                _Jx_dot_block[7][i] = -_t15*_t20 - _t16*_t21 - _t19;
-                _Jx_dot_block[8][i] = -_t11*_t21 - _t14*_t20 - _t19;
+                _Jx_dot_block[6][i] = -_t18*qd3[i] + qd1[i]*(_c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5) + qd2[i]*(-_c0[i]*_t7 - _t18);
+                _Jx_dot_block[7][i] = -_t12*_t20 - _t17*_t19 - _t21;
+                _Jx_dot_block[8][i] = -_t11*_t20 - _t16*_t19 - _t21;
                 _Jx_dot_block[9][i] = 0;
                 _Jx_dot_block[10][i] = 0;
                 _Jx_dot_block[11][i] = 0;
                 _Jx_dot_block[12][i] = 0;
-                _Jx_dot_block[13][i] = -_t15*qd2[i] + _t23;
+                _Jx_dot_block[13][i] = -_t17*qd2[i] + _t23;
                 _Jx_dot_block[14][i] = _t22*qd2[i] + _t23;
                 _Jx_dot_block[15][i] = 0;
                 _Jx_dot_block[16][i] = 0;
@@ -4725,56 +4725,56 @@ void puma560_task_jacobian_dot_batch(size_t count, const double *restrict q, con
                 _Jx_dot_block[18][i] = _t56;
                 _Jx_dot_block[19][i] = _t72;
                 _Jx_dot_block[20][i] = _t72;
-                _Jx_dot_block[21][i] = _t47*qd1[i] + _t51*qd4[i] + _t76*qd2[i] + _t76*qd3[i] + _t77*qd6[i] + qd5[i]*(_c3[i]*_t73 + _t27*_t35);
+                _Jx_dot_block[21][i] = _t41*qd4[i] + _t50*qd1[i] + _t75*qd2[i] + _t75*qd3[i] + _t77*qd6[i] + qd5[i]*(_c3[i]*_t76 + _t33*_t44);
                 _Jx_dot_block[22][i] = _c3[i]*_t79 + _c3[i]*_t81 + _c3[i]*_t82 + _c3[i]*_t84 + _c3[i]*_t88 + _t90*_t91;
                 _Jx_dot_block[23][i] = _t93;
-                _Jx_dot_block[24][i] = _t101*qd6[i] - _t94*qd5[i] + _t96*qd2[i] + _t96*qd3[i] + _t97*qd4[i] + _t99*qd1[i];
+                _Jx_dot_block[24][i] = _t101*qd6[i] + _t95*qd1[i] + _t97*qd2[i] + _t97*qd3[i] + _t98*qd4[i] - _t99*qd5[i];
                 _Jx_dot_block[25][i] = _t110;
                 _Jx_dot_block[26][i] = _t110;
-                _Jx_dot_block[27][i] = _t111*qd2[i] + _t111*qd3[i] + _t112*qd6[i] + _t97*qd1[i] + _t98*qd4[i] + qd5[i]*(-_s4[i]*_t44 - _t34*_t41);
-                _Jx_dot_block[28][i] = -_s3[i]*_t78*qd4[i] - _s3[i]*_t83*qd1[i] + _t113*qd2[i] + _t113*qd3[i] + _t114*_t90 - _t115*_t87;
-                _Jx_dot_block[29][i] = _t101*qd1[i] + _t112*qd4[i] + _t116*qd5[i] + _t117*qd2[i] + _t117*qd3[i] + _t99*qd6[i];
+                _Jx_dot_block[27][i] = _t111*qd2[i] + _t111*qd3[i] + _t112*qd6[i] + _t94*qd4[i] + _t98*qd1[i] + qd5[i]*(-_s4[i]*_t31 - _t34*_t43);
+                _Jx_dot_block[28][i] = -_s3[i]*_t78*qd1[i] - _s3[i]*_t83*qd4[i] + _t113*qd2[i] + _t113*qd3[i] - _t114*_t87 + _t115*_t90;
+                _Jx_dot_block[29][i] = _t101*qd1[i] + _t112*qd4[i] + _t116*qd2[i] + _t116*qd3[i] + _t117*qd5[i] + _t95*qd6[i];
                 _Jx_dot_block[30][i] = _t118 + _t120 + _t121 + _t122 + _t124;
                 _Jx_dot_block[31][i] = _t130;
                 _Jx_dot_block[32][i] = _t130;
-                _Jx_dot_block[33][i] = -_t125*qd2[i] - _t125*qd3[i] + _t131*_t132 - _t133*_t134 + _t135*(_c0[i]*_c1[i]*_c5[i] - _t37);
-                _Jx_dot_block[34][i] = _t123*qd1[i] + _t136*qd2[i] + _t136*qd3[i] + _t90*qd5[i] + qd4[i]*(_c4[i]*_t33 + _t27*_t45);
+                _Jx_dot_block[33][i] = -_t129*qd2[i] - _t129*qd3[i] - _t131*_t132 + _t133*(_c0[i]*_c2[i]*_c5[i] - _t36) + _t134*_t135;
+                _Jx_dot_block[34][i] = _t123*qd1[i] + _t136*qd2[i] + _t136*qd3[i] + _t90*qd5[i] + qd4[i]*(_c4[i]*_t30 + _t33*_t38);
                 _Jx_dot_block[35][i] = 0;
-                _Jx_dot_block[36][i] = -_t116*qd5[i] + _t137*qd2[i] + _t137*qd3[i] + _t138*qd4[i] + _t139*qd1[i] + _t140*qd6[i];
+                _Jx_dot_block[36][i] = -_t117*qd5[i] + _t137*qd1[i] + _t138*qd2[i] + _t138*qd3[i] + _t139*qd4[i] + _t140*qd6[i];
                 _Jx_dot_block[37][i] = _t141;
                 _Jx_dot_block[38][i] = _t141;
-                _Jx_dot_block[39][i] = -_t100*qd4[i] + _t138*qd1[i] + _t142*qd2[i] + _t142*qd3[i] + _t143*qd6[i] + qd5[i]*(-_s4[i]*_t43 + _t35*_t37);
-                _Jx_dot_block[40][i] = -_c3[i]*_t118 - _c3[i]*_t120 - _c3[i]*_t121 - _c3[i]*_t122 - _c3[i]*_t124 + _s3[i]*_t83*qd6[i];
-                _Jx_dot_block[41][i] = _t139*qd6[i] + _t140*qd1[i] + _t143*qd4[i] + _t94*qd5[i] + _t95*qd2[i] + _t95*qd3[i];
+                _Jx_dot_block[39][i] = -_t100*qd4[i] + _t139*qd1[i] + _t142*qd2[i] + _t142*qd3[i] + _t143*qd6[i] + qd5[i]*(-_s4[i]*_t40 + _t36*_t44);
+                _Jx_dot_block[40][i] = -_c3[i]*_t118 - _c3[i]*_t120 - _c3[i]*_t121 - _c3[i]*_t122 - _c3[i]*_t124 + _s3[i]*_t78*qd6[i];
+                _Jx_dot_block[41][i] = _t137*qd6[i] + _t140*qd1[i] + _t143*qd4[i] + _t96*qd2[i] + _t96*qd3[i] + _t99*qd5[i];
                 _Jx_dot_block[42][i] = _t93;
                 _Jx_dot_block[43][i] = _t146;
                 _Jx_dot_block[44][i] = _t146;
-                _Jx_dot_block[45][i] = _t147*qd2[i] + _t147*qd3[i] + _t47*qd6[i] + _t54*qd4[i] + _t77*qd1[i] + qd5[i]*(_c0[i]*_c5[i]*_s3[i]*_s4[i] - _t37*_t62);
-                _Jx_dot_block[46][i] = _s3[i]*_t118 + _s3[i]*_t120 + _s3[i]*_t121 + _s3[i]*_t122 + _s3[i]*_t124 + _t114*_t83;
+                _Jx_dot_block[45][i] = _t147*qd2[i] + _t147*qd3[i] + _t50*qd6[i] + _t54*qd4[i] + _t77*qd1[i] + qd5[i]*(_c0[i]*_c5[i]*_s3[i]*_s4[i] - _t36*_t66);
+                _Jx_dot_block[46][i] = _s3[i]*_t118 + _s3[i]*_t120 + _s3[i]*_t121 + _s3[i]*_t122 + _s3[i]*_t124 + _t115*_t78;
                 _Jx_dot_block[47][i] = _t56;
                 _Jx_dot_block[48][i] = _t79 + _t81 + _t82 + _t84 + _t88;
                 _Jx_dot_block[49][i] = _t149;
                 _Jx_dot_block[50][i] = _t149;
-                _Jx_dot_block[51][i] = _t131*_t134 + _t132*_t133 + _t135*(_c1[i]*_t33 + _t27) - _t148*qd2[i] - _t148*qd3[i];
-                _Jx_dot_block[52][i] = _t150*qd2[i] + _t150*qd3[i] + _t83*qd5[i] + _t87*qd1[i] + qd4[i]*(-_c4[i]*_t42 + _t37*_t45);
+                _Jx_dot_block[51][i] = _t131*_t135 + _t132*_t134 + _t133*(_c2[i]*_t30 + _t33) - _t148*qd2[i] - _t148*qd3[i];
+                _Jx_dot_block[52][i] = _t150*qd2[i] + _t150*qd3[i] + _t78*qd5[i] + _t87*qd1[i] + qd4[i]*(-_c4[i]*_t39 + _t36*_t38);
                 _Jx_dot_block[53][i] = 0;
                 _Jx_dot_block[54][i] = 0;
                 _Jx_dot_block[55][i] = _t152;
                 _Jx_dot_block[56][i] = _t152;
-                _Jx_dot_block[57][i] = _c3[i]*_s1[i]*_s4[i]*_s5[i]*qd5[i] - _t154*qd2[i] - _t154*qd3[i] - _t155*(_c3[i]*_c4[i]*_c5[i] - _t65) + _t156*_t157;
-                _Jx_dot_block[58][i] = -_c3[i]*_t127*qd5[i] + _t129*_t91 + _t158*qd2[i] + _t158*qd3[i] + _t48*_t58*qd4[i];
-                _Jx_dot_block[59][i] = _t102*qd4[i] + _t104*qd5[i] + _t151*qd2[i] + _t151*qd3[i] + _t70*qd6[i];
+                _Jx_dot_block[57][i] = _c3[i]*_s2[i]*_s4[i]*_s5[i]*qd5[i] - _t154*qd2[i] - _t154*qd3[i] - _t155*(_c3[i]*_c4[i]*_c5[i] - _t57) + _t156*_t157;
+                _Jx_dot_block[58][i] = -_c3[i]*_t126*qd5[i] + _t128*_t91 + _t158*qd2[i] + _t158*qd3[i] + _t26*_t63*qd4[i];
+                _Jx_dot_block[59][i] = _t104*qd4[i] + _t106*qd5[i] + _t151*qd2[i] + _t151*qd3[i] + _t70*qd6[i];
                 _Jx_dot_block[60][i] = 0;
                 _Jx_dot_block[61][i] = _t159;
                 _Jx_dot_block[62][i] = _t159;
-                _Jx_dot_block[63][i] = _t153*_t157 + _t155*(_c4[i]*_t57 + _t58) - _t160*qd5[i] + _t161*qd2[i] + _t161*qd3[i];
-                _Jx_dot_block[64][i] = _t114*_t129 + _t115*_t127 - _t160*qd4[i] + _t162*qd2[i] + _t162*qd3[i];
-                _Jx_dot_block[65][i] = _t59 + _t61 + _t64 + _t67 + _t68;
+                _Jx_dot_block[63][i] = _t153*_t157 + _t155*(_c4[i]*_t62 + _t63) + _t160*qd2[i] + _t160*qd3[i] - _t161*qd5[i];
+                _Jx_dot_block[64][i] = _t114*_t126 + _t115*_t128 - _t161*qd4[i] + _t162*qd2[i] + _t162*qd3[i];
+                _Jx_dot_block[65][i] = _t60 + _t61 + _t64 + _t65 + _t68;
                 _Jx_dot_block[66][i] = 0;
                 _Jx_dot_block[67][i] = _t165;
                 _Jx_dot_block[68][i] = _t165;
-                _Jx_dot_block[69][i] = _t128*qd4[i] + _t163*qd2[i] + _t163*qd3[i] + _t166*qd5[i];
-                _Jx_dot_block[70][i] = _t129*qd5[i] + _t164*qd2[i] + _t164*qd3[i] + _t166*qd4[i];
+                _Jx_dot_block[69][i] = _t127*qd4[i] + _t164*qd2[i] + _t164*qd3[i] + _t166*qd5[i];
+                _Jx_dot_block[70][i] = _t128*qd5[i] + _t163*qd2[i] + _t163*qd3[i] + _t166*qd4[i];
                 _Jx_dot_block[71][i] = 0;
             }
         } else
@@ -4782,176 +4782,176 @@ void puma560_task_jacobian_dot_batch(size_t count, const double *restrict q, con
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t3 = _s1[i]*a3;
-                const double _t5 = _c1[i]*d4;
-                const double _t6 = _s0[i]*_t3 + _s0[i]*_t5;
-                const double _t7 = _s2[i]*a2;
-                const double _t9 = _c2[i]*a2;
-                const double _t10 = _c1[i]*a3;
-                const double _t11 = -_s1[i]*d4 + _t10;
-                const double _t12 = _t11*qd3[i];
-                const double _t13 = _c0[i]*_t12;
-                const double _t14 = _t3 + _t5;
-                const double _t15 = _t14 + _t7;
-                const double _t16 = _t11 + _t9;
-                const double _t17 = _c0[i]*qd2[i];
-                const double _t18 = _c0[i]*_t3 + _c0[i]*_t5;
-                const double _t19 = _s0[i]*_t12;
-                const double _t20 = _c0[i]*qd1[i];
-                const double _t21 = _s0[i]*qd2[i];
-                const double _t22 = -_t14;
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = _s1[i]*a2;
+                const double _t8 = _s2[i]*a3;
+                const double _t9 = _c2[i]*d4;
+                const double _t10 = _s0[i]*_t8 + _s0[i]*_t9;
+                const double _t11 = -_s2[i]*d4 + _t5;
+                const double _t12 = _t11 + _t2;
+                const double _t13 = _c0[i]*qd2[i];
+                const double _t14 = _t11*qd3[i];
+                const double _t15 = _c0[i]*_t14;
+                const double _t16 = _t8 + _t9;
+                const double _t17 = _t16 + _t7;
+                const double _t18 = _c0[i]*_t8 + _c0[i]*_t9;
+                const double _t19 = _c0[i]*qd1[i];
+                const double _t20 = _s0[i]*qd2[i];
+                const double _t21 = _s0[i]*_t14;
+                const double _t22 = -_t16;
                 const double _t23 = _t22*qd3[i];
-                const double _t27 = _c0[i]*_s5[i];
-                const double _t28 = _s4[i]*_t27;
-                const double _t30 = _c4[i]*_s1[i];
-                const double _t31 = _s0[i]*_t30;
-                const double _t33 = _c5[i]*_s0[i];
-                const double _t34 = _c1[i]*_s4[i];
-                const double _t35 = _c3[i]*_t34;
-                const double _t37 = _s0[i]*_s5[i];
-                const double _t38 = _s3[i]*_t37;
-                const double _t39 = _c3[i]*_t33;
-                const double _t40 = _s0[i]*_t35 - _s1[i]*_t38 + _t30*_t39;
-                const double _t41 = _s3[i]*_t27;
-                const double _t42 = _c0[i]*_c5[i];
-                const double _t43 = _c3[i]*_t42;
-                const double _t44 = _s3[i]*_t33;
-                const double _t45 = _c1[i]*_c4[i];
-                const double _t46 = _c3[i]*_t45;
-                const double _t47 = _c1[i]*_t44 - _c4[i]*_t43 + _t37*_t46 + _t41;
-                const double _t48 = _s1[i]*_s4[i];
-                const double _t49 = _c3[i]*_t48;
-                const double _t50 = _c3[i]*_t37;
-                const double _t51 = _c1[i]*_t41 + _c4[i]*_t50 - _t43*_t45 + _t44;
-                const double _t52 = _c0[i]*_t49 + _t51;
-                const double _t53 = _s3[i]*_t48;
-                const double _t54 = _c1[i]*_t50 + _c4[i]*_t41 - _t43 + _t44*_t45;
+                const double _t26 = _s2[i]*_s4[i];
+                const double _t27 = _c3[i]*_t26;
+                const double _t30 = _c5[i]*_s0[i];
+                const double _t31 = _s3[i]*_t30;
+                const double _t33 = _c0[i]*_s5[i];
+                const double _t34 = _s3[i]*_t33;
+                const double _t36 = _s0[i]*_s5[i];
+                const double _t37 = _c3[i]*_t36;
+                const double _t38 = _c2[i]*_c4[i];
+                const double _t39 = _c0[i]*_c5[i];
+                const double _t40 = _c3[i]*_t39;
+                const double _t41 = _c2[i]*_t34 + _c4[i]*_t37 + _t31 - _t38*_t40;
+                const double _t42 = _c0[i]*_t27 + _t41;
+                const double _t43 = _c2[i]*_s4[i];
+                const double _t44 = _c3[i]*_t43;
+                const double _t45 = _s3[i]*_t36;
+                const double _t46 = _c4[i]*_s2[i];
+                const double _t47 = _c3[i]*_t30;
+                const double _t48 = _s0[i]*_t44 - _s2[i]*_t45 + _t46*_t47;
+                const double _t49 = _c3[i]*_t38;
+                const double _t50 = _c2[i]*_t31 - _c4[i]*_t40 + _t34 + _t36*_t49;
+                const double _t51 = _s4[i]*_t33;
+                const double _t52 = _s0[i]*_t46;
+                const double _t53 = _s3[i]*_t26;
+                const double _t54 = _c2[i]*_t37 + _c4[i]*_t34 + _t31*_t38 - _t40;
                 const double _t55 = -_s0[i]*_t53 + _t54;
-                const double _t56 = _t40*qd2[i] + _t40*qd3[i] + _t47*qd4[i] + _t52*qd1[i] + _t55*qd6[i] + qd5[i]*(_c3[i]*_t28 + _c3[i]*_t31 + _t33*_t35);
-                const double _t57 = _c5[i]*_s3[i];
-                const double _t58 = _c3[i]*_s5[i];
-                const double _t59 = qd4[i]*(_s1[i]*_t57 + _t30*_t58);
-                const double _t60 = _c3[i]*_c5[i];
-                const double _t61 = qd5[i]*(-_t46 + _t48*_t60);
-                const double _t62 = _s3[i]*_t34;
-                const double _t63 = _s1[i]*_t58 + _t30*_t57 + _t62;
-                const double _t64 = _t63*qd6[i];
-                const double _t65 = _s3[i]*_s5[i];
-                const double _t66 = _c1[i]*_t65 - _t45*_t60 + _t49;
-                const double _t67 = _t66*qd2[i];
-                const double _t68 = _t66*qd3[i];
-                const double _t69 = -_s1[i]*_s3[i]*_s5[i] + _t30*_t60 + _t35;
+                const double _t56 = _t42*qd1[i] + _t48*qd2[i] + _t48*qd3[i] + _t50*qd4[i] + _t55*qd6[i] + qd5[i]*(_c3[i]*_t51 + _c3[i]*_t52 + _t30*_t44);
+                const double _t57 = _s3[i]*_s5[i];
+                const double _t58 = _c3[i]*_c5[i];
+                const double _t59 = _c2[i]*_t57 + _t27 - _t38*_t58;
+                const double _t60 = _t59*qd2[i];
+                const double _t61 = _t59*qd3[i];
+                const double _t62 = _c5[i]*_s3[i];
+                const double _t63 = _c3[i]*_s5[i];
+                const double _t64 = qd4[i]*(_s2[i]*_t62 + _t46*_t63);
+                const double _t65 = qd5[i]*(_t26*_t58 - _t49);
+                const double _t66 = _s3[i]*_t43;
+                const double _t67 = _s2[i]*_t63 + _t46*_t62 + _t66;
+                const double _t68 = _t67*qd6[i];
+                const double _t69 = -_s2[i]*_s3[i]*_s5[i] + _t44 + _t46*_t58;
                 const double _t70 = -_t69;
                 const double _t71 = _s0[i]*qd1[i];
-                const double _t72 = _c0[i]*_t59 + _c0[i]*_t61 + _c0[i]*_t64 + _c0[i]*_t67 + _c0[i]*_t68 - _t70*_t71;
-                const double _t73 = _s4[i]*_t33;
-                const double _t74 = _s3[i]*_t42;
-                const double _t75 = _c3[i]*_t27;
-                const double _t76 = _s1[i]*_t74 + _t30*_t75;
-                const double _t77 = -_c1[i]*_t43 + _c4[i]*_t44 + _t41*_t45 + _t50;
-                const double _t78 = _t27*_t34 + _t73;
-                const double _t79 = _t78*qd4[i];
-                const double _t80 = -_c0[i]*_t45 + _t42*_t48;
+                const double _t72 = _c0[i]*_t60 + _c0[i]*_t61 + _c0[i]*_t64 + _c0[i]*_t65 + _c0[i]*_t68 - _t70*_t71;
+                const double _t73 = _s3[i]*_t39;
+                const double _t74 = _c3[i]*_t33;
+                const double _t75 = _s2[i]*_t73 + _t46*_t74;
+                const double _t76 = _s4[i]*_t30;
+                const double _t77 = -_c2[i]*_t40 + _c4[i]*_t31 + _t34*_t38 + _t37;
+                const double _t78 = _t30*_t43 + _t51 + _t52;
+                const double _t79 = _t78*qd1[i];
+                const double _t80 = -_c0[i]*_t38 + _t26*_t39;
                 const double _t81 = _t80*qd2[i];
                 const double _t82 = _t80*qd3[i];
-                const double _t83 = _t28 + _t31 + _t33*_t34;
-                const double _t84 = _t83*qd1[i];
-                const double _t85 = _c4[i]*_t37;
-                const double _t86 = _c0[i]*_t48;
-                const double _t87 = -_t42*_t45 + _t85 + _t86;
+                const double _t83 = _t33*_t43 + _t76;
+                const double _t84 = _t83*qd4[i];
+                const double _t85 = _c0[i]*_t26;
+                const double _t86 = _c4[i]*_t36;
+                const double _t87 = -_t38*_t39 + _t85 + _t86;
                 const double _t88 = _t87*qd5[i];
-                const double _t89 = _c0[i]*_t30;
-                const double _t90 = -_s0[i]*_s4[i]*_s5[i] + _t34*_t42 + _t89;
+                const double _t89 = _c0[i]*_t46;
+                const double _t90 = -_s0[i]*_s4[i]*_s5[i] + _t39*_t43 + _t89;
                 const double _t91 = _s3[i]*qd6[i];
-                const double _t92 = _c0[i]*_t62 + _s1[i]*_t75 + _t30*_t74;
-                const double _t93 = _t52*qd6[i] + _t55*qd1[i] + _t77*qd4[i] + _t92*qd2[i] + _t92*qd3[i] + qd5[i]*(-_s3[i]*_s4[i]*_t37 + _s3[i]*_t89 + _t42*_t62);
-                const double _t94 = _s3[i]*_t31 + _s4[i]*_t41 + _t34*_t44;
-                const double _t95 = _s0[i]*_t62 + _s1[i]*_t50 + _t30*_t44;
-                const double _t96 = -_t95;
-                const double _t97 = _c1[i]*_t39 + _c4[i]*_t74 - _s3[i]*_t37*_t45 + _t75;
-                const double _t98 = _c1[i]*_t75 - _s3[i]*_t85 + _t39 + _t45*_t74;
-                const double _t99 = -_s3[i]*_t86 + _t98;
-                const double _t100 = -_c1[i]*_t38 + _c4[i]*_t75 + _t33*_t46 + _t74;
-                const double _t101 = -_s0[i]*_t49 + _t100;
-                const double _t102 = -_c3[i]*_c5[i]*_s1[i] + _t30*_t65;
-                const double _t103 = -_t102*qd4[i];
-                const double _t104 = -_c1[i]*_c4[i]*_s3[i] + _t48*_t57;
-                const double _t105 = -_t104;
-                const double _t106 = _c0[i]*qd5[i];
-                const double _t107 = _c1[i]*_t58 + _t45*_t57 - _t53;
-                const double _t108 = _c0[i]*qd3[i];
+                const double _t92 = _c0[i]*_t66 + _s2[i]*_t74 + _t46*_t73;
+                const double _t93 = _t42*qd6[i] + _t55*qd1[i] + _t77*qd4[i] + _t92*qd2[i] + _t92*qd3[i] + qd5[i]*(-_s3[i]*_s4[i]*_t36 + _s3[i]*_t89 + _t39*_t66);
+                const double _t94 = _c2[i]*_t74 - _s3[i]*_t86 + _t38*_t73 + _t47;
+                const double _t95 = -_s3[i]*_t85 + _t94;
+                const double _t96 = _s0[i]*_t66 + _s2[i]*_t37 + _t31*_t46;
+                const double _t97 = -_t96;
+                const double _t98 = _c2[i]*_t47 + _c4[i]*_t73 - _s3[i]*_t36*_t38 + _t74;
+                const double _t99 = _s3[i]*_t52 + _s4[i]*_t34 + _t31*_t43;
+                const double _t100 = -_c2[i]*_t45 + _c4[i]*_t74 + _t30*_t49 + _t73;
+                const double _t101 = -_s0[i]*_t27 + _t100;
+                const double _t102 = _c2[i]*_t63 + _t38*_t62 - _t53;
+                const double _t103 = _c0[i]*qd3[i];
+                const double _t104 = -_c3[i]*_c5[i]*_s2[i] + _t46*_t57;
+                const double _t105 = -_t104*qd4[i];
+                const double _t106 = -_c2[i]*_c4[i]*_s3[i] + _t26*_t62;
+                const double _t107 = -_t106;
+                const double _t108 = _c0[i]*qd5[i];
                 const double _t109 = _t69*qd6[i];
-                const double _t110 = _c0[i]*_t103 + _c0[i]*_t109 + _t105*_t106 + _t107*_t108 + _t107*_t17 - _t63*_t71;
-                const double _t111 = _c0[i]*_c3[i]*_c5[i]*_s1[i] - _t30*_t41;
-                const double _t112 = _c1[i]*_t74 + _c4[i]*_t39 + _t27*_t46 - _t38;
+                const double _t110 = _c0[i]*_t105 + _c0[i]*_t109 + _t102*_t103 + _t102*_t13 + _t107*_t108 - _t67*_t71;
+                const double _t111 = _c0[i]*_c3[i]*_c5[i]*_s2[i] - _t34*_t46;
+                const double _t112 = _c2[i]*_t73 + _c4[i]*_t47 + _t33*_t49 - _t45;
                 const double _t113 = -_s3[i]*_t80;
-                const double _t114 = _c3[i]*qd6[i];
-                const double _t115 = _s3[i]*qd5[i];
-                const double _t116 = _c3[i]*_t89 - _s4[i]*_t50 + _t34*_t43;
-                const double _t117 = _c0[i]*_t35 - _s1[i]*_t41 + _t30*_t43;
-                const double _t118 = qd4[i]*(_c0[i]*_c5[i]*_s4[i] - _t34*_t37);
-                const double _t119 = _c1[i]*_c4[i]*_s0[i] - _t33*_t48;
+                const double _t114 = _s3[i]*qd5[i];
+                const double _t115 = _c3[i]*qd6[i];
+                const double _t116 = _c0[i]*_t44 - _s2[i]*_t34 + _t40*_t46;
+                const double _t117 = _c3[i]*_t89 - _s4[i]*_t37 + _t40*_t43;
+                const double _t118 = _t90*qd1[i];
+                const double _t119 = _c2[i]*_c4[i]*_s0[i] - _t26*_t30;
                 const double _t120 = _t119*qd2[i];
                 const double _t121 = _t119*qd3[i];
-                const double _t122 = _t90*qd1[i];
-                const double _t123 = _c4[i]*_t27 - _s0[i]*_t48 + _t33*_t45;
+                const double _t122 = qd4[i]*(_c0[i]*_c5[i]*_s4[i] - _t36*_t43);
+                const double _t123 = _c4[i]*_t33 - _s0[i]*_t26 + _t30*_t38;
                 const double _t124 = _t123*qd5[i];
-                const double _t125 = _t27*_t48;
-                const double _t126 = _c5[i]*_t34 + _t30;
-                const double _t127 = _c5[i]*_t30 + _t34;
-                const double _t128 = _c5[i]*_t48;
-                const double _t129 = _t128 - _t45;
-                const double _t130 = _t106*_t127 + _t108*_t126 - _t125*qd4[i] + _t126*_t17 - _t129*_t71;
-                const double _t131 = _c1[i]*_t27 + _t33;
-                const double _t132 = _c4[i]*qd5[i];
-                const double _t133 = -_c0[i]*_c5[i] + _c1[i]*_t37;
-                const double _t134 = _s4[i]*qd1[i];
-                const double _t135 = _s4[i]*qd4[i];
-                const double _t136 = _c0[i]*_t34 + _t30*_t42;
-                const double _t137 = -_t117;
-                const double _t138 = -_t112;
-                const double _t139 = -_t101;
-                const double _t140 = -_t99;
-                const double _t141 = _s0[i]*_t59 + _s0[i]*_t61 + _s0[i]*_t64 + _s0[i]*_t67 + _s0[i]*_t68 + _t20*_t70;
-                const double _t142 = _s1[i]*_t44 + _t30*_t50;
-                const double _t143 = -_t97;
-                const double _t144 = _s0[i]*qd5[i];
-                const double _t145 = _s0[i]*qd3[i];
-                const double _t146 = _s0[i]*_t103 + _s0[i]*_t109 + _t105*_t144 + _t107*_t145 + _t107*_t21 + _t20*_t63;
-                const double _t147 = _c3[i]*_c5[i]*_s0[i]*_s1[i] - _t30*_t38;
-                const double _t148 = _t37*_t48;
-                const double _t149 = _t126*_t145 + _t126*_t21 + _t127*_t144 + _t129*_t20 - _t148*qd4[i];
-                const double _t150 = _s0[i]*_t34 + _t30*_t33;
-                const double _t151 = -_t107;
-                const double _t152 = _t151*qd6[i] + _t70*qd2[i] + _t70*qd3[i] + qd4[i]*(-_c1[i]*_t57 - _t45*_t58) + qd5[i]*(-_c3[i]*_t30 - _t34*_t60);
-                const double _t153 = _c4[i]*_t58 + _t57;
-                const double _t154 = _c1[i]*_t153;
-                const double _t155 = _s1[i]*qd4[i];
-                const double _t156 = -_c3[i]*_c5[i] + _c4[i]*_t65;
-                const double _t157 = _s1[i]*qd6[i];
-                const double _t158 = -_c3[i]*_t126;
-                const double _t159 = _t63*qd2[i] + _t63*qd3[i] + _t66*qd6[i] + qd4[i]*(-_c1[i]*_t60 + _t45*_t65) + qd5[i]*(_s3[i]*_t30 + _t34*_t57);
-                const double _t160 = _t48*_t65;
-                const double _t161 = _c1[i]*_t156;
-                const double _t162 = _s3[i]*_t126;
-                const double _t163 = _s5[i]*_t34;
-                const double _t164 = -_c5[i]*_t45 + _t48;
-                const double _t165 = _t129*qd2[i] + _t129*qd3[i] + _t163*qd4[i] + _t164*qd5[i];
-                const double _t166 = _s5[i]*_t30;
-                Jx_dot[72 * (start + i) + 0] = _t6*qd3[i] + qd1[i]*(_c0[i]*_s1[i]*d4 - _c0[i]*_t10 - _c0[i]*_t9 - _s0[i]*d3) + qd2[i]*(_s0[i]*_t7 + _t6);
-                Jx_dot[72 * (start + i) + 1] = _s0[i]*_t15*qd1[i] - _t13 - _t16*_t17;
-                Jx_dot[72 * (start + i) + 2] = _s0[i]*_t14*qd1[i] - _t11*_t17 - _t13;
+                const double _t125 = _c5[i]*_t43 + _t46;
+                const double _t126 = _c5[i]*_t46 + _t43;
+                const double _t127 = _c5[i]*_t26;
+                const double _t128 = _t127 - _t38;
+                const double _t129 = _t26*_t33;
+                const double _t130 = _t103*_t125 + _t108*_t126 + _t125*_t13 - _t128*_t71 - _t129*qd4[i];
+                const double _t131 = -_c0[i]*_c5[i] + _c2[i]*_t36;
+                const double _t132 = _s4[i]*qd1[i];
+                const double _t133 = _s4[i]*qd4[i];
+                const double _t134 = _c2[i]*_t33 + _t30;
+                const double _t135 = _c4[i]*qd5[i];
+                const double _t136 = _c0[i]*_t43 + _t39*_t46;
+                const double _t137 = -_t101;
+                const double _t138 = -_t116;
+                const double _t139 = -_t112;
+                const double _t140 = -_t95;
+                const double _t141 = _s0[i]*_t60 + _s0[i]*_t61 + _s0[i]*_t64 + _s0[i]*_t65 + _s0[i]*_t68 + _t19*_t70;
+                const double _t142 = _s2[i]*_t31 + _t37*_t46;
+                const double _t143 = -_t98;
+                const double _t144 = _s0[i]*qd3[i];
+                const double _t145 = _s0[i]*qd5[i];
+                const double _t146 = _s0[i]*_t105 + _s0[i]*_t109 + _t102*_t144 + _t102*_t20 + _t107*_t145 + _t19*_t67;
+                const double _t147 = _c3[i]*_c5[i]*_s0[i]*_s2[i] - _t45*_t46;
+                const double _t148 = _t26*_t36;
+                const double _t149 = _t125*_t144 + _t125*_t20 + _t126*_t145 + _t128*_t19 - _t148*qd4[i];
+                const double _t150 = _s0[i]*_t43 + _t30*_t46;
+                const double _t151 = -_t102;
+                const double _t152 = _t151*qd6[i] + _t70*qd2[i] + _t70*qd3[i] + qd4[i]*(-_c2[i]*_t62 - _t38*_t63) + qd5[i]*(-_c3[i]*_t46 - _t43*_t58);
+                const double _t153 = _c4[i]*_t63 + _t62;
+                const double _t154 = _c2[i]*_t153;
+                const double _t155 = _s2[i]*qd4[i];
+                const double _t156 = -_c3[i]*_c5[i] + _c4[i]*_t57;
+                const double _t157 = _s2[i]*qd6[i];
+                const double _t158 = -_c3[i]*_t125;
+                const double _t159 = _t59*qd6[i] + _t67*qd2[i] + _t67*qd3[i] + qd4[i]*(-_c2[i]*_t58 + _t38*_t57) + qd5[i]*(_s3[i]*_t46 + _t43*_t62);
+                const double _t160 = _c2[i]*_t156;
+                const double _t161 = _t26*_t57;
+                const double _t162 = _s3[i]*_t125;
+                const double _t163 = -_c5[i]*_t38 + _t26;
+                const double _t164 = _s5[i]*_t43;
+                const double _t165 = _t128*qd2[i] + _t128*qd3[i] + _t163*qd5[i] + _t164*qd4[i];
+                const double _t166 = _s5[i]*_t46;
+                Jx_dot[72 * (start + i) + 0] = _t10*qd3[i] + qd1[i]*(_c0[i]*_s2[i]*d4 - _c0[i]*_t2 - _c0[i]*_t5 - _s0[i]*d3) + qd2[i]*(_s0[i]*_t7 + _t10);
+                Jx_dot[72 * (start + i) + 1] = _s0[i]*_t17*qd1[i] - _t12*_t13 - _t15;
+                Jx_dot[72 * (start + i) + 2] = _s0[i]*_t16*qd1[i] - _t11*_t13 - _t15;
                 Jx_dot[72 * (start + i) + 3] = 0;
                 Jx_dot[72 * (start + i) + 4] = 0;
                 Jx_dot[72 * (start + i) + 5] = 0;
-                Jx_dot[72 * (start + i) + 6] = -_t18*qd3[i] + qd1[i]*(_c0[i]*d3 + _s0[i]*_s1[i]*d4 - _s0[i]*_t10 - _s0[i]*_t9) + qd2[i]*(-_c0[i]*_t7 - _t18);
-                Jx_dot[72 * (start + i) + 7] = -_t15*_t20 - _t16*_t21 - _t19;
-                Jx_dot[72 * (start + i) + 8] = -_t11*_t21 - _t14*_t20 - _t19;
+                Jx_dot[72 * (start + i) + 6] = -_t18*qd3[i] + qd1[i]*(_c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5) + qd2[i]*(-_c0[i]*_t7 - _t18);
+                Jx_dot[72 * (start + i) + 7] = -_t12*_t20 - _t17*_t19 - _t21;
+                Jx_dot[72 * (start + i) + 8] = -_t11*_t20 - _t16*_t19 - _t21;
                 Jx_dot[72 * (start + i) + 9] = 0;
                 Jx_dot[72 * (start + i) + 10] = 0;
                 Jx_dot[72 * (start + i) + 11] = 0;
                 Jx_dot[72 * (start + i) + 12] = 0;
-                Jx_dot[72 * (start + i) + 13] = -_t15*qd2[i] + _t23;
+                Jx_dot[72 * (start + i) + 13] = -_t17*qd2[i] + _t23;
                 Jx_dot[72 * (start + i) + 14] = _t22*qd2[i] + _t23;
                 Jx_dot[72 * (start + i) + 15] = 0;
                 Jx_dot[72 * (start + i) + 16] = 0;
@@ -4959,56 +4959,56 @@ void puma560_task_jacobian_dot_batch(size_t count, const double *restrict q, con
                 Jx_dot[72 * (start + i) + 18] = _t56;
                 Jx_dot[72 * (start + i) + 19] = _t72;
                 Jx_dot[72 * (start + i) + 20] = _t72;
-                Jx_dot[72 * (start + i) + 21] = _t47*qd1[i] + _t51*qd4[i] + _t76*qd2[i] + _t76*qd3[i] + _t77*qd6[i] + qd5[i]*(_c3[i]*_t73 + _t27*_t35);
+                Jx_dot[72 * (start + i) + 21] = _t41*qd4[i] + _t50*qd1[i] + _t75*qd2[i] + _t75*qd3[i] + _t77*qd6[i] + qd5[i]*(_c3[i]*_t76 + _t33*_t44);
                 Jx_dot[72 * (start + i) + 22] = _c3[i]*_t79 + _c3[i]*_t81 + _c3[i]*_t82 + _c3[i]*_t84 + _c3[i]*_t88 + _t90*_t91;
                 Jx_dot[72 * (start + i) + 23] = _t93;
-                Jx_dot[72 * (start + i) + 24] = _t101*qd6[i] - _t94*qd5[i] + _t96*qd2[i] + _t96*qd3[i] + _t97*qd4[i] + _t99*qd1[i];
+                Jx_dot[72 * (start + i) + 24] = _t101*qd6[i] + _t95*qd1[i] + _t97*qd2[i] + _t97*qd3[i] + _t98*qd4[i] - _t99*qd5[i];
                 Jx_dot[72 * (start + i) + 25] = _t110;
                 Jx_dot[72 * (start + i) + 26] = _t110;
-                Jx_dot[72 * (start + i) + 27] = _t111*qd2[i] + _t111*qd3[i] + _t112*qd6[i] + _t97*qd1[i] + _t98*qd4[i] + qd5[i]*(-_s4[i]*_t44 - _t34*_t41);
-                Jx_dot[72 * (start + i) + 28] = -_s3[i]*_t78*qd4[i] - _s3[i]*_t83*qd1[i] + _t113*qd2[i] + _t113*qd3[i] + _t114*_t90 - _t115*_t87;
-                Jx_dot[72 * (start + i) + 29] = _t101*qd1[i] + _t112*qd4[i] + _t116*qd5[i] + _t117*qd2[i] + _t117*qd3[i] + _t99*qd6[i];
+                Jx_dot[72 * (start + i) + 27] = _t111*qd2[i] + _t111*qd3[i] + _t112*qd6[i] + _t94*qd4[i] + _t98*qd1[i] + qd5[i]*(-_s4[i]*_t31 - _t34*_t43);
+                Jx_dot[72 * (start + i) + 28] = -_s3[i]*_t78*qd1[i] - _s3[i]*_t83*qd4[i] + _t113*qd2[i] + _t113*qd3[i] - _t114*_t87 + _t115*_t90;
+                Jx_dot[72 * (start + i) + 29] = _t101*qd1[i] + _t112*qd4[i] + _t116*qd2[i] + _t116*qd3[i] + _t117*qd5[i] + _t95*qd6[i];
                 Jx_dot[72 * (start + i) + 30] = _t118 + _t120 + _t121 + _t122 + _t124;
                 Jx_dot[72 * (start + i) + 31] = _t130;
                 Jx_dot[72 * (start + i) + 32] = _t130;
-                Jx_dot[72 * (start + i) + 33] = -_t125*qd2[i] - _t125*qd3[i] + _t131*_t132 - _t133*_t134 + _t135*(_c0[i]*_c1[i]*_c5[i] - _t37);
-                Jx_dot[72 * (start + i) + 34] = _t123*qd1[i] + _t136*qd2[i] + _t136*qd3[i] + _t90*qd5[i] + qd4[i]*(_c4[i]*_t33 + _t27*_t45);
+                Jx_dot[72 * (start + i) + 33] = -_t129*qd2[i] - _t129*qd3[i] - _t131*_t132 + _t133*(_c0[i]*_c2[i]*_c5[i] - _t36) + _t134*_t135;
+                Jx_dot[72 * (start + i) + 34] = _t123*qd1[i] + _t136*qd2[i] + _t136*qd3[i] + _t90*qd5[i] + qd4[i]*(_c4[i]*_t30 + _t33*_t38);
                 Jx_dot[72 * (start + i) + 35] = 0;
-                Jx_dot[72 * (start + i) + 36] = -_t116*qd5[i] + _t137*qd2[i] + _t137*qd3[i] + _t138*qd4[i] + _t139*qd1[i] + _t140*qd6[i];
+                Jx_dot[72 * (start + i) + 36] = -_t117*qd5[i] + _t137*qd1[i] + _t138*qd2[i] + _t138*qd3[i] + _t139*qd4[i] + _t140*qd6[i];
                 Jx_dot[72 * (start + i) + 37] = _t141;
                 Jx_dot[72 * (start + i) + 38] = _t141;
-                Jx_dot[72 * (start + i) + 39] = -_t100*qd4[i] + _t138*qd1[i] + _t142*qd2[i] + _t142*qd3[i] + _t143*qd6[i] + qd5[i]*(-_s4[i]*_t43 + _t35*_t37);
-                Jx_dot[72 * (start + i) + 40] = -_c3[i]*_t118 - _c3[i]*_t120 - _c3[i]*_t121 - _c3[i]*_t122 - _c3[i]*_t124 + _s3[i]*_t83*qd6[i];
-                Jx_dot[72 * (start + i) + 41] = _t139*qd6[i] + _t140*qd1[i] + _t143*qd4[i] + _t94*qd5[i] + _t95*qd2[i] + _t95*qd3[i];
+                Jx_dot[72 * (start + i) + 39] = -_t100*qd4[i] + _t139*qd1[i] + _t142*qd2[i] + _t142*qd3[i] + _t143*qd6[i] + qd5[i]*(-_s4[i]*_t40 + _t36*_t44);
+                Jx_dot[72 * (start + i) + 40] = -_c3[i]*_t118 - _c3[i]*_t120 - _c3[i]*_t121 - _c3[i]*_t122 - _c3[i]*_t124 + _s3[i]*_t78*qd6[i];
+                Jx_dot[72 * (start + i) + 41] = _t137*qd6[i] + _t140*qd1[i] + _t143*qd4[i] + _t96*qd2[i] + _t96*qd3[i] + _t99*qd5[i];
                 Jx_dot[72 * (start + i) + 42] = _t93;
                 Jx_dot[72 * (start + i) + 43] = _t146;
                 Jx_dot[72 * (start + i) + 44] = _t146;
-                Jx_dot[72 * (start + i) + 45] = _t147*qd2[i] + _t147*qd3[i] + _t47*qd6[i] + _t54*qd4[i] + _t77*qd1[i] + qd5[i]*(_c0[i]*_c5[i]*_s3[i]*_s4[i] - _t37*_t62);
-                Jx_dot[72 * (start + i) + 46] = _s3[i]*_t118 + _s3[i]*_t120 + _s3[i]*_t121 + _s3[i]*_t122 + _s3[i]*_t124 + _t114*_t83;
+                Jx_dot[72 * (start + i) + 45] = _t147*qd2[i] + _t147*qd3[i] + _t50*qd6[i] + _t54*qd4[i] + _t77*qd1[i] + qd5[i]*(_c0[i]*_c5[i]*_s3[i]*_s4[i] - _t36*_t66);
+                Jx_dot[72 * (start + i) + 46] = _s3[i]*_t118 + _s3[i]*_t120 + _s3[i]*_t121 + _s3[i]*_t122 + _s3[i]*_t124 + _t115*_t78;
                 Jx_dot[72 * (start + i) + 47] = _t56;
                 Jx_dot[72 * (start + i) + 48] = _t79 + _t81 + _t82 + _t84 + _t88;
                 Jx_dot[72 * (start + i) + 49] = _t149;
                 Jx_dot[72 * (start + i) + 50] = _t149;
-                Jx_dot[72 * (start + i) + 51] = _t131*_t134 + _t132*_t133 + _t135*(_c1[i]*_t33 + _t27) - _t148*qd2[i] - _t148*qd3[i];
-                Jx_dot[72 * (start + i) + 52] = _t150*qd2[i] + _t150*qd3[i] + _t83*qd5[i] + _t87*qd1[i] + qd4[i]*(-_c4[i]*_t42 + _t37*_t45);
+                Jx_dot[72 * (start + i) + 51] = _t131*_t135 + _t132*_t134 + _t133*(_c2[i]*_t30 + _t33) - _t148*qd2[i] - _t148*qd3[i];
+                Jx_dot[72 * (start + i) + 52] = _t150*qd2[i] + _t150*qd3[i] + _t78*qd5[i] + _t87*qd1[i] + qd4[i]*(-_c4[i]*_t39 + _t36*_t38);
                 Jx_dot[72 * (start + i) + 53] = 0;
                 Jx_dot[72 * (start + i) + 54] = 0;
                 Jx_dot[72 * (start + i) + 55] = _t152;
                 Jx_dot[72 * (start + i) + 56] = _t152;
-                Jx_dot[72 * (start + i) + 57] = _c3[i]*_s1[i]*_s4[i]*_s5[i]*qd5[i] - _t154*qd2[i] - _t154*qd3[i] - _t155*(_c3[i]*_c4[i]*_c5[i] - _t65) + _t156*_t157;
-                Jx_dot[72 * (start + i) + 58] = -_c3[i]*_t127*qd5[i] + _t129*_t91 + _t158*qd2[i] + _t158*qd3[i] + _t48*_t58*qd4[i];
-                Jx_dot[72 * (start + i) + 59] = _t102*qd4[i] + _t104*qd5[i] + _t151*qd2[i] + _t151*qd3[i] + _t70*qd6[i];
+                Jx_dot[72 * (start + i) + 57] = _c3[i]*_s2[i]*_s4[i]*_s5[i]*qd5[i] - _t154*qd2[i] - _t154*qd3[i] - _t155*(_c3[i]*_c4[i]*_c5[i] - _t57) + _t156*_t157;
+                Jx_dot[72 * (start + i) + 58] = -_c3[i]*_t126*qd5[i] + _t128*_t91 + _t158*qd2[i] + _t158*qd3[i] + _t26*_t63*qd4[i];
+                Jx_dot[72 * (start + i) + 59] = _t104*qd4[i] + _t106*qd5[i] + _t151*qd2[i] + _t151*qd3[i] + _t70*qd6[i];
                 Jx_dot[72 * (start + i) + 60] = 0;
                 Jx_dot[72 * (start + i) + 61] = _t159;
                 Jx_dot[72 * (start + i) + 62] = _t159;
-                Jx_dot[72 * (start + i) + 63] = _t153*_t157 + _t155*(_c4[i]*_t57 + _t58) - _t160*qd5[i] + _t161*qd2[i] + _t161*qd3[i];
-                Jx_dot[72 * (start + i) + 64] = _t114*_t129 + _t115*_t127 - _t160*qd4[i] + _t162*qd2[i] + _t162*qd3[i];
-                Jx_dot[72 * (start + i) + 65] = _t59 + _t61 + _t64 + _t67 + _t68;
+                Jx_dot[72 * (start + i) + 63] = _t153*_t157 + _t155*(_c4[i]*_t62 + _t63) + _t160*qd2[i] + _t160*qd3[i] - _t161*qd5[i];
+                Jx_dot[72 * (start + i) + 64] = _t114*_t126 + _t115*_t128 - _t161*qd4[i] + _t162*qd2[i] + _t162*qd3[i];
+                Jx_dot[72 * (start + i) + 65] = _t60 + _t61 + _t64 + _t65 + _t68;
                 Jx_dot[72 * (start + i) + 66] = 0;
                 Jx_dot[72 * (start + i) + 67] = _t165;
                 Jx_dot[72 * (start + i) + 68] = _t165;
-                Jx_dot[72 * (start + i) + 69] = _t128*qd4[i] + _t163*qd2[i] + _t163*qd3[i] + _t166*qd5[i];
-                Jx_dot[72 * (start + i) + 70] = _t129*qd5[i] + _t164*qd2[i] + _t164*qd3[i] + _t166*qd4[i];
+                Jx_dot[72 * (start + i) + 69] = _t127*qd4[i] + _t164*qd2[i] + _t164*qd3[i] + _t166*qd5[i];
+                Jx_dot[72 * (start + i) + 70] = _t128*qd5[i] + _t163*qd2[i] + _t163*qd3[i] + _t166*qd4[i];
                 Jx_dot[72 * (start + i) + 71] = 0;
             }
         }
@@ -5056,12 +5056,12 @@ void puma560_jacobian_dot(const double *restrict q, const double *restrict qd, c
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t1 = q2 + q3;
+    const double _t3 = q2 + q3;
     double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[8] = { q1, _t1, q2, q4, q5, 0.0, 0.0, 0.0 };
+        const double angle[8] = { q1, q2, _t3, q4, q5, 0.0, 0.0, 0.0 };
         double sine[8], cosine[8];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -5086,88 +5086,88 @@ void puma560_jacobian_dot(const double *restrict q, const double *restrict qd, c
 #else
     _s0 = sin(q1);
     _c0 = cos(q1);
-    _s1 = sin(_t1);
-    _c1 = cos(_t1);
-    _s2 = sin(q2);
-    _c2 = cos(q2);
+    _s1 = sin(q2);
+    _c1 = cos(q2);
+    _s2 = sin(_t3);
+    _c2 = cos(_t3);
     _s3 = sin(q4);
     _c3 = cos(q4);
     _s4 = sin(q5);
     _c4 = cos(q5);
 #endif
-    const double _t3 = _s1*a3;
-    const double _t5 = _c1*d4;
-    const double _t6 = _s0*_t3 + _s0*_t5;
-    const double _t7 = _s2*a2;
-    const double _t9 = _c2*a2;
-    const double _t10 = _c1*a3;
-    const double _t11 = -_s1*d4 + _t10;
-    const double _t12 = _t11*qd3;
-    const double _t13 = _c0*_t12;
-    const double _t14 = _t3 + _t5;
-    const double _t15 = _t14 + _t7;
-    const double _t16 = _t11 + _t9;
-    const double _t17 = _c0*qd2;
-    const double _t18 = _c0*_t3 + _c0*_t5;
-    const double _t19 = _s0*_t12;
-    const double _t20 = _c0*qd1;
-    const double _t21 = _s0*qd2;
-    const double _t22 = -_t14;
+    const double _t2 = _c1*a2;
+    const double _t5 = _c2*a3;
+    const double _t7 = _s1*a2;
+    const double _t8 = _s2*a3;
+    const double _t9 = _c2*d4;
+    const double _t10 = _s0*_t8 + _s0*_t9;
+    const double _t11 = -_s2*d4 + _t5;
+    const double _t12 = _t11 + _t2;
+    const double _t13 = _c0*qd2;
+    const double _t14 = _t11*qd3;
+    const double _t15 = _c0*_t14;
+    const double _t16 = _t8 + _t9;
+    const double _t17 = _t16 + _t7;
+    const double _t18 = _c0*_t8 + _c0*_t9;
+    const double _t19 = _c0*qd1;
+    const double _t20 = _s0*qd2;
+    const double _t21 = _s0*_t14;
+    const double _t22 = -_t16;
     const double _t23 = _t22*qd3;
-    const double _t24 = _c0*_c1;
-    const double _t26 = _c0*_s3;
-    const double _t27 = _s1*qd2;
-    const double _t28 = _s1*qd3;
-    const double _t30 = _s0*_s3;
-    const double _t32 = _c3*_s0;
-    const double _t33 = _s4*_t32;
-    const double _t34 = _c1*_s4;
+    const double _t24 = _c0*_c2;
+    const double _t27 = _s0*_s3;
+    const double _t28 = _c0*_s3;
+    const double _t29 = _s2*qd2;
+    const double _t30 = _s2*qd3;
+    const double _t33 = _c4*_s2;
+    const double _t34 = _c3*_s0;
+    const double _t35 = _c2*_s4;
     const double _t36 = _c0*_c3;
-    const double _t37 = _s1*_s4;
+    const double _t37 = _s2*_s4;
     const double _t38 = -_c4*_t24 + _t36*_t37;
-    const double _t39 = _c4*_s1;
+    const double _t39 = _s4*_t34;
     const double _t40 = _s0*qd1;
-    const double _t41 = _c1*_s0;
-    const double _t42 = _c1*_t32;
-    const double _t43 = -_c4*_t41 + _s1*_t33;
-    const double _t44 = _c1*_s3;
-    const double _t45 = -_c3*_t34 - _t39;
-    J_dot[0] = _t6*qd3 + qd1*(_c0*_s1*d4 - _c0*_t10 - _c0*_t9 - _s0*d3) + qd2*(_s0*_t7 + _t6);
-    J_dot[1] = _s0*_t15*qd1 - _t13 - _t16*_t17;
-    J_dot[2] = _s0*_t14*qd1 - _t11*_t17 - _t13;
+    const double _t41 = _c2*_s0;
+    const double _t42 = _c2*_t34;
+    const double _t43 = -_c4*_t41 + _s2*_t39;
+    const double _t44 = _c2*_s3;
+    const double _t45 = -_c3*_t35 - _t33;
+    J_dot[0] = _t10*qd3 + qd1*(_c0*_s2*d4 - _c0*_t2 - _c0*_t5 - _s0*d3) + qd2*(_s0*_t7 + _t10);
+    J_dot[1] = _s0*_t17*qd1 - _t12*_t13 - _t15;
+    J_dot[2] = _s0*_t16*qd1 - _t11*_t13 - _t15;
     J_dot[3] = 0;
     J_dot[4] = 0;
     J_dot[5] = 0;
-    J_dot[6] = -_t18*qd3 + qd1*(_c0*d3 + _s0*_s1*d4 - _s0*_t10 - _s0*_t9) + qd2*(-_c0*_t7 - _t18);
-    J_dot[7] = -_t15*_t20 - _t16*_t21 - _t19;
-    J_dot[8] = -_t11*_t21 - _t14*_t20 - _t19;
+    J_dot[6] = -_t18*qd3 + qd1*(_c0*d3 + _s0*_s2*d4 - _s0*_t2 - _s0*_t5) + qd2*(-_c0*_t7 - _t18);
+    J_dot[7] = -_t12*_t20 - _t17*_t19 - _t21;
+    J_dot[8] = -_t11*_t20 - _t16*_t19 - _t21;
     J_dot[9] = 0;
     J_dot[10] = 0;
     J_dot[11] = 0;
     J_dot[12] = 0;
-    J_dot[13] = -_t15*qd2 + _t23;
+    J_dot[13] = -_t17*qd2 + _t23;
     J_dot[14] = _t22*qd2 + _t23;
     J_dot[15] = 0;
     J_dot[16] = 0;
     J_dot[17] = 0;
     J_dot[18] = 0;
-    J_dot[19] = _t20;
-    J_dot[20] = _t20;
-    J_dot[21] = -_c1*_t17 + _s0*_s1*qd1 - _t24*qd3;
-    J_dot[22] = -_t26*_t27 - _t26*_t28 + qd1*(_c0*_c3 - _c1*_t30) + qd4*(_c0*_c1*_c3 - _t30);
-    J_dot[23] = _t38*qd2 + _t38*qd3 + qd1*(_s0*_t39 + _s4*_t26 + _t32*_t34) + qd4*(_t26*_t34 + _t33) + qd5*(_c0*_t37 - _c1*_c4*_t36 + _c4*_t30);
+    J_dot[19] = _t19;
+    J_dot[20] = _t19;
+    J_dot[21] = -_c2*_t13 + _s0*_s2*qd1 - _t24*qd3;
+    J_dot[22] = -_t28*_t29 - _t28*_t30 + qd1*(_c0*_c3 - _c2*_t27) + qd4*(_c0*_c2*_c3 - _t27);
+    J_dot[23] = _t38*qd2 + _t38*qd3 + qd1*(_s0*_t33 + _s4*_t28 + _t34*_t35) + qd4*(_t28*_t35 + _t39) + qd5*(_c0*_t37 - _c2*_c4*_t36 + _c4*_t27);
     J_dot[24] = 0;
     J_dot[25] = _t40;
     J_dot[26] = _t40;
-    J_dot[27] = -_c1*_t21 - _s1*_t20 - _t41*qd3;
-    J_dot[28] = -_t27*_t30 - _t28*_t30 + qd1*(_c1*_t26 + _t32) + qd4*(_t26 + _t42);
-    J_dot[29] = _t43*qd2 + _t43*qd3 + qd1*(-_c0*_t39 + _s0*_s3*_s4 - _t34*_t36) + qd4*(-_s4*_t36 + _t30*_t34) + qd5*(-_c4*_t26 - _c4*_t42 + _s0*_s1*_s4);
+    J_dot[27] = -_c2*_t20 - _s2*_t19 - _t41*qd3;
+    J_dot[28] = -_t27*_t29 - _t27*_t30 + qd1*(_c2*_t28 + _t34) + qd4*(_t28 + _t42);
+    J_dot[29] = _t43*qd2 + _t43*qd3 + qd1*(-_c0*_t33 + _s0*_s3*_s4 - _t35*_t36) + qd4*(-_s4*_t36 + _t27*_t35) + qd5*(-_c4*_t28 - _c4*_t42 + _s0*_s2*_s4);
     J_dot[30] = 0;
     J_dot[31] = 0;
     J_dot[32] = 0;
-    J_dot[33] = -_t27 - _t28;
-    J_dot[34] = _c3*_s1*qd4 + _t44*qd2 + _t44*qd3;
-    J_dot[35] = _s3*_t37*qd4 + _t45*qd2 + _t45*qd3 + qd5*(-_c3*_t39 - _t34);
+    J_dot[33] = -_t29 - _t30;
+    J_dot[34] = _c3*_s2*qd4 + _t44*qd2 + _t44*qd3;
+    J_dot[35] = _s3*_t37*qd4 + _t45*qd2 + _t45*qd3 + qd5*(-_c3*_t33 - _t35);
 }
 
 /* jacobian_dot of `count` items, stored one after the other in each argument and output. */
@@ -5184,7 +5184,7 @@ void puma560_jacobian_dot_batch(size_t count, const double *restrict q, const do
     double qd3[KINEGEN_BLOCK_OF(64)];
     double qd4[KINEGEN_BLOCK_OF(64)];
     double qd5[KINEGEN_BLOCK_OF(64)];
-    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _t3[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
@@ -5224,7 +5224,7 @@ void puma560_jacobian_dot_batch(size_t count, const double *restrict q, const do
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t1[i] = q2[i] + q3[i];
+            _t3[i] = q2[i] + q3[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -5236,19 +5236,19 @@ void puma560_jacobian_dot_batch(size_t count, const double *restrict q, const do
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s1[i] = sin(_t1[i]);
+            _s1[i] = sin(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c1[i] = cos(_t1[i]);
+            _c1[i] = cos(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s2[i] = sin(q2[i]);
+            _s2[i] = sin(_t3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(q2[i]);
+            _c2[i] = cos(_t3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -5270,158 +5270,158 @@ void puma560_jacobian_dot_batch(size_t count, const double *restrict q, const do
         if (stream) {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t3 = _s1[i]*a3;
-                const double _t5 = _c1[i]*d4;
-                const double _t6 = _s0[i]*_t3 + _s0[i]*_t5;
-                const double _t7 = _s2[i]*a2;
-                const double _t9 = _c2[i]*a2;
-                const double _t10 = _c1[i]*a3;
-                const double _t11 = -_s1[i]*d4 + _t10;
-                const double _t12 = _t11*qd3[i];
-                const double _t13 = _c0[i]*_t12;
-                const double _t14 = _t3 + _t5;
-                const double _t15 = _t14 + _t7;
-                const double _t16 = _t11 + _t9;
-                const double _t17 = _c0[i]*qd2[i];
-                const double _t18 = _c0[i]*_t3 + _c0[i]*_t5;
-                const double _t19 = _s0[i]*_t12;
-                const double _t20 = _c0[i]*qd1[i];
-                const double _t21 = _s0[i]*qd2[i];
-                const double _t22 = -_t14;
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = _s1[i]*a2;
+                const double _t8 = _s2[i]*a3;
+                const double _t9 = _c2[i]*d4;
+                const double _t10 = _s0[i]*_t8 + _s0[i]*_t9;
+                const double _t11 = -_s2[i]*d4 + _t5;
+                const double _t12 = _t11 + _t2;
+                const double _t13 = _c0[i]*qd2[i];
+                const double _t14 = _t11*qd3[i];
+                const double _t15 = _c0[i]*_t14;
+                const double _t16 = _t8 + _t9;
+                const double _t17 = _t16 + _t7;
+                const double _t18 = _c0[i]*_t8 + _c0[i]*_t9;
+                const double _t19 = _c0[i]*qd1[i];
+                const double _t20 = _s0[i]*qd2[i];
+                const double _t21 = _s0[i]*_t14;
+                const double _t22 = -_t16;
                 const double _t23 = _t22*qd3[i];
-                const double _t24 = _c0[i]*_c1[i];
-                const double _t26 = _c0[i]*_s3[i];
-                const double _t27 = _s1[i]*qd2[i];
-                const double _t28 = _s1[i]*qd3[i];
-                const double _t30 = _s0[i]*_s3[i];
-                const double _t32 = _c3[i]*_s0[i];
-                const double _t33 = _s4[i]*_t32;
-                const double _t34 = _c1[i]*_s4[i];
+                const double _t24 = _c0[i]*_c2[i];
+                const double _t27 = _s0[i]*_s3[i];
+                const double _t28 = _c0[i]*_s3[i];
+                const double _t29 = _s2[i]*qd2[i];
+                const double _t30 = _s2[i]*qd3[i];
+                const double _t33 = _c4[i]*_s2[i];
+                const double _t34 = _c3[i]*_s0[i];
+                const double _t35 = _c2[i]*_s4[i];
                 const double _t36 = _c0[i]*_c3[i];
-                const double _t37 = _s1[i]*_s4[i];
+                const double _t37 = _s2[i]*_s4[i];
                 const double _t38 = -_c4[i]*_t24 + _t36*_t37;
-                const double _t39 = _c4[i]*_s1[i];
+                const double _t39 = _s4[i]*_t34;
                 const double _t40 = _s0[i]*qd1[i];
-                const double _t41 = _c1[i]*_s0[i];
-                const double _t42 = _c1[i]*_t32;
-                const double _t43 = -_c4[i]*_t41 + _s1[i]*_t33;
-                const double _t44 = _c1[i]*_s3[i];
-                const double _t45 = -_c3[i]*_t34 - _t39;
-                _J_dot_block[0][i] = _t6*qd3[i] + qd1[i]*(_c0[i]*_s1[i]*d4 - _c0[i]*_t10 - _c0[i]*_t9 - _s0[i]*d3) + qd2[i]*(_s0[i]*_t7 + _t6);
-                _J_dot_block[1][i] = _s0[i]*_t15*qd1[i] - _t13 - _t16*_t17;
-                _J_dot_block[2][i] = _s0[i]*_t14*qd1[i] - _t11*_t17 - _t13;
+                const double _t41 = _c2[i]*_s0[i];
+                const double _t42 = _c2[i]*_t34;
+                const double _t43 = -_c4[i]*_t41 + _s2[i]*_t39;
+                const double _t44 = _c2[i]*_s3[i];
+                const double _t45 = -_c3[i]*_t35 - _t33;
+                _J_dot_block[0][i] = _t10*qd3[i] + qd1[i]*(_c0[i]*_s2[i]*d4 - _c0[i]*_t2 - _c0[i]*_t5 - _s0[i]*d3) + qd2[i]*(_s0[i]*_t7 + _t10);
+                _J_dot_block[1][i] = _s0[i]*_t17*qd1[i] - _t12*_t13 - _t15;
+                _J_dot_block[2][i] = _s0[i]*_t16*qd1[i] - _t11*_t13 - _t15;
                 _J_dot_block[3][i] = 0;
                 _J_dot_block[4][i] = 0;
                 _J_dot_block[5][i] = 0;
-                _J_dot_block[6][i] = -_t18*qd3[i] + qd1[i]*(_c0[i]*d3 + _s0[i]*_s1[i]*d4 - _s0[i]*_t10 - _s0[i]*_t9) + qd2[i]*(-_c0[i]*_t7 - _t18);
-                _J_dot_block[7][i] = -_t15*_t20 - _t16*_t21 - _t19;
-                _J_dot_block[8][i] = -_t11*_t21 - _t14*_t20 - _t19;
+                _J_dot_block[6][i] = -_t18*qd3[i] + qd1[i]*(_c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5) + qd2[i]*(-_c0[i]*_t7 - _t18);
+                _J_dot_block[7][i] = -_t12*_t20 - _t17*_t19 - _t21;
+                _J_dot_block[8][i] = -_t11*_t20 - _t16*_t19 - _t21;
                 _J_dot_block[9][i] = 0;
                 _J_dot_block[10][i] = 0;
                 _J_dot_block[11][i] = 0;
                 _J_dot_block[12][i] = 0;
-                _J_dot_block[13][i] = -_t15*qd2[i] + _t23;
+                _J_dot_block[13][i] = -_t17*qd2[i] + _t23;
                 _J_dot_block[14][i] = _t22*qd2[i] + _t23;
                 _J_dot_block[15][i] = 0;
                 _J_dot_block[16][i] = 0;
                 _J_dot_block[17][i] = 0;
                 _J_dot_block[18][i] = 0;
-                _J_dot_block[19][i] = _t20;
-                _J_dot_block[20][i] = _t20;
-                _J_dot_block[21][i] = -_c1[i]*_t17 + _s0[i]*_s1[i]*qd1[i] - _t24*qd3[i];
-                _J_dot_block[22][i] = -_t26*_t27 - _t26*_t28 + qd1[i]*(_c0[i]*_c3[i] - _c1[i]*_t30) + qd4[i]*(_c0[i]*_c1[i]*_c3[i] - _t30);
-                _J_dot_block[23][i] = _t38*qd2[i] + _t38*qd3[i] + qd1[i]*(_s0[i]*_t39 + _s4[i]*_t26 + _t32*_t34) + qd4[i]*(_t26*_t34 + _t33) + qd5[i]*(_c0[i]*_t37 - _c1[i]*_c4[i]*_t36 + _c4[i]*_t30);
+                _J_dot_block[19][i] = _t19;
+                _J_dot_block[20][i] = _t19;
+                _J_dot_block[21][i] = -_c2[i]*_t13 + _s0[i]*_s2[i]*qd1[i] - _t24*qd3[i];
+                _J_dot_block[22][i] = -_t28*_t29 - _t28*_t30 + qd1[i]*(_c0[i]*_c3[i] - _c2[i]*_t27) + qd4[i]*(_c0[i]*_c2[i]*_c3[i] - _t27);
+                _J_dot_block[23][i] = _t38*qd2[i] + _t38*qd3[i] + qd1[i]*(_s0[i]*_t33 + _s4[i]*_t28 + _t34*_t35) + qd4[i]*(_t28*_t35 + _t39) + qd5[i]*(_c0[i]*_t37 - _c2[i]*_c4[i]*_t36 + _c4[i]*_t27);
                 _J_dot_block[24][i] = 0;
                 _J_dot_block[25][i] = _t40;
                 _J_dot_block[26][i] = _t40;
-                _J_dot_block[27][i] = -_c1[i]*_t21 - _s1[i]*_t20 - _t41*qd3[i];
-                _J_dot_block[28][i] = -_t27*_t30 - _t28*_t30 + qd1[i]*(_c1[i]*_t26 + _t32) + qd4[i]*(_t26 + _t42);
-                _J_dot_block[29][i] = _t43*qd2[i] + _t43*qd3[i] + qd1[i]*(-_c0[i]*_t39 + _s0[i]*_s3[i]*_s4[i] - _t34*_t36) + qd4[i]*(-_s4[i]*_t36 + _t30*_t34) + qd5[i]*(-_c4[i]*_t26 - _c4[i]*_t42 + _s0[i]*_s1[i]*_s4[i]);
+                _J_dot_block[27][i] = -_c2[i]*_t20 - _s2[i]*_t19 - _t41*qd3[i];
+                _J_dot_block[28][i] = -_t27*_t29 - _t27*_t30 + qd1[i]*(_c2[i]*_t28 + _t34) + qd4[i]*(_t28 + _t42);
+                _J_dot_block[29][i] = _t43*qd2[i] + _t43*qd3[i] + qd1[i]*(-_c0[i]*_t33 + _s0[i]*_s3[i]*_s4[i] - _t35*_t36) + qd4[i]*(-_s4[i]*_t36 + _t27*_t35) + qd5[i]*(-_c4[i]*_t28 - _c4[i]*_t42 + _s0[i]*_s2[i]*_s4[i]);
                 _J_dot_block[30][i] = 0;
                 _J_dot_block[31][i] = 0;
                 _J_dot_block[32][i] = 0;
-                _J_dot_block[33][i] = -_t27 - _t28;
-                _J_dot_block[34][i] = _c3[i]*_s1[i]*qd4[i] + _t44*qd2[i] + _t44*qd3[i];
-                _J_dot_block[35][i] = _s3[i]*_t37*qd4[i] + _t45*qd2[i] + _t45*qd3[i] + qd5[i]*(-_c3[i]*_t39 - _t34);
+                _J_dot_block[33][i] = -_t29 - _t30;
+                _J_dot_block[34][i] = _c3[i]*_s2[i]*qd4[i] + _t44*qd2[i] + _t44*qd3[i];
+                _J_dot_block[35][i] = _s3[i]*_t37*qd4[i] + _t45*qd2[i] + _t45*qd3[i] + qd5[i]*(-_c3[i]*_t33 - _t35);
             }
         } else
 #endif
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t3 = _s1[i]*a3;
-                const double _t5 = _c1[i]*d4;
-                const double _t6 = _s0[i]*_t3 + _s0[i]*_t5;
-                const double _t7 = _s2[i]*a2;
-                const double _t9 = _c2[i]*a2;
-                const double _t10 = _c1[i]*a3;
-                const double _t11 = -_s1[i]*d4 + _t10;
-                const double _t12 = _t11*qd3[i];
-                const double _t13 = _c0[i]*_t12;
-                const double _t14 = _t3 + _t5;
-                const double _t15 = _t14 + _t7;
-                const double _t16 = _t11 + _t9;
-                const double _t17 = _c0[i]*qd2[i];
-                const double _t18 = _c0[i]*_t3 + _c0[i]*_t5;
-                const double _t19 = _s0[i]*_t12;
-                const double _t20 = _c0[i]*qd1[i];
-                const double _t21 = _s0[i]*qd2[i];
-                const double _t22 = -_t14;
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = _s1[i]*a2;
+                const double _t8 = _s2[i]*a3;
+                const double _t9 = _c2[i]*d4;
+                const double _t10 = _s0[i]*_t8 + _s0[i]*_t9;
+                const double _t11 = -_s2[i]*d4 + _t5;
+                const double _t12 = _t11 + _t2;
+                const double _t13 = _c0[i]*qd2[i];
+                const double _t14 = _t11*qd3[i];
+                const double _t15 = _c0[i]*_t14;
+                const double _t16 = _t8 + _t9;
+                const double _t17 = _t16 + _t7;
+                const double _t18 = _c0[i]*_t8 + _c0[i]*_t9;
+                const double _t19 = _c0[i]*qd1[i];
+                const double _t20 = _s0[i]*qd2[i];
+                const double _t21 = _s0[i]*_t14;
+                const double _t22 = -_t16;
                 const double _t23 = _t22*qd3[i];
-                const double _t24 = _c0[i]*_c1[i];
-                const double _t26 = _c0[i]*_s3[i];
-                const double _t27 = _s1[i]*qd2[i];
-                const double _t28 = _s1[i]*qd3[i];
-                const double _t30 = _s0[i]*_s3[i];
-                const double _t32 = _c3[i]*_s0[i];
-                const double _t33 = _s4[i]*_t32;
-                const double _t34 = _c1[i]*_s4[i];
+                const double _t24 = _c0[i]*_c2[i];
+                const double _t27 = _s0[i]*_s3[i];
+                const double _t28 = _c0[i]*_s3[i];
+                const double _t29 = _s2[i]*qd2[i];
+                const double _t30 = _s2[i]*qd3[i];
+                const double _t33 = _c4[i]*_s2[i];
+                const double _t34 = _c3[i]*_s0[i];
+                const double _t35 = _c2[i]*_s4[i];
                 const double _t36 = _c0[i]*_c3[i];
-                const double _t37 = _s1[i]*_s4[i];
+                const double _t37 = _s2[i]*_s4[i];
                 const double _t38 = -_c4[i]*_t24 + _t36*_t37;
-                const double _t39 = _c4[i]*_s1[i];
+                const double _t39 = _s4[i]*_t34;
                 const double _t40 = _s0[i]*qd1[i];
-                const double _t41 = _c1[i]*_s0[i];
-                const double _t42 = _c1[i]*_t32;
-                const double _t43 = -_c4[i]*_t41 + _s1[i]*_t33;
-                const double _t44 = _c1[i]*_s3[i];
-                const double _t45 = -_c3[i]*_t34 - _t39;
-                J_dot[36 * (start + i) + 0] = _t6*qd3[i] + qd1[i]*(_c0[i]*_s1[i]*d4 - _c0[i]*_t10 - _c0[i]*_t9 - _s0[i]*d3) + qd2[i]*(_s0[i]*_t7 + _t6);
-                J_dot[36 * (start + i) + 1] = _s0[i]*_t15*qd1[i] - _t13 - _t16*_t17;
-                J_dot[36 * (start + i) + 2] = _s0[i]*_t14*qd1[i] - _t11*_t17 - _t13;
+                const double _t41 = _c2[i]*_s0[i];
+                const double _t42 = _c2[i]*_t34;
+                const double _t43 = -_c4[i]*_t41 + _s2[i]*_t39;
+                const double _t44 = _c2[i]*_s3[i];
+                const double _t45 = -_c3[i]*_t35 - _t33;
+                J_dot[36 * (start + i) + 0] = _t10*qd3[i] + qd1[i]*(_c0[i]*_s2[i]*d4 - _c0[i]*_t2 - _c0[i]*_t5 - _s0[i]*d3) + qd2[i]*(_s0[i]*_t7 + _t10);
+                J_dot[36 * (start + i) + 1] = _s0[i]*_t17*qd1[i] - _t12*_t13 - _t15;
+                J_dot[36 * (start + i) + 2] = _s0[i]*_t16*qd1[i] - _t11*_t13 - _t15;
                 J_dot[36 * (start + i) + 3] = 0;
                 J_dot[36 * (start + i) + 4] = 0;
                 J_dot[36 * (start + i) + 5] = 0;
-                J_dot[36 * (start + i) + 6] = -_t18*qd3[i] + qd1[i]*(_c0[i]*d3 + _s0[i]*_s1[i]*d4 - _s0[i]*_t10 - _s0[i]*_t9) + qd2[i]*(-_c0[i]*_t7 - _t18);
-                J_dot[36 * (start + i) + 7] = -_t15*_t20 - _t16*_t21 - _t19;
-                J_dot[36 * (start + i) + 8] = -_t11*_t21 - _t14*_t20 - _t19;
+                J_dot[36 * (start + i) + 6] = -_t18*qd3[i] + qd1[i]*(_c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5) + qd2[i]*(-_c0[i]*_t7 - _t18);
+                J_dot[36 * (start + i) + 7] = -_t12*_t20 - _t17*_t19 - _t21;
+                J_dot[36 * (start + i) + 8] = -_t11*_t20 - _t16*_t19 - _t21;
                 J_dot[36 * (start + i) + 9] = 0;
                 J_dot[36 * (start + i) + 10] = 0;
                 J_dot[36 * (start + i) + 11] = 0;
                 J_dot[36 * (start + i) + 12] = 0;
-                J_dot[36 * (start + i) + 13] = -_t15*qd2[i] + _t23;
+                J_dot[36 * (start + i) + 13] = -_t17*qd2[i] + _t23;
                 J_dot[36 * (start + i) + 14] = _t22*qd2[i] + _t23;
                 J_dot[36 * (start + i) + 15] = 0;
                 J_dot[36 * (start + i) + 16] = 0;
                 J_dot[36 * (start + i) + 17] = 0;
                 J_dot[36 * (start + i) + 18] = 0;
-                J_dot[36 * (start + i) + 19] = _t20;
-                J_dot[36 * (start + i) + 20] = _t20;
-                J_dot[36 * (start + i) + 21] = -_c1[i]*_t17 + _s0[i]*_s1[i]*qd1[i] - _t24*qd3[i];
-                J_dot[36 * (start + i) + 22] = -_t26*_t27 - _t26*_t28 + qd1[i]*(_c0[i]*_c3[i] - _c1[i]*_t30) + qd4[i]*(_c0[i]*_c1[i]*_c3[i] - _t30);
-                J_dot[36 * (start + i) + 23] = _t38*qd2[i] + _t38*qd3[i] + qd1[i]*(_s0[i]*_t39 + _s4[i]*_t26 + _t32*_t34) + qd4[i]*(_t26*_t34 + _t33) + qd5[i]*(_c0[i]*_t37 - _c1[i]*_c4[i]*_t36 + _c4[i]*_t30);
+                J_dot[36 * (start + i) + 19] = _t19;
+                J_dot[36 * (start + i) + 20] = _t19;
+                J_dot[36 * (start + i) + 21] = -_c2[i]*_t13 + _s0[i]*_s2[i]*qd1[i] - _t24*qd3[i];
+                J_dot[36 * (start + i) + 22] = -_t28*_t29 - _t28*_t30 + qd1[i]*(_c0[i]*_c3[i] - _c2[i]*_t27) + qd4[i]*(_c0[i]*_c2[i]*_c3[i] - _t27);
+                J_dot[36 * (start + i) + 23] = _t38*qd2[i] + _t38*qd3[i] + qd1[i]*(_s0[i]*_t33 + _s4[i]*_t28 + _t34*_t35) + qd4[i]*(_t28*_t35 + _t39) + qd5[i]*(_c0[i]*_t37 - _c2[i]*_c4[i]*_t36 + _c4[i]*_t27);
                 J_dot[36 * (start + i) + 24] = 0;
                 J_dot[36 * (start + i) + 25] = _t40;
                 J_dot[36 * (start + i) + 26] = _t40;
-                J_dot[36 * (start + i) + 27] = -_c1[i]*_t21 - _s1[i]*_t20 - _t41*qd3[i];
-                J_dot[36 * (start + i) + 28] = -_t27*_t30 - _t28*_t30 + qd1[i]*(_c1[i]*_t26 + _t32) + qd4[i]*(_t26 + _t42);
-                J_dot[36 * (start + i) + 29] = _t43*qd2[i] + _t43*qd3[i] + qd1[i]*(-_c0[i]*_t39 + _s0[i]*_s3[i]*_s4[i] - _t34*_t36) + qd4[i]*(-_s4[i]*_t36 + _t30*_t34) + qd5[i]*(-_c4[i]*_t26 - _c4[i]*_t42 + _s0[i]*_s1[i]*_s4[i]);
+                J_dot[36 * (start + i) + 27] = -_c2[i]*_t20 - _s2[i]*_t19 - _t41*qd3[i];
+                J_dot[36 * (start + i) + 28] = -_t27*_t29 - _t27*_t30 + qd1[i]*(_c2[i]*_t28 + _t34) + qd4[i]*(_t28 + _t42);
+                J_dot[36 * (start + i) + 29] = _t43*qd2[i] + _t43*qd3[i] + qd1[i]*(-_c0[i]*_t33 + _s0[i]*_s3[i]*_s4[i] - _t35*_t36) + qd4[i]*(-_s4[i]*_t36 + _t27*_t35) + qd5[i]*(-_c4[i]*_t28 - _c4[i]*_t42 + _s0[i]*_s2[i]*_s4[i]);
                 J_dot[36 * (start + i) + 30] = 0;
                 J_dot[36 * (start + i) + 31] = 0;
                 J_dot[36 * (start + i) + 32] = 0;
-                J_dot[36 * (start + i) + 33] = -_t27 - _t28;
-                J_dot[36 * (start + i) + 34] = _c3[i]*_s1[i]*qd4[i] + _t44*qd2[i] + _t44*qd3[i];
-                J_dot[36 * (start + i) + 35] = _s3[i]*_t37*qd4[i] + _t45*qd2[i] + _t45*qd3[i] + qd5[i]*(-_c3[i]*_t39 - _t34);
+                J_dot[36 * (start + i) + 33] = -_t29 - _t30;
+                J_dot[36 * (start + i) + 34] = _c3[i]*_s2[i]*qd4[i] + _t44*qd2[i] + _t44*qd3[i];
+                J_dot[36 * (start + i) + 35] = _s3[i]*_t37*qd4[i] + _t45*qd2[i] + _t45*qd3[i] + qd5[i]*(-_c3[i]*_t33 - _t35);
             }
         }
 #ifdef KINEGEN_STREAM
@@ -5476,12 +5476,12 @@ void puma560_task_acceleration(const double *restrict q, const double *restrict 
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t1 = q2 + q3;
+    const double _t3 = q2 + q3;
     double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[8] = { q1, _t1, q2, q4, q5, q6, 0.0, 0.0 };
+        const double angle[8] = { q1, q2, _t3, q6, q5, q4, 0.0, 0.0 };
         double sine[8], cosine[8];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -5508,201 +5508,201 @@ void puma560_task_acceleration(const double *restrict q, const double *restrict 
 #else
     _s0 = sin(q1);
     _c0 = cos(q1);
-    _s1 = sin(_t1);
-    _c1 = cos(_t1);
-    _s2 = sin(q2);
-    _c2 = cos(q2);
-    _s3 = sin(q4);
-    _c3 = cos(q4);
+    _s1 = sin(q2);
+    _c1 = cos(q2);
+    _s2 = sin(_t3);
+    _c2 = cos(_t3);
+    _s3 = sin(q6);
+    _c3 = cos(q6);
     _s4 = sin(q5);
     _c4 = cos(q5);
-    _s5 = sin(q6);
-    _c5 = cos(q6);
+    _s5 = sin(q4);
+    _c5 = cos(q4);
 #endif
-    const double _t3 = _s1*a3;
-    const double _t5 = _c1*d4;
-    const double _t6 = _t3 + _t5;
-    const double _t7 = _c0*_t6;
-    const double _t8 = _s2*a2;
-    const double _t9 = _t6 + _t8;
-    const double _t10 = _c0*_t9;
-    const double _t12 = _c2*a2;
-    const double _t13 = _c1*a3;
-    const double _t14 = _c0*d3 + _s0*_s1*d4 - _s0*_t12 - _s0*_t13;
-    const double _t15 = -_s1*d4 + _t13;
-    const double _t16 = _c0*qd2;
-    const double _t17 = _t15*qd3;
-    const double _t18 = _c0*_t17;
-    const double _t19 = _t12 + _t15;
-    const double _t20 = _s0*_t3 + _s0*_t5;
-    const double _t21 = -_c0*_s1*d4 + _c0*_t12 + _c0*_t13 + _s0*d3;
-    const double _t22 = _s0*qdd3;
-    const double _t23 = _s0*qdd2;
-    const double _t24 = _s0*qd2;
-    const double _t25 = _s0*_t17;
-    const double _t26 = _c0*_t3 + _c0*_t5;
-    const double _t27 = -_t6;
+    const double _t2 = _c1*a2;
+    const double _t5 = _c2*a3;
+    const double _t7 = -_c0*_s2*d4 + _c0*_t2 + _c0*_t5 + _s0*d3;
+    const double _t8 = _s1*a2;
+    const double _t9 = _s2*a3;
+    const double _t10 = _c2*d4;
+    const double _t11 = _s0*_t10 + _s0*_t9;
+    const double _t12 = -_s2*d4 + _t5;
+    const double _t13 = _t12 + _t2;
+    const double _t14 = _c0*qd2;
+    const double _t15 = _t12*qd3;
+    const double _t16 = _c0*_t15;
+    const double _t17 = _t10 + _t9;
+    const double _t18 = _t17 + _t8;
+    const double _t19 = _c0*d3 + _s0*_s2*d4 - _s0*_t2 - _s0*_t5;
+    const double _t20 = _c0*_t18;
+    const double _t21 = _c0*_t17;
+    const double _t22 = _c0*_t10 + _c0*_t9;
+    const double _t23 = _s0*qd2;
+    const double _t24 = _s0*_t15;
+    const double _t25 = _s0*qdd2;
+    const double _t26 = _s0*qdd3;
+    const double _t27 = -_t17;
     const double _t28 = _t27*qd3;
-    const double _t32 = _c4*_s1;
-    const double _t33 = _c0*_t32;
-    const double _t34 = _c1*_s4;
-    const double _t36 = _c0*_c3;
-    const double _t37 = -_s0*_s3*_s4 + _t33 + _t34*_t36;
-    const double _t38 = -_t37;
-    const double _t40 = _c5*qdd5;
-    const double _t41 = _c5*_t34;
-    const double _t43 = _c3*_c5;
-    const double _t44 = -_s1*_s3*_s5 + _t32*_t43 + _t41;
-    const double _t45 = -_t44;
-    const double _t46 = _c0*_t45;
-    const double _t47 = _c3*_s0;
-    const double _t48 = _c5*_t47;
-    const double _t49 = _s5*_t36;
-    const double _t50 = _c0*_s3;
-    const double _t51 = _c1*_c4;
-    const double _t52 = _c5*_t51;
-    const double _t53 = _c1*_t49 + _c4*_t48 - _s0*_s3*_s5 + _t50*_t52;
-    const double _t54 = -_t53;
-    const double _t55 = _c5*_t50;
-    const double _t56 = -_c1*_s0*_s3*_s5 + _c4*_t55 + _t47*_t52 + _t49;
-    const double _t57 = -_c5*_s0*_s1*_s4 + _t56;
-    const double _t58 = -_t57;
-    const double _t59 = _s0*_s3;
-    const double _t60 = _c4*_t59;
-    const double _t61 = _c1*_t55 - _s5*_t60 + _t48 + _t49*_t51;
-    const double _t62 = -_c0*_s1*_s4*_s5 + _t61;
-    const double _t63 = -_t62;
-    const double _t64 = _s4*_t47;
-    const double _t65 = _t34*_t50 + _t64;
-    const double _t66 = _t65*qd4;
-    const double _t67 = _s1*_s4;
-    const double _t68 = -_c0*_t51 + _t36*_t67;
-    const double _t69 = _t68*qd2;
-    const double _t70 = _t68*qd3;
-    const double _t71 = _s4*_t50;
-    const double _t72 = _s0*_t32;
-    const double _t73 = _t34*_t47 + _t71 + _t72;
-    const double _t74 = _t73*qd1;
-    const double _t75 = _c0*_t67 - _t36*_t51 + _t60;
-    const double _t76 = _t75*qd5;
-    const double _t77 = _s5*qd6;
-    const double _t78 = _c3*_s5;
-    const double _t79 = _c5*_s3;
-    const double _t80 = qd4*(_s1*_t78 + _t32*_t79);
-    const double _t81 = qd5*(_t43*_t67 - _t52);
-    const double _t82 = _s5*_t34;
-    const double _t83 = _s1*_t79 + _t32*_t78 + _t82;
-    const double _t84 = _t83*qd6;
-    const double _t85 = _s3*_s5;
-    const double _t86 = _c5*_t67;
-    const double _t87 = _c1*_t85 - _t43*_t51 + _t86;
-    const double _t88 = _t87*qd2;
-    const double _t89 = _t87*qd3;
-    const double _t90 = _s0*qd1;
-    const double _t91 = _c0*_t80 + _c0*_t81 + _c0*_t84 + _c0*_t88 + _c0*_t89 - _t45*_t90;
-    const double _t92 = _s1*_t49 + _t32*_t55;
-    const double _t93 = _s5*_t50;
-    const double _t94 = _c5*_t36;
-    const double _t95 = _s5*_t47;
-    const double _t96 = _c1*_t95 - _c4*_t94 + _t52*_t59 + _t93;
-    const double _t97 = _c5*_t59;
-    const double _t98 = _c1*_t93 + _c4*_t97 - _t51*_t94 + _t95;
-    const double _t99 = -_c1*_t94 + _c4*_t95 + _t51*_t93 + _t97;
-    const double _t100 = _c0*_t82 + _s1*_t55 + _t32*_t49;
-    const double _t101 = _c0*_t86 + _t98;
-    const double _t102 = _s5*_t67;
-    const double _t103 = _c1*_t97 + _c4*_t93 + _t51*_t95 - _t94;
-    const double _t104 = -_s0*_t102 + _t103;
-    const double _t105 = _t100*qd2 + _t100*qd3 + _t101*qd6 + _t104*qd1 + _t99*qd4 + qd5*(-_s4*_s5*_t59 + _s5*_t33 + _t36*_t82);
-    const double _t106 = _s5*_t59;
-    const double _t107 = _s0*_t41 - _s1*_t106 + _t32*_t48;
-    const double _t108 = _t101*qd1 + _t104*qd6 + _t107*qd2 + _t107*qd3 + _t96*qd4 + qd5*(_c5*_t71 + _c5*_t72 + _t41*_t47);
-    const double _t109 = _s5*qdd5;
-    const double _t110 = _c0*_t83;
-    const double _t111 = -_s5*_t68;
-    const double _t112 = _c5*qd6;
-    const double _t113 = _s5*qd5;
-    const double _t114 = -_c3*_c5*_s1 + _t32*_t85;
-    const double _t115 = -_t114*qd4;
-    const double _t116 = -_c1*_c4*_s5 + _t67*_t78;
-    const double _t117 = -_t116;
-    const double _t118 = _c0*qd5;
-    const double _t119 = _c1*_t79 - _t102 + _t51*_t78;
-    const double _t120 = _c0*qd3;
-    const double _t121 = _t44*qd6;
-    const double _t122 = _c0*_t115 + _c0*_t121 + _t117*_t118 + _t119*_t120 + _t119*_t16 - _t83*_t90;
-    const double _t123 = _c0*_c3*_c5*_s1 - _t32*_t93;
-    const double _t124 = _c1*_t48 + _c4*_t49 - _t106*_t51 + _t55;
-    const double _t125 = _c5*_t33 - _s4*_t97 + _t34*_t94;
-    const double _t126 = _c0*_t41 - _s1*_t93 + _t32*_t94;
-    const double _t127 = _s4*_t93 + _s5*_t72 + _t34*_t95;
-    const double _t128 = _s0*_t82 + _s1*_t97 + _t32*_t95;
-    const double _t129 = -_t128;
-    const double _t130 = _c1*_t50 + _t47;
-    const double _t131 = _s4*qdd4;
-    const double _t132 = _c3*_t67;
-    const double _t133 = _t132 - _t51;
-    const double _t134 = _c0*_t133;
-    const double _t135 = _t50*_t67;
-    const double _t136 = _c4*qd5;
-    const double _t137 = -_c0*_c3 + _c1*_t59;
-    const double _t138 = _s4*qd1;
-    const double _t139 = _s4*qd4;
-    const double _t140 = _c3*_t34 + _t32;
-    const double _t141 = _c3*_t32 + _t34;
-    const double _t142 = _t118*_t141 + _t120*_t140 - _t133*_t90 - _t135*qd4 + _t140*_t16;
-    const double _t143 = _c0*_t34 + _t32*_t36;
-    const double _t144 = _c4*_t50 - _s0*_t67 + _t47*_t51;
-    const double _t145 = qd4*(_c0*_c3*_s4 - _t34*_t59);
-    const double _t146 = _c1*_c4*_s0 - _t47*_t67;
-    const double _t147 = _t146*qd2;
-    const double _t148 = _t146*qd3;
-    const double _t149 = _t37*qd1;
-    const double _t150 = _t144*qd5;
-    const double _t151 = _s0*_t80 + _s0*_t81 + _s0*_t84 + _s0*_t88 + _s0*_t89 + _t46*qd1;
-    const double _t152 = _s1*_t95 + _t32*_t97;
-    const double _t153 = -_t124;
-    const double _t154 = -_t126;
-    const double _t155 = _s0*qd5;
-    const double _t156 = _s0*qd3;
-    const double _t157 = _s0*_t115 + _s0*_t121 + _t110*qd1 + _t117*_t155 + _t119*_t156 + _t119*_t24;
-    const double _t158 = _c3*_c5*_s0*_s1 - _t106*_t32;
-    const double _t159 = _t59*_t67;
-    const double _t160 = _t134*qd1 + _t140*_t156 + _t140*_t24 + _t141*_t155 - _t159*qd4;
-    const double _t161 = _s0*_t34 + _t32*_t47;
-    const double _t162 = _c4*_t79 + _t78;
-    const double _t163 = _s1*qdd4;
-    const double _t164 = -_t133;
-    const double _t165 = -_t87;
-    const double _t166 = _c1*_t162;
-    const double _t167 = _s1*qd4;
-    const double _t168 = -_c3*_c5 + _c4*_t85;
-    const double _t169 = _s1*qd6;
-    const double _t170 = -_t140;
-    const double _t171 = _c5*_t170;
-    const double _t172 = -_t141;
-    const double _t173 = -_t119;
-    const double _t174 = _t173*qd6 + _t45*qd2 + _t45*qd3 + qd4*(-_c1*_t78 - _t51*_t79) + qd5*(-_c5*_t32 - _t34*_t43);
-    const double _t175 = _t67*_t85;
-    const double _t176 = _c1*_t168;
-    const double _t177 = _s5*_t140;
-    const double _t178 = _t83*qd2 + _t83*qd3 + _t87*qd6 + qd4*(-_c1*_t43 + _t51*_t85) + qd5*(_s5*_t32 + _t34*_t78);
-    const double _t179 = _s3*_t34;
-    const double _t180 = _s3*_t32;
-    const double _t181 = -_c3*_t51 + _t67;
-    const double _t182 = _t133*qd2 + _t133*qd3 + _t179*qd4 + _t181*qd5;
-    xdd[0] = -_t10*qdd2 + _t14*qdd1 - _t7*qdd3 + qd1*(_t20*qd3 - _t21*qd1 + qd2*(_s0*_t8 + _t20)) + qd2*(_s0*_t9*qd1 - _t16*_t19 - _t18) + qd3*(_s0*_t6*qd1 - _t15*_t16 - _t18);
-    xdd[1] = _t21*qdd1 - _t22*_t6 - _t23*_t9 + qd1*(_t14*qd1 - _t26*qd3 + qd2*(-_c0*_t8 - _t26)) + qd2*(-_t10*qd1 - _t19*_t24 - _t25) + qd3*(-_t15*_t24 - _t25 - _t7*qd1);
-    xdd[2] = _t15*qdd3 + _t19*qdd2 + qd2*(_t28 - _t9*qd2) + qd3*(_t27*qd2 + _t28);
-    xdd[3] = _t105*qd6 + _t108*qd1 + _t38*_t40 + _t46*qdd2 + _t46*qdd3 + _t54*qdd4 + _t58*qdd1 + _t63*qdd6 + _t91*qd2 + _t91*qd3 + qd4*(_t92*qd2 + _t92*qd3 + _t96*qd1 + _t98*qd4 + _t99*qd6 + qd5*(_c5*_t64 + _t41*_t50)) + qd5*(_c5*_t66 + _c5*_t69 + _c5*_t70 + _c5*_t74 + _c5*_t76 - _t38*_t77);
-    xdd[4] = _t101*qdd6 + _t104*qdd1 + _t109*_t37 + _t110*qdd2 + _t110*qdd3 + _t122*qd2 + _t122*qd3 + _t99*qdd4 + qd1*(_t124*qd4 - _t127*qd5 + _t129*qd2 + _t129*qd3 + _t57*qd6 + _t62*qd1) + qd4*(_t123*qd2 + _t123*qd3 + _t124*qd1 + _t53*qd6 + _t61*qd4 + qd5*(-_s4*_t95 - _t34*_t93)) + qd5*(-_s5*_t65*qd4 - _s5*_t73*qd1 + _t111*qd2 + _t111*qd3 + _t112*_t37 - _t113*_t75) + qd6*(_t125*qd5 + _t126*qd2 + _t126*qd3 + _t53*qd4 + _t57*qd1 + _t62*qd6);
-    xdd[5] = _t130*_t131 + _t134*qdd2 + _t134*qdd3 + _t142*qd2 + _t142*qd3 + _t73*qdd1 + _t75*qdd5 + qd1*(_t145 + _t147 + _t148 + _t149 + _t150) + qd4*(_t130*_t136 - _t135*qd2 - _t135*qd3 - _t137*_t138 + _t139*(_c0*_c1*_c3 - _t59)) + qd5*(_t143*qd2 + _t143*qd3 + _t144*qd1 + _t37*qd5 + qd4*(_c4*_t47 + _t50*_t51));
-    xdd[6] = -_t101*qdd1 - _t104*qdd6 + _t151*qd2 + _t151*qd3 + _t22*_t45 + _t23*_t45 - _t40*_t73 - _t96*qdd4 + qd1*(-_t125*qd5 + _t154*qd2 + _t154*qd3 + _t54*qd4 + _t58*qd1 + _t63*qd6) + qd4*(_t152*qd2 + _t152*qd3 + _t153*qd6 + _t54*qd1 - _t56*qd4 + qd5*(-_s4*_t94 + _t41*_t59)) + qd5*(-_c5*_t145 - _c5*_t147 - _c5*_t148 - _c5*_t149 - _c5*_t150 + _s5*_t73*qd6) + qd6*(_t127*qd5 + _t128*qd2 + _t128*qd3 + _t153*qd4 + _t58*qd6 + _t63*qd1);
-    xdd[7] = _t105*qd1 + _t108*qd6 + _t109*_t73 + _t153*qdd4 + _t157*qd2 + _t157*qd3 + _t22*_t83 + _t23*_t83 + _t58*qdd6 + _t63*qdd1 + qd4*(_t103*qd4 + _t158*qd2 + _t158*qd3 + _t96*qd6 + _t99*qd1 + qd5*(_c0*_c3*_s4*_s5 - _t59*_t82)) + qd5*(_s5*_t145 + _s5*_t147 + _s5*_t148 + _s5*_t149 + _s5*_t150 + _t112*_t73);
-    xdd[8] = _t131*_t137 + _t133*_t22 + _t133*_t23 - _t144*qdd5 + _t160*qd2 + _t160*qd3 + _t38*qdd1 + qd1*(_t66 + _t69 + _t70 + _t74 + _t76) + qd4*(_t130*_t138 + _t136*_t137 + _t139*(_c1*_t47 + _t50) - _t159*qd2 - _t159*qd3) + qd5*(_t161*qd2 + _t161*qd3 + _t73*qd5 + _t75*qd1 + qd4*(-_c4*_t36 + _t51*_t59));
-    xdd[9] = -_t162*_t163 + _t164*_t40 + _t165*qdd2 + _t165*qdd3 + _t174*qd2 + _t174*qd3 - _t83*qdd6 + qd4*(_c5*_s1*_s3*_s4*qd5 - _t166*qd2 - _t166*qd3 - _t167*(_c3*_c4*_c5 - _t85) + _t168*_t169) + qd5*(_c5*_t172*qd5 - _t164*_t77 + _t171*qd2 + _t171*qd3 + _t67*_t79*qd4) + qd6*(_t114*qd4 + _t116*qd5 + _t173*qd2 + _t173*qd3 + _t45*qd6);
-    xdd[10] = _t109*_t133 + _t163*_t168 + _t173*qdd2 + _t173*qdd3 + _t178*qd2 + _t178*qd3 + _t45*qdd6 + qd4*(_t162*_t169 + _t167*(_c4*_t78 + _t79) - _t175*qd5 + _t176*qd2 + _t176*qd3) + qd5*(_t112*_t133 + _t113*_t141 - _t175*qd4 + _t177*qd2 + _t177*qd3) + qd6*(_t80 + _t81 + _t84 + _t88 + _t89);
-    xdd[11] = _s3*_t67*qdd4 + _t170*qdd2 + _t170*qdd3 + _t172*qdd5 + _t182*qd2 + _t182*qd3 + qd4*(_t132*qd4 + _t179*qd2 + _t179*qd3 + _t180*qd5) + qd5*(_t133*qd5 + _t180*qd4 + _t181*qd2 + _t181*qd3);
+    const double _t31 = _s2*_s4;
+    const double _t32 = _c3*_t31;
+    const double _t35 = _c5*_s0;
+    const double _t36 = _s3*_t35;
+    const double _t38 = _c0*_s5;
+    const double _t39 = _s3*_t38;
+    const double _t41 = _s0*_s5;
+    const double _t42 = _c3*_t41;
+    const double _t43 = _c2*_c4;
+    const double _t44 = _c0*_c5;
+    const double _t45 = _c3*_t44;
+    const double _t46 = _c2*_t39 + _c4*_t42 + _t36 - _t43*_t45;
+    const double _t47 = _c0*_t32 + _t46;
+    const double _t48 = _c2*_s4;
+    const double _t49 = _c3*_t48;
+    const double _t50 = _s3*_t41;
+    const double _t51 = _c4*_s2;
+    const double _t52 = _c3*_t35;
+    const double _t53 = _s0*_t49 - _s2*_t50 + _t51*_t52;
+    const double _t54 = _c3*_t43;
+    const double _t55 = _c2*_t36 - _c4*_t45 + _t39 + _t41*_t54;
+    const double _t56 = _s4*_t38;
+    const double _t57 = _s0*_t51;
+    const double _t58 = _s3*_t31;
+    const double _t59 = _c2*_t42 + _c4*_t39 + _t36*_t43 - _t45;
+    const double _t60 = -_s0*_t58 + _t59;
+    const double _t61 = _t47*qd1 + _t53*qd2 + _t53*qd3 + _t55*qd4 + _t60*qd6 + qd5*(_c3*_t56 + _c3*_t57 + _t35*_t49);
+    const double _t62 = _s3*_s5;
+    const double _t63 = _c3*_c5;
+    const double _t64 = _c2*_t62 + _t32 - _t43*_t63;
+    const double _t65 = _t64*qd2;
+    const double _t66 = _t64*qd3;
+    const double _t67 = _c5*_s3;
+    const double _t68 = _c3*_s5;
+    const double _t69 = qd4*(_s2*_t67 + _t51*_t68);
+    const double _t70 = qd5*(_t31*_t63 - _t54);
+    const double _t71 = _s3*_t48;
+    const double _t72 = _s2*_t68 + _t51*_t67 + _t71;
+    const double _t73 = _t72*qd6;
+    const double _t74 = -_s2*_s3*_s5 + _t49 + _t51*_t63;
+    const double _t75 = -_t74;
+    const double _t76 = _s0*qd1;
+    const double _t77 = _c0*_t65 + _c0*_t66 + _c0*_t69 + _c0*_t70 + _c0*_t73 - _t75*_t76;
+    const double _t78 = _s3*_t44;
+    const double _t79 = _c3*_t38;
+    const double _t80 = _s2*_t78 + _t51*_t79;
+    const double _t81 = _s4*_t35;
+    const double _t82 = -_c2*_t45 + _c4*_t36 + _t39*_t43 + _t42;
+    const double _t83 = _t35*_t48 + _t56 + _t57;
+    const double _t84 = _t83*qd1;
+    const double _t85 = -_c0*_t43 + _t31*_t44;
+    const double _t86 = _t85*qd2;
+    const double _t87 = _t85*qd3;
+    const double _t88 = _t38*_t48 + _t81;
+    const double _t89 = _t88*qd4;
+    const double _t90 = _c4*_t41;
+    const double _t91 = _c0*_t31 - _t43*_t44 + _t90;
+    const double _t92 = _t91*qd5;
+    const double _t93 = _c0*_t51;
+    const double _t94 = -_s0*_s4*_s5 + _t44*_t48 + _t93;
+    const double _t95 = -_t94;
+    const double _t96 = _s3*qd6;
+    const double _t97 = _c0*_t71 + _s2*_t79 + _t51*_t78;
+    const double _t98 = _t47*qd6 + _t60*qd1 + _t82*qd4 + _t97*qd2 + _t97*qd3 + qd5*(-_s3*_s4*_t41 + _s3*_t93 + _t44*_t71);
+    const double _t99 = -_c2*_s0*_s3*_s5 + _c4*_t79 + _t35*_t54 + _t78;
+    const double _t100 = -_c3*_s0*_s2*_s4 + _t99;
+    const double _t101 = -_t100;
+    const double _t102 = _c2*_t78 + _c4*_t52 - _s0*_s3*_s5 + _t38*_t54;
+    const double _t103 = -_t102;
+    const double _t104 = _c2*_t79 - _s3*_t90 + _t43*_t78 + _t52;
+    const double _t105 = -_c0*_s2*_s3*_s4 + _t104;
+    const double _t106 = -_t105;
+    const double _t107 = _c0*_t75;
+    const double _t108 = _c3*qdd5;
+    const double _t109 = _s0*_t71 + _s2*_t42 + _t36*_t51;
+    const double _t110 = -_t109;
+    const double _t111 = _c2*_t52 + _c4*_t78 - _t43*_t50 + _t79;
+    const double _t112 = _s3*_t57 + _s4*_t39 + _t36*_t48;
+    const double _t113 = _c2*_t68 + _t43*_t67 - _t58;
+    const double _t114 = _c0*qd3;
+    const double _t115 = -_c3*_c5*_s2 + _t51*_t62;
+    const double _t116 = -_t115*qd4;
+    const double _t117 = -_c2*_c4*_s3 + _t31*_t67;
+    const double _t118 = -_t117;
+    const double _t119 = _c0*qd5;
+    const double _t120 = _t74*qd6;
+    const double _t121 = _c0*_t116 + _c0*_t120 + _t113*_t114 + _t113*_t14 + _t118*_t119 - _t72*_t76;
+    const double _t122 = _c0*_c3*_c5*_s2 - _t39*_t51;
+    const double _t123 = -_s3*_t85;
+    const double _t124 = _s3*qd5;
+    const double _t125 = _c3*qd6;
+    const double _t126 = _c0*_t49 - _s2*_t39 + _t45*_t51;
+    const double _t127 = _c3*_t93 - _s4*_t42 + _t45*_t48;
+    const double _t128 = _c0*_t72;
+    const double _t129 = _s3*qdd5;
+    const double _t130 = _t94*qd1;
+    const double _t131 = _c2*_c4*_s0 - _t31*_t35;
+    const double _t132 = _t131*qd2;
+    const double _t133 = _t131*qd3;
+    const double _t134 = qd4*(_c0*_c5*_s4 - _t41*_t48);
+    const double _t135 = _c4*_t38 - _s0*_t31 + _t35*_t43;
+    const double _t136 = _t135*qd5;
+    const double _t137 = _c5*_t48 + _t51;
+    const double _t138 = _c5*_t51 + _t48;
+    const double _t139 = _c5*_t31;
+    const double _t140 = _t139 - _t43;
+    const double _t141 = _t31*_t38;
+    const double _t142 = _t114*_t137 + _t119*_t138 + _t137*_t14 - _t140*_t76 - _t141*qd4;
+    const double _t143 = -_c0*_c5 + _c2*_t41;
+    const double _t144 = _s4*qd1;
+    const double _t145 = _s4*qd4;
+    const double _t146 = _c2*_t38 + _t35;
+    const double _t147 = _c4*qd5;
+    const double _t148 = _c0*_t48 + _t44*_t51;
+    const double _t149 = _c0*_t140;
+    const double _t150 = _s4*qdd4;
+    const double _t151 = -_t126;
+    const double _t152 = _s0*_t65 + _s0*_t66 + _s0*_t69 + _s0*_t70 + _s0*_t73 + _t107*qd1;
+    const double _t153 = _s2*_t36 + _t42*_t51;
+    const double _t154 = -_t111;
+    const double _t155 = _s0*qd3;
+    const double _t156 = _s0*qd5;
+    const double _t157 = _s0*_t116 + _s0*_t120 + _t113*_t155 + _t113*_t23 + _t118*_t156 + _t128*qd1;
+    const double _t158 = _c3*_c5*_s0*_s2 - _t50*_t51;
+    const double _t159 = _t31*_t41;
+    const double _t160 = _t137*_t155 + _t137*_t23 + _t138*_t156 + _t149*qd1 - _t159*qd4;
+    const double _t161 = _s0*_t48 + _t35*_t51;
+    const double _t162 = -_t113;
+    const double _t163 = _t162*qd6 + _t75*qd2 + _t75*qd3 + qd4*(-_c2*_t67 - _t43*_t68) + qd5*(-_c3*_t51 - _t48*_t63);
+    const double _t164 = _c4*_t68 + _t67;
+    const double _t165 = _c2*_t164;
+    const double _t166 = _s2*qd4;
+    const double _t167 = -_c3*_c5 + _c4*_t62;
+    const double _t168 = _s2*qd6;
+    const double _t169 = -_t137;
+    const double _t170 = _c3*_t169;
+    const double _t171 = -_t138;
+    const double _t172 = -_t140;
+    const double _t173 = -_t64;
+    const double _t174 = _s2*qdd4;
+    const double _t175 = _t64*qd6 + _t72*qd2 + _t72*qd3 + qd4*(-_c2*_t63 + _t43*_t62) + qd5*(_s3*_t51 + _t48*_t67);
+    const double _t176 = _c2*_t167;
+    const double _t177 = _t31*_t62;
+    const double _t178 = _s3*_t137;
+    const double _t179 = -_c5*_t43 + _t31;
+    const double _t180 = _s5*_t48;
+    const double _t181 = _t140*qd2 + _t140*qd3 + _t179*qd5 + _t180*qd4;
+    const double _t182 = _s5*_t51;
+    xdd[0] = _t19*qdd1 - _t20*qdd2 - _t21*qdd3 + qd1*(_t11*qd3 - _t7*qd1 + qd2*(_s0*_t8 + _t11)) + qd2*(_s0*_t18*qd1 - _t13*_t14 - _t16) + qd3*(_s0*_t17*qd1 - _t12*_t14 - _t16);
+    xdd[1] = -_t17*_t26 - _t18*_t25 + _t7*qdd1 + qd1*(_t19*qd1 - _t22*qd3 + qd2*(-_c0*_t8 - _t22)) + qd2*(-_t13*_t23 - _t20*qd1 - _t24) + qd3*(-_t12*_t23 - _t21*qd1 - _t24);
+    xdd[2] = _t12*qdd3 + _t13*qdd2 + qd2*(-_t18*qd2 + _t28) + qd3*(_t27*qd2 + _t28);
+    xdd[3] = _t101*qdd1 + _t103*qdd4 + _t106*qdd6 + _t107*qdd2 + _t107*qdd3 + _t108*_t95 + _t61*qd1 + _t77*qd2 + _t77*qd3 + _t98*qd6 + qd4*(_t46*qd4 + _t55*qd1 + _t80*qd2 + _t80*qd3 + _t82*qd6 + qd5*(_c3*_t81 + _t38*_t49)) + qd5*(_c3*_t84 + _c3*_t86 + _c3*_t87 + _c3*_t89 + _c3*_t92 - _t95*_t96);
+    xdd[4] = _t121*qd2 + _t121*qd3 + _t128*qdd2 + _t128*qdd3 + _t129*_t94 + _t47*qdd6 + _t60*qdd1 + _t82*qdd4 + qd1*(_t100*qd6 + _t105*qd1 + _t110*qd2 + _t110*qd3 + _t111*qd4 - _t112*qd5) + qd4*(_t102*qd6 + _t104*qd4 + _t111*qd1 + _t122*qd2 + _t122*qd3 + qd5*(-_s4*_t36 - _t39*_t48)) + qd5*(-_s3*_t83*qd1 - _s3*_t88*qd4 + _t123*qd2 + _t123*qd3 - _t124*_t91 + _t125*_t94) + qd6*(_t100*qd1 + _t102*qd4 + _t105*qd6 + _t126*qd2 + _t126*qd3 + _t127*qd5);
+    xdd[5] = _t142*qd2 + _t142*qd3 + _t146*_t150 + _t149*qdd2 + _t149*qdd3 + _t83*qdd1 + _t91*qdd5 + qd1*(_t130 + _t132 + _t133 + _t134 + _t136) + qd4*(-_t141*qd2 - _t141*qd3 - _t143*_t144 + _t145*(_c0*_c2*_c5 - _t41) + _t146*_t147) + qd5*(_t135*qd1 + _t148*qd2 + _t148*qd3 + _t94*qd5 + qd4*(_c4*_t35 + _t38*_t43));
+    xdd[6] = -_t108*_t83 + _t152*qd2 + _t152*qd3 + _t25*_t75 + _t26*_t75 - _t47*qdd1 - _t55*qdd4 - _t60*qdd6 + qd1*(_t101*qd1 + _t103*qd4 + _t106*qd6 - _t127*qd5 + _t151*qd2 + _t151*qd3) + qd4*(_t103*qd1 + _t153*qd2 + _t153*qd3 + _t154*qd6 - _t99*qd4 + qd5*(-_s4*_t45 + _t41*_t49)) + qd5*(-_c3*_t130 - _c3*_t132 - _c3*_t133 - _c3*_t134 - _c3*_t136 + _s3*_t83*qd6) + qd6*(_t101*qd6 + _t106*qd1 + _t109*qd2 + _t109*qd3 + _t112*qd5 + _t154*qd4);
+    xdd[7] = _t101*qdd6 + _t106*qdd1 + _t129*_t83 + _t154*qdd4 + _t157*qd2 + _t157*qd3 + _t25*_t72 + _t26*_t72 + _t61*qd6 + _t98*qd1 + qd4*(_t158*qd2 + _t158*qd3 + _t55*qd6 + _t59*qd4 + _t82*qd1 + qd5*(_c0*_c5*_s3*_s4 - _t41*_t71)) + qd5*(_s3*_t130 + _s3*_t132 + _s3*_t133 + _s3*_t134 + _s3*_t136 + _t125*_t83);
+    xdd[8] = -_t135*qdd5 + _t140*_t25 + _t140*_t26 + _t143*_t150 + _t160*qd2 + _t160*qd3 + _t95*qdd1 + qd1*(_t84 + _t86 + _t87 + _t89 + _t92) + qd4*(_t143*_t147 + _t144*_t146 + _t145*(_c2*_t35 + _t38) - _t159*qd2 - _t159*qd3) + qd5*(_t161*qd2 + _t161*qd3 + _t83*qd5 + _t91*qd1 + qd4*(-_c4*_t44 + _t41*_t43));
+    xdd[9] = _t108*_t172 + _t163*qd2 + _t163*qd3 - _t164*_t174 + _t173*qdd2 + _t173*qdd3 - _t72*qdd6 + qd4*(_c3*_s2*_s4*_s5*qd5 - _t165*qd2 - _t165*qd3 - _t166*(_c3*_c4*_c5 - _t62) + _t167*_t168) + qd5*(_c3*_t171*qd5 + _t170*qd2 + _t170*qd3 - _t172*_t96 + _t31*_t68*qd4) + qd6*(_t115*qd4 + _t117*qd5 + _t162*qd2 + _t162*qd3 + _t75*qd6);
+    xdd[10] = _t129*_t140 + _t162*qdd2 + _t162*qdd3 + _t167*_t174 + _t175*qd2 + _t175*qd3 + _t75*qdd6 + qd4*(_t164*_t168 + _t166*(_c4*_t67 + _t68) + _t176*qd2 + _t176*qd3 - _t177*qd5) + qd5*(_t124*_t138 + _t125*_t140 - _t177*qd4 + _t178*qd2 + _t178*qd3) + qd6*(_t65 + _t66 + _t69 + _t70 + _t73);
+    xdd[11] = _s5*_t31*qdd4 + _t169*qdd2 + _t169*qdd3 + _t171*qdd5 + _t181*qd2 + _t181*qd3 + qd4*(_t139*qd4 + _t180*qd2 + _t180*qd3 + _t182*qd5) + qd5*(_t140*qd5 + _t179*qd2 + _t179*qd3 + _t182*qd4);
 }
 
 /* task_acceleration of `count` items, stored one after the other in each argument and output. */
@@ -5727,7 +5727,7 @@ void puma560_task_acceleration_batch(size_t count, const double *restrict q, con
     double qdd4[KINEGEN_BLOCK_OF(64)];
     double qdd5[KINEGEN_BLOCK_OF(64)];
     double qdd6[KINEGEN_BLOCK_OF(64)];
-    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _t3[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
@@ -5777,7 +5777,7 @@ void puma560_task_acceleration_batch(size_t count, const double *restrict q, con
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t1[i] = q2[i] + q3[i];
+            _t3[i] = q2[i] + q3[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -5789,27 +5789,27 @@ void puma560_task_acceleration_batch(size_t count, const double *restrict q, con
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s1[i] = sin(_t1[i]);
+            _s1[i] = sin(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c1[i] = cos(_t1[i]);
+            _c1[i] = cos(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s2[i] = sin(q2[i]);
+            _s2[i] = sin(_t3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(q2[i]);
+            _c2[i] = cos(_t3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s3[i] = sin(q4[i]);
+            _s3[i] = sin(q6[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c3[i] = cos(q4[i]);
+            _c3[i] = cos(q6[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -5821,390 +5821,390 @@ void puma560_task_acceleration_batch(size_t count, const double *restrict q, con
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s5[i] = sin(q6[i]);
+            _s5[i] = sin(q4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c5[i] = cos(q6[i]);
+            _c5[i] = cos(q4[i]);
         }
 #ifdef KINEGEN_STREAM
         if (stream) {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t3 = _s1[i]*a3;
-                const double _t5 = _c1[i]*d4;
-                const double _t6 = _t3 + _t5;
-                const double _t7 = _c0[i]*_t6;
-                const double _t8 = _s2[i]*a2;
-                const double _t9 = _t6 + _t8;
-                const double _t10 = _c0[i]*_t9;
-                const double _t12 = _c2[i]*a2;
-                const double _t13 = _c1[i]*a3;
-                const double _t14 = _c0[i]*d3 + _s0[i]*_s1[i]*d4 - _s0[i]*_t12 - _s0[i]*_t13;
-                const double _t15 = -_s1[i]*d4 + _t13;
-                const double _t16 = _c0[i]*qd2[i];
-                const double _t17 = _t15*qd3[i];
-                const double _t18 = _c0[i]*_t17;
-                const double _t19 = _t12 + _t15;
-                const double _t20 = _s0[i]*_t3 + _s0[i]*_t5;
-                const double _t21 = -_c0[i]*_s1[i]*d4 + _c0[i]*_t12 + _c0[i]*_t13 + _s0[i]*d3;
-                const double _t22 = _s0[i]*qdd3[i];
-                const double _t23 = _s0[i]*qdd2[i];
-                const double _t24 = _s0[i]*qd2[i];
-                const double _t25 = _s0[i]*_t17;
-                const double _t26 = _c0[i]*_t3 + _c0[i]*_t5;
-                const double _t27 = -_t6;
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = -_c0[i]*_s2[i]*d4 + _c0[i]*_t2 + _c0[i]*_t5 + _s0[i]*d3;
+                const double _t8 = _s1[i]*a2;
+                const double _t9 = _s2[i]*a3;
+                const double _t10 = _c2[i]*d4;
+                const double _t11 = _s0[i]*_t10 + _s0[i]*_t9;
+                const double _t12 = -_s2[i]*d4 + _t5;
+                const double _t13 = _t12 + _t2;
+                const double _t14 = _c0[i]*qd2[i];
+                const double _t15 = _t12*qd3[i];
+                const double _t16 = _c0[i]*_t15;
+                const double _t17 = _t10 + _t9;
+                const double _t18 = _t17 + _t8;
+                const double _t19 = _c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5;
+                const double _t20 = _c0[i]*_t18;
+                const double _t21 = _c0[i]*_t17;
+                const double _t22 = _c0[i]*_t10 + _c0[i]*_t9;
+                const double _t23 = _s0[i]*qd2[i];
+                const double _t24 = _s0[i]*_t15;
+                const double _t25 = _s0[i]*qdd2[i];
+                const double _t26 = _s0[i]*qdd3[i];
+                const double _t27 = -_t17;
                 const double _t28 = _t27*qd3[i];
-                const double _t32 = _c4[i]*_s1[i];
-                const double _t33 = _c0[i]*_t32;
-                const double _t34 = _c1[i]*_s4[i];
-                const double _t36 = _c0[i]*_c3[i];
-                const double _t37 = -_s0[i]*_s3[i]*_s4[i] + _t33 + _t34*_t36;
-                const double _t38 = -_t37;
-                const double _t40 = _c5[i]*qdd5[i];
-                const double _t41 = _c5[i]*_t34;
-                const double _t43 = _c3[i]*_c5[i];
-                const double _t44 = -_s1[i]*_s3[i]*_s5[i] + _t32*_t43 + _t41;
-                const double _t45 = -_t44;
-                const double _t46 = _c0[i]*_t45;
-                const double _t47 = _c3[i]*_s0[i];
-                const double _t48 = _c5[i]*_t47;
-                const double _t49 = _s5[i]*_t36;
-                const double _t50 = _c0[i]*_s3[i];
-                const double _t51 = _c1[i]*_c4[i];
-                const double _t52 = _c5[i]*_t51;
-                const double _t53 = _c1[i]*_t49 + _c4[i]*_t48 - _s0[i]*_s3[i]*_s5[i] + _t50*_t52;
-                const double _t54 = -_t53;
-                const double _t55 = _c5[i]*_t50;
-                const double _t56 = -_c1[i]*_s0[i]*_s3[i]*_s5[i] + _c4[i]*_t55 + _t47*_t52 + _t49;
-                const double _t57 = -_c5[i]*_s0[i]*_s1[i]*_s4[i] + _t56;
-                const double _t58 = -_t57;
-                const double _t59 = _s0[i]*_s3[i];
-                const double _t60 = _c4[i]*_t59;
-                const double _t61 = _c1[i]*_t55 - _s5[i]*_t60 + _t48 + _t49*_t51;
-                const double _t62 = -_c0[i]*_s1[i]*_s4[i]*_s5[i] + _t61;
-                const double _t63 = -_t62;
-                const double _t64 = _s4[i]*_t47;
-                const double _t65 = _t34*_t50 + _t64;
-                const double _t66 = _t65*qd4[i];
-                const double _t67 = _s1[i]*_s4[i];
-                const double _t68 = -_c0[i]*_t51 + _t36*_t67;
-                const double _t69 = _t68*qd2[i];
-                const double _t70 = _t68*qd3[i];
-                const double _t71 = _s4[i]*_t50;
-                const double _t72 = _s0[i]*_t32;
-                const double _t73 = _t34*_t47 + _t71 + _t72;
-                const double _t74 = _t73*qd1[i];
-                const double _t75 = _c0[i]*_t67 - _t36*_t51 + _t60;
-                const double _t76 = _t75*qd5[i];
-                const double _t77 = _s5[i]*qd6[i];
-                const double _t78 = _c3[i]*_s5[i];
-                const double _t79 = _c5[i]*_s3[i];
-                const double _t80 = qd4[i]*(_s1[i]*_t78 + _t32*_t79);
-                const double _t81 = qd5[i]*(_t43*_t67 - _t52);
-                const double _t82 = _s5[i]*_t34;
-                const double _t83 = _s1[i]*_t79 + _t32*_t78 + _t82;
-                const double _t84 = _t83*qd6[i];
-                const double _t85 = _s3[i]*_s5[i];
-                const double _t86 = _c5[i]*_t67;
-                const double _t87 = _c1[i]*_t85 - _t43*_t51 + _t86;
-                const double _t88 = _t87*qd2[i];
-                const double _t89 = _t87*qd3[i];
-                const double _t90 = _s0[i]*qd1[i];
-                const double _t91 = _c0[i]*_t80 + _c0[i]*_t81 + _c0[i]*_t84 + _c0[i]*_t88 + _c0[i]*_t89 - _t45*_t90;
-                const double _t92 = _s1[i]*_t49 + _t32*_t55;
-                const double _t93 = _s5[i]*_t50;
-                const double _t94 = _c5[i]*_t36;
-                const double _t95 = _s5[i]*_t47;
-                const double _t96 = _c1[i]*_t95 - _c4[i]*_t94 + _t52*_t59 + _t93;
-                const double _t97 = _c5[i]*_t59;
-                const double _t98 = _c1[i]*_t93 + _c4[i]*_t97 - _t51*_t94 + _t95;
-                const double _t99 = -_c1[i]*_t94 + _c4[i]*_t95 + _t51*_t93 + _t97;
-                const double _t100 = _c0[i]*_t82 + _s1[i]*_t55 + _t32*_t49;
-                const double _t101 = _c0[i]*_t86 + _t98;
-                const double _t102 = _s5[i]*_t67;
-                const double _t103 = _c1[i]*_t97 + _c4[i]*_t93 + _t51*_t95 - _t94;
-                const double _t104 = -_s0[i]*_t102 + _t103;
-                const double _t105 = _t100*qd2[i] + _t100*qd3[i] + _t101*qd6[i] + _t104*qd1[i] + _t99*qd4[i] + qd5[i]*(-_s4[i]*_s5[i]*_t59 + _s5[i]*_t33 + _t36*_t82);
-                const double _t106 = _s5[i]*_t59;
-                const double _t107 = _s0[i]*_t41 - _s1[i]*_t106 + _t32*_t48;
-                const double _t108 = _t101*qd1[i] + _t104*qd6[i] + _t107*qd2[i] + _t107*qd3[i] + _t96*qd4[i] + qd5[i]*(_c5[i]*_t71 + _c5[i]*_t72 + _t41*_t47);
-                const double _t109 = _s5[i]*qdd5[i];
-                const double _t110 = _c0[i]*_t83;
-                const double _t111 = -_s5[i]*_t68;
-                const double _t112 = _c5[i]*qd6[i];
-                const double _t113 = _s5[i]*qd5[i];
-                const double _t114 = -_c3[i]*_c5[i]*_s1[i] + _t32*_t85;
-                const double _t115 = -_t114*qd4[i];
-                const double _t116 = -_c1[i]*_c4[i]*_s5[i] + _t67*_t78;
-                const double _t117 = -_t116;
-                const double _t118 = _c0[i]*qd5[i];
-                const double _t119 = _c1[i]*_t79 - _t102 + _t51*_t78;
-                const double _t120 = _c0[i]*qd3[i];
-                const double _t121 = _t44*qd6[i];
-                const double _t122 = _c0[i]*_t115 + _c0[i]*_t121 + _t117*_t118 + _t119*_t120 + _t119*_t16 - _t83*_t90;
-                const double _t123 = _c0[i]*_c3[i]*_c5[i]*_s1[i] - _t32*_t93;
-                const double _t124 = _c1[i]*_t48 + _c4[i]*_t49 - _t106*_t51 + _t55;
-                const double _t125 = _c5[i]*_t33 - _s4[i]*_t97 + _t34*_t94;
-                const double _t126 = _c0[i]*_t41 - _s1[i]*_t93 + _t32*_t94;
-                const double _t127 = _s4[i]*_t93 + _s5[i]*_t72 + _t34*_t95;
-                const double _t128 = _s0[i]*_t82 + _s1[i]*_t97 + _t32*_t95;
-                const double _t129 = -_t128;
-                const double _t130 = _c1[i]*_t50 + _t47;
-                const double _t131 = _s4[i]*qdd4[i];
-                const double _t132 = _c3[i]*_t67;
-                const double _t133 = _t132 - _t51;
-                const double _t134 = _c0[i]*_t133;
-                const double _t135 = _t50*_t67;
-                const double _t136 = _c4[i]*qd5[i];
-                const double _t137 = -_c0[i]*_c3[i] + _c1[i]*_t59;
-                const double _t138 = _s4[i]*qd1[i];
-                const double _t139 = _s4[i]*qd4[i];
-                const double _t140 = _c3[i]*_t34 + _t32;
-                const double _t141 = _c3[i]*_t32 + _t34;
-                const double _t142 = _t118*_t141 + _t120*_t140 - _t133*_t90 - _t135*qd4[i] + _t140*_t16;
-                const double _t143 = _c0[i]*_t34 + _t32*_t36;
-                const double _t144 = _c4[i]*_t50 - _s0[i]*_t67 + _t47*_t51;
-                const double _t145 = qd4[i]*(_c0[i]*_c3[i]*_s4[i] - _t34*_t59);
-                const double _t146 = _c1[i]*_c4[i]*_s0[i] - _t47*_t67;
-                const double _t147 = _t146*qd2[i];
-                const double _t148 = _t146*qd3[i];
-                const double _t149 = _t37*qd1[i];
-                const double _t150 = _t144*qd5[i];
-                const double _t151 = _s0[i]*_t80 + _s0[i]*_t81 + _s0[i]*_t84 + _s0[i]*_t88 + _s0[i]*_t89 + _t46*qd1[i];
-                const double _t152 = _s1[i]*_t95 + _t32*_t97;
-                const double _t153 = -_t124;
-                const double _t154 = -_t126;
-                const double _t155 = _s0[i]*qd5[i];
-                const double _t156 = _s0[i]*qd3[i];
-                const double _t157 = _s0[i]*_t115 + _s0[i]*_t121 + _t110*qd1[i] + _t117*_t155 + _t119*_t156 + _t119*_t24;
-                const double _t158 = _c3[i]*_c5[i]*_s0[i]*_s1[i] - _t106*_t32;
-                const double _t159 = _t59*_t67;
-                const double _t160 = _t134*qd1[i] + _t140*_t156 + _t140*_t24 + _t141*_t155 - _t159*qd4[i];
-                const double _t161 = _s0[i]*_t34 + _t32*_t47;
-                const double _t162 = _c4[i]*_t79 + _t78;
-                const double _t163 = _s1[i]*qdd4[i];
-                const double _t164 = -_t133;
-                const double _t165 = -_t87;
-                const double _t166 = _c1[i]*_t162;
-                const double _t167 = _s1[i]*qd4[i];
-                const double _t168 = -_c3[i]*_c5[i] + _c4[i]*_t85;
-                const double _t169 = _s1[i]*qd6[i];
-                const double _t170 = -_t140;
-                const double _t171 = _c5[i]*_t170;
-                const double _t172 = -_t141;
-                const double _t173 = -_t119;
-                const double _t174 = _t173*qd6[i] + _t45*qd2[i] + _t45*qd3[i] + qd4[i]*(-_c1[i]*_t78 - _t51*_t79) + qd5[i]*(-_c5[i]*_t32 - _t34*_t43);
-                const double _t175 = _t67*_t85;
-                const double _t176 = _c1[i]*_t168;
-                const double _t177 = _s5[i]*_t140;
-                const double _t178 = _t83*qd2[i] + _t83*qd3[i] + _t87*qd6[i] + qd4[i]*(-_c1[i]*_t43 + _t51*_t85) + qd5[i]*(_s5[i]*_t32 + _t34*_t78);
-                const double _t179 = _s3[i]*_t34;
-                const double _t180 = _s3[i]*_t32;
-                const double _t181 = -_c3[i]*_t51 + _t67;
-                const double _t182 = _t133*qd2[i] + _t133*qd3[i] + _t179*qd4[i] + _t181*qd5[i];
-                _xdd_block[0][i] = -_t10*qdd2[i] + _t14*qdd1[i] - _t7*qdd3[i] + qd1[i]*(_t20*qd3[i] - _t21*qd1[i] + qd2[i]*(_s0[i]*_t8 + _t20)) + qd2[i]*(_s0[i]*_t9*qd1[i] - _t16*_t19 - _t18) + qd3[i]*(_s0[i]*_t6*qd1[i] - _t15*_t16 - _t18);
-                _xdd_block[1][i] = _t21*qdd1[i] - _t22*_t6 - _t23*_t9 + qd1[i]*(_t14*qd1[i] - _t26*qd3[i] + qd2[i]*(-_c0[i]*_t8 - _t26)) + qd2[i]*(-_t10*qd1[i] - _t19*_t24 - _t25) + qd3[i]*(-_t15*_t24 - _t25 - _t7*qd1[i]);
-                _xdd_block[2][i] = _t15*qdd3[i] + _t19*qdd2[i] + qd2[i]*(_t28 - _t9*qd2[i]) + qd3[i]*(_t27*qd2[i] + _t28);
-                _xdd_block[3][i] = _t105*qd6[i] + _t108*qd1[i] + _t38*_t40 + _t46*qdd2[i] + _t46*qdd3[i] + _t54*qdd4[i] + _t58*qdd1[i] + _t63*qdd6[i] + _t91*qd2[i] + _t91*qd3[i] + qd4[i]*(_t92*qd2[i] + _t92*qd3[i] + _t96*qd1[i] + _t98*qd4[i] + _t99*qd6[i] + qd5[i]*(_c5[i]*_t64 + _t41*_t50)) + qd5[i]*(_c5[i]*_t66 + _c5[i]*_t69 + _c5[i]*_t70 + _c5[i]*_t74 + _c5[i]*_t76 - _t38*_t77);
-                _xdd_block[4][i] = _t101*qdd6[i] + _t104*qdd1[i] + _t109*_t37 + _t110*qdd2[i] + _t110*qdd3[i] + _t122*qd2[i] + _t122*qd3[i] + _t99*qdd4[i] + qd1[i]*(_t124*qd4[i] - _t127*qd5[i] + _t129*qd2[i] + _t129*qd3[i] + _t57*qd6[i] + _t62*qd1[i]) + qd4[i]*(_t123*qd2[i] + _t123*qd3[i] + _t124*qd1[i] + _t53*qd6[i] + _t61*qd4[i] + qd5[i]*(-_s4[i]*_t95 - _t34*_t93)) + qd5[i]*(-_s5[i]*_t65*qd4[i] - _s5[i]*_t73*qd1[i] + _t111*qd2[i] + _t111*qd3[i] + _t112*_t37 - _t113*_t75) + qd6[i]*(_t125*qd5[i] + _t126*qd2[i] + _t126*qd3[i] + _t53*qd4[i] + _t57*qd1[i] + _t62*qd6[i]);
-                _xdd_block[5][i] = _t130*_t131 + _t134*qdd2[i] + _t134*qdd3[i] + _t142*qd2[i] + _t142*qd3[i] + _t73*qdd1[i] + _t75*qdd5[i] + qd1[i]*(_t145 + _t147 + _t148 + _t149 + _t150) + qd4[i]*(_t130*_t136 - _t135*qd2[i] - _t135*qd3[i] - _t137*_t138 + _t139*(_c0[i]*_c1[i]*_c3[i] - _t59)) + qd5[i]*(_t143*qd2[i] + _t143*qd3[i] + _t144*qd1[i] + _t37*qd5[i] + qd4[i]*(_c4[i]*_t47 + _t50*_t51));
-                _xdd_block[6][i] = -_t101*qdd1[i] - _t104*qdd6[i] + _t151*qd2[i] + _t151*qd3[i] + _t22*_t45 + _t23*_t45 - _t40*_t73 - _t96*qdd4[i] + qd1[i]*(-_t125*qd5[i] + _t154*qd2[i] + _t154*qd3[i] + _t54*qd4[i] + _t58*qd1[i] + _t63*qd6[i]) + qd4[i]*(_t152*qd2[i] + _t152*qd3[i] + _t153*qd6[i] + _t54*qd1[i] - _t56*qd4[i] + qd5[i]*(-_s4[i]*_t94 + _t41*_t59)) + qd5[i]*(-_c5[i]*_t145 - _c5[i]*_t147 - _c5[i]*_t148 - _c5[i]*_t149 - _c5[i]*_t150 + _s5[i]*_t73*qd6[i]) + qd6[i]*(_t127*qd5[i] + _t128*qd2[i] + _t128*qd3[i] + _t153*qd4[i] + _t58*qd6[i] + _t63*qd1[i]);
-                _xdd_block[7][i] = _t105*qd1[i] + _t108*qd6[i] + _t109*_t73 + _t153*qdd4[i] + _t157*qd2[i] + _t157*qd3[i] + _t22*_t83 + _t23*_t83 + _t58*qdd6[i] + _t63*qdd1[i] + qd4[i]*(_t103*qd4[i] + _t158*qd2[i] + _t158*qd3[i] + _t96*qd6[i] + _t99*qd1[i] + qd5[i]*(_c0[i]*_c3[i]*_s4[i]*_s5[i] - _t59*_t82)) + qd5[i]*(_s5[i]*_t145 + _s5[i]*_t147 + _s5[i]*_t148 + _s5[i]*_t149 + _s5[i]*_t150 + _t112*_t73);
-                _xdd_block[8][i] = _t131*_t137 + _t133*_t22 + _t133*_t23 - _t144*qdd5[i] + _t160*qd2[i] + _t160*qd3[i] + _t38*qdd1[i] + qd1[i]*(_t66 + _t69 + _t70 + _t74 + _t76) + qd4[i]*(_t130*_t138 + _t136*_t137 + _t139*(_c1[i]*_t47 + _t50) - _t159*qd2[i] - _t159*qd3[i]) + qd5[i]*(_t161*qd2[i] + _t161*qd3[i] + _t73*qd5[i] + _t75*qd1[i] + qd4[i]*(-_c4[i]*_t36 + _t51*_t59));
-                _xdd_block[9][i] = -_t162*_t163 + _t164*_t40 + _t165*qdd2[i] + _t165*qdd3[i] + _t174*qd2[i] + _t174*qd3[i] - _t83*qdd6[i] + qd4[i]*(_c5[i]*_s1[i]*_s3[i]*_s4[i]*qd5[i] - _t166*qd2[i] - _t166*qd3[i] - _t167*(_c3[i]*_c4[i]*_c5[i] - _t85) + _t168*_t169) + qd5[i]*(_c5[i]*_t172*qd5[i] - _t164*_t77 + _t171*qd2[i] + _t171*qd3[i] + _t67*_t79*qd4[i]) + qd6[i]*(_t114*qd4[i] + _t116*qd5[i] + _t173*qd2[i] + _t173*qd3[i] + _t45*qd6[i]);
-                _xdd_block[10][i] = _t109*_t133 + _t163*_t168 + _t173*qdd2[i] + _t173*qdd3[i] + _t178*qd2[i] + _t178*qd3[i] + _t45*qdd6[i] + qd4[i]*(_t162*_t169 + _t167*(_c4[i]*_t78 + _t79) - _t175*qd5[i] + _t176*qd2[i] + _t176*qd3[i]) + qd5[i]*(_t112*_t133 + _t113*_t141 - _t175*qd4[i] + _t177*qd2[i] + _t177*qd3[i]) + qd6[i]*(_t80 + _t81 + _t84 + _t88 + _t89);
-                _xdd_block[11][i] = _s3[i]*_t67*qdd4[i] + _t170*qdd2[i] + _t170*qdd3[i] + _t172*qdd5[i] + _t182*qd2[i] + _t182*qd3[i] + qd4[i]*(_t132*qd4[i] + _t179*qd2[i] + _t179*qd3[i] + _t180*qd5[i]) + qd5[i]*(_t133*qd5[i] + _t180*qd4[i] + _t181*qd2[i] + _t181*qd3[i]);
+                const double _t31 = _s2[i]*_s4[i];
+                const double _t32 = _c3[i]*_t31;
+                const double _t35 = _c5[i]*_s0[i];
+                const double _t36 = _s3[i]*_t35;
+                const double _t38 = _c0[i]*_s5[i];
+                const double _t39 = _s3[i]*_t38;
+                const double _t41 = _s0[i]*_s5[i];
+                const double _t42 = _c3[i]*_t41;
+                const double _t43 = _c2[i]*_c4[i];
+                const double _t44 = _c0[i]*_c5[i];
+                const double _t45 = _c3[i]*_t44;
+                const double _t46 = _c2[i]*_t39 + _c4[i]*_t42 + _t36 - _t43*_t45;
+                const double _t47 = _c0[i]*_t32 + _t46;
+                const double _t48 = _c2[i]*_s4[i];
+                const double _t49 = _c3[i]*_t48;
+                const double _t50 = _s3[i]*_t41;
+                const double _t51 = _c4[i]*_s2[i];
+                const double _t52 = _c3[i]*_t35;
+                const double _t53 = _s0[i]*_t49 - _s2[i]*_t50 + _t51*_t52;
+                const double _t54 = _c3[i]*_t43;
+                const double _t55 = _c2[i]*_t36 - _c4[i]*_t45 + _t39 + _t41*_t54;
+                const double _t56 = _s4[i]*_t38;
+                const double _t57 = _s0[i]*_t51;
+                const double _t58 = _s3[i]*_t31;
+                const double _t59 = _c2[i]*_t42 + _c4[i]*_t39 + _t36*_t43 - _t45;
+                const double _t60 = -_s0[i]*_t58 + _t59;
+                const double _t61 = _t47*qd1[i] + _t53*qd2[i] + _t53*qd3[i] + _t55*qd4[i] + _t60*qd6[i] + qd5[i]*(_c3[i]*_t56 + _c3[i]*_t57 + _t35*_t49);
+                const double _t62 = _s3[i]*_s5[i];
+                const double _t63 = _c3[i]*_c5[i];
+                const double _t64 = _c2[i]*_t62 + _t32 - _t43*_t63;
+                const double _t65 = _t64*qd2[i];
+                const double _t66 = _t64*qd3[i];
+                const double _t67 = _c5[i]*_s3[i];
+                const double _t68 = _c3[i]*_s5[i];
+                const double _t69 = qd4[i]*(_s2[i]*_t67 + _t51*_t68);
+                const double _t70 = qd5[i]*(_t31*_t63 - _t54);
+                const double _t71 = _s3[i]*_t48;
+                const double _t72 = _s2[i]*_t68 + _t51*_t67 + _t71;
+                const double _t73 = _t72*qd6[i];
+                const double _t74 = -_s2[i]*_s3[i]*_s5[i] + _t49 + _t51*_t63;
+                const double _t75 = -_t74;
+                const double _t76 = _s0[i]*qd1[i];
+                const double _t77 = _c0[i]*_t65 + _c0[i]*_t66 + _c0[i]*_t69 + _c0[i]*_t70 + _c0[i]*_t73 - _t75*_t76;
+                const double _t78 = _s3[i]*_t44;
+                const double _t79 = _c3[i]*_t38;
+                const double _t80 = _s2[i]*_t78 + _t51*_t79;
+                const double _t81 = _s4[i]*_t35;
+                const double _t82 = -_c2[i]*_t45 + _c4[i]*_t36 + _t39*_t43 + _t42;
+                const double _t83 = _t35*_t48 + _t56 + _t57;
+                const double _t84 = _t83*qd1[i];
+                const double _t85 = -_c0[i]*_t43 + _t31*_t44;
+                const double _t86 = _t85*qd2[i];
+                const double _t87 = _t85*qd3[i];
+                const double _t88 = _t38*_t48 + _t81;
+                const double _t89 = _t88*qd4[i];
+                const double _t90 = _c4[i]*_t41;
+                const double _t91 = _c0[i]*_t31 - _t43*_t44 + _t90;
+                const double _t92 = _t91*qd5[i];
+                const double _t93 = _c0[i]*_t51;
+                const double _t94 = -_s0[i]*_s4[i]*_s5[i] + _t44*_t48 + _t93;
+                const double _t95 = -_t94;
+                const double _t96 = _s3[i]*qd6[i];
+                const double _t97 = _c0[i]*_t71 + _s2[i]*_t79 + _t51*_t78;
+                const double _t98 = _t47*qd6[i] + _t60*qd1[i] + _t82*qd4[i] + _t97*qd2[i] + _t97*qd3[i] + qd5[i]*(-_s3[i]*_s4[i]*_t41 + _s3[i]*_t93 + _t44*_t71);
+                const double _t99 = -_c2[i]*_s0[i]*_s3[i]*_s5[i] + _c4[i]*_t79 + _t35*_t54 + _t78;
+                const double _t100 = -_c3[i]*_s0[i]*_s2[i]*_s4[i] + _t99;
+                const double _t101 = -_t100;
+                const double _t102 = _c2[i]*_t78 + _c4[i]*_t52 - _s0[i]*_s3[i]*_s5[i] + _t38*_t54;
+                const double _t103 = -_t102;
+                const double _t104 = _c2[i]*_t79 - _s3[i]*_t90 + _t43*_t78 + _t52;
+                const double _t105 = -_c0[i]*_s2[i]*_s3[i]*_s4[i] + _t104;
+                const double _t106 = -_t105;
+                const double _t107 = _c0[i]*_t75;
+                const double _t108 = _c3[i]*qdd5[i];
+                const double _t109 = _s0[i]*_t71 + _s2[i]*_t42 + _t36*_t51;
+                const double _t110 = -_t109;
+                const double _t111 = _c2[i]*_t52 + _c4[i]*_t78 - _t43*_t50 + _t79;
+                const double _t112 = _s3[i]*_t57 + _s4[i]*_t39 + _t36*_t48;
+                const double _t113 = _c2[i]*_t68 + _t43*_t67 - _t58;
+                const double _t114 = _c0[i]*qd3[i];
+                const double _t115 = -_c3[i]*_c5[i]*_s2[i] + _t51*_t62;
+                const double _t116 = -_t115*qd4[i];
+                const double _t117 = -_c2[i]*_c4[i]*_s3[i] + _t31*_t67;
+                const double _t118 = -_t117;
+                const double _t119 = _c0[i]*qd5[i];
+                const double _t120 = _t74*qd6[i];
+                const double _t121 = _c0[i]*_t116 + _c0[i]*_t120 + _t113*_t114 + _t113*_t14 + _t118*_t119 - _t72*_t76;
+                const double _t122 = _c0[i]*_c3[i]*_c5[i]*_s2[i] - _t39*_t51;
+                const double _t123 = -_s3[i]*_t85;
+                const double _t124 = _s3[i]*qd5[i];
+                const double _t125 = _c3[i]*qd6[i];
+                const double _t126 = _c0[i]*_t49 - _s2[i]*_t39 + _t45*_t51;
+                const double _t127 = _c3[i]*_t93 - _s4[i]*_t42 + _t45*_t48;
+                const double _t128 = _c0[i]*_t72;
+                const double _t129 = _s3[i]*qdd5[i];
+                const double _t130 = _t94*qd1[i];
+                const double _t131 = _c2[i]*_c4[i]*_s0[i] - _t31*_t35;
+                const double _t132 = _t131*qd2[i];
+                const double _t133 = _t131*qd3[i];
+                const double _t134 = qd4[i]*(_c0[i]*_c5[i]*_s4[i] - _t41*_t48);
+                const double _t135 = _c4[i]*_t38 - _s0[i]*_t31 + _t35*_t43;
+                const double _t136 = _t135*qd5[i];
+                const double _t137 = _c5[i]*_t48 + _t51;
+                const double _t138 = _c5[i]*_t51 + _t48;
+                const double _t139 = _c5[i]*_t31;
+                const double _t140 = _t139 - _t43;
+                const double _t141 = _t31*_t38;
+                const double _t142 = _t114*_t137 + _t119*_t138 + _t137*_t14 - _t140*_t76 - _t141*qd4[i];
+                const double _t143 = -_c0[i]*_c5[i] + _c2[i]*_t41;
+                const double _t144 = _s4[i]*qd1[i];
+                const double _t145 = _s4[i]*qd4[i];
+                const double _t146 = _c2[i]*_t38 + _t35;
+                const double _t147 = _c4[i]*qd5[i];
+                const double _t148 = _c0[i]*_t48 + _t44*_t51;
+                const double _t149 = _c0[i]*_t140;
+                const double _t150 = _s4[i]*qdd4[i];
+                const double _t151 = -_t126;
+                const double _t152 = _s0[i]*_t65 + _s0[i]*_t66 + _s0[i]*_t69 + _s0[i]*_t70 + _s0[i]*_t73 + _t107*qd1[i];
+                const double _t153 = _s2[i]*_t36 + _t42*_t51;
+                const double _t154 = -_t111;
+                const double _t155 = _s0[i]*qd3[i];
+                const double _t156 = _s0[i]*qd5[i];
+                const double _t157 = _s0[i]*_t116 + _s0[i]*_t120 + _t113*_t155 + _t113*_t23 + _t118*_t156 + _t128*qd1[i];
+                const double _t158 = _c3[i]*_c5[i]*_s0[i]*_s2[i] - _t50*_t51;
+                const double _t159 = _t31*_t41;
+                const double _t160 = _t137*_t155 + _t137*_t23 + _t138*_t156 + _t149*qd1[i] - _t159*qd4[i];
+                const double _t161 = _s0[i]*_t48 + _t35*_t51;
+                const double _t162 = -_t113;
+                const double _t163 = _t162*qd6[i] + _t75*qd2[i] + _t75*qd3[i] + qd4[i]*(-_c2[i]*_t67 - _t43*_t68) + qd5[i]*(-_c3[i]*_t51 - _t48*_t63);
+                const double _t164 = _c4[i]*_t68 + _t67;
+                const double _t165 = _c2[i]*_t164;
+                const double _t166 = _s2[i]*qd4[i];
+                const double _t167 = -_c3[i]*_c5[i] + _c4[i]*_t62;
+                const double _t168 = _s2[i]*qd6[i];
+                const double _t169 = -_t137;
+                const double _t170 = _c3[i]*_t169;
+                const double _t171 = -_t138;
+                const double _t172 = -_t140;
+                const double _t173 = -_t64;
+                const double _t174 = _s2[i]*qdd4[i];
+                const double _t175 = _t64*qd6[i] + _t72*qd2[i] + _t72*qd3[i] + qd4[i]*(-_c2[i]*_t63 + _t43*_t62) + qd5[i]*(_s3[i]*_t51 + _t48*_t67);
+                const double _t176 = _c2[i]*_t167;
+                const double _t177 = _t31*_t62;
+                const double _t178 = _s3[i]*_t137;
+                const double _t179 = -_c5[i]*_t43 + _t31;
+                const double _t180 = _s5[i]*_t48;
+                const double _t181 = _t140*qd2[i] + _t140*qd3[i] + _t179*qd5[i] + _t180*qd4[i];
+                const double _t182 = _s5[i]*_t51;
+                _xdd_block[0][i] = _t19*qdd1[i] - _t20*qdd2[i] - _t21*qdd3[i] + qd1[i]*(_t11*qd3[i] - _t7*qd1[i] + qd2[i]*(_s0[i]*_t8 + _t11)) + qd2[i]*(_s0[i]*_t18*qd1[i] - _t13*_t14 - _t16) + qd3[i]*(_s0[i]*_t17*qd1[i] - _t12*_t14 - _t16);
+                _xdd_block[1][i] = -_t17*_t26 - _t18*_t25 + _t7*qdd1[i] + qd1[i]*(_t19*qd1[i] - _t22*qd3[i] + qd2[i]*(-_c0[i]*_t8 - _t22)) + qd2[i]*(-_t13*_t23 - _t20*qd1[i] - _t24) + qd3[i]*(-_t12*_t23 - _t21*qd1[i] - _t24);
+                _xdd_block[2][i] = _t12*qdd3[i] + _t13*qdd2[i] + qd2[i]*(-_t18*qd2[i] + _t28) + qd3[i]*(_t27*qd2[i] + _t28);
+                _xdd_block[3][i] = _t101*qdd1[i] + _t103*qdd4[i] + _t106*qdd6[i] + _t107*qdd2[i] + _t107*qdd3[i] + _t108*_t95 + _t61*qd1[i] + _t77*qd2[i] + _t77*qd3[i] + _t98*qd6[i] + qd4[i]*(_t46*qd4[i] + _t55*qd1[i] + _t80*qd2[i] + _t80*qd3[i] + _t82*qd6[i] + qd5[i]*(_c3[i]*_t81 + _t38*_t49)) + qd5[i]*(_c3[i]*_t84 + _c3[i]*_t86 + _c3[i]*_t87 + _c3[i]*_t89 + _c3[i]*_t92 - _t95*_t96);
+                _xdd_block[4][i] = _t121*qd2[i] + _t121*qd3[i] + _t128*qdd2[i] + _t128*qdd3[i] + _t129*_t94 + _t47*qdd6[i] + _t60*qdd1[i] + _t82*qdd4[i] + qd1[i]*(_t100*qd6[i] + _t105*qd1[i] + _t110*qd2[i] + _t110*qd3[i] + _t111*qd4[i] - _t112*qd5[i]) + qd4[i]*(_t102*qd6[i] + _t104*qd4[i] + _t111*qd1[i] + _t122*qd2[i] + _t122*qd3[i] + qd5[i]*(-_s4[i]*_t36 - _t39*_t48)) + qd5[i]*(-_s3[i]*_t83*qd1[i] - _s3[i]*_t88*qd4[i] + _t123*qd2[i] + _t123*qd3[i] - _t124*_t91 + _t125*_t94) + qd6[i]*(_t100*qd1[i] + _t102*qd4[i] + _t105*qd6[i] + _t126*qd2[i] + _t126*qd3[i] + _t127*qd5[i]);
+                _xdd_block[5][i] = _t142*qd2[i] + _t142*qd3[i] + _t146*_t150 + _t149*qdd2[i] + _t149*qdd3[i] + _t83*qdd1[i] + _t91*qdd5[i] + qd1[i]*(_t130 + _t132 + _t133 + _t134 + _t136) + qd4[i]*(-_t141*qd2[i] - _t141*qd3[i] - _t143*_t144 + _t145*(_c0[i]*_c2[i]*_c5[i] - _t41) + _t146*_t147) + qd5[i]*(_t135*qd1[i] + _t148*qd2[i] + _t148*qd3[i] + _t94*qd5[i] + qd4[i]*(_c4[i]*_t35 + _t38*_t43));
+                _xdd_block[6][i] = -_t108*_t83 + _t152*qd2[i] + _t152*qd3[i] + _t25*_t75 + _t26*_t75 - _t47*qdd1[i] - _t55*qdd4[i] - _t60*qdd6[i] + qd1[i]*(_t101*qd1[i] + _t103*qd4[i] + _t106*qd6[i] - _t127*qd5[i] + _t151*qd2[i] + _t151*qd3[i]) + qd4[i]*(_t103*qd1[i] + _t153*qd2[i] + _t153*qd3[i] + _t154*qd6[i] - _t99*qd4[i] + qd5[i]*(-_s4[i]*_t45 + _t41*_t49)) + qd5[i]*(-_c3[i]*_t130 - _c3[i]*_t132 - _c3[i]*_t133 - _c3[i]*_t134 - _c3[i]*_t136 + _s3[i]*_t83*qd6[i]) + qd6[i]*(_t101*qd6[i] + _t106*qd1[i] + _t109*qd2[i] + _t109*qd3[i] + _t112*qd5[i] + _t154*qd4[i]);
+                _xdd_block[7][i] = _t101*qdd6[i] + _t106*qdd1[i] + _t129*_t83 + _t154*qdd4[i] + _t157*qd2[i] + _t157*qd3[i] + _t25*_t72 + _t26*_t72 + _t61*qd6[i] + _t98*qd1[i] + qd4[i]*(_t158*qd2[i] + _t158*qd3[i] + _t55*qd6[i] + _t59*qd4[i] + _t82*qd1[i] + qd5[i]*(_c0[i]*_c5[i]*_s3[i]*_s4[i] - _t41*_t71)) + qd5[i]*(_s3[i]*_t130 + _s3[i]*_t132 + _s3[i]*_t133 + _s3[i]*_t134 + _s3[i]*_t136 + _t125*_t83);
+                _xdd_block[8][i] = -_t135*qdd5[i] + _t140*_t25 + _t140*_t26 + _t143*_t150 + _t160*qd2[i] + _t160*qd3[i] + _t95*qdd1[i] + qd1[i]*(_t84 + _t86 + _t87 + _t89 + _t92) + qd4[i]*(_t143*_t147 + _t144*_t146 + _t145*(_c2[i]*_t35 + _t38) - _t159*qd2[i] - _t159*qd3[i]) + qd5[i]*(_t161*qd2[i] + _t161*qd3[i] + _t83*qd5[i] + _t91*qd1[i] + qd4[i]*(-_c4[i]*_t44 + _t41*_t43));
+                _xdd_block[9][i] = _t108*_t172 + _t163*qd2[i] + _t163*qd3[i] - _t164*_t174 + _t173*qdd2[i] + _t173*qdd3[i] - _t72*qdd6[i] + qd4[i]*(_c3[i]*_s2[i]*_s4[i]*_s5[i]*qd5[i] - _t165*qd2[i] - _t165*qd3[i] - _t166*(_c3[i]*_c4[i]*_c5[i] - _t62) + _t167*_t168) + qd5[i]*(_c3[i]*_t171*qd5[i] + _t170*qd2[i] + _t170*qd3[i] - _t172*_t96 + _t31*_t68*qd4[i]) + qd6[i]*(_t115*qd4[i] + _t117*qd5[i] + _t162*qd2[i] + _t162*qd3[i] + _t75*qd6[i]);
+                _xdd_block[10][i] = _t129*_t140 + _t162*qdd2[i] + _t162*qdd3[i] + _t167*_t174 + _t175*qd2[i] + _t175*qd3[i] + _t75*qdd6[i] + qd4[i]*(_t164*_t168 + _t166*(_c4[i]*_t67 + _t68) + _t176*qd2[i] + _t176*qd3[i] - _t177*qd5[i]) + qd5[i]*(_t124*_t138 + _t125*_t140 - _t177*qd4[i] + _t178*qd2[i] + _t178*qd3[i]) + qd6[i]*(_t65 + _t66 + _t69 + _t70 + _t73);
+                _xdd_block[11][i] = _s5[i]*_t31*qdd4[i] + _t169*qdd2[i] + _t169*qdd3[i] + _t171*qdd5[i] + _t181*qd2[i] + _t181*qd3[i] + qd4[i]*(_t139*qd4[i] + _t180*qd2[i] + _t180*qd3[i] + _t182*qd5[i]) + qd5[i]*(_t140*qd5[i] + _t179*qd2[i] + _t179*qd3[i] + _t182*qd4[i]);
             }
         } else
 #endif
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t3 = _s1[i]*a3;
-                const double _t5 = _c1[i]*d4;
-                const double _t6 = _t3 + _t5;
-                const double _t7 = _c0[i]*_t6;
-                const double _t8 = _s2[i]*a2;
-                const double _t9 = _t6 + _t8;
-                const double _t10 = _c0[i]*_t9;
-                const double _t12 = _c2[i]*a2;
-                const double _t13 = _c1[i]*a3;
-                const double _t14 = _c0[i]*d3 + _s0[i]*_s1[i]*d4 - _s0[i]*_t12 - _s0[i]*_t13;
-                const double _t15 = -_s1[i]*d4 + _t13;
-                const double _t16 = _c0[i]*qd2[i];
-                const double _t17 = _t15*qd3[i];
-                const double _t18 = _c0[i]*_t17;
-                const double _t19 = _t12 + _t15;
-                const double _t20 = _s0[i]*_t3 + _s0[i]*_t5;
-                const double _t21 = -_c0[i]*_s1[i]*d4 + _c0[i]*_t12 + _c0[i]*_t13 + _s0[i]*d3;
-                const double _t22 = _s0[i]*qdd3[i];
-                const double _t23 = _s0[i]*qdd2[i];
-                const double _t24 = _s0[i]*qd2[i];
-                const double _t25 = _s0[i]*_t17;
-                const double _t26 = _c0[i]*_t3 + _c0[i]*_t5;
-                const double _t27 = -_t6;
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = -_c0[i]*_s2[i]*d4 + _c0[i]*_t2 + _c0[i]*_t5 + _s0[i]*d3;
+                const double _t8 = _s1[i]*a2;
+                const double _t9 = _s2[i]*a3;
+                const double _t10 = _c2[i]*d4;
+                const double _t11 = _s0[i]*_t10 + _s0[i]*_t9;
+                const double _t12 = -_s2[i]*d4 + _t5;
+                const double _t13 = _t12 + _t2;
+                const double _t14 = _c0[i]*qd2[i];
+                const double _t15 = _t12*qd3[i];
+                const double _t16 = _c0[i]*_t15;
+                const double _t17 = _t10 + _t9;
+                const double _t18 = _t17 + _t8;
+                const double _t19 = _c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5;
+                const double _t20 = _c0[i]*_t18;
+                const double _t21 = _c0[i]*_t17;
+                const double _t22 = _c0[i]*_t10 + _c0[i]*_t9;
+                const double _t23 = _s0[i]*qd2[i];
+                const double _t24 = _s0[i]*_t15;
+                const double _t25 = _s0[i]*qdd2[i];
+                const double _t26 = _s0[i]*qdd3[i];
+                const double _t27 = -_t17;
                 const double _t28 = _t27*qd3[i];
-                const double _t32 = _c4[i]*_s1[i];
-                const double _t33 = _c0[i]*_t32;
-                const double _t34 = _c1[i]*_s4[i];
-                const double _t36 = _c0[i]*_c3[i];
-                const double _t37 = -_s0[i]*_s3[i]*_s4[i] + _t33 + _t34*_t36;
-                const double _t38 = -_t37;
-                const double _t40 = _c5[i]*qdd5[i];
-                const double _t41 = _c5[i]*_t34;
-                const double _t43 = _c3[i]*_c5[i];
-                const double _t44 = -_s1[i]*_s3[i]*_s5[i] + _t32*_t43 + _t41;
-                const double _t45 = -_t44;
-                const double _t46 = _c0[i]*_t45;
-                const double _t47 = _c3[i]*_s0[i];
-                const double _t48 = _c5[i]*_t47;
-                const double _t49 = _s5[i]*_t36;
-                const double _t50 = _c0[i]*_s3[i];
-                const double _t51 = _c1[i]*_c4[i];
-                const double _t52 = _c5[i]*_t51;
-                const double _t53 = _c1[i]*_t49 + _c4[i]*_t48 - _s0[i]*_s3[i]*_s5[i] + _t50*_t52;
-                const double _t54 = -_t53;
-                const double _t55 = _c5[i]*_t50;
-                const double _t56 = -_c1[i]*_s0[i]*_s3[i]*_s5[i] + _c4[i]*_t55 + _t47*_t52 + _t49;
-                const double _t57 = -_c5[i]*_s0[i]*_s1[i]*_s4[i] + _t56;
-                const double _t58 = -_t57;
-                const double _t59 = _s0[i]*_s3[i];
-                const double _t60 = _c4[i]*_t59;
-                const double _t61 = _c1[i]*_t55 - _s5[i]*_t60 + _t48 + _t49*_t51;
-                const double _t62 = -_c0[i]*_s1[i]*_s4[i]*_s5[i] + _t61;
-                const double _t63 = -_t62;
-                const double _t64 = _s4[i]*_t47;
-                const double _t65 = _t34*_t50 + _t64;
-                const double _t66 = _t65*qd4[i];
-                const double _t67 = _s1[i]*_s4[i];
-                const double _t68 = -_c0[i]*_t51 + _t36*_t67;
-                const double _t69 = _t68*qd2[i];
-                const double _t70 = _t68*qd3[i];
-                const double _t71 = _s4[i]*_t50;
-                const double _t72 = _s0[i]*_t32;
-                const double _t73 = _t34*_t47 + _t71 + _t72;
-                const double _t74 = _t73*qd1[i];
-                const double _t75 = _c0[i]*_t67 - _t36*_t51 + _t60;
-                const double _t76 = _t75*qd5[i];
-                const double _t77 = _s5[i]*qd6[i];
-                const double _t78 = _c3[i]*_s5[i];
-                const double _t79 = _c5[i]*_s3[i];
-                const double _t80 = qd4[i]*(_s1[i]*_t78 + _t32*_t79);
-                const double _t81 = qd5[i]*(_t43*_t67 - _t52);
-                const double _t82 = _s5[i]*_t34;
-                const double _t83 = _s1[i]*_t79 + _t32*_t78 + _t82;
-                const double _t84 = _t83*qd6[i];
-                const double _t85 = _s3[i]*_s5[i];
-                const double _t86 = _c5[i]*_t67;
-                const double _t87 = _c1[i]*_t85 - _t43*_t51 + _t86;
-                const double _t88 = _t87*qd2[i];
-                const double _t89 = _t87*qd3[i];
-                const double _t90 = _s0[i]*qd1[i];
-                const double _t91 = _c0[i]*_t80 + _c0[i]*_t81 + _c0[i]*_t84 + _c0[i]*_t88 + _c0[i]*_t89 - _t45*_t90;
-                const double _t92 = _s1[i]*_t49 + _t32*_t55;
-                const double _t93 = _s5[i]*_t50;
-                const double _t94 = _c5[i]*_t36;
-                const double _t95 = _s5[i]*_t47;
-                const double _t96 = _c1[i]*_t95 - _c4[i]*_t94 + _t52*_t59 + _t93;
-                const double _t97 = _c5[i]*_t59;
-                const double _t98 = _c1[i]*_t93 + _c4[i]*_t97 - _t51*_t94 + _t95;
-                const double _t99 = -_c1[i]*_t94 + _c4[i]*_t95 + _t51*_t93 + _t97;
-                const double _t100 = _c0[i]*_t82 + _s1[i]*_t55 + _t32*_t49;
-                const double _t101 = _c0[i]*_t86 + _t98;
-                const double _t102 = _s5[i]*_t67;
-                const double _t103 = _c1[i]*_t97 + _c4[i]*_t93 + _t51*_t95 - _t94;
-                const double _t104 = -_s0[i]*_t102 + _t103;
-                const double _t105 = _t100*qd2[i] + _t100*qd3[i] + _t101*qd6[i] + _t104*qd1[i] + _t99*qd4[i] + qd5[i]*(-_s4[i]*_s5[i]*_t59 + _s5[i]*_t33 + _t36*_t82);
-                const double _t106 = _s5[i]*_t59;
-                const double _t107 = _s0[i]*_t41 - _s1[i]*_t106 + _t32*_t48;
-                const double _t108 = _t101*qd1[i] + _t104*qd6[i] + _t107*qd2[i] + _t107*qd3[i] + _t96*qd4[i] + qd5[i]*(_c5[i]*_t71 + _c5[i]*_t72 + _t41*_t47);
-                const double _t109 = _s5[i]*qdd5[i];
-                const double _t110 = _c0[i]*_t83;
-                const double _t111 = -_s5[i]*_t68;
-                const double _t112 = _c5[i]*qd6[i];
-                const double _t113 = _s5[i]*qd5[i];
-                const double _t114 = -_c3[i]*_c5[i]*_s1[i] + _t32*_t85;
-                const double _t115 = -_t114*qd4[i];
-                const double _t116 = -_c1[i]*_c4[i]*_s5[i] + _t67*_t78;
-                const double _t117 = -_t116;
-                const double _t118 = _c0[i]*qd5[i];
-                const double _t119 = _c1[i]*_t79 - _t102 + _t51*_t78;
-                const double _t120 = _c0[i]*qd3[i];
-                const double _t121 = _t44*qd6[i];
-                const double _t122 = _c0[i]*_t115 + _c0[i]*_t121 + _t117*_t118 + _t119*_t120 + _t119*_t16 - _t83*_t90;
-                const double _t123 = _c0[i]*_c3[i]*_c5[i]*_s1[i] - _t32*_t93;
-                const double _t124 = _c1[i]*_t48 + _c4[i]*_t49 - _t106*_t51 + _t55;
-                const double _t125 = _c5[i]*_t33 - _s4[i]*_t97 + _t34*_t94;
-                const double _t126 = _c0[i]*_t41 - _s1[i]*_t93 + _t32*_t94;
-                const double _t127 = _s4[i]*_t93 + _s5[i]*_t72 + _t34*_t95;
-                const double _t128 = _s0[i]*_t82 + _s1[i]*_t97 + _t32*_t95;
-                const double _t129 = -_t128;
-                const double _t130 = _c1[i]*_t50 + _t47;
-                const double _t131 = _s4[i]*qdd4[i];
-                const double _t132 = _c3[i]*_t67;
-                const double _t133 = _t132 - _t51;
-                const double _t134 = _c0[i]*_t133;
-                const double _t135 = _t50*_t67;
-                const double _t136 = _c4[i]*qd5[i];
-                const double _t137 = -_c0[i]*_c3[i] + _c1[i]*_t59;
-                const double _t138 = _s4[i]*qd1[i];
-                const double _t139 = _s4[i]*qd4[i];
-                const double _t140 = _c3[i]*_t34 + _t32;
-                const double _t141 = _c3[i]*_t32 + _t34;
-                const double _t142 = _t118*_t141 + _t120*_t140 - _t133*_t90 - _t135*qd4[i] + _t140*_t16;
-                const double _t143 = _c0[i]*_t34 + _t32*_t36;
-                const double _t144 = _c4[i]*_t50 - _s0[i]*_t67 + _t47*_t51;
-                const double _t145 = qd4[i]*(_c0[i]*_c3[i]*_s4[i] - _t34*_t59);
-                const double _t146 = _c1[i]*_c4[i]*_s0[i] - _t47*_t67;
-                const double _t147 = _t146*qd2[i];
-                const double _t148 = _t146*qd3[i];
-                const double _t149 = _t37*qd1[i];
-                const double _t150 = _t144*qd5[i];
-                const double _t151 = _s0[i]*_t80 + _s0[i]*_t81 + _s0[i]*_t84 + _s0[i]*_t88 + _s0[i]*_t89 + _t46*qd1[i];
-                const double _t152 = _s1[i]*_t95 + _t32*_t97;
-                const double _t153 = -_t124;
-                const double _t154 = -_t126;
-                const double _t155 = _s0[i]*qd5[i];
-                const double _t156 = _s0[i]*qd3[i];
-                const double _t157 = _s0[i]*_t115 + _s0[i]*_t121 + _t110*qd1[i] + _t117*_t155 + _t119*_t156 + _t119*_t24;
-                const double _t158 = _c3[i]*_c5[i]*_s0[i]*_s1[i] - _t106*_t32;
-                const double _t159 = _t59*_t67;
-                const double _t160 = _t134*qd1[i] + _t140*_t156 + _t140*_t24 + _t141*_t155 - _t159*qd4[i];
-                const double _t161 = _s0[i]*_t34 + _t32*_t47;
-                const double _t162 = _c4[i]*_t79 + _t78;
-                const double _t163 = _s1[i]*qdd4[i];
-                const double _t164 = -_t133;
-                const double _t165 = -_t87;
-                const double _t166 = _c1[i]*_t162;
-                const double _t167 = _s1[i]*qd4[i];
-                const double _t168 = -_c3[i]*_c5[i] + _c4[i]*_t85;
-                const double _t169 = _s1[i]*qd6[i];
-                const double _t170 = -_t140;
-                const double _t171 = _c5[i]*_t170;
-                const double _t172 = -_t141;
-                const double _t173 = -_t119;
-                const double _t174 = _t173*qd6[i] + _t45*qd2[i] + _t45*qd3[i] + qd4[i]*(-_c1[i]*_t78 - _t51*_t79) + qd5[i]*(-_c5[i]*_t32 - _t34*_t43);
-                const double _t175 = _t67*_t85;
-                const double _t176 = _c1[i]*_t168;
-                const double _t177 = _s5[i]*_t140;
-                const double _t178 = _t83*qd2[i] + _t83*qd3[i] + _t87*qd6[i] + qd4[i]*(-_c1[i]*_t43 + _t51*_t85) + qd5[i]*(_s5[i]*_t32 + _t34*_t78);
-                const double _t179 = _s3[i]*_t34;
-                const double _t180 = _s3[i]*_t32;
-                const double _t181 = -_c3[i]*_t51 + _t67;
-                const double _t182 = _t133*qd2[i] + _t133*qd3[i] + _t179*qd4[i] + _t181*qd5[i];
-                xdd[12 * (start + i) + 0] = -_t10*qdd2[i] + _t14*qdd1[i] - _t7*qdd3[i] + qd1[i]*(_t20*qd3[i] - _t21*qd1[i] + qd2[i]*(_s0[i]*_t8 + _t20)) + qd2[i]*(_s0[i]*_t9*qd1[i] - _t16*_t19 - _t18) + qd3[i]*(_s0[i]*_t6*qd1[i] - _t15*_t16 - _t18);
-                xdd[12 * (start + i) + 1] = _t21*qdd1[i] - _t22*_t6 - _t23*_t9 + qd1[i]*(_t14*qd1[i] - _t26*qd3[i] + qd2[i]*(-_c0[i]*_t8 - _t26)) + qd2[i]*(-_t10*qd1[i] - _t19*_t24 - _t25) + qd3[i]*(-_t15*_t24 - _t25 - _t7*qd1[i]);
-                xdd[12 * (start + i) + 2] = _t15*qdd3[i] + _t19*qdd2[i] + qd2[i]*(_t28 - _t9*qd2[i]) + qd3[i]*(_t27*qd2[i] + _t28);
-                xdd[12 * (start + i) + 3] = _t105*qd6[i] + _t108*qd1[i] + _t38*_t40 + _t46*qdd2[i] + _t46*qdd3[i] + _t54*qdd4[i] + _t58*qdd1[i] + _t63*qdd6[i] + _t91*qd2[i] + _t91*qd3[i] + qd4[i]*(_t92*qd2[i] + _t92*qd3[i] + _t96*qd1[i] + _t98*qd4[i] + _t99*qd6[i] + qd5[i]*(_c5[i]*_t64 + _t41*_t50)) + qd5[i]*(_c5[i]*_t66 + _c5[i]*_t69 + _c5[i]*_t70 + _c5[i]*_t74 + _c5[i]*_t76 - _t38*_t77);
-                xdd[12 * (start + i) + 4] = _t101*qdd6[i] + _t104*qdd1[i] + _t109*_t37 + _t110*qdd2[i] + _t110*qdd3[i] + _t122*qd2[i] + _t122*qd3[i] + _t99*qdd4[i] + qd1[i]*(_t124*qd4[i] - _t127*qd5[i] + _t129*qd2[i] + _t129*qd3[i] + _t57*qd6[i] + _t62*qd1[i]) + qd4[i]*(_t123*qd2[i] + _t123*qd3[i] + _t124*qd1[i] + _t53*qd6[i] + _t61*qd4[i] + qd5[i]*(-_s4[i]*_t95 - _t34*_t93)) + qd5[i]*(-_s5[i]*_t65*qd4[i] - _s5[i]*_t73*qd1[i] + _t111*qd2[i] + _t111*qd3[i] + _t112*_t37 - _t113*_t75) + qd6[i]*(_t125*qd5[i] + _t126*qd2[i] + _t126*qd3[i] + _t53*qd4[i] + _t57*qd1[i] + _t62*qd6[i]);
-                xdd[12 * (start + i) + 5] = _t130*_t131 + _t134*qdd2[i] + _t134*qdd3[i] + _t142*qd2[i] + _t142*qd3[i] + _t73*qdd1[i] + _t75*qdd5[i] + qd1[i]*(_t145 + _t147 + _t148 + _t149 + _t150) + qd4[i]*(_t130*_t136 - _t135*qd2[i] - _t135*qd3[i] - _t137*_t138 + _t139*(_c0[i]*_c1[i]*_c3[i] - _t59)) + qd5[i]*(_t143*qd2[i] + _t143*qd3[i] + _t144*qd1[i] + _t37*qd5[i] + qd4[i]*(_c4[i]*_t47 + _t50*_t51));
-                xdd[12 * (start + i) + 6] = -_t101*qdd1[i] - _t104*qdd6[i] + _t151*qd2[i] + _t151*qd3[i] + _t22*_t45 + _t23*_t45 - _t40*_t73 - _t96*qdd4[i] + qd1[i]*(-_t125*qd5[i] + _t154*qd2[i] + _t154*qd3[i] + _t54*qd4[i] + _t58*qd1[i] + _t63*qd6[i]) + qd4[i]*(_t152*qd2[i] + _t152*qd3[i] + _t153*qd6[i] + _t54*qd1[i] - _t56*qd4[i] + qd5[i]*(-_s4[i]*_t94 + _t41*_t59)) + qd5[i]*(-_c5[i]*_t145 - _c5[i]*_t147 - _c5[i]*_t148 - _c5[i]*_t149 - _c5[i]*_t150 + _s5[i]*_t73*qd6[i]) + qd6[i]*(_t127*qd5[i] + _t128*qd2[i] + _t128*qd3[i] + _t153*qd4[i] + _t58*qd6[i] + _t63*qd1[i]);
-                xdd[12 * (start + i) + 7] = _t105*qd1[i] + _t108*qd6[i] + _t109*_t73 + _t153*qdd4[i] + _t157*qd2[i] + _t157*qd3[i] + _t22*_t83 + _t23*_t83 + _t58*qdd6[i] + _t63*qdd1[i] + qd4[i]*(_t103*qd4[i] + _t158*qd2[i] + _t158*qd3[i] + _t96*qd6[i] + _t99*qd1[i] + qd5[i]*(_c0[i]*_c3[i]*_s4[i]*_s5[i] - _t59*_t82)) + qd5[i]*(_s5[i]*_t145 + _s5[i]*_t147 + _s5[i]*_t148 + _s5[i]*_t149 + _s5[i]*_t150 + _t112*_t73);
-                xdd[12 * (start + i) + 8] = _t131*_t137 + _t133*_t22 + _t133*_t23 - _t144*qdd5[i] + _t160*qd2[i] + _t160*qd3[i] + _t38*qdd1[i] + qd1[i]*(_t66 + _t69 + _t70 + _t74 + _t76) + qd4[i]*(_t130*_t138 + _t136*_t137 + _t139*(_c1[i]*_t47 + _t50) - _t159*qd2[i] - _t159*qd3[i]) + qd5[i]*(_t161*qd2[i] + _t161*qd3[i] + _t73*qd5[i] + _t75*qd1[i] + qd4[i]*(-_c4[i]*_t36 + _t51*_t59));
-                xdd[12 * (start + i) + 9] = -_t162*_t163 + _t164*_t40 + _t165*qdd2[i] + _t165*qdd3[i] + _t174*qd2[i] + _t174*qd3[i] - _t83*qdd6[i] + qd4[i]*(_c5[i]*_s1[i]*_s3[i]*_s4[i]*qd5[i] - _t166*qd2[i] - _t166*qd3[i] - _t167*(_c3[i]*_c4[i]*_c5[i] - _t85) + _t168*_t169) + qd5[i]*(_c5[i]*_t172*qd5[i] - _t164*_t77 + _t171*qd2[i] + _t171*qd3[i] + _t67*_t79*qd4[i]) + qd6[i]*(_t114*qd4[i] + _t116*qd5[i] + _t173*qd2[i] + _t173*qd3[i] + _t45*qd6[i]);
-                xdd[12 * (start + i) + 10] = _t109*_t133 + _t163*_t168 + _t173*qdd2[i] + _t173*qdd3[i] + _t178*qd2[i] + _t178*qd3[i] + _t45*qdd6[i] + qd4[i]*(_t162*_t169 + _t167*(_c4[i]*_t78 + _t79) - _t175*qd5[i] + _t176*qd2[i] + _t176*qd3[i]) + qd5[i]*(_t112*_t133 + _t113*_t141 - _t175*qd4[i] + _t177*qd2[i] + _t177*qd3[i]) + qd6[i]*(_t80 + _t81 + _t84 + _t88 + _t89);
-                xdd[12 * (start + i) + 11] = _s3[i]*_t67*qdd4[i] + _t170*qdd2[i] + _t170*qdd3[i] + _t172*qdd5[i] + _t182*qd2[i] + _t182*qd3[i] + qd4[i]*(_t132*qd4[i] + _t179*qd2[i] + _t179*qd3[i] + _t180*qd5[i]) + qd5[i]*(_t133*qd5[i] + _t180*qd4[i] + _t181*qd2[i] + _t181*qd3[i]);
+                const double _t31 = _s2[i]*_s4[i];
+                const double _t32 = _c3[i]*_t31;
+                const double _t35 = _c5[i]*_s0[i];
+                const double _t36 = _s3[i]*_t35;
+                const double _t38 = _c0[i]*_s5[i];
+                const double _t39 = _s3[i]*_t38;
+                const double _t41 = _s0[i]*_s5[i];
+                const double _t42 = _c3[i]*_t41;
+                const double _t43 = _c2[i]*_c4[i];
+                const double _t44 = _c0[i]*_c5[i];
+                const double _t45 = _c3[i]*_t44;
+                const double _t46 = _c2[i]*_t39 + _c4[i]*_t42 + _t36 - _t43*_t45;
+                const double _t47 = _c0[i]*_t32 + _t46;
+                const double _t48 = _c2[i]*_s4[i];
+                const double _t49 = _c3[i]*_t48;
+                const double _t50 = _s3[i]*_t41;
+                const double _t51 = _c4[i]*_s2[i];
+                const double _t52 = _c3[i]*_t35;
+                const double _t53 = _s0[i]*_t49 - _s2[i]*_t50 + _t51*_t52;
+                const double _t54 = _c3[i]*_t43;
+                const double _t55 = _c2[i]*_t36 - _c4[i]*_t45 + _t39 + _t41*_t54;
+                const double _t56 = _s4[i]*_t38;
+                const double _t57 = _s0[i]*_t51;
+                const double _t58 = _s3[i]*_t31;
+                const double _t59 = _c2[i]*_t42 + _c4[i]*_t39 + _t36*_t43 - _t45;
+                const double _t60 = -_s0[i]*_t58 + _t59;
+                const double _t61 = _t47*qd1[i] + _t53*qd2[i] + _t53*qd3[i] + _t55*qd4[i] + _t60*qd6[i] + qd5[i]*(_c3[i]*_t56 + _c3[i]*_t57 + _t35*_t49);
+                const double _t62 = _s3[i]*_s5[i];
+                const double _t63 = _c3[i]*_c5[i];
+                const double _t64 = _c2[i]*_t62 + _t32 - _t43*_t63;
+                const double _t65 = _t64*qd2[i];
+                const double _t66 = _t64*qd3[i];
+                const double _t67 = _c5[i]*_s3[i];
+                const double _t68 = _c3[i]*_s5[i];
+                const double _t69 = qd4[i]*(_s2[i]*_t67 + _t51*_t68);
+                const double _t70 = qd5[i]*(_t31*_t63 - _t54);
+                const double _t71 = _s3[i]*_t48;
+                const double _t72 = _s2[i]*_t68 + _t51*_t67 + _t71;
+                const double _t73 = _t72*qd6[i];
+                const double _t74 = -_s2[i]*_s3[i]*_s5[i] + _t49 + _t51*_t63;
+                const double _t75 = -_t74;
+                const double _t76 = _s0[i]*qd1[i];
+                const double _t77 = _c0[i]*_t65 + _c0[i]*_t66 + _c0[i]*_t69 + _c0[i]*_t70 + _c0[i]*_t73 - _t75*_t76;
+                const double _t78 = _s3[i]*_t44;
+                const double _t79 = _c3[i]*_t38;
+                const double _t80 = _s2[i]*_t78 + _t51*_t79;
+                const double _t81 = _s4[i]*_t35;
+                const double _t82 = -_c2[i]*_t45 + _c4[i]*_t36 + _t39*_t43 + _t42;
+                const double _t83 = _t35*_t48 + _t56 + _t57;
+                const double _t84 = _t83*qd1[i];
+                const double _t85 = -_c0[i]*_t43 + _t31*_t44;
+                const double _t86 = _t85*qd2[i];
+                const double _t87 = _t85*qd3[i];
+                const double _t88 = _t38*_t48 + _t81;
+                const double _t89 = _t88*qd4[i];
+                const double _t90 = _c4[i]*_t41;
+                const double _t91 = _c0[i]*_t31 - _t43*_t44 + _t90;
+                const double _t92 = _t91*qd5[i];
+                const double _t93 = _c0[i]*_t51;
+                const double _t94 = -_s0[i]*_s4[i]*_s5[i] + _t44*_t48 + _t93;
+                const double _t95 = -_t94;
+                const double _t96 = _s3[i]*qd6[i];
+                const double _t97 = _c0[i]*_t71 + _s2[i]*_t79 + _t51*_t78;
+                const double _t98 = _t47*qd6[i] + _t60*qd1[i] + _t82*qd4[i] + _t97*qd2[i] + _t97*qd3[i] + qd5[i]*(-_s3[i]*_s4[i]*_t41 + _s3[i]*_t93 + _t44*_t71);
+                const double _t99 = -_c2[i]*_s0[i]*_s3[i]*_s5[i] + _c4[i]*_t79 + _t35*_t54 + _t78;
+                const double _t100 = -_c3[i]*_s0[i]*_s2[i]*_s4[i] + _t99;
+                const double _t101 = -_t100;
+                const double _t102 = _c2[i]*_t78 + _c4[i]*_t52 - _s0[i]*_s3[i]*_s5[i] + _t38*_t54;
+                const double _t103 = -_t102;
+                const double _t104 = _c2[i]*_t79 - _s3[i]*_t90 + _t43*_t78 + _t52;
+                const double _t105 = -_c0[i]*_s2[i]*_s3[i]*_s4[i] + _t104;
+                const double _t106 = -_t105;
+                const double _t107 = _c0[i]*_t75;
+                const double _t108 = _c3[i]*qdd5[i];
+                const double _t109 = _s0[i]*_t71 + _s2[i]*_t42 + _t36*_t51;
+                const double _t110 = -_t109;
+                const double _t111 = _c2[i]*_t52 + _c4[i]*_t78 - _t43*_t50 + _t79;
+                const double _t112 = _s3[i]*_t57 + _s4[i]*_t39 + _t36*_t48;
+                const double _t113 = _c2[i]*_t68 + _t43*_t67 - _t58;
+                const double _t114 = _c0[i]*qd3[i];
+                const double _t115 = -_c3[i]*_c5[i]*_s2[i] + _t51*_t62;
+                const double _t116 = -_t115*qd4[i];
+                const double _t117 = -_c2[i]*_c4[i]*_s3[i] + _t31*_t67;
+                const double _t118 = -_t117;
+                const double _t119 = _c0[i]*qd5[i];
+                const double _t120 = _t74*qd6[i];
+                const double _t121 = _c0[i]*_t116 + _c0[i]*_t120 + _t113*_t114 + _t113*_t14 + _t118*_t119 - _t72*_t76;
+                const double _t122 = _c0[i]*_c3[i]*_c5[i]*_s2[i] - _t39*_t51;
+                const double _t123 = -_s3[i]*_t85;
+                const double _t124 = _s3[i]*qd5[i];
+                const double _t125 = _c3[i]*qd6[i];
+                const double _t126 = _c0[i]*_t49 - _s2[i]*_t39 + _t45*_t51;
+                const double _t127 = _c3[i]*_t93 - _s4[i]*_t42 + _t45*_t48;
+                const double _t128 = _c0[i]*_t72;
+                const double _t129 = _s3[i]*qdd5[i];
+                const double _t130 = _t94*qd1[i];
+                const double _t131 = _c2[i]*_c4[i]*_s0[i] - _t31*_t35;
+                const double _t132 = _t131*qd2[i];
+                const double _t133 = _t131*qd3[i];
+                const double _t134 = qd4[i]*(_c0[i]*_c5[i]*_s4[i] - _t41*_t48);
+                const double _t135 = _c4[i]*_t38 - _s0[i]*_t31 + _t35*_t43;
+                const double _t136 = _t135*qd5[i];
+                const double _t137 = _c5[i]*_t48 + _t51;
+                const double _t138 = _c5[i]*_t51 + _t48;
+                const double _t139 = _c5[i]*_t31;
+                const double _t140 = _t139 - _t43;
+                const double _t141 = _t31*_t38;
+                const double _t142 = _t114*_t137 + _t119*_t138 + _t137*_t14 - _t140*_t76 - _t141*qd4[i];
+                const double _t143 = -_c0[i]*_c5[i] + _c2[i]*_t41;
+                const double _t144 = _s4[i]*qd1[i];
+                const double _t145 = _s4[i]*qd4[i];
+                const double _t146 = _c2[i]*_t38 + _t35;
+                const double _t147 = _c4[i]*qd5[i];
+                const double _t148 = _c0[i]*_t48 + _t44*_t51;
+                const double _t149 = _c0[i]*_t140;
+                const double _t150 = _s4[i]*qdd4[i];
+                const double _t151 = -_t126;
+                const double _t152 = _s0[i]*_t65 + _s0[i]*_t66 + _s0[i]*_t69 + _s0[i]*_t70 + _s0[i]*_t73 + _t107*qd1[i];
+                const double _t153 = _s2[i]*_t36 + _t42*_t51;
+                const double _t154 = -_t111;
+                const double _t155 = _s0[i]*qd3[i];
+                const double _t156 = _s0[i]*qd5[i];
+                const double _t157 = _s0[i]*_t116 + _s0[i]*_t120 + _t113*_t155 + _t113*_t23 + _t118*_t156 + _t128*qd1[i];
+                const double _t158 = _c3[i]*_c5[i]*_s0[i]*_s2[i] - _t50*_t51;
+                const double _t159 = _t31*_t41;
+                const double _t160 = _t137*_t155 + _t137*_t23 + _t138*_t156 + _t149*qd1[i] - _t159*qd4[i];
+                const double _t161 = _s0[i]*_t48 + _t35*_t51;
+                const double _t162 = -_t113;
+                const double _t163 = _t162*qd6[i] + _t75*qd2[i] + _t75*qd3[i] + qd4[i]*(-_c2[i]*_t67 - _t43*_t68) + qd5[i]*(-_c3[i]*_t51 - _t48*_t63);
+                const double _t164 = _c4[i]*_t68 + _t67;
+                const double _t165 = _c2[i]*_t164;
+                const double _t166 = _s2[i]*qd4[i];
+                const double _t167 = -_c3[i]*_c5[i] + _c4[i]*_t62;
+                const double _t168 = _s2[i]*qd6[i];
+                const double _t169 = -_t137;
+                const double _t170 = _c3[i]*_t169;
+                const double _t171 = -_t138;
+                const double _t172 = -_t140;
+                const double _t173 = -_t64;
+                const double _t174 = _s2[i]*qdd4[i];
+                const double _t175 = _t64*qd6[i] + _t72*qd2[i] + _t72*qd3[i] + qd4[i]*(-_c2[i]*_t63 + _t43*_t62) + qd5[i]*(_s3[i]*_t51 + _t48*_t67);
+                const double _t176 = _c2[i]*_t167;
+                const double _t177 = _t31*_t62;
+                const double _t178 = _s3[i]*_t137;
+                const double _t179 = -_c5[i]*_t43 + _t31;
+                const double _t180 = _s5[i]*_t48;
+                const double _t181 = _t140*qd2[i] + _t140*qd3[i] + _t179*qd5[i] + _t180*qd4[i];
+                const double _t182 = _s5[i]*_t51;
+                xdd[12 * (start + i) + 0] = _t19*qdd1[i] - _t20*qdd2[i] - _t21*qdd3[i] + qd1[i]*(_t11*qd3[i] - _t7*qd1[i] + qd2[i]*(_s0[i]*_t8 + _t11)) + qd2[i]*(_s0[i]*_t18*qd1[i] - _t13*_t14 - _t16) + qd3[i]*(_s0[i]*_t17*qd1[i] - _t12*_t14 - _t16);
+                xdd[12 * (start + i) + 1] = -_t17*_t26 - _t18*_t25 + _t7*qdd1[i] + qd1[i]*(_t19*qd1[i] - _t22*qd3[i] + qd2[i]*(-_c0[i]*_t8 - _t22)) + qd2[i]*(-_t13*_t23 - _t20*qd1[i] - _t24) + qd3[i]*(-_t12*_t23 - _t21*qd1[i] - _t24);
+                xdd[12 * (start + i) + 2] = _t12*qdd3[i] + _t13*qdd2[i] + qd2[i]*(-_t18*qd2[i] + _t28) + qd3[i]*(_t27*qd2[i] + _t28);
+                xdd[12 * (start + i) + 3] = _t101*qdd1[i] + _t103*qdd4[i] + _t106*qdd6[i] + _t107*qdd2[i] + _t107*qdd3[i] + _t108*_t95 + _t61*qd1[i] + _t77*qd2[i] + _t77*qd3[i] + _t98*qd6[i] + qd4[i]*(_t46*qd4[i] + _t55*qd1[i] + _t80*qd2[i] + _t80*qd3[i] + _t82*qd6[i] + qd5[i]*(_c3[i]*_t81 + _t38*_t49)) + qd5[i]*(_c3[i]*_t84 + _c3[i]*_t86 + _c3[i]*_t87 + _c3[i]*_t89 + _c3[i]*_t92 - _t95*_t96);
+                xdd[12 * (start + i) + 4] = _t121*qd2[i] + _t121*qd3[i] + _t128*qdd2[i] + _t128*qdd3[i] + _t129*_t94 + _t47*qdd6[i] + _t60*qdd1[i] + _t82*qdd4[i] + qd1[i]*(_t100*qd6[i] + _t105*qd1[i] + _t110*qd2[i] + _t110*qd3[i] + _t111*qd4[i] - _t112*qd5[i]) + qd4[i]*(_t102*qd6[i] + _t104*qd4[i] + _t111*qd1[i] + _t122*qd2[i] + _t122*qd3[i] + qd5[i]*(-_s4[i]*_t36 - _t39*_t48)) + qd5[i]*(-_s3[i]*_t83*qd1[i] - _s3[i]*_t88*qd4[i] + _t123*qd2[i] + _t123*qd3[i] - _t124*_t91 + _t125*_t94) + qd6[i]*(_t100*qd1[i] + _t102*qd4[i] + _t105*qd6[i] + _t126*qd2[i] + _t126*qd3[i] + _t127*qd5[i]);
+                xdd[12 * (start + i) + 5] = _t142*qd2[i] + _t142*qd3[i] + _t146*_t150 + _t149*qdd2[i] + _t149*qdd3[i] + _t83*qdd1[i] + _t91*qdd5[i] + qd1[i]*(_t130 + _t132 + _t133 + _t134 + _t136) + qd4[i]*(-_t141*qd2[i] - _t141*qd3[i] - _t143*_t144 + _t145*(_c0[i]*_c2[i]*_c5[i] - _t41) + _t146*_t147) + qd5[i]*(_t135*qd1[i] + _t148*qd2[i] + _t148*qd3[i] + _t94*qd5[i] + qd4[i]*(_c4[i]*_t35 + _t38*_t43));
+                xdd[12 * (start + i) + 6] = -_t108*_t83 + _t152*qd2[i] + _t152*qd3[i] + _t25*_t75 + _t26*_t75 - _t47*qdd1[i] - _t55*qdd4[i] - _t60*qdd6[i] + qd1[i]*(_t101*qd1[i] + _t103*qd4[i] + _t106*qd6[i] - _t127*qd5[i] + _t151*qd2[i] + _t151*qd3[i]) + qd4[i]*(_t103*qd1[i] + _t153*qd2[i] + _t153*qd3[i] + _t154*qd6[i] - _t99*qd4[i] + qd5[i]*(-_s4[i]*_t45 + _t41*_t49)) + qd5[i]*(-_c3[i]*_t130 - _c3[i]*_t132 - _c3[i]*_t133 - _c3[i]*_t134 - _c3[i]*_t136 + _s3[i]*_t83*qd6[i]) + qd6[i]*(_t101*qd6[i] + _t106*qd1[i] + _t109*qd2[i] + _t109*qd3[i] + _t112*qd5[i] + _t154*qd4[i]);
+                xdd[12 * (start + i) + 7] = _t101*qdd6[i] + _t106*qdd1[i] + _t129*_t83 + _t154*qdd4[i] + _t157*qd2[i] + _t157*qd3[i] + _t25*_t72 + _t26*_t72 + _t61*qd6[i] + _t98*qd1[i] + qd4[i]*(_t158*qd2[i] + _t158*qd3[i] + _t55*qd6[i] + _t59*qd4[i] + _t82*qd1[i] + qd5[i]*(_c0[i]*_c5[i]*_s3[i]*_s4[i] - _t41*_t71)) + qd5[i]*(_s3[i]*_t130 + _s3[i]*_t132 + _s3[i]*_t133 + _s3[i]*_t134 + _s3[i]*_t136 + _t125*_t83);
+                xdd[12 * (start + i) + 8] = -_t135*qdd5[i] + _t140*_t25 + _t140*_t26 + _t143*_t150 + _t160*qd2[i] + _t160*qd3[i] + _t95*qdd1[i] + qd1[i]*(_t84 + _t86 + _t87 + _t89 + _t92) + qd4[i]*(_t143*_t147 + _t144*_t146 + _t145*(_c2[i]*_t35 + _t38) - _t159*qd2[i] - _t159*qd3[i]) + qd5[i]*(_t161*qd2[i] + _t161*qd3[i] + _t83*qd5[i] + _t91*qd1[i] + qd4[i]*(-_c4[i]*_t44 + _t41*_t43));
+                xdd[12 * (start + i) + 9] = _t108*_t172 + _t163*qd2[i] + _t163*qd3[i] - _t164*_t174 + _t173*qdd2[i] + _t173*qdd3[i] - _t72*qdd6[i] + qd4[i]*(_c3[i]*_s2[i]*_s4[i]*_s5[i]*qd5[i] - _t165*qd2[i] - _t165*qd3[i] - _t166*(_c3[i]*_c4[i]*_c5[i] - _t62) + _t167*_t168) + qd5[i]*(_c3[i]*_t171*qd5[i] + _t170*qd2[i] + _t170*qd3[i] - _t172*_t96 + _t31*_t68*qd4[i]) + qd6[i]*(_t115*qd4[i] + _t117*qd5[i] + _t162*qd2[i] + _t162*qd3[i] + _t75*qd6[i]);
+                xdd[12 * (start + i) + 10] = _t129*_t140 + _t162*qdd2[i] + _t162*qdd3[i] + _t167*_t174 + _t175*qd2[i] + _t175*qd3[i] + _t75*qdd6[i] + qd4[i]*(_t164*_t168 + _t166*(_c4[i]*_t67 + _t68) + _t176*qd2[i] + _t176*qd3[i] - _t177*qd5[i]) + qd5[i]*(_t124*_t138 + _t125*_t140 - _t177*qd4[i] + _t178*qd2[i] + _t178*qd3[i]) + qd6[i]*(_t65 + _t66 + _t69 + _t70 + _t73);
+                xdd[12 * (start + i) + 11] = _s5[i]*_t31*qdd4[i] + _t169*qdd2[i] + _t169*qdd3[i] + _t171*qdd5[i] + _t181*qd2[i] + _t181*qd3[i] + qd4[i]*(_t139*qd4[i] + _t180*qd2[i] + _t180*qd3[i] + _t182*qd5[i]) + qd5[i]*(_t140*qd5[i] + _t179*qd2[i] + _t179*qd3[i] + _t182*qd4[i]);
             }
         }
 #ifdef KINEGEN_STREAM
@@ -6245,12 +6245,12 @@ void puma560_manipulability(const double *restrict q, const puma560_params *rest
     const double a3 = params->a3;
     const double d3 = params->d3;
     const double d4 = params->d4;
-    const double _t2 = q2 + q3;
-    double _s0, _s1, _c1, _c2, _s3, _c3;
+    const double _t1 = q2 + q3;
+    double _s0, _c0, _c1, _s2, _c2, _s3;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[4] = { q5, q3, q2, _t2,  };
+        const double angle[4] = { q3, q2, _t1, q5,  };
         double sine[4], cosine[4];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -6262,24 +6262,24 @@ void puma560_manipulability(const double *restrict q, const puma560_params *rest
             cosine[k] = cos(angle[k]);
         }
         _s0 = sine[0];
-        _s1 = sine[1];
+        _c0 = cosine[0];
         _c1 = cosine[1];
+        _s2 = sine[2];
         _c2 = cosine[2];
         _s3 = sine[3];
-        _c3 = cosine[3];
     }
 #else
-    _s0 = sin(q5);
-    _s1 = sin(q3);
-    _c1 = cos(q3);
-    _c2 = cos(q2);
-    _s3 = sin(_t2);
-    _c3 = cos(_t2);
+    _s0 = sin(q3);
+    _c0 = cos(q3);
+    _c1 = cos(q2);
+    _s2 = sin(_t1);
+    _c2 = cos(_t1);
+    _s3 = sin(q5);
 #endif
-    const double _t1 = _c1*d4 + _s1*a3;
-    const double _t3 = _c2*a2 + _c3*a3 - _s3*d4;
-    manipulability[0] = fabs(_s0*_t1*_t3*a2);
-    singular[0] = (_s0*_s0) < 1e-08 || (_t1*_t1)*(_t3*_t3)*(a2*a2)/((fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))) < 1e-08;
+    const double _t0 = _c0*d4 + _s0*a3;
+    const double _t2 = _c1*a2 + _c2*a3 - _s2*d4;
+    manipulability[0] = fabs(_s3*_t0*_t2*a2);
+    singular[0] = (_s3*_s3) < 1e-08 || (_t0*_t0)*(_t2*_t2)*(a2*a2)/((fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))) < 1e-08;
 }
 
 /* manipulability of `count` items, stored one after the other in each argument and output. */
@@ -6289,13 +6289,13 @@ void puma560_manipulability_batch(size_t count, const double *restrict q, const 
     double q2[KINEGEN_BLOCK_OF(64)];
     double q3[KINEGEN_BLOCK_OF(64)];
     double q5[KINEGEN_BLOCK_OF(64)];
-    double _t2[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
-    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
     double _s3[KINEGEN_BLOCK_OF(64)];
-    double _c3[KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &puma560_default_params;
@@ -6314,38 +6314,38 @@ void puma560_manipulability_batch(size_t count, const double *restrict q, const 
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t2[i] = q2[i] + q3[i];
+            _t1[i] = q2[i] + q3[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s0[i] = sin(q5[i]);
+            _s0[i] = sin(q3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s1[i] = sin(q3[i]);
+            _c0[i] = cos(q3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c1[i] = cos(q3[i]);
+            _c1[i] = cos(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(q2[i]);
+            _s2[i] = sin(_t1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s3[i] = sin(_t2[i]);
+            _c2[i] = cos(_t1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c3[i] = cos(_t2[i]);
+            _s3[i] = sin(q5[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            const double _t1 = _c1[i]*d4 + _s1[i]*a3;
-            const double _t3 = _c2[i]*a2 + _c3[i]*a3 - _s3[i]*d4;
-            manipulability[1 * (start + i) + 0] = fabs(_s0[i]*_t1*_t3*a2);
-            singular[1 * (start + i) + 0] = (_s0[i]*_s0[i]) < 1e-08 || (_t1*_t1)*(_t3*_t3)*(a2*a2)/((fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))) < 1e-08;
+            const double _t0 = _c0[i]*d4 + _s0[i]*a3;
+            const double _t2 = _c1[i]*a2 + _c2[i]*a3 - _s2[i]*d4;
+            manipulability[1 * (start + i) + 0] = fabs(_s3[i]*_t0*_t2*a2);
+            singular[1 * (start + i) + 0] = (_s3[i]*_s3[i]) < 1e-08 || (_t0*_t0)*(_t2*_t2)*(a2*a2)/((fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))*(fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4))) < 1e-08;
         }
     }
 #else
@@ -6388,19 +6388,19 @@ void puma560_joint_velocity(const double *restrict q, const double *restrict xd,
     const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
     const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
     const double _t12 = (a2*a2);
-    const double _t18 = 1.0/(_t0*_t0);
-    const double _t42 = 1.0/(_t0*_t0*_t0*_t0);
-    const double _t44 = a3*d4;
-    const double _t45 = (a3*a3);
-    const double _t48 = (d4*d4);
+    const double _t18 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t22 = a3*d4;
+    const double _t23 = (a3*a3);
+    const double _t26 = (d4*d4);
+    const double _t58 = 1.0/(_t0*_t0);
     const double _t72 = 1.0/_t0;
     const double _t4 = q2 + q3;
-    const double _t51 = 2*q2 + q3;
+    const double _t29 = 2*q2 + q3;
     double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5, _s6, _c6, _s7, _c7;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[8] = { q2, _t4, q3, q1, _t51, q5, q4, q6,  };
+        const double angle[8] = { q2, _t4, q3, _t29, q1, q5, q4, q6,  };
         double sine[8], cosine[8];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -6435,10 +6435,10 @@ void puma560_joint_velocity(const double *restrict q, const double *restrict xd,
     _c1 = cos(_t4);
     _s2 = sin(q3);
     _c2 = cos(q3);
-    _s3 = sin(q1);
-    _c3 = cos(q1);
-    _s4 = sin(_t51);
-    _c4 = cos(_t51);
+    _s3 = sin(_t29);
+    _c3 = cos(_t29);
+    _s4 = sin(q1);
+    _c4 = cos(q1);
     _s5 = sin(q5);
     _c5 = cos(q5);
     _s6 = sin(q4);
@@ -6457,182 +6457,182 @@ void puma560_joint_velocity(const double *restrict q, const double *restrict xd,
     const double _t15 = _t11*_t14;
     const double _t16 = _t15/_t1;
     const double _t17 = kinegen_max(0, 1 - 100000000*_t16);
-    const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
-    const double _t20 = (1e-12)*(_t17*_t17);
-    const double _t21 = _s1*a3;
-    const double _t22 = _c1*d4;
-    const double _t23 = _t21 + _t22;
-    const double _t24 = (_t23*_t23);
-    const double _t26 = (_s3*_s3);
-    const double _t27 = _t18*_t26;
-    const double _t29 = _s0*a2 + _t23;
-    const double _t30 = (_t29*_t29);
-    const double _t31 = _s3*d3;
-    const double _t33 = _c3*_t3;
-    const double _t34 = _c3*_t6;
-    const double _t35 = -_c3*_t8 + _t31 + _t33 + _t34;
-    const double _t36 = _t18*(_t35*_t35) + _t24*_t27 + _t27*_t30;
-    const double _t37 = (_c3*_c3);
-    const double _t38 = _t18*_t37;
-    const double _t39 = _s3*_t3;
-    const double _t40 = _c3*d3 + _s1*_s3*d4 - _s3*_t6 - _t39;
-    const double _t41 = _t18*(_t40*_t40) + _t24*_t38 + _t30*_t38;
-    const double _t43 = (_c1*_c1);
-    const double _t46 = _c1*_s1;
-    const double _t47 = (_s1*_s1);
-    const double _t49 = _t43*_t44 - _t44*_t47 + _t45*_t46 - _t46*_t48;
-    const double _t50 = _t21*_t3 + _t22*_t3 + _t49;
-    const double _t52 = _c0*_s0*_t12 + _c4*a2*d4 + _s4*a2*a3 + _t49;
-    const double _t53 = _t42*(_t50*_t50) + _t42*(_t52*_t52);
-    const double _t54 = (1e-06)*_t17;
-    const double _t55 = _t14*_t42;
-    const double _t56 = _t33*_t6;
-    const double _t57 = _t33*_t8;
-    const double _t58 = _t43*_t45;
-    const double _t59 = _t47*_t48;
-    const double _t60 = _c3*_t58 + _c3*_t59 + _t31*_t6 - _t31*_t8 - 2*_t34*_t8;
-    const double _t61 = _t56 - _t57 + _t60;
-    const double _t62 = (_c0*_c0)*_t12;
-    const double _t63 = _c3*_t62 + _t3*_t31 + 2*_t56 - 2*_t57 + _t60;
-    const double _t64 = _t26*_t55 + _t42*(_t61*_t61) + _t42*(_t63*_t63);
-    const double _t65 = _t39*_t6;
-    const double _t66 = -_c1*_c3*a3*d3 - 2*_c1*_s1*_s3*a3*d4 + _c3*_t8*d3 + _s3*_t58 + _s3*_t59;
-    const double _t67 = _c0*_s1*_s3*a2*d4 - _t65 - _t66;
-    const double _t68 = -_c0*_c3*a2*d3 - 2*_c0*_s1*_s3*a2*d4 + _s3*_t62 + 2*_t65 + _t66;
-    const double _t69 = -_t68;
-    const double _t70 = _t37*_t55 + _t42*(_t67*_t67) + _t42*(_t69*_t69);
-    const double _t71 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
-    const double _t73 = _t23*_t9;
-    const double _t74 = _c3*_t18;
-    const double _t75 = _t10*_t29;
-    const double _t76 = _t42*_t50*_t61 + _t42*_t52*_t63 - _t54*(-_t73*_t74 - _t74*_t75);
-    const double _t77 = _t72*xd_z;
-    const double _t78 = _t36*_t54;
-    const double _t79 = _t19*_t54;
-    const double _t80 = _t72*xd_x;
-    const double _t81 = _c3*_s3;
-    const double _t82 = _t42*_t67;
-    const double _t83 = _t18*_t81;
-    const double _t84 = _t42*_t69;
-    const double _t85 = -_t54*(_t18*_t35*_t40 + _t24*_t83 + _t30*_t83) - _t55*_t81 - _t61*_t82 - _t63*_t84;
-    const double _t86 = _t72*xd_y;
-    const double _t87 = _t72*(_t76*_t77 + _t80*(_t20 + _t64 + _t78 + _t79) + _t85*_t86);
-    const double _t88 = _s3*_t18;
-    const double _t89 = -_t50*_t82 - _t52*_t84 - _t54*(-_t73*_t88 - _t75*_t88);
-    const double _t90 = _t20 + _t41*_t54;
-    const double _t91 = _t72*(_t77*_t89 + _t80*_t85 + _t86*(_t70 + _t79 + _t90));
+    const double _t19 = _s1*a3;
+    const double _t20 = _c1*d4;
+    const double _t21 = (_c1*_c1);
+    const double _t24 = _c1*_s1;
+    const double _t25 = (_s1*_s1);
+    const double _t27 = _t21*_t22 - _t22*_t25 + _t23*_t24 - _t24*_t26;
+    const double _t28 = _t19*_t3 + _t20*_t3 + _t27;
+    const double _t31 = _c0*_s0*_t12 + _c3*a2*d4 + _s3*a2*a3 + _t27;
+    const double _t32 = _t18*(_t28*_t28) + _t18*(_t31*_t31);
+    const double _t33 = (1e-06)*_t17;
+    const double _t35 = _c4*_t3;
+    const double _t36 = _t35*_t6;
+    const double _t37 = _t35*_t8;
+    const double _t38 = _t21*_t23;
+    const double _t39 = _t25*_t26;
+    const double _t41 = _s4*d3;
+    const double _t42 = _c4*_t6;
+    const double _t43 = _c4*_t38 + _c4*_t39 + _t41*_t6 - _t41*_t8 - 2*_t42*_t8;
+    const double _t44 = _t36 - _t37 + _t43;
+    const double _t45 = (_c0*_c0)*_t12;
+    const double _t46 = _c4*_t45 + _t3*_t41 + 2*_t36 - 2*_t37 + _t43;
+    const double _t47 = (_s4*_s4);
+    const double _t48 = _t14*_t18;
+    const double _t49 = _t18*(_t44*_t44) + _t18*(_t46*_t46) + _t47*_t48;
+    const double _t50 = _s4*_t3;
+    const double _t51 = _t50*_t6;
+    const double _t52 = -_c1*_c4*a3*d3 - 2*_c1*_s1*_s4*a3*d4 + _c4*_t8*d3 + _s4*_t38 + _s4*_t39;
+    const double _t53 = _c0*_s1*_s4*a2*d4 - _t51 - _t52;
+    const double _t54 = -_c0*_c4*a2*d3 - 2*_c0*_s1*_s4*a2*d4 + _s4*_t45 + 2*_t51 + _t52;
+    const double _t55 = -_t54;
+    const double _t56 = (_c4*_c4);
+    const double _t57 = _t18*(_t53*_t53) + _t18*(_t55*_t55) + _t48*_t56;
+    const double _t59 = _t11*_t58 + _t58*(_t9*_t9);
+    const double _t60 = (1e-12)*(_t17*_t17);
+    const double _t61 = _c4*d3 + _s1*_s4*d4 - _s4*_t6 - _t50;
+    const double _t62 = _t19 + _t20;
+    const double _t63 = (_t62*_t62);
+    const double _t64 = _t56*_t58;
+    const double _t65 = _s0*a2 + _t62;
+    const double _t66 = (_t65*_t65);
+    const double _t67 = _t58*(_t61*_t61) + _t63*_t64 + _t64*_t66;
+    const double _t68 = -_c4*_t8 + _t35 + _t41 + _t42;
+    const double _t69 = _t47*_t58;
+    const double _t70 = _t58*(_t68*_t68) + _t63*_t69 + _t66*_t69;
+    const double _t71 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t32*_t33 + _t33*_t49 + _t33*_t57 + _t59*_t60 + _t60*_t67 + _t60*_t70);
+    const double _t73 = _c4*_s4;
+    const double _t74 = _t58*_t73;
+    const double _t75 = _t18*_t53;
+    const double _t76 = _t18*_t55;
+    const double _t77 = -_t33*(_t58*_t61*_t68 + _t63*_t74 + _t66*_t74) - _t44*_t75 - _t46*_t76 - _t48*_t73;
+    const double _t78 = _t72*xd_x;
+    const double _t79 = _t33*_t59;
+    const double _t80 = _t33*_t67 + _t60;
+    const double _t81 = _t72*xd_y;
+    const double _t82 = _s4*_t58;
+    const double _t83 = _t62*_t9;
+    const double _t84 = _t10*_t65;
+    const double _t85 = -_t28*_t75 - _t31*_t76 - _t33*(-_t82*_t83 - _t82*_t84);
+    const double _t86 = _t72*xd_z;
+    const double _t87 = _t72*(_t77*_t78 + _t81*(_t57 + _t79 + _t80) + _t85*_t86);
+    const double _t88 = _t33*_t70;
+    const double _t89 = _c4*_t58;
+    const double _t90 = _t18*_t28*_t44 + _t18*_t31*_t46 - _t33*(-_t83*_t89 - _t84*_t89);
+    const double _t91 = _t72*(_t77*_t81 + _t78*(_t49 + _t60 + _t79 + _t88) + _t86*_t90);
     const int _t92 = _t16 < 1e-08;
     const double _t93 = _t13*a2;
     const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-08)*_t1);
     const double _t95 = ((_t92) ? (
-   _t71*(_t35*_t91 + _t40*_t87)
+   _t71*(_t61*_t91 + _t68*_t87)
 )
 : (
-   -_t94*(-_c3*_t93*xd_y + _s3*_t93*xd_x)
+   -_t94*(-_c4*_t93*xd_y + _s4*_t93*xd_x)
 ));
-    const double _t96 = _t76*_t80 + _t77*(_t53 + _t78 + _t90) + _t86*_t89;
-    const double _t97 = _c3*_t87;
-    const double _t98 = _s3*_t91;
+    const double _t96 = _t78*_t90 + _t81*_t85 + _t86*(_t32 + _t80 + _t88);
+    const double _t97 = _s4*_t87;
+    const double _t98 = _c4*_t91;
     const double _t99 = ((_t92) ? (
-   _t71*(_t10*_t72*_t96 - _t29*_t97 - _t29*_t98)
+   _t71*(_t10*_t72*_t96 - _t65*_t97 - _t65*_t98)
 )
 : (
-   -_t94*(-_t50*xd_z - _t61*xd_x + _t67*xd_y)
+   -_t94*(-_t28*xd_z - _t44*xd_x + _t53*xd_y)
 ));
     const double _t100 = ((_t92) ? (
-   _t71*(-_t23*_t97 - _t23*_t98 + _t72*_t9*_t96)
+   _t71*(-_t62*_t97 - _t62*_t98 + _t72*_t9*_t96)
 )
 : (
-   -_t94*(_t52*xd_z + _t63*xd_x + _t68*xd_y)
+   -_t94*(_t31*xd_z + _t46*xd_x + _t54*xd_y)
 ));
     const double _t102 = (_s5*_s5);
     const double _t103 = kinegen_max(0, 1 - 100000000*_t102);
-    const double _t105 = (_s6*_s6)*_t47;
-    const double _t108 = _s1*_s5;
-    const double _t109 = _c1*_c5 - _c6*_t108;
-    const double _t110 = _t105 + (_t109*_t109) + _t43;
-    const double _t111 = (1e-12)*(_t103*_t103);
-    const double _t112 = _c1*_s5;
-    const double _t113 = _c5*_s1;
-    const double _t114 = _c6*_t113;
-    const double _t115 = -_t112 - _t114;
-    const double _t116 = (_c6*_c6)*_t47 + _t102*_t105 + (_t115*_t115);
-    const double _t117 = (1e-06)*_t103;
-    const double _t118 = _c6*_s3;
-    const double _t119 = _c3*_s6;
-    const double _t120 = _c1*_t119;
-    const double _t121 = _t118 + _t120;
-    const double _t122 = (_t121*_t121);
-    const double _t123 = _c3*_c6;
-    const double _t124 = -_c3*_t113 + _s3*_s5*_s6 - _t112*_t123;
-    const double _t125 = _t122 + (_t124*_t124) + _t37*_t47;
-    const double _t126 = _s3*_s6;
-    const double _t127 = _c1*_t126;
-    const double _t128 = -_c3*_c6 + _t127;
-    const double _t129 = -_s3*_t113 - _s5*_t119 - _t112*_t118;
-    const double _t130 = (_t128*_t128) + (_t129*_t129) + _t26*_t47;
-    const double _t131 = _c1*_c3*_c6 - _t126;
-    const double _t132 = _c5*_t126;
-    const double _t133 = _c3*_t108;
-    const double _t134 = _c1*_c5;
-    const double _t135 = -_t123*_t134 + _t132 + _t133;
-    const double _t136 = _t102*_t122 + (_t131*_t131) + (_t135*_t135);
-    const double _t137 = _c1*_t118 + _t119;
-    const double _t138 = -_t137;
-    const double _t139 = -_t128;
-    const double _t140 = _c5*_t119;
-    const double _t141 = _s3*_t108;
-    const double _t142 = _t118*_t134 + _t140 - _t141;
-    const double _t143 = _t102*(_t139*_t139) + (_t138*_t138) + (_t142*_t142);
-    const double _t144 = 1.0/(_t102 + (1e-18)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t125 + _t111*_t130 + _t116*_t117 + _t117*_t136 + _t117*_t143);
-    const double _t145 = _t117*_t125;
-    const double _t146 = _t111 + _t117*_t130;
-    const double _t148 = _s7*_t123;
-    const double _t150 = _c7*_t118;
-    const double _t151 = _c7*_t140 - _c7*_t141 - _s7*_t127 + _t134*_t150 + _t148;
-    const double _t152 = _s7*_t118;
-    const double _t153 = _c3*_c6*_c7 - _c7*_t127 + _s1*_s3*_s5*_s7 - _s7*_t140 - _t134*_t152;
-    const double _t154 = _c3*_s1*_s5*_s7 + _c5*_s3*_s6*_s7 - _c7*_t120 - _t134*_t148 - _t150;
-    const double _t155 = _c1*_c3*_c5*_c6*_c7 - _c7*_t132 - _c7*_t133 - _s7*_t120 - _t152;
-    const double _t156 = (0.5)*_t124*xd_r23 - 0.5*_t129*xd_r13 - 0.5*_t151*xd_r11 - 0.5*_t153*xd_r12 + (0.5)*_t154*xd_r22 + (0.5)*_t155*xd_r21 - _t95;
-    const double _t157 = _c6*_s1;
-    const double _t158 = _s1*_s6;
-    const double _t159 = _t121*_t158;
-    const double _t160 = _t102*_t159 + _t115*_t135 - _t117*(-_c3*_t46 + _t109*_t124 + _t159) + _t131*_t157;
-    const double _t161 = (0.5)*_t109;
-    const double _t162 = (0.5)*_c7*_t112 + (0.5)*_c7*_t114 - 0.5*_s7*_t158;
-    const double _t163 = -0.5*_c7*_t158 - 0.5*_s7*_t112 - 0.5*_s7*_t114;
-    const double _t164 = -_s3*_t100 - _s3*_t99 + (0.5)*_t129*xd_r33 + (0.5)*_t151*xd_r31 + (0.5)*_t153*xd_r32 - _t161*xd_r23 - _t162*xd_r21 - _t163*xd_r22;
-    const double _t165 = _t102*_t139;
-    const double _t166 = -_t115*_t142 - _t117*(-_s3*_t46 + _t109*_t129 + _t128*_t158) - _t138*_t157 - _t158*_t165;
-    const double _t167 = _c3*_t100 + _c3*_t99 - 0.5*_t124*xd_r33 - 0.5*_t154*xd_r32 - 0.5*_t155*xd_r31 + _t161*xd_r13 + _t162*xd_r11 + _t163*xd_r12;
-    const double _t168 = _t156*(_t116 + _t145 + _t146) + _t160*_t164 + _t166*_t167;
-    const double _t169 = _t110*_t117;
-    const double _t170 = -_t117*(_t121*_t128 + _t124*_t129 + _t47*_t81) - _t121*_t165 - _t131*_t138 - _t135*_t142;
-    const double _t171 = _t156*_t160 + _t164*(_t136 + _t146 + _t169) + _t167*_t170;
-    const double _t172 = _t156*_t166 + _t164*_t170 + _t167*(_t111 + _t143 + _t145 + _t169);
+    const double _t105 = _c4*_s6;
+    const double _t107 = _c6*_s4;
+    const double _t108 = _c1*_t107 + _t105;
+    const double _t109 = -_t108;
+    const double _t111 = _c5*_t105;
+    const double _t112 = _s1*_s5;
+    const double _t113 = _s4*_t112;
+    const double _t114 = _c1*_c5;
+    const double _t115 = _t107*_t114 + _t111 - _t113;
+    const double _t116 = _s4*_s6;
+    const double _t117 = _c1*_t116;
+    const double _t118 = -_c4*_c6 + _t117;
+    const double _t119 = -_t118;
+    const double _t120 = _t102*(_t119*_t119) + (_t109*_t109) + (_t115*_t115);
+    const double _t121 = (1e-06)*_t103;
+    const double _t122 = _c1*_s5;
+    const double _t123 = _c5*_s1;
+    const double _t124 = _c6*_t123;
+    const double _t125 = -_t122 - _t124;
+    const double _t126 = (_s6*_s6)*_t25;
+    const double _t127 = (_c6*_c6)*_t25 + _t102*_t126 + (_t125*_t125);
+    const double _t128 = _c1*_c4*_c6 - _t116;
+    const double _t129 = _c4*_t112;
+    const double _t130 = _c5*_t116;
+    const double _t131 = _c4*_c6;
+    const double _t132 = -_t114*_t131 + _t129 + _t130;
+    const double _t133 = _c1*_t105;
+    const double _t134 = _t107 + _t133;
+    const double _t135 = (_t134*_t134);
+    const double _t136 = _t102*_t135 + (_t128*_t128) + (_t132*_t132);
+    const double _t137 = -_c4*_t123 + _s4*_s5*_s6 - _t122*_t131;
+    const double _t138 = _t135 + (_t137*_t137) + _t25*_t56;
+    const double _t139 = (1e-12)*(_t103*_t103);
+    const double _t140 = _c1*_c5 - _c6*_t112;
+    const double _t141 = _t126 + (_t140*_t140) + _t21;
+    const double _t142 = -_s4*_t123 - _s5*_t105 - _t107*_t122;
+    const double _t143 = (_t118*_t118) + (_t142*_t142) + _t25*_t47;
+    const double _t144 = 1.0/(_t102 + (1e-18)*(_t103*_t103*_t103) + _t120*_t121 + _t121*_t127 + _t121*_t136 + _t138*_t139 + _t139*_t141 + _t139*_t143);
+    const double _t145 = _s1*_s6;
+    const double _t146 = _t134*_t145;
+    const double _t147 = _c6*_s1;
+    const double _t148 = _t102*_t146 - _t121*(-_c4*_t24 + _t137*_t140 + _t146) + _t125*_t132 + _t128*_t147;
+    const double _t151 = (0.5)*_c7*_t122 + (0.5)*_c7*_t124 - 0.5*_s7*_t145;
+    const double _t152 = -0.5*_c7*_t145 - 0.5*_s7*_t122 - 0.5*_s7*_t124;
+    const double _t153 = (0.5)*_t140;
+    const double _t154 = _s7*_t131;
+    const double _t155 = _c7*_t107;
+    const double _t156 = _c7*_t111 - _c7*_t113 - _s7*_t117 + _t114*_t155 + _t154;
+    const double _t157 = _s7*_t107;
+    const double _t158 = _c4*_c6*_c7 - _c7*_t117 + _s1*_s4*_s5*_s7 - _s7*_t111 - _t114*_t157;
+    const double _t159 = -_s4*_t100 - _s4*_t99 + (0.5)*_t142*xd_r33 - _t151*xd_r21 - _t152*xd_r22 - _t153*xd_r23 + (0.5)*_t156*xd_r31 + (0.5)*_t158*xd_r32;
+    const double _t160 = _t102*_t119;
+    const double _t161 = -_t109*_t147 - _t115*_t125 - _t121*(-_s4*_t24 + _t118*_t145 + _t140*_t142) - _t145*_t160;
+    const double _t162 = _c1*_c4*_c5*_c6*_c7 - _c7*_t129 - _c7*_t130 - _s7*_t133 - _t157;
+    const double _t163 = _c4*_s1*_s5*_s7 + _c5*_s4*_s6*_s7 - _c7*_t133 - _t114*_t154 - _t155;
+    const double _t164 = _c4*_t100 + _c4*_t99 - 0.5*_t137*xd_r33 + _t151*xd_r11 + _t152*xd_r12 + _t153*xd_r13 - 0.5*_t162*xd_r31 - 0.5*_t163*xd_r32;
+    const double _t165 = _t121*_t138;
+    const double _t166 = _t121*_t143 + _t139;
+    const double _t167 = (0.5)*_t137*xd_r23 - 0.5*_t142*xd_r13 - 0.5*_t156*xd_r11 - 0.5*_t158*xd_r12 + (0.5)*_t162*xd_r21 + (0.5)*_t163*xd_r22 - _t95;
+    const double _t168 = _t148*_t159 + _t161*_t164 + _t167*(_t127 + _t165 + _t166);
+    const double _t169 = -_t109*_t128 - _t115*_t132 - _t121*(_t118*_t134 + _t137*_t142 + _t25*_t73) - _t134*_t160;
+    const double _t170 = _t121*_t141;
+    const double _t171 = _t148*_t167 + _t159*(_t136 + _t166 + _t170) + _t164*_t169;
+    const double _t172 = _t159*_t169 + _t161*_t167 + _t164*(_t120 + _t139 + _t165 + _t170);
     const int _t173 = _t102 < 1e-08;
     const double _t174 = _s5/kinegen_max(1e-08, _t102);
     qd[0] = _t95;
     qd[1] = _t99;
     qd[2] = _t100;
     qd[3] = ((_t173) ? (
-   _t144*(_c1*_t168 - _c3*_s1*_t171 - _s1*_s3*_t172)
+   _t144*(_c1*_t168 - _c4*_s1*_t171 - _s1*_s4*_t172)
 )
 : (
-   -_t174*(_t115*_t156 + _t135*_t164 - _t142*_t167)
+   -_t174*(-_t115*_t164 + _t125*_t167 + _t132*_t159)
 ));
     qd[4] = ((_t173) ? (
-   _t144*(_t121*_t171 + _t128*_t172 + _t158*_t168)
+   _t144*(_t118*_t172 + _t134*_t171 + _t145*_t168)
 )
 : (
-   -_t174*(-_s5*_t121*_t164 + _s5*_t139*_t167 - _s6*_t108*_t156)
+   -_t174*(_s5*_t119*_t164 - _s5*_t134*_t159 - _s6*_t112*_t167)
 ));
     qd[5] = ((_t173) ? (
-   _t144*(_t109*_t168 + _t124*_t171 + _t129*_t172)
+   _t144*(_t137*_t171 + _t140*_t168 + _t142*_t172)
 )
 : (
-   -_t174*(_t131*_t164 + _t137*_t167 + _t156*_t157)
+   -_t174*(_t108*_t164 + _t128*_t159 + _t147*_t167)
 ));
     singular[0] = _t173 || _t92;
 }
@@ -6660,7 +6660,7 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
     double xd_r32[KINEGEN_BLOCK_OF(64)];
     double xd_r33[KINEGEN_BLOCK_OF(64)];
     double _t4[KINEGEN_BLOCK_OF(64)];
-    double _t51[KINEGEN_BLOCK_OF(64)];
+    double _t29[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
@@ -6694,11 +6694,11 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
     const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
     const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
     const double _t12 = (a2*a2);
-    const double _t18 = 1.0/(_t0*_t0);
-    const double _t42 = 1.0/(_t0*_t0*_t0*_t0);
-    const double _t44 = a3*d4;
-    const double _t45 = (a3*a3);
-    const double _t48 = (d4*d4);
+    const double _t18 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t22 = a3*d4;
+    const double _t23 = (a3*a3);
+    const double _t26 = (d4*d4);
+    const double _t58 = 1.0/(_t0*_t0);
     const double _t72 = 1.0/_t0;
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
@@ -6725,7 +6725,7 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             _t4[i] = q2[i] + q3[i];
-            _t51[i] = 2*q2[i] + q3[i];
+            _t29[i] = 2*q2[i] + q3[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -6753,19 +6753,19 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s3[i] = sin(q1[i]);
+            _s3[i] = sin(_t29[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c3[i] = cos(q1[i]);
+            _c3[i] = cos(_t29[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s4[i] = sin(_t51[i]);
+            _s4[i] = sin(q1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c4[i] = cos(_t51[i]);
+            _c4[i] = cos(q1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -6806,182 +6806,182 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
                 const double _t15 = _t11*_t14;
                 const double _t16 = _t15/_t1;
                 const double _t17 = kinegen_max(0, 1 - 100000000*_t16);
-                const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
-                const double _t20 = (1e-12)*(_t17*_t17);
-                const double _t21 = _s1[i]*a3;
-                const double _t22 = _c1[i]*d4;
-                const double _t23 = _t21 + _t22;
-                const double _t24 = (_t23*_t23);
-                const double _t26 = (_s3[i]*_s3[i]);
-                const double _t27 = _t18*_t26;
-                const double _t29 = _s0[i]*a2 + _t23;
-                const double _t30 = (_t29*_t29);
-                const double _t31 = _s3[i]*d3;
-                const double _t33 = _c3[i]*_t3;
-                const double _t34 = _c3[i]*_t6;
-                const double _t35 = -_c3[i]*_t8 + _t31 + _t33 + _t34;
-                const double _t36 = _t18*(_t35*_t35) + _t24*_t27 + _t27*_t30;
-                const double _t37 = (_c3[i]*_c3[i]);
-                const double _t38 = _t18*_t37;
-                const double _t39 = _s3[i]*_t3;
-                const double _t40 = _c3[i]*d3 + _s1[i]*_s3[i]*d4 - _s3[i]*_t6 - _t39;
-                const double _t41 = _t18*(_t40*_t40) + _t24*_t38 + _t30*_t38;
-                const double _t43 = (_c1[i]*_c1[i]);
-                const double _t46 = _c1[i]*_s1[i];
-                const double _t47 = (_s1[i]*_s1[i]);
-                const double _t49 = _t43*_t44 - _t44*_t47 + _t45*_t46 - _t46*_t48;
-                const double _t50 = _t21*_t3 + _t22*_t3 + _t49;
-                const double _t52 = _c0[i]*_s0[i]*_t12 + _c4[i]*a2*d4 + _s4[i]*a2*a3 + _t49;
-                const double _t53 = _t42*(_t50*_t50) + _t42*(_t52*_t52);
-                const double _t54 = (1e-06)*_t17;
-                const double _t55 = _t14*_t42;
-                const double _t56 = _t33*_t6;
-                const double _t57 = _t33*_t8;
-                const double _t58 = _t43*_t45;
-                const double _t59 = _t47*_t48;
-                const double _t60 = _c3[i]*_t58 + _c3[i]*_t59 + _t31*_t6 - _t31*_t8 - 2*_t34*_t8;
-                const double _t61 = _t56 - _t57 + _t60;
-                const double _t62 = (_c0[i]*_c0[i])*_t12;
-                const double _t63 = _c3[i]*_t62 + _t3*_t31 + 2*_t56 - 2*_t57 + _t60;
-                const double _t64 = _t26*_t55 + _t42*(_t61*_t61) + _t42*(_t63*_t63);
-                const double _t65 = _t39*_t6;
-                const double _t66 = -_c1[i]*_c3[i]*a3*d3 - 2*_c1[i]*_s1[i]*_s3[i]*a3*d4 + _c3[i]*_t8*d3 + _s3[i]*_t58 + _s3[i]*_t59;
-                const double _t67 = _c0[i]*_s1[i]*_s3[i]*a2*d4 - _t65 - _t66;
-                const double _t68 = -_c0[i]*_c3[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s3[i]*a2*d4 + _s3[i]*_t62 + 2*_t65 + _t66;
-                const double _t69 = -_t68;
-                const double _t70 = _t37*_t55 + _t42*(_t67*_t67) + _t42*(_t69*_t69);
-                const double _t71 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
-                const double _t73 = _t23*_t9;
-                const double _t74 = _c3[i]*_t18;
-                const double _t75 = _t10*_t29;
-                const double _t76 = _t42*_t50*_t61 + _t42*_t52*_t63 - _t54*(-_t73*_t74 - _t74*_t75);
-                const double _t77 = _t72*xd_z[i];
-                const double _t78 = _t36*_t54;
-                const double _t79 = _t19*_t54;
-                const double _t80 = _t72*xd_x[i];
-                const double _t81 = _c3[i]*_s3[i];
-                const double _t82 = _t42*_t67;
-                const double _t83 = _t18*_t81;
-                const double _t84 = _t42*_t69;
-                const double _t85 = -_t54*(_t18*_t35*_t40 + _t24*_t83 + _t30*_t83) - _t55*_t81 - _t61*_t82 - _t63*_t84;
-                const double _t86 = _t72*xd_y[i];
-                const double _t87 = _t72*(_t76*_t77 + _t80*(_t20 + _t64 + _t78 + _t79) + _t85*_t86);
-                const double _t88 = _s3[i]*_t18;
-                const double _t89 = -_t50*_t82 - _t52*_t84 - _t54*(-_t73*_t88 - _t75*_t88);
-                const double _t90 = _t20 + _t41*_t54;
-                const double _t91 = _t72*(_t77*_t89 + _t80*_t85 + _t86*(_t70 + _t79 + _t90));
+                const double _t19 = _s1[i]*a3;
+                const double _t20 = _c1[i]*d4;
+                const double _t21 = (_c1[i]*_c1[i]);
+                const double _t24 = _c1[i]*_s1[i];
+                const double _t25 = (_s1[i]*_s1[i]);
+                const double _t27 = _t21*_t22 - _t22*_t25 + _t23*_t24 - _t24*_t26;
+                const double _t28 = _t19*_t3 + _t20*_t3 + _t27;
+                const double _t31 = _c0[i]*_s0[i]*_t12 + _c3[i]*a2*d4 + _s3[i]*a2*a3 + _t27;
+                const double _t32 = _t18*(_t28*_t28) + _t18*(_t31*_t31);
+                const double _t33 = (1e-06)*_t17;
+                const double _t35 = _c4[i]*_t3;
+                const double _t36 = _t35*_t6;
+                const double _t37 = _t35*_t8;
+                const double _t38 = _t21*_t23;
+                const double _t39 = _t25*_t26;
+                const double _t41 = _s4[i]*d3;
+                const double _t42 = _c4[i]*_t6;
+                const double _t43 = _c4[i]*_t38 + _c4[i]*_t39 + _t41*_t6 - _t41*_t8 - 2*_t42*_t8;
+                const double _t44 = _t36 - _t37 + _t43;
+                const double _t45 = (_c0[i]*_c0[i])*_t12;
+                const double _t46 = _c4[i]*_t45 + _t3*_t41 + 2*_t36 - 2*_t37 + _t43;
+                const double _t47 = (_s4[i]*_s4[i]);
+                const double _t48 = _t14*_t18;
+                const double _t49 = _t18*(_t44*_t44) + _t18*(_t46*_t46) + _t47*_t48;
+                const double _t50 = _s4[i]*_t3;
+                const double _t51 = _t50*_t6;
+                const double _t52 = -_c1[i]*_c4[i]*a3*d3 - 2*_c1[i]*_s1[i]*_s4[i]*a3*d4 + _c4[i]*_t8*d3 + _s4[i]*_t38 + _s4[i]*_t39;
+                const double _t53 = _c0[i]*_s1[i]*_s4[i]*a2*d4 - _t51 - _t52;
+                const double _t54 = -_c0[i]*_c4[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s4[i]*a2*d4 + _s4[i]*_t45 + 2*_t51 + _t52;
+                const double _t55 = -_t54;
+                const double _t56 = (_c4[i]*_c4[i]);
+                const double _t57 = _t18*(_t53*_t53) + _t18*(_t55*_t55) + _t48*_t56;
+                const double _t59 = _t11*_t58 + _t58*(_t9*_t9);
+                const double _t60 = (1e-12)*(_t17*_t17);
+                const double _t61 = _c4[i]*d3 + _s1[i]*_s4[i]*d4 - _s4[i]*_t6 - _t50;
+                const double _t62 = _t19 + _t20;
+                const double _t63 = (_t62*_t62);
+                const double _t64 = _t56*_t58;
+                const double _t65 = _s0[i]*a2 + _t62;
+                const double _t66 = (_t65*_t65);
+                const double _t67 = _t58*(_t61*_t61) + _t63*_t64 + _t64*_t66;
+                const double _t68 = -_c4[i]*_t8 + _t35 + _t41 + _t42;
+                const double _t69 = _t47*_t58;
+                const double _t70 = _t58*(_t68*_t68) + _t63*_t69 + _t66*_t69;
+                const double _t71 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t32*_t33 + _t33*_t49 + _t33*_t57 + _t59*_t60 + _t60*_t67 + _t60*_t70);
+                const double _t73 = _c4[i]*_s4[i];
+                const double _t74 = _t58*_t73;
+                const double _t75 = _t18*_t53;
+                const double _t76 = _t18*_t55;
+                const double _t77 = -_t33*(_t58*_t61*_t68 + _t63*_t74 + _t66*_t74) - _t44*_t75 - _t46*_t76 - _t48*_t73;
+                const double _t78 = _t72*xd_x[i];
+                const double _t79 = _t33*_t59;
+                const double _t80 = _t33*_t67 + _t60;
+                const double _t81 = _t72*xd_y[i];
+                const double _t82 = _s4[i]*_t58;
+                const double _t83 = _t62*_t9;
+                const double _t84 = _t10*_t65;
+                const double _t85 = -_t28*_t75 - _t31*_t76 - _t33*(-_t82*_t83 - _t82*_t84);
+                const double _t86 = _t72*xd_z[i];
+                const double _t87 = _t72*(_t77*_t78 + _t81*(_t57 + _t79 + _t80) + _t85*_t86);
+                const double _t88 = _t33*_t70;
+                const double _t89 = _c4[i]*_t58;
+                const double _t90 = _t18*_t28*_t44 + _t18*_t31*_t46 - _t33*(-_t83*_t89 - _t84*_t89);
+                const double _t91 = _t72*(_t77*_t81 + _t78*(_t49 + _t60 + _t79 + _t88) + _t86*_t90);
                 const int _t92 = _t16 < 1e-08;
                 const double _t93 = _t13*a2;
                 const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-08)*_t1);
                 const double _t95 = ((_t92) ? (
-   _t71*(_t35*_t91 + _t40*_t87)
+   _t71*(_t61*_t91 + _t68*_t87)
 )
 : (
-   -_t94*(-_c3[i]*_t93*xd_y[i] + _s3[i]*_t93*xd_x[i])
+   -_t94*(-_c4[i]*_t93*xd_y[i] + _s4[i]*_t93*xd_x[i])
 ));
-                const double _t96 = _t76*_t80 + _t77*(_t53 + _t78 + _t90) + _t86*_t89;
-                const double _t97 = _c3[i]*_t87;
-                const double _t98 = _s3[i]*_t91;
+                const double _t96 = _t78*_t90 + _t81*_t85 + _t86*(_t32 + _t80 + _t88);
+                const double _t97 = _s4[i]*_t87;
+                const double _t98 = _c4[i]*_t91;
                 const double _t99 = ((_t92) ? (
-   _t71*(_t10*_t72*_t96 - _t29*_t97 - _t29*_t98)
+   _t71*(_t10*_t72*_t96 - _t65*_t97 - _t65*_t98)
 )
 : (
-   -_t94*(-_t50*xd_z[i] - _t61*xd_x[i] + _t67*xd_y[i])
+   -_t94*(-_t28*xd_z[i] - _t44*xd_x[i] + _t53*xd_y[i])
 ));
                 const double _t100 = ((_t92) ? (
-   _t71*(-_t23*_t97 - _t23*_t98 + _t72*_t9*_t96)
+   _t71*(-_t62*_t97 - _t62*_t98 + _t72*_t9*_t96)
 )
 : (
-   -_t94*(_t52*xd_z[i] + _t63*xd_x[i] + _t68*xd_y[i])
+   -_t94*(_t31*xd_z[i] + _t46*xd_x[i] + _t54*xd_y[i])
 ));
                 const double _t102 = (_s5[i]*_s5[i]);
                 const double _t103 = kinegen_max(0, 1 - 100000000*_t102);
-                const double _t105 = (_s6[i]*_s6[i])*_t47;
-                const double _t108 = _s1[i]*_s5[i];
-                const double _t109 = _c1[i]*_c5[i] - _c6[i]*_t108;
-                const double _t110 = _t105 + (_t109*_t109) + _t43;
-                const double _t111 = (1e-12)*(_t103*_t103);
-                const double _t112 = _c1[i]*_s5[i];
-                const double _t113 = _c5[i]*_s1[i];
-                const double _t114 = _c6[i]*_t113;
-                const double _t115 = -_t112 - _t114;
-                const double _t116 = (_c6[i]*_c6[i])*_t47 + _t102*_t105 + (_t115*_t115);
-                const double _t117 = (1e-06)*_t103;
-                const double _t118 = _c6[i]*_s3[i];
-                const double _t119 = _c3[i]*_s6[i];
-                const double _t120 = _c1[i]*_t119;
-                const double _t121 = _t118 + _t120;
-                const double _t122 = (_t121*_t121);
-                const double _t123 = _c3[i]*_c6[i];
-                const double _t124 = -_c3[i]*_t113 + _s3[i]*_s5[i]*_s6[i] - _t112*_t123;
-                const double _t125 = _t122 + (_t124*_t124) + _t37*_t47;
-                const double _t126 = _s3[i]*_s6[i];
-                const double _t127 = _c1[i]*_t126;
-                const double _t128 = -_c3[i]*_c6[i] + _t127;
-                const double _t129 = -_s3[i]*_t113 - _s5[i]*_t119 - _t112*_t118;
-                const double _t130 = (_t128*_t128) + (_t129*_t129) + _t26*_t47;
-                const double _t131 = _c1[i]*_c3[i]*_c6[i] - _t126;
-                const double _t132 = _c5[i]*_t126;
-                const double _t133 = _c3[i]*_t108;
-                const double _t134 = _c1[i]*_c5[i];
-                const double _t135 = -_t123*_t134 + _t132 + _t133;
-                const double _t136 = _t102*_t122 + (_t131*_t131) + (_t135*_t135);
-                const double _t137 = _c1[i]*_t118 + _t119;
-                const double _t138 = -_t137;
-                const double _t139 = -_t128;
-                const double _t140 = _c5[i]*_t119;
-                const double _t141 = _s3[i]*_t108;
-                const double _t142 = _t118*_t134 + _t140 - _t141;
-                const double _t143 = _t102*(_t139*_t139) + (_t138*_t138) + (_t142*_t142);
-                const double _t144 = 1.0/(_t102 + (1e-18)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t125 + _t111*_t130 + _t116*_t117 + _t117*_t136 + _t117*_t143);
-                const double _t145 = _t117*_t125;
-                const double _t146 = _t111 + _t117*_t130;
-                const double _t148 = _s7[i]*_t123;
-                const double _t150 = _c7[i]*_t118;
-                const double _t151 = _c7[i]*_t140 - _c7[i]*_t141 - _s7[i]*_t127 + _t134*_t150 + _t148;
-                const double _t152 = _s7[i]*_t118;
-                const double _t153 = _c3[i]*_c6[i]*_c7[i] - _c7[i]*_t127 + _s1[i]*_s3[i]*_s5[i]*_s7[i] - _s7[i]*_t140 - _t134*_t152;
-                const double _t154 = _c3[i]*_s1[i]*_s5[i]*_s7[i] + _c5[i]*_s3[i]*_s6[i]*_s7[i] - _c7[i]*_t120 - _t134*_t148 - _t150;
-                const double _t155 = _c1[i]*_c3[i]*_c5[i]*_c6[i]*_c7[i] - _c7[i]*_t132 - _c7[i]*_t133 - _s7[i]*_t120 - _t152;
-                const double _t156 = (0.5)*_t124*xd_r23[i] - 0.5*_t129*xd_r13[i] - 0.5*_t151*xd_r11[i] - 0.5*_t153*xd_r12[i] + (0.5)*_t154*xd_r22[i] + (0.5)*_t155*xd_r21[i] - _t95;
-                const double _t157 = _c6[i]*_s1[i];
-                const double _t158 = _s1[i]*_s6[i];
-                const double _t159 = _t121*_t158;
-                const double _t160 = _t102*_t159 + _t115*_t135 - _t117*(-_c3[i]*_t46 + _t109*_t124 + _t159) + _t131*_t157;
-                const double _t161 = (0.5)*_t109;
-                const double _t162 = (0.5)*_c7[i]*_t112 + (0.5)*_c7[i]*_t114 - 0.5*_s7[i]*_t158;
-                const double _t163 = -0.5*_c7[i]*_t158 - 0.5*_s7[i]*_t112 - 0.5*_s7[i]*_t114;
-                const double _t164 = -_s3[i]*_t100 - _s3[i]*_t99 + (0.5)*_t129*xd_r33[i] + (0.5)*_t151*xd_r31[i] + (0.5)*_t153*xd_r32[i] - _t161*xd_r23[i] - _t162*xd_r21[i] - _t163*xd_r22[i];
-                const double _t165 = _t102*_t139;
-                const double _t166 = -_t115*_t142 - _t117*(-_s3[i]*_t46 + _t109*_t129 + _t128*_t158) - _t138*_t157 - _t158*_t165;
-                const double _t167 = _c3[i]*_t100 + _c3[i]*_t99 - 0.5*_t124*xd_r33[i] - 0.5*_t154*xd_r32[i] - 0.5*_t155*xd_r31[i] + _t161*xd_r13[i] + _t162*xd_r11[i] + _t163*xd_r12[i];
-                const double _t168 = _t156*(_t116 + _t145 + _t146) + _t160*_t164 + _t166*_t167;
-                const double _t169 = _t110*_t117;
-                const double _t170 = -_t117*(_t121*_t128 + _t124*_t129 + _t47*_t81) - _t121*_t165 - _t131*_t138 - _t135*_t142;
-                const double _t171 = _t156*_t160 + _t164*(_t136 + _t146 + _t169) + _t167*_t170;
-                const double _t172 = _t156*_t166 + _t164*_t170 + _t167*(_t111 + _t143 + _t145 + _t169);
+                const double _t105 = _c4[i]*_s6[i];
+                const double _t107 = _c6[i]*_s4[i];
+                const double _t108 = _c1[i]*_t107 + _t105;
+                const double _t109 = -_t108;
+                const double _t111 = _c5[i]*_t105;
+                const double _t112 = _s1[i]*_s5[i];
+                const double _t113 = _s4[i]*_t112;
+                const double _t114 = _c1[i]*_c5[i];
+                const double _t115 = _t107*_t114 + _t111 - _t113;
+                const double _t116 = _s4[i]*_s6[i];
+                const double _t117 = _c1[i]*_t116;
+                const double _t118 = -_c4[i]*_c6[i] + _t117;
+                const double _t119 = -_t118;
+                const double _t120 = _t102*(_t119*_t119) + (_t109*_t109) + (_t115*_t115);
+                const double _t121 = (1e-06)*_t103;
+                const double _t122 = _c1[i]*_s5[i];
+                const double _t123 = _c5[i]*_s1[i];
+                const double _t124 = _c6[i]*_t123;
+                const double _t125 = -_t122 - _t124;
+                const double _t126 = (_s6[i]*_s6[i])*_t25;
+                const double _t127 = (_c6[i]*_c6[i])*_t25 + _t102*_t126 + (_t125*_t125);
+                const double _t128 = _c1[i]*_c4[i]*_c6[i] - _t116;
+                const double _t129 = _c4[i]*_t112;
+                const double _t130 = _c5[i]*_t116;
+                const double _t131 = _c4[i]*_c6[i];
+                const double _t132 = -_t114*_t131 + _t129 + _t130;
+                const double _t133 = _c1[i]*_t105;
+                const double _t134 = _t107 + _t133;
+                const double _t135 = (_t134*_t134);
+                const double _t136 = _t102*_t135 + (_t128*_t128) + (_t132*_t132);
+                const double _t137 = -_c4[i]*_t123 + _s4[i]*_s5[i]*_s6[i] - _t122*_t131;
+                const double _t138 = _t135 + (_t137*_t137) + _t25*_t56;
+                const double _t139 = (1e-12)*(_t103*_t103);
+                const double _t140 = _c1[i]*_c5[i] - _c6[i]*_t112;
+                const double _t141 = _t126 + (_t140*_t140) + _t21;
+                const double _t142 = -_s4[i]*_t123 - _s5[i]*_t105 - _t107*_t122;
+                const double _t143 = (_t118*_t118) + (_t142*_t142) + _t25*_t47;
+                const double _t144 = 1.0/(_t102 + (1e-18)*(_t103*_t103*_t103) + _t120*_t121 + _t121*_t127 + _t121*_t136 + _t138*_t139 + _t139*_t141 + _t139*_t143);
+                const double _t145 = _s1[i]*_s6[i];
+                const double _t146 = _t134*_t145;
+                const double _t147 = _c6[i]*_s1[i];
+                const double _t148 = _t102*_t146 - _t121*(-_c4[i]*_t24 + _t137*_t140 + _t146) + _t125*_t132 + _t128*_t147;
+                const double _t151 = (0.5)*_c7[i]*_t122 + (0.5)*_c7[i]*_t124 - 0.5*_s7[i]*_t145;
+                const double _t152 = -0.5*_c7[i]*_t145 - 0.5*_s7[i]*_t122 - 0.5*_s7[i]*_t124;
+                const double _t153 = (0.5)*_t140;
+                const double _t154 = _s7[i]*_t131;
+                const double _t155 = _c7[i]*_t107;
+                const double _t156 = _c7[i]*_t111 - _c7[i]*_t113 - _s7[i]*_t117 + _t114*_t155 + _t154;
+                const double _t157 = _s7[i]*_t107;
+                const double _t158 = _c4[i]*_c6[i]*_c7[i] - _c7[i]*_t117 + _s1[i]*_s4[i]*_s5[i]*_s7[i] - _s7[i]*_t111 - _t114*_t157;
+                const double _t159 = -_s4[i]*_t100 - _s4[i]*_t99 + (0.5)*_t142*xd_r33[i] - _t151*xd_r21[i] - _t152*xd_r22[i] - _t153*xd_r23[i] + (0.5)*_t156*xd_r31[i] + (0.5)*_t158*xd_r32[i];
+                const double _t160 = _t102*_t119;
+                const double _t161 = -_t109*_t147 - _t115*_t125 - _t121*(-_s4[i]*_t24 + _t118*_t145 + _t140*_t142) - _t145*_t160;
+                const double _t162 = _c1[i]*_c4[i]*_c5[i]*_c6[i]*_c7[i] - _c7[i]*_t129 - _c7[i]*_t130 - _s7[i]*_t133 - _t157;
+                const double _t163 = _c4[i]*_s1[i]*_s5[i]*_s7[i] + _c5[i]*_s4[i]*_s6[i]*_s7[i] - _c7[i]*_t133 - _t114*_t154 - _t155;
+                const double _t164 = _c4[i]*_t100 + _c4[i]*_t99 - 0.5*_t137*xd_r33[i] + _t151*xd_r11[i] + _t152*xd_r12[i] + _t153*xd_r13[i] - 0.5*_t162*xd_r31[i] - 0.5*_t163*xd_r32[i];
+                const double _t165 = _t121*_t138;
+                const double _t166 = _t121*_t143 + _t139;
+                const double _t167 = (0.5)*_t137*xd_r23[i] - 0.5*_t142*xd_r13[i] - 0.5*_t156*xd_r11[i] - 0.5*_t158*xd_r12[i] + (0.5)*_t162*xd_r21[i] + (0.5)*_t163*xd_r22[i] - _t95;
+                const double _t168 = _t148*_t159 + _t161*_t164 + _t167*(_t127 + _t165 + _t166);
+                const double _t169 = -_t109*_t128 - _t115*_t132 - _t121*(_t118*_t134 + _t137*_t142 + _t25*_t73) - _t134*_t160;
+                const double _t170 = _t121*_t141;
+                const double _t171 = _t148*_t167 + _t159*(_t136 + _t166 + _t170) + _t164*_t169;
+                const double _t172 = _t159*_t169 + _t161*_t167 + _t164*(_t120 + _t139 + _t165 + _t170);
                 const int _t173 = _t102 < 1e-08;
                 const double _t174 = _s5[i]/kinegen_max(1e-08, _t102);
                 _qd_block[0][i] = _t95;
                 _qd_block[1][i] = _t99;
                 _qd_block[2][i] = _t100;
                 _qd_block[3][i] = ((_t173) ? (
-   _t144*(_c1[i]*_t168 - _c3[i]*_s1[i]*_t171 - _s1[i]*_s3[i]*_t172)
+   _t144*(_c1[i]*_t168 - _c4[i]*_s1[i]*_t171 - _s1[i]*_s4[i]*_t172)
 )
 : (
-   -_t174*(_t115*_t156 + _t135*_t164 - _t142*_t167)
+   -_t174*(-_t115*_t164 + _t125*_t167 + _t132*_t159)
 ));
                 _qd_block[4][i] = ((_t173) ? (
-   _t144*(_t121*_t171 + _t128*_t172 + _t158*_t168)
+   _t144*(_t118*_t172 + _t134*_t171 + _t145*_t168)
 )
 : (
-   -_t174*(-_s5[i]*_t121*_t164 + _s5[i]*_t139*_t167 - _s6[i]*_t108*_t156)
+   -_t174*(_s5[i]*_t119*_t164 - _s5[i]*_t134*_t159 - _s6[i]*_t112*_t167)
 ));
                 _qd_block[5][i] = ((_t173) ? (
-   _t144*(_t109*_t168 + _t124*_t171 + _t129*_t172)
+   _t144*(_t137*_t171 + _t140*_t168 + _t142*_t172)
 )
 : (
-   -_t174*(_t131*_t164 + _t137*_t167 + _t156*_t157)
+   -_t174*(_t108*_t164 + _t128*_t159 + _t147*_t167)
 ));
                 singular[1 * (start + i) + 0] = _t173 || _t92;
             }
@@ -7001,182 +7001,182 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
                 const double _t15 = _t11*_t14;
                 const double _t16 = _t15/_t1;
                 const double _t17 = kinegen_max(0, 1 - 100000000*_t16);
-                const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
-                const double _t20 = (1e-12)*(_t17*_t17);
-                const double _t21 = _s1[i]*a3;
-                const double _t22 = _c1[i]*d4;
-                const double _t23 = _t21 + _t22;
-                const double _t24 = (_t23*_t23);
-                const double _t26 = (_s3[i]*_s3[i]);
-                const double _t27 = _t18*_t26;
-                const double _t29 = _s0[i]*a2 + _t23;
-                const double _t30 = (_t29*_t29);
-                const double _t31 = _s3[i]*d3;
-                const double _t33 = _c3[i]*_t3;
-                const double _t34 = _c3[i]*_t6;
-                const double _t35 = -_c3[i]*_t8 + _t31 + _t33 + _t34;
-                const double _t36 = _t18*(_t35*_t35) + _t24*_t27 + _t27*_t30;
-                const double _t37 = (_c3[i]*_c3[i]);
-                const double _t38 = _t18*_t37;
-                const double _t39 = _s3[i]*_t3;
-                const double _t40 = _c3[i]*d3 + _s1[i]*_s3[i]*d4 - _s3[i]*_t6 - _t39;
-                const double _t41 = _t18*(_t40*_t40) + _t24*_t38 + _t30*_t38;
-                const double _t43 = (_c1[i]*_c1[i]);
-                const double _t46 = _c1[i]*_s1[i];
-                const double _t47 = (_s1[i]*_s1[i]);
-                const double _t49 = _t43*_t44 - _t44*_t47 + _t45*_t46 - _t46*_t48;
-                const double _t50 = _t21*_t3 + _t22*_t3 + _t49;
-                const double _t52 = _c0[i]*_s0[i]*_t12 + _c4[i]*a2*d4 + _s4[i]*a2*a3 + _t49;
-                const double _t53 = _t42*(_t50*_t50) + _t42*(_t52*_t52);
-                const double _t54 = (1e-06)*_t17;
-                const double _t55 = _t14*_t42;
-                const double _t56 = _t33*_t6;
-                const double _t57 = _t33*_t8;
-                const double _t58 = _t43*_t45;
-                const double _t59 = _t47*_t48;
-                const double _t60 = _c3[i]*_t58 + _c3[i]*_t59 + _t31*_t6 - _t31*_t8 - 2*_t34*_t8;
-                const double _t61 = _t56 - _t57 + _t60;
-                const double _t62 = (_c0[i]*_c0[i])*_t12;
-                const double _t63 = _c3[i]*_t62 + _t3*_t31 + 2*_t56 - 2*_t57 + _t60;
-                const double _t64 = _t26*_t55 + _t42*(_t61*_t61) + _t42*(_t63*_t63);
-                const double _t65 = _t39*_t6;
-                const double _t66 = -_c1[i]*_c3[i]*a3*d3 - 2*_c1[i]*_s1[i]*_s3[i]*a3*d4 + _c3[i]*_t8*d3 + _s3[i]*_t58 + _s3[i]*_t59;
-                const double _t67 = _c0[i]*_s1[i]*_s3[i]*a2*d4 - _t65 - _t66;
-                const double _t68 = -_c0[i]*_c3[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s3[i]*a2*d4 + _s3[i]*_t62 + 2*_t65 + _t66;
-                const double _t69 = -_t68;
-                const double _t70 = _t37*_t55 + _t42*(_t67*_t67) + _t42*(_t69*_t69);
-                const double _t71 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
-                const double _t73 = _t23*_t9;
-                const double _t74 = _c3[i]*_t18;
-                const double _t75 = _t10*_t29;
-                const double _t76 = _t42*_t50*_t61 + _t42*_t52*_t63 - _t54*(-_t73*_t74 - _t74*_t75);
-                const double _t77 = _t72*xd_z[i];
-                const double _t78 = _t36*_t54;
-                const double _t79 = _t19*_t54;
-                const double _t80 = _t72*xd_x[i];
-                const double _t81 = _c3[i]*_s3[i];
-                const double _t82 = _t42*_t67;
-                const double _t83 = _t18*_t81;
-                const double _t84 = _t42*_t69;
-                const double _t85 = -_t54*(_t18*_t35*_t40 + _t24*_t83 + _t30*_t83) - _t55*_t81 - _t61*_t82 - _t63*_t84;
-                const double _t86 = _t72*xd_y[i];
-                const double _t87 = _t72*(_t76*_t77 + _t80*(_t20 + _t64 + _t78 + _t79) + _t85*_t86);
-                const double _t88 = _s3[i]*_t18;
-                const double _t89 = -_t50*_t82 - _t52*_t84 - _t54*(-_t73*_t88 - _t75*_t88);
-                const double _t90 = _t20 + _t41*_t54;
-                const double _t91 = _t72*(_t77*_t89 + _t80*_t85 + _t86*(_t70 + _t79 + _t90));
+                const double _t19 = _s1[i]*a3;
+                const double _t20 = _c1[i]*d4;
+                const double _t21 = (_c1[i]*_c1[i]);
+                const double _t24 = _c1[i]*_s1[i];
+                const double _t25 = (_s1[i]*_s1[i]);
+                const double _t27 = _t21*_t22 - _t22*_t25 + _t23*_t24 - _t24*_t26;
+                const double _t28 = _t19*_t3 + _t20*_t3 + _t27;
+                const double _t31 = _c0[i]*_s0[i]*_t12 + _c3[i]*a2*d4 + _s3[i]*a2*a3 + _t27;
+                const double _t32 = _t18*(_t28*_t28) + _t18*(_t31*_t31);
+                const double _t33 = (1e-06)*_t17;
+                const double _t35 = _c4[i]*_t3;
+                const double _t36 = _t35*_t6;
+                const double _t37 = _t35*_t8;
+                const double _t38 = _t21*_t23;
+                const double _t39 = _t25*_t26;
+                const double _t41 = _s4[i]*d3;
+                const double _t42 = _c4[i]*_t6;
+                const double _t43 = _c4[i]*_t38 + _c4[i]*_t39 + _t41*_t6 - _t41*_t8 - 2*_t42*_t8;
+                const double _t44 = _t36 - _t37 + _t43;
+                const double _t45 = (_c0[i]*_c0[i])*_t12;
+                const double _t46 = _c4[i]*_t45 + _t3*_t41 + 2*_t36 - 2*_t37 + _t43;
+                const double _t47 = (_s4[i]*_s4[i]);
+                const double _t48 = _t14*_t18;
+                const double _t49 = _t18*(_t44*_t44) + _t18*(_t46*_t46) + _t47*_t48;
+                const double _t50 = _s4[i]*_t3;
+                const double _t51 = _t50*_t6;
+                const double _t52 = -_c1[i]*_c4[i]*a3*d3 - 2*_c1[i]*_s1[i]*_s4[i]*a3*d4 + _c4[i]*_t8*d3 + _s4[i]*_t38 + _s4[i]*_t39;
+                const double _t53 = _c0[i]*_s1[i]*_s4[i]*a2*d4 - _t51 - _t52;
+                const double _t54 = -_c0[i]*_c4[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s4[i]*a2*d4 + _s4[i]*_t45 + 2*_t51 + _t52;
+                const double _t55 = -_t54;
+                const double _t56 = (_c4[i]*_c4[i]);
+                const double _t57 = _t18*(_t53*_t53) + _t18*(_t55*_t55) + _t48*_t56;
+                const double _t59 = _t11*_t58 + _t58*(_t9*_t9);
+                const double _t60 = (1e-12)*(_t17*_t17);
+                const double _t61 = _c4[i]*d3 + _s1[i]*_s4[i]*d4 - _s4[i]*_t6 - _t50;
+                const double _t62 = _t19 + _t20;
+                const double _t63 = (_t62*_t62);
+                const double _t64 = _t56*_t58;
+                const double _t65 = _s0[i]*a2 + _t62;
+                const double _t66 = (_t65*_t65);
+                const double _t67 = _t58*(_t61*_t61) + _t63*_t64 + _t64*_t66;
+                const double _t68 = -_c4[i]*_t8 + _t35 + _t41 + _t42;
+                const double _t69 = _t47*_t58;
+                const double _t70 = _t58*(_t68*_t68) + _t63*_t69 + _t66*_t69;
+                const double _t71 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t32*_t33 + _t33*_t49 + _t33*_t57 + _t59*_t60 + _t60*_t67 + _t60*_t70);
+                const double _t73 = _c4[i]*_s4[i];
+                const double _t74 = _t58*_t73;
+                const double _t75 = _t18*_t53;
+                const double _t76 = _t18*_t55;
+                const double _t77 = -_t33*(_t58*_t61*_t68 + _t63*_t74 + _t66*_t74) - _t44*_t75 - _t46*_t76 - _t48*_t73;
+                const double _t78 = _t72*xd_x[i];
+                const double _t79 = _t33*_t59;
+                const double _t80 = _t33*_t67 + _t60;
+                const double _t81 = _t72*xd_y[i];
+                const double _t82 = _s4[i]*_t58;
+                const double _t83 = _t62*_t9;
+                const double _t84 = _t10*_t65;
+                const double _t85 = -_t28*_t75 - _t31*_t76 - _t33*(-_t82*_t83 - _t82*_t84);
+                const double _t86 = _t72*xd_z[i];
+                const double _t87 = _t72*(_t77*_t78 + _t81*(_t57 + _t79 + _t80) + _t85*_t86);
+                const double _t88 = _t33*_t70;
+                const double _t89 = _c4[i]*_t58;
+                const double _t90 = _t18*_t28*_t44 + _t18*_t31*_t46 - _t33*(-_t83*_t89 - _t84*_t89);
+                const double _t91 = _t72*(_t77*_t81 + _t78*(_t49 + _t60 + _t79 + _t88) + _t86*_t90);
                 const int _t92 = _t16 < 1e-08;
                 const double _t93 = _t13*a2;
                 const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-08)*_t1);
                 const double _t95 = ((_t92) ? (
-   _t71*(_t35*_t91 + _t40*_t87)
+   _t71*(_t61*_t91 + _t68*_t87)
 )
 : (
-   -_t94*(-_c3[i]*_t93*xd_y[i] + _s3[i]*_t93*xd_x[i])
+   -_t94*(-_c4[i]*_t93*xd_y[i] + _s4[i]*_t93*xd_x[i])
 ));
-                const double _t96 = _t76*_t80 + _t77*(_t53 + _t78 + _t90) + _t86*_t89;
-                const double _t97 = _c3[i]*_t87;
-                const double _t98 = _s3[i]*_t91;
+                const double _t96 = _t78*_t90 + _t81*_t85 + _t86*(_t32 + _t80 + _t88);
+                const double _t97 = _s4[i]*_t87;
+                const double _t98 = _c4[i]*_t91;
                 const double _t99 = ((_t92) ? (
-   _t71*(_t10*_t72*_t96 - _t29*_t97 - _t29*_t98)
+   _t71*(_t10*_t72*_t96 - _t65*_t97 - _t65*_t98)
 )
 : (
-   -_t94*(-_t50*xd_z[i] - _t61*xd_x[i] + _t67*xd_y[i])
+   -_t94*(-_t28*xd_z[i] - _t44*xd_x[i] + _t53*xd_y[i])
 ));
                 const double _t100 = ((_t92) ? (
-   _t71*(-_t23*_t97 - _t23*_t98 + _t72*_t9*_t96)
+   _t71*(-_t62*_t97 - _t62*_t98 + _t72*_t9*_t96)
 )
 : (
-   -_t94*(_t52*xd_z[i] + _t63*xd_x[i] + _t68*xd_y[i])
+   -_t94*(_t31*xd_z[i] + _t46*xd_x[i] + _t54*xd_y[i])
 ));
                 const double _t102 = (_s5[i]*_s5[i]);
                 const double _t103 = kinegen_max(0, 1 - 100000000*_t102);
-                const double _t105 = (_s6[i]*_s6[i])*_t47;
-                const double _t108 = _s1[i]*_s5[i];
-                const double _t109 = _c1[i]*_c5[i] - _c6[i]*_t108;
-                const double _t110 = _t105 + (_t109*_t109) + _t43;
-                const double _t111 = (1e-12)*(_t103*_t103);
-                const double _t112 = _c1[i]*_s5[i];
-                const double _t113 = _c5[i]*_s1[i];
-                const double _t114 = _c6[i]*_t113;
-                const double _t115 = -_t112 - _t114;
-                const double _t116 = (_c6[i]*_c6[i])*_t47 + _t102*_t105 + (_t115*_t115);
-                const double _t117 = (1e-06)*_t103;
-                const double _t118 = _c6[i]*_s3[i];
-                const double _t119 = _c3[i]*_s6[i];
-                const double _t120 = _c1[i]*_t119;
-                const double _t121 = _t118 + _t120;
-                const double _t122 = (_t121*_t121);
-                const double _t123 = _c3[i]*_c6[i];
-                const double _t124 = -_c3[i]*_t113 + _s3[i]*_s5[i]*_s6[i] - _t112*_t123;
-                const double _t125 = _t122 + (_t124*_t124) + _t37*_t47;
-                const double _t126 = _s3[i]*_s6[i];
-                const double _t127 = _c1[i]*_t126;
-                const double _t128 = -_c3[i]*_c6[i] + _t127;
-                const double _t129 = -_s3[i]*_t113 - _s5[i]*_t119 - _t112*_t118;
-                const double _t130 = (_t128*_t128) + (_t129*_t129) + _t26*_t47;
-                const double _t131 = _c1[i]*_c3[i]*_c6[i] - _t126;
-                const double _t132 = _c5[i]*_t126;
-                const double _t133 = _c3[i]*_t108;
-                const double _t134 = _c1[i]*_c5[i];
-                const double _t135 = -_t123*_t134 + _t132 + _t133;
-                const double _t136 = _t102*_t122 + (_t131*_t131) + (_t135*_t135);
-                const double _t137 = _c1[i]*_t118 + _t119;
-                const double _t138 = -_t137;
-                const double _t139 = -_t128;
-                const double _t140 = _c5[i]*_t119;
-                const double _t141 = _s3[i]*_t108;
-                const double _t142 = _t118*_t134 + _t140 - _t141;
-                const double _t143 = _t102*(_t139*_t139) + (_t138*_t138) + (_t142*_t142);
-                const double _t144 = 1.0/(_t102 + (1e-18)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t125 + _t111*_t130 + _t116*_t117 + _t117*_t136 + _t117*_t143);
-                const double _t145 = _t117*_t125;
-                const double _t146 = _t111 + _t117*_t130;
-                const double _t148 = _s7[i]*_t123;
-                const double _t150 = _c7[i]*_t118;
-                const double _t151 = _c7[i]*_t140 - _c7[i]*_t141 - _s7[i]*_t127 + _t134*_t150 + _t148;
-                const double _t152 = _s7[i]*_t118;
-                const double _t153 = _c3[i]*_c6[i]*_c7[i] - _c7[i]*_t127 + _s1[i]*_s3[i]*_s5[i]*_s7[i] - _s7[i]*_t140 - _t134*_t152;
-                const double _t154 = _c3[i]*_s1[i]*_s5[i]*_s7[i] + _c5[i]*_s3[i]*_s6[i]*_s7[i] - _c7[i]*_t120 - _t134*_t148 - _t150;
-                const double _t155 = _c1[i]*_c3[i]*_c5[i]*_c6[i]*_c7[i] - _c7[i]*_t132 - _c7[i]*_t133 - _s7[i]*_t120 - _t152;
-                const double _t156 = (0.5)*_t124*xd_r23[i] - 0.5*_t129*xd_r13[i] - 0.5*_t151*xd_r11[i] - 0.5*_t153*xd_r12[i] + (0.5)*_t154*xd_r22[i] + (0.5)*_t155*xd_r21[i] - _t95;
-                const double _t157 = _c6[i]*_s1[i];
-                const double _t158 = _s1[i]*_s6[i];
-                const double _t159 = _t121*_t158;
-                const double _t160 = _t102*_t159 + _t115*_t135 - _t117*(-_c3[i]*_t46 + _t109*_t124 + _t159) + _t131*_t157;
-                const double _t161 = (0.5)*_t109;
-                const double _t162 = (0.5)*_c7[i]*_t112 + (0.5)*_c7[i]*_t114 - 0.5*_s7[i]*_t158;
-                const double _t163 = -0.5*_c7[i]*_t158 - 0.5*_s7[i]*_t112 - 0.5*_s7[i]*_t114;
-                const double _t164 = -_s3[i]*_t100 - _s3[i]*_t99 + (0.5)*_t129*xd_r33[i] + (0.5)*_t151*xd_r31[i] + (0.5)*_t153*xd_r32[i] - _t161*xd_r23[i] - _t162*xd_r21[i] - _t163*xd_r22[i];
-                const double _t165 = _t102*_t139;
-                const double _t166 = -_t115*_t142 - _t117*(-_s3[i]*_t46 + _t109*_t129 + _t128*_t158) - _t138*_t157 - _t158*_t165;
-                const double _t167 = _c3[i]*_t100 + _c3[i]*_t99 - 0.5*_t124*xd_r33[i] - 0.5*_t154*xd_r32[i] - 0.5*_t155*xd_r31[i] + _t161*xd_r13[i] + _t162*xd_r11[i] + _t163*xd_r12[i];
-                const double _t168 = _t156*(_t116 + _t145 + _t146) + _t160*_t164 + _t166*_t167;
-                const double _t169 = _t110*_t117;
-                const double _t170 = -_t117*(_t121*_t128 + _t124*_t129 + _t47*_t81) - _t121*_t165 - _t131*_t138 - _t135*_t142;
-                const double _t171 = _t156*_t160 + _t164*(_t136 + _t146 + _t169) + _t167*_t170;
-                const double _t172 = _t156*_t166 + _t164*_t170 + _t167*(_t111 + _t143 + _t145 + _t169);
+                const double _t105 = _c4[i]*_s6[i];
+                const double _t107 = _c6[i]*_s4[i];
+                const double _t108 = _c1[i]*_t107 + _t105;
+                const double _t109 = -_t108;
+                const double _t111 = _c5[i]*_t105;
+                const double _t112 = _s1[i]*_s5[i];
+                const double _t113 = _s4[i]*_t112;
+                const double _t114 = _c1[i]*_c5[i];
+                const double _t115 = _t107*_t114 + _t111 - _t113;
+                const double _t116 = _s4[i]*_s6[i];
+                const double _t117 = _c1[i]*_t116;
+                const double _t118 = -_c4[i]*_c6[i] + _t117;
+                const double _t119 = -_t118;
+                const double _t120 = _t102*(_t119*_t119) + (_t109*_t109) + (_t115*_t115);
+                const double _t121 = (1e-06)*_t103;
+                const double _t122 = _c1[i]*_s5[i];
+                const double _t123 = _c5[i]*_s1[i];
+                const double _t124 = _c6[i]*_t123;
+                const double _t125 = -_t122 - _t124;
+                const double _t126 = (_s6[i]*_s6[i])*_t25;
+                const double _t127 = (_c6[i]*_c6[i])*_t25 + _t102*_t126 + (_t125*_t125);
+                const double _t128 = _c1[i]*_c4[i]*_c6[i] - _t116;
+                const double _t129 = _c4[i]*_t112;
+                const double _t130 = _c5[i]*_t116;
+                const double _t131 = _c4[i]*_c6[i];
+                const double _t132 = -_t114*_t131 + _t129 + _t130;
+                const double _t133 = _c1[i]*_t105;
+                const double _t134 = _t107 + _t133;
+                const double _t135 = (_t134*_t134);
+                const double _t136 = _t102*_t135 + (_t128*_t128) + (_t132*_t132);
+                const double _t137 = -_c4[i]*_t123 + _s4[i]*_s5[i]*_s6[i] - _t122*_t131;
+                const double _t138 = _t135 + (_t137*_t137) + _t25*_t56;
+                const double _t139 = (1e-12)*(_t103*_t103);
+                const double _t140 = _c1[i]*_c5[i] - _c6[i]*_t112;
+                const double _t141 = _t126 + (_t140*_t140) + _t21;
+                const double _t142 = -_s4[i]*_t123 - _s5[i]*_t105 - _t107*_t122;
+                const double _t143 = (_t118*_t118) + (_t142*_t142) + _t25*_t47;
+                const double _t144 = 1.0/(_t102 + (1e-18)*(_t103*_t103*_t103) + _t120*_t121 + _t121*_t127 + _t121*_t136 + _t138*_t139 + _t139*_t141 + _t139*_t143);
+                const double _t145 = _s1[i]*_s6[i];
+                const double _t146 = _t134*_t145;
+                const double _t147 = _c6[i]*_s1[i];
+                const double _t148 = _t102*_t146 - _t121*(-_c4[i]*_t24 + _t137*_t140 + _t146) + _t125*_t132 + _t128*_t147;
+                const double _t151 = (0.5)*_c7[i]*_t122 + (0.5)*_c7[i]*_t124 - 0.5*_s7[i]*_t145;
+                const double _t152 = -0.5*_c7[i]*_t145 - 0.5*_s7[i]*_t122 - 0.5*_s7[i]*_t124;
+                const double _t153 = (0.5)*_t140;
+                const double _t154 = _s7[i]*_t131;
+                const double _t155 = _c7[i]*_t107;
+                const double _t156 = _c7[i]*_t111 - _c7[i]*_t113 - _s7[i]*_t117 + _t114*_t155 + _t154;
+                const double _t157 = _s7[i]*_t107;
+                const double _t158 = _c4[i]*_c6[i]*_c7[i] - _c7[i]*_t117 + _s1[i]*_s4[i]*_s5[i]*_s7[i] - _s7[i]*_t111 - _t114*_t157;
+                const double _t159 = -_s4[i]*_t100 - _s4[i]*_t99 + (0.5)*_t142*xd_r33[i] - _t151*xd_r21[i] - _t152*xd_r22[i] - _t153*xd_r23[i] + (0.5)*_t156*xd_r31[i] + (0.5)*_t158*xd_r32[i];
+                const double _t160 = _t102*_t119;
+                const double _t161 = -_t109*_t147 - _t115*_t125 - _t121*(-_s4[i]*_t24 + _t118*_t145 + _t140*_t142) - _t145*_t160;
+                const double _t162 = _c1[i]*_c4[i]*_c5[i]*_c6[i]*_c7[i] - _c7[i]*_t129 - _c7[i]*_t130 - _s7[i]*_t133 - _t157;
+                const double _t163 = _c4[i]*_s1[i]*_s5[i]*_s7[i] + _c5[i]*_s4[i]*_s6[i]*_s7[i] - _c7[i]*_t133 - _t114*_t154 - _t155;
+                const double _t164 = _c4[i]*_t100 + _c4[i]*_t99 - 0.5*_t137*xd_r33[i] + _t151*xd_r11[i] + _t152*xd_r12[i] + _t153*xd_r13[i] - 0.5*_t162*xd_r31[i] - 0.5*_t163*xd_r32[i];
+                const double _t165 = _t121*_t138;
+                const double _t166 = _t121*_t143 + _t139;
+                const double _t167 = (0.5)*_t137*xd_r23[i] - 0.5*_t142*xd_r13[i] - 0.5*_t156*xd_r11[i] - 0.5*_t158*xd_r12[i] + (0.5)*_t162*xd_r21[i] + (0.5)*_t163*xd_r22[i] - _t95;
+                const double _t168 = _t148*_t159 + _t161*_t164 + _t167*(_t127 + _t165 + _t166);
+                const double _t169 = -_t109*_t128 - _t115*_t132 - _t121*(_t118*_t134 + _t137*_t142 + _t25*_t73) - _t134*_t160;
+                const double _t170 = _t121*_t141;
+                const double _t171 = _t148*_t167 + _t159*(_t136 + _t166 + _t170) + _t164*_t169;
+                const double _t172 = _t159*_t169 + _t161*_t167 + _t164*(_t120 + _t139 + _t165 + _t170);
                 const int _t173 = _t102 < 1e-08;
                 const double _t174 = _s5[i]/kinegen_max(1e-08, _t102);
                 qd[6 * (start + i) + 0] = _t95;
                 qd[6 * (start + i) + 1] = _t99;
                 qd[6 * (start + i) + 2] = _t100;
                 qd[6 * (start + i) + 3] = ((_t173) ? (
-   _t144*(_c1[i]*_t168 - _c3[i]*_s1[i]*_t171 - _s1[i]*_s3[i]*_t172)
+   _t144*(_c1[i]*_t168 - _c4[i]*_s1[i]*_t171 - _s1[i]*_s4[i]*_t172)
 )
 : (
-   -_t174*(_t115*_t156 + _t135*_t164 - _t142*_t167)
+   -_t174*(-_t115*_t164 + _t125*_t167 + _t132*_t159)
 ));
                 qd[6 * (start + i) + 4] = ((_t173) ? (
-   _t144*(_t121*_t171 + _t128*_t172 + _t158*_t168)
+   _t144*(_t118*_t172 + _t134*_t171 + _t145*_t168)
 )
 : (
-   -_t174*(-_s5[i]*_t121*_t164 + _s5[i]*_t139*_t167 - _s6[i]*_t108*_t156)
+   -_t174*(_s5[i]*_t119*_t164 - _s5[i]*_t134*_t159 - _s6[i]*_t112*_t167)
 ));
                 qd[6 * (start + i) + 5] = ((_t173) ? (
-   _t144*(_t109*_t168 + _t124*_t171 + _t129*_t172)
+   _t144*(_t137*_t171 + _t140*_t168 + _t142*_t172)
 )
 : (
-   -_t174*(_t131*_t164 + _t137*_t167 + _t156*_t157)
+   -_t174*(_t108*_t164 + _t128*_t159 + _t147*_t167)
 ));
                 singular[1 * (start + i) + 0] = _t173 || _t92;
             }
@@ -7243,19 +7243,19 @@ void puma560_joint_acceleration(const double *restrict q, const double *restrict
     const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
     const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
     const double _t12 = (a2*a2);
-    const double _t18 = 1.0/(_t0*_t0);
-    const double _t43 = 1.0/(_t0*_t0*_t0*_t0);
-    const double _t45 = a3*d4;
-    const double _t46 = (a3*a3);
-    const double _t49 = (d4*d4);
+    const double _t18 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t22 = a3*d4;
+    const double _t23 = (a3*a3);
+    const double _t26 = (d4*d4);
+    const double _t58 = 1.0/(_t0*_t0);
     const double _t73 = 1.0/_t0;
     const double _t4 = q2 + q3;
-    const double _t52 = 2*q2 + q3;
+    const double _t29 = 2*q2 + q3;
     double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5, _s6, _c6, _s7, _c7;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[8] = { q2, _t4, q3, q1, _t52, q5, q4, q6,  };
+        const double angle[8] = { q2, _t4, q3, _t29, q1, q5, q4, q6,  };
         double sine[8], cosine[8];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -7290,10 +7290,10 @@ void puma560_joint_acceleration(const double *restrict q, const double *restrict
     _c1 = cos(_t4);
     _s2 = sin(q3);
     _c2 = cos(q3);
-    _s3 = sin(q1);
-    _c3 = cos(q1);
-    _s4 = sin(_t52);
-    _c4 = cos(_t52);
+    _s3 = sin(_t29);
+    _c3 = cos(_t29);
+    _s4 = sin(q1);
+    _c4 = cos(q1);
     _s5 = sin(q5);
     _c5 = cos(q5);
     _s6 = sin(q4);
@@ -7312,205 +7312,205 @@ void puma560_joint_acceleration(const double *restrict q, const double *restrict
     const double _t15 = _t11*_t14;
     const double _t16 = _t15/_t1;
     const double _t17 = kinegen_max(0, 1 - 100000000*_t16);
-    const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
-    const double _t20 = (1e-12)*(_t17*_t17);
-    const double _t21 = _s1*a3;
-    const double _t22 = _c1*d4;
-    const double _t23 = _t21 + _t22;
-    const double _t24 = (_t23*_t23);
-    const double _t26 = (_s3*_s3);
-    const double _t27 = _t18*_t26;
-    const double _t29 = _s0*a2;
-    const double _t30 = _t23 + _t29;
-    const double _t31 = (_t30*_t30);
-    const double _t32 = _s3*d3;
-    const double _t34 = _c3*_t3;
-    const double _t35 = _c3*_t6;
-    const double _t36 = -_c3*_t8 + _t32 + _t34 + _t35;
-    const double _t37 = _t18*(_t36*_t36) + _t24*_t27 + _t27*_t31;
-    const double _t38 = (_c3*_c3);
-    const double _t39 = _t18*_t38;
-    const double _t40 = _s3*_t3;
-    const double _t41 = _c3*d3 + _s1*_s3*d4 - _s3*_t6 - _t40;
-    const double _t42 = _t18*(_t41*_t41) + _t24*_t39 + _t31*_t39;
-    const double _t44 = (_c1*_c1);
-    const double _t47 = _c1*_s1;
-    const double _t48 = (_s1*_s1);
-    const double _t50 = _t44*_t45 - _t45*_t48 + _t46*_t47 - _t47*_t49;
-    const double _t51 = _t21*_t3 + _t22*_t3 + _t50;
-    const double _t53 = _c0*_s0*_t12 + _c4*a2*d4 + _s4*a2*a3 + _t50;
-    const double _t54 = _t43*(_t51*_t51) + _t43*(_t53*_t53);
-    const double _t55 = (1e-06)*_t17;
-    const double _t56 = _t14*_t43;
-    const double _t57 = _t34*_t6;
-    const double _t58 = _t34*_t8;
-    const double _t59 = _t44*_t46;
-    const double _t60 = _t48*_t49;
-    const double _t61 = _c3*_t59 + _c3*_t60 + _t32*_t6 - _t32*_t8 - 2*_t35*_t8;
-    const double _t62 = _t57 - _t58 + _t61;
-    const double _t63 = (_c0*_c0)*_t12;
-    const double _t64 = _c3*_t63 + _t3*_t32 + 2*_t57 - 2*_t58 + _t61;
-    const double _t65 = _t26*_t56 + _t43*(_t62*_t62) + _t43*(_t64*_t64);
-    const double _t66 = _t40*_t6;
-    const double _t67 = -_c1*_c3*a3*d3 - 2*_c1*_s1*_s3*a3*d4 + _c3*_t8*d3 + _s3*_t59 + _s3*_t60;
-    const double _t68 = _c0*_s1*_s3*a2*d4 - _t66 - _t67;
-    const double _t69 = -_c0*_c3*a2*d3 - 2*_c0*_s1*_s3*a2*d4 + _s3*_t63 + 2*_t66 + _t67;
-    const double _t70 = -_t69;
-    const double _t71 = _t38*_t56 + _t43*(_t68*_t68) + _t43*(_t70*_t70);
-    const double _t72 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t37 + _t20*_t42 + _t54*_t55 + _t55*_t65 + _t55*_t71);
-    const double _t74 = _c3*_t18;
-    const double _t75 = _t23*_t9;
-    const double _t76 = _t10*_t30;
-    const double _t77 = _t43*_t62;
-    const double _t78 = _t43*_t64;
-    const double _t79 = _t51*_t77 + _t53*_t78 - _t55*(-_t74*_t75 - _t74*_t76);
-    const double _t80 = -_t23;
+    const double _t19 = _s1*a3;
+    const double _t20 = _c1*d4;
+    const double _t21 = (_c1*_c1);
+    const double _t24 = _c1*_s1;
+    const double _t25 = (_s1*_s1);
+    const double _t27 = _t21*_t22 - _t22*_t25 + _t23*_t24 - _t24*_t26;
+    const double _t28 = _t19*_t3 + _t20*_t3 + _t27;
+    const double _t31 = _c0*_s0*_t12 + _c3*a2*d4 + _s3*a2*a3 + _t27;
+    const double _t32 = _t18*(_t28*_t28) + _t18*(_t31*_t31);
+    const double _t33 = (1e-06)*_t17;
+    const double _t35 = _c4*_t3;
+    const double _t36 = _t35*_t6;
+    const double _t37 = _t35*_t8;
+    const double _t38 = _t21*_t23;
+    const double _t39 = _t25*_t26;
+    const double _t41 = _s4*d3;
+    const double _t42 = _c4*_t6;
+    const double _t43 = _c4*_t38 + _c4*_t39 + _t41*_t6 - _t41*_t8 - 2*_t42*_t8;
+    const double _t44 = _t36 - _t37 + _t43;
+    const double _t45 = (_c0*_c0)*_t12;
+    const double _t46 = _c4*_t45 + _t3*_t41 + 2*_t36 - 2*_t37 + _t43;
+    const double _t47 = (_s4*_s4);
+    const double _t48 = _t14*_t18;
+    const double _t49 = _t18*(_t44*_t44) + _t18*(_t46*_t46) + _t47*_t48;
+    const double _t50 = _s4*_t3;
+    const double _t51 = _t50*_t6;
+    const double _t52 = -_c1*_c4*a3*d3 - 2*_c1*_s1*_s4*a3*d4 + _c4*_t8*d3 + _s4*_t38 + _s4*_t39;
+    const double _t53 = _c0*_s1*_s4*a2*d4 - _t51 - _t52;
+    const double _t54 = -_c0*_c4*a2*d3 - 2*_c0*_s1*_s4*a2*d4 + _s4*_t45 + 2*_t51 + _t52;
+    const double _t55 = -_t54;
+    const double _t56 = (_c4*_c4);
+    const double _t57 = _t18*(_t53*_t53) + _t18*(_t55*_t55) + _t48*_t56;
+    const double _t59 = _t11*_t58 + _t58*(_t9*_t9);
+    const double _t60 = (1e-12)*(_t17*_t17);
+    const double _t61 = _c4*d3 + _s1*_s4*d4 - _s4*_t6 - _t50;
+    const double _t62 = _t19 + _t20;
+    const double _t63 = (_t62*_t62);
+    const double _t64 = _t56*_t58;
+    const double _t65 = _s0*a2;
+    const double _t66 = _t62 + _t65;
+    const double _t67 = (_t66*_t66);
+    const double _t68 = _t58*(_t61*_t61) + _t63*_t64 + _t64*_t67;
+    const double _t69 = -_c4*_t8 + _t35 + _t41 + _t42;
+    const double _t70 = _t47*_t58;
+    const double _t71 = _t58*(_t69*_t69) + _t63*_t70 + _t67*_t70;
+    const double _t72 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t32*_t33 + _t33*_t49 + _t33*_t57 + _t59*_t60 + _t60*_t68 + _t60*_t71);
+    const double _t74 = _c4*_t58;
+    const double _t75 = _t62*_t9;
+    const double _t76 = _t10*_t66;
+    const double _t77 = _t18*_t44;
+    const double _t78 = _t18*_t46;
+    const double _t79 = _t28*_t77 + _t31*_t78 - _t33*(-_t74*_t75 - _t74*_t76);
+    const double _t80 = -_t62;
     const double _t81 = _t80*qd3;
-    const double _t82 = -qd2*(-_t30*qd2 + _t81) - qd3*(_t80*qd2 + _t81) + xdd_z;
+    const double _t82 = -qd2*(-_t66*qd2 + _t81) - qd3*(_t80*qd2 + _t81) + xdd_z;
     const double _t83 = _t73*_t82;
-    const double _t84 = _t19*_t55;
-    const double _t85 = _t20 + _t37*_t55;
-    const double _t86 = _c3*qd2;
-    const double _t87 = _t9*qd3;
-    const double _t88 = _c3*_t87;
-    const double _t89 = _s3*_t21 + _s3*_t22;
-    const double _t90 = -qd1*(-_t36*qd1 + _t89*qd3 + qd2*(_s3*_t29 + _t89)) - qd2*(_s3*_t30*qd1 - _t10*_t86 - _t88) - qd3*(_s3*_t23*qd1 - _t86*_t9 - _t88) + xdd_x;
+    const double _t84 = _t33*_t59;
+    const double _t85 = _t33*_t71 + _t60;
+    const double _t86 = _s4*_t19 + _s4*_t20;
+    const double _t87 = _c4*qd2;
+    const double _t88 = _t9*qd3;
+    const double _t89 = _c4*_t88;
+    const double _t90 = -qd1*(-_t69*qd1 + _t86*qd3 + qd2*(_s4*_t65 + _t86)) - qd2*(_s4*_t66*qd1 - _t10*_t87 - _t89) - qd3*(_s4*_t62*qd1 - _t87*_t9 - _t89) + xdd_x;
     const double _t91 = _t73*_t90;
-    const double _t92 = _c3*_s3;
-    const double _t93 = _t18*_t92;
-    const double _t94 = -_t55*(_t18*_t36*_t41 + _t24*_t93 + _t31*_t93) - _t56*_t92 - _t68*_t77 - _t70*_t78;
-    const double _t95 = _c3*qd1;
-    const double _t96 = _s3*qd2;
-    const double _t97 = _s3*_t87;
-    const double _t98 = _c3*_t21 + _c3*_t22;
-    const double _t99 = -qd1*(_t41*qd1 - _t98*qd3 + qd2*(-_c3*_t29 - _t98)) - qd2*(-_t10*_t96 - _t30*_t95 - _t97) - qd3*(-_t23*_t95 - _t9*_t96 - _t97) + xdd_y;
+    const double _t92 = _c4*_s4;
+    const double _t93 = _t58*_t92;
+    const double _t94 = -_t33*(_t58*_t61*_t69 + _t63*_t93 + _t67*_t93) - _t48*_t92 - _t53*_t77 - _t55*_t78;
+    const double _t95 = _c4*_t19 + _c4*_t20;
+    const double _t96 = _c4*qd1;
+    const double _t97 = _s4*qd2;
+    const double _t98 = _s4*_t88;
+    const double _t99 = -qd1*(_t61*qd1 - _t95*qd3 + qd2*(-_c4*_t65 - _t95)) - qd2*(-_t10*_t97 - _t66*_t96 - _t98) - qd3*(-_t62*_t96 - _t9*_t97 - _t98) + xdd_y;
     const double _t100 = _t73*_t99;
-    const double _t101 = _t73*(_t100*_t94 + _t79*_t83 + _t91*(_t65 + _t84 + _t85));
-    const double _t102 = _s3*_t18;
-    const double _t103 = -_t43*_t51*_t68 - _t43*_t53*_t70 - _t55*(-_t102*_t75 - _t102*_t76);
-    const double _t104 = _t42*_t55;
-    const double _t105 = _t73*(_t100*(_t104 + _t20 + _t71 + _t84) + _t103*_t83 + _t91*_t94);
+    const double _t101 = _t73*(_t100*_t94 + _t79*_t83 + _t91*(_t49 + _t84 + _t85));
+    const double _t102 = _s4*_t58;
+    const double _t103 = -_t18*_t28*_t53 - _t18*_t31*_t55 - _t33*(-_t102*_t75 - _t102*_t76);
+    const double _t104 = _t33*_t68;
+    const double _t105 = _t73*(_t100*(_t104 + _t57 + _t60 + _t84) + _t103*_t83 + _t91*_t94);
     const int _t106 = _t16 < 1e-08;
     const double _t107 = _t13*a2;
     const double _t108 = _t10*_t107/kinegen_max(_t15, (1e-08)*_t1);
     const double _t109 = ((_t106) ? (
-   _t72*(_t101*_t41 + _t105*_t36)
+   _t72*(_t101*_t61 + _t105*_t69)
 )
 : (
-   -_t108*(-_c3*_t107*_t99 + _s3*_t13*_t90*a2)
+   -_t108*(-_c4*_t107*_t99 + _s4*_t13*_t90*a2)
 ));
-    const double _t110 = _t100*_t103 + _t79*_t91 + _t83*(_t104 + _t54 + _t85);
-    const double _t111 = _c3*_t101;
-    const double _t112 = _s3*_t105;
+    const double _t110 = _t100*_t103 + _t79*_t91 + _t83*(_t104 + _t32 + _t85);
+    const double _t111 = _c4*_t101;
+    const double _t112 = _s4*_t105;
     const double _t113 = ((_t106) ? (
-   _t72*(_t10*_t110*_t73 - _t111*_t30 - _t112*_t30)
+   _t72*(_t10*_t110*_t73 - _t111*_t66 - _t112*_t66)
 )
 : (
-   -_t108*(-_t51*_t82 - _t62*_t90 + _t68*_t99)
+   -_t108*(-_t28*_t82 - _t44*_t90 + _t53*_t99)
 ));
     const double _t114 = ((_t106) ? (
-   _t72*(_t110*_t73*_t9 - _t111*_t23 - _t112*_t23)
+   _t72*(_t110*_t73*_t9 - _t111*_t62 - _t112*_t62)
 )
 : (
-   -_t108*(_t53*_t82 + _t64*_t90 + _t69*_t99)
+   -_t108*(_t31*_t82 + _t46*_t90 + _t54*_t99)
 ));
     const double _t116 = (_s5*_s5);
     const double _t117 = kinegen_max(0, 1 - 100000000*_t116);
-    const double _t119 = (_s6*_s6)*_t48;
-    const double _t122 = _s1*_s5;
-    const double _t123 = _c1*_c5 - _c6*_t122;
-    const double _t124 = _t119 + (_t123*_t123) + _t44;
-    const double _t125 = (1e-12)*(_t117*_t117);
-    const double _t126 = _c1*_s5;
-    const double _t127 = _c5*_s1;
-    const double _t128 = _c6*_t127;
-    const double _t129 = -_t126 - _t128;
-    const double _t130 = (_c6*_c6)*_t48 + _t116*_t119 + (_t129*_t129);
-    const double _t131 = (1e-06)*_t117;
-    const double _t132 = _c6*_s3;
-    const double _t133 = _c3*_s6;
-    const double _t134 = _c1*_t133;
-    const double _t135 = _t132 + _t134;
-    const double _t136 = (_t135*_t135);
-    const double _t137 = _c3*_c6;
-    const double _t138 = -_c3*_t127 + _s3*_s5*_s6 - _t126*_t137;
-    const double _t139 = _t136 + (_t138*_t138) + _t38*_t48;
-    const double _t140 = _s3*_s6;
-    const double _t141 = _c1*_t140;
-    const double _t142 = -_c3*_c6 + _t141;
-    const double _t143 = _s3*_t127 + _s5*_t133 + _t126*_t132;
-    const double _t144 = -_t143;
-    const double _t145 = (_t142*_t142) + (_t144*_t144) + _t26*_t48;
-    const double _t146 = _c1*_c3*_c6 - _t140;
-    const double _t147 = _c5*_t140;
-    const double _t148 = _c3*_t122;
-    const double _t149 = _c1*_c5;
-    const double _t150 = -_t137*_t149 + _t147 + _t148;
-    const double _t151 = _t116*_t136 + (_t146*_t146) + (_t150*_t150);
-    const double _t152 = _c1*_t132 + _t133;
-    const double _t153 = -_t152;
-    const double _t154 = -_t142;
-    const double _t155 = _c5*_t133;
-    const double _t156 = _s3*_t122;
-    const double _t157 = _t132*_t149 + _t155 - _t156;
-    const double _t158 = _t116*(_t154*_t154) + (_t153*_t153) + (_t157*_t157);
-    const double _t159 = 1.0/(_t116 + (1e-18)*(_t117*_t117*_t117) + _t124*_t125 + _t125*_t139 + _t125*_t145 + _t130*_t131 + _t131*_t151 + _t131*_t158);
-    const double _t160 = _t131*_t139;
-    const double _t161 = _t125 + _t131*_t145;
-    const double _t162 = _s1*qd2;
-    const double _t163 = _s1*qd3;
+    const double _t119 = _c4*_s6;
+    const double _t121 = _c6*_s4;
+    const double _t122 = _c1*_t121 + _t119;
+    const double _t123 = -_t122;
+    const double _t125 = _c5*_t119;
+    const double _t126 = _s1*_s5;
+    const double _t127 = _s4*_t126;
+    const double _t128 = _c1*_c5;
+    const double _t129 = _t121*_t128 + _t125 - _t127;
+    const double _t130 = _s4*_s6;
+    const double _t131 = _c1*_t130;
+    const double _t132 = -_c4*_c6 + _t131;
+    const double _t133 = -_t132;
+    const double _t134 = _t116*(_t133*_t133) + (_t123*_t123) + (_t129*_t129);
+    const double _t135 = (1e-06)*_t117;
+    const double _t136 = _c1*_s5;
+    const double _t137 = _c5*_s1;
+    const double _t138 = _c6*_t137;
+    const double _t139 = -_t136 - _t138;
+    const double _t140 = (_s6*_s6)*_t25;
+    const double _t141 = (_c6*_c6)*_t25 + _t116*_t140 + (_t139*_t139);
+    const double _t142 = _c1*_c4*_c6 - _t130;
+    const double _t143 = _c4*_t126;
+    const double _t144 = _c5*_t130;
+    const double _t145 = _c4*_c6;
+    const double _t146 = -_t128*_t145 + _t143 + _t144;
+    const double _t147 = _c1*_t119;
+    const double _t148 = _t121 + _t147;
+    const double _t149 = (_t148*_t148);
+    const double _t150 = _t116*_t149 + (_t142*_t142) + (_t146*_t146);
+    const double _t151 = -_c4*_t137 + _s4*_s5*_s6 - _t136*_t145;
+    const double _t152 = _t149 + (_t151*_t151) + _t25*_t56;
+    const double _t153 = (1e-12)*(_t117*_t117);
+    const double _t154 = _c1*_c5 - _c6*_t126;
+    const double _t155 = _t140 + (_t154*_t154) + _t21;
+    const double _t156 = _s4*_t137 + _s5*_t119 + _t121*_t136;
+    const double _t157 = -_t156;
+    const double _t158 = (_t132*_t132) + (_t157*_t157) + _t25*_t47;
+    const double _t159 = 1.0/(_t116 + (1e-18)*(_t117*_t117*_t117) + _t134*_t135 + _t135*_t141 + _t135*_t150 + _t152*_t153 + _t153*_t155 + _t153*_t158);
+    const double _t160 = _s1*_s6;
+    const double _t161 = _t148*_t160;
+    const double _t162 = _c6*_s1;
+    const double _t163 = _t116*_t161 - _t135*(-_c4*_t24 + _t151*_t154 + _t161) + _t139*_t146 + _t142*_t162;
     const double _t164 = _c1*qd3;
-    const double _t165 = _c6*_s1;
-    const double _t167 = _s7*_t137;
-    const double _t169 = _c7*_t132;
-    const double _t170 = _c7*_t155 - _c7*_t156 - _s7*_t141 + _t149*_t169 + _t167;
-    const double _t171 = _s7*_t132;
-    const double _t172 = _c3*_c6*_c7 - _c7*_t141 + _s1*_s3*_s5*_s7 - _s7*_t155 - _t149*_t171;
-    const double _t173 = _c3*_s1*_s5*_s7 + _c5*_s3*_s6*_s7 - _c7*_t134 - _t149*_t167 - _t169;
-    const double _t174 = _c1*_c3*_c5*_c6*_c7 - _c7*_t147 - _c7*_t148 - _s7*_t134 - _t171;
-    const double _t175 = _s6*_t122;
-    const double _t176 = -_c6*_t126 - _t127;
-    const double _t177 = -_t109 + (0.5)*_t138*xdd_r23 - 0.5*_t144*xdd_r13 - 0.5*_t170*xdd_r11 - 0.5*_t172*xdd_r12 + (0.5)*_t173*xdd_r22 + (0.5)*_t174*xdd_r21 - qd4*(-_t162 - _t163) - qd5*(_c1*_s6*qd2 + _s6*_t164 + _t165*qd4) - qd6*(_t129*qd5 + _t175*qd4 + _t176*qd2 + _t176*qd3);
-    const double _t178 = _s1*_s6;
-    const double _t179 = _t135*_t178;
-    const double _t180 = _t116*_t179 + _t129*_t150 - _t131*(-_c3*_t47 + _t123*_t138 + _t179) + _t146*_t165;
-    const double _t181 = _c7*_t126 + _c7*_t128 - _s7*_t178;
-    const double _t182 = -_c7*_t178 - _s7*_t126 - _s7*_t128;
-    const double _t183 = -_c3*_t149 + _t122*_t137;
-    const double _t184 = -_s3*_t113 - _s3*_t114 - 0.5*_t123*xdd_r23 + (0.5)*_t144*xdd_r33 + (0.5)*_t170*xdd_r31 + (0.5)*_t172*xdd_r32 - 0.5*_t181*xdd_r21 - 0.5*_t182*xdd_r22 - _t86*qd1 - _t95*qd3 - qd4*(-_c1*_t86 - _c3*_t164 + _s1*_s3*qd1) - qd5*(-_t133*_t162 - _t133*_t163 + _t146*qd4 + _t154*qd1) - qd6*(_t143*qd1 + _t150*qd5 + _t183*qd2 + _t183*qd3 + qd4*(_s5*_t132 + _t126*_t133));
-    const double _t185 = _t116*_t154;
-    const double _t186 = -_t129*_t157 - _t131*(-_s3*_t47 + _t123*_t144 + _t142*_t178) - _t153*_t165 - _t178*_t185;
-    const double _t187 = _s3*qd1;
-    const double _t188 = -_s3*_t149 + _t122*_t132;
-    const double _t189 = -_t157;
-    const double _t190 = _c3*_t113 + _c3*_t114 + (0.5)*_t123*xdd_r13 - 0.5*_t138*xdd_r33 - 0.5*_t173*xdd_r32 - 0.5*_t174*xdd_r31 + (0.5)*_t181*xdd_r11 + (0.5)*_t182*xdd_r12 - _t187*qd2 - _t187*qd3 - qd4*(-_c1*_t96 - _s1*_t95 - _s3*_t164) - qd5*(_t135*qd1 - _t140*_t162 - _t140*_t163 + _t152*qd4) - qd6*(_t138*qd1 + _t188*qd2 + _t188*qd3 + _t189*qd5 + qd4*(-_s5*_t137 + _t126*_t140));
-    const double _t191 = _t177*(_t130 + _t160 + _t161) + _t180*_t184 + _t186*_t190;
-    const double _t192 = _t124*_t131;
-    const double _t193 = -_t131*(_t135*_t142 + _t138*_t144 + _t48*_t92) - _t135*_t185 - _t146*_t153 - _t150*_t157;
-    const double _t194 = _t177*_t180 + _t184*(_t151 + _t161 + _t192) + _t190*_t193;
-    const double _t195 = _t177*_t186 + _t184*_t193 + _t190*(_t125 + _t158 + _t160 + _t192);
+    const double _t165 = _s1*qd2;
+    const double _t166 = _s1*qd3;
+    const double _t167 = -_c4*_t128 + _t126*_t145;
+    const double _t170 = _c7*_t136 + _c7*_t138 - _s7*_t160;
+    const double _t171 = -_c7*_t160 - _s7*_t136 - _s7*_t138;
+    const double _t172 = _s7*_t145;
+    const double _t173 = _c7*_t121;
+    const double _t174 = _c7*_t125 - _c7*_t127 - _s7*_t131 + _t128*_t173 + _t172;
+    const double _t175 = _s7*_t121;
+    const double _t176 = _c4*_c6*_c7 - _c7*_t131 + _s1*_s4*_s5*_s7 - _s7*_t125 - _t128*_t175;
+    const double _t177 = -_s4*_t113 - _s4*_t114 - 0.5*_t154*xdd_r23 + (0.5)*_t157*xdd_r33 - 0.5*_t170*xdd_r21 - 0.5*_t171*xdd_r22 + (0.5)*_t174*xdd_r31 + (0.5)*_t176*xdd_r32 - _t87*qd1 - _t96*qd3 - qd4*(-_c1*_t87 - _c4*_t164 + _s1*_s4*qd1) - qd5*(-_t119*_t165 - _t119*_t166 + _t133*qd1 + _t142*qd4) - qd6*(_t146*qd5 + _t156*qd1 + _t167*qd2 + _t167*qd3 + qd4*(_s5*_t121 + _t119*_t136));
+    const double _t178 = _t116*_t133;
+    const double _t179 = -_t123*_t162 - _t129*_t139 - _t135*(-_s4*_t24 + _t132*_t160 + _t154*_t157) - _t160*_t178;
+    const double _t180 = -_s4*_t128 + _t121*_t126;
+    const double _t181 = -_t129;
+    const double _t182 = _c1*_c4*_c5*_c6*_c7 - _c7*_t143 - _c7*_t144 - _s7*_t147 - _t175;
+    const double _t183 = _c4*_s1*_s5*_s7 + _c5*_s4*_s6*_s7 - _c7*_t147 - _t128*_t172 - _t173;
+    const double _t184 = _s4*qd1;
+    const double _t185 = _c4*_t113 + _c4*_t114 - 0.5*_t151*xdd_r33 + (0.5)*_t154*xdd_r13 + (0.5)*_t170*xdd_r11 + (0.5)*_t171*xdd_r12 - 0.5*_t182*xdd_r31 - 0.5*_t183*xdd_r32 - _t184*qd2 - _t184*qd3 - qd4*(-_c1*_t97 - _s1*_t96 - _s4*_t164) - qd5*(_t122*qd4 - _t130*_t165 - _t130*_t166 + _t148*qd1) - qd6*(_t151*qd1 + _t180*qd2 + _t180*qd3 + _t181*qd5 + qd4*(-_s5*_t145 + _t130*_t136));
+    const double _t186 = _t135*_t152;
+    const double _t187 = _t135*_t158 + _t153;
+    const double _t188 = -_c6*_t136 - _t137;
+    const double _t189 = _s6*_t126;
+    const double _t190 = -_t109 + (0.5)*_t151*xdd_r23 - 0.5*_t157*xdd_r13 - 0.5*_t174*xdd_r11 - 0.5*_t176*xdd_r12 + (0.5)*_t182*xdd_r21 + (0.5)*_t183*xdd_r22 - qd4*(-_t165 - _t166) - qd5*(_c1*_s6*qd2 + _s6*_t164 + _t162*qd4) - qd6*(_t139*qd5 + _t188*qd2 + _t188*qd3 + _t189*qd4);
+    const double _t191 = _t163*_t177 + _t179*_t185 + _t190*(_t141 + _t186 + _t187);
+    const double _t192 = -_t123*_t142 - _t129*_t146 - _t135*(_t132*_t148 + _t151*_t157 + _t25*_t92) - _t148*_t178;
+    const double _t193 = _t135*_t155;
+    const double _t194 = _t163*_t190 + _t177*(_t150 + _t187 + _t193) + _t185*_t192;
+    const double _t195 = _t177*_t192 + _t179*_t190 + _t185*(_t134 + _t153 + _t186 + _t193);
     const int _t196 = _t116 < 1e-08;
     const double _t197 = _s5/kinegen_max(1e-08, _t116);
     qdd[0] = _t109;
     qdd[1] = _t113;
     qdd[2] = _t114;
     qdd[3] = ((_t196) ? (
-   _t159*(_c1*_t191 - _c3*_s1*_t194 - _s1*_s3*_t195)
+   _t159*(_c1*_t191 - _c4*_s1*_t194 - _s1*_s4*_t195)
 )
 : (
-   -_t197*(_t129*_t177 + _t150*_t184 + _t189*_t190)
+   -_t197*(_t139*_t190 + _t146*_t177 + _t181*_t185)
 ));
     qdd[4] = ((_t196) ? (
-   _t159*(_t135*_t194 + _t142*_t195 + _t178*_t191)
+   _t159*(_t132*_t195 + _t148*_t194 + _t160*_t191)
 )
 : (
-   -_t197*(-_s5*_t135*_t184 + _s5*_t154*_t190 - _t175*_t177)
+   -_t197*(_s5*_t133*_t185 - _s5*_t148*_t177 - _t189*_t190)
 ));
     qdd[5] = ((_t196) ? (
-   _t159*(_t123*_t191 + _t138*_t194 + _t144*_t195)
+   _t159*(_t151*_t194 + _t154*_t191 + _t157*_t195)
 )
 : (
-   -_t197*(_t146*_t184 + _t152*_t190 + _t165*_t177)
+   -_t197*(_t122*_t185 + _t142*_t177 + _t162*_t190)
 ));
     singular[0] = _t106 || _t196;
 }
@@ -7544,7 +7544,7 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
     double xdd_r32[KINEGEN_BLOCK_OF(64)];
     double xdd_r33[KINEGEN_BLOCK_OF(64)];
     double _t4[KINEGEN_BLOCK_OF(64)];
-    double _t52[KINEGEN_BLOCK_OF(64)];
+    double _t29[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
@@ -7578,11 +7578,11 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
     const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
     const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
     const double _t12 = (a2*a2);
-    const double _t18 = 1.0/(_t0*_t0);
-    const double _t43 = 1.0/(_t0*_t0*_t0*_t0);
-    const double _t45 = a3*d4;
-    const double _t46 = (a3*a3);
-    const double _t49 = (d4*d4);
+    const double _t18 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t22 = a3*d4;
+    const double _t23 = (a3*a3);
+    const double _t26 = (d4*d4);
+    const double _t58 = 1.0/(_t0*_t0);
     const double _t73 = 1.0/_t0;
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
@@ -7615,7 +7615,7 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             _t4[i] = q2[i] + q3[i];
-            _t52[i] = 2*q2[i] + q3[i];
+            _t29[i] = 2*q2[i] + q3[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -7643,19 +7643,19 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s3[i] = sin(q1[i]);
+            _s3[i] = sin(_t29[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c3[i] = cos(q1[i]);
+            _c3[i] = cos(_t29[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s4[i] = sin(_t52[i]);
+            _s4[i] = sin(q1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c4[i] = cos(_t52[i]);
+            _c4[i] = cos(q1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -7696,205 +7696,205 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
                 const double _t15 = _t11*_t14;
                 const double _t16 = _t15/_t1;
                 const double _t17 = kinegen_max(0, 1 - 100000000*_t16);
-                const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
-                const double _t20 = (1e-12)*(_t17*_t17);
-                const double _t21 = _s1[i]*a3;
-                const double _t22 = _c1[i]*d4;
-                const double _t23 = _t21 + _t22;
-                const double _t24 = (_t23*_t23);
-                const double _t26 = (_s3[i]*_s3[i]);
-                const double _t27 = _t18*_t26;
-                const double _t29 = _s0[i]*a2;
-                const double _t30 = _t23 + _t29;
-                const double _t31 = (_t30*_t30);
-                const double _t32 = _s3[i]*d3;
-                const double _t34 = _c3[i]*_t3;
-                const double _t35 = _c3[i]*_t6;
-                const double _t36 = -_c3[i]*_t8 + _t32 + _t34 + _t35;
-                const double _t37 = _t18*(_t36*_t36) + _t24*_t27 + _t27*_t31;
-                const double _t38 = (_c3[i]*_c3[i]);
-                const double _t39 = _t18*_t38;
-                const double _t40 = _s3[i]*_t3;
-                const double _t41 = _c3[i]*d3 + _s1[i]*_s3[i]*d4 - _s3[i]*_t6 - _t40;
-                const double _t42 = _t18*(_t41*_t41) + _t24*_t39 + _t31*_t39;
-                const double _t44 = (_c1[i]*_c1[i]);
-                const double _t47 = _c1[i]*_s1[i];
-                const double _t48 = (_s1[i]*_s1[i]);
-                const double _t50 = _t44*_t45 - _t45*_t48 + _t46*_t47 - _t47*_t49;
-                const double _t51 = _t21*_t3 + _t22*_t3 + _t50;
-                const double _t53 = _c0[i]*_s0[i]*_t12 + _c4[i]*a2*d4 + _s4[i]*a2*a3 + _t50;
-                const double _t54 = _t43*(_t51*_t51) + _t43*(_t53*_t53);
-                const double _t55 = (1e-06)*_t17;
-                const double _t56 = _t14*_t43;
-                const double _t57 = _t34*_t6;
-                const double _t58 = _t34*_t8;
-                const double _t59 = _t44*_t46;
-                const double _t60 = _t48*_t49;
-                const double _t61 = _c3[i]*_t59 + _c3[i]*_t60 + _t32*_t6 - _t32*_t8 - 2*_t35*_t8;
-                const double _t62 = _t57 - _t58 + _t61;
-                const double _t63 = (_c0[i]*_c0[i])*_t12;
-                const double _t64 = _c3[i]*_t63 + _t3*_t32 + 2*_t57 - 2*_t58 + _t61;
-                const double _t65 = _t26*_t56 + _t43*(_t62*_t62) + _t43*(_t64*_t64);
-                const double _t66 = _t40*_t6;
-                const double _t67 = -_c1[i]*_c3[i]*a3*d3 - 2*_c1[i]*_s1[i]*_s3[i]*a3*d4 + _c3[i]*_t8*d3 + _s3[i]*_t59 + _s3[i]*_t60;
-                const double _t68 = _c0[i]*_s1[i]*_s3[i]*a2*d4 - _t66 - _t67;
-                const double _t69 = -_c0[i]*_c3[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s3[i]*a2*d4 + _s3[i]*_t63 + 2*_t66 + _t67;
-                const double _t70 = -_t69;
-                const double _t71 = _t38*_t56 + _t43*(_t68*_t68) + _t43*(_t70*_t70);
-                const double _t72 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t37 + _t20*_t42 + _t54*_t55 + _t55*_t65 + _t55*_t71);
-                const double _t74 = _c3[i]*_t18;
-                const double _t75 = _t23*_t9;
-                const double _t76 = _t10*_t30;
-                const double _t77 = _t43*_t62;
-                const double _t78 = _t43*_t64;
-                const double _t79 = _t51*_t77 + _t53*_t78 - _t55*(-_t74*_t75 - _t74*_t76);
-                const double _t80 = -_t23;
+                const double _t19 = _s1[i]*a3;
+                const double _t20 = _c1[i]*d4;
+                const double _t21 = (_c1[i]*_c1[i]);
+                const double _t24 = _c1[i]*_s1[i];
+                const double _t25 = (_s1[i]*_s1[i]);
+                const double _t27 = _t21*_t22 - _t22*_t25 + _t23*_t24 - _t24*_t26;
+                const double _t28 = _t19*_t3 + _t20*_t3 + _t27;
+                const double _t31 = _c0[i]*_s0[i]*_t12 + _c3[i]*a2*d4 + _s3[i]*a2*a3 + _t27;
+                const double _t32 = _t18*(_t28*_t28) + _t18*(_t31*_t31);
+                const double _t33 = (1e-06)*_t17;
+                const double _t35 = _c4[i]*_t3;
+                const double _t36 = _t35*_t6;
+                const double _t37 = _t35*_t8;
+                const double _t38 = _t21*_t23;
+                const double _t39 = _t25*_t26;
+                const double _t41 = _s4[i]*d3;
+                const double _t42 = _c4[i]*_t6;
+                const double _t43 = _c4[i]*_t38 + _c4[i]*_t39 + _t41*_t6 - _t41*_t8 - 2*_t42*_t8;
+                const double _t44 = _t36 - _t37 + _t43;
+                const double _t45 = (_c0[i]*_c0[i])*_t12;
+                const double _t46 = _c4[i]*_t45 + _t3*_t41 + 2*_t36 - 2*_t37 + _t43;
+                const double _t47 = (_s4[i]*_s4[i]);
+                const double _t48 = _t14*_t18;
+                const double _t49 = _t18*(_t44*_t44) + _t18*(_t46*_t46) + _t47*_t48;
+                const double _t50 = _s4[i]*_t3;
+                const double _t51 = _t50*_t6;
+                const double _t52 = -_c1[i]*_c4[i]*a3*d3 - 2*_c1[i]*_s1[i]*_s4[i]*a3*d4 + _c4[i]*_t8*d3 + _s4[i]*_t38 + _s4[i]*_t39;
+                const double _t53 = _c0[i]*_s1[i]*_s4[i]*a2*d4 - _t51 - _t52;
+                const double _t54 = -_c0[i]*_c4[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s4[i]*a2*d4 + _s4[i]*_t45 + 2*_t51 + _t52;
+                const double _t55 = -_t54;
+                const double _t56 = (_c4[i]*_c4[i]);
+                const double _t57 = _t18*(_t53*_t53) + _t18*(_t55*_t55) + _t48*_t56;
+                const double _t59 = _t11*_t58 + _t58*(_t9*_t9);
+                const double _t60 = (1e-12)*(_t17*_t17);
+                const double _t61 = _c4[i]*d3 + _s1[i]*_s4[i]*d4 - _s4[i]*_t6 - _t50;
+                const double _t62 = _t19 + _t20;
+                const double _t63 = (_t62*_t62);
+                const double _t64 = _t56*_t58;
+                const double _t65 = _s0[i]*a2;
+                const double _t66 = _t62 + _t65;
+                const double _t67 = (_t66*_t66);
+                const double _t68 = _t58*(_t61*_t61) + _t63*_t64 + _t64*_t67;
+                const double _t69 = -_c4[i]*_t8 + _t35 + _t41 + _t42;
+                const double _t70 = _t47*_t58;
+                const double _t71 = _t58*(_t69*_t69) + _t63*_t70 + _t67*_t70;
+                const double _t72 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t32*_t33 + _t33*_t49 + _t33*_t57 + _t59*_t60 + _t60*_t68 + _t60*_t71);
+                const double _t74 = _c4[i]*_t58;
+                const double _t75 = _t62*_t9;
+                const double _t76 = _t10*_t66;
+                const double _t77 = _t18*_t44;
+                const double _t78 = _t18*_t46;
+                const double _t79 = _t28*_t77 + _t31*_t78 - _t33*(-_t74*_t75 - _t74*_t76);
+                const double _t80 = -_t62;
                 const double _t81 = _t80*qd3[i];
-                const double _t82 = -qd2[i]*(-_t30*qd2[i] + _t81) - qd3[i]*(_t80*qd2[i] + _t81) + xdd_z[i];
+                const double _t82 = -qd2[i]*(-_t66*qd2[i] + _t81) - qd3[i]*(_t80*qd2[i] + _t81) + xdd_z[i];
                 const double _t83 = _t73*_t82;
-                const double _t84 = _t19*_t55;
-                const double _t85 = _t20 + _t37*_t55;
-                const double _t86 = _c3[i]*qd2[i];
-                const double _t87 = _t9*qd3[i];
-                const double _t88 = _c3[i]*_t87;
-                const double _t89 = _s3[i]*_t21 + _s3[i]*_t22;
-                const double _t90 = -qd1[i]*(-_t36*qd1[i] + _t89*qd3[i] + qd2[i]*(_s3[i]*_t29 + _t89)) - qd2[i]*(_s3[i]*_t30*qd1[i] - _t10*_t86 - _t88) - qd3[i]*(_s3[i]*_t23*qd1[i] - _t86*_t9 - _t88) + xdd_x[i];
+                const double _t84 = _t33*_t59;
+                const double _t85 = _t33*_t71 + _t60;
+                const double _t86 = _s4[i]*_t19 + _s4[i]*_t20;
+                const double _t87 = _c4[i]*qd2[i];
+                const double _t88 = _t9*qd3[i];
+                const double _t89 = _c4[i]*_t88;
+                const double _t90 = -qd1[i]*(-_t69*qd1[i] + _t86*qd3[i] + qd2[i]*(_s4[i]*_t65 + _t86)) - qd2[i]*(_s4[i]*_t66*qd1[i] - _t10*_t87 - _t89) - qd3[i]*(_s4[i]*_t62*qd1[i] - _t87*_t9 - _t89) + xdd_x[i];
                 const double _t91 = _t73*_t90;
-                const double _t92 = _c3[i]*_s3[i];
-                const double _t93 = _t18*_t92;
-                const double _t94 = -_t55*(_t18*_t36*_t41 + _t24*_t93 + _t31*_t93) - _t56*_t92 - _t68*_t77 - _t70*_t78;
-                const double _t95 = _c3[i]*qd1[i];
-                const double _t96 = _s3[i]*qd2[i];
-                const double _t97 = _s3[i]*_t87;
-                const double _t98 = _c3[i]*_t21 + _c3[i]*_t22;
-                const double _t99 = -qd1[i]*(_t41*qd1[i] - _t98*qd3[i] + qd2[i]*(-_c3[i]*_t29 - _t98)) - qd2[i]*(-_t10*_t96 - _t30*_t95 - _t97) - qd3[i]*(-_t23*_t95 - _t9*_t96 - _t97) + xdd_y[i];
+                const double _t92 = _c4[i]*_s4[i];
+                const double _t93 = _t58*_t92;
+                const double _t94 = -_t33*(_t58*_t61*_t69 + _t63*_t93 + _t67*_t93) - _t48*_t92 - _t53*_t77 - _t55*_t78;
+                const double _t95 = _c4[i]*_t19 + _c4[i]*_t20;
+                const double _t96 = _c4[i]*qd1[i];
+                const double _t97 = _s4[i]*qd2[i];
+                const double _t98 = _s4[i]*_t88;
+                const double _t99 = -qd1[i]*(_t61*qd1[i] - _t95*qd3[i] + qd2[i]*(-_c4[i]*_t65 - _t95)) - qd2[i]*(-_t10*_t97 - _t66*_t96 - _t98) - qd3[i]*(-_t62*_t96 - _t9*_t97 - _t98) + xdd_y[i];
                 const double _t100 = _t73*_t99;
-                const double _t101 = _t73*(_t100*_t94 + _t79*_t83 + _t91*(_t65 + _t84 + _t85));
-                const double _t102 = _s3[i]*_t18;
-                const double _t103 = -_t43*_t51*_t68 - _t43*_t53*_t70 - _t55*(-_t102*_t75 - _t102*_t76);
-                const double _t104 = _t42*_t55;
-                const double _t105 = _t73*(_t100*(_t104 + _t20 + _t71 + _t84) + _t103*_t83 + _t91*_t94);
+                const double _t101 = _t73*(_t100*_t94 + _t79*_t83 + _t91*(_t49 + _t84 + _t85));
+                const double _t102 = _s4[i]*_t58;
+                const double _t103 = -_t18*_t28*_t53 - _t18*_t31*_t55 - _t33*(-_t102*_t75 - _t102*_t76);
+                const double _t104 = _t33*_t68;
+                const double _t105 = _t73*(_t100*(_t104 + _t57 + _t60 + _t84) + _t103*_t83 + _t91*_t94);
                 const int _t106 = _t16 < 1e-08;
                 const double _t107 = _t13*a2;
                 const double _t108 = _t10*_t107/kinegen_max(_t15, (1e-08)*_t1);
                 const double _t109 = ((_t106) ? (
-   _t72*(_t101*_t41 + _t105*_t36)
+   _t72*(_t101*_t61 + _t105*_t69)
 )
 : (
-   -_t108*(-_c3[i]*_t107*_t99 + _s3[i]*_t13*_t90*a2)
+   -_t108*(-_c4[i]*_t107*_t99 + _s4[i]*_t13*_t90*a2)
 ));
-                const double _t110 = _t100*_t103 + _t79*_t91 + _t83*(_t104 + _t54 + _t85);
-                const double _t111 = _c3[i]*_t101;
-                const double _t112 = _s3[i]*_t105;
+                const double _t110 = _t100*_t103 + _t79*_t91 + _t83*(_t104 + _t32 + _t85);
+                const double _t111 = _c4[i]*_t101;
+                const double _t112 = _s4[i]*_t105;
                 const double _t113 = ((_t106) ? (
-   _t72*(_t10*_t110*_t73 - _t111*_t30 - _t112*_t30)
+   _t72*(_t10*_t110*_t73 - _t111*_t66 - _t112*_t66)
 )
 : (
-   -_t108*(-_t51*_t82 - _t62*_t90 + _t68*_t99)
+   -_t108*(-_t28*_t82 - _t44*_t90 + _t53*_t99)
 ));
                 const double _t114 = ((_t106) ? (
-   _t72*(_t110*_t73*_t9 - _t111*_t23 - _t112*_t23)
+   _t72*(_t110*_t73*_t9 - _t111*_t62 - _t112*_t62)
 )
 : (
-   -_t108*(_t53*_t82 + _t64*_t90 + _t69*_t99)
+   -_t108*(_t31*_t82 + _t46*_t90 + _t54*_t99)
 ));
                 const double _t116 = (_s5[i]*_s5[i]);
                 const double _t117 = kinegen_max(0, 1 - 100000000*_t116);
-                const double _t119 = (_s6[i]*_s6[i])*_t48;
-                const double _t122 = _s1[i]*_s5[i];
-                const double _t123 = _c1[i]*_c5[i] - _c6[i]*_t122;
-                const double _t124 = _t119 + (_t123*_t123) + _t44;
-                const double _t125 = (1e-12)*(_t117*_t117);
-                const double _t126 = _c1[i]*_s5[i];
-                const double _t127 = _c5[i]*_s1[i];
-                const double _t128 = _c6[i]*_t127;
-                const double _t129 = -_t126 - _t128;
-                const double _t130 = (_c6[i]*_c6[i])*_t48 + _t116*_t119 + (_t129*_t129);
-                const double _t131 = (1e-06)*_t117;
-                const double _t132 = _c6[i]*_s3[i];
-                const double _t133 = _c3[i]*_s6[i];
-                const double _t134 = _c1[i]*_t133;
-                const double _t135 = _t132 + _t134;
-                const double _t136 = (_t135*_t135);
-                const double _t137 = _c3[i]*_c6[i];
-                const double _t138 = -_c3[i]*_t127 + _s3[i]*_s5[i]*_s6[i] - _t126*_t137;
-                const double _t139 = _t136 + (_t138*_t138) + _t38*_t48;
-                const double _t140 = _s3[i]*_s6[i];
-                const double _t141 = _c1[i]*_t140;
-                const double _t142 = -_c3[i]*_c6[i] + _t141;
-                const double _t143 = _s3[i]*_t127 + _s5[i]*_t133 + _t126*_t132;
-                const double _t144 = -_t143;
-                const double _t145 = (_t142*_t142) + (_t144*_t144) + _t26*_t48;
-                const double _t146 = _c1[i]*_c3[i]*_c6[i] - _t140;
-                const double _t147 = _c5[i]*_t140;
-                const double _t148 = _c3[i]*_t122;
-                const double _t149 = _c1[i]*_c5[i];
-                const double _t150 = -_t137*_t149 + _t147 + _t148;
-                const double _t151 = _t116*_t136 + (_t146*_t146) + (_t150*_t150);
-                const double _t152 = _c1[i]*_t132 + _t133;
-                const double _t153 = -_t152;
-                const double _t154 = -_t142;
-                const double _t155 = _c5[i]*_t133;
-                const double _t156 = _s3[i]*_t122;
-                const double _t157 = _t132*_t149 + _t155 - _t156;
-                const double _t158 = _t116*(_t154*_t154) + (_t153*_t153) + (_t157*_t157);
-                const double _t159 = 1.0/(_t116 + (1e-18)*(_t117*_t117*_t117) + _t124*_t125 + _t125*_t139 + _t125*_t145 + _t130*_t131 + _t131*_t151 + _t131*_t158);
-                const double _t160 = _t131*_t139;
-                const double _t161 = _t125 + _t131*_t145;
-                const double _t162 = _s1[i]*qd2[i];
-                const double _t163 = _s1[i]*qd3[i];
+                const double _t119 = _c4[i]*_s6[i];
+                const double _t121 = _c6[i]*_s4[i];
+                const double _t122 = _c1[i]*_t121 + _t119;
+                const double _t123 = -_t122;
+                const double _t125 = _c5[i]*_t119;
+                const double _t126 = _s1[i]*_s5[i];
+                const double _t127 = _s4[i]*_t126;
+                const double _t128 = _c1[i]*_c5[i];
+                const double _t129 = _t121*_t128 + _t125 - _t127;
+                const double _t130 = _s4[i]*_s6[i];
+                const double _t131 = _c1[i]*_t130;
+                const double _t132 = -_c4[i]*_c6[i] + _t131;
+                const double _t133 = -_t132;
+                const double _t134 = _t116*(_t133*_t133) + (_t123*_t123) + (_t129*_t129);
+                const double _t135 = (1e-06)*_t117;
+                const double _t136 = _c1[i]*_s5[i];
+                const double _t137 = _c5[i]*_s1[i];
+                const double _t138 = _c6[i]*_t137;
+                const double _t139 = -_t136 - _t138;
+                const double _t140 = (_s6[i]*_s6[i])*_t25;
+                const double _t141 = (_c6[i]*_c6[i])*_t25 + _t116*_t140 + (_t139*_t139);
+                const double _t142 = _c1[i]*_c4[i]*_c6[i] - _t130;
+                const double _t143 = _c4[i]*_t126;
+                const double _t144 = _c5[i]*_t130;
+                const double _t145 = _c4[i]*_c6[i];
+                const double _t146 = -_t128*_t145 + _t143 + _t144;
+                const double _t147 = _c1[i]*_t119;
+                const double _t148 = _t121 + _t147;
+                const double _t149 = (_t148*_t148);
+                const double _t150 = _t116*_t149 + (_t142*_t142) + (_t146*_t146);
+                const double _t151 = -_c4[i]*_t137 + _s4[i]*_s5[i]*_s6[i] - _t136*_t145;
+                const double _t152 = _t149 + (_t151*_t151) + _t25*_t56;
+                const double _t153 = (1e-12)*(_t117*_t117);
+                const double _t154 = _c1[i]*_c5[i] - _c6[i]*_t126;
+                const double _t155 = _t140 + (_t154*_t154) + _t21;
+                const double _t156 = _s4[i]*_t137 + _s5[i]*_t119 + _t121*_t136;
+                const double _t157 = -_t156;
+                const double _t158 = (_t132*_t132) + (_t157*_t157) + _t25*_t47;
+                const double _t159 = 1.0/(_t116 + (1e-18)*(_t117*_t117*_t117) + _t134*_t135 + _t135*_t141 + _t135*_t150 + _t152*_t153 + _t153*_t155 + _t153*_t158);
+                const double _t160 = _s1[i]*_s6[i];
+                const double _t161 = _t148*_t160;
+                const double _t162 = _c6[i]*_s1[i];
+                const double _t163 = _t116*_t161 - _t135*(-_c4[i]*_t24 + _t151*_t154 + _t161) + _t139*_t146 + _t142*_t162;
                 const double _t164 = _c1[i]*qd3[i];
-                const double _t165 = _c6[i]*_s1[i];
-                const double _t167 = _s7[i]*_t137;
-                const double _t169 = _c7[i]*_t132;
-                const double _t170 = _c7[i]*_t155 - _c7[i]*_t156 - _s7[i]*_t141 + _t149*_t169 + _t167;
-                const double _t171 = _s7[i]*_t132;
-                const double _t172 = _c3[i]*_c6[i]*_c7[i] - _c7[i]*_t141 + _s1[i]*_s3[i]*_s5[i]*_s7[i] - _s7[i]*_t155 - _t149*_t171;
-                const double _t173 = _c3[i]*_s1[i]*_s5[i]*_s7[i] + _c5[i]*_s3[i]*_s6[i]*_s7[i] - _c7[i]*_t134 - _t149*_t167 - _t169;
-                const double _t174 = _c1[i]*_c3[i]*_c5[i]*_c6[i]*_c7[i] - _c7[i]*_t147 - _c7[i]*_t148 - _s7[i]*_t134 - _t171;
-                const double _t175 = _s6[i]*_t122;
-                const double _t176 = -_c6[i]*_t126 - _t127;
-                const double _t177 = -_t109 + (0.5)*_t138*xdd_r23[i] - 0.5*_t144*xdd_r13[i] - 0.5*_t170*xdd_r11[i] - 0.5*_t172*xdd_r12[i] + (0.5)*_t173*xdd_r22[i] + (0.5)*_t174*xdd_r21[i] - qd4[i]*(-_t162 - _t163) - qd5[i]*(_c1[i]*_s6[i]*qd2[i] + _s6[i]*_t164 + _t165*qd4[i]) - qd6[i]*(_t129*qd5[i] + _t175*qd4[i] + _t176*qd2[i] + _t176*qd3[i]);
-                const double _t178 = _s1[i]*_s6[i];
-                const double _t179 = _t135*_t178;
-                const double _t180 = _t116*_t179 + _t129*_t150 - _t131*(-_c3[i]*_t47 + _t123*_t138 + _t179) + _t146*_t165;
-                const double _t181 = _c7[i]*_t126 + _c7[i]*_t128 - _s7[i]*_t178;
-                const double _t182 = -_c7[i]*_t178 - _s7[i]*_t126 - _s7[i]*_t128;
-                const double _t183 = -_c3[i]*_t149 + _t122*_t137;
-                const double _t184 = -_s3[i]*_t113 - _s3[i]*_t114 - 0.5*_t123*xdd_r23[i] + (0.5)*_t144*xdd_r33[i] + (0.5)*_t170*xdd_r31[i] + (0.5)*_t172*xdd_r32[i] - 0.5*_t181*xdd_r21[i] - 0.5*_t182*xdd_r22[i] - _t86*qd1[i] - _t95*qd3[i] - qd4[i]*(-_c1[i]*_t86 - _c3[i]*_t164 + _s1[i]*_s3[i]*qd1[i]) - qd5[i]*(-_t133*_t162 - _t133*_t163 + _t146*qd4[i] + _t154*qd1[i]) - qd6[i]*(_t143*qd1[i] + _t150*qd5[i] + _t183*qd2[i] + _t183*qd3[i] + qd4[i]*(_s5[i]*_t132 + _t126*_t133));
-                const double _t185 = _t116*_t154;
-                const double _t186 = -_t129*_t157 - _t131*(-_s3[i]*_t47 + _t123*_t144 + _t142*_t178) - _t153*_t165 - _t178*_t185;
-                const double _t187 = _s3[i]*qd1[i];
-                const double _t188 = -_s3[i]*_t149 + _t122*_t132;
-                const double _t189 = -_t157;
-                const double _t190 = _c3[i]*_t113 + _c3[i]*_t114 + (0.5)*_t123*xdd_r13[i] - 0.5*_t138*xdd_r33[i] - 0.5*_t173*xdd_r32[i] - 0.5*_t174*xdd_r31[i] + (0.5)*_t181*xdd_r11[i] + (0.5)*_t182*xdd_r12[i] - _t187*qd2[i] - _t187*qd3[i] - qd4[i]*(-_c1[i]*_t96 - _s1[i]*_t95 - _s3[i]*_t164) - qd5[i]*(_t135*qd1[i] - _t140*_t162 - _t140*_t163 + _t152*qd4[i]) - qd6[i]*(_t138*qd1[i] + _t188*qd2[i] + _t188*qd3[i] + _t189*qd5[i] + qd4[i]*(-_s5[i]*_t137 + _t126*_t140));
-                const double _t191 = _t177*(_t130 + _t160 + _t161) + _t180*_t184 + _t186*_t190;
-                const double _t192 = _t124*_t131;
-                const double _t193 = -_t131*(_t135*_t142 + _t138*_t144 + _t48*_t92) - _t135*_t185 - _t146*_t153 - _t150*_t157;
-                const double _t194 = _t177*_t180 + _t184*(_t151 + _t161 + _t192) + _t190*_t193;
-                const double _t195 = _t177*_t186 + _t184*_t193 + _t190*(_t125 + _t158 + _t160 + _t192);
+                const double _t165 = _s1[i]*qd2[i];
+                const double _t166 = _s1[i]*qd3[i];
+                const double _t167 = -_c4[i]*_t128 + _t126*_t145;
+                const double _t170 = _c7[i]*_t136 + _c7[i]*_t138 - _s7[i]*_t160;
+                const double _t171 = -_c7[i]*_t160 - _s7[i]*_t136 - _s7[i]*_t138;
+                const double _t172 = _s7[i]*_t145;
+                const double _t173 = _c7[i]*_t121;
+                const double _t174 = _c7[i]*_t125 - _c7[i]*_t127 - _s7[i]*_t131 + _t128*_t173 + _t172;
+                const double _t175 = _s7[i]*_t121;
+                const double _t176 = _c4[i]*_c6[i]*_c7[i] - _c7[i]*_t131 + _s1[i]*_s4[i]*_s5[i]*_s7[i] - _s7[i]*_t125 - _t128*_t175;
+                const double _t177 = -_s4[i]*_t113 - _s4[i]*_t114 - 0.5*_t154*xdd_r23[i] + (0.5)*_t157*xdd_r33[i] - 0.5*_t170*xdd_r21[i] - 0.5*_t171*xdd_r22[i] + (0.5)*_t174*xdd_r31[i] + (0.5)*_t176*xdd_r32[i] - _t87*qd1[i] - _t96*qd3[i] - qd4[i]*(-_c1[i]*_t87 - _c4[i]*_t164 + _s1[i]*_s4[i]*qd1[i]) - qd5[i]*(-_t119*_t165 - _t119*_t166 + _t133*qd1[i] + _t142*qd4[i]) - qd6[i]*(_t146*qd5[i] + _t156*qd1[i] + _t167*qd2[i] + _t167*qd3[i] + qd4[i]*(_s5[i]*_t121 + _t119*_t136));
+                const double _t178 = _t116*_t133;
+                const double _t179 = -_t123*_t162 - _t129*_t139 - _t135*(-_s4[i]*_t24 + _t132*_t160 + _t154*_t157) - _t160*_t178;
+                const double _t180 = -_s4[i]*_t128 + _t121*_t126;
+                const double _t181 = -_t129;
+                const double _t182 = _c1[i]*_c4[i]*_c5[i]*_c6[i]*_c7[i] - _c7[i]*_t143 - _c7[i]*_t144 - _s7[i]*_t147 - _t175;
+                const double _t183 = _c4[i]*_s1[i]*_s5[i]*_s7[i] + _c5[i]*_s4[i]*_s6[i]*_s7[i] - _c7[i]*_t147 - _t128*_t172 - _t173;
+                const double _t184 = _s4[i]*qd1[i];
+                const double _t185 = _c4[i]*_t113 + _c4[i]*_t114 - 0.5*_t151*xdd_r33[i] + (0.5)*_t154*xdd_r13[i] + (0.5)*_t170*xdd_r11[i] + (0.5)*_t171*xdd_r12[i] - 0.5*_t182*xdd_r31[i] - 0.5*_t183*xdd_r32[i] - _t184*qd2[i] - _t184*qd3[i] - qd4[i]*(-_c1[i]*_t97 - _s1[i]*_t96 - _s4[i]*_t164) - qd5[i]*(_t122*qd4[i] - _t130*_t165 - _t130*_t166 + _t148*qd1[i]) - qd6[i]*(_t151*qd1[i] + _t180*qd2[i] + _t180*qd3[i] + _t181*qd5[i] + qd4[i]*(-_s5[i]*_t145 + _t130*_t136));
+                const double _t186 = _t135*_t152;
+                const double _t187 = _t135*_t158 + _t153;
+                const double _t188 = -_c6[i]*_t136 - _t137;
+                const double _t189 = _s6[i]*_t126;
+                const double _t190 = -_t109 + (0.5)*_t151*xdd_r23[i] - 0.5*_t157*xdd_r13[i] - 0.5*_t174*xdd_r11[i] - 0.5*_t176*xdd_r12[i] + (0.5)*_t182*xdd_r21[i] + (0.5)*_t183*xdd_r22[i] - qd4[i]*(-_t165 - _t166) - qd5[i]*(_c1[i]*_s6[i]*qd2[i] + _s6[i]*_t164 + _t162*qd4[i]) - qd6[i]*(_t139*qd5[i] + _t188*qd2[i] + _t188*qd3[i] + _t189*qd4[i]);
+                const double _t191 = _t163*_t177 + _t179*_t185 + _t190*(_t141 + _t186 + _t187);
+                const double _t192 = -_t123*_t142 - _t129*_t146 - _t135*(_t132*_t148 + _t151*_t157 + _t25*_t92) - _t148*_t178;
+                const double _t193 = _t135*_t155;
+                const double _t194 = _t163*_t190 + _t177*(_t150 + _t187 + _t193) + _t185*_t192;
+                const double _t195 = _t177*_t192 + _t179*_t190 + _t185*(_t134 + _t153 + _t186 + _t193);
                 const int _t196 = _t116 < 1e-08;
                 const double _t197 = _s5[i]/kinegen_max(1e-08, _t116);
                 _qdd_block[0][i] = _t109;
                 _qdd_block[1][i] = _t113;
                 _qdd_block[2][i] = _t114;
                 _qdd_block[3][i] = ((_t196) ? (
-   _t159*(_c1[i]*_t191 - _c3[i]*_s1[i]*_t194 - _s1[i]*_s3[i]*_t195)
+   _t159*(_c1[i]*_t191 - _c4[i]*_s1[i]*_t194 - _s1[i]*_s4[i]*_t195)
 )
 : (
-   -_t197*(_t129*_t177 + _t150*_t184 + _t189*_t190)
+   -_t197*(_t139*_t190 + _t146*_t177 + _t181*_t185)
 ));
                 _qdd_block[4][i] = ((_t196) ? (
-   _t159*(_t135*_t194 + _t142*_t195 + _t178*_t191)
+   _t159*(_t132*_t195 + _t148*_t194 + _t160*_t191)
 )
 : (
-   -_t197*(-_s5[i]*_t135*_t184 + _s5[i]*_t154*_t190 - _t175*_t177)
+   -_t197*(_s5[i]*_t133*_t185 - _s5[i]*_t148*_t177 - _t189*_t190)
 ));
                 _qdd_block[5][i] = ((_t196) ? (
-   _t159*(_t123*_t191 + _t138*_t194 + _t144*_t195)
+   _t159*(_t151*_t194 + _t154*_t191 + _t157*_t195)
 )
 : (
-   -_t197*(_t146*_t184 + _t152*_t190 + _t165*_t177)
+   -_t197*(_t122*_t185 + _t142*_t177 + _t162*_t190)
 ));
                 singular[1 * (start + i) + 0] = _t106 || _t196;
             }
@@ -7914,205 +7914,205 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
                 const double _t15 = _t11*_t14;
                 const double _t16 = _t15/_t1;
                 const double _t17 = kinegen_max(0, 1 - 100000000*_t16);
-                const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
-                const double _t20 = (1e-12)*(_t17*_t17);
-                const double _t21 = _s1[i]*a3;
-                const double _t22 = _c1[i]*d4;
-                const double _t23 = _t21 + _t22;
-                const double _t24 = (_t23*_t23);
-                const double _t26 = (_s3[i]*_s3[i]);
-                const double _t27 = _t18*_t26;
-                const double _t29 = _s0[i]*a2;
-                const double _t30 = _t23 + _t29;
-                const double _t31 = (_t30*_t30);
-                const double _t32 = _s3[i]*d3;
-                const double _t34 = _c3[i]*_t3;
-                const double _t35 = _c3[i]*_t6;
-                const double _t36 = -_c3[i]*_t8 + _t32 + _t34 + _t35;
-                const double _t37 = _t18*(_t36*_t36) + _t24*_t27 + _t27*_t31;
-                const double _t38 = (_c3[i]*_c3[i]);
-                const double _t39 = _t18*_t38;
-                const double _t40 = _s3[i]*_t3;
-                const double _t41 = _c3[i]*d3 + _s1[i]*_s3[i]*d4 - _s3[i]*_t6 - _t40;
-                const double _t42 = _t18*(_t41*_t41) + _t24*_t39 + _t31*_t39;
-                const double _t44 = (_c1[i]*_c1[i]);
-                const double _t47 = _c1[i]*_s1[i];
-                const double _t48 = (_s1[i]*_s1[i]);
-                const double _t50 = _t44*_t45 - _t45*_t48 + _t46*_t47 - _t47*_t49;
-                const double _t51 = _t21*_t3 + _t22*_t3 + _t50;
-                const double _t53 = _c0[i]*_s0[i]*_t12 + _c4[i]*a2*d4 + _s4[i]*a2*a3 + _t50;
-                const double _t54 = _t43*(_t51*_t51) + _t43*(_t53*_t53);
-                const double _t55 = (1e-06)*_t17;
-                const double _t56 = _t14*_t43;
-                const double _t57 = _t34*_t6;
-                const double _t58 = _t34*_t8;
-                const double _t59 = _t44*_t46;
-                const double _t60 = _t48*_t49;
-                const double _t61 = _c3[i]*_t59 + _c3[i]*_t60 + _t32*_t6 - _t32*_t8 - 2*_t35*_t8;
-                const double _t62 = _t57 - _t58 + _t61;
-                const double _t63 = (_c0[i]*_c0[i])*_t12;
-                const double _t64 = _c3[i]*_t63 + _t3*_t32 + 2*_t57 - 2*_t58 + _t61;
-                const double _t65 = _t26*_t56 + _t43*(_t62*_t62) + _t43*(_t64*_t64);
-                const double _t66 = _t40*_t6;
-                const double _t67 = -_c1[i]*_c3[i]*a3*d3 - 2*_c1[i]*_s1[i]*_s3[i]*a3*d4 + _c3[i]*_t8*d3 + _s3[i]*_t59 + _s3[i]*_t60;
-                const double _t68 = _c0[i]*_s1[i]*_s3[i]*a2*d4 - _t66 - _t67;
-                const double _t69 = -_c0[i]*_c3[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s3[i]*a2*d4 + _s3[i]*_t63 + 2*_t66 + _t67;
-                const double _t70 = -_t69;
-                const double _t71 = _t38*_t56 + _t43*(_t68*_t68) + _t43*(_t70*_t70);
-                const double _t72 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t37 + _t20*_t42 + _t54*_t55 + _t55*_t65 + _t55*_t71);
-                const double _t74 = _c3[i]*_t18;
-                const double _t75 = _t23*_t9;
-                const double _t76 = _t10*_t30;
-                const double _t77 = _t43*_t62;
-                const double _t78 = _t43*_t64;
-                const double _t79 = _t51*_t77 + _t53*_t78 - _t55*(-_t74*_t75 - _t74*_t76);
-                const double _t80 = -_t23;
+                const double _t19 = _s1[i]*a3;
+                const double _t20 = _c1[i]*d4;
+                const double _t21 = (_c1[i]*_c1[i]);
+                const double _t24 = _c1[i]*_s1[i];
+                const double _t25 = (_s1[i]*_s1[i]);
+                const double _t27 = _t21*_t22 - _t22*_t25 + _t23*_t24 - _t24*_t26;
+                const double _t28 = _t19*_t3 + _t20*_t3 + _t27;
+                const double _t31 = _c0[i]*_s0[i]*_t12 + _c3[i]*a2*d4 + _s3[i]*a2*a3 + _t27;
+                const double _t32 = _t18*(_t28*_t28) + _t18*(_t31*_t31);
+                const double _t33 = (1e-06)*_t17;
+                const double _t35 = _c4[i]*_t3;
+                const double _t36 = _t35*_t6;
+                const double _t37 = _t35*_t8;
+                const double _t38 = _t21*_t23;
+                const double _t39 = _t25*_t26;
+                const double _t41 = _s4[i]*d3;
+                const double _t42 = _c4[i]*_t6;
+                const double _t43 = _c4[i]*_t38 + _c4[i]*_t39 + _t41*_t6 - _t41*_t8 - 2*_t42*_t8;
+                const double _t44 = _t36 - _t37 + _t43;
+                const double _t45 = (_c0[i]*_c0[i])*_t12;
+                const double _t46 = _c4[i]*_t45 + _t3*_t41 + 2*_t36 - 2*_t37 + _t43;
+                const double _t47 = (_s4[i]*_s4[i]);
+                const double _t48 = _t14*_t18;
+                const double _t49 = _t18*(_t44*_t44) + _t18*(_t46*_t46) + _t47*_t48;
+                const double _t50 = _s4[i]*_t3;
+                const double _t51 = _t50*_t6;
+                const double _t52 = -_c1[i]*_c4[i]*a3*d3 - 2*_c1[i]*_s1[i]*_s4[i]*a3*d4 + _c4[i]*_t8*d3 + _s4[i]*_t38 + _s4[i]*_t39;
+                const double _t53 = _c0[i]*_s1[i]*_s4[i]*a2*d4 - _t51 - _t52;
+                const double _t54 = -_c0[i]*_c4[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s4[i]*a2*d4 + _s4[i]*_t45 + 2*_t51 + _t52;
+                const double _t55 = -_t54;
+                const double _t56 = (_c4[i]*_c4[i]);
+                const double _t57 = _t18*(_t53*_t53) + _t18*(_t55*_t55) + _t48*_t56;
+                const double _t59 = _t11*_t58 + _t58*(_t9*_t9);
+                const double _t60 = (1e-12)*(_t17*_t17);
+                const double _t61 = _c4[i]*d3 + _s1[i]*_s4[i]*d4 - _s4[i]*_t6 - _t50;
+                const double _t62 = _t19 + _t20;
+                const double _t63 = (_t62*_t62);
+                const double _t64 = _t56*_t58;
+                const double _t65 = _s0[i]*a2;
+                const double _t66 = _t62 + _t65;
+                const double _t67 = (_t66*_t66);
+                const double _t68 = _t58*(_t61*_t61) + _t63*_t64 + _t64*_t67;
+                const double _t69 = -_c4[i]*_t8 + _t35 + _t41 + _t42;
+                const double _t70 = _t47*_t58;
+                const double _t71 = _t58*(_t69*_t69) + _t63*_t70 + _t67*_t70;
+                const double _t72 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t32*_t33 + _t33*_t49 + _t33*_t57 + _t59*_t60 + _t60*_t68 + _t60*_t71);
+                const double _t74 = _c4[i]*_t58;
+                const double _t75 = _t62*_t9;
+                const double _t76 = _t10*_t66;
+                const double _t77 = _t18*_t44;
+                const double _t78 = _t18*_t46;
+                const double _t79 = _t28*_t77 + _t31*_t78 - _t33*(-_t74*_t75 - _t74*_t76);
+                const double _t80 = -_t62;
                 const double _t81 = _t80*qd3[i];
-                const double _t82 = -qd2[i]*(-_t30*qd2[i] + _t81) - qd3[i]*(_t80*qd2[i] + _t81) + xdd_z[i];
+                const double _t82 = -qd2[i]*(-_t66*qd2[i] + _t81) - qd3[i]*(_t80*qd2[i] + _t81) + xdd_z[i];
                 const double _t83 = _t73*_t82;
-                const double _t84 = _t19*_t55;
-                const double _t85 = _t20 + _t37*_t55;
-                const double _t86 = _c3[i]*qd2[i];
-                const double _t87 = _t9*qd3[i];
-                const double _t88 = _c3[i]*_t87;
-                const double _t89 = _s3[i]*_t21 + _s3[i]*_t22;
-                const double _t90 = -qd1[i]*(-_t36*qd1[i] + _t89*qd3[i] + qd2[i]*(_s3[i]*_t29 + _t89)) - qd2[i]*(_s3[i]*_t30*qd1[i] - _t10*_t86 - _t88) - qd3[i]*(_s3[i]*_t23*qd1[i] - _t86*_t9 - _t88) + xdd_x[i];
+                const double _t84 = _t33*_t59;
+                const double _t85 = _t33*_t71 + _t60;
+                const double _t86 = _s4[i]*_t19 + _s4[i]*_t20;
+                const double _t87 = _c4[i]*qd2[i];
+                const double _t88 = _t9*qd3[i];
+                const double _t89 = _c4[i]*_t88;
+                const double _t90 = -qd1[i]*(-_t69*qd1[i] + _t86*qd3[i] + qd2[i]*(_s4[i]*_t65 + _t86)) - qd2[i]*(_s4[i]*_t66*qd1[i] - _t10*_t87 - _t89) - qd3[i]*(_s4[i]*_t62*qd1[i] - _t87*_t9 - _t89) + xdd_x[i];
                 const double _t91 = _t73*_t90;
-                const double _t92 = _c3[i]*_s3[i];
-                const double _t93 = _t18*_t92;
-                const double _t94 = -_t55*(_t18*_t36*_t41 + _t24*_t93 + _t31*_t93) - _t56*_t92 - _t68*_t77 - _t70*_t78;
-                const double _t95 = _c3[i]*qd1[i];
-                const double _t96 = _s3[i]*qd2[i];
-                const double _t97 = _s3[i]*_t87;
-                const double _t98 = _c3[i]*_t21 + _c3[i]*_t22;
-                const double _t99 = -qd1[i]*(_t41*qd1[i] - _t98*qd3[i] + qd2[i]*(-_c3[i]*_t29 - _t98)) - qd2[i]*(-_t10*_t96 - _t30*_t95 - _t97) - qd3[i]*(-_t23*_t95 - _t9*_t96 - _t97) + xdd_y[i];
+                const double _t92 = _c4[i]*_s4[i];
+                const double _t93 = _t58*_t92;
+                const double _t94 = -_t33*(_t58*_t61*_t69 + _t63*_t93 + _t67*_t93) - _t48*_t92 - _t53*_t77 - _t55*_t78;
+                const double _t95 = _c4[i]*_t19 + _c4[i]*_t20;
+                const double _t96 = _c4[i]*qd1[i];
+                const double _t97 = _s4[i]*qd2[i];
+                const double _t98 = _s4[i]*_t88;
+                const double _t99 = -qd1[i]*(_t61*qd1[i] - _t95*qd3[i] + qd2[i]*(-_c4[i]*_t65 - _t95)) - qd2[i]*(-_t10*_t97 - _t66*_t96 - _t98) - qd3[i]*(-_t62*_t96 - _t9*_t97 - _t98) + xdd_y[i];
                 const double _t100 = _t73*_t99;
-                const double _t101 = _t73*(_t100*_t94 + _t79*_t83 + _t91*(_t65 + _t84 + _t85));
-                const double _t102 = _s3[i]*_t18;
-                const double _t103 = -_t43*_t51*_t68 - _t43*_t53*_t70 - _t55*(-_t102*_t75 - _t102*_t76);
-                const double _t104 = _t42*_t55;
-                const double _t105 = _t73*(_t100*(_t104 + _t20 + _t71 + _t84) + _t103*_t83 + _t91*_t94);
+                const double _t101 = _t73*(_t100*_t94 + _t79*_t83 + _t91*(_t49 + _t84 + _t85));
+                const double _t102 = _s4[i]*_t58;
+                const double _t103 = -_t18*_t28*_t53 - _t18*_t31*_t55 - _t33*(-_t102*_t75 - _t102*_t76);
+                const double _t104 = _t33*_t68;
+                const double _t105 = _t73*(_t100*(_t104 + _t57 + _t60 + _t84) + _t103*_t83 + _t91*_t94);
                 const int _t106 = _t16 < 1e-08;
                 const double _t107 = _t13*a2;
                 const double _t108 = _t10*_t107/kinegen_max(_t15, (1e-08)*_t1);
                 const double _t109 = ((_t106) ? (
-   _t72*(_t101*_t41 + _t105*_t36)
+   _t72*(_t101*_t61 + _t105*_t69)
 )
 : (
-   -_t108*(-_c3[i]*_t107*_t99 + _s3[i]*_t13*_t90*a2)
+   -_t108*(-_c4[i]*_t107*_t99 + _s4[i]*_t13*_t90*a2)
 ));
-                const double _t110 = _t100*_t103 + _t79*_t91 + _t83*(_t104 + _t54 + _t85);
-                const double _t111 = _c3[i]*_t101;
-                const double _t112 = _s3[i]*_t105;
+                const double _t110 = _t100*_t103 + _t79*_t91 + _t83*(_t104 + _t32 + _t85);
+                const double _t111 = _c4[i]*_t101;
+                const double _t112 = _s4[i]*_t105;
                 const double _t113 = ((_t106) ? (
-   _t72*(_t10*_t110*_t73 - _t111*_t30 - _t112*_t30)
+   _t72*(_t10*_t110*_t73 - _t111*_t66 - _t112*_t66)
 )
 : (
-   -_t108*(-_t51*_t82 - _t62*_t90 + _t68*_t99)
+   -_t108*(-_t28*_t82 - _t44*_t90 + _t53*_t99)
 ));
                 const double _t114 = ((_t106) ? (
-   _t72*(_t110*_t73*_t9 - _t111*_t23 - _t112*_t23)
+   _t72*(_t110*_t73*_t9 - _t111*_t62 - _t112*_t62)
 )
 : (
-   -_t108*(_t53*_t82 + _t64*_t90 + _t69*_t99)
+   -_t108*(_t31*_t82 + _t46*_t90 + _t54*_t99)
 ));
                 const double _t116 = (_s5[i]*_s5[i]);
                 const double _t117 = kinegen_max(0, 1 - 100000000*_t116);
-                const double _t119 = (_s6[i]*_s6[i])*_t48;
-                const double _t122 = _s1[i]*_s5[i];
-                const double _t123 = _c1[i]*_c5[i] - _c6[i]*_t122;
-                const double _t124 = _t119 + (_t123*_t123) + _t44;
-                const double _t125 = (1e-12)*(_t117*_t117);
-                const double _t126 = _c1[i]*_s5[i];
-                const double _t127 = _c5[i]*_s1[i];
-                const double _t128 = _c6[i]*_t127;
-                const double _t129 = -_t126 - _t128;
-                const double _t130 = (_c6[i]*_c6[i])*_t48 + _t116*_t119 + (_t129*_t129);
-                const double _t131 = (1e-06)*_t117;
-                const double _t132 = _c6[i]*_s3[i];
-                const double _t133 = _c3[i]*_s6[i];
-                const double _t134 = _c1[i]*_t133;
-                const double _t135 = _t132 + _t134;
-                const double _t136 = (_t135*_t135);
-                const double _t137 = _c3[i]*_c6[i];
-                const double _t138 = -_c3[i]*_t127 + _s3[i]*_s5[i]*_s6[i] - _t126*_t137;
-                const double _t139 = _t136 + (_t138*_t138) + _t38*_t48;
-                const double _t140 = _s3[i]*_s6[i];
-                const double _t141 = _c1[i]*_t140;
-                const double _t142 = -_c3[i]*_c6[i] + _t141;
-                const double _t143 = _s3[i]*_t127 + _s5[i]*_t133 + _t126*_t132;
-                const double _t144 = -_t143;
-                const double _t145 = (_t142*_t142) + (_t144*_t144) + _t26*_t48;
-                const double _t146 = _c1[i]*_c3[i]*_c6[i] - _t140;
-                const double _t147 = _c5[i]*_t140;
-                const double _t148 = _c3[i]*_t122;
-                const double _t149 = _c1[i]*_c5[i];
-                const double _t150 = -_t137*_t149 + _t147 + _t148;
-                const double _t151 = _t116*_t136 + (_t146*_t146) + (_t150*_t150);
-                const double _t152 = _c1[i]*_t132 + _t133;
-                const double _t153 = -_t152;
-                const double _t154 = -_t142;
-                const double _t155 = _c5[i]*_t133;
-                const double _t156 = _s3[i]*_t122;
-                const double _t157 = _t132*_t149 + _t155 - _t156;
-                const double _t158 = _t116*(_t154*_t154) + (_t153*_t153) + (_t157*_t157);
-                const double _t159 = 1.0/(_t116 + (1e-18)*(_t117*_t117*_t117) + _t124*_t125 + _t125*_t139 + _t125*_t145 + _t130*_t131 + _t131*_t151 + _t131*_t158);
-                const double _t160 = _t131*_t139;
-                const double _t161 = _t125 + _t131*_t145;
-                const double _t162 = _s1[i]*qd2[i];
-                const double _t163 = _s1[i]*qd3[i];
+                const double _t119 = _c4[i]*_s6[i];
+                const double _t121 = _c6[i]*_s4[i];
+                const double _t122 = _c1[i]*_t121 + _t119;
+                const double _t123 = -_t122;
+                const double _t125 = _c5[i]*_t119;
+                const double _t126 = _s1[i]*_s5[i];
+                const double _t127 = _s4[i]*_t126;
+                const double _t128 = _c1[i]*_c5[i];
+                const double _t129 = _t121*_t128 + _t125 - _t127;
+                const double _t130 = _s4[i]*_s6[i];
+                const double _t131 = _c1[i]*_t130;
+                const double _t132 = -_c4[i]*_c6[i] + _t131;
+                const double _t133 = -_t132;
+                const double _t134 = _t116*(_t133*_t133) + (_t123*_t123) + (_t129*_t129);
+                const double _t135 = (1e-06)*_t117;
+                const double _t136 = _c1[i]*_s5[i];
+                const double _t137 = _c5[i]*_s1[i];
+                const double _t138 = _c6[i]*_t137;
+                const double _t139 = -_t136 - _t138;
+                const double _t140 = (_s6[i]*_s6[i])*_t25;
+                const double _t141 = (_c6[i]*_c6[i])*_t25 + _t116*_t140 + (_t139*_t139);
+                const double _t142 = _c1[i]*_c4[i]*_c6[i] - _t130;
+                const double _t143 = _c4[i]*_t126;
+                const double _t144 = _c5[i]*_t130;
+                const double _t145 = _c4[i]*_c6[i];
+                const double _t146 = -_t128*_t145 + _t143 + _t144;
+                const double _t147 = _c1[i]*_t119;
+                const double _t148 = _t121 + _t147;
+                const double _t149 = (_t148*_t148);
+                const double _t150 = _t116*_t149 + (_t142*_t142) + (_t146*_t146);
+                const double _t151 = -_c4[i]*_t137 + _s4[i]*_s5[i]*_s6[i] - _t136*_t145;
+                const double _t152 = _t149 + (_t151*_t151) + _t25*_t56;
+                const double _t153 = (1e-12)*(_t117*_t117);
+                const double _t154 = _c1[i]*_c5[i] - _c6[i]*_t126;
+                const double _t155 = _t140 + (_t154*_t154) + _t21;
+                const double _t156 = _s4[i]*_t137 + _s5[i]*_t119 + _t121*_t136;
+                const double _t157 = -_t156;
+                const double _t158 = (_t132*_t132) + (_t157*_t157) + _t25*_t47;
+                const double _t159 = 1.0/(_t116 + (1e-18)*(_t117*_t117*_t117) + _t134*_t135 + _t135*_t141 + _t135*_t150 + _t152*_t153 + _t153*_t155 + _t153*_t158);
+                const double _t160 = _s1[i]*_s6[i];
+                const double _t161 = _t148*_t160;
+                const double _t162 = _c6[i]*_s1[i];
+                const double _t163 = _t116*_t161 - _t135*(-_c4[i]*_t24 + _t151*_t154 + _t161) + _t139*_t146 + _t142*_t162;
                 const double _t164 = _c1[i]*qd3[i];
-                const double _t165 = _c6[i]*_s1[i];
-                const double _t167 = _s7[i]*_t137;
-                const double _t169 = _c7[i]*_t132;
-                const double _t170 = _c7[i]*_t155 - _c7[i]*_t156 - _s7[i]*_t141 + _t149*_t169 + _t167;
-                const double _t171 = _s7[i]*_t132;
-                const double _t172 = _c3[i]*_c6[i]*_c7[i] - _c7[i]*_t141 + _s1[i]*_s3[i]*_s5[i]*_s7[i] - _s7[i]*_t155 - _t149*_t171;
-                const double _t173 = _c3[i]*_s1[i]*_s5[i]*_s7[i] + _c5[i]*_s3[i]*_s6[i]*_s7[i] - _c7[i]*_t134 - _t149*_t167 - _t169;
-                const double _t174 = _c1[i]*_c3[i]*_c5[i]*_c6[i]*_c7[i] - _c7[i]*_t147 - _c7[i]*_t148 - _s7[i]*_t134 - _t171;
-                const double _t175 = _s6[i]*_t122;
-                const double _t176 = -_c6[i]*_t126 - _t127;
-                const double _t177 = -_t109 + (0.5)*_t138*xdd_r23[i] - 0.5*_t144*xdd_r13[i] - 0.5*_t170*xdd_r11[i] - 0.5*_t172*xdd_r12[i] + (0.5)*_t173*xdd_r22[i] + (0.5)*_t174*xdd_r21[i] - qd4[i]*(-_t162 - _t163) - qd5[i]*(_c1[i]*_s6[i]*qd2[i] + _s6[i]*_t164 + _t165*qd4[i]) - qd6[i]*(_t129*qd5[i] + _t175*qd4[i] + _t176*qd2[i] + _t176*qd3[i]);
-                const double _t178 = _s1[i]*_s6[i];
-                const double _t179 = _t135*_t178;
-                const double _t180 = _t116*_t179 + _t129*_t150 - _t131*(-_c3[i]*_t47 + _t123*_t138 + _t179) + _t146*_t165;
-                const double _t181 = _c7[i]*_t126 + _c7[i]*_t128 - _s7[i]*_t178;
-                const double _t182 = -_c7[i]*_t178 - _s7[i]*_t126 - _s7[i]*_t128;
-                const double _t183 = -_c3[i]*_t149 + _t122*_t137;
-                const double _t184 = -_s3[i]*_t113 - _s3[i]*_t114 - 0.5*_t123*xdd_r23[i] + (0.5)*_t144*xdd_r33[i] + (0.5)*_t170*xdd_r31[i] + (0.5)*_t172*xdd_r32[i] - 0.5*_t181*xdd_r21[i] - 0.5*_t182*xdd_r22[i] - _t86*qd1[i] - _t95*qd3[i] - qd4[i]*(-_c1[i]*_t86 - _c3[i]*_t164 + _s1[i]*_s3[i]*qd1[i]) - qd5[i]*(-_t133*_t162 - _t133*_t163 + _t146*qd4[i] + _t154*qd1[i]) - qd6[i]*(_t143*qd1[i] + _t150*qd5[i] + _t183*qd2[i] + _t183*qd3[i] + qd4[i]*(_s5[i]*_t132 + _t126*_t133));
-                const double _t185 = _t116*_t154;
-                const double _t186 = -_t129*_t157 - _t131*(-_s3[i]*_t47 + _t123*_t144 + _t142*_t178) - _t153*_t165 - _t178*_t185;
-                const double _t187 = _s3[i]*qd1[i];
-                const double _t188 = -_s3[i]*_t149 + _t122*_t132;
-                const double _t189 = -_t157;
-                const double _t190 = _c3[i]*_t113 + _c3[i]*_t114 + (0.5)*_t123*xdd_r13[i] - 0.5*_t138*xdd_r33[i] - 0.5*_t173*xdd_r32[i] - 0.5*_t174*xdd_r31[i] + (0.5)*_t181*xdd_r11[i] + (0.5)*_t182*xdd_r12[i] - _t187*qd2[i] - _t187*qd3[i] - qd4[i]*(-_c1[i]*_t96 - _s1[i]*_t95 - _s3[i]*_t164) - qd5[i]*(_t135*qd1[i] - _t140*_t162 - _t140*_t163 + _t152*qd4[i]) - qd6[i]*(_t138*qd1[i] + _t188*qd2[i] + _t188*qd3[i] + _t189*qd5[i] + qd4[i]*(-_s5[i]*_t137 + _t126*_t140));
-                const double _t191 = _t177*(_t130 + _t160 + _t161) + _t180*_t184 + _t186*_t190;
-                const double _t192 = _t124*_t131;
-                const double _t193 = -_t131*(_t135*_t142 + _t138*_t144 + _t48*_t92) - _t135*_t185 - _t146*_t153 - _t150*_t157;
-                const double _t194 = _t177*_t180 + _t184*(_t151 + _t161 + _t192) + _t190*_t193;
-                const double _t195 = _t177*_t186 + _t184*_t193 + _t190*(_t125 + _t158 + _t160 + _t192);
+                const double _t165 = _s1[i]*qd2[i];
+                const double _t166 = _s1[i]*qd3[i];
+                const double _t167 = -_c4[i]*_t128 + _t126*_t145;
+                const double _t170 = _c7[i]*_t136 + _c7[i]*_t138 - _s7[i]*_t160;
+                const double _t171 = -_c7[i]*_t160 - _s7[i]*_t136 - _s7[i]*_t138;
+                const double _t172 = _s7[i]*_t145;
+                const double _t173 = _c7[i]*_t121;
+                const double _t174 = _c7[i]*_t125 - _c7[i]*_t127 - _s7[i]*_t131 + _t128*_t173 + _t172;
+                const double _t175 = _s7[i]*_t121;
+                const double _t176 = _c4[i]*_c6[i]*_c7[i] - _c7[i]*_t131 + _s1[i]*_s4[i]*_s5[i]*_s7[i] - _s7[i]*_t125 - _t128*_t175;
+                const double _t177 = -_s4[i]*_t113 - _s4[i]*_t114 - 0.5*_t154*xdd_r23[i] + (0.5)*_t157*xdd_r33[i] - 0.5*_t170*xdd_r21[i] - 0.5*_t171*xdd_r22[i] + (0.5)*_t174*xdd_r31[i] + (0.5)*_t176*xdd_r32[i] - _t87*qd1[i] - _t96*qd3[i] - qd4[i]*(-_c1[i]*_t87 - _c4[i]*_t164 + _s1[i]*_s4[i]*qd1[i]) - qd5[i]*(-_t119*_t165 - _t119*_t166 + _t133*qd1[i] + _t142*qd4[i]) - qd6[i]*(_t146*qd5[i] + _t156*qd1[i] + _t167*qd2[i] + _t167*qd3[i] + qd4[i]*(_s5[i]*_t121 + _t119*_t136));
+                const double _t178 = _t116*_t133;
+                const double _t179 = -_t123*_t162 - _t129*_t139 - _t135*(-_s4[i]*_t24 + _t132*_t160 + _t154*_t157) - _t160*_t178;
+                const double _t180 = -_s4[i]*_t128 + _t121*_t126;
+                const double _t181 = -_t129;
+                const double _t182 = _c1[i]*_c4[i]*_c5[i]*_c6[i]*_c7[i] - _c7[i]*_t143 - _c7[i]*_t144 - _s7[i]*_t147 - _t175;
+                const double _t183 = _c4[i]*_s1[i]*_s5[i]*_s7[i] + _c5[i]*_s4[i]*_s6[i]*_s7[i] - _c7[i]*_t147 - _t128*_t172 - _t173;
+                const double _t184 = _s4[i]*qd1[i];
+                const double _t185 = _c4[i]*_t113 + _c4[i]*_t114 - 0.5*_t151*xdd_r33[i] + (0.5)*_t154*xdd_r13[i] + (0.5)*_t170*xdd_r11[i] + (0.5)*_t171*xdd_r12[i] - 0.5*_t182*xdd_r31[i] - 0.5*_t183*xdd_r32[i] - _t184*qd2[i] - _t184*qd3[i] - qd4[i]*(-_c1[i]*_t97 - _s1[i]*_t96 - _s4[i]*_t164) - qd5[i]*(_t122*qd4[i] - _t130*_t165 - _t130*_t166 + _t148*qd1[i]) - qd6[i]*(_t151*qd1[i] + _t180*qd2[i] + _t180*qd3[i] + _t181*qd5[i] + qd4[i]*(-_s5[i]*_t145 + _t130*_t136));
+                const double _t186 = _t135*_t152;
+                const double _t187 = _t135*_t158 + _t153;
+                const double _t188 = -_c6[i]*_t136 - _t137;
+                const double _t189 = _s6[i]*_t126;
+                const double _t190 = -_t109 + (0.5)*_t151*xdd_r23[i] - 0.5*_t157*xdd_r13[i] - 0.5*_t174*xdd_r11[i] - 0.5*_t176*xdd_r12[i] + (0.5)*_t182*xdd_r21[i] + (0.5)*_t183*xdd_r22[i] - qd4[i]*(-_t165 - _t166) - qd5[i]*(_c1[i]*_s6[i]*qd2[i] + _s6[i]*_t164 + _t162*qd4[i]) - qd6[i]*(_t139*qd5[i] + _t188*qd2[i] + _t188*qd3[i] + _t189*qd4[i]);
+                const double _t191 = _t163*_t177 + _t179*_t185 + _t190*(_t141 + _t186 + _t187);
+                const double _t192 = -_t123*_t142 - _t129*_t146 - _t135*(_t132*_t148 + _t151*_t157 + _t25*_t92) - _t148*_t178;
+                const double _t193 = _t135*_t155;
+                const double _t194 = _t163*_t190 + _t177*(_t150 + _t187 + _t193) + _t185*_t192;
+                const double _t195 = _t177*_t192 + _t179*_t190 + _t185*(_t134 + _t153 + _t186 + _t193);
                 const int _t196 = _t116 < 1e-08;
                 const double _t197 = _s5[i]/kinegen_max(1e-08, _t116);
                 qdd[6 * (start + i) + 0] = _t109;
                 qdd[6 * (start + i) + 1] = _t113;
                 qdd[6 * (start + i) + 2] = _t114;
                 qdd[6 * (start + i) + 3] = ((_t196) ? (
-   _t159*(_c1[i]*_t191 - _c3[i]*_s1[i]*_t194 - _s1[i]*_s3[i]*_t195)
+   _t159*(_c1[i]*_t191 - _c4[i]*_s1[i]*_t194 - _s1[i]*_s4[i]*_t195)
 )
 : (
-   -_t197*(_t129*_t177 + _t150*_t184 + _t189*_t190)
+   -_t197*(_t139*_t190 + _t146*_t177 + _t181*_t185)
 ));
                 qdd[6 * (start + i) + 4] = ((_t196) ? (
-   _t159*(_t135*_t194 + _t142*_t195 + _t178*_t191)
+   _t159*(_t132*_t195 + _t148*_t194 + _t160*_t191)
 )
 : (
-   -_t197*(-_s5[i]*_t135*_t184 + _s5[i]*_t154*_t190 - _t175*_t177)
+   -_t197*(_s5[i]*_t133*_t185 - _s5[i]*_t148*_t177 - _t189*_t190)
 ));
                 qdd[6 * (start + i) + 5] = ((_t196) ? (
-   _t159*(_t123*_t191 + _t138*_t194 + _t144*_t195)
+   _t159*(_t151*_t194 + _t154*_t191 + _t157*_t195)
 )
 : (
-   -_t197*(_t146*_t184 + _t152*_t190 + _t165*_t177)
+   -_t197*(_t122*_t185 + _t142*_t177 + _t162*_t190)
 ));
                 singular[1 * (start + i) + 0] = _t106 || _t196;
             }
@@ -8166,19 +8166,19 @@ void puma560_joint_velocity_from_twist(const double *restrict q, const double *r
     const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
     const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
     const double _t12 = (a2*a2);
-    const double _t18 = 1.0/(_t0*_t0);
-    const double _t42 = 1.0/(_t0*_t0*_t0*_t0);
-    const double _t44 = a3*d4;
-    const double _t45 = (a3*a3);
-    const double _t48 = (d4*d4);
+    const double _t18 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t22 = a3*d4;
+    const double _t23 = (a3*a3);
+    const double _t26 = (d4*d4);
+    const double _t58 = 1.0/(_t0*_t0);
     const double _t72 = 1.0/_t0;
     const double _t4 = q2 + q3;
-    const double _t51 = 2*q2 + q3;
+    const double _t29 = 2*q2 + q3;
     double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5, _s6, _c6;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[8] = { q2, _t4, q3, q1, _t51, q5, q4, 0.0 };
+        const double angle[8] = { q2, _t4, q3, _t29, q1, q5, q4, 0.0 };
         double sine[8], cosine[8];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -8211,10 +8211,10 @@ void puma560_joint_velocity_from_twist(const double *restrict q, const double *r
     _c1 = cos(_t4);
     _s2 = sin(q3);
     _c2 = cos(q3);
-    _s3 = sin(q1);
-    _c3 = cos(q1);
-    _s4 = sin(_t51);
-    _c4 = cos(_t51);
+    _s3 = sin(_t29);
+    _c3 = cos(_t29);
+    _s4 = sin(q1);
+    _c4 = cos(q1);
     _s5 = sin(q5);
     _c5 = cos(q5);
     _s6 = sin(q4);
@@ -8231,165 +8231,165 @@ void puma560_joint_velocity_from_twist(const double *restrict q, const double *r
     const double _t15 = _t11*_t14;
     const double _t16 = _t15/_t1;
     const double _t17 = kinegen_max(0, 1 - 100000000*_t16);
-    const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
-    const double _t20 = (1e-12)*(_t17*_t17);
-    const double _t21 = _s1*a3;
-    const double _t22 = _c1*d4;
-    const double _t23 = _t21 + _t22;
-    const double _t24 = (_t23*_t23);
-    const double _t26 = (_s3*_s3);
-    const double _t27 = _t18*_t26;
-    const double _t29 = _s0*a2 + _t23;
-    const double _t30 = (_t29*_t29);
-    const double _t31 = _s3*d3;
-    const double _t33 = _c3*_t3;
-    const double _t34 = _c3*_t6;
-    const double _t35 = -_c3*_t8 + _t31 + _t33 + _t34;
-    const double _t36 = _t18*(_t35*_t35) + _t24*_t27 + _t27*_t30;
-    const double _t37 = (_c3*_c3);
-    const double _t38 = _t18*_t37;
-    const double _t39 = _s3*_t3;
-    const double _t40 = _c3*d3 + _s1*_s3*d4 - _s3*_t6 - _t39;
-    const double _t41 = _t18*(_t40*_t40) + _t24*_t38 + _t30*_t38;
-    const double _t43 = (_c1*_c1);
-    const double _t46 = _c1*_s1;
-    const double _t47 = (_s1*_s1);
-    const double _t49 = _t43*_t44 - _t44*_t47 + _t45*_t46 - _t46*_t48;
-    const double _t50 = _t21*_t3 + _t22*_t3 + _t49;
-    const double _t52 = _c0*_s0*_t12 + _c4*a2*d4 + _s4*a2*a3 + _t49;
-    const double _t53 = _t42*(_t50*_t50) + _t42*(_t52*_t52);
-    const double _t54 = (1e-06)*_t17;
-    const double _t55 = _t14*_t42;
-    const double _t56 = _t33*_t6;
-    const double _t57 = _t33*_t8;
-    const double _t58 = _t43*_t45;
-    const double _t59 = _t47*_t48;
-    const double _t60 = _c3*_t58 + _c3*_t59 + _t31*_t6 - _t31*_t8 - 2*_t34*_t8;
-    const double _t61 = _t56 - _t57 + _t60;
-    const double _t62 = (_c0*_c0)*_t12;
-    const double _t63 = _c3*_t62 + _t3*_t31 + 2*_t56 - 2*_t57 + _t60;
-    const double _t64 = _t26*_t55 + _t42*(_t61*_t61) + _t42*(_t63*_t63);
-    const double _t65 = _t39*_t6;
-    const double _t66 = -_c1*_c3*a3*d3 - 2*_c1*_s1*_s3*a3*d4 + _c3*_t8*d3 + _s3*_t58 + _s3*_t59;
-    const double _t67 = _c0*_s1*_s3*a2*d4 - _t65 - _t66;
-    const double _t68 = -_c0*_c3*a2*d3 - 2*_c0*_s1*_s3*a2*d4 + _s3*_t62 + 2*_t65 + _t66;
-    const double _t69 = -_t68;
-    const double _t70 = _t37*_t55 + _t42*(_t67*_t67) + _t42*(_t69*_t69);
-    const double _t71 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
-    const double _t73 = _t23*_t9;
-    const double _t74 = _c3*_t18;
-    const double _t75 = _t10*_t29;
-    const double _t76 = _t42*_t50*_t61 + _t42*_t52*_t63 - _t54*(-_t73*_t74 - _t74*_t75);
-    const double _t77 = _t72*twist_vz;
-    const double _t78 = _t36*_t54;
-    const double _t79 = _t19*_t54;
-    const double _t80 = _t72*twist_vx;
-    const double _t81 = _c3*_s3;
-    const double _t82 = _t42*_t67;
-    const double _t83 = _t18*_t81;
-    const double _t84 = _t42*_t69;
-    const double _t85 = -_t54*(_t18*_t35*_t40 + _t24*_t83 + _t30*_t83) - _t55*_t81 - _t61*_t82 - _t63*_t84;
-    const double _t86 = _t72*twist_vy;
-    const double _t87 = _t72*(_t76*_t77 + _t80*(_t20 + _t64 + _t78 + _t79) + _t85*_t86);
-    const double _t88 = _s3*_t18;
-    const double _t89 = -_t50*_t82 - _t52*_t84 - _t54*(-_t73*_t88 - _t75*_t88);
-    const double _t90 = _t20 + _t41*_t54;
-    const double _t91 = _t72*(_t77*_t89 + _t80*_t85 + _t86*(_t70 + _t79 + _t90));
+    const double _t19 = _s1*a3;
+    const double _t20 = _c1*d4;
+    const double _t21 = (_c1*_c1);
+    const double _t24 = _c1*_s1;
+    const double _t25 = (_s1*_s1);
+    const double _t27 = _t21*_t22 - _t22*_t25 + _t23*_t24 - _t24*_t26;
+    const double _t28 = _t19*_t3 + _t20*_t3 + _t27;
+    const double _t31 = _c0*_s0*_t12 + _c3*a2*d4 + _s3*a2*a3 + _t27;
+    const double _t32 = _t18*(_t28*_t28) + _t18*(_t31*_t31);
+    const double _t33 = (1e-06)*_t17;
+    const double _t35 = _c4*_t3;
+    const double _t36 = _t35*_t6;
+    const double _t37 = _t35*_t8;
+    const double _t38 = _t21*_t23;
+    const double _t39 = _t25*_t26;
+    const double _t41 = _s4*d3;
+    const double _t42 = _c4*_t6;
+    const double _t43 = _c4*_t38 + _c4*_t39 + _t41*_t6 - _t41*_t8 - 2*_t42*_t8;
+    const double _t44 = _t36 - _t37 + _t43;
+    const double _t45 = (_c0*_c0)*_t12;
+    const double _t46 = _c4*_t45 + _t3*_t41 + 2*_t36 - 2*_t37 + _t43;
+    const double _t47 = (_s4*_s4);
+    const double _t48 = _t14*_t18;
+    const double _t49 = _t18*(_t44*_t44) + _t18*(_t46*_t46) + _t47*_t48;
+    const double _t50 = _s4*_t3;
+    const double _t51 = _t50*_t6;
+    const double _t52 = -_c1*_c4*a3*d3 - 2*_c1*_s1*_s4*a3*d4 + _c4*_t8*d3 + _s4*_t38 + _s4*_t39;
+    const double _t53 = _c0*_s1*_s4*a2*d4 - _t51 - _t52;
+    const double _t54 = -_c0*_c4*a2*d3 - 2*_c0*_s1*_s4*a2*d4 + _s4*_t45 + 2*_t51 + _t52;
+    const double _t55 = -_t54;
+    const double _t56 = (_c4*_c4);
+    const double _t57 = _t18*(_t53*_t53) + _t18*(_t55*_t55) + _t48*_t56;
+    const double _t59 = _t11*_t58 + _t58*(_t9*_t9);
+    const double _t60 = (1e-12)*(_t17*_t17);
+    const double _t61 = _c4*d3 + _s1*_s4*d4 - _s4*_t6 - _t50;
+    const double _t62 = _t19 + _t20;
+    const double _t63 = (_t62*_t62);
+    const double _t64 = _t56*_t58;
+    const double _t65 = _s0*a2 + _t62;
+    const double _t66 = (_t65*_t65);
+    const double _t67 = _t58*(_t61*_t61) + _t63*_t64 + _t64*_t66;
+    const double _t68 = -_c4*_t8 + _t35 + _t41 + _t42;
+    const double _t69 = _t47*_t58;
+    const double _t70 = _t58*(_t68*_t68) + _t63*_t69 + _t66*_t69;
+    const double _t71 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t32*_t33 + _t33*_t49 + _t33*_t57 + _t59*_t60 + _t60*_t67 + _t60*_t70);
+    const double _t73 = _c4*_s4;
+    const double _t74 = _t58*_t73;
+    const double _t75 = _t18*_t53;
+    const double _t76 = _t18*_t55;
+    const double _t77 = -_t33*(_t58*_t61*_t68 + _t63*_t74 + _t66*_t74) - _t44*_t75 - _t46*_t76 - _t48*_t73;
+    const double _t78 = _t72*twist_vx;
+    const double _t79 = _t33*_t59;
+    const double _t80 = _t33*_t67 + _t60;
+    const double _t81 = _t72*twist_vy;
+    const double _t82 = _s4*_t58;
+    const double _t83 = _t62*_t9;
+    const double _t84 = _t10*_t65;
+    const double _t85 = -_t28*_t75 - _t31*_t76 - _t33*(-_t82*_t83 - _t82*_t84);
+    const double _t86 = _t72*twist_vz;
+    const double _t87 = _t72*(_t77*_t78 + _t81*(_t57 + _t79 + _t80) + _t85*_t86);
+    const double _t88 = _t33*_t70;
+    const double _t89 = _c4*_t58;
+    const double _t90 = _t18*_t28*_t44 + _t18*_t31*_t46 - _t33*(-_t83*_t89 - _t84*_t89);
+    const double _t91 = _t72*(_t77*_t81 + _t78*(_t49 + _t60 + _t79 + _t88) + _t86*_t90);
     const int _t92 = _t16 < 1e-08;
     const double _t93 = _t13*a2;
     const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-08)*_t1);
     const double _t95 = ((_t92) ? (
-   _t71*(_t35*_t91 + _t40*_t87)
+   _t71*(_t61*_t91 + _t68*_t87)
 )
 : (
-   -_t94*(-_c3*_t93*twist_vy + _s3*_t93*twist_vx)
+   -_t94*(-_c4*_t93*twist_vy + _s4*_t93*twist_vx)
 ));
-    const double _t96 = _t76*_t80 + _t77*(_t53 + _t78 + _t90) + _t86*_t89;
-    const double _t97 = _c3*_t87;
-    const double _t98 = _s3*_t91;
+    const double _t96 = _t78*_t90 + _t81*_t85 + _t86*(_t32 + _t80 + _t88);
+    const double _t97 = _s4*_t87;
+    const double _t98 = _c4*_t91;
     const double _t99 = ((_t92) ? (
-   _t71*(_t10*_t72*_t96 - _t29*_t97 - _t29*_t98)
+   _t71*(_t10*_t72*_t96 - _t65*_t97 - _t65*_t98)
 )
 : (
-   -_t94*(-_t50*twist_vz - _t61*twist_vx + _t67*twist_vy)
+   -_t94*(-_t28*twist_vz - _t44*twist_vx + _t53*twist_vy)
 ));
     const double _t100 = ((_t92) ? (
-   _t71*(-_t23*_t97 - _t23*_t98 + _t72*_t9*_t96)
+   _t71*(-_t62*_t97 - _t62*_t98 + _t72*_t9*_t96)
 )
 : (
-   -_t94*(_t52*twist_vz + _t63*twist_vx + _t68*twist_vy)
+   -_t94*(_t31*twist_vz + _t46*twist_vx + _t54*twist_vy)
 ));
     const double _t102 = (_s5*_s5);
     const double _t103 = kinegen_max(0, 1 - 100000000*_t102);
-    const double _t105 = (_s6*_s6)*_t47;
-    const double _t108 = _s1*_s5;
-    const double _t109 = _c1*_c5 - _c6*_t108;
-    const double _t110 = _t105 + (_t109*_t109) + _t43;
-    const double _t111 = (1e-12)*(_t103*_t103);
-    const double _t112 = _c1*_s5;
-    const double _t113 = _c5*_s1;
-    const double _t114 = -_c6*_t113 - _t112;
-    const double _t115 = (_c6*_c6)*_t47 + _t102*_t105 + (_t114*_t114);
-    const double _t116 = (1e-06)*_t103;
-    const double _t117 = _c6*_s3;
-    const double _t118 = _c3*_s6;
-    const double _t119 = _c1*_t118 + _t117;
-    const double _t120 = (_t119*_t119);
-    const double _t121 = _c3*_c6;
-    const double _t122 = -_c3*_t113 + _s3*_s5*_s6 - _t112*_t121;
-    const double _t123 = _t120 + (_t122*_t122) + _t37*_t47;
-    const double _t124 = _s3*_s6;
-    const double _t125 = _c1*_t124 - _c3*_c6;
-    const double _t126 = -_s3*_t113 - _s5*_t118 - _t112*_t117;
-    const double _t127 = (_t125*_t125) + (_t126*_t126) + _t26*_t47;
-    const double _t128 = _c1*_c3*_c6 - _t124;
-    const double _t129 = _c1*_c5;
-    const double _t130 = _c3*_t108 + _c5*_t124 - _t121*_t129;
-    const double _t131 = _t102*_t120 + (_t128*_t128) + (_t130*_t130);
-    const double _t132 = _c1*_t117 + _t118;
-    const double _t133 = -_t132;
-    const double _t134 = -_t125;
-    const double _t135 = _c5*_t118 - _s3*_t108 + _t117*_t129;
-    const double _t136 = _t102*(_t134*_t134) + (_t133*_t133) + (_t135*_t135);
-    const double _t137 = 1.0/(_t102 + (1e-18)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t123 + _t111*_t127 + _t115*_t116 + _t116*_t131 + _t116*_t136);
-    const double _t138 = _t116*_t123;
-    const double _t139 = _t111 + _t116*_t127;
-    const double _t140 = -_t95 + twist_wz;
-    const double _t141 = _c6*_s1;
+    const double _t105 = _c4*_s6;
+    const double _t107 = _c6*_s4;
+    const double _t108 = _c1*_t107 + _t105;
+    const double _t109 = -_t108;
+    const double _t111 = _s1*_s5;
+    const double _t112 = _c1*_c5;
+    const double _t113 = _c5*_t105 - _s4*_t111 + _t107*_t112;
+    const double _t114 = _s4*_s6;
+    const double _t115 = _c1*_t114 - _c4*_c6;
+    const double _t116 = -_t115;
+    const double _t117 = _t102*(_t116*_t116) + (_t109*_t109) + (_t113*_t113);
+    const double _t118 = (1e-06)*_t103;
+    const double _t119 = _c1*_s5;
+    const double _t120 = _c5*_s1;
+    const double _t121 = -_c6*_t120 - _t119;
+    const double _t122 = (_s6*_s6)*_t25;
+    const double _t123 = (_c6*_c6)*_t25 + _t102*_t122 + (_t121*_t121);
+    const double _t124 = _c1*_c4*_c6 - _t114;
+    const double _t125 = _c4*_c6;
+    const double _t126 = _c4*_t111 + _c5*_t114 - _t112*_t125;
+    const double _t127 = _c1*_t105 + _t107;
+    const double _t128 = (_t127*_t127);
+    const double _t129 = _t102*_t128 + (_t124*_t124) + (_t126*_t126);
+    const double _t130 = -_c4*_t120 + _s4*_s5*_s6 - _t119*_t125;
+    const double _t131 = _t128 + (_t130*_t130) + _t25*_t56;
+    const double _t132 = (1e-12)*(_t103*_t103);
+    const double _t133 = _c1*_c5 - _c6*_t111;
+    const double _t134 = _t122 + (_t133*_t133) + _t21;
+    const double _t135 = -_s4*_t120 - _s5*_t105 - _t107*_t119;
+    const double _t136 = (_t115*_t115) + (_t135*_t135) + _t25*_t47;
+    const double _t137 = 1.0/(_t102 + (1e-18)*(_t103*_t103*_t103) + _t117*_t118 + _t118*_t123 + _t118*_t129 + _t131*_t132 + _t132*_t134 + _t132*_t136);
+    const double _t138 = -_t95 + twist_wz;
+    const double _t139 = _t118*_t131;
+    const double _t140 = _t118*_t136 + _t132;
+    const double _t141 = -_s4*_t100 - _s4*_t99 + twist_wx;
     const double _t142 = _s1*_s6;
-    const double _t143 = _t119*_t142;
-    const double _t144 = _t102*_t143 + _t114*_t130 - _t116*(-_c3*_t46 + _t109*_t122 + _t143) + _t128*_t141;
-    const double _t145 = -_s3*_t100 - _s3*_t99 + twist_wx;
-    const double _t146 = _t102*_t134;
-    const double _t147 = -_t114*_t135 - _t116*(-_s3*_t46 + _t109*_t126 + _t125*_t142) - _t133*_t141 - _t142*_t146;
-    const double _t148 = _c3*_t100 + _c3*_t99 + twist_wy;
-    const double _t149 = _t140*(_t115 + _t138 + _t139) + _t144*_t145 + _t147*_t148;
-    const double _t150 = _t110*_t116;
-    const double _t151 = -_t116*(_t119*_t125 + _t122*_t126 + _t47*_t81) - _t119*_t146 - _t128*_t133 - _t130*_t135;
-    const double _t152 = _t140*_t144 + _t145*(_t131 + _t139 + _t150) + _t148*_t151;
-    const double _t153 = _t140*_t147 + _t145*_t151 + _t148*(_t111 + _t136 + _t138 + _t150);
+    const double _t143 = _t127*_t142;
+    const double _t144 = _c6*_s1;
+    const double _t145 = _t102*_t143 - _t118*(-_c4*_t24 + _t130*_t133 + _t143) + _t121*_t126 + _t124*_t144;
+    const double _t146 = _c4*_t100 + _c4*_t99 + twist_wy;
+    const double _t147 = _t102*_t116;
+    const double _t148 = -_t109*_t144 - _t113*_t121 - _t118*(-_s4*_t24 + _t115*_t142 + _t133*_t135) - _t142*_t147;
+    const double _t149 = _t138*(_t123 + _t139 + _t140) + _t141*_t145 + _t146*_t148;
+    const double _t150 = _t118*_t134;
+    const double _t151 = -_t109*_t124 - _t113*_t126 - _t118*(_t115*_t127 + _t130*_t135 + _t25*_t73) - _t127*_t147;
+    const double _t152 = _t138*_t145 + _t141*(_t129 + _t140 + _t150) + _t146*_t151;
+    const double _t153 = _t138*_t148 + _t141*_t151 + _t146*(_t117 + _t132 + _t139 + _t150);
     const int _t154 = _t102 < 1e-08;
     const double _t155 = _s5/kinegen_max(1e-08, _t102);
     qd[0] = _t95;
     qd[1] = _t99;
     qd[2] = _t100;
     qd[3] = ((_t154) ? (
-   _t137*(_c1*_t149 - _c3*_s1*_t152 - _s1*_s3*_t153)
+   _t137*(_c1*_t149 - _c4*_s1*_t152 - _s1*_s4*_t153)
 )
 : (
-   -_t155*(_t114*_t140 + _t130*_t145 - _t135*_t148)
+   -_t155*(-_t113*_t146 + _t121*_t138 + _t126*_t141)
 ));
     qd[4] = ((_t154) ? (
-   _t137*(_t119*_t152 + _t125*_t153 + _t142*_t149)
+   _t137*(_t115*_t153 + _t127*_t152 + _t142*_t149)
 )
 : (
-   -_t155*(-_s5*_t119*_t145 + _s5*_t134*_t148 - _s6*_t108*_t140)
+   -_t155*(_s5*_t116*_t146 - _s5*_t127*_t141 - _s6*_t111*_t138)
 ));
     qd[5] = ((_t154) ? (
-   _t137*(_t109*_t149 + _t122*_t152 + _t126*_t153)
+   _t137*(_t130*_t152 + _t133*_t149 + _t135*_t153)
 )
 : (
-   -_t155*(_t128*_t145 + _t132*_t148 + _t140*_t141)
+   -_t155*(_t108*_t146 + _t124*_t141 + _t138*_t144)
 ));
     singular[0] = _t154 || _t92;
 }
@@ -8410,7 +8410,7 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
     double twist_wy[KINEGEN_BLOCK_OF(64)];
     double twist_wz[KINEGEN_BLOCK_OF(64)];
     double _t4[KINEGEN_BLOCK_OF(64)];
-    double _t51[KINEGEN_BLOCK_OF(64)];
+    double _t29[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
@@ -8442,11 +8442,11 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
     const double _t0 = fabs(a2) + fabs(a3) + fabs(d1) + fabs(d3) + fabs(d4);
     const double _t1 = (_t0*_t0*_t0*_t0*_t0*_t0);
     const double _t12 = (a2*a2);
-    const double _t18 = 1.0/(_t0*_t0);
-    const double _t42 = 1.0/(_t0*_t0*_t0*_t0);
-    const double _t44 = a3*d4;
-    const double _t45 = (a3*a3);
-    const double _t48 = (d4*d4);
+    const double _t18 = 1.0/(_t0*_t0*_t0*_t0);
+    const double _t22 = a3*d4;
+    const double _t23 = (a3*a3);
+    const double _t26 = (d4*d4);
+    const double _t58 = 1.0/(_t0*_t0);
     const double _t72 = 1.0/_t0;
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
@@ -8466,7 +8466,7 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             _t4[i] = q2[i] + q3[i];
-            _t51[i] = 2*q2[i] + q3[i];
+            _t29[i] = 2*q2[i] + q3[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -8494,19 +8494,19 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s3[i] = sin(q1[i]);
+            _s3[i] = sin(_t29[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c3[i] = cos(q1[i]);
+            _c3[i] = cos(_t29[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s4[i] = sin(_t51[i]);
+            _s4[i] = sin(q1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c4[i] = cos(_t51[i]);
+            _c4[i] = cos(q1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -8539,165 +8539,165 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
                 const double _t15 = _t11*_t14;
                 const double _t16 = _t15/_t1;
                 const double _t17 = kinegen_max(0, 1 - 100000000*_t16);
-                const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
-                const double _t20 = (1e-12)*(_t17*_t17);
-                const double _t21 = _s1[i]*a3;
-                const double _t22 = _c1[i]*d4;
-                const double _t23 = _t21 + _t22;
-                const double _t24 = (_t23*_t23);
-                const double _t26 = (_s3[i]*_s3[i]);
-                const double _t27 = _t18*_t26;
-                const double _t29 = _s0[i]*a2 + _t23;
-                const double _t30 = (_t29*_t29);
-                const double _t31 = _s3[i]*d3;
-                const double _t33 = _c3[i]*_t3;
-                const double _t34 = _c3[i]*_t6;
-                const double _t35 = -_c3[i]*_t8 + _t31 + _t33 + _t34;
-                const double _t36 = _t18*(_t35*_t35) + _t24*_t27 + _t27*_t30;
-                const double _t37 = (_c3[i]*_c3[i]);
-                const double _t38 = _t18*_t37;
-                const double _t39 = _s3[i]*_t3;
-                const double _t40 = _c3[i]*d3 + _s1[i]*_s3[i]*d4 - _s3[i]*_t6 - _t39;
-                const double _t41 = _t18*(_t40*_t40) + _t24*_t38 + _t30*_t38;
-                const double _t43 = (_c1[i]*_c1[i]);
-                const double _t46 = _c1[i]*_s1[i];
-                const double _t47 = (_s1[i]*_s1[i]);
-                const double _t49 = _t43*_t44 - _t44*_t47 + _t45*_t46 - _t46*_t48;
-                const double _t50 = _t21*_t3 + _t22*_t3 + _t49;
-                const double _t52 = _c0[i]*_s0[i]*_t12 + _c4[i]*a2*d4 + _s4[i]*a2*a3 + _t49;
-                const double _t53 = _t42*(_t50*_t50) + _t42*(_t52*_t52);
-                const double _t54 = (1e-06)*_t17;
-                const double _t55 = _t14*_t42;
-                const double _t56 = _t33*_t6;
-                const double _t57 = _t33*_t8;
-                const double _t58 = _t43*_t45;
-                const double _t59 = _t47*_t48;
-                const double _t60 = _c3[i]*_t58 + _c3[i]*_t59 + _t31*_t6 - _t31*_t8 - 2*_t34*_t8;
-                const double _t61 = _t56 - _t57 + _t60;
-                const double _t62 = (_c0[i]*_c0[i])*_t12;
-                const double _t63 = _c3[i]*_t62 + _t3*_t31 + 2*_t56 - 2*_t57 + _t60;
-                const double _t64 = _t26*_t55 + _t42*(_t61*_t61) + _t42*(_t63*_t63);
-                const double _t65 = _t39*_t6;
-                const double _t66 = -_c1[i]*_c3[i]*a3*d3 - 2*_c1[i]*_s1[i]*_s3[i]*a3*d4 + _c3[i]*_t8*d3 + _s3[i]*_t58 + _s3[i]*_t59;
-                const double _t67 = _c0[i]*_s1[i]*_s3[i]*a2*d4 - _t65 - _t66;
-                const double _t68 = -_c0[i]*_c3[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s3[i]*a2*d4 + _s3[i]*_t62 + 2*_t65 + _t66;
-                const double _t69 = -_t68;
-                const double _t70 = _t37*_t55 + _t42*(_t67*_t67) + _t42*(_t69*_t69);
-                const double _t71 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
-                const double _t73 = _t23*_t9;
-                const double _t74 = _c3[i]*_t18;
-                const double _t75 = _t10*_t29;
-                const double _t76 = _t42*_t50*_t61 + _t42*_t52*_t63 - _t54*(-_t73*_t74 - _t74*_t75);
-                const double _t77 = _t72*twist_vz[i];
-                const double _t78 = _t36*_t54;
-                const double _t79 = _t19*_t54;
-                const double _t80 = _t72*twist_vx[i];
-                const double _t81 = _c3[i]*_s3[i];
-                const double _t82 = _t42*_t67;
-                const double _t83 = _t18*_t81;
-                const double _t84 = _t42*_t69;
-                const double _t85 = -_t54*(_t18*_t35*_t40 + _t24*_t83 + _t30*_t83) - _t55*_t81 - _t61*_t82 - _t63*_t84;
-                const double _t86 = _t72*twist_vy[i];
-                const double _t87 = _t72*(_t76*_t77 + _t80*(_t20 + _t64 + _t78 + _t79) + _t85*_t86);
-                const double _t88 = _s3[i]*_t18;
-                const double _t89 = -_t50*_t82 - _t52*_t84 - _t54*(-_t73*_t88 - _t75*_t88);
-                const double _t90 = _t20 + _t41*_t54;
-                const double _t91 = _t72*(_t77*_t89 + _t80*_t85 + _t86*(_t70 + _t79 + _t90));
+                const double _t19 = _s1[i]*a3;
+                const double _t20 = _c1[i]*d4;
+                const double _t21 = (_c1[i]*_c1[i]);
+                const double _t24 = _c1[i]*_s1[i];
+                const double _t25 = (_s1[i]*_s1[i]);
+                const double _t27 = _t21*_t22 - _t22*_t25 + _t23*_t24 - _t24*_t26;
+                const double _t28 = _t19*_t3 + _t20*_t3 + _t27;
+                const double _t31 = _c0[i]*_s0[i]*_t12 + _c3[i]*a2*d4 + _s3[i]*a2*a3 + _t27;
+                const double _t32 = _t18*(_t28*_t28) + _t18*(_t31*_t31);
+                const double _t33 = (1e-06)*_t17;
+                const double _t35 = _c4[i]*_t3;
+                const double _t36 = _t35*_t6;
+                const double _t37 = _t35*_t8;
+                const double _t38 = _t21*_t23;
+                const double _t39 = _t25*_t26;
+                const double _t41 = _s4[i]*d3;
+                const double _t42 = _c4[i]*_t6;
+                const double _t43 = _c4[i]*_t38 + _c4[i]*_t39 + _t41*_t6 - _t41*_t8 - 2*_t42*_t8;
+                const double _t44 = _t36 - _t37 + _t43;
+                const double _t45 = (_c0[i]*_c0[i])*_t12;
+                const double _t46 = _c4[i]*_t45 + _t3*_t41 + 2*_t36 - 2*_t37 + _t43;
+                const double _t47 = (_s4[i]*_s4[i]);
+                const double _t48 = _t14*_t18;
+                const double _t49 = _t18*(_t44*_t44) + _t18*(_t46*_t46) + _t47*_t48;
+                const double _t50 = _s4[i]*_t3;
+                const double _t51 = _t50*_t6;
+                const double _t52 = -_c1[i]*_c4[i]*a3*d3 - 2*_c1[i]*_s1[i]*_s4[i]*a3*d4 + _c4[i]*_t8*d3 + _s4[i]*_t38 + _s4[i]*_t39;
+                const double _t53 = _c0[i]*_s1[i]*_s4[i]*a2*d4 - _t51 - _t52;
+                const double _t54 = -_c0[i]*_c4[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s4[i]*a2*d4 + _s4[i]*_t45 + 2*_t51 + _t52;
+                const double _t55 = -_t54;
+                const double _t56 = (_c4[i]*_c4[i]);
+                const double _t57 = _t18*(_t53*_t53) + _t18*(_t55*_t55) + _t48*_t56;
+                const double _t59 = _t11*_t58 + _t58*(_t9*_t9);
+                const double _t60 = (1e-12)*(_t17*_t17);
+                const double _t61 = _c4[i]*d3 + _s1[i]*_s4[i]*d4 - _s4[i]*_t6 - _t50;
+                const double _t62 = _t19 + _t20;
+                const double _t63 = (_t62*_t62);
+                const double _t64 = _t56*_t58;
+                const double _t65 = _s0[i]*a2 + _t62;
+                const double _t66 = (_t65*_t65);
+                const double _t67 = _t58*(_t61*_t61) + _t63*_t64 + _t64*_t66;
+                const double _t68 = -_c4[i]*_t8 + _t35 + _t41 + _t42;
+                const double _t69 = _t47*_t58;
+                const double _t70 = _t58*(_t68*_t68) + _t63*_t69 + _t66*_t69;
+                const double _t71 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t32*_t33 + _t33*_t49 + _t33*_t57 + _t59*_t60 + _t60*_t67 + _t60*_t70);
+                const double _t73 = _c4[i]*_s4[i];
+                const double _t74 = _t58*_t73;
+                const double _t75 = _t18*_t53;
+                const double _t76 = _t18*_t55;
+                const double _t77 = -_t33*(_t58*_t61*_t68 + _t63*_t74 + _t66*_t74) - _t44*_t75 - _t46*_t76 - _t48*_t73;
+                const double _t78 = _t72*twist_vx[i];
+                const double _t79 = _t33*_t59;
+                const double _t80 = _t33*_t67 + _t60;
+                const double _t81 = _t72*twist_vy[i];
+                const double _t82 = _s4[i]*_t58;
+                const double _t83 = _t62*_t9;
+                const double _t84 = _t10*_t65;
+                const double _t85 = -_t28*_t75 - _t31*_t76 - _t33*(-_t82*_t83 - _t82*_t84);
+                const double _t86 = _t72*twist_vz[i];
+                const double _t87 = _t72*(_t77*_t78 + _t81*(_t57 + _t79 + _t80) + _t85*_t86);
+                const double _t88 = _t33*_t70;
+                const double _t89 = _c4[i]*_t58;
+                const double _t90 = _t18*_t28*_t44 + _t18*_t31*_t46 - _t33*(-_t83*_t89 - _t84*_t89);
+                const double _t91 = _t72*(_t77*_t81 + _t78*(_t49 + _t60 + _t79 + _t88) + _t86*_t90);
                 const int _t92 = _t16 < 1e-08;
                 const double _t93 = _t13*a2;
                 const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-08)*_t1);
                 const double _t95 = ((_t92) ? (
-   _t71*(_t35*_t91 + _t40*_t87)
+   _t71*(_t61*_t91 + _t68*_t87)
 )
 : (
-   -_t94*(-_c3[i]*_t93*twist_vy[i] + _s3[i]*_t93*twist_vx[i])
+   -_t94*(-_c4[i]*_t93*twist_vy[i] + _s4[i]*_t93*twist_vx[i])
 ));
-                const double _t96 = _t76*_t80 + _t77*(_t53 + _t78 + _t90) + _t86*_t89;
-                const double _t97 = _c3[i]*_t87;
-                const double _t98 = _s3[i]*_t91;
+                const double _t96 = _t78*_t90 + _t81*_t85 + _t86*(_t32 + _t80 + _t88);
+                const double _t97 = _s4[i]*_t87;
+                const double _t98 = _c4[i]*_t91;
                 const double _t99 = ((_t92) ? (
-   _t71*(_t10*_t72*_t96 - _t29*_t97 - _t29*_t98)
+   _t71*(_t10*_t72*_t96 - _t65*_t97 - _t65*_t98)
 )
 : (
-   -_t94*(-_t50*twist_vz[i] - _t61*twist_vx[i] + _t67*twist_vy[i])
+   -_t94*(-_t28*twist_vz[i] - _t44*twist_vx[i] + _t53*twist_vy[i])
 ));
                 const double _t100 = ((_t92) ? (
-   _t71*(-_t23*_t97 - _t23*_t98 + _t72*_t9*_t96)
+   _t71*(-_t62*_t97 - _t62*_t98 + _t72*_t9*_t96)
 )
 : (
-   -_t94*(_t52*twist_vz[i] + _t63*twist_vx[i] + _t68*twist_vy[i])
+   -_t94*(_t31*twist_vz[i] + _t46*twist_vx[i] + _t54*twist_vy[i])
 ));
                 const double _t102 = (_s5[i]*_s5[i]);
                 const double _t103 = kinegen_max(0, 1 - 100000000*_t102);
-                const double _t105 = (_s6[i]*_s6[i])*_t47;
-                const double _t108 = _s1[i]*_s5[i];
-                const double _t109 = _c1[i]*_c5[i] - _c6[i]*_t108;
-                const double _t110 = _t105 + (_t109*_t109) + _t43;
-                const double _t111 = (1e-12)*(_t103*_t103);
-                const double _t112 = _c1[i]*_s5[i];
-                const double _t113 = _c5[i]*_s1[i];
-                const double _t114 = -_c6[i]*_t113 - _t112;
-                const double _t115 = (_c6[i]*_c6[i])*_t47 + _t102*_t105 + (_t114*_t114);
-                const double _t116 = (1e-06)*_t103;
-                const double _t117 = _c6[i]*_s3[i];
-                const double _t118 = _c3[i]*_s6[i];
-                const double _t119 = _c1[i]*_t118 + _t117;
-                const double _t120 = (_t119*_t119);
-                const double _t121 = _c3[i]*_c6[i];
-                const double _t122 = -_c3[i]*_t113 + _s3[i]*_s5[i]*_s6[i] - _t112*_t121;
-                const double _t123 = _t120 + (_t122*_t122) + _t37*_t47;
-                const double _t124 = _s3[i]*_s6[i];
-                const double _t125 = _c1[i]*_t124 - _c3[i]*_c6[i];
-                const double _t126 = -_s3[i]*_t113 - _s5[i]*_t118 - _t112*_t117;
-                const double _t127 = (_t125*_t125) + (_t126*_t126) + _t26*_t47;
-                const double _t128 = _c1[i]*_c3[i]*_c6[i] - _t124;
-                const double _t129 = _c1[i]*_c5[i];
-                const double _t130 = _c3[i]*_t108 + _c5[i]*_t124 - _t121*_t129;
-                const double _t131 = _t102*_t120 + (_t128*_t128) + (_t130*_t130);
-                const double _t132 = _c1[i]*_t117 + _t118;
-                const double _t133 = -_t132;
-                const double _t134 = -_t125;
-                const double _t135 = _c5[i]*_t118 - _s3[i]*_t108 + _t117*_t129;
-                const double _t136 = _t102*(_t134*_t134) + (_t133*_t133) + (_t135*_t135);
-                const double _t137 = 1.0/(_t102 + (1e-18)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t123 + _t111*_t127 + _t115*_t116 + _t116*_t131 + _t116*_t136);
-                const double _t138 = _t116*_t123;
-                const double _t139 = _t111 + _t116*_t127;
-                const double _t140 = -_t95 + twist_wz[i];
-                const double _t141 = _c6[i]*_s1[i];
+                const double _t105 = _c4[i]*_s6[i];
+                const double _t107 = _c6[i]*_s4[i];
+                const double _t108 = _c1[i]*_t107 + _t105;
+                const double _t109 = -_t108;
+                const double _t111 = _s1[i]*_s5[i];
+                const double _t112 = _c1[i]*_c5[i];
+                const double _t113 = _c5[i]*_t105 - _s4[i]*_t111 + _t107*_t112;
+                const double _t114 = _s4[i]*_s6[i];
+                const double _t115 = _c1[i]*_t114 - _c4[i]*_c6[i];
+                const double _t116 = -_t115;
+                const double _t117 = _t102*(_t116*_t116) + (_t109*_t109) + (_t113*_t113);
+                const double _t118 = (1e-06)*_t103;
+                const double _t119 = _c1[i]*_s5[i];
+                const double _t120 = _c5[i]*_s1[i];
+                const double _t121 = -_c6[i]*_t120 - _t119;
+                const double _t122 = (_s6[i]*_s6[i])*_t25;
+                const double _t123 = (_c6[i]*_c6[i])*_t25 + _t102*_t122 + (_t121*_t121);
+                const double _t124 = _c1[i]*_c4[i]*_c6[i] - _t114;
+                const double _t125 = _c4[i]*_c6[i];
+                const double _t126 = _c4[i]*_t111 + _c5[i]*_t114 - _t112*_t125;
+                const double _t127 = _c1[i]*_t105 + _t107;
+                const double _t128 = (_t127*_t127);
+                const double _t129 = _t102*_t128 + (_t124*_t124) + (_t126*_t126);
+                const double _t130 = -_c4[i]*_t120 + _s4[i]*_s5[i]*_s6[i] - _t119*_t125;
+                const double _t131 = _t128 + (_t130*_t130) + _t25*_t56;
+                const double _t132 = (1e-12)*(_t103*_t103);
+                const double _t133 = _c1[i]*_c5[i] - _c6[i]*_t111;
+                const double _t134 = _t122 + (_t133*_t133) + _t21;
+                const double _t135 = -_s4[i]*_t120 - _s5[i]*_t105 - _t107*_t119;
+                const double _t136 = (_t115*_t115) + (_t135*_t135) + _t25*_t47;
+                const double _t137 = 1.0/(_t102 + (1e-18)*(_t103*_t103*_t103) + _t117*_t118 + _t118*_t123 + _t118*_t129 + _t131*_t132 + _t132*_t134 + _t132*_t136);
+                const double _t138 = -_t95 + twist_wz[i];
+                const double _t139 = _t118*_t131;
+                const double _t140 = _t118*_t136 + _t132;
+                const double _t141 = -_s4[i]*_t100 - _s4[i]*_t99 + twist_wx[i];
                 const double _t142 = _s1[i]*_s6[i];
-                const double _t143 = _t119*_t142;
-                const double _t144 = _t102*_t143 + _t114*_t130 - _t116*(-_c3[i]*_t46 + _t109*_t122 + _t143) + _t128*_t141;
-                const double _t145 = -_s3[i]*_t100 - _s3[i]*_t99 + twist_wx[i];
-                const double _t146 = _t102*_t134;
-                const double _t147 = -_t114*_t135 - _t116*(-_s3[i]*_t46 + _t109*_t126 + _t125*_t142) - _t133*_t141 - _t142*_t146;
-                const double _t148 = _c3[i]*_t100 + _c3[i]*_t99 + twist_wy[i];
-                const double _t149 = _t140*(_t115 + _t138 + _t139) + _t144*_t145 + _t147*_t148;
-                const double _t150 = _t110*_t116;
-                const double _t151 = -_t116*(_t119*_t125 + _t122*_t126 + _t47*_t81) - _t119*_t146 - _t128*_t133 - _t130*_t135;
-                const double _t152 = _t140*_t144 + _t145*(_t131 + _t139 + _t150) + _t148*_t151;
-                const double _t153 = _t140*_t147 + _t145*_t151 + _t148*(_t111 + _t136 + _t138 + _t150);
+                const double _t143 = _t127*_t142;
+                const double _t144 = _c6[i]*_s1[i];
+                const double _t145 = _t102*_t143 - _t118*(-_c4[i]*_t24 + _t130*_t133 + _t143) + _t121*_t126 + _t124*_t144;
+                const double _t146 = _c4[i]*_t100 + _c4[i]*_t99 + twist_wy[i];
+                const double _t147 = _t102*_t116;
+                const double _t148 = -_t109*_t144 - _t113*_t121 - _t118*(-_s4[i]*_t24 + _t115*_t142 + _t133*_t135) - _t142*_t147;
+                const double _t149 = _t138*(_t123 + _t139 + _t140) + _t141*_t145 + _t146*_t148;
+                const double _t150 = _t118*_t134;
+                const double _t151 = -_t109*_t124 - _t113*_t126 - _t118*(_t115*_t127 + _t130*_t135 + _t25*_t73) - _t127*_t147;
+                const double _t152 = _t138*_t145 + _t141*(_t129 + _t140 + _t150) + _t146*_t151;
+                const double _t153 = _t138*_t148 + _t141*_t151 + _t146*(_t117 + _t132 + _t139 + _t150);
                 const int _t154 = _t102 < 1e-08;
                 const double _t155 = _s5[i]/kinegen_max(1e-08, _t102);
                 _qd_block[0][i] = _t95;
                 _qd_block[1][i] = _t99;
                 _qd_block[2][i] = _t100;
                 _qd_block[3][i] = ((_t154) ? (
-   _t137*(_c1[i]*_t149 - _c3[i]*_s1[i]*_t152 - _s1[i]*_s3[i]*_t153)
+   _t137*(_c1[i]*_t149 - _c4[i]*_s1[i]*_t152 - _s1[i]*_s4[i]*_t153)
 )
 : (
-   -_t155*(_t114*_t140 + _t130*_t145 - _t135*_t148)
+   -_t155*(-_t113*_t146 + _t121*_t138 + _t126*_t141)
 ));
                 _qd_block[4][i] = ((_t154) ? (
-   _t137*(_t119*_t152 + _t125*_t153 + _t142*_t149)
+   _t137*(_t115*_t153 + _t127*_t152 + _t142*_t149)
 )
 : (
-   -_t155*(-_s5[i]*_t119*_t145 + _s5[i]*_t134*_t148 - _s6[i]*_t108*_t140)
+   -_t155*(_s5[i]*_t116*_t146 - _s5[i]*_t127*_t141 - _s6[i]*_t111*_t138)
 ));
                 _qd_block[5][i] = ((_t154) ? (
-   _t137*(_t109*_t149 + _t122*_t152 + _t126*_t153)
+   _t137*(_t130*_t152 + _t133*_t149 + _t135*_t153)
 )
 : (
-   -_t155*(_t128*_t145 + _t132*_t148 + _t140*_t141)
+   -_t155*(_t108*_t146 + _t124*_t141 + _t138*_t144)
 ));
                 singular[1 * (start + i) + 0] = _t154 || _t92;
             }
@@ -8717,165 +8717,165 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
                 const double _t15 = _t11*_t14;
                 const double _t16 = _t15/_t1;
                 const double _t17 = kinegen_max(0, 1 - 100000000*_t16);
-                const double _t19 = _t11*_t18 + _t18*(_t9*_t9);
-                const double _t20 = (1e-12)*(_t17*_t17);
-                const double _t21 = _s1[i]*a3;
-                const double _t22 = _c1[i]*d4;
-                const double _t23 = _t21 + _t22;
-                const double _t24 = (_t23*_t23);
-                const double _t26 = (_s3[i]*_s3[i]);
-                const double _t27 = _t18*_t26;
-                const double _t29 = _s0[i]*a2 + _t23;
-                const double _t30 = (_t29*_t29);
-                const double _t31 = _s3[i]*d3;
-                const double _t33 = _c3[i]*_t3;
-                const double _t34 = _c3[i]*_t6;
-                const double _t35 = -_c3[i]*_t8 + _t31 + _t33 + _t34;
-                const double _t36 = _t18*(_t35*_t35) + _t24*_t27 + _t27*_t30;
-                const double _t37 = (_c3[i]*_c3[i]);
-                const double _t38 = _t18*_t37;
-                const double _t39 = _s3[i]*_t3;
-                const double _t40 = _c3[i]*d3 + _s1[i]*_s3[i]*d4 - _s3[i]*_t6 - _t39;
-                const double _t41 = _t18*(_t40*_t40) + _t24*_t38 + _t30*_t38;
-                const double _t43 = (_c1[i]*_c1[i]);
-                const double _t46 = _c1[i]*_s1[i];
-                const double _t47 = (_s1[i]*_s1[i]);
-                const double _t49 = _t43*_t44 - _t44*_t47 + _t45*_t46 - _t46*_t48;
-                const double _t50 = _t21*_t3 + _t22*_t3 + _t49;
-                const double _t52 = _c0[i]*_s0[i]*_t12 + _c4[i]*a2*d4 + _s4[i]*a2*a3 + _t49;
-                const double _t53 = _t42*(_t50*_t50) + _t42*(_t52*_t52);
-                const double _t54 = (1e-06)*_t17;
-                const double _t55 = _t14*_t42;
-                const double _t56 = _t33*_t6;
-                const double _t57 = _t33*_t8;
-                const double _t58 = _t43*_t45;
-                const double _t59 = _t47*_t48;
-                const double _t60 = _c3[i]*_t58 + _c3[i]*_t59 + _t31*_t6 - _t31*_t8 - 2*_t34*_t8;
-                const double _t61 = _t56 - _t57 + _t60;
-                const double _t62 = (_c0[i]*_c0[i])*_t12;
-                const double _t63 = _c3[i]*_t62 + _t3*_t31 + 2*_t56 - 2*_t57 + _t60;
-                const double _t64 = _t26*_t55 + _t42*(_t61*_t61) + _t42*(_t63*_t63);
-                const double _t65 = _t39*_t6;
-                const double _t66 = -_c1[i]*_c3[i]*a3*d3 - 2*_c1[i]*_s1[i]*_s3[i]*a3*d4 + _c3[i]*_t8*d3 + _s3[i]*_t58 + _s3[i]*_t59;
-                const double _t67 = _c0[i]*_s1[i]*_s3[i]*a2*d4 - _t65 - _t66;
-                const double _t68 = -_c0[i]*_c3[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s3[i]*a2*d4 + _s3[i]*_t62 + 2*_t65 + _t66;
-                const double _t69 = -_t68;
-                const double _t70 = _t37*_t55 + _t42*(_t67*_t67) + _t42*(_t69*_t69);
-                const double _t71 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t19*_t20 + _t20*_t36 + _t20*_t41 + _t53*_t54 + _t54*_t64 + _t54*_t70);
-                const double _t73 = _t23*_t9;
-                const double _t74 = _c3[i]*_t18;
-                const double _t75 = _t10*_t29;
-                const double _t76 = _t42*_t50*_t61 + _t42*_t52*_t63 - _t54*(-_t73*_t74 - _t74*_t75);
-                const double _t77 = _t72*twist_vz[i];
-                const double _t78 = _t36*_t54;
-                const double _t79 = _t19*_t54;
-                const double _t80 = _t72*twist_vx[i];
-                const double _t81 = _c3[i]*_s3[i];
-                const double _t82 = _t42*_t67;
-                const double _t83 = _t18*_t81;
-                const double _t84 = _t42*_t69;
-                const double _t85 = -_t54*(_t18*_t35*_t40 + _t24*_t83 + _t30*_t83) - _t55*_t81 - _t61*_t82 - _t63*_t84;
-                const double _t86 = _t72*twist_vy[i];
-                const double _t87 = _t72*(_t76*_t77 + _t80*(_t20 + _t64 + _t78 + _t79) + _t85*_t86);
-                const double _t88 = _s3[i]*_t18;
-                const double _t89 = -_t50*_t82 - _t52*_t84 - _t54*(-_t73*_t88 - _t75*_t88);
-                const double _t90 = _t20 + _t41*_t54;
-                const double _t91 = _t72*(_t77*_t89 + _t80*_t85 + _t86*(_t70 + _t79 + _t90));
+                const double _t19 = _s1[i]*a3;
+                const double _t20 = _c1[i]*d4;
+                const double _t21 = (_c1[i]*_c1[i]);
+                const double _t24 = _c1[i]*_s1[i];
+                const double _t25 = (_s1[i]*_s1[i]);
+                const double _t27 = _t21*_t22 - _t22*_t25 + _t23*_t24 - _t24*_t26;
+                const double _t28 = _t19*_t3 + _t20*_t3 + _t27;
+                const double _t31 = _c0[i]*_s0[i]*_t12 + _c3[i]*a2*d4 + _s3[i]*a2*a3 + _t27;
+                const double _t32 = _t18*(_t28*_t28) + _t18*(_t31*_t31);
+                const double _t33 = (1e-06)*_t17;
+                const double _t35 = _c4[i]*_t3;
+                const double _t36 = _t35*_t6;
+                const double _t37 = _t35*_t8;
+                const double _t38 = _t21*_t23;
+                const double _t39 = _t25*_t26;
+                const double _t41 = _s4[i]*d3;
+                const double _t42 = _c4[i]*_t6;
+                const double _t43 = _c4[i]*_t38 + _c4[i]*_t39 + _t41*_t6 - _t41*_t8 - 2*_t42*_t8;
+                const double _t44 = _t36 - _t37 + _t43;
+                const double _t45 = (_c0[i]*_c0[i])*_t12;
+                const double _t46 = _c4[i]*_t45 + _t3*_t41 + 2*_t36 - 2*_t37 + _t43;
+                const double _t47 = (_s4[i]*_s4[i]);
+                const double _t48 = _t14*_t18;
+                const double _t49 = _t18*(_t44*_t44) + _t18*(_t46*_t46) + _t47*_t48;
+                const double _t50 = _s4[i]*_t3;
+                const double _t51 = _t50*_t6;
+                const double _t52 = -_c1[i]*_c4[i]*a3*d3 - 2*_c1[i]*_s1[i]*_s4[i]*a3*d4 + _c4[i]*_t8*d3 + _s4[i]*_t38 + _s4[i]*_t39;
+                const double _t53 = _c0[i]*_s1[i]*_s4[i]*a2*d4 - _t51 - _t52;
+                const double _t54 = -_c0[i]*_c4[i]*a2*d3 - 2*_c0[i]*_s1[i]*_s4[i]*a2*d4 + _s4[i]*_t45 + 2*_t51 + _t52;
+                const double _t55 = -_t54;
+                const double _t56 = (_c4[i]*_c4[i]);
+                const double _t57 = _t18*(_t53*_t53) + _t18*(_t55*_t55) + _t48*_t56;
+                const double _t59 = _t11*_t58 + _t58*(_t9*_t9);
+                const double _t60 = (1e-12)*(_t17*_t17);
+                const double _t61 = _c4[i]*d3 + _s1[i]*_s4[i]*d4 - _s4[i]*_t6 - _t50;
+                const double _t62 = _t19 + _t20;
+                const double _t63 = (_t62*_t62);
+                const double _t64 = _t56*_t58;
+                const double _t65 = _s0[i]*a2 + _t62;
+                const double _t66 = (_t65*_t65);
+                const double _t67 = _t58*(_t61*_t61) + _t63*_t64 + _t64*_t66;
+                const double _t68 = -_c4[i]*_t8 + _t35 + _t41 + _t42;
+                const double _t69 = _t47*_t58;
+                const double _t70 = _t58*(_t68*_t68) + _t63*_t69 + _t66*_t69;
+                const double _t71 = 1.0/(_t16 + (1e-18)*(_t17*_t17*_t17) + _t32*_t33 + _t33*_t49 + _t33*_t57 + _t59*_t60 + _t60*_t67 + _t60*_t70);
+                const double _t73 = _c4[i]*_s4[i];
+                const double _t74 = _t58*_t73;
+                const double _t75 = _t18*_t53;
+                const double _t76 = _t18*_t55;
+                const double _t77 = -_t33*(_t58*_t61*_t68 + _t63*_t74 + _t66*_t74) - _t44*_t75 - _t46*_t76 - _t48*_t73;
+                const double _t78 = _t72*twist_vx[i];
+                const double _t79 = _t33*_t59;
+                const double _t80 = _t33*_t67 + _t60;
+                const double _t81 = _t72*twist_vy[i];
+                const double _t82 = _s4[i]*_t58;
+                const double _t83 = _t62*_t9;
+                const double _t84 = _t10*_t65;
+                const double _t85 = -_t28*_t75 - _t31*_t76 - _t33*(-_t82*_t83 - _t82*_t84);
+                const double _t86 = _t72*twist_vz[i];
+                const double _t87 = _t72*(_t77*_t78 + _t81*(_t57 + _t79 + _t80) + _t85*_t86);
+                const double _t88 = _t33*_t70;
+                const double _t89 = _c4[i]*_t58;
+                const double _t90 = _t18*_t28*_t44 + _t18*_t31*_t46 - _t33*(-_t83*_t89 - _t84*_t89);
+                const double _t91 = _t72*(_t77*_t81 + _t78*(_t49 + _t60 + _t79 + _t88) + _t86*_t90);
                 const int _t92 = _t16 < 1e-08;
                 const double _t93 = _t13*a2;
                 const double _t94 = _t10*_t93/kinegen_max(_t15, (1e-08)*_t1);
                 const double _t95 = ((_t92) ? (
-   _t71*(_t35*_t91 + _t40*_t87)
+   _t71*(_t61*_t91 + _t68*_t87)
 )
 : (
-   -_t94*(-_c3[i]*_t93*twist_vy[i] + _s3[i]*_t93*twist_vx[i])
+   -_t94*(-_c4[i]*_t93*twist_vy[i] + _s4[i]*_t93*twist_vx[i])
 ));
-                const double _t96 = _t76*_t80 + _t77*(_t53 + _t78 + _t90) + _t86*_t89;
-                const double _t97 = _c3[i]*_t87;
-                const double _t98 = _s3[i]*_t91;
+                const double _t96 = _t78*_t90 + _t81*_t85 + _t86*(_t32 + _t80 + _t88);
+                const double _t97 = _s4[i]*_t87;
+                const double _t98 = _c4[i]*_t91;
                 const double _t99 = ((_t92) ? (
-   _t71*(_t10*_t72*_t96 - _t29*_t97 - _t29*_t98)
+   _t71*(_t10*_t72*_t96 - _t65*_t97 - _t65*_t98)
 )
 : (
-   -_t94*(-_t50*twist_vz[i] - _t61*twist_vx[i] + _t67*twist_vy[i])
+   -_t94*(-_t28*twist_vz[i] - _t44*twist_vx[i] + _t53*twist_vy[i])
 ));
                 const double _t100 = ((_t92) ? (
-   _t71*(-_t23*_t97 - _t23*_t98 + _t72*_t9*_t96)
+   _t71*(-_t62*_t97 - _t62*_t98 + _t72*_t9*_t96)
 )
 : (
-   -_t94*(_t52*twist_vz[i] + _t63*twist_vx[i] + _t68*twist_vy[i])
+   -_t94*(_t31*twist_vz[i] + _t46*twist_vx[i] + _t54*twist_vy[i])
 ));
                 const double _t102 = (_s5[i]*_s5[i]);
                 const double _t103 = kinegen_max(0, 1 - 100000000*_t102);
-                const double _t105 = (_s6[i]*_s6[i])*_t47;
-                const double _t108 = _s1[i]*_s5[i];
-                const double _t109 = _c1[i]*_c5[i] - _c6[i]*_t108;
-                const double _t110 = _t105 + (_t109*_t109) + _t43;
-                const double _t111 = (1e-12)*(_t103*_t103);
-                const double _t112 = _c1[i]*_s5[i];
-                const double _t113 = _c5[i]*_s1[i];
-                const double _t114 = -_c6[i]*_t113 - _t112;
-                const double _t115 = (_c6[i]*_c6[i])*_t47 + _t102*_t105 + (_t114*_t114);
-                const double _t116 = (1e-06)*_t103;
-                const double _t117 = _c6[i]*_s3[i];
-                const double _t118 = _c3[i]*_s6[i];
-                const double _t119 = _c1[i]*_t118 + _t117;
-                const double _t120 = (_t119*_t119);
-                const double _t121 = _c3[i]*_c6[i];
-                const double _t122 = -_c3[i]*_t113 + _s3[i]*_s5[i]*_s6[i] - _t112*_t121;
-                const double _t123 = _t120 + (_t122*_t122) + _t37*_t47;
-                const double _t124 = _s3[i]*_s6[i];
-                const double _t125 = _c1[i]*_t124 - _c3[i]*_c6[i];
-                const double _t126 = -_s3[i]*_t113 - _s5[i]*_t118 - _t112*_t117;
-                const double _t127 = (_t125*_t125) + (_t126*_t126) + _t26*_t47;
-                const double _t128 = _c1[i]*_c3[i]*_c6[i] - _t124;
-                const double _t129 = _c1[i]*_c5[i];
-                const double _t130 = _c3[i]*_t108 + _c5[i]*_t124 - _t121*_t129;
-                const double _t131 = _t102*_t120 + (_t128*_t128) + (_t130*_t130);
-                const double _t132 = _c1[i]*_t117 + _t118;
-                const double _t133 = -_t132;
-                const double _t134 = -_t125;
-                const double _t135 = _c5[i]*_t118 - _s3[i]*_t108 + _t117*_t129;
-                const double _t136 = _t102*(_t134*_t134) + (_t133*_t133) + (_t135*_t135);
-                const double _t137 = 1.0/(_t102 + (1e-18)*(_t103*_t103*_t103) + _t110*_t111 + _t111*_t123 + _t111*_t127 + _t115*_t116 + _t116*_t131 + _t116*_t136);
-                const double _t138 = _t116*_t123;
-                const double _t139 = _t111 + _t116*_t127;
-                const double _t140 = -_t95 + twist_wz[i];
-                const double _t141 = _c6[i]*_s1[i];
+                const double _t105 = _c4[i]*_s6[i];
+                const double _t107 = _c6[i]*_s4[i];
+                const double _t108 = _c1[i]*_t107 + _t105;
+                const double _t109 = -_t108;
+                const double _t111 = _s1[i]*_s5[i];
+                const double _t112 = _c1[i]*_c5[i];
+                const double _t113 = _c5[i]*_t105 - _s4[i]*_t111 + _t107*_t112;
+                const double _t114 = _s4[i]*_s6[i];
+                const double _t115 = _c1[i]*_t114 - _c4[i]*_c6[i];
+                const double _t116 = -_t115;
+                const double _t117 = _t102*(_t116*_t116) + (_t109*_t109) + (_t113*_t113);
+                const double _t118 = (1e-06)*_t103;
+                const double _t119 = _c1[i]*_s5[i];
+                const double _t120 = _c5[i]*_s1[i];
+                const double _t121 = -_c6[i]*_t120 - _t119;
+                const double _t122 = (_s6[i]*_s6[i])*_t25;
+                const double _t123 = (_c6[i]*_c6[i])*_t25 + _t102*_t122 + (_t121*_t121);
+                const double _t124 = _c1[i]*_c4[i]*_c6[i] - _t114;
+                const double _t125 = _c4[i]*_c6[i];
+                const double _t126 = _c4[i]*_t111 + _c5[i]*_t114 - _t112*_t125;
+                const double _t127 = _c1[i]*_t105 + _t107;
+                const double _t128 = (_t127*_t127);
+                const double _t129 = _t102*_t128 + (_t124*_t124) + (_t126*_t126);
+                const double _t130 = -_c4[i]*_t120 + _s4[i]*_s5[i]*_s6[i] - _t119*_t125;
+                const double _t131 = _t128 + (_t130*_t130) + _t25*_t56;
+                const double _t132 = (1e-12)*(_t103*_t103);
+                const double _t133 = _c1[i]*_c5[i] - _c6[i]*_t111;
+                const double _t134 = _t122 + (_t133*_t133) + _t21;
+                const double _t135 = -_s4[i]*_t120 - _s5[i]*_t105 - _t107*_t119;
+                const double _t136 = (_t115*_t115) + (_t135*_t135) + _t25*_t47;
+                const double _t137 = 1.0/(_t102 + (1e-18)*(_t103*_t103*_t103) + _t117*_t118 + _t118*_t123 + _t118*_t129 + _t131*_t132 + _t132*_t134 + _t132*_t136);
+                const double _t138 = -_t95 + twist_wz[i];
+                const double _t139 = _t118*_t131;
+                const double _t140 = _t118*_t136 + _t132;
+                const double _t141 = -_s4[i]*_t100 - _s4[i]*_t99 + twist_wx[i];
                 const double _t142 = _s1[i]*_s6[i];
-                const double _t143 = _t119*_t142;
-                const double _t144 = _t102*_t143 + _t114*_t130 - _t116*(-_c3[i]*_t46 + _t109*_t122 + _t143) + _t128*_t141;
-                const double _t145 = -_s3[i]*_t100 - _s3[i]*_t99 + twist_wx[i];
-                const double _t146 = _t102*_t134;
-                const double _t147 = -_t114*_t135 - _t116*(-_s3[i]*_t46 + _t109*_t126 + _t125*_t142) - _t133*_t141 - _t142*_t146;
-                const double _t148 = _c3[i]*_t100 + _c3[i]*_t99 + twist_wy[i];
-                const double _t149 = _t140*(_t115 + _t138 + _t139) + _t144*_t145 + _t147*_t148;
-                const double _t150 = _t110*_t116;
-                const double _t151 = -_t116*(_t119*_t125 + _t122*_t126 + _t47*_t81) - _t119*_t146 - _t128*_t133 - _t130*_t135;
-                const double _t152 = _t140*_t144 + _t145*(_t131 + _t139 + _t150) + _t148*_t151;
-                const double _t153 = _t140*_t147 + _t145*_t151 + _t148*(_t111 + _t136 + _t138 + _t150);
+                const double _t143 = _t127*_t142;
+                const double _t144 = _c6[i]*_s1[i];
+                const double _t145 = _t102*_t143 - _t118*(-_c4[i]*_t24 + _t130*_t133 + _t143) + _t121*_t126 + _t124*_t144;
+                const double _t146 = _c4[i]*_t100 + _c4[i]*_t99 + twist_wy[i];
+                const double _t147 = _t102*_t116;
+                const double _t148 = -_t109*_t144 - _t113*_t121 - _t118*(-_s4[i]*_t24 + _t115*_t142 + _t133*_t135) - _t142*_t147;
+                const double _t149 = _t138*(_t123 + _t139 + _t140) + _t141*_t145 + _t146*_t148;
+                const double _t150 = _t118*_t134;
+                const double _t151 = -_t109*_t124 - _t113*_t126 - _t118*(_t115*_t127 + _t130*_t135 + _t25*_t73) - _t127*_t147;
+                const double _t152 = _t138*_t145 + _t141*(_t129 + _t140 + _t150) + _t146*_t151;
+                const double _t153 = _t138*_t148 + _t141*_t151 + _t146*(_t117 + _t132 + _t139 + _t150);
                 const int _t154 = _t102 < 1e-08;
                 const double _t155 = _s5[i]/kinegen_max(1e-08, _t102);
                 qd[6 * (start + i) + 0] = _t95;
                 qd[6 * (start + i) + 1] = _t99;
                 qd[6 * (start + i) + 2] = _t100;
                 qd[6 * (start + i) + 3] = ((_t154) ? (
-   _t137*(_c1[i]*_t149 - _c3[i]*_s1[i]*_t152 - _s1[i]*_s3[i]*_t153)
+   _t137*(_c1[i]*_t149 - _c4[i]*_s1[i]*_t152 - _s1[i]*_s4[i]*_t153)
 )
 : (
-   -_t155*(_t114*_t140 + _t130*_t145 - _t135*_t148)
+   -_t155*(-_t113*_t146 + _t121*_t138 + _t126*_t141)
 ));
                 qd[6 * (start + i) + 4] = ((_t154) ? (
-   _t137*(_t119*_t152 + _t125*_t153 + _t142*_t149)
+   _t137*(_t115*_t153 + _t127*_t152 + _t142*_t149)
 )
 : (
-   -_t155*(-_s5[i]*_t119*_t145 + _s5[i]*_t134*_t148 - _s6[i]*_t108*_t140)
+   -_t155*(_s5[i]*_t116*_t146 - _s5[i]*_t127*_t141 - _s6[i]*_t111*_t138)
 ));
                 qd[6 * (start + i) + 5] = ((_t154) ? (
-   _t137*(_t109*_t149 + _t122*_t152 + _t126*_t153)
+   _t137*(_t130*_t152 + _t133*_t149 + _t135*_t153)
 )
 : (
-   -_t155*(_t128*_t145 + _t132*_t148 + _t140*_t141)
+   -_t155*(_t108*_t146 + _t124*_t141 + _t138*_t144)
 ));
                 singular[1 * (start + i) + 0] = _t154 || _t92;
             }

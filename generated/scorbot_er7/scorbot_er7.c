@@ -870,13 +870,13 @@ void scorbot_er7_jacobian(const double *restrict q, const scorbot_er7_params *re
     const double a2 = params->a2;
     const double a3 = params->a3;
     const double d5 = params->d5;
-    const double _t1 = q2 + q3;
-    const double _t2 = _t1 + q4;
+    const double _t0 = q2 + q3;
+    const double _t1 = _t0 + q4;
     double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[4] = { q1, _t2, _t1, q2,  };
+        const double angle[4] = { _t1, _t0, q2, q1,  };
         double sine[4], cosine[4];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -897,53 +897,53 @@ void scorbot_er7_jacobian(const double *restrict q, const scorbot_er7_params *re
         _c3 = cosine[3];
     }
 #else
-    _s0 = sin(q1);
-    _c0 = cos(q1);
-    _s1 = sin(_t2);
-    _c1 = cos(_t2);
-    _s2 = sin(_t1);
-    _c2 = cos(_t1);
-    _s3 = sin(q2);
-    _c3 = cos(q2);
+    _s0 = sin(_t1);
+    _c0 = cos(_t1);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+    _s2 = sin(q2);
+    _c2 = cos(q2);
+    _s3 = sin(q1);
+    _c3 = cos(q1);
 #endif
-    const double _t4 = _c1*d5;
-    const double _t5 = _c2*a3 + _t4;
-    const double _t6 = _c3*a2 + _t5;
-    const double _t7 = _t6 + a1;
-    const double _t10 = _s1*d5;
-    const double _t11 = _s2*a3 + _t10;
-    const double _t12 = _s3*a2 + _t11;
-    const double _t13 = -_c0;
-    J[0] = -_s0*_t7;
-    J[1] = -_c0*_t12;
-    J[2] = -_c0*_t11;
-    J[3] = -_c0*_t10;
+    const double _t3 = _c0*d5;
+    const double _t4 = _c1*a3 + _t3;
+    const double _t5 = _c2*a2 + _t4;
+    const double _t6 = _t5 + a1;
+    const double _t9 = _s0*d5;
+    const double _t10 = _s1*a3 + _t9;
+    const double _t11 = _s2*a2 + _t10;
+    const double _t13 = -_c3;
+    J[0] = -_s3*_t6;
+    J[1] = -_c3*_t11;
+    J[2] = -_c3*_t10;
+    J[3] = -_c3*_t9;
     J[4] = 0;
-    J[5] = _c0*_t7;
-    J[6] = -_s0*_t12;
-    J[7] = -_s0*_t11;
-    J[8] = -_s0*_t10;
+    J[5] = _c3*_t6;
+    J[6] = -_s3*_t11;
+    J[7] = -_s3*_t10;
+    J[8] = -_s3*_t9;
     J[9] = 0;
     J[10] = 0;
-    J[11] = _t6;
-    J[12] = _t5;
-    J[13] = _t4;
+    J[11] = _t5;
+    J[12] = _t4;
+    J[13] = _t3;
     J[14] = 0;
     J[15] = 0;
-    J[16] = _s0;
-    J[17] = _s0;
-    J[18] = _s0;
-    J[19] = _c0*_c1;
+    J[16] = _s3;
+    J[17] = _s3;
+    J[18] = _s3;
+    J[19] = _c0*_c3;
     J[20] = 0;
     J[21] = _t13;
     J[22] = _t13;
     J[23] = _t13;
-    J[24] = _c1*_s0;
+    J[24] = _c0*_s3;
     J[25] = 1;
     J[26] = 0;
     J[27] = 0;
     J[28] = 0;
-    J[29] = _s1;
+    J[29] = _s0;
 }
 
 /* jacobian of `count` items, stored one after the other in each argument and output. */
@@ -954,8 +954,8 @@ void scorbot_er7_jacobian_batch(size_t count, const double *restrict q, const sc
     double q2[KINEGEN_BLOCK_OF(64)];
     double q3[KINEGEN_BLOCK_OF(64)];
     double q4[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
     double _t1[KINEGEN_BLOCK_OF(64)];
-    double _t2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
@@ -987,127 +987,127 @@ void scorbot_er7_jacobian_batch(size_t count, const double *restrict q, const sc
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t1[i] = q2[i] + q3[i];
-            _t2[i] = _t1[i] + q4[i];
+            _t0[i] = q2[i] + q3[i];
+            _t1[i] = _t0[i] + q4[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s0[i] = sin(q1[i]);
+            _s0[i] = sin(_t1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c0[i] = cos(q1[i]);
+            _c0[i] = cos(_t1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s1[i] = sin(_t2[i]);
+            _s1[i] = sin(_t0[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c1[i] = cos(_t2[i]);
+            _c1[i] = cos(_t0[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s2[i] = sin(_t1[i]);
+            _s2[i] = sin(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(_t1[i]);
+            _c2[i] = cos(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s3[i] = sin(q2[i]);
+            _s3[i] = sin(q1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c3[i] = cos(q2[i]);
+            _c3[i] = cos(q1[i]);
         }
 #ifdef KINEGEN_STREAM
         if (stream) {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t4 = _c1[i]*d5;
-                const double _t5 = _c2[i]*a3 + _t4;
-                const double _t6 = _c3[i]*a2 + _t5;
-                const double _t7 = _t6 + a1;
-                const double _t10 = _s1[i]*d5;
-                const double _t11 = _s2[i]*a3 + _t10;
-                const double _t12 = _s3[i]*a2 + _t11;
-                const double _t13 = -_c0[i];
-                _J_block[0][i] = -_s0[i]*_t7;
-                _J_block[1][i] = -_c0[i]*_t12;
-                _J_block[2][i] = -_c0[i]*_t11;
-                _J_block[3][i] = -_c0[i]*_t10;
+                const double _t3 = _c0[i]*d5;
+                const double _t4 = _c1[i]*a3 + _t3;
+                const double _t5 = _c2[i]*a2 + _t4;
+                const double _t6 = _t5 + a1;
+                const double _t9 = _s0[i]*d5;
+                const double _t10 = _s1[i]*a3 + _t9;
+                const double _t11 = _s2[i]*a2 + _t10;
+                const double _t13 = -_c3[i];
+                _J_block[0][i] = -_s3[i]*_t6;
+                _J_block[1][i] = -_c3[i]*_t11;
+                _J_block[2][i] = -_c3[i]*_t10;
+                _J_block[3][i] = -_c3[i]*_t9;
                 _J_block[4][i] = 0;
-                _J_block[5][i] = _c0[i]*_t7;
-                _J_block[6][i] = -_s0[i]*_t12;
-                _J_block[7][i] = -_s0[i]*_t11;
-                _J_block[8][i] = -_s0[i]*_t10;
+                _J_block[5][i] = _c3[i]*_t6;
+                _J_block[6][i] = -_s3[i]*_t11;
+                _J_block[7][i] = -_s3[i]*_t10;
+                _J_block[8][i] = -_s3[i]*_t9;
                 _J_block[9][i] = 0;
                 _J_block[10][i] = 0;
-                _J_block[11][i] = _t6;
-                _J_block[12][i] = _t5;
-                _J_block[13][i] = _t4;
+                _J_block[11][i] = _t5;
+                _J_block[12][i] = _t4;
+                _J_block[13][i] = _t3;
                 _J_block[14][i] = 0;
                 _J_block[15][i] = 0;
-                _J_block[16][i] = _s0[i];
-                _J_block[17][i] = _s0[i];
-                _J_block[18][i] = _s0[i];
-                _J_block[19][i] = _c0[i]*_c1[i];
+                _J_block[16][i] = _s3[i];
+                _J_block[17][i] = _s3[i];
+                _J_block[18][i] = _s3[i];
+                _J_block[19][i] = _c0[i]*_c3[i];
                 _J_block[20][i] = 0;
                 _J_block[21][i] = _t13;
                 _J_block[22][i] = _t13;
                 _J_block[23][i] = _t13;
-                _J_block[24][i] = _c1[i]*_s0[i];
+                _J_block[24][i] = _c0[i]*_s3[i];
                 _J_block[25][i] = 1;
                 _J_block[26][i] = 0;
                 _J_block[27][i] = 0;
                 _J_block[28][i] = 0;
-                _J_block[29][i] = _s1[i];
+                _J_block[29][i] = _s0[i];
             }
         } else
 #endif
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t4 = _c1[i]*d5;
-                const double _t5 = _c2[i]*a3 + _t4;
-                const double _t6 = _c3[i]*a2 + _t5;
-                const double _t7 = _t6 + a1;
-                const double _t10 = _s1[i]*d5;
-                const double _t11 = _s2[i]*a3 + _t10;
-                const double _t12 = _s3[i]*a2 + _t11;
-                const double _t13 = -_c0[i];
-                J[30 * (start + i) + 0] = -_s0[i]*_t7;
-                J[30 * (start + i) + 1] = -_c0[i]*_t12;
-                J[30 * (start + i) + 2] = -_c0[i]*_t11;
-                J[30 * (start + i) + 3] = -_c0[i]*_t10;
+                const double _t3 = _c0[i]*d5;
+                const double _t4 = _c1[i]*a3 + _t3;
+                const double _t5 = _c2[i]*a2 + _t4;
+                const double _t6 = _t5 + a1;
+                const double _t9 = _s0[i]*d5;
+                const double _t10 = _s1[i]*a3 + _t9;
+                const double _t11 = _s2[i]*a2 + _t10;
+                const double _t13 = -_c3[i];
+                J[30 * (start + i) + 0] = -_s3[i]*_t6;
+                J[30 * (start + i) + 1] = -_c3[i]*_t11;
+                J[30 * (start + i) + 2] = -_c3[i]*_t10;
+                J[30 * (start + i) + 3] = -_c3[i]*_t9;
                 J[30 * (start + i) + 4] = 0;
-                J[30 * (start + i) + 5] = _c0[i]*_t7;
-                J[30 * (start + i) + 6] = -_s0[i]*_t12;
-                J[30 * (start + i) + 7] = -_s0[i]*_t11;
-                J[30 * (start + i) + 8] = -_s0[i]*_t10;
+                J[30 * (start + i) + 5] = _c3[i]*_t6;
+                J[30 * (start + i) + 6] = -_s3[i]*_t11;
+                J[30 * (start + i) + 7] = -_s3[i]*_t10;
+                J[30 * (start + i) + 8] = -_s3[i]*_t9;
                 J[30 * (start + i) + 9] = 0;
                 J[30 * (start + i) + 10] = 0;
-                J[30 * (start + i) + 11] = _t6;
-                J[30 * (start + i) + 12] = _t5;
-                J[30 * (start + i) + 13] = _t4;
+                J[30 * (start + i) + 11] = _t5;
+                J[30 * (start + i) + 12] = _t4;
+                J[30 * (start + i) + 13] = _t3;
                 J[30 * (start + i) + 14] = 0;
                 J[30 * (start + i) + 15] = 0;
-                J[30 * (start + i) + 16] = _s0[i];
-                J[30 * (start + i) + 17] = _s0[i];
-                J[30 * (start + i) + 18] = _s0[i];
-                J[30 * (start + i) + 19] = _c0[i]*_c1[i];
+                J[30 * (start + i) + 16] = _s3[i];
+                J[30 * (start + i) + 17] = _s3[i];
+                J[30 * (start + i) + 18] = _s3[i];
+                J[30 * (start + i) + 19] = _c0[i]*_c3[i];
                 J[30 * (start + i) + 20] = 0;
                 J[30 * (start + i) + 21] = _t13;
                 J[30 * (start + i) + 22] = _t13;
                 J[30 * (start + i) + 23] = _t13;
-                J[30 * (start + i) + 24] = _c1[i]*_s0[i];
+                J[30 * (start + i) + 24] = _c0[i]*_s3[i];
                 J[30 * (start + i) + 25] = 1;
                 J[30 * (start + i) + 26] = 0;
                 J[30 * (start + i) + 27] = 0;
                 J[30 * (start + i) + 28] = 0;
-                J[30 * (start + i) + 29] = _s1[i];
+                J[30 * (start + i) + 29] = _s0[i];
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1293,13 +1293,13 @@ void scorbot_er7_task_jacobian(const double *restrict q, const scorbot_er7_param
     const double a2 = params->a2;
     const double a3 = params->a3;
     const double d5 = params->d5;
-    const double _t1 = q2 + q3;
-    const double _t2 = _t1 + q4;
+    const double _t0 = q2 + q3;
+    const double _t1 = _t0 + q4;
     double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[4] = { q1, _t2, _t1, q2,  };
+        const double angle[4] = { _t1, _t0, q2, q1,  };
         double sine[4], cosine[4];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -1320,36 +1320,36 @@ void scorbot_er7_task_jacobian(const double *restrict q, const scorbot_er7_param
         _c3 = cosine[3];
     }
 #else
-    _s0 = sin(q1);
-    _c0 = cos(q1);
-    _s1 = sin(_t2);
-    _c1 = cos(_t2);
-    _s2 = sin(_t1);
-    _c2 = cos(_t1);
-    _s3 = sin(q2);
-    _c3 = cos(q2);
+    _s0 = sin(_t1);
+    _c0 = cos(_t1);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+    _s2 = sin(q2);
+    _c2 = cos(q2);
+    _s3 = sin(q1);
+    _c3 = cos(q1);
 #endif
-    const double _t3 = _c1*d5;
-    const double _t4 = _c2*a3 + _t3;
-    const double _t5 = _c3*a2 + _t4;
-    const double _t6 = _t5 + a1;
-    const double _t8 = _s1*d5;
-    const double _t9 = _s2*a3 + _t8;
-    const double _t10 = _s3*a2 + _t9;
-    Jx[0] = -_s0*_t6;
-    Jx[1] = -_c0*_t10;
-    Jx[2] = -_c0*_t9;
-    Jx[3] = -_c0*_t8;
+    const double _t2 = _c0*d5;
+    const double _t3 = _c1*a3 + _t2;
+    const double _t4 = _c2*a2 + _t3;
+    const double _t5 = _t4 + a1;
+    const double _t7 = _s0*d5;
+    const double _t8 = _s1*a3 + _t7;
+    const double _t9 = _s2*a2 + _t8;
+    Jx[0] = -_s3*_t5;
+    Jx[1] = -_c3*_t9;
+    Jx[2] = -_c3*_t8;
+    Jx[3] = -_c3*_t7;
     Jx[4] = 0;
-    Jx[5] = _c0*_t6;
-    Jx[6] = -_s0*_t10;
-    Jx[7] = -_s0*_t9;
-    Jx[8] = -_s0*_t8;
+    Jx[5] = _c3*_t5;
+    Jx[6] = -_s3*_t9;
+    Jx[7] = -_s3*_t8;
+    Jx[8] = -_s3*_t7;
     Jx[9] = 0;
     Jx[10] = 0;
-    Jx[11] = _t5;
-    Jx[12] = _t4;
-    Jx[13] = _t3;
+    Jx[11] = _t4;
+    Jx[12] = _t3;
+    Jx[13] = _t2;
     Jx[14] = 0;
 }
 
@@ -1361,8 +1361,8 @@ void scorbot_er7_task_jacobian_batch(size_t count, const double *restrict q, con
     double q2[KINEGEN_BLOCK_OF(64)];
     double q3[KINEGEN_BLOCK_OF(64)];
     double q4[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
     double _t1[KINEGEN_BLOCK_OF(64)];
-    double _t2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
@@ -1389,64 +1389,64 @@ void scorbot_er7_task_jacobian_batch(size_t count, const double *restrict q, con
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t1[i] = q2[i] + q3[i];
-            _t2[i] = _t1[i] + q4[i];
+            _t0[i] = q2[i] + q3[i];
+            _t1[i] = _t0[i] + q4[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s0[i] = sin(q1[i]);
+            _s0[i] = sin(_t1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c0[i] = cos(q1[i]);
+            _c0[i] = cos(_t1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s1[i] = sin(_t2[i]);
+            _s1[i] = sin(_t0[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c1[i] = cos(_t2[i]);
+            _c1[i] = cos(_t0[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s2[i] = sin(_t1[i]);
+            _s2[i] = sin(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(_t1[i]);
+            _c2[i] = cos(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s3[i] = sin(q2[i]);
+            _s3[i] = sin(q1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c3[i] = cos(q2[i]);
+            _c3[i] = cos(q1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            const double _t3 = _c1[i]*d5;
-            const double _t4 = _c2[i]*a3 + _t3;
-            const double _t5 = _c3[i]*a2 + _t4;
-            const double _t6 = _t5 + a1;
-            const double _t8 = _s1[i]*d5;
-            const double _t9 = _s2[i]*a3 + _t8;
-            const double _t10 = _s3[i]*a2 + _t9;
-            Jx[15 * (start + i) + 0] = -_s0[i]*_t6;
-            Jx[15 * (start + i) + 1] = -_c0[i]*_t10;
-            Jx[15 * (start + i) + 2] = -_c0[i]*_t9;
-            Jx[15 * (start + i) + 3] = -_c0[i]*_t8;
+            const double _t2 = _c0[i]*d5;
+            const double _t3 = _c1[i]*a3 + _t2;
+            const double _t4 = _c2[i]*a2 + _t3;
+            const double _t5 = _t4 + a1;
+            const double _t7 = _s0[i]*d5;
+            const double _t8 = _s1[i]*a3 + _t7;
+            const double _t9 = _s2[i]*a2 + _t8;
+            Jx[15 * (start + i) + 0] = -_s3[i]*_t5;
+            Jx[15 * (start + i) + 1] = -_c3[i]*_t9;
+            Jx[15 * (start + i) + 2] = -_c3[i]*_t8;
+            Jx[15 * (start + i) + 3] = -_c3[i]*_t7;
             Jx[15 * (start + i) + 4] = 0;
-            Jx[15 * (start + i) + 5] = _c0[i]*_t6;
-            Jx[15 * (start + i) + 6] = -_s0[i]*_t10;
-            Jx[15 * (start + i) + 7] = -_s0[i]*_t9;
-            Jx[15 * (start + i) + 8] = -_s0[i]*_t8;
+            Jx[15 * (start + i) + 5] = _c3[i]*_t5;
+            Jx[15 * (start + i) + 6] = -_s3[i]*_t9;
+            Jx[15 * (start + i) + 7] = -_s3[i]*_t8;
+            Jx[15 * (start + i) + 8] = -_s3[i]*_t7;
             Jx[15 * (start + i) + 9] = 0;
             Jx[15 * (start + i) + 10] = 0;
-            Jx[15 * (start + i) + 11] = _t5;
-            Jx[15 * (start + i) + 12] = _t4;
-            Jx[15 * (start + i) + 13] = _t3;
+            Jx[15 * (start + i) + 11] = _t4;
+            Jx[15 * (start + i) + 12] = _t3;
+            Jx[15 * (start + i) + 13] = _t2;
             Jx[15 * (start + i) + 14] = 0;
         }
     }
@@ -1840,18 +1840,18 @@ void scorbot_er7_task_velocity(const double *restrict q, const double *restrict 
     _s3 = sin(q2);
     _c3 = cos(q2);
 #endif
-    const double _t3 = _s1*d5;
-    const double _t4 = _t3*qd4;
-    const double _t5 = _s2*a3 + _t3;
-    const double _t6 = _t5*qd3;
-    const double _t7 = qd2*(_s3*a2 + _t5);
-    const double _t9 = _c1*d5;
-    const double _t10 = _c2*a3 + _t9;
-    const double _t11 = _c3*a2 + _t10;
-    const double _t12 = _t11 + a1;
-    xd[0] = -_c0*_t4 - _c0*_t6 - _c0*_t7 - _s0*_t12*qd1;
-    xd[1] = _c0*_t12*qd1 - _s0*_t4 - _s0*_t6 - _s0*_t7;
-    xd[2] = _t10*qd3 + _t11*qd2 + _t9*qd4;
+    const double _t3 = _c1*d5;
+    const double _t4 = _c2*a3 + _t3;
+    const double _t5 = _c3*a2 + _t4;
+    const double _t6 = _t5 + a1;
+    const double _t8 = _s1*d5;
+    const double _t9 = _s2*a3 + _t8;
+    const double _t10 = qd2*(_s3*a2 + _t9);
+    const double _t11 = _t9*qd3;
+    const double _t12 = _t8*qd4;
+    xd[0] = -_c0*_t10 - _c0*_t11 - _c0*_t12 - _s0*_t6*qd1;
+    xd[1] = _c0*_t6*qd1 - _s0*_t10 - _s0*_t11 - _s0*_t12;
+    xd[2] = _t3*qd4 + _t4*qd3 + _t5*qd2;
 }
 
 /* task_velocity of `count` items, stored one after the other in each argument and output. */
@@ -1935,18 +1935,18 @@ void scorbot_er7_task_velocity_batch(size_t count, const double *restrict q, con
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            const double _t3 = _s1[i]*d5;
-            const double _t4 = _t3*qd4[i];
-            const double _t5 = _s2[i]*a3 + _t3;
-            const double _t6 = _t5*qd3[i];
-            const double _t7 = qd2[i]*(_s3[i]*a2 + _t5);
-            const double _t9 = _c1[i]*d5;
-            const double _t10 = _c2[i]*a3 + _t9;
-            const double _t11 = _c3[i]*a2 + _t10;
-            const double _t12 = _t11 + a1;
-            xd[3 * (start + i) + 0] = -_c0[i]*_t4 - _c0[i]*_t6 - _c0[i]*_t7 - _s0[i]*_t12*qd1[i];
-            xd[3 * (start + i) + 1] = _c0[i]*_t12*qd1[i] - _s0[i]*_t4 - _s0[i]*_t6 - _s0[i]*_t7;
-            xd[3 * (start + i) + 2] = _t10*qd3[i] + _t11*qd2[i] + _t9*qd4[i];
+            const double _t3 = _c1[i]*d5;
+            const double _t4 = _c2[i]*a3 + _t3;
+            const double _t5 = _c3[i]*a2 + _t4;
+            const double _t6 = _t5 + a1;
+            const double _t8 = _s1[i]*d5;
+            const double _t9 = _s2[i]*a3 + _t8;
+            const double _t10 = qd2[i]*(_s3[i]*a2 + _t9);
+            const double _t11 = _t9*qd3[i];
+            const double _t12 = _t8*qd4[i];
+            xd[3 * (start + i) + 0] = -_c0[i]*_t10 - _c0[i]*_t11 - _c0[i]*_t12 - _s0[i]*_t6*qd1[i];
+            xd[3 * (start + i) + 1] = _c0[i]*_t6*qd1[i] - _s0[i]*_t10 - _s0[i]*_t11 - _s0[i]*_t12;
+            xd[3 * (start + i) + 2] = _t3*qd4[i] + _t4*qd3[i] + _t5*qd2[i];
         }
     }
 #else
@@ -1976,13 +1976,13 @@ void scorbot_er7_twist(const double *restrict q, const double *restrict qd, cons
     const double a2 = params->a2;
     const double a3 = params->a3;
     const double d5 = params->d5;
-    const double _t0 = q2 + q3;
-    const double _t1 = _t0 + q4;
+    const double _t1 = q2 + q3;
+    const double _t2 = _t1 + q4;
     double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[4] = { _t1, q1, _t0, q2,  };
+        const double angle[4] = { q1, _t2, _t1, q2,  };
         double sine[4], cosine[4];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -2003,34 +2003,34 @@ void scorbot_er7_twist(const double *restrict q, const double *restrict qd, cons
         _c3 = cosine[3];
     }
 #else
-    _s0 = sin(_t1);
-    _c0 = cos(_t1);
-    _s1 = sin(q1);
-    _c1 = cos(q1);
-    _s2 = sin(_t0);
-    _c2 = cos(_t0);
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(_t2);
+    _c1 = cos(_t2);
+    _s2 = sin(_t1);
+    _c2 = cos(_t1);
     _s3 = sin(q2);
     _c3 = cos(q2);
 #endif
-    const double _t3 = _s0*d5;
-    const double _t5 = _c1*qd4;
-    const double _t6 = _s2*a3 + _t3;
-    const double _t7 = _c1*qd3;
-    const double _t8 = _s3*a2 + _t6;
-    const double _t9 = _c1*qd2;
-    const double _t12 = _c0*d5;
-    const double _t13 = _c2*a3 + _t12;
-    const double _t14 = _c3*a2 + _t13;
-    const double _t15 = _t14 + a1;
-    const double _t16 = _s1*qd4;
-    const double _t17 = _s1*qd3;
-    const double _t18 = _s1*qd2;
-    twist[0] = -_s1*_t15*qd1 - _t3*_t5 - _t6*_t7 - _t8*_t9;
-    twist[1] = _c1*_t15*qd1 - _t16*_t3 - _t17*_t6 - _t18*_t8;
-    twist[2] = _t12*qd4 + _t13*qd3 + _t14*qd2;
+    const double _t4 = _c1*d5;
+    const double _t5 = _c2*a3 + _t4;
+    const double _t6 = _c3*a2 + _t5;
+    const double _t7 = _t6 + a1;
+    const double _t9 = _s1*d5;
+    const double _t10 = _s2*a3 + _t9;
+    const double _t11 = _s3*a2 + _t10;
+    const double _t13 = _c0*qd2;
+    const double _t14 = _c0*qd3;
+    const double _t15 = _c0*qd4;
+    const double _t16 = _s0*qd2;
+    const double _t17 = _s0*qd3;
+    const double _t18 = _s0*qd4;
+    twist[0] = -_s0*_t7*qd1 - _t10*_t14 - _t11*_t13 - _t15*_t9;
+    twist[1] = _c0*_t7*qd1 - _t10*_t17 - _t11*_t16 - _t18*_t9;
+    twist[2] = _t4*qd4 + _t5*qd3 + _t6*qd2;
     twist[3] = _c0*_c1*qd5 + _t16 + _t17 + _t18;
-    twist[4] = _c0*_s1*qd5 - _t5 - _t7 - _t9;
-    twist[5] = _s0*qd5 + qd1;
+    twist[4] = _c1*_s0*qd5 - _t13 - _t14 - _t15;
+    twist[5] = _s1*qd5 + qd1;
 }
 
 /* twist of `count` items, stored one after the other in each argument and output. */
@@ -2046,8 +2046,8 @@ void scorbot_er7_twist_batch(size_t count, const double *restrict q, const doubl
     double qd3[KINEGEN_BLOCK_OF(64)];
     double qd4[KINEGEN_BLOCK_OF(64)];
     double qd5[KINEGEN_BLOCK_OF(64)];
-    double _t0[KINEGEN_BLOCK_OF(64)];
     double _t1[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
@@ -2084,32 +2084,32 @@ void scorbot_er7_twist_batch(size_t count, const double *restrict q, const doubl
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t0[i] = q2[i] + q3[i];
-            _t1[i] = _t0[i] + q4[i];
+            _t1[i] = q2[i] + q3[i];
+            _t2[i] = _t1[i] + q4[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s0[i] = sin(_t1[i]);
+            _s0[i] = sin(q1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c0[i] = cos(_t1[i]);
+            _c0[i] = cos(q1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s1[i] = sin(q1[i]);
+            _s1[i] = sin(_t2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c1[i] = cos(q1[i]);
+            _c1[i] = cos(_t2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s2[i] = sin(_t0[i]);
+            _s2[i] = sin(_t1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(_t0[i]);
+            _c2[i] = cos(_t1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -2123,50 +2123,50 @@ void scorbot_er7_twist_batch(size_t count, const double *restrict q, const doubl
         if (stream) {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t3 = _s0[i]*d5;
-                const double _t5 = _c1[i]*qd4[i];
-                const double _t6 = _s2[i]*a3 + _t3;
-                const double _t7 = _c1[i]*qd3[i];
-                const double _t8 = _s3[i]*a2 + _t6;
-                const double _t9 = _c1[i]*qd2[i];
-                const double _t12 = _c0[i]*d5;
-                const double _t13 = _c2[i]*a3 + _t12;
-                const double _t14 = _c3[i]*a2 + _t13;
-                const double _t15 = _t14 + a1;
-                const double _t16 = _s1[i]*qd4[i];
-                const double _t17 = _s1[i]*qd3[i];
-                const double _t18 = _s1[i]*qd2[i];
-                _twist_block[0][i] = -_s1[i]*_t15*qd1[i] - _t3*_t5 - _t6*_t7 - _t8*_t9;
-                _twist_block[1][i] = _c1[i]*_t15*qd1[i] - _t16*_t3 - _t17*_t6 - _t18*_t8;
-                _twist_block[2][i] = _t12*qd4[i] + _t13*qd3[i] + _t14*qd2[i];
+                const double _t4 = _c1[i]*d5;
+                const double _t5 = _c2[i]*a3 + _t4;
+                const double _t6 = _c3[i]*a2 + _t5;
+                const double _t7 = _t6 + a1;
+                const double _t9 = _s1[i]*d5;
+                const double _t10 = _s2[i]*a3 + _t9;
+                const double _t11 = _s3[i]*a2 + _t10;
+                const double _t13 = _c0[i]*qd2[i];
+                const double _t14 = _c0[i]*qd3[i];
+                const double _t15 = _c0[i]*qd4[i];
+                const double _t16 = _s0[i]*qd2[i];
+                const double _t17 = _s0[i]*qd3[i];
+                const double _t18 = _s0[i]*qd4[i];
+                _twist_block[0][i] = -_s0[i]*_t7*qd1[i] - _t10*_t14 - _t11*_t13 - _t15*_t9;
+                _twist_block[1][i] = _c0[i]*_t7*qd1[i] - _t10*_t17 - _t11*_t16 - _t18*_t9;
+                _twist_block[2][i] = _t4*qd4[i] + _t5*qd3[i] + _t6*qd2[i];
                 _twist_block[3][i] = _c0[i]*_c1[i]*qd5[i] + _t16 + _t17 + _t18;
-                _twist_block[4][i] = _c0[i]*_s1[i]*qd5[i] - _t5 - _t7 - _t9;
-                _twist_block[5][i] = _s0[i]*qd5[i] + qd1[i];
+                _twist_block[4][i] = _c1[i]*_s0[i]*qd5[i] - _t13 - _t14 - _t15;
+                _twist_block[5][i] = _s1[i]*qd5[i] + qd1[i];
             }
         } else
 #endif
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t3 = _s0[i]*d5;
-                const double _t5 = _c1[i]*qd4[i];
-                const double _t6 = _s2[i]*a3 + _t3;
-                const double _t7 = _c1[i]*qd3[i];
-                const double _t8 = _s3[i]*a2 + _t6;
-                const double _t9 = _c1[i]*qd2[i];
-                const double _t12 = _c0[i]*d5;
-                const double _t13 = _c2[i]*a3 + _t12;
-                const double _t14 = _c3[i]*a2 + _t13;
-                const double _t15 = _t14 + a1;
-                const double _t16 = _s1[i]*qd4[i];
-                const double _t17 = _s1[i]*qd3[i];
-                const double _t18 = _s1[i]*qd2[i];
-                twist[6 * (start + i) + 0] = -_s1[i]*_t15*qd1[i] - _t3*_t5 - _t6*_t7 - _t8*_t9;
-                twist[6 * (start + i) + 1] = _c1[i]*_t15*qd1[i] - _t16*_t3 - _t17*_t6 - _t18*_t8;
-                twist[6 * (start + i) + 2] = _t12*qd4[i] + _t13*qd3[i] + _t14*qd2[i];
+                const double _t4 = _c1[i]*d5;
+                const double _t5 = _c2[i]*a3 + _t4;
+                const double _t6 = _c3[i]*a2 + _t5;
+                const double _t7 = _t6 + a1;
+                const double _t9 = _s1[i]*d5;
+                const double _t10 = _s2[i]*a3 + _t9;
+                const double _t11 = _s3[i]*a2 + _t10;
+                const double _t13 = _c0[i]*qd2[i];
+                const double _t14 = _c0[i]*qd3[i];
+                const double _t15 = _c0[i]*qd4[i];
+                const double _t16 = _s0[i]*qd2[i];
+                const double _t17 = _s0[i]*qd3[i];
+                const double _t18 = _s0[i]*qd4[i];
+                twist[6 * (start + i) + 0] = -_s0[i]*_t7*qd1[i] - _t10*_t14 - _t11*_t13 - _t15*_t9;
+                twist[6 * (start + i) + 1] = _c0[i]*_t7*qd1[i] - _t10*_t17 - _t11*_t16 - _t18*_t9;
+                twist[6 * (start + i) + 2] = _t4*qd4[i] + _t5*qd3[i] + _t6*qd2[i];
                 twist[6 * (start + i) + 3] = _c0[i]*_c1[i]*qd5[i] + _t16 + _t17 + _t18;
-                twist[6 * (start + i) + 4] = _c0[i]*_s1[i]*qd5[i] - _t5 - _t7 - _t9;
-                twist[6 * (start + i) + 5] = _s0[i]*qd5[i] + qd1[i];
+                twist[6 * (start + i) + 4] = _c1[i]*_s0[i]*qd5[i] - _t13 - _t14 - _t15;
+                twist[6 * (start + i) + 5] = _s1[i]*qd5[i] + qd1[i];
             }
         }
 #ifdef KINEGEN_STREAM
@@ -2247,43 +2247,43 @@ void scorbot_er7_task_jacobian_dot(const double *restrict q, const double *restr
     _s3 = sin(q2);
     _c3 = cos(q2);
 #endif
-    const double _t4 = _s1*d5;
-    const double _t5 = _s2*a3 + _t4;
-    const double _t6 = -_t5;
-    const double _t7 = _t6*qd3;
-    const double _t9 = _c1*d5;
-    const double _t10 = _c2*a3 + _t9;
-    const double _t11 = _c3*a2 + _t10;
-    const double _t12 = qd1*(_t11 + a1);
-    const double _t13 = _s3*a2 + _t5;
-    const double _t14 = -_t13;
-    const double _t15 = _t14*qd2;
+    const double _t3 = _c1*d5;
+    const double _t4 = _c2*a3 + _t3;
+    const double _t5 = _c3*a2 + _t4;
+    const double _t6 = qd1*(_t5 + a1);
+    const double _t9 = _s1*d5;
+    const double _t10 = _s2*a3 + _t9;
+    const double _t11 = _s3*a2 + _t10;
+    const double _t12 = -_t11;
+    const double _t13 = _t12*qd2;
+    const double _t14 = -_t10;
+    const double _t15 = _t14*qd3;
     const double _t16 = _c0*qd2;
-    const double _t17 = _t10*qd3;
-    const double _t18 = _c0*_t9;
+    const double _t17 = _t4*qd3;
+    const double _t18 = _c0*_t3;
     const double _t19 = _t18*qd4;
     const double _t20 = _c0*_t17 + _t19;
-    const double _t21 = _t4*qd4;
+    const double _t21 = _t9*qd4;
     const double _t22 = _c0*qd1;
     const double _t23 = _s0*qd2;
-    const double _t24 = _s0*_t9;
+    const double _t24 = _s0*_t3;
     const double _t25 = _t24*qd4;
     const double _t26 = _s0*_t17 + _t25;
-    const double _t27 = -_t21 + _t7;
-    Jx_dot[0] = -_c0*_t12 + _s0*_s1*d5*qd4 - _s0*_t15 - _s0*_t7;
-    Jx_dot[1] = _s0*_t13*qd1 - _t11*_t16 - _t20;
-    Jx_dot[2] = _s0*_t5*qd1 - _t10*_t16 - _t20;
-    Jx_dot[3] = _s0*_s1*d5*qd1 - _t16*_t9 - _t18*qd3 - _t19;
+    const double _t27 = _t15 - _t21;
+    Jx_dot[0] = -_c0*_t6 + _s0*_s1*d5*qd4 - _s0*_t13 - _s0*_t15;
+    Jx_dot[1] = _s0*_t11*qd1 - _t16*_t5 - _t20;
+    Jx_dot[2] = _s0*_t10*qd1 - _t16*_t4 - _t20;
+    Jx_dot[3] = _s0*_s1*d5*qd1 - _t16*_t3 - _t18*qd3 - _t19;
     Jx_dot[4] = 0;
-    Jx_dot[5] = _c0*_t14*qd2 - _c0*_t21 + _c0*_t6*qd3 - _s0*_t12;
-    Jx_dot[6] = -_t11*_t23 - _t13*_t22 - _t26;
-    Jx_dot[7] = -_t10*_t23 - _t22*_t5 - _t26;
-    Jx_dot[8] = -_t22*_t4 - _t23*_t9 - _t24*qd3 - _t25;
+    Jx_dot[5] = _c0*_t12*qd2 + _c0*_t14*qd3 - _c0*_t21 - _s0*_t6;
+    Jx_dot[6] = -_t11*_t22 - _t23*_t5 - _t26;
+    Jx_dot[7] = -_t10*_t22 - _t23*_t4 - _t26;
+    Jx_dot[8] = -_t22*_t9 - _t23*_t3 - _t24*qd3 - _t25;
     Jx_dot[9] = 0;
     Jx_dot[10] = 0;
-    Jx_dot[11] = _t15 + _t27;
-    Jx_dot[12] = _t27 + _t6*qd2;
-    Jx_dot[13] = -_t21 - _t4*qd2 - _t4*qd3;
+    Jx_dot[11] = _t13 + _t27;
+    Jx_dot[12] = _t14*qd2 + _t27;
+    Jx_dot[13] = -_t21 - _t9*qd2 - _t9*qd3;
     Jx_dot[14] = 0;
 }
 
@@ -2368,43 +2368,43 @@ void scorbot_er7_task_jacobian_dot_batch(size_t count, const double *restrict q,
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            const double _t4 = _s1[i]*d5;
-            const double _t5 = _s2[i]*a3 + _t4;
-            const double _t6 = -_t5;
-            const double _t7 = _t6*qd3[i];
-            const double _t9 = _c1[i]*d5;
-            const double _t10 = _c2[i]*a3 + _t9;
-            const double _t11 = _c3[i]*a2 + _t10;
-            const double _t12 = qd1[i]*(_t11 + a1);
-            const double _t13 = _s3[i]*a2 + _t5;
-            const double _t14 = -_t13;
-            const double _t15 = _t14*qd2[i];
+            const double _t3 = _c1[i]*d5;
+            const double _t4 = _c2[i]*a3 + _t3;
+            const double _t5 = _c3[i]*a2 + _t4;
+            const double _t6 = qd1[i]*(_t5 + a1);
+            const double _t9 = _s1[i]*d5;
+            const double _t10 = _s2[i]*a3 + _t9;
+            const double _t11 = _s3[i]*a2 + _t10;
+            const double _t12 = -_t11;
+            const double _t13 = _t12*qd2[i];
+            const double _t14 = -_t10;
+            const double _t15 = _t14*qd3[i];
             const double _t16 = _c0[i]*qd2[i];
-            const double _t17 = _t10*qd3[i];
-            const double _t18 = _c0[i]*_t9;
+            const double _t17 = _t4*qd3[i];
+            const double _t18 = _c0[i]*_t3;
             const double _t19 = _t18*qd4[i];
             const double _t20 = _c0[i]*_t17 + _t19;
-            const double _t21 = _t4*qd4[i];
+            const double _t21 = _t9*qd4[i];
             const double _t22 = _c0[i]*qd1[i];
             const double _t23 = _s0[i]*qd2[i];
-            const double _t24 = _s0[i]*_t9;
+            const double _t24 = _s0[i]*_t3;
             const double _t25 = _t24*qd4[i];
             const double _t26 = _s0[i]*_t17 + _t25;
-            const double _t27 = -_t21 + _t7;
-            Jx_dot[15 * (start + i) + 0] = -_c0[i]*_t12 + _s0[i]*_s1[i]*d5*qd4[i] - _s0[i]*_t15 - _s0[i]*_t7;
-            Jx_dot[15 * (start + i) + 1] = _s0[i]*_t13*qd1[i] - _t11*_t16 - _t20;
-            Jx_dot[15 * (start + i) + 2] = _s0[i]*_t5*qd1[i] - _t10*_t16 - _t20;
-            Jx_dot[15 * (start + i) + 3] = _s0[i]*_s1[i]*d5*qd1[i] - _t16*_t9 - _t18*qd3[i] - _t19;
+            const double _t27 = _t15 - _t21;
+            Jx_dot[15 * (start + i) + 0] = -_c0[i]*_t6 + _s0[i]*_s1[i]*d5*qd4[i] - _s0[i]*_t13 - _s0[i]*_t15;
+            Jx_dot[15 * (start + i) + 1] = _s0[i]*_t11*qd1[i] - _t16*_t5 - _t20;
+            Jx_dot[15 * (start + i) + 2] = _s0[i]*_t10*qd1[i] - _t16*_t4 - _t20;
+            Jx_dot[15 * (start + i) + 3] = _s0[i]*_s1[i]*d5*qd1[i] - _t16*_t3 - _t18*qd3[i] - _t19;
             Jx_dot[15 * (start + i) + 4] = 0;
-            Jx_dot[15 * (start + i) + 5] = _c0[i]*_t14*qd2[i] - _c0[i]*_t21 + _c0[i]*_t6*qd3[i] - _s0[i]*_t12;
-            Jx_dot[15 * (start + i) + 6] = -_t11*_t23 - _t13*_t22 - _t26;
-            Jx_dot[15 * (start + i) + 7] = -_t10*_t23 - _t22*_t5 - _t26;
-            Jx_dot[15 * (start + i) + 8] = -_t22*_t4 - _t23*_t9 - _t24*qd3[i] - _t25;
+            Jx_dot[15 * (start + i) + 5] = _c0[i]*_t12*qd2[i] + _c0[i]*_t14*qd3[i] - _c0[i]*_t21 - _s0[i]*_t6;
+            Jx_dot[15 * (start + i) + 6] = -_t11*_t22 - _t23*_t5 - _t26;
+            Jx_dot[15 * (start + i) + 7] = -_t10*_t22 - _t23*_t4 - _t26;
+            Jx_dot[15 * (start + i) + 8] = -_t22*_t9 - _t23*_t3 - _t24*qd3[i] - _t25;
             Jx_dot[15 * (start + i) + 9] = 0;
             Jx_dot[15 * (start + i) + 10] = 0;
-            Jx_dot[15 * (start + i) + 11] = _t15 + _t27;
-            Jx_dot[15 * (start + i) + 12] = _t27 + _t6*qd2[i];
-            Jx_dot[15 * (start + i) + 13] = -_t21 - _t4*qd2[i] - _t4*qd3[i];
+            Jx_dot[15 * (start + i) + 11] = _t13 + _t27;
+            Jx_dot[15 * (start + i) + 12] = _t14*qd2[i] + _t27;
+            Jx_dot[15 * (start + i) + 13] = -_t21 - _t9*qd2[i] - _t9*qd3[i];
             Jx_dot[15 * (start + i) + 14] = 0;
         }
     }
@@ -2434,13 +2434,13 @@ void scorbot_er7_jacobian_dot(const double *restrict q, const double *restrict q
     const double a2 = params->a2;
     const double a3 = params->a3;
     const double d5 = params->d5;
-    const double _t1 = q2 + q3;
-    const double _t2 = _t1 + q4;
+    const double _t0 = q2 + q3;
+    const double _t1 = _t0 + q4;
     double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[4] = { q1, _t2, _t1, q2,  };
+        const double angle[4] = { _t1, _t0, q2, q1,  };
         double sine[4], cosine[4];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -2461,71 +2461,71 @@ void scorbot_er7_jacobian_dot(const double *restrict q, const double *restrict q
         _c3 = cosine[3];
     }
 #else
-    _s0 = sin(q1);
-    _c0 = cos(q1);
-    _s1 = sin(_t2);
-    _c1 = cos(_t2);
-    _s2 = sin(_t1);
-    _c2 = cos(_t1);
-    _s3 = sin(q2);
-    _c3 = cos(q2);
+    _s0 = sin(_t1);
+    _c0 = cos(_t1);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+    _s2 = sin(q2);
+    _c2 = cos(q2);
+    _s3 = sin(q1);
+    _c3 = cos(q1);
 #endif
-    const double _t4 = _s1*d5;
-    const double _t5 = _s2*a3 + _t4;
-    const double _t6 = -_t5;
-    const double _t7 = _t6*qd3;
-    const double _t9 = _c1*d5;
-    const double _t10 = _c2*a3 + _t9;
-    const double _t11 = _c3*a2 + _t10;
-    const double _t12 = _t11 + a1;
-    const double _t14 = _c0*qd1;
-    const double _t15 = _s3*a2 + _t5;
-    const double _t16 = -_t15;
-    const double _t17 = _t16*qd2;
-    const double _t18 = _c0*qd2;
-    const double _t19 = _t10*qd3;
-    const double _t20 = _c0*_t9;
+    const double _t3 = _c0*d5;
+    const double _t4 = _c1*a3 + _t3;
+    const double _t5 = _c2*a2 + _t4;
+    const double _t6 = _t5 + a1;
+    const double _t8 = _c3*qd1;
+    const double _t11 = _s0*d5;
+    const double _t12 = _s1*a3 + _t11;
+    const double _t13 = _s2*a2 + _t12;
+    const double _t14 = -_t13;
+    const double _t15 = _t14*qd2;
+    const double _t16 = -_t12;
+    const double _t17 = _t16*qd3;
+    const double _t18 = _c3*qd2;
+    const double _t19 = _t4*qd3;
+    const double _t20 = _c3*_t3;
     const double _t21 = _t20*qd4;
-    const double _t22 = _c0*_t19 + _t21;
-    const double _t23 = _t4*qd4;
-    const double _t24 = _s0*qd1;
-    const double _t25 = _s0*qd2;
-    const double _t26 = _s0*_t9;
+    const double _t22 = _c3*_t19 + _t21;
+    const double _t23 = _s3*qd1;
+    const double _t24 = _t11*qd4;
+    const double _t25 = _s3*qd2;
+    const double _t26 = _s3*_t3;
     const double _t27 = _t26*qd4;
-    const double _t28 = _s0*_t19 + _t27;
-    const double _t29 = -_t23 + _t7;
-    const double _t30 = _c0*_s1;
-    const double _t31 = _s0*_s1;
-    J_dot[0] = _s0*_s1*d5*qd4 - _s0*_t17 - _s0*_t7 - _t12*_t14;
-    J_dot[1] = _s0*_t15*qd1 - _t11*_t18 - _t22;
-    J_dot[2] = _s0*_t5*qd1 - _t10*_t18 - _t22;
-    J_dot[3] = _s0*_s1*d5*qd1 - _t18*_t9 - _t20*qd3 - _t21;
+    const double _t28 = _s3*_t19 + _t27;
+    const double _t29 = _t17 - _t24;
+    const double _t30 = _c3*_s0;
+    const double _t31 = _s0*_s3;
+    J_dot[0] = _s0*_s3*d5*qd4 - _s3*_t15 - _s3*_t17 - _t6*_t8;
+    J_dot[1] = _s3*_t13*qd1 - _t18*_t5 - _t22;
+    J_dot[2] = _s3*_t12*qd1 - _t18*_t4 - _t22;
+    J_dot[3] = _s0*_s3*d5*qd1 - _t18*_t3 - _t20*qd3 - _t21;
     J_dot[4] = 0;
-    J_dot[5] = _c0*_t16*qd2 - _c0*_t23 + _c0*_t6*qd3 - _t12*_t24;
-    J_dot[6] = -_t11*_t25 - _t14*_t15 - _t28;
-    J_dot[7] = -_t10*_t25 - _t14*_t5 - _t28;
-    J_dot[8] = -_t14*_t4 - _t25*_t9 - _t26*qd3 - _t27;
+    J_dot[5] = _c3*_t14*qd2 + _c3*_t16*qd3 - _c3*_t24 - _t23*_t6;
+    J_dot[6] = -_t13*_t8 - _t25*_t5 - _t28;
+    J_dot[7] = -_t12*_t8 - _t25*_t4 - _t28;
+    J_dot[8] = -_t11*_t8 - _t25*_t3 - _t26*qd3 - _t27;
     J_dot[9] = 0;
     J_dot[10] = 0;
-    J_dot[11] = _t17 + _t29;
-    J_dot[12] = _t29 + _t6*qd2;
-    J_dot[13] = -_t23 - _t4*qd2 - _t4*qd3;
+    J_dot[11] = _t15 + _t29;
+    J_dot[12] = _t16*qd2 + _t29;
+    J_dot[13] = -_t11*qd2 - _t11*qd3 - _t24;
     J_dot[14] = 0;
     J_dot[15] = 0;
-    J_dot[16] = _t14;
-    J_dot[17] = _t14;
-    J_dot[18] = _t14;
-    J_dot[19] = -_c1*_t24 - _s1*_t18 - _t30*qd3 - _t30*qd4;
+    J_dot[16] = _t8;
+    J_dot[17] = _t8;
+    J_dot[18] = _t8;
+    J_dot[19] = -_c0*_t23 - _s0*_t18 - _t30*qd3 - _t30*qd4;
     J_dot[20] = 0;
-    J_dot[21] = _t24;
-    J_dot[22] = _t24;
-    J_dot[23] = _t24;
-    J_dot[24] = _c0*_c1*qd1 - _s1*_t25 - _t31*qd3 - _t31*qd4;
+    J_dot[21] = _t23;
+    J_dot[22] = _t23;
+    J_dot[23] = _t23;
+    J_dot[24] = _c0*_c3*qd1 - _s0*_t25 - _t31*qd3 - _t31*qd4;
     J_dot[25] = 0;
     J_dot[26] = 0;
     J_dot[27] = 0;
     J_dot[28] = 0;
-    J_dot[29] = _c1*qd2 + _c1*qd3 + _c1*qd4;
+    J_dot[29] = _c0*qd2 + _c0*qd3 + _c0*qd4;
 }
 
 /* jacobian_dot of `count` items, stored one after the other in each argument and output. */
@@ -2540,8 +2540,8 @@ void scorbot_er7_jacobian_dot_batch(size_t count, const double *restrict q, cons
     double qd2[KINEGEN_BLOCK_OF(64)];
     double qd3[KINEGEN_BLOCK_OF(64)];
     double qd4[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
     double _t1[KINEGEN_BLOCK_OF(64)];
-    double _t2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
@@ -2577,163 +2577,163 @@ void scorbot_er7_jacobian_dot_batch(size_t count, const double *restrict q, cons
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t1[i] = q2[i] + q3[i];
-            _t2[i] = _t1[i] + q4[i];
+            _t0[i] = q2[i] + q3[i];
+            _t1[i] = _t0[i] + q4[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s0[i] = sin(q1[i]);
+            _s0[i] = sin(_t1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c0[i] = cos(q1[i]);
+            _c0[i] = cos(_t1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s1[i] = sin(_t2[i]);
+            _s1[i] = sin(_t0[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c1[i] = cos(_t2[i]);
+            _c1[i] = cos(_t0[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s2[i] = sin(_t1[i]);
+            _s2[i] = sin(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(_t1[i]);
+            _c2[i] = cos(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s3[i] = sin(q2[i]);
+            _s3[i] = sin(q1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c3[i] = cos(q2[i]);
+            _c3[i] = cos(q1[i]);
         }
 #ifdef KINEGEN_STREAM
         if (stream) {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t4 = _s1[i]*d5;
-                const double _t5 = _s2[i]*a3 + _t4;
-                const double _t6 = -_t5;
-                const double _t7 = _t6*qd3[i];
-                const double _t9 = _c1[i]*d5;
-                const double _t10 = _c2[i]*a3 + _t9;
-                const double _t11 = _c3[i]*a2 + _t10;
-                const double _t12 = _t11 + a1;
-                const double _t14 = _c0[i]*qd1[i];
-                const double _t15 = _s3[i]*a2 + _t5;
-                const double _t16 = -_t15;
-                const double _t17 = _t16*qd2[i];
-                const double _t18 = _c0[i]*qd2[i];
-                const double _t19 = _t10*qd3[i];
-                const double _t20 = _c0[i]*_t9;
+                const double _t3 = _c0[i]*d5;
+                const double _t4 = _c1[i]*a3 + _t3;
+                const double _t5 = _c2[i]*a2 + _t4;
+                const double _t6 = _t5 + a1;
+                const double _t8 = _c3[i]*qd1[i];
+                const double _t11 = _s0[i]*d5;
+                const double _t12 = _s1[i]*a3 + _t11;
+                const double _t13 = _s2[i]*a2 + _t12;
+                const double _t14 = -_t13;
+                const double _t15 = _t14*qd2[i];
+                const double _t16 = -_t12;
+                const double _t17 = _t16*qd3[i];
+                const double _t18 = _c3[i]*qd2[i];
+                const double _t19 = _t4*qd3[i];
+                const double _t20 = _c3[i]*_t3;
                 const double _t21 = _t20*qd4[i];
-                const double _t22 = _c0[i]*_t19 + _t21;
-                const double _t23 = _t4*qd4[i];
-                const double _t24 = _s0[i]*qd1[i];
-                const double _t25 = _s0[i]*qd2[i];
-                const double _t26 = _s0[i]*_t9;
+                const double _t22 = _c3[i]*_t19 + _t21;
+                const double _t23 = _s3[i]*qd1[i];
+                const double _t24 = _t11*qd4[i];
+                const double _t25 = _s3[i]*qd2[i];
+                const double _t26 = _s3[i]*_t3;
                 const double _t27 = _t26*qd4[i];
-                const double _t28 = _s0[i]*_t19 + _t27;
-                const double _t29 = -_t23 + _t7;
-                const double _t30 = _c0[i]*_s1[i];
-                const double _t31 = _s0[i]*_s1[i];
-                _J_dot_block[0][i] = _s0[i]*_s1[i]*d5*qd4[i] - _s0[i]*_t17 - _s0[i]*_t7 - _t12*_t14;
-                _J_dot_block[1][i] = _s0[i]*_t15*qd1[i] - _t11*_t18 - _t22;
-                _J_dot_block[2][i] = _s0[i]*_t5*qd1[i] - _t10*_t18 - _t22;
-                _J_dot_block[3][i] = _s0[i]*_s1[i]*d5*qd1[i] - _t18*_t9 - _t20*qd3[i] - _t21;
+                const double _t28 = _s3[i]*_t19 + _t27;
+                const double _t29 = _t17 - _t24;
+                const double _t30 = _c3[i]*_s0[i];
+                const double _t31 = _s0[i]*_s3[i];
+                _J_dot_block[0][i] = _s0[i]*_s3[i]*d5*qd4[i] - _s3[i]*_t15 - _s3[i]*_t17 - _t6*_t8;
+                _J_dot_block[1][i] = _s3[i]*_t13*qd1[i] - _t18*_t5 - _t22;
+                _J_dot_block[2][i] = _s3[i]*_t12*qd1[i] - _t18*_t4 - _t22;
+                _J_dot_block[3][i] = _s0[i]*_s3[i]*d5*qd1[i] - _t18*_t3 - _t20*qd3[i] - _t21;
                 _J_dot_block[4][i] = 0;
-                _J_dot_block[5][i] = _c0[i]*_t16*qd2[i] - _c0[i]*_t23 + _c0[i]*_t6*qd3[i] - _t12*_t24;
-                _J_dot_block[6][i] = -_t11*_t25 - _t14*_t15 - _t28;
-                _J_dot_block[7][i] = -_t10*_t25 - _t14*_t5 - _t28;
-                _J_dot_block[8][i] = -_t14*_t4 - _t25*_t9 - _t26*qd3[i] - _t27;
+                _J_dot_block[5][i] = _c3[i]*_t14*qd2[i] + _c3[i]*_t16*qd3[i] - _c3[i]*_t24 - _t23*_t6;
+                _J_dot_block[6][i] = -_t13*_t8 - _t25*_t5 - _t28;
+                _J_dot_block[7][i] = -_t12*_t8 - _t25*_t4 - _t28;
+                _J_dot_block[8][i] = -_t11*_t8 - _t25*_t3 - _t26*qd3[i] - _t27;
                 _J_dot_block[9][i] = 0;
                 _J_dot_block[10][i] = 0;
-                _J_dot_block[11][i] = _t17 + _t29;
-                _J_dot_block[12][i] = _t29 + _t6*qd2[i];
-                _J_dot_block[13][i] = -_t23 - _t4*qd2[i] - _t4*qd3[i];
+                _J_dot_block[11][i] = _t15 + _t29;
+                _J_dot_block[12][i] = _t16*qd2[i] + _t29;
+                _J_dot_block[13][i] = -_t11*qd2[i] - _t11*qd3[i] - _t24;
                 _J_dot_block[14][i] = 0;
                 _J_dot_block[15][i] = 0;
-                _J_dot_block[16][i] = _t14;
-                _J_dot_block[17][i] = _t14;
-                _J_dot_block[18][i] = _t14;
-                _J_dot_block[19][i] = -_c1[i]*_t24 - _s1[i]*_t18 - _t30*qd3[i] - _t30*qd4[i];
+                _J_dot_block[16][i] = _t8;
+                _J_dot_block[17][i] = _t8;
+                _J_dot_block[18][i] = _t8;
+                _J_dot_block[19][i] = -_c0[i]*_t23 - _s0[i]*_t18 - _t30*qd3[i] - _t30*qd4[i];
                 _J_dot_block[20][i] = 0;
-                _J_dot_block[21][i] = _t24;
-                _J_dot_block[22][i] = _t24;
-                _J_dot_block[23][i] = _t24;
-                _J_dot_block[24][i] = _c0[i]*_c1[i]*qd1[i] - _s1[i]*_t25 - _t31*qd3[i] - _t31*qd4[i];
+                _J_dot_block[21][i] = _t23;
+                _J_dot_block[22][i] = _t23;
+                _J_dot_block[23][i] = _t23;
+                _J_dot_block[24][i] = _c0[i]*_c3[i]*qd1[i] - _s0[i]*_t25 - _t31*qd3[i] - _t31*qd4[i];
                 _J_dot_block[25][i] = 0;
                 _J_dot_block[26][i] = 0;
                 _J_dot_block[27][i] = 0;
                 _J_dot_block[28][i] = 0;
-                _J_dot_block[29][i] = _c1[i]*qd2[i] + _c1[i]*qd3[i] + _c1[i]*qd4[i];
+                _J_dot_block[29][i] = _c0[i]*qd2[i] + _c0[i]*qd3[i] + _c0[i]*qd4[i];
             }
         } else
 #endif
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                const double _t4 = _s1[i]*d5;
-                const double _t5 = _s2[i]*a3 + _t4;
-                const double _t6 = -_t5;
-                const double _t7 = _t6*qd3[i];
-                const double _t9 = _c1[i]*d5;
-                const double _t10 = _c2[i]*a3 + _t9;
-                const double _t11 = _c3[i]*a2 + _t10;
-                const double _t12 = _t11 + a1;
-                const double _t14 = _c0[i]*qd1[i];
-                const double _t15 = _s3[i]*a2 + _t5;
-                const double _t16 = -_t15;
-                const double _t17 = _t16*qd2[i];
-                const double _t18 = _c0[i]*qd2[i];
-                const double _t19 = _t10*qd3[i];
-                const double _t20 = _c0[i]*_t9;
+                const double _t3 = _c0[i]*d5;
+                const double _t4 = _c1[i]*a3 + _t3;
+                const double _t5 = _c2[i]*a2 + _t4;
+                const double _t6 = _t5 + a1;
+                const double _t8 = _c3[i]*qd1[i];
+                const double _t11 = _s0[i]*d5;
+                const double _t12 = _s1[i]*a3 + _t11;
+                const double _t13 = _s2[i]*a2 + _t12;
+                const double _t14 = -_t13;
+                const double _t15 = _t14*qd2[i];
+                const double _t16 = -_t12;
+                const double _t17 = _t16*qd3[i];
+                const double _t18 = _c3[i]*qd2[i];
+                const double _t19 = _t4*qd3[i];
+                const double _t20 = _c3[i]*_t3;
                 const double _t21 = _t20*qd4[i];
-                const double _t22 = _c0[i]*_t19 + _t21;
-                const double _t23 = _t4*qd4[i];
-                const double _t24 = _s0[i]*qd1[i];
-                const double _t25 = _s0[i]*qd2[i];
-                const double _t26 = _s0[i]*_t9;
+                const double _t22 = _c3[i]*_t19 + _t21;
+                const double _t23 = _s3[i]*qd1[i];
+                const double _t24 = _t11*qd4[i];
+                const double _t25 = _s3[i]*qd2[i];
+                const double _t26 = _s3[i]*_t3;
                 const double _t27 = _t26*qd4[i];
-                const double _t28 = _s0[i]*_t19 + _t27;
-                const double _t29 = -_t23 + _t7;
-                const double _t30 = _c0[i]*_s1[i];
-                const double _t31 = _s0[i]*_s1[i];
-                J_dot[30 * (start + i) + 0] = _s0[i]*_s1[i]*d5*qd4[i] - _s0[i]*_t17 - _s0[i]*_t7 - _t12*_t14;
-                J_dot[30 * (start + i) + 1] = _s0[i]*_t15*qd1[i] - _t11*_t18 - _t22;
-                J_dot[30 * (start + i) + 2] = _s0[i]*_t5*qd1[i] - _t10*_t18 - _t22;
-                J_dot[30 * (start + i) + 3] = _s0[i]*_s1[i]*d5*qd1[i] - _t18*_t9 - _t20*qd3[i] - _t21;
+                const double _t28 = _s3[i]*_t19 + _t27;
+                const double _t29 = _t17 - _t24;
+                const double _t30 = _c3[i]*_s0[i];
+                const double _t31 = _s0[i]*_s3[i];
+                J_dot[30 * (start + i) + 0] = _s0[i]*_s3[i]*d5*qd4[i] - _s3[i]*_t15 - _s3[i]*_t17 - _t6*_t8;
+                J_dot[30 * (start + i) + 1] = _s3[i]*_t13*qd1[i] - _t18*_t5 - _t22;
+                J_dot[30 * (start + i) + 2] = _s3[i]*_t12*qd1[i] - _t18*_t4 - _t22;
+                J_dot[30 * (start + i) + 3] = _s0[i]*_s3[i]*d5*qd1[i] - _t18*_t3 - _t20*qd3[i] - _t21;
                 J_dot[30 * (start + i) + 4] = 0;
-                J_dot[30 * (start + i) + 5] = _c0[i]*_t16*qd2[i] - _c0[i]*_t23 + _c0[i]*_t6*qd3[i] - _t12*_t24;
-                J_dot[30 * (start + i) + 6] = -_t11*_t25 - _t14*_t15 - _t28;
-                J_dot[30 * (start + i) + 7] = -_t10*_t25 - _t14*_t5 - _t28;
-                J_dot[30 * (start + i) + 8] = -_t14*_t4 - _t25*_t9 - _t26*qd3[i] - _t27;
+                J_dot[30 * (start + i) + 5] = _c3[i]*_t14*qd2[i] + _c3[i]*_t16*qd3[i] - _c3[i]*_t24 - _t23*_t6;
+                J_dot[30 * (start + i) + 6] = -_t13*_t8 - _t25*_t5 - _t28;
+                J_dot[30 * (start + i) + 7] = -_t12*_t8 - _t25*_t4 - _t28;
+                J_dot[30 * (start + i) + 8] = -_t11*_t8 - _t25*_t3 - _t26*qd3[i] - _t27;
                 J_dot[30 * (start + i) + 9] = 0;
                 J_dot[30 * (start + i) + 10] = 0;
-                J_dot[30 * (start + i) + 11] = _t17 + _t29;
-                J_dot[30 * (start + i) + 12] = _t29 + _t6*qd2[i];
-                J_dot[30 * (start + i) + 13] = -_t23 - _t4*qd2[i] - _t4*qd3[i];
+                J_dot[30 * (start + i) + 11] = _t15 + _t29;
+                J_dot[30 * (start + i) + 12] = _t16*qd2[i] + _t29;
+                J_dot[30 * (start + i) + 13] = -_t11*qd2[i] - _t11*qd3[i] - _t24;
                 J_dot[30 * (start + i) + 14] = 0;
                 J_dot[30 * (start + i) + 15] = 0;
-                J_dot[30 * (start + i) + 16] = _t14;
-                J_dot[30 * (start + i) + 17] = _t14;
-                J_dot[30 * (start + i) + 18] = _t14;
-                J_dot[30 * (start + i) + 19] = -_c1[i]*_t24 - _s1[i]*_t18 - _t30*qd3[i] - _t30*qd4[i];
+                J_dot[30 * (start + i) + 16] = _t8;
+                J_dot[30 * (start + i) + 17] = _t8;
+                J_dot[30 * (start + i) + 18] = _t8;
+                J_dot[30 * (start + i) + 19] = -_c0[i]*_t23 - _s0[i]*_t18 - _t30*qd3[i] - _t30*qd4[i];
                 J_dot[30 * (start + i) + 20] = 0;
-                J_dot[30 * (start + i) + 21] = _t24;
-                J_dot[30 * (start + i) + 22] = _t24;
-                J_dot[30 * (start + i) + 23] = _t24;
-                J_dot[30 * (start + i) + 24] = _c0[i]*_c1[i]*qd1[i] - _s1[i]*_t25 - _t31*qd3[i] - _t31*qd4[i];
+                J_dot[30 * (start + i) + 21] = _t23;
+                J_dot[30 * (start + i) + 22] = _t23;
+                J_dot[30 * (start + i) + 23] = _t23;
+                J_dot[30 * (start + i) + 24] = _c0[i]*_c3[i]*qd1[i] - _s0[i]*_t25 - _t31*qd3[i] - _t31*qd4[i];
                 J_dot[30 * (start + i) + 25] = 0;
                 J_dot[30 * (start + i) + 26] = 0;
                 J_dot[30 * (start + i) + 27] = 0;
                 J_dot[30 * (start + i) + 28] = 0;
-                J_dot[30 * (start + i) + 29] = _c1[i]*qd2[i] + _c1[i]*qd3[i] + _c1[i]*qd4[i];
+                J_dot[30 * (start + i) + 29] = _c0[i]*qd2[i] + _c0[i]*qd3[i] + _c0[i]*qd4[i];
             }
         }
 #ifdef KINEGEN_STREAM
@@ -2818,36 +2818,36 @@ void scorbot_er7_task_acceleration(const double *restrict q, const double *restr
     _s3 = sin(q2);
     _c3 = cos(q2);
 #endif
-    const double _t4 = _s1*d5;
-    const double _t5 = _c0*_t4;
-    const double _t6 = _s2*a3 + _t4;
-    const double _t7 = _c0*_t6;
-    const double _t8 = _s3*a2 + _t6;
-    const double _t9 = _c0*_t8;
-    const double _t11 = _c1*d5;
-    const double _t12 = _c2*a3 + _t11;
-    const double _t13 = _c3*a2 + _t12;
-    const double _t14 = _t13 + a1;
-    const double _t15 = _t14*qdd1;
-    const double _t16 = _c0*qd2;
-    const double _t17 = _c0*_t11;
-    const double _t18 = _t17*qd4;
-    const double _t19 = _t12*qd3;
-    const double _t20 = _c0*_t19 + _t18;
-    const double _t21 = -_t6;
-    const double _t22 = _t21*qd3;
-    const double _t23 = _t14*qd1;
-    const double _t24 = -_t8;
-    const double _t25 = _t24*qd2;
-    const double _t26 = _s0*qd2;
-    const double _t27 = _s0*_t11;
-    const double _t28 = _t27*qd4;
-    const double _t29 = _s0*_t19 + _t28;
-    const double _t30 = _t4*qd4;
-    const double _t31 = _t22 - _t30;
-    xdd[0] = -_s0*_t15 - _t5*qdd4 - _t7*qdd3 - _t9*qdd2 + qd1*(-_c0*_t23 + _s0*_s1*d5*qd4 - _s0*_t22 - _s0*_t25) + qd2*(_s0*_t8*qd1 - _t13*_t16 - _t20) + qd3*(_s0*_t6*qd1 - _t12*_t16 - _t20) + qd4*(_s0*_s1*d5*qd1 - _t11*_t16 - _t17*qd3 - _t18);
-    xdd[1] = _c0*_t15 - _s0*_t4*qdd4 - _s0*_t6*qdd3 - _s0*_t8*qdd2 + qd1*(_c0*_t21*qd3 + _c0*_t24*qd2 - _c0*_t30 - _s0*_t23) + qd2*(-_t13*_t26 - _t29 - _t9*qd1) + qd3*(-_t12*_t26 - _t29 - _t7*qd1) + qd4*(-_t11*_t26 - _t27*qd3 - _t28 - _t5*qd1);
-    xdd[2] = _t11*qdd4 + _t12*qdd3 + _t13*qdd2 + qd2*(_t25 + _t31) + qd3*(_t21*qd2 + _t31) + qd4*(-_t30 - _t4*qd2 - _t4*qd3);
+    const double _t3 = _c1*d5;
+    const double _t4 = _c2*a3 + _t3;
+    const double _t5 = _c3*a2 + _t4;
+    const double _t6 = _t5 + a1;
+    const double _t7 = _t6*qd1;
+    const double _t10 = _s1*d5;
+    const double _t11 = _s2*a3 + _t10;
+    const double _t12 = _s3*a2 + _t11;
+    const double _t13 = -_t12;
+    const double _t14 = _t13*qd2;
+    const double _t15 = -_t11;
+    const double _t16 = _t15*qd3;
+    const double _t17 = _c0*qd2;
+    const double _t18 = _t4*qd3;
+    const double _t19 = _c0*_t3;
+    const double _t20 = _t19*qd4;
+    const double _t21 = _c0*_t18 + _t20;
+    const double _t22 = _t6*qdd1;
+    const double _t23 = _c0*_t12;
+    const double _t24 = _c0*_t11;
+    const double _t25 = _c0*_t10;
+    const double _t26 = _t10*qd4;
+    const double _t27 = _s0*qd2;
+    const double _t28 = _s0*_t3;
+    const double _t29 = _t28*qd4;
+    const double _t30 = _s0*_t18 + _t29;
+    const double _t31 = _t16 - _t26;
+    xdd[0] = -_s0*_t22 - _t23*qdd2 - _t24*qdd3 - _t25*qdd4 + qd1*(-_c0*_t7 + _s0*_s1*d5*qd4 - _s0*_t14 - _s0*_t16) + qd2*(_s0*_t12*qd1 - _t17*_t5 - _t21) + qd3*(_s0*_t11*qd1 - _t17*_t4 - _t21) + qd4*(_s0*_s1*d5*qd1 - _t17*_t3 - _t19*qd3 - _t20);
+    xdd[1] = _c0*_t22 - _s0*_t10*qdd4 - _s0*_t11*qdd3 - _s0*_t12*qdd2 + qd1*(_c0*_t13*qd2 + _c0*_t15*qd3 - _c0*_t26 - _s0*_t7) + qd2*(-_t23*qd1 - _t27*_t5 - _t30) + qd3*(-_t24*qd1 - _t27*_t4 - _t30) + qd4*(-_t25*qd1 - _t27*_t3 - _t28*qd3 - _t29);
+    xdd[2] = _t3*qdd4 + _t4*qdd3 + _t5*qdd2 + qd2*(_t14 + _t31) + qd3*(_t15*qd2 + _t31) + qd4*(-_t10*qd2 - _t10*qd3 - _t26);
 }
 
 /* task_acceleration of `count` items, stored one after the other in each argument and output. */
@@ -2939,36 +2939,36 @@ void scorbot_er7_task_acceleration_batch(size_t count, const double *restrict q,
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            const double _t4 = _s1[i]*d5;
-            const double _t5 = _c0[i]*_t4;
-            const double _t6 = _s2[i]*a3 + _t4;
-            const double _t7 = _c0[i]*_t6;
-            const double _t8 = _s3[i]*a2 + _t6;
-            const double _t9 = _c0[i]*_t8;
-            const double _t11 = _c1[i]*d5;
-            const double _t12 = _c2[i]*a3 + _t11;
-            const double _t13 = _c3[i]*a2 + _t12;
-            const double _t14 = _t13 + a1;
-            const double _t15 = _t14*qdd1[i];
-            const double _t16 = _c0[i]*qd2[i];
-            const double _t17 = _c0[i]*_t11;
-            const double _t18 = _t17*qd4[i];
-            const double _t19 = _t12*qd3[i];
-            const double _t20 = _c0[i]*_t19 + _t18;
-            const double _t21 = -_t6;
-            const double _t22 = _t21*qd3[i];
-            const double _t23 = _t14*qd1[i];
-            const double _t24 = -_t8;
-            const double _t25 = _t24*qd2[i];
-            const double _t26 = _s0[i]*qd2[i];
-            const double _t27 = _s0[i]*_t11;
-            const double _t28 = _t27*qd4[i];
-            const double _t29 = _s0[i]*_t19 + _t28;
-            const double _t30 = _t4*qd4[i];
-            const double _t31 = _t22 - _t30;
-            xdd[3 * (start + i) + 0] = -_s0[i]*_t15 - _t5*qdd4[i] - _t7*qdd3[i] - _t9*qdd2[i] + qd1[i]*(-_c0[i]*_t23 + _s0[i]*_s1[i]*d5*qd4[i] - _s0[i]*_t22 - _s0[i]*_t25) + qd2[i]*(_s0[i]*_t8*qd1[i] - _t13*_t16 - _t20) + qd3[i]*(_s0[i]*_t6*qd1[i] - _t12*_t16 - _t20) + qd4[i]*(_s0[i]*_s1[i]*d5*qd1[i] - _t11*_t16 - _t17*qd3[i] - _t18);
-            xdd[3 * (start + i) + 1] = _c0[i]*_t15 - _s0[i]*_t4*qdd4[i] - _s0[i]*_t6*qdd3[i] - _s0[i]*_t8*qdd2[i] + qd1[i]*(_c0[i]*_t21*qd3[i] + _c0[i]*_t24*qd2[i] - _c0[i]*_t30 - _s0[i]*_t23) + qd2[i]*(-_t13*_t26 - _t29 - _t9*qd1[i]) + qd3[i]*(-_t12*_t26 - _t29 - _t7*qd1[i]) + qd4[i]*(-_t11*_t26 - _t27*qd3[i] - _t28 - _t5*qd1[i]);
-            xdd[3 * (start + i) + 2] = _t11*qdd4[i] + _t12*qdd3[i] + _t13*qdd2[i] + qd2[i]*(_t25 + _t31) + qd3[i]*(_t21*qd2[i] + _t31) + qd4[i]*(-_t30 - _t4*qd2[i] - _t4*qd3[i]);
+            const double _t3 = _c1[i]*d5;
+            const double _t4 = _c2[i]*a3 + _t3;
+            const double _t5 = _c3[i]*a2 + _t4;
+            const double _t6 = _t5 + a1;
+            const double _t7 = _t6*qd1[i];
+            const double _t10 = _s1[i]*d5;
+            const double _t11 = _s2[i]*a3 + _t10;
+            const double _t12 = _s3[i]*a2 + _t11;
+            const double _t13 = -_t12;
+            const double _t14 = _t13*qd2[i];
+            const double _t15 = -_t11;
+            const double _t16 = _t15*qd3[i];
+            const double _t17 = _c0[i]*qd2[i];
+            const double _t18 = _t4*qd3[i];
+            const double _t19 = _c0[i]*_t3;
+            const double _t20 = _t19*qd4[i];
+            const double _t21 = _c0[i]*_t18 + _t20;
+            const double _t22 = _t6*qdd1[i];
+            const double _t23 = _c0[i]*_t12;
+            const double _t24 = _c0[i]*_t11;
+            const double _t25 = _c0[i]*_t10;
+            const double _t26 = _t10*qd4[i];
+            const double _t27 = _s0[i]*qd2[i];
+            const double _t28 = _s0[i]*_t3;
+            const double _t29 = _t28*qd4[i];
+            const double _t30 = _s0[i]*_t18 + _t29;
+            const double _t31 = _t16 - _t26;
+            xdd[3 * (start + i) + 0] = -_s0[i]*_t22 - _t23*qdd2[i] - _t24*qdd3[i] - _t25*qdd4[i] + qd1[i]*(-_c0[i]*_t7 + _s0[i]*_s1[i]*d5*qd4[i] - _s0[i]*_t14 - _s0[i]*_t16) + qd2[i]*(_s0[i]*_t12*qd1[i] - _t17*_t5 - _t21) + qd3[i]*(_s0[i]*_t11*qd1[i] - _t17*_t4 - _t21) + qd4[i]*(_s0[i]*_s1[i]*d5*qd1[i] - _t17*_t3 - _t19*qd3[i] - _t20);
+            xdd[3 * (start + i) + 1] = _c0[i]*_t22 - _s0[i]*_t10*qdd4[i] - _s0[i]*_t11*qdd3[i] - _s0[i]*_t12*qdd2[i] + qd1[i]*(_c0[i]*_t13*qd2[i] + _c0[i]*_t15*qd3[i] - _c0[i]*_t26 - _s0[i]*_t7) + qd2[i]*(-_t23*qd1[i] - _t27*_t5 - _t30) + qd3[i]*(-_t24*qd1[i] - _t27*_t4 - _t30) + qd4[i]*(-_t25*qd1[i] - _t27*_t3 - _t28*qd3[i] - _t29);
+            xdd[3 * (start + i) + 2] = _t3*qdd4[i] + _t4*qdd3[i] + _t5*qdd2[i] + qd2[i]*(_t14 + _t31) + qd3[i]*(_t15*qd2[i] + _t31) + qd4[i]*(-_t10*qd2[i] - _t10*qd3[i] - _t26);
         }
     }
 #else
@@ -2994,14 +2994,14 @@ void scorbot_er7_manipulability(const double *restrict q, const scorbot_er7_para
     const double d1 = params->d1;
     const double d5 = params->d5;
     const double _t8 = 1.0/((fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5))*(fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5)));
-    const double _t1 = q3 + q4;
+    const double _t0 = q3 + q4;
     const double _a0 = q2 + q3;
-    const double _a1 = _t1 + q2;
+    const double _a1 = _t0 + q2;
     double _s0, _c1, _c2, _c3, _s4, _s5;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[8] = { q4, q2, _a0, _a1, _t1, q3, 0.0, 0.0 };
+        const double angle[8] = { _t0, q2, _a0, _a1, q3, q4, 0.0, 0.0 };
         double sine[8], cosine[8];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -3020,20 +3020,20 @@ void scorbot_er7_manipulability(const double *restrict q, const scorbot_er7_para
         _s5 = sine[5];
     }
 #else
-    _s0 = sin(q4);
+    _s0 = sin(_t0);
     _c1 = cos(q2);
     _c2 = cos(_a0);
     _c3 = cos(_a1);
-    _s4 = sin(_t1);
-    _s5 = sin(q3);
+    _s4 = sin(q3);
+    _s5 = sin(q4);
 #endif
     const double _t2 = ((_c1*a2 + _c2*a3 + _c3*d5 + a1)*(_c1*a2 + _c2*a3 + _c3*d5 + a1));
-    const double _t3 = _t2*(d5*d5);
-    const double _t4 = (_s0*_s0)*_t3*(a3*a3);
-    const double _t6 = _t2*(a2*a2)*((_s4*d5 + _s5*a3)*(_s4*d5 + _s5*a3));
-    const double _t7 = _t3*((_s0*a3 + _s4*a2)*(_s0*a3 + _s4*a2));
-    manipulability[0] = sqrt(_t4 + _t6 + _t7);
-    singular[0] = _t4*_t8 + _t6*_t8 + _t7*_t8 < 1e-08;
+    const double _t3 = _t2*(a2*a2)*((_s0*d5 + _s4*a3)*(_s0*d5 + _s4*a3));
+    const double _t5 = _t2*(d5*d5);
+    const double _t6 = _t5*((_s0*a2 + _s5*a3)*(_s0*a2 + _s5*a3));
+    const double _t7 = (_s5*_s5)*_t5*(a3*a3);
+    manipulability[0] = sqrt(_t3 + _t6 + _t7);
+    singular[0] = _t3*_t8 + _t6*_t8 + _t7*_t8 < 1e-08;
 }
 
 /* manipulability of `count` items, stored one after the other in each argument and output. */
@@ -3043,7 +3043,7 @@ void scorbot_er7_manipulability_batch(size_t count, const double *restrict q, co
     double q2[KINEGEN_BLOCK_OF(64)];
     double q3[KINEGEN_BLOCK_OF(64)];
     double q4[KINEGEN_BLOCK_OF(64)];
-    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
     double _a0[KINEGEN_BLOCK_OF(64)];
     double _a1[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
@@ -3071,13 +3071,13 @@ void scorbot_er7_manipulability_batch(size_t count, const double *restrict q, co
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t1[i] = q3[i] + q4[i];
+            _t0[i] = q3[i] + q4[i];
             _a0[i] = q2[i] + q3[i];
-            _a1[i] = _t1[i] + q2[i];
+            _a1[i] = _t0[i] + q2[i];
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s0[i] = sin(q4[i]);
+            _s0[i] = sin(_t0[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -3093,21 +3093,21 @@ void scorbot_er7_manipulability_batch(size_t count, const double *restrict q, co
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s4[i] = sin(_t1[i]);
+            _s4[i] = sin(q3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s5[i] = sin(q3[i]);
+            _s5[i] = sin(q4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             const double _t2 = ((_c1[i]*a2 + _c2[i]*a3 + _c3[i]*d5 + a1)*(_c1[i]*a2 + _c2[i]*a3 + _c3[i]*d5 + a1));
-            const double _t3 = _t2*(d5*d5);
-            const double _t4 = (_s0[i]*_s0[i])*_t3*(a3*a3);
-            const double _t6 = _t2*(a2*a2)*((_s4[i]*d5 + _s5[i]*a3)*(_s4[i]*d5 + _s5[i]*a3));
-            const double _t7 = _t3*((_s0[i]*a3 + _s4[i]*a2)*(_s0[i]*a3 + _s4[i]*a2));
-            manipulability[1 * (start + i) + 0] = sqrt(_t4 + _t6 + _t7);
-            singular[1 * (start + i) + 0] = _t4*_t8 + _t6*_t8 + _t7*_t8 < 1e-08;
+            const double _t3 = _t2*(a2*a2)*((_s0[i]*d5 + _s4[i]*a3)*(_s0[i]*d5 + _s4[i]*a3));
+            const double _t5 = _t2*(d5*d5);
+            const double _t6 = _t5*((_s0[i]*a2 + _s5[i]*a3)*(_s0[i]*a2 + _s5[i]*a3));
+            const double _t7 = (_s5[i]*_s5[i])*_t5*(a3*a3);
+            manipulability[1 * (start + i) + 0] = sqrt(_t3 + _t6 + _t7);
+            singular[1 * (start + i) + 0] = _t3*_t8 + _t6*_t8 + _t7*_t8 < 1e-08;
         }
     }
 #else
@@ -3136,25 +3136,25 @@ void scorbot_er7_joint_velocity(const double *restrict q, const double *restrict
     const double a3 = params->a3;
     const double d1 = params->d1;
     const double d5 = params->d5;
-    const double _t13 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
-    const double _t15 = (a3*a3);
-    const double _t16 = (d5*d5);
-    const double _t20 = (a2*a2);
-    const double _t29 = 1.0/(_t13*_t13*_t13*_t13);
-    const double _t61 = 1.0/(_t13*_t13);
-    const double _t78 = 1.0/_t13;
-    const double _t2 = q2 + q3;
-    const double _t5 = q3 + q4;
-    const double _t6 = _t5 + q2;
-    const double _t34 = 2*q2;
-    const double _a0 = _t34 + 2*q3 + q4;
-    const double _a1 = _t34 + q3;
-    const double _a2 = _t34 + _t5;
-    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _s4, _s5, _s6, _s7, _s8, _s9, _c9;
+    const double _t0 = (a2*a2);
+    const double _t16 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
+    const double _t19 = (d5*d5);
+    const double _t23 = (a3*a3);
+    const double _t27 = 1.0/(_t16*_t16*_t16*_t16);
+    const double _t61 = 1.0/(_t16*_t16);
+    const double _t78 = 1.0/_t16;
+    const double _t1 = q3 + q4;
+    const double _t6 = q2 + q3;
+    const double _t9 = _t1 + q2;
+    const double _t32 = 2*q2;
+    const double _a0 = _t32 + 2*q3 + q4;
+    const double _a1 = _t32 + q3;
+    const double _a2 = _t1 + _t32;
+    double _s0, _s1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _s6, _s7, _s8, _s9, _c9;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[12] = { q2, _t2, _t6, q4, _t5, q3, _a0, _a1, _a2, q1, 0.0, 0.0 };
+        const double angle[12] = { _t1, q3, q2, _t6, _t9, q4, _a0, _a1, _a2, q1, 0.0, 0.0 };
         double sine[12], cosine[12];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -3166,13 +3166,13 @@ void scorbot_er7_joint_velocity(const double *restrict q, const double *restrict
             cosine[k] = cos(angle[k]);
         }
         _s0 = sine[0];
-        _c0 = cosine[0];
         _s1 = sine[1];
-        _c1 = cosine[1];
         _s2 = sine[2];
         _c2 = cosine[2];
         _s3 = sine[3];
+        _c3 = cosine[3];
         _s4 = sine[4];
+        _c4 = cosine[4];
         _s5 = sine[5];
         _s6 = sine[6];
         _s7 = sine[7];
@@ -3181,109 +3181,109 @@ void scorbot_er7_joint_velocity(const double *restrict q, const double *restrict
         _c9 = cosine[9];
     }
 #else
-    _s0 = sin(q2);
-    _c0 = cos(q2);
-    _s1 = sin(_t2);
-    _c1 = cos(_t2);
-    _s2 = sin(_t6);
-    _c2 = cos(_t6);
-    _s3 = sin(q4);
-    _s4 = sin(_t5);
-    _s5 = sin(q3);
+    _s0 = sin(_t1);
+    _s1 = sin(q3);
+    _s2 = sin(q2);
+    _c2 = cos(q2);
+    _s3 = sin(_t6);
+    _c3 = cos(_t6);
+    _s4 = sin(_t9);
+    _c4 = cos(_t9);
+    _s5 = sin(q4);
     _s6 = sin(_a0);
     _s7 = sin(_a1);
     _s8 = sin(_a2);
     _s9 = sin(q1);
     _c9 = cos(q1);
 #endif
-    const double _t1 = _c0*a2;
-    const double _t4 = _c1*a3;
-    const double _t8 = _c2*d5;
-    const double _t9 = _t4 + _t8;
-    const double _t10 = _t1 + _t9;
-    const double _t11 = _t10 + a1;
-    const double _t12 = (_t11*_t11);
-    const double _t14 = _t12/(_t13*_t13*_t13*_t13*_t13*_t13);
-    const double _t18 = (_s3*_s3)*_t15*_t16;
-    const double _t19 = _t14*_t18;
-    const double _t22 = _t20*((_s4*d5 + _s5*a3)*(_s4*d5 + _s5*a3));
-    const double _t23 = _t14*_t22;
-    const double _t24 = _t16*((_s3*a3 + _s4*a2)*(_s3*a3 + _s4*a2));
-    const double _t25 = _t14*_t24;
-    const double _t26 = kinegen_max(0, -100000000*_t19 - 100000000*_t23 - 100000000*_t25 + 1);
-    const double _t28 = (_s2*_s2)*_t16;
-    const double _t30 = _t12*_t29;
-    const double _t32 = _s1*a3;
-    const double _t33 = _s2*d5;
-    const double _t35 = _c2*_s2*_t16;
-    const double _t36 = _c1*_s1*_t15 + _s6*a3*d5 + _t32*a1 + _t33*a1 + _t35;
-    const double _t37 = _t1*_t32 + _t1*_t33 + _t36;
-    const double _t39 = _s0*a2;
-    const double _t40 = _c0*_s0*_t20 + _s7*a2*a3 + _s8*a2*d5 + _t36 + _t39*a1;
-    const double _t41 = _t28*_t30 + _t29*(_t37*_t37) + _t29*(_t40*_t40);
+    const double _t3 = _t0*((_s0*d5 + _s1*a3)*(_s0*d5 + _s1*a3));
+    const double _t5 = _c2*a2;
+    const double _t8 = _c3*a3;
+    const double _t11 = _c4*d5;
+    const double _t12 = _t11 + _t8;
+    const double _t13 = _t12 + _t5;
+    const double _t14 = _t13 + a1;
+    const double _t15 = (_t14*_t14);
+    const double _t17 = _t15/(_t16*_t16*_t16*_t16*_t16*_t16);
+    const double _t18 = _t17*_t3;
+    const double _t21 = _t19*((_s0*a2 + _s5*a3)*(_s0*a2 + _s5*a3));
+    const double _t22 = _t17*_t21;
+    const double _t24 = (_s5*_s5)*_t19*_t23;
+    const double _t25 = _t17*_t24;
+    const double _t26 = kinegen_max(0, -100000000*_t18 - 100000000*_t22 - 100000000*_t25 + 1);
+    const double _t29 = _s3*a3;
+    const double _t31 = _s4*d5;
+    const double _t33 = _c4*_s4*_t19;
+    const double _t34 = _c3*_s3*_t23 + _s6*a3*d5 + _t29*a1 + _t31*a1 + _t33;
+    const double _t35 = _t29*_t5 + _t31*_t5 + _t34;
+    const double _t37 = _s2*a2;
+    const double _t38 = _c2*_s2*_t0 + _s7*a2*a3 + _s8*a2*d5 + _t34 + _t37*a1;
+    const double _t39 = (_s4*_s4)*_t19;
+    const double _t40 = _t15*_t27;
+    const double _t41 = _t27*(_t35*_t35) + _t27*(_t38*_t38) + _t39*_t40;
     const double _t42 = (1e-06)*_t26;
-    const double _t44 = (_s9*_s9);
-    const double _t45 = _t29*_t44;
-    const double _t47 = (_c9*_c9);
-    const double _t48 = _t29*_t47;
-    const double _t49 = (_c2*_c2);
-    const double _t50 = _t16*_t49;
-    const double _t51 = _t12*_t50;
-    const double _t52 = _t1*_t4;
-    const double _t53 = _t1*_t8;
-    const double _t54 = (_c1*_c1)*_t15 + 2*_t4*_t8 + _t4*a1 + _t50 + _t8*a1;
-    const double _t55 = _t52 + _t53 + _t54;
-    const double _t56 = (_t55*_t55);
-    const double _t57 = (_c0*_c0)*_t20 + _t1*a1 + 2*_t52 + 2*_t53 + _t54;
-    const double _t58 = (_t57*_t57);
-    const double _t59 = _t18*_t45 + _t22*_t45 + _t24*_t45 + _t48*_t51 + _t48*_t56 + _t48*_t58;
-    const double _t60 = _t18*_t48 + _t22*_t48 + _t24*_t48 + _t45*_t51 + _t45*_t56 + _t45*_t58;
-    const double _t62 = (_t10*_t10)*_t61 + _t50*_t61 + _t61*(_t9*_t9);
+    const double _t43 = _t5*_t8;
+    const double _t44 = _t11*_t5;
+    const double _t45 = (_c4*_c4);
+    const double _t46 = _t19*_t45;
+    const double _t47 = (_c3*_c3)*_t23 + 2*_t11*_t8 + _t11*a1 + _t46 + _t8*a1;
+    const double _t48 = _t43 + _t44 + _t47;
+    const double _t49 = (_t48*_t48);
+    const double _t51 = (_c9*_c9);
+    const double _t52 = _t27*_t51;
+    const double _t53 = (_c2*_c2)*_t0 + 2*_t43 + 2*_t44 + _t47 + _t5*a1;
+    const double _t54 = (_t53*_t53);
+    const double _t56 = (_s9*_s9);
+    const double _t57 = _t27*_t56;
+    const double _t58 = _t15*_t46;
+    const double _t59 = _t21*_t57 + _t24*_t57 + _t3*_t57 + _t49*_t52 + _t52*_t54 + _t52*_t58;
+    const double _t60 = _t21*_t52 + _t24*_t52 + _t3*_t52 + _t49*_t57 + _t54*_t57 + _t57*_t58;
+    const double _t62 = (_t12*_t12)*_t61 + (_t13*_t13)*_t61 + _t46*_t61;
     const double _t63 = (1e-12)*(_t26*_t26);
-    const double _t64 = _t47*_t61;
-    const double _t65 = _t32 + _t33;
-    const double _t66 = (_t65*_t65);
-    const double _t67 = _t39 + _t65;
+    const double _t64 = _t29 + _t31;
+    const double _t65 = (_t64*_t64);
+    const double _t66 = _t51*_t61;
+    const double _t67 = _t37 + _t64;
     const double _t68 = (_t67*_t67);
-    const double _t69 = _t44*_t61;
-    const double _t70 = _t12*_t69 + _t28*_t64 + _t64*_t66 + _t64*_t68;
-    const double _t71 = _t12*_t64 + _t28*_t69 + _t66*_t69 + _t68*_t69;
-    const double _t72 = _t19 + _t23 + _t25;
+    const double _t69 = _t56*_t61;
+    const double _t70 = _t15*_t69 + _t39*_t66 + _t65*_t66 + _t66*_t68;
+    const double _t71 = _t15*_t66 + _t39*_t69 + _t65*_t69 + _t68*_t69;
+    const double _t72 = _t18 + _t22 + _t25;
     const double _t73 = 1.0/((1e-18)*(_t26*_t26*_t26) + _t41*_t42 + _t42*_t59 + _t42*_t60 + _t62*_t63 + _t63*_t70 + _t63*_t71 + _t72);
     const double _t74 = _c9*_s9;
-    const double _t75 = _t29*_t74;
-    const double _t76 = _t61*_t74;
-    const double _t77 = _c9*_s9*_t12*_t16*_t29*_t49 + _c9*_s9*_t29*_t56 + _c9*_s9*_t29*_t58 - _t18*_t75 - _t22*_t75 - _t24*_t75 - _t42*(-_t12*_t76 + _t28*_t76 + _t66*_t76 + _t68*_t76);
+    const double _t75 = _t61*_t74;
+    const double _t76 = _t27*_t74;
+    const double _t77 = _c9*_s9*_t15*_t19*_t27*_t45 + _c9*_s9*_t27*_t49 + _c9*_s9*_t27*_t54 - _t21*_t76 - _t24*_t76 - _t3*_t76 - _t42*(-_t15*_t75 + _t39*_t75 + _t65*_t75 + _t68*_t75);
     const double _t79 = _t78*xd_x;
-    const double _t80 = _t30*_t35;
-    const double _t81 = _s9*_t29;
-    const double _t82 = _t37*_t55;
-    const double _t83 = _t40*_t57;
-    const double _t84 = _s9*_t61;
-    const double _t85 = _t65*_t9;
-    const double _t86 = _t10*_t67;
-    const double _t87 = _s9*_t80 - _t42*(-_t35*_t84 - _t84*_t85 - _t84*_t86) + _t81*_t82 + _t81*_t83;
-    const double _t88 = _t78*xd_z;
-    const double _t89 = _t42*_t62;
-    const double _t90 = _t42*_t70 + _t63;
-    const double _t91 = _t78*xd_y;
-    const double _t92 = _t77*_t79 + _t87*_t88 + _t91*(_t60 + _t89 + _t90);
-    const double _t93 = _t11*_t78;
-    const double _t94 = _c9*_t29;
+    const double _t80 = _t42*_t62;
+    const double _t81 = _t42*_t70 + _t63;
+    const double _t82 = _t78*xd_y;
+    const double _t83 = _s9*_t61;
+    const double _t84 = _t12*_t64;
+    const double _t85 = _t13*_t67;
+    const double _t86 = _s9*_t27;
+    const double _t87 = _t35*_t48;
+    const double _t88 = _t38*_t53;
+    const double _t89 = _t33*_t40;
+    const double _t90 = _s9*_t89 - _t42*(-_t33*_t83 - _t83*_t84 - _t83*_t85) + _t86*_t87 + _t86*_t88;
+    const double _t91 = _t78*xd_z;
+    const double _t92 = _t77*_t79 + _t82*(_t60 + _t80 + _t81) + _t90*_t91;
+    const double _t93 = _t14*_t78;
+    const double _t94 = _t42*_t71;
     const double _t95 = _c9*_t61;
-    const double _t96 = _c9*_t80 - _t42*(-_t35*_t95 - _t85*_t95 - _t86*_t95) + _t82*_t94 + _t83*_t94;
-    const double _t97 = _t42*_t71;
-    const double _t98 = _t77*_t91 + _t79*(_t59 + _t63 + _t89 + _t97) + _t88*_t96;
-    const double _t99 = _t79*_t96 + _t87*_t91 + _t88*(_t41 + _t90 + _t97);
+    const double _t96 = _c9*_t27;
+    const double _t97 = _c9*_t89 - _t42*(-_t33*_t95 - _t84*_t95 - _t85*_t95) + _t87*_t96 + _t88*_t96;
+    const double _t98 = _t77*_t82 + _t79*(_t59 + _t63 + _t80 + _t94) + _t91*_t97;
+    const double _t99 = _t79*_t97 + _t82*_t90 + _t91*(_t41 + _t81 + _t94);
     const double _t100 = _t67*_t78;
     const double _t101 = _s9*_t92;
     const double _t102 = _c9*_t98;
-    const double _t103 = _t65*_t78;
-    const double _t104 = _t33*_t78;
+    const double _t103 = _t64*_t78;
+    const double _t104 = _t31*_t78;
     qd[0] = _t73*(_c9*_t92*_t93 - _s9*_t93*_t98);
-    qd[1] = _t73*(_t10*_t78*_t99 - _t100*_t101 - _t100*_t102);
-    qd[2] = _t73*(-_t101*_t103 - _t102*_t103 + _t78*_t9*_t99);
-    qd[3] = _t73*(_c2*_t78*_t99*d5 - _t101*_t104 - _t102*_t104);
+    qd[1] = _t73*(-_t100*_t101 - _t100*_t102 + _t13*_t78*_t99);
+    qd[2] = _t73*(-_t101*_t103 - _t102*_t103 + _t12*_t78*_t99);
+    qd[3] = _t73*(_c4*_t78*_t99*d5 - _t101*_t104 - _t102*_t104);
     qd[4] = 0;
     singular[0] = _t72 < 1e-08;
 }
@@ -3299,20 +3299,20 @@ void scorbot_er7_joint_velocity_batch(size_t count, const double *restrict q, co
     double xd_x[KINEGEN_BLOCK_OF(64)];
     double xd_y[KINEGEN_BLOCK_OF(64)];
     double xd_z[KINEGEN_BLOCK_OF(64)];
-    double _t2[KINEGEN_BLOCK_OF(64)];
-    double _t5[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
     double _t6[KINEGEN_BLOCK_OF(64)];
+    double _t9[KINEGEN_BLOCK_OF(64)];
     double _a0[KINEGEN_BLOCK_OF(64)];
     double _a1[KINEGEN_BLOCK_OF(64)];
     double _a2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
-    double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
-    double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
     double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
     double _s4[KINEGEN_BLOCK_OF(64)];
+    double _c4[KINEGEN_BLOCK_OF(64)];
     double _s5[KINEGEN_BLOCK_OF(64)];
     double _s6[KINEGEN_BLOCK_OF(64)];
     double _s7[KINEGEN_BLOCK_OF(64)];
@@ -3328,13 +3328,13 @@ void scorbot_er7_joint_velocity_batch(size_t count, const double *restrict q, co
     const double a3 = params->a3;
     const double d1 = params->d1;
     const double d5 = params->d5;
-    const double _t13 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
-    const double _t15 = (a3*a3);
-    const double _t16 = (d5*d5);
-    const double _t20 = (a2*a2);
-    const double _t29 = 1.0/(_t13*_t13*_t13*_t13);
-    const double _t61 = 1.0/(_t13*_t13);
-    const double _t78 = 1.0/_t13;
+    const double _t0 = (a2*a2);
+    const double _t16 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
+    const double _t19 = (d5*d5);
+    const double _t23 = (a3*a3);
+    const double _t27 = 1.0/(_t16*_t16*_t16*_t16);
+    const double _t61 = 1.0/(_t16*_t16);
+    const double _t78 = 1.0/_t16;
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
@@ -3348,49 +3348,49 @@ void scorbot_er7_joint_velocity_batch(size_t count, const double *restrict q, co
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t2[i] = q2[i] + q3[i];
-            _t5[i] = q3[i] + q4[i];
-            _t6[i] = _t5[i] + q2[i];
-            const double _t34 = 2*q2[i];
-            _a0[i] = _t34 + 2*q3[i] + q4[i];
-            _a1[i] = _t34 + q3[i];
-            _a2[i] = _t34 + _t5[i];
+            _t1[i] = q3[i] + q4[i];
+            _t6[i] = q2[i] + q3[i];
+            _t9[i] = _t1[i] + q2[i];
+            const double _t32 = 2*q2[i];
+            _a0[i] = _t32 + 2*q3[i] + q4[i];
+            _a1[i] = _t32 + q3[i];
+            _a2[i] = _t1[i] + _t32;
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s0[i] = sin(q2[i]);
+            _s0[i] = sin(_t1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c0[i] = cos(q2[i]);
+            _s1[i] = sin(q3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s1[i] = sin(_t2[i]);
+            _s2[i] = sin(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c1[i] = cos(_t2[i]);
+            _c2[i] = cos(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s2[i] = sin(_t6[i]);
+            _s3[i] = sin(_t6[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(_t6[i]);
+            _c3[i] = cos(_t6[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s3[i] = sin(q4[i]);
+            _s4[i] = sin(_t9[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s4[i] = sin(_t5[i]);
+            _c4[i] = cos(_t9[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s5[i] = sin(q3[i]);
+            _s5[i] = sin(q4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -3414,94 +3414,94 @@ void scorbot_er7_joint_velocity_batch(size_t count, const double *restrict q, co
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            const double _t1 = _c0[i]*a2;
-            const double _t4 = _c1[i]*a3;
-            const double _t8 = _c2[i]*d5;
-            const double _t9 = _t4 + _t8;
-            const double _t10 = _t1 + _t9;
-            const double _t11 = _t10 + a1;
-            const double _t12 = (_t11*_t11);
-            const double _t14 = _t12/(_t13*_t13*_t13*_t13*_t13*_t13);
-            const double _t18 = (_s3[i]*_s3[i])*_t15*_t16;
-            const double _t19 = _t14*_t18;
-            const double _t22 = _t20*((_s4[i]*d5 + _s5[i]*a3)*(_s4[i]*d5 + _s5[i]*a3));
-            const double _t23 = _t14*_t22;
-            const double _t24 = _t16*((_s3[i]*a3 + _s4[i]*a2)*(_s3[i]*a3 + _s4[i]*a2));
-            const double _t25 = _t14*_t24;
-            const double _t26 = kinegen_max(0, -100000000*_t19 - 100000000*_t23 - 100000000*_t25 + 1);
-            const double _t28 = (_s2[i]*_s2[i])*_t16;
-            const double _t30 = _t12*_t29;
-            const double _t32 = _s1[i]*a3;
-            const double _t33 = _s2[i]*d5;
-            const double _t35 = _c2[i]*_s2[i]*_t16;
-            const double _t36 = _c1[i]*_s1[i]*_t15 + _s6[i]*a3*d5 + _t32*a1 + _t33*a1 + _t35;
-            const double _t37 = _t1*_t32 + _t1*_t33 + _t36;
-            const double _t39 = _s0[i]*a2;
-            const double _t40 = _c0[i]*_s0[i]*_t20 + _s7[i]*a2*a3 + _s8[i]*a2*d5 + _t36 + _t39*a1;
-            const double _t41 = _t28*_t30 + _t29*(_t37*_t37) + _t29*(_t40*_t40);
+            const double _t3 = _t0*((_s0[i]*d5 + _s1[i]*a3)*(_s0[i]*d5 + _s1[i]*a3));
+            const double _t5 = _c2[i]*a2;
+            const double _t8 = _c3[i]*a3;
+            const double _t11 = _c4[i]*d5;
+            const double _t12 = _t11 + _t8;
+            const double _t13 = _t12 + _t5;
+            const double _t14 = _t13 + a1;
+            const double _t15 = (_t14*_t14);
+            const double _t17 = _t15/(_t16*_t16*_t16*_t16*_t16*_t16);
+            const double _t18 = _t17*_t3;
+            const double _t21 = _t19*((_s0[i]*a2 + _s5[i]*a3)*(_s0[i]*a2 + _s5[i]*a3));
+            const double _t22 = _t17*_t21;
+            const double _t24 = (_s5[i]*_s5[i])*_t19*_t23;
+            const double _t25 = _t17*_t24;
+            const double _t26 = kinegen_max(0, -100000000*_t18 - 100000000*_t22 - 100000000*_t25 + 1);
+            const double _t29 = _s3[i]*a3;
+            const double _t31 = _s4[i]*d5;
+            const double _t33 = _c4[i]*_s4[i]*_t19;
+            const double _t34 = _c3[i]*_s3[i]*_t23 + _s6[i]*a3*d5 + _t29*a1 + _t31*a1 + _t33;
+            const double _t35 = _t29*_t5 + _t31*_t5 + _t34;
+            const double _t37 = _s2[i]*a2;
+            const double _t38 = _c2[i]*_s2[i]*_t0 + _s7[i]*a2*a3 + _s8[i]*a2*d5 + _t34 + _t37*a1;
+            const double _t39 = (_s4[i]*_s4[i])*_t19;
+            const double _t40 = _t15*_t27;
+            const double _t41 = _t27*(_t35*_t35) + _t27*(_t38*_t38) + _t39*_t40;
             const double _t42 = (1e-06)*_t26;
-            const double _t44 = (_s9[i]*_s9[i]);
-            const double _t45 = _t29*_t44;
-            const double _t47 = (_c9[i]*_c9[i]);
-            const double _t48 = _t29*_t47;
-            const double _t49 = (_c2[i]*_c2[i]);
-            const double _t50 = _t16*_t49;
-            const double _t51 = _t12*_t50;
-            const double _t52 = _t1*_t4;
-            const double _t53 = _t1*_t8;
-            const double _t54 = (_c1[i]*_c1[i])*_t15 + 2*_t4*_t8 + _t4*a1 + _t50 + _t8*a1;
-            const double _t55 = _t52 + _t53 + _t54;
-            const double _t56 = (_t55*_t55);
-            const double _t57 = (_c0[i]*_c0[i])*_t20 + _t1*a1 + 2*_t52 + 2*_t53 + _t54;
-            const double _t58 = (_t57*_t57);
-            const double _t59 = _t18*_t45 + _t22*_t45 + _t24*_t45 + _t48*_t51 + _t48*_t56 + _t48*_t58;
-            const double _t60 = _t18*_t48 + _t22*_t48 + _t24*_t48 + _t45*_t51 + _t45*_t56 + _t45*_t58;
-            const double _t62 = (_t10*_t10)*_t61 + _t50*_t61 + _t61*(_t9*_t9);
+            const double _t43 = _t5*_t8;
+            const double _t44 = _t11*_t5;
+            const double _t45 = (_c4[i]*_c4[i]);
+            const double _t46 = _t19*_t45;
+            const double _t47 = (_c3[i]*_c3[i])*_t23 + 2*_t11*_t8 + _t11*a1 + _t46 + _t8*a1;
+            const double _t48 = _t43 + _t44 + _t47;
+            const double _t49 = (_t48*_t48);
+            const double _t51 = (_c9[i]*_c9[i]);
+            const double _t52 = _t27*_t51;
+            const double _t53 = (_c2[i]*_c2[i])*_t0 + 2*_t43 + 2*_t44 + _t47 + _t5*a1;
+            const double _t54 = (_t53*_t53);
+            const double _t56 = (_s9[i]*_s9[i]);
+            const double _t57 = _t27*_t56;
+            const double _t58 = _t15*_t46;
+            const double _t59 = _t21*_t57 + _t24*_t57 + _t3*_t57 + _t49*_t52 + _t52*_t54 + _t52*_t58;
+            const double _t60 = _t21*_t52 + _t24*_t52 + _t3*_t52 + _t49*_t57 + _t54*_t57 + _t57*_t58;
+            const double _t62 = (_t12*_t12)*_t61 + (_t13*_t13)*_t61 + _t46*_t61;
             const double _t63 = (1e-12)*(_t26*_t26);
-            const double _t64 = _t47*_t61;
-            const double _t65 = _t32 + _t33;
-            const double _t66 = (_t65*_t65);
-            const double _t67 = _t39 + _t65;
+            const double _t64 = _t29 + _t31;
+            const double _t65 = (_t64*_t64);
+            const double _t66 = _t51*_t61;
+            const double _t67 = _t37 + _t64;
             const double _t68 = (_t67*_t67);
-            const double _t69 = _t44*_t61;
-            const double _t70 = _t12*_t69 + _t28*_t64 + _t64*_t66 + _t64*_t68;
-            const double _t71 = _t12*_t64 + _t28*_t69 + _t66*_t69 + _t68*_t69;
-            const double _t72 = _t19 + _t23 + _t25;
+            const double _t69 = _t56*_t61;
+            const double _t70 = _t15*_t69 + _t39*_t66 + _t65*_t66 + _t66*_t68;
+            const double _t71 = _t15*_t66 + _t39*_t69 + _t65*_t69 + _t68*_t69;
+            const double _t72 = _t18 + _t22 + _t25;
             const double _t73 = 1.0/((1e-18)*(_t26*_t26*_t26) + _t41*_t42 + _t42*_t59 + _t42*_t60 + _t62*_t63 + _t63*_t70 + _t63*_t71 + _t72);
             const double _t74 = _c9[i]*_s9[i];
-            const double _t75 = _t29*_t74;
-            const double _t76 = _t61*_t74;
-            const double _t77 = _c9[i]*_s9[i]*_t12*_t16*_t29*_t49 + _c9[i]*_s9[i]*_t29*_t56 + _c9[i]*_s9[i]*_t29*_t58 - _t18*_t75 - _t22*_t75 - _t24*_t75 - _t42*(-_t12*_t76 + _t28*_t76 + _t66*_t76 + _t68*_t76);
+            const double _t75 = _t61*_t74;
+            const double _t76 = _t27*_t74;
+            const double _t77 = _c9[i]*_s9[i]*_t15*_t19*_t27*_t45 + _c9[i]*_s9[i]*_t27*_t49 + _c9[i]*_s9[i]*_t27*_t54 - _t21*_t76 - _t24*_t76 - _t3*_t76 - _t42*(-_t15*_t75 + _t39*_t75 + _t65*_t75 + _t68*_t75);
             const double _t79 = _t78*xd_x[i];
-            const double _t80 = _t30*_t35;
-            const double _t81 = _s9[i]*_t29;
-            const double _t82 = _t37*_t55;
-            const double _t83 = _t40*_t57;
-            const double _t84 = _s9[i]*_t61;
-            const double _t85 = _t65*_t9;
-            const double _t86 = _t10*_t67;
-            const double _t87 = _s9[i]*_t80 - _t42*(-_t35*_t84 - _t84*_t85 - _t84*_t86) + _t81*_t82 + _t81*_t83;
-            const double _t88 = _t78*xd_z[i];
-            const double _t89 = _t42*_t62;
-            const double _t90 = _t42*_t70 + _t63;
-            const double _t91 = _t78*xd_y[i];
-            const double _t92 = _t77*_t79 + _t87*_t88 + _t91*(_t60 + _t89 + _t90);
-            const double _t93 = _t11*_t78;
-            const double _t94 = _c9[i]*_t29;
+            const double _t80 = _t42*_t62;
+            const double _t81 = _t42*_t70 + _t63;
+            const double _t82 = _t78*xd_y[i];
+            const double _t83 = _s9[i]*_t61;
+            const double _t84 = _t12*_t64;
+            const double _t85 = _t13*_t67;
+            const double _t86 = _s9[i]*_t27;
+            const double _t87 = _t35*_t48;
+            const double _t88 = _t38*_t53;
+            const double _t89 = _t33*_t40;
+            const double _t90 = _s9[i]*_t89 - _t42*(-_t33*_t83 - _t83*_t84 - _t83*_t85) + _t86*_t87 + _t86*_t88;
+            const double _t91 = _t78*xd_z[i];
+            const double _t92 = _t77*_t79 + _t82*(_t60 + _t80 + _t81) + _t90*_t91;
+            const double _t93 = _t14*_t78;
+            const double _t94 = _t42*_t71;
             const double _t95 = _c9[i]*_t61;
-            const double _t96 = _c9[i]*_t80 - _t42*(-_t35*_t95 - _t85*_t95 - _t86*_t95) + _t82*_t94 + _t83*_t94;
-            const double _t97 = _t42*_t71;
-            const double _t98 = _t77*_t91 + _t79*(_t59 + _t63 + _t89 + _t97) + _t88*_t96;
-            const double _t99 = _t79*_t96 + _t87*_t91 + _t88*(_t41 + _t90 + _t97);
+            const double _t96 = _c9[i]*_t27;
+            const double _t97 = _c9[i]*_t89 - _t42*(-_t33*_t95 - _t84*_t95 - _t85*_t95) + _t87*_t96 + _t88*_t96;
+            const double _t98 = _t77*_t82 + _t79*(_t59 + _t63 + _t80 + _t94) + _t91*_t97;
+            const double _t99 = _t79*_t97 + _t82*_t90 + _t91*(_t41 + _t81 + _t94);
             const double _t100 = _t67*_t78;
             const double _t101 = _s9[i]*_t92;
             const double _t102 = _c9[i]*_t98;
-            const double _t103 = _t65*_t78;
-            const double _t104 = _t33*_t78;
+            const double _t103 = _t64*_t78;
+            const double _t104 = _t31*_t78;
             qd[5 * (start + i) + 0] = _t73*(_c9[i]*_t92*_t93 - _s9[i]*_t93*_t98);
-            qd[5 * (start + i) + 1] = _t73*(_t10*_t78*_t99 - _t100*_t101 - _t100*_t102);
-            qd[5 * (start + i) + 2] = _t73*(-_t101*_t103 - _t102*_t103 + _t78*_t9*_t99);
-            qd[5 * (start + i) + 3] = _t73*(_c2[i]*_t78*_t99*d5 - _t101*_t104 - _t102*_t104);
+            qd[5 * (start + i) + 1] = _t73*(-_t100*_t101 - _t100*_t102 + _t13*_t78*_t99);
+            qd[5 * (start + i) + 2] = _t73*(-_t101*_t103 - _t102*_t103 + _t12*_t78*_t99);
+            qd[5 * (start + i) + 3] = _t73*(_c4[i]*_t78*_t99*d5 - _t101*_t104 - _t102*_t104);
             qd[5 * (start + i) + 4] = 0;
             singular[1 * (start + i) + 0] = _t72 < 1e-08;
         }
@@ -3536,25 +3536,25 @@ void scorbot_er7_joint_acceleration(const double *restrict q, const double *rest
     const double a3 = params->a3;
     const double d1 = params->d1;
     const double d5 = params->d5;
-    const double _t13 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
-    const double _t15 = (a3*a3);
-    const double _t16 = (d5*d5);
-    const double _t20 = (a2*a2);
-    const double _t29 = 1.0/(_t13*_t13*_t13*_t13);
-    const double _t61 = 1.0/(_t13*_t13);
-    const double _t81 = 1.0/_t13;
-    const double _t2 = q2 + q3;
-    const double _t5 = q3 + q4;
-    const double _t6 = _t5 + q2;
-    const double _t34 = 2*q2;
-    const double _a0 = _t34 + 2*q3 + q4;
-    const double _a1 = _t34 + q3;
-    const double _a2 = _t34 + _t5;
-    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _s4, _s5, _s6, _s7, _s8, _s9, _c9;
+    const double _t0 = (a2*a2);
+    const double _t16 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
+    const double _t19 = (d5*d5);
+    const double _t23 = (a3*a3);
+    const double _t27 = 1.0/(_t16*_t16*_t16*_t16);
+    const double _t61 = 1.0/(_t16*_t16);
+    const double _t81 = 1.0/_t16;
+    const double _t1 = q3 + q4;
+    const double _t6 = q2 + q3;
+    const double _t9 = _t1 + q2;
+    const double _t32 = 2*q2;
+    const double _a0 = _t32 + 2*q3 + q4;
+    const double _a1 = _t32 + q3;
+    const double _a2 = _t1 + _t32;
+    double _s0, _s1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _s6, _s7, _s8, _s9, _c9;
 #ifdef KINEGEN_SIMD
     {
         /* The angles side by side, so that their sines and cosines come from one vector call each. */
-        const double angle[12] = { q2, _t2, _t6, q4, _t5, q3, _a0, _a1, _a2, q1, 0.0, 0.0 };
+        const double angle[12] = { _t1, q3, q2, _t6, _t9, q4, _a0, _a1, _a2, q1, 0.0, 0.0 };
         double sine[12], cosine[12];
         int k;
         KINEGEN_VECTOR_LOOP
@@ -3566,13 +3566,13 @@ void scorbot_er7_joint_acceleration(const double *restrict q, const double *rest
             cosine[k] = cos(angle[k]);
         }
         _s0 = sine[0];
-        _c0 = cosine[0];
         _s1 = sine[1];
-        _c1 = cosine[1];
         _s2 = sine[2];
         _c2 = cosine[2];
         _s3 = sine[3];
+        _c3 = cosine[3];
         _s4 = sine[4];
+        _c4 = cosine[4];
         _s5 = sine[5];
         _s6 = sine[6];
         _s7 = sine[7];
@@ -3581,124 +3581,124 @@ void scorbot_er7_joint_acceleration(const double *restrict q, const double *rest
         _c9 = cosine[9];
     }
 #else
-    _s0 = sin(q2);
-    _c0 = cos(q2);
-    _s1 = sin(_t2);
-    _c1 = cos(_t2);
-    _s2 = sin(_t6);
-    _c2 = cos(_t6);
-    _s3 = sin(q4);
-    _s4 = sin(_t5);
-    _s5 = sin(q3);
+    _s0 = sin(_t1);
+    _s1 = sin(q3);
+    _s2 = sin(q2);
+    _c2 = cos(q2);
+    _s3 = sin(_t6);
+    _c3 = cos(_t6);
+    _s4 = sin(_t9);
+    _c4 = cos(_t9);
+    _s5 = sin(q4);
     _s6 = sin(_a0);
     _s7 = sin(_a1);
     _s8 = sin(_a2);
     _s9 = sin(q1);
     _c9 = cos(q1);
 #endif
-    const double _t1 = _c0*a2;
-    const double _t4 = _c1*a3;
-    const double _t8 = _c2*d5;
-    const double _t9 = _t4 + _t8;
-    const double _t10 = _t1 + _t9;
-    const double _t11 = _t10 + a1;
-    const double _t12 = (_t11*_t11);
-    const double _t14 = _t12/(_t13*_t13*_t13*_t13*_t13*_t13);
-    const double _t18 = (_s3*_s3)*_t15*_t16;
-    const double _t19 = _t14*_t18;
-    const double _t22 = _t20*((_s4*d5 + _s5*a3)*(_s4*d5 + _s5*a3));
-    const double _t23 = _t14*_t22;
-    const double _t24 = _t16*((_s3*a3 + _s4*a2)*(_s3*a3 + _s4*a2));
-    const double _t25 = _t14*_t24;
-    const double _t26 = kinegen_max(0, -100000000*_t19 - 100000000*_t23 - 100000000*_t25 + 1);
-    const double _t28 = (_s2*_s2)*_t16;
-    const double _t30 = _t12*_t29;
-    const double _t32 = _s1*a3;
-    const double _t33 = _s2*d5;
-    const double _t35 = _c2*_s2*_t16;
-    const double _t36 = _c1*_s1*_t15 + _s6*a3*d5 + _t32*a1 + _t33*a1 + _t35;
-    const double _t37 = _t1*_t32 + _t1*_t33 + _t36;
-    const double _t39 = _s0*a2;
-    const double _t40 = _c0*_s0*_t20 + _s7*a2*a3 + _s8*a2*d5 + _t36 + _t39*a1;
-    const double _t41 = _t28*_t30 + _t29*(_t37*_t37) + _t29*(_t40*_t40);
+    const double _t3 = _t0*((_s0*d5 + _s1*a3)*(_s0*d5 + _s1*a3));
+    const double _t5 = _c2*a2;
+    const double _t8 = _c3*a3;
+    const double _t11 = _c4*d5;
+    const double _t12 = _t11 + _t8;
+    const double _t13 = _t12 + _t5;
+    const double _t14 = _t13 + a1;
+    const double _t15 = (_t14*_t14);
+    const double _t17 = _t15/(_t16*_t16*_t16*_t16*_t16*_t16);
+    const double _t18 = _t17*_t3;
+    const double _t21 = _t19*((_s0*a2 + _s5*a3)*(_s0*a2 + _s5*a3));
+    const double _t22 = _t17*_t21;
+    const double _t24 = (_s5*_s5)*_t19*_t23;
+    const double _t25 = _t17*_t24;
+    const double _t26 = kinegen_max(0, -100000000*_t18 - 100000000*_t22 - 100000000*_t25 + 1);
+    const double _t29 = _s3*a3;
+    const double _t31 = _s4*d5;
+    const double _t33 = _c4*_s4*_t19;
+    const double _t34 = _c3*_s3*_t23 + _s6*a3*d5 + _t29*a1 + _t31*a1 + _t33;
+    const double _t35 = _t29*_t5 + _t31*_t5 + _t34;
+    const double _t37 = _s2*a2;
+    const double _t38 = _c2*_s2*_t0 + _s7*a2*a3 + _s8*a2*d5 + _t34 + _t37*a1;
+    const double _t39 = (_s4*_s4)*_t19;
+    const double _t40 = _t15*_t27;
+    const double _t41 = _t27*(_t35*_t35) + _t27*(_t38*_t38) + _t39*_t40;
     const double _t42 = (1e-06)*_t26;
-    const double _t44 = (_s9*_s9);
-    const double _t45 = _t29*_t44;
-    const double _t47 = (_c9*_c9);
-    const double _t48 = _t29*_t47;
-    const double _t49 = (_c2*_c2);
-    const double _t50 = _t16*_t49;
-    const double _t51 = _t12*_t50;
-    const double _t52 = _t1*_t4;
-    const double _t53 = _t1*_t8;
-    const double _t54 = (_c1*_c1)*_t15 + 2*_t4*_t8 + _t4*a1 + _t50 + _t8*a1;
-    const double _t55 = _t52 + _t53 + _t54;
-    const double _t56 = (_t55*_t55);
-    const double _t57 = (_c0*_c0)*_t20 + _t1*a1 + 2*_t52 + 2*_t53 + _t54;
-    const double _t58 = (_t57*_t57);
-    const double _t59 = _t18*_t45 + _t22*_t45 + _t24*_t45 + _t48*_t51 + _t48*_t56 + _t48*_t58;
-    const double _t60 = _t18*_t48 + _t22*_t48 + _t24*_t48 + _t45*_t51 + _t45*_t56 + _t45*_t58;
-    const double _t62 = (_t10*_t10)*_t61 + _t50*_t61 + _t61*(_t9*_t9);
+    const double _t43 = _t5*_t8;
+    const double _t44 = _t11*_t5;
+    const double _t45 = (_c4*_c4);
+    const double _t46 = _t19*_t45;
+    const double _t47 = (_c3*_c3)*_t23 + 2*_t11*_t8 + _t11*a1 + _t46 + _t8*a1;
+    const double _t48 = _t43 + _t44 + _t47;
+    const double _t49 = (_t48*_t48);
+    const double _t51 = (_c9*_c9);
+    const double _t52 = _t27*_t51;
+    const double _t53 = (_c2*_c2)*_t0 + 2*_t43 + 2*_t44 + _t47 + _t5*a1;
+    const double _t54 = (_t53*_t53);
+    const double _t56 = (_s9*_s9);
+    const double _t57 = _t27*_t56;
+    const double _t58 = _t15*_t46;
+    const double _t59 = _t21*_t57 + _t24*_t57 + _t3*_t57 + _t49*_t52 + _t52*_t54 + _t52*_t58;
+    const double _t60 = _t21*_t52 + _t24*_t52 + _t3*_t52 + _t49*_t57 + _t54*_t57 + _t57*_t58;
+    const double _t62 = (_t12*_t12)*_t61 + (_t13*_t13)*_t61 + _t46*_t61;
     const double _t63 = (1e-12)*(_t26*_t26);
-    const double _t64 = _t47*_t61;
-    const double _t65 = _t32 + _t33;
-    const double _t66 = (_t65*_t65);
-    const double _t67 = _t39 + _t65;
+    const double _t64 = _t29 + _t31;
+    const double _t65 = (_t64*_t64);
+    const double _t66 = _t51*_t61;
+    const double _t67 = _t37 + _t64;
     const double _t68 = (_t67*_t67);
-    const double _t69 = _t44*_t61;
-    const double _t70 = _t12*_t69 + _t28*_t64 + _t64*_t66 + _t64*_t68;
-    const double _t71 = _t12*_t64 + _t28*_t69 + _t66*_t69 + _t68*_t69;
-    const double _t72 = _t19 + _t23 + _t25;
+    const double _t69 = _t56*_t61;
+    const double _t70 = _t15*_t69 + _t39*_t66 + _t65*_t66 + _t66*_t68;
+    const double _t71 = _t15*_t66 + _t39*_t69 + _t65*_t69 + _t68*_t69;
+    const double _t72 = _t18 + _t22 + _t25;
     const double _t73 = 1.0/((1e-18)*(_t26*_t26*_t26) + _t41*_t42 + _t42*_t59 + _t42*_t60 + _t62*_t63 + _t63*_t70 + _t63*_t71 + _t72);
-    const double _t74 = _s9*_t29;
-    const double _t75 = _t37*_t55;
-    const double _t76 = _t40*_t57;
-    const double _t77 = _s9*_t61;
-    const double _t78 = _t65*_t9;
-    const double _t79 = _t10*_t67;
-    const double _t80 = _s9*_t30*_t35 - _t42*(-_t35*_t77 - _t77*_t78 - _t77*_t79) + _t74*_t75 + _t74*_t76;
-    const double _t82 = _t33*qd4;
-    const double _t83 = -_t65;
-    const double _t84 = _t83*qd3;
-    const double _t85 = -_t82 + _t84;
-    const double _t86 = -_t67;
-    const double _t87 = _t86*qd2;
-    const double _t88 = _t81*(-qd2*(_t85 + _t87) - qd3*(_t83*qd2 + _t85) - qd4*(-_t33*qd2 - _t33*qd3 - _t82) + xdd_z);
+    const double _t74 = _s9*_t61;
+    const double _t75 = _t12*_t64;
+    const double _t76 = _t13*_t67;
+    const double _t77 = _s9*_t27;
+    const double _t78 = _t35*_t48;
+    const double _t79 = _t38*_t53;
+    const double _t80 = _s9*_t33*_t40 - _t42*(-_t33*_t74 - _t74*_t75 - _t74*_t76) + _t77*_t78 + _t77*_t79;
+    const double _t82 = -_t67;
+    const double _t83 = _t82*qd2;
+    const double _t84 = -_t64;
+    const double _t85 = _t84*qd3;
+    const double _t86 = _t31*qd4;
+    const double _t87 = _t85 - _t86;
+    const double _t88 = _t81*(-qd2*(_t83 + _t87) - qd3*(_t84*qd2 + _t87) - qd4*(-_t31*qd2 - _t31*qd3 - _t86) + xdd_z);
     const double _t89 = _c9*_t74;
     const double _t90 = _c9*_t77;
-    const double _t91 = _c9*_s9*_t12*_t16*_t29*_t49 + _c9*_s9*_t29*_t56 + _c9*_s9*_t29*_t58 - _t18*_t89 - _t22*_t89 - _t24*_t89 - _t42*(-_t12*_t90 + _t28*_t90 + _t66*_t90 + _t68*_t90);
-    const double _t92 = _c9*qd2;
-    const double _t93 = _c9*_t8;
-    const double _t94 = _t93*qd4;
-    const double _t95 = _t9*qd3;
-    const double _t96 = _c9*_t95 + _t94;
-    const double _t97 = _t11*qd1;
-    const double _t98 = _t81*(-qd1*(-_c9*_t97 + _s2*_s9*d5*qd4 - _s9*_t84 - _s9*_t87) - qd2*(_s9*_t67*qd1 - _t10*_t92 - _t96) - qd3*(_s9*_t65*qd1 - _t9*_t92 - _t96) - qd4*(_s2*_s9*d5*qd1 - _t8*_t92 - _t93*qd3 - _t94) + xdd_x);
+    const double _t91 = _c9*_s9*_t15*_t19*_t27*_t45 + _c9*_s9*_t27*_t49 + _c9*_s9*_t27*_t54 - _t21*_t90 - _t24*_t90 - _t3*_t90 - _t42*(-_t15*_t89 + _t39*_t89 + _t65*_t89 + _t68*_t89);
+    const double _t92 = _t14*qd1;
+    const double _t93 = _c9*qd2;
+    const double _t94 = _t12*qd3;
+    const double _t95 = _c9*_t11;
+    const double _t96 = _t95*qd4;
+    const double _t97 = _c9*_t94 + _t96;
+    const double _t98 = _t81*(-qd1*(-_c9*_t92 + _s4*_s9*d5*qd4 - _s9*_t83 - _s9*_t85) - qd2*(_s9*_t67*qd1 - _t13*_t93 - _t97) - qd3*(_s9*_t64*qd1 - _t12*_t93 - _t97) - qd4*(_s4*_s9*d5*qd1 - _t11*_t93 - _t95*qd3 - _t96) + xdd_x);
     const double _t99 = _t42*_t62;
     const double _t100 = _t42*_t70 + _t63;
     const double _t101 = _c9*qd1;
     const double _t102 = _s9*qd2;
-    const double _t103 = _s9*_t8;
+    const double _t103 = _s9*_t11;
     const double _t104 = _t103*qd4;
-    const double _t105 = _s9*_t95 + _t104;
-    const double _t106 = _t81*(-qd1*(-_c9*_t82 + _c9*_t83*qd3 + _c9*_t86*qd2 - _s9*_t97) - qd2*(-_t10*_t102 - _t101*_t67 - _t105) - qd3*(-_t101*_t65 - _t102*_t9 - _t105) - qd4*(-_t101*_t33 - _t102*_t8 - _t103*qd3 - _t104) + xdd_y);
+    const double _t105 = _s9*_t94 + _t104;
+    const double _t106 = _t81*(-qd1*(_c9*_t82*qd2 + _c9*_t84*qd3 - _c9*_t86 - _s9*_t92) - qd2*(-_t101*_t67 - _t102*_t13 - _t105) - qd3*(-_t101*_t64 - _t102*_t12 - _t105) - qd4*(-_t101*_t31 - _t102*_t11 - _t103*qd3 - _t104) + xdd_y);
     const double _t107 = _t106*(_t100 + _t60 + _t99) + _t80*_t88 + _t91*_t98;
-    const double _t108 = _t11*_t81;
-    const double _t109 = _c9*_t29;
-    const double _t110 = _c9*_t61;
-    const double _t111 = _c9*_t30*_t35 + _t109*_t75 + _t109*_t76 - _t42*(-_t110*_t35 - _t110*_t78 - _t110*_t79);
+    const double _t108 = _t14*_t81;
+    const double _t109 = _c9*_t61;
+    const double _t110 = _c9*_t27;
+    const double _t111 = _c9*_t33*_t40 + _t110*_t78 + _t110*_t79 - _t42*(-_t109*_t33 - _t109*_t75 - _t109*_t76);
     const double _t112 = _t42*_t71;
     const double _t113 = _t106*_t91 + _t111*_t88 + _t98*(_t112 + _t59 + _t63 + _t99);
     const double _t114 = _t106*_t80 + _t111*_t98 + _t88*(_t100 + _t112 + _t41);
     const double _t115 = _t67*_t81;
-    const double _t116 = _s9*_t107;
-    const double _t117 = _c9*_t113;
-    const double _t118 = _t65*_t81;
-    const double _t119 = _t33*_t81;
+    const double _t116 = _c9*_t113;
+    const double _t117 = _s9*_t107;
+    const double _t118 = _t64*_t81;
+    const double _t119 = _t31*_t81;
     qdd[0] = _t73*(_c9*_t107*_t108 - _s9*_t108*_t113);
-    qdd[1] = _t73*(_t10*_t114*_t81 - _t115*_t116 - _t115*_t117);
-    qdd[2] = _t73*(_t114*_t81*_t9 - _t116*_t118 - _t117*_t118);
-    qdd[3] = _t73*(_c2*_t114*_t81*d5 - _t116*_t119 - _t117*_t119);
+    qdd[1] = _t73*(_t114*_t13*_t81 - _t115*_t116 - _t115*_t117);
+    qdd[2] = _t73*(_t114*_t12*_t81 - _t116*_t118 - _t117*_t118);
+    qdd[3] = _t73*(_c4*_t114*_t81*d5 - _t116*_t119 - _t117*_t119);
     qdd[4] = 0;
     singular[0] = _t72 < 1e-08;
 }
@@ -3718,20 +3718,20 @@ void scorbot_er7_joint_acceleration_batch(size_t count, const double *restrict q
     double xdd_x[KINEGEN_BLOCK_OF(64)];
     double xdd_y[KINEGEN_BLOCK_OF(64)];
     double xdd_z[KINEGEN_BLOCK_OF(64)];
-    double _t2[KINEGEN_BLOCK_OF(64)];
-    double _t5[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
     double _t6[KINEGEN_BLOCK_OF(64)];
+    double _t9[KINEGEN_BLOCK_OF(64)];
     double _a0[KINEGEN_BLOCK_OF(64)];
     double _a1[KINEGEN_BLOCK_OF(64)];
     double _a2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
-    double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
-    double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
     double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
     double _s4[KINEGEN_BLOCK_OF(64)];
+    double _c4[KINEGEN_BLOCK_OF(64)];
     double _s5[KINEGEN_BLOCK_OF(64)];
     double _s6[KINEGEN_BLOCK_OF(64)];
     double _s7[KINEGEN_BLOCK_OF(64)];
@@ -3747,13 +3747,13 @@ void scorbot_er7_joint_acceleration_batch(size_t count, const double *restrict q
     const double a3 = params->a3;
     const double d1 = params->d1;
     const double d5 = params->d5;
-    const double _t13 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
-    const double _t15 = (a3*a3);
-    const double _t16 = (d5*d5);
-    const double _t20 = (a2*a2);
-    const double _t29 = 1.0/(_t13*_t13*_t13*_t13);
-    const double _t61 = 1.0/(_t13*_t13);
-    const double _t81 = 1.0/_t13;
+    const double _t0 = (a2*a2);
+    const double _t16 = fabs(a1) + fabs(a2) + fabs(a3) + fabs(d1) + fabs(d5);
+    const double _t19 = (d5*d5);
+    const double _t23 = (a3*a3);
+    const double _t27 = 1.0/(_t16*_t16*_t16*_t16);
+    const double _t61 = 1.0/(_t16*_t16);
+    const double _t81 = 1.0/_t16;
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
         for (i = 0; i < n; ++i) {
@@ -3771,49 +3771,49 @@ void scorbot_er7_joint_acceleration_batch(size_t count, const double *restrict q
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _t2[i] = q2[i] + q3[i];
-            _t5[i] = q3[i] + q4[i];
-            _t6[i] = _t5[i] + q2[i];
-            const double _t34 = 2*q2[i];
-            _a0[i] = _t34 + 2*q3[i] + q4[i];
-            _a1[i] = _t34 + q3[i];
-            _a2[i] = _t34 + _t5[i];
+            _t1[i] = q3[i] + q4[i];
+            _t6[i] = q2[i] + q3[i];
+            _t9[i] = _t1[i] + q2[i];
+            const double _t32 = 2*q2[i];
+            _a0[i] = _t32 + 2*q3[i] + q4[i];
+            _a1[i] = _t32 + q3[i];
+            _a2[i] = _t1[i] + _t32;
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s0[i] = sin(q2[i]);
+            _s0[i] = sin(_t1[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c0[i] = cos(q2[i]);
+            _s1[i] = sin(q3[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s1[i] = sin(_t2[i]);
+            _s2[i] = sin(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c1[i] = cos(_t2[i]);
+            _c2[i] = cos(q2[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s2[i] = sin(_t6[i]);
+            _s3[i] = sin(_t6[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _c2[i] = cos(_t6[i]);
+            _c3[i] = cos(_t6[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s3[i] = sin(q4[i]);
+            _s4[i] = sin(_t9[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s4[i] = sin(_t5[i]);
+            _c4[i] = cos(_t9[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _s5[i] = sin(q3[i]);
+            _s5[i] = sin(q4[i]);
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -3837,109 +3837,109 @@ void scorbot_er7_joint_acceleration_batch(size_t count, const double *restrict q
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            const double _t1 = _c0[i]*a2;
-            const double _t4 = _c1[i]*a3;
-            const double _t8 = _c2[i]*d5;
-            const double _t9 = _t4 + _t8;
-            const double _t10 = _t1 + _t9;
-            const double _t11 = _t10 + a1;
-            const double _t12 = (_t11*_t11);
-            const double _t14 = _t12/(_t13*_t13*_t13*_t13*_t13*_t13);
-            const double _t18 = (_s3[i]*_s3[i])*_t15*_t16;
-            const double _t19 = _t14*_t18;
-            const double _t22 = _t20*((_s4[i]*d5 + _s5[i]*a3)*(_s4[i]*d5 + _s5[i]*a3));
-            const double _t23 = _t14*_t22;
-            const double _t24 = _t16*((_s3[i]*a3 + _s4[i]*a2)*(_s3[i]*a3 + _s4[i]*a2));
-            const double _t25 = _t14*_t24;
-            const double _t26 = kinegen_max(0, -100000000*_t19 - 100000000*_t23 - 100000000*_t25 + 1);
-            const double _t28 = (_s2[i]*_s2[i])*_t16;
-            const double _t30 = _t12*_t29;
-            const double _t32 = _s1[i]*a3;
-            const double _t33 = _s2[i]*d5;
-            const double _t35 = _c2[i]*_s2[i]*_t16;
-            const double _t36 = _c1[i]*_s1[i]*_t15 + _s6[i]*a3*d5 + _t32*a1 + _t33*a1 + _t35;
-            const double _t37 = _t1*_t32 + _t1*_t33 + _t36;
-            const double _t39 = _s0[i]*a2;
-            const double _t40 = _c0[i]*_s0[i]*_t20 + _s7[i]*a2*a3 + _s8[i]*a2*d5 + _t36 + _t39*a1;
-            const double _t41 = _t28*_t30 + _t29*(_t37*_t37) + _t29*(_t40*_t40);
+            const double _t3 = _t0*((_s0[i]*d5 + _s1[i]*a3)*(_s0[i]*d5 + _s1[i]*a3));
+            const double _t5 = _c2[i]*a2;
+            const double _t8 = _c3[i]*a3;
+            const double _t11 = _c4[i]*d5;
+            const double _t12 = _t11 + _t8;
+            const double _t13 = _t12 + _t5;
+            const double _t14 = _t13 + a1;
+            const double _t15 = (_t14*_t14);
+            const double _t17 = _t15/(_t16*_t16*_t16*_t16*_t16*_t16);
+            const double _t18 = _t17*_t3;
+            const double _t21 = _t19*((_s0[i]*a2 + _s5[i]*a3)*(_s0[i]*a2 + _s5[i]*a3));
+            const double _t22 = _t17*_t21;
+            const double _t24 = (_s5[i]*_s5[i])*_t19*_t23;
+            const double _t25 = _t17*_t24;
+            const double _t26 = kinegen_max(0, -100000000*_t18 - 100000000*_t22 - 100000000*_t25 + 1);
+            const double _t29 = _s3[i]*a3;
+            const double _t31 = _s4[i]*d5;
+            const double _t33 = _c4[i]*_s4[i]*_t19;
+            const double _t34 = _c3[i]*_s3[i]*_t23 + _s6[i]*a3*d5 + _t29*a1 + _t31*a1 + _t33;
+            const double _t35 = _t29*_t5 + _t31*_t5 + _t34;
+            const double _t37 = _s2[i]*a2;
+            const double _t38 = _c2[i]*_s2[i]*_t0 + _s7[i]*a2*a3 + _s8[i]*a2*d5 + _t34 + _t37*a1;
+            const double _t39 = (_s4[i]*_s4[i])*_t19;
+            const double _t40 = _t15*_t27;
+            const double _t41 = _t27*(_t35*_t35) + _t27*(_t38*_t38) + _t39*_t40;
             const double _t42 = (1e-06)*_t26;
-            const double _t44 = (_s9[i]*_s9[i]);
-            const double _t45 = _t29*_t44;
-            const double _t47 = (_c9[i]*_c9[i]);
-            const double _t48 = _t29*_t47;
-            const double _t49 = (_c2[i]*_c2[i]);
-            const double _t50 = _t16*_t49;
-            const double _t51 = _t12*_t50;
-            const double _t52 = _t1*_t4;
-            const double _t53 = _t1*_t8;
-            const double _t54 = (_c1[i]*_c1[i])*_t15 + 2*_t4*_t8 + _t4*a1 + _t50 + _t8*a1;
-            const double _t55 = _t52 + _t53 + _t54;
-            const double _t56 = (_t55*_t55);
-            const double _t57 = (_c0[i]*_c0[i])*_t20 + _t1*a1 + 2*_t52 + 2*_t53 + _t54;
-            const double _t58 = (_t57*_t57);
-            const double _t59 = _t18*_t45 + _t22*_t45 + _t24*_t45 + _t48*_t51 + _t48*_t56 + _t48*_t58;
-            const double _t60 = _t18*_t48 + _t22*_t48 + _t24*_t48 + _t45*_t51 + _t45*_t56 + _t45*_t58;
-            const double _t62 = (_t10*_t10)*_t61 + _t50*_t61 + _t61*(_t9*_t9);
+            const double _t43 = _t5*_t8;
+            const double _t44 = _t11*_t5;
+            const double _t45 = (_c4[i]*_c4[i]);
+            const double _t46 = _t19*_t45;
+            const double _t47 = (_c3[i]*_c3[i])*_t23 + 2*_t11*_t8 + _t11*a1 + _t46 + _t8*a1;
+            const double _t48 = _t43 + _t44 + _t47;
+            const double _t49 = (_t48*_t48);
+            const double _t51 = (_c9[i]*_c9[i]);
+            const double _t52 = _t27*_t51;
+            const double _t53 = (_c2[i]*_c2[i])*_t0 + 2*_t43 + 2*_t44 + _t47 + _t5*a1;
+            const double _t54 = (_t53*_t53);
+            const double _t56 = (_s9[i]*_s9[i]);
+            const double _t57 = _t27*_t56;
+            const double _t58 = _t15*_t46;
+            const double _t59 = _t21*_t57 + _t24*_t57 + _t3*_t57 + _t49*_t52 + _t52*_t54 + _t52*_t58;
+            const double _t60 = _t21*_t52 + _t24*_t52 + _t3*_t52 + _t49*_t57 + _t54*_t57 + _t57*_t58;
+            const double _t62 = (_t12*_t12)*_t61 + (_t13*_t13)*_t61 + _t46*_t61;
             const double _t63 = (1e-12)*(_t26*_t26);
-            const double _t64 = _t47*_t61;
-            const double _t65 = _t32 + _t33;
-            const double _t66 = (_t65*_t65);
-            const double _t67 = _t39 + _t65;
+            const double _t64 = _t29 + _t31;
+            const double _t65 = (_t64*_t64);
+            const double _t66 = _t51*_t61;
+            const double _t67 = _t37 + _t64;
             const double _t68 = (_t67*_t67);
-            const double _t69 = _t44*_t61;
-            const double _t70 = _t12*_t69 + _t28*_t64 + _t64*_t66 + _t64*_t68;
-            const double _t71 = _t12*_t64 + _t28*_t69 + _t66*_t69 + _t68*_t69;
-            const double _t72 = _t19 + _t23 + _t25;
+            const double _t69 = _t56*_t61;
+            const double _t70 = _t15*_t69 + _t39*_t66 + _t65*_t66 + _t66*_t68;
+            const double _t71 = _t15*_t66 + _t39*_t69 + _t65*_t69 + _t68*_t69;
+            const double _t72 = _t18 + _t22 + _t25;
             const double _t73 = 1.0/((1e-18)*(_t26*_t26*_t26) + _t41*_t42 + _t42*_t59 + _t42*_t60 + _t62*_t63 + _t63*_t70 + _t63*_t71 + _t72);
-            const double _t74 = _s9[i]*_t29;
-            const double _t75 = _t37*_t55;
-            const double _t76 = _t40*_t57;
-            const double _t77 = _s9[i]*_t61;
-            const double _t78 = _t65*_t9;
-            const double _t79 = _t10*_t67;
-            const double _t80 = _s9[i]*_t30*_t35 - _t42*(-_t35*_t77 - _t77*_t78 - _t77*_t79) + _t74*_t75 + _t74*_t76;
-            const double _t82 = _t33*qd4[i];
-            const double _t83 = -_t65;
-            const double _t84 = _t83*qd3[i];
-            const double _t85 = -_t82 + _t84;
-            const double _t86 = -_t67;
-            const double _t87 = _t86*qd2[i];
-            const double _t88 = _t81*(-qd2[i]*(_t85 + _t87) - qd3[i]*(_t83*qd2[i] + _t85) - qd4[i]*(-_t33*qd2[i] - _t33*qd3[i] - _t82) + xdd_z[i]);
+            const double _t74 = _s9[i]*_t61;
+            const double _t75 = _t12*_t64;
+            const double _t76 = _t13*_t67;
+            const double _t77 = _s9[i]*_t27;
+            const double _t78 = _t35*_t48;
+            const double _t79 = _t38*_t53;
+            const double _t80 = _s9[i]*_t33*_t40 - _t42*(-_t33*_t74 - _t74*_t75 - _t74*_t76) + _t77*_t78 + _t77*_t79;
+            const double _t82 = -_t67;
+            const double _t83 = _t82*qd2[i];
+            const double _t84 = -_t64;
+            const double _t85 = _t84*qd3[i];
+            const double _t86 = _t31*qd4[i];
+            const double _t87 = _t85 - _t86;
+            const double _t88 = _t81*(-qd2[i]*(_t83 + _t87) - qd3[i]*(_t84*qd2[i] + _t87) - qd4[i]*(-_t31*qd2[i] - _t31*qd3[i] - _t86) + xdd_z[i]);
             const double _t89 = _c9[i]*_t74;
             const double _t90 = _c9[i]*_t77;
-            const double _t91 = _c9[i]*_s9[i]*_t12*_t16*_t29*_t49 + _c9[i]*_s9[i]*_t29*_t56 + _c9[i]*_s9[i]*_t29*_t58 - _t18*_t89 - _t22*_t89 - _t24*_t89 - _t42*(-_t12*_t90 + _t28*_t90 + _t66*_t90 + _t68*_t90);
-            const double _t92 = _c9[i]*qd2[i];
-            const double _t93 = _c9[i]*_t8;
-            const double _t94 = _t93*qd4[i];
-            const double _t95 = _t9*qd3[i];
-            const double _t96 = _c9[i]*_t95 + _t94;
-            const double _t97 = _t11*qd1[i];
-            const double _t98 = _t81*(-qd1[i]*(-_c9[i]*_t97 + _s2[i]*_s9[i]*d5*qd4[i] - _s9[i]*_t84 - _s9[i]*_t87) - qd2[i]*(_s9[i]*_t67*qd1[i] - _t10*_t92 - _t96) - qd3[i]*(_s9[i]*_t65*qd1[i] - _t9*_t92 - _t96) - qd4[i]*(_s2[i]*_s9[i]*d5*qd1[i] - _t8*_t92 - _t93*qd3[i] - _t94) + xdd_x[i]);
+            const double _t91 = _c9[i]*_s9[i]*_t15*_t19*_t27*_t45 + _c9[i]*_s9[i]*_t27*_t49 + _c9[i]*_s9[i]*_t27*_t54 - _t21*_t90 - _t24*_t90 - _t3*_t90 - _t42*(-_t15*_t89 + _t39*_t89 + _t65*_t89 + _t68*_t89);
+            const double _t92 = _t14*qd1[i];
+            const double _t93 = _c9[i]*qd2[i];
+            const double _t94 = _t12*qd3[i];
+            const double _t95 = _c9[i]*_t11;
+            const double _t96 = _t95*qd4[i];
+            const double _t97 = _c9[i]*_t94 + _t96;
+            const double _t98 = _t81*(-qd1[i]*(-_c9[i]*_t92 + _s4[i]*_s9[i]*d5*qd4[i] - _s9[i]*_t83 - _s9[i]*_t85) - qd2[i]*(_s9[i]*_t67*qd1[i] - _t13*_t93 - _t97) - qd3[i]*(_s9[i]*_t64*qd1[i] - _t12*_t93 - _t97) - qd4[i]*(_s4[i]*_s9[i]*d5*qd1[i] - _t11*_t93 - _t95*qd3[i] - _t96) + xdd_x[i]);
             const double _t99 = _t42*_t62;
             const double _t100 = _t42*_t70 + _t63;
             const double _t101 = _c9[i]*qd1[i];
             const double _t102 = _s9[i]*qd2[i];
-            const double _t103 = _s9[i]*_t8;
+            const double _t103 = _s9[i]*_t11;
             const double _t104 = _t103*qd4[i];
-            const double _t105 = _s9[i]*_t95 + _t104;
-            const double _t106 = _t81*(-qd1[i]*(-_c9[i]*_t82 + _c9[i]*_t83*qd3[i] + _c9[i]*_t86*qd2[i] - _s9[i]*_t97) - qd2[i]*(-_t10*_t102 - _t101*_t67 - _t105) - qd3[i]*(-_t101*_t65 - _t102*_t9 - _t105) - qd4[i]*(-_t101*_t33 - _t102*_t8 - _t103*qd3[i] - _t104) + xdd_y[i]);
+            const double _t105 = _s9[i]*_t94 + _t104;
+            const double _t106 = _t81*(-qd1[i]*(_c9[i]*_t82*qd2[i] + _c9[i]*_t84*qd3[i] - _c9[i]*_t86 - _s9[i]*_t92) - qd2[i]*(-_t101*_t67 - _t102*_t13 - _t105) - qd3[i]*(-_t101*_t64 - _t102*_t12 - _t105) - qd4[i]*(-_t101*_t31 - _t102*_t11 - _t103*qd3[i] - _t104) + xdd_y[i]);
             const double _t107 = _t106*(_t100 + _t60 + _t99) + _t80*_t88 + _t91*_t98;
-            const double _t108 = _t11*_t81;
-            const double _t109 = _c9[i]*_t29;
-            const double _t110 = _c9[i]*_t61;
-            const double _t111 = _c9[i]*_t30*_t35 + _t109*_t75 + _t109*_t76 - _t42*(-_t110*_t35 - _t110*_t78 - _t110*_t79);
+            const double _t108 = _t14*_t81;
+            const double _t109 = _c9[i]*_t61;
+            const double _t110 = _c9[i]*_t27;
+            const double _t111 = _c9[i]*_t33*_t40 + _t110*_t78 + _t110*_t79 - _t42*(-_t109*_t33 - _t109*_t75 - _t109*_t76);
             const double _t112 = _t42*_t71;
             const double _t113 = _t106*_t91 + _t111*_t88 + _t98*(_t112 + _t59 + _t63 + _t99);
             const double _t114 = _t106*_t80 + _t111*_t98 + _t88*(_t100 + _t112 + _t41);
             const double _t115 = _t67*_t81;
-            const double _t116 = _s9[i]*_t107;
-            const double _t117 = _c9[i]*_t113;
-            const double _t118 = _t65*_t81;
-            const double _t119 = _t33*_t81;
+            const double _t116 = _c9[i]*_t113;
+            const double _t117 = _s9[i]*_t107;
+            const double _t118 = _t64*_t81;
+            const double _t119 = _t31*_t81;
             qdd[5 * (start + i) + 0] = _t73*(_c9[i]*_t107*_t108 - _s9[i]*_t108*_t113);
-            qdd[5 * (start + i) + 1] = _t73*(_t10*_t114*_t81 - _t115*_t116 - _t115*_t117);
-            qdd[5 * (start + i) + 2] = _t73*(_t114*_t81*_t9 - _t116*_t118 - _t117*_t118);
-            qdd[5 * (start + i) + 3] = _t73*(_c2[i]*_t114*_t81*d5 - _t116*_t119 - _t117*_t119);
+            qdd[5 * (start + i) + 1] = _t73*(_t114*_t13*_t81 - _t115*_t116 - _t115*_t117);
+            qdd[5 * (start + i) + 2] = _t73*(_t114*_t12*_t81 - _t116*_t118 - _t117*_t118);
+            qdd[5 * (start + i) + 3] = _t73*(_c4[i]*_t114*_t81*d5 - _t116*_t119 - _t117*_t119);
             qdd[5 * (start + i) + 4] = 0;
             singular[1 * (start + i) + 0] = _t72 < 1e-08;
         }

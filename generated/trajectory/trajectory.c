@@ -149,14 +149,14 @@ void trajectory_quintic(const double *restrict time, const double *restrict boun
     const double _t2 = _t1*a0;
     const double _t3 = (0.5)*_t2;
     const double _t4 = duration*vf;
-    const double _t5 = (1.5)*_t2;
-    const double _t6 = -0.5*_t1*af;
+    const double _t5 = -0.5*_t1*af;
+    const double _t6 = (1.5)*_t2;
     const double _t7 = 1.0/duration;
     const double _t8 = _t1*af;
     const double _t9 = _t7*t;
     const double _t10 = 30*q0 - 30*qf;
     const double _t11 = 60*q0 - 60*qf;
-    state[0] = _t9*(_t0 + _t9*(_t3 + _t9*(-6*_t0 - 4*_t4 - _t5 - _t6 + _t7*t*(8*_t0 + 7*_t4 + _t5 - _t8 + _t9*(-3*_t0 - _t3 - 3*_t4 - _t6 - 6*q0 + 6*qf) + 15*q0 - 15*qf) - 10*q0 + 10*qf))) + q0;
+    state[0] = _t9*(_t0 + _t9*(_t3 + _t9*(-6*_t0 - 4*_t4 - _t5 - _t6 + _t7*t*(8*_t0 + 7*_t4 + _t6 - _t8 + _t9*(-3*_t0 - _t3 - 3*_t4 - _t5 - 6*q0 + 6*qf) + 15*q0 - 15*qf) - 10*q0 + 10*qf))) + q0;
     state[1] = _t7*(_t0 + _t9*(_t2 + _t9*(-18*_t0 + (1.5)*_t1*af - _t10 - 4.5*_t2 - 12*_t4 + _t7*t*(32*_t0 + _t11 + 6*_t2 + 28*_t4 - 4*_t8 + _t9*(-15*_t0 + (2.5)*_t1*af - _t10 - 2.5*_t2 - 15*_t4)))));
     state[2] = (_t2 + _t9*(-36*_t0 + 3*_t1*af - _t11 - 9*_t2 - 24*_t4 + _t7*t*(96*_t0 + 18*_t2 + 84*_t4 - 12*_t8 + _t9*(-60*_t0 + 10*_t1*af - 10*_t2 - 60*_t4 - 120*q0 + 120*qf) + 180*q0 - 180*qf)))/_t1;
     valid[0] = duration > 0;
@@ -195,14 +195,14 @@ void trajectory_quintic_batch(size_t count, const double *restrict time, const d
             const double _t2 = _t1*a0[i];
             const double _t3 = (0.5)*_t2;
             const double _t4 = duration[i]*vf[i];
-            const double _t5 = (1.5)*_t2;
-            const double _t6 = -0.5*_t1*af[i];
+            const double _t5 = -0.5*_t1*af[i];
+            const double _t6 = (1.5)*_t2;
             const double _t7 = 1.0/duration[i];
             const double _t8 = _t1*af[i];
             const double _t9 = _t7*t[i];
             const double _t10 = 30*q0[i] - 30*qf[i];
             const double _t11 = 60*q0[i] - 60*qf[i];
-            state[3 * (start + i) + 0] = _t9*(_t0 + _t9*(_t3 + _t9*(-6*_t0 - 4*_t4 - _t5 - _t6 + _t7*t[i]*(8*_t0 + 7*_t4 + _t5 - _t8 + _t9*(-3*_t0 - _t3 - 3*_t4 - _t6 - 6*q0[i] + 6*qf[i]) + 15*q0[i] - 15*qf[i]) - 10*q0[i] + 10*qf[i]))) + q0[i];
+            state[3 * (start + i) + 0] = _t9*(_t0 + _t9*(_t3 + _t9*(-6*_t0 - 4*_t4 - _t5 - _t6 + _t7*t[i]*(8*_t0 + 7*_t4 + _t6 - _t8 + _t9*(-3*_t0 - _t3 - 3*_t4 - _t5 - 6*q0[i] + 6*qf[i]) + 15*q0[i] - 15*qf[i]) - 10*q0[i] + 10*qf[i]))) + q0[i];
             state[3 * (start + i) + 1] = _t7*(_t0 + _t9*(_t2 + _t9*(-18*_t0 + (1.5)*_t1*af[i] - _t10 - 4.5*_t2 - 12*_t4 + _t7*t[i]*(32*_t0 + _t11 + 6*_t2 + 28*_t4 - 4*_t8 + _t9*(-15*_t0 + (2.5)*_t1*af[i] - _t10 - 2.5*_t2 - 15*_t4)))));
             state[3 * (start + i) + 2] = (_t2 + _t9*(-36*_t0 + 3*_t1*af[i] - _t11 - 9*_t2 - 24*_t4 + _t7*t[i]*(96*_t0 + 18*_t2 + 84*_t4 - 12*_t8 + _t9*(-60*_t0 + 10*_t1*af[i] - 10*_t2 - 60*_t4 - 120*q0[i] + 120*qf[i]) + 180*q0[i] - 180*qf[i])))/_t1;
             valid[1 * (start + i) + 0] = duration[i] > 0;
@@ -298,12 +298,12 @@ void trajectory_trapezoid(const double *restrict time, const double *restrict pr
     const double _t1 = speed*(((length) > 0) - ((length) < 0));
     const double _t2 = _t1/accel_time;
     const int _t3 = accel_time > t;
-    const double _t4 = (0.5)*accel_time;
-    const double _t5 = -t;
+    const double _t4 = -t;
+    const double _t5 = (0.5)*accel_time;
     const double _t6 = (0.5)*decel_time;
     const double _t7 = fabs(length);
     const double _t8 = _t7/speed;
-    const double _t9 = _t4 + _t8;
+    const double _t9 = _t5 + _t8;
     const int _t10 = t < -_t6 + _t9;
     const double _t11 = _t6 + _t9;
     const double _t12 = _t1/decel_time;
@@ -317,10 +317,10 @@ void trajectory_trapezoid(const double *restrict time, const double *restrict pr
    (0.5)*_t2*(t*t)
 )
 : ((_t10) ? (
-   _t1*_t4 + _t1*(-_t5 - accel_time)
+   _t1*_t5 + _t1*(-_t4 - accel_time)
 )
 : ((_t14) ? (
-   -_t13*((_t11 + _t5)*(_t11 + _t5)) + length
+   -_t13*((_t11 + _t4)*(_t11 + _t4)) + length
 )
 : (
    length
@@ -384,12 +384,12 @@ void trajectory_trapezoid_batch(size_t count, const double *restrict time, const
             const double _t1 = speed[i]*(((length[i]) > 0) - ((length[i]) < 0));
             const double _t2 = _t1/accel_time[i];
             const int _t3 = accel_time[i] > t[i];
-            const double _t4 = (0.5)*accel_time[i];
-            const double _t5 = -t[i];
+            const double _t4 = -t[i];
+            const double _t5 = (0.5)*accel_time[i];
             const double _t6 = (0.5)*decel_time[i];
             const double _t7 = fabs(length[i]);
             const double _t8 = _t7/speed[i];
-            const double _t9 = _t4 + _t8;
+            const double _t9 = _t5 + _t8;
             const int _t10 = t[i] < -_t6 + _t9;
             const double _t11 = _t6 + _t9;
             const double _t12 = _t1/decel_time[i];
@@ -403,10 +403,10 @@ void trajectory_trapezoid_batch(size_t count, const double *restrict time, const
    (0.5)*_t2*(t[i]*t[i])
 )
 : ((_t10) ? (
-   _t1*_t4 + _t1*(-_t5 - accel_time[i])
+   _t1*_t5 + _t1*(-_t4 - accel_time[i])
 )
 : ((_t14) ? (
-   -_t13*((_t11 + _t5)*(_t11 + _t5)) + length[i]
+   -_t13*((_t11 + _t4)*(_t11 + _t4)) + length[i]
 )
 : (
    length[i]
