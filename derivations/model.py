@@ -233,6 +233,9 @@ class RobotModel:
     ik: list[IKBranch] = field(default_factory=list)
     notes: dict[str, str] = field(default_factory=dict)
     constants: dict[str, sp.Expr] = field(default_factory=dict)
+    # "wrist partition": the rate maps by Paul's partition (derivations/paul.py), which a
+    # robot's module asks for (the PUMA 560); None: chosen by size (velocity.closed_form_shape).
+    rate_form: str | None = None
 
     @property
     def n(self) -> int:

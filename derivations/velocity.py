@@ -187,7 +187,8 @@ def rate_kinematics(model) -> RateKinematics | None:
     key = "\n".join([model.name, repr(model.joint_types), repr(model.task_names), repr(model.limits),
                      sp.srepr(sp.Tuple(*model.q)), sp.srepr(sp.Tuple(*model.params)),
                      sp.srepr(sp.ImmutableMatrix(model.fk)), sp.srepr(sp.ImmutableMatrix(model.jacobian)),
-                     sp.srepr(sp.ImmutableMatrix(model.task)), repr(model.chain)])
+                     sp.srepr(sp.ImmutableMatrix(model.task)), repr(model.chain),
+                     repr(getattr(model, "rate_form", None))])
     result = cached(f"rates-{model.name}", key.encode(), lambda: derive_rates(model))
     model.__dict__["_rate_kinematics"] = result
     return result
@@ -208,7 +209,12 @@ def derive_rates(model) -> RateKinematics:
     scaling = Scaling(length, tuple(1 if name in ("x", "y", "z") else 0 for name in model.task_names),
                       tuple(1 if t == PRISMATIC else 0 for t in model.joint_types))
 
-    partition = wrist_partition(model, length) if model.task_names == POSE_NAMES else None
+    # Paul's partition where the robot's module asks for it (the PUMA's paper model): its flag is
+    # per 3 x 3 block determinant, not a condition number, and flagged a Meca500 and an LR Mate
+    # at condition numbers below 1e3; any other arm solves at run time, flagged by cond(Jn).
+    partition = (wrist_partition(model, length)
+                 if model.task_names == POSE_NAMES and getattr(model, "rate_form", None) == "wrist partition"
+                 else None)
     xd_col, xdd_col, qd_col = sp.Matrix(xd), sp.Matrix(xdd), sp.Matrix(qd)
     strategy = "wrist partition" if partition is not None else closed_form_shape(m, n, int(sp.count_ops(Jx)))
     inverse = minors = singularities = velocity = acceleration = None

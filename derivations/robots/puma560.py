@@ -83,6 +83,7 @@ def _check_structure(model, u, v):
 
 def extend(model):
     assert model.task_names == POSE_NAMES
+    model.rate_form = "wrist partition"  # the velocity slides' 6-DOF model: Paul's partition
     px, py, pz, *r = model.task_symbols
     R = sp.Matrix(3, 3, r)
     d1, a2, a3, d3, d4 = parameters(model, "d1", "a2", "a3", "d3", "d4")
