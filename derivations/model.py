@@ -13,7 +13,7 @@ from typing import Sequence
 
 import sympy as sp
 
-from .chain import PRISMATIC, REVOLUTE, Chain, simplify_derivative, simplify_entry, simplify_product
+from .chain import PRISMATIC, REVOLUTE, Chain, derivative, simplify_derivative, simplify_entry, simplify_product
 from .ik import kernel_form
 
 __all__ = ["Argument", "Output", "Requirement", "NumericSolve", "SymbolicFunction", "IKBranch", "RobotModel", "task_coordinates"]
@@ -326,7 +326,8 @@ def build_chain_model(name: str, title: str, source: str, chain: Chain, q, param
     fk = frames[-1]
     jacobian = chain.geometric_jacobian(link_frames, fk[:3, 3])
     task_names, task = task_coordinates(task_spec, chain, q, fk, link_frames)
-    task_jacobian = task.jacobian(sp.Matrix(q)).applyfunc(simplify_derivative)
+    task_jacobian = sp.Matrix(len(task), len(q),
+                              lambda i, j: simplify_derivative(derivative(task[i], q[j])))
     return RobotModel(
         name=name, title=title, source=source,
         joint_types=tuple(j.type for j in chain.joints), q=tuple(q), params=dict(params),

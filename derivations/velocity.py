@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from .cache import cached
-from .chain import PRISMATIC
+from .chain import PRISMATIC, derivative
 from .damping import (ClosedFormInverse, Minors, Scaling, closed_form_inverse, factored, measure_squared,
                       reference_length, regularised_solve, singular_flag)
 from .model import POSE_NAMES, Argument, NumericSolve, Output, SymbolicFunction
@@ -90,11 +90,13 @@ def rate_symbols(prefix: str, names) -> tuple[sp.Symbol, ...]:
 
 
 def time_derivative(M: sp.Matrix, q, qd) -> sp.Matrix:
-    """``dM/dt = sum_k dM/dq_k q_dot_k`` (the chain rule along a joint trajectory)."""
-    total = sp.zeros(*M.shape)
-    for qk, qdk in zip(q, qd):
-        total += M.diff(qk) * qdk
-    return total
+    """``dM/dt = sum_k dM/dq_k q_dot_k`` (the chain rule along a joint trajectory).
+
+    Entry by entry, each sum built at once: adding whole matrices joint by joint rebuilt
+    every growing sum n times (a Panda's J_dot and task J_dot: 6 s of its 13 s of rates).
+    """
+    pairs = [(qk, qdk) for qk, qdk in zip(q, qd)]
+    return M.applyfunc(lambda entry: sp.Add(*[derivative(entry, qk) * qdk for qk, qdk in pairs if entry.has(qk)]))
 
 
 def pose_rates_to_twist(R: sp.Matrix, rates) -> sp.Matrix:
