@@ -64,6 +64,15 @@ def describe_origin(model: RobotModel, description: Path | None) -> str:
     return safe_text(f"{shown} (sha256 {digest})")
 
 
+# The blocked (and, with -DKINEGEN_SIMD, vectorised) batch layout is written for kernels of at
+# most this many operations after CSE; a larger one loops over its single point in every layout.
+# Vectorising a long straight-line block is most of a compile (a Franka Panda's six rate
+# kernels of 2,100-5,900 operations: 53 s of gcc -O2 in the SIMD layout, against 8 s plain),
+# for kernels whose time is arithmetic rather than sines and cosines.  The papers' robots
+# stay under it (the largest, the PUMA's task_acceleration: 1,007).
+BLOCKED_MAX_OPS = 2000
+
+
 def template_function(prepared: PreparedFunction) -> dict:
     """What the templates need of one kernel."""
     # The inverse kinematics kernel takes NaN and inf (valid says there is no answer), returns
@@ -94,6 +103,7 @@ def template_function(prepared: PreparedFunction) -> dict:
         block //= 2
     return {
         "block": block,
+        "blocked": prepared.operations <= BLOCKED_MAX_OPS,
         "prologue": staged.prologue,
         # Outputs the blocked C writes per block, one array per entry, then copies out item by
         # item: GCC 12 does not vectorise a loop that stores ik's 48 joint values per item.
@@ -151,7 +161,7 @@ def solved_function(function, system: dict) -> dict:
         "solve": {"system": solve.system, "rows": solve.rows, "cols": solve.cols, "kind": solve.kind,
                   "has_rhs": solve.kind == "solution", "cond_limit": float_literal(solve.COND_LIMIT),
                   "damping": float_literal(solve.DAMPING)},
-        "prologue": [], "stages": [], "arrays": set(), "indexed": set(), "block": 1,
+        "prologue": [], "stages": [], "arrays": set(), "indexed": set(), "block": 1, "blocked": False,
         "block_outputs": [], "stream_outputs": [], "stream_size": 0, "boolean_temporaries": frozenset(),
     }
 
@@ -196,6 +206,7 @@ def robot_context(model: RobotModel, origin: str, verbose: bool = False) -> dict
         # A pose task (x, y, z, r11 .. r33): ik also takes (..., 4, 4) and checks the rotation.
         "pose_task": tuple(model.task_names) == POSE_NAMES,
         "rigid_tolerance": RIGID_TOLERANCE,
+        "blocked_max_ops": f"{BLOCKED_MAX_OPS:,}",
     }
 
 

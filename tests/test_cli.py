@@ -93,7 +93,7 @@ def test_a_failed_c_build_leaves_no_package(tmp_path, monkeypatch, capsys):
 
     def broken(folder, name):
         raise build.CompileError("cc failed: simulated")
-    monkeypatch.setattr(build, "compile_strict", broken)
+    monkeypatch.setattr(build, "build_package", broken)
     (tmp_path / "cyl.toml").write_text(CYLINDRICAL)
     assert main(["--quiet", "generate", str(tmp_path / "cyl.toml"), "--out", str(tmp_path / "pkg")]) == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cyl.toml"]
