@@ -62,7 +62,8 @@ class JacobianDeterminant:
     factors: tuple[sp.Expr, ...]
     singular: tuple[tuple[sp.Expr, tuple[sp.Eq, ...]], ...]
     # False when the determinant was too large to factor (see FACTOR_LIMIT): then ``value``
-    # is None, ``factors`` and ``singular`` are empty, and ``size`` is its operation count.
+    # is None, ``factors`` and ``singular`` are empty, and ``size`` is a lower bound of its
+    # operation count (above FACTOR_LIMIT).
     factored: bool = True
     size: int = 0
 
@@ -95,7 +96,7 @@ def _determinant(which: str, J: sp.Matrix, q, joint_types) -> JacobianDeterminan
     else:
         blocks = [J]
     determinants = [block.det(method="berkowitz") for block in blocks]
-    size = sum(int(sp.count_ops(d)) for d in determinants)
+    size = _operations_within(determinants, FACTOR_LIMIT)
     if size > FACTOR_LIMIT:
         return JacobianDeterminant(which, None, (), (), factored=False, size=size)
     factors: list[sp.Expr] = []
@@ -132,6 +133,28 @@ def trig_factor(expr: sp.Expr, q) -> sp.Expr:
         if product is not None and _identical(product, expr):
             return product
     return simplify_entry(expr)
+
+
+def _operations_within(exprs, limit: int) -> int:
+    """``sum(count_ops(e))`` where it is at most ``limit``; otherwise a lower bound above it.
+
+    ``count_ops`` walks the whole expression tree, and an unexpanded Berkowitz determinant
+    of a general 6R is a tree of some 10^5 nodes (1.4 s to count for the Jaco).  No
+    operation brings more than four nodes (``x/y`` is five nodes, ``Mul(x, Pow(y, -1))``,
+    and one division), so a tree of more than ``4 * limit + 1`` nodes has more than
+    ``limit`` operations: the walk stops there.
+    """
+    total = 0
+    cap = 4 * limit + 1
+    for expr in exprs:
+        nodes, stack = 0, [expr]
+        while stack and nodes <= cap:
+            nodes += 1
+            stack.extend(stack.pop().args)
+        if nodes > cap:
+            return max(limit + 1, total + (nodes - 1) // 4)
+        total += int(sp.count_ops(expr))
+    return total
 
 
 def _vanishes(expr: sp.Expr) -> bool:

@@ -192,6 +192,21 @@ def test_singular_sets_are_factored(models):
     assert set(by_name["elbow"]) == {s(q3), s(q4)}
 
 
+def test_the_size_bound_of_a_determinant_is_count_ops_or_below_it(models):
+    """singular._operations_within: count_ops up to the limit; past it, a bound that count_ops exceeds."""
+    from derivations.singular import _operations_within
+    x, y, z = sp.symbols("x y z")
+    samples = [x / y, -x / 2, 2 * x**2, sp.sin(x) * sp.cos(y) - sp.sqrt(3) / 3 * z, (x + y)**3 * sp.sin(z) / 7]
+    puma = models["puma560"]
+    samples += [e for e in puma.jacobian[:3, :3]] + [puma.jacobian[:3, :3].det(method="berkowitz")]
+    for expr in samples:
+        ops = int(sp.count_ops(expr))
+        assert _operations_within([expr], 10**6) == ops
+        for limit in range(0, ops + 2):
+            bound = _operations_within([expr], limit)
+            assert (bound == ops) if ops <= limit else (limit < bound <= ops), (expr, limit)
+
+
 def test_scorbot_elbow_with_the_gripper_horizontal(models):
     """Predescu and Stroe keep theta2 + theta3 + theta4 = 0; the position Jacobian of (theta1, theta2, theta3)
     is then square, with det = -a2 a3 sin(theta3) (a1 + a2 c2 + a3 c23 + d5): the elbow and the reach."""

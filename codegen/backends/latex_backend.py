@@ -684,7 +684,7 @@ def _det(w: _Writer, determinant: JacobianDeterminant | None) -> Section:
     name = "J_x" if determinant.which == "task_jacobian" else "J"
     if not determinant.factored:
         text = (f"$\\det {name}$ is not factored: as a polynomial in the sines and cosines of the joints it "
-                f"has {determinant.size} operations unexpanded, more than the {FACTOR_LIMIT} up to which the "
+                f"has at least {determinant.size} operations unexpanded, more than the {FACTOR_LIMIT} up to which the "
                 "singular families are worked out in closed form. The rate kernels find singular "
                 "configurations numerically, by the condition number of the normalised Jacobian.\n")
         return Section("det", "Singularities", text)
