@@ -42,6 +42,7 @@ import fcntl
 import importlib
 import math
 import os
+import re
 import subprocess
 import sys
 import time
@@ -535,6 +536,20 @@ def test_generated_fk_and_jacobian(name, backend, generated_root):
     # one configuration at a time too (the C backend's single-point path)
     assert relative_error(np.array([kernels.fk(row) for row in q[:10]]), fk(arm, q[:10])) < TOLERANCE
     assert relative_error(np.array([kernels.jacobian(row) for row in q[:10]]), jacobian(arm, q[:10])) < TOLERANCE
+
+
+def test_latex_writes_the_rate_rows_out_where_they_are_short(generated_root):
+    """The forward rate map row by row for a UR5; for the general 6R (the Jaco), whose rows run to
+    hundreds of operations, the statement with J_x and the size that kept the rows out."""
+    from codegen.backends.latex_backend import RATE_ROW_MAX_OPS
+    ur5 = generated_package("ur5", generated_root).__path__[0]
+    jaco = generated_package("kinova_jaco", generated_root).__path__[0]
+    ur5_tex = (Path(ur5) / "ur5.tex").read_text()
+    jaco_tex = (Path(jaco) / "kinova_jaco.tex").read_text()
+    assert "Forward rate map $\\dot x = J_x \\dot q$:" in ur5_tex and "\\dot{x} &=" in ur5_tex
+    stated = re.search(r"its rows written out would run to (\d+) operations, more than the (\d+)", jaco_tex)
+    assert stated and int(stated.group(1)) > int(stated.group(2)) == RATE_ROW_MAX_OPS
+    assert "\\dot{x} &=" not in jaco_tex
 
 
 # --------------------------------------------------------------------------- rate kernels
