@@ -27,10 +27,17 @@ STAGE = re.compile(r"\] (?P<arm>\w+): (?P<stage>[^:]+): (?P<seconds>[\d.]+) s$")
 TARGETS = {6: 10.0, 7: 20.0}
 
 
+# The URDF arms of tests/data/urdf (issue #16's 10 s target for a 6-joint URDF), with their tip links.
+URDFS = ROOT / "tests" / "data" / "urdf"
+URDF_TIPS = {"ur5": "tool0", "panda": "panda_hand_tcp"}
+
+
 def time_arm(path: Path) -> dict:
     with tempfile.TemporaryDirectory(prefix="kinegen-zoo-") as scratch:
         command = [sys.executable, "-m", "codegen", "generate", str(path), "--out", str(Path(scratch) / "pkg"),
                    "--no-build", "--time-limit", "600"]
+        if path.suffix == ".urdf" and path.stem in URDF_TIPS:
+            command += ["--tip", URDF_TIPS[path.stem]]
         if hasattr(os, "sched_setaffinity"):
             command = ["taskset", "-c", "0"] + command if _has_taskset() else command
         env = dict(os.environ, KINEGEN_NO_CACHE="1", PYTHONPATH=str(ROOT))
@@ -46,7 +53,12 @@ def time_arm(path: Path) -> dict:
         found = re.search(r"\[derive\] \w+: ([\d.]+) s", line)
         if found:
             derive = float(found[1])
+    moving = re.search(r"^joints: (.*)$", subprocess.run(
+        [sys.executable, "-m", "codegen", "--quiet", "show", str(path), "--what", "summary"]
+        + (["--tip", URDF_TIPS[path.stem]] if path.suffix == ".urdf" and path.stem in URDF_TIPS else []),
+        cwd=ROOT, capture_output=True, text=True, env=dict(os.environ, PYTHONPATH=str(ROOT))).stdout, re.M)
     return {"ok": result.returncode == 0, "total": total, "model": derive, "stages": stages,
+            "joints": moving[1].count("(") if moving else None,
             "error": result.stderr.strip().splitlines()[-1] if result.returncode else ""}
 
 
@@ -59,18 +71,20 @@ def main(argv=None) -> int:
     parser.add_argument("arms", nargs="*", help="arm names (default: every file in tests/data/arms)")
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "zoo.md")
     args = parser.parse_args(argv)
-    paths = sorted(ARMS.glob("*.toml")) if not args.arms else [ARMS / f"{a}.toml" for a in args.arms]
+    every = sorted(ARMS.glob("*.toml")) + sorted(URDFS.glob("*.urdf"))
+    paths = every if not args.arms else [p for p in every if p.stem in args.arms or p.name in args.arms]
     columns = ["model", "rate kinematics", "common subexpressions of every kernel", "numpy kernels",
                "c kernels", "LaTeX"]
     rows = []
     for path in paths:
-        joints = len(tomllib.loads(path.read_text())["joint"])
         timing = time_arm(path)
+        joints = (len(tomllib.loads(path.read_text())["joint"]) if path.suffix == ".toml"
+                  else timing.get("joints"))
         target = TARGETS.get(joints)
         verdict = "-" if target is None else ("met" if timing["ok"] and timing["total"] <= target else "missed")
         cells = [f"{timing['model']:.1f}" if timing["model"] is not None else "-"]
         cells += [f"{timing['stages'][c]:.1f}" if c in timing["stages"] else "-" for c in columns[1:]]
-        rows.append(f"| {path.stem} | {joints} | " + " | ".join(cells)
+        rows.append(f"| {path.name if path.suffix == '.urdf' else path.stem} | {joints} | " + " | ".join(cells)
                     + f" | {timing['total']:.1f} | {target if target else '-'} | {verdict} |")
         print(rows[-1], flush=True)
         if not timing["ok"]:

@@ -79,7 +79,7 @@ class Progress:
 
 
 def _is_file(target: str) -> bool:
-    return target.endswith(".toml") or "/" in target
+    return target.endswith((".toml", ".urdf", ".xacro")) or "/" in target
 
 
 def _registered(names: list[str]) -> list[str]:
@@ -98,12 +98,19 @@ def _symbolic(name: str):
     return derivations.load_kernel_set(name) if name in derivations.KERNEL_SETS else derivations.load(name)
 
 
-def _load(target: str, say) -> tuple:
-    """(model, description path) of a registered name or a description file."""
+def _load(target: str, say, args=None) -> tuple:
+    """(model, description path) of a registered name or a description file (a URDF's
+    --base, --tip and --no-snap from ``args``)."""
     if not _is_file(target):
         _registered([target])
     say(f"deriving {target} (cached after the first time)")
-    model = derivations.load(target, verbose=not say.quiet)
+    options = {}
+    if target.endswith(".urdf") and args is not None:
+        options = dict(base=getattr(args, "base", None), tip=getattr(args, "tip", None),
+                       snap=not getattr(args, "no_snap", False))
+    model = derivations.load(target, verbose=not say.quiet, **options)
+    if model.notes.get("snapped"):
+        say(f"{model.name}: snapped to exact values: {model.notes['snapped']}")
     path = derivations.ROBOTS[target] if target in derivations.ROBOTS and not _is_file(target) else Path(target)
     return model, path
 
@@ -123,7 +130,7 @@ def cmd_list(args, say) -> int:
 
 
 def cmd_show(args, say) -> int:
-    model, _ = _load(args.robot, say)
+    model, _ = _load(args.robot, say, args)
     what = args.what
     if args.latex and what in latex_backend.SECTION_KEYS:
         print(latex_backend.latex_for(model, [what]), end="")  # the fragments' notation
@@ -145,6 +152,12 @@ def cmd_show(args, say) -> int:
         if model.chain is None:
             raise InputError(f"{model.name} is not a DH chain")
         print(f"convention: {model.chain.convention}")
+        if model.chain.convention == "urdf":
+            print("joint  type  name  axis  origin xyz  (after)")
+            for i, j in enumerate(model.chain.joints, 1):
+                after = "" if j.after is None else f"  after xyz {list(j.after[:3, 3])}"
+                print(f"{i}  {j.type}  {j.name}  {list(j.axis)}  {list(j.origin[:3, 3])}{after}")
+            return 0
         print("joint  type  a  alpha  d  theta  offset")
         for i, j in enumerate(model.chain.joints, 1):
             d = model.q[i - 1] if j.type == "P" else j.d
@@ -178,7 +191,7 @@ def cmd_generate(args, say) -> int:
             raise gen.OutputExistsError(f"{args.out}: output folder exists (use --force to replace it)")
         with budget(args.time_limit, f"{args.robots[0]}: derivation and rendering"):
             set_stage("deriving the model")
-            model, path = _load(args.robots[0], say)
+            model, path = _load(args.robots[0], say, args)
             set_stage(None)
             out = Path(args.out) if args.out else _default_out(model)
             if not out.name.isidentifier():  # before the slow work, not after it
@@ -288,7 +301,7 @@ def cmd_verify(args, say) -> int:
     if any(_is_file(t) for t in args.robots) or args.out:
         if len(args.robots) != 1:
             raise InputError("verify with --out or a description file takes exactly one robot")
-        model, _ = _load(args.robots[0], say)
+        model, _ = _load(args.robots[0], say, args)
         package = Path(args.out) if args.out else _default_out(model)
         say(f"{model.name}: verifying {package} against SymPy at 30 digits")
         checks = verify_model(model, _package_modules(package, args.backends), samples=args.samples)
@@ -318,7 +331,7 @@ def cmd_check(args, say) -> int:
 
 
 def cmd_latex(args, say) -> int:
-    model, _ = _load(args.robot, say)
+    model, _ = _load(args.robot, say, args)
     what = [w for item in args.what or [] for w in item.split(",") if w]
     try:
         print(latex_backend.latex_for(model, what), end="")
@@ -447,7 +460,8 @@ def parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True, metavar="command")
     sub.add_parser("list", help="registered robots", parents=[common]).set_defaults(run=cmd_list)
     show = sub.add_parser("show", help="the derived equations of a robot", parents=[common])
-    show.add_argument("robot", help="a registered robot name or a .toml description file")
+    show.add_argument("robot", help="a registered robot name, a .toml description or a .urdf file")
+    _urdf_options(show)
     show.add_argument("--what", choices=SHOW, default="summary", help="which quantity (default: summary)")
     show.add_argument("--latex", action="store_true", help="print LaTeX instead of text")
     show.set_defaults(run=cmd_show)
@@ -465,6 +479,8 @@ def parser() -> argparse.ArgumentParser:
                            type=_backends, default=["numpy", "c"], help="comma-separated: numpy,c (default both)")
         if name in ("generate", "verify"):
             s.add_argument("--out", help="folder of a standalone package (default ./ROBOT_NAME)")
+        if name in ("generate", "verify"):
+            _urdf_options(s)
         if name == "generate":
             s.add_argument("--force", action="store_true", help="replace an existing --out folder")
             s.add_argument("--no-build", action="store_true", help="do not compile the C extension")
@@ -478,7 +494,8 @@ def parser() -> argparse.ArgumentParser:
         s.set_defaults(run=run)
     sub.add_parser("check", help="fail when generated/ is stale", parents=[common]).set_defaults(run=cmd_check)
     s = sub.add_parser("latex", help="print the LaTeX of a robot's derived equations", parents=[common])
-    s.add_argument("robot", help="robot name or .toml description file")
+    s.add_argument("robot", help="robot name, .toml description or .urdf file")
+    _urdf_options(s)
     s.add_argument("--what", action="append", metavar="SECTION",
                    help=f"section(s) to print, comma-separated: {', '.join(latex_backend.SECTION_KEYS)}, "
                         "or an extra a model carries (default: all)")
@@ -486,6 +503,14 @@ def parser() -> argparse.ArgumentParser:
     sub.add_parser("report", help="build the PDF report (needs pdflatex)", parents=[common]).set_defaults(run=cmd_report)
     avr_limits.add_parser(sub)
     return p
+
+
+def _urdf_options(command) -> None:
+    command.add_argument("--base", metavar="LINK", help="URDF: the link the chain starts at (default: the root)")
+    command.add_argument("--tip", metavar="LINK", help="URDF: the link the chain ends at (default: the only leaf)")
+    command.add_argument("--no-snap", action="store_true",
+                         help="URDF: keep angles and axes as written (default: snap those within 1e-8 of "
+                              "multiples of pi/2 and of coordinate axes to them exactly)")
 
 
 def main(argv=None) -> int:

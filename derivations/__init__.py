@@ -53,17 +53,27 @@ class UnknownRobotError(KeyError, ValueError):
         return self.args[0]
 
 
-def load(name: str | Path, *, verbose: bool = False) -> RobotModel:
+def load(name: str | Path, *, verbose: bool = False, base: str | None = None, tip: str | None = None,
+         snap: bool = True) -> RobotModel:
     """The symbolic model of a registered robot, or of a description file.
 
-    ``name`` is a registry name (see ``ROBOTS``) or the path of a ``.toml``
-    description.  Derivation results are cached on disk (``derivations.cache``).
+    ``name`` is a registry name (see ``ROBOTS``), the path of a ``.toml``
+    description, or the path of a ``.urdf`` file; for a URDF, ``base`` and ``tip``
+    name the links the chain runs between and ``snap`` rounds angles and axes
+    within ``derivations.urdf.SNAP_TOLERANCE`` of pi/2 multiples and coordinate axes
+    to them exactly (``derivations.urdf``).  Derivation results are cached on disk
+    (``derivations.cache``).
     """
     path = _resolve(name)
     if path.suffix == ".py":
         return _load_module(path, verbose)
-    description = read_description(path)
-    text = path.read_bytes()
+    if path.suffix == ".urdf":
+        from .urdf import read_urdf
+        description = read_urdf(path, base=base, tip=tip, snap=snap)
+        text = path.read_bytes() + repr((base, tip, snap)).encode()
+    else:
+        description = read_description(path)
+        text = path.read_bytes()
     extension = _ROBOT_DIR / f"{description.name}.py" if path.parent == _ROBOT_DIR else None
     start = time.perf_counter()
     model = cached(f"model-{description.name}", text, lambda: _derive(description, extension))
@@ -85,12 +95,16 @@ def _resolve(name: str | Path) -> Path:
     if isinstance(name, str) and name in ROBOTS:
         return ROBOTS[name]
     path = Path(name)
-    if path.suffix == ".toml":
+    if path.suffix in (".toml", ".urdf"):
         if not path.is_file():
             raise DescriptionError(f"{path}: no such description file")
         return path
+    if path.suffix == ".xacro":
+        raise DescriptionError(f"{path}: a xacro file; expand it first (`xacro {path.name} > robot.urdf` with ROS, "
+                               f"or `xacrodoc {path.name} -o robot.urdf`), then give the .urdf")
     known = ", ".join(ROBOTS)
-    raise UnknownRobotError(f"unknown robot {str(name)!r}; known robots: {known} (or give a .toml description file)")
+    raise UnknownRobotError(f"unknown robot {str(name)!r}; known robots: {known} "
+                            "(or give a .toml description or a .urdf file)")
 
 
 def _derive(description: Description, extension: Path | None) -> RobotModel:

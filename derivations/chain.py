@@ -52,10 +52,31 @@ class Joint:
     theta: sp.Expr = sp.S.Zero
     offset: sp.Expr = sp.S.Zero
     limits: tuple[sp.Expr, sp.Expr] | None = None
+    # A general joint (a chain of convention "urdf"): the fixed transform ``origin`` from the
+    # previous joint's frame, then the motion about / along the unit ``axis`` of that frame,
+    # then ``after`` (the fixed links behind the last joint); the DH fields are unused.
+    origin: sp.ImmutableMatrix | None = None
+    axis: tuple[sp.Expr, sp.Expr, sp.Expr] | None = None
+    after: sp.ImmutableMatrix | None = None
+    name: str = ""
 
     def __post_init__(self):
         if self.type not in (REVOLUTE, PRISMATIC):
             raise ValueError(f"joint type must be 'R' or 'P', got {self.type!r}")
+
+
+def axis_motion(joint_type: str, axis, value) -> sp.Matrix:
+    """The 4x4 motion of a general joint: rotation by ``value`` about the unit ``axis``
+    (Rodrigues' formula, exact) or translation by ``value`` along it."""
+    k = sp.Matrix(axis)
+    motion = sp.eye(4)
+    if joint_type == PRISMATIC:
+        motion[:3, 3] = k * value
+        return motion
+    c, s = sp.cos(value), sp.sin(value)
+    skew = sp.Matrix([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    motion[:3, :3] = (c * sp.eye(3) + (1 - c) * k * k.T + s * skew).applyfunc(sp.expand)
+    return motion
 
 
 def dh_standard(theta, d, a, alpha) -> sp.Matrix:
@@ -267,8 +288,8 @@ class Chain:
     base: sp.Matrix = field(default_factory=lambda: sp.eye(4))
 
     def __post_init__(self):
-        if self.convention not in ("standard", "modified"):
-            raise ValueError(f"convention must be 'standard' or 'modified', got {self.convention!r}")
+        if self.convention not in ("standard", "modified", "urdf"):
+            raise ValueError(f"convention must be 'standard', 'modified' or 'urdf', got {self.convention!r}")
         if not self.joints:
             raise ValueError("a chain needs at least one joint")
 
@@ -279,6 +300,9 @@ class Chain:
     def link_transform(self, i: int, qi: sp.Symbol) -> sp.Matrix:
         """The transform of link i (0-based) as a function of its joint variable."""
         j = self.joints[i]
+        if self.convention == "urdf":
+            transform = sp.Matrix(j.origin) * axis_motion(j.type, j.axis, qi + j.offset)
+            return transform * sp.Matrix(j.after) if j.after is not None else transform
         if j.type == REVOLUTE:
             theta, d = qi + j.offset, j.d
         else:
@@ -298,12 +322,35 @@ class Chain:
         """For each joint, its unit axis and a point on it, in the base frame."""
         axes = []
         for i in range(self.n):
+            if self.convention == "urdf":
+                joint = self.joints[i]
+                frame = (link_frames[i] * sp.Matrix(joint.origin)).applyfunc(simplify_product)
+                axes.append(((frame[:3, :3] * sp.Matrix(joint.axis)).applyfunc(simplify_product), frame[:3, 3]))
+                continue
             frame = link_frames[i] if self.convention == "standard" else link_frames[i + 1]
             axes.append((frame[:3, 2], frame[:3, 3]))
         return axes
 
-    def geometric_jacobian(self, link_frames: list[sp.Matrix], tool_point: sp.Matrix) -> sp.Matrix:
-        """6 x n ``[v; w]`` Jacobian of ``tool_point`` (velocity-model slides)."""
+    def coupled(self, q) -> bool:
+        """Whether a fixed transform of the chain moves with a joint (a URDF ``mimic`` joint
+        folded into it): then the Jacobian's columns are not one joint axis each."""
+        joints = set(q)
+        return any(m is not None and sp.Matrix(m).free_symbols & joints
+                   for j in self.joints for m in (j.origin, j.after))
+
+    def geometric_jacobian(self, link_frames: list[sp.Matrix], tool_point: sp.Matrix, q=None) -> sp.Matrix:
+        """6 x n ``[v; w]`` Jacobian of ``tool_point`` (velocity-model slides).
+
+        Where a joint also drives a fixed transform (:meth:`coupled`), the columns come from
+        derivatives instead: ``v_j = dp/dq_j`` and ``w_j`` the axial vector of ``dR/dq_j R^T``.
+        """
+        if q is not None and self.coupled(q):
+            R = link_frames[-1][:3, :3]
+            columns = []
+            for qj in q:
+                spin = sp.Matrix(3, 3, lambda i, k: sum(derivative(R[i, m], qj) * R[k, m] for m in range(3)))
+                columns.append(sp.Matrix([derivative(e, qj) for e in tool_point] + [spin[2, 1], spin[0, 2], spin[1, 0]]))
+            return sp.Matrix.hstack(*columns).applyfunc(simplify_product)
         columns = []
         for joint, (z, o) in zip(self.joints, self.joint_axes(link_frames)):
             if joint.type == REVOLUTE:

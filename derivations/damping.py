@@ -56,7 +56,8 @@ MAX_DAMPING = sp.Rational(1, 10**3)
 
 def reference_length(chain: Chain | None) -> sp.Expr:
     """``L``: the sum of the chain's constant lengths (|a_i|, |d_i| of revolute joints,
-    |offset_i| of prismatic ones) and of the tool offset; 1 (metre) when that is 0.
+    |offset_i| of prismatic ones; for a URDF chain the coordinates of each fixed offset)
+    and of the tool offset; 1 (metre) when that is 0.
 
     An expression in the robot parameters, so the singularity threshold scales
     with the arm when a kernel is called with other parameters.
@@ -65,6 +66,12 @@ def reference_length(chain: Chain | None) -> sp.Expr:
         return sp.S.One
     total = sp.S.Zero
     for joint in chain.joints:
+        if chain.convention == "urdf":  # the fixed offsets along the chain
+            for fixed in (joint.origin, joint.after):
+                # (constants only: a mimic joint folded into a transform moves its offsets)
+                total += 0 if fixed is None else sum(sp.Abs(e) for e in sp.Matrix(fixed)[:3, 3] if not e.free_symbols)
+            total += sp.Abs(joint.offset) if joint.type == PRISMATIC else 0
+            continue
         total += sp.Abs(joint.a)
         total += sp.Abs(joint.offset) if joint.type == PRISMATIC else sp.Abs(joint.d)
     offset = chain.tool[:3, 3]

@@ -324,7 +324,7 @@ def build_chain_model(name: str, title: str, source: str, chain: Chain, q, param
     if tool != sp.eye(4):  # the flange frame stays; the tool frame follows it
         frames.append((frames[-1] * tool).applyfunc(simplify_product))
     fk = frames[-1]
-    jacobian = chain.geometric_jacobian(link_frames, fk[:3, 3])
+    jacobian = chain.geometric_jacobian(link_frames, fk[:3, 3], q)
     task_names, task = task_coordinates(task_spec, chain, q, fk, link_frames)
     task_jacobian = sp.Matrix(len(task), len(q),
                               lambda i, j: simplify_derivative(derivative(task[i], q[j])))

@@ -583,6 +583,8 @@ def _dh(w: _Writer) -> Section | None:
     if chain is None:
         return None
     tex = w.layout.tex
+    if chain.convention == "urdf":
+        return _urdf_joints(w, chain)
     rows = []
     for i, (joint, qi) in enumerate(zip(chain.joints, w.model.q), start=1):
         variable = qi + joint.offset
@@ -610,6 +612,26 @@ def _dh(w: _Writer) -> Section | None:
     return Section("dh", "Denavit--Hartenberg table", body)
 
 
+def _urdf_joints(w: _Writer, chain) -> Section:
+    """A URDF chain's joints: each one's axis (in its own frame) and the translation of its fixed
+    transform; the transforms themselves are the link transforms printed next."""
+    tex = w.layout.tex
+    rows = []
+    for i, (joint, qi) in enumerate(zip(chain.joints, w.model.q), start=1):
+        kind = "revolute" if joint.type == REVOLUTE else "prismatic"
+        axis = tex(sp.Matrix(joint.axis).T)
+        origin = tex(sp.Matrix(joint.origin)[:3, 3].T)
+        rows.append(f"{i} & {escape_text(joint.name)} & {kind} & ${axis}$ & ${origin}$ \\\\")
+    rule = (r"A_i = O_i\,M_i(q_i)\quad\text{($O_i$ the fixed transform of the joint's origin, "
+            r"with the fixed joints before it; $M_i$ the rotation about or translation along its axis)}")
+    body = ("Joints of the URDF chain (fixed joints folded into the next joint's origin, those after the "
+            "last joint into its link):\n\\begin{equation*}\n" + rule + "\n\\end{equation*}\n"
+            + "\\begin{center}\n\\begin{tabular}{clccc}\n\\hline\n"
+            + r"$i$ & joint & type & axis & origin translation \\" + "\n\\hline\n"
+            + "\n".join(rows) + "\n\\hline\n\\end{tabular}\n\\end{center}\n")
+    return Section("dh", "Joints", body)
+
+
 def _links(w: _Writer) -> Section | None:
     chain = w.model.chain
     if chain is None:
@@ -618,7 +640,7 @@ def _links(w: _Writer) -> Section | None:
     for i, qi in enumerate(w.model.q):
         A = chain.link_transform(i, qi).applyfunc(simplify_entry)
         name = f"A_{{{i + 1}}}"
-        parts.append(w.matrix_equation(name, A, key=f"link{i + 1}", entry=f"(A_{{{i + 1}}})_{{{{{{ij}}}}}}",
+        parts.append(w.matrix_equation(name, A, key=f"link{i + 1}", entry=f"(A_{{{{{i + 1}}}}})_{{{{{{ij}}}}}}",
                                        skip_last_row=True))
     if chain.tool != sp.eye(4):
         parts.append(w.matrix_equation(r"T_{\mathrm{tool}}", chain.tool, skip_last_row=True))
