@@ -177,8 +177,14 @@ def build_packages(targets: list[tuple[Path, str]], jobs: int, report=lambda nam
 LAYOUTS = {"plain": [], "blocked": ["-DKINEGEN_BLOCKED"], "simd": ["-DKINEGEN_SIMD", "-fopenmp-simd"]}
 
 
-def compile_strict(package: Path, name: str) -> None:
-    """Compile ``name.c`` with ``-std=c99 -Wall -Wextra -Werror -pedantic`` in every layout (objects discarded).
+def extension_layout(package: Path) -> str:
+    """The layout ``build_package`` compiles (strictly) into the package's extension: "simd" or "plain"."""
+    return "simd" if "-DKINEGEN_SIMD" in _compile_flags(load_build_script(Path(package))) else "plain"
+
+
+def compile_strict(package: Path, name: str, skip=()) -> None:
+    """Compile ``name.c`` with ``-std=c99 -Wall -Wextra -Werror -pedantic`` in every layout but
+    those in ``skip`` (objects discarded).
 
     ``name_point.c`` (the one-point entry points for Python) is held to the same flags;
     the Python and numpy headers it includes are system headers (-isystem), whose own
@@ -186,7 +192,7 @@ def compile_strict(package: Path, name: str) -> None:
     """
     with tempfile.TemporaryDirectory(prefix="kinegen-strict-") as scratch:
         for layout, flags in LAYOUTS.items():
-            if layout == "simd" and not _accepts(("-fopenmp-simd",)):
+            if layout in skip or (layout == "simd" and not _accepts(("-fopenmp-simd",))):
                 continue
             _run([CC, *STRICT_FLAGS, *flags, "-O2", "-c", str(package / f"{name}.c"),
                   "-o", str(Path(scratch) / f"{name}-{layout}.o")])
@@ -214,12 +220,15 @@ def check_syntax(package: Path, name: str, layouts) -> None:
         _run([CC, *STRICT_FLAGS, *LAYOUTS[layout], "-fsyntax-only", str(Path(package) / f"{name}.c")])
 
 
-# The sanitizer build: the kernels at -O1 (what ASan and UBSan are meant to run at: every
-# access still instrumented, and UBSan's object-size check needs the optimiser), line tables
-# only (-g1: the reports' file:line; full -g with variable tracking made the Puma's blocked
-# layout a 5-minute compile); the driver, which only calls and compares, at -O0.
+# The sanitizer build: the kernels' plain layout at -O1 (the single-point code every plain batch
+# calls: every access still instrumented, and UBSan's object-size check, which needs the
+# optimiser, on); the blocked layout, the same expressions in loops over blocks, at -O0, where
+# ASan instruments every access and catches any out-of-bounds one that the object-size check
+# could (-O1 made it 12.5 s of the PUMA's 14 s compile; -O0 takes 3.9 s). Line tables only (-g1:
+# the reports' file:line; full -g with variable tracking made the Puma's blocked layout a
+# 5-minute compile); the driver, which only calls and compares, at -O0.
 SANITIZE_FLAGS = ("-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer", "-g1")
-SANITIZE_KERNEL_FLAGS = ("-O1",)
+SANITIZE_KERNEL_FLAGS = {"plain": ("-O1",), "blocked": ("-O0",)}
 SANITIZE_DRIVER_FLAGS = ("-O0",)
 
 
@@ -245,7 +254,7 @@ def sanitizer_run(package: Path, name: str, functions: list[dict], n_joints: int
         driver.write_text(source)
         compiles = [[CC, *STRICT_FLAGS, *SANITIZE_FLAGS, *SANITIZE_DRIVER_FLAGS, "-I", str(package),
                      "-c", str(driver), "-o", str(scratch / "driver.o")]]
-        compiles += [[CC, *STRICT_FLAGS, *SANITIZE_FLAGS, *SANITIZE_KERNEL_FLAGS, *LAYOUTS[layout],
+        compiles += [[CC, *STRICT_FLAGS, *SANITIZE_FLAGS, *SANITIZE_KERNEL_FLAGS[layout], *LAYOUTS[layout],
                       f"-DKINEGEN_BLOCK={SANITIZER_BLOCK}", "-c", str(package / f"{name}.c"),
                       "-o", str(scratch / f"{name}-{layout}.o")] for layout in layouts]
         with concurrent.futures.ThreadPoolExecutor(max_workers=len(compiles)) as pool:
