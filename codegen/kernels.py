@@ -7,6 +7,8 @@ the pose and the Jacobian is computed once), and each output entry.
 """
 from __future__ import annotations
 
+import functools
+
 from dataclasses import dataclass
 
 import sympy as sp
@@ -71,8 +73,12 @@ class PreparedFunction:
         return frozenset(used)
 
 
+@functools.lru_cache(maxsize=8192)
 def exact_floats(expr: sp.Basic) -> sp.Basic:
-    """Fold exact constants (pi, rationals times pi) so they print as one double."""
+    """Fold exact constants (pi, rationals times pi) so they print as one double.
+
+    Remembered: the kernels of a robot share most of their entries (fk's are task's and
+    frames' too), and a general 6R's xreplace over all of them took a third of a second."""
     return expr.xreplace({sp.pi: sp.Float(sp.pi.evalf(40), 40)}) if expr.has(sp.pi) else expr
 
 
