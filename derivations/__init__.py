@@ -74,6 +74,9 @@ def load(name: str | Path, *, verbose: bool = False, base: str | None = None, ti
     else:
         description = read_description(path)
         text = path.read_bytes()
+        if description.convention == "urdf":  # a description over a URDF: that file is part of the key
+            import tomllib
+            text += (path.parent / tomllib.loads(text.decode())["urdf"]).read_bytes()
     extension = _ROBOT_DIR / f"{description.name}.py" if path.parent == _ROBOT_DIR else None
     start = time.perf_counter()
     model = cached(f"model-{description.name}", text, lambda: _derive(description, extension))

@@ -40,6 +40,9 @@ from .expressions import ExpressionError, is_identifier, parse_expression
 __all__ = ["DescriptionError", "Description", "read_description", "parse_description"]
 
 TOP_KEYS = {"name", "title", "source", "convention", "task", "params", "joint", "tool", "base", "notes"}
+# A description may take its chain from a URDF file instead of [[joint]] tables, and add its own
+# task, parameters and [tool] / [base] frames (whose values may use the parameters).
+URDF_KEYS = {"urdf", "base_link", "tip_link", "snap"}
 JOINT_KEYS = {"type", "a", "alpha", "d", "theta", "offset", "limits", "name"}
 FRAME_KEYS = {"xyz", "rpy"}
 
@@ -95,6 +98,8 @@ class _Parser:
         raise DescriptionError(f"{self.origin}: {where}: {message}")
 
     def parse(self, data: dict[str, Any]) -> Description:
+        if "urdf" in data:
+            return self.parse_urdf(data)
         unknown = sorted(set(data) - TOP_KEYS)
         if unknown:
             self.fail("top level", f"unknown field {unknown[0]!r} (expected one of {', '.join(sorted(TOP_KEYS))})")
@@ -137,6 +142,40 @@ class _Parser:
             convention=convention, task=task, params=params, joints=joints, tool=tool,
             notes=dict(notes), q=q, base=base,
         )
+
+    def parse_urdf(self, data: dict[str, Any]) -> Description:
+        """``urdf = "arm.urdf"`` (relative to this file) with optional ``base_link``, ``tip_link``,
+        ``snap``, and this file's own name, title, task, params, [tool] and [base]."""
+        allowed = (TOP_KEYS - {"joint", "convention"}) | URDF_KEYS
+        unknown = sorted(set(data) - allowed)
+        if unknown:
+            self.fail("top level", f"unknown field {unknown[0]!r} with 'urdf' (expected one of {', '.join(sorted(allowed))}; "
+                      "the joints come from the URDF)")
+        for key in ("urdf", "base_link", "tip_link", "name", "title", "source"):
+            if key in data and not isinstance(data[key], str):
+                self.fail(f"field {key!r}", "expected a string")
+        if "snap" in data and not isinstance(data["snap"], bool):
+            self.fail("field 'snap'", "expected true or false")
+        from .urdf import read_urdf  # (urdf imports this module)
+        path = Path(self.origin).parent / data["urdf"]
+        description = read_urdf(path, base=data.get("base_link"), tip=data.get("tip_link"),
+                                snap=data.get("snap", True))
+        name = data.get("name", description.name)
+        if not is_identifier(name):
+            self.fail("field 'name'", f"{name!r} is not a valid identifier")
+        params = self.parse_params(data.get("params", {}))
+        names = {str(p): p for p in params}
+        task = data.get("task", ["pose"])
+        if not isinstance(task, list) or not task or any(t not in ("x", "y", "z", "phi", "pose") for t in task):
+            self.fail("field 'task'", "expected a non-empty list of names among x, y, z, phi, pose")
+        notes = data.get("notes", {})
+        if not isinstance(notes, dict) or not all(isinstance(v, str) for v in notes.values()):
+            self.fail("field 'notes'", "expected a table of strings")
+        return Description(
+            name=name, title=data.get("title", description.title), source=data.get("source", description.source),
+            convention="urdf", task=task, params=params, joints=description.joints,
+            tool=self.parse_frame(data.get("tool"), names, "tool"), notes={**description.notes, **notes},
+            q=description.q, base=self.parse_frame(data.get("base"), names, "base"))
 
     def parse_params(self, raw) -> dict[sp.Symbol, float]:
         if not isinstance(raw, dict):

@@ -259,6 +259,43 @@ def test_fixed_joints_mid_chain_and_a_prismatic_finger():
         assert relative_error(np.array(jacobian(*q), dtype=float), chain.jacobian(q)) < TOLERANCE
 
 
+WRAPPER = """
+name = "ur5_gripper"
+urdf = "{urdf}"
+tip_link = "tool0"
+[params]
+tcp = 0.15
+[tool]
+xyz = [0, 0, "tcp"]
+rpy = [0, 0, "pi/2"]
+[base]
+xyz = [0.5, 0, 0]
+rpy = [0, 0, "pi"]
+"""
+
+
+def test_a_description_over_a_urdf_adds_a_task_parameters_and_tool_and_base_frames(tmp_path):
+    """The TOML form: urdf = FILE, then this file's own [params], [tool] and [base] (the tool length a
+    keyword parameter of every kernel). Expected: the XML's chain between the two frames written here."""
+    import sympy as sp
+
+    import derivations
+    path = tmp_path / "gripper.toml"
+    path.write_text(WRAPPER.format(urdf=URDF_DIR / "ur5.urdf"))
+    m = derivations.load(path)
+    assert m.name == "ur5_gripper" and [str(p) for p in m.params] == ["tcp"]
+    chain = XmlChain(URDF_DIR / "ur5.urdf", "tool0")
+    fk = sp.lambdify([*m.q, *m.params], m.fk, "numpy")
+    base = np.array([[-1.0, 0, 0, 0.5], [0, -1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+    for tcp in (0.15, 0.3):
+        tool = np.array([[0.0, -1, 0, 0], [1, 0, 0, 0], [0, 0, 1, tcp], [0, 0, 0, 1]])
+        for q in configurations(6, 23, 5):
+            assert relative_error(np.array(fk(*q, tcp), dtype=float), base @ chain.fk(q) @ tool) < TOLERANCE
+    path.write_text(WRAPPER.format(urdf=URDF_DIR / "ur5.urdf") + '[[joint]]\ntype = "R"\n')
+    with pytest.raises(derivations.DescriptionError, match="unknown field 'joint' with 'urdf'"):
+        derivations.load(path)
+
+
 # --------------------------------------------------------------------------- generated packages
 
 _PACKAGES: dict = {}
