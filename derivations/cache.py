@@ -1,15 +1,26 @@
-"""A disk cache for slow symbolic work.
+"""A disk cache for slow symbolic work, which loading cannot turn into running code.
 
 Derived models are pickled under ``.cache/derivations/`` at the top of the
 checkout (or ``$KINEGEN_CACHE``).  The key hashes the robot's description, the
 source of every module in ``derivations/`` and the SymPy version, so a change to
 any of them derives afresh; a cache that cannot be read or written is ignored.
+
+A pickle runs whatever code its bytes name when it is loaded, so no entry is
+unpickled unless it carries an HMAC-SHA256, under a secret key kept outside the
+cache folder (``$XDG_CONFIG_HOME/kinegen/cache-key``, else ``~/.config/kinegen/
+cache-key``, or ``$KINEGEN_CACHE_KEY``; created on first use, mode 0600), of its
+file name and its bytes.  A planted or edited entry, or one copied over another's
+name (the planar 2R's model under the PUMA's key), fails that check, is reported
+once on stderr and derived afresh.  Without a key (a home that cannot be written),
+nothing is read from the cache.
 """
 from __future__ import annotations
 
 import hashlib
+import hmac
 import os
 import pickle
+import secrets
 import sys
 import tempfile
 from pathlib import Path
@@ -39,23 +50,84 @@ def source_fingerprint() -> str:
     return digest.hexdigest()
 
 
+MAGIC = b"kinegen-cache-1\n"
+
+
+def key_path() -> Path:
+    env = os.environ.get("KINEGEN_CACHE_KEY")
+    if env:
+        return Path(env)
+    config = os.environ.get("XDG_CONFIG_HOME") or str(Path.home() / ".config")
+    return Path(config) / "kinegen" / "cache-key"
+
+
+def _secret() -> bytes | None:
+    """The signing key, created (32 random bytes, mode 0600) if there is none; None if it cannot be."""
+    path = key_path()
+    try:
+        key = path.read_bytes()
+        return key if len(key) >= 32 else None
+    except FileNotFoundError:
+        pass
+    except OSError:
+        return None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".cache-key-")
+        with os.fdopen(fd, "wb") as handle:  # mkstemp: mode 0600
+            handle.write(secrets.token_bytes(32))
+        try:
+            os.link(tmp, path)  # never over another process's key
+        except FileExistsError:
+            pass
+        finally:
+            os.unlink(tmp)
+        key = path.read_bytes()
+        return key if len(key) >= 32 else None
+    except OSError:
+        return None
+
+
+def _signature(key: bytes, name: str, payload: bytes) -> bytes:
+    return hmac.new(key, name.encode() + b"\0" + payload, hashlib.sha256).hexdigest().encode()
+
+
+_REPORTED: set[str] = set()
+
+
 def cached(kind: str, content: bytes, build: Callable[[], T]) -> T:
-    """``build()``, memoised on disk by ``kind`` and ``content``."""
+    """``build()``, memoised on disk by ``kind`` and ``content`` (signed entries only)."""
     if os.environ.get("KINEGEN_NO_CACHE"):
         return build()
-    key = hashlib.sha256(content + source_fingerprint().encode()).hexdigest()[:32]
-    path = cache_dir() / f"{kind}-{key}.pickle"
+    secret = _secret()
+    if secret is None:
+        return build()
+    digest = hashlib.sha256(content + source_fingerprint().encode()).hexdigest()[:32]
+    path = cache_dir() / f"{kind}-{digest}.pickle"
     try:
-        with open(path, "rb") as handle:
-            return pickle.load(handle)
-    except Exception:  # missing, stale or unreadable: derive afresh
-        pass
+        data = path.read_bytes()
+    except OSError:  # missing or unreadable: derive afresh
+        data = None
+    if data is not None:
+        head, _, rest = data.partition(b"\n")
+        signature, payload = rest[:64], rest[65:]
+        if (head + b"\n" == MAGIC and len(rest) > 65
+                and hmac.compare_digest(signature, _signature(secret, path.name, payload))):
+            try:
+                return pickle.loads(payload)
+            except Exception:  # signed by us but unreadable (another Python or SymPy): derive afresh
+                pass
+        elif path.name not in _REPORTED:
+            _REPORTED.add(path.name)
+            print(f"kinegen: cache entry {path} is not signed by this machine's key; ignored and derived afresh",
+                  file=sys.stderr)
     value = build()
     try:
+        payload = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
         with os.fdopen(fd, "wb") as handle:
-            pickle.dump(value, handle, protocol=pickle.HIGHEST_PROTOCOL)
+            handle.write(MAGIC + _signature(secret, path.name, payload) + b"\n" + payload)
         os.replace(tmp, path)
     except OSError:
         pass
