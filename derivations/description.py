@@ -35,7 +35,7 @@ from typing import Any
 import sympy as sp
 
 from .chain import PRISMATIC, REVOLUTE, Chain, Joint, rpy_matrix
-from .expressions import ExpressionError, is_identifier, parse_expression
+from .expressions import ExpressionError, is_identifier, is_package_name, parse_expression
 
 __all__ = ["DescriptionError", "Description", "read_description", "parse_description"]
 
@@ -109,6 +109,9 @@ class _Parser:
         if not isinstance(name, str) or not is_identifier(name):
             self.fail("field 'name'", f"{name!r} is not a valid identifier "
                       "(ASCII letters, digits and _, not starting with a digit or _, not a reserved word)")
+        if not is_package_name(name):
+            self.fail("field 'name'", f"{name!r} would shadow the Python module of that name "
+                      "(a standard-library or kinegen module); choose another")
         convention = data.get("convention", "standard")
         if convention not in ("standard", "modified"):
             self.fail("field 'convention'", f"expected 'standard' or 'modified', got {convention!r}")
@@ -161,8 +164,8 @@ class _Parser:
         description = read_urdf(path, base=data.get("base_link"), tip=data.get("tip_link"),
                                 snap=data.get("snap", True))
         name = data.get("name", description.name)
-        if not is_identifier(name):
-            self.fail("field 'name'", f"{name!r} is not a valid identifier")
+        if not is_package_name(name):
+            self.fail("field 'name'", f"{name!r} is not a valid identifier or would shadow a Python module")
         params = self.parse_params(data.get("params", {}))
         names = {str(p): p for p in params}
         task = data.get("task", ["pose"])

@@ -13,7 +13,10 @@ decimal.
 from __future__ import annotations
 
 import ast
+import builtins
+import keyword
 import math
+import sys
 from typing import Mapping
 
 import sympy as sp
@@ -67,6 +70,22 @@ RESERVED = frozenset(
 )
 
 
+# Names the generated code's languages and libraries define: every Python keyword and builtin
+# (a parameter named range or ValueError would shadow it in the numpy module), the C library
+# names the templates use or C99 defines as macros, and the upper-case names of the generated
+# modules and C (CHUNK, PARAMS, ...).  Any name starting with kinegen_ or KINEGEN_ is the
+# templates' own (checked in is_identifier).
+RESERVED = RESERVED | frozenset(keyword.kwlist) | frozenset(dir(builtins)) | frozenset(
+    """
+    NULL NAN INFINITY HUGE_VAL EOF EDOM ERANGE errno size_t ptrdiff_t uintptr_t intptr_t bool true false
+    fabs floor ceil fmod fmax fmin hypot isfinite isnan isinf sinh cosh tanh log10 log2 exp2 pow cbrt
+    round trunc signbit copysign assert stdin stdout stderr main
+    CHUNK PARAMS JOINTS JOINT_TYPES TASK BRANCHES LIMITS SPACE_LIMITS OPERATIONS STATUS TWO_PI
+    ffi lib np numpy sympy cffi
+    """.split()
+)
+
+
 def is_identifier(name: str) -> bool:
     """True when ``name`` is safe as a C and Python identifier in generated code.
 
@@ -80,8 +99,20 @@ def is_identifier(name: str) -> bool:
         and name.isascii()
         and name.isidentifier()
         and not name.startswith("_")
+        and not name.lower().startswith("kinegen")
         and name not in RESERVED
     )
+
+
+# A robot's name is the name of its generated package: one that shadows a module of Python's
+# standard library (a robot named json or typing) would break any Python started beside it.
+PROJECT_PACKAGES = frozenset({"derivations", "codegen", "generated", "tests", "benchmarks", "report", "docs"})
+
+
+def is_package_name(name: str) -> bool:
+    """True when ``name`` can name a generated package: an identifier (:func:`is_identifier`) that
+    is neither a standard-library module nor one of this project's packages."""
+    return is_identifier(name) and name not in sys.stdlib_module_names and name not in PROJECT_PACKAGES
 
 
 def to_exact(value: float | int) -> sp.Expr:

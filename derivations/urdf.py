@@ -34,7 +34,7 @@ import sympy as sp
 
 from .chain import PRISMATIC, REVOLUTE, Joint, axis_motion, rpy_matrix
 from .description import Description, DescriptionError
-from .expressions import is_identifier
+from .expressions import is_package_name
 
 __all__ = ["read_urdf", "MAX_BYTES", "SNAP_TOLERANCE"]
 
@@ -175,8 +175,8 @@ class _Chain:
             last = joints[-1]
             joints[-1] = Joint(last.type, origin=last.origin, axis=last.axis, limits=last.limits, name=last.name,
                                after=sp.ImmutableMatrix(pending))
-        name = self.robot.name if isinstance(self.robot.name, str) and is_identifier(self.robot.name) else None
-        name = name or (stem if is_identifier(stem) else "urdf_robot")
+        name = self.robot.name if isinstance(self.robot.name, str) and is_package_name(self.robot.name) else None
+        name = name or (stem if is_package_name(stem) else "urdf_robot")
         notes = {"snapped": "; ".join(self.snapped)} if self.snapped else {}
         return Description(
             name=name, title=f"{self.robot.name or name} (URDF, {base} to {tip})",

@@ -147,3 +147,28 @@ def test_a_parameter_named_like_generated_code_is_refused(param):
     text = f'name = "arm"\n[params]\n{param} = 1.0\n[[joint]]\ntype = "R"\na = "{param}"\n'
     with pytest.raises(DescriptionError, match=f"params: '{param}'.*reserved"):
         parse_description(text, "arm.toml")
+
+
+# Names issue #17 found breaking the numpy backend at call time (Python builtins and the
+# generated module's own upper-case names) or the C compile (C library names and macros).
+LANGUAGE_NAMES = ["range", "type", "ValueError", "len", "CHUNK", "PARAMS", "NULL", "fabs", "NAN", "size_t",
+                  "errno", "KINEGEN_BLOCK", "kinegen_solve", "isfinite"]
+
+
+@pytest.mark.parametrize("param", LANGUAGE_NAMES)
+def test_a_parameter_named_like_the_languages_or_the_templates_is_refused(param):
+    text = f'name = "arm"\n[params]\n{param} = 1.0\n[[joint]]\ntype = "R"\na = "{param}"\n'
+    with pytest.raises(DescriptionError, match=f"params: '{param}'.*reserved"):
+        parse_description(text, "arm.toml")
+
+
+@pytest.mark.parametrize("robot", ["typing", "json", "os", "math", "codegen", "derivations"])
+def test_a_robot_named_like_a_python_module_is_refused(robot, tmp_path, capsys):
+    """Its package would shadow the module for any Python started beside it."""
+    from codegen.cli import main
+    path = tmp_path / "arm.toml"
+    path.write_text(f'name = "{robot}"\n[[joint]]\ntype = "R"\na = 1\n')
+    assert main(["--quiet", "generate", str(path), "--out", str(tmp_path / "pkg")]) == 2
+    err = capsys.readouterr().err
+    assert f"field 'name': {robot!r}" in err and ("would shadow the Python module" in err or "reserved word" in err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["arm.toml"]

@@ -426,3 +426,16 @@ def test_the_wrap_prints_as_mathematics_inside_a_map():
         wrapped = float(WrapAngle.formula(sp.Float(theta)))
         assert -math.pi < wrapped <= math.pi and math.isclose(math.remainder(wrapped - theta, 2 * math.pi), 0,
                                                                abs_tol=1e-12)
+
+
+def test_a_descriptions_cite_notes_are_text_not_tex(tmp_path):
+    """A cite_* note lands in \\tag{...}: written by whoever wrote the description, it is escaped,
+    so that \\input{/etc/passwd} prints as text and pulls in no file."""
+    path = tmp_path / "hostile.toml"
+    path.write_text('name = "hostile_2r"\n[params]\nl1 = 1\n[notes]\ncite_fk = "\\\\input{/etc/passwd} 100% & #1"\n'
+                    '[[joint]]\ntype = "R"\na = "l1"\n[[joint]]\ntype = "R"\na = "l1"\n')
+    model = derivations.load(path)
+    assert model.notes["cite_fk"] == "\\input{/etc/passwd} 100% & #1"
+    text = latex_backend.latex_for(model, ["fk"])
+    assert "\\tag{\\textbackslash{}input\\{/etc/passwd\\} 100\\% \\& \\#1}" in text
+    assert "\\input{" not in text

@@ -549,7 +549,8 @@ def robot_sections(model, citations: dict[str, str] | None = None, width: float 
     """Every derived equation of ``model``, as fragment sections in a fixed order."""
     printer = printer_for(model)
     cites = dict(CITATIONS.get(model.name, {}))
-    cites.update({k[len("cite_"):]: v for k, v in model.notes.items() if k.startswith("cite_")})
+    # A description's cite_* notes are its author's text, not TeX: escaped (\input{...} prints as text).
+    cites.update({k[len("cite_"):]: escape_text(v) for k, v in model.notes.items() if k.startswith("cite_")})
     cites.update(citations or {})
     w = _Writer(model, MathLayout(printer, width), cites)
     sections = [_params(w), _dh(w), _links(w), _fk(w), _position(w), _jacobian(w), _task_jacobian(w)]
