@@ -26,6 +26,7 @@ import contextlib
 import hashlib
 import importlib
 import io
+import os
 import sys
 import time
 from pathlib import Path
@@ -530,4 +531,11 @@ def main(argv=None) -> int:
         return 1
     except c_build.CompileError as exc:
         print(f"kinegen: {exc}", file=sys.stderr)
+        return 1
+    except Exception as exc:  # a bug of ours, not bad input (bad input is refused above, with exit status 2)
+        message = " ".join(str(exc).split())[:300]
+        print(f"kinegen: internal error: {type(exc).__name__}: {message} (please report it, with the command "
+              "and the input file; KINEGEN_TRACEBACK=1 shows where)", file=sys.stderr)
+        if os.environ.get("KINEGEN_TRACEBACK"):
+            raise
         return 1

@@ -26,6 +26,7 @@ field.
 """
 from __future__ import annotations
 
+import math
 import re
 import tomllib
 from dataclasses import dataclass, field
@@ -45,6 +46,12 @@ TOP_KEYS = {"name", "title", "source", "convention", "task", "params", "joint", 
 URDF_KEYS = {"urdf", "base_link", "tip_link", "snap"}
 JOINT_KEYS = {"type", "a", "alpha", "d", "theta", "offset", "limits", "name"}
 FRAME_KEYS = {"xyz", "rpy"}
+
+
+# The most joints a description may have: every arm in the zoo has at most 8 (a Panda with its
+# finger); past 12 a symbolic derivation of every kernel takes minutes, and a file of 3000
+# joints is refused at once rather than derived.
+MAX_JOINTS = 12
 
 
 class DescriptionError(ValueError):
@@ -78,6 +85,8 @@ def read_description(path: str | Path) -> Description:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise DescriptionError(f"{path}: cannot read: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise DescriptionError(f"{path}: not UTF-8 text (byte {exc.start}); a description is a UTF-8 TOML file") from None
     return parse_description(text, str(path))
 
 
@@ -120,11 +129,14 @@ class _Parser:
                 self.fail(f"field {key!r}", "expected a string")
 
         params = self.parse_params(data.get("params", {}))
+        self.defaults = params
         joints_data = data.get("joint")
         if joints_data is None:
             self.fail("top level", "missing [[joint]] tables: a robot needs at least one joint")
         if not isinstance(joints_data, list) or not all(isinstance(j, dict) for j in joints_data):
             self.fail("field 'joint'", "expected an array of tables ([[joint]])")
+        if not 1 <= len(joints_data) <= MAX_JOINTS:
+            self.fail("field 'joint'", f"{len(joints_data)} joints; a description has 1 to {MAX_JOINTS}")
         q = tuple(sp.Symbol(f"q{i + 1}", real=True) for i in range(len(joints_data)))
         names = {str(s): s for s in params}
         joints = [self.parse_joint(i, j, names) for i, j in enumerate(joints_data)]
@@ -167,6 +179,7 @@ class _Parser:
         if not is_package_name(name):
             self.fail("field 'name'", f"{name!r} is not a valid identifier or would shadow a Python module")
         params = self.parse_params(data.get("params", {}))
+        self.defaults = params
         names = {str(p): p for p in params}
         task = data.get("task", ["pose"])
         if not isinstance(task, list) or not task or any(t not in ("x", "y", "z", "phi", "pose") for t in task):
@@ -190,18 +203,26 @@ class _Parser:
             if not is_identifier(key) or re.fullmatch(r"qd{0,2}\d+|(xdd?|twist)_\w+", key):
                 self.fail(where, "not a valid parameter name (an identifier that is not reserved and not q1, q2, ..., "
                           "qd1, qdd1, ..., or xd_*, xdd_*, twist_*)")
-            try:
-                expr = parse_expression(value, {})
-            except ExpressionError as exc:
-                self.fail(where, str(exc))
+            self.defaults = {}
+            expr = self.value(where, value, {})  # parsed, and checked finite and real
             params[sp.Symbol(key, real=True)] = float(expr)
         return params
 
     def value(self, where: str, raw, names) -> sp.Expr:
+        """A field's exact value, which must be a finite real number at the parameters' defaults."""
         try:
-            return parse_expression(raw, names)
+            expr = parse_expression(raw, names)
         except ExpressionError as exc:
             self.fail(where, str(exc))
+        defaults = {symbol: sp.Rational(repr(value)) for symbol, value in getattr(self, "defaults", {}).items()}
+        try:
+            number = complex(sp.sympify(expr).xreplace(defaults).evalf(30))
+        except (TypeError, ValueError, OverflowError, ZeroDivisionError):
+            number = complex("nan")
+        if not (math.isfinite(number.real) and number.imag == 0 and abs(number.real) <= 1e300):
+            self.fail(where, f"{raw!r} is not a finite real number at the parameters' defaults "
+                      f"({'complex' if number.imag and math.isfinite(number.imag) else 'infinite or undefined' if not math.isfinite(number.real) else 'beyond 1e300'})")
+        return expr
 
     def parse_joint(self, i: int, raw: dict, names) -> Joint:
         label = f"joint {i + 1}" + (f" ({raw['name']})" if isinstance(raw.get("name"), str) else "")

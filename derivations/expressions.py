@@ -144,9 +144,43 @@ def parse_expression(text: str | int | float, names: Mapping[str, sp.Symbol]) ->
         raise ExpressionError("expression longer than 500 characters")
     try:
         tree = ast.parse(text.strip(), mode="eval")
-    except SyntaxError as exc:
-        raise ExpressionError(f"cannot parse {text!r}: {exc.msg}") from None
+    except (SyntaxError, ValueError, MemoryError, RecursionError) as exc:
+        raise ExpressionError(f"cannot parse {text!r}: {getattr(exc, 'msg', None) or type(exc).__name__}") from None
+    nodes = list(ast.walk(tree.body))
+    calls = sum(isinstance(n, ast.Call) for n in nodes)
+    if len(nodes) > MAX_NODES or calls > MAX_CALLS or _depth(tree.body) > MAX_DEPTH:
+        raise ExpressionError(f"in {text[:60]!r}: more than {MAX_NODES} terms, {MAX_CALLS} function calls "
+                              f"or {MAX_DEPTH} levels of nesting (an expression a robot's dimension needs is shorter)")
     return _convert(tree.body, names, text)
+
+
+# The size of what a field may hold, checked before anything is evaluated (issue #17: 80 nested
+# sin() calls, 10**10**10**10).  A power's exponent, where it is a number, is at most
+# MAX_EXPONENT in size, and a numeric power at most 10^300 (a double's range) in magnitude.
+MAX_NODES = 200
+MAX_CALLS = 20
+MAX_DEPTH = 24
+MAX_EXPONENT = 64
+
+
+def _depth(node: ast.AST) -> int:
+    children = list(ast.iter_child_nodes(node))
+    return 1 + (max(_depth(c) for c in children) if children else 0)
+
+
+def _power(base: sp.Expr, exponent: sp.Expr, text: str) -> sp.Expr:
+    """``base ** exponent``, refused (before computing it) when it could not be a length or an angle."""
+    if exponent.is_number:
+        size = abs(complex(exponent.evalf(15)))
+        if size > MAX_EXPONENT:
+            raise ExpressionError(f"in {text[:60]!r}: an exponent of {float(size):.3g}, more than {MAX_EXPONENT}")
+        if base.is_number:
+            magnitude = abs(complex(base.evalf(15)))
+            if magnitude == 0 and complex(exponent.evalf(15)).real < 0:
+                raise ExpressionError(f"in {text[:60]!r}: zero to a negative power")
+            if magnitude > 0 and abs(math.log10(magnitude)) * size > 300:
+                raise ExpressionError(f"in {text[:60]!r}: a power beyond a double's range (10^300)")
+    return base**exponent
 
 
 def _convert(node: ast.AST, names: Mapping[str, sp.Symbol], text: str) -> sp.Expr:
@@ -166,6 +200,8 @@ def _convert(node: ast.AST, names: Mapping[str, sp.Symbol], text: str) -> sp.Exp
         right = _convert(node.right, names, text)
         if isinstance(node.op, ast.Div) and right == 0:
             raise ExpressionError(f"in {text!r}: division by zero")
+        if isinstance(node.op, ast.Pow):
+            return _power(left, right, text)
         return _BINARY[type(node.op)](left, right)
     if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.UAdd, ast.USub)):
         operand = _convert(node.operand, names, text)
