@@ -142,8 +142,9 @@ def build_package(package: Path, name: str) -> tuple[str, float]:
     extension = build_extension(package, warnings=STRICT_FLAGS)
     info = extension.stat()
     record = {"key": key, "extension": extension.name, "file": [info.st_size, info.st_mtime_ns]}
-    partial = stamp.with_name(stamp.name + ".part")
-    partial.write_text(json.dumps(record) + "\n")
+    fd, partial = tempfile.mkstemp(dir=stamp.parent, prefix=f".{stamp.name}.", suffix=".part")
+    with os.fdopen(fd, "w") as handle:
+        handle.write(json.dumps(record) + "\n")
     os.replace(partial, stamp)
     return "built", time.perf_counter() - start
 

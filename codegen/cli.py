@@ -27,7 +27,9 @@ import hashlib
 import importlib
 import io
 import os
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -190,6 +192,10 @@ def cmd_generate(args, say) -> int:
             raise InputError("generate with --out or a description file takes exactly one robot")
         if args.out and Path(args.out).exists() and not args.force:  # refuse before the slow derivation
             raise gen.OutputExistsError(f"{args.out}: output folder exists (use --force to replace it)")
+        if args.out and Path(args.out).exists() and not Path(args.out).is_dir():
+            raise gen.OutputExistsError(f"{args.out}: exists and is not a folder (--force replaces only a package folder)")
+        if args.out and not Path(args.out).name.isidentifier():
+            raise InputError(f"{args.out}: the package folder name must be a Python identifier to be importable")
         with budget(args.time_limit, f"{args.robots[0]}: derivation and rendering"):
             set_stage("deriving the model")
             model, path = _load(args.robots[0], say, args)
@@ -375,9 +381,7 @@ def _read_stamp(name: str) -> str | None:
 
 def _write_stamp(name: str, text: str) -> None:
     MAKE_STAMPS.mkdir(parents=True, exist_ok=True)
-    partial = MAKE_STAMPS / f"{name}.part"
-    partial.write_text(text)
-    partial.replace(MAKE_STAMPS / name)
+    gen.atomic_write(MAKE_STAMPS / name, text)
 
 
 def cmd_all(args, say) -> int:
@@ -514,9 +518,25 @@ def _urdf_options(command) -> None:
                               "multiples of pi/2 and of coordinate axes to them exactly)")
 
 
+def _terminated(signum, frame):
+    """SIGTERM as SystemExit: the scratch folders and temporary files of the run are removed on the
+    way out (the same paths as an error takes), and what was in place stays as it was."""
+    raise SystemExit(128 + signum)
+
+
 def main(argv=None) -> int:
     args = parser().parse_args(argv)
     say = Progress(args.quiet)
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _terminated) if main_thread else None
+    try:
+        return _run(args, say)
+    finally:
+        if main_thread and previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _run(args, say) -> int:
     try:
         return args.run(args, say)
     except (derivations.DescriptionError, InputError, gen.OutputExistsError, gen.SettingError,

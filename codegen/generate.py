@@ -332,6 +332,8 @@ def write_package(model: RobotModel, description: Path | None, out: Path, backen
     out = Path(out)
     if out.exists() and not force:
         raise OutputExistsError(f"{out}: output folder exists (use --force to replace it)")
+    if out.exists() and not out.is_dir():
+        raise OutputExistsError(f"{out}: exists and is not a folder (--force replaces only a package folder)")
     if not out.name.isidentifier():
         raise ValueError(f"{out}: the package folder name must be a Python identifier to be importable")
     backends = tuple(dict.fromkeys(("numpy", *backends)))  # the C binding reads the numpy module's constants
@@ -346,13 +348,30 @@ def write_package(model: RobotModel, description: Path | None, out: Path, backen
         if build is not None and "c" in backends:
             say(f"{model.name}: compiling the C kernels and their cffi extension")
             build(scratch)
-        if out.exists():
-            shutil.rmtree(out)
+        aside = None
+        if out.exists():  # (--force) moved aside, and removed only once the new package is in place
+            aside = Path(tempfile.mkdtemp(prefix=f".{out.name}-old-", dir=out.parent))
+            os.replace(out, aside / out.name)
         os.replace(scratch, out)
+        if aside is not None:
+            shutil.rmtree(aside, ignore_errors=True)
     except BaseException:
         shutil.rmtree(scratch, ignore_errors=True)
         raise
     return out
+
+
+def atomic_write(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file of a unique name beside it, moved into
+    place: a reader sees the old file or the new one, and two writers never share a scratch name."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".part")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as handle:
+            handle.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
 
 
 def write_tree(tree: dict[str, str], root: Path = GENERATED, robots=None) -> list[str]:
@@ -367,9 +386,7 @@ def write_tree(tree: dict[str, str], root: Path = GENERATED, robots=None) -> lis
         if path.is_file() and path.read_text(encoding="utf-8") == text:
             continue
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + ".part")
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, path)
+        atomic_write(path, text)
         changed.append(rel)
     for robot in robots or {rel.split("/")[0] for rel in tree if "/" in rel}:
         folder = root / robot
@@ -396,4 +413,8 @@ def stale_files(tree: dict[str, str], root: Path = GENERATED) -> list[str]:
             rel = f"{robot}/{path.name}"
             if path.suffix in OWNED_SUFFIXES and rel not in tree:
                 stale.append(f"{rel} (not generated any more)")
+    # What an interrupted write or a killed run can leave: temporary files and scratch folders.
+    for path in sorted(root.rglob("*")):
+        if path.name.endswith(".part") or (path.is_dir() and path.name.startswith(".") and path.parent == root):
+            stale.append(f"{path.relative_to(root).as_posix()} (stray: left by an interrupted run)")
     return stale

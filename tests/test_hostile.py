@@ -79,3 +79,65 @@ def test_the_catch_all_reports_an_internal_error_in_one_line_with_exit_1(tmp_pat
     assert err == ("kinegen: internal error: RuntimeError: simulated bug second line (please report it, with the "
                    "command and the input file; KINEGEN_TRACEBACK=1 shows where)\n")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["arm.toml"]
+
+
+# --------------------------------------------------------------------------- files and signals
+
+CYL = 'name = "cyl"\n[params]\nd1 = 0.5\n[[joint]]\ntype = "R"\nd = "d1"\n[[joint]]\ntype = "P"\nalpha = "-pi/2"\n'
+
+
+def test_an_out_folder_that_is_no_identifier_or_a_file_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
+    path = tmp_path / "cyl.toml"
+    path.write_text(CYL)
+    monkeypatch.setattr(cli.derivations, "load", lambda *a, **k: pytest.fail("derived before refusing"))
+    assert main(["--quiet", "generate", str(path), "--out", str(tmp_path / "my-pkg")]) == 2
+    assert "must be a Python identifier" in capsys.readouterr().err
+    (tmp_path / "afile").write_text("keep me")
+    assert main(["--quiet", "generate", str(path), "--out", str(tmp_path / "afile"), "--force"]) == 2
+    assert "exists and is not a folder" in capsys.readouterr().err
+    assert (tmp_path / "afile").read_text() == "keep me"
+
+
+def test_force_replaces_a_package_and_leaves_nothing_aside(tmp_path):
+    path = tmp_path / "cyl.toml"
+    path.write_text(CYL)
+    out = tmp_path / "cyl"
+    assert main(["--quiet", "generate", str(path), "--out", str(out), "--no-build"]) == 0
+    (out / "mine.txt").write_text("old package")
+    assert main(["--quiet", "generate", str(path), "--out", str(out), "--no-build", "--force"]) == 0
+    assert not (out / "mine.txt").exists() and (out / "numpy_kernels.py").is_file()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cyl", "cyl.toml"]
+
+
+def test_sigterm_mid_build_leaves_the_old_package_and_no_scratch(tmp_path, monkeypatch):
+    """The signal arrives while the new package is being compiled in its scratch folder."""
+    import os
+    import signal
+
+    from codegen import build
+    path = tmp_path / "cyl.toml"
+    path.write_text(CYL)
+    out = tmp_path / "cyl"
+    assert main(["--quiet", "generate", str(path), "--out", str(out), "--no-build"]) == 0
+    before = sorted(p.name for p in out.iterdir())
+
+    def killed(folder, name):
+        os.kill(os.getpid(), signal.SIGTERM)
+    monkeypatch.setattr(build, "build_package", killed)
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--quiet", "generate", str(path), "--out", str(out), "--force"])
+    assert exit_info.value.code == 128 + signal.SIGTERM
+    assert sorted(p.name for p in out.iterdir()) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cyl", "cyl.toml"]
+
+
+def test_check_reports_the_litter_of_an_interrupted_run(tmp_path):
+    from codegen import generate
+    tree = {"arm/arm.c": "int x;\n"}
+    generate.write_tree(tree, tmp_path)
+    assert generate.stale_files(tree, tmp_path) == []
+    (tmp_path / "arm" / ".arm.c.abc123.part").write_text("half")
+    (tmp_path / "__init__.py.part").write_text("half")
+    assert generate.stale_files(tree, tmp_path) == [
+        "__init__.py.part (stray: left by an interrupted run)",
+        "arm/.arm.c.abc123.part (stray: left by an interrupted run)"]
