@@ -144,7 +144,8 @@ def cmd_show(args, say) -> int:
         print(f"joints: {', '.join(f'{q} ({t})' for q, t in zip(model.q, model.joint_types))}")
         print(f"task: {', '.join(model.task_names)}")
         print("params: " + ", ".join(f"{p} = {v}" for p, v in model.params.items()))
-        print(f"ik branches: {', '.join(b.name for b in model.ik) or 'none'}")
+        print(f"ik branches: {', '.join(b.name for b in model.ik) or 'none'}"
+              + (f" ({model.ik_plan[0]})" if model.ik_plan else f" ({model.ik_unsupported})" if model.ik_unsupported else ""))
         print(f"kernels: {', '.join(f.name for f in model.functions())}")
         return 0
     if what == "params":
@@ -169,7 +170,14 @@ def cmd_show(args, say) -> int:
         return 0
     if what == "ik":
         if not model.ik:
-            raise InputError(f"{model.name} has no closed-form inverse kinematics yet")
+            reason = f": {model.ik_unsupported}" if model.ik_unsupported else ""
+            raise InputError(f"{model.name} has no closed-form inverse kinematics{reason}")
+        if model.ik_plan:  # decomposed (derivations.ik.decompose): the plan, then each branch's root choices
+            print("\n".join(model.ik_plan))
+            print(f"branches ({len(model.ik)}):")
+            for branch in model.ik:
+                print(f"  {branch.name}: {branch.doc}")
+            return 0
         for branch in model.ik:
             print(f"{branch.name}:")
             for q, expr in zip(model.q, branch.solution):

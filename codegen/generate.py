@@ -22,6 +22,7 @@ import sympy as sp
 import derivations
 from derivations.budget import set_stage
 from derivations.description import read_description
+from derivations.ik import UNIT_SNAP
 from derivations.kernelset import KernelSet
 from derivations.model import POSE_NAMES, REVOLUTE, RobotModel
 
@@ -206,6 +207,7 @@ def robot_context(model: RobotModel, origin: str, verbose: bool = False) -> dict
         # A pose task (x, y, z, r11 .. r33): ik also takes (..., 4, 4) and checks the rotation.
         "pose_task": tuple(model.task_names) == POSE_NAMES,
         "rigid_tolerance": RIGID_TOLERANCE,
+        "unit_snap": float_literal(UNIT_SNAP),
         "blocked_max_ops": f"{BLOCKED_MAX_OPS:,}",
     }
 

@@ -95,12 +95,18 @@ def prepare(function: SymbolicFunction, param_names: tuple[str, ...]) -> Prepare
         flat.extend(out.values)
     flat.extend(r.condition for r in function.requires)
     flat = [exact_floats(sp.sympify(e)) for e in flat]
+    definitions = function.definitions
+    flat = [exact_floats(sp.sympify(e)) for _, e in definitions] + flat
     symbols = sp.numbered_symbols(TEMPORARY_PREFIX, real=True)
     # order="none": the temporaries in the order CSE finds them.  "canonical" sorts the
     # expressions by node count first, which was most of the time for the big rate
     # kernels (an IRB 140's joint_acceleration: 3.0 s against 0.22 s, the same 233
     # temporaries); the text is as deterministic (the same across hash seeds, tested).
     replacements, reduced = sp.cse(flat, symbols=symbols, order="none")
+    if definitions:
+        replacements = _program_order(replacements, [(s, e) for (s, _), e in zip(definitions, reduced)],
+                                      reduced[len(definitions):])
+        reduced = reduced[len(definitions):]
     conditions = reduced[len(reduced) - len(function.requires):]
     reduced = reduced[:len(reduced) - len(function.requires)]
     checks, replacements = _stage_checks(function, replacements, conditions)
@@ -121,6 +127,37 @@ def prepare(function: SymbolicFunction, param_names: tuple[str, ...]) -> Prepare
     return PreparedFunction(function.name, function.doc, arguments, params_used,
                             tuple((str(s), e) for s, e in replacements), tuple(outputs), int(operations),
                             tuple(checks))
+
+
+def _program_order(temporaries, definitions, results):
+    """The CSE temporaries and a function's own definitions that the results need, as one
+    sequence in which every symbol is defined before its first use (each preceded by what it
+    reads, earlier definitions and temporaries first)."""
+    body = dict(temporaries)
+    body.update(definitions)
+    rank = {s: i for i, (s, _) in enumerate(list(definitions) + list(temporaries))}
+    done: set = set()
+    program = []
+
+    def emit(root):
+        stack = [(root, False)]
+        while stack:
+            symbol, expanded = stack.pop()
+            if symbol in done:
+                continue
+            if expanded:
+                done.add(symbol)
+                program.append((symbol, body[symbol]))
+                continue
+            stack.append((symbol, True))
+            needs = sorted((d for d in body[symbol].free_symbols if d in body and d not in done),
+                           key=rank.__getitem__, reverse=True)
+            stack.extend((d, False) for d in needs)
+
+    for result in results:  # a definition no result needs is left out (-Werror=unused-variable)
+        for symbol in sorted((d for d in sp.sympify(result).free_symbols if d in body), key=rank.__getitem__):
+            emit(symbol)
+    return program
 
 
 def _stage_checks(function: SymbolicFunction, replacements, conditions):

@@ -152,8 +152,8 @@ def stage(prepared: PreparedFunction) -> StagedFunction:
     variable = set(inputs)
 
     def varies(name: str) -> bool:
-        if name in call_of:
-            return any(a in variable for a in call_of[name].arguments)
+        if name in call_of:  # a call's argument may be another call's result (sin of an atan2)
+            return any(varies(a) for a in call_of[name].arguments)
         return name in variable
 
     for name, expr in temporaries:
@@ -187,7 +187,7 @@ def stage(prepared: PreparedFunction) -> StagedFunction:
     level: dict[str, int] = {}
 
     def call_level(call: Call) -> int:
-        return max(level.get(a, 0) for a in call.arguments) + 1
+        return max(call_level(call_of[a]) if a in call_of else level.get(a, 0) for a in call.arguments) + 1
 
     def level_of(expr) -> int:
         result = 0
@@ -225,7 +225,7 @@ def stage(prepared: PreparedFunction) -> StagedFunction:
             if str(s) in reads:
                 reads[str(s)].add(stage_of[name])
 
-    arrays = set(call_of) | call_reads
+    arrays = set(call_of) | {a for a in call_reads if varies(a)}  # a constant argument is a scalar of the prologue
     for name in pending:
         if any(r != stage_of[name] for r in reads[name]):
             arrays.add(name)

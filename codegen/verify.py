@@ -160,6 +160,7 @@ def reference(function: SymbolicFunction, values: dict[sp.Symbol, float], exact:
     """
     known: dict[sp.Basic, sp.Basic] = {s: sp.Rational(float(v)) for s, v in values.items()}
     replacements, reduced = _evaluation_plan(function)
+    replacements = list(function.definitions) + list(replacements)  # a program: its steps first
     for symbol, expr in replacements:
         value = expr.xreplace(known)
         known[symbol] = value if isinstance(value, sp.logic.boolalg.Boolean) else value.evalf(WORKING_DIGITS)

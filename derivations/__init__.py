@@ -118,6 +118,9 @@ def _derive(description: Description, extension: Path | None) -> RobotModel:
     if extension is not None and extension.is_file():
         module = importlib.import_module(f"derivations.robots.{description.name}")
         module.extend(model)
+    if not model.ik:  # the papers' robots print their paper's steps; every other arm is decomposed
+        from .ik import attach
+        attach(model)
     return model
 
 

@@ -124,6 +124,11 @@ class SymbolicFunction:
     doc: str = ""
     requires: tuple[Requirement, ...] = ()
     solve: NumericSolve | None = None
+    # A straight-line program the outputs are written in: ordered (symbol, expression), each
+    # expression in the arguments, the parameters and the symbols defined before it.  The
+    # automatic inverse kinematics is emitted this way, step by step, rather than as trees
+    # whose shared parts a CSE would have to find again (minutes for a six-joint arm).
+    definitions: tuple[tuple[sp.Symbol, sp.Expr], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -147,6 +152,9 @@ class IKBranch:
     doc: str = ""
     steps: tuple[tuple[sp.Symbol, sp.Expr], ...] = ()
     step_cites: tuple[str, ...] = ()
+    # The condition in the step symbols (``condition`` is it with the steps substituted), for
+    # a kernel emitted step by step (RobotModel.ik_function); None: emitted from ``solution``.
+    step_condition: sp.Basic | None = None
 
     def __post_init__(self):
         if self.step_cites and len(self.step_cites) != len(self.steps):
@@ -236,6 +244,10 @@ class RobotModel:
     # "wrist partition": the rate maps by Paul's partition (derivations/paul.py), which a
     # robot's module asks for (the PUMA 560); None: chosen by size (velocity.closed_form_shape).
     rate_form: str | None = None
+    # The automatic inverse kinematics (derivations.ik.decompose.attach): the family and the
+    # plan, one line per step, for `kinegen show --what ik`; or why the arm has none.
+    ik_plan: tuple[str, ...] = ()
+    ik_unsupported: str = ""
 
     @property
     def n(self) -> int:
@@ -286,13 +298,44 @@ class RobotModel:
         x = Argument("x", self.task_symbols, f"task coordinates {', '.join(self.task_names)}, shape (..., "
                      f"{len(self.task_names)})")
         revolute = [t == REVOLUTE for t in self.joint_types]
-        values = tuple(kernel_form(e, r) for branch in self.ik for e, r in zip(branch.solution, revolute))
+        definitions: tuple = ()
+        if all(b.step_condition is not None for b in self.ik):
+            definitions, values, valid = self._ik_program(revolute)
+        else:
+            values = tuple(kernel_form(e, r) for branch in self.ik for e, r in zip(branch.solution, revolute))
+            valid = tuple(sp.sympify(b.condition) for b in self.ik)
         return SymbolicFunction(
             "ik", (x,),
             (Output("Q", values, (k, n), "float", f"joint values of each branch ({names})"),
-             Output("valid", tuple(sp.sympify(b.condition) for b in self.ik), (k,), "bool",
-                    "whether each branch exists")),
-            f"Inverse kinematics, all {k} branches ({names}): Q (..., {k}, {n}), valid (..., {k}).")
+             Output("valid", valid, (k,), "bool", "whether each branch exists")),
+            f"Inverse kinematics, all {k} branches ({names}): Q (..., {k}, {n}), valid (..., {k}).",
+            definitions=definitions)
+
+    def _ik_program(self, revolute):
+        """The branches' steps as one straight-line program: a step that several branches share
+        (the same definition in the same earlier steps) once, each other step renamed
+        ``ik_<name>_b<k>`` after the first branch k that defines it."""
+        from .ik.decompose import substitute_unevaluated
+        taken = {str(s) for s in self.params} | {str(s) for s in self.task_symbols}
+        definitions, known = [], {}
+        values, valid = [], []
+        for k, branch in enumerate(self.ik):
+            rename: dict = {}
+            memo: dict = {}
+            for symbol, expr in branch.steps:
+                expr = substitute_unevaluated(expr, rename, memo)
+                key = (symbol.name, expr)
+                if key not in known:
+                    name = f"ik_{symbol.name}_b{k}"
+                    if name in taken:
+                        raise ValueError(f"{self.name}: the inverse-kinematics step {name} is also a parameter's name")
+                    taken.add(name)
+                    known[key] = sp.Symbol(name, real=True)
+                    definitions.append((known[key], expr))
+                rename[symbol] = known[key]
+            values.extend(kernel_form(rename[q], r) for q, r in zip(self.q, revolute))
+            valid.append(substitute_unevaluated(branch.step_condition, rename, memo))
+        return tuple(definitions), tuple(values), tuple(valid)
 
     @property
     def rates(self):

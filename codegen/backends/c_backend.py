@@ -55,6 +55,12 @@ class CKernelPrinter(ExactArithmeticMixin, C99CodePrinter):
     def _print_Max(self, expr):
         return self._nested("kinegen_max", expr.args)
 
+    def _print_ClampUnit(self, expr):
+        return f"kinegen_snap_unit({self._print(expr.args[0])})"
+
+    def _print_Ramp(self, expr):
+        return self._print(expr.as_min_max())
+
     def _print_WrapAngle(self, expr):
         return f"kinegen_wrap_angle({self._print(expr.args[0])})"
 

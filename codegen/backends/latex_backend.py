@@ -32,7 +32,7 @@ from sympy.core.parameters import distribute
 from sympy.printing.latex import LatexPrinter
 
 from derivations.chain import PRISMATIC, REVOLUTE, simplify_entry
-from derivations.ik import ACOS_TOLERANCE, WrapAngle
+from derivations.ik import ACOS_TOLERANCE, ClampUnit, WrapAngle
 from derivations.model import RobotModel
 from derivations.singular import FACTOR_LIMIT, JacobianDeterminant, inverse_rate_map, jacobian_determinant
 
@@ -200,6 +200,9 @@ class KinematicsLatexPrinter(LatexPrinter):
         ``theta + 2 pi floor((pi - theta) / (2 pi))``."""
         text = self._print(WrapAngle.formula(expr.args[0]))
         return rf"\left({text}\right)^{{{exp}}}" if exp is not None else text
+
+    def _print_Ramp(self, expr, exp=None):
+        return self._print(expr.as_min_max()) if exp is None else self._print(expr.as_min_max()**exp)
 
     def _print_Rational(self, expr):
         """A tolerance such as 1/10^24 as a power of ten, not 25 digits."""
@@ -849,6 +852,7 @@ def unclamped(expr):
     the existence tolerance ``|c| <= 1 + ACOS_TOLERANCE`` reads ``|c| <= 1``.  The IK section says once
     what the kernels do at the edge."""
     expr = sp.sympify(expr).replace(lambda e: _clamped_argument(e) is not None, _clamped_argument)
+    expr = expr.replace(lambda e: isinstance(e, ClampUnit), lambda e: e.args[0])
     return expr.xreplace({1 + ACOS_TOLERANCE: sp.S.One})
 
 
@@ -904,7 +908,8 @@ def _ik(w: _Writer) -> Section | None:
             pairs = [(w.printer.joint_latex[qi], unclamped(_joint_value(expr)))
                      for qi, expr in zip(m.q, branch.solution)]
             body = header + "\n" + w.equations(pairs, key=key) + "\n"
-        condition = branch.condition
+        # A decomposed branch's condition in its step symbols: substituted, it runs to kilobytes.
+        condition = branch.condition if branch.step_condition is None else branch.step_condition
         if condition is not sp.true and condition != sp.true:
             condition = unclamped(condition)
             args = condition.args if isinstance(condition, sp.And) else (condition,)

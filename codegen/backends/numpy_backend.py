@@ -30,6 +30,12 @@ class NumpyKernelPrinter(ExactArithmeticMixin, NumPyPrinter):
     def _print_Max(self, expr):
         return self._nested("numpy.maximum", expr.args)
 
+    def _print_ClampUnit(self, expr):
+        return f"_runtime.snap_unit({self._print(expr.args[0])})"
+
+    def _print_Ramp(self, expr):
+        return self._print(expr.as_min_max())
+
     def _print_And(self, expr):
         return self._nested("numpy.logical_and", expr.args)
 

@@ -138,6 +138,12 @@ def wrap_angle(angle):
     return numpy.where(wrapped < -PI, wrapped + TWO_PI, wrapped)
 
 
+def snap_unit(c):
+    """An acos argument clipped to [-1, 1] and taken as +-1 within 1e-12 of it (derivations.ik.ClampUnit)."""
+    c = numpy.asarray(c, dtype=float)
+    return numpy.where(c >= 1.0 - 1e-12, 1.0, numpy.where(c <= -1.0 + 1e-12, -1.0, c))
+
+
 PI = 3.141592653589793
 TWO_PI = 6.283185307179586
 

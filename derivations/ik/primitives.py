@@ -27,9 +27,9 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-__all__ = ["ACOS_TOLERANCE", "Root", "clamp_unit", "acos_clamped", "atan2_of_sine_cosine", "law_of_cosines",
+__all__ = ["ACOS_TOLERANCE", "Root", "clamp_unit", "within_unit", "acos_clamped", "atan2_of_sine_cosine", "law_of_cosines",
            "p_cos_q_sin_r", "prismatic_along", "sine_cosine_pair", "two_link", "WrapAngle", "wrap_angle", "kernel_form",
-           "substitute_steps"]
+           "substitute_steps", "ClampUnit", "Ramp", "UNIT_SNAP"]
 
 # |c| <= 1 + ACOS_TOLERANCE clamps onto the unit interval; beyond is unreachable.
 ACOS_TOLERANCE = sp.Rational(1, 10**12)
@@ -171,6 +171,102 @@ class WrapAngle(sp.Function):
         # The wrap shifts theta by constant multiples of 2 pi: its slope is 1
         # wherever it is differentiable (joint rates along a path need this).
         return sp.S.One
+
+
+class _Clip(sp.Function):
+    """A clip that SymPy never evaluates on a symbolic argument.
+
+    ``Min(1, Max(-1, c))`` makes SymPy compare ``c`` with the bounds when it is built
+    and again on every substitution; on the long arguments of a derived six-joint
+    inverse (thousands of operations) one such comparison takes minutes.  These stand
+    for the same clip, print as the same ``minimum``/``maximum`` calls, and evaluate
+    only on numbers.
+    """
+
+    nargs = 1
+    low = None
+    high = None
+
+    @classmethod
+    def eval(cls, x):
+        if x.is_Number:
+            return cls._clip(x)
+        return None
+
+    @classmethod
+    def _clip(cls, x):
+        if cls.low is not None and x < cls.low:
+            return sp.S(cls.low)
+        if cls.high is not None and x > cls.high:
+            return sp.S(cls.high)
+        return x
+
+    def _eval_evalf(self, prec):
+        x = self.args[0]._eval_evalf(prec)
+        if x is None or not x.is_Number:
+            return None
+        return self._clip(x)
+
+    def _eval_is_real(self):
+        return self.args[0].is_real
+
+    def as_min_max(self) -> sp.Expr:
+        """The same clip as SymPy's (unevaluated) ``Min``/``Max``."""
+        x = self.args[0]
+        if self.low is not None:
+            x = sp.Max(x, self.low, evaluate=False)
+        if self.high is not None:
+            x = sp.Min(x, self.high, evaluate=False)
+        return x
+
+
+class ClampUnit(sp.Function):
+    """``ClampUnit(c)``: the argument of an ``acos`` clipped to [-1, 1], and taken as exactly +-1
+    within ``UNIT_SNAP`` of it.
+
+    A double root of ``P cos + Q sin + R = 0`` (a shoulder or an elbow at its singular pose)
+    has ``c = +-1`` exactly; rounded data give ``c = 1 - 1e-16`` and ``acos(c) = 1.5e-8``
+    where the root is 0: half the digits gone, and an error that later steps of a
+    decomposition can carry into the pose.  Snapping moves a root by at most
+    ``acos(1 - UNIT_SNAP)`` = 1.4e-6 rad and leaves a residual of ``UNIT_SNAP`` times the
+    equation's scale, far below the accuracy the ``ik`` kernels promise, while the double
+    root itself comes out exact.  Like :class:`_Clip`, it evaluates only on numbers.
+    """
+
+    nargs = 1
+
+    @classmethod
+    def eval(cls, c):
+        if c.is_Number:
+            return cls._snap(c)
+        return None
+
+    @staticmethod
+    def _snap(c):
+        if c >= 1 - UNIT_SNAP:
+            return sp.S.One
+        if c <= -1 + UNIT_SNAP:
+            return sp.S.NegativeOne
+        return c
+
+    def _eval_evalf(self, prec):
+        c = self.args[0]._eval_evalf(prec)
+        if c is None or not c.is_Number:
+            return None
+        return self._snap(c)
+
+    def _eval_is_real(self):
+        return self.args[0].is_real
+
+
+# ClampUnit's snap: |c| >= 1 - UNIT_SNAP is taken as +-1.
+UNIT_SNAP = sp.Rational(1, 10**12)
+
+
+class Ramp(_Clip):
+    """``Ramp(x)`` = ``max(x, 0)``, the argument of a square root (see :class:`_Clip`)."""
+
+    low = 0
 
 
 def wrap_angle(theta: sp.Expr) -> sp.Expr:

@@ -1,0 +1,556 @@
+"""Inverse kinematics by decomposition into subproblems, for every arm whose axes allow it.
+
+:func:`solve` reads the arm's axes (:mod:`derivations.ik.structure`), picks the first
+family below that the axes satisfy, and writes each branch as ordered steps, every
+step one subproblem (:mod:`derivations.ik.subproblems`) or a vector carried from one
+frame to the next.  With ``G = T M^-1`` the target in product-of-exponentials form
+(``T`` the target pose, ``M`` the tool pose at q = 0), ``G = E_1 ... E_n``:
+
+``spherical wrist`` (6 joints, axes 4, 5, 6 meet in the point w): ``E_1 E_2 E_3 w = G w``
+    fixes joints 1 to 3 (a position problem, below); then
+    ``R_4 R_5 R_6 = (R_1 R_2 R_3)^T G_R``: joint 4 puts ``R_4^T v`` (``v`` the image of
+    h6) at height ``h5 . h6`` along h5 (subproblem 4; ``atan2 +- pi/2`` for an
+    orthogonal wrist), joint 5 turns h6 onto it and joint 6 turns h5 onto what is left
+    (subproblem 1 each).  Branches: 2 x 2 x 2.
+``three parallel`` (6 revolute joints, axes 2, 3, 4 parallel, axes 5 and 6 meet at o;
+    the UR family): the height of ``E_1^-1 G o`` along h2 does not depend on joints 2
+    to 5, so joint 1 is subproblem 4; joint 5 turns h6 onto the cone that the image of
+    h6 defines about h2 (``cone_angle``: no ``acos``); joint 6 and the sum of joints
+    2 to 4 are subproblem 1 each; the point on axis 4, now known, is a planar two-link
+    problem in joints 2 and 3 (subproblems 3 and 1).  Branches: 2 x 2 x 2.
+``position`` (3 joints, the task x, y, z): the position problem on the tool point.
+``parallel axes`` (every revolute axis and every prismatic direction along the base z
+    axis; the task x, y with z and phi as the joints allow: planar arms and SCARAs):
+    the prismatic joint takes the height, the last revolute joint the orientation phi,
+    and the first two the position of the point on the last axis (subproblems 3 and 1).
+
+The position problem of joints 1 to 3 on a point w with target c:
+
+* axes 2 and 3 parallel, axis 1 not: joint 1 by subproblem 4 (the height of
+  ``E_1^-1 c`` along h2 is that of w), joint 3 by subproblem 3 (the distance from
+  axis 2's point), joint 2 by subproblem 1: branches ``shoulder`` x ``elbow``;
+* axes 1 and 2 meet at o: joint 3 by subproblem 3 (revolute) or its slide
+  (prismatic) from ``|E_3 w - o| = |c - o|``, then subproblem 2 for joints 2 and 1:
+  branches ``elbow`` (or ``slide``) x ``shoulder``.
+
+Each branch name is the sequence of root choices, ``plus`` or ``minus``: the sign of
+the ``acos`` (or ``pi/2``, or ``atan2``) term in that joint's root, as the branch's doc
+spells out.  A branch is valid where each of its roots exists; the generated code also
+marks it invalid where a value is not finite.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import sympy as sp
+
+from ..chain import PRISMATIC, REVOLUTE
+from ..model import POSE_NAMES, IKBranch
+from .primitives import WrapAngle
+from .structure import Structure, check_product_of_exponentials, cross, dot, is_zero, rotate, structure_of, tidy
+from .subproblems import angle_onto, angle_to_distance, angle_to_height, cone_angle, slide_to_distance
+
+__all__ = ["IKUnsupported", "IKSolution", "solve", "attach", "IK_BUDGET"]
+
+
+class IKUnsupported(ValueError):
+    """The arm's structure is outside every family with a closed form (the message says what it lacks)."""
+
+
+@dataclass
+class IKSolution:
+    family: str
+    branches: list[IKBranch]
+    plan: list[str]                     # one line per step of the decomposition
+    structure: list[str] = field(default_factory=list)
+
+
+class _Steps:
+    """One branch under construction: ordered scalar steps, root choices, existence conditions."""
+
+    def __init__(self, items=(), choices=(), conditions=(), docs=()):
+        self.items = list(items)
+        self.choices = list(choices)
+        self.conditions = list(conditions)
+        self.docs = list(docs)
+
+    def fork(self) -> "_Steps":
+        return _Steps(self.items, self.choices, self.conditions, self.docs)
+
+    def scalar(self, name: str, expr):
+        expr = sp.sympify(expr)
+        if expr.is_Atom:
+            return expr
+        symbol = sp.Symbol(name, real=True)
+        self.items.append((symbol, expr))
+        return symbol
+
+    def vector(self, name: str, vec) -> sp.Matrix:
+        return sp.Matrix([self.scalar(f"{name}_{c}", e) for c, e in zip("xyz", vec)])
+
+    def joint(self, q, expr):
+        self.items.append((q, sp.sympify(expr)))
+        return q
+
+    def choose(self, label: str, root, q):
+        self.choices.append(f"{label}_{root.name}")
+        if root.condition is not sp.true:
+            self.conditions.append(root.condition)
+        self.docs.append(f"q{q}: {root.doc}")
+
+
+class _Arm:
+    """The axes and the target of one arm, with the vector helpers the families share."""
+
+    def __init__(self, model, structure: Structure):
+        self.model = model
+        self.S = structure
+        self.q = model.q
+        self.plan: list[str] = []
+
+    def axis(self, i):
+        return self.S.axes[i]
+
+    def turn(self, i, vec, sign=1):
+        """``vec`` turned by joint i's rotation (sign +1) or its inverse (-1), joint i revolute."""
+        a = self.axis(i)
+        return rotate(a.h, sp.cos(self.q[i]), sign * sp.sin(self.q[i]), vec)
+
+    def move_point(self, i, point, sign=1):
+        """``E_i^sign point``: the point moved by joint i (or by its inverse)."""
+        a = self.axis(i)
+        if a.kind == PRISMATIC:
+            return point + a.h * (sign * self.q[i])
+        return a.p + self.turn(i, point - a.p, sign)
+
+    def say(self, line: str):
+        if line not in self.plan:
+            self.plan.append(line)
+
+
+def _pose_target(arm: _Arm, steps: _Steps):
+    """``G = T M^-1`` as (rotation applied to a vector, point map), in the task symbols."""
+    x, y, z, *r = arm.model.task_symbols
+    R = sp.Matrix(3, 3, r)
+    home = arm.S.home
+    RM, pM = home[:3, :3], home[:3, 3]
+    GR = R if RM == sp.eye(3) else (R * RM.T)
+
+    def rotation(vec):
+        return GR * sp.Matrix(vec)
+
+    def point(p):
+        return rotation(sp.Matrix(p) - pM) + sp.Matrix([x, y, z])
+    return rotation, point
+
+
+# --- the position problem of joints 1 to 3 --------------------------------------------------
+
+def _position_parallel_23(arm: _Arm, base: _Steps, w, c) -> list[_Steps]:
+    a1, a2, a3 = arm.axis(0), arm.axis(1), arm.axis(2)
+    arm.say("q1: subproblem 4, the height of E1^-1 c along h2 equals that of w (axes 2 and 3 parallel)")
+    arm.say("q3: subproblem 3, the distance of E3 w from axis 2's point equals that of E1^-1 c")
+    arm.say("q2: subproblem 1, turns E3 w onto E1^-1 c about axis 2")
+    out = []
+    d = tidy(dot(a2.h, w - a1.p))
+    for root1 in angle_to_height(c - a1.p, a1.h, a2.h, d):
+        s1 = base.fork()
+        s1.choose("shoulder", root1, 1)
+        s1.joint(arm.q[0], root1.value)
+        c1 = s1.vector("c1", arm.move_point(0, c, -1))
+        for root3 in angle_to_distance(a3.h, (a3.p - a2.p).applyfunc(tidy), (w - a3.p).applyfunc(tidy),
+                                       dot(c1 - a2.p, c1 - a2.p)):
+            s3 = s1.fork()
+            s3.choose("elbow", root3, 3)
+            s3.joint(arm.q[2], root3.value)
+            e3 = s3.vector("e3", arm.move_point(2, w))
+            s3.joint(arm.q[1], angle_onto(a2.h, e3 - a2.p, c1 - a2.p))
+            out.append(s3)
+    return out
+
+
+def _position_meet_12(arm: _Arm, base: _Steps, w, c, o) -> list[_Steps]:
+    a1, a2, a3 = arm.axis(0), arm.axis(1), arm.axis(2)
+    u_expr = c - o
+    if a3.kind == REVOLUTE:
+        arm.say("q3: subproblem 3, the distance of E3 w from the point where axes 1 and 2 meet equals that of c")
+        roots3 = angle_to_distance(a3.h, (a3.p - o).applyfunc(tidy), (w - a3.p).applyfunc(tidy), dot(u_expr, u_expr))
+        label = "elbow"
+    else:
+        arm.say("q3: the slide that puts w + q3 h3 at the distance of c from the point where axes 1 and 2 meet")
+        roots3 = slide_to_distance(a3.h, (w - o).applyfunc(tidy), dot(u_expr, u_expr))
+        label = "slide"
+    arm.say("q2: subproblem 4 (of subproblem 2), the height of E2 (E3 w - o) along h1 equals that of c - o")
+    arm.say("q1: subproblem 1 (of subproblem 2), turns E2 (E3 w - o) onto c - o about axis 1")
+    out = []
+    for root3 in roots3:
+        s3 = base.fork()
+        s3.choose(label, root3, 3)
+        s3.joint(arm.q[2], root3.value)
+        v = s3.vector("e3", arm.move_point(2, w) - o)
+        u = s3.vector("u", u_expr)
+        for root2 in angle_to_height(a1.h, a2.h, v, dot(a1.h, u)):
+            s2 = s3.fork()
+            s2.choose("shoulder", root2, 2)
+            s2.joint(arm.q[1], root2.value)
+            f = s2.vector("f", arm.turn(1, v))
+            s2.joint(arm.q[0], angle_onto(a1.h, f, u))
+            out.append(s2)
+    return out
+
+
+def _position(arm: _Arm, base: _Steps, w, c, what: str) -> list[_Steps]:
+    """Joints 1 to 3 that carry the point ``w`` to ``c`` (``what`` names w in messages)."""
+    S = arm.S
+    kinds = S.kinds[:3]
+    if kinds == "RRR" and S.parallel(1, 2) and not S.parallel(0, 1):
+        return _position_parallel_23(arm, base, w, c)
+    o = S.meet(0, 1)
+    if o is not None and kinds[2] in "RP":
+        if kinds[2] == REVOLUTE and S.parallel(1, 2):
+            raise IKUnsupported(f"axes 1, 2 and 3 are parallel: they cannot place the {what} in space")
+        return _position_meet_12(arm, base, w, c, o)
+    raise IKUnsupported(f"joints 1 to 3 ({kinds}) place the {what}, but axes 2 and 3 are not parallel "
+                        "and axes 1 and 2 do not meet")
+
+
+# --- the families ---------------------------------------------------------------------------
+
+def _spherical_wrist(arm: _Arm, w) -> list[_Steps]:
+    S = arm.S
+    a4, a5, a6 = arm.axis(3), arm.axis(4), arm.axis(5)
+    base = _Steps()
+    rotation, point = _pose_target(arm, base)
+    c = base.vector("c", point(w))
+    arm.say("c = G w: the wrist centre w (where axes 4, 5 and 6 meet) carried to the target")
+    branches = _position(arm, base, w, c, "wrist centre")
+    arm.say("q4: subproblem 4, R4^T v (v = (R1 R2 R3)^T G_R h6) at height h5 . h6 along h5"
+            + (" (orthogonal wrist: atan2 +- pi/2)" if is_zero(dot(a4.h, a5.h)) and is_zero(dot(a5.h, a6.h)) else ""))
+    arm.say("q5: subproblem 1, turns h6 onto R4^T v about axis 5")
+    arm.say("q6: subproblem 1, turns h5 onto R5^T R4^T (R1 R2 R3)^T G_R h5 about axis 6")
+    out = []
+    for s in branches:
+        v, x = rotation(a6.h), rotation(a5.h)
+        for i in range(3):
+            if arm.axis(i).kind == REVOLUTE:
+                v = s.vector(f"v{i + 1}", arm.turn(i, v, -1))
+                x = s.vector(f"x{i + 1}", arm.turn(i, x, -1))
+        for root4 in angle_to_height(v, a4.h, a5.h, tidy(dot(a5.h, a6.h))):
+            s4 = s.fork()
+            s4.choose("wrist", root4, 4)
+            s4.joint(arm.q[3], root4.value)
+            v4 = s4.vector("v4", arm.turn(3, v, -1))
+            s4.joint(arm.q[4], angle_onto(a5.h, a6.h, v4))
+            x5 = s4.vector("x5", arm.turn(4, arm.turn(3, x, -1), -1))
+            s4.joint(arm.q[5], angle_onto(a6.h, a5.h, x5))
+            out.append(s4)
+    return out
+
+
+def _three_parallel(arm: _Arm, o) -> list[_Steps]:
+    S = arm.S
+    a1, a2, a3, a4, a5, a6 = S.axes
+    base = _Steps()
+    rotation, point = _pose_target(arm, base)
+    c = base.vector("c", point(o))
+    z6 = base.vector("z6", rotation(a6.h))
+    n = perpendicular(a2.h)
+    cone = is_zero(dot(a2.h, a5.h)) and is_zero(dot(a5.h, a6.h))
+    arm.say("c = G o: the point o where axes 5 and 6 meet, carried to the target")
+    arm.say("q1: subproblem 4, the height of E1^-1 c along h2 equals that of o (axes 2, 3, 4 parallel)")
+    arm.say("q5: " + ("the cone about h2 that R1^T G_R h6 defines, reached by turning h6 about axis 5 "
+                      "(atan2 of |h2 x u| and h2 . u: no acos)" if cone else
+                      "subproblem 4, the height of R5 h6 along h2 equals that of R1^T G_R h6"))
+    arm.say("q6: subproblem 1, turns G_R^T R1 h2 onto R5^T h2 about axis 6; at the wrist singularity "
+            "(|h2 x u| < 1e-12) the free q6 that keeps p4 nearest the middle of the elbow's reach (subproblem 3)")
+    arm.say("q2 + q3 + q4: subproblem 1, turns n onto R1^T G_R R6^T R5^T n about h2 (n a unit vector "
+            "perpendicular to h2)")
+    arm.say("q3: subproblem 3, the distance of E3 p4 from axis 2's point equals that of E1^-1 G E6^-1 E5^-1 p4")
+    arm.say("q2: subproblem 1, turns E3 p4 onto that point about axis 2; q4 from the sum")
+    signs = [tidy(dot(a.h, a2.h)) for a in (a2, a3, a4)]
+    out = []
+    for root1 in angle_to_height(c - a1.p, a1.h, a2.h, tidy(dot(a2.h, o - a1.p))):
+        s1 = base.fork()
+        s1.choose("shoulder", root1, 1)
+        s1.joint(arm.q[0], root1.value)
+        u = s1.vector("u", arm.turn(0, z6, -1))
+        roots5 = cone_angle(a2.h, a5.h, a6.h, u) if cone else angle_to_height(a2.h, a5.h, a6.h, dot(a2.h, u))
+        for root5 in roots5:
+            s5 = s1.fork()
+            s5.choose("wrist", root5, 5)
+            s5.joint(arm.q[4], root5.value)
+            h2_back = s5.vector("k", _transpose_apply(rotation, arm.turn(0, a2.h)))
+            regular = angle_onto(a6.h, h2_back, arm.turn(4, a2.h, -1))
+            s5.joint(arm.q[5], sp.Piecewise((_free_wrist_angle(arm, s5, rotation, point), _wrist_singular(u, a2.h)),
+                                            (regular, True), evaluate=False))
+            # R234 = R1^T G_R R6^T R5^T, read on a unit vector n perpendicular to h2: the angle
+            # is as well conditioned as it can be at every pose (a vector of the wrist, such
+            # as h5, can come to lie along h2 and leave the angle to rounding).
+            b = s5.vector("b", arm.turn(0, rotation(arm.turn(5, arm.turn(4, n, -1), -1)), -1))
+            total = s5.scalar("theta234", angle_onto(a2.h, n, b))
+            p4 = arm.move_point(5, arm.move_point(4, a4.p, -1), -1)
+            X4 = s5.vector("X4", point(p4))
+            y4 = s5.vector("y4", arm.move_point(0, X4, -1))
+            for root3 in angle_to_distance(a3.h, (a3.p - a2.p).applyfunc(tidy), (a4.p - a3.p).applyfunc(tidy),
+                                           dot(y4 - a2.p, y4 - a2.p)):
+                s3 = s5.fork()
+                s3.choose("elbow", root3, 3)
+                s3.joint(arm.q[2], root3.value)
+                e3 = s3.vector("e3", arm.move_point(2, a4.p))
+                s3.joint(arm.q[1], angle_onto(a2.h, e3 - a2.p, y4 - a2.p))
+                s3.joint(arm.q[3], signs[2] * (total - signs[0] * arm.q[1] - signs[1] * arm.q[2]))
+                out.append(s3)
+    return out
+
+
+# |h2 x u| below this is the wrist singularity of the three-parallel family (q5 at 0 or pi):
+# q6 is then free, and chosen by _free_wrist_angle.  A wrist this close to it and given the
+# free choice moves the tool by at most 1e-12 times its size.
+WRIST_SINGULAR = sp.Float("1e-12")
+
+
+def _wrist_singular(u, h2):
+    side = cross(h2, u)
+    return sp.StrictLessThan(dot(side, side), WRIST_SINGULAR**2, evaluate=False)
+
+
+def _free_wrist_angle(arm: _Arm, steps: _Steps, rotation, point):
+    """q6 at the wrist singularity of the three-parallel family, where axis 6 joins axes 2 to 4.
+
+    Turning q6 (with q2 + q3 + q4 following it) carries the point p4 on axis 4 around a
+    circle, and its squared distance from axis 2's point over the interval ``S +- rho``
+    (subproblem 3's coefficients).  The planar two-link reaches squared distances
+    ``S3 +- rho3``.  q6 puts it at ``clamp(S3, S - rho, S + rho)``: inside the reach
+    whenever any q6 is (the interval's point nearest the centre of the reach), so a
+    reachable singular target always has a valid branch, and the choice is the same in
+    every backend.
+    """
+    a2, a3, a4, a5, a6 = (arm.axis(i) for i in (1, 2, 3, 4, 5))
+    z = arm.move_point(4, a4.p, -1)                    # E5^-1 p4
+    A = arm.move_point(0, point(a6.p), -1) - a2.p      # E1^-1 G p6 - p2
+    a_vec = steps.vector("a6", _transpose_apply(rotation, arm.turn(0, A)))
+    b_vec = z - a6.p
+    along = dot(a6.h, b_vec)
+    b_perp = b_vec - a6.h * along
+    P = 2 * dot(a_vec, b_perp)
+    Q = 2 * dot(a_vec, cross(a6.h, b_vec))
+    S = dot(a_vec, a_vec) + dot(b_vec, b_vec) + 2 * dot(a6.h, a_vec) * along
+    reach_a, reach_b = (a3.p - a2.p).applyfunc(tidy), (a4.p - a3.p).applyfunc(tidy)
+    centre = tidy(dot(reach_a, reach_a) + dot(reach_b, reach_b) + 2 * dot(a3.h, reach_a) * dot(a3.h, reach_b))
+    rho = sp.sqrt(P**2 + Q**2)
+    from .primitives import ClampUnit
+    from .subproblems import TINY
+    theta = sp.atan2(Q, P) + sp.acos(ClampUnit((centre - S) / (rho + TINY)))
+    return -theta                                       # E6^-1 turns by -q6
+
+
+def perpendicular(h) -> sp.Matrix:
+    """A unit vector perpendicular to the unit vector ``h``: a coordinate axis where one is, else
+    ``h x e / |h x e|`` with ``e`` the coordinate axis least along ``h``."""
+    basis = [sp.Matrix([1 if j == i else 0 for j in range(3)]) for i in range(3)]
+    for e in basis:
+        if is_zero(dot(h, e)):
+            return e
+    e = min(basis, key=lambda e: abs(float(dot(h, e).evalf())) if dot(h, e).is_number else 1.0)
+    side = cross(h, e)
+    return (side / sp.sqrt(tidy(dot(side, side)))).applyfunc(tidy)
+
+
+def _transpose_apply(rotation, vec):
+    """``G_R^T vec`` from the map ``rotation(v) = G_R v``."""
+    columns = [rotation(sp.Matrix([1 if j == i else 0 for j in range(3)])) for i in range(3)]
+    return sp.Matrix([dot(col, vec) for col in columns])
+
+
+def _position_family(arm: _Arm) -> list[_Steps]:
+    base = _Steps()
+    x, y, z = arm.model.task_symbols
+    c = sp.Matrix([x, y, z])
+    arm.say("the tool point w = M p (the tool's origin at q = 0) to the target (x, y, z)")
+    return _position(arm, base, arm.S.home[:3, 3], c, "tool point")
+
+
+def _parallel_axes(arm: _Arm) -> list[_Steps]:
+    S, model = arm.S, arm.model
+    ez = sp.Matrix([0, 0, 1])
+    task = list(model.task_names)
+    revolute = [a for a in S.axes if a.kind == REVOLUTE]
+    prismatic = [a for a in S.axes if a.kind == PRISMATIC]
+    need_r = 2 + ("phi" in task)
+    need_p = int("z" in task)
+    if len(revolute) != need_r or len(prismatic) != need_p:
+        raise IKUnsupported(f"every axis is along the base z axis, but the task {', '.join(task)} needs "
+                            f"{need_r} revolute joints and {need_p} prismatic ones (the arm has "
+                            f"{len(revolute)} and {len(prismatic)})")
+    symbols = dict(zip(task, model.task_symbols))
+    base = _Steps()
+    signs = {a.index: tidy(dot(a.h, ez)) for a in S.axes}
+    if prismatic:
+        (slide,) = prismatic
+        arm.say(f"q{slide.index + 1}: the height z of the tool point above its height at q = 0")
+        base.joint(model.q[slide.index], signs[slide.index] * (symbols["z"] - S.home[2, 3]))
+    r1, r2 = revolute[0], revolute[1]
+    if "phi" in task:
+        r3 = revolute[2]
+        phi = model.task[task.index("phi")]
+        phi0 = tidy(phi.xreplace({qi: 0 for qi in model.q}))
+        angle = symbols["phi"] - phi0
+        turn = sp.Matrix([[sp.cos(angle), -sp.sin(angle), 0], [sp.sin(angle), sp.cos(angle), 0], [0, 0, 1]])
+        w = r3.p
+        offset = (S.home[:3, 3] - w).applyfunc(tidy)
+        target = base.vector("c", sp.Matrix([symbols["x"], symbols["y"], 0]) - turn * offset)
+        arm.say(f"c = (x, y) - Rz(phi - phi0) (p_tool - p{r3.index + 1}): the point on axis {r3.index + 1}")
+    else:
+        w = S.home[:3, 3]
+        target = sp.Matrix([symbols["x"], symbols["y"], 0])
+        arm.say("c = (x, y): the tool point")
+    arm.say(f"q{r2.index + 1}: subproblem 3, the distance of E{r2.index + 1} w from axis {r1.index + 1} in the plane")
+    arm.say(f"q{r1.index + 1}: subproblem 1, turns E{r2.index + 1} w onto c about axis {r1.index + 1}")
+    planar = sp.Matrix([1, 1, 0])
+    a_vec = sp.matrix_multiply_elementwise(r2.p - r1.p, planar).applyfunc(tidy)
+    b_vec = sp.matrix_multiply_elementwise(w - r2.p, planar).applyfunc(tidy)
+    delta = sp.matrix_multiply_elementwise(target - r1.p, planar)
+    out = []
+    for root in angle_to_distance(ez, a_vec, b_vec, dot(delta, delta)):
+        s = base.fork()
+        s.choose("elbow", root, r2.index + 1)
+        s.joint(model.q[r2.index], signs[r2.index] * root.value)
+        e = s.vector("e", a_vec + rotate(ez, sp.cos(root.value), sp.sin(root.value), b_vec))
+        s.joint(model.q[r1.index], signs[r1.index] * angle_onto(ez, e, delta))
+        if "phi" in task:
+            arm.say(f"q{r3.index + 1}: phi - phi0 less the other revolute joints' turns")
+            s.joint(model.q[r3.index], signs[r3.index] * (angle - signs[r1.index] * model.q[r1.index]
+                                                          - signs[r2.index] * model.q[r2.index]))
+        out.append(s)
+    return out
+
+
+# --- the entry point ------------------------------------------------------------------------
+
+# Rebuilt without evaluation: SymPy would compare the (long) arguments of each pairwise,
+# sort them by size, or put a relation in canonical form, at seconds per node.
+_UNEVALUATED = (sp.Min, sp.Max, sp.Piecewise, sp.Rel)
+
+
+def _conjunction(func, args):
+    """``And(*args)`` (or ``Or``) as written: SymPy's constructor sorts the arguments by their
+    tree size, which on a six-joint inverse counts millions of nodes."""
+    return sp.Basic.__new__(func, *args)
+
+
+def substitute_unevaluated(expr, subs: dict, memo: dict):
+    """``expr.xreplace(subs)``, but each shared subexpression rebuilt once and ``Min``/``Max`` left
+    unevaluated (SymPy compares their arguments pairwise, which on long ones takes minutes)."""
+    if expr in subs:
+        return subs[expr]
+    if not expr.args:
+        return expr
+    try:
+        return memo[expr]
+    except KeyError:
+        pass
+    args = tuple(substitute_unevaluated(a, subs, memo) for a in expr.args)
+    if args == expr.args:
+        result = expr
+    elif isinstance(expr, (sp.And, sp.Or)):
+        result = _conjunction(expr.func, args)
+    elif isinstance(expr, _UNEVALUATED):
+        result = expr.func(*args, evaluate=False)
+    else:
+        result = expr.func(*args)
+    memo[expr] = result
+    return result
+
+
+def _branch(model, steps: _Steps, doc_head: str) -> IKBranch:
+    revolute = {q: t == REVOLUTE for q, t in zip(model.q, model.joint_types)}
+    subs, values = {}, {}
+    for symbol, expr in steps.items:
+        value = substitute_unevaluated(expr, subs, {})
+        if symbol in revolute:
+            values[symbol] = value
+            subs[symbol] = WrapAngle(value) if revolute[symbol] else value
+        else:
+            subs[symbol] = value
+    missing = [str(q) for q in model.q if q not in values]
+    if missing:
+        raise AssertionError(f"decomposition left {missing} unsolved")
+    step_condition = (_conjunction(sp.And, steps.conditions) if len(steps.conditions) > 1
+                      else steps.conditions[0] if steps.conditions else sp.true)
+    condition = substitute_unevaluated(step_condition, subs, {})
+    name = "_".join(steps.choices)
+    doc = f"{doc_head}; " + "; ".join(steps.docs)
+    return IKBranch(name, tuple(values[q] for q in model.q), condition, doc, tuple(steps.items),
+                    step_condition=step_condition)
+
+
+def classify(model, S: Structure):
+    """(family name, builder) for the model, or IKUnsupported naming what the arm lacks."""
+    task, n, kinds = tuple(model.task_names), model.n, S.kinds
+    if task == POSE_NAMES:
+        if n != 6:
+            raise IKUnsupported(f"a full pose with {n} joints: the closed forms cover 6 joints"
+                                + (" (7 joints need a free joint, not yet supported)" if n == 7 else ""))
+        w = S.meet_in_one_point(3, 4, 5)
+        if w is not None:
+            return "spherical wrist", lambda arm: _spherical_wrist(arm, w)
+        if kinds == "RRRRRR" and S.parallel(1, 2) and S.parallel(2, 3) and not S.parallel(0, 1):
+            o = S.meet(4, 5)
+            if o is not None:
+                return "three parallel", lambda arm: _three_parallel(arm, o)
+            raise IKUnsupported("axes 2, 3 and 4 are parallel but axes 5 and 6 do not meet")
+        raise IKUnsupported("no three consecutive axes meet in a point (axes 4, 5, 6) and axes 2, 3, 4 "
+                            "are not parallel")
+    if set(task) == {"x", "y", "z"} and task == ("x", "y", "z") and n == 3:
+        return "position", _position_family
+    if "x" in task and "y" in task and set(task) <= {"x", "y", "z", "phi"}:
+        ez = sp.Matrix([0, 0, 1])
+        if all(S.parallel_to(a.index, ez) for a in S.axes):
+            return "parallel axes", _parallel_axes
+        if set(task) == {"x", "y", "z"}:
+            raise IKUnsupported(f"a position task with {n} joints: the closed forms cover 3 "
+                                "(or every axis along the base z axis)")
+        raise IKUnsupported(f"the task {', '.join(task)} needs every axis along the base z axis")
+    raise IKUnsupported(f"no closed form for the task {', '.join(task)} with {n} joints")
+
+
+def solve(model) -> IKSolution:
+    """Every inverse-kinematics branch of ``model`` by decomposition, or IKUnsupported saying why not."""
+    chain = model.chain
+    if chain is None:
+        raise IKUnsupported("the model is not one serial chain")
+    if chain.coupled(model.q):
+        raise IKUnsupported("a joint drives a fixed transform (a mimic joint): not a plain serial chain")
+    S = structure_of(model)
+    family, build = classify(model, S)
+    error = check_product_of_exponentials(model, S)
+    if not error < 1e-9:
+        raise AssertionError(f"{model.name}: the product of exponentials misses the chain's fk by {error:.2e}")
+    arm = _Arm(model, S)
+    branches = [_branch(model, steps, f"{family} family") for steps in build(arm)]
+    return IKSolution(family, branches, arm.plan, S.describe())
+
+
+# Seconds the automatic inverse kinematics of one arm may take (about 1 s for a 6R arm).
+IK_BUDGET = 30.0
+
+
+def attach(model) -> None:
+    """Give ``model`` its inverse kinematics by :func:`solve`, or record why it has none.
+
+    Sets ``model.ik`` (the branches) and ``model.ik_plan`` (family, structure and steps),
+    or ``model.ik_unsupported`` (what the arm lacks, or the budget that ran out); the rest
+    of the package is generated either way.
+    """
+    from ..budget import BudgetExceeded, budget
+    try:
+        with budget(IK_BUDGET, f"{model.name}: automatic inverse kinematics"):
+            solution = solve(model)
+    except IKUnsupported as error:
+        model.ik_unsupported = str(error)
+        return
+    except BudgetExceeded as error:
+        model.ik_unsupported = f"{error} (the decomposition found no closed form within it)"
+        return
+    model.ik = solution.branches
+    model.ik_plan = (f"family: {solution.family}", *solution.structure, *solution.plan)
