@@ -116,14 +116,16 @@ def _fill(text: str, **values) -> str:
     return text
 
 
-def library_flags(robot: str) -> list[str]:
+def library_flags(robot: str, root: Path = GENERATED) -> list[str]:
     """The compile flags of the robot's built C library (its build_c.py decides)."""
-    return list(load_build_script(GENERATED / robot).compile_flags())
+    return list(load_build_script(root / robot).compile_flags())
 
 
-def driver_source(robot: str, count: int, repeat: int, rtb_ik: bool) -> str:
-    module = generated.load(robot)
-    header = (GENERATED / robot / f"{robot}.h").read_text()
+def driver_source(robot: str, count: int, repeat: int, rtb_ik: bool, module=None, root: Path = GENERATED) -> str:
+    """The driver's C; ``module`` (the package's numpy kernels) and ``root`` (the folder holding the
+    package) for a package outside ``generated/``, such as a zoo arm's."""
+    module = module or generated.load(robot)
+    header = (root / robot / f"{robot}.h").read_text()
     n, m = len(module.JOINTS), len(module.TASK)
     ring = min(count, 1024)
     laps = max(1, 20000 // ring)
@@ -153,19 +155,20 @@ def driver_source(robot: str, count: int, repeat: int, rtb_ik: bool) -> str:
                  ik_buffers=ik_buffers, rtb_declaration=rtb_declaration, timings="".join(timings))
 
 
-def time_in_c(robot: str, build: Path, count: int, repeat: int, rtb_ik_source: str | None = None) -> dict:
-    """{(kernel, mode): ns per pose} for ``robot``, from a compiled driver."""
+def time_in_c(robot: str, build: Path, count: int, repeat: int, rtb_ik_source: str | None = None,
+              module=None, root: Path = GENERATED) -> dict:
+    """{(kernel, mode): ns per pose} for ``robot``, from a compiled driver (see driver_source)."""
     build.mkdir(parents=True, exist_ok=True)
-    flags = library_flags(robot)
+    flags = library_flags(robot, root)
     driver = build / f"driver_{robot}.c"
-    driver.write_text(driver_source(robot, count, repeat, rtb_ik_source is not None))
-    sources = [str(driver), str(GENERATED / robot / f"{robot}.c")]
+    driver.write_text(driver_source(robot, count, repeat, rtb_ik_source is not None, module, root))
+    sources = [str(driver), str(root / robot / f"{robot}.c")]
     if rtb_ik_source is not None:
         rtb = build / "rtb_ik.c"
         rtb.write_text(rtb_ik_source + RTB_WRAPPER)
         sources.append(str(rtb))
     program = build / f"driver_{robot}"
-    command = [CC, *[f for f in flags if f != "-std=c99"], "-std=gnu99", "-I", str(GENERATED / robot), *sources,
+    command = [CC, *[f for f in flags if f != "-std=c99"], "-std=gnu99", "-I", str(root / robot), *sources,
                "-o", str(program), "-lm"]
     result = subprocess.run(command, capture_output=True, text=True)
     if result.returncode != 0:

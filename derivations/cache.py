@@ -16,6 +16,7 @@ nothing is read from the cache.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import hmac
 import os
@@ -39,8 +40,11 @@ def cache_dir() -> Path:
     return _PACKAGE.parent / ".cache" / "derivations"
 
 
+@functools.lru_cache(maxsize=None)
 def source_fingerprint() -> str:
-    """Hash of every Python source file of the derivations package."""
+    """Hash of every Python source file of the derivations package, read once per process: a
+    process whose code was imported before a source file changed must not store what that old
+    code derived under the new sources' key."""
     digest = hashlib.sha256()
     for path in sorted(_PACKAGE.rglob("*.py")):
         digest.update(str(path.relative_to(_PACKAGE)).encode())

@@ -248,6 +248,8 @@ class RobotModel:
     # plan, one line per step, for `kinegen show --what ik`; or why the arm has none.
     ik_plan: tuple[str, ...] = ()
     ik_unsupported: str = ""
+    # The joint (0-based) a seven-joint arm's ik takes as its argument ``free``; None: no free joint.
+    ik_free: int | None = None
 
     @property
     def n(self) -> int:
@@ -297,6 +299,11 @@ class RobotModel:
         names = ", ".join(b.name for b in self.ik)
         x = Argument("x", self.task_symbols, f"task coordinates {', '.join(self.task_names)}, shape (..., "
                      f"{len(self.task_names)})")
+        arguments = (x,)
+        if self.ik_free is not None:
+            free = self.q[self.ik_free]
+            arguments += (Argument("free", (free,), f"the value of the free joint {free} "
+                                   f"({self.joint_unit(self.ik_free)}), shape (..., 1) or a number"),)
         revolute = [t == REVOLUTE for t in self.joint_types]
         definitions: tuple = ()
         if all(b.step_condition is not None for b in self.ik):
@@ -305,7 +312,7 @@ class RobotModel:
             values = tuple(kernel_form(e, r) for branch in self.ik for e, r in zip(branch.solution, revolute))
             valid = tuple(sp.sympify(b.condition) for b in self.ik)
         return SymbolicFunction(
-            "ik", (x,),
+            "ik", arguments,
             (Output("Q", values, (k, n), "float", f"joint values of each branch ({names})"),
              Output("valid", valid, (k,), "bool", "whether each branch exists")),
             f"Inverse kinematics, all {k} branches ({names}): Q (..., {k}, {n}), valid (..., {k}).",
@@ -333,7 +340,7 @@ class RobotModel:
                     known[key] = sp.Symbol(name, real=True)
                     definitions.append((known[key], expr))
                 rename[symbol] = known[key]
-            values.extend(kernel_form(rename[q], r) for q, r in zip(self.q, revolute))
+            values.extend(kernel_form(rename.get(q, q), r) for q, r in zip(self.q, revolute))  # q: a free joint
             valid.append(substitute_unevaluated(branch.step_condition, rename, memo))
         return tuple(definitions), tuple(values), tuple(valid)
 

@@ -684,3 +684,178 @@ def test_rates_singular_flag_is_the_same_for_an_arm_ten_times_larger(generated_r
         assert (flag == flag10).all()
         assert flag[:40].all() and flag[40:].sum() <= 2
         np.testing.assert_allclose(w10[40:], 1e3 * w[40:], rtol=1e-9)
+
+
+# --------------------------------------------------------------------------- automatic inverse kinematics (#15)
+
+# What derivations.ik.decompose finds for each arm: its family, or the structure it lacks.
+IK_FAMILY = {
+    "abb_irb140": "spherical wrist", "fanuc_lrmate200ic": "spherical wrist", "kuka_kr5": "spherical wrist",
+    "meca500": "spherical wrist", "stanford_arm": "spherical wrist",
+    "ur10": "three parallel", "ur3_inverted": "three parallel", "ur5": "three parallel",
+    "adept_cobra600": "parallel axes", "kuka_lwr4": "spherical wrist, joint 3 free",
+}
+IK_LACKS = {
+    "franka_panda": "7 joints with no free joint that leaves a covered six-joint arm",
+    "kinova_jaco": "no three consecutive axes meet in a point (axes 4, 5, 6) and axes 2, 3, 4 are not parallel",
+    "lynxmotion_al5d": "a position task with 4 joints",
+}
+IK_PARAMS = [pytest.param(name, id=name) for name in IK_FAMILY]
+IK_RANDOM, IK_DEGENERATE = 10_000, 1_000
+IK_FK_TOLERANCE = 1e-9     # metres and rotation entries (phi modulo 2 pi)
+IK_JOINT_TOLERANCE = 1e-6  # a double root (arm stretched, wrist centre over the shoulder) costs sqrt(eps)
+IK_SINGULAR = 1e-12        # |sin q5| at or below this: the wrist's free sum (see ik_joint_distance)
+
+
+def test_the_ik_tables_cover_the_zoo():
+    assert set(IK_FAMILY) | set(IK_LACKS) == set(ARMS)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_ik_family_or_what_the_arm_lacks(name):
+    """The family the decomposition finds, its plan naming a subproblem for every joint; or the
+    structure the arm lacks, said in the model (and by `kinegen show`), and no ik kernel."""
+    import derivations
+    model = derivations.load(ARMS[name].path)
+    if name in IK_FAMILY:
+        assert model.ik_plan[0] == f"family: {IK_FAMILY[name]}"
+        plan = "\n".join(model.ik_plan)
+        for i in range(1, model.n + 1):
+            assert f"q{i}" in plan
+        names = [b.name for b in model.ik]  # (names only: a failing comparison of whole branches prints megabytes)
+        assert len(set(names)) == len(names) == (2 if name == "adept_cobra600" else 8), names
+        assert model.ik_unsupported == ""
+    else:
+        assert len(model.ik) == 0, model.ik_plan
+        assert IK_LACKS[name] in model.ik_unsupported, model.ik_unsupported
+        assert "ik" not in [f.name for f in model.functions()]
+
+
+def ik_configurations(arm: Arm, rng) -> np.ndarray:
+    """IK_RANDOM uniform configurations (revolute joints over the whole turn), then IK_DEGENERATE with
+    every revolute joint at 0, +-pi/2 or pi (wrist singular, arm stretched or folded, shoulder over
+    the base) and every prismatic joint at an end or the middle of its range."""
+    count = IK_RANDOM + IK_DEGENERATE
+    q = np.empty((count, arm.n))
+    for i, (kind, lim) in enumerate(zip(arm.types, arm.limits)):
+        if kind == "R":
+            q[:, i] = rng.uniform(-math.pi, math.pi, count)
+            q[IK_RANDOM:, i] = rng.choice([0.0, math.pi / 2, -math.pi / 2, math.pi], IK_DEGENERATE)
+        else:
+            low, high = lim
+            q[:, i] = rng.uniform(low, high, count)
+            q[IK_RANDOM:, i] = rng.choice([low, (low + high) / 2, high], IK_DEGENERATE)
+    return q
+
+
+def ik_target(arm: Arm, T: np.ndarray) -> np.ndarray:
+    """The task vector of poses T (..., 4, 4), from this file's fk: the pose (x, y, z, r11 .. r33) or
+    x, y, z, phi for the SCARA."""
+    if arm.task == ["pose"]:
+        return np.concatenate([T[..., :3, 3], T[..., :3, :3].reshape(T.shape[:-2] + (9,))], axis=-1)
+    assert arm.task == ["x", "y", "z", "phi"]
+    return np.concatenate([T[..., :3, 3], np.arctan2(T[..., 1, 0], T[..., 0, 0])[..., None]], axis=-1)
+
+
+def wrap(angle):
+    return (angle + np.pi) % (2 * np.pi) - np.pi
+
+
+def ik_joint_distance(name, Q, q):
+    """max |Q - q| per branch (revolute joints modulo 2 pi), up to what q leaves free: at a wrist
+    singularity (|sin q5| <= IK_SINGULAR) a spherical wrist fixes only q4 + q6 or q4 - q6 (axes 4 and
+    6 in line, either sense), and a UR only q1 and q5 (axis 6 joins the parallel axes 2 to 4); with
+    the wrist centre on axis 1 (within 1e-9 m) a spherical wrist's q1 is free, and q4 to q6 follow it."""
+    types = ARMS[name].types
+    difference = Q - q[:, None, :]
+    for i, kind in enumerate(types):
+        if kind == "R":
+            difference[..., i] = wrap(difference[..., i])
+    difference = np.abs(difference)
+    w = len(types) - 2  # the wrist's middle joint (0-based): q5 of a six-joint arm, q6 of the LWR 4
+    singular = np.abs(np.sin(q[:, w])) <= IK_SINGULAR
+    if IK_FAMILY[name].startswith("spherical wrist"):
+        # the wrist centre on axis 1 (the shoulder singularity): q1 is free, and the wrist follows it
+        axis, origin, centre = wrist_geometry(ARMS[name], q, w - 1)
+        offset = centre - origin
+        shoulder = np.linalg.norm(offset - axis * np.sum(offset * axis, axis=-1, keepdims=True), axis=-1) <= 1e-9
+        plus = np.abs(wrap(Q[..., w - 1] + Q[..., w + 1] - (q[:, w - 1] + q[:, w + 1])[:, None]))
+        minus = np.abs(wrap(Q[..., w - 1] - Q[..., w + 1] - (q[:, w - 1] - q[:, w + 1])[:, None]))
+        difference[singular, :, w - 1] = np.minimum(plus, minus)[singular]
+        difference[singular, :, w + 1] = 0.0
+        difference[shoulder, :, 0] = 0.0
+        difference[shoulder, :, w - 1:] = 0.0
+    elif IK_FAMILY[name] == "three parallel":
+        difference[singular, :, 1:4] = 0.0
+        difference[singular, :, 5] = 0.0
+    return difference.max(axis=-1)
+
+
+def wrist_geometry(arm: Arm, q, first: int):
+    """Axis 1 (unit direction, a point) and the point where the wrist's first two axes (0-based
+    ``first`` and the next) meet, from this file's frames (joint i turns about z of frame i-1 in
+    standard DH, of frame i in modified DH)."""
+    frames = link_frames(arm, q)
+    shift = 0 if arm.convention == "standard" else 1
+    (z1, o1), (z4, o4), (z5, o5) = ((frames[i + shift][..., :3, 2], frames[i + shift][..., :3, 3])
+                                    for i in (0, first, first + 1))
+    # the closest points of the lines o4 + s z4 and o5 + t z5 (they meet: a spherical wrist)
+    w = o4 - o5
+    b = np.sum(z4 * z5, axis=-1)
+    d, e = np.sum(z4 * w, axis=-1), np.sum(z5 * w, axis=-1)
+    s = (b * e - d) / np.maximum(1 - b * b, 1e-300)
+    return z1, o1, o4 + s[..., None] * z4
+
+
+@pytest.mark.parametrize("backend", ["numpy", "c"])
+@pytest.mark.parametrize("name", IK_PARAMS)
+def test_ik_round_trip(name, backend, generated_root):
+    """FK(IK(x)) = x by this file's own forward kinematics, over IK_RANDOM + IK_DEGENERATE
+    configurations: no valid branch off the target, no target without a valid branch, the
+    generating configuration among the branches (up to a singularity's free sum), every
+    revolute value in (-pi, pi], nothing NaN."""
+    arm = ARMS[name]
+    kernels = generated_package(name, generated_root).load(backend)
+    q = ik_configurations(arm, np.random.default_rng(zlib.crc32(f"ik {name}".encode())))
+    x = ik_target(arm, fk(arm, q))
+    free = re.search(r"joint (\d) free", IK_FAMILY[name])
+    if free:  # a seven-joint arm: the free joint's value is ik's second argument, and it comes back
+        j = int(free.group(1)) - 1
+        Q, valid = kernels.ik(x, free=q[:, j])
+        assert np.abs(wrap(Q[..., j] - q[:, None, j]))[valid].max() == 0.0
+    else:
+        Q, valid = kernels.ik(x)
+    assert Q.shape == (len(q), len(kernels.BRANCHES), arm.n) and valid.shape == Q.shape[:2]
+    reached = ik_target(arm, fk(arm, np.where(valid[..., None], Q, 0.0)))
+    miss = np.abs(reached - x[:, None, :])
+    if arm.task != ["pose"]:
+        miss[..., 3] = np.abs(wrap(miss[..., 3]))
+    error = np.where(valid, miss.max(axis=-1), 0.0)
+    distance = np.where(valid, ik_joint_distance(name, Q, q), np.inf).min(axis=-1)
+    revolute = [i for i, kind in enumerate(arm.types) if kind == "R"]
+    counts = {
+        "wrong": int((error > IK_FK_TOLERANCE).sum()),
+        "no solution": int((~valid.any(axis=-1)).sum()),
+        "missing": int((distance > IK_JOINT_TOLERANCE).sum()),
+        "not wrapped": int(((np.abs(Q[..., revolute]) > np.pi).any(axis=-1) & valid).sum()),
+        "nan": int((~np.isfinite(Q[valid])).sum()),
+    }
+    assert counts == dict.fromkeys(counts, 0), (counts, float(error.max()))
+    # one pose at a time too: the single-point path gives the same branches
+    for row in range(0, len(q), len(q) // 7):
+        Q1, valid1 = kernels.ik(x[row], free=q[row, j]) if free else kernels.ik(x[row])
+        np.testing.assert_array_equal(valid1, valid[row])
+        np.testing.assert_allclose(np.where(valid1[:, None], Q1, 0), np.where(valid1[:, None], Q[row], 0),
+                                   rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["ur5", "kuka_kr5"])
+def test_ik_unreachable_targets_have_no_valid_branch(name, generated_root):
+    """A pose whose position lies 5 m from the base (both arms reach under 1 m) has no valid branch,
+    in both backends."""
+    arm = ARMS[name]
+    T = fk(arm, configurations(arm, 50))
+    T[:, :3, 3] *= 5.0 / np.linalg.norm(T[:, :3, 3], axis=-1, keepdims=True)
+    for backend in ("numpy", "c"):
+        _, valid = generated_package(name, generated_root).load(backend).ik(ik_target(arm, T))
+        assert not valid.any()

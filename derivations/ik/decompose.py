@@ -47,7 +47,7 @@ import sympy as sp
 from ..chain import PRISMATIC, REVOLUTE
 from ..model import POSE_NAMES, IKBranch
 from .primitives import WrapAngle
-from .structure import Structure, check_product_of_exponentials, cross, dot, is_zero, rotate, structure_of, tidy
+from .structure import Axis, Structure, check_product_of_exponentials, cross, dot, is_zero, rotate, structure_of, tidy
 from .subproblems import angle_onto, angle_to_distance, angle_to_height, cone_angle, slide_to_distance
 
 __all__ = ["IKUnsupported", "IKSolution", "solve", "attach", "IK_BUDGET"]
@@ -63,6 +63,7 @@ class IKSolution:
     branches: list[IKBranch]
     plan: list[str]                     # one line per step of the decomposition
     structure: list[str] = field(default_factory=list)
+    free: int | None = None             # the 0-based index of the free joint of a seven-joint arm
 
 
 class _Steps:
@@ -102,10 +103,10 @@ class _Steps:
 class _Arm:
     """The axes and the target of one arm, with the vector helpers the families share."""
 
-    def __init__(self, model, structure: Structure):
+    def __init__(self, model, structure: Structure, q=None):
         self.model = model
         self.S = structure
-        self.q = model.q
+        self.q = tuple(model.q if q is None else q)  # the joint symbol of each axis of ``structure``
         self.plan: list[str] = []
 
     def axis(self, i):
@@ -462,9 +463,11 @@ def substitute_unevaluated(expr, subs: dict, memo: dict):
     return result
 
 
-def _branch(model, steps: _Steps, doc_head: str) -> IKBranch:
+def _branch(model, steps: _Steps, doc_head: str, free=None) -> IKBranch:
     revolute = {q: t == REVOLUTE for q, t in zip(model.q, model.joint_types)}
     subs, values = {}, {}
+    if free is not None:  # the free joint's value is the kernel's argument: the joint symbol itself
+        values[free] = free
     for symbol, expr in steps.items:
         value = substitute_unevaluated(expr, subs, {})
         if symbol in revolute:
@@ -484,23 +487,80 @@ def _branch(model, steps: _Steps, doc_head: str) -> IKBranch:
                     step_condition=step_condition)
 
 
+def _six_joint_family(S: Structure):
+    """(family, builder) of a six-joint arm that reaches a full pose, or IKUnsupported."""
+    kinds = S.kinds
+    w = S.meet_in_one_point(3, 4, 5)
+    if w is not None:
+        return "spherical wrist", lambda arm: _spherical_wrist(arm, w)
+    if kinds == "RRRRRR" and S.parallel(1, 2) and S.parallel(2, 3) and not S.parallel(0, 1):
+        o = S.meet(4, 5)
+        if o is not None:
+            return "three parallel", lambda arm: _three_parallel(arm, o)
+        raise IKUnsupported("axes 2, 3 and 4 are parallel but axes 5 and 6 do not meet")
+    raise IKUnsupported("no three consecutive axes meet in a point (axes 4, 5, 6) and axes 2, 3, 4 "
+                        "are not parallel")
+
+
+# The joint held at the free value in a seven-joint arm, in the order tried (0-based): the
+# elbow's neighbours first, as IKFast's choice for S-R-S arms (the KUKA iiwa and LWR: joint 3).
+FREE_ORDER = (2, 4, 3, 1, 5, 0, 6)
+
+
+def held(S: Structure, j: int, value) -> Structure:
+    """The six-joint arm left when joint j of ``S`` is held at ``value`` (a symbol).
+
+    ``E_j E_{j+1} ... E_n M = (E_j E_{j+1} E_j^-1) ... (E_j E_n E_j^-1) E_j M``: each axis after
+    j is carried by the rigid motion ``E_j(value)``, and so is the home pose.
+    """
+    a = S.axes[j]
+    c, s_ = sp.cos(value), sp.sin(value)
+
+    def carry(point):
+        if a.kind == PRISMATIC:
+            return point + a.h * value
+        return a.p + rotate(a.h, c, s_, point - a.p)
+
+    def carry_vector(vec):
+        return vec if a.kind == PRISMATIC else rotate(a.h, c, s_, vec)
+
+    axes = []
+    for k, other in enumerate(S.axes):
+        if k == j:
+            continue
+        h, point = other.h, other.p
+        if k > j:
+            h, point = carry_vector(h).applyfunc(sp.expand), carry(point).applyfunc(sp.expand)
+        axes.append(Axis(len(axes), other.kind, h, point))
+    R = sp.eye(4)
+    R[:3, :3] = sp.Matrix.hstack(*(carry_vector(sp.Matrix([1 if r == i else 0 for r in range(3)]))
+                                   for i in range(3)))
+    R[:3, 3] = carry(sp.zeros(3, 1))
+    return Structure(tuple(axes), (R * S.home).applyfunc(sp.expand), S.task)
+
+
+def _free_joint_family(model, S: Structure):
+    reasons = []
+    for j in FREE_ORDER:
+        reduced = held(S, j, model.q[j])
+        try:
+            family, build = _six_joint_family(reduced)
+        except IKUnsupported as error:
+            reasons.append(f"joint {j + 1}: {error}")
+            continue
+        return j, reduced, family, build
+    raise IKUnsupported("7 joints with no free joint that leaves a covered six-joint arm ("
+                        + "; ".join(reasons[:2]) + "; ...)")
+
+
 def classify(model, S: Structure):
     """(family name, builder) for the model, or IKUnsupported naming what the arm lacks."""
-    task, n, kinds = tuple(model.task_names), model.n, S.kinds
+    task, n = tuple(model.task_names), model.n
     if task == POSE_NAMES:
         if n != 6:
-            raise IKUnsupported(f"a full pose with {n} joints: the closed forms cover 6 joints"
-                                + (" (7 joints need a free joint, not yet supported)" if n == 7 else ""))
-        w = S.meet_in_one_point(3, 4, 5)
-        if w is not None:
-            return "spherical wrist", lambda arm: _spherical_wrist(arm, w)
-        if kinds == "RRRRRR" and S.parallel(1, 2) and S.parallel(2, 3) and not S.parallel(0, 1):
-            o = S.meet(4, 5)
-            if o is not None:
-                return "three parallel", lambda arm: _three_parallel(arm, o)
-            raise IKUnsupported("axes 2, 3 and 4 are parallel but axes 5 and 6 do not meet")
-        raise IKUnsupported("no three consecutive axes meet in a point (axes 4, 5, 6) and axes 2, 3, 4 "
-                            "are not parallel")
+            raise IKUnsupported(f"a full pose with {n} joints: the closed forms cover 6 joints, "
+                                "and 7 with one of them free")
+        return _six_joint_family(S)
     if set(task) == {"x", "y", "z"} and task == ("x", "y", "z") and n == 3:
         return "position", _position_family
     if "x" in task and "y" in task and set(task) <= {"x", "y", "z", "phi"}:
@@ -522,13 +582,25 @@ def solve(model) -> IKSolution:
     if chain.coupled(model.q):
         raise IKUnsupported("a joint drives a fixed transform (a mimic joint): not a plain serial chain")
     S = structure_of(model)
-    family, build = classify(model, S)
+    free = None
+    if tuple(model.task_names) == POSE_NAMES and model.n == 7:
+        free, reduced, family, build = _free_joint_family(model, S)
+    else:
+        family, build = classify(model, S)
     error = check_product_of_exponentials(model, S)
     if not error < 1e-9:
         raise AssertionError(f"{model.name}: the product of exponentials misses the chain's fk by {error:.2e}")
-    arm = _Arm(model, S)
-    branches = [_branch(model, steps, f"{family} family") for steps in build(arm)]
-    return IKSolution(family, branches, arm.plan, S.describe())
+    if free is None:
+        arm = _Arm(model, S)
+    else:
+        arm = _Arm(model, reduced, [q for i, q in enumerate(model.q) if i != free])
+        numbering = ", ".join(f"{i + 1} = q{k + 1}" for i, k in enumerate(k for k in range(7) if k != free))
+        arm.say(f"q{free + 1} is free (the argument `free` of ik): held at that value, joint {free + 1} carries "
+                f"the axes after it; the other six joints form a {family} arm, numbered 1 to 6 below ({numbering})")
+        family = f"{family}, joint {free + 1} free"
+    free_symbol = None if free is None else model.q[free]
+    branches = [_branch(model, steps, f"{family} family", free_symbol) for steps in build(arm)]
+    return IKSolution(family, branches, arm.plan, S.describe(), free)
 
 
 # Seconds the automatic inverse kinematics of one arm may take (about 1 s for a 6R arm).
@@ -553,4 +625,5 @@ def attach(model) -> None:
         model.ik_unsupported = f"{error} (the decomposition found no closed form within it)"
         return
     model.ik = solution.branches
+    model.ik_free = solution.free
     model.ik_plan = (f"family: {solution.family}", *solution.structure, *solution.plan)

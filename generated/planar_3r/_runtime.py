@@ -47,6 +47,14 @@ def as_batch(value, size, function, name, finite=True):
     return array
 
 
+def as_free(value, function):
+    """The free joint's value(s) of a seven-joint ik, a number or shape (...), as shape (..., 1)."""
+    array = numpy.asarray(value)
+    if array.dtype.kind not in "iuf":
+        raise ValueError(f"{function}: free must be a real number or an array of shape (...), got dtype {array.dtype}")
+    return array.astype(numpy.float64, copy=False)[..., None]
+
+
 def as_param(value, name):
     """A robot parameter as a finite Python float, or a ValueError naming it."""
     if isinstance(value, (bool, numpy.bool_)) or not isinstance(value, (numbers.Real, numpy.ndarray)):
