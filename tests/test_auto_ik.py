@@ -165,16 +165,16 @@ def test_cone_angle_keeps_the_digits_near_zero():
 # --------------------------------------------------------------------------- URDF chains and the CLI
 
 URDF = Path(__file__).resolve().parent / "data" / "urdf"
-URDF_FAMILIES = {"ur5.urdf": ("three parallel", None), "stanford.urdf": ("spherical wrist", None),
-                 "iiwa14.urdf": ("spherical wrist, joint 3 free", 2)}
+URDF_FAMILIES = {"ur5.urdf": ("three parallel", None, "tool0"), "stanford.urdf": ("spherical wrist", None, None),
+                 "iiwa14.urdf": ("spherical wrist, joint 3 free", 2, None)}
 
 
 @pytest.mark.parametrize("file", list(URDF_FAMILIES))
 def test_urdf_chains_decompose_like_dh_tables(file):
     """The structure is read from the joint axes, so a URDF chain gets the same families; its
     branches, evaluated from their steps, put the tool back on 300 targets from its own fk."""
-    model = derivations.load(URDF / file)
-    family, free = URDF_FAMILIES[file]
+    family, free, tip = URDF_FAMILIES[file]
+    model = derivations.load(URDF / file, tip=tip)
     assert model.ik_plan[0] == f"family: {family}" and model.ik_free == free
     rng = np.random.default_rng(14)
     q = rng.uniform(-np.pi, np.pi, (300, model.n))

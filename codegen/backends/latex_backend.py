@@ -33,6 +33,7 @@ from sympy.printing.latex import LatexPrinter
 
 from derivations.chain import PRISMATIC, REVOLUTE, simplify_entry
 from derivations.ik import ACOS_TOLERANCE, ClampUnit, WrapAngle
+from derivations.ik.subproblems import TINY
 from derivations.model import RobotModel
 from derivations.singular import FACTOR_LIMIT, JacobianDeterminant, inverse_rate_map, jacobian_determinant
 
@@ -853,6 +854,7 @@ def unclamped(expr):
     what the kernels do at the edge."""
     expr = sp.sympify(expr).replace(lambda e: _clamped_argument(e) is not None, _clamped_argument)
     expr = expr.replace(lambda e: isinstance(e, ClampUnit), lambda e: e.args[0])
+    expr = expr.xreplace({TINY: sp.S.Zero})  # the 1e-300 that keeps a generated division finite
     return expr.xreplace({1 + ACOS_TOLERANCE: sp.S.One})
 
 

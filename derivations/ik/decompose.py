@@ -436,7 +436,17 @@ _UNEVALUATED = (sp.Min, sp.Max, sp.Piecewise, sp.Rel)
 def _conjunction(func, args):
     """``And(*args)`` (or ``Or``) as written: SymPy's constructor sorts the arguments by their
     tree size, which on a six-joint inverse counts millions of nodes."""
+    if func is sp.And:
+        func = Conjunction
     return sp.Basic.__new__(func, *args)
+
+
+class Conjunction(sp.And):
+    """An ``And`` built as written (:func:`_conjunction`), and unpickled the same way: loading a
+    six-joint arm's model from the cache re-sorted its branch conditions for seconds."""
+
+    def __reduce_ex__(self, protocol):
+        return _conjunction, (Conjunction, self.args)
 
 
 def substitute_unevaluated(expr, subs: dict, memo: dict):
@@ -478,7 +488,7 @@ def _branch(model, steps: _Steps, doc_head: str, free=None) -> IKBranch:
     missing = [str(q) for q in model.q if q not in values]
     if missing:
         raise AssertionError(f"decomposition left {missing} unsolved")
-    step_condition = (_conjunction(sp.And, steps.conditions) if len(steps.conditions) > 1
+    step_condition = (_conjunction(Conjunction, steps.conditions) if len(steps.conditions) > 1
                       else steps.conditions[0] if steps.conditions else sp.true)
     condition = substitute_unevaluated(step_condition, subs, {})
     name = "_".join(steps.choices)

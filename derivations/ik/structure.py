@@ -61,7 +61,9 @@ def rotate(h, c, s, v) -> sp.Matrix:
     """``v`` turned about the unit vector ``h`` by the angle whose cosine is ``c`` and sine ``s`` (Rodrigues)."""
     v = sp.Matrix(v)
     along = dot(h, v)
-    return v * c + cross(h, v) * s + sp.Matrix(h) * (along * (1 - c))
+    h = sp.Matrix(h)
+    # (1 - c) spelled out, so that a component along h cancels: v_z c + v_z - v_z c = v_z about z
+    return v * c + cross(h, v) * s + h * along - h * (along * c)
 
 
 @dataclass(frozen=True)
