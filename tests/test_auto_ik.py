@@ -211,3 +211,84 @@ def test_kinegen_show_prints_the_decomposition(tmp_path):
                           "--what", "ik"], capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert run.returncode == 2
     assert "no three consecutive axes meet in a point" in run.stderr
+
+
+# --------------------------------------------------------------------------- three-joint positioning arms
+
+# Siciliano, Sciavicco, Villani, Oriolo, "Robotics: Modelling, Planning and Control" (2009):
+# the anthropomorphic arm of Table 2.3 (axes 2 and 3 parallel) and the spherical arm of
+# Table 2.2 (axes 1 and 2 meeting, joint 3 prismatic); lengths ours.
+POSITION_ARMS = {
+    "anthropomorphic": ("""name = "anthropomorphic"
+title = "Anthropomorphic arm (Siciliano et al. Table 2.3)"
+source = "Siciliano, Sciavicco, Villani, Oriolo 2009, Table 2.3; a2 = 0.4, a3 = 0.35 ours"
+convention = "standard"
+task = ["x", "y", "z"]
+[params]
+a2 = 0.4
+a3 = 0.35
+[[joint]]
+type = "R"
+alpha = "pi/2"
+[[joint]]
+type = "R"
+a = "a2"
+[[joint]]
+type = "R"
+a = "a3"
+""", 4),
+    "spherical_arm": ("""name = "spherical_arm"
+title = "Spherical arm (Siciliano et al. Table 2.2)"
+source = "Siciliano, Sciavicco, Villani, Oriolo 2009, Table 2.2; d2 = 0.15 ours"
+convention = "standard"
+task = ["x", "y", "z"]
+[params]
+d2 = 0.15
+[[joint]]
+type = "R"
+alpha = "-pi/2"
+[[joint]]
+type = "R"
+d = "d2"
+alpha = "pi/2"
+[[joint]]
+type = "P"
+limits = [0.1, 0.9]
+""", 4),
+}
+
+
+@pytest.mark.parametrize("name", list(POSITION_ARMS))
+def test_three_joint_positioning_arms(name, tmp_path):
+    """The position family: every branch puts the tool point on 1,000 targets from the arm's own
+    fk (random and degenerate joints), and the generating configuration is among them (the
+    spherical arm's slide is the distance from the shoulder: its two roots are +-, and the
+    negative one is outside the limits the fk drew from but still a solution)."""
+    text, branches = POSITION_ARMS[name]
+    path = tmp_path / f"{name}.toml"
+    path.write_text(text)
+    model = derivations.load(path)
+    assert model.ik_plan[0] == "family: position" and len(model.ik) == branches
+    rng = np.random.default_rng(3)
+    q = rng.uniform(-np.pi, np.pi, (1000, 3))
+    q[800:, :2] = rng.choice([0.0, np.pi / 2, -np.pi / 2, np.pi], (200, 2))
+    if model.joint_types[2] == "P":
+        q[:, 2] = rng.uniform(0.1, 0.9, 1000)
+    else:
+        q[800:, 2] = rng.choice([0.0, np.pi / 2, -np.pi / 2, np.pi], 200)
+    params = [float(v) for v in model.params.values()]
+    task = sp.lambdify([model.q, *model.params], list(model.task), modules="numpy")
+    x = np.stack([np.broadcast_to(np.asarray(v, float), (1000,)) for v in task(q.T, *params)], axis=-1)
+    found = np.zeros(1000, bool)
+    revolute = [i for i, kind in enumerate(model.joint_types) if kind == "R"]
+    for branch in model.ik:
+        Q, valid = evaluate_steps(model, branch, x)
+        reached = np.stack([np.broadcast_to(np.asarray(v, float), (1000,)) for v in task(Q.T, *params)], axis=-1)
+        assert np.abs(np.where(valid[:, None], reached - x, 0.0)).max() < FK_TOLERANCE
+        difference = Q - q
+        difference[:, revolute] = wrap(difference[:, revolute])
+        found |= valid & (np.abs(difference).max(axis=-1) < JOINT_TOLERANCE)
+    # the anthropomorphic arm's shoulder is free with the wrist on axis 1 (q2 = q3 = +-pi/2 ...):
+    # there the target is on the z axis and only the reach matters
+    on_axis = np.hypot(x[:, 0], x[:, 1]) < 1e-9
+    assert (found | on_axis).all(), (~found & ~on_axis).sum()

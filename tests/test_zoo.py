@@ -29,7 +29,7 @@ Three paths are compared with it:
    task rates against the pseudo-inverse of this file's Jacobian, the manipulability against
    its determinant, the singular flag against its condition number, and the flag's
    invariance under scaling the arm by 10.  The C is built as ``KINEGEN_PORTABLE=1`` (plain
-   C99 -O3: the same expressions, a tenth of the compile time) except for the UR5, which
+   C99 -O3: the same expressions, a tenth of the compile time) except for the Cobra 600, which
    gets the default vectorised build.
 
 Tolerance: 1e-12 on the max-norm error of each output, relative to max(1, max |expected|)
@@ -60,7 +60,7 @@ ARM_FILES = sorted(ARMS_DIR.glob("*.toml"))
 SAMPLES = 200
 TOLERANCE = 1e-12
 GENERATE_TIMEOUT = 600  # seconds per arm, compile included
-VECTORISED = {"ur5"}     # arms built with the default (SIMD) flags; the rest portable C99
+VECTORISED = {"adept_cobra600"}  # arms built with the default (SIMD) flags; the rest portable C99
 
 
 # --------------------------------------------------------------------------- evaluator
