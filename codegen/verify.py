@@ -63,15 +63,17 @@ def sample_params(model: RobotModel, rng: np.random.Generator) -> dict[str, floa
     return {str(s): (v * rng.uniform(0.7, 1.3) if v != 0 else rng.uniform(0.01, 0.1)) for s, v in model.params.items()}
 
 
-def sample_targets(model: RobotModel, rng: np.random.Generator, count: int, param_sets=None) -> np.ndarray:
-    """Reachable task coordinates: the model's task at random joints, evaluated at 30 digits.
+def sample_targets(model: RobotModel, rng: np.random.Generator, count: int, param_sets=None,
+                   joints: np.ndarray | None = None) -> np.ndarray:
+    """Reachable task coordinates: the model's task at random joints (or at ``joints``),
+    evaluated at 30 digits.
 
     Target k is reached with the parameters ``param_sets[k]`` ({name: value};
     None or absent: the defaults), the ones its kernel call will use.
     """
     by_name = {str(s): s for s in model.params}
     targets = []
-    for k, q in enumerate(sample_joints(model, rng, count)):
+    for k, q in enumerate(sample_joints(model, rng, count) if joints is None else joints):
         params = (param_sets[k] if param_sets is not None else None) or {str(s): v for s, v in model.params.items()}
         subs = {s: sp.Rational(float(v)) for s, v in zip(model.q, q)}
         subs.update({by_name[n]: sp.Rational(float(v)) for n, v in params.items()})
@@ -94,6 +96,10 @@ def sample_points(model: RobotModel, function: SymbolicFunction, rng: np.random.
     if hasattr(model, "sample_arguments"):  # a kernel set says where its formulas hold
         return model.sample_arguments(function, rng, count)
     ranges = getattr(model, "sample_ranges", {})
+    if function.name == "ik" and getattr(model, "ik_free", None) is not None:
+        # a seven-joint ik: the target and the free joint's value from the same joints, as (count,)
+        joints = sample_joints(model, rng, count)
+        return [sample_targets(model, rng, count, param_sets, joints), joints[:, model.ik_free]]
     args = []
     for argument in function.arguments:
         if argument.symbols and all(s in ranges for s in argument.symbols):
@@ -270,7 +276,7 @@ def verify_model(model: RobotModel, modules: dict, samples: int = 6, seed: int =
         for k in range(samples):
             values = {}
             for argument, array in zip(function.arguments, points):
-                values.update(zip(argument.symbols, array[k]))
+                values.update(zip(argument.symbols, np.atleast_1d(array[k])))
             params = param_sets[k]
             values.update({param_symbols[n]: v for n, v in (params or {n: float(model.params[s])
                                                                      for n, s in param_symbols.items()}).items()})

@@ -859,3 +859,15 @@ def test_ik_unreachable_targets_have_no_valid_branch(name, generated_root):
     for backend in ("numpy", "c"):
         _, valid = generated_package(name, generated_root).load(backend).ik(ik_target(arm, T))
         assert not valid.any()
+
+
+def test_verify_holds_the_free_joint_ik_to_sympy(generated_root):
+    """`kinegen verify` on a seven-joint arm: the ik kernel, given the target and the free joint's
+    value of the same configuration, against its SymPy steps at 30 digits, both backends."""
+    import derivations
+    from codegen.verify import verify_model
+    package = generated_package("kuka_lwr4", generated_root)
+    model = derivations.load(ARMS["kuka_lwr4"].path)
+    checks = [c for c in verify_model(model, {"numpy": package.load("numpy"), "c": package.load("c")}, samples=2)
+              if c.kernel == "ik"]
+    assert len(checks) == 2 and all(c.ok and c.points >= 8 for c in checks), checks
