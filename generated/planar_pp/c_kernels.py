@@ -43,7 +43,7 @@ def _params(values):
     cacheable = all(type(v) is float for v in values)  # not bool, whose True == 1.0
     entry = _PARAMS.get(values) if cacheable else None
     if entry is None:
-        checked = tuple(_runtime.as_param(v, n) for v, n in zip(values, PARAMS))
+        checked = tuple(float(_runtime.as_param(v, n)) for v, n in zip(values, PARAMS))
         entry = (_ffi.new("planar_pp_params *", checked), checked)
         if cacheable:
             if len(_PARAMS) >= 256:

@@ -56,7 +56,10 @@ def as_free(value, function):
 
 
 def as_param(value, name):
-    """A robot parameter as a finite Python float, or a ValueError naming it."""
+    """A robot parameter as a finite float64 (a Python float too), or a ValueError naming it.
+
+    float64, not float: a degenerate value (a zero length) then divides as the C does, to inf
+    or NaN that the kernel reports (an ik branch not valid), never a bare ZeroDivisionError."""
     if isinstance(value, (bool, numpy.bool_)) or not isinstance(value, (numbers.Real, numpy.ndarray)):
         raise ValueError(f"parameter {name} must be a real number, got {type(value).__name__}")
     array = numpy.asarray(value)
@@ -65,7 +68,7 @@ def as_param(value, name):
     result = float(array)
     if not numpy.isfinite(result):
         raise ValueError(f"parameter {name} must be finite, got {result}")
-    return result
+    return numpy.float64(result)
 
 
 def batch_shape(*arrays):
