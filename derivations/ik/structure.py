@@ -31,14 +31,53 @@ __all__ = ["Axis", "Structure", "structure_of", "is_zero", "cross", "dot", "rota
 
 
 def is_zero(expr) -> bool:
-    """Exactly zero for every value of the parameters."""
+    """Exactly zero for every value of the parameters (and of a held joint's angle)."""
     expr = sp.sympify(expr)
     if expr == 0:
         return True
     if expr.is_number:
         return abs(complex(expr.evalf(30))) < 1e-25 and sp.nsimplify(expr) == 0
+    if not _vanishes_at_random_points(expr):
+        return False  # the common answer, found without simplify (seconds on a held joint's trig terms)
     expanded = sp.expand(expr)
-    return expanded == 0 or sp.simplify(expanded) == 0
+    if expanded == 0 or _pythagoras(expanded) == 0:
+        return True
+    # Zero at two random points, and not by expansion or sin^2 + cos^2 = 1: an identity between
+    # constants such as sin(1/10) = 2 sin(1/20) cos(1/20) (an offset of 0.05 rad), where
+    # simplify spends minutes.  The expression is analytic in its symbols, so a non-zero one
+    # vanishes only on a set of measure zero: three more random points at 50 digits decide.
+    return _vanishes_at_random_points(expr, trials=3, digits=50, seed=7, tolerance=1e-40)
+
+
+def _pythagoras(expr):
+    """``expr`` with each sine and cosine of one argument as symbols S, C, reduced modulo
+    ``S^2 + C^2 - 1`` (exact, and fast where ``simplify`` spends seconds in ``trigsimp``):
+    the held joint's angle enters the axes only through its sine and cosine."""
+    for argument in sorted({t.args[0] for t in expr.atoms(sp.sin, sp.cos)}, key=str):
+        S, C = sp.Dummy("S"), sp.Dummy("C")
+        polynomial = sp.expand(expr.xreplace({sp.sin(argument): S, sp.cos(argument): C}))
+        if polynomial.has(argument):
+            return expr  # the argument appears outside a sine or cosine: leave it to simplify
+        try:
+            remainder = sp.rem(polynomial, S**2 + C**2 - 1, S)
+        except sp.PolynomialError:
+            return expr
+        expr = sp.expand(remainder.xreplace({S: sp.sin(argument), C: sp.cos(argument)}))
+    return expr
+
+
+def _vanishes_at_random_points(expr, trials: int = 2, digits: int = 30, seed: int = 20261125,
+                               tolerance: float = 1e-20) -> bool:
+    """``expr`` is within rounding of 0 at ``trials`` seeded random points (each symbol in
+    [0.3, 1.7], at ``digits`` digits): a necessary condition for being identically zero."""
+    symbols = sorted(expr.free_symbols, key=str)
+    rng = random.Random(seed)
+    for _ in range(trials):
+        point = {s: sp.Float(rng.uniform(0.3, 1.7), digits) for s in symbols}
+        value = expr.xreplace(point).evalf(digits)
+        if not value.is_number or abs(complex(value)) > tolerance:
+            return value.is_number is False  # a value that is no number (a function left over): decide symbolically
+    return True
 
 
 def tidy(expr):
@@ -46,7 +85,12 @@ def tidy(expr):
     expr = sp.sympify(expr)
     if expr.is_Atom:
         return expr
-    return sp.simplify(sp.expand(expr))
+    expanded = sp.expand(expr)
+    if expanded.has(sp.sin, sp.cos):
+        # a held joint's angle, or an offset such as 0.05 rad: simplify's trigsimp takes seconds
+        # to minutes here; sin^2 + cos^2 = 1 is the reduction that matters
+        return _pythagoras(expanded)
+    return sp.simplify(expanded)
 
 
 def dot(a, b):
