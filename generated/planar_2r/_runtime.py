@@ -80,12 +80,15 @@ def batch_shape(*arrays):
         raise ValueError(f"batch dimensions do not broadcast: {shapes}") from None
 
 
-def as_pose_task(value, function, name, tolerance):
+def as_pose_task(value, function, name, tolerance, check_rotation=True):
     """A pose as the task vector (x, y, z, r11 .. r33), from (..., 12) or (..., 4, 4).
 
     Entries that are NaN or inf pass (ik reports them through valid); a finite pose
     whose rotation is not orthonormal within ``tolerance`` or is a reflection, or a
     4x4 whose last row is not (0, 0, 0, 1), raises a ValueError naming the item.
+    ``check_rotation=False`` leaves the rotation to the caller (the C kernels check it
+    themselves, and a refusal comes back here to be named): two thirds of the time of a
+    batched C ik called with 4x4 poses went to this check.
     """
     try:
         array = numpy.asarray(value)
@@ -106,6 +109,8 @@ def as_pose_task(value, function, name, tolerance):
     elif array.ndim == 0 or array.shape[-1] != 12:
         raise ValueError(f"{function}: expected {name} of shape (..., 12) (x, y, z, r11 .. r33) or a pose of "
                          f"shape (..., 4, 4), got shape {array.shape}")
+    if not check_rotation:
+        return array
     finite = numpy.isfinite(array).all(axis=-1)
     rotation = numpy.where(finite[..., None], array, 0.0)[..., 3:].reshape(array.shape[:-1] + (3, 3))
     rotation = numpy.where(finite[..., None, None], rotation, numpy.eye(3))

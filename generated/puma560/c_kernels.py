@@ -202,7 +202,7 @@ def ik(x, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
         return _out
     if (type(x) is not _ndarray or x.dtype is not _float64 or not x.ndim
             or x.shape[-1] != 12 or not x.flags.c_contiguous):
-        x = numpy.ascontiguousarray(_runtime.as_pose_task(x, "ik", "x", 1e-09))
+        x = numpy.ascontiguousarray(_runtime.as_pose_task(x, "ik", "x", 1e-09, check_rotation=False))
     batch = x.shape[:-1]
     count = x.size // 12
     Q = _empty(batch + (8, 6))
