@@ -128,7 +128,7 @@ def simplify_entry(expr: sp.Expr) -> sp.Expr:
     return sp.trigsimp(expr)
 
 
-def _pythagorean(expr: sp.Expr) -> sp.Expr:
+def pythagorean(expr: sp.Expr) -> sp.Expr:
     """``sin^2 + cos^2 = 1`` applied greedily: per angle, ``sin^2 -> 1 - cos^2`` or
     ``cos^2 -> 1 - sin^2``, whichever leaves fewer terms after expanding (or neither)."""
     angles = {f.args[0] for f in expr.atoms(sp.sin, sp.cos)}
@@ -161,7 +161,7 @@ def simplify_product(expr: sp.Expr) -> sp.Expr:
     expr = sp.expand(expr)
     if not expr.has(sp.sin, sp.cos):
         return expr
-    expr = _pythagorean(expr)
+    expr = pythagorean(expr)
     expr = sp.expand(merge_angle_sums(expr))
     return sp.factor_terms(expr, sign=False)
 

@@ -68,6 +68,29 @@ def evaluate_steps(model, branch, x: np.ndarray, extra=None):
     return Q, valid & np.isfinite(Q).all(axis=-1)
 
 
+def round_trip_from_steps(model, q: np.ndarray, free: int | None = None):
+    """(targets, found): the model's task at q (lambdified, default parameters), every branch
+    evaluated from its steps at those targets (the free joint, if any, at q's value) and held
+    to FK_TOLERANCE, and whether q is among the valid branches (revolute joints modulo 2 pi)."""
+    params = [float(v) for v in model.params.values()]
+    task = sp.lambdify([model.q, *model.params], list(model.task), modules="numpy")
+
+    def evaluate(joints):
+        return np.stack([np.broadcast_to(np.asarray(v, float), (len(q),)) for v in task(joints.T, *params)], axis=-1)
+
+    x = evaluate(q)
+    extra = {} if free is None else {model.q[free]: q[:, free]}
+    revolute = [i for i, kind in enumerate(model.joint_types) if kind == "R"]
+    found = np.zeros(len(q), bool)
+    for branch in model.ik:
+        Q, valid = evaluate_steps(model, branch, x, extra)
+        assert np.abs(np.where(valid[:, None], evaluate(Q) - x, 0.0)).max() < FK_TOLERANCE, branch.name
+        difference = Q - q
+        difference[:, revolute] = wrap(difference[:, revolute])
+        found |= valid & (np.abs(difference).max(axis=-1) < JOINT_TOLERANCE)
+    return x, found
+
+
 @pytest.fixture(scope="module")
 def solutions():
     return {name: (derivations.load(name), solve(derivations.load(name))) for name in ROBOTS}
@@ -181,19 +204,7 @@ def test_urdf_chains_decompose_like_dh_tables(file):
     for i, kind in enumerate(model.joint_types):
         if kind == "P":
             q[:, i] = rng.uniform(*model.limits[i], 300)
-    params = [float(v) for v in model.params.values()]
-    task = sp.lambdify([model.q, *model.params], list(model.task), modules="numpy")
-    x = np.stack([np.broadcast_to(np.asarray(v, float), (300,)) for v in task(q.T, *params)], axis=-1)
-    extra = {} if free is None else {model.q[free]: q[:, free]}
-    found = np.zeros(300, bool)
-    for branch in model.ik:
-        Q, valid = evaluate_steps(model, branch, x, extra)
-        reached = np.stack([np.broadcast_to(np.asarray(v, float), (300,)) for v in task(Q.T, *params)], axis=-1)
-        assert np.abs(np.where(valid[:, None], reached - x, 0.0)).max() < FK_TOLERANCE
-        difference = Q - q
-        revolute = [i for i, kind in enumerate(model.joint_types) if kind == "R"]
-        difference[:, revolute] = wrap(difference[:, revolute])
-        found |= valid & (np.abs(difference).max(axis=-1) < JOINT_TOLERANCE)
+    _, found = round_trip_from_steps(model, q, free)
     assert found.all()
 
 
@@ -276,18 +287,7 @@ def test_three_joint_positioning_arms(name, tmp_path):
         q[:, 2] = rng.uniform(0.1, 0.9, 1000)
     else:
         q[800:, 2] = rng.choice([0.0, np.pi / 2, -np.pi / 2, np.pi], 200)
-    params = [float(v) for v in model.params.values()]
-    task = sp.lambdify([model.q, *model.params], list(model.task), modules="numpy")
-    x = np.stack([np.broadcast_to(np.asarray(v, float), (1000,)) for v in task(q.T, *params)], axis=-1)
-    found = np.zeros(1000, bool)
-    revolute = [i for i, kind in enumerate(model.joint_types) if kind == "R"]
-    for branch in model.ik:
-        Q, valid = evaluate_steps(model, branch, x)
-        reached = np.stack([np.broadcast_to(np.asarray(v, float), (1000,)) for v in task(Q.T, *params)], axis=-1)
-        assert np.abs(np.where(valid[:, None], reached - x, 0.0)).max() < FK_TOLERANCE
-        difference = Q - q
-        difference[:, revolute] = wrap(difference[:, revolute])
-        found |= valid & (np.abs(difference).max(axis=-1) < JOINT_TOLERANCE)
+    x, found = round_trip_from_steps(model, q)
     # the anthropomorphic arm's shoulder is free with the wrist on axis 1 (q2 = q3 = +-pi/2 ...):
     # there the target is on the z axis and only the reach matters
     on_axis = np.hypot(x[:, 0], x[:, 1]) < 1e-9

@@ -46,9 +46,10 @@ import sympy as sp
 
 from ..chain import PRISMATIC, REVOLUTE
 from ..model import POSE_NAMES, IKBranch
-from .primitives import WrapAngle
+from .primitives import ClampUnit, WrapAngle
 from .structure import Axis, Structure, check_product_of_exponentials, cross, dot, is_zero, rotate, structure_of, tidy
-from .subproblems import angle_onto, angle_to_distance, angle_to_height, cone_angle, slide_to_distance
+from .subproblems import (TINY, angle_onto, angle_to_distance, angle_to_height, cone_angle, distance_coefficients,
+                          slide_to_distance)
 
 __all__ = ["IKUnsupported", "IKSolution", "solve", "attach", "IK_BUDGET"]
 
@@ -218,7 +219,6 @@ def _position(arm: _Arm, base: _Steps, w, c, what: str) -> list[_Steps]:
 # --- the families ---------------------------------------------------------------------------
 
 def _spherical_wrist(arm: _Arm, w) -> list[_Steps]:
-    S = arm.S
     a4, a5, a6 = arm.axis(3), arm.axis(4), arm.axis(5)
     base = _Steps()
     rotation, point = _pose_target(arm, base)
@@ -326,22 +326,13 @@ def _free_wrist_angle(arm: _Arm, steps: _Steps, rotation, point):
     reachable singular target always has a valid branch, and the choice is the same in
     every backend.
     """
-    a2, a3, a4, a5, a6 = (arm.axis(i) for i in (1, 2, 3, 4, 5))
+    a2, a3, a4, a6 = (arm.axis(i) for i in (1, 2, 3, 5))
     z = arm.move_point(4, a4.p, -1)                    # E5^-1 p4
     A = arm.move_point(0, point(a6.p), -1) - a2.p      # E1^-1 G p6 - p2
     a_vec = steps.vector("a6", _transpose_apply(rotation, arm.turn(0, A)))
-    b_vec = z - a6.p
-    along = dot(a6.h, b_vec)
-    b_perp = b_vec - a6.h * along
-    P = 2 * dot(a_vec, b_perp)
-    Q = 2 * dot(a_vec, cross(a6.h, b_vec))
-    S = dot(a_vec, a_vec) + dot(b_vec, b_vec) + 2 * dot(a6.h, a_vec) * along
-    reach_a, reach_b = (a3.p - a2.p).applyfunc(tidy), (a4.p - a3.p).applyfunc(tidy)
-    centre = tidy(dot(reach_a, reach_a) + dot(reach_b, reach_b) + 2 * dot(a3.h, reach_a) * dot(a3.h, reach_b))
-    rho = sp.sqrt(P**2 + Q**2)
-    from .primitives import ClampUnit
-    from .subproblems import TINY
-    theta = sp.atan2(Q, P) + sp.acos(ClampUnit((centre - S) / (rho + TINY)))
+    P, Q, S = distance_coefficients(a6.h, a_vec, z - a6.p)
+    centre = tidy(distance_coefficients(a3.h, (a3.p - a2.p).applyfunc(tidy), (a4.p - a3.p).applyfunc(tidy))[2])
+    theta = sp.atan2(Q, P) + sp.acos(ClampUnit((centre - S) / (sp.sqrt(P**2 + Q**2) + TINY)))
     return -theta                                       # E6^-1 turns by -q6
 
 

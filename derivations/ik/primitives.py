@@ -173,54 +173,51 @@ class WrapAngle(sp.Function):
         return sp.S.One
 
 
-class _Clip(sp.Function):
-    """A clip that SymPy never evaluates on a symbolic argument.
+class _NumbersOnly(sp.Function):
+    """A one-argument function that SymPy evaluates only on a number (``_value``).
 
     ``Min(1, Max(-1, c))`` makes SymPy compare ``c`` with the bounds when it is built
     and again on every substitution; on the long arguments of a derived six-joint
-    inverse (thousands of operations) one such comparison takes minutes.  These stand
-    for the same clip, print as the same ``minimum``/``maximum`` calls, and evaluate
-    only on numbers.
+    inverse (thousands of operations) one such comparison takes minutes.  The clips
+    below stand in for it, and each backend prints them (numpy, C) or leaves them out
+    (the LaTeX of an acos argument).
     """
 
     nargs = 1
-    low = None
-    high = None
 
     @classmethod
     def eval(cls, x):
         if x.is_Number:
-            return cls._clip(x)
+            return cls._value(x)
         return None
 
     @classmethod
-    def _clip(cls, x):
-        if cls.low is not None and x < cls.low:
-            return sp.S(cls.low)
-        if cls.high is not None and x > cls.high:
-            return sp.S(cls.high)
-        return x
+    def _value(cls, x):
+        raise NotImplementedError
 
     def _eval_evalf(self, prec):
         x = self.args[0]._eval_evalf(prec)
         if x is None or not x.is_Number:
             return None
-        return self._clip(x)
+        return self._value(x)
 
     def _eval_is_real(self):
         return self.args[0].is_real
 
+
+class Ramp(_NumbersOnly):
+    """``Ramp(x)`` = ``max(x, 0)``, the argument of a square root."""
+
+    @classmethod
+    def _value(cls, x):
+        return x if x > 0 else sp.S.Zero
+
     def as_min_max(self) -> sp.Expr:
-        """The same clip as SymPy's (unevaluated) ``Min``/``Max``."""
-        x = self.args[0]
-        if self.low is not None:
-            x = sp.Max(x, self.low, evaluate=False)
-        if self.high is not None:
-            x = sp.Min(x, self.high, evaluate=False)
-        return x
+        """The same clip as SymPy's (unevaluated) ``Max``, for the printers."""
+        return sp.Max(self.args[0], 0, evaluate=False)
 
 
-class ClampUnit(sp.Function):
+class ClampUnit(_NumbersOnly):
     """``ClampUnit(c)``: the argument of an ``acos`` clipped to [-1, 1], and taken as exactly +-1
     within ``UNIT_SNAP`` of it.
 
@@ -230,43 +227,20 @@ class ClampUnit(sp.Function):
     decomposition can carry into the pose.  Snapping moves a root by at most
     ``acos(1 - UNIT_SNAP)`` = 1.4e-6 rad and leaves a residual of ``UNIT_SNAP`` times the
     equation's scale, far below the accuracy the ``ik`` kernels promise, while the double
-    root itself comes out exact.  Like :class:`_Clip`, it evaluates only on numbers.
+    root itself comes out exact.
     """
 
-    nargs = 1
-
     @classmethod
-    def eval(cls, c):
-        if c.is_Number:
-            return cls._snap(c)
-        return None
-
-    @staticmethod
-    def _snap(c):
+    def _value(cls, c):
         if c >= 1 - UNIT_SNAP:
             return sp.S.One
         if c <= -1 + UNIT_SNAP:
             return sp.S.NegativeOne
         return c
 
-    def _eval_evalf(self, prec):
-        c = self.args[0]._eval_evalf(prec)
-        if c is None or not c.is_Number:
-            return None
-        return self._snap(c)
-
-    def _eval_is_real(self):
-        return self.args[0].is_real
-
 
 # ClampUnit's snap: |c| >= 1 - UNIT_SNAP is taken as +-1.
 UNIT_SNAP = sp.Rational(1, 10**12)
-
-
-class Ramp(_Clip):
-    """``Ramp(x)`` = ``max(x, 0)``, the argument of a square root (see :class:`_Clip`)."""
-
-    low = 0
 
 
 def wrap_angle(theta: sp.Expr) -> sp.Expr:

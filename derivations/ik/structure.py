@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
-from ..chain import PRISMATIC, REVOLUTE
+from ..chain import PRISMATIC, REVOLUTE, pythagorean
 
 __all__ = ["Axis", "Structure", "structure_of", "is_zero", "cross", "dot", "rotate", "check_product_of_exponentials"]
 
@@ -45,30 +45,13 @@ def is_zero(expr) -> bool:
     if not _vanishes_at_random_points(expr):
         return False  # the common answer, found without simplify (seconds on a held joint's trig terms)
     expanded = sp.expand(expr)
-    if expanded == 0 or _pythagoras(expanded) == 0:
+    if expanded == 0 or pythagorean(expanded) == 0:
         return True
     # Zero at two random points, and not by expansion or sin^2 + cos^2 = 1: an identity between
     # constants such as sin(1/10) = 2 sin(1/20) cos(1/20) (an offset of 0.05 rad), where
     # simplify spends minutes.  The expression is analytic in its symbols, so a non-zero one
     # vanishes only on a set of measure zero: three more random points at 50 digits decide.
     return _vanishes_at_random_points(expr, trials=3, digits=50, seed=7, tolerance=1e-40)
-
-
-def _pythagoras(expr):
-    """``expr`` with each sine and cosine of one argument as symbols S, C, reduced modulo
-    ``S^2 + C^2 - 1`` (exact, and fast where ``simplify`` spends seconds in ``trigsimp``):
-    the held joint's angle enters the axes only through its sine and cosine."""
-    for argument in sorted({t.args[0] for t in expr.atoms(sp.sin, sp.cos)}, key=str):
-        S, C = sp.Dummy("S"), sp.Dummy("C")
-        polynomial = sp.expand(expr.xreplace({sp.sin(argument): S, sp.cos(argument): C}))
-        if polynomial.has(argument):
-            return expr  # the argument appears outside a sine or cosine: leave it to simplify
-        try:
-            remainder = sp.rem(polynomial, S**2 + C**2 - 1, S)
-        except sp.PolynomialError:
-            return expr
-        expr = sp.expand(remainder.xreplace({S: sp.sin(argument), C: sp.cos(argument)}))
-    return expr
 
 
 def _vanishes_at_random_points(expr, trials: int = 2, digits: int = 30, seed: int = 20261125,
@@ -95,7 +78,7 @@ def tidy(expr):
         # to minutes here; sin^2 + cos^2 = 1 is the reduction that matters, where it is cheap
         if sp.count_ops(expr) > 400:
             return expr
-        return _pythagoras(sp.expand(expr))
+        return pythagorean(sp.expand(expr))
     return sp.simplify(sp.expand(expr))
 
 

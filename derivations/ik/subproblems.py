@@ -40,7 +40,8 @@ import sympy as sp
 from .primitives import ACOS_TOLERANCE, ClampUnit, Ramp, Root
 from .structure import cross, dot
 
-__all__ = ["angle_onto", "angle_to_height", "angle_to_distance", "slide_to_distance", "cone_angle", "TINY"]
+__all__ = ["angle_onto", "angle_to_height", "angle_to_distance", "distance_coefficients", "slide_to_distance",
+           "cone_angle", "TINY"]
 
 # Added to sqrt(P^2 + Q^2) in -R / sqrt(P^2 + Q^2): keeps the division finite where
 # P = Q = 0 (the root is then free, or does not exist; the condition says which) and
@@ -75,17 +76,21 @@ def height_coefficients(h, k, v, d):
 def angle_to_height(h, k, v, d) -> list[Root]:
     """Subproblem 4: theta with ``h . rot(k, theta) v = d``."""
     P, Q, R = height_coefficients(h, k, v, d)
-    return _two_roots(P, Q, sp.S(R) if R == 0 else R, "subproblem 4")
+    return _two_roots(P, Q, R, "subproblem 4")
+
+
+def distance_coefficients(k, a, b):
+    """(P, Q, S) with ``|a + rot(k, theta) b|^2 = S + P cos(theta) + Q sin(theta)``: the squared
+    distance ranges over ``S +- sqrt(P^2 + Q^2)`` as theta turns."""
+    along = dot(k, b)
+    b_perp = sp.Matrix(b) - sp.Matrix(k) * along
+    return 2 * dot(a, b_perp), 2 * dot(a, cross(k, b)), dot(a, a) + dot(b, b) + 2 * dot(k, a) * along
 
 
 def angle_to_distance(k, a, b, delta_squared) -> list[Root]:
     """Subproblem 3: theta with ``|a + rot(k, theta) b|^2 = delta_squared``."""
-    along = dot(k, b)
-    b_perp = sp.Matrix(b) - sp.Matrix(k) * along
-    P = 2 * dot(a, b_perp)
-    Q = 2 * dot(a, cross(k, b))
-    R = dot(a, a) + dot(b, b) + 2 * dot(k, a) * along - delta_squared
-    return _two_roots(P, Q, R, "subproblem 3")
+    P, Q, S = distance_coefficients(k, a, b)
+    return _two_roots(P, Q, S - delta_squared, "subproblem 3")
 
 
 def slide_to_distance(k, a, delta_squared) -> list[Root]:
