@@ -229,6 +229,9 @@ def task_velocity(q, qd, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
     qd = _runtime.as_batch(qd, 4, "task_velocity", "qd", finite=False)
     batch = _runtime.batch_shape(q, qd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 4, "task_velocity", "q")
+        _runtime.as_batch(qd, 4, "task_velocity", "qd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     xd = _empty(batch + (4,))
@@ -257,6 +260,9 @@ def twist(q, qd, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
     qd = _runtime.as_batch(qd, 4, "twist", "qd", finite=False)
     batch = _runtime.batch_shape(q, qd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 4, "twist", "q")
+        _runtime.as_batch(qd, 4, "twist", "qd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     twist = _empty(batch + (6,))
@@ -285,6 +291,9 @@ def task_jacobian_dot(q, qd, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
     qd = _runtime.as_batch(qd, 4, "task_jacobian_dot", "qd", finite=False)
     batch = _runtime.batch_shape(q, qd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 4, "task_jacobian_dot", "q")
+        _runtime.as_batch(qd, 4, "task_jacobian_dot", "qd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     Jx_dot = _empty(batch + (4, 4))
@@ -313,6 +322,9 @@ def jacobian_dot(q, qd, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
     qd = _runtime.as_batch(qd, 4, "jacobian_dot", "qd", finite=False)
     batch = _runtime.batch_shape(q, qd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 4, "jacobian_dot", "q")
+        _runtime.as_batch(qd, 4, "jacobian_dot", "qd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     J_dot = _empty(batch + (6, 4))
@@ -342,6 +354,10 @@ def task_acceleration(q, qd, qdd, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
     qdd = _runtime.as_batch(qdd, 4, "task_acceleration", "qdd", finite=False)
     batch = _runtime.batch_shape(q, qd, qdd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 4, "task_acceleration", "q")
+        _runtime.as_batch(qd, 4, "task_acceleration", "qd")
+        _runtime.as_batch(qdd, 4, "task_acceleration", "qdd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     qdd = _input(qdd, batch)
@@ -400,6 +416,9 @@ def joint_velocity(q, xd, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
     xd = _runtime.as_batch(xd, 4, "joint_velocity", "xd", finite=False)
     batch = _runtime.batch_shape(q, xd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 4, "joint_velocity", "q")
+        _runtime.as_batch(xd, 4, "joint_velocity", "xd")
     q = _input(q, batch)
     xd = _input(xd, batch)
     qd = _empty(batch + (4,))
@@ -431,6 +450,10 @@ def joint_acceleration(q, qd, xdd, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
     xdd = _runtime.as_batch(xdd, 4, "joint_acceleration", "xdd", finite=False)
     batch = _runtime.batch_shape(q, qd, xdd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 4, "joint_acceleration", "q")
+        _runtime.as_batch(qd, 4, "joint_acceleration", "qd")
+        _runtime.as_batch(xdd, 4, "joint_acceleration", "xdd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     xdd = _input(xdd, batch)

@@ -29,6 +29,7 @@ CHUNK = 4096
 OPERATIONS = {"fk": 18, "frames": 23, "jacobian": 15, "task": 14, "task_jacobian": 15, "ik": 53, "task_velocity": 21, "twist": 21, "task_jacobian_dot": 25, "jacobian_dot": 25, "task_acceleration": 42, "manipulability": 20, "joint_velocity": 235, "joint_acceleration": 255, "tool_configuration": 16, "tool_configuration_jacobian": 18}
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def fk(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     """Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres.
 
@@ -87,6 +88,7 @@ def fk(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     return T.reshape(_batch + (4, 4))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def frames(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     """Frames T_0 (base) .. T_4 (tool), shape (..., 5, 4, 4).
 
@@ -214,6 +216,7 @@ def frames(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     return frames.reshape(_batch + (5, 4, 4))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def jacobian(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     """Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 4).
 
@@ -274,6 +277,7 @@ def jacobian(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     return J.reshape(_batch + (6, 4))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     """Task coordinates x, y, z, phi, shape (..., 4).
 
@@ -314,6 +318,7 @@ def task(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     return x.reshape(_batch + (4,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_jacobian(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     """d task / d q, shape (..., 4, 4).
 
@@ -366,7 +371,7 @@ def task_jacobian(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     return Jx.reshape(_batch + (4, 4))
 
 
-@numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def ik(x, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     """Inverse kinematics, all 2 branches (lefty, righty): Q (..., 2, 4), valid (..., 2).
 
@@ -426,6 +431,7 @@ def ik(x, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     return Q.reshape(_batch + (2, 4)), valid.reshape(_batch + (2,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_velocity(q, qd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     """Task rates x_dot = J_x q_dot, shape (..., 4).
 
@@ -474,6 +480,7 @@ def task_velocity(q, qd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     return xd.reshape(_batch + (4,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def twist(q, qd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     """Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s.
 
@@ -524,6 +531,7 @@ def twist(q, qd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     return twist.reshape(_batch + (6,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_jacobian_dot(q, qd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     """d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 4, 4).
 
@@ -584,6 +592,7 @@ def task_jacobian_dot(q, qd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     return Jx_dot.reshape(_batch + (4, 4))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def jacobian_dot(q, qd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     """d(J)/dt of the geometric Jacobian, shape (..., 6, 4).
 
@@ -652,6 +661,7 @@ def jacobian_dot(q, qd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     return J_dot.reshape(_batch + (6, 4))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_acceleration(q, qd, qdd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     """Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 4).
 
@@ -710,6 +720,7 @@ def task_acceleration(q, qd, qdd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     return xdd.reshape(_batch + (4,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def manipulability(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     """Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...).
 
@@ -740,6 +751,7 @@ def manipulability(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     return manipulability.reshape(_batch + ()), singular.reshape(_batch + ())
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_velocity(q, xd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     """Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 4) and (...).
 
@@ -862,6 +874,7 @@ def joint_velocity(q, xd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     return qd.reshape(_batch + (4,)), singular.reshape(_batch + ())
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_acceleration(q, qd, xdd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     """Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 4) and (...).
 
@@ -994,6 +1007,7 @@ def joint_acceleration(q, qd, xdd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     return qdd.reshape(_batch + (4,)), singular.reshape(_batch + ())
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def tool_configuration(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     """Rehiara Eq. 39: tool configuration vector [p; a exp(q_n/pi)], shape (..., 6); p in metres, the rest dimensionless.
 
@@ -1036,6 +1050,7 @@ def tool_configuration(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     return w_tool.reshape(_batch + (6,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def tool_configuration_jacobian(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     """Rehiara Eq. 41: d(tool configuration vector)/dq, shape (..., 6, 4). Not a velocity Jacobian: rows 4-6 are rates of a exp(q_n/pi), not angular velocity.
 

@@ -92,25 +92,20 @@ ERRORS = {"unreachable": UnreachableError, "singular": SingularError}
 STATUS = {1: "unreachable", 2: "singular"}
 
 
-def require(ok, batch, function, kind, message, name, value):
-    """Raise ``ERRORS[kind]`` unless ``ok`` holds at every point of the batch."""
-    ok = numpy.broadcast_to(ok, batch)
-    if ok.all():
-        return
-    index = tuple(int(i) for i in numpy.argwhere(~ok)[0])
-    point = numpy.broadcast_to(value, batch + value.shape[-1:])[index]
-    where = f" at batch index {index}" if index else ""
-    raise ERRORS[kind](f"{function}: {kind}: {message}; {name}{where} = {point.tolist()}")
+def require(ok, status, code):
+    """Give the items of ``status`` that are still 0 and fail ``ok`` the requirement's ``code``:
+    each item keeps its first failing requirement, as in the C kernels."""
+    status[(status == 0) & ~numpy.broadcast_to(ok, status.shape)] = code
 
 
 def check_status(status, function, messages, name, value):
-    """Raise for the first nonzero C status code, with the message of its requirement kind."""
+    """Raise for the first nonzero status code, with the message of its requirement kind."""
     failed = status != 0
     if not failed.any():
         return
     index = tuple(int(i) for i in numpy.argwhere(failed)[0])
     kind = STATUS[int(status[index])]
-    point = value[index]
+    point = numpy.broadcast_to(value, status.shape + value.shape[-1:])[index]
     where = f" at batch index {index}" if index else ""
     raise ERRORS[kind](f"{function}: {kind}: {messages[kind]}; {name}{where} = {point.tolist()}")
 
@@ -146,12 +141,17 @@ def as_pose_task(value, function, name, tolerance, check_rotation=True):
                          f"shape (..., 4, 4), got shape {array.shape}")
     if not check_rotation:
         return array
+    with numpy.errstate(all="ignore"):  # tiny or huge entries: a deviation of 0 or inf, never a warning
+        return _check_rotation(array, function, name, tolerance)
+
+
+def _check_rotation(array, function, name, tolerance):
     finite = numpy.isfinite(array).all(axis=-1)
     rotation = numpy.where(finite[..., None], array, 0.0)[..., 3:].reshape(array.shape[:-1] + (3, 3))
     rotation = numpy.where(finite[..., None, None], rotation, numpy.eye(3))
     deviation = numpy.abs(rotation @ numpy.swapaxes(rotation, -1, -2) - numpy.eye(3)).max(axis=(-2, -1))
     determinant = numpy.linalg.det(rotation) if rotation.size else numpy.ones(rotation.shape[:-2])
-    wrong = (deviation > tolerance) | (determinant < 0)
+    wrong = ~(deviation <= tolerance) | (determinant < 0)  # an overflow to NaN is wrong too
     if wrong.any():
         index = tuple(int(i) for i in numpy.argwhere(wrong)[0])
         raise ValueError(f"{function}: {name}{list(index) if index else ''} is not a rigid transform: its rotation has "

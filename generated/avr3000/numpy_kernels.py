@@ -33,6 +33,7 @@ GEAR_T = 1.0
 GEAR_R = -0.4793588112288461
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def fk(q, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres.
 
@@ -92,6 +93,7 @@ def fk(q, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-
     return T.reshape(_batch + (4, 4))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def frames(q, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Frames T_0 (base) .. T_3 (tool), shape (..., 4, 4, 4).
 
@@ -201,6 +203,7 @@ def frames(q, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J
     return frames.reshape(_batch + (4, 4, 4))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def jacobian(q, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 3).
 
@@ -264,6 +267,7 @@ def jacobian(q, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05,
     return J.reshape(_batch + (6, 3))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task(q, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Task coordinates T, R, Z, shape (..., 3).
 
@@ -298,6 +302,7 @@ def task(q, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22
     return x.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_jacobian(q, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """d task / d q, shape (..., 3, 3).
 
@@ -336,7 +341,7 @@ def task_jacobian(q, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953
     return Jx.reshape(_batch + (3, 3))
 
 
-@numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def ik(x, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Inverse kinematics: joint coordinates of each branch (principal), shape (..., 1, 3), and whether each exists, shape (..., 1).
 
@@ -378,6 +383,7 @@ def ik(x, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-
     return Q.reshape(_batch + (1, 3)), valid.reshape(_batch + (1,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def motor_to_joint(motor, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Motor -> joint position (Sotirov Eq. 1).
 
@@ -407,6 +413,7 @@ def motor_to_joint(motor, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.60363
     return joint.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def motor_to_joint_velocity(motor, motor_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Motor -> joint velocity (Sotirov Eq. 2).
 
@@ -439,6 +446,7 @@ def motor_to_joint_velocity(motor, motor_velocity, *, a=0.2667, e=0.0, J11=-4.01
     return joint_velocity.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def motor_to_joint_acceleration(motor, motor_velocity, motor_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Motor -> joint acceleration (Sotirov Eq. 3).
 
@@ -474,6 +482,7 @@ def motor_to_joint_acceleration(motor, motor_velocity, motor_acceleration, *, a=
     return joint_acceleration.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_to_tool(joint, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Joint -> tool position (Sotirov Eq. 4).
 
@@ -508,6 +517,7 @@ def joint_to_tool(joint, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.603637
     return tool.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_to_tool_velocity(joint, joint_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Joint -> tool velocity (Sotirov Eq. 5).
 
@@ -547,6 +557,7 @@ def joint_to_tool_velocity(joint, joint_velocity, *, a=0.2667, e=0.0, J11=-4.017
     return tool_velocity.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_to_tool_acceleration(joint, joint_velocity, joint_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Joint -> tool acceleration (Sotirov Eq. 6).
 
@@ -592,6 +603,7 @@ def joint_to_tool_acceleration(joint, joint_velocity, joint_acceleration, *, a=0
     return tool_acceleration.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_to_cartesian(joint, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Joint -> cartesian position (Sotirov Eq. 7).
 
@@ -638,6 +650,7 @@ def joint_to_cartesian(joint, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6
     return cartesian.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_to_cartesian_velocity(joint, joint_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Joint -> cartesian velocity (Sotirov section 2.3.2, J^x).
 
@@ -693,6 +706,7 @@ def joint_to_cartesian_velocity(joint, joint_velocity, *, a=0.2667, e=0.0, J11=-
     return cartesian_velocity.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_to_cartesian_acceleration(joint, joint_velocity, joint_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Joint -> cartesian acceleration.
 
@@ -758,6 +772,7 @@ def joint_to_cartesian_acceleration(joint, joint_velocity, joint_acceleration, *
     return cartesian_acceleration.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def tool_to_cartesian(tool, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Tool -> cartesian position (Sotirov Eqs. 7 and 8; the Matlab JX).
 
@@ -793,6 +808,7 @@ def tool_to_cartesian(tool, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.603
     return cartesian.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def tool_to_cartesian_velocity(tool, tool_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Tool -> cartesian velocity (the Matlab JX).
 
@@ -834,6 +850,7 @@ def tool_to_cartesian_velocity(tool, tool_velocity, *, a=0.2667, e=0.0, J11=-4.0
     return cartesian_velocity.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def tool_to_cartesian_acceleration(tool, tool_velocity, tool_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Tool -> cartesian acceleration.
 
@@ -885,6 +902,7 @@ def tool_to_cartesian_acceleration(tool, tool_velocity, tool_acceleration, *, a=
     return cartesian_acceleration.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def motor_to_tool(motor, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Motor -> tool position (Sotirov Eq. 14; the Matlab JMT).
 
@@ -919,6 +937,7 @@ def motor_to_tool(motor, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.603637
     return tool.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def motor_to_tool_velocity(motor, motor_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Motor -> tool velocity (Sotirov Eq. 14; the Matlab JMT).
 
@@ -962,6 +981,7 @@ def motor_to_tool_velocity(motor, motor_velocity, *, a=0.2667, e=0.0, J11=-4.017
     return tool_velocity.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def motor_to_tool_acceleration(motor, motor_velocity, motor_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Motor -> tool acceleration.
 
@@ -1015,6 +1035,7 @@ def motor_to_tool_acceleration(motor, motor_velocity, motor_acceleration, *, a=0
     return tool_acceleration.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def motor_to_cartesian(motor, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Motor -> cartesian position (the Matlab JMC).
 
@@ -1064,6 +1085,7 @@ def motor_to_cartesian(motor, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6
     return cartesian.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def motor_to_cartesian_velocity(motor, motor_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Motor -> cartesian velocity (the Matlab JMC).
 
@@ -1124,6 +1146,7 @@ def motor_to_cartesian_velocity(motor, motor_velocity, *, a=0.2667, e=0.0, J11=-
     return cartesian_velocity.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def motor_to_cartesian_acceleration(motor, motor_velocity, motor_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Motor -> cartesian acceleration.
 
@@ -1204,6 +1227,7 @@ def motor_to_cartesian_acceleration(motor, motor_velocity, motor_acceleration, *
     return cartesian_acceleration.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_to_motor(joint, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Joint -> motor position (Sotirov Eq. 11).
 
@@ -1235,6 +1259,7 @@ def joint_to_motor(joint, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.60363
     return motor.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_to_motor_velocity(joint, joint_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Joint -> motor velocity (Sotirov Eq. 12).
 
@@ -1269,6 +1294,7 @@ def joint_to_motor_velocity(joint, joint_velocity, *, a=0.2667, e=0.0, J11=-4.01
     return motor_velocity.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_to_motor_acceleration(joint, joint_velocity, joint_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Joint -> motor acceleration (Sotirov Eq. 13).
 
@@ -1306,6 +1332,7 @@ def joint_to_motor_acceleration(joint, joint_velocity, joint_acceleration, *, a=
     return motor_acceleration.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def tool_to_joint(tool, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Tool -> joint position (Sotirov Eq. 8).
 
@@ -1323,12 +1350,15 @@ def tool_to_joint(tool, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376
     _all_tool = numpy.broadcast_to(tool, _batch + (3,)).reshape(-1, 3)
     _count = _all_tool.shape[0]
     joint = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     T = tool[..., 0]
     R = tool[..., 1]
     Z = tool[..., 2]
     _t0 = (0.5)*R/a
-    _runtime.require(numpy.logical_and(numpy.greater_equal(_t0, -1), numpy.less_equal(_t0, 1)), _batch, "tool_to_joint", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "tool", tool)
+    _runtime.require(numpy.logical_and(numpy.greater_equal(_t0, -1), numpy.less_equal(_t0, 1)), _status, 1)
+    _runtime.check_status(_status, "tool_to_joint", {"unreachable": "the links reach |R| <= 2a only (R in [-2a, 2a])"}, "tool", tool)
     for _start in range(0, _count, CHUNK):
         _columns_tool = numpy.ascontiguousarray(_all_tool[_start:_start + CHUNK].T)
         T = _columns_tool[0]
@@ -1343,6 +1373,7 @@ def tool_to_joint(tool, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376
     return joint.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def tool_to_joint_velocity(tool, tool_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Tool -> joint velocity (Sotirov Eq. 9).
 
@@ -1363,16 +1394,19 @@ def tool_to_joint_velocity(tool, tool_velocity, *, a=0.2667, e=0.0, J11=-4.01756
     _all_tool_velocity = numpy.broadcast_to(tool_velocity, _batch + (3,)).reshape(-1, 3)
     _count = _all_tool.shape[0]
     joint_velocity = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     R = tool[..., 1]
     Tdot = tool_velocity[..., 0]
     Rdot = tool_velocity[..., 1]
     Zdot = tool_velocity[..., 2]
     _t0 = 1.0/a
     _t3 = (0.5)*R*_t0
-    _runtime.require(numpy.logical_and(numpy.greater_equal(_t3, -1), numpy.less_equal(_t3, 1)), _batch, "tool_to_joint_velocity", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "tool", tool)
+    _runtime.require(numpy.logical_and(numpy.greater_equal(_t3, -1), numpy.less_equal(_t3, 1)), _status, 1)
     _t1 = -0.25*(R*R)/(a*a) + 1
-    _runtime.require(numpy.greater(_t1, 0), _batch, "tool_to_joint_velocity", "singular", "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "tool", tool)
+    _runtime.require(numpy.greater(_t1, 0), _status, 2)
+    _runtime.check_status(_status, "tool_to_joint_velocity", {"unreachable": "the links reach |R| <= 2a only (R in [-2a, 2a])", "singular": "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)"}, "tool", tool)
     for _start in range(0, _count, CHUNK):
         _columns_tool = numpy.ascontiguousarray(_all_tool[_start:_start + CHUNK].T)
         R = _columns_tool[1]
@@ -1391,6 +1425,7 @@ def tool_to_joint_velocity(tool, tool_velocity, *, a=0.2667, e=0.0, J11=-4.01756
     return joint_velocity.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def tool_to_joint_acceleration(tool, tool_velocity, tool_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Tool -> joint acceleration (Sotirov Eq. 10).
 
@@ -1414,7 +1449,9 @@ def tool_to_joint_acceleration(tool, tool_velocity, tool_acceleration, *, a=0.26
     _all_tool_acceleration = numpy.broadcast_to(tool_acceleration, _batch + (3,)).reshape(-1, 3)
     _count = _all_tool.shape[0]
     joint_acceleration = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     R = tool[..., 1]
     Rdot = tool_velocity[..., 1]
     Tddot = tool_acceleration[..., 0]
@@ -1422,9 +1459,10 @@ def tool_to_joint_acceleration(tool, tool_velocity, tool_acceleration, *, a=0.26
     Zddot = tool_acceleration[..., 2]
     _t0 = 1.0/a
     _t4 = (0.5)*R*_t0
-    _runtime.require(numpy.logical_and(numpy.greater_equal(_t4, -1), numpy.less_equal(_t4, 1)), _batch, "tool_to_joint_acceleration", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "tool", tool)
+    _runtime.require(numpy.logical_and(numpy.greater_equal(_t4, -1), numpy.less_equal(_t4, 1)), _status, 1)
     _t1 = -0.25*(R*R)/(a*a) + 1
-    _runtime.require(numpy.greater(_t1, 0), _batch, "tool_to_joint_acceleration", "singular", "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "tool", tool)
+    _runtime.require(numpy.greater(_t1, 0), _status, 2)
+    _runtime.check_status(_status, "tool_to_joint_acceleration", {"unreachable": "the links reach |R| <= 2a only (R in [-2a, 2a])", "singular": "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)"}, "tool", tool)
     for _start in range(0, _count, CHUNK):
         _columns_tool = numpy.ascontiguousarray(_all_tool[_start:_start + CHUNK].T)
         R = _columns_tool[1]
@@ -1446,6 +1484,7 @@ def tool_to_joint_acceleration(tool, tool_velocity, tool_acceleration, *, a=0.26
     return joint_acceleration.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def tool_to_motor(tool, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Tool -> motor position (Sotirov Eqs. 8 and 11).
 
@@ -1463,12 +1502,15 @@ def tool_to_motor(tool, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376
     _all_tool = numpy.broadcast_to(tool, _batch + (3,)).reshape(-1, 3)
     _count = _all_tool.shape[0]
     motor = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     T = tool[..., 0]
     R = tool[..., 1]
     Z = tool[..., 2]
     _t0 = (0.5)*R/a
-    _runtime.require(numpy.logical_and(numpy.greater_equal(_t0, -1), numpy.less_equal(_t0, 1)), _batch, "tool_to_motor", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "tool", tool)
+    _runtime.require(numpy.logical_and(numpy.greater_equal(_t0, -1), numpy.less_equal(_t0, 1)), _status, 1)
+    _runtime.check_status(_status, "tool_to_motor", {"unreachable": "the links reach |R| <= 2a only (R in [-2a, 2a])"}, "tool", tool)
     _t3 = 1.0/J22
     for _start in range(0, _count, CHUNK):
         _columns_tool = numpy.ascontiguousarray(_all_tool[_start:_start + CHUNK].T)
@@ -1485,6 +1527,7 @@ def tool_to_motor(tool, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376
     return motor.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def tool_to_motor_velocity(tool, tool_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Tool -> motor velocity.
 
@@ -1505,16 +1548,19 @@ def tool_to_motor_velocity(tool, tool_velocity, *, a=0.2667, e=0.0, J11=-4.01756
     _all_tool_velocity = numpy.broadcast_to(tool_velocity, _batch + (3,)).reshape(-1, 3)
     _count = _all_tool.shape[0]
     motor_velocity = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     R = tool[..., 1]
     Tdot = tool_velocity[..., 0]
     Rdot = tool_velocity[..., 1]
     Zdot = tool_velocity[..., 2]
     _t2 = 1.0/a
     _t8 = (0.5)*R*_t2
-    _runtime.require(numpy.logical_and(numpy.greater_equal(_t8, -1), numpy.less_equal(_t8, 1)), _batch, "tool_to_motor_velocity", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "tool", tool)
+    _runtime.require(numpy.logical_and(numpy.greater_equal(_t8, -1), numpy.less_equal(_t8, 1)), _status, 1)
     _t3 = -0.25*(R*R)/(a*a) + 1
-    _runtime.require(numpy.greater(_t3, 0), _batch, "tool_to_motor_velocity", "singular", "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "tool", tool)
+    _runtime.require(numpy.greater(_t3, 0), _status, 2)
+    _runtime.check_status(_status, "tool_to_motor_velocity", {"unreachable": "the links reach |R| <= 2a only (R in [-2a, 2a])", "singular": "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)"}, "tool", tool)
     _t0 = 1.0/J11
     _t5 = (0.5)*_t0
     _t6 = 1.0/J22
@@ -1538,6 +1584,7 @@ def tool_to_motor_velocity(tool, tool_velocity, *, a=0.2667, e=0.0, J11=-4.01756
     return motor_velocity.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def tool_to_motor_acceleration(tool, tool_velocity, tool_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Tool -> motor acceleration.
 
@@ -1561,7 +1608,9 @@ def tool_to_motor_acceleration(tool, tool_velocity, tool_acceleration, *, a=0.26
     _all_tool_acceleration = numpy.broadcast_to(tool_acceleration, _batch + (3,)).reshape(-1, 3)
     _count = _all_tool.shape[0]
     motor_acceleration = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     R = tool[..., 1]
     Rdot = tool_velocity[..., 1]
     Tddot = tool_acceleration[..., 0]
@@ -1569,9 +1618,10 @@ def tool_to_motor_acceleration(tool, tool_velocity, tool_acceleration, *, a=0.26
     Zddot = tool_acceleration[..., 2]
     _t2 = 1.0/a
     _t12 = (0.5)*R*_t2
-    _runtime.require(numpy.logical_and(numpy.greater_equal(_t12, -1), numpy.less_equal(_t12, 1)), _batch, "tool_to_motor_acceleration", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "tool", tool)
+    _runtime.require(numpy.logical_and(numpy.greater_equal(_t12, -1), numpy.less_equal(_t12, 1)), _status, 1)
     _t3 = -0.25*(R*R)/(a*a) + 1
-    _runtime.require(numpy.greater(_t3, 0), _batch, "tool_to_motor_acceleration", "singular", "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "tool", tool)
+    _runtime.require(numpy.greater(_t3, 0), _status, 2)
+    _runtime.check_status(_status, "tool_to_motor_acceleration", {"unreachable": "the links reach |R| <= 2a only (R in [-2a, 2a])", "singular": "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)"}, "tool", tool)
     _t0 = 1.0/J11
     _t5 = (0.5)*_t0
     _t9 = 1.0/J22
@@ -1601,6 +1651,7 @@ def tool_to_motor_acceleration(tool, tool_velocity, tool_acceleration, *, a=0.26
     return motor_acceleration.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def cartesian_to_tool(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Cartesian -> tool position. Branch R - e = +sqrt(x^2 + y^2), T = atan2(x, y) in (-pi, pi].
 
@@ -1618,12 +1669,15 @@ def cartesian_to_tool(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=
     _all_cartesian = numpy.broadcast_to(cartesian, _batch + (3,)).reshape(-1, 3)
     _count = _all_cartesian.shape[0]
     tool = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     z = cartesian[..., 2]
     _t0 = (x*x) + (y*y)
-    _runtime.require(numpy.greater(_t0, 0), _batch, "cartesian_to_tool", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t0, 0), _status, 2)
+    _runtime.check_status(_status, "cartesian_to_tool", {"singular": "the tip is on the T axis (x = y = 0), where T is undetermined"}, "cartesian", cartesian)
     for _start in range(0, _count, CHUNK):
         _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
         x = _columns_cartesian[0]
@@ -1638,6 +1692,7 @@ def cartesian_to_tool(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=
     return tool.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def cartesian_to_tool_velocity(cartesian, cartesian_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Cartesian -> tool velocity. Branch R - e = +sqrt(x^2 + y^2), T = atan2(x, y) in (-pi, pi].
 
@@ -1658,14 +1713,17 @@ def cartesian_to_tool_velocity(cartesian, cartesian_velocity, *, a=0.2667, e=0.0
     _all_cartesian_velocity = numpy.broadcast_to(cartesian_velocity, _batch + (3,)).reshape(-1, 3)
     _count = _all_cartesian.shape[0]
     tool_velocity = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     xdot = cartesian_velocity[..., 0]
     ydot = cartesian_velocity[..., 1]
     zdot = cartesian_velocity[..., 2]
     _t0 = (x*x) + (y*y)
-    _runtime.require(numpy.greater(_t0, 0), _batch, "cartesian_to_tool_velocity", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t0, 0), _status, 2)
+    _runtime.check_status(_status, "cartesian_to_tool_velocity", {"singular": "the tip is on the T axis (x = y = 0), where T is undetermined"}, "cartesian", cartesian)
     for _start in range(0, _count, CHUNK):
         _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
         x = _columns_cartesian[0]
@@ -1684,6 +1742,7 @@ def cartesian_to_tool_velocity(cartesian, cartesian_velocity, *, a=0.2667, e=0.0
     return tool_velocity.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def cartesian_to_tool_acceleration(cartesian, cartesian_velocity, cartesian_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Cartesian -> tool acceleration. Branch R - e = +sqrt(x^2 + y^2), T = atan2(x, y) in (-pi, pi].
 
@@ -1707,7 +1766,9 @@ def cartesian_to_tool_acceleration(cartesian, cartesian_velocity, cartesian_acce
     _all_cartesian_acceleration = numpy.broadcast_to(cartesian_acceleration, _batch + (3,)).reshape(-1, 3)
     _count = _all_cartesian.shape[0]
     tool_acceleration = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     xdot = cartesian_velocity[..., 0]
@@ -1718,7 +1779,8 @@ def cartesian_to_tool_acceleration(cartesian, cartesian_velocity, cartesian_acce
     _t0 = (x*x)
     _t1 = (y*y)
     _t2 = _t0 + _t1
-    _runtime.require(numpy.greater(_t2, 0), _batch, "cartesian_to_tool_acceleration", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t2, 0), _status, 2)
+    _runtime.check_status(_status, "cartesian_to_tool_acceleration", {"singular": "the tip is on the T axis (x = y = 0), where T is undetermined"}, "cartesian", cartesian)
     for _start in range(0, _count, CHUNK):
         _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
         x = _columns_cartesian[0]
@@ -1749,6 +1811,7 @@ def cartesian_to_tool_acceleration(cartesian, cartesian_velocity, cartesian_acce
     return tool_acceleration.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def cartesian_to_joint(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Cartesian -> joint position.
 
@@ -1766,14 +1829,17 @@ def cartesian_to_joint(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21
     _all_cartesian = numpy.broadcast_to(cartesian, _batch + (3,)).reshape(-1, 3)
     _count = _all_cartesian.shape[0]
     joint = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     z = cartesian[..., 2]
     _t0 = (x*x) + (y*y)
-    _runtime.require(numpy.greater(_t0, 0), _batch, "cartesian_to_joint", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t0, 0), _status, 2)
     _t1 = (0.5)*(numpy.sqrt(_t0) + e)/a
-    _runtime.require(numpy.logical_and(numpy.greater_equal(_t1, -1), numpy.less_equal(_t1, 1)), _batch, "cartesian_to_joint", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "cartesian", cartesian)
+    _runtime.require(numpy.logical_and(numpy.greater_equal(_t1, -1), numpy.less_equal(_t1, 1)), _status, 1)
+    _runtime.check_status(_status, "cartesian_to_joint", {"singular": "the tip is on the T axis (x = y = 0), where T is undetermined", "unreachable": "the links reach |R| <= 2a only (R in [-2a, 2a])"}, "cartesian", cartesian)
     for _start in range(0, _count, CHUNK):
         _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
         x = _columns_cartesian[0]
@@ -1790,6 +1856,7 @@ def cartesian_to_joint(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21
     return joint.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def cartesian_to_joint_velocity(cartesian, cartesian_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Cartesian -> joint velocity.
 
@@ -1810,22 +1877,25 @@ def cartesian_to_joint_velocity(cartesian, cartesian_velocity, *, a=0.2667, e=0.
     _all_cartesian_velocity = numpy.broadcast_to(cartesian_velocity, _batch + (3,)).reshape(-1, 3)
     _count = _all_cartesian.shape[0]
     joint_velocity = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     xdot = cartesian_velocity[..., 0]
     ydot = cartesian_velocity[..., 1]
     zdot = cartesian_velocity[..., 2]
     _t0 = (x*x) + (y*y)
-    _runtime.require(numpy.greater(_t0, 0), _batch, "cartesian_to_joint_velocity", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t0, 0), _status, 2)
     _t2 = 1.0/a
     _t3 = numpy.sqrt(_t0)
     _t4 = _t3 + e
     _t8 = (0.5)*_t2
     _t11 = _t4*_t8
-    _runtime.require(numpy.logical_and(numpy.greater_equal(_t11, -1), numpy.less_equal(_t11, 1)), _batch, "cartesian_to_joint_velocity", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "cartesian", cartesian)
+    _runtime.require(numpy.logical_and(numpy.greater_equal(_t11, -1), numpy.less_equal(_t11, 1)), _status, 1)
     _t5 = -0.25*(_t4*_t4)/(a*a) + 1
-    _runtime.require(numpy.greater(_t5, 0), _batch, "cartesian_to_joint_velocity", "singular", "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t5, 0), _status, 2)
+    _runtime.check_status(_status, "cartesian_to_joint_velocity", {"singular": "the tip is on the T axis (x = y = 0), where T is undetermined; or sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "unreachable": "the links reach |R| <= 2a only (R in [-2a, 2a])"}, "cartesian", cartesian)
     for _start in range(0, _count, CHUNK):
         _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
         x = _columns_cartesian[0]
@@ -1853,6 +1923,7 @@ def cartesian_to_joint_velocity(cartesian, cartesian_velocity, *, a=0.2667, e=0.
     return joint_velocity.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def cartesian_to_joint_acceleration(cartesian, cartesian_velocity, cartesian_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Cartesian -> joint acceleration.
 
@@ -1876,7 +1947,9 @@ def cartesian_to_joint_acceleration(cartesian, cartesian_velocity, cartesian_acc
     _all_cartesian_acceleration = numpy.broadcast_to(cartesian_acceleration, _batch + (3,)).reshape(-1, 3)
     _count = _all_cartesian.shape[0]
     joint_acceleration = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     xdot = cartesian_velocity[..., 0]
@@ -1887,15 +1960,16 @@ def cartesian_to_joint_acceleration(cartesian, cartesian_velocity, cartesian_acc
     _t0 = (x*x)
     _t1 = (y*y)
     _t2 = _t0 + _t1
-    _runtime.require(numpy.greater(_t2, 0), _batch, "cartesian_to_joint_acceleration", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t2, 0), _status, 2)
     _t5 = 1.0/a
     _t6 = numpy.sqrt(_t2)
     _t7 = _t6 + e
     _t11 = (0.5)*_t5
     _t30 = _t11*_t7
-    _runtime.require(numpy.logical_and(numpy.greater_equal(_t30, -1), numpy.less_equal(_t30, 1)), _batch, "cartesian_to_joint_acceleration", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "cartesian", cartesian)
+    _runtime.require(numpy.logical_and(numpy.greater_equal(_t30, -1), numpy.less_equal(_t30, 1)), _status, 1)
     _t8 = -0.25*(_t7*_t7)/(a*a) + 1
-    _runtime.require(numpy.greater(_t8, 0), _batch, "cartesian_to_joint_acceleration", "singular", "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t8, 0), _status, 2)
+    _runtime.check_status(_status, "cartesian_to_joint_acceleration", {"singular": "the tip is on the T axis (x = y = 0), where T is undetermined; or sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "unreachable": "the links reach |R| <= 2a only (R in [-2a, 2a])"}, "cartesian", cartesian)
     _t19 = 1.0/(a*a*a)
     for _start in range(0, _count, CHUNK):
         _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
@@ -1945,6 +2019,7 @@ def cartesian_to_joint_acceleration(cartesian, cartesian_velocity, cartesian_acc
     return joint_acceleration.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def cartesian_to_motor(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Cartesian -> motor position.
 
@@ -1962,14 +2037,17 @@ def cartesian_to_motor(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21
     _all_cartesian = numpy.broadcast_to(cartesian, _batch + (3,)).reshape(-1, 3)
     _count = _all_cartesian.shape[0]
     motor = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     z = cartesian[..., 2]
     _t0 = (x*x) + (y*y)
-    _runtime.require(numpy.greater(_t0, 0), _batch, "cartesian_to_motor", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t0, 0), _status, 2)
     _t1 = (0.5)*(numpy.sqrt(_t0) + e)/a
-    _runtime.require(numpy.logical_and(numpy.greater_equal(_t1, -1), numpy.less_equal(_t1, 1)), _batch, "cartesian_to_motor", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "cartesian", cartesian)
+    _runtime.require(numpy.logical_and(numpy.greater_equal(_t1, -1), numpy.less_equal(_t1, 1)), _status, 1)
+    _runtime.check_status(_status, "cartesian_to_motor", {"singular": "the tip is on the T axis (x = y = 0), where T is undetermined", "unreachable": "the links reach |R| <= 2a only (R in [-2a, 2a])"}, "cartesian", cartesian)
     _t4 = 1.0/J22
     for _start in range(0, _count, CHUNK):
         _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
@@ -1988,6 +2066,7 @@ def cartesian_to_motor(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21
     return motor.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def cartesian_to_motor_velocity(cartesian, cartesian_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Cartesian -> motor velocity.
 
@@ -2008,22 +2087,25 @@ def cartesian_to_motor_velocity(cartesian, cartesian_velocity, *, a=0.2667, e=0.
     _all_cartesian_velocity = numpy.broadcast_to(cartesian_velocity, _batch + (3,)).reshape(-1, 3)
     _count = _all_cartesian.shape[0]
     motor_velocity = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     xdot = cartesian_velocity[..., 0]
     ydot = cartesian_velocity[..., 1]
     zdot = cartesian_velocity[..., 2]
     _t1 = (x*x) + (y*y)
-    _runtime.require(numpy.greater(_t1, 0), _batch, "cartesian_to_motor_velocity", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t1, 0), _status, 2)
     _t3 = 1.0/a
     _t4 = numpy.sqrt(_t1)
     _t5 = _t4 + e
     _t10 = (0.5)*_t3
     _t16 = _t10*_t5
-    _runtime.require(numpy.logical_and(numpy.greater_equal(_t16, -1), numpy.less_equal(_t16, 1)), _batch, "cartesian_to_motor_velocity", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "cartesian", cartesian)
+    _runtime.require(numpy.logical_and(numpy.greater_equal(_t16, -1), numpy.less_equal(_t16, 1)), _status, 1)
     _t6 = -0.25*(_t5*_t5)/(a*a) + 1
-    _runtime.require(numpy.greater(_t6, 0), _batch, "cartesian_to_motor_velocity", "singular", "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t6, 0), _status, 2)
+    _runtime.check_status(_status, "cartesian_to_motor_velocity", {"singular": "the tip is on the T axis (x = y = 0), where T is undetermined; or sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "unreachable": "the links reach |R| <= 2a only (R in [-2a, 2a])"}, "cartesian", cartesian)
     _t0 = 1.0/J11
     _t13 = 1.0/J22
     _t14 = J21*_t13
@@ -2056,6 +2138,7 @@ def cartesian_to_motor_velocity(cartesian, cartesian_velocity, *, a=0.2667, e=0.
     return motor_velocity.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def cartesian_to_motor_acceleration(cartesian, cartesian_velocity, cartesian_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Cartesian -> motor acceleration.
 
@@ -2079,7 +2162,9 @@ def cartesian_to_motor_acceleration(cartesian, cartesian_velocity, cartesian_acc
     _all_cartesian_acceleration = numpy.broadcast_to(cartesian_acceleration, _batch + (3,)).reshape(-1, 3)
     _count = _all_cartesian.shape[0]
     motor_acceleration = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     xdot = cartesian_velocity[..., 0]
@@ -2090,15 +2175,16 @@ def cartesian_to_motor_acceleration(cartesian, cartesian_velocity, cartesian_acc
     _t2 = (x*x)
     _t3 = (y*y)
     _t4 = _t2 + _t3
-    _runtime.require(numpy.greater(_t4, 0), _batch, "cartesian_to_motor_acceleration", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t4, 0), _status, 2)
     _t0 = 1.0/a
     _t1 = (0.5)*_t0
     _t5 = numpy.sqrt(_t4)
     _t6 = _t5 + e
     _t42 = _t1*_t6
-    _runtime.require(numpy.logical_and(numpy.greater_equal(_t42, -1), numpy.less_equal(_t42, 1)), _batch, "cartesian_to_motor_acceleration", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "cartesian", cartesian)
+    _runtime.require(numpy.logical_and(numpy.greater_equal(_t42, -1), numpy.less_equal(_t42, 1)), _status, 1)
     _t7 = -0.25*(_t6*_t6)/(a*a) + 1
-    _runtime.require(numpy.greater(_t7, 0), _batch, "cartesian_to_motor_acceleration", "singular", "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t7, 0), _status, 2)
+    _runtime.check_status(_status, "cartesian_to_motor_acceleration", {"singular": "the tip is on the T axis (x = y = 0), where T is undetermined; or sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "unreachable": "the links reach |R| <= 2a only (R in [-2a, 2a])"}, "cartesian", cartesian)
     _t18 = 1.0/(a*a*a)
     _t23 = 1.0/J11
     _t35 = 1.0/J22
@@ -2160,6 +2246,7 @@ def cartesian_to_motor_acceleration(cartesian, cartesian_velocity, cartesian_acc
     return motor_acceleration.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def cartesian_to_tool_reversed(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Cartesian -> tool position. Branch R - e = -sqrt(x^2 + y^2), T = atan2(x, y) + pi wrapped to (-pi, pi]: the arm turned half a turn and folded through the T axis.
 
@@ -2177,12 +2264,15 @@ def cartesian_to_tool_reversed(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732e
     _all_cartesian = numpy.broadcast_to(cartesian, _batch + (3,)).reshape(-1, 3)
     _count = _all_cartesian.shape[0]
     tool = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     z = cartesian[..., 2]
     _t0 = (x*x) + (y*y)
-    _runtime.require(numpy.greater(_t0, 0), _batch, "cartesian_to_tool_reversed", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t0, 0), _status, 2)
+    _runtime.check_status(_status, "cartesian_to_tool_reversed", {"singular": "the tip is on the T axis (x = y = 0), where T is undetermined"}, "cartesian", cartesian)
     for _start in range(0, _count, CHUNK):
         _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
         x = _columns_cartesian[0]
@@ -2197,6 +2287,7 @@ def cartesian_to_tool_reversed(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732e
     return tool.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def cartesian_to_tool_reversed_velocity(cartesian, cartesian_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Cartesian -> tool velocity. Branch R - e = -sqrt(x^2 + y^2), T = atan2(x, y) + pi wrapped to (-pi, pi]: the arm turned half a turn and folded through the T axis.
 
@@ -2217,14 +2308,17 @@ def cartesian_to_tool_reversed_velocity(cartesian, cartesian_velocity, *, a=0.26
     _all_cartesian_velocity = numpy.broadcast_to(cartesian_velocity, _batch + (3,)).reshape(-1, 3)
     _count = _all_cartesian.shape[0]
     tool_velocity = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     xdot = cartesian_velocity[..., 0]
     ydot = cartesian_velocity[..., 1]
     zdot = cartesian_velocity[..., 2]
     _t0 = (x*x) + (y*y)
-    _runtime.require(numpy.greater(_t0, 0), _batch, "cartesian_to_tool_reversed_velocity", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t0, 0), _status, 2)
+    _runtime.check_status(_status, "cartesian_to_tool_reversed_velocity", {"singular": "the tip is on the T axis (x = y = 0), where T is undetermined"}, "cartesian", cartesian)
     for _start in range(0, _count, CHUNK):
         _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
         x = _columns_cartesian[0]
@@ -2243,6 +2337,7 @@ def cartesian_to_tool_reversed_velocity(cartesian, cartesian_velocity, *, a=0.26
     return tool_velocity.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def cartesian_to_tool_reversed_acceleration(cartesian, cartesian_velocity, cartesian_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Cartesian -> tool acceleration. Branch R - e = -sqrt(x^2 + y^2), T = atan2(x, y) + pi wrapped to (-pi, pi]: the arm turned half a turn and folded through the T axis.
 
@@ -2266,7 +2361,9 @@ def cartesian_to_tool_reversed_acceleration(cartesian, cartesian_velocity, carte
     _all_cartesian_acceleration = numpy.broadcast_to(cartesian_acceleration, _batch + (3,)).reshape(-1, 3)
     _count = _all_cartesian.shape[0]
     tool_acceleration = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     xdot = cartesian_velocity[..., 0]
@@ -2277,7 +2374,8 @@ def cartesian_to_tool_reversed_acceleration(cartesian, cartesian_velocity, carte
     _t0 = (x*x)
     _t1 = (y*y)
     _t2 = _t0 + _t1
-    _runtime.require(numpy.greater(_t2, 0), _batch, "cartesian_to_tool_reversed_acceleration", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t2, 0), _status, 2)
+    _runtime.check_status(_status, "cartesian_to_tool_reversed_acceleration", {"singular": "the tip is on the T axis (x = y = 0), where T is undetermined"}, "cartesian", cartesian)
     for _start in range(0, _count, CHUNK):
         _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
         x = _columns_cartesian[0]
@@ -2308,6 +2406,7 @@ def cartesian_to_tool_reversed_acceleration(cartesian, cartesian_velocity, carte
     return tool_acceleration.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def cartesian_to_joint_reversed(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Cartesian -> joint position.
 
@@ -2325,14 +2424,17 @@ def cartesian_to_joint_reversed(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732
     _all_cartesian = numpy.broadcast_to(cartesian, _batch + (3,)).reshape(-1, 3)
     _count = _all_cartesian.shape[0]
     joint = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     z = cartesian[..., 2]
     _t0 = (x*x) + (y*y)
-    _runtime.require(numpy.greater(_t0, 0), _batch, "cartesian_to_joint_reversed", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t0, 0), _status, 2)
     _t1 = (0.5)*(-numpy.sqrt(_t0) + e)/a
-    _runtime.require(numpy.logical_and(numpy.greater_equal(_t1, -1), numpy.less_equal(_t1, 1)), _batch, "cartesian_to_joint_reversed", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "cartesian", cartesian)
+    _runtime.require(numpy.logical_and(numpy.greater_equal(_t1, -1), numpy.less_equal(_t1, 1)), _status, 1)
+    _runtime.check_status(_status, "cartesian_to_joint_reversed", {"singular": "the tip is on the T axis (x = y = 0), where T is undetermined", "unreachable": "the links reach |R| <= 2a only (R in [-2a, 2a])"}, "cartesian", cartesian)
     for _start in range(0, _count, CHUNK):
         _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
         x = _columns_cartesian[0]
@@ -2349,6 +2451,7 @@ def cartesian_to_joint_reversed(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732
     return joint.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def cartesian_to_joint_reversed_velocity(cartesian, cartesian_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Cartesian -> joint velocity.
 
@@ -2369,22 +2472,25 @@ def cartesian_to_joint_reversed_velocity(cartesian, cartesian_velocity, *, a=0.2
     _all_cartesian_velocity = numpy.broadcast_to(cartesian_velocity, _batch + (3,)).reshape(-1, 3)
     _count = _all_cartesian.shape[0]
     joint_velocity = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     xdot = cartesian_velocity[..., 0]
     ydot = cartesian_velocity[..., 1]
     zdot = cartesian_velocity[..., 2]
     _t0 = (x*x) + (y*y)
-    _runtime.require(numpy.greater(_t0, 0), _batch, "cartesian_to_joint_reversed_velocity", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t0, 0), _status, 2)
     _t2 = 1.0/a
     _t3 = (0.5)*_t2
     _t4 = numpy.sqrt(_t0)
     _t5 = -_t4 + e
     _t10 = _t3*_t5
-    _runtime.require(numpy.logical_and(numpy.greater_equal(_t10, -1), numpy.less_equal(_t10, 1)), _batch, "cartesian_to_joint_reversed_velocity", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "cartesian", cartesian)
+    _runtime.require(numpy.logical_and(numpy.greater_equal(_t10, -1), numpy.less_equal(_t10, 1)), _status, 1)
     _t6 = -0.25*(_t5*_t5)/(a*a) + 1
-    _runtime.require(numpy.greater(_t6, 0), _batch, "cartesian_to_joint_reversed_velocity", "singular", "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t6, 0), _status, 2)
+    _runtime.check_status(_status, "cartesian_to_joint_reversed_velocity", {"singular": "the tip is on the T axis (x = y = 0), where T is undetermined; or sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "unreachable": "the links reach |R| <= 2a only (R in [-2a, 2a])"}, "cartesian", cartesian)
     for _start in range(0, _count, CHUNK):
         _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
         x = _columns_cartesian[0]
@@ -2411,6 +2517,7 @@ def cartesian_to_joint_reversed_velocity(cartesian, cartesian_velocity, *, a=0.2
     return joint_velocity.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def cartesian_to_joint_reversed_acceleration(cartesian, cartesian_velocity, cartesian_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Cartesian -> joint acceleration.
 
@@ -2434,7 +2541,9 @@ def cartesian_to_joint_reversed_acceleration(cartesian, cartesian_velocity, cart
     _all_cartesian_acceleration = numpy.broadcast_to(cartesian_acceleration, _batch + (3,)).reshape(-1, 3)
     _count = _all_cartesian.shape[0]
     joint_acceleration = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     xdot = cartesian_velocity[..., 0]
@@ -2445,15 +2554,16 @@ def cartesian_to_joint_reversed_acceleration(cartesian, cartesian_velocity, cart
     _t0 = (x*x)
     _t1 = (y*y)
     _t2 = _t0 + _t1
-    _runtime.require(numpy.greater(_t2, 0), _batch, "cartesian_to_joint_reversed_acceleration", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t2, 0), _status, 2)
     _t5 = 1.0/a
     _t6 = (0.5)*_t5
     _t7 = numpy.sqrt(_t2)
     _t8 = -_t7 + e
     _t33 = _t6*_t8
-    _runtime.require(numpy.logical_and(numpy.greater_equal(_t33, -1), numpy.less_equal(_t33, 1)), _batch, "cartesian_to_joint_reversed_acceleration", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "cartesian", cartesian)
+    _runtime.require(numpy.logical_and(numpy.greater_equal(_t33, -1), numpy.less_equal(_t33, 1)), _status, 1)
     _t9 = -0.25*(_t8*_t8)/(a*a) + 1
-    _runtime.require(numpy.greater(_t9, 0), _batch, "cartesian_to_joint_reversed_acceleration", "singular", "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t9, 0), _status, 2)
+    _runtime.check_status(_status, "cartesian_to_joint_reversed_acceleration", {"singular": "the tip is on the T axis (x = y = 0), where T is undetermined; or sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "unreachable": "the links reach |R| <= 2a only (R in [-2a, 2a])"}, "cartesian", cartesian)
     _t20 = 1.0/(a*a*a)
     for _start in range(0, _count, CHUNK):
         _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
@@ -2506,6 +2616,7 @@ def cartesian_to_joint_reversed_acceleration(cartesian, cartesian_velocity, cart
     return joint_acceleration.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def cartesian_to_motor_reversed(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Cartesian -> motor position.
 
@@ -2523,14 +2634,17 @@ def cartesian_to_motor_reversed(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732
     _all_cartesian = numpy.broadcast_to(cartesian, _batch + (3,)).reshape(-1, 3)
     _count = _all_cartesian.shape[0]
     motor = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     z = cartesian[..., 2]
     _t0 = (x*x) + (y*y)
-    _runtime.require(numpy.greater(_t0, 0), _batch, "cartesian_to_motor_reversed", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t0, 0), _status, 2)
     _t1 = (0.5)*(-numpy.sqrt(_t0) + e)/a
-    _runtime.require(numpy.logical_and(numpy.greater_equal(_t1, -1), numpy.less_equal(_t1, 1)), _batch, "cartesian_to_motor_reversed", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "cartesian", cartesian)
+    _runtime.require(numpy.logical_and(numpy.greater_equal(_t1, -1), numpy.less_equal(_t1, 1)), _status, 1)
+    _runtime.check_status(_status, "cartesian_to_motor_reversed", {"singular": "the tip is on the T axis (x = y = 0), where T is undetermined", "unreachable": "the links reach |R| <= 2a only (R in [-2a, 2a])"}, "cartesian", cartesian)
     _t4 = 1.0/J22
     for _start in range(0, _count, CHUNK):
         _columns_cartesian = numpy.ascontiguousarray(_all_cartesian[_start:_start + CHUNK].T)
@@ -2549,6 +2663,7 @@ def cartesian_to_motor_reversed(cartesian, *, a=0.2667, e=0.0, J11=-4.0175691732
     return motor.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def cartesian_to_motor_reversed_velocity(cartesian, cartesian_velocity, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Cartesian -> motor velocity.
 
@@ -2569,22 +2684,25 @@ def cartesian_to_motor_reversed_velocity(cartesian, cartesian_velocity, *, a=0.2
     _all_cartesian_velocity = numpy.broadcast_to(cartesian_velocity, _batch + (3,)).reshape(-1, 3)
     _count = _all_cartesian.shape[0]
     motor_velocity = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     xdot = cartesian_velocity[..., 0]
     ydot = cartesian_velocity[..., 1]
     zdot = cartesian_velocity[..., 2]
     _t1 = (x*x) + (y*y)
-    _runtime.require(numpy.greater(_t1, 0), _batch, "cartesian_to_motor_reversed_velocity", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t1, 0), _status, 2)
     _t3 = 1.0/a
     _t4 = (0.5)*_t3
     _t5 = numpy.sqrt(_t1)
     _t6 = -_t5 + e
     _t15 = _t4*_t6
-    _runtime.require(numpy.logical_and(numpy.greater_equal(_t15, -1), numpy.less_equal(_t15, 1)), _batch, "cartesian_to_motor_reversed_velocity", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "cartesian", cartesian)
+    _runtime.require(numpy.logical_and(numpy.greater_equal(_t15, -1), numpy.less_equal(_t15, 1)), _status, 1)
     _t7 = -0.25*(_t6*_t6)/(a*a) + 1
-    _runtime.require(numpy.greater(_t7, 0), _batch, "cartesian_to_motor_reversed_velocity", "singular", "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t7, 0), _status, 2)
+    _runtime.check_status(_status, "cartesian_to_motor_reversed_velocity", {"singular": "the tip is on the T axis (x = y = 0), where T is undetermined; or sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "unreachable": "the links reach |R| <= 2a only (R in [-2a, 2a])"}, "cartesian", cartesian)
     _t0 = 1.0/J11
     _t12 = 1.0/J22
     _t13 = J21*_t12
@@ -2616,6 +2734,7 @@ def cartesian_to_motor_reversed_velocity(cartesian, cartesian_velocity, *, a=0.2
     return motor_velocity.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def cartesian_to_motor_reversed_acceleration(cartesian, cartesian_velocity, cartesian_acceleration, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
     """Cartesian -> motor acceleration.
 
@@ -2639,7 +2758,9 @@ def cartesian_to_motor_reversed_acceleration(cartesian, cartesian_velocity, cart
     _all_cartesian_acceleration = numpy.broadcast_to(cartesian_acceleration, _batch + (3,)).reshape(-1, 3)
     _count = _all_cartesian.shape[0]
     motor_acceleration = numpy.empty((_count, 3))
-    # The requirements, over the whole batch before any output is computed: a failing item raises.
+    # The requirements, over the whole batch before any output is computed.  As in C, an item's
+    # status is its first failing requirement, and the first failing item raises.
+    _status = numpy.zeros(_batch, dtype=numpy.intc)
     x = cartesian[..., 0]
     y = cartesian[..., 1]
     xdot = cartesian_velocity[..., 0]
@@ -2650,15 +2771,16 @@ def cartesian_to_motor_reversed_acceleration(cartesian, cartesian_velocity, cart
     _t0 = (x*x)
     _t1 = (y*y)
     _t2 = _t0 + _t1
-    _runtime.require(numpy.greater(_t2, 0), _batch, "cartesian_to_motor_reversed_acceleration", "singular", "the tip is on the T axis (x = y = 0), where T is undetermined", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t2, 0), _status, 2)
     _t6 = 1.0/a
     _t7 = (0.5)*_t6
     _t8 = numpy.sqrt(_t2)
     _t9 = -_t8 + e
     _t45 = _t7*_t9
-    _runtime.require(numpy.logical_and(numpy.greater_equal(_t45, -1), numpy.less_equal(_t45, 1)), _batch, "cartesian_to_motor_reversed_acceleration", "unreachable", "the links reach |R| <= 2a only (R in [-2a, 2a])", "cartesian", cartesian)
+    _runtime.require(numpy.logical_and(numpy.greater_equal(_t45, -1), numpy.less_equal(_t45, 1)), _status, 1)
     _t10 = -0.25*(_t9*_t9)/(a*a) + 1
-    _runtime.require(numpy.greater(_t10, 0), _batch, "cartesian_to_motor_reversed_acceleration", "singular", "sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "cartesian", cartesian)
+    _runtime.require(numpy.greater(_t10, 0), _status, 2)
+    _runtime.check_status(_status, "cartesian_to_motor_reversed_acceleration", {"singular": "the tip is on the T axis (x = y = 0), where T is undetermined; or sin(q2/2) = 0: the arm is fully extended (|R| = 2a)", "unreachable": "the links reach |R| <= 2a only (R in [-2a, 2a])"}, "cartesian", cartesian)
     _t19 = 1.0/(a*a*a)
     _t24 = 1.0/J11
     _t35 = 1.0/J22

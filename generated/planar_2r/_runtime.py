@@ -111,12 +111,17 @@ def as_pose_task(value, function, name, tolerance, check_rotation=True):
                          f"shape (..., 4, 4), got shape {array.shape}")
     if not check_rotation:
         return array
+    with numpy.errstate(all="ignore"):  # tiny or huge entries: a deviation of 0 or inf, never a warning
+        return _check_rotation(array, function, name, tolerance)
+
+
+def _check_rotation(array, function, name, tolerance):
     finite = numpy.isfinite(array).all(axis=-1)
     rotation = numpy.where(finite[..., None], array, 0.0)[..., 3:].reshape(array.shape[:-1] + (3, 3))
     rotation = numpy.where(finite[..., None, None], rotation, numpy.eye(3))
     deviation = numpy.abs(rotation @ numpy.swapaxes(rotation, -1, -2) - numpy.eye(3)).max(axis=(-2, -1))
     determinant = numpy.linalg.det(rotation) if rotation.size else numpy.ones(rotation.shape[:-2])
-    wrong = (deviation > tolerance) | (determinant < 0)
+    wrong = ~(deviation <= tolerance) | (determinant < 0)  # an overflow to NaN is wrong too
     if wrong.any():
         index = tuple(int(i) for i in numpy.argwhere(wrong)[0])
         raise ValueError(f"{function}: {name}{list(index) if index else ''} is not a rigid transform: its rotation has "

@@ -29,6 +29,7 @@ CHUNK = 4096
 OPERATIONS = {"fk": 12, "frames": 13, "jacobian": 13, "task": 11, "task_jacobian": 13, "ik": 39, "task_velocity": 18, "twist": 19, "task_jacobian_dot": 25, "jacobian_dot": 25, "task_acceleration": 39, "manipulability": 16, "joint_velocity": 91, "joint_acceleration": 115}
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def fk(q, *, l1=0.559, l2=0.508):
     """Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres.
 
@@ -77,6 +78,7 @@ def fk(q, *, l1=0.559, l2=0.508):
     return T.reshape(_batch + (4, 4))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def frames(q, *, l1=0.559, l2=0.508):
     """Frames T_0 (base) .. T_2 (tool), shape (..., 3, 4, 4).
 
@@ -159,6 +161,7 @@ def frames(q, *, l1=0.559, l2=0.508):
     return frames.reshape(_batch + (3, 4, 4))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def jacobian(q, *, l1=0.559, l2=0.508):
     """Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 2).
 
@@ -205,6 +208,7 @@ def jacobian(q, *, l1=0.559, l2=0.508):
     return J.reshape(_batch + (6, 2))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task(q, *, l1=0.559, l2=0.508):
     """Task coordinates x, y, shape (..., 2).
 
@@ -239,6 +243,7 @@ def task(q, *, l1=0.559, l2=0.508):
     return x.reshape(_batch + (2,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_jacobian(q, *, l1=0.559, l2=0.508):
     """d task / d q, shape (..., 2, 2).
 
@@ -277,7 +282,7 @@ def task_jacobian(q, *, l1=0.559, l2=0.508):
     return Jx.reshape(_batch + (2, 2))
 
 
-@numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def ik(x, *, l1=0.559, l2=0.508):
     """Inverse kinematics, all 2 branches (elbow_up, elbow_down): Q (..., 2, 2), valid (..., 2).
 
@@ -324,6 +329,7 @@ def ik(x, *, l1=0.559, l2=0.508):
     return Q.reshape(_batch + (2, 2)), valid.reshape(_batch + (2,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_velocity(q, qd, *, l1=0.559, l2=0.508):
     """Task rates x_dot = J_x q_dot, shape (..., 2).
 
@@ -366,6 +372,7 @@ def task_velocity(q, qd, *, l1=0.559, l2=0.508):
     return xd.reshape(_batch + (2,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def twist(q, qd, *, l1=0.559, l2=0.508):
     """Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s.
 
@@ -412,6 +419,7 @@ def twist(q, qd, *, l1=0.559, l2=0.508):
     return twist.reshape(_batch + (6,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_jacobian_dot(q, qd, *, l1=0.559, l2=0.508):
     """d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 2, 2).
 
@@ -458,6 +466,7 @@ def task_jacobian_dot(q, qd, *, l1=0.559, l2=0.508):
     return Jx_dot.reshape(_batch + (2, 2))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def jacobian_dot(q, qd, *, l1=0.559, l2=0.508):
     """d(J)/dt of the geometric Jacobian, shape (..., 6, 2).
 
@@ -512,6 +521,7 @@ def jacobian_dot(q, qd, *, l1=0.559, l2=0.508):
     return J_dot.reshape(_batch + (6, 2))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_acceleration(q, qd, qdd, *, l1=0.559, l2=0.508):
     """Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 2).
 
@@ -564,6 +574,7 @@ def task_acceleration(q, qd, qdd, *, l1=0.559, l2=0.508):
     return xdd.reshape(_batch + (2,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def manipulability(q, *, l1=0.559, l2=0.508):
     """Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...).
 
@@ -592,6 +603,7 @@ def manipulability(q, *, l1=0.559, l2=0.508):
     return manipulability.reshape(_batch + ()), singular.reshape(_batch + ())
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_velocity(q, xd, *, l1=0.559, l2=0.508):
     """Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 2) and (...).
 
@@ -663,6 +675,7 @@ def joint_velocity(q, xd, *, l1=0.559, l2=0.508):
     return qd.reshape(_batch + (2,)), singular.reshape(_batch + ())
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_acceleration(q, qd, xdd, *, l1=0.559, l2=0.508):
     """Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 2) and (...).
 

@@ -228,6 +228,9 @@ def task_velocity(q, qd, *, l1=_l1, l2=_l2, l3=_l3):
     qd = _runtime.as_batch(qd, 3, "task_velocity", "qd", finite=False)
     batch = _runtime.batch_shape(q, qd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 3, "task_velocity", "q")
+        _runtime.as_batch(qd, 3, "task_velocity", "qd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     xd = _empty(batch + (3,))
@@ -256,6 +259,9 @@ def twist(q, qd, *, l1=_l1, l2=_l2, l3=_l3):
     qd = _runtime.as_batch(qd, 3, "twist", "qd", finite=False)
     batch = _runtime.batch_shape(q, qd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 3, "twist", "q")
+        _runtime.as_batch(qd, 3, "twist", "qd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     twist = _empty(batch + (6,))
@@ -284,6 +290,9 @@ def task_jacobian_dot(q, qd, *, l1=_l1, l2=_l2, l3=_l3):
     qd = _runtime.as_batch(qd, 3, "task_jacobian_dot", "qd", finite=False)
     batch = _runtime.batch_shape(q, qd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 3, "task_jacobian_dot", "q")
+        _runtime.as_batch(qd, 3, "task_jacobian_dot", "qd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     Jx_dot = _empty(batch + (3, 3))
@@ -312,6 +321,9 @@ def jacobian_dot(q, qd, *, l1=_l1, l2=_l2, l3=_l3):
     qd = _runtime.as_batch(qd, 3, "jacobian_dot", "qd", finite=False)
     batch = _runtime.batch_shape(q, qd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 3, "jacobian_dot", "q")
+        _runtime.as_batch(qd, 3, "jacobian_dot", "qd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     J_dot = _empty(batch + (6, 3))
@@ -341,6 +353,10 @@ def task_acceleration(q, qd, qdd, *, l1=_l1, l2=_l2, l3=_l3):
     qdd = _runtime.as_batch(qdd, 3, "task_acceleration", "qdd", finite=False)
     batch = _runtime.batch_shape(q, qd, qdd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 3, "task_acceleration", "q")
+        _runtime.as_batch(qd, 3, "task_acceleration", "qd")
+        _runtime.as_batch(qdd, 3, "task_acceleration", "qdd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     qdd = _input(qdd, batch)
@@ -399,6 +415,9 @@ def joint_velocity(q, xd, *, l1=_l1, l2=_l2, l3=_l3):
     xd = _runtime.as_batch(xd, 3, "joint_velocity", "xd", finite=False)
     batch = _runtime.batch_shape(q, xd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 3, "joint_velocity", "q")
+        _runtime.as_batch(xd, 3, "joint_velocity", "xd")
     q = _input(q, batch)
     xd = _input(xd, batch)
     qd = _empty(batch + (3,))
@@ -430,6 +449,10 @@ def joint_acceleration(q, qd, xdd, *, l1=_l1, l2=_l2, l3=_l3):
     xdd = _runtime.as_batch(xdd, 3, "joint_acceleration", "xdd", finite=False)
     batch = _runtime.batch_shape(q, qd, xdd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 3, "joint_acceleration", "q")
+        _runtime.as_batch(qd, 3, "joint_acceleration", "qd")
+        _runtime.as_batch(xdd, 3, "joint_acceleration", "xdd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     xdd = _input(xdd, batch)

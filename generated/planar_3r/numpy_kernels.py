@@ -29,6 +29,7 @@ CHUNK = 4096
 OPERATIONS = {"fk": 19, "frames": 21, "jacobian": 21, "task": 18, "task_jacobian": 21, "ik": 81, "task_velocity": 31, "twist": 31, "task_jacobian_dot": 46, "jacobian_dot": 46, "task_acceleration": 69, "manipulability": 18, "joint_velocity": 243, "joint_acceleration": 280}
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def fk(q, *, l1=0.5, l2=0.4, l3=0.2):
     """Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres.
 
@@ -85,6 +86,7 @@ def fk(q, *, l1=0.5, l2=0.4, l3=0.2):
     return T.reshape(_batch + (4, 4))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def frames(q, *, l1=0.5, l2=0.4, l3=0.2):
     """Frames T_0 (base) .. T_3 (tool), shape (..., 4, 4, 4).
 
@@ -193,6 +195,7 @@ def frames(q, *, l1=0.5, l2=0.4, l3=0.2):
     return frames.reshape(_batch + (4, 4, 4))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def jacobian(q, *, l1=0.5, l2=0.4, l3=0.2):
     """Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 3).
 
@@ -255,6 +258,7 @@ def jacobian(q, *, l1=0.5, l2=0.4, l3=0.2):
     return J.reshape(_batch + (6, 3))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task(q, *, l1=0.5, l2=0.4, l3=0.2):
     """Task coordinates x, y, phi, shape (..., 3).
 
@@ -298,6 +302,7 @@ def task(q, *, l1=0.5, l2=0.4, l3=0.2):
     return x.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_jacobian(q, *, l1=0.5, l2=0.4, l3=0.2):
     """d task / d q, shape (..., 3, 3).
 
@@ -351,7 +356,7 @@ def task_jacobian(q, *, l1=0.5, l2=0.4, l3=0.2):
     return Jx.reshape(_batch + (3, 3))
 
 
-@numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def ik(x, *, l1=0.5, l2=0.4, l3=0.2):
     """Inverse kinematics, all 2 branches (elbow_up, elbow_down): Q (..., 2, 3), valid (..., 2).
 
@@ -432,6 +437,7 @@ def ik(x, *, l1=0.5, l2=0.4, l3=0.2):
     return Q.reshape(_batch + (2, 3)), valid.reshape(_batch + (2,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_velocity(q, qd, *, l1=0.5, l2=0.4, l3=0.2):
     """Task rates x_dot = J_x q_dot, shape (..., 3).
 
@@ -486,6 +492,7 @@ def task_velocity(q, qd, *, l1=0.5, l2=0.4, l3=0.2):
     return xd.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def twist(q, qd, *, l1=0.5, l2=0.4, l3=0.2):
     """Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s.
 
@@ -543,6 +550,7 @@ def twist(q, qd, *, l1=0.5, l2=0.4, l3=0.2):
     return twist.reshape(_batch + (6,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_jacobian_dot(q, qd, *, l1=0.5, l2=0.4, l3=0.2):
     """d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 3, 3).
 
@@ -609,6 +617,7 @@ def task_jacobian_dot(q, qd, *, l1=0.5, l2=0.4, l3=0.2):
     return Jx_dot.reshape(_batch + (3, 3))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def jacobian_dot(q, qd, *, l1=0.5, l2=0.4, l3=0.2):
     """d(J)/dt of the geometric Jacobian, shape (..., 6, 3).
 
@@ -684,6 +693,7 @@ def jacobian_dot(q, qd, *, l1=0.5, l2=0.4, l3=0.2):
     return J_dot.reshape(_batch + (6, 3))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_acceleration(q, qd, qdd, *, l1=0.5, l2=0.4, l3=0.2):
     """Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 3).
 
@@ -753,6 +763,7 @@ def task_acceleration(q, qd, qdd, *, l1=0.5, l2=0.4, l3=0.2):
     return xdd.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def manipulability(q, *, l1=0.5, l2=0.4, l3=0.2):
     """Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...).
 
@@ -782,6 +793,7 @@ def manipulability(q, *, l1=0.5, l2=0.4, l3=0.2):
     return manipulability.reshape(_batch + ()), singular.reshape(_batch + ())
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_velocity(q, xd, *, l1=0.5, l2=0.4, l3=0.2):
     """Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 3) and (...).
 
@@ -914,6 +926,7 @@ def joint_velocity(q, xd, *, l1=0.5, l2=0.4, l3=0.2):
     return qd.reshape(_batch + (3,)), singular.reshape(_batch + ())
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_acceleration(q, qd, xdd, *, l1=0.5, l2=0.4, l3=0.2):
     """Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 3) and (...).
 

@@ -197,6 +197,9 @@ def task_velocity(q, qd):
     qd = _runtime.as_batch(qd, 2, "task_velocity", "qd", finite=False)
     batch = _runtime.batch_shape(q, qd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 2, "task_velocity", "q")
+        _runtime.as_batch(qd, 2, "task_velocity", "qd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     xd = _empty(batch + (2,))
@@ -221,6 +224,9 @@ def twist(q, qd):
     qd = _runtime.as_batch(qd, 2, "twist", "qd", finite=False)
     batch = _runtime.batch_shape(q, qd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 2, "twist", "q")
+        _runtime.as_batch(qd, 2, "twist", "qd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     twist = _empty(batch + (6,))
@@ -245,6 +251,9 @@ def task_jacobian_dot(q, qd):
     qd = _runtime.as_batch(qd, 2, "task_jacobian_dot", "qd", finite=False)
     batch = _runtime.batch_shape(q, qd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 2, "task_jacobian_dot", "q")
+        _runtime.as_batch(qd, 2, "task_jacobian_dot", "qd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     Jx_dot = _empty(batch + (2, 2))
@@ -269,6 +278,9 @@ def jacobian_dot(q, qd):
     qd = _runtime.as_batch(qd, 2, "jacobian_dot", "qd", finite=False)
     batch = _runtime.batch_shape(q, qd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 2, "jacobian_dot", "q")
+        _runtime.as_batch(qd, 2, "jacobian_dot", "qd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     J_dot = _empty(batch + (6, 2))
@@ -294,6 +306,10 @@ def task_acceleration(q, qd, qdd):
     qdd = _runtime.as_batch(qdd, 2, "task_acceleration", "qdd", finite=False)
     batch = _runtime.batch_shape(q, qd, qdd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 2, "task_acceleration", "q")
+        _runtime.as_batch(qd, 2, "task_acceleration", "qd")
+        _runtime.as_batch(qdd, 2, "task_acceleration", "qdd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     qdd = _input(qdd, batch)
@@ -344,6 +360,9 @@ def joint_velocity(q, xd):
     xd = _runtime.as_batch(xd, 2, "joint_velocity", "xd", finite=False)
     batch = _runtime.batch_shape(q, xd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 2, "joint_velocity", "q")
+        _runtime.as_batch(xd, 2, "joint_velocity", "xd")
     q = _input(q, batch)
     xd = _input(xd, batch)
     qd = _empty(batch + (2,))
@@ -371,6 +390,10 @@ def joint_acceleration(q, qd, xdd):
     xdd = _runtime.as_batch(xdd, 2, "joint_acceleration", "xdd", finite=False)
     batch = _runtime.batch_shape(q, qd, xdd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 2, "joint_acceleration", "q")
+        _runtime.as_batch(qd, 2, "joint_acceleration", "qd")
+        _runtime.as_batch(xdd, 2, "joint_acceleration", "xdd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     xdd = _input(xdd, batch)

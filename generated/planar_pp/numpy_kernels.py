@@ -29,6 +29,7 @@ CHUNK = 4096
 OPERATIONS = {"fk": 1, "frames": 3, "jacobian": 0, "task": 0, "task_jacobian": 0, "ik": 0, "task_velocity": 0, "twist": 0, "task_jacobian_dot": 0, "jacobian_dot": 0, "task_acceleration": 0, "manipulability": 0, "joint_velocity": 0, "joint_acceleration": 0}
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def fk(q):
     """Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres.
 
@@ -64,6 +65,7 @@ def fk(q):
     return T.reshape(_batch + (4, 4))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def frames(q):
     """Frames T_0 (base) .. T_2 (tool), shape (..., 3, 4, 4).
 
@@ -131,6 +133,7 @@ def frames(q):
     return frames.reshape(_batch + (3, 4, 4))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def jacobian(q):
     """Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 2).
 
@@ -159,6 +162,7 @@ def jacobian(q):
     return J.reshape(_batch + (6, 2))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task(q):
     """Task coordinates x, y, shape (..., 2).
 
@@ -180,6 +184,7 @@ def task(q):
     return x.reshape(_batch + (2,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_jacobian(q):
     """d task / d q, shape (..., 2, 2).
 
@@ -200,7 +205,7 @@ def task_jacobian(q):
     return Jx.reshape(_batch + (2, 2))
 
 
-@numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def ik(x):
     """Inverse kinematics, all 1 branches (unique): Q (..., 1, 2), valid (..., 1).
 
@@ -231,6 +236,7 @@ def ik(x):
     return Q.reshape(_batch + (1, 2)), valid.reshape(_batch + (1,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_velocity(q, qd):
     """Task rates x_dot = J_x q_dot, shape (..., 2).
 
@@ -255,6 +261,7 @@ def task_velocity(q, qd):
     return xd.reshape(_batch + (2,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def twist(q, qd):
     """Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s.
 
@@ -283,6 +290,7 @@ def twist(q, qd):
     return twist.reshape(_batch + (6,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_jacobian_dot(q, qd):
     """d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 2, 2).
 
@@ -306,6 +314,7 @@ def task_jacobian_dot(q, qd):
     return Jx_dot.reshape(_batch + (2, 2))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def jacobian_dot(q, qd):
     """d(J)/dt of the geometric Jacobian, shape (..., 6, 2).
 
@@ -337,6 +346,7 @@ def jacobian_dot(q, qd):
     return J_dot.reshape(_batch + (6, 2))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_acceleration(q, qd, qdd):
     """Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 2).
 
@@ -364,6 +374,7 @@ def task_acceleration(q, qd, qdd):
     return xdd.reshape(_batch + (2,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def manipulability(q):
     """Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...).
 
@@ -384,6 +395,7 @@ def manipulability(q):
     return manipulability.reshape(_batch + ()), singular.reshape(_batch + ())
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_velocity(q, xd):
     """Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 2) and (...).
 
@@ -411,6 +423,7 @@ def joint_velocity(q, xd):
     return qd.reshape(_batch + (2,)), singular.reshape(_batch + ())
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_acceleration(q, qd, xdd):
     """Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 2) and (...).
 

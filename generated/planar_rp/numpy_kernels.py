@@ -29,6 +29,7 @@ CHUNK = 4096
 OPERATIONS = {"fk": 6, "frames": 6, "jacobian": 5, "task": 4, "task_jacobian": 5, "ik": 12, "task_velocity": 9, "twist": 9, "task_jacobian_dot": 12, "jacobian_dot": 12, "task_acceleration": 26, "manipulability": 4, "joint_velocity": 60, "joint_acceleration": 77, "kumar_pose": 4}
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def fk(q):
     """Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres.
 
@@ -69,6 +70,7 @@ def fk(q):
     return T.reshape(_batch + (4, 4))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def frames(q):
     """Frames T_0 (base) .. T_2 (tool), shape (..., 3, 4, 4).
 
@@ -142,6 +144,7 @@ def frames(q):
     return frames.reshape(_batch + (3, 4, 4))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def jacobian(q):
     """Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 2).
 
@@ -178,6 +181,7 @@ def jacobian(q):
     return J.reshape(_batch + (6, 2))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task(q):
     """Task coordinates x, y, shape (..., 2).
 
@@ -204,6 +208,7 @@ def task(q):
     return x.reshape(_batch + (2,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_jacobian(q):
     """d task / d q, shape (..., 2, 2).
 
@@ -232,7 +237,7 @@ def task_jacobian(q):
     return Jx.reshape(_batch + (2, 2))
 
 
-@numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def ik(x):
     """Inverse kinematics, all 2 branches (d2_positive, d2_negative): Q (..., 2, 2), valid (..., 2).
 
@@ -271,6 +276,7 @@ def ik(x):
     return Q.reshape(_batch + (2, 2)), valid.reshape(_batch + (2,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_velocity(q, qd):
     """Task rates x_dot = J_x q_dot, shape (..., 2).
 
@@ -304,6 +310,7 @@ def task_velocity(q, qd):
     return xd.reshape(_batch + (2,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def twist(q, qd):
     """Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s.
 
@@ -341,6 +348,7 @@ def twist(q, qd):
     return twist.reshape(_batch + (6,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_jacobian_dot(q, qd):
     """d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 2, 2).
 
@@ -377,6 +385,7 @@ def task_jacobian_dot(q, qd):
     return Jx_dot.reshape(_batch + (2, 2))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def jacobian_dot(q, qd):
     """d(J)/dt of the geometric Jacobian, shape (..., 6, 2).
 
@@ -421,6 +430,7 @@ def jacobian_dot(q, qd):
     return J_dot.reshape(_batch + (6, 2))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_acceleration(q, qd, qdd):
     """Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 2).
 
@@ -462,6 +472,7 @@ def task_acceleration(q, qd, qdd):
     return xdd.reshape(_batch + (2,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def manipulability(q):
     """Manipulability w (det J_x; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...).
 
@@ -484,6 +495,7 @@ def manipulability(q):
     return manipulability.reshape(_batch + ()), singular.reshape(_batch + ())
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_velocity(q, xd):
     """Joint rates from task rates: adj(J_x) x_dot / det J_x; damped least squares where singular. Shapes (..., 2) and (...).
 
@@ -535,6 +547,7 @@ def joint_velocity(q, xd):
     return qd.reshape(_batch + (2,)), singular.reshape(_batch + ())
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_acceleration(q, qd, xdd):
     """Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 2) and (...).
 
@@ -596,6 +609,7 @@ def joint_acceleration(q, qd, xdd):
     return qdd.reshape(_batch + (2,)), singular.reshape(_batch + ())
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def kumar_pose(q):
     """Kumar's end-effector coordinates of the R-P arm (section 5.3): x, y (m) and phi = theta1 (rad), the direction of the slide, shape (..., 3).
 

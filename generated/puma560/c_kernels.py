@@ -233,6 +233,9 @@ def task_velocity(q, qd, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
     qd = _runtime.as_batch(qd, 6, "task_velocity", "qd", finite=False)
     batch = _runtime.batch_shape(q, qd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 6, "task_velocity", "q")
+        _runtime.as_batch(qd, 6, "task_velocity", "qd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     xd = _empty(batch + (12,))
@@ -261,6 +264,9 @@ def twist(q, qd, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
     qd = _runtime.as_batch(qd, 6, "twist", "qd", finite=False)
     batch = _runtime.batch_shape(q, qd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 6, "twist", "q")
+        _runtime.as_batch(qd, 6, "twist", "qd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     twist = _empty(batch + (6,))
@@ -289,6 +295,9 @@ def task_jacobian_dot(q, qd, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
     qd = _runtime.as_batch(qd, 6, "task_jacobian_dot", "qd", finite=False)
     batch = _runtime.batch_shape(q, qd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 6, "task_jacobian_dot", "q")
+        _runtime.as_batch(qd, 6, "task_jacobian_dot", "qd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     Jx_dot = _empty(batch + (12, 6))
@@ -317,6 +326,9 @@ def jacobian_dot(q, qd, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
     qd = _runtime.as_batch(qd, 6, "jacobian_dot", "qd", finite=False)
     batch = _runtime.batch_shape(q, qd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 6, "jacobian_dot", "q")
+        _runtime.as_batch(qd, 6, "jacobian_dot", "qd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     J_dot = _empty(batch + (6, 6))
@@ -346,6 +358,10 @@ def task_acceleration(q, qd, qdd, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
     qdd = _runtime.as_batch(qdd, 6, "task_acceleration", "qdd", finite=False)
     batch = _runtime.batch_shape(q, qd, qdd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 6, "task_acceleration", "q")
+        _runtime.as_batch(qd, 6, "task_acceleration", "qd")
+        _runtime.as_batch(qdd, 6, "task_acceleration", "qdd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     qdd = _input(qdd, batch)
@@ -404,6 +420,9 @@ def joint_velocity(q, xd, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
     xd = _runtime.as_batch(xd, 12, "joint_velocity", "xd", finite=False)
     batch = _runtime.batch_shape(q, xd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 6, "joint_velocity", "q")
+        _runtime.as_batch(xd, 12, "joint_velocity", "xd")
     q = _input(q, batch)
     xd = _input(xd, batch)
     qd = _empty(batch + (6,))
@@ -435,6 +454,10 @@ def joint_acceleration(q, qd, xdd, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
     xdd = _runtime.as_batch(xdd, 12, "joint_acceleration", "xdd", finite=False)
     batch = _runtime.batch_shape(q, qd, xdd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 6, "joint_acceleration", "q")
+        _runtime.as_batch(qd, 6, "joint_acceleration", "qd")
+        _runtime.as_batch(xdd, 12, "joint_acceleration", "xdd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     xdd = _input(xdd, batch)
@@ -467,6 +490,9 @@ def joint_velocity_from_twist(q, twist, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d
     twist = _runtime.as_batch(twist, 6, "joint_velocity_from_twist", "twist", finite=False)
     batch = _runtime.batch_shape(q, twist)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 6, "joint_velocity_from_twist", "q")
+        _runtime.as_batch(twist, 6, "joint_velocity_from_twist", "twist")
     q = _input(q, batch)
     twist = _input(twist, batch)
     qd = _empty(batch + (6,))

@@ -29,6 +29,7 @@ CHUNK = 4096
 OPERATIONS = {"fk": 125, "frames": 154, "jacobian": 75, "task": 125, "task_jacobian": 223, "ik": 431, "task_velocity": 306, "twist": 101, "task_jacobian_dot": 773, "jacobian_dot": 214, "task_acceleration": 1007, "manipulability": 41, "joint_velocity": 688, "joint_acceleration": 862, "joint_velocity_from_twist": 577}
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def fk(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     """Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres.
 
@@ -123,6 +124,7 @@ def fk(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     return T.reshape(_batch + (4, 4))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def frames(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     """Frames T_0 (base) .. T_6 (tool), shape (..., 7, 4, 4).
 
@@ -334,6 +336,7 @@ def frames(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     return frames.reshape(_batch + (7, 4, 4))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def jacobian(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     """Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 6).
 
@@ -436,6 +439,7 @@ def jacobian(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     return J.reshape(_batch + (6, 6))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     """Task coordinates x, y, z, r11, r12, r13, r21, r22, r23, r31, r32, r33, shape (..., 12).
 
@@ -526,6 +530,7 @@ def task(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     return x.reshape(_batch + (12,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_jacobian(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     """d task / d q, shape (..., 12, 6).
 
@@ -702,7 +707,7 @@ def task_jacobian(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318)
     return Jx.reshape(_batch + (12, 6))
 
 
-@numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def ik(x, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     """Inverse kinematics, all 8 branches (right_elbow_up_noflip, right_elbow_up_flip, right_elbow_down_noflip, right_elbow_down_flip, left_elbow_up_noflip, left_elbow_up_flip, left_elbow_down_noflip, left_elbow_down_flip): Q (..., 8, 6), valid (..., 8).
 
@@ -1049,6 +1054,7 @@ def ik(x, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     return Q.reshape(_batch + (8, 6)), valid.reshape(_batch + (8,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_velocity(q, qd, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     """Task rates x_dot = J_x q_dot, shape (..., 12).
 
@@ -1181,6 +1187,7 @@ def task_velocity(q, qd, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4
     return xd.reshape(_batch + (12,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def twist(q, qd, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     """Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s.
 
@@ -1266,6 +1273,7 @@ def twist(q, qd, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     return twist.reshape(_batch + (6,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_jacobian_dot(q, qd, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     """d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 12, 6).
 
@@ -1563,6 +1571,7 @@ def task_jacobian_dot(q, qd, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4
     return Jx_dot.reshape(_batch + (12, 6))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def jacobian_dot(q, qd, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     """d(J)/dt of the geometric Jacobian, shape (..., 6, 6).
 
@@ -1698,6 +1707,7 @@ def jacobian_dot(q, qd, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.43
     return J_dot.reshape(_batch + (6, 6))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_acceleration(q, qd, qdd, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     """Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 12).
 
@@ -1961,6 +1971,7 @@ def task_acceleration(q, qd, qdd, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.1500
     return xdd.reshape(_batch + (12,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def manipulability(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     """Manipulability w (det J = det A det D; |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...).
 
@@ -2011,6 +2022,7 @@ def manipulability(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318
     return manipulability.reshape(_batch + ()), singular.reshape(_batch + ())
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_velocity(q, xd, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     """Joint rates from task rates: twist from the pose rates, then Paul's partitioned inverse; damped least squares where singular. Shapes (..., 6) and (...).
 
@@ -2267,6 +2279,7 @@ def joint_velocity(q, xd, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.
     return qd.reshape(_batch + (6,)), singular.reshape(_batch + ())
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_acceleration(q, qd, xdd, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     """Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 6) and (...).
 
@@ -2556,6 +2569,7 @@ def joint_acceleration(q, qd, xdd, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.150
     return qdd.reshape(_batch + (6,)), singular.reshape(_batch + ())
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_velocity_from_twist(q, twist, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     """Joint rates from the tool twist by Paul's wrist partition (two 3 x 3 solves; damped least squares per block where singular). Shapes (..., 6) and (...).
 

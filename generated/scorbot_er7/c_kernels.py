@@ -230,6 +230,9 @@ def task_velocity(q, qd, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     qd = _runtime.as_batch(qd, 5, "task_velocity", "qd", finite=False)
     batch = _runtime.batch_shape(q, qd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 5, "task_velocity", "q")
+        _runtime.as_batch(qd, 5, "task_velocity", "qd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     xd = _empty(batch + (3,))
@@ -258,6 +261,9 @@ def twist(q, qd, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     qd = _runtime.as_batch(qd, 5, "twist", "qd", finite=False)
     batch = _runtime.batch_shape(q, qd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 5, "twist", "q")
+        _runtime.as_batch(qd, 5, "twist", "qd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     twist = _empty(batch + (6,))
@@ -286,6 +292,9 @@ def task_jacobian_dot(q, qd, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     qd = _runtime.as_batch(qd, 5, "task_jacobian_dot", "qd", finite=False)
     batch = _runtime.batch_shape(q, qd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 5, "task_jacobian_dot", "q")
+        _runtime.as_batch(qd, 5, "task_jacobian_dot", "qd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     Jx_dot = _empty(batch + (3, 5))
@@ -314,6 +323,9 @@ def jacobian_dot(q, qd, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     qd = _runtime.as_batch(qd, 5, "jacobian_dot", "qd", finite=False)
     batch = _runtime.batch_shape(q, qd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 5, "jacobian_dot", "q")
+        _runtime.as_batch(qd, 5, "jacobian_dot", "qd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     J_dot = _empty(batch + (6, 5))
@@ -343,6 +355,10 @@ def task_acceleration(q, qd, qdd, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     qdd = _runtime.as_batch(qdd, 5, "task_acceleration", "qdd", finite=False)
     batch = _runtime.batch_shape(q, qd, qdd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 5, "task_acceleration", "q")
+        _runtime.as_batch(qd, 5, "task_acceleration", "qd")
+        _runtime.as_batch(qdd, 5, "task_acceleration", "qdd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     qdd = _input(qdd, batch)
@@ -401,6 +417,9 @@ def joint_velocity(q, xd, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     xd = _runtime.as_batch(xd, 3, "joint_velocity", "xd", finite=False)
     batch = _runtime.batch_shape(q, xd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 5, "joint_velocity", "q")
+        _runtime.as_batch(xd, 3, "joint_velocity", "xd")
     q = _input(q, batch)
     xd = _input(xd, batch)
     qd = _empty(batch + (5,))
@@ -432,6 +451,10 @@ def joint_acceleration(q, qd, xdd, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     xdd = _runtime.as_batch(xdd, 3, "joint_acceleration", "xdd", finite=False)
     batch = _runtime.batch_shape(q, qd, xdd)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(q, 5, "joint_acceleration", "q")
+        _runtime.as_batch(qd, 5, "joint_acceleration", "qd")
+        _runtime.as_batch(xdd, 3, "joint_acceleration", "xdd")
     q = _input(q, batch)
     qd = _input(qd, batch)
     xdd = _input(xdd, batch)

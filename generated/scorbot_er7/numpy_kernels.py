@@ -29,6 +29,7 @@ CHUNK = 4096
 OPERATIONS = {"fk": 44, "frames": 67, "jacobian": 39, "task": 24, "task_jacobian": 36, "ik": 108, "task_velocity": 46, "twist": 61, "task_jacobian_dot": 101, "jacobian_dot": 124, "task_acceleration": 148, "manipulability": 56, "joint_velocity": 345, "joint_acceleration": 447}
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def fk(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     """Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres.
 
@@ -104,6 +105,7 @@ def fk(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     return T.reshape(_batch + (4, 4))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def frames(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     """Frames T_0 (base) .. T_5 (tool), shape (..., 6, 4, 4).
 
@@ -266,6 +268,7 @@ def frames(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     return frames.reshape(_batch + (6, 4, 4))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def jacobian(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     """Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 5).
 
@@ -352,6 +355,7 @@ def jacobian(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     return J.reshape(_batch + (6, 5))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     """Task coordinates x, y, z, shape (..., 3).
 
@@ -404,6 +408,7 @@ def task(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     return x.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_jacobian(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     """d task / d q, shape (..., 3, 5).
 
@@ -474,7 +479,7 @@ def task_jacobian(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     return Jx.reshape(_batch + (3, 5))
 
 
-@numpy.errstate(all="ignore")  # unreachable and non-finite targets are reported through valid, not warned
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def ik(x, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     """Inverse kinematics, all 4 branches (elbow_up, elbow_down, shoulder_flip_elbow_up, shoulder_flip_elbow_down): Q (..., 4, 5), valid (..., 4).
 
@@ -573,6 +578,7 @@ def ik(x, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     return Q.reshape(_batch + (4, 5)), valid.reshape(_batch + (4,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_velocity(q, qd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     """Task rates x_dot = J_x q_dot, shape (..., 3).
 
@@ -641,6 +647,7 @@ def task_velocity(q, qd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     return xd.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def twist(q, qd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     """Tool twist [v; w] = J q_dot (geometric Jacobian), shape (..., 6); m/s and rad/s.
 
@@ -717,6 +724,7 @@ def twist(q, qd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     return twist.reshape(_batch + (6,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_jacobian_dot(q, qd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     """d(J_x)/dt = sum_k dJ_x/dq_k q_dot_k, shape (..., 3, 5).
 
@@ -811,6 +819,7 @@ def task_jacobian_dot(q, qd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     return Jx_dot.reshape(_batch + (3, 5))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def jacobian_dot(q, qd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     """d(J)/dt of the geometric Jacobian, shape (..., 6, 5).
 
@@ -923,6 +932,7 @@ def jacobian_dot(q, qd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     return J_dot.reshape(_batch + (6, 5))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def task_acceleration(q, qd, qdd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     """Task accelerations x_ddot = J_x q_ddot + J_x_dot q_dot, shape (..., 3).
 
@@ -1017,6 +1027,7 @@ def task_acceleration(q, qd, qdd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.21
     return xdd.reshape(_batch + (3,))
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def manipulability(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     """Manipulability w (det(J_x J_x^T); |det| or sqrt(det J J^T)), shape (...), and the singular flag, shape (...).
 
@@ -1079,6 +1090,7 @@ def manipulability(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     return manipulability.reshape(_batch + ()), singular.reshape(_batch + ())
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_velocity(q, xd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     """Joint rates from task rates: minimum-norm J_x^T (J_x J_x^T)^-1 x_dot; damped least squares where singular. Shapes (..., 5) and (...).
 
@@ -1262,6 +1274,7 @@ def joint_velocity(q, xd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     return qd.reshape(_batch + (5,)), singular.reshape(_batch + ())
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joint_acceleration(q, qd, xdd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     """Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 5) and (...).
 

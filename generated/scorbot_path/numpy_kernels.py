@@ -29,6 +29,7 @@ CHUNK = 4096
 OPERATIONS = {"tool_point_from_theta2": 120, "joints_along_line": 265}
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def tool_point_from_theta2(theta2_state, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212, xM=0.75, yM=0.0, zM=0.3, xN=0.3, yN=0.0, zN=0.75):
     """P5 on the line MN for a theta2 state, by Predescu and Stroe Eqs. 4.2-4.7: (p (..., 3, 2) rows position, velocity, acceleration, columns x, z; valid (...)).
 
@@ -109,6 +110,7 @@ def tool_point_from_theta2(theta2_state, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, 
     return p.reshape(_batch + (3, 2)), valid.reshape(_batch + ())
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def joints_along_line(path, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212, xM=0.75, yM=0.0, zM=0.3, xN=0.3, yN=0.0, zN=0.75):
     """Joint motion along P5 = M + s (N - M) on the IK branch elbow_up (the paper's): (q (..., 3, 5) rows angles, rates, accelerations; valid (...)).
 

@@ -65,6 +65,9 @@ def cubic(time, boundary):
     boundary = _runtime.as_batch(boundary, 5, "cubic", "boundary", finite=False)
     batch = _runtime.batch_shape(time, boundary)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(time, 1, "cubic", "time")
+        _runtime.as_batch(boundary, 5, "cubic", "boundary")
     time = _input(time, batch)
     boundary = _input(boundary, batch)
     state = _empty(batch + (3,))
@@ -91,6 +94,9 @@ def quintic(time, boundary):
     boundary = _runtime.as_batch(boundary, 7, "quintic", "boundary", finite=False)
     batch = _runtime.batch_shape(time, boundary)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(time, 1, "quintic", "time")
+        _runtime.as_batch(boundary, 7, "quintic", "boundary")
     time = _input(time, batch)
     boundary = _input(boundary, batch)
     state = _empty(batch + (3,))
@@ -117,6 +123,9 @@ def cycloidal(time, law):
     law = _runtime.as_batch(law, 3, "cycloidal", "law", finite=False)
     batch = _runtime.batch_shape(time, law)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(time, 1, "cycloidal", "time")
+        _runtime.as_batch(law, 3, "cycloidal", "law")
     time = _input(time, batch)
     law = _input(law, batch)
     state = _empty(batch + (3,))
@@ -143,6 +152,9 @@ def trapezoid(time, profile):
     profile = _runtime.as_batch(profile, 4, "trapezoid", "profile", finite=False)
     batch = _runtime.batch_shape(time, profile)
     count = math.prod(batch)
+    if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
+        _runtime.as_batch(time, 1, "trapezoid", "time")
+        _runtime.as_batch(profile, 4, "trapezoid", "profile")
     time = _input(time, batch)
     profile = _input(profile, batch)
     state = _empty(batch + (3,))

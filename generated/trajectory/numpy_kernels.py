@@ -29,6 +29,7 @@ CHUNK = 4096
 OPERATIONS = {"cubic": 52, "quintic": 138, "cycloidal": 14, "trapezoid": 49}
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def cubic(time, boundary):
     """Cubic time law from q0 (velocity v0) at t = 0 to qf (velocity vf) at t = duration: (state (..., 3) position, velocity, acceleration; valid (...)).
 
@@ -68,6 +69,7 @@ def cubic(time, boundary):
     return state.reshape(_batch + (3,)), valid.reshape(_batch + ())
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def quintic(time, boundary):
     """Quintic time law meeting position, velocity and acceleration at t = 0 and t = duration: (state (..., 3), valid (...)).
 
@@ -115,6 +117,7 @@ def quintic(time, boundary):
     return state.reshape(_batch + (3,)), valid.reshape(_batch + ())
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def cycloidal(time, law):
     """Cycloidal law of Predescu and Stroe Eq. 4.8, q0 + amplitude (omega t - sin(omega t)) / (2 pi), one period 2 pi / omega long: (state (..., 3), valid (...)).
 
@@ -153,6 +156,7 @@ def cycloidal(time, law):
     return state.reshape(_batch + (3,)), valid.reshape(_batch + ())
 
 
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
 def trapezoid(time, profile):
     """Trapezoidal velocity profile from 0 to length (velocity-model slides): (state (..., 3), valid (...)); at rest before t = 0 and after the move.
 

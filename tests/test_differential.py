@@ -1,0 +1,169 @@
+"""numpy against C, differentially, over every kernel of every package (issue #17).
+
+Each kernel is called through both backends with the same arguments: points where it is
+defined (the verification's sampling), wide random values, values at and next to zero,
+tiny and huge magnitudes, and each robot parameter in turn at 0 and +-1e-300.  Where both
+answer, they agree to 1e-12 relative (NaN and inf in the same places, ik branches flagged
+valid alike); where one refuses, the other refuses with the same exception class; the
+numpy kernels raise no floating-point warnings where the C is silent.  The expected
+behaviour is not either backend's: it is that the two are one function.
+"""
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+import generated
+from codegen.verify import sample_params, sample_points
+from conftest import ROBOT_NAMES
+
+POINTS = 24  # per kind of argument
+RELATIVE = 1e-12
+# At a degenerate parameter (a length of 0 or 1e-300) a rate map is damped at an exact
+# singularity, where its answer's condition number is about 1 / damping^2 = 1e12: there the
+# backends must agree on every flag and on where NaN and inf are, and their values to 1e-6
+# (with arguments of 1e6 and more the values are rounding noise in both, and only the flags
+# and the NaN and inf are compared).
+RELATIVE_DEGENERATE = 1e-6
+
+
+def _arguments(model, function, rng):
+    """Argument tuples: (kind, [array per argument]) for the sweeps."""
+    sizes = [len(argument.symbols) for argument in function.arguments]
+    if function.name == "ik" and getattr(model, "ik_free", None) is not None:
+        sizes = sizes[:1] + [0]
+    kinds = {"defined": sample_points(model, function, rng, POINTS)}
+
+    def each(make):
+        return [make(size) for size in sizes]
+
+    def shaped(values, size):
+        return values if size else values[:, 0]
+
+    kinds["wide"] = each(lambda s: shaped(rng.uniform(-10.0, 10.0, (POINTS, max(s, 1))), s))
+    kinds["zero"] = each(lambda s: shaped(np.zeros((2, max(s, 1))), s))
+    kinds["tiny"] = each(lambda s: shaped(rng.choice([-1e-300, 0.0, 1e-300, 5e-324], (POINTS, max(s, 1))), s))
+    kinds["large"] = each(lambda s: shaped(rng.choice([-1e6, -1.0, 1e6, 1e8], (POINTS, max(s, 1))), s))
+    # one batch of each kind's first item: an item's refusal must not depend on the others
+    kinds["mixed"] = [np.stack([np.asarray(kinds[k][i])[0] for k in ("wide", "zero", "large", "defined", "tiny")])
+                      for i in range(len(sizes))]
+    return sizes, kinds
+
+
+def _call(module, name, args, params):
+    """(result as a tuple of arrays, None) or (None, the exception's class name)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        try:
+            result = getattr(module, name)(*args, **params)
+        except (ValueError, RuntimeWarning, ZeroDivisionError, FloatingPointError, OverflowError) as exc:
+            return None, type(exc).__name__
+    return (result if isinstance(result, tuple) else (result,)), None
+
+
+def _batch_ndim(args, sizes):
+    return len(np.broadcast_shapes(*[np.shape(a)[:-1] if size else np.shape(a) for a, size in zip(args, sizes)]))
+
+
+def _unsettled(module, name, args, params, result, batch_ndim, rng):
+    """Items whose answer the rounding of the arguments already changes: the kernel in ``module``
+    at arguments moved by about 20 ulps (four random moves).  Returns (items whose flags or NaN
+    pattern change, the spread of each float output): two correct implementations may differ by
+    that much, and may flag such an item differently."""
+    unsettled = np.zeros(np.shape(result[0])[:batch_ndim], bool)
+    spread = [np.zeros(np.shape(r)) for r in result]
+    for _ in range(4):
+        moved = [np.asarray(a) * (1 + 4e-15 * rng.uniform(-1, 1, np.shape(a))) for a in args]
+        other, error = _call(module, name, moved, params)
+        if error:
+            return np.ones_like(unsettled), spread
+        for k, (r, o) in enumerate(zip(result, other)):
+            r, o = np.asarray(r), np.asarray(o)
+            changed = (r != o) if r.dtype != float else (np.isnan(r) != np.isnan(o)) | (np.isinf(r) != np.isinf(o))
+            unsettled |= changed.reshape(changed.shape[:batch_ndim] + (-1,)).any(axis=-1)
+            if r.dtype == float:
+                with np.errstate(invalid="ignore"):
+                    spread[k] = np.fmax(spread[k], np.abs(np.where(np.isfinite(r) & np.isfinite(o), r - o, 0.0)))
+    return unsettled, spread
+
+
+def _disagreement(numpy_result, c_result, outputs, unsettled, spread, relative=RELATIVE) -> str | None:
+    """Why two backends' answers differ beyond rounding, or None."""
+    valid = None
+    for out, got_n, got_c, wobble in zip(outputs, numpy_result, c_result, spread):
+        got_n, got_c = np.asarray(got_n), np.asarray(got_c)
+        if got_n.shape != got_c.shape:
+            return f"{out.name}: shapes {got_n.shape} and {got_c.shape}"
+        settled = np.broadcast_to(~unsettled.reshape(unsettled.shape + (1,) * (got_n.ndim - unsettled.ndim)),
+                                  got_n.shape)
+        if out.dtype != "float":
+            if not np.array_equal(got_n[settled], got_c[settled]):
+                return f"{out.name}: {np.argwhere((got_n != got_c) & settled)[:3].tolist()} differ"
+            valid = got_n if out.name == "valid" else valid
+            continue
+        mask = settled.copy()
+        if valid is not None:  # an ik's joint values are compared on its valid branches
+            mask &= np.broadcast_to(valid[..., None], got_n.shape)
+        for what, test in (("NaN", np.isnan), ("inf", np.isinf)):
+            if not np.array_equal(test(got_n) & mask, test(got_c) & mask):
+                return f"{out.name}: {what} in different places"
+        both = mask & np.isfinite(got_n) & np.isfinite(got_c)
+        n, c, wobble = got_n[both], got_c[both], np.broadcast_to(wobble, got_n.shape)[both]
+        difference = np.abs(n - c)
+        if out.name == "Q" or "joint" in out.name:  # angles: +-pi is one answer
+            difference = np.minimum(difference, np.abs(difference - 2 * np.pi))
+        allowed = relative * np.maximum(1.0, np.maximum(np.abs(n), np.abs(c))) + 10 * wobble
+        if difference.size and (difference > allowed).any():
+            at = int(np.argmax(difference - allowed))
+            return (f"{out.name}: {n[at]!r} and {c[at]!r} (difference {difference[at]:.2e}, "
+                    f"rounding spread {wobble[at]:.2e})")
+    return None
+
+
+@pytest.mark.parametrize("name", ROBOT_NAMES)
+def test_numpy_and_c_are_one_function(models, name):
+    model = models[name]
+    kn, kc = generated.load(name, backend="numpy"), generated.load(name, backend="c")
+    rng = np.random.default_rng(17)
+    degenerate = [{p: v} for p in kn.PARAMS for v in (0.0, 1e-300, -1e-300)]
+    problems, calls = [], 0
+    for function in model.functions():
+        sizes, kinds = _arguments(model, function, rng)
+        for kind, args in kinds.items():
+            for params in [{}, sample_params(model, rng)] + degenerate:
+                one = [a[0] for a in args]
+                for call_args in (one, args):  # one point, and the batch
+                    result_n, error_n = _call(kn, function.name, call_args, params)
+                    result_c, error_c = _call(kc, function.name, call_args, params)
+                    calls += 1
+                    if error_n or error_c:
+                        why = None if error_n == error_c else f"numpy {error_n}, C {error_c}"
+                    else:
+                        unsettled, spread = _unsettled(kn, function.name, call_args, params, result_n,
+                                                       _batch_ndim(call_args, sizes), rng)
+                        why = _disagreement(result_n, result_c, function.outputs, unsettled, spread,
+                                            RELATIVE if params not in degenerate else
+                                            RELATIVE_DEGENERATE if kind not in ("large", "mixed") else np.inf)
+                    if why:
+                        first = [np.asarray(a).reshape(-1, np.shape(a)[-1] if np.ndim(a) else 1)[0].tolist() for a in call_args]
+                        problems.append(f"{function.name} {kind} {params} {'one' if call_args is one else 'batch'} "
+                                        f"{first}: {why}")
+    assert not problems, f"{len(problems)} disagreements in {calls} calls:\n" + "\n".join(problems[:20])
+
+
+def test_an_empty_batch_beside_a_nan_is_refused_by_both(models):
+    """Broadcasting (0, n) against (1, n) leaves no item, but NaN is refused whatever the batch."""
+    tried = []
+    for name in ROBOT_NAMES:
+        for function in models[name].functions():
+            sizes = [len(argument.symbols) for argument in function.arguments]
+            if len(sizes) < 2 or function.name == "ik":  # ik reports NaN through valid
+                continue
+            args = [np.zeros((0, sizes[0]))] + [np.full((1, size), np.nan) for size in sizes[1:]]
+            for backend in ("numpy", "c"):
+                with pytest.raises(ValueError, match="NaN or inf"):
+                    getattr(generated.load(name, backend=backend), function.name)(*args)
+            tried.append(f"{name}.{function.name}")
+    assert len(tried) >= 20, tried  # the rate maps of every arm, and the AVR 3000's velocity maps
