@@ -37,7 +37,7 @@ import numpy as np
 import sympy as sp
 
 import derivations
-from derivations.budget import BudgetExceeded, budget, set_stage
+from derivations.budget import BudgetExceeded, MemoryCapExceeded, budget, memory_cap, set_stage
 import generated
 
 from . import avr_limits
@@ -59,6 +59,9 @@ class InputError(ValueError):
 # The budget of `generate FILE` for deriving and rendering (not compiling): a 6-joint arm
 # takes seconds; a description that would take longer stops with a message naming the stage.
 DEFAULT_TIME_LIMIT = 120.0
+# The memory the same work may take on top of what the process holds (a 7-joint arm takes
+# under 1 GiB); past it, the run stops with a message naming the stage.
+DEFAULT_MEMORY_LIMIT = 8.0
 
 
 def _seconds(text: str) -> float:
@@ -68,6 +71,16 @@ def _seconds(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
     if not (value > 0 and value < 1e6):
         raise argparse.ArgumentTypeError(f"expected a positive number of seconds below 1e6, got {text!r}")
+    return value
+
+
+def _gib(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of GiB, got {text!r}") from None
+    if not (value > 0 and value < 1e6):
+        raise argparse.ArgumentTypeError(f"expected a positive number of GiB below 1e6, got {text!r}")
     return value
 
 
@@ -204,7 +217,8 @@ def cmd_generate(args, say) -> int:
             raise gen.OutputExistsError(f"{args.out}: exists and is not a folder (--force replaces only a package folder)")
         if args.out and not Path(args.out).name.isidentifier():
             raise InputError(f"{args.out}: the package folder name must be a Python identifier to be importable")
-        with budget(args.time_limit, f"{args.robots[0]}: derivation and rendering"):
+        what = f"{args.robots[0]}: derivation and rendering"
+        with budget(args.time_limit, what), memory_cap(args.memory_limit, what):
             set_stage("deriving the model")
             model, path = _load(args.robots[0], say, args)
             set_stage(None)
@@ -499,10 +513,14 @@ def parser() -> argparse.ArgumentParser:
             s.add_argument("--no-build", action="store_true", help="do not compile the C extension")
             s.add_argument("--time-limit", type=_seconds, default=DEFAULT_TIME_LIMIT, metavar="SECONDS",
                            help=f"stop a derivation and rendering that runs longer (default {DEFAULT_TIME_LIMIT:g} s)")
+            s.add_argument("--memory-limit", type=_gib, default=DEFAULT_MEMORY_LIMIT, metavar="GIB",
+                           help="stop a derivation and rendering that needs more memory, in GiB "
+                                f"(default {DEFAULT_MEMORY_LIMIT:g})")
         if name in ("verify", "all"):
             s.add_argument("--samples", type=int, default=6, help="points per kernel (default 6)")
         if name == "all":
-            s.set_defaults(out=None, backend=["numpy", "c"], force=False, no_build=False, time_limit=DEFAULT_TIME_LIMIT)
+            s.set_defaults(out=None, backend=["numpy", "c"], force=False, no_build=False, time_limit=DEFAULT_TIME_LIMIT,
+                           memory_limit=DEFAULT_MEMORY_LIMIT)
             s.add_argument("--times", metavar="FILE", help="append each stage's time to FILE (make does)")
         s.set_defaults(run=run)
     sub.add_parser("check", help="fail when generated/ is stale", parents=[common]).set_defaults(run=cmd_check)
@@ -553,6 +571,9 @@ def _run(args, say) -> int:
         return 2
     except BudgetExceeded as exc:
         print(f"kinegen: error: {exc}; nothing was written (--time-limit SECONDS allows more)", file=sys.stderr)
+        return 2
+    except MemoryCapExceeded as exc:
+        print(f"kinegen: error: {exc}; nothing was written (--memory-limit GIB allows more)", file=sys.stderr)
         return 2
     except tex_report.ReportError as exc:
         print(f"kinegen: {exc}", file=sys.stderr)

@@ -17,11 +17,12 @@ and says so in :data:`ENFORCED`.
 from __future__ import annotations
 
 import contextlib
+import resource
 import signal
 import threading
 import time
 
-__all__ = ["BudgetExceeded", "budget", "remaining", "set_stage", "ENFORCED"]
+__all__ = ["BudgetExceeded", "MemoryCapExceeded", "budget", "memory_cap", "remaining", "set_stage", "ENFORCED"]
 
 
 class BudgetExceeded(Exception):
@@ -33,6 +34,17 @@ class BudgetExceeded(Exception):
         super().__init__(f"{what}: stopped after its time budget of {seconds:g} s{where}")
         self.what = what
         self.seconds = seconds
+        self.stage = stage
+
+
+class MemoryCapExceeded(Exception):
+    """The body of :func:`memory_cap` asked for more memory than its cap allows."""
+
+    def __init__(self, what: str, gib: float, stage: str | None = None):
+        where = f" while {stage}" if stage else ""
+        super().__init__(f"{what}: stopped at its memory cap of {gib:g} GiB{where}")
+        self.what = what
+        self.gib = gib
         self.stage = stage
 
 
@@ -103,3 +115,45 @@ def budget(seconds: float | None, stage: str):
         _arm()
         if previous is not _on_alarm:
             signal.signal(signal.SIGALRM, previous)
+
+
+def _address_space() -> int | None:
+    """This process's virtual memory size in bytes (Linux's /proc), or None where unknown."""
+    try:
+        with open("/proc/self/statm") as handle:
+            return int(handle.read().split()[0]) * resource.getpagesize()
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+@contextlib.contextmanager
+def memory_cap(gib: float | None, stage: str):
+    """Run the body with at most ``gib`` GiB of address space more than the process holds now
+    (None: no cap), or raise :class:`MemoryCapExceeded` naming the stage.
+
+    The cap is the soft ``RLIMIT_AS`` of this process, lowered for the body and put back after
+    it, so that compilers started later are not bound by it.  Where the limit or the process
+    size cannot be read (not Linux), the body runs uncapped.
+    """
+    if gib is None:
+        yield
+        return
+    if not gib > 0:
+        raise ValueError(f"a memory cap must be positive, got {gib!r}")
+    size = _address_space()
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    if size is None:
+        yield
+        return
+    cap = size + int(gib * 2**30)
+    if hard != resource.RLIM_INFINITY:
+        cap = min(cap, hard)
+    if soft != resource.RLIM_INFINITY:
+        cap = min(cap, soft)
+    resource.setrlimit(resource.RLIMIT_AS, (cap, hard))
+    try:
+        yield
+    except MemoryError:
+        raise MemoryCapExceeded(stage, gib, _stage) from None
+    finally:
+        resource.setrlimit(resource.RLIMIT_AS, (soft, hard))

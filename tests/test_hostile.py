@@ -141,3 +141,21 @@ def test_check_reports_the_litter_of_an_interrupted_run(tmp_path):
     assert generate.stale_files(tree, tmp_path) == [
         "__init__.py.part (stray: left by an interrupted run)",
         "arm/.arm.c.abc123.part (stray: left by an interrupted run)"]
+
+
+def test_a_derivation_past_its_memory_cap_stops_naming_the_stage(tmp_path, monkeypatch, capsys):
+    """--memory-limit bounds what the derivation may add to the process (RLIMIT_AS); the cap is
+    lifted again afterwards, so that this process (and the compilers it starts) go on."""
+    import resource
+    monkeypatch.setenv("KINEGEN_NO_CACHE", "1")
+    path = tmp_path / "arm.toml"
+    path.write_text('name = "arm"\n' + '[[joint]]\ntype = "R"\na = 0.1\nalpha = "pi/2"\n' * 6)
+    before = resource.getrlimit(resource.RLIMIT_AS)
+    status = main(["--quiet", "generate", str(path), "--out", str(tmp_path / "pkg"), "--no-build",
+                   "--memory-limit", "0.001"])
+    err = capsys.readouterr().err
+    assert status == 2, err
+    assert "stopped at its memory cap of 0.001 GiB while deriving" in err and err.count("\n") == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["arm.toml"]
+    assert resource.getrlimit(resource.RLIMIT_AS) == before
+    assert len(bytearray(2**28)) == 2**28  # 256 MiB: the process is no longer capped
