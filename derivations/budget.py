@@ -126,6 +126,11 @@ def _address_space() -> int | None:
         return None
 
 
+# How near the cap the process must be for a failure to count as the cap's (a request of up to
+# this many bytes may have failed).
+_CAP_MARGIN = 64 * 2**20
+
+
 @contextlib.contextmanager
 def memory_cap(gib: float | None, stage: str):
     """Run the body with at most ``gib`` GiB of address space more than the process holds now
@@ -155,5 +160,12 @@ def memory_cap(gib: float | None, stage: str):
         yield
     except MemoryError:
         raise MemoryCapExceeded(stage, gib, _stage) from None
+    except Exception as exc:
+        # An allocation that fails inside a C extension can surface as another error (a
+        # SystemError with no exception set, say): at the cap, it is the cap's.
+        now = _address_space()
+        if now is not None and now >= cap - _CAP_MARGIN:
+            raise MemoryCapExceeded(stage, gib, _stage) from exc
+        raise
     finally:
         resource.setrlimit(resource.RLIMIT_AS, (soft, hard))

@@ -34,8 +34,10 @@ HOSTILE = {
     "one_over_zero": (one_joint('a = "1/0"'), "division by zero"),
     "a_parameter_that_is_complex": ('name = "arm"\n[params]\nl = "sqrt(-2)"\n' + JOINT, "params: 'l'"),
     "eighty_nested_sines": (one_joint('a = "' + "sin(" * 80 + "1" + ")" * 80 + '"'), "levels of nesting"),
-    "no_joints": ('name = "arm"\njoint = []\n', "0 joints; a description has 1 to 12"),
-    "fifty_joints": ('name = "arm"\n' + JOINT * 50, "50 joints; a description has 1 to 12"),
+    "no_joints": ('name = "arm"\njoint = []\n', "0 joints; a description has 1 to 8"),
+    "twelve_joints": ('name = "arm"\n' + JOINT * 12, "12 joints; a description has 1 to 8"),
+    "nine_joints": ('name = "arm"\n' + JOINT * 9, "9 joints; a description has 1 to 8"),
+    "fifty_joints": ('name = "arm"\n' + JOINT * 50, "50 joints; a description has 1 to 8"),
     "three_thousand_joints": ('name = "arm"\n' + JOINT * 3000, "3000 joints"),
     "a_tool_at_infinity": ('name = "arm"\n' + JOINT + '[tool]\nxyz = [0, 0, "tan(pi/2)"]\n', "tool: field 'xyz'"),
 }
