@@ -1,8 +1,9 @@
 """numpy against C, differentially, over every kernel of every package (issue #17).
 
-Each kernel is called through both backends with the same arguments: points where it is
-defined (the verification's sampling), wide random values, values at and next to zero,
-tiny and huge magnitudes, and each robot parameter in turn at 0 and +-1e-300.  Where both
+Each kernel is called through both backends with the same arguments, one point and a batch:
+points where it is defined (the verification's sampling), wide random values, values at and
+next to zero, tiny and huge magnitudes, a batch mixing them; and on the defined points and
+the mixed batch, each robot parameter in turn at 0 and +-1e-300.  Where both
 answer, they agree to 1e-12 relative (NaN and inf in the same places, ik branches flagged
 valid alike); where one refuses, the other refuses with the same exception class; the
 numpy kernels raise no floating-point warnings where the C is silent.  The expected
@@ -15,9 +16,11 @@ import warnings
 import numpy as np
 import pytest
 
+import derivations
 import generated
 from codegen.verify import sample_params, sample_points
 from conftest import ROBOT_NAMES
+from test_zoo import ARMS, generated_package, generated_root  # noqa: F401  (generated_root: a fixture)
 
 POINTS = 24  # per kind of argument
 RELATIVE = 1e-12
@@ -69,12 +72,12 @@ def _batch_ndim(args, sizes):
 
 def _unsettled(module, name, args, params, result, batch_ndim, rng):
     """Items whose answer the rounding of the arguments already changes: the kernel in ``module``
-    at arguments moved by about 20 ulps (four random moves).  Returns (items whose flags or NaN
+    at arguments moved by about 20 ulps (three random moves).  Returns (items whose flags or NaN
     pattern change, the spread of each float output): two correct implementations may differ by
     that much, and may flag such an item differently."""
     unsettled = np.zeros(np.shape(result[0])[:batch_ndim], bool)
     spread = [np.zeros(np.shape(r)) for r in result]
-    for _ in range(4):
+    for _ in range(3):
         moved = [np.asarray(a) * (1 + 4e-15 * rng.uniform(-1, 1, np.shape(a))) for a in args]
         other, error = _call(module, name, moved, params)
         if error:
@@ -122,17 +125,17 @@ def _disagreement(numpy_result, c_result, outputs, unsettled, spread, relative=R
     return None
 
 
-@pytest.mark.parametrize("name", ROBOT_NAMES)
-def test_numpy_and_c_are_one_function(models, name):
-    model = models[name]
-    kn, kc = generated.load(name, backend="numpy"), generated.load(name, backend="c")
+def _sweep(model, kn, kc) -> tuple[list[str], int]:
+    """The disagreements of two backends' kernels of ``model`` over the sweep, and the calls made."""
     rng = np.random.default_rng(17)
     degenerate = [{p: v} for p in kn.PARAMS for v in (0.0, 1e-300, -1e-300)]
     problems, calls = [], 0
     for function in model.functions():
         sizes, kinds = _arguments(model, function, rng)
         for kind, args in kinds.items():
-            for params in [{}, sample_params(model, rng)] + degenerate:
+            # degenerate parameters on the defined points and the mixed batch (which holds an
+            # item of every other kind)
+            for params in [{}, sample_params(model, rng)] + (degenerate if kind in ("defined", "mixed") else []):
                 one = [a[0] for a in args]
                 for call_args in (one, args):  # one point, and the batch
                     result_n, error_n = _call(kn, function.name, call_args, params)
@@ -147,9 +150,26 @@ def test_numpy_and_c_are_one_function(models, name):
                                             RELATIVE if params not in degenerate else
                                             RELATIVE_DEGENERATE if kind not in ("large", "mixed") else np.inf)
                     if why:
-                        first = [np.asarray(a).reshape(-1, np.shape(a)[-1] if np.ndim(a) else 1)[0].tolist() for a in call_args]
+                        first = [np.asarray(a).reshape(-1, np.shape(a)[-1] if np.ndim(a) else 1)[0].tolist()
+                                 for a in call_args]
                         problems.append(f"{function.name} {kind} {params} {'one' if call_args is one else 'batch'} "
                                         f"{first}: {why}")
+    return problems, calls
+
+
+@pytest.mark.parametrize("name", ROBOT_NAMES)
+def test_numpy_and_c_are_one_function(models, name):
+    problems, calls = _sweep(models[name], generated.load(name, backend="numpy"), generated.load(name, backend="c"))
+    assert not problems, f"{len(problems)} disagreements in {calls} calls:\n" + "\n".join(problems[:20])
+
+
+@pytest.mark.parametrize("name", ["ur5", "kuka_kr5", "stanford_arm", "kuka_lwr4", "adept_cobra600"])
+def test_numpy_and_c_are_one_function_for_users_arms(name, generated_root):
+    """The zoo's arms as a user generates them: the automatic IK of each family, the seven-joint
+    ik with its free joint, and parameters as the descriptions name them."""
+    package = generated_package(name, generated_root)
+    model = derivations.load(ARMS[name].path)
+    problems, calls = _sweep(model, package.load("numpy"), package.load("c"))
     assert not problems, f"{len(problems)} disagreements in {calls} calls:\n" + "\n".join(problems[:20])
 
 
