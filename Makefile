@@ -7,6 +7,8 @@
 #   make generate   regenerate generated/ from derivations/ (deterministic)
 #   make build      compile the generated C (strict warnings) and its cffi extensions (what changed)
 #   make sanitize   every C entry point under ASan and UBSan
+#   make fuzz       the long fuzz: the hypothesis properties and random descriptions at their long
+#                   profile, then libFuzzer over every C entry point (installs clang if missing)
 #   make verify     kernels against SymPy at 30 digits, as a table
 #   make check      fail when generated/ is out of date with derivations/ and codegen/
 #   make report     the PDF report (report/build/kinegen-report.pdf); installs TeX Live if missing
@@ -31,7 +33,7 @@ BENCH_PY := $(BENCH_VENV)/bin/python
 BENCH_STAMP := $(BENCH_VENV)/.installed
 BENCH_PEERS = $$($(BENCH_PY) -c "import tomllib; print(' '.join(tomllib.load(open('pyproject.toml', 'rb'))['project']['optional-dependencies']['bench']))")
 
-.PHONY: all install plots-install generate build sanitize verify check test report texlive plots bench clean avr-limits
+.PHONY: all install plots-install generate build sanitize fuzz verify check test report texlive clang plots bench clean avr-limits
 
 # How long each stage took, printed at the end of make and make test: $(call timed,STAGE,COMMAND)
 # runs COMMAND and, when it succeeds, adds "STAGE seconds" to $(TIMES).
@@ -89,6 +91,12 @@ sanitize: build
 verify: build
 	$(KINEGEN) verify
 
+# The long profile of the property tests (the short one runs in `make test`), then libFuzzer
+# over every C entry point (`kinegen fuzz`: a million inputs each; --runs N, --seconds S).
+fuzz: build clang
+	HYPOTHESIS_PROFILE=fuzz $(PY) -m pytest -n $(TEST_JOBS) -m fuzz -p no:cacheprovider
+	$(KINEGEN) fuzz
+
 check: $(STAMP)
 	$(KINEGEN) check
 
@@ -116,6 +124,16 @@ texlive:
 	  echo "pdflatex not found: installing $(TEXLIVE_PACKAGES)"; \
 	  $(SUDO) apt-get update -qq && \
 	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $(TEXLIVE_PACKAGES); }
+
+# libFuzzer for `make fuzz`: clang and its compiler-rt runtimes (libFuzzer, ASan, UBSan), which
+# clang only recommends (about 10 s to install here).
+CLANG_PACKAGES := clang libclang-rt-dev
+
+clang:
+	@command -v clang >/dev/null 2>&1 || { \
+	  echo "clang not found: installing $(CLANG_PACKAGES)"; \
+	  $(SUDO) apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $(CLANG_PACKAGES); }
 
 report: $(STAMP) texlive
 	$(KINEGEN) report

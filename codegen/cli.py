@@ -6,6 +6,7 @@
     kinegen generate ROBOT|FILE --out DIR         a self-contained package for one robot
     kinegen build [ROBOT ...]                     strict-warning compile + cffi extension per robot
     kinegen sanitize [ROBOT ...]                  every C entry point under ASan + UBSan
+    kinegen fuzz [ROBOT ...] [--runs N] [--seconds S]  libFuzzer over every C entry point (needs clang)
     kinegen verify [ROBOT ...]                    kernels against SymPy at 30 digits; summary table
     kinegen verify FILE --out DIR                 the same for a package made by `generate`
     kinegen check                                 fail when generated/ is not what the derivations give
@@ -42,6 +43,7 @@ import generated
 
 from . import avr_limits
 from . import build as c_build
+from . import fuzz as c_fuzz
 from . import generate as gen
 from . import report as tex_report
 from .backends import latex_backend
@@ -81,6 +83,18 @@ def _gib(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected a number of GiB, got {text!r}") from None
     if not (value > 0 and value < 1e6):
         raise argparse.ArgumentTypeError(f"expected a positive number of GiB below 1e6, got {text!r}")
+    return value
+
+
+def _positive_count(text: str) -> int:
+    """A count given as 1000000, 1_000_000, 1,000,000 or 1e6."""
+    try:
+        number = float(text.replace("_", "").replace(",", ""))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    value = int(number) if number.is_integer() and number < 1e15 else 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive whole number below 1e15, got {text!r}")
     return value
 
 
@@ -282,6 +296,48 @@ def cmd_sanitize(args, say) -> int:
             name, seconds = done.result()
             say(f"{name}: clean under ASan and UBSan ({seconds:.1f} s)")
     return 0
+
+
+def _fuzz_package(name: str) -> c_fuzz.FuzzPackage:
+    """What the fuzz harness of a registered robot or kernel set needs (a worker of cmd_fuzz):
+    its kernels from the sanitizer run's context, reachable ik targets as seeds, and which
+    task coordinates are angles."""
+    model = _symbolic(name)
+    context = gen.robot_context(model, "")
+    reachable, angles = (), ()
+    if model.n and "ik" in {f["name"] for f in context["functions"]}:
+        q = np.random.default_rng(0).uniform(-np.pi, np.pi, size=(8, model.n))
+        reachable = generated.load(name).task(q)
+        angles = c_fuzz.angle_coordinates(list(model.task), model.q, model.joint_types)
+    return c_fuzz.package_from_context(gen.GENERATED / name, context, reachable, angles)
+
+
+def cmd_fuzz(args, say) -> int:
+    """libFuzzer over every C entry point of the packages (codegen/fuzz.py); a table of the runs."""
+    missing = c_fuzz.clang_missing()
+    if missing:
+        print(f"kinegen: {missing}", file=sys.stderr)
+        return 2
+    names = _registered(args.robots)
+    jobs = gen.default_jobs()
+    with concurrent.futures.ProcessPoolExecutor(max_workers=min(jobs, len(names))) as pool:
+        packages = list(pool.map(_fuzz_package, names))
+    count = sum(len(c_fuzz.targets(p)) for p in packages)
+    limit = f"{args.runs:,} inputs" + (f" or {args.seconds:g} s" if args.seconds else "")
+    say(f"fuzzing {count} entry points of {len(packages)} package(s) with libFuzzer, ASan and UBSan, "
+        f"{limit} each, {jobs} at a time")
+
+    def report(result):
+        verdict = "clean" if result.failure is None else "FAILED"
+        say(f"{result.target.package} {result.target.entry}: {result.runs:,} inputs, "
+            f"{result.per_second:,.0f}/s, {verdict}")
+
+    results = c_fuzz.fuzz(packages, runs=args.runs, seconds=args.seconds, jobs=jobs, report=report)
+    print(c_fuzz.format_table(results))
+    failed = [r for r in results if r.failure is not None]
+    for r in failed:
+        print(f"\n{r.target.package} {r.target.entry} failed:\n{r.failure}")
+    return 1 if failed else 0
 
 
 def _package_modules(package: Path, backends: list[str]) -> dict:
@@ -523,6 +579,13 @@ def parser() -> argparse.ArgumentParser:
                            memory_limit=DEFAULT_MEMORY_LIMIT)
             s.add_argument("--times", metavar="FILE", help="append each stage's time to FILE (make does)")
         s.set_defaults(run=run)
+    s = sub.add_parser("fuzz", help="libFuzzer over every C entry point (needs clang)", parents=[common])
+    s.add_argument("robots", nargs="*", metavar="robot", help="robot names (default: all)")
+    s.add_argument("--runs", type=_positive_count, default=1_000_000, metavar="N",
+                   help="inputs per entry point (default 1,000,000)")
+    s.add_argument("--seconds", type=_seconds, default=None, metavar="S",
+                   help="stop each entry point's fuzzing after S seconds, whatever its inputs (default: no limit)")
+    s.set_defaults(run=cmd_fuzz)
     sub.add_parser("check", help="fail when generated/ is stale", parents=[common]).set_defaults(run=cmd_check)
     s = sub.add_parser("latex", help="print the LaTeX of a robot's derived equations", parents=[common])
     s.add_argument("robot", help="robot name, .toml description or .urdf file")
