@@ -5,7 +5,7 @@
     kinegen generate                              regenerate generated/ for every registered robot
     kinegen generate ROBOT|FILE --out DIR         a self-contained package for one robot
     kinegen build [ROBOT ...]                     strict-warning compile + cffi extension per robot
-    kinegen sanitize [ROBOT ...]                  every C entry point under ASan + UBSan
+    kinegen sanitize [ROBOT ...]                  every C entry point under ASan + UBSan, then valgrind
     kinegen fuzz [ROBOT ...] [--runs N] [--seconds S]  libFuzzer over every C entry point (needs clang)
     kinegen verify [ROBOT ...]                    kernels against SymPy at 30 digits; summary table
     kinegen verify FILE --out DIR                 the same for a package made by `generate`
@@ -276,12 +276,15 @@ def cmd_build(args, say) -> int:
     return 0
 
 
-def _sanitize_one(name: str) -> tuple[str, float]:
-    """The sanitizer run of a registered robot or kernel set (a worker of cmd_sanitize)."""
+def _sanitize_one(name: str, memcheck: bool) -> tuple[str, float]:
+    """The sanitizer run of a registered robot or kernel set, then its memcheck run if
+    ``memcheck`` (a worker of cmd_sanitize)."""
     start = time.perf_counter()
     model = _symbolic(name)
     context = gen.robot_context(model, "")
     c_build.sanitizer_run(gen.GENERATED / name, name, context["functions"], model.n)
+    if memcheck:
+        c_build.memcheck_run(gen.GENERATED / name, name, context["functions"], model.n)
     return name, time.perf_counter() - start
 
 
@@ -290,11 +293,16 @@ def cmd_sanitize(args, say) -> int:
     # The largest C first: the Puma's instrumented compile is most of the run.
     names.sort(key=lambda n: -(gen.GENERATED / n / f"{n}.c").stat().st_size)
     jobs = min(gen.default_jobs(), len(names))
-    say(f"sanitizer runs (ASan + UBSan) of every entry point of {len(names)} package(s), {jobs} at a time")
+    memcheck = c_build.valgrind() is not None
+    if not memcheck:
+        print("kinegen sanitize: valgrind not found: the memcheck runs are skipped (apt-get install valgrind)",
+              file=sys.stderr)
+    checks = "ASan + UBSan" + (", then valgrind memcheck" if memcheck else "")
+    say(f"sanitizer runs ({checks}) of every entry point of {len(names)} package(s), {jobs} at a time")
     with concurrent.futures.ProcessPoolExecutor(max_workers=jobs) as pool:
-        for done in concurrent.futures.as_completed([pool.submit(_sanitize_one, name) for name in names]):
+        for done in concurrent.futures.as_completed([pool.submit(_sanitize_one, name, memcheck) for name in names]):
             name, seconds = done.result()
-            say(f"{name}: clean under ASan and UBSan ({seconds:.1f} s)")
+            say(f"{name}: clean under ASan and UBSan{' and memcheck' if memcheck else ''} ({seconds:.1f} s)")
     return 0
 
 
@@ -551,7 +559,7 @@ def parser() -> argparse.ArgumentParser:
     for name, run, text in (
         ("generate", cmd_generate, "write generated/, or a standalone package with --out"),
         ("build", cmd_build, "compile the generated C (strict flags, cffi extension)"),
-        ("sanitize", cmd_sanitize, "run every C entry point under ASan and UBSan"),
+        ("sanitize", cmd_sanitize, "run every C entry point under ASan and UBSan, then valgrind's memcheck"),
         ("verify", cmd_verify, "check the kernels against SymPy"),
         ("all", cmd_all, "generate, build and verify"),
     ):
