@@ -22,8 +22,8 @@ from .backends import TEMPLATES
 from .backends.c_backend import STRICT_FLAGS
 from .generate import GENERATED
 
-__all__ = ["load_build_script", "build_extension", "build_package", "compile_strict", "sanitizer_run",
-           "memcheck_run", "valgrind", "CompileError"]
+__all__ = ["load_build_script", "build_extension", "build_package", "compile_strict", "point_includes",
+           "sanitizer_run", "memcheck_run", "valgrind", "CompileError"]
 
 CC = os.environ.get("CC", "cc")
 # A small block in the sanitizer run, so that its batches span a full block and a partial one.
@@ -34,8 +34,17 @@ class CompileError(RuntimeError):
     """The C compiler rejected generated code (its output is in the message)."""
 
 
+def _beside_output(cmd: list[str]) -> dict | None:
+    """The environment for a compile: TMPDIR in the folder of its ``-o`` output (always a scratch
+    folder), so that the compiler's own temporary files (cc*.s) go when the scratch folder goes,
+    a killed run's too."""
+    if "-o" not in cmd:
+        return None
+    return dict(os.environ, TMPDIR=str(Path(cmd[cmd.index("-o") + 1]).parent))
+
+
 def _run(cmd: list[str], cwd: Path | None = None) -> subprocess.CompletedProcess:
-    result = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True)
+    result = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, env=_beside_output(cmd))
     if result.returncode != 0:
         raise CompileError(f"{' '.join(cmd)} failed:\n{result.stdout}{result.stderr}")
     return result
@@ -199,8 +208,14 @@ def compile_strict(package: Path, name: str, skip=()) -> None:
                   "-o", str(Path(scratch) / f"{name}-{layout}.o")])
         point = package / f"{name}_point.c"
         if point.exists():
-            _run([CC, *STRICT_FLAGS, "-O2", "-I", str(package), "-isystem", sysconfig.get_paths()["include"],
-                  "-isystem", numpy.get_include(), "-c", str(point), "-o", str(Path(scratch) / f"{name}_point.o")])
+            _run([CC, *STRICT_FLAGS, "-O2", *point_includes(package), "-c", str(point),
+                  "-o", str(Path(scratch) / f"{name}_point.o")])
+
+
+def point_includes(package: Path) -> list[str]:
+    """The include flags of ``<name>_point.c``: the package's header, and Python's and numpy's
+    as system headers (-isystem: their own warnings are not ours to fix)."""
+    return ["-I", str(package), "-isystem", sysconfig.get_paths()["include"], "-isystem", numpy.get_include()]
 
 
 @functools.lru_cache(maxsize=None)
@@ -209,7 +224,8 @@ def _accepts(flags: tuple[str, ...]) -> bool:
     with tempfile.TemporaryDirectory(prefix="kinegen-probe-") as scratch:
         source = Path(scratch) / "probe.c"
         source.write_text("int main(void) { return 0; }\n")
-        result = subprocess.run([CC, *flags, str(source), "-o", str(Path(scratch) / "probe")], capture_output=True)
+        command = [CC, *flags, str(source), "-o", str(Path(scratch) / "probe")]
+        result = subprocess.run(command, capture_output=True, env=_beside_output(command))
         return result.returncode == 0
 
 

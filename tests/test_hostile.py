@@ -4,6 +4,7 @@ which turns a bug of ours (never bad input) into exit status 1 and one line."""
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 import pytest
 
@@ -206,3 +207,33 @@ def test_two_generates_of_one_package_at_once_both_end_cleanly(tmp_path):
     assert sorted(p.relative_to(tmp_path / "cyl") for p in (tmp_path / "cyl").rglob("*")) == files
     for name in files:  # generation is deterministic: a whole package is the reference, byte for byte
         assert (tmp_path / "cyl" / name).read_bytes() == (reference / "cyl" / name).read_bytes(), name
+
+
+def test_the_compilers_temporary_files_stay_in_the_builds_scratch_folder(tmp_path, monkeypatch):
+    """gcc writes cc*.s into $TMPDIR, and a killed build cannot remove them: every compile of
+    a package build runs with TMPDIR in the build's scratch folder, which goes with the run."""
+    import os
+    import shutil
+    import stat
+    import tempfile
+
+    from codegen import build
+    from codegen.generate import GENERATED
+    package = tmp_path / "planar_2r"
+    shutil.copytree(GENERATED / "planar_2r", package, ignore=shutil.ignore_patterns("*.so", "*.stamp", "__pycache__"))
+    system_tmp = tmp_path / "tmp"
+    system_tmp.mkdir()
+    log = tmp_path / "tmpdirs.log"
+    wrapper = tmp_path / "cc-wrapper"
+    wrapper.write_text(f'#!/bin/sh\necho "$TMPDIR" >> {log}\nexec {shutil.which("cc")} "$@"\n')
+    wrapper.chmod(wrapper.stat().st_mode | stat.S_IEXEC)
+    monkeypatch.setenv("CC", str(wrapper))
+    monkeypatch.setenv("TMPDIR", str(system_tmp))
+    monkeypatch.setattr(tempfile, "tempdir", str(system_tmp))
+    monkeypatch.setenv("KINEGEN_PORTABLE", "1")
+    build.build_extension(package)
+    used = log.read_text().split()
+    assert len(used) >= 3  # the kernels, the one-point entry points, cffi's binding (and its link)
+    assert all(Path(d).parent == system_tmp and Path(d).name.startswith("kinegen-build-") for d in used), used
+    assert list(system_tmp.iterdir()) == []
+    assert os.environ["TMPDIR"] == str(system_tmp)  # put back after cffi's compile
