@@ -11,7 +11,8 @@ package with inverse kinematics a round trip, ``ik (round trip)``.
 Inputs are bytes read as doubles, so NaN, infinities, subnormals and huge values reach
 every argument and parameter.  A target fails on a sanitizer report, a crash, a hang, or
 a broken contract the harness checks (see the template): single and batched results
-that differ, a valid ik branch with a joint value that is not finite, and in the round
+that differ, a truth value other than 0 and 1, a valid ik branch with a joint value that
+is not finite or a return value that does not count the valid branches, and in the round
 trip, where the target is the task of finite joint values, a valid branch that does not
 give the target back to ``TOLERANCE`` times max(1, |x|).  Each target runs for a number
 of inputs and/or seconds, as many at a time as there are cores, in a scratch folder
@@ -40,8 +41,7 @@ from .backends.c_backend import STRICT_FLAGS
 from .build import CompileError
 
 __all__ = ["Argument", "Kernel", "FuzzPackage", "Target", "Result", "clang_missing", "angle_coordinates",
-           "package_from_context",
-           "targets", "fuzz", "format_table", "describe_input", "ROUND_TRIP", "INSTALL_HINT"]
+           "package_from_context", "targets", "fuzz", "format_table", "describe_input", "ROUND_TRIP", "INSTALL_HINT"]
 
 CLANG = os.environ.get("CLANG", "clang")
 INSTALL_HINT = "install clang with its compiler-rt runtimes: apt-get install clang libclang-rt-dev, or `make fuzz` does"
@@ -53,7 +53,7 @@ FUZZ_BLOCK = 4
 MAX_ITEMS = 8
 KERNEL_FLAGS = ("-O1", "-ffp-contract=off", "-DKINEGEN_BLOCKED", f"-DKINEGEN_BLOCK={FUZZ_BLOCK}")
 # The round trip: joint values reduced to at most JOINT_BOUND (radians or metres), each parameter
-# its default times 1 + at most PARAM_SPREAD, and a valid branch within TOLERANCE * max(1, |x|).
+# its default times 1 + a value within +-PARAM_SPREAD, and a valid branch within TOLERANCE * max(1, |x|).
 JOINT_BOUND = 4.0
 PARAM_SPREAD = 0.5
 TOLERANCE = 1e-6
