@@ -39,6 +39,12 @@
  * infinity check is affected: no -ffast-math is involved.
  */
 #ifdef KINEGEN_SIMD
+#ifdef __clang__
+/* clang warns (-Wpass-failed) where it does not vectorise a loop marked omp simd: clang 14
+   leaves the loops of atan2, acos and asin calls scalar (it has no vector form of them).
+   Such a loop computes the same results in scalar C; a build with -Werror must not stop. */
+#pragma clang diagnostic ignored "-Wpass-failed"
+#endif
 #pragma omp declare simd notinbranch
 double sin(double);
 #pragma omp declare simd notinbranch
@@ -282,7 +288,7 @@ void adept_three_fk_batch(size_t count, const double *restrict q, const adept_th
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 16; k += 2) {
                     _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
                 }
@@ -687,7 +693,7 @@ void adept_three_frames_batch(size_t count, const double *restrict q, const adep
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 80; k += 2) {
                     _mm_stream_pd(frames + 80 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
                 }
@@ -888,7 +894,7 @@ void adept_three_jacobian_batch(size_t count, const double *restrict q, const ad
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 24; k += 2) {
                     _mm_stream_pd(J + 24 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
                 }
@@ -1033,7 +1039,7 @@ void adept_three_task_batch(size_t count, const double *restrict q, const adept_
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 4; k += 2) {
                     _mm_stream_pd(x + 4 * (start + i) + k, _mm_set_pd(_x_block[k + 1][i], _x_block[k][i]));
                 }
@@ -1210,7 +1216,7 @@ void adept_three_task_jacobian_batch(size_t count, const double *restrict q, con
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 16; k += 2) {
                     _mm_stream_pd(Jx + 16 * (start + i) + k, _mm_set_pd(_Jx_block[k + 1][i], _Jx_block[k][i]));
                 }
@@ -1394,7 +1400,7 @@ long adept_three_ik_batch(size_t count, const double *restrict _x, const adept_t
         }
         {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 8; ++k) {
                     Q[8 * (start + i) + k] = _Q_block[k][i];
                 }
@@ -1555,7 +1561,7 @@ void adept_three_task_velocity_batch(size_t count, const double *restrict q, con
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 4; k += 2) {
                     _mm_stream_pd(xd + 4 * (start + i) + k, _mm_set_pd(_xd_block[k + 1][i], _xd_block[k][i]));
                 }
@@ -1714,7 +1720,7 @@ void adept_three_twist_batch(size_t count, const double *restrict q, const doubl
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 6; k += 2) {
                     _mm_stream_pd(twist + 6 * (start + i) + k, _mm_set_pd(_twist_block[k + 1][i], _twist_block[k][i]));
                 }
@@ -1903,7 +1909,7 @@ void adept_three_task_jacobian_dot_batch(size_t count, const double *restrict q,
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 16; k += 2) {
                     _mm_stream_pd(Jx_dot + 16 * (start + i) + k, _mm_set_pd(_Jx_dot_block[k + 1][i], _Jx_dot_block[k][i]));
                 }
@@ -2116,7 +2122,7 @@ void adept_three_jacobian_dot_batch(size_t count, const double *restrict q, cons
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 24; k += 2) {
                     _mm_stream_pd(J_dot + 24 * (start + i) + k, _mm_set_pd(_J_dot_block[k + 1][i], _J_dot_block[k][i]));
                 }
@@ -2287,7 +2293,7 @@ void adept_three_task_acceleration_batch(size_t count, const double *restrict q,
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 4; k += 2) {
                     _mm_stream_pd(xdd + 4 * (start + i) + k, _mm_set_pd(_xdd_block[k + 1][i], _xdd_block[k][i]));
                 }
@@ -2761,7 +2767,7 @@ void adept_three_joint_velocity_batch(size_t count, const double *restrict q, co
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 4; k += 2) {
                     _mm_stream_pd(qd + 4 * (start + i) + k, _mm_set_pd(_qd_block[k + 1][i], _qd_block[k][i]));
                 }
@@ -3199,7 +3205,7 @@ void adept_three_joint_acceleration_batch(size_t count, const double *restrict q
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 4; k += 2) {
                     _mm_stream_pd(qdd + 4 * (start + i) + k, _mm_set_pd(_qdd_block[k + 1][i], _qdd_block[k][i]));
                 }
@@ -3350,7 +3356,7 @@ void adept_three_tool_configuration_batch(size_t count, const double *restrict q
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 6; k += 2) {
                     _mm_stream_pd(w_tool + 6 * (start + i) + k, _mm_set_pd(_w_tool_block[k + 1][i], _w_tool_block[k][i]));
                 }
@@ -3554,7 +3560,7 @@ void adept_three_tool_configuration_jacobian_batch(size_t count, const double *r
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 24; k += 2) {
                     _mm_stream_pd(Jw + 24 * (start + i) + k, _mm_set_pd(_Jw_block[k + 1][i], _Jw_block[k][i]));
                 }

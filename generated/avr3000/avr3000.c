@@ -74,6 +74,12 @@
  * infinity check is affected: no -ffast-math is involved.
  */
 #ifdef KINEGEN_SIMD
+#ifdef __clang__
+/* clang warns (-Wpass-failed) where it does not vectorise a loop marked omp simd: clang 14
+   leaves the loops of atan2, acos and asin calls scalar (it has no vector form of them).
+   Such a loop computes the same results in scalar C; a build with -Werror must not stop. */
+#pragma clang diagnostic ignored "-Wpass-failed"
+#endif
 #pragma omp declare simd notinbranch
 double sin(double);
 #pragma omp declare simd notinbranch
@@ -310,7 +316,7 @@ void avr3000_fk_batch(size_t count, const double *restrict q, const avr3000_para
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 16; k += 2) {
                     _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
                 }
@@ -651,7 +657,7 @@ void avr3000_frames_batch(size_t count, const double *restrict q, const avr3000_
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 64; k += 2) {
                     _mm_stream_pd(frames + 64 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
                 }
@@ -854,7 +860,7 @@ void avr3000_jacobian_batch(size_t count, const double *restrict q, const avr300
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 18; k += 2) {
                     _mm_stream_pd(J + 18 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
                 }
@@ -1093,7 +1099,7 @@ long avr3000_ik_batch(size_t count, const double *restrict x, const avr3000_para
         }
         {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 3; ++k) {
                     Q[3 * (start + i) + k] = _Q_block[k][i];
                 }

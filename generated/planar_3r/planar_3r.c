@@ -37,6 +37,12 @@
  * infinity check is affected: no -ffast-math is involved.
  */
 #ifdef KINEGEN_SIMD
+#ifdef __clang__
+/* clang warns (-Wpass-failed) where it does not vectorise a loop marked omp simd: clang 14
+   leaves the loops of atan2, acos and asin calls scalar (it has no vector form of them).
+   Such a loop computes the same results in scalar C; a build with -Werror must not stop. */
+#pragma clang diagnostic ignored "-Wpass-failed"
+#endif
 #pragma omp declare simd notinbranch
 double sin(double);
 #pragma omp declare simd notinbranch
@@ -275,7 +281,7 @@ void planar_3r_fk_batch(size_t count, const double *restrict q, const planar_3r_
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 16; k += 2) {
                     _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
                 }
@@ -624,7 +630,7 @@ void planar_3r_frames_batch(size_t count, const double *restrict q, const planar
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 64; k += 2) {
                     _mm_stream_pd(frames + 64 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
                 }
@@ -835,7 +841,7 @@ void planar_3r_jacobian_batch(size_t count, const double *restrict q, const plan
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 18; k += 2) {
                     _mm_stream_pd(J + 18 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
                 }
@@ -1372,7 +1378,7 @@ long planar_3r_ik_batch(size_t count, const double *restrict _x, const planar_3r
         }
         {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 6; ++k) {
                     Q[6 * (start + i) + k] = _Q_block[k][i];
                 }
@@ -1703,7 +1709,7 @@ void planar_3r_twist_batch(size_t count, const double *restrict q, const double 
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 6; k += 2) {
                     _mm_stream_pd(twist + 6 * (start + i) + k, _mm_set_pd(_twist_block[k + 1][i], _twist_block[k][i]));
                 }
@@ -2104,7 +2110,7 @@ void planar_3r_jacobian_dot_batch(size_t count, const double *restrict q, const 
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 18; k += 2) {
                     _mm_stream_pd(J_dot + 18 * (start + i) + k, _mm_set_pd(_J_dot_block[k + 1][i], _J_dot_block[k][i]));
                 }

@@ -37,6 +37,12 @@
  * infinity check is affected: no -ffast-math is involved.
  */
 #ifdef KINEGEN_SIMD
+#ifdef __clang__
+/* clang warns (-Wpass-failed) where it does not vectorise a loop marked omp simd: clang 14
+   leaves the loops of atan2, acos and asin calls scalar (it has no vector form of them).
+   Such a loop computes the same results in scalar C; a build with -Werror must not stop. */
+#pragma clang diagnostic ignored "-Wpass-failed"
+#endif
 #pragma omp declare simd notinbranch
 double sin(double);
 #pragma omp declare simd notinbranch
@@ -166,7 +172,7 @@ void planar_pp_fk_batch(size_t count, const double *restrict q, const planar_pp_
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 16; k += 2) {
                     _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
                 }
@@ -373,7 +379,7 @@ void planar_pp_frames_batch(size_t count, const double *restrict q, const planar
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 48; k += 2) {
                     _mm_stream_pd(frames + 48 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
                 }
@@ -466,7 +472,7 @@ void planar_pp_jacobian_batch(size_t count, const double *restrict q, const plan
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 12; k += 2) {
                     _mm_stream_pd(J + 12 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
                 }
@@ -535,7 +541,7 @@ void planar_pp_task_batch(size_t count, const double *restrict q, const planar_p
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 2; k += 2) {
                     _mm_stream_pd(x + 2 * (start + i) + k, _mm_set_pd(_x_block[k + 1][i], _x_block[k][i]));
                 }
@@ -604,7 +610,7 @@ void planar_pp_task_jacobian_batch(size_t count, const double *restrict q, const
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 4; k += 2) {
                     _mm_stream_pd(Jx + 4 * (start + i) + k, _mm_set_pd(_Jx_block[k + 1][i], _Jx_block[k][i]));
                 }
@@ -686,7 +692,7 @@ long planar_pp_ik_batch(size_t count, const double *restrict _x, const planar_pp
         }
         {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 2; ++k) {
                     Q[2 * (start + i) + k] = _Q_block[k][i];
                 }
@@ -765,7 +771,7 @@ void planar_pp_task_velocity_batch(size_t count, const double *restrict q, const
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 2; k += 2) {
                     _mm_stream_pd(xd + 2 * (start + i) + k, _mm_set_pd(_xd_block[k + 1][i], _xd_block[k][i]));
                 }
@@ -848,7 +854,7 @@ void planar_pp_twist_batch(size_t count, const double *restrict q, const double 
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 6; k += 2) {
                     _mm_stream_pd(twist + 6 * (start + i) + k, _mm_set_pd(_twist_block[k + 1][i], _twist_block[k][i]));
                 }
@@ -919,7 +925,7 @@ void planar_pp_task_jacobian_dot_batch(size_t count, const double *restrict q, c
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 4; k += 2) {
                     _mm_stream_pd(Jx_dot + 4 * (start + i) + k, _mm_set_pd(_Jx_dot_block[k + 1][i], _Jx_dot_block[k][i]));
                 }
@@ -1014,7 +1020,7 @@ void planar_pp_jacobian_dot_batch(size_t count, const double *restrict q, const 
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 12; k += 2) {
                     _mm_stream_pd(J_dot + 12 * (start + i) + k, _mm_set_pd(_J_dot_block[k + 1][i], _J_dot_block[k][i]));
                 }
@@ -1087,7 +1093,7 @@ void planar_pp_task_acceleration_batch(size_t count, const double *restrict q, c
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 2; k += 2) {
                     _mm_stream_pd(xdd + 2 * (start + i) + k, _mm_set_pd(_xdd_block[k + 1][i], _xdd_block[k][i]));
                 }
@@ -1193,7 +1199,7 @@ void planar_pp_joint_velocity_batch(size_t count, const double *restrict q, cons
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 2; k += 2) {
                     _mm_stream_pd(qd + 2 * (start + i) + k, _mm_set_pd(_qd_block[k + 1][i], _qd_block[k][i]));
                 }
@@ -1269,7 +1275,7 @@ void planar_pp_joint_acceleration_batch(size_t count, const double *restrict q, 
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 2; k += 2) {
                     _mm_stream_pd(qdd + 2 * (start + i) + k, _mm_set_pd(_qdd_block[k + 1][i], _qdd_block[k][i]));
                 }

@@ -38,6 +38,12 @@
  * infinity check is affected: no -ffast-math is involved.
  */
 #ifdef KINEGEN_SIMD
+#ifdef __clang__
+/* clang warns (-Wpass-failed) where it does not vectorise a loop marked omp simd: clang 14
+   leaves the loops of atan2, acos and asin calls scalar (it has no vector form of them).
+   Such a loop computes the same results in scalar C; a build with -Werror must not stop. */
+#pragma clang diagnostic ignored "-Wpass-failed"
+#endif
 #pragma omp declare simd notinbranch
 double sin(double);
 #pragma omp declare simd notinbranch
@@ -200,7 +206,7 @@ void planar_rp_fk_batch(size_t count, const double *restrict q, const planar_rp_
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 16; k += 2) {
                     _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
                 }
@@ -423,7 +429,7 @@ void planar_rp_frames_batch(size_t count, const double *restrict q, const planar
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 48; k += 2) {
                     _mm_stream_pd(frames + 48 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
                 }
@@ -535,7 +541,7 @@ void planar_rp_jacobian_batch(size_t count, const double *restrict q, const plan
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 12; k += 2) {
                     _mm_stream_pd(J + 12 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
                 }
@@ -617,7 +623,7 @@ void planar_rp_task_batch(size_t count, const double *restrict q, const planar_r
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 2; k += 2) {
                     _mm_stream_pd(x + 2 * (start + i) + k, _mm_set_pd(_x_block[k + 1][i], _x_block[k][i]));
                 }
@@ -705,7 +711,7 @@ void planar_rp_task_jacobian_batch(size_t count, const double *restrict q, const
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 4; k += 2) {
                     _mm_stream_pd(Jx + 4 * (start + i) + k, _mm_set_pd(_Jx_block[k + 1][i], _Jx_block[k][i]));
                 }
@@ -833,7 +839,7 @@ long planar_rp_ik_batch(size_t count, const double *restrict _x, const planar_rp
         }
         {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 4; ++k) {
                     Q[4 * (start + i) + k] = _Q_block[k][i];
                 }
@@ -932,7 +938,7 @@ void planar_rp_task_velocity_batch(size_t count, const double *restrict q, const
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 2; k += 2) {
                     _mm_stream_pd(xd + 2 * (start + i) + k, _mm_set_pd(_xd_block[k + 1][i], _xd_block[k][i]));
                 }
@@ -1035,7 +1041,7 @@ void planar_rp_twist_batch(size_t count, const double *restrict q, const double 
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 6; k += 2) {
                     _mm_stream_pd(twist + 6 * (start + i) + k, _mm_set_pd(_twist_block[k + 1][i], _twist_block[k][i]));
                 }
@@ -1135,7 +1141,7 @@ void planar_rp_task_jacobian_dot_batch(size_t count, const double *restrict q, c
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 4; k += 2) {
                     _mm_stream_pd(Jx_dot + 4 * (start + i) + k, _mm_set_pd(_Jx_dot_block[k + 1][i], _Jx_dot_block[k][i]));
                 }
@@ -1259,7 +1265,7 @@ void planar_rp_jacobian_dot_batch(size_t count, const double *restrict q, const 
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 12; k += 2) {
                     _mm_stream_pd(J_dot + 12 * (start + i) + k, _mm_set_pd(_J_dot_block[k + 1][i], _J_dot_block[k][i]));
                 }
@@ -1362,7 +1368,7 @@ void planar_rp_task_acceleration_batch(size_t count, const double *restrict q, c
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 2; k += 2) {
                     _mm_stream_pd(xdd + 2 * (start + i) + k, _mm_set_pd(_xdd_block[k + 1][i], _xdd_block[k][i]));
                 }
@@ -1566,7 +1572,7 @@ void planar_rp_joint_velocity_batch(size_t count, const double *restrict q, cons
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 2; k += 2) {
                     _mm_stream_pd(qd + 2 * (start + i) + k, _mm_set_pd(_qd_block[k + 1][i], _qd_block[k][i]));
                 }
@@ -1753,7 +1759,7 @@ void planar_rp_joint_acceleration_batch(size_t count, const double *restrict q, 
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 2; k += 2) {
                     _mm_stream_pd(qdd + 2 * (start + i) + k, _mm_set_pd(_qdd_block[k + 1][i], _qdd_block[k][i]));
                 }

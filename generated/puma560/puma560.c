@@ -38,6 +38,12 @@
  * infinity check is affected: no -ffast-math is involved.
  */
 #ifdef KINEGEN_SIMD
+#ifdef __clang__
+/* clang warns (-Wpass-failed) where it does not vectorise a loop marked omp simd: clang 14
+   leaves the loops of atan2, acos and asin calls scalar (it has no vector form of them).
+   Such a loop computes the same results in scalar C; a build with -Werror must not stop. */
+#pragma clang diagnostic ignored "-Wpass-failed"
+#endif
 #pragma omp declare simd notinbranch
 double sin(double);
 #pragma omp declare simd notinbranch
@@ -408,7 +414,7 @@ void puma560_fk_batch(size_t count, const double *restrict q, const puma560_para
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 16; k += 2) {
                     _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
                 }
@@ -1061,7 +1067,7 @@ void puma560_frames_batch(size_t count, const double *restrict q, const puma560_
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 112; k += 2) {
                     _mm_stream_pd(frames + 112 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
                 }
@@ -1386,7 +1392,7 @@ void puma560_jacobian_batch(size_t count, const double *restrict q, const puma56
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 36; k += 2) {
                     _mm_stream_pd(J + 36 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
                 }
@@ -1676,7 +1682,7 @@ void puma560_task_batch(size_t count, const double *restrict q, const puma560_pa
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 12; k += 2) {
                     _mm_stream_pd(x + 12 * (start + i) + k, _mm_set_pd(_x_block[k + 1][i], _x_block[k][i]));
                 }
@@ -2222,7 +2228,7 @@ void puma560_task_jacobian_batch(size_t count, const double *restrict q, const p
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 72; k += 2) {
                     _mm_stream_pd(Jx + 72 * (start + i) + k, _mm_set_pd(_Jx_block[k + 1][i], _Jx_block[k][i]));
                 }
@@ -3446,7 +3452,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         }
         {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 48; ++k) {
                     Q[48 * (start + i) + k] = _Q_block[k][i];
                 }
@@ -3856,7 +3862,7 @@ void puma560_task_velocity_batch(size_t count, const double *restrict q, const d
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 12; k += 2) {
                     _mm_stream_pd(xd + 12 * (start + i) + k, _mm_set_pd(_xd_block[k + 1][i], _xd_block[k][i]));
                 }
@@ -4118,7 +4124,7 @@ void puma560_twist_batch(size_t count, const double *restrict q, const double *r
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 6; k += 2) {
                     _mm_stream_pd(twist + 6 * (start + i) + k, _mm_set_pd(_twist_block[k + 1][i], _twist_block[k][i]));
                 }
@@ -5015,7 +5021,7 @@ void puma560_task_jacobian_dot_batch(size_t count, const double *restrict q, con
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 72; k += 2) {
                     _mm_stream_pd(Jx_dot + 72 * (start + i) + k, _mm_set_pd(_Jx_dot_block[k + 1][i], _Jx_dot_block[k][i]));
                 }
@@ -5427,7 +5433,7 @@ void puma560_jacobian_dot_batch(size_t count, const double *restrict q, const do
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 36; k += 2) {
                     _mm_stream_pd(J_dot + 36 * (start + i) + k, _mm_set_pd(_J_dot_block[k + 1][i], _J_dot_block[k][i]));
                 }
@@ -6210,7 +6216,7 @@ void puma560_task_acceleration_batch(size_t count, const double *restrict q, con
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 12; k += 2) {
                     _mm_stream_pd(xdd + 12 * (start + i) + k, _mm_set_pd(_xdd_block[k + 1][i], _xdd_block[k][i]));
                 }
@@ -7184,7 +7190,7 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 6; k += 2) {
                     _mm_stream_pd(qd + 6 * (start + i) + k, _mm_set_pd(_qd_block[k + 1][i], _qd_block[k][i]));
                 }
@@ -8120,7 +8126,7 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 6; k += 2) {
                     _mm_stream_pd(qdd + 6 * (start + i) + k, _mm_set_pd(_qdd_block[k + 1][i], _qdd_block[k][i]));
                 }
@@ -8883,7 +8889,7 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 6; k += 2) {
                     _mm_stream_pd(qd + 6 * (start + i) + k, _mm_set_pd(_qd_block[k + 1][i], _qd_block[k][i]));
                 }

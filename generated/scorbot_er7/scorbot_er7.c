@@ -37,6 +37,12 @@
  * infinity check is affected: no -ffast-math is involved.
  */
 #ifdef KINEGEN_SIMD
+#ifdef __clang__
+/* clang warns (-Wpass-failed) where it does not vectorise a loop marked omp simd: clang 14
+   leaves the loops of atan2, acos and asin calls scalar (it has no vector form of them).
+   Such a loop computes the same results in scalar C; a build with -Werror must not stop. */
+#pragma clang diagnostic ignored "-Wpass-failed"
+#endif
 #pragma omp declare simd notinbranch
 double sin(double);
 #pragma omp declare simd notinbranch
@@ -328,7 +334,7 @@ void scorbot_er7_fk_batch(size_t count, const double *restrict q, const scorbot_
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 16; k += 2) {
                     _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
                 }
@@ -835,7 +841,7 @@ void scorbot_er7_frames_batch(size_t count, const double *restrict q, const scor
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 96; k += 2) {
                     _mm_stream_pd(frames + 96 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
                 }
@@ -1113,7 +1119,7 @@ void scorbot_er7_jacobian_batch(size_t count, const double *restrict q, const sc
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 30; k += 2) {
                     _mm_stream_pd(J + 30 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
                 }
@@ -1757,7 +1763,7 @@ long scorbot_er7_ik_batch(size_t count, const double *restrict _x, const scorbot
         }
         {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 20; ++k) {
                     Q[20 * (start + i) + k] = _Q_block[k][i];
                 }
@@ -2172,7 +2178,7 @@ void scorbot_er7_twist_batch(size_t count, const double *restrict q, const doubl
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 6; k += 2) {
                     _mm_stream_pd(twist + 6 * (start + i) + k, _mm_set_pd(_twist_block[k + 1][i], _twist_block[k][i]));
                 }
@@ -2739,7 +2745,7 @@ void scorbot_er7_jacobian_dot_batch(size_t count, const double *restrict q, cons
 #ifdef KINEGEN_STREAM
         if (stream) {
             for (i = 0; i < n; ++i) {
-                int k;
+                size_t k;
                 for (k = 0; k < 30; k += 2) {
                     _mm_stream_pd(J_dot + 30 * (start + i) + k, _mm_set_pd(_J_dot_block[k + 1][i], _J_dot_block[k][i]));
                 }

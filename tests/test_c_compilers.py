@@ -1,0 +1,70 @@
+"""The generated C under more warnings than the build asks for, with gcc and with clang.
+
+The build holds every package's C to -std=c99 -Wall -Wextra -Werror -pedantic; here each
+layout of ``<name>.c`` (build.LAYOUTS) and the ``<name>_point.c`` the build compiles with
+those flags are held also to c_backend.EXTRA_WARNINGS (-Wconversion -Wshadow
+-Wdouble-promotion), through the compiler's front end (-fsyntax-only: a fraction of a
+second each).  clang also compiles one package in full as ``CC=clang kinegen build`` does:
+its -Wpass-failed on the SIMD loops comes from the optimiser, which the front end never runs.
+"""
+import concurrent.futures
+import os
+import shutil
+import subprocess
+
+import pytest
+
+import derivations
+from codegen import build, generate
+from codegen.backends.c_backend import EXTRA_WARNINGS, STRICT_FLAGS
+
+PACKAGES = list(derivations.ROBOTS) + list(derivations.KERNEL_SETS)
+FLAGS = (*STRICT_FLAGS, *EXTRA_WARNINGS)
+
+
+def require(compiler):
+    if shutil.which(compiler) is None:
+        pytest.skip(f"{compiler} is not on PATH (apt-get install clang libclang-rt-dev, or `make fuzz`, installs it)")
+
+
+def front_end_commands(compiler):
+    """The -fsyntax-only compiles of every layout and point file of every package."""
+    commands = []
+    for name in PACKAGES:
+        package = generate.GENERATED / name
+        for flags in build.LAYOUTS.values():
+            commands.append([compiler, *FLAGS, *flags, "-fsyntax-only", str(package / f"{name}.c")])
+        point = package / f"{name}_point.c"
+        if point.exists():
+            commands.append([compiler, *FLAGS, *build.point_includes(package), "-fsyntax-only", str(point)])
+    return commands
+
+
+def failures(commands):
+    """The commands that fail or warn, each with the compiler's message, run two at a time."""
+    with concurrent.futures.ThreadPoolExecutor(max_workers=2) as pool:
+        results = list(pool.map(lambda c: subprocess.run(c, capture_output=True, text=True), commands))
+    return [f"{' '.join(c)}:\n{r.stderr}" for c, r in zip(commands, results) if r.returncode != 0 or r.stderr]
+
+
+@pytest.mark.parametrize("compiler", ["gcc", "clang"])
+def test_every_layout_and_point_file_compiles_under_the_extra_warnings(compiler):
+    require(compiler)
+    commands = front_end_commands(compiler)
+    assert len(commands) >= 3 * len(PACKAGES)
+    assert failures(commands) == []
+
+
+def test_clang_compiles_the_vectorised_build_with_the_strict_flags(monkeypatch, tmp_path):
+    """The planar 2R's C as `CC=clang kinegen build` compiles it: -O3, the vectorised layout
+    where clang's probe passes; its ik's atan2 and acos loops are the ones clang does not vectorise."""
+    require("clang")
+    monkeypatch.setenv("CC", "clang")
+    monkeypatch.delenv("KINEGEN_PORTABLE", raising=False)
+    package = generate.GENERATED / "planar_2r"
+    flags = build.load_build_script(package).compile_flags()
+    if "-DKINEGEN_SIMD" not in flags:
+        pytest.skip("clang's probe of the vectorised layout fails here: the build would compile the plain one")
+    command = ["clang", *FLAGS, *flags, "-c", str(package / "planar_2r.c"), "-o", str(tmp_path / "planar_2r.o")]
+    result = subprocess.run(command, capture_output=True, text=True, env=dict(os.environ, TMPDIR=str(tmp_path)))
+    assert result.returncode == 0 and result.stderr == "", result.stderr
