@@ -146,20 +146,33 @@ def test_check_reports_the_litter_of_an_interrupted_run(tmp_path):
         "arm/.arm.c.abc123.part (stray: left by an interrupted run)"]
 
 
-def test_a_derivation_past_its_memory_cap_stops_naming_the_stage(tmp_path, monkeypatch, capsys):
-    """--memory-limit bounds what the derivation may add to the process (RLIMIT_AS); the cap is
-    lifted again afterwards, so that this process (and the compilers it starts) go on."""
-    import resource
-    monkeypatch.setenv("KINEGEN_NO_CACHE", "1")
+def test_a_derivation_past_its_memory_cap_stops_naming_the_stage(tmp_path):
+    """--memory-limit bounds what the derivation may add to the process (RLIMIT_AS).  Run in a
+    fresh process: a test worker holds freed memory that a derivation can reuse uncapped."""
+    import os
+    import subprocess
+    import sys
     path = tmp_path / "arm.toml"
     path.write_text('name = "arm"\n' + '[[joint]]\ntype = "R"\na = 0.1\nalpha = "pi/2"\n' * 6)
-    before = resource.getrlimit(resource.RLIMIT_AS)
-    status = main(["--quiet", "generate", str(path), "--out", str(tmp_path / "pkg"), "--no-build",
-                   "--memory-limit", "0.001"])
-    err = capsys.readouterr().err
-    assert status == 2, err
-    assert "stopped at its memory cap of 0.001 GiB while deriving" in err and err.count("\n") == 1, err
+    result = subprocess.run([sys.executable, "-m", "codegen", "--quiet", "generate", str(path),
+                             "--out", str(tmp_path / "pkg"), "--no-build", "--memory-limit", "0.001"],
+                            env=dict(os.environ, KINEGEN_NO_CACHE="1"), capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2, result.stderr
+    assert "stopped at its memory cap of 0.001 GiB while deriving" in result.stderr, result.stderr
+    assert result.stderr.count("\n") == 1, result.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["arm.toml"]
+
+
+def test_the_memory_cap_is_lifted_after_the_derivation():
+    """The cap holds inside memory_cap only: afterwards this process, and the compilers it
+    starts, have their limit back."""
+    import resource
+
+    from derivations.budget import MemoryCapExceeded, memory_cap
+    before = resource.getrlimit(resource.RLIMIT_AS)
+    with pytest.raises(MemoryCapExceeded, match="a test: stopped at its memory cap of 0.01 GiB"):
+        with memory_cap(0.01, "a test"):
+            bytearray(2**30)  # 1 GiB, past the cap
     assert resource.getrlimit(resource.RLIMIT_AS) == before
     assert len(bytearray(2**28)) == 2**28  # 256 MiB: the process is no longer capped
 
