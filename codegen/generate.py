@@ -195,6 +195,7 @@ def robot_context(model: RobotModel, origin: str, verbose: bool = False) -> dict
         "name": model.name, "title": safe_text(model.title), "source": safe_text(model.source), "origin": origin,
         "joints": [str(s) for s in model.q], "joint_types": list(model.joint_types),
         "task": list(model.task_names), "branches": [b.name for b in model.ik],
+        "ik_ranges": safe_text(getattr(model, "ik_ranges", "")),  # a kernel set has no ik
         "params": [(str(s), float_literal(v)) for s, v in model.params.items()],
         "limits": limits, "functions": functions, "constants": constants,
         # {space: ((low, high), ...)} of a model with coordinate spaces (SPACE_LIMITS)

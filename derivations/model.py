@@ -250,6 +250,9 @@ class RobotModel:
     ik_unsupported: str = ""
     # The joint (0-based) a seven-joint arm's ik takes as its argument ``free``; None: no free joint.
     ik_free: int | None = None
+    # What ik's joint values range over, as its docstring says it (every robot wraps its revolute
+    # joints but the AVR 3000, whose frog leg holds q2 / 2).
+    ik_ranges: str = "Revolute joints are wrapped to (-pi, pi]."
 
     @property
     def n(self) -> int:

@@ -167,6 +167,19 @@ def test_ik_contract_gives_the_tool_pose_back(k):
     assert not valid.any() and np.isfinite(Q).all()  # reported, never a NaN
 
 
+def test_ik_keeps_q2_in_0_to_2pi_as_its_docstring_says(k):
+    """q2 enters the pose as q2 / 2: wrapped to (-pi, pi] it would name another configuration (the
+    fuzz found the docstring promising the wrap).  q2 = 4 rad, inside the limits, comes back as 4."""
+    assert "q2 = 2 acos(R / 2a) stays in [0, 2 pi]" in " ".join(k.ik.__doc__.split()) or \
+        "q2 = 2 acos(R / 2a) stays in [0, 2 pi]" in " ".join(generated.load("avr3000").ik.__doc__.split())
+    q = np.array([0.3, 4.0, 0.05])
+    Q, valid = k.ik(k.task(q))
+    assert valid.all() and abs(Q[0, 1] - 4.0) < 1e-12 and k.within_limits(Q).all()
+    moved = Q[0].copy()
+    moved[1] -= 2 * np.pi  # what a wrap would give: another pose
+    assert np.abs(k.task(moved) - k.task(q)).max() > 0.1
+
+
 @pytest.mark.parametrize("R", [2.0000001 * A, -2.5 * A, 1.0])
 def test_unreachable_radius_raises_naming_the_problem(k, R):
     with warnings.catch_warnings():

@@ -294,10 +294,13 @@ def build() -> SpacesModel:
         task_jacobian=joint_to_tool.values.jacobian(sp.Matrix(q)),
         # Section 5's ranges through Eq. 4: q2 in [0, 2 acos(-8.9 in / 2a)] (R >= -8.9 in), q3 = Z in [0, 6 in].
         limits=tuple(None if lim is None else (float(lim[0]), float(lim[1])) for lim in joint_limits()),
-        # q1 wrapped to (-pi, pi] like every revolute joint of an IK branch; q2 keeps Eq. 8's [0, 2 pi].
+        # q1 wrapped to (-pi, pi] like every revolute joint of an IK branch; q2 keeps Eq. 8's [0, 2 pi]:
+        # the pose holds q2 / 2, so q2 and q2 - 2 pi are two configurations, not one (ik_ranges).
         ik=[IKBranch("principal", (WrapAngle(tool_to_joint.values[0]),) + tuple(tool_to_joint.values[1:]), reach,
                      "Sotirov Eq. 8: q2 = 2 acos(R / 2a) in [0, 2 pi], q1 = pi/2 - q2/2 - T wrapped to (-pi, pi], "
                      "q3 = Z")],
+        ik_ranges="q1 is wrapped to (-pi, pi]; q2 = 2 acos(R / 2a) stays in [0, 2 pi] (Sotirov Eq. 8: "
+                  "the pose holds q2 / 2, so q2 and q2 - 2 pi are two configurations).",
         constants=gear_ratios(maps["motor_to_tool_velocity"].values),
         spaces={s.name: s for s in SPACES}, maps=maps, sample_ranges=sample_ranges,
         space_limits={"tool": tuple((float(low), float(high)) for low, high in TOOL_RANGES)},

@@ -376,9 +376,10 @@ def ik(x, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     """Inverse kinematics, all 2 branches (lefty, righty): Q (..., 2, 4), valid (..., 2).
 
     x: task coordinates x, y, z, phi, shape (..., 4)
-    Branches, in order: BRANCHES. Revolute joints are wrapped to (-pi, pi]. A branch
-    is valid where it exists; an unreachable, NaN or inf target gives valid False
-    (never an exception). within_limits(Q) tells which solutions respect LIMITS.
+    Branches, in order: BRANCHES.
+    Revolute joints are wrapped to (-pi, pi].
+    A branch is valid where it exists; an unreachable, NaN or inf target gives valid
+    False (never an exception). within_limits(Q) tells which solutions respect LIMITS.
     (53 operations after common-subexpression elimination.)
     """
     x = _runtime.as_batch(x, 4, "ik", "x", finite=False)

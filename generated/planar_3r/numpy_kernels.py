@@ -361,9 +361,10 @@ def ik(x, *, l1=0.5, l2=0.4, l3=0.2):
     """Inverse kinematics, all 2 branches (elbow_up, elbow_down): Q (..., 2, 3), valid (..., 2).
 
     x: task coordinates x, y, phi, shape (..., 3)
-    Branches, in order: BRANCHES. Revolute joints are wrapped to (-pi, pi]. A branch
-    is valid where it exists; an unreachable, NaN or inf target gives valid False
-    (never an exception). within_limits(Q) tells which solutions respect LIMITS.
+    Branches, in order: BRANCHES.
+    Revolute joints are wrapped to (-pi, pi].
+    A branch is valid where it exists; an unreachable, NaN or inf target gives valid
+    False (never an exception). within_limits(Q) tells which solutions respect LIMITS.
     (81 operations after common-subexpression elimination.)
     """
     x = _runtime.as_batch(x, 3, "ik", "x", finite=False)

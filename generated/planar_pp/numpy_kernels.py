@@ -210,9 +210,10 @@ def ik(x):
     """Inverse kinematics, all 1 branches (unique): Q (..., 1, 2), valid (..., 1).
 
     x: task coordinates x, y, shape (..., 2)
-    Branches, in order: BRANCHES. Revolute joints are wrapped to (-pi, pi]. A branch
-    is valid where it exists; an unreachable, NaN or inf target gives valid False
-    (never an exception). within_limits(Q) tells which solutions respect LIMITS.
+    Branches, in order: BRANCHES.
+    Revolute joints are wrapped to (-pi, pi].
+    A branch is valid where it exists; an unreachable, NaN or inf target gives valid
+    False (never an exception). within_limits(Q) tells which solutions respect LIMITS.
     (0 operations after common-subexpression elimination.)
     """
     x = _runtime.as_batch(x, 2, "ik", "x", finite=False)

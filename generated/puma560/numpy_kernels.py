@@ -712,9 +712,10 @@ def ik(x, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     """Inverse kinematics, all 8 branches (right_elbow_up_noflip, right_elbow_up_flip, right_elbow_down_noflip, right_elbow_down_flip, left_elbow_up_noflip, left_elbow_up_flip, left_elbow_down_noflip, left_elbow_down_flip): Q (..., 8, 6), valid (..., 8).
 
     x: task coordinates x, y, z, r11, r12, r13, r21, r22, r23, r31, r32, r33, shape (..., 12), or poses of shape (..., 4, 4)
-    Branches, in order: BRANCHES. Revolute joints are wrapped to (-pi, pi]. A branch
-    is valid where it exists; an unreachable, NaN or inf target gives valid False
-    (never an exception). within_limits(Q) tells which solutions respect LIMITS.
+    Branches, in order: BRANCHES.
+    Revolute joints are wrapped to (-pi, pi].
+    A branch is valid where it exists; an unreachable, NaN or inf target gives valid
+    False (never an exception). within_limits(Q) tells which solutions respect LIMITS.
     A finite pose whose rotation is not orthonormal within 1e-09 (or is a
     reflection) raises ValueError.
     (431 operations after common-subexpression elimination.)

@@ -484,9 +484,10 @@ def ik(x, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     """Inverse kinematics, all 4 branches (elbow_up, elbow_down, shoulder_flip_elbow_up, shoulder_flip_elbow_down): Q (..., 4, 5), valid (..., 4).
 
     x: task coordinates x, y, z, shape (..., 3)
-    Branches, in order: BRANCHES. Revolute joints are wrapped to (-pi, pi]. A branch
-    is valid where it exists; an unreachable, NaN or inf target gives valid False
-    (never an exception). within_limits(Q) tells which solutions respect LIMITS.
+    Branches, in order: BRANCHES.
+    Revolute joints are wrapped to (-pi, pi].
+    A branch is valid where it exists; an unreachable, NaN or inf target gives valid
+    False (never an exception). within_limits(Q) tells which solutions respect LIMITS.
     (108 operations after common-subexpression elimination.)
     """
     x = _runtime.as_batch(x, 3, "ik", "x", finite=False)
