@@ -66,24 +66,20 @@ DEFAULT_TIME_LIMIT = 120.0
 DEFAULT_MEMORY_LIMIT = 8.0
 
 
-def _seconds(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
-    if not (value > 0 and value < 1e6):
-        raise argparse.ArgumentTypeError(f"expected a positive number of seconds below 1e6, got {text!r}")
-    return value
+def _positive(unit: str):
+    """An argparse type: a positive number of ``unit`` below 1e6."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number of {unit}, got {text!r}") from None
+        if not (value > 0 and value < 1e6):
+            raise argparse.ArgumentTypeError(f"expected a positive number of {unit} below 1e6, got {text!r}")
+        return value
+    return parse
 
 
-def _gib(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number of GiB, got {text!r}") from None
-    if not (value > 0 and value < 1e6):
-        raise argparse.ArgumentTypeError(f"expected a positive number of GiB below 1e6, got {text!r}")
-    return value
+_seconds, _gib = _positive("seconds"), _positive("GiB")
 
 
 def _positive_count(text: str) -> int:

@@ -25,27 +25,31 @@ import time
 __all__ = ["BudgetExceeded", "MemoryCapExceeded", "budget", "memory_cap", "remaining", "set_stage", "ENFORCED"]
 
 
-class BudgetExceeded(Exception):
-    """A budget ran out: ``what`` names the budgeted work, ``seconds`` its length and
-    ``stage`` the step it was in (see :func:`set_stage`), when one was set."""
+class _Stopped(Exception):
+    """Work stopped at a limit: ``what`` names the work and ``stage`` the step it was in (see
+    :func:`set_stage`), when one was set."""
+
+    def __init__(self, what: str, limit: str, stage: str | None = None):
+        where = f" while {stage}" if stage else ""
+        super().__init__(f"{what}: stopped {limit}{where}")
+        self.what = what
+        self.stage = stage
+
+
+class BudgetExceeded(_Stopped):
+    """A time budget of ``seconds`` ran out."""
 
     def __init__(self, what: str, seconds: float, stage: str | None = None):
-        where = f" while {stage}" if stage else ""
-        super().__init__(f"{what}: stopped after its time budget of {seconds:g} s{where}")
-        self.what = what
+        super().__init__(what, f"after its time budget of {seconds:g} s", stage)
         self.seconds = seconds
-        self.stage = stage
 
 
-class MemoryCapExceeded(Exception):
-    """The body of :func:`memory_cap` asked for more memory than its cap allows."""
+class MemoryCapExceeded(_Stopped):
+    """The body of :func:`memory_cap` asked for more than its ``gib`` GiB."""
 
     def __init__(self, what: str, gib: float, stage: str | None = None):
-        where = f" while {stage}" if stage else ""
-        super().__init__(f"{what}: stopped at its memory cap of {gib:g} GiB{where}")
-        self.what = what
+        super().__init__(what, f"at its memory cap of {gib:g} GiB", stage)
         self.gib = gib
-        self.stage = stage
 
 
 # The step now running, for the message of a budget that runs out (set_stage).
