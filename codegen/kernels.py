@@ -15,7 +15,8 @@ import sympy as sp
 
 from derivations.model import SymbolicFunction
 
-__all__ = ["PreparedFunction", "PreparedOutput", "PreparedCheck", "prepare", "exact_floats", "STATUS_CODES"]
+__all__ = ["PreparedFunction", "PreparedOutput", "PreparedCheck", "prepare", "canonical", "exact_floats",
+           "STATUS_CODES"]
 
 TEMPORARY_PREFIX = "_t"
 # Status returned by a C kernel whose requirement fails (0 is success); also named in each header.
@@ -73,6 +74,28 @@ class PreparedFunction:
         return frozenset(used)
 
 
+def _kept_coefficient(expr: sp.Basic) -> bool:
+    """A number times a sum kept as a product, which an evaluated Mul distributes."""
+    return expr.is_Mul and len(expr.args) == 2 and expr.args[0].is_Number and expr.args[1].is_Add
+
+
+@functools.lru_cache(maxsize=8192)
+def canonical(expr: sp.Basic) -> sp.Basic:
+    """``expr`` with every number times a sum rebuilt as SymPy builds it (distributed).
+
+    SymPy's ``factor_terms`` keeps ``-(a + b)/10`` as the product ``Mul(-1/10, a + b)``,
+    which no evaluated Mul is; ``sympy.cse`` then took terms of such products for each
+    other's: a planar 2R with a pose task and its tool across the last link got a
+    joint_acceleration off by 0.13 rad/s^2 in both backends, and the verification, which
+    evaluates through ``cse`` too, agreed with it.  An unpickled model is rebuilt on
+    loading, which is why the same description generated right from the cache and wrong
+    when derived afresh (found by tests/test_random_descriptions.py).
+    """
+    if not any(_kept_coefficient(e) for e in sp.preorder_traversal(expr)):
+        return expr
+    return expr.replace(_kept_coefficient, lambda e: sp.Mul(*e.args))
+
+
 @functools.lru_cache(maxsize=8192)
 def exact_floats(expr: sp.Basic) -> sp.Basic:
     """Fold exact constants (pi, rationals times pi) so they print as one double.
@@ -94,9 +117,9 @@ def prepare(function: SymbolicFunction, param_names: tuple[str, ...]) -> Prepare
     for out in function.outputs:
         flat.extend(out.values)
     flat.extend(r.condition for r in function.requires)
-    flat = [exact_floats(sp.sympify(e)) for e in flat]
+    flat = [exact_floats(canonical(sp.sympify(e))) for e in flat]
     definitions = function.definitions
-    flat = [exact_floats(sp.sympify(e)) for _, e in definitions] + flat
+    flat = [exact_floats(canonical(sp.sympify(e))) for _, e in definitions] + flat
     symbols = sp.numbered_symbols(TEMPORARY_PREFIX, real=True)
     # order="none": the temporaries in the order CSE finds them.  "canonical" sorts the
     # expressions by node count first, which was most of the time for the big rate

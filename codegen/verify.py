@@ -23,6 +23,8 @@ import sympy as sp
 
 from derivations.model import RobotModel, SymbolicFunction
 
+from .kernels import canonical
+
 __all__ = ["TOLERANCE", "FD_TOLERANCE", "Check", "sample_points", "reference", "solve_reference", "verify_model",
            "jacobian_by_finite_differences", "derivative_along", "format_table"]
 
@@ -152,7 +154,7 @@ def _evaluation_plan(function: SymbolicFunction):
     The inverse-rate kernels are trees of ~10^5 operations once their shared
     subexpressions are unfolded; evaluating the chain keeps each ``evalf`` small.
     """
-    flat = [sp.sympify(e) for out in function.outputs for e in out.values]
+    flat = [canonical(sp.sympify(e)) for out in function.outputs for e in out.values]
     return sp.cse(flat, symbols=sp.numbered_symbols("_ref", real=True), order="canonical")
 
 
