@@ -1,9 +1,22 @@
+import os
+
 import pytest
+from hypothesis import HealthCheck, settings
 
 import derivations
 import generated
 
 ROBOT_NAMES = list(derivations.ROBOTS)
+
+# Hypothesis profiles (tests/test_properties.py, tests/test_random_descriptions.py), chosen by
+# HYPOTHESIS_PROFILE: "default" is the short run of `make test`; "fuzz" the long one of `make fuzz`.
+# Both are derandomized (the examples follow from the test alone, so a CI failure reproduces) and
+# keep no example database.  Tests that cost more per example take a fraction of max_examples.
+_PROFILE = dict(derandomize=True, database=None, deadline=None, print_blob=True,
+                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+settings.register_profile("default", max_examples=10, **_PROFILE)
+settings.register_profile("fuzz", max_examples=2000, **_PROFILE)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
 
 
 @pytest.fixture(scope="session")
