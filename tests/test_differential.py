@@ -72,12 +72,12 @@ def _batch_ndim(args, sizes):
 
 def _unsettled(module, name, args, params, result, batch_ndim, rng):
     """Items whose answer the rounding of the arguments already changes: the kernel in ``module``
-    at arguments moved by about 20 ulps (three random moves).  Returns (items whose flags or NaN
+    at arguments moved by about 20 ulps (two random moves).  Returns (items whose flags or NaN
     pattern change, the spread of each float output): two correct implementations may differ by
     that much, and may flag such an item differently."""
     unsettled = np.zeros(np.shape(result[0])[:batch_ndim], bool)
     spread = [np.zeros(np.shape(r)) for r in result]
-    for _ in range(3):
+    for _ in range(2):
         moved = [np.asarray(a) * (1 + 4e-15 * rng.uniform(-1, 1, np.shape(a))) for a in args]
         other, error = _call(module, name, moved, params)
         if error:
@@ -163,7 +163,7 @@ def test_numpy_and_c_are_one_function(models, name):
     assert not problems, f"{len(problems)} disagreements in {calls} calls:\n" + "\n".join(problems[:20])
 
 
-@pytest.mark.parametrize("name", ["ur5", "kuka_kr5", "stanford_arm", "kuka_lwr4", "adept_cobra600"])
+@pytest.mark.parametrize("name", ["ur5", "stanford_arm", "kuka_lwr4", "adept_cobra600"])
 def test_numpy_and_c_are_one_function_for_users_arms(name, generated_root):
     """The zoo's arms as a user generates them: the automatic IK of each family, the seven-joint
     ik with its free joint, and parameters as the descriptions name them."""

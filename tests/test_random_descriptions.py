@@ -56,7 +56,7 @@ LONG = settings.default.max_examples >= 100      # the fuzz profile
 # Joint counts per test item: the short profile tries small arms only; the long one adds a lane of
 # large ones, which pytest-xdist runs beside the first (examples: a tenth of the profile's, per lane).
 LANES = [(1, 4), (5, 7)] if LONG else [(1, 3)]
-EXAMPLES = max(3, settings.default.max_examples // 20 if LONG else 3)
+EXAMPLES = max(2, settings.default.max_examples // 20 if LONG else 2)
 TOLERANCE = 1e-12
 ROUND_TRIP = 1e-9
 
