@@ -91,9 +91,21 @@ def canonical(expr: sp.Basic) -> sp.Basic:
     loading, which is why the same description generated right from the cache and wrong
     when derived afresh (found by tests/test_random_descriptions.py).
     """
-    if not any(_kept_coefficient(e) for e in sp.preorder_traversal(expr)):
-        return expr
-    return expr.replace(_kept_coefficient, lambda e: sp.Mul(*e.args))
+    memo: dict = {}
+
+    def visit(e):  # over the distinct subexpressions only: a rate kernel unfolds to 10^5 nodes
+        if not e.args:
+            return e
+        done = memo.get(e)
+        if done is None:
+            args = tuple(visit(a) for a in e.args)
+            if _kept_coefficient(e):
+                done = sp.Mul(*args)
+            else:
+                done = e if all(a is b for a, b in zip(args, e.args)) else e.func(*args)
+            memo[e] = done
+        return done
+    return visit(expr)
 
 
 @functools.lru_cache(maxsize=8192)
