@@ -38,7 +38,7 @@ import numpy as np
 import sympy as sp
 
 import derivations
-from derivations.budget import BudgetExceeded, MemoryCapExceeded, budget, memory_cap, set_stage
+from derivations.budget import BudgetExceeded, MemoryCapExceeded, budget, memory_cap, stage
 import generated
 
 from . import avr_limits
@@ -229,13 +229,14 @@ def cmd_generate(args, say) -> int:
             raise InputError(f"{args.out}: the package folder name must be a Python identifier to be importable")
         what = f"{args.robots[0]}: derivation and rendering"
         with budget(args.time_limit, what), memory_cap(args.memory_limit, what):
-            set_stage("deriving the model")
-            model, path = _load(args.robots[0], say, args)
-            set_stage(None)
+            with stage("deriving the model"):
+                model, path = _load(args.robots[0], say, args)
             out = Path(args.out) if args.out else _default_out(model)
             if not out.name.isidentifier():  # before the slow work, not after it
                 raise InputError(f"{out}: the package folder name must be a Python identifier to be importable")
-            files = gen.render_robot(model, path, backends=tuple(dict.fromkeys(("numpy", *backends))), say=say)
+            with stage("rendering the package"):  # each rendering step names itself inside this
+                files = gen.render_robot(model, path, backends=tuple(dict.fromkeys(("numpy", *backends))),
+                                         say=say)
         # As `make build` does: one strict compile of the layout the extension uses, the others
         # through the compiler's front end (a Panda: 11 s, where compiling all three took 97 s).
         build = None if args.no_build else (lambda folder: c_build.build_package(folder, model.name))

@@ -20,7 +20,7 @@ import numpy as np
 import sympy as sp
 
 import derivations
-from derivations.budget import set_stage
+from derivations.budget import stage as budget_stage
 from derivations.description import read_description
 from derivations.ik import UNIT_SNAP
 from derivations.kernelset import KernelSet
@@ -221,10 +221,9 @@ class _Stages:
 
     @contextlib.contextmanager
     def __call__(self, text: str):
-        set_stage(f"{text} ({self.name})")
         start = time.perf_counter()
-        yield
-        set_stage(None)
+        with budget_stage(f"{text} ({self.name})"):
+            yield
         if self.say is not None:
             self.say(f"{self.name}: {text}: {time.perf_counter() - start:.1f} s")
 

@@ -22,7 +22,7 @@ import signal
 import threading
 import time
 
-__all__ = ["BudgetExceeded", "MemoryCapExceeded", "budget", "memory_cap", "remaining", "set_stage", "ENFORCED"]
+__all__ = ["BudgetExceeded", "MemoryCapExceeded", "budget", "memory_cap", "remaining", "set_stage", "stage", "ENFORCED"]
 
 
 class _Stopped(Exception):
@@ -56,10 +56,31 @@ class MemoryCapExceeded(_Stopped):
 _stage: str | None = None
 
 
-def set_stage(text: str | None) -> None:
-    """Name the step now running (``"deriving the rate kinematics"``), for budget messages."""
+def set_stage(text: str | None) -> str | None:
+    """Name the step now running (``"deriving the rate kinematics"``), for budget messages; returns
+    the name it replaces, for the caller to put back (see :func:`stage`)."""
     global _stage
-    _stage = text
+    previous, _stage = _stage, text
+    return previous
+
+
+@contextlib.contextmanager
+def stage(text: str):
+    """Name the step the body runs, and put back the enclosing step's name after it, so that a
+    budget running out between two nested steps still names where it stopped."""
+    previous = set_stage(text)
+    try:
+        yield
+    except BaseException as exc:
+        # The innermost step an error left, for a memory cap that reports it after the steps closed.
+        if getattr(exc, "kinegen_stage", None) is None:
+            try:
+                exc.kinegen_stage = text
+            except AttributeError:
+                pass
+        raise
+    finally:
+        set_stage(previous)
 
 
 # The open budgets, outermost first: (deadline on the monotonic clock, stage, seconds).
@@ -135,6 +156,11 @@ def _address_space() -> int | None:
 _CAP_MARGIN = 64 * 2**20
 
 
+def _failed_in(exc: BaseException) -> str | None:
+    """The step ``exc`` was raised in: recorded by :func:`stage` on its way out, else the current one."""
+    return getattr(exc, "kinegen_stage", None) or _stage
+
+
 @contextlib.contextmanager
 def memory_cap(gib: float | None, stage: str):
     """Run the body with at most ``gib`` GiB of address space more than the process holds now
@@ -162,14 +188,14 @@ def memory_cap(gib: float | None, stage: str):
     resource.setrlimit(resource.RLIMIT_AS, (cap, hard))
     try:
         yield
-    except MemoryError:
-        raise MemoryCapExceeded(stage, gib, _stage) from None
+    except MemoryError as exc:
+        raise MemoryCapExceeded(stage, gib, _failed_in(exc)) from None
     except Exception as exc:
         # An allocation that fails inside a C extension can surface as another error (a
         # SystemError with no exception set, say): at the cap, it is the cap's.
         now = _address_space()
         if now is not None and now >= cap - _CAP_MARGIN:
-            raise MemoryCapExceeded(stage, gib, _stage) from exc
+            raise MemoryCapExceeded(stage, gib, _failed_in(exc)) from exc
         raise
     finally:
         resource.setrlimit(resource.RLIMIT_AS, (soft, hard))

@@ -177,6 +177,27 @@ def test_the_memory_cap_is_lifted_after_the_derivation():
     assert len(bytearray(2**28)) == 2**28  # 256 MiB: the process is no longer capped
 
 
+def test_a_budget_running_out_between_two_steps_names_the_enclosing_one():
+    """CI caught a budget running out in the gap after one rendering step had closed and before
+    the next had opened: the message named no stage.  Steps nest, and closing one puts its
+    enclosing step's name back."""
+    from derivations.budget import BudgetExceeded, budget, stage
+    with pytest.raises(BudgetExceeded, match="a test: stopped after its time budget of 0.05 s while rendering$"):
+        with budget(0.05, "a test"), stage("rendering"):
+            with stage("printing the numpy kernels"):
+                pass
+            time.sleep(1)  # between two steps: the alarm comes here
+
+
+def test_a_memory_cap_names_the_step_the_allocation_failed_in():
+    """The cap is reported after the steps have closed; it names the step the failure left."""
+    from derivations.budget import MemoryCapExceeded, memory_cap, stage
+    with pytest.raises(MemoryCapExceeded, match="while deriving the Jacobian$"):
+        with memory_cap(0.01, "a test"), stage("deriving"):
+            with stage("deriving the Jacobian"):
+                bytearray(2**30)
+
+
 def test_two_writers_of_one_tree_at_once_leave_it_whole(tmp_path):
     """Two `make generate` at once raced on a fixed `<file>.part` name: each write now has a
     name of its own, and the last atomic move wins with a whole file."""
