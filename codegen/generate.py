@@ -222,7 +222,7 @@ class _Stages:
     @contextlib.contextmanager
     def __call__(self, text: str):
         start = time.perf_counter()
-        with budget_stage(f"{text} ({self.name})"):
+        with budget_stage(f"working on the {text} ({self.name})"):
             yield
         if self.say is not None:
             self.say(f"{self.name}: {text}: {time.perf_counter() - start:.1f} s")

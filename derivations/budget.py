@@ -68,19 +68,24 @@ def set_stage(text: str | None) -> str | None:
 def stage(text: str):
     """Name the step the body runs, and put back the enclosing step's name after it, so that a
     budget running out between two nested steps still names where it stopped."""
+    global _left_by, _left_stage
     previous = set_stage(text)
     try:
         yield
     except BaseException as exc:
-        # The innermost step an error left, for a memory cap that reports it after the steps closed.
-        if getattr(exc, "kinegen_stage", None) is None:
-            try:
-                exc.kinegen_stage = text
-            except AttributeError:
-                pass
+        # The innermost step an error left, for a memory cap that reports it after the steps have
+        # closed.  Two plain assignments: at the cap there may be no memory for anything more.
+        if _capped and _left_by is not exc:
+            _left_by, _left_stage = exc, text
         raise
     finally:
         set_stage(previous)
+
+
+# Under a memory cap: the last error to leave a step, and that step (see stage).
+_capped = False
+_left_by: BaseException | None = None
+_left_stage: str | None = None
 
 
 # The open budgets, outermost first: (deadline on the monotonic clock, stage, seconds).
@@ -158,7 +163,7 @@ _CAP_MARGIN = 64 * 2**20
 
 def _failed_in(exc: BaseException) -> str | None:
     """The step ``exc`` was raised in: recorded by :func:`stage` on its way out, else the current one."""
-    return getattr(exc, "kinegen_stage", None) or _stage
+    return _left_stage if _left_by is exc else _stage
 
 
 @contextlib.contextmanager
@@ -170,6 +175,7 @@ def memory_cap(gib: float | None, stage: str):
     it, so that compilers started later are not bound by it.  Where the limit or the process
     size cannot be read (not Linux), the body runs uncapped.
     """
+    global _capped, _left_by
     if gib is None:
         yield
         return
@@ -186,16 +192,27 @@ def memory_cap(gib: float | None, stage: str):
     if soft != resource.RLIM_INFINITY:
         cap = min(cap, soft)
     resource.setrlimit(resource.RLIMIT_AS, (cap, hard))
+    failure = None
+    _capped, _left_by = True, None
     try:
         yield
     except MemoryError as exc:
-        raise MemoryCapExceeded(stage, gib, _failed_in(exc)) from None
+        failure = exc
     except Exception as exc:
         # An allocation that fails inside a C extension can surface as another error (a
         # SystemError with no exception set, say): at the cap, it is the cap's.
-        now = _address_space()
-        if now is not None and now >= cap - _CAP_MARGIN:
-            raise MemoryCapExceeded(stage, gib, _failed_in(exc)) from exc
-        raise
+        try:
+            now = _address_space()
+        except MemoryError:  # reading the size needs memory too: no room left is the cap's answer
+            now = cap
+        if now is None or now < cap - _CAP_MARGIN:
+            raise
+        failure = exc
     finally:
         resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
+        _capped = False
+    # Built only now, with the limit lifted: the message and its stage need memory too.
+    if failure is not None:
+        where, _left_by = _failed_in(failure), None
+        raise MemoryCapExceeded(stage, gib, where) from (None if isinstance(failure, MemoryError) else failure)
+    _left_by = None
