@@ -404,7 +404,8 @@ def cmd_verify(args, say) -> int:
     print(format_table(checks))
     failed = [c for c in checks if not c.ok]
     print(f"\n{len(checks) - len(failed)} passed, {len(failed)} failed "
-          f"(tolerance 1e-12 relative against SymPy; finite differences 1e-7)")
+          f"(tolerance 1e-12 relative against SymPy, past the rounding of the system for a run-time solve; "
+          f"finite differences 1e-7)")
     return 1 if failed else 0
 
 
