@@ -233,8 +233,8 @@ def assert_same_refusal(name, kernel, a, b):
     assert isinstance(a, Exception) and isinstance(b, Exception), (
         f"{name}.{kernel}: numpy {describe(a)}; C {describe(b)}")
     assert isinstance(a, ValueError) and type(a) is type(b), f"{name}.{kernel}: numpy {describe(a)}; C {describe(b)}"
-    for error in (a, b):  # the kernel named, or (the one message that does not) the shapes
-        assert str(error).startswith((f"{kernel}:", "batch dimensions do not broadcast: (")), describe(error)
+    for error in (a, b):  # every refusal names the kernel
+        assert str(error).startswith(f"{kernel}:"), describe(error)
 
 
 def assert_outputs_agree(name, kernel, a, b, count, params, target=None, rtol=RTOL):

@@ -554,7 +554,8 @@ def test_rate_kernels_broadcast_and_reject_bad_input(backend):
         k.joint_velocity([0.1, 0.2], [1.0, 2.0, 3.0])
     with pytest.raises(ValueError, match="qd contains NaN or inf"):
         k.task_velocity([0.1, 0.2], [np.nan, 0.0])
-    with pytest.raises(ValueError, match="batch dimensions do not broadcast"):
+    with pytest.raises(ValueError, match=r"^joint_velocity: the batch dimensions \(all but the last axis\) of "
+                                         r"q \(3, 2\), xd \(4, 2\) do not broadcast$"):
         k.joint_velocity(np.zeros((3, 2)), np.zeros((4, 2)))
 
 

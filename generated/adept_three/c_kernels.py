@@ -227,7 +227,7 @@ def task_velocity(q, qd, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
         return _out
     q = _runtime.as_batch(q, 4, "task_velocity", "q", finite=False)
     qd = _runtime.as_batch(qd, 4, "task_velocity", "qd", finite=False)
-    batch = _runtime.batch_shape(q, qd)
+    batch = _runtime.batch_shape("task_velocity", q=q, qd=qd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 4, "task_velocity", "q")
@@ -258,7 +258,7 @@ def twist(q, qd, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
         return _out
     q = _runtime.as_batch(q, 4, "twist", "q", finite=False)
     qd = _runtime.as_batch(qd, 4, "twist", "qd", finite=False)
-    batch = _runtime.batch_shape(q, qd)
+    batch = _runtime.batch_shape("twist", q=q, qd=qd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 4, "twist", "q")
@@ -289,7 +289,7 @@ def task_jacobian_dot(q, qd, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
         return _out
     q = _runtime.as_batch(q, 4, "task_jacobian_dot", "q", finite=False)
     qd = _runtime.as_batch(qd, 4, "task_jacobian_dot", "qd", finite=False)
-    batch = _runtime.batch_shape(q, qd)
+    batch = _runtime.batch_shape("task_jacobian_dot", q=q, qd=qd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 4, "task_jacobian_dot", "q")
@@ -320,7 +320,7 @@ def jacobian_dot(q, qd, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
         return _out
     q = _runtime.as_batch(q, 4, "jacobian_dot", "q", finite=False)
     qd = _runtime.as_batch(qd, 4, "jacobian_dot", "qd", finite=False)
-    batch = _runtime.batch_shape(q, qd)
+    batch = _runtime.batch_shape("jacobian_dot", q=q, qd=qd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 4, "jacobian_dot", "q")
@@ -352,7 +352,7 @@ def task_acceleration(q, qd, qdd, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
     q = _runtime.as_batch(q, 4, "task_acceleration", "q", finite=False)
     qd = _runtime.as_batch(qd, 4, "task_acceleration", "qd", finite=False)
     qdd = _runtime.as_batch(qdd, 4, "task_acceleration", "qdd", finite=False)
-    batch = _runtime.batch_shape(q, qd, qdd)
+    batch = _runtime.batch_shape("task_acceleration", q=q, qd=qd, qdd=qdd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 4, "task_acceleration", "q")
@@ -414,7 +414,7 @@ def joint_velocity(q, xd, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
         return _out
     q = _runtime.as_batch(q, 4, "joint_velocity", "q", finite=False)
     xd = _runtime.as_batch(xd, 4, "joint_velocity", "xd", finite=False)
-    batch = _runtime.batch_shape(q, xd)
+    batch = _runtime.batch_shape("joint_velocity", q=q, xd=xd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 4, "joint_velocity", "q")
@@ -448,7 +448,7 @@ def joint_acceleration(q, qd, xdd, *, l1=_l1, l2=_l2, d1=_d1, d4=_d4):
     q = _runtime.as_batch(q, 4, "joint_acceleration", "q", finite=False)
     qd = _runtime.as_batch(qd, 4, "joint_acceleration", "qd", finite=False)
     xdd = _runtime.as_batch(xdd, 4, "joint_acceleration", "xdd", finite=False)
-    batch = _runtime.batch_shape(q, qd, xdd)
+    batch = _runtime.batch_shape("joint_acceleration", q=q, qd=qd, xdd=xdd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 4, "joint_acceleration", "q")

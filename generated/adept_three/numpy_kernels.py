@@ -41,7 +41,7 @@ def fk(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     l2 = _runtime.as_param(l2, "l2")
     d1 = _runtime.as_param(d1, "d1")
     d4 = _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("fk", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
     _count = _all_q.shape[0]
     T = numpy.empty((_count, 16))
@@ -100,7 +100,7 @@ def frames(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     l2 = _runtime.as_param(l2, "l2")
     d1 = _runtime.as_param(d1, "d1")
     d4 = _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("frames", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
     _count = _all_q.shape[0]
     frames = numpy.empty((_count, 80))
@@ -228,7 +228,7 @@ def jacobian(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     l2 = _runtime.as_param(l2, "l2")
     _runtime.as_param(d1, "d1")
     _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("jacobian", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
     _count = _all_q.shape[0]
     J = numpy.empty((_count, 24))
@@ -289,7 +289,7 @@ def task(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     l2 = _runtime.as_param(l2, "l2")
     d1 = _runtime.as_param(d1, "d1")
     d4 = _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("task", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
     _count = _all_q.shape[0]
     x = numpy.empty((_count, 4))
@@ -330,7 +330,7 @@ def task_jacobian(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     l2 = _runtime.as_param(l2, "l2")
     _runtime.as_param(d1, "d1")
     _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("task_jacobian", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
     _count = _all_q.shape[0]
     Jx = numpy.empty((_count, 16))
@@ -387,7 +387,7 @@ def ik(x, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     l2 = _runtime.as_param(l2, "l2")
     d1 = _runtime.as_param(d1, "d1")
     d4 = _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(x)
+    _batch = _runtime.batch_shape("ik", x=x)
     _all_x = numpy.broadcast_to(x, _batch + (4,)).reshape(-1, 4)
     _count = _all_x.shape[0]
     Q = numpy.empty((_count, 8))
@@ -446,7 +446,7 @@ def task_velocity(q, qd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     l2 = _runtime.as_param(l2, "l2")
     _runtime.as_param(d1, "d1")
     _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("task_velocity", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
     _all_qd = numpy.broadcast_to(qd, _batch + (4,)).reshape(-1, 4)
     _count = _all_q.shape[0]
@@ -495,7 +495,7 @@ def twist(q, qd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     l2 = _runtime.as_param(l2, "l2")
     _runtime.as_param(d1, "d1")
     _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("twist", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
     _all_qd = numpy.broadcast_to(qd, _batch + (4,)).reshape(-1, 4)
     _count = _all_q.shape[0]
@@ -546,7 +546,7 @@ def task_jacobian_dot(q, qd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     l2 = _runtime.as_param(l2, "l2")
     _runtime.as_param(d1, "d1")
     _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("task_jacobian_dot", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
     _all_qd = numpy.broadcast_to(qd, _batch + (4,)).reshape(-1, 4)
     _count = _all_q.shape[0]
@@ -607,7 +607,7 @@ def jacobian_dot(q, qd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     l2 = _runtime.as_param(l2, "l2")
     _runtime.as_param(d1, "d1")
     _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("jacobian_dot", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
     _all_qd = numpy.broadcast_to(qd, _batch + (4,)).reshape(-1, 4)
     _count = _all_q.shape[0]
@@ -678,7 +678,7 @@ def task_acceleration(q, qd, qdd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     l2 = _runtime.as_param(l2, "l2")
     _runtime.as_param(d1, "d1")
     _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(q, qd, qdd)
+    _batch = _runtime.batch_shape("task_acceleration", q=q, qd=qd, qdd=qdd)
     _all_q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
     _all_qd = numpy.broadcast_to(qd, _batch + (4,)).reshape(-1, 4)
     _all_qdd = numpy.broadcast_to(qdd, _batch + (4,)).reshape(-1, 4)
@@ -733,7 +733,7 @@ def manipulability(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     l2 = _runtime.as_param(l2, "l2")
     d1 = _runtime.as_param(d1, "d1")
     d4 = _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("manipulability", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
     _count = _all_q.shape[0]
     manipulability = numpy.empty((_count, 1))
@@ -766,7 +766,7 @@ def joint_velocity(q, xd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     l2 = _runtime.as_param(l2, "l2")
     d1 = _runtime.as_param(d1, "d1")
     d4 = _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(q, xd)
+    _batch = _runtime.batch_shape("joint_velocity", q=q, xd=xd)
     _all_q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
     _all_xd = numpy.broadcast_to(xd, _batch + (4,)).reshape(-1, 4)
     _count = _all_q.shape[0]
@@ -891,7 +891,7 @@ def joint_acceleration(q, qd, xdd, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     l2 = _runtime.as_param(l2, "l2")
     d1 = _runtime.as_param(d1, "d1")
     d4 = _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(q, qd, xdd)
+    _batch = _runtime.batch_shape("joint_acceleration", q=q, qd=qd, xdd=xdd)
     _all_q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
     _all_qd = numpy.broadcast_to(qd, _batch + (4,)).reshape(-1, 4)
     _all_xdd = numpy.broadcast_to(xdd, _batch + (4,)).reshape(-1, 4)
@@ -1020,7 +1020,7 @@ def tool_configuration(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     l2 = _runtime.as_param(l2, "l2")
     d1 = _runtime.as_param(d1, "d1")
     d4 = _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("tool_configuration", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
     _count = _all_q.shape[0]
     w_tool = numpy.empty((_count, 6))
@@ -1063,7 +1063,7 @@ def tool_configuration_jacobian(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
     l2 = _runtime.as_param(l2, "l2")
     _runtime.as_param(d1, "d1")
     _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("tool_configuration_jacobian", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
     _count = _all_q.shape[0]
     Jw = numpy.empty((_count, 24))

@@ -257,7 +257,7 @@ def motor_to_joint_velocity(motor, motor_velocity, *, a=_a, e=_e, J11=_J11, J21=
         return _out
     motor = _runtime.as_batch(motor, 3, "motor_to_joint_velocity", "motor", finite=False)
     motor_velocity = _runtime.as_batch(motor_velocity, 3, "motor_to_joint_velocity", "motor_velocity", finite=False)
-    batch = _runtime.batch_shape(motor, motor_velocity)
+    batch = _runtime.batch_shape("motor_to_joint_velocity", motor=motor, motor_velocity=motor_velocity)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(motor, 3, "motor_to_joint_velocity", "motor")
@@ -289,7 +289,7 @@ def motor_to_joint_acceleration(motor, motor_velocity, motor_acceleration, *, a=
     motor = _runtime.as_batch(motor, 3, "motor_to_joint_acceleration", "motor", finite=False)
     motor_velocity = _runtime.as_batch(motor_velocity, 3, "motor_to_joint_acceleration", "motor_velocity", finite=False)
     motor_acceleration = _runtime.as_batch(motor_acceleration, 3, "motor_to_joint_acceleration", "motor_acceleration", finite=False)
-    batch = _runtime.batch_shape(motor, motor_velocity, motor_acceleration)
+    batch = _runtime.batch_shape("motor_to_joint_acceleration", motor=motor, motor_velocity=motor_velocity, motor_acceleration=motor_acceleration)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(motor, 3, "motor_to_joint_acceleration", "motor")
@@ -349,7 +349,7 @@ def joint_to_tool_velocity(joint, joint_velocity, *, a=_a, e=_e, J11=_J11, J21=_
         return _out
     joint = _runtime.as_batch(joint, 3, "joint_to_tool_velocity", "joint", finite=False)
     joint_velocity = _runtime.as_batch(joint_velocity, 3, "joint_to_tool_velocity", "joint_velocity", finite=False)
-    batch = _runtime.batch_shape(joint, joint_velocity)
+    batch = _runtime.batch_shape("joint_to_tool_velocity", joint=joint, joint_velocity=joint_velocity)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(joint, 3, "joint_to_tool_velocity", "joint")
@@ -381,7 +381,7 @@ def joint_to_tool_acceleration(joint, joint_velocity, joint_acceleration, *, a=_
     joint = _runtime.as_batch(joint, 3, "joint_to_tool_acceleration", "joint", finite=False)
     joint_velocity = _runtime.as_batch(joint_velocity, 3, "joint_to_tool_acceleration", "joint_velocity", finite=False)
     joint_acceleration = _runtime.as_batch(joint_acceleration, 3, "joint_to_tool_acceleration", "joint_acceleration", finite=False)
-    batch = _runtime.batch_shape(joint, joint_velocity, joint_acceleration)
+    batch = _runtime.batch_shape("joint_to_tool_acceleration", joint=joint, joint_velocity=joint_velocity, joint_acceleration=joint_acceleration)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(joint, 3, "joint_to_tool_acceleration", "joint")
@@ -441,7 +441,7 @@ def joint_to_cartesian_velocity(joint, joint_velocity, *, a=_a, e=_e, J11=_J11, 
         return _out
     joint = _runtime.as_batch(joint, 3, "joint_to_cartesian_velocity", "joint", finite=False)
     joint_velocity = _runtime.as_batch(joint_velocity, 3, "joint_to_cartesian_velocity", "joint_velocity", finite=False)
-    batch = _runtime.batch_shape(joint, joint_velocity)
+    batch = _runtime.batch_shape("joint_to_cartesian_velocity", joint=joint, joint_velocity=joint_velocity)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(joint, 3, "joint_to_cartesian_velocity", "joint")
@@ -473,7 +473,7 @@ def joint_to_cartesian_acceleration(joint, joint_velocity, joint_acceleration, *
     joint = _runtime.as_batch(joint, 3, "joint_to_cartesian_acceleration", "joint", finite=False)
     joint_velocity = _runtime.as_batch(joint_velocity, 3, "joint_to_cartesian_acceleration", "joint_velocity", finite=False)
     joint_acceleration = _runtime.as_batch(joint_acceleration, 3, "joint_to_cartesian_acceleration", "joint_acceleration", finite=False)
-    batch = _runtime.batch_shape(joint, joint_velocity, joint_acceleration)
+    batch = _runtime.batch_shape("joint_to_cartesian_acceleration", joint=joint, joint_velocity=joint_velocity, joint_acceleration=joint_acceleration)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(joint, 3, "joint_to_cartesian_acceleration", "joint")
@@ -533,7 +533,7 @@ def tool_to_cartesian_velocity(tool, tool_velocity, *, a=_a, e=_e, J11=_J11, J21
         return _out
     tool = _runtime.as_batch(tool, 3, "tool_to_cartesian_velocity", "tool", finite=False)
     tool_velocity = _runtime.as_batch(tool_velocity, 3, "tool_to_cartesian_velocity", "tool_velocity", finite=False)
-    batch = _runtime.batch_shape(tool, tool_velocity)
+    batch = _runtime.batch_shape("tool_to_cartesian_velocity", tool=tool, tool_velocity=tool_velocity)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(tool, 3, "tool_to_cartesian_velocity", "tool")
@@ -565,7 +565,7 @@ def tool_to_cartesian_acceleration(tool, tool_velocity, tool_acceleration, *, a=
     tool = _runtime.as_batch(tool, 3, "tool_to_cartesian_acceleration", "tool", finite=False)
     tool_velocity = _runtime.as_batch(tool_velocity, 3, "tool_to_cartesian_acceleration", "tool_velocity", finite=False)
     tool_acceleration = _runtime.as_batch(tool_acceleration, 3, "tool_to_cartesian_acceleration", "tool_acceleration", finite=False)
-    batch = _runtime.batch_shape(tool, tool_velocity, tool_acceleration)
+    batch = _runtime.batch_shape("tool_to_cartesian_acceleration", tool=tool, tool_velocity=tool_velocity, tool_acceleration=tool_acceleration)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(tool, 3, "tool_to_cartesian_acceleration", "tool")
@@ -625,7 +625,7 @@ def motor_to_tool_velocity(motor, motor_velocity, *, a=_a, e=_e, J11=_J11, J21=_
         return _out
     motor = _runtime.as_batch(motor, 3, "motor_to_tool_velocity", "motor", finite=False)
     motor_velocity = _runtime.as_batch(motor_velocity, 3, "motor_to_tool_velocity", "motor_velocity", finite=False)
-    batch = _runtime.batch_shape(motor, motor_velocity)
+    batch = _runtime.batch_shape("motor_to_tool_velocity", motor=motor, motor_velocity=motor_velocity)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(motor, 3, "motor_to_tool_velocity", "motor")
@@ -657,7 +657,7 @@ def motor_to_tool_acceleration(motor, motor_velocity, motor_acceleration, *, a=_
     motor = _runtime.as_batch(motor, 3, "motor_to_tool_acceleration", "motor", finite=False)
     motor_velocity = _runtime.as_batch(motor_velocity, 3, "motor_to_tool_acceleration", "motor_velocity", finite=False)
     motor_acceleration = _runtime.as_batch(motor_acceleration, 3, "motor_to_tool_acceleration", "motor_acceleration", finite=False)
-    batch = _runtime.batch_shape(motor, motor_velocity, motor_acceleration)
+    batch = _runtime.batch_shape("motor_to_tool_acceleration", motor=motor, motor_velocity=motor_velocity, motor_acceleration=motor_acceleration)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(motor, 3, "motor_to_tool_acceleration", "motor")
@@ -717,7 +717,7 @@ def motor_to_cartesian_velocity(motor, motor_velocity, *, a=_a, e=_e, J11=_J11, 
         return _out
     motor = _runtime.as_batch(motor, 3, "motor_to_cartesian_velocity", "motor", finite=False)
     motor_velocity = _runtime.as_batch(motor_velocity, 3, "motor_to_cartesian_velocity", "motor_velocity", finite=False)
-    batch = _runtime.batch_shape(motor, motor_velocity)
+    batch = _runtime.batch_shape("motor_to_cartesian_velocity", motor=motor, motor_velocity=motor_velocity)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(motor, 3, "motor_to_cartesian_velocity", "motor")
@@ -749,7 +749,7 @@ def motor_to_cartesian_acceleration(motor, motor_velocity, motor_acceleration, *
     motor = _runtime.as_batch(motor, 3, "motor_to_cartesian_acceleration", "motor", finite=False)
     motor_velocity = _runtime.as_batch(motor_velocity, 3, "motor_to_cartesian_acceleration", "motor_velocity", finite=False)
     motor_acceleration = _runtime.as_batch(motor_acceleration, 3, "motor_to_cartesian_acceleration", "motor_acceleration", finite=False)
-    batch = _runtime.batch_shape(motor, motor_velocity, motor_acceleration)
+    batch = _runtime.batch_shape("motor_to_cartesian_acceleration", motor=motor, motor_velocity=motor_velocity, motor_acceleration=motor_acceleration)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(motor, 3, "motor_to_cartesian_acceleration", "motor")
@@ -809,7 +809,7 @@ def joint_to_motor_velocity(joint, joint_velocity, *, a=_a, e=_e, J11=_J11, J21=
         return _out
     joint = _runtime.as_batch(joint, 3, "joint_to_motor_velocity", "joint", finite=False)
     joint_velocity = _runtime.as_batch(joint_velocity, 3, "joint_to_motor_velocity", "joint_velocity", finite=False)
-    batch = _runtime.batch_shape(joint, joint_velocity)
+    batch = _runtime.batch_shape("joint_to_motor_velocity", joint=joint, joint_velocity=joint_velocity)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(joint, 3, "joint_to_motor_velocity", "joint")
@@ -841,7 +841,7 @@ def joint_to_motor_acceleration(joint, joint_velocity, joint_acceleration, *, a=
     joint = _runtime.as_batch(joint, 3, "joint_to_motor_acceleration", "joint", finite=False)
     joint_velocity = _runtime.as_batch(joint_velocity, 3, "joint_to_motor_acceleration", "joint_velocity", finite=False)
     joint_acceleration = _runtime.as_batch(joint_acceleration, 3, "joint_to_motor_acceleration", "joint_acceleration", finite=False)
-    batch = _runtime.batch_shape(joint, joint_velocity, joint_acceleration)
+    batch = _runtime.batch_shape("joint_to_motor_acceleration", joint=joint, joint_velocity=joint_velocity, joint_acceleration=joint_acceleration)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(joint, 3, "joint_to_motor_acceleration", "joint")
@@ -905,7 +905,7 @@ def tool_to_joint_velocity(tool, tool_velocity, *, a=_a, e=_e, J11=_J11, J21=_J2
     params = _DEFAULT_PARAMS if a is _a and e is _e and J11 is _J11 and J21 is _J21 and J22 is _J22 and J33 is _J33 else _params((a, e, J11, J21, J22, J33, ))[0]
     tool = _runtime.as_batch(tool, 3, "tool_to_joint_velocity", "tool", finite=False)
     tool_velocity = _runtime.as_batch(tool_velocity, 3, "tool_to_joint_velocity", "tool_velocity", finite=False)
-    batch = _runtime.batch_shape(tool, tool_velocity)
+    batch = _runtime.batch_shape("tool_to_joint_velocity", tool=tool, tool_velocity=tool_velocity)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(tool, 3, "tool_to_joint_velocity", "tool")
@@ -934,7 +934,7 @@ def tool_to_joint_acceleration(tool, tool_velocity, tool_acceleration, *, a=_a, 
     tool = _runtime.as_batch(tool, 3, "tool_to_joint_acceleration", "tool", finite=False)
     tool_velocity = _runtime.as_batch(tool_velocity, 3, "tool_to_joint_acceleration", "tool_velocity", finite=False)
     tool_acceleration = _runtime.as_batch(tool_acceleration, 3, "tool_to_joint_acceleration", "tool_acceleration", finite=False)
-    batch = _runtime.batch_shape(tool, tool_velocity, tool_acceleration)
+    batch = _runtime.batch_shape("tool_to_joint_acceleration", tool=tool, tool_velocity=tool_velocity, tool_acceleration=tool_acceleration)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(tool, 3, "tool_to_joint_acceleration", "tool")
@@ -1001,7 +1001,7 @@ def tool_to_motor_velocity(tool, tool_velocity, *, a=_a, e=_e, J11=_J11, J21=_J2
     params = _DEFAULT_PARAMS if a is _a and e is _e and J11 is _J11 and J21 is _J21 and J22 is _J22 and J33 is _J33 else _params((a, e, J11, J21, J22, J33, ))[0]
     tool = _runtime.as_batch(tool, 3, "tool_to_motor_velocity", "tool", finite=False)
     tool_velocity = _runtime.as_batch(tool_velocity, 3, "tool_to_motor_velocity", "tool_velocity", finite=False)
-    batch = _runtime.batch_shape(tool, tool_velocity)
+    batch = _runtime.batch_shape("tool_to_motor_velocity", tool=tool, tool_velocity=tool_velocity)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(tool, 3, "tool_to_motor_velocity", "tool")
@@ -1030,7 +1030,7 @@ def tool_to_motor_acceleration(tool, tool_velocity, tool_acceleration, *, a=_a, 
     tool = _runtime.as_batch(tool, 3, "tool_to_motor_acceleration", "tool", finite=False)
     tool_velocity = _runtime.as_batch(tool_velocity, 3, "tool_to_motor_acceleration", "tool_velocity", finite=False)
     tool_acceleration = _runtime.as_batch(tool_acceleration, 3, "tool_to_motor_acceleration", "tool_acceleration", finite=False)
-    batch = _runtime.batch_shape(tool, tool_velocity, tool_acceleration)
+    batch = _runtime.batch_shape("tool_to_motor_acceleration", tool=tool, tool_velocity=tool_velocity, tool_acceleration=tool_acceleration)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(tool, 3, "tool_to_motor_acceleration", "tool")
@@ -1097,7 +1097,7 @@ def cartesian_to_tool_velocity(cartesian, cartesian_velocity, *, a=_a, e=_e, J11
     params = _DEFAULT_PARAMS if a is _a and e is _e and J11 is _J11 and J21 is _J21 and J22 is _J22 and J33 is _J33 else _params((a, e, J11, J21, J22, J33, ))[0]
     cartesian = _runtime.as_batch(cartesian, 3, "cartesian_to_tool_velocity", "cartesian", finite=False)
     cartesian_velocity = _runtime.as_batch(cartesian_velocity, 3, "cartesian_to_tool_velocity", "cartesian_velocity", finite=False)
-    batch = _runtime.batch_shape(cartesian, cartesian_velocity)
+    batch = _runtime.batch_shape("cartesian_to_tool_velocity", cartesian=cartesian, cartesian_velocity=cartesian_velocity)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(cartesian, 3, "cartesian_to_tool_velocity", "cartesian")
@@ -1126,7 +1126,7 @@ def cartesian_to_tool_acceleration(cartesian, cartesian_velocity, cartesian_acce
     cartesian = _runtime.as_batch(cartesian, 3, "cartesian_to_tool_acceleration", "cartesian", finite=False)
     cartesian_velocity = _runtime.as_batch(cartesian_velocity, 3, "cartesian_to_tool_acceleration", "cartesian_velocity", finite=False)
     cartesian_acceleration = _runtime.as_batch(cartesian_acceleration, 3, "cartesian_to_tool_acceleration", "cartesian_acceleration", finite=False)
-    batch = _runtime.batch_shape(cartesian, cartesian_velocity, cartesian_acceleration)
+    batch = _runtime.batch_shape("cartesian_to_tool_acceleration", cartesian=cartesian, cartesian_velocity=cartesian_velocity, cartesian_acceleration=cartesian_acceleration)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(cartesian, 3, "cartesian_to_tool_acceleration", "cartesian")
@@ -1193,7 +1193,7 @@ def cartesian_to_joint_velocity(cartesian, cartesian_velocity, *, a=_a, e=_e, J1
     params = _DEFAULT_PARAMS if a is _a and e is _e and J11 is _J11 and J21 is _J21 and J22 is _J22 and J33 is _J33 else _params((a, e, J11, J21, J22, J33, ))[0]
     cartesian = _runtime.as_batch(cartesian, 3, "cartesian_to_joint_velocity", "cartesian", finite=False)
     cartesian_velocity = _runtime.as_batch(cartesian_velocity, 3, "cartesian_to_joint_velocity", "cartesian_velocity", finite=False)
-    batch = _runtime.batch_shape(cartesian, cartesian_velocity)
+    batch = _runtime.batch_shape("cartesian_to_joint_velocity", cartesian=cartesian, cartesian_velocity=cartesian_velocity)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(cartesian, 3, "cartesian_to_joint_velocity", "cartesian")
@@ -1222,7 +1222,7 @@ def cartesian_to_joint_acceleration(cartesian, cartesian_velocity, cartesian_acc
     cartesian = _runtime.as_batch(cartesian, 3, "cartesian_to_joint_acceleration", "cartesian", finite=False)
     cartesian_velocity = _runtime.as_batch(cartesian_velocity, 3, "cartesian_to_joint_acceleration", "cartesian_velocity", finite=False)
     cartesian_acceleration = _runtime.as_batch(cartesian_acceleration, 3, "cartesian_to_joint_acceleration", "cartesian_acceleration", finite=False)
-    batch = _runtime.batch_shape(cartesian, cartesian_velocity, cartesian_acceleration)
+    batch = _runtime.batch_shape("cartesian_to_joint_acceleration", cartesian=cartesian, cartesian_velocity=cartesian_velocity, cartesian_acceleration=cartesian_acceleration)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(cartesian, 3, "cartesian_to_joint_acceleration", "cartesian")
@@ -1289,7 +1289,7 @@ def cartesian_to_motor_velocity(cartesian, cartesian_velocity, *, a=_a, e=_e, J1
     params = _DEFAULT_PARAMS if a is _a and e is _e and J11 is _J11 and J21 is _J21 and J22 is _J22 and J33 is _J33 else _params((a, e, J11, J21, J22, J33, ))[0]
     cartesian = _runtime.as_batch(cartesian, 3, "cartesian_to_motor_velocity", "cartesian", finite=False)
     cartesian_velocity = _runtime.as_batch(cartesian_velocity, 3, "cartesian_to_motor_velocity", "cartesian_velocity", finite=False)
-    batch = _runtime.batch_shape(cartesian, cartesian_velocity)
+    batch = _runtime.batch_shape("cartesian_to_motor_velocity", cartesian=cartesian, cartesian_velocity=cartesian_velocity)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(cartesian, 3, "cartesian_to_motor_velocity", "cartesian")
@@ -1318,7 +1318,7 @@ def cartesian_to_motor_acceleration(cartesian, cartesian_velocity, cartesian_acc
     cartesian = _runtime.as_batch(cartesian, 3, "cartesian_to_motor_acceleration", "cartesian", finite=False)
     cartesian_velocity = _runtime.as_batch(cartesian_velocity, 3, "cartesian_to_motor_acceleration", "cartesian_velocity", finite=False)
     cartesian_acceleration = _runtime.as_batch(cartesian_acceleration, 3, "cartesian_to_motor_acceleration", "cartesian_acceleration", finite=False)
-    batch = _runtime.batch_shape(cartesian, cartesian_velocity, cartesian_acceleration)
+    batch = _runtime.batch_shape("cartesian_to_motor_acceleration", cartesian=cartesian, cartesian_velocity=cartesian_velocity, cartesian_acceleration=cartesian_acceleration)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(cartesian, 3, "cartesian_to_motor_acceleration", "cartesian")
@@ -1385,7 +1385,7 @@ def cartesian_to_tool_reversed_velocity(cartesian, cartesian_velocity, *, a=_a, 
     params = _DEFAULT_PARAMS if a is _a and e is _e and J11 is _J11 and J21 is _J21 and J22 is _J22 and J33 is _J33 else _params((a, e, J11, J21, J22, J33, ))[0]
     cartesian = _runtime.as_batch(cartesian, 3, "cartesian_to_tool_reversed_velocity", "cartesian", finite=False)
     cartesian_velocity = _runtime.as_batch(cartesian_velocity, 3, "cartesian_to_tool_reversed_velocity", "cartesian_velocity", finite=False)
-    batch = _runtime.batch_shape(cartesian, cartesian_velocity)
+    batch = _runtime.batch_shape("cartesian_to_tool_reversed_velocity", cartesian=cartesian, cartesian_velocity=cartesian_velocity)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(cartesian, 3, "cartesian_to_tool_reversed_velocity", "cartesian")
@@ -1414,7 +1414,7 @@ def cartesian_to_tool_reversed_acceleration(cartesian, cartesian_velocity, carte
     cartesian = _runtime.as_batch(cartesian, 3, "cartesian_to_tool_reversed_acceleration", "cartesian", finite=False)
     cartesian_velocity = _runtime.as_batch(cartesian_velocity, 3, "cartesian_to_tool_reversed_acceleration", "cartesian_velocity", finite=False)
     cartesian_acceleration = _runtime.as_batch(cartesian_acceleration, 3, "cartesian_to_tool_reversed_acceleration", "cartesian_acceleration", finite=False)
-    batch = _runtime.batch_shape(cartesian, cartesian_velocity, cartesian_acceleration)
+    batch = _runtime.batch_shape("cartesian_to_tool_reversed_acceleration", cartesian=cartesian, cartesian_velocity=cartesian_velocity, cartesian_acceleration=cartesian_acceleration)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(cartesian, 3, "cartesian_to_tool_reversed_acceleration", "cartesian")
@@ -1481,7 +1481,7 @@ def cartesian_to_joint_reversed_velocity(cartesian, cartesian_velocity, *, a=_a,
     params = _DEFAULT_PARAMS if a is _a and e is _e and J11 is _J11 and J21 is _J21 and J22 is _J22 and J33 is _J33 else _params((a, e, J11, J21, J22, J33, ))[0]
     cartesian = _runtime.as_batch(cartesian, 3, "cartesian_to_joint_reversed_velocity", "cartesian", finite=False)
     cartesian_velocity = _runtime.as_batch(cartesian_velocity, 3, "cartesian_to_joint_reversed_velocity", "cartesian_velocity", finite=False)
-    batch = _runtime.batch_shape(cartesian, cartesian_velocity)
+    batch = _runtime.batch_shape("cartesian_to_joint_reversed_velocity", cartesian=cartesian, cartesian_velocity=cartesian_velocity)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(cartesian, 3, "cartesian_to_joint_reversed_velocity", "cartesian")
@@ -1510,7 +1510,7 @@ def cartesian_to_joint_reversed_acceleration(cartesian, cartesian_velocity, cart
     cartesian = _runtime.as_batch(cartesian, 3, "cartesian_to_joint_reversed_acceleration", "cartesian", finite=False)
     cartesian_velocity = _runtime.as_batch(cartesian_velocity, 3, "cartesian_to_joint_reversed_acceleration", "cartesian_velocity", finite=False)
     cartesian_acceleration = _runtime.as_batch(cartesian_acceleration, 3, "cartesian_to_joint_reversed_acceleration", "cartesian_acceleration", finite=False)
-    batch = _runtime.batch_shape(cartesian, cartesian_velocity, cartesian_acceleration)
+    batch = _runtime.batch_shape("cartesian_to_joint_reversed_acceleration", cartesian=cartesian, cartesian_velocity=cartesian_velocity, cartesian_acceleration=cartesian_acceleration)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(cartesian, 3, "cartesian_to_joint_reversed_acceleration", "cartesian")
@@ -1577,7 +1577,7 @@ def cartesian_to_motor_reversed_velocity(cartesian, cartesian_velocity, *, a=_a,
     params = _DEFAULT_PARAMS if a is _a and e is _e and J11 is _J11 and J21 is _J21 and J22 is _J22 and J33 is _J33 else _params((a, e, J11, J21, J22, J33, ))[0]
     cartesian = _runtime.as_batch(cartesian, 3, "cartesian_to_motor_reversed_velocity", "cartesian", finite=False)
     cartesian_velocity = _runtime.as_batch(cartesian_velocity, 3, "cartesian_to_motor_reversed_velocity", "cartesian_velocity", finite=False)
-    batch = _runtime.batch_shape(cartesian, cartesian_velocity)
+    batch = _runtime.batch_shape("cartesian_to_motor_reversed_velocity", cartesian=cartesian, cartesian_velocity=cartesian_velocity)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(cartesian, 3, "cartesian_to_motor_reversed_velocity", "cartesian")
@@ -1606,7 +1606,7 @@ def cartesian_to_motor_reversed_acceleration(cartesian, cartesian_velocity, cart
     cartesian = _runtime.as_batch(cartesian, 3, "cartesian_to_motor_reversed_acceleration", "cartesian", finite=False)
     cartesian_velocity = _runtime.as_batch(cartesian_velocity, 3, "cartesian_to_motor_reversed_acceleration", "cartesian_velocity", finite=False)
     cartesian_acceleration = _runtime.as_batch(cartesian_acceleration, 3, "cartesian_to_motor_reversed_acceleration", "cartesian_acceleration", finite=False)
-    batch = _runtime.batch_shape(cartesian, cartesian_velocity, cartesian_acceleration)
+    batch = _runtime.batch_shape("cartesian_to_motor_reversed_acceleration", cartesian=cartesian, cartesian_velocity=cartesian_velocity, cartesian_acceleration=cartesian_acceleration)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(cartesian, 3, "cartesian_to_motor_reversed_acceleration", "cartesian")

@@ -225,7 +225,7 @@ def task_velocity(q, qd, *, l1=_l1, l2=_l2):
         return _out
     q = _runtime.as_batch(q, 2, "task_velocity", "q", finite=False)
     qd = _runtime.as_batch(qd, 2, "task_velocity", "qd", finite=False)
-    batch = _runtime.batch_shape(q, qd)
+    batch = _runtime.batch_shape("task_velocity", q=q, qd=qd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 2, "task_velocity", "q")
@@ -256,7 +256,7 @@ def twist(q, qd, *, l1=_l1, l2=_l2):
         return _out
     q = _runtime.as_batch(q, 2, "twist", "q", finite=False)
     qd = _runtime.as_batch(qd, 2, "twist", "qd", finite=False)
-    batch = _runtime.batch_shape(q, qd)
+    batch = _runtime.batch_shape("twist", q=q, qd=qd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 2, "twist", "q")
@@ -287,7 +287,7 @@ def task_jacobian_dot(q, qd, *, l1=_l1, l2=_l2):
         return _out
     q = _runtime.as_batch(q, 2, "task_jacobian_dot", "q", finite=False)
     qd = _runtime.as_batch(qd, 2, "task_jacobian_dot", "qd", finite=False)
-    batch = _runtime.batch_shape(q, qd)
+    batch = _runtime.batch_shape("task_jacobian_dot", q=q, qd=qd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 2, "task_jacobian_dot", "q")
@@ -318,7 +318,7 @@ def jacobian_dot(q, qd, *, l1=_l1, l2=_l2):
         return _out
     q = _runtime.as_batch(q, 2, "jacobian_dot", "q", finite=False)
     qd = _runtime.as_batch(qd, 2, "jacobian_dot", "qd", finite=False)
-    batch = _runtime.batch_shape(q, qd)
+    batch = _runtime.batch_shape("jacobian_dot", q=q, qd=qd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 2, "jacobian_dot", "q")
@@ -350,7 +350,7 @@ def task_acceleration(q, qd, qdd, *, l1=_l1, l2=_l2):
     q = _runtime.as_batch(q, 2, "task_acceleration", "q", finite=False)
     qd = _runtime.as_batch(qd, 2, "task_acceleration", "qd", finite=False)
     qdd = _runtime.as_batch(qdd, 2, "task_acceleration", "qdd", finite=False)
-    batch = _runtime.batch_shape(q, qd, qdd)
+    batch = _runtime.batch_shape("task_acceleration", q=q, qd=qd, qdd=qdd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 2, "task_acceleration", "q")
@@ -412,7 +412,7 @@ def joint_velocity(q, xd, *, l1=_l1, l2=_l2):
         return _out
     q = _runtime.as_batch(q, 2, "joint_velocity", "q", finite=False)
     xd = _runtime.as_batch(xd, 2, "joint_velocity", "xd", finite=False)
-    batch = _runtime.batch_shape(q, xd)
+    batch = _runtime.batch_shape("joint_velocity", q=q, xd=xd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 2, "joint_velocity", "q")
@@ -446,7 +446,7 @@ def joint_acceleration(q, qd, xdd, *, l1=_l1, l2=_l2):
     q = _runtime.as_batch(q, 2, "joint_acceleration", "q", finite=False)
     qd = _runtime.as_batch(qd, 2, "joint_acceleration", "qd", finite=False)
     xdd = _runtime.as_batch(xdd, 2, "joint_acceleration", "xdd", finite=False)
-    batch = _runtime.batch_shape(q, qd, xdd)
+    batch = _runtime.batch_shape("joint_acceleration", q=q, qd=qd, xdd=xdd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 2, "joint_acceleration", "q")

@@ -39,7 +39,7 @@ def fk(q, *, l1=0.559, l2=0.508):
     q = _runtime.as_batch(q, 2, "fk", "q")
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("fk", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
     T = numpy.empty((_count, 16))
@@ -88,7 +88,7 @@ def frames(q, *, l1=0.559, l2=0.508):
     q = _runtime.as_batch(q, 2, "frames", "q")
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("frames", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
     frames = numpy.empty((_count, 48))
@@ -171,7 +171,7 @@ def jacobian(q, *, l1=0.559, l2=0.508):
     q = _runtime.as_batch(q, 2, "jacobian", "q")
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("jacobian", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
     J = numpy.empty((_count, 12))
@@ -218,7 +218,7 @@ def task(q, *, l1=0.559, l2=0.508):
     q = _runtime.as_batch(q, 2, "task", "q")
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("task", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
     x = numpy.empty((_count, 2))
@@ -253,7 +253,7 @@ def task_jacobian(q, *, l1=0.559, l2=0.508):
     q = _runtime.as_batch(q, 2, "task_jacobian", "q")
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("task_jacobian", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
     Jx = numpy.empty((_count, 4))
@@ -296,7 +296,7 @@ def ik(x, *, l1=0.559, l2=0.508):
     x = _runtime.as_batch(x, 2, "ik", "x", finite=False)
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
-    _batch = _runtime.batch_shape(x)
+    _batch = _runtime.batch_shape("ik", x=x)
     _all_x = numpy.broadcast_to(x, _batch + (2,)).reshape(-1, 2)
     _count = _all_x.shape[0]
     Q = numpy.empty((_count, 4))
@@ -342,7 +342,7 @@ def task_velocity(q, qd, *, l1=0.559, l2=0.508):
     qd = _runtime.as_batch(qd, 2, "task_velocity", "qd")
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("task_velocity", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _all_qd = numpy.broadcast_to(qd, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
@@ -385,7 +385,7 @@ def twist(q, qd, *, l1=0.559, l2=0.508):
     qd = _runtime.as_batch(qd, 2, "twist", "qd")
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("twist", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _all_qd = numpy.broadcast_to(qd, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
@@ -432,7 +432,7 @@ def task_jacobian_dot(q, qd, *, l1=0.559, l2=0.508):
     qd = _runtime.as_batch(qd, 2, "task_jacobian_dot", "qd")
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("task_jacobian_dot", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _all_qd = numpy.broadcast_to(qd, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
@@ -479,7 +479,7 @@ def jacobian_dot(q, qd, *, l1=0.559, l2=0.508):
     qd = _runtime.as_batch(qd, 2, "jacobian_dot", "qd")
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("jacobian_dot", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _all_qd = numpy.broadcast_to(qd, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
@@ -536,7 +536,7 @@ def task_acceleration(q, qd, qdd, *, l1=0.559, l2=0.508):
     qdd = _runtime.as_batch(qdd, 2, "task_acceleration", "qdd")
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
-    _batch = _runtime.batch_shape(q, qd, qdd)
+    _batch = _runtime.batch_shape("task_acceleration", q=q, qd=qd, qdd=qdd)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _all_qd = numpy.broadcast_to(qd, _batch + (2,)).reshape(-1, 2)
     _all_qdd = numpy.broadcast_to(qdd, _batch + (2,)).reshape(-1, 2)
@@ -585,7 +585,7 @@ def manipulability(q, *, l1=0.559, l2=0.508):
     q = _runtime.as_batch(q, 2, "manipulability", "q")
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("manipulability", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
     manipulability = numpy.empty((_count, 1))
@@ -616,7 +616,7 @@ def joint_velocity(q, xd, *, l1=0.559, l2=0.508):
     xd = _runtime.as_batch(xd, 2, "joint_velocity", "xd")
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
-    _batch = _runtime.batch_shape(q, xd)
+    _batch = _runtime.batch_shape("joint_velocity", q=q, xd=xd)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _all_xd = numpy.broadcast_to(xd, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
@@ -690,7 +690,7 @@ def joint_acceleration(q, qd, xdd, *, l1=0.559, l2=0.508):
     xdd = _runtime.as_batch(xdd, 2, "joint_acceleration", "xdd")
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
-    _batch = _runtime.batch_shape(q, qd, xdd)
+    _batch = _runtime.batch_shape("joint_acceleration", q=q, qd=qd, xdd=xdd)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _all_qd = numpy.broadcast_to(qd, _batch + (2,)).reshape(-1, 2)
     _all_xdd = numpy.broadcast_to(xdd, _batch + (2,)).reshape(-1, 2)

@@ -226,7 +226,7 @@ def task_velocity(q, qd, *, l1=_l1, l2=_l2, l3=_l3):
         return _out
     q = _runtime.as_batch(q, 3, "task_velocity", "q", finite=False)
     qd = _runtime.as_batch(qd, 3, "task_velocity", "qd", finite=False)
-    batch = _runtime.batch_shape(q, qd)
+    batch = _runtime.batch_shape("task_velocity", q=q, qd=qd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 3, "task_velocity", "q")
@@ -257,7 +257,7 @@ def twist(q, qd, *, l1=_l1, l2=_l2, l3=_l3):
         return _out
     q = _runtime.as_batch(q, 3, "twist", "q", finite=False)
     qd = _runtime.as_batch(qd, 3, "twist", "qd", finite=False)
-    batch = _runtime.batch_shape(q, qd)
+    batch = _runtime.batch_shape("twist", q=q, qd=qd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 3, "twist", "q")
@@ -288,7 +288,7 @@ def task_jacobian_dot(q, qd, *, l1=_l1, l2=_l2, l3=_l3):
         return _out
     q = _runtime.as_batch(q, 3, "task_jacobian_dot", "q", finite=False)
     qd = _runtime.as_batch(qd, 3, "task_jacobian_dot", "qd", finite=False)
-    batch = _runtime.batch_shape(q, qd)
+    batch = _runtime.batch_shape("task_jacobian_dot", q=q, qd=qd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 3, "task_jacobian_dot", "q")
@@ -319,7 +319,7 @@ def jacobian_dot(q, qd, *, l1=_l1, l2=_l2, l3=_l3):
         return _out
     q = _runtime.as_batch(q, 3, "jacobian_dot", "q", finite=False)
     qd = _runtime.as_batch(qd, 3, "jacobian_dot", "qd", finite=False)
-    batch = _runtime.batch_shape(q, qd)
+    batch = _runtime.batch_shape("jacobian_dot", q=q, qd=qd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 3, "jacobian_dot", "q")
@@ -351,7 +351,7 @@ def task_acceleration(q, qd, qdd, *, l1=_l1, l2=_l2, l3=_l3):
     q = _runtime.as_batch(q, 3, "task_acceleration", "q", finite=False)
     qd = _runtime.as_batch(qd, 3, "task_acceleration", "qd", finite=False)
     qdd = _runtime.as_batch(qdd, 3, "task_acceleration", "qdd", finite=False)
-    batch = _runtime.batch_shape(q, qd, qdd)
+    batch = _runtime.batch_shape("task_acceleration", q=q, qd=qd, qdd=qdd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 3, "task_acceleration", "q")
@@ -413,7 +413,7 @@ def joint_velocity(q, xd, *, l1=_l1, l2=_l2, l3=_l3):
         return _out
     q = _runtime.as_batch(q, 3, "joint_velocity", "q", finite=False)
     xd = _runtime.as_batch(xd, 3, "joint_velocity", "xd", finite=False)
-    batch = _runtime.batch_shape(q, xd)
+    batch = _runtime.batch_shape("joint_velocity", q=q, xd=xd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 3, "joint_velocity", "q")
@@ -447,7 +447,7 @@ def joint_acceleration(q, qd, xdd, *, l1=_l1, l2=_l2, l3=_l3):
     q = _runtime.as_batch(q, 3, "joint_acceleration", "q", finite=False)
     qd = _runtime.as_batch(qd, 3, "joint_acceleration", "qd", finite=False)
     xdd = _runtime.as_batch(xdd, 3, "joint_acceleration", "xdd", finite=False)
-    batch = _runtime.batch_shape(q, qd, xdd)
+    batch = _runtime.batch_shape("joint_acceleration", q=q, qd=qd, xdd=xdd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 3, "joint_acceleration", "q")

@@ -40,7 +40,7 @@ def fk(q, *, l1=0.5, l2=0.4, l3=0.2):
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("fk", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
     _count = _all_q.shape[0]
     T = numpy.empty((_count, 16))
@@ -97,7 +97,7 @@ def frames(q, *, l1=0.5, l2=0.4, l3=0.2):
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("frames", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
     _count = _all_q.shape[0]
     frames = numpy.empty((_count, 64))
@@ -206,7 +206,7 @@ def jacobian(q, *, l1=0.5, l2=0.4, l3=0.2):
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("jacobian", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
     _count = _all_q.shape[0]
     J = numpy.empty((_count, 18))
@@ -269,7 +269,7 @@ def task(q, *, l1=0.5, l2=0.4, l3=0.2):
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("task", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
     _count = _all_q.shape[0]
     x = numpy.empty((_count, 3))
@@ -313,7 +313,7 @@ def task_jacobian(q, *, l1=0.5, l2=0.4, l3=0.2):
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("task_jacobian", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
     _count = _all_q.shape[0]
     Jx = numpy.empty((_count, 9))
@@ -371,7 +371,7 @@ def ik(x, *, l1=0.5, l2=0.4, l3=0.2):
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
-    _batch = _runtime.batch_shape(x)
+    _batch = _runtime.batch_shape("ik", x=x)
     _all_x = numpy.broadcast_to(x, _batch + (3,)).reshape(-1, 3)
     _count = _all_x.shape[0]
     Q = numpy.empty((_count, 6))
@@ -451,7 +451,7 @@ def task_velocity(q, qd, *, l1=0.5, l2=0.4, l3=0.2):
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("task_velocity", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
     _all_qd = numpy.broadcast_to(qd, _batch + (3,)).reshape(-1, 3)
     _count = _all_q.shape[0]
@@ -506,7 +506,7 @@ def twist(q, qd, *, l1=0.5, l2=0.4, l3=0.2):
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("twist", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
     _all_qd = numpy.broadcast_to(qd, _batch + (3,)).reshape(-1, 3)
     _count = _all_q.shape[0]
@@ -564,7 +564,7 @@ def task_jacobian_dot(q, qd, *, l1=0.5, l2=0.4, l3=0.2):
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("task_jacobian_dot", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
     _all_qd = numpy.broadcast_to(qd, _batch + (3,)).reshape(-1, 3)
     _count = _all_q.shape[0]
@@ -631,7 +631,7 @@ def jacobian_dot(q, qd, *, l1=0.5, l2=0.4, l3=0.2):
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("jacobian_dot", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
     _all_qd = numpy.broadcast_to(qd, _batch + (3,)).reshape(-1, 3)
     _count = _all_q.shape[0]
@@ -709,7 +709,7 @@ def task_acceleration(q, qd, qdd, *, l1=0.5, l2=0.4, l3=0.2):
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
-    _batch = _runtime.batch_shape(q, qd, qdd)
+    _batch = _runtime.batch_shape("task_acceleration", q=q, qd=qd, qdd=qdd)
     _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
     _all_qd = numpy.broadcast_to(qd, _batch + (3,)).reshape(-1, 3)
     _all_qdd = numpy.broadcast_to(qdd, _batch + (3,)).reshape(-1, 3)
@@ -775,7 +775,7 @@ def manipulability(q, *, l1=0.5, l2=0.4, l3=0.2):
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("manipulability", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
     _count = _all_q.shape[0]
     manipulability = numpy.empty((_count, 1))
@@ -807,7 +807,7 @@ def joint_velocity(q, xd, *, l1=0.5, l2=0.4, l3=0.2):
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
-    _batch = _runtime.batch_shape(q, xd)
+    _batch = _runtime.batch_shape("joint_velocity", q=q, xd=xd)
     _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
     _all_xd = numpy.broadcast_to(xd, _batch + (3,)).reshape(-1, 3)
     _count = _all_q.shape[0]
@@ -942,7 +942,7 @@ def joint_acceleration(q, qd, xdd, *, l1=0.5, l2=0.4, l3=0.2):
     l1 = _runtime.as_param(l1, "l1")
     l2 = _runtime.as_param(l2, "l2")
     l3 = _runtime.as_param(l3, "l3")
-    _batch = _runtime.batch_shape(q, qd, xdd)
+    _batch = _runtime.batch_shape("joint_acceleration", q=q, qd=qd, xdd=xdd)
     _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
     _all_qd = numpy.broadcast_to(qd, _batch + (3,)).reshape(-1, 3)
     _all_xdd = numpy.broadcast_to(xdd, _batch + (3,)).reshape(-1, 3)

@@ -37,7 +37,7 @@ def fk(q):
     (1 operations after common-subexpression elimination.)
     """
     q = _runtime.as_batch(q, 2, "fk", "q")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("fk", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
     T = numpy.empty((_count, 16))
@@ -73,7 +73,7 @@ def frames(q):
     (3 operations after common-subexpression elimination.)
     """
     q = _runtime.as_batch(q, 2, "frames", "q")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("frames", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
     frames = numpy.empty((_count, 48))
@@ -141,7 +141,7 @@ def jacobian(q):
     (0 operations after common-subexpression elimination.)
     """
     q = _runtime.as_batch(q, 2, "jacobian", "q")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("jacobian", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
     J = numpy.empty((_count, 12))
@@ -170,7 +170,7 @@ def task(q):
     (0 operations after common-subexpression elimination.)
     """
     q = _runtime.as_batch(q, 2, "task", "q")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("task", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
     x = numpy.empty((_count, 2))
@@ -192,7 +192,7 @@ def task_jacobian(q):
     (0 operations after common-subexpression elimination.)
     """
     q = _runtime.as_batch(q, 2, "task_jacobian", "q")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("task_jacobian", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
     Jx = numpy.empty((_count, 4))
@@ -217,7 +217,7 @@ def ik(x):
     (0 operations after common-subexpression elimination.)
     """
     x = _runtime.as_batch(x, 2, "ik", "x", finite=False)
-    _batch = _runtime.batch_shape(x)
+    _batch = _runtime.batch_shape("ik", x=x)
     _all_x = numpy.broadcast_to(x, _batch + (2,)).reshape(-1, 2)
     _count = _all_x.shape[0]
     Q = numpy.empty((_count, 2))
@@ -247,7 +247,7 @@ def task_velocity(q, qd):
     """
     q = _runtime.as_batch(q, 2, "task_velocity", "q")
     qd = _runtime.as_batch(qd, 2, "task_velocity", "qd")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("task_velocity", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _all_qd = numpy.broadcast_to(qd, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
@@ -272,7 +272,7 @@ def twist(q, qd):
     """
     q = _runtime.as_batch(q, 2, "twist", "q")
     qd = _runtime.as_batch(qd, 2, "twist", "qd")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("twist", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _all_qd = numpy.broadcast_to(qd, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
@@ -301,7 +301,7 @@ def task_jacobian_dot(q, qd):
     """
     q = _runtime.as_batch(q, 2, "task_jacobian_dot", "q")
     qd = _runtime.as_batch(qd, 2, "task_jacobian_dot", "qd")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("task_jacobian_dot", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _all_qd = numpy.broadcast_to(qd, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
@@ -325,7 +325,7 @@ def jacobian_dot(q, qd):
     """
     q = _runtime.as_batch(q, 2, "jacobian_dot", "q")
     qd = _runtime.as_batch(qd, 2, "jacobian_dot", "qd")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("jacobian_dot", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _all_qd = numpy.broadcast_to(qd, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
@@ -359,7 +359,7 @@ def task_acceleration(q, qd, qdd):
     q = _runtime.as_batch(q, 2, "task_acceleration", "q")
     qd = _runtime.as_batch(qd, 2, "task_acceleration", "qd")
     qdd = _runtime.as_batch(qdd, 2, "task_acceleration", "qdd")
-    _batch = _runtime.batch_shape(q, qd, qdd)
+    _batch = _runtime.batch_shape("task_acceleration", q=q, qd=qd, qdd=qdd)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _all_qd = numpy.broadcast_to(qd, _batch + (2,)).reshape(-1, 2)
     _all_qdd = numpy.broadcast_to(qdd, _batch + (2,)).reshape(-1, 2)
@@ -383,7 +383,7 @@ def manipulability(q):
     (0 operations after common-subexpression elimination.)
     """
     q = _runtime.as_batch(q, 2, "manipulability", "q")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("manipulability", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
     manipulability = numpy.empty((_count, 1))
@@ -406,7 +406,7 @@ def joint_velocity(q, xd):
     """
     q = _runtime.as_batch(q, 2, "joint_velocity", "q")
     xd = _runtime.as_batch(xd, 2, "joint_velocity", "xd")
-    _batch = _runtime.batch_shape(q, xd)
+    _batch = _runtime.batch_shape("joint_velocity", q=q, xd=xd)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _all_xd = numpy.broadcast_to(xd, _batch + (2,)).reshape(-1, 2)
     _count = _all_q.shape[0]
@@ -436,7 +436,7 @@ def joint_acceleration(q, qd, xdd):
     q = _runtime.as_batch(q, 2, "joint_acceleration", "q")
     qd = _runtime.as_batch(qd, 2, "joint_acceleration", "qd")
     xdd = _runtime.as_batch(xdd, 2, "joint_acceleration", "xdd")
-    _batch = _runtime.batch_shape(q, qd, xdd)
+    _batch = _runtime.batch_shape("joint_acceleration", q=q, qd=qd, xdd=xdd)
     _all_q = numpy.broadcast_to(q, _batch + (2,)).reshape(-1, 2)
     _all_qd = numpy.broadcast_to(qd, _batch + (2,)).reshape(-1, 2)
     _all_xdd = numpy.broadcast_to(xdd, _batch + (2,)).reshape(-1, 2)

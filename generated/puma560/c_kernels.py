@@ -231,7 +231,7 @@ def task_velocity(q, qd, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
         return _out
     q = _runtime.as_batch(q, 6, "task_velocity", "q", finite=False)
     qd = _runtime.as_batch(qd, 6, "task_velocity", "qd", finite=False)
-    batch = _runtime.batch_shape(q, qd)
+    batch = _runtime.batch_shape("task_velocity", q=q, qd=qd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 6, "task_velocity", "q")
@@ -262,7 +262,7 @@ def twist(q, qd, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
         return _out
     q = _runtime.as_batch(q, 6, "twist", "q", finite=False)
     qd = _runtime.as_batch(qd, 6, "twist", "qd", finite=False)
-    batch = _runtime.batch_shape(q, qd)
+    batch = _runtime.batch_shape("twist", q=q, qd=qd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 6, "twist", "q")
@@ -293,7 +293,7 @@ def task_jacobian_dot(q, qd, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
         return _out
     q = _runtime.as_batch(q, 6, "task_jacobian_dot", "q", finite=False)
     qd = _runtime.as_batch(qd, 6, "task_jacobian_dot", "qd", finite=False)
-    batch = _runtime.batch_shape(q, qd)
+    batch = _runtime.batch_shape("task_jacobian_dot", q=q, qd=qd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 6, "task_jacobian_dot", "q")
@@ -324,7 +324,7 @@ def jacobian_dot(q, qd, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
         return _out
     q = _runtime.as_batch(q, 6, "jacobian_dot", "q", finite=False)
     qd = _runtime.as_batch(qd, 6, "jacobian_dot", "qd", finite=False)
-    batch = _runtime.batch_shape(q, qd)
+    batch = _runtime.batch_shape("jacobian_dot", q=q, qd=qd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 6, "jacobian_dot", "q")
@@ -356,7 +356,7 @@ def task_acceleration(q, qd, qdd, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
     q = _runtime.as_batch(q, 6, "task_acceleration", "q", finite=False)
     qd = _runtime.as_batch(qd, 6, "task_acceleration", "qd", finite=False)
     qdd = _runtime.as_batch(qdd, 6, "task_acceleration", "qdd", finite=False)
-    batch = _runtime.batch_shape(q, qd, qdd)
+    batch = _runtime.batch_shape("task_acceleration", q=q, qd=qd, qdd=qdd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 6, "task_acceleration", "q")
@@ -418,7 +418,7 @@ def joint_velocity(q, xd, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
         return _out
     q = _runtime.as_batch(q, 6, "joint_velocity", "q", finite=False)
     xd = _runtime.as_batch(xd, 12, "joint_velocity", "xd", finite=False)
-    batch = _runtime.batch_shape(q, xd)
+    batch = _runtime.batch_shape("joint_velocity", q=q, xd=xd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 6, "joint_velocity", "q")
@@ -452,7 +452,7 @@ def joint_acceleration(q, qd, xdd, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
     q = _runtime.as_batch(q, 6, "joint_acceleration", "q", finite=False)
     qd = _runtime.as_batch(qd, 6, "joint_acceleration", "qd", finite=False)
     xdd = _runtime.as_batch(xdd, 12, "joint_acceleration", "xdd", finite=False)
-    batch = _runtime.batch_shape(q, qd, xdd)
+    batch = _runtime.batch_shape("joint_acceleration", q=q, qd=qd, xdd=xdd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 6, "joint_acceleration", "q")
@@ -488,7 +488,7 @@ def joint_velocity_from_twist(q, twist, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d
         return _out
     q = _runtime.as_batch(q, 6, "joint_velocity_from_twist", "q", finite=False)
     twist = _runtime.as_batch(twist, 6, "joint_velocity_from_twist", "twist", finite=False)
-    batch = _runtime.batch_shape(q, twist)
+    batch = _runtime.batch_shape("joint_velocity_from_twist", q=q, twist=twist)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 6, "joint_velocity_from_twist", "q")

@@ -42,7 +42,7 @@ def fk(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     a3 = _runtime.as_param(a3, "a3")
     d3 = _runtime.as_param(d3, "d3")
     d4 = _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("fk", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
     _count = _all_q.shape[0]
     T = numpy.empty((_count, 16))
@@ -137,7 +137,7 @@ def frames(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     a3 = _runtime.as_param(a3, "a3")
     d3 = _runtime.as_param(d3, "d3")
     d4 = _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("frames", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
     _count = _all_q.shape[0]
     frames = numpy.empty((_count, 112))
@@ -349,7 +349,7 @@ def jacobian(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     d3 = _runtime.as_param(d3, "d3")
     d4 = _runtime.as_param(d4, "d4")
     _runtime.as_param(d1, "d1")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("jacobian", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
     _count = _all_q.shape[0]
     J = numpy.empty((_count, 36))
@@ -452,7 +452,7 @@ def task(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     a3 = _runtime.as_param(a3, "a3")
     d3 = _runtime.as_param(d3, "d3")
     d4 = _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("task", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
     _count = _all_q.shape[0]
     x = numpy.empty((_count, 12))
@@ -543,7 +543,7 @@ def task_jacobian(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318)
     d3 = _runtime.as_param(d3, "d3")
     d4 = _runtime.as_param(d4, "d4")
     _runtime.as_param(d1, "d1")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("task_jacobian", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
     _count = _all_q.shape[0]
     Jx = numpy.empty((_count, 72))
@@ -726,7 +726,7 @@ def ik(x, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     a3 = _runtime.as_param(a3, "a3")
     d3 = _runtime.as_param(d3, "d3")
     d4 = _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(x)
+    _batch = _runtime.batch_shape("ik", x=x)
     _all_x = numpy.broadcast_to(x, _batch + (12,)).reshape(-1, 12)
     _count = _all_x.shape[0]
     Q = numpy.empty((_count, 48))
@@ -1070,7 +1070,7 @@ def task_velocity(q, qd, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4
     d3 = _runtime.as_param(d3, "d3")
     d4 = _runtime.as_param(d4, "d4")
     _runtime.as_param(d1, "d1")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("task_velocity", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
     _all_qd = numpy.broadcast_to(qd, _batch + (6,)).reshape(-1, 6)
     _count = _all_q.shape[0]
@@ -1203,7 +1203,7 @@ def twist(q, qd, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
     d3 = _runtime.as_param(d3, "d3")
     d4 = _runtime.as_param(d4, "d4")
     _runtime.as_param(d1, "d1")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("twist", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
     _all_qd = numpy.broadcast_to(qd, _batch + (6,)).reshape(-1, 6)
     _count = _all_q.shape[0]
@@ -1289,7 +1289,7 @@ def task_jacobian_dot(q, qd, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4
     d3 = _runtime.as_param(d3, "d3")
     d4 = _runtime.as_param(d4, "d4")
     _runtime.as_param(d1, "d1")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("task_jacobian_dot", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
     _all_qd = numpy.broadcast_to(qd, _batch + (6,)).reshape(-1, 6)
     _count = _all_q.shape[0]
@@ -1587,7 +1587,7 @@ def jacobian_dot(q, qd, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.43
     d3 = _runtime.as_param(d3, "d3")
     d4 = _runtime.as_param(d4, "d4")
     _runtime.as_param(d1, "d1")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("jacobian_dot", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
     _all_qd = numpy.broadcast_to(qd, _batch + (6,)).reshape(-1, 6)
     _count = _all_q.shape[0]
@@ -1725,7 +1725,7 @@ def task_acceleration(q, qd, qdd, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.1500
     d3 = _runtime.as_param(d3, "d3")
     d4 = _runtime.as_param(d4, "d4")
     _runtime.as_param(d1, "d1")
-    _batch = _runtime.batch_shape(q, qd, qdd)
+    _batch = _runtime.batch_shape("task_acceleration", q=q, qd=qd, qdd=qdd)
     _all_q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
     _all_qd = numpy.broadcast_to(qd, _batch + (6,)).reshape(-1, 6)
     _all_qdd = numpy.broadcast_to(qdd, _batch + (6,)).reshape(-1, 6)
@@ -1985,7 +1985,7 @@ def manipulability(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318
     a3 = _runtime.as_param(a3, "a3")
     d3 = _runtime.as_param(d3, "d3")
     d4 = _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("manipulability", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
     _count = _all_q.shape[0]
     manipulability = numpy.empty((_count, 1))
@@ -2038,7 +2038,7 @@ def joint_velocity(q, xd, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.
     a3 = _runtime.as_param(a3, "a3")
     d3 = _runtime.as_param(d3, "d3")
     d4 = _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(q, xd)
+    _batch = _runtime.batch_shape("joint_velocity", q=q, xd=xd)
     _all_q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
     _all_xd = numpy.broadcast_to(xd, _batch + (12,)).reshape(-1, 12)
     _count = _all_q.shape[0]
@@ -2297,7 +2297,7 @@ def joint_acceleration(q, qd, xdd, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.150
     a3 = _runtime.as_param(a3, "a3")
     d3 = _runtime.as_param(d3, "d3")
     d4 = _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(q, qd, xdd)
+    _batch = _runtime.batch_shape("joint_acceleration", q=q, qd=qd, xdd=xdd)
     _all_q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
     _all_qd = numpy.broadcast_to(qd, _batch + (6,)).reshape(-1, 6)
     _all_xdd = numpy.broadcast_to(xdd, _batch + (12,)).reshape(-1, 12)
@@ -2585,7 +2585,7 @@ def joint_velocity_from_twist(q, twist, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=
     a3 = _runtime.as_param(a3, "a3")
     d3 = _runtime.as_param(d3, "d3")
     d4 = _runtime.as_param(d4, "d4")
-    _batch = _runtime.batch_shape(q, twist)
+    _batch = _runtime.batch_shape("joint_velocity_from_twist", q=q, twist=twist)
     _all_q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
     _all_twist = numpy.broadcast_to(twist, _batch + (6,)).reshape(-1, 6)
     _count = _all_q.shape[0]

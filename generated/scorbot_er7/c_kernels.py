@@ -228,7 +228,7 @@ def task_velocity(q, qd, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
         return _out
     q = _runtime.as_batch(q, 5, "task_velocity", "q", finite=False)
     qd = _runtime.as_batch(qd, 5, "task_velocity", "qd", finite=False)
-    batch = _runtime.batch_shape(q, qd)
+    batch = _runtime.batch_shape("task_velocity", q=q, qd=qd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 5, "task_velocity", "q")
@@ -259,7 +259,7 @@ def twist(q, qd, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
         return _out
     q = _runtime.as_batch(q, 5, "twist", "q", finite=False)
     qd = _runtime.as_batch(qd, 5, "twist", "qd", finite=False)
-    batch = _runtime.batch_shape(q, qd)
+    batch = _runtime.batch_shape("twist", q=q, qd=qd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 5, "twist", "q")
@@ -290,7 +290,7 @@ def task_jacobian_dot(q, qd, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
         return _out
     q = _runtime.as_batch(q, 5, "task_jacobian_dot", "q", finite=False)
     qd = _runtime.as_batch(qd, 5, "task_jacobian_dot", "qd", finite=False)
-    batch = _runtime.batch_shape(q, qd)
+    batch = _runtime.batch_shape("task_jacobian_dot", q=q, qd=qd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 5, "task_jacobian_dot", "q")
@@ -321,7 +321,7 @@ def jacobian_dot(q, qd, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
         return _out
     q = _runtime.as_batch(q, 5, "jacobian_dot", "q", finite=False)
     qd = _runtime.as_batch(qd, 5, "jacobian_dot", "qd", finite=False)
-    batch = _runtime.batch_shape(q, qd)
+    batch = _runtime.batch_shape("jacobian_dot", q=q, qd=qd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 5, "jacobian_dot", "q")
@@ -353,7 +353,7 @@ def task_acceleration(q, qd, qdd, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     q = _runtime.as_batch(q, 5, "task_acceleration", "q", finite=False)
     qd = _runtime.as_batch(qd, 5, "task_acceleration", "qd", finite=False)
     qdd = _runtime.as_batch(qdd, 5, "task_acceleration", "qdd", finite=False)
-    batch = _runtime.batch_shape(q, qd, qdd)
+    batch = _runtime.batch_shape("task_acceleration", q=q, qd=qd, qdd=qdd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 5, "task_acceleration", "q")
@@ -415,7 +415,7 @@ def joint_velocity(q, xd, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
         return _out
     q = _runtime.as_batch(q, 5, "joint_velocity", "q", finite=False)
     xd = _runtime.as_batch(xd, 3, "joint_velocity", "xd", finite=False)
-    batch = _runtime.batch_shape(q, xd)
+    batch = _runtime.batch_shape("joint_velocity", q=q, xd=xd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 5, "joint_velocity", "q")
@@ -449,7 +449,7 @@ def joint_acceleration(q, qd, xdd, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     q = _runtime.as_batch(q, 5, "joint_acceleration", "q", finite=False)
     qd = _runtime.as_batch(qd, 5, "joint_acceleration", "qd", finite=False)
     xdd = _runtime.as_batch(xdd, 3, "joint_acceleration", "xdd", finite=False)
-    batch = _runtime.batch_shape(q, qd, xdd)
+    batch = _runtime.batch_shape("joint_acceleration", q=q, qd=qd, xdd=xdd)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(q, 5, "joint_acceleration", "q")

@@ -42,7 +42,7 @@ def fk(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     a3 = _runtime.as_param(a3, "a3")
     d1 = _runtime.as_param(d1, "d1")
     d5 = _runtime.as_param(d5, "d5")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("fk", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
     _count = _all_q.shape[0]
     T = numpy.empty((_count, 16))
@@ -118,7 +118,7 @@ def frames(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     a3 = _runtime.as_param(a3, "a3")
     d1 = _runtime.as_param(d1, "d1")
     d5 = _runtime.as_param(d5, "d5")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("frames", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
     _count = _all_q.shape[0]
     frames = numpy.empty((_count, 96))
@@ -281,7 +281,7 @@ def jacobian(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     a3 = _runtime.as_param(a3, "a3")
     d5 = _runtime.as_param(d5, "d5")
     _runtime.as_param(d1, "d1")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("jacobian", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
     _count = _all_q.shape[0]
     J = numpy.empty((_count, 30))
@@ -368,7 +368,7 @@ def task(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     a3 = _runtime.as_param(a3, "a3")
     d1 = _runtime.as_param(d1, "d1")
     d5 = _runtime.as_param(d5, "d5")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("task", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
     _count = _all_q.shape[0]
     x = numpy.empty((_count, 3))
@@ -421,7 +421,7 @@ def task_jacobian(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     a3 = _runtime.as_param(a3, "a3")
     d5 = _runtime.as_param(d5, "d5")
     _runtime.as_param(d1, "d1")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("task_jacobian", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
     _count = _all_q.shape[0]
     Jx = numpy.empty((_count, 15))
@@ -496,7 +496,7 @@ def ik(x, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     a3 = _runtime.as_param(a3, "a3")
     d1 = _runtime.as_param(d1, "d1")
     d5 = _runtime.as_param(d5, "d5")
-    _batch = _runtime.batch_shape(x)
+    _batch = _runtime.batch_shape("ik", x=x)
     _all_x = numpy.broadcast_to(x, _batch + (3,)).reshape(-1, 3)
     _count = _all_x.shape[0]
     Q = numpy.empty((_count, 20))
@@ -594,7 +594,7 @@ def task_velocity(q, qd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     a3 = _runtime.as_param(a3, "a3")
     d5 = _runtime.as_param(d5, "d5")
     _runtime.as_param(d1, "d1")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("task_velocity", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
     _all_qd = numpy.broadcast_to(qd, _batch + (5,)).reshape(-1, 5)
     _count = _all_q.shape[0]
@@ -663,7 +663,7 @@ def twist(q, qd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     a3 = _runtime.as_param(a3, "a3")
     d5 = _runtime.as_param(d5, "d5")
     _runtime.as_param(d1, "d1")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("twist", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
     _all_qd = numpy.broadcast_to(qd, _batch + (5,)).reshape(-1, 5)
     _count = _all_q.shape[0]
@@ -740,7 +740,7 @@ def task_jacobian_dot(q, qd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     a3 = _runtime.as_param(a3, "a3")
     d5 = _runtime.as_param(d5, "d5")
     _runtime.as_param(d1, "d1")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("task_jacobian_dot", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
     _all_qd = numpy.broadcast_to(qd, _batch + (5,)).reshape(-1, 5)
     _count = _all_q.shape[0]
@@ -835,7 +835,7 @@ def jacobian_dot(q, qd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     a3 = _runtime.as_param(a3, "a3")
     d5 = _runtime.as_param(d5, "d5")
     _runtime.as_param(d1, "d1")
-    _batch = _runtime.batch_shape(q, qd)
+    _batch = _runtime.batch_shape("jacobian_dot", q=q, qd=qd)
     _all_q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
     _all_qd = numpy.broadcast_to(qd, _batch + (5,)).reshape(-1, 5)
     _count = _all_q.shape[0]
@@ -950,7 +950,7 @@ def task_acceleration(q, qd, qdd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.21
     a3 = _runtime.as_param(a3, "a3")
     d5 = _runtime.as_param(d5, "d5")
     _runtime.as_param(d1, "d1")
-    _batch = _runtime.batch_shape(q, qd, qdd)
+    _batch = _runtime.batch_shape("task_acceleration", q=q, qd=qd, qdd=qdd)
     _all_q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
     _all_qd = numpy.broadcast_to(qd, _batch + (5,)).reshape(-1, 5)
     _all_qdd = numpy.broadcast_to(qdd, _batch + (5,)).reshape(-1, 5)
@@ -1041,7 +1041,7 @@ def manipulability(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     a3 = _runtime.as_param(a3, "a3")
     d1 = _runtime.as_param(d1, "d1")
     d5 = _runtime.as_param(d5, "d5")
-    _batch = _runtime.batch_shape(q)
+    _batch = _runtime.batch_shape("manipulability", q=q)
     _all_q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
     _count = _all_q.shape[0]
     manipulability = numpy.empty((_count, 1))
@@ -1106,7 +1106,7 @@ def joint_velocity(q, xd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
     a3 = _runtime.as_param(a3, "a3")
     d1 = _runtime.as_param(d1, "d1")
     d5 = _runtime.as_param(d5, "d5")
-    _batch = _runtime.batch_shape(q, xd)
+    _batch = _runtime.batch_shape("joint_velocity", q=q, xd=xd)
     _all_q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
     _all_xd = numpy.broadcast_to(xd, _batch + (3,)).reshape(-1, 3)
     _count = _all_q.shape[0]
@@ -1292,7 +1292,7 @@ def joint_acceleration(q, qd, xdd, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.2
     a3 = _runtime.as_param(a3, "a3")
     d1 = _runtime.as_param(d1, "d1")
     d5 = _runtime.as_param(d5, "d5")
-    _batch = _runtime.batch_shape(q, qd, xdd)
+    _batch = _runtime.batch_shape("joint_acceleration", q=q, qd=qd, xdd=xdd)
     _all_q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
     _all_qd = numpy.broadcast_to(qd, _batch + (5,)).reshape(-1, 5)
     _all_xdd = numpy.broadcast_to(xdd, _batch + (3,)).reshape(-1, 3)

@@ -71,13 +71,15 @@ def as_param(value, name):
     return numpy.float64(result)
 
 
-def batch_shape(*arrays):
-    """The common batch shape of the arguments (all but their last axis)."""
+def batch_shape(function, **arrays):
+    """The common batch shape of the arguments (all but their last axis), or a ValueError naming
+    the kernel and each argument's shape."""
     try:
-        return numpy.broadcast_shapes(*(a.shape[:-1] for a in arrays))
+        return numpy.broadcast_shapes(*(a.shape[:-1] for a in arrays.values()))
     except ValueError:
-        shapes = ", ".join(str(a.shape) for a in arrays)
-        raise ValueError(f"batch dimensions do not broadcast: {shapes}") from None
+        shapes = ", ".join(f"{name} {a.shape}" for name, a in arrays.items())
+        raise ValueError(f"{function}: the batch dimensions (all but the last axis) of {shapes} "
+                         "do not broadcast") from None
 
 
 def as_pose_task(value, function, name, tolerance, check_rotation=True):

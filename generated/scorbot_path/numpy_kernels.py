@@ -48,7 +48,7 @@ def tool_point_from_theta2(theta2_state, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, 
     zN = _runtime.as_param(zN, "zN")
     _runtime.as_param(yM, "yM")
     _runtime.as_param(yN, "yN")
-    _batch = _runtime.batch_shape(theta2_state)
+    _batch = _runtime.batch_shape("tool_point_from_theta2", theta2_state=theta2_state)
     _all_theta2_state = numpy.broadcast_to(theta2_state, _batch + (3,)).reshape(-1, 3)
     _count = _all_theta2_state.shape[0]
     p = numpy.empty((_count, 6))
@@ -129,7 +129,7 @@ def joints_along_line(path, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212, xM=
     xN = _runtime.as_param(xN, "xN")
     yN = _runtime.as_param(yN, "yN")
     zN = _runtime.as_param(zN, "zN")
-    _batch = _runtime.batch_shape(path)
+    _batch = _runtime.batch_shape("joints_along_line", path=path)
     _all_path = numpy.broadcast_to(path, _batch + (3,)).reshape(-1, 3)
     _count = _all_path.shape[0]
     q = numpy.empty((_count, 15))

@@ -63,7 +63,7 @@ def cubic(time, boundary):
         return _out
     time = _runtime.as_batch(time, 1, "cubic", "time", finite=False)
     boundary = _runtime.as_batch(boundary, 5, "cubic", "boundary", finite=False)
-    batch = _runtime.batch_shape(time, boundary)
+    batch = _runtime.batch_shape("cubic", time=time, boundary=boundary)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(time, 1, "cubic", "time")
@@ -92,7 +92,7 @@ def quintic(time, boundary):
         return _out
     time = _runtime.as_batch(time, 1, "quintic", "time", finite=False)
     boundary = _runtime.as_batch(boundary, 7, "quintic", "boundary", finite=False)
-    batch = _runtime.batch_shape(time, boundary)
+    batch = _runtime.batch_shape("quintic", time=time, boundary=boundary)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(time, 1, "quintic", "time")
@@ -121,7 +121,7 @@ def cycloidal(time, law):
         return _out
     time = _runtime.as_batch(time, 1, "cycloidal", "time", finite=False)
     law = _runtime.as_batch(law, 3, "cycloidal", "law", finite=False)
-    batch = _runtime.batch_shape(time, law)
+    batch = _runtime.batch_shape("cycloidal", time=time, law=law)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(time, 1, "cycloidal", "time")
@@ -150,7 +150,7 @@ def trapezoid(time, profile):
         return _out
     time = _runtime.as_batch(time, 1, "trapezoid", "time", finite=False)
     profile = _runtime.as_batch(profile, 4, "trapezoid", "profile", finite=False)
-    batch = _runtime.batch_shape(time, profile)
+    batch = _runtime.batch_shape("trapezoid", time=time, profile=profile)
     count = math.prod(batch)
     if not count:  # no item reaches C, which checks them: NaN and inf are refused here, as numpy does
         _runtime.as_batch(time, 1, "trapezoid", "time")

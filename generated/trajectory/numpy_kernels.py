@@ -39,7 +39,7 @@ def cubic(time, boundary):
     """
     time = _runtime.as_batch(time, 1, "cubic", "time")
     boundary = _runtime.as_batch(boundary, 5, "cubic", "boundary")
-    _batch = _runtime.batch_shape(time, boundary)
+    _batch = _runtime.batch_shape("cubic", time=time, boundary=boundary)
     _all_time = numpy.broadcast_to(time, _batch + (1,)).reshape(-1, 1)
     _all_boundary = numpy.broadcast_to(boundary, _batch + (5,)).reshape(-1, 5)
     _count = _all_time.shape[0]
@@ -79,7 +79,7 @@ def quintic(time, boundary):
     """
     time = _runtime.as_batch(time, 1, "quintic", "time")
     boundary = _runtime.as_batch(boundary, 7, "quintic", "boundary")
-    _batch = _runtime.batch_shape(time, boundary)
+    _batch = _runtime.batch_shape("quintic", time=time, boundary=boundary)
     _all_time = numpy.broadcast_to(time, _batch + (1,)).reshape(-1, 1)
     _all_boundary = numpy.broadcast_to(boundary, _batch + (7,)).reshape(-1, 7)
     _count = _all_time.shape[0]
@@ -127,7 +127,7 @@ def cycloidal(time, law):
     """
     time = _runtime.as_batch(time, 1, "cycloidal", "time")
     law = _runtime.as_batch(law, 3, "cycloidal", "law")
-    _batch = _runtime.batch_shape(time, law)
+    _batch = _runtime.batch_shape("cycloidal", time=time, law=law)
     _all_time = numpy.broadcast_to(time, _batch + (1,)).reshape(-1, 1)
     _all_law = numpy.broadcast_to(law, _batch + (3,)).reshape(-1, 3)
     _count = _all_time.shape[0]
@@ -166,7 +166,7 @@ def trapezoid(time, profile):
     """
     time = _runtime.as_batch(time, 1, "trapezoid", "time")
     profile = _runtime.as_batch(profile, 4, "trapezoid", "profile")
-    _batch = _runtime.batch_shape(time, profile)
+    _batch = _runtime.batch_shape("trapezoid", time=time, profile=profile)
     _all_time = numpy.broadcast_to(time, _batch + (1,)).reshape(-1, 1)
     _all_profile = numpy.broadcast_to(profile, _batch + (4,)).reshape(-1, 4)
     _count = _all_time.shape[0]
