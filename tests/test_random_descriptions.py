@@ -359,30 +359,48 @@ def test_the_strategy_covers_what_the_issue_asks():
 
 # --------------------------------------------------------------------------- what the fuzz found
 
-def _numpy_package(tmp_path, monkeypatch, text):
-    """``kinegen generate`` of ``text`` (named by its first line), numpy only, imported."""
-    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path / "cache"))
-    name = text.split('"')[1]
-    path = tmp_path / f"{name}.toml"
-    path.write_text(text)
-    assert cli.main(["--quiet", "generate", str(path), "--out", str(tmp_path / name), "--no-build",
-                     "--backend", "numpy"]) == 0
-    monkeypatch.syspath_prepend(str(tmp_path))
-    importlib.invalidate_caches()
-    return path, importlib.import_module(name).load("numpy")
+_NUMPY_PACKAGES: dict[str, tuple] = {}
+
+
+@pytest.fixture(scope="module")
+def numpy_package(tmp_path_factory):
+    """``kinegen generate`` of a description text (named by its first line), numpy only, imported:
+    once per text in this module (the tests below share four packages), from a cold cache."""
+    root = tmp_path_factory.mktemp("numpy_packages")
+
+    def make(text):
+        if text not in _NUMPY_PACKAGES:
+            name = text.split('"')[1]
+            path = root / f"{name}.toml"
+            path.write_text(text)
+            previous = os.environ.get("KINEGEN_CACHE")
+            os.environ["KINEGEN_CACHE"] = str(root / "cache")
+            try:
+                assert cli.main(["--quiet", "generate", str(path), "--out", str(root / name), "--no-build",
+                                 "--backend", "numpy"]) == 0
+            finally:
+                os.environ.pop("KINEGEN_CACHE") if previous is None else os.environ.update(KINEGEN_CACHE=previous)
+            sys.path.insert(0, str(root))
+            importlib.invalidate_caches()
+            try:
+                _NUMPY_PACKAGES[text] = (path, importlib.import_module(name).load("numpy"))
+            finally:
+                sys.path.remove(str(root))
+        return _NUMPY_PACKAGES[text]
+    return make
 
 
 TOOL_ACROSS = 'name = "tool_across"\ntask = ["pose"]\n[[joint]]\ntype = "R"\na = 0.5\n' \
               '[[joint]]\ntype = "R"\na = 0.1\n[tool]\nxyz = [0, 0.3, 0]\n'
 
 
-def test_joint_acceleration_inverts_task_acceleration_with_a_tool_across_the_last_link(tmp_path, monkeypatch):
+def test_joint_acceleration_inverts_task_acceleration_with_a_tool_across_the_last_link(numpy_package):
     """A planar 2R arm (a = 0.5, 0.1) with its tool 0.3 m across the last link, task pose: the joint
     accelerations that task_acceleration's rates came from come back (a regular configuration).
     Found by the fuzz (issue #17): derived afresh (not from the cache), sympy.cse took the terms
     of factor_terms' kept products -(a + b)/10 for each other's, and joint_acceleration was off
     by 0.13 rad/s^2 (codegen.kernels.canonical)."""
-    _, module = _numpy_package(tmp_path, monkeypatch, TOOL_ACROSS)
+    _, module = numpy_package(TOOL_ACROSS)
     q, qd, qdd = np.array([0.3, -0.7]), np.array([0.5, 1.0]), np.array([0.2, -0.4])
     back, singular = module.joint_velocity(q, module.task_velocity(q, qd))
     assert not singular and np.abs(back - qd).max() <= 1e-12  # the velocities do come back
@@ -395,13 +413,14 @@ AXES_IN_LINE = 'name = "axes_in_line"\nconvention = "modified"\ntask = ["pose"]\
                'alpha = "pi/3"\n[[joint]]\ntype = "R"\n'
 
 
-def test_verify_passes_an_arm_whose_two_axes_are_in_line(tmp_path, monkeypatch, capsys):
+def test_verify_passes_an_arm_whose_two_axes_are_in_line(numpy_package, monkeypatch, capsys):
     """Two revolute joints about one axis (modified DH, no lengths), task pose: a valid description,
     its kernels right to rounding (check_a_degenerate_arm), which `kinegen verify` should pass."""
-    path, module = _numpy_package(tmp_path, monkeypatch, AXES_IN_LINE)
+    path, module = numpy_package(AXES_IN_LINE)
+    monkeypatch.setenv("KINEGEN_CACHE", str(path.parent / "cache"))
     w, singular = module.manipulability([0.3, -0.7])
     assert singular and abs(w) <= 1e-15  # rank 1: the manipulability is 0 to rounding
-    status = cli.main(["--quiet", "verify", str(path), "--out", str(tmp_path / "axes_in_line"),
+    status = cli.main(["--quiet", "verify", str(path), "--out", str(path.parent / "axes_in_line"),
                        "--backends", "numpy", "--samples", "3"])
     assert status == 0, capsys.readouterr().out[-1500:]
 
@@ -425,11 +444,12 @@ def _off_by(module, kernel: str, by: float):
     (TOOL_ACROSS, "joint_velocity", 1e-10),   # regular: allowed ~1e-13 relative
     (TOOL_ACROSS, "joint_acceleration", 1e-10),
 ])
-def test_verify_still_fails_a_solve_off_by_more_than_its_rounding(tmp_path, monkeypatch, text, kernel, by):
+def test_verify_still_fails_a_solve_off_by_more_than_its_rounding(numpy_package, monkeypatch, text, kernel, by):
     """What verify allows a run-time solve (solve_reference: the rounding of its float64 system,
     through the solve's conditioning) does not let a wrong answer through: the same kernels,
     moved a little past it, fail; unmoved, they pass."""
-    path, module = _numpy_package(tmp_path, monkeypatch, text)
+    path, module = numpy_package(text)
+    monkeypatch.setenv("KINEGEN_CACHE", str(path.parent / "cache"))
     model = derivations.load(path)
 
     def check(modules):
