@@ -97,6 +97,24 @@ def test_a_product_with_a_long_sum_is_opened_across_lines(models):
     assert unbroken(lines) == re.sub(r"\s+", "", r"c_{1}\left(a_{1} + a_{2} c_{2} + a_{3} c_{23} + d_{5} c_{234}\right)")
 
 
+def test_line_breaking_prints_each_subexpression_once(models, monkeypatch):
+    """Breaking a nested product over lines prints a sum, its terms, the factors of a wide term
+    and so on down; each distinct subexpression goes through SymPy's printer once (a UR5 whose
+    twists were written 1.5708 spent 35 s of its LaTeX reprinting them), and the text is the
+    same as printed fresh."""
+    m = models["puma560"]
+    expr = sp.expand(m.fk[0, 3] * m.fk[1, 3] + m.jacobian[0, 1] * m.fk[2, 3])
+    fresh = [MathLayout(printer_for(m), 40.0).lines(expr, 35.0)]
+    calls = []
+    original = latex_backend.LatexPrinter._print_Add
+    monkeypatch.setattr(latex_backend.LatexPrinter, "_print_Add",
+                        lambda self, e, *a, **k: calls.append(e) or original(self, e, *a, **k))
+    layout = MathLayout(printer_for(m), 40.0)
+    again = [layout.lines(expr, 35.0), layout.lines(expr, 35.0)]
+    assert again == fresh * 2
+    assert calls and len(calls) == len(set(calls)), f"{len(calls)} prints of {len(set(calls))} sums"
+
+
 def test_math_width_grows_with_content():
     assert math_width("x") < math_width("x + y") < math_width(r"x + y + \theta_{1}")
     assert math_width(r"\frac{a + b}{c}") == pytest.approx(math_width("a + b") + 0.4)
