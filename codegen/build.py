@@ -244,8 +244,12 @@ def check_syntax(package: Path, name: str, layouts) -> None:
 # could (-O1 made it 12.5 s of the PUMA's 14 s compile; -O0 takes 3.9 s). Line tables only (-g1:
 # the reports' file:line; full -g with variable tracking made the Puma's blocked layout a
 # 5-minute compile); the driver, which only calls and compares, at -O0.
+# The SIMD layout (in `kinegen sanitize`, see sanitizer_run) at -O0 too, with streaming stores
+# from 16 bytes of output on, so that the driver's small batches take the path a batch past
+# 1 MiB takes in a real build (the Puma: 10 s, where -O1 took 22 s and -O2 45 s).
 SANITIZE_FLAGS = ("-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer", "-g1")
-SANITIZE_KERNEL_FLAGS = {"plain": ("-O1",), "blocked": ("-O0",)}
+SANITIZE_KERNEL_FLAGS = {"plain": ("-O1",), "blocked": ("-O0",), "simd": ("-O0", "-DKINEGEN_STREAM_BYTES=16")}
+SANITIZE_LAYOUTS = ("plain", "blocked")
 SANITIZE_DRIVER_FLAGS = ("-O0",)
 
 
@@ -257,19 +261,24 @@ def _sanitize_driver(name: str, functions: list[dict], n_joints: int, seed: int)
         name=name, functions=functions, inputs=inputs, count=3 + SANITIZER_BLOCK, n_joints=n_joints)
 
 
-def sanitizer_run(package: Path, name: str, functions: list[dict], n_joints: int, seed: int = 1) -> str:
+def sanitizer_run(package: Path, name: str, functions: list[dict], n_joints: int, seed: int = 1,
+                  layouts: tuple[str, ...] = SANITIZE_LAYOUTS) -> str:
     """Compile a driver calling every entry point under ASan and UBSan; return its output.
 
     The driver evaluates each kernel on a few pseudo-random inputs, single and
     batched, and exits non-zero if the two disagree bit for bit; the sanitizers
-    abort on any out-of-bounds access or undefined behaviour.  It runs twice: with
-    the plain batched loops and with the blocked layout (in scalar C, so that its
-    results must equal the single point's exactly), with more items than a block.
-    The driver and the two layouts of the kernels compile side by side, and the two
+    abort on any out-of-bounds access or undefined behaviour.  It runs once per
+    layout: by default with the plain batched loops and with the blocked layout (in
+    scalar C, so that its results must equal the single point's exactly), with more
+    items than a block.  ``"simd"`` adds the layout of a real build: its vector
+    sines and cosines of the single point, and its streaming stores (from 16 bytes
+    on, see SANITIZE_KERNEL_FLAGS); at -O0 nothing is vectorised, so its results
+    too must equal the others' exactly.  A compiler without ``-fopenmp-simd`` skips
+    it.  The driver and the layouts of the kernels compile side by side, and the
     programs run side by side.
     """
     source = _sanitize_driver(name, functions, n_joints, seed)
-    layouts = ("plain", "blocked")
+    layouts = tuple(layout for layout in layouts if layout != "simd" or _accepts(("-fopenmp-simd",)))
     with tempfile.TemporaryDirectory(prefix="kinegen-asan-") as scratch:
         scratch = Path(scratch)
         driver = scratch / "driver.c"
@@ -289,14 +298,17 @@ def sanitizer_run(package: Path, name: str, functions: list[dict], n_joints: int
         running = {layout: subprocess.Popen([str(scratch / f"driver-{layout}")], stdout=subprocess.PIPE,
                                             stderr=subprocess.PIPE, text=True, env=env) for layout in layouts}
         finished = {layout: (*process.communicate(), process.returncode) for layout, process in running.items()}
-    outputs = []
+    outputs = {}
     for layout, (stdout, stderr, status) in finished.items():
         if status != 0 or "runtime error" in stderr or "Sanitizer" in stderr:
             raise CompileError(f"sanitizer run of {name} ({layout} batches) failed (exit {status}):\n{stdout}{stderr}")
-        outputs.append(stdout)
-    if outputs[0] != outputs[1]:
-        raise CompileError(f"{name}: the plain and blocked batched entry points print different results")
-    return outputs[0]
+        outputs[layout] = stdout
+    first = next(iter(outputs.values()))
+    differing = [layout for layout, text in outputs.items() if text != first]
+    if differing:
+        raise CompileError(f"{name}: the {' and '.join(outputs)} batched entry points print different results "
+                           f"({', '.join(differing)} differ from {next(iter(outputs))})")
+    return first
 
 
 # The memcheck run: the sanitizer run's driver and the blocked layout of the kernels (the single

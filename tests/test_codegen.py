@@ -76,6 +76,32 @@ def test_c_compiles_with_strict_flags_and_runs_clean_under_sanitizers(models, na
     assert not failed or any(failed.values())
 
 
+def test_the_simd_layout_streams_and_runs_clean_under_sanitizers(models):
+    """`kinegen sanitize` adds the layout of a real build (vector sines and cosines of the single
+    point, streaming stores): here for the planar 2R, whose streaming stores the 16-byte threshold
+    of the sanitizer build makes the driver's small batches take; its results equal the plain and
+    blocked layouts' exactly (at -O0 nothing is vectorised)."""
+    import platform
+    import shutil
+    import subprocess
+    package = generate.GENERATED / "planar_2r"
+    if not build._accepts(("-fopenmp-simd",)):
+        pytest.skip("the C compiler has no -fopenmp-simd: the SIMD layout is not built")
+    assert "KINEGEN_STREAM_BYTES=16" in " ".join(build.SANITIZE_KERNEL_FLAGS["simd"])
+    context = generate.robot_context(models["planar_2r"], "")
+    output = build.sanitizer_run(package, "planar_2r", context["functions"], 2, layouts=("blocked", "simd"))
+    assert "fk T[0] = " in output
+    # The streaming stores are in that object: the threshold does put them on the driver's path.
+    objdump = shutil.which("objdump")
+    if objdump and platform.machine() in ("x86_64", "AMD64"):  # SSE2's streaming stores
+        import tempfile
+        with tempfile.TemporaryDirectory() as scratch:
+            obj = f"{scratch}/k.o"
+            subprocess.run([build.CC, *build.STRICT_FLAGS, *build.SANITIZE_KERNEL_FLAGS["simd"], *build.LAYOUTS["simd"],
+                            "-c", str(package / "planar_2r.c"), "-o", obj], check=True)
+            assert "movntpd" in subprocess.run([objdump, "-d", obj], capture_output=True, text=True).stdout
+
+
 def test_strict_compile_failure_is_reported(tmp_path):
     (tmp_path / "broken.c").write_text("int f(void) { int unused; return 0; }\n")
     with pytest.raises(build.CompileError, match="unused"):
