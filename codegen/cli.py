@@ -628,6 +628,10 @@ def main(argv=None) -> int:
     previous = signal.signal(signal.SIGTERM, _terminated) if main_thread else None
     try:
         return _run(args, say)
+    except KeyboardInterrupt:  # Ctrl-C: the same way out as SIGTERM, with a line instead of a traceback
+        print("kinegen: interrupted; the run's temporary files are removed (a package or a file is replaced "
+              "whole or not at all)", file=sys.stderr)
+        return 128 + signal.SIGINT
     finally:
         if main_thread and previous is not None:
             signal.signal(signal.SIGTERM, previous)
