@@ -1,7 +1,9 @@
 """libFuzzer over every C entry point of the generated packages (``kinegen fuzz``, ``make fuzz``).
 
-For each package, its kernels (the blocked layout, in blocks of ``FUZZ_BLOCK`` items, so
-that a batch spans full and partial blocks) and a harness rendered from
+For each package, its kernels (the SIMD layout a real build uses, which works in blocks: of
+``FUZZ_BLOCK`` items, so that a batch spans full and partial blocks, with streaming stores
+from ``FUZZ_STREAM_BYTES`` of output on, so that some batches stream and some do not; clang
+vectorises no math call, so the results stay those of the single point) and a harness rendered from
 ``fuzz_driver.c.j2`` are compiled by clang with libFuzzer, AddressSanitizer and
 UndefinedBehaviorSanitizer, every report fatal, and the project's strict flags, into one
 program whose fuzz target ``KINEGEN_FUZZ_TARGET`` chooses: one target per entry point
@@ -49,9 +51,15 @@ INSTALL_HINT = "install clang with its compiler-rt runtimes: apt-get install cla
 FUZZ_FLAGS = ("-fsanitize=fuzzer,address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer", "-g1")
 # A small block, so that the batches of at most MAX_ITEMS items span a full block and a partial one;
 # scalar C in blocks computes what the single point computes, bit for bit (no contraction into FMAs).
+# The SIMD layout (-DKINEGEN_SIMD, which implies the blocks) adds the single point's vector sines
+# and cosines and the streaming stores; those start at FUZZ_STREAM_BYTES of output here instead of
+# 1 MiB, so that the larger of the harness's batches (a pose is 128 bytes) take them and the
+# smaller do not.  clang 14 calls no vector math library, so the results stay bit for bit.
 FUZZ_BLOCK = 4
 MAX_ITEMS = 8
-KERNEL_FLAGS = ("-O1", "-ffp-contract=off", "-DKINEGEN_BLOCKED", f"-DKINEGEN_BLOCK={FUZZ_BLOCK}")
+FUZZ_STREAM_BYTES = 256
+KERNEL_FLAGS = ("-O1", "-ffp-contract=off", "-fopenmp-simd", "-DKINEGEN_SIMD", f"-DKINEGEN_BLOCK={FUZZ_BLOCK}",
+                f"-DKINEGEN_STREAM_BYTES={FUZZ_STREAM_BYTES}")
 # The round trip: joint values reduced to at most JOINT_BOUND (radians or metres), each parameter
 # its default times 1 + a value within +-PARAM_SPREAD, and a valid branch within TOLERANCE * max(1, |x|).
 JOINT_BOUND = 4.0

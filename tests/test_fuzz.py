@@ -32,3 +32,32 @@ def test_without_clang_fuzz_says_how_to_install_it_and_exits_2(monkeypatch, caps
         fuzz.clang_missing.cache_clear()
     error = capsys.readouterr().err
     assert "kinegen-no-such-clang not found" in error and "apt-get install clang" in error
+
+
+def test_the_fuzz_reaches_the_streaming_stores_of_the_simd_layout(tmp_path, models):
+    """The harness builds the SIMD layout with streaming stores from fuzz.FUZZ_STREAM_BYTES on: a
+    bug planted in them alone (the two lanes of each streamed pair swapped) is found, as single
+    and batched results that differ, within a short run; and only where outputs stream."""
+    import platform
+    import re
+    import shutil
+
+    from codegen import generate
+    missing = fuzz.clang_missing()
+    if missing:
+        pytest.skip(missing)
+    if platform.machine() not in ("x86_64", "AMD64"):
+        pytest.skip("the streaming stores are SSE2's (x86-64 only)")
+    package = tmp_path / "planar_2r"
+    shutil.copytree(generate.GENERATED / "planar_2r", package)
+    source = package / "planar_2r.c"
+    text = source.read_text()
+    planted = re.sub(r"_mm_set_pd\((\w+)\[k \+ 1\]\[i\], (\w+)\[k\]\[i\]\)", r"_mm_set_pd(\2[k][i], \1[k + 1][i])", text)
+    assert planted != text  # the streaming stores are there to plant it in (x86-64)
+    source.write_text(planted)
+    context = generate.robot_context(models["planar_2r"], "")
+    fuzzed = fuzz.package_from_context(package, context)
+    results = {r.target.entry: r for r in fuzz.fuzz([fuzzed], runs=3000, seconds=None, jobs=2)}
+    assert results["fk"].failure is not None and "differ" in results["fk"].reason, results["fk"]
+    # ik's outputs never stream (a kernel with a valid flag writes its branches as it checks them)
+    assert results["ik"].failure is None, results["ik"].reason
