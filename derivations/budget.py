@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import resource
 import signal
+import sys
 import threading
 import time
 
@@ -194,6 +195,11 @@ def memory_cap(gib: float | None, stage: str):
     resource.setrlimit(resource.RLIMIT_AS, (cap, hard))
     failure = None
     _capped, _left_by = True, None
+    # At the cap, a generator that SymPy was iterating may fail to close for want of memory, and
+    # Python would print "Exception ignored in: <generator ...>" and a traceback on the way out:
+    # that MemoryError is the cap's, and the cap's message says so.
+    unraisable = sys.unraisablehook
+    sys.unraisablehook = lambda report: None if isinstance(report.exc_value, MemoryError) else unraisable(report)
     try:
         yield
     except MemoryError as exc:
@@ -210,6 +216,7 @@ def memory_cap(gib: float | None, stage: str):
         failure = exc
     finally:
         resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
+        sys.unraisablehook = unraisable
         _capped = False
     # Built only now, with the limit lifted: the message and its stage need memory too.
     if failure is not None:

@@ -197,6 +197,30 @@ def test_a_derivation_past_its_memory_cap_stops_naming_the_stage(tmp_path, gib, 
     assert sorted(p.name for p in tmp_path.iterdir()) == ["arm.toml"]
 
 
+def test_a_memory_error_python_cannot_raise_is_not_printed_under_the_cap(monkeypatch):
+    """At the cap, a generator SymPy was iterating can fail to close for want of memory; Python
+    then printed "Exception ignored in: <generator ...>" and a traceback beside the cap's one line
+    (seen once in a fresh-clone run).  Under memory_cap such a MemoryError does not reach the
+    hook that prints it; others do, and the hook is the same after the cap."""
+    import sys
+
+    from derivations.budget import memory_cap
+    reported = []
+    monkeypatch.setattr(sys, "unraisablehook", lambda report: reported.append(type(report.exc_value).__name__))
+
+    class Finalised:
+        def __init__(self, error):
+            self.error = error
+
+        def __del__(self):
+            raise self.error
+    with memory_cap(1.0, "a test"):
+        Finalised(MemoryError())
+        Finalised(ValueError("not the cap's"))
+    Finalised(MemoryError())  # after the cap: reported again
+    assert reported == ["ValueError", "MemoryError"]
+
+
 def test_the_memory_cap_is_lifted_after_the_derivation():
     """The cap holds inside memory_cap only: afterwards this process, and the compilers it
     starts, have their limit back."""
