@@ -197,7 +197,7 @@ ROUNDING_SYSTEM = 16 * np.finfo(float).eps
 
 
 def solve_reference(function: SymbolicFunction, system: SymbolicFunction,
-                    values: dict[sp.Symbol, float], allowance: bool = False):
+                    values: dict[sp.Symbol, float]) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """The outputs of a kernel solved at run time (``function.solve``), independently.
 
     Its system (A, b, row_scale, col_scale: the closed forms of ``system``) is
@@ -205,8 +205,8 @@ def solve_reference(function: SymbolicFunction, system: SymbolicFunction,
     :class:`derivations.model.NumericSolve`, not by the generated code's Jacobi
     rotations or LAPACK.
 
-    With ``allowance``, returns ``(outputs, allowances)``: for each output, what a
-    float64 solve cannot resolve, as an absolute bound per entry (zero for the flag).
+    Returns ``(outputs, allowances)``: for each output, what a float64 solve cannot
+    resolve, as an absolute bound per entry (zero for the flag).
     The generated code evaluates A and b in float64, so it solves a system off by
     ``e = ROUNDING_SYSTEM |An|_F`` (and ``ROUNDING_SYSTEM |bn|``).  To first order
     (Wedin's bound for the damped pseudo-inverse) that moves the solution ``y`` by
@@ -225,9 +225,10 @@ def solve_reference(function: SymbolicFunction, system: SymbolicFunction,
     b, row_scale, col_scale = (parts[1], parts[2], parts[3]) if solve.kind == "solution" else (None, *parts[1:3])
     with mpmath.workdps(40):
         if b is None:
-            raw = mpmath.svd_r(mpmath.matrix(A.tolist()), compute_uv=False)
+            system = mpmath.matrix(A.tolist())
+            raw = mpmath.svd_r(system, compute_uv=False)
             measure = mpmath.fprod(raw)
-            rounding = ROUNDING_SYSTEM * mpmath.mnorm(mpmath.matrix(A.tolist()), "f")
+            rounding = ROUNDING_SYSTEM * mpmath.mnorm(system, "f")
             slack = mpmath.fprod(raw[i] + rounding for i in range(len(raw))) - measure
         An = mpmath.matrix([[row_scale[i] * A[i, j] * col_scale[j] for j in range(A.shape[1])]
                             for i in range(A.shape[0])])
@@ -236,8 +237,7 @@ def solve_reference(function: SymbolicFunction, system: SymbolicFunction,
         largest, smallest = max(s), min(s)
         singular = not smallest > largest / solve.COND_LIMIT
         if b is None:
-            outputs = [np.array(float(measure)), np.array(singular)]
-            return (outputs, [np.array(float(slack)), np.zeros((), dtype=float)]) if allowance else outputs
+            return [np.array(float(measure)), np.array(singular)], [np.array(float(slack)), np.zeros(())]
         threshold = largest / solve.COND_LIMIT
         damping = ((solve.DAMPING * threshold)**2 * max(1 - (smallest / threshold)**2, 0)
                    if singular and threshold > 0 else 0)
@@ -246,8 +246,6 @@ def solve_reference(function: SymbolicFunction, system: SymbolicFunction,
         gains = [si / (si**2 + damping) if si**2 + damping > 0 else mpmath.mpf(0) for si in s]
         y = [mpmath.fsum(gains[i] * projections[i] * V[i, j] for i in range(len(s))) for j in range(A.shape[1])]
         x = [float(col_scale[j] * y[j]) for j in range(A.shape[1])]
-        if not allowance:
-            return [np.array(x), np.array(singular)]
         e = ROUNDING_SYSTEM * mpmath.mnorm(An, "f")
         e_b = ROUNDING_SYSTEM * mpmath.norm(mpmath.matrix(bn))
         resolved = [g for si, g in zip(s, gains) if si > e]
@@ -261,7 +259,7 @@ def solve_reference(function: SymbolicFunction, system: SymbolicFunction,
         slack = [float(abs(col_scale[j]) * (spread + mpmath.fsum(unresolved * abs(projections[i] * V[i, j])
                                                                   for i, si in enumerate(s) if si <= e)))
                  for j in range(A.shape[1])]
-    return [np.array(x), np.array(singular)], [np.array(slack), np.zeros((), dtype=float)]
+    return [np.array(x), np.array(singular)], [np.array(slack), np.zeros(())]
 
 
 def relative_error(generated: np.ndarray, expected: np.ndarray, allowance: np.ndarray | None = None) -> float:
@@ -331,7 +329,7 @@ def verify_model(model: RobotModel, modules: dict, samples: int = 6, seed: int =
                                                                      for n, s in param_symbols.items()}).items()})
             slack = [None] * len(function.outputs)
             if function.solve is not None:
-                expected, slack = solve_reference(function, by_name[function.solve.system], values, allowance=True)
+                expected, slack = solve_reference(function, by_name[function.solve.system], values)
             else:
                 expected = reference(function, values)
             mask = existence_mask(function, expected)
