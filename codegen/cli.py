@@ -39,6 +39,7 @@ import sympy as sp
 
 import derivations
 from derivations.budget import BudgetExceeded, MemoryCapExceeded, budget, memory_cap, stage
+from derivations.program import needed
 import generated
 
 from . import avr_limits
@@ -208,6 +209,13 @@ def cmd_show(args, say) -> int:
         return 0
     value = {"fk": model.fk, "jacobian": model.jacobian, "task": model.task,
              "task_jacobian": model.task_jacobian}.get(what)
+    shown = model.frames if what == "frames" else [value]
+    steps = needed(model.program, [e for matrix in shown for e in matrix])
+    if steps:  # a general arm's kinematics is a program: its steps first, then what reads them
+        print(f"# {len(steps)} steps of the straight-line program, in order; the result reads them")
+        for symbol, expr in steps:
+            print(f"{symbol} = {render(expr)}")
+        print()
     if what == "frames":
         for i, frame in enumerate(model.frames):
             print(f"T_{i} =\n{render(frame)}\n")

@@ -16,7 +16,7 @@ import sympy as sp
 from derivations.model import SymbolicFunction
 
 __all__ = ["PreparedFunction", "PreparedOutput", "PreparedCheck", "prepare", "canonical", "exact_floats",
-           "STATUS_CODES"]
+           "bounded_numbers", "STATUS_CODES", "EXACT_INTEGER_LIMIT"]
 
 TEMPORARY_PREFIX = "_t"
 # Status returned by a C kernel whose requirement fails (0 is success); also named in each header.
@@ -117,6 +117,48 @@ def exact_floats(expr: sp.Basic) -> sp.Basic:
     return expr.xreplace({sp.pi: sp.Float(sp.pi.evalf(40), 40)}) if expr.has(sp.pi) else expr
 
 
+# The largest integer every double holds exactly, and every integer below it.
+EXACT_INTEGER_LIMIT = 2**53
+
+
+def _beyond_double(number: sp.Rational) -> bool:
+    return abs(number.p) > EXACT_INTEGER_LIMIT or number.q > EXACT_INTEGER_LIMIT
+
+
+@functools.lru_cache(maxsize=8192)
+def bounded_numbers(expr: sp.Basic) -> sp.Basic:
+    """``expr`` with every constant that reads an integer or rational beyond 2**53 folded into one
+    correctly rounded double.
+
+    Exact arithmetic on the decimals a file writes can grow such numbers (a product of normalised
+    15-digit axes, ``sqrt(3519564161475607455144369219509)`` in a KUKA KR 210's inverse); C has no
+    integer constant for them, and a double cannot hold them exactly anyway.  The largest constant
+    subexpression that holds one is evaluated at 30 digits and rounded once, so the printed double
+    is the nearest to the exact value, not a rounding of a rounding.  A rational on its own already
+    prints as its nearest double (1/10**18 as 1e-18) and stays as it is."""
+    if not any(_beyond_double(r) for r in expr.atoms(sp.Rational)):
+        return expr
+    memo: dict = {}
+
+    def visit(e):
+        done = memo.get(e)
+        if done is not None:
+            return done
+        if e.is_Rational and not e.is_Integer:
+            done = e
+        elif isinstance(e, sp.Expr) and not e.free_symbols and any(_beyond_double(r) for r in e.atoms(sp.Rational)):
+            value = e.evalf(30)
+            done = sp.Float(value, 30) if value.is_real and value.is_finite else e
+        elif not e.args:
+            done = e
+        else:
+            args = tuple(visit(a) for a in e.args)
+            done = e if all(a is b for a, b in zip(args, e.args)) else e.func(*args)
+        memo[e] = done
+        return done
+    return visit(expr)
+
+
 def prepare(function: SymbolicFunction, param_names: tuple[str, ...]) -> PreparedFunction:
     """Flatten all outputs of ``function``, run one CSE over them, unflatten.
 
@@ -129,9 +171,9 @@ def prepare(function: SymbolicFunction, param_names: tuple[str, ...]) -> Prepare
     for out in function.outputs:
         flat.extend(out.values)
     flat.extend(r.condition for r in function.requires)
-    flat = [exact_floats(canonical(sp.sympify(e))) for e in flat]
+    flat = [bounded_numbers(exact_floats(canonical(sp.sympify(e)))) for e in flat]
     definitions = function.definitions
-    flat = [exact_floats(canonical(sp.sympify(e))) for _, e in definitions] + flat
+    flat = [bounded_numbers(exact_floats(canonical(sp.sympify(e)))) for _, e in definitions] + flat
     symbols = sp.numbered_symbols(TEMPORARY_PREFIX, real=True)
     # order="none": the temporaries in the order CSE finds them.  "canonical" sorts the
     # expressions by node count first, which was most of the time for the big rate

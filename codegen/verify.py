@@ -22,6 +22,7 @@ import numpy as np
 import sympy as sp
 
 from derivations.model import RobotModel, SymbolicFunction
+from derivations.program import evaluate
 
 from .kernels import canonical
 
@@ -83,7 +84,7 @@ def sample_targets(model: RobotModel, rng: np.random.Generator, count: int, para
         params = (param_sets[k] if param_sets is not None else None) or {str(s): v for s, v in model.params.items()}
         subs = {s: sp.Rational(float(v)) for s, v in zip(model.q, q)}
         subs.update({by_name[n]: sp.Rational(float(v)) for n, v in params.items()})
-        targets.append([float(e.evalf(DIGITS, subs=subs)) for e in model.task])
+        targets.append([float(e) for e in evaluate(model.program, list(model.task), subs, DIGITS)])
     return np.array(targets, dtype=float).reshape(count, len(model.task_names))
 
 

@@ -65,6 +65,16 @@ class Joint:
             raise ValueError(f"joint type must be 'R' or 'P', got {self.type!r}")
 
 
+def cos_sin(angle) -> tuple[sp.Expr, sp.Expr]:
+    """``cos(angle), sin(angle)``; a constant angle whose values SymPy cannot write exactly (the
+    1.5708 a file wrote, not pi/2) gives them as floating-point numbers (the doubles nearest the
+    true values), so that products of them stay numbers instead of growing trees of cos(3927/2500)."""
+    c, s = sp.cos(angle), sp.sin(angle)
+    if sp.sympify(angle).is_number and (isinstance(c, sp.cos) or isinstance(s, sp.sin)):
+        c, s = sp.Float(float(c.evalf(30))), sp.Float(float(s.evalf(30)))
+    return c, s
+
+
 def axis_motion(joint_type: str, axis, value) -> sp.Matrix:
     """The 4x4 motion of a general joint: rotation by ``value`` about the unit ``axis``
     (Rodrigues' formula, exact) or translation by ``value`` along it."""
@@ -73,7 +83,7 @@ def axis_motion(joint_type: str, axis, value) -> sp.Matrix:
     if joint_type == PRISMATIC:
         motion[:3, 3] = k * value
         return motion
-    c, s = sp.cos(value), sp.sin(value)
+    c, s = cos_sin(value)
     skew = sp.Matrix([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
     motion[:3, :3] = (c * sp.eye(3) + (1 - c) * k * k.T + s * skew).applyfunc(sp.expand)
     return motion
@@ -81,7 +91,7 @@ def axis_motion(joint_type: str, axis, value) -> sp.Matrix:
 
 def dh_standard(theta, d, a, alpha) -> sp.Matrix:
     """Rehiara Eq. 6: ``Rot(z,theta) Trans(z,d) Trans(x,a) Rot(x,alpha)``."""
-    ct, st, ca, sa = sp.cos(theta), sp.sin(theta), sp.cos(alpha), sp.sin(alpha)
+    (ct, st), (ca, sa) = cos_sin(theta), cos_sin(alpha)
     return sp.Matrix(
         [
             [ct, -st * ca, st * sa, a * ct],
@@ -94,7 +104,7 @@ def dh_standard(theta, d, a, alpha) -> sp.Matrix:
 
 def dh_modified(theta, d, a, alpha) -> sp.Matrix:
     """Craig's link transform ``Rot(x,alpha) Trans(x,a) Rot(z,theta) Trans(z,d)``."""
-    ct, st, ca, sa = sp.cos(theta), sp.sin(theta), sp.cos(alpha), sp.sin(alpha)
+    (ct, st), (ca, sa) = cos_sin(theta), cos_sin(alpha)
     return sp.Matrix(
         [
             [ct, -st, 0, a],
@@ -107,9 +117,9 @@ def dh_modified(theta, d, a, alpha) -> sp.Matrix:
 
 def rpy_matrix(roll, pitch, yaw) -> sp.Matrix:
     """Rotation ``Rz(yaw) Ry(pitch) Rx(roll)`` (fixed-axis roll, pitch, yaw)."""
-    cr, sr = sp.cos(roll), sp.sin(roll)
-    cp, sp_ = sp.cos(pitch), sp.sin(pitch)
-    cy, sy = sp.cos(yaw), sp.sin(yaw)
+    cr, sr = cos_sin(roll)
+    cp, sp_ = cos_sin(pitch)
+    cy, sy = cos_sin(yaw)
     rx = sp.Matrix([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
     ry = sp.Matrix([[cp, 0, sp_], [0, 1, 0], [-sp_, 0, cp]])
     rz = sp.Matrix([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])

@@ -8,15 +8,19 @@ of SymPy expressions).  Code generation needs nothing else.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Sequence
 
 import sympy as sp
 
 from .chain import PRISMATIC, REVOLUTE, Chain, derivative, simplify_derivative, simplify_entry, simplify_product
 from .ik import kernel_form
+from .chain_program import explicit_pays, program_kinematics
+from .chain_program import task_jacobian as program_task_jacobian
+from .program import inline, needed
 
-__all__ = ["Argument", "Output", "Requirement", "NumericSolve", "SymbolicFunction", "IKBranch", "RobotModel", "task_coordinates"]
+__all__ = ["Argument", "Output", "Requirement", "NumericSolve", "SymbolicFunction", "IKBranch", "RobotModel",
+           "task_coordinates", "with_program"]
 
 
 @dataclass(frozen=True)
@@ -161,6 +165,19 @@ class IKBranch:
             raise ValueError(f"{self.name}: {len(self.step_cites)} step cites for {len(self.steps)} steps")
 
 
+def with_program(functions: list[SymbolicFunction], steps) -> list[SymbolicFunction]:
+    """``functions`` with the steps of the program ``steps`` that each one reads put in front of
+    its own definitions (in program order), so that each kernel carries just what it computes."""
+    if not steps:
+        return list(functions)
+    out = []
+    for f in functions:
+        reads = [e for o in f.outputs for e in o.values] + [r.condition for r in f.requires]
+        reads += [e for _, e in f.definitions]
+        out.append(replace(f, definitions=needed(steps, reads) + tuple(f.definitions)))
+    return out
+
+
 POSE_NAMES = ("x", "y", "z", "r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33")
 
 
@@ -253,6 +270,10 @@ class RobotModel:
     # What ik's joint values range over, as its docstring says it (every robot wraps its revolute
     # joints but the AVR 3000, whose frog leg holds q2 / 2).
     ik_ranges: str = "Revolute joints are wrapped to (-pi, pi]."
+    # A general arm's kinematics as a straight-line program (derivations.program): ordered steps
+    # (symbol, expression) that ``frames``, ``jacobian``, ``task`` and ``task_jacobian`` are written
+    # in.  Empty where those are explicit (expanded and simplified: every paper's robot).
+    program: tuple[tuple[sp.Symbol, sp.Expr], ...] = ()
 
     @property
     def n(self) -> int:
@@ -267,6 +288,11 @@ class RobotModel:
         """Symbols standing for the task coordinates (inputs of the inverse problem)."""
         return tuple(sp.Symbol(name, real=True) for name in self.task_names)
 
+    def explicit(self, expr):
+        """``expr`` (an expression or a matrix of this model's) in the joint variables and the
+        parameters alone: the program's steps substituted (itself when there is no program)."""
+        return inline(self.program, expr)
+
     def joint_unit(self, i: int) -> str:
         return "rad" if self.joint_types[i] == REVOLUTE else "m"
 
@@ -276,7 +302,7 @@ class RobotModel:
         q = Argument("q", self.q, f"joint coordinates, shape (..., {n}) ({self._units()})")
         count = len(self.frames)
         frames = sp.Array([list(f) for f in self.frames]).reshape(count, 4, 4)
-        return [
+        kinematics = with_program([
             SymbolicFunction("fk", (q,), (Output.from_matrix("T", self.fk),),
                              "Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres."),
             SymbolicFunction("frames", (q,), (Output("frames", tuple(sp.flatten(frames.tolist())), (count, 4, 4)),),
@@ -288,7 +314,8 @@ class RobotModel:
                              f"Task coordinates {', '.join(self.task_names)}, shape (..., {m})."),
             SymbolicFunction("task_jacobian", (q,), (Output.from_matrix("Jx", self.task_jacobian),),
                              f"d task / d q, shape (..., {m}, {n})."),
-        ] + ([self.ik_function()] if self.ik else []) + self.rate_functions()
+        ], self.program)
+        return kinematics + ([self.ik_function()] if self.ik else []) + self.rate_functions()
 
     def ik_function(self) -> SymbolicFunction:
         """The ``ik`` kernel: every branch of ``self.ik`` at once.
@@ -370,8 +397,16 @@ class RobotModel:
 
 def build_chain_model(name: str, title: str, source: str, chain: Chain, q, params: dict,
                       task_spec: Sequence[str], limits) -> RobotModel:
-    """Derive every kinematic quantity of a DH chain (the slow symbolic step)."""
-    link_frames = chain.link_frames(q)
+    """Derive every kinematic quantity of a chain (the slow symbolic step).
+
+    An exact chain whose frames stay short gets them expanded and simplified (every paper's
+    robot, the UR and KUKA arms); any other (a number as a file wrote it, seven joints, frames
+    that do not cancel) gets its kinematics as a straight-line program
+    (:mod:`derivations.chain_program`), whose size grows with the chain, not with its expansion.
+    """
+    link_frames = explicit_pays(chain, q)
+    if link_frames is None:
+        return _program_model(name, title, source, chain, q, params, task_spec, limits)
     tool = chain.tool
     frames = list(link_frames)
     if tool != sp.eye(4):  # the flange frame stays; the tool frame follows it
@@ -386,6 +421,34 @@ def build_chain_model(name: str, title: str, source: str, chain: Chain, q, param
         joint_types=tuple(j.type for j in chain.joints), q=tuple(q), params=dict(params),
         frames=frames, jacobian=jacobian, task_names=tuple(task_names), task=task,
         task_jacobian=task_jacobian, limits=tuple(limits), chain=chain,
+    )
+
+
+def _program_model(name, title, source, chain: Chain, q, params, task_spec, limits) -> RobotModel:
+    derived = program_kinematics(chain, q, {str(s) for s in params})
+    program, frames, jacobian = derived["program"], derived["frames"], derived["jacobian"]
+    fk = frames[-1]
+    task_names, values = [], []
+    for item in task_spec:
+        if item == "phi":  # a planar arm's angle, read off its explicit frames (a few joints)
+            link_frames = chain.link_frames(q)
+            explicit_fk = (link_frames[-1] * chain.tool).applyfunc(simplify_product)
+            task_names.append(item)
+            values.append(_planar_orientation(chain, q, explicit_fk, link_frames))
+        else:
+            names, entries = task_coordinates([item], chain, q, fk, None)
+            task_names.extend(names)
+            values.extend(entries)
+    if len(set(task_names)) != len(task_names):
+        raise ValueError(f"task coordinates repeat a name: {task_names}")
+    task = sp.Matrix(values)
+    joint_types = tuple(j.type for j in chain.joints)
+    task_jacobian = program_task_jacobian(program, task_names, task, jacobian, fk, derived["axes"], joint_types,
+                                          q, derived["coupled"])
+    return RobotModel(
+        name=name, title=title, source=source, joint_types=joint_types, q=tuple(q), params=dict(params),
+        frames=frames, jacobian=jacobian, task_names=tuple(task_names), task=task,
+        task_jacobian=task_jacobian, limits=tuple(limits), chain=chain, program=tuple(program.steps),
     )
 
 

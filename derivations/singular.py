@@ -69,7 +69,10 @@ class JacobianDeterminant:
 
 
 def square_jacobian(model) -> tuple[str, sp.Matrix] | None:
-    """The Jacobian whose determinant decides singularity, or ``None``."""
+    """The Jacobian whose determinant decides singularity, or ``None`` (also for a model written as a
+    program, whose determinant in its steps would say nothing about the joints)."""
+    if model.program:
+        return None
     if model.task_jacobian.shape == (model.n, model.n):
         return "task_jacobian", model.task_jacobian
     if model.n == 6:

@@ -41,7 +41,8 @@ from .cache import cached
 from .chain import PRISMATIC, derivative
 from .damping import (ClosedFormInverse, Minors, Scaling, closed_form_inverse, factored, measure_squared,
                       reference_length, regularised_solve, singular_flag)
-from .model import POSE_NAMES, Argument, NumericSolve, Output, SymbolicFunction
+from .model import POSE_NAMES, Argument, NumericSolve, Output, SymbolicFunction, with_program
+from .program import Program
 from .paul import WristPartition, wrist_partition
 from .tool_configuration import tool_configuration_functions
 
@@ -190,7 +191,7 @@ def rate_kinematics(model) -> RateKinematics | None:
                      sp.srepr(sp.Tuple(*model.q)), sp.srepr(sp.Tuple(*model.params)),
                      sp.srepr(sp.ImmutableMatrix(model.fk)), sp.srepr(sp.ImmutableMatrix(model.jacobian)),
                      sp.srepr(sp.ImmutableMatrix(model.task)), repr(model.chain),
-                     repr(getattr(model, "rate_form", None))])
+                     repr(getattr(model, "rate_form", None)), sp.srepr(sp.Tuple(*map(sp.Tuple, model.program)))])
     result = cached(f"rates-{model.name}", key.encode(), lambda: derive_rates(model))
     model.__dict__["_rate_kinematics"] = result
     return result
@@ -205,8 +206,14 @@ def derive_rates(model) -> RateKinematics:
     xdd = rate_symbols("xdd_", model.task_names)
     twist = rate_symbols("twist_", TWIST_NAMES)
     Jx, J = model.task_jacobian, model.jacobian
-    Jx_dot = time_derivative(Jx, q, qd)
-    J_dot = time_derivative(J, q, qd)
+    program = Program(model.program, taken=[str(s) for s in model.params]) if model.program else None
+    if program is not None:  # the rates are steps of the program too (forward mode along qd)
+        along = dict(zip(q, qd))
+        Jx_dot = Jx.applyfunc(lambda e: program.time_derivative(e, along))
+        J_dot = J.applyfunc(lambda e: program.time_derivative(e, along))
+    else:
+        Jx_dot = time_derivative(Jx, q, qd)
+        J_dot = time_derivative(J, q, qd)
     length = reference_length(model.chain)
     scaling = Scaling(length, tuple(1 if name in ("x", "y", "z") else 0 for name in model.task_names),
                       tuple(1 if t == PRISMATIC else 0 for t in model.joint_types))
@@ -218,7 +225,12 @@ def derive_rates(model) -> RateKinematics:
                  if model.task_names == POSE_NAMES and getattr(model, "rate_form", None) == "wrist partition"
                  else None)
     xd_col, xdd_col, qd_col = sp.Matrix(xd), sp.Matrix(xdd), sp.Matrix(qd)
-    strategy = "wrist partition" if partition is not None else closed_form_shape(m, n, int(sp.count_ops(Jx)))
+    if partition is not None:
+        strategy = "wrist partition"
+    elif program is not None:  # closed forms of a program's Jacobian would factor its steps, not the joints
+        strategy = "numeric"
+    else:
+        strategy = closed_form_shape(m, n, int(sp.count_ops(Jx)))
     inverse = minors = singularities = velocity = acceleration = None
     if strategy in ("square", "wide", "tall"):
         if strategy == "square":
@@ -244,6 +256,8 @@ def derive_rates(model) -> RateKinematics:
                  strategy=strategy, inverse=inverse, partition=partition, scaling=scaling,
                  singularities=singularities, joint_velocity=velocity, joint_acceleration=acceleration)
     functions = _functions(model, rates)
+    if program is not None:
+        functions = with_program(functions, program.steps)
     return RateKinematics(**rates, functions=tuple(functions))
 
 

@@ -73,7 +73,7 @@ def round_trip_from_steps(model, q: np.ndarray, free: int | None = None):
     evaluated from its steps at those targets (the free joint, if any, at q's value) and held
     to FK_TOLERANCE, and whether q is among the valid branches (revolute joints modulo 2 pi)."""
     params = [float(v) for v in model.params.values()]
-    task = sp.lambdify([model.q, *model.params], list(model.task), modules="numpy")
+    task = sp.lambdify([model.q, *model.params], list(model.explicit(model.task)), modules="numpy")
 
     def evaluate(joints):
         return np.stack([np.broadcast_to(np.asarray(v, float), (len(q),)) for v in task(joints.T, *params)], axis=-1)

@@ -423,8 +423,8 @@ def model_functions(name):
         LOAD_TIMES[name] = time.perf_counter() - start
         defaults = {symbol: sp.Float(value, 30) for symbol, value in model.params.items()}
         args = list(model.q)
-        _MODELS[name] = (model, sp.lambdify(args, model.fk.subs(defaults), "numpy"),
-                         sp.lambdify(args, model.jacobian.subs(defaults), "numpy"))
+        _MODELS[name] = (model, sp.lambdify(args, model.explicit(model.fk).subs(defaults), "numpy"),
+                         sp.lambdify(args, model.explicit(model.jacobian).subs(defaults), "numpy"))
     return _MODELS[name]
 
 
@@ -539,17 +539,23 @@ def test_generated_fk_and_jacobian(name, backend, generated_root):
 
 
 def test_latex_writes_the_rate_rows_out_where_they_are_short(generated_root):
-    """The forward rate map row by row for a UR5; for the general 6R (the Jaco), whose rows run to
-    hundreds of operations, the statement with J_x and the size that kept the rows out."""
-    from codegen.backends.latex_backend import RATE_ROW_MAX_OPS
+    """The forward rate map row by row for a UR5; the general 6R (the Jaco), whose frames do not
+    cancel, is written as a program: its LaTeX says so and prints no expanded rows (they would run
+    to hundreds of operations each)."""
+    from derivations.chain_program import EXPLICIT_MAX_TERMS
     ur5 = generated_package("ur5", generated_root).__path__[0]
     jaco = generated_package("kinova_jaco", generated_root).__path__[0]
     ur5_tex = (Path(ur5) / "ur5.tex").read_text()
     jaco_tex = (Path(jaco) / "kinova_jaco.tex").read_text()
     assert "Forward rate map $\\dot x = J_x \\dot q$:" in ur5_tex and "\\dot{x} &=" in ur5_tex
-    stated = re.search(r"its rows written out would run to (\d+) operations, more than the (\d+)", jaco_tex)
-    assert stated and int(stated.group(1)) > int(stated.group(2)) == RATE_ROW_MAX_OPS
-    assert "\\dot{x} &=" not in jaco_tex
+    assert "The product is not expanded: its link transforms do not cancel" in jaco_tex
+    assert "\\dot{x} &=" not in jaco_tex and "T_{11} &=" not in jaco_tex
+    import sympy as sp
+
+    import derivations
+    jaco_model = derivations.load(ARMS["kinova_jaco"].path)
+    explicit = jaco_model.chain.link_frames(jaco_model.q)[-1]  # what the expanded form would print
+    assert max(len(sp.Add.make_args(e)) for e in explicit) > EXPLICIT_MAX_TERMS
 
 
 # --------------------------------------------------------------------------- rate kernels

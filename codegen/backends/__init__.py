@@ -50,7 +50,9 @@ class ExactArithmeticMixin:
         return float_literal(expr)
 
     def _print_Integer(self, expr):
-        return str(int(expr))
+        # Beyond 2**53 (codegen.kernels.bounded_numbers folds every such constant before printing;
+        # this is the last guard): a double literal, never an integer constant C cannot hold.
+        return str(int(expr)) if abs(int(expr)) <= 2**53 else float_literal(expr)
 
     def _print_Pow(self, expr, rational=False):
         base, exponent = expr.base, expr.exp

@@ -674,8 +674,28 @@ def _fk(w: _Writer) -> Section:
             product += r" T_{\mathrm{tool}}"
     else:
         product = ""
+    if m.program:
+        base = "T_0 " if m.chain.base != sp.eye(4) else ""
+        body = ("\\begin{equation*}\n" + f"{pose_name(m)} = {base}{product}" + w.tag("fk") + "\n\\end{equation*}"
+                + _PROGRAM_NOTE.format(steps=len(m.program), reason=_program_reason(m)))
+        return Section("fk", "Tool pose", body + "\n")
     body = w.matrix_equation(pose_name(m), m.fk, key="fk", skip_last_row=True, product=product)
     return Section("fk", "Tool pose", body + "\n")
+
+
+_PROGRAM_NOTE = ("\nThe product is not expanded: {reason}, so nothing cancels in its entries, which written out "
+                 "would run to hundreds of terms each. The kernels compute it as the link transforms say, one link "
+                 "at a time, with the Jacobians and their rates from the same frames: a straight-line program of "
+                 "{steps} steps (\\texttt{{kinegen show --what fk}} prints it).\n")
+
+
+def _program_reason(m) -> str:
+    from derivations.chain_program import EXPLICIT_MAX_JOINTS, has_floats
+    if has_floats(m.chain):
+        return "its numbers are as the description writes them, not exact values"
+    if m.n > EXPLICIT_MAX_JOINTS:
+        return f"the arm has {m.n} joints"
+    return "its link transforms do not cancel in the product"
 
 
 _POSE_ROTATION = re.compile(r"r\d\d")
@@ -687,6 +707,11 @@ def _task_latex(w: _Writer, name: str) -> str:
 
 def _position(w: _Writer) -> Section:
     m = w.model
+    if m.program:
+        return Section("position", "Task coordinates",
+                       "The task coordinates are the tool point (the last column of $T$)"
+                       + (" and the entries $r_{ij} = T_{ij}$ of its rotation" if "r11" in m.task_names else "")
+                       + ".\n")
     pairs = [(_task_latex(w, n), e) for n, e in zip(m.task_names, m.task) if not _POSE_ROTATION.fullmatch(n)]
     body = w.equations(pairs, key="position")
     if any(_POSE_ROTATION.fullmatch(n) for n in m.task_names):
@@ -699,6 +724,9 @@ def _jacobian(w: _Writer) -> Section:
     intro = (r"Geometric Jacobian $J = [J_v;\ J_\omega]$ of the tool point $o_n$ in the base frame: the "
              r"column of a revolute joint with axis $z$ through $o$ is $[z \times (o_n - o);\ z]$, that of a "
              r"prismatic joint $[z;\ 0]$ (velocity slides; $z = z_{i-1}$, $o = o_{i-1}$ in standard DH).")
+    if m.program:
+        return Section("jacobian", "Geometric Jacobian",
+                       intro + " Each column is computed from the frames of the product above, as written.\n")
     body = w.matrix_equation("J", m.jacobian, key="jacobian")
     return Section("jacobian", "Geometric Jacobian", intro + "\n" + body + "\n")
 
@@ -709,6 +737,10 @@ def _task_jacobian(w: _Writer) -> Section:
     J = m.task_jacobian.extract(rows, list(range(m.n)))
     names = ", ".join(_task_latex(w, m.task_names[k]) for k in rows)
     intro = rf"Task Jacobian $J_x = \partial ({names}) / \partial q$"
+    if m.program:
+        return Section("task_jacobian", "Task Jacobian", intro + (
+            r": the rows of the tool point are the rows $J_v$ of the geometric Jacobian, and the rate of its rotation "
+            r"is $\partial R / \partial q_j = [z_j]_\times R$ for a revolute joint $j$ with axis $z_j$." "\n"))
     if len(rows) < len(m.task_names):
         intro += r" (the rows of the rotation entries $r_{ij}$ are left out: their rates are $J_\omega$)"
     body = w.matrix_equation("J_x", J, key="task_jacobian", entry="J_{{x,{ij}}}")
@@ -717,6 +749,11 @@ def _task_jacobian(w: _Writer) -> Section:
 
 def _det(w: _Writer, determinant: JacobianDeterminant | None) -> Section:
     m = w.model
+    if m.program:
+        return Section("det", "Singularities", (
+            "The determinant is not worked out in closed form for an arm whose product is not expanded. The rate "
+            "kernels find singular configurations numerically, by the condition number of the normalised "
+            "Jacobian.\n"))
     if determinant is None:
         shape = m.task_jacobian.shape
         text = (f"The task Jacobian is ${shape[0]} \\times {shape[1]}$ and the geometric one "
@@ -763,6 +800,10 @@ RATE_ROW_MAX_OPS = 300
 
 def _rates(w: _Writer, determinant: JacobianDeterminant | None) -> Section:
     m = w.model
+    if m.program:
+        return Section("rates", "Rate maps", (
+            r"Forward rate map $\dot x = J_x \dot q$, with $J_x$ as above; its inverse and the accelerations are "
+            "solved at run time, from the same frames.\n"))
     rows = [k for k, n in enumerate(m.task_names) if not _POSE_ROTATION.fullmatch(n)]
     rates = [rate_symbol(qi) for qi in m.q]
     trig = sorted(m.task_jacobian.atoms(sp.sin, sp.cos), key=sp.default_sort_key)
