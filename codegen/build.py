@@ -59,13 +59,14 @@ def load_build_script(package: Path):
     return module
 
 
-def build_extension(package: Path, warnings=()) -> Path:
+def build_extension(package: Path, warnings=(), fast: bool = False) -> Path:
     """Run the package's generated ``build_c.py``; returns the built extension.
 
-    Each C source is compiled once, with ``warnings`` in front of the library's flags.
+    Each C source is compiled once, with ``warnings`` in front of the library's flags; ``fast``
+    asks for the vectorised layout tuned to this machine (the build script's ``compile_flags``).
     """
     try:
-        return load_build_script(package).build(warnings=tuple(warnings))
+        return load_build_script(package).build(warnings=tuple(warnings), fast=fast)
     except RuntimeError as exc:  # the build script's report of a failed compile
         raise CompileError(str(exc)) from None
 
@@ -76,7 +77,7 @@ def _compiler_identity(command: tuple[str, ...]) -> str:
     return " ".join(command) + "\n" + result.stdout
 
 
-def _build_key(package: Path, name: str, script) -> str:
+def _build_key(package: Path, name: str, script, fast: bool) -> str:
     """What the built extension depends on: its C and its build script, flags, compiler, Python, numpy, cffi."""
     import cffi
     digest = hashlib.sha256()
@@ -84,19 +85,19 @@ def _build_key(package: Path, name: str, script) -> str:
         path = package / filename
         digest.update(filename.encode() + b"\0")
         digest.update(path.read_bytes() if path.exists() else b"(absent)")
-    settings = [STRICT_FLAGS, _compile_flags(script), _compiler_identity(tuple(script.compiler())),
+    settings = [STRICT_FLAGS, _compile_flags(script, fast), _compiler_identity(tuple(script.compiler())),
                 sys.version, sysconfig.get_config_var("EXT_SUFFIX"), numpy.__version__, cffi.__version__,
                 [os.environ.get(v, "") for v in ("CFLAGS", "CPPFLAGS", "LDFLAGS", "LDSHARED")]]
     digest.update(json.dumps(settings, default=list).encode())
     return digest.hexdigest()
 
 
-def _compile_flags(script) -> list[str]:
-    """``script.compile_flags()``, its probe run once per process for each distinct build script setting."""
+def _compile_flags(script, fast: bool) -> list[str]:
+    """``script.compile_flags(fast)``, its probe run once per process for each distinct build script setting."""
     key = (tuple(script.CFLAGS), tuple(script.FAST_CFLAGS), script.PROBE, tuple(script.compiler()),
-           os.environ.get("KINEGEN_PORTABLE", ""))
+           os.environ.get("KINEGEN_PORTABLE", ""), fast)
     if key not in _FLAGS:
-        _FLAGS[key] = list(script.compile_flags())
+        _FLAGS[key] = list(script.compile_flags(fast))
     return _FLAGS[key]
 
 
@@ -126,8 +127,12 @@ def stamp_text(package: Path, name: str) -> str:
         return ""
 
 
-def build_package(package: Path, name: str) -> tuple[str, float]:
+def build_package(package: Path, name: str, fast: bool = False) -> tuple[str, float]:
     """Build the cffi extension of generated ``package`` unless its build stamp says it is up to date.
+
+    ``fast`` builds the vectorised layout for this machine (``kinegen build`` does, for
+    ``generated/``); without it, the portable layout that compiles in a few seconds
+    (``kinegen generate`` without ``--fast``).
 
     Returns ("built" or "up to date", seconds).  ``name.c`` is compiled once, with
     the strict flags in front of the library's own (that object is linked into the
@@ -140,17 +145,18 @@ def build_package(package: Path, name: str) -> tuple[str, float]:
     start = time.perf_counter()
     package = Path(package)
     script = load_build_script(package)
-    key = _build_key(package, name, script)
+    key = _build_key(package, name, script, fast)
     stamp = _stamp_path(package, name)
     if _stamp_holds(stamp, key):
         return "up to date", time.perf_counter() - start
     stamp.unlink(missing_ok=True)
-    flags = _compile_flags(script)
+    flags = _compile_flags(script, fast)
     built_layout = "simd" if "-DKINEGEN_SIMD" in flags else "plain"
     check_syntax(package, name, [layout for layout in LAYOUTS if layout != built_layout])
-    extension = build_extension(package, warnings=STRICT_FLAGS)
+    extension = build_extension(package, warnings=STRICT_FLAGS, fast=fast)
     info = extension.stat()
-    record = {"key": key, "extension": extension.name, "file": [info.st_size, info.st_mtime_ns]}
+    record = {"key": key, "extension": extension.name, "file": [info.st_size, info.st_mtime_ns],
+              "layout": built_layout}
     fd, partial = tempfile.mkstemp(dir=stamp.parent, prefix=f".{stamp.name}.", suffix=".part")
     with os.fdopen(fd, "w") as handle:
         handle.write(json.dumps(record) + "\n")
@@ -158,7 +164,8 @@ def build_package(package: Path, name: str) -> tuple[str, float]:
     return "built", time.perf_counter() - start
 
 
-def build_packages(targets: list[tuple[Path, str]], jobs: int, report=lambda name, status, seconds: None) -> None:
+def build_packages(targets: list[tuple[Path, str]], jobs: int, report=lambda name, status, seconds: None,
+                   fast: bool = True) -> None:
     """build_package for each (package, name), in ``jobs`` processes, the largest C source first.
 
     ``report(name, status, seconds)`` is called in this process as each finishes, so
@@ -168,10 +175,10 @@ def build_packages(targets: list[tuple[Path, str]], jobs: int, report=lambda nam
     ordered = sorted(targets, key=lambda t: -(Path(t[0]) / f"{t[1]}.c").stat().st_size)
     if jobs <= 1 or len(ordered) <= 1:
         for package, name in ordered:
-            report(name, *build_package(package, name))
+            report(name, *build_package(package, name, fast))
         return
     with concurrent.futures.ProcessPoolExecutor(max_workers=min(jobs, len(ordered))) as pool:
-        futures = {pool.submit(build_package, package, name): name for package, name in ordered}
+        futures = {pool.submit(build_package, package, name, fast): name for package, name in ordered}
         try:
             for future in concurrent.futures.as_completed(futures):
                 report(futures[future], *future.result())
@@ -187,9 +194,14 @@ def build_packages(targets: list[tuple[Path, str]], jobs: int, report=lambda nam
 LAYOUTS = {"plain": [], "blocked": ["-DKINEGEN_BLOCKED"], "simd": ["-DKINEGEN_SIMD", "-fopenmp-simd"]}
 
 
-def extension_layout(package: Path) -> str:
-    """The layout ``build_package`` compiles (strictly) into the package's extension: "simd" or "plain"."""
-    return "simd" if "-DKINEGEN_SIMD" in _compile_flags(load_build_script(Path(package))) else "plain"
+def extension_layout(package: Path, name: str | None = None) -> str:
+    """The layout ``build_package`` compiled (strictly) into the package's extension, as its build
+    stamp records it: "simd" or "plain"."""
+    package = Path(package)
+    try:
+        return json.loads(_stamp_path(package, name or package.name).read_text())["layout"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return "plain"
 
 
 def compile_strict(package: Path, name: str, skip=()) -> None:

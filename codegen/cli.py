@@ -247,7 +247,7 @@ def cmd_generate(args, say) -> int:
                                          say=say)
         # As `make build` does: one strict compile of the layout the extension uses, the others
         # through the compiler's front end (a Panda: 11 s, where compiling all three took 97 s).
-        build = None if args.no_build else (lambda folder: c_build.build_package(folder, model.name))
+        build = None if args.no_build else (lambda folder: c_build.build_package(folder, model.name, args.fast))
         written = gen.write_package(model, path, out, backends=backends, force=args.force, build=build, say=say,
                                     files=files)
         say(f"wrote {written}")
@@ -583,6 +583,9 @@ def parser() -> argparse.ArgumentParser:
         if name == "generate":
             s.add_argument("--force", action="store_true", help="replace an existing --out folder")
             s.add_argument("--no-build", action="store_true", help="do not compile the C extension")
+            s.add_argument("--fast", action="store_true",
+                           help="compile the vectorised batch layout for this machine's CPU (-march=native; a "
+                                "compile several times as long); default: portable C99 -O2")
             s.add_argument("--time-limit", type=_seconds, default=DEFAULT_TIME_LIMIT, metavar="SECONDS",
                            help=f"stop a derivation and rendering that runs longer (default {DEFAULT_TIME_LIMIT:g} s)")
             s.add_argument("--memory-limit", type=_gib, default=DEFAULT_MEMORY_LIMIT, metavar="GIB",
@@ -591,7 +594,8 @@ def parser() -> argparse.ArgumentParser:
         if name in ("verify", "all"):
             s.add_argument("--samples", type=int, default=6, help="points per kernel (default 6)")
         if name == "all":
-            s.set_defaults(out=None, backend=["numpy", "c"], force=False, no_build=False, time_limit=DEFAULT_TIME_LIMIT,
+            s.set_defaults(out=None, backend=["numpy", "c"], force=False, no_build=False, fast=False,
+                           time_limit=DEFAULT_TIME_LIMIT,
                            memory_limit=DEFAULT_MEMORY_LIMIT)
             s.add_argument("--times", metavar="FILE", help="append each stage's time to FILE (make does)")
         s.set_defaults(run=run)
