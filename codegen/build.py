@@ -224,6 +224,25 @@ def compile_strict(package: Path, name: str, skip=()) -> None:
                   "-o", str(Path(scratch) / f"{name}_point.o")])
 
 
+# What the generated C includes (robot.c.j2, robot.h.j2, robot_point.c.j2, the build script's
+# binding): a parameter is a C identifier there, so no macro these define may name one.
+GENERATED_HEADERS = ("#define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION", "#include <Python.h>",
+                     "#include <numpy/arrayobject.h>", "#include <math.h>", "#include <stddef.h>",
+                     "#include <stdint.h>", "#include <stdio.h>", "#include <stdlib.h>", "#include <string.h>",
+                     "#include <emmintrin.h>")
+
+
+def header_macros(compiler: str = CC) -> set[str]:
+    """The macros the generated C's headers define here (``cc -dM -E``), with the flags of a fast
+    build (-march=native), but for the names that start with an underscore (never a parameter)."""
+    source = "\n".join(GENERATED_HEADERS) + "\n"
+    result = subprocess.run([compiler, "-std=c99", "-march=native", "-dM", "-E", "-isystem",
+                             sysconfig.get_paths()["include"], "-isystem", numpy.get_include(), "-"],
+                            input=source, capture_output=True, text=True, check=True)
+    names = {line.split()[1].split("(")[0] for line in result.stdout.splitlines() if line.startswith("#define ")}
+    return {name for name in names if not name.startswith("_")}
+
+
 def point_includes(package: Path) -> list[str]:
     """The include flags of ``<name>_point.c``: the package's header, and Python's and numpy's
     as system headers (-isystem: their own warnings are not ours to fix)."""

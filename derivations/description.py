@@ -121,7 +121,7 @@ class _Parser:
                       "(ASCII letters, digits and _, not starting with a digit or _, not a reserved word)")
         if not is_package_name(name):
             self.fail("field 'name'", f"{name!r} would shadow the Python module of that name "
-                      "(a standard-library or kinegen module); choose another")
+                      "(a standard-library or kinegen module) or a C header its C includes; choose another")
         convention = data.get("convention", "standard")
         if convention not in ("standard", "modified"):
             self.fail("field 'convention'", f"expected 'standard' or 'modified', got {convention!r}")
@@ -178,7 +178,8 @@ class _Parser:
                                 snap=data.get("snap", True))
         name = data.get("name", description.name)
         if not is_package_name(name):
-            self.fail("field 'name'", f"{name!r} is not a valid identifier or would shadow a Python module")
+            self.fail("field 'name'", f"{name!r} is not a valid identifier or would shadow a Python module "
+                      "or a C header")
         params = self.parse_params(data.get("params", {}))
         self.defaults = params
         names = {str(p): p for p in params}

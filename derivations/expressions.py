@@ -17,6 +17,7 @@ import builtins
 import keyword
 import math
 import sys
+from pathlib import Path
 from typing import Mapping
 
 import sympy as sp
@@ -86,6 +87,15 @@ RESERVED = RESERVED | frozenset(keyword.kwlist) | frozenset(dir(builtins)) | fro
 )
 
 
+# Every macro the C headers of a generated package define (M_PI, INT_MAX, Py_None, NPY_MAXDIMS,
+# isnan, errno, ...): a parameter named like one would be replaced by the preprocessor and break
+# the compile.  The list is what codegen.build.header_macros reads off the compiler;
+# tests/test_description.py holds it to this machine's headers.
+C_MACROS = frozenset(line for line in (Path(__file__).parent / "c_macros.txt").read_text().split()
+                     if not line.startswith("#") and line.isidentifier())
+RESERVED = RESERVED | C_MACROS
+
+
 def is_identifier(name: str) -> bool:
     """True when ``name`` is safe as a C and Python identifier in generated code.
 
@@ -107,12 +117,18 @@ def is_identifier(name: str) -> bool:
 # A robot's name is the name of its generated package: one that shadows a module of Python's
 # standard library (a robot named json or typing) would break any Python started beside it.
 PROJECT_PACKAGES = frozenset({"derivations", "codegen", "generated", "tests", "benchmarks", "report", "docs"})
+# A package folder holds <name>.h and is on the include path of its own C: a robot named after a
+# header the C includes with <...> (stddef, stdint, ...) would be included in its place.
+C_HEADERS = frozenset("""assert complex ctype errno fenv float inttypes iso646 limits locale math setjmp signal stdalign
+    stdarg stdatomic stdbool stddef stdint stdio stdlib stdnoreturn string tgmath threads time uchar wchar wctype
+    emmintrin xmmintrin immintrin Python""".split())
 
 
 def is_package_name(name: str) -> bool:
     """True when ``name`` can name a generated package: an identifier (:func:`is_identifier`) that
     is neither a standard-library module nor one of this project's packages."""
-    return is_identifier(name) and name not in sys.stdlib_module_names and name not in PROJECT_PACKAGES
+    return (is_identifier(name) and name not in sys.stdlib_module_names and name not in PROJECT_PACKAGES
+            and name not in C_HEADERS)
 
 
 def to_exact(value: float | int) -> sp.Expr:

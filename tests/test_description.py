@@ -172,3 +172,36 @@ def test_a_robot_named_like_a_python_module_is_refused(robot, tmp_path, capsys):
     err = capsys.readouterr().err
     assert f"field 'name': {robot!r}" in err and ("would shadow the Python module" in err or "reserved word" in err)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["arm.toml"]
+
+
+@pytest.mark.parametrize("param", ["M_PI", "INT_MAX", "Py_None", "NPY_MAXDIMS", "isnan", "errno", "EOF", "NAN",
+                                   "HUGE_VAL", "stdout", "assert"])
+def test_hostile_d3_a_parameter_named_like_a_c_macro_is_refused(param):
+    """A parameter named like a macro of the headers the generated C includes would be replaced by
+    the preprocessor: refused when the description is read, never a compile error (issue #28, D3)."""
+    text = f'name = "arm"\n[params]\n{param} = 1.0\n[[joint]]\ntype = "R"\na = "{param}"\n'
+    with pytest.raises(DescriptionError, match=f"params: '{param}'.*reserved"):
+        parse_description(text, "arm.toml")
+
+
+def test_hostile_d3_the_reserved_macros_cover_this_machines_headers():
+    """Every macro that the C headers of a generated package define on this machine (read off the
+    compiler's preprocessor, not from our list) is a reserved name."""
+    import shutil
+
+    from codegen.build import header_macros
+    from derivations.expressions import is_identifier
+    if shutil.which("cc") is None:
+        pytest.skip("no C compiler")
+    macros = header_macros("cc")
+    assert {"M_PI", "INT_MAX", "Py_None", "NPY_MAXDIMS"} <= macros and len(macros) > 1000
+    assert sorted(m for m in macros if is_identifier(m)) == []
+
+
+@pytest.mark.parametrize("name", ["stddef", "stdint", "emmintrin", "Python", "limits"])
+def test_hostile_d3_a_robot_named_like_a_c_header_is_refused(name):
+    """The package folder is on its C's include path: a robot named stddef would be included in
+    place of <stddef.h>."""
+    text = f'name = "{name}"\n[[joint]]\ntype = "R"\na = 1\n'
+    with pytest.raises(DescriptionError, match="field 'name'"):
+        parse_description(text, "arm.toml")
