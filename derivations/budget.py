@@ -23,7 +23,8 @@ import sys
 import threading
 import time
 
-__all__ = ["BudgetExceeded", "MemoryCapExceeded", "budget", "memory_cap", "remaining", "set_stage", "stage", "ENFORCED"]
+__all__ = ["BudgetExceeded", "MemoryCapExceeded", "budget", "memory_cap", "remaining", "set_stage", "stage", "ENFORCED",
+           "degraded"]
 
 
 class _Stopped(Exception):
@@ -91,6 +92,18 @@ _left_stage: str | None = None
 
 # The open budgets, outermost first: (deadline on the monotonic clock, stage, seconds).
 _open: list[tuple[float, str, float]] = []
+
+
+# How many results a budget has cut short so far in this process (degraded): a derivation that
+# caught a BudgetExceeded and went on without the part it was computing (an arm left without
+# ik after 10 s) must not be cached, or a later run on an idle machine would serve it for good.
+degradations = 0
+
+
+def degraded(reason: str) -> None:
+    """Record that a result was cut short by a budget (``reason`` for the record)."""
+    global degradations
+    degradations += 1
 
 
 def _enforceable() -> bool:

@@ -16,6 +16,7 @@ nothing is read from the cache.
 """
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import hmac
@@ -28,6 +29,8 @@ from pathlib import Path
 from typing import Callable, TypeVar
 
 import sympy
+
+from . import budget
 
 T = TypeVar("T")
 _PACKAGE = Path(__file__).resolve().parent
@@ -57,20 +60,51 @@ def source_fingerprint() -> str:
 MAGIC = b"kinegen-cache-1\n"
 
 
-def key_path() -> Path:
+def key_path() -> Path | None:
+    """Where the signing key lives; None where there is no home to keep it in (HOME empty or unset
+    and no XDG_CONFIG_HOME: Python would take / for the home, and the key would land in /.config)."""
     env = os.environ.get("KINEGEN_CACHE_KEY")
     if env:
         return Path(env)
-    config = os.environ.get("XDG_CONFIG_HOME") or str(Path.home() / ".config")
+    config = os.environ.get("XDG_CONFIG_HOME")
+    if not config:
+        if not os.environ.get("HOME"):
+            return None
+        config = str(Path.home() / ".config")
     return Path(config) / "kinegen" / "cache-key"
 
 
+def _trusted(path: Path) -> bool:
+    """The key file is the user's own and nobody else's to read or write: a key planted in a shared
+    place (mode 0644, known bytes) would let a planted pickle pass as signed."""
+    try:
+        info = path.stat()
+    except OSError:
+        return False
+    if info.st_uid == os.getuid() and not info.st_mode & 0o077:
+        return True
+    if str(path) not in _REPORTED:
+        _REPORTED.add(str(path))
+        print(f"kinegen: the cache key {path} is not yours alone (owner uid {info.st_uid}, mode "
+              f"{info.st_mode & 0o777:o}; expected your own file, mode 600): the cache is not used",
+              file=sys.stderr)
+    return False
+
+
 def _secret() -> bytes | None:
-    """The signing key, created (32 random bytes, mode 0600) if there is none; None if it cannot be."""
+    """The signing key, created (32 random bytes, mode 0600) if there is none; None if it cannot be,
+    or if the key file is not the user's own with mode 0600 (the cache is then not used)."""
     path = key_path()
+    if path is None or not path.is_absolute():
+        if "key" not in _REPORTED:
+            _REPORTED.add("key")
+            print("kinegen: no home folder to keep the cache key in (HOME is empty or unset, and so is "
+                  "XDG_CONFIG_HOME): the cache is not used; set HOME, XDG_CONFIG_HOME or KINEGEN_CACHE_KEY",
+                  file=sys.stderr)
+        return None
     try:
         key = path.read_bytes()
-        return key if len(key) >= 32 else None
+        return key if len(key) >= 32 and _trusted(path) else None
     except FileNotFoundError:
         pass
     except OSError:
@@ -125,7 +159,11 @@ def cached(kind: str, content: bytes, build: Callable[[], T]) -> T:
             _REPORTED.add(path.name)
             print(f"kinegen: cache entry {path} is not signed by this machine's key; ignored and derived afresh",
                   file=sys.stderr)
+    before = budget.degradations
     value = build()
+    if budget.degradations != before:  # a budget cut part of it short: right for now, not for good
+        return value
+    tmp = None
     try:
         payload = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -133,6 +171,8 @@ def cached(kind: str, content: bytes, build: Callable[[], T]) -> T:
         with os.fdopen(fd, "wb") as handle:
             handle.write(MAGIC + _signature(secret, path.name, payload) + b"\n" + payload)
         os.replace(tmp, path)
-    except OSError:
-        pass
+    except OSError:  # a full disk, a read-only cache: the value is right, only not kept
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
     return value

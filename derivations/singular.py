@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .budget import BudgetExceeded, budget
+from .budget import BudgetExceeded, budget, degraded
 from .cache import cached
 from .chain import PRISMATIC, simplify_entry, simplify_product
 from .velocity import MAX_CLOSED_FORM
@@ -108,6 +108,7 @@ def _determinant(which: str, J: sp.Matrix, q, joint_types) -> JacobianDeterminan
             for determinant in determinants:
                 factors.extend(sp.Mul.make_args(trig_factor(determinant, q)))
     except BudgetExceeded:
+        degraded(f"factoring det {which}")  # a wall-clock verdict: not to be cached
         return JacobianDeterminant(which, None, (), (), factored=False, size=size)
     coefficient = sp.Mul(*[f for f in factors if f.is_number])
     factors = [f for f in factors if not f.is_number]

@@ -91,3 +91,72 @@ def test_without_a_key_nothing_is_read(private_cache, monkeypatch):
     cache.cached("thing", b"content", build)
     cache.cached("thing", b"content", build)
     assert build.calls == 2
+
+
+def test_hostile_d6_a_result_a_budget_cut_short_is_not_cached(private_cache):
+    """An arm left without ik because the machine was busy past the 10 s budget is right for that
+    run only: a later run derives afresh (issue #28, D6)."""
+    from derivations import budget
+
+    def cut_short():
+        budget.degraded("automatic inverse kinematics: stopped after its time budget of 10 s")
+        return "without ik"
+
+    assert cache.cached("model-arm", b"description", cut_short) == "without ik"
+    assert entries(private_cache) == []
+    whole = Counter("with ik")
+    assert cache.cached("model-arm", b"description", whole) == "with ik"
+    assert cache.cached("model-arm", b"description", whole) == "with ik" and whole.calls == 1
+
+
+@pytest.mark.parametrize("mode", [0o644, 0o620, 0o604])
+def test_hostile_d7_a_key_others_can_read_or_write_is_not_trusted(private_cache, capsys, mode):
+    """A key file planted with known bytes and mode 0644 in a shared config folder would make a
+    planted pickle pass as signed: such a key is refused, said once, and nothing is cached or read."""
+    key = private_cache / "config" / "cache-key"
+    key.parent.mkdir(parents=True)
+    key.write_bytes(b"k" * 32)
+    os.chmod(key, mode)
+    build = Counter("value")
+    assert cache.cached("thing", b"content", build) == "value"
+    assert cache.cached("thing", b"content", build) == "value"
+    assert build.calls == 2 and entries(private_cache) == []
+    err = capsys.readouterr().err
+    assert err.count("is not yours alone") == 1 and f"mode {mode:o}" in err and "expected your own file, mode 600" in err
+
+
+def test_hostile_d9_an_empty_home_gets_a_message_not_a_key_at_the_root(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path / "cache"))
+    for variable in ("KINEGEN_CACHE_KEY", "XDG_CONFIG_HOME", "KINEGEN_NO_CACHE"):
+        monkeypatch.delenv(variable, raising=False)
+    monkeypatch.setenv("HOME", "")
+    monkeypatch.setattr(cache, "_REPORTED", set())
+    assert cache.key_path() is None
+    assert cache.cached("thing", b"content", Counter(7)) == 7
+    assert not (tmp_path / "cache").exists()
+    assert "no home folder to keep the cache key in" in capsys.readouterr().err
+
+
+def test_hostile_d9_a_failed_cache_write_leaves_nothing(private_cache, monkeypatch):
+    """A write that fails half-way (a full disk) leaves no temporary file in the cache folder."""
+    assert cache.cached("other", b"content", Counter("kept")) == "kept"  # the key and one entry exist
+    before = sorted((private_cache / "cache").iterdir())
+    real_open = os.fdopen
+
+    class Full:
+        def __init__(self, fd, mode):
+            self.handle = real_open(fd, mode)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.handle.close()
+
+        def write(self, data):
+            self.handle.write(data[:10])
+            raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(cache.os, "fdopen", Full)
+    assert cache.cached("thing", b"content", Counter("value")) == "value"
+    assert sorted((private_cache / "cache").iterdir()) == before

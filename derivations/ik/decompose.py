@@ -616,7 +616,7 @@ def attach(model) -> None:
     or ``model.ik_unsupported`` (what the arm lacks, or the budget that ran out); the rest
     of the package is generated either way.
     """
-    from ..budget import BudgetExceeded, budget
+    from ..budget import BudgetExceeded, budget, degraded
     try:
         with budget(IK_BUDGET, f"{model.name}: automatic inverse kinematics"):
             solution = solve(model)
@@ -625,6 +625,7 @@ def attach(model) -> None:
         return
     except BudgetExceeded as error:
         model.ik_unsupported = f"{error} (the decomposition found no closed form within it)"
+        degraded(model.ik_unsupported)  # a wall-clock verdict: not to be cached
         return
     model.ik = solution.branches
     model.ik_free = solution.free
