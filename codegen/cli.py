@@ -102,7 +102,14 @@ class Progress:
 
     def __call__(self, message: str):
         if not self.quiet:
-            print(f"[{time.perf_counter() - self.start:6.1f} s] {message}", file=sys.stderr, flush=True)
+            print(f"[{time.perf_counter() - self.start:6.1f} s] {gen.terminal_text(message, MESSAGE_LIMIT)}",
+                  file=sys.stderr, flush=True)
+
+
+# The longest message line kinegen prints, and the longest path in one: names and paths in them come
+# from the user's files.
+MESSAGE_LIMIT = 1000
+ECHO_PATH = 300
 
 
 def _is_file(target: str) -> bool:
@@ -184,7 +191,7 @@ def cmd_show(args, say) -> int:
             print("joint  type  name  axis  origin xyz  (after)")
             for i, j in enumerate(model.chain.joints, 1):
                 after = "" if j.after is None else f"  after xyz {list(j.after[:3, 3])}"
-                print(f"{i}  {j.type}  {j.name}  {list(j.axis)}  {list(j.origin[:3, 3])}{after}")
+                print(f"{i}  {j.type}  {gen.terminal_text(j.name, 60)}  {list(j.axis)}  {list(j.origin[:3, 3])}{after}")
             return 0
         print("joint  type  a  alpha  d  theta  offset")
         for i, j in enumerate(model.chain.joints, 1):
@@ -229,29 +236,31 @@ def cmd_generate(args, say) -> int:
     if args.out is not None or any(_is_file(t) for t in args.robots):
         if len(args.robots) != 1:
             raise InputError("generate with --out or a description file takes exactly one robot")
-        if args.out and Path(args.out).exists() and not args.force:  # refuse before the slow derivation
-            raise gen.OutputExistsError(f"{args.out}: output folder exists (use --force to replace it)")
-        if args.out and Path(args.out).exists() and not Path(args.out).is_dir():
-            raise gen.OutputExistsError(f"{args.out}: exists and is not a folder (--force replaces only a package folder)")
-        if args.out and not Path(args.out).name.isidentifier():
-            raise InputError(f"{args.out}: the package folder name must be a Python identifier to be importable")
-        what = f"{args.robots[0]}: derivation and rendering"
-        with budget(args.time_limit, what), memory_cap(args.memory_limit, what):
-            with stage("deriving the model"):
-                model, path = _load(args.robots[0], say, args)
-            out = Path(args.out) if args.out else _default_out(model)
-            if not out.name.isidentifier():  # before the slow work, not after it
-                raise InputError(f"{out}: the package folder name must be a Python identifier to be importable")
-            with stage("rendering the package"):  # each rendering step names itself inside this
-                files = gen.render_robot(model, path, backends=tuple(dict.fromkeys(("numpy", *backends))),
-                                         say=say)
-        # As `make build` does: one strict compile of the layout the extension uses, the others
-        # through the compiler's front end (a Panda: 11 s, where compiling all three took 97 s).
-        build = None if args.no_build else (lambda folder: c_build.build_package(folder, model.name, args.fast))
-        written = gen.write_package(model, path, out, backends=backends, force=args.force, build=build, say=say,
-                                    files=files)
+        out = Path(args.out) if args.out else None
+        # --out is taken before the slow work: created empty by this run, or refused at once
+        claimed = gen.claim_output(out, args.force) if out is not None else False
+        try:
+            what = f"{args.robots[0]}: derivation and rendering"
+            with budget(args.time_limit, what), memory_cap(args.memory_limit, what):
+                with stage("deriving the model"):
+                    model, path = _load(args.robots[0], say, args)
+                if out is None:  # ./<robot name>, known once the description is read
+                    out = _default_out(model)
+                    claimed = gen.claim_output(out, args.force)
+                with stage("rendering the package"):  # each rendering step names itself inside this
+                    files = gen.render_robot(model, path, backends=tuple(dict.fromkeys(("numpy", *backends))),
+                                             say=say)
+            # As `make build` does: one strict compile of the layout the extension uses, the others
+            # through the compiler's front end (a Panda: 11 s, where compiling all three took 97 s).
+            build = None if args.no_build else (lambda folder: c_build.build_package(folder, model.name, args.fast))
+            written = gen.write_package(model, path, out, backends=backends, force=args.force, build=build, say=say,
+                                        files=files, claimed=claimed)
+        except BaseException:
+            if claimed:
+                gen.release_output(out)
+            raise
         say(f"wrote {written}")
-        print(written)
+        print(gen.terminal_text(written, len(str(written))))
         return 0
     names = _registered(args.robots)
     say(f"deriving and rendering {len(names)} robot(s)")
@@ -654,7 +663,16 @@ def _run(args, say) -> int:
         return args.run(args, say)
     except (derivations.DescriptionError, InputError, gen.OutputExistsError, gen.SettingError,
             derivations.UnknownRobotError) as exc:
-        print(f"kinegen: error: {exc}", file=sys.stderr)
+        print(f"kinegen: error: {gen.terminal_text(exc, MESSAGE_LIMIT)}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:  # `kinegen list | head -1`: the reader is gone; nothing more to say
+        with contextlib.suppress(OSError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
+    except OSError as exc:  # the machine, not the input or our code: a read-only or full disk, a bad path
+        where = exc.filename if exc.filename is not None else "an output file"
+        print(f"kinegen: error: {gen.terminal_text(where, ECHO_PATH)}: {exc.strerror or exc}; nothing was "
+              "written", file=sys.stderr)
         return 2
     except BudgetExceeded as exc:
         print(f"kinegen: error: {exc}; nothing was written (--time-limit SECONDS allows more)", file=sys.stderr)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import contextlib
+import errno
 import hashlib
 import os
 import shutil
@@ -52,6 +53,22 @@ def safe_text(text: str) -> str:
     for bad, good in (("\\", "/"), ('"""', "'''"), ("*/", "* /"), ("/*", "/ *")):
         text = text.replace(bad, good)
     return text
+
+
+# How much of a text a message echoes (a name, a path, a line of a file): a 9 MiB joint name
+# must not become a 9 MB error line.
+ECHO_LIMIT = 300
+# Characters that would move or hide text on a terminal: the bidirectional overrides and isolates.
+_BIDI = frozenset("\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069\u200e\u200f")
+
+
+def terminal_text(text: str, limit: int = ECHO_LIMIT) -> str:
+    """``text`` as a terminal may show it: control characters (a newline that would forge a second
+    line) and bidirectional overrides written as escapes, and at most ``limit`` characters kept."""
+    text = str(text)
+    shown = "".join(ch.encode("unicode_escape").decode("ascii") if (not ch.isprintable() and ch != " ")
+                    or ch in _BIDI else ch for ch in text[:limit])
+    return shown + (f"... ({len(text) - limit} more characters)" if len(text) > limit else "")
 
 
 def describe_origin(model: RobotModel, description: Path | None) -> str:
@@ -321,17 +338,68 @@ class OutputExistsError(ValueError):
     """The output folder of a standalone package exists and --force was not given."""
 
 
+def check_package_folder(out: Path) -> None:
+    """``out``'s name must be importable as a package of its own: an identifier that is no Python
+    keyword and no standard-library module (a package named json would shadow the real one)."""
+    import keyword
+    name = Path(out).name
+    if not name.isidentifier() or keyword.iskeyword(name):
+        raise OutputExistsError(f"{out}: the package folder name must be a Python identifier (not a keyword) "
+                                "to be importable")
+    if name in sys.stdlib_module_names:
+        raise OutputExistsError(f"{out}: {name!r} is a module of Python's standard library; a package of that "
+                                "name would shadow it (choose another --out)")
+
+
+def claim_output(out: Path, force: bool = False) -> bool:
+    """Take the package folder ``out`` for this run before any work is done.
+
+    Without ``force`` the folder is created, empty, by this run (an atomic ``mkdir``: anything
+    already there, a dangling symbolic link included, is refused); returns True.  With
+    ``force`` an existing package folder is accepted, to be replaced when the new one is
+    complete (False); where there is none, it is created as without ``force`` (True).
+    """
+    out = Path(out)
+    check_package_folder(out)
+    if out.is_symlink() and not out.exists():
+        raise OutputExistsError(f"{out}: a symbolic link to nothing; remove it or choose another --out")
+    existing = next(p for p in out.absolute().parents if p.exists())
+    if not existing.is_dir():
+        raise OutputExistsError(f"{existing}: not a folder, so {out} cannot be made inside it")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir()
+        return True
+    except FileExistsError:
+        if not force:
+            raise OutputExistsError(f"{out}: output folder exists (use --force to replace it)") from None
+        if not out.is_dir():
+            raise OutputExistsError(f"{out}: exists and is not a folder (--force replaces only a package folder)") from None
+        return False
+
+
+def release_output(out: Path) -> None:
+    """Give back a folder :func:`claim_output` created, if it is still empty (a run that failed)."""
+    with contextlib.suppress(OSError):
+        Path(out).rmdir()
+
+
 def write_package(model: RobotModel, description: Path | None, out: Path, backends=("numpy", "c"),
-                  force: bool = False, build=None, say=lambda message: None, files=None) -> Path:
+                  force: bool = False, build=None, say=lambda message: None, files=None,
+                  claimed: bool = False) -> Path:
     """Write a self-contained package for ``model`` into the folder ``out``.
 
     The package holds the numpy kernels, the C header and source with their
     cffi build script, and the input checks; ``build(folder)`` (when given)
     compiles the C extension.  Everything is written and built in a scratch
     folder beside ``out`` and moved into place at the end, so a failure leaves
-    no partial package behind.
+    no partial package behind.  ``claimed``: ``out`` is the empty folder this run created
+    (:func:`claim_output`); the package replaces it only while it is still empty, and files that
+    appeared in it meanwhile are left as they are.
     """
     out = Path(out)
+    if claimed:
+        return _replace_claimed(model, description, out, backends, build, say, files)
     if out.exists() and not force:
         raise OutputExistsError(f"{out}: output folder exists (use --force to replace it)")
     if out.exists() and not out.is_dir():
@@ -350,6 +418,7 @@ def write_package(model: RobotModel, description: Path | None, out: Path, backen
         if build is not None and "c" in backends:
             say(f"{model.name}: compiling the C kernels and their cffi extension")
             build(scratch)
+        os.chmod(scratch, 0o777 & ~_umask())  # mkdtemp makes it 0700; a package folder follows the umask
         aside = None
         if out.exists():  # (--force) moved aside, and removed only once the new package is in place
             aside = Path(tempfile.mkdtemp(prefix=f".{out.name}-old-", dir=out.parent))
@@ -361,6 +430,37 @@ def write_package(model: RobotModel, description: Path | None, out: Path, backen
         shutil.rmtree(scratch, ignore_errors=True)
         raise
     return out
+
+
+def _replace_claimed(model, description, out: Path, backends, build, say, files) -> Path:
+    backends = tuple(dict.fromkeys(("numpy", *backends)))
+    if files is None:
+        files = render_robot(model, description, backends=backends, say=say)
+    scratch = Path(tempfile.mkdtemp(prefix=f".{out.name}-", dir=out.parent))
+    try:
+        for filename, text in files.items():
+            (scratch / filename).write_text(text, encoding="utf-8")
+        if build is not None and "c" in backends:
+            say(f"{model.name}: compiling the C kernels and their cffi extension")
+            build(scratch)
+        os.chmod(scratch, 0o777 & ~_umask())  # mkdtemp makes it 0700; a package folder follows the umask
+        try:
+            os.replace(scratch, out)  # onto the empty folder this run made: atomic, and refused if not empty
+        except OSError as exc:
+            if exc.errno in (errno.ENOTEMPTY, errno.EEXIST):
+                raise OutputExistsError(f"{out}: files appeared in the output folder while this run worked; "
+                                        "they are left as they are and nothing was written") from None
+            raise
+    except BaseException:
+        shutil.rmtree(scratch, ignore_errors=True)
+        raise
+    return out
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def atomic_write(path: Path, text: str) -> None:

@@ -352,7 +352,9 @@ class _Width:
 # --------------------------------------------------------------------------- layout
 
 def escape_text(text: str) -> str:
-    """Plain text (a note, a docstring) made safe for pdflatex."""
+    """Plain text (a note, a docstring) made safe for pdflatex; a control character (a newline in a
+    title, which would end the ``%`` comment it is printed in) becomes a space."""
+    text = "".join(" " if ord(ch) < 32 or 127 <= ord(ch) < 160 else ch for ch in str(text))
     replacements = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
                     "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}",
                     # OT1 text fonts print < > | as inverted marks and a dash: set them as math

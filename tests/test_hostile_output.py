@@ -1,0 +1,177 @@
+"""Hostile use of the output and the terminal (issue #28, round two): the package folder is taken
+before any work and never lost, echoed text cannot forge lines or flood the terminal, and the
+machine's own failures (a read-only folder, a closed pipe) end with a message and exit status 2,
+not an internal error.  Each test is named after its class in the issue (D8, D10, D12, D13)."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from codegen import generate
+from codegen.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+ARM = 'name = "{name}"\ntitle = "{title}"\n[[joint]]\ntype = "R"\na = 0.5\n[[joint]]\ntype = "R"\na = 0.4\n'
+
+
+def arm(tmp_path, name="arm", title="An arm") -> Path:
+    path = tmp_path / "arm.toml"
+    path.write_text(ARM.format(name=name, title=title))
+    return path
+
+
+def test_hostile_d8_out_is_claimed_before_any_work(tmp_path, capsys):
+    """An --out that exists is refused at once (before the derivation), and a run that stops leaves
+    no folder it made."""
+    (tmp_path / "pkg").mkdir()
+    (tmp_path / "pkg" / "mine.txt").write_text("a user's file")
+    start = time.perf_counter()
+    assert main(["--quiet", "generate", str(arm(tmp_path)), "--out", str(tmp_path / "pkg"), "--no-build"]) == 2
+    assert time.perf_counter() - start < 1.0
+    assert "output folder exists (use --force to replace it)" in capsys.readouterr().err
+    assert (tmp_path / "pkg" / "mine.txt").read_text() == "a user's file"
+    broken = tmp_path / "broken.toml"
+    broken.write_text('name = "arm"\n[[joint]]\ntype = "X"\n')
+    assert main(["--quiet", "generate", str(broken), "--out", str(tmp_path / "fresh"), "--no-build"]) == 2
+    assert not (tmp_path / "fresh").exists()
+
+
+def test_hostile_d8_a_folder_that_appears_at_out_during_the_run_is_never_deleted(tmp_path, monkeypatch, capsys):
+    """Files written into --out while the run works are left as they are; the run refuses to put its
+    package there (exit 2), and leaves no scratch folder."""
+    real_render = generate.render_robot
+
+    def render_then_intrude(*args, **kwargs):
+        files = real_render(*args, **kwargs)
+        (tmp_path / "pkg" / "theirs.txt").write_text("written by someone else meanwhile")
+        return files
+
+    monkeypatch.setattr(generate, "render_robot", render_then_intrude)
+    assert main(["--quiet", "generate", str(arm(tmp_path)), "--out", str(tmp_path / "pkg"), "--no-build"]) == 2
+    err = capsys.readouterr().err
+    assert "files appeared in the output folder while this run worked" in err and err.count("\n") == 1
+    assert sorted(p.name for p in (tmp_path / "pkg").iterdir()) == ["theirs.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["arm.toml", "pkg"]
+
+
+def test_hostile_d8_a_dangling_link_at_out_is_refused_before_work(tmp_path, capsys):
+    (tmp_path / "pkg").symlink_to(tmp_path / "nowhere")
+    assert main(["--quiet", "generate", str(arm(tmp_path)), "--out", str(tmp_path / "pkg"), "--no-build"]) == 2
+    assert "a symbolic link to nothing" in capsys.readouterr().err
+    assert not (tmp_path / "nowhere").exists()
+
+
+def test_hostile_d8_a_read_only_output_folder_is_exit_2_naming_the_path(tmp_path, capsys):
+    if os.geteuid() == 0:
+        pytest.skip("root writes into a read-only folder")
+    parent = tmp_path / "ro"
+    parent.mkdir()
+    parent.chmod(0o555)
+    try:
+        assert main(["--quiet", "generate", str(arm(tmp_path)), "--out", str(parent / "pkg"), "--no-build"]) == 2
+    finally:
+        parent.chmod(0o755)
+    err = capsys.readouterr().err
+    assert f"{parent / 'pkg'}: Permission denied" in err and "internal error" not in err
+
+
+def test_hostile_d8_the_package_folder_follows_the_umask(tmp_path):
+    previous = os.umask(0o022)
+    try:
+        assert main(["--quiet", "generate", str(arm(tmp_path)), "--out", str(tmp_path / "pkg"), "--no-build"]) == 0
+    finally:
+        os.umask(previous)
+    assert (tmp_path / "pkg").stat().st_mode & 0o777 == 0o755
+
+
+@pytest.mark.parametrize("out", ["class", "json", "typing", "1arm", "my-arm"])
+def test_hostile_d13_out_names_that_cannot_be_imported_as_their_own_package(tmp_path, capsys, out):
+    assert main(["--quiet", "generate", str(arm(tmp_path)), "--out", str(tmp_path / out), "--no-build"]) == 2
+    err = capsys.readouterr().err
+    assert f"kinegen: error: {tmp_path / out}" in err
+    assert not (tmp_path / out).exists()
+
+
+def test_hostile_d10_a_newline_in_a_title_stays_inside_the_tex_comment(tmp_path):
+    """The title is printed in a ``%`` comment of the .tex: a newline in it would make the rest live
+    document text (``\\input`` of anything)."""
+    path = arm(tmp_path, title="An arm\\n\\\\input{/etc/passwd}")
+    assert main(["--quiet", "generate", str(path), "--out", str(tmp_path / "pkg"), "--no-build"]) == 0
+    tex = (tmp_path / "pkg" / "arm.tex").read_text()
+    for line in tex.splitlines():
+        assert "passwd" not in line or line.startswith("%") or line.startswith("\\kinegenrobot"), line
+    assert "\\input{" not in tex
+
+
+def test_hostile_d12_a_huge_name_is_echoed_in_a_few_hundred_characters(tmp_path, capsys):
+    """A 1 MiB joint name in an error: one line of at most 1,000 characters."""
+    text = 'name = "arm"\n[[joint]]\ntype = "R"\nname = "' + "j" * 2**20 + '"\na = "nowhere"\n'
+    path = tmp_path / "arm.toml"
+    path.write_text(text)
+    assert main(["--quiet", "generate", str(path), "--out", str(tmp_path / "pkg"), "--no-build"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and len(err) < 1100 and "more characters)" in err
+
+
+def test_hostile_d12_a_newline_in_a_file_name_cannot_forge_a_line(tmp_path):
+    """``kinegen: wrote ...`` and the printed path stay one line each whatever the folder is called."""
+    folder = tmp_path / "a\nkinegen: wrote elsewhere"
+    folder.mkdir()
+    path = arm(folder)
+    result = subprocess.run([sys.executable, "-m", "codegen", "generate", str(path), "--out", str(tmp_path / "pkg"),
+                             "--no-build"], cwd=ROOT, capture_output=True, text=True,
+                            env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert result.returncode == 0, result.stderr
+    assert not any(line.startswith("kinegen: wrote elsewhere") for line in result.stderr.splitlines())
+    assert result.stdout.count("\n") == 1
+
+
+def test_hostile_d12_control_and_bidirectional_characters_are_escaped_on_the_terminal():
+    shown = generate.terminal_text("joint\u202e1\x1b[2J\nnext")
+    assert "\u202e" not in shown and "\x1b" not in shown and "\n" not in shown
+    assert "\\u202e" in shown and "\\x1b" in shown and "\\n" in shown
+
+
+def test_a_closed_pipe_ends_quietly():
+    """`kinegen list | head -1`: no 'internal error', no traceback."""
+    process = subprocess.Popen([sys.executable, "-m", "codegen", "list"], cwd=ROOT, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    process.stdout.readline()
+    process.stdout.close()
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == 0 and err == b"", err
+
+
+def test_two_runs_racing_for_one_out_leave_one_package(tmp_path):
+    """Two generates of the same --out at once: one takes the folder, the other is refused (exit 2)."""
+    path = arm(tmp_path)
+    codes = []
+
+    def run():
+        result = subprocess.run([sys.executable, "-m", "codegen", "--quiet", "generate", str(path), "--out",
+                                 str(tmp_path / "pkg"), "--no-build"], cwd=ROOT, capture_output=True,
+                                env=dict(os.environ, PYTHONPATH=str(ROOT)))
+        codes.append(result.returncode)
+
+    threads = [threading.Thread(target=run) for _ in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert sorted(codes) == [0, 2]
+    assert (tmp_path / "pkg" / "__init__.py").is_file()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["arm.toml", "pkg"]
+
+
+def test_hostile_d8_an_out_inside_a_file_is_exit_2_naming_the_file(tmp_path, capsys):
+    (tmp_path / "afile").write_text("")
+    assert main(["--quiet", "generate", str(arm(tmp_path)), "--out", str(tmp_path / "afile" / "pkg"),
+                 "--no-build"]) == 2
+    err = capsys.readouterr().err
+    assert f"{tmp_path / 'afile'}: not a folder" in err and "internal error" not in err
