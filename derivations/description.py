@@ -97,6 +97,11 @@ def parse_description(text: str, origin: str = "<string>") -> Description:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise DescriptionError(f"{origin}: malformed TOML: {exc}") from None
+    except ValueError as exc:  # an integer of more than 4,300 digits (Python's own limit)
+        raise DescriptionError(f"{origin}: a number too long to read ({' '.join(str(exc).split()[:12])})") from None
+    except RecursionError:  # arrays or inline tables nested thousands deep
+        raise DescriptionError(f"{origin}: arrays or tables nested too deep to read (a description nests a few "
+                               "levels)") from None
     return _Parser(origin).parse(data)
 
 
@@ -150,6 +155,7 @@ class _Parser:
         bad = [t for t in task if t not in ("x", "y", "z", "phi", "pose")]
         if bad:
             self.fail("field 'task'", f"unknown task coordinate {bad[0]!r} (expected x, y, z, phi or pose)")
+        self.check_task_repeats(task)
         notes = data.get("notes", {})
         if not isinstance(notes, dict) or not all(isinstance(v, str) for v in notes.values()):
             self.fail("field 'notes'", "expected a table of strings")
@@ -186,6 +192,7 @@ class _Parser:
         task = data.get("task", ["pose"])
         if not isinstance(task, list) or not task or any(t not in ("x", "y", "z", "phi", "pose") for t in task):
             self.fail("field 'task'", "expected a non-empty list of names among x, y, z, phi, pose")
+        self.check_task_repeats(task)
         notes = data.get("notes", {})
         if not isinstance(notes, dict) or not all(isinstance(v, str) for v in notes.values()):
             self.fail("field 'notes'", "expected a table of strings")
@@ -194,6 +201,13 @@ class _Parser:
             convention="urdf", task=task, params=params, joints=description.joints,
             tool=self.parse_frame(data.get("tool"), names, "tool"), notes={**description.notes, **notes},
             q=description.q, base=self.parse_frame(data.get("base"), names, "base"))
+
+    def check_task_repeats(self, task: list[str]) -> None:
+        """Each task coordinate once (``pose`` holds x, y and z)."""
+        names = [n for t in task for n in (("x", "y", "z", "pose") if t == "pose" else (t,))]
+        repeated = sorted({n for n in names if names.count(n) > 1})
+        if repeated:
+            self.fail("field 'task'", f"{repeated[0]!r} is asked for twice (pose already holds x, y and z)")
 
     def parse_params(self, raw) -> dict[sp.Symbol, float]:
         if not isinstance(raw, dict):

@@ -167,7 +167,33 @@ def parse_expression(text: str | int | float, names: Mapping[str, sp.Symbol]) ->
     if len(nodes) > MAX_NODES or calls > MAX_CALLS or _depth(tree.body) > MAX_DEPTH:
         raise ExpressionError(f"in {text[:60]!r}: more than {MAX_NODES} terms, {MAX_CALLS} function calls "
                               f"or {MAX_DEPTH} levels of nesting (an expression a robot's dimension needs is shorter)")
-    return _convert(tree.body, names, text)
+    expr = _convert(tree.body, names, text)
+    terms = _expanded_terms(expr)
+    if terms > MAX_EXPANDED_TERMS:
+        raise ExpressionError(f"in {text[:60]!r}: {terms if terms < 10**9 else 'more than 10^9'} terms once "
+                              f"expanded, more than {MAX_EXPANDED_TERMS} (the derivation expands products of the "
+                              "fields: a robot's dimension needs a short expression)")
+    return expr
+
+
+def _expanded_terms(expr: sp.Expr, cap: int = 10**9) -> int:
+    """An upper bound on the terms of ``expr`` expanded (a sum of six lengths to the 64th power:
+    C(69, 5) = 11 million), computed without expanding: sums add, products multiply, an integer
+    power n of a sum of t terms has at most C(t + n - 1, n); a function's argument is bounded
+    on its own.  Capped at ``cap``."""
+    if expr.is_Atom:
+        return 1
+    if isinstance(expr, sp.Function):  # one term outside; its argument too long is too long all the same
+        inner = max((_expanded_terms(a, cap) for a in expr.args), default=1)
+        return inner if inner > MAX_EXPANDED_TERMS else 1
+    parts = [_expanded_terms(a, cap) for a in expr.args]
+    if expr.is_Add:
+        return min(cap, sum(parts))
+    if expr.is_Mul:
+        return min(cap, math.prod(parts))
+    if expr.is_Pow and expr.exp.is_Integer and expr.exp > 0:
+        return min(cap, math.comb(parts[0] + int(expr.exp) - 1, int(expr.exp)))
+    return min(cap, max(parts))
 
 
 # The size of what a field may hold, checked before anything is evaluated (issue #17: 80 nested
@@ -177,6 +203,10 @@ MAX_NODES = 200
 MAX_CALLS = 20
 MAX_DEPTH = 24
 MAX_EXPONENT = 64
+# Terms of a field once expanded (_expanded_terms): the derivation multiplies and expands the
+# fields of a chain's links, and a field of more terms than this makes that product run to its
+# time budget; the zoo's longest field has 3.
+MAX_EXPANDED_TERMS = 100
 
 
 def _depth(node: ast.AST) -> int:

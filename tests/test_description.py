@@ -205,3 +205,31 @@ def test_hostile_d3_a_robot_named_like_a_c_header_is_refused(name):
     text = f'name = "{name}"\n[[joint]]\ntype = "R"\na = 1\n'
     with pytest.raises(DescriptionError, match="field 'name'"):
         parse_description(text, "arm.toml")
+
+
+@pytest.mark.parametrize("text, message", [
+    ('name = "arm"\na = ' + "1" * 5000 + "\n", "a number too long to read"),
+    ('name = "arm"\nx = ' + "[" * 100000 + "]" * 100000 + "\n", "nested too deep to read"),
+    ('name = "arm"\ntask = ["x", "x"]\n[[joint]]\ntype = "R"\na = 1\n', "field 'task': 'x' is asked for twice"),
+    ('name = "arm"\ntask = ["pose", "z"]\n[[joint]]\ntype = "R"\na = 1\n', "field 'task': 'z' is asked for twice"),
+])
+def test_hostile_d2_malformed_toml_is_a_description_error(text, message):
+    """Python's own limits (4,300-digit integers, recursion) and a repeated task coordinate were
+    internal errors (exit 1); they are the input's fault (issue #28, D2)."""
+    with pytest.raises(DescriptionError, match=message):
+        parse_description(text, "arm.toml")
+
+
+def test_hostile_d4_a_field_that_expands_past_the_bound_is_refused_before_any_work():
+    """A sum of six lengths to the 64th power passes every size check of its text and then runs
+    the derivation to its time budget: its expanded size (C(69, 5) terms) is refused at parse time."""
+    import math
+    import time
+    params = "".join(f"l{i} = 0.1\n" for i in range(1, 7))
+    text = f'name = "arm"\n[params]\n{params}[[joint]]\ntype = "R"\na = "(l1+l2+l3+l4+l5+l6)**64"\n'
+    start = time.perf_counter()
+    with pytest.raises(DescriptionError, match=f"{math.comb(69, 5)} terms once expanded, more than 100"):
+        parse_description(text, "arm.toml")
+    assert time.perf_counter() - start < 1.0
+    fine = f'name = "arm"\n[params]\n{params}[[joint]]\ntype = "R"\na = "(l1 + l2)**2 * sin((l3 + l4)**3)"\n'
+    assert parse_description(fine, "arm.toml").joints[0].a != 0
