@@ -1,10 +1,15 @@
 """URDF files -> serial-chain descriptions (the same :class:`Description` a TOML file gives).
 
-The file is parsed by ``urdf_parser_py`` (ROS's URDF parser; pure Python over lxml),
-after two checks of our own: at most :data:`MAX_BYTES`, and no document type
-declaration (no entities: nothing in the file is expanded or fetched).  Meshes are
-never opened.  From the tree we take the serial chain from ``base`` (default: the
-root link) to ``tip`` (default: the single leaf below it):
+The file is read by our own reader of URDF's kinematic subset, over the standard library's
+ElementTree (expat), after two checks: at most :data:`MAX_BYTES`, and no document type
+declaration (no entities: nothing in the file is expanded or fetched).  It reads ``<robot name>``,
+``<link name>`` and ``<joint name type>`` with its ``<parent>``, ``<child>``, ``<origin xyz rpy>``,
+``<axis xyz>``, ``<limit lower upper>`` and ``<mimic joint multiplier offset>``, and checks those
+strictly; every other element (visual, collision, inertial, material, transmission, gazebo, ...)
+is skipped unread.  Real files carry quirks there that a full URDF parser refuses (iCub's
+``<texture>`` without a filename, PR2's ``<transmission>`` without a ``<type>``), and kinematics
+needs none of it.  Meshes are never opened.  From the tree we take the serial chain from ``base``
+(default: the root link) to ``tip`` (default: the single leaf below it):
 
 * revolute and continuous joints become R joints, prismatic ones P joints, each a
   general joint: the fixed transform of its ``<origin>`` then the motion about or
@@ -15,20 +20,37 @@ root link) to ``tip`` (default: the single leaf below it):
   (``multiplier * q_leader + offset``), whose Jacobian column then includes it;
 * floating and planar joints on the chain are refused, naming them.
 
-Numbers become exact: each decimal the rational of its digits (``0.089159`` is
-89159/10^6), so that zeros stay zeros.  With ``snap`` (the default), an rpy angle
-within :data:`SNAP_TOLERANCE` of a multiple of pi/2 becomes that multiple exactly and
-an axis within it of a coordinate axis becomes that axis; what was snapped is listed
-in the description's ``notes["snapped"]``.  Every error is a
-:class:`derivations.description.DescriptionError` naming the file and the joint.
+Numbers are read strictly as XML Schema decimals or doubles (``1.5``, ``-.25``, ``1e-3``; no
+``nan``, ``inf``, ``1_000`` or non-ASCII digits), at most :data:`LARGEST` in size, and kept as
+what derives well:
+
+* lengths (origin xyz, limits, a mimic multiplier and a prismatic mimic offset) become the exact
+  rational of their digits (``0.089159`` is 89159/10^6), so that zeros stay zeros and sums
+  cancel, when that rational is small (:func:`_length`); otherwise the double they denote;
+* angles (origin rpy, a revolute mimic offset) become the double they denote, a SymPy ``Float``,
+  whose cosine and sine are numbers at once; an exact rational such as 3927/2500 (``1.5708``) would
+  stay ``cos(3927/2500)`` through every product and make the derivation explode;
+* with ``snap`` (the default), an angle that is, or is written as, a multiple of pi/4 or of pi/6
+  becomes that multiple exactly, and so does an axis component that is one of 0, 1/2,
+  sqrt(2)/2, sqrt(3)/2, 1 (with either sign); see :func:`_written_as` for "written as" (within
+  :data:`SNAP_TOLERANCE`, or correctly rounded at the precision written: ``1.5708``, ``0.7071``).
+  What was snapped is listed in the description's ``notes["snapped"]``;
+* the fixed transforms folded together stay small however many there are (:func:`_compose`).
+
+Every error is a :class:`derivations.description.DescriptionError` naming the file and the joint
+(or link) and, for a number, its field.
 """
 from __future__ import annotations
 
-import contextlib
-import io
+import functools
 import math
 import re
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from decimal import Decimal
+from fractions import Fraction
 from pathlib import Path
+from typing import Sequence
 
 import sympy as sp
 
@@ -36,13 +58,35 @@ from .chain import PRISMATIC, REVOLUTE, Joint, axis_motion, rpy_matrix
 from .description import Description, DescriptionError
 from .expressions import is_package_name
 
-__all__ = ["read_urdf", "MAX_BYTES", "SNAP_TOLERANCE"]
+__all__ = ["read_urdf", "parse_urdf", "MAX_BYTES", "SNAP_TOLERANCE"]
 
 # A URDF of a whole humanoid with its inertias is well under 1 MB; anything past this is refused unread.
 MAX_BYTES = 10 * 2**20
 # 1e-8, not tighter: ROS's own UR descriptions write pi as 3.14159265, so their pi/2 is 1.8e-9 off.
 SNAP_TOLERANCE = 1e-8
+# A number written to fewer significant digits than this is never taken for a rounded special
+# value: 1.6 or 0.52 may mean just that, while 1.57 and 0.524 are pi/2 and pi/6 written short.
+SNAP_DIGITS = 3
+# Angles snap within this many turns either way (100 rad): no arm writes larger ones, and far
+# enough out (1e8 rad) the spacing of doubles is itself SNAP_TOLERANCE.
+SNAP_TURNS = 16
+# No length in metres or angle in radians comes near; a file that writes one is hostile.
+LARGEST = 1e300
+# A rational length keeps its numerator and denominator at most this (a double's 53 bits), so
+# that exact arithmetic on it stays as cheap as the sums it keeps exact.
+RATIONAL_TERMS = 2**53
+# A 4x4 transform as rows of SymPy numbers (see _compose).
+Rows = Sequence[Sequence[sp.Expr]]
+IDENTITY: Rows = tuple(map(tuple, sp.eye(4).tolist()))
 MOVING = {"revolute": REVOLUTE, "continuous": REVOLUTE, "prismatic": PRISMATIC}
+JOINT_TYPES = (*MOVING, "fixed", "floating", "planar")
+# XML Schema's decimal and double lexical forms without its INF and NaN (re.ASCII: no other digits).
+NUMBER = re.compile(r"[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?", re.ASCII)
+# XML's whitespace: what separates the numbers of a list such as xyz="0 0 0.1".
+SPACES = re.compile(r"[ \t\r\n]+")
+# The values an axis component snaps to (0, +-1, +-1/2, +-sqrt(2)/2, +-sqrt(3)/2), each with its double.
+AXIS_VALUES = [(v, float(v)) for v in (sp.S.Zero, *(s * u for u in (sp.S.One, sp.S.Half, sp.sqrt(2) / 2,
+                                                                      sp.sqrt(3) / 2) for s in (1, -1)))]
 
 
 def read_urdf(path: str | Path, base: str | None = None, tip: str | None = None, snap: bool = True) -> Description:
@@ -64,35 +108,165 @@ def read_urdf(path: str | Path, base: str | None = None, tip: str | None = None,
 
 def parse_urdf(text: str, origin: str = "<string>", base: str | None = None, tip: str | None = None,
                snap: bool = True, stem: str = "robot") -> Description:
+    """The serial chain ``base`` -> ``tip`` of the URDF ``text`` (``origin`` names it in messages;
+    ``stem`` names the robot when the file's own name cannot name a package)."""
     if re.search(r"<!(DOCTYPE|ENTITY)", text):
         raise DescriptionError(f"{origin}: a document type or entity declaration; a URDF needs neither "
                                "(refused: entities could expand without bound)")
-    from urdf_parser_py.urdf import URDF  # imported here: only URDF input needs it
-
     try:
-        with contextlib.redirect_stderr(io.StringIO()):  # its warnings on unknown tags
-            robot = URDF.from_xml_string(text.encode("utf-8"))
-    except Exception as exc:  # lxml's XMLSyntaxError, the parser's ParseError, ...
-        message = " ".join(str(exc).split()) or type(exc).__name__
+        root = ET.fromstring(text)  # a str: expat reads it as UTF-8 whatever its declaration says
+    except ET.ParseError as exc:
+        message = " ".join(str(exc).split())
         raise DescriptionError(f"{origin}: not a valid URDF: {message}") from None
-    return _Chain(origin, robot, snap).description(base, tip, stem)
+    chain = _Chain(origin, snap)
+    chain.read(root)
+    return chain.description(base, tip, stem)
+
+
+@dataclass(frozen=True)
+class _Number:
+    """A number as written: its text (for messages and notes), its exact value and its double."""
+
+    text: str
+    value: Decimal
+    double: float
+
+
+ZERO, ONE = _Number("0", Decimal(0), 0.0), _Number("1", Decimal(1), 1.0)
+
+
+@dataclass
+class _UrdfJoint:
+    """A ``<joint>`` as read: names, and its numbers as written (URDF's defaults where absent)."""
+
+    name: str
+    type: str
+    parent: str
+    child: str
+    xyz: tuple[_Number, ...] = (ZERO, ZERO, ZERO)
+    rpy: tuple[_Number, ...] = (ZERO, ZERO, ZERO)
+    axis: tuple[_Number, ...] = (ONE, ZERO, ZERO)
+    limit: tuple[_Number, _Number] | None = None  # (lower, upper)
+    mimic: tuple[str, _Number, _Number] | None = None  # (leader, multiplier, offset)
 
 
 class _Chain:
-    def __init__(self, origin: str, robot, snap: bool):
-        self.origin, self.robot, self.snap = origin, robot, snap
+    """One file's links and joints as read (:meth:`read`), then its chain as a description
+    (:meth:`description`); every refusal names the file (``origin``)."""
+
+    def __init__(self, origin: str, snap: bool):
+        self.origin, self.snap = origin, snap
+        self.name: str | None = None
+        self.links: list[str] = []
+        self.joints: list[_UrdfJoint] = []
         self.snapped: list[str] = []
 
     def fail(self, message: str):
         raise DescriptionError(f"{self.origin}: {message}")
 
+    # -- reading the kinematic elements --------------------------------------------------------------
+
+    def read(self, root: ET.Element) -> None:
+        """The robot's name, links and joints; every other element is skipped unread."""
+        if root.tag != "robot":
+            self.fail(f"not a valid URDF: the root element is <{root.tag}>, not <robot>")
+        self.name = root.get("name")
+        links: set[str] = set()
+        joints: set[str] = set()
+        for element in root:
+            if element.tag == "link":
+                name = element.get("name")
+                if not name:
+                    self.fail(f"<link> number {len(self.links) + 1} has no name")
+                if name in links:  # ROS refuses it too: which of the two would a joint mean?
+                    self.fail(f"link {name!r} is defined twice")
+                links.add(name)
+                self.links.append(name)
+            elif element.tag == "joint":
+                joint = self._joint(element, len(self.joints) + 1)
+                if joint.name in joints:
+                    self.fail(f"joint {joint.name!r} is defined twice")
+                joints.add(joint.name)
+                self.joints.append(joint)
+
+    def _joint(self, element: ET.Element, number: int) -> _UrdfJoint:
+        name = element.get("name")
+        if not name:
+            self.fail(f"<joint> number {number} has no name")
+        kind = element.get("type")
+        if kind not in JOINT_TYPES:
+            what = "no type" if kind is None else f"type {kind!r}"
+            self.fail(f"joint {name!r}: {what} (a URDF joint is {', '.join(JOINT_TYPES)})")
+        ends = {}
+        for role in ("parent", "child"):
+            end = self._only(element, role, name)
+            if end is None or not end.get("link"):
+                self.fail(f"joint {name!r}: no <{role} link=\"...\"/>")
+            ends[role] = end.get("link")
+        joint = _UrdfJoint(name, kind, ends["parent"], ends["child"])
+        origin = self._only(element, "origin", name)
+        if origin is not None:
+            if origin.get("xyz") is not None:
+                joint.xyz = self._numbers(origin.get("xyz"), name, "origin xyz")
+            if origin.get("rpy") is not None:
+                joint.rpy = self._numbers(origin.get("rpy"), name, "origin rpy")
+        if kind not in MOVING:  # a fixed joint's axis, limits and mimic move nothing
+            return joint
+        axis = self._only(element, "axis", name)
+        if axis is not None and axis.get("xyz") is not None:
+            joint.axis = self._numbers(axis.get("xyz"), name, "axis")
+        limit = self._only(element, "limit", name)
+        if limit is not None:
+            joint.limit = (self._attribute(limit, "lower", name, "limit", ZERO),
+                           self._attribute(limit, "upper", name, "limit", ZERO))
+        mimic = self._only(element, "mimic", name)
+        if mimic is not None:
+            if not mimic.get("joint"):
+                self.fail(f"joint {name!r}: <mimic> names no joint to follow")
+            joint.mimic = (mimic.get("joint"), self._attribute(mimic, "multiplier", name, "mimic", ONE),
+                           self._attribute(mimic, "offset", name, "mimic", ZERO))
+        return joint
+
+    def _attribute(self, element: ET.Element, attribute: str, joint: str, field: str, default: _Number) -> _Number:
+        """The number ``attribute`` of ``element`` (field ``"<field> <attribute>"``), or URDF's default."""
+        text = element.get(attribute)
+        return default if text is None else self._number(text, joint, f"{field} {attribute}")
+
+    def _only(self, element: ET.Element, tag: str, joint: str) -> ET.Element | None:
+        """The joint's one ``<tag>`` element, or None; two would leave the kinematics ambiguous."""
+        found = element.findall(tag)
+        if len(found) > 1:
+            self.fail(f"joint {joint!r}: {len(found)} <{tag}> elements (a joint has at most one)")
+        return found[0] if found else None
+
+    def _numbers(self, text: str, joint: str, field: str) -> tuple[_Number, ...]:
+        tokens = SPACES.split(text.strip(" \t\r\n"))
+        if len(tokens) != 3:
+            self.fail(f"joint {joint!r}: {field} needs 3 numbers, got {_shown(text)}")
+        return tuple(self._number(token, joint, f"{field}[{k}]") for k, token in enumerate(tokens))
+
+    def _number(self, text: str, joint: str, field: str) -> _Number:
+        text = text.strip(" \t\r\n")
+        if not NUMBER.fullmatch(text):
+            if text.lstrip("+-").lower() in ("nan", "inf", "infinity"):
+                self.fail(f"joint {joint!r}: {field} is {text} (expected a finite number)")
+            self.fail(f"joint {joint!r}: {field} {_shown(text)} is not a number (expected a decimal such as "
+                      "-0.25 or 1.5e-3)")
+        double = float(text)
+        if not abs(double) <= LARGEST:
+            self.fail(f"joint {joint!r}: {field} {_shown(text)} is more than {LARGEST:g} in size")
+        return _Number(text, Decimal(text), double)
+
+    # -- the chain -----------------------------------------------------------------------------------
+
     def description(self, base: str | None, tip: str | None, stem: str) -> Description:
-        robot = self.robot
-        links = [link.name for link in robot.links]
-        if not robot.joints:
+        """Every check below is a single pass (dictionaries and sets, each link walked once), so
+        that a file of thousands of links is refused or read in time linear in its size."""
+        if not self.joints:
             self.fail("no joints: a robot needs at least one moving joint")
-        parent_of: dict[str, object] = {}
-        for joint in robot.joints:
+        links = set(self.links)
+        parent_of: dict[str, _UrdfJoint] = {}
+        for joint in self.joints:
             for role in ("parent", "child"):
                 if getattr(joint, role) not in links:
                     self.fail(f"joint {joint.name!r}: its {role} link {getattr(joint, role)!r} is not defined")
@@ -100,22 +274,24 @@ class _Chain:
                 self.fail(f"joint {joint.name!r}: link {joint.child!r} already has the parent joint "
                           f"{parent_of[joint.child].name!r} (a URDF is a tree)")
             parent_of[joint.child] = joint
-        for link in links:  # a loop: following parents comes back
-            seen, current = set(), link
-            while current in parent_of:
-                if current in seen:
+        rooted: set[str] = set()  # links whose parents are known to end at a root
+        for link in self.links:  # a loop: following parents comes back before reaching a root
+            walk, current = set(), link
+            while current in parent_of and current not in rooted:
+                if current in walk:
                     self.fail(f"joint {parent_of[current].name!r}: the links form a loop (a URDF is a tree)")
-                seen.add(current)
+                walk.add(current)
                 current = parent_of[current].parent
-        roots = [link for link in links if link not in parent_of]
+            rooted |= walk
+        roots = [link for link in self.links if link not in parent_of]
         if base is None:
             if len(roots) != 1:
                 self.fail(f"{len(roots)} root links ({', '.join(roots)}): give --base")
             base = roots[0]
         if base not in links:
-            self.fail(f"no link {base!r} (links: {', '.join(links)})")
+            self.fail(f"no link {base!r} (links: {', '.join(self.links)})")
         children: dict[str, list[str]] = {}
-        for joint in robot.joints:
+        for joint in self.joints:
             children.setdefault(joint.parent, []).append(joint.child)
         if tip is None:
             leaves, stack = [], [base]
@@ -130,7 +306,7 @@ class _Chain:
                           "give --tip")
             tip = leaves[0]
         if tip not in links:
-            self.fail(f"no link {tip!r} (links: {', '.join(links)})")
+            self.fail(f"no link {tip!r} (links: {', '.join(self.links)})")
         path, current = [], tip
         while current != base:
             if current not in parent_of:
@@ -140,9 +316,9 @@ class _Chain:
         path.reverse()
         return self._build(path, base, tip, stem)
 
-    def _build(self, path, base: str, tip: str, stem: str) -> Description:
+    def _build(self, path: list[_UrdfJoint], base: str, tip: str, stem: str) -> Description:
         for joint in path:
-            if joint.type not in MOVING and joint.type not in ("fixed",):
+            if joint.type not in MOVING and joint.type != "fixed":
                 self.fail(f"joint {joint.name!r}: type {joint.type!r} on the chain {base} -> {tip} "
                           "(revolute, continuous, prismatic and fixed joints are supported)")
         moving = [j for j in path if j.type in MOVING and j.mimic is None]
@@ -151,105 +327,214 @@ class _Chain:
         q = tuple(sp.Symbol(f"q{i + 1}", real=True) for i in range(len(moving)))
         symbol = {j.name: qi for j, qi in zip(moving, q)}
         joints: list[Joint] = []
-        pending = sp.eye(4)  # fixed and mimic transforms since the last moving joint
+        pending = IDENTITY  # fixed and mimic transforms since the last moving joint
         for joint in path:
             transform = self._origin(joint)
             if joint.type == "fixed":
-                pending = pending * transform
+                pending = _compose(pending, transform)
                 continue
             axis = self._axis(joint)
             kind = MOVING[joint.type]
             if joint.mimic is not None:
-                leader = joint.mimic.joint
+                leader, multiplier, offset = joint.mimic
                 if leader not in symbol:
                     self.fail(f"joint {joint.name!r}: mimics {leader!r}, which is not a moving joint of the chain")
-                value = (self._exact(joint.mimic.multiplier if joint.mimic.multiplier is not None else 1.0,
-                                     joint, "mimic multiplier") * symbol[leader]
-                         + self._exact(joint.mimic.offset or 0.0, joint, "mimic offset"))
-                pending = pending * transform * axis_motion(kind, axis, value)
+                offset = (self._angle(offset, joint, "mimic offset") if kind == REVOLUTE
+                          else _length(offset))
+                value = _length(multiplier) * symbol[leader] + offset
+                pending = _compose(pending, transform, axis_motion(kind, axis, value).tolist())
                 continue
-            joints.append(Joint(kind, origin=sp.ImmutableMatrix(pending * transform), axis=axis,
-                                limits=self._limits(joint, kind), name=joint.name))
-            pending = sp.eye(4)
-        if pending != sp.eye(4):
+            joints.append(Joint(kind, origin=sp.ImmutableMatrix(_compose(pending, transform)), axis=axis,
+                                limits=self._limits(joint), name=joint.name))
+            pending = IDENTITY
+        if pending != IDENTITY:
             last = joints[-1]
             joints[-1] = Joint(last.type, origin=last.origin, axis=last.axis, limits=last.limits, name=last.name,
                                after=sp.ImmutableMatrix(pending))
-        name = self.robot.name if isinstance(self.robot.name, str) and is_package_name(self.robot.name) else None
+        name = self.name if self.name is not None and is_package_name(self.name) else None
         name = name or (stem if is_package_name(stem) else "urdf_robot")
         notes = {"snapped": "; ".join(self.snapped)} if self.snapped else {}
         return Description(
-            name=name, title=f"{self.robot.name or name} (URDF, {base} to {tip})",
+            name=name, title=f"{self.name or name} (URDF, {base} to {tip})",
             source=f"URDF {Path(self.origin).name}: {' '.join(j.name for j in path)}",
             convention="urdf", task=["pose"], params={}, joints=joints, tool=sp.eye(4), notes=notes, q=q)
 
-    # -- exact numbers -------------------------------------------------------------------------------
+    # -- numbers -------------------------------------------------------------------------------------
 
-    def _exact(self, value, joint, field: str) -> sp.Expr:
-        try:
-            number = float(value)
-        except (TypeError, ValueError):
-            self.fail(f"joint {joint.name!r}: {field} {value!r} is not a number")
-        if not math.isfinite(number):
-            self.fail(f"joint {joint.name!r}: {field} is {number} (expected a finite number)")
-        return sp.Rational(repr(number))
+    def _origin(self, joint: _UrdfJoint) -> Rows:
+        angles = [self._angle(n, joint, f"origin rpy[{k}]") for k, n in enumerate(joint.rpy)]
+        rotation = _rotation(*angles)
+        return (*((*rotation[k], _length(n)) for k, n in enumerate(joint.xyz)), IDENTITY[3])
 
-    def _origin(self, joint) -> sp.Matrix:
-        origin = joint.origin
-        xyz = list(origin.xyz) if origin is not None and origin.xyz is not None else [0.0] * 3
-        rpy = list(origin.rpy) if origin is not None and origin.rpy is not None else [0.0] * 3
-        if len(xyz) != 3 or len(rpy) != 3:
-            self.fail(f"joint {joint.name!r}: origin needs 3 numbers in xyz and in rpy")
-        exact_xyz = [self._exact(v, joint, f"origin xyz[{k}]") for k, v in enumerate(xyz)]
-        angles = [self._angle(v, joint, f"origin rpy[{k}]") for k, v in enumerate(rpy)]
-        transform = sp.eye(4)
-        transform[:3, :3] = rpy_matrix(*angles)
-        transform[:3, 3] = sp.Matrix(exact_xyz)
-        return transform
+    def _angle(self, number: _Number, joint: _UrdfJoint, field: str) -> sp.Expr:
+        """An angle: the special angle it is or is written as (with snapping, within
+        :data:`SNAP_TURNS`), else its double; 0 stays exact."""
+        if number.double == 0:
+            return sp.S.Zero
+        if self.snap and abs(number.double) <= SNAP_TURNS * 2 * math.pi:
+            # The special angles are the multiples k pi/12 with k even (pi/6) or a multiple of 3
+            # (pi/4). They lie pi/12 apart or more, and a number is only ever taken for one within
+            # 0.005 of it, so only the nearest multiple of pi/12 can be the one.
+            k = round(number.double / (math.pi / 12))
+            special = k * sp.pi / 12
+            if (k % 2 == 0 or k % 3 == 0) and _written_as(number, special, k * math.pi / 12):
+                self.snapped.append(f"{joint.name} {field} {number.text} -> {special}")
+                return special
+        return sp.Float(number.double)
 
-    def _angle(self, value, joint, field: str) -> sp.Expr:
-        exact = self._exact(value, joint, field)
-        if not self.snap or exact == 0:
-            return exact
-        turns = round(float(value) / (math.pi / 2))
-        if abs(float(value) - turns * math.pi / 2) <= SNAP_TOLERANCE:
-            snapped = turns * sp.pi / 2
-            self.snapped.append(f"{joint.name} {field} {float(value)!r} -> {snapped}")
-            return snapped
-        return exact
-
-    def _axis(self, joint) -> tuple[sp.Expr, sp.Expr, sp.Expr]:
-        values = list(joint.axis) if joint.axis is not None else [1.0, 0.0, 0.0]  # URDF's default axis
-        if len(values) != 3:
-            self.fail(f"joint {joint.name!r}: axis needs 3 numbers")
-        exact = [self._exact(v, joint, f"axis[{k}]") for k, v in enumerate(values)]
-        length = math.sqrt(sum(float(v)**2 for v in values))
+    def _axis(self, joint: _UrdfJoint) -> tuple[sp.Expr, sp.Expr, sp.Expr]:
+        """The unit axis: exact where the written one is a coordinate axis, or (with snapping) its
+        components are special values, else the written vector normalised in floating point."""
+        written = joint.axis
+        length = math.hypot(*(n.double for n in written))  # hypot: no overflow for 1e200
         if length < 1e-12:
-            self.fail(f"joint {joint.name!r}: axis {values} has zero length")
+            self.fail(f"joint {joint.name!r}: axis {[n.double for n in written]} has zero length")
+        if sorted(abs(n.value) for n in written) == [0, 0, 1]:
+            return tuple(sp.Integer(int(n.value)) for n in written)
         if self.snap:
-            unit = [float(v) / length for v in values]
-            for k in range(3):
-                for sign in (1, -1):
-                    target = [0.0, 0.0, 0.0]
-                    target[k] = float(sign)
-                    if max(abs(u - t) for u, t in zip(unit, target)) <= SNAP_TOLERANCE:
-                        snapped = tuple(sp.Integer(int(t)) for t in target)
-                        if list(snapped) != exact:
-                            self.snapped.append(f"{joint.name} axis {values} -> {list(snapped)}")
-                        return snapped
-        norm = sp.sqrt(sum(v**2 for v in exact))
-        return tuple(sp.nsimplify(v / norm) if norm != 1 else v for v in exact)
+            snapped = [next((v for v, double in AXIS_VALUES if _written_as(n, v, double)), None) for n in written]
+            if None not in snapped:
+                unit = _unit(snapped)
+                if unit is not None:
+                    if not all(_is_exactly(n, v) for n, v in zip(written, unit)):
+                        self.snapped.append(f"{joint.name} axis {' '.join(n.text for n in written)} -> {list(unit)}")
+                    return unit
+        return tuple(sp.S.Zero if n.double == 0 else sp.Float(n.double / length) for n in written)
 
-    def _limits(self, joint, kind: str):
+    def _limits(self, joint: _UrdfJoint):
         if joint.type == "continuous" or joint.limit is None:
             return None
-        low, high = joint.limit.lower, joint.limit.upper
-        if low is None or high is None:
-            return None
-        low = self._exact(low, joint, "limit lower")
-        high = self._exact(high, joint, "limit upper")
+        low, high = (_length(n) for n in joint.limit)
         if low > high:
             self.fail(f"joint {joint.name!r}: limit lower {float(low)} above upper {float(high)}")
         if low == high == 0:  # URDF's default when a prismatic or revolute joint gives no range
             return None
         return (low, high)
+
+
+def _length(number: _Number) -> sp.Expr:
+    """The exact rational of the digits when it is small: at most 15 significant digits (a double
+    holds 15 decimal digits exactly) and numerator and denominator at most
+    :data:`RATIONAL_TERMS`; else the double, so that no number drags huge integers through the
+    derivation.  A number whose double is zero (``0``, ``-0.0``, ``1e-400``) is exactly zero."""
+    if number.double == 0:
+        return sp.S.Zero
+    sign, digits, exponent = number.value.as_tuple()
+    written = "".join(map(str, digits))
+    significant = written.rstrip("0")
+    if len(significant) <= 15:  # the exponent is then bounded by the double's range
+        return _rational(Fraction(int(significant) * (-1) ** sign)
+                         * Fraction(10) ** (exponent + len(written) - len(significant)))
+    return sp.Float(number.double)
+
+
+def _compose(*transforms: Rows) -> Rows:
+    """The product of fixed (and mimic) transforms, entry by entry: a float in a term makes the
+    entry a float, summed in floating point (it is inexact anyway); otherwise it stays exact,
+    tidied (:func:`_tidy`).  Plain lists, not SymPy matrices: their product takes a float times
+    sqrt(2)/2 through SymPy's assumptions system (30 ms a fixed joint), and building one costs
+    more than the product of two rigid transforms."""
+    product = transforms[0]
+    for transform in transforms[1:]:
+        columns = list(zip(*transform))
+        product = tuple(tuple(_dot(row, column) for column in columns) for row in product)
+    return product
+
+
+def _dot(row: Sequence[sp.Expr], column: Sequence[sp.Expr]) -> sp.Expr:
+    """One entry of a product of transforms (:func:`_compose`)."""
+    terms = [(a, b) for a, b in zip(row, column) if a is not sp.S.Zero and b is not sp.S.Zero]
+    if all(a.is_Rational and b.is_Rational for a, b in terms):  # 0, 1 and lengths: most entries
+        return _rational(sum((Fraction(a.p, a.q) * Fraction(b.p, b.q) for a, b in terms), Fraction(0)))
+    if any(a.is_Float or b.is_Float for a, b in terms) and all(a.is_number and b.is_number for a, b in terms):
+        total = math.fsum(_double(a) * _double(b) for a, b in terms)
+        return sp.Float(total) if total else sp.S.Zero
+    return _tidy(sp.Add(*(a * b for a, b in terms)))
+
+
+def _rational(value: Fraction) -> sp.Expr:
+    """``value`` exactly while its terms are at most :data:`RATIONAL_TERMS`, else its double."""
+    if max(abs(value.numerator), value.denominator) <= RATIONAL_TERMS:
+        return sp.Rational(value.numerator, value.denominator)
+    return sp.Float(float(value))
+
+
+@functools.lru_cache(maxsize=256)
+def _rotation(roll: sp.Expr, pitch: sp.Expr, yaw: sp.Expr) -> Rows:
+    """The rows of ``Rz(yaw) Ry(pitch) Rx(roll)``, tidied (cached: a file repeats its few
+    rotations, pi/2 about an axis above all)."""
+    return tuple(map(tuple, rpy_matrix(roll, pitch, yaw).applyfunc(_tidy).tolist()))
+
+
+@functools.lru_cache(maxsize=256)
+def _double(number: sp.Expr) -> float:
+    """The double of a numeric entry (cached: sqrt(2)/2 and its kin recur at every joint)."""
+    return float(number)
+
+
+def _tidy(entry: sp.Expr) -> sp.Expr:
+    """A numeric entry of a fixed transform in a form that stays small however many fixed joints
+    are composed: a single Float when it holds a float (it is inexact anyway); else expanded,
+    so that products of the sines and cosines of pi/4 and pi/6 stay sums of at most four terms
+    (in 1, sqrt(2), sqrt(3), sqrt(6)) instead of nesting deeper with every joint; and a Float
+    once a rational in it passes :data:`RATIONAL_TERMS` (those rationals double in size with
+    every such rotation).  Unexpanded, ten fixed joints turned by rpy="0.7854 0.5236 0" took
+    minutes.  Entries with symbols (a mimic joint's motion) are left as they are."""
+    if entry.is_Float or entry.is_Integer or entry.free_symbols:
+        return entry
+    if not entry.is_Rational:
+        if entry.has(sp.Float):
+            return entry.evalf()
+        entry = sp.expand(entry)
+    if all(max(abs(r.p), r.q) <= RATIONAL_TERMS for r in entry.atoms(sp.Rational)):
+        return entry
+    return entry.evalf()
+
+
+def _written_as(number: _Number, value: sp.Expr, double: float) -> bool:
+    """Whether ``number`` is ``value`` (whose double is ``double``) as a file would write it:
+    within :data:`SNAP_TOLERANCE` of it (float noise, as 1.5707963267948968 for pi/2), or its
+    correctly rounded form at the precision written.  That precision is the place of the last
+    digit written (``1.5708`` and ``15708e-4``: 4 places after the point), and the rounded form
+    is within half a unit of it, compared exactly against 40 digits of ``value``.  The number
+    needs :data:`SNAP_DIGITS` significant digits and 2 places after the point (so that ``12.6``
+    or ``100``, 3 digits of a large number, is not taken for a multiple of pi/12 nearby); past 8
+    places the first rule holds whenever this one does, which also bounds the work on a long
+    number."""
+    if abs(number.double - double) <= SNAP_TOLERANCE:
+        return True
+    _, digits, exponent = number.value.as_tuple()
+    places = -exponent
+    if len(digits) < SNAP_DIGITS or not 2 <= places <= 8:
+        return False
+    return abs(Fraction(number.value) - _reference(value)) <= Fraction(1, 2 * 10**places)
+
+
+@functools.lru_cache(maxsize=256)
+def _reference(value: sp.Expr) -> Fraction:
+    """40 significant digits of a special value (cached: files write the same few again and again)."""
+    return Fraction(str(sp.N(value, 40)))
+
+
+def _unit(snapped: list[sp.Expr]) -> tuple[sp.Expr, ...] | None:
+    """The snapped axis when it is exactly of unit length; normalised exactly when its non-zero
+    components are equal in size (a diagonal written by its direction: ``1 1 0`` is
+    (sqrt(2)/2, sqrt(2)/2, 0), ``1 1 1`` has sqrt(3)/3), which keeps every root small; None
+    otherwise (mixed sizes would bring roots such as sqrt(5) that buy nothing over floats)."""
+    if sum(v**2 for v in snapped) == 1:
+        return tuple(snapped)
+    sizes = {abs(v) for v in snapped if v != 0}
+    if len(sizes) != 1:
+        return None
+    count = sum(1 for v in snapped if v != 0)
+    return tuple(sp.sign(v) * sp.sqrt(count) / count for v in snapped)
+
+
+def _is_exactly(number: _Number, value: sp.Expr) -> bool:
+    """Whether the decimal written is ``value`` itself (compared exactly; an irrational never is)."""
+    return value.is_Rational and number.value == Decimal(int(value.p)) / Decimal(int(value.q))
+
+
+def _shown(text: str) -> str:
+    """``text`` quoted for a message, cut short: a number may be megabytes long."""
+    return repr(text if len(text) <= 40 else text[:40] + "...")

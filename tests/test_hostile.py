@@ -60,6 +60,42 @@ def test_a_hostile_description_is_refused_with_exit_2_and_nothing_written(case, 
     assert elapsed < (1.0 if "joints" in case else 5.0), elapsed
 
 
+def urdf_line(count: int, origin: str = 'xyz="0 0 0.001"', ring: bool = False) -> str:
+    """A URDF of ``count`` fixed joints in a line (or closed into a ring) and one revolute joint."""
+    links = "".join(f'<link name="l{i}"/>' for i in range(count + 2))
+    fixed = "".join(f'<joint name="f{i}" type="fixed"><parent link="l{count if ring and i == 0 else i}"/>'
+                    f'<child link="l{i + 1}"/><origin {origin}/></joint>' for i in range(count))
+    return (f'<robot name="arm">{links}{fixed}<joint name="j" type="revolute"><parent link="l{count}"/>'
+            f'<child link="l{count + 1}"/></joint></robot>')
+
+
+HOSTILE_URDF = {
+    # name: (file text, a piece of the message); each refused within a second
+    "a_ring_of_four_thousand_links": (urdf_line(4000, ring=True), "joint 'f0': the links form a loop"),
+    "rpy_of_1e308": (urdf_line(1, 'rpy="1e308 0 0"'), "joint 'f0': origin rpy[0] '1e308' is more than 1e+300"),
+    "a_megabyte_number": (urdf_line(1, f'xyz="1{"0" * 2**20} 0 0"'),
+                          f"joint 'f0': origin xyz[0] '1{'0' * 39}...' is more than 1e+300"),
+    "python_number_syntax": (urdf_line(1, 'xyz="1_000 0 0"'), "joint 'f0': origin xyz[0] '1_000' is not a number"),
+}
+
+
+@pytest.mark.parametrize("case", list(HOSTILE_URDF))
+def test_a_hostile_urdf_is_refused_with_exit_2_and_nothing_written(case, tmp_path, capsys):
+    """The URDF reader's refusals: numbers too large or not numbers at all (rpy 1e308 was an
+    internal error), and a loop through thousands of links (found in one pass)."""
+    text, message = HOSTILE_URDF[case]
+    path = tmp_path / "arm.urdf"
+    path.write_text(text)
+    start = time.perf_counter()
+    assert main(["--quiet", "generate", str(path), "--out", str(tmp_path / "pkg"), "--no-build"]) == 2
+    elapsed = time.perf_counter() - start
+    err = capsys.readouterr().err
+    assert err.startswith(f"kinegen: error: {path}") and message in err, err[:1000]
+    assert "Traceback" not in err and err.count("\n") == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["arm.urdf"]
+    assert elapsed < 1.0, elapsed
+
+
 def test_a_file_that_is_not_utf8_is_refused(tmp_path, capsys):
     path = tmp_path / "arm.toml"
     data = b'name = "arm"\n[[joint]]\ntype = "R"\na = "\xff\xfe"\n'
@@ -125,7 +161,7 @@ def test_sigterm_mid_build_leaves_the_old_package_and_no_scratch(tmp_path, monke
     assert main(["--quiet", "generate", str(path), "--out", str(out), "--no-build"]) == 0
     before = sorted(p.name for p in out.iterdir())
 
-    def killed(folder, name):
+    def killed(folder, name, fast=False):
         os.kill(os.getpid(), signal.SIGTERM)
     monkeypatch.setattr(build, "build_package", killed)
     with pytest.raises(SystemExit) as exit_info:
