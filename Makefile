@@ -17,8 +17,10 @@
 #   make bench      time the kernels against lambdify, the Robotics Toolbox and Pinocchio
 #                   (installed into .venv-bench only; writes benchmarks/results.md), then
 #                   Paul's partitioned inverse against a 6x6 solve (PUMA 560), then the cold
-#                   generation time of every zoo arm (benchmarks/zoo.md), then the automatic IK
-#                   of a UR5 and a KR5 against the Toolbox's ikine_LM and analytic_ik (benchmarks/auto_ik.md)
+#                   generation time of every zoo arm with its compile (benchmarks/zoo.md), then the
+#                   real URDF files: generation and the kernels against Pinocchio (benchmarks/urdf_zoo.md),
+#                   then the automatic IK of a UR5 and a KR5 against the Toolbox's ikine_LM and
+#                   analytic_ik (benchmarks/auto_ik.md)
 #   make clean      remove the virtual environment, caches and built libraries
 
 PYTHON ?= python3
@@ -156,6 +158,7 @@ bench: $(BENCH_STAMP)
 	$(BENCH_PY) benchmarks/run.py
 	$(BENCH_PY) benchmarks/wrist_partition.py
 	$(BENCH_PY) benchmarks/zoo_generation.py
+	$(BENCH_PY) benchmarks/urdf_zoo.py
 	$(BENCH_PY) benchmarks/auto_ik.py
 
 clean:

@@ -29,7 +29,7 @@ import sympy as sp
 
 from .chain import derivative
 
-__all__ = ["Program", "needed", "inline", "evaluate"]
+__all__ = ["Program", "needed", "inline", "substitute", "evaluate"]
 
 Steps = tuple[tuple[sp.Symbol, sp.Expr], ...]
 
@@ -150,6 +150,17 @@ def inline(steps: Sequence[tuple[sp.Symbol, sp.Expr]], expr):
     for symbol, value in needed(steps, sp.Matrix([expr]).values() if isinstance(expr, sp.MatrixBase) else [expr]):
         values[symbol] = value.xreplace(values)
     return expr.xreplace(values)
+
+
+def substitute(steps: Sequence[tuple[sp.Symbol, sp.Expr]], expr, values: Mapping):
+    """``expr`` (an expression or a matrix) with ``values`` ({symbol: value}) put in and the steps
+    substituted, exactly: each step once, in order (inlining first and substituting after would
+    walk the unfolded tree, which grows as the product of the steps' fan-outs)."""
+    known = dict(values)
+    entries = sp.Matrix([expr]).values() if isinstance(expr, sp.MatrixBase) else [expr]
+    for symbol, value in needed(steps, entries):
+        known[symbol] = value.xreplace(known)
+    return expr.xreplace(known)
 
 
 def evaluate(steps: Sequence[tuple[sp.Symbol, sp.Expr]], exprs: Sequence, point: Mapping, digits: int = 30) -> list:

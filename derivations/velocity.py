@@ -178,6 +178,9 @@ class RateKinematics:
     joint_velocity: sp.Matrix | None
     joint_acceleration: sp.Matrix | None
     functions: tuple[SymbolicFunction, ...]
+    # A model written as a program (derivations.program): its steps and the rates' own after them,
+    # which the rate expressions above read; () for an explicit model.
+    program: tuple = ()
 
 
 def rate_kinematics(model) -> RateKinematics | None:
@@ -258,7 +261,7 @@ def derive_rates(model) -> RateKinematics:
     functions = _functions(model, rates)
     if program is not None:
         functions = with_program(functions, program.steps)
-    return RateKinematics(**rates, functions=tuple(functions))
+    return RateKinematics(**rates, functions=tuple(functions), program=tuple(program.steps) if program else ())
 
 
 def closed_form_shape(m: int, n: int, operations: int = 0) -> str:

@@ -421,7 +421,7 @@ def _parallel_axes(arm: _Arm) -> list[_Steps]:
 
 # Rebuilt without evaluation: SymPy would compare the (long) arguments of each pairwise,
 # sort them by size, or put a relation in canonical form, at seconds per node.
-_UNEVALUATED = (sp.Min, sp.Max, sp.Piecewise, sp.Rel)
+_UNEVALUATED = (sp.Min, sp.Max, sp.Piecewise, sp.Rel, sp.Function)
 
 
 def _conjunction(func, args):

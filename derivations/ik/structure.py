@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import sympy as sp
 
 from ..chain import PRISMATIC, REVOLUTE, pythagorean
+from ..program import substitute
 
 __all__ = ["Axis", "Structure", "structure_of", "is_zero", "cross", "dot", "rotate", "check_product_of_exponentials"]
 
@@ -195,7 +196,7 @@ def structure_of(model) -> Structure:
         if norm2 != 1:
             h = (h / sp.sqrt(norm2)).applyfunc(tidy)
         axes.append(Axis(i, joint.type, h, sp.Matrix(p).applyfunc(tidy)))
-    home = model.explicit(model.fk).xreplace(dict(zip(model.q, zero))).applyfunc(tidy)
+    home = substitute(model.program, model.fk, dict(zip(model.q, zero))).applyfunc(tidy)
     return Structure(tuple(axes), home, tuple(model.task_names))
 
 
@@ -219,7 +220,10 @@ def check_product_of_exponentials(model, structure: Structure, trials: int = 3) 
     numeric_axes = [([float(e.xreplace(defaults)) for e in a.h], [float(e.xreplace(defaults)) for e in a.p], a.kind)
                     for a in structure.axes]
     home = [[float(structure.home[i, j].xreplace(defaults)) for j in range(4)] for i in range(4)]
-    fk = sp.lambdify([model.q], model.explicit(model.fk).xreplace(defaults).tolist(), modules="math")
+    def fk(q):  # the model's own fk at q, its program's steps evaluated one by one
+        point = {**defaults, **{s: sp.Float(v) for s, v in zip(model.q, q)}}
+        return substitute(model.program, model.fk, point).tolist()
+
     for _ in range(trials):
         q = [rng.uniform(-math.pi, math.pi) for _ in model.q]
         product = [[float(i == j) for j in range(4)] for i in range(4)]
