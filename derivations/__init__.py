@@ -70,13 +70,11 @@ def load(name: str | Path, *, verbose: bool = False, base: str | None = None, ti
     if path.suffix == ".urdf":
         from .urdf import read_urdf
         description = read_urdf(path, base=base, tip=tip, snap=snap)
-        text = path.read_bytes() + repr((base, tip, snap)).encode()
     else:
         description = read_description(path)
-        text = path.read_bytes()
-        if description.convention == "urdf":  # a description over a URDF: that file is part of the key
-            import tomllib
-            text += (path.parent / tomllib.loads(text.decode())["urdf"]).read_bytes()
+    # The key: the bytes the description was read from (read once: the same the derivation reads),
+    # the file's name (the package's source names it) and the chain's ends.
+    text = path.name.encode() + b"\0" + description.inputs + repr((base, tip, snap)).encode()
     extension = _ROBOT_DIR / f"{description.name}.py" if path.parent == _ROBOT_DIR else None
     start = time.perf_counter()
     model = cached(f"model-{description.name}", text, lambda: _derive(description, extension))

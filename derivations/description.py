@@ -27,7 +27,9 @@ field.
 from __future__ import annotations
 
 import math
+import os
 import re
+import stat
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -74,21 +76,63 @@ class Description:
     notes: dict[str, str]
     q: tuple[sp.Symbol, ...]
     base: sp.Matrix = field(default_factory=lambda: sp.eye(4))
+    # The bytes the description was read from (a TOML, and the URDF it names): what the cache keys
+    # the derivation by, read once, so that a file changing while it is read cannot key one robot's
+    # model by another's bytes.
+    inputs: bytes = b""
 
     def chain(self) -> Chain:
         return Chain(self.joints, self.convention, self.tool, self.base)
 
 
+# A description of a few joints is a few kilobytes; a URDF of a whole humanoid with its inertias is
+# well under a megabyte (derivations.urdf.MAX_BYTES).
+MAX_DESCRIPTION_BYTES = 2**20
+
+
+def read_input(path: Path, limit: int, what: str = "file") -> bytes:
+    """The bytes of the regular file ``path``, at most ``limit`` of them, read once.
+
+    Anything else is refused without blocking or reading on: a folder, a FIFO (opened without
+    waiting for a writer), a device such as /dev/zero, a path with a NUL byte, a file past the limit.
+    """
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
+        raise DescriptionError(f"{path}: cannot read: {getattr(exc, 'strerror', None) or exc}") from None
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise DescriptionError(f"{path}: not a regular file (a {what} is read from a file)")
+        if info.st_size > limit:  # refused unread
+            raise DescriptionError(f"{path}: {info.st_size} bytes, more than the {limit} a {what} may have here")
+        chunks, size = [], 0
+        while size <= limit:
+            chunk = os.read(fd, min(2**20, limit + 1 - size))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+    except OSError as exc:
+        raise DescriptionError(f"{path}: cannot read: {exc.strerror}") from None
+    finally:
+        os.close(fd)
+    if size > limit:  # it grew while it was read
+        raise DescriptionError(f"{path}: more than the {limit} bytes a {what} may have here")
+    return b"".join(chunks)
+
+
 def read_description(path: str | Path) -> Description:
     """Read and validate a description file."""
     path = Path(path)
+    raw = read_input(path, MAX_DESCRIPTION_BYTES, "description")
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise DescriptionError(f"{path}: cannot read: {exc.strerror}") from None
+        text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise DescriptionError(f"{path}: not UTF-8 text (byte {exc.start}); a description is a UTF-8 TOML file") from None
-    return parse_description(text, str(path))
+    description = parse_description(text, str(path))
+    description.inputs = raw + b"\0" + description.inputs  # and the URDF's bytes, for one over a URDF
+    return description
 
 
 def parse_description(text: str, origin: str = "<string>") -> Description:
@@ -180,6 +224,8 @@ class _Parser:
             self.fail("field 'snap'", "expected true or false")
         from .urdf import read_urdf  # (urdf imports this module)
         path = Path(self.origin).parent / data["urdf"]
+        if "\0" in data["urdf"]:
+            self.fail("field 'urdf'", "a path with a NUL byte")
         description = read_urdf(path, base=data.get("base_link"), tip=data.get("tip_link"),
                                 snap=data.get("snap", True))
         name = data.get("name", description.name)
@@ -200,7 +246,7 @@ class _Parser:
             name=name, title=data.get("title", description.title), source=data.get("source", description.source),
             convention="urdf", task=task, params=params, joints=description.joints,
             tool=self.parse_frame(data.get("tool"), names, "tool"), notes={**description.notes, **notes},
-            q=description.q, base=self.parse_frame(data.get("base"), names, "base"))
+            q=description.q, base=self.parse_frame(data.get("base"), names, "base"), inputs=description.inputs)
 
     def check_task_repeats(self, task: list[str]) -> None:
         """Each task coordinate once (``pose`` holds x, y and z)."""

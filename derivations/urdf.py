@@ -55,7 +55,7 @@ from typing import Sequence
 import sympy as sp
 
 from .chain import PRISMATIC, REVOLUTE, Joint, axis_motion, rpy_matrix
-from .description import Description, DescriptionError
+from .description import MAX_JOINTS, Description, DescriptionError, read_input
 from .expressions import is_package_name
 
 __all__ = ["read_urdf", "parse_urdf", "MAX_BYTES", "SNAP_TOLERANCE"]
@@ -92,18 +92,14 @@ AXIS_VALUES = [(v, float(v)) for v in (sp.S.Zero, *(s * u for u in (sp.S.One, sp
 def read_urdf(path: str | Path, base: str | None = None, tip: str | None = None, snap: bool = True) -> Description:
     """The serial chain ``base`` -> ``tip`` of a URDF file, as a description."""
     path = Path(path)
-    try:
-        size = path.stat().st_size
-    except OSError as exc:
-        raise DescriptionError(f"{path}: cannot read: {exc.strerror}") from None
-    if size > MAX_BYTES:
-        raise DescriptionError(f"{path}: {size} bytes, more than the {MAX_BYTES} a URDF may have here")
-    raw = path.read_bytes()
+    raw = read_input(path, MAX_BYTES, "URDF")
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise DescriptionError(f"{path}: not UTF-8 text (byte {exc.start})") from None
-    return parse_urdf(text, str(path), base=base, tip=tip, snap=snap, stem=path.stem)
+    description = parse_urdf(text, str(path), base=base, tip=tip, snap=snap, stem=path.stem)
+    description.inputs = raw
+    return description
 
 
 def parse_urdf(text: str, origin: str = "<string>", base: str | None = None, tip: str | None = None,
@@ -324,6 +320,9 @@ class _Chain:
         moving = [j for j in path if j.type in MOVING and j.mimic is None]
         if not moving:
             self.fail(f"no moving joint between {base!r} and {tip!r}")
+        if len(moving) > MAX_JOINTS:  # the limit of a TOML description too, checked before any work
+            self.fail(f"{len(moving)} moving joints between {base!r} and {tip!r}; a chain has 1 to {MAX_JOINTS} "
+                      "(give --base and --tip to cut out the arm)")
         q = tuple(sp.Symbol(f"q{i + 1}", real=True) for i in range(len(moving)))
         symbol = {j.name: qi for j, qi in zip(moving, q)}
         joints: list[Joint] = []

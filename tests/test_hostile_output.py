@@ -110,8 +110,8 @@ def test_hostile_d10_a_newline_in_a_title_stays_inside_the_tex_comment(tmp_path)
 
 
 def test_hostile_d12_a_huge_name_is_echoed_in_a_few_hundred_characters(tmp_path, capsys):
-    """A 1 MiB joint name in an error: one line of at most 1,000 characters."""
-    text = 'name = "arm"\n[[joint]]\ntype = "R"\nname = "' + "j" * 2**20 + '"\na = "nowhere"\n'
+    """A 512 KiB joint name in an error: one line of at most 1,000 characters."""
+    text = 'name = "arm"\n[[joint]]\ntype = "R"\nname = "' + "j" * 2**19 + '"\na = "nowhere"\n'
     path = tmp_path / "arm.toml"
     path.write_text(text)
     assert main(["--quiet", "generate", str(path), "--out", str(tmp_path / "pkg"), "--no-build"]) == 2
@@ -175,3 +175,73 @@ def test_hostile_d8_an_out_inside_a_file_is_exit_2_naming_the_file(tmp_path, cap
                  "--no-build"]) == 2
     err = capsys.readouterr().err
     assert f"{tmp_path / 'afile'}: not a folder" in err and "internal error" not in err
+
+
+def urdf_revolute_line(count: int) -> str:
+    links = "".join(f'<link name="l{i}"/>' for i in range(count + 1))
+    joints = "".join(f'<joint name="j{i}" type="revolute"><parent link="l{i}"/><child link="l{i + 1}"/>'
+                     f'<origin xyz="0.1 0 0" rpy="0.3 0 0"/><axis xyz="0 0 1"/></joint>' for i in range(count))
+    return f'<robot name="arm">{links}{joints}</robot>'
+
+
+def test_hostile_d4_a_urdf_chain_of_200_joints_is_refused_at_once(tmp_path, capsys):
+    """The same joint limit as a TOML description (was: refused only at the 120 s budget)."""
+    path = tmp_path / "long.urdf"
+    path.write_text(urdf_revolute_line(200))
+    start = time.perf_counter()
+    assert main(["--quiet", "generate", str(path), "--out", str(tmp_path / "pkg"), "--no-build"]) == 2
+    assert time.perf_counter() - start < 5.0
+    err = capsys.readouterr().err
+    assert "200 moving joints between 'l0' and 'l200'; a chain has 1 to 8" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["long.urdf"]
+
+
+@pytest.mark.parametrize("target, message", [
+    ("fifo", "not a regular file"), ("/dev/zero", "not a regular file"), (".", "not a regular file"),
+    ("missing.urdf", "cannot read: No such file or directory")])
+def test_hostile_d4_a_toml_urdf_path_is_read_only_from_a_regular_file(tmp_path, capsys, target, message):
+    """``urdf =`` opens a regular file only, with a size cap: a FIFO blocked for ever, /dev/zero
+    was read to the 8 GiB cap, a folder was an internal error."""
+    if target == "fifo":
+        os.mkfifo(tmp_path / "fifo")
+    (tmp_path / "arm.toml").write_text(f'name = "arm"\nurdf = "{target}"\n')
+    start = time.perf_counter()
+    assert main(["--quiet", "generate", str(tmp_path / "arm.toml"), "--out", str(tmp_path / "pkg"), "--no-build"]) == 2
+    assert time.perf_counter() - start < 5.0
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1 and not (tmp_path / "pkg").exists()
+
+
+def test_hostile_d5_the_cache_keys_the_bytes_the_model_was_derived_from(tmp_path, monkeypatch):
+    """A file replaced between two reads (an editor saving, a checkout) kept the old robot's model
+    under the new bytes' key: now the description is read once, and its key is those bytes."""
+    import derivations
+    from derivations import cache
+    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("KINEGEN_CACHE_KEY", str(tmp_path / "key"))
+    path = arm(tmp_path)
+    keys = []
+    real = cache.cached
+
+    def spy(kind, content, build):
+        keys.append(content)
+        return real(kind, content, build)
+
+    monkeypatch.setattr(derivations, "cached", spy)
+    model = derivations.load(path)
+    assert path.read_bytes() in keys[0] and path.name.encode() in keys[0]
+    path.write_text(ARM.format(name="arm", title="An arm").replace("a = 0.4", "a = 0.7"))
+    assert derivations.load(path).fk != model.fk
+
+
+def test_hostile_d13_identical_bytes_under_another_name_are_another_cache_entry(tmp_path, monkeypatch):
+    """A URDF package's Source: names its file: two files of the same bytes share no cache entry,
+    so the second one's source names the second file."""
+    import derivations
+    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("KINEGEN_CACHE_KEY", str(tmp_path / "key"))
+    first, second = tmp_path / "one.urdf", tmp_path / "two.urdf"
+    for path in (first, second):
+        path.write_text(urdf_revolute_line(2))
+    assert derivations.load(first).source.startswith("URDF one.urdf")
+    assert derivations.load(second).source.startswith("URDF two.urdf")
