@@ -164,6 +164,11 @@ def cmd_list(args, say) -> int:
 
 
 def cmd_show(args, say) -> int:
+    with _limited(args, f"{args.robot}: derivation"):
+        return _show(args, say)
+
+
+def _show(args, say) -> int:
     model, _ = _load(args.robot, say, args)
     what = args.what
     if args.latex and what in latex_backend.SECTION_KEYS:
@@ -410,7 +415,8 @@ def cmd_verify(args, say) -> int:
     if any(_is_file(t) for t in args.robots) or args.out:
         if len(args.robots) != 1:
             raise InputError("verify with --out or a description file takes exactly one robot")
-        model, _ = _load(args.robots[0], say, args)
+        with _limited(args, f"{args.robots[0]}: derivation"):
+            model, _ = _load(args.robots[0], say, args)
         package = Path(args.out) if args.out else _default_out(model)
         say(f"{model.name}: verifying {package} against SymPy at 30 digits")
         checks = verify_model(model, _package_modules(package, args.backends), samples=args.samples)
@@ -441,12 +447,14 @@ def cmd_check(args, say) -> int:
 
 
 def cmd_latex(args, say) -> int:
-    model, _ = _load(args.robot, say, args)
     what = [w for item in args.what or [] for w in item.split(",") if w]
-    try:
-        print(latex_backend.latex_for(model, what), end="")
-    except ValueError as exc:  # an unknown section name
-        raise InputError(str(exc)) from None
+    with _limited(args, f"{args.robot}: derivation and LaTeX"):
+        model, _ = _load(args.robot, say, args)
+        try:
+            text = latex_backend.latex_for(model, what)
+        except ValueError as exc:  # an unknown section name
+            raise InputError(str(exc)) from None
+    print(text, end="")
     return 0
 
 
@@ -572,6 +580,7 @@ def parser() -> argparse.ArgumentParser:
     _urdf_options(show)
     show.add_argument("--what", choices=SHOW, default="summary", help="which quantity (default: summary)")
     show.add_argument("--latex", action="store_true", help="print LaTeX instead of text")
+    _limit_options(show)
     show.set_defaults(run=cmd_show)
     for name, run, text in (
         ("generate", cmd_generate, "write generated/, or a standalone package with --out"),
@@ -595,11 +604,8 @@ def parser() -> argparse.ArgumentParser:
             s.add_argument("--fast", action="store_true",
                            help="compile the vectorised batch layout for this machine's CPU (-march=native; a "
                                 "compile several times as long); default: portable C99 -O2")
-            s.add_argument("--time-limit", type=_seconds, default=DEFAULT_TIME_LIMIT, metavar="SECONDS",
-                           help=f"stop a derivation and rendering that runs longer (default {DEFAULT_TIME_LIMIT:g} s)")
-            s.add_argument("--memory-limit", type=_gib, default=DEFAULT_MEMORY_LIMIT, metavar="GIB",
-                           help="stop a derivation and rendering that needs more memory, in GiB "
-                                f"(default {DEFAULT_MEMORY_LIMIT:g})")
+        if name in ("generate", "verify"):
+            _limit_options(s)
         if name in ("verify", "all"):
             s.add_argument("--samples", type=int, default=6, help="points per kernel (default 6)")
         if name == "all":
@@ -622,10 +628,27 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--what", action="append", metavar="SECTION",
                    help=f"section(s) to print, comma-separated: {', '.join(latex_backend.SECTION_KEYS)}, "
                         "or an extra a model carries (default: all)")
+    _limit_options(s)
     s.set_defaults(run=cmd_latex)
     sub.add_parser("report", help="build the PDF report (needs pdflatex)", parents=[common]).set_defaults(run=cmd_report)
     avr_limits.add_parser(sub)
     return p
+
+
+def _limit_options(command) -> None:
+    """--time-limit and --memory-limit, on every command that derives."""
+    command.add_argument("--time-limit", type=_seconds, default=DEFAULT_TIME_LIMIT, metavar="SECONDS",
+                         help=f"stop a derivation (and rendering) that runs longer (default {DEFAULT_TIME_LIMIT:g} s)")
+    command.add_argument("--memory-limit", type=_gib, default=DEFAULT_MEMORY_LIMIT, metavar="GIB",
+                         help="stop a derivation (and rendering) that needs more memory, in GiB "
+                              f"(default {DEFAULT_MEMORY_LIMIT:g})")
+
+
+@contextlib.contextmanager
+def _limited(args, what: str):
+    """The command's time budget and memory cap around its derivation (show, latex, verify)."""
+    with budget(args.time_limit, what), memory_cap(args.memory_limit, what):
+        yield
 
 
 def _urdf_options(command) -> None:

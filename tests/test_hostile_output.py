@@ -245,3 +245,20 @@ def test_hostile_d13_identical_bytes_under_another_name_are_another_cache_entry(
         path.write_text(urdf_revolute_line(2))
     assert derivations.load(first).source.startswith("URDF one.urdf")
     assert derivations.load(second).source.startswith("URDF two.urdf")
+
+
+@pytest.mark.parametrize("command", [["show", "--what", "fk"], ["latex"], ["verify", "--out", "pkg"]])
+def test_hostile_d4_every_command_that_derives_has_a_time_budget(tmp_path, capsys, command):
+    """show, latex and verify derive too: they stop at --time-limit like generate (exit 2, the stage
+    named), where before they had neither a budget nor a memory cap."""
+    text = 'name = "slow"\n' + "".join(f'[[joint]]\ntype = "R"\na = 0.{i + 1}\nalpha = 0.{i + 3}\nd = 0.0{i}\n'
+                                        for i in range(6))
+    (tmp_path / "slow.toml").write_text(text)
+    args = [command[0], str(tmp_path / "slow.toml"), *command[1:], "--time-limit", "0.05"]
+    if command[0] == "verify":
+        args[args.index("pkg")] = str(tmp_path / "pkg")
+    start = time.perf_counter()
+    assert main(["--quiet", *args]) == 2
+    assert time.perf_counter() - start < 5.0
+    err = capsys.readouterr().err
+    assert "stopped after its time budget of 0.05 s" in err and err.count("\n") == 1
