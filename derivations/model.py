@@ -333,7 +333,8 @@ class RobotModel:
         if self.ik_free is not None:
             free = self.q[self.ik_free]
             arguments += (Argument("free", (free,), f"the value of the free joint {free} "
-                                   f"({self.joint_unit(self.ik_free)}), shape (..., 1) or a number"),)
+                                   f"({self.joint_unit(self.ik_free)}), shape (..., 1), (...) or a number, "
+                                   "at most 1e4 in size"),)
         revolute = [t == REVOLUTE for t in self.joint_types]
         definitions: tuple = ()
         if all(b.step_condition is not None for b in self.ik):

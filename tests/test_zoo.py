@@ -876,3 +876,21 @@ def test_verify_holds_the_free_joint_ik_to_sympy(generated_root):
     checks = [c for c in verify_model(model, {"numpy": package.load("numpy"), "c": package.load("c")}, samples=2)
               if c.kernel == "ik"]
     assert len(checks) == 2 and all(c.ok and c.points >= 8 for c in checks), checks
+
+
+@pytest.mark.parametrize("backend", ["numpy", "c"])
+def test_hostile_d11_the_free_joint_is_taken_as_documented_and_refused_past_its_limit(backend, generated_root):
+    """``free`` of shape (N, 1) (as documented) gives N answers, not N x N (issue #26, item 6), the
+    free joint comes back as given, and a value past 1e4 (1e16 marked wrong branches valid; issue
+    #28, D11) is refused naming it."""
+    k = generated_package("kuka_lwr4", generated_root).load(backend)
+    q = np.random.default_rng(11).uniform(-1.0, 1.0, (6, 7))
+    x = k.task(q)
+    Q_column, valid_column = k.ik(x, free=q[:, 2:3])
+    Q_flat, valid_flat = k.ik(x, free=q[:, 2])
+    assert Q_column.shape == Q_flat.shape == (6, 8, 7) and valid_column.shape == (6, 8)
+    np.testing.assert_array_equal(Q_column, Q_flat)
+    assert np.allclose(Q_column[valid_column][:, 2], np.repeat(q[:, 2], valid_column.sum(axis=1)), atol=1e-12)
+    for value in (1e16, -1e308, np.array([[0.1], [2e4]])):
+        with pytest.raises(ValueError, match="free .* is beyond 10000 in size"):
+            k.ik(x[:1] if np.ndim(value) == 0 else x[:2], free=value)

@@ -47,12 +47,23 @@ def as_batch(value, size, function, name, finite=True):
     return array
 
 
+# The largest free joint value ik takes (rad or m): past it, the double's rounding of the angle
+# moves the answer by more than ik's own tolerance (free = 1e16 marked wrong branches valid).
+FREE_LIMIT = 1e4
+
+
 def as_free(value, function):
-    """The free joint's value(s) of a seven-joint ik, a number or shape (...), as shape (..., 1)."""
+    """The free joint's value(s) of a seven-joint ik as shape (..., 1): a number, an array of shape
+    (..., 1), or one of shape (...) (a last axis of length 1 is taken as the (..., 1) form)."""
     array = numpy.asarray(value)
     if array.dtype.kind not in "iuf":
-        raise ValueError(f"{function}: free must be a real number or an array of shape (...), got dtype {array.dtype}")
-    return array.astype(numpy.float64, copy=False)[..., None]
+        raise ValueError(f"{function}: free must be a real number or an array of shape (..., 1), "
+                         f"got dtype {array.dtype}")
+    array = array.astype(numpy.float64, copy=False)
+    if array.size and numpy.nanmax(numpy.abs(array), initial=0.0) > FREE_LIMIT:
+        raise ValueError(f"{function}: free {numpy.nanmax(numpy.abs(array)):g} is beyond {FREE_LIMIT:g} in size "
+                         "(a joint value in rad or m)")
+    return array if array.ndim and array.shape[-1] == 1 else array[..., None]
 
 
 def as_param(value, name):
