@@ -685,7 +685,7 @@ def _run(args, say) -> int:
     try:
         return args.run(args, say)
     except (derivations.DescriptionError, InputError, gen.OutputExistsError, gen.SettingError,
-            derivations.UnknownRobotError) as exc:
+            gen.NotFiniteError, derivations.UnknownRobotError) as exc:
         print(f"kinegen: error: {gen.terminal_text(exc, MESSAGE_LIMIT)}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # `kinegen list | head -1`: the reader is gone; nothing more to say

@@ -280,6 +280,43 @@ def _render_named(name: str, verbose: bool) -> dict[str, str]:
     return render_robot(model, source, verbose=verbose)
 
 
+class NotFiniteError(ValueError):
+    """A description whose kernels, run in double precision at its defaults, give inf or NaN."""
+
+
+def check_finite(model: RobotModel, folder: Path) -> None:
+    """Run the numpy kernels just written in ``folder`` (fk and the Jacobian, at q = 0 and three
+    configurations within the limits, at the parameters' defaults) and refuse the package when an
+    entry is not finite: each field of a description is checked finite on its own, but what the
+    kernels compute in doubles can still overflow (``sqrt(p**2 + 1) - p`` with p = 1e200, exactly
+    1e-200 and 0.5 apart, is inf - inf)."""
+    import importlib.util
+    import warnings
+    module_name = f"_kinegen_check_{model.name}_{os.getpid()}"
+    spec = importlib.util.spec_from_file_location(module_name, folder / "__init__.py",
+                                                  submodule_search_locations=[str(folder)])
+    package = importlib.util.module_from_spec(spec)
+    sys.modules[module_name] = package
+    try:
+        spec.loader.exec_module(package)
+        rng = np.random.default_rng(0)
+        low = np.array([lim[0] if lim else -np.pi for lim in model.limits])
+        high = np.array([lim[1] if lim else np.pi for lim in model.limits])
+        q = np.vstack([np.zeros(model.n), rng.uniform(low, high, (3, model.n))])
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            for kernel in ("fk", "jacobian"):
+                values = getattr(package, kernel)(q)
+                if not np.isfinite(values).all():
+                    bad = values[~np.isfinite(values)].flat[0]
+                    raise NotFiniteError(f"{model.name}: {kernel} is {bad} at the parameters' defaults when computed "
+                                         "in double precision (a number of the description overflows a double "
+                                         "on the way); nothing was written")
+    finally:
+        for name in [n for n in sys.modules if n == module_name or n.startswith(module_name + ".")]:
+            del sys.modules[name]
+
+
 class SettingError(ValueError):
     """An environment setting of kinegen (``KINEGEN_JOBS``) that cannot be used."""
 
@@ -415,6 +452,8 @@ def write_package(model: RobotModel, description: Path | None, out: Path, backen
     try:
         for filename, text in files.items():
             (scratch / filename).write_text(text, encoding="utf-8")
+        if isinstance(model, RobotModel) and model.chain is not None:
+            check_finite(model, scratch)
         if build is not None and "c" in backends:
             say(f"{model.name}: compiling the C kernels and their cffi extension")
             build(scratch)
@@ -440,6 +479,8 @@ def _replace_claimed(model, description, out: Path, backends, build, say, files)
     try:
         for filename, text in files.items():
             (scratch / filename).write_text(text, encoding="utf-8")
+        if isinstance(model, RobotModel) and model.chain is not None:
+            check_finite(model, scratch)
         if build is not None and "c" in backends:
             say(f"{model.name}: compiling the C kernels and their cffi extension")
             build(scratch)

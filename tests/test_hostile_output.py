@@ -262,3 +262,16 @@ def test_hostile_d4_every_command_that_derives_has_a_time_budget(tmp_path, capsy
     assert time.perf_counter() - start < 5.0
     err = capsys.readouterr().err
     assert "stopped after its time budget of 0.05 s" in err and err.count("\n") == 1
+
+
+def test_hostile_d11_kernels_that_overflow_a_double_at_the_defaults_are_refused(tmp_path, capsys):
+    """sqrt(p**2 + 1) - p + 0.5 is 0.5 exactly (every field passes its own check at 30 digits), but
+    with p = 1e200 the kernels compute inf - inf: the package is refused (exit 2), nothing written."""
+    path = tmp_path / "arm.toml"
+    path.write_text('name = "arm"\n[params]\np = 1e200\n[[joint]]\ntype = "R"\na = "sqrt(p**2 + 1) - p + 0.5"\n')
+    assert main(["--quiet", "generate", str(path), "--out", str(tmp_path / "pkg"), "--no-build"]) == 2
+    err = capsys.readouterr().err
+    assert "arm: fk is inf at the parameters' defaults when computed in double precision" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["arm.toml"]
+    path.write_text('name = "arm"\n[params]\np = 1e100\n[[joint]]\ntype = "R"\na = "sqrt(p**2 + 1) - p + 0.5"\n')
+    assert main(["--quiet", "generate", str(path), "--out", str(tmp_path / "pkg"), "--no-build"]) == 0
