@@ -243,6 +243,8 @@ def cmd_generate(args, say) -> int:
             raise InputError("generate with --out or a description file takes exactly one robot")
         out = Path(args.out) if args.out else None
         # --out is taken before the slow work: created empty by this run, or refused at once
+        if out is not None:
+            gen.clear_leftovers(out, say)
         claimed = gen.claim_output(out, args.force) if out is not None else False
         try:
             what = f"{args.robots[0]}: derivation and rendering"
@@ -251,6 +253,7 @@ def cmd_generate(args, say) -> int:
                     model, path = _load(args.robots[0], say, args)
                 if out is None:  # ./<robot name>, known once the description is read
                     out = _default_out(model)
+                    gen.clear_leftovers(out, say)
                     claimed = gen.claim_output(out, args.force)
                 with stage("rendering the package"):  # each rendering step names itself inside this
                     files = gen.render_robot(model, path, backends=tuple(dict.fromkeys(("numpy", *backends))),

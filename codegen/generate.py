@@ -11,6 +11,7 @@ import contextlib
 import errno
 import hashlib
 import os
+import re
 import shutil
 import sys
 import tempfile
@@ -415,6 +416,34 @@ def claim_output(out: Path, force: bool = False) -> bool:
         return False
 
 
+def _scratch_prefix(out: Path) -> str:
+    """The name every scratch folder of a run writing ``out`` starts with: it holds the run's process
+    id, so that a later run can tell a killed run's leftovers from a running one's."""
+    return f".{out.name}-kinegen-{os.getpid()}-"
+
+
+def clear_leftovers(out: Path, say=lambda message: None) -> list[Path]:
+    """Remove the scratch folders beside ``out`` that runs killed before they could clean up left
+    (``kill -9``: their process is gone); returns them, and says so."""
+    removed = []
+    pattern = re.compile(rf"^\.{re.escape(out.name)}-kinegen-(\d+)-")
+    for path in sorted(Path(out).parent.glob(f".{out.name}-kinegen-*")):
+        match = pattern.match(path.name)
+        if not match or not path.is_dir() or path.is_symlink():
+            continue
+        try:
+            os.kill(int(match[1]), 0)
+            continue  # the run that made it is still running
+        except ProcessLookupError:
+            pass
+        except (PermissionError, OverflowError):
+            continue
+        shutil.rmtree(path, ignore_errors=True)
+        removed.append(path)
+        say(f"removed {terminal_text(path)}: a scratch folder left by a run that was killed")
+    return removed
+
+
 def release_output(out: Path) -> None:
     """Give back a folder :func:`claim_output` created, if it is still empty (a run that failed)."""
     with contextlib.suppress(OSError):
@@ -448,7 +477,7 @@ def write_package(model: RobotModel, description: Path | None, out: Path, backen
         say(f"{model.name}: rendering {', '.join(backends)} kernels")
         files = render_robot(model, description, backends=backends, say=say)
     out.parent.mkdir(parents=True, exist_ok=True)
-    scratch = Path(tempfile.mkdtemp(prefix=f".{out.name}-", dir=out.parent))
+    scratch = Path(tempfile.mkdtemp(prefix=_scratch_prefix(out), dir=out.parent))
     try:
         for filename, text in files.items():
             (scratch / filename).write_text(text, encoding="utf-8")
@@ -460,7 +489,7 @@ def write_package(model: RobotModel, description: Path | None, out: Path, backen
         os.chmod(scratch, 0o777 & ~_umask())  # mkdtemp makes it 0700; a package folder follows the umask
         aside = None
         if out.exists():  # (--force) moved aside, and removed only once the new package is in place
-            aside = Path(tempfile.mkdtemp(prefix=f".{out.name}-old-", dir=out.parent))
+            aside = Path(tempfile.mkdtemp(prefix=_scratch_prefix(out) + "old-", dir=out.parent))
             os.replace(out, aside / out.name)
         os.replace(scratch, out)
         if aside is not None:
@@ -475,7 +504,7 @@ def _replace_claimed(model, description, out: Path, backends, build, say, files)
     backends = tuple(dict.fromkeys(("numpy", *backends)))
     if files is None:
         files = render_robot(model, description, backends=backends, say=say)
-    scratch = Path(tempfile.mkdtemp(prefix=f".{out.name}-", dir=out.parent))
+    scratch = Path(tempfile.mkdtemp(prefix=_scratch_prefix(out), dir=out.parent))
     try:
         for filename, text in files.items():
             (scratch / filename).write_text(text, encoding="utf-8")
@@ -556,8 +585,10 @@ def stale_files(tree: dict[str, str], root: Path = GENERATED) -> list[str]:
             rel = f"{robot}/{path.name}"
             if path.suffix in OWNED_SUFFIXES and rel not in tree:
                 stale.append(f"{rel} (not generated any more)")
-    # What an interrupted write or a killed run can leave: temporary files and scratch folders.
+    # What an interrupted write or a killed run can leave: temporary files and scratch folders (a
+    # package's build folders included).
     for path in sorted(root.rglob("*")):
-        if path.name.endswith(".part") or (path.is_dir() and path.name.startswith(".") and path.parent == root):
+        if path.name.endswith(".part") or (path.is_dir() and path.name.startswith(".") and path.parent == root) \
+                or (path.is_dir() and path.name.startswith(".kinegen-build-")):
             stale.append(f"{path.relative_to(root).as_posix()} (stray: left by an interrupted run)")
     return stale

@@ -275,3 +275,31 @@ def test_hostile_d11_kernels_that_overflow_a_double_at_the_defaults_are_refused(
     assert sorted(p.name for p in tmp_path.iterdir()) == ["arm.toml"]
     path.write_text('name = "arm"\n[params]\np = 1e100\n[[joint]]\ntype = "R"\na = "sqrt(p**2 + 1) - p + 0.5"\n')
     assert main(["--quiet", "generate", str(path), "--out", str(tmp_path / "pkg"), "--no-build"]) == 0
+
+
+def test_hostile_d9_a_rerun_clears_what_a_killed_run_left_beside_out(tmp_path, capsys):
+    """``kill -9`` leaves the run's scratch folder (its build objects inside it): the next run writing
+    the same --out removes it and says so; a folder of a run still going is left alone."""
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True,
+                          text=True).stdout.strip()
+    left = tmp_path / f".pkg-kinegen-{dead}-abc123"
+    (left / ".kinegen-build-x").mkdir(parents=True)
+    (left / ".kinegen-build-x" / "arm.o").write_bytes(b"\0" * 64)
+    running = tmp_path / f".pkg-kinegen-{os.getpid()}-def456"
+    running.mkdir()
+    assert main(["generate", str(arm(tmp_path)), "--out", str(tmp_path / "pkg"), "--no-build"]) == 0
+    err = capsys.readouterr().err
+    assert f"removed {left}: a scratch folder left by a run that was killed" in err
+    assert not left.exists() and running.exists()
+
+
+def test_hostile_d9_a_build_keeps_its_objects_inside_the_package(tmp_path, monkeypatch):
+    """The compiler's objects and temporary files are made inside the package being built, never in
+    the system's temporary folder, where a killed build would leave them for good."""
+    monkeypatch.setenv("TMPDIR", str(tmp_path / "system-tmp"))
+    (tmp_path / "system-tmp").mkdir()
+    import tempfile
+    monkeypatch.setattr(tempfile, "tempdir", None)
+    assert main(["--quiet", "generate", str(arm(tmp_path)), "--out", str(tmp_path / "pkg")]) == 0
+    assert list((tmp_path / "system-tmp").iterdir()) == []
+    assert not list((tmp_path / "pkg").glob(".kinegen-build-*"))

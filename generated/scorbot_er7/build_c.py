@@ -419,7 +419,9 @@ def build(verbose=False, warnings=(), fast=None):
     Where Python gives no POSIX link command, cffi compiles and links the whole instead.
     """
     flags = compile_flags(fast)
-    with tempfile.TemporaryDirectory(prefix="kinegen-build-") as scratch:
+    # The objects are made in a folder of this package's own, not in the system's temporary folder:
+    # a build killed half-way leaves them where the next build (and `make check`) finds them.
+    with tempfile.TemporaryDirectory(prefix=".kinegen-build-", dir=HERE) as scratch:
         ffi = ffibuilder(flags, [])
         target = HERE / (MODULE + sysconfig.get_config_var("EXT_SUFFIX"))
         staging = HERE / (target.name + ".part")
