@@ -339,7 +339,8 @@ def test_two_generates_of_one_package_at_once_both_end_cleanly(tmp_path):
 
 def test_the_compilers_temporary_files_stay_in_the_builds_scratch_folder(tmp_path, monkeypatch):
     """gcc writes cc*.s into $TMPDIR, and a killed build cannot remove them: every compile of
-    a package build runs with TMPDIR in the build's scratch folder, which goes with the run."""
+    a package build runs with TMPDIR in the build's scratch folder, which goes with the run and is
+    made inside the package (never in the system's temporary folder; issue #28, D9)."""
     import os
     import shutil
     import stat
@@ -362,6 +363,7 @@ def test_the_compilers_temporary_files_stay_in_the_builds_scratch_folder(tmp_pat
     build.build_extension(package)
     used = log.read_text().split()
     assert len(used) >= 3  # the kernels, the one-point entry points, cffi's binding (and its link)
-    assert all(Path(d).parent == system_tmp and Path(d).name.startswith("kinegen-build-") for d in used), used
+    assert all(Path(d).parent == package and Path(d).name.startswith(".kinegen-build-") for d in used), used
+    assert list(system_tmp.iterdir()) == [] and not list(package.glob(".kinegen-build-*"))
     assert list(system_tmp.iterdir()) == []
     assert os.environ["TMPDIR"] == str(system_tmp)  # put back after cffi's compile
