@@ -351,7 +351,7 @@ def verify_model(model: RobotModel, modules: dict, samples: int = 6, seed: int =
     if "jacobian" in names:
         for backend, module in modules.items():
             q = sample_joints(model, rng, samples)
-            error = float(np.max(np.abs(module.jacobian(q) - jacobian_by_finite_differences(module.fk, q))))
+            error = _difference_error(module.jacobian(q), jacobian_by_finite_differences(module.fk, q))
             checks.append(Check(model.name, "jacobian", backend, error, samples,
                                 "central differences of fk", FD_TOLERANCE))
     for rate, kernel in (("jacobian_dot", "jacobian"), ("task_jacobian_dot", "task_jacobian")):
@@ -361,10 +361,18 @@ def verify_model(model: RobotModel, modules: dict, samples: int = 6, seed: int =
             q = sample_joints(model, rng, samples)
             qd = rng.uniform(-1.0, 1.0, q.shape)
             expected = derivative_along(getattr(module, kernel), q, qd)
-            error = float(np.max(np.abs(getattr(module, rate)(q, qd) - expected)))
+            error = _difference_error(getattr(module, rate)(q, qd), expected)
             checks.append(Check(model.name, rate, backend, error, samples,
                                 f"central differences of {kernel} along q + t qd", FD_TOLERANCE))
     return checks
+
+
+def _difference_error(got: np.ndarray, differences: np.ndarray) -> float:
+    """``max|got - differences|`` relative to max(1, max|got|): central differences carry an error of
+    the size of the kernel's values times the step squared, so an arm 10^15 m long (a tan near its
+    pole in a description) is held to the same relative standard as one of a metre."""
+    scale = max(1.0, float(np.max(np.abs(got)))) if got.size else 1.0
+    return float(np.max(np.abs(got - differences))) / scale if got.size else 0.0
 
 
 def derivative_along(kernel, q: np.ndarray, qd: np.ndarray, step: float = 1e-6) -> np.ndarray:

@@ -303,3 +303,44 @@ def test_hostile_d9_a_build_keeps_its_objects_inside_the_package(tmp_path, monke
     assert main(["--quiet", "generate", str(arm(tmp_path)), "--out", str(tmp_path / "pkg")]) == 0
     assert list((tmp_path / "system-tmp").iterdir()) == []
     assert not list((tmp_path / "pkg").glob(".kinegen-build-*"))
+
+
+D1_URDF = """<robot name="extremes"><link name="a"/><link name="b"/><link name="c"/><link name="d"/>
+<joint name="j1" type="revolute"><parent link="a"/><child link="b"/><origin xyz="1e-320 0 0.3" rpy="0 0 0"/>
+ <axis xyz="0.123456789012345 0.2 0.972222222222222"/><limit lower="-3" upper="3"/></joint>
+<joint name="j2" type="revolute"><parent link="b"/><child link="c"/><origin xyz="0.4 0 0" rpy="1.5707963267 0 0"/>
+ <axis xyz="0.000000000123456 1 0"/></joint>
+<joint name="j3" type="prismatic"><parent link="c"/><child link="d"/><origin xyz="0.1 0.2 0.3" rpy="0.1 0.2 0.3"/>
+ <axis xyz="1 1 1"/><limit lower="0" upper="0.5"/></joint></robot>"""
+D1_TOML = ('name = "tan_arm"\n[[joint]]\ntype = "R"\na = "tan(pi/2 - 1/10**15)"\nalpha = "pi/2"\n'
+           '[[joint]]\ntype = "R"\na = 0.5\n')
+
+
+@pytest.mark.parametrize("name, text", [("extremes.urdf", D1_URDF), ("tan_arm.toml", D1_TOML)])
+def test_hostile_d1_extreme_numbers_generate_compile_strictly_and_verify(tmp_path, name, text):
+    """A length of 1e-320, axes of 15 digits and one of 1e-10 off a coordinate axis, and a link
+    of tan(pi/2 - 1e-15) = 6e14 m: exit 0 and a package that compiles with the strict flags (the
+    extension build is the strict compile), verifies against SymPy at 30 digits in both backends,
+    and holds no integer literal past 2^53 (issue #28, D1)."""
+    import re
+
+    import derivations
+    from codegen.verify import verify_model
+    path = tmp_path / name
+    path.write_text(text)
+    out = tmp_path / "pkg"
+    assert main(["--quiet", "generate", str(path), "--out", str(out)]) == 0
+    for source in out.glob("*.c"):
+        body = re.sub(r"/\*.*?\*/", "", source.read_text(), flags=re.S)
+        assert [int(m) for m in re.findall(r"(?<![\w.])(\d+)(?![\w.])", body) if int(m) > 2**53] == []
+    sys.path.insert(0, str(tmp_path))
+    try:
+        import importlib
+        package = importlib.import_module("pkg")
+        checks = verify_model(derivations.load(path), {"numpy": package.load("numpy"), "c": package.load("c")},
+                              samples=3)
+    finally:
+        sys.path.remove(str(tmp_path))
+        for module in [m for m in sys.modules if m == "pkg" or m.startswith("pkg.")]:
+            del sys.modules[module]
+    assert checks and all(c.ok for c in checks), [c for c in checks if not c.ok]
