@@ -28,6 +28,7 @@ import hashlib
 import importlib
 import io
 import os
+import shutil
 import signal
 import sys
 import threading
@@ -52,7 +53,12 @@ from .verify import format_table, verify_model
 
 __all__ = ["main"]
 
-SHOW = ("summary", "params", "dh", "fk", "frames", "jacobian", "task", "task_jacobian", "ik")
+# One vocabulary for `show --what` and `latex --what`: what show prints as text, and the LaTeX
+# sections (show prints those that have no text form as LaTeX; `position` and `task` are one).
+SHOW_TEXT = ("summary", "params", "dh", "fk", "frames", "jacobian", "task", "task_jacobian", "ik")
+WHAT = SHOW_TEXT + tuple(k for k in latex_backend.SECTION_KEYS if k not in SHOW_TEXT)
+LATEX_ALIASES = {"task": "position"}
+SHOW = WHAT
 
 
 class InputError(ValueError):
@@ -158,7 +164,11 @@ def _default_out(model) -> Path:
 def cmd_list(args, say) -> int:
     width = max(len(n) for n in derivations.ROBOTS)
     for name, path in derivations.ROBOTS.items():
-        title = derivations.description.read_description(path).title if path.suffix == ".toml" else ""
+        if path.suffix == ".toml":
+            title = derivations.description.read_description(path).title
+        else:  # a robot built in Python: its module's docstring names it (without deriving it)
+            import ast
+            title = (ast.get_docstring(ast.parse(path.read_text())) or "").split("\n")[0].split(":")[0]
         print(f"{name.ljust(width)}  {title}")
     return 0
 
@@ -171,10 +181,13 @@ def cmd_show(args, say) -> int:
 def _show(args, say) -> int:
     model, _ = _load(args.robot, say, args)
     what = args.what
-    if args.latex and what in latex_backend.SECTION_KEYS:
-        print(latex_backend.latex_for(model, [what]), end="")  # the fragments' notation
+    section = LATEX_ALIASES.get(what, what)
+    if (args.latex or what not in SHOW_TEXT) and section in latex_backend.SECTION_KEYS:
+        print(latex_backend.latex_for(model, [section]), end="")  # the fragments' notation
         return 0
-    render = sp.latex if args.latex else (lambda e: sp.pretty(e, use_unicode=False, wrap_line=False))
+    width = shutil.get_terminal_size((100, 24)).columns
+    render = ((lambda e, indent=0: sp.latex(e)) if args.latex else
+              (lambda e, indent=0: sp.pretty(e, use_unicode=False, num_columns=max(40, width - indent))))
     if what == "summary":
         print(f"{model.title} ({model.name})\nsource: {model.source}")
         print(f"joints: {', '.join(f'{q} ({t})' for q, t in zip(model.q, model.joint_types))}")
@@ -193,16 +206,17 @@ def _show(args, say) -> int:
             raise InputError(f"{model.name} is not a DH chain")
         print(f"convention: {model.chain.convention}")
         if model.chain.convention == "urdf":
-            print("joint  type  name  axis  origin xyz  (after)")
+            rows = [("joint", "type", "name", "axis", "origin xyz", "after xyz")]
             for i, j in enumerate(model.chain.joints, 1):
-                after = "" if j.after is None else f"  after xyz {list(j.after[:3, 3])}"
-                print(f"{i}  {j.type}  {gen.terminal_text(j.name, 60)}  {list(j.axis)}  {list(j.origin[:3, 3])}{after}")
-            return 0
-        print("joint  type  a  alpha  d  theta  offset")
-        for i, j in enumerate(model.chain.joints, 1):
-            d = model.q[i - 1] if j.type == "P" else j.d
-            theta = model.q[i - 1] if j.type == "R" else j.theta
-            print(f"{i}  {j.type}  {j.a}  {j.alpha}  {d}  {theta}  {j.offset}")
+                rows.append((str(i), j.type, gen.terminal_text(j.name, 60), _numbers(j.axis),
+                             _numbers(j.origin[:3, 3]), "" if j.after is None else _numbers(j.after[:3, 3])))
+        else:
+            rows = [("joint", "type", "a", "alpha", "d", "theta", "offset")]
+            for i, j in enumerate(model.chain.joints, 1):
+                d = model.q[i - 1] if j.type == "P" else j.d
+                theta = model.q[i - 1] if j.type == "R" else j.theta
+                rows.append((str(i), j.type, *(_number(v) for v in (j.a, j.alpha, d, theta, j.offset))))
+        print(_table(rows))
         return 0
     if what == "ik":
         if not model.ik:
@@ -230,10 +244,39 @@ def _show(args, say) -> int:
         print()
     if what == "frames":
         for i, frame in enumerate(model.frames):
-            print(f"T_{i} =\n{render(frame)}\n")
+            print(f"T_{i}:\n{_entries(frame, render)}\n")
         return 0
-    print(render(value))
+    print(_entries(value, render))
     return 0
+
+
+def _entries(matrix, render) -> str:
+    """A matrix one entry a line (``[i, j] = ...``, each wrapped to the terminal): a 4 x 4 of long
+    entries printed as one block ran to lines 656 columns wide."""
+    if matrix.cols == 1:
+        return "\n".join(f"[{i + 1}] = {render(e, 6)}" for i, e in enumerate(matrix))
+    return "\n".join(f"[{i + 1}, {j + 1}] = {render(matrix[i, j], 9)}"
+                     for i in range(matrix.rows) for j in range(matrix.cols))
+
+
+def _number(value) -> str:
+    """A DH entry for the terminal: a decimal as the shortest decimal of its double (0.089159, not
+    89159/1000000), an exact value where short (pi/2, d1), else its value to 6 digits."""
+    value = sp.sympify(value)
+    if value.is_Float or (value.is_Rational and not value.is_Integer):
+        return repr(float(value))
+    text = str(value)
+    return text if len(text) <= 24 else f"{float(value):.6g}" if sp.sympify(value).is_number else text[:24] + "..."
+
+
+def _numbers(values) -> str:
+    return "[" + ", ".join(_number(v) for v in values) + "]"
+
+
+def _table(rows) -> str:
+    """Columns padded to their widest cell."""
+    widths = [max(len(row[k]) for row in rows) for k in range(len(rows[0]))]
+    return "\n".join("  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip() for row in rows)
 
 
 def cmd_generate(args, say) -> int:
@@ -450,7 +493,10 @@ def cmd_check(args, say) -> int:
 
 
 def cmd_latex(args, say) -> int:
-    what = [w for item in args.what or [] for w in item.split(",") if w]
+    what = [LATEX_ALIASES.get(w, w) for item in args.what or [] for w in item.split(",") if w]
+    textual = [w for w in what if w in ("summary", "frames")]
+    if textual:
+        raise InputError(f"--what {textual[0]}: has no LaTeX section (`kinegen show --what {textual[0]}` prints it)")
     with _limited(args, f"{args.robot}: derivation and LaTeX"):
         model, _ = _load(args.robot, say, args)
         try:
@@ -568,11 +614,22 @@ def _backends(text: str) -> list[str]:
     return names
 
 
+def _version() -> str:
+    """The installed distribution's version (the checkout's pyproject.toml says the same)."""
+    from importlib import metadata
+    try:
+        return metadata.version("kinegen")
+    except metadata.PackageNotFoundError:  # run from a checkout that was never installed
+        import tomllib
+        return tomllib.loads((Path(__file__).resolve().parents[1] / "pyproject.toml").read_text())["project"]["version"]
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="kinegen", description=__doc__.split("\n\n")[0],
                                 epilog="\n\n".join(__doc__.split("\n\n")[1:]),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--quiet", action="store_true", help="no progress output on stderr")
+    p.add_argument("--version", action="version", version=f"kinegen {_version()}")
     # --quiet is accepted after the command too (SUPPRESS keeps the top-level value otherwise).
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS, help="no progress output")

@@ -117,7 +117,35 @@ def test_list_and_show(capsys):
     assert main(["show", "planar_3r", "--what", "task_jacobian", "--latex", "--quiet"]) == 0
     assert r"s_{12}" in capsys.readouterr().out  # the fragments' notation (Kumar's abbreviations)
     assert main(["--quiet", "show", "adept_three", "--what", "dh"]) == 0
-    assert "2  R  l2  pi  0  q2  0" in capsys.readouterr().out
+    lines = capsys.readouterr().out.splitlines()[1:]
+    assert ["2", "R", "l2", "pi", "0", "q2", "0"] in [line.split() for line in lines]
+    header = lines[0]
+    for line in lines[1:]:  # every column starts where its header does
+        assert line[header.index("alpha")] != " " and line[header.index("alpha") - 1] == " "
+
+
+def test_cli_conventions(capsys, monkeypatch):
+    """--version; every robot listed with a title; show and latex take the same --what names;
+    show's text fits the terminal (issue #27)."""
+    import tomllib
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--version"])
+    assert exit_info.value.code == 0
+    version = tomllib.loads((Path(__file__).resolve().parents[1] / "pyproject.toml").read_text())["project"]["version"]
+    assert capsys.readouterr().out.strip() == f"kinegen {version}"
+    assert main(["list"]) == 0
+    rows = [line.split(None, 1) for line in capsys.readouterr().out.splitlines()]
+    assert all(len(row) == 2 and row[1].strip() for row in rows), rows
+    from codegen.cli import WHAT
+    from codegen.backends.latex_backend import SECTION_KEYS
+    assert set(SECTION_KEYS) <= set(WHAT)
+    for what in ("task", "det", "links"):
+        assert main(["--quiet", "show", "planar_2r", "--what", what]) == 0
+        assert main(["--quiet", "latex", "planar_2r", "--what", what]) == 0
+    capsys.readouterr()
+    monkeypatch.setenv("COLUMNS", "80")
+    assert main(["--quiet", "show", "puma560", "--what", "fk"]) == 0
+    assert max(len(line) for line in capsys.readouterr().out.splitlines()) <= 80
 
 
 def test_free_text_cannot_break_the_generated_code(tmp_path):
