@@ -244,9 +244,11 @@ def header_macros(compiler: str = CC) -> set[str]:
 
 
 def point_includes(package: Path) -> list[str]:
-    """The include flags of ``<name>_point.c``: the package's header, and Python's and numpy's
-    as system headers (-isystem: their own warnings are not ours to fix)."""
-    return ["-I", str(package), "-isystem", sysconfig.get_paths()["include"], "-isystem", numpy.get_include()]
+    """The flags of ``<name>_point.c``: its body switched on (without KINEGEN_PYTHON_MODULE it is
+    empty, so that ``cc -c *.c`` in a package needs no Python), the package's header, and Python's
+    and numpy's as system headers (-isystem: their own warnings are not ours to fix)."""
+    return ["-DKINEGEN_PYTHON_MODULE", "-I", str(package), "-isystem", sysconfig.get_paths()["include"],
+            "-isystem", numpy.get_include()]
 
 
 @functools.lru_cache(maxsize=None)

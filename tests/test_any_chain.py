@@ -128,8 +128,8 @@ def test_synthetic_chain_generates_and_compiles_strictly(seed, tmp_path):
         (package / name).write_text(content)
     for layout, flags in LAYOUTS.items():
         _compile([*flags, "-c", str(package / f"{model.name}.c"), "-o", str(tmp_path / f"{layout}.o")])
-    _compile(["-I", str(package), "-isystem", sysconfig.get_paths()["include"], "-isystem", np.get_include(),
-              "-c", str(package / f"{model.name}_point.c"), "-o", str(tmp_path / "point.o")])
+    _compile(["-DKINEGEN_PYTHON_MODULE", "-I", str(package), "-isystem", sysconfig.get_paths()["include"],
+              "-isystem", np.get_include(), "-c", str(package / f"{model.name}_point.c"), "-o", str(tmp_path / "point.o")])
     sys.path.insert(0, str(tmp_path))
     try:
         module = __import__(model.name)

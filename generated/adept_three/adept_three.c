@@ -7,6 +7,7 @@
  * fk: 18 operations after common-subexpression elimination
  * frames: 23 operations after common-subexpression elimination
  * jacobian: 15 operations after common-subexpression elimination
+ * jacobian_tool: 31 operations after common-subexpression elimination
  * task: 14 operations after common-subexpression elimination
  * task_jacobian: 15 operations after common-subexpression elimination
  * ik: 53 operations after common-subexpression elimination
@@ -911,6 +912,233 @@ void adept_three_jacobian_batch(size_t count, const double *restrict q, const ad
     size_t i;
     for (i = 0; i < count; ++i) {
         adept_three_jacobian(q + 4 * i, params, J + 24 * i);
+    }
+#endif
+}
+
+/* Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, 4). */
+void adept_three_jacobian_tool(const double *restrict q, const adept_three_params *restrict params, double *restrict J_tool)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q4 = q[3];
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double _t0 = q1 + q2;
+    const double _t4 = _t0 - q4;
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, _t4, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+    _s2 = sin(_t4);
+    _c2 = cos(_t4);
+#endif
+    const double _t2 = _c0*l2;
+    const double _t3 = _c1*l1 + _t2;
+    const double _t6 = _s0*l2;
+    const double _t7 = -_s1*l1 - _t6;
+    J_tool[0] = _c2*_t7 + _s2*_t3;
+    J_tool[1] = _c0*_s2*l2 - _c2*_t6;
+    J_tool[2] = 0;
+    J_tool[3] = 0;
+    J_tool[4] = -_c2*_t3 + _s2*_t7;
+    J_tool[5] = -_c2*_t2 - _s2*_t6;
+    J_tool[6] = 0;
+    J_tool[7] = 0;
+    J_tool[8] = 0;
+    J_tool[9] = 0;
+    J_tool[10] = 1;
+    J_tool[11] = 0;
+    J_tool[12] = 0;
+    J_tool[13] = 0;
+    J_tool[14] = 0;
+    J_tool[15] = 0;
+    J_tool[16] = 0;
+    J_tool[17] = 0;
+    J_tool[18] = 0;
+    J_tool[19] = 0;
+    J_tool[20] = -1;
+    J_tool[21] = -1;
+    J_tool[22] = 0;
+    J_tool[23] = 1;
+}
+
+/* jacobian_tool of `count` items, stored one after the other in each argument and output. */
+void adept_three_jacobian_tool_batch(size_t count, const double *restrict q, const adept_three_params *restrict params, double *restrict J_tool)
+{
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t4[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _J_tool_block[24][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 24 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_tool & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &adept_three_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[4 * (start + i) + 0];
+            q2[i] = q[4 * (start + i) + 1];
+            q4[i] = q[4 * (start + i) + 3];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+            _t4[i] = _t0[i] - q4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t4[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c0[i]*l2;
+                const double _t3 = _c1[i]*l1 + _t2;
+                const double _t6 = _s0[i]*l2;
+                const double _t7 = -_s1[i]*l1 - _t6;
+                _J_tool_block[0][i] = _c2[i]*_t7 + _s2[i]*_t3;
+                _J_tool_block[1][i] = _c0[i]*_s2[i]*l2 - _c2[i]*_t6;
+                _J_tool_block[2][i] = 0;
+                _J_tool_block[3][i] = 0;
+                _J_tool_block[4][i] = -_c2[i]*_t3 + _s2[i]*_t7;
+                _J_tool_block[5][i] = -_c2[i]*_t2 - _s2[i]*_t6;
+                _J_tool_block[6][i] = 0;
+                _J_tool_block[7][i] = 0;
+                _J_tool_block[8][i] = 0;
+                _J_tool_block[9][i] = 0;
+                _J_tool_block[10][i] = 1;
+                _J_tool_block[11][i] = 0;
+                _J_tool_block[12][i] = 0;
+                _J_tool_block[13][i] = 0;
+                _J_tool_block[14][i] = 0;
+                _J_tool_block[15][i] = 0;
+                _J_tool_block[16][i] = 0;
+                _J_tool_block[17][i] = 0;
+                _J_tool_block[18][i] = 0;
+                _J_tool_block[19][i] = 0;
+                _J_tool_block[20][i] = -1;
+                _J_tool_block[21][i] = -1;
+                _J_tool_block[22][i] = 0;
+                _J_tool_block[23][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c0[i]*l2;
+                const double _t3 = _c1[i]*l1 + _t2;
+                const double _t6 = _s0[i]*l2;
+                const double _t7 = -_s1[i]*l1 - _t6;
+                J_tool[24 * (start + i) + 0] = _c2[i]*_t7 + _s2[i]*_t3;
+                J_tool[24 * (start + i) + 1] = _c0[i]*_s2[i]*l2 - _c2[i]*_t6;
+                J_tool[24 * (start + i) + 2] = 0;
+                J_tool[24 * (start + i) + 3] = 0;
+                J_tool[24 * (start + i) + 4] = -_c2[i]*_t3 + _s2[i]*_t7;
+                J_tool[24 * (start + i) + 5] = -_c2[i]*_t2 - _s2[i]*_t6;
+                J_tool[24 * (start + i) + 6] = 0;
+                J_tool[24 * (start + i) + 7] = 0;
+                J_tool[24 * (start + i) + 8] = 0;
+                J_tool[24 * (start + i) + 9] = 0;
+                J_tool[24 * (start + i) + 10] = 1;
+                J_tool[24 * (start + i) + 11] = 0;
+                J_tool[24 * (start + i) + 12] = 0;
+                J_tool[24 * (start + i) + 13] = 0;
+                J_tool[24 * (start + i) + 14] = 0;
+                J_tool[24 * (start + i) + 15] = 0;
+                J_tool[24 * (start + i) + 16] = 0;
+                J_tool[24 * (start + i) + 17] = 0;
+                J_tool[24 * (start + i) + 18] = 0;
+                J_tool[24 * (start + i) + 19] = 0;
+                J_tool[24 * (start + i) + 20] = -1;
+                J_tool[24 * (start + i) + 21] = -1;
+                J_tool[24 * (start + i) + 22] = 0;
+                J_tool[24 * (start + i) + 23] = 1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 24; k += 2) {
+                    _mm_stream_pd(J_tool + 24 * (start + i) + k, _mm_set_pd(_J_tool_block[k + 1][i], _J_tool_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        adept_three_jacobian_tool(q + 4 * i, params, J_tool + 24 * i);
     }
 #endif
 }

@@ -37,6 +37,9 @@ void adept_three_frames_batch(size_t count, const double *q, const adept_three_p
 /* jacobian: q[4] -> J[24] (row-major). Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 4). */
 void adept_three_jacobian(const double *q, const adept_three_params *params, double *J);
 void adept_three_jacobian_batch(size_t count, const double *q, const adept_three_params *params, double *J);
+/* jacobian_tool: q[4] -> J_tool[24] (row-major). Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, 4). */
+void adept_three_jacobian_tool(const double *q, const adept_three_params *params, double *J_tool);
+void adept_three_jacobian_tool_batch(size_t count, const double *q, const adept_three_params *params, double *J_tool);
 /* task: q[4] -> x[4] (row-major). Task coordinates x, y, z, phi, shape (..., 4). */
 void adept_three_task(const double *q, const adept_three_params *params, double *x);
 void adept_three_task_batch(size_t count, const double *q, const adept_three_params *params, double *x);

@@ -9,15 +9,24 @@ Source: Rehiara 2011, Table 1 (DH parameters), Eqs. 9-12 (A matrices), Eq. 13 (T
 Every kernel broadcasts over leading batch dimensions and takes each robot
 parameter as a keyword argument (SI units) defaulting to the value in PARAMS.
 """
+import sys
+
 import numpy
 
 from . import _runtime
 
 NAME = "adept_three"
+# The joints' names (a URDF's joint names; q1, q2, ... where the description names none), in the
+# order of q; joint_vector() puts a ROS joint_states message's positions in that order.
 JOINTS = ("q1", "q2", "q3", "q4", )
 JOINT_TYPES = ("R", "R", "P", "R", )
 TASK = ("x", "y", "z", "phi", )
 BRANCHES = ("lefty", "righty", )
+# The frames of `frames`, in order (a URDF's link names; T_0 .. T_n where there are none).
+FRAME_NAMES = ("T_0", "T_1", "T_2", "T_3", "T_4", )
+# How ik solves: the family of its closed form, the paper's closed form, or numeric (the
+# solver of ik_numeric from SEED_COUNT fixed seeds, each converged to 1e-12).
+IK_METHOD = "closed form (the paper\u0027s)"
 PARAMS = {"l1": 0.559, "l2": 0.508, "d1": 0.8763, "d4": 0.0}
 LIMITS = ((-2.6179938779914944, 2.6179938779914944), (-2.6179938779914944, 2.6179938779914944), (0.0, 0.305), (-4.71238898038469, 4.71238898038469), )
 # Batches are worked through CHUNK items at a time, so that the temporaries stay in cache.
@@ -26,7 +35,7 @@ LIMITS = ((-2.6179938779914944, 2.6179938779914944), (-2.6179938779914944, 2.617
 # vectorises float64 tan but not sin and cos (about 3 ns an angle for both,
 # against 17 ns for each); the error stays within 2.2e-16 (absolute) of libm's.
 CHUNK = 4096
-OPERATIONS = {"fk": 18, "frames": 23, "jacobian": 15, "task": 14, "task_jacobian": 15, "ik": 53, "task_velocity": 21, "twist": 21, "task_jacobian_dot": 25, "jacobian_dot": 25, "task_acceleration": 42, "manipulability": 20, "joint_velocity": 235, "joint_acceleration": 255, "tool_configuration": 16, "tool_configuration_jacobian": 18}
+OPERATIONS = {"fk": 18, "frames": 23, "jacobian": 15, "jacobian_tool": 31, "task": 14, "task_jacobian": 15, "ik": 53, "task_velocity": 21, "twist": 21, "task_jacobian_dot": 25, "jacobian_dot": 25, "task_acceleration": 42, "manipulability": 20, "joint_velocity": 235, "joint_acceleration": 255, "tool_configuration": 16, "tool_configuration_jacobian": 18}
 
 
 @numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
@@ -275,6 +284,76 @@ def jacobian(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
         _J[4] = _c1*l1 + _t2
         _J[5] = _t2
     return J.reshape(_batch + (6, 4))
+
+
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
+def jacobian_tool(q, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, 4).
+
+    q: joint coordinates, shape (..., 4) (q1: rad, q2: rad, q3: m, q4: rad)
+    (31 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 4, "jacobian_tool", "q")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    _runtime.as_param(d1, "d1")
+    _runtime.as_param(d4, "d4")
+    _batch = _runtime.batch_shape("jacobian_tool", q=q)
+    _all_q = numpy.broadcast_to(q, _batch + (4,)).reshape(-1, 4)
+    _count = _all_q.shape[0]
+    J_tool = numpy.empty((_count, 24))
+    J_tool[:, 2] = 0
+    J_tool[:, 3] = 0
+    J_tool[:, 6] = 0
+    J_tool[:, 7] = 0
+    J_tool[:, 8] = 0
+    J_tool[:, 9] = 0
+    J_tool[:, 10] = 1
+    J_tool[:, 11] = 0
+    J_tool[:, 12] = 0
+    J_tool[:, 13] = 0
+    J_tool[:, 14] = 0
+    J_tool[:, 15] = 0
+    J_tool[:, 16] = 0
+    J_tool[:, 17] = 0
+    J_tool[:, 18] = 0
+    J_tool[:, 19] = 0
+    J_tool[:, 20] = -1
+    J_tool[:, 21] = -1
+    J_tool[:, 22] = 0
+    J_tool[:, 23] = 1
+    for _start in range(0, _count, CHUNK):
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q4 = _columns_q[3]
+        _t0 = q1 + q2
+        _t4 = _t0 - q4
+        _h0 = numpy.tan(0.5*_t0)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _c0 = (1.0 - _u0)*_r0
+        _h1 = numpy.tan(0.5*q1)
+        _u1 = _h1*_h1
+        _r1 = 1.0/(1.0 + _u1)
+        _s1 = (_h1 + _h1)*_r1
+        _c1 = (1.0 - _u1)*_r1
+        _h2 = numpy.tan(0.5*_t4)
+        _u2 = _h2*_h2
+        _r2 = 1.0/(1.0 + _u2)
+        _s2 = (_h2 + _h2)*_r2
+        _c2 = (1.0 - _u2)*_r2
+        _t2 = _c0*l2
+        _t3 = _c1*l1 + _t2
+        _t6 = _s0*l2
+        _t7 = -_s1*l1 - _t6
+        _J_tool = J_tool[_start:_start + CHUNK].T
+        _J_tool[0] = _c2*_t7 + _s2*_t3
+        _J_tool[1] = _c0*_s2*l2 - _c2*_t6
+        _J_tool[4] = -_c2*_t3 + _s2*_t7
+        _J_tool[5] = -_c2*_t2 - _s2*_t6
+    return J_tool.reshape(_batch + (6, 4))
 
 
 @numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
@@ -1121,3 +1200,30 @@ def within_limits(q):
     """
     q = _runtime.as_batch(q, 4, "within_limits", "q", finite=False)
     return _runtime.within_limits(q, LIMITS, JOINT_TYPES)
+
+
+def joint_vector(names, positions):
+    """The joint positions of a ROS joint_states message (``names``, ``positions`` of shape (..., k))
+    in the order of JOINTS, shape (..., 4); a joint of JOINTS missing from
+    ``names`` raises ValueError naming it (names of other joints are left out)."""
+    names = list(names)
+    missing = [j for j in JOINTS if j not in names]
+    if missing:
+        raise ValueError(f"joint_vector: no position for {', '.join(missing)} among {len(names)} names")
+    positions = numpy.asarray(positions, dtype=float)
+    if positions.shape[-1:] != (len(names),):
+        raise ValueError(f"joint_vector: positions of shape (..., {len(names)}) for {len(names)} names, "
+                         f"got shape {positions.shape}")
+    return positions[..., [names.index(j) for j in JOINTS]]
+
+
+def ik_numeric(x, q0, *, l1=0.559, l2=0.508, d1=0.8763, d4=0.0):
+    """Inverse kinematics by Levenberg-Marquardt from the seed q0: (q (..., 4), converged (...)).
+
+    x: task coordinates x, y, z, phi, shape (..., 4)
+    q0: the seed, shape (..., 4); x and q0 broadcast.
+    Damped least squares on this package's fk and Jacobian (the same backend), joints kept within
+    LIMITS; converged where the largest residual is at most 1e-12 (metres and radians, task units).
+    The answer is the solution the seed leads to: for a redundant arm, one near q0.
+    """
+    return _runtime.ik_numeric(sys.modules[__name__], x, q0, {"l1": l1, "l2": l2, "d1": d1, "d4": d4})

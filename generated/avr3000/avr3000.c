@@ -7,6 +7,7 @@
  * fk: 20 operations after common-subexpression elimination
  * frames: 22 operations after common-subexpression elimination
  * jacobian: 25 operations after common-subexpression elimination
+ * jacobian_tool: 37 operations after common-subexpression elimination
  * task: 6 operations after common-subexpression elimination
  * task_jacobian: 7 operations after common-subexpression elimination
  * ik: 14 operations after common-subexpression elimination
@@ -877,6 +878,221 @@ void avr3000_jacobian_batch(size_t count, const double *restrict q, const avr300
     size_t i;
     for (i = 0; i < count; ++i) {
         avr3000_jacobian(q + 3 * i, params, J + 18 * i);
+    }
+#endif
+}
+
+/* Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, 3). */
+void avr3000_jacobian_tool(const double *restrict q, const avr3000_params *restrict params, double *restrict J_tool)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double a = params->a;
+    const double e = params->e;
+    const double _t0 = q1 + q2;
+    const double _t2 = q1 + (0.5)*q2;
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, _t2, q1, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(_t2);
+    _c1 = cos(_t2);
+    _s2 = sin(q1);
+    _c2 = cos(q1);
+#endif
+    const double _t1 = _s0*a;
+    const double _t4 = _s1*e - _s2*a - _t1;
+    const double _t6 = _c0*a;
+    const double _t7 = _c1*e;
+    const double _t8 = _c2*a + _t6 - _t7;
+    const double _t9 = _t6 - 0.5*_t7;
+    const double _t10 = (0.5)*_s1*e - _t1;
+    J_tool[0] = _c1*_t4 + _s1*_t8;
+    J_tool[1] = _c1*_t10 + _s1*_t9;
+    J_tool[2] = 0;
+    J_tool[3] = _c1*_t8 - _s1*_t4;
+    J_tool[4] = _c1*_t9 - _s1*_t10;
+    J_tool[5] = 0;
+    J_tool[6] = 0;
+    J_tool[7] = 0;
+    J_tool[8] = 1;
+    J_tool[9] = 0;
+    J_tool[10] = 0;
+    J_tool[11] = 0;
+    J_tool[12] = 0;
+    J_tool[13] = 0;
+    J_tool[14] = 0;
+    J_tool[15] = 1;
+    J_tool[16] = 0.5;
+    J_tool[17] = 0;
+}
+
+/* jacobian_tool of `count` items, stored one after the other in each argument and output. */
+void avr3000_jacobian_tool_batch(size_t count, const double *restrict q, const avr3000_params *restrict params, double *restrict J_tool)
+{
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t2[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _J_tool_block[18][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 18 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_tool & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &avr3000_default_params;
+    }
+    const double a = params->a;
+    const double e = params->e;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+            _t2[i] = q1[i] + (0.5)*q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*a;
+                const double _t4 = _s1[i]*e - _s2[i]*a - _t1;
+                const double _t6 = _c0[i]*a;
+                const double _t7 = _c1[i]*e;
+                const double _t8 = _c2[i]*a + _t6 - _t7;
+                const double _t9 = _t6 - 0.5*_t7;
+                const double _t10 = (0.5)*_s1[i]*e - _t1;
+                _J_tool_block[0][i] = _c1[i]*_t4 + _s1[i]*_t8;
+                _J_tool_block[1][i] = _c1[i]*_t10 + _s1[i]*_t9;
+                _J_tool_block[2][i] = 0;
+                _J_tool_block[3][i] = _c1[i]*_t8 - _s1[i]*_t4;
+                _J_tool_block[4][i] = _c1[i]*_t9 - _s1[i]*_t10;
+                _J_tool_block[5][i] = 0;
+                _J_tool_block[6][i] = 0;
+                _J_tool_block[7][i] = 0;
+                _J_tool_block[8][i] = 1;
+                _J_tool_block[9][i] = 0;
+                _J_tool_block[10][i] = 0;
+                _J_tool_block[11][i] = 0;
+                _J_tool_block[12][i] = 0;
+                _J_tool_block[13][i] = 0;
+                _J_tool_block[14][i] = 0;
+                _J_tool_block[15][i] = 1;
+                _J_tool_block[16][i] = 0.5;
+                _J_tool_block[17][i] = 0;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t1 = _s0[i]*a;
+                const double _t4 = _s1[i]*e - _s2[i]*a - _t1;
+                const double _t6 = _c0[i]*a;
+                const double _t7 = _c1[i]*e;
+                const double _t8 = _c2[i]*a + _t6 - _t7;
+                const double _t9 = _t6 - 0.5*_t7;
+                const double _t10 = (0.5)*_s1[i]*e - _t1;
+                J_tool[18 * (start + i) + 0] = _c1[i]*_t4 + _s1[i]*_t8;
+                J_tool[18 * (start + i) + 1] = _c1[i]*_t10 + _s1[i]*_t9;
+                J_tool[18 * (start + i) + 2] = 0;
+                J_tool[18 * (start + i) + 3] = _c1[i]*_t8 - _s1[i]*_t4;
+                J_tool[18 * (start + i) + 4] = _c1[i]*_t9 - _s1[i]*_t10;
+                J_tool[18 * (start + i) + 5] = 0;
+                J_tool[18 * (start + i) + 6] = 0;
+                J_tool[18 * (start + i) + 7] = 0;
+                J_tool[18 * (start + i) + 8] = 1;
+                J_tool[18 * (start + i) + 9] = 0;
+                J_tool[18 * (start + i) + 10] = 0;
+                J_tool[18 * (start + i) + 11] = 0;
+                J_tool[18 * (start + i) + 12] = 0;
+                J_tool[18 * (start + i) + 13] = 0;
+                J_tool[18 * (start + i) + 14] = 0;
+                J_tool[18 * (start + i) + 15] = 1;
+                J_tool[18 * (start + i) + 16] = 0.5;
+                J_tool[18 * (start + i) + 17] = 0;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 18; k += 2) {
+                    _mm_stream_pd(J_tool + 18 * (start + i) + k, _mm_set_pd(_J_tool_block[k + 1][i], _J_tool_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        avr3000_jacobian_tool(q + 3 * i, params, J_tool + 18 * i);
     }
 #endif
 }

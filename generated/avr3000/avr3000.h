@@ -47,6 +47,9 @@ void avr3000_frames_batch(size_t count, const double *q, const avr3000_params *p
 /* jacobian: q[3] -> J[18] (row-major). Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 3). */
 void avr3000_jacobian(const double *q, const avr3000_params *params, double *J);
 void avr3000_jacobian_batch(size_t count, const double *q, const avr3000_params *params, double *J);
+/* jacobian_tool: q[3] -> J_tool[18] (row-major). Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, 3). */
+void avr3000_jacobian_tool(const double *q, const avr3000_params *params, double *J_tool);
+void avr3000_jacobian_tool_batch(size_t count, const double *q, const avr3000_params *params, double *J_tool);
 /* task: q[3] -> x[3] (row-major). Task coordinates T, R, Z, shape (..., 3). */
 void avr3000_task(const double *q, const avr3000_params *params, double *x);
 void avr3000_task_batch(size_t count, const double *q, const avr3000_params *params, double *x);

@@ -12,12 +12,16 @@ it is, the inputs are checked for NaN and inf in C, and the parameters are check
 made into a C struct once per distinct set of values.  Outputs are fresh numpy arrays, writable by construction, so
 cffi is not asked to check that (require_writable costs 0.4 us a call).
 """
+import importlib.util
 import math
+import sys
 
 import numpy
 
 from . import _runtime
 from .numpy_kernels import BRANCHES, JOINT_TYPES, JOINTS, LIMITS, NAME, OPERATIONS, PARAMS, TASK
+from .numpy_kernels import FRAME_NAMES
+from .numpy_kernels import IK_METHOD, joint_vector
 from .numpy_kernels import SPACE_LIMITS
 from .numpy_kernels import GEAR_T, GEAR_R
 
@@ -27,10 +31,13 @@ try:
     # One point with the default parameters: avr3000_point.c, in the same library.
     _point = _runtime.extension_module(__package__, _library, "_avr3000_point")
 except ImportError as _exc:  # pragma: no cover - depends on the build
-    raise ImportError(
-        "the C library of avr3000 is not built, or was built from older sources: run `make build` "
-        "(or `python build_c.py` in this package's folder)"
-    ) from _exc
+    # The fix, named for where this package is: cffi missing, or the library not built here.
+    if importlib.util.find_spec("_cffi_backend") is None:
+        _problem = "the C backend of avr3000 needs cffi, which is not installed: run `pip install cffi`"
+    else:
+        _problem = ("the C library of avr3000 is not built, or was built from older sources: run `make build` "
+                    "in the kinegen repository (`kinegen build` where kinegen is installed)")
+    raise ImportError(_problem) from _exc
 
 _ndarray, _float64, _empty, _from_buffer = numpy.ndarray, numpy.dtype(numpy.float64), numpy.empty, _ffi.from_buffer
 _DOUBLES, _INTS = _ffi.typeof("double[]"), _ffi.typeof("int[]")
@@ -140,6 +147,32 @@ def jacobian(q, *, a=_a, e=_e, J11=_J11, J21=_J21, J22=_J22, J33=_J33):
     if status:
         raise ValueError("jacobian: q contains NaN or inf")
     return J
+
+
+def jacobian_tool(q, *, a=_a, e=_e, J11=_J11, J21=_J21, J22=_J22, J33=_J33):
+    """Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, 3). (C backend)"""
+    if a is _a and e is _e and J11 is _J11 and J21 is _J21 and J22 is _J22 and J33 is _J33:
+        params, _out = _DEFAULT_PARAMS, _point.jacobian_tool(q)
+    else:
+        params, _values = _params((a, e, J11, J21, J22, J33, ))
+        _out = _point.jacobian_tool(q, _values)
+    if _out is not None:  # one finite point as a float64 array: done in C
+        return _out
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 3 or not q.flags.c_contiguous):
+        q = numpy.ascontiguousarray(_runtime.as_batch(q, 3, "jacobian_tool", "q", finite=False))
+    batch = q.shape[:-1]
+    count = q.size // 3
+    J_tool = _empty(batch + (6, 3))
+    status = _lib.avr3000_jacobian_tool_checked(
+        count,
+        _from_buffer(_DOUBLES, q),
+        params,
+        _from_buffer(_DOUBLES, J_tool),
+    )
+    if status:
+        raise ValueError("jacobian_tool: q contains NaN or inf")
+    return J_tool
 
 
 def task(q, *, a=_a, e=_e, J11=_J11, J21=_J21, J22=_J22, J33=_J33):
@@ -1638,3 +1671,11 @@ def within_limits(q):
     inside = numpy.empty(q.shape[:-1], dtype=numpy.intc)
     _lib.avr3000_within_limits_batch(q.size // 3, _from_buffer(_DOUBLES, q), _from_buffer(_INTS, inside))
     return inside.astype(bool)
+
+
+def ik_numeric(x, q0, *, a=_a, e=_e, J11=_J11, J21=_J21, J22=_J22, J33=_J33):
+    """Inverse kinematics by Levenberg-Marquardt from the seed q0: (q (..., 3), converged (...)). (C backend)
+
+    As numpy_kernels.ik_numeric, each step's fk and Jacobian computed by this backend's C.
+    """
+    return _runtime.ik_numeric(sys.modules[__name__], x, q0, {"a": a, "e": e, "J11": J11, "J21": J21, "J22": J22, "J33": J33})

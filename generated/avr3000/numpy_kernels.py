@@ -9,15 +9,24 @@ Source: Z. M. Sotirov, "Kinematics of AVR 3000 Vacuum Robot", Genmark Automation
 Every kernel broadcasts over leading batch dimensions and takes each robot
 parameter as a keyword argument (SI units) defaulting to the value in PARAMS.
 """
+import sys
+
 import numpy
 
 from . import _runtime
 
 NAME = "avr3000"
+# The joints' names (a URDF's joint names; q1, q2, ... where the description names none), in the
+# order of q; joint_vector() puts a ROS joint_states message's positions in that order.
 JOINTS = ("q1", "q2", "q3", )
 JOINT_TYPES = ("R", "R", "P", )
 TASK = ("T", "R", "Z", )
 BRANCHES = ("principal", )
+# The frames of `frames`, in order (a URDF's link names; T_0 .. T_n where there are none).
+FRAME_NAMES = ("T_0", "T_1", "T_2", "T_3", )
+# How ik solves: the family of its closed form, the paper's closed form, or numeric (the
+# solver of ik_numeric from SEED_COUNT fixed seeds, each converged to 1e-12).
+IK_METHOD = "closed form (the paper\u0027s)"
 PARAMS = {"a": 0.2667, "e": 0.0, "J11": -4.0175691732e-05, "J21": 2.6036376953e-05, "J22": -2.6036376953e-05, "J33": 1.6666666692e-07}
 LIMITS = (None, (0.0, 4.016886910994234), (0.0, 0.1524), )
 # (low, high) of each coordinate of a space, SI: the robot's working ranges in that space.
@@ -28,7 +37,7 @@ SPACE_LIMITS = {"tool": ((0.0, 8.726646259971648), (-0.22606, 0.5334), (0.0, 0.1
 # vectorises float64 tan but not sin and cos (about 3 ns an angle for both,
 # against 17 ns for each); the error stays within 2.2e-16 (absolute) of libm's.
 CHUNK = 4096
-OPERATIONS = {"fk": 20, "frames": 22, "jacobian": 25, "task": 6, "task_jacobian": 7, "ik": 14, "motor_to_joint": 6, "motor_to_joint_velocity": 5, "motor_to_joint_acceleration": 5, "joint_to_tool": 6, "joint_to_tool_velocity": 8, "joint_to_tool_acceleration": 14, "joint_to_cartesian": 19, "joint_to_cartesian_velocity": 30, "joint_to_cartesian_acceleration": 58, "tool_to_cartesian": 5, "tool_to_cartesian_velocity": 10, "tool_to_cartesian_acceleration": 26, "motor_to_tool": 13, "motor_to_tool_velocity": 19, "motor_to_tool_acceleration": 37, "motor_to_cartesian": 26, "motor_to_cartesian_velocity": 49, "motor_to_cartesian_acceleration": 100, "joint_to_motor": 9, "joint_to_motor_velocity": 7, "joint_to_motor_acceleration": 7, "tool_to_joint": 10, "tool_to_joint_velocity": 20, "tool_to_joint_acceleration": 31, "tool_to_motor": 19, "tool_to_motor_velocity": 33, "tool_to_motor_acceleration": 50, "cartesian_to_tool": 8, "cartesian_to_tool_velocity": 18, "cartesian_to_tool_acceleration": 59, "cartesian_to_joint": 18, "cartesian_to_joint_velocity": 46, "cartesian_to_joint_acceleration": 149, "cartesian_to_motor": 27, "cartesian_to_motor_velocity": 58, "cartesian_to_motor_acceleration": 168, "cartesian_to_tool_reversed": 10, "cartesian_to_tool_reversed_velocity": 19, "cartesian_to_tool_reversed_acceleration": 59, "cartesian_to_joint_reversed": 20, "cartesian_to_joint_reversed_velocity": 42, "cartesian_to_joint_reversed_acceleration": 132, "cartesian_to_motor_reversed": 29, "cartesian_to_motor_reversed_velocity": 53, "cartesian_to_motor_reversed_acceleration": 153}
+OPERATIONS = {"fk": 20, "frames": 22, "jacobian": 25, "jacobian_tool": 37, "task": 6, "task_jacobian": 7, "ik": 14, "motor_to_joint": 6, "motor_to_joint_velocity": 5, "motor_to_joint_acceleration": 5, "joint_to_tool": 6, "joint_to_tool_velocity": 8, "joint_to_tool_acceleration": 14, "joint_to_cartesian": 19, "joint_to_cartesian_velocity": 30, "joint_to_cartesian_acceleration": 58, "tool_to_cartesian": 5, "tool_to_cartesian_velocity": 10, "tool_to_cartesian_acceleration": 26, "motor_to_tool": 13, "motor_to_tool_velocity": 19, "motor_to_tool_acceleration": 37, "motor_to_cartesian": 26, "motor_to_cartesian_velocity": 49, "motor_to_cartesian_acceleration": 100, "joint_to_motor": 9, "joint_to_motor_velocity": 7, "joint_to_motor_acceleration": 7, "tool_to_joint": 10, "tool_to_joint_velocity": 20, "tool_to_joint_acceleration": 31, "tool_to_motor": 19, "tool_to_motor_velocity": 33, "tool_to_motor_acceleration": 50, "cartesian_to_tool": 8, "cartesian_to_tool_velocity": 18, "cartesian_to_tool_acceleration": 59, "cartesian_to_joint": 18, "cartesian_to_joint_velocity": 46, "cartesian_to_joint_acceleration": 149, "cartesian_to_motor": 27, "cartesian_to_motor_velocity": 58, "cartesian_to_motor_acceleration": 168, "cartesian_to_tool_reversed": 10, "cartesian_to_tool_reversed_velocity": 19, "cartesian_to_tool_reversed_acceleration": 59, "cartesian_to_joint_reversed": 20, "cartesian_to_joint_reversed_velocity": 42, "cartesian_to_joint_reversed_acceleration": 132, "cartesian_to_motor_reversed": 29, "cartesian_to_motor_reversed_velocity": 53, "cartesian_to_motor_reversed_acceleration": 153}
 GEAR_T = 1.0
 GEAR_R = -0.4793588112288461
 
@@ -265,6 +274,74 @@ def jacobian(q, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05,
         _J[3] = _c2*a + _t4 - _t5
         _J[4] = _t4 - 0.5*_t5
     return J.reshape(_batch + (6, 3))
+
+
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
+def jacobian_tool(q, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
+    """Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, 3).
+
+    q: joint coordinates, shape (..., 3) (q1: rad, q2: rad, q3: m)
+    (37 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 3, "jacobian_tool", "q")
+    a = _runtime.as_param(a, "a")
+    e = _runtime.as_param(e, "e")
+    _runtime.as_param(J11, "J11")
+    _runtime.as_param(J21, "J21")
+    _runtime.as_param(J22, "J22")
+    _runtime.as_param(J33, "J33")
+    _batch = _runtime.batch_shape("jacobian_tool", q=q)
+    _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
+    _count = _all_q.shape[0]
+    J_tool = numpy.empty((_count, 18))
+    J_tool[:, 2] = 0
+    J_tool[:, 5] = 0
+    J_tool[:, 6] = 0
+    J_tool[:, 7] = 0
+    J_tool[:, 8] = 1
+    J_tool[:, 9] = 0
+    J_tool[:, 10] = 0
+    J_tool[:, 11] = 0
+    J_tool[:, 12] = 0
+    J_tool[:, 13] = 0
+    J_tool[:, 14] = 0
+    J_tool[:, 15] = 1
+    J_tool[:, 16] = 0.5
+    J_tool[:, 17] = 0
+    for _start in range(0, _count, CHUNK):
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        _t0 = q1 + q2
+        _t2 = q1 + (0.5)*q2
+        _h0 = numpy.tan(0.5*_t0)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _c0 = (1.0 - _u0)*_r0
+        _h1 = numpy.tan(0.5*_t2)
+        _u1 = _h1*_h1
+        _r1 = 1.0/(1.0 + _u1)
+        _s1 = (_h1 + _h1)*_r1
+        _c1 = (1.0 - _u1)*_r1
+        _h2 = numpy.tan(0.5*q1)
+        _u2 = _h2*_h2
+        _r2 = 1.0/(1.0 + _u2)
+        _s2 = (_h2 + _h2)*_r2
+        _c2 = (1.0 - _u2)*_r2
+        _t1 = _s0*a
+        _t4 = _s1*e - _s2*a - _t1
+        _t6 = _c0*a
+        _t7 = _c1*e
+        _t8 = _c2*a + _t6 - _t7
+        _t9 = _t6 - 0.5*_t7
+        _t10 = (0.5)*_s1*e - _t1
+        _J_tool = J_tool[_start:_start + CHUNK].T
+        _J_tool[0] = _c1*_t4 + _s1*_t8
+        _J_tool[1] = _c1*_t10 + _s1*_t9
+        _J_tool[3] = _c1*_t8 - _s1*_t4
+        _J_tool[4] = _c1*_t9 - _s1*_t10
+    return J_tool.reshape(_batch + (6, 3))
 
 
 @numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
@@ -2855,3 +2932,30 @@ def within_limits(q):
     """
     q = _runtime.as_batch(q, 3, "within_limits", "q", finite=False)
     return _runtime.within_limits(q, LIMITS, JOINT_TYPES)
+
+
+def joint_vector(names, positions):
+    """The joint positions of a ROS joint_states message (``names``, ``positions`` of shape (..., k))
+    in the order of JOINTS, shape (..., 3); a joint of JOINTS missing from
+    ``names`` raises ValueError naming it (names of other joints are left out)."""
+    names = list(names)
+    missing = [j for j in JOINTS if j not in names]
+    if missing:
+        raise ValueError(f"joint_vector: no position for {', '.join(missing)} among {len(names)} names")
+    positions = numpy.asarray(positions, dtype=float)
+    if positions.shape[-1:] != (len(names),):
+        raise ValueError(f"joint_vector: positions of shape (..., {len(names)}) for {len(names)} names, "
+                         f"got shape {positions.shape}")
+    return positions[..., [names.index(j) for j in JOINTS]]
+
+
+def ik_numeric(x, q0, *, a=0.2667, e=0.0, J11=-4.0175691732e-05, J21=2.6036376953e-05, J22=-2.6036376953e-05, J33=1.6666666692e-07):
+    """Inverse kinematics by Levenberg-Marquardt from the seed q0: (q (..., 3), converged (...)).
+
+    x: task coordinates T, R, Z, shape (..., 3)
+    q0: the seed, shape (..., 3); x and q0 broadcast.
+    Damped least squares on this package's fk and Jacobian (the same backend), joints kept within
+    LIMITS; converged where the largest residual is at most 1e-12 (metres and radians, task units).
+    The answer is the solution the seed leads to: for a redundant arm, one near q0.
+    """
+    return _runtime.ik_numeric(sys.modules[__name__], x, q0, {"a": a, "e": e, "J11": J11, "J21": J21, "J22": J22, "J33": J33})

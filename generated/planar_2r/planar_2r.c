@@ -7,6 +7,7 @@
  * fk: 12 operations after common-subexpression elimination
  * frames: 13 operations after common-subexpression elimination
  * jacobian: 13 operations after common-subexpression elimination
+ * jacobian_tool: 23 operations after common-subexpression elimination
  * task: 11 operations after common-subexpression elimination
  * task_jacobian: 13 operations after common-subexpression elimination
  * ik: 39 operations after common-subexpression elimination
@@ -714,6 +715,171 @@ void planar_2r_jacobian_batch(size_t count, const double *restrict q, const plan
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_2r_jacobian(q + 2 * i, params, J + 12 * i);
+    }
+#endif
+}
+
+/* Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, 2). */
+void planar_2r_jacobian_tool(const double *restrict q, const planar_2r_params *restrict params, double *restrict J_tool)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double _t0 = q1 + q2;
+    double _s0, _c0, _s1, _c1;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t0, q1, 0.0, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+    }
+#else
+    _s0 = sin(_t0);
+    _c0 = cos(_t0);
+    _s1 = sin(q1);
+    _c1 = cos(q1);
+#endif
+    const double _t2 = _c0*l2 + _c1*l1;
+    const double _t4 = -_s0*l2 - _s1*l1;
+    J_tool[0] = _c0*_t4 + _s0*_t2;
+    J_tool[1] = 0;
+    J_tool[2] = _c0*_t2 - _s0*_t4;
+    J_tool[3] = (_c0*_c0)*l2 + (_s0*_s0)*l2;
+    J_tool[4] = 0;
+    J_tool[5] = 0;
+    J_tool[6] = 0;
+    J_tool[7] = 0;
+    J_tool[8] = 0;
+    J_tool[9] = 0;
+    J_tool[10] = 1;
+    J_tool[11] = 1;
+}
+
+/* jacobian_tool of `count` items, stored one after the other in each argument and output. */
+void planar_2r_jacobian_tool_batch(size_t count, const double *restrict q, const planar_2r_params *restrict params, double *restrict J_tool)
+{
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _J_tool_block[12][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_tool & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_2r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[2 * (start + i) + 0];
+            q2[i] = q[2 * (start + i) + 1];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c0[i]*l2 + _c1[i]*l1;
+                const double _t4 = -_s0[i]*l2 - _s1[i]*l1;
+                _J_tool_block[0][i] = _c0[i]*_t4 + _s0[i]*_t2;
+                _J_tool_block[1][i] = 0;
+                _J_tool_block[2][i] = _c0[i]*_t2 - _s0[i]*_t4;
+                _J_tool_block[3][i] = (_c0[i]*_c0[i])*l2 + (_s0[i]*_s0[i])*l2;
+                _J_tool_block[4][i] = 0;
+                _J_tool_block[5][i] = 0;
+                _J_tool_block[6][i] = 0;
+                _J_tool_block[7][i] = 0;
+                _J_tool_block[8][i] = 0;
+                _J_tool_block[9][i] = 0;
+                _J_tool_block[10][i] = 1;
+                _J_tool_block[11][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c0[i]*l2 + _c1[i]*l1;
+                const double _t4 = -_s0[i]*l2 - _s1[i]*l1;
+                J_tool[12 * (start + i) + 0] = _c0[i]*_t4 + _s0[i]*_t2;
+                J_tool[12 * (start + i) + 1] = 0;
+                J_tool[12 * (start + i) + 2] = _c0[i]*_t2 - _s0[i]*_t4;
+                J_tool[12 * (start + i) + 3] = (_c0[i]*_c0[i])*l2 + (_s0[i]*_s0[i])*l2;
+                J_tool[12 * (start + i) + 4] = 0;
+                J_tool[12 * (start + i) + 5] = 0;
+                J_tool[12 * (start + i) + 6] = 0;
+                J_tool[12 * (start + i) + 7] = 0;
+                J_tool[12 * (start + i) + 8] = 0;
+                J_tool[12 * (start + i) + 9] = 0;
+                J_tool[12 * (start + i) + 10] = 1;
+                J_tool[12 * (start + i) + 11] = 1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 12; k += 2) {
+                    _mm_stream_pd(J_tool + 12 * (start + i) + k, _mm_set_pd(_J_tool_block[k + 1][i], _J_tool_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_2r_jacobian_tool(q + 2 * i, params, J_tool + 12 * i);
     }
 #endif
 }

@@ -37,6 +37,9 @@ void planar_2r_frames_batch(size_t count, const double *q, const planar_2r_param
 /* jacobian: q[2] -> J[12] (row-major). Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 2). */
 void planar_2r_jacobian(const double *q, const planar_2r_params *params, double *J);
 void planar_2r_jacobian_batch(size_t count, const double *q, const planar_2r_params *params, double *J);
+/* jacobian_tool: q[2] -> J_tool[12] (row-major). Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, 2). */
+void planar_2r_jacobian_tool(const double *q, const planar_2r_params *params, double *J_tool);
+void planar_2r_jacobian_tool_batch(size_t count, const double *q, const planar_2r_params *params, double *J_tool);
 /* task: q[2] -> x[2] (row-major). Task coordinates x, y, shape (..., 2). */
 void planar_2r_task(const double *q, const planar_2r_params *params, double *x);
 void planar_2r_task_batch(size_t count, const double *q, const planar_2r_params *params, double *x);

@@ -110,6 +110,19 @@ int planar_3r_jacobian_checked(size_t count, const double *q, const planar_3r_pa
     return 0;
 }
 
+int planar_3r_jacobian_tool_checked(size_t count, const double *q, const planar_3r_params *params, double *J_tool)
+{
+    if (kinegen_nonfinite(count * 3, q)) {
+        return 1;
+    }
+    if (count == 1) {
+        planar_3r_jacobian_tool(q, params, J_tool);
+    } else {
+        planar_3r_jacobian_tool_batch(count, q, params, J_tool);
+    }
+    return 0;
+}
+
 int planar_3r_task_checked(size_t count, const double *q, const planar_3r_params *params, double *x)
 {
     if (kinegen_nonfinite(count * 3, q)) {
@@ -261,6 +274,9 @@ void planar_3r_frames_batch(size_t count, const double *q, const planar_3r_param
 /* jacobian: q[3] -> J[18] (row-major). Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 3). */
 void planar_3r_jacobian(const double *q, const planar_3r_params *params, double *J);
 void planar_3r_jacobian_batch(size_t count, const double *q, const planar_3r_params *params, double *J);
+/* jacobian_tool: q[3] -> J_tool[18] (row-major). Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, 3). */
+void planar_3r_jacobian_tool(const double *q, const planar_3r_params *params, double *J_tool);
+void planar_3r_jacobian_tool_batch(size_t count, const double *q, const planar_3r_params *params, double *J_tool);
 /* task: q[3] -> x[3] (row-major). Task coordinates x, y, phi, shape (..., 3). */
 void planar_3r_task(const double *q, const planar_3r_params *params, double *x);
 void planar_3r_task_batch(size_t count, const double *q, const planar_3r_params *params, double *x);
@@ -301,6 +317,7 @@ void planar_3r_within_limits_batch(size_t count, const double *q, int *inside);
 int planar_3r_fk_checked(size_t count, const double *q, const planar_3r_params *params, double *T);
 int planar_3r_frames_checked(size_t count, const double *q, const planar_3r_params *params, double *frames);
 int planar_3r_jacobian_checked(size_t count, const double *q, const planar_3r_params *params, double *J);
+int planar_3r_jacobian_tool_checked(size_t count, const double *q, const planar_3r_params *params, double *J_tool);
 int planar_3r_task_checked(size_t count, const double *q, const planar_3r_params *params, double *x);
 int planar_3r_task_jacobian_checked(size_t count, const double *q, const planar_3r_params *params, double *Jx);
 int planar_3r_ik_checked(size_t count, const double *x, const planar_3r_params *params, double *Q, int *valid);
@@ -346,6 +363,9 @@ def compile_flags(fast=None):
 
 
 SOURCES = ["planar_3r.c", "planar_3r_point.c"]
+# planar_3r_point.c is the Python module of one-point calls only under this macro (without it,
+# empty: `cc -c *.c` in this folder builds a C program's objects without Python's headers).
+PYTHON_MODULE = "KINEGEN_PYTHON_MODULE"
 
 
 def _compile(folder, source, flags, headers=()):
@@ -369,7 +389,8 @@ def compile_objects(folder, flags=None, warnings=()):
     headers (-isystem), whose own warnings are not ours to fix.
     """
     flags = compile_flags() if flags is None else list(flags)
-    point = ["-I", str(HERE), "-isystem", sysconfig.get_paths()["include"], "-isystem", numpy.get_include()]
+    point = [f"-D{PYTHON_MODULE}", "-I", str(HERE), "-isystem", sysconfig.get_paths()["include"],
+             "-isystem", numpy.get_include()]
     jobs = [(HERE / SOURCES[0], [*warnings, *flags], ()), (HERE / SOURCES[1], [*warnings, *flags], point)]
     with concurrent.futures.ThreadPoolExecutor(max_workers=len(jobs)) as pool:
         return list(pool.map(lambda job: _compile(folder, *job), jobs))
@@ -396,6 +417,7 @@ def ffibuilder(flags=None, objects=None):
         sources=[] if objects is not None else [str(HERE / source) for source in SOURCES],
         extra_objects=[str(o) for o in objects or []],
         include_dirs=[str(HERE), numpy.get_include()],
+        define_macros=[(PYTHON_MODULE, None)],
         extra_compile_args=flags + BINDING_FLAGS if objects is not None else flags,
         libraries=["m"],
     )
@@ -410,21 +432,23 @@ def _link_command():
     return command
 
 
-def build(verbose=False, warnings=(), fast=None):
-    """Compile the extension in a scratch folder and move it here; returns its path.
+def build(verbose=False, warnings=(), fast=None, target=None):
+    """Compile the extension in a scratch folder and move it to ``target``; returns its path.
 
     planar_3r.c, planar_3r_point.c and the cffi binding are compiled once each, side by side
     (the first two with ``warnings``), then linked as Python links an extension module.  With
     ``fast`` (or KINEGEN_FAST=1), the vectorised layout for this machine (compile_flags).
     Where Python gives no POSIX link command, cffi compiles and links the whole instead.
+    ``target`` defaults to the extension's file beside this script, where the package imports
+    it from; `pip install` (setup.py) gives the extension's place in the wheel instead.
     """
     flags = compile_flags(fast)
     # The objects are made in a folder of this package's own, not in the system's temporary folder:
     # a build killed half-way leaves them where the next build (and `make check`) finds them.
     with tempfile.TemporaryDirectory(prefix=".kinegen-build-", dir=HERE) as scratch:
         ffi = ffibuilder(flags, [])
-        target = HERE / (MODULE + sysconfig.get_config_var("EXT_SUFFIX"))
-        staging = HERE / (target.name + ".part")
+        target = pathlib.Path(target or HERE / (MODULE + sysconfig.get_config_var("EXT_SUFFIX")))
+        staging = target.with_name(target.name + ".part")
         if os.name != "posix" or not sysconfig.get_config_var("LDSHARED"):
             objects = compile_objects(scratch, flags, warnings)
             built = pathlib.Path(ffibuilder(flags, objects).compile(tmpdir=scratch, verbose=verbose))

@@ -9,15 +9,24 @@ Source: Kumar, Robot Geometry and Kinematics, section 5.3, Eq. 4 (position), Eq.
 Every kernel broadcasts over leading batch dimensions and takes each robot
 parameter as a keyword argument (SI units) defaulting to the value in PARAMS.
 """
+import sys
+
 import numpy
 
 from . import _runtime
 
 NAME = "planar_3r"
+# The joints' names (a URDF's joint names; q1, q2, ... where the description names none), in the
+# order of q; joint_vector() puts a ROS joint_states message's positions in that order.
 JOINTS = ("q1", "q2", "q3", )
 JOINT_TYPES = ("R", "R", "R", )
 TASK = ("x", "y", "phi", )
 BRANCHES = ("elbow_up", "elbow_down", )
+# The frames of `frames`, in order (a URDF's link names; T_0 .. T_n where there are none).
+FRAME_NAMES = ("T_0", "T_1", "T_2", "T_3", )
+# How ik solves: the family of its closed form, the paper's closed form, or numeric (the
+# solver of ik_numeric from SEED_COUNT fixed seeds, each converged to 1e-12).
+IK_METHOD = "closed form (the paper\u0027s)"
 PARAMS = {"l1": 0.5, "l2": 0.4, "l3": 0.2}
 LIMITS = (None, None, None, )
 # Batches are worked through CHUNK items at a time, so that the temporaries stay in cache.
@@ -26,7 +35,7 @@ LIMITS = (None, None, None, )
 # vectorises float64 tan but not sin and cos (about 3 ns an angle for both,
 # against 17 ns for each); the error stays within 2.2e-16 (absolute) of libm's.
 CHUNK = 4096
-OPERATIONS = {"fk": 19, "frames": 21, "jacobian": 21, "task": 18, "task_jacobian": 21, "ik": 81, "task_velocity": 31, "twist": 31, "task_jacobian_dot": 46, "jacobian_dot": 46, "task_acceleration": 69, "manipulability": 18, "joint_velocity": 243, "joint_acceleration": 280}
+OPERATIONS = {"fk": 19, "frames": 21, "jacobian": 21, "jacobian_tool": 37, "task": 18, "task_jacobian": 21, "ik": 81, "task_velocity": 31, "twist": 31, "task_jacobian_dot": 46, "jacobian_dot": 46, "task_acceleration": 69, "manipulability": 18, "joint_velocity": 243, "joint_acceleration": 280}
 
 
 @numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
@@ -256,6 +265,70 @@ def jacobian(q, *, l1=0.5, l2=0.4, l3=0.2):
         _J[4] = _t5
         _J[5] = _t4
     return J.reshape(_batch + (6, 3))
+
+
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
+def jacobian_tool(q, *, l1=0.5, l2=0.4, l3=0.2):
+    """Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, 3).
+
+    q: joint coordinates, shape (..., 3) (q1: rad, q2: rad, q3: rad)
+    (37 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 3, "jacobian_tool", "q")
+    l1 = _runtime.as_param(l1, "l1")
+    l2 = _runtime.as_param(l2, "l2")
+    l3 = _runtime.as_param(l3, "l3")
+    _batch = _runtime.batch_shape("jacobian_tool", q=q)
+    _all_q = numpy.broadcast_to(q, _batch + (3,)).reshape(-1, 3)
+    _count = _all_q.shape[0]
+    J_tool = numpy.empty((_count, 18))
+    J_tool[:, 2] = 0
+    J_tool[:, 6] = 0
+    J_tool[:, 7] = 0
+    J_tool[:, 8] = 0
+    J_tool[:, 9] = 0
+    J_tool[:, 10] = 0
+    J_tool[:, 11] = 0
+    J_tool[:, 12] = 0
+    J_tool[:, 13] = 0
+    J_tool[:, 14] = 0
+    J_tool[:, 15] = 1
+    J_tool[:, 16] = 1
+    J_tool[:, 17] = 1
+    for _start in range(0, _count, CHUNK):
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
+        _t0 = q1 + q2
+        _t1 = _t0 + q3
+        _h0 = numpy.tan(0.5*_t1)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _c0 = (1.0 - _u0)*_r0
+        _h1 = numpy.tan(0.5*_t0)
+        _u1 = _h1*_h1
+        _r1 = 1.0/(1.0 + _u1)
+        _s1 = (_h1 + _h1)*_r1
+        _c1 = (1.0 - _u1)*_r1
+        _h2 = numpy.tan(0.5*q1)
+        _u2 = _h2*_h2
+        _r2 = 1.0/(1.0 + _u2)
+        _s2 = (_h2 + _h2)*_r2
+        _c2 = (1.0 - _u2)*_r2
+        _t3 = _c0*l3 + _c1*l2
+        _t4 = _c2*l1 + _t3
+        _t6 = _s0*l3 + _s1*l2
+        _t7 = -_s2*l1 - _t6
+        _t8 = -_t6
+        _J_tool = J_tool[_start:_start + CHUNK].T
+        _J_tool[0] = _c0*_t7 + _s0*_t4
+        _J_tool[1] = _c0*_t8 + _s0*_t3
+        _J_tool[3] = _c0*_t4 - _s0*_t7
+        _J_tool[4] = _c0*_t3 - _s0*_t8
+        _J_tool[5] = (_c0*_c0)*l3 + (_s0*_s0)*l3
+    return J_tool.reshape(_batch + (6, 3))
 
 
 @numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
@@ -1082,3 +1155,30 @@ def within_limits(q):
     """
     q = _runtime.as_batch(q, 3, "within_limits", "q", finite=False)
     return _runtime.within_limits(q, LIMITS, JOINT_TYPES)
+
+
+def joint_vector(names, positions):
+    """The joint positions of a ROS joint_states message (``names``, ``positions`` of shape (..., k))
+    in the order of JOINTS, shape (..., 3); a joint of JOINTS missing from
+    ``names`` raises ValueError naming it (names of other joints are left out)."""
+    names = list(names)
+    missing = [j for j in JOINTS if j not in names]
+    if missing:
+        raise ValueError(f"joint_vector: no position for {', '.join(missing)} among {len(names)} names")
+    positions = numpy.asarray(positions, dtype=float)
+    if positions.shape[-1:] != (len(names),):
+        raise ValueError(f"joint_vector: positions of shape (..., {len(names)}) for {len(names)} names, "
+                         f"got shape {positions.shape}")
+    return positions[..., [names.index(j) for j in JOINTS]]
+
+
+def ik_numeric(x, q0, *, l1=0.5, l2=0.4, l3=0.2):
+    """Inverse kinematics by Levenberg-Marquardt from the seed q0: (q (..., 3), converged (...)).
+
+    x: task coordinates x, y, phi, shape (..., 3)
+    q0: the seed, shape (..., 3); x and q0 broadcast.
+    Damped least squares on this package's fk and Jacobian (the same backend), joints kept within
+    LIMITS; converged where the largest residual is at most 1e-12 (metres and radians, task units).
+    The answer is the solution the seed leads to: for a redundant arm, one near q0.
+    """
+    return _runtime.ik_numeric(sys.modules[__name__], x, q0, {"l1": l1, "l2": l2, "l3": l3})

@@ -7,6 +7,7 @@
  * fk: 19 operations after common-subexpression elimination
  * frames: 21 operations after common-subexpression elimination
  * jacobian: 21 operations after common-subexpression elimination
+ * jacobian_tool: 37 operations after common-subexpression elimination
  * task: 18 operations after common-subexpression elimination
  * task_jacobian: 21 operations after common-subexpression elimination
  * ik: 81 operations after common-subexpression elimination
@@ -858,6 +859,220 @@ void planar_3r_jacobian_batch(size_t count, const double *restrict q, const plan
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_3r_jacobian(q + 3 * i, params, J + 18 * i);
+    }
+#endif
+}
+
+/* Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, 3). */
+void planar_3r_jacobian_tool(const double *restrict q, const planar_3r_params *restrict params, double *restrict J_tool)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    const double _t0 = q1 + q2;
+    const double _t1 = _t0 + q3;
+    double _s0, _c0, _s1, _c1, _s2, _c2;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[4] = { _t1, _t0, q1, 0.0 };
+        double sine[4], cosine[4];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 4; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+    }
+#else
+    _s0 = sin(_t1);
+    _c0 = cos(_t1);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+    _s2 = sin(q1);
+    _c2 = cos(q1);
+#endif
+    const double _t3 = _c0*l3 + _c1*l2;
+    const double _t4 = _c2*l1 + _t3;
+    const double _t6 = _s0*l3 + _s1*l2;
+    const double _t7 = -_s2*l1 - _t6;
+    const double _t8 = -_t6;
+    J_tool[0] = _c0*_t7 + _s0*_t4;
+    J_tool[1] = _c0*_t8 + _s0*_t3;
+    J_tool[2] = 0;
+    J_tool[3] = _c0*_t4 - _s0*_t7;
+    J_tool[4] = _c0*_t3 - _s0*_t8;
+    J_tool[5] = (_c0*_c0)*l3 + (_s0*_s0)*l3;
+    J_tool[6] = 0;
+    J_tool[7] = 0;
+    J_tool[8] = 0;
+    J_tool[9] = 0;
+    J_tool[10] = 0;
+    J_tool[11] = 0;
+    J_tool[12] = 0;
+    J_tool[13] = 0;
+    J_tool[14] = 0;
+    J_tool[15] = 1;
+    J_tool[16] = 1;
+    J_tool[17] = 1;
+}
+
+/* jacobian_tool of `count` items, stored one after the other in each argument and output. */
+void planar_3r_jacobian_tool_batch(size_t count, const double *restrict q, const planar_3r_params *restrict params, double *restrict J_tool)
+{
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _J_tool_block[18][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 18 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_tool & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &planar_3r_default_params;
+    }
+    const double l1 = params->l1;
+    const double l2 = params->l2;
+    const double l3 = params->l3;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[3 * (start + i) + 0];
+            q2[i] = q[3 * (start + i) + 1];
+            q3[i] = q[3 * (start + i) + 2];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q1[i] + q2[i];
+            _t1[i] = _t0[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q1[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _c0[i]*l3 + _c1[i]*l2;
+                const double _t4 = _c2[i]*l1 + _t3;
+                const double _t6 = _s0[i]*l3 + _s1[i]*l2;
+                const double _t7 = -_s2[i]*l1 - _t6;
+                const double _t8 = -_t6;
+                _J_tool_block[0][i] = _c0[i]*_t7 + _s0[i]*_t4;
+                _J_tool_block[1][i] = _c0[i]*_t8 + _s0[i]*_t3;
+                _J_tool_block[2][i] = 0;
+                _J_tool_block[3][i] = _c0[i]*_t4 - _s0[i]*_t7;
+                _J_tool_block[4][i] = _c0[i]*_t3 - _s0[i]*_t8;
+                _J_tool_block[5][i] = (_c0[i]*_c0[i])*l3 + (_s0[i]*_s0[i])*l3;
+                _J_tool_block[6][i] = 0;
+                _J_tool_block[7][i] = 0;
+                _J_tool_block[8][i] = 0;
+                _J_tool_block[9][i] = 0;
+                _J_tool_block[10][i] = 0;
+                _J_tool_block[11][i] = 0;
+                _J_tool_block[12][i] = 0;
+                _J_tool_block[13][i] = 0;
+                _J_tool_block[14][i] = 0;
+                _J_tool_block[15][i] = 1;
+                _J_tool_block[16][i] = 1;
+                _J_tool_block[17][i] = 1;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _c0[i]*l3 + _c1[i]*l2;
+                const double _t4 = _c2[i]*l1 + _t3;
+                const double _t6 = _s0[i]*l3 + _s1[i]*l2;
+                const double _t7 = -_s2[i]*l1 - _t6;
+                const double _t8 = -_t6;
+                J_tool[18 * (start + i) + 0] = _c0[i]*_t7 + _s0[i]*_t4;
+                J_tool[18 * (start + i) + 1] = _c0[i]*_t8 + _s0[i]*_t3;
+                J_tool[18 * (start + i) + 2] = 0;
+                J_tool[18 * (start + i) + 3] = _c0[i]*_t4 - _s0[i]*_t7;
+                J_tool[18 * (start + i) + 4] = _c0[i]*_t3 - _s0[i]*_t8;
+                J_tool[18 * (start + i) + 5] = (_c0[i]*_c0[i])*l3 + (_s0[i]*_s0[i])*l3;
+                J_tool[18 * (start + i) + 6] = 0;
+                J_tool[18 * (start + i) + 7] = 0;
+                J_tool[18 * (start + i) + 8] = 0;
+                J_tool[18 * (start + i) + 9] = 0;
+                J_tool[18 * (start + i) + 10] = 0;
+                J_tool[18 * (start + i) + 11] = 0;
+                J_tool[18 * (start + i) + 12] = 0;
+                J_tool[18 * (start + i) + 13] = 0;
+                J_tool[18 * (start + i) + 14] = 0;
+                J_tool[18 * (start + i) + 15] = 1;
+                J_tool[18 * (start + i) + 16] = 1;
+                J_tool[18 * (start + i) + 17] = 1;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 18; k += 2) {
+                    _mm_stream_pd(J_tool + 18 * (start + i) + k, _mm_set_pd(_J_tool_block[k + 1][i], _J_tool_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_3r_jacobian_tool(q + 3 * i, params, J_tool + 18 * i);
     }
 #endif
 }

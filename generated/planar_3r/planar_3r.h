@@ -37,6 +37,9 @@ void planar_3r_frames_batch(size_t count, const double *q, const planar_3r_param
 /* jacobian: q[3] -> J[18] (row-major). Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 3). */
 void planar_3r_jacobian(const double *q, const planar_3r_params *params, double *J);
 void planar_3r_jacobian_batch(size_t count, const double *q, const planar_3r_params *params, double *J);
+/* jacobian_tool: q[3] -> J_tool[18] (row-major). Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, 3). */
+void planar_3r_jacobian_tool(const double *q, const planar_3r_params *params, double *J_tool);
+void planar_3r_jacobian_tool_batch(size_t count, const double *q, const planar_3r_params *params, double *J_tool);
 /* task: q[3] -> x[3] (row-major). Task coordinates x, y, phi, shape (..., 3). */
 void planar_3r_task(const double *q, const planar_3r_params *params, double *x);
 void planar_3r_task_batch(size_t count, const double *q, const planar_3r_params *params, double *x);

@@ -16,7 +16,12 @@
  * It is compiled into the cffi extension _planar_3r_c (build_c.py) and imported
  * from that same shared library as the module _planar_3r_point, through its own
  * PyInit function (several modules in one library, as PEP 489 describes).
+ *
+ * It needs Python's and numpy's headers, so its body is compiled only where the build
+ * script defines KINEGEN_PYTHON_MODULE: `cc -c *.c` in this folder, for a C program,
+ * compiles the kernels and an empty module here.
  */
+#ifdef KINEGEN_PYTHON_MODULE
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
@@ -201,6 +206,38 @@ static PyObject *point_jacobian(PyObject *self, PyObject *const *args, Py_ssize_
     return J;
 fail:
     Py_XDECREF(J);
+    return NULL;
+}
+
+/* jacobian_tool(q, [parameters]) -> J_tool (6, 3), or None */
+static PyObject *point_jacobian_tool(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    const double *q;
+    PyObject *J_tool = NULL;
+    planar_3r_params given;
+    const planar_3r_params *params = &planar_3r_default_params;
+    (void)self;
+    if (nargs == 2) {
+        if (!kinegen_read_params(args[1], &given)) {
+            return NULL;
+        }
+        params = &given;
+    } else if (nargs != 1) {
+        PyErr_SetString(PyExc_TypeError, "jacobian_tool takes 1 array argument and optionally the parameters");
+        return NULL;
+    }
+    q = kinegen_point(args[0], 3, 1);
+    if (q == NULL) {
+        Py_RETURN_NONE;
+    }
+    J_tool = kinegen_doubles(2, 6, 3, 1);
+    if (J_tool == NULL) {
+        goto fail;
+    }
+    planar_3r_jacobian_tool(q, params, (double *)PyArray_DATA((PyArrayObject *)J_tool));
+    return J_tool;
+fail:
+    Py_XDECREF(J_tool);
     return NULL;
 }
 
@@ -611,6 +648,7 @@ static PyMethodDef kinegen_methods[] = {
     {"fk", (PyCFunction)(void (*)(void))point_fk, METH_FASTCALL, "fk of one point with the default parameters, or None"},
     {"frames", (PyCFunction)(void (*)(void))point_frames, METH_FASTCALL, "frames of one point with the default parameters, or None"},
     {"jacobian", (PyCFunction)(void (*)(void))point_jacobian, METH_FASTCALL, "jacobian of one point with the default parameters, or None"},
+    {"jacobian_tool", (PyCFunction)(void (*)(void))point_jacobian_tool, METH_FASTCALL, "jacobian_tool of one point with the default parameters, or None"},
     {"task", (PyCFunction)(void (*)(void))point_task, METH_FASTCALL, "task of one point with the default parameters, or None"},
     {"task_jacobian", (PyCFunction)(void (*)(void))point_task_jacobian, METH_FASTCALL, "task_jacobian of one point with the default parameters, or None"},
     {"ik", (PyCFunction)(void (*)(void))point_ik, METH_FASTCALL, "ik of one point with the default parameters, or None"},
@@ -635,3 +673,6 @@ PyMODINIT_FUNC PyInit__planar_3r_point(void)
     import_array();
     return PyModule_Create(&kinegen_module);
 }
+#else
+typedef int planar_3r_point_needs_python; /* ISO C: a translation unit declares something */
+#endif

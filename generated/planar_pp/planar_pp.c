@@ -7,6 +7,7 @@
  * fk: 1 operations after common-subexpression elimination
  * frames: 3 operations after common-subexpression elimination
  * jacobian: 0 operations after common-subexpression elimination
+ * jacobian_tool: 0 operations after common-subexpression elimination
  * task: 0 operations after common-subexpression elimination
  * task_jacobian: 0 operations after common-subexpression elimination
  * ik: 0 operations after common-subexpression elimination
@@ -489,6 +490,99 @@ void planar_pp_jacobian_batch(size_t count, const double *restrict q, const plan
     size_t i;
     for (i = 0; i < count; ++i) {
         planar_pp_jacobian(q + 2 * i, params, J + 12 * i);
+    }
+#endif
+}
+
+/* Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, 2). */
+void planar_pp_jacobian_tool(const double *restrict q, const planar_pp_params *restrict params, double *restrict J_tool)
+{
+    (void)q;
+    (void)params;
+    J_tool[0] = 0;
+    J_tool[1] = 0;
+    J_tool[2] = 1;
+    J_tool[3] = 0;
+    J_tool[4] = 0;
+    J_tool[5] = 1;
+    J_tool[6] = 0;
+    J_tool[7] = 0;
+    J_tool[8] = 0;
+    J_tool[9] = 0;
+    J_tool[10] = 0;
+    J_tool[11] = 0;
+}
+
+/* jacobian_tool of `count` items, stored one after the other in each argument and output. */
+void planar_pp_jacobian_tool_batch(size_t count, const double *restrict q, const planar_pp_params *restrict params, double *restrict J_tool)
+{
+#ifdef KINEGEN_BLOCKED
+#ifdef KINEGEN_STREAM
+    double _J_tool_block[12][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_tool & 15) == 0;
+#endif
+    size_t start, i, n;
+    (void)q;
+    (void)params;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                _J_tool_block[0][i] = 0;
+                _J_tool_block[1][i] = 0;
+                _J_tool_block[2][i] = 1;
+                _J_tool_block[3][i] = 0;
+                _J_tool_block[4][i] = 0;
+                _J_tool_block[5][i] = 1;
+                _J_tool_block[6][i] = 0;
+                _J_tool_block[7][i] = 0;
+                _J_tool_block[8][i] = 0;
+                _J_tool_block[9][i] = 0;
+                _J_tool_block[10][i] = 0;
+                _J_tool_block[11][i] = 0;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                J_tool[12 * (start + i) + 0] = 0;
+                J_tool[12 * (start + i) + 1] = 0;
+                J_tool[12 * (start + i) + 2] = 1;
+                J_tool[12 * (start + i) + 3] = 0;
+                J_tool[12 * (start + i) + 4] = 0;
+                J_tool[12 * (start + i) + 5] = 1;
+                J_tool[12 * (start + i) + 6] = 0;
+                J_tool[12 * (start + i) + 7] = 0;
+                J_tool[12 * (start + i) + 8] = 0;
+                J_tool[12 * (start + i) + 9] = 0;
+                J_tool[12 * (start + i) + 10] = 0;
+                J_tool[12 * (start + i) + 11] = 0;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 12; k += 2) {
+                    _mm_stream_pd(J_tool + 12 * (start + i) + k, _mm_set_pd(_J_tool_block[k + 1][i], _J_tool_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        planar_pp_jacobian_tool(q + 2 * i, params, J_tool + 12 * i);
     }
 #endif
 }

@@ -12,12 +12,16 @@ it is, the inputs are checked for NaN and inf in C, and the parameters are check
 made into a C struct once per distinct set of values.  Outputs are fresh numpy arrays, writable by construction, so
 cffi is not asked to check that (require_writable costs 0.4 us a call).
 """
+import importlib.util
 import math
+import sys
 
 import numpy
 
 from . import _runtime
 from .numpy_kernels import BRANCHES, JOINT_TYPES, JOINTS, LIMITS, NAME, OPERATIONS, PARAMS, TASK
+from .numpy_kernels import FRAME_NAMES
+from .numpy_kernels import IK_METHOD, joint_vector
 
 try:
     from . import _puma560_c as _library
@@ -25,10 +29,13 @@ try:
     # One point with the default parameters: puma560_point.c, in the same library.
     _point = _runtime.extension_module(__package__, _library, "_puma560_point")
 except ImportError as _exc:  # pragma: no cover - depends on the build
-    raise ImportError(
-        "the C library of puma560 is not built, or was built from older sources: run `make build` "
-        "(or `python build_c.py` in this package's folder)"
-    ) from _exc
+    # The fix, named for where this package is: cffi missing, or the library not built here.
+    if importlib.util.find_spec("_cffi_backend") is None:
+        _problem = "the C backend of puma560 needs cffi, which is not installed: run `pip install cffi`"
+    else:
+        _problem = ("the C library of puma560 is not built, or was built from older sources: run `make build` "
+                    "in the kinegen repository (`kinegen build` where kinegen is installed)")
+    raise ImportError(_problem) from _exc
 
 _ndarray, _float64, _empty, _from_buffer = numpy.ndarray, numpy.dtype(numpy.float64), numpy.empty, _ffi.from_buffer
 _DOUBLES, _INTS = _ffi.typeof("double[]"), _ffi.typeof("int[]")
@@ -137,6 +144,32 @@ def jacobian(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
     if status:
         raise ValueError("jacobian: q contains NaN or inf")
     return J
+
+
+def jacobian_tool(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
+    """Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, 6). (C backend)"""
+    if d1 is _d1 and a2 is _a2 and a3 is _a3 and d3 is _d3 and d4 is _d4:
+        params, _out = _DEFAULT_PARAMS, _point.jacobian_tool(q)
+    else:
+        params, _values = _params((d1, a2, a3, d3, d4, ))
+        _out = _point.jacobian_tool(q, _values)
+    if _out is not None:  # one finite point as a float64 array: done in C
+        return _out
+    if (type(q) is not _ndarray or q.dtype is not _float64 or not q.ndim
+            or q.shape[-1] != 6 or not q.flags.c_contiguous):
+        q = numpy.ascontiguousarray(_runtime.as_batch(q, 6, "jacobian_tool", "q", finite=False))
+    batch = q.shape[:-1]
+    count = q.size // 6
+    J_tool = _empty(batch + (6, 6))
+    status = _lib.puma560_jacobian_tool_checked(
+        count,
+        _from_buffer(_DOUBLES, q),
+        params,
+        _from_buffer(_DOUBLES, J_tool),
+    )
+    if status:
+        raise ValueError("jacobian_tool: q contains NaN or inf")
+    return J_tool
 
 
 def task(q, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
@@ -516,3 +549,11 @@ def within_limits(q):
     inside = numpy.empty(q.shape[:-1], dtype=numpy.intc)
     _lib.puma560_within_limits_batch(q.size // 6, _from_buffer(_DOUBLES, q), _from_buffer(_INTS, inside))
     return inside.astype(bool)
+
+
+def ik_numeric(x, q0, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
+    """Inverse kinematics by Levenberg-Marquardt from the seed q0: (q (..., 6), converged (...)). (C backend)
+
+    As numpy_kernels.ik_numeric, each step's fk and Jacobian computed by this backend's C.
+    """
+    return _runtime.ik_numeric(sys.modules[__name__], x, q0, {"d1": d1, "a2": a2, "a3": a3, "d3": d3, "d4": d4})

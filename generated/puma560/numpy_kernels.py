@@ -9,15 +9,24 @@ Source: Kumar, Robot Geometry and Kinematics, Fig. 1; the classical PUMA 560 DH 
 Every kernel broadcasts over leading batch dimensions and takes each robot
 parameter as a keyword argument (SI units) defaulting to the value in PARAMS.
 """
+import sys
+
 import numpy
 
 from . import _runtime
 
 NAME = "puma560"
+# The joints' names (a URDF's joint names; q1, q2, ... where the description names none), in the
+# order of q; joint_vector() puts a ROS joint_states message's positions in that order.
 JOINTS = ("q1", "q2", "q3", "q4", "q5", "q6", )
 JOINT_TYPES = ("R", "R", "R", "R", "R", "R", )
 TASK = ("x", "y", "z", "r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33", )
 BRANCHES = ("right_elbow_up_noflip", "right_elbow_up_flip", "right_elbow_down_noflip", "right_elbow_down_flip", "left_elbow_up_noflip", "left_elbow_up_flip", "left_elbow_down_noflip", "left_elbow_down_flip", )
+# The frames of `frames`, in order (a URDF's link names; T_0 .. T_n where there are none).
+FRAME_NAMES = ("T_0", "T_1", "T_2", "T_3", "T_4", "T_5", "T_6", )
+# How ik solves: the family of its closed form, the paper's closed form, or numeric (the
+# solver of ik_numeric from SEED_COUNT fixed seeds, each converged to 1e-12).
+IK_METHOD = "closed form (the paper\u0027s)"
 PARAMS = {"d1": 0.67183, "a2": 0.4318, "a3": 0.0203, "d3": 0.15005, "d4": 0.4318}
 LIMITS = ((-2.792526803190927, 2.792526803190927), (-0.7853981633974483, 3.9269908169872414), (-3.9269908169872414, 0.7853981633974483), (-1.9198621771937625, 2.9670597283903604), (-1.7453292519943295, 1.7453292519943295), (-4.642575810304916, 4.642575810304916), )
 # Batches are worked through CHUNK items at a time, so that the temporaries stay in cache.
@@ -26,7 +35,7 @@ LIMITS = ((-2.792526803190927, 2.792526803190927), (-0.7853981633974483, 3.92699
 # vectorises float64 tan but not sin and cos (about 3 ns an angle for both,
 # against 17 ns for each); the error stays within 2.2e-16 (absolute) of libm's.
 CHUNK = 4096
-OPERATIONS = {"fk": 125, "frames": 154, "jacobian": 75, "task": 125, "task_jacobian": 223, "ik": 431, "task_velocity": 306, "twist": 101, "task_jacobian_dot": 773, "jacobian_dot": 214, "task_acceleration": 1007, "manipulability": 41, "joint_velocity": 688, "joint_acceleration": 862, "joint_velocity_from_twist": 577}
+OPERATIONS = {"fk": 125, "frames": 154, "jacobian": 75, "jacobian_tool": 227, "task": 125, "task_jacobian": 223, "ik": 431, "task_velocity": 306, "twist": 101, "task_jacobian_dot": 773, "jacobian_dot": 214, "task_acceleration": 1007, "manipulability": 41, "joint_velocity": 688, "joint_acceleration": 862, "joint_velocity_from_twist": 577}
 
 
 @numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
@@ -437,6 +446,148 @@ def jacobian(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
         _J[34] = _s2*_s3
         _J[35] = _c2*_c4 - _c3*_s2*_s4
     return J.reshape(_batch + (6, 6))
+
+
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
+def jacobian_tool(q, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
+    """Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, 6).
+
+    q: joint coordinates, shape (..., 6) (q1: rad, q2: rad, q3: rad, q4: rad, q5: rad, q6: rad)
+    (227 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 6, "jacobian_tool", "q")
+    a2 = _runtime.as_param(a2, "a2")
+    a3 = _runtime.as_param(a3, "a3")
+    d3 = _runtime.as_param(d3, "d3")
+    d4 = _runtime.as_param(d4, "d4")
+    _runtime.as_param(d1, "d1")
+    _batch = _runtime.batch_shape("jacobian_tool", q=q)
+    _all_q = numpy.broadcast_to(q, _batch + (6,)).reshape(-1, 6)
+    _count = _all_q.shape[0]
+    J_tool = numpy.empty((_count, 36))
+    J_tool[:, 3] = 0
+    J_tool[:, 4] = 0
+    J_tool[:, 5] = 0
+    J_tool[:, 9] = 0
+    J_tool[:, 10] = 0
+    J_tool[:, 11] = 0
+    J_tool[:, 15] = 0
+    J_tool[:, 16] = 0
+    J_tool[:, 17] = 0
+    for _start in range(0, _count, CHUNK):
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
+        q4 = _columns_q[3]
+        q5 = _columns_q[4]
+        q6 = _columns_q[5]
+        _t3 = q2 + q3
+        _h0 = numpy.tan(0.5*q1)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _c0 = (1.0 - _u0)*_r0
+        _h1 = numpy.tan(0.5*q2)
+        _u1 = _h1*_h1
+        _r1 = 1.0/(1.0 + _u1)
+        _s1 = (_h1 + _h1)*_r1
+        _c1 = (1.0 - _u1)*_r1
+        _h2 = numpy.tan(0.5*_t3)
+        _u2 = _h2*_h2
+        _r2 = 1.0/(1.0 + _u2)
+        _s2 = (_h2 + _h2)*_r2
+        _c2 = (1.0 - _u2)*_r2
+        _h3 = numpy.tan(0.5*q6)
+        _u3 = _h3*_h3
+        _r3 = 1.0/(1.0 + _u3)
+        _s3 = (_h3 + _h3)*_r3
+        _c3 = (1.0 - _u3)*_r3
+        _h4 = numpy.tan(0.5*q4)
+        _u4 = _h4*_h4
+        _r4 = 1.0/(1.0 + _u4)
+        _s4 = (_h4 + _h4)*_r4
+        _c4 = (1.0 - _u4)*_r4
+        _h5 = numpy.tan(0.5*q5)
+        _u5 = _h5*_h5
+        _r5 = 1.0/(1.0 + _u5)
+        _s5 = (_h5 + _h5)*_r5
+        _c5 = (1.0 - _u5)*_r5
+        _t2 = _c1*a2
+        _t5 = _c2*a3
+        _t7 = _c0*d3 + _s0*_s2*d4 - _s0*_t2 - _s0*_t5
+        _t10 = _c4*_s0
+        _t11 = _s3*_t10
+        _t13 = _s2*_s5
+        _t15 = _c0*_c3
+        _t17 = _c2*_s4
+        _t18 = _c0*_t17
+        _t20 = _c5*_s4
+        _t21 = _c3*_s0
+        _t22 = _c0*_c2*_c3*_c4*_c5 - _s3*_t18 - _t11 - _t13*_t15 - _t20*_t21
+        _t23 = _s2*d4
+        _t24 = _c0*_t2 - _c0*_t23 + _c0*_t5 + _s0*d3
+        _t25 = _c0*_c4
+        _t26 = _s3*_t25
+        _t27 = _s0*_t17
+        _t28 = _c2*_c5
+        _t29 = _c3*_t10
+        _t30 = -_s3*_t27 - _t13*_t21 + _t15*_t20 + _t26 + _t28*_t29
+        _t31 = -_t23 + _t5
+        _t32 = _t2 + _t31
+        _t33 = _c2*_s5
+        _t34 = _s2*_s4
+        _t35 = _c5*_s2
+        _t36 = _c4*_t35
+        _t37 = _c3*_t33 + _c3*_t36 - _s3*_t34
+        _t38 = _c2*d4 + _s2*a3
+        _t39 = _s1*a2 + _t38
+        _t40 = _s0*_t30
+        _t41 = _c0*_t22
+        _t42 = _c0*_s2*_s3*_s5 - _c3*_t18 + _c5*_s0*_s3*_s4 - _t26*_t28 - _t29
+        _t43 = _c0*_c3*_c4 - _c0*_s3*_t20 - _c3*_t27 + _s0*_s2*_s3*_s5 - _t11*_t28
+        _t44 = -_c3*_t34 - _s3*_t33 - _s3*_t36
+        _t45 = _s0*_t43
+        _t46 = _c0*_t42
+        _t47 = -_c0*_t35 + _s0*_s4*_s5 - _t25*_t33
+        _t48 = -_c0*_s4*_s5 - _s0*_t35 - _t10*_t33
+        _t49 = _c2*_c5 - _c4*_t13
+        _t50 = _c0*_t47
+        _t51 = _s0*_t48
+        _t52 = -_c0*_t30 + _s0*_t22
+        _t53 = _t10 + _t18
+        _t54 = -_t25 + _t27
+        _t55 = -_c0*_t43 + _s0*_t42
+        _t56 = -_c0*_t48 + _s0*_t47
+        _J_tool = J_tool[_start:_start + CHUNK].T
+        _J_tool[0] = _t22*_t7 + _t24*_t30
+        _J_tool[1] = _t32*_t37 - _t39*_t40 - _t39*_t41
+        _J_tool[2] = _t31*_t37 - _t38*_t40 - _t38*_t41
+        _J_tool[6] = _t24*_t43 + _t42*_t7
+        _J_tool[7] = _t32*_t44 - _t39*_t45 - _t39*_t46
+        _J_tool[8] = _t31*_t44 - _t38*_t45 - _t38*_t46
+        _J_tool[12] = _t24*_t48 + _t47*_t7
+        _J_tool[13] = _t32*_t49 - _t39*_t50 - _t39*_t51
+        _J_tool[14] = _t31*_t49 - _t38*_t50 - _t38*_t51
+        _J_tool[18] = _t37
+        _J_tool[19] = _t52
+        _J_tool[20] = _t52
+        _J_tool[21] = _c2*_t37 - _s2*_t40 - _s2*_t41
+        _J_tool[22] = _t22*_t53 + _t30*_t54 + _t34*_t37
+        _J_tool[23] = _t22*_t47 + _t30*_t48 + _t37*_t49
+        _J_tool[24] = _t44
+        _J_tool[25] = _t55
+        _J_tool[26] = _t55
+        _J_tool[27] = _c2*_t44 - _s2*_t45 - _s2*_t46
+        _J_tool[28] = _t34*_t44 + _t42*_t53 + _t43*_t54
+        _J_tool[29] = _t42*_t47 + _t43*_t48 + _t44*_t49
+        _J_tool[30] = _t49
+        _J_tool[31] = _t56
+        _J_tool[32] = _t56
+        _J_tool[33] = _c2*_t49 - _s2*_t50 - _s2*_t51
+        _J_tool[34] = _t34*_t49 + _t47*_t53 + _t48*_t54
+        _J_tool[35] = (_t47*_t47) + (_t48*_t48) + (_t49*_t49)
+    return J_tool.reshape(_batch + (6, 6))
 
 
 @numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
@@ -2806,3 +2957,30 @@ def within_limits(q):
     """
     q = _runtime.as_batch(q, 6, "within_limits", "q", finite=False)
     return _runtime.within_limits(q, LIMITS, JOINT_TYPES)
+
+
+def joint_vector(names, positions):
+    """The joint positions of a ROS joint_states message (``names``, ``positions`` of shape (..., k))
+    in the order of JOINTS, shape (..., 6); a joint of JOINTS missing from
+    ``names`` raises ValueError naming it (names of other joints are left out)."""
+    names = list(names)
+    missing = [j for j in JOINTS if j not in names]
+    if missing:
+        raise ValueError(f"joint_vector: no position for {', '.join(missing)} among {len(names)} names")
+    positions = numpy.asarray(positions, dtype=float)
+    if positions.shape[-1:] != (len(names),):
+        raise ValueError(f"joint_vector: positions of shape (..., {len(names)}) for {len(names)} names, "
+                         f"got shape {positions.shape}")
+    return positions[..., [names.index(j) for j in JOINTS]]
+
+
+def ik_numeric(x, q0, *, d1=0.67183, a2=0.4318, a3=0.0203, d3=0.15005, d4=0.4318):
+    """Inverse kinematics by Levenberg-Marquardt from the seed q0: (q (..., 6), converged (...)).
+
+    x: task coordinates x, y, z, r11, r12, r13, r21, r22, r23, r31, r32, r33, shape (..., 12), or poses of shape (..., 4, 4)
+    q0: the seed, shape (..., 6); x and q0 broadcast.
+    Damped least squares on this package's fk and Jacobian (the same backend), joints kept within
+    LIMITS; converged where the largest residual is at most 1e-12 (metres and radians).
+    The answer is the solution the seed leads to: for a redundant arm, one near q0.
+    """
+    return _runtime.ik_numeric(sys.modules[__name__], x, q0, {"d1": d1, "a2": a2, "a3": a3, "d3": d3, "d4": d4})

@@ -7,6 +7,7 @@
  * fk: 125 operations after common-subexpression elimination
  * frames: 154 operations after common-subexpression elimination
  * jacobian: 75 operations after common-subexpression elimination
+ * jacobian_tool: 227 operations after common-subexpression elimination
  * task: 125 operations after common-subexpression elimination
  * task_jacobian: 223 operations after common-subexpression elimination
  * ik: 431 operations after common-subexpression elimination
@@ -1409,6 +1410,447 @@ void puma560_jacobian_batch(size_t count, const double *restrict q, const puma56
     size_t i;
     for (i = 0; i < count; ++i) {
         puma560_jacobian(q + 6 * i, params, J + 36 * i);
+    }
+#endif
+}
+
+/* Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, 6). */
+void puma560_jacobian_tool(const double *restrict q, const puma560_params *restrict params, double *restrict J_tool)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double q5 = q[4];
+    const double q6 = q[5];
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    const double _t3 = q2 + q3;
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4, _s5, _c5;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { q1, q2, _t3, q6, q4, q5, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+        _s5 = sine[5];
+        _c5 = cosine[5];
+    }
+#else
+    _s0 = sin(q1);
+    _c0 = cos(q1);
+    _s1 = sin(q2);
+    _c1 = cos(q2);
+    _s2 = sin(_t3);
+    _c2 = cos(_t3);
+    _s3 = sin(q6);
+    _c3 = cos(q6);
+    _s4 = sin(q4);
+    _c4 = cos(q4);
+    _s5 = sin(q5);
+    _c5 = cos(q5);
+#endif
+    const double _t2 = _c1*a2;
+    const double _t5 = _c2*a3;
+    const double _t7 = _c0*d3 + _s0*_s2*d4 - _s0*_t2 - _s0*_t5;
+    const double _t10 = _c4*_s0;
+    const double _t11 = _s3*_t10;
+    const double _t13 = _s2*_s5;
+    const double _t15 = _c0*_c3;
+    const double _t17 = _c2*_s4;
+    const double _t18 = _c0*_t17;
+    const double _t20 = _c5*_s4;
+    const double _t21 = _c3*_s0;
+    const double _t22 = _c0*_c2*_c3*_c4*_c5 - _s3*_t18 - _t11 - _t13*_t15 - _t20*_t21;
+    const double _t23 = _s2*d4;
+    const double _t24 = _c0*_t2 - _c0*_t23 + _c0*_t5 + _s0*d3;
+    const double _t25 = _c0*_c4;
+    const double _t26 = _s3*_t25;
+    const double _t27 = _s0*_t17;
+    const double _t28 = _c2*_c5;
+    const double _t29 = _c3*_t10;
+    const double _t30 = -_s3*_t27 - _t13*_t21 + _t15*_t20 + _t26 + _t28*_t29;
+    const double _t31 = -_t23 + _t5;
+    const double _t32 = _t2 + _t31;
+    const double _t33 = _c2*_s5;
+    const double _t34 = _s2*_s4;
+    const double _t35 = _c5*_s2;
+    const double _t36 = _c4*_t35;
+    const double _t37 = _c3*_t33 + _c3*_t36 - _s3*_t34;
+    const double _t38 = _c2*d4 + _s2*a3;
+    const double _t39 = _s1*a2 + _t38;
+    const double _t40 = _s0*_t30;
+    const double _t41 = _c0*_t22;
+    const double _t42 = _c0*_s2*_s3*_s5 - _c3*_t18 + _c5*_s0*_s3*_s4 - _t26*_t28 - _t29;
+    const double _t43 = _c0*_c3*_c4 - _c0*_s3*_t20 - _c3*_t27 + _s0*_s2*_s3*_s5 - _t11*_t28;
+    const double _t44 = -_c3*_t34 - _s3*_t33 - _s3*_t36;
+    const double _t45 = _s0*_t43;
+    const double _t46 = _c0*_t42;
+    const double _t47 = -_c0*_t35 + _s0*_s4*_s5 - _t25*_t33;
+    const double _t48 = -_c0*_s4*_s5 - _s0*_t35 - _t10*_t33;
+    const double _t49 = _c2*_c5 - _c4*_t13;
+    const double _t50 = _c0*_t47;
+    const double _t51 = _s0*_t48;
+    const double _t52 = -_c0*_t30 + _s0*_t22;
+    const double _t53 = _t10 + _t18;
+    const double _t54 = -_t25 + _t27;
+    const double _t55 = -_c0*_t43 + _s0*_t42;
+    const double _t56 = -_c0*_t48 + _s0*_t47;
+    J_tool[0] = _t22*_t7 + _t24*_t30;
+    J_tool[1] = _t32*_t37 - _t39*_t40 - _t39*_t41;
+    J_tool[2] = _t31*_t37 - _t38*_t40 - _t38*_t41;
+    J_tool[3] = 0;
+    J_tool[4] = 0;
+    J_tool[5] = 0;
+    J_tool[6] = _t24*_t43 + _t42*_t7;
+    J_tool[7] = _t32*_t44 - _t39*_t45 - _t39*_t46;
+    J_tool[8] = _t31*_t44 - _t38*_t45 - _t38*_t46;
+    J_tool[9] = 0;
+    J_tool[10] = 0;
+    J_tool[11] = 0;
+    J_tool[12] = _t24*_t48 + _t47*_t7;
+    J_tool[13] = _t32*_t49 - _t39*_t50 - _t39*_t51;
+    J_tool[14] = _t31*_t49 - _t38*_t50 - _t38*_t51;
+    J_tool[15] = 0;
+    J_tool[16] = 0;
+    J_tool[17] = 0;
+    J_tool[18] = _t37;
+    J_tool[19] = _t52;
+    J_tool[20] = _t52;
+    J_tool[21] = _c2*_t37 - _s2*_t40 - _s2*_t41;
+    J_tool[22] = _t22*_t53 + _t30*_t54 + _t34*_t37;
+    J_tool[23] = _t22*_t47 + _t30*_t48 + _t37*_t49;
+    J_tool[24] = _t44;
+    J_tool[25] = _t55;
+    J_tool[26] = _t55;
+    J_tool[27] = _c2*_t44 - _s2*_t45 - _s2*_t46;
+    J_tool[28] = _t34*_t44 + _t42*_t53 + _t43*_t54;
+    J_tool[29] = _t42*_t47 + _t43*_t48 + _t44*_t49;
+    J_tool[30] = _t49;
+    J_tool[31] = _t56;
+    J_tool[32] = _t56;
+    J_tool[33] = _c2*_t49 - _s2*_t50 - _s2*_t51;
+    J_tool[34] = _t34*_t49 + _t47*_t53 + _t48*_t54;
+    J_tool[35] = (_t47*_t47) + (_t48*_t48) + (_t49*_t49);
+}
+
+/* jacobian_tool of `count` items, stored one after the other in each argument and output. */
+void puma560_jacobian_tool_batch(size_t count, const double *restrict q, const puma560_params *restrict params, double *restrict J_tool)
+{
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double q5[KINEGEN_BLOCK_OF(64)];
+    double q6[KINEGEN_BLOCK_OF(64)];
+    double _t3[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    double _s4[KINEGEN_BLOCK_OF(64)];
+    double _c4[KINEGEN_BLOCK_OF(64)];
+    double _s5[KINEGEN_BLOCK_OF(64)];
+    double _c5[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _J_tool_block[36][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 36 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_tool & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &puma560_default_params;
+    }
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d3 = params->d3;
+    const double d4 = params->d4;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[6 * (start + i) + 0];
+            q2[i] = q[6 * (start + i) + 1];
+            q3[i] = q[6 * (start + i) + 2];
+            q4[i] = q[6 * (start + i) + 3];
+            q5[i] = q[6 * (start + i) + 4];
+            q6[i] = q[6 * (start + i) + 5];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t3[i] = q2[i] + q3[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(_t3[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q6[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(q4[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s5[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c5[i] = cos(q5[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = _c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5;
+                const double _t10 = _c4[i]*_s0[i];
+                const double _t11 = _s3[i]*_t10;
+                const double _t13 = _s2[i]*_s5[i];
+                const double _t15 = _c0[i]*_c3[i];
+                const double _t17 = _c2[i]*_s4[i];
+                const double _t18 = _c0[i]*_t17;
+                const double _t20 = _c5[i]*_s4[i];
+                const double _t21 = _c3[i]*_s0[i];
+                const double _t22 = _c0[i]*_c2[i]*_c3[i]*_c4[i]*_c5[i] - _s3[i]*_t18 - _t11 - _t13*_t15 - _t20*_t21;
+                const double _t23 = _s2[i]*d4;
+                const double _t24 = _c0[i]*_t2 - _c0[i]*_t23 + _c0[i]*_t5 + _s0[i]*d3;
+                const double _t25 = _c0[i]*_c4[i];
+                const double _t26 = _s3[i]*_t25;
+                const double _t27 = _s0[i]*_t17;
+                const double _t28 = _c2[i]*_c5[i];
+                const double _t29 = _c3[i]*_t10;
+                const double _t30 = -_s3[i]*_t27 - _t13*_t21 + _t15*_t20 + _t26 + _t28*_t29;
+                const double _t31 = -_t23 + _t5;
+                const double _t32 = _t2 + _t31;
+                const double _t33 = _c2[i]*_s5[i];
+                const double _t34 = _s2[i]*_s4[i];
+                const double _t35 = _c5[i]*_s2[i];
+                const double _t36 = _c4[i]*_t35;
+                const double _t37 = _c3[i]*_t33 + _c3[i]*_t36 - _s3[i]*_t34;
+                const double _t38 = _c2[i]*d4 + _s2[i]*a3;
+                const double _t39 = _s1[i]*a2 + _t38;
+                const double _t40 = _s0[i]*_t30;
+                const double _t41 = _c0[i]*_t22;
+                const double _t42 = _c0[i]*_s2[i]*_s3[i]*_s5[i] - _c3[i]*_t18 + _c5[i]*_s0[i]*_s3[i]*_s4[i] - _t26*_t28 - _t29;
+                const double _t43 = _c0[i]*_c3[i]*_c4[i] - _c0[i]*_s3[i]*_t20 - _c3[i]*_t27 + _s0[i]*_s2[i]*_s3[i]*_s5[i] - _t11*_t28;
+                const double _t44 = -_c3[i]*_t34 - _s3[i]*_t33 - _s3[i]*_t36;
+                const double _t45 = _s0[i]*_t43;
+                const double _t46 = _c0[i]*_t42;
+                const double _t47 = -_c0[i]*_t35 + _s0[i]*_s4[i]*_s5[i] - _t25*_t33;
+                const double _t48 = -_c0[i]*_s4[i]*_s5[i] - _s0[i]*_t35 - _t10*_t33;
+                const double _t49 = _c2[i]*_c5[i] - _c4[i]*_t13;
+                const double _t50 = _c0[i]*_t47;
+                const double _t51 = _s0[i]*_t48;
+                const double _t52 = -_c0[i]*_t30 + _s0[i]*_t22;
+                const double _t53 = _t10 + _t18;
+                const double _t54 = -_t25 + _t27;
+                const double _t55 = -_c0[i]*_t43 + _s0[i]*_t42;
+                const double _t56 = -_c0[i]*_t48 + _s0[i]*_t47;
+                _J_tool_block[0][i] = _t22*_t7 + _t24*_t30;
+                _J_tool_block[1][i] = _t32*_t37 - _t39*_t40 - _t39*_t41;
+                _J_tool_block[2][i] = _t31*_t37 - _t38*_t40 - _t38*_t41;
+                _J_tool_block[3][i] = 0;
+                _J_tool_block[4][i] = 0;
+                _J_tool_block[5][i] = 0;
+                _J_tool_block[6][i] = _t24*_t43 + _t42*_t7;
+                _J_tool_block[7][i] = _t32*_t44 - _t39*_t45 - _t39*_t46;
+                _J_tool_block[8][i] = _t31*_t44 - _t38*_t45 - _t38*_t46;
+                _J_tool_block[9][i] = 0;
+                _J_tool_block[10][i] = 0;
+                _J_tool_block[11][i] = 0;
+                _J_tool_block[12][i] = _t24*_t48 + _t47*_t7;
+                _J_tool_block[13][i] = _t32*_t49 - _t39*_t50 - _t39*_t51;
+                _J_tool_block[14][i] = _t31*_t49 - _t38*_t50 - _t38*_t51;
+                _J_tool_block[15][i] = 0;
+                _J_tool_block[16][i] = 0;
+                _J_tool_block[17][i] = 0;
+                _J_tool_block[18][i] = _t37;
+                _J_tool_block[19][i] = _t52;
+                _J_tool_block[20][i] = _t52;
+                _J_tool_block[21][i] = _c2[i]*_t37 - _s2[i]*_t40 - _s2[i]*_t41;
+                _J_tool_block[22][i] = _t22*_t53 + _t30*_t54 + _t34*_t37;
+                _J_tool_block[23][i] = _t22*_t47 + _t30*_t48 + _t37*_t49;
+                _J_tool_block[24][i] = _t44;
+                _J_tool_block[25][i] = _t55;
+                _J_tool_block[26][i] = _t55;
+                _J_tool_block[27][i] = _c2[i]*_t44 - _s2[i]*_t45 - _s2[i]*_t46;
+                _J_tool_block[28][i] = _t34*_t44 + _t42*_t53 + _t43*_t54;
+                _J_tool_block[29][i] = _t42*_t47 + _t43*_t48 + _t44*_t49;
+                _J_tool_block[30][i] = _t49;
+                _J_tool_block[31][i] = _t56;
+                _J_tool_block[32][i] = _t56;
+                _J_tool_block[33][i] = _c2[i]*_t49 - _s2[i]*_t50 - _s2[i]*_t51;
+                _J_tool_block[34][i] = _t34*_t49 + _t47*_t53 + _t48*_t54;
+                _J_tool_block[35][i] = (_t47*_t47) + (_t48*_t48) + (_t49*_t49);
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t2 = _c1[i]*a2;
+                const double _t5 = _c2[i]*a3;
+                const double _t7 = _c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5;
+                const double _t10 = _c4[i]*_s0[i];
+                const double _t11 = _s3[i]*_t10;
+                const double _t13 = _s2[i]*_s5[i];
+                const double _t15 = _c0[i]*_c3[i];
+                const double _t17 = _c2[i]*_s4[i];
+                const double _t18 = _c0[i]*_t17;
+                const double _t20 = _c5[i]*_s4[i];
+                const double _t21 = _c3[i]*_s0[i];
+                const double _t22 = _c0[i]*_c2[i]*_c3[i]*_c4[i]*_c5[i] - _s3[i]*_t18 - _t11 - _t13*_t15 - _t20*_t21;
+                const double _t23 = _s2[i]*d4;
+                const double _t24 = _c0[i]*_t2 - _c0[i]*_t23 + _c0[i]*_t5 + _s0[i]*d3;
+                const double _t25 = _c0[i]*_c4[i];
+                const double _t26 = _s3[i]*_t25;
+                const double _t27 = _s0[i]*_t17;
+                const double _t28 = _c2[i]*_c5[i];
+                const double _t29 = _c3[i]*_t10;
+                const double _t30 = -_s3[i]*_t27 - _t13*_t21 + _t15*_t20 + _t26 + _t28*_t29;
+                const double _t31 = -_t23 + _t5;
+                const double _t32 = _t2 + _t31;
+                const double _t33 = _c2[i]*_s5[i];
+                const double _t34 = _s2[i]*_s4[i];
+                const double _t35 = _c5[i]*_s2[i];
+                const double _t36 = _c4[i]*_t35;
+                const double _t37 = _c3[i]*_t33 + _c3[i]*_t36 - _s3[i]*_t34;
+                const double _t38 = _c2[i]*d4 + _s2[i]*a3;
+                const double _t39 = _s1[i]*a2 + _t38;
+                const double _t40 = _s0[i]*_t30;
+                const double _t41 = _c0[i]*_t22;
+                const double _t42 = _c0[i]*_s2[i]*_s3[i]*_s5[i] - _c3[i]*_t18 + _c5[i]*_s0[i]*_s3[i]*_s4[i] - _t26*_t28 - _t29;
+                const double _t43 = _c0[i]*_c3[i]*_c4[i] - _c0[i]*_s3[i]*_t20 - _c3[i]*_t27 + _s0[i]*_s2[i]*_s3[i]*_s5[i] - _t11*_t28;
+                const double _t44 = -_c3[i]*_t34 - _s3[i]*_t33 - _s3[i]*_t36;
+                const double _t45 = _s0[i]*_t43;
+                const double _t46 = _c0[i]*_t42;
+                const double _t47 = -_c0[i]*_t35 + _s0[i]*_s4[i]*_s5[i] - _t25*_t33;
+                const double _t48 = -_c0[i]*_s4[i]*_s5[i] - _s0[i]*_t35 - _t10*_t33;
+                const double _t49 = _c2[i]*_c5[i] - _c4[i]*_t13;
+                const double _t50 = _c0[i]*_t47;
+                const double _t51 = _s0[i]*_t48;
+                const double _t52 = -_c0[i]*_t30 + _s0[i]*_t22;
+                const double _t53 = _t10 + _t18;
+                const double _t54 = -_t25 + _t27;
+                const double _t55 = -_c0[i]*_t43 + _s0[i]*_t42;
+                const double _t56 = -_c0[i]*_t48 + _s0[i]*_t47;
+                J_tool[36 * (start + i) + 0] = _t22*_t7 + _t24*_t30;
+                J_tool[36 * (start + i) + 1] = _t32*_t37 - _t39*_t40 - _t39*_t41;
+                J_tool[36 * (start + i) + 2] = _t31*_t37 - _t38*_t40 - _t38*_t41;
+                J_tool[36 * (start + i) + 3] = 0;
+                J_tool[36 * (start + i) + 4] = 0;
+                J_tool[36 * (start + i) + 5] = 0;
+                J_tool[36 * (start + i) + 6] = _t24*_t43 + _t42*_t7;
+                J_tool[36 * (start + i) + 7] = _t32*_t44 - _t39*_t45 - _t39*_t46;
+                J_tool[36 * (start + i) + 8] = _t31*_t44 - _t38*_t45 - _t38*_t46;
+                J_tool[36 * (start + i) + 9] = 0;
+                J_tool[36 * (start + i) + 10] = 0;
+                J_tool[36 * (start + i) + 11] = 0;
+                J_tool[36 * (start + i) + 12] = _t24*_t48 + _t47*_t7;
+                J_tool[36 * (start + i) + 13] = _t32*_t49 - _t39*_t50 - _t39*_t51;
+                J_tool[36 * (start + i) + 14] = _t31*_t49 - _t38*_t50 - _t38*_t51;
+                J_tool[36 * (start + i) + 15] = 0;
+                J_tool[36 * (start + i) + 16] = 0;
+                J_tool[36 * (start + i) + 17] = 0;
+                J_tool[36 * (start + i) + 18] = _t37;
+                J_tool[36 * (start + i) + 19] = _t52;
+                J_tool[36 * (start + i) + 20] = _t52;
+                J_tool[36 * (start + i) + 21] = _c2[i]*_t37 - _s2[i]*_t40 - _s2[i]*_t41;
+                J_tool[36 * (start + i) + 22] = _t22*_t53 + _t30*_t54 + _t34*_t37;
+                J_tool[36 * (start + i) + 23] = _t22*_t47 + _t30*_t48 + _t37*_t49;
+                J_tool[36 * (start + i) + 24] = _t44;
+                J_tool[36 * (start + i) + 25] = _t55;
+                J_tool[36 * (start + i) + 26] = _t55;
+                J_tool[36 * (start + i) + 27] = _c2[i]*_t44 - _s2[i]*_t45 - _s2[i]*_t46;
+                J_tool[36 * (start + i) + 28] = _t34*_t44 + _t42*_t53 + _t43*_t54;
+                J_tool[36 * (start + i) + 29] = _t42*_t47 + _t43*_t48 + _t44*_t49;
+                J_tool[36 * (start + i) + 30] = _t49;
+                J_tool[36 * (start + i) + 31] = _t56;
+                J_tool[36 * (start + i) + 32] = _t56;
+                J_tool[36 * (start + i) + 33] = _c2[i]*_t49 - _s2[i]*_t50 - _s2[i]*_t51;
+                J_tool[36 * (start + i) + 34] = _t34*_t49 + _t47*_t53 + _t48*_t54;
+                J_tool[36 * (start + i) + 35] = (_t47*_t47) + (_t48*_t48) + (_t49*_t49);
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 36; k += 2) {
+                    _mm_stream_pd(J_tool + 36 * (start + i) + k, _mm_set_pd(_J_tool_block[k + 1][i], _J_tool_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        puma560_jacobian_tool(q + 6 * i, params, J_tool + 36 * i);
     }
 #endif
 }

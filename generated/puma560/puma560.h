@@ -37,6 +37,9 @@ void puma560_frames_batch(size_t count, const double *q, const puma560_params *p
 /* jacobian: q[6] -> J[36] (row-major). Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 6). */
 void puma560_jacobian(const double *q, const puma560_params *params, double *J);
 void puma560_jacobian_batch(size_t count, const double *q, const puma560_params *params, double *J);
+/* jacobian_tool: q[6] -> J_tool[36] (row-major). Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, 6). */
+void puma560_jacobian_tool(const double *q, const puma560_params *params, double *J_tool);
+void puma560_jacobian_tool_batch(size_t count, const double *q, const puma560_params *params, double *J_tool);
 /* task: q[6] -> x[12] (row-major). Task coordinates x, y, z, r11, r12, r13, r21, r22, r23, r31, r32, r33, shape (..., 12). */
 void puma560_task(const double *q, const puma560_params *params, double *x);
 void puma560_task_batch(size_t count, const double *q, const puma560_params *params, double *x);

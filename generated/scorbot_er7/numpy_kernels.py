@@ -9,15 +9,24 @@ Source: Predescu and Stroe, On the kinematics of the SCORBOT ER-VII robot, secti
 Every kernel broadcasts over leading batch dimensions and takes each robot
 parameter as a keyword argument (SI units) defaulting to the value in PARAMS.
 """
+import sys
+
 import numpy
 
 from . import _runtime
 
 NAME = "scorbot_er7"
+# The joints' names (a URDF's joint names; q1, q2, ... where the description names none), in the
+# order of q; joint_vector() puts a ROS joint_states message's positions in that order.
 JOINTS = ("q1", "q2", "q3", "q4", "q5", )
 JOINT_TYPES = ("R", "R", "R", "R", "R", )
 TASK = ("x", "y", "z", )
 BRANCHES = ("elbow_up", "elbow_down", "shoulder_flip_elbow_up", "shoulder_flip_elbow_down", )
+# The frames of `frames`, in order (a URDF's link names; T_0 .. T_n where there are none).
+FRAME_NAMES = ("T_0", "T_1", "T_2", "T_3", "T_4", "T_5", )
+# How ik solves: the family of its closed form, the paper's closed form, or numeric (the
+# solver of ik_numeric from SEED_COUNT fixed seeds, each converged to 1e-12).
+IK_METHOD = "closed form (the paper\u0027s)"
 PARAMS = {"a1": 0.05, "a2": 0.3, "a3": 0.25, "d1": 0.385, "d5": 0.212}
 LIMITS = (None, None, None, None, None, )
 # Batches are worked through CHUNK items at a time, so that the temporaries stay in cache.
@@ -26,7 +35,7 @@ LIMITS = (None, None, None, None, None, )
 # vectorises float64 tan but not sin and cos (about 3 ns an angle for both,
 # against 17 ns for each); the error stays within 2.2e-16 (absolute) of libm's.
 CHUNK = 4096
-OPERATIONS = {"fk": 44, "frames": 67, "jacobian": 39, "task": 24, "task_jacobian": 36, "ik": 108, "task_velocity": 46, "twist": 61, "task_jacobian_dot": 101, "jacobian_dot": 124, "task_acceleration": 148, "manipulability": 56, "joint_velocity": 345, "joint_acceleration": 447}
+OPERATIONS = {"fk": 44, "frames": 67, "jacobian": 39, "jacobian_tool": 131, "task": 24, "task_jacobian": 36, "ik": 108, "task_velocity": 46, "twist": 61, "task_jacobian_dot": 101, "jacobian_dot": 124, "task_acceleration": 148, "manipulability": 56, "joint_velocity": 345, "joint_acceleration": 447}
 
 
 @numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
@@ -353,6 +362,122 @@ def jacobian(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
         _J[24] = _c0*_s3
         _J[29] = _s0
     return J.reshape(_batch + (6, 5))
+
+
+@numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
+def jacobian_tool(q, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
+    """Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, 5).
+
+    q: joint coordinates, shape (..., 5) (q1: rad, q2: rad, q3: rad, q4: rad, q5: rad)
+    (131 operations after common-subexpression elimination.)
+    """
+    q = _runtime.as_batch(q, 5, "jacobian_tool", "q")
+    a1 = _runtime.as_param(a1, "a1")
+    a2 = _runtime.as_param(a2, "a2")
+    a3 = _runtime.as_param(a3, "a3")
+    d5 = _runtime.as_param(d5, "d5")
+    _runtime.as_param(d1, "d1")
+    _batch = _runtime.batch_shape("jacobian_tool", q=q)
+    _all_q = numpy.broadcast_to(q, _batch + (5,)).reshape(-1, 5)
+    _count = _all_q.shape[0]
+    J_tool = numpy.empty((_count, 30))
+    J_tool[:, 4] = 0
+    J_tool[:, 9] = 0
+    J_tool[:, 10] = 0
+    J_tool[:, 14] = 0
+    J_tool[:, 26] = 0
+    J_tool[:, 27] = 0
+    J_tool[:, 28] = 0
+    for _start in range(0, _count, CHUNK):
+        _columns_q = numpy.ascontiguousarray(_all_q[_start:_start + CHUNK].T)
+        q1 = _columns_q[0]
+        q2 = _columns_q[1]
+        q3 = _columns_q[2]
+        q4 = _columns_q[3]
+        q5 = _columns_q[4]
+        _t0 = q2 + q3
+        _t1 = _t0 + q4
+        _h0 = numpy.tan(0.5*_t1)
+        _u0 = _h0*_h0
+        _r0 = 1.0/(1.0 + _u0)
+        _s0 = (_h0 + _h0)*_r0
+        _c0 = (1.0 - _u0)*_r0
+        _h1 = numpy.tan(0.5*_t0)
+        _u1 = _h1*_h1
+        _r1 = 1.0/(1.0 + _u1)
+        _s1 = (_h1 + _h1)*_r1
+        _c1 = (1.0 - _u1)*_r1
+        _h2 = numpy.tan(0.5*q2)
+        _u2 = _h2*_h2
+        _r2 = 1.0/(1.0 + _u2)
+        _s2 = (_h2 + _h2)*_r2
+        _c2 = (1.0 - _u2)*_r2
+        _h3 = numpy.tan(0.5*q1)
+        _u3 = _h3*_h3
+        _r3 = 1.0/(1.0 + _u3)
+        _s3 = (_h3 + _h3)*_r3
+        _c3 = (1.0 - _u3)*_r3
+        _h4 = numpy.tan(0.5*q5)
+        _u4 = _h4*_h4
+        _r4 = 1.0/(1.0 + _u4)
+        _s4 = (_h4 + _h4)*_r4
+        _c4 = (1.0 - _u4)*_r4
+        _t3 = _c0*d5
+        _t4 = _c1*a3 + _t3
+        _t5 = _c2*a2 + _t4
+        _t6 = _t5 + a1
+        _t9 = _s3*_s4
+        _t13 = _c3*_c4
+        _t14 = -_s0*_t13 + _t9
+        _t15 = _s3*_t14
+        _t16 = _c3*_s4
+        _t17 = _c4*_s3
+        _t18 = -_s0*_t17 - _t16
+        _t19 = _s0*d5
+        _t20 = _s1*a3 + _t19
+        _t21 = _s2*a2 + _t20
+        _t22 = _c3*_t14
+        _t23 = _s3*_t18
+        _t24 = (_c0*_c0)
+        _t25 = _s0*_t16 + _t17
+        _t26 = _s3*_t25
+        _t27 = _s0*_t9 - _t13
+        _t28 = _c3*_t25
+        _t29 = _s3*_t27
+        _t30 = _c0*_s4
+        _t31 = (_c3*_c3)
+        _t32 = _c0*_t21
+        _t33 = (_s3*_s3)
+        _t34 = _c0*_t20
+        _t35 = _s0*_t3
+        _t36 = _c0*_c4
+        _t37 = -_c3*_t18 + _t15
+        _t38 = -_c3*_t27 + _t26
+        _J_tool = J_tool[_start:_start + CHUNK].T
+        _J_tool[0] = _c3*_t18*_t6 - _t15*_t6
+        _J_tool[1] = _c0*_c4*_t5 - _t21*_t22 - _t21*_t23
+        _J_tool[2] = _c0*_c4*_t4 - _t20*_t22 - _t20*_t23
+        _J_tool[3] = _c4*_t24*d5 - _t19*_t22 - _t19*_t23
+        _J_tool[5] = _c3*_t27*_t6 - _t26*_t6
+        _J_tool[6] = -_t21*_t28 - _t21*_t29 - _t30*_t5
+        _J_tool[7] = -_t20*_t28 - _t20*_t29 - _t30*_t4
+        _J_tool[8] = -_s4*_t24*d5 - _t19*_t28 - _t19*_t29
+        _J_tool[11] = _s0*_t5 - _t31*_t32 - _t32*_t33
+        _J_tool[12] = _s0*_t4 - _t31*_t34 - _t33*_t34
+        _J_tool[13] = _c0*_s0*d5 - _t31*_t35 - _t33*_t35
+        _J_tool[15] = _t36
+        _J_tool[16] = _t37
+        _J_tool[17] = _t37
+        _J_tool[18] = _t37
+        _J_tool[19] = _c0*_t22 + _c0*_t23 + _s0*_t36
+        _J_tool[20] = -_t30
+        _J_tool[21] = _t38
+        _J_tool[22] = _t38
+        _J_tool[23] = _t38
+        _J_tool[24] = _c0*_t28 + _c0*_t29 - _s0*_t30
+        _J_tool[25] = _s0
+        _J_tool[29] = (_s0*_s0) + _t24*_t31 + _t24*_t33
+    return J_tool.reshape(_batch + (6, 5))
 
 
 @numpy.errstate(all="ignore")  # as in C: results carry NaN, inf and the flags, and nothing is warned
@@ -1490,3 +1615,30 @@ def within_limits(q):
     """
     q = _runtime.as_batch(q, 5, "within_limits", "q", finite=False)
     return _runtime.within_limits(q, LIMITS, JOINT_TYPES)
+
+
+def joint_vector(names, positions):
+    """The joint positions of a ROS joint_states message (``names``, ``positions`` of shape (..., k))
+    in the order of JOINTS, shape (..., 5); a joint of JOINTS missing from
+    ``names`` raises ValueError naming it (names of other joints are left out)."""
+    names = list(names)
+    missing = [j for j in JOINTS if j not in names]
+    if missing:
+        raise ValueError(f"joint_vector: no position for {', '.join(missing)} among {len(names)} names")
+    positions = numpy.asarray(positions, dtype=float)
+    if positions.shape[-1:] != (len(names),):
+        raise ValueError(f"joint_vector: positions of shape (..., {len(names)}) for {len(names)} names, "
+                         f"got shape {positions.shape}")
+    return positions[..., [names.index(j) for j in JOINTS]]
+
+
+def ik_numeric(x, q0, *, a1=0.05, a2=0.3, a3=0.25, d1=0.385, d5=0.212):
+    """Inverse kinematics by Levenberg-Marquardt from the seed q0: (q (..., 5), converged (...)).
+
+    x: task coordinates x, y, z, shape (..., 3)
+    q0: the seed, shape (..., 5); x and q0 broadcast.
+    Damped least squares on this package's fk and Jacobian (the same backend), joints kept within
+    LIMITS; converged where the largest residual is at most 1e-12 (metres and radians, task units).
+    The answer is the solution the seed leads to: for a redundant arm, one near q0.
+    """
+    return _runtime.ik_numeric(sys.modules[__name__], x, q0, {"a1": a1, "a2": a2, "a3": a3, "d1": d1, "d5": d5})

@@ -7,6 +7,7 @@
  * fk: 44 operations after common-subexpression elimination
  * frames: 67 operations after common-subexpression elimination
  * jacobian: 39 operations after common-subexpression elimination
+ * jacobian_tool: 131 operations after common-subexpression elimination
  * task: 24 operations after common-subexpression elimination
  * task_jacobian: 36 operations after common-subexpression elimination
  * ik: 108 operations after common-subexpression elimination
@@ -1136,6 +1137,370 @@ void scorbot_er7_jacobian_batch(size_t count, const double *restrict q, const sc
     size_t i;
     for (i = 0; i < count; ++i) {
         scorbot_er7_jacobian(q + 5 * i, params, J + 30 * i);
+    }
+#endif
+}
+
+/* Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, 5). */
+void scorbot_er7_jacobian_tool(const double *restrict q, const scorbot_er7_params *restrict params, double *restrict J_tool)
+{
+    const double q1 = q[0];
+    const double q2 = q[1];
+    const double q3 = q[2];
+    const double q4 = q[3];
+    const double q5 = q[4];
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d5 = params->d5;
+    const double _t0 = q2 + q3;
+    const double _t1 = _t0 + q4;
+    double _s0, _c0, _s1, _c1, _s2, _c2, _s3, _c3, _s4, _c4;
+#ifdef KINEGEN_SIMD
+    {
+        /* The angles side by side, so that their sines and cosines come from one vector call each. */
+        const double angle[8] = { _t1, _t0, q2, q1, q5, 0.0, 0.0, 0.0 };
+        double sine[8], cosine[8];
+        int k;
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            sine[k] = sin(angle[k]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (k = 0; k < 8; ++k) {
+            cosine[k] = cos(angle[k]);
+        }
+        _s0 = sine[0];
+        _c0 = cosine[0];
+        _s1 = sine[1];
+        _c1 = cosine[1];
+        _s2 = sine[2];
+        _c2 = cosine[2];
+        _s3 = sine[3];
+        _c3 = cosine[3];
+        _s4 = sine[4];
+        _c4 = cosine[4];
+    }
+#else
+    _s0 = sin(_t1);
+    _c0 = cos(_t1);
+    _s1 = sin(_t0);
+    _c1 = cos(_t0);
+    _s2 = sin(q2);
+    _c2 = cos(q2);
+    _s3 = sin(q1);
+    _c3 = cos(q1);
+    _s4 = sin(q5);
+    _c4 = cos(q5);
+#endif
+    const double _t3 = _c0*d5;
+    const double _t4 = _c1*a3 + _t3;
+    const double _t5 = _c2*a2 + _t4;
+    const double _t6 = _t5 + a1;
+    const double _t9 = _s3*_s4;
+    const double _t13 = _c3*_c4;
+    const double _t14 = -_s0*_t13 + _t9;
+    const double _t15 = _s3*_t14;
+    const double _t16 = _c3*_s4;
+    const double _t17 = _c4*_s3;
+    const double _t18 = -_s0*_t17 - _t16;
+    const double _t19 = _s0*d5;
+    const double _t20 = _s1*a3 + _t19;
+    const double _t21 = _s2*a2 + _t20;
+    const double _t22 = _c3*_t14;
+    const double _t23 = _s3*_t18;
+    const double _t24 = (_c0*_c0);
+    const double _t25 = _s0*_t16 + _t17;
+    const double _t26 = _s3*_t25;
+    const double _t27 = _s0*_t9 - _t13;
+    const double _t28 = _c3*_t25;
+    const double _t29 = _s3*_t27;
+    const double _t30 = _c0*_s4;
+    const double _t31 = (_c3*_c3);
+    const double _t32 = _c0*_t21;
+    const double _t33 = (_s3*_s3);
+    const double _t34 = _c0*_t20;
+    const double _t35 = _s0*_t3;
+    const double _t36 = _c0*_c4;
+    const double _t37 = -_c3*_t18 + _t15;
+    const double _t38 = -_c3*_t27 + _t26;
+    J_tool[0] = _c3*_t18*_t6 - _t15*_t6;
+    J_tool[1] = _c0*_c4*_t5 - _t21*_t22 - _t21*_t23;
+    J_tool[2] = _c0*_c4*_t4 - _t20*_t22 - _t20*_t23;
+    J_tool[3] = _c4*_t24*d5 - _t19*_t22 - _t19*_t23;
+    J_tool[4] = 0;
+    J_tool[5] = _c3*_t27*_t6 - _t26*_t6;
+    J_tool[6] = -_t21*_t28 - _t21*_t29 - _t30*_t5;
+    J_tool[7] = -_t20*_t28 - _t20*_t29 - _t30*_t4;
+    J_tool[8] = -_s4*_t24*d5 - _t19*_t28 - _t19*_t29;
+    J_tool[9] = 0;
+    J_tool[10] = 0;
+    J_tool[11] = _s0*_t5 - _t31*_t32 - _t32*_t33;
+    J_tool[12] = _s0*_t4 - _t31*_t34 - _t33*_t34;
+    J_tool[13] = _c0*_s0*d5 - _t31*_t35 - _t33*_t35;
+    J_tool[14] = 0;
+    J_tool[15] = _t36;
+    J_tool[16] = _t37;
+    J_tool[17] = _t37;
+    J_tool[18] = _t37;
+    J_tool[19] = _c0*_t22 + _c0*_t23 + _s0*_t36;
+    J_tool[20] = -_t30;
+    J_tool[21] = _t38;
+    J_tool[22] = _t38;
+    J_tool[23] = _t38;
+    J_tool[24] = _c0*_t28 + _c0*_t29 - _s0*_t30;
+    J_tool[25] = _s0;
+    J_tool[26] = 0;
+    J_tool[27] = 0;
+    J_tool[28] = 0;
+    J_tool[29] = (_s0*_s0) + _t24*_t31 + _t24*_t33;
+}
+
+/* jacobian_tool of `count` items, stored one after the other in each argument and output. */
+void scorbot_er7_jacobian_tool_batch(size_t count, const double *restrict q, const scorbot_er7_params *restrict params, double *restrict J_tool)
+{
+#ifdef KINEGEN_BLOCKED
+    double q1[KINEGEN_BLOCK_OF(64)];
+    double q2[KINEGEN_BLOCK_OF(64)];
+    double q3[KINEGEN_BLOCK_OF(64)];
+    double q4[KINEGEN_BLOCK_OF(64)];
+    double q5[KINEGEN_BLOCK_OF(64)];
+    double _t0[KINEGEN_BLOCK_OF(64)];
+    double _t1[KINEGEN_BLOCK_OF(64)];
+    double _s0[KINEGEN_BLOCK_OF(64)];
+    double _c0[KINEGEN_BLOCK_OF(64)];
+    double _s1[KINEGEN_BLOCK_OF(64)];
+    double _c1[KINEGEN_BLOCK_OF(64)];
+    double _s2[KINEGEN_BLOCK_OF(64)];
+    double _c2[KINEGEN_BLOCK_OF(64)];
+    double _s3[KINEGEN_BLOCK_OF(64)];
+    double _c3[KINEGEN_BLOCK_OF(64)];
+    double _s4[KINEGEN_BLOCK_OF(64)];
+    double _c4[KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
+    double _J_tool_block[30][KINEGEN_BLOCK_OF(64)];
+    /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
+    const int stream = count * 30 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_tool & 15) == 0;
+#endif
+    size_t start, i, n;
+    if (params == NULL) {
+        params = &scorbot_er7_default_params;
+    }
+    const double a1 = params->a1;
+    const double a2 = params->a2;
+    const double a3 = params->a3;
+    const double d5 = params->d5;
+    for (start = 0; start < count; start += n) {
+        n = count - start < KINEGEN_BLOCK_OF(64) ? count - start : KINEGEN_BLOCK_OF(64);
+        for (i = 0; i < n; ++i) {
+            q1[i] = q[5 * (start + i) + 0];
+            q2[i] = q[5 * (start + i) + 1];
+            q3[i] = q[5 * (start + i) + 2];
+            q4[i] = q[5 * (start + i) + 3];
+            q5[i] = q[5 * (start + i) + 4];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _t0[i] = q2[i] + q3[i];
+            _t1[i] = _t0[i] + q4[i];
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s0[i] = sin(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c0[i] = cos(_t1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s1[i] = sin(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c1[i] = cos(_t0[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s2[i] = sin(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c2[i] = cos(q2[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s3[i] = sin(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c3[i] = cos(q1[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _s4[i] = sin(q5[i]);
+        }
+        KINEGEN_VECTOR_LOOP
+        for (i = 0; i < n; ++i) {
+            _c4[i] = cos(q5[i]);
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _c0[i]*d5;
+                const double _t4 = _c1[i]*a3 + _t3;
+                const double _t5 = _c2[i]*a2 + _t4;
+                const double _t6 = _t5 + a1;
+                const double _t9 = _s3[i]*_s4[i];
+                const double _t13 = _c3[i]*_c4[i];
+                const double _t14 = -_s0[i]*_t13 + _t9;
+                const double _t15 = _s3[i]*_t14;
+                const double _t16 = _c3[i]*_s4[i];
+                const double _t17 = _c4[i]*_s3[i];
+                const double _t18 = -_s0[i]*_t17 - _t16;
+                const double _t19 = _s0[i]*d5;
+                const double _t20 = _s1[i]*a3 + _t19;
+                const double _t21 = _s2[i]*a2 + _t20;
+                const double _t22 = _c3[i]*_t14;
+                const double _t23 = _s3[i]*_t18;
+                const double _t24 = (_c0[i]*_c0[i]);
+                const double _t25 = _s0[i]*_t16 + _t17;
+                const double _t26 = _s3[i]*_t25;
+                const double _t27 = _s0[i]*_t9 - _t13;
+                const double _t28 = _c3[i]*_t25;
+                const double _t29 = _s3[i]*_t27;
+                const double _t30 = _c0[i]*_s4[i];
+                const double _t31 = (_c3[i]*_c3[i]);
+                const double _t32 = _c0[i]*_t21;
+                const double _t33 = (_s3[i]*_s3[i]);
+                const double _t34 = _c0[i]*_t20;
+                const double _t35 = _s0[i]*_t3;
+                const double _t36 = _c0[i]*_c4[i];
+                const double _t37 = -_c3[i]*_t18 + _t15;
+                const double _t38 = -_c3[i]*_t27 + _t26;
+                _J_tool_block[0][i] = _c3[i]*_t18*_t6 - _t15*_t6;
+                _J_tool_block[1][i] = _c0[i]*_c4[i]*_t5 - _t21*_t22 - _t21*_t23;
+                _J_tool_block[2][i] = _c0[i]*_c4[i]*_t4 - _t20*_t22 - _t20*_t23;
+                _J_tool_block[3][i] = _c4[i]*_t24*d5 - _t19*_t22 - _t19*_t23;
+                _J_tool_block[4][i] = 0;
+                _J_tool_block[5][i] = _c3[i]*_t27*_t6 - _t26*_t6;
+                _J_tool_block[6][i] = -_t21*_t28 - _t21*_t29 - _t30*_t5;
+                _J_tool_block[7][i] = -_t20*_t28 - _t20*_t29 - _t30*_t4;
+                _J_tool_block[8][i] = -_s4[i]*_t24*d5 - _t19*_t28 - _t19*_t29;
+                _J_tool_block[9][i] = 0;
+                _J_tool_block[10][i] = 0;
+                _J_tool_block[11][i] = _s0[i]*_t5 - _t31*_t32 - _t32*_t33;
+                _J_tool_block[12][i] = _s0[i]*_t4 - _t31*_t34 - _t33*_t34;
+                _J_tool_block[13][i] = _c0[i]*_s0[i]*d5 - _t31*_t35 - _t33*_t35;
+                _J_tool_block[14][i] = 0;
+                _J_tool_block[15][i] = _t36;
+                _J_tool_block[16][i] = _t37;
+                _J_tool_block[17][i] = _t37;
+                _J_tool_block[18][i] = _t37;
+                _J_tool_block[19][i] = _c0[i]*_t22 + _c0[i]*_t23 + _s0[i]*_t36;
+                _J_tool_block[20][i] = -_t30;
+                _J_tool_block[21][i] = _t38;
+                _J_tool_block[22][i] = _t38;
+                _J_tool_block[23][i] = _t38;
+                _J_tool_block[24][i] = _c0[i]*_t28 + _c0[i]*_t29 - _s0[i]*_t30;
+                _J_tool_block[25][i] = _s0[i];
+                _J_tool_block[26][i] = 0;
+                _J_tool_block[27][i] = 0;
+                _J_tool_block[28][i] = 0;
+                _J_tool_block[29][i] = (_s0[i]*_s0[i]) + _t24*_t31 + _t24*_t33;
+            }
+        } else
+#endif
+        {
+            KINEGEN_VECTOR_LOOP
+            for (i = 0; i < n; ++i) {
+                const double _t3 = _c0[i]*d5;
+                const double _t4 = _c1[i]*a3 + _t3;
+                const double _t5 = _c2[i]*a2 + _t4;
+                const double _t6 = _t5 + a1;
+                const double _t9 = _s3[i]*_s4[i];
+                const double _t13 = _c3[i]*_c4[i];
+                const double _t14 = -_s0[i]*_t13 + _t9;
+                const double _t15 = _s3[i]*_t14;
+                const double _t16 = _c3[i]*_s4[i];
+                const double _t17 = _c4[i]*_s3[i];
+                const double _t18 = -_s0[i]*_t17 - _t16;
+                const double _t19 = _s0[i]*d5;
+                const double _t20 = _s1[i]*a3 + _t19;
+                const double _t21 = _s2[i]*a2 + _t20;
+                const double _t22 = _c3[i]*_t14;
+                const double _t23 = _s3[i]*_t18;
+                const double _t24 = (_c0[i]*_c0[i]);
+                const double _t25 = _s0[i]*_t16 + _t17;
+                const double _t26 = _s3[i]*_t25;
+                const double _t27 = _s0[i]*_t9 - _t13;
+                const double _t28 = _c3[i]*_t25;
+                const double _t29 = _s3[i]*_t27;
+                const double _t30 = _c0[i]*_s4[i];
+                const double _t31 = (_c3[i]*_c3[i]);
+                const double _t32 = _c0[i]*_t21;
+                const double _t33 = (_s3[i]*_s3[i]);
+                const double _t34 = _c0[i]*_t20;
+                const double _t35 = _s0[i]*_t3;
+                const double _t36 = _c0[i]*_c4[i];
+                const double _t37 = -_c3[i]*_t18 + _t15;
+                const double _t38 = -_c3[i]*_t27 + _t26;
+                J_tool[30 * (start + i) + 0] = _c3[i]*_t18*_t6 - _t15*_t6;
+                J_tool[30 * (start + i) + 1] = _c0[i]*_c4[i]*_t5 - _t21*_t22 - _t21*_t23;
+                J_tool[30 * (start + i) + 2] = _c0[i]*_c4[i]*_t4 - _t20*_t22 - _t20*_t23;
+                J_tool[30 * (start + i) + 3] = _c4[i]*_t24*d5 - _t19*_t22 - _t19*_t23;
+                J_tool[30 * (start + i) + 4] = 0;
+                J_tool[30 * (start + i) + 5] = _c3[i]*_t27*_t6 - _t26*_t6;
+                J_tool[30 * (start + i) + 6] = -_t21*_t28 - _t21*_t29 - _t30*_t5;
+                J_tool[30 * (start + i) + 7] = -_t20*_t28 - _t20*_t29 - _t30*_t4;
+                J_tool[30 * (start + i) + 8] = -_s4[i]*_t24*d5 - _t19*_t28 - _t19*_t29;
+                J_tool[30 * (start + i) + 9] = 0;
+                J_tool[30 * (start + i) + 10] = 0;
+                J_tool[30 * (start + i) + 11] = _s0[i]*_t5 - _t31*_t32 - _t32*_t33;
+                J_tool[30 * (start + i) + 12] = _s0[i]*_t4 - _t31*_t34 - _t33*_t34;
+                J_tool[30 * (start + i) + 13] = _c0[i]*_s0[i]*d5 - _t31*_t35 - _t33*_t35;
+                J_tool[30 * (start + i) + 14] = 0;
+                J_tool[30 * (start + i) + 15] = _t36;
+                J_tool[30 * (start + i) + 16] = _t37;
+                J_tool[30 * (start + i) + 17] = _t37;
+                J_tool[30 * (start + i) + 18] = _t37;
+                J_tool[30 * (start + i) + 19] = _c0[i]*_t22 + _c0[i]*_t23 + _s0[i]*_t36;
+                J_tool[30 * (start + i) + 20] = -_t30;
+                J_tool[30 * (start + i) + 21] = _t38;
+                J_tool[30 * (start + i) + 22] = _t38;
+                J_tool[30 * (start + i) + 23] = _t38;
+                J_tool[30 * (start + i) + 24] = _c0[i]*_t28 + _c0[i]*_t29 - _s0[i]*_t30;
+                J_tool[30 * (start + i) + 25] = _s0[i];
+                J_tool[30 * (start + i) + 26] = 0;
+                J_tool[30 * (start + i) + 27] = 0;
+                J_tool[30 * (start + i) + 28] = 0;
+                J_tool[30 * (start + i) + 29] = (_s0[i]*_s0[i]) + _t24*_t31 + _t24*_t33;
+            }
+        }
+#ifdef KINEGEN_STREAM
+        if (stream) {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 30; k += 2) {
+                    _mm_stream_pd(J_tool + 30 * (start + i) + k, _mm_set_pd(_J_tool_block[k + 1][i], _J_tool_block[k][i]));
+                }
+            }
+        }
+#endif
+    }
+#ifdef KINEGEN_STREAM
+    if (stream) {
+        _mm_sfence();  /* the streamed stores are visible before the call returns */
+    }
+#endif
+#else
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        scorbot_er7_jacobian_tool(q + 5 * i, params, J_tool + 30 * i);
     }
 #endif
 }

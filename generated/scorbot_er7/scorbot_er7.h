@@ -37,6 +37,9 @@ void scorbot_er7_frames_batch(size_t count, const double *q, const scorbot_er7_p
 /* jacobian: q[5] -> J[30] (row-major). Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, 5). */
 void scorbot_er7_jacobian(const double *q, const scorbot_er7_params *params, double *J);
 void scorbot_er7_jacobian_batch(size_t count, const double *q, const scorbot_er7_params *params, double *J);
+/* jacobian_tool: q[5] -> J_tool[30] (row-major). Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, 5). */
+void scorbot_er7_jacobian_tool(const double *q, const scorbot_er7_params *params, double *J_tool);
+void scorbot_er7_jacobian_tool_batch(size_t count, const double *q, const scorbot_er7_params *params, double *J_tool);
 /* task: q[5] -> x[3] (row-major). Task coordinates x, y, z, shape (..., 3). */
 void scorbot_er7_task(const double *q, const scorbot_er7_params *params, double *x);
 void scorbot_er7_task_batch(size_t count, const double *q, const scorbot_er7_params *params, double *x);

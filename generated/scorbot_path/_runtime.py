@@ -211,3 +211,154 @@ def solve_system(A, b, row_scale, col_scale, cond_limit, damping_ratio):
         gain = numpy.where(denominator > 0.0, s / denominator, 0.0)
     coefficients = gain * numpy.einsum("kmi,km->ki", U, row_scale * b)
     return col_scale * numpy.einsum("kin,ki->kn", Vt, coefficients), singular
+
+
+# The numeric inverse kinematics (ik_numeric, and ik where no closed form exists): damped least
+# squares with an adaptive damping (Levenberg-Marquardt), on the package's own fk and Jacobian.
+NUMERIC_TOLERANCE = 1e-12   # on the residual itself: metres and radians (a pose), or task units
+NUMERIC_ITERATIONS = 100
+POSE_TASK = ("x", "y", "z", "r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33")
+RIGID_TOLERANCE = 1e-09
+
+
+def rotation_error(R_target, R):
+    """The rotation vector w (world frame, rad) that turns R onto R_target: R_target = exp([w]x) R,
+    through the angle's atan2 (well conditioned from 0 to pi) and, near pi, the axis from the
+    symmetric part of R_target R^T."""
+    E = R_target @ numpy.swapaxes(R, -1, -2)
+    v = 0.5 * numpy.stack([E[..., 2, 1] - E[..., 1, 2], E[..., 0, 2] - E[..., 2, 0], E[..., 1, 0] - E[..., 0, 1]], axis=-1)
+    sine = numpy.linalg.norm(v, axis=-1)
+    cosine = 0.5 * (E[..., 0, 0] + E[..., 1, 1] + E[..., 2, 2] - 1.0)
+    angle = numpy.arctan2(sine, cosine)
+    with numpy.errstate(divide="ignore", invalid="ignore"):
+        scale = numpy.where(sine > 1e-300, angle / sine, 1.0)
+    w = v * scale[..., None]
+    near_pi = cosine < -0.99
+    if near_pi.any():  # sin(angle) carries little direction there: (E + E^T)/2 - cos I = (1 - cos) u u^T
+        S = 0.5 * (E + numpy.swapaxes(E, -1, -2)) - cosine[..., None, None] * numpy.eye(3)
+        diagonal = numpy.stack([S[..., 0, 0], S[..., 1, 1], S[..., 2, 2]], axis=-1)
+        k = numpy.argmax(diagonal, axis=-1)
+        column = numpy.take_along_axis(S, k[..., None, None].repeat(3, axis=-1), axis=-2)[..., 0, :]
+        axis = column / numpy.maximum(numpy.linalg.norm(column, axis=-1, keepdims=True), 1e-300)
+        axis = axis * numpy.where(numpy.sum(axis * v, axis=-1, keepdims=True) < 0, -1.0, 1.0)
+        w = numpy.where(near_pi[..., None], axis * angle[..., None], w)
+    return w
+
+
+def solve_numeric(kernels, x, q0, limits, joint_types, task_names, params, tolerance=NUMERIC_TOLERANCE,
+                  iterations=NUMERIC_ITERATIONS):
+    """(q, converged) for targets x (N, m) from seeds q0 (N, n): Levenberg-Marquardt on the package's
+    own kernels (``kernels``: its fk, jacobian, task and task_jacobian, in either backend).
+
+    A pose task is solved on its 6-dimensional error (the position, and the rotation vector that
+    turns the tool onto the target) with the geometric Jacobian; any other task on task(q) - x
+    (an angle phi wrapped) with the task Jacobian.  Each step is dq = J^T (J J^T + lambda I)^-1 e,
+    kept if it lowers the error (lambda divided by 10), else retried with lambda times 10; a joint
+    with limits is held inside them.  An item has converged when its largest residual is at most
+    ``tolerance``; from a seed near a solution, the steps are Gauss-Newton's and the answer is the
+    solution the seed leads to (for a redundant arm, near the seed)."""
+    pose = tuple(task_names) == POSE_TASK
+    low = numpy.array([lim[0] if lim is not None else -numpy.inf for lim in limits])
+    high = numpy.array([lim[1] if lim is not None else numpy.inf for lim in limits])
+    angles = [i for i, name in enumerate(task_names) if name == "phi"]
+    if pose:
+        p_target, R_target = x[:, :3], x[:, 3:].reshape(-1, 3, 3)
+
+    def error(q, rows):
+        if pose:
+            T = kernels.fk(q, **params)
+            return numpy.concatenate([p_target[rows] - T[:, :3, 3], rotation_error(R_target[rows], T[:, :3, :3])],
+                                     axis=-1)
+        e = x[rows] - kernels.task(q, **params)
+        if angles:
+            e[:, angles] = wrap_angle(e[:, angles])
+        return e
+
+    def jacobian(q):
+        return kernels.jacobian(q, **params) if pose else kernels.task_jacobian(q, **params)
+
+    q = numpy.clip(numpy.array(q0, dtype=float), low, high)
+    with numpy.errstate(all="ignore"):
+        e = error(q, slice(None))
+        size = numpy.abs(e).max(axis=-1)
+        cost = numpy.sum(e * e, axis=-1)  # what a step must lower (the largest residual may not, on the way)
+        damping = numpy.full(len(q), 1e-3)
+        for _ in range(iterations):
+            active = ~(size <= tolerance) & numpy.isfinite(size)
+            if not active.any():
+                break
+            J = jacobian(q[active])
+            m = J.shape[-2]
+            A = J @ numpy.swapaxes(J, -1, -2) + damping[active, None, None] * numpy.eye(m)
+            step = (numpy.swapaxes(J, -1, -2) @ numpy.linalg.solve(A, e[active][..., None]))[..., 0]
+            trial = numpy.clip(q[active] + step, low, high)
+            index = numpy.flatnonzero(active)
+            e_trial = error(trial, index)
+            cost_trial = numpy.sum(e_trial * e_trial, axis=-1)
+            better = cost_trial < cost[active]
+            q[index[better]] = trial[better]
+            e[index[better]] = e_trial[better]
+            cost[index[better]] = cost_trial[better]
+            size[index[better]] = numpy.abs(e_trial[better]).max(axis=-1)
+            damping[index] = numpy.clip(numpy.where(better, damping[index] / 10.0, damping[index] * 10.0), 1e-15, 1e10)
+    return q, size <= tolerance
+
+
+def _numeric_targets(module, x, function):
+    """Targets as (batch shape, (N, m)): a pose from (..., 12) or (..., 4, 4), another task from (..., m)."""
+    if module.TASK == POSE_TASK:
+        x = as_pose_task(x, function, "x", RIGID_TOLERANCE)
+    else:
+        x = as_batch(x, len(module.TASK), function, "x")
+    return x.shape[:-1], x.reshape(-1, x.shape[-1])
+
+
+def ik_numeric(module, x, q0, params):
+    """``module.ik_numeric``: (q (..., n), converged (...)) from seeds q0 (..., n), broadcast with x."""
+    batch_x, flat_x = _numeric_targets(module, x, "ik_numeric")
+    q0 = as_batch(q0, len(module.JOINTS), "ik_numeric", "q0")
+    batch = batch_shape("ik_numeric", x=flat_x.reshape(batch_x + flat_x.shape[-1:]), q0=q0)
+    targets = numpy.broadcast_to(flat_x.reshape(batch_x + flat_x.shape[-1:]), batch + flat_x.shape[-1:])
+    seeds = numpy.broadcast_to(q0, batch + q0.shape[-1:])
+    q, converged = solve_numeric(module, targets.reshape(-1, targets.shape[-1]), seeds.reshape(-1, seeds.shape[-1]),
+                                 module.LIMITS, module.JOINT_TYPES, module.TASK, params)
+    return q.reshape(batch + q.shape[-1:]), converged.reshape(batch)
+
+
+# Two solutions of ik from seeds are one where every joint agrees to this (rad or m; revolute joints
+# modulo 2 pi): far above the 1e-12 they converge to, far below any two distinct solutions' distance.
+DISTINCT = 1e-6
+
+
+def seeds(limits, joint_types, count):
+    """The fixed seeds of ik where no closed form exists: ``count`` points of the Kronecker sequence
+    frac(k alpha_j) (alpha_j = the fractional parts of the square roots of the first primes), scaled
+    to each joint's limits (a revolute joint without limits: (-pi, pi]; a prismatic one: [-1, 1] m)."""
+    primes = (2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37)
+    alpha = numpy.array([numpy.sqrt(p) % 1.0 for p in primes[:len(limits)]])
+    unit = (numpy.arange(1, count + 1)[:, None] * alpha[None, :]) % 1.0
+    low = numpy.array([lim[0] if lim is not None else (-PI if t == "R" else -1.0) for lim, t in zip(limits, joint_types)])
+    high = numpy.array([lim[1] if lim is not None else (PI if t == "R" else 1.0) for lim, t in zip(limits, joint_types)])
+    return low + unit * (high - low)
+
+
+def ik_from_seeds(module, x, params, count):
+    """``module.ik`` for an arm with no closed form: ik_numeric from each of the fixed seeds
+    (:func:`seeds`), revolute joints wrapped to (-pi, pi], a solution valid where it converged and
+    no earlier seed's valid solution is the same one.  Q (..., count, n), valid (..., count)."""
+    batch, flat = _numeric_targets(module, x, "ik")
+    n, N = len(module.JOINTS), flat.shape[0]
+    start = seeds(module.LIMITS, module.JOINT_TYPES, count)
+    finite = numpy.isfinite(flat).all(axis=-1)
+    targets = numpy.repeat(numpy.where(finite[:, None], flat, 0.0), count, axis=0)
+    q, converged = solve_numeric(module, targets, numpy.tile(start, (N, 1)), module.LIMITS, module.JOINT_TYPES,
+                                 module.TASK, params)
+    revolute = numpy.array([t == "R" for t in module.JOINT_TYPES])
+    q = numpy.where(revolute, wrap_angle(q), q).reshape(N, count, n)
+    valid = converged.reshape(N, count) & finite[:, None]
+    for k in range(1, count):  # a solution an earlier seed found already is not a new one
+        difference = numpy.abs(q[:, :k, :] - q[:, k:k + 1, :])
+        difference = numpy.where(revolute, numpy.minimum(difference, TWO_PI - difference), difference)
+        same = (difference.max(axis=-1) < DISTINCT) & valid[:, :k]
+        valid[:, k] &= ~same.any(axis=-1)
+    return q.reshape(batch + (count, n)), valid.reshape(batch + (count,))

@@ -12,7 +12,9 @@ it is, the inputs are checked for NaN and inf in C, and the parameters are check
 made into a C struct once per distinct set of values.  Outputs are fresh numpy arrays, writable by construction, so
 cffi is not asked to check that (require_writable costs 0.4 us a call).
 """
+import importlib.util
 import math
+import sys
 
 import numpy
 
@@ -25,10 +27,13 @@ try:
     # One point with the default parameters: scorbot_path_point.c, in the same library.
     _point = _runtime.extension_module(__package__, _library, "_scorbot_path_point")
 except ImportError as _exc:  # pragma: no cover - depends on the build
-    raise ImportError(
-        "the C library of scorbot_path is not built, or was built from older sources: run `make build` "
-        "(or `python build_c.py` in this package's folder)"
-    ) from _exc
+    # The fix, named for where this package is: cffi missing, or the library not built here.
+    if importlib.util.find_spec("_cffi_backend") is None:
+        _problem = "the C backend of scorbot_path needs cffi, which is not installed: run `pip install cffi`"
+    else:
+        _problem = ("the C library of scorbot_path is not built, or was built from older sources: run `make build` "
+                    "in the kinegen repository (`kinegen build` where kinegen is installed)")
+    raise ImportError(_problem) from _exc
 
 _ndarray, _float64, _empty, _from_buffer = numpy.ndarray, numpy.dtype(numpy.float64), numpy.empty, _ffi.from_buffer
 _DOUBLES, _INTS = _ffi.typeof("double[]"), _ffi.typeof("int[]")

@@ -9,11 +9,15 @@ Source: Predescu and Stroe, On the kinematics of the SCORBOT ER-VII robot, secti
 Every kernel broadcasts over leading batch dimensions and takes each robot
 parameter as a keyword argument (SI units) defaulting to the value in PARAMS.
 """
+import sys
+
 import numpy
 
 from . import _runtime
 
 NAME = "scorbot_path"
+# The joints' names (a URDF's joint names; q1, q2, ... where the description names none), in the
+# order of q; joint_vector() puts a ROS joint_states message's positions in that order.
 JOINTS = ()
 JOINT_TYPES = ()
 TASK = ()

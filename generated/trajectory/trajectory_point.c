@@ -16,7 +16,12 @@
  * It is compiled into the cffi extension _trajectory_c (build_c.py) and imported
  * from that same shared library as the module _trajectory_point, through its own
  * PyInit function (several modules in one library, as PEP 489 describes).
+ *
+ * It needs Python's and numpy's headers, so its body is compiled only where the build
+ * script defines KINEGEN_PYTHON_MODULE: `cc -c *.c` in this folder, for a C program,
+ * compiles the kernels and an empty module here.
  */
+#ifdef KINEGEN_PYTHON_MODULE
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
@@ -236,3 +241,6 @@ PyMODINIT_FUNC PyInit__trajectory_point(void)
     import_array();
     return PyModule_Create(&kinegen_module);
 }
+#else
+typedef int trajectory_point_needs_python; /* ISO C: a translation unit declares something */
+#endif
