@@ -148,6 +148,8 @@ def _load(target: str, say, args=None) -> tuple:
     if target.endswith(".urdf") and args is not None:
         options = dict(base=getattr(args, "base", None), tip=getattr(args, "tip", None),
                        snap=not getattr(args, "no_snap", False))
+    if getattr(args, "free_joint", None) is not None:
+        options["free_joint"] = args.free_joint
     model = derivations.load(target, verbose=not say.quiet, **options)
     if model.notes.get("snapped"):
         say(f"{model.name}: snapped to exact values: {model.notes['snapped']}")
@@ -220,8 +222,12 @@ def _show(args, say) -> int:
         return 0
     if what == "ik":
         if not model.ik:
-            reason = f": {model.ik_unsupported}" if model.ik_unsupported else ""
-            raise InputError(f"{model.name} has no closed-form inverse kinematics{reason}")
+            if model.chain is None:
+                raise InputError(f"{model.name} has no inverse kinematics (it is not one serial chain)")
+            print(f"method: numeric (ik_numeric from {gen.SEED_COUNT} fixed seeds: every answer exact to 1e-12, "
+                  "not every answer guaranteed)")
+            print(f"no closed form: {model.ik_unsupported}")
+            return 0
         if model.ik_plan:  # decomposed (derivations.ik.decompose): the plan, then each branch's root choices
             print("\n".join(model.ik_plan))
             print(f"branches ({len(model.ik)}):")
@@ -294,6 +300,8 @@ def cmd_generate(args, say) -> int:
             with budget(args.time_limit, what), memory_cap(args.memory_limit, what):
                 with stage("deriving the model"):
                     model, path = _load(args.robots[0], say, args)
+                say(f"{model.name}: ik: {gen.ik_method(model) or 'none'}"
+                    + (f" (no closed form: {model.ik_unsupported})" if model.ik_unsupported else ""))
                 if out is None:  # ./<robot name>, known once the description is read
                     out = _default_out(model)
                     gen.clear_leftovers(out, say)
@@ -712,6 +720,9 @@ def _limited(args, what: str):
 
 
 def _urdf_options(command) -> None:
+    command.add_argument("--free-joint", metavar="J",
+                         help="a seven-joint arm: the joint its ik holds at the argument `free`, by number (1-7) "
+                              "or name (default: the first that leaves a six-joint arm with a closed form)")
     command.add_argument("--base", metavar="LINK", help="URDF: the link the chain starts at (default: the root)")
     command.add_argument("--tip", metavar="LINK", help="URDF: the link the chain ends at (default: the only leaf)")
     command.add_argument("--no-snap", action="store_true",

@@ -39,7 +39,10 @@ REPO = Path(__file__).resolve().parent.parent
 GENERATED = REPO / "generated"
 BACKENDS = {"numpy": numpy_backend, "c": c_backend}
 # Files that generation owns in a robot folder (anything else there is left alone).
-OWNED_SUFFIXES = (".py", ".h", ".c", ".tex")
+OWNED_SUFFIXES = (".py", ".h", ".c", ".tex", ".toml", ".md")
+# What makes a package folder installable on its own (`pip install ./<folder>`) and says how to use it.
+PACKAGING = (("package_pyproject.toml.j2", "pyproject.toml"), ("package_setup.py.j2", "setup.py"),
+             ("package_readme.md.j2", "README.md"))
 # A pose given to ik whose rotation R has max|R^T R - I| above this, or det R < 0, is refused.
 RIGID_TOLERANCE = "1e-09"
 
@@ -211,7 +214,10 @@ def robot_context(model: RobotModel, origin: str, verbose: bool = False) -> dict
                                  model.joint_types[i] == REVOLUTE))
     return {
         "name": model.name, "title": safe_text(model.title), "source": safe_text(model.source), "origin": origin,
-        "joints": [str(s) for s in model.q], "joint_types": list(model.joint_types),
+        "joints": list(getattr(model, "joint_labels", ())), "joint_types": list(model.joint_types),
+        "frame_names": list(getattr(model, "frame_labels", ())),
+        "ik_method": ik_method(model), "seeded_ik": seeded_ik(model), "seed_count": SEED_COUNT,
+        "ik_unsupported": safe_text(getattr(model, "ik_unsupported", "")),
         "task": list(model.task_names), "branches": [b.name for b in model.ik],
         "ik_ranges": safe_text(getattr(model, "ik_ranges", "")),  # a kernel set has no ik
         "params": [(str(s), float_literal(v)) for s, v in model.params.items()],
@@ -231,6 +237,29 @@ def robot_context(model: RobotModel, origin: str, verbose: bool = False) -> dict
     }
 
 
+# The seeds of ik for an arm with no closed form (the runtime's seeds(): a Kronecker sequence in the
+# joint limits): each gives at most one solution; a 6R has at most 16.
+SEED_COUNT = 16
+
+
+def seeded_ik(model) -> bool:
+    """Whether the package's ik is the numeric solver from fixed seeds: a robot chain with no closed
+    form (a kernel set, or a robot built in Python without a chain, has no ik at all)."""
+    return isinstance(model, RobotModel) and model.chain is not None and not model.ik
+
+
+def ik_method(model) -> str:
+    """How the package's ik solves (its IK_METHOD): the family of the closed form, the paper's own
+    closed form, or numeric."""
+    if not isinstance(model, RobotModel):
+        return ""
+    if model.ik and model.ik_plan:
+        return model.ik_plan[0].removeprefix("family: ")
+    if model.ik:
+        return "closed form (the paper's)"
+    return "numeric" if model.chain is not None else ""
+
+
 class _Stages:
     """Names each step for budget messages and reports it, with its time, through ``say``."""
 
@@ -247,10 +276,14 @@ class _Stages:
 
 
 def render_robot(model: RobotModel, description: Path | None = None, backends=("numpy", "c"),
-                 verbose: bool = False, latex: bool = True, say=None) -> dict[str, str]:
-    """{file name: text} of one robot's package (kernels, and ``<name>.tex`` unless ``latex`` is off).
+                 verbose: bool = False, latex: bool = True, say=None,
+                 in_repository: bool = False) -> dict[str, str]:
+    """{file name: text} of one robot's package (kernels, its packaging and README, and ``<name>.tex``
+    unless ``latex`` is off).
 
-    ``say`` (a callable taking a message) receives each stage with its time.
+    ``say`` (a callable taking a message) receives each stage with its time.  ``in_repository``:
+    the package is one of the repository's ``generated/`` (render_tree), built by `make build`;
+    a user's package (``kinegen generate``) tells of its own build script and `pip install` instead.
     """
     stage = _Stages(model.name, say)
     if not isinstance(model, KernelSet):
@@ -258,6 +291,7 @@ def render_robot(model: RobotModel, description: Path | None = None, backends=("
             model.rates  # derived on first use (and cached on disk)
     with stage("common subexpressions of every kernel"):
         context = robot_context(model, describe_origin(model, description), verbose)
+    context = dict(context, in_repository=in_repository, backends=tuple(backends))
     init = "kernel_set_init.py.j2" if isinstance(model, KernelSet) else "package_init.py.j2"
     files = {
         "__init__.py": TEMPLATES.get_template(init).render(context),
@@ -266,6 +300,8 @@ def render_robot(model: RobotModel, description: Path | None = None, backends=("
     for backend in backends:
         with stage(f"{backend} kernels"):
             files.update(BACKENDS[backend].render(context))
+    for template, filename in PACKAGING:
+        files[filename] = TEMPLATES.get_template(template).render(context)
     if latex and not isinstance(model, KernelSet):  # the LaTeX fragment describes a robot
         with stage("LaTeX"):
             files.update(latex_backend.render(model, context["origin"]))
@@ -278,7 +314,7 @@ def _render_named(name: str, verbose: bool) -> dict[str, str]:
         model, source = derivations.load_kernel_set(name), derivations.KERNEL_SETS[name]
     else:
         model, source = derivations.load(name, verbose=verbose), derivations.ROBOTS[name]
-    return render_robot(model, source, verbose=verbose)
+    return render_robot(model, source, verbose=verbose, in_repository=True)
 
 
 class NotFiniteError(ValueError):

@@ -23,7 +23,7 @@ import time
 from pathlib import Path
 
 from .cache import cached
-from .description import Description, DescriptionError, read_description
+from .description import Description, DescriptionError, free_joint_index, read_description
 from .kernelset import KernelSet
 from .model import IKBranch, RobotModel, SymbolicFunction, build_chain_model
 
@@ -54,15 +54,17 @@ class UnknownRobotError(KeyError, ValueError):
 
 
 def load(name: str | Path, *, verbose: bool = False, base: str | None = None, tip: str | None = None,
-         snap: bool = True) -> RobotModel:
+         snap: bool = True, free_joint: int | str | None = None) -> RobotModel:
     """The symbolic model of a registered robot, or of a description file.
 
     ``name`` is a registry name (see ``ROBOTS``), the path of a ``.toml``
     description, or the path of a ``.urdf`` file; for a URDF, ``base`` and ``tip``
     name the links the chain runs between and ``snap`` rounds angles and axes
     within ``derivations.urdf.SNAP_TOLERANCE`` of pi/2 multiples and coordinate axes
-    to them exactly (``derivations.urdf``).  Derivation results are cached on disk
-    (``derivations.cache``).
+    to them exactly (``derivations.urdf``).  ``free_joint`` (a number from 1, or a joint's name)
+    is the joint a seven-joint arm's ik holds at its argument ``free`` (a description's
+    ``free_joint`` otherwise; by default the first that leaves a six-joint arm with a closed
+    form).  Derivation results are cached on disk (``derivations.cache``).
     """
     path = _resolve(name)
     if path.suffix == ".py":
@@ -72,9 +74,13 @@ def load(name: str | Path, *, verbose: bool = False, base: str | None = None, ti
         description = read_urdf(path, base=base, tip=tip, snap=snap)
     else:
         description = read_description(path)
+    if free_joint is not None:
+        def refuse(message):
+            raise DescriptionError(f"{path}: free joint: {message}")
+        description.free_joint = free_joint_index(free_joint, description.joints, refuse)
     # The key: the bytes the description was read from (read once: the same the derivation reads),
-    # the file's name (the package's source names it) and the chain's ends.
-    text = path.name.encode() + b"\0" + description.inputs + repr((base, tip, snap)).encode()
+    # the file's name (the package's source names it), the chain's ends and the held joint.
+    text = path.name.encode() + b"\0" + description.inputs + repr((base, tip, snap, description.free_joint)).encode()
     extension = _ROBOT_DIR / f"{description.name}.py" if path.parent == _ROBOT_DIR else None
     start = time.perf_counter()
     model = cached(f"model-{description.name}", text, lambda: _derive(description, extension))
@@ -113,12 +119,18 @@ def _derive(description: Description, extension: Path | None) -> RobotModel:
     model = build_chain_model(description.name, description.title, description.source, description.chain(),
                               description.q, description.params, description.task, limits)
     model.notes.update(description.notes)
+    names = [j.name for j in description.joints]
+    if all(names) and len(set(names)) == len(names):
+        model.joint_names = tuple(names)
+    if description.base_link and all(j.link for j in description.joints):
+        model.frame_names = (description.base_link, *(j.link for j in description.joints)) + \
+            (("tool",) if len(model.frames) > model.n + 1 else ())
     if extension is not None and extension.is_file():
         module = importlib.import_module(f"derivations.robots.{description.name}")
         module.extend(model)
     if not model.ik:  # the papers' robots print their paper's steps; every other arm is decomposed
         from .ik import attach
-        attach(model)
+        attach(model, description.free_joint)
     return model
 
 

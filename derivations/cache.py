@@ -37,10 +37,16 @@ _PACKAGE = Path(__file__).resolve().parent
 
 
 def cache_dir() -> Path:
+    """``$KINEGEN_CACHE``; in a checkout, ``.cache/derivations`` at its top; installed (no
+    pyproject.toml beside the package), the user's cache folder (``$XDG_CACHE_HOME/kinegen``, else
+    ``~/.cache/kinegen``), never site-packages."""
     env = os.environ.get("KINEGEN_CACHE")
     if env:
         return Path(env)
-    return _PACKAGE.parent / ".cache" / "derivations"
+    if (_PACKAGE.parent / "pyproject.toml").is_file():
+        return _PACKAGE.parent / ".cache" / "derivations"
+    home = os.environ.get("XDG_CACHE_HOME") or (str(Path.home() / ".cache") if os.environ.get("HOME") else "")
+    return Path(home) / "kinegen" / "derivations" if home else _PACKAGE.parent / ".cache" / "derivations"
 
 
 @functools.lru_cache(maxsize=None)

@@ -59,6 +59,9 @@ class Joint:
     axis: tuple[sp.Expr, sp.Expr, sp.Expr] | None = None
     after: sp.ImmutableMatrix | None = None
     name: str = ""
+    # The link this joint's frame is (a URDF joint's child link; the tip link for the last joint,
+    # whose frame takes the fixed links after it): the names of `frames`.
+    link: str = ""
 
     def __post_init__(self):
         if self.type not in (REVOLUTE, PRISMATIC):

@@ -40,9 +40,9 @@ import sympy as sp
 from .chain import PRISMATIC, REVOLUTE, Chain, Joint, rpy_matrix
 from .expressions import ExpressionError, is_identifier, is_package_name, parse_expression
 
-__all__ = ["DescriptionError", "Description", "read_description", "parse_description"]
+__all__ = ["DescriptionError", "Description", "read_description", "parse_description", "free_joint_index"]
 
-TOP_KEYS = {"name", "title", "source", "convention", "task", "params", "joint", "tool", "base", "notes"}
+TOP_KEYS = {"name", "title", "source", "convention", "task", "params", "joint", "tool", "base", "notes", "free_joint"}
 # A description may take its chain from a URDF file instead of [[joint]] tables, and add its own
 # task, parameters and [tool] / [base] frames (whose values may use the parameters).
 URDF_KEYS = {"urdf", "base_link", "tip_link", "snap"}
@@ -80,6 +80,10 @@ class Description:
     # the derivation by, read once, so that a file changing while it is read cannot key one robot's
     # model by another's bytes.
     inputs: bytes = b""
+    # The link the chain starts at (a URDF's base link): the name of frame 0.
+    base_link: str = ""
+    # The joint (0-based) a seven-joint arm's ik holds at its argument `free`; None: chosen.
+    free_joint: int | None = None
 
     def chain(self) -> Chain:
         return Chain(self.joints, self.convention, self.tool, self.base)
@@ -120,6 +124,21 @@ def read_input(path: Path, limit: int, what: str = "file") -> bytes:
     if size > limit:  # it grew while it was read
         raise DescriptionError(f"{path}: more than the {limit} bytes a {what} may have here")
     return b"".join(chunks)
+
+
+def free_joint_index(value, joints, fail) -> int:
+    """The 0-based index of the joint ``value`` names: its number (1-based) or its name."""
+    if len(joints) != 7:
+        fail(f"the held joint is for a seven-joint arm's ik; this chain has {len(joints)} joints")
+    names = [j.name for j in joints]
+    if isinstance(value, str) and value in names:
+        return names.index(value)
+    if isinstance(value, str) and value.isdigit():
+        value = int(value)
+    if isinstance(value, int) and not isinstance(value, bool) and 1 <= value <= len(joints):
+        return value - 1
+    named = f" or a joint's name ({', '.join(n for n in names if n)})" if any(names) else ""
+    fail(f"{value!r} is not a joint of the chain: expected a number from 1 to {len(joints)}{named}")
 
 
 def read_description(path: str | Path) -> Description:
@@ -190,6 +209,10 @@ class _Parser:
         q = tuple(sp.Symbol(f"q{i + 1}", real=True) for i in range(len(joints_data)))
         names = {str(s): s for s in params}
         joints = [self.parse_joint(i, j, names) for i, j in enumerate(joints_data)]
+        named = [j.name for j in joints if j.name]
+        if len(set(named)) != len(named):
+            repeated = sorted({n for n in named if named.count(n) > 1})[0]
+            self.fail("field 'joint'", f"two joints are named {repeated!r} (a joint's name is its own)")
         tool = self.parse_frame(data.get("tool"), names, "tool")
         base = self.parse_frame(data.get("base"), names, "base")
 
@@ -206,8 +229,14 @@ class _Parser:
         return Description(
             name=name, title=data.get("title", name), source=data.get("source", ""),
             convention=convention, task=task, params=params, joints=joints, tool=tool,
-            notes=dict(notes), q=q, base=base,
+            notes=dict(notes), q=q, base=base, free_joint=self.free_joint(data, joints),
         )
+
+    def free_joint(self, data, joints) -> int | None:
+        """``free_joint``: the joint a seven-joint arm's ik holds, by number (1-based) or by name."""
+        if "free_joint" not in data:
+            return None
+        return free_joint_index(data["free_joint"], joints, lambda message: self.fail("field 'free_joint'", message))
 
     def parse_urdf(self, data: dict[str, Any]) -> Description:
         """``urdf = "arm.urdf"`` (relative to this file) with optional ``base_link``, ``tip_link``,
@@ -246,7 +275,8 @@ class _Parser:
             name=name, title=data.get("title", description.title), source=data.get("source", description.source),
             convention="urdf", task=task, params=params, joints=description.joints,
             tool=self.parse_frame(data.get("tool"), names, "tool"), notes={**description.notes, **notes},
-            q=description.q, base=self.parse_frame(data.get("base"), names, "base"), inputs=description.inputs)
+            q=description.q, base=self.parse_frame(data.get("base"), names, "base"), inputs=description.inputs,
+            base_link=description.base_link, free_joint=self.free_joint(data, description.joints))
 
     def check_task_repeats(self, task: list[str]) -> None:
         """Each task coordinate once (``pose`` holds x, y and z)."""
@@ -312,7 +342,11 @@ class _Parser:
             if not float(low) < float(high):
                 self.fail(f"{label}: field 'limits'", f"low {float(low)} must be below high {float(high)}")
             limits = (low, high)
-        return Joint(type=jtype, limits=limits, **fields)
+        name = raw.get("name", "")
+        if not isinstance(name, str) or len(name) > 200 or not name.isprintable():
+            self.fail(f"{label}: field 'name'", "expected a printable string of at most 200 characters "
+                      "(the joint's name, as a ROS joint_states message gives it)")
+        return Joint(type=jtype, limits=limits, name=name, **fields)
 
     def parse_frame(self, raw, names, which: str) -> sp.Matrix:
         """A fixed transform ``[tool]`` or ``[base]``: ``xyz`` (m) and ``rpy`` (rad; fixed-axis

@@ -65,7 +65,7 @@ RESERVED = frozenset(
     # loops and ik (a parameter named k would be shadowed inside a block, silently).
     # tests/test_description.py holds this list to what generated/*.c declares.
     """
-    T J Jx Q frames angle argument0 argument1 sine cosine found i k n s inside refused result start stream turn
+    T J J_tool Jx Q frames angle argument0 argument1 sine cosine found i k n s inside refused result start stream turn
     valid_branches batch pointer status failed
     """.split()
 )

@@ -274,6 +274,10 @@ class RobotModel:
     # (symbol, expression) that ``frames``, ``jacobian``, ``task`` and ``task_jacobian`` are written
     # in.  Empty where those are explicit (expanded and simplified: every paper's robot).
     program: tuple[tuple[sp.Symbol, sp.Expr], ...] = ()
+    # The joints' names (a URDF's joint names, or a description's `name` fields) and the names of
+    # `frames` (a URDF's link names); empty where the description gives none (see joint_labels).
+    joint_names: tuple[str, ...] = ()
+    frame_names: tuple[str, ...] = ()
 
     @property
     def n(self) -> int:
@@ -287,6 +291,24 @@ class RobotModel:
     def task_symbols(self) -> tuple[sp.Symbol, ...]:
         """Symbols standing for the task coordinates (inputs of the inverse problem)."""
         return tuple(sp.Symbol(name, real=True) for name in self.task_names)
+
+    @property
+    def jacobian_tool(self) -> sp.Matrix:
+        """The geometric Jacobian in the tool frame: both halves turned by R^T, the tool's rotation."""
+        R = self.fk[:3, :3]
+        return sp.Matrix.vstack(R.T * self.jacobian[:3, :], R.T * self.jacobian[3:, :])
+
+    @property
+    def joint_labels(self) -> tuple[str, ...]:
+        """The name of each joint: its own name where the description gives every joint one, else q1..qn."""
+        return self.joint_names or tuple(str(s) for s in self.q)
+
+    @property
+    def frame_labels(self) -> tuple[str, ...]:
+        """The name of each of ``frames``: a URDF's link names, else T_0 .. T_n (then "tool")."""
+        if self.frame_names:
+            return self.frame_names
+        return tuple(f"T_{i}" for i in range(self.n + 1)) + (("tool",) if len(self.frames) > self.n + 1 else ())
 
     def explicit(self, expr):
         """``expr`` (an expression or a matrix of this model's) in the joint variables and the
@@ -310,6 +332,9 @@ class RobotModel:
                              + f", shape (..., {count}, 4, 4)."),
             SymbolicFunction("jacobian", (q,), (Output.from_matrix("J", self.jacobian),),
                              f"Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, {n})."),
+            SymbolicFunction("jacobian_tool", (q,), (Output.from_matrix("J_tool", self.jacobian_tool),),
+                             f"Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's "
+                             f"jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, {n})."),
             SymbolicFunction("task", (q,), (Output("x", tuple(self.task), (m,)),),
                              f"Task coordinates {', '.join(self.task_names)}, shape (..., {m})."),
             SymbolicFunction("task_jacobian", (q,), (Output.from_matrix("Jx", self.task_jacobian),),

@@ -344,19 +344,20 @@ class _Chain:
                 pending = _compose(pending, transform, axis_motion(kind, axis, value).tolist())
                 continue
             joints.append(Joint(kind, origin=sp.ImmutableMatrix(_compose(pending, transform)), axis=axis,
-                                limits=self._limits(joint), name=joint.name))
+                                limits=self._limits(joint), name=joint.name, link=joint.child))
             pending = IDENTITY
         if pending != IDENTITY:
             last = joints[-1]
             joints[-1] = Joint(last.type, origin=last.origin, axis=last.axis, limits=last.limits, name=last.name,
-                               after=sp.ImmutableMatrix(pending))
+                               after=sp.ImmutableMatrix(pending), link=tip)
         name = self.name if self.name is not None and is_package_name(self.name) else None
         name = name or (stem if is_package_name(stem) else "urdf_robot")
         notes = {"snapped": "; ".join(self.snapped)} if self.snapped else {}
         return Description(
             name=name, title=f"{self.name or name} (URDF, {base} to {tip})",
             source=f"URDF {Path(self.origin).name}: {' '.join(j.name for j in path)}",
-            convention="urdf", task=["pose"], params={}, joints=joints, tool=sp.eye(4), notes=notes, q=q)
+            convention="urdf", task=["pose"], params={}, joints=joints, tool=sp.eye(4), notes=notes, q=q,
+            base_link=base)
 
     # -- numbers -------------------------------------------------------------------------------------
 

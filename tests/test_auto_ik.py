@@ -208,9 +208,35 @@ def test_urdf_chains_decompose_like_dh_tables(file):
     assert found.all()
 
 
+@pytest.mark.parametrize("held, by", [(1, 1), (2, "iiwa_joint_2"), (3, 3)])
+def test_the_user_chooses_the_held_joint_of_a_seven_joint_arm(held, by):
+    """Holding joint 1, 2 or 4 of the iiwa 14 also leaves a spherical-wrist arm (issue #26): the
+    user names the joint by number or by name, and its branches put the tool back on 300 targets
+    with that joint at its given value; the listing says which held joints give which family."""
+    model = derivations.load(URDF / "iiwa14.urdf", free_joint=by)
+    assert model.ik_plan[0] == f"family: spherical wrist, joint {held} free" and model.ik_free == held - 1
+    listing = next(line for line in model.ik_plan if line.startswith("held joints: "))
+    assert all(f"joint {j}: spherical wrist family" in listing for j in (1, 2, 3))
+    q = np.random.default_rng(26).uniform(-np.pi, np.pi, (300, 7))
+    _, found = round_trip_from_steps(model, q, held - 1)
+    assert found.all()
+
+
+def test_a_held_joint_that_leaves_no_closed_form_is_said_and_a_bad_one_refused():
+    with pytest.raises(derivations.DescriptionError, match="free joint: 8 is not a joint of the chain"):
+        derivations.load(URDF / "iiwa14.urdf", free_joint=8)
+    with pytest.raises(derivations.DescriptionError, match="for a seven-joint arm's ik; this chain has 6"):
+        derivations.load(URDF / "ur5.urdf", tip="tool0", free_joint=1)
+    model = derivations.load(URDF / "iiwa14.urdf", free_joint=6)
+    assert not model.ik and "holding joint 6 (the free joint asked for)" in model.ik_unsupported
+    # holding the elbow of the S-R-S arm leaves a spherical shoulder placing the wrist: a continuum
+    model = derivations.load(URDF / "iiwa14.urdf", free_joint=4)
+    assert not model.ik and "axes 1, 2 and 3 meet in one point" in model.ik_unsupported
+
+
 def test_kinegen_show_prints_the_decomposition(tmp_path):
     """`kinegen show FILE --what ik` prints the family and a subproblem per joint; for an arm outside
-    the families it exits 2 naming what the arm lacks."""
+    the families, the numeric method and what the arm lacks."""
     arms = Path(__file__).resolve().parent / "data" / "arms"
     run = subprocess.run([sys.executable, "-m", "codegen", "--quiet", "show", str(arms / "ur5.toml"), "--what", "ik"],
                          capture_output=True, text=True, cwd=ROOT, timeout=300)
@@ -220,8 +246,9 @@ def test_kinegen_show_prints_the_decomposition(tmp_path):
     assert "shoulder_minus_wrist_plus_elbow_minus:" in run.stdout
     run = subprocess.run([sys.executable, "-m", "codegen", "--quiet", "show", str(arms / "kinova_jaco.toml"),
                           "--what", "ik"], capture_output=True, text=True, cwd=ROOT, timeout=300)
-    assert run.returncode == 2
-    assert "no three consecutive axes meet in a point" in run.stderr
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.startswith("method: numeric (ik_numeric from 16 fixed seeds")
+    assert "no closed form: no three consecutive axes meet in a point" in run.stdout
 
 
 # --------------------------------------------------------------------------- three-joint positioning arms

@@ -535,6 +535,11 @@ def test_generated_fk_and_jacobian(name, backend, generated_root):
     # one configuration at a time too (the C backend's single-point path)
     assert relative_error(np.array([kernels.fk(row) for row in q[:10]]), fk(arm, q[:10])) < TOLERANCE
     assert relative_error(np.array([kernels.jacobian(row) for row in q[:10]]), jacobian(arm, q[:10])) < TOLERANCE
+    # in the tool frame (the Toolbox's jacobe, Pinocchio's LOCAL): both halves turned by R^T
+    R_T = np.swapaxes(fk(arm, q)[..., :3, :3], -1, -2)
+    J = jacobian(arm, q)
+    expected = np.concatenate([R_T @ J[..., :3, :], R_T @ J[..., 3:, :]], axis=-2)
+    assert relative_error(kernels.jacobian_tool(q), expected) < TOLERANCE
 
 
 def test_latex_writes_the_rate_rows_out_where_they_are_short(generated_root):
@@ -701,7 +706,7 @@ IK_FAMILY = {
     "adept_cobra600": "parallel axes", "kuka_lwr4": "spherical wrist, joint 3 free",
 }
 IK_LACKS = {
-    "franka_panda": "7 joints with no free joint that leaves a covered six-joint arm",
+    "franka_panda": "7 joints: no free joint leaves a covered six-joint arm",
     "kinova_jaco": "no three consecutive axes meet in a point (axes 4, 5, 6) and axes 2, 3, 4 are not parallel",
     "lynxmotion_al5d": "a position task with 4 joints",
 }

@@ -993,7 +993,7 @@ def _notes(w: _Writer) -> Section | None:
 # --------------------------------------------------------------------------- extras
 
 # What a model carries for the verifier, not the reader: never printed.
-_NOT_PRINTED = {"sample_ranges"}
+_NOT_PRINTED = {"sample_ranges", "program"}  # a program is printed as its product (see _fk)
 
 
 def _extras(w: _Writer) -> list[Section]:

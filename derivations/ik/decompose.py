@@ -211,6 +211,10 @@ def _position(arm: _Arm, base: _Steps, w, c, what: str) -> list[_Steps]:
     if o is not None and kinds[2] in "RP":
         if kinds[2] == REVOLUTE and S.parallel(1, 2):
             raise IKUnsupported(f"axes 1, 2 and 3 are parallel: they cannot place the {what} in space")
+        if kinds[2] == REVOLUTE and (S.meet_in_one_point(0, 1, 2) is not None or S.on_axis(w, 2)):
+            # the S of an S-R-S arm held at its elbow: the three axes only turn the point about o
+            raise IKUnsupported(f"axes 1, 2 and 3 meet in one point (or axis 3 holds the {what}): they turn the "
+                                f"{what} about it, a continuum of solutions, not a finite set")
         return _position_meet_12(arm, base, w, c, o)
     raise IKUnsupported(f"joints 1 to 3 ({kinds}) place the {what}, but axes 2 and 3 are not parallel "
                         "and axes 1 and 2 do not meet")
@@ -540,18 +544,36 @@ def held(S: Structure, j: int, value) -> Structure:
     return Structure(tuple(axes), (R * S.home).applyfunc(sp.expand), S.task)
 
 
-def _free_joint_family(model, S: Structure):
-    reasons = []
+def held_joints(model, S: Structure) -> list[tuple[int, str | None, str]]:
+    """Per joint of a seven-joint arm, in FREE_ORDER: (j, family or None, what holding it gives)
+    -- the family of the six-joint arm left with joint j held, or why it has none."""
+    table = []
     for j in FREE_ORDER:
+        try:
+            family, _ = _six_joint_family(held(S, j, model.q[j]))
+            table.append((j, family, f"{family} family"))
+        except IKUnsupported as error:
+            table.append((j, None, str(error)))
+    return table
+
+
+def _free_joint_solution(model, S: Structure, choice: int | None):
+    """(free joint, reduced structure, family, the arm, its branches' steps) for the first held joint
+    whose six-joint arm both classifies and builds, in FREE_ORDER (or only ``choice``, 0-based):
+    a family whose builder refuses this arm (a spherical wrist with an offset it cannot take) does
+    not end the search, the next joint is tried."""
+    reasons = []
+    for j in ([choice] if choice is not None else FREE_ORDER):
         reduced = held(S, j, model.q[j])
         try:
             family, build = _six_joint_family(reduced)
+            arm = _Arm(model, reduced, [q for i, q in enumerate(model.q) if i != j])
+            return j, reduced, family, arm, build(arm)
         except IKUnsupported as error:
             reasons.append(f"joint {j + 1}: {error}")
-            continue
-        return j, reduced, family, build
-    raise IKUnsupported("7 joints with no free joint that leaves a covered six-joint arm ("
-                        + "; ".join(reasons[:2]) + "; ...)")
+    chosen = f"holding joint {choice + 1} (the free joint asked for)" if choice is not None else "no free joint"
+    raise IKUnsupported(f"7 joints: {chosen} leaves a covered six-joint arm ("
+                        + "; ".join(reasons[:2]) + ("; ..." if len(reasons) > 2 else "") + ")")
 
 
 def classify(model, S: Structure):
@@ -575,33 +597,39 @@ def classify(model, S: Structure):
     raise IKUnsupported(f"no closed form for the task {', '.join(task)} with {n} joints")
 
 
-def solve(model) -> IKSolution:
-    """Every inverse-kinematics branch of ``model`` by decomposition, or IKUnsupported saying why not."""
+def solve(model, free_joint: int | None = None) -> IKSolution:
+    """Every inverse-kinematics branch of ``model`` by decomposition, or IKUnsupported saying why not.
+
+    ``free_joint`` (0-based) is the joint a seven-joint arm holds at ik's argument ``free``;
+    None: the first in FREE_ORDER that leaves a six-joint arm with a closed form."""
     chain = model.chain
     if chain is None:
         raise IKUnsupported("the model is not one serial chain")
     if chain.coupled(model.q):
         raise IKUnsupported("a joint drives a fixed transform (a mimic joint): not a plain serial chain")
     S = structure_of(model)
-    free = None
-    if tuple(model.task_names) == POSE_NAMES and model.n == 7:
-        free, reduced, family, build = _free_joint_family(model, S)
-    else:
-        family, build = classify(model, S)
     error = check_product_of_exponentials(model, S)
     if not error < 1e-9:
         raise AssertionError(f"{model.name}: the product of exponentials misses the chain's fk by {error:.2e}")
-    if free is None:
-        arm = _Arm(model, S)
-    else:
-        arm = _Arm(model, reduced, [q for i, q in enumerate(model.q) if i != free])
+    free = None
+    structure = S.describe()
+    if tuple(model.task_names) == POSE_NAMES and model.n == 7:
+        if free_joint is not None and not 0 <= free_joint < 7:
+            raise IKUnsupported(f"free joint {free_joint + 1}: a seven-joint arm holds one of joints 1 to 7")
+        structure.append("held joints: " + "; ".join(f"joint {j + 1}: {what}" for j, _, what in held_joints(model, S)))
+        free, reduced, family, arm, built = _free_joint_solution(model, S, free_joint)
         numbering = ", ".join(f"{i + 1} = q{k + 1}" for i, k in enumerate(k for k in range(7) if k != free))
-        arm.say(f"q{free + 1} is free (the argument `free` of ik): held at that value, joint {free + 1} carries "
-                f"the axes after it; the other six joints form a {family} arm, numbered 1 to 6 below ({numbering})")
+        arm.plan.insert(0, f"q{free + 1} is free (the argument `free` of ik): held at that value, joint {free + 1} "
+                           f"carries the axes after it; the other six joints form a {family} arm, numbered 1 to 6 "
+                           f"below ({numbering})")
         family = f"{family}, joint {free + 1} free"
+    else:
+        family, build = classify(model, S)
+        arm = _Arm(model, S)
+        built = build(arm)
     free_symbol = None if free is None else model.q[free]
-    branches = [_branch(model, steps, f"{family} family", free_symbol) for steps in build(arm)]
-    return IKSolution(family, branches, arm.plan, S.describe(), free)
+    branches = [_branch(model, steps, f"{family} family", free_symbol) for steps in built]
+    return IKSolution(family, branches, arm.plan, structure, free)
 
 
 # Seconds the automatic inverse kinematics of one arm may take: the target of issue #15 (the
@@ -609,7 +637,7 @@ def solve(model) -> IKSolution:
 IK_BUDGET = 10.0
 
 
-def attach(model) -> None:
+def attach(model, free_joint: int | None = None) -> None:
     """Give ``model`` its inverse kinematics by :func:`solve`, or record why it has none.
 
     Sets ``model.ik`` (the branches) and ``model.ik_plan`` (family, structure and steps),
@@ -619,7 +647,7 @@ def attach(model) -> None:
     from ..budget import BudgetExceeded, budget, degraded
     try:
         with budget(IK_BUDGET, f"{model.name}: automatic inverse kinematics"):
-            solution = solve(model)
+            solution = solve(model, free_joint)
     except IKUnsupported as error:
         model.ik_unsupported = str(error)
         return
