@@ -253,8 +253,9 @@ def solve_numeric(kernels, x, q0, limits, joint_types, task_names, params, toler
     A pose task is solved on its 6-dimensional error (the position, and the rotation vector that
     turns the tool onto the target) with the geometric Jacobian; any other task on task(q) - x
     (an angle phi wrapped) with the task Jacobian.  Each step is dq = J^T (J J^T + lambda I)^-1 e,
-    kept if it lowers the error (lambda divided by 10), else retried with lambda times 10; a joint
-    with limits is held inside them.  An item has converged when its largest residual is at most
+    kept if it lowers the squared error (lambda divided by 10), else retried with lambda times 10;
+    a joint with limits is held inside them, and one at its limit that a step would push past it
+    is left out of that step (its column of J taken as zero), so that the others move instead.  An item has converged when its largest residual is at most
     ``tolerance``; from a seed near a solution, the steps are Gauss-Newton's and the answer is the
     solution the seed leads to (for a redundant arm, near the seed)."""
     pose = tuple(task_names) == POSE_TASK
@@ -289,9 +290,15 @@ def solve_numeric(kernels, x, q0, limits, joint_types, task_names, params, toler
                 break
             J = jacobian(q[active])
             m = J.shape[-2]
-            A = J @ numpy.swapaxes(J, -1, -2) + damping[active, None, None] * numpy.eye(m)
-            step = (numpy.swapaxes(J, -1, -2) @ numpy.linalg.solve(A, e[active][..., None]))[..., 0]
-            trial = numpy.clip(q[active] + step, low, high)
+            here = q[active]
+            for _ in range(2):  # a joint at its limit that the step would push past it takes no part
+                A = J @ numpy.swapaxes(J, -1, -2) + damping[active, None, None] * numpy.eye(m)
+                step = (numpy.swapaxes(J, -1, -2) @ numpy.linalg.solve(A, e[active][..., None]))[..., 0]
+                blocked = ((here <= low) & (step < 0)) | ((here >= high) & (step > 0))
+                if not blocked.any():
+                    break
+                J = numpy.where(blocked[..., None, :], 0.0, J)
+            trial = numpy.clip(here + step, low, high)
             index = numpy.flatnonzero(active)
             e_trial = error(trial, index)
             cost_trial = numpy.sum(e_trial * e_trial, axis=-1)
