@@ -2,8 +2,9 @@
 #
 #   make            set up .venv, regenerate every kernel, build the C, verify, print the summary
 #                   (each stage skipped when its inputs did not change; the time of each at the end)
-#   make test       set up if needed, build the C, run the whole test suite on every core
-#                   (with the sanitizer runs); the time of each stage at the end
+#   make test       set up if needed, build the C (the portable layout a user's package builds;
+#                   the sanitizer tests compile every layout), run the whole test suite on every
+#                   core (with the sanitizer runs); the time of each stage at the end
 #   make generate   regenerate generated/ from derivations/ (deterministic)
 #   make build      compile the generated C (strict warnings) and its cffi extensions (what changed)
 #   make sanitize   every C entry point under ASan and UBSan
@@ -112,7 +113,7 @@ test:
 	@mkdir -p $(dir $(TIMES)) && : > $(TIMES)
 	@$(call timed,install,$(MAKE) --no-print-directory install WITH_PLOTS=1 && \
 		{ $(MAKE) --no-print-directory plots-install || echo "make test: matplotlib not installed; the plot tests will skip"; })
-	@$(call timed,build,$(KINEGEN) build)
+	@$(call timed,build,$(KINEGEN) build --portable)
 	@$(call timed,pytest,$(PY) -m pytest -n $(TEST_JOBS) --dist worksteal)
 	@$(show_times)
 

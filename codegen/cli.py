@@ -344,7 +344,8 @@ def cmd_build(args, say) -> int:
         if status == "built":
             say(f"{name}: built ({seconds:.1f} s)")
 
-    c_build.build_packages([(gen.GENERATED / name, name) for name in names], jobs, report)
+    c_build.build_packages([(gen.GENERATED / name, name) for name in names], jobs, report,
+                           fast=not getattr(args, "portable", False))
     say(f"build: {counts['built']} built, {counts['up to date']} up to date (their build stamps hold)")
     return 0
 
@@ -674,6 +675,10 @@ def parser() -> argparse.ArgumentParser:
                                 "compile several times as long); default: portable C99 -O2")
         if name in ("generate", "verify"):
             _limit_options(s)
+        if name == "build":
+            s.add_argument("--portable", action="store_true",
+                           help="the portable C99 -O2 layout (as a user's package builds; `make test` does), "
+                                "not the vectorised one for this machine")
         if name in ("verify", "all"):
             s.add_argument("--samples", type=int, default=6, help="points per kernel (default 6)")
         if name == "all":
