@@ -355,11 +355,11 @@ def _sanitize_one(name: str, memcheck: bool) -> tuple[str, float]:
     ``memcheck`` (a worker of cmd_sanitize)."""
     start = time.perf_counter()
     model = _symbolic(name)
-    context = gen.robot_context(model, "")
-    c_build.sanitizer_run(gen.GENERATED / name, name, context["functions"], model.n,
+    functions = gen.entry_points(model)
+    c_build.sanitizer_run(gen.GENERATED / name, name, functions, model.n,
                           layouts=(*c_build.SANITIZE_LAYOUTS, "simd"))
     if memcheck:
-        c_build.memcheck_run(gen.GENERATED / name, name, context["functions"], model.n)
+        c_build.memcheck_run(gen.GENERATED / name, name, functions, model.n)
     return name, time.perf_counter() - start
 
 

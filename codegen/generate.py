@@ -170,6 +170,26 @@ def _angles(calls) -> list[dict]:
     return list(angles.values())
 
 
+def entry_points(model: RobotModel) -> list[dict]:
+    """The C entry points of ``model`` as a driver calling them needs them (name, arguments,
+    outputs, whether it has checks): robot_context's ``functions`` without their CSE, which is
+    most of a render (16 s for the PUMA), for `kinegen sanitize` and its tests."""
+    arguments_of: dict[str, tuple] = {}
+    points = []
+    for function in model.functions():
+        if function.solve is None:
+            arguments = tuple((a.name, tuple(str(s) for s in a.symbols), a.doc) for a in function.arguments)
+            arguments_of[function.name] = arguments
+        else:
+            arguments = arguments_of[function.solve.system]
+        outputs = [{"name": out.name, "dtype": out.dtype, "size": int(np.prod(out.shape))}
+                   for out in function.outputs]
+        # one check per requirement (kernels._stage_checks); a kernel solved at run time has none
+        checks = tuple(function.requires) if function.solve is None else ()
+        points.append({"name": function.name, "arguments": arguments, "outputs": outputs, "checks": checks})
+    return points
+
+
 def solved_function(function, system: dict) -> dict:
     """What the templates need of a kernel solved at run time (``function.solve``): its
     public outputs, and the kernel ``system`` (already prepared) that forms its linear system."""

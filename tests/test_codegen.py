@@ -55,14 +55,14 @@ def test_c_compiles_with_strict_flags_and_runs_clean_under_sanitizers(models, na
     # the other layouts are compiled in full here.
     assert build.build_package(package, name, fast=build.extension_layout(package) == "simd")[0] == "up to date"
     build.compile_strict(package, name, skip=(build.extension_layout(package),))
-    context = generate.robot_context(models[name], "")
-    output = build.sanitizer_run(package, name, context["functions"], models[name].n)
-    assert output.count("\n") >= len(context["functions"])
+    functions = generate.entry_points(models[name])
+    output = build.sanitizer_run(package, name, functions, models[name].n)
+    assert output.count("\n") >= len(functions)
     # Kernels with requirements (a reach, a singularity): each computes some item, and some item fails a check.
     # The driver's batches hold 3 items plus a block (build.SANITIZER_BLOCK), so that they span blocks.
     items = 3 + build.SANITIZER_BLOCK
     failed = {f["name"]: int(re.search(rf"^{f['name']}: (\d+) of {items} items failed", output, re.M).group(1))
-              for f in context["functions"] if f["checks"]}
+              for f in functions if f["checks"]}
     assert all(count < items for count in failed.values()), failed
     assert not failed or any(failed.values())
 
@@ -79,8 +79,8 @@ def test_the_simd_layout_streams_and_runs_clean_under_sanitizers(models):
     if not build._accepts(("-fopenmp-simd",)):
         pytest.skip("the C compiler has no -fopenmp-simd: the SIMD layout is not built")
     assert "KINEGEN_STREAM_BYTES=16" in " ".join(build.SANITIZE_KERNEL_FLAGS["simd"])
-    context = generate.robot_context(models["planar_2r"], "")
-    output = build.sanitizer_run(package, "planar_2r", context["functions"], 2, layouts=("blocked", "simd"))
+    output = build.sanitizer_run(package, "planar_2r", generate.entry_points(models["planar_2r"]), 2,
+                                 layouts=("blocked", "simd"))
     assert "fk T[0] = " in output
     # The streaming stores are in that object: the threshold does put them on the driver's path.
     objdump = shutil.which("objdump")
