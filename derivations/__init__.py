@@ -119,6 +119,7 @@ def _derive(description: Description, extension: Path | None) -> RobotModel:
     model = build_chain_model(description.name, description.title, description.source, description.chain(),
                               description.q, description.params, description.task, limits)
     model.notes.update(description.notes)
+    model.inertials, model.gravity = tuple(description.inertials), tuple(description.gravity)
     names = [j.name for j in description.joints]
     if all(names) and len(set(names)) == len(names):
         model.joint_names = tuple(names)

@@ -42,11 +42,14 @@ from .expressions import ExpressionError, is_identifier, is_package_name, parse_
 
 __all__ = ["DescriptionError", "Description", "read_description", "parse_description", "free_joint_index"]
 
-TOP_KEYS = {"name", "title", "source", "convention", "task", "params", "joint", "tool", "base", "notes", "free_joint"}
+TOP_KEYS = {"name", "title", "source", "convention", "task", "params", "joint", "tool", "base", "notes", "free_joint",
+            "gravity"}
 # A description may take its chain from a URDF file instead of [[joint]] tables, and add its own
 # task, parameters and [tool] / [base] frames (whose values may use the parameters).
 URDF_KEYS = {"urdf", "base_link", "tip_link", "snap"}
-JOINT_KEYS = {"type", "a", "alpha", "d", "theta", "offset", "limits", "name"}
+JOINT_KEYS = {"type", "a", "alpha", "d", "theta", "offset", "limits", "name", "inertial"}
+# A joint's `inertial` table: the link it moves (DH frame k), see docs/dynamics.md.
+INERTIAL_KEYS = {"mass", "com", "inertia"}
 FRAME_KEYS = {"xyz", "rpy"}
 
 
@@ -84,6 +87,10 @@ class Description:
     base_link: str = ""
     # The joint (0-based) a seven-joint arm's ik holds at its argument `free`; None: chosen.
     free_joint: int | None = None
+    # Each moving link's inertial parameters (derivations.inertia.Inertial, in the link's frame k),
+    # and gravity in the base frame (3 expressions): empty for an arm without them (no dynamics).
+    inertials: tuple = ()
+    gravity: tuple = ()
 
     def chain(self) -> Chain:
         return Chain(self.joints, self.convention, self.tool, self.base)
@@ -226,11 +233,60 @@ class _Parser:
         notes = data.get("notes", {})
         if not isinstance(notes, dict) or not all(isinstance(v, str) for v in notes.values()):
             self.fail("field 'notes'", "expected a table of strings")
+        inertials, gravity = self.parse_dynamics(data, joints_data, params, names)
         return Description(
             name=name, title=data.get("title", name), source=data.get("source", ""),
             convention=convention, task=task, params=params, joints=joints, tool=tool,
             notes=dict(notes), q=q, base=base, free_joint=self.free_joint(data, joints),
+            inertials=inertials, gravity=gravity,
         )
+
+    def parse_dynamics(self, data, joints_data, params, names):
+        """Each joint's ``inertial`` table (all joints or none) and ``gravity`` (a list of three
+        values in the base frame; default ``[0, 0, "-gravity"]`` with the parameter ``gravity`` =
+        9.81 added).  ``params`` gains that parameter; each link is checked physical at the defaults."""
+        given = [j.get("inertial") for j in joints_data]
+        if all(g is None for g in given):
+            if "gravity" in data:
+                self.fail("field 'gravity'", "gravity without inertial tables: give each joint's `inertial`")
+            return (), ()
+        from .inertia import Inertial, check_physical
+        inertials = []
+        for i, raw in enumerate(given):
+            where = f"joint {i + 1}: field 'inertial'"
+            if raw is None:
+                self.fail(where, "missing: give every joint's link an inertial table, or none")
+            if not isinstance(raw, dict):
+                self.fail(where, "expected a table {mass = ..., com = [x, y, z], inertia = [ixx, ixy, ixz, iyy, iyz, izz]}")
+            unknown = sorted(set(raw) - INERTIAL_KEYS)
+            if unknown:
+                self.fail(where, f"unknown field {unknown[0]!r} (expected mass, com, inertia)")
+            if "mass" not in raw:
+                self.fail(where, "missing field 'mass'")
+            com, inertia = raw.get("com", [0, 0, 0]), raw.get("inertia", [0] * 6)
+            if not isinstance(com, list) or len(com) != 3:
+                self.fail(f"{where}: com", "expected a list of three values (m, in the link's frame)")
+            if not isinstance(inertia, list) or len(inertia) != 6:
+                self.fail(f"{where}: inertia", "expected [ixx, ixy, ixz, iyy, iyz, izz] (kg m^2, about the centre of mass)")
+            inertial = Inertial(self.value(f"{where}: mass", raw["mass"], names),
+                                tuple(self.value(f"{where}: com", v, names) for v in com),
+                                tuple(self.value(f"{where}: inertia", v, names) for v in inertia))
+            mass, centre, tensor = inertial.numbers(params)
+            check_physical(mass, centre, tensor, lambda message: self.fail(where, message))
+            inertials.append(inertial)
+        if "gravity" in data:
+            raw = data["gravity"]
+            if not isinstance(raw, list) or len(raw) != 3:
+                self.fail("field 'gravity'", "expected a list of three values (m/s^2, in the base frame)")
+            gravity = tuple(self.value("field 'gravity'", v, names) for v in raw)
+        else:
+            symbol = names.get("gravity")
+            if symbol is None:
+                symbol = sp.Symbol("gravity", real=True)
+                params[symbol] = 9.81
+                names["gravity"] = symbol
+            gravity = (sp.S.Zero, sp.S.Zero, -symbol)
+        return tuple(inertials), gravity
 
     def free_joint(self, data, joints) -> int | None:
         """``free_joint``: the joint a seven-joint arm's ik holds, by number (1-based) or by name."""
@@ -262,8 +318,19 @@ class _Parser:
             self.fail("field 'name'", f"{name!r} is not a valid identifier or would shadow a Python module "
                       "or a C header")
         params = self.parse_params(data.get("params", {}))
+        for symbol, value in description.params.items():  # the URDF's own (gravity), unless redefined
+            if str(symbol) not in {str(p) for p in params}:
+                params[symbol] = value
         self.defaults = params
         names = {str(p): p for p in params}
+        gravity = description.gravity
+        if "gravity" in data:
+            if not description.inertials:
+                self.fail("field 'gravity'", "gravity for a URDF whose chain has no <inertial>")
+            raw = data["gravity"]
+            if not isinstance(raw, list) or len(raw) != 3:
+                self.fail("field 'gravity'", "expected a list of three values (m/s^2, in the base frame)")
+            gravity = tuple(self.value("field 'gravity'", v, names) for v in raw)
         task = data.get("task", ["pose"])
         if not isinstance(task, list) or not task or any(t not in ("x", "y", "z", "phi", "pose") for t in task):
             self.fail("field 'task'", "expected a non-empty list of names among x, y, z, phi, pose")
@@ -276,7 +343,8 @@ class _Parser:
             convention="urdf", task=task, params=params, joints=description.joints,
             tool=self.parse_frame(data.get("tool"), names, "tool"), notes={**description.notes, **notes},
             q=description.q, base=self.parse_frame(data.get("base"), names, "base"), inputs=description.inputs,
-            base_link=description.base_link, free_joint=self.free_joint(data, description.joints))
+            base_link=description.base_link, free_joint=self.free_joint(data, description.joints),
+            inertials=description.inertials, gravity=gravity)
 
     def check_task_repeats(self, task: list[str]) -> None:
         """Each task coordinate once (``pose`` holds x, y and z)."""
@@ -292,9 +360,9 @@ class _Parser:
         for key, value in raw.items():
             where = f"params: {key!r}"
             # q1.., qd1.., qdd1.., xd_*, xdd_*, twist_* name the kernels' arguments (derivations/velocity.py).
-            if not is_identifier(key) or re.fullmatch(r"qd{0,2}\d+|(xdd?|twist)_\w+", key):
+            if not is_identifier(key) or re.fullmatch(r"qd{0,2}\d+|tau\d+|(xdd?|twist|wrench)_\w+", key):
                 self.fail(where, "not a valid parameter name (an identifier that is not reserved and not q1, q2, ..., "
-                          "qd1, qdd1, ..., or xd_*, xdd_*, twist_*)")
+                          "qd1, qdd1, tau1, ..., or xd_*, xdd_*, twist_*, wrench_*)")
             self.defaults = {}
             expr = self.value(where, value, {})  # parsed, and checked finite and real
             params[sp.Symbol(key, real=True)] = float(expr)

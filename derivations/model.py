@@ -278,6 +278,10 @@ class RobotModel:
     # `frames` (a URDF's link names); empty where the description gives none (see joint_labels).
     joint_names: tuple[str, ...] = ()
     frame_names: tuple[str, ...] = ()
+    # Each moving link's inertial parameters (derivations.inertia.Inertial, in frame k) and gravity
+    # in the base frame: the arm's equations of motion (derivations.dynamics); empty: none.
+    inertials: tuple = ()
+    gravity: tuple = ()
 
     @property
     def n(self) -> int:
@@ -340,7 +344,8 @@ class RobotModel:
             SymbolicFunction("task_jacobian", (q,), (Output.from_matrix("Jx", self.task_jacobian),),
                              f"d task / d q, shape (..., {m}, {n})."),
         ], self.program)
-        return kinematics + ([self.ik_function()] if self.ik else []) + self.rate_functions()
+        return kinematics + ([self.ik_function()] if self.ik else []) + self.rate_functions() + \
+            self.dynamics_functions()
 
     def ik_function(self) -> SymbolicFunction:
         """The ``ik`` kernel: every branch of ``self.ik`` at once.
@@ -411,6 +416,17 @@ class RobotModel:
     def singularities(self):
         """Singular configurations (derivations.velocity.Singularities): factored determinant, conditions."""
         return None if self.rates is None else self.rates.singularities
+
+    @property
+    def dynamics(self):
+        """The equations of motion (derivations.dynamics.Dynamics), derived on first use and cached;
+        None for an arm without inertial parameters."""
+        from .dynamics import dynamics
+        return dynamics(self)
+
+    def dynamics_functions(self) -> list[SymbolicFunction]:
+        """The dynamics kernels (derivations/dynamics.py); none for an arm without inertials."""
+        return [] if self.dynamics is None else list(self.dynamics.functions)
 
     def rate_functions(self) -> list[SymbolicFunction]:
         """The velocity and acceleration kernels (derivations/velocity.py)."""

@@ -52,10 +52,12 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Sequence
 
+import numpy as np
 import sympy as sp
 
 from .chain import PRISMATIC, REVOLUTE, Joint, axis_motion, rpy_matrix
 from .description import MAX_JOINTS, Description, DescriptionError, read_input
+from .inertia import INERTIA_ORDER, Inertial, check_physical, combine, transformed
 from .expressions import is_package_name
 
 __all__ = ["read_urdf", "parse_urdf", "MAX_BYTES", "SNAP_TOLERANCE"]
@@ -78,6 +80,8 @@ RATIONAL_TERMS = 2**53
 # A 4x4 transform as rows of SymPy numbers (see _compose).
 Rows = Sequence[Sequence[sp.Expr]]
 IDENTITY: Rows = tuple(map(tuple, sp.eye(4).tolist()))
+# Standard gravity (m/s^2), the default of an arm's parameter `gravity` (along -z of its base).
+STANDARD_GRAVITY = 9.81
 MOVING = {"revolute": REVOLUTE, "continuous": REVOLUTE, "prismatic": PRISMATIC}
 JOINT_TYPES = (*MOVING, "fixed", "floating", "planar")
 # XML Schema's decimal and double lexical forms without its INF and NaN (re.ASCII: no other digits).
@@ -146,6 +150,16 @@ class _UrdfJoint:
     mimic: tuple[str, _Number, _Number] | None = None  # (leader, multiplier, offset)
 
 
+@dataclass
+class _UrdfInertial:
+    """A link's ``<inertial>`` as read: the centre of mass's origin, the mass and the tensor."""
+
+    xyz: tuple[_Number, ...] = (ZERO, ZERO, ZERO)
+    rpy: tuple[_Number, ...] = (ZERO, ZERO, ZERO)
+    mass: _Number = ZERO
+    inertia: tuple[_Number, ...] = (ZERO,) * 6
+
+
 class _Chain:
     """One file's links and joints as read (:meth:`read`), then its chain as a description
     (:meth:`description`); every refusal names the file (``origin``)."""
@@ -156,6 +170,7 @@ class _Chain:
         self.links: list[str] = []
         self.joints: list[_UrdfJoint] = []
         self.snapped: list[str] = []
+        self.inertials: dict[str, _UrdfInertial] = {}  # link name -> its <inertial>, as written
 
     def fail(self, message: str):
         raise DescriptionError(f"{self.origin}: {message}")
@@ -178,6 +193,9 @@ class _Chain:
                     self.fail(f"link {name!r} is defined twice")
                 links.add(name)
                 self.links.append(name)
+                inertial = self._inertial(element, name)
+                if inertial is not None:
+                    self.inertials[name] = inertial
             elif element.tag == "joint":
                 joint = self._joint(element, len(self.joints) + 1)
                 if joint.name in joints:
@@ -223,10 +241,38 @@ class _Chain:
                            self._attribute(mimic, "offset", name, "mimic", ZERO))
         return joint
 
-    def _attribute(self, element: ET.Element, attribute: str, joint: str, field: str, default: _Number) -> _Number:
+    def _inertial(self, link: ET.Element, name: str) -> "_UrdfInertial | None":
+        """A link's ``<inertial>``: ``<origin xyz rpy>`` of the centre of mass, ``<mass value>`` and
+        ``<inertia ixx ixy ixz iyy iyz izz>`` (URDF's defaults: origin 0, the rest required).
+        Its physical consistency is checked where the link belongs to the chain (:meth:`_bodies`)."""
+        found = link.findall("inertial")
+        if len(found) > 1:
+            self.fail(f"link {name!r}: {len(found)} <inertial> elements (a link has at most one)")
+        if not found:
+            return None
+        element = found[0]
+        inertial = _UrdfInertial()
+        origin = element.findall("origin")
+        if origin and origin[0].get("xyz") is not None:
+            inertial.xyz = self._numbers(origin[0].get("xyz"), name, "inertial origin xyz", "link")
+        if origin and origin[0].get("rpy") is not None:
+            inertial.rpy = self._numbers(origin[0].get("rpy"), name, "inertial origin rpy", "link")
+        mass = element.findall("mass")
+        if not mass or mass[0].get("value") is None:
+            self.fail(f"link {name!r}: <inertial> without <mass value=\"...\"/>")
+        inertial.mass = self._number(mass[0].get("value"), name, "mass", "link")
+        tensor = element.findall("inertia")
+        if not tensor:
+            self.fail(f"link {name!r}: <inertial> without <inertia ixx=... iyz=.../>")
+        inertial.inertia = tuple(self._attribute(tensor[0], key, name, "inertia", ZERO, "link")
+                                 for key in INERTIA_ORDER)
+        return inertial
+
+    def _attribute(self, element: ET.Element, attribute: str, joint: str, field: str, default: _Number,
+                   kind: str = "joint") -> _Number:
         """The number ``attribute`` of ``element`` (field ``"<field> <attribute>"``), or URDF's default."""
         text = element.get(attribute)
-        return default if text is None else self._number(text, joint, f"{field} {attribute}")
+        return default if text is None else self._number(text, joint, f"{field} {attribute}", kind)
 
     def _only(self, element: ET.Element, tag: str, joint: str) -> ET.Element | None:
         """The joint's one ``<tag>`` element, or None; two would leave the kinematics ambiguous."""
@@ -235,22 +281,23 @@ class _Chain:
             self.fail(f"joint {joint!r}: {len(found)} <{tag}> elements (a joint has at most one)")
         return found[0] if found else None
 
-    def _numbers(self, text: str, joint: str, field: str) -> tuple[_Number, ...]:
+    def _numbers(self, text: str, joint: str, field: str, kind: str = "joint") -> tuple[_Number, ...]:
         tokens = SPACES.split(text.strip(" \t\r\n"))
         if len(tokens) != 3:
-            self.fail(f"joint {joint!r}: {field} needs 3 numbers, got {_shown(text)}")
-        return tuple(self._number(token, joint, f"{field}[{k}]") for k, token in enumerate(tokens))
+            self.fail(f"{kind} {joint!r}: {field} needs 3 numbers, got {_shown(text)}")
+        return tuple(self._number(token, joint, f"{field}[{k}]", kind) for k, token in enumerate(tokens))
 
-    def _number(self, text: str, joint: str, field: str) -> _Number:
+    def _number(self, text: str, joint: str, field: str, kind: str = "joint") -> _Number:
+        """``kind`` names what the number belongs to in messages: a joint, or a link (its inertial)."""
         text = text.strip(" \t\r\n")
         if not NUMBER.fullmatch(text):
             if text.lstrip("+-").lower() in ("nan", "inf", "infinity"):
-                self.fail(f"joint {joint!r}: {field} is {text} (expected a finite number)")
-            self.fail(f"joint {joint!r}: {field} {_shown(text)} is not a number (expected a decimal such as "
+                self.fail(f"{kind} {joint!r}: {field} is {text} (expected a finite number)")
+            self.fail(f"{kind} {joint!r}: {field} {_shown(text)} is not a number (expected a decimal such as "
                       "-0.25 or 1.5e-3)")
         double = float(text)
         if not abs(double) <= LARGEST:
-            self.fail(f"joint {joint!r}: {field} {_shown(text)} is more than {LARGEST:g} in size")
+            self.fail(f"{kind} {joint!r}: {field} {_shown(text)} is more than {LARGEST:g} in size")
         return _Number(text, Decimal(text), double)
 
     # -- the chain -----------------------------------------------------------------------------------
@@ -350,14 +397,90 @@ class _Chain:
             last = joints[-1]
             joints[-1] = Joint(last.type, origin=last.origin, axis=last.axis, limits=last.limits, name=last.name,
                                after=sp.ImmutableMatrix(pending), link=tip)
+        inertials, dynamics_note = self._bodies(path, moving, joints)
         name = self.name if self.name is not None and is_package_name(self.name) else None
         name = name or (stem if is_package_name(stem) else "urdf_robot")
         notes = {"snapped": "; ".join(self.snapped)} if self.snapped else {}
+        if dynamics_note:
+            notes["dynamics"] = dynamics_note
+        params, gravity = {}, ()
+        if inertials:  # gravity along -z of the base link, of the size of the parameter `gravity`
+            symbol = sp.Symbol("gravity", real=True)
+            params, gravity = {symbol: STANDARD_GRAVITY}, (sp.S.Zero, sp.S.Zero, -symbol)
         return Description(
             name=name, title=f"{self.name or name} (URDF, {base} to {tip})",
             source=f"URDF {Path(self.origin).name}: {' '.join(j.name for j in path)}",
-            convention="urdf", task=["pose"], params={}, joints=joints, tool=sp.eye(4), notes=notes, q=q,
-            base_link=base)
+            convention="urdf", task=["pose"], params=params, joints=joints, tool=sp.eye(4), notes=notes, q=q,
+            base_link=base, inertials=inertials, gravity=gravity)
+
+    # -- inertial parameters -------------------------------------------------------------------------
+
+    def _bodies(self, path: list[_UrdfJoint], moving: list[_UrdfJoint], joints: list[Joint]):
+        """Each moving joint's body as one :class:`Inertial` in its link frame (the model's frame k),
+        and a note on what was folded; ``()`` where no link of the chain's bodies has an inertial.
+
+        Body k is the child link of moving joint k with every link that hangs from it rigidly:
+        through fixed joints, and through moving joints off the chain (a gripper's fingers, held at
+        their zero position, as a reduced model locks them); it ends at the next moving joint of
+        the chain.  Each link is checked physical (:func:`derivations.inertia.check_physical`,
+        naming it) and the links are combined by the parallel-axis theorem, in float64."""
+        mimics = [j.name for j in path if j.mimic is not None]
+        below: dict[str, list[_UrdfJoint]] = {}
+        for joint in self.joints:
+            below.setdefault(joint.parent, []).append(joint)
+        chain_children = {j.child for j in moving}
+        mark = len(self.snapped)  # angles snapped here were noted already (chain) or are not the chain's
+        bodies, held, found = [], [], False
+        for k, joint in enumerate(moving):
+            parts = []
+            stack = [(joint.child, np.eye(4))]
+            while stack:
+                link, placement = stack.pop()
+                inertial = self.inertials.get(link)
+                if inertial is not None:
+                    found = True
+                    parts.append(self._link_inertial(link, inertial, placement))
+                for child in below.get(link, []):
+                    if child.child in chain_children:
+                        continue
+                    if child.type in MOVING:
+                        held.append(child.name)
+                    stack.append((child.child, placement @ self._float_origin(child)))
+            bodies.append(combine(parts) if parts else (0.0, np.zeros(3), np.zeros((3, 3))))
+        del self.snapped[mark:]
+        if not found:
+            return (), ""
+        if mimics:
+            return (), (f"no dynamics: the chain has mimic joints ({', '.join(mimics)}), whose links move "
+                        "relative to their leader's")
+        after = joints[-1].after
+        if after is not None:  # the last body in the tip link's frame: x_body = R x_tip + p
+            A = np.array(sp.Matrix(after).evalf(30).tolist(), dtype=float)
+            bodies[-1] = transformed(*bodies[-1], A[:3, :3].T, -A[:3, :3].T @ A[:3, 3])
+        note = (f"dynamics: joints off the chain held at zero and their links folded into the chain's "
+                f"bodies: {', '.join(held)}" if held else "")
+        return tuple(Inertial.from_numbers(*body) for body in bodies), note
+
+    def _link_inertial(self, link: str, inertial: "_UrdfInertial", placement: np.ndarray):
+        """The link's (mass, com, tensor) in its body's frame (``placement``: body -> link), checked."""
+        mass = inertial.mass.double
+        xx, xy, xz, yy, yz, zz = (n.double for n in inertial.inertia)
+        tensor = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+
+        def fail(message):
+            self.fail(f"link {link!r}: inertial: {message}")
+        check_physical(mass, np.zeros(3), tensor, fail)
+        rotation = _float_rotation([float(self._angle(n, _UrdfJoint(link, "fixed", "", ""), "")) for n in inertial.rpy])
+        offset = np.array([n.double for n in inertial.xyz])
+        mass, com, tensor = transformed(mass, np.zeros(3), tensor, rotation, offset)  # inertial frame -> link
+        return transformed(mass, com, tensor, placement[:3, :3], placement[:3, 3])
+
+    def _float_origin(self, joint: _UrdfJoint) -> np.ndarray:
+        """A joint's origin as a float64 transform, its angles snapped as the chain's are."""
+        transform = np.eye(4)
+        transform[:3, :3] = _float_rotation([float(self._angle(n, joint, "")) for n in joint.rpy])
+        transform[:3, 3] = [n.double for n in joint.xyz]
+        return transform
 
     # -- numbers -------------------------------------------------------------------------------------
 
@@ -410,6 +533,14 @@ class _Chain:
         if low == high == 0:  # URDF's default when a prismatic or revolute joint gives no range
             return None
         return (low, high)
+
+
+def _float_rotation(rpy) -> np.ndarray:
+    """``Rz(yaw) Ry(pitch) Rx(roll)`` in float64."""
+    (cr, sr), (cp, sp_), (cy, sy) = ((math.cos(a), math.sin(a)) for a in rpy)
+    return np.array([[cy * cp, cy * sp_ * sr - sy * cr, cy * sp_ * cr + sy * sr],
+                     [sy * cp, sy * sp_ * sr + cy * cr, sy * sp_ * cr - cy * sr],
+                     [-sp_, cp * sr, cp * cr]])
 
 
 def _length(number: _Number) -> sp.Expr:

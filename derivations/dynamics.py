@@ -1,0 +1,341 @@
+"""Equations of motion of a serial chain: recursive Newton-Euler as a straight-line program.
+
+``M(q) qdd + C(q, qd) qd + g(q) = tau`` for an arm whose links carry inertial parameters
+(:mod:`derivations.inertia`).  Everything is derived from one recursion, the recursive
+Newton-Euler algorithm of Luh, Walker and Paul ("On-line computational scheme for mechanical
+manipulators", 1980) in the link frames, as Craig writes it ("Introduction to Robotics", 3rd ed.,
+Eqs. 6.45-6.53), with each link's parameters taken about its frame's origin (mass ``m``, first
+moment ``h = m c``, inertia ``I_o`` about the origin), the form in which the torques are linear in
+the parameters (Atkeson, An and Hollerbach, 1986).  With ``a_0 = -g`` (gravity as an upward
+acceleration of the base), for k = 1..n in the frame J_k just after joint k's motion:
+
+    w_k   = R^T w_{k-1} + z qd_k                            (revolute; prismatic: no z term)
+    wd_k  = R^T wd_{k-1} + (R^T w_{k-1}) x z qd_k + z qdd_k
+    a_k   = R^T (a_{k-1} + wd_{k-1} x p + w_{k-1} x (w_{k-1} x p))  (+ 2 w_k x z qd_k + z qdd_k, prismatic)
+    F_k   = m a_k + wd_k x h + w_k x (w_k x h)
+    N_k   = I_o wd_k + w_k x I_o w_k + h x a_k
+
+then for k = n..1, with ``R, p`` of joint k+1 (the rotation and the origin of J_{k+1} in J_k):
+
+    f_k = F_k + R f_{k+1},   n_k = N_k + R n_{k+1} + p x R f_{k+1},   tau_k = z . n_k  (z . f_k, prismatic)
+
+Each vector component is a step of a :class:`derivations.program.Program`; nothing is expanded.
+The kernels are passes of the same recursion with some inputs zero (the zeros fold away):
+
+* ``inverse_dynamics(q, qd, qdd)``: the whole recursion;
+* ``gravity(q)``: qd = qdd = 0; ``coriolis_vector(q, qd)``: qdd = 0 and no gravity;
+* ``mass_matrix(q)``: column j from qd = 0, qdd = e_j and no gravity (the unit-vector method of
+  Walker and Orin, 1982), entries i >= j only, the rest by symmetry;
+* ``coriolis(q, qd)``: the Christoffel form ``C_ij = sum_k c_ijk qd_k``, written as
+  ``C = (dM/dt + A - A^T) / 2`` with ``A_ij = d(M qd)_i / dq_j``: ``M qd`` is one pass
+  (qdd := qd, no velocity, no gravity), ``A`` its derivatives and ``dM/dt`` the time derivative of
+  M along qd, both forward-mode derivatives of the program.  ``dM/dt - 2 C = A^T - A`` is skew;
+* ``forward_dynamics(q, qd, tau)``: ``M qdd = tau - C qd - g`` solved by a Cholesky factorisation
+  ``M = L L^T`` written out as steps (a square root and a reciprocal per column);
+* ``static_torques(q, wrench)``: ``J^T F``, the joint torques that hold the wrench ``F = [f; n]``
+  (base frame, at the tool point) applied by the arm to its environment.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import sympy as sp
+
+from .chain import PRISMATIC, REVOLUTE, axis_motion, dh_modified, dh_standard
+from .program import Program, needed
+
+__all__ = ["Dynamics", "dynamics", "derive_dynamics", "DYNAMICS_BUDGET", "link_geometry", "origin_parameters",
+           "TAU_PREFIX", "WRENCH_NAMES"]
+
+# Seconds the equations of motion of one arm may take to derive: the target of issue #30 is 30 s
+# cold for a seven-joint arm (the Panda takes about 2 s); past it the arm is generated without them.
+DYNAMICS_BUDGET = 60.0
+TAU_PREFIX = "tau"
+WRENCH_NAMES = ("wrench_fx", "wrench_fy", "wrench_fz", "wrench_nx", "wrench_ny", "wrench_nz")
+
+
+@dataclass(frozen=True)
+class Dynamics:
+    """The equations of motion of one arm as a program (``program``) and its kernels."""
+
+    qd: tuple
+    qdd: tuple
+    tau: tuple
+    wrench: tuple
+    inverse_dynamics: tuple
+    gravity: tuple
+    coriolis_vector: tuple
+    mass_matrix: sp.Matrix
+    coriolis: sp.Matrix
+    forward_dynamics: tuple
+    program: tuple
+    functions: tuple
+
+
+def _rotation_translation(T):
+    T = sp.Matrix(T)
+    return T[:3, :3], T[:3, 3]
+
+
+def link_geometry(chain, k: int, qk):
+    """Joint k's link transform split as ``before * motion(q_k) * after`` (each 4 x 4; before and
+    after constant): returns (before, axis, after) with the motion about / along ``axis``."""
+    j = chain.joints[k]
+    if chain.convention == "urdf":
+        return sp.Matrix(j.origin), tuple(j.axis), (sp.eye(4) if j.after is None else sp.Matrix(j.after))
+    if chain.convention == "standard":  # Rz(theta) Tz(d) Tx(a) Rx(alpha)
+        if j.type == REVOLUTE:
+            return sp.eye(4), (0, 0, 1), dh_standard(0, j.d, j.a, j.alpha)
+        return dh_standard(j.theta, 0, 0, 0), (0, 0, 1), dh_standard(0, 0, j.a, j.alpha)
+    if j.type == REVOLUTE:  # modified: Rx(alpha) Tx(a) Rz(theta) Tz(d)
+        return dh_modified(0, 0, j.a, j.alpha), (0, 0, 1), dh_modified(0, j.d, 0, 0)
+    return dh_modified(j.theta, 0, j.a, j.alpha), (0, 0, 1), sp.eye(4)
+
+
+def origin_parameters(inertial, after: sp.Matrix):
+    """A link's parameters in its joint frame J_k about J_k's origin: (m, h, I_o) with ``h = m c``
+    and ``I_o = I_c + m (|c|^2 E - c c^T)``; the inertial is given in the link frame k = J_k after."""
+    R, p = _rotation_translation(after)
+    m = sp.sympify(inertial.mass)
+    c = R * sp.Matrix(inertial.com) + p
+    Ic = R * inertial.tensor() * R.T
+    Io = Ic + m * ((c.T * c)[0, 0] * sp.eye(3) - c * c.T)
+    return m, (m * c).applyfunc(sp.expand), Io.applyfunc(sp.expand)
+
+
+def _cross(a, b):
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+class _Recursion:
+    """The Newton-Euler recursion of one chain, run as passes into one program."""
+
+    def __init__(self, model, program: Program):
+        chain = model.chain
+        self.program = program
+        self.n = chain.n
+        self.types = [j.type for j in chain.joints]
+        self.offsets = [j.offset for j in chain.joints]
+        self.axes, self.constant, self.bodies = [], [], []
+        previous_after = sp.Matrix(chain.base)
+        for k in range(self.n):
+            before, axis, after = link_geometry(chain, k, model.q[k])
+            self.constant.append(_rotation_translation(previous_after * before))  # J_{k-1} -> before motion
+            self.axes.append(sp.Matrix(axis))
+            self.bodies.append(origin_parameters(model.inertials[k], after))
+            previous_after = after
+        self.q = model.q
+        self.gravity = sp.Matrix(model.gravity)
+        self._motion = {}
+
+    def define_vector(self, name: str, vector) -> list:
+        return [self.program.define(f"{name}_{i}", e) for i, e in enumerate(vector)]
+
+    def motion(self, k: int):
+        """(Rm, tm) of joint k's motion: rotation and translation (J_k in the frame before it)."""
+        if k not in self._motion:
+            M = axis_motion(self.types[k], list(self.axes[k]), self.q[k] + self.offsets[k])
+            self._motion[k] = _rotation_translation(M)
+        return self._motion[k]
+
+    def to_child(self, k: int, x, name: str):
+        """R_k^T x: a vector of J_{k-1} in J_k (the constant rotation, then the motion's)."""
+        Rc, _ = self.constant[k]
+        Rm, _ = self.motion(k)
+        if any(e != 0 for e in x):
+            y = self.define_vector(f"{name}c", list(Rc.T * sp.Matrix(x)))
+            return self.define_vector(name, list(Rm.T * sp.Matrix(y)))
+        return [sp.S.Zero] * 3
+
+    def to_parent(self, k: int, x, name: str):
+        """R_k x: a vector of J_k in J_{k-1}."""
+        Rc, _ = self.constant[k]
+        Rm, _ = self.motion(k)
+        if any(e != 0 for e in x):
+            y = self.define_vector(f"{name}m", list(Rm * sp.Matrix(x)))
+            return self.define_vector(name, list(Rc * sp.Matrix(y)))
+        return [sp.S.Zero] * 3
+
+    def origin(self, k: int):
+        """p_k: the origin of J_k in J_{k-1} (moves with a prismatic joint)."""
+        Rc, pc = self.constant[k]
+        _, tm = self.motion(k)
+        return list(pc + Rc * tm)
+
+    def torques(self, tag: str, qd, qdd, gravity: bool, first: int = 0) -> list:
+        """tau of the pass ``tag`` (names its steps) at joint rates ``qd``, accelerations ``qdd``
+        (expressions or numbers), with or without gravity; joints before ``first`` are not
+        computed (their torques come back None)."""
+        n = self.n
+        zero = [sp.S.Zero] * 3
+        w, wd = zero, zero
+        a = [-e for e in self.gravity] if gravity else zero
+        frames = []
+        for k in range(n):
+            z = list(self.axes[k])
+            p = self.origin(k)
+            base = [a[i] + e for i, e in enumerate(_add(_cross(wd, p), _cross(w, _cross(w, p))))]
+            base = self.define_vector(f"_{tag}b{k + 1}", base)
+            a_k = self.to_child(k, base, f"_{tag}a{k + 1}")
+            w_in = self.to_child(k, w, f"_{tag}wp{k + 1}")
+            wd_in = self.to_child(k, wd, f"_{tag}wdp{k + 1}")
+            zqd = [e * qd[k] for e in z]
+            zqdd = [e * qdd[k] for e in z]
+            if self.types[k] == REVOLUTE:
+                w_k = _add(w_in, zqd)
+                wd_k = _add(_add(wd_in, _cross(w_in, zqd)), zqdd)
+            else:
+                w_k, wd_k = w_in, wd_in
+                a_k = _add(_add(a_k, [2 * e for e in _cross(w_in, zqd)]), zqdd)
+            w_k = self.define_vector(f"_{tag}w{k + 1}", w_k)
+            wd_k = self.define_vector(f"_{tag}wd{k + 1}", wd_k)
+            a_k = self.define_vector(f"_{tag}ac{k + 1}", a_k)
+            m, h, Io = self.bodies[k]
+            F = _add(_add([m * e for e in a_k], _cross(wd_k, h)), _cross(w_k, _cross(w_k, h)))
+            Iw = list(Io * sp.Matrix(w_k))
+            N = _add(_add(list(Io * sp.Matrix(wd_k)), _cross(w_k, Iw)), _cross(h, a_k))
+            frames.append((self.define_vector(f"_{tag}F{k + 1}", F), self.define_vector(f"_{tag}N{k + 1}", N)))
+            w, wd, a = w_k, wd_k, a_k
+        tau = [None] * n
+        f, nn = zero, zero
+        for k in reversed(range(first, n)):
+            F, N = frames[k]
+            if k + 1 < n:
+                Rf = self.to_parent(k + 1, f, f"_{tag}Rf{k + 2}")
+                Rn = self.to_parent(k + 1, nn, f"_{tag}Rn{k + 2}")
+                p = self.origin(k + 1)
+                f = _add(F, Rf)
+                nn = _add(_add(N, Rn), _cross(p, Rf))
+            else:
+                f, nn = F, N
+            f = self.define_vector(f"_{tag}f{k + 1}", f)
+            nn = self.define_vector(f"_{tag}n{k + 1}", nn)
+            z = list(self.axes[k])
+            moment = nn if self.types[k] == REVOLUTE else f
+            tau[k] = self.program.define(f"_{tag}tau{k + 1}", sum((zi * mi for zi, mi in zip(z, moment)), sp.S.Zero))
+        return tau
+
+
+def _add(a, b):
+    return [x + y for x, y in zip(a, b)]
+
+
+def rate_symbols(prefix: str, n: int):
+    return tuple(sp.Symbol(f"{prefix}{i + 1}", real=True) for i in range(n))
+
+
+def derive_dynamics(model) -> Dynamics:
+    """The equations of motion of ``model`` (which has ``inertials`` and ``gravity``) as a program."""
+    from .budget import stage
+    from .model import Argument, Output, SymbolicFunction, with_program
+    n = model.n
+    qd, qdd, tau = rate_symbols("qd", n), rate_symbols("qdd", n), rate_symbols(TAU_PREFIX, n)
+    wrench = tuple(sp.Symbol(name, real=True) for name in WRENCH_NAMES)
+    taken = {str(s) for s in model.params} | {str(s) for s in (*model.q, *qd, *qdd, *tau, *wrench)}
+    taken |= {str(s) for s, _ in model.program}
+    program = Program(taken=taken)
+    recursion = _Recursion(model, program)
+    zeros = [sp.S.Zero] * n
+    with stage("deriving the equations of motion: Newton-Euler passes"):
+        inverse = recursion.torques("id", qd, qdd, True)
+        gravity = recursion.torques("g", zeros, zeros, True)
+        bias_c = recursion.torques("c", qd, zeros, False)
+        bias = recursion.torques("h", qd, zeros, True)  # C qd + g, for the forward dynamics
+        M = sp.zeros(n, n)
+        for j in range(n):
+            unit = [sp.S.One if i == j else sp.S.Zero for i in range(n)]
+            column = recursion.torques(f"m{j + 1}_", zeros, unit, False, first=j)
+            for i in range(j, n):
+                M[i, j] = M[j, i] = program.define(f"_M{i + 1}_{j + 1}", column[i])
+    with stage("deriving the equations of motion: the Christoffel form of C"):
+        momentum = recursion.torques("p", zeros, qd, False)  # M qd
+        along = dict(zip(model.q, qd))
+        M_dot = sp.Matrix(n, n, lambda i, j: program.time_derivative(M[i, j], along) if i >= j else 0)
+        M_dot = sp.Matrix(n, n, lambda i, j: M_dot[max(i, j), min(i, j)])
+        A = sp.Matrix(n, n, lambda i, j: program.derivative(momentum[i], model.q[j]))
+        C = sp.Matrix(n, n, lambda i, j: program.define(f"_C{i + 1}_{j + 1}", (M_dot[i, j] + A[i, j] - A[j, i]) / 2))
+    with stage("deriving the equations of motion: Cholesky solve of M"):
+        qdd_solved = _cholesky_solve(program, M, [t - b for t, b in zip(tau, bias)])
+    J = model.jacobian
+    static = [sum((J[r, k] * wrench[r] for r in range(6)), sp.S.Zero) for k in range(n)]
+
+    units = ", ".join(f"{s}: {'N m' if t == REVOLUTE else 'N'}" for s, t in zip(tau, model.joint_types))
+    qa = Argument("q", tuple(model.q), f"joint coordinates, shape (..., {n})")
+    qda = Argument("qd", qd, f"joint rates, shape (..., {n}) (per second)")
+    qdda = Argument("qdd", qdd, f"joint accelerations, shape (..., {n}) (per second squared)")
+    taua = Argument("tau", tau, f"joint torques and forces, shape (..., {n}) ({units})")
+    wrencha = Argument("wrench", wrench, "wrench [f; n] the tool applies, base frame, at the tool point, "
+                                         "shape (..., 6) (N, N m)")
+    g_text = ", ".join(str(e) for e in model.gravity)
+    functions = [
+        SymbolicFunction("inverse_dynamics", (qa, qda, qdda), (Output("tau", tuple(inverse), (n,)),),
+                         f"Joint torques M(q) qdd + C(q, qd) qd + g(q) (recursive Newton-Euler), shape (..., {n}); "
+                         f"gravity ({g_text}) m/s^2 in the base frame."),
+        SymbolicFunction("mass_matrix", (qa,), (Output.from_matrix("M", M),),
+                         f"Joint-space inertia matrix M(q), symmetric positive definite, shape (..., {n}, {n})."),
+        SymbolicFunction("gravity", (qa,), (Output("g", tuple(gravity), (n,)),),
+                         f"Gravity torques g(q), shape (..., {n}); gravity ({g_text}) m/s^2 in the base frame."),
+        SymbolicFunction("coriolis", (qa, qda), (Output.from_matrix("C", C),),
+                         f"Coriolis matrix C(q, qd) (Christoffel symbols: dM/dt - 2 C is skew), "
+                         f"shape (..., {n}, {n})."),
+        SymbolicFunction("coriolis_vector", (qa, qda), (Output("c", tuple(bias_c), (n,)),),
+                         f"Coriolis and centrifugal torques C(q, qd) qd, shape (..., {n})."),
+        SymbolicFunction("forward_dynamics", (qa, qda, taua), (Output("qdd", tuple(qdd_solved), (n,)),),
+                         f"Joint accelerations M^-1 (tau - C qd - g) (Cholesky of M), shape (..., {n})."),
+    ]
+    functions = with_program(functions, tuple(program.steps))
+    functions += with_program([SymbolicFunction(
+        "static_torques", (qa, wrencha), (Output("tau", tuple(static), (n,)),),
+        f"Joint torques J(q)^T wrench that hold the wrench [f; n] (base frame, at the tool point), "
+        f"shape (..., {n}).")], tuple(model.program))
+    return Dynamics(qd, qdd, tau, wrench, tuple(inverse), tuple(gravity), tuple(bias_c), M, C,
+                    tuple(qdd_solved), tuple(program.steps), tuple(functions))
+
+
+def _cholesky_solve(program: Program, M: sp.Matrix, rhs) -> list:
+    """x with ``M x = rhs`` by ``M = L L^T`` (Cholesky-Banachiewicz), every entry a step:
+    ``L_jj = sqrt(M_jj - sum_k L_jk^2)``, ``L_ij = (M_ij - sum_k L_ik L_jk) / L_jj``, then the
+    two triangular solves, multiplying by the reciprocal of each diagonal entry."""
+    n = M.rows
+    L = [[None] * n for _ in range(n)]
+    inverse = [None] * n
+    for j in range(n):
+        d = M[j, j] - sum((L[j][k] ** 2 for k in range(j)), sp.S.Zero)
+        L[j][j] = program.define(f"_chL{j + 1}_{j + 1}", sp.sqrt(program.define(f"_chD{j + 1}", d)))
+        inverse[j] = program.define(f"_chI{j + 1}", 1 / L[j][j])
+        for i in range(j + 1, n):
+            s = M[i, j] - sum((L[i][k] * L[j][k] for k in range(j)), sp.S.Zero)
+            L[i][j] = program.define(f"_chL{i + 1}_{j + 1}", s * inverse[j])
+    y = [None] * n
+    for i in range(n):
+        y[i] = program.define(f"_chy{i + 1}", (rhs[i] - sum((L[i][k] * y[k] for k in range(i)), sp.S.Zero))
+                              * inverse[i])
+    x = [None] * n
+    for i in reversed(range(n)):
+        x[i] = program.define(f"_chx{i + 1}", (y[i] - sum((L[k][i] * x[k] for k in range(i + 1, n)), sp.S.Zero))
+                              * inverse[i])
+    return x
+
+
+def dynamics(model) -> Dynamics | None:
+    """The equations of motion of ``model``, derived once (cached on disk) under
+    :data:`DYNAMICS_BUDGET`; None for an arm without inertial parameters (or whose budget ran out:
+    ``model.notes["dynamics"]`` says so)."""
+    if model.chain is None or not getattr(model, "inertials", ()):
+        return None
+    if "_dynamics" in model.__dict__:
+        return model.__dict__["_dynamics"]
+    from .budget import BudgetExceeded, budget, degraded
+    from .cache import cached
+    key = "\n".join([model.name, repr(model.chain), sp.srepr(sp.Tuple(*model.q)),
+                     sp.srepr(sp.Tuple(*model.params)), repr(model.inertials), repr(model.gravity),
+                     sp.srepr(sp.ImmutableMatrix(model.jacobian)), sp.srepr(sp.Tuple(*map(sp.Tuple, model.program)))])
+    try:
+        with budget(DYNAMICS_BUDGET, f"{model.name}: equations of motion"):
+            result = cached(f"dynamics-{model.name}", key.encode(), lambda: derive_dynamics(model))
+    except BudgetExceeded as error:
+        model.notes["dynamics"] = f"no dynamics kernels: {error}"
+        degraded(model.notes["dynamics"])
+        result = None
+    model.__dict__["_dynamics"] = result
+    return result
