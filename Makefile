@@ -21,7 +21,8 @@
 #                   generation time of every zoo arm with its compile (benchmarks/zoo.md), then the
 #                   real URDF files: generation and the kernels against Pinocchio (benchmarks/urdf_zoo.md),
 #                   then the automatic IK of a UR5 and a KR5 against the Toolbox's ikine_LM and
-#                   analytic_ik (benchmarks/auto_ik.md)
+#                   analytic_ik (benchmarks/auto_ik.md), then the time and memory of the refusals
+#                   of hostile input (benchmarks/refusals.md)
 #   make clean      remove the virtual environment, caches and built libraries
 
 PYTHON ?= python3
@@ -161,6 +162,7 @@ bench: $(BENCH_STAMP)
 	$(BENCH_PY) benchmarks/zoo_generation.py
 	$(BENCH_PY) benchmarks/urdf_zoo.py
 	$(BENCH_PY) benchmarks/auto_ik.py
+	$(BENCH_PY) benchmarks/refusals.py
 
 clean:
 	rm -rf $(VENV) $(BENCH_VENV) .cache build *.egg-info
