@@ -162,6 +162,7 @@ bench: $(BENCH_STAMP)
 	$(BENCH_PY) benchmarks/zoo_generation.py
 	$(BENCH_PY) benchmarks/urdf_zoo.py
 	$(BENCH_PY) benchmarks/auto_ik.py
+	$(BENCH_PY) benchmarks/dynamics.py
 	$(BENCH_PY) benchmarks/refusals.py
 
 clean:

@@ -30,8 +30,8 @@ The kernels are passes of the same recursion with some inputs zero (the zeros fo
   ``C = (dM/dt + A - A^T) / 2`` with ``A_ij = d(M qd)_i / dq_j``: ``M qd`` is one pass
   (qdd := qd, no velocity, no gravity), ``A`` its derivatives and ``dM/dt`` the time derivative of
   M along qd, both forward-mode derivatives of the program.  ``dM/dt - 2 C = A^T - A`` is skew;
-* ``forward_dynamics(q, qd, tau)``: ``M qdd = tau - C qd - g`` solved by a Cholesky factorisation
-  ``M = L L^T`` written out as steps (a square root and a reciprocal per column);
+* ``forward_dynamics(q, qd, tau)``: ``M qdd = tau - C qd - g`` solved by the square-root-free
+  Cholesky factorisation ``M = L D L^T`` written out as steps (a reciprocal per column);
 * ``static_torques(q, wrench)``: ``J^T F``, the joint torques that hold the wrench ``F = [f; n]``
   (base frame, at the tool point) applied by the arm to its environment.
 """
@@ -281,7 +281,7 @@ def derive_dynamics(model) -> Dynamics:
         SymbolicFunction("coriolis_vector", (qa, qda), (Output("c", tuple(bias_c), (n,)),),
                          f"Coriolis and centrifugal torques C(q, qd) qd, shape (..., {n})."),
         SymbolicFunction("forward_dynamics", (qa, qda, taua), (Output("qdd", tuple(qdd_solved), (n,)),),
-                         f"Joint accelerations M^-1 (tau - C qd - g) (Cholesky of M), shape (..., {n})."),
+                         f"Joint accelerations M^-1 (tau - C qd - g) (Cholesky L D L^T of M), shape (..., {n})."),
     ]
     functions = with_program(functions, tuple(program.steps))
     functions += with_program([SymbolicFunction(
@@ -293,27 +293,29 @@ def derive_dynamics(model) -> Dynamics:
 
 
 def _cholesky_solve(program: Program, M: sp.Matrix, rhs) -> list:
-    """x with ``M x = rhs`` by ``M = L L^T`` (Cholesky-Banachiewicz), every entry a step:
-    ``L_jj = sqrt(M_jj - sum_k L_jk^2)``, ``L_ij = (M_ij - sum_k L_ik L_jk) / L_jj``, then the
-    two triangular solves, multiplying by the reciprocal of each diagonal entry."""
+    """x with ``M x = rhs`` by the square-root-free Cholesky factorisation ``M = L D L^T`` (L unit
+    lower triangular; Golub and Van Loan, "Matrix Computations", Algorithm 4.1.2), every entry a step:
+    ``D_j = M_jj - sum_k L_jk^2 D_k``, ``L_ij = (M_ij - sum_k L_ik L_jk D_k) / D_j``, then
+    ``L y = rhs``, ``L^T x = D^-1 y``, multiplying by the reciprocal of each ``D_j``.  No square root:
+    the batched C vectorises it (a square root that may set errno does not)."""
     n = M.rows
     L = [[None] * n for _ in range(n)]
-    inverse = [None] * n
+    LD = [[None] * n for _ in range(n)]  # L_ik D_k
+    D, inverse = [None] * n, [None] * n
     for j in range(n):
-        d = M[j, j] - sum((L[j][k] ** 2 for k in range(j)), sp.S.Zero)
-        L[j][j] = program.define(f"_chL{j + 1}_{j + 1}", sp.sqrt(program.define(f"_chD{j + 1}", d)))
-        inverse[j] = program.define(f"_chI{j + 1}", 1 / L[j][j])
+        D[j] = program.define(f"_chD{j + 1}", M[j, j] - sum((L[j][k] * LD[j][k] for k in range(j)), sp.S.Zero))
+        inverse[j] = program.define(f"_chI{j + 1}", 1 / D[j])
         for i in range(j + 1, n):
-            s = M[i, j] - sum((L[i][k] * L[j][k] for k in range(j)), sp.S.Zero)
-            L[i][j] = program.define(f"_chL{i + 1}_{j + 1}", s * inverse[j])
+            LD[i][j] = program.define(f"_chLD{i + 1}_{j + 1}",
+                                      M[i, j] - sum((LD[i][k] * L[j][k] for k in range(j)), sp.S.Zero))
+            L[i][j] = program.define(f"_chL{i + 1}_{j + 1}", LD[i][j] * inverse[j])
     y = [None] * n
     for i in range(n):
-        y[i] = program.define(f"_chy{i + 1}", (rhs[i] - sum((L[i][k] * y[k] for k in range(i)), sp.S.Zero))
-                              * inverse[i])
+        y[i] = program.define(f"_chy{i + 1}", rhs[i] - sum((L[i][k] * y[k] for k in range(i)), sp.S.Zero))
     x = [None] * n
     for i in reversed(range(n)):
-        x[i] = program.define(f"_chx{i + 1}", (y[i] - sum((L[k][i] * x[k] for k in range(i + 1, n)), sp.S.Zero))
-                              * inverse[i])
+        x[i] = program.define(f"_chx{i + 1}", y[i] * inverse[i] - sum((L[k][i] * x[k] for k in range(i + 1, n)),
+                                                                     sp.S.Zero))
     return x
 
 
