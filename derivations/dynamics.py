@@ -24,8 +24,8 @@ The kernels are passes of the same recursion with some inputs zero (the zeros fo
 
 * ``inverse_dynamics(q, qd, qdd)``: the whole recursion;
 * ``gravity(q)``: qd = qdd = 0; ``coriolis_vector(q, qd)``: qdd = 0 and no gravity;
-* ``mass_matrix(q)``: column j from qd = 0, qdd = e_j and no gravity (the unit-vector method of
-  Walker and Orin, 1982), entries i >= j only, the rest by symmetry;
+* ``mass_matrix(q)``: the composite-rigid-body algorithm (:meth:`_Recursion.mass_matrix`), entries
+  i <= j, the rest by symmetry;
 * ``coriolis(q, qd)``: the Christoffel form ``C_ij = sum_k c_ijk qd_k``, written as
   ``C = (dM/dt + A - A^T) / 2`` with ``A_ij = d(M qd)_i / dq_j``: ``M qd`` is one pass
   (qdd := qd, no velocity, no gravity), ``A`` its derivatives and ``dM/dt`` the time derivative of
@@ -216,6 +216,72 @@ class _Recursion:
         return tau
 
 
+    def rotate_tensor(self, k: int, tensor: sp.Matrix, name: str) -> sp.Matrix:
+        """R_k I R_k^T: a tensor of J_k in the axes of J_{k-1} (the motion's rotation, then the constant one)."""
+        Rc, _ = self.constant[k]
+        Rm, _ = self.motion(k)
+        inner = self.define_tensor(f"{name}m", Rm * tensor * Rm.T)
+        return self.define_tensor(name, Rc * inner * Rc.T)
+
+    def define_tensor(self, name: str, tensor: sp.Matrix) -> sp.Matrix:
+        """A symmetric 3 x 3 matrix, its six distinct entries each a step."""
+        out = sp.zeros(3, 3)
+        for r in range(3):
+            for c in range(r, 3):
+                out[r, c] = out[c, r] = self.program.define(f"{name}_{r}{c}", tensor[r, c])
+        return out
+
+    def mass_matrix(self) -> sp.Matrix:
+        """M(q) by the composite-rigid-body algorithm (Walker and Orin, 1982; Featherstone, "Rigid Body
+        Dynamics Algorithms", Sec. 6.2), in the joint frames: the composite body k (links k..n, rigid
+        at qd = 0) has mass ``m^c_k``, first moment ``h^c_k`` and inertia ``I^c_k`` about J_k's origin,
+
+            m^c_k = m_k + m^c_{k+1},   h^c_k = h_k + R h^c_{k+1} + m^c_{k+1} p,
+            I^c_k = I_k + R I^c_{k+1} R^T + 2 (R h^c_{k+1} . p) E - R h^c_{k+1} p^T - p (R h^c_{k+1})^T
+                    + m^c_{k+1} (|p|^2 E - p p^T)
+
+        (R, p: joint k+1's rotation and origin in J_k; the parallel-axis theorem for a body off the
+        origin).  A unit acceleration of joint j moves composite j rigidly: about a revolute axis z it
+        takes the force ``f = z x h^c_j`` and moment ``n = I^c_j z``, along a prismatic one
+        ``f = m^c_j z``, ``n = h^c_j x z``; M_jj is that force's component along z, and M_ij (i < j)
+        the same force carried down to joint i as the backward recursion carries it."""
+        n = self.n
+        composite = [None] * n
+        for k in reversed(range(n)):
+            m, h, I = self.bodies[k]
+            if k + 1 < n:
+                mc, hc, Ic = composite[k + 1]
+                Rh = sp.Matrix(self.to_parent(k + 1, list(hc), f"_crRh{k + 2}"))
+                RIR = self.rotate_tensor(k + 1, Ic, f"_crRI{k + 2}")
+                p = sp.Matrix(self.origin(k + 1))
+                dot = (Rh.T * p)[0, 0]
+                m = self.program.define(f"_crm{k + 1}", m + mc)
+                h = h + Rh + mc * p
+                I = I + RIR + 2 * dot * sp.eye(3) - Rh * p.T - p * Rh.T + mc * ((p.T * p)[0, 0] * sp.eye(3) - p * p.T)
+            composite[k] = (m, sp.Matrix(self.define_vector(f"_crh{k + 1}", list(h))),
+                            self.define_tensor(f"_crI{k + 1}", I))
+        M = sp.zeros(n, n)
+        for j in range(n):
+            m, h, I = composite[j]
+            z = self.axes[j]
+            if self.types[j] == REVOLUTE:
+                f, moment = _cross(list(z), list(h)), list(I * z)
+            else:
+                f, moment = [m * e for e in z], _cross(list(h), list(z))
+            f = self.define_vector(f"_crf{j + 1}_{j + 1}", f)
+            moment = self.define_vector(f"_crn{j + 1}_{j + 1}", moment)
+            for i in reversed(range(j + 1)):
+                if i < j:
+                    Rf = self.to_parent(i + 1, f, f"_crRf{i + 2}_{j + 1}")
+                    Rn = self.to_parent(i + 1, moment, f"_crRn{i + 2}_{j + 1}")
+                    f = self.define_vector(f"_crf{i + 1}_{j + 1}", Rf)
+                    moment = self.define_vector(f"_crn{i + 1}_{j + 1}", _add(Rn, _cross(self.origin(i + 1), Rf)))
+                along = moment if self.types[i] == REVOLUTE else f
+                M[i, j] = M[j, i] = self.program.define(
+                    f"_M{j + 1}_{i + 1}", sum((a * b for a, b in zip(self.axes[i], along)), sp.S.Zero))
+        return M
+
+
 def _add(a, b):
     return [x + y for x, y in zip(a, b)]
 
@@ -241,12 +307,8 @@ def derive_dynamics(model) -> Dynamics:
         gravity = recursion.torques("g", zeros, zeros, True)
         bias_c = recursion.torques("c", qd, zeros, False)
         bias = recursion.torques("h", qd, zeros, True)  # C qd + g, for the forward dynamics
-        M = sp.zeros(n, n)
-        for j in range(n):
-            unit = [sp.S.One if i == j else sp.S.Zero for i in range(n)]
-            column = recursion.torques(f"m{j + 1}_", zeros, unit, False, first=j)
-            for i in range(j, n):
-                M[i, j] = M[j, i] = program.define(f"_M{i + 1}_{j + 1}", column[i])
+    with stage("deriving the equations of motion: the composite-rigid-body mass matrix"):
+        M = recursion.mass_matrix()
     with stage("deriving the equations of motion: the Christoffel form of C"):
         momentum = recursion.torques("p", zeros, qd, False)  # M qd
         along = dict(zip(model.q, qd))
