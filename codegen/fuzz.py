@@ -7,7 +7,7 @@ vectorises no math call, so the results stay those of the single point) and a ha
 ``fuzz_driver.c.j2`` are compiled by clang with libFuzzer, AddressSanitizer and
 UndefinedBehaviorSanitizer, every report fatal, and the project's strict flags, into one
 program whose fuzz target ``KINEGEN_FUZZ_TARGET`` chooses: one target per entry point
-the header declares (each kernel, single and batched; ``within_limits``), and for a
+the header declares (each kernel, single and batched; ``ik_numeric``; ``within_limits``), and for a
 package with inverse kinematics a round trip, ``ik (round trip)``.
 
 Inputs are bytes read as doubles, so NaN, infinities, subnormals and huge values reach
@@ -39,7 +39,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .backends import TEMPLATES
-from .backends.c_backend import STRICT_FLAGS
+from .backends.c_backend import STRICT_FLAGS, numeric_ik
 from .build import CompileError
 
 __all__ = ["Argument", "Kernel", "FuzzPackage", "Target", "Result", "clang_missing", "angle_coordinates",
@@ -174,6 +174,10 @@ def package_from_context(path: Path, context: dict, reachable=(), angles=()) -> 
                              for o in f["outputs"]),
                checks=bool(f["checks"]), is_ik=bool(f["is_ik"]))
         for f in context["functions"])
+    if numeric_ik(context):  # the numeric solver: x and a seed -> q and a converged flag
+        n = len(context["joints"])
+        kernels += (Kernel(name="ik_numeric", arguments=(Argument("x", len(context["task"])), Argument("q0", n)),
+                           outputs=(Argument("q", n), Argument("converged", 1, "int")), checks=False, is_ik=False),)
     return FuzzPackage(name=context["name"], path=Path(path),
                        params=tuple((p, float(value)) for p, value in context["params"]), kernels=kernels,
                        n_joints=len(context["joints"]), pose_task=bool(context["pose_task"]),
@@ -281,7 +285,7 @@ def build_harness(package: FuzzPackage, folder: Path, children: _Children) -> Pa
 
 def seed_inputs(target: Target, package: FuzzPackage) -> list[bytes]:
     """Starting inputs of a target: full batches of moderate values (within 3 in size) with the
-    default parameters, as NULL and as values, and for ik batches of reachable targets."""
+    default parameters, as NULL and as values, and for ik and ik_numeric batches of reachable targets."""
     rng = random.Random(zlib.crc32(f"{target.package} {target.entry}".encode()))
     per_item = sum(a.size for a in target.item)
     defaults = [0.0 if target.params_are_changes else value for _, value in package.params] if target.params else []
@@ -289,6 +293,9 @@ def seed_inputs(target: Target, package: FuzzPackage) -> list[bytes]:
     batches = [items]
     if target.entry == "ik" and package.reachable and per_item == len(package.reachable[0]):
         batches.append([list(package.reachable[i % len(package.reachable)]) for i in range(MAX_ITEMS)])
+    if target.entry == "ik_numeric" and package.reachable:  # reachable targets, seeds anywhere
+        batches.append([list(package.reachable[i % len(package.reachable)])
+                        + [rng.uniform(-3.0, 3.0) for _ in range(package.n_joints)] for i in range(MAX_ITEMS)])
     full = (MAX_ITEMS - 1) << 1
     seeds = []
     for batch in batches:

@@ -100,6 +100,20 @@ def prototypes(context: dict, suffix: str = "") -> list[str]:
     n = len(context["joints"])
     if not n:  # a kernel set has no joints to check
         return lines
+    numeric = context.get("numeric_ik")
+    if numeric:
+        m, x_name = len(context["task"]), "x"
+        refused = ", -1 when x is a finite pose that is not a rigid transform" if context["pose_task"] else ""
+        lines.append(f"/* ik_numeric: x[{m}], q0[{n}] -> q[{n}], converged[1] (row-major). Inverse kinematics by "
+                     f"Levenberg-Marquardt (damped least squares) from the seed q0, each joint kept within its "
+                     f"limits: converged where the largest residual ({numeric['residual']}) is at most "
+                     f"{name.upper()}_IK_NUMERIC_TOLERANCE after at most {name.upper()}_IK_NUMERIC_ITERATIONS steps. "
+                     f"Returns converged[0] (1 or 0){refused}; the batch returns how many items converged"
+                     f"{' (-1 if it refused any)' if context['pose_task'] else ''}. */")
+        lines.append(f"int {name}_ik_numeric(const double *{x_name}, const double *q0, const {name}_params *params, "
+                     "double *q, int *converged);")
+        lines.append(f"long {name}_ik_numeric_batch(size_t count, const double *{x_name}, const double *q0, "
+                     f"const {name}_params *params, double *q, int *converged);")
     lines.append(f"/* within_limits: q[{n}] -> 1 when every joint lies within its limits "
                  "(revolute joints modulo 2 pi), else 0. */")
     lines.append(f"int {name}_within_limits(const double *q);")
@@ -157,10 +171,34 @@ def prune_helpers(text: str) -> str:
     return _HELPER.sub(lambda b: b["body"], text)
 
 
+# ik_numeric (robot.c.j2): what it converges to, and how many steps it takes at most (the numpy
+# runtime's NUMERIC_TOLERANCE and NUMERIC_ITERATIONS, runtime.py.j2).
+NUMERIC_TOLERANCE = "1e-12"
+NUMERIC_ITERATIONS = 100
+
+
+def numeric_ik(context: dict) -> dict | None:
+    """What robot.c.j2 writes ik_numeric from, for a package with ik (``ik_method``): the residual's
+    rows (6 for a pose: position and rotation vector; else the task's, phi wrapped), the size of the
+    normal matrix (the smaller of the residual's rows and the joints), and each joint's limits."""
+    n = len(context["joints"])
+    if not context.get("ik_method") or not n:
+        return None
+    rows = 6 if context["pose_task"] else len(context["task"])
+    limits = {i: (low, high) for i, low, high, _ in context["joint_limits"]}
+    return {"rows": rows, "size": min(rows, n), "wide": rows <= n,
+            "angles": [] if context["pose_task"] else [k for k, t in enumerate(context["task"]) if t == "phi"],
+            "limits": [limits.get(i) for i in range(n)],
+            "residual": "metres and radians: the position and the rotation vector" if context["pose_task"]
+            else "in task units",
+            "tolerance": NUMERIC_TOLERANCE, "iterations": NUMERIC_ITERATIONS}
+
+
 def render(context: dict) -> dict[str, str]:
     """Files of the C backend, by name, for one robot."""
     printer = CKernelPrinter()
     name = context["name"]
+    context = dict(context, numeric_ik=numeric_ik(context))
     # One-point entry points for Python (robot_point.c.j2): kernels without requirement
     # statuses, whose outputs have at most three axes.
     functions = [dict(f, point=not f["checks"] and not f.get("solve") and all(len(o["shape"]) <= 3 for o in f["outputs"]))

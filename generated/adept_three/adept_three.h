@@ -23,6 +23,9 @@ extern "C" {
 #define ADEPT_THREE_JOINTS 4
 #define ADEPT_THREE_TASK 4
 #define ADEPT_THREE_BRANCHES 2
+/* ik_numeric: converged where the largest residual is at most this (task units), after at most ITERATIONS steps. */
+#define ADEPT_THREE_IK_NUMERIC_TOLERANCE 1e-12
+#define ADEPT_THREE_IK_NUMERIC_ITERATIONS 100
 
 /* Robot parameters (SI units). */
 typedef struct adept_three_params { double l1; double l2; double d1; double d4; } adept_three_params;
@@ -80,6 +83,9 @@ void adept_three_tool_configuration_batch(size_t count, const double *q, const a
 /* tool_configuration_jacobian: q[4] -> Jw[24] (row-major). Rehiara Eq. 41: d(tool configuration vector)/dq, shape (..., 6, 4). Not a velocity Jacobian: rows 4-6 are rates of a exp(q_n/pi), not angular velocity. */
 void adept_three_tool_configuration_jacobian(const double *q, const adept_three_params *params, double *Jw);
 void adept_three_tool_configuration_jacobian_batch(size_t count, const double *q, const adept_three_params *params, double *Jw);
+/* ik_numeric: x[4], q0[4] -> q[4], converged[1] (row-major). Inverse kinematics by Levenberg-Marquardt (damped least squares) from the seed q0, each joint kept within its limits: converged where the largest residual (in task units) is at most ADEPT_THREE_IK_NUMERIC_TOLERANCE after at most ADEPT_THREE_IK_NUMERIC_ITERATIONS steps. Returns converged[0] (1 or 0); the batch returns how many items converged. */
+int adept_three_ik_numeric(const double *x, const double *q0, const adept_three_params *params, double *q, int *converged);
+long adept_three_ik_numeric_batch(size_t count, const double *x, const double *q0, const adept_three_params *params, double *q, int *converged);
 /* within_limits: q[4] -> 1 when every joint lies within its limits (revolute joints modulo 2 pi), else 0. */
 int adept_three_within_limits(const double *q);
 void adept_three_within_limits_batch(size_t count, const double *q, int *inside);

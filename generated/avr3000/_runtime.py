@@ -282,8 +282,12 @@ def solve_numeric(kernels, x, q0, limits, joint_types, task_names, params, toler
 
     A pose task is solved on its 6-dimensional error (the position, and the rotation vector that
     turns the tool onto the target) with the geometric Jacobian; any other task on task(q) - x
-    (an angle phi wrapped) with the task Jacobian.  Each step is dq = J^T (J J^T + lambda I)^-1 e,
-    kept if it lowers the squared error (lambda divided by 10), else retried with lambda times 10;
+    (an angle phi wrapped) with the task Jacobian.  Each step is dq = J^T (J J^T + lambda I)^-1 e
+    (where J has at most as many rows as columns; else the same dq as (J^T J + lambda I)^-1 J^T e),
+    kept if it lowers the squared error, else retried with a larger lambda.  lambda starts at 1e-3
+    and follows Nielsen's rule within [1e-15, 1e10]: a kept step multiplies it by max(1/10, 1 - (2 rho
+    - 1)^3), rho the actual decrease of the squared error over the linear model's, a refused one by
+    2, 4, 8, ... (reset to 2 at the next kept step);
     a joint with limits is held inside them, and one at its limit that a step would push past it
     is left out of that step (its column of J taken as zero), so that the others move instead.  An item has converged when its largest residual is at most
     ``tolerance``; from a seed near a solution, the steps are Gauss-Newton's and the answer is the
@@ -314,51 +318,76 @@ def solve_numeric(kernels, x, q0, limits, joint_types, task_names, params, toler
         size = numpy.abs(e).max(axis=-1)
         cost = numpy.sum(e * e, axis=-1)  # what a step must lower (the largest residual may not, on the way)
         damping = numpy.full(len(q), 1e-3)
+        growth = numpy.full(len(q), 2.0)  # of the damping at the next refused step
         for _ in range(iterations):
             active = ~(size <= tolerance) & numpy.isfinite(size)
             if not active.any():
                 break
             J = jacobian(q[active])
-            m = J.shape[-2]
+            m, n = J.shape[-2:]
             here = q[active]
             for _ in range(2):  # a joint at its limit that the step would push past it takes no part
-                A = J @ numpy.swapaxes(J, -1, -2) + damping[active, None, None] * numpy.eye(m)
-                step = (numpy.swapaxes(J, -1, -2) @ numpy.linalg.solve(A, e[active][..., None]))[..., 0]
+                Jt = numpy.swapaxes(J, -1, -2)
+                if m <= n:  # the smaller of the two normal matrices, as the C does
+                    A = J @ Jt + damping[active, None, None] * numpy.eye(m)
+                    step = (Jt @ numpy.linalg.solve(A, e[active][..., None]))[..., 0]
+                else:
+                    A = Jt @ J + damping[active, None, None] * numpy.eye(n)
+                    step = numpy.linalg.solve(A, Jt @ e[active][..., None])[..., 0]
                 blocked = ((here <= low) & (step < 0)) | ((here >= high) & (step > 0))
                 if not blocked.any():
                     break
                 J = numpy.where(blocked[..., None, :], 0.0, J)
             trial = numpy.clip(here + step, low, high)
             index = numpy.flatnonzero(active)
+            left = e[active] - (J @ (trial - here)[..., None])[..., 0]  # the linear model's, after the clipped step
+            predicted = cost[active] - numpy.sum(left * left, axis=-1)
             e_trial = error(trial, index)
             cost_trial = numpy.sum(e_trial * e_trial, axis=-1)
             better = cost_trial < cost[active]
             q[index[better]] = trial[better]
             e[index[better]] = e_trial[better]
+            rho = numpy.where(predicted > 0.0, (cost[active] - cost_trial) / predicted, 0.5)
+            factor = numpy.maximum(1.0 - (2.0 * rho - 1.0) ** 3, 0.1)  # Nielsen's rule
             cost[index[better]] = cost_trial[better]
             size[index[better]] = numpy.abs(e_trial[better]).max(axis=-1)
-            damping[index] = numpy.clip(numpy.where(better, damping[index] / 10.0, damping[index] * 10.0), 1e-15, 1e10)
+            damping[index] = numpy.clip(numpy.where(better, damping[index] * factor, damping[index] * growth[index]),
+                                        1e-15, 1e10)
+            growth[index] = numpy.where(better, 2.0, growth[index] * 2.0)
     return q, size <= tolerance
 
 
-def _numeric_targets(module, x, function):
-    """Targets as (batch shape, (N, m)): a pose from (..., 12) or (..., 4, 4), another task from (..., m)."""
+def _numeric_targets(module, x, function, check_rotation=True):
+    """Targets as (batch shape, (N, m)): a pose from (..., 12) or (..., 4, 4), another task from (..., m).
+    ``check_rotation=False`` leaves a pose's rotation to the caller (the C solver checks it)."""
     if module.TASK == POSE_TASK:
-        x = as_pose_task(x, function, "x", RIGID_TOLERANCE)
+        x = as_pose_task(x, function, "x", RIGID_TOLERANCE, check_rotation=check_rotation)
     else:
-        x = as_batch(x, len(module.TASK), function, "x")
+        x = as_batch(x, len(module.TASK), function, "x", finite=False)
     return x.shape[:-1], x.reshape(-1, x.shape[-1])
 
 
-def ik_numeric(module, x, q0, params):
-    """``module.ik_numeric``: (q (..., n), converged (...)) from seeds q0 (..., n), broadcast with x."""
-    batch_x, flat_x = _numeric_targets(module, x, "ik_numeric")
+def numpy_solver(module, params):
+    """The numpy solver of ``module`` as ik_numeric and ik_from_seeds take it: (targets (N, m), seeds
+    (N, n)) -> (q (N, n), converged (N,))."""
+    def solve(targets, seeds):
+        return solve_numeric(module, targets, seeds, module.LIMITS, module.JOINT_TYPES, module.TASK, params)
+    return solve
+
+
+def ik_numeric(module, x, q0, params, solver=None, check_rotation=True):
+    """``module.ik_numeric``: (q (..., n), converged (...)) from seeds q0 (..., n), broadcast with x.
+
+    ``solver`` (targets (N, m), seeds (N, n)) -> (q, converged): the backend's (numpy's by default);
+    a target with a NaN or inf never converges, a seed with one is refused."""
+    batch_x, flat_x = _numeric_targets(module, x, "ik_numeric", check_rotation)
     q0 = as_batch(q0, len(module.JOINTS), "ik_numeric", "q0")
     batch = batch_shape("ik_numeric", x=flat_x.reshape(batch_x + flat_x.shape[-1:]), q0=q0)
     targets = numpy.broadcast_to(flat_x.reshape(batch_x + flat_x.shape[-1:]), batch + flat_x.shape[-1:])
     seeds = numpy.broadcast_to(q0, batch + q0.shape[-1:])
-    q, converged = solve_numeric(module, targets.reshape(-1, targets.shape[-1]), seeds.reshape(-1, seeds.shape[-1]),
-                                 module.LIMITS, module.JOINT_TYPES, module.TASK, params)
+    solve = solver or numpy_solver(module, params)
+    q, converged = solve(numpy.ascontiguousarray(targets.reshape(-1, targets.shape[-1])),
+                         numpy.ascontiguousarray(seeds.reshape(-1, seeds.shape[-1])))
     return q.reshape(batch + q.shape[-1:]), converged.reshape(batch)
 
 
@@ -379,17 +408,18 @@ def seeds(limits, joint_types, count):
     return low + unit * (high - low)
 
 
-def ik_from_seeds(module, x, params, count):
+def ik_from_seeds(module, x, params, count, solver=None, check_rotation=True):
     """``module.ik`` for an arm with no closed form: ik_numeric from each of the fixed seeds
     (:func:`seeds`), revolute joints wrapped to (-pi, pi], a solution valid where it converged and
-    no earlier seed's valid solution is the same one.  Q (..., count, n), valid (..., count)."""
-    batch, flat = _numeric_targets(module, x, "ik")
+    no earlier seed's valid solution is the same one.  Q (..., count, n), valid (..., count).
+    ``solver`` as ik_numeric takes it (numpy's by default)."""
+    batch, flat = _numeric_targets(module, x, "ik", check_rotation)
     n, N = len(module.JOINTS), flat.shape[0]
     start = seeds(module.LIMITS, module.JOINT_TYPES, count)
     finite = numpy.isfinite(flat).all(axis=-1)
-    targets = numpy.repeat(numpy.where(finite[:, None], flat, 0.0), count, axis=0)
-    q, converged = solve_numeric(module, targets, numpy.tile(start, (N, 1)), module.LIMITS, module.JOINT_TYPES,
-                                 module.TASK, params)
+    targets = numpy.repeat(flat, count, axis=0)  # one with a NaN or inf does not converge
+    solve = solver or numpy_solver(module, params)
+    q, converged = solve(targets, numpy.tile(start, (N, 1)))
     revolute = numpy.array([t == "R" for t in module.JOINT_TYPES])
     q = numpy.where(revolute, wrap_angle(q), q).reshape(N, count, n)
     valid = converged.reshape(N, count) & finite[:, None]

@@ -26,6 +26,9 @@ extern "C" {
 #define AVR3000_JOINTS 3
 #define AVR3000_TASK 3
 #define AVR3000_BRANCHES 1
+/* ik_numeric: converged where the largest residual is at most this (task units), after at most ITERATIONS steps. */
+#define AVR3000_IK_NUMERIC_TOLERANCE 1e-12
+#define AVR3000_IK_NUMERIC_ITERATIONS 100
 
 /* Status of a kernel that can fail (0 is success; no output is written otherwise). */
 #define AVR3000_UNREACHABLE 1
@@ -195,6 +198,9 @@ size_t avr3000_cartesian_to_motor_reversed_velocity_batch(size_t count, const do
 /* cartesian_to_motor_reversed_acceleration: cartesian[3], cartesian_velocity[3], cartesian_acceleration[3] -> motor_acceleration[3] (row-major). Cartesian -> motor acceleration. */
 int avr3000_cartesian_to_motor_reversed_acceleration(const double *cartesian, const double *cartesian_velocity, const double *cartesian_acceleration, const avr3000_params *params, double *motor_acceleration);
 size_t avr3000_cartesian_to_motor_reversed_acceleration_batch(size_t count, const double *cartesian, const double *cartesian_velocity, const double *cartesian_acceleration, const avr3000_params *params, double *motor_acceleration, int *status);
+/* ik_numeric: x[3], q0[3] -> q[3], converged[1] (row-major). Inverse kinematics by Levenberg-Marquardt (damped least squares) from the seed q0, each joint kept within its limits: converged where the largest residual (in task units) is at most AVR3000_IK_NUMERIC_TOLERANCE after at most AVR3000_IK_NUMERIC_ITERATIONS steps. Returns converged[0] (1 or 0); the batch returns how many items converged. */
+int avr3000_ik_numeric(const double *x, const double *q0, const avr3000_params *params, double *q, int *converged);
+long avr3000_ik_numeric_batch(size_t count, const double *x, const double *q0, const avr3000_params *params, double *q, int *converged);
 /* within_limits: q[3] -> 1 when every joint lies within its limits (revolute joints modulo 2 pi), else 0. */
 int avr3000_within_limits(const double *q);
 void avr3000_within_limits_batch(size_t count, const double *q, int *inside);

@@ -1673,9 +1673,36 @@ def within_limits(q):
     return inside.astype(bool)
 
 
+def _numeric_solver(params):
+    """The C solver (avr3000_ik_numeric_batch) as _runtime.ik_numeric takes it: (targets (N, 3), seeds
+    (N, 3), both C-contiguous float64) -> (q (N, 3), converged (N,))."""
+    def solve(targets, seeds):
+        count = targets.shape[0]
+        q = _empty((count, 3))
+        converged = _empty(count, dtype=numpy.intc)
+        found = _lib.avr3000_ik_numeric_batch(count, _from_buffer(_DOUBLES, targets), _from_buffer(_DOUBLES, seeds),
+                                                 params, _from_buffer(_DOUBLES, q), _from_buffer(_INTS, converged))
+        return q, converged.astype(bool)
+    return solve
+
+
 def ik_numeric(x, q0, *, a=_a, e=_e, J11=_J11, J21=_J21, J22=_J22, J33=_J33):
     """Inverse kinematics by Levenberg-Marquardt from the seed q0: (q (..., 3), converged (...)). (C backend)
 
-    As numpy_kernels.ik_numeric, each step's fk and Jacobian computed by this backend's C.
+    x: task coordinates T, R, Z, shape (..., 3)
+    q0: the seed, shape (..., 3); x and q0 broadcast.
+    As numpy_kernels.ik_numeric, solved in C (avr3000_ik_numeric): the same steps on this backend's
+    fk and Jacobian, joints kept within LIMITS, converged where the largest residual is at most
+    1e-12; a target with a NaN or inf does not converge, a seed with one is refused.
     """
-    return _runtime.ik_numeric(sys.modules[__name__], x, q0, {"a": a, "e": e, "J11": J11, "J21": J21, "J22": J22, "J33": J33})
+    if a is _a and e is _e and J11 is _J11 and J21 is _J21 and J22 is _J22 and J33 is _J33:
+        params, _out = _DEFAULT_PARAMS, _point_ik_numeric(x, q0)
+    else:
+        params, _values = _params((a, e, J11, J21, J22, J33, ))
+        _out = _point_ik_numeric(x, q0, _values)
+    if _out is not None:  # one point, float64 arrays as they come: done in C
+        return _out
+    return _runtime.ik_numeric(sys.modules[__name__], x, q0, None, _numeric_solver(params), check_rotation=False)
+
+
+_point_ik_numeric = _point.ik_numeric

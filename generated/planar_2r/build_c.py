@@ -311,6 +311,9 @@ void planar_2r_joint_velocity_batch(size_t count, const double *q, const double 
 /* joint_acceleration: q[2], qd[2], xdd[2] -> qdd[2], singular[1] (row-major). Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 2) and (...). */
 void planar_2r_joint_acceleration(const double *q, const double *qd, const double *xdd, const planar_2r_params *params, double *qdd, int *singular);
 void planar_2r_joint_acceleration_batch(size_t count, const double *q, const double *qd, const double *xdd, const planar_2r_params *params, double *qdd, int *singular);
+/* ik_numeric: x[2], q0[2] -> q[2], converged[1] (row-major). Inverse kinematics by Levenberg-Marquardt (damped least squares) from the seed q0, each joint kept within its limits: converged where the largest residual (in task units) is at most PLANAR_2R_IK_NUMERIC_TOLERANCE after at most PLANAR_2R_IK_NUMERIC_ITERATIONS steps. Returns converged[0] (1 or 0); the batch returns how many items converged. */
+int planar_2r_ik_numeric(const double *x, const double *q0, const planar_2r_params *params, double *q, int *converged);
+long planar_2r_ik_numeric_batch(size_t count, const double *x, const double *q0, const planar_2r_params *params, double *q, int *converged);
 /* within_limits: q[2] -> 1 when every joint lies within its limits (revolute joints modulo 2 pi), else 0. */
 int planar_2r_within_limits(const double *q);
 void planar_2r_within_limits_batch(size_t count, const double *q, int *inside);

@@ -2668,3 +2668,196 @@ void planar_2r_within_limits_batch(size_t count, const double *restrict q, int *
         inside[i] = planar_2r_within_limits(q + 2 * i);
     }
 }
+
+/*
+ * ik_numeric: inverse kinematics by Levenberg-Marquardt (damped least squares with an adaptive
+ * damping) from a seed, on this file's own task and task Jacobian; the numpy runtime's
+ * solve_numeric (_runtime.py) step for step.
+ * The residual e (2) is the target less task(q).
+ * Each step is dq = J^T (J J^T + lambda I)^-1 e (a 2 x 2 Cholesky solve), kept
+ * if it lowers |e|^2, else refused; lambda starts at 1e-3 and follows Nielsen's rule within
+ * [1e-15, 1e10]: a kept step multiplies it by max(1/10, 1 - (2 rho - 1)^3), rho the actual decrease
+ * of |e|^2 over the linear model's, a refused one by 2, 4, 8, ...  q is kept within the joints' limits (each step's result clipped), and a joint at a
+ * limit that the step would push past it takes no part in that step (its column of J zeroed,
+ * the step solved again), so that the other joints move instead.  Converged where max|e| <=
+ * 1e-12, within 100 steps.  From a seed near a solution the steps are Gauss-Newton's and the
+ * answer is the solution the seed leads to (for a redundant arm, the least-norm steps keep it
+ * near the seed).
+ */
+
+/* e = x - task(q). */
+static void planar_2r_ik_numeric_residual(const double *restrict x, const double *restrict q,
+                                          const planar_2r_params *restrict params, double *restrict e)
+{
+    double t[2];
+    int i;
+    planar_2r_task(q, params, t);
+    for (i = 0; i < 2; ++i) {
+        e[i] = x[i] - t[i];
+    }
+}
+
+/* The step dq = J^T (J J^T + damping I)^-1 e of J (2 x 2, row-major), by Cholesky; 0 (and no
+   step) where the matrix is not positive definite in doubles (a NaN, or a pivot rounded to 0). */
+static int planar_2r_ik_numeric_step(const double *restrict J, const double *restrict e, double damping,
+                                     double *restrict step)
+{
+    double L[4], y[2];
+    int i, j, k;
+    for (i = 0; i < 2; ++i) {
+        for (j = 0; j <= i; ++j) {
+            double sum = i == j ? damping : 0.0;
+            for (k = 0; k < 2; ++k) {
+                sum += J[2 * i + k] * J[2 * j + k];
+            }
+            L[2 * i + j] = sum;
+        }
+        y[i] = e[i];
+    }
+    for (j = 0; j < 2; ++j) {  /* L L^T, L lower triangular, in place */
+        double pivot = L[3 * j];
+        for (k = 0; k < j; ++k) {
+            pivot -= L[2 * j + k] * L[2 * j + k];
+        }
+        if (!(pivot > 0.0)) {
+            return 0;
+        }
+        L[3 * j] = sqrt(pivot);
+        for (i = j + 1; i < 2; ++i) {
+            double sum = L[2 * i + j];
+            for (k = 0; k < j; ++k) {
+                sum -= L[2 * i + k] * L[2 * j + k];
+            }
+            L[2 * i + j] = sum / L[3 * j];
+        }
+    }
+    for (i = 0; i < 2; ++i) {  /* L z = y */
+        for (k = 0; k < i; ++k) {
+            y[i] -= L[2 * i + k] * y[k];
+        }
+        y[i] /= L[3 * i];
+    }
+    for (i = 1; i >= 0; --i) {  /* L^T u = z */
+        for (k = i + 1; k < 2; ++k) {
+            y[i] -= L[2 * k + i] * y[k];
+        }
+        y[i] /= L[3 * i];
+    }
+    for (k = 0; k < 2; ++k) {
+        step[k] = 0.0;
+        for (i = 0; i < 2; ++i) {
+            step[k] += J[2 * i + k] * y[i];
+        }
+    }
+    return 1;
+}
+
+/* The largest |e_i| (NaN if any is) and |e|^2. */
+static double planar_2r_ik_numeric_size(const double *restrict e, double *restrict cost)
+{
+    double size = 0.0, sum = 0.0;
+    int i;
+    for (i = 0; i < 2; ++i) {
+        const double a = fabs(e[i]);
+        size = a > size || isnan(a) ? a : size;
+        sum += e[i] * e[i];
+    }
+    *cost = sum;
+    return size;
+}
+
+/* q within the joints' limits (a NaN stays NaN). */
+static void planar_2r_ik_numeric_clip(double *restrict q)
+{
+    (void)q;
+}
+
+/* Inverse kinematics by Levenberg-Marquardt from the seed q0 (see above): q and converged[0]
+   (1 where max|e| <= 1e-12, else 0; a target or seed with a NaN or inf never converges).
+   Returns converged[0]. */
+int planar_2r_ik_numeric(const double *restrict x, const double *restrict q0, const planar_2r_params *restrict params,
+                          double *restrict q, int *restrict converged)
+{
+    double e[2], e_trial[2], J[4], step[2], trial[2];
+    double size, cost, damping = 1e-3, growth = 2.0;
+    int iteration, pass, i, k;
+    for (i = 0; i < 2; ++i) {
+        q[i] = q0[i];
+    }
+    planar_2r_ik_numeric_clip(q);
+    converged[0] = 0;
+    planar_2r_ik_numeric_residual(x, q, params, e);
+    size = planar_2r_ik_numeric_size(e, &cost);
+    for (iteration = 0; iteration < 100 && !(size <= 1e-12) && isfinite(size); ++iteration) {
+        int solved = 0;
+        planar_2r_task_jacobian(q, params, J);
+        for (pass = 0; pass < 2; ++pass) {
+            int blocked = 0;
+            solved = planar_2r_ik_numeric_step(J, e, damping, step);
+            if (!solved) {
+                break;
+            }
+            if (!blocked) {
+                break;
+            }
+        }
+        if (solved) {
+            double size_trial, cost_trial, predicted = cost;
+            for (i = 0; i < 2; ++i) {
+                trial[i] = q[i] + step[i];
+            }
+            planar_2r_ik_numeric_clip(trial);
+            for (k = 0; k < 2; ++k) {  /* the linear model's residual after the step as clipped */
+                double left = e[k];
+                for (i = 0; i < 2; ++i) {
+                    left -= J[2 * k + i] * (trial[i] - q[i]);
+                }
+                predicted -= left * left;
+            }
+            planar_2r_ik_numeric_residual(x, trial, params, e_trial);
+            size_trial = planar_2r_ik_numeric_size(e_trial, &cost_trial);
+            solved = cost_trial < cost;
+            if (solved) {
+                /* Nielsen's update from the gain ratio rho of the actual to the predicted decrease of |e|^2 */
+                const double rho = predicted > 0.0 ? (cost - cost_trial) / predicted : 0.5;
+                const double factor = 1.0 - (2.0 * rho - 1.0) * (2.0 * rho - 1.0) * (2.0 * rho - 1.0);
+                damping *= factor > 0.1 ? factor : 0.1;
+                growth = 2.0;
+                for (i = 0; i < 2; ++i) {
+                    q[i] = trial[i];
+                }
+                for (i = 0; i < 2; ++i) {
+                    e[i] = e_trial[i];
+                }
+                cost = cost_trial;
+                size = size_trial;
+            }
+        }
+        if (!solved) {
+            damping *= growth;
+            growth *= 2.0;
+        }
+        damping = damping < 1e-15 ? 1e-15 : damping > 1e10 ? 1e10 : damping;
+    }
+    converged[0] = size <= 1e-12;
+    return converged[0];
+}
+
+/* ik_numeric of `count` items, one after the other in x, q0, q and converged.  Returns how many
+   converged. */
+long planar_2r_ik_numeric_batch(size_t count, const double *restrict x, const double *restrict q0,
+                                 const planar_2r_params *restrict params, double *restrict q, int *restrict converged)
+{
+    long found = 0;
+    int refused = 0;
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        const int item = planar_2r_ik_numeric(x + 2 * i, q0 + 2 * i, params, q + 2 * i, converged + i);
+        if (item < 0) {
+            refused = 1;
+        } else {
+            found += item;
+        }
+    }
+    return refused ? -1 : found;
+}

@@ -23,6 +23,9 @@ extern "C" {
 #define PLANAR_RP_JOINTS 2
 #define PLANAR_RP_TASK 2
 #define PLANAR_RP_BRANCHES 2
+/* ik_numeric: converged where the largest residual is at most this (task units), after at most ITERATIONS steps. */
+#define PLANAR_RP_IK_NUMERIC_TOLERANCE 1e-12
+#define PLANAR_RP_IK_NUMERIC_ITERATIONS 100
 
 /* Robot parameters (SI units). */
 typedef struct planar_rp_params { double unused; } planar_rp_params;
@@ -77,6 +80,9 @@ void planar_rp_joint_acceleration_batch(size_t count, const double *q, const dou
 /* kumar_pose: q[2] -> x[3] (row-major). Kumar's end-effector coordinates of the R-P arm (section 5.3): x, y (m) and phi = theta1 (rad), the direction of the slide, shape (..., 3). */
 void planar_rp_kumar_pose(const double *q, const planar_rp_params *params, double *x);
 void planar_rp_kumar_pose_batch(size_t count, const double *q, const planar_rp_params *params, double *x);
+/* ik_numeric: x[2], q0[2] -> q[2], converged[1] (row-major). Inverse kinematics by Levenberg-Marquardt (damped least squares) from the seed q0, each joint kept within its limits: converged where the largest residual (in task units) is at most PLANAR_RP_IK_NUMERIC_TOLERANCE after at most PLANAR_RP_IK_NUMERIC_ITERATIONS steps. Returns converged[0] (1 or 0); the batch returns how many items converged. */
+int planar_rp_ik_numeric(const double *x, const double *q0, const planar_rp_params *params, double *q, int *converged);
+long planar_rp_ik_numeric_batch(size_t count, const double *x, const double *q0, const planar_rp_params *params, double *q, int *converged);
 /* within_limits: q[2] -> 1 when every joint lies within its limits (revolute joints modulo 2 pi), else 0. */
 int planar_rp_within_limits(const double *q);
 void planar_rp_within_limits_batch(size_t count, const double *q, int *inside);

@@ -327,6 +327,9 @@ void puma560_joint_acceleration_batch(size_t count, const double *q, const doubl
 /* joint_velocity_from_twist: q[6], twist[6] -> qd[6], singular[1] (row-major). Joint rates from the tool twist by Paul's wrist partition (two 3 x 3 solves; damped least squares per block where singular). Shapes (..., 6) and (...). */
 void puma560_joint_velocity_from_twist(const double *q, const double *twist, const puma560_params *params, double *qd, int *singular);
 void puma560_joint_velocity_from_twist_batch(size_t count, const double *q, const double *twist, const puma560_params *params, double *qd, int *singular);
+/* ik_numeric: x[12], q0[6] -> q[6], converged[1] (row-major). Inverse kinematics by Levenberg-Marquardt (damped least squares) from the seed q0, each joint kept within its limits: converged where the largest residual (metres and radians: the position and the rotation vector) is at most PUMA560_IK_NUMERIC_TOLERANCE after at most PUMA560_IK_NUMERIC_ITERATIONS steps. Returns converged[0] (1 or 0), -1 when x is a finite pose that is not a rigid transform; the batch returns how many items converged (-1 if it refused any). */
+int puma560_ik_numeric(const double *x, const double *q0, const puma560_params *params, double *q, int *converged);
+long puma560_ik_numeric_batch(size_t count, const double *x, const double *q0, const puma560_params *params, double *q, int *converged);
 /* within_limits: q[6] -> 1 when every joint lies within its limits (revolute joints modulo 2 pi), else 0. */
 int puma560_within_limits(const double *q);
 void puma560_within_limits_batch(size_t count, const double *q, int *inside);

@@ -551,9 +551,39 @@ def within_limits(q):
     return inside.astype(bool)
 
 
+def _numeric_solver(params):
+    """The C solver (puma560_ik_numeric_batch) as _runtime.ik_numeric takes it: (targets (N, 12), seeds
+    (N, 6), both C-contiguous float64) -> (q (N, 6), converged (N,))."""
+    def solve(targets, seeds):
+        count = targets.shape[0]
+        q = _empty((count, 6))
+        converged = _empty(count, dtype=numpy.intc)
+        found = _lib.puma560_ik_numeric_batch(count, _from_buffer(_DOUBLES, targets), _from_buffer(_DOUBLES, seeds),
+                                                 params, _from_buffer(_DOUBLES, q), _from_buffer(_INTS, converged))
+        if found < 0:  # C refused a pose that is not a rigid transform: the numpy check names it
+            _runtime.as_pose_task(targets, "ik_numeric", "x", 1e-09)
+            raise ValueError("ik_numeric: x holds a pose that is not a rigid transform (tolerance 1e-09)")
+        return q, converged.astype(bool)
+    return solve
+
+
 def ik_numeric(x, q0, *, d1=_d1, a2=_a2, a3=_a3, d3=_d3, d4=_d4):
     """Inverse kinematics by Levenberg-Marquardt from the seed q0: (q (..., 6), converged (...)). (C backend)
 
-    As numpy_kernels.ik_numeric, each step's fk and Jacobian computed by this backend's C.
+    x: task coordinates x, y, z, r11, r12, r13, r21, r22, r23, r31, r32, r33, shape (..., 12), or poses of shape (..., 4, 4)
+    q0: the seed, shape (..., 6); x and q0 broadcast.
+    As numpy_kernels.ik_numeric, solved in C (puma560_ik_numeric): the same steps on this backend's
+    fk and Jacobian, joints kept within LIMITS, converged where the largest residual is at most
+    1e-12; a target with a NaN or inf does not converge, a seed with one is refused.
     """
-    return _runtime.ik_numeric(sys.modules[__name__], x, q0, {"d1": d1, "a2": a2, "a3": a3, "d3": d3, "d4": d4})
+    if d1 is _d1 and a2 is _a2 and a3 is _a3 and d3 is _d3 and d4 is _d4:
+        params, _out = _DEFAULT_PARAMS, _point_ik_numeric(x, q0)
+    else:
+        params, _values = _params((d1, a2, a3, d3, d4, ))
+        _out = _point_ik_numeric(x, q0, _values)
+    if _out is not None:  # one point, float64 arrays as they come: done in C
+        return _out
+    return _runtime.ik_numeric(sys.modules[__name__], x, q0, None, _numeric_solver(params), check_rotation=False)
+
+
+_point_ik_numeric = _point.ik_numeric

@@ -9396,3 +9396,279 @@ void puma560_within_limits_batch(size_t count, const double *restrict q, int *re
         inside[i] = puma560_within_limits(q + 6 * i);
     }
 }
+
+/*
+ * ik_numeric: inverse kinematics by Levenberg-Marquardt (damped least squares with an adaptive
+ * damping) from a seed, on this file's own fk and geometric Jacobian; the numpy runtime's
+ * solve_numeric (_runtime.py) step for step.
+ * The residual e (6) is the target's position less the tool's, then the rotation vector w (world
+ * frame) that turns the tool's rotation R onto the target's: R_target = exp([w]x) R.
+ * Each step is dq = J^T (J J^T + lambda I)^-1 e (a 6 x 6 Cholesky solve), kept
+ * if it lowers |e|^2, else refused; lambda starts at 1e-3 and follows Nielsen's rule within
+ * [1e-15, 1e10]: a kept step multiplies it by max(1/10, 1 - (2 rho - 1)^3), rho the actual decrease
+ * of |e|^2 over the linear model's, a refused one by 2, 4, 8, ...  q is kept within the joints' limits (each step's result clipped), and a joint at a
+ * limit that the step would push past it takes no part in that step (its column of J zeroed,
+ * the step solved again), so that the other joints move instead.  Converged where max|e| <=
+ * 1e-12, within 100 steps.  From a seed near a solution the steps are Gauss-Newton's and the
+ * answer is the solution the seed leads to (for a redundant arm, the least-norm steps keep it
+ * near the seed).
+ */
+
+/* e = (p_target - p, w) for the pose task x and the tool pose T(q). */
+static void puma560_ik_numeric_residual(const double *restrict x, const double *restrict q,
+                                          const puma560_params *restrict params, double *restrict e)
+{
+    double T[16], E[9], v[3], sine, cosine, angle;
+    int i, j;
+    puma560_fk(q, params, T);
+    e[0] = x[0] - T[3];
+    e[1] = x[1] - T[7];
+    e[2] = x[2] - T[11];
+    for (i = 0; i < 3; ++i) {  /* E = R_target R^T */
+        for (j = 0; j < 3; ++j) {
+            E[3 * i + j] = x[3 + 3 * i] * T[4 * j] + x[4 + 3 * i] * T[4 * j + 1] + x[5 + 3 * i] * T[4 * j + 2];
+        }
+    }
+    v[0] = 0.5 * (E[7] - E[5]);
+    v[1] = 0.5 * (E[2] - E[6]);
+    v[2] = 0.5 * (E[3] - E[1]);
+    sine = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    cosine = 0.5 * (E[0] + E[4] + E[8] - 1.0);
+    angle = atan2(sine, cosine);  /* well conditioned from 0 to pi */
+    if (cosine < -0.99) {
+        /* Near pi, sin carries little direction: (E + E^T)/2 - cos I = (1 - cos) u u^T, u from its largest column. */
+        double S[9], norm, sign;
+        int k = 0;
+        for (i = 0; i < 3; ++i) {
+            for (j = 0; j < 3; ++j) {
+                S[3 * i + j] = 0.5 * (E[3 * i + j] + E[3 * j + i]) - (i == j ? cosine : 0.0);
+            }
+        }
+        for (i = 1; i < 3; ++i) {
+            if (S[4 * i] > S[4 * k]) {
+                k = i;
+            }
+        }
+        norm = sqrt(S[3 * k] * S[3 * k] + S[3 * k + 1] * S[3 * k + 1] + S[3 * k + 2] * S[3 * k + 2]);
+        norm = norm > 1e-300 ? norm : 1e-300;
+        sign = (S[3 * k] * v[0] + S[3 * k + 1] * v[1] + S[3 * k + 2] * v[2]) / norm < 0.0 ? -1.0 : 1.0;
+        for (i = 0; i < 3; ++i) {
+            e[3 + i] = sign * (S[3 * k + i] / norm) * angle;
+        }
+    } else {
+        const double scale = sine > 1e-300 ? angle / sine : 1.0;
+        for (i = 0; i < 3; ++i) {
+            e[3 + i] = v[i] * scale;
+        }
+    }
+}
+
+/* The step dq = J^T (J J^T + damping I)^-1 e of J (6 x 6, row-major), by Cholesky; 0 (and no
+   step) where the matrix is not positive definite in doubles (a NaN, or a pivot rounded to 0). */
+static int puma560_ik_numeric_step(const double *restrict J, const double *restrict e, double damping,
+                                     double *restrict step)
+{
+    double L[36], y[6];
+    int i, j, k;
+    for (i = 0; i < 6; ++i) {
+        for (j = 0; j <= i; ++j) {
+            double sum = i == j ? damping : 0.0;
+            for (k = 0; k < 6; ++k) {
+                sum += J[6 * i + k] * J[6 * j + k];
+            }
+            L[6 * i + j] = sum;
+        }
+        y[i] = e[i];
+    }
+    for (j = 0; j < 6; ++j) {  /* L L^T, L lower triangular, in place */
+        double pivot = L[7 * j];
+        for (k = 0; k < j; ++k) {
+            pivot -= L[6 * j + k] * L[6 * j + k];
+        }
+        if (!(pivot > 0.0)) {
+            return 0;
+        }
+        L[7 * j] = sqrt(pivot);
+        for (i = j + 1; i < 6; ++i) {
+            double sum = L[6 * i + j];
+            for (k = 0; k < j; ++k) {
+                sum -= L[6 * i + k] * L[6 * j + k];
+            }
+            L[6 * i + j] = sum / L[7 * j];
+        }
+    }
+    for (i = 0; i < 6; ++i) {  /* L z = y */
+        for (k = 0; k < i; ++k) {
+            y[i] -= L[6 * i + k] * y[k];
+        }
+        y[i] /= L[7 * i];
+    }
+    for (i = 5; i >= 0; --i) {  /* L^T u = z */
+        for (k = i + 1; k < 6; ++k) {
+            y[i] -= L[6 * k + i] * y[k];
+        }
+        y[i] /= L[7 * i];
+    }
+    for (k = 0; k < 6; ++k) {
+        step[k] = 0.0;
+        for (i = 0; i < 6; ++i) {
+            step[k] += J[6 * i + k] * y[i];
+        }
+    }
+    return 1;
+}
+
+/* The largest |e_i| (NaN if any is) and |e|^2. */
+static double puma560_ik_numeric_size(const double *restrict e, double *restrict cost)
+{
+    double size = 0.0, sum = 0.0;
+    int i;
+    for (i = 0; i < 6; ++i) {
+        const double a = fabs(e[i]);
+        size = a > size || isnan(a) ? a : size;
+        sum += e[i] * e[i];
+    }
+    *cost = sum;
+    return size;
+}
+
+/* q within the joints' limits (a NaN stays NaN). */
+static void puma560_ik_numeric_clip(double *restrict q)
+{
+    q[0] = q[0] < (-2.792526803190927) ? (-2.792526803190927) : q[0] > (2.792526803190927) ? (2.792526803190927) : q[0];
+    q[1] = q[1] < (-0.7853981633974483) ? (-0.7853981633974483) : q[1] > (3.9269908169872414) ? (3.9269908169872414) : q[1];
+    q[2] = q[2] < (-3.9269908169872414) ? (-3.9269908169872414) : q[2] > (0.7853981633974483) ? (0.7853981633974483) : q[2];
+    q[3] = q[3] < (-1.9198621771937625) ? (-1.9198621771937625) : q[3] > (2.9670597283903604) ? (2.9670597283903604) : q[3];
+    q[4] = q[4] < (-1.7453292519943295) ? (-1.7453292519943295) : q[4] > (1.7453292519943295) ? (1.7453292519943295) : q[4];
+    q[5] = q[5] < (-4.642575810304916) ? (-4.642575810304916) : q[5] > (4.642575810304916) ? (4.642575810304916) : q[5];
+}
+
+/* Inverse kinematics by Levenberg-Marquardt from the seed q0 (see above): q and converged[0]
+   (1 where max|e| <= 1e-12, else 0; a target or seed with a NaN or inf never converges).
+   Returns converged[0], or -1 (q the seed clipped to the limits, not converged) when x is a
+   finite pose whose rotation is not orthonormal within 1e-09 or is a reflection. */
+int puma560_ik_numeric(const double *restrict x, const double *restrict q0, const puma560_params *restrict params,
+                          double *restrict q, int *restrict converged)
+{
+    double e[6], e_trial[6], J[36], step[6], trial[6];
+    double size, cost, damping = 1e-3, growth = 2.0;
+    int iteration, pass, i, k;
+    for (i = 0; i < 6; ++i) {
+        q[i] = q0[i];
+    }
+    puma560_ik_numeric_clip(q);
+    converged[0] = 0;
+    if (puma560_is_refused_pose(x)) {
+        return -1;
+    }
+    puma560_ik_numeric_residual(x, q, params, e);
+    size = puma560_ik_numeric_size(e, &cost);
+    for (iteration = 0; iteration < 100 && !(size <= 1e-12) && isfinite(size); ++iteration) {
+        int solved = 0;
+        puma560_jacobian(q, params, J);
+        for (pass = 0; pass < 2; ++pass) {
+            int blocked = 0;
+            solved = puma560_ik_numeric_step(J, e, damping, step);
+            if (!solved) {
+                break;
+            }
+            if ((q[0] <= (-2.792526803190927) && step[0] < 0.0) || (q[0] >= (2.792526803190927) && step[0] > 0.0)) {
+                for (k = 0; k < 6; ++k) {  /* joint 1 at its limit: out of this step */
+                    J[6 * k + 0] = 0.0;
+                }
+                blocked = 1;
+            }
+            if ((q[1] <= (-0.7853981633974483) && step[1] < 0.0) || (q[1] >= (3.9269908169872414) && step[1] > 0.0)) {
+                for (k = 0; k < 6; ++k) {  /* joint 2 at its limit: out of this step */
+                    J[6 * k + 1] = 0.0;
+                }
+                blocked = 1;
+            }
+            if ((q[2] <= (-3.9269908169872414) && step[2] < 0.0) || (q[2] >= (0.7853981633974483) && step[2] > 0.0)) {
+                for (k = 0; k < 6; ++k) {  /* joint 3 at its limit: out of this step */
+                    J[6 * k + 2] = 0.0;
+                }
+                blocked = 1;
+            }
+            if ((q[3] <= (-1.9198621771937625) && step[3] < 0.0) || (q[3] >= (2.9670597283903604) && step[3] > 0.0)) {
+                for (k = 0; k < 6; ++k) {  /* joint 4 at its limit: out of this step */
+                    J[6 * k + 3] = 0.0;
+                }
+                blocked = 1;
+            }
+            if ((q[4] <= (-1.7453292519943295) && step[4] < 0.0) || (q[4] >= (1.7453292519943295) && step[4] > 0.0)) {
+                for (k = 0; k < 6; ++k) {  /* joint 5 at its limit: out of this step */
+                    J[6 * k + 4] = 0.0;
+                }
+                blocked = 1;
+            }
+            if ((q[5] <= (-4.642575810304916) && step[5] < 0.0) || (q[5] >= (4.642575810304916) && step[5] > 0.0)) {
+                for (k = 0; k < 6; ++k) {  /* joint 6 at its limit: out of this step */
+                    J[6 * k + 5] = 0.0;
+                }
+                blocked = 1;
+            }
+            if (!blocked) {
+                break;
+            }
+        }
+        if (solved) {
+            double size_trial, cost_trial, predicted = cost;
+            for (i = 0; i < 6; ++i) {
+                trial[i] = q[i] + step[i];
+            }
+            puma560_ik_numeric_clip(trial);
+            for (k = 0; k < 6; ++k) {  /* the linear model's residual after the step as clipped */
+                double left = e[k];
+                for (i = 0; i < 6; ++i) {
+                    left -= J[6 * k + i] * (trial[i] - q[i]);
+                }
+                predicted -= left * left;
+            }
+            puma560_ik_numeric_residual(x, trial, params, e_trial);
+            size_trial = puma560_ik_numeric_size(e_trial, &cost_trial);
+            solved = cost_trial < cost;
+            if (solved) {
+                /* Nielsen's update from the gain ratio rho of the actual to the predicted decrease of |e|^2 */
+                const double rho = predicted > 0.0 ? (cost - cost_trial) / predicted : 0.5;
+                const double factor = 1.0 - (2.0 * rho - 1.0) * (2.0 * rho - 1.0) * (2.0 * rho - 1.0);
+                damping *= factor > 0.1 ? factor : 0.1;
+                growth = 2.0;
+                for (i = 0; i < 6; ++i) {
+                    q[i] = trial[i];
+                }
+                for (i = 0; i < 6; ++i) {
+                    e[i] = e_trial[i];
+                }
+                cost = cost_trial;
+                size = size_trial;
+            }
+        }
+        if (!solved) {
+            damping *= growth;
+            growth *= 2.0;
+        }
+        damping = damping < 1e-15 ? 1e-15 : damping > 1e10 ? 1e10 : damping;
+    }
+    converged[0] = size <= 1e-12;
+    return converged[0];
+}
+
+/* ik_numeric of `count` items, one after the other in x, q0, q and converged.  Returns how many
+   converged, or -1 if any item was refused. */
+long puma560_ik_numeric_batch(size_t count, const double *restrict x, const double *restrict q0,
+                                 const puma560_params *restrict params, double *restrict q, int *restrict converged)
+{
+    long found = 0;
+    int refused = 0;
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        const int item = puma560_ik_numeric(x + 12 * i, q0 + 6 * i, params, q + 6 * i, converged + i);
+        if (item < 0) {
+            refused = 1;
+        } else {
+            found += item;
+        }
+    }
+    return refused ? -1 : found;
+}

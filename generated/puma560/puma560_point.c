@@ -54,6 +54,43 @@ static const double *kinegen_point(PyObject *arg, npy_intp size, int finite)
     return data;
 }
 
+/* A pose as the task vector (x, y, z, r11 .. r33): the data of `arg` if it is a point as
+ * kinegen_point takes it (shape (12,), any entries), or the 12 numbers of a C-contiguous, aligned,
+ * native float64 array of shape (4, 4) copied into `task`; NULL for anything else, and for a 4x4
+ * whose last row is finite and not (0, 0, 0, 1) within 1e-09 (the general path names it). */
+static const double *kinegen_pose(PyObject *arg, double *task)
+{
+    PyArrayObject *array;
+    const double *T;
+    int i;
+    if (!PyArray_CheckExact(arg)) {
+        return NULL;
+    }
+    array = (PyArrayObject *)arg;
+    if (PyArray_NDIM(array) == 1) {
+        return kinegen_point(arg, 12, 0);
+    }
+    if (PyArray_NDIM(array) != 2 || PyArray_DIM(array, 0) != 4 || PyArray_DIM(array, 1) != 4
+            || PyArray_TYPE(array) != NPY_DOUBLE || !PyArray_ISCARRAY_RO(array) || PyArray_ISBYTESWAPPED(array)) {
+        return NULL;
+    }
+    T = (const double *)PyArray_DATA(array);
+    if (isfinite(T[12]) && isfinite(T[13]) && isfinite(T[14]) && isfinite(T[15])
+            && (fabs(T[12]) > 1e-09 || fabs(T[13]) > 1e-09 || fabs(T[14]) > 1e-09
+                || fabs(T[15] - 1.0) > 1e-09)) {
+        return NULL;
+    }
+    task[0] = T[3];
+    task[1] = T[7];
+    task[2] = T[11];
+    for (i = 0; i < 3; ++i) {
+        task[3 + 3 * i] = T[4 * i];
+        task[4 + 3 * i] = T[4 * i + 1];
+        task[5 + 3 * i] = T[4 * i + 2];
+    }
+    return task;
+}
+
 /* A new float64 array of shape (d0, d1, d2)[:ndim] (ndim 0 for a scalar). */
 static PyObject *kinegen_doubles(int ndim, npy_intp d0, npy_intp d1, npy_intp d2)
 {
@@ -325,6 +362,7 @@ static PyObject *point_ik(PyObject *self, PyObject *const *args, Py_ssize_t narg
     PyObject *valid = NULL;
     int valid_flags[8];
     int found;
+    double pose[12];  /* a 4x4 pose's task vector */
     puma560_params given;
     const puma560_params *params = &puma560_default_params;
     (void)self;
@@ -337,7 +375,7 @@ static PyObject *point_ik(PyObject *self, PyObject *const *args, Py_ssize_t narg
         PyErr_SetString(PyExc_TypeError, "ik takes 1 array argument and optionally the parameters");
         return NULL;
     }
-    x = kinegen_point(args[0], 12, 0);
+    x = kinegen_pose(args[0], pose);
     if (x == NULL) {
         Py_RETURN_NONE;
     }
@@ -697,6 +735,47 @@ fail:
     return NULL;
 }
 
+/* ik_numeric(x, q0, [parameters]) -> (q (6,), converged ()), or None: x a pose of shape (12,) or (4, 4)
+ * (NaN and inf pass: they do not converge), q0 finite of shape (6,). */
+static PyObject *point_ik_numeric(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    const double *x, *q0;
+    PyObject *q = NULL, *converged = NULL;
+    int flag;
+    double pose[12];  /* a 4x4 pose's task vector */
+    puma560_params given;
+    const puma560_params *params = &puma560_default_params;
+    (void)self;
+    if (nargs == 3) {
+        if (!kinegen_read_params(args[2], &given)) {
+            return NULL;
+        }
+        params = &given;
+    } else if (nargs != 2) {
+        PyErr_SetString(PyExc_TypeError, "ik_numeric takes 2 array arguments and optionally the parameters");
+        return NULL;
+    }
+    x = kinegen_pose(args[0], pose);
+    q0 = kinegen_point(args[1], 6, 1);
+    if (x == NULL || q0 == NULL) {
+        Py_RETURN_NONE;
+    }
+    q = kinegen_doubles(1, 6, 1, 1);
+    if (q == NULL) {
+        return NULL;
+    }
+    if (puma560_ik_numeric(x, q0, params, (double *)PyArray_DATA((PyArrayObject *)q), &flag) < 0) {
+        Py_DECREF(q);  /* not a rigid transform: the general path names the problem */
+        Py_RETURN_NONE;
+    }
+    converged = kinegen_flags(0, 1, &flag);
+    if (converged == NULL) {
+        Py_DECREF(q);
+        return NULL;
+    }
+    return Py_BuildValue("(NN)", q, converged);
+}
+
 static PyMethodDef kinegen_methods[] = {
     {"fk", (PyCFunction)(void (*)(void))point_fk, METH_FASTCALL, "fk of one point with the default parameters, or None"},
     {"frames", (PyCFunction)(void (*)(void))point_frames, METH_FASTCALL, "frames of one point with the default parameters, or None"},
@@ -714,6 +793,7 @@ static PyMethodDef kinegen_methods[] = {
     {"joint_velocity", (PyCFunction)(void (*)(void))point_joint_velocity, METH_FASTCALL, "joint_velocity of one point with the default parameters, or None"},
     {"joint_acceleration", (PyCFunction)(void (*)(void))point_joint_acceleration, METH_FASTCALL, "joint_acceleration of one point with the default parameters, or None"},
     {"joint_velocity_from_twist", (PyCFunction)(void (*)(void))point_joint_velocity_from_twist, METH_FASTCALL, "joint_velocity_from_twist of one point with the default parameters, or None"},
+    {"ik_numeric", (PyCFunction)(void (*)(void))point_ik_numeric, METH_FASTCALL, "ik_numeric of one point, or None"},
     {NULL, NULL, 0, NULL}
 };
 

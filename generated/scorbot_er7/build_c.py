@@ -311,6 +311,9 @@ void scorbot_er7_joint_velocity_batch(size_t count, const double *q, const doubl
 /* joint_acceleration: q[5], qd[5], xdd[3] -> qdd[5], singular[1] (row-major). Joint accelerations J_x^-1 (x_ddot - J_x_dot q_dot), solved as joint_velocity. Shapes (..., 5) and (...). */
 void scorbot_er7_joint_acceleration(const double *q, const double *qd, const double *xdd, const scorbot_er7_params *params, double *qdd, int *singular);
 void scorbot_er7_joint_acceleration_batch(size_t count, const double *q, const double *qd, const double *xdd, const scorbot_er7_params *params, double *qdd, int *singular);
+/* ik_numeric: x[3], q0[5] -> q[5], converged[1] (row-major). Inverse kinematics by Levenberg-Marquardt (damped least squares) from the seed q0, each joint kept within its limits: converged where the largest residual (in task units) is at most SCORBOT_ER7_IK_NUMERIC_TOLERANCE after at most SCORBOT_ER7_IK_NUMERIC_ITERATIONS steps. Returns converged[0] (1 or 0); the batch returns how many items converged. */
+int scorbot_er7_ik_numeric(const double *x, const double *q0, const scorbot_er7_params *params, double *q, int *converged);
+long scorbot_er7_ik_numeric_batch(size_t count, const double *x, const double *q0, const scorbot_er7_params *params, double *q, int *converged);
 /* within_limits: q[5] -> 1 when every joint lies within its limits (revolute joints modulo 2 pi), else 0. */
 int scorbot_er7_within_limits(const double *q);
 void scorbot_er7_within_limits_batch(size_t count, const double *q, int *inside);

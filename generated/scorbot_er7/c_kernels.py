@@ -515,9 +515,36 @@ def within_limits(q):
     return inside.astype(bool)
 
 
+def _numeric_solver(params):
+    """The C solver (scorbot_er7_ik_numeric_batch) as _runtime.ik_numeric takes it: (targets (N, 3), seeds
+    (N, 5), both C-contiguous float64) -> (q (N, 5), converged (N,))."""
+    def solve(targets, seeds):
+        count = targets.shape[0]
+        q = _empty((count, 5))
+        converged = _empty(count, dtype=numpy.intc)
+        found = _lib.scorbot_er7_ik_numeric_batch(count, _from_buffer(_DOUBLES, targets), _from_buffer(_DOUBLES, seeds),
+                                                 params, _from_buffer(_DOUBLES, q), _from_buffer(_INTS, converged))
+        return q, converged.astype(bool)
+    return solve
+
+
 def ik_numeric(x, q0, *, a1=_a1, a2=_a2, a3=_a3, d1=_d1, d5=_d5):
     """Inverse kinematics by Levenberg-Marquardt from the seed q0: (q (..., 5), converged (...)). (C backend)
 
-    As numpy_kernels.ik_numeric, each step's fk and Jacobian computed by this backend's C.
+    x: task coordinates x, y, z, shape (..., 3)
+    q0: the seed, shape (..., 5); x and q0 broadcast.
+    As numpy_kernels.ik_numeric, solved in C (scorbot_er7_ik_numeric): the same steps on this backend's
+    fk and Jacobian, joints kept within LIMITS, converged where the largest residual is at most
+    1e-12; a target with a NaN or inf does not converge, a seed with one is refused.
     """
-    return _runtime.ik_numeric(sys.modules[__name__], x, q0, {"a1": a1, "a2": a2, "a3": a3, "d1": d1, "d5": d5})
+    if a1 is _a1 and a2 is _a2 and a3 is _a3 and d1 is _d1 and d5 is _d5:
+        params, _out = _DEFAULT_PARAMS, _point_ik_numeric(x, q0)
+    else:
+        params, _values = _params((a1, a2, a3, d1, d5, ))
+        _out = _point_ik_numeric(x, q0, _values)
+    if _out is not None:  # one point, float64 arrays as they come: done in C
+        return _out
+    return _runtime.ik_numeric(sys.modules[__name__], x, q0, None, _numeric_solver(params), check_rotation=False)
+
+
+_point_ik_numeric = _point.ik_numeric

@@ -656,6 +656,46 @@ fail:
     return NULL;
 }
 
+/* ik_numeric(x, q0, [parameters]) -> (q (5,), converged ()), or None: x of shape (3,)
+ * (NaN and inf pass: they do not converge), q0 finite of shape (5,). */
+static PyObject *point_ik_numeric(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    const double *x, *q0;
+    PyObject *q = NULL, *converged = NULL;
+    int flag;
+    scorbot_er7_params given;
+    const scorbot_er7_params *params = &scorbot_er7_default_params;
+    (void)self;
+    if (nargs == 3) {
+        if (!kinegen_read_params(args[2], &given)) {
+            return NULL;
+        }
+        params = &given;
+    } else if (nargs != 2) {
+        PyErr_SetString(PyExc_TypeError, "ik_numeric takes 2 array arguments and optionally the parameters");
+        return NULL;
+    }
+    x = kinegen_point(args[0], 3, 0);
+    q0 = kinegen_point(args[1], 5, 1);
+    if (x == NULL || q0 == NULL) {
+        Py_RETURN_NONE;
+    }
+    q = kinegen_doubles(1, 5, 1, 1);
+    if (q == NULL) {
+        return NULL;
+    }
+    if (scorbot_er7_ik_numeric(x, q0, params, (double *)PyArray_DATA((PyArrayObject *)q), &flag) < 0) {
+        Py_DECREF(q);  /* not a rigid transform: the general path names the problem */
+        Py_RETURN_NONE;
+    }
+    converged = kinegen_flags(0, 1, &flag);
+    if (converged == NULL) {
+        Py_DECREF(q);
+        return NULL;
+    }
+    return Py_BuildValue("(NN)", q, converged);
+}
+
 static PyMethodDef kinegen_methods[] = {
     {"fk", (PyCFunction)(void (*)(void))point_fk, METH_FASTCALL, "fk of one point with the default parameters, or None"},
     {"frames", (PyCFunction)(void (*)(void))point_frames, METH_FASTCALL, "frames of one point with the default parameters, or None"},
@@ -672,6 +712,7 @@ static PyMethodDef kinegen_methods[] = {
     {"manipulability", (PyCFunction)(void (*)(void))point_manipulability, METH_FASTCALL, "manipulability of one point with the default parameters, or None"},
     {"joint_velocity", (PyCFunction)(void (*)(void))point_joint_velocity, METH_FASTCALL, "joint_velocity of one point with the default parameters, or None"},
     {"joint_acceleration", (PyCFunction)(void (*)(void))point_joint_acceleration, METH_FASTCALL, "joint_acceleration of one point with the default parameters, or None"},
+    {"ik_numeric", (PyCFunction)(void (*)(void))point_ik_numeric, METH_FASTCALL, "ik_numeric of one point, or None"},
     {NULL, NULL, 0, NULL}
 };
 
