@@ -45,7 +45,8 @@ from .chain import PRISMATIC, REVOLUTE, axis_motion, dh_modified, dh_standard
 from .program import Program, needed
 
 __all__ = ["Dynamics", "dynamics", "derive_dynamics", "DYNAMICS_BUDGET", "link_geometry", "origin_parameters",
-           "TAU_PREFIX", "WRENCH_NAMES"]
+           "TAU_PREFIX", "WRENCH_NAMES", "PARAMETER_NAMES", "standard_parameters", "base_parameters",
+           "base_combinations"]
 
 # Seconds the equations of motion of one arm may take to derive: the target of issue #30 is 30 s
 # cold for a seven-joint arm (the Panda takes about 2 s); past it the arm is generated without them.
@@ -95,12 +96,42 @@ def link_geometry(chain, k: int, qk):
 def origin_parameters(inertial, after: sp.Matrix):
     """A link's parameters in its joint frame J_k about J_k's origin: (m, h, I_o) with ``h = m c``
     and ``I_o = I_c + m (|c|^2 E - c c^T)``; the inertial is given in the link frame k = J_k after."""
-    R, p = _rotation_translation(after)
     m = sp.sympify(inertial.mass)
-    c = R * sp.Matrix(inertial.com) + p
-    Ic = R * inertial.tensor() * R.T
-    Io = Ic + m * ((c.T * c)[0, 0] * sp.eye(3) - c * c.T)
-    return m, (m * c).applyfunc(sp.expand), Io.applyfunc(sp.expand)
+    c = sp.Matrix(inertial.com)
+    Io = inertial.tensor() + m * ((c.T * c)[0, 0] * sp.eye(3) - c * c.T)
+    return to_joint_frame(m, m * c, Io, after)
+
+
+def to_joint_frame(m, h, Io, after: sp.Matrix):
+    """(m, h, I_o) about the link frame's origin, in its axes, moved to J_k (``x_J = R x + p`` by the
+    constant ``after``): ``h' = R h + m p``, ``I' = R I R^T + 2 (R h . p) E - R h p^T - p (R h)^T
+    + m (|p|^2 E - p p^T)`` (parallel axes), linear in (m, h, I_o)."""
+    R, p = _rotation_translation(after)
+    Rh = R * sp.Matrix(h)
+    I = R * sp.Matrix(Io) * R.T + 2 * (Rh.T * p)[0, 0] * sp.eye(3) - Rh * p.T - p * Rh.T \
+        + m * ((p.T * p)[0, 0] * sp.eye(3) - p * p.T)
+    return m, (Rh + m * p).applyfunc(sp.expand), I.applyfunc(sp.expand)
+
+
+# The standard inertial parameters of one link, in the order of the regressor's columns: the mass,
+# the first moment m c and the inertia tensor about the link frame's origin, in the link frame k.
+PARAMETER_NAMES = ("m", "mx", "my", "mz", "ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+
+
+def standard_parameters(inertial) -> tuple:
+    """A link's ten standard parameters (:data:`PARAMETER_NAMES`) as expressions."""
+    m = sp.sympify(inertial.mass)
+    c = sp.Matrix(inertial.com)
+    Io = inertial.tensor() + m * ((c.T * c)[0, 0] * sp.eye(3) - c * c.T)
+    return (m, *(m * c), Io[0, 0], Io[0, 1], Io[0, 2], Io[1, 1], Io[1, 2], Io[2, 2])
+
+
+def _unit_body(index: int, after: sp.Matrix):
+    """The link whose standard parameter ``index`` is 1 and the others 0, in its joint frame."""
+    unit = [sp.S.One if i == index else sp.S.Zero for i in range(10)]
+    m, h = unit[0], sp.Matrix(unit[1:4])
+    xx, xy, xz, yy, yz, zz = unit[4:]
+    return to_joint_frame(m, h, sp.Matrix([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]), after)
 
 
 def _cross(a, b):
@@ -116,13 +147,14 @@ class _Recursion:
         self.n = chain.n
         self.types = [j.type for j in chain.joints]
         self.offsets = [j.offset for j in chain.joints]
-        self.axes, self.constant, self.bodies = [], [], []
+        self.axes, self.constant, self.bodies, self.afters = [], [], [], []
         previous_after = sp.Matrix(chain.base)
         for k in range(self.n):
             before, axis, after = link_geometry(chain, k, model.q[k])
             self.constant.append(_rotation_translation(previous_after * before))  # J_{k-1} -> before motion
             self.axes.append(sp.Matrix(axis))
             self.bodies.append(origin_parameters(model.inertials[k], after))
+            self.afters.append(after)
             previous_after = after
         self.q = model.q
         self.gravity = sp.Matrix(model.gravity)
@@ -162,11 +194,12 @@ class _Recursion:
         _, tm = self.motion(k)
         return list(pc + Rc * tm)
 
-    def torques(self, tag: str, qd, qdd, gravity: bool, first: int = 0) -> list:
+    def torques(self, tag: str, qd, qdd, gravity: bool, first: int = 0, bodies=None) -> list:
         """tau of the pass ``tag`` (names its steps) at joint rates ``qd``, accelerations ``qdd``
         (expressions or numbers), with or without gravity; joints before ``first`` are not
-        computed (their torques come back None)."""
+        computed (their torques come back None); ``bodies`` replaces the links' (m, h, I_o)."""
         n = self.n
+        bodies = self.bodies if bodies is None else bodies
         zero = [sp.S.Zero] * 3
         w, wd = zero, zero
         a = [-e for e in self.gravity] if gravity else zero
@@ -190,7 +223,7 @@ class _Recursion:
             w_k = self.define_vector(f"_{tag}w{k + 1}", w_k)
             wd_k = self.define_vector(f"_{tag}wd{k + 1}", wd_k)
             a_k = self.define_vector(f"_{tag}ac{k + 1}", a_k)
-            m, h, Io = self.bodies[k]
+            m, h, Io = bodies[k]
             F = _add(_add([m * e for e in a_k], _cross(wd_k, h)), _cross(w_k, _cross(w_k, h)))
             Iw = list(Io * sp.Matrix(w_k))
             N = _add(_add(list(Io * sp.Matrix(wd_k)), _cross(w_k, Iw)), _cross(h, a_k))
@@ -282,6 +315,73 @@ class _Recursion:
         return M
 
 
+def regressor(recursion: "_Recursion", qd, qdd) -> sp.Matrix:
+    """Y(q, qd, qdd), n x 10n, with ``tau = Y pi`` for the standard parameters ``pi`` (ten per link,
+    :data:`PARAMETER_NAMES`, link frame k): column (k, i) is the Newton-Euler pass in which link k
+    alone has parameter i equal to 1 (the torques are linear in the parameters; Atkeson, An and
+    Hollerbach, 1986).  Its velocities are the inverse dynamics' own steps; only the links at and
+    below k carry its force."""
+    n = recursion.n
+    zero = (sp.S.Zero, sp.zeros(3, 1), sp.zeros(3, 3))
+    columns = []
+    for k in range(n):
+        for i, name in enumerate(PARAMETER_NAMES):
+            bodies = [zero] * n
+            bodies[k] = _unit_body(i, recursion.afters[k])
+            tau = recursion.torques(f"y{k + 1}{name}_", qd, qdd, True, bodies=bodies)
+            columns.append([sp.S.Zero if t is None else t for t in tau])
+    return sp.Matrix(n, 10 * n, lambda r, c: columns[c][r])
+
+
+def base_parameters(regressor, n: int, limits=None, samples: int = 40, seed: int = 0, tolerance: float = 1e-9):
+    """The base (identifiable) parameters of an arm, by a numeric QR of its regressor at random states
+    (Gautier, "Numerical calculation of the base inertial parameters of robots", 1991).
+
+    ``regressor(q, qd, qdd)`` is the package's kernel (batched).  The columns of the stacked
+    regressor W are taken from the last back, each kept when it adds to the rank (its residual after projection
+    on the kept ones, from a QR, is past ``tolerance`` of the largest column); the others are
+    combinations ``W_d = W_b K`` of the kept ones.  Returns (base, K, names): the indices of the kept
+    columns, K (kept x dropped, with the dropped indices) and the parameter names, so that
+    ``beta = pi_b + K pi_d`` (:func:`base_combinations` prints it) gives ``tau = W_b beta``."""
+    import numpy as np
+    rng = np.random.default_rng(seed)
+    low = np.array([lim[0] if lim else -np.pi for lim in (limits or [None] * n)])
+    high = np.array([lim[1] if lim else np.pi for lim in (limits or [None] * n)])
+    q = rng.uniform(low, high, (samples, n))
+    W = np.asarray(regressor(q, rng.uniform(-2, 2, (samples, n)), rng.uniform(-5, 5, (samples, n))))
+    W = W.reshape(samples * n, 10 * n)
+    scale = max(np.linalg.norm(W, axis=0).max(), 1e-300)
+    kept: list[int] = []
+    # From the last column (the last link's izz) back: a parameter that the torques only see through
+    # the motion of the links beyond is regrouped into theirs, the classic grouping (Khalil and
+    # Dombre, "Modeling, Identification and Control of Robots", Sec. 12.5: the masses into the inertias).
+    for column in reversed(range(W.shape[1])):
+        trial = W[:, kept + [column]]
+        r = np.linalg.qr(trial, mode="r")
+        if abs(r[-1, -1]) > tolerance * scale:
+            kept.append(column)
+    kept.sort()
+    dropped = [c for c in range(W.shape[1]) if c not in kept]
+    K = np.linalg.lstsq(W[:, kept], W[:, dropped], rcond=None)[0] if dropped else np.zeros((len(kept), 0))
+    names = [f"{name}{k + 1}" for k in range(n) for name in PARAMETER_NAMES]
+    return kept, dropped, K, names
+
+
+def base_combinations(kept, dropped, K, names, digits: int = 6) -> list[str]:
+    """Each base parameter as its combination of the standard ones: ``iyy2 + 0.25 m3 - ...``."""
+    lines = []
+    for row, column in enumerate(kept):
+        terms = [names[column]]
+        for j, d in enumerate(dropped):
+            c = K[row, j]
+            if abs(c) > 10 ** -digits:
+                sign = "-" if c < 0 else "+"
+                terms.append(f"{sign} {names[d]}" if abs(abs(c) - 1) < 10 ** -digits
+                             else f"{sign} {abs(c):.{digits}g} {names[d]}")
+        lines.append(" ".join(terms))
+    return lines
+
+
 def _add(a, b):
     return [x + y for x, y in zip(a, b)]
 
@@ -318,6 +418,8 @@ def derive_dynamics(model) -> Dynamics:
         C = sp.Matrix(n, n, lambda i, j: program.define(f"_C{i + 1}_{j + 1}", (M_dot[i, j] + A[i, j] - A[j, i]) / 2))
     with stage("deriving the equations of motion: Cholesky solve of M"):
         qdd_solved = _cholesky_solve(program, M, [t - b for t, b in zip(tau, bias)])
+    with stage("deriving the equations of motion: the regressor"):
+        Y = regressor(recursion, qd, qdd)
     J = model.jacobian
     static = [sum((J[r, k] * wrench[r] for r in range(6)), sp.S.Zero) for k in range(n)]
 
@@ -342,6 +444,10 @@ def derive_dynamics(model) -> Dynamics:
                          f"shape (..., {n}, {n})."),
         SymbolicFunction("coriolis_vector", (qa, qda), (Output("c", tuple(bias_c), (n,)),),
                          f"Coriolis and centrifugal torques C(q, qd) qd, shape (..., {n})."),
+        SymbolicFunction("regressor", (qa, qda, qdda), (Output.from_matrix("Y", Y),),
+                         f"Regressor Y(q, qd, qdd) with tau = Y pi, shape (..., {n}, {10 * n}): pi holds ten standard "
+                         f"parameters per link, (m, m cx, m cy, m cz, ixx, ixy, ixz, iyy, iyz, izz) with the inertia about "
+                         f"the origin of the link's frame k, in its axes."),
         SymbolicFunction("forward_dynamics", (qa, qda, taua), (Output("qdd", tuple(qdd_solved), (n,)),),
                          f"Joint accelerations M^-1 (tau - C qd - g) (Cholesky L D L^T of M), shape (..., {n})."),
     ]

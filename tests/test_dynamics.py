@@ -364,3 +364,42 @@ def test_toml_gravity_without_inertials_is_refused():
 def test_toml_parameter_may_not_take_a_kernel_argument_name():
     with pytest.raises(DescriptionError, match="not a valid parameter name"):
         parse_description(TOML.format(top="[params]\ntau1 = 1.0", first="", second=""), "dyn.toml")
+
+
+# ------------------------------------------------------------------------------------------------
+# Identification: the regressor and the base parameters
+
+
+def standard_parameters_of(links) -> np.ndarray:
+    """The ten parameters per link the regressor's columns stand for: m, m c, and the inertia about
+    the frame's origin (parallel axes: I_c + m (|c|^2 E - c c^T)), in the order ixx ixy ixz iyy iyz izz."""
+    pi = []
+    for mass, com, tensor in links:
+        about_origin = tensor + mass * (com @ com * np.eye(3) - np.outer(com, com))
+        pi += [mass, *(mass * com), *about_origin[np.triu_indices(3)]]
+    return np.array(pi)
+
+
+@pytest.mark.parametrize("backend", ["numpy", "c"])
+def test_regressor_times_the_standard_parameters_is_inverse_dynamics(rrp, rrp_links, backend):
+    kernels = rrp.load(backend)
+    q, qd, qdd = states(np.random.default_rng(11), 50)
+    Y = kernels.regressor(q, qd, qdd)
+    assert Y.shape == (50, 3, 30)
+    assert np.allclose(Y @ standard_parameters_of(rrp_links), kernels.inverse_dynamics(q, qd, qdd),
+                       rtol=1e-12, atol=1e-12)
+
+
+def test_base_parameters_reproduce_the_torques(rrp, rrp_links):
+    from derivations.dynamics import base_combinations, base_parameters
+    kept, dropped, K, names = base_parameters(rrp.regressor, 3, rrp.LIMITS)
+    pi = standard_parameters_of(rrp_links)
+    beta = pi[kept] + K @ pi[dropped]
+    q, qd, qdd = states(np.random.default_rng(12), 50)
+    Y = rrp.regressor(q, qd, qdd)
+    assert np.allclose(Y[..., kept] @ beta, rrp.inverse_dynamics(q, qd, qdd), rtol=1e-10, atol=1e-10)
+    # fewer than the 30 standard parameters (link 1 turns about a fixed axis: only its moment about
+    # that axis acts), and no fewer than the rank of the stacked regressor
+    W = Y.reshape(-1, 30)
+    assert len(kept) == np.linalg.matrix_rank(W, tol=1e-9 * np.abs(W).max()) < 30
+    assert len(base_combinations(kept, dropped, K, names)) == len(kept)
