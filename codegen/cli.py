@@ -517,12 +517,44 @@ def cmd_latex(args, say) -> int:
 
 
 def cmd_report(args, say) -> int:
+    if args.robot is not None:
+        return _robot_report(args, say)
     say(f"pdflatex {tex_report.MAIN.relative_to(gen.REPO)} -> {tex_report.BUILD.relative_to(gen.REPO)}/")
     result = tex_report.build_report()
     for warning in result.warnings:
         print(f"warning: {warning}")
     print(f"{result.pdf.relative_to(gen.REPO)}: {result.pages} pages, {len(result.warnings)} warning(s)")
     return 1 if result.warnings else 0
+
+
+def _report_out(path: Path, force: bool) -> Path:
+    """The PDF ``path`` of `kinegen report ROBOT`, refused (exit 2) where a file is already there
+    (without --force) or its folder is missing, before any work."""
+    if path.suffix != ".pdf":
+        raise InputError(f"--out {gen.terminal_text(path, ECHO_PATH)}: expected a file name ending in .pdf")
+    if not path.parent.is_dir():
+        raise InputError(f"--out {gen.terminal_text(path, ECHO_PATH)}: no folder {gen.terminal_text(path.parent, ECHO_PATH)}")
+    if (path.exists() or path.is_symlink()) and not force:
+        raise gen.OutputExistsError(f"{gen.terminal_text(path, ECHO_PATH)} exists (--force replaces it)")
+    return path
+
+
+def _robot_report(args, say) -> int:
+    """`kinegen report ROBOT|FILE`: one arm's derived equations as a PDF (its package's LaTeX)."""
+    if tex_report.pdflatex() is None:
+        raise InputError("pdflatex not found: install TeX Live (Debian/Ubuntu: apt-get install "
+                         "texlive-latex-base texlive-latex-recommended; `make texlive` does)")
+    out = _report_out(Path(args.out), args.force) if args.out else None
+    with _limited(args, f"{args.robot}: derivation and LaTeX"):
+        model, description = _load(args.robot, say, args)
+        out = out or _report_out(Path(f"{model.name}.pdf"), args.force)
+        fragments = latex_backend.render(model, gen.describe_origin(model, description))
+    say(f"{model.name}: pdflatex -> {gen.terminal_text(out, ECHO_PATH)}")
+    result = tex_report.build_robot_report(fragments, out)
+    for warning in result.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    print(f"wrote {gen.terminal_text(out, ECHO_PATH)}: {result.pages} pages, {len(result.warnings)} warning(s)")
+    return 0
 
 
 MAKE_STAMPS = gen.REPO / ".cache" / "make"
@@ -703,7 +735,15 @@ def parser() -> argparse.ArgumentParser:
                         "or an extra a model carries (default: all)")
     _limit_options(s)
     s.set_defaults(run=cmd_latex)
-    sub.add_parser("report", help="build the PDF report (needs pdflatex)", parents=[common]).set_defaults(run=cmd_report)
+    s = sub.add_parser("report", help="build the PDF report of the papers, or of one robot (needs pdflatex)",
+                       parents=[common])
+    s.add_argument("robot", nargs="?", help="a robot name, .toml description or .urdf file: its equations as a PDF "
+                                            "(default: the papers' report, report/build/kinegen-report.pdf)")
+    _urdf_options(s)
+    s.add_argument("--out", metavar="PDF", help="one robot's PDF (default: NAME.pdf in the current folder)")
+    s.add_argument("--force", action="store_true", help="replace an existing --out file")
+    _limit_options(s)
+    s.set_defaults(run=cmd_report)
     avr_limits.add_parser(sub)
     return p
 

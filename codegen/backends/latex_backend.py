@@ -24,6 +24,7 @@ Each equation that reproduces a paper's equation is tagged with it
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import re
 from dataclasses import dataclass, field
 
@@ -45,6 +46,8 @@ __all__ = ["KinematicsLatexPrinter", "MathLayout", "Section", "CITATIONS", "SECT
 # Width of a display line in math_width units (about one italic letter at 11 pt):
 # the report's text block is 16 cm; the margin leaves room for a tag on the first line.
 LINE_WIDTH = 66.0
+# A line that cannot be broken is given named parts only past this multiple of the width.
+FIT_SLACK = 1.03
 
 # Which paper equation each derived quantity reproduces, per robot.  Keys are the
 # section keys (SECTION_KEYS), "link<i>" for one link transform and "ik:<branch>"
@@ -453,6 +456,40 @@ class MathLayout:
         rows.extend(rf"&\quad {part}" for part in parts[1:])
         return rows
 
+    def fits_rows(self, lhs: str, expr) -> bool:
+        """Whether align_rows(lhs, expr) keeps every line within the width, give or take
+        FIT_SLACK (math_width errs both ways: the AVR 3000 has a line 2.7 % past it that fits,
+        the Z1 had one 5 % past it that did not)."""
+        first = self.width - math_width(lhs) - 3
+        parts = self.lines(expr, first)
+        return (math_width(parts[0]) <= first * FIT_SLACK
+                and all(math_width(p) <= (self.width - 4) * FIT_SLACK for p in parts[1:]))
+
+    def fitted_rows(self, lhs: str, expr, relation: str = "=", names=None, tag: str = "") -> list[str]:
+        """align_rows, except that a part too wide to break across lines (a sum inside an inverse
+        cosine, an atan2's argument, a numerator) first gets a name of its own, \\xi_k, on a row
+        before the equation: widest first, until every line fits or nothing is left to name.
+        ``names`` numbers the \\xi_k (one counter per block of rows, so that no two collide);
+        ``tag`` goes on the equation's own first row."""
+        names = names if names is not None else itertools.count(1)
+        rows: list[str] = []
+        for _ in range(8):  # each pass names one part; eight leave any line of a real arm fitting
+            if self.fits_rows(lhs, expr):
+                break
+            parts = {p for p in sp.preorder_traversal(expr)
+                     if p is not expr and isinstance(p, sp.Add) and len(p.args) > 1}
+            if not parts:
+                break
+            widest = max(parts, key=lambda p: (math_width(self.tex(p)), sp.default_sort_key(p)))
+            if math_width(self.tex(widest)) < 12:  # naming a short part does not help
+                break
+            name = sp.Symbol(f"xi_{next(names)}")
+            rows.extend(self.fitted_rows(self.tex(name), widest, names=names))
+            expr = expr.xreplace({widest: name})
+        own = self.align_rows(lhs, expr, relation)
+        own[0] += tag
+        return rows + own
+
     # Matrices -----------------------------------------------------------------
     def matrix(self, M: sp.Matrix) -> str:
         rows = [" & ".join(self.tex(e) for e in M.row(r)) for r in range(M.rows)]
@@ -493,17 +530,15 @@ class _Writer:
 
     def display(self, lhs: str, expr, key: str = "", relation: str = "=") -> str:
         """One equation, broken over lines when long."""
-        rows = self.layout.align_rows(lhs, expr, relation)
-        rows[0] += self.tag(key)
+        rows = self.layout.fitted_rows(lhs, expr, relation, tag=self.tag(key))
         return self._align(rows)
 
     def equations(self, pairs, key: str = "") -> str:
         """Several equations aligned at ``=``, tagged on the first."""
         rows: list[str] = []
-        for lhs, expr in pairs:
-            rows.extend(self.layout.align_rows(lhs, expr))
-        if rows:
-            rows[0] += self.tag(key)
+        names = itertools.count(1)
+        for k, (lhs, expr) in enumerate(pairs):
+            rows.extend(self.layout.fitted_rows(lhs, expr, names=names, tag=self.tag(key) if k == 0 else ""))
         return self._align(rows)
 
     @staticmethod
@@ -643,10 +678,10 @@ def _urdf_joints(w: _Writer, chain) -> Section:
         axis = tex(sp.Matrix(joint.axis).T)
         origin = tex(sp.Matrix(joint.origin)[:3, 3].T)
         rows.append(f"{i} & {escape_text(joint.name)} & {kind} & ${axis}$ & ${origin}$ \\\\")
-    rule = (r"A_i = O_i\,M_i(q_i)\quad\text{($O_i$ the fixed transform of the joint's origin, "
-            r"with the fixed joints before it; $M_i$ the rotation about or translation along its axis)}")
     body = ("Joints of the URDF chain (fixed joints folded into the next joint's origin, those after the "
-            "last joint into its link):\n\\begin{equation*}\n" + rule + "\n\\end{equation*}\n"
+            "last joint into its link):\n\\begin{equation*}\nA_i = O_i\\,M_i(q_i)\n\\end{equation*}\n"
+            "where $O_i$ is the fixed transform of the joint's origin, with the fixed joints before it, and "
+            "$M_i$ the rotation about or translation along its axis.\n"
             + "\\begin{center}\n\\begin{tabular}{clccc}\n\\hline\n"
             + r"$i$ & joint & type & axis & origin translation \\" + "\n\\hline\n"
             + "\n".join(rows) + "\n\\hline\n\\end{tabular}\n\\end{center}\n")
@@ -954,11 +989,11 @@ def _ik(w: _Writer) -> Section | None:
             # the paper's equation where the model names it.
             cites = branch.step_cites or ("",) * len(branch.steps)
             rows: list[str] = []
+            names = itertools.count(1)
             for (symbol, expr), cite in zip(branch.steps, cites):
                 lhs = w.printer.joint_latex.get(symbol, w.layout.tex(symbol))
-                step_rows = w.layout.align_rows(lhs, unclamped(_joint_value(expr)))
-                if cite:
-                    step_rows[0] += rf" \tag{{{cite}}}"
+                step_rows = w.layout.fitted_rows(lhs, unclamped(_joint_value(expr)), names=names,
+                                                 tag=rf" \tag{{{cite}}}" if cite else "")
                 rows.extend(step_rows)
             if not any(cites) and rows:
                 rows[0] += w.tag(key)
@@ -972,7 +1007,7 @@ def _ik(w: _Writer) -> Section | None:
         if condition is not sp.true and condition != sp.true:
             condition = unclamped(condition)
             args = condition.args if isinstance(condition, sp.And) else (condition,)
-            rows = [rf"&{w.layout.tex(a)}" for a in args]
+            rows = [row for a in args for row in _condition_rows(w, a)]
             if sum(len(r) for r in rows) > (200 if branch.steps else 600):
                 body += ("It exists where the square roots and inverse cosines of its steps are real "
                          "(the condition, written out, is in the generated kernels).\n")
@@ -980,6 +1015,26 @@ def _ik(w: _Writer) -> Section | None:
                 body += "It exists when\n" + _Writer._align(rows) + "\n"
         parts.append(body)
     return Section("ik", "Inverse kinematics", "\n".join(parts))
+
+
+# A relation written the other way round: b > a for a < b.
+_RELATION_TEX = {sp.Le: (r"\leq", r"\geq"), sp.Ge: (r"\geq", r"\leq"), sp.Lt: ("<", ">"), sp.Gt: (">", "<"),
+              sp.Eq: ("=", "="), sp.Ne: (r"\neq", r"\neq")}
+
+
+def _condition_rows(w: _Writer, condition) -> list[str]:
+    """One condition of a branch as rows of its ``align*``: on one row where it fits, else its
+    wider side broken over lines (after naming parts, see MathLayout.fitted_rows), the narrower
+    side first."""
+    text = w.layout.tex(condition)
+    # (math_width errs narrow here: the Z1's condition of 0.86 of the width ran 10 pt past the page)
+    if math_width(text) <= 0.8 * w.layout.width or type(condition) not in _RELATION_TEX:
+        return [rf"&{text}"]
+    relation, reverse = _RELATION_TEX[type(condition)]
+    lhs, rhs = condition.lhs, condition.rhs
+    if math_width(w.layout.tex(lhs)) > math_width(w.layout.tex(rhs)):
+        lhs, rhs, relation = rhs, lhs, reverse
+    return w.layout.fitted_rows(w.layout.tex(lhs), rhs, relation=relation)
 
 
 def _notes(w: _Writer) -> Section | None:
