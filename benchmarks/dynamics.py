@@ -113,6 +113,14 @@ def pinocchio_model(pin, name: str, joints):
     return model
 
 
+def configuration(model, q):
+    """Pinocchio's configuration vector of joint angles ``q``: a continuous joint (nq = 2) is (cos, sin)."""
+    parts = []
+    for joint, value in zip(list(model.joints)[1:], q):
+        parts += [np.cos(value), np.sin(value)] if joint.nq == 2 else [value]
+    return np.array(parts)
+
+
 def states(package, rng, count: int):
     low = np.array([lim[0] if lim is not None else -np.pi for lim in package.LIMITS])
     high = np.array([lim[1] if lim is not None else np.pi for lim in package.LIMITS])
@@ -128,12 +136,13 @@ def compare(pin, model, c, Q, QD, QDD) -> dict:
     data = model.createData()
     worst = dict.fromkeys(KERNELS, 0.0)
     for q, qd, qdd in zip(Q, QD, QDD):
-        tau = pin.rnea(model, data, q, qd, qdd).copy()
-        M = pin.crba(model, data, q)
+        x = configuration(model, q)
+        tau = pin.rnea(model, data, x, qd, qdd).copy()
+        M = pin.crba(model, data, x)
         M = np.triu(M) + np.triu(M, 1).T
-        g = pin.computeGeneralizedGravity(model, data, q).copy()
-        C = pin.computeCoriolisMatrix(model, data, q, qd).copy()
-        qdd_aba = pin.aba(model, data, q, qd, tau).copy()
+        g = pin.computeGeneralizedGravity(model, data, x).copy()
+        C = pin.computeCoriolisMatrix(model, data, x, qd).copy()
+        qdd_aba = pin.aba(model, data, x, qd, tau).copy()
         pairs = {"inverse_dynamics": (c.inverse_dynamics(q, qd, qdd), tau), "mass_matrix": (c.mass_matrix(q), M),
                  "gravity": (c.gravity(q), g), "coriolis": (c.coriolis(q, qd), C),
                  "coriolis_vector": (c.coriolis_vector(q, qd), C @ qd),
@@ -155,6 +164,7 @@ def timings(pin, model, c, rng) -> dict:
     Q, QD, QDD = states(c, rng, BATCH)
     TAU = c.inverse_dynamics(Q, QD, QDD)
     q, qd, qdd, tau = Q[0].copy(), QD[0].copy(), QDD[0].copy(), TAU[0].copy()
+    x = configuration(model, q)
     data = model.createData()
     ours_batched = {
         "inverse_dynamics": best(lambda: c.inverse_dynamics(Q, QD, QDD), 5) / BATCH,
@@ -167,9 +177,9 @@ def timings(pin, model, c, rng) -> dict:
         "forward_dynamics": best(lambda: c.forward_dynamics(q, qd, tau), 20000),
     }
     theirs = {
-        "inverse_dynamics": best(lambda: pin.rnea(model, data, q, qd, qdd), 20000),
-        "mass_matrix": best(lambda: pin.crba(model, data, q), 20000),
-        "forward_dynamics": best(lambda: pin.aba(model, data, q, qd, tau), 20000),
+        "inverse_dynamics": best(lambda: pin.rnea(model, data, x, qd, qdd), 20000),
+        "mass_matrix": best(lambda: pin.crba(model, data, x), 20000),
+        "forward_dynamics": best(lambda: pin.aba(model, data, x, qd, tau), 20000),
     }
     return {"batched": ours_batched, "single": ours_single, "pinocchio": theirs}
 
