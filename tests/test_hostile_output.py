@@ -344,3 +344,25 @@ def test_hostile_d1_extreme_numbers_generate_compile_strictly_and_verify(tmp_pat
         for module in [m for m in sys.modules if m == "pkg" or m.startswith("pkg.")]:
             del sys.modules[module]
     assert checks and all(c.ok for c in checks), [c for c in checks if not c.ok]
+
+
+MIMIC_1E308 = """<robot name="r"><link name="a"/><link name="b"/><link name="c"/>
+<joint name="j1" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/>
+<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+<joint name="j2" type="revolute"><parent link="b"/><child link="c"/><origin xyz="0.2 0 0"/><axis xyz="0 0 1"/>
+<limit lower="-1" upper="1" effort="1" velocity="1"/><mimic joint="j1" multiplier="1e308"/></joint></robot>
+"""
+
+
+@pytest.mark.parametrize("filename, text, message", [
+    ("mimic.urdf", MIMIC_1E308, "joint 'j2': mimic multiplier '1e308' is more than 1e+300 in size"),
+    ("nul.toml", 'name = "arm"\nurdf = "a\\u0000b.urdf"\n', "field 'urdf': a path with a NUL byte"),
+])
+def test_hostile_d2_the_input_at_fault_is_exit_2_naming_the_field(tmp_path, capsys, filename, text, message):
+    """A mimic multiplier of 1e308 (an OverflowError) and a URDF path holding a NUL byte (a
+    ValueError from the operating system's interface) were internal errors with exit 1."""
+    (tmp_path / filename).write_text(text)
+    assert main(["--quiet", "generate", str(tmp_path / filename), "--out", str(tmp_path / "pkg"), "--no-build"]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == [filename]
