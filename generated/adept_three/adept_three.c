@@ -3870,57 +3870,65 @@ static void adept_three_ik_numeric_residual(const double *restrict x, const doub
 }
 
 /* The step dq = J^T (J J^T + damping I)^-1 e of J (4 x 4, row-major), by Cholesky; 0 (and no
-   step) where the matrix is not positive definite in doubles (a NaN, or a pivot rounded to 0). */
+   step) where the matrix is not positive definite in doubles (a NaN, or a pivot rounded to 0).
+   Written out entry by entry: the sizes are this arm's. */
 static int adept_three_ik_numeric_step(const double *restrict J, const double *restrict e, double damping,
                                      double *restrict step)
 {
-    double L[16], y[4];
-    int i, j, k;
-    for (i = 0; i < 4; ++i) {
-        for (j = 0; j <= i; ++j) {
-            double sum = i == j ? damping : 0.0;
-            for (k = 0; k < 4; ++k) {
-                sum += J[4 * i + k] * J[4 * j + k];
-            }
-            L[4 * i + j] = sum;
-        }
-        y[i] = e[i];
+    double L[16], y[4], pivot;
+    L[0] = J[0] * J[0] + J[1] * J[1] + J[2] * J[2] + J[3] * J[3] + damping;
+    y[0] = e[0];
+    L[4] = J[4] * J[0] + J[5] * J[1] + J[6] * J[2] + J[7] * J[3];
+    L[5] = J[4] * J[4] + J[5] * J[5] + J[6] * J[6] + J[7] * J[7] + damping;
+    y[1] = e[1];
+    L[8] = J[8] * J[0] + J[9] * J[1] + J[10] * J[2] + J[11] * J[3];
+    L[9] = J[8] * J[4] + J[9] * J[5] + J[10] * J[6] + J[11] * J[7];
+    L[10] = J[8] * J[8] + J[9] * J[9] + J[10] * J[10] + J[11] * J[11] + damping;
+    y[2] = e[2];
+    L[12] = J[12] * J[0] + J[13] * J[1] + J[14] * J[2] + J[15] * J[3];
+    L[13] = J[12] * J[4] + J[13] * J[5] + J[14] * J[6] + J[15] * J[7];
+    L[14] = J[12] * J[8] + J[13] * J[9] + J[14] * J[10] + J[15] * J[11];
+    L[15] = J[12] * J[12] + J[13] * J[13] + J[14] * J[14] + J[15] * J[15] + damping;
+    y[3] = e[3];
+    /* L L^T, L lower triangular, in place; then L z = y and L^T u = z, in y */
+    pivot = L[0];
+    if (!(pivot > 0.0)) {
+        return 0;
     }
-    for (j = 0; j < 4; ++j) {  /* L L^T, L lower triangular, in place */
-        double pivot = L[5 * j];
-        for (k = 0; k < j; ++k) {
-            pivot -= L[4 * j + k] * L[4 * j + k];
-        }
-        if (!(pivot > 0.0)) {
-            return 0;
-        }
-        L[5 * j] = sqrt(pivot);
-        for (i = j + 1; i < 4; ++i) {
-            double sum = L[4 * i + j];
-            for (k = 0; k < j; ++k) {
-                sum -= L[4 * i + k] * L[4 * j + k];
-            }
-            L[4 * i + j] = sum / L[5 * j];
-        }
+    L[0] = sqrt(pivot);
+    L[4] = (L[4]) / L[0];
+    L[8] = (L[8]) / L[0];
+    L[12] = (L[12]) / L[0];
+    pivot = L[5] - L[4] * L[4];
+    if (!(pivot > 0.0)) {
+        return 0;
     }
-    for (i = 0; i < 4; ++i) {  /* L z = y */
-        for (k = 0; k < i; ++k) {
-            y[i] -= L[4 * i + k] * y[k];
-        }
-        y[i] /= L[5 * i];
+    L[5] = sqrt(pivot);
+    L[9] = (L[9] - L[8] * L[4]) / L[5];
+    L[13] = (L[13] - L[12] * L[4]) / L[5];
+    pivot = L[10] - L[8] * L[8] - L[9] * L[9];
+    if (!(pivot > 0.0)) {
+        return 0;
     }
-    for (i = 3; i >= 0; --i) {  /* L^T u = z */
-        for (k = i + 1; k < 4; ++k) {
-            y[i] -= L[4 * k + i] * y[k];
-        }
-        y[i] /= L[5 * i];
+    L[10] = sqrt(pivot);
+    L[14] = (L[14] - L[12] * L[8] - L[13] * L[9]) / L[10];
+    pivot = L[15] - L[12] * L[12] - L[13] * L[13] - L[14] * L[14];
+    if (!(pivot > 0.0)) {
+        return 0;
     }
-    for (k = 0; k < 4; ++k) {
-        step[k] = 0.0;
-        for (i = 0; i < 4; ++i) {
-            step[k] += J[4 * i + k] * y[i];
-        }
-    }
+    L[15] = sqrt(pivot);
+    y[0] = (y[0]) / L[0];
+    y[1] = (y[1] - L[4] * y[0]) / L[5];
+    y[2] = (y[2] - L[8] * y[0] - L[9] * y[1]) / L[10];
+    y[3] = (y[3] - L[12] * y[0] - L[13] * y[1] - L[14] * y[2]) / L[15];
+    y[3] = (y[3]) / L[15];
+    y[2] = (y[2] - L[14] * y[3]) / L[10];
+    y[1] = (y[1] - L[9] * y[2] - L[13] * y[3]) / L[5];
+    y[0] = (y[0] - L[4] * y[1] - L[8] * y[2] - L[12] * y[3]) / L[0];
+    step[0] = J[0] * y[0] + J[4] * y[1] + J[8] * y[2] + J[12] * y[3];
+    step[1] = J[1] * y[0] + J[5] * y[1] + J[9] * y[2] + J[13] * y[3];
+    step[2] = J[2] * y[0] + J[6] * y[1] + J[10] * y[2] + J[14] * y[3];
+    step[3] = J[3] * y[0] + J[7] * y[1] + J[11] * y[2] + J[15] * y[3];
     return 1;
 }
 
@@ -4006,11 +4014,11 @@ int adept_three_ik_numeric(const double *restrict x, const double *restrict q0, 
                 trial[i] = q[i] + step[i];
             }
             adept_three_ik_numeric_clip(trial);
-            for (k = 0; k < 4; ++k) {  /* the linear model's residual after the step as clipped */
-                double left = e[k];
-                for (i = 0; i < 4; ++i) {
-                    left -= J[4 * k + i] * (trial[i] - q[i]);
-                }
+            for (i = 0; i < 4; ++i) {
+                step[i] = trial[i] - q[i];  /* the step as clipped */
+            }
+            for (k = 0; k < 4; ++k) {  /* the linear model's residual after it */
+                const double left = e[k] - J[4 * k + 0] * step[0] - J[4 * k + 1] * step[1] - J[4 * k + 2] * step[2] - J[4 * k + 3] * step[3];
                 predicted -= left * left;
             }
             adept_three_ik_numeric_residual(x, trial, params, e_trial);

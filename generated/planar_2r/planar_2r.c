@@ -2698,57 +2698,35 @@ static void planar_2r_ik_numeric_residual(const double *restrict x, const double
 }
 
 /* The step dq = J^T (J J^T + damping I)^-1 e of J (2 x 2, row-major), by Cholesky; 0 (and no
-   step) where the matrix is not positive definite in doubles (a NaN, or a pivot rounded to 0). */
+   step) where the matrix is not positive definite in doubles (a NaN, or a pivot rounded to 0).
+   Written out entry by entry: the sizes are this arm's. */
 static int planar_2r_ik_numeric_step(const double *restrict J, const double *restrict e, double damping,
                                      double *restrict step)
 {
-    double L[4], y[2];
-    int i, j, k;
-    for (i = 0; i < 2; ++i) {
-        for (j = 0; j <= i; ++j) {
-            double sum = i == j ? damping : 0.0;
-            for (k = 0; k < 2; ++k) {
-                sum += J[2 * i + k] * J[2 * j + k];
-            }
-            L[2 * i + j] = sum;
-        }
-        y[i] = e[i];
+    double L[4], y[2], pivot;
+    L[0] = J[0] * J[0] + J[1] * J[1] + damping;
+    y[0] = e[0];
+    L[2] = J[2] * J[0] + J[3] * J[1];
+    L[3] = J[2] * J[2] + J[3] * J[3] + damping;
+    y[1] = e[1];
+    /* L L^T, L lower triangular, in place; then L z = y and L^T u = z, in y */
+    pivot = L[0];
+    if (!(pivot > 0.0)) {
+        return 0;
     }
-    for (j = 0; j < 2; ++j) {  /* L L^T, L lower triangular, in place */
-        double pivot = L[3 * j];
-        for (k = 0; k < j; ++k) {
-            pivot -= L[2 * j + k] * L[2 * j + k];
-        }
-        if (!(pivot > 0.0)) {
-            return 0;
-        }
-        L[3 * j] = sqrt(pivot);
-        for (i = j + 1; i < 2; ++i) {
-            double sum = L[2 * i + j];
-            for (k = 0; k < j; ++k) {
-                sum -= L[2 * i + k] * L[2 * j + k];
-            }
-            L[2 * i + j] = sum / L[3 * j];
-        }
+    L[0] = sqrt(pivot);
+    L[2] = (L[2]) / L[0];
+    pivot = L[3] - L[2] * L[2];
+    if (!(pivot > 0.0)) {
+        return 0;
     }
-    for (i = 0; i < 2; ++i) {  /* L z = y */
-        for (k = 0; k < i; ++k) {
-            y[i] -= L[2 * i + k] * y[k];
-        }
-        y[i] /= L[3 * i];
-    }
-    for (i = 1; i >= 0; --i) {  /* L^T u = z */
-        for (k = i + 1; k < 2; ++k) {
-            y[i] -= L[2 * k + i] * y[k];
-        }
-        y[i] /= L[3 * i];
-    }
-    for (k = 0; k < 2; ++k) {
-        step[k] = 0.0;
-        for (i = 0; i < 2; ++i) {
-            step[k] += J[2 * i + k] * y[i];
-        }
-    }
+    L[3] = sqrt(pivot);
+    y[0] = (y[0]) / L[0];
+    y[1] = (y[1] - L[2] * y[0]) / L[3];
+    y[1] = (y[1]) / L[3];
+    y[0] = (y[0] - L[2] * y[1]) / L[0];
+    step[0] = J[0] * y[0] + J[2] * y[1];
+    step[1] = J[1] * y[0] + J[3] * y[1];
     return 1;
 }
 
@@ -2807,11 +2785,11 @@ int planar_2r_ik_numeric(const double *restrict x, const double *restrict q0, co
                 trial[i] = q[i] + step[i];
             }
             planar_2r_ik_numeric_clip(trial);
-            for (k = 0; k < 2; ++k) {  /* the linear model's residual after the step as clipped */
-                double left = e[k];
-                for (i = 0; i < 2; ++i) {
-                    left -= J[2 * k + i] * (trial[i] - q[i]);
-                }
+            for (i = 0; i < 2; ++i) {
+                step[i] = trial[i] - q[i];  /* the step as clipped */
+            }
+            for (k = 0; k < 2; ++k) {  /* the linear model's residual after it */
+                const double left = e[k] - J[2 * k + 0] * step[0] - J[2 * k + 1] * step[1];
                 predicted -= left * left;
             }
             planar_2r_ik_numeric_residual(x, trial, params, e_trial);

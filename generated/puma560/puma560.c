@@ -9464,57 +9464,103 @@ static void puma560_ik_numeric_residual(const double *restrict x, const double *
 }
 
 /* The step dq = J^T (J J^T + damping I)^-1 e of J (6 x 6, row-major), by Cholesky; 0 (and no
-   step) where the matrix is not positive definite in doubles (a NaN, or a pivot rounded to 0). */
+   step) where the matrix is not positive definite in doubles (a NaN, or a pivot rounded to 0).
+   Written out entry by entry: the sizes are this arm's. */
 static int puma560_ik_numeric_step(const double *restrict J, const double *restrict e, double damping,
                                      double *restrict step)
 {
-    double L[36], y[6];
-    int i, j, k;
-    for (i = 0; i < 6; ++i) {
-        for (j = 0; j <= i; ++j) {
-            double sum = i == j ? damping : 0.0;
-            for (k = 0; k < 6; ++k) {
-                sum += J[6 * i + k] * J[6 * j + k];
-            }
-            L[6 * i + j] = sum;
-        }
-        y[i] = e[i];
+    double L[36], y[6], pivot;
+    L[0] = J[0] * J[0] + J[1] * J[1] + J[2] * J[2] + J[3] * J[3] + J[4] * J[4] + J[5] * J[5] + damping;
+    y[0] = e[0];
+    L[6] = J[6] * J[0] + J[7] * J[1] + J[8] * J[2] + J[9] * J[3] + J[10] * J[4] + J[11] * J[5];
+    L[7] = J[6] * J[6] + J[7] * J[7] + J[8] * J[8] + J[9] * J[9] + J[10] * J[10] + J[11] * J[11] + damping;
+    y[1] = e[1];
+    L[12] = J[12] * J[0] + J[13] * J[1] + J[14] * J[2] + J[15] * J[3] + J[16] * J[4] + J[17] * J[5];
+    L[13] = J[12] * J[6] + J[13] * J[7] + J[14] * J[8] + J[15] * J[9] + J[16] * J[10] + J[17] * J[11];
+    L[14] = J[12] * J[12] + J[13] * J[13] + J[14] * J[14] + J[15] * J[15] + J[16] * J[16] + J[17] * J[17] + damping;
+    y[2] = e[2];
+    L[18] = J[18] * J[0] + J[19] * J[1] + J[20] * J[2] + J[21] * J[3] + J[22] * J[4] + J[23] * J[5];
+    L[19] = J[18] * J[6] + J[19] * J[7] + J[20] * J[8] + J[21] * J[9] + J[22] * J[10] + J[23] * J[11];
+    L[20] = J[18] * J[12] + J[19] * J[13] + J[20] * J[14] + J[21] * J[15] + J[22] * J[16] + J[23] * J[17];
+    L[21] = J[18] * J[18] + J[19] * J[19] + J[20] * J[20] + J[21] * J[21] + J[22] * J[22] + J[23] * J[23] + damping;
+    y[3] = e[3];
+    L[24] = J[24] * J[0] + J[25] * J[1] + J[26] * J[2] + J[27] * J[3] + J[28] * J[4] + J[29] * J[5];
+    L[25] = J[24] * J[6] + J[25] * J[7] + J[26] * J[8] + J[27] * J[9] + J[28] * J[10] + J[29] * J[11];
+    L[26] = J[24] * J[12] + J[25] * J[13] + J[26] * J[14] + J[27] * J[15] + J[28] * J[16] + J[29] * J[17];
+    L[27] = J[24] * J[18] + J[25] * J[19] + J[26] * J[20] + J[27] * J[21] + J[28] * J[22] + J[29] * J[23];
+    L[28] = J[24] * J[24] + J[25] * J[25] + J[26] * J[26] + J[27] * J[27] + J[28] * J[28] + J[29] * J[29] + damping;
+    y[4] = e[4];
+    L[30] = J[30] * J[0] + J[31] * J[1] + J[32] * J[2] + J[33] * J[3] + J[34] * J[4] + J[35] * J[5];
+    L[31] = J[30] * J[6] + J[31] * J[7] + J[32] * J[8] + J[33] * J[9] + J[34] * J[10] + J[35] * J[11];
+    L[32] = J[30] * J[12] + J[31] * J[13] + J[32] * J[14] + J[33] * J[15] + J[34] * J[16] + J[35] * J[17];
+    L[33] = J[30] * J[18] + J[31] * J[19] + J[32] * J[20] + J[33] * J[21] + J[34] * J[22] + J[35] * J[23];
+    L[34] = J[30] * J[24] + J[31] * J[25] + J[32] * J[26] + J[33] * J[27] + J[34] * J[28] + J[35] * J[29];
+    L[35] = J[30] * J[30] + J[31] * J[31] + J[32] * J[32] + J[33] * J[33] + J[34] * J[34] + J[35] * J[35] + damping;
+    y[5] = e[5];
+    /* L L^T, L lower triangular, in place; then L z = y and L^T u = z, in y */
+    pivot = L[0];
+    if (!(pivot > 0.0)) {
+        return 0;
     }
-    for (j = 0; j < 6; ++j) {  /* L L^T, L lower triangular, in place */
-        double pivot = L[7 * j];
-        for (k = 0; k < j; ++k) {
-            pivot -= L[6 * j + k] * L[6 * j + k];
-        }
-        if (!(pivot > 0.0)) {
-            return 0;
-        }
-        L[7 * j] = sqrt(pivot);
-        for (i = j + 1; i < 6; ++i) {
-            double sum = L[6 * i + j];
-            for (k = 0; k < j; ++k) {
-                sum -= L[6 * i + k] * L[6 * j + k];
-            }
-            L[6 * i + j] = sum / L[7 * j];
-        }
+    L[0] = sqrt(pivot);
+    L[6] = (L[6]) / L[0];
+    L[12] = (L[12]) / L[0];
+    L[18] = (L[18]) / L[0];
+    L[24] = (L[24]) / L[0];
+    L[30] = (L[30]) / L[0];
+    pivot = L[7] - L[6] * L[6];
+    if (!(pivot > 0.0)) {
+        return 0;
     }
-    for (i = 0; i < 6; ++i) {  /* L z = y */
-        for (k = 0; k < i; ++k) {
-            y[i] -= L[6 * i + k] * y[k];
-        }
-        y[i] /= L[7 * i];
+    L[7] = sqrt(pivot);
+    L[13] = (L[13] - L[12] * L[6]) / L[7];
+    L[19] = (L[19] - L[18] * L[6]) / L[7];
+    L[25] = (L[25] - L[24] * L[6]) / L[7];
+    L[31] = (L[31] - L[30] * L[6]) / L[7];
+    pivot = L[14] - L[12] * L[12] - L[13] * L[13];
+    if (!(pivot > 0.0)) {
+        return 0;
     }
-    for (i = 5; i >= 0; --i) {  /* L^T u = z */
-        for (k = i + 1; k < 6; ++k) {
-            y[i] -= L[6 * k + i] * y[k];
-        }
-        y[i] /= L[7 * i];
+    L[14] = sqrt(pivot);
+    L[20] = (L[20] - L[18] * L[12] - L[19] * L[13]) / L[14];
+    L[26] = (L[26] - L[24] * L[12] - L[25] * L[13]) / L[14];
+    L[32] = (L[32] - L[30] * L[12] - L[31] * L[13]) / L[14];
+    pivot = L[21] - L[18] * L[18] - L[19] * L[19] - L[20] * L[20];
+    if (!(pivot > 0.0)) {
+        return 0;
     }
-    for (k = 0; k < 6; ++k) {
-        step[k] = 0.0;
-        for (i = 0; i < 6; ++i) {
-            step[k] += J[6 * i + k] * y[i];
-        }
+    L[21] = sqrt(pivot);
+    L[27] = (L[27] - L[24] * L[18] - L[25] * L[19] - L[26] * L[20]) / L[21];
+    L[33] = (L[33] - L[30] * L[18] - L[31] * L[19] - L[32] * L[20]) / L[21];
+    pivot = L[28] - L[24] * L[24] - L[25] * L[25] - L[26] * L[26] - L[27] * L[27];
+    if (!(pivot > 0.0)) {
+        return 0;
     }
+    L[28] = sqrt(pivot);
+    L[34] = (L[34] - L[30] * L[24] - L[31] * L[25] - L[32] * L[26] - L[33] * L[27]) / L[28];
+    pivot = L[35] - L[30] * L[30] - L[31] * L[31] - L[32] * L[32] - L[33] * L[33] - L[34] * L[34];
+    if (!(pivot > 0.0)) {
+        return 0;
+    }
+    L[35] = sqrt(pivot);
+    y[0] = (y[0]) / L[0];
+    y[1] = (y[1] - L[6] * y[0]) / L[7];
+    y[2] = (y[2] - L[12] * y[0] - L[13] * y[1]) / L[14];
+    y[3] = (y[3] - L[18] * y[0] - L[19] * y[1] - L[20] * y[2]) / L[21];
+    y[4] = (y[4] - L[24] * y[0] - L[25] * y[1] - L[26] * y[2] - L[27] * y[3]) / L[28];
+    y[5] = (y[5] - L[30] * y[0] - L[31] * y[1] - L[32] * y[2] - L[33] * y[3] - L[34] * y[4]) / L[35];
+    y[5] = (y[5]) / L[35];
+    y[4] = (y[4] - L[34] * y[5]) / L[28];
+    y[3] = (y[3] - L[27] * y[4] - L[33] * y[5]) / L[21];
+    y[2] = (y[2] - L[20] * y[3] - L[26] * y[4] - L[32] * y[5]) / L[14];
+    y[1] = (y[1] - L[13] * y[2] - L[19] * y[3] - L[25] * y[4] - L[31] * y[5]) / L[7];
+    y[0] = (y[0] - L[6] * y[1] - L[12] * y[2] - L[18] * y[3] - L[24] * y[4] - L[30] * y[5]) / L[0];
+    step[0] = J[0] * y[0] + J[6] * y[1] + J[12] * y[2] + J[18] * y[3] + J[24] * y[4] + J[30] * y[5];
+    step[1] = J[1] * y[0] + J[7] * y[1] + J[13] * y[2] + J[19] * y[3] + J[25] * y[4] + J[31] * y[5];
+    step[2] = J[2] * y[0] + J[8] * y[1] + J[14] * y[2] + J[20] * y[3] + J[26] * y[4] + J[32] * y[5];
+    step[3] = J[3] * y[0] + J[9] * y[1] + J[15] * y[2] + J[21] * y[3] + J[27] * y[4] + J[33] * y[5];
+    step[4] = J[4] * y[0] + J[10] * y[1] + J[16] * y[2] + J[22] * y[3] + J[28] * y[4] + J[34] * y[5];
+    step[5] = J[5] * y[0] + J[11] * y[1] + J[17] * y[2] + J[23] * y[3] + J[29] * y[4] + J[35] * y[5];
     return 1;
 }
 
@@ -9618,11 +9664,11 @@ int puma560_ik_numeric(const double *restrict x, const double *restrict q0, cons
                 trial[i] = q[i] + step[i];
             }
             puma560_ik_numeric_clip(trial);
-            for (k = 0; k < 6; ++k) {  /* the linear model's residual after the step as clipped */
-                double left = e[k];
-                for (i = 0; i < 6; ++i) {
-                    left -= J[6 * k + i] * (trial[i] - q[i]);
-                }
+            for (i = 0; i < 6; ++i) {
+                step[i] = trial[i] - q[i];  /* the step as clipped */
+            }
+            for (k = 0; k < 6; ++k) {  /* the linear model's residual after it */
+                const double left = e[k] - J[6 * k + 0] * step[0] - J[6 * k + 1] * step[1] - J[6 * k + 2] * step[2] - J[6 * k + 3] * step[3] - J[6 * k + 4] * step[4] - J[6 * k + 5] * step[5];
                 predicted -= left * left;
             }
             puma560_ik_numeric_residual(x, trial, params, e_trial);

@@ -4372,57 +4372,51 @@ static void scorbot_er7_ik_numeric_residual(const double *restrict x, const doub
 }
 
 /* The step dq = J^T (J J^T + damping I)^-1 e of J (3 x 5, row-major), by Cholesky; 0 (and no
-   step) where the matrix is not positive definite in doubles (a NaN, or a pivot rounded to 0). */
+   step) where the matrix is not positive definite in doubles (a NaN, or a pivot rounded to 0).
+   Written out entry by entry: the sizes are this arm's. */
 static int scorbot_er7_ik_numeric_step(const double *restrict J, const double *restrict e, double damping,
                                      double *restrict step)
 {
-    double L[9], y[3];
-    int i, j, k;
-    for (i = 0; i < 3; ++i) {
-        for (j = 0; j <= i; ++j) {
-            double sum = i == j ? damping : 0.0;
-            for (k = 0; k < 5; ++k) {
-                sum += J[5 * i + k] * J[5 * j + k];
-            }
-            L[3 * i + j] = sum;
-        }
-        y[i] = e[i];
+    double L[9], y[3], pivot;
+    L[0] = J[0] * J[0] + J[1] * J[1] + J[2] * J[2] + J[3] * J[3] + J[4] * J[4] + damping;
+    y[0] = e[0];
+    L[3] = J[5] * J[0] + J[6] * J[1] + J[7] * J[2] + J[8] * J[3] + J[9] * J[4];
+    L[4] = J[5] * J[5] + J[6] * J[6] + J[7] * J[7] + J[8] * J[8] + J[9] * J[9] + damping;
+    y[1] = e[1];
+    L[6] = J[10] * J[0] + J[11] * J[1] + J[12] * J[2] + J[13] * J[3] + J[14] * J[4];
+    L[7] = J[10] * J[5] + J[11] * J[6] + J[12] * J[7] + J[13] * J[8] + J[14] * J[9];
+    L[8] = J[10] * J[10] + J[11] * J[11] + J[12] * J[12] + J[13] * J[13] + J[14] * J[14] + damping;
+    y[2] = e[2];
+    /* L L^T, L lower triangular, in place; then L z = y and L^T u = z, in y */
+    pivot = L[0];
+    if (!(pivot > 0.0)) {
+        return 0;
     }
-    for (j = 0; j < 3; ++j) {  /* L L^T, L lower triangular, in place */
-        double pivot = L[4 * j];
-        for (k = 0; k < j; ++k) {
-            pivot -= L[3 * j + k] * L[3 * j + k];
-        }
-        if (!(pivot > 0.0)) {
-            return 0;
-        }
-        L[4 * j] = sqrt(pivot);
-        for (i = j + 1; i < 3; ++i) {
-            double sum = L[3 * i + j];
-            for (k = 0; k < j; ++k) {
-                sum -= L[3 * i + k] * L[3 * j + k];
-            }
-            L[3 * i + j] = sum / L[4 * j];
-        }
+    L[0] = sqrt(pivot);
+    L[3] = (L[3]) / L[0];
+    L[6] = (L[6]) / L[0];
+    pivot = L[4] - L[3] * L[3];
+    if (!(pivot > 0.0)) {
+        return 0;
     }
-    for (i = 0; i < 3; ++i) {  /* L z = y */
-        for (k = 0; k < i; ++k) {
-            y[i] -= L[3 * i + k] * y[k];
-        }
-        y[i] /= L[4 * i];
+    L[4] = sqrt(pivot);
+    L[7] = (L[7] - L[6] * L[3]) / L[4];
+    pivot = L[8] - L[6] * L[6] - L[7] * L[7];
+    if (!(pivot > 0.0)) {
+        return 0;
     }
-    for (i = 2; i >= 0; --i) {  /* L^T u = z */
-        for (k = i + 1; k < 3; ++k) {
-            y[i] -= L[3 * k + i] * y[k];
-        }
-        y[i] /= L[4 * i];
-    }
-    for (k = 0; k < 5; ++k) {
-        step[k] = 0.0;
-        for (i = 0; i < 3; ++i) {
-            step[k] += J[5 * i + k] * y[i];
-        }
-    }
+    L[8] = sqrt(pivot);
+    y[0] = (y[0]) / L[0];
+    y[1] = (y[1] - L[3] * y[0]) / L[4];
+    y[2] = (y[2] - L[6] * y[0] - L[7] * y[1]) / L[8];
+    y[2] = (y[2]) / L[8];
+    y[1] = (y[1] - L[7] * y[2]) / L[4];
+    y[0] = (y[0] - L[3] * y[1] - L[6] * y[2]) / L[0];
+    step[0] = J[0] * y[0] + J[5] * y[1] + J[10] * y[2];
+    step[1] = J[1] * y[0] + J[6] * y[1] + J[11] * y[2];
+    step[2] = J[2] * y[0] + J[7] * y[1] + J[12] * y[2];
+    step[3] = J[3] * y[0] + J[8] * y[1] + J[13] * y[2];
+    step[4] = J[4] * y[0] + J[9] * y[1] + J[14] * y[2];
     return 1;
 }
 
@@ -4481,11 +4475,11 @@ int scorbot_er7_ik_numeric(const double *restrict x, const double *restrict q0, 
                 trial[i] = q[i] + step[i];
             }
             scorbot_er7_ik_numeric_clip(trial);
-            for (k = 0; k < 3; ++k) {  /* the linear model's residual after the step as clipped */
-                double left = e[k];
-                for (i = 0; i < 5; ++i) {
-                    left -= J[5 * k + i] * (trial[i] - q[i]);
-                }
+            for (i = 0; i < 5; ++i) {
+                step[i] = trial[i] - q[i];  /* the step as clipped */
+            }
+            for (k = 0; k < 3; ++k) {  /* the linear model's residual after it */
+                const double left = e[k] - J[5 * k + 0] * step[0] - J[5 * k + 1] * step[1] - J[5 * k + 2] * step[2] - J[5 * k + 3] * step[3] - J[5 * k + 4] * step[4];
                 predicted -= left * left;
             }
             scorbot_er7_ik_numeric_residual(x, trial, params, e_trial);
