@@ -366,3 +366,24 @@ def test_hostile_d2_the_input_at_fault_is_exit_2_naming_the_field(tmp_path, caps
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == [filename]
+
+
+def test_hostile_d2_verify_of_a_kernel_with_no_reference_is_a_failed_check(models, monkeypatch):
+    """A system whose entries overflow a double made the reference raise (LinAlgError from the
+    SVD of a run-time solve, OverflowError from a value past any float), and `verify` ended in an
+    internal error: now that kernel's check fails (error inf), and every other kernel is checked."""
+    import numpy as np
+
+    import generated
+    from codegen import verify
+    exact = verify.reference
+    def overflowing(function, values, *args, **kwargs):
+        if function.name == "jacobian":
+            raise np.linalg.LinAlgError("SVD did not converge")
+        return exact(function, values, *args, **kwargs)
+    monkeypatch.setattr(verify, "reference", overflowing)
+    model = models["planar_2r"]
+    checks = verify.verify_model(model, {"numpy": generated.load("planar_2r", backend="numpy")}, samples=2)
+    against_sympy = [c for c in checks if c.method.startswith("sympy")]  # not the finite differences
+    assert {c.kernel for c in against_sympy} == {f.name for f in model.functions()}
+    assert all((c.error == float("inf")) == (not c.ok) == (c.kernel == "jacobian") for c in against_sympy)
