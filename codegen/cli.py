@@ -150,6 +150,8 @@ def _load(target: str, say, args=None) -> tuple:
                        snap=not getattr(args, "no_snap", False))
     if getattr(args, "free_joint", None) is not None:
         options["free_joint"] = args.free_joint
+    if getattr(args, "no_dynamics", False):
+        options["dynamics"] = False
     model = derivations.load(target, verbose=not say.quiet, **options)
     if model.notes.get("snapped"):
         say(f"{model.name}: snapped to exact values: {model.notes['snapped']}")
@@ -768,6 +770,8 @@ def _urdf_options(command) -> None:
     command.add_argument("--free-joint", metavar="J",
                          help="a seven-joint arm: the joint its ik holds at the argument `free`, by number (1-7) "
                               "or name (default: the first that leaves a six-joint arm with a closed form)")
+    command.add_argument("--no-dynamics", action="store_true",
+                         help="leave out the equations of motion of an arm with inertial parameters (kinematics only)")
     command.add_argument("--base", metavar="LINK", help="URDF: the link the chain starts at (default: the root)")
     command.add_argument("--tip", metavar="LINK", help="URDF: the link the chain ends at (default: the only leaf)")
     command.add_argument("--no-snap", action="store_true",

@@ -54,7 +54,7 @@ class UnknownRobotError(KeyError, ValueError):
 
 
 def load(name: str | Path, *, verbose: bool = False, base: str | None = None, tip: str | None = None,
-         snap: bool = True, free_joint: int | str | None = None) -> RobotModel:
+         snap: bool = True, free_joint: int | str | None = None, dynamics: bool = True) -> RobotModel:
     """The symbolic model of a registered robot, or of a description file.
 
     ``name`` is a registry name (see ``ROBOTS``), the path of a ``.toml``
@@ -64,7 +64,8 @@ def load(name: str | Path, *, verbose: bool = False, base: str | None = None, ti
     to them exactly (``derivations.urdf``).  ``free_joint`` (a number from 1, or a joint's name)
     is the joint a seven-joint arm's ik holds at its argument ``free`` (a description's
     ``free_joint`` otherwise; by default the first that leaves a six-joint arm with a closed
-    form).  Derivation results are cached on disk (``derivations.cache``).
+    form).  ``dynamics=False`` leaves out the equations of motion of an arm with inertial parameters.
+    Derivation results are cached on disk (``derivations.cache``).
     """
     path = _resolve(name)
     if path.suffix == ".py":
@@ -78,9 +79,11 @@ def load(name: str | Path, *, verbose: bool = False, base: str | None = None, ti
         def refuse(message):
             raise DescriptionError(f"{path}: free joint: {message}")
         description.free_joint = free_joint_index(free_joint, description.joints, refuse)
+    if not dynamics:  # kinematics only: no inertials, no gravity parameter
+        description.drop_dynamics()
     # The key: the bytes the description was read from (read once: the same the derivation reads),
     # the file's name (the package's source names it), the chain's ends and the held joint.
-    text = path.name.encode() + b"\0" + description.inputs + repr((base, tip, snap, description.free_joint)).encode()
+    text = path.name.encode() + b"\0" + description.inputs + repr((base, tip, snap, dynamics, description.free_joint)).encode()
     extension = _ROBOT_DIR / f"{description.name}.py" if path.parent == _ROBOT_DIR else None
     start = time.perf_counter()
     model = cached(f"model-{description.name}", text, lambda: _derive(description, extension))

@@ -91,6 +91,14 @@ class Description:
     # and gravity in the base frame (3 expressions): empty for an arm without them (no dynamics).
     inertials: tuple = ()
     gravity: tuple = ()
+    # The parameter the reader added for gravity's size (None: gravity uses the file's own).
+    gravity_parameter: sp.Symbol | None = None
+
+    def drop_dynamics(self) -> None:
+        """Kinematics only: no inertials, no gravity, and no parameter added for it."""
+        if self.gravity_parameter is not None:
+            self.params.pop(self.gravity_parameter, None)
+        self.inertials, self.gravity, self.gravity_parameter = (), (), None
 
     def chain(self) -> Chain:
         return Chain(self.joints, self.convention, self.tool, self.base)
@@ -238,13 +246,14 @@ class _Parser:
             name=name, title=data.get("title", name), source=data.get("source", ""),
             convention=convention, task=task, params=params, joints=joints, tool=tool,
             notes=dict(notes), q=q, base=base, free_joint=self.free_joint(data, joints),
-            inertials=inertials, gravity=gravity,
+            inertials=inertials, gravity=gravity, gravity_parameter=self.gravity_parameter,
         )
 
     def parse_dynamics(self, data, joints_data, params, names):
         """Each joint's ``inertial`` table (all joints or none) and ``gravity`` (a list of three
         values in the base frame; default ``[0, 0, "-gravity"]`` with the parameter ``gravity`` =
         9.81 added).  ``params`` gains that parameter; each link is checked physical at the defaults."""
+        self.gravity_parameter = None
         given = [j.get("inertial") for j in joints_data]
         if all(g is None for g in given):
             if "gravity" in data:
@@ -285,6 +294,7 @@ class _Parser:
                 symbol = sp.Symbol("gravity", real=True)
                 params[symbol] = 9.81
                 names["gravity"] = symbol
+                self.gravity_parameter = symbol
             gravity = (sp.S.Zero, sp.S.Zero, -symbol)
         return tuple(inertials), gravity
 
@@ -323,7 +333,9 @@ class _Parser:
                 params[symbol] = value
         self.defaults = params
         names = {str(p): p for p in params}
-        gravity = description.gravity
+        gravity, added = description.gravity, description.gravity_parameter
+        if added is not None and str(added) in data.get("params", {}):
+            added = None  # this file defines the parameter itself
         if "gravity" in data:
             if not description.inertials:
                 self.fail("field 'gravity'", "gravity for a URDF whose chain has no <inertial>")
@@ -344,7 +356,7 @@ class _Parser:
             tool=self.parse_frame(data.get("tool"), names, "tool"), notes={**description.notes, **notes},
             q=description.q, base=self.parse_frame(data.get("base"), names, "base"), inputs=description.inputs,
             base_link=description.base_link, free_joint=self.free_joint(data, description.joints),
-            inertials=description.inertials, gravity=gravity)
+            inertials=description.inertials, gravity=gravity, gravity_parameter=added)
 
     def check_task_repeats(self, task: list[str]) -> None:
         """Each task coordinate once (``pose`` holds x, y and z)."""

@@ -411,7 +411,8 @@ class _Chain:
             name=name, title=f"{self.name or name} (URDF, {base} to {tip})",
             source=f"URDF {Path(self.origin).name}: {' '.join(j.name for j in path)}",
             convention="urdf", task=["pose"], params=params, joints=joints, tool=sp.eye(4), notes=notes, q=q,
-            base_link=base, inertials=inertials, gravity=gravity)
+            base_link=base, inertials=inertials, gravity=gravity,
+            gravity_parameter=next(iter(params), None))
 
     # -- inertial parameters -------------------------------------------------------------------------
 

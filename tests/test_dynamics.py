@@ -403,3 +403,15 @@ def test_base_parameters_reproduce_the_torques(rrp, rrp_links):
     W = Y.reshape(-1, 30)
     assert len(kept) == np.linalg.matrix_rank(W, tol=1e-9 * np.abs(W).max()) < 30
     assert len(base_combinations(kept, dropped, K, names)) == len(kept)
+
+
+def test_urdf_arm_with_inertials_has_the_dynamics_kernels_unless_left_out():
+    path = ROOT / "tests" / "data" / "urdf" / "zoo" / "so101.urdf"
+    model = derivations.load(path, base="base_link", tip="gripper_frame_link")
+    names = [f.name for f in model.functions()]
+    assert names[-8:] == ["inverse_dynamics", "mass_matrix", "gravity", "coriolis", "coriolis_vector", "regressor",
+                          "forward_dynamics", "static_torques"]
+    assert {str(s): v for s, v in model.params.items()} == {"gravity": 9.81}
+    kinematics = derivations.load(path, base="base_link", tip="gripper_frame_link", dynamics=False)
+    assert kinematics.params == {} and kinematics.dynamics is None
+    assert [f.name for f in kinematics.functions()] == names[:-8]

@@ -192,8 +192,11 @@ def generated_package(name: str, root: Path):
     out = root / f"zoo_{name}"
     if not out.exists():
         snap = [] if GENERATED[name] else ["--no-snap"]
+        # --no-dynamics: these files carry inertials, whose eight kernels would take the xArm 7 from 19 s
+        # to over a minute here; the dynamics are tested in test_dynamics.py and against Pinocchio in
+        # benchmarks/dynamics.py
         result = subprocess.run([sys.executable, "-m", "codegen", "--quiet", "generate", str(arm.path), "--base",
-                                 arm.base, "--tip", arm.tip, "--out", str(out), *snap], cwd=ROOT,
+                                 arm.base, "--tip", arm.tip, "--out", str(out), "--no-dynamics", *snap], cwd=ROOT,
                                 env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True, text=True,
                                 timeout=600)
         assert result.returncode == 0, result.stderr
