@@ -152,6 +152,8 @@ def _load(target: str, say, args=None) -> tuple:
         options["free_joint"] = args.free_joint
     if getattr(args, "no_dynamics", False):
         options["dynamics"] = False
+    if getattr(args, "task", None) is not None:
+        options["task"] = args.task
     model = derivations.load(target, verbose=not say.quiet, **options)
     if model.notes.get("snapped"):
         say(f"{model.name}: snapped to exact values: {model.notes['snapped']}")
@@ -770,6 +772,10 @@ def _urdf_options(command) -> None:
     command.add_argument("--free-joint", metavar="J",
                          help="a seven-joint arm: the joint its ik holds at the argument `free`, by number (1-7) "
                               "or name (default: the first that leaves a six-joint arm with a closed form)")
+    command.add_argument("--task", metavar="ITEMS",
+                         help="the task ik solves, replacing the description's (a URDF's is the pose): items "
+                              "separated by commas among x, y, z, phi, pitch, roll, approach, pose "
+                              "(x,y,z,pitch for a 4-joint arm; x,y,z,pitch,roll or x,y,z,approach for 5 joints)")
     command.add_argument("--no-dynamics", action="store_true",
                          help="leave out the equations of motion of an arm with inertial parameters (kinematics only)")
     command.add_argument("--base", metavar="LINK", help="URDF: the link the chain starts at (default: the root)")

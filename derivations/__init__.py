@@ -23,7 +23,7 @@ import time
 from pathlib import Path
 
 from .cache import cached
-from .description import Description, DescriptionError, free_joint_index, read_description
+from .description import Description, DescriptionError, check_task, free_joint_index, read_description, task_option
 from .kernelset import KernelSet
 from .model import IKBranch, RobotModel, SymbolicFunction, build_chain_model
 
@@ -54,7 +54,7 @@ class UnknownRobotError(KeyError, ValueError):
 
 
 def load(name: str | Path, *, verbose: bool = False, base: str | None = None, tip: str | None = None,
-         snap: bool = True, free_joint: int | str | None = None, dynamics: bool = True) -> RobotModel:
+         snap: bool = True, free_joint: int | str | None = None, dynamics: bool = True, task: str | list[str] | None = None) -> RobotModel:
     """The symbolic model of a registered robot, or of a description file.
 
     ``name`` is a registry name (see ``ROBOTS``), the path of a ``.toml``
@@ -64,8 +64,10 @@ def load(name: str | Path, *, verbose: bool = False, base: str | None = None, ti
     to them exactly (``derivations.urdf``).  ``free_joint`` (a number from 1, or a joint's name)
     is the joint a seven-joint arm's ik holds at its argument ``free`` (a description's
     ``free_joint`` otherwise; by default the first that leaves a six-joint arm with a closed
-    form).  ``dynamics=False`` leaves out the equations of motion of an arm with inertial parameters.
-    Derivation results are cached on disk (``derivations.cache``).
+    form).  ``task`` (a list of items, or their names separated by commas: ``"x,y,z,pitch"``) replaces
+    the description's task (a URDF's is the pose).  Derivation results are cached on disk
+    (``derivations.cache``).  ``dynamics=False`` leaves out the equations of motion of an arm with
+    inertial parameters.
     """
     path = _resolve(name)
     if path.suffix == ".py":
@@ -75,6 +77,11 @@ def load(name: str | Path, *, verbose: bool = False, base: str | None = None, ti
         description = read_urdf(path, base=base, tip=tip, snap=snap)
     else:
         description = read_description(path)
+    if task is not None:
+        def refuse_task(message):
+            raise DescriptionError(f"{path}: task: {message}")
+        description.task = (task_option(task, refuse_task) if isinstance(task, str) else
+                            check_task(list(task) if isinstance(task, tuple) else task, refuse_task))
     if free_joint is not None:
         def refuse(message):
             raise DescriptionError(f"{path}: free joint: {message}")
@@ -83,10 +90,12 @@ def load(name: str | Path, *, verbose: bool = False, base: str | None = None, ti
         description.drop_dynamics()
     # The key: the bytes the description was read from (read once: the same the derivation reads),
     # the file's name (the package's source names it), the chain's ends and the held joint.
-    text = path.name.encode() + b"\0" + description.inputs + repr((base, tip, snap, dynamics, description.free_joint)).encode()
+    text = path.name.encode() + b"\0" + description.inputs + repr((base, tip, snap, dynamics, description.free_joint, description.task)).encode()
     extension = _ROBOT_DIR / f"{description.name}.py" if path.parent == _ROBOT_DIR else None
     start = time.perf_counter()
     model = cached(f"model-{description.name}", text, lambda: _derive(description, extension))
+    if task is not None and getattr(model, "ik_task_unreachable", False):
+        raise DescriptionError(f"{path}: task {','.join(description.task)}: {model.ik_unsupported}")
     if verbose:
         print(f"[derive] {description.name}: {time.perf_counter() - start:.2f} s", file=sys.stderr)
     return model

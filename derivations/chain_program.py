@@ -142,12 +142,12 @@ def task_jacobian(program: Program, task_names, task, jacobian, fk, axes, joint_
     for name, value in zip(task_names, task):
         row = []
         for j, qj in enumerate(q):
-            if coupled or name == "phi":
+            if coupled or name in ("phi", "pitch", "roll"):
                 entry = program.derivative(value, qj)
             elif name in position:
                 entry = jacobian[position[name], j]
-            else:  # r_ab: (z_j x R[:, b])_a for a revolute joint; a prismatic one turns nothing
-                a, b = int(name[1]) - 1, int(name[2]) - 1
+            else:  # r_ab (a_x = r13 ...): (z_j x R[:, b])_a for a revolute joint; a prismatic one turns nothing
+                a, b = (int(name[1]) - 1, int(name[2]) - 1) if name[0] == "r" else ("xyz".index(name[1]), 2)
                 z = axes[j][0]
                 entry = (_cross(z, [fk[r, b] for r in range(3)])[a] if joint_types[j] == REVOLUTE
                          else sp.S.Zero)

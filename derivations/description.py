@@ -39,6 +39,7 @@ import sympy as sp
 
 from .chain import PRISMATIC, REVOLUTE, Chain, Joint, rpy_matrix
 from .expressions import ExpressionError, is_identifier, is_package_name, parse_expression
+from .model import TASK_ITEMS, TASK_ITEMS_TEXT
 
 __all__ = ["DescriptionError", "Description", "read_description", "parse_description", "free_joint_index"]
 
@@ -141,6 +142,33 @@ def read_input(path: Path, limit: int, what: str = "file") -> bytes:
     return b"".join(chunks)
 
 
+def check_task(task, fail) -> list[str]:
+    """A task as a list of items (TASK_ITEMS), each once: ``pose`` holds x, y, z and the rotation,
+    ``approach`` a column of that rotation.  ``fail(message)`` raises."""
+    expected = f"a non-empty list of names among {TASK_ITEMS_TEXT.replace(' or ', ', ')}"
+    if not isinstance(task, list) or not task or not all(isinstance(t, str) for t in task):
+        fail(f"expected {expected}")
+    bad = [t for t in task if t not in TASK_ITEMS]
+    if bad:
+        fail(f"unknown task coordinate {bad[0]!r} (expected {TASK_ITEMS_TEXT})")
+    holds = {"pose": ("x", "y", "z", "rotation"), "approach": ("rotation",)}
+    names = [n for t in task for n in holds.get(t, (t,))]
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        what = "the rotation" if repeated[0] == "rotation" else repeated[0]
+        fail(f"{what!r} is asked for twice (pose already holds x, y, z and the whole rotation, "
+             "of which approach is a column)")
+    return task
+
+
+def task_option(text: str, fail) -> list[str]:
+    """The task of a ``--task`` option: names separated by commas (``x,y,z,pitch``)."""
+    items = [t.strip() for t in str(text).split(",")]
+    if not all(items):
+        fail(f"expected names separated by commas, such as x,y,z,pitch (got {str(text)!r})")
+    return check_task(items, fail)
+
+
 def free_joint_index(value, joints, fail) -> int:
     """The 0-based index of the joint ``value`` names: its number (1-based) or its name."""
     if len(joints) != 7:
@@ -232,12 +260,7 @@ class _Parser:
         base = self.parse_frame(data.get("base"), names, "base")
 
         task = data.get("task", ["pose"])
-        if not isinstance(task, list) or not task or not all(isinstance(t, str) for t in task):
-            self.fail("field 'task'", "expected a non-empty list of names among x, y, z, phi, pose")
-        bad = [t for t in task if t not in ("x", "y", "z", "phi", "pose")]
-        if bad:
-            self.fail("field 'task'", f"unknown task coordinate {bad[0]!r} (expected x, y, z, phi or pose)")
-        self.check_task_repeats(task)
+        check_task(task, lambda message: self.fail("field 'task'", message))
         notes = data.get("notes", {})
         if not isinstance(notes, dict) or not all(isinstance(v, str) for v in notes.values()):
             self.fail("field 'notes'", "expected a table of strings")
@@ -344,9 +367,7 @@ class _Parser:
                 self.fail("field 'gravity'", "expected a list of three values (m/s^2, in the base frame)")
             gravity = tuple(self.value("field 'gravity'", v, names) for v in raw)
         task = data.get("task", ["pose"])
-        if not isinstance(task, list) or not task or any(t not in ("x", "y", "z", "phi", "pose") for t in task):
-            self.fail("field 'task'", "expected a non-empty list of names among x, y, z, phi, pose")
-        self.check_task_repeats(task)
+        check_task(task, lambda message: self.fail("field 'task'", message))
         notes = data.get("notes", {})
         if not isinstance(notes, dict) or not all(isinstance(v, str) for v in notes.values()):
             self.fail("field 'notes'", "expected a table of strings")
@@ -357,13 +378,6 @@ class _Parser:
             q=description.q, base=self.parse_frame(data.get("base"), names, "base"), inputs=description.inputs,
             base_link=description.base_link, free_joint=self.free_joint(data, description.joints),
             inertials=description.inertials, gravity=gravity, gravity_parameter=added)
-
-    def check_task_repeats(self, task: list[str]) -> None:
-        """Each task coordinate once (``pose`` holds x, y and z)."""
-        names = [n for t in task for n in (("x", "y", "z", "pose") if t == "pose" else (t,))]
-        repeated = sorted({n for n in names if names.count(n) > 1})
-        if repeated:
-            self.fail("field 'task'", f"{repeated[0]!r} is asked for twice (pose already holds x, y and z)")
 
     def parse_params(self, raw) -> dict[sp.Symbol, float]:
         if not isinstance(raw, dict):

@@ -20,7 +20,7 @@ from .chain_program import task_jacobian as program_task_jacobian
 from .program import inline, needed
 
 __all__ = ["Argument", "Output", "Requirement", "NumericSolve", "SymbolicFunction", "IKBranch", "RobotModel",
-           "task_coordinates", "with_program"]
+           "task_coordinates", "with_program", "APPROACH_NAMES", "TASK_ITEMS", "ANGLE_TASKS", "pitch_joints"]
 
 
 @dataclass(frozen=True)
@@ -179,6 +179,56 @@ def with_program(functions: list[SymbolicFunction], steps) -> list[SymbolicFunct
 
 
 POSE_NAMES = ("x", "y", "z", "r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33")
+# The tool's z axis in the base frame (the third column of its rotation): the task item "approach".
+APPROACH_NAMES = ("ax", "ay", "az")
+# The items a task may list, and the coordinates among them that are angles (wrapped in residuals).
+TASK_ITEMS = ("x", "y", "z", "phi", "pitch", "roll", "approach", "pose")
+TASK_ITEMS_TEXT = "x, y, z, phi, pitch, roll, approach or pose"
+ANGLE_TASKS = ("phi", "pitch", "roll")
+
+
+def pitch_joints(chain: Chain) -> list[tuple[int, sp.Expr]]:
+    """The joints whose turns make the task coordinate ``pitch``: the first run of two or more
+    consecutive revolute joints with parallel axes (a 4- or 5-joint arm's shoulder, elbow and wrist
+    pitch), each with its sign ``h_i . h_first`` (+-1).  Empty if the chain has no such run.
+    Parallel axes stay parallel at every q (the run's own joints turn them about their common
+    direction; earlier joints turn them together), so the run is read at q = 0."""
+    from .ik.structure import cross, dot, is_zero, tidy  # the ik package imports this module
+    zero = [sp.S.Zero] * chain.n
+    axes = [sp.Matrix(h).applyfunc(tidy) for h, _ in chain.joint_axes(chain.link_frames(zero))]
+    kinds = [j.type for j in chain.joints]
+
+    def parallel(i, j):
+        return all(is_zero(e) for e in cross(axes[i], axes[j]))
+    for first in range(chain.n - 1):
+        if kinds[first] != REVOLUTE:
+            continue
+        run = [first]
+        while run[-1] + 1 < chain.n and kinds[run[-1] + 1] == REVOLUTE and parallel(first, run[-1] + 1):
+            run.append(run[-1] + 1)
+        if len(run) >= 2:
+            norm2 = tidy(dot(axes[first], axes[first]))
+            return [(i, sp.sign(tidy(dot(axes[i], axes[first]) / norm2))) for i in run]
+    return []
+
+
+def joint_angle_task(item: str, chain: Chain, q) -> sp.Expr:
+    """The task coordinates ``pitch`` and ``roll``, exact linear forms in the joint angles.
+
+    ``pitch``: the tool's turn about the common direction of the first run of parallel revolute
+    axes (:func:`pitch_joints`), relative to q = 0: ``sum s_i q_i`` over the run.  For an arm of a
+    base turn and parallel pitch joints (``R(q) = Rot(h1, q1) Rot(h2, pitch) R(0)``, the AL5D, the
+    SO-101) it is the angle the gripper is tipped by in the arm's plane.  ``roll``: the turn of
+    the last joint, a revolute one about the tool's own axis (the wrist roll of a 5-joint arm)."""
+    if item == "roll":
+        if chain.joints[-1].type != REVOLUTE:
+            raise ValueError("task coordinate 'roll' needs the last joint revolute (a wrist roll)")
+        return q[-1]
+    run = pitch_joints(chain)
+    if not run:
+        raise ValueError("task coordinate 'pitch' needs two or more consecutive revolute joints with parallel "
+                         "axes (an arm's shoulder, elbow and wrist pitch)")
+    return sum((s * q[i] for i, s in run), sp.S.Zero)
 
 
 def task_coordinates(spec: Sequence[str], chain: Chain, q, fk: sp.Matrix, link_frames) -> tuple[list[str], sp.Matrix]:
@@ -203,8 +253,14 @@ def task_coordinates(spec: Sequence[str], chain: Chain, q, fk: sp.Matrix, link_f
         elif item == "phi":
             names.append(item)
             values.append(_planar_orientation(chain, q, fk, link_frames))
+        elif item == "approach":
+            names.extend(APPROACH_NAMES)
+            values.extend([fk[0, 2], fk[1, 2], fk[2, 2]])
+        elif item in ("pitch", "roll"):
+            names.append(item)
+            values.append(joint_angle_task(item, chain, q))
         else:
-            raise ValueError(f"unknown task coordinate {item!r} (expected x, y, z, phi or pose)")
+            raise ValueError(f"unknown task coordinate {item!r} (expected {TASK_ITEMS_TEXT})")
     if len(set(names)) != len(names):
         raise ValueError(f"task coordinates repeat a name: {names}")
     return names, sp.Matrix(values)
@@ -265,6 +321,9 @@ class RobotModel:
     # plan, one line per step, for `kinegen show --what ik`; or why the arm has none.
     ik_plan: tuple[str, ...] = ()
     ik_unsupported: str = ""
+    # True where the arm cannot reach its task in full (more task freedoms than joints, or a joint that
+    # changes none of it): a task chosen on purpose (``derivations.load(task=...)``) is then refused.
+    ik_task_unreachable: bool = False
     # The joint (0-based) a seven-joint arm's ik takes as its argument ``free``; None: no free joint.
     ik_free: int | None = None
     # What ik's joint values range over, as its docstring says it (every robot wraps its revolute

@@ -45,17 +45,22 @@ from dataclasses import dataclass, field
 import sympy as sp
 
 from ..chain import PRISMATIC, REVOLUTE
-from ..model import POSE_NAMES, IKBranch
+from ..model import APPROACH_NAMES, POSE_NAMES, IKBranch
 from .primitives import ClampUnit, WrapAngle
 from .structure import Axis, Structure, check_product_of_exponentials, cross, dot, is_zero, rotate, structure_of, tidy
 from .subproblems import (TINY, angle_onto, angle_to_distance, angle_to_height, cone_angle, distance_coefficients,
                           slide_to_distance)
 
-__all__ = ["IKUnsupported", "IKSolution", "solve", "attach", "IK_BUDGET"]
+__all__ = ["IKUnsupported", "TaskUnreachable", "IKSolution", "solve", "attach", "IK_BUDGET", "suggest_task"]
 
 
 class IKUnsupported(ValueError):
     """The arm's structure is outside every family with a closed form (the message says what it lacks)."""
+
+
+class TaskUnreachable(IKUnsupported):
+    """The arm cannot reach its task in full: the task has more degrees of freedom than the joints give
+    it (a pose with 4 joints), or a joint changes none of it."""
 
 
 @dataclass
@@ -201,12 +206,212 @@ def _position_meet_12(arm: _Arm, base: _Steps, w, c, o) -> list[_Steps]:
     return out
 
 
+def _unit(vec) -> sp.Matrix:
+    vec = sp.Matrix(vec).applyfunc(tidy)
+    norm2 = tidy(dot(vec, vec))
+    return vec if norm2 == 1 else (vec / sp.sqrt(norm2)).applyfunc(tidy)
+
+
+def _solve_slides(steps: _Steps, u, h_a, h_b):
+    """(t_a, t_b) with ``t_a h_a + t_b h_b = u`` for unit ``h_a``, ``h_b`` not parallel and ``u`` in
+    their plane: the normal equations, ``g = h_a . h_b``."""
+    g = tidy(dot(h_a, h_b))
+    ua, ub = steps.scalar("ua", dot(u, h_a)), steps.scalar("ub", dot(u, h_b))
+    den = tidy(1 - g**2)
+    return (ua - g * ub) / den, (ub - g * ua) / den
+
+
+def _no_lift(arm: _Arm, what: str, i: int, j: int):
+    raise IKUnsupported(f"joints {arm.S.kinds[:3]}: the slides of joints {i + 1} and {j + 1} and the turns keep the "
+                        f"{what} in a plane or on a surface: three joints of this kind cannot place it in space")
+
+
+def _position_prismatic(arm: _Arm, base: _Steps, w, c, what: str) -> list[_Steps] | None:
+    """Joints 1 to 3 with a prismatic joint among them that carry ``w`` to ``c``, or None if the
+    case is not one below.  Each slide ``T_i`` moves every point by ``q_i h_i``; a turn keeps the
+    height along its axis and the distance from it, a slide the components across its direction.
+
+    * RPP: ``E1^-1 c = w + q2 h2 + q3 h3``: q1 by subproblem 4 (``E1^-1 c - w`` has no part along
+      n = h2 x h3), the slides from the 2 x 2 normal equations; branches ``shoulder``.
+    * PPR: ``E3 w = c - q1 h1 - q2 h2``: q3 by subproblem 4 (no part along n = h1 x h2), the slides
+      as above; branches ``elbow``.
+    * PRR with axes 2 and 3 parallel: q1 from the height along h2 (linear), q3 by subproblem 3,
+      q2 by subproblem 1; with axes 2 and 3 meeting at o: q1 the slide that puts ``c - q1 h1`` at
+      the distance of w from o, then subproblem 2; branches ``slide`` (x ``elbow``).
+    * RRP with axes 1 and 2 parallel: q3 from the height along h1 (linear), q2 by subproblem 3,
+      q1 by subproblem 1; branches ``elbow``.  (Axes 1 and 2 meeting: :func:`_position_meet_12`.)
+    * RPR with axes 1, 2, 3 parallel: q2 from the height, q3 by subproblem 3, q1 by subproblem 1.
+    * PRP with axes 1 and 2 parallel: q3 the slide that puts ``w + q3 h3`` at the distance of c
+      from axis 2, q1 from the height along h2, q2 by subproblem 1; branches ``slide``.
+    * PPP: the 3 x 3 linear system; one branch ``unique``.
+    """
+    S = arm.S
+    kinds = S.kinds[:3]
+    a1, a2, a3 = arm.axis(0), arm.axis(1), arm.axis(2)
+    h1, h2, h3 = a1.h, a2.h, a3.h
+    out = []
+    if kinds == "PPP":
+        A = sp.Matrix.hstack(h1, h2, h3)
+        det = tidy(A.det())
+        if is_zero(det):
+            _no_lift(arm, what, 0, 2)
+        arm.say(f"q1, q2, q3: the linear system q1 h1 + q2 h2 + q3 h3 = c - w (three slides)")
+        inverse = A.adjugate().applyfunc(tidy) / det
+        s = base.fork()
+        u = s.vector("u", c - w)
+        for q, row in zip(arm.q[:3], range(3)):
+            s.joint(q, dot(inverse[row, :].T, u))
+        s.choices.append("unique")
+        return [s]
+    if kinds == "RPP":
+        if S.parallel(1, 2):
+            _no_lift(arm, what, 1, 2)
+        n = _unit(cross(h2, h3))
+        if S.parallel_to(0, n):
+            _no_lift(arm, what, 1, 2)
+        arm.say("q1: subproblem 4, E1^-1 c - w has no part along n = h2 x h3 (the slides move in their plane)")
+        arm.say("q2, q3: the slides, u = E1^-1 c - w = q2 h2 + q3 h3 (the 2 x 2 normal equations)")
+        for root1 in angle_to_height(c - a1.p, h1, n, tidy(dot(n, w - a1.p))):
+            s = base.fork()
+            s.choose("shoulder", root1, 1)
+            s.joint(arm.q[0], root1.value)
+            u = s.vector("u", arm.move_point(0, c, -1) - w)
+            t2, t3 = _solve_slides(s, u, h2, h3)
+            s.joint(arm.q[1], t2)
+            s.joint(arm.q[2], t3)
+            out.append(s)
+        return out
+    if kinds == "PPR":
+        if S.parallel(0, 1):
+            _no_lift(arm, what, 0, 1)
+        n = _unit(cross(h1, h2))
+        if S.parallel_to(2, n) or S.on_axis(w, 2):
+            _no_lift(arm, what, 0, 1)
+        arm.say("q3: subproblem 4, E3 w - c has no part along n = h1 x h2 (the slides move in their plane)")
+        arm.say("q1, q2: the slides, u = c - E3 w = q1 h1 + q2 h2 (the 2 x 2 normal equations)")
+        for root3 in angle_to_height(n, h3, (w - a3.p).applyfunc(tidy), dot(n, c - a3.p)):
+            s = base.fork()
+            s.choose("elbow", root3, 3)
+            s.joint(arm.q[2], root3.value)
+            u = s.vector("u", c - arm.move_point(2, w))
+            t1, t2 = _solve_slides(s, u, h1, h2)
+            s.joint(arm.q[0], t1)
+            s.joint(arm.q[1], t2)
+            out.append(s)
+        return out
+    if kinds == "PRR":
+        if S.parallel(1, 2):
+            lift = tidy(dot(h2, h1))
+            if is_zero(lift):
+                _no_lift(arm, what, 1, 2)
+            arm.say("q1: the slide that gives c - q1 h1 the height of w along h2 (axes 2 and 3 parallel)")
+            arm.say("q3: subproblem 3, the distance of E3 w from axis 2's point equals that of c - q1 h1")
+            arm.say("q2: subproblem 1, turns E3 w onto c - q1 h1 about axis 2")
+            s1 = base.fork()
+            s1.joint(arm.q[0], (dot(h2, c - a2.p) - tidy(dot(h2, w - a2.p))) / lift)
+            c1 = s1.vector("c1", c - h1 * arm.q[0])
+            for root3 in angle_to_distance(h3, (a3.p - a2.p).applyfunc(tidy), (w - a3.p).applyfunc(tidy),
+                                           dot(c1 - a2.p, c1 - a2.p)):
+                s3 = s1.fork()
+                s3.choose("elbow", root3, 3)
+                s3.joint(arm.q[2], root3.value)
+                e3 = s3.vector("e3", arm.move_point(2, w))
+                s3.joint(arm.q[1], angle_onto(h2, e3 - a2.p, c1 - a2.p))
+                out.append(s3)
+            return out
+        o = S.meet(1, 2)
+        if o is None:
+            return None
+        if S.on_axis(w, 2) or S.on_axis(w, 1):
+            _no_lift(arm, what, 1, 2)
+        arm.say("q1: the slide that puts c - q1 h1 at the distance of w from the point o where axes 2 and 3 meet")
+        arm.say("q3: subproblem 4 (of subproblem 2), the height of E3 (w - o) along h2 equals that of c - q1 h1 - o")
+        arm.say("q2: subproblem 1 (of subproblem 2), turns E3 (w - o) onto c - q1 h1 - o about axis 2")
+        wo = (w - o).applyfunc(tidy)
+        for root1 in slide_to_distance(-h1, c - o, tidy(dot(wo, wo))):
+            s1 = base.fork()
+            s1.choose("slide", root1, 1)
+            s1.joint(arm.q[0], root1.value)
+            u = s1.vector("u", c - h1 * arm.q[0] - o)
+            for root3 in angle_to_height(h2, h3, wo, dot(h2, u)):
+                s3 = s1.fork()
+                s3.choose("elbow", root3, 3)
+                s3.joint(arm.q[2], root3.value)
+                f = s3.vector("f", arm.turn(2, wo))
+                s3.joint(arm.q[1], angle_onto(h2, f, u))
+                out.append(s3)
+        return out
+    if kinds == "RRP" and S.parallel(0, 1):
+        lift = tidy(dot(h1, h3))
+        if is_zero(lift):
+            _no_lift(arm, what, 0, 2)
+        arm.say("q3: the slide that gives w + q3 h3 the height of c along h1 (axes 1 and 2 parallel)")
+        arm.say("q2: subproblem 3, the distance of E2 (w + q3 h3) from axis 1's point equals that of c")
+        arm.say("q1: subproblem 1, turns E2 (w + q3 h3) onto c about axis 1")
+        s = base.fork()
+        s.joint(arm.q[2], (dot(h1, c - w)) / lift)
+        w3 = s.vector("w3", w + h3 * arm.q[2])
+        for root2 in angle_to_distance(h2, (a2.p - a1.p).applyfunc(tidy), w3 - a2.p, dot(c - a1.p, c - a1.p)):
+            s2 = s.fork()
+            s2.choose("elbow", root2, 2)
+            s2.joint(arm.q[1], root2.value)
+            e2 = s2.vector("e2", arm.move_point(1, w3))
+            s2.joint(arm.q[0], angle_onto(h1, e2 - a1.p, c - a1.p))
+            out.append(s2)
+        return out
+    if kinds == "RPR" and S.parallel(0, 1) and S.parallel(0, 2):
+        lift = tidy(dot(h1, h2))
+        arm.say("q2: the slide that gives E3 w + q2 h2 the height of c along h1 (axes 1, 2, 3 parallel)")
+        arm.say("q3: subproblem 3, the distance of E3 w + q2 h2 from axis 1's point equals that of c")
+        arm.say("q1: subproblem 1, turns E3 w + q2 h2 onto c about axis 1")
+        s = base.fork()
+        s.joint(arm.q[1], (dot(h1, c - w)) / lift)
+        for root3 in angle_to_distance(h3, a3.p + h2 * arm.q[1] - a1.p, (w - a3.p).applyfunc(tidy),
+                                       dot(c - a1.p, c - a1.p)):
+            s3 = s.fork()
+            s3.choose("elbow", root3, 3)
+            s3.joint(arm.q[2], root3.value)
+            e3 = s3.vector("e3", arm.move_point(2, w) + h2 * arm.q[1])
+            s3.joint(arm.q[0], angle_onto(h1, e3 - a1.p, c - a1.p))
+            out.append(s3)
+        return out
+    if kinds == "PRP" and S.parallel(0, 1):
+        lift = tidy(dot(h2, h1))
+        across = (h3 - h2 * tidy(dot(h2, h3))).applyfunc(tidy)
+        size2 = tidy(dot(across, across))
+        if is_zero(size2):
+            _no_lift(arm, what, 0, 2)
+        size = sp.sqrt(size2)
+        k = (across / size).applyfunc(tidy)
+        arm.say("q3: the slide that puts w + q3 h3 at the distance of c from axis 2 (axes 1 and 2 parallel)")
+        arm.say("q1: the slide that gives c - q1 h1 the height of w + q3 h3 along h2")
+        arm.say("q2: subproblem 1, turns w + q3 h3 onto c - q1 h1 about axis 2")
+        a_perp = (w - a2.p) - h2 * dot(h2, w - a2.p)
+        rel = c - a2.p
+        c_perp = rel - h2 * dot(h2, rel)
+        for root3 in slide_to_distance(k, a_perp.applyfunc(tidy), dot(c_perp, c_perp)):
+            s = base.fork()
+            s.choose("slide", root3, 3)
+            s.joint(arm.q[2], root3.value / size)
+            w3 = s.vector("w3", w + h3 * arm.q[2])
+            s.joint(arm.q[0], dot(h2, c - w3) / lift)
+            c1 = s.vector("c1", c - h1 * arm.q[0])
+            s.joint(arm.q[1], angle_onto(h2, w3 - a2.p, c1 - a2.p))
+            out.append(s)
+        return out
+    return None
+
+
 def _position(arm: _Arm, base: _Steps, w, c, what: str) -> list[_Steps]:
     """Joints 1 to 3 that carry the point ``w`` to ``c`` (``what`` names w in messages)."""
     S = arm.S
     kinds = S.kinds[:3]
     if kinds == "RRR" and S.parallel(1, 2) and not S.parallel(0, 1):
         return _position_parallel_23(arm, base, w, c)
+    if PRISMATIC in kinds and not (kinds == "RRP" and S.meet(0, 1) is not None):
+        found = _position_prismatic(arm, base, w, c, what)
+        if found is not None:
+            return found
     o = S.meet(0, 1)
     if o is not None and kinds[2] in "RP":
         if kinds[2] == REVOLUTE and S.parallel(1, 2):
@@ -364,6 +569,154 @@ def _position_family(arm: _Arm) -> list[_Steps]:
     c = sp.Matrix([x, y, z])
     arm.say("the tool point w = M p (the tool's origin at q = 0) to the target (x, y, z)")
     return _position(arm, base, arm.S.home[:3, 3], c, "tool point")
+
+
+def _task_symbol(arm: _Arm, name: str):
+    return dict(zip(arm.model.task_names, arm.model.task_symbols))[name]
+
+
+def _pitch_run(S: Structure) -> bool:
+    """Axes 2, 3, 4 revolute and parallel, axis 1 not along them, and axis 5 (if any) not either:
+    the pitch joints of a base turn, shoulder, elbow and wrist pitch (the AL5D, the SO-101)."""
+    return (S.n >= 4 and S.kinds[:4] == "RRRR" and S.parallel(1, 2) and S.parallel(2, 3)
+            and not S.parallel(0, 1) and (S.n == 4 or not S.parallel(3, 4)))
+
+
+def _planar_tail(arm: _Arm, s: _Steps, theta, y4):
+    """q2, q3, q4 of a pitch arm from the image ``y4`` of p4 (a point on axis 4) under E2 E3 and the
+    pitch ``theta`` = s2 q2 + s3 q3 + s4 q4: q3 by subproblem 3, q2 by subproblem 1, q4 from the sum."""
+    a2, a3, a4 = arm.axis(1), arm.axis(2), arm.axis(3)
+    signs = [tidy(dot(a.h, a2.h)) for a in (a2, a3, a4)]
+    out = []
+    for root3 in angle_to_distance(a3.h, (a3.p - a2.p).applyfunc(tidy), (a4.p - a3.p).applyfunc(tidy),
+                                   dot(y4 - a2.p, y4 - a2.p)):
+        s3 = s.fork()
+        s3.choose("elbow", root3, 3)
+        s3.joint(arm.q[2], root3.value)
+        e3 = s3.vector("e3", arm.move_point(2, a4.p))
+        s3.joint(arm.q[1], angle_onto(a2.h, e3 - a2.p, y4 - a2.p))
+        s3.joint(arm.q[3], signs[2] * (theta - signs[0] * arm.q[1] - signs[1] * arm.q[2]))
+        out.append(s3)
+    return out
+
+
+def _position_pitch(arm: _Arm, base: _Steps | None = None, pitch=None) -> list[_Steps]:
+    """x, y, z and pitch of a 4-joint pitch arm (or of a 5-joint one whose joint 5 is held)."""
+    S = arm.S
+    a1, a2, a4 = arm.axis(0), arm.axis(1), arm.axis(3)
+    base = base or _Steps()
+    x, y, z = (_task_symbol(arm, n) for n in "xyz")
+    c = sp.Matrix([x, y, z])
+    w = S.home[:3, 3]
+    theta = _task_symbol(arm, "pitch") if pitch is None else pitch
+    arm.say("q1: subproblem 4, the height of E1^-1 c along h2 equals that of the tool point (joints 2 to 4 "
+            "turn about parallel axes and keep it)")
+    arm.say("pitch = s2 q2 + s3 q3 + s4 q4 (s_i = h_i . h2): R2 R3 R4 = Rot(h2, pitch)")
+    arm.say("y4 = E1^-1 c - Rot(h2, pitch) (w - p4): where E2 E3 puts p4, the point of axis 4")
+    arm.say("q3: subproblem 3, the distance of E3 p4 from axis 2's point equals that of y4")
+    arm.say("q2: subproblem 1, turns E3 p4 onto y4 about axis 2; q4 from the pitch")
+    out = []
+    for root1 in angle_to_height(c - a1.p, a1.h, a2.h, tidy(dot(a2.h, w - a1.p))):
+        s1 = base.fork()
+        s1.choose("shoulder", root1, 1)
+        s1.joint(arm.q[0], root1.value)
+        c1 = s1.vector("c1", arm.move_point(0, c, -1))
+        turned = rotate(a2.h, sp.cos(theta), sp.sin(theta), (w - a4.p).applyfunc(tidy))
+        y4 = s1.vector("y4", c1 - turned)
+        out.extend(_planar_tail(arm, s1, theta, y4))
+    return out
+
+
+def _approach_line(S: Structure):
+    """(o, L): the point o where the line of the tool's approach (its z axis) through the tool point
+    meets axis 5, and the signed distance L from o to the tool point along the approach; or
+    IKUnsupported.  The line turns with link 5, so ``o`` is on axis 5 at every q and the wrist
+    point of a target is ``c - L a``."""
+    P, d0 = S.home[:3, 3], S.home[:3, 2]
+    a5 = S.axes[4]
+    if a5.kind != REVOLUTE:
+        raise IKUnsupported("x, y, z, approach needs joint 5 revolute")
+    if all(is_zero(e) for e in cross(d0, a5.h)):
+        if S.on_axis(P, 4):
+            raise TaskUnreachable("the approach lies along axis 5 through the tool point: joint 5 turns the tool "
+                                  "about it and changes neither position nor approach, so x, y, z, approach is "
+                                  "reached only on a 4-dimensional set (task x, y, z, pitch, roll reaches it in full "
+                                  "on an arm of a base turn, three pitch joints and a roll)")
+        raise IKUnsupported("the approach is parallel to axis 5 but off it")
+    normal = cross(d0, a5.h)
+    if not is_zero(dot(a5.p - P, normal)):
+        raise IKUnsupported("the tool's approach line (its z axis through the tool point) does not meet axis 5")
+    t = dot(cross(a5.p - P, a5.h), normal) / dot(normal, normal)
+    o = (P + d0 * t).applyfunc(tidy)
+    return o, tidy(-t)
+
+
+def _unit_target(arm: _Arm, base: _Steps):
+    a = sp.Matrix([_task_symbol(arm, n) for n in ("ax", "ay", "az")])
+    norm = base.scalar("anorm", sp.sqrt(dot(a, a)) + TINY)
+    return base.vector("a", a / norm)
+
+
+def _position_approach(arm: _Arm, o, L) -> list[_Steps]:
+    """x, y, z and the approach a of a five-joint arm whose approach line meets axis 5 at o."""
+    S = arm.S
+    a1, a2, a4, a5 = arm.axis(0), arm.axis(1), arm.axis(3), arm.axis(4)
+    d0 = S.home[:3, 2]
+    base = _Steps()
+    u = _unit_target(arm, base)
+    c = sp.Matrix([_task_symbol(arm, n) for n in "xyz"])
+    co = base.vector("co", c - u * L)
+    arm.say("a = (ax, ay, az) / |(ax, ay, az)|; o: where the approach line through the tool point meets "
+            "axis 5; co = c - L a, its target")
+    out = []
+    if S.meet(3, 4) is not None and all(is_zero(e) for e in S.meet(3, 4) - o):
+        branches = _position(arm, base, o, co, "wrist point")
+        arm.say("q5: subproblem 4, the height of R5 a0 along h4 equals that of v = (R1 R2 R3)^T a (axes 4 and 5 meet at o)")
+        arm.say("q4: subproblem 1, turns R5 a0 onto v about axis 4")
+        for s in branches:
+            v = u
+            for i in range(3):
+                if arm.axis(i).kind == REVOLUTE:
+                    v = s.vector(f"v{i + 1}", arm.turn(i, v, -1))
+            for root5 in angle_to_height(a4.h, a5.h, d0, dot(a4.h, v)):
+                s5 = s.fork()
+                s5.choose("wrist", root5, 5)
+                s5.joint(arm.q[4], root5.value)
+                f = s5.vector("f", arm.turn(4, d0))
+                s5.joint(arm.q[3], angle_onto(a4.h, f, v))
+                out.append(s5)
+        return out
+    if not _pitch_run(S):
+        raise IKUnsupported("x, y, z, approach: axes 4 and 5 do not meet where the approach line meets axis 5, "
+                            "and axes 2, 3, 4 are not parallel")
+    arm.say("q1: subproblem 4, the height of E1^-1 co along h2 equals that of o (axes 2, 3, 4 parallel)")
+    arm.say("q5: subproblem 4, the height of R5 a0 along h2 equals that of R1^T a")
+    arm.say("theta = s2 q2 + s3 q3 + s4 q4: subproblem 1, turns R5 a0 onto R1^T a about h2; where R1^T a is "
+            "along h2 (within 1e-12) theta is free and is chosen to put p4 nearest the middle of the elbow's reach")
+    arm.say("y4 = E1^-1 co - Rot(h2, theta) (o - p4); q3 by subproblem 3, q2 by subproblem 1, q4 from theta")
+    centre = tidy(distance_coefficients(arm.axis(2).h, (arm.axis(2).p - a2.p).applyfunc(tidy),
+                                        (a4.p - arm.axis(2).p).applyfunc(tidy))[2])
+    for root1 in angle_to_height(co - a1.p, a1.h, a2.h, tidy(dot(a2.h, o - a1.p))):
+        s1 = base.fork()
+        s1.choose("shoulder", root1, 1)
+        s1.joint(arm.q[0], root1.value)
+        u1 = s1.vector("u1", arm.turn(0, u, -1))
+        c1 = s1.vector("c1", arm.move_point(0, co, -1))
+        for root5 in angle_to_height(a2.h, a5.h, d0, dot(a2.h, u1)):
+            s5 = s1.fork()
+            s5.choose("wrist", root5, 5)
+            s5.joint(arm.q[4], root5.value)
+            f = s5.vector("f", arm.turn(4, d0))
+            regular = angle_onto(a2.h, f, u1)
+            # free theta: |c1 - p2 - Rot(h2, theta) (o - p4)|^2 = S + P cos + Q sin, put at the reach's centre
+            P, Q, Sd = distance_coefficients(a2.h, c1 - a2.p, -(o - a4.p).applyfunc(tidy))
+            free = sp.atan2(Q, P) + sp.acos(ClampUnit((centre - Sd) / (sp.sqrt(P**2 + Q**2) + TINY)))
+            theta = s5.scalar("theta", sp.Piecewise((free, _wrist_singular(u1, a2.h)), (regular, True),
+                                                    evaluate=False))
+            turned = rotate(a2.h, sp.cos(theta), sp.sin(theta), (o - a4.p).applyfunc(tidy))
+            y4 = s5.vector("y4", c1 - turned)
+            out.extend(_planar_tail(arm, s5, theta, y4))
+    return out
 
 
 def _parallel_axes(arm: _Arm) -> list[_Steps]:
@@ -576,9 +929,93 @@ def _free_joint_solution(model, S: Structure, choice: int | None):
                         + "; ".join(reasons[:2]) + ("; ..." if len(reasons) > 2 else "") + ")")
 
 
+# Degrees of freedom of each task item: a direction (approach) has two.
+TASK_FREEDOM = {"pose": 6, "approach": 2}
+
+
+def task_freedom(items) -> int:
+    return sum(TASK_FREEDOM.get(t, 1) for t in items)
+
+
+def task_items(names) -> tuple[str, ...]:
+    """The task items (x, pose, approach, ...) of a model's task coordinate names."""
+    names, items, i = tuple(names), [], 0
+    while i < len(names):
+        if names[i:i + 12] == POSE_NAMES:
+            items.append("pose"); i += 12
+        elif names[i:i + 3] == APPROACH_NAMES:
+            items.append("approach"); i += 3
+        else:
+            items.append(names[i]); i += 1
+    return tuple(items)
+
+
+def _check_pitch(model, S: Structure):
+    """The model's pitch coordinate is s2 q2 + s3 q3 + s4 q4 (the run of the family)."""
+    pitch = model.task[list(model.task_names).index("pitch")]
+    expected = sum((tidy(dot(S.axes[i].h, S.axes[1].h)) * model.q[i] for i in (1, 2, 3)), sp.S.Zero)
+    if sp.expand(pitch - expected) != 0:
+        raise IKUnsupported(f"the pitch coordinate {pitch} is not the turn of joints 2 to 4")
+
+
+def _reduced_family(model, S: Structure):
+    """(free joint or None, family, arm, builder) for the tasks of 4- to 6-joint arms that the
+    families below reach with one joint held or set from the task, or None."""
+    items, n = set(task_items(model.task_names)), model.n
+    if items == {"x", "y", "z", "pitch", "roll"} and n == 5:
+        if not _pitch_run(S):
+            raise IKUnsupported("x, y, z, pitch, roll needs axes 2, 3, 4 parallel and axis 1 not (a base turn, "
+                                "three pitch joints and a roll)")
+        _check_pitch(model, S)
+        roll = _task_symbol(_Arm(model, S), "roll")
+        reduced = held(S, 4, roll)
+        arm = _Arm(model, reduced, model.q[:4])
+        arm.say(f"q5 = roll; held at that value, joint 5 carries the tool: a 4-joint pitch arm is left")
+
+        def build(arm):
+            base = _Steps()
+            base.joint(model.q[4], roll)
+            return _position_pitch(arm, base)
+        return None, "position, pitch and roll", arm, build
+    if items == {"x", "y", "z", "pitch"} and n == 5:
+        if not _pitch_run(S):
+            raise IKUnsupported("x, y, z, pitch with 5 joints needs axes 2, 3, 4 parallel and axis 1 not")
+        _check_pitch(model, S)
+        reduced = held(S, 4, model.q[4])
+        arm = _Arm(model, reduced, model.q[:4])
+        arm.say("q5 is free (the argument `free` of ik): held at that value, joint 5 carries the tool; "
+                "a 4-joint pitch arm is left")
+        return 4, "position and pitch, joint 5 free", arm, _position_pitch
+    if items == {"x", "y", "z", "approach"} and n == 6:
+        a6, P, d0 = S.axes[5], S.home[:3, 3], S.home[:3, 2]
+        if not (a6.kind == REVOLUTE and S.on_axis(P, 5) and all(is_zero(e) for e in cross(d0, a6.h))):
+            raise IKUnsupported("x, y, z, approach with 6 joints: covered where joint 6 turns the tool about its "
+                                "approach (the tool point on axis 6, its z axis along it)")
+        reduced = Structure(S.axes[:5], S.home, S.task)
+        o, L = _approach_line(reduced)
+        arm = _Arm(model, reduced, model.q[:5])
+        arm.say("q6 is free (the argument `free` of ik): joint 6 turns the tool about its approach and changes "
+                "neither position nor approach; joints 1 to 5 reach them")
+        return 5, "position and approach, joint 6 free", arm, lambda arm: _position_approach(arm, o, L)
+    return None
+
+
 def classify(model, S: Structure):
     """(family name, builder) for the model, or IKUnsupported naming what the arm lacks."""
     task, n = tuple(model.task_names), model.n
+    items = task_items(task)
+    if task_freedom(items) > n:
+        raise TaskUnreachable(f"the task {', '.join(items)} has {task_freedom(items)} degrees of freedom and the "
+                              f"arm {n} joints: it cannot reach it in full")
+    if set(items) == {"x", "y", "z", "pitch"} and n == 4:
+        if not _pitch_run(S):
+            raise IKUnsupported("x, y, z, pitch needs axes 2, 3, 4 parallel and axis 1 not (a base turn and "
+                                "three pitch joints)")
+        _check_pitch(model, S)
+        return "position and pitch", _position_pitch
+    if set(items) == {"x", "y", "z", "approach"} and n == 5:
+        o, L = _approach_line(S)
+        return "position and approach", lambda arm: _position_approach(arm, o, L)
     if task == POSE_NAMES:
         if n != 6:
             raise IKUnsupported(f"a full pose with {n} joints: the closed forms cover 6 joints, "
@@ -623,6 +1060,9 @@ def solve(model, free_joint: int | None = None) -> IKSolution:
                            f"carries the axes after it; the other six joints form a {family} arm, numbered 1 to 6 "
                            f"below ({numbering})")
         family = f"{family}, joint {free + 1} free"
+    elif (reduced := _reduced_family(model, S)) is not None:
+        free, family, arm, build = reduced
+        built = build(arm)
     else:
         family, build = classify(model, S)
         arm = _Arm(model, S)
@@ -635,6 +1075,70 @@ def solve(model, free_joint: int | None = None) -> IKSolution:
 # Seconds the automatic inverse kinematics of one arm may take: the target of issue #15 (the
 # arms of the zoo take 0.01-0.2 s; an arm past it gets no ik and a message saying so).
 IK_BUDGET = 10.0
+
+
+# The tasks a 3- to 5-joint arm may reach in full with a closed form, in the order suggested.
+CANDIDATE_TASKS = {3: (("x", "y", "z"),),
+                   4: (("x", "y", "z", "pitch"), ("x", "y", "z", "phi")),
+                   5: (("x", "y", "z", "pitch", "roll"), ("x", "y", "z", "approach"))}
+
+
+class _TaskView:
+    """The parts of a model the families read, with another task (for :func:`suggest_task`)."""
+
+    def __init__(self, model, items):
+        from ..model import joint_angle_task
+        self.name, self.q, self.n, self.chain = model.name, model.q, model.n, model.chain
+        names, values = [], []
+        for item in items:
+            if item == "approach":
+                names += list(APPROACH_NAMES); values += [sp.S.Zero] * 3
+            elif item in ("pitch", "roll"):
+                names.append(item); values.append(joint_angle_task(item, model.chain, model.q))
+            else:
+                names.append(item); values.append(sp.S.Zero)
+        self.task_names, self.task = tuple(names), sp.Matrix(values)
+
+    @property
+    def task_symbols(self):
+        return tuple(sp.Symbol(name, real=True) for name in self.task_names)
+
+
+def suggest_task(model, S: Structure | None = None) -> tuple[str, ...] | None:
+    """The first task of CANDIDATE_TASKS that this arm reaches in full with a closed form (other
+    than its own), or None."""
+    if model.chain is None or model.n not in CANDIDATE_TASKS:
+        return None
+    S = S or structure_of(model)
+    own = task_items(model.task_names)
+    for items in CANDIDATE_TASKS[model.n]:
+        if items == own:
+            continue
+        try:
+            view = _TaskView(model, items)
+            view_S = Structure(S.axes, S.home, view.task_names)
+            reduced = _reduced_family(view, view_S)
+            if reduced is not None:
+                free, _, arm, build = reduced
+                if free is not None:
+                    continue  # a task that leaves a joint free is no task the arm reaches in full
+                build(arm)
+            else:
+                _, build = classify(view, view_S)
+                build(_Arm(view, view_S))
+            return items
+        except (IKUnsupported, ValueError):
+            continue
+    return None
+
+
+def _suggestion(model) -> str:
+    items = suggest_task(model)
+    if items is None:
+        return ""
+    listed = ", ".join(f'"{t}"' for t in items)
+    return (f"; this arm's ik has a closed form for the task {', '.join(items)} (task = [{listed}] in a TOML "
+            f"description, --task {','.join(items)} on the command line and for a URDF)")
 
 
 def attach(model, free_joint: int | None = None) -> None:
@@ -650,6 +1154,12 @@ def attach(model, free_joint: int | None = None) -> None:
             solution = solve(model, free_joint)
     except IKUnsupported as error:
         model.ik_unsupported = str(error)
+        model.ik_task_unreachable = isinstance(error, TaskUnreachable)
+        try:
+            with budget(IK_BUDGET, f"{model.name}: a task with a closed form"):
+                model.ik_unsupported += _suggestion(model)
+        except BudgetExceeded:
+            pass
         return
     except BudgetExceeded as error:
         model.ik_unsupported = f"{error} (the decomposition found no closed form within it)"
