@@ -201,7 +201,7 @@ def xml_axes(chain, q):
 def urdf_chain(name):
     """The zoo arm's chain read by ElementTree, with the angles and axes the model snapped."""
     arm = ZOO[name]
-    notes = derivations.load(arm.path, base=arm.base, tip=arm.tip).notes.get("snapped", "")
+    notes = derivations.load(arm.path, base=arm.base, tip=arm.tip, dynamics=False).notes.get("snapped", "")
     chain = XmlChain(arm.path, arm.base, arm.tip)
     rpy, axes = snapped_numbers(notes, chain)
     return XmlChain(arm.path, arm.base, arm.tip, rpy=rpy, axes=axes)
@@ -243,7 +243,7 @@ def _dh_case(name, task, title, family, branches, approach_singular=None):
                 cli=(str(arm.path.relative_to(ROOT)), "--task", task))
 
 
-def _urdf_case(name, task, title, family):
+def _urdf_case(name, task, title, family, free=None):
     arm = ZOO[name]
 
     def target(q):
@@ -253,9 +253,11 @@ def _urdf_case(name, task, title, family):
         if "roll" in task:
             parts.append(wrap(q[:, 4:5]))
         return np.concatenate(parts, axis=-1)
-    return Case(title, f"{arm.file}, {arm.source}", family, 4, (arm.path, dict(base=arm.base, tip=arm.tip, task=task)),
-                ["R"] * arm.joints, target,
-                cli=(str(arm.path.relative_to(ROOT)), "--base", arm.base, "--tip", arm.tip, "--task", task))
+    # kinematics only (the files' inertials give dynamics kernels, tested in test_dynamics.py)
+    return Case(title, f"{arm.file}, {arm.source}", family, 4,
+                (arm.path, dict(base=arm.base, tip=arm.tip, task=task, dynamics=False)), ["R"] * arm.joints, target,
+                free=free, cli=(str(arm.path.relative_to(ROOT)), "--base", arm.base, "--tip", arm.tip, "--task", task,
+                     "--no-dynamics"))
 
 
 # The real arms of this file, with the task each reaches in full.  At the approach families' singular
@@ -266,6 +268,8 @@ CASES = {
     "al5d_dh": _dh_case("lynxmotion_al5d", "x,y,z,pitch", "Lynxmotion AL5D (DH)", "position and pitch", 4),
     "al5d_urdf": _urdf_case("al5d", "x,y,z,pitch", "Lynxmotion AL5D (URDF)", "position and pitch"),
     "so101_urdf": _urdf_case("so101", "x,y,z,pitch,roll", "SO-101 (URDF)", "position, pitch and roll"),
+    "so101_free_roll": _urdf_case("so101", "x,y,z,pitch", "SO-101 (URDF), roll free", "position and pitch, joint 5 free",
+                                  free=4),
     "ur5_approach": _dh_case("ur5", "x,y,z,approach", "UR5, approach", "position and approach, joint 6 free", 8,
                              approach_singular=([1, 2, 3], 1)),
     "kr5_approach": _dh_case("kuka_kr5", "x,y,z,approach", "KUKA KR5, approach", "position and approach, joint 6 free",
@@ -292,12 +296,12 @@ def test_a_short_arm_with_the_default_pose_is_told_the_task_it_reaches():
     """The AL5D and SO-101 URDFs (whose default task is the pose) get no closed form for it, and the
     message names the task that has one and how to ask for it."""
     arm = ZOO["al5d"]
-    model = derivations.load(arm.path, base=arm.base, tip=arm.tip)
+    model = derivations.load(arm.path, base=arm.base, tip=arm.tip, dynamics=False)
     assert "6 degrees of freedom and the arm 4 joints" in model.ik_unsupported
     assert "closed form for the task x, y, z, pitch" in model.ik_unsupported
     assert "--task x,y,z,pitch" in model.ik_unsupported
     arm = ZOO["so101"]
-    model = derivations.load(arm.path, base=arm.base, tip=arm.tip)
+    model = derivations.load(arm.path, base=arm.base, tip=arm.tip, dynamics=False)
     assert "--task x,y,z,pitch,roll" in model.ik_unsupported
 
 
@@ -329,7 +333,7 @@ def test_the_cli_refuses_a_task_the_arm_cannot_reach_with_status_2():
     """The SO-101's approach (the z axis of gripper_link) lies along its wrist roll: joint 5 changes
     neither position nor approach, so x, y, z, approach is reached only on a 4-dimensional set."""
     result = kinegen("show", "tests/data/urdf/zoo/so101.urdf", "--tip", "gripper_link", "--task", "x,y,z,approach",
-                     "--what", "ik")
+                     "--no-dynamics", "--what", "ik")
     assert result.returncode == 2, result.stderr
     assert "the approach lies along axis 5" in result.stderr and "x, y, z, pitch, roll" in result.stderr, result.stderr
 

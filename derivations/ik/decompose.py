@@ -671,7 +671,8 @@ def _position_approach(arm: _Arm, o, L) -> list[_Steps]:
     out = []
     if S.meet(3, 4) is not None and all(is_zero(e) for e in S.meet(3, 4) - o):
         branches = _position(arm, base, o, co, "wrist point")
-        arm.say("q5: subproblem 4, the height of R5 a0 along h4 equals that of v = (R1 R2 R3)^T a (axes 4 and 5 meet at o)")
+        arm.say("q5: subproblem 4, the height of R5 a0 along h4 equals that of v = (R1 R2 R3)^T a "
+                "(axes 4 and 5 meet at o)")
         arm.say("q4: subproblem 1, turns R5 a0 onto v about axis 4")
         for s in branches:
             v = u
