@@ -5,8 +5,9 @@ ElementTree (expat), after two checks: at most :data:`MAX_BYTES`, and no documen
 declaration (no entities: nothing in the file is expanded or fetched).  It reads ``<robot name>``,
 ``<link name>`` and ``<joint name type>`` with its ``<parent>``, ``<child>``, ``<origin xyz rpy>``,
 ``<axis xyz>``, ``<limit lower upper>`` and ``<mimic joint multiplier offset>``, and checks those
-strictly; every other element (visual, collision, inertial, material, transmission, gazebo, ...)
-is skipped unread.  Real files carry quirks there that a full URDF parser refuses (iCub's
+strictly; the ``<inertial>`` of the links the chain moves (for the equations of motion: read, folded
+and checked in :meth:`_Chain._bodies`); every other element (visual, collision, material,
+transmission, gazebo, the inertials of other links, ...) is skipped unread.  Real files carry quirks there that a full URDF parser refuses (iCub's
 ``<texture>`` without a filename, PR2's ``<transmission>`` without a ``<type>``), and kinematics
 needs none of it.  Meshes are never opened.  From the tree we take the serial chain from ``base``
 (default: the root link) to ``tip`` (default: the single leaf below it):
@@ -170,7 +171,7 @@ class _Chain:
         self.links: list[str] = []
         self.joints: list[_UrdfJoint] = []
         self.snapped: list[str] = []
-        self.inertials: dict[str, _UrdfInertial] = {}  # link name -> its <inertial>, as written
+        self.inertial_elements: dict[str, ET.Element] = {}  # link name -> its <link> element
 
     def fail(self, message: str):
         raise DescriptionError(f"{self.origin}: {message}")
@@ -193,9 +194,7 @@ class _Chain:
                     self.fail(f"link {name!r} is defined twice")
                 links.add(name)
                 self.links.append(name)
-                inertial = self._inertial(element, name)
-                if inertial is not None:
-                    self.inertials[name] = inertial
+                self.inertial_elements[name] = element  # its <inertial> is read if the chain moves it
             elif element.tag == "joint":
                 joint = self._joint(element, len(self.joints) + 1)
                 if joint.name in joints:
@@ -244,7 +243,8 @@ class _Chain:
     def _inertial(self, link: ET.Element, name: str) -> "_UrdfInertial | None":
         """A link's ``<inertial>``: ``<origin xyz rpy>`` of the centre of mass, ``<mass value>`` and
         ``<inertia ixx ixy ixz iyy iyz izz>`` (URDF's defaults: origin 0, the rest required).
-        Its physical consistency is checked where the link belongs to the chain (:meth:`_bodies`)."""
+        Read only for the links of the chain's bodies (:meth:`_bodies`), and checked there: a file's other
+        links may carry what no rigid body has (a base link's placeholder), which moves nothing."""
         found = link.findall("inertial")
         if len(found) > 1:
             self.fail(f"link {name!r}: {len(found)} <inertial> elements (a link has at most one)")
@@ -437,7 +437,7 @@ class _Chain:
             stack = [(joint.child, np.eye(4))]
             while stack:
                 link, placement = stack.pop()
-                inertial = self.inertials.get(link)
+                inertial = self._inertial(self.inertial_elements[link], link)
                 if inertial is not None:
                     found = True
                     parts.append(self._link_inertial(link, inertial, placement))
