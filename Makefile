@@ -24,7 +24,9 @@
 #                   analytic_ik (benchmarks/auto_ik.md), then the time and memory of the refusals
 #                   of hostile input (benchmarks/refusals.md), then the closed-form ik of short
 #                   chains and of 4- to 6-joint arms' tasks, 10,000 + 1,000 configurations in both
-#                   backends (benchmarks/short_chains.md; in .venv, as it reads the tests' helpers)
+#                   backends (benchmarks/short_chains.md; in .venv, as it reads the tests' helpers),
+#                   then ik_numeric in C and numpy against the Toolbox's ik_LM on the Panda and the
+#                   Jaco, and ik of one 4x4 pose against the 12-vector (benchmarks/numeric_ik.md)
 #   make clean      remove the virtual environment, caches and built libraries
 
 PYTHON ?= python3
@@ -167,6 +169,7 @@ bench: $(BENCH_STAMP) $(STAMP)
 	$(BENCH_PY) benchmarks/dynamics.py
 	$(BENCH_PY) benchmarks/refusals.py
 	$(PY) benchmarks/short_chains.py
+	$(BENCH_PY) benchmarks/numeric_ik.py
 
 clean:
 	rm -rf $(VENV) $(BENCH_VENV) .cache build *.egg-info
