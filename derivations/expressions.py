@@ -67,6 +67,7 @@ RESERVED = frozenset(
     """
     T J J_tool Jx Q frames angle argument0 argument1 sine cosine found i k n s inside refused result start stream turn
     valid_branches batch pointer status failed
+    tau M g C c Y wrench
     """.split()
 )
 

@@ -415,3 +415,31 @@ def test_urdf_arm_with_inertials_has_the_dynamics_kernels_unless_left_out():
     kinematics = derivations.load(path, base="base_link", tip="gripper_frame_link", dynamics=False)
     assert kinematics.params == {} and kinematics.dynamics is None
     assert [f.name for f in kinematics.functions()] == names[:-8]
+
+
+def test_every_name_the_dynamics_c_declares_is_reserved_or_the_arms_own(rrp):
+    """As tests/test_description.py holds the papers' robots: an identifier the C of the dynamics
+    kernels declares (their outputs tau, M, g, C, c, Y; their arguments) that a parameter could take
+    is reserved, so that such a parameter is refused by the description, not the compiler."""
+    import re
+
+    from derivations.expressions import RESERVED
+    folder = Path(rrp.__file__).parent
+    source = (folder / "dyn_rrp.c").read_text()
+    source = re.sub(r"^static [^\n(]*\((?:(?!params)[^)])*\)\n\{.*?^\}", "", source, flags=re.M | re.S)
+    types = r"\b(?:size_t|int|long|double|float|char|unsigned)"
+    declared = set()
+    for statement in re.findall(rf"^\s*(?:static\s+)?(?:const\s+)?{types}\s+([^;]*);", source, re.M):
+        while re.search(r"\([^()]*\)", statement):
+            statement = re.sub(r"\([^()]*\)", "", statement)
+        statement = re.sub(r"=\s*\{[^}]*\}|=[^,]*", "", statement)
+        declared |= {re.sub(r"[*\s]|restrict|\[.*", "", item) for item in statement.split(",")}
+    declared |= set(re.findall(rf"{types}\s*\*?\s*(?:restrict\s+)?(\w+)\s*[,)]", source))
+    model = derivations.load(RRP)
+    own = {str(p) for p in model.params} | {str(s) for f in model.functions() for a in f.arguments for s in a.symbols}
+    dynamics = {"tau", "M", "g", "C", "c", "Y", "qdd", "wrench"}
+    assert dynamics <= declared | {"wrench"}
+    strangers = {d for d in declared if d and not d.startswith(("_", "kinegen_", "dyn_rrp_")) and d not in own}
+    assert dynamics & strangers <= RESERVED
+    with pytest.raises(DescriptionError, match="not a valid parameter name|reserved"):
+        parse_description(TOML.format(top="[params]\nM = 1.0", first="", second=""), "dyn.toml")
