@@ -56,7 +56,7 @@ import json, sys, time
 start = time.perf_counter()
 import derivations
 from codegen.kernels import prepare
-model = derivations.load(sys.argv[1], base=sys.argv[2], tip=sys.argv[3], snap=False)
+model = derivations.load(sys.argv[1], base=sys.argv[2], tip=sys.argv[3], snap=sys.argv[4] == "True")
 loaded = time.perf_counter()
 dynamics = model.dynamics
 derived = time.perf_counter()
@@ -73,23 +73,37 @@ def fresh_env(cache: str) -> dict:
     return dict(os.environ, KINEGEN_CACHE=cache, PYTHONPATH=str(ROOT))
 
 
-def generate(name: str, out: Path) -> float:
+def snap_is_exact(name: str) -> bool:
+    """Whether snapping moves the arm's numbers by float noise only (a file writing pi/2 as
+    1.5707963267948966): then the default, snapped model is Pinocchio's to 1e-15, and its exact
+    right angles save operations.  A file writing 1.5708 (the xArm) is generated with --no-snap."""
+    from derivations.urdf import read_urdf
+    arm = ZOO[name]
+    chains = [read_urdf(arm.path, base=arm.base, tip=arm.tip, snap=snap).joints for snap in (True, False)]
+    for snapped, written in zip(*chains):
+        for a, b in ((snapped.origin, written.origin), (snapped.axis, written.axis), (snapped.after, written.after)):
+            if a is not None and max(abs(float(x) - float(y)) for x, y in zip(a, b)) > 1e-14:
+                return False
+    return True
+
+
+def generate(name: str, out: Path, snap: bool) -> float:
     arm = ZOO[name]
     with tempfile.TemporaryDirectory(prefix="kinegen-dynamics-cache-") as cache:
         start = time.perf_counter()
         result = subprocess.run([sys.executable, "-m", "codegen", "--quiet", "generate", str(arm.path), "--base",
-                                 arm.base, "--tip", arm.tip, "--no-snap", "--fast", "--out", str(out)], cwd=ROOT,
-                                env=fresh_env(cache), capture_output=True, text=True)
+                                 arm.base, "--tip", arm.tip, *([] if snap else ["--no-snap"]), "--fast", "--out",
+                                 str(out)], cwd=ROOT, env=fresh_env(cache), capture_output=True, text=True)
         total = time.perf_counter() - start
     if result.returncode != 0:
         raise RuntimeError(f"{name}: generate failed: {result.stderr[-2000:]}")
     return total
 
 
-def cold_derivation(name: str) -> dict:
+def cold_derivation(name: str, snap: bool) -> dict:
     arm = ZOO[name]
     with tempfile.TemporaryDirectory(prefix="kinegen-dynamics-cache-") as cache:
-        result = subprocess.run([sys.executable, "-c", COLD, str(arm.path), arm.base, arm.tip], cwd=ROOT,
+        result = subprocess.run([sys.executable, "-c", COLD, str(arm.path), arm.base, arm.tip, str(snap)], cwd=ROOT,
                                 env=fresh_env(cache), capture_output=True, text=True, check=True)
     return json.loads(result.stdout.strip().splitlines()[-1])
 
@@ -193,6 +207,9 @@ def main(argv=None) -> int:
     parser.add_argument("arms", nargs="*", help=f"arm names (default: {', '.join(ARMS)})")
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "dynamics.md")
     parser.add_argument("--states", type=int, default=STATES)
+    parser.add_argument("--packages", type=Path, help="keep the generated packages in this folder and reuse "
+                        "them when there (a second run for the timings alone; the derivation columns then "
+                        "give the first run's generate time as not measured)")
     args = parser.parse_args(argv)
     try:
         import pinocchio as pin
@@ -202,10 +219,13 @@ def main(argv=None) -> int:
     rng = np.random.default_rng(30)
     accuracy, speed, derivation = [], [], []
     with tempfile.TemporaryDirectory(prefix="kinegen-dynamics-") as scratch:
+        folder = args.packages or Path(scratch)
+        folder.mkdir(parents=True, exist_ok=True)
         for name in args.arms or ARMS:
-            out = Path(scratch) / f"dyn_{name}"
-            total = generate(name, out)
-            cold = cold_derivation(name)
+            out = folder / f"dyn_{name}"
+            snap = snap_is_exact(name)
+            total = generate(name, out, snap) if not out.exists() else float("nan")
+            cold = cold_derivation(name, snap)
             package = import_package(out)
             c = package.load("c")
             model = pinocchio_model(pin, name, package.JOINTS)
@@ -213,7 +233,8 @@ def main(argv=None) -> int:
             worst = compare(pin, model, c, Q, QD, QDD)
             times = timings(pin, model, c, rng)
             n = len(package.JOINTS)
-            accuracy.append(f"| {name} | `{ZOO[name].file}` | {n} | " + " | ".join(f"{worst[k]:.1e}" for k in KERNELS)
+            accuracy.append(f"| {name} | `{ZOO[name].file}` | {n} | {'snapped' if snap else '--no-snap'} | "
+                            + " | ".join(f"{worst[k]:.1e}" for k in KERNELS)
                             + f" | {'yes' if max(worst.values()) <= 1e-10 else 'NO'} |")
             speed.append(f"| {name} | {n} | " + " | ".join(
                 f"{ns(times['batched'][k])} / {ns(times['single'][k])} / {ns(times['pinocchio'][k])}"
@@ -228,10 +249,13 @@ def main(argv=None) -> int:
     text = f"""# Dynamics against Pinocchio {pin.__version__} ({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, load average {load[0]:.2f})
 
 `.venv-bench/bin/python benchmarks/dynamics.py` (part of `make bench`). Each arm is generated with
-`kinegen generate FILE --base B --tip T --no-snap` from its file in `tests/data/urdf/zoo/` (the wheel,
+`kinegen generate FILE --base B --tip T --fast` from its file in `tests/data/urdf/zoo/` (the wheel,
 upstream and licence of each in `tests/data/urdf/zoo/SOURCES.md`; base and tip as in `tests/urdf_zoo.py`).
 Pinocchio's model of the same file is reduced to the same joints (`buildReducedModel`, the others locked at
-zero, as our reader folds the links off the chain into the chain's bodies).
+zero, as our reader folds the links off the chain into the chain's bodies). numbers: `snapped` where
+snapping moves the file's numbers by float noise only (pi/2 written to 16 digits: the model is Pinocchio's
+to 1e-15, and the exact right angles save operations), `--no-snap` where the file rounds them (the xArm's
+1.5708, which snapping would move by 4e-6).
 
 ## Accuracy: our C kernels against Pinocchio, {args.states} random states per arm
 
@@ -239,8 +263,8 @@ Largest over the states of max|ours - Pinocchio| / max|Pinocchio| (target: 1e-10
 mass_matrix: `crba`; gravity: `computeGeneralizedGravity`; coriolis: `computeCoriolisMatrix`; coriolis_vector:
 that matrix times qd; forward_dynamics: `aba` at the torques `rnea` gave.
 
-| arm | file | joints | inverse_dynamics | mass_matrix | gravity | coriolis | coriolis_vector | forward_dynamics | within 1e-10 |
-|---|---|---|---|---|---|---|---|---|---|
+| arm | file | joints | numbers | inverse_dynamics | mass_matrix | gravity | coriolis | coriolis_vector | forward_dynamics | within 1e-10 |
+|---|---|---|---|---|---|---|---|---|---|---|
 """ + "\n".join(accuracy) + f"""
 
 ## Time per state (ns): ours batched / ours one call from Python / Pinocchio one call from Python
