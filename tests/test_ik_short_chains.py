@@ -8,7 +8,7 @@
   (5 joints: the SO-101 URDF), x, y, z, approach (a UR5 and a KUKA KR5 turning a tool about its
   approach: joint 6 free).
 
-Each branch is evaluated from its SymPy steps (``test_auto_ik.evaluate_steps``); the targets and
+Each branch is evaluated from its SymPy steps (as ``test_auto_ik.evaluate_steps`` does); the targets and
 the answers go through this file's own forward kinematics (``test_zoo``'s DH product, or
 ``urdf_zoo.XmlChain`` reading the URDF with ElementTree), and pitch, roll and approach are read off
 those frames here.  Over random configurations and degenerate ones (every revolute joint at 0,
@@ -27,10 +27,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import sympy as sp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import derivations  # noqa: E402
-from test_auto_ik import evaluate_steps  # noqa: E402
+from test_auto_ik import COMPARE, MODULES  # noqa: E402
 from test_urdf_zoo import snapped_numbers  # noqa: E402
 from test_zoo import ARMS, fk as dh_fk, link_frames, read_arm  # noqa: E402
 from urdf_zoo import ZOO, XmlChain  # noqa: E402
@@ -124,6 +125,39 @@ def configurations(types, limits, seed):
     return q
 
 
+_COMPILED: dict = {}
+
+
+def _compiled(expr):
+    """``expr`` as a numpy function of its free symbols (sorted by name), compiled once: the branches
+    of an arm share most of their steps' expressions (with other values behind their symbols)."""
+    if expr not in _COMPILED:
+        names = sorted(expr.free_symbols, key=str)
+        _COMPILED[expr] = names, sp.lambdify(names, expr, modules=MODULES)
+    return _COMPILED[expr]
+
+
+def evaluate_steps(model, branch, x, extra=None):
+    """The branch's joint values and existence at targets x (N, m), step by step in numpy, as
+    test_auto_ik.evaluate_steps does, each distinct expression compiled once."""
+    values = {s: x[:, i] for i, s in enumerate(model.task_symbols)}
+    values.update(extra or {})
+    values.update({p: np.full(len(x), float(v)) for p, v in model.params.items()})
+
+    def value(expr):
+        names, function = _compiled(expr)
+        return np.broadcast_to(np.asarray(function(*(values[n] for n in names)), dtype=float), (len(x),))
+    for symbol, expr in branch.steps:
+        values[symbol] = value(expr)
+    condition = branch.step_condition
+    valid = np.ones(len(x), bool)
+    for c in (condition.args if isinstance(condition, sp.And) else (condition,)):
+        if c is not sp.true:
+            valid &= COMPARE[type(c)](value(c.lhs), value(c.rhs))
+    Q = np.stack([np.broadcast_to(values[q], (len(x),)) for q in model.q], axis=-1)
+    return Q, valid & np.isfinite(Q).all(axis=-1)
+
+
 def counts(model, q, target_of, free=None, free_joints=None):
     """(wrong, no solution, missing, worst error) of the model's branches, from their steps, against
     ``target_of(q)`` (this file's own task); ``free_joints(q, Q)`` masks what a singular q leaves free."""
@@ -132,6 +166,7 @@ def counts(model, q, target_of, free=None, free_joints=None):
     revolute = [i for i, kind in enumerate(model.joint_types) if kind == "R"]
     angles = [i for i, name in enumerate(model.task_names) if name in ("pitch", "roll")]
     found, any_valid, worst, wrong = np.zeros(len(q), bool), np.zeros(len(q), bool), 0.0, 0
+    free_mask = None if free_joints is None else free_joints(q)
     for branch in model.ik:
         Q, valid = evaluate_steps(model, branch, x, extra)
         reached = target_of(np.where(valid[:, None], Q, 0.0))
@@ -142,8 +177,8 @@ def counts(model, q, target_of, free=None, free_joints=None):
         difference = Q - q
         difference[:, revolute] = wrap(difference[:, revolute])
         difference = np.abs(difference)
-        if free_joints is not None:
-            difference[free_joints(q)] = 0.0
+        if free_mask is not None:
+            difference[free_mask] = 0.0
         found |= valid & (difference.max(axis=-1) < JOINT_TOLERANCE)
         any_valid |= valid
     return {"wrong": wrong, "no solution": int((~any_valid).sum()), "missing": int((~found).sum())}, worst
@@ -193,8 +228,39 @@ def pitch_of(axes, q, joints=(1, 2, 3)):
     return sum(np.sign(np.sum(axes[:, j] * first, axis=-1)) * q[:, j] for j in joints)
 
 
-def xml_axes(chain, q):
-    return np.stack([np.stack([axis for _, _, _, axis, _ in chain.walk(row)[1]]) for row in q])
+def xml_walk(chain, q):
+    """``XmlChain.walk`` for a batch q (count, n): the tip transforms (count, 4, 4) and the world
+    axes of the moving joints (count, n, 3), from the chain's own origins and axes (no mimic joints)."""
+    value = {name: q[:, i] for i, name in enumerate(chain.moving)}
+    T = np.broadcast_to(np.eye(4), (len(q), 4, 4)).copy()
+    axes = []
+    for joint in chain.joints:
+        T = T @ chain._origin(joint)
+        if joint.get("type") == "fixed":
+            continue
+        assert joint.find("mimic") is None
+        axis = chain._axis(joint)
+        axes.append(T[:, :3, :3] @ axis)
+        angle = value[joint.get("name")]
+        K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+        motion = np.broadcast_to(np.eye(4), (len(q), 4, 4)).copy()
+        if joint.get("type") == "prismatic":
+            motion[:, :3, 3] = angle[:, None] * axis
+        else:
+            motion[:, :3, :3] = (np.eye(3) + np.sin(angle)[:, None, None] * K
+                                 + (1 - np.cos(angle))[:, None, None] * (K @ K))
+        T = T @ motion
+    return T, np.stack(axes, axis=1)
+
+
+def test_the_batched_walk_is_the_chains_own():
+    chain = XmlChain(ZOO["so101"].path, ZOO["so101"].base, ZOO["so101"].tip)
+    q = chain.configurations(5, 3)
+    T, axes = xml_walk(chain, q)
+    for k, row in enumerate(q):
+        tip, moving = chain.walk(row)
+        assert np.allclose(T[k], tip, atol=1e-14)
+        assert np.allclose(axes[k], [axis for _, _, _, axis, _ in moving], atol=1e-14)
 
 
 @functools.lru_cache(maxsize=None)
@@ -247,9 +313,8 @@ def _urdf_case(name, task, title, family, free=None):
     arm = ZOO[name]
 
     def target(q):
-        chain = urdf_chain(name)
-        T = np.stack([chain.fk(row) for row in q])
-        parts = [T[:, :3, 3], pitch_of(xml_axes(chain, q), q)[:, None]]
+        T, axes = xml_walk(urdf_chain(name), q)
+        parts = [T[:, :3, 3], pitch_of(axes, q)[:, None]]
         if "roll" in task:
             parts.append(wrap(q[:, 4:5]))
         return np.concatenate(parts, axis=-1)
@@ -258,6 +323,43 @@ def _urdf_case(name, task, title, family, free=None):
                 (arm.path, dict(base=arm.base, tip=arm.tip, task=task, dynamics=False)), ["R"] * arm.joints, target,
                 free=free, cli=(str(arm.path.relative_to(ROOT)), "--base", arm.base, "--tip", arm.tip, "--task", task,
                      "--no-dynamics"))
+
+
+SPINDLE = ROOT / "tests" / "data" / "urdf" / "so101_spindle.toml"
+
+
+def _spindle_case():
+    """The SO-101 to its gripper_link with the tool of so101_spindle.toml (5 cm along the roll axis,
+    turned by pi/2 about x): five joints, x, y, z, approach."""
+    tool = np.eye(4)
+    tool[:3, :3] = [[1, 0, 0], [0, 0, -1], [0, 1, 0]]   # Rx(pi/2)
+    tool[:3, 3] = [0, 0, 0.05]
+    zoo = ZOO["so101"]
+
+    @functools.lru_cache(maxsize=None)
+    def chain():
+        notes = derivations.load(SPINDLE, dynamics=False).notes.get("snapped", "")
+        plain = XmlChain(zoo.path, zoo.base, "gripper_link")
+        rpy, axes = snapped_numbers(notes, plain)
+        return XmlChain(zoo.path, zoo.base, "gripper_link", rpy=rpy, axes=axes)
+
+    def frames(q):
+        return xml_walk(chain(), q)[0] @ tool
+
+    def target(q):
+        T = frames(q)
+        return np.concatenate([T[:, :3, 3], T[:, :3, 2]], axis=-1)
+
+    def free_joints(q):
+        # the approach along the pitch axes 2 to 4: their turns trade against each other, free
+        axis2 = xml_walk(chain(), q)[1][:, 1]
+        singular = np.abs(np.cross(axis2, frames(q)[:, :3, 2])).max(axis=-1) < SINGULAR
+        mask = np.zeros(q.shape, bool)
+        mask[np.ix_(singular, [1, 2, 3])] = True
+        return mask
+    return Case("SO-101 with a tool across its roll (URDF)", "tests/data/urdf/so101_spindle.toml",
+                "position and approach", 8, (SPINDLE, {"dynamics": False}), ["R"] * 5, target,
+                free_joints=free_joints, cli=(str(SPINDLE.relative_to(ROOT)), "--no-dynamics"))
 
 
 # The real arms of this file, with the task each reaches in full.  At the approach families' singular
@@ -270,6 +372,7 @@ CASES = {
     "so101_urdf": _urdf_case("so101", "x,y,z,pitch,roll", "SO-101 (URDF)", "position, pitch and roll"),
     "so101_free_roll": _urdf_case("so101", "x,y,z,pitch", "SO-101 (URDF), roll free", "position and pitch, joint 5 free",
                                   free=4),
+    "so101_spindle": _spindle_case(),
     "ur5_approach": _dh_case("ur5", "x,y,z,approach", "UR5, approach", "position and approach, joint 6 free", 8,
                              approach_singular=([1, 2, 3], 1)),
     "kr5_approach": _dh_case("kuka_kr5", "x,y,z,approach", "KUKA KR5, approach", "position and approach, joint 6 free",
