@@ -25,7 +25,7 @@ from pathlib import Path
 from .cache import cached
 from .description import Description, DescriptionError, check_task, free_joint_index, read_description, task_option
 from .kernelset import KernelSet
-from .model import IKBranch, RobotModel, SymbolicFunction, build_chain_model
+from .model import IKBranch, RobotModel, SymbolicFunction, TaskError, build_chain_model
 
 __all__ = ["ROBOTS", "load", "RobotModel", "SymbolicFunction", "IKBranch", "DescriptionError",
            "UnknownRobotError", "KERNEL_SETS", "KernelSet", "load_kernel_set"]
@@ -93,7 +93,10 @@ def load(name: str | Path, *, verbose: bool = False, base: str | None = None, ti
     text = path.name.encode() + b"\0" + description.inputs + repr((base, tip, snap, dynamics, description.free_joint, description.task)).encode()
     extension = _ROBOT_DIR / f"{description.name}.py" if path.parent == _ROBOT_DIR else None
     start = time.perf_counter()
-    model = cached(f"model-{description.name}", text, lambda: _derive(description, extension))
+    try:
+        model = cached(f"model-{description.name}", text, lambda: _derive(description, extension))
+    except TaskError as error:  # a task coordinate the chain does not have: the input's fault
+        raise DescriptionError(f"{path}: task {','.join(description.task)}: {error}") from None
     if task is not None and getattr(model, "ik_task_unreachable", False):
         raise DescriptionError(f"{path}: task {','.join(description.task)}: {model.ik_unsupported}")
     if verbose:

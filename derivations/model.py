@@ -187,6 +187,10 @@ TASK_ITEMS_TEXT = "x, y, z, phi, pitch, roll, approach or pose"
 ANGLE_TASKS = ("phi", "pitch", "roll")
 
 
+class TaskError(ValueError):
+    """A task coordinate this chain does not have (``pitch`` without parallel pitch joints, ...)."""
+
+
 def pitch_joints(chain: Chain) -> list[tuple[int, sp.Expr]]:
     """The joints whose turns make the task coordinate ``pitch``: the first run of two or more
     consecutive revolute joints with parallel axes (a 4- or 5-joint arm's shoulder, elbow and wrist
@@ -222,11 +226,11 @@ def joint_angle_task(item: str, chain: Chain, q) -> sp.Expr:
     the last joint, a revolute one about the tool's own axis (the wrist roll of a 5-joint arm)."""
     if item == "roll":
         if chain.joints[-1].type != REVOLUTE:
-            raise ValueError("task coordinate 'roll' needs the last joint revolute (a wrist roll)")
+            raise TaskError("task coordinate 'roll' needs the last joint revolute (a wrist roll)")
         return q[-1]
     run = pitch_joints(chain)
     if not run:
-        raise ValueError("task coordinate 'pitch' needs two or more consecutive revolute joints with parallel "
+        raise TaskError("task coordinate 'pitch' needs two or more consecutive revolute joints with parallel "
                          "axes (an arm's shoulder, elbow and wrist pitch)")
     return sum((s * q[i] for i, s in run), sp.S.Zero)
 
@@ -272,7 +276,7 @@ def _planar_orientation(chain: Chain, q, fk: sp.Matrix, link_frames) -> sp.Expr:
         if joint.type != REVOLUTE:
             continue
         if axis[0] != 0 or axis[1] != 0 or axis[2] not in (1, -1):
-            raise ValueError("task coordinate 'phi' needs every revolute axis parallel to the base z axis")
+            raise TaskError("task coordinate 'phi' needs every revolute axis parallel to the base z axis")
         phi += axis[2] * qi
     rot0 = fk[:3, :3].subs({qi: 0 for qi in q})
     phi0 = sp.atan2(sp.nsimplify(rot0[1, 0]), sp.nsimplify(rot0[0, 0]))
@@ -282,7 +286,7 @@ def _planar_orientation(chain: Chain, q, fk: sp.Matrix, link_frames) -> sp.Expr:
     rz = sp.Matrix([[sp.cos(angle), -sp.sin(angle), 0], [sp.sin(angle), sp.cos(angle), 0], [0, 0, 1]])
     residual = (rz * rot0 - fk[:3, :3]).applyfunc(simplify_entry)
     if residual != sp.zeros(3, 3):
-        raise ValueError("task coordinate 'phi': the tool rotation is not a rotation about the base z axis")
+        raise TaskError("task coordinate 'phi': the tool rotation is not a rotation about the base z axis")
     return phi + phi0
 
 

@@ -432,6 +432,23 @@ def test_a_task_the_arm_cannot_reach_or_that_is_no_task_is_refused(task, message
         derivations.load(ARMS["lynxmotion_al5d"].path, task=task)
 
 
+@pytest.mark.parametrize("task, message", [
+    ("x,y,z,roll", "task coordinate 'roll' needs the last joint revolute (a wrist roll)"),
+    ("x,y,z,pitch", "task coordinate 'pitch' needs two or more consecutive revolute joints with parallel axes"),
+])
+def test_a_task_coordinate_the_chain_does_not_have_is_the_inputs_fault(task, message, tmp_path):
+    """The README's cylindrical arm (R P P) has no wrist roll and no parallel pitch joints, and the AL5D
+    is no planar arm: a DescriptionError naming the file and the task (exit status 2 from the CLI),
+    not a crash."""
+    path = tmp_path / "cylindrical_rpp.toml"
+    path.write_text("# Kumar, Fig. 10\n" + CYLINDRICAL)
+    with pytest.raises(derivations.DescriptionError, match=f"cylindrical_rpp.toml: task {task}: {re.escape(message)}"):
+        derivations.load(path, task=task)
+    with pytest.raises(derivations.DescriptionError, match="lynxmotion_al5d.toml: task x,y,phi: task coordinate 'phi' "
+                                                           "needs every revolute axis parallel to the base z axis"):
+        derivations.load(ARMS["lynxmotion_al5d"].path, task="x,y,phi")
+
+
 def test_the_cli_refuses_a_task_the_arm_cannot_reach_with_status_2():
     """The SO-101's approach (the z axis of gripper_link) lies along its wrist roll: joint 5 changes
     neither position nor approach, so x, y, z, approach is reached only on a 4-dimensional set."""
