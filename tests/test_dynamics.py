@@ -443,3 +443,21 @@ def test_every_name_the_dynamics_c_declares_is_reserved_or_the_arms_own(rrp):
     assert dynamics & strangers <= RESERVED
     with pytest.raises(DescriptionError, match="not a valid parameter name|reserved"):
         parse_description(TOML.format(top="[params]\nM = 1.0", first="", second=""), "dyn.toml")
+
+
+def test_dynamics_past_their_budget_leave_the_kinematics_and_say_why(monkeypatch):
+    """A derivation that runs out of derivations.dynamics.DYNAMICS_BUDGET gives the arm no dynamics
+    kernels and a note naming the budget and the step it stopped in; the kinematics are unaffected."""
+    import derivations.dynamics as dynamics
+    from derivations.budget import ENFORCED
+    if not ENFORCED:
+        pytest.skip("budgets are enforced only in the main thread")
+    monkeypatch.setenv("KINEGEN_NO_CACHE", "1")
+    monkeypatch.setattr(dynamics, "DYNAMICS_BUDGET", 0.05)
+    model = derivations.load(RRP)
+    assert model.dynamics is None
+    assert "no dynamics kernels" in model.notes["dynamics"]
+    assert "time budget of 0.05 s" in model.notes["dynamics"]
+    assert "while deriving the equations of motion" in model.notes["dynamics"]
+    assert [f.name for f in model.functions()][:2] == ["fk", "frames"]
+    assert "inverse_dynamics" not in {f.name for f in model.functions()}
