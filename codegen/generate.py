@@ -309,6 +309,11 @@ def render_robot(model: RobotModel, description: Path | None = None, backends=("
     if not isinstance(model, KernelSet):
         with stage("rate kinematics"):
             model.rates  # derived on first use (and cached on disk)
+        if getattr(model, "inertials", ()):  # an arm with inertial parameters: its equations of motion
+            with stage("equations of motion"):
+                model.dynamics
+            if model.dynamics is None and say is not None:
+                say(f"{model.name}: {model.notes.get('dynamics', 'no dynamics kernels')}")
     with stage("common subexpressions of every kernel"):
         context = robot_context(model, describe_origin(model, description), verbose)
     context = dict(context, in_repository=in_repository, backends=tuple(backends))
