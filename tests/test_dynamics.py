@@ -461,3 +461,14 @@ def test_dynamics_past_their_budget_leave_the_kinematics_and_say_why(monkeypatch
     assert "while deriving the equations of motion" in model.notes["dynamics"]
     assert [f.name for f in model.functions()][:2] == ["fk", "frames"]
     assert "inverse_dynamics" not in {f.name for f in model.functions()}
+
+
+def test_latex_prints_a_small_arms_mass_matrix_and_gravity_in_closed_form():
+    """The planar 2R's fragment carries Spong's M22 = m2 lc2^2 + I2 and g2 = m2 lc2 g c12 as printed
+    entries; a seven-joint arm's says its equations are a program instead."""
+    from codegen.backends import latex_backend
+    model = derivations.load(DATA / "planar_2r_masses.toml")
+    (section,) = [s for s in latex_backend.robot_sections(model) if s.key == "dynamics"]
+    assert r"M_{22} &= I_{2} + lc_{2}^{2} m_{2}" in section.body
+    assert r"g_{0} lc_{2} m_{2} c_{12}" in section.body
+    assert not [s for s in latex_backend.robot_sections(derivations.load("planar_2r")) if s.key == "dynamics"]

@@ -610,7 +610,7 @@ def robot_sections(model, citations: dict[str, str] | None = None, width: float 
     w = _Writer(model, MathLayout(printer, width), cites)
     sections = [_params(w), _dh(w), _links(w), _fk(w), _position(w), _jacobian(w), _task_jacobian(w)]
     determinant = jacobian_determinant(model)
-    sections += [_det(w, determinant), _rates(w, determinant), _ik(w), _notes(w)]
+    sections += [_det(w, determinant), _rates(w, determinant), _ik(w), _dynamics(w), _notes(w)]
     sections += _extras(w)
     return [s for s in sections if s is not None]
 
@@ -1037,6 +1037,53 @@ def _condition_rows(w: _Writer, condition) -> list[str]:
     return w.layout.fitted_rows(w.layout.tex(lhs), rhs, relation=relation)
 
 
+# The mass matrix and gravity vector are printed in closed form for arms of at most this many
+# joints whose entries, the program's steps put in and expanded, stay at most DYNAMICS_MAX_OPS
+# operations each; a larger arm's equations are programs of hundreds of steps.
+DYNAMICS_MAX_JOINTS = 3
+DYNAMICS_MAX_OPS = 60
+
+
+def _dynamics(w: _Writer) -> Section | None:
+    """The inertial parameters, gravity, and (for a small arm) M(q) and g(q) in closed form."""
+    m = w.model
+    if not getattr(m, "inertials", ()):
+        return None
+    tex = w.layout.tex
+    rows = []
+    for k, inertial in enumerate(m.inertials, start=1):
+        com = ", ".join(tex(c) for c in inertial.com)
+        tensor = ", ".join(tex(c) for c in inertial.inertia)
+        rows.append(f"{k} & ${tex(inertial.mass)}$ & $({com})$ & $({tensor})$ \\\\")
+    text = (r"Equations of motion $M(q)\,\ddot q + C(q, \dot q)\,\dot q + g(q) = \tau$ by recursive "
+            r"Newton--Euler, $M$ by composite rigid bodies, $C$ from the Christoffel symbols (docs/dynamics.md). "
+            r"Each link's mass, centre of mass (frame $k$) and inertia about it "
+            r"$(I_{xx}, I_{xy}, I_{xz}, I_{yy}, I_{yz}, I_{zz})$:" "\n"
+            "\\begin{center}\n\\begin{tabular}{llll}\n"
+            r"link & mass & centre of mass & inertia \\ \hline" "\n" + "\n".join(rows)
+            + "\n\\end{tabular}\n\\end{center}\n"
+            + f"Gravity in the base frame: $({', '.join(tex(e) for e in m.gravity)})$.\n")
+    dynamics = m.dynamics
+    if dynamics is None:
+        return Section("dynamics", "Dynamics", text + escape_text(m.notes.get("dynamics", "")) + "\n")
+    if m.n > DYNAMICS_MAX_JOINTS:
+        return Section("dynamics", "Dynamics", text + f"The equations are a straight-line program of "
+                       f"{len(dynamics.program)} steps (not printed in closed form past {DYNAMICS_MAX_JOINTS} joints).\n")
+    from derivations.program import inline
+
+    def closed(e):
+        return sp.factor_terms(sp.trigsimp(sp.expand(inline(dynamics.program, e))))
+    M = sp.Matrix(m.n, m.n, lambda i, j: closed(dynamics.mass_matrix[i, j]) if i <= j else 0)
+    M = sp.Matrix(m.n, m.n, lambda i, j: M[min(i, j), max(i, j)])
+    g = sp.Matrix([closed(e) for e in dynamics.gravity])
+    if max(sp.count_ops(e) for e in list(M) + list(g)) > DYNAMICS_MAX_OPS:
+        return Section("dynamics", "Dynamics", text + "Their entries in closed form pass "
+                       f"{DYNAMICS_MAX_OPS} operations each and are not printed.\n")
+    body = w.matrix_equation("M(q)", M, key="mass_matrix", entry="M_{{{ij}}}") + "\n"
+    body += w.matrix_equation("g(q)", g, key="gravity", entry="g_{{{ij}}}") + "\n"
+    return Section("dynamics", "Dynamics", text + body)
+
+
 def _notes(w: _Writer) -> Section | None:
     notes = {k: v for k, v in w.model.notes.items() if not k.startswith("cite_")}
     if not notes:
@@ -1048,7 +1095,8 @@ def _notes(w: _Writer) -> Section | None:
 # --------------------------------------------------------------------------- extras
 
 # What a model carries for the verifier, not the reader: never printed.
-_NOT_PRINTED = {"sample_ranges", "program"}  # a program is printed as its product (see _fk)
+_NOT_PRINTED = {"sample_ranges", "program",  # a program is printed as its product (see _fk)
+                "inertials", "gravity"}  # printed by _dynamics
 
 
 def _extras(w: _Writer) -> list[Section]:
