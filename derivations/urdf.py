@@ -440,14 +440,16 @@ class _Chain:
                 inertial = self._inertial(self.inertial_elements[link], link)
                 if inertial is not None:
                     found = True
-                    parts.append(self._link_inertial(link, inertial, placement))
+                    with np.errstate(over="ignore", invalid="ignore"):  # a sum past a double: refused below
+                        parts.append(self._link_inertial(link, inertial, placement))
                 for child in below.get(link, []):
                     if child.child in chain_children:
                         continue
                     if child.type in MOVING:
                         held.append(child.name)
                     stack.append((child.child, placement @ self._float_origin(child)))
-            bodies.append(combine(parts) if parts else (0.0, np.zeros(3), np.zeros((3, 3))))
+            with np.errstate(over="ignore", invalid="ignore"):  # an overflow is refused below
+                bodies.append(combine(parts) if parts else (0.0, np.zeros(3), np.zeros((3, 3))))
         del self.snapped[mark:]
         if not found:
             return (), ""
@@ -457,7 +459,11 @@ class _Chain:
         after = joints[-1].after
         if after is not None:  # the last body in the tip link's frame: x_body = R x_tip + p
             A = np.array(sp.Matrix(after).evalf(30).tolist(), dtype=float)
-            bodies[-1] = transformed(*bodies[-1], A[:3, :3].T, -A[:3, :3].T @ A[:3, 3])
+            with np.errstate(over="ignore", invalid="ignore"):
+                bodies[-1] = transformed(*bodies[-1], A[:3, :3].T, -A[:3, :3].T @ A[:3, 3])
+        for joint, body in zip(moving, bodies):  # each part finite, their sum past a double
+            if not all(np.all(np.isfinite(x)) for x in body):
+                self.fail(f"link {joint.child!r}: inertial: the links it carries sum to more than a double holds")
         note = (f"dynamics: joints off the chain held at zero and their links folded into the chain's "
                 f"bodies: {', '.join(held)}" if held else "")
         return tuple(Inertial.from_numbers(*body) for body in bodies), note

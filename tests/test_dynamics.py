@@ -472,3 +472,9 @@ def test_latex_prints_a_small_arms_mass_matrix_and_gravity_in_closed_form():
     assert r"M_{22} &= I_{2} + lc_{2}^{2} m_{2}" in section.body
     assert r"g_{0} lc_{2} m_{2} c_{12}" in section.body
     assert not [s for s in latex_backend.robot_sections(derivations.load("planar_2r")) if s.key == "dynamics"]
+
+
+def test_urdf_inertials_whose_sum_overflows_are_refused():
+    huge = FLANGE.replace('xyz="0.05 0 0"', 'xyz="1e200 0 0"').replace('value="2"', 'value="1e200"')
+    with pytest.raises(DescriptionError, match="link 'arm': inertial: .*more than a double"):
+        parse_urdf(URDF.format(arm=ARM, flange=huge), "huge.urdf", tip="arm")
