@@ -49,7 +49,7 @@ def as_batch(value, size, function, name, finite=True):
 
 # The largest free joint value ik takes (rad or m): past it, the double's rounding of the angle
 # moves the answer by more than ik's own tolerance (free = 1e16 marked wrong branches valid).
-FREE_LIMIT = 1e4
+FREE_LIMIT = 1e4  # robot_point.c.j2 writes the same bound
 
 
 def as_free(value, function):
