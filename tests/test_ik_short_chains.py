@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import derivations  # noqa: E402
 from test_auto_ik import COMPARE, MODULES  # noqa: E402
 from test_urdf_zoo import snapped_numbers  # noqa: E402
-from test_zoo import ARMS, fk as dh_fk, link_frames, read_arm  # noqa: E402
+from test_zoo import ARMS, fk as dh_fk, link_frames, read_arm, wrist_geometry  # noqa: E402
 from urdf_zoo import ZOO, XmlChain  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -302,6 +302,11 @@ def _dh_case(name, task, title, family, branches, approach_singular=None):
         singular = np.abs(np.cross(dh_axes(arm, q)[:, axis], dh_fk(arm, q)[..., :3, 2])).max(axis=-1) < SINGULAR
         mask = np.zeros(q.shape, bool)
         mask[np.ix_(singular, joints)] = True
+        if axis == 3:  # a spherical wrist: with its centre on axis 1, q1 is free and q4, q5 follow it
+            z1, o1, centre = wrist_geometry(arm, q, 3)
+            offset = centre - o1
+            across = offset - z1 * np.sum(offset * z1, axis=-1, keepdims=True)
+            mask[np.ix_(np.linalg.norm(across, axis=-1) <= SINGULAR, [0, 3, 4])] = True
         return mask
     return Case(title, arm.path.read_text().splitlines()[1].lstrip("# "), family, branches,
                 (arm.path, {"task": task}), arm.types, target, free=5 if "approach" in task else None,
@@ -364,8 +369,9 @@ def _spindle_case():
 
 # The real arms of this file, with the task each reaches in full.  At the approach families' singular
 # configurations the solutions form a continuum: with the approach along axis 4 (a spherical wrist at
-# q5 = 0 or pi) q4 turns the tool about it; with the approach along the parallel axes 2 to 4 (a UR)
-# their turns trade against each other.  There "missing" asks only for the other joints.
+# q5 = 0 or pi) q4 turns the tool about it, and with the wrist centre on axis 1 q1 turns it all
+# (q4 and q5 following); with the approach along the parallel axes 2 to 4 (a UR) their turns trade
+# against each other.  There "missing" asks only for the other joints.
 CASES = {
     "al5d_dh": _dh_case("lynxmotion_al5d", "x,y,z,pitch", "Lynxmotion AL5D (DH)", "position and pitch", 4),
     "al5d_urdf": _urdf_case("al5d", "x,y,z,pitch", "Lynxmotion AL5D (URDF)", "position and pitch"),
@@ -377,6 +383,8 @@ CASES = {
                              approach_singular=([1, 2, 3], 1)),
     "kr5_approach": _dh_case("kuka_kr5", "x,y,z,approach", "KUKA KR5, approach", "position and approach, joint 6 free",
                              8, approach_singular=([3], 3)),
+    "fanuc_approach": _dh_case("fanuc_lrmate200ic", "x,y,z,approach", "Fanuc LR Mate 200iC, approach",
+                               "position and approach, joint 6 free", 8, approach_singular=([3], 3)),
 }
 
 
