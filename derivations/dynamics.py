@@ -37,12 +37,12 @@ The kernels are passes of the same recursion with some inputs zero (the zeros fo
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import sympy as sp
 
-from .chain import PRISMATIC, REVOLUTE, axis_motion, dh_modified, dh_standard
-from .program import Program, needed
+from .chain import REVOLUTE, axis_motion, dh_modified, dh_standard
+from .program import Program
 
 __all__ = ["Dynamics", "dynamics", "derive_dynamics", "DYNAMICS_BUDGET", "link_geometry", "origin_parameters",
            "TAU_PREFIX", "WRENCH_NAMES", "PARAMETER_NAMES", "standard_parameters", "base_parameters",
@@ -78,7 +78,7 @@ def _rotation_translation(T):
     return T[:3, :3], T[:3, 3]
 
 
-def link_geometry(chain, k: int, qk):
+def link_geometry(chain, k: int):
     """Joint k's link transform split as ``before * motion(q_k) * after`` (each 4 x 4; before and
     after constant): returns (before, axis, after) with the motion about / along ``axis``."""
     j = chain.joints[k]
@@ -150,7 +150,7 @@ class _Recursion:
         self.axes, self.constant, self.bodies, self.afters = [], [], [], []
         previous_after = sp.Matrix(chain.base)
         for k in range(self.n):
-            before, axis, after = link_geometry(chain, k, model.q[k])
+            before, axis, after = link_geometry(chain, k)
             self.constant.append(_rotation_translation(previous_after * before))  # J_{k-1} -> before motion
             self.axes.append(sp.Matrix(axis))
             self.bodies.append(origin_parameters(model.inertials[k], after))
@@ -194,10 +194,9 @@ class _Recursion:
         _, tm = self.motion(k)
         return list(pc + Rc * tm)
 
-    def torques(self, tag: str, qd, qdd, gravity: bool, first: int = 0, bodies=None) -> list:
+    def torques(self, tag: str, qd, qdd, gravity: bool, bodies=None) -> list:
         """tau of the pass ``tag`` (names its steps) at joint rates ``qd``, accelerations ``qdd``
-        (expressions or numbers), with or without gravity; joints before ``first`` are not
-        computed (their torques come back None); ``bodies`` replaces the links' (m, h, I_o)."""
+        (expressions or numbers), with or without gravity; ``bodies`` replaces the links' (m, h, I_o)."""
         n = self.n
         bodies = self.bodies if bodies is None else bodies
         zero = [sp.S.Zero] * 3
@@ -231,7 +230,7 @@ class _Recursion:
             w, wd, a = w_k, wd_k, a_k
         tau = [None] * n
         f, nn = zero, zero
-        for k in reversed(range(first, n)):
+        for k in reversed(range(n)):
             F, N = frames[k]
             if k + 1 < n:
                 Rf = self.to_parent(k + 1, f, f"_{tag}Rf{k + 2}")
@@ -329,7 +328,7 @@ def regressor(recursion: "_Recursion", qd, qdd) -> sp.Matrix:
             bodies = [zero] * n
             bodies[k] = _unit_body(i, recursion.afters[k])
             tau = recursion.torques(f"y{k + 1}{name}_", qd, qdd, True, bodies=bodies)
-            columns.append([sp.S.Zero if t is None else t for t in tau])
+            columns.append(tau)
     return sp.Matrix(n, 10 * n, lambda r, c: columns[c][r])
 
 
