@@ -26,7 +26,9 @@
 #                   chains and of 4- to 6-joint arms' tasks, 10,000 + 1,000 configurations in both
 #                   backends (benchmarks/short_chains.md; in .venv, as it reads the tests' helpers),
 #                   then ik_numeric in C and numpy against the Toolbox's ik_LM on the Panda and the
-#                   Jaco, and ik of one 4x4 pose against the 12-vector (benchmarks/numeric_ik.md)
+#                   Jaco, and ik of one 4x4 pose against the 12-vector (benchmarks/numeric_ik.md),
+#                   then the general 6R's every real solution of the Jaco, 10,000 + 1,000 poses in
+#                   both backends, against the Toolbox's Raghavan-Roth and ik_LM (benchmarks/general_6r.md)
 #   make clean      remove the virtual environment, caches and built libraries
 
 PYTHON ?= python3
@@ -170,6 +172,7 @@ bench: $(BENCH_STAMP) $(STAMP)
 	$(BENCH_PY) benchmarks/refusals.py
 	$(PY) benchmarks/short_chains.py
 	$(BENCH_PY) benchmarks/numeric_ik.py
+	$(BENCH_PY) benchmarks/general_6r.py
 
 clean:
 	rm -rf $(VENV) $(BENCH_VENV) .cache build *.egg-info

@@ -228,8 +228,14 @@ def _show(args, say) -> int:
         if not model.ik:
             if model.chain is None:
                 raise InputError(f"{model.name} has no inverse kinematics (it is not one serial chain)")
-            print(f"method: numeric (ik_numeric from {gen.SEED_COUNT} fixed seeds: every answer exact to 1e-12, "
-                  "not every answer guaranteed)")
+            from derivations.ik.general_6r import applies as general_6r
+            if general_6r(model):
+                print("method: general 6R (every real solution, up to 16: Raghavan and Roth's 14 equations in "
+                      "Manocha and Canny's matrix form, a 24 x 24 eigenproblem per pose, each root polished by "
+                      "Newton on the arm's fk; docs/ik.md)")
+            else:
+                print(f"method: numeric (ik_numeric from {gen.SEED_COUNT} fixed seeds: every answer exact to 1e-12, "
+                      "not every answer guaranteed)")
             print(f"no closed form: {model.ik_unsupported}")
             return 0
         if model.ik_plan:  # decomposed (derivations.ik.decompose): the plan, then each branch's root choices

@@ -25,6 +25,7 @@ import derivations
 from derivations.budget import stage as budget_stage
 from derivations.description import read_description
 from derivations.ik import UNIT_SNAP
+from derivations.ik.general_6r import equations_function
 from derivations.kernelset import KernelSet
 from derivations.model import POSE_NAMES, REVOLUTE, RobotModel
 
@@ -237,6 +238,7 @@ def robot_context(model: RobotModel, origin: str, verbose: bool = False) -> dict
         "joints": list(getattr(model, "joint_labels", ())), "joint_types": list(model.joint_types),
         "frame_names": list(getattr(model, "frame_labels", ())),
         "ik_method": ik_method(model), "seeded_ik": seeded_ik(model), "seed_count": SEED_COUNT,
+        "general_6r": general_6r(model), "general_6r_slots": GENERAL_6R_SLOTS,
         "ik_unsupported": safe_text(getattr(model, "ik_unsupported", "")),
         "task": list(model.task_names), "branches": [b.name for b in model.ik],
         "ik_ranges": safe_text(getattr(model, "ik_ranges", "")),  # a kernel set has no ik
@@ -260,12 +262,23 @@ def robot_context(model: RobotModel, origin: str, verbose: bool = False) -> dict
 # The seeds of ik for an arm with no closed form (the runtime's seeds(): a Kronecker sequence in the
 # joint limits): each gives at most one solution; a 6R has at most 16.
 SEED_COUNT = 16
+# The answers of a general 6R's ik: at most 16 real solutions (Raghavan and Roth 1993).
+GENERAL_6R_SLOTS = 16
 
 
 def seeded_ik(model) -> bool:
     """Whether the package's ik is the numeric solver from fixed seeds: a robot chain with no closed
     form (a kernel set, or a robot built in Python without a chain, has no ik at all)."""
-    return isinstance(model, RobotModel) and model.chain is not None and not model.ik
+    return isinstance(model, RobotModel) and model.chain is not None and not model.ik and not general_6r(model)
+
+
+def general_6r(model) -> dict | None:
+    """The layout of a general 6R's ik (derivations.ik.general_6r: loop order, signs, shifts and
+    offsets), or None where the arm is not one."""
+    if not isinstance(model, RobotModel):
+        return None
+    found = equations_function(model)
+    return found[1] if found else None
 
 
 def ik_method(model) -> str:
@@ -277,6 +290,8 @@ def ik_method(model) -> str:
         return model.ik_plan[0].removeprefix("family: ")
     if model.ik:
         return "closed form (the paper's)"
+    if general_6r(model):
+        return "general 6R"
     return "numeric" if model.chain is not None else ""
 
 
@@ -322,6 +337,8 @@ def render_robot(model: RobotModel, description: Path | None = None, backends=("
         "__init__.py": TEMPLATES.get_template(init).render(context),
         "_runtime.py": TEMPLATES.get_template("runtime.py.j2").render(context),
     }
+    if context["general_6r"]:  # the eigen-solve and Newton polish of a general 6R's ik, both backends
+        files["_general_6r.py"] = TEMPLATES.get_template("general_6r.py.j2").render(context)
     for backend in backends:
         with stage(f"{backend} kernels"):
             files.update(BACKENDS[backend].render(context))

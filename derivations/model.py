@@ -407,8 +407,11 @@ class RobotModel:
             SymbolicFunction("task_jacobian", (q,), (Output.from_matrix("Jx", self.task_jacobian),),
                              f"d task / d q, shape (..., {m}, {n})."),
         ], self.program)
-        return kinematics + ([self.ik_function()] if self.ik else []) + self.rate_functions() + \
-            self.dynamics_functions()
+        # A general 6R (derivations.ik.general_6r): the closed-form equations its ik solves numerically.
+        from .ik.general_6r import equations_function
+        general = equations_function(self)
+        return kinematics + ([self.ik_function()] if self.ik else []) + ([general[0]] if general else []) + \
+            self.rate_functions() + self.dynamics_functions()
 
     def ik_function(self) -> SymbolicFunction:
         """The ``ik`` kernel: every branch of ``self.ik`` at once.

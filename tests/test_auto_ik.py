@@ -247,7 +247,7 @@ def test_kinegen_show_prints_the_decomposition(tmp_path):
     run = subprocess.run([sys.executable, "-m", "codegen", "--quiet", "show", str(arms / "kinova_jaco.toml"),
                           "--what", "ik"], capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert run.returncode == 0, run.stderr
-    assert run.stdout.startswith("method: numeric (ik_numeric from 16 fixed seeds")
+    assert run.stdout.startswith("method: general 6R (every real solution, up to 16")
     assert "no closed form: no three consecutive axes meet in a point" in run.stdout
 
 

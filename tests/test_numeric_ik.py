@@ -51,16 +51,17 @@ def test_ik_numeric_converges_from_a_seed_near_a_solution(name, backend, generat
 
 @pytest.mark.parametrize("backend", ["numpy", "c"])
 def test_ik_of_an_arm_without_closed_form_finds_solutions_from_its_seeds(backend, generated_root):
-    """The Kinova Jaco (a general 6R): ik runs ik_numeric from 16 fixed seeds.  On 200 random
-    reachable poses: every valid answer reaches its pose, distinct answers are distinct
-    configurations, and at least one answer exists on at least 99 % of the poses."""
-    arm = ARMS["kinova_jaco"]
-    k = generated_package("kinova_jaco", generated_root).load(backend)
+    """The Franka Panda (seven joints, no six-joint remainder in a family): ik runs ik_numeric from
+    16 fixed seeds.  On 200 random reachable poses: every valid answer reaches its pose, distinct
+    answers are distinct configurations, and at least one answer exists on at least 99 % of the
+    poses.  (The Kinova Jaco, a general 6R, has every real solution instead: test_general_6r.py.)"""
+    arm = ARMS["franka_panda"]
+    k = generated_package("franka_panda", generated_root).load(backend)
     assert k.IK_METHOD == "numeric" and len(k.BRANCHES) == 16
     q = configurations(arm, 200)
     target = fk(arm, q)
     Q, valid = k.ik(target)
-    assert Q.shape == (200, 16, 6) and valid.shape == (200, 16)
+    assert Q.shape == (200, 16, 7) and valid.shape == (200, 16)
     reached = np.abs(fk(arm, Q) - target[:, None]).max(axis=(-2, -1))
     assert reached[valid].max() < REACHED
     assert valid.any(axis=1).mean() >= 0.99
@@ -76,7 +77,8 @@ def test_ik_method_names_how_each_package_solves(generated_root):
     assert generated.load("puma560").IK_METHOD == "closed form (the paper's)"
     assert generated_package("kuka_kr5", generated_root).IK_METHOD == "spherical wrist"
     assert generated_package("kuka_lwr4", generated_root).IK_METHOD == "spherical wrist, joint 3 free"
-    assert generated_package("kinova_jaco", generated_root).IK_METHOD == "numeric"
+    assert generated_package("kinova_jaco", generated_root).IK_METHOD == "general 6R"
+    assert generated_package("franka_panda", generated_root).IK_METHOD == "numeric"
 
 
 def test_a_urdf_package_names_its_joints_and_frames_as_the_file_does(urdf_root):
@@ -136,10 +138,10 @@ def test_c_ik_numeric_reaches_the_target_and_agrees_with_numpy(name, generated_r
 
 
 def test_c_ik_numeric_and_the_seeded_ik_do_not_use_the_numpy_solver(generated_root, monkeypatch):
-    """On the C backend both ik_numeric and the Jaco's ik from seeds solve in C: with the numpy solver
+    """On the C backend both ik_numeric and the Panda's ik from seeds solve in C: with the numpy solver
     made to fail, they still answer, and their answers reach the targets (the test's own fk)."""
-    arm = ARMS["kinova_jaco"]
-    c = generated_package("kinova_jaco", generated_root).load("c")
+    arm = ARMS["franka_panda"]
+    c = generated_package("franka_panda", generated_root).load("c")
 
     def refuse(*args, **kwargs):
         raise AssertionError("the numpy solver was called")
