@@ -683,7 +683,7 @@ def _position_approach(arm: _Arm, o, L) -> list[_Steps]:
                 s5 = s.fork()
                 s5.choose("wrist", root5, 5)
                 s5.joint(arm.q[4], root5.value)
-                f = s5.vector("f", arm.turn(4, d0))
+                f = s5.vector("r5", arm.turn(4, d0))
                 s5.joint(arm.q[3], angle_onto(a4.h, f, v))
                 out.append(s5)
         return out
@@ -707,7 +707,7 @@ def _position_approach(arm: _Arm, o, L) -> list[_Steps]:
             s5 = s1.fork()
             s5.choose("wrist", root5, 5)
             s5.joint(arm.q[4], root5.value)
-            f = s5.vector("f", arm.turn(4, d0))
+            f = s5.vector("r5", arm.turn(4, d0))
             regular = angle_onto(a2.h, f, u1)
             # free theta: |c1 - p2 - Rot(h2, theta) (o - p4)|^2 = S + P cos + Q sin, put at the reach's centre
             P, Q, Sd = distance_coefficients(a2.h, c1 - a2.p, -(o - a4.p).applyfunc(tidy))
