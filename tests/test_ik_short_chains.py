@@ -383,6 +383,8 @@ CASES = {
                              approach_singular=([1, 2, 3], 1)),
     "kr5_approach": _dh_case("kuka_kr5", "x,y,z,approach", "KUKA KR5, approach", "position and approach, joint 6 free",
                              8, approach_singular=([3], 3)),
+    "stanford_approach": _dh_case("stanford_arm", "x,y,z,approach", "Stanford arm, approach",
+                                  "position and approach, joint 6 free", 8, approach_singular=([3], 3)),
     "fanuc_approach": _dh_case("fanuc_lrmate200ic", "x,y,z,approach", "Fanuc LR Mate 200iC, approach",
                                "position and approach, joint 6 free", 8, approach_singular=([3], 3)),
 }
@@ -396,6 +398,7 @@ def test_real_arms_with_the_task_they_reach_in_full(name):
     model = case.model()
     assert model.ik_plan[0] == f"family: {case.family}" and len(model.ik) == case.branches
     assert model.ik_free == case.free
+    assert model.ik_function().name == "ik"  # the kernel's program: every step of a branch named once
     q = configurations(case.types, case.limits, zlib.crc32(name.encode()))
     result, worst = counts(model, q, case.target, free=case.free, free_joints=case.free_joints)
     assert result == {"wrong": 0, "no solution": 0, "missing": 0}, (result, worst)
