@@ -71,6 +71,7 @@ class Dynamics:
     forward_dynamics: tuple
     program: tuple
     functions: tuple
+    note: str = ""  # what the arm lacks (forward_dynamics where M is singular), for model.notes
 
 
 def _rotation_translation(T):
@@ -415,8 +416,12 @@ def derive_dynamics(model) -> Dynamics:
         M_dot = sp.Matrix(n, n, lambda i, j: M_dot[max(i, j), min(i, j)])
         A = sp.Matrix(n, n, lambda i, j: program.derivative(momentum[i], model.q[j]))
         C = sp.Matrix(n, n, lambda i, j: program.define(f"_C{i + 1}_{j + 1}", (M_dot[i, j] + A[i, j] - A[j, i]) / 2))
-    with stage("deriving the equations of motion: Cholesky solve of M"):
-        qdd_solved = _cholesky_solve(program, M, [t - b for t, b in zip(tau, bias)])
+    singular = singular_mass_matrix(model, program, M)
+    if singular is None:
+        with stage("deriving the equations of motion: Cholesky solve of M"):
+            qdd_solved = _cholesky_solve(program, M, [t - b for t, b in zip(tau, bias)])
+    else:  # no forward dynamics: the note says why
+        qdd_solved = ()
     with stage("deriving the equations of motion: the regressor"):
         Y = regressor(recursion, qd, qdd)
     J = model.jacobian
@@ -450,13 +455,39 @@ def derive_dynamics(model) -> Dynamics:
         SymbolicFunction("forward_dynamics", (qa, qda, taua), (Output("qdd", tuple(qdd_solved), (n,)),),
                          f"Joint accelerations M^-1 (tau - C qd - g) (Cholesky L D L^T of M), shape (..., {n})."),
     ]
+    if singular is not None:
+        functions = [f for f in functions if f.name != "forward_dynamics"]
     functions = with_program(functions, tuple(program.steps))
     functions += with_program([SymbolicFunction(
         "static_torques", (qa, wrencha), (Output("tau", tuple(static), (n,)),),
         f"Joint torques J(q)^T wrench that hold the wrench [f; n] (base frame, at the tool point), "
         f"shape (..., {n}).")], tuple(model.program))
     return Dynamics(qd, qdd, tau, wrench, tuple(inverse), tuple(gravity), tuple(bias_c), M, C,
-                    tuple(qdd_solved), tuple(program.steps), tuple(functions))
+                    tuple(qdd_solved), tuple(program.steps), tuple(functions),
+                    note="" if singular is None else f"no forward_dynamics: {singular}")
+
+
+def singular_mass_matrix(model, program: Program, M: sp.Matrix, samples: int = 3) -> str | None:
+    """Why M(q) is singular (a joint that moves no mass about its axis: a URDF of point masses on the
+    axes, as the Lynxmotion AL5D's), or None where it is positive definite at ``samples`` random
+    configurations with the default parameters (a 30-digit evaluation of the program)."""
+    import random
+
+    from .program import evaluate
+    rng = random.Random(30)
+    defaults = {s: sp.Rational(repr(v)) for s, v in model.params.items()}
+    n = M.rows
+    for _ in range(samples):
+        point = dict(defaults)
+        point.update({q: sp.Rational(repr(rng.uniform(-1.5, 1.5))) for q in model.q})
+        values = evaluate(program.steps, list(M), point)
+        matrix = sp.Matrix(n, n, [sp.Float(v, 30) for v in values])
+        scale = max(abs(v) for v in matrix) or sp.S.One
+        for j in range(n):  # the leading minors' ratios: the pivots of M = L D L^T
+            if matrix[:j + 1, :j + 1].det() <= sp.Float("1e-20") * scale * (matrix[:j, :j].det() if j else 1):
+                return (f"the mass matrix is singular: joint {j + 1} ({model.joint_labels[j]}) moves no inertia "
+                        "independently of the joints before it (point masses on its axis?)")
+    return None
 
 
 def _cholesky_solve(program: Program, M: sp.Matrix, rhs) -> list:
@@ -506,5 +537,7 @@ def dynamics(model) -> Dynamics | None:
         model.notes["dynamics"] = f"no dynamics kernels: {error}"
         degraded(model.notes["dynamics"])
         result = None
+    if result is not None and result.note:
+        model.notes["dynamics"] = result.note
     model.__dict__["_dynamics"] = result
     return result

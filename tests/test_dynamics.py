@@ -478,3 +478,12 @@ def test_urdf_inertials_whose_sum_overflows_are_refused():
     huge = FLANGE.replace('xyz="0.05 0 0"', 'xyz="1e200 0 0"').replace('value="2"', 'value="1e200"')
     with pytest.raises(DescriptionError, match="link 'arm': inertial: .*more than a double"):
         parse_urdf(URDF.format(arm=ARM, flange=huge), "huge.urdf", tip="arm")
+
+
+def test_a_singular_mass_matrix_gets_no_forward_dynamics_and_a_note_why():
+    """The Lynxmotion AL5D's URDF gives each link a point mass at its frame's origin: the last one
+    lies on joint 4's axis, which then moves no inertia (M singular everywhere): no forward_dynamics."""
+    model = derivations.load(ROOT / "tests" / "data" / "urdf" / "zoo" / "al5d_robot.urdf", base="base", tip="link4")
+    names = {f.name for f in model.functions()}
+    assert "forward_dynamics" not in names and "inverse_dynamics" in names
+    assert "joint 4 (j4) moves no inertia" in model.notes["dynamics"]
