@@ -136,6 +136,11 @@ def main() -> int:
             "stanford_rrp": position_case("stanford_rrp", t.STANFORD, "Stanford arm, joints 1-3 (R R P)",
                                           "Paul, Stanford AIM-177, Fig. 2.3", 4, folder),
             **t.CASES,
+            # the other six-joint arms of the zoo with x, y, z, approach (joint 6 free), in the bench only
+            **{f"{name}_approach": t._dh_case(name, "x,y,z,approach", f"{title}, approach",
+                                               "position and approach, joint 6 free", 8,
+                                               approach_singular=([1, 2, 3], 1) if name.startswith("ur") else ([3], 3))
+               for name, title in (("abb_irb140", "ABB IRB 140"), ("meca500", "Meca500"), ("ur10", "UR10"))},
         }
         for name, case in cases.items():
             times = cold(case)
