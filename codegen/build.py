@@ -95,7 +95,7 @@ def _build_key(package: Path, name: str, script, fast: bool) -> str:
 def _compile_flags(script, fast: bool) -> list[str]:
     """``script.compile_flags(fast)``, its probe run once per process for each distinct build script setting."""
     key = (tuple(script.CFLAGS), tuple(script.FAST_CFLAGS), script.PROBE, tuple(script.compiler()),
-           os.environ.get("KINEGEN_PORTABLE", ""), fast)
+           os.environ.get("KINEGEN_PORTABLE", ""), os.environ.get("KINEGEN_OPT", ""), fast)
     if key not in _FLAGS:
         _FLAGS[key] = list(script.compile_flags(fast))
     return _FLAGS[key]

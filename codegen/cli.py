@@ -296,6 +296,7 @@ def _table(rows) -> str:
 
 
 def cmd_generate(args, say) -> int:
+    gen.check_opt_level()
     backends = args.backend
     if args.out is not None or any(_is_file(t) for t in args.robots):
         if len(args.robots) != 1:
@@ -343,6 +344,7 @@ def cmd_generate(args, say) -> int:
 
 
 def cmd_build(args, say) -> int:
+    gen.check_opt_level()
     names = _registered(args.robots)
     jobs = gen.default_jobs()
     say(f"building {len(names)} C extension(s) in {min(jobs, len(names))} process(es), the largest first; "

@@ -408,6 +408,18 @@ def _joint_count(name: str) -> int:
     return len(read_description(path).joints)
 
 
+OPT_LEVELS = ("-O0", "-O1", "-O2", "-O3", "-Os")  # as each package's build_c.py takes them
+
+
+def check_opt_level() -> None:
+    """``$KINEGEN_OPT``, the portable build's optimisation level (build_c.py reads it), checked
+    before any work: one of OPT_LEVELS, or unset."""
+    level = os.environ.get("KINEGEN_OPT")
+    if level and level not in OPT_LEVELS:
+        raise SettingError(f"KINEGEN_OPT must be one of {', '.join(OPT_LEVELS)} (or unset: -O2), "
+                           f"got {terminal_text(level, 40)}")
+
+
 def default_jobs() -> int:
     """Worker processes for render_tree: ``$KINEGEN_JOBS``, else the CPUs this process may use."""
     env = os.environ.get("KINEGEN_JOBS")

@@ -87,10 +87,11 @@ def test_adept_three_defaults_of_zero_are_not_taken_by_false():
         k.fk(np.zeros(4), d4=False)
 
 
-def test_the_built_library_uses_the_fast_flags_only_when_asked_and_they_work():
+def test_the_built_library_uses_the_fast_flags_only_when_asked_and_they_work(monkeypatch):
     """Portable C99 -O2 by default (a package that runs on any CPU of its kind, compiled in seconds);
     the vectorised layout for this machine when asked (`make build`, `generate --fast`), unless
     KINEGEN_PORTABLE=1 says otherwise."""
+    monkeypatch.delenv("KINEGEN_OPT", raising=False)  # make test's -O0
     script = build.load_build_script(generate.GENERATED / "puma560")
     assert script.compile_flags() == ["-std=c99", "-O2"]
     flags = script.compile_flags(fast=True)
@@ -102,6 +103,27 @@ def test_the_built_library_uses_the_fast_flags_only_when_asked_and_they_work():
             cwd=generate.GENERATED / "puma560", capture_output=True, text=True, check=True,
             env={**env, "PATH": "/usr/bin:/bin"})
         assert portable.stdout.strip() == "['-std=c99', '-O2']"
+
+
+def test_kinegen_opt_sets_the_portable_level_and_a_bad_one_is_refused_before_work(monkeypatch, tmp_path, capsys):
+    """KINEGEN_OPT (make test's -O0) sets the level of the portable build and of the binding, not
+    of the vectorised one (its -O3 comes last); anything but -O0..-O3/-Os is refused: by
+    build_c.py itself, and by `kinegen generate` and `build` at once, exit 2, nothing written."""
+    script = build.load_build_script(generate.GENERATED / "planar_2r")
+    monkeypatch.setenv("KINEGEN_OPT", "-O1")
+    assert script.compile_flags(fast=False) == ["-std=c99", "-O1"] and script.binding_flags() == ["-O1", "-g0"]
+    fast = script.compile_flags(fast=True)
+    assert fast == ["-std=c99", "-O1"] or fast[:3] == ["-std=c99", "-O2", "-O3"]  # (no SIMD here: portable)
+    monkeypatch.setenv("KINEGEN_OPT", "-O9 -fplugin=x.so")
+    with pytest.raises(ValueError, match="KINEGEN_OPT='-O9 -fplugin=x.so': expected one of -O0, -O1, -O2, -O3, -Os"):
+        script.compile_flags(fast=False)
+    from codegen.cli import main
+    description = tmp_path / "arm.toml"
+    description.write_text('name = "arm"\n[[joint]]\ntype = "R"\na = 1\n')
+    for argv in (["generate", str(description), "--out", str(tmp_path / "pkg")], ["build", "planar_2r"]):
+        assert main(["--quiet", *argv]) == 2
+        assert "KINEGEN_OPT must be one of -O0, -O1, -O2, -O3, -Os" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["arm.toml"]
 
 
 def test_numpy_chunks_equal_one_chunk():

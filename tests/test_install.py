@@ -92,8 +92,9 @@ Q = np.random.default_rng(27).uniform(-1.0, 1.0, (5, 3))
 
 
 def environment(**extra):
-    """The environment of a user's shell: no PYTHONPATH, no user site, the derivation cache in ``extra``."""
-    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "KINEGEN_FAST")}
+    """The environment of a user's shell: no PYTHONPATH, no user site, the derivation cache in
+    ``extra``; no KINEGEN_OPT (`make test`'s -O0), so that the default -O2 build is the one tested."""
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "KINEGEN_FAST", "KINEGEN_OPT")}
     return dict(env, PYTHONNOUSERSITE="1", **extra)
 
 

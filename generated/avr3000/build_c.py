@@ -23,6 +23,24 @@ from cffi import FFI
 HERE = pathlib.Path(__file__).resolve().parent
 MODULE = "_avr3000_c"
 CFLAGS = ["-std=c99", "-O2"]
+# KINEGEN_OPT sets the optimisation level of the portable build (CFLAGS and the binding), -O2 when
+# unset: -O0 compiles a large arm several times faster, for a build that is only to be tested
+# (`make test` builds so).  Nothing here is compiled with -ffast-math, so every level computes
+# the same doubles.  The vectorised build (fast) keeps its -O3.
+OPT_LEVELS = ("-O0", "-O1", "-O2", "-O3", "-Os")
+
+
+def opt_level():
+    """The portable build's optimisation level: $KINEGEN_OPT, else -O2."""
+    level = os.environ.get("KINEGEN_OPT") or "-O2"
+    if level not in OPT_LEVELS:
+        raise ValueError(f"KINEGEN_OPT={level[:40]!r}: expected one of {', '.join(OPT_LEVELS)}")
+    return level
+
+
+def portable_flags():
+    """CFLAGS at the level opt_level() gives."""
+    return [flag if not flag.startswith("-O") else opt_level() for flag in CFLAGS]
 # Where the compiler and C library allow: vectorised batch loops (see avr3000.c) with
 # glibc's vector sin/cos, sqrt as an instruction (no errno), code for this machine's CPU.
 # None of these flags changes a result beyond the vector sin/cos (at most 4 ulp, glibc's
@@ -996,7 +1014,8 @@ def compiler():
 
 
 def compile_flags(fast=None):
-    """CFLAGS: portable C99 -O2, the layout that builds fastest and runs on any CPU of this kind.
+    """CFLAGS: portable C99 -O2 (KINEGEN_OPT: another level), the layout that builds fastest and runs
+    on any CPU of this kind.
 
     With ``fast`` (default: the environment variable KINEGEN_FAST=1) also FAST_CFLAGS, if a
     probe program builds and runs with them here: the vectorised batch loops, for this
@@ -1006,7 +1025,7 @@ def compile_flags(fast=None):
     if fast is None:
         fast = os.environ.get("KINEGEN_FAST") == "1"
     if not fast or os.environ.get("KINEGEN_PORTABLE"):
-        return list(CFLAGS)
+        return portable_flags()
     compiler_command = compiler()
     with tempfile.TemporaryDirectory(prefix="kinegen-probe-") as scratch:
         source, program = pathlib.Path(scratch) / "probe.c", pathlib.Path(scratch) / "probe"
@@ -1016,8 +1035,8 @@ def compile_flags(fast=None):
                            check=True, capture_output=True, timeout=60)
             ran = subprocess.run([str(program)], check=True, capture_output=True, text=True, timeout=60)
         except (OSError, subprocess.SubprocessError):
-            return list(CFLAGS)
-    return [*CFLAGS, *FAST_CFLAGS] if ran.stdout.strip() == "1.000000" else list(CFLAGS)
+            return portable_flags()
+    return [*CFLAGS, *FAST_CFLAGS] if ran.stdout.strip() == "1.000000" else portable_flags()
 
 
 SOURCES = ["avr3000.c", "avr3000_point.c"]
@@ -1055,9 +1074,14 @@ def compile_objects(folder, flags=None, warnings=()):
 
 
 # The binding cffi writes (a wrapper per entry point, 0.5 MB of C for the AVR 3000) only
-# converts arguments and calls into the kernels' objects: -O2 and no debug information
-# (after Python's own -O3 -g) halve its compile and change no result.
+# converts arguments and calls into the kernels' objects: -O2 (or KINEGEN_OPT's level) and no
+# debug information (after Python's own -O3 -g) halve its compile and change no result.
 BINDING_FLAGS = ["-O2", "-g0"]
+
+
+def binding_flags():
+    """BINDING_FLAGS at the level opt_level() gives."""
+    return [flag if not flag.startswith("-O") else opt_level() for flag in BINDING_FLAGS]
 
 
 def ffibuilder(flags=None, objects=None):
@@ -1076,7 +1100,7 @@ def ffibuilder(flags=None, objects=None):
         extra_objects=[str(o) for o in objects or []],
         include_dirs=[str(HERE), numpy.get_include()],
         define_macros=[(PYTHON_MODULE, None)],
-        extra_compile_args=flags + BINDING_FLAGS if objects is not None else flags,
+        extra_compile_args=flags + binding_flags() if objects is not None else flags,
         libraries=["m"],
     )
     return ffi
@@ -1117,7 +1141,7 @@ def build(verbose=False, warnings=(), fast=None, target=None):
                 ffi.emit_c_code(str(binding))
             python = ["-I", str(HERE), "-isystem", sysconfig.get_paths()["include"]]
             with concurrent.futures.ThreadPoolExecutor(max_workers=2) as pool:
-                bound = pool.submit(_compile, scratch, binding, [*flags, *BINDING_FLAGS], python)
+                bound = pool.submit(_compile, scratch, binding, [*flags, *binding_flags()], python)
                 objects = compile_objects(scratch, flags, warnings) + [bound.result()]
             command = [*_link_command(), *map(str, objects), "-lm", "-o", str(staging)]
             result = subprocess.run(command, capture_output=True, text=True, env=dict(os.environ, TMPDIR=scratch))
