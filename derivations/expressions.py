@@ -62,12 +62,14 @@ RESERVED = frozenset(
 ) | frozenset(
     # What the generated C declares for itself: kernel outputs (a parameter named J
     # would be redeclared beside jacobian's output J) and the locals of the batch
-    # loops and ik (a parameter named k would be shadowed inside a block, silently).
+    # loops, ik and ik_numeric (a parameter named k would be shadowed inside a block, silently).
     # tests/test_description.py holds this list to what generated/*.c declares.
     """
     T J J_tool Jx Q frames angle argument0 argument1 sine cosine found i k n s inside refused result start stream turn
     valid_branches batch pointer status failed
     tau M g C c Y wrench
+    q0 S v j item iteration step trial blocked converged solved cost cost_trial damping e_trial factor
+    growth left norm predicted rho scale sign size size_trial
     """.split()
 )
 
