@@ -1050,18 +1050,27 @@ def _dynamics(w: _Writer) -> Section | None:
     if not getattr(m, "inertials", ()):
         return None
     tex = w.layout.tex
-    rows = []
+    def cell(value) -> str:  # a number to 4 significant digits (the table's say so), a parameter by name
+        value = sp.sympify(value)
+        if value.is_Number:
+            text = f"{float(value):.4g}"
+            return text if "e" not in text else sp.latex(sp.Float(float(value), 4))
+        return tex(value)
+
+    masses, tensors = [], []
     for k, inertial in enumerate(m.inertials, start=1):
-        com = ", ".join(tex(c) for c in inertial.com)
-        tensor = ", ".join(tex(c) for c in inertial.inertia)
-        rows.append(f"{k} & ${tex(inertial.mass)}$ & $({com})$ & $({tensor})$ \\\\")
+        masses.append(f"{k} & ${cell(inertial.mass)}$ & " + " & ".join(f"${cell(c)}$" for c in inertial.com) + r" \\")
+        tensors.append(f"{k} & " + " & ".join(f"${cell(c)}$" for c in inertial.inertia) + r" \\")
+    # Two tables, a number a column: one row of both in a table ran 178 pt past the page (KR 210).
     text = (r"Equations of motion $M(q)\,\ddot q + C(q, \dot q)\,\dot q + g(q) = \tau$ by recursive "
             r"Newton--Euler, $M$ by composite rigid bodies, $C$ from the Christoffel symbols (docs/dynamics.md). "
-            r"Each link's mass, centre of mass (frame $k$) and inertia about it "
-            r"$(I_{xx}, I_{xy}, I_{xz}, I_{yy}, I_{yz}, I_{zz})$:" "\n"
-            "\\begin{center}\n\\begin{tabular}{llll}\n"
-            r"link & mass & centre of mass & inertia \\ \hline" "\n" + "\n".join(rows)
-            + "\n\\end{tabular}\n\\end{center}\n"
+            r"Each link's mass and centre of mass $c$ (frame $k$), and its inertia about $c$, to four "
+            r"significant digits (the kernels take the description's numbers):" "\n"
+            "\\begin{center}\\small\n\\begin{tabular}{lllll}\n"
+            r"link & mass & $c_x$ & $c_y$ & $c_z$ \\ \hline" "\n" + "\n".join(masses)
+            + "\n\\end{tabular}\n\n\\medskip\n\\begin{tabular}{lllllll}\n"
+            r"link & $I_{xx}$ & $I_{xy}$ & $I_{xz}$ & $I_{yy}$ & $I_{yz}$ & $I_{zz}$ \\ \hline" "\n"
+            + "\n".join(tensors) + "\n\\end{tabular}\n\\end{center}\n"
             + f"Gravity in the base frame: $({', '.join(tex(e) for e in m.gravity)})$.\n")
     dynamics = m.dynamics
     if dynamics is None:
