@@ -60,11 +60,11 @@ def time_arm(path: Path) -> dict:
             compiling = float(clock[1])
         elif clock and clock[2].startswith("wrote "):
             wrote = float(clock[1])
-    if compiling is not None and wrote is not None:
-        stages["compile"] = wrote - compiling
         found = re.search(r"\[derive\] \w+: ([\d.]+) s", line)
         if found:
             derive = float(found[1])
+    if compiling is not None and wrote is not None:
+        stages["compile"] = wrote - compiling
     moving = re.search(r"^joints: (.*)$", subprocess.run(
         [sys.executable, "-m", "codegen", "--quiet", "show", str(path), "--what", "summary"]
         + (["--tip", URDF_TIPS[path.stem]] if path.suffix == ".urdf" and path.stem in URDF_TIPS else []),
