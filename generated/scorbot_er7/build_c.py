@@ -38,9 +38,14 @@ def opt_level():
     return level
 
 
+def at_level(flags):
+    """``flags`` with their -O flag at the level opt_level() gives."""
+    return [flag if not flag.startswith("-O") else opt_level() for flag in flags]
+
+
 def portable_flags():
     """CFLAGS at the level opt_level() gives."""
-    return [flag if not flag.startswith("-O") else opt_level() for flag in CFLAGS]
+    return at_level(CFLAGS)
 # Where the compiler and C library allow: vectorised batch loops (see scorbot_er7.c) with
 # glibc's vector sin/cos, sqrt as an instruction (no errno), code for this machine's CPU.
 # None of these flags changes a result beyond the vector sin/cos (at most 4 ulp, glibc's
@@ -426,7 +431,7 @@ BINDING_FLAGS = ["-O2", "-g0"]
 
 def binding_flags():
     """BINDING_FLAGS at the level opt_level() gives."""
-    return [flag if not flag.startswith("-O") else opt_level() for flag in BINDING_FLAGS]
+    return at_level(BINDING_FLAGS)
 
 
 def ffibuilder(flags=None, objects=None):
