@@ -209,21 +209,102 @@ def solved_function(function, system: dict) -> dict:
     }
 
 
-def robot_context(model: RobotModel, origin: str, verbose: bool = False) -> dict:
+# The kernels robot_context prepares, read by its worker processes (inherited when they fork).
+_PREPARING: tuple = ()
+
+
+def _prepare_one(index: int) -> tuple[dict, int, float, dict | None]:
+    """(template dict, operations, seconds, printed) of kernel ``index`` of :data:`_PREPARING`;
+    ``printed``: the printers' memos for its expressions (:func:`print_ahead`) in a worker process."""
+    function, param_names, ahead = _PREPARING[0][index], _PREPARING[1], _PREPARING[2]
+    start = time.perf_counter()
+    prepared = prepare(function, param_names)
+    context = template_function(prepared)
+    return context, prepared.operations, time.perf_counter() - start, print_ahead(context) if ahead else None
+
+
+def print_ahead(function: dict) -> dict:
+    """The numpy and C printers' memos (their ``memo`` arguments) for the expressions the templates
+    print of one kernel (``function``, a :func:`template_function` dict), as a worker process of
+    :func:`prepared_functions` fills them: printing is a third of a render, and is per expression.
+    An expression the templates print that is missing here is printed by the parent as before."""
+    numpy_printer = numpy_backend.NumpyKernelPrinter()
+    c_printer = c_backend.CKernelPrinter()
+    batch_printer = c_printer.indexed(function["indexed"]) if not function["checks"] else None
+    for check in function["checks"]:
+        for _, expr in check.temporaries:
+            numpy_printer.doprint(expr), c_printer.doprint(expr)
+        numpy_printer.doprint(check.condition), c_printer.doprint(check.condition)
+    for _, expr in function["prologue"]:
+        numpy_printer.doprint(expr), c_printer.doprint(expr)
+    staged = [expr for s in function["stages"] for _, expr, _ in s["body"]]
+    staged += [expr for out in function["outputs"] for index, expr in out["staged"] if index not in out["constant"]]
+    for expr in staged:
+        numpy_printer.doprint(expr), c_printer.doprint(expr)
+        if batch_printer is not None:
+            batch_printer.doprint(expr)
+    for s in function["stages"]:
+        for group in s["groups"]:
+            for call in group["calls"]:
+                numpy_printer.doprint(call["expr"])
+    return {"numpy": numpy_printer._memo, "c": c_printer._memo}
+
+
+def _prepare_jobs(count: int) -> int:
+    """Worker processes for one robot's kernels: :func:`default_jobs`, but one inside a worker
+    process already (render_tree's), where fork is not the start method at hand, and for few kernels."""
+    import multiprocessing
+    if count < 4 or multiprocessing.current_process().daemon or "fork" not in multiprocessing.get_all_start_methods():
+        return 1
+    return min(default_jobs(), count)
+
+
+def prepared_functions(functions, param_names: tuple, jobs: int | None = None) -> list[tuple[dict, int, float]]:
+    """:func:`_prepare_one` of every kernel in ``functions`` (those solved at run time excluded), in
+    ``jobs`` forked processes (default :func:`_prepare_jobs`), the largest first.
+
+    Each kernel's CSE and staging is independent of the others' and of the process it runs in (the
+    text is the same in one process or several, tested), and it is most of a render: an arm with
+    its dynamics has two kernels (coriolis, regressor) of about a second each.  A budget that runs
+    out in the parent (its alarm) ends the workers with it."""
+    global _PREPARING
+    own = [i for i, f in enumerate(functions) if f.solve is None]
+    jobs = _prepare_jobs(len(own)) if jobs is None else jobs
+    _PREPARING = (functions, param_names, jobs > 1)
+    try:
+        if jobs <= 1:
+            return [_prepare_one(i) for i in own]
+        import multiprocessing
+        order = sorted(own, key=lambda i: -len(functions[i].definitions))
+        pool = multiprocessing.get_context("fork").Pool(jobs)
+        try:
+            results = dict(zip(order, pool.imap(_prepare_one, order, chunksize=1)))
+            pool.close()
+        finally:
+            pool.terminate()
+        return [results[i] for i in own]
+    finally:
+        _PREPARING = ()
+
+
+def robot_context(model: RobotModel, origin: str, verbose: bool = False, jobs: int | None = None) -> dict:
     param_names = tuple(str(s) for s in model.params)
+    model_functions = list(model.functions())
+    prepared = iter(prepared_functions(model_functions, param_names, jobs))
     functions = []
     by_name = {}
-    for function in model.functions():
-        start = time.perf_counter()
+    printed: dict = {"numpy": {}, "c": {}}
+    for function in model_functions:
         if function.solve is not None:
             functions.append(solved_function(function, by_name[function.solve.system]))
             continue
-        prepared = prepare(function, param_names)
-        functions.append(template_function(prepared))
+        context, operations, seconds, ahead = next(prepared)
+        for backend, memo in (ahead or {}).items():
+            printed[backend].update(memo)
+        functions.append(context)
         by_name[function.name] = functions[-1]
         if verbose:
-            print(f"[cse] {model.name}.{function.name}: {prepared.operations} ops, "
-                  f"{time.perf_counter() - start:.2f} s", file=sys.stderr)
+            print(f"[cse] {model.name}.{function.name}: {operations} ops, {seconds:.2f} s", file=sys.stderr)
     defaults = {s: sp.Rational(v) for s, v in model.params.items()}
     constants = [(name, float_literal(sp.sympify(value).xreplace(defaults).evalf(30)))
                  for name, value in getattr(model, "constants", {}).items()]
@@ -256,6 +337,8 @@ def robot_context(model: RobotModel, origin: str, verbose: bool = False) -> dict
         "rigid_tolerance": RIGID_TOLERANCE,
         "unit_snap": float_literal(UNIT_SNAP),
         "blocked_max_ops": f"{BLOCKED_MAX_OPS:,}",
+        # what worker processes printed ahead, for the backends' printers (print_ahead)
+        "printed": printed,
     }
 
 

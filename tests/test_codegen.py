@@ -35,6 +35,21 @@ def test_the_tree_is_the_same_rendered_in_one_process_or_several(monkeypatch):
             generate.default_jobs()
 
 
+def test_a_robot_is_the_same_with_its_kernels_prepared_in_one_process_or_several(monkeypatch):
+    """robot_context's worker processes (prepared_functions) CSE and stage each kernel and print it
+    ahead for the backends: the package's every file is byte-identical to the one-process render,
+    for an arm with dynamics (program-form kernels), rates and checks."""
+    model = derivations.load(generate.REPO / "tests" / "data" / "dynamics" / "rrp_arm.toml")
+    monkeypatch.setenv("KINEGEN_JOBS", "1")
+    one = generate.render_robot(model, None, latex=False)
+    monkeypatch.setenv("KINEGEN_JOBS", "2")
+    assert generate._prepare_jobs(len(model.functions())) == 2
+    several = generate.render_robot(model, None, latex=False)
+    assert several == one
+    printed = generate.robot_context(model, "x")["printed"]
+    assert len(printed["c"]) > 100 and len(printed["numpy"]) > 100  # the workers printed ahead
+
+
 def test_stale_files_are_reported(tmp_path):
     tree = generate.render_tree(["planar_2r"])
     generate.write_tree(tree, tmp_path)

@@ -23,24 +23,28 @@ EXTRA_WARNINGS = ("-Wconversion", "-Wshadow", "-Wdouble-promotion")
 class CKernelPrinter(ExactArithmeticMixin, C99CodePrinter):
     """Prints C99 expressions; constants as correctly rounded double literals."""
 
-    def __init__(self, indexed=frozenset()):
+    def __init__(self, indexed=frozenset(), memo: dict | None = None):
         # No M_PI-style macros: they are POSIX, not C99 (pi is folded to a literal anyway).
         super().__init__({"math_macros": {}, "allow_unknown_functions": False})
         self._indexed = frozenset(indexed)
+        self._memo = {} if memo is None else memo
 
     def doprint(self, expr, assign_to=None):
-        """``C99CodePrinter.doprint``, remembered per printer: the blocked layouts print each
-        expression of a stage again (with and without streaming stores), a third of the C time."""
+        """``C99CodePrinter.doprint``, remembered in the memo this printer shares with its
+        :meth:`indexed` printers (keyed by the indexed names and the expression): the blocked
+        layouts print each expression of a stage again (with and without streaming stores), a
+        third of the C time, and a render's worker processes print ahead (generate.prepared_functions)."""
         if assign_to is not None:
             return super().doprint(expr, assign_to)
-        memo = self.__dict__.setdefault("_printed", {})
-        if expr not in memo:
-            memo[expr] = super().doprint(expr)
-        return memo[expr]
+        key = (self._indexed, expr)
+        text = self._memo.get(key)
+        if text is None:
+            text = self._memo[key] = super().doprint(expr)
+        return text
 
     def indexed(self, names) -> "CKernelPrinter":
         """A printer that reads the variables ``names`` as ``name[i]`` (per-block arrays)."""
-        return CKernelPrinter(names)
+        return CKernelPrinter(names, self._memo)
 
     def _print_Symbol(self, expr):
         text = super()._print_Symbol(expr)
@@ -196,7 +200,7 @@ def numeric_ik(context: dict) -> dict | None:
 
 def render(context: dict) -> dict[str, str]:
     """Files of the C backend, by name, for one robot."""
-    printer = CKernelPrinter()
+    printer = CKernelPrinter(memo=context.get("printed", {}).get("c"))
     name = context["name"]
     context = dict(context, numeric_ik=numeric_ik(context))
     # One-point entry points for Python (robot_point.c.j2): kernels without requirement

@@ -14,8 +14,18 @@ class NumpyKernelPrinter(ExactArithmeticMixin, NumPyPrinter):
 
     _sqrt_name = "numpy.sqrt"
 
-    def __init__(self):
+    def __init__(self, memo: dict | None = None):
         super().__init__({"fully_qualified_modules": True, "allow_unknown_functions": False})
+        self._memo = {} if memo is None else memo
+
+    def doprint(self, expr, assign_to=None):
+        """``NumPyPrinter.doprint``, remembered in ``memo`` (a render's worker processes print ahead)."""
+        if assign_to is not None:
+            return super().doprint(expr, assign_to)
+        text = self._memo.get(expr)
+        if text is None:
+            text = self._memo[expr] = super().doprint(expr)
+        return text
 
     def _nested(self, function, args):
         printed = [self._print(a) for a in args]
@@ -67,7 +77,7 @@ class NumpyKernelPrinter(ExactArithmeticMixin, NumPyPrinter):
 
 def render(context: dict) -> dict[str, str]:
     """Files of the numpy backend, by name, for one robot."""
-    printer = NumpyKernelPrinter()
+    printer = NumpyKernelPrinter(context.get("printed", {}).get("numpy"))
     return {
         "numpy_kernels.py": TEMPLATES.get_template("numpy_kernels.py.j2").render(context, printer=printer),
     }
