@@ -198,12 +198,18 @@ class _Recursion:
     def torques(self, tag: str, qd, qdd, gravity: bool, bodies=None) -> list:
         """tau of the pass ``tag`` (names its steps) at joint rates ``qd``, accelerations ``qdd``
         (expressions or numbers), with or without gravity; ``bodies`` replaces the links' (m, h, I_o)."""
-        n = self.n
         bodies = self.bodies if bodies is None else bodies
+        motion = self.forward(tag, qd, qdd, gravity)
+        wrenches = [self.link_wrench(tag, k, bodies[k], *motion[k]) for k in range(self.n)]
+        return self.backward(tag, wrenches)
+
+    def forward(self, tag: str, qd, qdd, gravity: bool) -> list:
+        """The forward recursion of the pass ``tag``: (w_k, wd_k, a_k) of each link k in J_k."""
+        n = self.n
         zero = [sp.S.Zero] * 3
         w, wd = zero, zero
         a = [-e for e in self.gravity] if gravity else zero
-        frames = []
+        motion = []
         for k in range(n):
             z = list(self.axes[k])
             p = self.origin(k)
@@ -223,17 +229,28 @@ class _Recursion:
             w_k = self.define_vector(f"_{tag}w{k + 1}", w_k)
             wd_k = self.define_vector(f"_{tag}wd{k + 1}", wd_k)
             a_k = self.define_vector(f"_{tag}ac{k + 1}", a_k)
-            m, h, Io = bodies[k]
-            F = _add(_add([m * e for e in a_k], _cross(wd_k, h)), _cross(w_k, _cross(w_k, h)))
-            Iw = list(Io * sp.Matrix(w_k))
-            N = _add(_add(list(Io * sp.Matrix(wd_k)), _cross(w_k, Iw)), _cross(h, a_k))
-            frames.append((self.define_vector(f"_{tag}F{k + 1}", F), self.define_vector(f"_{tag}N{k + 1}", N)))
+            motion.append((w_k, wd_k, a_k))
             w, wd, a = w_k, wd_k, a_k
-        tau = [None] * n
-        f, nn = zero, zero
-        for k in reversed(range(n)):
-            F, N = frames[k]
-            if k + 1 < n:
+        return motion
+
+    def link_wrench(self, tag: str, k: int, body, w_k, wd_k, a_k):
+        """(F_k, N_k): the force and the moment about J_k's origin that link k's motion takes, for
+        its parameters ``body`` = (m, h, I_o)."""
+        m, h, Io = body
+        F = _add(_add([m * e for e in a_k], _cross(wd_k, h)), _cross(w_k, _cross(w_k, h)))
+        Iw = list(Io * sp.Matrix(w_k))
+        N = _add(_add(list(Io * sp.Matrix(wd_k)), _cross(w_k, Iw)), _cross(h, a_k))
+        return self.define_vector(f"_{tag}F{k + 1}", F), self.define_vector(f"_{tag}N{k + 1}", N)
+
+    def backward(self, tag: str, wrenches: list) -> list:
+        """tau from the links' wrenches (F_k, N_k), each carried down to the base: links past the
+        last one in ``wrenches`` carry none (their torques are zero)."""
+        tau = [sp.S.Zero] * self.n
+        f, nn = [sp.S.Zero] * 3, [sp.S.Zero] * 3
+        top = len(wrenches) - 1
+        for k in reversed(range(top + 1)):
+            F, N = wrenches[k]
+            if k < top:
                 Rf = self.to_parent(k + 1, f, f"_{tag}Rf{k + 2}")
                 Rn = self.to_parent(k + 1, nn, f"_{tag}Rn{k + 2}")
                 p = self.origin(k + 1)
@@ -247,7 +264,6 @@ class _Recursion:
             moment = nn if self.types[k] == REVOLUTE else f
             tau[k] = self.program.define(f"_{tag}tau{k + 1}", sum((zi * mi for zi, mi in zip(z, moment)), sp.S.Zero))
         return tau
-
 
     def rotate_tensor(self, k: int, tensor: sp.Matrix, name: str) -> sp.Matrix:
         """R_k I R_k^T: a tensor of J_k in the axes of J_{k-1} (the motion's rotation, then the constant one)."""
@@ -322,14 +338,16 @@ def regressor(recursion: "_Recursion", qd, qdd) -> sp.Matrix:
     Hollerbach, 1986).  Its velocities are the inverse dynamics' own steps; only the links at and
     below k carry its force."""
     n = recursion.n
-    zero = (sp.S.Zero, sp.zeros(3, 1), sp.zeros(3, 3))
+    zero = ([sp.S.Zero] * 3, [sp.S.Zero] * 3)
+    motion = recursion.forward("id", qd, qdd, True)  # the inverse dynamics' own steps
     columns = []
     for k in range(n):
         for i, name in enumerate(PARAMETER_NAMES):
-            bodies = [zero] * n
-            bodies[k] = _unit_body(i, recursion.afters[k])
-            tau = recursion.torques(f"y{k + 1}{name}_", qd, qdd, True, bodies=bodies)
-            columns.append(tau)
+            tag = f"y{k + 1}{name}_"
+            # link k's wrench for parameter i alone, carried down to the base: the links before it
+            # carry it and add none, the links past it move none of it
+            wrench = recursion.link_wrench(tag, k, _unit_body(i, recursion.afters[k]), *motion[k])
+            columns.append(recursion.backward(tag, [zero] * k + [wrench]))
     return sp.Matrix(n, 10 * n, lambda r, c: columns[c][r])
 
 
@@ -473,20 +491,25 @@ def singular_mass_matrix(model, program: Program, M: sp.Matrix, samples: int = 3
     configurations with the default parameters (a 30-digit evaluation of the program)."""
     import random
 
-    from .program import evaluate
+    import mpmath
+
+    from .program import evaluator
     rng = random.Random(30)
-    defaults = {s: sp.Rational(repr(v)) for s, v in model.params.items()}
+    defaults = [mpmath.mpf(repr(float(v))) for v in model.params.values()]
     n = M.rows
-    for _ in range(samples):
-        point = dict(defaults)
-        point.update({q: sp.Rational(repr(rng.uniform(-1.5, 1.5))) for q in model.q})
-        values = evaluate(program.steps, list(M), point)
-        matrix = sp.Matrix(n, n, [sp.Float(v, 30) for v in values])
-        scale = max(abs(v) for v in matrix) or sp.S.One
-        for j in range(n):  # the leading minors' ratios: the pivots of M = L D L^T
-            if matrix[:j + 1, :j + 1].det() <= sp.Float("1e-20") * scale * (matrix[:j, :j].det() if j else 1):
-                return (f"the mass matrix is singular: joint {j + 1} ({model.joint_labels[j]}) moves no inertia "
-                        "independently of the joints before it (point masses on its axis?)")
+    mass_matrix = evaluator(program.steps, list(M), [*model.q, *model.params])
+    with mpmath.workdps(30):
+        for _ in range(samples):
+            q = [mpmath.mpf(repr(rng.uniform(-1.5, 1.5))) for _ in model.q]
+            matrix = mpmath.matrix(n, n)
+            for index, value in enumerate(mass_matrix(*q, *defaults)):
+                matrix[index // n, index % n] = value
+            scale = max(abs(v) for v in matrix) or 1
+            minors = [mpmath.mpf(1)] + [mpmath.det(matrix[:j + 1, :j + 1]) for j in range(n)]
+            for j in range(n):  # the leading minors' ratios: the pivots of M = L D L^T
+                if minors[j + 1] <= mpmath.mpf("1e-20") * scale * minors[j]:
+                    return (f"the mass matrix is singular: joint {j + 1} ({model.joint_labels[j]}) moves no inertia "
+                            "independently of the joints before it (point masses on its axis?)")
     return None
 
 

@@ -29,7 +29,7 @@ import sympy as sp
 
 from .chain import derivative
 
-__all__ = ["Program", "needed", "inline", "substitute", "evaluate"]
+__all__ = ["Program", "needed", "inline", "substitute", "evaluate", "evaluator"]
 
 Steps = tuple[tuple[sp.Symbol, sp.Expr], ...]
 
@@ -169,3 +169,44 @@ def evaluate(steps: Sequence[tuple[sp.Symbol, sp.Expr]], exprs: Sequence, point:
     for symbol, value in needed(steps, exprs):
         known[symbol] = value.xreplace(known).evalf(digits)
     return [sp.sympify(e).xreplace(known).evalf(digits) for e in exprs]
+
+
+
+def evaluator(steps: Sequence[tuple[sp.Symbol, sp.Expr]], exprs: Sequence, args: Sequence[sp.Symbol]):
+    """A function of ``args`` (numbers mpmath takes) that gives ``exprs`` (which read ``steps``) as
+    mpmath numbers at mpmath's working precision (``mpmath.workdps``), each step evaluated once by a
+    walk of its tree in mpmath arithmetic.  Where one program is evaluated at a few points this is
+    many times faster than :func:`evaluate`, whose SymPy arithmetic (``xreplace`` and ``evalf`` per
+    step) was most of the singularity check of a seven-joint arm's mass matrix (2.5 s for three points)."""
+    import mpmath
+
+    body = needed(steps, exprs)
+    exprs = [sp.sympify(e) for e in exprs]
+    functions = {sp.sin: mpmath.sin, sp.cos: mpmath.cos, sp.tan: mpmath.tan, sp.atan2: mpmath.atan2,
+                 sp.asin: mpmath.asin, sp.acos: mpmath.acos, sp.exp: mpmath.exp, sp.log: mpmath.log}
+
+    def walk(e, known):
+        if e.is_Symbol:
+            return known[e]
+        if e.is_Rational:
+            return mpmath.mpf(e.p) / e.q
+        if e.is_Number or e.is_NumberSymbol:
+            return mpmath.mpf(str(e.evalf(mpmath.mp.dps + 5)))
+        if e.is_Add:
+            return mpmath.fsum(walk(a, known) for a in e.args)
+        if e.is_Mul:
+            return mpmath.fprod(walk(a, known) for a in e.args)
+        if e.is_Pow:
+            base, exponent = walk(e.base, known), e.exp
+            return base ** (int(exponent) if exponent.is_Integer else walk(exponent, known))
+        if e.func in functions:
+            return functions[e.func](*(walk(a, known) for a in e.args))
+        return mpmath.mpf(str(e.xreplace({s: sp.Float(str(known[s]), mpmath.mp.dps) for s in e.free_symbols})
+                              .evalf(mpmath.mp.dps)))
+
+    def run(*values):
+        known = dict(zip(args, values))
+        for symbol, value in body:
+            known[symbol] = walk(value, known)
+        return [walk(e, known) for e in exprs]
+    return run

@@ -12,12 +12,13 @@ import math
 import tomllib
 from pathlib import Path
 
+import mpmath
 import numpy as np
 import pytest
 import sympy as sp
 
 import derivations
-from derivations.program import Program, evaluate, inline, needed
+from derivations.program import Program, evaluate, evaluator, inline, needed
 
 GENERAL = Path(__file__).resolve().parent / "data" / "synthetic" / "general_6r.toml"
 
@@ -52,6 +53,13 @@ def test_derivatives_through_steps_equal_sympys_of_the_inlined_expression():
     assert needed(program.steps, [a + x]) == ((a, program.value[a]),)
     point = {x: sp.Rational(1, 3), y: 2, z: -1}
     assert abs(evaluate(program.steps, [c], point)[0] - explicit.xreplace(point).evalf(30)) < 1e-28
+    # the mpmath walk of the same steps, with a square root, a reciprocal and pi besides
+    d = program.define("_d", sp.sqrt(c**2 + 1) / (2 + sp.cos(b)) + sp.pi * x)
+    run = evaluator(program.steps, [c, d, b * y], [x, y, z])
+    with mpmath.workdps(30):
+        got = run(mpmath.mpf(1) / 3, mpmath.mpf(2), mpmath.mpf(-1))
+    expected = [e.xreplace(point).evalf(40) for e in (explicit, inline(program.steps, d), inline(program.steps, b * y))]
+    assert all(abs(g - sp.Float(str(e), 40)) < 1e-27 for g, e in zip(got, expected))
 
 
 def dh_product(table, q):
