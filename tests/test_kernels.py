@@ -109,3 +109,36 @@ def test_module_constants(models):
         assert k.TASK == m.task_names
         assert k.PARAMS == {str(p): v for p, v in m.params.items()}
         assert len(k.LIMITS) == m.n
+
+
+def test_tree_only_cse_of_long_programs_keeps_every_value(monkeypatch):
+    """Kernels past kernels.TREE_CSE_ONLY get SymPy's tree CSE without opt_cse.  With the threshold
+    at 1, the rate and dynamics kernels of an arm (program-form definitions) go that way: their
+    temporaries and outputs, evaluated in order at 30 digits, equal the symbolic kernel's program
+    evaluated at the same point."""
+    import random
+
+    import sympy as sp
+
+    import derivations
+    from codegen import kernels as prepared_kernels
+    from codegen.generate import REPO
+    from derivations.program import evaluate
+    model = derivations.load(REPO / "tests" / "data" / "dynamics" / "rrp_arm.toml")
+    monkeypatch.setattr(prepared_kernels, "TREE_CSE_ONLY", 1)
+    rng = random.Random(7)
+    names = ("inverse_dynamics", "coriolis", "regressor", "forward_dynamics", "jacobian_dot")
+    functions = [f for f in model.functions() if f.name in names]
+    assert len(functions) == len(names)
+    for function in functions:
+        prepared = prepared_kernels.prepare(function, tuple(str(s) for s in model.params))
+        point = {s: sp.Rational(repr(v)) for s, v in model.params.items()}
+        for argument in function.arguments:
+            point.update({s: sp.Rational(repr(rng.uniform(-1.0, 1.0))) for s in argument.symbols})
+        expected = evaluate(function.definitions, [e for o in function.outputs for e in o.values], point)
+        known = {sp.Symbol(str(s), real=True): v for s, v in point.items()}
+        for name, expr in prepared.temporaries:
+            known[sp.Symbol(name, real=True)] = sp.sympify(expr).xreplace(known).evalf(30)
+        got = [sp.sympify(e).xreplace(known).evalf(30) for o in prepared.outputs for e in o.entries]
+        scale = max(1.0, max(abs(float(e)) for e in expected))
+        assert max(abs(float(g - e)) for g, e in zip(got, expected)) < 1e-20 * scale, function.name
