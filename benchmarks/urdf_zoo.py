@@ -2,8 +2,8 @@
 and how far its kernels are from Pinocchio's.
 
 Each arm of ``ZOO`` (tests/urdf_zoo.py: the file, its ``--base`` and ``--tip``) runs three times,
-each in a fresh process with an empty derivation cache (``KINEGEN_CACHE`` a new folder), pinned
-to one core where ``taskset`` exists:
+each in a fresh process with an empty derivation cache (``KINEGEN_CACHE`` a new folder), on every
+core the machine gives it (``--one-core``: pinned to one, where ``taskset`` exists):
 
 1. ``python -m codegen generate FILE --base B --tip T --out DIR``: derive, render, compile the C;
 2. the same with ``--no-build``: derivation and rendering alone;
@@ -20,7 +20,7 @@ origin, world axes) turned into the base link's axes, on 100 random configuratio
 joint limits; the columns give the largest absolute difference of any entry.  Pinocchio reads the
 numbers as written, so with snapping on (run 1) an arm differs from it by about what snapping moved.
 
-    python benchmarks/urdf_zoo.py [--out benchmarks/urdf_zoo.md] [ARM ...]
+    python benchmarks/urdf_zoo.py [--out benchmarks/urdf_zoo.md] [--one-core] [ARM ...]
 """
 from __future__ import annotations
 
@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from zoo_generation import ROOT, _has_taskset
+from zoo_generation import ROOT, _cores_text, cores, pinned
 
 sys.path.insert(0, str(ROOT / "tests"))
 from urdf_zoo import ZOO, XmlChain, ZooArm  # noqa: E402  (tests/ is not a package)
@@ -46,13 +46,15 @@ SAMPLES = 100
 PROGRESS = re.compile(r"^\[\s*(?P<seconds>[\d.]+) s\] (?P<message>.*)$")
 
 
+ONE_CORE = False  # --one-core
+
+
 def generate(arm: ZooArm, out: Path, *options: str) -> dict:
     """One cold ``kinegen generate`` of the arm into ``out``: wall time, progress clock, messages."""
     with tempfile.TemporaryDirectory(prefix="kinegen-urdf-zoo-cache-") as cache:
         command = [sys.executable, "-m", "codegen", "generate", str(arm.path), "--base", arm.base,
                    "--tip", arm.tip, "--out", str(out), "--time-limit", "600", *options]
-        if _has_taskset():
-            command = ["taskset", "-c", "0"] + command
+        command = pinned(command, ONE_CORE)
         env = dict(os.environ, KINEGEN_CACHE=cache, PYTHONPATH=str(ROOT))
         start = time.perf_counter()
         result = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True)
@@ -145,7 +147,10 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("arms", nargs="*", help=f"arm names (default: all of {', '.join(ZOO)})")
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "urdf_zoo.md")
+    parser.add_argument("--one-core", action="store_true", help="pin each run to one core (taskset)")
     args = parser.parse_args(argv)
+    global ONE_CORE
+    ONE_CORE = args.one_core
     unknown = [name for name in args.arms if name not in ZOO]
     if unknown:
         parser.error(f"unknown arm(s) {', '.join(unknown)}; the zoo has {', '.join(ZOO)}")
@@ -165,7 +170,7 @@ def main(argv=None) -> int:
     text = (f"# Real URDF files: cold generation, and the kernels against {against} "
             f"({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, load average {load[0]:.2f})\n\n"
             "`python benchmarks/urdf_zoo.py`: each arm of `tests/urdf_zoo.py` in fresh processes with an empty "
-            "cache, on one core. generate total: `kinegen generate` with the C compile, the whole process; "
+            f"cache, on {_cores_text(cores(args.one_core))}. generate total: `kinegen generate` with the C compile, the whole process; "
             "derive+render: the same with `--no-build`, to its \"wrote\" line; compile: the C compile of the "
             "first run; --no-snap total: `--no-build --no-snap`, the whole process. Errors: the largest absolute "
             f"difference of any entry of the numpy kernels' fk and geometric Jacobian (tip relative to base, "

@@ -1,7 +1,8 @@
 """Cold generation time of every arm of the zoo, with its C compile (issues #14, #25, #27).
 
-Each arm runs in a fresh process with the derivation cache off (``KINEGEN_NO_CACHE=1``),
-pinned to one core where the machine allows it, as a user runs it: ``python -m codegen
+Each arm runs in a fresh process with the derivation cache off (``KINEGEN_NO_CACHE=1``), on
+every core the machine gives this process (the targets are for this 2-core machine; ``--one-core``
+pins each run to one core where ``taskset`` exists), as a user runs it: ``python -m codegen
 generate FILE --out DIR`` (the model, the rate kinematics, the common subexpressions, the
 numpy and C text, the LaTeX, then the portable C compile).  The stage times come from the
 command's own progress lines; "compile" runs from its "compiling the C kernels" line to its
@@ -10,7 +11,7 @@ The arms are the DH zoo (tests/data/arms), the URDF files of tests/data/urdf, an
 synthetic general 6R of tests/data/synthetic (every twist, offset and length an arbitrary
 decimal: the case of issue #25, which stopped at the 120 s budget before).
 
-    python benchmarks/zoo_generation.py [--out benchmarks/zoo.md] [ARM ...]
+    python benchmarks/zoo_generation.py [--out benchmarks/zoo.md] [--one-core] [ARM ...]
 """
 from __future__ import annotations
 
@@ -36,14 +37,25 @@ SYNTHETIC = ROOT / "tests" / "data" / "synthetic"
 URDF_TIPS = {"ur5": "tool0", "panda": "panda_hand_tcp"}
 
 
-def time_arm(path: Path) -> dict:
+def cores(one_core: bool) -> int:
+    """How many cores a run uses: one where pinned (and taskset exists), else the process's CPUs."""
+    if one_core and _has_taskset():
+        return 1
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def pinned(command: list[str], one_core: bool) -> list[str]:
+    """``command`` run on one core (taskset) where asked and possible."""
+    return ["taskset", "-c", "0", *command] if one_core and _has_taskset() else command
+
+
+def time_arm(path: Path, one_core: bool = False) -> dict:
     with tempfile.TemporaryDirectory(prefix="kinegen-zoo-") as scratch:
         command = [sys.executable, "-m", "codegen", "generate", str(path), "--out", str(Path(scratch) / "pkg"),
                    "--time-limit", "600"]
         if path.suffix == ".urdf" and path.stem in URDF_TIPS:
             command += ["--tip", URDF_TIPS[path.stem]]
-        if hasattr(os, "sched_setaffinity"):
-            command = ["taskset", "-c", "0"] + command if _has_taskset() else command
+        command = pinned(command, one_core)
         env = dict(os.environ, KINEGEN_NO_CACHE="1", PYTHONPATH=str(ROOT))
         start = time.perf_counter()
         result = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True)
@@ -74,6 +86,10 @@ def time_arm(path: Path) -> dict:
             "error": result.stderr.strip().splitlines()[-1] if result.returncode else ""}
 
 
+def _cores_text(count: int) -> str:
+    return "one core" if count == 1 else f"{count} cores"
+
+
 def _has_taskset() -> bool:
     return subprocess.run(["sh", "-c", "command -v taskset"], capture_output=True).returncode == 0
 
@@ -82,6 +98,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("arms", nargs="*", help="arm names (default: every file in tests/data/arms)")
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "zoo.md")
+    parser.add_argument("--one-core", action="store_true", help="pin each run to one core (taskset)")
     args = parser.parse_args(argv)
     every = sorted(ARMS.glob("*.toml")) + sorted(URDFS.glob("*.urdf")) + sorted(SYNTHETIC.glob("*.toml"))
     paths = every if not args.arms else [p for p in every if p.stem in args.arms or p.name in args.arms]
@@ -89,7 +106,7 @@ def main(argv=None) -> int:
                "c kernels", "LaTeX", "compile"]
     rows = []
     for path in paths:
-        timing = time_arm(path)
+        timing = time_arm(path, args.one_core)
         joints = (len(tomllib.loads(path.read_text())["joint"]) if path.suffix == ".toml"
                   else timing.get("joints"))
         target = TARGETS.get(joints)
@@ -106,7 +123,7 @@ def main(argv=None) -> int:
               "|---|---|---|---|---|---|---|---|---|---|---|---|")
     text = (f"# Cold generation of the zoo ({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
             f"load average {load[0]:.2f})\n\n`python benchmarks/zoo_generation.py`: each arm in a fresh process, "
-            "no cache, one core, `kinegen generate` with its portable C compile. Stage times in seconds; total "
+            f"no cache, {_cores_text(cores(args.one_core))}, `kinegen generate` with its portable C compile. Stage times in seconds; total "
             "is the whole command, Python's start and imports included.\n\n" + header + "\n" + "\n".join(rows)
             + "\n")
     args.out.write_text(text)
