@@ -495,3 +495,29 @@ def test_generate_with_a_task_gives_a_package_whose_c_and_numpy_ik_agree(tmp_pat
         assert valid.any(axis=-1).all()
         reached = dh_fk(arm, np.where(valid[..., None], Q, 0.0))[..., :3, 3]
         assert np.where(valid, np.abs(reached - x[:, None]).max(axis=-1), 0).max() < FK_TOLERANCE
+
+
+def test_ik_numeric_wraps_the_pitch_of_its_residual(tmp_path):
+    """ik_numeric's residual wraps the task's angles (phi, pitch, roll), in both backends: a target
+    whose pitch is written in (-pi, pi] while task(q) gives it 2 pi higher is already reached at q, so
+    from q as the seed the solver stays there (unwrapped, it would turn the pitch joints by 2 pi)."""
+    path = tmp_path / "lynxmotion_al5d.toml"
+    path.write_text(ARMS["lynxmotion_al5d"].path.read_text().replace('task = ["x", "y", "z"]',
+                                                                     'task = ["x", "y", "z", "pitch"]'))
+    out = tmp_path / "al5d_pitch"
+    result = kinegen("--quiet", "generate", str(path), "--out", str(out), "--no-dynamics")
+    assert result.returncode == 0, result.stderr
+    sys.path.insert(0, str(tmp_path))
+    try:
+        import al5d_pitch
+    finally:
+        sys.path.remove(str(tmp_path))
+    q = np.random.default_rng(5).uniform(-3.0, 3.0, (400, 4))
+    q = q[np.abs(al5d_pitch.load("numpy").task(q)[:, 3]) > np.pi + 0.2][:20]  # task(q) gives the pitch beyond pi
+    assert len(q) == 20
+    for backend in ("numpy", "c"):
+        kernels = al5d_pitch.load(backend)
+        x = kernels.task(q)
+        x[:, 3] = np.arctan2(np.sin(x[:, 3]), np.cos(x[:, 3]))  # the same pitch, written in (-pi, pi]
+        found, converged = kernels.ik_numeric(x, q)
+        assert converged.all() and np.abs(found - q).max() < 1e-9, (backend, found - q)

@@ -7,6 +7,7 @@ import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
 from derivations.ik import WrapAngle
+from derivations.model import ANGLE_TASKS
 
 from . import TEMPLATES, ExactArithmeticMixin
 
@@ -183,7 +184,7 @@ NUMERIC_ITERATIONS = 100
 
 def numeric_ik(context: dict) -> dict | None:
     """What robot.c.j2 writes ik_numeric from, for a package with ik (``ik_method``): the residual's
-    rows (6 for a pose: position and rotation vector; else the task's, phi wrapped), the size of the
+    rows (6 for a pose: position and rotation vector; else the task's, its angles wrapped), the size of the
     normal matrix (the smaller of the residual's rows and the joints), and each joint's limits."""
     n = len(context["joints"])
     if not context.get("ik_method") or not n:
@@ -191,7 +192,7 @@ def numeric_ik(context: dict) -> dict | None:
     rows = 6 if context["pose_task"] else len(context["task"])
     limits = {i: (low, high) for i, low, high, _ in context["joint_limits"]}
     return {"rows": rows, "size": min(rows, n), "wide": rows <= n,
-            "angles": [] if context["pose_task"] else [k for k, t in enumerate(context["task"]) if t == "phi"],
+            "angles": [] if context["pose_task"] else [k for k, t in enumerate(context["task"]) if t in ANGLE_TASKS],
             "limits": [limits.get(i) for i in range(n)],
             "residual": "metres and radians: the position and the rotation vector" if context["pose_task"]
             else "in task units",

@@ -3245,7 +3245,7 @@ void planar_3r_within_limits_batch(size_t count, const double *restrict q, int *
  * ik_numeric: inverse kinematics by Levenberg-Marquardt (damped least squares with an adaptive
  * damping) from a seed, on this file's own task and task Jacobian; the numpy runtime's
  * solve_numeric (_runtime.py) step for step.
- * The residual e (3) is the target less task(q), phi wrapped to (-pi, pi].
+ * The residual e (3) is the target less task(q), its angles wrapped to (-pi, pi].
  * Each step is dq = J^T (J J^T + lambda I)^-1 e (a 3 x 3 Cholesky solve), kept
  * if it lowers |e|^2, else refused; lambda starts at 1e-3 and follows Nielsen's rule within
  * [1e-15, 1e10]: a kept step multiplies it by max(1/10, 1 - (2 rho - 1)^3), rho the actual decrease
@@ -3257,7 +3257,7 @@ void planar_3r_within_limits_batch(size_t count, const double *restrict q, int *
  * near the seed).
  */
 
-/* e = x - task(q), phi wrapped to (-pi, pi]. */
+/* e = x - task(q), its angles wrapped to (-pi, pi]. */
 static void planar_3r_ik_numeric_residual(const double *restrict x, const double *restrict q,
                                           const planar_3r_params *restrict params, double *restrict e)
 {

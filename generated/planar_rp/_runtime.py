@@ -265,7 +265,7 @@ def solve_numeric(kernels, x, q0, limits, joint_types, task_names, params, toler
     pose = tuple(task_names) == POSE_TASK
     low = numpy.array([lim[0] if lim is not None else -numpy.inf for lim in limits])
     high = numpy.array([lim[1] if lim is not None else numpy.inf for lim in limits])
-    angles = [i for i, name in enumerate(task_names) if name == "phi"]
+    angles = [i for i, name in enumerate(task_names) if name in ("phi", "pitch", "roll")]  # wrapped
     if pose:
         p_target, R_target = x[:, :3], x[:, 3:].reshape(-1, 3, 3)
 
