@@ -449,6 +449,22 @@ def choose_loops(chain, params, count=LOOP_COUNT, threshold=1e-9):
     return (found * count)[:count]
 
 
+# The working precision of a link's irrational constants in the equations (digits).
+CONSTANT_DIGITS = 30
+
+
+def _numeric_constant(v):
+    """A constant link entry as the equations take it: exact where it is a rational (0, 1, 3/5, a
+    decimal the file writes), a 30-digit float where it is irrational (cos(1.3127) of a twist
+    written as a decimal), so that the expansion multiplies numbers instead of carrying such
+    terms as symbols (a synthetic general 6R's equations: 21 -> about 2 s); an entry with a
+    parameter in it stays as it is."""
+    v = sp.sympify(v)
+    if v.is_Rational or not v.is_number:
+        return v
+    return sp.Float(v.evalf(CONSTANT_DIGITS), CONSTANT_DIGITS)
+
+
 def general_6r(chain, params, loop) -> General6R:
     """The coefficient matrices of Manocha-Canny Eq. 9 for a six-revolute DH chain on the loop
     ``loop`` = (start, reverse) (see :func:`choose_loops`)."""
@@ -464,7 +480,7 @@ def general_6r(chain, params, loop) -> General6R:
             links.append(sp.Matrix(3, 4, names).col_join(sp.Matrix([[0, 0, 0, 1]])))
             values.extend(zip(names, e[:3, :]))
         else:
-            links.append(e)
+            links.append(e.applyfunc(_numeric_constant))
     P, Q = loop_equations(links)
     _, _, offsets = link_split(chain)
     return General6R(X=X, definitions=tuple(values), P=P, Q=Q, E=tuple(links), signs=signs, order=order,
