@@ -171,7 +171,7 @@ def cmd_list(args, say) -> int:
     width = max(len(n) for n in derivations.ROBOTS)
     for name, path in derivations.ROBOTS.items():
         if path.suffix == ".toml":
-            title = derivations.description.read_description(path).title
+            title = derivations.formats.description.read_description(path).title
         else:  # a robot built in Python: its module's docstring names it (without deriving it)
             import ast
             title = (ast.get_docstring(ast.parse(path.read_text())) or "").split("\n")[0].split(":")[0]

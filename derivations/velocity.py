@@ -44,7 +44,6 @@ from .damping import (ClosedFormInverse, Minors, Scaling, closed_form_inverse, f
 from .model import POSE_NAMES, Argument, NumericSolve, Output, SymbolicFunction, with_program
 from .program import Program
 from .paul import WristPartition, wrist_partition
-from .tool_configuration import tool_configuration_functions
 
 __all__ = ["RateKinematics", "Singularities", "SingularCondition", "rate_kinematics", "derive_rates",
            "time_derivative", "pose_rates_to_twist", "closed_form_shape", "TWIST_NAMES", "MAX_CLOSED_FORM"]
@@ -58,14 +57,6 @@ MAX_MINOR_SIZE = 3
 MAX_MINORS = 10
 # ... and while J_x has at most this many operations (count_ops).
 MAX_CLOSED_FORM_OPS = 200
-
-# Kernels particular to one robot, keyed by its registry name.
-def _planar_rp_extras(model):
-    from .robots.planar_rp import kumar_pose_functions  # the robot's own module (a late import: no cycle)
-    return kumar_pose_functions(model)
-
-
-ROBOT_EXTRAS = {"adept_three": tool_configuration_functions, "planar_rp": _planar_rp_extras}
 
 # What each singular factor means, keyed by robot and by the joints the factor involves.
 FACTOR_NAMES = {
@@ -456,9 +447,6 @@ def _functions(model, rates: dict) -> list[SymbolicFunction]:
             f"damped least squares per block where singular). Shapes (..., {n}) and (...)."))
     if rates["strategy"] == "numeric":
         functions += _numeric_functions(model, rates, (q, qd, xd, xdd, twist))
-    extras = ROBOT_EXTRAS.get(model.name)
-    if extras is not None:
-        functions += extras(model)
     return functions
 
 

@@ -15,17 +15,13 @@
 
 The papers' robots (``derivations/robots/<name>.py``) use the primitives to print their
 paper's steps; every other arm gets its inverse kinematics from :func:`solve`.
+
+This package may import the core (``derivations.chain``, ``.program``, ``.model``,
+``.kinematics``) and ``derivations.support``; never the rates, the assembly or the robots.
 """
 from .primitives import *  # noqa: F401,F403
 from .primitives import __all__ as _primitives
+from .decompose import IK_BUDGET, IKSolution, IKUnsupported, attach, solve  # noqa: F401
 
 __all__ = list(_primitives)
 __all__ += ["IKSolution", "IKUnsupported", "solve", "attach"]
-
-
-def __getattr__(name):
-    # decompose imports derivations.model, which imports the primitives from here: load it on first use
-    if name in ("IKSolution", "IKUnsupported", "solve", "attach", "IK_BUDGET"):
-        from . import decompose
-        return getattr(decompose, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

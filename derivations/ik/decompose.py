@@ -1088,7 +1088,7 @@ class _TaskView:
     """The parts of a model the families read, with another task (for :func:`suggest_task`)."""
 
     def __init__(self, model, items):
-        from ..model import joint_angle_task
+        from ..kinematics import joint_angle_task
         self.name, self.q, self.n, self.chain = model.name, model.q, model.n, model.chain
         names, values = [], []
         for item in items:

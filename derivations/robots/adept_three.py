@@ -19,6 +19,7 @@ import sympy as sp
 
 from derivations.ik import law_of_cosines, prismatic_along, sine_cosine_pair, substitute_steps, two_link
 from derivations.model import IKBranch
+from derivations.tool_configuration import tool_configuration_functions
 
 from ._common import parameters
 
@@ -79,3 +80,5 @@ def algebraic_method(model) -> list[IKBranch]:
 
 def extend(model):
     model.ik = algebraic_method(model)
+    # The robot's own kernels: Rehiara's tool configuration vector and its Jacobian (Eqs. 39-42).
+    model.extra_functions = tuple(tool_configuration_functions(model))

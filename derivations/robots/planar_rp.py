@@ -56,3 +56,4 @@ def extend(model):
                                  f"Kumar {eqs}: d2 = {'+' if sigma > 0 else '-'}sqrt(x^2 + y^2), "
                                  f"q1 = atan2({'' if sigma > 0 else '-'}y, {'' if sigma > 0 else '-'}x); always exists"))
     model.ik = branches
+    model.extra_functions = tuple(kumar_pose_functions(model))  # the robot's own kernel: Kumar's (x, y, phi)

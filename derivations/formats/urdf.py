@@ -38,7 +38,7 @@ what derives well:
   What was snapped is listed in the description's ``notes["snapped"]``;
 * the fixed transforms folded together stay small however many there are (:func:`_compose`).
 
-Every error is a :class:`derivations.description.DescriptionError` naming the file and the joint
+Every error is a :class:`derivations.formats.shared.DescriptionError` naming the file and the joint
 (or link) and, for a number, its field.
 """
 from __future__ import annotations
@@ -56,10 +56,10 @@ from typing import Sequence
 import numpy as np
 import sympy as sp
 
-from .chain import PRISMATIC, REVOLUTE, Joint, axis_motion, rpy_matrix
-from .description import MAX_JOINTS, Description, DescriptionError, read_input
-from .inertia import INERTIA_ORDER, Inertial, check_physical, combine, transformed
-from .expressions import is_package_name
+from ..chain import PRISMATIC, REVOLUTE, Joint, axis_motion, rpy_matrix
+from ..expressions import is_package_name
+from ..inertia import INERTIA_ORDER, Inertial, check_physical, combine, transformed
+from .shared import MAX_JOINTS, Description, DescriptionError, read_input
 
 __all__ = ["read_urdf", "parse_urdf", "MAX_BYTES", "SNAP_TOLERANCE"]
 
