@@ -39,7 +39,7 @@ import numpy as np
 import sympy as sp
 
 import derivations
-from derivations.budget import BudgetExceeded, MemoryCapExceeded, budget, memory_cap, stage
+from derivations.support.budget import BudgetExceeded, MemoryCapExceeded, budget, memory_cap, stage
 from derivations.program import needed
 import generated
 

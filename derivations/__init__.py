@@ -5,6 +5,14 @@
 >>> model.task.T
 Matrix([[l1*cos(q1) + l2*cos(q1 + q2), l1*sin(q1) + l2*sin(q1 + q2)]])
 
+The folders are the layers (docs/architecture.md), and imports run one way, from the bottom:
+``support/`` (budgets, the cache); the core at this level (``chain``, ``program``,
+``chain_program``, ``expressions``, ``model``: the data, ``kinematics``: a chain's frames,
+Jacobian and task); then ``formats/`` (TOML and URDF in), ``ik/``, ``rates/``, ``mechanics/``
+(dynamics) and ``motion/``; then ``assembly`` (a robot's kernel list) and ``kernelset``; then
+``robots/`` (the papers' robots and, in ``robots/extras/``, their papers' own pieces); and this
+module's ``load`` on top.
+
 ``ROBOTS`` maps each registered robot name to the file that defines it: a
 description ``robots/<name>.toml`` (a DH chain, optionally extended by a module
 ``robots/<name>.py`` with ``extend(model)``), or a module ``robots/<name>.py``
@@ -24,7 +32,7 @@ import sys
 import time
 from pathlib import Path
 
-from .cache import cached
+from .support.cache import cached
 from .formats.description import read_description
 from .formats.shared import Description, DescriptionError, check_task, free_joint_index, task_option
 from .kernelset import KernelSet
@@ -41,8 +49,13 @@ __all__ = ["ROBOTS", "load", "RobotModel", "SymbolicFunction", "IKBranch", "Desc
 # does (so that a test's monkeypatch of the old name patches what the code reads).  Code inside
 # derivations/ and codegen/ imports the new names (tests/test_import_layers.py holds it to that).
 MOVED = {
-    "description": "formats.description",
-    "urdf": "formats.urdf",
+    "description": "formats.description", "urdf": "formats.urdf",
+    "velocity": "rates.velocity", "damping": "rates.damping", "singular": "rates.singular", "paul": "rates.paul",
+    "mobility": "motion.mobility",
+    "dynamics": "mechanics.dynamics", "inertia": "mechanics.inertia",
+    "budget": "support.budget", "cache": "support.cache",
+    "spaces": "robots.extras.spaces", "motor_limits": "robots.extras.motor_limits",
+    "tool_configuration": "robots.extras.tool_configuration", "parallel": "robots.extras.parallel",
 }
 
 

@@ -2,9 +2,9 @@
 
 :func:`robot_kernels` is the list code generation reads (``RobotModel.functions()``), in a fixed
 order: the kinematics (fk, frames, jacobian, jacobian_tool, task, task_jacobian), ``ik``, a
-general 6R's ``ik_equations``, the rate kernels (:mod:`derivations.velocity`), the robot's own
+general 6R's ``ik_equations``, the rate kernels (:mod:`derivations.rates.velocity`), the robot's own
 ``extra_functions`` (declared by its module under ``derivations/robots/``), then the dynamics
-(:mod:`derivations.dynamics`).  :func:`ik_kernel` turns the IK branches into the ``ik`` kernel,
+(:mod:`derivations.mechanics.dynamics`).  :func:`ik_kernel` turns the IK branches into the ``ik`` kernel,
 step by step where the branches carry steps.
 
 This module imports the model and the layers that derive from it; the model imports none of
@@ -17,7 +17,6 @@ import sys
 import sympy as sp
 
 from .chain import REVOLUTE
-from .ik.decompose import substitute_unevaluated
 from .ik.general_6r import equations_function
 from .ik.primitives import kernel_form
 from .model import Argument, Output, RobotModel, SymbolicFunction, install_assembly, with_program
@@ -94,6 +93,7 @@ def _ik_program(model: RobotModel, revolute):
     """The branches' steps as one straight-line program: a step that several branches share
     (the same definition in the same earlier steps) once, each other step renamed
     ``ik_<name>_b<k>`` after the first branch k that defines it."""
+    from .ik.decompose import substitute_unevaluated  # loaded on first use, as derivations.ik loads it
     taken = {str(s) for s in model.params} | {str(s) for s in model.task_symbols}
     definitions, known = [], {}
     values, valid = [], []
@@ -117,8 +117,8 @@ def _ik_program(model: RobotModel, revolute):
 
 
 def rates(model: RobotModel):
-    """The rate kinematics of ``model`` (:func:`derivations.velocity.rate_kinematics`)."""
-    from .velocity import rate_kinematics
+    """The rate kinematics of ``model`` (:func:`derivations.rates.velocity.rate_kinematics`)."""
+    from .rates.velocity import rate_kinematics
     return rate_kinematics(model)
 
 
@@ -129,8 +129,8 @@ def rate_kernels(model: RobotModel) -> list[SymbolicFunction]:
 
 
 def dynamics(model: RobotModel):
-    """The equations of motion of ``model`` (:func:`derivations.dynamics.dynamics`); None without inertials."""
-    from .dynamics import dynamics as derive
+    """The equations of motion of ``model`` (:func:`derivations.mechanics.dynamics.dynamics`); None without inertials."""
+    from .mechanics.dynamics import dynamics as derive
     return derive(model)
 
 

@@ -9,8 +9,8 @@ of SymPy expressions).  Code generation needs nothing else.
 The model is data: this module imports the chain's joint types and the program's
 substitution, and nothing that derives.  What is derived from a model is elsewhere:
 its kinematics in :mod:`derivations.kinematics`, its inverse kinematics in
-:mod:`derivations.ik`, its rates in :mod:`derivations.velocity`, its equations of motion in
-:mod:`derivations.dynamics`, and its list of kernels in :mod:`derivations.assembly`.
+:mod:`derivations.ik`, its rates in :mod:`derivations.rates.velocity`, its equations of motion in
+:mod:`derivations.mechanics.dynamics`, and its list of kernels in :mod:`derivations.assembly`.
 ``RobotModel.functions()``, ``.rates``, ``.dynamics`` and the like keep the names of the
 public contract and hand over to that module, which installs itself here when it is
 imported (``install_assembly``; ``import derivations`` does it), so that the imports
@@ -107,7 +107,7 @@ class NumericSolve:
     Both also give ``singular``: ``s_min < t = s_max / COND_LIMIT`` on ``An``, where
     an exact solve would lose more than 4 of the 16 digits; there ``lambda^2 =
     (10 t)^2 (1 - (s_min / t)^2)`` (zero at the threshold, so continuous, and 10 t
-    at an exact singularity, as the closed forms' ``derivations.damping``), else 0.
+    at an exact singularity, as the closed forms' ``derivations.rates.damping``), else 0.
     """
 
     system: str
@@ -226,7 +226,7 @@ class RobotModel:
     ik: list[IKBranch] = field(default_factory=list)
     notes: dict[str, str] = field(default_factory=dict)
     constants: dict[str, sp.Expr] = field(default_factory=dict)
-    # "wrist partition": the rate maps by Paul's partition (derivations/paul.py), which a
+    # "wrist partition": the rate maps by Paul's partition (derivations/rates/paul.py), which a
     # robot's module asks for (the PUMA 560); None: chosen by size (velocity.closed_form_shape).
     rate_form: str | None = None
     # The automatic inverse kinematics (derivations.ik.decompose.attach): the family and the
@@ -249,13 +249,16 @@ class RobotModel:
     # `frames` (a URDF's link names); empty where the description gives none (see joint_labels).
     joint_names: tuple[str, ...] = ()
     frame_names: tuple[str, ...] = ()
-    # Each moving link's inertial parameters (derivations.inertia.Inertial, in frame k) and gravity
-    # in the base frame: the arm's equations of motion (derivations.dynamics); empty: none.
+    # Each moving link's inertial parameters (derivations.mechanics.inertia.Inertial, in frame k) and gravity
+    # in the base frame: the arm's equations of motion (derivations.mechanics.dynamics); empty: none.
     inertials: tuple = ()
     gravity: tuple = ()
     # Kernels particular to this robot, declared by its own module under derivations/robots/ (the
     # AdeptThree's tool configuration vector, the R-P arm's Kumar pose): generated after its rates.
     extra_functions: tuple[SymbolicFunction, ...] = ()
+    # What each factor of the robot's singular sets means, declared by its own module: {joints the
+    # factor involves (("q2",), ...): (name, description)}; empty: named by those joints.
+    singular_names: dict[tuple[str, ...], tuple[str, str]] = field(default_factory=dict)
 
     @property
     def n(self) -> int:
@@ -306,27 +309,27 @@ class RobotModel:
 
     @property
     def rates(self):
-        """Rate kinematics (derivations.velocity.RateKinematics), derived on first use and cached;
+        """Rate kinematics (derivations.rates.velocity.RateKinematics), derived on first use and cached;
         None for a model without a DH chain."""
         return _assembly().rates(self)
 
     @property
     def singularities(self):
-        """Singular configurations (derivations.velocity.Singularities): factored determinant, conditions."""
+        """Singular configurations (derivations.rates.velocity.Singularities): factored determinant, conditions."""
         return None if self.rates is None else self.rates.singularities
 
     @property
     def dynamics(self):
-        """The equations of motion (derivations.dynamics.Dynamics), derived on first use and
+        """The equations of motion (derivations.mechanics.dynamics.Dynamics), derived on first use and
         cached; None for an arm without inertial parameters."""
         return _assembly().dynamics(self)
 
     def dynamics_functions(self) -> list[SymbolicFunction]:
-        """The dynamics kernels (derivations/dynamics.py); none for an arm without inertials."""
+        """The dynamics kernels (derivations/mechanics/dynamics.py); none for an arm without inertials."""
         return [] if self.dynamics is None else list(self.dynamics.functions)
 
     def rate_functions(self) -> list[SymbolicFunction]:
-        """The velocity and acceleration kernels (derivations/velocity.py), then the robot's own
+        """The velocity and acceleration kernels (derivations/rates/velocity.py), then the robot's own
         ``extra_functions``."""
         return _assembly().rate_kernels(self)
 

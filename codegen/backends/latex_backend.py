@@ -36,7 +36,7 @@ from derivations.chain import PRISMATIC, REVOLUTE, simplify_entry
 from derivations.ik import ACOS_TOLERANCE, ClampUnit, WrapAngle
 from derivations.ik.subproblems import TINY
 from derivations.model import RobotModel
-from derivations.singular import FACTOR_LIMIT, JacobianDeterminant, inverse_rate_map, jacobian_determinant
+from derivations.rates.singular import FACTOR_LIMIT, JacobianDeterminant, inverse_rate_map, jacobian_determinant
 
 from . import TEMPLATES
 

@@ -151,7 +151,7 @@ class _Parser:
             if "gravity" in data:
                 self.fail("field 'gravity'", "gravity without inertial tables: give each joint's `inertial`")
             return (), ()
-        from ..inertia import Inertial, check_physical
+        from ..mechanics.inertia import Inertial, check_physical
         inertials = []
         for i, raw in enumerate(given):
             where = f"joint {i + 1}: field 'inertial'"
@@ -254,7 +254,7 @@ class _Parser:
         params: dict[sp.Symbol, float] = {}
         for key, value in raw.items():
             where = f"params: {key!r}"
-            # q1.., qd1.., qdd1.., xd_*, xdd_*, twist_* name the kernels' arguments (derivations/velocity.py).
+            # q1.., qd1.., qdd1.., xd_*, xdd_*, twist_* name the kernels' arguments (derivations/rates/velocity.py).
             if not is_identifier(key) or re.fullmatch(r"qd{0,2}\d+|tau\d+|(xdd?|twist|wrench)_\w+", key):
                 self.fail(where, "not a valid parameter name (an identifier that is not reserved and not q1, q2, ..., "
                           "qd1, qdd1, tau1, ..., or xd_*, xdd_*, twist_*, wrench_*)")

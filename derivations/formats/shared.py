@@ -56,7 +56,7 @@ class Description:
     base_link: str = ""
     # The joint (0-based) a seven-joint arm's ik holds at its argument `free`; None: chosen.
     free_joint: int | None = None
-    # Each moving link's inertial parameters (derivations.inertia.Inertial, in the link's frame k),
+    # Each moving link's inertial parameters (derivations.mechanics.inertia.Inertial, in the link's frame k),
     # and gravity in the base frame (3 expressions): empty for an arm without them (no dynamics).
     inertials: tuple = ()
     gravity: tuple = ()

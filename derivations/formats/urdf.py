@@ -58,7 +58,7 @@ import sympy as sp
 
 from ..chain import PRISMATIC, REVOLUTE, Joint, axis_motion, rpy_matrix
 from ..expressions import is_package_name
-from ..inertia import INERTIA_ORDER, Inertial, check_physical, combine, transformed
+from ..mechanics.inertia import INERTIA_ORDER, Inertial, check_physical, combine, transformed
 from .shared import MAX_JOINTS, Description, DescriptionError, read_input
 
 __all__ = ["read_urdf", "parse_urdf", "MAX_BYTES", "SNAP_TOLERANCE"]
@@ -423,7 +423,7 @@ class _Chain:
         Body k is the child link of moving joint k with every link that hangs from it rigidly:
         through fixed joints, and through moving joints off the chain (a gripper's fingers, held at
         their zero position, as a reduced model locks them); it ends at the next moving joint of
-        the chain.  Each link is checked physical (:func:`derivations.inertia.check_physical`,
+        the chain.  Each link is checked physical (:func:`derivations.mechanics.inertia.check_physical`,
         naming it) and the links are combined by the parallel-axis theorem, in float64."""
         mimics = [j.name for j in path if j.mimic is not None]
         below: dict[str, list[_UrdfJoint]] = {}

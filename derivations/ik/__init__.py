@@ -21,7 +21,15 @@ This package may import the core (``derivations.chain``, ``.program``, ``.model`
 """
 from .primitives import *  # noqa: F401,F403
 from .primitives import __all__ as _primitives
-from .decompose import IK_BUDGET, IKSolution, IKUnsupported, attach, solve  # noqa: F401
 
 __all__ = list(_primitives)
 __all__ += ["IKSolution", "IKUnsupported", "solve", "attach"]
+
+
+def __getattr__(name):
+    # decompose is loaded on first use: importing it costs every command about 45 ms of its start,
+    # and a refusal of bad input must stay well under a second
+    if name in ("IKSolution", "IKUnsupported", "solve", "attach", "IK_BUDGET"):
+        from . import decompose
+        return getattr(decompose, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

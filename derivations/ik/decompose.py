@@ -1149,7 +1149,7 @@ def attach(model, free_joint: int | None = None) -> None:
     or ``model.ik_unsupported`` (what the arm lacks, or the budget that ran out); the rest
     of the package is generated either way.
     """
-    from ..budget import BudgetExceeded, budget, degraded
+    from ..support.budget import BudgetExceeded, budget, degraded
     try:
         with budget(IK_BUDGET, f"{model.name}: automatic inverse kinematics"):
             solution = solve(model, free_joint)

@@ -48,7 +48,12 @@ def kumar_eq_f(model, xw=None, yw=None):
     return -2 * l1 * xw, -2 * l1 * yw, xw**2 + yw**2 + l1**2 - l2**2
 
 
+# What each factor of det J means (derivations.rates.velocity's singular sets), keyed by the joints it involves.
+SINGULAR_NAMES = {("q2",): ("elbow", "links 1 and 2 aligned (q2 = 0 or pi); Kumar Eq. 13: |J| = l1 l2 sin(theta2)")}
+
+
 def extend(model):
+    model.singular_names = SINGULAR_NAMES
     x, y, phi = model.task_symbols
     q1, q2, q3 = model.q
     l1, l2 = parameters(model, "l1", "l2")

@@ -27,9 +27,9 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .budget import BudgetExceeded, budget, degraded
-from .cache import cached
-from .chain import PRISMATIC, simplify_entry, simplify_product
+from ..support.budget import BudgetExceeded, budget, degraded
+from ..support.cache import cached
+from ..chain import PRISMATIC, simplify_entry, simplify_product
 from .velocity import MAX_CLOSED_FORM
 
 __all__ = ["FACTOR_LIMIT", "JacobianDeterminant", "square_jacobian", "jacobian_determinant", "trig_factor", "inverse_rate_map"]

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .chain import PRISMATIC, REVOLUTE, simplify_product
+from ..chain import PRISMATIC, REVOLUTE, simplify_product
 from .damping import (ClosedFormInverse, Minors, Scaling, closed_form_inverse, measure_squared,
                       regularised_solve, singular_flag)
 
@@ -79,7 +79,7 @@ class WristPartition:
     def solve(self, twist: sp.Matrix) -> tuple[sp.Matrix, sp.Basic]:
         """Joint rates from the tool twist ``[V_E; w]`` by two 3 x 3 solves; and the singular flag.
 
-        Each block is solved by :func:`derivations.damping.regularised_solve` with
+        Each block is solved by :func:`derivations.rates.damping.regularised_solve` with
         its own measure (``|det A| / L^3`` for the arm, ``|det D|`` for the wrist),
         so a wrist singularity damps only the wrist rates.
         """

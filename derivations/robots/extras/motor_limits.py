@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .robots.avr3000 import COUNTS_PER_REV
+from ..avr3000 import COUNTS_PER_REV
 
 __all__ = ["SCRIPT_RPM", "PAPER_RPM", "SCRIPT_STROKES", "AxisMotion", "AxisLimits", "axis_limits", "ramp_acceleration",
            "INCH"]

@@ -33,7 +33,7 @@ import sympy
 from . import budget
 
 T = TypeVar("T")
-_PACKAGE = Path(__file__).resolve().parent
+_PACKAGE = Path(__file__).resolve().parents[1]  # derivations/, whose sources key the cache
 
 
 def cache_dir() -> Path:

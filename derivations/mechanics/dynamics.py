@@ -41,8 +41,8 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .chain import REVOLUTE, axis_motion, dh_modified, dh_standard
-from .program import Program
+from ..chain import REVOLUTE, axis_motion, dh_modified, dh_standard
+from ..program import Program
 
 __all__ = ["Dynamics", "dynamics", "derive_dynamics", "DYNAMICS_BUDGET", "link_geometry", "origin_parameters",
            "TAU_PREFIX", "WRENCH_NAMES", "PARAMETER_NAMES", "standard_parameters", "base_parameters",
@@ -392,8 +392,8 @@ def rate_symbols(prefix: str, n: int):
 
 def derive_dynamics(model) -> Dynamics:
     """The equations of motion of ``model`` (which has ``inertials`` and ``gravity``) as a program."""
-    from .budget import stage
-    from .model import Argument, Output, SymbolicFunction, with_program
+    from ..support.budget import stage
+    from ..model import Argument, Output, SymbolicFunction, with_program
     n = model.n
     qd, qdd, tau = rate_symbols("qd", n), rate_symbols("qdd", n), rate_symbols(TAU_PREFIX, n)
     wrench = tuple(sp.Symbol(name, real=True) for name in WRENCH_NAMES)
@@ -473,7 +473,7 @@ def singular_mass_matrix(model, program: Program, M: sp.Matrix, samples: int = 3
     configurations with the default parameters (a 30-digit evaluation of the program)."""
     import random
 
-    from .program import evaluate
+    from ..program import evaluate
     rng = random.Random(30)
     defaults = {s: sp.Rational(repr(v)) for s, v in model.params.items()}
     n = M.rows
@@ -525,8 +525,8 @@ def dynamics(model) -> Dynamics | None:
         return None
     if "_dynamics" in model.__dict__:
         return model.__dict__["_dynamics"]
-    from .budget import BudgetExceeded, budget, degraded
-    from .cache import cached
+    from ..support.budget import BudgetExceeded, budget, degraded
+    from ..support.cache import cached
     key = "\n".join([model.name, repr(model.chain), sp.srepr(sp.Tuple(*model.q)),
                      sp.srepr(sp.Tuple(*model.params)), repr(model.inertials), repr(model.gravity),
                      sp.srepr(sp.ImmutableMatrix(model.jacobian)), sp.srepr(sp.Tuple(*map(sp.Tuple, model.program)))])

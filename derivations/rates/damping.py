@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .chain import PRISMATIC, Chain, simplify_product
+from ..chain import PRISMATIC, Chain, simplify_product
 
 __all__ = ["SINGULAR_MEASURE", "MAX_DAMPING", "Scaling", "ClosedFormInverse", "RegularisedSolve",
            "Minors", "reference_length", "factored", "closed_form_inverse", "regularised_solve",

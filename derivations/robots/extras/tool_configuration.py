@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from .model import Argument, Output, SymbolicFunction
+from ...model import Argument, Output, SymbolicFunction
 
 __all__ = ["tool_configuration_vector", "tool_configuration_jacobian", "tool_configuration_functions"]
 

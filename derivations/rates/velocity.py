@@ -15,11 +15,11 @@ Inverse maps (slides' "IVM"; Kumar Eq. 12; Rehiara Eq. 37), by the shape of J_x:
 * the pose task of a 6R arm with a spherical wrist (the PUMA 560): the 12 pose
   rates are turned into the tool twist (``v = p_dot``, ``[w]x`` = the skew part of
   ``R_dot R^T``, its least-squares fit), which Paul's partition inverts by two
-  3 x 3 solves (:mod:`derivations.paul`);
+  3 x 3 solves (:mod:`derivations.rates.paul`);
 * tall (a user's arm with fewer joints than task coordinates): least squares.
 
 Near a singularity every inverse flags it and answers by damped least squares
-(:mod:`derivations.damping`: thresholds, damping and units).
+(:mod:`derivations.rates.damping`: thresholds, damping and units).
 
 Singularities: ``det J_x`` factored (square), ``det A det D`` (Paul), or
 ``det(J_x J_x^T)`` as a sum of squared minors (Cauchy-Binet; wide), each split
@@ -27,7 +27,7 @@ into its constant factor and the conditions under which it vanishes
 (:class:`Singularities`, exposed as ``model.singularities``).
 
 Everything here is derived once per robot and cached on disk
-(:func:`derivations.cache.cached`).
+(:func:`derivations.support.cache.cached`).
 """
 from __future__ import annotations
 
@@ -37,12 +37,12 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .cache import cached
-from .chain import PRISMATIC, derivative
+from ..support.cache import cached
+from ..chain import PRISMATIC, derivative
 from .damping import (ClosedFormInverse, Minors, Scaling, closed_form_inverse, factored, measure_squared,
                       reference_length, regularised_solve, singular_flag)
-from .model import POSE_NAMES, Argument, NumericSolve, Output, SymbolicFunction, with_program
-from .program import Program
+from ..model import POSE_NAMES, Argument, NumericSolve, Output, SymbolicFunction, with_program
+from ..program import Program
 from .paul import WristPartition, wrist_partition
 
 __all__ = ["RateKinematics", "Singularities", "SingularCondition", "rate_kinematics", "derive_rates",
@@ -57,24 +57,6 @@ MAX_MINOR_SIZE = 3
 MAX_MINORS = 10
 # ... and while J_x has at most this many operations (count_ops).
 MAX_CLOSED_FORM_OPS = 200
-
-# What each singular factor means, keyed by robot and by the joints the factor involves.
-FACTOR_NAMES = {
-    "planar_2r": {("q2",): ("elbow", "the links aligned: arm stretched (q2 = 0) or folded (q2 = pi); "
-                                     "slides: |J| = l1 l2 s2 = 0")},
-    "planar_3r": {("q2",): ("elbow", "links 1 and 2 aligned (q2 = 0 or pi); Kumar Eq. 13: |J| = l1 l2 sin(theta2)")},
-    "planar_rp": {("q2",): ("slide at the axis", "the slide retracted onto the joint-1 axis (d2 = 0): "
-                                                 "turning joint 1 moves nothing")},
-    "adept_three": {("q2",): ("elbow", "the two arm links aligned (q2 = 0 or pi)")},
-    "scorbot_er7": {("q2", "q3", "q4"): ("shoulder", "the tool point P5 on the axis of joint 1"),
-                    ("q3", "q4"): ("elbow", "upper arm, forearm and gripper in one line "
-                                            "(q3 and q4 each 0 or pi)")},
-    "puma560": {("q2", "q3"): ("shoulder", "the wrist centre in the plane of the axes of joints 1 and 2"),
-                ("q3",): ("elbow", "the wrist centre in line with the shoulder and the elbow "
-                                   "(arm stretched or folded)"),
-                ("q5",): ("wrist", "axes 4 and 6 aligned (q5 = 0 or pi)")},
-}
-
 
 def rate_symbols(prefix: str, names) -> tuple[sp.Symbol, ...]:
     """``prefix`` + name for each name: ``qd1``, ``xd_x``, ``twist_vx`` (valid C identifiers)."""
@@ -134,7 +116,7 @@ class Singularities:
     ``constant`` its factor free of the joints; the robot is singular where any one
     of ``conditions`` holds.  ``manipulability`` is Yoshikawa's ``w`` (|det J| when
     square, ``sqrt(det(J J^T))`` when wide) in SI units; ``singular`` is the
-    kernels' flag (``mu < mu_0``, see :mod:`derivations.damping`).
+    kernels' flag (``mu < mu_0``, see :mod:`derivations.rates.damping`).
     """
 
     matrix: str
@@ -338,10 +320,12 @@ def _reduce_simultaneous(residuals: list[sp.Expr], q) -> list[sp.Expr]:
     return residuals
 
 
-def _condition(robot: str, factors, q) -> SingularCondition:
+def _condition(model, factors, q) -> SingularCondition:
+    """The set where ``factors`` vanish, named as the robot's module names it (``model.singular_names``,
+    keyed by the joints the factors involve), else by those joints."""
     joints = set().union(*(f.free_symbols for f in factors)) & set(q)
     key = tuple(sorted((str(s) for s in joints), key=lambda name: int(name[1:])))
-    name, description = FACTOR_NAMES.get(robot, {}).get(key, (f"factor in {', '.join(key)}", ""))
+    name, description = getattr(model, "singular_names", {}).get(key, (f"factor in {', '.join(key)}", ""))
     return SingularCondition(name, tuple(factors), description)
 
 
@@ -352,13 +336,13 @@ def _singularities(model, strategy, scaling: Scaling, inverse, partition, minors
         arm_constant, arm_factors = _split(partition.arm_inverse.determinant, q)
         wrist_constant, wrist_factors = _split(partition.wrist_inverse.determinant, q)
         constant = arm_constant * wrist_constant
-        conditions = [_condition(model.name, (f,), q) for f in arm_factors + wrist_factors]
+        conditions = [_condition(model, (f,), q) for f in arm_factors + wrist_factors]
         arm_flag, wrist_flag = partition.singular_flags()
         return Singularities("det J = det A det D", determinant, constant, tuple(conditions),
                              sp.Abs(determinant), sp.Or(arm_flag, wrist_flag), length)
     if strategy == "square":
         constant, factors = _split(inverse.determinant, q)
-        conditions = [_condition(model.name, (f,), q) for f in factors]
+        conditions = [_condition(model, (f,), q) for f in factors]
         return Singularities("det J_x", inverse.determinant, constant, tuple(conditions),
                              sp.Abs(inverse.determinant), singular_flag(measure_squared(minors, scaling)), length)
     if strategy == "wide":
@@ -370,9 +354,9 @@ def _singularities(model, strategy, scaling: Scaling, inverse, partition, minors
         for constant_part, fs in split.values():
             rest = [f for f in fs if not any(_same_up_to_sign(f, c) for c in common)]
             residuals.append(sp.Mul(*rest))
-        conditions = [_condition(model.name, (f,), q) for f in common]
+        conditions = [_condition(model, (f,), q) for f in common]
         if all(r.free_symbols & set(q) for r in residuals):
-            conditions.append(_condition(model.name, _reduce_simultaneous(residuals, q), q))
+            conditions.append(_condition(model, _reduce_simultaneous(residuals, q), q))
         squares = sum((c * sp.Mul(*fs) / sp.Mul(*common))**2 for c, fs in split.values())
         determinant = sp.Mul(*[f**2 for f in common]) * squares
         manipulability = sp.sqrt(sum(minor**2 for minor in maximal.values()))
@@ -401,7 +385,7 @@ def _functions(model, rates: dict) -> list[SymbolicFunction]:
     Jx, J = model.task_jacobian, model.jacobian
     qd_col, qdd_col = sp.Matrix(rates["qd"]), sp.Matrix(rates["qdd"])
     singular = rates["singularities"].singular if rates["singularities"] is not None else sp.false
-    flag_doc = "true where the normalised manipulability is below mu_0 (see derivations/damping.py)"
+    flag_doc = "true where the normalised manipulability is below mu_0 (see derivations/rates/damping.py)"
 
     def flag():
         return Output("singular", (singular,), (), "bool", flag_doc)

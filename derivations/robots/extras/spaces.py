@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
-from .model import Argument, Output, Requirement, RobotModel, SymbolicFunction
+from ...model import Argument, Output, Requirement, RobotModel, SymbolicFunction
 
 __all__ = ["LEVELS", "CoordinateSpace", "coordinate_space", "SpaceMap", "position_map", "compose",
            "differentiate", "SpacesModel"]
