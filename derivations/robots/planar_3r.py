@@ -14,7 +14,7 @@ Branch names follow the planar 2R arm: ``elbow_up`` has t2 in [-pi, 0] (sigma = 
 ``elbow_down`` has t2 in [0, pi] (sigma = +1).  Kumar's Fig. 14 caption calls
 sigma = +1 "elbow-up"; with Eq. (h) as printed, sigma = +1 puts the elbow to the
 right of the line from the base to the wrist, below it for a wrist to the right
-of the base (README, "Choices the papers leave open"; tests/test_ik.py).
+of the base (README, "Choices the papers leave open"; tests/ik/test_ik.py).
 """
 from __future__ import annotations
 

@@ -34,7 +34,7 @@ from derivations.description import DescriptionError, parse_description
 from derivations.program import evaluate
 from derivations.urdf import parse_urdf
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT / "tests" / "data" / "dynamics"
 RRP = DATA / "rrp_arm.toml"
 GRAVITY = np.array([0.0, 0.0, -9.81])  # the default: 9.81 m/s^2 along -z of the base
@@ -418,7 +418,7 @@ def test_urdf_arm_with_inertials_has_the_dynamics_kernels_unless_left_out():
 
 
 def test_every_name_the_dynamics_c_declares_is_reserved_or_the_arms_own(rrp):
-    """As tests/test_description.py holds the papers' robots: an identifier the C of the dynamics
+    """As tests/formats/test_description.py holds the papers' robots: an identifier the C of the dynamics
     kernels declares (their outputs tau, M, g, C, c, Y; their arguments) that a parameter could take
     is reserved, so that such a parameter is refused by the description, not the compiler."""
     import re

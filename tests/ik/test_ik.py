@@ -640,7 +640,7 @@ def test_puma_kernels_match_sympy_at_a_wrist_singular_pose(models):
 
 def test_readme_ik_example_runs():
     from pathlib import Path
-    text = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    text = (Path(__file__).resolve().parents[2] / "README.md").read_text()
     section = text[text.index("## Inverse kinematics"):]
     block = section[section.index("```python") + len("```python"):]
     block = block[:block.index("```")]

@@ -11,7 +11,7 @@ import pytest
 from codegen.cli import main
 
 # The README's example description, so the walkthrough there is exactly what this test runs.
-README = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+README = (Path(__file__).resolve().parents[2] / "README.md").read_text()
 CYLINDRICAL = re.search(r"```toml\n(.*?)```", README, re.S).group(1)
 
 
@@ -131,7 +131,7 @@ def test_cli_conventions(capsys, monkeypatch):
     with pytest.raises(SystemExit) as exit_info:
         main(["--version"])
     assert exit_info.value.code == 0
-    version = tomllib.loads((Path(__file__).resolve().parents[1] / "pyproject.toml").read_text())["project"]["version"]
+    version = tomllib.loads((Path(__file__).resolve().parents[2] / "pyproject.toml").read_text())["project"]["version"]
     assert capsys.readouterr().out.strip() == f"kinegen {version}"
     assert main(["list"]) == 0
     rows = [line.split(None, 1) for line in capsys.readouterr().out.splitlines()]

@@ -16,7 +16,7 @@ import pytest
 from codegen import generate
 from codegen.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 ARM = 'name = "{name}"\ntitle = "{title}"\n[[joint]]\ntype = "R"\na = 0.5\n[[joint]]\ntype = "R"\na = 0.4\n'
 
 

@@ -29,14 +29,14 @@ import numpy as np
 import pytest
 import sympy as sp
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import derivations  # noqa: E402
 from test_auto_ik import COMPARE, MODULES  # noqa: E402
 from test_urdf_zoo import snapped_numbers  # noqa: E402
 from test_zoo import ARMS, fk as dh_fk, link_frames, read_arm, wrist_geometry  # noqa: E402
 from urdf_zoo import ZOO, XmlChain  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 RANDOM, DEGENERATE = 200, 100
 FK_TOLERANCE = 1e-9
 # The generating configuration is "among the answers" within this.  The subproblems take an acos

@@ -32,8 +32,8 @@ import pytest
 
 from codegen.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
-URDF_DIR = Path(__file__).resolve().parent / "data" / "urdf"
+ROOT = Path(__file__).resolve().parents[2]
+URDF_DIR = Path(__file__).resolve().parents[1] / "data" / "urdf"
 TOLERANCE = 1e-12
 SAMPLES = 100
 

@@ -17,7 +17,7 @@ import generated
 from codegen import build, generate
 from conftest import kernels
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.mark.parametrize("kernel", ["fk", "frames", "jacobian", "task", "task_jacobian"])

@@ -303,7 +303,7 @@ def test_E12_kumar_mobility_examples_cite_the_wrong_equation():
 
 # --------------------------------------------------------------------------- the documents agree
 
-REPO = __import__("pathlib").Path(__file__).resolve().parents[1]
+REPO = __import__("pathlib").Path(__file__).resolve().parents[2]
 
 
 def readme_errata() -> dict[str, list[tuple[str, str]]]:
@@ -316,7 +316,7 @@ def readme_errata() -> dict[str, list[tuple[str, str]]]:
         if len(cells) < 5 or cells[0] in ("id", "") or set(cells[0]) <= set("-"):
             continue
         tests, current = [], None
-        for ref in __import__("re").findall(r"`((?:tests/[\w.]+)?::\w+)`", cells[-1]):
+        for ref in __import__("re").findall(r"`((?:tests/[\w./]+)?::\w+)`", cells[-1]):
             path, name = ref.split("::")
             current = path or current
             tests.append((current, name))

@@ -22,7 +22,7 @@ The arms that did not generate before issue #25 (``GENERATED``) are generated wh
 C, by the CLI in a process of their own, and both backends are held to the XML the same way;
 their C holds no integer literal past 2^53.
 
-``pytest tests/test_urdf_zoo.py -k "not generated"`` is the quick part; ``-k xarm7`` one arm.
+``pytest tests/formats/test_urdf_zoo.py -k "not generated"`` is the quick part; ``-k xarm7`` one arm.
 """
 from __future__ import annotations
 
@@ -43,7 +43,7 @@ from urdf_zoo import ZOO, ZOO_DIR, XmlChain, relative_error
 
 TOLERANCE = 1e-12
 SAMPLES = 100
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SNAP_TOLERANCE = 1e-8  # float noise that snapping may remove from a number written to any precision
 
 

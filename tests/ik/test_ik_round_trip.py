@@ -12,7 +12,7 @@ and pi, and three rates must all be zero:
   the valid branches (modulo 2 pi for revolute joints, within JOINT_TOLERANCE),
   up to what a singular configuration leaves free.
 
-Run as a script (``python tests/test_ik_round_trip.py``) to print the table.
+Run as a script (``python tests/ik/test_ik_round_trip.py``) to print the table.
 """
 import math
 import sys
@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from conftest import ROBOT_NAMES, kernels  # noqa: E402
 
 COUNT = 10_000

@@ -23,7 +23,7 @@ import generated
 from derivations.ik import solve
 from derivations.ik.subproblems import angle_onto, angle_to_distance, angle_to_height, cone_angle, slide_to_distance
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 COUNT = 2000
 JOINT_TOLERANCE = 1e-7
 FK_TOLERANCE = 1e-9
@@ -187,7 +187,7 @@ def test_cone_angle_keeps_the_digits_near_zero():
 
 # --------------------------------------------------------------------------- URDF chains and the CLI
 
-URDF = Path(__file__).resolve().parent / "data" / "urdf"
+URDF = Path(__file__).resolve().parents[1] / "data" / "urdf"
 URDF_FAMILIES = {"ur5.urdf": ("three parallel", None, "tool0"), "stanford.urdf": ("spherical wrist", None, None),
                  "iiwa14.urdf": ("spherical wrist, joint 3 free", 2, None)}
 
@@ -237,7 +237,7 @@ def test_a_held_joint_that_leaves_no_closed_form_is_said_and_a_bad_one_refused()
 def test_kinegen_show_prints_the_decomposition(tmp_path):
     """`kinegen show FILE --what ik` prints the family and a subproblem per joint; for an arm outside
     the families, the numeric method and what the arm lacks."""
-    arms = Path(__file__).resolve().parent / "data" / "arms"
+    arms = Path(__file__).resolve().parents[1] / "data" / "arms"
     run = subprocess.run([sys.executable, "-m", "codegen", "--quiet", "show", str(arms / "ur5.toml"), "--what", "ik"],
                          capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert run.returncode == 0, run.stderr
