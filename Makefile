@@ -118,7 +118,7 @@ avr-limits: $(STAMP)
 # installed when it can be; without it the plot tests skip, saying why.
 # make test builds the C at -O0 (KINEGEN_OPT, read by each package's build_c.py): the suite checks
 # values, which every level computes alike, and -O0 compiles in a fraction of the time; the
-# default -O2 build is the one tests/test_install.py installs.
+# default -O2 build is the one tests/generation/test_install.py installs.
 test: export KINEGEN_OPT = -O0
 test:
 	@mkdir -p $(dir $(TIMES)) && : > $(TIMES)

@@ -5,7 +5,7 @@ Each arm of ``ARMS`` (a file of tests/data/urdf/zoo/, whose source SOURCES.md gi
 with an empty derivation cache: ``python -m codegen generate FILE --base B --tip T --no-snap``
 (the numbers as written, which is how Pinocchio reads them).  Its cold derivation is timed in a
 second fresh process: the model (kinematics), then the equations of motion
-(``derivations.dynamics``), then the common subexpressions of the seven dynamics kernels.
+(``derivations.mechanics.dynamics``), then the common subexpressions of the seven dynamics kernels.
 
 Pinocchio's model of the same file (``buildModelFromUrdf``) is reduced to the arm's joints with
 ``buildReducedModel``, every other joint (fingers) locked at zero, which is how our reader folds
@@ -78,7 +78,7 @@ def snap_is_exact(name: str) -> bool:
     """Whether snapping moves the arm's numbers by float noise only (a file writing pi/2 as
     1.5707963267948966): then the default, snapped model is Pinocchio's to 1e-15, and its exact
     right angles save operations.  A file writing 1.5708 (the xArm) is generated with --no-snap."""
-    from derivations.urdf import read_urdf
+    from derivations.formats.urdf import read_urdf
     arm = ZOO[name]
     chains = [read_urdf(arm.path, base=arm.base, tip=arm.tip, snap=snap).joints for snap in (True, False)]
     for snapped, written in zip(*chains):

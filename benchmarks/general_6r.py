@@ -6,7 +6,7 @@ and its numeric ``ik_LM``) where the bench environment has it.
 * Package: ``kinegen generate FILE`` (portable C99 -O2) of each arm's file, in a
   temporary folder; the derivation of the general 6R's equations timed alone in a fresh process
   with an empty derivation cache (``derivations.load``, then ``equations_function``).
-* Counts (as tests/test_general_6r.py, here on more poses): targets from the package's fk of
+* Counts (as tests/ik/test_general_6r.py, here on more poses): targets from the package's fk of
   RANDOM uniform configurations (every joint over the whole turn) and DEGENERATE with every joint
   at 0, +-pi/2 or pi; "wrong" a valid answer whose pose (the package's fk) is off by more than
   1e-9 in an entry of the 4 x 4, "no solution" a target without a valid answer, "missing" the

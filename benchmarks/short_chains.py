@@ -1,6 +1,6 @@
 """The closed-form ik of short chains and of the tasks 4- to 6-joint arms reach in full (issue #26, item 2).
 
-Per arm of ``tests/test_ik_short_chains.py`` (the README's cylindrical R P P, the Stanford arm's
+Per arm of ``tests/ik/test_ik_short_chains.py`` (the README's cylindrical R P P, the Stanford arm's
 R R P position chain, the AL5D from its DH table and its URDF, the SO-101 URDF, a UR5 and a KR5
 with x, y, z, approach):
 
@@ -35,7 +35,8 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
-sys.path.insert(0, str(REPO / "tests"))
+sys.path.insert(0, str(REPO / "tests"))  # and its layer folders: the helpers import one another
+sys.path[1:1] = [str(p) for p in sorted((REPO / "tests").iterdir()) if p.is_dir() and p.name not in ("data", "__pycache__")]
 
 import test_ik_short_chains as t  # noqa: E402
 

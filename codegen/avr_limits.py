@@ -4,7 +4,7 @@
 
 Prints the joint, tool and Cartesian velocities of pure T, R and Z motion at
 full motor speed and the accelerations that reach them
-(``derivations.motor_limits.axis_limits``).  Lengths take a unit suffix
+(``derivations.robots.extras.motor_limits.axis_limits``).  Lengths take a unit suffix
 (``in``, ``mm``, ``m``; metres without one), angles ``deg`` or ``rad``; a
 negative value needs the ``--R=-5in`` form.
 """
@@ -15,7 +15,7 @@ import math
 import sys
 
 import derivations
-from derivations.motor_limits import SCRIPT_R, SCRIPT_RPM, axis_limits
+from derivations.robots.extras.motor_limits import SCRIPT_R, SCRIPT_RPM, axis_limits
 
 __all__ = ["add_parser", "run"]
 

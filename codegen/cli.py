@@ -28,7 +28,6 @@ import hashlib
 import importlib
 import io
 import os
-import shutil
 import signal
 import sys
 import threading
@@ -39,8 +38,7 @@ import numpy as np
 import sympy as sp
 
 import derivations
-from derivations.budget import BudgetExceeded, MemoryCapExceeded, budget, memory_cap, stage
-from derivations.program import needed
+from derivations.support.budget import BudgetExceeded, MemoryCapExceeded, budget, memory_cap, stage
 import generated
 
 from . import avr_limits
@@ -48,16 +46,14 @@ from . import build as c_build
 from . import fuzz as c_fuzz
 from . import generate as gen
 from . import report as tex_report
+from . import show as show_equations
 from .backends import latex_backend
 from .verify import format_table, verify_model
 
 __all__ = ["main"]
 
-# One vocabulary for `show --what` and `latex --what`: what show prints as text, and the LaTeX
-# sections (show prints those that have no text form as LaTeX; `position` and `task` are one).
-SHOW_TEXT = ("summary", "params", "dh", "fk", "frames", "jacobian", "task", "task_jacobian", "ik")
-WHAT = SHOW_TEXT + tuple(k for k in latex_backend.SECTION_KEYS if k not in SHOW_TEXT)
-LATEX_ALIASES = {"task": "position"}
+# One vocabulary for `show --what` and `latex --what` (codegen/show.py).
+SHOW_TEXT, WHAT, LATEX_ALIASES = show_equations.SHOW_TEXT, show_equations.WHAT, show_equations.LATEX_ALIASES
 SHOW = WHAT
 
 
@@ -171,7 +167,7 @@ def cmd_list(args, say) -> int:
     width = max(len(n) for n in derivations.ROBOTS)
     for name, path in derivations.ROBOTS.items():
         if path.suffix == ".toml":
-            title = derivations.description.read_description(path).title
+            title = derivations.formats.description.read_description(path).title
         else:  # a robot built in Python: its module's docstring names it (without deriving it)
             import ast
             title = (ast.get_docstring(ast.parse(path.read_text())) or "").split("\n")[0].split(":")[0]
@@ -186,113 +182,10 @@ def cmd_show(args, say) -> int:
 
 def _show(args, say) -> int:
     model, _ = _load(args.robot, say, args)
-    what = args.what
-    section = LATEX_ALIASES.get(what, what)
-    if (args.latex or what not in SHOW_TEXT) and section in latex_backend.SECTION_KEYS:
-        print(latex_backend.latex_for(model, [section]), end="")  # the fragments' notation
-        return 0
-    width = shutil.get_terminal_size((100, 24)).columns
-    render = ((lambda e, indent=0: sp.latex(e)) if args.latex else
-              (lambda e, indent=0: sp.pretty(e, use_unicode=False, num_columns=max(40, width - indent))))
-    if what == "summary":
-        print(f"{model.title} ({model.name})\nsource: {model.source}")
-        print(f"joints: {', '.join(f'{q} ({t})' for q, t in zip(model.q, model.joint_types))}")
-        print(f"task: {', '.join(model.task_names)}")
-        print("params: " + ", ".join(f"{p} = {v}" for p, v in model.params.items()))
-        print(f"ik branches: {', '.join(b.name for b in model.ik) or 'none'}"
-              + (f" ({model.ik_plan[0]})" if model.ik_plan else f" ({model.ik_unsupported})" if model.ik_unsupported else ""))
-        print(f"kernels: {', '.join(f.name for f in model.functions())}")
-        return 0
-    if what == "params":
-        for p, v in model.params.items():
-            print(f"{p} = {v}")
-        return 0
-    if what == "dh":
-        if model.chain is None:
-            raise InputError(f"{model.name} is not a DH chain")
-        print(f"convention: {model.chain.convention}")
-        if model.chain.convention == "urdf":
-            rows = [("joint", "type", "name", "axis", "origin xyz", "after xyz")]
-            for i, j in enumerate(model.chain.joints, 1):
-                rows.append((str(i), j.type, gen.terminal_text(j.name, 60), _numbers(j.axis),
-                             _numbers(j.origin[:3, 3]), "" if j.after is None else _numbers(j.after[:3, 3])))
-        else:
-            rows = [("joint", "type", "a", "alpha", "d", "theta", "offset")]
-            for i, j in enumerate(model.chain.joints, 1):
-                d = model.q[i - 1] if j.type == "P" else j.d
-                theta = model.q[i - 1] if j.type == "R" else j.theta
-                rows.append((str(i), j.type, *(_number(v) for v in (j.a, j.alpha, d, theta, j.offset))))
-        print(_table(rows))
-        return 0
-    if what == "ik":
-        if not model.ik:
-            if model.chain is None:
-                raise InputError(f"{model.name} has no inverse kinematics (it is not one serial chain)")
-            from derivations.ik.general_6r import applies as general_6r
-            if general_6r(model):
-                print("method: general 6R (every real solution, up to 16: Raghavan and Roth's 14 equations in "
-                      "Manocha and Canny's matrix form, a 24 x 24 eigenproblem per pose, each root polished by "
-                      "Newton on the arm's fk; docs/ik.md)")
-            else:
-                print(f"method: numeric (ik_numeric from {gen.SEED_COUNT} fixed seeds: every answer exact to 1e-12, "
-                      "not every answer guaranteed)")
-            print(f"no closed form: {model.ik_unsupported}")
-            return 0
-        if model.ik_plan:  # decomposed (derivations.ik.decompose): the plan, then each branch's root choices
-            print("\n".join(model.ik_plan))
-            print(f"branches ({len(model.ik)}):")
-            for branch in model.ik:
-                print(f"  {branch.name}: {branch.doc}")
-            return 0
-        for branch in model.ik:
-            print(f"{branch.name}:")
-            for q, expr in zip(model.q, branch.solution):
-                print(f"  {q} = {render(expr)}")
-        return 0
-    value = {"fk": model.fk, "jacobian": model.jacobian, "task": model.task,
-             "task_jacobian": model.task_jacobian}.get(what)
-    shown = model.frames if what == "frames" else [value]
-    steps = needed(model.program, [e for matrix in shown for e in matrix])
-    if steps:  # a general arm's kinematics is a program: its steps first, then what reads them
-        print(f"# {len(steps)} steps of the straight-line program, in order; the result reads them")
-        for symbol, expr in steps:
-            print(f"{symbol} = {render(expr)}")
-        print()
-    if what == "frames":
-        for i, frame in enumerate(model.frames):
-            print(f"T_{i}:\n{_entries(frame, render)}\n")
-        return 0
-    print(_entries(value, render))
-    return 0
-
-
-def _entries(matrix, render) -> str:
-    """A matrix one entry a line (``[i, j] = ...``, each wrapped to the terminal): a 4 x 4 of long
-    entries printed as one block ran to lines 656 columns wide."""
-    if matrix.cols == 1:
-        return "\n".join(f"[{i + 1}] = {render(e, 6)}" for i, e in enumerate(matrix))
-    return "\n".join(f"[{i + 1}, {j + 1}] = {render(matrix[i, j], 9)}"
-                     for i in range(matrix.rows) for j in range(matrix.cols))
-
-
-def _number(value) -> str:
-    """A DH entry for the terminal: a decimal as the shortest decimal of its double (0.089159, not
-    89159/1000000), an exact value where short (pi/2, d1), else its value to 6 digits."""
-    value = sp.sympify(value)
-    if value.is_Float or (value.is_Rational and not value.is_Integer):
-        return repr(float(value))
-    text = str(value)
-    return text if len(text) <= 24 else f"{float(value):.6g}" if sp.sympify(value).is_number else text[:24] + "..."
-
-
-def _numbers(values) -> str:
-    return "[" + ", ".join(_number(v) for v in values) + "]"
-
-
-def _table(rows) -> str:
-    """Columns padded to their widest cell."""
-    widths = [max(len(row[k]) for row in rows) for k in range(len(rows[0]))]
-    return "\n".join("  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip() for row in rows)
+    try:
+        return show_equations.print_model(model, args.what, args.latex)
+    except show_equations.NotShown as exc:
+        raise InputError(str(exc)) from None
 
 
 def cmd_generate(args, say) -> int:

@@ -22,8 +22,8 @@ import numpy as np
 import sympy as sp
 
 import derivations
-from derivations.budget import stage as budget_stage
-from derivations.description import read_description
+from derivations.support.budget import stage as budget_stage
+from derivations.formats.description import read_description
 from derivations.ik import UNIT_SNAP
 from derivations.ik.general_6r import equations_function
 from derivations.kernelset import KernelSet

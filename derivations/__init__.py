@@ -5,6 +5,14 @@
 >>> model.task.T
 Matrix([[l1*cos(q1) + l2*cos(q1 + q2), l1*sin(q1) + l2*sin(q1 + q2)]])
 
+The folders are the layers (docs/architecture.md), and imports run one way, from the bottom:
+``support/`` (budgets, the cache); the core at this level (``chain``, ``program``,
+``chain_program``, ``expressions``, ``model``: the data, ``kinematics``: a chain's frames,
+Jacobian and task); then ``formats/`` (TOML and URDF in), ``ik/``, ``rates/``, ``mechanics/``
+(dynamics) and ``motion/``; then ``assembly`` (a robot's kernel list) and ``kernelset``; then
+``robots/`` (the papers' robots and, in ``robots/extras/``, their papers' own pieces); and this
+module's ``load`` on top.
+
 ``ROBOTS`` maps each registered robot name to the file that defines it: a
 description ``robots/<name>.toml`` (a DH chain, optionally extended by a module
 ``robots/<name>.py`` with ``extend(model)``), or a module ``robots/<name>.py``
@@ -18,17 +26,63 @@ by the module of that name (``load_kernel_set``).
 from __future__ import annotations
 
 import importlib
+import importlib.abc
+import importlib.util
 import sys
 import time
 from pathlib import Path
 
-from .cache import cached
-from .description import Description, DescriptionError, check_task, free_joint_index, read_description, task_option
+from .support.cache import cached
+from .formats.description import read_description
+from .formats.shared import Description, DescriptionError, check_task, free_joint_index, task_option
 from .kernelset import KernelSet
-from .model import IKBranch, RobotModel, SymbolicFunction, TaskError, build_chain_model
+from .model import IKBranch, RobotModel, SymbolicFunction, TaskError
+from .kinematics import build_chain_model
+from . import assembly  # installs the kernel assembly the model hands functions(), rates and dynamics to
 
 __all__ = ["ROBOTS", "load", "RobotModel", "SymbolicFunction", "IKBranch", "DescriptionError",
            "UnknownRobotError", "KERNEL_SETS", "KernelSet", "load_kernel_set"]
+
+# Modules that moved into the layer folders (issue #29, docs/architecture.md), under their old
+# names: `import derivations.urdf`, `from derivations.velocity import rate_kinematics` and
+# `derivations.description.read_description` keep working, and give the very module the new name
+# does (so that a test's monkeypatch of the old name patches what the code reads).  Code inside
+# derivations/ and codegen/ imports the new names (tests/test_import_layers.py holds it to that).
+MOVED = {
+    "description": "formats.description", "urdf": "formats.urdf",
+    "velocity": "rates.velocity", "damping": "rates.damping", "singular": "rates.singular", "paul": "rates.paul",
+    "mobility": "motion.mobility",
+    "dynamics": "mechanics.dynamics", "inertia": "mechanics.inertia",
+    "budget": "support.budget", "cache": "support.cache",
+    "spaces": "robots.extras.spaces", "motor_limits": "robots.extras.motor_limits",
+    "tool_configuration": "robots.extras.tool_configuration", "parallel": "robots.extras.parallel",
+}
+
+
+class _MovedModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
+    """Imports ``derivations.<old>`` as the module ``derivations.<MOVED[old]>``."""
+
+    def find_spec(self, fullname, path=None, target=None):
+        package, _, old = fullname.rpartition(".")
+        if package == __name__ and old in MOVED:
+            return importlib.util.spec_from_loader(fullname, self)
+        return None
+
+    def create_module(self, spec):
+        return importlib.import_module(f"{__name__}.{MOVED[spec.name.rpartition('.')[2]]}")
+
+    def exec_module(self, module):
+        pass  # the module under its new name has run already
+
+
+if not any(isinstance(finder, _MovedModules) for finder in sys.meta_path):
+    sys.meta_path.append(_MovedModules())
+
+
+def __getattr__(name):
+    if name in MOVED:  # `import derivations; derivations.urdf...`
+        return importlib.import_module(f"{__name__}.{name}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 _ROBOT_DIR = Path(__file__).resolve().parent / "robots"
 
@@ -60,8 +114,8 @@ def load(name: str | Path, *, verbose: bool = False, base: str | None = None, ti
     ``name`` is a registry name (see ``ROBOTS``), the path of a ``.toml``
     description, or the path of a ``.urdf`` file; for a URDF, ``base`` and ``tip``
     name the links the chain runs between and ``snap`` rounds angles and axes
-    within ``derivations.urdf.SNAP_TOLERANCE`` of pi/2 multiples and coordinate axes
-    to them exactly (``derivations.urdf``).  ``free_joint`` (a number from 1, or a joint's name)
+    within ``derivations.formats.urdf.SNAP_TOLERANCE`` of pi/2 multiples and coordinate axes
+    to them exactly (``derivations.formats.urdf``).  ``free_joint`` (a number from 1, or a joint's name)
     is the joint a seven-joint arm's ik holds at its argument ``free`` (a description's
     ``free_joint`` otherwise; by default the first that leaves a six-joint arm with a closed
     form).  ``task`` (a list of items, or their names separated by commas: ``"x,y,z,pitch"``) replaces
@@ -73,7 +127,7 @@ def load(name: str | Path, *, verbose: bool = False, base: str | None = None, ti
     if path.suffix == ".py":
         return _load_module(path, verbose)
     if path.suffix == ".urdf":
-        from .urdf import read_urdf
+        from .formats.urdf import read_urdf
         description = read_urdf(path, base=base, tip=tip, snap=snap)
     else:
         description = read_description(path)

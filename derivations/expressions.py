@@ -63,7 +63,7 @@ RESERVED = frozenset(
     # What the generated C declares for itself: kernel outputs (a parameter named J
     # would be redeclared beside jacobian's output J) and the locals of the batch
     # loops, ik and ik_numeric (a parameter named k would be shadowed inside a block, silently).
-    # tests/test_description.py holds this list to what generated/*.c declares.
+    # tests/formats/test_description.py holds this list to what generated/*.c declares.
     """
     T J J_tool Jx Q frames angle argument0 argument1 sine cosine found i k n s inside refused result start stream turn
     valid_branches batch pointer status failed
@@ -93,7 +93,7 @@ RESERVED = RESERVED | frozenset(keyword.kwlist) | frozenset(dir(builtins)) | fro
 # Every macro the C headers of a generated package define (M_PI, INT_MAX, Py_None, NPY_MAXDIMS,
 # isnan, errno, ...): a parameter named like one would be replaced by the preprocessor and break
 # the compile.  The list is what codegen.build.header_macros reads off the compiler;
-# tests/test_description.py holds it to this machine's headers.
+# tests/formats/test_description.py holds it to this machine's headers.
 C_MACROS = frozenset(line for line in (Path(__file__).parent / "c_macros.txt").read_text().split()
                      if not line.startswith("#") and line.isidentifier())
 RESERVED = RESERVED | C_MACROS

@@ -5,22 +5,29 @@ pose, geometric Jacobian, task coordinates and their Jacobian, inverse-kinematic
 branches) and describes each kernel to generate as a :class:`SymbolicFunction`:
 a name, its array arguments (each a vector of symbols) and its outputs (arrays
 of SymPy expressions).  Code generation needs nothing else.
+
+The model is data: this module imports the chain's joint types and the program's
+substitution, and nothing that derives.  What is derived from a model is elsewhere:
+its kinematics in :mod:`derivations.kinematics`, its inverse kinematics in
+:mod:`derivations.ik`, its rates in :mod:`derivations.rates.velocity`, its equations of motion in
+:mod:`derivations.mechanics.dynamics`, and its list of kernels in :mod:`derivations.assembly`.
+``RobotModel.functions()``, ``.rates``, ``.dynamics`` and the like keep the names of the
+public contract and hand over to that module, which installs itself here when it is
+imported (``install_assembly``; ``import derivations`` does it), so that the imports
+run one way: the assembly imports the model, never the reverse.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Sequence
 
 import sympy as sp
 
-from .chain import PRISMATIC, REVOLUTE, Chain, derivative, simplify_derivative, simplify_entry, simplify_product
-from .ik import kernel_form
-from .chain_program import explicit_pays, program_kinematics
-from .chain_program import task_jacobian as program_task_jacobian
+from .chain import PRISMATIC, REVOLUTE, Chain
 from .program import inline, needed
 
 __all__ = ["Argument", "Output", "Requirement", "NumericSolve", "SymbolicFunction", "IKBranch", "RobotModel",
-           "task_coordinates", "with_program", "APPROACH_NAMES", "TASK_ITEMS", "ANGLE_TASKS", "pitch_joints"]
+           "with_program", "APPROACH_NAMES", "POSE_NAMES", "TASK_ITEMS", "TASK_ITEMS_TEXT", "ANGLE_TASKS",
+           "TaskError", "install_assembly", "REVOLUTE", "PRISMATIC"]
 
 
 @dataclass(frozen=True)
@@ -100,7 +107,7 @@ class NumericSolve:
     Both also give ``singular``: ``s_min < t = s_max / COND_LIMIT`` on ``An``, where
     an exact solve would lose more than 4 of the 16 digits; there ``lambda^2 =
     (10 t)^2 (1 - (s_min / t)^2)`` (zero at the threshold, so continuous, and 10 t
-    at an exact singularity, as the closed forms' ``derivations.damping``), else 0.
+    at an exact singularity, as the closed forms' ``derivations.rates.damping``), else 0.
     """
 
     system: str
@@ -191,105 +198,6 @@ class TaskError(ValueError):
     """A task coordinate this chain does not have (``pitch`` without parallel pitch joints, ...)."""
 
 
-def pitch_joints(chain: Chain) -> list[tuple[int, sp.Expr]]:
-    """The joints whose turns make the task coordinate ``pitch``: the first run of two or more
-    consecutive revolute joints with parallel axes (a 4- or 5-joint arm's shoulder, elbow and wrist
-    pitch), each with its sign ``h_i . h_first`` (+-1).  Empty if the chain has no such run.
-    Parallel axes stay parallel at every q (the run's own joints turn them about their common
-    direction; earlier joints turn them together), so the run is read at q = 0."""
-    from .ik.structure import cross, dot, is_zero, tidy  # the ik package imports this module
-    zero = [sp.S.Zero] * chain.n
-    axes = [sp.Matrix(h).applyfunc(tidy) for h, _ in chain.joint_axes(chain.link_frames(zero))]
-    kinds = [j.type for j in chain.joints]
-
-    def parallel(i, j):
-        return all(is_zero(e) for e in cross(axes[i], axes[j]))
-    for first in range(chain.n - 1):
-        if kinds[first] != REVOLUTE:
-            continue
-        run = [first]
-        while run[-1] + 1 < chain.n and kinds[run[-1] + 1] == REVOLUTE and parallel(first, run[-1] + 1):
-            run.append(run[-1] + 1)
-        if len(run) >= 2:
-            norm2 = tidy(dot(axes[first], axes[first]))
-            return [(i, sp.sign(tidy(dot(axes[i], axes[first]) / norm2))) for i in run]
-    return []
-
-
-def joint_angle_task(item: str, chain: Chain, q) -> sp.Expr:
-    """The task coordinates ``pitch`` and ``roll``, exact linear forms in the joint angles.
-
-    ``pitch``: the tool's turn about the common direction of the first run of parallel revolute
-    axes (:func:`pitch_joints`), relative to q = 0: ``sum s_i q_i`` over the run.  For an arm of a
-    base turn and parallel pitch joints (``R(q) = Rot(h1, q1) Rot(h2, pitch) R(0)``, the AL5D, the
-    SO-101) it is the angle the gripper is tipped by in the arm's plane.  ``roll``: the turn of
-    the last joint, a revolute one about the tool's own axis (the wrist roll of a 5-joint arm)."""
-    if item == "roll":
-        if chain.joints[-1].type != REVOLUTE:
-            raise TaskError("task coordinate 'roll' needs the last joint revolute (a wrist roll)")
-        return q[-1]
-    run = pitch_joints(chain)
-    if not run:
-        raise TaskError("task coordinate 'pitch' needs two or more consecutive revolute joints with parallel "
-                         "axes (an arm's shoulder, elbow and wrist pitch)")
-    return sum((s * q[i] for i, s in run), sp.S.Zero)
-
-
-def task_coordinates(spec: Sequence[str], chain: Chain, q, fk: sp.Matrix, link_frames) -> tuple[list[str], sp.Matrix]:
-    """Task coordinates named in ``spec`` as exact expressions in ``q``.
-
-    ``x, y, z``: the tool point; ``pose``: the tool point followed by the nine
-    entries of the tool rotation, row by row; ``phi``: the planar orientation of
-    the tool (rotation about the base z axis), for chains whose revolute axes
-    are all parallel to base z.  ``phi`` is derived as the exact linear form
-    ``phi0 + sum(s_i q_i)`` with ``s_i = z_i . e_z = +-1``, and checked against
-    the rotation block: ``R(q) = Rz(phi - phi0) R(0)``.
-    """
-    names: list[str] = []
-    values: list[sp.Expr] = []
-    for item in spec:
-        if item in ("x", "y", "z"):
-            names.append(item)
-            values.append(fk["xyz".index(item), 3])
-        elif item == "pose":
-            names.extend(POSE_NAMES)
-            values.extend([fk[0, 3], fk[1, 3], fk[2, 3]] + [fk[r, c] for r in range(3) for c in range(3)])
-        elif item == "phi":
-            names.append(item)
-            values.append(_planar_orientation(chain, q, fk, link_frames))
-        elif item == "approach":
-            names.extend(APPROACH_NAMES)
-            values.extend([fk[0, 2], fk[1, 2], fk[2, 2]])
-        elif item in ("pitch", "roll"):
-            names.append(item)
-            values.append(joint_angle_task(item, chain, q))
-        else:
-            raise ValueError(f"unknown task coordinate {item!r} (expected {TASK_ITEMS_TEXT})")
-    if len(set(names)) != len(names):
-        raise ValueError(f"task coordinates repeat a name: {names}")
-    return names, sp.Matrix(values)
-
-
-def _planar_orientation(chain: Chain, q, fk: sp.Matrix, link_frames) -> sp.Expr:
-    phi = sp.S.Zero
-    for joint, qi, (axis, _) in zip(chain.joints, q, chain.joint_axes(link_frames)):
-        if joint.type != REVOLUTE:
-            continue
-        if axis[0] != 0 or axis[1] != 0 or axis[2] not in (1, -1):
-            raise TaskError("task coordinate 'phi' needs every revolute axis parallel to the base z axis")
-        phi += axis[2] * qi
-    rot0 = fk[:3, :3].subs({qi: 0 for qi in q})
-    phi0 = sp.atan2(sp.nsimplify(rot0[1, 0]), sp.nsimplify(rot0[0, 0]))
-    if rot0[0, 0] == 0 and rot0[1, 0] == 0:
-        phi0 = sp.atan2(-rot0[0, 1], rot0[1, 1])
-    angle = phi
-    rz = sp.Matrix([[sp.cos(angle), -sp.sin(angle), 0], [sp.sin(angle), sp.cos(angle), 0], [0, 0, 1]])
-    residual = (rz * rot0 - fk[:3, :3]).applyfunc(simplify_entry)
-    if residual != sp.zeros(3, 3):
-        raise TaskError("task coordinate 'phi': the tool rotation is not a rotation about the base z axis")
-    return phi + phi0
-
-
 @dataclass
 class RobotModel:
     """Symbolic kinematics of one robot (see DESIGN.md, "Symbolic contract").
@@ -318,7 +226,7 @@ class RobotModel:
     ik: list[IKBranch] = field(default_factory=list)
     notes: dict[str, str] = field(default_factory=dict)
     constants: dict[str, sp.Expr] = field(default_factory=dict)
-    # "wrist partition": the rate maps by Paul's partition (derivations/paul.py), which a
+    # "wrist partition": the rate maps by Paul's partition (derivations/rates/paul.py), which a
     # robot's module asks for (the PUMA 560); None: chosen by size (velocity.closed_form_shape).
     rate_form: str | None = None
     # The automatic inverse kinematics (derivations.ik.decompose.attach): the family and the
@@ -341,10 +249,16 @@ class RobotModel:
     # `frames` (a URDF's link names); empty where the description gives none (see joint_labels).
     joint_names: tuple[str, ...] = ()
     frame_names: tuple[str, ...] = ()
-    # Each moving link's inertial parameters (derivations.inertia.Inertial, in frame k) and gravity
-    # in the base frame: the arm's equations of motion (derivations.dynamics); empty: none.
+    # Each moving link's inertial parameters (derivations.mechanics.inertia.Inertial, in frame k) and gravity
+    # in the base frame: the arm's equations of motion (derivations.mechanics.dynamics); empty: none.
     inertials: tuple = ()
     gravity: tuple = ()
+    # Kernels particular to this robot, declared by its own module under derivations/robots/ (the
+    # AdeptThree's tool configuration vector, the R-P arm's Kumar pose): generated after its rates.
+    extra_functions: tuple[SymbolicFunction, ...] = ()
+    # What each factor of the robot's singular sets means, declared by its own module: {joints the
+    # factor involves (("q2",), ...): (name, description)}; empty: named by those joints.
+    singular_names: dict[tuple[str, ...], tuple[str, str]] = field(default_factory=dict)
 
     @property
     def n(self) -> int:
@@ -386,178 +300,55 @@ class RobotModel:
         return "rad" if self.joint_types[i] == REVOLUTE else "m"
 
     def functions(self) -> list[SymbolicFunction]:
-        """The kernels of the generated-code contract, in a fixed order."""
-        n, m = self.n, len(self.task_names)
-        q = Argument("q", self.q, f"joint coordinates, shape (..., {n}) ({self._units()})")
-        count = len(self.frames)
-        frames = sp.Array([list(f) for f in self.frames]).reshape(count, 4, 4)
-        kinematics = with_program([
-            SymbolicFunction("fk", (q,), (Output.from_matrix("T", self.fk),),
-                             "Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres."),
-            SymbolicFunction("frames", (q,), (Output("frames", tuple(sp.flatten(frames.tolist())), (count, 4, 4)),),
-                             f"Frames T_0 (base) .. T_{n} (" + ("flange), then the tool frame" if count > n + 1 else "tool)")
-                             + f", shape (..., {count}, 4, 4)."),
-            SymbolicFunction("jacobian", (q,), (Output.from_matrix("J", self.jacobian),),
-                             f"Geometric Jacobian [v; w] of the tool point in the base frame, shape (..., 6, {n})."),
-            SymbolicFunction("jacobian_tool", (q,), (Output.from_matrix("J_tool", self.jacobian_tool),),
-                             f"Geometric Jacobian [v; w] of the tool point in the tool frame (the Robotics Toolbox's "
-                             f"jacobe, Pinocchio's LOCAL): [R^T v; R^T w], shape (..., 6, {n})."),
-            SymbolicFunction("task", (q,), (Output("x", tuple(self.task), (m,)),),
-                             f"Task coordinates {', '.join(self.task_names)}, shape (..., {m})."),
-            SymbolicFunction("task_jacobian", (q,), (Output.from_matrix("Jx", self.task_jacobian),),
-                             f"d task / d q, shape (..., {m}, {n})."),
-        ], self.program)
-        # A general 6R (derivations.ik.general_6r): the closed-form equations its ik solves numerically.
-        from .ik.general_6r import equations_function
-        general = equations_function(self)
-        return kinematics + ([self.ik_function()] if self.ik else []) + ([general[0]] if general else []) + \
-            self.rate_functions() + self.dynamics_functions()
+        """The kernels of the generated-code contract, in a fixed order (``assembly.robot_kernels``)."""
+        return _assembly().robot_kernels(self)
 
     def ik_function(self) -> SymbolicFunction:
-        """The ``ik`` kernel: every branch of ``self.ik`` at once.
-
-        ``Q`` (k, n) holds each branch's joint values (revolute joints wrapped to
-        (-pi, pi], see ``derivations.ik.kernel_form``); ``valid`` (k,) is each
-        branch's existence condition.  The generated code also marks a branch
-        invalid wherever its joint values are not finite (a NaN or inf target).
-        """
-        k, n = len(self.ik), self.n
-        names = ", ".join(b.name for b in self.ik)
-        x = Argument("x", self.task_symbols, f"task coordinates {', '.join(self.task_names)}, shape (..., "
-                     f"{len(self.task_names)})")
-        arguments = (x,)
-        if self.ik_free is not None:
-            free = self.q[self.ik_free]
-            arguments += (Argument("free", (free,), f"the value of the free joint {free} "
-                                   f"({self.joint_unit(self.ik_free)}), shape (..., 1), (...) or a number, "
-                                   "at most 1e4 in size"),)
-        revolute = [t == REVOLUTE for t in self.joint_types]
-        definitions: tuple = ()
-        if all(b.step_condition is not None for b in self.ik):
-            definitions, values, valid = self._ik_program(revolute)
-        else:
-            values = tuple(kernel_form(e, r) for branch in self.ik for e, r in zip(branch.solution, revolute))
-            valid = tuple(sp.sympify(b.condition) for b in self.ik)
-        return SymbolicFunction(
-            "ik", arguments,
-            (Output("Q", values, (k, n), "float", f"joint values of each branch ({names})"),
-             Output("valid", valid, (k,), "bool", "whether each branch exists")),
-            f"Inverse kinematics, all {k} branches ({names}): Q (..., {k}, {n}), valid (..., {k}).",
-            definitions=definitions)
-
-    def _ik_program(self, revolute):
-        """The branches' steps as one straight-line program: a step that several branches share
-        (the same definition in the same earlier steps) once, each other step renamed
-        ``ik_<name>_b<k>`` after the first branch k that defines it."""
-        from .ik.decompose import substitute_unevaluated
-        taken = {str(s) for s in self.params} | {str(s) for s in self.task_symbols}
-        definitions, known = [], {}
-        values, valid = [], []
-        for k, branch in enumerate(self.ik):
-            rename: dict = {}
-            memo: dict = {}
-            for symbol, expr in branch.steps:
-                expr = substitute_unevaluated(expr, rename, memo)
-                key = (symbol.name, expr)
-                if key not in known:
-                    name = f"ik_{symbol.name}_b{k}"
-                    if name in taken:
-                        raise ValueError(f"{self.name}: the inverse-kinematics step {name} is also a parameter's name")
-                    taken.add(name)
-                    known[key] = sp.Symbol(name, real=True)
-                    definitions.append((known[key], expr))
-                rename[symbol] = known[key]
-            values.extend(kernel_form(rename.get(q, q), r) for q, r in zip(self.q, revolute))  # q: a free joint
-            valid.append(substitute_unevaluated(branch.step_condition, rename, memo))
-        return tuple(definitions), tuple(values), tuple(valid)
+        """The ``ik`` kernel: every branch of ``self.ik`` at once (``assembly.ik_kernel``)."""
+        return _assembly().ik_kernel(self)
 
     @property
     def rates(self):
-        """Rate kinematics (derivations.velocity.RateKinematics), derived on first use and cached; None
-        for a model without a DH chain."""
-        from .velocity import rate_kinematics
-        return rate_kinematics(self)
+        """Rate kinematics (derivations.rates.velocity.RateKinematics), derived on first use and cached;
+        None for a model without a DH chain."""
+        return _assembly().rates(self)
 
     @property
     def singularities(self):
-        """Singular configurations (derivations.velocity.Singularities): factored determinant, conditions."""
+        """Singular configurations (derivations.rates.velocity.Singularities): factored determinant, conditions."""
         return None if self.rates is None else self.rates.singularities
 
     @property
     def dynamics(self):
-        """The equations of motion (derivations.dynamics.Dynamics), derived on first use and cached;
-        None for an arm without inertial parameters."""
-        from .dynamics import dynamics
-        return dynamics(self)
+        """The equations of motion (derivations.mechanics.dynamics.Dynamics), derived on first use and
+        cached; None for an arm without inertial parameters."""
+        return _assembly().dynamics(self)
 
     def dynamics_functions(self) -> list[SymbolicFunction]:
-        """The dynamics kernels (derivations/dynamics.py); none for an arm without inertials."""
+        """The dynamics kernels (derivations/mechanics/dynamics.py); none for an arm without inertials."""
         return [] if self.dynamics is None else list(self.dynamics.functions)
 
     def rate_functions(self) -> list[SymbolicFunction]:
-        """The velocity and acceleration kernels (derivations/velocity.py)."""
-        return [] if self.rates is None else list(self.rates.functions)
+        """The velocity and acceleration kernels (derivations/rates/velocity.py), then the robot's own
+        ``extra_functions``."""
+        return _assembly().rate_kernels(self)
 
     def _units(self) -> str:
         units = ["rad" if t == REVOLUTE else "m" for t in self.joint_types]
         return ", ".join(f"{s}: {u}" for s, u in zip(self.q, units))
 
 
-def build_chain_model(name: str, title: str, source: str, chain: Chain, q, params: dict,
-                      task_spec: Sequence[str], limits) -> RobotModel:
-    """Derive every kinematic quantity of a chain (the slow symbolic step).
-
-    An exact chain whose frames stay short gets them expanded and simplified (every paper's
-    robot, the UR and KUKA arms); any other (a number as a file wrote it, seven joints, frames
-    that do not cancel) gets its kinematics as a straight-line program
-    (:mod:`derivations.chain_program`), whose size grows with the chain, not with its expansion.
-    """
-    link_frames = explicit_pays(chain, q)
-    if link_frames is None:
-        return _program_model(name, title, source, chain, q, params, task_spec, limits)
-    tool = chain.tool
-    frames = list(link_frames)
-    if tool != sp.eye(4):  # the flange frame stays; the tool frame follows it
-        frames.append((frames[-1] * tool).applyfunc(simplify_product))
-    fk = frames[-1]
-    jacobian = chain.geometric_jacobian(link_frames, fk[:3, 3], q)
-    task_names, task = task_coordinates(task_spec, chain, q, fk, link_frames)
-    task_jacobian = sp.Matrix(len(task), len(q),
-                              lambda i, j: simplify_derivative(derivative(task[i], q[j])))
-    return RobotModel(
-        name=name, title=title, source=source,
-        joint_types=tuple(j.type for j in chain.joints), q=tuple(q), params=dict(params),
-        frames=frames, jacobian=jacobian, task_names=tuple(task_names), task=task,
-        task_jacobian=task_jacobian, limits=tuple(limits), chain=chain,
-    )
+_ASSEMBLY = None
 
 
-def _program_model(name, title, source, chain: Chain, q, params, task_spec, limits) -> RobotModel:
-    derived = program_kinematics(chain, q, {str(s) for s in params})
-    program, frames, jacobian = derived["program"], derived["frames"], derived["jacobian"]
-    fk = frames[-1]
-    task_names, values = [], []
-    for item in task_spec:
-        if item == "phi":  # a planar arm's angle, read off its explicit frames (a few joints)
-            link_frames = chain.link_frames(q)
-            explicit_fk = (link_frames[-1] * chain.tool).applyfunc(simplify_product)
-            task_names.append(item)
-            values.append(_planar_orientation(chain, q, explicit_fk, link_frames))
-        else:
-            names, entries = task_coordinates([item], chain, q, fk, None)
-            task_names.extend(names)
-            values.extend(entries)
-    if len(set(task_names)) != len(task_names):
-        raise ValueError(f"task coordinates repeat a name: {task_names}")
-    task = sp.Matrix(values)
-    joint_types = tuple(j.type for j in chain.joints)
-    task_jacobian = program_task_jacobian(program, task_names, task, jacobian, fk, derived["axes"], joint_types,
-                                          q, derived["coupled"])
-    return RobotModel(
-        name=name, title=title, source=source, joint_types=joint_types, q=tuple(q), params=dict(params),
-        frames=frames, jacobian=jacobian, task_names=tuple(task_names), task=task,
-        task_jacobian=task_jacobian, limits=tuple(limits), chain=chain, program=tuple(program.steps),
-    )
+def install_assembly(module) -> None:
+    """Name the module that assembles a model's kernels (``derivations.assembly`` calls this when it is
+    imported): the model hands ``functions()``, ``rates`` and ``dynamics`` over to it, without importing it."""
+    global _ASSEMBLY
+    _ASSEMBLY = module
 
 
-__all__ += ["build_chain_model", "REVOLUTE", "PRISMATIC"]
+def _assembly():
+    if _ASSEMBLY is None:
+        raise RuntimeError("no kernel assembly installed: import derivations (derivations.assembly installs it)")
+    return _ASSEMBLY

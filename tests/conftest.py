@@ -1,10 +1,20 @@
 import os
+import sys
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, settings
 
-import derivations
-import generated
+# The tests live in one folder per layer (tests/ik/, tests/rates/, ..., docs/architecture.md) and
+# share helpers across them (test_zoo's arms, urdf_zoo, this file's kernels): every folder is on the
+# path, as tests/ alone was, whichever test pytest imports first.
+_HERE = Path(__file__).resolve().parent
+for _folder in [_HERE, *sorted(p for p in _HERE.iterdir() if p.is_dir() and p.name not in ("data", "__pycache__"))]:
+    if str(_folder) not in sys.path:
+        sys.path.insert(0, str(_folder))
+
+import derivations  # noqa: E402
+import generated  # noqa: E402
 
 ROBOT_NAMES = list(derivations.ROBOTS)
 

@@ -78,7 +78,7 @@ def load(name, backend="numpy"):
 
 # Not kernels of one evaluation: joint_vector reorders named positions, and ik_numeric iterates
 # (two backends may take different steps within rounding and land on different solutions);
-# tests/test_numeric_ik.py holds them to their own properties.
+# tests/ik/test_numeric_ik.py holds them to their own properties.
 ITERATIVE = {"joint_vector", "ik_numeric"}
 _ARGUMENT = re.compile(r"^\s*(\w+): .*?shape \(\.\.\., (\d+)\)", re.M)
 

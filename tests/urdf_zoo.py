@@ -13,7 +13,7 @@ the project: the file is read with the standard library's ElementTree and each j
 chain composes ``Trans(xyz) Rz(yaw) Ry(pitch) Rx(roll)`` of its origin with the motion about or
 along its axis (Rodrigues' formula), in float64, with every number exactly as written.  Its
 geometric Jacobian takes, per moving joint, that joint's world axis and origin (a mimic joint
-adds its column, times its multiplier, to its leader's).  It is the chain of tests/test_urdf.py,
+adds its column, times its multiplier, to its leader's).  It is the chain of tests/formats/test_urdf.py,
 extended to start at any ``base`` link and to take replacement numbers for the angles and axes
 that snapping changed (so that the snapped model can be checked to 1e-12 as well).
 """

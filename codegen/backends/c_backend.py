@@ -15,7 +15,7 @@ __all__ = ["CKernelPrinter", "render", "prune_helpers", "STRICT_FLAGS", "EXTRA_W
 
 # What every generated C file must compile cleanly with (checked by `make build`).
 STRICT_FLAGS = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic")
-# And with these besides, under gcc and clang (checked by tests/test_c_compilers.py, not by the
+# And with these besides, under gcc and clang (checked by tests/generation/test_c_compilers.py, not by the
 # build): no implicit conversion that may change a value or its sign, no shadowed name, no
 # float silently promoted to double.
 EXTRA_WARNINGS = ("-Wconversion", "-Wshadow", "-Wdouble-promotion")

@@ -1088,7 +1088,7 @@ class _TaskView:
     """The parts of a model the families read, with another task (for :func:`suggest_task`)."""
 
     def __init__(self, model, items):
-        from ..model import joint_angle_task
+        from ..kinematics import joint_angle_task
         self.name, self.q, self.n, self.chain = model.name, model.q, model.n, model.chain
         names, values = [], []
         for item in items:
@@ -1149,7 +1149,7 @@ def attach(model, free_joint: int | None = None) -> None:
     or ``model.ik_unsupported`` (what the arm lacks, or the budget that ran out); the rest
     of the package is generated either way.
     """
-    from ..budget import BudgetExceeded, budget, degraded
+    from ..support.budget import BudgetExceeded, budget, degraded
     try:
         with budget(IK_BUDGET, f"{model.name}: automatic inverse kinematics"):
             solution = solve(model, free_joint)

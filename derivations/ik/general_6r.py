@@ -504,7 +504,7 @@ def equations_function(model):
         return None
     found = getattr(model, "_general_6r", None)
     if found is None:  # () where the arm turned out not to be one
-        from ..cache import cached
+        from ..support.cache import cached
         chain = model.chain
         key = repr((chain.convention, [(j.a, j.alpha, j.d, j.offset) for j in chain.joints], chain.base, chain.tool,
                     sorted((str(k), v) for k, v in model.params.items()), model.task_symbols)).encode()

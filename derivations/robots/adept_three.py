@@ -19,6 +19,7 @@ import sympy as sp
 
 from derivations.ik import law_of_cosines, prismatic_along, sine_cosine_pair, substitute_steps, two_link
 from derivations.model import IKBranch
+from derivations.robots.extras.tool_configuration import tool_configuration_functions
 
 from ._common import parameters
 
@@ -77,5 +78,12 @@ def algebraic_method(model) -> list[IKBranch]:
     return [branches["lefty"], branches["righty"]]
 
 
+# What each factor of det J means (derivations.rates.velocity's singular sets), keyed by the joints it involves.
+SINGULAR_NAMES = {("q2",): ("elbow", "the two arm links aligned (q2 = 0 or pi)")}
+
+
 def extend(model):
+    model.singular_names = SINGULAR_NAMES
     model.ik = algebraic_method(model)
+    # The robot's own kernels: Rehiara's tool configuration vector and its Jacobian (Eqs. 39-42).
+    model.extra_functions = tuple(tool_configuration_functions(model))

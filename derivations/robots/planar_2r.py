@@ -22,7 +22,13 @@ NAMES = {"negative": "elbow_up", "positive": "elbow_down"}
 ALPHA, BETA = sp.symbols("alpha beta", real=True)
 
 
+# What each factor of det J means (derivations.rates.velocity's singular sets), keyed by the joints it involves.
+SINGULAR_NAMES = {("q2",): ("elbow", "the links aligned: arm stretched (q2 = 0) or folded (q2 = pi); "
+                              "slides: |J| = l1 l2 s2 = 0")}
+
+
 def extend(model):
+    model.singular_names = SINGULAR_NAMES
     x, y = model.task_symbols
     q1, q2 = model.q
     l1, l2 = parameters(model, "l1", "l2")

@@ -14,7 +14,7 @@ Branch names follow the planar 2R arm: ``elbow_up`` has t2 in [-pi, 0] (sigma = 
 ``elbow_down`` has t2 in [0, pi] (sigma = +1).  Kumar's Fig. 14 caption calls
 sigma = +1 "elbow-up"; with Eq. (h) as printed, sigma = +1 puts the elbow to the
 right of the line from the base to the wrist, below it for a wrist to the right
-of the base (README, "Choices the papers leave open"; tests/test_ik.py).
+of the base (README, "Choices the papers leave open"; tests/ik/test_ik.py).
 """
 from __future__ import annotations
 
@@ -48,7 +48,12 @@ def kumar_eq_f(model, xw=None, yw=None):
     return -2 * l1 * xw, -2 * l1 * yw, xw**2 + yw**2 + l1**2 - l2**2
 
 
+# What each factor of det J means (derivations.rates.velocity's singular sets), keyed by the joints it involves.
+SINGULAR_NAMES = {("q2",): ("elbow", "links 1 and 2 aligned (q2 = 0 or pi); Kumar Eq. 13: |J| = l1 l2 sin(theta2)")}
+
+
 def extend(model):
+    model.singular_names = SINGULAR_NAMES
     x, y, phi = model.task_symbols
     q1, q2, q3 = model.q
     l1, l2 = parameters(model, "l1", "l2")

@@ -46,7 +46,13 @@ def kumar_pose_functions(model) -> list[SymbolicFunction]:
                              "phi = theta1 (rad), the direction of the slide, shape (..., 3).")]
 
 
+# What each factor of det J means (derivations.rates.velocity's singular sets), keyed by the joints it involves.
+SINGULAR_NAMES = {("q2",): ("slide at the axis", "the slide retracted onto the joint-1 axis (d2 = 0): "
+                                          "turning joint 1 moves nothing")}
+
+
 def extend(model):
+    model.singular_names = SINGULAR_NAMES
     x, y = model.task_symbols
     branches = []
     for name, sigma, eqs in (("d2_positive", 1, "Eqs. (6)-(7)"), ("d2_negative", -1, "Eq. (8)")):
@@ -56,3 +62,4 @@ def extend(model):
                                  f"Kumar {eqs}: d2 = {'+' if sigma > 0 else '-'}sqrt(x^2 + y^2), "
                                  f"q1 = atan2({'' if sigma > 0 else '-'}y, {'' if sigma > 0 else '-'}x); always exists"))
     model.ik = branches
+    model.extra_functions = tuple(kumar_pose_functions(model))  # the robot's own kernel: Kumar's (x, y, phi)

@@ -81,7 +81,14 @@ def _check_structure(model, u, v):
     assert _same(R46[2, 0], -sp.sin(q6)) and _same(R46[2, 1], -sp.cos(q6)), "theta6 entries of R46"
 
 
+# What each factor of det J means (derivations.rates.velocity's singular sets), keyed by the joints it involves.
+SINGULAR_NAMES = {("q2", "q3"): ("shoulder", "the wrist centre in the plane of the axes of joints 1 and 2"),
+                  ("q3",): ("elbow", "the wrist centre in line with the shoulder and the elbow (arm stretched or folded)"),
+                  ("q5",): ("wrist", "axes 4 and 6 aligned (q5 = 0 or pi)")}
+
+
 def extend(model):
+    model.singular_names = SINGULAR_NAMES
     assert model.task_names == POSE_NAMES
     model.rate_form = "wrist partition"  # the velocity slides' 6-DOF model: Paul's partition
     px, py, pz, *r = model.task_symbols

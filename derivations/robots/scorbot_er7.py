@@ -56,7 +56,13 @@ STEP_CITES = ("Predescu--Stroe Eq.~3.1", "Predescu--Stroe Fig.~3", "Predescu--St
 O2B, O4B, ALPHA, BETA = sp.symbols("O2B O4B alpha beta", real=True)
 
 
+# What each factor of det J means (derivations.rates.velocity's singular sets), keyed by the joints it involves.
+SINGULAR_NAMES = {("q2", "q3", "q4"): ("shoulder", "the tool point P5 on the axis of joint 1"),
+                  ("q3", "q4"): ("elbow", "upper arm, forearm and gripper in one line (q3 and q4 each 0 or pi)")}
+
+
 def extend(model):
+    model.singular_names = SINGULAR_NAMES
     x, y, z = model.task_symbols
     q1, q2, q3, q4, q5 = model.q
     a1, a2, a3, d1, d5 = parameters(model, "a1", "a2", "a3", "d1", "d5")
