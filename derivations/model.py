@@ -345,6 +345,8 @@ class RobotModel:
     # in the base frame: the arm's equations of motion (derivations.dynamics); empty: none.
     inertials: tuple = ()
     gravity: tuple = ()
+    # Each joint's drive (derivations.inertia.Actuator: armature and friction) or None; empty: none.
+    actuators: tuple = ()
 
     @property
     def n(self) -> int:
