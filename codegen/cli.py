@@ -55,7 +55,7 @@ __all__ = ["main"]
 
 # One vocabulary for `show --what` and `latex --what`: what show prints as text, and the LaTeX
 # sections (show prints those that have no text form as LaTeX; `position` and `task` are one).
-SHOW_TEXT = ("summary", "params", "dh", "fk", "frames", "jacobian", "task", "task_jacobian", "ik")
+SHOW_TEXT = ("summary", "params", "dh", "fk", "frames", "jacobian", "task", "task_jacobian", "ik", "base")
 WHAT = SHOW_TEXT + tuple(k for k in latex_backend.SECTION_KEYS if k not in SHOW_TEXT)
 LATEX_ALIASES = {"task": "position"}
 SHOW = WHAT
@@ -207,6 +207,8 @@ def _show(args, say) -> int:
         for p, v in model.params.items():
             print(f"{p} = {v}")
         return 0
+    if what == "base":
+        return _show_base(model, args.latex)
     if what == "dh":
         if model.chain is None:
             raise InputError(f"{model.name} is not a DH chain")
@@ -263,6 +265,23 @@ def _show(args, say) -> int:
             print(f"T_{i}:\n{_entries(frame, render)}\n")
         return 0
     print(_entries(value, render))
+    return 0
+
+
+def _show_base(model, latex: bool) -> int:
+    """The base parameters, each as its combination of the standard ones (docs/dynamics.md)."""
+    from derivations.dynamics import base_combinations, model_base_parameters
+    if model.dynamics is None:
+        raise InputError(f"{model.name} has no equations of motion, so no base parameters "
+                         f"({model.notes.get('dynamics', 'its description gives no inertial parameters')})")
+    if latex:
+        print("\n".join(latex_backend.base_parameter_rows(model)))
+        return 0
+    kept, dropped, K, names = model_base_parameters(model)
+    print(f"# {len(kept)} base parameters of the {len(names)} standard ones (the regressor's columns, "
+          f"docs/dynamics.md): a numeric QR of the regressor at 40 random states, the parameters at their defaults")
+    for k, line in enumerate(base_combinations(kept, dropped, K, names), start=1):
+        print(f"beta{k} = {line}")
     return 0
 
 
@@ -515,7 +534,7 @@ def cmd_check(args, say) -> int:
 
 def cmd_latex(args, say) -> int:
     what = [LATEX_ALIASES.get(w, w) for item in args.what or [] for w in item.split(",") if w]
-    textual = [w for w in what if w in ("summary", "frames")]
+    textual = [w for w in what if w in ("summary", "frames", "base")]
     if textual:
         raise InputError(f"--what {textual[0]}: has no LaTeX section (`kinegen show --what {textual[0]}` prints it)")
     with _limited(args, f"{args.robot}: derivation and LaTeX"):

@@ -54,7 +54,8 @@ from .program import Program
 
 __all__ = ["Dynamics", "dynamics", "derive_dynamics", "DYNAMICS_BUDGET", "link_geometry", "origin_parameters",
            "TAU_PREFIX", "WRENCH_NAMES", "PARAMETER_NAMES", "ACTUATOR_PARAMETER_NAMES", "standard_parameters",
-           "actuator_parameters", "parameter_names", "base_parameters", "base_combinations"]
+           "actuator_parameters", "parameter_names", "base_parameters", "model_base_parameters",
+           "base_combinations"]
 
 # Seconds the equations of motion of one arm may take to derive: the target of issue #30 is 30 s
 # cold for a seven-joint arm (the Panda takes about 2 s); past it the arm is generated without them.
@@ -395,17 +396,53 @@ def base_parameters(regressor, n: int, limits=None, samples: int = 40, seed: int
     return kept, dropped, K, names
 
 
+def model_base_parameters(model, samples: int = 40, seed: int = 0):
+    """:func:`base_parameters` of ``model``'s regressor at its parameters' defaults, the program
+    evaluated in double precision (:func:`derivations.program.evaluate_arrays`): no generated
+    kernel needed.  None for an arm without dynamics."""
+    import numpy as np
+
+    from .program import evaluate_arrays
+    dynamics = model.dynamics
+    if dynamics is None:
+        return None
+    (function,) = [f for f in dynamics.functions if f.name == "regressor"]
+    Y = function.outputs[0].values
+    defaults = {s: float(v) for s, v in model.params.items()}
+    n = model.n
+
+    def regressor(q, qd, qdd):
+        point = dict(defaults)
+        point.update({s: q[:, k] for k, s in enumerate(model.q)})
+        point.update({s: qd[:, k] for k, s in enumerate(dynamics.qd)})
+        point.update({s: qdd[:, k] for k, s in enumerate(dynamics.qdd)})
+        with np.errstate(all="ignore"):
+            values = evaluate_arrays(function.definitions, list(Y), point)
+        return np.stack([np.broadcast_to(v, (len(q),)) for v in values], axis=-1).reshape(len(q), n, len(Y) // n)
+    return base_parameters(regressor, n, model.limits, samples=samples, seed=seed)
+
+
+# A coefficient of K smaller than this is the least-squares fit's rounding, not a term.
+COMBINATION_NOISE = 1e-10
+
+
+def base_terms(kept, dropped, K, row: int) -> list[tuple[float, int]]:
+    """The terms (coefficient, standard parameter index) of base parameter ``row``: its own with 1,
+    then each dropped one whose coefficient is past :data:`COMBINATION_NOISE`."""
+    return [(1.0, kept[row])] + [(float(K[row, j]), d) for j, d in enumerate(dropped)
+                                 if abs(K[row, j]) > COMBINATION_NOISE]
+
+
 def base_combinations(kept, dropped, K, names, digits: int = 6) -> list[str]:
-    """Each base parameter as its combination of the standard ones: ``iyy2 + 0.25 m3 - ...``."""
+    """Each base parameter as its combination of the standard ones, each coefficient to ``digits``
+    significant digits: ``iyy2 + 0.25 m3 - ...``."""
     lines = []
-    for row, column in enumerate(kept):
-        terms = [names[column]]
-        for j, d in enumerate(dropped):
-            c = K[row, j]
-            if abs(c) > 10 ** -digits:
-                sign = "-" if c < 0 else "+"
-                terms.append(f"{sign} {names[d]}" if abs(abs(c) - 1) < 10 ** -digits
-                             else f"{sign} {abs(c):.{digits}g} {names[d]}")
+    for row in range(len(kept)):
+        (_, own), *rest = base_terms(kept, dropped, K, row)
+        terms = [names[own]]
+        for c, d in rest:
+            sign = "-" if c < 0 else "+"
+            terms.append(f"{sign} {names[d]}" if f"{abs(c):.{digits}g}" == "1" else f"{sign} {abs(c):.{digits}g} {names[d]}")
         lines.append(" ".join(terms))
     return lines
 

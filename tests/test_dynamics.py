@@ -432,6 +432,28 @@ def test_base_parameters_reproduce_the_torques(rrp, rrp_links):
     assert len(base_combinations(kept, dropped, K, names)) == len(kept)
 
 
+def test_kinegen_show_base_prints_combinations_that_reproduce_the_torques(rrp, rrp_links, capsys):
+    """`kinegen show FILE --what base`: each line ``betaK = name + c name ...``; those numbers, with
+    the standard parameters put into the printed text, times the kept columns of the generated
+    regressor give inverse_dynamics (the combinations are computed from the model, not the package)."""
+    from codegen.cli import main
+    assert main(["--quiet", "show", str(RRP), "--what", "base"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("# ") and "base parameters of the 30 standard ones" in lines[0]
+    rows = [line.split(" = ", 1) for line in lines[1:]]
+    assert [label for label, _ in rows] == [f"beta{k}" for k in range(1, len(rows) + 1)]
+    names = [f"{p}{k}" for k in (1, 2, 3) for p in ("m", "mx", "my", "mz", "ixx", "ixy", "ixz", "iyy", "iyz", "izz")]
+    values = dict(zip(names, standard_parameters_of(rrp_links)))
+    kept = [names.index(text.split()[0]) for _, text in rows]  # each combination leads with its own column
+    beta = np.array([combination_value(text, values) for _, text in rows])
+    q, qd, qdd = states(np.random.default_rng(13), 50)
+    torques = rrp.inverse_dynamics(q, qd, qdd)
+    # printed to 6 significant digits: the torques to about that
+    assert np.max(np.abs(rrp.regressor(q, qd, qdd)[..., kept] @ beta - torques)) < 1e-5 * np.max(np.abs(torques))
+    assert main(["--quiet", "show", "planar_2r", "--what", "base"]) == 2
+    assert "no equations of motion" in capsys.readouterr().err
+
+
 def test_urdf_arm_with_inertials_has_the_dynamics_kernels_unless_left_out():
     path = ROOT / "tests" / "data" / "urdf" / "zoo" / "so101.urdf"
     model = derivations.load(path, base="base_link", tip="gripper_frame_link")
@@ -498,6 +520,11 @@ def test_latex_prints_a_small_arms_mass_matrix_and_gravity_in_closed_form():
     (section,) = [s for s in latex_backend.robot_sections(model) if s.key == "dynamics"]
     assert r"M_{22} &= I_{2} + lc_{2}^{2} m_{2}" in section.body
     assert r"g_{0} lc_{2} m_{2} c_{12}" in section.body
+    # a planar 2R in the plane of gravity has six base parameters of its 20: ZZ1R, MX1R, MY1, ZZ2,
+    # MX2, MY2 (Khalil and Dombre, "Modeling, Identification and Control of Robots", the 2R example of
+    # the base inertial parameters), each link's z moment and its first moments in the plane
+    assert "Base parameters: the 6 combinations of the 20 standard parameters" in section.body
+    assert section.body.count(r"$\beta_{") == 6
     assert not [s for s in latex_backend.robot_sections(derivations.load("planar_2r")) if s.key == "dynamics"]
 
 
