@@ -731,3 +731,19 @@ def test_toml_over_urdf_sets_each_joints_actuator_by_name_or_number():
     text = (DATA / "ur3_drive.toml").read_text().replace("[actuator.wrist_3_joint]", "[actuator.wrist_9_joint]")
     with pytest.raises(DescriptionError, match="no moving joint 'wrist_9_joint' on the chain"):
         parse_description(text, str(DATA / "ur3_drive.toml"))
+
+
+def test_program_in_double_precision_gives_the_generated_regressor(drive):
+    """derivations.program.evaluate_arrays (what show --what base and the LaTeX use, without a
+    package) walks the regressor's program over a batch: the generated kernel's numbers, to rounding."""
+    from derivations.program import evaluate_arrays
+    model = derivations.load(DRIVE)
+    (function,) = [f for f in model.dynamics.functions if f.name == "regressor"]
+    q, qd, qdd = drive_states(np.random.default_rng(37), 30)
+    point = {s: float(v) for s, v in model.params.items()}
+    point.update({s: q[:, k] for k, s in enumerate(model.q)})
+    point.update({s: qd[:, k] for k, s in enumerate(model.dynamics.qd)})
+    point.update({s: qdd[:, k] for k, s in enumerate(model.dynamics.qdd)})
+    values = evaluate_arrays(function.definitions, list(function.outputs[0].values), point)
+    Y = np.stack([np.broadcast_to(v, (30,)) for v in values], axis=-1).reshape(30, 3, 39)
+    assert np.allclose(Y, drive.regressor(q, qd, qdd), rtol=1e-13, atol=1e-13)
