@@ -1124,6 +1124,7 @@ void avr3000_task_batch(size_t count, const double *restrict q, const avr3000_pa
     double q3[KINEGEN_BLOCK_OF(64)];
     double _t0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
+    double _x_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -1146,9 +1147,17 @@ void avr3000_task_batch(size_t count, const double *restrict q, const avr3000_pa
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            x[3 * (start + i) + 0] = -_t0[i] - q1[i] + 1.5707963267948966;
-            x[3 * (start + i) + 1] = 2*_c0[i]*a;
-            x[3 * (start + i) + 2] = q3[i];
+            _x_block[0][i] = -_t0[i] - q1[i] + 1.5707963267948966;
+            _x_block[1][i] = 2*_c0[i]*a;
+            _x_block[2][i] = q3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    x[3 * (start + i) + k] = _x_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1188,6 +1197,7 @@ void avr3000_task_jacobian_batch(size_t count, const double *restrict q, const a
     double q2[KINEGEN_BLOCK_OF(64)];
     double _a0[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
+    double _Jx_block[9][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -1208,15 +1218,23 @@ void avr3000_task_jacobian_batch(size_t count, const double *restrict q, const a
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            Jx[9 * (start + i) + 0] = -1;
-            Jx[9 * (start + i) + 1] = -0.5;
-            Jx[9 * (start + i) + 2] = 0;
-            Jx[9 * (start + i) + 3] = 0;
-            Jx[9 * (start + i) + 4] = -_s0[i]*a;
-            Jx[9 * (start + i) + 5] = 0;
-            Jx[9 * (start + i) + 6] = 0;
-            Jx[9 * (start + i) + 7] = 0;
-            Jx[9 * (start + i) + 8] = 1;
+            _Jx_block[0][i] = -1;
+            _Jx_block[1][i] = -0.5;
+            _Jx_block[2][i] = 0;
+            _Jx_block[3][i] = 0;
+            _Jx_block[4][i] = -_s0[i]*a;
+            _Jx_block[5][i] = 0;
+            _Jx_block[6][i] = 0;
+            _Jx_block[7][i] = 0;
+            _Jx_block[8][i] = 1;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 9; ++k) {
+                    Jx[9 * (start + i) + k] = _Jx_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1369,6 +1387,7 @@ void avr3000_motor_to_joint_batch(size_t count, const double *restrict motor, co
     double theta1[KINEGEN_BLOCK_OF(64)];
     double theta2[KINEGEN_BLOCK_OF(64)];
     double theta3[KINEGEN_BLOCK_OF(64)];
+    double _joint_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -1386,9 +1405,17 @@ void avr3000_motor_to_joint_batch(size_t count, const double *restrict motor, co
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            joint[3 * (start + i) + 0] = J11*theta1[i];
-            joint[3 * (start + i) + 1] = J21*theta1[i] + J22*theta2[i] + 3.141592653589793;
-            joint[3 * (start + i) + 2] = J33*theta3[i];
+            _joint_block[0][i] = J11*theta1[i];
+            _joint_block[1][i] = J21*theta1[i] + J22*theta2[i] + 3.141592653589793;
+            _joint_block[2][i] = J33*theta3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    joint[3 * (start + i) + k] = _joint_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1425,6 +1452,7 @@ void avr3000_motor_to_joint_velocity_batch(size_t count, const double *restrict 
     double thetadot1[KINEGEN_BLOCK_OF(64)];
     double thetadot2[KINEGEN_BLOCK_OF(64)];
     double thetadot3[KINEGEN_BLOCK_OF(64)];
+    double _joint_velocity_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     (void)motor;
     if (params == NULL) {
@@ -1443,9 +1471,17 @@ void avr3000_motor_to_joint_velocity_batch(size_t count, const double *restrict 
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            joint_velocity[3 * (start + i) + 0] = J11*thetadot1[i];
-            joint_velocity[3 * (start + i) + 1] = J21*thetadot1[i] + J22*thetadot2[i];
-            joint_velocity[3 * (start + i) + 2] = J33*thetadot3[i];
+            _joint_velocity_block[0][i] = J11*thetadot1[i];
+            _joint_velocity_block[1][i] = J21*thetadot1[i] + J22*thetadot2[i];
+            _joint_velocity_block[2][i] = J33*thetadot3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    joint_velocity[3 * (start + i) + k] = _joint_velocity_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1483,6 +1519,7 @@ void avr3000_motor_to_joint_acceleration_batch(size_t count, const double *restr
     double thetaddot1[KINEGEN_BLOCK_OF(64)];
     double thetaddot2[KINEGEN_BLOCK_OF(64)];
     double thetaddot3[KINEGEN_BLOCK_OF(64)];
+    double _joint_acceleration_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     (void)motor;
     (void)motor_velocity;
@@ -1502,9 +1539,17 @@ void avr3000_motor_to_joint_acceleration_batch(size_t count, const double *restr
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            joint_acceleration[3 * (start + i) + 0] = J11*thetaddot1[i];
-            joint_acceleration[3 * (start + i) + 1] = J21*thetaddot1[i] + J22*thetaddot2[i];
-            joint_acceleration[3 * (start + i) + 2] = J33*thetaddot3[i];
+            _joint_acceleration_block[0][i] = J11*thetaddot1[i];
+            _joint_acceleration_block[1][i] = J21*thetaddot1[i] + J22*thetaddot2[i];
+            _joint_acceleration_block[2][i] = J33*thetaddot3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    joint_acceleration[3 * (start + i) + k] = _joint_acceleration_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1542,6 +1587,7 @@ void avr3000_joint_to_tool_batch(size_t count, const double *restrict joint, con
     double q3[KINEGEN_BLOCK_OF(64)];
     double _t0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
+    double _tool_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -1564,9 +1610,17 @@ void avr3000_joint_to_tool_batch(size_t count, const double *restrict joint, con
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            tool[3 * (start + i) + 0] = -_t0[i] - q1[i] + 1.5707963267948966;
-            tool[3 * (start + i) + 1] = 2*_c0[i]*a;
-            tool[3 * (start + i) + 2] = q3[i];
+            _tool_block[0][i] = -_t0[i] - q1[i] + 1.5707963267948966;
+            _tool_block[1][i] = 2*_c0[i]*a;
+            _tool_block[2][i] = q3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    tool[3 * (start + i) + k] = _tool_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1606,6 +1660,7 @@ void avr3000_joint_to_tool_velocity_batch(size_t count, const double *restrict j
     double qdot3[KINEGEN_BLOCK_OF(64)];
     double _a0[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
+    double _tool_velocity_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -1629,9 +1684,17 @@ void avr3000_joint_to_tool_velocity_batch(size_t count, const double *restrict j
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            tool_velocity[3 * (start + i) + 0] = -qdot1[i] - 0.5*qdot2[i];
-            tool_velocity[3 * (start + i) + 1] = -_s0[i]*a*qdot2[i];
-            tool_velocity[3 * (start + i) + 2] = qdot3[i];
+            _tool_velocity_block[0][i] = -qdot1[i] - 0.5*qdot2[i];
+            _tool_velocity_block[1][i] = -_s0[i]*a*qdot2[i];
+            _tool_velocity_block[2][i] = qdot3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    tool_velocity[3 * (start + i) + k] = _tool_velocity_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1675,6 +1738,7 @@ void avr3000_joint_to_tool_acceleration_batch(size_t count, const double *restri
     double _t0[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
+    double _tool_acceleration_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -1703,9 +1767,17 @@ void avr3000_joint_to_tool_acceleration_batch(size_t count, const double *restri
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            tool_acceleration[3 * (start + i) + 0] = -qddot1[i] - 0.5*qddot2[i];
-            tool_acceleration[3 * (start + i) + 1] = -0.5*_c0[i]*a*(qdot2[i]*qdot2[i]) - _s0[i]*a*qddot2[i];
-            tool_acceleration[3 * (start + i) + 2] = qddot3[i];
+            _tool_acceleration_block[0][i] = -qddot1[i] - 0.5*qddot2[i];
+            _tool_acceleration_block[1][i] = -0.5*_c0[i]*a*(qdot2[i]*qdot2[i]) - _s0[i]*a*qddot2[i];
+            _tool_acceleration_block[2][i] = qddot3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    tool_acceleration[3 * (start + i) + k] = _tool_acceleration_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1779,6 +1851,7 @@ void avr3000_joint_to_cartesian_batch(size_t count, const double *restrict joint
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
+    double _cartesian_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -1823,9 +1896,17 @@ void avr3000_joint_to_cartesian_batch(size_t count, const double *restrict joint
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            cartesian[3 * (start + i) + 0] = _c0[i]*a + _c1[i]*a - _c2[i]*e;
-            cartesian[3 * (start + i) + 1] = _s0[i]*a + _s1[i]*a - _s2[i]*e;
-            cartesian[3 * (start + i) + 2] = q3[i];
+            _cartesian_block[0][i] = _c0[i]*a + _c1[i]*a - _c2[i]*e;
+            _cartesian_block[1][i] = _s0[i]*a + _s1[i]*a - _s2[i]*e;
+            _cartesian_block[2][i] = q3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    cartesian[3 * (start + i) + k] = _cartesian_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1906,6 +1987,7 @@ void avr3000_joint_to_cartesian_velocity_batch(size_t count, const double *restr
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
+    double _cartesian_velocity_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -1955,9 +2037,17 @@ void avr3000_joint_to_cartesian_velocity_batch(size_t count, const double *restr
             const double _t1 = _s0[i]*a;
             const double _t4 = _c0[i]*a;
             const double _t5 = _c1[i]*e;
-            cartesian_velocity[3 * (start + i) + 0] = qdot1[i]*(_s1[i]*e - _s2[i]*a - _t1) + qdot2[i]*((0.5)*_s1[i]*e - _t1);
-            cartesian_velocity[3 * (start + i) + 1] = qdot1[i]*(_c2[i]*a + _t4 - _t5) + qdot2[i]*(_t4 - 0.5*_t5);
-            cartesian_velocity[3 * (start + i) + 2] = qdot3[i];
+            _cartesian_velocity_block[0][i] = qdot1[i]*(_s1[i]*e - _s2[i]*a - _t1) + qdot2[i]*((0.5)*_s1[i]*e - _t1);
+            _cartesian_velocity_block[1][i] = qdot1[i]*(_c2[i]*a + _t4 - _t5) + qdot2[i]*(_t4 - 0.5*_t5);
+            _cartesian_velocity_block[2][i] = qdot3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    cartesian_velocity[3 * (start + i) + k] = _cartesian_velocity_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2046,6 +2136,7 @@ void avr3000_joint_to_cartesian_acceleration_batch(size_t count, const double *r
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
+    double _cartesian_acceleration_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -2101,9 +2192,17 @@ void avr3000_joint_to_cartesian_acceleration_batch(size_t count, const double *r
             const double _t8 = -_c1[i]*e + _c2[i]*a + _t6;
             const double _t9 = -0.5*_c1[i]*e + _t6;
             const double _t10 = -_t9;
-            cartesian_acceleration[3 * (start + i) + 0] = _t4*qddot1[i] + _t5*qddot2[i] + qdot1[i]*(_t10*qdot2[i] - _t8*qdot1[i]) + qdot2[i]*(_t10*qdot1[i] + qdot2[i]*((0.25)*_c1[i]*e - _t6));
-            cartesian_acceleration[3 * (start + i) + 1] = _t8*qddot1[i] + _t9*qddot2[i] + qdot1[i]*(_t4*qdot1[i] + _t5*qdot2[i]) + qdot2[i]*(_t5*qdot1[i] + qdot2[i]*((0.25)*_s1[i]*e - _t1));
-            cartesian_acceleration[3 * (start + i) + 2] = qddot3[i];
+            _cartesian_acceleration_block[0][i] = _t4*qddot1[i] + _t5*qddot2[i] + qdot1[i]*(_t10*qdot2[i] - _t8*qdot1[i]) + qdot2[i]*(_t10*qdot1[i] + qdot2[i]*((0.25)*_c1[i]*e - _t6));
+            _cartesian_acceleration_block[1][i] = _t8*qddot1[i] + _t9*qddot2[i] + qdot1[i]*(_t4*qdot1[i] + _t5*qdot2[i]) + qdot2[i]*(_t5*qdot1[i] + qdot2[i]*((0.25)*_s1[i]*e - _t1));
+            _cartesian_acceleration_block[2][i] = qddot3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    cartesian_acceleration[3 * (start + i) + k] = _cartesian_acceleration_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2142,6 +2241,7 @@ void avr3000_tool_to_cartesian_batch(size_t count, const double *restrict tool, 
     double Z[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
+    double _cartesian_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -2165,9 +2265,17 @@ void avr3000_tool_to_cartesian_batch(size_t count, const double *restrict tool, 
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             const double _t0 = R[i] - e;
-            cartesian[3 * (start + i) + 0] = _s0[i]*_t0;
-            cartesian[3 * (start + i) + 1] = _c0[i]*_t0;
-            cartesian[3 * (start + i) + 2] = Z[i];
+            _cartesian_block[0][i] = _s0[i]*_t0;
+            _cartesian_block[1][i] = _c0[i]*_t0;
+            _cartesian_block[2][i] = Z[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    cartesian[3 * (start + i) + k] = _cartesian_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2210,6 +2318,7 @@ void avr3000_tool_to_cartesian_velocity_batch(size_t count, const double *restri
     double Zdot[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
+    double _cartesian_velocity_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -2235,9 +2344,17 @@ void avr3000_tool_to_cartesian_velocity_batch(size_t count, const double *restri
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             const double _t2 = Tdot[i]*(R[i] - e);
-            cartesian_velocity[3 * (start + i) + 0] = Rdot[i]*_s0[i] + _c0[i]*_t2;
-            cartesian_velocity[3 * (start + i) + 1] = Rdot[i]*_c0[i] - _s0[i]*_t2;
-            cartesian_velocity[3 * (start + i) + 2] = Zdot[i];
+            _cartesian_velocity_block[0][i] = Rdot[i]*_s0[i] + _c0[i]*_t2;
+            _cartesian_velocity_block[1][i] = Rdot[i]*_c0[i] - _s0[i]*_t2;
+            _cartesian_velocity_block[2][i] = Zdot[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    cartesian_velocity[3 * (start + i) + k] = _cartesian_velocity_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2288,6 +2405,7 @@ void avr3000_tool_to_cartesian_acceleration_batch(size_t count, const double *re
     double Zddot[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
+    double _cartesian_acceleration_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -2319,9 +2437,17 @@ void avr3000_tool_to_cartesian_acceleration_batch(size_t count, const double *re
             const double _t4 = Tdot[i]*_t3;
             const double _t5 = Tddot[i]*_t3;
             const double _t6 = Rdot[i]*_s0[i];
-            cartesian_acceleration[3 * (start + i) + 0] = Rddot[i]*_s0[i] + Tdot[i]*_t2 + Tdot[i]*(-_s0[i]*_t4 + _t2) + _c0[i]*_t5;
-            cartesian_acceleration[3 * (start + i) + 1] = Rddot[i]*_c0[i] - Tdot[i]*_t6 + Tdot[i]*(-_c0[i]*_t4 - _t6) - _s0[i]*_t5;
-            cartesian_acceleration[3 * (start + i) + 2] = Zddot[i];
+            _cartesian_acceleration_block[0][i] = Rddot[i]*_s0[i] + Tdot[i]*_t2 + Tdot[i]*(-_s0[i]*_t4 + _t2) + _c0[i]*_t5;
+            _cartesian_acceleration_block[1][i] = Rddot[i]*_c0[i] - Tdot[i]*_t6 + Tdot[i]*(-_c0[i]*_t4 - _t6) - _s0[i]*_t5;
+            _cartesian_acceleration_block[2][i] = Zddot[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    cartesian_acceleration[3 * (start + i) + k] = _cartesian_acceleration_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2363,6 +2489,7 @@ void avr3000_motor_to_tool_batch(size_t count, const double *restrict motor, con
     double theta3[KINEGEN_BLOCK_OF(64)];
     double _t0[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
+    double _tool_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -2389,9 +2516,17 @@ void avr3000_motor_to_tool_batch(size_t count, const double *restrict motor, con
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            tool[3 * (start + i) + 0] = -J11*theta1[i] - _t0[i];
-            tool[3 * (start + i) + 1] = -2*_s0[i]*a;
-            tool[3 * (start + i) + 2] = J33*theta3[i];
+            _tool_block[0][i] = -J11*theta1[i] - _t0[i];
+            _tool_block[1][i] = -2*_s0[i]*a;
+            _tool_block[2][i] = J33*theta3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    tool[3 * (start + i) + k] = _tool_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2440,6 +2575,7 @@ void avr3000_motor_to_tool_velocity_batch(size_t count, const double *restrict m
     double thetadot3[KINEGEN_BLOCK_OF(64)];
     double _a0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
+    double _tool_velocity_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -2471,9 +2607,17 @@ void avr3000_motor_to_tool_velocity_batch(size_t count, const double *restrict m
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             const double _t2 = _c0[i]*a;
-            tool_velocity[3 * (start + i) + 0] = -_t0*thetadot2[i] + thetadot1[i]*(-J11 - _t1);
-            tool_velocity[3 * (start + i) + 1] = -J21*_t2*thetadot1[i] - J22*_t2*thetadot2[i];
-            tool_velocity[3 * (start + i) + 2] = J33*thetadot3[i];
+            _tool_velocity_block[0][i] = -_t0*thetadot2[i] + thetadot1[i]*(-J11 - _t1);
+            _tool_velocity_block[1][i] = -J21*_t2*thetadot1[i] - J22*_t2*thetadot2[i];
+            _tool_velocity_block[2][i] = J33*thetadot3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    tool_velocity[3 * (start + i) + k] = _tool_velocity_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2531,6 +2675,7 @@ void avr3000_motor_to_tool_acceleration_batch(size_t count, const double *restri
     double _t2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
+    double _tool_acceleration_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -2571,9 +2716,17 @@ void avr3000_motor_to_tool_acceleration_batch(size_t count, const double *restri
             const double _t4 = (0.5)*_t3;
             const double _t5 = J22*_t1*_t3;
             const double _t6 = _c0[i]*a;
-            tool_acceleration[3 * (start + i) + 0] = -_t0*thetaddot2[i] + thetaddot1[i]*(-J11 - _t1);
-            tool_acceleration[3 * (start + i) + 1] = -J21*_t6*thetaddot1[i] - J22*_t6*thetaddot2[i] + thetadot1[i]*((J21*J21)*_t4*thetadot1[i] + _t5*thetadot2[i]) + thetadot2[i]*((J22*J22)*_t4*thetadot2[i] + _t5*thetadot1[i]);
-            tool_acceleration[3 * (start + i) + 2] = J33*thetaddot3[i];
+            _tool_acceleration_block[0][i] = -_t0*thetaddot2[i] + thetaddot1[i]*(-J11 - _t1);
+            _tool_acceleration_block[1][i] = -J21*_t6*thetaddot1[i] - J22*_t6*thetaddot2[i] + thetadot1[i]*((J21*J21)*_t4*thetadot1[i] + _t5*thetadot2[i]) + thetadot2[i]*((J22*J22)*_t4*thetadot2[i] + _t5*thetadot1[i]);
+            _tool_acceleration_block[2][i] = J33*thetaddot3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    tool_acceleration[3 * (start + i) + k] = _tool_acceleration_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2655,6 +2808,7 @@ void avr3000_motor_to_cartesian_batch(size_t count, const double *restrict motor
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
+    double _cartesian_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -2706,9 +2860,17 @@ void avr3000_motor_to_cartesian_batch(size_t count, const double *restrict motor
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            cartesian[3 * (start + i) + 0] = _c1[i]*a - _c2[i]*a + _s0[i]*e;
-            cartesian[3 * (start + i) + 1] = -_c0[i]*e + _s1[i]*a - _s2[i]*a;
-            cartesian[3 * (start + i) + 2] = J33*theta3[i];
+            _cartesian_block[0][i] = _c1[i]*a - _c2[i]*a + _s0[i]*e;
+            _cartesian_block[1][i] = -_c0[i]*e + _s1[i]*a - _s2[i]*a;
+            _cartesian_block[2][i] = J33*theta3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    cartesian[3 * (start + i) + k] = _cartesian_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2799,6 +2961,7 @@ void avr3000_motor_to_cartesian_velocity_batch(size_t count, const double *restr
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
+    double _cartesian_velocity_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -2857,9 +3020,17 @@ void avr3000_motor_to_cartesian_velocity_batch(size_t count, const double *restr
         for (i = 0; i < n; ++i) {
             const double _t8 = _s1[i]*a;
             const double _t11 = _c1[i]*a;
-            cartesian_velocity[3 * (start + i) + 0] = thetadot1[i]*(_c0[i]*_t5 - _s2[i]*_t9 + _t6*_t8) + thetadot2[i]*((0.5)*J22*_c0[i]*e + J22*_t8);
-            cartesian_velocity[3 * (start + i) + 1] = thetadot1[i]*(_c2[i]*_t9 + _s0[i]*_t5 - _t11*_t6) + thetadot2[i]*((0.5)*J22*_s0[i]*e - J22*_t11);
-            cartesian_velocity[3 * (start + i) + 2] = J33*thetadot3[i];
+            _cartesian_velocity_block[0][i] = thetadot1[i]*(_c0[i]*_t5 - _s2[i]*_t9 + _t6*_t8) + thetadot2[i]*((0.5)*J22*_c0[i]*e + J22*_t8);
+            _cartesian_velocity_block[1][i] = thetadot1[i]*(_c2[i]*_t9 + _s0[i]*_t5 - _t11*_t6) + thetadot2[i]*((0.5)*J22*_s0[i]*e - J22*_t11);
+            _cartesian_velocity_block[2][i] = J33*thetadot3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    cartesian_velocity[3 * (start + i) + k] = _cartesian_velocity_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2968,6 +3139,7 @@ void avr3000_motor_to_cartesian_acceleration_batch(size_t count, const double *r
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
+    double _cartesian_acceleration_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -3042,9 +3214,17 @@ void avr3000_motor_to_cartesian_acceleration_batch(size_t count, const double *r
             const double _t24 = _s0[i]*_t6;
             const double _t25 = J22*_t23 - _t15*_t24;
             const double _t28 = J22*_t11 + _t15*_t7;
-            cartesian_acceleration[3 * (start + i) + 0] = thetaddot1[i]*(-_s2[i]*_t13 + _t11 + _t7) + thetaddot2[i]*(J22*_t10 + _t14*_t15) + thetadot1[i]*(_t25*thetadot2[i] + thetadot1[i]*(_c1[i]*_t20*a - _c2[i]*_t19 - _s0[i]*_t17)) + thetadot2[i]*(_t25*thetadot1[i] + thetadot2[i]*(-_s0[i]*_t27*e + _t22*_t26));
-            cartesian_acceleration[3 * (start + i) + 1] = thetaddot1[i]*(_c2[i]*_t13 - _t23 + _t24) + thetaddot2[i]*((0.5)*J22*_s0[i]*e - J22*_t22) + thetadot1[i]*(_t28*thetadot2[i] + thetadot1[i]*(_c0[i]*_t17 - _s2[i]*_t19 + _t10*_t20)) + thetadot2[i]*(_t28*thetadot1[i] + thetadot2[i]*(_t10*_t26 + _t14*_t27));
-            cartesian_acceleration[3 * (start + i) + 2] = J33*thetaddot3[i];
+            _cartesian_acceleration_block[0][i] = thetaddot1[i]*(-_s2[i]*_t13 + _t11 + _t7) + thetaddot2[i]*(J22*_t10 + _t14*_t15) + thetadot1[i]*(_t25*thetadot2[i] + thetadot1[i]*(_c1[i]*_t20*a - _c2[i]*_t19 - _s0[i]*_t17)) + thetadot2[i]*(_t25*thetadot1[i] + thetadot2[i]*(-_s0[i]*_t27*e + _t22*_t26));
+            _cartesian_acceleration_block[1][i] = thetaddot1[i]*(_c2[i]*_t13 - _t23 + _t24) + thetaddot2[i]*((0.5)*J22*_s0[i]*e - J22*_t22) + thetadot1[i]*(_t28*thetadot2[i] + thetadot1[i]*(_c0[i]*_t17 - _s2[i]*_t19 + _t10*_t20)) + thetadot2[i]*(_t28*thetadot1[i] + thetadot2[i]*(_t10*_t26 + _t14*_t27));
+            _cartesian_acceleration_block[2][i] = J33*thetaddot3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    cartesian_acceleration[3 * (start + i) + k] = _cartesian_acceleration_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -3082,6 +3262,7 @@ void avr3000_joint_to_motor_batch(size_t count, const double *restrict joint, co
     double q1[KINEGEN_BLOCK_OF(64)];
     double q2[KINEGEN_BLOCK_OF(64)];
     double q3[KINEGEN_BLOCK_OF(64)];
+    double _motor_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -3101,9 +3282,17 @@ void avr3000_joint_to_motor_batch(size_t count, const double *restrict joint, co
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             const double _t0 = q1[i]/J11;
-            motor[3 * (start + i) + 0] = _t0;
-            motor[3 * (start + i) + 1] = -J21*_t0*_t1 + _t1*q2[i] - 3.141592653589793*_t1;
-            motor[3 * (start + i) + 2] = q3[i]/J33;
+            _motor_block[0][i] = _t0;
+            _motor_block[1][i] = -J21*_t0*_t1 + _t1*q2[i] - 3.141592653589793*_t1;
+            _motor_block[2][i] = q3[i]/J33;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    motor[3 * (start + i) + k] = _motor_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -3142,6 +3331,7 @@ void avr3000_joint_to_motor_velocity_batch(size_t count, const double *restrict 
     double qdot1[KINEGEN_BLOCK_OF(64)];
     double qdot2[KINEGEN_BLOCK_OF(64)];
     double qdot3[KINEGEN_BLOCK_OF(64)];
+    double _motor_velocity_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     (void)joint;
     if (params == NULL) {
@@ -3162,9 +3352,17 @@ void avr3000_joint_to_motor_velocity_batch(size_t count, const double *restrict 
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             const double _t0 = qdot1[i]/J11;
-            motor_velocity[3 * (start + i) + 0] = _t0;
-            motor_velocity[3 * (start + i) + 1] = -J21*_t0*_t1 + _t1*qdot2[i];
-            motor_velocity[3 * (start + i) + 2] = qdot3[i]/J33;
+            _motor_velocity_block[0][i] = _t0;
+            _motor_velocity_block[1][i] = -J21*_t0*_t1 + _t1*qdot2[i];
+            _motor_velocity_block[2][i] = qdot3[i]/J33;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    motor_velocity[3 * (start + i) + k] = _motor_velocity_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -3204,6 +3402,7 @@ void avr3000_joint_to_motor_acceleration_batch(size_t count, const double *restr
     double qddot1[KINEGEN_BLOCK_OF(64)];
     double qddot2[KINEGEN_BLOCK_OF(64)];
     double qddot3[KINEGEN_BLOCK_OF(64)];
+    double _motor_acceleration_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     (void)joint;
     (void)joint_velocity;
@@ -3225,9 +3424,17 @@ void avr3000_joint_to_motor_acceleration_batch(size_t count, const double *restr
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             const double _t0 = qddot1[i]/J11;
-            motor_acceleration[3 * (start + i) + 0] = _t0;
-            motor_acceleration[3 * (start + i) + 1] = -J21*_t0*_t1 + _t1*qddot2[i];
-            motor_acceleration[3 * (start + i) + 2] = qddot3[i]/J33;
+            _motor_acceleration_block[0][i] = _t0;
+            _motor_acceleration_block[1][i] = -J21*_t0*_t1 + _t1*qddot2[i];
+            _motor_acceleration_block[2][i] = qddot3[i]/J33;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    motor_acceleration[3 * (start + i) + k] = _motor_acceleration_block[k][i];
+                }
+            }
         }
     }
 #else

@@ -1141,6 +1141,7 @@ void planar_3r_task_batch(size_t count, const double *restrict q, const planar_3
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
+    double _x_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_3r_default_params;
@@ -1186,9 +1187,17 @@ void planar_3r_task_batch(size_t count, const double *restrict q, const planar_3
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            x[3 * (start + i) + 0] = _c0[i]*l1 + _c1[i]*l2 + _c2[i]*l3;
-            x[3 * (start + i) + 1] = _s0[i]*l1 + _s1[i]*l2 + _s2[i]*l3;
-            x[3 * (start + i) + 2] = _t1[i];
+            _x_block[0][i] = _c0[i]*l1 + _c1[i]*l2 + _c2[i]*l3;
+            _x_block[1][i] = _s0[i]*l1 + _s1[i]*l2 + _s2[i]*l3;
+            _x_block[2][i] = _t1[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    x[3 * (start + i) + k] = _x_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1273,6 +1282,7 @@ void planar_3r_task_jacobian_batch(size_t count, const double *restrict q, const
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
+    double _Jx_block[9][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_3r_default_params;
@@ -1322,15 +1332,23 @@ void planar_3r_task_jacobian_batch(size_t count, const double *restrict q, const
             const double _t3 = _s1[i]*l2 + _t2;
             const double _t4 = _c0[i]*l3;
             const double _t5 = _c1[i]*l2 + _t4;
-            Jx[9 * (start + i) + 0] = -_s2[i]*l1 - _t3;
-            Jx[9 * (start + i) + 1] = -_t3;
-            Jx[9 * (start + i) + 2] = -_t2;
-            Jx[9 * (start + i) + 3] = _c2[i]*l1 + _t5;
-            Jx[9 * (start + i) + 4] = _t5;
-            Jx[9 * (start + i) + 5] = _t4;
-            Jx[9 * (start + i) + 6] = 1;
-            Jx[9 * (start + i) + 7] = 1;
-            Jx[9 * (start + i) + 8] = 1;
+            _Jx_block[0][i] = -_s2[i]*l1 - _t3;
+            _Jx_block[1][i] = -_t3;
+            _Jx_block[2][i] = -_t2;
+            _Jx_block[3][i] = _c2[i]*l1 + _t5;
+            _Jx_block[4][i] = _t5;
+            _Jx_block[5][i] = _t4;
+            _Jx_block[6][i] = 1;
+            _Jx_block[7][i] = 1;
+            _Jx_block[8][i] = 1;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 9; ++k) {
+                    Jx[9 * (start + i) + k] = _Jx_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1696,6 +1714,7 @@ void planar_3r_task_velocity_batch(size_t count, const double *restrict q, const
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
+    double _xd_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_3r_default_params;
@@ -1748,9 +1767,17 @@ void planar_3r_task_velocity_batch(size_t count, const double *restrict q, const
             const double _t3 = _s1[i]*l2 + _t2;
             const double _t4 = _c0[i]*l3;
             const double _t5 = _c1[i]*l2 + _t4;
-            xd[3 * (start + i) + 0] = -_t2*qd3[i] - _t3*qd2[i] + qd1[i]*(-_s2[i]*l1 - _t3);
-            xd[3 * (start + i) + 1] = _t4*qd3[i] + _t5*qd2[i] + qd1[i]*(_c2[i]*l1 + _t5);
-            xd[3 * (start + i) + 2] = qd1[i] + qd2[i] + qd3[i];
+            _xd_block[0][i] = -_t2*qd3[i] - _t3*qd2[i] + qd1[i]*(-_s2[i]*l1 - _t3);
+            _xd_block[1][i] = _t4*qd3[i] + _t5*qd2[i] + qd1[i]*(_c2[i]*l1 + _t5);
+            _xd_block[2][i] = qd1[i] + qd2[i] + qd3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    xd[3 * (start + i) + k] = _xd_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2031,6 +2058,7 @@ void planar_3r_task_jacobian_dot_batch(size_t count, const double *restrict q, c
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
+    double _Jx_dot_block[9][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_3r_default_params;
@@ -2089,15 +2117,23 @@ void planar_3r_task_jacobian_dot_batch(size_t count, const double *restrict q, c
             const double _t9 = -_t8;
             const double _t10 = _t7*qd3[i];
             const double _t11 = -_t10 + _t9*qd2[i];
-            Jx_dot[9 * (start + i) + 0] = _t6 + qd1[i]*(-_c2[i]*l1 - _t3);
-            Jx_dot[9 * (start + i) + 1] = _t4*qd1[i] + _t6;
-            Jx_dot[9 * (start + i) + 2] = -_t2*qd1[i] - _t2*qd2[i] - _t5;
-            Jx_dot[9 * (start + i) + 3] = _t11 + qd1[i]*(-_s2[i]*l1 - _t8);
-            Jx_dot[9 * (start + i) + 4] = _t11 + _t9*qd1[i];
-            Jx_dot[9 * (start + i) + 5] = -_t10 - _t7*qd1[i] - _t7*qd2[i];
-            Jx_dot[9 * (start + i) + 6] = 0;
-            Jx_dot[9 * (start + i) + 7] = 0;
-            Jx_dot[9 * (start + i) + 8] = 0;
+            _Jx_dot_block[0][i] = _t6 + qd1[i]*(-_c2[i]*l1 - _t3);
+            _Jx_dot_block[1][i] = _t4*qd1[i] + _t6;
+            _Jx_dot_block[2][i] = -_t2*qd1[i] - _t2*qd2[i] - _t5;
+            _Jx_dot_block[3][i] = _t11 + qd1[i]*(-_s2[i]*l1 - _t8);
+            _Jx_dot_block[4][i] = _t11 + _t9*qd1[i];
+            _Jx_dot_block[5][i] = -_t10 - _t7*qd1[i] - _t7*qd2[i];
+            _Jx_dot_block[6][i] = 0;
+            _Jx_dot_block[7][i] = 0;
+            _Jx_dot_block[8][i] = 0;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 9; ++k) {
+                    Jx_dot[9 * (start + i) + k] = _Jx_dot_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2434,6 +2470,7 @@ void planar_3r_task_acceleration_batch(size_t count, const double *restrict q, c
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
+    double _xdd_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_3r_default_params;
@@ -2497,9 +2534,17 @@ void planar_3r_task_acceleration_batch(size_t count, const double *restrict q, c
             const double _t11 = -_t9;
             const double _t12 = _t8*qd3[i];
             const double _t13 = _t11*qd2[i] - _t12;
-            xdd[3 * (start + i) + 0] = _t10*qdd1[i] + _t11*qdd2[i] - _t8*qdd3[i] + qd1[i]*(-_t4*qd1[i] + _t7) + qd2[i]*(_t5*qd1[i] + _t7) + qd3[i]*(-_t2*qd1[i] - _t2*qd2[i] - _t6);
-            xdd[3 * (start + i) + 1] = _t2*qdd3[i] + _t3*qdd2[i] + _t4*qdd1[i] + qd1[i]*(_t10*qd1[i] + _t13) + qd2[i]*(_t11*qd1[i] + _t13) + qd3[i]*(-_t12 - _t8*qd1[i] - _t8*qd2[i]);
-            xdd[3 * (start + i) + 2] = qdd1[i] + qdd2[i] + qdd3[i];
+            _xdd_block[0][i] = _t10*qdd1[i] + _t11*qdd2[i] - _t8*qdd3[i] + qd1[i]*(-_t4*qd1[i] + _t7) + qd2[i]*(_t5*qd1[i] + _t7) + qd3[i]*(-_t2*qd1[i] - _t2*qd2[i] - _t6);
+            _xdd_block[1][i] = _t2*qdd3[i] + _t3*qdd2[i] + _t4*qdd1[i] + qd1[i]*(_t10*qd1[i] + _t13) + qd2[i]*(_t11*qd1[i] + _t13) + qd3[i]*(-_t12 - _t8*qd1[i] - _t8*qd2[i]);
+            _xdd_block[2][i] = qdd1[i] + qdd2[i] + qdd3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    xdd[3 * (start + i) + k] = _xdd_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2725,6 +2770,7 @@ void planar_3r_joint_velocity_batch(size_t count, const double *restrict q, cons
     double _s4[KINEGEN_BLOCK_OF(64)];
     double _s5[KINEGEN_BLOCK_OF(64)];
     double _c5[KINEGEN_BLOCK_OF(64)];
+    double _qd_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_3r_default_params;
@@ -2852,25 +2898,33 @@ void planar_3r_joint_velocity_batch(size_t count, const double *restrict q, cons
             const double _t74 = _t61*_t66 + _t63*_t71 + xd_phi[i]*(_t37 + _t65 + _t72);
             const int _t75 = _t8 < 1e-08;
             const double _t76 = _t29*l1/kinegen_max((1e-08)*_t2, _t0*_t7);
-            qd[3 * (start + i) + 0] = ((_t75) ? (
+            _qd_block[0][i] = ((_t75) ? (
    _t51*(_t54*_t67 + _t69*_t73 + _t74)
 )
 : (
    _t76*(_t15*xd_x[i] + _t25*xd_y[i] + _t33*l3*xd_phi[i])
 ));
-            qd[3 * (start + i) + 1] = ((_t75) ? (
+            _qd_block[1][i] = ((_t75) ? (
    _t51*(_t53*_t67 + _t68*_t73 + _t74)
 )
 : (
    _t76*(-_t16*xd_x[i] + _t27*xd_y[i] - _t58*xd_phi[i])
 ));
-            qd[3 * (start + i) + 2] = ((_t75) ? (
+            _qd_block[2][i] = ((_t75) ? (
    _t51*(_t55*_t67 - _t70*_t73 + _t74)
 )
 : (
    _t76*(_t12*xd_x[i] + _t23*xd_y[i] + _t31*l1*xd_phi[i])
 ));
             singular[1 * (start + i) + 0] = _t75;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    qd[3 * (start + i) + k] = _qd_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -3057,6 +3111,7 @@ void planar_3r_joint_acceleration_batch(size_t count, const double *restrict q, 
     double _s4[KINEGEN_BLOCK_OF(64)];
     double _s5[KINEGEN_BLOCK_OF(64)];
     double _c5[KINEGEN_BLOCK_OF(64)];
+    double _qdd_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_3r_default_params;
@@ -3194,25 +3249,33 @@ void planar_3r_joint_acceleration_batch(size_t count, const double *restrict q, 
             const double _t81 = _t61*_t73 + _t67*_t78 + xdd_phi[i]*(_t37 + _t69 + _t79);
             const int _t82 = _t8 < 1e-08;
             const double _t83 = _t29*l1/kinegen_max((1e-08)*_t2, _t0*_t7);
-            qdd[3 * (start + i) + 0] = ((_t82) ? (
+            _qdd_block[0][i] = ((_t82) ? (
    _t51*(_t54*_t74 + _t76*_t80 + _t81)
 )
 : (
    _t83*(_t15*_t66 + _t25*_t72 + _t33*l3*xdd_phi[i])
 ));
-            qdd[3 * (start + i) + 1] = ((_t82) ? (
+            _qdd_block[1][i] = ((_t82) ? (
    _t51*(_t53*_t74 + _t75*_t80 + _t81)
 )
 : (
    _t83*(-_t16*_t66 + _t27*_t72 - _t58*xdd_phi[i])
 ));
-            qdd[3 * (start + i) + 2] = ((_t82) ? (
+            _qdd_block[2][i] = ((_t82) ? (
    _t51*(_t55*_t74 - _t77*_t80 + _t81)
 )
 : (
    _t83*(_t12*_t66 + _t23*_t72 + _t31*l1*xdd_phi[i])
 ));
             singular[1 * (start + i) + 0] = _t82;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    qdd[3 * (start + i) + k] = _qdd_block[k][i];
+                }
+            }
         }
     }
 #else

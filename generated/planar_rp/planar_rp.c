@@ -1921,6 +1921,7 @@ void planar_rp_kumar_pose_batch(size_t count, const double *restrict q, const pl
     double q2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
+    double _x_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     (void)params;
     for (start = 0; start < count; start += n) {
@@ -1939,9 +1940,17 @@ void planar_rp_kumar_pose_batch(size_t count, const double *restrict q, const pl
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            x[3 * (start + i) + 0] = _c0[i]*q2[i];
-            x[3 * (start + i) + 1] = _s0[i]*q2[i];
-            x[3 * (start + i) + 2] = q1[i];
+            _x_block[0][i] = _c0[i]*q2[i];
+            _x_block[1][i] = _s0[i]*q2[i];
+            _x_block[2][i] = q1[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    x[3 * (start + i) + k] = _x_block[k][i];
+                }
+            }
         }
     }
 #else

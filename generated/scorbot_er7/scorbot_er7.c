@@ -1580,6 +1580,7 @@ void scorbot_er7_task_batch(size_t count, const double *restrict q, const scorbo
     double _c2[KINEGEN_BLOCK_OF(64)];
     double _s3[KINEGEN_BLOCK_OF(64)];
     double _c3[KINEGEN_BLOCK_OF(64)];
+    double _x_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &scorbot_er7_default_params;
@@ -1637,9 +1638,17 @@ void scorbot_er7_task_batch(size_t count, const double *restrict q, const scorbo
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             const double _t2 = _c0[i]*a2 + _c1[i]*a3 + _c2[i]*d5 + a1;
-            x[3 * (start + i) + 0] = _c3[i]*_t2;
-            x[3 * (start + i) + 1] = _s3[i]*_t2;
-            x[3 * (start + i) + 2] = _s0[i]*a2 + _s1[i]*a3 + _s2[i]*d5 + d1;
+            _x_block[0][i] = _c3[i]*_t2;
+            _x_block[1][i] = _s3[i]*_t2;
+            _x_block[2][i] = _s0[i]*a2 + _s1[i]*a3 + _s2[i]*d5 + d1;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    x[3 * (start + i) + k] = _x_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1742,6 +1751,7 @@ void scorbot_er7_task_jacobian_batch(size_t count, const double *restrict q, con
     double _c2[KINEGEN_BLOCK_OF(64)];
     double _s3[KINEGEN_BLOCK_OF(64)];
     double _c3[KINEGEN_BLOCK_OF(64)];
+    double _Jx_block[15][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &scorbot_er7_default_params;
@@ -1804,21 +1814,29 @@ void scorbot_er7_task_jacobian_batch(size_t count, const double *restrict q, con
             const double _t7 = _s0[i]*d5;
             const double _t8 = _s1[i]*a3 + _t7;
             const double _t9 = _s2[i]*a2 + _t8;
-            Jx[15 * (start + i) + 0] = -_s3[i]*_t5;
-            Jx[15 * (start + i) + 1] = -_c3[i]*_t9;
-            Jx[15 * (start + i) + 2] = -_c3[i]*_t8;
-            Jx[15 * (start + i) + 3] = -_c3[i]*_t7;
-            Jx[15 * (start + i) + 4] = 0;
-            Jx[15 * (start + i) + 5] = _c3[i]*_t5;
-            Jx[15 * (start + i) + 6] = -_s3[i]*_t9;
-            Jx[15 * (start + i) + 7] = -_s3[i]*_t8;
-            Jx[15 * (start + i) + 8] = -_s3[i]*_t7;
-            Jx[15 * (start + i) + 9] = 0;
-            Jx[15 * (start + i) + 10] = 0;
-            Jx[15 * (start + i) + 11] = _t4;
-            Jx[15 * (start + i) + 12] = _t3;
-            Jx[15 * (start + i) + 13] = _t2;
-            Jx[15 * (start + i) + 14] = 0;
+            _Jx_block[0][i] = -_s3[i]*_t5;
+            _Jx_block[1][i] = -_c3[i]*_t9;
+            _Jx_block[2][i] = -_c3[i]*_t8;
+            _Jx_block[3][i] = -_c3[i]*_t7;
+            _Jx_block[4][i] = 0;
+            _Jx_block[5][i] = _c3[i]*_t5;
+            _Jx_block[6][i] = -_s3[i]*_t9;
+            _Jx_block[7][i] = -_s3[i]*_t8;
+            _Jx_block[8][i] = -_s3[i]*_t7;
+            _Jx_block[9][i] = 0;
+            _Jx_block[10][i] = 0;
+            _Jx_block[11][i] = _t4;
+            _Jx_block[12][i] = _t3;
+            _Jx_block[13][i] = _t2;
+            _Jx_block[14][i] = 0;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 15; ++k) {
+                    Jx[15 * (start + i) + k] = _Jx_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2247,6 +2265,7 @@ void scorbot_er7_task_velocity_batch(size_t count, const double *restrict q, con
     double _c2[KINEGEN_BLOCK_OF(64)];
     double _s3[KINEGEN_BLOCK_OF(64)];
     double _c3[KINEGEN_BLOCK_OF(64)];
+    double _xd_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &scorbot_er7_default_params;
@@ -2315,9 +2334,17 @@ void scorbot_er7_task_velocity_batch(size_t count, const double *restrict q, con
             const double _t10 = qd2[i]*(_s3[i]*a2 + _t9);
             const double _t11 = _t9*qd3[i];
             const double _t12 = _t8*qd4[i];
-            xd[3 * (start + i) + 0] = -_c0[i]*_t10 - _c0[i]*_t11 - _c0[i]*_t12 - _s0[i]*_t6*qd1[i];
-            xd[3 * (start + i) + 1] = _c0[i]*_t6*qd1[i] - _s0[i]*_t10 - _s0[i]*_t11 - _s0[i]*_t12;
-            xd[3 * (start + i) + 2] = _t3*qd4[i] + _t4*qd3[i] + _t5*qd2[i];
+            _xd_block[0][i] = -_c0[i]*_t10 - _c0[i]*_t11 - _c0[i]*_t12 - _s0[i]*_t6*qd1[i];
+            _xd_block[1][i] = _c0[i]*_t6*qd1[i] - _s0[i]*_t10 - _s0[i]*_t11 - _s0[i]*_t12;
+            _xd_block[2][i] = _t3*qd4[i] + _t4*qd3[i] + _t5*qd2[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    xd[3 * (start + i) + k] = _xd_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2680,6 +2707,7 @@ void scorbot_er7_task_jacobian_dot_batch(size_t count, const double *restrict q,
     double _c2[KINEGEN_BLOCK_OF(64)];
     double _s3[KINEGEN_BLOCK_OF(64)];
     double _c3[KINEGEN_BLOCK_OF(64)];
+    double _Jx_dot_block[15][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &scorbot_er7_default_params;
@@ -2762,21 +2790,29 @@ void scorbot_er7_task_jacobian_dot_batch(size_t count, const double *restrict q,
             const double _t25 = _t24*qd4[i];
             const double _t26 = _s0[i]*_t17 + _t25;
             const double _t27 = _t15 - _t21;
-            Jx_dot[15 * (start + i) + 0] = -_c0[i]*_t6 + _s0[i]*_s1[i]*d5*qd4[i] - _s0[i]*_t13 - _s0[i]*_t15;
-            Jx_dot[15 * (start + i) + 1] = _s0[i]*_t11*qd1[i] - _t16*_t5 - _t20;
-            Jx_dot[15 * (start + i) + 2] = _s0[i]*_t10*qd1[i] - _t16*_t4 - _t20;
-            Jx_dot[15 * (start + i) + 3] = _s0[i]*_s1[i]*d5*qd1[i] - _t16*_t3 - _t18*qd3[i] - _t19;
-            Jx_dot[15 * (start + i) + 4] = 0;
-            Jx_dot[15 * (start + i) + 5] = _c0[i]*_t12*qd2[i] + _c0[i]*_t14*qd3[i] - _c0[i]*_t21 - _s0[i]*_t6;
-            Jx_dot[15 * (start + i) + 6] = -_t11*_t22 - _t23*_t5 - _t26;
-            Jx_dot[15 * (start + i) + 7] = -_t10*_t22 - _t23*_t4 - _t26;
-            Jx_dot[15 * (start + i) + 8] = -_t22*_t9 - _t23*_t3 - _t24*qd3[i] - _t25;
-            Jx_dot[15 * (start + i) + 9] = 0;
-            Jx_dot[15 * (start + i) + 10] = 0;
-            Jx_dot[15 * (start + i) + 11] = _t13 + _t27;
-            Jx_dot[15 * (start + i) + 12] = _t14*qd2[i] + _t27;
-            Jx_dot[15 * (start + i) + 13] = -_t21 - _t9*qd2[i] - _t9*qd3[i];
-            Jx_dot[15 * (start + i) + 14] = 0;
+            _Jx_dot_block[0][i] = -_c0[i]*_t6 + _s0[i]*_s1[i]*d5*qd4[i] - _s0[i]*_t13 - _s0[i]*_t15;
+            _Jx_dot_block[1][i] = _s0[i]*_t11*qd1[i] - _t16*_t5 - _t20;
+            _Jx_dot_block[2][i] = _s0[i]*_t10*qd1[i] - _t16*_t4 - _t20;
+            _Jx_dot_block[3][i] = _s0[i]*_s1[i]*d5*qd1[i] - _t16*_t3 - _t18*qd3[i] - _t19;
+            _Jx_dot_block[4][i] = 0;
+            _Jx_dot_block[5][i] = _c0[i]*_t12*qd2[i] + _c0[i]*_t14*qd3[i] - _c0[i]*_t21 - _s0[i]*_t6;
+            _Jx_dot_block[6][i] = -_t11*_t22 - _t23*_t5 - _t26;
+            _Jx_dot_block[7][i] = -_t10*_t22 - _t23*_t4 - _t26;
+            _Jx_dot_block[8][i] = -_t22*_t9 - _t23*_t3 - _t24*qd3[i] - _t25;
+            _Jx_dot_block[9][i] = 0;
+            _Jx_dot_block[10][i] = 0;
+            _Jx_dot_block[11][i] = _t13 + _t27;
+            _Jx_dot_block[12][i] = _t14*qd2[i] + _t27;
+            _Jx_dot_block[13][i] = -_t21 - _t9*qd2[i] - _t9*qd3[i];
+            _Jx_dot_block[14][i] = 0;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 15; ++k) {
+                    Jx_dot[15 * (start + i) + k] = _Jx_dot_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -3247,6 +3283,7 @@ void scorbot_er7_task_acceleration_batch(size_t count, const double *restrict q,
     double _c2[KINEGEN_BLOCK_OF(64)];
     double _s3[KINEGEN_BLOCK_OF(64)];
     double _c3[KINEGEN_BLOCK_OF(64)];
+    double _xdd_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &scorbot_er7_default_params;
@@ -3337,9 +3374,17 @@ void scorbot_er7_task_acceleration_batch(size_t count, const double *restrict q,
             const double _t29 = _t28*qd4[i];
             const double _t30 = _s0[i]*_t18 + _t29;
             const double _t31 = _t16 - _t26;
-            xdd[3 * (start + i) + 0] = -_s0[i]*_t22 - _t23*qdd2[i] - _t24*qdd3[i] - _t25*qdd4[i] + qd1[i]*(-_c0[i]*_t7 + _s0[i]*_s1[i]*d5*qd4[i] - _s0[i]*_t14 - _s0[i]*_t16) + qd2[i]*(_s0[i]*_t12*qd1[i] - _t17*_t5 - _t21) + qd3[i]*(_s0[i]*_t11*qd1[i] - _t17*_t4 - _t21) + qd4[i]*(_s0[i]*_s1[i]*d5*qd1[i] - _t17*_t3 - _t19*qd3[i] - _t20);
-            xdd[3 * (start + i) + 1] = _c0[i]*_t22 - _s0[i]*_t10*qdd4[i] - _s0[i]*_t11*qdd3[i] - _s0[i]*_t12*qdd2[i] + qd1[i]*(_c0[i]*_t13*qd2[i] + _c0[i]*_t15*qd3[i] - _c0[i]*_t26 - _s0[i]*_t7) + qd2[i]*(-_t23*qd1[i] - _t27*_t5 - _t30) + qd3[i]*(-_t24*qd1[i] - _t27*_t4 - _t30) + qd4[i]*(-_t25*qd1[i] - _t27*_t3 - _t28*qd3[i] - _t29);
-            xdd[3 * (start + i) + 2] = _t3*qdd4[i] + _t4*qdd3[i] + _t5*qdd2[i] + qd2[i]*(_t14 + _t31) + qd3[i]*(_t15*qd2[i] + _t31) + qd4[i]*(-_t10*qd2[i] - _t10*qd3[i] - _t26);
+            _xdd_block[0][i] = -_s0[i]*_t22 - _t23*qdd2[i] - _t24*qdd3[i] - _t25*qdd4[i] + qd1[i]*(-_c0[i]*_t7 + _s0[i]*_s1[i]*d5*qd4[i] - _s0[i]*_t14 - _s0[i]*_t16) + qd2[i]*(_s0[i]*_t12*qd1[i] - _t17*_t5 - _t21) + qd3[i]*(_s0[i]*_t11*qd1[i] - _t17*_t4 - _t21) + qd4[i]*(_s0[i]*_s1[i]*d5*qd1[i] - _t17*_t3 - _t19*qd3[i] - _t20);
+            _xdd_block[1][i] = _c0[i]*_t22 - _s0[i]*_t10*qdd4[i] - _s0[i]*_t11*qdd3[i] - _s0[i]*_t12*qdd2[i] + qd1[i]*(_c0[i]*_t13*qd2[i] + _c0[i]*_t15*qd3[i] - _c0[i]*_t26 - _s0[i]*_t7) + qd2[i]*(-_t23*qd1[i] - _t27*_t5 - _t30) + qd3[i]*(-_t24*qd1[i] - _t27*_t4 - _t30) + qd4[i]*(-_t25*qd1[i] - _t27*_t3 - _t28*qd3[i] - _t29);
+            _xdd_block[2][i] = _t3*qdd4[i] + _t4*qdd3[i] + _t5*qdd2[i] + qd2[i]*(_t14 + _t31) + qd3[i]*(_t15*qd2[i] + _t31) + qd4[i]*(-_t10*qd2[i] - _t10*qd3[i] - _t26);
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    xdd[3 * (start + i) + k] = _xdd_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -3690,6 +3735,7 @@ void scorbot_er7_joint_velocity_batch(size_t count, const double *restrict q, co
     double _s8[KINEGEN_BLOCK_OF(64)];
     double _s9[KINEGEN_BLOCK_OF(64)];
     double _c9[KINEGEN_BLOCK_OF(64)];
+    double _qd_block[5][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &scorbot_er7_default_params;
@@ -3869,12 +3915,20 @@ void scorbot_er7_joint_velocity_batch(size_t count, const double *restrict q, co
             const double _t102 = _c9[i]*_t98;
             const double _t103 = _t64*_t78;
             const double _t104 = _t31*_t78;
-            qd[5 * (start + i) + 0] = _t73*(_c9[i]*_t92*_t93 - _s9[i]*_t93*_t98);
-            qd[5 * (start + i) + 1] = _t73*(-_t100*_t101 - _t100*_t102 + _t13*_t78*_t99);
-            qd[5 * (start + i) + 2] = _t73*(-_t101*_t103 - _t102*_t103 + _t12*_t78*_t99);
-            qd[5 * (start + i) + 3] = _t73*(_c4[i]*_t78*_t99*d5 - _t101*_t104 - _t102*_t104);
-            qd[5 * (start + i) + 4] = 0;
+            _qd_block[0][i] = _t73*(_c9[i]*_t92*_t93 - _s9[i]*_t93*_t98);
+            _qd_block[1][i] = _t73*(-_t100*_t101 - _t100*_t102 + _t13*_t78*_t99);
+            _qd_block[2][i] = _t73*(-_t101*_t103 - _t102*_t103 + _t12*_t78*_t99);
+            _qd_block[3][i] = _t73*(_c4[i]*_t78*_t99*d5 - _t101*_t104 - _t102*_t104);
+            _qd_block[4][i] = 0;
             singular[1 * (start + i) + 0] = _t72 < 1e-08;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 5; ++k) {
+                    qd[5 * (start + i) + k] = _qd_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -4109,6 +4163,7 @@ void scorbot_er7_joint_acceleration_batch(size_t count, const double *restrict q
     double _s8[KINEGEN_BLOCK_OF(64)];
     double _s9[KINEGEN_BLOCK_OF(64)];
     double _c9[KINEGEN_BLOCK_OF(64)];
+    double _qdd_block[5][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &scorbot_er7_default_params;
@@ -4307,12 +4362,20 @@ void scorbot_er7_joint_acceleration_batch(size_t count, const double *restrict q
             const double _t117 = _s9[i]*_t107;
             const double _t118 = _t64*_t81;
             const double _t119 = _t31*_t81;
-            qdd[5 * (start + i) + 0] = _t73*(_c9[i]*_t107*_t108 - _s9[i]*_t108*_t113);
-            qdd[5 * (start + i) + 1] = _t73*(_t114*_t13*_t81 - _t115*_t116 - _t115*_t117);
-            qdd[5 * (start + i) + 2] = _t73*(_t114*_t12*_t81 - _t116*_t118 - _t117*_t118);
-            qdd[5 * (start + i) + 3] = _t73*(_c4[i]*_t114*_t81*d5 - _t116*_t119 - _t117*_t119);
-            qdd[5 * (start + i) + 4] = 0;
+            _qdd_block[0][i] = _t73*(_c9[i]*_t107*_t108 - _s9[i]*_t108*_t113);
+            _qdd_block[1][i] = _t73*(_t114*_t13*_t81 - _t115*_t116 - _t115*_t117);
+            _qdd_block[2][i] = _t73*(_t114*_t12*_t81 - _t116*_t118 - _t117*_t118);
+            _qdd_block[3][i] = _t73*(_c4[i]*_t114*_t81*d5 - _t116*_t119 - _t117*_t119);
+            _qdd_block[4][i] = 0;
             singular[1 * (start + i) + 0] = _t72 < 1e-08;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 5; ++k) {
+                    qdd[5 * (start + i) + k] = _qdd_block[k][i];
+                }
+            }
         }
     }
 #else
