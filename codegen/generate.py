@@ -115,11 +115,11 @@ def template_function(prepared: PreparedFunction) -> dict:
     staged = stage(prepared)
     for out, entries in zip(outputs, staged.outputs):
         out["staged"] = list(enumerate(entries))
-    # Also every output of an odd size past 1 (a 7-joint arm's tau, its 7 x 7 M): a loop that stores
-    # 7 doubles per item, a group GCC 12 cannot interleave, was not vectorised at all, and the Panda's
-    # inverse_dynamics took 134 ns per state instead of 41 (its batch function alone, gcc 12 -O3 -march=native).
-    block_outputs = [o.name for o in prepared.outputs
-                     if o.dtype == "float" and (is_ik or (o.size % 2 and o.size > 1))]
+    # Every output of more than one entry goes the same way: GCC 12 left the whole loop of a kernel
+    # that stores several doubles per item unvectorised ("no vectype" for its first load), and the
+    # batched inverse_dynamics of the Panda (7 per item) took 134 ns per state instead of 41, the
+    # Z1's (6) 103 instead of 32 (each batch function alone, gcc 12 -O3 -march=native).
+    block_outputs = [o.name for o in prepared.outputs if o.dtype == "float" and (is_ik or o.size > 1)]
     stream_outputs = [o.name for o in prepared.outputs if o.dtype == "float" and o.size % 2 == 0 and not is_ik]
     arguments_used = prepared.arguments_used  # a walk over every expression: once
     inputs = {s for a in prepared.arguments for s in a[1]} & arguments_used
@@ -134,7 +134,7 @@ def template_function(prepared: PreparedFunction) -> dict:
         "prologue": staged.prologue,
         # Outputs the blocked C writes per block, one array per entry, then copies out item by
         # item: GCC 12 does not vectorise a loop that stores ik's 48 joint values per item, nor
-        # one that stores an odd number of values per item.
+        # one that stores a few values per item (see block_outputs).
         "block_outputs": block_outputs,
         # Outputs that can be streamed out in pairs of doubles (16-byte aligned rows: an even
         # size); not ik's, whose checks read the joint values straight back.

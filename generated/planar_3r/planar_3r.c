@@ -187,8 +187,8 @@ void planar_3r_fk_batch(size_t count, const double *restrict q, const planar_3r_
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _T_block[16][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
 #endif
@@ -261,22 +261,22 @@ void planar_3r_fk_batch(size_t count, const double *restrict q, const planar_3r_
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                T[16 * (start + i) + 0] = _c0[i];
-                T[16 * (start + i) + 1] = -_s0[i];
-                T[16 * (start + i) + 2] = 0;
-                T[16 * (start + i) + 3] = _c0[i]*l3 + _c1[i]*l1 + _c2[i]*l2;
-                T[16 * (start + i) + 4] = _s0[i];
-                T[16 * (start + i) + 5] = _c0[i];
-                T[16 * (start + i) + 6] = 0;
-                T[16 * (start + i) + 7] = _s0[i]*l3 + _s1[i]*l1 + _s2[i]*l2;
-                T[16 * (start + i) + 8] = 0;
-                T[16 * (start + i) + 9] = 0;
-                T[16 * (start + i) + 10] = 1;
-                T[16 * (start + i) + 11] = 0;
-                T[16 * (start + i) + 12] = 0;
-                T[16 * (start + i) + 13] = 0;
-                T[16 * (start + i) + 14] = 0;
-                T[16 * (start + i) + 15] = 1;
+                _T_block[0][i] = _c0[i];
+                _T_block[1][i] = -_s0[i];
+                _T_block[2][i] = 0;
+                _T_block[3][i] = _c0[i]*l3 + _c1[i]*l1 + _c2[i]*l2;
+                _T_block[4][i] = _s0[i];
+                _T_block[5][i] = _c0[i];
+                _T_block[6][i] = 0;
+                _T_block[7][i] = _s0[i]*l3 + _s1[i]*l1 + _s2[i]*l2;
+                _T_block[8][i] = 0;
+                _T_block[9][i] = 0;
+                _T_block[10][i] = 1;
+                _T_block[11][i] = 0;
+                _T_block[12][i] = 0;
+                _T_block[13][i] = 0;
+                _T_block[14][i] = 0;
+                _T_block[15][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -287,8 +287,16 @@ void planar_3r_fk_batch(size_t count, const double *restrict q, const planar_3r_
                     _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 16; ++k) {
+                    T[16 * (start + i) + k] = _T_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -432,8 +440,8 @@ void planar_3r_frames_batch(size_t count, const double *restrict q, const planar
     double _c1[KINEGEN_BLOCK_OF(32)];
     double _s2[KINEGEN_BLOCK_OF(32)];
     double _c2[KINEGEN_BLOCK_OF(32)];
-#ifdef KINEGEN_STREAM
     double _frames_block[64][KINEGEN_BLOCK_OF(32)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 64 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
 #endif
@@ -562,70 +570,70 @@ void planar_3r_frames_batch(size_t count, const double *restrict q, const planar
                 const double _t3 = _s0[i]*l1;
                 const double _t7 = _c1[i]*l2 + _t2;
                 const double _t8 = _s1[i]*l2 + _t3;
-                frames[64 * (start + i) + 0] = 1;
-                frames[64 * (start + i) + 1] = 0;
-                frames[64 * (start + i) + 2] = 0;
-                frames[64 * (start + i) + 3] = 0;
-                frames[64 * (start + i) + 4] = 0;
-                frames[64 * (start + i) + 5] = 1;
-                frames[64 * (start + i) + 6] = 0;
-                frames[64 * (start + i) + 7] = 0;
-                frames[64 * (start + i) + 8] = 0;
-                frames[64 * (start + i) + 9] = 0;
-                frames[64 * (start + i) + 10] = 1;
-                frames[64 * (start + i) + 11] = 0;
-                frames[64 * (start + i) + 12] = 0;
-                frames[64 * (start + i) + 13] = 0;
-                frames[64 * (start + i) + 14] = 0;
-                frames[64 * (start + i) + 15] = 1;
-                frames[64 * (start + i) + 16] = _c0[i];
-                frames[64 * (start + i) + 17] = -_s0[i];
-                frames[64 * (start + i) + 18] = 0;
-                frames[64 * (start + i) + 19] = _t2;
-                frames[64 * (start + i) + 20] = _s0[i];
-                frames[64 * (start + i) + 21] = _c0[i];
-                frames[64 * (start + i) + 22] = 0;
-                frames[64 * (start + i) + 23] = _t3;
-                frames[64 * (start + i) + 24] = 0;
-                frames[64 * (start + i) + 25] = 0;
-                frames[64 * (start + i) + 26] = 1;
-                frames[64 * (start + i) + 27] = 0;
-                frames[64 * (start + i) + 28] = 0;
-                frames[64 * (start + i) + 29] = 0;
-                frames[64 * (start + i) + 30] = 0;
-                frames[64 * (start + i) + 31] = 1;
-                frames[64 * (start + i) + 32] = _c1[i];
-                frames[64 * (start + i) + 33] = -_s1[i];
-                frames[64 * (start + i) + 34] = 0;
-                frames[64 * (start + i) + 35] = _t7;
-                frames[64 * (start + i) + 36] = _s1[i];
-                frames[64 * (start + i) + 37] = _c1[i];
-                frames[64 * (start + i) + 38] = 0;
-                frames[64 * (start + i) + 39] = _t8;
-                frames[64 * (start + i) + 40] = 0;
-                frames[64 * (start + i) + 41] = 0;
-                frames[64 * (start + i) + 42] = 1;
-                frames[64 * (start + i) + 43] = 0;
-                frames[64 * (start + i) + 44] = 0;
-                frames[64 * (start + i) + 45] = 0;
-                frames[64 * (start + i) + 46] = 0;
-                frames[64 * (start + i) + 47] = 1;
-                frames[64 * (start + i) + 48] = _c2[i];
-                frames[64 * (start + i) + 49] = -_s2[i];
-                frames[64 * (start + i) + 50] = 0;
-                frames[64 * (start + i) + 51] = _c2[i]*l3 + _t7;
-                frames[64 * (start + i) + 52] = _s2[i];
-                frames[64 * (start + i) + 53] = _c2[i];
-                frames[64 * (start + i) + 54] = 0;
-                frames[64 * (start + i) + 55] = _s2[i]*l3 + _t8;
-                frames[64 * (start + i) + 56] = 0;
-                frames[64 * (start + i) + 57] = 0;
-                frames[64 * (start + i) + 58] = 1;
-                frames[64 * (start + i) + 59] = 0;
-                frames[64 * (start + i) + 60] = 0;
-                frames[64 * (start + i) + 61] = 0;
-                frames[64 * (start + i) + 62] = 0;
-                frames[64 * (start + i) + 63] = 1;
+                _frames_block[0][i] = 1;
+                _frames_block[1][i] = 0;
+                _frames_block[2][i] = 0;
+                _frames_block[3][i] = 0;
+                _frames_block[4][i] = 0;
+                _frames_block[5][i] = 1;
+                _frames_block[6][i] = 0;
+                _frames_block[7][i] = 0;
+                _frames_block[8][i] = 0;
+                _frames_block[9][i] = 0;
+                _frames_block[10][i] = 1;
+                _frames_block[11][i] = 0;
+                _frames_block[12][i] = 0;
+                _frames_block[13][i] = 0;
+                _frames_block[14][i] = 0;
+                _frames_block[15][i] = 1;
+                _frames_block[16][i] = _c0[i];
+                _frames_block[17][i] = -_s0[i];
+                _frames_block[18][i] = 0;
+                _frames_block[19][i] = _t2;
+                _frames_block[20][i] = _s0[i];
+                _frames_block[21][i] = _c0[i];
+                _frames_block[22][i] = 0;
+                _frames_block[23][i] = _t3;
+                _frames_block[24][i] = 0;
+                _frames_block[25][i] = 0;
+                _frames_block[26][i] = 1;
+                _frames_block[27][i] = 0;
+                _frames_block[28][i] = 0;
+                _frames_block[29][i] = 0;
+                _frames_block[30][i] = 0;
+                _frames_block[31][i] = 1;
+                _frames_block[32][i] = _c1[i];
+                _frames_block[33][i] = -_s1[i];
+                _frames_block[34][i] = 0;
+                _frames_block[35][i] = _t7;
+                _frames_block[36][i] = _s1[i];
+                _frames_block[37][i] = _c1[i];
+                _frames_block[38][i] = 0;
+                _frames_block[39][i] = _t8;
+                _frames_block[40][i] = 0;
+                _frames_block[41][i] = 0;
+                _frames_block[42][i] = 1;
+                _frames_block[43][i] = 0;
+                _frames_block[44][i] = 0;
+                _frames_block[45][i] = 0;
+                _frames_block[46][i] = 0;
+                _frames_block[47][i] = 1;
+                _frames_block[48][i] = _c2[i];
+                _frames_block[49][i] = -_s2[i];
+                _frames_block[50][i] = 0;
+                _frames_block[51][i] = _c2[i]*l3 + _t7;
+                _frames_block[52][i] = _s2[i];
+                _frames_block[53][i] = _c2[i];
+                _frames_block[54][i] = 0;
+                _frames_block[55][i] = _s2[i]*l3 + _t8;
+                _frames_block[56][i] = 0;
+                _frames_block[57][i] = 0;
+                _frames_block[58][i] = 1;
+                _frames_block[59][i] = 0;
+                _frames_block[60][i] = 0;
+                _frames_block[61][i] = 0;
+                _frames_block[62][i] = 0;
+                _frames_block[63][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -636,8 +644,16 @@ void planar_3r_frames_batch(size_t count, const double *restrict q, const planar
                     _mm_stream_pd(frames + 64 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 64; ++k) {
+                    frames[64 * (start + i) + k] = _frames_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -735,8 +751,8 @@ void planar_3r_jacobian_batch(size_t count, const double *restrict q, const plan
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_block[18][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 18 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
 #endif
@@ -819,24 +835,24 @@ void planar_3r_jacobian_batch(size_t count, const double *restrict q, const plan
                 const double _t3 = _s1[i]*l2 + _t2;
                 const double _t4 = _c0[i]*l3;
                 const double _t5 = _c1[i]*l2 + _t4;
-                J[18 * (start + i) + 0] = -_s2[i]*l1 - _t3;
-                J[18 * (start + i) + 1] = -_t3;
-                J[18 * (start + i) + 2] = -_t2;
-                J[18 * (start + i) + 3] = _c2[i]*l1 + _t5;
-                J[18 * (start + i) + 4] = _t5;
-                J[18 * (start + i) + 5] = _t4;
-                J[18 * (start + i) + 6] = 0;
-                J[18 * (start + i) + 7] = 0;
-                J[18 * (start + i) + 8] = 0;
-                J[18 * (start + i) + 9] = 0;
-                J[18 * (start + i) + 10] = 0;
-                J[18 * (start + i) + 11] = 0;
-                J[18 * (start + i) + 12] = 0;
-                J[18 * (start + i) + 13] = 0;
-                J[18 * (start + i) + 14] = 0;
-                J[18 * (start + i) + 15] = 1;
-                J[18 * (start + i) + 16] = 1;
-                J[18 * (start + i) + 17] = 1;
+                _J_block[0][i] = -_s2[i]*l1 - _t3;
+                _J_block[1][i] = -_t3;
+                _J_block[2][i] = -_t2;
+                _J_block[3][i] = _c2[i]*l1 + _t5;
+                _J_block[4][i] = _t5;
+                _J_block[5][i] = _t4;
+                _J_block[6][i] = 0;
+                _J_block[7][i] = 0;
+                _J_block[8][i] = 0;
+                _J_block[9][i] = 0;
+                _J_block[10][i] = 0;
+                _J_block[11][i] = 0;
+                _J_block[12][i] = 0;
+                _J_block[13][i] = 0;
+                _J_block[14][i] = 0;
+                _J_block[15][i] = 1;
+                _J_block[16][i] = 1;
+                _J_block[17][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -847,8 +863,16 @@ void planar_3r_jacobian_batch(size_t count, const double *restrict q, const plan
                     _mm_stream_pd(J + 18 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 18; ++k) {
+                    J[18 * (start + i) + k] = _J_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -947,8 +971,8 @@ void planar_3r_jacobian_tool_batch(size_t count, const double *restrict q, const
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_tool_block[18][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 18 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_tool & 15) == 0;
 #endif
@@ -1033,24 +1057,24 @@ void planar_3r_jacobian_tool_batch(size_t count, const double *restrict q, const
                 const double _t6 = _s0[i]*l3 + _s1[i]*l2;
                 const double _t7 = -_s2[i]*l1 - _t6;
                 const double _t8 = -_t6;
-                J_tool[18 * (start + i) + 0] = _c0[i]*_t7 + _s0[i]*_t4;
-                J_tool[18 * (start + i) + 1] = _c0[i]*_t8 + _s0[i]*_t3;
-                J_tool[18 * (start + i) + 2] = 0;
-                J_tool[18 * (start + i) + 3] = _c0[i]*_t4 - _s0[i]*_t7;
-                J_tool[18 * (start + i) + 4] = _c0[i]*_t3 - _s0[i]*_t8;
-                J_tool[18 * (start + i) + 5] = (_c0[i]*_c0[i])*l3 + (_s0[i]*_s0[i])*l3;
-                J_tool[18 * (start + i) + 6] = 0;
-                J_tool[18 * (start + i) + 7] = 0;
-                J_tool[18 * (start + i) + 8] = 0;
-                J_tool[18 * (start + i) + 9] = 0;
-                J_tool[18 * (start + i) + 10] = 0;
-                J_tool[18 * (start + i) + 11] = 0;
-                J_tool[18 * (start + i) + 12] = 0;
-                J_tool[18 * (start + i) + 13] = 0;
-                J_tool[18 * (start + i) + 14] = 0;
-                J_tool[18 * (start + i) + 15] = 1;
-                J_tool[18 * (start + i) + 16] = 1;
-                J_tool[18 * (start + i) + 17] = 1;
+                _J_tool_block[0][i] = _c0[i]*_t7 + _s0[i]*_t4;
+                _J_tool_block[1][i] = _c0[i]*_t8 + _s0[i]*_t3;
+                _J_tool_block[2][i] = 0;
+                _J_tool_block[3][i] = _c0[i]*_t4 - _s0[i]*_t7;
+                _J_tool_block[4][i] = _c0[i]*_t3 - _s0[i]*_t8;
+                _J_tool_block[5][i] = (_c0[i]*_c0[i])*l3 + (_s0[i]*_s0[i])*l3;
+                _J_tool_block[6][i] = 0;
+                _J_tool_block[7][i] = 0;
+                _J_tool_block[8][i] = 0;
+                _J_tool_block[9][i] = 0;
+                _J_tool_block[10][i] = 0;
+                _J_tool_block[11][i] = 0;
+                _J_tool_block[12][i] = 0;
+                _J_tool_block[13][i] = 0;
+                _J_tool_block[14][i] = 0;
+                _J_tool_block[15][i] = 1;
+                _J_tool_block[16][i] = 1;
+                _J_tool_block[17][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1061,8 +1085,16 @@ void planar_3r_jacobian_tool_batch(size_t count, const double *restrict q, const
                     _mm_stream_pd(J_tool + 18 * (start + i) + k, _mm_set_pd(_J_tool_block[k + 1][i], _J_tool_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 18; ++k) {
+                    J_tool[18 * (start + i) + k] = _J_tool_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1865,8 +1897,8 @@ void planar_3r_twist_batch(size_t count, const double *restrict q, const double 
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _twist_block[6][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)twist & 15) == 0;
 #endif
@@ -1940,12 +1972,12 @@ void planar_3r_twist_batch(size_t count, const double *restrict q, const double 
                 const double _t3 = _s1[i]*l2 + _t2;
                 const double _t4 = _c0[i]*l3;
                 const double _t5 = _c1[i]*l2 + _t4;
-                twist[6 * (start + i) + 0] = -_t2*qd3[i] - _t3*qd2[i] + qd1[i]*(-_s2[i]*l1 - _t3);
-                twist[6 * (start + i) + 1] = _t4*qd3[i] + _t5*qd2[i] + qd1[i]*(_c2[i]*l1 + _t5);
-                twist[6 * (start + i) + 2] = 0;
-                twist[6 * (start + i) + 3] = 0;
-                twist[6 * (start + i) + 4] = 0;
-                twist[6 * (start + i) + 5] = qd1[i] + qd2[i] + qd3[i];
+                _twist_block[0][i] = -_t2*qd3[i] - _t3*qd2[i] + qd1[i]*(-_s2[i]*l1 - _t3);
+                _twist_block[1][i] = _t4*qd3[i] + _t5*qd2[i] + qd1[i]*(_c2[i]*l1 + _t5);
+                _twist_block[2][i] = 0;
+                _twist_block[3][i] = 0;
+                _twist_block[4][i] = 0;
+                _twist_block[5][i] = qd1[i] + qd2[i] + qd3[i];
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1956,8 +1988,16 @@ void planar_3r_twist_batch(size_t count, const double *restrict q, const double 
                     _mm_stream_pd(twist + 6 * (start + i) + k, _mm_set_pd(_twist_block[k + 1][i], _twist_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 6; ++k) {
+                    twist[6 * (start + i) + k] = _twist_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -2239,8 +2279,8 @@ void planar_3r_jacobian_dot_batch(size_t count, const double *restrict q, const 
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_dot_block[18][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 18 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_dot & 15) == 0;
 #endif
@@ -2338,24 +2378,24 @@ void planar_3r_jacobian_dot_batch(size_t count, const double *restrict q, const 
                 const double _t9 = -_t8;
                 const double _t10 = _t7*qd3[i];
                 const double _t11 = -_t10 + _t9*qd2[i];
-                J_dot[18 * (start + i) + 0] = _t6 + qd1[i]*(-_c2[i]*l1 - _t3);
-                J_dot[18 * (start + i) + 1] = _t4*qd1[i] + _t6;
-                J_dot[18 * (start + i) + 2] = -_t2*qd1[i] - _t2*qd2[i] - _t5;
-                J_dot[18 * (start + i) + 3] = _t11 + qd1[i]*(-_s2[i]*l1 - _t8);
-                J_dot[18 * (start + i) + 4] = _t11 + _t9*qd1[i];
-                J_dot[18 * (start + i) + 5] = -_t10 - _t7*qd1[i] - _t7*qd2[i];
-                J_dot[18 * (start + i) + 6] = 0;
-                J_dot[18 * (start + i) + 7] = 0;
-                J_dot[18 * (start + i) + 8] = 0;
-                J_dot[18 * (start + i) + 9] = 0;
-                J_dot[18 * (start + i) + 10] = 0;
-                J_dot[18 * (start + i) + 11] = 0;
-                J_dot[18 * (start + i) + 12] = 0;
-                J_dot[18 * (start + i) + 13] = 0;
-                J_dot[18 * (start + i) + 14] = 0;
-                J_dot[18 * (start + i) + 15] = 0;
-                J_dot[18 * (start + i) + 16] = 0;
-                J_dot[18 * (start + i) + 17] = 0;
+                _J_dot_block[0][i] = _t6 + qd1[i]*(-_c2[i]*l1 - _t3);
+                _J_dot_block[1][i] = _t4*qd1[i] + _t6;
+                _J_dot_block[2][i] = -_t2*qd1[i] - _t2*qd2[i] - _t5;
+                _J_dot_block[3][i] = _t11 + qd1[i]*(-_s2[i]*l1 - _t8);
+                _J_dot_block[4][i] = _t11 + _t9*qd1[i];
+                _J_dot_block[5][i] = -_t10 - _t7*qd1[i] - _t7*qd2[i];
+                _J_dot_block[6][i] = 0;
+                _J_dot_block[7][i] = 0;
+                _J_dot_block[8][i] = 0;
+                _J_dot_block[9][i] = 0;
+                _J_dot_block[10][i] = 0;
+                _J_dot_block[11][i] = 0;
+                _J_dot_block[12][i] = 0;
+                _J_dot_block[13][i] = 0;
+                _J_dot_block[14][i] = 0;
+                _J_dot_block[15][i] = 0;
+                _J_dot_block[16][i] = 0;
+                _J_dot_block[17][i] = 0;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -2366,8 +2406,16 @@ void planar_3r_jacobian_dot_batch(size_t count, const double *restrict q, const 
                     _mm_stream_pd(J_dot + 18 * (start + i) + k, _mm_set_pd(_J_dot_block[k + 1][i], _J_dot_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 18; ++k) {
+                    J_dot[18 * (start + i) + k] = _J_dot_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {

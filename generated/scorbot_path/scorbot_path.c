@@ -157,8 +157,8 @@ void scorbot_path_tool_point_from_theta2_batch(size_t count, const double *restr
     double theta2_accel[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _p_block[6][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)p & 15) == 0;
 #endif
@@ -264,12 +264,12 @@ void scorbot_path_tool_point_from_theta2_batch(size_t count, const double *restr
                 const double _t33 = _t32*theta2_rate[i];
                 const double _t34 = _t32*theta2_accel[i];
                 const double _t36 = _t4*(theta2_rate[i]*theta2_rate[i])*(_t23*((0.5)*_t16*(_t26*_t8 + _t27) - _t25*((_c0[i]*_c0[i])*_t35 + (_s0[i]*_s0[i])*_t35 + _t13*_t19 - _t14*_t24 - _t18*_t7) + (0.5)*_t28*(_t24 - _t31)) - _t24*_t8 - _t7 + _t29*_t30/(_t20*sqrt(_t20)));
-                p[6 * (start + i) + 0] = _t22 + d5;
-                p[6 * (start + i) + 1] = _t10 + _t22*_t8;
-                p[6 * (start + i) + 2] = _t33;
-                p[6 * (start + i) + 3] = _t33*_t8;
-                p[6 * (start + i) + 4] = _t34 + _t36;
-                p[6 * (start + i) + 5] = _t34*_t8 + _t36*_t8;
+                _p_block[0][i] = _t22 + d5;
+                _p_block[1][i] = _t10 + _t22*_t8;
+                _p_block[2][i] = _t33;
+                _p_block[3][i] = _t33*_t8;
+                _p_block[4][i] = _t34 + _t36;
+                _p_block[5][i] = _t34*_t8 + _t36*_t8;
                 valid[1 * (start + i) + 0] = _t20 >= 0;
             }
         }
@@ -281,8 +281,16 @@ void scorbot_path_tool_point_from_theta2_batch(size_t count, const double *restr
                     _mm_stream_pd(p + 6 * (start + i) + k, _mm_set_pd(_p_block[k + 1][i], _p_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 6; ++k) {
+                    p[6 * (start + i) + k] = _p_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
