@@ -41,7 +41,8 @@ from derivations.singular import FACTOR_LIMIT, JacobianDeterminant, inverse_rate
 from . import TEMPLATES
 
 __all__ = ["KinematicsLatexPrinter", "MathLayout", "Section", "CITATIONS", "SECTION_KEYS", "math_width",
-           "robot_sections", "render", "latex_for", "escape_text", "printer_for", "space_symbols", "pose_name"]
+           "robot_sections", "render", "latex_for", "escape_text", "printer_for", "space_symbols", "pose_name",
+           "base_parameter_rows"]
 
 # Width of a display line in math_width units (about one italic letter at 11 pt):
 # the report's text block is 16 cm; the margin leaves room for a tag on the first line.
