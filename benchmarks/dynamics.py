@@ -47,6 +47,9 @@ from urdf_zoo import ZOO  # noqa: E402  (tests/ is not a package)
 # wheel, upstream and licence): a UR, the Panda, a 7-joint xArm, a desktop arm (the 5-joint SO-101),
 # a Kinova JACO2, a Unitree Z1 and an industrial KUKA KR 210.
 ARMS = ("ur3", "panda", "xarm7", "so101", "kinova_j2s6s200", "z1", "kr210")
+# Arms with actuator models (docs/dynamics.md#actuator-models): a TOML over a zoo arm's URDF, whose
+# rotors, gears and friction Pinocchio is given from the TOML as read here (tomllib), not by our reader.
+DRIVES = {"ur3_drive": ("ur3", ROOT / "tests" / "data" / "dynamics" / "ur3_drive.toml")}
 STATES = 1000
 BATCH = 10000
 KERNELS = ("inverse_dynamics", "mass_matrix", "gravity", "coriolis", "coriolis_vector", "forward_dynamics")
@@ -89,11 +92,14 @@ def snap_is_exact(name: str) -> bool:
 
 
 def generate(name: str, out: Path, snap: bool) -> float:
-    arm = ZOO[name]
+    if name in DRIVES:  # the TOML names its URDF, ends and snapping
+        source = [str(DRIVES[name][1])]
+    else:
+        arm = ZOO[name]
+        source = [str(arm.path), "--base", arm.base, "--tip", arm.tip, *([] if snap else ["--no-snap"])]
     with tempfile.TemporaryDirectory(prefix="kinegen-dynamics-cache-") as cache:
         start = time.perf_counter()
-        result = subprocess.run([sys.executable, "-m", "codegen", "--quiet", "generate", str(arm.path), "--base",
-                                 arm.base, "--tip", arm.tip, *([] if snap else ["--no-snap"]), "--fast", "--out",
+        result = subprocess.run([sys.executable, "-m", "codegen", "--quiet", "generate", *source, "--fast", "--out",
                                  str(out)], cwd=ROOT, env=fresh_env(cache), capture_output=True, text=True)
         total = time.perf_counter() - start
     if result.returncode != 0:
@@ -119,12 +125,32 @@ def import_package(out: Path):
 
 
 def pinocchio_model(pin, name: str, joints):
+    if name in DRIVES:
+        return pinocchio_drive(pin, name, joints)
     full = pin.buildModelFromUrdf(str(ZOO[name].path))
     lock = [full.getJointId(full.names[i]) for i in range(1, full.njoints) if full.names[i] not in joints]
     model = pin.buildReducedModel(full, lock, pin.neutral(full)) if lock else full
     order = [model.names[i] for i in range(1, model.njoints)]
     if tuple(order) != tuple(joints):
         raise RuntimeError(f"{name}: Pinocchio's joints {order} are not ours {list(joints)}")
+    return model
+
+
+def pinocchio_drive(pin, name: str, joints):
+    """The zoo arm's model with ``armature = Ir G^2``, ``damping`` (viscous) and ``friction``
+    (Coulomb) of each joint as the TOML writes them."""
+    import tomllib
+    arm, path = DRIVES[name]
+    model = pinocchio_model(pin, arm, joints)
+    data = tomllib.loads(path.read_text())
+    params = data.get("params", {})
+    names = list(joints)
+    for key, table in data.get("actuator", {}).items():
+        k = int(key) - 1 if key.isdigit() else names.index(key)
+        value = lambda field, default: params.get(table.get(field), table.get(field, default))  # noqa: E731
+        model.armature[k] = value("rotor_inertia", 0.0) * value("gear_ratio", 1.0) ** 2
+        model.damping[k] = value("viscous", 0.0)
+        model.friction[k] = value("coulomb", 0.0)
     return model
 
 
@@ -148,16 +174,21 @@ def relative(ours, theirs) -> float:
 
 
 def compare(pin, model, c, Q, QD, QDD) -> dict:
+    """Pinocchio's rnea, crba and aba include ``model.armature`` (as ours include the actuators'
+    Ia = Ir G^2), and no friction: the viscous and Coulomb friction of the joints (Pinocchio reads a
+    URDF's ``<dynamics damping friction>`` into ``model.damping`` and ``model.friction``, as ours
+    does) is added here, ``damping qd + friction sign(qd)``, to rnea and taken from aba's torques."""
     data = model.createData()
     worst = dict.fromkeys(KERNELS, 0.0)
     for q, qd, qdd in zip(Q, QD, QDD):
         x = configuration(model, q)
-        tau = pin.rnea(model, data, x, qd, qdd).copy()
+        friction = np.asarray(model.damping) * qd + np.asarray(model.friction) * np.sign(qd)
+        tau = pin.rnea(model, data, x, qd, qdd).copy() + friction
         M = pin.crba(model, data, x)
         M = np.triu(M) + np.triu(M, 1).T
         g = pin.computeGeneralizedGravity(model, data, x).copy()
         C = pin.computeCoriolisMatrix(model, data, x, qd).copy()
-        qdd_aba = pin.aba(model, data, x, qd, tau).copy()
+        qdd_aba = pin.aba(model, data, x, qd, tau - friction).copy()
         pairs = {"inverse_dynamics": (c.inverse_dynamics(q, qd, qdd), tau), "mass_matrix": (c.mass_matrix(q), M),
                  "gravity": (c.gravity(q), g), "coriolis": (c.coriolis(q, qd), C),
                  "coriolis_vector": (c.coriolis_vector(q, qd), C @ qd),
@@ -205,7 +236,7 @@ def ns(seconds: float) -> str:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("arms", nargs="*", help=f"arm names (default: {', '.join(ARMS)})")
+    parser.add_argument("arms", nargs="*", help=f"arm names (default: {', '.join((*ARMS, *DRIVES))})")
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "dynamics.md")
     parser.add_argument("--states", type=int, default=STATES)
     parser.add_argument("--packages", type=Path, help="keep the generated packages in this folder and reuse "
@@ -221,14 +252,14 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory(prefix="kinegen-dynamics-") as scratch:
         folder = args.packages or Path(scratch)
         folder.mkdir(parents=True, exist_ok=True)
-        for name in args.arms or ARMS:
+        for name in args.arms or (*ARMS, *DRIVES):
             out = folder / f"dyn_{name}"
-            snap = snap_is_exact(name)
+            snap = name in DRIVES or snap_is_exact(name)
             record = folder / f"dyn_{name}.generate-seconds"  # the first run's, for a timing rerun
             if not out.exists():
                 record.write_text(str(generate(name, out, snap)))
             total = float(record.read_text()) if record.exists() else float("nan")
-            cold = cold_derivation(name, snap)
+            cold = cold_derivation(name, snap) if name not in DRIVES else None
             package = import_package(out)
             c = package.load("c")
             model = pinocchio_model(pin, name, package.JOINTS)
@@ -236,12 +267,18 @@ def main(argv=None) -> int:
             worst = compare(pin, model, c, Q, QD, QDD)
             times = timings(pin, model, c, rng)
             n = len(package.JOINTS)
-            accuracy.append(f"| {name} | `{ZOO[name].file}` | {n} | {'snapped' if snap else '--no-snap'} | "
+            file = DRIVES[name][1].relative_to(ROOT) if name in DRIVES else ZOO[name].file
+            numbers = "as the TOML" if name in DRIVES else "snapped" if snap else "--no-snap"
+            accuracy.append(f"| {name} | `{file}` | {n} | {numbers} | "
                             + " | ".join(f"{worst[k]:.1e}" for k in KERNELS)
                             + f" | {'yes' if max(worst.values()) <= 1e-10 else 'NO'} |")
             speed.append(f"| {name} | {n} | " + " | ".join(
                 f"{ns(times['batched'][k])} / {ns(times['single'][k])} / {ns(times['pinocchio'][k])}"
                 for k in ("inverse_dynamics", "mass_matrix", "forward_dynamics")) + " |")
+            if cold is None:
+                for table in (accuracy, speed):
+                    print(table[-1], flush=True)
+                continue
             ops = cold["operations"]
             derivation.append(f"| {name} | {n} | {cold['model']:.1f} | {cold['dynamics']:.1f} | {cold['cse']:.1f} | "
                               f"{total:.1f} | {cold['steps']} | " + " | ".join(f"{ops[k]:,}" if k in ops else "-" for k in COUNTED)
@@ -264,7 +301,11 @@ to 1e-15, and the exact right angles save operations), `--no-snap` where the fil
 
 Largest over the states of max|ours - Pinocchio| / max|Pinocchio| (target: 1e-10). inverse_dynamics: `rnea`;
 mass_matrix: `crba`; gravity: `computeGeneralizedGravity`; coriolis: `computeCoriolisMatrix`; coriolis_vector:
-that matrix times qd; forward_dynamics: `aba` at the torques `rnea` gave.
+that matrix times qd; forward_dynamics: `aba` at the torques `rnea` gave. Friction (a URDF's `<dynamics damping
+friction>`, which Pinocchio reads into `model.damping` and `model.friction` and its algorithms leave out: the
+Panda, the xArm, the Z1) is added to `rnea` as `damping qd + friction sign(qd)` and taken from `aba`'s torques.
+ur3_drive: the UR3 with a rotor, gear and friction on each joint (`tests/data/dynamics/ur3_drive.toml`),
+Pinocchio given `model.armature = Ir G^2`, `damping` and `friction` from that file.
 
 | arm | file | joints | numbers | inverse_dynamics | mass_matrix | gravity | coriolis | coriolis_vector | forward_dynamics | within 1e-10 |
 |---|---|---|---|---|---|---|---|---|---|---|

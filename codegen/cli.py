@@ -408,9 +408,10 @@ def cmd_check(args, say) -> int:
 
 def cmd_latex(args, say) -> int:
     what = [LATEX_ALIASES.get(w, w) for item in args.what or [] for w in item.split(",") if w]
-    textual = [w for w in what if w in ("summary", "frames")]
+    textual = [w for w in what if w in ("summary", "frames", "base")]
     if textual:
-        raise InputError(f"--what {textual[0]}: has no LaTeX section (`kinegen show --what {textual[0]}` prints it)")
+        where = " (the base parameters are in the dynamics section)" if textual[0] == "base" else ""
+        raise InputError(f"--what {textual[0]}: has no LaTeX section (`kinegen show --what {textual[0]}` prints it){where}")
     with _limited(args, f"{args.robot}: derivation and LaTeX"):
         model, _ = _load(args.robot, say, args)
         try:

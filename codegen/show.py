@@ -21,7 +21,7 @@ __all__ = ["print_model", "NotShown", "SHOW_TEXT", "WHAT", "LATEX_ALIASES"]
 
 # One vocabulary for `show --what` and `latex --what`: what show prints as text, and the LaTeX
 # sections (show prints those that have no text form as LaTeX; `position` and `task` are one).
-SHOW_TEXT = ("summary", "params", "dh", "fk", "frames", "jacobian", "task", "task_jacobian", "ik")
+SHOW_TEXT = ("summary", "params", "dh", "fk", "frames", "jacobian", "task", "task_jacobian", "ik", "base")
 WHAT = SHOW_TEXT + tuple(k for k in latex_backend.SECTION_KEYS if k not in SHOW_TEXT)
 LATEX_ALIASES = {"task": "position"}
 
@@ -54,6 +54,8 @@ def print_model(model, what: str, latex: bool = False) -> int:
         for p, v in model.params.items():
             print(f"{p} = {v}")
         return 0
+    if what == "base":
+        return _show_base(model, latex)
     if what == "dh":
         if model.chain is None:
             raise NotShown(f"{model.name} is not a DH chain")
@@ -110,6 +112,23 @@ def print_model(model, what: str, latex: bool = False) -> int:
             print(f"T_{i}:\n{_entries(frame, render)}\n")
         return 0
     print(_entries(value, render))
+    return 0
+
+
+def _show_base(model, latex: bool) -> int:
+    """The base parameters, each as its combination of the standard ones (docs/dynamics.md)."""
+    from derivations.mechanics.dynamics import base_combinations, model_base_parameters
+    if model.dynamics is None:
+        raise NotShown(f"{model.name} has no equations of motion, so no base parameters "
+                       f"({model.notes.get('dynamics', 'its description gives no inertial parameters')})")
+    if latex:
+        print("\n".join(latex_backend.base_parameter_rows(model)))
+        return 0
+    kept, dropped, K, names = model_base_parameters(model)
+    print(f"# {len(kept)} base parameters of the {len(names)} standard ones (the regressor's columns, "
+          f"docs/dynamics.md): a numeric QR of the regressor at 40 random states, the parameters at their defaults")
+    for k, line in enumerate(base_combinations(kept, dropped, K, names), start=1):
+        print(f"beta{k} = {line}")
     return 0
 
 

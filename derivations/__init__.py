@@ -189,6 +189,7 @@ def _derive(description: Description, extension: Path | None) -> RobotModel:
                               description.q, description.params, description.task, limits)
     model.notes.update(description.notes)
     model.inertials, model.gravity = tuple(description.inertials), tuple(description.gravity)
+    model.actuators = tuple(description.actuators)
     names = [j.name for j in description.joints]
     if all(names) and len(set(names)) == len(names):
         model.joint_names = tuple(names)

@@ -259,6 +259,8 @@ class RobotModel:
     # What each factor of the robot's singular sets means, declared by its own module: {joints the
     # factor involves (("q2",), ...): (name, description)}; empty: named by those joints.
     singular_names: dict[tuple[str, ...], tuple[str, str]] = field(default_factory=dict)
+    # Each joint's drive (derivations.mechanics.inertia.Actuator: armature and friction) or None; empty: none.
+    actuators: tuple = ()
 
     @property
     def n(self) -> int:

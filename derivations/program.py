@@ -29,7 +29,7 @@ import sympy as sp
 
 from .chain import derivative
 
-__all__ = ["Program", "needed", "inline", "substitute", "evaluate", "evaluator"]
+__all__ = ["Program", "needed", "inline", "substitute", "evaluate", "evaluator", "evaluate_arrays"]
 
 Steps = tuple[tuple[sp.Symbol, sp.Expr], ...]
 
@@ -171,7 +171,6 @@ def evaluate(steps: Sequence[tuple[sp.Symbol, sp.Expr]], exprs: Sequence, point:
     return [sp.sympify(e).xreplace(known).evalf(digits) for e in exprs]
 
 
-
 def evaluator(steps: Sequence[tuple[sp.Symbol, sp.Expr]], exprs: Sequence, args: Sequence[sp.Symbol]):
     """A function of ``args`` (numbers mpmath takes) that gives ``exprs`` (which read ``steps``) as
     mpmath numbers at mpmath's working precision (``mpmath.workdps``), each step evaluated once by a
@@ -183,7 +182,8 @@ def evaluator(steps: Sequence[tuple[sp.Symbol, sp.Expr]], exprs: Sequence, args:
     body = needed(steps, exprs)
     exprs = [sp.sympify(e) for e in exprs]
     functions = {sp.sin: mpmath.sin, sp.cos: mpmath.cos, sp.tan: mpmath.tan, sp.atan2: mpmath.atan2,
-                 sp.asin: mpmath.asin, sp.acos: mpmath.acos, sp.exp: mpmath.exp, sp.log: mpmath.log}
+                 sp.asin: mpmath.asin, sp.acos: mpmath.acos, sp.exp: mpmath.exp, sp.log: mpmath.log,
+                 sp.sign: mpmath.sign, sp.Abs: abs}
 
     def walk(e, known):
         if e.is_Symbol:
@@ -210,3 +210,41 @@ def evaluator(steps: Sequence[tuple[sp.Symbol, sp.Expr]], exprs: Sequence, args:
             known[symbol] = walk(value, known)
         return [walk(e, known) for e in exprs]
     return run
+
+
+# The functions a program's steps use, in numpy (a dynamics program reads sines, cosines and signs).
+_NUMPY_FUNCTIONS = {sp.sin: "sin", sp.cos: "cos", sp.tan: "tan", sp.sign: "sign", sp.Abs: "abs", sp.exp: "exp",
+                    sp.log: "log", sp.asin: "arcsin", sp.acos: "arccos", sp.atan: "arctan", sp.atan2: "arctan2"}
+
+
+def evaluate_arrays(steps: Sequence[tuple[sp.Symbol, sp.Expr]], exprs: Sequence, point: Mapping) -> list:
+    """``exprs`` in double precision at ``point`` ({symbol: float or array}, arrays broadcasting
+    together), the steps they read evaluated one by one over the whole batch: a walk of each
+    step's expression tree with numpy, so that a program of thousands of steps is evaluated at
+    many points in a fraction of a second (where :func:`evaluate` takes 30 digits, one point at a time)."""
+    import numpy as np
+    known: dict = {s: np.asarray(v, dtype=float) for s, v in point.items()}
+
+    def value(e):
+        if e in known:
+            return known[e]
+        if e.is_Number or e is sp.pi or e is sp.E:
+            return float(e)
+        if e.is_Add:
+            return sum((value(a) for a in e.args[1:]), value(e.args[0]))
+        if e.is_Mul:
+            out = value(e.args[0])
+            for a in e.args[1:]:
+                out = out * value(a)
+            return out
+        if e.is_Pow:
+            base, exponent = value(e.base), value(e.exp)
+            return 1.0 / base if exponent == -1 else np.sqrt(base) if exponent == 0.5 else base ** exponent
+        if e.func in _NUMPY_FUNCTIONS:
+            return getattr(np, _NUMPY_FUNCTIONS[e.func])(*(value(a) for a in e.args))
+        if e.is_Symbol:
+            raise ValueError(f"no value for {e}")
+        raise ValueError(f"cannot evaluate {e.func.__name__} in double precision")
+    for symbol, expr in needed(steps, exprs):
+        known[symbol] = value(sp.sympify(expr))
+    return [value(sp.sympify(e)) for e in exprs]

@@ -42,7 +42,8 @@ from .latex_layout import FIT_SLACK, LINE_WIDTH, MathLayout, escape_text, math_w
 from .latex_printer import KinematicsLatexPrinter, _dotted, rate_symbol, task_rate_symbol
 
 __all__ = ["KinematicsLatexPrinter", "MathLayout", "Section", "CITATIONS", "SECTION_KEYS", "math_width",
-           "robot_sections", "render", "latex_for", "escape_text", "printer_for", "space_symbols", "pose_name"]
+           "robot_sections", "render", "latex_for", "escape_text", "printer_for", "space_symbols", "pose_name",
+           "base_parameter_rows"]
 
 
 # Which paper equation each derived quantity reproduces, per robot.  Keys are the
@@ -673,9 +674,11 @@ def _dynamics(w: _Writer) -> Section | None:
     dynamics = m.dynamics
     if dynamics is None:
         return Section("dynamics", "Dynamics", text + escape_text(m.notes.get("dynamics", "")) + "\n")
+    text += _actuators(m, cell)
     if m.n > DYNAMICS_MAX_JOINTS:
         return Section("dynamics", "Dynamics", text + f"The equations are a straight-line program of "
-                       f"{len(dynamics.program)} steps (not printed in closed form past {DYNAMICS_MAX_JOINTS} joints).\n")
+                       f"{len(dynamics.program)} steps (not printed in closed form past {DYNAMICS_MAX_JOINTS} joints).\n"
+                       + _base_parameters(m))
     from derivations.program import inline
 
     def closed(e):
@@ -685,10 +688,73 @@ def _dynamics(w: _Writer) -> Section | None:
     g = sp.Matrix([closed(e) for e in dynamics.gravity])
     if max(sp.count_ops(e) for e in list(M) + list(g)) > DYNAMICS_MAX_OPS:
         return Section("dynamics", "Dynamics", text + "Their entries in closed form pass "
-                       f"{DYNAMICS_MAX_OPS} operations each and are not printed.\n")
+                       f"{DYNAMICS_MAX_OPS} operations each and are not printed.\n" + _base_parameters(m))
     body = w.matrix_equation("M(q)", M, key="mass_matrix", entry="M_{{{ij}}}") + "\n"
     body += w.matrix_equation("g(q)", g, key="gravity", entry="g_{{{ij}}}") + "\n"
-    return Section("dynamics", "Dynamics", text + body)
+    return Section("dynamics", "Dynamics", text + body + _base_parameters(m))
+
+
+def _actuators(m, cell) -> str:
+    """The actuators' table (armature and friction per joint), or nothing for an arm without."""
+    actuators = getattr(m, "actuators", ())
+    if not actuators:
+        return ""
+    from derivations.mechanics.inertia import Actuator
+    rows = [f"{k} & " + " & ".join(f"${cell(v)}$" for v in (a.rotor_inertia, a.gear_ratio, a.armature, a.viscous,
+                                                             a.coulomb)) + r" \\"
+            for k, a in enumerate((a or Actuator() for a in actuators), start=1)]
+    return (r"Actuators: each joint's rotor inertia $I_r$ through its gear ratio $G$ adds the armature "
+            r"$I_a = I_r G^2$ to $M$'s diagonal; viscous $F_v$ and Coulomb $F_c$ friction add "
+            r"$F_v \dot q + F_c \operatorname{sign}(\dot q)$ to $\tau$ ($\operatorname{sign}(0) = 0$):" "\n"
+            "\\begin{center}\\small\n\\begin{tabular}{llllll}\n"
+            r"joint & $I_r$ & $G$ & $I_a$ & $F_v$ & $F_c$ \\ \hline" "\n" + "\n".join(rows)
+            + "\n\\end{tabular}\n\\end{center}\n")
+
+
+# A standard parameter's name (derivations.dynamics.parameter_names: m1, mx1, ..., izz1, ia1, fv1, fc1)
+# in LaTeX: the letters upright, the link or joint as a subscript.
+_PARAMETER_NAME = re.compile(r"([a-z]+)(\d+)")
+
+
+def base_parameter_rows(m) -> list[str]:
+    """Each base parameter ``\\beta_k = ...`` as inline LaTeX (a line of its own, breaking at its
+    signs), coefficients to four significant digits."""
+    from derivations.mechanics.dynamics import base_terms, model_base_parameters
+    kept, dropped, K, names = model_base_parameters(m)
+
+    def name(i: int) -> str:
+        letters, number = _PARAMETER_NAME.fullmatch(names[i]).groups()
+        return rf"\mathrm{{{letters}}}_{{{number}}}"
+
+    def number(c: float) -> str:
+        text = f"{c:.4g}"
+        if "e" in text:
+            mantissa, exponent = text.split("e")
+            text = rf"{mantissa} \cdot 10^{{{int(exponent)}}}"
+        return text
+    rows = []
+    for row in range(len(kept)):
+        (_, own), *rest = base_terms(kept, dropped, K, row)
+        text = name(own)
+        for c, d in rest:
+            coefficient = "" if f"{abs(c):.4g}" == "1" else number(abs(c)) + r"\,"
+            text += f" {'-' if c < 0 else '+'} {coefficient}{name(d)}"
+        rows.append(rf"$\beta_{{{row + 1}}} = {text}$")
+    return rows
+
+
+def _base_parameters(m) -> str:
+    """The base parameters paragraph of the dynamics section."""
+    from derivations.mechanics.dynamics import parameter_names
+    rows = base_parameter_rows(m)
+    count = len(parameter_names(m.n, actuators=bool(getattr(m, "actuators", ()))))
+    return (f"Base parameters: the {len(rows)} combinations of the {count} standard parameters (per link "
+            r"$\mathrm{m}$, $\mathrm{mx}, \mathrm{my}, \mathrm{mz}$ = $m c$ and $\mathrm{ixx} \ldots \mathrm{izz}$, "
+            r"the inertia about the origin of frame $k$" + (r"; per joint $\mathrm{ia}, \mathrm{fv}, \mathrm{fc}$ = "
+                                                           r"$I_a, F_v, F_c$" if getattr(m, "actuators", ()) else "")
+            + r") that the torques determine, $\tau = Y_b(q, \dot q, \ddot q)\,\beta$: a numeric QR of the "
+            r"regressor at 40 random states (Gautier, 1991), at the parameters' defaults, coefficients to four "
+            "significant digits.\n\n" + "\\\\\n".join(rows) + "\n")
 
 
 def _notes(w: _Writer) -> Section | None:
@@ -703,7 +769,7 @@ def _notes(w: _Writer) -> Section | None:
 
 # What a model carries for the verifier, not the reader: never printed.
 _NOT_PRINTED = {"sample_ranges", "program",  # a program is printed as its product (see _fk)
-                "inertials", "gravity"}  # printed by _dynamics
+                "inertials", "gravity", "actuators"}  # printed by _dynamics
 
 
 def _extras(w: _Writer) -> list[Section]:

@@ -46,9 +46,11 @@ TOP_KEYS = {"name", "title", "source", "convention", "task", "params", "joint", 
             "gravity"}
 # A description may take its chain from a URDF file instead of [[joint]] tables, and add its own
 # task, parameters and [tool] / [base] frames (whose values may use the parameters).
-URDF_KEYS = {"urdf", "base_link", "tip_link", "snap"}
-JOINT_KEYS = {"type", "a", "alpha", "d", "theta", "offset", "limits", "name", "inertial"}
-# A joint's `inertial` table: the link it moves (DH frame k), see docs/dynamics.md.
+# `actuator` over a URDF: a table per joint, keyed by the joint's name or number (see parse_actuators).
+URDF_KEYS = {"urdf", "base_link", "tip_link", "snap", "actuator"}
+JOINT_KEYS = {"type", "a", "alpha", "d", "theta", "offset", "limits", "name", "inertial", "actuator"}
+# A joint's `inertial` table: the link it moves (DH frame k), see docs/dynamics.md; its `actuator`
+# table: the drive (derivations.inertia.ACTUATOR_KEYS), see docs/dynamics.md#actuator-models.
 INERTIAL_KEYS = {"mass", "com", "inertia"}
 FRAME_KEYS = {"xyz", "rpy"}
 
@@ -134,12 +136,56 @@ class _Parser:
         if not isinstance(notes, dict) or not all(isinstance(v, str) for v in notes.values()):
             self.fail("field 'notes'", "expected a table of strings")
         inertials, gravity = self.parse_dynamics(data, joints_data, params, names)
+        actuators = [None if j.get("actuator") is None else
+                     self.actuator(f"joint {i + 1}: field 'actuator'", j["actuator"], names, params)
+                     for i, j in enumerate(joints_data)]
+        if any(actuators) and not inertials:
+            self.fail("field 'actuator'", "an actuator without inertial tables: give each joint's `inertial`")
         return Description(
             name=name, title=data.get("title", name), source=data.get("source", ""),
             convention=convention, task=task, params=params, joints=joints, tool=tool,
             notes=dict(notes), q=q, base=base, free_joint=self.free_joint(data, joints),
             inertials=inertials, gravity=gravity, gravity_parameter=self.gravity_parameter,
+            actuators=tuple(actuators) if any(actuators) else (),
         )
+
+    def actuator(self, where: str, raw, names, params, given=None):
+        """A joint's ``actuator`` table {rotor_inertia, gear_ratio, viscous, coulomb} (each a number,
+        parameter or expression; defaults 0, 1, 0, 0, or the fields of ``given``: a URDF's
+        ``<dynamics>``), checked at the parameters' defaults (derivations.inertia.check_actuator)."""
+        from ..mechanics.inertia import ACTUATOR_KEYS, Actuator, check_actuator
+        if not isinstance(raw, dict):
+            self.fail(where, "expected a table {rotor_inertia = ..., gear_ratio = ..., viscous = ..., coulomb = ...}")
+        unknown = sorted(set(raw) - set(ACTUATOR_KEYS))
+        if unknown:
+            self.fail(where, f"unknown field {unknown[0]!r} (expected {', '.join(ACTUATOR_KEYS)})")
+        given = given or Actuator()
+        fields = {key: self.value(f"{where}: {key}", raw[key], names) if key in raw else getattr(given, key)
+                  for key in ACTUATOR_KEYS}
+        subs = {s: sp.Rational(repr(v)) for s, v in params.items()}
+        check_actuator({key: float(sp.sympify(e).xreplace(subs).evalf(30)) for key, e in fields.items()},
+                       lambda message: self.fail(where, message))
+        return Actuator(**fields)
+
+    def parse_actuators(self, raw, joints, given, names, params) -> tuple:
+        """``[actuator.<joint>]`` over a URDF: per joint (its name, or its number from 1) the fields
+        that replace or add to what the URDF's ``<dynamics damping friction>`` gave (``given``)."""
+        if raw is None:
+            return tuple(given)
+        if not isinstance(raw, dict):
+            self.fail("field 'actuator'", "expected tables [actuator.<joint name or number>]")
+        actuators = list(given) or [None] * len(joints)
+        labels = [j.name for j in joints]
+        for key, table in raw.items():
+            if key in labels:
+                k = labels.index(key)
+            elif key.isdigit() and 1 <= int(key) <= len(joints):
+                k = int(key) - 1
+            else:
+                self.fail(f"field 'actuator.{key}'", f"no moving joint {key!r} on the chain (expected a joint's name, "
+                          f"{', '.join(labels)}, or its number from 1 to {len(joints)})")
+            actuators[k] = self.actuator(f"field 'actuator.{key}'", table, names, params, actuators[k])
+        return tuple(actuators) if any(actuators) else ()
 
     def parse_dynamics(self, data, joints_data, params, names):
         """Each joint's ``inertial`` table (all joints or none) and ``gravity`` (a list of three
@@ -235,6 +281,9 @@ class _Parser:
             if not isinstance(raw, list) or len(raw) != 3:
                 self.fail("field 'gravity'", "expected a list of three values (m/s^2, in the base frame)")
             gravity = tuple(self.value("field 'gravity'", v, names) for v in raw)
+        if "actuator" in data and not description.inertials:
+            self.fail("field 'actuator'", "an actuator for a URDF whose chain has no <inertial>")
+        actuators = self.parse_actuators(data.get("actuator"), description.joints, description.actuators, names, params)
         task = data.get("task", ["pose"])
         check_task(task, lambda message: self.fail("field 'task'", message))
         notes = data.get("notes", {})
@@ -246,7 +295,8 @@ class _Parser:
             tool=self.parse_frame(data.get("tool"), names, "tool"), notes={**description.notes, **notes},
             q=description.q, base=self.parse_frame(data.get("base"), names, "base"), inputs=description.inputs,
             base_link=description.base_link, free_joint=self.free_joint(data, description.joints),
-            inertials=description.inertials, gravity=gravity, gravity_parameter=added)
+            inertials=description.inertials, gravity=gravity, gravity_parameter=added,
+            actuators=actuators)
 
     def parse_params(self, raw) -> dict[sp.Symbol, float]:
         if not isinstance(raw, dict):

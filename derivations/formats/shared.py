@@ -62,12 +62,14 @@ class Description:
     gravity: tuple = ()
     # The parameter the reader added for gravity's size (None: gravity uses the file's own).
     gravity_parameter: sp.Symbol | None = None
+    # Each joint's drive (derivations.mechanics.inertia.Actuator) or None; empty where no joint has one.
+    actuators: tuple = ()
 
     def drop_dynamics(self) -> None:
-        """Kinematics only: no inertials, no gravity, and no parameter added for it."""
+        """Kinematics only: no inertials, no gravity, no actuators, and no parameter added for gravity."""
         if self.gravity_parameter is not None:
             self.params.pop(self.gravity_parameter, None)
-        self.inertials, self.gravity, self.gravity_parameter = (), (), None
+        self.inertials, self.gravity, self.gravity_parameter, self.actuators = (), (), None, ()
 
     def chain(self) -> Chain:
         return Chain(self.joints, self.convention, self.tool, self.base)

@@ -6,7 +6,8 @@ declaration (no entities: nothing in the file is expanded or fetched).  It reads
 ``<link name>`` and ``<joint name type>`` with its ``<parent>``, ``<child>``, ``<origin xyz rpy>``,
 ``<axis xyz>``, ``<limit lower upper>`` and ``<mimic joint multiplier offset>``, and checks those
 strictly; the ``<inertial>`` of the links the chain moves (for the equations of motion: read, folded
-and checked in :meth:`_Chain._bodies`); every other element (visual, collision, material,
+and checked in :meth:`_Chain._bodies`) and the ``<dynamics damping friction>`` of its moving joints
+(viscous and Coulomb friction, :func:`_frictions`); every other element (visual, collision, material,
 transmission, gazebo, the inertials of other links, ...) is skipped unread.  Real files carry quirks there that a full URDF parser refuses (iCub's
 ``<texture>`` without a filename, PR2's ``<transmission>`` without a ``<type>``), and kinematics
 needs none of it.  Meshes are never opened.  From the tree we take the serial chain from ``base``
@@ -58,7 +59,7 @@ import sympy as sp
 
 from ..chain import PRISMATIC, REVOLUTE, Joint, axis_motion, rpy_matrix
 from ..expressions import is_package_name
-from ..mechanics.inertia import INERTIA_ORDER, Inertial, check_physical, combine, transformed
+from ..mechanics.inertia import INERTIA_ORDER, Actuator, Inertial, check_physical, combine, transformed
 from .shared import MAX_JOINTS, Description, DescriptionError, read_input
 
 __all__ = ["read_urdf", "parse_urdf", "MAX_BYTES", "SNAP_TOLERANCE"]
@@ -149,6 +150,8 @@ class _UrdfJoint:
     axis: tuple[_Number, ...] = (ONE, ZERO, ZERO)
     limit: tuple[_Number, _Number] | None = None  # (lower, upper)
     mimic: tuple[str, _Number, _Number] | None = None  # (leader, multiplier, offset)
+    dynamics: ET.Element | None = None  # <dynamics damping friction>: read for the chain's joints (_frictions)
+    dynamics_count: int = 0
 
 
 @dataclass
@@ -232,6 +235,9 @@ class _Chain:
         if limit is not None:
             joint.limit = (self._attribute(limit, "lower", name, "limit", ZERO),
                            self._attribute(limit, "upper", name, "limit", ZERO))
+        found = element.findall("dynamics")
+        joint.dynamics = found[0] if len(found) == 1 else None  # two: refused if the chain's (_frictions)
+        joint.dynamics_count = len(found)
         mimic = self._only(element, "mimic", name)
         if mimic is not None:
             if not mimic.get("joint"):
@@ -412,7 +418,28 @@ class _Chain:
             source=f"URDF {Path(self.origin).name}: {' '.join(j.name for j in path)}",
             convention="urdf", task=["pose"], params=params, joints=joints, tool=sp.eye(4), notes=notes, q=q,
             base_link=base, inertials=inertials, gravity=gravity,
-            gravity_parameter=next(iter(params), None))
+            gravity_parameter=next(iter(params), None), actuators=self._frictions(moving) if inertials else ())
+
+    def _frictions(self, moving: list[_UrdfJoint]) -> tuple:
+        """Each moving joint's ``<dynamics damping friction>`` as an actuator with viscous friction
+        ``damping`` and Coulomb friction ``friction`` (URDF has no element for a rotor's inertia or
+        gear); empty where no joint of the chain has a non-zero one.  Read only for the chain's
+        joints: another joint's may be what a simulator alone reads."""
+        actuators = []
+        for joint in moving:
+            if joint.dynamics_count > 1:
+                self.fail(f"joint {joint.name!r}: {joint.dynamics_count} <dynamics> elements (a joint has at most one)")
+            if joint.dynamics is None:
+                actuators.append(None)
+                continue
+            numbers = [self._attribute(joint.dynamics, key, joint.name, "dynamics", ZERO) for key in ("damping", "friction")]
+            for number, key in zip(numbers, ("damping", "friction")):
+                if number.double < 0:
+                    self.fail(f"joint {joint.name!r}: dynamics {key} {number.text} is negative "
+                              "(friction takes energy out)")
+            actuators.append(Actuator(viscous=_length(numbers[0]), coulomb=_length(numbers[1]))
+                             if any(n.double for n in numbers) else None)
+        return tuple(actuators) if any(actuators) else ()
 
     # -- inertial parameters -------------------------------------------------------------------------
 

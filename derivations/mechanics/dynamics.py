@@ -34,6 +34,14 @@ The kernels are passes of the same recursion with some inputs zero (the zeros fo
   Cholesky factorisation ``M = L D L^T`` written out as steps (a reciprocal per column);
 * ``static_torques(q, wrench)``: ``J^T F``, the joint torques that hold the wrench ``F = [f; n]``
   (base frame, at the tool point) applied by the arm to its environment.
+
+An arm with actuator models (:class:`derivations.inertia.Actuator`, per joint) adds to joint k's
+torque ``Ia_k qdd_k + Fv_k qd_k + Fc_k sign(qd_k)``: the armature ``Ia = Ir G^2`` (the rotor reflected
+through its gear) is added to M's diagonal, so that ``mass_matrix`` and ``forward_dynamics`` include
+it, and the friction is in ``inverse_dynamics`` and in the right-hand side of ``forward_dynamics``
+(``tau - C qd - g - F(qd)``).  ``gravity``, ``coriolis`` and ``coriolis_vector`` stay the rigid
+bodies' (the armature is constant: it adds nothing to C), and ``sign(0) = 0``: a joint at rest
+has no Coulomb friction (no stiction model).
 """
 from __future__ import annotations
 
@@ -45,7 +53,8 @@ from ..chain import REVOLUTE, axis_motion, dh_modified, dh_standard
 from ..program import Program
 
 __all__ = ["Dynamics", "dynamics", "derive_dynamics", "DYNAMICS_BUDGET", "link_geometry", "origin_parameters",
-           "TAU_PREFIX", "WRENCH_NAMES", "PARAMETER_NAMES", "standard_parameters", "base_parameters",
+           "TAU_PREFIX", "WRENCH_NAMES", "PARAMETER_NAMES", "ACTUATOR_PARAMETER_NAMES", "standard_parameters",
+           "actuator_parameters", "parameter_names", "base_parameters", "model_base_parameters",
            "base_combinations"]
 
 # Seconds the equations of motion of one arm may take to derive: the target of issue #30 is 30 s
@@ -117,6 +126,21 @@ def to_joint_frame(m, h, Io, after: sp.Matrix):
 # The standard inertial parameters of one link, in the order of the regressor's columns: the mass,
 # the first moment m c and the inertia tensor about the link frame's origin, in the link frame k.
 PARAMETER_NAMES = ("m", "mx", "my", "mz", "ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+# An arm with actuator models has three more per joint, after all the links' (columns 10 n ..):
+# the armature Ia = Ir G^2, viscous Fv and Coulomb Fc friction.
+ACTUATOR_PARAMETER_NAMES = ("ia", "fv", "fc")
+
+
+def parameter_names(n: int, actuators: bool = False) -> list[str]:
+    """The names of the regressor's columns: ``m1 .. izz1, m2, ..`` then ``ia1, fv1, fc1, ia2, ..``."""
+    names = [f"{name}{k + 1}" for k in range(n) for name in PARAMETER_NAMES]
+    return names + ([f"{name}{k + 1}" for k in range(n) for name in ACTUATOR_PARAMETER_NAMES] if actuators else [])
+
+
+def actuator_parameters(actuators, n: int) -> tuple:
+    """(Ia_k, Fv_k, Fc_k) for k = 1..n as expressions (zeros for a joint without an actuator)."""
+    from .inertia import Actuator
+    return tuple(e for a in (actuators or [None] * n) for e in (a or Actuator()).parameters())
 
 
 def standard_parameters(inertial) -> tuple:
@@ -331,12 +355,13 @@ class _Recursion:
         return M
 
 
-def regressor(recursion: "_Recursion", qd, qdd) -> sp.Matrix:
+def regressor(recursion: "_Recursion", qd, qdd, actuators: bool = False) -> sp.Matrix:
     """Y(q, qd, qdd), n x 10n, with ``tau = Y pi`` for the standard parameters ``pi`` (ten per link,
     :data:`PARAMETER_NAMES`, link frame k): column (k, i) is the Newton-Euler pass in which link k
     alone has parameter i equal to 1 (the torques are linear in the parameters; Atkeson, An and
     Hollerbach, 1986).  Its velocities are the inverse dynamics' own steps; only the links at and
-    below k carry its force."""
+    below k carry its force.  With ``actuators``, 3n more columns (:data:`ACTUATOR_PARAMETER_NAMES`):
+    joint k's (Ia, Fv, Fc) act on tau_k alone as ``qdd_k``, ``qd_k`` and ``sign(qd_k)``."""
     n = recursion.n
     zero = ([sp.S.Zero] * 3, [sp.S.Zero] * 3)
     motion = recursion.forward("id", qd, qdd, True)  # the inverse dynamics' own steps
@@ -348,7 +373,11 @@ def regressor(recursion: "_Recursion", qd, qdd) -> sp.Matrix:
             # carry it and add none, the links past it move none of it
             wrench = recursion.link_wrench(tag, k, _unit_body(i, recursion.afters[k]), *motion[k])
             columns.append(recursion.backward(tag, [zero] * k + [wrench]))
-    return sp.Matrix(n, 10 * n, lambda r, c: columns[c][r])
+    if actuators:
+        for k in range(n):
+            for factor in (qdd[k], qd[k], sp.sign(qd[k])):
+                columns.append([factor if r == k else sp.S.Zero for r in range(n)])
+    return sp.Matrix(n, len(columns), lambda r, c: columns[c][r])
 
 
 def base_parameters(regressor, n: int, limits=None, samples: int = 40, seed: int = 0, tolerance: float = 1e-9):
@@ -367,7 +396,7 @@ def base_parameters(regressor, n: int, limits=None, samples: int = 40, seed: int
     high = np.array([lim[1] if lim else np.pi for lim in (limits or [None] * n)])
     q = rng.uniform(low, high, (samples, n))
     W = np.asarray(regressor(q, rng.uniform(-2, 2, (samples, n)), rng.uniform(-5, 5, (samples, n))))
-    W = W.reshape(samples * n, 10 * n)
+    W = W.reshape(samples * n, W.shape[-1])  # 10 n columns, or 13 n with the actuators' (parameter_names)
     scale = max(np.linalg.norm(W, axis=0).max(), 1e-300)
     kept: list[int] = []
     # From the last column (the last link's izz) back: a parameter that the torques only see through
@@ -381,21 +410,57 @@ def base_parameters(regressor, n: int, limits=None, samples: int = 40, seed: int
     kept.sort()
     dropped = [c for c in range(W.shape[1]) if c not in kept]
     K = np.linalg.lstsq(W[:, kept], W[:, dropped], rcond=None)[0] if dropped else np.zeros((len(kept), 0))
-    names = [f"{name}{k + 1}" for k in range(n) for name in PARAMETER_NAMES]
+    names = parameter_names(n, actuators=W.shape[1] == 13 * n)
     return kept, dropped, K, names
 
 
+def model_base_parameters(model, samples: int = 40, seed: int = 0):
+    """:func:`base_parameters` of ``model``'s regressor at its parameters' defaults, the program
+    evaluated in double precision (:func:`derivations.program.evaluate_arrays`): no generated
+    kernel needed.  None for an arm without dynamics."""
+    import numpy as np
+
+    from ..program import evaluate_arrays
+    dynamics = model.dynamics
+    if dynamics is None:
+        return None
+    (function,) = [f for f in dynamics.functions if f.name == "regressor"]
+    Y = function.outputs[0].values
+    defaults = {s: float(v) for s, v in model.params.items()}
+    n = model.n
+
+    def regressor(q, qd, qdd):
+        point = dict(defaults)
+        point.update({s: q[:, k] for k, s in enumerate(model.q)})
+        point.update({s: qd[:, k] for k, s in enumerate(dynamics.qd)})
+        point.update({s: qdd[:, k] for k, s in enumerate(dynamics.qdd)})
+        with np.errstate(all="ignore"):
+            values = evaluate_arrays(function.definitions, list(Y), point)
+        return np.stack([np.broadcast_to(v, (len(q),)) for v in values], axis=-1).reshape(len(q), n, len(Y) // n)
+    return base_parameters(regressor, n, model.limits, samples=samples, seed=seed)
+
+
+# A coefficient of K smaller than this is the least-squares fit's rounding, not a term.
+COMBINATION_NOISE = 1e-10
+
+
+def base_terms(kept, dropped, K, row: int) -> list[tuple[float, int]]:
+    """The terms (coefficient, standard parameter index) of base parameter ``row``: its own with 1,
+    then each dropped one whose coefficient is past :data:`COMBINATION_NOISE`."""
+    return [(1.0, kept[row])] + [(float(K[row, j]), d) for j, d in enumerate(dropped)
+                                 if abs(K[row, j]) > COMBINATION_NOISE]
+
+
 def base_combinations(kept, dropped, K, names, digits: int = 6) -> list[str]:
-    """Each base parameter as its combination of the standard ones: ``iyy2 + 0.25 m3 - ...``."""
+    """Each base parameter as its combination of the standard ones, each coefficient to ``digits``
+    significant digits: ``iyy2 + 0.25 m3 - ...``."""
     lines = []
-    for row, column in enumerate(kept):
-        terms = [names[column]]
-        for j, d in enumerate(dropped):
-            c = K[row, j]
-            if abs(c) > 10 ** -digits:
-                sign = "-" if c < 0 else "+"
-                terms.append(f"{sign} {names[d]}" if abs(abs(c) - 1) < 10 ** -digits
-                             else f"{sign} {abs(c):.{digits}g} {names[d]}")
+    for row in range(len(kept)):
+        (_, own), *rest = base_terms(kept, dropped, K, row)
+        terms = [names[own]]
+        for c, d in rest:
+            sign = "-" if c < 0 else "+"
+            terms.append(f"{sign} {names[d]}" if f"{abs(c):.{digits}g}" == "1" else f"{sign} {abs(c):.{digits}g} {names[d]}")
         lines.append(" ".join(terms))
     return lines
 
@@ -434,14 +499,27 @@ def derive_dynamics(model) -> Dynamics:
         M_dot = sp.Matrix(n, n, lambda i, j: M_dot[max(i, j), min(i, j)])
         A = sp.Matrix(n, n, lambda i, j: program.derivative(momentum[i], model.q[j]))
         C = sp.Matrix(n, n, lambda i, j: program.define(f"_C{i + 1}_{j + 1}", (M_dot[i, j] + A[i, j] - A[j, i]) / 2))
+    actuators = tuple(getattr(model, "actuators", ()) or ())
+    friction = [sp.S.Zero] * n
+    if actuators:  # Ia qdd + Fv qd + Fc sign(qd) on each joint; the armature on M's diagonal (after C: constant)
+        parameters = actuator_parameters(actuators, n)
+        for k in range(n):
+            armature, viscous, coulomb = parameters[3 * k:3 * k + 3]
+            friction[k] = viscous * qd[k] + coulomb * sp.sign(qd[k])
+            if friction[k] != 0:
+                friction[k] = program.define(f"_fr{k + 1}", friction[k])
+            if armature != 0 or friction[k] != 0:
+                inverse[k] = program.define(f"_idat{k + 1}", inverse[k] + armature * qdd[k] + friction[k])
+            if armature != 0:
+                M[k, k] = program.define(f"_Ma{k + 1}_{k + 1}", M[k, k] + armature)
     singular = singular_mass_matrix(model, program, M)
     if singular is None:
         with stage("deriving the equations of motion: Cholesky solve of M"):
-            qdd_solved = _cholesky_solve(program, M, [t - b for t, b in zip(tau, bias)])
+            qdd_solved = _cholesky_solve(program, M, [t - b - f for t, b, f in zip(tau, bias, friction)])
     else:  # no forward dynamics: the note says why
         qdd_solved = ()
     with stage("deriving the equations of motion: the regressor"):
-        Y = regressor(recursion, qd, qdd)
+        Y = regressor(recursion, qd, qdd, actuators=bool(actuators))
     J = model.jacobian
     static = [sum((J[r, k] * wrench[r] for r in range(6)), sp.S.Zero) for k in range(n)]
 
@@ -453,12 +531,18 @@ def derive_dynamics(model) -> Dynamics:
     wrencha = Argument("wrench", wrench, "wrench [f; n] the tool applies, base frame, at the tool point, "
                                          "shape (..., 6) (N, N m)")
     g_text = ", ".join(str(e) for e in model.gravity)
+    driven = (" + F(qd), with F_k = Fv_k qd_k + Fc_k sign(qd_k) the joints' friction (sign(0) = 0)"
+              if any(f != 0 for f in friction) else "")
+    armature = " (with the actuators' armature Ia = Ir G^2 on the diagonal)" if actuators and any(
+        a is not None and a.armature != 0 for a in actuators) else ""
+    columns = Y.cols
     functions = [
         SymbolicFunction("inverse_dynamics", (qa, qda, qdda), (Output("tau", tuple(inverse), (n,)),),
-                         f"Joint torques M(q) qdd + C(q, qd) qd + g(q) (recursive Newton-Euler), shape (..., {n}); "
-                         f"gravity ({g_text}) m/s^2 in the base frame."),
+                         f"Joint torques M(q) qdd + C(q, qd) qd + g(q){driven} (recursive Newton-Euler), "
+                         f"shape (..., {n}); gravity ({g_text}) m/s^2 in the base frame."),
         SymbolicFunction("mass_matrix", (qa,), (Output.from_matrix("M", M),),
-                         f"Joint-space inertia matrix M(q), symmetric positive definite, shape (..., {n}, {n})."),
+                         f"Joint-space inertia matrix M(q){armature}, symmetric positive definite, "
+                         f"shape (..., {n}, {n})."),
         SymbolicFunction("gravity", (qa,), (Output("g", tuple(gravity), (n,)),),
                          f"Gravity torques g(q), shape (..., {n}); gravity ({g_text}) m/s^2 in the base frame."),
         SymbolicFunction("coriolis", (qa, qda), (Output.from_matrix("C", C),),
@@ -467,11 +551,14 @@ def derive_dynamics(model) -> Dynamics:
         SymbolicFunction("coriolis_vector", (qa, qda), (Output("c", tuple(bias_c), (n,)),),
                          f"Coriolis and centrifugal torques C(q, qd) qd, shape (..., {n})."),
         SymbolicFunction("regressor", (qa, qda, qdda), (Output.from_matrix("Y", Y),),
-                         f"Regressor Y(q, qd, qdd) with tau = Y pi, shape (..., {n}, {10 * n}): pi holds ten standard "
+                         f"Regressor Y(q, qd, qdd) with tau = Y pi, shape (..., {n}, {columns}): pi holds ten standard "
                          f"parameters per link, (m, m cx, m cy, m cz, ixx, ixy, ixz, iyy, iyz, izz) with the inertia about "
-                         f"the origin of the link's frame k, in its axes."),
+                         f"the origin of the link's frame k, in its axes"
+                         + (", then three per joint, (Ia, Fv, Fc): armature, viscous and Coulomb friction." if actuators
+                            else ".")),
         SymbolicFunction("forward_dynamics", (qa, qda, taua), (Output("qdd", tuple(qdd_solved), (n,)),),
-                         f"Joint accelerations M^-1 (tau - C qd - g) (Cholesky L D L^T of M), shape (..., {n})."),
+                         f"Joint accelerations M^-1 (tau - C qd - g{' - F(qd)' if driven else ''}) "
+                         f"(Cholesky L D L^T of M), shape (..., {n})."),
     ]
     if singular is not None:
         functions = [f for f in functions if f.name != "forward_dynamics"]
@@ -552,6 +639,7 @@ def dynamics(model) -> Dynamics | None:
     from ..support.cache import cached
     key = "\n".join([model.name, repr(model.chain), sp.srepr(sp.Tuple(*model.q)),
                      sp.srepr(sp.Tuple(*model.params)), repr(model.inertials), repr(model.gravity),
+                     repr(getattr(model, "actuators", ())),
                      sp.srepr(sp.ImmutableMatrix(model.jacobian)), sp.srepr(sp.Tuple(*map(sp.Tuple, model.program)))])
     try:
         with budget(DYNAMICS_BUDGET, f"{model.name}: equations of motion"):

@@ -21,7 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-__all__ = ["Inertial", "check_physical", "combine", "transformed", "INERTIA_ORDER", "RELATIVE_TOLERANCE"]
+__all__ = ["Inertial", "Actuator", "check_physical", "check_actuator", "combine", "transformed", "INERTIA_ORDER",
+           "ACTUATOR_KEYS", "RELATIVE_TOLERANCE"]
 
 INERTIA_ORDER = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 # Rounding in a file's decimals: a principal moment or a triangle inequality may miss by this much
@@ -107,3 +108,46 @@ def combine(bodies) -> tuple[float, np.ndarray, np.ndarray]:
         d = np.asarray(c, dtype=float) - centre
         tensor += np.asarray(inertia, dtype=float) + m * (d @ d * np.eye(3) - np.outer(d, d))
     return total, centre, tensor
+
+
+# An actuator's fields in a description, in this order: the rotor's inertia about its axis (kg m^2,
+# at the motor), the gear ratio G (motor turns per joint turn), viscous friction Fv (N m s/rad, or N s/m
+# for a prismatic joint) and Coulomb friction Fc (N m, or N).
+ACTUATOR_KEYS = ("rotor_inertia", "gear_ratio", "viscous", "coulomb")
+
+
+@dataclass(frozen=True)
+class Actuator:
+    """A joint's drive as the equations of motion see it: the rotor reflected through its gear,
+    the armature ``Ia = Ir G^2`` (kg m^2; added to M's diagonal and to tau as ``Ia qdd``), and the
+    friction torque ``Fv qd + Fc sign(qd)``.  The rotor inertia reflected through the gear, ``G^2 Jm``,
+    is the actuator model of Spong, Hutchinson and Vidyasagar ("Robot Modeling and Control", the
+    chapter on independent joint control), with the rotors' gyroscopic coupling with the links
+    neglected (as Pinocchio's ``model.armature`` does).  Each entry is a SymPy number, a parameter or an
+    expression of parameters."""
+
+    rotor_inertia: sp.Expr = sp.S.Zero
+    gear_ratio: sp.Expr = sp.S.One
+    viscous: sp.Expr = sp.S.Zero
+    coulomb: sp.Expr = sp.S.Zero
+
+    @property
+    def armature(self) -> sp.Expr:
+        return sp.sympify(self.rotor_inertia) * sp.sympify(self.gear_ratio) ** 2
+
+    def parameters(self) -> tuple:
+        """(Ia, Fv, Fc): the three parameters the torques are linear in (the regressor's columns)."""
+        return (self.armature, sp.sympify(self.viscous), sp.sympify(self.coulomb))
+
+
+def check_actuator(values: dict, fail) -> None:
+    """Refuse (``fail(message)``) a drive no motor has: a negative rotor inertia or friction, a
+    gear ratio of zero, or a value that is not a finite number (``values``: field -> float)."""
+    for key, value in values.items():
+        if not math.isfinite(value):
+            fail(f"{key} must be a finite number")
+    for key in ("rotor_inertia", "viscous", "coulomb"):
+        if values.get(key, 0.0) < 0:
+            fail(f"{key} {values[key]:g} is negative (friction takes energy out, an inertia is not negative)")
+    if values.get("gear_ratio", 1.0) == 0:
+        fail("gear_ratio 0: the motor would not move the joint")

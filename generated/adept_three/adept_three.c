@@ -192,8 +192,8 @@ void adept_three_fk_batch(size_t count, const double *restrict q, const adept_th
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _T_block[16][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
 #endif
@@ -268,22 +268,22 @@ void adept_three_fk_batch(size_t count, const double *restrict q, const adept_th
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                T[16 * (start + i) + 0] = _c0[i];
-                T[16 * (start + i) + 1] = _s0[i];
-                T[16 * (start + i) + 2] = 0;
-                T[16 * (start + i) + 3] = _c1[i]*l1 + _c2[i]*l2;
-                T[16 * (start + i) + 4] = _s0[i];
-                T[16 * (start + i) + 5] = -_c0[i];
-                T[16 * (start + i) + 6] = 0;
-                T[16 * (start + i) + 7] = _s1[i]*l1 + _s2[i]*l2;
-                T[16 * (start + i) + 8] = 0;
-                T[16 * (start + i) + 9] = 0;
-                T[16 * (start + i) + 10] = -1;
-                T[16 * (start + i) + 11] = d1 - d4 - q3[i];
-                T[16 * (start + i) + 12] = 0;
-                T[16 * (start + i) + 13] = 0;
-                T[16 * (start + i) + 14] = 0;
-                T[16 * (start + i) + 15] = 1;
+                _T_block[0][i] = _c0[i];
+                _T_block[1][i] = _s0[i];
+                _T_block[2][i] = 0;
+                _T_block[3][i] = _c1[i]*l1 + _c2[i]*l2;
+                _T_block[4][i] = _s0[i];
+                _T_block[5][i] = -_c0[i];
+                _T_block[6][i] = 0;
+                _T_block[7][i] = _s1[i]*l1 + _s2[i]*l2;
+                _T_block[8][i] = 0;
+                _T_block[9][i] = 0;
+                _T_block[10][i] = -1;
+                _T_block[11][i] = d1 - d4 - q3[i];
+                _T_block[12][i] = 0;
+                _T_block[13][i] = 0;
+                _T_block[14][i] = 0;
+                _T_block[15][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -294,8 +294,16 @@ void adept_three_fk_batch(size_t count, const double *restrict q, const adept_th
                     _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 16; ++k) {
+                    T[16 * (start + i) + k] = _T_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -459,8 +467,8 @@ void adept_three_frames_batch(size_t count, const double *restrict q, const adep
     double _c1[KINEGEN_BLOCK_OF(32)];
     double _s2[KINEGEN_BLOCK_OF(32)];
     double _c2[KINEGEN_BLOCK_OF(32)];
-#ifdef KINEGEN_STREAM
     double _frames_block[80][KINEGEN_BLOCK_OF(32)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 80 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
 #endif
@@ -609,86 +617,86 @@ void adept_three_frames_batch(size_t count, const double *restrict q, const adep
                 const double _t7 = _c1[i]*l2 + _t2;
                 const double _t8 = -_c1[i];
                 const double _t9 = _s1[i]*l2 + _t3;
-                frames[80 * (start + i) + 0] = 1;
-                frames[80 * (start + i) + 1] = 0;
-                frames[80 * (start + i) + 2] = 0;
-                frames[80 * (start + i) + 3] = 0;
-                frames[80 * (start + i) + 4] = 0;
-                frames[80 * (start + i) + 5] = 1;
-                frames[80 * (start + i) + 6] = 0;
-                frames[80 * (start + i) + 7] = 0;
-                frames[80 * (start + i) + 8] = 0;
-                frames[80 * (start + i) + 9] = 0;
-                frames[80 * (start + i) + 10] = 1;
-                frames[80 * (start + i) + 11] = 0;
-                frames[80 * (start + i) + 12] = 0;
-                frames[80 * (start + i) + 13] = 0;
-                frames[80 * (start + i) + 14] = 0;
-                frames[80 * (start + i) + 15] = 1;
-                frames[80 * (start + i) + 16] = _c0[i];
-                frames[80 * (start + i) + 17] = -_s0[i];
-                frames[80 * (start + i) + 18] = 0;
-                frames[80 * (start + i) + 19] = _t2;
-                frames[80 * (start + i) + 20] = _s0[i];
-                frames[80 * (start + i) + 21] = _c0[i];
-                frames[80 * (start + i) + 22] = 0;
-                frames[80 * (start + i) + 23] = _t3;
-                frames[80 * (start + i) + 24] = 0;
-                frames[80 * (start + i) + 25] = 0;
-                frames[80 * (start + i) + 26] = 1;
-                frames[80 * (start + i) + 27] = d1;
-                frames[80 * (start + i) + 28] = 0;
-                frames[80 * (start + i) + 29] = 0;
-                frames[80 * (start + i) + 30] = 0;
-                frames[80 * (start + i) + 31] = 1;
-                frames[80 * (start + i) + 32] = _c1[i];
-                frames[80 * (start + i) + 33] = _s1[i];
-                frames[80 * (start + i) + 34] = 0;
-                frames[80 * (start + i) + 35] = _t7;
-                frames[80 * (start + i) + 36] = _s1[i];
-                frames[80 * (start + i) + 37] = _t8;
-                frames[80 * (start + i) + 38] = 0;
-                frames[80 * (start + i) + 39] = _t9;
-                frames[80 * (start + i) + 40] = 0;
-                frames[80 * (start + i) + 41] = 0;
-                frames[80 * (start + i) + 42] = -1;
-                frames[80 * (start + i) + 43] = d1;
-                frames[80 * (start + i) + 44] = 0;
-                frames[80 * (start + i) + 45] = 0;
-                frames[80 * (start + i) + 46] = 0;
-                frames[80 * (start + i) + 47] = 1;
-                frames[80 * (start + i) + 48] = _c1[i];
-                frames[80 * (start + i) + 49] = _s1[i];
-                frames[80 * (start + i) + 50] = 0;
-                frames[80 * (start + i) + 51] = _t7;
-                frames[80 * (start + i) + 52] = _s1[i];
-                frames[80 * (start + i) + 53] = _t8;
-                frames[80 * (start + i) + 54] = 0;
-                frames[80 * (start + i) + 55] = _t9;
-                frames[80 * (start + i) + 56] = 0;
-                frames[80 * (start + i) + 57] = 0;
-                frames[80 * (start + i) + 58] = -1;
-                frames[80 * (start + i) + 59] = d1 - q3[i];
-                frames[80 * (start + i) + 60] = 0;
-                frames[80 * (start + i) + 61] = 0;
-                frames[80 * (start + i) + 62] = 0;
-                frames[80 * (start + i) + 63] = 1;
-                frames[80 * (start + i) + 64] = _c2[i];
-                frames[80 * (start + i) + 65] = _s2[i];
-                frames[80 * (start + i) + 66] = 0;
-                frames[80 * (start + i) + 67] = _t7;
-                frames[80 * (start + i) + 68] = _s2[i];
-                frames[80 * (start + i) + 69] = -_c2[i];
-                frames[80 * (start + i) + 70] = 0;
-                frames[80 * (start + i) + 71] = _t9;
-                frames[80 * (start + i) + 72] = 0;
-                frames[80 * (start + i) + 73] = 0;
-                frames[80 * (start + i) + 74] = -1;
-                frames[80 * (start + i) + 75] = d1 - d4 - q3[i];
-                frames[80 * (start + i) + 76] = 0;
-                frames[80 * (start + i) + 77] = 0;
-                frames[80 * (start + i) + 78] = 0;
-                frames[80 * (start + i) + 79] = 1;
+                _frames_block[0][i] = 1;
+                _frames_block[1][i] = 0;
+                _frames_block[2][i] = 0;
+                _frames_block[3][i] = 0;
+                _frames_block[4][i] = 0;
+                _frames_block[5][i] = 1;
+                _frames_block[6][i] = 0;
+                _frames_block[7][i] = 0;
+                _frames_block[8][i] = 0;
+                _frames_block[9][i] = 0;
+                _frames_block[10][i] = 1;
+                _frames_block[11][i] = 0;
+                _frames_block[12][i] = 0;
+                _frames_block[13][i] = 0;
+                _frames_block[14][i] = 0;
+                _frames_block[15][i] = 1;
+                _frames_block[16][i] = _c0[i];
+                _frames_block[17][i] = -_s0[i];
+                _frames_block[18][i] = 0;
+                _frames_block[19][i] = _t2;
+                _frames_block[20][i] = _s0[i];
+                _frames_block[21][i] = _c0[i];
+                _frames_block[22][i] = 0;
+                _frames_block[23][i] = _t3;
+                _frames_block[24][i] = 0;
+                _frames_block[25][i] = 0;
+                _frames_block[26][i] = 1;
+                _frames_block[27][i] = d1;
+                _frames_block[28][i] = 0;
+                _frames_block[29][i] = 0;
+                _frames_block[30][i] = 0;
+                _frames_block[31][i] = 1;
+                _frames_block[32][i] = _c1[i];
+                _frames_block[33][i] = _s1[i];
+                _frames_block[34][i] = 0;
+                _frames_block[35][i] = _t7;
+                _frames_block[36][i] = _s1[i];
+                _frames_block[37][i] = _t8;
+                _frames_block[38][i] = 0;
+                _frames_block[39][i] = _t9;
+                _frames_block[40][i] = 0;
+                _frames_block[41][i] = 0;
+                _frames_block[42][i] = -1;
+                _frames_block[43][i] = d1;
+                _frames_block[44][i] = 0;
+                _frames_block[45][i] = 0;
+                _frames_block[46][i] = 0;
+                _frames_block[47][i] = 1;
+                _frames_block[48][i] = _c1[i];
+                _frames_block[49][i] = _s1[i];
+                _frames_block[50][i] = 0;
+                _frames_block[51][i] = _t7;
+                _frames_block[52][i] = _s1[i];
+                _frames_block[53][i] = _t8;
+                _frames_block[54][i] = 0;
+                _frames_block[55][i] = _t9;
+                _frames_block[56][i] = 0;
+                _frames_block[57][i] = 0;
+                _frames_block[58][i] = -1;
+                _frames_block[59][i] = d1 - q3[i];
+                _frames_block[60][i] = 0;
+                _frames_block[61][i] = 0;
+                _frames_block[62][i] = 0;
+                _frames_block[63][i] = 1;
+                _frames_block[64][i] = _c2[i];
+                _frames_block[65][i] = _s2[i];
+                _frames_block[66][i] = 0;
+                _frames_block[67][i] = _t7;
+                _frames_block[68][i] = _s2[i];
+                _frames_block[69][i] = -_c2[i];
+                _frames_block[70][i] = 0;
+                _frames_block[71][i] = _t9;
+                _frames_block[72][i] = 0;
+                _frames_block[73][i] = 0;
+                _frames_block[74][i] = -1;
+                _frames_block[75][i] = d1 - d4 - q3[i];
+                _frames_block[76][i] = 0;
+                _frames_block[77][i] = 0;
+                _frames_block[78][i] = 0;
+                _frames_block[79][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -699,8 +707,16 @@ void adept_three_frames_batch(size_t count, const double *restrict q, const adep
                     _mm_stream_pd(frames + 80 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 80; ++k) {
+                    frames[80 * (start + i) + k] = _frames_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -791,8 +807,8 @@ void adept_three_jacobian_batch(size_t count, const double *restrict q, const ad
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_block[24][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 24 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
 #endif
@@ -866,30 +882,30 @@ void adept_three_jacobian_batch(size_t count, const double *restrict q, const ad
             for (i = 0; i < n; ++i) {
                 const double _t1 = _s0[i]*l2;
                 const double _t2 = _c0[i]*l2;
-                J[24 * (start + i) + 0] = -_s1[i]*l1 - _t1;
-                J[24 * (start + i) + 1] = -_t1;
-                J[24 * (start + i) + 2] = 0;
-                J[24 * (start + i) + 3] = 0;
-                J[24 * (start + i) + 4] = _c1[i]*l1 + _t2;
-                J[24 * (start + i) + 5] = _t2;
-                J[24 * (start + i) + 6] = 0;
-                J[24 * (start + i) + 7] = 0;
-                J[24 * (start + i) + 8] = 0;
-                J[24 * (start + i) + 9] = 0;
-                J[24 * (start + i) + 10] = -1;
-                J[24 * (start + i) + 11] = 0;
-                J[24 * (start + i) + 12] = 0;
-                J[24 * (start + i) + 13] = 0;
-                J[24 * (start + i) + 14] = 0;
-                J[24 * (start + i) + 15] = 0;
-                J[24 * (start + i) + 16] = 0;
-                J[24 * (start + i) + 17] = 0;
-                J[24 * (start + i) + 18] = 0;
-                J[24 * (start + i) + 19] = 0;
-                J[24 * (start + i) + 20] = 1;
-                J[24 * (start + i) + 21] = 1;
-                J[24 * (start + i) + 22] = 0;
-                J[24 * (start + i) + 23] = -1;
+                _J_block[0][i] = -_s1[i]*l1 - _t1;
+                _J_block[1][i] = -_t1;
+                _J_block[2][i] = 0;
+                _J_block[3][i] = 0;
+                _J_block[4][i] = _c1[i]*l1 + _t2;
+                _J_block[5][i] = _t2;
+                _J_block[6][i] = 0;
+                _J_block[7][i] = 0;
+                _J_block[8][i] = 0;
+                _J_block[9][i] = 0;
+                _J_block[10][i] = -1;
+                _J_block[11][i] = 0;
+                _J_block[12][i] = 0;
+                _J_block[13][i] = 0;
+                _J_block[14][i] = 0;
+                _J_block[15][i] = 0;
+                _J_block[16][i] = 0;
+                _J_block[17][i] = 0;
+                _J_block[18][i] = 0;
+                _J_block[19][i] = 0;
+                _J_block[20][i] = 1;
+                _J_block[21][i] = 1;
+                _J_block[22][i] = 0;
+                _J_block[23][i] = -1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -900,8 +916,16 @@ void adept_three_jacobian_batch(size_t count, const double *restrict q, const ad
                     _mm_stream_pd(J + 24 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 24; ++k) {
+                    J[24 * (start + i) + k] = _J_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1004,8 +1028,8 @@ void adept_three_jacobian_tool_batch(size_t count, const double *restrict q, con
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_tool_block[24][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 24 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_tool & 15) == 0;
 #endif
@@ -1093,30 +1117,30 @@ void adept_three_jacobian_tool_batch(size_t count, const double *restrict q, con
                 const double _t3 = _c1[i]*l1 + _t2;
                 const double _t6 = _s0[i]*l2;
                 const double _t7 = -_s1[i]*l1 - _t6;
-                J_tool[24 * (start + i) + 0] = _c2[i]*_t7 + _s2[i]*_t3;
-                J_tool[24 * (start + i) + 1] = _c0[i]*_s2[i]*l2 - _c2[i]*_t6;
-                J_tool[24 * (start + i) + 2] = 0;
-                J_tool[24 * (start + i) + 3] = 0;
-                J_tool[24 * (start + i) + 4] = -_c2[i]*_t3 + _s2[i]*_t7;
-                J_tool[24 * (start + i) + 5] = -_c2[i]*_t2 - _s2[i]*_t6;
-                J_tool[24 * (start + i) + 6] = 0;
-                J_tool[24 * (start + i) + 7] = 0;
-                J_tool[24 * (start + i) + 8] = 0;
-                J_tool[24 * (start + i) + 9] = 0;
-                J_tool[24 * (start + i) + 10] = 1;
-                J_tool[24 * (start + i) + 11] = 0;
-                J_tool[24 * (start + i) + 12] = 0;
-                J_tool[24 * (start + i) + 13] = 0;
-                J_tool[24 * (start + i) + 14] = 0;
-                J_tool[24 * (start + i) + 15] = 0;
-                J_tool[24 * (start + i) + 16] = 0;
-                J_tool[24 * (start + i) + 17] = 0;
-                J_tool[24 * (start + i) + 18] = 0;
-                J_tool[24 * (start + i) + 19] = 0;
-                J_tool[24 * (start + i) + 20] = -1;
-                J_tool[24 * (start + i) + 21] = -1;
-                J_tool[24 * (start + i) + 22] = 0;
-                J_tool[24 * (start + i) + 23] = 1;
+                _J_tool_block[0][i] = _c2[i]*_t7 + _s2[i]*_t3;
+                _J_tool_block[1][i] = _c0[i]*_s2[i]*l2 - _c2[i]*_t6;
+                _J_tool_block[2][i] = 0;
+                _J_tool_block[3][i] = 0;
+                _J_tool_block[4][i] = -_c2[i]*_t3 + _s2[i]*_t7;
+                _J_tool_block[5][i] = -_c2[i]*_t2 - _s2[i]*_t6;
+                _J_tool_block[6][i] = 0;
+                _J_tool_block[7][i] = 0;
+                _J_tool_block[8][i] = 0;
+                _J_tool_block[9][i] = 0;
+                _J_tool_block[10][i] = 1;
+                _J_tool_block[11][i] = 0;
+                _J_tool_block[12][i] = 0;
+                _J_tool_block[13][i] = 0;
+                _J_tool_block[14][i] = 0;
+                _J_tool_block[15][i] = 0;
+                _J_tool_block[16][i] = 0;
+                _J_tool_block[17][i] = 0;
+                _J_tool_block[18][i] = 0;
+                _J_tool_block[19][i] = 0;
+                _J_tool_block[20][i] = -1;
+                _J_tool_block[21][i] = -1;
+                _J_tool_block[22][i] = 0;
+                _J_tool_block[23][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1127,8 +1151,16 @@ void adept_three_jacobian_tool_batch(size_t count, const double *restrict q, con
                     _mm_stream_pd(J_tool + 24 * (start + i) + k, _mm_set_pd(_J_tool_block[k + 1][i], _J_tool_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 24; ++k) {
+                    J_tool[24 * (start + i) + k] = _J_tool_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1203,8 +1235,8 @@ void adept_three_task_batch(size_t count, const double *restrict q, const adept_
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _x_block[4][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)x & 15) == 0;
 #endif
@@ -1258,10 +1290,10 @@ void adept_three_task_batch(size_t count, const double *restrict q, const adept_
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                x[4 * (start + i) + 0] = _c0[i]*l1 + _c1[i]*l2;
-                x[4 * (start + i) + 1] = _s0[i]*l1 + _s1[i]*l2;
-                x[4 * (start + i) + 2] = d1 - d4 - q3[i];
-                x[4 * (start + i) + 3] = _t0[i] - q4[i];
+                _x_block[0][i] = _c0[i]*l1 + _c1[i]*l2;
+                _x_block[1][i] = _s0[i]*l1 + _s1[i]*l2;
+                _x_block[2][i] = d1 - d4 - q3[i];
+                _x_block[3][i] = _t0[i] - q4[i];
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1272,8 +1304,16 @@ void adept_three_task_batch(size_t count, const double *restrict q, const adept_
                     _mm_stream_pd(x + 4 * (start + i) + k, _mm_set_pd(_x_block[k + 1][i], _x_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 4; ++k) {
+                    x[4 * (start + i) + k] = _x_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1356,8 +1396,8 @@ void adept_three_task_jacobian_batch(size_t count, const double *restrict q, con
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _Jx_block[16][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx & 15) == 0;
 #endif
@@ -1423,22 +1463,22 @@ void adept_three_task_jacobian_batch(size_t count, const double *restrict q, con
             for (i = 0; i < n; ++i) {
                 const double _t1 = _s0[i]*l2;
                 const double _t2 = _c0[i]*l2;
-                Jx[16 * (start + i) + 0] = -_s1[i]*l1 - _t1;
-                Jx[16 * (start + i) + 1] = -_t1;
-                Jx[16 * (start + i) + 2] = 0;
-                Jx[16 * (start + i) + 3] = 0;
-                Jx[16 * (start + i) + 4] = _c1[i]*l1 + _t2;
-                Jx[16 * (start + i) + 5] = _t2;
-                Jx[16 * (start + i) + 6] = 0;
-                Jx[16 * (start + i) + 7] = 0;
-                Jx[16 * (start + i) + 8] = 0;
-                Jx[16 * (start + i) + 9] = 0;
-                Jx[16 * (start + i) + 10] = -1;
-                Jx[16 * (start + i) + 11] = 0;
-                Jx[16 * (start + i) + 12] = 1;
-                Jx[16 * (start + i) + 13] = 1;
-                Jx[16 * (start + i) + 14] = 0;
-                Jx[16 * (start + i) + 15] = -1;
+                _Jx_block[0][i] = -_s1[i]*l1 - _t1;
+                _Jx_block[1][i] = -_t1;
+                _Jx_block[2][i] = 0;
+                _Jx_block[3][i] = 0;
+                _Jx_block[4][i] = _c1[i]*l1 + _t2;
+                _Jx_block[5][i] = _t2;
+                _Jx_block[6][i] = 0;
+                _Jx_block[7][i] = 0;
+                _Jx_block[8][i] = 0;
+                _Jx_block[9][i] = 0;
+                _Jx_block[10][i] = -1;
+                _Jx_block[11][i] = 0;
+                _Jx_block[12][i] = 1;
+                _Jx_block[13][i] = 1;
+                _Jx_block[14][i] = 0;
+                _Jx_block[15][i] = -1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1449,8 +1489,16 @@ void adept_three_task_jacobian_batch(size_t count, const double *restrict q, con
                     _mm_stream_pd(Jx + 16 * (start + i) + k, _mm_set_pd(_Jx_block[k + 1][i], _Jx_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 16; ++k) {
+                    Jx[16 * (start + i) + k] = _Jx_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1721,8 +1769,8 @@ void adept_three_task_velocity_batch(size_t count, const double *restrict q, con
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _xd_block[4][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)xd & 15) == 0;
 #endif
@@ -1780,10 +1828,10 @@ void adept_three_task_velocity_batch(size_t count, const double *restrict q, con
             for (i = 0; i < n; ++i) {
                 const double _t1 = _s0[i]*l2;
                 const double _t2 = _c0[i]*l2;
-                xd[4 * (start + i) + 0] = -_t1*qd2[i] + qd1[i]*(-_s1[i]*l1 - _t1);
-                xd[4 * (start + i) + 1] = _t2*qd2[i] + qd1[i]*(_c1[i]*l1 + _t2);
-                xd[4 * (start + i) + 2] = -qd3[i];
-                xd[4 * (start + i) + 3] = qd1[i] + qd2[i] - qd4[i];
+                _xd_block[0][i] = -_t1*qd2[i] + qd1[i]*(-_s1[i]*l1 - _t1);
+                _xd_block[1][i] = _t2*qd2[i] + qd1[i]*(_c1[i]*l1 + _t2);
+                _xd_block[2][i] = -qd3[i];
+                _xd_block[3][i] = qd1[i] + qd2[i] - qd4[i];
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1794,8 +1842,16 @@ void adept_three_task_velocity_batch(size_t count, const double *restrict q, con
                     _mm_stream_pd(xd + 4 * (start + i) + k, _mm_set_pd(_xd_block[k + 1][i], _xd_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 4; ++k) {
+                    xd[4 * (start + i) + k] = _xd_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1876,8 +1932,8 @@ void adept_three_twist_batch(size_t count, const double *restrict q, const doubl
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _twist_block[6][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)twist & 15) == 0;
 #endif
@@ -1937,12 +1993,12 @@ void adept_three_twist_batch(size_t count, const double *restrict q, const doubl
             for (i = 0; i < n; ++i) {
                 const double _t1 = _s0[i]*l2;
                 const double _t2 = _c0[i]*l2;
-                twist[6 * (start + i) + 0] = -_t1*qd2[i] + qd1[i]*(-_s1[i]*l1 - _t1);
-                twist[6 * (start + i) + 1] = _t2*qd2[i] + qd1[i]*(_c1[i]*l1 + _t2);
-                twist[6 * (start + i) + 2] = -qd3[i];
-                twist[6 * (start + i) + 3] = 0;
-                twist[6 * (start + i) + 4] = 0;
-                twist[6 * (start + i) + 5] = qd1[i] + qd2[i] - qd4[i];
+                _twist_block[0][i] = -_t1*qd2[i] + qd1[i]*(-_s1[i]*l1 - _t1);
+                _twist_block[1][i] = _t2*qd2[i] + qd1[i]*(_c1[i]*l1 + _t2);
+                _twist_block[2][i] = -qd3[i];
+                _twist_block[3][i] = 0;
+                _twist_block[4][i] = 0;
+                _twist_block[5][i] = qd1[i] + qd2[i] - qd4[i];
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1953,8 +2009,16 @@ void adept_three_twist_batch(size_t count, const double *restrict q, const doubl
                     _mm_stream_pd(twist + 6 * (start + i) + k, _mm_set_pd(_twist_block[k + 1][i], _twist_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 6; ++k) {
+                    twist[6 * (start + i) + k] = _twist_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -2043,8 +2107,8 @@ void adept_three_task_jacobian_dot_batch(size_t count, const double *restrict q,
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _Jx_dot_block[16][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx_dot & 15) == 0;
 #endif
@@ -2116,22 +2180,22 @@ void adept_three_task_jacobian_dot_batch(size_t count, const double *restrict q,
                 const double _t2 = _t1*qd2[i];
                 const double _t3 = _s0[i]*l2;
                 const double _t4 = _t3*qd2[i];
-                Jx_dot[16 * (start + i) + 0] = -_t2 + qd1[i]*(-_c1[i]*l1 - _t1);
-                Jx_dot[16 * (start + i) + 1] = -_t1*qd1[i] - _t2;
-                Jx_dot[16 * (start + i) + 2] = 0;
-                Jx_dot[16 * (start + i) + 3] = 0;
-                Jx_dot[16 * (start + i) + 4] = -_t4 + qd1[i]*(-_s1[i]*l1 - _t3);
-                Jx_dot[16 * (start + i) + 5] = -_t3*qd1[i] - _t4;
-                Jx_dot[16 * (start + i) + 6] = 0;
-                Jx_dot[16 * (start + i) + 7] = 0;
-                Jx_dot[16 * (start + i) + 8] = 0;
-                Jx_dot[16 * (start + i) + 9] = 0;
-                Jx_dot[16 * (start + i) + 10] = 0;
-                Jx_dot[16 * (start + i) + 11] = 0;
-                Jx_dot[16 * (start + i) + 12] = 0;
-                Jx_dot[16 * (start + i) + 13] = 0;
-                Jx_dot[16 * (start + i) + 14] = 0;
-                Jx_dot[16 * (start + i) + 15] = 0;
+                _Jx_dot_block[0][i] = -_t2 + qd1[i]*(-_c1[i]*l1 - _t1);
+                _Jx_dot_block[1][i] = -_t1*qd1[i] - _t2;
+                _Jx_dot_block[2][i] = 0;
+                _Jx_dot_block[3][i] = 0;
+                _Jx_dot_block[4][i] = -_t4 + qd1[i]*(-_s1[i]*l1 - _t3);
+                _Jx_dot_block[5][i] = -_t3*qd1[i] - _t4;
+                _Jx_dot_block[6][i] = 0;
+                _Jx_dot_block[7][i] = 0;
+                _Jx_dot_block[8][i] = 0;
+                _Jx_dot_block[9][i] = 0;
+                _Jx_dot_block[10][i] = 0;
+                _Jx_dot_block[11][i] = 0;
+                _Jx_dot_block[12][i] = 0;
+                _Jx_dot_block[13][i] = 0;
+                _Jx_dot_block[14][i] = 0;
+                _Jx_dot_block[15][i] = 0;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -2142,8 +2206,16 @@ void adept_three_task_jacobian_dot_batch(size_t count, const double *restrict q,
                     _mm_stream_pd(Jx_dot + 16 * (start + i) + k, _mm_set_pd(_Jx_dot_block[k + 1][i], _Jx_dot_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 16; ++k) {
+                    Jx_dot[16 * (start + i) + k] = _Jx_dot_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -2240,8 +2312,8 @@ void adept_three_jacobian_dot_batch(size_t count, const double *restrict q, cons
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_dot_block[24][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 24 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_dot & 15) == 0;
 #endif
@@ -2321,30 +2393,30 @@ void adept_three_jacobian_dot_batch(size_t count, const double *restrict q, cons
                 const double _t2 = _t1*qd2[i];
                 const double _t3 = _s0[i]*l2;
                 const double _t4 = _t3*qd2[i];
-                J_dot[24 * (start + i) + 0] = -_t2 + qd1[i]*(-_c1[i]*l1 - _t1);
-                J_dot[24 * (start + i) + 1] = -_t1*qd1[i] - _t2;
-                J_dot[24 * (start + i) + 2] = 0;
-                J_dot[24 * (start + i) + 3] = 0;
-                J_dot[24 * (start + i) + 4] = -_t4 + qd1[i]*(-_s1[i]*l1 - _t3);
-                J_dot[24 * (start + i) + 5] = -_t3*qd1[i] - _t4;
-                J_dot[24 * (start + i) + 6] = 0;
-                J_dot[24 * (start + i) + 7] = 0;
-                J_dot[24 * (start + i) + 8] = 0;
-                J_dot[24 * (start + i) + 9] = 0;
-                J_dot[24 * (start + i) + 10] = 0;
-                J_dot[24 * (start + i) + 11] = 0;
-                J_dot[24 * (start + i) + 12] = 0;
-                J_dot[24 * (start + i) + 13] = 0;
-                J_dot[24 * (start + i) + 14] = 0;
-                J_dot[24 * (start + i) + 15] = 0;
-                J_dot[24 * (start + i) + 16] = 0;
-                J_dot[24 * (start + i) + 17] = 0;
-                J_dot[24 * (start + i) + 18] = 0;
-                J_dot[24 * (start + i) + 19] = 0;
-                J_dot[24 * (start + i) + 20] = 0;
-                J_dot[24 * (start + i) + 21] = 0;
-                J_dot[24 * (start + i) + 22] = 0;
-                J_dot[24 * (start + i) + 23] = 0;
+                _J_dot_block[0][i] = -_t2 + qd1[i]*(-_c1[i]*l1 - _t1);
+                _J_dot_block[1][i] = -_t1*qd1[i] - _t2;
+                _J_dot_block[2][i] = 0;
+                _J_dot_block[3][i] = 0;
+                _J_dot_block[4][i] = -_t4 + qd1[i]*(-_s1[i]*l1 - _t3);
+                _J_dot_block[5][i] = -_t3*qd1[i] - _t4;
+                _J_dot_block[6][i] = 0;
+                _J_dot_block[7][i] = 0;
+                _J_dot_block[8][i] = 0;
+                _J_dot_block[9][i] = 0;
+                _J_dot_block[10][i] = 0;
+                _J_dot_block[11][i] = 0;
+                _J_dot_block[12][i] = 0;
+                _J_dot_block[13][i] = 0;
+                _J_dot_block[14][i] = 0;
+                _J_dot_block[15][i] = 0;
+                _J_dot_block[16][i] = 0;
+                _J_dot_block[17][i] = 0;
+                _J_dot_block[18][i] = 0;
+                _J_dot_block[19][i] = 0;
+                _J_dot_block[20][i] = 0;
+                _J_dot_block[21][i] = 0;
+                _J_dot_block[22][i] = 0;
+                _J_dot_block[23][i] = 0;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -2355,8 +2427,16 @@ void adept_three_jacobian_dot_batch(size_t count, const double *restrict q, cons
                     _mm_stream_pd(J_dot + 24 * (start + i) + k, _mm_set_pd(_J_dot_block[k + 1][i], _J_dot_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 24; ++k) {
+                    J_dot[24 * (start + i) + k] = _J_dot_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -2443,8 +2523,8 @@ void adept_three_task_acceleration_batch(size_t count, const double *restrict q,
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _xdd_block[4][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)xdd & 15) == 0;
 #endif
@@ -2512,10 +2592,10 @@ void adept_three_task_acceleration_batch(size_t count, const double *restrict q,
                 const double _t4 = _s0[i]*l2;
                 const double _t5 = -_s1[i]*l1 - _t4;
                 const double _t6 = _t4*qd2[i];
-                xdd[4 * (start + i) + 0] = -_t4*qdd2[i] + _t5*qdd1[i] + qd1[i]*(-_t2*qd1[i] - _t3) + qd2[i]*(-_t1*qd1[i] - _t3);
-                xdd[4 * (start + i) + 1] = _t1*qdd2[i] + _t2*qdd1[i] + qd1[i]*(_t5*qd1[i] - _t6) + qd2[i]*(-_t4*qd1[i] - _t6);
-                xdd[4 * (start + i) + 2] = -qdd3[i];
-                xdd[4 * (start + i) + 3] = qdd1[i] + qdd2[i] - qdd4[i];
+                _xdd_block[0][i] = -_t4*qdd2[i] + _t5*qdd1[i] + qd1[i]*(-_t2*qd1[i] - _t3) + qd2[i]*(-_t1*qd1[i] - _t3);
+                _xdd_block[1][i] = _t1*qdd2[i] + _t2*qdd1[i] + qd1[i]*(_t5*qd1[i] - _t6) + qd2[i]*(-_t4*qd1[i] - _t6);
+                _xdd_block[2][i] = -qdd3[i];
+                _xdd_block[3][i] = qdd1[i] + qdd2[i] - qdd4[i];
             }
         }
 #ifdef KINEGEN_STREAM
@@ -2526,8 +2606,16 @@ void adept_three_task_acceleration_batch(size_t count, const double *restrict q,
                     _mm_stream_pd(xdd + 4 * (start + i) + k, _mm_set_pd(_xdd_block[k + 1][i], _xdd_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 4; ++k) {
+                    xdd[4 * (start + i) + k] = _xdd_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -2753,8 +2841,8 @@ void adept_three_joint_velocity_batch(size_t count, const double *restrict q, co
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _qd_block[4][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)qd & 15) == 0;
 #endif
@@ -2965,25 +3053,25 @@ void adept_three_joint_velocity_batch(size_t count, const double *restrict q, co
                 const double _t72 = 1.0/kinegen_max(_t5, (1e-08)*_t1);
                 const double _t73 = _t46*l1;
                 const double _t74 = _t72*_t73;
-                qd[4 * (start + i) + 0] = ((_t71) ? (
+                _qd_block[0][i] = ((_t71) ? (
    _t42*(_t31*_t43*_t68 + _t44*_t61 + _t70)
 )
 : (
    _t74*(_t18*xd_x[i] + _t29*xd_y[i])
 ));
-                qd[4 * (start + i) + 1] = ((_t71) ? (
+                _qd_block[1][i] = ((_t71) ? (
    _t42*(_t45*_t61 - _t62*_t68 + _t70)
 )
 : (
    _t74*(_t31*xd_y[i] + _t37*xd_x[i])
 ));
-                qd[4 * (start + i) + 2] = ((_t71) ? (
+                _qd_block[2][i] = ((_t71) ? (
    -_t42*xd_z[i]*(_t10 + _t56 + _t57 + _t65 + _t67 + _t69)
 )
 : (
    -_t5*_t72*xd_z[i]
 ));
-                qd[4 * (start + i) + 3] = ((_t71) ? (
+                _qd_block[3][i] = ((_t71) ? (
    -_t42*_t70
 )
 : (
@@ -3000,8 +3088,16 @@ void adept_three_joint_velocity_batch(size_t count, const double *restrict q, co
                     _mm_stream_pd(qd + 4 * (start + i) + k, _mm_set_pd(_qd_block[k + 1][i], _qd_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 4; ++k) {
+                    qd[4 * (start + i) + k] = _qd_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -3181,8 +3277,8 @@ void adept_three_joint_acceleration_batch(size_t count, const double *restrict q
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _qdd_block[4][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)qdd & 15) == 0;
 #endif
@@ -3403,25 +3499,25 @@ void adept_three_joint_acceleration_batch(size_t count, const double *restrict q
                 const double _t76 = 1.0/kinegen_max(_t5, (1e-08)*_t1);
                 const double _t77 = _t46*l1;
                 const double _t78 = _t76*_t77;
-                qdd[4 * (start + i) + 0] = ((_t75) ? (
+                _qdd_block[0][i] = ((_t75) ? (
    _t42*(_t31*_t43*_t72 + _t44*_t65 + _t74)
 )
 : (
    _t78*(_t18*_t56 + _t29*_t63)
 ));
-                qdd[4 * (start + i) + 1] = ((_t75) ? (
+                _qdd_block[1][i] = ((_t75) ? (
    _t42*(_t45*_t65 - _t66*_t72 + _t74)
 )
 : (
    _t78*(_t31*_t63 + _t37*_t56)
 ));
-                qdd[4 * (start + i) + 2] = ((_t75) ? (
+                _qdd_block[2][i] = ((_t75) ? (
    -_t42*xdd_z[i]*(_t10 + _t58 + _t59 + _t69 + _t71 + _t73)
 )
 : (
    -_t5*_t76*xdd_z[i]
 ));
-                qdd[4 * (start + i) + 3] = ((_t75) ? (
+                _qdd_block[3][i] = ((_t75) ? (
    -_t42*_t74
 )
 : (
@@ -3438,8 +3534,16 @@ void adept_three_joint_acceleration_batch(size_t count, const double *restrict q
                     _mm_stream_pd(qdd + 4 * (start + i) + k, _mm_set_pd(_qdd_block[k + 1][i], _qdd_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 4; ++k) {
+                    qdd[4 * (start + i) + k] = _qdd_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -3516,8 +3620,8 @@ void adept_three_tool_configuration_batch(size_t count, const double *restrict q
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _w_tool_block[6][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)w_tool & 15) == 0;
 #endif
@@ -3573,12 +3677,12 @@ void adept_three_tool_configuration_batch(size_t count, const double *restrict q
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                w_tool[6 * (start + i) + 0] = _c0[i]*l1 + _c1[i]*l2;
-                w_tool[6 * (start + i) + 1] = _s0[i]*l1 + _s1[i]*l2;
-                w_tool[6 * (start + i) + 2] = d1 - d4 - q3[i];
-                w_tool[6 * (start + i) + 3] = 0;
-                w_tool[6 * (start + i) + 4] = 0;
-                w_tool[6 * (start + i) + 5] = -exp(0.3183098861837907*q4[i]);
+                _w_tool_block[0][i] = _c0[i]*l1 + _c1[i]*l2;
+                _w_tool_block[1][i] = _s0[i]*l1 + _s1[i]*l2;
+                _w_tool_block[2][i] = d1 - d4 - q3[i];
+                _w_tool_block[3][i] = 0;
+                _w_tool_block[4][i] = 0;
+                _w_tool_block[5][i] = -exp(0.3183098861837907*q4[i]);
             }
         }
 #ifdef KINEGEN_STREAM
@@ -3589,8 +3693,16 @@ void adept_three_tool_configuration_batch(size_t count, const double *restrict q
                     _mm_stream_pd(w_tool + 6 * (start + i) + k, _mm_set_pd(_w_tool_block[k + 1][i], _w_tool_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 6; ++k) {
+                    w_tool[6 * (start + i) + k] = _w_tool_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -3683,8 +3795,8 @@ void adept_three_tool_configuration_jacobian_batch(size_t count, const double *r
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _Jw_block[24][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 24 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jw & 15) == 0;
 #endif
@@ -3759,30 +3871,30 @@ void adept_three_tool_configuration_jacobian_batch(size_t count, const double *r
             for (i = 0; i < n; ++i) {
                 const double _t1 = _s0[i]*l2;
                 const double _t2 = _c0[i]*l2;
-                Jw[24 * (start + i) + 0] = -_s1[i]*l1 - _t1;
-                Jw[24 * (start + i) + 1] = -_t1;
-                Jw[24 * (start + i) + 2] = 0;
-                Jw[24 * (start + i) + 3] = 0;
-                Jw[24 * (start + i) + 4] = _c1[i]*l1 + _t2;
-                Jw[24 * (start + i) + 5] = _t2;
-                Jw[24 * (start + i) + 6] = 0;
-                Jw[24 * (start + i) + 7] = 0;
-                Jw[24 * (start + i) + 8] = 0;
-                Jw[24 * (start + i) + 9] = 0;
-                Jw[24 * (start + i) + 10] = -1;
-                Jw[24 * (start + i) + 11] = 0;
-                Jw[24 * (start + i) + 12] = 0;
-                Jw[24 * (start + i) + 13] = 0;
-                Jw[24 * (start + i) + 14] = 0;
-                Jw[24 * (start + i) + 15] = 0;
-                Jw[24 * (start + i) + 16] = 0;
-                Jw[24 * (start + i) + 17] = 0;
-                Jw[24 * (start + i) + 18] = 0;
-                Jw[24 * (start + i) + 19] = 0;
-                Jw[24 * (start + i) + 20] = 0;
-                Jw[24 * (start + i) + 21] = 0;
-                Jw[24 * (start + i) + 22] = 0;
-                Jw[24 * (start + i) + 23] = -0.3183098861837907*exp(0.3183098861837907*q4[i]);
+                _Jw_block[0][i] = -_s1[i]*l1 - _t1;
+                _Jw_block[1][i] = -_t1;
+                _Jw_block[2][i] = 0;
+                _Jw_block[3][i] = 0;
+                _Jw_block[4][i] = _c1[i]*l1 + _t2;
+                _Jw_block[5][i] = _t2;
+                _Jw_block[6][i] = 0;
+                _Jw_block[7][i] = 0;
+                _Jw_block[8][i] = 0;
+                _Jw_block[9][i] = 0;
+                _Jw_block[10][i] = -1;
+                _Jw_block[11][i] = 0;
+                _Jw_block[12][i] = 0;
+                _Jw_block[13][i] = 0;
+                _Jw_block[14][i] = 0;
+                _Jw_block[15][i] = 0;
+                _Jw_block[16][i] = 0;
+                _Jw_block[17][i] = 0;
+                _Jw_block[18][i] = 0;
+                _Jw_block[19][i] = 0;
+                _Jw_block[20][i] = 0;
+                _Jw_block[21][i] = 0;
+                _Jw_block[22][i] = 0;
+                _Jw_block[23][i] = -0.3183098861837907*exp(0.3183098861837907*q4[i]);
             }
         }
 #ifdef KINEGEN_STREAM
@@ -3793,8 +3905,16 @@ void adept_three_tool_configuration_jacobian_batch(size_t count, const double *r
                     _mm_stream_pd(Jw + 24 * (start + i) + k, _mm_set_pd(_Jw_block[k + 1][i], _Jw_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 24; ++k) {
+                    Jw[24 * (start + i) + k] = _Jw_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {

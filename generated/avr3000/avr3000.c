@@ -223,8 +223,8 @@ void avr3000_fk_batch(size_t count, const double *restrict q, const avr3000_para
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _T_block[16][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
 #endif
@@ -296,22 +296,22 @@ void avr3000_fk_batch(size_t count, const double *restrict q, const avr3000_para
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                T[16 * (start + i) + 0] = _c0[i];
-                T[16 * (start + i) + 1] = -_s0[i];
-                T[16 * (start + i) + 2] = 0;
-                T[16 * (start + i) + 3] = -_c0[i]*e + _c1[i]*a + _c2[i]*a;
-                T[16 * (start + i) + 4] = _s0[i];
-                T[16 * (start + i) + 5] = _c0[i];
-                T[16 * (start + i) + 6] = 0;
-                T[16 * (start + i) + 7] = -_s0[i]*e + _s1[i]*a + _s2[i]*a;
-                T[16 * (start + i) + 8] = 0;
-                T[16 * (start + i) + 9] = 0;
-                T[16 * (start + i) + 10] = 1;
-                T[16 * (start + i) + 11] = q3[i];
-                T[16 * (start + i) + 12] = 0;
-                T[16 * (start + i) + 13] = 0;
-                T[16 * (start + i) + 14] = 0;
-                T[16 * (start + i) + 15] = 1;
+                _T_block[0][i] = _c0[i];
+                _T_block[1][i] = -_s0[i];
+                _T_block[2][i] = 0;
+                _T_block[3][i] = -_c0[i]*e + _c1[i]*a + _c2[i]*a;
+                _T_block[4][i] = _s0[i];
+                _T_block[5][i] = _c0[i];
+                _T_block[6][i] = 0;
+                _T_block[7][i] = -_s0[i]*e + _s1[i]*a + _s2[i]*a;
+                _T_block[8][i] = 0;
+                _T_block[9][i] = 0;
+                _T_block[10][i] = 1;
+                _T_block[11][i] = q3[i];
+                _T_block[12][i] = 0;
+                _T_block[13][i] = 0;
+                _T_block[14][i] = 0;
+                _T_block[15][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -322,8 +322,16 @@ void avr3000_fk_batch(size_t count, const double *restrict q, const avr3000_para
                     _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 16; ++k) {
+                    T[16 * (start + i) + k] = _T_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -464,8 +472,8 @@ void avr3000_frames_batch(size_t count, const double *restrict q, const avr3000_
     double _c1[KINEGEN_BLOCK_OF(32)];
     double _s2[KINEGEN_BLOCK_OF(32)];
     double _c2[KINEGEN_BLOCK_OF(32)];
-#ifdef KINEGEN_STREAM
     double _frames_block[64][KINEGEN_BLOCK_OF(32)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 64 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
 #endif
@@ -589,70 +597,70 @@ void avr3000_frames_batch(size_t count, const double *restrict q, const avr3000_
             for (i = 0; i < n; ++i) {
                 const double _t5 = _c0[i]*a;
                 const double _t6 = _s0[i]*a;
-                frames[64 * (start + i) + 0] = 1;
-                frames[64 * (start + i) + 1] = 0;
-                frames[64 * (start + i) + 2] = 0;
-                frames[64 * (start + i) + 3] = 0;
-                frames[64 * (start + i) + 4] = 0;
-                frames[64 * (start + i) + 5] = 1;
-                frames[64 * (start + i) + 6] = 0;
-                frames[64 * (start + i) + 7] = 0;
-                frames[64 * (start + i) + 8] = 0;
-                frames[64 * (start + i) + 9] = 0;
-                frames[64 * (start + i) + 10] = 1;
-                frames[64 * (start + i) + 11] = 0;
-                frames[64 * (start + i) + 12] = 0;
-                frames[64 * (start + i) + 13] = 0;
-                frames[64 * (start + i) + 14] = 0;
-                frames[64 * (start + i) + 15] = 1;
-                frames[64 * (start + i) + 16] = _c0[i];
-                frames[64 * (start + i) + 17] = -_s0[i];
-                frames[64 * (start + i) + 18] = 0;
-                frames[64 * (start + i) + 19] = 0;
-                frames[64 * (start + i) + 20] = _s0[i];
-                frames[64 * (start + i) + 21] = _c0[i];
-                frames[64 * (start + i) + 22] = 0;
-                frames[64 * (start + i) + 23] = 0;
-                frames[64 * (start + i) + 24] = 0;
-                frames[64 * (start + i) + 25] = 0;
-                frames[64 * (start + i) + 26] = 1;
-                frames[64 * (start + i) + 27] = q3[i];
-                frames[64 * (start + i) + 28] = 0;
-                frames[64 * (start + i) + 29] = 0;
-                frames[64 * (start + i) + 30] = 0;
-                frames[64 * (start + i) + 31] = 1;
-                frames[64 * (start + i) + 32] = _c1[i];
-                frames[64 * (start + i) + 33] = -_s1[i];
-                frames[64 * (start + i) + 34] = 0;
-                frames[64 * (start + i) + 35] = _t5;
-                frames[64 * (start + i) + 36] = _s1[i];
-                frames[64 * (start + i) + 37] = _c1[i];
-                frames[64 * (start + i) + 38] = 0;
-                frames[64 * (start + i) + 39] = _t6;
-                frames[64 * (start + i) + 40] = 0;
-                frames[64 * (start + i) + 41] = 0;
-                frames[64 * (start + i) + 42] = 1;
-                frames[64 * (start + i) + 43] = q3[i];
-                frames[64 * (start + i) + 44] = 0;
-                frames[64 * (start + i) + 45] = 0;
-                frames[64 * (start + i) + 46] = 0;
-                frames[64 * (start + i) + 47] = 1;
-                frames[64 * (start + i) + 48] = _c2[i];
-                frames[64 * (start + i) + 49] = -_s2[i];
-                frames[64 * (start + i) + 50] = 0;
-                frames[64 * (start + i) + 51] = _c1[i]*a - _c2[i]*e + _t5;
-                frames[64 * (start + i) + 52] = _s2[i];
-                frames[64 * (start + i) + 53] = _c2[i];
-                frames[64 * (start + i) + 54] = 0;
-                frames[64 * (start + i) + 55] = _s1[i]*a - _s2[i]*e + _t6;
-                frames[64 * (start + i) + 56] = 0;
-                frames[64 * (start + i) + 57] = 0;
-                frames[64 * (start + i) + 58] = 1;
-                frames[64 * (start + i) + 59] = q3[i];
-                frames[64 * (start + i) + 60] = 0;
-                frames[64 * (start + i) + 61] = 0;
-                frames[64 * (start + i) + 62] = 0;
-                frames[64 * (start + i) + 63] = 1;
+                _frames_block[0][i] = 1;
+                _frames_block[1][i] = 0;
+                _frames_block[2][i] = 0;
+                _frames_block[3][i] = 0;
+                _frames_block[4][i] = 0;
+                _frames_block[5][i] = 1;
+                _frames_block[6][i] = 0;
+                _frames_block[7][i] = 0;
+                _frames_block[8][i] = 0;
+                _frames_block[9][i] = 0;
+                _frames_block[10][i] = 1;
+                _frames_block[11][i] = 0;
+                _frames_block[12][i] = 0;
+                _frames_block[13][i] = 0;
+                _frames_block[14][i] = 0;
+                _frames_block[15][i] = 1;
+                _frames_block[16][i] = _c0[i];
+                _frames_block[17][i] = -_s0[i];
+                _frames_block[18][i] = 0;
+                _frames_block[19][i] = 0;
+                _frames_block[20][i] = _s0[i];
+                _frames_block[21][i] = _c0[i];
+                _frames_block[22][i] = 0;
+                _frames_block[23][i] = 0;
+                _frames_block[24][i] = 0;
+                _frames_block[25][i] = 0;
+                _frames_block[26][i] = 1;
+                _frames_block[27][i] = q3[i];
+                _frames_block[28][i] = 0;
+                _frames_block[29][i] = 0;
+                _frames_block[30][i] = 0;
+                _frames_block[31][i] = 1;
+                _frames_block[32][i] = _c1[i];
+                _frames_block[33][i] = -_s1[i];
+                _frames_block[34][i] = 0;
+                _frames_block[35][i] = _t5;
+                _frames_block[36][i] = _s1[i];
+                _frames_block[37][i] = _c1[i];
+                _frames_block[38][i] = 0;
+                _frames_block[39][i] = _t6;
+                _frames_block[40][i] = 0;
+                _frames_block[41][i] = 0;
+                _frames_block[42][i] = 1;
+                _frames_block[43][i] = q3[i];
+                _frames_block[44][i] = 0;
+                _frames_block[45][i] = 0;
+                _frames_block[46][i] = 0;
+                _frames_block[47][i] = 1;
+                _frames_block[48][i] = _c2[i];
+                _frames_block[49][i] = -_s2[i];
+                _frames_block[50][i] = 0;
+                _frames_block[51][i] = _c1[i]*a - _c2[i]*e + _t5;
+                _frames_block[52][i] = _s2[i];
+                _frames_block[53][i] = _c2[i];
+                _frames_block[54][i] = 0;
+                _frames_block[55][i] = _s1[i]*a - _s2[i]*e + _t6;
+                _frames_block[56][i] = 0;
+                _frames_block[57][i] = 0;
+                _frames_block[58][i] = 1;
+                _frames_block[59][i] = q3[i];
+                _frames_block[60][i] = 0;
+                _frames_block[61][i] = 0;
+                _frames_block[62][i] = 0;
+                _frames_block[63][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -663,8 +671,16 @@ void avr3000_frames_batch(size_t count, const double *restrict q, const avr3000_
                     _mm_stream_pd(frames + 64 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 64; ++k) {
+                    frames[64 * (start + i) + k] = _frames_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -758,8 +774,8 @@ void avr3000_jacobian_batch(size_t count, const double *restrict q, const avr300
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_block[18][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 18 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
 #endif
@@ -838,24 +854,24 @@ void avr3000_jacobian_batch(size_t count, const double *restrict q, const avr300
                 const double _t1 = _s0[i]*a;
                 const double _t4 = _c0[i]*a;
                 const double _t5 = _c1[i]*e;
-                J[18 * (start + i) + 0] = _s1[i]*e - _s2[i]*a - _t1;
-                J[18 * (start + i) + 1] = (0.5)*_s1[i]*e - _t1;
-                J[18 * (start + i) + 2] = 0;
-                J[18 * (start + i) + 3] = _c2[i]*a + _t4 - _t5;
-                J[18 * (start + i) + 4] = _t4 - 0.5*_t5;
-                J[18 * (start + i) + 5] = 0;
-                J[18 * (start + i) + 6] = 0;
-                J[18 * (start + i) + 7] = 0;
-                J[18 * (start + i) + 8] = 1;
-                J[18 * (start + i) + 9] = 0;
-                J[18 * (start + i) + 10] = 0;
-                J[18 * (start + i) + 11] = 0;
-                J[18 * (start + i) + 12] = 0;
-                J[18 * (start + i) + 13] = 0;
-                J[18 * (start + i) + 14] = 0;
-                J[18 * (start + i) + 15] = 1;
-                J[18 * (start + i) + 16] = 0.5;
-                J[18 * (start + i) + 17] = 0;
+                _J_block[0][i] = _s1[i]*e - _s2[i]*a - _t1;
+                _J_block[1][i] = (0.5)*_s1[i]*e - _t1;
+                _J_block[2][i] = 0;
+                _J_block[3][i] = _c2[i]*a + _t4 - _t5;
+                _J_block[4][i] = _t4 - 0.5*_t5;
+                _J_block[5][i] = 0;
+                _J_block[6][i] = 0;
+                _J_block[7][i] = 0;
+                _J_block[8][i] = 1;
+                _J_block[9][i] = 0;
+                _J_block[10][i] = 0;
+                _J_block[11][i] = 0;
+                _J_block[12][i] = 0;
+                _J_block[13][i] = 0;
+                _J_block[14][i] = 0;
+                _J_block[15][i] = 1;
+                _J_block[16][i] = 0.5;
+                _J_block[17][i] = 0;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -866,8 +882,16 @@ void avr3000_jacobian_batch(size_t count, const double *restrict q, const avr300
                     _mm_stream_pd(J + 18 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 18; ++k) {
+                    J[18 * (start + i) + k] = _J_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -965,8 +989,8 @@ void avr3000_jacobian_tool_batch(size_t count, const double *restrict q, const a
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_tool_block[18][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 18 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_tool & 15) == 0;
 #endif
@@ -1053,24 +1077,24 @@ void avr3000_jacobian_tool_batch(size_t count, const double *restrict q, const a
                 const double _t8 = _c2[i]*a + _t6 - _t7;
                 const double _t9 = _t6 - 0.5*_t7;
                 const double _t10 = (0.5)*_s1[i]*e - _t1;
-                J_tool[18 * (start + i) + 0] = _c1[i]*_t4 + _s1[i]*_t8;
-                J_tool[18 * (start + i) + 1] = _c1[i]*_t10 + _s1[i]*_t9;
-                J_tool[18 * (start + i) + 2] = 0;
-                J_tool[18 * (start + i) + 3] = _c1[i]*_t8 - _s1[i]*_t4;
-                J_tool[18 * (start + i) + 4] = _c1[i]*_t9 - _s1[i]*_t10;
-                J_tool[18 * (start + i) + 5] = 0;
-                J_tool[18 * (start + i) + 6] = 0;
-                J_tool[18 * (start + i) + 7] = 0;
-                J_tool[18 * (start + i) + 8] = 1;
-                J_tool[18 * (start + i) + 9] = 0;
-                J_tool[18 * (start + i) + 10] = 0;
-                J_tool[18 * (start + i) + 11] = 0;
-                J_tool[18 * (start + i) + 12] = 0;
-                J_tool[18 * (start + i) + 13] = 0;
-                J_tool[18 * (start + i) + 14] = 0;
-                J_tool[18 * (start + i) + 15] = 1;
-                J_tool[18 * (start + i) + 16] = 0.5;
-                J_tool[18 * (start + i) + 17] = 0;
+                _J_tool_block[0][i] = _c1[i]*_t4 + _s1[i]*_t8;
+                _J_tool_block[1][i] = _c1[i]*_t10 + _s1[i]*_t9;
+                _J_tool_block[2][i] = 0;
+                _J_tool_block[3][i] = _c1[i]*_t8 - _s1[i]*_t4;
+                _J_tool_block[4][i] = _c1[i]*_t9 - _s1[i]*_t10;
+                _J_tool_block[5][i] = 0;
+                _J_tool_block[6][i] = 0;
+                _J_tool_block[7][i] = 0;
+                _J_tool_block[8][i] = 1;
+                _J_tool_block[9][i] = 0;
+                _J_tool_block[10][i] = 0;
+                _J_tool_block[11][i] = 0;
+                _J_tool_block[12][i] = 0;
+                _J_tool_block[13][i] = 0;
+                _J_tool_block[14][i] = 0;
+                _J_tool_block[15][i] = 1;
+                _J_tool_block[16][i] = 0.5;
+                _J_tool_block[17][i] = 0;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1081,8 +1105,16 @@ void avr3000_jacobian_tool_batch(size_t count, const double *restrict q, const a
                     _mm_stream_pd(J_tool + 18 * (start + i) + k, _mm_set_pd(_J_tool_block[k + 1][i], _J_tool_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 18; ++k) {
+                    J_tool[18 * (start + i) + k] = _J_tool_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1124,6 +1156,7 @@ void avr3000_task_batch(size_t count, const double *restrict q, const avr3000_pa
     double q3[KINEGEN_BLOCK_OF(64)];
     double _t0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
+    double _x_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -1146,9 +1179,17 @@ void avr3000_task_batch(size_t count, const double *restrict q, const avr3000_pa
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            x[3 * (start + i) + 0] = -_t0[i] - q1[i] + 1.5707963267948966;
-            x[3 * (start + i) + 1] = 2*_c0[i]*a;
-            x[3 * (start + i) + 2] = q3[i];
+            _x_block[0][i] = -_t0[i] - q1[i] + 1.5707963267948966;
+            _x_block[1][i] = 2*_c0[i]*a;
+            _x_block[2][i] = q3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    x[3 * (start + i) + k] = _x_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1188,6 +1229,7 @@ void avr3000_task_jacobian_batch(size_t count, const double *restrict q, const a
     double q2[KINEGEN_BLOCK_OF(64)];
     double _a0[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
+    double _Jx_block[9][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -1208,15 +1250,23 @@ void avr3000_task_jacobian_batch(size_t count, const double *restrict q, const a
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            Jx[9 * (start + i) + 0] = -1;
-            Jx[9 * (start + i) + 1] = -0.5;
-            Jx[9 * (start + i) + 2] = 0;
-            Jx[9 * (start + i) + 3] = 0;
-            Jx[9 * (start + i) + 4] = -_s0[i]*a;
-            Jx[9 * (start + i) + 5] = 0;
-            Jx[9 * (start + i) + 6] = 0;
-            Jx[9 * (start + i) + 7] = 0;
-            Jx[9 * (start + i) + 8] = 1;
+            _Jx_block[0][i] = -1;
+            _Jx_block[1][i] = -0.5;
+            _Jx_block[2][i] = 0;
+            _Jx_block[3][i] = 0;
+            _Jx_block[4][i] = -_s0[i]*a;
+            _Jx_block[5][i] = 0;
+            _Jx_block[6][i] = 0;
+            _Jx_block[7][i] = 0;
+            _Jx_block[8][i] = 1;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 9; ++k) {
+                    Jx[9 * (start + i) + k] = _Jx_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1369,6 +1419,7 @@ void avr3000_motor_to_joint_batch(size_t count, const double *restrict motor, co
     double theta1[KINEGEN_BLOCK_OF(64)];
     double theta2[KINEGEN_BLOCK_OF(64)];
     double theta3[KINEGEN_BLOCK_OF(64)];
+    double _joint_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -1386,9 +1437,17 @@ void avr3000_motor_to_joint_batch(size_t count, const double *restrict motor, co
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            joint[3 * (start + i) + 0] = J11*theta1[i];
-            joint[3 * (start + i) + 1] = J21*theta1[i] + J22*theta2[i] + 3.141592653589793;
-            joint[3 * (start + i) + 2] = J33*theta3[i];
+            _joint_block[0][i] = J11*theta1[i];
+            _joint_block[1][i] = J21*theta1[i] + J22*theta2[i] + 3.141592653589793;
+            _joint_block[2][i] = J33*theta3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    joint[3 * (start + i) + k] = _joint_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1425,6 +1484,7 @@ void avr3000_motor_to_joint_velocity_batch(size_t count, const double *restrict 
     double thetadot1[KINEGEN_BLOCK_OF(64)];
     double thetadot2[KINEGEN_BLOCK_OF(64)];
     double thetadot3[KINEGEN_BLOCK_OF(64)];
+    double _joint_velocity_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     (void)motor;
     if (params == NULL) {
@@ -1443,9 +1503,17 @@ void avr3000_motor_to_joint_velocity_batch(size_t count, const double *restrict 
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            joint_velocity[3 * (start + i) + 0] = J11*thetadot1[i];
-            joint_velocity[3 * (start + i) + 1] = J21*thetadot1[i] + J22*thetadot2[i];
-            joint_velocity[3 * (start + i) + 2] = J33*thetadot3[i];
+            _joint_velocity_block[0][i] = J11*thetadot1[i];
+            _joint_velocity_block[1][i] = J21*thetadot1[i] + J22*thetadot2[i];
+            _joint_velocity_block[2][i] = J33*thetadot3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    joint_velocity[3 * (start + i) + k] = _joint_velocity_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1483,6 +1551,7 @@ void avr3000_motor_to_joint_acceleration_batch(size_t count, const double *restr
     double thetaddot1[KINEGEN_BLOCK_OF(64)];
     double thetaddot2[KINEGEN_BLOCK_OF(64)];
     double thetaddot3[KINEGEN_BLOCK_OF(64)];
+    double _joint_acceleration_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     (void)motor;
     (void)motor_velocity;
@@ -1502,9 +1571,17 @@ void avr3000_motor_to_joint_acceleration_batch(size_t count, const double *restr
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            joint_acceleration[3 * (start + i) + 0] = J11*thetaddot1[i];
-            joint_acceleration[3 * (start + i) + 1] = J21*thetaddot1[i] + J22*thetaddot2[i];
-            joint_acceleration[3 * (start + i) + 2] = J33*thetaddot3[i];
+            _joint_acceleration_block[0][i] = J11*thetaddot1[i];
+            _joint_acceleration_block[1][i] = J21*thetaddot1[i] + J22*thetaddot2[i];
+            _joint_acceleration_block[2][i] = J33*thetaddot3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    joint_acceleration[3 * (start + i) + k] = _joint_acceleration_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1542,6 +1619,7 @@ void avr3000_joint_to_tool_batch(size_t count, const double *restrict joint, con
     double q3[KINEGEN_BLOCK_OF(64)];
     double _t0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
+    double _tool_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -1564,9 +1642,17 @@ void avr3000_joint_to_tool_batch(size_t count, const double *restrict joint, con
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            tool[3 * (start + i) + 0] = -_t0[i] - q1[i] + 1.5707963267948966;
-            tool[3 * (start + i) + 1] = 2*_c0[i]*a;
-            tool[3 * (start + i) + 2] = q3[i];
+            _tool_block[0][i] = -_t0[i] - q1[i] + 1.5707963267948966;
+            _tool_block[1][i] = 2*_c0[i]*a;
+            _tool_block[2][i] = q3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    tool[3 * (start + i) + k] = _tool_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1606,6 +1692,7 @@ void avr3000_joint_to_tool_velocity_batch(size_t count, const double *restrict j
     double qdot3[KINEGEN_BLOCK_OF(64)];
     double _a0[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
+    double _tool_velocity_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -1629,9 +1716,17 @@ void avr3000_joint_to_tool_velocity_batch(size_t count, const double *restrict j
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            tool_velocity[3 * (start + i) + 0] = -qdot1[i] - 0.5*qdot2[i];
-            tool_velocity[3 * (start + i) + 1] = -_s0[i]*a*qdot2[i];
-            tool_velocity[3 * (start + i) + 2] = qdot3[i];
+            _tool_velocity_block[0][i] = -qdot1[i] - 0.5*qdot2[i];
+            _tool_velocity_block[1][i] = -_s0[i]*a*qdot2[i];
+            _tool_velocity_block[2][i] = qdot3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    tool_velocity[3 * (start + i) + k] = _tool_velocity_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1675,6 +1770,7 @@ void avr3000_joint_to_tool_acceleration_batch(size_t count, const double *restri
     double _t0[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
+    double _tool_acceleration_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -1703,9 +1799,17 @@ void avr3000_joint_to_tool_acceleration_batch(size_t count, const double *restri
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            tool_acceleration[3 * (start + i) + 0] = -qddot1[i] - 0.5*qddot2[i];
-            tool_acceleration[3 * (start + i) + 1] = -0.5*_c0[i]*a*(qdot2[i]*qdot2[i]) - _s0[i]*a*qddot2[i];
-            tool_acceleration[3 * (start + i) + 2] = qddot3[i];
+            _tool_acceleration_block[0][i] = -qddot1[i] - 0.5*qddot2[i];
+            _tool_acceleration_block[1][i] = -0.5*_c0[i]*a*(qdot2[i]*qdot2[i]) - _s0[i]*a*qddot2[i];
+            _tool_acceleration_block[2][i] = qddot3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    tool_acceleration[3 * (start + i) + k] = _tool_acceleration_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1779,6 +1883,7 @@ void avr3000_joint_to_cartesian_batch(size_t count, const double *restrict joint
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
+    double _cartesian_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -1823,9 +1928,17 @@ void avr3000_joint_to_cartesian_batch(size_t count, const double *restrict joint
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            cartesian[3 * (start + i) + 0] = _c0[i]*a + _c1[i]*a - _c2[i]*e;
-            cartesian[3 * (start + i) + 1] = _s0[i]*a + _s1[i]*a - _s2[i]*e;
-            cartesian[3 * (start + i) + 2] = q3[i];
+            _cartesian_block[0][i] = _c0[i]*a + _c1[i]*a - _c2[i]*e;
+            _cartesian_block[1][i] = _s0[i]*a + _s1[i]*a - _s2[i]*e;
+            _cartesian_block[2][i] = q3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    cartesian[3 * (start + i) + k] = _cartesian_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1906,6 +2019,7 @@ void avr3000_joint_to_cartesian_velocity_batch(size_t count, const double *restr
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
+    double _cartesian_velocity_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -1955,9 +2069,17 @@ void avr3000_joint_to_cartesian_velocity_batch(size_t count, const double *restr
             const double _t1 = _s0[i]*a;
             const double _t4 = _c0[i]*a;
             const double _t5 = _c1[i]*e;
-            cartesian_velocity[3 * (start + i) + 0] = qdot1[i]*(_s1[i]*e - _s2[i]*a - _t1) + qdot2[i]*((0.5)*_s1[i]*e - _t1);
-            cartesian_velocity[3 * (start + i) + 1] = qdot1[i]*(_c2[i]*a + _t4 - _t5) + qdot2[i]*(_t4 - 0.5*_t5);
-            cartesian_velocity[3 * (start + i) + 2] = qdot3[i];
+            _cartesian_velocity_block[0][i] = qdot1[i]*(_s1[i]*e - _s2[i]*a - _t1) + qdot2[i]*((0.5)*_s1[i]*e - _t1);
+            _cartesian_velocity_block[1][i] = qdot1[i]*(_c2[i]*a + _t4 - _t5) + qdot2[i]*(_t4 - 0.5*_t5);
+            _cartesian_velocity_block[2][i] = qdot3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    cartesian_velocity[3 * (start + i) + k] = _cartesian_velocity_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2046,6 +2168,7 @@ void avr3000_joint_to_cartesian_acceleration_batch(size_t count, const double *r
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
+    double _cartesian_acceleration_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -2101,9 +2224,17 @@ void avr3000_joint_to_cartesian_acceleration_batch(size_t count, const double *r
             const double _t8 = -_c1[i]*e + _c2[i]*a + _t6;
             const double _t9 = -0.5*_c1[i]*e + _t6;
             const double _t10 = -_t9;
-            cartesian_acceleration[3 * (start + i) + 0] = _t4*qddot1[i] + _t5*qddot2[i] + qdot1[i]*(_t10*qdot2[i] - _t8*qdot1[i]) + qdot2[i]*(_t10*qdot1[i] + qdot2[i]*((0.25)*_c1[i]*e - _t6));
-            cartesian_acceleration[3 * (start + i) + 1] = _t8*qddot1[i] + _t9*qddot2[i] + qdot1[i]*(_t4*qdot1[i] + _t5*qdot2[i]) + qdot2[i]*(_t5*qdot1[i] + qdot2[i]*((0.25)*_s1[i]*e - _t1));
-            cartesian_acceleration[3 * (start + i) + 2] = qddot3[i];
+            _cartesian_acceleration_block[0][i] = _t4*qddot1[i] + _t5*qddot2[i] + qdot1[i]*(_t10*qdot2[i] - _t8*qdot1[i]) + qdot2[i]*(_t10*qdot1[i] + qdot2[i]*((0.25)*_c1[i]*e - _t6));
+            _cartesian_acceleration_block[1][i] = _t8*qddot1[i] + _t9*qddot2[i] + qdot1[i]*(_t4*qdot1[i] + _t5*qdot2[i]) + qdot2[i]*(_t5*qdot1[i] + qdot2[i]*((0.25)*_s1[i]*e - _t1));
+            _cartesian_acceleration_block[2][i] = qddot3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    cartesian_acceleration[3 * (start + i) + k] = _cartesian_acceleration_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2142,6 +2273,7 @@ void avr3000_tool_to_cartesian_batch(size_t count, const double *restrict tool, 
     double Z[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
+    double _cartesian_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -2165,9 +2297,17 @@ void avr3000_tool_to_cartesian_batch(size_t count, const double *restrict tool, 
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             const double _t0 = R[i] - e;
-            cartesian[3 * (start + i) + 0] = _s0[i]*_t0;
-            cartesian[3 * (start + i) + 1] = _c0[i]*_t0;
-            cartesian[3 * (start + i) + 2] = Z[i];
+            _cartesian_block[0][i] = _s0[i]*_t0;
+            _cartesian_block[1][i] = _c0[i]*_t0;
+            _cartesian_block[2][i] = Z[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    cartesian[3 * (start + i) + k] = _cartesian_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2210,6 +2350,7 @@ void avr3000_tool_to_cartesian_velocity_batch(size_t count, const double *restri
     double Zdot[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
+    double _cartesian_velocity_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -2235,9 +2376,17 @@ void avr3000_tool_to_cartesian_velocity_batch(size_t count, const double *restri
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             const double _t2 = Tdot[i]*(R[i] - e);
-            cartesian_velocity[3 * (start + i) + 0] = Rdot[i]*_s0[i] + _c0[i]*_t2;
-            cartesian_velocity[3 * (start + i) + 1] = Rdot[i]*_c0[i] - _s0[i]*_t2;
-            cartesian_velocity[3 * (start + i) + 2] = Zdot[i];
+            _cartesian_velocity_block[0][i] = Rdot[i]*_s0[i] + _c0[i]*_t2;
+            _cartesian_velocity_block[1][i] = Rdot[i]*_c0[i] - _s0[i]*_t2;
+            _cartesian_velocity_block[2][i] = Zdot[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    cartesian_velocity[3 * (start + i) + k] = _cartesian_velocity_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2288,6 +2437,7 @@ void avr3000_tool_to_cartesian_acceleration_batch(size_t count, const double *re
     double Zddot[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
+    double _cartesian_acceleration_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -2319,9 +2469,17 @@ void avr3000_tool_to_cartesian_acceleration_batch(size_t count, const double *re
             const double _t4 = Tdot[i]*_t3;
             const double _t5 = Tddot[i]*_t3;
             const double _t6 = Rdot[i]*_s0[i];
-            cartesian_acceleration[3 * (start + i) + 0] = Rddot[i]*_s0[i] + Tdot[i]*_t2 + Tdot[i]*(-_s0[i]*_t4 + _t2) + _c0[i]*_t5;
-            cartesian_acceleration[3 * (start + i) + 1] = Rddot[i]*_c0[i] - Tdot[i]*_t6 + Tdot[i]*(-_c0[i]*_t4 - _t6) - _s0[i]*_t5;
-            cartesian_acceleration[3 * (start + i) + 2] = Zddot[i];
+            _cartesian_acceleration_block[0][i] = Rddot[i]*_s0[i] + Tdot[i]*_t2 + Tdot[i]*(-_s0[i]*_t4 + _t2) + _c0[i]*_t5;
+            _cartesian_acceleration_block[1][i] = Rddot[i]*_c0[i] - Tdot[i]*_t6 + Tdot[i]*(-_c0[i]*_t4 - _t6) - _s0[i]*_t5;
+            _cartesian_acceleration_block[2][i] = Zddot[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    cartesian_acceleration[3 * (start + i) + k] = _cartesian_acceleration_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2363,6 +2521,7 @@ void avr3000_motor_to_tool_batch(size_t count, const double *restrict motor, con
     double theta3[KINEGEN_BLOCK_OF(64)];
     double _t0[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
+    double _tool_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -2389,9 +2548,17 @@ void avr3000_motor_to_tool_batch(size_t count, const double *restrict motor, con
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            tool[3 * (start + i) + 0] = -J11*theta1[i] - _t0[i];
-            tool[3 * (start + i) + 1] = -2*_s0[i]*a;
-            tool[3 * (start + i) + 2] = J33*theta3[i];
+            _tool_block[0][i] = -J11*theta1[i] - _t0[i];
+            _tool_block[1][i] = -2*_s0[i]*a;
+            _tool_block[2][i] = J33*theta3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    tool[3 * (start + i) + k] = _tool_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2440,6 +2607,7 @@ void avr3000_motor_to_tool_velocity_batch(size_t count, const double *restrict m
     double thetadot3[KINEGEN_BLOCK_OF(64)];
     double _a0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
+    double _tool_velocity_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -2471,9 +2639,17 @@ void avr3000_motor_to_tool_velocity_batch(size_t count, const double *restrict m
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             const double _t2 = _c0[i]*a;
-            tool_velocity[3 * (start + i) + 0] = -_t0*thetadot2[i] + thetadot1[i]*(-J11 - _t1);
-            tool_velocity[3 * (start + i) + 1] = -J21*_t2*thetadot1[i] - J22*_t2*thetadot2[i];
-            tool_velocity[3 * (start + i) + 2] = J33*thetadot3[i];
+            _tool_velocity_block[0][i] = -_t0*thetadot2[i] + thetadot1[i]*(-J11 - _t1);
+            _tool_velocity_block[1][i] = -J21*_t2*thetadot1[i] - J22*_t2*thetadot2[i];
+            _tool_velocity_block[2][i] = J33*thetadot3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    tool_velocity[3 * (start + i) + k] = _tool_velocity_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2531,6 +2707,7 @@ void avr3000_motor_to_tool_acceleration_batch(size_t count, const double *restri
     double _t2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
+    double _tool_acceleration_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -2571,9 +2748,17 @@ void avr3000_motor_to_tool_acceleration_batch(size_t count, const double *restri
             const double _t4 = (0.5)*_t3;
             const double _t5 = J22*_t1*_t3;
             const double _t6 = _c0[i]*a;
-            tool_acceleration[3 * (start + i) + 0] = -_t0*thetaddot2[i] + thetaddot1[i]*(-J11 - _t1);
-            tool_acceleration[3 * (start + i) + 1] = -J21*_t6*thetaddot1[i] - J22*_t6*thetaddot2[i] + thetadot1[i]*((J21*J21)*_t4*thetadot1[i] + _t5*thetadot2[i]) + thetadot2[i]*((J22*J22)*_t4*thetadot2[i] + _t5*thetadot1[i]);
-            tool_acceleration[3 * (start + i) + 2] = J33*thetaddot3[i];
+            _tool_acceleration_block[0][i] = -_t0*thetaddot2[i] + thetaddot1[i]*(-J11 - _t1);
+            _tool_acceleration_block[1][i] = -J21*_t6*thetaddot1[i] - J22*_t6*thetaddot2[i] + thetadot1[i]*((J21*J21)*_t4*thetadot1[i] + _t5*thetadot2[i]) + thetadot2[i]*((J22*J22)*_t4*thetadot2[i] + _t5*thetadot1[i]);
+            _tool_acceleration_block[2][i] = J33*thetaddot3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    tool_acceleration[3 * (start + i) + k] = _tool_acceleration_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2655,6 +2840,7 @@ void avr3000_motor_to_cartesian_batch(size_t count, const double *restrict motor
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
+    double _cartesian_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -2706,9 +2892,17 @@ void avr3000_motor_to_cartesian_batch(size_t count, const double *restrict motor
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            cartesian[3 * (start + i) + 0] = _c1[i]*a - _c2[i]*a + _s0[i]*e;
-            cartesian[3 * (start + i) + 1] = -_c0[i]*e + _s1[i]*a - _s2[i]*a;
-            cartesian[3 * (start + i) + 2] = J33*theta3[i];
+            _cartesian_block[0][i] = _c1[i]*a - _c2[i]*a + _s0[i]*e;
+            _cartesian_block[1][i] = -_c0[i]*e + _s1[i]*a - _s2[i]*a;
+            _cartesian_block[2][i] = J33*theta3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    cartesian[3 * (start + i) + k] = _cartesian_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2799,6 +2993,7 @@ void avr3000_motor_to_cartesian_velocity_batch(size_t count, const double *restr
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
+    double _cartesian_velocity_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -2857,9 +3052,17 @@ void avr3000_motor_to_cartesian_velocity_batch(size_t count, const double *restr
         for (i = 0; i < n; ++i) {
             const double _t8 = _s1[i]*a;
             const double _t11 = _c1[i]*a;
-            cartesian_velocity[3 * (start + i) + 0] = thetadot1[i]*(_c0[i]*_t5 - _s2[i]*_t9 + _t6*_t8) + thetadot2[i]*((0.5)*J22*_c0[i]*e + J22*_t8);
-            cartesian_velocity[3 * (start + i) + 1] = thetadot1[i]*(_c2[i]*_t9 + _s0[i]*_t5 - _t11*_t6) + thetadot2[i]*((0.5)*J22*_s0[i]*e - J22*_t11);
-            cartesian_velocity[3 * (start + i) + 2] = J33*thetadot3[i];
+            _cartesian_velocity_block[0][i] = thetadot1[i]*(_c0[i]*_t5 - _s2[i]*_t9 + _t6*_t8) + thetadot2[i]*((0.5)*J22*_c0[i]*e + J22*_t8);
+            _cartesian_velocity_block[1][i] = thetadot1[i]*(_c2[i]*_t9 + _s0[i]*_t5 - _t11*_t6) + thetadot2[i]*((0.5)*J22*_s0[i]*e - J22*_t11);
+            _cartesian_velocity_block[2][i] = J33*thetadot3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    cartesian_velocity[3 * (start + i) + k] = _cartesian_velocity_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2968,6 +3171,7 @@ void avr3000_motor_to_cartesian_acceleration_batch(size_t count, const double *r
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
+    double _cartesian_acceleration_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -3042,9 +3246,17 @@ void avr3000_motor_to_cartesian_acceleration_batch(size_t count, const double *r
             const double _t24 = _s0[i]*_t6;
             const double _t25 = J22*_t23 - _t15*_t24;
             const double _t28 = J22*_t11 + _t15*_t7;
-            cartesian_acceleration[3 * (start + i) + 0] = thetaddot1[i]*(-_s2[i]*_t13 + _t11 + _t7) + thetaddot2[i]*(J22*_t10 + _t14*_t15) + thetadot1[i]*(_t25*thetadot2[i] + thetadot1[i]*(_c1[i]*_t20*a - _c2[i]*_t19 - _s0[i]*_t17)) + thetadot2[i]*(_t25*thetadot1[i] + thetadot2[i]*(-_s0[i]*_t27*e + _t22*_t26));
-            cartesian_acceleration[3 * (start + i) + 1] = thetaddot1[i]*(_c2[i]*_t13 - _t23 + _t24) + thetaddot2[i]*((0.5)*J22*_s0[i]*e - J22*_t22) + thetadot1[i]*(_t28*thetadot2[i] + thetadot1[i]*(_c0[i]*_t17 - _s2[i]*_t19 + _t10*_t20)) + thetadot2[i]*(_t28*thetadot1[i] + thetadot2[i]*(_t10*_t26 + _t14*_t27));
-            cartesian_acceleration[3 * (start + i) + 2] = J33*thetaddot3[i];
+            _cartesian_acceleration_block[0][i] = thetaddot1[i]*(-_s2[i]*_t13 + _t11 + _t7) + thetaddot2[i]*(J22*_t10 + _t14*_t15) + thetadot1[i]*(_t25*thetadot2[i] + thetadot1[i]*(_c1[i]*_t20*a - _c2[i]*_t19 - _s0[i]*_t17)) + thetadot2[i]*(_t25*thetadot1[i] + thetadot2[i]*(-_s0[i]*_t27*e + _t22*_t26));
+            _cartesian_acceleration_block[1][i] = thetaddot1[i]*(_c2[i]*_t13 - _t23 + _t24) + thetaddot2[i]*((0.5)*J22*_s0[i]*e - J22*_t22) + thetadot1[i]*(_t28*thetadot2[i] + thetadot1[i]*(_c0[i]*_t17 - _s2[i]*_t19 + _t10*_t20)) + thetadot2[i]*(_t28*thetadot1[i] + thetadot2[i]*(_t10*_t26 + _t14*_t27));
+            _cartesian_acceleration_block[2][i] = J33*thetaddot3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    cartesian_acceleration[3 * (start + i) + k] = _cartesian_acceleration_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -3082,6 +3294,7 @@ void avr3000_joint_to_motor_batch(size_t count, const double *restrict joint, co
     double q1[KINEGEN_BLOCK_OF(64)];
     double q2[KINEGEN_BLOCK_OF(64)];
     double q3[KINEGEN_BLOCK_OF(64)];
+    double _motor_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &avr3000_default_params;
@@ -3101,9 +3314,17 @@ void avr3000_joint_to_motor_batch(size_t count, const double *restrict joint, co
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             const double _t0 = q1[i]/J11;
-            motor[3 * (start + i) + 0] = _t0;
-            motor[3 * (start + i) + 1] = -J21*_t0*_t1 + _t1*q2[i] - 3.141592653589793*_t1;
-            motor[3 * (start + i) + 2] = q3[i]/J33;
+            _motor_block[0][i] = _t0;
+            _motor_block[1][i] = -J21*_t0*_t1 + _t1*q2[i] - 3.141592653589793*_t1;
+            _motor_block[2][i] = q3[i]/J33;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    motor[3 * (start + i) + k] = _motor_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -3142,6 +3363,7 @@ void avr3000_joint_to_motor_velocity_batch(size_t count, const double *restrict 
     double qdot1[KINEGEN_BLOCK_OF(64)];
     double qdot2[KINEGEN_BLOCK_OF(64)];
     double qdot3[KINEGEN_BLOCK_OF(64)];
+    double _motor_velocity_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     (void)joint;
     if (params == NULL) {
@@ -3162,9 +3384,17 @@ void avr3000_joint_to_motor_velocity_batch(size_t count, const double *restrict 
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             const double _t0 = qdot1[i]/J11;
-            motor_velocity[3 * (start + i) + 0] = _t0;
-            motor_velocity[3 * (start + i) + 1] = -J21*_t0*_t1 + _t1*qdot2[i];
-            motor_velocity[3 * (start + i) + 2] = qdot3[i]/J33;
+            _motor_velocity_block[0][i] = _t0;
+            _motor_velocity_block[1][i] = -J21*_t0*_t1 + _t1*qdot2[i];
+            _motor_velocity_block[2][i] = qdot3[i]/J33;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    motor_velocity[3 * (start + i) + k] = _motor_velocity_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -3204,6 +3434,7 @@ void avr3000_joint_to_motor_acceleration_batch(size_t count, const double *restr
     double qddot1[KINEGEN_BLOCK_OF(64)];
     double qddot2[KINEGEN_BLOCK_OF(64)];
     double qddot3[KINEGEN_BLOCK_OF(64)];
+    double _motor_acceleration_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     (void)joint;
     (void)joint_velocity;
@@ -3225,9 +3456,17 @@ void avr3000_joint_to_motor_acceleration_batch(size_t count, const double *restr
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             const double _t0 = qddot1[i]/J11;
-            motor_acceleration[3 * (start + i) + 0] = _t0;
-            motor_acceleration[3 * (start + i) + 1] = -J21*_t0*_t1 + _t1*qddot2[i];
-            motor_acceleration[3 * (start + i) + 2] = qddot3[i]/J33;
+            _motor_acceleration_block[0][i] = _t0;
+            _motor_acceleration_block[1][i] = -J21*_t0*_t1 + _t1*qddot2[i];
+            _motor_acceleration_block[2][i] = qddot3[i]/J33;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    motor_acceleration[3 * (start + i) + k] = _motor_acceleration_block[k][i];
+                }
+            }
         }
     }
 #else

@@ -176,8 +176,8 @@ void planar_2r_fk_batch(size_t count, const double *restrict q, const planar_2r_
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _T_block[16][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
 #endif
@@ -239,22 +239,22 @@ void planar_2r_fk_batch(size_t count, const double *restrict q, const planar_2r_
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                T[16 * (start + i) + 0] = _c0[i];
-                T[16 * (start + i) + 1] = -_s0[i];
-                T[16 * (start + i) + 2] = 0;
-                T[16 * (start + i) + 3] = _c0[i]*l2 + _c1[i]*l1;
-                T[16 * (start + i) + 4] = _s0[i];
-                T[16 * (start + i) + 5] = _c0[i];
-                T[16 * (start + i) + 6] = 0;
-                T[16 * (start + i) + 7] = _s0[i]*l2 + _s1[i]*l1;
-                T[16 * (start + i) + 8] = 0;
-                T[16 * (start + i) + 9] = 0;
-                T[16 * (start + i) + 10] = 1;
-                T[16 * (start + i) + 11] = 0;
-                T[16 * (start + i) + 12] = 0;
-                T[16 * (start + i) + 13] = 0;
-                T[16 * (start + i) + 14] = 0;
-                T[16 * (start + i) + 15] = 1;
+                _T_block[0][i] = _c0[i];
+                _T_block[1][i] = -_s0[i];
+                _T_block[2][i] = 0;
+                _T_block[3][i] = _c0[i]*l2 + _c1[i]*l1;
+                _T_block[4][i] = _s0[i];
+                _T_block[5][i] = _c0[i];
+                _T_block[6][i] = 0;
+                _T_block[7][i] = _s0[i]*l2 + _s1[i]*l1;
+                _T_block[8][i] = 0;
+                _T_block[9][i] = 0;
+                _T_block[10][i] = 1;
+                _T_block[11][i] = 0;
+                _T_block[12][i] = 0;
+                _T_block[13][i] = 0;
+                _T_block[14][i] = 0;
+                _T_block[15][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -265,8 +265,16 @@ void planar_2r_fk_batch(size_t count, const double *restrict q, const planar_2r_
                     _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 16; ++k) {
+                    T[16 * (start + i) + k] = _T_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -381,8 +389,8 @@ void planar_2r_frames_batch(size_t count, const double *restrict q, const planar
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _frames_block[48][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 48 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
 #endif
@@ -480,54 +488,54 @@ void planar_2r_frames_batch(size_t count, const double *restrict q, const planar
             for (i = 0; i < n; ++i) {
                 const double _t2 = _c0[i]*l1;
                 const double _t3 = _s0[i]*l1;
-                frames[48 * (start + i) + 0] = 1;
-                frames[48 * (start + i) + 1] = 0;
-                frames[48 * (start + i) + 2] = 0;
-                frames[48 * (start + i) + 3] = 0;
-                frames[48 * (start + i) + 4] = 0;
-                frames[48 * (start + i) + 5] = 1;
-                frames[48 * (start + i) + 6] = 0;
-                frames[48 * (start + i) + 7] = 0;
-                frames[48 * (start + i) + 8] = 0;
-                frames[48 * (start + i) + 9] = 0;
-                frames[48 * (start + i) + 10] = 1;
-                frames[48 * (start + i) + 11] = 0;
-                frames[48 * (start + i) + 12] = 0;
-                frames[48 * (start + i) + 13] = 0;
-                frames[48 * (start + i) + 14] = 0;
-                frames[48 * (start + i) + 15] = 1;
-                frames[48 * (start + i) + 16] = _c0[i];
-                frames[48 * (start + i) + 17] = -_s0[i];
-                frames[48 * (start + i) + 18] = 0;
-                frames[48 * (start + i) + 19] = _t2;
-                frames[48 * (start + i) + 20] = _s0[i];
-                frames[48 * (start + i) + 21] = _c0[i];
-                frames[48 * (start + i) + 22] = 0;
-                frames[48 * (start + i) + 23] = _t3;
-                frames[48 * (start + i) + 24] = 0;
-                frames[48 * (start + i) + 25] = 0;
-                frames[48 * (start + i) + 26] = 1;
-                frames[48 * (start + i) + 27] = 0;
-                frames[48 * (start + i) + 28] = 0;
-                frames[48 * (start + i) + 29] = 0;
-                frames[48 * (start + i) + 30] = 0;
-                frames[48 * (start + i) + 31] = 1;
-                frames[48 * (start + i) + 32] = _c1[i];
-                frames[48 * (start + i) + 33] = -_s1[i];
-                frames[48 * (start + i) + 34] = 0;
-                frames[48 * (start + i) + 35] = _c1[i]*l2 + _t2;
-                frames[48 * (start + i) + 36] = _s1[i];
-                frames[48 * (start + i) + 37] = _c1[i];
-                frames[48 * (start + i) + 38] = 0;
-                frames[48 * (start + i) + 39] = _s1[i]*l2 + _t3;
-                frames[48 * (start + i) + 40] = 0;
-                frames[48 * (start + i) + 41] = 0;
-                frames[48 * (start + i) + 42] = 1;
-                frames[48 * (start + i) + 43] = 0;
-                frames[48 * (start + i) + 44] = 0;
-                frames[48 * (start + i) + 45] = 0;
-                frames[48 * (start + i) + 46] = 0;
-                frames[48 * (start + i) + 47] = 1;
+                _frames_block[0][i] = 1;
+                _frames_block[1][i] = 0;
+                _frames_block[2][i] = 0;
+                _frames_block[3][i] = 0;
+                _frames_block[4][i] = 0;
+                _frames_block[5][i] = 1;
+                _frames_block[6][i] = 0;
+                _frames_block[7][i] = 0;
+                _frames_block[8][i] = 0;
+                _frames_block[9][i] = 0;
+                _frames_block[10][i] = 1;
+                _frames_block[11][i] = 0;
+                _frames_block[12][i] = 0;
+                _frames_block[13][i] = 0;
+                _frames_block[14][i] = 0;
+                _frames_block[15][i] = 1;
+                _frames_block[16][i] = _c0[i];
+                _frames_block[17][i] = -_s0[i];
+                _frames_block[18][i] = 0;
+                _frames_block[19][i] = _t2;
+                _frames_block[20][i] = _s0[i];
+                _frames_block[21][i] = _c0[i];
+                _frames_block[22][i] = 0;
+                _frames_block[23][i] = _t3;
+                _frames_block[24][i] = 0;
+                _frames_block[25][i] = 0;
+                _frames_block[26][i] = 1;
+                _frames_block[27][i] = 0;
+                _frames_block[28][i] = 0;
+                _frames_block[29][i] = 0;
+                _frames_block[30][i] = 0;
+                _frames_block[31][i] = 1;
+                _frames_block[32][i] = _c1[i];
+                _frames_block[33][i] = -_s1[i];
+                _frames_block[34][i] = 0;
+                _frames_block[35][i] = _c1[i]*l2 + _t2;
+                _frames_block[36][i] = _s1[i];
+                _frames_block[37][i] = _c1[i];
+                _frames_block[38][i] = 0;
+                _frames_block[39][i] = _s1[i]*l2 + _t3;
+                _frames_block[40][i] = 0;
+                _frames_block[41][i] = 0;
+                _frames_block[42][i] = 1;
+                _frames_block[43][i] = 0;
+                _frames_block[44][i] = 0;
+                _frames_block[45][i] = 0;
+                _frames_block[46][i] = 0;
+                _frames_block[47][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -538,8 +546,16 @@ void planar_2r_frames_batch(size_t count, const double *restrict q, const planar
                     _mm_stream_pd(frames + 48 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 48; ++k) {
+                    frames[48 * (start + i) + k] = _frames_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -618,8 +634,8 @@ void planar_2r_jacobian_batch(size_t count, const double *restrict q, const plan
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_block[12][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
 #endif
@@ -681,18 +697,18 @@ void planar_2r_jacobian_batch(size_t count, const double *restrict q, const plan
             for (i = 0; i < n; ++i) {
                 const double _t1 = _s0[i]*l2;
                 const double _t2 = _c0[i]*l2;
-                J[12 * (start + i) + 0] = -_s1[i]*l1 - _t1;
-                J[12 * (start + i) + 1] = -_t1;
-                J[12 * (start + i) + 2] = _c1[i]*l1 + _t2;
-                J[12 * (start + i) + 3] = _t2;
-                J[12 * (start + i) + 4] = 0;
-                J[12 * (start + i) + 5] = 0;
-                J[12 * (start + i) + 6] = 0;
-                J[12 * (start + i) + 7] = 0;
-                J[12 * (start + i) + 8] = 0;
-                J[12 * (start + i) + 9] = 0;
-                J[12 * (start + i) + 10] = 1;
-                J[12 * (start + i) + 11] = 1;
+                _J_block[0][i] = -_s1[i]*l1 - _t1;
+                _J_block[1][i] = -_t1;
+                _J_block[2][i] = _c1[i]*l1 + _t2;
+                _J_block[3][i] = _t2;
+                _J_block[4][i] = 0;
+                _J_block[5][i] = 0;
+                _J_block[6][i] = 0;
+                _J_block[7][i] = 0;
+                _J_block[8][i] = 0;
+                _J_block[9][i] = 0;
+                _J_block[10][i] = 1;
+                _J_block[11][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -703,8 +719,16 @@ void planar_2r_jacobian_batch(size_t count, const double *restrict q, const plan
                     _mm_stream_pd(J + 12 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 12; ++k) {
+                    J[12 * (start + i) + k] = _J_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -783,8 +807,8 @@ void planar_2r_jacobian_tool_batch(size_t count, const double *restrict q, const
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_tool_block[12][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_tool & 15) == 0;
 #endif
@@ -846,18 +870,18 @@ void planar_2r_jacobian_tool_batch(size_t count, const double *restrict q, const
             for (i = 0; i < n; ++i) {
                 const double _t2 = _c0[i]*l2 + _c1[i]*l1;
                 const double _t4 = -_s0[i]*l2 - _s1[i]*l1;
-                J_tool[12 * (start + i) + 0] = _c0[i]*_t4 + _s0[i]*_t2;
-                J_tool[12 * (start + i) + 1] = 0;
-                J_tool[12 * (start + i) + 2] = _c0[i]*_t2 - _s0[i]*_t4;
-                J_tool[12 * (start + i) + 3] = (_c0[i]*_c0[i])*l2 + (_s0[i]*_s0[i])*l2;
-                J_tool[12 * (start + i) + 4] = 0;
-                J_tool[12 * (start + i) + 5] = 0;
-                J_tool[12 * (start + i) + 6] = 0;
-                J_tool[12 * (start + i) + 7] = 0;
-                J_tool[12 * (start + i) + 8] = 0;
-                J_tool[12 * (start + i) + 9] = 0;
-                J_tool[12 * (start + i) + 10] = 1;
-                J_tool[12 * (start + i) + 11] = 1;
+                _J_tool_block[0][i] = _c0[i]*_t4 + _s0[i]*_t2;
+                _J_tool_block[1][i] = 0;
+                _J_tool_block[2][i] = _c0[i]*_t2 - _s0[i]*_t4;
+                _J_tool_block[3][i] = (_c0[i]*_c0[i])*l2 + (_s0[i]*_s0[i])*l2;
+                _J_tool_block[4][i] = 0;
+                _J_tool_block[5][i] = 0;
+                _J_tool_block[6][i] = 0;
+                _J_tool_block[7][i] = 0;
+                _J_tool_block[8][i] = 0;
+                _J_tool_block[9][i] = 0;
+                _J_tool_block[10][i] = 1;
+                _J_tool_block[11][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -868,8 +892,16 @@ void planar_2r_jacobian_tool_batch(size_t count, const double *restrict q, const
                     _mm_stream_pd(J_tool + 12 * (start + i) + k, _mm_set_pd(_J_tool_block[k + 1][i], _J_tool_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 12; ++k) {
+                    J_tool[12 * (start + i) + k] = _J_tool_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -936,8 +968,8 @@ void planar_2r_task_batch(size_t count, const double *restrict q, const planar_2
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _x_block[2][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)x & 15) == 0;
 #endif
@@ -985,8 +1017,8 @@ void planar_2r_task_batch(size_t count, const double *restrict q, const planar_2
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                x[2 * (start + i) + 0] = _c0[i]*l1 + _c1[i]*l2;
-                x[2 * (start + i) + 1] = _s0[i]*l1 + _s1[i]*l2;
+                _x_block[0][i] = _c0[i]*l1 + _c1[i]*l2;
+                _x_block[1][i] = _s0[i]*l1 + _s1[i]*l2;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -997,8 +1029,16 @@ void planar_2r_task_batch(size_t count, const double *restrict q, const planar_2
                     _mm_stream_pd(x + 2 * (start + i) + k, _mm_set_pd(_x_block[k + 1][i], _x_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 2; ++k) {
+                    x[2 * (start + i) + k] = _x_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1069,8 +1109,8 @@ void planar_2r_task_jacobian_batch(size_t count, const double *restrict q, const
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _Jx_block[4][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx & 15) == 0;
 #endif
@@ -1124,10 +1164,10 @@ void planar_2r_task_jacobian_batch(size_t count, const double *restrict q, const
             for (i = 0; i < n; ++i) {
                 const double _t1 = _s0[i]*l2;
                 const double _t2 = _c0[i]*l2;
-                Jx[4 * (start + i) + 0] = -_s1[i]*l1 - _t1;
-                Jx[4 * (start + i) + 1] = -_t1;
-                Jx[4 * (start + i) + 2] = _c1[i]*l1 + _t2;
-                Jx[4 * (start + i) + 3] = _t2;
+                _Jx_block[0][i] = -_s1[i]*l1 - _t1;
+                _Jx_block[1][i] = -_t1;
+                _Jx_block[2][i] = _c1[i]*l1 + _t2;
+                _Jx_block[3][i] = _t2;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1138,8 +1178,16 @@ void planar_2r_task_jacobian_batch(size_t count, const double *restrict q, const
                     _mm_stream_pd(Jx + 4 * (start + i) + k, _mm_set_pd(_Jx_block[k + 1][i], _Jx_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 4; ++k) {
+                    Jx[4 * (start + i) + k] = _Jx_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1380,8 +1428,8 @@ void planar_2r_task_velocity_batch(size_t count, const double *restrict q, const
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _xd_block[2][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)xd & 15) == 0;
 #endif
@@ -1435,8 +1483,8 @@ void planar_2r_task_velocity_batch(size_t count, const double *restrict q, const
             for (i = 0; i < n; ++i) {
                 const double _t1 = _s0[i]*l2;
                 const double _t2 = _c0[i]*l2;
-                xd[2 * (start + i) + 0] = -_t1*qd2[i] + qd1[i]*(-_s1[i]*l1 - _t1);
-                xd[2 * (start + i) + 1] = _t2*qd2[i] + qd1[i]*(_c1[i]*l1 + _t2);
+                _xd_block[0][i] = -_t1*qd2[i] + qd1[i]*(-_s1[i]*l1 - _t1);
+                _xd_block[1][i] = _t2*qd2[i] + qd1[i]*(_c1[i]*l1 + _t2);
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1447,8 +1495,16 @@ void planar_2r_task_velocity_batch(size_t count, const double *restrict q, const
                     _mm_stream_pd(xd + 2 * (start + i) + k, _mm_set_pd(_xd_block[k + 1][i], _xd_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 2; ++k) {
+                    xd[2 * (start + i) + k] = _xd_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1525,8 +1581,8 @@ void planar_2r_twist_batch(size_t count, const double *restrict q, const double 
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _twist_block[6][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)twist & 15) == 0;
 #endif
@@ -1584,12 +1640,12 @@ void planar_2r_twist_batch(size_t count, const double *restrict q, const double 
             for (i = 0; i < n; ++i) {
                 const double _t1 = _s0[i]*l2;
                 const double _t2 = _c0[i]*l2;
-                twist[6 * (start + i) + 0] = -_t1*qd2[i] + qd1[i]*(-_s1[i]*l1 - _t1);
-                twist[6 * (start + i) + 1] = _t2*qd2[i] + qd1[i]*(_c1[i]*l1 + _t2);
-                twist[6 * (start + i) + 2] = 0;
-                twist[6 * (start + i) + 3] = 0;
-                twist[6 * (start + i) + 4] = 0;
-                twist[6 * (start + i) + 5] = qd1[i] + qd2[i];
+                _twist_block[0][i] = -_t1*qd2[i] + qd1[i]*(-_s1[i]*l1 - _t1);
+                _twist_block[1][i] = _t2*qd2[i] + qd1[i]*(_c1[i]*l1 + _t2);
+                _twist_block[2][i] = 0;
+                _twist_block[3][i] = 0;
+                _twist_block[4][i] = 0;
+                _twist_block[5][i] = qd1[i] + qd2[i];
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1600,8 +1656,16 @@ void planar_2r_twist_batch(size_t count, const double *restrict q, const double 
                     _mm_stream_pd(twist + 6 * (start + i) + k, _mm_set_pd(_twist_block[k + 1][i], _twist_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 6; ++k) {
+                    twist[6 * (start + i) + k] = _twist_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1678,8 +1742,8 @@ void planar_2r_task_jacobian_dot_batch(size_t count, const double *restrict q, c
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _Jx_dot_block[4][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx_dot & 15) == 0;
 #endif
@@ -1739,10 +1803,10 @@ void planar_2r_task_jacobian_dot_batch(size_t count, const double *restrict q, c
                 const double _t2 = _t1*qd2[i];
                 const double _t3 = _s0[i]*l2;
                 const double _t4 = _t3*qd2[i];
-                Jx_dot[4 * (start + i) + 0] = -_t2 + qd1[i]*(-_c1[i]*l1 - _t1);
-                Jx_dot[4 * (start + i) + 1] = -_t1*qd1[i] - _t2;
-                Jx_dot[4 * (start + i) + 2] = -_t4 + qd1[i]*(-_s1[i]*l1 - _t3);
-                Jx_dot[4 * (start + i) + 3] = -_t3*qd1[i] - _t4;
+                _Jx_dot_block[0][i] = -_t2 + qd1[i]*(-_c1[i]*l1 - _t1);
+                _Jx_dot_block[1][i] = -_t1*qd1[i] - _t2;
+                _Jx_dot_block[2][i] = -_t4 + qd1[i]*(-_s1[i]*l1 - _t3);
+                _Jx_dot_block[3][i] = -_t3*qd1[i] - _t4;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1753,8 +1817,16 @@ void planar_2r_task_jacobian_dot_batch(size_t count, const double *restrict q, c
                     _mm_stream_pd(Jx_dot + 4 * (start + i) + k, _mm_set_pd(_Jx_dot_block[k + 1][i], _Jx_dot_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 4; ++k) {
+                    Jx_dot[4 * (start + i) + k] = _Jx_dot_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1839,8 +1911,8 @@ void planar_2r_jacobian_dot_batch(size_t count, const double *restrict q, const 
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_dot_block[12][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_dot & 15) == 0;
 #endif
@@ -1908,18 +1980,18 @@ void planar_2r_jacobian_dot_batch(size_t count, const double *restrict q, const 
                 const double _t2 = _t1*qd2[i];
                 const double _t3 = _s0[i]*l2;
                 const double _t4 = _t3*qd2[i];
-                J_dot[12 * (start + i) + 0] = -_t2 + qd1[i]*(-_c1[i]*l1 - _t1);
-                J_dot[12 * (start + i) + 1] = -_t1*qd1[i] - _t2;
-                J_dot[12 * (start + i) + 2] = -_t4 + qd1[i]*(-_s1[i]*l1 - _t3);
-                J_dot[12 * (start + i) + 3] = -_t3*qd1[i] - _t4;
-                J_dot[12 * (start + i) + 4] = 0;
-                J_dot[12 * (start + i) + 5] = 0;
-                J_dot[12 * (start + i) + 6] = 0;
-                J_dot[12 * (start + i) + 7] = 0;
-                J_dot[12 * (start + i) + 8] = 0;
-                J_dot[12 * (start + i) + 9] = 0;
-                J_dot[12 * (start + i) + 10] = 0;
-                J_dot[12 * (start + i) + 11] = 0;
+                _J_dot_block[0][i] = -_t2 + qd1[i]*(-_c1[i]*l1 - _t1);
+                _J_dot_block[1][i] = -_t1*qd1[i] - _t2;
+                _J_dot_block[2][i] = -_t4 + qd1[i]*(-_s1[i]*l1 - _t3);
+                _J_dot_block[3][i] = -_t3*qd1[i] - _t4;
+                _J_dot_block[4][i] = 0;
+                _J_dot_block[5][i] = 0;
+                _J_dot_block[6][i] = 0;
+                _J_dot_block[7][i] = 0;
+                _J_dot_block[8][i] = 0;
+                _J_dot_block[9][i] = 0;
+                _J_dot_block[10][i] = 0;
+                _J_dot_block[11][i] = 0;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1930,8 +2002,16 @@ void planar_2r_jacobian_dot_batch(size_t count, const double *restrict q, const 
                     _mm_stream_pd(J_dot + 12 * (start + i) + k, _mm_set_pd(_J_dot_block[k + 1][i], _J_dot_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 12; ++k) {
+                    J_dot[12 * (start + i) + k] = _J_dot_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -2012,8 +2092,8 @@ void planar_2r_task_acceleration_batch(size_t count, const double *restrict q, c
     double _c0[KINEGEN_BLOCK_OF(64)];
     double _s1[KINEGEN_BLOCK_OF(64)];
     double _c1[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _xdd_block[2][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)xdd & 15) == 0;
 #endif
@@ -2077,8 +2157,8 @@ void planar_2r_task_acceleration_batch(size_t count, const double *restrict q, c
                 const double _t4 = _s0[i]*l2;
                 const double _t5 = -_s1[i]*l1 - _t4;
                 const double _t6 = _t4*qd2[i];
-                xdd[2 * (start + i) + 0] = -_t4*qdd2[i] + _t5*qdd1[i] + qd1[i]*(-_t2*qd1[i] - _t3) + qd2[i]*(-_t1*qd1[i] - _t3);
-                xdd[2 * (start + i) + 1] = _t1*qdd2[i] + _t2*qdd1[i] + qd1[i]*(_t5*qd1[i] - _t6) + qd2[i]*(-_t4*qd1[i] - _t6);
+                _xdd_block[0][i] = -_t4*qdd2[i] + _t5*qdd1[i] + qd1[i]*(-_t2*qd1[i] - _t3) + qd2[i]*(-_t1*qd1[i] - _t3);
+                _xdd_block[1][i] = _t1*qdd2[i] + _t2*qdd1[i] + qd1[i]*(_t5*qd1[i] - _t6) + qd2[i]*(-_t4*qd1[i] - _t6);
             }
         }
 #ifdef KINEGEN_STREAM
@@ -2089,8 +2169,16 @@ void planar_2r_task_acceleration_batch(size_t count, const double *restrict q, c
                     _mm_stream_pd(xdd + 2 * (start + i) + k, _mm_set_pd(_xdd_block[k + 1][i], _xdd_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 2; ++k) {
+                    xdd[2 * (start + i) + k] = _xdd_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -2249,8 +2337,8 @@ void planar_2r_joint_velocity_batch(size_t count, const double *restrict q, cons
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _qd_block[2][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)qd & 15) == 0;
 #endif
@@ -2357,13 +2445,13 @@ void planar_2r_joint_velocity_batch(size_t count, const double *restrict q, cons
                 const double _t25 = _t20*(_t21*_t23 + _t22*(_t13 + _t14));
                 const int _t26 = _t5 < 1e-08;
                 const double _t27 = _s0[i]*l1*l2/kinegen_max(_t4, (1e-08)*_t1);
-                qd[2 * (start + i) + 0] = ((_t26) ? (
+                _qd_block[0][i] = ((_t26) ? (
    _t19*(_t10*_t24 + _t17*_t25)
 )
 : (
    _t27*(_t16*xd_y[i] + _t9*xd_x[i])
 ));
-                qd[2 * (start + i) + 1] = ((_t26) ? (
+                _qd_block[1][i] = ((_t26) ? (
    _t19*(-_t16*_t25 + _t24*_t9)
 )
 : (
@@ -2380,8 +2468,16 @@ void planar_2r_joint_velocity_batch(size_t count, const double *restrict q, cons
                     _mm_stream_pd(qd + 2 * (start + i) + k, _mm_set_pd(_qd_block[k + 1][i], _qd_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 2; ++k) {
+                    qd[2 * (start + i) + k] = _qd_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -2497,8 +2593,8 @@ void planar_2r_joint_acceleration_batch(size_t count, const double *restrict q, 
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _qdd_block[2][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)qdd & 15) == 0;
 #endif
@@ -2613,13 +2709,13 @@ void planar_2r_joint_acceleration_batch(size_t count, const double *restrict q, 
                 const double _t28 = _t20*(_t20*_t23*(_t13 + _t14) + _t24*_t26);
                 const int _t29 = _t5 < 1e-08;
                 const double _t30 = _s0[i]*l1*l2/kinegen_max(_t4, (1e-08)*_t1);
-                qdd[2 * (start + i) + 0] = ((_t29) ? (
+                _qdd_block[0][i] = ((_t29) ? (
    _t19*(_t10*_t20*_t27 + _t17*_t28)
 )
 : (
    _t30*(_t16*_t26 + _t23*_t9)
 ));
-                qdd[2 * (start + i) + 1] = ((_t29) ? (
+                _qdd_block[1][i] = ((_t29) ? (
    _t19*(_c1[i]*_t20*_t27*l2 - _t16*_t28)
 )
 : (
@@ -2636,8 +2732,16 @@ void planar_2r_joint_acceleration_batch(size_t count, const double *restrict q, 
                     _mm_stream_pd(qdd + 2 * (start + i) + k, _mm_set_pd(_qdd_block[k + 1][i], _qdd_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 2; ++k) {
+                    qdd[2 * (start + i) + k] = _qdd_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {

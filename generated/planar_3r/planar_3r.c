@@ -187,8 +187,8 @@ void planar_3r_fk_batch(size_t count, const double *restrict q, const planar_3r_
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _T_block[16][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
 #endif
@@ -261,22 +261,22 @@ void planar_3r_fk_batch(size_t count, const double *restrict q, const planar_3r_
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                T[16 * (start + i) + 0] = _c0[i];
-                T[16 * (start + i) + 1] = -_s0[i];
-                T[16 * (start + i) + 2] = 0;
-                T[16 * (start + i) + 3] = _c0[i]*l3 + _c1[i]*l1 + _c2[i]*l2;
-                T[16 * (start + i) + 4] = _s0[i];
-                T[16 * (start + i) + 5] = _c0[i];
-                T[16 * (start + i) + 6] = 0;
-                T[16 * (start + i) + 7] = _s0[i]*l3 + _s1[i]*l1 + _s2[i]*l2;
-                T[16 * (start + i) + 8] = 0;
-                T[16 * (start + i) + 9] = 0;
-                T[16 * (start + i) + 10] = 1;
-                T[16 * (start + i) + 11] = 0;
-                T[16 * (start + i) + 12] = 0;
-                T[16 * (start + i) + 13] = 0;
-                T[16 * (start + i) + 14] = 0;
-                T[16 * (start + i) + 15] = 1;
+                _T_block[0][i] = _c0[i];
+                _T_block[1][i] = -_s0[i];
+                _T_block[2][i] = 0;
+                _T_block[3][i] = _c0[i]*l3 + _c1[i]*l1 + _c2[i]*l2;
+                _T_block[4][i] = _s0[i];
+                _T_block[5][i] = _c0[i];
+                _T_block[6][i] = 0;
+                _T_block[7][i] = _s0[i]*l3 + _s1[i]*l1 + _s2[i]*l2;
+                _T_block[8][i] = 0;
+                _T_block[9][i] = 0;
+                _T_block[10][i] = 1;
+                _T_block[11][i] = 0;
+                _T_block[12][i] = 0;
+                _T_block[13][i] = 0;
+                _T_block[14][i] = 0;
+                _T_block[15][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -287,8 +287,16 @@ void planar_3r_fk_batch(size_t count, const double *restrict q, const planar_3r_
                     _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 16; ++k) {
+                    T[16 * (start + i) + k] = _T_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -432,8 +440,8 @@ void planar_3r_frames_batch(size_t count, const double *restrict q, const planar
     double _c1[KINEGEN_BLOCK_OF(32)];
     double _s2[KINEGEN_BLOCK_OF(32)];
     double _c2[KINEGEN_BLOCK_OF(32)];
-#ifdef KINEGEN_STREAM
     double _frames_block[64][KINEGEN_BLOCK_OF(32)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 64 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
 #endif
@@ -562,70 +570,70 @@ void planar_3r_frames_batch(size_t count, const double *restrict q, const planar
                 const double _t3 = _s0[i]*l1;
                 const double _t7 = _c1[i]*l2 + _t2;
                 const double _t8 = _s1[i]*l2 + _t3;
-                frames[64 * (start + i) + 0] = 1;
-                frames[64 * (start + i) + 1] = 0;
-                frames[64 * (start + i) + 2] = 0;
-                frames[64 * (start + i) + 3] = 0;
-                frames[64 * (start + i) + 4] = 0;
-                frames[64 * (start + i) + 5] = 1;
-                frames[64 * (start + i) + 6] = 0;
-                frames[64 * (start + i) + 7] = 0;
-                frames[64 * (start + i) + 8] = 0;
-                frames[64 * (start + i) + 9] = 0;
-                frames[64 * (start + i) + 10] = 1;
-                frames[64 * (start + i) + 11] = 0;
-                frames[64 * (start + i) + 12] = 0;
-                frames[64 * (start + i) + 13] = 0;
-                frames[64 * (start + i) + 14] = 0;
-                frames[64 * (start + i) + 15] = 1;
-                frames[64 * (start + i) + 16] = _c0[i];
-                frames[64 * (start + i) + 17] = -_s0[i];
-                frames[64 * (start + i) + 18] = 0;
-                frames[64 * (start + i) + 19] = _t2;
-                frames[64 * (start + i) + 20] = _s0[i];
-                frames[64 * (start + i) + 21] = _c0[i];
-                frames[64 * (start + i) + 22] = 0;
-                frames[64 * (start + i) + 23] = _t3;
-                frames[64 * (start + i) + 24] = 0;
-                frames[64 * (start + i) + 25] = 0;
-                frames[64 * (start + i) + 26] = 1;
-                frames[64 * (start + i) + 27] = 0;
-                frames[64 * (start + i) + 28] = 0;
-                frames[64 * (start + i) + 29] = 0;
-                frames[64 * (start + i) + 30] = 0;
-                frames[64 * (start + i) + 31] = 1;
-                frames[64 * (start + i) + 32] = _c1[i];
-                frames[64 * (start + i) + 33] = -_s1[i];
-                frames[64 * (start + i) + 34] = 0;
-                frames[64 * (start + i) + 35] = _t7;
-                frames[64 * (start + i) + 36] = _s1[i];
-                frames[64 * (start + i) + 37] = _c1[i];
-                frames[64 * (start + i) + 38] = 0;
-                frames[64 * (start + i) + 39] = _t8;
-                frames[64 * (start + i) + 40] = 0;
-                frames[64 * (start + i) + 41] = 0;
-                frames[64 * (start + i) + 42] = 1;
-                frames[64 * (start + i) + 43] = 0;
-                frames[64 * (start + i) + 44] = 0;
-                frames[64 * (start + i) + 45] = 0;
-                frames[64 * (start + i) + 46] = 0;
-                frames[64 * (start + i) + 47] = 1;
-                frames[64 * (start + i) + 48] = _c2[i];
-                frames[64 * (start + i) + 49] = -_s2[i];
-                frames[64 * (start + i) + 50] = 0;
-                frames[64 * (start + i) + 51] = _c2[i]*l3 + _t7;
-                frames[64 * (start + i) + 52] = _s2[i];
-                frames[64 * (start + i) + 53] = _c2[i];
-                frames[64 * (start + i) + 54] = 0;
-                frames[64 * (start + i) + 55] = _s2[i]*l3 + _t8;
-                frames[64 * (start + i) + 56] = 0;
-                frames[64 * (start + i) + 57] = 0;
-                frames[64 * (start + i) + 58] = 1;
-                frames[64 * (start + i) + 59] = 0;
-                frames[64 * (start + i) + 60] = 0;
-                frames[64 * (start + i) + 61] = 0;
-                frames[64 * (start + i) + 62] = 0;
-                frames[64 * (start + i) + 63] = 1;
+                _frames_block[0][i] = 1;
+                _frames_block[1][i] = 0;
+                _frames_block[2][i] = 0;
+                _frames_block[3][i] = 0;
+                _frames_block[4][i] = 0;
+                _frames_block[5][i] = 1;
+                _frames_block[6][i] = 0;
+                _frames_block[7][i] = 0;
+                _frames_block[8][i] = 0;
+                _frames_block[9][i] = 0;
+                _frames_block[10][i] = 1;
+                _frames_block[11][i] = 0;
+                _frames_block[12][i] = 0;
+                _frames_block[13][i] = 0;
+                _frames_block[14][i] = 0;
+                _frames_block[15][i] = 1;
+                _frames_block[16][i] = _c0[i];
+                _frames_block[17][i] = -_s0[i];
+                _frames_block[18][i] = 0;
+                _frames_block[19][i] = _t2;
+                _frames_block[20][i] = _s0[i];
+                _frames_block[21][i] = _c0[i];
+                _frames_block[22][i] = 0;
+                _frames_block[23][i] = _t3;
+                _frames_block[24][i] = 0;
+                _frames_block[25][i] = 0;
+                _frames_block[26][i] = 1;
+                _frames_block[27][i] = 0;
+                _frames_block[28][i] = 0;
+                _frames_block[29][i] = 0;
+                _frames_block[30][i] = 0;
+                _frames_block[31][i] = 1;
+                _frames_block[32][i] = _c1[i];
+                _frames_block[33][i] = -_s1[i];
+                _frames_block[34][i] = 0;
+                _frames_block[35][i] = _t7;
+                _frames_block[36][i] = _s1[i];
+                _frames_block[37][i] = _c1[i];
+                _frames_block[38][i] = 0;
+                _frames_block[39][i] = _t8;
+                _frames_block[40][i] = 0;
+                _frames_block[41][i] = 0;
+                _frames_block[42][i] = 1;
+                _frames_block[43][i] = 0;
+                _frames_block[44][i] = 0;
+                _frames_block[45][i] = 0;
+                _frames_block[46][i] = 0;
+                _frames_block[47][i] = 1;
+                _frames_block[48][i] = _c2[i];
+                _frames_block[49][i] = -_s2[i];
+                _frames_block[50][i] = 0;
+                _frames_block[51][i] = _c2[i]*l3 + _t7;
+                _frames_block[52][i] = _s2[i];
+                _frames_block[53][i] = _c2[i];
+                _frames_block[54][i] = 0;
+                _frames_block[55][i] = _s2[i]*l3 + _t8;
+                _frames_block[56][i] = 0;
+                _frames_block[57][i] = 0;
+                _frames_block[58][i] = 1;
+                _frames_block[59][i] = 0;
+                _frames_block[60][i] = 0;
+                _frames_block[61][i] = 0;
+                _frames_block[62][i] = 0;
+                _frames_block[63][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -636,8 +644,16 @@ void planar_3r_frames_batch(size_t count, const double *restrict q, const planar
                     _mm_stream_pd(frames + 64 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 64; ++k) {
+                    frames[64 * (start + i) + k] = _frames_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -735,8 +751,8 @@ void planar_3r_jacobian_batch(size_t count, const double *restrict q, const plan
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_block[18][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 18 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
 #endif
@@ -819,24 +835,24 @@ void planar_3r_jacobian_batch(size_t count, const double *restrict q, const plan
                 const double _t3 = _s1[i]*l2 + _t2;
                 const double _t4 = _c0[i]*l3;
                 const double _t5 = _c1[i]*l2 + _t4;
-                J[18 * (start + i) + 0] = -_s2[i]*l1 - _t3;
-                J[18 * (start + i) + 1] = -_t3;
-                J[18 * (start + i) + 2] = -_t2;
-                J[18 * (start + i) + 3] = _c2[i]*l1 + _t5;
-                J[18 * (start + i) + 4] = _t5;
-                J[18 * (start + i) + 5] = _t4;
-                J[18 * (start + i) + 6] = 0;
-                J[18 * (start + i) + 7] = 0;
-                J[18 * (start + i) + 8] = 0;
-                J[18 * (start + i) + 9] = 0;
-                J[18 * (start + i) + 10] = 0;
-                J[18 * (start + i) + 11] = 0;
-                J[18 * (start + i) + 12] = 0;
-                J[18 * (start + i) + 13] = 0;
-                J[18 * (start + i) + 14] = 0;
-                J[18 * (start + i) + 15] = 1;
-                J[18 * (start + i) + 16] = 1;
-                J[18 * (start + i) + 17] = 1;
+                _J_block[0][i] = -_s2[i]*l1 - _t3;
+                _J_block[1][i] = -_t3;
+                _J_block[2][i] = -_t2;
+                _J_block[3][i] = _c2[i]*l1 + _t5;
+                _J_block[4][i] = _t5;
+                _J_block[5][i] = _t4;
+                _J_block[6][i] = 0;
+                _J_block[7][i] = 0;
+                _J_block[8][i] = 0;
+                _J_block[9][i] = 0;
+                _J_block[10][i] = 0;
+                _J_block[11][i] = 0;
+                _J_block[12][i] = 0;
+                _J_block[13][i] = 0;
+                _J_block[14][i] = 0;
+                _J_block[15][i] = 1;
+                _J_block[16][i] = 1;
+                _J_block[17][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -847,8 +863,16 @@ void planar_3r_jacobian_batch(size_t count, const double *restrict q, const plan
                     _mm_stream_pd(J + 18 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 18; ++k) {
+                    J[18 * (start + i) + k] = _J_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -947,8 +971,8 @@ void planar_3r_jacobian_tool_batch(size_t count, const double *restrict q, const
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_tool_block[18][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 18 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_tool & 15) == 0;
 #endif
@@ -1033,24 +1057,24 @@ void planar_3r_jacobian_tool_batch(size_t count, const double *restrict q, const
                 const double _t6 = _s0[i]*l3 + _s1[i]*l2;
                 const double _t7 = -_s2[i]*l1 - _t6;
                 const double _t8 = -_t6;
-                J_tool[18 * (start + i) + 0] = _c0[i]*_t7 + _s0[i]*_t4;
-                J_tool[18 * (start + i) + 1] = _c0[i]*_t8 + _s0[i]*_t3;
-                J_tool[18 * (start + i) + 2] = 0;
-                J_tool[18 * (start + i) + 3] = _c0[i]*_t4 - _s0[i]*_t7;
-                J_tool[18 * (start + i) + 4] = _c0[i]*_t3 - _s0[i]*_t8;
-                J_tool[18 * (start + i) + 5] = (_c0[i]*_c0[i])*l3 + (_s0[i]*_s0[i])*l3;
-                J_tool[18 * (start + i) + 6] = 0;
-                J_tool[18 * (start + i) + 7] = 0;
-                J_tool[18 * (start + i) + 8] = 0;
-                J_tool[18 * (start + i) + 9] = 0;
-                J_tool[18 * (start + i) + 10] = 0;
-                J_tool[18 * (start + i) + 11] = 0;
-                J_tool[18 * (start + i) + 12] = 0;
-                J_tool[18 * (start + i) + 13] = 0;
-                J_tool[18 * (start + i) + 14] = 0;
-                J_tool[18 * (start + i) + 15] = 1;
-                J_tool[18 * (start + i) + 16] = 1;
-                J_tool[18 * (start + i) + 17] = 1;
+                _J_tool_block[0][i] = _c0[i]*_t7 + _s0[i]*_t4;
+                _J_tool_block[1][i] = _c0[i]*_t8 + _s0[i]*_t3;
+                _J_tool_block[2][i] = 0;
+                _J_tool_block[3][i] = _c0[i]*_t4 - _s0[i]*_t7;
+                _J_tool_block[4][i] = _c0[i]*_t3 - _s0[i]*_t8;
+                _J_tool_block[5][i] = (_c0[i]*_c0[i])*l3 + (_s0[i]*_s0[i])*l3;
+                _J_tool_block[6][i] = 0;
+                _J_tool_block[7][i] = 0;
+                _J_tool_block[8][i] = 0;
+                _J_tool_block[9][i] = 0;
+                _J_tool_block[10][i] = 0;
+                _J_tool_block[11][i] = 0;
+                _J_tool_block[12][i] = 0;
+                _J_tool_block[13][i] = 0;
+                _J_tool_block[14][i] = 0;
+                _J_tool_block[15][i] = 1;
+                _J_tool_block[16][i] = 1;
+                _J_tool_block[17][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1061,8 +1085,16 @@ void planar_3r_jacobian_tool_batch(size_t count, const double *restrict q, const
                     _mm_stream_pd(J_tool + 18 * (start + i) + k, _mm_set_pd(_J_tool_block[k + 1][i], _J_tool_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 18; ++k) {
+                    J_tool[18 * (start + i) + k] = _J_tool_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1141,6 +1173,7 @@ void planar_3r_task_batch(size_t count, const double *restrict q, const planar_3
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
+    double _x_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_3r_default_params;
@@ -1186,9 +1219,17 @@ void planar_3r_task_batch(size_t count, const double *restrict q, const planar_3
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            x[3 * (start + i) + 0] = _c0[i]*l1 + _c1[i]*l2 + _c2[i]*l3;
-            x[3 * (start + i) + 1] = _s0[i]*l1 + _s1[i]*l2 + _s2[i]*l3;
-            x[3 * (start + i) + 2] = _t1[i];
+            _x_block[0][i] = _c0[i]*l1 + _c1[i]*l2 + _c2[i]*l3;
+            _x_block[1][i] = _s0[i]*l1 + _s1[i]*l2 + _s2[i]*l3;
+            _x_block[2][i] = _t1[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    x[3 * (start + i) + k] = _x_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1273,6 +1314,7 @@ void planar_3r_task_jacobian_batch(size_t count, const double *restrict q, const
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
+    double _Jx_block[9][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_3r_default_params;
@@ -1322,15 +1364,23 @@ void planar_3r_task_jacobian_batch(size_t count, const double *restrict q, const
             const double _t3 = _s1[i]*l2 + _t2;
             const double _t4 = _c0[i]*l3;
             const double _t5 = _c1[i]*l2 + _t4;
-            Jx[9 * (start + i) + 0] = -_s2[i]*l1 - _t3;
-            Jx[9 * (start + i) + 1] = -_t3;
-            Jx[9 * (start + i) + 2] = -_t2;
-            Jx[9 * (start + i) + 3] = _c2[i]*l1 + _t5;
-            Jx[9 * (start + i) + 4] = _t5;
-            Jx[9 * (start + i) + 5] = _t4;
-            Jx[9 * (start + i) + 6] = 1;
-            Jx[9 * (start + i) + 7] = 1;
-            Jx[9 * (start + i) + 8] = 1;
+            _Jx_block[0][i] = -_s2[i]*l1 - _t3;
+            _Jx_block[1][i] = -_t3;
+            _Jx_block[2][i] = -_t2;
+            _Jx_block[3][i] = _c2[i]*l1 + _t5;
+            _Jx_block[4][i] = _t5;
+            _Jx_block[5][i] = _t4;
+            _Jx_block[6][i] = 1;
+            _Jx_block[7][i] = 1;
+            _Jx_block[8][i] = 1;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 9; ++k) {
+                    Jx[9 * (start + i) + k] = _Jx_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1696,6 +1746,7 @@ void planar_3r_task_velocity_batch(size_t count, const double *restrict q, const
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
+    double _xd_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_3r_default_params;
@@ -1748,9 +1799,17 @@ void planar_3r_task_velocity_batch(size_t count, const double *restrict q, const
             const double _t3 = _s1[i]*l2 + _t2;
             const double _t4 = _c0[i]*l3;
             const double _t5 = _c1[i]*l2 + _t4;
-            xd[3 * (start + i) + 0] = -_t2*qd3[i] - _t3*qd2[i] + qd1[i]*(-_s2[i]*l1 - _t3);
-            xd[3 * (start + i) + 1] = _t4*qd3[i] + _t5*qd2[i] + qd1[i]*(_c2[i]*l1 + _t5);
-            xd[3 * (start + i) + 2] = qd1[i] + qd2[i] + qd3[i];
+            _xd_block[0][i] = -_t2*qd3[i] - _t3*qd2[i] + qd1[i]*(-_s2[i]*l1 - _t3);
+            _xd_block[1][i] = _t4*qd3[i] + _t5*qd2[i] + qd1[i]*(_c2[i]*l1 + _t5);
+            _xd_block[2][i] = qd1[i] + qd2[i] + qd3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    xd[3 * (start + i) + k] = _xd_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1838,8 +1897,8 @@ void planar_3r_twist_batch(size_t count, const double *restrict q, const double 
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _twist_block[6][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)twist & 15) == 0;
 #endif
@@ -1913,12 +1972,12 @@ void planar_3r_twist_batch(size_t count, const double *restrict q, const double 
                 const double _t3 = _s1[i]*l2 + _t2;
                 const double _t4 = _c0[i]*l3;
                 const double _t5 = _c1[i]*l2 + _t4;
-                twist[6 * (start + i) + 0] = -_t2*qd3[i] - _t3*qd2[i] + qd1[i]*(-_s2[i]*l1 - _t3);
-                twist[6 * (start + i) + 1] = _t4*qd3[i] + _t5*qd2[i] + qd1[i]*(_c2[i]*l1 + _t5);
-                twist[6 * (start + i) + 2] = 0;
-                twist[6 * (start + i) + 3] = 0;
-                twist[6 * (start + i) + 4] = 0;
-                twist[6 * (start + i) + 5] = qd1[i] + qd2[i] + qd3[i];
+                _twist_block[0][i] = -_t2*qd3[i] - _t3*qd2[i] + qd1[i]*(-_s2[i]*l1 - _t3);
+                _twist_block[1][i] = _t4*qd3[i] + _t5*qd2[i] + qd1[i]*(_c2[i]*l1 + _t5);
+                _twist_block[2][i] = 0;
+                _twist_block[3][i] = 0;
+                _twist_block[4][i] = 0;
+                _twist_block[5][i] = qd1[i] + qd2[i] + qd3[i];
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1929,8 +1988,16 @@ void planar_3r_twist_batch(size_t count, const double *restrict q, const double 
                     _mm_stream_pd(twist + 6 * (start + i) + k, _mm_set_pd(_twist_block[k + 1][i], _twist_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 6; ++k) {
+                    twist[6 * (start + i) + k] = _twist_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -2031,6 +2098,7 @@ void planar_3r_task_jacobian_dot_batch(size_t count, const double *restrict q, c
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
+    double _Jx_dot_block[9][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_3r_default_params;
@@ -2089,15 +2157,23 @@ void planar_3r_task_jacobian_dot_batch(size_t count, const double *restrict q, c
             const double _t9 = -_t8;
             const double _t10 = _t7*qd3[i];
             const double _t11 = -_t10 + _t9*qd2[i];
-            Jx_dot[9 * (start + i) + 0] = _t6 + qd1[i]*(-_c2[i]*l1 - _t3);
-            Jx_dot[9 * (start + i) + 1] = _t4*qd1[i] + _t6;
-            Jx_dot[9 * (start + i) + 2] = -_t2*qd1[i] - _t2*qd2[i] - _t5;
-            Jx_dot[9 * (start + i) + 3] = _t11 + qd1[i]*(-_s2[i]*l1 - _t8);
-            Jx_dot[9 * (start + i) + 4] = _t11 + _t9*qd1[i];
-            Jx_dot[9 * (start + i) + 5] = -_t10 - _t7*qd1[i] - _t7*qd2[i];
-            Jx_dot[9 * (start + i) + 6] = 0;
-            Jx_dot[9 * (start + i) + 7] = 0;
-            Jx_dot[9 * (start + i) + 8] = 0;
+            _Jx_dot_block[0][i] = _t6 + qd1[i]*(-_c2[i]*l1 - _t3);
+            _Jx_dot_block[1][i] = _t4*qd1[i] + _t6;
+            _Jx_dot_block[2][i] = -_t2*qd1[i] - _t2*qd2[i] - _t5;
+            _Jx_dot_block[3][i] = _t11 + qd1[i]*(-_s2[i]*l1 - _t8);
+            _Jx_dot_block[4][i] = _t11 + _t9*qd1[i];
+            _Jx_dot_block[5][i] = -_t10 - _t7*qd1[i] - _t7*qd2[i];
+            _Jx_dot_block[6][i] = 0;
+            _Jx_dot_block[7][i] = 0;
+            _Jx_dot_block[8][i] = 0;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 9; ++k) {
+                    Jx_dot[9 * (start + i) + k] = _Jx_dot_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2203,8 +2279,8 @@ void planar_3r_jacobian_dot_batch(size_t count, const double *restrict q, const 
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_dot_block[18][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 18 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_dot & 15) == 0;
 #endif
@@ -2302,24 +2378,24 @@ void planar_3r_jacobian_dot_batch(size_t count, const double *restrict q, const 
                 const double _t9 = -_t8;
                 const double _t10 = _t7*qd3[i];
                 const double _t11 = -_t10 + _t9*qd2[i];
-                J_dot[18 * (start + i) + 0] = _t6 + qd1[i]*(-_c2[i]*l1 - _t3);
-                J_dot[18 * (start + i) + 1] = _t4*qd1[i] + _t6;
-                J_dot[18 * (start + i) + 2] = -_t2*qd1[i] - _t2*qd2[i] - _t5;
-                J_dot[18 * (start + i) + 3] = _t11 + qd1[i]*(-_s2[i]*l1 - _t8);
-                J_dot[18 * (start + i) + 4] = _t11 + _t9*qd1[i];
-                J_dot[18 * (start + i) + 5] = -_t10 - _t7*qd1[i] - _t7*qd2[i];
-                J_dot[18 * (start + i) + 6] = 0;
-                J_dot[18 * (start + i) + 7] = 0;
-                J_dot[18 * (start + i) + 8] = 0;
-                J_dot[18 * (start + i) + 9] = 0;
-                J_dot[18 * (start + i) + 10] = 0;
-                J_dot[18 * (start + i) + 11] = 0;
-                J_dot[18 * (start + i) + 12] = 0;
-                J_dot[18 * (start + i) + 13] = 0;
-                J_dot[18 * (start + i) + 14] = 0;
-                J_dot[18 * (start + i) + 15] = 0;
-                J_dot[18 * (start + i) + 16] = 0;
-                J_dot[18 * (start + i) + 17] = 0;
+                _J_dot_block[0][i] = _t6 + qd1[i]*(-_c2[i]*l1 - _t3);
+                _J_dot_block[1][i] = _t4*qd1[i] + _t6;
+                _J_dot_block[2][i] = -_t2*qd1[i] - _t2*qd2[i] - _t5;
+                _J_dot_block[3][i] = _t11 + qd1[i]*(-_s2[i]*l1 - _t8);
+                _J_dot_block[4][i] = _t11 + _t9*qd1[i];
+                _J_dot_block[5][i] = -_t10 - _t7*qd1[i] - _t7*qd2[i];
+                _J_dot_block[6][i] = 0;
+                _J_dot_block[7][i] = 0;
+                _J_dot_block[8][i] = 0;
+                _J_dot_block[9][i] = 0;
+                _J_dot_block[10][i] = 0;
+                _J_dot_block[11][i] = 0;
+                _J_dot_block[12][i] = 0;
+                _J_dot_block[13][i] = 0;
+                _J_dot_block[14][i] = 0;
+                _J_dot_block[15][i] = 0;
+                _J_dot_block[16][i] = 0;
+                _J_dot_block[17][i] = 0;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -2330,8 +2406,16 @@ void planar_3r_jacobian_dot_batch(size_t count, const double *restrict q, const 
                     _mm_stream_pd(J_dot + 18 * (start + i) + k, _mm_set_pd(_J_dot_block[k + 1][i], _J_dot_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 18; ++k) {
+                    J_dot[18 * (start + i) + k] = _J_dot_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -2434,6 +2518,7 @@ void planar_3r_task_acceleration_batch(size_t count, const double *restrict q, c
     double _c1[KINEGEN_BLOCK_OF(64)];
     double _s2[KINEGEN_BLOCK_OF(64)];
     double _c2[KINEGEN_BLOCK_OF(64)];
+    double _xdd_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_3r_default_params;
@@ -2497,9 +2582,17 @@ void planar_3r_task_acceleration_batch(size_t count, const double *restrict q, c
             const double _t11 = -_t9;
             const double _t12 = _t8*qd3[i];
             const double _t13 = _t11*qd2[i] - _t12;
-            xdd[3 * (start + i) + 0] = _t10*qdd1[i] + _t11*qdd2[i] - _t8*qdd3[i] + qd1[i]*(-_t4*qd1[i] + _t7) + qd2[i]*(_t5*qd1[i] + _t7) + qd3[i]*(-_t2*qd1[i] - _t2*qd2[i] - _t6);
-            xdd[3 * (start + i) + 1] = _t2*qdd3[i] + _t3*qdd2[i] + _t4*qdd1[i] + qd1[i]*(_t10*qd1[i] + _t13) + qd2[i]*(_t11*qd1[i] + _t13) + qd3[i]*(-_t12 - _t8*qd1[i] - _t8*qd2[i]);
-            xdd[3 * (start + i) + 2] = qdd1[i] + qdd2[i] + qdd3[i];
+            _xdd_block[0][i] = _t10*qdd1[i] + _t11*qdd2[i] - _t8*qdd3[i] + qd1[i]*(-_t4*qd1[i] + _t7) + qd2[i]*(_t5*qd1[i] + _t7) + qd3[i]*(-_t2*qd1[i] - _t2*qd2[i] - _t6);
+            _xdd_block[1][i] = _t2*qdd3[i] + _t3*qdd2[i] + _t4*qdd1[i] + qd1[i]*(_t10*qd1[i] + _t13) + qd2[i]*(_t11*qd1[i] + _t13) + qd3[i]*(-_t12 - _t8*qd1[i] - _t8*qd2[i]);
+            _xdd_block[2][i] = qdd1[i] + qdd2[i] + qdd3[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    xdd[3 * (start + i) + k] = _xdd_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2725,6 +2818,7 @@ void planar_3r_joint_velocity_batch(size_t count, const double *restrict q, cons
     double _s4[KINEGEN_BLOCK_OF(64)];
     double _s5[KINEGEN_BLOCK_OF(64)];
     double _c5[KINEGEN_BLOCK_OF(64)];
+    double _qd_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_3r_default_params;
@@ -2852,25 +2946,33 @@ void planar_3r_joint_velocity_batch(size_t count, const double *restrict q, cons
             const double _t74 = _t61*_t66 + _t63*_t71 + xd_phi[i]*(_t37 + _t65 + _t72);
             const int _t75 = _t8 < 1e-08;
             const double _t76 = _t29*l1/kinegen_max((1e-08)*_t2, _t0*_t7);
-            qd[3 * (start + i) + 0] = ((_t75) ? (
+            _qd_block[0][i] = ((_t75) ? (
    _t51*(_t54*_t67 + _t69*_t73 + _t74)
 )
 : (
    _t76*(_t15*xd_x[i] + _t25*xd_y[i] + _t33*l3*xd_phi[i])
 ));
-            qd[3 * (start + i) + 1] = ((_t75) ? (
+            _qd_block[1][i] = ((_t75) ? (
    _t51*(_t53*_t67 + _t68*_t73 + _t74)
 )
 : (
    _t76*(-_t16*xd_x[i] + _t27*xd_y[i] - _t58*xd_phi[i])
 ));
-            qd[3 * (start + i) + 2] = ((_t75) ? (
+            _qd_block[2][i] = ((_t75) ? (
    _t51*(_t55*_t67 - _t70*_t73 + _t74)
 )
 : (
    _t76*(_t12*xd_x[i] + _t23*xd_y[i] + _t31*l1*xd_phi[i])
 ));
             singular[1 * (start + i) + 0] = _t75;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    qd[3 * (start + i) + k] = _qd_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -3057,6 +3159,7 @@ void planar_3r_joint_acceleration_batch(size_t count, const double *restrict q, 
     double _s4[KINEGEN_BLOCK_OF(64)];
     double _s5[KINEGEN_BLOCK_OF(64)];
     double _c5[KINEGEN_BLOCK_OF(64)];
+    double _qdd_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &planar_3r_default_params;
@@ -3194,25 +3297,33 @@ void planar_3r_joint_acceleration_batch(size_t count, const double *restrict q, 
             const double _t81 = _t61*_t73 + _t67*_t78 + xdd_phi[i]*(_t37 + _t69 + _t79);
             const int _t82 = _t8 < 1e-08;
             const double _t83 = _t29*l1/kinegen_max((1e-08)*_t2, _t0*_t7);
-            qdd[3 * (start + i) + 0] = ((_t82) ? (
+            _qdd_block[0][i] = ((_t82) ? (
    _t51*(_t54*_t74 + _t76*_t80 + _t81)
 )
 : (
    _t83*(_t15*_t66 + _t25*_t72 + _t33*l3*xdd_phi[i])
 ));
-            qdd[3 * (start + i) + 1] = ((_t82) ? (
+            _qdd_block[1][i] = ((_t82) ? (
    _t51*(_t53*_t74 + _t75*_t80 + _t81)
 )
 : (
    _t83*(-_t16*_t66 + _t27*_t72 - _t58*xdd_phi[i])
 ));
-            qdd[3 * (start + i) + 2] = ((_t82) ? (
+            _qdd_block[2][i] = ((_t82) ? (
    _t51*(_t55*_t74 - _t77*_t80 + _t81)
 )
 : (
    _t83*(_t12*_t66 + _t23*_t72 + _t31*l1*xdd_phi[i])
 ));
             singular[1 * (start + i) + 0] = _t82;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    qdd[3 * (start + i) + k] = _qdd_block[k][i];
+                }
+            }
         }
     }
 #else

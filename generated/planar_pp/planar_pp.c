@@ -113,8 +113,8 @@ void planar_pp_fk_batch(size_t count, const double *restrict q, const planar_pp_
 #ifdef KINEGEN_BLOCKED
     double q1[KINEGEN_BLOCK_OF(64)];
     double q2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _T_block[16][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
 #endif
@@ -152,22 +152,22 @@ void planar_pp_fk_batch(size_t count, const double *restrict q, const planar_pp_
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                T[16 * (start + i) + 0] = 0;
-                T[16 * (start + i) + 1] = 0;
-                T[16 * (start + i) + 2] = 1;
-                T[16 * (start + i) + 3] = q2[i];
-                T[16 * (start + i) + 4] = 0;
-                T[16 * (start + i) + 5] = 1;
-                T[16 * (start + i) + 6] = 0;
-                T[16 * (start + i) + 7] = q1[i];
-                T[16 * (start + i) + 8] = -1;
-                T[16 * (start + i) + 9] = 0;
-                T[16 * (start + i) + 10] = 0;
-                T[16 * (start + i) + 11] = 0;
-                T[16 * (start + i) + 12] = 0;
-                T[16 * (start + i) + 13] = 0;
-                T[16 * (start + i) + 14] = 0;
-                T[16 * (start + i) + 15] = 1;
+                _T_block[0][i] = 0;
+                _T_block[1][i] = 0;
+                _T_block[2][i] = 1;
+                _T_block[3][i] = q2[i];
+                _T_block[4][i] = 0;
+                _T_block[5][i] = 1;
+                _T_block[6][i] = 0;
+                _T_block[7][i] = q1[i];
+                _T_block[8][i] = -1;
+                _T_block[9][i] = 0;
+                _T_block[10][i] = 0;
+                _T_block[11][i] = 0;
+                _T_block[12][i] = 0;
+                _T_block[13][i] = 0;
+                _T_block[14][i] = 0;
+                _T_block[15][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -178,8 +178,16 @@ void planar_pp_fk_batch(size_t count, const double *restrict q, const planar_pp_
                     _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 16; ++k) {
+                    T[16 * (start + i) + k] = _T_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -256,8 +264,8 @@ void planar_pp_frames_batch(size_t count, const double *restrict q, const planar
 #ifdef KINEGEN_BLOCKED
     double q1[KINEGEN_BLOCK_OF(64)];
     double q2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _frames_block[48][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 48 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
 #endif
@@ -327,54 +335,54 @@ void planar_pp_frames_batch(size_t count, const double *restrict q, const planar
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                frames[48 * (start + i) + 0] = 1;
-                frames[48 * (start + i) + 1] = 0;
-                frames[48 * (start + i) + 2] = 0;
-                frames[48 * (start + i) + 3] = 0;
-                frames[48 * (start + i) + 4] = 0;
-                frames[48 * (start + i) + 5] = 1;
-                frames[48 * (start + i) + 6] = 0;
-                frames[48 * (start + i) + 7] = 0;
-                frames[48 * (start + i) + 8] = 0;
-                frames[48 * (start + i) + 9] = 0;
-                frames[48 * (start + i) + 10] = 1;
-                frames[48 * (start + i) + 11] = 0;
-                frames[48 * (start + i) + 12] = 0;
-                frames[48 * (start + i) + 13] = 0;
-                frames[48 * (start + i) + 14] = 0;
-                frames[48 * (start + i) + 15] = 1;
-                frames[48 * (start + i) + 16] = 0;
-                frames[48 * (start + i) + 17] = -1;
-                frames[48 * (start + i) + 18] = 0;
-                frames[48 * (start + i) + 19] = 0;
-                frames[48 * (start + i) + 20] = 0;
-                frames[48 * (start + i) + 21] = 0;
-                frames[48 * (start + i) + 22] = 1;
-                frames[48 * (start + i) + 23] = q1[i];
-                frames[48 * (start + i) + 24] = -1;
-                frames[48 * (start + i) + 25] = 0;
-                frames[48 * (start + i) + 26] = 0;
-                frames[48 * (start + i) + 27] = 0;
-                frames[48 * (start + i) + 28] = 0;
-                frames[48 * (start + i) + 29] = 0;
-                frames[48 * (start + i) + 30] = 0;
-                frames[48 * (start + i) + 31] = 1;
-                frames[48 * (start + i) + 32] = 0;
-                frames[48 * (start + i) + 33] = 0;
-                frames[48 * (start + i) + 34] = 1;
-                frames[48 * (start + i) + 35] = q2[i];
-                frames[48 * (start + i) + 36] = 0;
-                frames[48 * (start + i) + 37] = 1;
-                frames[48 * (start + i) + 38] = 0;
-                frames[48 * (start + i) + 39] = q1[i];
-                frames[48 * (start + i) + 40] = -1;
-                frames[48 * (start + i) + 41] = 0;
-                frames[48 * (start + i) + 42] = 0;
-                frames[48 * (start + i) + 43] = 0;
-                frames[48 * (start + i) + 44] = 0;
-                frames[48 * (start + i) + 45] = 0;
-                frames[48 * (start + i) + 46] = 0;
-                frames[48 * (start + i) + 47] = 1;
+                _frames_block[0][i] = 1;
+                _frames_block[1][i] = 0;
+                _frames_block[2][i] = 0;
+                _frames_block[3][i] = 0;
+                _frames_block[4][i] = 0;
+                _frames_block[5][i] = 1;
+                _frames_block[6][i] = 0;
+                _frames_block[7][i] = 0;
+                _frames_block[8][i] = 0;
+                _frames_block[9][i] = 0;
+                _frames_block[10][i] = 1;
+                _frames_block[11][i] = 0;
+                _frames_block[12][i] = 0;
+                _frames_block[13][i] = 0;
+                _frames_block[14][i] = 0;
+                _frames_block[15][i] = 1;
+                _frames_block[16][i] = 0;
+                _frames_block[17][i] = -1;
+                _frames_block[18][i] = 0;
+                _frames_block[19][i] = 0;
+                _frames_block[20][i] = 0;
+                _frames_block[21][i] = 0;
+                _frames_block[22][i] = 1;
+                _frames_block[23][i] = q1[i];
+                _frames_block[24][i] = -1;
+                _frames_block[25][i] = 0;
+                _frames_block[26][i] = 0;
+                _frames_block[27][i] = 0;
+                _frames_block[28][i] = 0;
+                _frames_block[29][i] = 0;
+                _frames_block[30][i] = 0;
+                _frames_block[31][i] = 1;
+                _frames_block[32][i] = 0;
+                _frames_block[33][i] = 0;
+                _frames_block[34][i] = 1;
+                _frames_block[35][i] = q2[i];
+                _frames_block[36][i] = 0;
+                _frames_block[37][i] = 1;
+                _frames_block[38][i] = 0;
+                _frames_block[39][i] = q1[i];
+                _frames_block[40][i] = -1;
+                _frames_block[41][i] = 0;
+                _frames_block[42][i] = 0;
+                _frames_block[43][i] = 0;
+                _frames_block[44][i] = 0;
+                _frames_block[45][i] = 0;
+                _frames_block[46][i] = 0;
+                _frames_block[47][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -385,8 +393,16 @@ void planar_pp_frames_batch(size_t count, const double *restrict q, const planar
                     _mm_stream_pd(frames + 48 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 48; ++k) {
+                    frames[48 * (start + i) + k] = _frames_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -424,8 +440,8 @@ void planar_pp_jacobian(const double *restrict q, const planar_pp_params *restri
 void planar_pp_jacobian_batch(size_t count, const double *restrict q, const planar_pp_params *restrict params, double *restrict J)
 {
 #ifdef KINEGEN_BLOCKED
-#ifdef KINEGEN_STREAM
     double _J_block[12][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
 #endif
@@ -456,18 +472,18 @@ void planar_pp_jacobian_batch(size_t count, const double *restrict q, const plan
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                J[12 * (start + i) + 0] = 0;
-                J[12 * (start + i) + 1] = 1;
-                J[12 * (start + i) + 2] = 1;
-                J[12 * (start + i) + 3] = 0;
-                J[12 * (start + i) + 4] = 0;
-                J[12 * (start + i) + 5] = 0;
-                J[12 * (start + i) + 6] = 0;
-                J[12 * (start + i) + 7] = 0;
-                J[12 * (start + i) + 8] = 0;
-                J[12 * (start + i) + 9] = 0;
-                J[12 * (start + i) + 10] = 0;
-                J[12 * (start + i) + 11] = 0;
+                _J_block[0][i] = 0;
+                _J_block[1][i] = 1;
+                _J_block[2][i] = 1;
+                _J_block[3][i] = 0;
+                _J_block[4][i] = 0;
+                _J_block[5][i] = 0;
+                _J_block[6][i] = 0;
+                _J_block[7][i] = 0;
+                _J_block[8][i] = 0;
+                _J_block[9][i] = 0;
+                _J_block[10][i] = 0;
+                _J_block[11][i] = 0;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -478,8 +494,16 @@ void planar_pp_jacobian_batch(size_t count, const double *restrict q, const plan
                     _mm_stream_pd(J + 12 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 12; ++k) {
+                    J[12 * (start + i) + k] = _J_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -517,8 +541,8 @@ void planar_pp_jacobian_tool(const double *restrict q, const planar_pp_params *r
 void planar_pp_jacobian_tool_batch(size_t count, const double *restrict q, const planar_pp_params *restrict params, double *restrict J_tool)
 {
 #ifdef KINEGEN_BLOCKED
-#ifdef KINEGEN_STREAM
     double _J_tool_block[12][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_tool & 15) == 0;
 #endif
@@ -549,18 +573,18 @@ void planar_pp_jacobian_tool_batch(size_t count, const double *restrict q, const
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                J_tool[12 * (start + i) + 0] = 0;
-                J_tool[12 * (start + i) + 1] = 0;
-                J_tool[12 * (start + i) + 2] = 1;
-                J_tool[12 * (start + i) + 3] = 0;
-                J_tool[12 * (start + i) + 4] = 0;
-                J_tool[12 * (start + i) + 5] = 1;
-                J_tool[12 * (start + i) + 6] = 0;
-                J_tool[12 * (start + i) + 7] = 0;
-                J_tool[12 * (start + i) + 8] = 0;
-                J_tool[12 * (start + i) + 9] = 0;
-                J_tool[12 * (start + i) + 10] = 0;
-                J_tool[12 * (start + i) + 11] = 0;
+                _J_tool_block[0][i] = 0;
+                _J_tool_block[1][i] = 0;
+                _J_tool_block[2][i] = 1;
+                _J_tool_block[3][i] = 0;
+                _J_tool_block[4][i] = 0;
+                _J_tool_block[5][i] = 1;
+                _J_tool_block[6][i] = 0;
+                _J_tool_block[7][i] = 0;
+                _J_tool_block[8][i] = 0;
+                _J_tool_block[9][i] = 0;
+                _J_tool_block[10][i] = 0;
+                _J_tool_block[11][i] = 0;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -571,8 +595,16 @@ void planar_pp_jacobian_tool_batch(size_t count, const double *restrict q, const
                     _mm_stream_pd(J_tool + 12 * (start + i) + k, _mm_set_pd(_J_tool_block[k + 1][i], _J_tool_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 12; ++k) {
+                    J_tool[12 * (start + i) + k] = _J_tool_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -603,8 +635,8 @@ void planar_pp_task_batch(size_t count, const double *restrict q, const planar_p
 #ifdef KINEGEN_BLOCKED
     double q1[KINEGEN_BLOCK_OF(64)];
     double q2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _x_block[2][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)x & 15) == 0;
 #endif
@@ -628,8 +660,8 @@ void planar_pp_task_batch(size_t count, const double *restrict q, const planar_p
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                x[2 * (start + i) + 0] = q2[i];
-                x[2 * (start + i) + 1] = q1[i];
+                _x_block[0][i] = q2[i];
+                _x_block[1][i] = q1[i];
             }
         }
 #ifdef KINEGEN_STREAM
@@ -640,8 +672,16 @@ void planar_pp_task_batch(size_t count, const double *restrict q, const planar_p
                     _mm_stream_pd(x + 2 * (start + i) + k, _mm_set_pd(_x_block[k + 1][i], _x_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 2; ++k) {
+                    x[2 * (start + i) + k] = _x_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -671,8 +711,8 @@ void planar_pp_task_jacobian(const double *restrict q, const planar_pp_params *r
 void planar_pp_task_jacobian_batch(size_t count, const double *restrict q, const planar_pp_params *restrict params, double *restrict Jx)
 {
 #ifdef KINEGEN_BLOCKED
-#ifdef KINEGEN_STREAM
     double _Jx_block[4][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx & 15) == 0;
 #endif
@@ -695,10 +735,10 @@ void planar_pp_task_jacobian_batch(size_t count, const double *restrict q, const
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                Jx[4 * (start + i) + 0] = 0;
-                Jx[4 * (start + i) + 1] = 1;
-                Jx[4 * (start + i) + 2] = 1;
-                Jx[4 * (start + i) + 3] = 0;
+                _Jx_block[0][i] = 0;
+                _Jx_block[1][i] = 1;
+                _Jx_block[2][i] = 1;
+                _Jx_block[3][i] = 0;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -709,8 +749,16 @@ void planar_pp_task_jacobian_batch(size_t count, const double *restrict q, const
                     _mm_stream_pd(Jx + 4 * (start + i) + k, _mm_set_pd(_Jx_block[k + 1][i], _Jx_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 4; ++k) {
+                    Jx[4 * (start + i) + k] = _Jx_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -832,8 +880,8 @@ void planar_pp_task_velocity_batch(size_t count, const double *restrict q, const
 #ifdef KINEGEN_BLOCKED
     double qd1[KINEGEN_BLOCK_OF(64)];
     double qd2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _xd_block[2][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)xd & 15) == 0;
 #endif
@@ -858,8 +906,8 @@ void planar_pp_task_velocity_batch(size_t count, const double *restrict q, const
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                xd[2 * (start + i) + 0] = qd2[i];
-                xd[2 * (start + i) + 1] = qd1[i];
+                _xd_block[0][i] = qd2[i];
+                _xd_block[1][i] = qd1[i];
             }
         }
 #ifdef KINEGEN_STREAM
@@ -870,8 +918,16 @@ void planar_pp_task_velocity_batch(size_t count, const double *restrict q, const
                     _mm_stream_pd(xd + 2 * (start + i) + k, _mm_set_pd(_xd_block[k + 1][i], _xd_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 2; ++k) {
+                    xd[2 * (start + i) + k] = _xd_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -907,8 +963,8 @@ void planar_pp_twist_batch(size_t count, const double *restrict q, const double 
 #ifdef KINEGEN_BLOCKED
     double qd1[KINEGEN_BLOCK_OF(64)];
     double qd2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _twist_block[6][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)twist & 15) == 0;
 #endif
@@ -937,12 +993,12 @@ void planar_pp_twist_batch(size_t count, const double *restrict q, const double 
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                twist[6 * (start + i) + 0] = qd2[i];
-                twist[6 * (start + i) + 1] = qd1[i];
-                twist[6 * (start + i) + 2] = 0;
-                twist[6 * (start + i) + 3] = 0;
-                twist[6 * (start + i) + 4] = 0;
-                twist[6 * (start + i) + 5] = 0;
+                _twist_block[0][i] = qd2[i];
+                _twist_block[1][i] = qd1[i];
+                _twist_block[2][i] = 0;
+                _twist_block[3][i] = 0;
+                _twist_block[4][i] = 0;
+                _twist_block[5][i] = 0;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -953,8 +1009,16 @@ void planar_pp_twist_batch(size_t count, const double *restrict q, const double 
                     _mm_stream_pd(twist + 6 * (start + i) + k, _mm_set_pd(_twist_block[k + 1][i], _twist_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 6; ++k) {
+                    twist[6 * (start + i) + k] = _twist_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -985,8 +1049,8 @@ void planar_pp_task_jacobian_dot(const double *restrict q, const double *restric
 void planar_pp_task_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_pp_params *restrict params, double *restrict Jx_dot)
 {
 #ifdef KINEGEN_BLOCKED
-#ifdef KINEGEN_STREAM
     double _Jx_dot_block[4][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx_dot & 15) == 0;
 #endif
@@ -1010,10 +1074,10 @@ void planar_pp_task_jacobian_dot_batch(size_t count, const double *restrict q, c
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                Jx_dot[4 * (start + i) + 0] = 0;
-                Jx_dot[4 * (start + i) + 1] = 0;
-                Jx_dot[4 * (start + i) + 2] = 0;
-                Jx_dot[4 * (start + i) + 3] = 0;
+                _Jx_dot_block[0][i] = 0;
+                _Jx_dot_block[1][i] = 0;
+                _Jx_dot_block[2][i] = 0;
+                _Jx_dot_block[3][i] = 0;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1024,8 +1088,16 @@ void planar_pp_task_jacobian_dot_batch(size_t count, const double *restrict q, c
                     _mm_stream_pd(Jx_dot + 4 * (start + i) + k, _mm_set_pd(_Jx_dot_block[k + 1][i], _Jx_dot_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 4; ++k) {
+                    Jx_dot[4 * (start + i) + k] = _Jx_dot_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1064,8 +1136,8 @@ void planar_pp_jacobian_dot(const double *restrict q, const double *restrict qd,
 void planar_pp_jacobian_dot_batch(size_t count, const double *restrict q, const double *restrict qd, const planar_pp_params *restrict params, double *restrict J_dot)
 {
 #ifdef KINEGEN_BLOCKED
-#ifdef KINEGEN_STREAM
     double _J_dot_block[12][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_dot & 15) == 0;
 #endif
@@ -1097,18 +1169,18 @@ void planar_pp_jacobian_dot_batch(size_t count, const double *restrict q, const 
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                J_dot[12 * (start + i) + 0] = 0;
-                J_dot[12 * (start + i) + 1] = 0;
-                J_dot[12 * (start + i) + 2] = 0;
-                J_dot[12 * (start + i) + 3] = 0;
-                J_dot[12 * (start + i) + 4] = 0;
-                J_dot[12 * (start + i) + 5] = 0;
-                J_dot[12 * (start + i) + 6] = 0;
-                J_dot[12 * (start + i) + 7] = 0;
-                J_dot[12 * (start + i) + 8] = 0;
-                J_dot[12 * (start + i) + 9] = 0;
-                J_dot[12 * (start + i) + 10] = 0;
-                J_dot[12 * (start + i) + 11] = 0;
+                _J_dot_block[0][i] = 0;
+                _J_dot_block[1][i] = 0;
+                _J_dot_block[2][i] = 0;
+                _J_dot_block[3][i] = 0;
+                _J_dot_block[4][i] = 0;
+                _J_dot_block[5][i] = 0;
+                _J_dot_block[6][i] = 0;
+                _J_dot_block[7][i] = 0;
+                _J_dot_block[8][i] = 0;
+                _J_dot_block[9][i] = 0;
+                _J_dot_block[10][i] = 0;
+                _J_dot_block[11][i] = 0;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1119,8 +1191,16 @@ void planar_pp_jacobian_dot_batch(size_t count, const double *restrict q, const 
                     _mm_stream_pd(J_dot + 12 * (start + i) + k, _mm_set_pd(_J_dot_block[k + 1][i], _J_dot_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 12; ++k) {
+                    J_dot[12 * (start + i) + k] = _J_dot_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1153,8 +1233,8 @@ void planar_pp_task_acceleration_batch(size_t count, const double *restrict q, c
 #ifdef KINEGEN_BLOCKED
     double qdd1[KINEGEN_BLOCK_OF(64)];
     double qdd2[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _xdd_block[2][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)xdd & 15) == 0;
 #endif
@@ -1180,8 +1260,8 @@ void planar_pp_task_acceleration_batch(size_t count, const double *restrict q, c
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                xdd[2 * (start + i) + 0] = qdd2[i];
-                xdd[2 * (start + i) + 1] = qdd1[i];
+                _xdd_block[0][i] = qdd2[i];
+                _xdd_block[1][i] = qdd1[i];
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1192,8 +1272,16 @@ void planar_pp_task_acceleration_batch(size_t count, const double *restrict q, c
                     _mm_stream_pd(xdd + 2 * (start + i) + k, _mm_set_pd(_xdd_block[k + 1][i], _xdd_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 2; ++k) {
+                    xdd[2 * (start + i) + k] = _xdd_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1258,8 +1346,8 @@ void planar_pp_joint_velocity_batch(size_t count, const double *restrict q, cons
 #ifdef KINEGEN_BLOCKED
     double xd_x[KINEGEN_BLOCK_OF(64)];
     double xd_y[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _qd_block[2][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)qd & 15) == 0;
 #endif
@@ -1285,8 +1373,8 @@ void planar_pp_joint_velocity_batch(size_t count, const double *restrict q, cons
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                qd[2 * (start + i) + 0] = xd_y[i];
-                qd[2 * (start + i) + 1] = xd_x[i];
+                _qd_block[0][i] = xd_y[i];
+                _qd_block[1][i] = xd_x[i];
                 singular[1 * (start + i) + 0] = 0;
             }
         }
@@ -1298,8 +1386,16 @@ void planar_pp_joint_velocity_batch(size_t count, const double *restrict q, cons
                     _mm_stream_pd(qd + 2 * (start + i) + k, _mm_set_pd(_qd_block[k + 1][i], _qd_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 2; ++k) {
+                    qd[2 * (start + i) + k] = _qd_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1333,8 +1429,8 @@ void planar_pp_joint_acceleration_batch(size_t count, const double *restrict q, 
 #ifdef KINEGEN_BLOCKED
     double xdd_x[KINEGEN_BLOCK_OF(64)];
     double xdd_y[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _qdd_block[2][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)qdd & 15) == 0;
 #endif
@@ -1361,8 +1457,8 @@ void planar_pp_joint_acceleration_batch(size_t count, const double *restrict q, 
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                qdd[2 * (start + i) + 0] = xdd_y[i];
-                qdd[2 * (start + i) + 1] = xdd_x[i];
+                _qdd_block[0][i] = xdd_y[i];
+                _qdd_block[1][i] = xdd_x[i];
                 singular[1 * (start + i) + 0] = 0;
             }
         }
@@ -1374,8 +1470,16 @@ void planar_pp_joint_acceleration_batch(size_t count, const double *restrict q, 
                     _mm_stream_pd(qdd + 2 * (start + i) + k, _mm_set_pd(_qdd_block[k + 1][i], _qdd_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 2; ++k) {
+                    qdd[2 * (start + i) + k] = _qdd_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {

@@ -139,8 +139,8 @@ void planar_rp_fk_batch(size_t count, const double *restrict q, const planar_rp_
     double q2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _T_block[16][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
 #endif
@@ -186,22 +186,22 @@ void planar_rp_fk_batch(size_t count, const double *restrict q, const planar_rp_
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                T[16 * (start + i) + 0] = _s0[i];
-                T[16 * (start + i) + 1] = 0;
-                T[16 * (start + i) + 2] = _c0[i];
-                T[16 * (start + i) + 3] = _c0[i]*q2[i];
-                T[16 * (start + i) + 4] = -_c0[i];
-                T[16 * (start + i) + 5] = 0;
-                T[16 * (start + i) + 6] = _s0[i];
-                T[16 * (start + i) + 7] = _s0[i]*q2[i];
-                T[16 * (start + i) + 8] = 0;
-                T[16 * (start + i) + 9] = -1;
-                T[16 * (start + i) + 10] = 0;
-                T[16 * (start + i) + 11] = 0;
-                T[16 * (start + i) + 12] = 0;
-                T[16 * (start + i) + 13] = 0;
-                T[16 * (start + i) + 14] = 0;
-                T[16 * (start + i) + 15] = 1;
+                _T_block[0][i] = _s0[i];
+                _T_block[1][i] = 0;
+                _T_block[2][i] = _c0[i];
+                _T_block[3][i] = _c0[i]*q2[i];
+                _T_block[4][i] = -_c0[i];
+                _T_block[5][i] = 0;
+                _T_block[6][i] = _s0[i];
+                _T_block[7][i] = _s0[i]*q2[i];
+                _T_block[8][i] = 0;
+                _T_block[9][i] = -1;
+                _T_block[10][i] = 0;
+                _T_block[11][i] = 0;
+                _T_block[12][i] = 0;
+                _T_block[13][i] = 0;
+                _T_block[14][i] = 0;
+                _T_block[15][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -212,8 +212,16 @@ void planar_rp_fk_batch(size_t count, const double *restrict q, const planar_rp_
                     _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 16; ++k) {
+                    T[16 * (start + i) + k] = _T_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -296,8 +304,8 @@ void planar_rp_frames_batch(size_t count, const double *restrict q, const planar
     double q2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _frames_block[48][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 48 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
 #endif
@@ -377,54 +385,54 @@ void planar_rp_frames_batch(size_t count, const double *restrict q, const planar
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
                 const double _t2 = -_c0[i];
-                frames[48 * (start + i) + 0] = 1;
-                frames[48 * (start + i) + 1] = 0;
-                frames[48 * (start + i) + 2] = 0;
-                frames[48 * (start + i) + 3] = 0;
-                frames[48 * (start + i) + 4] = 0;
-                frames[48 * (start + i) + 5] = 1;
-                frames[48 * (start + i) + 6] = 0;
-                frames[48 * (start + i) + 7] = 0;
-                frames[48 * (start + i) + 8] = 0;
-                frames[48 * (start + i) + 9] = 0;
-                frames[48 * (start + i) + 10] = 1;
-                frames[48 * (start + i) + 11] = 0;
-                frames[48 * (start + i) + 12] = 0;
-                frames[48 * (start + i) + 13] = 0;
-                frames[48 * (start + i) + 14] = 0;
-                frames[48 * (start + i) + 15] = 1;
-                frames[48 * (start + i) + 16] = _s0[i];
-                frames[48 * (start + i) + 17] = _c0[i];
-                frames[48 * (start + i) + 18] = 0;
-                frames[48 * (start + i) + 19] = 0;
-                frames[48 * (start + i) + 20] = _t2;
-                frames[48 * (start + i) + 21] = _s0[i];
-                frames[48 * (start + i) + 22] = 0;
-                frames[48 * (start + i) + 23] = 0;
-                frames[48 * (start + i) + 24] = 0;
-                frames[48 * (start + i) + 25] = 0;
-                frames[48 * (start + i) + 26] = 1;
-                frames[48 * (start + i) + 27] = 0;
-                frames[48 * (start + i) + 28] = 0;
-                frames[48 * (start + i) + 29] = 0;
-                frames[48 * (start + i) + 30] = 0;
-                frames[48 * (start + i) + 31] = 1;
-                frames[48 * (start + i) + 32] = _s0[i];
-                frames[48 * (start + i) + 33] = 0;
-                frames[48 * (start + i) + 34] = _c0[i];
-                frames[48 * (start + i) + 35] = _c0[i]*q2[i];
-                frames[48 * (start + i) + 36] = _t2;
-                frames[48 * (start + i) + 37] = 0;
-                frames[48 * (start + i) + 38] = _s0[i];
-                frames[48 * (start + i) + 39] = _s0[i]*q2[i];
-                frames[48 * (start + i) + 40] = 0;
-                frames[48 * (start + i) + 41] = -1;
-                frames[48 * (start + i) + 42] = 0;
-                frames[48 * (start + i) + 43] = 0;
-                frames[48 * (start + i) + 44] = 0;
-                frames[48 * (start + i) + 45] = 0;
-                frames[48 * (start + i) + 46] = 0;
-                frames[48 * (start + i) + 47] = 1;
+                _frames_block[0][i] = 1;
+                _frames_block[1][i] = 0;
+                _frames_block[2][i] = 0;
+                _frames_block[3][i] = 0;
+                _frames_block[4][i] = 0;
+                _frames_block[5][i] = 1;
+                _frames_block[6][i] = 0;
+                _frames_block[7][i] = 0;
+                _frames_block[8][i] = 0;
+                _frames_block[9][i] = 0;
+                _frames_block[10][i] = 1;
+                _frames_block[11][i] = 0;
+                _frames_block[12][i] = 0;
+                _frames_block[13][i] = 0;
+                _frames_block[14][i] = 0;
+                _frames_block[15][i] = 1;
+                _frames_block[16][i] = _s0[i];
+                _frames_block[17][i] = _c0[i];
+                _frames_block[18][i] = 0;
+                _frames_block[19][i] = 0;
+                _frames_block[20][i] = _t2;
+                _frames_block[21][i] = _s0[i];
+                _frames_block[22][i] = 0;
+                _frames_block[23][i] = 0;
+                _frames_block[24][i] = 0;
+                _frames_block[25][i] = 0;
+                _frames_block[26][i] = 1;
+                _frames_block[27][i] = 0;
+                _frames_block[28][i] = 0;
+                _frames_block[29][i] = 0;
+                _frames_block[30][i] = 0;
+                _frames_block[31][i] = 1;
+                _frames_block[32][i] = _s0[i];
+                _frames_block[33][i] = 0;
+                _frames_block[34][i] = _c0[i];
+                _frames_block[35][i] = _c0[i]*q2[i];
+                _frames_block[36][i] = _t2;
+                _frames_block[37][i] = 0;
+                _frames_block[38][i] = _s0[i];
+                _frames_block[39][i] = _s0[i]*q2[i];
+                _frames_block[40][i] = 0;
+                _frames_block[41][i] = -1;
+                _frames_block[42][i] = 0;
+                _frames_block[43][i] = 0;
+                _frames_block[44][i] = 0;
+                _frames_block[45][i] = 0;
+                _frames_block[46][i] = 0;
+                _frames_block[47][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -435,8 +443,16 @@ void planar_rp_frames_batch(size_t count, const double *restrict q, const planar
                     _mm_stream_pd(frames + 48 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 48; ++k) {
+                    frames[48 * (start + i) + k] = _frames_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -482,8 +498,8 @@ void planar_rp_jacobian_batch(size_t count, const double *restrict q, const plan
     double q2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_block[12][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
 #endif
@@ -525,18 +541,18 @@ void planar_rp_jacobian_batch(size_t count, const double *restrict q, const plan
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                J[12 * (start + i) + 0] = -_s0[i]*q2[i];
-                J[12 * (start + i) + 1] = _c0[i];
-                J[12 * (start + i) + 2] = _c0[i]*q2[i];
-                J[12 * (start + i) + 3] = _s0[i];
-                J[12 * (start + i) + 4] = 0;
-                J[12 * (start + i) + 5] = 0;
-                J[12 * (start + i) + 6] = 0;
-                J[12 * (start + i) + 7] = 0;
-                J[12 * (start + i) + 8] = 0;
-                J[12 * (start + i) + 9] = 0;
-                J[12 * (start + i) + 10] = 1;
-                J[12 * (start + i) + 11] = 0;
+                _J_block[0][i] = -_s0[i]*q2[i];
+                _J_block[1][i] = _c0[i];
+                _J_block[2][i] = _c0[i]*q2[i];
+                _J_block[3][i] = _s0[i];
+                _J_block[4][i] = 0;
+                _J_block[5][i] = 0;
+                _J_block[6][i] = 0;
+                _J_block[7][i] = 0;
+                _J_block[8][i] = 0;
+                _J_block[9][i] = 0;
+                _J_block[10][i] = 1;
+                _J_block[11][i] = 0;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -547,8 +563,16 @@ void planar_rp_jacobian_batch(size_t count, const double *restrict q, const plan
                     _mm_stream_pd(J + 12 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 12; ++k) {
+                    J[12 * (start + i) + k] = _J_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -596,8 +620,8 @@ void planar_rp_jacobian_tool_batch(size_t count, const double *restrict q, const
     double q2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_tool_block[12][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_tool & 15) == 0;
 #endif
@@ -643,18 +667,18 @@ void planar_rp_jacobian_tool_batch(size_t count, const double *restrict q, const
             for (i = 0; i < n; ++i) {
                 const double _t0 = (_c0[i]*_c0[i]);
                 const double _t1 = (_s0[i]*_s0[i]);
-                J_tool[12 * (start + i) + 0] = -_t0*q2[i] - _t1*q2[i];
-                J_tool[12 * (start + i) + 1] = 0;
-                J_tool[12 * (start + i) + 2] = 0;
-                J_tool[12 * (start + i) + 3] = 0;
-                J_tool[12 * (start + i) + 4] = 0;
-                J_tool[12 * (start + i) + 5] = _t0 + _t1;
-                J_tool[12 * (start + i) + 6] = 0;
-                J_tool[12 * (start + i) + 7] = 0;
-                J_tool[12 * (start + i) + 8] = -1;
-                J_tool[12 * (start + i) + 9] = 0;
-                J_tool[12 * (start + i) + 10] = 0;
-                J_tool[12 * (start + i) + 11] = 0;
+                _J_tool_block[0][i] = -_t0*q2[i] - _t1*q2[i];
+                _J_tool_block[1][i] = 0;
+                _J_tool_block[2][i] = 0;
+                _J_tool_block[3][i] = 0;
+                _J_tool_block[4][i] = 0;
+                _J_tool_block[5][i] = _t0 + _t1;
+                _J_tool_block[6][i] = 0;
+                _J_tool_block[7][i] = 0;
+                _J_tool_block[8][i] = -1;
+                _J_tool_block[9][i] = 0;
+                _J_tool_block[10][i] = 0;
+                _J_tool_block[11][i] = 0;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -665,8 +689,16 @@ void planar_rp_jacobian_tool_batch(size_t count, const double *restrict q, const
                     _mm_stream_pd(J_tool + 12 * (start + i) + k, _mm_set_pd(_J_tool_block[k + 1][i], _J_tool_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 12; ++k) {
+                    J_tool[12 * (start + i) + k] = _J_tool_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -702,8 +734,8 @@ void planar_rp_task_batch(size_t count, const double *restrict q, const planar_r
     double q2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _x_block[2][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)x & 15) == 0;
 #endif
@@ -735,8 +767,8 @@ void planar_rp_task_batch(size_t count, const double *restrict q, const planar_r
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                x[2 * (start + i) + 0] = _c0[i]*q2[i];
-                x[2 * (start + i) + 1] = _s0[i]*q2[i];
+                _x_block[0][i] = _c0[i]*q2[i];
+                _x_block[1][i] = _s0[i]*q2[i];
             }
         }
 #ifdef KINEGEN_STREAM
@@ -747,8 +779,16 @@ void planar_rp_task_batch(size_t count, const double *restrict q, const planar_r
                     _mm_stream_pd(x + 2 * (start + i) + k, _mm_set_pd(_x_block[k + 1][i], _x_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 2; ++k) {
+                    x[2 * (start + i) + k] = _x_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -786,8 +826,8 @@ void planar_rp_task_jacobian_batch(size_t count, const double *restrict q, const
     double q2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _Jx_block[4][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx & 15) == 0;
 #endif
@@ -821,10 +861,10 @@ void planar_rp_task_jacobian_batch(size_t count, const double *restrict q, const
         {
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
-                Jx[4 * (start + i) + 0] = -_s0[i]*q2[i];
-                Jx[4 * (start + i) + 1] = _c0[i];
-                Jx[4 * (start + i) + 2] = _c0[i]*q2[i];
-                Jx[4 * (start + i) + 3] = _s0[i];
+                _Jx_block[0][i] = -_s0[i]*q2[i];
+                _Jx_block[1][i] = _c0[i];
+                _Jx_block[2][i] = _c0[i]*q2[i];
+                _Jx_block[3][i] = _s0[i];
             }
         }
 #ifdef KINEGEN_STREAM
@@ -835,8 +875,16 @@ void planar_rp_task_jacobian_batch(size_t count, const double *restrict q, const
                     _mm_stream_pd(Jx + 4 * (start + i) + k, _mm_set_pd(_Jx_block[k + 1][i], _Jx_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 4; ++k) {
+                    Jx[4 * (start + i) + k] = _Jx_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1013,8 +1061,8 @@ void planar_rp_task_velocity_batch(size_t count, const double *restrict q, const
     double qd2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _xd_block[2][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)xd & 15) == 0;
 #endif
@@ -1050,8 +1098,8 @@ void planar_rp_task_velocity_batch(size_t count, const double *restrict q, const
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
                 const double _t2 = q2[i]*qd1[i];
-                xd[2 * (start + i) + 0] = _c0[i]*qd2[i] - _s0[i]*_t2;
-                xd[2 * (start + i) + 1] = _c0[i]*_t2 + _s0[i]*qd2[i];
+                _xd_block[0][i] = _c0[i]*qd2[i] - _s0[i]*_t2;
+                _xd_block[1][i] = _c0[i]*_t2 + _s0[i]*qd2[i];
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1062,8 +1110,16 @@ void planar_rp_task_velocity_batch(size_t count, const double *restrict q, const
                     _mm_stream_pd(xd + 2 * (start + i) + k, _mm_set_pd(_xd_block[k + 1][i], _xd_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 2; ++k) {
+                    xd[2 * (start + i) + k] = _xd_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1108,8 +1164,8 @@ void planar_rp_twist_batch(size_t count, const double *restrict q, const double 
     double qd2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _twist_block[6][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)twist & 15) == 0;
 #endif
@@ -1149,12 +1205,12 @@ void planar_rp_twist_batch(size_t count, const double *restrict q, const double 
             KINEGEN_VECTOR_LOOP
             for (i = 0; i < n; ++i) {
                 const double _t2 = q2[i]*qd1[i];
-                twist[6 * (start + i) + 0] = _c0[i]*qd2[i] - _s0[i]*_t2;
-                twist[6 * (start + i) + 1] = _c0[i]*_t2 + _s0[i]*qd2[i];
-                twist[6 * (start + i) + 2] = 0;
-                twist[6 * (start + i) + 3] = 0;
-                twist[6 * (start + i) + 4] = 0;
-                twist[6 * (start + i) + 5] = qd1[i];
+                _twist_block[0][i] = _c0[i]*qd2[i] - _s0[i]*_t2;
+                _twist_block[1][i] = _c0[i]*_t2 + _s0[i]*qd2[i];
+                _twist_block[2][i] = 0;
+                _twist_block[3][i] = 0;
+                _twist_block[4][i] = 0;
+                _twist_block[5][i] = qd1[i];
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1165,8 +1221,16 @@ void planar_rp_twist_batch(size_t count, const double *restrict q, const double 
                     _mm_stream_pd(twist + 6 * (start + i) + k, _mm_set_pd(_twist_block[k + 1][i], _twist_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 6; ++k) {
+                    twist[6 * (start + i) + k] = _twist_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1210,8 +1274,8 @@ void planar_rp_task_jacobian_dot_batch(size_t count, const double *restrict q, c
     double qd2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _Jx_dot_block[4][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 4 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx_dot & 15) == 0;
 #endif
@@ -1251,10 +1315,10 @@ void planar_rp_task_jacobian_dot_batch(size_t count, const double *restrict q, c
             for (i = 0; i < n; ++i) {
                 const double _t2 = _c0[i]*qd1[i];
                 const double _t3 = _s0[i]*qd1[i];
-                Jx_dot[4 * (start + i) + 0] = -_s0[i]*qd2[i] - _t2*q2[i];
-                Jx_dot[4 * (start + i) + 1] = -_t3;
-                Jx_dot[4 * (start + i) + 2] = _c0[i]*qd2[i] - _t3*q2[i];
-                Jx_dot[4 * (start + i) + 3] = _t2;
+                _Jx_dot_block[0][i] = -_s0[i]*qd2[i] - _t2*q2[i];
+                _Jx_dot_block[1][i] = -_t3;
+                _Jx_dot_block[2][i] = _c0[i]*qd2[i] - _t3*q2[i];
+                _Jx_dot_block[3][i] = _t2;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1265,8 +1329,16 @@ void planar_rp_task_jacobian_dot_batch(size_t count, const double *restrict q, c
                     _mm_stream_pd(Jx_dot + 4 * (start + i) + k, _mm_set_pd(_Jx_dot_block[k + 1][i], _Jx_dot_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 4; ++k) {
+                    Jx_dot[4 * (start + i) + k] = _Jx_dot_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1318,8 +1390,8 @@ void planar_rp_jacobian_dot_batch(size_t count, const double *restrict q, const 
     double qd2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_dot_block[12][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_dot & 15) == 0;
 #endif
@@ -1367,18 +1439,18 @@ void planar_rp_jacobian_dot_batch(size_t count, const double *restrict q, const 
             for (i = 0; i < n; ++i) {
                 const double _t2 = _c0[i]*qd1[i];
                 const double _t3 = _s0[i]*qd1[i];
-                J_dot[12 * (start + i) + 0] = -_s0[i]*qd2[i] - _t2*q2[i];
-                J_dot[12 * (start + i) + 1] = -_t3;
-                J_dot[12 * (start + i) + 2] = _c0[i]*qd2[i] - _t3*q2[i];
-                J_dot[12 * (start + i) + 3] = _t2;
-                J_dot[12 * (start + i) + 4] = 0;
-                J_dot[12 * (start + i) + 5] = 0;
-                J_dot[12 * (start + i) + 6] = 0;
-                J_dot[12 * (start + i) + 7] = 0;
-                J_dot[12 * (start + i) + 8] = 0;
-                J_dot[12 * (start + i) + 9] = 0;
-                J_dot[12 * (start + i) + 10] = 0;
-                J_dot[12 * (start + i) + 11] = 0;
+                _J_dot_block[0][i] = -_s0[i]*qd2[i] - _t2*q2[i];
+                _J_dot_block[1][i] = -_t3;
+                _J_dot_block[2][i] = _c0[i]*qd2[i] - _t3*q2[i];
+                _J_dot_block[3][i] = _t2;
+                _J_dot_block[4][i] = 0;
+                _J_dot_block[5][i] = 0;
+                _J_dot_block[6][i] = 0;
+                _J_dot_block[7][i] = 0;
+                _J_dot_block[8][i] = 0;
+                _J_dot_block[9][i] = 0;
+                _J_dot_block[10][i] = 0;
+                _J_dot_block[11][i] = 0;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1389,8 +1461,16 @@ void planar_rp_jacobian_dot_batch(size_t count, const double *restrict q, const 
                     _mm_stream_pd(J_dot + 12 * (start + i) + k, _mm_set_pd(_J_dot_block[k + 1][i], _J_dot_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 12; ++k) {
+                    J_dot[12 * (start + i) + k] = _J_dot_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1437,8 +1517,8 @@ void planar_rp_task_acceleration_batch(size_t count, const double *restrict q, c
     double qdd2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _xdd_block[2][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)xdd & 15) == 0;
 #endif
@@ -1480,8 +1560,8 @@ void planar_rp_task_acceleration_batch(size_t count, const double *restrict q, c
                 const double _t1 = _s0[i]*qd2[i];
                 const double _t3 = q2[i]*qd1[i];
                 const double _t4 = q2[i]*qdd1[i];
-                xdd[2 * (start + i) + 0] = _c0[i]*qdd2[i] - _s0[i]*_t4 - _t1*qd1[i] + qd1[i]*(-_c0[i]*_t3 - _t1);
-                xdd[2 * (start + i) + 1] = _c0[i]*_t4 + _c0[i]*qd1[i]*qd2[i] + _s0[i]*qdd2[i] + qd1[i]*(_c0[i]*qd2[i] - _s0[i]*_t3);
+                _xdd_block[0][i] = _c0[i]*qdd2[i] - _s0[i]*_t4 - _t1*qd1[i] + qd1[i]*(-_c0[i]*_t3 - _t1);
+                _xdd_block[1][i] = _c0[i]*_t4 + _c0[i]*qd1[i]*qd2[i] + _s0[i]*qdd2[i] + qd1[i]*(_c0[i]*qd2[i] - _s0[i]*_t3);
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1492,8 +1572,16 @@ void planar_rp_task_acceleration_batch(size_t count, const double *restrict q, c
                     _mm_stream_pd(xdd + 2 * (start + i) + k, _mm_set_pd(_xdd_block[k + 1][i], _xdd_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 2; ++k) {
+                    xdd[2 * (start + i) + k] = _xdd_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1595,8 +1683,8 @@ void planar_rp_joint_velocity_batch(size_t count, const double *restrict q, cons
     double xd_y[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _qd_block[2][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)qd & 15) == 0;
 #endif
@@ -1673,13 +1761,13 @@ void planar_rp_joint_velocity_batch(size_t count, const double *restrict q, cons
                 const double _t15 = _s0[i]*q2[i];
                 const int _t16 = _t0 < 1e-08;
                 const double _t17 = q2[i]/kinegen_max(1e-08, _t0);
-                qd[2 * (start + i) + 0] = ((_t16) ? (
+                _qd_block[0][i] = ((_t16) ? (
    _t9*(_t12*_t13 - _t14*_t15)
 )
 : (
    -_t17*(-_c0[i]*xd_y[i] + _s0[i]*xd_x[i])
 ));
-                qd[2 * (start + i) + 1] = ((_t16) ? (
+                _qd_block[1][i] = ((_t16) ? (
    _t9*(_c0[i]*_t14 + _s0[i]*_t12)
 )
 : (
@@ -1696,8 +1784,16 @@ void planar_rp_joint_velocity_batch(size_t count, const double *restrict q, cons
                     _mm_stream_pd(qd + 2 * (start + i) + k, _mm_set_pd(_qd_block[k + 1][i], _qd_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 2; ++k) {
+                    qd[2 * (start + i) + k] = _qd_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1772,8 +1868,8 @@ void planar_rp_joint_acceleration_batch(size_t count, const double *restrict q, 
     double xdd_y[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _qdd_block[2][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 2 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)qdd & 15) == 0;
 #endif
@@ -1860,13 +1956,13 @@ void planar_rp_joint_acceleration_batch(size_t count, const double *restrict q, 
                 const double _t19 = _s0[i]*q2[i];
                 const int _t20 = _t0 < 1e-08;
                 const double _t21 = q2[i]/kinegen_max(1e-08, _t0);
-                qdd[2 * (start + i) + 0] = ((_t20) ? (
+                _qdd_block[0][i] = ((_t20) ? (
    _t9*(_t16*_t17 - _t18*_t19)
 )
 : (
    -_t21*(-_c0[i]*_t15 + _s0[i]*_t14)
 ));
-                qdd[2 * (start + i) + 1] = ((_t20) ? (
+                _qdd_block[1][i] = ((_t20) ? (
    _t9*(_c0[i]*_t18 + _s0[i]*_t16)
 )
 : (
@@ -1883,8 +1979,16 @@ void planar_rp_joint_acceleration_batch(size_t count, const double *restrict q, 
                     _mm_stream_pd(qdd + 2 * (start + i) + k, _mm_set_pd(_qdd_block[k + 1][i], _qdd_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 2; ++k) {
+                    qdd[2 * (start + i) + k] = _qdd_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1921,6 +2025,7 @@ void planar_rp_kumar_pose_batch(size_t count, const double *restrict q, const pl
     double q2[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
+    double _x_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     (void)params;
     for (start = 0; start < count; start += n) {
@@ -1939,9 +2044,17 @@ void planar_rp_kumar_pose_batch(size_t count, const double *restrict q, const pl
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            x[3 * (start + i) + 0] = _c0[i]*q2[i];
-            x[3 * (start + i) + 1] = _s0[i]*q2[i];
-            x[3 * (start + i) + 2] = q1[i];
+            _x_block[0][i] = _c0[i]*q2[i];
+            _x_block[1][i] = _s0[i]*q2[i];
+            _x_block[2][i] = q1[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    x[3 * (start + i) + k] = _x_block[k][i];
+                }
+            }
         }
     }
 #else

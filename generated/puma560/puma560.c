@@ -254,8 +254,8 @@ void puma560_fk_batch(size_t count, const double *restrict q, const puma560_para
     double _c4[KINEGEN_BLOCK_OF(64)];
     double _s5[KINEGEN_BLOCK_OF(64)];
     double _c5[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _T_block[16][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
 #endif
@@ -394,22 +394,22 @@ void puma560_fk_batch(size_t count, const double *restrict q, const puma560_para
                 const double _t27 = _s2[i]*_s4[i];
                 const double _t28 = _c2[i]*_s4[i];
                 const double _t29 = _c3[i]*_t28;
-                T[16 * (start + i) + 0] = _c0[i]*_c1[i]*_c2[i]*_c3[i]*_c4[i] - _c0[i]*_s3[i]*_t10 - _c3[i]*_s1[i]*_t16 - _t12*_t14 - _t4;
-                T[16 * (start + i) + 1] = _c1[i]*_s0[i]*_s3[i]*_s4[i] + _c3[i]*_s0[i]*_s1[i]*_s2[i] - _t14*_t16 - _t17 - _t18*_t20;
-                T[16 * (start + i) + 2] = -_c3[i]*_t10 + _s1[i]*_s2[i]*_s3[i] - _t19*_t21;
-                T[16 * (start + i) + 3] = _c1[i]*_t22 + _c1[i]*_t23 + _s1[i]*d3 - _t10*d4;
-                T[16 * (start + i) + 4] = -_c0[i]*_s3[i]*_t25 - _t12*_t26 + _t16*_t24 + _t17*_t18 + _t20;
-                T[16 * (start + i) + 5] = _c0[i]*_c1[i]*_c2[i] + _s0[i]*_s1[i]*_s3[i]*_s4[i] - _t12*_t24 - _t16*_t26 - _t18*_t4;
-                T[16 * (start + i) + 6] = -_c1[i]*_s2[i]*_s3[i] - _c3[i]*_t25 - _t21*_t3;
-                T[16 * (start + i) + 7] = -_c1[i]*d3 + _s1[i]*_t22 + _s1[i]*_t23 - _t25*d4;
-                T[16 * (start + i) + 8] = _c0[i]*_t21 + _c0[i]*_t29 - _s0[i]*_t27;
-                T[16 * (start + i) + 9] = -_c0[i]*_t27 - _s0[i]*_t21 - _s0[i]*_t29;
-                T[16 * (start + i) + 10] = _c3[i]*_c4[i] - _s3[i]*_t28;
-                T[16 * (start + i) + 11] = _c4[i]*d4 + _s4[i]*a3 + _s5[i]*a2 + d1;
-                T[16 * (start + i) + 12] = 0;
-                T[16 * (start + i) + 13] = 0;
-                T[16 * (start + i) + 14] = 0;
-                T[16 * (start + i) + 15] = 1;
+                _T_block[0][i] = _c0[i]*_c1[i]*_c2[i]*_c3[i]*_c4[i] - _c0[i]*_s3[i]*_t10 - _c3[i]*_s1[i]*_t16 - _t12*_t14 - _t4;
+                _T_block[1][i] = _c1[i]*_s0[i]*_s3[i]*_s4[i] + _c3[i]*_s0[i]*_s1[i]*_s2[i] - _t14*_t16 - _t17 - _t18*_t20;
+                _T_block[2][i] = -_c3[i]*_t10 + _s1[i]*_s2[i]*_s3[i] - _t19*_t21;
+                _T_block[3][i] = _c1[i]*_t22 + _c1[i]*_t23 + _s1[i]*d3 - _t10*d4;
+                _T_block[4][i] = -_c0[i]*_s3[i]*_t25 - _t12*_t26 + _t16*_t24 + _t17*_t18 + _t20;
+                _T_block[5][i] = _c0[i]*_c1[i]*_c2[i] + _s0[i]*_s1[i]*_s3[i]*_s4[i] - _t12*_t24 - _t16*_t26 - _t18*_t4;
+                _T_block[6][i] = -_c1[i]*_s2[i]*_s3[i] - _c3[i]*_t25 - _t21*_t3;
+                _T_block[7][i] = -_c1[i]*d3 + _s1[i]*_t22 + _s1[i]*_t23 - _t25*d4;
+                _T_block[8][i] = _c0[i]*_t21 + _c0[i]*_t29 - _s0[i]*_t27;
+                _T_block[9][i] = -_c0[i]*_t27 - _s0[i]*_t21 - _s0[i]*_t29;
+                _T_block[10][i] = _c3[i]*_c4[i] - _s3[i]*_t28;
+                _T_block[11][i] = _c4[i]*d4 + _s4[i]*a3 + _s5[i]*a2 + d1;
+                _T_block[12][i] = 0;
+                _T_block[13][i] = 0;
+                _T_block[14][i] = 0;
+                _T_block[15][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -420,8 +420,16 @@ void puma560_fk_batch(size_t count, const double *restrict q, const puma560_para
                     _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 16; ++k) {
+                    T[16 * (start + i) + k] = _T_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -673,8 +681,8 @@ void puma560_frames_batch(size_t count, const double *restrict q, const puma560_
     double _c4[KINEGEN_BLOCK_OF(16)];
     double _s5[KINEGEN_BLOCK_OF(16)];
     double _c5[KINEGEN_BLOCK_OF(16)];
-#ifdef KINEGEN_STREAM
     double _frames_block[112][KINEGEN_BLOCK_OF(16)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 112 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
 #endif
@@ -951,118 +959,118 @@ void puma560_frames_batch(size_t count, const double *restrict q, const puma560_
                 const double _t48 = _c2[i]*_s4[i];
                 const double _t49 = _c4[i]*_t35;
                 const double _t50 = _c2[i]*_c4[i] - _s4[i]*_t35;
-                frames[112 * (start + i) + 0] = 1;
-                frames[112 * (start + i) + 1] = 0;
-                frames[112 * (start + i) + 2] = 0;
-                frames[112 * (start + i) + 3] = 0;
-                frames[112 * (start + i) + 4] = 0;
-                frames[112 * (start + i) + 5] = 1;
-                frames[112 * (start + i) + 6] = 0;
-                frames[112 * (start + i) + 7] = 0;
-                frames[112 * (start + i) + 8] = 0;
-                frames[112 * (start + i) + 9] = 0;
-                frames[112 * (start + i) + 10] = 1;
-                frames[112 * (start + i) + 11] = 0;
-                frames[112 * (start + i) + 12] = 0;
-                frames[112 * (start + i) + 13] = 0;
-                frames[112 * (start + i) + 14] = 0;
-                frames[112 * (start + i) + 15] = 1;
-                frames[112 * (start + i) + 16] = _c0[i];
-                frames[112 * (start + i) + 17] = 0;
-                frames[112 * (start + i) + 18] = _s0[i];
-                frames[112 * (start + i) + 19] = 0;
-                frames[112 * (start + i) + 20] = _s0[i];
-                frames[112 * (start + i) + 21] = 0;
-                frames[112 * (start + i) + 22] = _t2;
-                frames[112 * (start + i) + 23] = 0;
-                frames[112 * (start + i) + 24] = 0;
-                frames[112 * (start + i) + 25] = 1;
-                frames[112 * (start + i) + 26] = 0;
-                frames[112 * (start + i) + 27] = d1;
-                frames[112 * (start + i) + 28] = 0;
-                frames[112 * (start + i) + 29] = 0;
-                frames[112 * (start + i) + 30] = 0;
-                frames[112 * (start + i) + 31] = 1;
-                frames[112 * (start + i) + 32] = _t4;
-                frames[112 * (start + i) + 33] = -_c0[i]*_s1[i];
-                frames[112 * (start + i) + 34] = _s0[i];
-                frames[112 * (start + i) + 35] = _t6;
-                frames[112 * (start + i) + 36] = _t7;
-                frames[112 * (start + i) + 37] = -_s0[i]*_s1[i];
-                frames[112 * (start + i) + 38] = _t2;
-                frames[112 * (start + i) + 39] = _t8;
-                frames[112 * (start + i) + 40] = _s1[i];
-                frames[112 * (start + i) + 41] = _c1[i];
-                frames[112 * (start + i) + 42] = 0;
-                frames[112 * (start + i) + 43] = _t9;
-                frames[112 * (start + i) + 44] = 0;
-                frames[112 * (start + i) + 45] = 0;
-                frames[112 * (start + i) + 46] = 0;
-                frames[112 * (start + i) + 47] = 1;
-                frames[112 * (start + i) + 48] = _t12;
-                frames[112 * (start + i) + 49] = -_s0[i];
-                frames[112 * (start + i) + 50] = _t15;
-                frames[112 * (start + i) + 51] = _t16;
-                frames[112 * (start + i) + 52] = _t17;
-                frames[112 * (start + i) + 53] = _c0[i];
-                frames[112 * (start + i) + 54] = _t19;
-                frames[112 * (start + i) + 55] = _t20;
-                frames[112 * (start + i) + 56] = _s2[i];
-                frames[112 * (start + i) + 57] = 0;
-                frames[112 * (start + i) + 58] = _c2[i];
-                frames[112 * (start + i) + 59] = _t21;
-                frames[112 * (start + i) + 60] = 0;
-                frames[112 * (start + i) + 61] = 0;
-                frames[112 * (start + i) + 62] = 0;
-                frames[112 * (start + i) + 63] = 1;
-                frames[112 * (start + i) + 64] = _c0[i]*_c2[i]*_c3[i] - _t23;
-                frames[112 * (start + i) + 65] = _t15;
-                frames[112 * (start + i) + 66] = _t27;
-                frames[112 * (start + i) + 67] = _t28;
-                frames[112 * (start + i) + 68] = _t29 + _t30;
-                frames[112 * (start + i) + 69] = _t19;
-                frames[112 * (start + i) + 70] = _t33;
-                frames[112 * (start + i) + 71] = _t34;
-                frames[112 * (start + i) + 72] = _t35;
-                frames[112 * (start + i) + 73] = _c2[i];
-                frames[112 * (start + i) + 74] = _t36;
-                frames[112 * (start + i) + 75] = _t37;
-                frames[112 * (start + i) + 76] = 0;
-                frames[112 * (start + i) + 77] = 0;
-                frames[112 * (start + i) + 78] = 0;
-                frames[112 * (start + i) + 79] = 1;
-                frames[112 * (start + i) + 80] = _c0[i]*_c2[i]*_c3[i]*_c4[i] - _t39 - _t41;
-                frames[112 * (start + i) + 81] = -_t27;
-                frames[112 * (start + i) + 82] = _t43;
-                frames[112 * (start + i) + 83] = _t28;
-                frames[112 * (start + i) + 84] = _t44 - _t45 + _t46;
-                frames[112 * (start + i) + 85] = -_t33;
-                frames[112 * (start + i) + 86] = _t47;
-                frames[112 * (start + i) + 87] = _t34;
-                frames[112 * (start + i) + 88] = _t48 + _t49;
-                frames[112 * (start + i) + 89] = -_t36;
-                frames[112 * (start + i) + 90] = _t50;
-                frames[112 * (start + i) + 91] = _t37;
-                frames[112 * (start + i) + 92] = 0;
-                frames[112 * (start + i) + 93] = 0;
-                frames[112 * (start + i) + 94] = 0;
-                frames[112 * (start + i) + 95] = 1;
-                frames[112 * (start + i) + 96] = _c0[i]*_c2[i]*_c3[i]*_c4[i]*_c5[i] - _c5[i]*_t39 - _c5[i]*_t41 - _s5[i]*_t25 - _s5[i]*_t26;
-                frames[112 * (start + i) + 97] = _c0[i]*_s2[i]*_s4[i]*_s5[i] + _c4[i]*_s0[i]*_s3[i]*_s5[i] - _c4[i]*_s5[i]*_t42 - _c5[i]*_t25 - _c5[i]*_t26;
-                frames[112 * (start + i) + 98] = _t43;
-                frames[112 * (start + i) + 99] = _t28;
-                frames[112 * (start + i) + 100] = _c5[i]*_t44 - _c5[i]*_t45 + _c5[i]*_t46 + _s5[i]*_t31 - _s5[i]*_t32;
-                frames[112 * (start + i) + 101] = _c0[i]*_c3[i]*_c5[i] - _c5[i]*_t32 + _s0[i]*_s2[i]*_s4[i]*_s5[i] - _s5[i]*_t44 - _s5[i]*_t46;
-                frames[112 * (start + i) + 102] = _t47;
-                frames[112 * (start + i) + 103] = _t34;
-                frames[112 * (start + i) + 104] = _c5[i]*_t48 + _c5[i]*_t49 - _s5[i]*_t36;
-                frames[112 * (start + i) + 105] = -_c5[i]*_t36 - _s5[i]*_t48 - _s5[i]*_t49;
-                frames[112 * (start + i) + 106] = _t50;
-                frames[112 * (start + i) + 107] = _t37;
-                frames[112 * (start + i) + 108] = 0;
-                frames[112 * (start + i) + 109] = 0;
-                frames[112 * (start + i) + 110] = 0;
-                frames[112 * (start + i) + 111] = 1;
+                _frames_block[0][i] = 1;
+                _frames_block[1][i] = 0;
+                _frames_block[2][i] = 0;
+                _frames_block[3][i] = 0;
+                _frames_block[4][i] = 0;
+                _frames_block[5][i] = 1;
+                _frames_block[6][i] = 0;
+                _frames_block[7][i] = 0;
+                _frames_block[8][i] = 0;
+                _frames_block[9][i] = 0;
+                _frames_block[10][i] = 1;
+                _frames_block[11][i] = 0;
+                _frames_block[12][i] = 0;
+                _frames_block[13][i] = 0;
+                _frames_block[14][i] = 0;
+                _frames_block[15][i] = 1;
+                _frames_block[16][i] = _c0[i];
+                _frames_block[17][i] = 0;
+                _frames_block[18][i] = _s0[i];
+                _frames_block[19][i] = 0;
+                _frames_block[20][i] = _s0[i];
+                _frames_block[21][i] = 0;
+                _frames_block[22][i] = _t2;
+                _frames_block[23][i] = 0;
+                _frames_block[24][i] = 0;
+                _frames_block[25][i] = 1;
+                _frames_block[26][i] = 0;
+                _frames_block[27][i] = d1;
+                _frames_block[28][i] = 0;
+                _frames_block[29][i] = 0;
+                _frames_block[30][i] = 0;
+                _frames_block[31][i] = 1;
+                _frames_block[32][i] = _t4;
+                _frames_block[33][i] = -_c0[i]*_s1[i];
+                _frames_block[34][i] = _s0[i];
+                _frames_block[35][i] = _t6;
+                _frames_block[36][i] = _t7;
+                _frames_block[37][i] = -_s0[i]*_s1[i];
+                _frames_block[38][i] = _t2;
+                _frames_block[39][i] = _t8;
+                _frames_block[40][i] = _s1[i];
+                _frames_block[41][i] = _c1[i];
+                _frames_block[42][i] = 0;
+                _frames_block[43][i] = _t9;
+                _frames_block[44][i] = 0;
+                _frames_block[45][i] = 0;
+                _frames_block[46][i] = 0;
+                _frames_block[47][i] = 1;
+                _frames_block[48][i] = _t12;
+                _frames_block[49][i] = -_s0[i];
+                _frames_block[50][i] = _t15;
+                _frames_block[51][i] = _t16;
+                _frames_block[52][i] = _t17;
+                _frames_block[53][i] = _c0[i];
+                _frames_block[54][i] = _t19;
+                _frames_block[55][i] = _t20;
+                _frames_block[56][i] = _s2[i];
+                _frames_block[57][i] = 0;
+                _frames_block[58][i] = _c2[i];
+                _frames_block[59][i] = _t21;
+                _frames_block[60][i] = 0;
+                _frames_block[61][i] = 0;
+                _frames_block[62][i] = 0;
+                _frames_block[63][i] = 1;
+                _frames_block[64][i] = _c0[i]*_c2[i]*_c3[i] - _t23;
+                _frames_block[65][i] = _t15;
+                _frames_block[66][i] = _t27;
+                _frames_block[67][i] = _t28;
+                _frames_block[68][i] = _t29 + _t30;
+                _frames_block[69][i] = _t19;
+                _frames_block[70][i] = _t33;
+                _frames_block[71][i] = _t34;
+                _frames_block[72][i] = _t35;
+                _frames_block[73][i] = _c2[i];
+                _frames_block[74][i] = _t36;
+                _frames_block[75][i] = _t37;
+                _frames_block[76][i] = 0;
+                _frames_block[77][i] = 0;
+                _frames_block[78][i] = 0;
+                _frames_block[79][i] = 1;
+                _frames_block[80][i] = _c0[i]*_c2[i]*_c3[i]*_c4[i] - _t39 - _t41;
+                _frames_block[81][i] = -_t27;
+                _frames_block[82][i] = _t43;
+                _frames_block[83][i] = _t28;
+                _frames_block[84][i] = _t44 - _t45 + _t46;
+                _frames_block[85][i] = -_t33;
+                _frames_block[86][i] = _t47;
+                _frames_block[87][i] = _t34;
+                _frames_block[88][i] = _t48 + _t49;
+                _frames_block[89][i] = -_t36;
+                _frames_block[90][i] = _t50;
+                _frames_block[91][i] = _t37;
+                _frames_block[92][i] = 0;
+                _frames_block[93][i] = 0;
+                _frames_block[94][i] = 0;
+                _frames_block[95][i] = 1;
+                _frames_block[96][i] = _c0[i]*_c2[i]*_c3[i]*_c4[i]*_c5[i] - _c5[i]*_t39 - _c5[i]*_t41 - _s5[i]*_t25 - _s5[i]*_t26;
+                _frames_block[97][i] = _c0[i]*_s2[i]*_s4[i]*_s5[i] + _c4[i]*_s0[i]*_s3[i]*_s5[i] - _c4[i]*_s5[i]*_t42 - _c5[i]*_t25 - _c5[i]*_t26;
+                _frames_block[98][i] = _t43;
+                _frames_block[99][i] = _t28;
+                _frames_block[100][i] = _c5[i]*_t44 - _c5[i]*_t45 + _c5[i]*_t46 + _s5[i]*_t31 - _s5[i]*_t32;
+                _frames_block[101][i] = _c0[i]*_c3[i]*_c5[i] - _c5[i]*_t32 + _s0[i]*_s2[i]*_s4[i]*_s5[i] - _s5[i]*_t44 - _s5[i]*_t46;
+                _frames_block[102][i] = _t47;
+                _frames_block[103][i] = _t34;
+                _frames_block[104][i] = _c5[i]*_t48 + _c5[i]*_t49 - _s5[i]*_t36;
+                _frames_block[105][i] = -_c5[i]*_t36 - _s5[i]*_t48 - _s5[i]*_t49;
+                _frames_block[106][i] = _t50;
+                _frames_block[107][i] = _t37;
+                _frames_block[108][i] = 0;
+                _frames_block[109][i] = 0;
+                _frames_block[110][i] = 0;
+                _frames_block[111][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1073,8 +1081,16 @@ void puma560_frames_batch(size_t count, const double *restrict q, const puma560_
                     _mm_stream_pd(frames + 112 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 112; ++k) {
+                    frames[112 * (start + i) + k] = _frames_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1214,8 +1230,8 @@ void puma560_jacobian_batch(size_t count, const double *restrict q, const puma56
     double _c3[KINEGEN_BLOCK_OF(64)];
     double _s4[KINEGEN_BLOCK_OF(64)];
     double _c4[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_block[36][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 36 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
 #endif
@@ -1352,42 +1368,42 @@ void puma560_jacobian_batch(size_t count, const double *restrict q, const puma56
                 const double _t19 = _c2[i]*_s4[i];
                 const double _t20 = -_c0[i];
                 const double _t21 = _s0[i]*_s2[i];
-                J[36 * (start + i) + 0] = _c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5;
-                J[36 * (start + i) + 1] = -_c0[i]*_t8;
-                J[36 * (start + i) + 2] = -_c0[i]*_t7;
-                J[36 * (start + i) + 3] = 0;
-                J[36 * (start + i) + 4] = 0;
-                J[36 * (start + i) + 5] = 0;
-                J[36 * (start + i) + 6] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t9 + _s0[i]*d3;
-                J[36 * (start + i) + 7] = -_s0[i]*_t8;
-                J[36 * (start + i) + 8] = -_s0[i]*_t7;
-                J[36 * (start + i) + 9] = 0;
-                J[36 * (start + i) + 10] = 0;
-                J[36 * (start + i) + 11] = 0;
-                J[36 * (start + i) + 12] = 0;
-                J[36 * (start + i) + 13] = _t10 + _t2;
-                J[36 * (start + i) + 14] = _t10;
-                J[36 * (start + i) + 15] = 0;
-                J[36 * (start + i) + 16] = 0;
-                J[36 * (start + i) + 17] = 0;
-                J[36 * (start + i) + 18] = 0;
-                J[36 * (start + i) + 19] = _s0[i];
-                J[36 * (start + i) + 20] = _s0[i];
-                J[36 * (start + i) + 21] = -_t11;
-                J[36 * (start + i) + 22] = _c0[i]*_t15 + _t13;
-                J[36 * (start + i) + 23] = -_c4[i]*_t11 + _s0[i]*_s3[i]*_s4[i] - _t18*_t19;
-                J[36 * (start + i) + 24] = 0;
-                J[36 * (start + i) + 25] = _t20;
-                J[36 * (start + i) + 26] = _t20;
-                J[36 * (start + i) + 27] = -_t21;
-                J[36 * (start + i) + 28] = _s0[i]*_t15 - _t18;
-                J[36 * (start + i) + 29] = -_c0[i]*_s3[i]*_s4[i] - _c4[i]*_t21 - _t13*_t19;
-                J[36 * (start + i) + 30] = 1;
-                J[36 * (start + i) + 31] = 0;
-                J[36 * (start + i) + 32] = 0;
-                J[36 * (start + i) + 33] = _c2[i];
-                J[36 * (start + i) + 34] = _s2[i]*_s3[i];
-                J[36 * (start + i) + 35] = _c2[i]*_c4[i] - _c3[i]*_s2[i]*_s4[i];
+                _J_block[0][i] = _c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5;
+                _J_block[1][i] = -_c0[i]*_t8;
+                _J_block[2][i] = -_c0[i]*_t7;
+                _J_block[3][i] = 0;
+                _J_block[4][i] = 0;
+                _J_block[5][i] = 0;
+                _J_block[6][i] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t9 + _s0[i]*d3;
+                _J_block[7][i] = -_s0[i]*_t8;
+                _J_block[8][i] = -_s0[i]*_t7;
+                _J_block[9][i] = 0;
+                _J_block[10][i] = 0;
+                _J_block[11][i] = 0;
+                _J_block[12][i] = 0;
+                _J_block[13][i] = _t10 + _t2;
+                _J_block[14][i] = _t10;
+                _J_block[15][i] = 0;
+                _J_block[16][i] = 0;
+                _J_block[17][i] = 0;
+                _J_block[18][i] = 0;
+                _J_block[19][i] = _s0[i];
+                _J_block[20][i] = _s0[i];
+                _J_block[21][i] = -_t11;
+                _J_block[22][i] = _c0[i]*_t15 + _t13;
+                _J_block[23][i] = -_c4[i]*_t11 + _s0[i]*_s3[i]*_s4[i] - _t18*_t19;
+                _J_block[24][i] = 0;
+                _J_block[25][i] = _t20;
+                _J_block[26][i] = _t20;
+                _J_block[27][i] = -_t21;
+                _J_block[28][i] = _s0[i]*_t15 - _t18;
+                _J_block[29][i] = -_c0[i]*_s3[i]*_s4[i] - _c4[i]*_t21 - _t13*_t19;
+                _J_block[30][i] = 1;
+                _J_block[31][i] = 0;
+                _J_block[32][i] = 0;
+                _J_block[33][i] = _c2[i];
+                _J_block[34][i] = _s2[i]*_s3[i];
+                _J_block[35][i] = _c2[i]*_c4[i] - _c3[i]*_s2[i]*_s4[i];
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1398,8 +1414,16 @@ void puma560_jacobian_batch(size_t count, const double *restrict q, const puma56
                     _mm_stream_pd(J + 36 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 36; ++k) {
+                    J[36 * (start + i) + k] = _J_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1580,8 +1604,8 @@ void puma560_jacobian_tool_batch(size_t count, const double *restrict q, const p
     double _c4[KINEGEN_BLOCK_OF(64)];
     double _s5[KINEGEN_BLOCK_OF(64)];
     double _c5[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_tool_block[36][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 36 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_tool & 15) == 0;
 #endif
@@ -1793,42 +1817,42 @@ void puma560_jacobian_tool_batch(size_t count, const double *restrict q, const p
                 const double _t54 = -_t25 + _t27;
                 const double _t55 = -_c0[i]*_t43 + _s0[i]*_t42;
                 const double _t56 = -_c0[i]*_t48 + _s0[i]*_t47;
-                J_tool[36 * (start + i) + 0] = _t22*_t7 + _t24*_t30;
-                J_tool[36 * (start + i) + 1] = _t32*_t37 - _t39*_t40 - _t39*_t41;
-                J_tool[36 * (start + i) + 2] = _t31*_t37 - _t38*_t40 - _t38*_t41;
-                J_tool[36 * (start + i) + 3] = 0;
-                J_tool[36 * (start + i) + 4] = 0;
-                J_tool[36 * (start + i) + 5] = 0;
-                J_tool[36 * (start + i) + 6] = _t24*_t43 + _t42*_t7;
-                J_tool[36 * (start + i) + 7] = _t32*_t44 - _t39*_t45 - _t39*_t46;
-                J_tool[36 * (start + i) + 8] = _t31*_t44 - _t38*_t45 - _t38*_t46;
-                J_tool[36 * (start + i) + 9] = 0;
-                J_tool[36 * (start + i) + 10] = 0;
-                J_tool[36 * (start + i) + 11] = 0;
-                J_tool[36 * (start + i) + 12] = _t24*_t48 + _t47*_t7;
-                J_tool[36 * (start + i) + 13] = _t32*_t49 - _t39*_t50 - _t39*_t51;
-                J_tool[36 * (start + i) + 14] = _t31*_t49 - _t38*_t50 - _t38*_t51;
-                J_tool[36 * (start + i) + 15] = 0;
-                J_tool[36 * (start + i) + 16] = 0;
-                J_tool[36 * (start + i) + 17] = 0;
-                J_tool[36 * (start + i) + 18] = _t37;
-                J_tool[36 * (start + i) + 19] = _t52;
-                J_tool[36 * (start + i) + 20] = _t52;
-                J_tool[36 * (start + i) + 21] = _c2[i]*_t37 - _s2[i]*_t40 - _s2[i]*_t41;
-                J_tool[36 * (start + i) + 22] = _t22*_t53 + _t30*_t54 + _t34*_t37;
-                J_tool[36 * (start + i) + 23] = _t22*_t47 + _t30*_t48 + _t37*_t49;
-                J_tool[36 * (start + i) + 24] = _t44;
-                J_tool[36 * (start + i) + 25] = _t55;
-                J_tool[36 * (start + i) + 26] = _t55;
-                J_tool[36 * (start + i) + 27] = _c2[i]*_t44 - _s2[i]*_t45 - _s2[i]*_t46;
-                J_tool[36 * (start + i) + 28] = _t34*_t44 + _t42*_t53 + _t43*_t54;
-                J_tool[36 * (start + i) + 29] = _t42*_t47 + _t43*_t48 + _t44*_t49;
-                J_tool[36 * (start + i) + 30] = _t49;
-                J_tool[36 * (start + i) + 31] = _t56;
-                J_tool[36 * (start + i) + 32] = _t56;
-                J_tool[36 * (start + i) + 33] = _c2[i]*_t49 - _s2[i]*_t50 - _s2[i]*_t51;
-                J_tool[36 * (start + i) + 34] = _t34*_t49 + _t47*_t53 + _t48*_t54;
-                J_tool[36 * (start + i) + 35] = (_t47*_t47) + (_t48*_t48) + (_t49*_t49);
+                _J_tool_block[0][i] = _t22*_t7 + _t24*_t30;
+                _J_tool_block[1][i] = _t32*_t37 - _t39*_t40 - _t39*_t41;
+                _J_tool_block[2][i] = _t31*_t37 - _t38*_t40 - _t38*_t41;
+                _J_tool_block[3][i] = 0;
+                _J_tool_block[4][i] = 0;
+                _J_tool_block[5][i] = 0;
+                _J_tool_block[6][i] = _t24*_t43 + _t42*_t7;
+                _J_tool_block[7][i] = _t32*_t44 - _t39*_t45 - _t39*_t46;
+                _J_tool_block[8][i] = _t31*_t44 - _t38*_t45 - _t38*_t46;
+                _J_tool_block[9][i] = 0;
+                _J_tool_block[10][i] = 0;
+                _J_tool_block[11][i] = 0;
+                _J_tool_block[12][i] = _t24*_t48 + _t47*_t7;
+                _J_tool_block[13][i] = _t32*_t49 - _t39*_t50 - _t39*_t51;
+                _J_tool_block[14][i] = _t31*_t49 - _t38*_t50 - _t38*_t51;
+                _J_tool_block[15][i] = 0;
+                _J_tool_block[16][i] = 0;
+                _J_tool_block[17][i] = 0;
+                _J_tool_block[18][i] = _t37;
+                _J_tool_block[19][i] = _t52;
+                _J_tool_block[20][i] = _t52;
+                _J_tool_block[21][i] = _c2[i]*_t37 - _s2[i]*_t40 - _s2[i]*_t41;
+                _J_tool_block[22][i] = _t22*_t53 + _t30*_t54 + _t34*_t37;
+                _J_tool_block[23][i] = _t22*_t47 + _t30*_t48 + _t37*_t49;
+                _J_tool_block[24][i] = _t44;
+                _J_tool_block[25][i] = _t55;
+                _J_tool_block[26][i] = _t55;
+                _J_tool_block[27][i] = _c2[i]*_t44 - _s2[i]*_t45 - _s2[i]*_t46;
+                _J_tool_block[28][i] = _t34*_t44 + _t42*_t53 + _t43*_t54;
+                _J_tool_block[29][i] = _t42*_t47 + _t43*_t48 + _t44*_t49;
+                _J_tool_block[30][i] = _t49;
+                _J_tool_block[31][i] = _t56;
+                _J_tool_block[32][i] = _t56;
+                _J_tool_block[33][i] = _c2[i]*_t49 - _s2[i]*_t50 - _s2[i]*_t51;
+                _J_tool_block[34][i] = _t34*_t49 + _t47*_t53 + _t48*_t54;
+                _J_tool_block[35][i] = (_t47*_t47) + (_t48*_t48) + (_t49*_t49);
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1839,8 +1863,16 @@ void puma560_jacobian_tool_batch(size_t count, const double *restrict q, const p
                     _mm_stream_pd(J_tool + 36 * (start + i) + k, _mm_set_pd(_J_tool_block[k + 1][i], _J_tool_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 36; ++k) {
+                    J_tool[36 * (start + i) + k] = _J_tool_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1971,8 +2003,8 @@ void puma560_task_batch(size_t count, const double *restrict q, const puma560_pa
     double _c4[KINEGEN_BLOCK_OF(64)];
     double _s5[KINEGEN_BLOCK_OF(64)];
     double _c5[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _x_block[12][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)x & 15) == 0;
 #endif
@@ -2107,18 +2139,18 @@ void puma560_task_batch(size_t count, const double *restrict q, const puma560_pa
                 const double _t27 = _c2[i]*_s0[i];
                 const double _t28 = _s2[i]*_s4[i];
                 const double _t29 = _c4[i]*_t24;
-                x[12 * (start + i) + 0] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t7 + _s0[i]*d3;
-                x[12 * (start + i) + 1] = -_c0[i]*d3 + _s0[i]*_t2 + _s0[i]*_t5 - _s0[i]*_t7;
-                x[12 * (start + i) + 2] = _c2[i]*d4 + _s1[i]*a2 + _s2[i]*a3 + d1;
-                x[12 * (start + i) + 3] = _c0[i]*_c2[i]*_c3[i]*_c4[i]*_c5[i] - _c0[i]*_c3[i]*_t14 - _c5[i]*_s0[i]*_t19 - _t11 - _t16*_t17;
-                x[12 * (start + i) + 4] = _c0[i]*_s2[i]*_s3[i]*_s5[i] + _c5[i]*_s0[i]*_s3[i]*_s4[i] - _t17*_t19 - _t20 - _t21*_t23;
-                x[12 * (start + i) + 5] = -_c0[i]*_t24 + _s0[i]*_s4[i]*_s5[i] - _t22*_t25;
-                x[12 * (start + i) + 6] = -_c3[i]*_s0[i]*_t14 - _t16*_t27 + _t19*_t26 + _t20*_t21 + _t23;
-                x[12 * (start + i) + 7] = _c0[i]*_c3[i]*_c4[i] + _s0[i]*_s2[i]*_s3[i]*_s5[i] - _t11*_t21 - _t16*_t26 - _t19*_t27;
-                x[12 * (start + i) + 8] = -_c0[i]*_s4[i]*_s5[i] - _s0[i]*_t24 - _t10*_t25;
-                x[12 * (start + i) + 9] = _c3[i]*_t25 + _c3[i]*_t29 - _s3[i]*_t28;
-                x[12 * (start + i) + 10] = -_c3[i]*_t28 - _s3[i]*_t25 - _s3[i]*_t29;
-                x[12 * (start + i) + 11] = _c2[i]*_c5[i] - _c4[i]*_t14;
+                _x_block[0][i] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t7 + _s0[i]*d3;
+                _x_block[1][i] = -_c0[i]*d3 + _s0[i]*_t2 + _s0[i]*_t5 - _s0[i]*_t7;
+                _x_block[2][i] = _c2[i]*d4 + _s1[i]*a2 + _s2[i]*a3 + d1;
+                _x_block[3][i] = _c0[i]*_c2[i]*_c3[i]*_c4[i]*_c5[i] - _c0[i]*_c3[i]*_t14 - _c5[i]*_s0[i]*_t19 - _t11 - _t16*_t17;
+                _x_block[4][i] = _c0[i]*_s2[i]*_s3[i]*_s5[i] + _c5[i]*_s0[i]*_s3[i]*_s4[i] - _t17*_t19 - _t20 - _t21*_t23;
+                _x_block[5][i] = -_c0[i]*_t24 + _s0[i]*_s4[i]*_s5[i] - _t22*_t25;
+                _x_block[6][i] = -_c3[i]*_s0[i]*_t14 - _t16*_t27 + _t19*_t26 + _t20*_t21 + _t23;
+                _x_block[7][i] = _c0[i]*_c3[i]*_c4[i] + _s0[i]*_s2[i]*_s3[i]*_s5[i] - _t11*_t21 - _t16*_t26 - _t19*_t27;
+                _x_block[8][i] = -_c0[i]*_s4[i]*_s5[i] - _s0[i]*_t24 - _t10*_t25;
+                _x_block[9][i] = _c3[i]*_t25 + _c3[i]*_t29 - _s3[i]*_t28;
+                _x_block[10][i] = -_c3[i]*_t28 - _s3[i]*_t25 - _s3[i]*_t29;
+                _x_block[11][i] = _c2[i]*_c5[i] - _c4[i]*_t14;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -2129,8 +2161,16 @@ void puma560_task_batch(size_t count, const double *restrict q, const puma560_pa
                     _mm_stream_pd(x + 12 * (start + i) + k, _mm_set_pd(_x_block[k + 1][i], _x_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 12; ++k) {
+                    x[12 * (start + i) + k] = _x_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -2346,8 +2386,8 @@ void puma560_task_jacobian_batch(size_t count, const double *restrict q, const p
     double _c4[KINEGEN_BLOCK_OF(32)];
     double _s5[KINEGEN_BLOCK_OF(32)];
     double _c5[KINEGEN_BLOCK_OF(32)];
-#ifdef KINEGEN_STREAM
     double _Jx_block[72][KINEGEN_BLOCK_OF(32)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 72 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx & 15) == 0;
 #endif
@@ -2593,78 +2633,78 @@ void puma560_task_jacobian_batch(size_t count, const double *restrict q, const p
                 const double _t53 = _c2[i]*_c3[i]*_c4[i]*_c5[i] - _c2[i]*_t34 - _c3[i]*_t38;
                 const double _t54 = -_c2[i]*_t18 + _s2[i]*_s3[i]*_s5[i] - _t21*_t41;
                 const double _t55 = -_c4[i]*_t25 - _t27;
-                Jx[72 * (start + i) + 0] = _c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5;
-                Jx[72 * (start + i) + 1] = -_c0[i]*_t8;
-                Jx[72 * (start + i) + 2] = -_c0[i]*_t7;
-                Jx[72 * (start + i) + 3] = 0;
-                Jx[72 * (start + i) + 4] = 0;
-                Jx[72 * (start + i) + 5] = 0;
-                Jx[72 * (start + i) + 6] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t9 + _s0[i]*d3;
-                Jx[72 * (start + i) + 7] = -_s0[i]*_t8;
-                Jx[72 * (start + i) + 8] = -_s0[i]*_t7;
-                Jx[72 * (start + i) + 9] = 0;
-                Jx[72 * (start + i) + 10] = 0;
-                Jx[72 * (start + i) + 11] = 0;
-                Jx[72 * (start + i) + 12] = 0;
-                Jx[72 * (start + i) + 13] = _t10 + _t2;
-                Jx[72 * (start + i) + 14] = _t10;
-                Jx[72 * (start + i) + 15] = 0;
-                Jx[72 * (start + i) + 16] = 0;
-                Jx[72 * (start + i) + 17] = 0;
-                Jx[72 * (start + i) + 18] = _t24;
-                Jx[72 * (start + i) + 19] = _t29;
-                Jx[72 * (start + i) + 20] = _t29;
-                Jx[72 * (start + i) + 21] = -_c2[i]*_t14 - _c5[i]*_t23 + _s0[i]*_s3[i]*_s4[i] - _t19*_t21;
-                Jx[72 * (start + i) + 22] = _c3[i]*_t31;
-                Jx[72 * (start + i) + 23] = _t32;
-                Jx[72 * (start + i) + 24] = _t40;
-                Jx[72 * (start + i) + 25] = _t43;
-                Jx[72 * (start + i) + 26] = _t43;
-                Jx[72 * (start + i) + 27] = -_c2[i]*_t33 + _c5[i]*_t39 + _t21*_t35 + _t37;
-                Jx[72 * (start + i) + 28] = _s3[i]*_t30;
-                Jx[72 * (start + i) + 29] = _t45;
-                Jx[72 * (start + i) + 30] = _t47;
-                Jx[72 * (start + i) + 31] = _t49;
-                Jx[72 * (start + i) + 32] = _t49;
-                Jx[72 * (start + i) + 33] = _s5[i]*(_c2[i]*_t46 + _t22);
-                Jx[72 * (start + i) + 34] = _c5[i]*_t36 - _t13*_t21 + _t44;
-                Jx[72 * (start + i) + 35] = 0;
-                Jx[72 * (start + i) + 36] = -_t45;
-                Jx[72 * (start + i) + 37] = _t50;
-                Jx[72 * (start + i) + 38] = _t50;
-                Jx[72 * (start + i) + 39] = _c0[i]*_c3[i]*_c4[i]*_c5[i] - _c2[i]*_t39 - _t21*_t37 - _t35;
-                Jx[72 * (start + i) + 40] = -_c3[i]*_t47;
-                Jx[72 * (start + i) + 41] = -_t40;
-                Jx[72 * (start + i) + 42] = _t32;
-                Jx[72 * (start + i) + 43] = _t51;
-                Jx[72 * (start + i) + 44] = _t51;
-                Jx[72 * (start + i) + 45] = _c2[i]*_c5[i]*_s0[i]*_s3[i]*_s4[i] - _c2[i]*_t23 - _c5[i]*_t14 - _t19;
-                Jx[72 * (start + i) + 46] = _s3[i]*_t47;
-                Jx[72 * (start + i) + 47] = _t24;
-                Jx[72 * (start + i) + 48] = _t31;
-                Jx[72 * (start + i) + 49] = _t52;
-                Jx[72 * (start + i) + 50] = _t52;
-                Jx[72 * (start + i) + 51] = _s5[i]*(_c2[i]*_t36 - _t13);
-                Jx[72 * (start + i) + 52] = -_c5[i]*_t46 + _s0[i]*_s2[i]*_s5[i] - _t21*_t22;
-                Jx[72 * (start + i) + 53] = 0;
-                Jx[72 * (start + i) + 54] = 0;
-                Jx[72 * (start + i) + 55] = _t53;
-                Jx[72 * (start + i) + 56] = _t53;
-                Jx[72 * (start + i) + 57] = -_s2[i]*(_c5[i]*_t18 + _t41);
-                Jx[72 * (start + i) + 58] = -_c3[i]*_t48;
-                Jx[72 * (start + i) + 59] = -_t42;
-                Jx[72 * (start + i) + 60] = 0;
-                Jx[72 * (start + i) + 61] = _t54;
-                Jx[72 * (start + i) + 62] = _t54;
-                Jx[72 * (start + i) + 63] = _s2[i]*(_c5[i]*_t34 - _t26);
-                Jx[72 * (start + i) + 64] = _s3[i]*_t48;
-                Jx[72 * (start + i) + 65] = _t28;
-                Jx[72 * (start + i) + 66] = 0;
-                Jx[72 * (start + i) + 67] = _t55;
-                Jx[72 * (start + i) + 68] = _t55;
-                Jx[72 * (start + i) + 69] = _s4[i]*_t38;
-                Jx[72 * (start + i) + 70] = -_c4[i]*_t27 - _t25;
-                Jx[72 * (start + i) + 71] = 0;
+                _Jx_block[0][i] = _c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5;
+                _Jx_block[1][i] = -_c0[i]*_t8;
+                _Jx_block[2][i] = -_c0[i]*_t7;
+                _Jx_block[3][i] = 0;
+                _Jx_block[4][i] = 0;
+                _Jx_block[5][i] = 0;
+                _Jx_block[6][i] = _c0[i]*_t2 + _c0[i]*_t5 - _c0[i]*_t9 + _s0[i]*d3;
+                _Jx_block[7][i] = -_s0[i]*_t8;
+                _Jx_block[8][i] = -_s0[i]*_t7;
+                _Jx_block[9][i] = 0;
+                _Jx_block[10][i] = 0;
+                _Jx_block[11][i] = 0;
+                _Jx_block[12][i] = 0;
+                _Jx_block[13][i] = _t10 + _t2;
+                _Jx_block[14][i] = _t10;
+                _Jx_block[15][i] = 0;
+                _Jx_block[16][i] = 0;
+                _Jx_block[17][i] = 0;
+                _Jx_block[18][i] = _t24;
+                _Jx_block[19][i] = _t29;
+                _Jx_block[20][i] = _t29;
+                _Jx_block[21][i] = -_c2[i]*_t14 - _c5[i]*_t23 + _s0[i]*_s3[i]*_s4[i] - _t19*_t21;
+                _Jx_block[22][i] = _c3[i]*_t31;
+                _Jx_block[23][i] = _t32;
+                _Jx_block[24][i] = _t40;
+                _Jx_block[25][i] = _t43;
+                _Jx_block[26][i] = _t43;
+                _Jx_block[27][i] = -_c2[i]*_t33 + _c5[i]*_t39 + _t21*_t35 + _t37;
+                _Jx_block[28][i] = _s3[i]*_t30;
+                _Jx_block[29][i] = _t45;
+                _Jx_block[30][i] = _t47;
+                _Jx_block[31][i] = _t49;
+                _Jx_block[32][i] = _t49;
+                _Jx_block[33][i] = _s5[i]*(_c2[i]*_t46 + _t22);
+                _Jx_block[34][i] = _c5[i]*_t36 - _t13*_t21 + _t44;
+                _Jx_block[35][i] = 0;
+                _Jx_block[36][i] = -_t45;
+                _Jx_block[37][i] = _t50;
+                _Jx_block[38][i] = _t50;
+                _Jx_block[39][i] = _c0[i]*_c3[i]*_c4[i]*_c5[i] - _c2[i]*_t39 - _t21*_t37 - _t35;
+                _Jx_block[40][i] = -_c3[i]*_t47;
+                _Jx_block[41][i] = -_t40;
+                _Jx_block[42][i] = _t32;
+                _Jx_block[43][i] = _t51;
+                _Jx_block[44][i] = _t51;
+                _Jx_block[45][i] = _c2[i]*_c5[i]*_s0[i]*_s3[i]*_s4[i] - _c2[i]*_t23 - _c5[i]*_t14 - _t19;
+                _Jx_block[46][i] = _s3[i]*_t47;
+                _Jx_block[47][i] = _t24;
+                _Jx_block[48][i] = _t31;
+                _Jx_block[49][i] = _t52;
+                _Jx_block[50][i] = _t52;
+                _Jx_block[51][i] = _s5[i]*(_c2[i]*_t36 - _t13);
+                _Jx_block[52][i] = -_c5[i]*_t46 + _s0[i]*_s2[i]*_s5[i] - _t21*_t22;
+                _Jx_block[53][i] = 0;
+                _Jx_block[54][i] = 0;
+                _Jx_block[55][i] = _t53;
+                _Jx_block[56][i] = _t53;
+                _Jx_block[57][i] = -_s2[i]*(_c5[i]*_t18 + _t41);
+                _Jx_block[58][i] = -_c3[i]*_t48;
+                _Jx_block[59][i] = -_t42;
+                _Jx_block[60][i] = 0;
+                _Jx_block[61][i] = _t54;
+                _Jx_block[62][i] = _t54;
+                _Jx_block[63][i] = _s2[i]*(_c5[i]*_t34 - _t26);
+                _Jx_block[64][i] = _s3[i]*_t48;
+                _Jx_block[65][i] = _t28;
+                _Jx_block[66][i] = 0;
+                _Jx_block[67][i] = _t55;
+                _Jx_block[68][i] = _t55;
+                _Jx_block[69][i] = _s4[i]*_t38;
+                _Jx_block[70][i] = -_c4[i]*_t27 - _t25;
+                _Jx_block[71][i] = 0;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -2675,8 +2715,16 @@ void puma560_task_jacobian_batch(size_t count, const double *restrict q, const p
                     _mm_stream_pd(Jx + 72 * (start + i) + k, _mm_set_pd(_Jx_block[k + 1][i], _Jx_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 72; ++k) {
+                    Jx[72 * (start + i) + k] = _Jx_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -4082,8 +4130,8 @@ void puma560_task_velocity_batch(size_t count, const double *restrict q, const d
     double _c4[KINEGEN_BLOCK_OF(64)];
     double _s5[KINEGEN_BLOCK_OF(64)];
     double _c5[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _xd_block[12][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)xd & 15) == 0;
 #endif
@@ -4287,18 +4335,18 @@ void puma560_task_velocity_batch(size_t count, const double *restrict q, const d
                 const double _t59 = _s2[i]*qd4[i];
                 const double _t60 = -_c2[i]*_t19 + _s2[i]*_s3[i]*_s5[i] - _t22*_t46;
                 const double _t61 = -_c4[i]*_t27 - _t29;
-                xd[12 * (start + i) + 0] = -_c0[i]*_t8 - _c0[i]*_t9 + qd1[i]*(_c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5);
-                xd[12 * (start + i) + 1] = -_s0[i]*_t8 - _s0[i]*_t9 + qd1[i]*(-_c0[i]*_t10 + _c0[i]*_t2 + _c0[i]*_t5 + _s0[i]*d3);
-                xd[12 * (start + i) + 2] = _t11*qd3[i] + qd2[i]*(_t11 + _t2);
-                xd[12 * (start + i) + 3] = _t25*qd1[i] + _t26*qd6[i] + _t31*qd2[i] + _t31*qd3[i] + _t33*_t34 + qd4[i]*(-_c2[i]*_t15 - _c5[i]*_t24 + _s0[i]*_s3[i]*_s4[i] - _t20*_t22);
-                xd[12 * (start + i) + 4] = _t32*_t49 + _t42*qd1[i] + _t45*qd6[i] + _t48*qd2[i] + _t48*qd3[i] + qd4[i]*(-_c2[i]*_t35 + _c5[i]*_t41 + _t22*_t37 + _t39);
-                xd[12 * (start + i) + 5] = _t50*qd1[i] + _t52*qd2[i] + _t52*qd3[i] + _t54*(_c2[i]*_t53 + _t23) + qd5[i]*(_c5[i]*_t38 - _t14*_t22 + _t44);
-                xd[12 * (start + i) + 6] = -_t34*_t50 - _t42*qd6[i] - _t45*qd1[i] + _t55*qd2[i] + _t55*qd3[i] + qd4[i]*(_c0[i]*_c3[i]*_c4[i]*_c5[i] - _c2[i]*_t41 - _t22*_t39 - _t37);
-                xd[12 * (start + i) + 7] = _t25*qd6[i] + _t26*qd1[i] + _t49*_t50 + _t56*qd2[i] + _t56*qd3[i] + qd4[i]*(_c2[i]*_c5[i]*_s0[i]*_s3[i]*_s4[i] - _c2[i]*_t24 - _c5[i]*_t15 - _t20);
-                xd[12 * (start + i) + 8] = _t33*qd1[i] + _t54*(_c2[i]*_t38 - _t14) + _t57*qd2[i] + _t57*qd3[i] + qd5[i]*(-_c5[i]*_t53 + _s0[i]*_s2[i]*_s5[i] - _t22*_t23);
-                xd[12 * (start + i) + 9] = -_t34*_t51 - _t47*qd6[i] + _t58*qd2[i] + _t58*qd3[i] - _t59*(_c5[i]*_t19 + _t46);
-                xd[12 * (start + i) + 10] = _t30*qd6[i] + _t49*_t51 + _t59*(_c5[i]*_t36 - _t28) + _t60*qd2[i] + _t60*qd3[i];
-                xd[12 * (start + i) + 11] = _s4[i]*_t40*qd4[i] + _t61*qd2[i] + _t61*qd3[i] + qd5[i]*(-_c4[i]*_t29 - _t27);
+                _xd_block[0][i] = -_c0[i]*_t8 - _c0[i]*_t9 + qd1[i]*(_c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5);
+                _xd_block[1][i] = -_s0[i]*_t8 - _s0[i]*_t9 + qd1[i]*(-_c0[i]*_t10 + _c0[i]*_t2 + _c0[i]*_t5 + _s0[i]*d3);
+                _xd_block[2][i] = _t11*qd3[i] + qd2[i]*(_t11 + _t2);
+                _xd_block[3][i] = _t25*qd1[i] + _t26*qd6[i] + _t31*qd2[i] + _t31*qd3[i] + _t33*_t34 + qd4[i]*(-_c2[i]*_t15 - _c5[i]*_t24 + _s0[i]*_s3[i]*_s4[i] - _t20*_t22);
+                _xd_block[4][i] = _t32*_t49 + _t42*qd1[i] + _t45*qd6[i] + _t48*qd2[i] + _t48*qd3[i] + qd4[i]*(-_c2[i]*_t35 + _c5[i]*_t41 + _t22*_t37 + _t39);
+                _xd_block[5][i] = _t50*qd1[i] + _t52*qd2[i] + _t52*qd3[i] + _t54*(_c2[i]*_t53 + _t23) + qd5[i]*(_c5[i]*_t38 - _t14*_t22 + _t44);
+                _xd_block[6][i] = -_t34*_t50 - _t42*qd6[i] - _t45*qd1[i] + _t55*qd2[i] + _t55*qd3[i] + qd4[i]*(_c0[i]*_c3[i]*_c4[i]*_c5[i] - _c2[i]*_t41 - _t22*_t39 - _t37);
+                _xd_block[7][i] = _t25*qd6[i] + _t26*qd1[i] + _t49*_t50 + _t56*qd2[i] + _t56*qd3[i] + qd4[i]*(_c2[i]*_c5[i]*_s0[i]*_s3[i]*_s4[i] - _c2[i]*_t24 - _c5[i]*_t15 - _t20);
+                _xd_block[8][i] = _t33*qd1[i] + _t54*(_c2[i]*_t38 - _t14) + _t57*qd2[i] + _t57*qd3[i] + qd5[i]*(-_c5[i]*_t53 + _s0[i]*_s2[i]*_s5[i] - _t22*_t23);
+                _xd_block[9][i] = -_t34*_t51 - _t47*qd6[i] + _t58*qd2[i] + _t58*qd3[i] - _t59*(_c5[i]*_t19 + _t46);
+                _xd_block[10][i] = _t30*qd6[i] + _t49*_t51 + _t59*(_c5[i]*_t36 - _t28) + _t60*qd2[i] + _t60*qd3[i];
+                _xd_block[11][i] = _s4[i]*_t40*qd4[i] + _t61*qd2[i] + _t61*qd3[i] + qd5[i]*(-_c4[i]*_t29 - _t27);
             }
         }
 #ifdef KINEGEN_STREAM
@@ -4309,8 +4357,16 @@ void puma560_task_velocity_batch(size_t count, const double *restrict q, const d
                     _mm_stream_pd(xd + 12 * (start + i) + k, _mm_set_pd(_xd_block[k + 1][i], _xd_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 12; ++k) {
+                    xd[12 * (start + i) + k] = _xd_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -4435,8 +4491,8 @@ void puma560_twist_batch(size_t count, const double *restrict q, const double *r
     double _c3[KINEGEN_BLOCK_OF(64)];
     double _s4[KINEGEN_BLOCK_OF(64)];
     double _c4[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _twist_block[6][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)twist & 15) == 0;
 #endif
@@ -4555,12 +4611,12 @@ void puma560_twist_batch(size_t count, const double *restrict q, const double *r
                 const double _t22 = _c0[i]*_c3[i];
                 const double _t23 = _c2[i]*_s4[i];
                 const double _t24 = _s0[i]*_s2[i];
-                twist[6 * (start + i) + 0] = -_t10*_t7 - _t8*_t9 + qd1[i]*(_c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5);
-                twist[6 * (start + i) + 1] = -_t12*_t8 - _t13*_t7 + qd1[i]*(-_c0[i]*_t11 + _c0[i]*_t2 + _c0[i]*_t5 + _s0[i]*d3);
-                twist[6 * (start + i) + 2] = _t14*qd3[i] + qd2[i]*(_t14 + _t2);
-                twist[6 * (start + i) + 3] = _t12 + _t13 - _t20*qd4[i] + qd5[i]*(_c0[i]*_t18 + _t16) + qd6[i]*(-_c4[i]*_t20 + _s0[i]*_s3[i]*_s4[i] - _t22*_t23);
-                twist[6 * (start + i) + 4] = -_t10 - _t24*qd4[i] - _t9 + qd5[i]*(_s0[i]*_t18 - _t22) + qd6[i]*(-_c0[i]*_s3[i]*_s4[i] - _c4[i]*_t24 - _t16*_t23);
-                twist[6 * (start + i) + 5] = _c2[i]*qd4[i] + _s2[i]*_s3[i]*qd5[i] + qd1[i] + qd6[i]*(_c2[i]*_c4[i] - _c3[i]*_s2[i]*_s4[i]);
+                _twist_block[0][i] = -_t10*_t7 - _t8*_t9 + qd1[i]*(_c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5);
+                _twist_block[1][i] = -_t12*_t8 - _t13*_t7 + qd1[i]*(-_c0[i]*_t11 + _c0[i]*_t2 + _c0[i]*_t5 + _s0[i]*d3);
+                _twist_block[2][i] = _t14*qd3[i] + qd2[i]*(_t14 + _t2);
+                _twist_block[3][i] = _t12 + _t13 - _t20*qd4[i] + qd5[i]*(_c0[i]*_t18 + _t16) + qd6[i]*(-_c4[i]*_t20 + _s0[i]*_s3[i]*_s4[i] - _t22*_t23);
+                _twist_block[4][i] = -_t10 - _t24*qd4[i] - _t9 + qd5[i]*(_s0[i]*_t18 - _t22) + qd6[i]*(-_c0[i]*_s3[i]*_s4[i] - _c4[i]*_t24 - _t16*_t23);
+                _twist_block[5][i] = _c2[i]*qd4[i] + _s2[i]*_s3[i]*qd5[i] + qd1[i] + qd6[i]*(_c2[i]*_c4[i] - _c3[i]*_s2[i]*_s4[i]);
             }
         }
 #ifdef KINEGEN_STREAM
@@ -4571,8 +4627,16 @@ void puma560_twist_batch(size_t count, const double *restrict q, const double *r
                     _mm_stream_pd(twist + 6 * (start + i) + k, _mm_set_pd(_twist_block[k + 1][i], _twist_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 6; ++k) {
+                    twist[6 * (start + i) + k] = _twist_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -4911,8 +4975,8 @@ void puma560_task_jacobian_dot_batch(size_t count, const double *restrict q, con
     double _c4[KINEGEN_BLOCK_OF(32)];
     double _s5[KINEGEN_BLOCK_OF(32)];
     double _c5[KINEGEN_BLOCK_OF(32)];
-#ifdef KINEGEN_STREAM
     double _Jx_dot_block[72][KINEGEN_BLOCK_OF(32)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 72 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)Jx_dot & 15) == 0;
 #endif
@@ -5386,78 +5450,78 @@ void puma560_task_jacobian_dot_batch(size_t count, const double *restrict q, con
                 const double _t164 = _s5[i]*_t43;
                 const double _t165 = _t128*qd2[i] + _t128*qd3[i] + _t163*qd5[i] + _t164*qd4[i];
                 const double _t166 = _s5[i]*_t46;
-                Jx_dot[72 * (start + i) + 0] = _t10*qd3[i] + qd1[i]*(_c0[i]*_s2[i]*d4 - _c0[i]*_t2 - _c0[i]*_t5 - _s0[i]*d3) + qd2[i]*(_s0[i]*_t7 + _t10);
-                Jx_dot[72 * (start + i) + 1] = _s0[i]*_t17*qd1[i] - _t12*_t13 - _t15;
-                Jx_dot[72 * (start + i) + 2] = _s0[i]*_t16*qd1[i] - _t11*_t13 - _t15;
-                Jx_dot[72 * (start + i) + 3] = 0;
-                Jx_dot[72 * (start + i) + 4] = 0;
-                Jx_dot[72 * (start + i) + 5] = 0;
-                Jx_dot[72 * (start + i) + 6] = -_t18*qd3[i] + qd1[i]*(_c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5) + qd2[i]*(-_c0[i]*_t7 - _t18);
-                Jx_dot[72 * (start + i) + 7] = -_t12*_t20 - _t17*_t19 - _t21;
-                Jx_dot[72 * (start + i) + 8] = -_t11*_t20 - _t16*_t19 - _t21;
-                Jx_dot[72 * (start + i) + 9] = 0;
-                Jx_dot[72 * (start + i) + 10] = 0;
-                Jx_dot[72 * (start + i) + 11] = 0;
-                Jx_dot[72 * (start + i) + 12] = 0;
-                Jx_dot[72 * (start + i) + 13] = -_t17*qd2[i] + _t23;
-                Jx_dot[72 * (start + i) + 14] = _t22*qd2[i] + _t23;
-                Jx_dot[72 * (start + i) + 15] = 0;
-                Jx_dot[72 * (start + i) + 16] = 0;
-                Jx_dot[72 * (start + i) + 17] = 0;
-                Jx_dot[72 * (start + i) + 18] = _t56;
-                Jx_dot[72 * (start + i) + 19] = _t72;
-                Jx_dot[72 * (start + i) + 20] = _t72;
-                Jx_dot[72 * (start + i) + 21] = _t41*qd4[i] + _t50*qd1[i] + _t75*qd2[i] + _t75*qd3[i] + _t77*qd6[i] + qd5[i]*(_c3[i]*_t76 + _t33*_t44);
-                Jx_dot[72 * (start + i) + 22] = _c3[i]*_t79 + _c3[i]*_t81 + _c3[i]*_t82 + _c3[i]*_t84 + _c3[i]*_t88 + _t90*_t91;
-                Jx_dot[72 * (start + i) + 23] = _t93;
-                Jx_dot[72 * (start + i) + 24] = _t101*qd6[i] + _t95*qd1[i] + _t97*qd2[i] + _t97*qd3[i] + _t98*qd4[i] - _t99*qd5[i];
-                Jx_dot[72 * (start + i) + 25] = _t110;
-                Jx_dot[72 * (start + i) + 26] = _t110;
-                Jx_dot[72 * (start + i) + 27] = _t111*qd2[i] + _t111*qd3[i] + _t112*qd6[i] + _t94*qd4[i] + _t98*qd1[i] + qd5[i]*(-_s4[i]*_t31 - _t34*_t43);
-                Jx_dot[72 * (start + i) + 28] = -_s3[i]*_t78*qd1[i] - _s3[i]*_t83*qd4[i] + _t113*qd2[i] + _t113*qd3[i] - _t114*_t87 + _t115*_t90;
-                Jx_dot[72 * (start + i) + 29] = _t101*qd1[i] + _t112*qd4[i] + _t116*qd2[i] + _t116*qd3[i] + _t117*qd5[i] + _t95*qd6[i];
-                Jx_dot[72 * (start + i) + 30] = _t118 + _t120 + _t121 + _t122 + _t124;
-                Jx_dot[72 * (start + i) + 31] = _t130;
-                Jx_dot[72 * (start + i) + 32] = _t130;
-                Jx_dot[72 * (start + i) + 33] = -_t129*qd2[i] - _t129*qd3[i] - _t131*_t132 + _t133*(_c0[i]*_c2[i]*_c5[i] - _t36) + _t134*_t135;
-                Jx_dot[72 * (start + i) + 34] = _t123*qd1[i] + _t136*qd2[i] + _t136*qd3[i] + _t90*qd5[i] + qd4[i]*(_c4[i]*_t30 + _t33*_t38);
-                Jx_dot[72 * (start + i) + 35] = 0;
-                Jx_dot[72 * (start + i) + 36] = -_t117*qd5[i] + _t137*qd1[i] + _t138*qd2[i] + _t138*qd3[i] + _t139*qd4[i] + _t140*qd6[i];
-                Jx_dot[72 * (start + i) + 37] = _t141;
-                Jx_dot[72 * (start + i) + 38] = _t141;
-                Jx_dot[72 * (start + i) + 39] = -_t100*qd4[i] + _t139*qd1[i] + _t142*qd2[i] + _t142*qd3[i] + _t143*qd6[i] + qd5[i]*(-_s4[i]*_t40 + _t36*_t44);
-                Jx_dot[72 * (start + i) + 40] = -_c3[i]*_t118 - _c3[i]*_t120 - _c3[i]*_t121 - _c3[i]*_t122 - _c3[i]*_t124 + _s3[i]*_t78*qd6[i];
-                Jx_dot[72 * (start + i) + 41] = _t137*qd6[i] + _t140*qd1[i] + _t143*qd4[i] + _t96*qd2[i] + _t96*qd3[i] + _t99*qd5[i];
-                Jx_dot[72 * (start + i) + 42] = _t93;
-                Jx_dot[72 * (start + i) + 43] = _t146;
-                Jx_dot[72 * (start + i) + 44] = _t146;
-                Jx_dot[72 * (start + i) + 45] = _t147*qd2[i] + _t147*qd3[i] + _t50*qd6[i] + _t54*qd4[i] + _t77*qd1[i] + qd5[i]*(_c0[i]*_c5[i]*_s3[i]*_s4[i] - _t36*_t66);
-                Jx_dot[72 * (start + i) + 46] = _s3[i]*_t118 + _s3[i]*_t120 + _s3[i]*_t121 + _s3[i]*_t122 + _s3[i]*_t124 + _t115*_t78;
-                Jx_dot[72 * (start + i) + 47] = _t56;
-                Jx_dot[72 * (start + i) + 48] = _t79 + _t81 + _t82 + _t84 + _t88;
-                Jx_dot[72 * (start + i) + 49] = _t149;
-                Jx_dot[72 * (start + i) + 50] = _t149;
-                Jx_dot[72 * (start + i) + 51] = _t131*_t135 + _t132*_t134 + _t133*(_c2[i]*_t30 + _t33) - _t148*qd2[i] - _t148*qd3[i];
-                Jx_dot[72 * (start + i) + 52] = _t150*qd2[i] + _t150*qd3[i] + _t78*qd5[i] + _t87*qd1[i] + qd4[i]*(-_c4[i]*_t39 + _t36*_t38);
-                Jx_dot[72 * (start + i) + 53] = 0;
-                Jx_dot[72 * (start + i) + 54] = 0;
-                Jx_dot[72 * (start + i) + 55] = _t152;
-                Jx_dot[72 * (start + i) + 56] = _t152;
-                Jx_dot[72 * (start + i) + 57] = _c3[i]*_s2[i]*_s4[i]*_s5[i]*qd5[i] - _t154*qd2[i] - _t154*qd3[i] - _t155*(_c3[i]*_c4[i]*_c5[i] - _t57) + _t156*_t157;
-                Jx_dot[72 * (start + i) + 58] = -_c3[i]*_t126*qd5[i] + _t128*_t91 + _t158*qd2[i] + _t158*qd3[i] + _t26*_t63*qd4[i];
-                Jx_dot[72 * (start + i) + 59] = _t104*qd4[i] + _t106*qd5[i] + _t151*qd2[i] + _t151*qd3[i] + _t70*qd6[i];
-                Jx_dot[72 * (start + i) + 60] = 0;
-                Jx_dot[72 * (start + i) + 61] = _t159;
-                Jx_dot[72 * (start + i) + 62] = _t159;
-                Jx_dot[72 * (start + i) + 63] = _t153*_t157 + _t155*(_c4[i]*_t62 + _t63) + _t160*qd2[i] + _t160*qd3[i] - _t161*qd5[i];
-                Jx_dot[72 * (start + i) + 64] = _t114*_t126 + _t115*_t128 - _t161*qd4[i] + _t162*qd2[i] + _t162*qd3[i];
-                Jx_dot[72 * (start + i) + 65] = _t60 + _t61 + _t64 + _t65 + _t68;
-                Jx_dot[72 * (start + i) + 66] = 0;
-                Jx_dot[72 * (start + i) + 67] = _t165;
-                Jx_dot[72 * (start + i) + 68] = _t165;
-                Jx_dot[72 * (start + i) + 69] = _t127*qd4[i] + _t164*qd2[i] + _t164*qd3[i] + _t166*qd5[i];
-                Jx_dot[72 * (start + i) + 70] = _t128*qd5[i] + _t163*qd2[i] + _t163*qd3[i] + _t166*qd4[i];
-                Jx_dot[72 * (start + i) + 71] = 0;
+                _Jx_dot_block[0][i] = _t10*qd3[i] + qd1[i]*(_c0[i]*_s2[i]*d4 - _c0[i]*_t2 - _c0[i]*_t5 - _s0[i]*d3) + qd2[i]*(_s0[i]*_t7 + _t10);
+                _Jx_dot_block[1][i] = _s0[i]*_t17*qd1[i] - _t12*_t13 - _t15;
+                _Jx_dot_block[2][i] = _s0[i]*_t16*qd1[i] - _t11*_t13 - _t15;
+                _Jx_dot_block[3][i] = 0;
+                _Jx_dot_block[4][i] = 0;
+                _Jx_dot_block[5][i] = 0;
+                _Jx_dot_block[6][i] = -_t18*qd3[i] + qd1[i]*(_c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5) + qd2[i]*(-_c0[i]*_t7 - _t18);
+                _Jx_dot_block[7][i] = -_t12*_t20 - _t17*_t19 - _t21;
+                _Jx_dot_block[8][i] = -_t11*_t20 - _t16*_t19 - _t21;
+                _Jx_dot_block[9][i] = 0;
+                _Jx_dot_block[10][i] = 0;
+                _Jx_dot_block[11][i] = 0;
+                _Jx_dot_block[12][i] = 0;
+                _Jx_dot_block[13][i] = -_t17*qd2[i] + _t23;
+                _Jx_dot_block[14][i] = _t22*qd2[i] + _t23;
+                _Jx_dot_block[15][i] = 0;
+                _Jx_dot_block[16][i] = 0;
+                _Jx_dot_block[17][i] = 0;
+                _Jx_dot_block[18][i] = _t56;
+                _Jx_dot_block[19][i] = _t72;
+                _Jx_dot_block[20][i] = _t72;
+                _Jx_dot_block[21][i] = _t41*qd4[i] + _t50*qd1[i] + _t75*qd2[i] + _t75*qd3[i] + _t77*qd6[i] + qd5[i]*(_c3[i]*_t76 + _t33*_t44);
+                _Jx_dot_block[22][i] = _c3[i]*_t79 + _c3[i]*_t81 + _c3[i]*_t82 + _c3[i]*_t84 + _c3[i]*_t88 + _t90*_t91;
+                _Jx_dot_block[23][i] = _t93;
+                _Jx_dot_block[24][i] = _t101*qd6[i] + _t95*qd1[i] + _t97*qd2[i] + _t97*qd3[i] + _t98*qd4[i] - _t99*qd5[i];
+                _Jx_dot_block[25][i] = _t110;
+                _Jx_dot_block[26][i] = _t110;
+                _Jx_dot_block[27][i] = _t111*qd2[i] + _t111*qd3[i] + _t112*qd6[i] + _t94*qd4[i] + _t98*qd1[i] + qd5[i]*(-_s4[i]*_t31 - _t34*_t43);
+                _Jx_dot_block[28][i] = -_s3[i]*_t78*qd1[i] - _s3[i]*_t83*qd4[i] + _t113*qd2[i] + _t113*qd3[i] - _t114*_t87 + _t115*_t90;
+                _Jx_dot_block[29][i] = _t101*qd1[i] + _t112*qd4[i] + _t116*qd2[i] + _t116*qd3[i] + _t117*qd5[i] + _t95*qd6[i];
+                _Jx_dot_block[30][i] = _t118 + _t120 + _t121 + _t122 + _t124;
+                _Jx_dot_block[31][i] = _t130;
+                _Jx_dot_block[32][i] = _t130;
+                _Jx_dot_block[33][i] = -_t129*qd2[i] - _t129*qd3[i] - _t131*_t132 + _t133*(_c0[i]*_c2[i]*_c5[i] - _t36) + _t134*_t135;
+                _Jx_dot_block[34][i] = _t123*qd1[i] + _t136*qd2[i] + _t136*qd3[i] + _t90*qd5[i] + qd4[i]*(_c4[i]*_t30 + _t33*_t38);
+                _Jx_dot_block[35][i] = 0;
+                _Jx_dot_block[36][i] = -_t117*qd5[i] + _t137*qd1[i] + _t138*qd2[i] + _t138*qd3[i] + _t139*qd4[i] + _t140*qd6[i];
+                _Jx_dot_block[37][i] = _t141;
+                _Jx_dot_block[38][i] = _t141;
+                _Jx_dot_block[39][i] = -_t100*qd4[i] + _t139*qd1[i] + _t142*qd2[i] + _t142*qd3[i] + _t143*qd6[i] + qd5[i]*(-_s4[i]*_t40 + _t36*_t44);
+                _Jx_dot_block[40][i] = -_c3[i]*_t118 - _c3[i]*_t120 - _c3[i]*_t121 - _c3[i]*_t122 - _c3[i]*_t124 + _s3[i]*_t78*qd6[i];
+                _Jx_dot_block[41][i] = _t137*qd6[i] + _t140*qd1[i] + _t143*qd4[i] + _t96*qd2[i] + _t96*qd3[i] + _t99*qd5[i];
+                _Jx_dot_block[42][i] = _t93;
+                _Jx_dot_block[43][i] = _t146;
+                _Jx_dot_block[44][i] = _t146;
+                _Jx_dot_block[45][i] = _t147*qd2[i] + _t147*qd3[i] + _t50*qd6[i] + _t54*qd4[i] + _t77*qd1[i] + qd5[i]*(_c0[i]*_c5[i]*_s3[i]*_s4[i] - _t36*_t66);
+                _Jx_dot_block[46][i] = _s3[i]*_t118 + _s3[i]*_t120 + _s3[i]*_t121 + _s3[i]*_t122 + _s3[i]*_t124 + _t115*_t78;
+                _Jx_dot_block[47][i] = _t56;
+                _Jx_dot_block[48][i] = _t79 + _t81 + _t82 + _t84 + _t88;
+                _Jx_dot_block[49][i] = _t149;
+                _Jx_dot_block[50][i] = _t149;
+                _Jx_dot_block[51][i] = _t131*_t135 + _t132*_t134 + _t133*(_c2[i]*_t30 + _t33) - _t148*qd2[i] - _t148*qd3[i];
+                _Jx_dot_block[52][i] = _t150*qd2[i] + _t150*qd3[i] + _t78*qd5[i] + _t87*qd1[i] + qd4[i]*(-_c4[i]*_t39 + _t36*_t38);
+                _Jx_dot_block[53][i] = 0;
+                _Jx_dot_block[54][i] = 0;
+                _Jx_dot_block[55][i] = _t152;
+                _Jx_dot_block[56][i] = _t152;
+                _Jx_dot_block[57][i] = _c3[i]*_s2[i]*_s4[i]*_s5[i]*qd5[i] - _t154*qd2[i] - _t154*qd3[i] - _t155*(_c3[i]*_c4[i]*_c5[i] - _t57) + _t156*_t157;
+                _Jx_dot_block[58][i] = -_c3[i]*_t126*qd5[i] + _t128*_t91 + _t158*qd2[i] + _t158*qd3[i] + _t26*_t63*qd4[i];
+                _Jx_dot_block[59][i] = _t104*qd4[i] + _t106*qd5[i] + _t151*qd2[i] + _t151*qd3[i] + _t70*qd6[i];
+                _Jx_dot_block[60][i] = 0;
+                _Jx_dot_block[61][i] = _t159;
+                _Jx_dot_block[62][i] = _t159;
+                _Jx_dot_block[63][i] = _t153*_t157 + _t155*(_c4[i]*_t62 + _t63) + _t160*qd2[i] + _t160*qd3[i] - _t161*qd5[i];
+                _Jx_dot_block[64][i] = _t114*_t126 + _t115*_t128 - _t161*qd4[i] + _t162*qd2[i] + _t162*qd3[i];
+                _Jx_dot_block[65][i] = _t60 + _t61 + _t64 + _t65 + _t68;
+                _Jx_dot_block[66][i] = 0;
+                _Jx_dot_block[67][i] = _t165;
+                _Jx_dot_block[68][i] = _t165;
+                _Jx_dot_block[69][i] = _t127*qd4[i] + _t164*qd2[i] + _t164*qd3[i] + _t166*qd5[i];
+                _Jx_dot_block[70][i] = _t128*qd5[i] + _t163*qd2[i] + _t163*qd3[i] + _t166*qd4[i];
+                _Jx_dot_block[71][i] = 0;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -5468,8 +5532,16 @@ void puma560_task_jacobian_dot_batch(size_t count, const double *restrict q, con
                     _mm_stream_pd(Jx_dot + 72 * (start + i) + k, _mm_set_pd(_Jx_dot_block[k + 1][i], _Jx_dot_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 72; ++k) {
+                    Jx_dot[72 * (start + i) + k] = _Jx_dot_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -5643,8 +5715,8 @@ void puma560_jacobian_dot_batch(size_t count, const double *restrict q, const do
     double _c3[KINEGEN_BLOCK_OF(64)];
     double _s4[KINEGEN_BLOCK_OF(64)];
     double _c4[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_dot_block[36][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 36 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_dot & 15) == 0;
 #endif
@@ -5834,42 +5906,42 @@ void puma560_jacobian_dot_batch(size_t count, const double *restrict q, const do
                 const double _t43 = -_c4[i]*_t41 + _s2[i]*_t39;
                 const double _t44 = _c2[i]*_s3[i];
                 const double _t45 = -_c3[i]*_t35 - _t33;
-                J_dot[36 * (start + i) + 0] = _t10*qd3[i] + qd1[i]*(_c0[i]*_s2[i]*d4 - _c0[i]*_t2 - _c0[i]*_t5 - _s0[i]*d3) + qd2[i]*(_s0[i]*_t7 + _t10);
-                J_dot[36 * (start + i) + 1] = _s0[i]*_t17*qd1[i] - _t12*_t13 - _t15;
-                J_dot[36 * (start + i) + 2] = _s0[i]*_t16*qd1[i] - _t11*_t13 - _t15;
-                J_dot[36 * (start + i) + 3] = 0;
-                J_dot[36 * (start + i) + 4] = 0;
-                J_dot[36 * (start + i) + 5] = 0;
-                J_dot[36 * (start + i) + 6] = -_t18*qd3[i] + qd1[i]*(_c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5) + qd2[i]*(-_c0[i]*_t7 - _t18);
-                J_dot[36 * (start + i) + 7] = -_t12*_t20 - _t17*_t19 - _t21;
-                J_dot[36 * (start + i) + 8] = -_t11*_t20 - _t16*_t19 - _t21;
-                J_dot[36 * (start + i) + 9] = 0;
-                J_dot[36 * (start + i) + 10] = 0;
-                J_dot[36 * (start + i) + 11] = 0;
-                J_dot[36 * (start + i) + 12] = 0;
-                J_dot[36 * (start + i) + 13] = -_t17*qd2[i] + _t23;
-                J_dot[36 * (start + i) + 14] = _t22*qd2[i] + _t23;
-                J_dot[36 * (start + i) + 15] = 0;
-                J_dot[36 * (start + i) + 16] = 0;
-                J_dot[36 * (start + i) + 17] = 0;
-                J_dot[36 * (start + i) + 18] = 0;
-                J_dot[36 * (start + i) + 19] = _t19;
-                J_dot[36 * (start + i) + 20] = _t19;
-                J_dot[36 * (start + i) + 21] = -_c2[i]*_t13 + _s0[i]*_s2[i]*qd1[i] - _t24*qd3[i];
-                J_dot[36 * (start + i) + 22] = -_t28*_t29 - _t28*_t30 + qd1[i]*(_c0[i]*_c3[i] - _c2[i]*_t27) + qd4[i]*(_c0[i]*_c2[i]*_c3[i] - _t27);
-                J_dot[36 * (start + i) + 23] = _t38*qd2[i] + _t38*qd3[i] + qd1[i]*(_s0[i]*_t33 + _s4[i]*_t28 + _t34*_t35) + qd4[i]*(_t28*_t35 + _t39) + qd5[i]*(_c0[i]*_t37 - _c2[i]*_c4[i]*_t36 + _c4[i]*_t27);
-                J_dot[36 * (start + i) + 24] = 0;
-                J_dot[36 * (start + i) + 25] = _t40;
-                J_dot[36 * (start + i) + 26] = _t40;
-                J_dot[36 * (start + i) + 27] = -_c2[i]*_t20 - _s2[i]*_t19 - _t41*qd3[i];
-                J_dot[36 * (start + i) + 28] = -_t27*_t29 - _t27*_t30 + qd1[i]*(_c2[i]*_t28 + _t34) + qd4[i]*(_t28 + _t42);
-                J_dot[36 * (start + i) + 29] = _t43*qd2[i] + _t43*qd3[i] + qd1[i]*(-_c0[i]*_t33 + _s0[i]*_s3[i]*_s4[i] - _t35*_t36) + qd4[i]*(-_s4[i]*_t36 + _t27*_t35) + qd5[i]*(-_c4[i]*_t28 - _c4[i]*_t42 + _s0[i]*_s2[i]*_s4[i]);
-                J_dot[36 * (start + i) + 30] = 0;
-                J_dot[36 * (start + i) + 31] = 0;
-                J_dot[36 * (start + i) + 32] = 0;
-                J_dot[36 * (start + i) + 33] = -_t29 - _t30;
-                J_dot[36 * (start + i) + 34] = _c3[i]*_s2[i]*qd4[i] + _t44*qd2[i] + _t44*qd3[i];
-                J_dot[36 * (start + i) + 35] = _s3[i]*_t37*qd4[i] + _t45*qd2[i] + _t45*qd3[i] + qd5[i]*(-_c3[i]*_t33 - _t35);
+                _J_dot_block[0][i] = _t10*qd3[i] + qd1[i]*(_c0[i]*_s2[i]*d4 - _c0[i]*_t2 - _c0[i]*_t5 - _s0[i]*d3) + qd2[i]*(_s0[i]*_t7 + _t10);
+                _J_dot_block[1][i] = _s0[i]*_t17*qd1[i] - _t12*_t13 - _t15;
+                _J_dot_block[2][i] = _s0[i]*_t16*qd1[i] - _t11*_t13 - _t15;
+                _J_dot_block[3][i] = 0;
+                _J_dot_block[4][i] = 0;
+                _J_dot_block[5][i] = 0;
+                _J_dot_block[6][i] = -_t18*qd3[i] + qd1[i]*(_c0[i]*d3 + _s0[i]*_s2[i]*d4 - _s0[i]*_t2 - _s0[i]*_t5) + qd2[i]*(-_c0[i]*_t7 - _t18);
+                _J_dot_block[7][i] = -_t12*_t20 - _t17*_t19 - _t21;
+                _J_dot_block[8][i] = -_t11*_t20 - _t16*_t19 - _t21;
+                _J_dot_block[9][i] = 0;
+                _J_dot_block[10][i] = 0;
+                _J_dot_block[11][i] = 0;
+                _J_dot_block[12][i] = 0;
+                _J_dot_block[13][i] = -_t17*qd2[i] + _t23;
+                _J_dot_block[14][i] = _t22*qd2[i] + _t23;
+                _J_dot_block[15][i] = 0;
+                _J_dot_block[16][i] = 0;
+                _J_dot_block[17][i] = 0;
+                _J_dot_block[18][i] = 0;
+                _J_dot_block[19][i] = _t19;
+                _J_dot_block[20][i] = _t19;
+                _J_dot_block[21][i] = -_c2[i]*_t13 + _s0[i]*_s2[i]*qd1[i] - _t24*qd3[i];
+                _J_dot_block[22][i] = -_t28*_t29 - _t28*_t30 + qd1[i]*(_c0[i]*_c3[i] - _c2[i]*_t27) + qd4[i]*(_c0[i]*_c2[i]*_c3[i] - _t27);
+                _J_dot_block[23][i] = _t38*qd2[i] + _t38*qd3[i] + qd1[i]*(_s0[i]*_t33 + _s4[i]*_t28 + _t34*_t35) + qd4[i]*(_t28*_t35 + _t39) + qd5[i]*(_c0[i]*_t37 - _c2[i]*_c4[i]*_t36 + _c4[i]*_t27);
+                _J_dot_block[24][i] = 0;
+                _J_dot_block[25][i] = _t40;
+                _J_dot_block[26][i] = _t40;
+                _J_dot_block[27][i] = -_c2[i]*_t20 - _s2[i]*_t19 - _t41*qd3[i];
+                _J_dot_block[28][i] = -_t27*_t29 - _t27*_t30 + qd1[i]*(_c2[i]*_t28 + _t34) + qd4[i]*(_t28 + _t42);
+                _J_dot_block[29][i] = _t43*qd2[i] + _t43*qd3[i] + qd1[i]*(-_c0[i]*_t33 + _s0[i]*_s3[i]*_s4[i] - _t35*_t36) + qd4[i]*(-_s4[i]*_t36 + _t27*_t35) + qd5[i]*(-_c4[i]*_t28 - _c4[i]*_t42 + _s0[i]*_s2[i]*_s4[i]);
+                _J_dot_block[30][i] = 0;
+                _J_dot_block[31][i] = 0;
+                _J_dot_block[32][i] = 0;
+                _J_dot_block[33][i] = -_t29 - _t30;
+                _J_dot_block[34][i] = _c3[i]*_s2[i]*qd4[i] + _t44*qd2[i] + _t44*qd3[i];
+                _J_dot_block[35][i] = _s3[i]*_t37*qd4[i] + _t45*qd2[i] + _t45*qd3[i] + qd5[i]*(-_c3[i]*_t33 - _t35);
             }
         }
 #ifdef KINEGEN_STREAM
@@ -5880,8 +5952,16 @@ void puma560_jacobian_dot_batch(size_t count, const double *restrict q, const do
                     _mm_stream_pd(J_dot + 36 * (start + i) + k, _mm_set_pd(_J_dot_block[k + 1][i], _J_dot_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 36; ++k) {
+                    J_dot[36 * (start + i) + k] = _J_dot_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -6188,8 +6268,8 @@ void puma560_task_acceleration_batch(size_t count, const double *restrict q, con
     double _c4[KINEGEN_BLOCK_OF(64)];
     double _s5[KINEGEN_BLOCK_OF(64)];
     double _c5[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _xdd_block[12][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 12 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)xdd & 15) == 0;
 #endif
@@ -6641,18 +6721,18 @@ void puma560_task_acceleration_batch(size_t count, const double *restrict q, con
                 const double _t180 = _s5[i]*_t48;
                 const double _t181 = _t140*qd2[i] + _t140*qd3[i] + _t179*qd5[i] + _t180*qd4[i];
                 const double _t182 = _s5[i]*_t51;
-                xdd[12 * (start + i) + 0] = _t19*qdd1[i] - _t20*qdd2[i] - _t21*qdd3[i] + qd1[i]*(_t11*qd3[i] - _t7*qd1[i] + qd2[i]*(_s0[i]*_t8 + _t11)) + qd2[i]*(_s0[i]*_t18*qd1[i] - _t13*_t14 - _t16) + qd3[i]*(_s0[i]*_t17*qd1[i] - _t12*_t14 - _t16);
-                xdd[12 * (start + i) + 1] = -_t17*_t26 - _t18*_t25 + _t7*qdd1[i] + qd1[i]*(_t19*qd1[i] - _t22*qd3[i] + qd2[i]*(-_c0[i]*_t8 - _t22)) + qd2[i]*(-_t13*_t23 - _t20*qd1[i] - _t24) + qd3[i]*(-_t12*_t23 - _t21*qd1[i] - _t24);
-                xdd[12 * (start + i) + 2] = _t12*qdd3[i] + _t13*qdd2[i] + qd2[i]*(-_t18*qd2[i] + _t28) + qd3[i]*(_t27*qd2[i] + _t28);
-                xdd[12 * (start + i) + 3] = _t101*qdd1[i] + _t103*qdd4[i] + _t106*qdd6[i] + _t107*qdd2[i] + _t107*qdd3[i] + _t108*_t95 + _t61*qd1[i] + _t77*qd2[i] + _t77*qd3[i] + _t98*qd6[i] + qd4[i]*(_t46*qd4[i] + _t55*qd1[i] + _t80*qd2[i] + _t80*qd3[i] + _t82*qd6[i] + qd5[i]*(_c3[i]*_t81 + _t38*_t49)) + qd5[i]*(_c3[i]*_t84 + _c3[i]*_t86 + _c3[i]*_t87 + _c3[i]*_t89 + _c3[i]*_t92 - _t95*_t96);
-                xdd[12 * (start + i) + 4] = _t121*qd2[i] + _t121*qd3[i] + _t128*qdd2[i] + _t128*qdd3[i] + _t129*_t94 + _t47*qdd6[i] + _t60*qdd1[i] + _t82*qdd4[i] + qd1[i]*(_t100*qd6[i] + _t105*qd1[i] + _t110*qd2[i] + _t110*qd3[i] + _t111*qd4[i] - _t112*qd5[i]) + qd4[i]*(_t102*qd6[i] + _t104*qd4[i] + _t111*qd1[i] + _t122*qd2[i] + _t122*qd3[i] + qd5[i]*(-_s4[i]*_t36 - _t39*_t48)) + qd5[i]*(-_s3[i]*_t83*qd1[i] - _s3[i]*_t88*qd4[i] + _t123*qd2[i] + _t123*qd3[i] - _t124*_t91 + _t125*_t94) + qd6[i]*(_t100*qd1[i] + _t102*qd4[i] + _t105*qd6[i] + _t126*qd2[i] + _t126*qd3[i] + _t127*qd5[i]);
-                xdd[12 * (start + i) + 5] = _t142*qd2[i] + _t142*qd3[i] + _t146*_t150 + _t149*qdd2[i] + _t149*qdd3[i] + _t83*qdd1[i] + _t91*qdd5[i] + qd1[i]*(_t130 + _t132 + _t133 + _t134 + _t136) + qd4[i]*(-_t141*qd2[i] - _t141*qd3[i] - _t143*_t144 + _t145*(_c0[i]*_c2[i]*_c5[i] - _t41) + _t146*_t147) + qd5[i]*(_t135*qd1[i] + _t148*qd2[i] + _t148*qd3[i] + _t94*qd5[i] + qd4[i]*(_c4[i]*_t35 + _t38*_t43));
-                xdd[12 * (start + i) + 6] = -_t108*_t83 + _t152*qd2[i] + _t152*qd3[i] + _t25*_t75 + _t26*_t75 - _t47*qdd1[i] - _t55*qdd4[i] - _t60*qdd6[i] + qd1[i]*(_t101*qd1[i] + _t103*qd4[i] + _t106*qd6[i] - _t127*qd5[i] + _t151*qd2[i] + _t151*qd3[i]) + qd4[i]*(_t103*qd1[i] + _t153*qd2[i] + _t153*qd3[i] + _t154*qd6[i] - _t99*qd4[i] + qd5[i]*(-_s4[i]*_t45 + _t41*_t49)) + qd5[i]*(-_c3[i]*_t130 - _c3[i]*_t132 - _c3[i]*_t133 - _c3[i]*_t134 - _c3[i]*_t136 + _s3[i]*_t83*qd6[i]) + qd6[i]*(_t101*qd6[i] + _t106*qd1[i] + _t109*qd2[i] + _t109*qd3[i] + _t112*qd5[i] + _t154*qd4[i]);
-                xdd[12 * (start + i) + 7] = _t101*qdd6[i] + _t106*qdd1[i] + _t129*_t83 + _t154*qdd4[i] + _t157*qd2[i] + _t157*qd3[i] + _t25*_t72 + _t26*_t72 + _t61*qd6[i] + _t98*qd1[i] + qd4[i]*(_t158*qd2[i] + _t158*qd3[i] + _t55*qd6[i] + _t59*qd4[i] + _t82*qd1[i] + qd5[i]*(_c0[i]*_c5[i]*_s3[i]*_s4[i] - _t41*_t71)) + qd5[i]*(_s3[i]*_t130 + _s3[i]*_t132 + _s3[i]*_t133 + _s3[i]*_t134 + _s3[i]*_t136 + _t125*_t83);
-                xdd[12 * (start + i) + 8] = -_t135*qdd5[i] + _t140*_t25 + _t140*_t26 + _t143*_t150 + _t160*qd2[i] + _t160*qd3[i] + _t95*qdd1[i] + qd1[i]*(_t84 + _t86 + _t87 + _t89 + _t92) + qd4[i]*(_t143*_t147 + _t144*_t146 + _t145*(_c2[i]*_t35 + _t38) - _t159*qd2[i] - _t159*qd3[i]) + qd5[i]*(_t161*qd2[i] + _t161*qd3[i] + _t83*qd5[i] + _t91*qd1[i] + qd4[i]*(-_c4[i]*_t44 + _t41*_t43));
-                xdd[12 * (start + i) + 9] = _t108*_t172 + _t163*qd2[i] + _t163*qd3[i] - _t164*_t174 + _t173*qdd2[i] + _t173*qdd3[i] - _t72*qdd6[i] + qd4[i]*(_c3[i]*_s2[i]*_s4[i]*_s5[i]*qd5[i] - _t165*qd2[i] - _t165*qd3[i] - _t166*(_c3[i]*_c4[i]*_c5[i] - _t62) + _t167*_t168) + qd5[i]*(_c3[i]*_t171*qd5[i] + _t170*qd2[i] + _t170*qd3[i] - _t172*_t96 + _t31*_t68*qd4[i]) + qd6[i]*(_t115*qd4[i] + _t117*qd5[i] + _t162*qd2[i] + _t162*qd3[i] + _t75*qd6[i]);
-                xdd[12 * (start + i) + 10] = _t129*_t140 + _t162*qdd2[i] + _t162*qdd3[i] + _t167*_t174 + _t175*qd2[i] + _t175*qd3[i] + _t75*qdd6[i] + qd4[i]*(_t164*_t168 + _t166*(_c4[i]*_t67 + _t68) + _t176*qd2[i] + _t176*qd3[i] - _t177*qd5[i]) + qd5[i]*(_t124*_t138 + _t125*_t140 - _t177*qd4[i] + _t178*qd2[i] + _t178*qd3[i]) + qd6[i]*(_t65 + _t66 + _t69 + _t70 + _t73);
-                xdd[12 * (start + i) + 11] = _s5[i]*_t31*qdd4[i] + _t169*qdd2[i] + _t169*qdd3[i] + _t171*qdd5[i] + _t181*qd2[i] + _t181*qd3[i] + qd4[i]*(_t139*qd4[i] + _t180*qd2[i] + _t180*qd3[i] + _t182*qd5[i]) + qd5[i]*(_t140*qd5[i] + _t179*qd2[i] + _t179*qd3[i] + _t182*qd4[i]);
+                _xdd_block[0][i] = _t19*qdd1[i] - _t20*qdd2[i] - _t21*qdd3[i] + qd1[i]*(_t11*qd3[i] - _t7*qd1[i] + qd2[i]*(_s0[i]*_t8 + _t11)) + qd2[i]*(_s0[i]*_t18*qd1[i] - _t13*_t14 - _t16) + qd3[i]*(_s0[i]*_t17*qd1[i] - _t12*_t14 - _t16);
+                _xdd_block[1][i] = -_t17*_t26 - _t18*_t25 + _t7*qdd1[i] + qd1[i]*(_t19*qd1[i] - _t22*qd3[i] + qd2[i]*(-_c0[i]*_t8 - _t22)) + qd2[i]*(-_t13*_t23 - _t20*qd1[i] - _t24) + qd3[i]*(-_t12*_t23 - _t21*qd1[i] - _t24);
+                _xdd_block[2][i] = _t12*qdd3[i] + _t13*qdd2[i] + qd2[i]*(-_t18*qd2[i] + _t28) + qd3[i]*(_t27*qd2[i] + _t28);
+                _xdd_block[3][i] = _t101*qdd1[i] + _t103*qdd4[i] + _t106*qdd6[i] + _t107*qdd2[i] + _t107*qdd3[i] + _t108*_t95 + _t61*qd1[i] + _t77*qd2[i] + _t77*qd3[i] + _t98*qd6[i] + qd4[i]*(_t46*qd4[i] + _t55*qd1[i] + _t80*qd2[i] + _t80*qd3[i] + _t82*qd6[i] + qd5[i]*(_c3[i]*_t81 + _t38*_t49)) + qd5[i]*(_c3[i]*_t84 + _c3[i]*_t86 + _c3[i]*_t87 + _c3[i]*_t89 + _c3[i]*_t92 - _t95*_t96);
+                _xdd_block[4][i] = _t121*qd2[i] + _t121*qd3[i] + _t128*qdd2[i] + _t128*qdd3[i] + _t129*_t94 + _t47*qdd6[i] + _t60*qdd1[i] + _t82*qdd4[i] + qd1[i]*(_t100*qd6[i] + _t105*qd1[i] + _t110*qd2[i] + _t110*qd3[i] + _t111*qd4[i] - _t112*qd5[i]) + qd4[i]*(_t102*qd6[i] + _t104*qd4[i] + _t111*qd1[i] + _t122*qd2[i] + _t122*qd3[i] + qd5[i]*(-_s4[i]*_t36 - _t39*_t48)) + qd5[i]*(-_s3[i]*_t83*qd1[i] - _s3[i]*_t88*qd4[i] + _t123*qd2[i] + _t123*qd3[i] - _t124*_t91 + _t125*_t94) + qd6[i]*(_t100*qd1[i] + _t102*qd4[i] + _t105*qd6[i] + _t126*qd2[i] + _t126*qd3[i] + _t127*qd5[i]);
+                _xdd_block[5][i] = _t142*qd2[i] + _t142*qd3[i] + _t146*_t150 + _t149*qdd2[i] + _t149*qdd3[i] + _t83*qdd1[i] + _t91*qdd5[i] + qd1[i]*(_t130 + _t132 + _t133 + _t134 + _t136) + qd4[i]*(-_t141*qd2[i] - _t141*qd3[i] - _t143*_t144 + _t145*(_c0[i]*_c2[i]*_c5[i] - _t41) + _t146*_t147) + qd5[i]*(_t135*qd1[i] + _t148*qd2[i] + _t148*qd3[i] + _t94*qd5[i] + qd4[i]*(_c4[i]*_t35 + _t38*_t43));
+                _xdd_block[6][i] = -_t108*_t83 + _t152*qd2[i] + _t152*qd3[i] + _t25*_t75 + _t26*_t75 - _t47*qdd1[i] - _t55*qdd4[i] - _t60*qdd6[i] + qd1[i]*(_t101*qd1[i] + _t103*qd4[i] + _t106*qd6[i] - _t127*qd5[i] + _t151*qd2[i] + _t151*qd3[i]) + qd4[i]*(_t103*qd1[i] + _t153*qd2[i] + _t153*qd3[i] + _t154*qd6[i] - _t99*qd4[i] + qd5[i]*(-_s4[i]*_t45 + _t41*_t49)) + qd5[i]*(-_c3[i]*_t130 - _c3[i]*_t132 - _c3[i]*_t133 - _c3[i]*_t134 - _c3[i]*_t136 + _s3[i]*_t83*qd6[i]) + qd6[i]*(_t101*qd6[i] + _t106*qd1[i] + _t109*qd2[i] + _t109*qd3[i] + _t112*qd5[i] + _t154*qd4[i]);
+                _xdd_block[7][i] = _t101*qdd6[i] + _t106*qdd1[i] + _t129*_t83 + _t154*qdd4[i] + _t157*qd2[i] + _t157*qd3[i] + _t25*_t72 + _t26*_t72 + _t61*qd6[i] + _t98*qd1[i] + qd4[i]*(_t158*qd2[i] + _t158*qd3[i] + _t55*qd6[i] + _t59*qd4[i] + _t82*qd1[i] + qd5[i]*(_c0[i]*_c5[i]*_s3[i]*_s4[i] - _t41*_t71)) + qd5[i]*(_s3[i]*_t130 + _s3[i]*_t132 + _s3[i]*_t133 + _s3[i]*_t134 + _s3[i]*_t136 + _t125*_t83);
+                _xdd_block[8][i] = -_t135*qdd5[i] + _t140*_t25 + _t140*_t26 + _t143*_t150 + _t160*qd2[i] + _t160*qd3[i] + _t95*qdd1[i] + qd1[i]*(_t84 + _t86 + _t87 + _t89 + _t92) + qd4[i]*(_t143*_t147 + _t144*_t146 + _t145*(_c2[i]*_t35 + _t38) - _t159*qd2[i] - _t159*qd3[i]) + qd5[i]*(_t161*qd2[i] + _t161*qd3[i] + _t83*qd5[i] + _t91*qd1[i] + qd4[i]*(-_c4[i]*_t44 + _t41*_t43));
+                _xdd_block[9][i] = _t108*_t172 + _t163*qd2[i] + _t163*qd3[i] - _t164*_t174 + _t173*qdd2[i] + _t173*qdd3[i] - _t72*qdd6[i] + qd4[i]*(_c3[i]*_s2[i]*_s4[i]*_s5[i]*qd5[i] - _t165*qd2[i] - _t165*qd3[i] - _t166*(_c3[i]*_c4[i]*_c5[i] - _t62) + _t167*_t168) + qd5[i]*(_c3[i]*_t171*qd5[i] + _t170*qd2[i] + _t170*qd3[i] - _t172*_t96 + _t31*_t68*qd4[i]) + qd6[i]*(_t115*qd4[i] + _t117*qd5[i] + _t162*qd2[i] + _t162*qd3[i] + _t75*qd6[i]);
+                _xdd_block[10][i] = _t129*_t140 + _t162*qdd2[i] + _t162*qdd3[i] + _t167*_t174 + _t175*qd2[i] + _t175*qd3[i] + _t75*qdd6[i] + qd4[i]*(_t164*_t168 + _t166*(_c4[i]*_t67 + _t68) + _t176*qd2[i] + _t176*qd3[i] - _t177*qd5[i]) + qd5[i]*(_t124*_t138 + _t125*_t140 - _t177*qd4[i] + _t178*qd2[i] + _t178*qd3[i]) + qd6[i]*(_t65 + _t66 + _t69 + _t70 + _t73);
+                _xdd_block[11][i] = _s5[i]*_t31*qdd4[i] + _t169*qdd2[i] + _t169*qdd3[i] + _t171*qdd5[i] + _t181*qd2[i] + _t181*qd3[i] + qd4[i]*(_t139*qd4[i] + _t180*qd2[i] + _t180*qd3[i] + _t182*qd5[i]) + qd5[i]*(_t140*qd5[i] + _t179*qd2[i] + _t179*qd3[i] + _t182*qd4[i]);
             }
         }
 #ifdef KINEGEN_STREAM
@@ -6663,8 +6743,16 @@ void puma560_task_acceleration_batch(size_t count, const double *restrict q, con
                     _mm_stream_pd(xdd + 12 * (start + i) + k, _mm_set_pd(_xdd_block[k + 1][i], _xdd_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 12; ++k) {
+                    xdd[12 * (start + i) + k] = _xdd_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -7125,8 +7213,8 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
     double _c6[KINEGEN_BLOCK_OF(64)];
     double _s7[KINEGEN_BLOCK_OF(64)];
     double _c7[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _qd_block[6][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)qd & 15) == 0;
 #endif
@@ -7605,22 +7693,22 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
                 const double _t172 = _t159*_t169 + _t161*_t167 + _t164*(_t120 + _t139 + _t165 + _t170);
                 const int _t173 = _t102 < 1e-08;
                 const double _t174 = _s5[i]/kinegen_max(1e-08, _t102);
-                qd[6 * (start + i) + 0] = _t95;
-                qd[6 * (start + i) + 1] = _t99;
-                qd[6 * (start + i) + 2] = _t100;
-                qd[6 * (start + i) + 3] = ((_t173) ? (
+                _qd_block[0][i] = _t95;
+                _qd_block[1][i] = _t99;
+                _qd_block[2][i] = _t100;
+                _qd_block[3][i] = ((_t173) ? (
    _t144*(_c1[i]*_t168 - _c4[i]*_s1[i]*_t171 - _s1[i]*_s4[i]*_t172)
 )
 : (
    -_t174*(-_t115*_t164 + _t125*_t167 + _t132*_t159)
 ));
-                qd[6 * (start + i) + 4] = ((_t173) ? (
+                _qd_block[4][i] = ((_t173) ? (
    _t144*(_t118*_t172 + _t134*_t171 + _t145*_t168)
 )
 : (
    -_t174*(_s5[i]*_t119*_t164 - _s5[i]*_t134*_t159 - _s6[i]*_t112*_t167)
 ));
-                qd[6 * (start + i) + 5] = ((_t173) ? (
+                _qd_block[5][i] = ((_t173) ? (
    _t144*(_t137*_t171 + _t140*_t168 + _t142*_t172)
 )
 : (
@@ -7637,8 +7725,16 @@ void puma560_joint_velocity_batch(size_t count, const double *restrict q, const 
                     _mm_stream_pd(qd + 6 * (start + i) + k, _mm_set_pd(_qd_block[k + 1][i], _qd_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 6; ++k) {
+                    qd[6 * (start + i) + k] = _qd_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -8009,8 +8105,8 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
     double _c6[KINEGEN_BLOCK_OF(64)];
     double _s7[KINEGEN_BLOCK_OF(64)];
     double _c7[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _qdd_block[6][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)qdd & 15) == 0;
 #endif
@@ -8541,22 +8637,22 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
                 const double _t195 = _t177*_t192 + _t179*_t190 + _t185*(_t134 + _t153 + _t186 + _t193);
                 const int _t196 = _t116 < 1e-08;
                 const double _t197 = _s5[i]/kinegen_max(1e-08, _t116);
-                qdd[6 * (start + i) + 0] = _t109;
-                qdd[6 * (start + i) + 1] = _t113;
-                qdd[6 * (start + i) + 2] = _t114;
-                qdd[6 * (start + i) + 3] = ((_t196) ? (
+                _qdd_block[0][i] = _t109;
+                _qdd_block[1][i] = _t113;
+                _qdd_block[2][i] = _t114;
+                _qdd_block[3][i] = ((_t196) ? (
    _t159*(_c1[i]*_t191 - _c4[i]*_s1[i]*_t194 - _s1[i]*_s4[i]*_t195)
 )
 : (
    -_t197*(_t139*_t190 + _t146*_t177 + _t181*_t185)
 ));
-                qdd[6 * (start + i) + 4] = ((_t196) ? (
+                _qdd_block[4][i] = ((_t196) ? (
    _t159*(_t132*_t195 + _t148*_t194 + _t160*_t191)
 )
 : (
    -_t197*(_s5[i]*_t133*_t185 - _s5[i]*_t148*_t177 - _t189*_t190)
 ));
-                qdd[6 * (start + i) + 5] = ((_t196) ? (
+                _qdd_block[5][i] = ((_t196) ? (
    _t159*(_t151*_t194 + _t154*_t191 + _t157*_t195)
 )
 : (
@@ -8573,8 +8669,16 @@ void puma560_joint_acceleration_batch(size_t count, const double *restrict q, co
                     _mm_stream_pd(qdd + 6 * (start + i) + k, _mm_set_pd(_qdd_block[k + 1][i], _qdd_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 6; ++k) {
+                    qdd[6 * (start + i) + k] = _qdd_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -8873,8 +8977,8 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
     double _c5[KINEGEN_BLOCK_OF(64)];
     double _s6[KINEGEN_BLOCK_OF(64)];
     double _c6[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _qd_block[6][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)qd & 15) == 0;
 #endif
@@ -9304,22 +9408,22 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
                 const double _t153 = _t138*_t148 + _t141*_t151 + _t146*(_t117 + _t132 + _t139 + _t150);
                 const int _t154 = _t102 < 1e-08;
                 const double _t155 = _s5[i]/kinegen_max(1e-08, _t102);
-                qd[6 * (start + i) + 0] = _t95;
-                qd[6 * (start + i) + 1] = _t99;
-                qd[6 * (start + i) + 2] = _t100;
-                qd[6 * (start + i) + 3] = ((_t154) ? (
+                _qd_block[0][i] = _t95;
+                _qd_block[1][i] = _t99;
+                _qd_block[2][i] = _t100;
+                _qd_block[3][i] = ((_t154) ? (
    _t137*(_c1[i]*_t149 - _c4[i]*_s1[i]*_t152 - _s1[i]*_s4[i]*_t153)
 )
 : (
    -_t155*(-_t113*_t146 + _t121*_t138 + _t126*_t141)
 ));
-                qd[6 * (start + i) + 4] = ((_t154) ? (
+                _qd_block[4][i] = ((_t154) ? (
    _t137*(_t115*_t153 + _t127*_t152 + _t142*_t149)
 )
 : (
    -_t155*(_s5[i]*_t116*_t146 - _s5[i]*_t127*_t141 - _s6[i]*_t111*_t138)
 ));
-                qd[6 * (start + i) + 5] = ((_t154) ? (
+                _qd_block[5][i] = ((_t154) ? (
    _t137*(_t130*_t152 + _t133*_t149 + _t135*_t153)
 )
 : (
@@ -9336,8 +9440,16 @@ void puma560_joint_velocity_from_twist_batch(size_t count, const double *restric
                     _mm_stream_pd(qd + 6 * (start + i) + k, _mm_set_pd(_qd_block[k + 1][i], _qd_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 6; ++k) {
+                    qd[6 * (start + i) + k] = _qd_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {

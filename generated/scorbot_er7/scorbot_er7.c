@@ -210,8 +210,8 @@ void scorbot_er7_fk_batch(size_t count, const double *restrict q, const scorbot_
     double _c3[KINEGEN_BLOCK_OF(64)];
     double _s4[KINEGEN_BLOCK_OF(64)];
     double _c4[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _T_block[16][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 16 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)T & 15) == 0;
 #endif
@@ -314,22 +314,22 @@ void scorbot_er7_fk_batch(size_t count, const double *restrict q, const scorbot_
                 const double _t9 = _c1[i]*_s0[i];
                 const double _t10 = _c0[i]*_s1[i];
                 const double _t12 = _c2[i]*d5 + _c3[i]*a2 + _c4[i]*a3 + a1;
-                T[16 * (start + i) + 0] = -_s2[i]*_t8 + _t2;
-                T[16 * (start + i) + 1] = _s2[i]*_t10 + _t9;
-                T[16 * (start + i) + 2] = _c0[i]*_c2[i];
-                T[16 * (start + i) + 3] = _c0[i]*_t12;
-                T[16 * (start + i) + 4] = -_s2[i]*_t9 - _t10;
-                T[16 * (start + i) + 5] = _s2[i]*_t2 - _t8;
-                T[16 * (start + i) + 6] = _c2[i]*_s0[i];
-                T[16 * (start + i) + 7] = _s0[i]*_t12;
-                T[16 * (start + i) + 8] = _c1[i]*_c2[i];
-                T[16 * (start + i) + 9] = -_c2[i]*_s1[i];
-                T[16 * (start + i) + 10] = _s2[i];
-                T[16 * (start + i) + 11] = _s2[i]*d5 + _s3[i]*a2 + _s4[i]*a3 + d1;
-                T[16 * (start + i) + 12] = 0;
-                T[16 * (start + i) + 13] = 0;
-                T[16 * (start + i) + 14] = 0;
-                T[16 * (start + i) + 15] = 1;
+                _T_block[0][i] = -_s2[i]*_t8 + _t2;
+                _T_block[1][i] = _s2[i]*_t10 + _t9;
+                _T_block[2][i] = _c0[i]*_c2[i];
+                _T_block[3][i] = _c0[i]*_t12;
+                _T_block[4][i] = -_s2[i]*_t9 - _t10;
+                _T_block[5][i] = _s2[i]*_t2 - _t8;
+                _T_block[6][i] = _c2[i]*_s0[i];
+                _T_block[7][i] = _s0[i]*_t12;
+                _T_block[8][i] = _c1[i]*_c2[i];
+                _T_block[9][i] = -_c2[i]*_s1[i];
+                _T_block[10][i] = _s2[i];
+                _T_block[11][i] = _s2[i]*d5 + _s3[i]*a2 + _s4[i]*a3 + d1;
+                _T_block[12][i] = 0;
+                _T_block[13][i] = 0;
+                _T_block[14][i] = 0;
+                _T_block[15][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -340,8 +340,16 @@ void scorbot_er7_fk_batch(size_t count, const double *restrict q, const scorbot_
                     _mm_stream_pd(T + 16 * (start + i) + k, _mm_set_pd(_T_block[k + 1][i], _T_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 16; ++k) {
+                    T[16 * (start + i) + k] = _T_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -543,8 +551,8 @@ void scorbot_er7_frames_batch(size_t count, const double *restrict q, const scor
     double _c3[KINEGEN_BLOCK_OF(32)];
     double _s4[KINEGEN_BLOCK_OF(32)];
     double _c4[KINEGEN_BLOCK_OF(32)];
-#ifdef KINEGEN_STREAM
     double _frames_block[96][KINEGEN_BLOCK_OF(32)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 96 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)frames & 15) == 0;
 #endif
@@ -741,102 +749,102 @@ void scorbot_er7_frames_batch(size_t count, const double *restrict q, const scor
                 const double _t19 = _s0[i]*_s3[i];
                 const double _t20 = _c3[i]*_s0[i];
                 const double _t23 = _c3[i]*d5 + _t10;
-                frames[96 * (start + i) + 0] = 1;
-                frames[96 * (start + i) + 1] = 0;
-                frames[96 * (start + i) + 2] = 0;
-                frames[96 * (start + i) + 3] = 0;
-                frames[96 * (start + i) + 4] = 0;
-                frames[96 * (start + i) + 5] = 1;
-                frames[96 * (start + i) + 6] = 0;
-                frames[96 * (start + i) + 7] = 0;
-                frames[96 * (start + i) + 8] = 0;
-                frames[96 * (start + i) + 9] = 0;
-                frames[96 * (start + i) + 10] = 1;
-                frames[96 * (start + i) + 11] = 0;
-                frames[96 * (start + i) + 12] = 0;
-                frames[96 * (start + i) + 13] = 0;
-                frames[96 * (start + i) + 14] = 0;
-                frames[96 * (start + i) + 15] = 1;
-                frames[96 * (start + i) + 16] = _c0[i];
-                frames[96 * (start + i) + 17] = 0;
-                frames[96 * (start + i) + 18] = _s0[i];
-                frames[96 * (start + i) + 19] = _c0[i]*a1;
-                frames[96 * (start + i) + 20] = _s0[i];
-                frames[96 * (start + i) + 21] = 0;
-                frames[96 * (start + i) + 22] = _t2;
-                frames[96 * (start + i) + 23] = _s0[i]*a1;
-                frames[96 * (start + i) + 24] = 0;
-                frames[96 * (start + i) + 25] = 1;
-                frames[96 * (start + i) + 26] = 0;
-                frames[96 * (start + i) + 27] = d1;
-                frames[96 * (start + i) + 28] = 0;
-                frames[96 * (start + i) + 29] = 0;
-                frames[96 * (start + i) + 30] = 0;
-                frames[96 * (start + i) + 31] = 1;
-                frames[96 * (start + i) + 32] = _c0[i]*_c1[i];
-                frames[96 * (start + i) + 33] = -_c0[i]*_s1[i];
-                frames[96 * (start + i) + 34] = _s0[i];
-                frames[96 * (start + i) + 35] = _c0[i]*_t5;
-                frames[96 * (start + i) + 36] = _c1[i]*_s0[i];
-                frames[96 * (start + i) + 37] = -_s0[i]*_s1[i];
-                frames[96 * (start + i) + 38] = _t2;
-                frames[96 * (start + i) + 39] = _s0[i]*_t5;
-                frames[96 * (start + i) + 40] = _s1[i];
-                frames[96 * (start + i) + 41] = _c1[i];
-                frames[96 * (start + i) + 42] = 0;
-                frames[96 * (start + i) + 43] = _t6;
-                frames[96 * (start + i) + 44] = 0;
-                frames[96 * (start + i) + 45] = 0;
-                frames[96 * (start + i) + 46] = 0;
-                frames[96 * (start + i) + 47] = 1;
-                frames[96 * (start + i) + 48] = _c0[i]*_c2[i];
-                frames[96 * (start + i) + 49] = -_c0[i]*_s2[i];
-                frames[96 * (start + i) + 50] = _s0[i];
-                frames[96 * (start + i) + 51] = _t11;
-                frames[96 * (start + i) + 52] = _c2[i]*_s0[i];
-                frames[96 * (start + i) + 53] = -_s0[i]*_s2[i];
-                frames[96 * (start + i) + 54] = _t2;
-                frames[96 * (start + i) + 55] = _t12;
-                frames[96 * (start + i) + 56] = _s2[i];
-                frames[96 * (start + i) + 57] = _c2[i];
-                frames[96 * (start + i) + 58] = 0;
-                frames[96 * (start + i) + 59] = _t13;
-                frames[96 * (start + i) + 60] = 0;
-                frames[96 * (start + i) + 61] = 0;
-                frames[96 * (start + i) + 62] = 0;
-                frames[96 * (start + i) + 63] = 1;
-                frames[96 * (start + i) + 64] = -_t16;
-                frames[96 * (start + i) + 65] = _s0[i];
-                frames[96 * (start + i) + 66] = _t18;
-                frames[96 * (start + i) + 67] = _t11;
-                frames[96 * (start + i) + 68] = -_t19;
-                frames[96 * (start + i) + 69] = _t2;
-                frames[96 * (start + i) + 70] = _t20;
-                frames[96 * (start + i) + 71] = _t12;
-                frames[96 * (start + i) + 72] = _c3[i];
-                frames[96 * (start + i) + 73] = 0;
-                frames[96 * (start + i) + 74] = _s3[i];
-                frames[96 * (start + i) + 75] = _t13;
-                frames[96 * (start + i) + 76] = 0;
-                frames[96 * (start + i) + 77] = 0;
-                frames[96 * (start + i) + 78] = 0;
-                frames[96 * (start + i) + 79] = 1;
-                frames[96 * (start + i) + 80] = -_c4[i]*_t16 + _s0[i]*_s4[i];
-                frames[96 * (start + i) + 81] = _c4[i]*_s0[i] + _s4[i]*_t16;
-                frames[96 * (start + i) + 82] = _t18;
-                frames[96 * (start + i) + 83] = _c0[i]*_t23;
-                frames[96 * (start + i) + 84] = -_c0[i]*_s4[i] - _c4[i]*_t19;
-                frames[96 * (start + i) + 85] = -_c0[i]*_c4[i] + _s4[i]*_t19;
-                frames[96 * (start + i) + 86] = _t20;
-                frames[96 * (start + i) + 87] = _s0[i]*_t23;
-                frames[96 * (start + i) + 88] = _c3[i]*_c4[i];
-                frames[96 * (start + i) + 89] = -_c3[i]*_s4[i];
-                frames[96 * (start + i) + 90] = _s3[i];
-                frames[96 * (start + i) + 91] = _s3[i]*d5 + _t13;
-                frames[96 * (start + i) + 92] = 0;
-                frames[96 * (start + i) + 93] = 0;
-                frames[96 * (start + i) + 94] = 0;
-                frames[96 * (start + i) + 95] = 1;
+                _frames_block[0][i] = 1;
+                _frames_block[1][i] = 0;
+                _frames_block[2][i] = 0;
+                _frames_block[3][i] = 0;
+                _frames_block[4][i] = 0;
+                _frames_block[5][i] = 1;
+                _frames_block[6][i] = 0;
+                _frames_block[7][i] = 0;
+                _frames_block[8][i] = 0;
+                _frames_block[9][i] = 0;
+                _frames_block[10][i] = 1;
+                _frames_block[11][i] = 0;
+                _frames_block[12][i] = 0;
+                _frames_block[13][i] = 0;
+                _frames_block[14][i] = 0;
+                _frames_block[15][i] = 1;
+                _frames_block[16][i] = _c0[i];
+                _frames_block[17][i] = 0;
+                _frames_block[18][i] = _s0[i];
+                _frames_block[19][i] = _c0[i]*a1;
+                _frames_block[20][i] = _s0[i];
+                _frames_block[21][i] = 0;
+                _frames_block[22][i] = _t2;
+                _frames_block[23][i] = _s0[i]*a1;
+                _frames_block[24][i] = 0;
+                _frames_block[25][i] = 1;
+                _frames_block[26][i] = 0;
+                _frames_block[27][i] = d1;
+                _frames_block[28][i] = 0;
+                _frames_block[29][i] = 0;
+                _frames_block[30][i] = 0;
+                _frames_block[31][i] = 1;
+                _frames_block[32][i] = _c0[i]*_c1[i];
+                _frames_block[33][i] = -_c0[i]*_s1[i];
+                _frames_block[34][i] = _s0[i];
+                _frames_block[35][i] = _c0[i]*_t5;
+                _frames_block[36][i] = _c1[i]*_s0[i];
+                _frames_block[37][i] = -_s0[i]*_s1[i];
+                _frames_block[38][i] = _t2;
+                _frames_block[39][i] = _s0[i]*_t5;
+                _frames_block[40][i] = _s1[i];
+                _frames_block[41][i] = _c1[i];
+                _frames_block[42][i] = 0;
+                _frames_block[43][i] = _t6;
+                _frames_block[44][i] = 0;
+                _frames_block[45][i] = 0;
+                _frames_block[46][i] = 0;
+                _frames_block[47][i] = 1;
+                _frames_block[48][i] = _c0[i]*_c2[i];
+                _frames_block[49][i] = -_c0[i]*_s2[i];
+                _frames_block[50][i] = _s0[i];
+                _frames_block[51][i] = _t11;
+                _frames_block[52][i] = _c2[i]*_s0[i];
+                _frames_block[53][i] = -_s0[i]*_s2[i];
+                _frames_block[54][i] = _t2;
+                _frames_block[55][i] = _t12;
+                _frames_block[56][i] = _s2[i];
+                _frames_block[57][i] = _c2[i];
+                _frames_block[58][i] = 0;
+                _frames_block[59][i] = _t13;
+                _frames_block[60][i] = 0;
+                _frames_block[61][i] = 0;
+                _frames_block[62][i] = 0;
+                _frames_block[63][i] = 1;
+                _frames_block[64][i] = -_t16;
+                _frames_block[65][i] = _s0[i];
+                _frames_block[66][i] = _t18;
+                _frames_block[67][i] = _t11;
+                _frames_block[68][i] = -_t19;
+                _frames_block[69][i] = _t2;
+                _frames_block[70][i] = _t20;
+                _frames_block[71][i] = _t12;
+                _frames_block[72][i] = _c3[i];
+                _frames_block[73][i] = 0;
+                _frames_block[74][i] = _s3[i];
+                _frames_block[75][i] = _t13;
+                _frames_block[76][i] = 0;
+                _frames_block[77][i] = 0;
+                _frames_block[78][i] = 0;
+                _frames_block[79][i] = 1;
+                _frames_block[80][i] = -_c4[i]*_t16 + _s0[i]*_s4[i];
+                _frames_block[81][i] = _c4[i]*_s0[i] + _s4[i]*_t16;
+                _frames_block[82][i] = _t18;
+                _frames_block[83][i] = _c0[i]*_t23;
+                _frames_block[84][i] = -_c0[i]*_s4[i] - _c4[i]*_t19;
+                _frames_block[85][i] = -_c0[i]*_c4[i] + _s4[i]*_t19;
+                _frames_block[86][i] = _t20;
+                _frames_block[87][i] = _s0[i]*_t23;
+                _frames_block[88][i] = _c3[i]*_c4[i];
+                _frames_block[89][i] = -_c3[i]*_s4[i];
+                _frames_block[90][i] = _s3[i];
+                _frames_block[91][i] = _s3[i]*d5 + _t13;
+                _frames_block[92][i] = 0;
+                _frames_block[93][i] = 0;
+                _frames_block[94][i] = 0;
+                _frames_block[95][i] = 1;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -847,8 +855,16 @@ void scorbot_er7_frames_batch(size_t count, const double *restrict q, const scor
                     _mm_stream_pd(frames + 96 * (start + i) + k, _mm_set_pd(_frames_block[k + 1][i], _frames_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 96; ++k) {
+                    frames[96 * (start + i) + k] = _frames_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -971,8 +987,8 @@ void scorbot_er7_jacobian_batch(size_t count, const double *restrict q, const sc
     double _c2[KINEGEN_BLOCK_OF(64)];
     double _s3[KINEGEN_BLOCK_OF(64)];
     double _c3[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_block[30][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 30 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J & 15) == 0;
 #endif
@@ -1085,36 +1101,36 @@ void scorbot_er7_jacobian_batch(size_t count, const double *restrict q, const sc
                 const double _t10 = _s1[i]*a3 + _t9;
                 const double _t11 = _s2[i]*a2 + _t10;
                 const double _t13 = -_c3[i];
-                J[30 * (start + i) + 0] = -_s3[i]*_t6;
-                J[30 * (start + i) + 1] = -_c3[i]*_t11;
-                J[30 * (start + i) + 2] = -_c3[i]*_t10;
-                J[30 * (start + i) + 3] = -_c3[i]*_t9;
-                J[30 * (start + i) + 4] = 0;
-                J[30 * (start + i) + 5] = _c3[i]*_t6;
-                J[30 * (start + i) + 6] = -_s3[i]*_t11;
-                J[30 * (start + i) + 7] = -_s3[i]*_t10;
-                J[30 * (start + i) + 8] = -_s3[i]*_t9;
-                J[30 * (start + i) + 9] = 0;
-                J[30 * (start + i) + 10] = 0;
-                J[30 * (start + i) + 11] = _t5;
-                J[30 * (start + i) + 12] = _t4;
-                J[30 * (start + i) + 13] = _t3;
-                J[30 * (start + i) + 14] = 0;
-                J[30 * (start + i) + 15] = 0;
-                J[30 * (start + i) + 16] = _s3[i];
-                J[30 * (start + i) + 17] = _s3[i];
-                J[30 * (start + i) + 18] = _s3[i];
-                J[30 * (start + i) + 19] = _c0[i]*_c3[i];
-                J[30 * (start + i) + 20] = 0;
-                J[30 * (start + i) + 21] = _t13;
-                J[30 * (start + i) + 22] = _t13;
-                J[30 * (start + i) + 23] = _t13;
-                J[30 * (start + i) + 24] = _c0[i]*_s3[i];
-                J[30 * (start + i) + 25] = 1;
-                J[30 * (start + i) + 26] = 0;
-                J[30 * (start + i) + 27] = 0;
-                J[30 * (start + i) + 28] = 0;
-                J[30 * (start + i) + 29] = _s0[i];
+                _J_block[0][i] = -_s3[i]*_t6;
+                _J_block[1][i] = -_c3[i]*_t11;
+                _J_block[2][i] = -_c3[i]*_t10;
+                _J_block[3][i] = -_c3[i]*_t9;
+                _J_block[4][i] = 0;
+                _J_block[5][i] = _c3[i]*_t6;
+                _J_block[6][i] = -_s3[i]*_t11;
+                _J_block[7][i] = -_s3[i]*_t10;
+                _J_block[8][i] = -_s3[i]*_t9;
+                _J_block[9][i] = 0;
+                _J_block[10][i] = 0;
+                _J_block[11][i] = _t5;
+                _J_block[12][i] = _t4;
+                _J_block[13][i] = _t3;
+                _J_block[14][i] = 0;
+                _J_block[15][i] = 0;
+                _J_block[16][i] = _s3[i];
+                _J_block[17][i] = _s3[i];
+                _J_block[18][i] = _s3[i];
+                _J_block[19][i] = _c0[i]*_c3[i];
+                _J_block[20][i] = 0;
+                _J_block[21][i] = _t13;
+                _J_block[22][i] = _t13;
+                _J_block[23][i] = _t13;
+                _J_block[24][i] = _c0[i]*_s3[i];
+                _J_block[25][i] = 1;
+                _J_block[26][i] = 0;
+                _J_block[27][i] = 0;
+                _J_block[28][i] = 0;
+                _J_block[29][i] = _s0[i];
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1125,8 +1141,16 @@ void scorbot_er7_jacobian_batch(size_t count, const double *restrict q, const sc
                     _mm_stream_pd(J + 30 * (start + i) + k, _mm_set_pd(_J_block[k + 1][i], _J_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 30; ++k) {
+                    J[30 * (start + i) + k] = _J_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1280,8 +1304,8 @@ void scorbot_er7_jacobian_tool_batch(size_t count, const double *restrict q, con
     double _c3[KINEGEN_BLOCK_OF(64)];
     double _s4[KINEGEN_BLOCK_OF(64)];
     double _c4[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_tool_block[30][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 30 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_tool & 15) == 0;
 #endif
@@ -1449,36 +1473,36 @@ void scorbot_er7_jacobian_tool_batch(size_t count, const double *restrict q, con
                 const double _t36 = _c0[i]*_c4[i];
                 const double _t37 = -_c3[i]*_t18 + _t15;
                 const double _t38 = -_c3[i]*_t27 + _t26;
-                J_tool[30 * (start + i) + 0] = _c3[i]*_t18*_t6 - _t15*_t6;
-                J_tool[30 * (start + i) + 1] = _c0[i]*_c4[i]*_t5 - _t21*_t22 - _t21*_t23;
-                J_tool[30 * (start + i) + 2] = _c0[i]*_c4[i]*_t4 - _t20*_t22 - _t20*_t23;
-                J_tool[30 * (start + i) + 3] = _c4[i]*_t24*d5 - _t19*_t22 - _t19*_t23;
-                J_tool[30 * (start + i) + 4] = 0;
-                J_tool[30 * (start + i) + 5] = _c3[i]*_t27*_t6 - _t26*_t6;
-                J_tool[30 * (start + i) + 6] = -_t21*_t28 - _t21*_t29 - _t30*_t5;
-                J_tool[30 * (start + i) + 7] = -_t20*_t28 - _t20*_t29 - _t30*_t4;
-                J_tool[30 * (start + i) + 8] = -_s4[i]*_t24*d5 - _t19*_t28 - _t19*_t29;
-                J_tool[30 * (start + i) + 9] = 0;
-                J_tool[30 * (start + i) + 10] = 0;
-                J_tool[30 * (start + i) + 11] = _s0[i]*_t5 - _t31*_t32 - _t32*_t33;
-                J_tool[30 * (start + i) + 12] = _s0[i]*_t4 - _t31*_t34 - _t33*_t34;
-                J_tool[30 * (start + i) + 13] = _c0[i]*_s0[i]*d5 - _t31*_t35 - _t33*_t35;
-                J_tool[30 * (start + i) + 14] = 0;
-                J_tool[30 * (start + i) + 15] = _t36;
-                J_tool[30 * (start + i) + 16] = _t37;
-                J_tool[30 * (start + i) + 17] = _t37;
-                J_tool[30 * (start + i) + 18] = _t37;
-                J_tool[30 * (start + i) + 19] = _c0[i]*_t22 + _c0[i]*_t23 + _s0[i]*_t36;
-                J_tool[30 * (start + i) + 20] = -_t30;
-                J_tool[30 * (start + i) + 21] = _t38;
-                J_tool[30 * (start + i) + 22] = _t38;
-                J_tool[30 * (start + i) + 23] = _t38;
-                J_tool[30 * (start + i) + 24] = _c0[i]*_t28 + _c0[i]*_t29 - _s0[i]*_t30;
-                J_tool[30 * (start + i) + 25] = _s0[i];
-                J_tool[30 * (start + i) + 26] = 0;
-                J_tool[30 * (start + i) + 27] = 0;
-                J_tool[30 * (start + i) + 28] = 0;
-                J_tool[30 * (start + i) + 29] = (_s0[i]*_s0[i]) + _t24*_t31 + _t24*_t33;
+                _J_tool_block[0][i] = _c3[i]*_t18*_t6 - _t15*_t6;
+                _J_tool_block[1][i] = _c0[i]*_c4[i]*_t5 - _t21*_t22 - _t21*_t23;
+                _J_tool_block[2][i] = _c0[i]*_c4[i]*_t4 - _t20*_t22 - _t20*_t23;
+                _J_tool_block[3][i] = _c4[i]*_t24*d5 - _t19*_t22 - _t19*_t23;
+                _J_tool_block[4][i] = 0;
+                _J_tool_block[5][i] = _c3[i]*_t27*_t6 - _t26*_t6;
+                _J_tool_block[6][i] = -_t21*_t28 - _t21*_t29 - _t30*_t5;
+                _J_tool_block[7][i] = -_t20*_t28 - _t20*_t29 - _t30*_t4;
+                _J_tool_block[8][i] = -_s4[i]*_t24*d5 - _t19*_t28 - _t19*_t29;
+                _J_tool_block[9][i] = 0;
+                _J_tool_block[10][i] = 0;
+                _J_tool_block[11][i] = _s0[i]*_t5 - _t31*_t32 - _t32*_t33;
+                _J_tool_block[12][i] = _s0[i]*_t4 - _t31*_t34 - _t33*_t34;
+                _J_tool_block[13][i] = _c0[i]*_s0[i]*d5 - _t31*_t35 - _t33*_t35;
+                _J_tool_block[14][i] = 0;
+                _J_tool_block[15][i] = _t36;
+                _J_tool_block[16][i] = _t37;
+                _J_tool_block[17][i] = _t37;
+                _J_tool_block[18][i] = _t37;
+                _J_tool_block[19][i] = _c0[i]*_t22 + _c0[i]*_t23 + _s0[i]*_t36;
+                _J_tool_block[20][i] = -_t30;
+                _J_tool_block[21][i] = _t38;
+                _J_tool_block[22][i] = _t38;
+                _J_tool_block[23][i] = _t38;
+                _J_tool_block[24][i] = _c0[i]*_t28 + _c0[i]*_t29 - _s0[i]*_t30;
+                _J_tool_block[25][i] = _s0[i];
+                _J_tool_block[26][i] = 0;
+                _J_tool_block[27][i] = 0;
+                _J_tool_block[28][i] = 0;
+                _J_tool_block[29][i] = (_s0[i]*_s0[i]) + _t24*_t31 + _t24*_t33;
             }
         }
 #ifdef KINEGEN_STREAM
@@ -1489,8 +1513,16 @@ void scorbot_er7_jacobian_tool_batch(size_t count, const double *restrict q, con
                     _mm_stream_pd(J_tool + 30 * (start + i) + k, _mm_set_pd(_J_tool_block[k + 1][i], _J_tool_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 30; ++k) {
+                    J_tool[30 * (start + i) + k] = _J_tool_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -1580,6 +1612,7 @@ void scorbot_er7_task_batch(size_t count, const double *restrict q, const scorbo
     double _c2[KINEGEN_BLOCK_OF(64)];
     double _s3[KINEGEN_BLOCK_OF(64)];
     double _c3[KINEGEN_BLOCK_OF(64)];
+    double _x_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &scorbot_er7_default_params;
@@ -1637,9 +1670,17 @@ void scorbot_er7_task_batch(size_t count, const double *restrict q, const scorbo
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             const double _t2 = _c0[i]*a2 + _c1[i]*a3 + _c2[i]*d5 + a1;
-            x[3 * (start + i) + 0] = _c3[i]*_t2;
-            x[3 * (start + i) + 1] = _s3[i]*_t2;
-            x[3 * (start + i) + 2] = _s0[i]*a2 + _s1[i]*a3 + _s2[i]*d5 + d1;
+            _x_block[0][i] = _c3[i]*_t2;
+            _x_block[1][i] = _s3[i]*_t2;
+            _x_block[2][i] = _s0[i]*a2 + _s1[i]*a3 + _s2[i]*d5 + d1;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    x[3 * (start + i) + k] = _x_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -1742,6 +1783,7 @@ void scorbot_er7_task_jacobian_batch(size_t count, const double *restrict q, con
     double _c2[KINEGEN_BLOCK_OF(64)];
     double _s3[KINEGEN_BLOCK_OF(64)];
     double _c3[KINEGEN_BLOCK_OF(64)];
+    double _Jx_block[15][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &scorbot_er7_default_params;
@@ -1804,21 +1846,29 @@ void scorbot_er7_task_jacobian_batch(size_t count, const double *restrict q, con
             const double _t7 = _s0[i]*d5;
             const double _t8 = _s1[i]*a3 + _t7;
             const double _t9 = _s2[i]*a2 + _t8;
-            Jx[15 * (start + i) + 0] = -_s3[i]*_t5;
-            Jx[15 * (start + i) + 1] = -_c3[i]*_t9;
-            Jx[15 * (start + i) + 2] = -_c3[i]*_t8;
-            Jx[15 * (start + i) + 3] = -_c3[i]*_t7;
-            Jx[15 * (start + i) + 4] = 0;
-            Jx[15 * (start + i) + 5] = _c3[i]*_t5;
-            Jx[15 * (start + i) + 6] = -_s3[i]*_t9;
-            Jx[15 * (start + i) + 7] = -_s3[i]*_t8;
-            Jx[15 * (start + i) + 8] = -_s3[i]*_t7;
-            Jx[15 * (start + i) + 9] = 0;
-            Jx[15 * (start + i) + 10] = 0;
-            Jx[15 * (start + i) + 11] = _t4;
-            Jx[15 * (start + i) + 12] = _t3;
-            Jx[15 * (start + i) + 13] = _t2;
-            Jx[15 * (start + i) + 14] = 0;
+            _Jx_block[0][i] = -_s3[i]*_t5;
+            _Jx_block[1][i] = -_c3[i]*_t9;
+            _Jx_block[2][i] = -_c3[i]*_t8;
+            _Jx_block[3][i] = -_c3[i]*_t7;
+            _Jx_block[4][i] = 0;
+            _Jx_block[5][i] = _c3[i]*_t5;
+            _Jx_block[6][i] = -_s3[i]*_t9;
+            _Jx_block[7][i] = -_s3[i]*_t8;
+            _Jx_block[8][i] = -_s3[i]*_t7;
+            _Jx_block[9][i] = 0;
+            _Jx_block[10][i] = 0;
+            _Jx_block[11][i] = _t4;
+            _Jx_block[12][i] = _t3;
+            _Jx_block[13][i] = _t2;
+            _Jx_block[14][i] = 0;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 15; ++k) {
+                    Jx[15 * (start + i) + k] = _Jx_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2247,6 +2297,7 @@ void scorbot_er7_task_velocity_batch(size_t count, const double *restrict q, con
     double _c2[KINEGEN_BLOCK_OF(64)];
     double _s3[KINEGEN_BLOCK_OF(64)];
     double _c3[KINEGEN_BLOCK_OF(64)];
+    double _xd_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &scorbot_er7_default_params;
@@ -2315,9 +2366,17 @@ void scorbot_er7_task_velocity_batch(size_t count, const double *restrict q, con
             const double _t10 = qd2[i]*(_s3[i]*a2 + _t9);
             const double _t11 = _t9*qd3[i];
             const double _t12 = _t8*qd4[i];
-            xd[3 * (start + i) + 0] = -_c0[i]*_t10 - _c0[i]*_t11 - _c0[i]*_t12 - _s0[i]*_t6*qd1[i];
-            xd[3 * (start + i) + 1] = _c0[i]*_t6*qd1[i] - _s0[i]*_t10 - _s0[i]*_t11 - _s0[i]*_t12;
-            xd[3 * (start + i) + 2] = _t3*qd4[i] + _t4*qd3[i] + _t5*qd2[i];
+            _xd_block[0][i] = -_c0[i]*_t10 - _c0[i]*_t11 - _c0[i]*_t12 - _s0[i]*_t6*qd1[i];
+            _xd_block[1][i] = _c0[i]*_t6*qd1[i] - _s0[i]*_t10 - _s0[i]*_t11 - _s0[i]*_t12;
+            _xd_block[2][i] = _t3*qd4[i] + _t4*qd3[i] + _t5*qd2[i];
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    xd[3 * (start + i) + k] = _xd_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2427,8 +2486,8 @@ void scorbot_er7_twist_batch(size_t count, const double *restrict q, const doubl
     double _c2[KINEGEN_BLOCK_OF(64)];
     double _s3[KINEGEN_BLOCK_OF(64)];
     double _c3[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _twist_block[6][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)twist & 15) == 0;
 #endif
@@ -2532,12 +2591,12 @@ void scorbot_er7_twist_batch(size_t count, const double *restrict q, const doubl
                 const double _t16 = _s0[i]*qd2[i];
                 const double _t17 = _s0[i]*qd3[i];
                 const double _t18 = _s0[i]*qd4[i];
-                twist[6 * (start + i) + 0] = -_s0[i]*_t7*qd1[i] - _t10*_t14 - _t11*_t13 - _t15*_t9;
-                twist[6 * (start + i) + 1] = _c0[i]*_t7*qd1[i] - _t10*_t17 - _t11*_t16 - _t18*_t9;
-                twist[6 * (start + i) + 2] = _t4*qd4[i] + _t5*qd3[i] + _t6*qd2[i];
-                twist[6 * (start + i) + 3] = _c0[i]*_c1[i]*qd5[i] + _t16 + _t17 + _t18;
-                twist[6 * (start + i) + 4] = _c1[i]*_s0[i]*qd5[i] - _t13 - _t14 - _t15;
-                twist[6 * (start + i) + 5] = _s1[i]*qd5[i] + qd1[i];
+                _twist_block[0][i] = -_s0[i]*_t7*qd1[i] - _t10*_t14 - _t11*_t13 - _t15*_t9;
+                _twist_block[1][i] = _c0[i]*_t7*qd1[i] - _t10*_t17 - _t11*_t16 - _t18*_t9;
+                _twist_block[2][i] = _t4*qd4[i] + _t5*qd3[i] + _t6*qd2[i];
+                _twist_block[3][i] = _c0[i]*_c1[i]*qd5[i] + _t16 + _t17 + _t18;
+                _twist_block[4][i] = _c1[i]*_s0[i]*qd5[i] - _t13 - _t14 - _t15;
+                _twist_block[5][i] = _s1[i]*qd5[i] + qd1[i];
             }
         }
 #ifdef KINEGEN_STREAM
@@ -2548,8 +2607,16 @@ void scorbot_er7_twist_batch(size_t count, const double *restrict q, const doubl
                     _mm_stream_pd(twist + 6 * (start + i) + k, _mm_set_pd(_twist_block[k + 1][i], _twist_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 6; ++k) {
+                    twist[6 * (start + i) + k] = _twist_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -2680,6 +2747,7 @@ void scorbot_er7_task_jacobian_dot_batch(size_t count, const double *restrict q,
     double _c2[KINEGEN_BLOCK_OF(64)];
     double _s3[KINEGEN_BLOCK_OF(64)];
     double _c3[KINEGEN_BLOCK_OF(64)];
+    double _Jx_dot_block[15][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &scorbot_er7_default_params;
@@ -2762,21 +2830,29 @@ void scorbot_er7_task_jacobian_dot_batch(size_t count, const double *restrict q,
             const double _t25 = _t24*qd4[i];
             const double _t26 = _s0[i]*_t17 + _t25;
             const double _t27 = _t15 - _t21;
-            Jx_dot[15 * (start + i) + 0] = -_c0[i]*_t6 + _s0[i]*_s1[i]*d5*qd4[i] - _s0[i]*_t13 - _s0[i]*_t15;
-            Jx_dot[15 * (start + i) + 1] = _s0[i]*_t11*qd1[i] - _t16*_t5 - _t20;
-            Jx_dot[15 * (start + i) + 2] = _s0[i]*_t10*qd1[i] - _t16*_t4 - _t20;
-            Jx_dot[15 * (start + i) + 3] = _s0[i]*_s1[i]*d5*qd1[i] - _t16*_t3 - _t18*qd3[i] - _t19;
-            Jx_dot[15 * (start + i) + 4] = 0;
-            Jx_dot[15 * (start + i) + 5] = _c0[i]*_t12*qd2[i] + _c0[i]*_t14*qd3[i] - _c0[i]*_t21 - _s0[i]*_t6;
-            Jx_dot[15 * (start + i) + 6] = -_t11*_t22 - _t23*_t5 - _t26;
-            Jx_dot[15 * (start + i) + 7] = -_t10*_t22 - _t23*_t4 - _t26;
-            Jx_dot[15 * (start + i) + 8] = -_t22*_t9 - _t23*_t3 - _t24*qd3[i] - _t25;
-            Jx_dot[15 * (start + i) + 9] = 0;
-            Jx_dot[15 * (start + i) + 10] = 0;
-            Jx_dot[15 * (start + i) + 11] = _t13 + _t27;
-            Jx_dot[15 * (start + i) + 12] = _t14*qd2[i] + _t27;
-            Jx_dot[15 * (start + i) + 13] = -_t21 - _t9*qd2[i] - _t9*qd3[i];
-            Jx_dot[15 * (start + i) + 14] = 0;
+            _Jx_dot_block[0][i] = -_c0[i]*_t6 + _s0[i]*_s1[i]*d5*qd4[i] - _s0[i]*_t13 - _s0[i]*_t15;
+            _Jx_dot_block[1][i] = _s0[i]*_t11*qd1[i] - _t16*_t5 - _t20;
+            _Jx_dot_block[2][i] = _s0[i]*_t10*qd1[i] - _t16*_t4 - _t20;
+            _Jx_dot_block[3][i] = _s0[i]*_s1[i]*d5*qd1[i] - _t16*_t3 - _t18*qd3[i] - _t19;
+            _Jx_dot_block[4][i] = 0;
+            _Jx_dot_block[5][i] = _c0[i]*_t12*qd2[i] + _c0[i]*_t14*qd3[i] - _c0[i]*_t21 - _s0[i]*_t6;
+            _Jx_dot_block[6][i] = -_t11*_t22 - _t23*_t5 - _t26;
+            _Jx_dot_block[7][i] = -_t10*_t22 - _t23*_t4 - _t26;
+            _Jx_dot_block[8][i] = -_t22*_t9 - _t23*_t3 - _t24*qd3[i] - _t25;
+            _Jx_dot_block[9][i] = 0;
+            _Jx_dot_block[10][i] = 0;
+            _Jx_dot_block[11][i] = _t13 + _t27;
+            _Jx_dot_block[12][i] = _t14*qd2[i] + _t27;
+            _Jx_dot_block[13][i] = -_t21 - _t9*qd2[i] - _t9*qd3[i];
+            _Jx_dot_block[14][i] = 0;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 15; ++k) {
+                    Jx_dot[15 * (start + i) + k] = _Jx_dot_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -2921,8 +2997,8 @@ void scorbot_er7_jacobian_dot_batch(size_t count, const double *restrict q, cons
     double _c2[KINEGEN_BLOCK_OF(64)];
     double _s3[KINEGEN_BLOCK_OF(64)];
     double _c3[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _J_dot_block[30][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 30 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)J_dot & 15) == 0;
 #endif
@@ -3075,36 +3151,36 @@ void scorbot_er7_jacobian_dot_batch(size_t count, const double *restrict q, cons
                 const double _t29 = _t17 - _t24;
                 const double _t30 = _c3[i]*_s0[i];
                 const double _t31 = _s0[i]*_s3[i];
-                J_dot[30 * (start + i) + 0] = _s0[i]*_s3[i]*d5*qd4[i] - _s3[i]*_t15 - _s3[i]*_t17 - _t6*_t8;
-                J_dot[30 * (start + i) + 1] = _s3[i]*_t13*qd1[i] - _t18*_t5 - _t22;
-                J_dot[30 * (start + i) + 2] = _s3[i]*_t12*qd1[i] - _t18*_t4 - _t22;
-                J_dot[30 * (start + i) + 3] = _s0[i]*_s3[i]*d5*qd1[i] - _t18*_t3 - _t20*qd3[i] - _t21;
-                J_dot[30 * (start + i) + 4] = 0;
-                J_dot[30 * (start + i) + 5] = _c3[i]*_t14*qd2[i] + _c3[i]*_t16*qd3[i] - _c3[i]*_t24 - _t23*_t6;
-                J_dot[30 * (start + i) + 6] = -_t13*_t8 - _t25*_t5 - _t28;
-                J_dot[30 * (start + i) + 7] = -_t12*_t8 - _t25*_t4 - _t28;
-                J_dot[30 * (start + i) + 8] = -_t11*_t8 - _t25*_t3 - _t26*qd3[i] - _t27;
-                J_dot[30 * (start + i) + 9] = 0;
-                J_dot[30 * (start + i) + 10] = 0;
-                J_dot[30 * (start + i) + 11] = _t15 + _t29;
-                J_dot[30 * (start + i) + 12] = _t16*qd2[i] + _t29;
-                J_dot[30 * (start + i) + 13] = -_t11*qd2[i] - _t11*qd3[i] - _t24;
-                J_dot[30 * (start + i) + 14] = 0;
-                J_dot[30 * (start + i) + 15] = 0;
-                J_dot[30 * (start + i) + 16] = _t8;
-                J_dot[30 * (start + i) + 17] = _t8;
-                J_dot[30 * (start + i) + 18] = _t8;
-                J_dot[30 * (start + i) + 19] = -_c0[i]*_t23 - _s0[i]*_t18 - _t30*qd3[i] - _t30*qd4[i];
-                J_dot[30 * (start + i) + 20] = 0;
-                J_dot[30 * (start + i) + 21] = _t23;
-                J_dot[30 * (start + i) + 22] = _t23;
-                J_dot[30 * (start + i) + 23] = _t23;
-                J_dot[30 * (start + i) + 24] = _c0[i]*_c3[i]*qd1[i] - _s0[i]*_t25 - _t31*qd3[i] - _t31*qd4[i];
-                J_dot[30 * (start + i) + 25] = 0;
-                J_dot[30 * (start + i) + 26] = 0;
-                J_dot[30 * (start + i) + 27] = 0;
-                J_dot[30 * (start + i) + 28] = 0;
-                J_dot[30 * (start + i) + 29] = _c0[i]*qd2[i] + _c0[i]*qd3[i] + _c0[i]*qd4[i];
+                _J_dot_block[0][i] = _s0[i]*_s3[i]*d5*qd4[i] - _s3[i]*_t15 - _s3[i]*_t17 - _t6*_t8;
+                _J_dot_block[1][i] = _s3[i]*_t13*qd1[i] - _t18*_t5 - _t22;
+                _J_dot_block[2][i] = _s3[i]*_t12*qd1[i] - _t18*_t4 - _t22;
+                _J_dot_block[3][i] = _s0[i]*_s3[i]*d5*qd1[i] - _t18*_t3 - _t20*qd3[i] - _t21;
+                _J_dot_block[4][i] = 0;
+                _J_dot_block[5][i] = _c3[i]*_t14*qd2[i] + _c3[i]*_t16*qd3[i] - _c3[i]*_t24 - _t23*_t6;
+                _J_dot_block[6][i] = -_t13*_t8 - _t25*_t5 - _t28;
+                _J_dot_block[7][i] = -_t12*_t8 - _t25*_t4 - _t28;
+                _J_dot_block[8][i] = -_t11*_t8 - _t25*_t3 - _t26*qd3[i] - _t27;
+                _J_dot_block[9][i] = 0;
+                _J_dot_block[10][i] = 0;
+                _J_dot_block[11][i] = _t15 + _t29;
+                _J_dot_block[12][i] = _t16*qd2[i] + _t29;
+                _J_dot_block[13][i] = -_t11*qd2[i] - _t11*qd3[i] - _t24;
+                _J_dot_block[14][i] = 0;
+                _J_dot_block[15][i] = 0;
+                _J_dot_block[16][i] = _t8;
+                _J_dot_block[17][i] = _t8;
+                _J_dot_block[18][i] = _t8;
+                _J_dot_block[19][i] = -_c0[i]*_t23 - _s0[i]*_t18 - _t30*qd3[i] - _t30*qd4[i];
+                _J_dot_block[20][i] = 0;
+                _J_dot_block[21][i] = _t23;
+                _J_dot_block[22][i] = _t23;
+                _J_dot_block[23][i] = _t23;
+                _J_dot_block[24][i] = _c0[i]*_c3[i]*qd1[i] - _s0[i]*_t25 - _t31*qd3[i] - _t31*qd4[i];
+                _J_dot_block[25][i] = 0;
+                _J_dot_block[26][i] = 0;
+                _J_dot_block[27][i] = 0;
+                _J_dot_block[28][i] = 0;
+                _J_dot_block[29][i] = _c0[i]*qd2[i] + _c0[i]*qd3[i] + _c0[i]*qd4[i];
             }
         }
 #ifdef KINEGEN_STREAM
@@ -3115,8 +3191,16 @@ void scorbot_er7_jacobian_dot_batch(size_t count, const double *restrict q, cons
                     _mm_stream_pd(J_dot + 30 * (start + i) + k, _mm_set_pd(_J_dot_block[k + 1][i], _J_dot_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 30; ++k) {
+                    J_dot[30 * (start + i) + k] = _J_dot_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -3247,6 +3331,7 @@ void scorbot_er7_task_acceleration_batch(size_t count, const double *restrict q,
     double _c2[KINEGEN_BLOCK_OF(64)];
     double _s3[KINEGEN_BLOCK_OF(64)];
     double _c3[KINEGEN_BLOCK_OF(64)];
+    double _xdd_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &scorbot_er7_default_params;
@@ -3337,9 +3422,17 @@ void scorbot_er7_task_acceleration_batch(size_t count, const double *restrict q,
             const double _t29 = _t28*qd4[i];
             const double _t30 = _s0[i]*_t18 + _t29;
             const double _t31 = _t16 - _t26;
-            xdd[3 * (start + i) + 0] = -_s0[i]*_t22 - _t23*qdd2[i] - _t24*qdd3[i] - _t25*qdd4[i] + qd1[i]*(-_c0[i]*_t7 + _s0[i]*_s1[i]*d5*qd4[i] - _s0[i]*_t14 - _s0[i]*_t16) + qd2[i]*(_s0[i]*_t12*qd1[i] - _t17*_t5 - _t21) + qd3[i]*(_s0[i]*_t11*qd1[i] - _t17*_t4 - _t21) + qd4[i]*(_s0[i]*_s1[i]*d5*qd1[i] - _t17*_t3 - _t19*qd3[i] - _t20);
-            xdd[3 * (start + i) + 1] = _c0[i]*_t22 - _s0[i]*_t10*qdd4[i] - _s0[i]*_t11*qdd3[i] - _s0[i]*_t12*qdd2[i] + qd1[i]*(_c0[i]*_t13*qd2[i] + _c0[i]*_t15*qd3[i] - _c0[i]*_t26 - _s0[i]*_t7) + qd2[i]*(-_t23*qd1[i] - _t27*_t5 - _t30) + qd3[i]*(-_t24*qd1[i] - _t27*_t4 - _t30) + qd4[i]*(-_t25*qd1[i] - _t27*_t3 - _t28*qd3[i] - _t29);
-            xdd[3 * (start + i) + 2] = _t3*qdd4[i] + _t4*qdd3[i] + _t5*qdd2[i] + qd2[i]*(_t14 + _t31) + qd3[i]*(_t15*qd2[i] + _t31) + qd4[i]*(-_t10*qd2[i] - _t10*qd3[i] - _t26);
+            _xdd_block[0][i] = -_s0[i]*_t22 - _t23*qdd2[i] - _t24*qdd3[i] - _t25*qdd4[i] + qd1[i]*(-_c0[i]*_t7 + _s0[i]*_s1[i]*d5*qd4[i] - _s0[i]*_t14 - _s0[i]*_t16) + qd2[i]*(_s0[i]*_t12*qd1[i] - _t17*_t5 - _t21) + qd3[i]*(_s0[i]*_t11*qd1[i] - _t17*_t4 - _t21) + qd4[i]*(_s0[i]*_s1[i]*d5*qd1[i] - _t17*_t3 - _t19*qd3[i] - _t20);
+            _xdd_block[1][i] = _c0[i]*_t22 - _s0[i]*_t10*qdd4[i] - _s0[i]*_t11*qdd3[i] - _s0[i]*_t12*qdd2[i] + qd1[i]*(_c0[i]*_t13*qd2[i] + _c0[i]*_t15*qd3[i] - _c0[i]*_t26 - _s0[i]*_t7) + qd2[i]*(-_t23*qd1[i] - _t27*_t5 - _t30) + qd3[i]*(-_t24*qd1[i] - _t27*_t4 - _t30) + qd4[i]*(-_t25*qd1[i] - _t27*_t3 - _t28*qd3[i] - _t29);
+            _xdd_block[2][i] = _t3*qdd4[i] + _t4*qdd3[i] + _t5*qdd2[i] + qd2[i]*(_t14 + _t31) + qd3[i]*(_t15*qd2[i] + _t31) + qd4[i]*(-_t10*qd2[i] - _t10*qd3[i] - _t26);
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    xdd[3 * (start + i) + k] = _xdd_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -3690,6 +3783,7 @@ void scorbot_er7_joint_velocity_batch(size_t count, const double *restrict q, co
     double _s8[KINEGEN_BLOCK_OF(64)];
     double _s9[KINEGEN_BLOCK_OF(64)];
     double _c9[KINEGEN_BLOCK_OF(64)];
+    double _qd_block[5][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &scorbot_er7_default_params;
@@ -3869,12 +3963,20 @@ void scorbot_er7_joint_velocity_batch(size_t count, const double *restrict q, co
             const double _t102 = _c9[i]*_t98;
             const double _t103 = _t64*_t78;
             const double _t104 = _t31*_t78;
-            qd[5 * (start + i) + 0] = _t73*(_c9[i]*_t92*_t93 - _s9[i]*_t93*_t98);
-            qd[5 * (start + i) + 1] = _t73*(-_t100*_t101 - _t100*_t102 + _t13*_t78*_t99);
-            qd[5 * (start + i) + 2] = _t73*(-_t101*_t103 - _t102*_t103 + _t12*_t78*_t99);
-            qd[5 * (start + i) + 3] = _t73*(_c4[i]*_t78*_t99*d5 - _t101*_t104 - _t102*_t104);
-            qd[5 * (start + i) + 4] = 0;
+            _qd_block[0][i] = _t73*(_c9[i]*_t92*_t93 - _s9[i]*_t93*_t98);
+            _qd_block[1][i] = _t73*(-_t100*_t101 - _t100*_t102 + _t13*_t78*_t99);
+            _qd_block[2][i] = _t73*(-_t101*_t103 - _t102*_t103 + _t12*_t78*_t99);
+            _qd_block[3][i] = _t73*(_c4[i]*_t78*_t99*d5 - _t101*_t104 - _t102*_t104);
+            _qd_block[4][i] = 0;
             singular[1 * (start + i) + 0] = _t72 < 1e-08;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 5; ++k) {
+                    qd[5 * (start + i) + k] = _qd_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -4109,6 +4211,7 @@ void scorbot_er7_joint_acceleration_batch(size_t count, const double *restrict q
     double _s8[KINEGEN_BLOCK_OF(64)];
     double _s9[KINEGEN_BLOCK_OF(64)];
     double _c9[KINEGEN_BLOCK_OF(64)];
+    double _qdd_block[5][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &scorbot_er7_default_params;
@@ -4307,12 +4410,20 @@ void scorbot_er7_joint_acceleration_batch(size_t count, const double *restrict q
             const double _t117 = _s9[i]*_t107;
             const double _t118 = _t64*_t81;
             const double _t119 = _t31*_t81;
-            qdd[5 * (start + i) + 0] = _t73*(_c9[i]*_t107*_t108 - _s9[i]*_t108*_t113);
-            qdd[5 * (start + i) + 1] = _t73*(_t114*_t13*_t81 - _t115*_t116 - _t115*_t117);
-            qdd[5 * (start + i) + 2] = _t73*(_t114*_t12*_t81 - _t116*_t118 - _t117*_t118);
-            qdd[5 * (start + i) + 3] = _t73*(_c4[i]*_t114*_t81*d5 - _t116*_t119 - _t117*_t119);
-            qdd[5 * (start + i) + 4] = 0;
+            _qdd_block[0][i] = _t73*(_c9[i]*_t107*_t108 - _s9[i]*_t108*_t113);
+            _qdd_block[1][i] = _t73*(_t114*_t13*_t81 - _t115*_t116 - _t115*_t117);
+            _qdd_block[2][i] = _t73*(_t114*_t12*_t81 - _t116*_t118 - _t117*_t118);
+            _qdd_block[3][i] = _t73*(_c4[i]*_t114*_t81*d5 - _t116*_t119 - _t117*_t119);
+            _qdd_block[4][i] = 0;
             singular[1 * (start + i) + 0] = _t72 < 1e-08;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 5; ++k) {
+                    qdd[5 * (start + i) + k] = _qdd_block[k][i];
+                }
+            }
         }
     }
 #else

@@ -157,8 +157,8 @@ void scorbot_path_tool_point_from_theta2_batch(size_t count, const double *restr
     double theta2_accel[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
-#ifdef KINEGEN_STREAM
     double _p_block[6][KINEGEN_BLOCK_OF(64)];
+#ifdef KINEGEN_STREAM
     /* Past the caches, outputs go out in streaming stores (no read of the lines they overwrite). */
     const int stream = count * 6 * sizeof(double) >= KINEGEN_STREAM_BYTES && ((uintptr_t)p & 15) == 0;
 #endif
@@ -264,12 +264,12 @@ void scorbot_path_tool_point_from_theta2_batch(size_t count, const double *restr
                 const double _t33 = _t32*theta2_rate[i];
                 const double _t34 = _t32*theta2_accel[i];
                 const double _t36 = _t4*(theta2_rate[i]*theta2_rate[i])*(_t23*((0.5)*_t16*(_t26*_t8 + _t27) - _t25*((_c0[i]*_c0[i])*_t35 + (_s0[i]*_s0[i])*_t35 + _t13*_t19 - _t14*_t24 - _t18*_t7) + (0.5)*_t28*(_t24 - _t31)) - _t24*_t8 - _t7 + _t29*_t30/(_t20*sqrt(_t20)));
-                p[6 * (start + i) + 0] = _t22 + d5;
-                p[6 * (start + i) + 1] = _t10 + _t22*_t8;
-                p[6 * (start + i) + 2] = _t33;
-                p[6 * (start + i) + 3] = _t33*_t8;
-                p[6 * (start + i) + 4] = _t34 + _t36;
-                p[6 * (start + i) + 5] = _t34*_t8 + _t36*_t8;
+                _p_block[0][i] = _t22 + d5;
+                _p_block[1][i] = _t10 + _t22*_t8;
+                _p_block[2][i] = _t33;
+                _p_block[3][i] = _t33*_t8;
+                _p_block[4][i] = _t34 + _t36;
+                _p_block[5][i] = _t34*_t8 + _t36*_t8;
                 valid[1 * (start + i) + 0] = _t20 >= 0;
             }
         }
@@ -281,8 +281,16 @@ void scorbot_path_tool_point_from_theta2_batch(size_t count, const double *restr
                     _mm_stream_pd(p + 6 * (start + i) + k, _mm_set_pd(_p_block[k + 1][i], _p_block[k][i]));
                 }
             }
-        }
+        } else
 #endif
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 6; ++k) {
+                    p[6 * (start + i) + k] = _p_block[k][i];
+                }
+            }
+        }
     }
 #ifdef KINEGEN_STREAM
     if (stream) {
@@ -463,6 +471,7 @@ void scorbot_path_joints_along_line_batch(size_t count, const double *restrict p
     double _f1[KINEGEN_BLOCK_OF(64)];
     double _f2[KINEGEN_BLOCK_OF(64)];
     double _f3[KINEGEN_BLOCK_OF(64)];
+    double _q_block[15][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     if (params == NULL) {
         params = &scorbot_path_default_params;
@@ -588,22 +597,30 @@ void scorbot_path_joints_along_line_batch(size_t count, const double *restrict p
             const double _t78 = 1/((_t50*sqrt(_t50))*(a3*a3*a3));
             const double _t79 = _t12[i]*_t69*_t7 - _t19[i]*_t61*(2*_t71 + 4*_t72 + 4*_t73 + 4*_t74) + _t33*_t41 + _t34*_t41*_t69 + _t42*_t6 - _t47*_t51*_t77*a3 - 0.015625*_t48*(_t56*_t56)*_t58*_t78/(a2*a2*a2*a2) - _t52*_t57*_t60*_t77 - _t54*_t56*_t60*_t76 - _t55*_t75 + _t67*_t68 + _t68*_t70;
             const double _t80 = (0.0625)*_t46*_t57*_t78/(a2*a2*a2) + _t59*_t75;
-            q[15 * (start + i) + 0] = _f3[i];
-            q[15 * (start + i) + 1] = -_t24;
-            q[15 * (start + i) + 2] = -_f2[i];
-            q[15 * (start + i) + 3] = _f2[i] + _t24;
-            q[15 * (start + i) + 4] = 0;
-            q[15 * (start + i) + 5] = _t30*s_rate[i];
-            q[15 * (start + i) + 6] = _t62*s_rate[i];
-            q[15 * (start + i) + 7] = _t63*s_rate[i];
-            q[15 * (start + i) + 8] = _t64*s_rate[i];
-            q[15 * (start + i) + 9] = 0;
-            q[15 * (start + i) + 10] = _t30*s_accel[i] + _t65*(_t0*_t29 + _t1*_t5[i]*_t66 + _t27*_t4 + _t28*_t4*_t66);
-            q[15 * (start + i) + 11] = _t62*s_accel[i] + _t65*_t79;
-            q[15 * (start + i) + 12] = _t63*s_accel[i] + _t65*_t80;
-            q[15 * (start + i) + 13] = _t64*s_accel[i] + _t65*(-_t79 - _t80);
-            q[15 * (start + i) + 14] = 0;
+            _q_block[0][i] = _f3[i];
+            _q_block[1][i] = -_t24;
+            _q_block[2][i] = -_f2[i];
+            _q_block[3][i] = _f2[i] + _t24;
+            _q_block[4][i] = 0;
+            _q_block[5][i] = _t30*s_rate[i];
+            _q_block[6][i] = _t62*s_rate[i];
+            _q_block[7][i] = _t63*s_rate[i];
+            _q_block[8][i] = _t64*s_rate[i];
+            _q_block[9][i] = 0;
+            _q_block[10][i] = _t30*s_accel[i] + _t65*(_t0*_t29 + _t1*_t5[i]*_t66 + _t27*_t4 + _t28*_t4*_t66);
+            _q_block[11][i] = _t62*s_accel[i] + _t65*_t79;
+            _q_block[12][i] = _t63*s_accel[i] + _t65*_t80;
+            _q_block[13][i] = _t64*s_accel[i] + _t65*(-_t79 - _t80);
+            _q_block[14][i] = 0;
             valid[1 * (start + i) + 0] = (0.5)*fabs(_t13*_t20*(-_t18 + ((_t11 - sqrt(((_t0*s[i] - yM)*(_t0*s[i] - yM)) + ((_t3*s[i] - xM)*(_t3*s[i] - xM))))*(_t11 - sqrt(((_t0*s[i] - yM)*(_t0*s[i] - yM)) + ((_t3*s[i] - xM)*(_t3*s[i] - xM))))) + ((_t6*s[i] + d1 - zM)*(_t6*s[i] + d1 - zM)))) <= 1.000000000001;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 15; ++k) {
+                    q[15 * (start + i) + k] = _q_block[k][i];
+                }
+            }
         }
     }
 #else

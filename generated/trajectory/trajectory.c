@@ -104,6 +104,7 @@ void trajectory_cubic_batch(size_t count, const double *restrict time, const dou
     double duration[KINEGEN_BLOCK_OF(64)];
     double v0[KINEGEN_BLOCK_OF(64)];
     double vf[KINEGEN_BLOCK_OF(64)];
+    double _state_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     (void)params;
     for (start = 0; start < count; start += n) {
@@ -124,10 +125,18 @@ void trajectory_cubic_batch(size_t count, const double *restrict time, const dou
             const double _t3 = _t2*t[i];
             const double _t4 = 6*q0[i] - 6*qf[i];
             const double _t5 = 4*_t0 + 2*_t1 + _t4;
-            state[3 * (start + i) + 0] = _t3*(_t0 + _t3*(-2*_t0 - _t1 + _t2*t[i]*(_t0 + _t1 + 2*q0[i] - 2*qf[i]) - 3*q0[i] + 3*qf[i])) + q0[i];
-            state[3 * (start + i) + 1] = _t2*(_t0 + _t3*(_t2*t[i]*(3*_t0 + 3*_t1 + _t4) - _t5));
-            state[3 * (start + i) + 2] = (_t2*t[i]*(6*_t0 + 6*_t1 + 12*q0[i] - 12*qf[i]) - _t5)/(duration[i]*duration[i]);
+            _state_block[0][i] = _t3*(_t0 + _t3*(-2*_t0 - _t1 + _t2*t[i]*(_t0 + _t1 + 2*q0[i] - 2*qf[i]) - 3*q0[i] + 3*qf[i])) + q0[i];
+            _state_block[1][i] = _t2*(_t0 + _t3*(_t2*t[i]*(3*_t0 + 3*_t1 + _t4) - _t5));
+            _state_block[2][i] = (_t2*t[i]*(6*_t0 + 6*_t1 + 12*q0[i] - 12*qf[i]) - _t5)/(duration[i]*duration[i]);
             valid[1 * (start + i) + 0] = duration[i] > 0;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    state[3 * (start + i) + k] = _state_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -180,6 +189,7 @@ void trajectory_quintic_batch(size_t count, const double *restrict time, const d
     double vf[KINEGEN_BLOCK_OF(64)];
     double a0[KINEGEN_BLOCK_OF(64)];
     double af[KINEGEN_BLOCK_OF(64)];
+    double _state_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     (void)params;
     for (start = 0; start < count; start += n) {
@@ -208,10 +218,18 @@ void trajectory_quintic_batch(size_t count, const double *restrict time, const d
             const double _t9 = _t7*t[i];
             const double _t10 = 30*q0[i] - 30*qf[i];
             const double _t11 = 60*q0[i] - 60*qf[i];
-            state[3 * (start + i) + 0] = _t9*(_t0 + _t9*(_t3 + _t9*(-6*_t0 - 4*_t4 - _t5 - _t6 + _t7*t[i]*(8*_t0 + 7*_t4 + _t6 - _t8 + _t9*(-3*_t0 - _t3 - 3*_t4 - _t5 - 6*q0[i] + 6*qf[i]) + 15*q0[i] - 15*qf[i]) - 10*q0[i] + 10*qf[i]))) + q0[i];
-            state[3 * (start + i) + 1] = _t7*(_t0 + _t9*(_t2 + _t9*(-18*_t0 + (1.5)*_t1*af[i] - _t10 - 4.5*_t2 - 12*_t4 + _t7*t[i]*(32*_t0 + _t11 + 6*_t2 + 28*_t4 - 4*_t8 + _t9*(-15*_t0 + (2.5)*_t1*af[i] - _t10 - 2.5*_t2 - 15*_t4)))));
-            state[3 * (start + i) + 2] = (_t2 + _t9*(-36*_t0 + 3*_t1*af[i] - _t11 - 9*_t2 - 24*_t4 + _t7*t[i]*(96*_t0 + 18*_t2 + 84*_t4 - 12*_t8 + _t9*(-60*_t0 + 10*_t1*af[i] - 10*_t2 - 60*_t4 - 120*q0[i] + 120*qf[i]) + 180*q0[i] - 180*qf[i])))/_t1;
+            _state_block[0][i] = _t9*(_t0 + _t9*(_t3 + _t9*(-6*_t0 - 4*_t4 - _t5 - _t6 + _t7*t[i]*(8*_t0 + 7*_t4 + _t6 - _t8 + _t9*(-3*_t0 - _t3 - 3*_t4 - _t5 - 6*q0[i] + 6*qf[i]) + 15*q0[i] - 15*qf[i]) - 10*q0[i] + 10*qf[i]))) + q0[i];
+            _state_block[1][i] = _t7*(_t0 + _t9*(_t2 + _t9*(-18*_t0 + (1.5)*_t1*af[i] - _t10 - 4.5*_t2 - 12*_t4 + _t7*t[i]*(32*_t0 + _t11 + 6*_t2 + 28*_t4 - 4*_t8 + _t9*(-15*_t0 + (2.5)*_t1*af[i] - _t10 - 2.5*_t2 - 15*_t4)))));
+            _state_block[2][i] = (_t2 + _t9*(-36*_t0 + 3*_t1*af[i] - _t11 - 9*_t2 - 24*_t4 + _t7*t[i]*(96*_t0 + 18*_t2 + 84*_t4 - 12*_t8 + _t9*(-60*_t0 + 10*_t1*af[i] - 10*_t2 - 60*_t4 - 120*q0[i] + 120*qf[i]) + 180*q0[i] - 180*qf[i])))/_t1;
             valid[1 * (start + i) + 0] = duration[i] > 0;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    state[3 * (start + i) + k] = _state_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -252,6 +270,7 @@ void trajectory_cycloidal_batch(size_t count, const double *restrict time, const
     double _t0[KINEGEN_BLOCK_OF(64)];
     double _s0[KINEGEN_BLOCK_OF(64)];
     double _c0[KINEGEN_BLOCK_OF(64)];
+    double _state_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     (void)params;
     for (start = 0; start < count; start += n) {
@@ -277,10 +296,18 @@ void trajectory_cycloidal_batch(size_t count, const double *restrict time, const
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
             const double _t2 = 0.15915494309189535*amplitude[i];
-            state[3 * (start + i) + 0] = _t2*(-_s0[i] + _t0[i]) + q0[i];
-            state[3 * (start + i) + 1] = _t2*(-_c0[i]*omega[i] + omega[i]);
-            state[3 * (start + i) + 2] = _s0[i]*_t2*(omega[i]*omega[i]);
+            _state_block[0][i] = _t2*(-_s0[i] + _t0[i]) + q0[i];
+            _state_block[1][i] = _t2*(-_c0[i]*omega[i] + omega[i]);
+            _state_block[2][i] = _s0[i]*_t2*(omega[i]*omega[i]);
             valid[1 * (start + i) + 0] = omega[i] > 0;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    state[3 * (start + i) + k] = _state_block[k][i];
+                }
+            }
         }
     }
 #else
@@ -373,6 +400,7 @@ void trajectory_trapezoid_batch(size_t count, const double *restrict time, const
     double speed[KINEGEN_BLOCK_OF(64)];
     double accel_time[KINEGEN_BLOCK_OF(64)];
     double decel_time[KINEGEN_BLOCK_OF(64)];
+    double _state_block[3][KINEGEN_BLOCK_OF(64)];
     size_t start, i, n;
     (void)params;
     for (start = 0; start < count; start += n) {
@@ -402,7 +430,7 @@ void trajectory_trapezoid_batch(size_t count, const double *restrict time, const
             const double _t13 = (0.5)*_t12;
             const int _t14 = t[i] < _t11;
             const double _t15 = accel_time[i] + decel_time[i];
-            state[3 * (start + i) + 0] = ((_t0) ? (
+            _state_block[0][i] = ((_t0) ? (
    0
 )
 : ((_t3) ? (
@@ -417,7 +445,7 @@ void trajectory_trapezoid_batch(size_t count, const double *restrict time, const
 : (
    length[i]
 )))));
-            state[3 * (start + i) + 1] = ((_t0) ? (
+            _state_block[1][i] = ((_t0) ? (
    0
 )
 : ((_t3) ? (
@@ -432,7 +460,7 @@ void trajectory_trapezoid_batch(size_t count, const double *restrict time, const
 : (
    0
 )))));
-            state[3 * (start + i) + 2] = ((_t0) ? (
+            _state_block[2][i] = ((_t0) ? (
    0
 )
 : ((_t3) ? (
@@ -448,6 +476,14 @@ void trajectory_trapezoid_batch(size_t count, const double *restrict time, const
    0
 )))));
             valid[1 * (start + i) + 0] = (0.5)*_t15*speed[i] <= _t7 && accel_time[i] > 0 && decel_time[i] > 0 && speed[i] > 0 && length[i] != 0;
+        }
+        {
+            for (i = 0; i < n; ++i) {
+                size_t k;
+                for (k = 0; k < 3; ++k) {
+                    state[3 * (start + i) + k] = _state_block[k][i];
+                }
+            }
         }
     }
 #else
