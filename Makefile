@@ -177,6 +177,7 @@ bench: $(BENCH_STAMP) $(STAMP)
 	$(PY) benchmarks/short_chains.py
 	$(BENCH_PY) benchmarks/numeric_ik.py
 	$(BENCH_PY) benchmarks/general_6r.py
+	$(BENCH_PY) benchmarks/peers_ik.py
 
 clean:
 	rm -rf $(VENV) $(BENCH_VENV) .cache build *.egg-info

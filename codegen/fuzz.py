@@ -39,7 +39,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .backends import TEMPLATES
-from .backends.c_backend import STRICT_FLAGS, numeric_ik
+from .backends.c_backend import STRICT_FLAGS, general_6r_function, numeric_ik
 from .build import CompileError
 
 __all__ = ["Argument", "Kernel", "FuzzPackage", "Target", "Result", "clang_missing", "angle_coordinates",
@@ -174,6 +174,11 @@ def package_from_context(path: Path, context: dict, reachable=(), angles=()) -> 
                              for o in f["outputs"]),
                checks=bool(f["checks"]), is_ik=bool(f["is_ik"]))
         for f in context["functions"])
+    general = general_6r_function(context)
+    if general is not None:  # a general 6R's ik, all in C: as a closed form's ik
+        kernels += (Kernel(name="ik", arguments=(Argument("x", 12),),
+                           outputs=(Argument("Q", 6 * context["general_6r_slots"]),
+                                    Argument("valid", context["general_6r_slots"], "int")), checks=False, is_ik=True),)
     if numeric_ik(context):  # the numeric solver: x and a seed -> q and a converged flag
         n = len(context["joints"])
         kernels += (Kernel(name="ik_numeric", arguments=(Argument("x", len(context["task"])), Argument("q0", n)),

@@ -425,7 +425,7 @@ def render_robot(model: RobotModel, description: Path | None = None, backends=("
         "__init__.py": TEMPLATES.get_template(init).render(context),
         "_runtime.py": TEMPLATES.get_template("runtime.py.j2").render(context),
     }
-    if context["general_6r"]:  # the eigen-solve and Newton polish of a general 6R's ik, both backends
+    if context["general_6r"]:  # the numpy backend's eigen-solve and Newton polish of a general 6R's ik (C: general_6r.c.j2)
         files["_general_6r.py"] = TEMPLATES.get_template("general_6r.py.j2").render(context)
     for backend in backends:
         with stage(f"{backend} kernels"):

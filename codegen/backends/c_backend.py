@@ -11,7 +11,7 @@ from derivations.model import ANGLE_TASKS
 
 from . import TEMPLATES, ExactArithmeticMixin
 
-__all__ = ["CKernelPrinter", "render", "prune_helpers", "STRICT_FLAGS", "EXTRA_WARNINGS"]
+__all__ = ["CKernelPrinter", "render", "prune_helpers", "general_6r_function", "STRICT_FLAGS", "EXTRA_WARNINGS"]
 
 # What every generated C file must compile cleanly with (checked by `make build`).
 STRICT_FLAGS = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic")
@@ -199,11 +199,41 @@ def numeric_ik(context: dict) -> dict | None:
             "tolerance": NUMERIC_TOLERANCE, "iterations": NUMERIC_ITERATIONS}
 
 
+def general_6r_function(context: dict) -> dict | None:
+    """The C entry point ``ik`` of a general 6R (general_6r.c.j2: the eigen-solve, the recovery of
+    the joints and the Newton polish, all in C), as the templates see a kernel: x (12) -> Q (16, 6),
+    valid (16), returning the number of valid answers like a closed-form ik; None for other arms."""
+    if not context.get("general_6r"):
+        return None
+    slots = context["general_6r_slots"]
+    equations = next(f for f in context["functions"] if f["name"] == "ik_6r_equations")
+    return {
+        "name": "ik", "general_6r": True, "is_ik": True, "checks": (), "solve": None,
+        "doc": (f"Inverse kinematics of a general 6R, every real solution: Q (..., {slots}, 6), valid (..., {slots}). "
+                "Raghavan and Roth's equations in Manocha and Canny's form (ik_6r_equations), their 24 x 24 "
+                "eigenproblem by Francis QR steps, the other joints from each real root, each answer polished by "
+                "Newton steps on fk and the Jacobian; a valid answer reproduces the pose within 1e-10, the valid "
+                "answers first, by q1 then q2, ..., each once."),
+        "arguments": equations["arguments"], "params_used": equations["params_used"],
+        "arguments_used": equations["arguments_used"],
+        "outputs": [{"name": "Q", "shape": (slots, 6), "dtype": "float", "size": 6 * slots, "flat": [], "staged": [],
+                     "constant": set()},
+                    {"name": "valid", "shape": (slots,), "dtype": "bool", "size": slots, "flat": [], "staged": [],
+                     "constant": set()}],
+        "operations": equations["operations"], "prologue": [], "stages": [], "arrays": set(), "indexed": set(),
+        "block": 1, "blocked": False, "block_outputs": [], "stream_outputs": [], "stream_size": 0,
+        "boolean_temporaries": frozenset(),
+    }
+
+
 def render(context: dict) -> dict[str, str]:
     """Files of the C backend, by name, for one robot."""
     printer = CKernelPrinter(memo=context.get("printed", {}).get("c"))
     name = context["name"]
     context = dict(context, numeric_ik=numeric_ik(context))
+    general = general_6r_function(context)
+    if general is not None:  # the general 6R's ik is a C entry point like a closed form's
+        context = dict(context, functions=[*context["functions"], general])
     # One-point entry points for Python (robot_point.c.j2): kernels without requirement
     # statuses, whose outputs have at most three axes.
     functions = [dict(f, point=not f["checks"] and not f.get("solve") and all(len(o["shape"]) <= 3 for o in f["outputs"]))

@@ -504,11 +504,15 @@ def equations_function(model):
         return None
     found = getattr(model, "_general_6r", None)
     if found is None:  # () where the arm turned out not to be one
+        from ..support.budget import stage
         from ..support.cache import cached
         chain = model.chain
         key = repr((chain.convention, [(j.a, j.alpha, j.d, j.offset) for j in chain.joints], chain.base, chain.tool,
                     sorted((str(k), v) for k, v in model.params.items()), model.task_symbols)).encode()
-        found = model._general_6r = cached(f"general6r-{model.name}", key, lambda: _equations_function(model))
+        # a step of its own, so that a time budget or memory cap that stops it says so (the first caller
+        # may be `generate` asking for the arm's ik method, outside the render's steps)
+        with stage(f"working on the general 6R's equations ({model.name})"):
+            found = model._general_6r = cached(f"general6r-{model.name}", key, lambda: _equations_function(model))
     return found or None
 
 

@@ -10,7 +10,9 @@ The benchmark (benchmarks/general_6r.py) runs the same counts over 10,000 + 1,00
 from __future__ import annotations
 
 import math
+import os
 import zlib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -137,3 +139,53 @@ def test_the_equations_hold_at_the_generating_configuration(generated_root):
         P3 = P[:, loop, 0] + c[:, 2, None, None] * P[:, loop, 1] + s[:, 2, None, None] * P[:, loop, 2]
         residual = np.einsum("nrj,nj->nr", P3, m45) - np.einsum("nrj,nj->nr", Q[:, loop], m12)
         assert np.abs(residual).max() < 1e-10
+
+
+@pytest.mark.fuzz
+@pytest.mark.skipif(os.environ.get("HYPOTHESIS_PROFILE") != "fuzz",
+                    reason="`make fuzz` only: the sanitizer build of the Jaco's 11,405-operation equations takes a minute")
+def test_the_c_ik_entry_point_passes_a_short_fuzz_under_the_sanitizers(generated_root):
+    """The general 6R's ik in C (general_6r.c.j2: the eigen-solve, the recovery of the joints and the
+    Newton polish) under libFuzzer, AddressSanitizer and UndefinedBehaviorSanitizer, every report
+    fatal: raw bytes as poses and parameters (NaN, inf, huge values), reachable poses as seeds, and
+    the round trip (a valid answer must give its target back, with the parameters changed by up to
+    half).  The harness also holds the single point to the batch and the return value to the valid
+    answers it counts (codegen/fuzz.py)."""
+    from codegen import fuzz
+    missing = fuzz.clang_missing()
+    if missing:
+        pytest.skip(missing)
+    package = generated_package("kinova_jaco", generated_root)
+    folder = Path(package.__file__).parent
+    k = package.load("numpy")
+    q = jaco_configurations()[:4]
+    kernels = (fuzz.Kernel("task", (fuzz.Argument("q", 6),), (fuzz.Argument("x", 12),), False, False),
+               fuzz.Kernel("ik", (fuzz.Argument("x", 12),), (fuzz.Argument("Q", 96), fuzz.Argument("valid", 16, "int")),
+                           False, True))
+    fuzzed = fuzz.FuzzPackage(name="kinova_jaco", path=folder, params=tuple(k.PARAMS.items()), kernels=kernels,
+                              n_joints=6, pose_task=True, reachable=tuple(map(tuple, k.task(q))))
+    results = {r.target.entry: r for r in fuzz.fuzz([fuzzed], runs=150, seconds=None, jobs=2)}
+    assert {"ik", fuzz.ROUND_TRIP} <= set(results)
+    for entry in ("ik", fuzz.ROUND_TRIP):
+        assert results[entry].failure is None, results[entry].failure
+        assert results[entry].runs >= 150
+
+
+@pytest.mark.parametrize("compiler", ["gcc", "clang"])
+def test_the_c_solver_compiles_under_the_extra_warnings_in_every_layout(compiler, generated_root):
+    """The Jaco's C (the general 6R's solver, general_6r.c.j2, with its kernels) under the project's strict
+    flags and c_backend.EXTRA_WARNINGS (-Wconversion -Wshadow -Wdouble-promotion), in each layout the
+    build knows (plain, blocked, SIMD): no warning at all."""
+    import shutil
+    import subprocess
+
+    from codegen.backends.c_backend import EXTRA_WARNINGS, STRICT_FLAGS
+    from codegen.build import LAYOUTS
+    if shutil.which(compiler) is None:
+        pytest.skip(f"{compiler} not installed")
+    source = Path(generated_package("kinova_jaco", generated_root).__file__).parent / "kinova_jaco.c"
+    assert "kinova_jaco_g6r_eigenvalues" in source.read_text()
+    for layout, flags in LAYOUTS.items():
+        run = subprocess.run([compiler, *STRICT_FLAGS, *EXTRA_WARNINGS, *flags, "-fsyntax-only", str(source)],
+                             capture_output=True, text=True)
+        assert run.returncode == 0 and not run.stderr, (layout, run.stderr)
