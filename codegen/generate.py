@@ -255,6 +255,17 @@ def print_ahead(function: dict) -> dict:
     return {"numpy": numpy_printer._memo, "c": c_printer._memo}
 
 
+def _worker_signals() -> None:
+    """A worker's signals: the parent's handlers (kinegen's SIGTERM as SystemExit, the budget's
+    alarm) are not the worker's.  SIGTERM (``Pool.terminate``) ends it at once, as the default does,
+    rather than unwinding the parent's stack that the fork copied (a worker that did so could block
+    on a lock held at the fork, and the parent waited for it for ever); Ctrl-C is the parent's."""
+    import signal
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGALRM, signal.SIG_IGN)
+
+
 def _prepare_jobs(count: int) -> int:
     """Worker processes for one robot's kernels: :func:`default_jobs`, but one inside a worker
     process already (render_tree's), where fork is not the start method at hand, and for few kernels."""
@@ -281,12 +292,14 @@ def prepared_functions(functions, param_names: tuple, jobs: int | None = None) -
             return [_prepare_one(i) for i in own]
         import multiprocessing
         order = sorted(own, key=lambda i: -len(functions[i].definitions))
-        pool = multiprocessing.get_context("fork").Pool(jobs)
+        pool = multiprocessing.get_context("fork").Pool(jobs, initializer=_worker_signals)
         try:
             results = dict(zip(order, pool.imap(_prepare_one, order, chunksize=1)))
-            pool.close()
-        finally:
+        except BaseException:  # a budget, Ctrl-C or SIGTERM in the parent: the workers go with it
             pool.terminate()
+            raise
+        pool.close()  # done: the workers leave on their own (no signal sent to them)
+        pool.join()
         return [results[i] for i in own]
     finally:
         _PREPARING = ()
