@@ -572,6 +572,13 @@ def _ik_conventions(w: _Writer) -> str:
            r"taken in $(-\pi, \pi]$ (modulo $2\pi$). " + _ACOS_EDGE
 
 
+# An IK step whose LaTeX is longer than this many characters is named, not typeset.  The papers'
+# longest step is 248 characters and a KUKA KR 210's 401; the Romeo arm held at joint 3 has 328 steps
+# of up to 13,393 characters (1.3 MB of LaTeX, 35 s of line breaking, 350 pages of report) that
+# nobody reads: the generated ik computes them.
+IK_STEP_TEX_LIMIT = 2000
+
+
 def _ik(w: _Writer) -> Section | None:
     m = w.model
     if not m.ik:
@@ -591,9 +598,14 @@ def _ik(w: _Writer) -> Section | None:
             names = itertools.count(1)
             for (symbol, expr), cite in zip(branch.steps, cites):
                 lhs = w.printer.joint_latex.get(symbol, w.layout.tex(symbol))
-                step_rows = w.layout.fitted_rows(lhs, unclamped(_joint_value(expr)), names=names,
-                                                 tag=rf" \tag{{{cite}}}" if cite else "")
-                rows.extend(step_rows)
+                value = unclamped(_joint_value(expr))
+                tag = rf" \tag{{{cite}}}" if cite else ""
+                size = len(w.layout.tex(value))
+                if size > IK_STEP_TEX_LIMIT:  # named, not typeset (see IK_STEP_TEX_LIMIT)
+                    rows.append(rf"{lhs} &= \text{{(a closed form of {size:,} characters of \LaTeX: "
+                                rf"in the package's \texttt{{ik}})}}{tag}")
+                    continue
+                rows.extend(w.layout.fitted_rows(lhs, value, names=names, tag=tag))
             if not any(cites) and rows:
                 rows[0] += w.tag(key)
             body = header + " In steps, each using the ones before it:\n" + _Writer._align(rows) + "\n"

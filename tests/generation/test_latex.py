@@ -457,3 +457,17 @@ def test_a_descriptions_cite_notes_are_text_not_tex(tmp_path):
     text = latex_backend.latex_for(model, ["fk"])
     assert "\\tag{\\textbackslash{}input\\{/etc/passwd\\} 100\\% \\& \\#1}" in text
     assert "\\input{" not in text
+
+
+def test_an_ik_step_past_the_limit_is_named_not_typeset(monkeypatch):
+    """IK steps longer than latex_backend.IK_STEP_TEX_LIMIT characters (the Romeo arm's 13 kB each)
+    get one row saying how long they are and where they are computed; shorter ones are typeset.
+    With the limit at 300 characters, the UR5's longer steps go and its short ones stay."""
+    model = derivations.load(generate.REPO / "tests" / "data" / "arms" / "ur5.toml")
+    full = latex_for(model, ["ik"])
+    assert "characters of \\LaTeX" not in full
+    monkeypatch.setattr(latex_backend, "IK_STEP_TEX_LIMIT", 300)
+    short = latex_for(model, ["ik"])
+    named = re.findall(r"\\text\{\(a closed form of ([\d,]+) characters of \\LaTeX: in the package's", short)
+    assert named and all(int(n.replace(",", "")) > 300 for n in named)
+    assert len(short) < len(full) and short.count(r"\paragraph{Branch") == full.count(r"\paragraph{Branch")
