@@ -92,8 +92,10 @@ def describe_origin(model: RobotModel, description: Path | None) -> str:
 # Vectorising a long straight-line block is most of a compile (a Franka Panda's six rate
 # kernels of 2,100-5,900 operations: 53 s of gcc -O2 in the SIMD layout, against 8 s plain),
 # for kernels whose time is arithmetic rather than sines and cosines.  The papers' robots
-# stay under it (the largest, the PUMA's task_acceleration: 1,007).
-BLOCKED_MAX_OPS = 2000
+# stay under it (the largest, the PUMA's task_acceleration: 1,007).  2,200 rather than 2,000: the
+# xArm 7's forward_dynamics (2,124 operations) looped one state at a time, 436 ns a state against
+# 128 ns blocked (issue #30's target: 300); the portable build compiles the plain layout only.
+BLOCKED_MAX_OPS = 2200
 
 
 def template_function(prepared: PreparedFunction) -> dict:
