@@ -237,7 +237,8 @@ def print_ahead(function: dict) -> dict:
     An expression the templates print that is missing here is printed by the parent as before."""
     numpy_printer = numpy_backend.NumpyKernelPrinter()
     c_printer = c_backend.CKernelPrinter()
-    batch_printer = c_printer.indexed(function["indexed"]) if not function["checks"] else None
+    # the indexed printer writes the blocked layout only (robot.c.j2's staged_batch)
+    batch_printer = c_printer.indexed(function["indexed"]) if function["blocked"] and not function["checks"] else None
     for check in function["checks"]:
         for _, expr in check.temporaries:
             numpy_printer.doprint(expr), c_printer.doprint(expr)
