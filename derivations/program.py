@@ -171,6 +171,41 @@ def evaluate(steps: Sequence[tuple[sp.Symbol, sp.Expr]], exprs: Sequence, point:
     return [sp.sympify(e).xreplace(known).evalf(digits) for e in exprs]
 
 
+class _Arithmetic:
+    """How :func:`_walk` computes in one number system: ``number(e)`` of a SymPy number, ``total``
+    and ``product`` of a list, ``power(base, exponent expression, walk)``, the functions by SymPy
+    class, and ``other(e, known)`` for anything else (or an error)."""
+
+    def __init__(self, number, total, product, power, functions, other):
+        self.number, self.total, self.product, self.power = number, total, product, power
+        self.functions, self.other = functions, other
+
+
+def _walk(e, known: dict, arithmetic: _Arithmetic):
+    """The value of ``e`` in ``arithmetic``, the symbols it reads taken from ``known``."""
+    if e in known:
+        return known[e]
+    if e.is_Number or e.is_NumberSymbol:
+        return arithmetic.number(e)
+    if e.is_Add:
+        return arithmetic.total([_walk(a, known, arithmetic) for a in e.args])
+    if e.is_Mul:
+        return arithmetic.product([_walk(a, known, arithmetic) for a in e.args])
+    if e.is_Pow:
+        return arithmetic.power(_walk(e.base, known, arithmetic), e.exp, lambda x: _walk(x, known, arithmetic))
+    if e.func in arithmetic.functions:
+        return arithmetic.functions[e.func](*(_walk(a, known, arithmetic) for a in e.args))
+    return arithmetic.other(e, known)
+
+
+def _run(steps, exprs, known: dict, arithmetic: _Arithmetic) -> list:
+    """``exprs`` with the steps they read evaluated once each, in order, in ``arithmetic``."""
+    exprs = [sp.sympify(e) for e in exprs]
+    for symbol, expr in needed(steps, exprs):
+        known[symbol] = _walk(sp.sympify(expr), known, arithmetic)
+    return [_walk(e, known, arithmetic) for e in exprs]
+
+
 def evaluator(steps: Sequence[tuple[sp.Symbol, sp.Expr]], exprs: Sequence, args: Sequence[sp.Symbol]):
     """A function of ``args`` (numbers mpmath takes) that gives ``exprs`` (which read ``steps``) as
     mpmath numbers at mpmath's working precision (``mpmath.workdps``), each step evaluated once by a
@@ -179,37 +214,19 @@ def evaluator(steps: Sequence[tuple[sp.Symbol, sp.Expr]], exprs: Sequence, args:
     step) was most of the singularity check of a seven-joint arm's mass matrix (2.5 s for three points)."""
     import mpmath
 
-    body = needed(steps, exprs)
-    exprs = [sp.sympify(e) for e in exprs]
-    functions = {sp.sin: mpmath.sin, sp.cos: mpmath.cos, sp.tan: mpmath.tan, sp.atan2: mpmath.atan2,
-                 sp.asin: mpmath.asin, sp.acos: mpmath.acos, sp.exp: mpmath.exp, sp.log: mpmath.log,
-                 sp.sign: mpmath.sign, sp.Abs: abs}
+    def number(e):
+        return mpmath.mpf(e.p) / e.q if e.is_Rational else mpmath.mpf(str(e.evalf(mpmath.mp.dps + 5)))
 
-    def walk(e, known):
-        if e.is_Symbol:
-            return known[e]
-        if e.is_Rational:
-            return mpmath.mpf(e.p) / e.q
-        if e.is_Number or e.is_NumberSymbol:
-            return mpmath.mpf(str(e.evalf(mpmath.mp.dps + 5)))
-        if e.is_Add:
-            return mpmath.fsum(walk(a, known) for a in e.args)
-        if e.is_Mul:
-            return mpmath.fprod(walk(a, known) for a in e.args)
-        if e.is_Pow:
-            base, exponent = walk(e.base, known), e.exp
-            return base ** (int(exponent) if exponent.is_Integer else walk(exponent, known))
-        if e.func in functions:
-            return functions[e.func](*(walk(a, known) for a in e.args))
+    def other(e, known):
         return mpmath.mpf(str(e.xreplace({s: sp.Float(str(known[s]), mpmath.mp.dps) for s in e.free_symbols})
                               .evalf(mpmath.mp.dps)))
-
-    def run(*values):
-        known = dict(zip(args, values))
-        for symbol, value in body:
-            known[symbol] = walk(value, known)
-        return [walk(e, known) for e in exprs]
-    return run
+    arithmetic = _Arithmetic(
+        number, mpmath.fsum, mpmath.fprod,
+        lambda base, exponent, walk: base ** (int(exponent) if exponent.is_Integer else walk(exponent)),
+        {sp.sin: mpmath.sin, sp.cos: mpmath.cos, sp.tan: mpmath.tan, sp.atan2: mpmath.atan2, sp.asin: mpmath.asin,
+         sp.acos: mpmath.acos, sp.exp: mpmath.exp, sp.log: mpmath.log, sp.sign: mpmath.sign, sp.Abs: abs}, other)
+    body, exprs = needed(steps, exprs), [sp.sympify(e) for e in exprs]  # once, for every point
+    return lambda *values: _run(body, exprs, dict(zip(args, values)), arithmetic)
 
 
 # The functions a program's steps use, in numpy (a dynamics program reads sines, cosines and signs).
@@ -220,31 +237,25 @@ _NUMPY_FUNCTIONS = {sp.sin: "sin", sp.cos: "cos", sp.tan: "tan", sp.sign: "sign"
 def evaluate_arrays(steps: Sequence[tuple[sp.Symbol, sp.Expr]], exprs: Sequence, point: Mapping) -> list:
     """``exprs`` in double precision at ``point`` ({symbol: float or array}, arrays broadcasting
     together), the steps they read evaluated one by one over the whole batch: a walk of each
-    step's expression tree with numpy, so that a program of thousands of steps is evaluated at
-    many points in a fraction of a second (where :func:`evaluate` takes 30 digits, one point at a time)."""
+    step's expression tree with numpy (:func:`_walk`, as :func:`evaluator` in mpmath), so that a program
+    of thousands of steps is evaluated at many points in a fraction of a second (where :func:`evaluate`
+    takes 30 digits, one point at a time)."""
     import numpy as np
-    known: dict = {s: np.asarray(v, dtype=float) for s, v in point.items()}
 
-    def value(e):
-        if e in known:
-            return known[e]
-        if e.is_Number or e is sp.pi or e is sp.E:
-            return float(e)
-        if e.is_Add:
-            return sum((value(a) for a in e.args[1:]), value(e.args[0]))
-        if e.is_Mul:
-            out = value(e.args[0])
-            for a in e.args[1:]:
-                out = out * value(a)
-            return out
-        if e.is_Pow:
-            base, exponent = value(e.base), value(e.exp)
-            return 1.0 / base if exponent == -1 else np.sqrt(base) if exponent == 0.5 else base ** exponent
-        if e.func in _NUMPY_FUNCTIONS:
-            return getattr(np, _NUMPY_FUNCTIONS[e.func])(*(value(a) for a in e.args))
+    def product(values):
+        out = values[0]
+        for v in values[1:]:
+            out = out * v
+        return out
+
+    def power(base, exponent, walk):
+        exponent = walk(exponent)
+        return 1.0 / base if exponent == -1 else np.sqrt(base) if exponent == 0.5 else base ** exponent
+
+    def other(e, known):
         if e.is_Symbol:
             raise ValueError(f"no value for {e}")
         raise ValueError(f"cannot evaluate {e.func.__name__} in double precision")
-    for symbol, expr in needed(steps, exprs):
-        known[symbol] = value(sp.sympify(expr))
-    return [value(sp.sympify(e)) for e in exprs]
+    arithmetic = _Arithmetic(float, lambda values: sum(values[1:], values[0]), product, power,
+                             {f: getattr(np, name) for f, name in _NUMPY_FUNCTIONS.items()}, other)
+    return _run(steps, exprs, {s: np.asarray(v, dtype=float) for s, v in point.items()}, arithmetic)

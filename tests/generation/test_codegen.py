@@ -156,24 +156,20 @@ def test_the_render_workers_end_cleanly_when_done_and_when_a_budget_stops_the_pa
     from derivations.support.budget import ENFORCED, BudgetExceeded, budget
     previous = signal.signal(signal.SIGTERM, cli._terminated)  # as `kinegen` runs: SIGTERM is SystemExit
     try:
-        _render_workers_end(multiprocessing, time, ENFORCED, BudgetExceeded, budget, monkeypatch)
+        model = derivations.load(generate.REPO / "tests" / "data" / "dynamics" / "rrp_arm.toml")
+        functions = list(model.functions())
+        params = tuple(str(s) for s in model.params)
+        generate.prepared_functions(functions, params, jobs=2)
+        assert multiprocessing.active_children() == []
+        if not ENFORCED:
+            pytest.skip("budgets are enforced only in the main thread")
+        slow = generate.prepare
+        monkeypatch.setattr(generate, "prepare", lambda *args: (time.sleep(30), slow(*args))[1])  # in the workers too
+        start = time.perf_counter()
+        with pytest.raises(BudgetExceeded):
+            with budget(1.0, "a render"):
+                generate.prepared_functions(functions, params, jobs=2)
+        assert time.perf_counter() - start < 10
+        assert multiprocessing.active_children() == []
     finally:
         signal.signal(signal.SIGTERM, previous)
-
-
-def _render_workers_end(multiprocessing, time, ENFORCED, BudgetExceeded, budget, monkeypatch):
-    model = derivations.load(generate.REPO / "tests" / "data" / "dynamics" / "rrp_arm.toml")
-    functions = list(model.functions())
-    params = tuple(str(s) for s in model.params)
-    generate.prepared_functions(functions, params, jobs=2)
-    assert multiprocessing.active_children() == []
-    if not ENFORCED:
-        pytest.skip("budgets are enforced only in the main thread")
-    slow = generate.prepare
-    monkeypatch.setattr(generate, "prepare", lambda *args: (time.sleep(30), slow(*args))[1])  # in the workers too
-    start = time.perf_counter()
-    with pytest.raises(BudgetExceeded):
-        with budget(1.0, "a render"):
-            generate.prepared_functions(functions, params, jobs=2)
-    assert time.perf_counter() - start < 10
-    assert multiprocessing.active_children() == []
