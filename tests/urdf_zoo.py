@@ -1,7 +1,8 @@
 """The zoo of real URDF files: the arm chain a user would cut out of each, and an independent
 forward kinematics of that chain read from the XML alone.
 
-The files in tests/data/urdf/zoo/ are copied byte for byte from the PyPI wheels that ship them
+The files in tests/data/urdf/zoo/ are copied byte for byte from the PyPI wheels or the maker's
+repository that ship them
 (tests/data/urdf/zoo/SOURCES.md gives each one's package, upstream, licence and sha256).  They
 are not written for this project: humanoids and mobile manipulators with dozens of joints,
 xacro output with 1.5708 for pi/2, sensor frames, grippers with mimic joints, transmissions,
@@ -29,6 +30,7 @@ import numpy as np
 ZOO_DIR = Path(__file__).resolve().parent / "data" / "urdf" / "zoo"
 ERD = "example-robot-data 6.0.0"
 RTB = "rtb-data 2.0.0"
+TROSSEN = "TrossenRobotics/trossen_arm_description 1.0.0"
 
 
 @dataclass(frozen=True)
@@ -69,6 +71,10 @@ ZOO = {
     "irb140": ZooArm("irb140.urdf", "base_link", "tool0", 6, f"{RTB}: xacro/abb_irb140_description/urdf"),
     "al5d": ZooArm("al5d_robot.urdf", "base", "link4", 4, f"{RTB}: xacro/lynxmotion_al5d_description/urdf"),
     "panda": ZooArm("panda.urdf", "panda_link0", "panda_hand", 7, f"{ERD}: panda_description/urdf"),
+    # Trossen's WidowX AI follower arm (joint_0 .. joint_5) to its gripper's tool frame; the carriages
+    # (one a mimic of the other) and the wrist camera's frames are other leaves.
+    "wxai": ZooArm("wxai_follower.urdf", "base_link", "ee_gripper_link", 6,
+                   f"{TROSSEN}: urdf/generated/wxai"),
 }
 
 

@@ -1,0 +1,123 @@
+"""Inverse kinematics of the real URDF files as shipped (tests/data/urdf/zoo/, tests/urdf_zoo.py;
+issue #26: every arm of the URDF tests has ``ik``).
+
+* Which method each arm's package solves by (its ``IK_METHOD``, from the model ``kinegen generate``
+  renders): a closed-form family where the file's axes have one, else the seeded numeric solver;
+  and for the numeric ones, the structure the model says they lack.
+* Every closed-form arm: each branch evaluated from its SymPy steps (``test_auto_ik.evaluate_steps``,
+  what the kernels print) at the poses of configurations within the joint limits, the poses and
+  the answers both taken through ``urdf_zoo.XmlChain`` (the XML read with ElementTree, with the
+  angles and axes the model reported snapping; nothing of the project's).  Counts as test_zoo's:
+  wrong (a valid branch off its pose by more than 1e-9 in an entry of the 4 x 4), no solution, and,
+  on the random configurations, missing (the generating configuration not among the valid answers,
+  1e-6 rad per joint).  A seven-joint arm holds its free joint at the configuration's value.
+
+The models are those of test_urdf_zoo (``derivations.load`` snapped, cached on disk).
+"""
+import re
+import sys
+import zlib
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import sympy as sp
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+import derivations  # noqa: E402
+from codegen.generate import ik_method  # noqa: E402
+from test_auto_ik import evaluate_steps  # noqa: E402
+from test_urdf_zoo import snapped_numbers  # noqa: E402
+from urdf_zoo import ZOO, XmlChain  # noqa: E402
+
+# IK_METHOD of each arm's package.  The numeric ones: 7 joints with no held joint leaving a family
+# (xArm 7, iCub, Baxter, Panda: their wrists' axes do not meet), the SO-101 and AL5D (5 and 4
+# joints, which cannot reach a whole pose: their own tasks are in test_ik_short_chains.py), and
+# this IRB 140 file, whose joint_6 origin sits 2 cm off axis 5 (a wrist that is not spherical).
+METHOD = {
+    "xarm7": "numeric", "so101": "numeric", "z1": "three parallel", "kinova_j2s6s200": "spherical wrist",
+    "icub_left_arm": "numeric", "pr2_right_arm": "spherical wrist, joint 2 free",
+    "romeo_left_arm": "spherical wrist, joint 3 free", "baxter_left_arm": "numeric", "ur3": "three parallel",
+    "kr210": "spherical wrist", "kr16": "spherical wrist", "irb140": "numeric", "al5d": "numeric",
+    "panda": "numeric", "wxai": "three parallel",
+}
+LACKS = {
+    "xarm7": "7 joints: no free joint leaves a covered six-joint arm",
+    "icub_left_arm": "7 joints: no free joint leaves a covered six-joint arm",
+    "baxter_left_arm": "7 joints: no free joint leaves a covered six-joint arm",
+    "panda": "7 joints: no free joint leaves a covered six-joint arm",
+    "so101": "the task pose has 6 degrees of freedom and the arm 5 joints",
+    "al5d": "the task pose has 6 degrees of freedom and the arm 4 joints",
+    "irb140": "no three consecutive axes meet in a point (axes 4, 5, 6)",
+}
+CLOSED = [name for name, method in METHOD.items() if method != "numeric"]
+RANDOM, DEGENERATE = 150, 50
+FK_TOLERANCE = 1e-9
+JOINT_TOLERANCE = 1e-6
+
+
+def model_and_chain(name):
+    arm = ZOO[name]
+    model = derivations.load(arm.path, base=arm.base, tip=arm.tip, snap=True)
+    chain = XmlChain(arm.path, arm.base, arm.tip)
+    rpy, axes = snapped_numbers(model.notes.get("snapped", ""), chain)
+    return model, XmlChain(arm.path, arm.base, arm.tip, rpy=rpy, axes=axes)
+
+
+def test_the_table_covers_the_zoo():
+    assert set(METHOD) == set(ZOO)
+
+
+@pytest.mark.parametrize("name", list(ZOO))
+def test_each_arm_solves_by_its_method(name):
+    model, _ = model_and_chain(name)
+    assert ik_method(model) == METHOD[name]
+    if name in LACKS:
+        assert len(model.ik) == 0 and LACKS[name] in model.ik_unsupported, model.ik_unsupported
+    else:
+        assert len(model.ik) == 8 and model.ik_plan[0] == f"family: {METHOD[name]}"
+
+
+def floated(branch):
+    """The branch with its exact irrational constants as 30-digit floats: the steps of a file's
+    15-digit decimals hold such numbers as sqrt(3519564161475607455144369219509) / 5e14, which
+    numpy cannot take the root of (the kernels print them as doubles)."""
+    def numbers(expr):
+        return expr.xreplace({p: p.evalf(30) for p in expr.atoms(sp.Pow) if p.is_number})
+    return SimpleNamespace(steps=[(s, numbers(e)) for s, e in branch.steps],
+                           step_condition=numbers(branch.step_condition))
+
+
+def configurations(chain: XmlChain, seed: int) -> np.ndarray:
+    """RANDOM configurations within the limits, then DEGENERATE with every joint at 0, +-pi/2 or pi
+    where its limits allow (else at the nearer limit)."""
+    rng = np.random.default_rng(seed)
+    random = chain.configurations(RANDOM, seed)
+    low, high = np.array(chain.limits).T
+    special = rng.choice([0.0, np.pi / 2, -np.pi / 2, np.pi], (DEGENERATE, chain.n))
+    return np.vstack([random, np.clip(special, low, high)])
+
+
+def pose_vector(T: np.ndarray) -> np.ndarray:
+    return np.concatenate([T[..., :3, 3], T[..., :3, :3].reshape(T.shape[:-2] + (9,))], axis=-1)
+
+
+@pytest.mark.parametrize("name", CLOSED)
+def test_closed_form_branches_reach_the_xml_pose(name):
+    model, chain = model_and_chain(name)
+    q = configurations(chain, zlib.crc32(name.encode()))
+    T = np.array([chain.fk(row) for row in q])
+    x = pose_vector(T)
+    free = re.search(r"joint (\d) free", METHOD[name])
+    extra = {model.q[int(free.group(1)) - 1]: q[:, int(free.group(1)) - 1]} if free else None
+    wrong, found, solved = 0, np.zeros(len(q), bool), np.zeros(len(q), bool)
+    for branch in model.ik:
+        Q, valid = evaluate_steps(model, floated(branch), x, extra)
+        for k in np.flatnonzero(valid):
+            wrong += int(np.abs(chain.fk(Q[k]) - T[k]).max() > FK_TOLERANCE)
+        difference = np.abs((Q - q + np.pi) % (2 * np.pi) - np.pi).max(axis=-1)
+        found |= valid & (difference <= JOINT_TOLERANCE)
+        solved |= valid
+    counts = {"wrong": wrong, "no solution": int((~solved).sum()), "missing": int((~found[:RANDOM]).sum())}
+    assert counts == dict.fromkeys(counts, 0), counts
