@@ -113,7 +113,95 @@ def _ik_program(model: RobotModel, revolute):
             rename[symbol] = known[key]
         values.extend(kernel_form(rename.get(q, q), r) for q, r in zip(model.q, revolute))  # q: a free joint
         valid.append(substitute_unevaluated(branch.step_condition, rename, memo))
-    return tuple(definitions), tuple(values), tuple(valid)
+    return sines_from_roots(definitions, values, valid, taken)
+
+
+def sines_from_roots(definitions, values, valid, taken: set):
+    """The program with ``sin`` and ``cos`` of its angles written without calling them, where the
+    angle is a root the program computed: ``theta = atan2(a, b)`` has ``sin = a / r`` and
+    ``cos = b / r`` with ``r = sqrt(a**2 + b**2)``; ``acos(c)`` has ``sin = sqrt((1 - c)(1 + c))`` and
+    ``cos = c``; a sum or a negation of such angles and constants by the addition formulas.
+
+    Each ``sin(theta)`` and ``cos(theta)`` a later step reads becomes a step of its own,
+    ``_sin_<theta>`` / ``_cos_<theta>``, placed right after ``theta``.  Where ``r`` is 0 (an
+    ``atan2(0, 0)`` at a singular target, whose angle is a convention: 0 or pi by the signs of
+    the zeros) the sine is 0 and the cosine the sign of ``b``'s zero, as ``atan2`` returns, so
+    that the sine and cosine always belong to the angle the kernel returns.  The result is the same
+    number to rounding; a 6-joint arm's ``ik`` calls about half as many transcendental
+    functions (the xArm-type three-parallel arm: 44 sines and cosines before).
+    """
+    from .ik.decompose import substitute_unevaluated
+    used = set()
+    for expr in [e for _, e in definitions] + list(values) + list(valid):
+        used |= {f for f in sp.sympify(expr).atoms(sp.sin, sp.cos) if f.args[0].is_Symbol}
+    if not used:
+        return tuple(definitions), tuple(values), tuple(valid)
+    pairs: dict = {}      # angle step -> (sin, cos), as expressions of earlier steps
+    replace: dict = {}    # sin(theta) / cos(theta) -> its step
+    memo: dict = {}
+    result = []
+    for symbol, expr in definitions:
+        expr = substitute_unevaluated(expr, replace, memo)
+        result.append((symbol, expr))
+        found = _sine_cosine(expr, pairs)
+        if found is None:
+            continue
+        pairs[symbol] = found
+        for function, value in zip((sp.sin, sp.cos), found):
+            if function(symbol) in used:
+                name = f"_{function.__name__}_{symbol.name}"
+                if name in taken:
+                    raise ValueError(f"the inverse-kinematics step {name} is also a parameter's name")
+                taken.add(name)
+                replace[function(symbol)] = sp.Symbol(name, real=True)
+                result.append((replace[function(symbol)], value))
+        pairs[symbol] = tuple(replace.get(f(symbol), v) for f, v in zip((sp.sin, sp.cos), found))
+    values = tuple(substitute_unevaluated(v, replace, memo) for v in values)
+    valid = tuple(substitute_unevaluated(v, replace, memo) for v in valid)
+    return tuple(result), values, valid
+
+
+def _sine_cosine(expr, pairs: dict):
+    """(sin, cos) of the angle ``expr`` without calling sin or cos of a computed angle, or None."""
+    from .ik.primitives import ClampUnit, WrapAngle
+    if expr in pairs:
+        return pairs[expr]
+    if expr.is_number:
+        return (sp.sin(expr), sp.cos(expr)) if expr.is_real else None
+    if isinstance(expr, WrapAngle):
+        return _sine_cosine(expr.args[0], pairs)
+    if isinstance(expr, sp.atan2):
+        # a / r and b / r; at r = 0 atan2's own convention: atan2(+-0, +0) = +-0, atan2(+-0, -0) = +-pi,
+        # whose cosine the sign of the zero b gives (1 / b is +inf or -inf)
+        a, b = expr.args
+        if b.is_number:   # atan2(a, 0) and the like: left to sin and cos (1 / b would be a number's)
+            return None
+        r = sp.sqrt(a**2 + b**2)
+        return (sp.Piecewise((a / r, r > 0), (0, True)),
+                sp.Piecewise((b / r, r > 0), (1, 1 / b > 0), (-1, True)))
+    if isinstance(expr, sp.acos):
+        c = expr.args[0]
+        if not isinstance(c, ClampUnit):  # an argument that may leave [-1, 1]: keep acos's own NaN
+            return None
+        return sp.sqrt((1 - c) * (1 + c)), c
+    if isinstance(expr, sp.Piecewise):   # the same choice of the pieces' sines and cosines
+        found = [_sine_cosine(piece.expr, pairs) for piece in expr.args]
+        if any(pair is None for pair in found):
+            return None
+        return tuple(sp.Piecewise(*((pair[k], piece.cond) for pair, piece in zip(found, expr.args)),
+                                  evaluate=False) for k in (0, 1))
+    if isinstance(expr, sp.Mul) and len(expr.args) == 2 and expr.args[0] == -1:
+        inner = _sine_cosine(expr.args[1], pairs)
+        return None if inner is None else (-inner[0], inner[1])
+    if isinstance(expr, sp.Add):
+        s, c = sp.S.Zero, sp.S.One
+        for term in expr.args:
+            pair = _sine_cosine(term, pairs)
+            if pair is None:
+                return None
+            s, c = s * pair[1] + c * pair[0], c * pair[1] - s * pair[0]
+        return s, c
+    return None
 
 
 def rates(model: RobotModel):
