@@ -61,7 +61,7 @@ MONOMIALS_12 = MONOMIALS_45[:8]
 
 
 class NotGeneral6R(ValueError):
-    """The chain is not one this method takes (not six revolute joints of a DH table)."""
+    """The chain is not one this method takes (not six revolute joints)."""
 
 
 @dataclass(frozen=True)
@@ -115,10 +115,12 @@ def _inverse(T):
 def link_split(chain):
     """(G_0, [F_1 .. F_6], offsets): the chain as G_0 Rz(q_1 + o_1) F'_1 ... Rz(q_6 + o_6) F'_6 tool
     (standard DH: F'_i = Tz Tx Rx; modified: the next link's Rx Tx moves in front of its turn)."""
-    if chain.convention not in ("standard", "modified"):
-        raise NotGeneral6R(f"a chain of convention {chain.convention!r} (the general 6R takes DH tables)")
+    if chain.convention not in ("standard", "modified", "urdf"):
+        raise NotGeneral6R(f"a chain of convention {chain.convention!r}")
     if chain.n != 6 or any(j.type != REVOLUTE for j in chain.joints):
         raise NotGeneral6R("the general 6R takes six revolute joints")
+    if chain.convention == "urdf":
+        return _urdf_split(chain)
     first = sp.Matrix(chain.base)
     after = []
     for i, j in enumerate(chain.joints):
@@ -131,6 +133,36 @@ def link_split(chain):
             else:
                 after[-1] = after[-1] * pre
             after.append(_tz(j.d))
+    return first, after, tuple(j.offset for j in chain.joints)
+
+
+def _onto_axis(axis) -> sp.Matrix:
+    """A rotation R (4 x 4) that turns z onto the unit ``axis``, so that the turn about the axis is
+    R Rz(q) R^T: the identity for z, a half turn about x for -z, else the turn about z x axis."""
+    a = sp.Matrix([sp.sympify(v) for v in axis])
+    out = sp.eye(4)
+    if a[0] == 0 and a[1] == 0:
+        if a[2].is_positive:
+            return out
+        out[1, 1] = out[2, 2] = -1
+        return out
+    c = a[2]                                            # cos of the angle between z and the axis
+    k = sp.Matrix([-a[1], a[0], 0])                     # z x axis, of length sin(angle)
+    s2 = k.dot(k)
+    K = sp.Matrix([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    out[:3, :3] = sp.eye(3) + K + K * K * (1 - c) / s2  # Rodrigues with the unnormalised k
+    return out
+
+
+def _urdf_split(chain):
+    """link_split of a chain read from a URDF: joint i is ``origin_i Rot(axis_i, q_i)`` (then the
+    last joint's fixed links), and ``Rot(a, q) = R_a Rz(q) R_a^T`` with R_a turning z onto a, so
+    that G_0 = base origin_1 R_1, F'_i = R_i^T origin_(i+1) R_(i+1), F'_6 = R_6^T after_6."""
+    turns = [_onto_axis(j.axis) for j in chain.joints]
+    first = sp.Matrix(chain.base) * sp.Matrix(chain.joints[0].origin) * turns[0]
+    after = [turns[i].T * sp.Matrix(chain.joints[i + 1].origin) * turns[i + 1] for i in range(5)]
+    last = chain.joints[5].after
+    after.append(turns[5].T * (sp.Matrix(last) if last is not None else sp.eye(4)))
     return first, after, tuple(j.offset for j in chain.joints)
 
 
@@ -488,12 +520,12 @@ def general_6r(chain, params, loop) -> General6R:
 
 
 def applies(model) -> bool:
-    """Whether ``model``'s ik is the general 6R: six revolute joints of a DH table, the pose as
+    """Whether ``model``'s ik is the general 6R: six revolute joints (a DH table or a URDF chain), the pose as
     its task, and no closed form."""
     from ..model import POSE_NAMES
     chain = getattr(model, "chain", None)
     return (chain is not None and not model.ik and tuple(model.task_names) == POSE_NAMES and chain.n == 6
-            and chain.convention in ("standard", "modified") and all(j.type == REVOLUTE for j in chain.joints))
+            and chain.convention in ("standard", "modified", "urdf") and all(j.type == REVOLUTE for j in chain.joints))
 
 
 def equations_function(model):
@@ -507,7 +539,8 @@ def equations_function(model):
         from ..support.budget import stage
         from ..support.cache import cached
         chain = model.chain
-        key = repr((chain.convention, [(j.a, j.alpha, j.d, j.offset) for j in chain.joints], chain.base, chain.tool,
+        key = repr((chain.convention, [(j.a, j.alpha, j.d, j.offset, j.origin, j.axis, j.after) for j in chain.joints],
+                    chain.base, chain.tool,
                     sorted((str(k), v) for k, v in model.params.items()), model.task_symbols)).encode()
         # a step of its own, so that a time budget or memory cap that stops it says so (the first caller
         # may be `generate` asking for the arm's ik method, outside the render's steps)
