@@ -283,6 +283,24 @@ def test_a_budget_running_out_between_two_steps_names_the_enclosing_one():
             time.sleep(1)  # between two steps: the alarm comes here
 
 
+def test_a_cpu_budget_counts_work_not_waiting():
+    """The automatic ik's budget is CPU time (clock="cpu"), so that a busy machine does not change
+    an arm's verdict: sleeping past it is not work and does not stop the body; computing does."""
+    from derivations.budget import BudgetExceeded, budget
+    started = time.process_time()
+    with budget(0.2, "a test", clock="cpu"):
+        time.sleep(0.5)     # waiting: no CPU time spent
+    assert time.process_time() - started < 0.2
+    with pytest.raises(BudgetExceeded, match="a test: stopped after its time budget of 0.2 s"):
+        with budget(0.2, "a test", clock="cpu"):
+            while True:     # working: stopped after 0.2 s of CPU time
+                sum(range(1000))
+    assert time.process_time() - started < 5
+    with pytest.raises(ValueError, match="clock is 'wall' or 'cpu'"):
+        with budget(1, "a test", clock="user"):
+            pass
+
+
 def test_a_memory_cap_names_the_step_the_allocation_failed_in():
     """The cap is reported after the steps have closed; it names the step the failure left."""
     from derivations.budget import MemoryCapExceeded, memory_cap, stage
