@@ -1,4 +1,5 @@
 import os
+import resource
 import sys
 from pathlib import Path
 
@@ -15,6 +16,14 @@ for _folder in [_HERE, *sorted(p for p in _HERE.iterdir() if p.is_dir() and p.na
 
 import derivations  # noqa: E402
 import generated  # noqa: E402
+
+# Under pytest-xdist every core already runs a worker of its own: a render's, a verification's or a
+# fuzz run's own worker processes (KINEGEN_JOBS, default one per core) would only add their forks
+# and the pickling of every kernel to and fro (a tenth of a zoo arm's `kinegen generate`: 5.3 ->
+# 4.9 s of CPU for the KR 5), so the tests and the commands they start do their work in one
+# process.  The tests of the worker processes themselves ask for theirs (jobs=2, KINEGEN_JOBS=2).
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    os.environ.setdefault("KINEGEN_JOBS", "1")
 
 ROBOT_NAMES = list(derivations.ROBOTS)
 
@@ -37,3 +46,22 @@ def models():
 
 def kernels(name, backend):
     return generated.load(name, backend=backend)
+
+
+# KINEGEN_TEST_CPU=FILE: each test's CPU time (user + system, of its worker and of the processes
+# that worker waited for: compilers, `kinegen generate`, the render's forked workers), one line
+# per test appended to FILE, setup and teardown included.  On a machine shared with other work the
+# wall-clock --durations say more about the load than about the test; this does not.
+# `sort -rn FILE | head` lists the costliest tests; `awk '{s += $1} END {print s}' FILE`, the total.
+def _cpu_seconds():
+    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
+if os.environ.get("KINEGEN_TEST_CPU"):
+    @pytest.hookimpl(hookwrapper=True)
+    def pytest_runtest_protocol(item, nextitem):
+        start = _cpu_seconds()
+        yield
+        with open(os.environ["KINEGEN_TEST_CPU"], "a", encoding="utf-8") as log:
+            log.write(f"{_cpu_seconds() - start:.3f}\t{item.nodeid}\n")

@@ -44,9 +44,13 @@ def test_a_robot_is_the_same_with_its_kernels_prepared_in_one_process_or_several
     one = generate.render_robot(model, None, latex=False)
     monkeypatch.setenv("KINEGEN_JOBS", "2")
     assert generate._prepare_jobs(len(model.functions())) == 2
+    contexts = []  # the two-process render's context, kept (rather than a third render to look at)
+    context = generate.robot_context
+    monkeypatch.setattr(generate, "robot_context", lambda *args: contexts.append(context(*args)) or contexts[-1])
     several = generate.render_robot(model, None, latex=False)
     assert several == one
-    printed = generate.robot_context(model, "x")["printed"]
+    [rendered] = contexts
+    printed = rendered["printed"]
     assert len(printed["c"]) > 100 and len(printed["numpy"]) > 100  # the workers printed ahead
 
 

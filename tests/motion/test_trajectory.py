@@ -3,6 +3,7 @@
 Expected values come from the papers (cited), or from mathematics: boundary
 conditions, areas under velocity profiles, finite differences.
 """
+import json
 import os
 import subprocess
 import sys
@@ -160,8 +161,8 @@ def test_every_time_law_kernel_matches_sympy_at_30_digits(trajectory_kernels):
 def test_trajectory_c_compiles_strictly_and_runs_clean_under_sanitizers(trajectory_kernels):
     package = generate.GENERATED / "trajectory"
     build.compile_strict(package, "trajectory")
-    context = generate.robot_context(trajectory_kernels, "")
-    assert build.sanitizer_run(package, "trajectory", context["functions"], 0).count("\n") >= 8
+    # the driver needs the entry points only, not the CSE of a render (generate.entry_points)
+    assert build.sanitizer_run(package, "trajectory", generate.entry_points(trajectory_kernels), 0).count("\n") >= 8
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
@@ -220,17 +221,20 @@ def test_kernels_broadcast_times_against_laws_and_check_shapes(backend):
         k.trapezoid([[np.nan]], [1, 1, 0.1, 0.1])
 
 
-RENDER = ("import sys; from codegen.generate import render_tree; t = render_tree(['{0}']); "
-          "sys.stdout.write(''.join(k + t[k] for k in sorted(t)))")
+RENDER = "import json, sys; from codegen.generate import render_tree; json.dump(render_tree(['{0}']), sys.stdout)"
 
 
 @pytest.mark.parametrize("name", ["trajectory", "scorbot_path"])
 def test_kernel_sets_generate_byte_identical_files_from_a_cold_derivation(name):
-    outputs = []
-    for seed in ("0", "4242"):
-        env = dict(os.environ, PYTHONHASHSEED=seed, KINEGEN_NO_CACHE="1")
-        result = subprocess.run([sys.executable, "-c", RENDER.format(name)], capture_output=True, text=True,
-                                env=env, check=True)
-        outputs.append(result.stdout)
-    assert outputs[0] == outputs[1]
-    assert outputs[0] == "".join(k + v for k, v in sorted(generate.render_tree([name]).items()))
+    """Derived cold (no cache) in a process with a hash seed of its own, the kernel set renders the
+    committed files of generated/ byte for byte.  Those were rendered by other processes, with other
+    seeds and from the cache, and test_codegen's tree check renders them again from the cache (hash
+    seed 12345): so the files depend on neither.  One cold render is enough: the committed files
+    stand for the second seed and the warm render this test once made beside it."""
+    env = dict(os.environ, PYTHONHASHSEED="4242", KINEGEN_NO_CACHE="1")
+    result = subprocess.run([sys.executable, "-c", RENDER.format(name)], capture_output=True, text=True,
+                            env=env, check=True)
+    tree = json.loads(result.stdout)
+    del tree["__init__.py"]  # the package list of a tree of this set alone
+    assert tree and all(path.startswith(f"{name}/") for path in tree)
+    assert generate.stale_files(tree) == []
