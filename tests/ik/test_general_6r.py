@@ -141,6 +141,29 @@ def test_the_equations_hold_at_the_generating_configuration(generated_root):
         assert np.abs(residual).max() < 1e-10
 
 
+def test_the_pencil_has_eight_spurious_eigenvalues_at_plus_minus_i(generated_root):
+    """What the C's deflation rests on (general_6r.c.j2, g6r_deflate): Raghavan and Roth's determinant of
+    degree 24 in x_3 holds the factor (1 + x_3^2)^4, and the 12 x 12 matrix quadratic is semisimple there:
+    at every random pose and on both loops, M(i) = M_0 - M_2 + i M_1 has a null space of dimension 4
+    (singular values 9 to 12 at rounding, the 8th well above), and the 24 x 24 companion matrix (numpy's
+    eig, not the C's) has exactly 8 eigenvalues at +-i, 4 each, and 16 elsewhere."""
+    from derivations.ik.general_6r import numeric_pencil
+    arm = ARMS["kinova_jaco"]
+    package = generated_package("kinova_jaco", generated_root)
+    q = jaco_configurations()[:20]
+    P, Q, _ = package.ik_6r_equations(fk(arm, q)[:, :3].reshape(-1, 12)[:, [3, 7, 11, 0, 1, 2, 4, 5, 6, 8, 9, 10]])
+    for n in range(len(q)):
+        for loop in range(P.shape[1]):
+            M2, M1, M0 = numeric_pencil(P[n, loop], Q[n, loop])
+            sv = np.linalg.svd(M0 - M2 + 1j * M1, compute_uv=False)
+            assert sv[8:].max() < 1e-12 * sv[0] and sv[7] > 1e-6 * sv[0], sv / sv[0]
+            companion = np.zeros((24, 24))
+            companion[:12, 12:] = np.eye(12)
+            companion[12:] = -np.linalg.solve(M2, np.hstack([M0, M1]))
+            lam = np.linalg.eigvals(companion)
+            assert np.sum(np.abs(lam - 1j) < 1e-4) == 4 and np.sum(np.abs(lam + 1j) < 1e-4) == 4, lam
+
+
 @pytest.mark.fuzz
 @pytest.mark.skipif(os.environ.get("HYPOTHESIS_PROFILE") != "fuzz",
                     reason="`make fuzz` only: the sanitizer build of the Jaco's 11,405-operation equations takes a minute")
