@@ -227,9 +227,9 @@ def test_hostile_d4_a_field_that_expands_past_the_bound_is_refused_before_any_wo
     import time
     params = "".join(f"l{i} = 0.1\n" for i in range(1, 7))
     text = f'name = "arm"\n[params]\n{params}[[joint]]\ntype = "R"\na = "(l1+l2+l3+l4+l5+l6)**64"\n'
-    start = time.perf_counter()
+    start = time.process_time()  # CPU time: bounds the work, whatever the load
     with pytest.raises(DescriptionError, match=f"{math.comb(69, 5)} terms once expanded, more than 100"):
         parse_description(text, "arm.toml")
-    assert time.perf_counter() - start < 1.0
+    assert time.process_time() - start < 1.0
     fine = f'name = "arm"\n[params]\n{params}[[joint]]\ntype = "R"\na = "(l1 + l2)**2 * sin((l3 + l4)**3)"\n'
     assert parse_description(fine, "arm.toml").joints[0].a != 0

@@ -50,9 +50,9 @@ def test_a_hostile_description_is_refused_with_exit_2_and_nothing_written(case, 
     text, message = HOSTILE[case]
     path = tmp_path / "arm.toml"
     path.write_text(text)
-    start = time.perf_counter()
+    start = time.process_time()  # CPU time: the bound is on the work, not on how busy the machine is
     assert main(["--quiet", "generate", str(path), "--out", str(tmp_path / "pkg"), "--no-build"]) == 2
-    elapsed = time.perf_counter() - start
+    elapsed = time.process_time() - start
     err = capsys.readouterr().err
     assert err.startswith(f"kinegen: error: {path}") and message in err, err
     assert "Traceback" not in err and err.count("\n") == 1
@@ -86,9 +86,9 @@ def test_a_hostile_urdf_is_refused_with_exit_2_and_nothing_written(case, tmp_pat
     text, message = HOSTILE_URDF[case]
     path = tmp_path / "arm.urdf"
     path.write_text(text)
-    start = time.perf_counter()
+    start = time.process_time()  # CPU time: the bound is on the work, not on how busy the machine is
     assert main(["--quiet", "generate", str(path), "--out", str(tmp_path / "pkg"), "--no-build"]) == 2
-    elapsed = time.perf_counter() - start
+    elapsed = time.process_time() - start
     err = capsys.readouterr().err
     assert err.startswith(f"kinegen: error: {path}") and message in err, err[:1000]
     assert "Traceback" not in err and err.count("\n") == 1

@@ -464,9 +464,9 @@ def test_malformed_urdf_is_refused_with_exit_2_and_nothing_written(case, tmp_pat
     path = tmp_path / f"{case}.urdf"
     path.write_text(text)
     extra = ["--tip", "panda_rightfinger"] if case == "mimic_off_chain" else []
-    start = time.perf_counter()
+    start = time.process_time()  # CPU time: bounds the work, whatever the load
     assert main(["--quiet", "generate", str(path), "--out", str(tmp_path / "pkg"), *extra]) == 2
-    assert time.perf_counter() - start < 30
+    assert time.process_time() - start < 30
     err = capsys.readouterr().err
     assert message in err, err
     assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]
@@ -478,9 +478,9 @@ def test_a_50_mb_urdf_is_refused_unread(tmp_path, capsys):
         handle.write(MINIMAL.encode())
         handle.seek(50 * 2**20)
         handle.write(b"\n")
-    start = time.perf_counter()
+    start = time.process_time()  # CPU time: bounds the work, whatever the load
     assert main(["--quiet", "generate", str(path), "--out", str(tmp_path / "pkg")]) == 2
-    assert time.perf_counter() - start < 5
+    assert time.process_time() - start < 5
     assert "more than the 10485760 a URDF may have here" in capsys.readouterr().err
     assert not (tmp_path / "pkg").exists()
 
@@ -666,7 +666,7 @@ def test_four_thousand_fixed_joints_in_a_line_parse_quickly():
     fixed = "".join(f'<joint name="f{i}" type="fixed"><parent link="l{i}"/><child link="l{i + 1}"/>'
                     f'<origin xyz="0 0 0.001"/></joint>' for i in range(n))
     moving = f'<joint name="j" type="revolute"><parent link="l{n}"/><child link="l{n + 1}"/></joint>'
-    start = time.perf_counter()
+    start = time.process_time()  # CPU time: bounds the work, whatever the load
     description = parsed(f'<robot name="long">{links}{fixed}{moving}</robot>')
-    assert time.perf_counter() - start < 5
+    assert time.process_time() - start < 5
     assert description.joints[0].origin[2, 3] == 4 and description.joints[0].axis == (1, 0, 0)
