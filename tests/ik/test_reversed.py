@@ -77,6 +77,14 @@ def _urdf_points(chain, q):
     return points
 
 
+def _xml_walk(path, base, tip, q):
+    """A URDF chain walked as written (its angles are pi/2 to every digit: nothing to snap)."""
+    from urdf_zoo import XmlChain
+    chain = XmlChain(path, base, tip)
+    T, axes = xml_walk(chain, q)
+    return T, list(zip(_urdf_points(chain, q), np.moveaxis(axes, 1, 0)))
+
+
 class Case:
     """A seven-joint arm held at ``free`` (0-based), its reversed family, and its own forward kinematics
     ``walk(q) -> (T, [(point, direction) of each joint's line])``."""
@@ -99,6 +107,9 @@ CASES = {
                        (ZOO["panda"].path, dict(base=ZOO["panda"].base, tip=ZOO["panda"].tip, dynamics=False)), 6,
                        urdf_walk("panda"), cli=(str(ZOO["panda"].path), "--base", ZOO["panda"].base,
                                                 "--tip", ZOO["panda"].tip, "--no-dynamics")),
+    "panda_urdf_tcp": Case("Franka Panda, URDF (tests/data/urdf/panda.urdf, to the hand's TCP), q7 free",
+                           (URDF / "panda.urdf", dict(tip="panda_hand_tcp", dynamics=False)), 6,
+                           lambda q: _xml_walk(URDF / "panda.urdf", "panda_link0", "panda_hand_tcp", q)),
     "lwr4_q5": Case("KUKA LWR 4, DH, q5 free", (LWR.path, {}), 4, lambda q: dh_walk(LWR, q)),
 }
 
@@ -215,3 +226,105 @@ def test_an_arm_with_its_own_family_keeps_it():
     order = [listing.index(f"joint {j}: ") for j in (3, 2, 1, 5, 6, 7)]
     assert order == sorted(order), listing
     assert "joint 5: reversed spherical wrist family" in listing
+
+
+# --------------------------------------------------------------------------- the generated packages
+
+PACKAGED = {"panda_dh": ("--free-joint", "7"), "lwr4_q5": ("--free-joint", "5")}
+
+
+@pytest.fixture(scope="module")
+def packages(tmp_path_factory):
+    """The generated packages (numpy and the portable C) of the packaged cases, by the CLI."""
+    import importlib
+    root = tmp_path_factory.mktemp("reversed_packages")
+    loaded = {}
+    for name, options in PACKAGED.items():
+        path, _ = CASES[name].load
+        subprocess.run([sys.executable, "-m", "codegen", "--quiet", "generate", str(path), "--out", str(root / name),
+                        "--no-dynamics", *options], cwd=ROOT, check=True, capture_output=True, timeout=600)
+        sys.path.insert(0, str(root))
+        try:
+            loaded[name] = importlib.import_module(name)
+        finally:
+            sys.path.remove(str(root))
+    return loaded
+
+
+@pytest.mark.parametrize("backend", ["numpy", "c"])
+@pytest.mark.parametrize("name", list(PACKAGED))
+def test_reversed_branches_through_the_generated_code(name, backend, packages):
+    """The same counts through the generated kernels; the free joint comes back as given, every revolute
+    value in (-pi, pi], and the kernels' branches are the model's, in its order."""
+    case = CASES[name]
+    kernels = packages[name].load(backend)
+    assert list(kernels.BRANCHES) == [b.name for b in case.model.ik]
+    q = configurations(case.model.n, zlib.crc32(f"{name} generated".encode()))
+    x = pose_vector(case.walk(q)[0])
+    Q, valid = kernels.ik(x, free=q[:, case.free])
+    assert np.abs(wrap(Q[..., case.free] - q[:, None, case.free]))[valid].max() == 0.0
+    assert (np.abs(Q[valid]) <= np.pi).all() and np.isfinite(Q[valid]).all()
+    counts, worst = tally(case, q, x, Q, valid)
+    assert counts == {"wrong": 0, "no solution": 0, "missing": 0}, (counts, worst)
+
+
+# --------------------------------------------------------------------------- a UR read from its tool
+
+# The mirror of a UR: axes 1 and 2 meet, axes 3, 4, 5 parallel, axis 6 across them (no real arm of the
+# zoo has it).  Read from the tool it is a UR: the three-parallel family, reversed.
+REVERSED_UR = """name = "reversed_ur"
+convention = "standard"
+[params]
+d1 = 0.1
+d2 = 0.12
+a3 = 0.4
+a4 = 0.35
+d5 = 0.08
+d6 = 0.1
+[[joint]]
+type = "R"
+d = "d1"
+alpha = "pi/2"
+[[joint]]
+type = "R"
+d = "d2"
+alpha = "-pi/2"
+[[joint]]
+type = "R"
+a = "a3"
+[[joint]]
+type = "R"
+a = "a4"
+[[joint]]
+type = "R"
+d = "d5"
+alpha = "pi/2"
+[[joint]]
+type = "R"
+d = "d6"
+"""
+
+
+def test_a_ur_read_from_its_tool(tmp_path):
+    """The made-up arm gets the three-parallel family reversed; its branches, from their steps, put the
+    tool back on every target (this file's DH product), and find the generating configuration of every
+    random one (a degenerate one may lie where the UR's free joints are, which this test does not
+    mask: there it asks only that some branch reaches the target)."""
+    from test_zoo import read_arm
+    path = tmp_path / "reversed_ur.toml"
+    path.write_text("# a UR's structure mirrored: axes 1, 2 meet, axes 3, 4, 5 parallel\n" + REVERSED_UR)
+    model = derivations.load(path)
+    assert model.ik_plan[0] == "family: reversed three parallel", model.ik_unsupported
+    assert [b.name.split("_")[::2] for b in model.ik] == [["wrist", "shoulder", "elbow"]] * 8
+    arm = read_arm(path)
+    q = configurations(6, 1226)
+    x = pose_vector(dh_fk(arm, q))
+    branches = [evaluate_steps(model, branch, x) for branch in model.ik]
+    Q = np.stack([b[0] for b in branches], axis=1)
+    valid = np.stack([b[1] for b in branches], axis=1)
+    reached = pose_vector(dh_fk(arm, np.where(valid[..., None], Q, 0.0).reshape(-1, 6))).reshape(Q.shape[:2] + (12,))
+    error = np.where(valid, np.abs(reached - x[:, None, :]).max(axis=-1), 0.0)
+    distance = np.where(valid, np.abs(wrap(Q - q[:, None, :])).max(axis=-1), np.inf).min(axis=-1)
+    assert int((error > FK_TOLERANCE).sum()) == 0, error.max()
+    assert valid.any(axis=-1).all()
+    assert int((distance[:RANDOM] > JOINT_TOLERANCE).sum()) == 0
