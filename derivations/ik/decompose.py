@@ -24,6 +24,11 @@ frame to the next.  With ``G = T M^-1`` the target in product-of-exponentials fo
     the prismatic joint takes the height, the last revolute joint the orientation phi,
     and the first two the position of the point on the last axis (subproblems 3 and 1).
 
+``reversed`` (a six-joint arm, or seven with one held, whose special axes are at the base: a
+    spherical shoulder, three parallel axes from the base): read from the tool,
+    ``M T^-1 = E_6(-q_6) ... E_1(-q_1)`` is an arm of a family above on the same lines in the
+    reverse order (:mod:`derivations.ik.reverse`); its branches end with ``q_{7-k} = -q'_k``.
+
 The position problem of joints 1 to 3 on a point w with target c:
 
 * axes 2 and 3 parallel, axis 1 not: joint 1 by subproblem 4 (the height of
@@ -884,8 +889,8 @@ def _pose_families(S: Structure) -> list[tuple[bool, str, object]]:
         except IKUnsupported as error:
             reasons.append(str(error))
     if not found:
-        raise IKUnsupported(f"{reasons[0]}; nor read from the tool (axes 1, 2, 3 do not meet and axes 3, 4, 5 are "
-                            "not parallel with axes 1 and 2 meeting)")
+        raise IKUnsupported(f"{reasons[0]}; nor read from the tool (axes 1, 2, 3 do not meet in a point and axes 3, "
+                            "4, 5 are not parallel)")
     return found
 
 
@@ -932,7 +937,6 @@ def _pose_solution(model, S: Structure, q, families=None):
         except IKUnsupported as error:
             reasons.append(str(error))
     raise IKUnsupported("; ".join(reasons))
-
 
 
 # The joint held at the free value in a seven-joint arm, in the order tried (0-based): the
@@ -1107,7 +1111,7 @@ def classify(model, S: Structure):
         if n != 6:
             raise IKUnsupported(f"a full pose with {n} joints: the closed forms cover 6 joints, "
                                 "and 7 with one of them free")
-        return _six_joint_family(S)
+        return _six_joint_family(S)  # (solve reads such an arm from its tool too: _pose_solution)
     if set(task) == {"x", "y", "z"} and task == ("x", "y", "z") and n == 3:
         return "position", _position_family
     if "x" in task and "y" in task and set(task) <= {"x", "y", "z", "phi"}:
@@ -1141,7 +1145,9 @@ def solve(model, free_joint: int | None = None) -> IKSolution:
         if free_joint is not None and not 0 <= free_joint < 7:
             raise IKUnsupported(f"free joint {free_joint + 1}: a seven-joint arm holds one of joints 1 to 7")
         free, family, arm, built, table = _free_joint_solution(model, S, free_joint, held_joints(model, S))
-        structure.append("held joints: " + "; ".join(f"joint {j + 1}: {what}" for j, _, what in table))
+        structure.append("held joints: " + "; ".join(f"joint {j + 1}: {what}" for j, _, what in table)
+                         + f" (ranked: joint {free + 1} is held; a family after it is found from the axes, "
+                           "its branches not built)")
         if family.startswith("reversed"):
             arm.plan.insert(0, f"q{free + 1} is free (the argument `free` of ik): held at that value, joint "
                                f"{free + 1} carries the axes after it; the other six joints form a {family} arm")
