@@ -342,3 +342,16 @@ def test_a_ur_read_from_its_tool(tmp_path):
     assert int((error > FK_TOLERANCE).sum()) == 0, error.max()
     assert valid.any(axis=-1).all()
     assert int((distance[:RANDOM] > JOINT_TOLERANCE).sum()) == 0
+
+
+@pytest.mark.parametrize("held", [5, 6, 7])
+def test_the_iiwa_held_past_its_elbow_is_a_reversed_spherical_wrist(held):
+    """The iiwa 14's URDF held at joint 5, 6 or 7: its S-R-S shoulder read from the tool.  Round trip
+    FK(IK(x)) = x on 300 random configurations (test_auto_ik.round_trip_from_steps: the branches' steps
+    against the model's task, to 1e-9), each generating configuration found."""
+    from test_auto_ik import round_trip_from_steps
+    model = derivations.load(URDF / "iiwa14.urdf", free_joint=held, dynamics=False)
+    assert model.ik_plan[0] == f"family: reversed spherical wrist, joint {held} free" and len(model.ik) == 8
+    q = np.random.default_rng(held).uniform(-math.pi, math.pi, (300, 7))
+    _, found = round_trip_from_steps(model, q, held - 1)
+    assert found.all()
