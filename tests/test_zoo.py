@@ -682,9 +682,9 @@ IK_FAMILY = {
     "meca500": "spherical wrist", "stanford_arm": "spherical wrist",
     "ur10": "three parallel", "ur3_inverted": "three parallel", "ur5": "three parallel",
     "adept_cobra600": "parallel axes", "kuka_lwr4": "spherical wrist, joint 3 free",
+    "franka_panda": "reversed spherical wrist, joint 7 free",
 }
 IK_LACKS = {
-    "franka_panda": "7 joints: no free joint leaves a covered six-joint arm",
     "kinova_jaco": "no three consecutive axes meet in a point (axes 4, 5, 6) and axes 2, 3, 4 are not parallel",
     "lynxmotion_al5d": "a position task with 4 joints",
 }
@@ -773,6 +773,23 @@ def ik_joint_distance(name, Q, q):
         difference[singular, :, w + 1] = 0.0
         difference[shoulder, :, 0] = 0.0
         difference[shoulder, :, w - 1:] = 0.0
+    elif IK_FAMILY[name].startswith("reversed spherical wrist"):
+        # the shoulder (axes 1, 2, 3 meeting at s) is the reversed arm's wrist: with axes 1 and 3 in line
+        # only q1 + q3 or q1 - q3 is fixed; with s on axis 5 or 6 (axis 5 in line with axis 3 at q4 = 0)
+        # that joint is free and the shoulder follows it
+        in_line = np.abs(np.sin(q[:, 1])) <= IK_SINGULAR
+        plus = np.abs(wrap(Q[..., 0] + Q[..., 2] - (q[:, 0] + q[:, 2])[:, None]))
+        minus = np.abs(wrap(Q[..., 0] - Q[..., 2] - (q[:, 0] - q[:, 2])[:, None]))
+        difference[in_line, :, 0] = np.minimum(plus, minus)[in_line]
+        difference[in_line, :, 2] = 0.0
+        _, _, shoulder = wrist_geometry(ARMS[name], q, 0)
+        frames = link_frames(ARMS[name], q)
+        shift = 0 if ARMS[name].convention == "standard" else 1
+        for j in (4, 5):
+            z, o = frames[j + shift][..., :3, 2], frames[j + shift][..., :3, 3]
+            offset = shoulder - o
+            across = np.linalg.norm(offset - z * np.sum(offset * z, axis=-1, keepdims=True), axis=-1)
+            difference[across <= 1e-9] = 0.0
     elif IK_FAMILY[name] == "three parallel":
         difference[singular, :, 1:4] = 0.0
         difference[singular, :, 5] = 0.0

@@ -12,6 +12,8 @@
 * :mod:`derivations.ik.decompose`: the families of arms with a closed form and how each
   splits into subproblems; :func:`solve` gives a model's branches or says which structure
   the arm lacks.
+* :mod:`derivations.ik.reverse`: an arm read from its tool (``M T^-1 = E_n(-q_n) ... E_1(-q_1)``),
+  so that the families solve arms whose special axes are at the base (a spherical shoulder).
 
 The papers' robots (``derivations/robots/<name>.py``) use the primitives to print their
 paper's steps; every other arm gets its inverse kinematics from :func:`solve`.

@@ -24,6 +24,11 @@ frame to the next.  With ``G = T M^-1`` the target in product-of-exponentials fo
     the prismatic joint takes the height, the last revolute joint the orientation phi,
     and the first two the position of the point on the last axis (subproblems 3 and 1).
 
+``reversed`` (a six-joint arm, or seven with one held, whose special axes are at the base: a
+    spherical shoulder, three parallel axes from the base): read from the tool,
+    ``M T^-1 = E_6(-q_6) ... E_1(-q_1)`` is an arm of a family above on the same lines in the
+    reverse order (:mod:`derivations.ik.reverse`); its branches end with ``q_{7-k} = -q'_k``.
+
 The position problem of joints 1 to 3 on a point w with target c:
 
 * axes 2 and 3 parallel, axis 1 not: joint 1 by subproblem 4 (the height of
@@ -47,6 +52,7 @@ import sympy as sp
 from ..chain import PRISMATIC, REVOLUTE
 from ..model import APPROACH_NAMES, POSE_NAMES, IKBranch
 from .primitives import ClampUnit, WrapAngle
+from .reverse import SWAPPED_LABELS, reversed_joints, reversed_structure, reversed_target
 from .structure import Axis, Structure, check_product_of_exponentials, cross, dot, is_zero, rotate, structure_of, tidy
 from .subproblems import (TINY, angle_onto, angle_to_distance, angle_to_height, cone_angle, distance_coefficients,
                           slide_to_distance)
@@ -109,10 +115,13 @@ class _Steps:
 class _Arm:
     """The axes and the target of one arm, with the vector helpers the families share."""
 
-    def __init__(self, model, structure: Structure, q=None):
+    def __init__(self, model, structure: Structure, q=None, target=None):
         self.model = model
         self.S = structure
         self.q = tuple(model.q if q is None else q)  # the joint symbol of each axis of ``structure``
+        # the pose to reach as (rotation, position) in the task symbols: the task's pose unless the
+        # arm is read from its tool (derivations.ik.reverse: the target is then M T^-1)
+        self.target = target
         self.plan: list[str] = []
 
     def axis(self, i):
@@ -136,9 +145,15 @@ class _Arm:
 
 
 def _pose_target(arm: _Arm, steps: _Steps):
-    """``G = T M^-1`` as (rotation applied to a vector, point map), in the task symbols."""
-    x, y, z, *r = arm.model.task_symbols
-    R = sp.Matrix(3, 3, r)
+    """``G = T M^-1`` as (rotation applied to a vector, point map), in the task symbols (a reversed
+    arm's target ``M T^-1``, as steps ``g11 .. g33`` and ``g_x .. g_z``)."""
+    if arm.target is None:
+        x, y, z, *r = arm.model.task_symbols
+        R, position = sp.Matrix(3, 3, r), sp.Matrix([x, y, z])
+    else:
+        R, position = arm.target
+        R = sp.Matrix(3, 3, [steps.scalar(f"g{i + 1}{j + 1}", R[i, j]) for i in range(3) for j in range(3)])
+        position = steps.vector("g", position)
     home = arm.S.home
     RM, pM = home[:3, :3], home[:3, 3]
     GR = R if RM == sp.eye(3) else (R * RM.T)
@@ -147,7 +162,7 @@ def _pose_target(arm: _Arm, steps: _Steps):
         return GR * sp.Matrix(vec)
 
     def point(p):
-        return rotation(sp.Matrix(p) - pM) + sp.Matrix([x, y, z])
+        return rotation(sp.Matrix(p) - pM) + position
     return rotation, point
 
 
@@ -861,6 +876,69 @@ def _six_joint_family(S: Structure):
                         "are not parallel")
 
 
+def _pose_families(S: Structure) -> list[tuple[bool, str, object]]:
+    """[(reversed, family, builder)] of a six-joint arm reaching a full pose: its own family, then
+    the family of the arm read from its tool (:mod:`derivations.ik.reverse`: a spherical shoulder,
+    or three parallel axes from the base), those that classify; or IKUnsupported naming what both
+    lack."""
+    found, reasons = [], []
+    for backwards in (False, True):
+        try:
+            family, build = _six_joint_family(reversed_structure(S) if backwards else S)
+            found.append((backwards, f"reversed {family}" if backwards else family, build))
+        except IKUnsupported as error:
+            reasons.append(str(error))
+    if not found:
+        raise IKUnsupported(f"{reasons[0]}; nor read from the tool (axes 1, 2, 3 do not meet in a point and axes 3, "
+                            "4, 5 are not parallel)")
+    return found
+
+
+def _reversed_steps(arm: _Arm, q, built: list[_Steps]) -> list[_Steps]:
+    """The branches of the reversed arm ``arm`` given back in the real joints ``q`` (the reversed
+    arm's joint k is ``-q[n - k]``), root choices named for where they are on the real arm."""
+    n = len(q)
+    for steps in built:
+        for k, real in enumerate(reversed(tuple(q))):
+            steps.joint(real, -arm.q[k])
+        steps.choices = [_swap_label(choice) for choice in steps.choices]
+        docs = []
+        for doc in steps.docs:
+            head, _, rest = doc.partition(": ")
+            k = int(head[1:])
+            docs.append(f"{q[n - k]} (= -{arm.q[k - 1]}, reversed joint {k}): {rest}")
+        steps.docs = docs
+    return built
+
+
+def _swap_label(choice: str) -> str:
+    label, _, root = choice.rpartition("_")
+    return f"{SWAPPED_LABELS.get(label, label)}_{root}" if label else choice
+
+
+def _pose_solution(model, S: Structure, q, families=None):
+    """(family, arm, branches' steps) of a six-joint arm reaching a full pose, over the joints ``q``
+    (model.q less a held joint): the first of :func:`_pose_families` whose builder takes the arm (a
+    spherical wrist whose position joints have no closed form leaves the reversed family to try)."""
+    reasons = []
+    for backwards, family, build in families or _pose_families(S):
+        try:
+            if not backwards:
+                arm = _Arm(model, S, q)
+                return family, arm, build(arm)
+            x, y, z, *r = model.task_symbols
+            arm = _Arm(model, reversed_structure(S), reversed_joints(q),
+                       target=reversed_target(S.home, sp.Matrix(3, 3, r), sp.Matrix([x, y, z])))
+            arm.say("read from the tool (its special axes are at the base): M T^-1 = E6(-q6) ... E1(-q1), the same "
+                    "lines in the reverse order; joints 1 to 6 below are the reversed arm's: "
+                    + ", ".join(f"{k + 1} = -{real}" for k, real in enumerate(reversed(tuple(q))))
+                    + "; its target g = M T^-1 (M the tool pose at q = 0)")
+            return family, arm, _reversed_steps(arm, q, build(arm))
+        except IKUnsupported as error:
+            reasons.append(str(error))
+    raise IKUnsupported("; ".join(reasons))
+
+
 # The joint held at the free value in a seven-joint arm, in the order tried (0-based): the
 # elbow's neighbours first, as IKFast's choice for S-R-S arms (the KUKA iiwa and LWR: joint 3).
 FREE_ORDER = (2, 4, 3, 1, 5, 0, 6)
@@ -895,36 +973,48 @@ def held(S: Structure, j: int, value) -> Structure:
     R[:3, :3] = sp.Matrix.hstack(*(carry_vector(sp.Matrix([1 if r == i else 0 for r in range(3)]))
                                    for i in range(3)))
     R[:3, 3] = carry(sp.zeros(3, 1))
-    return Structure(tuple(axes), (R * S.home).applyfunc(sp.expand), S.task)
+    return Structure(tuple(axes), (R * S.home).applyfunc(sp.expand), S.task, S.held + (value,))
 
 
-def held_joints(model, S: Structure) -> list[tuple[int, str | None, str]]:
-    """Per joint of a seven-joint arm, in FREE_ORDER: (j, family or None, what holding it gives)
-    -- the family of the six-joint arm left with joint j held, or why it has none."""
-    table = []
-    for j in FREE_ORDER:
+def held_joints(model, S: Structure) -> list[tuple[int, list | None, str]]:
+    """Per joint of a seven-joint arm, ranked: (j, the families of the six-joint arm left with joint
+    j held (:func:`_pose_families`) or None, what holding it gives).  Those with a family come first,
+    an arm's own family before a reversed one (no target to carry), then in FREE_ORDER; then those
+    without one, in FREE_ORDER, saying why."""
+    ranked, without = [], []
+    for order, j in enumerate(FREE_ORDER):
         try:
-            family, _ = _six_joint_family(held(S, j, model.q[j]))
-            table.append((j, family, f"{family} family"))
+            families = _pose_families(held(S, j, model.q[j]))
         except IKUnsupported as error:
-            table.append((j, None, str(error)))
-    return table
+            without.append((j, None, str(error)))
+            continue
+        what = " family, or ".join(family for _, family, _ in families) + " family"
+        ranked.append(((families[0][0], order), (j, families, what)))
+    return [entry for _, entry in sorted(ranked, key=lambda item: item[0])] + without
 
 
-def _free_joint_solution(model, S: Structure, choice: int | None):
-    """(free joint, reduced structure, family, the arm, its branches' steps) for the first held joint
-    whose six-joint arm both classifies and builds, in FREE_ORDER (or only ``choice``, 0-based):
-    a family whose builder refuses this arm (a spherical wrist with an offset it cannot take) does
-    not end the search, the next joint is tried."""
-    reasons = []
-    for j in ([choice] if choice is not None else FREE_ORDER):
-        reduced = held(S, j, model.q[j])
+def _free_joint_solution(model, S: Structure, choice: int | None, table):
+    """(free joint, family, the arm, its branches' steps, table) for the first held joint of
+    ``table`` (:func:`held_joints`) whose six-joint arm both classifies and builds (or only
+    ``choice``, 0-based): a family whose builder refuses this arm (a spherical wrist with an
+    offset it cannot take) does not end the search, the next joint is tried; the table comes back
+    with what each refused joint lacks, the chosen joint first and the refused ones last."""
+    reasons, table = [], list(table)
+    for row, (j, families, what) in enumerate(table):
+        if choice is not None and j != choice:
+            continue
+        if families is None:
+            reasons.append(f"joint {j + 1}: {what}")
+            continue
         try:
-            family, build = _six_joint_family(reduced)
-            arm = _Arm(model, reduced, [q for i, q in enumerate(model.q) if i != j])
-            return j, reduced, family, arm, build(arm)
+            family, arm, built = _pose_solution(model, held(S, j, model.q[j]),
+                                                [q for i, q in enumerate(model.q) if i != j], families)
+            # the chosen joint first, then those that classify and were not tried, then those refused
+            table.sort(key=lambda entry: (entry[0] != j, entry[1] is None))
+            return j, family, arm, built, table
         except IKUnsupported as error:
             reasons.append(f"joint {j + 1}: {error}")
+            table[row] = (j, None, f"{what}, but {error}")
     chosen = f"holding joint {choice + 1} (the free joint asked for)" if choice is not None else "no free joint"
     raise IKUnsupported(f"7 joints: {chosen} leaves a covered six-joint arm ("
                         + "; ".join(reasons[:2]) + ("; ..." if len(reasons) > 2 else "") + ")")
@@ -1021,7 +1111,7 @@ def classify(model, S: Structure):
         if n != 6:
             raise IKUnsupported(f"a full pose with {n} joints: the closed forms cover 6 joints, "
                                 "and 7 with one of them free")
-        return _six_joint_family(S)
+        return _six_joint_family(S)  # (solve reads such an arm from its tool too: _pose_solution)
     if set(task) == {"x", "y", "z"} and task == ("x", "y", "z") and n == 3:
         return "position", _position_family
     if "x" in task and "y" in task and set(task) <= {"x", "y", "z", "phi"}:
@@ -1054,16 +1144,24 @@ def solve(model, free_joint: int | None = None) -> IKSolution:
     if tuple(model.task_names) == POSE_NAMES and model.n == 7:
         if free_joint is not None and not 0 <= free_joint < 7:
             raise IKUnsupported(f"free joint {free_joint + 1}: a seven-joint arm holds one of joints 1 to 7")
-        structure.append("held joints: " + "; ".join(f"joint {j + 1}: {what}" for j, _, what in held_joints(model, S)))
-        free, reduced, family, arm, built = _free_joint_solution(model, S, free_joint)
-        numbering = ", ".join(f"{i + 1} = q{k + 1}" for i, k in enumerate(k for k in range(7) if k != free))
-        arm.plan.insert(0, f"q{free + 1} is free (the argument `free` of ik): held at that value, joint {free + 1} "
-                           f"carries the axes after it; the other six joints form a {family} arm, numbered 1 to 6 "
-                           f"below ({numbering})")
+        free, family, arm, built, table = _free_joint_solution(model, S, free_joint, held_joints(model, S))
+        structure.append("held joints: " + "; ".join(f"joint {j + 1}: {what}" for j, _, what in table)
+                         + f" (ranked: joint {free + 1} is held; a family after it is found from the axes, "
+                           "its branches not built)")
+        if family.startswith("reversed"):
+            arm.plan.insert(0, f"q{free + 1} is free (the argument `free` of ik): held at that value, joint "
+                               f"{free + 1} carries the axes after it; the other six joints form a {family} arm")
+        else:
+            numbering = ", ".join(f"{i + 1} = q{k + 1}" for i, k in enumerate(k for k in range(7) if k != free))
+            arm.plan.insert(0, f"q{free + 1} is free (the argument `free` of ik): held at that value, joint "
+                               f"{free + 1} carries the axes after it; the other six joints form a {family} arm, "
+                               f"numbered 1 to 6 below ({numbering})")
         family = f"{family}, joint {free + 1} free"
     elif (reduced := _reduced_family(model, S)) is not None:
         free, family, arm, build = reduced
         built = build(arm)
+    elif tuple(model.task_names) == POSE_NAMES and model.n == 6:
+        family, arm, built = _pose_solution(model, S, model.q)
     else:
         family, build = classify(model, S)
         arm = _Arm(model, S)

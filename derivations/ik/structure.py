@@ -121,6 +121,9 @@ class Structure:
     axes: tuple[Axis, ...]
     home: sp.Matrix          # M = T(0), the tool pose at q = 0
     task: tuple[str, ...]
+    # the values of held joints (a seven-joint arm's free joint) the axes may carry: symbols that
+    # take every value at run time, so a relation must hold for each of them
+    held: tuple = ()
     _meets: dict = field(default_factory=dict, repr=False)
     _parallel: dict = field(default_factory=dict, repr=False)
 
@@ -158,7 +161,12 @@ class Structure:
         if not is_zero(dot(b.p - a.p, normal)):
             return None
         t = dot(cross(b.p - a.p, b.h), normal) / dot(normal, normal)
-        return (a.p + a.h * t).applyfunc(tidy)
+        point = (a.p + a.h * t).applyfunc(tidy)
+        if self.held and any(sp.denom(sp.together(e)).has(*self.held) for e in point):
+            # the lines meet for most values of a held joint but are parallel at some (the Panda held at
+            # its joint 6: axes 5 and 7 meet at a6 / sin q6): no fixed structure to solve on
+            return None
+        return point
 
     def on_axis(self, point, i: int) -> bool:
         a = self.axes[i]
