@@ -46,6 +46,7 @@ import sympy as sp
 
 from ..chain import PRISMATIC, REVOLUTE
 from ..model import APPROACH_NAMES, POSE_NAMES, IKBranch
+from .branch_names import geometric_names
 from .primitives import ClampUnit, WrapAngle
 from .structure import Axis, Structure, check_product_of_exponentials, cross, dot, is_zero, rotate, structure_of, tidy
 from .subproblems import (TINY, angle_onto, angle_to_distance, angle_to_height, cone_angle, distance_coefficients,
@@ -1070,6 +1071,7 @@ def solve(model, free_joint: int | None = None) -> IKSolution:
         built = build(arm)
     free_symbol = None if free is None else model.q[free]
     branches = [_branch(model, steps, f"{family} family", free_symbol) for steps in built]
+    branches = geometric_names(model, S, [list(model.q).index(q) for q in arm.q], family, branches, free)
     return IKSolution(family, branches, arm.plan, structure, free)
 
 
