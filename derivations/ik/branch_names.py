@@ -28,8 +28,10 @@ Puma (Paul, *Robot Manipulators*, 1981; Lee and Ziegler, 1984), made independent
 For each arm the mapping from root choices to these words is found numerically at derivation time:
 each branch is evaluated (its steps in numpy) at targets from seeded random configurations, the
 predicates computed on its answers, and each branch must give one label on every answer where the
-predicate is not degenerate; the labels must tell the branches apart.  A word that fails either
-test keeps its root-choice name (``slide_plus``), as do the words of parts the arm lacks.
+predicate is not degenerate, and the branches must have both words.  The parts are found so, from
+the answers, not from what the family called its roots.  The root choices no part explains are kept,
+as few as tell the branches apart, under their root-choice names (``slide_plus``, a Stanford arm's
+prismatic joint); if even all of them do not, every branch keeps its root choices.
 The branches are then ordered shoulder right before left, elbow up before down, noflip before flip.
 """
 from __future__ import annotations
@@ -324,9 +326,9 @@ def geometric_names(model, structure, axes: list[int], family: str, branches: li
     no part has a geometric word.  ``structure``: the chain's axes (all joints); ``axes``: the chain's
     indices of the axes the family solved, in its order (a seven-joint arm's held joint left out)."""
     choices = [_words(b.name) for b in branches]
-    parts = {w for c in choices for w, _ in c}
-    if not parts & set(WORDS) or any(not c for c in choices):
+    if len(branches) < 2 or any(not c for c in choices):
         return branches
+    axes = sorted(axes)  # the roles (axis 1 the shoulder's turn, ...) are the chain's, from its base
     planar = family.startswith("parallel axes")
     kinds = "".join(structure.axes[k].kind for k in axes)
     if not planar and not (kinds[:2] == "RR" and len(axes) >= 3):
@@ -343,18 +345,25 @@ def geometric_names(model, structure, axes: list[int], family: str, branches: li
         for part, v in values.items():
             seen = np.sign(v[np.abs(v) > DEGENERATE])
             labels[b].setdefault(part, set()).update(seen.tolist())
+    # a part is named by geometry where each branch has one word and the branches have both: the
+    # parts are found from the answers, not from which root the family called what (a family that
+    # solves the chain from its tool end calls its roots by its own numbering)
     named = {}
     for part in WORDS:
-        if part not in parts:
-            continue
         signs = [labels[b].get(part, set()) for b in range(len(branches))]
-        if all(len(s) == 1 for s in signs):
+        if all(len(s) == 1 for s in signs) and len(set().union(*signs)) == 2:
             named[part] = [WORDS[part][0] if s == {1.0} else WORDS[part][1] for s in signs]
-    new = []
-    for b, (branch, choice) in enumerate(zip(branches, choices)):
-        words = sorted(choice, key=lambda item: ORDER.index(item[0]) if item[0] in ORDER else len(ORDER))
-        spelled = [(part, named[part][b] if part in named else root) for part, root in words]
-        new.append((spelled, branch))
+    # the root choices no part explains, kept as few as tell the branches apart (a Stanford arm's slide)
+    roots = list(dict.fromkeys(p for c in choices for p, _ in c if p not in named))
+    for count in range(len(roots) + 1):
+        kept = set(roots[:count])
+        new = []
+        for b, (branch, choice) in enumerate(zip(branches, choices)):
+            spelled = [(part, named[part][b]) for part in named] + [(p, w) for p, w in choice if p in kept]
+            spelled.sort(key=lambda item: ORDER.index(item[0]) if item[0] in ORDER else len(ORDER))
+            new.append((spelled, branch))
+        if len({tuple(spelled) for spelled, _ in new}) == len(new):
+            break
     names = ["_".join(f"{p}_{w}" for p, w in spelled) for spelled, _ in new]
     if len(set(names)) != len(names):
         return branches  # the words do not tell the branches apart: keep the root choices

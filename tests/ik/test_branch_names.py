@@ -292,3 +292,21 @@ def test_the_automatic_names_are_the_papers_names(name):
         both = valid & valid_hand[:, j]
         assert both.sum() > COUNT // 2
         assert np.abs(wrap(Q - Q_hand[:, j]))[both].max() < 1e-6, branch.name
+
+
+def test_the_names_come_from_the_answers_not_from_what_the_family_called_its_roots():
+    """The naming is a step after the solve, from the branches and the chain's axes alone: the KR5's
+    branches given meaningless root names in another order (as a family solving the chain from its
+    tool end would number its own roots) come back under the same geometric names, in the same order."""
+    import dataclasses
+    from derivations.ik.branch_names import geometric_names
+    from derivations.ik.structure import structure_of
+    model = derivations.load(ARMS["kuka_kr5"].path)
+    solved = list(model.ik)
+    order = [5, 2, 7, 0, 3, 6, 1, 4]
+    garbled = [dataclasses.replace(solved[i], name=f"a_{'plus' if k & 1 else 'minus'}_b_{'plus' if k & 2 else 'minus'}"
+                                                  f"_c_{'plus' if k & 4 else 'minus'}")
+               for k, i in enumerate(order)]
+    renamed = geometric_names(model, structure_of(model), list(range(6)), "spherical wrist", garbled)
+    assert [b.name for b in renamed] == [b.name for b in solved]
+    assert [b.solution for b in renamed] == [b.solution for b in solved]
