@@ -1071,7 +1071,10 @@ def solve(model, free_joint: int | None = None) -> IKSolution:
         built = build(arm)
     free_symbol = None if free is None else model.q[free]
     branches = [_branch(model, steps, f"{family} family", free_symbol) for steps in built]
-    branches = geometric_names(model, S, [list(model.q).index(q) for q in arm.q], family, branches, free)
+    try:
+        branches = geometric_names(model, S, [list(model.q).index(q) for q in arm.q], family, branches, free)
+    except ValueError:
+        pass  # a step the naming cannot evaluate in double precision: the branches keep their root choices
     return IKSolution(family, branches, arm.plan, structure, free)
 
 
