@@ -263,7 +263,7 @@ class _Parts:
         return _carry(products, axis, point)
 
     def predicates(self, q: np.ndarray) -> dict[str, np.ndarray]:
-        """{part: value (N,)}: > 0 for the first word, < 0 for the second, 0 where degenerate."""
+        """{part: value (N,)}: positive for the first word, negative for the second (near 0: degenerate)."""
         g = self.g
         P = g.products(q)
         out = {}
