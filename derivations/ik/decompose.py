@@ -51,6 +51,7 @@ import sympy as sp
 
 from ..chain import PRISMATIC, REVOLUTE
 from ..model import APPROACH_NAMES, POSE_NAMES, IKBranch
+from .branch_names import geometric_names
 from .primitives import ClampUnit, WrapAngle
 from .reverse import SWAPPED_LABELS, reversed_joints, reversed_structure, reversed_target
 from .structure import Axis, Structure, check_product_of_exponentials, cross, dot, is_zero, rotate, structure_of, tidy
@@ -1168,6 +1169,10 @@ def solve(model, free_joint: int | None = None) -> IKSolution:
         built = build(arm)
     free_symbol = None if free is None else model.q[free]
     branches = [_branch(model, steps, f"{family} family", free_symbol) for steps in built]
+    try:
+        branches = geometric_names(model, S, [list(model.q).index(q) for q in arm.q], family, branches, free)
+    except ValueError:
+        pass  # a step the naming cannot evaluate in double precision: the branches keep their root choices
     return IKSolution(family, branches, arm.plan, structure, free)
 
 

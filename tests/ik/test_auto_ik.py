@@ -243,7 +243,7 @@ def test_kinegen_show_prints_the_decomposition(tmp_path):
     assert run.returncode == 0, run.stderr
     assert run.stdout.startswith("family: three parallel")
     assert "q1: subproblem 4" in run.stdout and "q3: subproblem 3" in run.stdout
-    assert "shoulder_minus_wrist_plus_elbow_minus:" in run.stdout
+    assert "shoulder_left_elbow_down_wrist_flip: three parallel family; q1: subproblem 4: atan2(Q, P) - acos" in run.stdout
     run = subprocess.run([sys.executable, "-m", "codegen", "--quiet", "show", str(arms / "kinova_jaco.toml"),
                           "--what", "ik"], capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert run.returncode == 0, run.stderr
