@@ -423,19 +423,32 @@ def _inverse_float(T):
     return _FloatMatrix([R[0] + [t[0]], R[1] + [t[1]], R[2] + [t[2]], [0.0, 0.0, 0.0, 1.0]])
 
 
-def _regular(chain, params, start, reverse, seed=20261126):
-    """The smallest singular value of the 12 x 12 matrix of the loop, at a random pose and x_3,
-    relative to the largest (default parameters, double precision)."""
+# The seed of the random configuration and x_3 that :func:`_regular` tries a loop at.
+LOOP_SEED = 20261126
+
+
+def _sample_pose(chain, params, seed=LOOP_SEED):
+    """The pose of :func:`_regular`'s random configuration at the default parameters (30 digits)."""
     import numpy as np
+    q = np.random.default_rng(seed).uniform(-3, 3, 6)
+    numbers = {s: sp.Float(v, 30) for s, v in params.items()}
+    T = sp.Matrix(chain.base).xreplace(numbers).evalf(30)
+    for i in range(6):  # the parameters in each link first: a product of numbers, not of expressions
+        T = T * chain.link_transform(i, sp.Float(q[i], 30)).xreplace(numbers).evalf(30)
+    return (T * sp.Matrix(chain.tool).xreplace(numbers)).evalf(30)
+
+
+def _regular(chain, params, start, reverse, seed=LOOP_SEED, pose=None):
+    """The smallest singular value of the 12 x 12 matrix of the loop, at a random pose and x_3,
+    relative to the largest (default parameters, double precision).  ``pose``: what
+    :func:`_sample_pose` gives for ``seed`` (the same for every loop: :func:`choose_loops` draws it once)."""
+    import numpy as np
+    T = pose if pose is not None else _sample_pose(chain, params, seed)
     rng = np.random.default_rng(seed)
-    q = rng.uniform(-3, 3, 6)
-    T = sp.Matrix(chain.base)
-    for i in range(6):
-        T = T * chain.link_transform(i, sp.Float(q[i], 30))
-    T = (T * sp.Matrix(chain.tool)).subs(params).evalf(30)
+    rng.uniform(-3, 3, 6)  # the configuration's draw, then x_3's
+    numbers = {s: sp.Float(v, 30) for s, v in params.items()}
     E, _, _ = chain_loop(chain, T, start, reverse)
-    E = [sp.Matrix(4, 4, [float(v) for v in e.subs(params).evalf(20)]) for e in E]
-    E = [[[float(e[i, j]) for j in range(4)] for i in range(4)] for e in E]
+    E = [[[float(e[i, j].xreplace(numbers).evalf(20)) for j in range(4)] for i in range(4)] for e in E]
     P, Q = loop_equations([_FloatMatrix(e) for e in E])
     M2, M1, M0 = numeric_pencil(np.array(P, float), np.array(Q, float))
     x = rng.uniform(-2, 2)
@@ -481,7 +494,9 @@ LOOP_COUNT = 2
 
 def choose_loops(chain, params, count=LOOP_COUNT, threshold=1e-9):
     """The first ``count`` loops of LOOPS whose 12 x 12 matrix is regular (see :func:`_regular`)."""
-    found = [(start, reverse) for start, reverse in LOOPS if _regular(chain, params, start, reverse) > threshold]
+    pose = _sample_pose(chain, params)
+    found = [(start, reverse) for start, reverse in LOOPS
+             if _regular(chain, params, start, reverse, pose=pose) > threshold]
     if not found:
         raise NotGeneral6R("the 12 x 12 matrix of Raghavan-Roth is singular for every choice of loop")
     return (found * count)[:count]
