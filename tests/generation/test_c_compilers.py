@@ -98,7 +98,8 @@ def test_a_large_file_compiles_as_units_that_together_are_the_whole(generated_ro
         whole = defined([], os.path.join(scratch, "whole.o"))
         units = [defined([f"-DKINEGEN_PART={part}"], os.path.join(scratch, f"part{part}.o")) for part in (1, 2)]
     with open(os.path.join(folder, "kinova_jaco.h")) as handle:  # what the header declares
-        declared = set(re.findall(r"^(?:extern const \w+|void|int|long|size_t) (kinova_jaco_\w+)\b", handle.read(), re.M))
+        header = handle.read()
+    declared = set(re.findall(r"^(?:extern const \w+|void|int|long|size_t) (kinova_jaco_\w+)\b", header, re.M))
     assert len(whole) == len(set(whole)) and set(whole) == declared
     assert sorted(units[0] + units[1]) == sorted(whole)
     assert "kinova_jaco_ik" in units[0] and units[1]
