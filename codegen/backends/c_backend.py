@@ -7,11 +7,13 @@ import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
 from derivations.ik import WrapAngle
+from derivations.ik.primitives import ClampUnit, Ramp
 from derivations.model import ANGLE_TASKS
 
 from . import TEMPLATES, ExactArithmeticMixin
 
-__all__ = ["CKernelPrinter", "render", "prune_helpers", "general_6r_function", "STRICT_FLAGS", "EXTRA_WARNINGS"]
+__all__ = ["CKernelPrinter", "render", "prune_helpers", "general_6r_function", "c_parts", "STRICT_FLAGS",
+           "EXTRA_WARNINGS"]
 
 # What every generated C file must compile cleanly with (checked by `make build`).
 STRICT_FLAGS = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic")
@@ -226,6 +228,63 @@ def general_6r_function(context: dict) -> dict | None:
     }
 
 
+# A C file whose kernels hold at least SPLIT_OPERATIONS operations (after CSE) compiles as several
+# units side by side (build_c.py.j2), one more for each further SPLIT_OPERATIONS, at most MAX_PARTS:
+# GCC's time on a kernel grows faster than its size (register allocation over one long function
+# was two thirds of the Jaco's 12 s -O2 compile), so a large file spends most of its build on one
+# core while the other has only the cffi binding to compile.  The papers' robots (the PUMA 560:
+# 5,929 operations) stay one unit.
+SPLIT_OPERATIONS = 6000
+MAX_PARTS = 3
+# The compile cost of the general 6R's solver (general_6r.c.j2) in the units c_parts weighs kernels
+# by (operations squared, which fitted the Jaco's kernels' -O2 compile): about that of a
+# 1,300-operation kernel (with it the Jaco's two units took 2.2 and 2.3 s, with 1,800 1.9 and
+# 2.8 s; 2026-11-26, gcc 12).
+GENERAL_6R_WEIGHT = 1300 ** 2
+# The sympy functions the C prints as calls of static helpers (kinegen_min, ...): a kernel that has
+# one stays in the first unit, with the helpers.
+_HELPER_CALLS = (sp.Min, sp.Max, ClampUnit, Ramp, WrapAngle)
+
+
+def _movable(f: dict) -> bool:
+    """Whether kernel ``f`` (a template dict) may go in a unit of its own: its single point and its
+    batch call nothing static (no helper, no requirement check, no run-time solve, no ik)."""
+    if f.get("general_6r") or f.get("solve") or f["is_ik"] or f["checks"]:
+        return False
+    exprs = [e for _, e in f["prologue"]] + [e for s in f["stages"] for _, e, _ in s["body"]]
+    exprs += [call["expr"] for s in f["stages"] for group in s["groups"] for call in group["calls"]]
+    exprs += [e for out in f["outputs"] for _, e in out["staged"]]
+    return not any(isinstance(e, sp.Basic) and e.has(*_HELPER_CALLS) for e in exprs)
+
+
+def c_parts(functions: list[dict]) -> tuple[int, dict[str, int]]:
+    """(how many units the C file compiles as, {kernel name: its unit} for those not in the first).
+
+    Kernels that may move (:func:`_movable`) go, largest first, to the unit with the least weight,
+    each weighing its operations squared (the first unit also carries what cannot move, the general
+    6R's solver as GENERAL_6R_WEIGHT): deterministic, from the kernels alone, never the machine."""
+    own = [f for f in functions if not f.get("solve") and not f.get("general_6r")]
+    total = sum(f["operations"] for f in own)
+    parts = min(MAX_PARTS, total // SPLIT_OPERATIONS + 1)
+    if parts == 1:
+        return 1, {}
+    load = [0] * parts
+    for f in functions:
+        if f.get("general_6r"):
+            load[0] += GENERAL_6R_WEIGHT
+        elif not f.get("solve") and not _movable(f):
+            load[0] += f["operations"] ** 2
+    assigned = {}
+    for f in sorted((f for f in own if _movable(f)), key=lambda f: (-f["operations"], f["name"])):
+        part = min(range(parts), key=lambda k: (load[k], k))
+        load[part] += f["operations"] ** 2
+        if part:
+            assigned[f["name"]] = part + 1
+    used = sorted(set(assigned.values()))  # a unit left empty (few movable kernels) is none
+    renumber = {part: k + 2 for k, part in enumerate(used)}
+    return len(used) + 1, {name: renumber[part] for name, part in assigned.items()}
+
+
 def render(context: dict) -> dict[str, str]:
     """Files of the C backend, by name, for one robot."""
     printer = CKernelPrinter(memo=context.get("printed", {}).get("c"))
@@ -238,7 +297,9 @@ def render(context: dict) -> dict[str, str]:
     # statuses, whose outputs have at most three axes.
     functions = [dict(f, point=not f["checks"] and not f.get("solve") and all(len(o["shape"]) <= 3 for o in f["outputs"]))
                  for f in context["functions"]]
-    context = dict(context, functions=functions)
+    parts, part_of = c_parts(functions)
+    functions = [dict(f, part=part_of.get(f["name"], 1)) for f in functions]
+    context = dict(context, functions=functions, c_parts=parts)
     context = dict(context, c_declarations=declarations(context, False), c_cdef=declarations(context, True),
                    c_checked=checked_prototypes(context))
     files = {}
@@ -251,4 +312,18 @@ def render(context: dict) -> dict[str, str]:
     ):
         text = TEMPLATES.get_template(template).render(context, printer=printer)
         files[filename] = prune_helpers(text) if filename.endswith(".c") else text
+    if parts > 1:
+        _check_parts(files[f"{name}.c"])
     return files
+
+
+_STATIC_FUNCTION = re.compile(r"^static\b[^;{=]*?\b(\w+)\(", re.M)
+
+
+def _check_parts(text: str) -> None:
+    """Raise if a unit after the first (from its ``#if ... KINEGEN_PART == 2`` on) names a static
+    function, which that unit would not have: :func:`_movable` is to keep such kernels out."""
+    later = text[text.index("#if !defined(KINEGEN_PART) || KINEGEN_PART == 2"):]
+    found = sorted({m[1] for m in _STATIC_FUNCTION.finditer(text)} & set(re.findall(r"\w+", later)))
+    if found:
+        raise AssertionError(f"a C unit after the first calls static functions it does not hold: {', '.join(found)}")

@@ -45,6 +45,7 @@ import math
 import sympy as sp
 
 from ..chain import REVOLUTE
+from ..program import Program
 
 __all__ = ["General6R", "general_6r", "NotGeneral6R", "SHIFTS", "MONOMIALS_45", "MONOMIALS_12"]
 
@@ -69,7 +70,8 @@ class General6R:
     """The closed forms of Manocha-Canny Eq. 9 for one arm on one loop.
 
     ``X``: the 4 x 4 of pose symbols the loop is written in; ``definitions``: (symbol, expression
-    in X and the parameters) of the link that holds the pose; ``P`` (3, 14, 9): P_1, P_c, P_s;
+    in X and the parameters) of the link that holds the pose, then the steps of the program the
+    entries of ``P`` and ``Q`` that depend on the pose are written in; ``P`` (3, 14, 9): P_1, P_c, P_s;
     ``Q`` (14, 8); ``E``: the loop's links E_1 .. E_6 (4 x 4); loop joint k is joint
     ``order[k]``, its angle ``signs[k] psi_k = q + offset - delta``; ``loop``: (start, reverse).
     """
@@ -313,25 +315,60 @@ def _simplified(v):
     return sp.expand(v) if isinstance(v, sp.Basic) else v
 
 
-def loop_equations(E, w=None):
+def _named(inv, name):
+    """The invariants with each coefficient passed through ``name``, the zeros dropped."""
+    def named(p):
+        out = {}
+        for m, v in p.items():
+            v = name(v)
+            if v != 0:
+                out[m] = v
+        return out
+    p, l, pp, pl, pxl, last = inv
+    return ([named(v) for v in p], [named(v) for v in l], named(pp), named(pl), [named(v) for v in pxl],
+            [named(v) for v in last])
+
+
+def _unchanged(v):
+    return v
+
+
+def loop_equations(E, w=None, name=None):
     """Manocha-Canny Eq. 9 for the loop Rz(psi_1) E_1 Rz(psi_2) E_2 ... Rz(psi_6) E_6 = I:
     (P (3, 14, 9), Q (14, 8)) as nested tuples.  ``w`` (6 symbols or values): the origin and
-    z axis of E_6^-1, which the equations take as given (their closed forms are the caller's)."""
+    z axis of E_6^-1, which the equations take as given (their closed forms are the caller's).
+
+    ``name`` (a coefficient -> what the equations carry for it), where given, is applied to every
+    coefficient of the invariants after each motion: :func:`general_6r` makes a coefficient that
+    depends on the pose a step of a straight-line program (a short expression in the previous
+    stage's steps) and expands the others.  Without it every entry is expanded (the numeric
+    loops of :func:`_regular`)."""
     if w is None:
         Winv = _inverse(E[5])
         w = (Winv[0, 3], Winv[1, 3], Winv[2, 3], Winv[0, 2], Winv[1, 2], Winv[2, 2])
+    if name is None:
+        def named(inv):
+            return inv
+        rows = _rows
+    else:
+        def named(inv):
+            return _named(inv, name)
+
+        def rows(inv):
+            p, l, pp, pl, pxl, last = named(inv)
+            return [*p, *l, pp, pl, *pxl, *last]
 
     # Left side (joints 1, 2 and W = E_6^-1): E_2^-1 Rz2^T E_1^-1 Rz1^T on W's origin and z axis.
-    inv = _invariants([_const(x) for x in w[:3]], [_const(x) for x in w[3:]])
+    inv = named(_invariants([_const(x) for x in w[:3]], [_const(x) for x in w[3:]]))
     for k in (0, 1):
-        inv = _move(_turn(inv, k, transpose=True), _inverse(E[k]))
-    left = _rows(inv)
+        inv = named(_move(_turn(inv, k, transpose=True), _inverse(E[k])))
+    left = rows(inv)
 
     # Right side (joints 3, 4, 5): Rz3 E_3 Rz4 E_4 Rz5 E_5 on the origin and the z axis.
-    inv = _invariants([_const(E[4][i, 3]) for i in range(3)], [_const(E[4][i, 2]) for i in range(3)])
+    inv = named(_invariants([_const(E[4][i, 3]) for i in range(3)], [_const(E[4][i, 2]) for i in range(3)]))
     for k in (3, 2):  # Rz5, then E_4, Rz4, E_3, Rz3
-        inv = _move(_turn(inv, k + 1), E[k])
-    right = _rows(_turn(inv, 2))
+        inv = named(_move(_turn(inv, k + 1), E[k]))
+    right = rows(_turn(inv, 2))
 
     def exponents(a, b, pair):
         return tuple(pair[0] if k == 2 * a else pair[1] if k == 2 * a + 1 else
@@ -363,8 +400,9 @@ def loop_equations(E, w=None):
                 Q[row][lefts[m]] += v
             elif not _negligible(v):
                 raise NotGeneral6R(f"equation {row + 1} leaves the bilinear form on joints 1-2 ({m})")
-    P = tuple(tuple(tuple(_simplified(e) for e in r) for r in part) for part in P)
-    Q = tuple(tuple(_simplified(e) for e in r) for r in Q)
+    finish = _simplified if name is None else _unchanged
+    P = tuple(tuple(tuple(finish(e) for e in r) for r in part) for part in P)
+    Q = tuple(tuple(finish(e) for e in r) for r in Q)
     return P, Q
 
 
@@ -417,19 +455,32 @@ def _inverse_float(T):
     return _FloatMatrix([R[0] + [t[0]], R[1] + [t[1]], R[2] + [t[2]], [0.0, 0.0, 0.0, 1.0]])
 
 
-def _regular(chain, params, start, reverse, seed=20261126):
-    """The smallest singular value of the 12 x 12 matrix of the loop, at a random pose and x_3,
-    relative to the largest (default parameters, double precision)."""
+# The seed of the random configuration and x_3 that :func:`_regular` tries a loop at.
+LOOP_SEED = 20261126
+
+
+def _sample_pose(chain, params, seed=LOOP_SEED):
+    """The pose of :func:`_regular`'s random configuration at the default parameters (30 digits)."""
     import numpy as np
+    q = np.random.default_rng(seed).uniform(-3, 3, 6)
+    numbers = {s: sp.Float(v, 30) for s, v in params.items()}
+    T = sp.Matrix(chain.base).xreplace(numbers).evalf(30)
+    for i in range(6):  # the parameters in each link first: a product of numbers, not of expressions
+        T = T * chain.link_transform(i, sp.Float(q[i], 30)).xreplace(numbers).evalf(30)
+    return (T * sp.Matrix(chain.tool).xreplace(numbers)).evalf(30)
+
+
+def _regular(chain, params, start, reverse, seed=LOOP_SEED, pose=None):
+    """The smallest singular value of the 12 x 12 matrix of the loop, at a random pose and x_3,
+    relative to the largest (default parameters, double precision).  ``pose``: what
+    :func:`_sample_pose` gives for ``seed`` (the same for every loop: :func:`choose_loops` draws it once)."""
+    import numpy as np
+    T = pose if pose is not None else _sample_pose(chain, params, seed)
     rng = np.random.default_rng(seed)
-    q = rng.uniform(-3, 3, 6)
-    T = sp.Matrix(chain.base)
-    for i in range(6):
-        T = T * chain.link_transform(i, sp.Float(q[i], 30))
-    T = (T * sp.Matrix(chain.tool)).subs(params).evalf(30)
+    rng.uniform(-3, 3, 6)  # the configuration's draw, then x_3's
+    numbers = {s: sp.Float(v, 30) for s, v in params.items()}
     E, _, _ = chain_loop(chain, T, start, reverse)
-    E = [sp.Matrix(4, 4, [float(v) for v in e.subs(params).evalf(20)]) for e in E]
-    E = [[[float(e[i, j]) for j in range(4)] for i in range(4)] for e in E]
+    E = [[[float(e[i, j].xreplace(numbers).evalf(20)) for j in range(4)] for i in range(4)] for e in E]
     P, Q = loop_equations([_FloatMatrix(e) for e in E])
     M2, M1, M0 = numeric_pencil(np.array(P, float), np.array(Q, float))
     x = rng.uniform(-2, 2)
@@ -475,7 +526,9 @@ LOOP_COUNT = 2
 
 def choose_loops(chain, params, count=LOOP_COUNT, threshold=1e-9):
     """The first ``count`` loops of LOOPS whose 12 x 12 matrix is regular (see :func:`_regular`)."""
-    found = [(start, reverse) for start, reverse in LOOPS if _regular(chain, params, start, reverse) > threshold]
+    pose = _sample_pose(chain, params)
+    found = [(start, reverse) for start, reverse in LOOPS
+             if _regular(chain, params, start, reverse, pose=pose) > threshold]
     if not found:
         raise NotGeneral6R("the 12 x 12 matrix of Raghavan-Roth is singular for every choice of loop")
     return (found * count)[:count]
@@ -513,10 +566,29 @@ def general_6r(chain, params, loop) -> General6R:
             values.extend(zip(names, e[:3, :]))
         else:
             links.append(e.applyfunc(_numeric_constant))
-    P, Q = loop_equations(links)
+    # The equations as a straight-line program after the link's definitions: each coefficient of
+    # each stage (loop_equations) that depends on the pose is a step, named after the loop, instead
+    # of a polynomial in the pose and the parameters expanded (the Jaco's kernel: 14,602 -> 2,044
+    # operations, its derivation 9.7 -> 1.6 s, its CSE 4.7 -> 0.6 s, its C -O2 compile 10 -> 1.5 s;
+    # 2026-11-26).  What the pose does not reach (the side of joints 3 to 5, which the arm's
+    # constants and parameters fix) stays expanded, so that what cancels there cancels exactly:
+    # as steps too, the Jaco's numpy ik missed 4 of the 65 singular degenerate poses of
+    # tests/ik/test_general_6r.py against 0.
+    program = Program(taken=[str(s) for s in X] + [str(s) for s, _ in values] + [str(s) for s in params])
+    prefix = f"loop{start}{'r' if reverse else ''}_c"
+    posed = {s for s, _ in values}
+
+    def name(v):
+        if isinstance(v, sp.Basic) and v.free_symbols & posed:
+            step = program.define(f"{prefix}{len(program)}", v)
+            if isinstance(step, sp.Symbol):
+                posed.add(step)
+            return step
+        return _simplified(v)
+    P, Q = loop_equations(links, name=name)
     _, _, offsets = link_split(chain)
-    return General6R(X=X, definitions=tuple(values), P=P, Q=Q, E=tuple(links), signs=signs, order=order,
-                     offsets=offsets, loop=(start, reverse))
+    return General6R(X=X, definitions=tuple(values) + tuple(program.steps), P=P, Q=Q, E=tuple(links),
+                     signs=signs, order=order, offsets=offsets, loop=(start, reverse))
 
 
 def applies(model) -> bool:
@@ -531,7 +603,7 @@ def applies(model) -> bool:
 def equations_function(model):
     """(the kernel ``ik_6r_equations(x) -> (P (L, 3, 14, 9), Q (L, 14, 8), E (L, 6, 3, 4))`` of a
     general 6R on its L loops (Manocha-Canny Eq. 9 and the loops' links), the layout its ik needs),
-    or None; derived once per arm (10-20 s), then read from the derivation cache."""
+    or None; derived once per arm (1-2 s), then read from the derivation cache."""
     if not applies(model):
         return None
     found = getattr(model, "_general_6r", None)

@@ -9,14 +9,17 @@ its -Wpass-failed on the SIMD loops comes from the optimiser, which the front en
 """
 import concurrent.futures
 import os
+import re
 import shutil
 import subprocess
+import tempfile
 
 import pytest
 
 import derivations
 from codegen import build, generate
 from codegen.backends.c_backend import EXTRA_WARNINGS, STRICT_FLAGS
+from test_zoo import generated_package, generated_root  # noqa: F401  (a fixture)
 
 PACKAGES = list(derivations.ROBOTS) + list(derivations.KERNEL_SETS)
 FLAGS = (*STRICT_FLAGS, *EXTRA_WARNINGS)
@@ -68,3 +71,35 @@ def test_clang_compiles_the_vectorised_build_with_the_strict_flags(monkeypatch, 
     command = ["clang", *FLAGS, *flags, "-c", str(package / "planar_2r.c"), "-o", str(tmp_path / "planar_2r.o")]
     result = subprocess.run(command, capture_output=True, text=True, env=dict(os.environ, TMPDIR=str(tmp_path)))
     assert result.returncode == 0 and result.stderr == "", result.stderr
+
+
+def test_a_large_file_compiles_as_units_that_together_are_the_whole(generated_root):
+    """The Kinova Jaco's C (over c_backend.SPLIT_OPERATIONS operations) builds as two units,
+    ``-DKINEGEN_PART=1`` and ``=2``, side by side (c_backend.c_parts, build_c.py's PARTS): each unit
+    compiles alone under the strict flags and the extra warnings in every layout, and the units'
+    objects define between them exactly the global symbols of the whole file's object, each once
+    (as `nm` reads them): what the header declares, so that linking the units is linking the file."""
+    package = generated_package("kinova_jaco", generated_root)
+    folder = os.path.dirname(package.__file__)
+    source = os.path.join(folder, "kinova_jaco.c")
+    with open(source) as handle:
+        assert "#if !defined(KINEGEN_PART) || KINEGEN_PART == 2" in handle.read()
+    assert build.load_build_script(folder).PARTS == 2
+    commands = [["gcc", *FLAGS, *flags, f"-DKINEGEN_PART={part}", "-fsyntax-only", source]
+                for flags in build.LAYOUTS.values() for part in (1, 2)]
+    assert failures(commands) == []
+
+    def defined(flags, target):
+        subprocess.run(["gcc", *STRICT_FLAGS, "-O0", "-c", source, *flags, "-o", target], check=True)
+        listing = subprocess.run(["nm", "-g", "--defined-only", target], capture_output=True, text=True, check=True)
+        return [line.split()[-1] for line in listing.stdout.splitlines() if line.strip()]
+
+    with tempfile.TemporaryDirectory() as scratch:
+        whole = defined([], os.path.join(scratch, "whole.o"))
+        units = [defined([f"-DKINEGEN_PART={part}"], os.path.join(scratch, f"part{part}.o")) for part in (1, 2)]
+    with open(os.path.join(folder, "kinova_jaco.h")) as handle:  # what the header declares
+        header = handle.read()
+    declared = set(re.findall(r"^(?:extern const \w+|void|int|long|size_t) (kinova_jaco_\w+)\b", header, re.M))
+    assert len(whole) == len(set(whole)) and set(whole) == declared
+    assert sorted(units[0] + units[1]) == sorted(whole)
+    assert "kinova_jaco_ik" in units[0] and units[1]
