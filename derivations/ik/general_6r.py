@@ -143,7 +143,7 @@ def _onto_axis(axis) -> sp.Matrix:
     R Rz(q) R^T: the identity for z, a half turn about x for -z, else the turn about z x axis."""
     a = sp.Matrix([sp.sympify(v) for v in axis])
     out = sp.eye(4)
-    if a[0] == 0 and a[1] == 0:
+    if a[0].is_zero and a[1].is_zero:   # (is_zero: a Float 0.0 is not == 0 in SymPy)
         if a[2].is_positive:
             return out
         out[1, 1] = out[2, 2] = -1

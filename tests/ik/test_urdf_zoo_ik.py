@@ -180,3 +180,20 @@ def test_the_general_6r_of_a_urdf_chain_finds_every_solution(backend, irb140_pac
     assert (wrong, int((~valid.any(axis=-1)).sum()), int(missing[:count].sum())) == (0, 0, 0)
     assert missing[count:].sum() <= 0.1 * (count // 2)
     assert valid[:count].sum(axis=-1).mean() > 4   # several real solutions per pose, not one
+
+
+def test_the_turn_onto_a_urdf_axis_is_a_rotation_taking_z_there():
+    """general_6r._onto_axis: for +-z, the axes and random unit axes, R z = a with R a rotation, so
+    that origin Rot(a, q) = origin R Rz(q) R^T (checked at one angle against Rodrigues here)."""
+    from derivations.ik.general_6r import _onto_axis
+    rng = np.random.default_rng(6)
+    axes = [(0, 0, 1), (0, 0, -1), (1, 0, 0), (0, -1, 0)] + [tuple(v / np.linalg.norm(v)) for v in rng.normal(size=(5, 3))]
+    q = 0.7
+    for a in axes:
+        R = np.array(_onto_axis(tuple(sp.Float(v, 20) for v in a)), dtype=float)[:3, :3]
+        assert np.allclose(R @ [0, 0, 1], a, atol=1e-14) and np.allclose(R.T @ R, np.eye(3), atol=1e-14)
+        assert abs(np.linalg.det(R) - 1) < 1e-14
+        K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+        rodrigues = np.eye(3) + np.sin(q) * K + (1 - np.cos(q)) * K @ K
+        Rz = np.array([[np.cos(q), -np.sin(q), 0], [np.sin(q), np.cos(q), 0], [0, 0, 1]])
+        assert np.allclose(R @ Rz @ R.T, rodrigues, atol=1e-14)
