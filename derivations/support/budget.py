@@ -90,10 +90,34 @@ _left_by: BaseException | None = None
 _left_stage: str | None = None
 
 
-# The open budgets, outermost first: (deadline on the monotonic clock, stage, seconds).
-_open: list[tuple[float, str, float]] = []
-# The open budgets of CPU time (clock="cpu"): (deadline on this process's CPU clock, stage, seconds).
-_open_cpu: list[tuple[float, str, float]] = []
+class _Clock:
+    """One clock budgets may count: its time, the interval timer that counts it and that timer's
+    signal, and its open budgets, outermost first: (deadline on this clock, stage, seconds)."""
+
+    def __init__(self, now, timer: int, signum: int):
+        self.now, self.timer, self.signum = now, timer, signum
+        self.open: list[tuple[float, str, float]] = []
+
+    def arm(self):
+        """Set the timer for the earliest open deadline (or clear it)."""
+        if not self.open:
+            signal.setitimer(self.timer, 0)
+            return
+        signal.setitimer(self.timer, max(min(entry[0] for entry in self.open) - self.now(), 1e-3))
+
+    def on_signal(self, signum, frame):
+        now = self.now()
+        expired = [entry for entry in self.open if entry[0] <= now + 1e-3]
+        if not expired:
+            self.arm()  # a late signal for a budget already closed: wait for the next deadline
+            return
+        deadline, what, seconds = min(expired)
+        raise BudgetExceeded(what, seconds, _stage)
+
+
+# "wall": the time the user waits (SIGALRM); "cpu": this process's CPU time (SIGPROF).
+_CLOCKS = {"wall": _Clock(time.monotonic, signal.ITIMER_REAL, signal.SIGALRM),
+           "cpu": _Clock(time.process_time, signal.ITIMER_PROF, signal.SIGPROF)}
 
 
 # How many results a budget has cut short so far in this process (degraded): a derivation that
@@ -115,47 +139,12 @@ def _enforceable() -> bool:
 ENFORCED = _enforceable()
 
 
-def _on_alarm(signum, frame):
-    now = time.monotonic()
-    expired = [entry for entry in _open if entry[0] <= now + 1e-3]
-    if not expired:
-        _arm()  # a late signal for a budget already closed: wait for the next deadline
-        return
-    deadline, what, seconds = min(expired)
-    raise BudgetExceeded(what, seconds, _stage)
-
-
-def _arm():
-    if not _open:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        return
-    delay = max(min(entry[0] for entry in _open) - time.monotonic(), 1e-3)
-    signal.setitimer(signal.ITIMER_REAL, delay)
-
-
-def _on_cpu_alarm(signum, frame):
-    now = time.process_time()
-    expired = [entry for entry in _open_cpu if entry[0] <= now + 1e-3]
-    if not expired:
-        _arm_cpu()
-        return
-    deadline, what, seconds = min(expired)
-    raise BudgetExceeded(what, seconds, _stage)
-
-
-def _arm_cpu():
-    if not _open_cpu:
-        signal.setitimer(signal.ITIMER_PROF, 0)
-        return
-    delay = max(min(entry[0] for entry in _open_cpu) - time.process_time(), 1e-3)
-    signal.setitimer(signal.ITIMER_PROF, delay)
-
-
 def remaining() -> float | None:
     """Seconds left in the tightest open budget, or None when there is none."""
-    if not _open:
+    wall = _CLOCKS["wall"]
+    if not wall.open:
         return None
-    return max(min(entry[0] for entry in _open) - time.monotonic(), 0.0)
+    return max(min(entry[0] for entry in wall.open) - wall.now(), 0.0)
 
 
 @contextlib.contextmanager
@@ -173,34 +162,20 @@ def budget(seconds: float | None, stage: str, clock: str = "wall"):
         return
     if not seconds > 0:
         raise ValueError(f"a time budget must be positive, got {seconds!r}")
-    if clock == "cpu":
-        previous = signal.getsignal(signal.SIGPROF)
-        if previous is not _on_cpu_alarm:
-            signal.signal(signal.SIGPROF, _on_cpu_alarm)
-        entry = (time.process_time() + seconds, stage, seconds)
-        _open_cpu.append(entry)
-        try:
-            _arm_cpu()
-            yield
-        finally:
-            _open_cpu.remove(entry)
-            _arm_cpu()
-            if previous is not _on_cpu_alarm:
-                signal.signal(signal.SIGPROF, previous)
-        return
-    previous = signal.getsignal(signal.SIGALRM)
-    if previous is not _on_alarm:
-        signal.signal(signal.SIGALRM, _on_alarm)
-    entry = (time.monotonic() + seconds, stage, seconds)
-    _open.append(entry)
+    chosen = _CLOCKS[clock]
+    previous = signal.getsignal(chosen.signum)
+    if previous != chosen.on_signal:
+        signal.signal(chosen.signum, chosen.on_signal)
+    entry = (chosen.now() + seconds, stage, seconds)
+    chosen.open.append(entry)
     try:
-        _arm()
+        chosen.arm()
         yield
     finally:
-        _open.remove(entry)
-        _arm()
-        if previous is not _on_alarm:
-            signal.signal(signal.SIGALRM, previous)
+        chosen.open.remove(entry)
+        chosen.arm()
+        if previous != chosen.on_signal:
+            signal.signal(chosen.signum, previous)
 
 
 def _address_space() -> int | None:
