@@ -18,7 +18,7 @@ import sympy as sp
 
 from .chain import REVOLUTE
 from .ik.general_6r import equations_function
-from .ik.primitives import kernel_form
+from .ik.primitives import ClampUnit, WrapAngle, kernel_form
 from .model import Argument, Output, RobotModel, SymbolicFunction, install_assembly, with_program
 
 __all__ = ["robot_kernels", "kinematics_kernels", "ik_kernel", "rate_kernels", "rates", "dynamics"]
@@ -163,7 +163,6 @@ def sines_from_roots(definitions, values, valid, taken: set):
 
 def _sine_cosine(expr, pairs: dict):
     """(sin, cos) of the angle ``expr`` without calling sin or cos of a computed angle, or None."""
-    from .ik.primitives import ClampUnit, WrapAngle
     if expr in pairs:
         return pairs[expr]
     if expr.is_number:

@@ -191,7 +191,7 @@ def generated_package(name: str, root: Path):
     arm = ZOO[name]
     out = root / f"zoo_{name}"
     if not out.exists():
-        snap = [] if GENERATED[name] else ["--no-snap"]
+        snap = [] if GENERATED.get(name, True) else ["--no-snap"]
         # --no-dynamics: these files carry inertials, whose eight kernels would take the xArm 7 from 19 s
         # to over a minute here; the dynamics are tested in test_dynamics.py and against Pinocchio in
         # benchmarks/dynamics.py
