@@ -11,11 +11,14 @@ import contextlib
 import errno
 import hashlib
 import os
+import pickle
 import re
 import shutil
+import signal
 import sys
 import tempfile
 import time
+import traceback
 from pathlib import Path
 
 import numpy as np
@@ -263,10 +266,10 @@ def _worker_signals() -> None:
     alarm) are not the worker's.  SIGTERM (``Pool.terminate``) ends it at once, as the default does,
     rather than unwinding the parent's stack that the fork copied (a worker that did so could block
     on a lock held at the fork, and the parent waited for it for ever); Ctrl-C is the parent's."""
-    import signal
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGALRM, signal.SIG_IGN)
+    signal.signal(signal.SIGPROF, signal.SIG_IGN)
 
 
 def _prepare_jobs(count: int) -> int:
@@ -278,40 +281,122 @@ def _prepare_jobs(count: int) -> int:
     return min(default_jobs(), count)
 
 
-def prepared_functions(functions, param_names: tuple, jobs: int | None = None) -> list[tuple[dict, int, float]]:
+def prepared_functions(functions, param_names: tuple, jobs: int | None = None,
+                       early: "EarlyKernels | None" = None) -> list[tuple[dict, int, float]]:
     """:func:`_prepare_one` of every kernel in ``functions`` (those solved at run time excluded), in
     ``jobs`` forked processes (default :func:`_prepare_jobs`), the largest first.
 
     Each kernel's CSE and staging is independent of the others' and of the process it runs in (the
     text is the same in one process or several, tested), and it is most of a render: an arm with
     its dynamics has two kernels (coriolis, regressor) of about a second each.  A budget that runs
-    out in the parent (its alarm) ends the workers with it."""
+    out in the parent (its alarm) ends the workers with it.  ``early``: kernels a process of their
+    own has been preparing since before the others existed (:class:`EarlyKernels`), taken from it."""
     global _PREPARING
     own = [i for i, f in enumerate(functions) if f.solve is None]
-    jobs = _prepare_jobs(len(own)) if jobs is None else jobs
-    _PREPARING = (functions, param_names, jobs > 1)
+    rest = [i for i in own if early is None or functions[i].name not in early.names]
+    jobs = _prepare_jobs(len(rest)) if jobs is None else jobs
+    _PREPARING = (functions, param_names, jobs > 1 or early is not None)
     try:
         if jobs <= 1:
-            return [_prepare_one(i) for i in own]
-        import multiprocessing
-        order = sorted(own, key=lambda i: -len(functions[i].definitions))
-        pool = multiprocessing.get_context("fork").Pool(jobs, initializer=_worker_signals)
-        try:
-            results = dict(zip(order, pool.imap(_prepare_one, order, chunksize=1)))
-        except BaseException:  # a budget, Ctrl-C or SIGTERM in the parent: the workers go with it
-            pool.terminate()
-            raise
-        pool.close()  # done: the workers leave on their own (no signal sent to them)
-        pool.join()
+            results = {i: _prepare_one(i) for i in rest}
+        else:
+            import multiprocessing
+            order = sorted(rest, key=lambda i: -len(functions[i].definitions))
+            pool = multiprocessing.get_context("fork").Pool(jobs, initializer=_worker_signals)
+            try:
+                results = dict(zip(order, pool.imap(_prepare_one, order, chunksize=1)))
+            except BaseException:  # a budget, Ctrl-C or SIGTERM in the parent: the workers go with it
+                pool.terminate()
+                raise
+            pool.close()  # done: the workers leave on their own (no signal sent to them)
+            pool.join()
+        if early is not None:
+            done = early.result()
+            results.update((i, done[functions[i].name]) for i in own if i not in results)
         return [results[i] for i in own]
     finally:
         _PREPARING = ()
 
 
-def robot_context(model: RobotModel, origin: str, verbose: bool = False, jobs: int | None = None) -> dict:
+class Forked:
+    """``function()`` run in a forked child process, its value read back through a pipe (pickled):
+    work that can go on beside the parent's, from what the parent holds in memory at the fork.
+    :meth:`result` waits for it (and raises what it raised); :meth:`cancel` ends it."""
+
+    def __init__(self, function):
+        read, write = os.pipe()
+        pid = os.fork()
+        if pid == 0:  # the child: never returns into the parent's stack
+            status = 1
+            try:
+                os.close(read)
+                _worker_signals()
+                try:
+                    payload = pickle.dumps((True, function()), protocol=pickle.HIGHEST_PROTOCOL)
+                except BaseException as exc:  # handed to the parent, as multiprocessing does
+                    try:
+                        payload = pickle.dumps((False, exc), protocol=pickle.HIGHEST_PROTOCOL)
+                    except Exception:
+                        payload = pickle.dumps((False, RuntimeError("".join(traceback.format_exception(exc)))))
+                with os.fdopen(write, "wb") as pipe:
+                    pipe.write(payload)
+                status = 0
+            finally:
+                os._exit(status)
+        os.close(write)
+        self._pid, self._read = pid, read
+
+    def result(self):
+        with os.fdopen(self._read, "rb") as pipe:
+            data = pipe.read()
+        _, status = os.waitpid(self._pid, 0)
+        self._pid = None
+        if not data:
+            raise RuntimeError(f"a worker process ended without its result (wait status {status})")
+        ok, value = pickle.loads(data)  # our own child's bytes, through a pipe only it and we hold
+        if not ok:
+            raise value
+        return value
+
+    def cancel(self) -> None:
+        if self._pid is None:
+            return
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(self._pid, signal.SIGTERM)
+        os.waitpid(self._pid, 0)
+        os.close(self._read)
+        self._pid = None
+
+
+class EarlyKernels:
+    """The kernels that need neither the rate kinematics nor the dynamics (``position_functions``),
+    prepared (:func:`_prepare_one`, printed ahead) in a forked process while the parent derives
+    those: on two cores that derivation (a KR 210's: 1.6 s) no longer leaves one core idle."""
+
+    def __init__(self, functions, param_names: tuple):
+        global _PREPARING
+        self.names = frozenset(f.name for f in functions if f.solve is None)
+        indices = [i for i, f in enumerate(functions) if f.solve is None]
+        _PREPARING = (functions, param_names, True)
+        try:
+            self._forked = Forked(lambda: {functions[i].name: _prepare_one(i) for i in indices})
+        finally:
+            _PREPARING = ()
+
+    def result(self) -> dict:
+        return self._forked.result()
+
+    def cancel(self) -> None:
+        self._forked.cancel()
+
+
+def robot_context(model: RobotModel, origin: str, verbose: bool = False, jobs: int | None = None,
+                  functions=None, early: EarlyKernels | None = None) -> dict:
+    """What the templates need of ``model``: every kernel prepared (``functions``, default
+    ``model.functions()``; ``early``: those of them prepared already), its constants and names."""
     param_names = tuple(str(s) for s in model.params)
-    model_functions = list(model.functions())
-    prepared = iter(prepared_functions(model_functions, param_names, jobs))
+    model_functions = list(model.functions()) if functions is None else list(functions)
+    prepared = iter(prepared_functions(model_functions, param_names, jobs, early))
     functions = []
     by_name = {}
     printed: dict = {"numpy": {}, "c": {}}
@@ -425,32 +510,56 @@ def render_robot(model: RobotModel, description: Path | None = None, backends=("
     a user's package (``kinegen generate``) tells of its own build script and `pip install` instead.
     """
     stage = _Stages(model.name, say)
-    if not isinstance(model, KernelSet):
-        with stage("rate kinematics"):
-            model.rates  # derived on first use (and cached on disk)
-        if getattr(model, "inertials", ()):  # an arm with inertial parameters: its equations of motion
-            with stage("equations of motion"):
-                model.dynamics
-            if model.dynamics is None and say is not None:
-                say(f"{model.name}: {model.notes.get('dynamics', 'no dynamics kernels')}")
-    with stage("common subexpressions of every kernel"):
-        context = robot_context(model, describe_origin(model, description), verbose)
-    context = dict(context, in_repository=in_repository, backends=tuple(backends))
-    init = "kernel_set_init.py.j2" if isinstance(model, KernelSet) else "package_init.py.j2"
-    files = {
-        "__init__.py": TEMPLATES.get_template(init).render(context),
-        "_runtime.py": TEMPLATES.get_template("runtime.py.j2").render(context),
-    }
-    if context["general_6r"]:  # the numpy backend's eigen-solve and Newton polish of a general 6R's ik (C: general_6r.c.j2)
-        files["_general_6r.py"] = TEMPLATES.get_template("general_6r.py.j2").render(context)
-    for backend in backends:
-        with stage(f"{backend} kernels"):
-            files.update(BACKENDS[backend].render(context))
-    for template, filename in PACKAGING:
-        files[filename] = TEMPLATES.get_template(template).render(context)
-    if latex and not isinstance(model, KernelSet):  # the LaTeX fragment describes a robot
-        with stage("LaTeX"):
-            files.update(latex_backend.render(model, context["origin"]))
+    origin = describe_origin(model, description)
+    # With processes to spare: the kernels that need neither rates nor dynamics are prepared in
+    # one while this process derives those, and the LaTeX is written in another while the rest
+    # are prepared (the text is the same either way).
+    # (Only where the kernels are RobotModel's own: a subclass's functions() may add or replace some.)
+    side = (isinstance(model, RobotModel) and type(model).functions is RobotModel.functions
+            and _prepare_jobs(len(model.joint_types) + 4) > 1)
+    early = latex_text = None
+    try:
+        functions = None
+        if side:
+            positions = model.position_functions()
+            early = EarlyKernels(positions, tuple(str(s) for s in model.params))
+        if not isinstance(model, KernelSet):
+            with stage("rate kinematics"):
+                model.rates  # derived on first use (and cached on disk)
+            if getattr(model, "inertials", ()):  # an arm with inertial parameters: its equations of motion
+                with stage("equations of motion"):
+                    model.dynamics
+                if model.dynamics is None and say is not None:
+                    say(f"{model.name}: {model.notes.get('dynamics', 'no dynamics kernels')}")
+        if side:  # = model.functions() (assembly.robot_kernels), without building the first ones again
+            functions = positions + model.rate_functions() + model.dynamics_functions()
+            if latex:
+                latex_text = Forked(lambda: latex_backend.render(model, origin))
+        with stage("common subexpressions of every kernel"):
+            context = robot_context(model, origin, verbose, functions=functions, early=early)
+        early = None  # taken
+        context = dict(context, in_repository=in_repository, backends=tuple(backends))
+        init = "kernel_set_init.py.j2" if isinstance(model, KernelSet) else "package_init.py.j2"
+        files = {
+            "__init__.py": TEMPLATES.get_template(init).render(context),
+            "_runtime.py": TEMPLATES.get_template("runtime.py.j2").render(context),
+        }
+        if context["general_6r"]:  # the numpy backend's eigen-solve and Newton polish of a general 6R's ik (C: general_6r.c.j2)
+            files["_general_6r.py"] = TEMPLATES.get_template("general_6r.py.j2").render(context)
+        for backend in backends:
+            with stage(f"{backend} kernels"):
+                files.update(BACKENDS[backend].render(context))
+        for template, filename in PACKAGING:
+            files[filename] = TEMPLATES.get_template(template).render(context)
+        if latex and not isinstance(model, KernelSet):  # the LaTeX fragment describes a robot
+            with stage("LaTeX"):
+                job, latex_text = latex_text, None
+                files.update(job.result() if job is not None else latex_backend.render(model, origin))
+    except BaseException:
+        for job in (early, latex_text):
+            if job is not None:
+                job.cancel()
+        raise
     return files
 
 

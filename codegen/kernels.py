@@ -16,6 +16,8 @@ from sympy.simplify.cse_main import tree_cse
 
 from derivations.model import SymbolicFunction
 
+from .operations import operation_count
+
 __all__ = ["PreparedFunction", "PreparedOutput", "PreparedCheck", "prepare", "canonical", "exact_floats",
            "bounded_numbers", "STATUS_CODES", "EXACT_INTEGER_LIMIT"]
 
@@ -208,9 +210,9 @@ def prepare(function: SymbolicFunction, param_names: tuple[str, ...]) -> Prepare
     for e in flat:
         free |= {str(s) for s in e.free_symbols}
     params_used = tuple(p for p in param_names if p in free)
-    operations = sum(sp.count_ops(e) for _, e in replacements) + sum(sp.count_ops(e) for e in reduced)
-    operations += sum(sp.count_ops(e) for c in checks for _, e in c.temporaries)
-    operations += sum(sp.count_ops(c.condition) for c in checks)
+    operations = sum(operation_count(e) for _, e in replacements) + sum(operation_count(e) for e in reduced)
+    operations += sum(operation_count(e) for c in checks for _, e in c.temporaries)
+    operations += sum(operation_count(c.condition) for c in checks)
     arguments = tuple((a.name, tuple(str(s) for s in a.symbols), a.doc) for a in function.arguments)
     return PreparedFunction(function.name, function.doc, arguments, params_used,
                             tuple((str(s), e) for s, e in replacements), tuple(outputs), int(operations),

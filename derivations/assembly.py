@@ -21,7 +21,7 @@ from .ik.general_6r import equations_function
 from .ik.primitives import ClampUnit, WrapAngle, kernel_form
 from .model import Argument, Output, RobotModel, SymbolicFunction, install_assembly, with_program
 
-__all__ = ["robot_kernels", "kinematics_kernels", "ik_kernel", "rate_kernels", "rates", "dynamics"]
+__all__ = ["robot_kernels", "position_kernels", "kinematics_kernels", "ik_kernel", "rate_kernels", "rates", "dynamics"]
 
 
 def kinematics_kernels(model: RobotModel) -> list[SymbolicFunction]:
@@ -50,10 +50,15 @@ def kinematics_kernels(model: RobotModel) -> list[SymbolicFunction]:
 
 def robot_kernels(model: RobotModel) -> list[SymbolicFunction]:
     """The kernels of the generated-code contract, in a fixed order (see the module's docstring)."""
+    return position_kernels(model) + model.rate_functions() + model.dynamics_functions()
+
+
+def position_kernels(model: RobotModel) -> list[SymbolicFunction]:
+    """The first of :func:`robot_kernels`: those that need neither the rate kinematics nor the
+    dynamics (a render prepares them while those are derived)."""
     # A general 6R (derivations.ik.general_6r): the closed-form equations its ik solves numerically.
     general = equations_function(model)
-    return kinematics_kernels(model) + ([model.ik_function()] if model.ik else []) + \
-        ([general[0]] if general else []) + model.rate_functions() + model.dynamics_functions()
+    return kinematics_kernels(model) + ([model.ik_function()] if model.ik else []) + ([general[0]] if general else [])
 
 
 def ik_kernel(model: RobotModel) -> SymbolicFunction:

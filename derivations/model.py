@@ -305,6 +305,11 @@ class RobotModel:
         """The kernels of the generated-code contract, in a fixed order (``assembly.robot_kernels``)."""
         return _assembly().robot_kernels(self)
 
+    def position_functions(self) -> list[SymbolicFunction]:
+        """The first of ``functions()``: those that need neither ``rates`` nor ``dynamics``
+        (``assembly.position_kernels``)."""
+        return _assembly().position_kernels(self)
+
     def ik_function(self) -> SymbolicFunction:
         """The ``ik`` kernel: every branch of ``self.ik`` at once (``assembly.ik_kernel``)."""
         return _assembly().ik_kernel(self)

@@ -7,9 +7,13 @@ writing) is shared in ``codegen.kernels`` and ``codegen.generate``.
 """
 from __future__ import annotations
 
+import contextlib
+import functools
+import importlib
+
 import jinja2
 import sympy as sp
-from sympy.printing.precedence import PRECEDENCE
+from sympy.printing.precedence import PRECEDENCE, precedence
 
 TEMPLATES = jinja2.Environment(
     loader=jinja2.PackageLoader("codegen.backends", "templates"),
@@ -31,6 +35,43 @@ def float_literal(value) -> str:
 # Integer powers up to this print as products (the manipulability thresholds need L**6).
 MAX_PRODUCT_POWER = 8
 
+# The terms of each sum in the order the printers print them ({(sum, order): terms}), shared by
+# every printer of the process: SymPy's as_ordered_terms was a third of a kernel's printing, and
+# the numpy, C and blocked-C printers order the same sums.  The order is SymPy's own, unchanged.
+_ORDERED_TERMS: dict = {}
+
+
+@functools.lru_cache(maxsize=1 << 17)
+def _remembered_precedence(item):
+    return precedence(item)
+
+
+def _precedence(item):
+    """SymPy's ``precedence``, remembered per expression: it is asked of a node by the node's own
+    printing and by its parent's (``parenthesize``), by each printer, and for a product it negates
+    the product to see whether a minus sign comes out (a third of a kernel's printing)."""
+    try:
+        return _remembered_precedence(item)
+    except TypeError:  # not hashable
+        return precedence(item)
+
+
+# The SymPy printing modules that call ``precedence`` by their own name for it.
+_PRECEDENCE_USERS = tuple(importlib.import_module(f"sympy.printing.{name}") for name in ("str", "codeprinter", "c", "pycode"))
+
+
+@contextlib.contextmanager
+def remembered_precedence():
+    """Within: those modules' ``precedence`` is :func:`_precedence` (the same values); restored after."""
+    saved = [module.precedence for module in _PRECEDENCE_USERS]
+    for module in _PRECEDENCE_USERS:
+        module.precedence = _precedence
+    try:
+        yield
+    finally:
+        for module, original in zip(_PRECEDENCE_USERS, saved):
+            module.precedence = original
+
 
 class ExactArithmeticMixin:
     """Printer methods shared by the numpy and C printers.
@@ -42,6 +83,18 @@ class ExactArithmeticMixin:
     """
 
     _sqrt_name = "sqrt"
+
+    def _as_ordered_terms(self, expr, order=None):
+        key = (expr, order or self.order)
+        terms = _ORDERED_TERMS.get(key)
+        if terms is None:
+            terms = _ORDERED_TERMS[key] = tuple(super()._as_ordered_terms(expr, order))
+        return list(terms)
+
+    def _handle_UnevaluatedExpr(self, expr):
+        # SymPy's CodePrinter rewrites re(...) around UnevaluatedExpr with a replace over the whole
+        # expression, a tenth of printing; a kernel's expressions hold no re(...) to rewrite.
+        return super()._handle_UnevaluatedExpr(expr) if expr.has(sp.re) else expr
 
     def _print_Float(self, expr):
         return float_literal(expr)

@@ -10,7 +10,7 @@ from derivations.ik import WrapAngle
 from derivations.ik.primitives import ClampUnit, Ramp
 from derivations.model import ANGLE_TASKS
 
-from . import TEMPLATES, ExactArithmeticMixin
+from . import TEMPLATES, ExactArithmeticMixin, remembered_precedence
 
 __all__ = ["CKernelPrinter", "render", "prune_helpers", "general_6r_function", "c_parts", "STRICT_FLAGS",
            "EXTRA_WARNINGS"]
@@ -42,7 +42,8 @@ class CKernelPrinter(ExactArithmeticMixin, C99CodePrinter):
         key = (self._indexed, expr)
         text = self._memo.get(key)
         if text is None:
-            text = self._memo[key] = super().doprint(expr)
+            with remembered_precedence():
+                text = self._memo[key] = super().doprint(expr)
         return text
 
     def indexed(self, names) -> "CKernelPrinter":

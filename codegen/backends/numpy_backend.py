@@ -4,7 +4,7 @@ from __future__ import annotations
 import sympy as sp
 from sympy.printing.numpy import NumPyPrinter
 
-from . import TEMPLATES, ExactArithmeticMixin
+from . import TEMPLATES, ExactArithmeticMixin, remembered_precedence
 
 __all__ = ["NumpyKernelPrinter", "render"]
 
@@ -24,7 +24,8 @@ class NumpyKernelPrinter(ExactArithmeticMixin, NumPyPrinter):
             return super().doprint(expr, assign_to)
         text = self._memo.get(expr)
         if text is None:
-            text = self._memo[expr] = super().doprint(expr)
+            with remembered_precedence():
+                text = self._memo[expr] = super().doprint(expr)
         return text
 
     def _nested(self, function, args):

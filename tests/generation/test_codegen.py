@@ -41,17 +41,21 @@ def test_a_robot_is_the_same_with_its_kernels_prepared_in_one_process_or_several
     for an arm with dynamics (program-form kernels), rates and checks."""
     model = derivations.load(generate.REPO / "tests" / "data" / "dynamics" / "rrp_arm.toml")
     monkeypatch.setenv("KINEGEN_JOBS", "1")
-    one = generate.render_robot(model, None, latex=False)
+    one = generate.render_robot(model, None)
     monkeypatch.setenv("KINEGEN_JOBS", "2")
     assert generate._prepare_jobs(len(model.functions())) == 2
-    contexts = []  # the two-process render's context, kept (rather than a third render to look at)
-    context = generate.robot_context
-    monkeypatch.setattr(generate, "robot_context", lambda *args: contexts.append(context(*args)) or contexts[-1])
-    several = generate.render_robot(model, None, latex=False)
-    assert several == one
-    [rendered] = contexts
+    contexts, forked = [], []  # the two-process render's context, kept (rather than a third render to look at)
+    context, fork = generate.robot_context, generate.Forked
+    monkeypatch.setattr(generate, "robot_context",
+                        lambda *args, **kwargs: contexts.append((context(*args, **kwargs), kwargs)) or contexts[-1][0])
+    monkeypatch.setattr(generate, "Forked", lambda function: forked.append(function) or fork(function))
+    several = generate.render_robot(model, None)
+    assert several == one and f"{model.name}.tex" in several
+    [(rendered, options)] = contexts
     printed = rendered["printed"]
     assert len(printed["c"]) > 100 and len(printed["numpy"]) > 100  # the workers printed ahead
+    # fk, frames, the Jacobians, task, ik were prepared beside the rates and the dynamics; the LaTeX too
+    assert {"fk", "jacobian", "ik"} <= options["early"].names and len(forked) == 2
 
 
 def test_stale_files_are_reported(tmp_path):
@@ -175,5 +179,15 @@ def test_the_render_workers_end_cleanly_when_done_and_when_a_budget_stops_the_pa
                 generate.prepared_functions(functions, params, jobs=2)
         assert time.perf_counter() - start < 10
         assert multiprocessing.active_children() == []
+        # a whole render, with the kernels prepared beside the derivation (EarlyKernels): the same
+        monkeypatch.setenv("KINEGEN_JOBS", "2")
+        start = time.perf_counter()
+        with pytest.raises(BudgetExceeded):
+            with budget(1.0, "a render"):
+                generate.render_robot(model, None)
+        assert time.perf_counter() - start < 10
+        assert multiprocessing.active_children() == []
+        with pytest.raises(ChildProcessError):  # no forked child left either (none to wait for)
+            os.waitpid(-1, os.WNOHANG)
     finally:
         signal.signal(signal.SIGTERM, previous)
