@@ -189,9 +189,9 @@ def prepare(function: SymbolicFunction, param_names: tuple[str, ...]) -> Prepare
     # expressions by node count first, which was most of the time for the big rate
     # kernels (an IRB 140's joint_acceleration: 3.0 s against 0.22 s, the same 233
     # temporaries); the text is as deterministic (the same across hash seeds, tested).
-    if len(flat) < TREE_CSE_ONLY:
+    if len(flat) < TREE_CSE_ONLY and function.cse != "tree":
         replacements, reduced = sp.cse(flat, symbols=symbols, order="none")
-    else:  # a long program: repeated subtrees only (see TREE_CSE_ONLY)
+    else:  # a long program, or one through and through (SymbolicFunction.cse): repeated subtrees only
         replacements, reduced = tree_cse(flat, symbols, {}, "none", ())
     if definitions:
         replacements = _program_order(replacements, [(s, e) for (s, _), e in zip(definitions, reduced)],

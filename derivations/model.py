@@ -140,6 +140,12 @@ class SymbolicFunction:
     # automatic inverse kinematics is emitted this way, step by step, rather than as trees
     # whose shared parts a CSE would have to find again (minutes for a six-joint arm).
     definitions: tuple[tuple[sp.Symbol, sp.Expr], ...] = ()
+    # How the code generator finds common subexpressions: "full" (SymPy's cse, which also finds
+    # shared parts of sums and products), or "tree" (repeated subtrees only) for a kernel that is a
+    # straight-line program through and through, as the Newton-Euler equations are: there the search
+    # for shared sums took three quarters of the time for 0-9 % fewer operations (a KR 210's
+    # dynamics kernels: 2.2 s against 0.6 s, 8,133 operations against 8,484).
+    cse: str = "full"
 
 
 @dataclass(frozen=True)

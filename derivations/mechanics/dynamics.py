@@ -45,7 +45,7 @@ has no Coulomb friction (no stiction model).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import sympy as sp
 
@@ -562,7 +562,8 @@ def derive_dynamics(model) -> Dynamics:
     ]
     if singular is not None:
         functions = [f for f in functions if f.name != "forward_dynamics"]
-    functions = with_program(functions, tuple(program.steps))
+    # the Newton-Euler kernels are programs through and through: their CSE looks for repeated subtrees only
+    functions = with_program([replace(f, cse="tree") for f in functions], tuple(program.steps))
     functions += with_program([SymbolicFunction(
         "static_torques", (qa, wrencha), (Output("tau", tuple(static), (n,)),),
         f"Joint torques J(q)^T wrench that hold the wrench [f; n] (base frame, at the tool point), "
