@@ -189,7 +189,8 @@ def test_subproblems_leave_an_angle_free_where_the_turn_changes_nothing(seed):
     M = lambda v: sp.Matrix([sp.Float(e, 30) for e in v])  # noqa: E731
     v = rng.uniform(0.2, 2) * k + rng.normal(size=3) * 1e-17     # on the axis, to rounding
     a, b = rng.normal(size=3), rng.uniform(0.2, 2) * k + rng.normal(size=3) * 1e-17
-    equations = [(angle_to_height, lambda theta: np.dot(h, _rotate(k, theta, v)), float(np.dot(h, v)), (M(h), M(k), M(v))),
+    equations = [(angle_to_height, lambda theta: np.dot(h, _rotate(k, theta, v)), float(np.dot(h, v)),
+                  (M(h), M(k), M(v))),
                  (angle_to_distance, lambda theta: np.sum((a + _rotate(k, theta, b)) ** 2), float(np.sum((a + b) ** 2)),
                   (M(k), M(a), M(b)))]
     for subproblem, side, target, args in equations:
