@@ -28,7 +28,9 @@
 #                   then ik_numeric in C and numpy against the Toolbox's ik_LM on the Panda and the
 #                   Jaco, and ik of one 4x4 pose against the 12-vector (benchmarks/numeric_ik.md),
 #                   then the general 6R's every real solution of the Jaco, 10,000 + 1,000 poses in
-#                   both backends, against the Toolbox's Raghavan-Roth and ik_LM (benchmarks/general_6r.md)
+#                   both backends, against the Toolbox's Raghavan-Roth and ik_LM (benchmarks/general_6r.md),
+#                   then every closed-form arm of both zoos: wrong, missing and no-solution counts
+#                   over 10,000 + 1,000 configurations in both backends (benchmarks/ik_census.md; in .venv)
 #   make clean      remove the virtual environment, caches and built libraries
 
 PYTHON ?= python3
@@ -178,6 +180,7 @@ bench: $(BENCH_STAMP) $(STAMP)
 	$(BENCH_PY) benchmarks/numeric_ik.py
 	$(BENCH_PY) benchmarks/general_6r.py
 	$(BENCH_PY) benchmarks/peers_ik.py
+	$(PY) benchmarks/ik_census.py --out build/ik_census --markdown benchmarks/ik_census.md
 
 clean:
 	rm -rf $(VENV) $(BENCH_VENV) .cache build *.egg-info

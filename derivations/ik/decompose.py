@@ -48,11 +48,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import sympy as sp
+from sympy.functions.elementary.piecewise import ExprCondPair
 
 from ..chain import PRISMATIC, REVOLUTE
 from ..model import APPROACH_NAMES, POSE_NAMES, IKBranch
 from .branch_names import geometric_names
-from .primitives import ClampUnit, WrapAngle
+from .primitives import ClampUnit, WrapAngle, written_piecewise
 from .reverse import SWAPPED_LABELS, reversed_joints, reversed_structure, reversed_target
 from .structure import Axis, Structure, check_product_of_exponentials, cross, dot, is_zero, rotate, structure_of, tidy
 from .subproblems import (TINY, angle_onto, angle_to_distance, angle_to_height, cone_angle, distance_coefficients,
@@ -801,8 +802,7 @@ _UNEVALUATED = (sp.Min, sp.Max, sp.Piecewise, sp.Rel, sp.Function)
 def _conjunction(func, args):
     """``And(*args)`` (or ``Or``) as written: SymPy's constructor sorts the arguments by their
     tree size, which on a six-joint inverse counts millions of nodes."""
-    if func is sp.And:
-        func = Conjunction
+    func = {sp.And: Conjunction, sp.Or: Disjunction}.get(func, func)
     return sp.Basic.__new__(func, *args)
 
 
@@ -812,6 +812,14 @@ class Conjunction(sp.And):
 
     def __reduce_ex__(self, protocol):
         return _conjunction, (Conjunction, self.args)
+
+
+class Disjunction(sp.Or):
+    """An ``Or`` built as written, as :class:`Conjunction` (a subproblem's existence: the root
+    exists, or the angle is free)."""
+
+    def __reduce_ex__(self, protocol):
+        return _conjunction, (Disjunction, self.args)
 
 
 def substitute_unevaluated(expr, subs: dict, memo: dict):
@@ -830,6 +838,10 @@ def substitute_unevaluated(expr, subs: dict, memo: dict):
         result = expr
     elif isinstance(expr, (sp.And, sp.Or)):
         result = _conjunction(expr.func, args)
+    elif isinstance(expr, sp.Piecewise):   # as written (primitives.WrittenPiecewise)
+        result = written_piecewise(*(pair.args for pair in args))
+    elif isinstance(expr, ExprCondPair):
+        result = sp.Basic.__new__(ExprCondPair, *args)
     elif isinstance(expr, _UNEVALUATED):
         result = expr.func(*args, evaluate=False)
     else:

@@ -26,10 +26,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import sympy as sp
+from sympy.functions.elementary.piecewise import ExprCondPair
 
 __all__ = ["ACOS_TOLERANCE", "Root", "clamp_unit", "within_unit", "acos_clamped", "atan2_of_sine_cosine", "law_of_cosines",
            "p_cos_q_sin_r", "prismatic_along", "sine_cosine_pair", "two_link", "WrapAngle", "wrap_angle", "kernel_form",
-           "substitute_steps", "ClampUnit", "Ramp", "UNIT_SNAP"]
+           "substitute_steps", "ClampUnit", "Ramp", "UNIT_SNAP", "WrittenPiecewise",
+           "written_piecewise"]
 
 # |c| <= 1 + ACOS_TOLERANCE clamps onto the unit interval; beyond is unreachable.
 ACOS_TOLERANCE = sp.Rational(1, 10**12)
@@ -171,6 +173,30 @@ class WrapAngle(sp.Function):
         # The wrap shifts theta by constant multiples of 2 pi: its slope is 1
         # wherever it is differentiable (joint rates along a path need this).
         return sp.S.One
+
+
+class _WrittenPiecewise(sp.Piecewise):
+    """A ``Piecewise`` built, rebuilt and unpickled as written (:func:`written_piecewise`).
+
+    SymPy's constructor folds a condition that holds another ``Piecewise`` (``piecewise_fold``,
+    then ``as_set`` through solveset): seconds per piece on a derived inverse, where a later root's
+    free case (``subproblems.FREE_ANGLE``) reads an earlier root that has one of its own, and again
+    on every load from the derivation cache (the Romeo arm's model: 3.7 s to 38 s of CPU).
+    """
+
+    def __reduce_ex__(self, protocol):
+        return written_piecewise, tuple(tuple(piece) for piece in self.args)
+
+
+# Named Piecewise for the printers: SymPy's dispatch skips the print methods of a renamed subclass
+# of a Function (Printer._print), and this one prints as the Piecewise it is.
+_WrittenPiecewise.__name__ = _WrittenPiecewise.__qualname__ = "Piecewise"
+WrittenPiecewise = _WrittenPiecewise
+
+
+def written_piecewise(*pieces) -> WrittenPiecewise:
+    """``Piecewise((expr, cond), ...)`` as written: no folding, no evaluation of the conditions."""
+    return sp.Basic.__new__(WrittenPiecewise, *(sp.Basic.__new__(ExprCondPair, sp.sympify(e), c) for e, c in pieces))
 
 
 class _NumbersOnly(sp.Function):

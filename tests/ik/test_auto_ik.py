@@ -55,15 +55,17 @@ def evaluate_steps(model, branch, x: np.ndarray, extra=None):
         names = sorted(expr.free_symbols, key=str)
         value = sp.lambdify(names, expr, modules=MODULES)(*(values[n] for n in names))
         values[symbol] = np.broadcast_to(np.asarray(value, dtype=float), (len(x),))
-    condition = branch.step_condition
-    conditions = condition.args if isinstance(condition, sp.And) else (condition,)
-    valid = np.ones(len(x), bool)
-    for c in conditions:
+    def truth(c):
         if c is sp.true:
-            continue
+            return np.ones(len(x), bool)
+        if isinstance(c, (sp.And, sp.Or)):
+            parts = [truth(a) for a in c.args]
+            return np.logical_and.reduce(parts) if isinstance(c, sp.And) else np.logical_or.reduce(parts)
         names = sorted(c.free_symbols, key=str)
         lhs, rhs = (sp.lambdify(names, side, modules=MODULES)(*(values[n] for n in names)) for side in (c.lhs, c.rhs))
-        valid &= COMPARE[type(c)](np.asarray(lhs, float), np.asarray(rhs, float))
+        return np.broadcast_to(COMPARE[type(c)](np.asarray(lhs, float), np.asarray(rhs, float)), (len(x),))
+
+    valid = truth(branch.step_condition)
     Q = np.stack([np.broadcast_to(values[q], (len(x),)) for q in model.q], axis=-1)
     return Q, valid & np.isfinite(Q).all(axis=-1)
 
@@ -173,6 +175,31 @@ def test_subproblems_satisfy_their_equations(seed):
     delta2 = float(np.sum((a + t * k) ** 2))
     roots = slide_to_distance(M(k), M(a), sp.Float(delta2, 30))
     assert any(abs(_numeric(r.value) - t) < 1e-9 for r in roots)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_subproblems_leave_an_angle_free_where_the_turn_changes_nothing(seed):
+    """A vector on the axis (subproblem 4: v = |v| k, rounded in its last digits; subproblem 3: the
+    point b on the axis) gives P = Q = 0 up to rounding: every angle solves the equation when the
+    target is the one the vector already has (the height h . v, the distance |a + b|), and both roots
+    exist, 0 and pi, each satisfying it; a target 1e-6 off has no root.  Before, R^2 <= P^2 + Q^2
+    compared two rounding errors and refused such targets (the PR2's stretched elbow)."""
+    rng = np.random.default_rng(seed)
+    k, h = _unit(rng.normal(size=3)), _unit(rng.normal(size=3))
+    M = lambda v: sp.Matrix([sp.Float(e, 30) for e in v])  # noqa: E731
+    v = rng.uniform(0.2, 2) * k + rng.normal(size=3) * 1e-17     # on the axis, to rounding
+    a, b = rng.normal(size=3), rng.uniform(0.2, 2) * k + rng.normal(size=3) * 1e-17
+    equations = [(angle_to_height, lambda theta: np.dot(h, _rotate(k, theta, v)), float(np.dot(h, v)),
+                  (M(h), M(k), M(v))),
+                 (angle_to_distance, lambda theta: np.sum((a + _rotate(k, theta, b)) ** 2), float(np.sum((a + b) ** 2)),
+                  (M(k), M(a), M(b)))]
+    for subproblem, side, target, args in equations:
+        roots = subproblem(*args, sp.Float(target, 30))
+        assert all(bool(r.condition) for r in roots), subproblem.__name__
+        assert sorted(abs(_numeric(r.value)) for r in roots) == pytest.approx([0, np.pi], abs=1e-15)
+        for r in roots:
+            assert abs(side(_numeric(r.value)) - target) < 1e-12
+        assert not any(bool(r.condition) for r in subproblem(*args, sp.Float(target + 1e-6, 30)))
 
 
 def test_cone_angle_keeps_the_digits_near_zero():

@@ -154,11 +154,15 @@ def evaluate_steps(model, branch, x, extra=None):
         return np.broadcast_to(np.asarray(function(*(values[n] for n in names)), dtype=float), (len(x),))
     for symbol, expr in branch.steps:
         values[symbol] = value(expr)
-    condition = branch.step_condition
-    valid = np.ones(len(x), bool)
-    for c in (condition.args if isinstance(condition, sp.And) else (condition,)):
-        if c is not sp.true:
-            valid &= COMPARE[type(c)](value(c.lhs), value(c.rhs))
+
+    def truth(c):   # And of the roots' conditions; a root's own is an Or where its angle can be free
+        if c is sp.true:
+            return np.ones(len(x), bool)
+        if isinstance(c, (sp.And, sp.Or)):
+            parts = [truth(a) for a in c.args]
+            return np.logical_and.reduce(parts) if isinstance(c, sp.And) else np.logical_or.reduce(parts)
+        return COMPARE[type(c)](value(c.lhs), value(c.rhs))
+    valid = truth(branch.step_condition)
     Q = np.stack([np.broadcast_to(values[q], (len(x),)) for q in model.q], axis=-1)
     return Q, valid & np.isfinite(Q).all(axis=-1)
 

@@ -228,6 +228,30 @@ def test_an_arm_with_its_own_family_keeps_it():
     assert "joint 5: reversed spherical wrist family" in listing
 
 
+@pytest.mark.parametrize("held", [6, 7])
+def test_the_lwr4_held_at_joint_6_or_7_solves_every_degenerate_configuration(held):
+    """The KUKA LWR 4 held at joint 6 or 7: with q4 = 0 the shoulder point lies on axis 5 and
+    subproblem 4's P and Q are rounding (the angle is free, subproblems.FREE_ANGLE).  Before that
+    case 14 and 31 of these 100 degenerate configurations had no valid branch.  Now every one has,
+    none is wrong, and the generating configuration is among the branches wherever it is not one of
+    a continuum: every one missed is singular, the Jacobian of the six solved joints (this file's DH
+    product, test_zoo.jacobian) of rank below six."""
+    from test_zoo import jacobian
+    case = Case(f"KUKA LWR 4, DH, q{held} free", (LWR.path, {}), held - 1, lambda q: dh_walk(LWR, q))
+    model = case.model
+    assert model.ik_plan[0] == f"family: reversed spherical wrist, joint {held} free"
+    q = configurations(model.n, zlib.crc32(f"lwr{held - 1}".encode()))
+    x = pose_vector(case.walk(q)[0])
+    branches = [evaluate_steps(model, b, x, {model.q[case.free]: q[:, case.free]}) for b in model.ik]
+    Q, valid = np.stack([b[0] for b in branches], axis=1), np.stack([b[1] for b in branches], axis=1)
+    counts, worst = tally(case, q, x, Q, valid)
+    assert counts["wrong"] == counts["no solution"] == 0, (counts, worst)
+    missed = np.where(valid, joint_distance(case, q, Q), np.inf).min(axis=-1) > JOINT_TOLERANCE
+    assert not missed[:RANDOM].any()
+    smallest = np.linalg.svd(np.delete(jacobian(LWR, q[missed]), case.free, axis=-1), compute_uv=False)[:, -1]
+    assert (smallest < 1e-12).all(), smallest
+
+
 # --------------------------------------------------------------------------- the generated packages
 
 PACKAGED = {"panda_dh": ("--free-joint", "7"), "lwr4_q5": ("--free-joint", "5")}
