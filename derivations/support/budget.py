@@ -173,7 +173,14 @@ def budget(seconds: float | None, stage: str, clock: str = "wall"):
         yield
     finally:
         chosen.open.remove(entry)
+        # Every clock, not only this one: a budget of the other clock that ran out while this body
+        # ran was raised into it, and this budget's catcher may have taken it for its own (the
+        # automatic ik's CPU-time budget inside the command's --time-limit): armed again, its
+        # deadline passed, it is raised once more as soon as this budget closes.
         chosen.arm()
+        for other in _CLOCKS.values():
+            if other is not chosen and other.open:
+                other.arm()
         if previous != chosen.on_signal:
             signal.signal(chosen.signum, previous)
 

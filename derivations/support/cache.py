@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Callable, TypeVar
 
 import sympy
+from sympy.core.cache import clear_cache
 
 from . import budget
 
@@ -158,6 +159,12 @@ def cached(kind: str, content: bytes, build: Callable[[], T]) -> T:
         if (head + b"\n" == MAGIC and len(rest) > 65
                 and hmac.compare_digest(signature, _signature(secret, path.name, payload))):
             try:
+                # Unpickling rebuilds every expression through SymPy's constructors, whose cache
+                # holds what this process built before: a second copy of the same model would hit
+                # entries of the first and compare the two trees node by node without their
+                # sharing (the ROMEO arm's model, loaded a second time in one process: 3 -> 264 s
+                # of CPU).  Emptied first, the cache holds only the entry's own, shared, objects.
+                clear_cache()
                 return pickle.loads(payload)
             except Exception:  # signed by us but unreadable (another Python or SymPy): derive afresh
                 pass

@@ -301,6 +301,24 @@ def test_a_cpu_budget_counts_work_not_waiting():
             pass
 
 
+def test_a_wall_budget_taken_by_a_cpu_budgets_catcher_still_stops_the_work():
+    """--time-limit (wall clock) running out inside the automatic ik's CPU budget is raised into
+    the ik, whose catcher takes any BudgetExceeded for its own and goes on: `kinegen generate
+    --time-limit 0.5` then ran for 6 s and wrote its package.  The outer budget is raised again as
+    soon as the inner one closes."""
+    from derivations.budget import BudgetExceeded, budget
+    caught = []
+    with pytest.raises(BudgetExceeded, match="the command: stopped after its time budget of 0.05 s"):
+        with budget(0.05, "the command"):
+            try:
+                with budget(10, "the ik", clock="cpu"):
+                    time.sleep(1)   # the wall clock runs out here
+            except BudgetExceeded as error:
+                caught.append(error.what)    # the ik's catcher, as derivations.ik.decompose.attach
+            time.sleep(1)   # the rest of the command: stopped here, not after the second
+    assert caught == ["the command"]
+
+
 def test_a_memory_cap_names_the_step_the_allocation_failed_in():
     """The cap is reported after the steps have closed; it names the step the failure left."""
     from derivations.budget import MemoryCapExceeded, memory_cap, stage
