@@ -166,16 +166,25 @@ def test_the_pencil_has_eight_spurious_eigenvalues_at_plus_minus_i(generated_roo
     degree 24 in x_3 holds the factor (1 + x_3^2)^4, and the 12 x 12 matrix quadratic is semisimple there:
     at every random pose and on both loops, M(i) = M_0 - M_2 + i M_1 has a null space of dimension 4
     (singular values 9 to 12 at rounding, the 8th well above), and the 24 x 24 companion matrix (numpy's
-    eig, not the C's) has exactly 8 eigenvalues at +-i, 4 each, and 16 elsewhere."""
+    eig, not the C's) has exactly 8 eigenvalues at +-i, 4 each, and 16 elsewhere.  That null space is
+    the same at every pose, random or degenerate (the C finds it once per call from a reference pose,
+    g6r_prepare): the first pose's null vectors (numpy's SVD) are null vectors of every other pose's
+    M(i), to 1e-12 of its largest entry."""
     from derivations.ik.general_6r import numeric_pencil
     arm = ARMS["kinova_jaco"]
     package = generated_package("kinova_jaco", generated_root)
-    q = jaco_configurations()[:20]
+    q = np.vstack([jaco_configurations()[:20], jaco_configurations()[RANDOM:RANDOM + 20]])
     P, Q, _ = package.ik_6r_equations(fk(arm, q)[:, :3].reshape(-1, 12)[:, [3, 7, 11, 0, 1, 2, 4, 5, 6, 8, 9, 10]])
+    first = {}
     for n in range(len(q)):
         for loop in range(P.shape[1]):
             M2, M1, M0 = numeric_pencil(P[n, loop], Q[n, loop])
-            sv = np.linalg.svd(M0 - M2 + 1j * M1, compute_uv=False)
+            Mi = M0 - M2 + 1j * M1
+            first.setdefault(loop, np.linalg.svd(Mi)[2][-4:].conj().T)
+            assert np.abs(Mi @ first[loop]).max() < 1e-12 * np.abs(Mi).max()
+            if n >= 20:   # the degenerate ones: the eigenvalues below are held at the random ones
+                continue
+            sv = np.linalg.svd(Mi, compute_uv=False)
             assert sv[8:].max() < 1e-12 * sv[0] and sv[7] > 1e-6 * sv[0], sv / sv[0]
             companion = np.zeros((24, 24))
             companion[:12, 12:] = np.eye(12)
