@@ -186,7 +186,7 @@ def test_the_general_6r_misses_no_regular_degenerate_configuration(backend, irb1
     it is regular (the smallest singular value of the XML chain's own Jacobian above 1e-6; 1,792 of
     them).  At such poses the IRB 140's pencil has eigenvalues of multiplicity 2 and 4 (solutions
     sharing q3, or q1): the C's QR steps cycled on the multiple eigenvalue of one cut until they
-    gave up (29 of them missed), and where the other cut's eigenvalue is double, the one null
+    gave up (34 of them missed here), and where the other cut's eigenvalue is double, the one null
     vector it reads is a mix of two solutions.  At singular configurations (a continuum, a double
     root) which answer Newton settles on is not fixed: they are only held to no wrong answer."""
     _, chain = model_and_chain("irb140")
