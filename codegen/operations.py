@@ -79,8 +79,8 @@ def _count(node) -> int:
 
 def _negative_coefficient(term) -> bool:
     """sympy.core.function._coeff_isneg."""
-    if isinstance(term, _Product) or term.is_Mul:
-        term = term[0] if isinstance(term, _Product) else term.args[0]
+    if term.is_Mul:
+        term = term.args[0]
     return bool(term.is_Number and term.is_extended_negative)
 
 

@@ -35,10 +35,12 @@ def float_literal(value) -> str:
 # Integer powers up to this print as products (the manipulability thresholds need L**6).
 MAX_PRODUCT_POWER = 8
 
-# The terms of each sum in the order the printers print them ({(sum, order): terms}), shared by
-# every printer of the process: SymPy's as_ordered_terms was a third of a kernel's printing, and
-# the numpy, C and blocked-C printers order the same sums.  The order is SymPy's own, unchanged.
-_ORDERED_TERMS: dict = {}
+@functools.lru_cache(maxsize=1 << 16)
+def _terms_in_order(expr, order) -> tuple:
+    """The terms of a sum in the order the printers print them, SymPy's own (``as_ordered_terms``),
+    remembered for every printer of the process: it was a third of a kernel's printing, and the
+    numpy, C and blocked-C printers order the same sums."""
+    return tuple(expr.as_ordered_terms(order=order))
 
 
 @functools.lru_cache(maxsize=1 << 17)
@@ -85,11 +87,10 @@ class ExactArithmeticMixin:
     _sqrt_name = "sqrt"
 
     def _as_ordered_terms(self, expr, order=None):
-        key = (expr, order or self.order)
-        terms = _ORDERED_TERMS.get(key)
-        if terms is None:
-            terms = _ORDERED_TERMS[key] = tuple(super()._as_ordered_terms(expr, order))
-        return list(terms)
+        order = order or self.order
+        if order in ("old", "none"):  # orders of the printer itself (Printer._as_ordered_terms)
+            return super()._as_ordered_terms(expr, order)
+        return list(_terms_in_order(expr, order))
 
     def _handle_UnevaluatedExpr(self, expr):
         # SymPy's CodePrinter rewrites re(...) around UnevaluatedExpr with a replace over the whole

@@ -251,13 +251,19 @@ def _cross(a, b):
             _add(_mul(a[0], b[1]), _mul(a[1], b[0]), -1)]
 
 
-def _expand(p):
+def _mapped(p, f):
+    """The polynomial ``p`` ({monomial: coefficient}) with each coefficient passed through ``f``,
+    the zeros dropped."""
     out = {}
     for m, v in p.items():
-        v = _simplified(v)
+        v = f(v)
         if v != 0:
             out[m] = v
     return out
+
+
+def _expand(p):
+    return _mapped(p, _simplified)
 
 
 def _invariants(p, l):
@@ -318,12 +324,7 @@ def _simplified(v):
 def _named(inv, name):
     """The invariants with each coefficient passed through ``name``, the zeros dropped."""
     def named(p):
-        out = {}
-        for m, v in p.items():
-            v = name(v)
-            if v != 0:
-                out[m] = v
-        return out
+        return _mapped(p, name)
     p, l, pp, pl, pxl, last = inv
     return ([named(v) for v in p], [named(v) for v in l], named(pp), named(pl), [named(v) for v in pxl],
             [named(v) for v in last])
