@@ -6,8 +6,6 @@ import re
 import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
-from derivations.ik import WrapAngle
-from derivations.ik.primitives import ClampUnit, Ramp
 from derivations.model import ANGLE_TASKS
 
 from . import TEMPLATES, ExactArithmeticMixin, remembered_precedence
@@ -159,6 +157,9 @@ def declarations(context: dict, for_cffi: bool) -> str:
 _HELPER = re.compile(r"^@@helper (?P<name>\w+)@@\n(?P<body>.*?)^@@end@@\n", re.S | re.M)
 
 
+_UNIT = re.compile(r"^#if !defined\(KINEGEN_PART\) \|\| KINEGEN_PART == (?P<part>\d+)$", re.M)
+
+
 def prune_helpers(text: str) -> str:
     """The C text with each static helper kept only where something else in it calls it.
 
@@ -166,7 +167,9 @@ def prune_helpers(text: str) -> str:
     and ``@@end@@``.  A helper whose name appears nowhere outside its own block is
     dropped (repeatedly, since a dropped helper may have been another's only caller),
     and the marker lines go: a ``static`` function nobody calls would stop the build
-    under ``-Werror=unused-function``, whatever the robot, task or kernel set.
+    under ``-Werror=unused-function``, whatever the robot, task or kernel set.  In a file
+    that compiles as several units (:func:`c_parts`), each helper is compiled in the units
+    that call it, and only there (:func:`_unit_guards`).
     """
     while True:
         blocks = list(_HELPER.finditer(text))
@@ -176,7 +179,34 @@ def prune_helpers(text: str) -> str:
             break
         for block in reversed(unused):
             text = text[:block.start()] + text[block.end():]
-    return _HELPER.sub(lambda b: b["body"], text)
+    guards = _unit_guards(text)
+    return _HELPER.sub(lambda b: guards.get(b["name"], "{}").format(b["body"]), text)
+
+
+def _unit_guards(text: str) -> dict[str, str]:
+    """{helper: its block's text around ``{}``, guarded to the units that call it} for a file of
+    several units (none for one unit): the units each helper's name appears in, and those of
+    the helpers that call it.  The helpers stand before the first unit, outside every unit."""
+    units = list(_UNIT.finditer(text))
+    if not units:
+        return {}
+    sections = [(int(u["part"]), text[u.start():(units[k + 1].start() if k + 1 < len(units) else len(text))])
+                for k, u in enumerate(units)]
+    blocks = {b["name"]: b["body"] for b in _HELPER.finditer(text)}
+    callers = {name: {other for other, body in blocks.items()
+                      if other != name and re.search(rf"\b{name}\b", body)} for name in blocks}
+    used = {name: {part for part, section in sections if re.search(rf"\b{name}\b", section)} for name in blocks}
+    changed = True
+    while changed:  # a helper is needed where its callers are
+        changed = False
+        for name in blocks:
+            wider = used[name].union(*(used[c] for c in callers[name]))
+            changed, used[name] = changed or wider != used[name], wider
+    guards = {}
+    for name, parts in used.items():
+        condition = " || ".join(["!defined(KINEGEN_PART)"] + [f"KINEGEN_PART == {part}" for part in sorted(parts)])
+        guards[name] = f"#if {condition}\n{{}}#endif\n"
+    return guards
 
 
 # ik_numeric (robot.c.j2): what it converges to, and how many steps it takes at most (the numpy
@@ -229,44 +259,48 @@ def general_6r_function(context: dict) -> dict | None:
     }
 
 
-# A C file whose kernels hold at least SPLIT_OPERATIONS operations (after CSE) compiles as several
-# units side by side (build_c.py.j2), one more for each further SPLIT_OPERATIONS, at most MAX_PARTS:
-# GCC's time on a kernel grows faster than its size (register allocation over one long function
-# was two thirds of the Jaco's 12 s -O2 compile), so a large file spends most of its build on one
-# core while the other has only the cffi binding to compile.  The papers' robots (the PUMA 560:
-# 5,929 operations) stay one unit.
+# A C file whose kernels hold at least SPLIT_OPERATIONS operations (after CSE) compiles as
+# several units side by side (build_c.py.j2), one more for each further SPLIT_OPERATIONS, at most
+# MAX_PARTS: a large file in one unit spends most of its build on one core while the other has only
+# the cffi binding to compile.  The papers' robots (the PUMA 560: 5,929 operations) stay one unit.
 SPLIT_OPERATIONS = 6000
 MAX_PARTS = 3
-# The compile cost of the general 6R's solver (general_6r.c.j2) in the units c_parts weighs kernels
-# by (operations squared, which fitted the Jaco's kernels' -O2 compile): about that of a
-# 1,300-operation kernel (with it the Jaco's two units took 2.2 and 2.3 s, with 1,800 1.9 and
-# 2.8 s; 2026-11-26, gcc 12).
-GENERAL_6R_WEIGHT = 1300 ** 2
-# The sympy functions the C prints as calls of static helpers (kinegen_min, ...): a kernel that has
-# one stays in the first unit, with the helpers.
-_HELPER_CALLS = (sp.Min, sp.Max, ClampUnit, Ramp, WrapAngle)
+# What a kernel costs GCC at -O2, in operations (c_parts balances the units by it).  Measured one
+# kernel at a time (each with the file's preamble, gcc 12, 2026-11-26) on the KUKA KR 210's 29
+# kernels and the Kinova Jaco's 22, the time grows with the operations (about 0.2-0.3 ms each), plus
+# about 50 ms a kernel, plus a term in the square of the entries it stores: the Jaco's
+# ik_6r_equations (2,044 operations, 1,124 entries stored) took 1.5-2.0 s where a kernel of
+# 2,000 operations and few outputs takes 0.5 s (GCC's dead-store and alias passes compare each
+# store with those before it).  The squared operations this used before put the KR 210's coriolis
+# (3,106 operations, 0.6 s) in a unit alone and the rest in two: 0.7, 1.4 and 2.0 s.
+KERNEL_WEIGHT = 200
+STORES_SQUARED_PER_OPERATION = 300
+# The general 6R's solver (general_6r.c.j2), in the first unit: about a 2,800-operation kernel.
+GENERAL_6R_WEIGHT = 2800
+
+
+def compile_weight(f: dict) -> int:
+    """What kernel ``f`` (a template dict) costs the compiler, in operations (the notes above)."""
+    stores = sum(len(out["staged"]) for out in f["outputs"])
+    return f["operations"] + KERNEL_WEIGHT + stores * stores // STORES_SQUARED_PER_OPERATION
 
 
 def _movable(f: dict) -> bool:
-    """Whether kernel ``f`` (a template dict) may go in a unit of its own: its single point and its
-    batch call nothing static (no helper, no requirement check, no run-time solve, no ik)."""
-    if f.get("general_6r") or f.get("solve") or f["is_ik"] or f["checks"]:
-        return False
-    exprs = [e for _, e in f["prologue"]] + [e for s in f["stages"] for _, e, _ in s["body"]]
-    exprs += [call["expr"] for s in f["stages"] for group in s["groups"] for call in group["calls"]]
-    exprs += [e for out in f["outputs"] for _, e in out["staged"]]
-    return not any(isinstance(e, sp.Basic) and e.has(*_HELPER_CALLS) for e in exprs)
+    """Whether kernel ``f`` (a template dict) may go in a unit of its own: it is not the ik (whose
+    checks are a static function of its own beside it), the general 6R or a run-time solve.  The
+    static helpers a kernel calls are compiled in each unit that calls them (prune_helpers)."""
+    return not (f.get("general_6r") or f.get("solve") or f["is_ik"])
 
 
 def c_parts(functions: list[dict]) -> tuple[int, dict[str, int]]:
     """(how many units the C file compiles as, {kernel name: its unit} for those not in the first).
 
-    Kernels that may move (:func:`_movable`) go, largest first, to the unit with the least weight,
-    each weighing its operations squared (the first unit also carries what cannot move, the general
-    6R's solver as GENERAL_6R_WEIGHT): deterministic, from the kernels alone, never the machine."""
+    Kernels that may move (:func:`_movable`) go, heaviest first (:func:`compile_weight`), to the
+    unit with the least weight (the first unit also carries what cannot move, and the general 6R's
+    solver as GENERAL_6R_WEIGHT): deterministic, from the kernels alone, never the machine."""
     own = [f for f in functions if not f.get("solve") and not f.get("general_6r")]
-    total = sum(f["operations"] for f in own)
-    parts = min(MAX_PARTS, total // SPLIT_OPERATIONS + 1)
+    weight = {f["name"]: compile_weight(f) for f in own}
+    parts = min(MAX_PARTS, sum(f["operations"] for f in own) // SPLIT_OPERATIONS + 1)
     if parts == 1:
         return 1, {}
     load = [0] * parts
@@ -274,11 +308,11 @@ def c_parts(functions: list[dict]) -> tuple[int, dict[str, int]]:
         if f.get("general_6r"):
             load[0] += GENERAL_6R_WEIGHT
         elif not f.get("solve") and not _movable(f):
-            load[0] += f["operations"] ** 2
+            load[0] += weight[f["name"]]
     assigned = {}
-    for f in sorted((f for f in own if _movable(f)), key=lambda f: (-f["operations"], f["name"])):
+    for f in sorted((f for f in own if _movable(f)), key=lambda f: (-weight[f["name"]], f["name"])):
         part = min(range(parts), key=lambda k: (load[k], k))
-        load[part] += f["operations"] ** 2
+        load[part] += weight[f["name"]]
         if part:
             assigned[f["name"]] = part + 1
     used = sorted(set(assigned.values()))  # a unit left empty (few movable kernels) is none

@@ -18,6 +18,7 @@ import pytest
 
 import derivations
 from codegen import build, generate
+from codegen.backends import c_backend
 from codegen.backends.c_backend import EXTRA_WARNINGS, STRICT_FLAGS
 from test_zoo import generated_package, generated_root  # noqa: F401  (a fixture)
 
@@ -103,3 +104,55 @@ def test_a_large_file_compiles_as_units_that_together_are_the_whole(generated_ro
     assert len(whole) == len(set(whole)) and set(whole) == declared
     assert sorted(units[0] + units[1]) == sorted(whole)
     assert "kinova_jaco_ik" in units[0] and units[1]
+
+
+def test_each_unit_compiles_the_static_helpers_it_calls_and_no_other(tmp_path):
+    """c_backend.prune_helpers on a file of three units: a helper called only in unit 3, one
+    called only through it (another helper's block), one called in units 1 and 2, and one called
+    nowhere.  Every unit, and the whole file, compiles under the strict flags: a helper compiled
+    in a unit that does not call it is an unused static function (-Werror), one missing where it
+    is called an implicit declaration (an error in C99).  The units define between them the
+    whole file's global symbols, each once."""
+    text = """#include <math.h>
+@@helper h_inner@@
+static double h_inner(double a) { return a * 2.0; }
+@@end@@
+@@helper h_outer@@
+static double h_outer(double a) { return h_inner(a) + 1.0; }
+@@end@@
+@@helper h_shared@@
+static double h_shared(double a) { return sqrt(a); }
+@@end@@
+@@helper h_unused@@
+static double h_unused(double a) { return a; }
+@@end@@
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 1
+double k_one(double a);
+double k_one(double a) { return h_shared(a); }
+#endif
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 2
+double k_two(double a);
+double k_two(double a) { return h_shared(a) - 1.0; }
+#endif
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 3
+double k_three(double a);
+double k_three(double a) { return h_outer(a); }
+#endif
+"""
+    pruned = c_backend.prune_helpers(text)
+    assert "h_unused" not in pruned and "@@" not in pruned
+    source = tmp_path / "units.c"
+    source.write_text(pruned)
+
+    def symbols(part):
+        target = tmp_path / f"part{part}.o"
+        defines = [] if part is None else [f"-DKINEGEN_PART={part}"]
+        result = subprocess.run(["gcc", *STRICT_FLAGS, *defines, "-c", str(source), "-o", str(target)],
+                                capture_output=True, text=True)
+        assert result.returncode == 0 and result.stderr == "", (part, result.stderr)
+        listing = subprocess.run(["nm", "-g", "--defined-only", str(target)], capture_output=True, text=True, check=True)
+        return sorted(line.split()[-1] for line in listing.stdout.splitlines() if line.strip())
+
+    units = [symbols(part) for part in (1, 2, 3)]
+    assert units == [["k_one"], ["k_two"], ["k_three"]]
+    assert symbols(None) == ["k_one", "k_three", "k_two"]
