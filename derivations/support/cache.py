@@ -31,7 +31,7 @@ from typing import Callable, TypeVar
 import sympy
 from sympy.core.cache import clear_cache
 
-from . import budget
+from . import budget, pickling
 
 T = TypeVar("T")
 _PACKAGE = Path(__file__).resolve().parents[1]  # derivations/, whose sources key the cache
@@ -178,7 +178,7 @@ def cached(kind: str, content: bytes, build: Callable[[], T]) -> T:
         return value
     tmp = None
     try:
-        payload = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
+        payload = pickling.dumps(value)  # loads without SymPy evaluating every expression again
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
         with os.fdopen(fd, "wb") as handle:
