@@ -199,6 +199,7 @@ def cmd_generate(args, say) -> int:
         if out is not None:
             gen.clear_leftovers(out, say)
         claimed = gen.claim_output(out, args.force) if out is not None else False
+        templates = gen.TemplatesAhead()  # compiled beside the derivation
         try:
             what = f"{args.robots[0]}: derivation and rendering"
             with budget(args.time_limit, what), memory_cap(args.memory_limit, what):
@@ -212,7 +213,7 @@ def cmd_generate(args, say) -> int:
                     claimed = gen.claim_output(out, args.force)
                 with stage("rendering the package"):  # each rendering step names itself inside this
                     files = gen.render_robot(model, path, backends=tuple(dict.fromkeys(("numpy", *backends))),
-                                             say=say)
+                                             say=say, templates=templates)
             # As `make build` does: one strict compile of the layout the extension uses, the others
             # through the compiler's front end (a Panda: 11 s, where compiling all three took 97 s).
             build = None if args.no_build else (lambda folder: c_build.build_package(folder, model.name, args.fast))
@@ -222,6 +223,8 @@ def cmd_generate(args, say) -> int:
             if claimed:
                 gen.release_output(out)
             raise
+        finally:
+            templates.cancel()  # (taken by the render unless it never came)
         say(f"wrote {written}")
         print(gen.terminal_text(written, len(str(written))))
         return 0
@@ -707,6 +710,25 @@ def main(argv=None) -> int:
     finally:
         if main_thread and previous is not None:
             signal.signal(signal.SIGTERM, previous)
+
+
+def console() -> None:
+    """The ``kinegen`` command (and ``python -m codegen``): :func:`main`, then the process ends
+    at once with its status.  A run that derived an arm holds a few hundred MB of SymPy objects
+    that the interpreter's orderly exit frees one by one (0.2-0.4 s after a KR 210's package was
+    written, 2026-11-26); nothing is left to do by then but flush the output (every file was
+    written whole and moved into place, and every child process was waited for).  Tests call
+    :func:`main`, which returns."""
+    try:
+        status = main()
+    except SystemExit as exc:  # argparse's --help, --version and usage errors
+        status = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
+        if exc.code is not None and not isinstance(exc.code, int):
+            print(exc.code, file=sys.stderr)
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    os._exit(status)
 
 
 def _run(args, say) -> int:

@@ -25,6 +25,7 @@ import numpy as np
 import sympy as sp
 
 import derivations
+from derivations.support import pickling
 from derivations.support.budget import stage as budget_stage
 from derivations.formats.description import read_description
 from derivations.ik import UNIT_SNAP
@@ -32,7 +33,8 @@ from derivations.ik.general_6r import equations_function
 from derivations.kernelset import KernelSet
 from derivations.model import POSE_NAMES, REVOLUTE, RobotModel
 
-from .backends import TEMPLATES, c_backend, float_literal, latex_backend, numpy_backend
+from .backends import (TEMPLATES, adopt_templates, c_backend, compile_templates, float_literal, latex_backend,
+                       numpy_backend)
 from .kernels import STATUS_CODES, PreparedFunction, prepare
 from .stages import stage
 
@@ -233,6 +235,12 @@ def _prepare_one(index: int) -> tuple[dict, int, float, dict | None]:
     return context, prepared.operations, time.perf_counter() - start, print_ahead(context) if ahead else None
 
 
+def _prepare_packed(index: int) -> bytes:
+    """:func:`_prepare_one` in a worker process, pickled by :func:`derivations.support.pickling.dumps`
+    (the parent loads the expressions as they are, without SymPy evaluating them again)."""
+    return pickling.dumps(_prepare_one(index))
+
+
 def print_ahead(function: dict) -> dict:
     """The numpy and C printers' memos (their ``memo`` arguments) for the expressions the templates
     print of one kernel (``function``, a :func:`template_function` dict), as a worker process of
@@ -304,12 +312,13 @@ def prepared_functions(functions, param_names: tuple, jobs: int | None = None,
             order = sorted(rest, key=lambda i: -len(functions[i].definitions))
             pool = multiprocessing.get_context("fork").Pool(jobs, initializer=_worker_signals)
             try:
-                results = dict(zip(order, pool.imap(_prepare_one, order, chunksize=1)))
+                packed = dict(zip(order, pool.imap(_prepare_packed, order, chunksize=1)))
             except BaseException:  # a budget, Ctrl-C or SIGTERM in the parent: the workers go with it
                 pool.terminate()
                 raise
             pool.close()  # done: the workers leave on their own (no signal sent to them)
             pool.join()
+            results = {i: pickle.loads(data) for i, data in packed.items()}  # our own workers' bytes
         if early is not None:
             done = early.result()
             results.update((i, done[functions[i].name]) for i in own if i not in results)
@@ -332,7 +341,7 @@ class Forked:
                 os.close(read)
                 _worker_signals()
                 try:
-                    payload = pickle.dumps((True, function()), protocol=pickle.HIGHEST_PROTOCOL)
+                    payload = pickling.dumps((True, function()))
                 except BaseException as exc:  # handed to the parent, as multiprocessing does
                     try:
                         payload = pickle.dumps((False, exc), protocol=pickle.HIGHEST_PROTOCOL)
@@ -388,6 +397,26 @@ class EarlyKernels:
 
     def cancel(self) -> None:
         self._forked.cancel()
+
+
+class TemplatesAhead:
+    """The templates compiled (:func:`codegen.backends.compile_templates`) in a forked process
+    while this one derives an arm, whose first seconds (the model and its ik) leave the second
+    core idle: the render then starts with them compiled (:meth:`adopt`).  Without processes to
+    spare, nothing is forked and the templates compile when first used, as before."""
+
+    def __init__(self):
+        self._job = Forked(compile_templates) if _prepare_jobs(4) > 1 else None
+
+    def adopt(self) -> None:
+        if self._job is not None:
+            job, self._job = self._job, None
+            adopt_templates(job.result())
+
+    def cancel(self) -> None:
+        if self._job is not None:
+            job, self._job = self._job, None
+            job.cancel()
 
 
 def robot_context(model: RobotModel, origin: str, verbose: bool = False, jobs: int | None = None,
@@ -501,14 +530,17 @@ class _Stages:
 
 def render_robot(model: RobotModel, description: Path | None = None, backends=("numpy", "c"),
                  verbose: bool = False, latex: bool = True, say=None,
-                 in_repository: bool = False) -> dict[str, str]:
+                 in_repository: bool = False, templates: TemplatesAhead | None = None) -> dict[str, str]:
     """{file name: text} of one robot's package (kernels, its packaging and README, and ``<name>.tex``
     unless ``latex`` is off).
 
     ``say`` (a callable taking a message) receives each stage with its time.  ``in_repository``:
     the package is one of the repository's ``generated/`` (render_tree), built by `make build`;
     a user's package (``kinegen generate``) tells of its own build script and `pip install` instead.
+    ``templates``: the templates being compiled meanwhile (taken before any process is forked here).
     """
+    if templates is not None:
+        templates.adopt()
     stage = _Stages(model.name, say)
     origin = describe_origin(model, description)
     # With processes to spare: the kernels that need neither rates nor dynamics are prepared in
@@ -782,14 +814,7 @@ def write_package(model: RobotModel, description: Path | None, out: Path, backen
     out.parent.mkdir(parents=True, exist_ok=True)
     scratch = Path(tempfile.mkdtemp(prefix=_scratch_prefix(out), dir=out.parent))
     try:
-        for filename, text in files.items():
-            (scratch / filename).write_text(text, encoding="utf-8")
-        if isinstance(model, RobotModel) and model.chain is not None:
-            check_finite(model, scratch)
-        if build is not None and "c" in backends:
-            say(f"{model.name}: compiling the C kernels and their cffi extension")
-            build(scratch)
-        os.chmod(scratch, 0o777 & ~_umask())  # mkdtemp makes it 0700; a package folder follows the umask
+        _fill(model, scratch, files, build if "c" in backends else None, say)
         aside = None
         if out.exists():  # (--force) moved aside, and removed only once the new package is in place
             aside = Path(tempfile.mkdtemp(prefix=_scratch_prefix(out) + "old-", dir=out.parent))
@@ -809,14 +834,7 @@ def _replace_claimed(model, description, out: Path, backends, build, say, files)
         files = render_robot(model, description, backends=backends, say=say)
     scratch = Path(tempfile.mkdtemp(prefix=_scratch_prefix(out), dir=out.parent))
     try:
-        for filename, text in files.items():
-            (scratch / filename).write_text(text, encoding="utf-8")
-        if isinstance(model, RobotModel) and model.chain is not None:
-            check_finite(model, scratch)
-        if build is not None and "c" in backends:
-            say(f"{model.name}: compiling the C kernels and their cffi extension")
-            build(scratch)
-        os.chmod(scratch, 0o777 & ~_umask())  # mkdtemp makes it 0700; a package folder follows the umask
+        _fill(model, scratch, files, build if "c" in backends else None, say)
         try:
             os.replace(scratch, out)  # onto the empty folder this run made: atomic, and refused if not empty
         except OSError as exc:
@@ -828,6 +846,30 @@ def _replace_claimed(model, description, out: Path, backends, build, say, files)
         shutil.rmtree(scratch, ignore_errors=True)
         raise
     return out
+
+
+def _fill(model, scratch: Path, files: dict[str, str], build, say) -> None:
+    """Write ``files`` into the package folder ``scratch``, check the numpy kernels' values
+    (:func:`check_finite`) and run ``build(scratch)`` (when given) beside that check, in a
+    thread of its own: the build waits on its compilers (a KR 210's: 3 s on two cores) while the
+    check imports the numpy kernels (0.4 s), and the folder is left to the caller only once the
+    build has ended, whatever happened meanwhile (nothing is being written into it any more)."""
+    for filename, text in files.items():
+        (scratch / filename).write_text(text, encoding="utf-8")
+    building = None
+    if build is not None:
+        say(f"{model.name}: compiling the C kernels and their cffi extension")
+        building = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="kinegen-build")
+        built = building.submit(build, scratch)
+    try:
+        if isinstance(model, RobotModel) and model.chain is not None:
+            check_finite(model, scratch)
+        if building is not None:
+            built.result()
+    finally:
+        if building is not None:
+            building.shutdown(wait=True)
+    os.chmod(scratch, 0o777 & ~_umask())  # mkdtemp makes it 0700; a package folder follows the umask
 
 
 def _umask() -> int:

@@ -151,6 +151,36 @@ def test_generated_files_say_what_they_are_generated_from():
             assert "Do not edit by hand" in text
 
 
+def test_templates_compiled_in_another_process_render_the_same(monkeypatch):
+    """generate.TemplatesAhead: the templates compiled in a forked process and handed over render a
+    package byte-identical to templates compiled where they are used; handed-over code that does not
+    match its template's source (every entry moved to another template's key) is not used: jinja
+    compiles those templates afresh, and the package is the same again."""
+    import jinja2
+
+    from codegen import backends
+    model = derivations.load("planar_2r")
+
+    def fresh():  # TEMPLATES as in a new process: nothing loaded yet, nothing handed over
+        monkeypatch.setattr(backends.TEMPLATES, "cache", jinja2.utils.LRUCache(400))
+        monkeypatch.setattr(backends.TEMPLATES, "bytecode_cache", None)
+
+    fresh()
+    reference = generate.render_robot(model, None)
+    fresh()
+    monkeypatch.setenv("KINEGEN_JOBS", "2")
+    ahead = generate.TemplatesAhead()
+    assert ahead._job is not None  # forked
+    assert generate.render_robot(model, None, templates=ahead) == reference
+    assert ahead._job is None and len(backends.TEMPLATES.bytecode_cache.code) == len(backends.TEMPLATES.list_templates())
+    code = backends.compile_templates()
+    keys = sorted(code)
+    moved = {key: code[keys[(k + 1) % len(keys)]] for k, key in enumerate(keys)}
+    fresh()
+    backends.adopt_templates(moved)
+    assert generate.render_robot(model, None) == reference
+
+
 def test_the_render_workers_end_cleanly_when_done_and_when_a_budget_stops_the_parent(monkeypatch):
     """prepared_functions' worker processes: after a render, none is left; a budget that runs out in
     the parent (its alarm) stops the render at once with BudgetExceeded, and the workers go with it
