@@ -26,7 +26,7 @@ import sympy as sp
 
 import derivations
 from derivations.support import pickling
-from derivations.support.budget import stage as budget_stage
+from derivations.support.budget import degraded, stage as budget_stage
 from derivations.formats.description import read_description
 from derivations.ik import UNIT_SNAP
 from derivations.ik.general_6r import equations_function
@@ -543,15 +543,18 @@ def render_robot(model: RobotModel, description: Path | None = None, backends=("
         templates.adopt()
     stage = _Stages(model.name, say)
     origin = describe_origin(model, description)
-    # With processes to spare: the kernels that need neither rates nor dynamics are prepared in
-    # one while this process derives those, and the LaTeX is written in another while the rest
-    # are prepared (the text is the same either way).
+    # With processes to spare: the equations of motion are derived in one, and the kernels that
+    # need neither rates nor dynamics are prepared in another, while this process derives the
+    # rates; the LaTeX is written in a third while the rest are prepared (the text is the same
+    # either way).
     # (Only where the kernels are RobotModel's own: a subclass's functions() may add or replace some.)
     side = (isinstance(model, RobotModel) and type(model).functions is RobotModel.functions
             and _prepare_jobs(len(model.joint_types) + 4) > 1)
-    early = latex_text = None
+    early = latex_text = motion = None
     try:
         functions = None
+        if side and getattr(model, "inertials", ()) and "_dynamics" not in model.__dict__:
+            motion = Forked(lambda: (model.dynamics, model.notes.get("dynamics")))
         if side:
             positions = model.position_functions()
             early = EarlyKernels(positions, tuple(str(s) for s in model.params))
@@ -560,6 +563,9 @@ def render_robot(model: RobotModel, description: Path | None = None, backends=("
                 model.rates  # derived on first use (and cached on disk)
             if getattr(model, "inertials", ()):  # an arm with inertial parameters: its equations of motion
                 with stage("equations of motion"):
+                    if motion is not None:
+                        job, motion = motion, None
+                        _adopt_dynamics(model, *job.result())
                     model.dynamics
                 if model.dynamics is None and say is not None:
                     say(f"{model.name}: {model.notes.get('dynamics', 'no dynamics kernels')}")
@@ -588,11 +594,22 @@ def render_robot(model: RobotModel, description: Path | None = None, backends=("
                 job, latex_text = latex_text, None
                 files.update(job.result() if job is not None else latex_backend.render(model, origin))
     except BaseException:
-        for job in (early, latex_text):
+        for job in (early, latex_text, motion):
             if job is not None:
                 job.cancel()
         raise
     return files
+
+
+def _adopt_dynamics(model: RobotModel, dynamics, note: str | None) -> None:
+    """``model``'s equations of motion as a forked process derived them (``model.dynamics`` there),
+    with its note (why there are none, or no forward dynamics); a budget that cut them short there
+    counts here too (:func:`derivations.support.budget.degraded`)."""
+    model.__dict__["_dynamics"] = dynamics
+    if note is not None:
+        model.notes["dynamics"] = note
+        if dynamics is None:
+            degraded(note)
 
 
 def _render_named(name: str, verbose: bool) -> dict[str, str]:

@@ -38,7 +38,8 @@ def test_the_tree_is_the_same_rendered_in_one_process_or_several(monkeypatch):
 def test_a_robot_is_the_same_with_its_kernels_prepared_in_one_process_or_several(monkeypatch):
     """robot_context's worker processes (prepared_functions) CSE and stage each kernel and print it
     ahead for the backends: the package's every file is byte-identical to the one-process render,
-    for an arm with dynamics (program-form kernels), rates and checks."""
+    for an arm with dynamics (program-form kernels, derived in a process of their own), rates and
+    checks."""
     model = derivations.load(generate.REPO / "tests" / "data" / "dynamics" / "rrp_arm.toml")
     monkeypatch.setenv("KINEGEN_JOBS", "1")
     one = generate.render_robot(model, None)
@@ -49,13 +50,16 @@ def test_a_robot_is_the_same_with_its_kernels_prepared_in_one_process_or_several
     monkeypatch.setattr(generate, "robot_context",
                         lambda *args, **kwargs: contexts.append((context(*args, **kwargs), kwargs)) or contexts[-1][0])
     monkeypatch.setattr(generate, "Forked", lambda function: forked.append(function) or fork(function))
+    model = derivations.load(generate.REPO / "tests" / "data" / "dynamics" / "rrp_arm.toml")  # dynamics not yet derived
+    assert "_dynamics" not in model.__dict__
     several = generate.render_robot(model, None)
     assert several == one and f"{model.name}.tex" in several
     [(rendered, options)] = contexts
     printed = rendered["printed"]
     assert len(printed["c"]) > 100 and len(printed["numpy"]) > 100  # the workers printed ahead
-    # fk, frames, the Jacobians, task, ik were prepared beside the rates and the dynamics; the LaTeX too
-    assert {"fk", "jacobian", "ik"} <= options["early"].names and len(forked) == 2
+    # fk, frames, the Jacobians, task, ik were prepared beside the rates and the dynamics, the dynamics
+    # derived beside the rates, the LaTeX written beside the rest: three forked processes
+    assert {"fk", "jacobian", "ik"} <= options["early"].names and len(forked) == 3
 
 
 def test_stale_files_are_reported(tmp_path):
