@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .kernels import PreparedFunction
+from .kernels import PreparedFunction, name_of
 
 __all__ = ["Call", "Stage", "StagedFunction", "stage"]
 
@@ -132,10 +132,10 @@ def stage(prepared: PreparedFunction) -> StagedFunction:
 
     used: set[str] = set()
     for _, expr in temporaries:
-        used |= {str(s) for s in getattr(expr, "free_symbols", ())}
+        used |= {name_of(s) for s in getattr(expr, "free_symbols", ())}
     for entries in outputs:
         for expr in entries:
-            used |= {str(s) for s in getattr(expr, "free_symbols", ())}
+            used |= {name_of(s) for s in getattr(expr, "free_symbols", ())}
     calls = []
     for index, angle in enumerate(rewriter.angles):
         for prefix, function in ((SIN_PREFIX, "sin"), (COS_PREFIX, "cos")):
@@ -157,14 +157,14 @@ def stage(prepared: PreparedFunction) -> StagedFunction:
         return name in variable
 
     for name, expr in temporaries:
-        if any(varies(str(s)) for s in getattr(expr, "free_symbols", ())):
+        if any(varies(name_of(s)) for s in getattr(expr, "free_symbols", ())):
             variable.add(name)
     prologue: list[tuple[str, sp.Basic]] = []
     emitted: set[str] = set()
 
     def emit_calls(expr):
         for s in sorted(getattr(expr, "free_symbols", ()), key=str):
-            name = str(s)
+            name = name_of(s)
             if name in call_of and name not in emitted and not varies(name):
                 call = call_of[name]
                 function = {"sin": sp.sin, "cos": sp.cos, **{v: k for k, v in CALLS.items()}}[call.function]
@@ -192,7 +192,7 @@ def stage(prepared: PreparedFunction) -> StagedFunction:
     def level_of(expr) -> int:
         result = 0
         for s in getattr(expr, "free_symbols", ()):
-            name = str(s)
+            name = name_of(s)
             result = max(result, call_level(call_of[name]) if name in call_of else level.get(name, 0))
         return result
 
@@ -213,8 +213,8 @@ def stage(prepared: PreparedFunction) -> StagedFunction:
     for entries in outputs:
         for expr in entries:
             for s in getattr(expr, "free_symbols", ()):
-                if str(s) in reads:
-                    reads[str(s)].add(last)
+                if name_of(s) in reads:
+                    reads[name_of(s)].add(last)
     for c in calls:
         for a in c.arguments:
             if a in reads:
@@ -222,8 +222,8 @@ def stage(prepared: PreparedFunction) -> StagedFunction:
     for name, expr in reversed(temporaries):
         stage_of[name] = min(reads[name], default=last)
         for s in getattr(expr, "free_symbols", ()):
-            if str(s) in reads:
-                reads[str(s)].add(stage_of[name])
+            if name_of(s) in reads:
+                reads[name_of(s)].add(stage_of[name])
 
     arrays = set(call_of) | {a for a in call_reads if varies(a)}  # a constant argument is a scalar of the prologue
     for name in pending:
