@@ -134,9 +134,9 @@ def _symbolic(name: str):
     return derivations.load_kernel_set(name) if name in derivations.KERNEL_SETS else derivations.load(name)
 
 
-def _load(target: str, say, args=None) -> tuple:
+def _load(target: str, say, args=None, before_ik=None) -> tuple:
     """(model, description path) of a registered name or a description file (a URDF's
-    --base, --tip and --no-snap from ``args``)."""
+    --base, --tip and --no-snap from ``args``; ``before_ik``: derivations.load's)."""
     if not _is_file(target):
         _registered([target])
     say(f"deriving {target} (cached after the first time)")
@@ -150,7 +150,7 @@ def _load(target: str, say, args=None) -> tuple:
         options["dynamics"] = False
     if getattr(args, "task", None) is not None:
         options["task"] = args.task
-    model = derivations.load(target, verbose=not say.quiet, **options)
+    model = derivations.load(target, verbose=not say.quiet, before_ik=before_ik, **options)
     if model.notes.get("snapped"):
         say(f"{model.name}: snapped to exact values: {model.notes['snapped']}")
     path = derivations.ROBOTS[target] if target in derivations.ROBOTS and not _is_file(target) else Path(target)
@@ -200,11 +200,12 @@ def cmd_generate(args, say) -> int:
             gen.clear_leftovers(out, say)
         claimed = gen.claim_output(out, args.force) if out is not None else False
         templates = gen.TemplatesAhead()  # compiled beside the derivation
+        beside = gen.RatesAndMotion()  # the rates and the dynamics derived beside the ik
         try:
             what = f"{args.robots[0]}: derivation and rendering"
             with budget(args.time_limit, what), memory_cap(args.memory_limit, what):
                 with stage("deriving the model"):
-                    model, path = _load(args.robots[0], say, args)
+                    model, path = _load(args.robots[0], say, args, before_ik=beside)
                 say(f"{model.name}: ik: {gen.ik_method(model) or 'none'}"
                     + (f" (no closed form: {model.ik_unsupported})" if model.ik_unsupported else ""))
                 if out is None:  # ./<robot name>, known once the description is read
@@ -213,7 +214,7 @@ def cmd_generate(args, say) -> int:
                     claimed = gen.claim_output(out, args.force)
                 with stage("rendering the package"):  # each rendering step names itself inside this
                     files = gen.render_robot(model, path, backends=tuple(dict.fromkeys(("numpy", *backends))),
-                                             say=say, templates=templates)
+                                             say=say, templates=templates, beside=beside)
             # As `make build` does: one strict compile of the layout the extension uses, the others
             # through the compiler's front end (a Panda: 11 s, where compiling all three took 97 s).
             build = None if args.no_build else (lambda folder: c_build.build_package(folder, model.name, args.fast))
@@ -224,7 +225,8 @@ def cmd_generate(args, say) -> int:
                 gen.release_output(out)
             raise
         finally:
-            templates.cancel()  # (taken by the render unless it never came)
+            templates.cancel()  # (each taken by the render, unless it never came)
+            beside.cancel()
         say(f"wrote {written}")
         print(gen.terminal_text(written, len(str(written))))
         return 0

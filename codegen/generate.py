@@ -530,14 +530,16 @@ class _Stages:
 
 def render_robot(model: RobotModel, description: Path | None = None, backends=("numpy", "c"),
                  verbose: bool = False, latex: bool = True, say=None,
-                 in_repository: bool = False, templates: TemplatesAhead | None = None) -> dict[str, str]:
+                 in_repository: bool = False, templates: TemplatesAhead | None = None,
+                 beside: RatesAndMotion | None = None) -> dict[str, str]:
     """{file name: text} of one robot's package (kernels, its packaging and README, and ``<name>.tex``
     unless ``latex`` is off).
 
     ``say`` (a callable taking a message) receives each stage with its time.  ``in_repository``:
     the package is one of the repository's ``generated/`` (render_tree), built by `make build`;
     a user's package (``kinegen generate``) tells of its own build script and `pip install` instead.
-    ``templates``: the templates being compiled meanwhile (taken before any process is forked here).
+    ``templates``: the templates being compiled meanwhile (taken before any process is forked here);
+    ``beside``: the rates and the dynamics being derived meanwhile (:class:`RatesAndMotion`).
     """
     if templates is not None:
         templates.adopt()
@@ -553,13 +555,16 @@ def render_robot(model: RobotModel, description: Path | None = None, backends=("
     early = latex_text = motion = None
     try:
         functions = None
-        if side and getattr(model, "inertials", ()) and "_dynamics" not in model.__dict__:
+        if (side and getattr(model, "inertials", ()) and "_dynamics" not in model.__dict__
+                and not (beside is not None and beside.pending)):
             motion = Forked(lambda: (model.dynamics, model.notes.get("dynamics")))
         if side:
             positions = model.position_functions()
             early = EarlyKernels(positions, tuple(str(s) for s in model.params))
         if not isinstance(model, KernelSet):
             with stage("rate kinematics"):
+                if beside is not None:
+                    beside.adopt(model)
                 model.rates  # derived on first use (and cached on disk)
             if getattr(model, "inertials", ()):  # an arm with inertial parameters: its equations of motion
                 with stage("equations of motion"):
@@ -594,11 +599,47 @@ def render_robot(model: RobotModel, description: Path | None = None, backends=("
                 job, latex_text = latex_text, None
                 files.update(job.result() if job is not None else latex_backend.render(model, origin))
     except BaseException:
+        if beside is not None:
+            beside.cancel()
         for job in (early, latex_text, motion):
             if job is not None:
                 job.cancel()
         raise
     return files
+
+
+class RatesAndMotion:
+    """A model's rate kinematics and equations of motion derived in a forked process while this one
+    derives its inverse kinematics: ``derivations.load(..., before_ik=this)`` starts it once the
+    model's frames and Jacobians exist (a description's model derived afresh; none for one from
+    the cache), :func:`render_robot` takes its results when it reaches the rates.  The ik of a
+    7-joint arm that holds a joint free takes seconds (Romeo's left arm: 7.5 s), and the rates
+    and the dynamics need nothing of it."""
+
+    def __init__(self):
+        self._job = None
+
+    def __call__(self, model: RobotModel) -> None:
+        if self._job is None and model.chain is not None and _prepare_jobs(4) > 1:
+            self._job = Forked(lambda: (model.rates, model.dynamics, model.notes.get("dynamics")))
+
+    @property
+    def pending(self) -> bool:
+        return self._job is not None
+
+    def adopt(self, model: RobotModel) -> None:
+        """Give ``model`` what the forked process derived (waiting for it); nothing if none was started."""
+        if self._job is not None:
+            job, self._job = self._job, None
+            rates, dynamics, note = job.result()
+            model.__dict__["_rate_kinematics"] = rates
+            if getattr(model, "inertials", ()):
+                _adopt_dynamics(model, dynamics, note)
+
+    def cancel(self) -> None:
+        if self._job is not None:
+            job, self._job = self._job, None
+            job.cancel()
 
 
 def _adopt_dynamics(model: RobotModel, dynamics, note: str | None) -> None:

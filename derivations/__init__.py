@@ -31,6 +31,7 @@ import importlib.util
 import sys
 import time
 from pathlib import Path
+from typing import Callable
 
 from .support.cache import cached
 from .formats.description import read_description
@@ -108,7 +109,8 @@ class UnknownRobotError(KeyError, ValueError):
 
 
 def load(name: str | Path, *, verbose: bool = False, base: str | None = None, tip: str | None = None,
-         snap: bool = True, free_joint: int | str | None = None, dynamics: bool = True, task: str | list[str] | None = None) -> RobotModel:
+         snap: bool = True, free_joint: int | str | None = None, dynamics: bool = True, task: str | list[str] | None = None,
+         before_ik: Callable[[RobotModel], None] | None = None) -> RobotModel:
     """The symbolic model of a registered robot, or of a description file.
 
     ``name`` is a registry name (see ``ROBOTS``), the path of a ``.toml``
@@ -121,7 +123,9 @@ def load(name: str | Path, *, verbose: bool = False, base: str | None = None, ti
     form).  ``task`` (a list of items, or their names separated by commas: ``"x,y,z,pitch"``) replaces
     the description's task (a URDF's is the pose).  Derivation results are cached on disk
     (``derivations.cache``).  ``dynamics=False`` leaves out the equations of motion of an arm with
-    inertial parameters.
+    inertial parameters.  ``before_ik(model)`` is called with a description's model, derived afresh
+    (not from the cache), before its inverse kinematics is derived: `kinegen generate` starts
+    deriving the rates and dynamics beside it there (``codegen.generate.RatesAndMotion``).
     """
     path = _resolve(name)
     if path.suffix == ".py":
@@ -148,7 +152,7 @@ def load(name: str | Path, *, verbose: bool = False, base: str | None = None, ti
     extension = _ROBOT_DIR / f"{description.name}.py" if path.parent == _ROBOT_DIR else None
     start = time.perf_counter()
     try:
-        model = cached(f"model-{description.name}", text, lambda: _derive(description, extension))
+        model = cached(f"model-{description.name}", text, lambda: _derive(description, extension, before_ik))
     except TaskError as error:  # a task coordinate the chain does not have: the input's fault
         raise DescriptionError(f"{path}: task {','.join(description.task)}: {error}") from None
     if task is not None and getattr(model, "ik_task_unreachable", False):
@@ -183,7 +187,7 @@ def _resolve(name: str | Path) -> Path:
                             "(or give a .toml description or a .urdf file)")
 
 
-def _derive(description: Description, extension: Path | None) -> RobotModel:
+def _derive(description: Description, extension: Path | None, before_ik=None) -> RobotModel:
     limits = [None if j.limits is None else (float(j.limits[0]), float(j.limits[1])) for j in description.joints]
     model = build_chain_model(description.name, description.title, description.source, description.chain(),
                               description.q, description.params, description.task, limits)
@@ -201,6 +205,8 @@ def _derive(description: Description, extension: Path | None) -> RobotModel:
         module.extend(model)
     if not model.ik:  # the papers' robots print their paper's steps; every other arm is decomposed
         from .ik import attach
+        if before_ik is not None:
+            before_ik(model)
         attach(model, description.free_joint)
     return model
 

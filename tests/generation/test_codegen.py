@@ -185,6 +185,33 @@ def test_templates_compiled_in_another_process_render_the_same(monkeypatch):
     assert generate.render_robot(model, None) == reference
 
 
+def test_rates_and_dynamics_derived_beside_the_ik_give_the_same_package(monkeypatch):
+    """generate.RatesAndMotion, as `kinegen generate` uses it: derivations.load calls it with the model
+    before the ik is derived (derived afresh: the cache off), it forks a process that derives the
+    rates and the dynamics, and the render takes them at its rates stage.  The package is
+    byte-identical to one whose rates and dynamics the rendering process derived, no process is
+    left, and a run that stops before the render (cancel) leaves none either."""
+    import multiprocessing
+
+    monkeypatch.setenv("KINEGEN_NO_CACHE", "1")
+    monkeypatch.setenv("KINEGEN_JOBS", "2")
+    path = generate.REPO / "tests" / "data" / "dynamics" / "rrp_arm.toml"
+    reference = generate.render_robot(derivations.load(path), path)
+    beside, seen = generate.RatesAndMotion(), []
+    model = derivations.load(path, before_ik=lambda m: seen.append(tuple(m.ik)) or beside(m))
+    assert seen == [()] and model.ik and beside.pending  # called once, before the ik
+    assert "_rate_kinematics" not in model.__dict__ and "_dynamics" not in model.__dict__
+    assert generate.render_robot(model, path, beside=beside) == reference
+    assert not beside.pending and model.dynamics is not None
+    assert multiprocessing.active_children() == []
+    beside = generate.RatesAndMotion()
+    derivations.load(path, before_ik=beside)
+    assert beside.pending
+    beside.cancel()
+    with pytest.raises(ChildProcessError):  # no forked child left (none to wait for)
+        os.waitpid(-1, os.WNOHANG)
+
+
 def test_the_render_workers_end_cleanly_when_done_and_when_a_budget_stops_the_parent(monkeypatch):
     """prepared_functions' worker processes: after a render, none is left; a budget that runs out in
     the parent (its alarm) stops the render at once with BudgetExceeded, and the workers go with it
