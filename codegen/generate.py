@@ -290,7 +290,8 @@ def _prepare_jobs(count: int) -> int:
 
 
 def prepared_functions(functions, param_names: tuple, jobs: int | None = None,
-                       early: "EarlyKernels | None" = None) -> list[tuple[dict, int, float]]:
+                       early: "EarlyKernels | None" = None, ready: dict | None = None,
+                       ahead: bool = False) -> list[tuple[dict, int, float]]:
     """:func:`_prepare_one` of every kernel in ``functions`` (those solved at run time excluded), in
     ``jobs`` forked processes (default :func:`_prepare_jobs`), the largest first.
 
@@ -298,12 +299,16 @@ def prepared_functions(functions, param_names: tuple, jobs: int | None = None,
     text is the same in one process or several, tested), and it is most of a render: an arm with
     its dynamics has two kernels (coriolis, regressor) of about a second each.  A budget that runs
     out in the parent (its alarm) ends the workers with it.  ``early``: kernels a process of their
-    own has been preparing since before the others existed (:class:`EarlyKernels`), taken from it."""
+    own has been preparing since before the others existed (:class:`EarlyKernels`), taken from it;
+    ``ready``: {name: result} of kernels prepared already (:class:`RatesAndMotion`).  ``ahead``: print
+    ahead even in this process (its results go to another)."""
     global _PREPARING
+    ready = ready or {}
     own = [i for i, f in enumerate(functions) if f.solve is None]
-    rest = [i for i in own if early is None or functions[i].name not in early.names]
+    rest = [i for i in own if (early is None or functions[i].name not in early.names)
+            and functions[i].name not in ready]
     jobs = _prepare_jobs(len(rest)) if jobs is None else jobs
-    _PREPARING = (functions, param_names, jobs > 1 or early is not None)
+    _PREPARING = (functions, param_names, jobs > 1 or early is not None or bool(ready) or ahead)
     try:
         if jobs <= 1:
             results = {i: _prepare_one(i) for i in rest}
@@ -319,6 +324,7 @@ def prepared_functions(functions, param_names: tuple, jobs: int | None = None,
             pool.close()  # done: the workers leave on their own (no signal sent to them)
             pool.join()
             results = {i: pickle.loads(data) for i, data in packed.items()}  # our own workers' bytes
+        results.update((i, ready[functions[i].name]) for i in own if functions[i].name in ready)
         if early is not None:
             done = early.result()
             results.update((i, done[functions[i].name]) for i in own if i not in results)
@@ -330,15 +336,19 @@ def prepared_functions(functions, param_names: tuple, jobs: int | None = None,
 class Forked:
     """``function()`` run in a forked child process, its value read back through a pipe (pickled):
     work that can go on beside the parent's, from what the parent holds in memory at the fork.
-    :meth:`result` waits for it (and raises what it raised); :meth:`cancel` ends it."""
+    :meth:`result` waits for it (and raises what it raised); :meth:`cancel` ends it, and with
+    ``group`` the processes it started too (the child leads a process group of its own)."""
 
-    def __init__(self, function):
+    def __init__(self, function, group: bool = False):
         read, write = os.pipe()
         pid = os.fork()
         if pid == 0:  # the child: never returns into the parent's stack
             status = 1
             try:
                 os.close(read)
+                if group:
+                    with contextlib.suppress(OSError):
+                        os.setpgid(0, 0)
                 _worker_signals()
                 try:
                     payload = pickling.dumps((True, function()))
@@ -353,7 +363,10 @@ class Forked:
             finally:
                 os._exit(status)
         os.close(write)
-        self._pid, self._read = pid, read
+        if group:  # (both sides set it: whichever runs first, the group exists before cancel)
+            with contextlib.suppress(OSError):
+                os.setpgid(pid, pid)
+        self._pid, self._read, self._group = pid, read, group
 
     def result(self):
         with os.fdopen(self._read, "rb") as pipe:
@@ -371,7 +384,10 @@ class Forked:
         if self._pid is None:
             return
         with contextlib.suppress(ProcessLookupError):
-            os.kill(self._pid, signal.SIGTERM)
+            if self._group:  # the child and the worker processes it started
+                os.killpg(self._pid, signal.SIGTERM)
+            else:
+                os.kill(self._pid, signal.SIGTERM)
         os.waitpid(self._pid, 0)
         os.close(self._read)
         self._pid = None
@@ -420,12 +436,13 @@ class TemplatesAhead:
 
 
 def robot_context(model: RobotModel, origin: str, verbose: bool = False, jobs: int | None = None,
-                  functions=None, early: EarlyKernels | None = None) -> dict:
+                  functions=None, early: EarlyKernels | None = None, ready: dict | None = None) -> dict:
     """What the templates need of ``model``: every kernel prepared (``functions``, default
-    ``model.functions()``; ``early``: those of them prepared already), its constants and names."""
+    ``model.functions()``; ``early``, ``ready``: those of them prepared already, as
+    :func:`prepared_functions` takes them), its constants and names."""
     param_names = tuple(str(s) for s in model.params)
     model_functions = list(model.functions()) if functions is None else list(functions)
-    prepared = iter(prepared_functions(model_functions, param_names, jobs, early))
+    prepared = iter(prepared_functions(model_functions, param_names, jobs, early, ready))
     functions = []
     by_name = {}
     printed: dict = {"numpy": {}, "c": {}}
@@ -579,7 +596,8 @@ def render_robot(model: RobotModel, description: Path | None = None, backends=("
             if latex:
                 latex_text = Forked(lambda: latex_backend.render(model, origin))
         with stage("common subexpressions of every kernel"):
-            context = robot_context(model, origin, verbose, functions=functions, early=early)
+            context = robot_context(model, origin, verbose, functions=functions, early=early,
+                                    ready=beside.prepared if beside is not None else None)
         early = None  # taken
         context = dict(context, in_repository=in_repository, backends=tuple(backends))
         init = "kernel_set_init.py.j2" if isinstance(model, KernelSet) else "package_init.py.j2"
@@ -614,24 +632,28 @@ class RatesAndMotion:
     model's frames and Jacobians exist (a description's model derived afresh; none for one from
     the cache), :func:`render_robot` takes its results when it reaches the rates.  The ik of a
     7-joint arm that holds a joint free takes seconds (Romeo's left arm: 7.5 s), and the rates
-    and the dynamics need nothing of it."""
+    and the dynamics need nothing of it: the process also prepares their kernels (CSE, staging,
+    printing ahead), in worker processes of its own.  (Only where the kernels are RobotModel's own.)"""
 
     def __init__(self):
         self._job = None
+        self.prepared: dict = {}  # {kernel name: prepared_functions' result}, once adopted
 
     def __call__(self, model: RobotModel) -> None:
-        if self._job is None and model.chain is not None and _prepare_jobs(4) > 1:
-            self._job = Forked(lambda: (model.rates, model.dynamics, model.notes.get("dynamics")))
+        if (self._job is None and model.chain is not None and type(model).functions is RobotModel.functions
+                and _prepare_jobs(4) > 1):
+            self._job = Forked(lambda: _rates_and_motion(model), group=True)
 
     @property
     def pending(self) -> bool:
         return self._job is not None
 
     def adopt(self, model: RobotModel) -> None:
-        """Give ``model`` what the forked process derived (waiting for it); nothing if none was started."""
+        """Give ``model`` what the forked process derived (waiting for it), and keep the kernels it
+        prepared (``prepared``); nothing if none was started."""
         if self._job is not None:
             job, self._job = self._job, None
-            rates, dynamics, note = job.result()
+            rates, dynamics, note, self.prepared = job.result()
             model.__dict__["_rate_kinematics"] = rates
             if getattr(model, "inertials", ()):
                 _adopt_dynamics(model, dynamics, note)
@@ -640,6 +662,17 @@ class RatesAndMotion:
         if self._job is not None:
             job, self._job = self._job, None
             job.cancel()
+
+
+def _rates_and_motion(model: RobotModel) -> tuple:
+    """(rates, dynamics, its note, {kernel name: prepared}) of ``model``: in the process
+    :class:`RatesAndMotion` forks, which prepares the rate and dynamics kernels too, with its own
+    worker processes, while its parent is still deriving the ik."""
+    rates, dynamics = model.rates, model.dynamics
+    functions = model.rate_functions() + model.dynamics_functions()
+    own = [f.name for f in functions if f.solve is None]
+    done = prepared_functions(functions, tuple(str(s) for s in model.params), ahead=True)
+    return rates, dynamics, model.notes.get("dynamics"), dict(zip(own, done))
 
 
 def _adopt_dynamics(model: RobotModel, dynamics, note: str | None) -> None:

@@ -192,6 +192,7 @@ def test_rates_and_dynamics_derived_beside_the_ik_give_the_same_package(monkeypa
     byte-identical to one whose rates and dynamics the rendering process derived, no process is
     left, and a run that stops before the render (cancel) leaves none either."""
     import multiprocessing
+    import time
 
     monkeypatch.setenv("KINEGEN_NO_CACHE", "1")
     monkeypatch.setenv("KINEGEN_JOBS", "2")
@@ -204,10 +205,36 @@ def test_rates_and_dynamics_derived_beside_the_ik_give_the_same_package(monkeypa
     assert generate.render_robot(model, path, beside=beside) == reference
     assert not beside.pending and model.dynamics is not None
     assert multiprocessing.active_children() == []
+    # cancelled while its own worker processes prepare the kernels (held there by a slow prepare):
+    # the forked process leads a process group, and the group goes, workers and all
+    slow = generate.prepare
+    monkeypatch.setattr(generate, "prepare", lambda *args: (time.sleep(60), slow(*args))[1])
     beside = generate.RatesAndMotion()
     derivations.load(path, before_ik=beside)
     assert beside.pending
+    group = beside._job._pid
+
+    def members():
+        found = []
+        for entry in os.listdir("/proc"):
+            try:
+                with open(f"/proc/{entry}/stat") as handle:
+                    fields = handle.read().rsplit(")", 1)[1].split()
+            except (OSError, IndexError):
+                continue
+            if int(fields[2]) == group and fields[0] != "Z":  # pgrp, and not a zombie
+                found.append(int(entry))
+        return found
+
+    deadline = time.monotonic() + 60
+    while len(members()) < 3 and time.monotonic() < deadline:  # the process and its two workers
+        time.sleep(0.05)
+    assert len(members()) >= 3
     beside.cancel()
+    deadline = time.monotonic() + 10
+    while members() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert members() == []
     with pytest.raises(ChildProcessError):  # no forked child left (none to wait for)
         os.waitpid(-1, os.WNOHANG)
 
