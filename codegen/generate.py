@@ -29,6 +29,7 @@ from derivations.support import pickling
 from derivations.support.budget import degraded, stage as budget_stage
 from derivations.formats.description import read_description
 from derivations.ik import UNIT_SNAP
+from derivations.assembly import kinematics_kernels
 from derivations.ik.general_6r import equations_function
 from derivations.kernelset import KernelSet
 from derivations.model import POSE_NAMES, REVOLUTE, RobotModel
@@ -577,7 +578,11 @@ def render_robot(model: RobotModel, description: Path | None = None, backends=("
             motion = Forked(lambda: (model.dynamics, model.notes.get("dynamics")))
         if side:
             positions = model.position_functions()
-            early = EarlyKernels(positions, tuple(str(s) for s in model.params))
+            # (the kinematics kernels, which need no ik, are being prepared beside it with the rates)
+            taken = kinematics_kernel_names(model) if beside is not None and beside.pending else set()
+            mine = [f for f in positions if f.name not in taken]
+            if mine:
+                early = EarlyKernels(mine, tuple(str(s) for s in model.params))
         if not isinstance(model, KernelSet):
             with stage("rate kinematics"):
                 if beside is not None:
@@ -666,13 +671,19 @@ class RatesAndMotion:
 
 def _rates_and_motion(model: RobotModel) -> tuple:
     """(rates, dynamics, its note, {kernel name: prepared}) of ``model``: in the process
-    :class:`RatesAndMotion` forks, which prepares the rate and dynamics kernels too, with its own
-    worker processes, while its parent is still deriving the ik."""
+    :class:`RatesAndMotion` forks, which prepares the kernels that need no ik (the kinematics', the
+    rates' and the dynamics'), with worker processes of its own, while its parent derives the ik."""
     rates, dynamics = model.rates, model.dynamics
-    functions = model.rate_functions() + model.dynamics_functions()
+    functions = kinematics_kernels(model) + model.rate_functions() + model.dynamics_functions()
     own = [f.name for f in functions if f.solve is None]
     done = prepared_functions(functions, tuple(str(s) for s in model.params), ahead=True)
     return rates, dynamics, model.notes.get("dynamics"), dict(zip(own, done))
+
+
+def kinematics_kernel_names(model: RobotModel) -> set[str]:
+    """The names of ``model``'s kinematics kernels (fk, frames, the Jacobians, task): the first of its
+    position functions, which need no ik."""
+    return {f.name for f in kinematics_kernels(model)}
 
 
 def _adopt_dynamics(model: RobotModel, dynamics, note: str | None) -> None:
