@@ -33,6 +33,7 @@ from derivations.assembly import kinematics_kernels
 from derivations.ik.general_6r import equations_function
 from derivations.kernelset import KernelSet
 from derivations.model import POSE_NAMES, REVOLUTE, RobotModel
+from derivations.rates.singular import jacobian_determinant
 
 from .backends import (TEMPLATES, adopt_templates, c_backend, compile_templates, float_literal, latex_backend,
                        numpy_backend)
@@ -586,6 +587,8 @@ def render_robot(model: RobotModel, description: Path | None = None, backends=("
         if not isinstance(model, KernelSet):
             with stage("rate kinematics"):
                 if beside is not None:
+                    if beside.pending and latex:  # the LaTeX's det J, in the time this process would wait
+                        jacobian_determinant(model)
                     beside.adopt(model)
                 model.rates  # derived on first use (and cached on disk)
             if getattr(model, "inertials", ()):  # an arm with inertial parameters: its equations of motion

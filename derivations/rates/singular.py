@@ -81,13 +81,17 @@ def square_jacobian(model) -> tuple[str, sp.Matrix] | None:
 
 
 def jacobian_determinant(model) -> JacobianDeterminant | None:
-    """``det J`` as a product of short factors, with the singular set (cached on disk)."""
+    """``det J`` as a product of short factors, with the singular set (cached on disk, and on the model)."""
+    if "_jacobian_determinant" in model.__dict__:
+        return model.__dict__["_jacobian_determinant"]
     chosen = square_jacobian(model)
     if chosen is None:
         return None
     which, J = chosen
     key = sp.srepr((J, tuple(model.q))).encode()
-    return cached(f"determinant-{model.name}", key, lambda: _determinant(which, J, model.q, model.joint_types))
+    result = cached(f"determinant-{model.name}", key, lambda: _determinant(which, J, model.q, model.joint_types))
+    model.__dict__["_jacobian_determinant"] = result
+    return result
 
 
 def _determinant(which: str, J: sp.Matrix, q, joint_types) -> JacobianDeterminant:
