@@ -1,6 +1,7 @@
 """The C99 backend: a C99CodePrinter subclass, the header/source templates and a cffi binding."""
 from __future__ import annotations
 
+import collections
 import re
 
 import sympy as sp
@@ -158,6 +159,7 @@ _HELPER = re.compile(r"^@@helper (?P<name>\w+)@@\n(?P<body>.*?)^@@end@@\n", re.S
 
 
 _UNIT = re.compile(r"^#if !defined\(KINEGEN_PART\) \|\| KINEGEN_PART == (?P<part>\d+)$", re.M)
+_WORD = re.compile(r"\w+")
 
 
 def prune_helpers(text: str) -> str:
@@ -169,37 +171,44 @@ def prune_helpers(text: str) -> str:
     and the marker lines go: a ``static`` function nobody calls would stop the build
     under ``-Werror=unused-function``, whatever the robot, task or kernel set.  In a file
     that compiles as several units (:func:`c_parts`), each helper is compiled in the units
-    that call it, and only there (:func:`_unit_guards`).
+    that call it, and only there (:func:`_unit_guards`).  Names are counted as words, once
+    over the file (a search of a 1 MB file per helper took 0.4 s of a KR 210's render).
     """
+    blocks = {b["name"]: b for b in _HELPER.finditer(text)}
+    if not blocks:
+        return text
+    words = collections.Counter(_WORD.findall(text))
+    inside = {name: collections.Counter(_WORD.findall(b.group(0))) for name, b in blocks.items()}
+    kept = dict(blocks)
     while True:
-        blocks = list(_HELPER.finditer(text))
-        unused = [b for b in blocks
-                  if not re.search(rf"\b{b['name']}\b", text[:b.start()] + text[b.end():])]
+        unused = [name for name in kept if words[name] == inside[name][name]]  # only in its own block
         if not unused:
             break
-        for block in reversed(unused):
-            text = text[:block.start()] + text[block.end():]
-    guards = _unit_guards(text)
-    return _HELPER.sub(lambda b: guards.get(b["name"], "{}").format(b["body"]), text)
+        for name in unused:
+            words -= inside[name]
+            del kept[name]
+    guards = _unit_guards(text, {name: b["body"] for name, b in kept.items()})
+    return _HELPER.sub(lambda b: guards.get(b["name"], "{}").format(b["body"]) if b["name"] in kept else "", text)
 
 
-def _unit_guards(text: str) -> dict[str, str]:
+def _unit_guards(text: str, bodies: dict[str, str]) -> dict[str, str]:
     """{helper: its block's text around ``{}``, guarded to the units that call it} for a file of
     several units (none for one unit): the units each helper's name appears in, and those of
-    the helpers that call it.  The helpers stand before the first unit, outside every unit."""
+    the helpers that call it (``bodies``: each kept helper's text).  The helpers stand before the
+    first unit, outside every unit."""
     units = list(_UNIT.finditer(text))
     if not units:
         return {}
-    sections = [(int(u["part"]), text[u.start():(units[k + 1].start() if k + 1 < len(units) else len(text))])
+    sections = [(int(u["part"]), set(_WORD.findall(text, u.start(), units[k + 1].start() if k + 1 < len(units)
+                                                    else len(text))))
                 for k, u in enumerate(units)]
-    blocks = {b["name"]: b["body"] for b in _HELPER.finditer(text)}
-    callers = {name: {other for other, body in blocks.items()
-                      if other != name and re.search(rf"\b{name}\b", body)} for name in blocks}
-    used = {name: {part for part, section in sections if re.search(rf"\b{name}\b", section)} for name in blocks}
+    calls = {name: set(_WORD.findall(body)) for name, body in bodies.items()}
+    callers = {name: {other for other in bodies if other != name and name in calls[other]} for name in bodies}
+    used = {name: {part for part, section in sections if name in section} for name in bodies}
     changed = True
     while changed:  # a helper is needed where its callers are
         changed = False
-        for name in blocks:
+        for name in bodies:
             wider = used[name].union(*(used[c] for c in callers[name]))
             changed, used[name] = changed or wider != used[name], wider
     guards = {}
