@@ -141,6 +141,26 @@ def _beyond_double(number: sp.Rational) -> bool:
     return abs(number.p) > EXACT_INTEGER_LIMIT or number.q > EXACT_INTEGER_LIMIT
 
 
+def _holds_beyond_double(expr: sp.Basic) -> bool:
+    """Whether ``expr`` holds a rational beyond 2**53: each distinct subexpression visited once
+    (``expr.atoms(Rational)`` walked every path through a program's shared steps: a second of
+    Romeo's ik kernel), without recursion."""
+    memo: dict = {}
+    todo = [(expr, False)]
+    while todo:
+        e, expanded = todo.pop()
+        if e in memo:
+            continue
+        if not e.args:
+            memo[e] = e.is_Rational and _beyond_double(e)
+        elif expanded:
+            memo[e] = any(memo[a] for a in e.args)
+        else:
+            todo.append((e, True))
+            todo.extend((a, False) for a in e.args if a not in memo)
+    return memo[expr]
+
+
 @functools.lru_cache(maxsize=8192)
 def bounded_numbers(expr: sp.Basic) -> sp.Basic:
     """``expr`` with every constant that reads an integer or rational beyond 2**53 folded into one
@@ -152,7 +172,7 @@ def bounded_numbers(expr: sp.Basic) -> sp.Basic:
     subexpression that holds one is evaluated at 30 digits and rounded once, so the printed double
     is the nearest to the exact value, not a rounding of a rounding.  A rational on its own already
     prints as its nearest double (1/10**18 as 1e-18) and stays as it is."""
-    if not any(_beyond_double(r) for r in expr.atoms(sp.Rational)):
+    if not _holds_beyond_double(expr):
         return expr
     memo: dict = {}
 

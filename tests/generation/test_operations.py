@@ -72,3 +72,17 @@ def _combine(children):
 @given(st.recursive(_atoms, _combine, max_leaves=12))
 def test_random_expressions_count_as_count_ops_does(expr):
     assert operation_count(expr) == int(sp.count_ops(expr))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.recursive(st.sampled_from([x, y, sp.Integer(3), sp.Rational(2**60 + 1, 7), sp.Rational(1, 2**54 + 3),
+                                     sp.Integer(-(2**53) - 1), sp.Integer(2**53), sp.pi]),
+                    lambda children: st.one_of(st.tuples(children, children).map(lambda a: a[0] + a[1]),
+                                               st.tuples(children, children).map(lambda a: a[0] * a[1]),
+                                               children.map(sp.sqrt), children.map(sp.cos)),
+                    max_leaves=10))
+def test_a_rational_beyond_a_double_is_found_as_atoms_finds_it(expr):
+    """codegen.kernels._holds_beyond_double (each distinct node once) against SymPy's atoms."""
+    from codegen.kernels import EXACT_INTEGER_LIMIT, _holds_beyond_double
+    expected = any(abs(r.p) > EXACT_INTEGER_LIMIT or r.q > EXACT_INTEGER_LIMIT for r in expr.atoms(sp.Rational))
+    assert _holds_beyond_double(expr) == expected
