@@ -36,8 +36,6 @@ The branches are then ordered shoulder right before left, elbow up before down, 
 """
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import sympy as sp
 
@@ -377,5 +375,5 @@ def geometric_names(model, structure, axes: list[int], family: str, branches: li
         name = "_".join(f"{p}_{w}" for p, w in spelled)
         meaning = ", ".join(f"{p} {w}" for p, w in spelled if p in named)
         doc = branch.doc + (f"; by geometry (docs/ik.md, Branch names): {meaning}" if meaning else "")
-        out.append(dataclasses.replace(branch, name=name, doc=doc))
+        out.append(branch.renamed(name, doc))
     return out
