@@ -18,6 +18,7 @@ run one way: the assembly imports the model, never the reverse.
 """
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field, replace
 
 import sympy as sp
@@ -25,7 +26,7 @@ import sympy as sp
 from .chain import PRISMATIC, REVOLUTE, Chain
 from .program import inline, needed
 
-__all__ = ["Argument", "Output", "Requirement", "NumericSolve", "SymbolicFunction", "IKBranch", "RobotModel",
+__all__ = ["Argument", "Output", "Requirement", "NumericSolve", "SymbolicFunction", "IKBranch", "SubstitutedSteps", "RobotModel",
            "with_program", "APPROACH_NAMES", "POSE_NAMES", "TASK_ITEMS", "TASK_ITEMS_TEXT", "ANGLE_TASKS",
            "TaskError", "install_assembly", "REVOLUTE", "PRISMATIC"]
 
@@ -148,6 +149,44 @@ class SymbolicFunction:
     cse: str = "full"
 
 
+class _SubstitutedOnRead:
+    """The ``solution`` and ``condition`` fields of :class:`IKBranch`: a value given as a
+    :class:`SubstitutedSteps` is computed when one of them is first read, and kept.
+
+    A derived six- or seven-joint inverse (``derivations.ik.decompose``) is its steps; its kernel is
+    emitted from them (``RobotModel.ik_function``), and the steps substituted into one another,
+    which SymPy rebuilds with evaluation, asking the assumptions of every fresh node, are read by
+    tests and tools only: on the Romeo arm they were half of its model (3 s of CPU).
+    """
+
+    def __init__(self, default):
+        self.default = default
+
+    def __set_name__(self, owner, name):
+        self.name, self.key = name, "_" + name
+
+    def __get__(self, branch, owner=None):
+        if branch is None:
+            return self.default  # the dataclass's default
+        value = branch.__dict__[self.key]
+        if isinstance(value, SubstitutedSteps):
+            solution, condition = value.substitute(branch)
+            branch.__dict__.update(_solution=solution, _condition=condition)
+            value = branch.__dict__[self.key]
+        return value
+
+    def __set__(self, branch, value):  # the frozen dataclass's __init__ sets each field once
+        branch.__dict__[self.key] = value
+
+
+class SubstitutedSteps:
+    """What a branch's ``solution`` and ``condition`` are, to be computed on first read: its
+    steps substituted in order.  ``substitute(branch)`` returns (solution, condition)."""
+
+    def substitute(self, branch) -> tuple[tuple[sp.Expr, ...], sp.Basic]:
+        raise NotImplementedError
+
+
 @dataclass(frozen=True)
 class IKBranch:
     """One closed-form inverse-kinematics branch.
@@ -161,11 +200,13 @@ class IKBranch:
     among them; substituting them in order (``derivations.ik.substitute_steps``)
     gives ``solution``.  ``step_cites``, if given, names the paper's equation of
     each step (``"Kumar Eq.~(h)"``, ``""`` for none), one per step, for the LaTeX tags.
+    A derivation may give ``solution`` and ``condition`` both as one :class:`SubstitutedSteps`,
+    computed when first read (:meth:`renamed` keeps them unread).
     """
 
     name: str
-    solution: tuple[sp.Expr, ...]
-    condition: sp.Basic = sp.true
+    solution: tuple[sp.Expr, ...] = _SubstitutedOnRead(None)
+    condition: sp.Basic = _SubstitutedOnRead(sp.true)
     doc: str = ""
     steps: tuple[tuple[sp.Symbol, sp.Expr], ...] = ()
     step_cites: tuple[str, ...] = ()
@@ -176,6 +217,14 @@ class IKBranch:
     def __post_init__(self):
         if self.step_cites and len(self.step_cites) != len(self.steps):
             raise ValueError(f"{self.name}: {len(self.step_cites)} step cites for {len(self.steps)} steps")
+        if self.__dict__["_solution"] is None:
+            raise TypeError(f"{self.name}: an IKBranch needs its solution")
+
+    def renamed(self, name: str, doc: str) -> "IKBranch":
+        """This branch under another name and doc, a solution not yet substituted left so."""
+        branch = copy.copy(self)
+        branch.__dict__.update(name=name, doc=doc)
+        return branch
 
 
 def with_program(functions: list[SymbolicFunction], steps) -> list[SymbolicFunction]:

@@ -51,7 +51,7 @@ import sympy as sp
 from sympy.functions.elementary.piecewise import ExprCondPair
 
 from ..chain import PRISMATIC, REVOLUTE
-from ..model import APPROACH_NAMES, POSE_NAMES, IKBranch
+from ..model import APPROACH_NAMES, POSE_NAMES, IKBranch, SubstitutedSteps
 from .branch_names import geometric_names
 from .primitives import ClampUnit, WrapAngle, written_piecewise
 from .reverse import SWAPPED_LABELS, reversed_joints, reversed_structure, reversed_target
@@ -850,28 +850,41 @@ def substitute_unevaluated(expr, subs: dict, memo: dict):
     return result
 
 
+class _Substituted(SubstitutedSteps):
+    """A derived branch's ``solution`` and ``condition``: its steps substituted in order, each
+    revolute joint read by later steps as its wrapped value, the free joint its own symbol."""
+
+    def __init__(self, q, revolute, free=None):
+        self.q, self.revolute, self.free = tuple(q), tuple(revolute), free
+
+    def substitute(self, branch: IKBranch):
+        revolute = dict(zip(self.q, self.revolute))
+        subs, values = {}, {}
+        if self.free is not None:  # the free joint's value is the kernel's argument: the joint symbol itself
+            values[self.free] = self.free
+        for symbol, expr in branch.steps:
+            value = substitute_unevaluated(expr, subs, {})
+            if symbol in revolute:
+                values[symbol] = value
+                subs[symbol] = WrapAngle(value) if revolute[symbol] else value
+            else:
+                subs[symbol] = value
+        return tuple(values[q] for q in self.q), substitute_unevaluated(branch.step_condition, subs, {})
+
+
 def _branch(model, steps: _Steps, doc_head: str, free=None) -> IKBranch:
-    revolute = {q: t == REVOLUTE for q, t in zip(model.q, model.joint_types)}
-    subs, values = {}, {}
-    if free is not None:  # the free joint's value is the kernel's argument: the joint symbol itself
-        values[free] = free
-    for symbol, expr in steps.items:
-        value = substitute_unevaluated(expr, subs, {})
-        if symbol in revolute:
-            values[symbol] = value
-            subs[symbol] = WrapAngle(value) if revolute[symbol] else value
-        else:
-            subs[symbol] = value
-    missing = [str(q) for q in model.q if q not in values]
+    """The branch of ``steps``: its kernel is emitted from the steps, and its solution and condition
+    (the steps substituted) are computed if read (:class:`derivations.model.SubstitutedSteps`)."""
+    solved = {symbol for symbol, _ in steps.items} | {free}
+    missing = [str(q) for q in model.q if q not in solved]
     if missing:
         raise AssertionError(f"decomposition left {missing} unsolved")
     step_condition = (_conjunction(Conjunction, steps.conditions) if len(steps.conditions) > 1
                       else steps.conditions[0] if steps.conditions else sp.true)
-    condition = substitute_unevaluated(step_condition, subs, {})
     name = "_".join(steps.choices)
     doc = f"{doc_head}; " + "; ".join(steps.docs)
-    return IKBranch(name, tuple(values[q] for q in model.q), condition, doc, tuple(steps.items),
-                    step_condition=step_condition)
+    substituted = _Substituted(model.q, (t == REVOLUTE for t in model.joint_types), free)
+    return IKBranch(name, substituted, substituted, doc, tuple(steps.items), step_condition=step_condition)
 
 
 def _six_joint_family(S: Structure):

@@ -10,6 +10,7 @@ modulo 2 pi), and every valid automatic branch reaches the target.
 The subproblems themselves are checked against their defining equations at random vectors.
 """
 import math
+import pickle
 import subprocess
 import sys
 from pathlib import Path
@@ -233,6 +234,35 @@ def test_urdf_chains_decompose_like_dh_tables(file):
             q[:, i] = rng.uniform(*model.limits[i], 300)
     _, found = round_trip_from_steps(model, q, free)
     assert found.all()
+
+
+def test_a_derived_branch_is_its_steps_substituted_when_read():
+    """A derived branch's ``solution`` and ``condition`` (the steps substituted into one another,
+    which the kernels never read) are computed when first read, also after a round trip through
+    the derivation cache; read, they are the branch: at 200 targets from the arm's own fk (the Adept
+    Cobra 600: the flat solution of a six-joint arm takes minutes to lambdify), each joint value is
+    the one its steps give (revolute modulo 2 pi), the condition holds where the steps' conditions
+    do, and the valid answers put the tool back."""
+    from derivations.model import SubstitutedSteps
+    model = derivations.load(ROOT / "tests" / "data" / "arms" / "adept_cobra600.toml")
+    assert all(isinstance(b.__dict__["_solution"], SubstitutedSteps) for b in model.ik)
+    reloaded = pickle.loads(pickle.dumps(model))
+    assert all(isinstance(b.__dict__["_condition"], SubstitutedSteps) for b in reloaded.ik)
+    q = np.random.default_rng(27).uniform(-np.pi, np.pi, (200, model.n))
+    x, found = round_trip_from_steps(model, q)
+    assert found.all()
+    symbols = [*model.task_symbols, *model.params]
+    point = [*x.T, *(np.full(len(x), float(v)) for v in model.params.values())]
+    revolute = np.array([kind == "R" for kind in model.joint_types])
+    for branch in model.ik + reloaded.ik:
+        Q_steps, valid_steps = evaluate_steps(model, branch, x)
+        Q = np.stack([np.broadcast_to(np.asarray(sp.lambdify(symbols, e, modules=MODULES)(*point), float), (len(x),))
+                      for e in branch.solution], axis=-1)
+        valid = np.broadcast_to(sp.lambdify(symbols, branch.condition, modules=MODULES)(*point), (len(x),))
+        assert valid.any() and np.array_equal(valid & np.isfinite(Q).all(axis=-1), valid_steps), branch.name
+        difference = np.abs(Q - Q_steps)
+        difference[:, revolute] = np.abs(wrap(difference[:, revolute]))
+        assert difference[valid].max() < 1e-9, branch.name
 
 
 @pytest.mark.parametrize("held, by", [(1, 1), (2, "iiwa_joint_2"), (3, 3)])
