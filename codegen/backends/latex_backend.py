@@ -23,6 +23,7 @@ Each equation that reproduces a paper's equation is tagged with it
 from __future__ import annotations
 
 import dataclasses
+import functools
 import itertools
 import re
 from dataclasses import dataclass, field
@@ -539,10 +540,12 @@ def _clamped_argument(e):
     return None
 
 
+@functools.lru_cache(maxsize=4096)
 def unclamped(expr):
     """``expr`` as mathematics: an ``acos`` argument clamped for the kernels, ``Min(1, Max(-1, c))``, is ``c``;
     the existence tolerance ``|c| <= 1 + ACOS_TOLERANCE`` reads ``|c| <= 1``.  The IK section says once
-    what the kernels do at the edge."""
+    what the kernels do at the edge.  Remembered: the branches of a derived ik share most of their
+    steps (Romeo's 8 branches: 328 steps, 0.5 s of its LaTeX)."""
     expr = sp.sympify(expr).replace(lambda e: _clamped_argument(e) is not None, _clamped_argument)
     expr = expr.replace(lambda e: isinstance(e, ClampUnit), lambda e: e.args[0])
     expr = expr.xreplace({TINY: sp.S.Zero})  # the 1e-300 that keeps a generated division finite
