@@ -87,15 +87,17 @@ def test_every_real_solution_of_the_jaco(backend, generated_root):
 
 
 
-def test_the_c_misses_no_regular_degenerate_configuration(generated_root):
-    """All 4,096 configurations with every joint at 0, +-pi/2 or pi, through the C: no wrong answer,
-    no pose without one, and the generating configuration among the answers at every regular one
-    (the smallest singular value of this file's Jacobian above 1e-6: 1,792 of them).  These poses
-    give the pencil multiple eigenvalues, on which the C's QR steps must not stall (general_6r.c.j2:
-    the IRB 140's case, tests/ik/test_urdf_zoo_ik.py).  The numpy backend is not held to it: LAPACK's
-    eigenvectors missed 4 such Jaco configurations (docs/ik.md)."""
+@pytest.mark.parametrize("backend", ["numpy", "c"])
+def test_no_regular_degenerate_configuration_is_missed(backend, generated_root):
+    """All 4,096 configurations with every joint at 0, +-pi/2 or pi, in both backends: no wrong
+    answer, no pose without one, and the generating configuration among the answers at every
+    regular one (the smallest singular value of this file's Jacobian above 1e-6: 1,792 of them).
+    These poses give the determinant multiple roots (the C's fast pass must send them to its
+    eigen-solve, whose QR steps must not stall: the IRB 140's case, tests/ik/test_urdf_zoo_ik.py)
+    and make both loops' pencils singular at some (the numpy backend missed 4 regular ones while it
+    turned such poses about two axes where the C takes four)."""
     arm = ARMS["kinova_jaco"]
-    k = generated_package("kinova_jaco", generated_root).load("c")
+    k = generated_package("kinova_jaco", generated_root).load(backend)
     q = np.array(list(itertools.product([0.0, np.pi / 2, -np.pi / 2, np.pi], repeat=6)))
     target = fk(arm, q)
     Q, valid = k.ik(target)
