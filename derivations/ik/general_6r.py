@@ -545,7 +545,8 @@ def fast_loop(chain, params, loops, count=FAST_POSES, seed=LOOP_SEED) -> int:
     random poses of the smallest gap between two of them (double precision, the companion
     matrix's eigenvalues with numpy).  Near roots are what that pass resolves worst: on the Kinova
     Jaco, loop psi_3 = q2 puts half its poses' nearest two roots within 0.0055 rad, psi_3 = q5
-    within 0.017 (24 poses).  The first of equal ones; 0 where no pose has two real roots."""
+    within 0.017 (30 poses).  The first of equal ones; 0 where no pose has two real roots.  About
+    0.15 s (the Jaco, the Mico)."""
     import numpy as np
     numbers = {s: sp.Float(v, 30) for s, v in params.items()}
 
