@@ -3,10 +3,11 @@
 and the Robotics Toolbox beside it (its generated Raghavan-Roth solver, ``analytic_ik().solve``,
 and its numeric ``ik_LM``) where the bench environment has it.
 
-* Backends: ``c`` is the whole ik in generated C (general_6r.c.j2: the coefficient matrices, a
-  companion linearisation less its 8 spurious eigenvalues +-i (16 x 16), balancing, Hessenberg
-  reduction and Francis double-shift QR for the eigenvalues, the joints from each real root, the
-  Newton polish, the deduplication), through
+* Backends: ``c`` is the whole ik in generated C (general_6r.c.j2: the coefficient matrices, the
+  real roots of their 12 x 12 determinant on one loop from 17 samples, and only where those leave a
+  doubt a companion linearisation less its 8 spurious eigenvalues +-i (16 x 16), balancing,
+  Hessenberg reduction and Francis double-shift QR for the eigenvalues; the joints from each real
+  root, the Newton polish, the deduplication), through
   cffi for a batch and the point module for one pose; ``numpy`` is the same method with LAPACK's
   ``eig`` and numpy (general_6r.py.j2), its equations, fk and Jacobian in numpy.
 * Package: ``kinegen generate FILE`` (portable C99 -O2) of each arm's file, in a
@@ -193,10 +194,11 @@ def report(rows, started, ended, load) -> str:
              "smallest singular value above 1e-6); singular: the generating configurations that are not. Times: the "
              f"best of {REPEAT} runs over 1,000 poses (batched) or 200 calls of one pose, CPU time (wall time). "
              "Derivation: the general 6R's equations alone, in a fresh process with an empty cache; generate: the "
-             "whole `kinegen generate` with its C compile. Backend c: the whole ik in generated C (the 8 spurious "
-             "eigenvalues +-i taken out, the other 16 by our own Hessenberg reduction and Francis double-shift QR, no "
-             "LAPACK); numpy: the same method with LAPACK's "
-             "eig (issue #26's target for the C: at most 20 us per pose).", "",
+             "whole `kinegen generate` with its C compile. Backend c: the whole ik in generated C, no LAPACK (the "
+             "real roots of the 12 x 12 determinant, a trigonometric polynomial of degree 8 from 17 samples, on one "
+             "loop; where those leave a doubt, the eigenvalues as before: the 8 spurious ones +-i taken out, the "
+             "other 16 by our own Hessenberg reduction and Francis double-shift QR); numpy: the eigenvalues with "
+             "LAPACK's eig (issue #26's target for the C: at most 20 us per pose).", "",
              "| arm | backend | poses | wrong | no solution | missing (at regular) | singular | solutions per pose "
              "| worst FK error | batched, per pose | one pose per call | derivation, cold | generate |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]

@@ -10,6 +10,7 @@ import concurrent.futures
 import contextlib
 import errno
 import hashlib
+import math
 import os
 import pickle
 import re
@@ -473,7 +474,7 @@ def robot_context(model: RobotModel, origin: str, verbose: bool = False, jobs: i
         "joints": list(getattr(model, "joint_labels", ())), "joint_types": list(model.joint_types),
         "frame_names": list(getattr(model, "frame_labels", ())),
         "ik_method": ik_method(model), "seeded_ik": seeded_ik(model), "seed_count": SEED_COUNT,
-        "general_6r": general_6r(model), "general_6r_slots": GENERAL_6R_SLOTS,
+        "general_6r": general_6r(model), "general_6r_slots": GENERAL_6R_SLOTS, "general_6r_circle": GENERAL_6R_CIRCLE,
         "ik_unsupported": safe_text(getattr(model, "ik_unsupported", "")),
         "task": list(model.task_names), "branches": [b.name for b in model.ik],
         "ik_ranges": safe_text(getattr(model, "ik_ranges", "")),  # a kernel set has no ik
@@ -501,6 +502,19 @@ def robot_context(model: RobotModel, origin: str, verbose: bool = False, jobs: i
 SEED_COUNT = 16
 # The answers of a general 6R's ik: at most 16 real solutions (Raghavan and Roth 1993).
 GENERAL_6R_SLOTS = 16
+
+
+def _circle(count: int) -> tuple:
+    """cos and sin of 2 pi k / count, k = 0 .. count - 1, as C literals (17 digits)."""
+    return (tuple(f"{math.cos(2 * math.pi * k / count):.17g}" for k in range(count)),
+            tuple(f"{math.sin(2 * math.pi * k / count):.17g}" for k in range(count)))
+
+
+# The general 6R's fast pass in C (general_6r.c.j2): det M(psi_3), a trigonometric polynomial of
+# degree 8, from its values at 17 points of the circle, its real zeros looked for on a grid of 64.
+GENERAL_6R_CIRCLE = {"samples": 17, "grid": 64}
+GENERAL_6R_CIRCLE.update(zip(("sample_cos", "sample_sin"), _circle(17)))
+GENERAL_6R_CIRCLE.update(zip(("grid_cos", "grid_sin"), _circle(64)))
 
 
 def seeded_ik(model) -> bool:

@@ -80,9 +80,10 @@ def print_model(model, what: str, latex: bool = False) -> int:
             from derivations.ik.general_6r import applies as general_6r
             if general_6r(model):
                 print("method: general 6R (every real solution, up to 16: Raghavan and Roth's 14 equations in "
-                      "Manocha and Canny's matrix form, a 24 x 24 eigenproblem per pose (in the generated C: balancing, "
-                      "Hessenberg reduction and Francis QR steps; numpy: LAPACK), each root polished by "
-                      "Newton on the arm's fk; docs/ik.md)")
+                      "Manocha and Canny's matrix form; in the generated C the real roots of the 12 x 12 determinant, "
+                      "a trigonometric polynomial of degree 8 from 17 samples, and a 24 x 24 eigenproblem (balancing, "
+                      "Hessenberg reduction and Francis QR steps) only where those leave a doubt; numpy: the eigenproblem "
+                      "with LAPACK; each root polished by Newton on the arm's fk; docs/ik.md)")
             else:
                 print(f"method: numeric (ik_numeric from {SEED_COUNT} fixed seeds: every answer exact to 1e-12, "
                       "not every answer guaranteed)")

@@ -252,8 +252,9 @@ def general_6r_function(context: dict) -> dict | None:
     return {
         "name": "ik", "general_6r": True, "is_ik": True, "checks": (), "solve": None,
         "doc": (f"Inverse kinematics of a general 6R, every real solution: Q (..., {slots}, 6), valid (..., {slots}). "
-                "Raghavan and Roth's equations in Manocha and Canny's form (ik_6r_equations), their 24 x 24 "
-                "eigenproblem by Francis QR steps, the other joints from each real root, each answer polished by "
+                "Raghavan and Roth's equations in Manocha and Canny's form (ik_6r_equations), the real roots of "
+                "their 12 x 12 determinant (a 24 x 24 eigenproblem by Francis QR steps where those leave a doubt), "
+                "the other joints from each real root, each answer polished by "
                 "Newton steps on fk and the Jacobian; a valid answer reproduces the pose within 1e-10, the valid "
                 "answers first, by q1 then q2, ..., each once."),
         "arguments": equations["arguments"], "params_used": equations["params_used"],

@@ -87,15 +87,17 @@ def test_every_real_solution_of_the_jaco(backend, generated_root):
 
 
 
-def test_the_c_misses_no_regular_degenerate_configuration(generated_root):
-    """All 4,096 configurations with every joint at 0, +-pi/2 or pi, through the C: no wrong answer,
-    no pose without one, and the generating configuration among the answers at every regular one
-    (the smallest singular value of this file's Jacobian above 1e-6: 1,792 of them).  These poses
-    give the pencil multiple eigenvalues, on which the C's QR steps must not stall (general_6r.c.j2:
-    the IRB 140's case, tests/ik/test_urdf_zoo_ik.py).  The numpy backend is not held to it: LAPACK's
-    eigenvectors missed 4 such Jaco configurations (docs/ik.md)."""
+@pytest.mark.parametrize("backend", ["numpy", "c"])
+def test_no_regular_degenerate_configuration_is_missed(backend, generated_root):
+    """All 4,096 configurations with every joint at 0, +-pi/2 or pi, in both backends: no wrong
+    answer, no pose without one, and the generating configuration among the answers at every
+    regular one (the smallest singular value of this file's Jacobian above 1e-6: 1,792 of them).
+    These poses give the determinant multiple roots (the C's fast pass must send them to its
+    eigen-solve, whose QR steps must not stall: the IRB 140's case, tests/ik/test_urdf_zoo_ik.py)
+    and make both loops' pencils singular at some (the numpy backend missed 4 regular ones while it
+    turned such poses about two axes where the C takes four)."""
     arm = ARMS["kinova_jaco"]
-    k = generated_package("kinova_jaco", generated_root).load("c")
+    k = generated_package("kinova_jaco", generated_root).load(backend)
     q = np.array(list(itertools.product([0.0, np.pi / 2, -np.pi / 2, np.pi], repeat=6)))
     target = fk(arm, q)
     Q, valid = k.ik(target)
@@ -159,6 +161,34 @@ def test_the_equations_hold_at_the_generating_configuration(generated_root):
         P3 = P[:, loop, 0] + c[:, 2, None, None] * P[:, loop, 1] + s[:, 2, None, None] * P[:, loop, 2]
         residual = np.einsum("nrj,nj->nr", P3, m45) - np.einsum("nrj,nj->nr", Q[:, loop], m12)
         assert np.abs(residual).max() < 1e-10
+
+
+def test_the_c_fast_pass_takes_the_loop_whose_solutions_lie_further_apart(generated_root):
+    """The C's fast pass (general_6r.c.j2, G6R_FAST) solves on the loop whose real roots in psi_3 lie
+    further apart (derivations.ik.general_6r.fast_loop), where its determinant resolves them best:
+    over 60 random configurations, the median of the smallest gap between the psi_3 of two solutions
+    (this file's answers, each held to this file's fk) is larger on the loop the C names, and by a
+    factor of 2 at least on the Jaco (its loop psi_3 = q2 has its solutions in near pairs)."""
+    import re
+    arm = ARMS["kinova_jaco"]
+    package = generated_package("kinova_jaco", generated_root)
+    source = (Path(package.__file__).parent / "kinova_jaco.c").read_text()
+    fast = int(re.search(r"#define G6R_FAST (\d+)", source).group(1))
+    orders, signs, shifts, offsets = package.GENERAL_6R_LAYOUT
+    q = np.random.default_rng(zlib.crc32(b"fast loop")).uniform(-math.pi, math.pi, (60, 6))
+    target = fk(arm, q)
+    Q, valid = package.load("numpy").ik(target)
+    assert (np.abs(fk(arm, np.where(valid[..., None], Q, 0.0)) - target[:, None]).max(axis=(-2, -1))[valid] < REACHED).all()
+    medians = []
+    for order, sign in zip(orders, signs):
+        joint = order[2]
+        gaps = []
+        for answers in (Q[i, valid[i]] for i in range(len(q))):
+            psi = np.sort((sign[2] * (answers[:, joint] + offsets[joint] - shifts[joint])) % (2 * np.pi))
+            if len(psi) > 1:
+                gaps.append(np.diff(np.concatenate([psi, psi[:1] + 2 * np.pi])).min())
+        medians.append(np.median(gaps))
+    assert medians[fast] >= 2 * medians[1 - fast], (fast, medians)
 
 
 def test_the_pencil_has_eight_spurious_eigenvalues_at_plus_minus_i(generated_root):
