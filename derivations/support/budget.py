@@ -17,6 +17,7 @@ and says so in :data:`ENFORCED`.
 from __future__ import annotations
 
 import contextlib
+import functools
 import resource
 import signal
 import sys
@@ -204,6 +205,17 @@ def _failed_in(exc: BaseException) -> str | None:
     return _left_stage if _left_by is exc else _stage
 
 
+@functools.lru_cache(maxsize=None)
+def _prime_blas() -> None:
+    """One matrix product large enough for every BLAS thread, before any cap: OpenBLAS takes its
+    work buffers at its first product in each thread, and where it cannot it ends the process with
+    status 1 ("Memory allocation still failed after 10 retries"), not a MemoryError (numpy's small
+    matrix products in the automatic ik's branch naming, under a cap of 10 MiB)."""
+    import numpy
+    block = numpy.ones((256, 256))
+    block @ block
+
+
 @contextlib.contextmanager
 def memory_cap(gib: float | None, stage: str):
     """Run the body with at most ``gib`` GiB of address space more than the process holds now
@@ -219,6 +231,7 @@ def memory_cap(gib: float | None, stage: str):
         return
     if not gib > 0:
         raise ValueError(f"a memory cap must be positive, got {gib!r}")
+    _prime_blas()
     size = _address_space()
     soft, hard = resource.getrlimit(resource.RLIMIT_AS)
     if size is None:

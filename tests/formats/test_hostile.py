@@ -212,6 +212,20 @@ def test_check_reports_the_litter_of_an_interrupted_run(tmp_path):
         "arm/.arm.c.abc123.part (stray: left by an interrupted run)"]
 
 
+def test_a_matrix_product_under_a_memory_cap_does_not_end_the_process():
+    """OpenBLAS takes its work buffers at its first matrix product and, where it cannot, ends the
+    process with status 1 and a line of its own, not a MemoryError: the memory cap primes it first
+    (a `generate --memory-limit 0.01` of a 6R once ended that way in `make test`).  In a fresh
+    process, as `kinegen` runs, a product under a 10 MiB cap completes."""
+    import subprocess
+    import sys
+    code = ("import numpy\nfrom derivations.support.budget import memory_cap\n"
+            "with memory_cap(0.01, 'a product'):\n    a = numpy.ones((300, 300))\n    print((a @ a).sum())\n")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60,
+                            cwd=Path(__file__).resolve().parents[2])
+    assert result.returncode == 0 and result.stdout.strip() == "27000000.0", result.stderr
+
+
 @pytest.mark.parametrize("gib, stage", [("0.01", r" while \w+"), ("0.001", "")])
 def test_a_derivation_past_its_memory_cap_stops_naming_the_stage(tmp_path, gib, stage):
     """--memory-limit bounds what the derivation may add to the process (RLIMIT_AS).  Run in a
