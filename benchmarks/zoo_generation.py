@@ -124,7 +124,11 @@ def main(argv=None) -> int:
     text = (f"# Cold generation of the zoo ({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
             f"load average {load[0]:.2f})\n\n`python benchmarks/zoo_generation.py`: each arm in a fresh process, "
             f"no cache, {_cores_text(cores(args.one_core))}, `kinegen generate` with its portable C compile. Stage times in seconds; total "
-            "is the whole command, Python's start and imports included.\n\n" + header + "\n" + "\n".join(rows)
+            "is the whole command, Python's start and imports included.  The stages are the parent process's "
+            "wait in each, read off its progress lines: since 2026-11-26 the rates, the dynamics and the kernels "
+            "that need no ik are derived and prepared in a forked process while the parent derives the ik "
+            "(docs/architecture.md), so rates is the parent's wait for that process and CSE what is left after "
+            "it (the ik kernel's).\n\n" + header + "\n" + "\n".join(rows)
             + "\n")
     args.out.write_text(text)
     print(f"wrote {args.out}")
