@@ -756,7 +756,8 @@ def check_finite(model: RobotModel, folder: Path) -> None:
                                          "in double precision (a number of the description overflows a double "
                                          "on the way); nothing was written")
     finally:
-        for name in [n for n in sys.modules if n == module_name or n.startswith(module_name + ".")]:
+        # (a snapshot: the C build imports in a thread of its own meanwhile, see _fill)
+        for name in [n for n in list(sys.modules) if n == module_name or n.startswith(module_name + ".")]:
             del sys.modules[name]
 
 
