@@ -396,29 +396,47 @@ class Forked:
         self._pid = None
 
 
-class EarlyKernels:
+class _SideJob:
+    """A :class:`Forked` job of this process's own, taken once (:meth:`_take`) or cancelled; nothing
+    to take or cancel where none was started."""
+
+    _job: "Forked | None" = None
+
+    @property
+    def pending(self) -> bool:
+        return self._job is not None
+
+    def _take(self):
+        job, self._job = self._job, None
+        return None if job is None else job.result()
+
+    def cancel(self) -> None:
+        job, self._job = self._job, None
+        if job is not None:
+            job.cancel()
+
+
+def _prepared_by_name(functions, param_names: tuple, jobs: int | None = None) -> dict:
+    """{kernel name: :func:`prepared_functions`' result} of ``functions``, printed ahead (for
+    another process: :class:`EarlyKernels`, :class:`RatesAndMotion`)."""
+    own = [f.name for f in functions if f.solve is None]
+    return dict(zip(own, prepared_functions(functions, param_names, jobs, ahead=True)))
+
+
+class EarlyKernels(_SideJob):
     """The kernels that need neither the rate kinematics nor the dynamics (``position_functions``),
     prepared (:func:`_prepare_one`, printed ahead) in a forked process while the parent derives
     those: on two cores that derivation (a KR 210's: 1.6 s) no longer leaves one core idle."""
 
     def __init__(self, functions, param_names: tuple):
-        global _PREPARING
         self.names = frozenset(f.name for f in functions if f.solve is None)
-        indices = [i for i, f in enumerate(functions) if f.solve is None]
-        _PREPARING = (functions, param_names, True)
-        try:
-            self._forked = Forked(lambda: {functions[i].name: _prepare_one(i) for i in indices})
-        finally:
-            _PREPARING = ()
+        self._job = Forked(lambda: _prepared_by_name(functions, param_names, jobs=1))
 
     def result(self) -> dict:
-        return self._forked.result()
-
-    def cancel(self) -> None:
-        self._forked.cancel()
+        return self._take()
 
 
-class TemplatesAhead:
+class TemplatesAhead(_SideJob):
     """The templates compiled (:func:`codegen.backends.compile_templates`) in a forked process
     while this one derives an arm, whose first seconds (the model and its ik) leave the second
     core idle: the render then starts with them compiled (:meth:`adopt`).  Without processes to
@@ -428,14 +446,9 @@ class TemplatesAhead:
         self._job = Forked(compile_templates) if _prepare_jobs(4) > 1 else None
 
     def adopt(self) -> None:
-        if self._job is not None:
-            job, self._job = self._job, None
-            adopt_templates(job.result())
-
-    def cancel(self) -> None:
-        if self._job is not None:
-            job, self._job = self._job, None
-            job.cancel()
+        code = self._take()
+        if code is not None:
+            adopt_templates(code)
 
 
 def robot_context(model: RobotModel, origin: str, verbose: bool = False, jobs: int | None = None,
@@ -648,17 +661,17 @@ def render_robot(model: RobotModel, description: Path | None = None, backends=("
     return files
 
 
-class RatesAndMotion:
+class RatesAndMotion(_SideJob):
     """A model's rate kinematics and equations of motion derived in a forked process while this one
     derives its inverse kinematics: ``derivations.load(..., before_ik=this)`` starts it once the
     model's frames and Jacobians exist (a description's model derived afresh; none for one from
     the cache), :func:`render_robot` takes its results when it reaches the rates.  The ik of a
     7-joint arm that holds a joint free takes seconds (Romeo's left arm: 7.5 s, 1.7 s since its
-    branches are substituted when read), and the rates and the dynamics need nothing of it: the process also prepares their kernels (CSE, staging,
-    printing ahead), in worker processes of its own.  (Only where the kernels are RobotModel's own.)"""
+    branches are substituted when read), and the rates and the dynamics need nothing of it: the
+    process also prepares their kernels (CSE, staging, printing ahead), in worker processes of its
+    own.  (Only where the kernels are RobotModel's own.)"""
 
     def __init__(self):
-        self._job = None
         self.prepared: dict = {}  # {kernel name: prepared_functions' result}, once adopted
 
     def __call__(self, model: RobotModel) -> None:
@@ -666,24 +679,15 @@ class RatesAndMotion:
                 and _prepare_jobs(4) > 1):
             self._job = Forked(lambda: _rates_and_motion(model), group=True)
 
-    @property
-    def pending(self) -> bool:
-        return self._job is not None
-
     def adopt(self, model: RobotModel) -> None:
         """Give ``model`` what the forked process derived (waiting for it), and keep the kernels it
         prepared (``prepared``); nothing if none was started."""
-        if self._job is not None:
-            job, self._job = self._job, None
-            rates, dynamics, note, self.prepared = job.result()
+        taken = self._take()
+        if taken is not None:
+            rates, dynamics, note, self.prepared = taken
             model.__dict__["_rate_kinematics"] = rates
             if getattr(model, "inertials", ()):
                 _adopt_dynamics(model, dynamics, note)
-
-    def cancel(self) -> None:
-        if self._job is not None:
-            job, self._job = self._job, None
-            job.cancel()
 
 
 def _rates_and_motion(model: RobotModel) -> tuple:
@@ -692,9 +696,8 @@ def _rates_and_motion(model: RobotModel) -> tuple:
     rates' and the dynamics'), with worker processes of its own, while its parent derives the ik."""
     rates, dynamics = model.rates, model.dynamics
     functions = kinematics_kernels(model) + model.rate_functions() + model.dynamics_functions()
-    own = [f.name for f in functions if f.solve is None]
-    done = prepared_functions(functions, tuple(str(s) for s in model.params), ahead=True)
-    return rates, dynamics, model.notes.get("dynamics"), dict(zip(own, done))
+    prepared = _prepared_by_name(functions, tuple(str(s) for s in model.params))
+    return rates, dynamics, model.notes.get("dynamics"), prepared
 
 
 def kinematics_kernel_names(model: RobotModel) -> set[str]:
