@@ -6,7 +6,7 @@ with the template codegen/backends/templates/package_setup.py.j2. Do not edit by
 The folder is the package, its modules at its top level, so it installs through a package-dir
 mapping under the folder's own name: the name it is imported by from beside it, kept when the
 folder is copied or renamed.
-Its C extension is built by its own build_c.py, always with the portable flags (-std=c99 -O2,
+Its C extension is built by its own build_c.py, always with the portable flags (-std=c99 -O2 -fno-math-errno,
 whatever KINEGEN_FAST says): a wheel can be installed on another machine than the one that
 built it, where -march=native code may not run.
 

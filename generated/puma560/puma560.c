@@ -116,7 +116,6 @@ static double kinegen_wrap_angle(double angle)
 static int puma560_is_refused_pose(const double *restrict x)
 {
     const double *r = x + 3;
-    double deviation = 0.0, determinant;
     int i, j;
     for (i = 0; i < 12; ++i) {
         if (!isfinite(x[i])) {
@@ -124,14 +123,15 @@ static int puma560_is_refused_pose(const double *restrict x)
         }
     }
     for (i = 0; i < 3; ++i) {
-        for (j = 0; j < 3; ++j) {
+        for (j = i; j < 3; ++j) {  /* R R^T is symmetric */
             const double dot = r[3 * i] * r[3 * j] + r[3 * i + 1] * r[3 * j + 1] + r[3 * i + 2] * r[3 * j + 2];
-            deviation = fmax(deviation, fabs(dot - (i == j ? 1.0 : 0.0)));
+            if (fabs(dot - (i == j ? 1.0 : 0.0)) > 1e-09) {
+                return 1;
+            }
         }
     }
-    determinant = r[0] * (r[4] * r[8] - r[5] * r[7]) - r[1] * (r[3] * r[8] - r[5] * r[6])
-                  + r[2] * (r[3] * r[7] - r[4] * r[6]);
-    return deviation > 1e-09 || determinant < 0.0;
+    return r[0] * (r[4] * r[8] - r[5] * r[7]) - r[1] * (r[3] * r[8] - r[5] * r[6])
+           + r[2] * (r[3] * r[7] - r[4] * r[6]) < 0.0;
 }
 
 /* Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. */

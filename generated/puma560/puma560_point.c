@@ -27,6 +27,7 @@
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
 #include <math.h>
+#include <string.h>
 
 #include "puma560.h"
 
@@ -118,6 +119,21 @@ static PyObject *kinegen_flags(int ndim, npy_intp size, const int *flags)
         data[i] = (npy_bool)(flags[i] != 0);
     }
     return result;
+}
+
+/* The tuple (first, second), which takes both references (NULL and neither if it cannot be made):
+ * what Py_BuildValue("(NN)") gives, without reading a format. */
+static PyObject *kinegen_pair(PyObject *first, PyObject *second)
+{
+    PyObject *pair = PyTuple_New(2);
+    if (pair == NULL) {
+        Py_DECREF(first);
+        Py_DECREF(second);
+        return NULL;
+    }
+    PyTuple_SET_ITEM(pair, 0, first);
+    PyTuple_SET_ITEM(pair, 1, second);
+    return pair;
 }
 
 /* The parameters from a tuple of 5 Python floats (in PARAMS order, checked by
@@ -392,7 +408,7 @@ static PyObject *point_ik(PyObject *self, PyObject *const *args, Py_ssize_t narg
     if (valid == NULL) {
         goto fail;
     }
-    return Py_BuildValue("(NN)", Q, valid);
+    return kinegen_pair(Q, valid);
 fail:
     Py_XDECREF(Q);
     Py_XDECREF(valid);
@@ -603,7 +619,7 @@ static PyObject *point_manipulability(PyObject *self, PyObject *const *args, Py_
     if (singular == NULL) {
         goto fail;
     }
-    return Py_BuildValue("(NN)", manipulability, singular);
+    return kinegen_pair(manipulability, singular);
 fail:
     Py_XDECREF(manipulability);
     Py_XDECREF(singular);
@@ -644,7 +660,7 @@ static PyObject *point_joint_velocity(PyObject *self, PyObject *const *args, Py_
     if (singular == NULL) {
         goto fail;
     }
-    return Py_BuildValue("(NN)", qd, singular);
+    return kinegen_pair(qd, singular);
 fail:
     Py_XDECREF(qd);
     Py_XDECREF(singular);
@@ -687,7 +703,7 @@ static PyObject *point_joint_acceleration(PyObject *self, PyObject *const *args,
     if (singular == NULL) {
         goto fail;
     }
-    return Py_BuildValue("(NN)", qdd, singular);
+    return kinegen_pair(qdd, singular);
 fail:
     Py_XDECREF(qdd);
     Py_XDECREF(singular);
@@ -728,7 +744,7 @@ static PyObject *point_joint_velocity_from_twist(PyObject *self, PyObject *const
     if (singular == NULL) {
         goto fail;
     }
-    return Py_BuildValue("(NN)", qd, singular);
+    return kinegen_pair(qd, singular);
 fail:
     Py_XDECREF(qd);
     Py_XDECREF(singular);
@@ -773,10 +789,181 @@ static PyObject *point_ik_numeric(PyObject *self, PyObject *const *args, Py_ssiz
         Py_DECREF(q);
         return NULL;
     }
-    return Py_BuildValue("(NN)", q, converged);
+    return kinegen_pair(q, converged);
+}
+
+/* The fronts: c_kernels.py's public functions of the kernels above, as built-in functions.  A call
+ * of the kernel's arrays alone (positional, no keyword) goes to the point function; any other call,
+ * and any point the point function declines (None), goes on to the Python function of c_kernels.py
+ * that the front was bound to (bind, below), which takes every form and names every problem.
+ * Without them a one-point call spent more in its Python function's frame, keyword defaults and
+ * checks (about 2,000 instructions) than in the point function's own checks and allocations. */
+#define KINEGEN_FRONTS 17
+static PyObject *kinegen_general[KINEGEN_FRONTS];  /* c_kernels.py's function, by front */
+static PyObject *kinegen_docs[KINEGEN_FRONTS];  /* its docstring, into which the front's ml_doc points */
+
+static PyObject *kinegen_front(int front, PyObject *(*point)(PyObject *, PyObject *const *, Py_ssize_t),
+                               Py_ssize_t arrays, PyObject *module, PyObject *const *args, Py_ssize_t nargs,
+                               PyObject *kwnames)
+{
+    if (nargs == arrays && (kwnames == NULL || PyTuple_GET_SIZE(kwnames) == 0)) {
+        PyObject *out = point(module, args, nargs);
+        if (out != Py_None) {
+            return out;  /* the outputs, or NULL with the exception set */
+        }
+        Py_DECREF(out);
+    }
+    return PyObject_Vectorcall(kinegen_general[front], args, (size_t)nargs, kwnames);
+}
+
+static PyObject *front_fk(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(0, point_fk, 1, module, args, nargs, kwnames);
+}
+
+static PyObject *front_frames(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(1, point_frames, 1, module, args, nargs, kwnames);
+}
+
+static PyObject *front_jacobian(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(2, point_jacobian, 1, module, args, nargs, kwnames);
+}
+
+static PyObject *front_jacobian_tool(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(3, point_jacobian_tool, 1, module, args, nargs, kwnames);
+}
+
+static PyObject *front_task(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(4, point_task, 1, module, args, nargs, kwnames);
+}
+
+static PyObject *front_task_jacobian(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(5, point_task_jacobian, 1, module, args, nargs, kwnames);
+}
+
+static PyObject *front_ik(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(6, point_ik, 1, module, args, nargs, kwnames);
+}
+
+static PyObject *front_task_velocity(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(7, point_task_velocity, 2, module, args, nargs, kwnames);
+}
+
+static PyObject *front_twist(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(8, point_twist, 2, module, args, nargs, kwnames);
+}
+
+static PyObject *front_task_jacobian_dot(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(9, point_task_jacobian_dot, 2, module, args, nargs, kwnames);
+}
+
+static PyObject *front_jacobian_dot(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(10, point_jacobian_dot, 2, module, args, nargs, kwnames);
+}
+
+static PyObject *front_task_acceleration(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(11, point_task_acceleration, 3, module, args, nargs, kwnames);
+}
+
+static PyObject *front_manipulability(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(12, point_manipulability, 1, module, args, nargs, kwnames);
+}
+
+static PyObject *front_joint_velocity(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(13, point_joint_velocity, 2, module, args, nargs, kwnames);
+}
+
+static PyObject *front_joint_acceleration(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(14, point_joint_acceleration, 3, module, args, nargs, kwnames);
+}
+
+static PyObject *front_joint_velocity_from_twist(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(15, point_joint_velocity_from_twist, 2, module, args, nargs, kwnames);
+}
+
+static PyObject *front_ik_numeric(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(16, point_ik_numeric, 2, module, args, nargs, kwnames);
+}
+
+static PyMethodDef kinegen_fronts[KINEGEN_FRONTS + 1] = {
+    {"fk", (PyCFunction)(void (*)(void))front_fk, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {"frames", (PyCFunction)(void (*)(void))front_frames, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {"jacobian", (PyCFunction)(void (*)(void))front_jacobian, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {"jacobian_tool", (PyCFunction)(void (*)(void))front_jacobian_tool, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {"task", (PyCFunction)(void (*)(void))front_task, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {"task_jacobian", (PyCFunction)(void (*)(void))front_task_jacobian, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {"ik", (PyCFunction)(void (*)(void))front_ik, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {"task_velocity", (PyCFunction)(void (*)(void))front_task_velocity, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {"twist", (PyCFunction)(void (*)(void))front_twist, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {"task_jacobian_dot", (PyCFunction)(void (*)(void))front_task_jacobian_dot, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {"jacobian_dot", (PyCFunction)(void (*)(void))front_jacobian_dot, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {"task_acceleration", (PyCFunction)(void (*)(void))front_task_acceleration, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {"manipulability", (PyCFunction)(void (*)(void))front_manipulability, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {"joint_velocity", (PyCFunction)(void (*)(void))front_joint_velocity, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {"joint_acceleration", (PyCFunction)(void (*)(void))front_joint_acceleration, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {"joint_velocity_from_twist", (PyCFunction)(void (*)(void))front_joint_velocity_from_twist, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {"ik_numeric", (PyCFunction)(void (*)(void))front_ik_numeric, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {NULL, NULL, 0, NULL}
+};
+
+/* bind(name, general, module, doc) -> the front of the kernel `name`, a built-in function of the
+ * module named `module` whose docstring is `doc` (its text signature first, as the C API reads it),
+ * handing what is not one point to `general`.  The first binding's docstring stays. */
+static PyObject *kinegen_bind(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    const char *wanted;
+    const char *doc;
+    PyObject *previous;
+    int i;
+    if (nargs != 4 || !PyUnicode_Check(args[0]) || !PyCallable_Check(args[1]) || !PyUnicode_Check(args[2])
+            || !PyUnicode_Check(args[3])) {
+        PyErr_SetString(PyExc_TypeError, "bind takes a kernel's name, its Python function, the module's name and a docstring");
+        return NULL;
+    }
+    wanted = PyUnicode_AsUTF8(args[0]);
+    if (wanted == NULL) {
+        return NULL;
+    }
+    for (i = 0; i < KINEGEN_FRONTS && strcmp(kinegen_fronts[i].ml_name, wanted) != 0; ++i) {
+    }
+    if (i == KINEGEN_FRONTS) {
+        PyErr_Format(PyExc_ValueError, "no kernel %s takes one point here", wanted);
+        return NULL;
+    }
+    if (kinegen_docs[i] == NULL) {
+        doc = PyUnicode_AsUTF8(args[3]);
+        if (doc == NULL) {
+            return NULL;
+        }
+        Py_INCREF(args[3]);
+        kinegen_docs[i] = args[3];
+        kinegen_fronts[i].ml_doc = doc;
+    }
+    previous = kinegen_general[i];
+    Py_INCREF(args[1]);
+    kinegen_general[i] = args[1];
+    Py_XDECREF(previous);
+    return PyCFunction_NewEx(&kinegen_fronts[i], self, args[2]);
 }
 
 static PyMethodDef kinegen_methods[] = {
+    {"bind", (PyCFunction)(void (*)(void))kinegen_bind, METH_FASTCALL, "bind(name, general, module, doc): the front of a kernel"},
     {"fk", (PyCFunction)(void (*)(void))point_fk, METH_FASTCALL, "fk of one point with the default parameters, or None"},
     {"frames", (PyCFunction)(void (*)(void))point_frames, METH_FASTCALL, "frames of one point with the default parameters, or None"},
     {"jacobian", (PyCFunction)(void (*)(void))point_jacobian, METH_FASTCALL, "jacobian of one point with the default parameters, or None"},

@@ -27,6 +27,7 @@
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
 #include <math.h>
+#include <string.h>
 
 #include "scorbot_path.h"
 
@@ -81,6 +82,21 @@ static PyObject *kinegen_flags(int ndim, npy_intp size, const int *flags)
         data[i] = (npy_bool)(flags[i] != 0);
     }
     return result;
+}
+
+/* The tuple (first, second), which takes both references (NULL and neither if it cannot be made):
+ * what Py_BuildValue("(NN)") gives, without reading a format. */
+static PyObject *kinegen_pair(PyObject *first, PyObject *second)
+{
+    PyObject *pair = PyTuple_New(2);
+    if (pair == NULL) {
+        Py_DECREF(first);
+        Py_DECREF(second);
+        return NULL;
+    }
+    PyTuple_SET_ITEM(pair, 0, first);
+    PyTuple_SET_ITEM(pair, 1, second);
+    return pair;
 }
 
 /* The parameters from a tuple of 11 Python floats (in PARAMS order, checked by
@@ -193,7 +209,7 @@ static PyObject *point_tool_point_from_theta2(PyObject *self, PyObject *const *a
     if (valid == NULL) {
         goto fail;
     }
-    return Py_BuildValue("(NN)", p, valid);
+    return kinegen_pair(p, valid);
 fail:
     Py_XDECREF(p);
     Py_XDECREF(valid);
@@ -232,14 +248,95 @@ static PyObject *point_joints_along_line(PyObject *self, PyObject *const *args, 
     if (valid == NULL) {
         goto fail;
     }
-    return Py_BuildValue("(NN)", q, valid);
+    return kinegen_pair(q, valid);
 fail:
     Py_XDECREF(q);
     Py_XDECREF(valid);
     return NULL;
 }
 
+/* The fronts: c_kernels.py's public functions of the kernels above, as built-in functions.  A call
+ * of the kernel's arrays alone (positional, no keyword) goes to the point function; any other call,
+ * and any point the point function declines (None), goes on to the Python function of c_kernels.py
+ * that the front was bound to (bind, below), which takes every form and names every problem.
+ * Without them a one-point call spent more in its Python function's frame, keyword defaults and
+ * checks (about 2,000 instructions) than in the point function's own checks and allocations. */
+#define KINEGEN_FRONTS 2
+static PyObject *kinegen_general[KINEGEN_FRONTS];  /* c_kernels.py's function, by front */
+static PyObject *kinegen_docs[KINEGEN_FRONTS];  /* its docstring, into which the front's ml_doc points */
+
+static PyObject *kinegen_front(int front, PyObject *(*point)(PyObject *, PyObject *const *, Py_ssize_t),
+                               Py_ssize_t arrays, PyObject *module, PyObject *const *args, Py_ssize_t nargs,
+                               PyObject *kwnames)
+{
+    if (nargs == arrays && (kwnames == NULL || PyTuple_GET_SIZE(kwnames) == 0)) {
+        PyObject *out = point(module, args, nargs);
+        if (out != Py_None) {
+            return out;  /* the outputs, or NULL with the exception set */
+        }
+        Py_DECREF(out);
+    }
+    return PyObject_Vectorcall(kinegen_general[front], args, (size_t)nargs, kwnames);
+}
+
+static PyObject *front_tool_point_from_theta2(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(0, point_tool_point_from_theta2, 1, module, args, nargs, kwnames);
+}
+
+static PyObject *front_joints_along_line(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(1, point_joints_along_line, 1, module, args, nargs, kwnames);
+}
+
+static PyMethodDef kinegen_fronts[KINEGEN_FRONTS + 1] = {
+    {"tool_point_from_theta2", (PyCFunction)(void (*)(void))front_tool_point_from_theta2, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {"joints_along_line", (PyCFunction)(void (*)(void))front_joints_along_line, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {NULL, NULL, 0, NULL}
+};
+
+/* bind(name, general, module, doc) -> the front of the kernel `name`, a built-in function of the
+ * module named `module` whose docstring is `doc` (its text signature first, as the C API reads it),
+ * handing what is not one point to `general`.  The first binding's docstring stays. */
+static PyObject *kinegen_bind(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    const char *wanted;
+    const char *doc;
+    PyObject *previous;
+    int i;
+    if (nargs != 4 || !PyUnicode_Check(args[0]) || !PyCallable_Check(args[1]) || !PyUnicode_Check(args[2])
+            || !PyUnicode_Check(args[3])) {
+        PyErr_SetString(PyExc_TypeError, "bind takes a kernel's name, its Python function, the module's name and a docstring");
+        return NULL;
+    }
+    wanted = PyUnicode_AsUTF8(args[0]);
+    if (wanted == NULL) {
+        return NULL;
+    }
+    for (i = 0; i < KINEGEN_FRONTS && strcmp(kinegen_fronts[i].ml_name, wanted) != 0; ++i) {
+    }
+    if (i == KINEGEN_FRONTS) {
+        PyErr_Format(PyExc_ValueError, "no kernel %s takes one point here", wanted);
+        return NULL;
+    }
+    if (kinegen_docs[i] == NULL) {
+        doc = PyUnicode_AsUTF8(args[3]);
+        if (doc == NULL) {
+            return NULL;
+        }
+        Py_INCREF(args[3]);
+        kinegen_docs[i] = args[3];
+        kinegen_fronts[i].ml_doc = doc;
+    }
+    previous = kinegen_general[i];
+    Py_INCREF(args[1]);
+    kinegen_general[i] = args[1];
+    Py_XDECREF(previous);
+    return PyCFunction_NewEx(&kinegen_fronts[i], self, args[2]);
+}
+
 static PyMethodDef kinegen_methods[] = {
+    {"bind", (PyCFunction)(void (*)(void))kinegen_bind, METH_FASTCALL, "bind(name, general, module, doc): the front of a kernel"},
     {"tool_point_from_theta2", (PyCFunction)(void (*)(void))point_tool_point_from_theta2, METH_FASTCALL, "tool_point_from_theta2 of one point with the default parameters, or None"},
     {"joints_along_line", (PyCFunction)(void (*)(void))point_joints_along_line, METH_FASTCALL, "joints_along_line of one point with the default parameters, or None"},
     {NULL, NULL, 0, NULL}

@@ -27,6 +27,7 @@
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
 #include <math.h>
+#include <string.h>
 
 #include "trajectory.h"
 
@@ -83,6 +84,21 @@ static PyObject *kinegen_flags(int ndim, npy_intp size, const int *flags)
     return result;
 }
 
+/* The tuple (first, second), which takes both references (NULL and neither if it cannot be made):
+ * what Py_BuildValue("(NN)") gives, without reading a format. */
+static PyObject *kinegen_pair(PyObject *first, PyObject *second)
+{
+    PyObject *pair = PyTuple_New(2);
+    if (pair == NULL) {
+        Py_DECREF(first);
+        Py_DECREF(second);
+        return NULL;
+    }
+    PyTuple_SET_ITEM(pair, 0, first);
+    PyTuple_SET_ITEM(pair, 1, second);
+    return pair;
+}
+
 /* cubic(time, boundary, [parameters]) -> state (3,), valid (), or None */
 static PyObject *point_cubic(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
@@ -111,7 +127,7 @@ static PyObject *point_cubic(PyObject *self, PyObject *const *args, Py_ssize_t n
     if (valid == NULL) {
         goto fail;
     }
-    return Py_BuildValue("(NN)", state, valid);
+    return kinegen_pair(state, valid);
 fail:
     Py_XDECREF(state);
     Py_XDECREF(valid);
@@ -146,7 +162,7 @@ static PyObject *point_quintic(PyObject *self, PyObject *const *args, Py_ssize_t
     if (valid == NULL) {
         goto fail;
     }
-    return Py_BuildValue("(NN)", state, valid);
+    return kinegen_pair(state, valid);
 fail:
     Py_XDECREF(state);
     Py_XDECREF(valid);
@@ -181,7 +197,7 @@ static PyObject *point_cycloidal(PyObject *self, PyObject *const *args, Py_ssize
     if (valid == NULL) {
         goto fail;
     }
-    return Py_BuildValue("(NN)", state, valid);
+    return kinegen_pair(state, valid);
 fail:
     Py_XDECREF(state);
     Py_XDECREF(valid);
@@ -216,14 +232,107 @@ static PyObject *point_trapezoid(PyObject *self, PyObject *const *args, Py_ssize
     if (valid == NULL) {
         goto fail;
     }
-    return Py_BuildValue("(NN)", state, valid);
+    return kinegen_pair(state, valid);
 fail:
     Py_XDECREF(state);
     Py_XDECREF(valid);
     return NULL;
 }
 
+/* The fronts: c_kernels.py's public functions of the kernels above, as built-in functions.  A call
+ * of the kernel's arrays alone (positional, no keyword) goes to the point function; any other call,
+ * and any point the point function declines (None), goes on to the Python function of c_kernels.py
+ * that the front was bound to (bind, below), which takes every form and names every problem.
+ * Without them a one-point call spent more in its Python function's frame, keyword defaults and
+ * checks (about 2,000 instructions) than in the point function's own checks and allocations. */
+#define KINEGEN_FRONTS 4
+static PyObject *kinegen_general[KINEGEN_FRONTS];  /* c_kernels.py's function, by front */
+static PyObject *kinegen_docs[KINEGEN_FRONTS];  /* its docstring, into which the front's ml_doc points */
+
+static PyObject *kinegen_front(int front, PyObject *(*point)(PyObject *, PyObject *const *, Py_ssize_t),
+                               Py_ssize_t arrays, PyObject *module, PyObject *const *args, Py_ssize_t nargs,
+                               PyObject *kwnames)
+{
+    if (nargs == arrays && (kwnames == NULL || PyTuple_GET_SIZE(kwnames) == 0)) {
+        PyObject *out = point(module, args, nargs);
+        if (out != Py_None) {
+            return out;  /* the outputs, or NULL with the exception set */
+        }
+        Py_DECREF(out);
+    }
+    return PyObject_Vectorcall(kinegen_general[front], args, (size_t)nargs, kwnames);
+}
+
+static PyObject *front_cubic(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(0, point_cubic, 2, module, args, nargs, kwnames);
+}
+
+static PyObject *front_quintic(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(1, point_quintic, 2, module, args, nargs, kwnames);
+}
+
+static PyObject *front_cycloidal(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(2, point_cycloidal, 2, module, args, nargs, kwnames);
+}
+
+static PyObject *front_trapezoid(PyObject *module, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    return kinegen_front(3, point_trapezoid, 2, module, args, nargs, kwnames);
+}
+
+static PyMethodDef kinegen_fronts[KINEGEN_FRONTS + 1] = {
+    {"cubic", (PyCFunction)(void (*)(void))front_cubic, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {"quintic", (PyCFunction)(void (*)(void))front_quintic, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {"cycloidal", (PyCFunction)(void (*)(void))front_cycloidal, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {"trapezoid", (PyCFunction)(void (*)(void))front_trapezoid, METH_FASTCALL | METH_KEYWORDS, NULL},
+    {NULL, NULL, 0, NULL}
+};
+
+/* bind(name, general, module, doc) -> the front of the kernel `name`, a built-in function of the
+ * module named `module` whose docstring is `doc` (its text signature first, as the C API reads it),
+ * handing what is not one point to `general`.  The first binding's docstring stays. */
+static PyObject *kinegen_bind(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    const char *wanted;
+    const char *doc;
+    PyObject *previous;
+    int i;
+    if (nargs != 4 || !PyUnicode_Check(args[0]) || !PyCallable_Check(args[1]) || !PyUnicode_Check(args[2])
+            || !PyUnicode_Check(args[3])) {
+        PyErr_SetString(PyExc_TypeError, "bind takes a kernel's name, its Python function, the module's name and a docstring");
+        return NULL;
+    }
+    wanted = PyUnicode_AsUTF8(args[0]);
+    if (wanted == NULL) {
+        return NULL;
+    }
+    for (i = 0; i < KINEGEN_FRONTS && strcmp(kinegen_fronts[i].ml_name, wanted) != 0; ++i) {
+    }
+    if (i == KINEGEN_FRONTS) {
+        PyErr_Format(PyExc_ValueError, "no kernel %s takes one point here", wanted);
+        return NULL;
+    }
+    if (kinegen_docs[i] == NULL) {
+        doc = PyUnicode_AsUTF8(args[3]);
+        if (doc == NULL) {
+            return NULL;
+        }
+        Py_INCREF(args[3]);
+        kinegen_docs[i] = args[3];
+        kinegen_fronts[i].ml_doc = doc;
+    }
+    previous = kinegen_general[i];
+    Py_INCREF(args[1]);
+    kinegen_general[i] = args[1];
+    Py_XDECREF(previous);
+    return PyCFunction_NewEx(&kinegen_fronts[i], self, args[2]);
+}
+
 static PyMethodDef kinegen_methods[] = {
+    {"bind", (PyCFunction)(void (*)(void))kinegen_bind, METH_FASTCALL, "bind(name, general, module, doc): the front of a kernel"},
     {"cubic", (PyCFunction)(void (*)(void))point_cubic, METH_FASTCALL, "cubic of one point with the default parameters, or None"},
     {"quintic", (PyCFunction)(void (*)(void))point_quintic, METH_FASTCALL, "quintic of one point with the default parameters, or None"},
     {"cycloidal", (PyCFunction)(void (*)(void))point_cycloidal, METH_FASTCALL, "cycloidal of one point with the default parameters, or None"},

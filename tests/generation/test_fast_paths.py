@@ -4,7 +4,9 @@ Speed itself is never asserted here (`make bench` measures it); these tests
 check that the faster paths compute the same numbers and reject the same bad
 input as the plain ones.
 """
+import inspect
 import math
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -18,6 +20,7 @@ from codegen import build, generate
 from conftest import kernels
 
 REPO = Path(__file__).resolve().parents[2]
+_ARGUMENT = re.compile(r"^\s*(\w+): .*?shape \(\.\.\., (\d+)\)", re.M)
 
 
 @pytest.mark.parametrize("kernel", ["fk", "frames", "jacobian", "task", "task_jacobian"])
@@ -63,6 +66,46 @@ def test_inputs_off_the_fast_path_give_the_same_results(q):
     np.testing.assert_array_equal(k.fk(q), k.fk(np.zeros((4, 6))))
 
 
+def _outputs(result):
+    return [np.asarray(r, dtype=float) for r in (result if isinstance(result, tuple) else (result,))]
+
+
+@pytest.mark.parametrize("name", ["puma560", "avr3000", "planar_rp", "scorbot_path"])
+def test_each_one_point_front_hands_every_other_call_to_its_own_function(name):
+    """A C kernel that takes one point is a built-in front (robot_point.c.j2) bound to the Python
+    function of its name: every call form but the arrays alone (lists, a batch of one, the
+    parameters spelled out at their default values, the arrays by keyword) reaches that function,
+    whose answer must equal the front's own; and the front reads like the function it fronts."""
+    numpy_module, c_module = kernels(name, "numpy"), kernels(name, "c")
+    rng = np.random.default_rng(11)
+    fronted = [kernel for kernel, f in vars(c_module).items() if inspect.isbuiltin(f) and not kernel.startswith("_")]
+    assert len(fronted) >= 2
+    for kernel in fronted:
+        front = getattr(c_module, kernel)
+        signature = inspect.signature(getattr(numpy_module, kernel))
+        assert inspect.signature(front).parameters.keys() == signature.parameters.keys(), kernel
+        assert front.__module__ == c_module.__name__ and front.__name__ == kernel
+        assert "(C backend)" in front.__doc__
+        positional = [p.name for p in signature.parameters.values() if p.kind is p.POSITIONAL_OR_KEYWORD]
+        sizes = dict(_ARGUMENT.findall(getattr(numpy_module, kernel).__doc__))
+        point = [rng.uniform(-0.5, 0.5, int(sizes.get(a, len(numpy_module.JOINTS)))) for a in positional]
+        if kernel.startswith("ik"):  # a reachable target (a pose: a rigid transform), the seed near it
+            q = rng.uniform(-0.5, 0.5, len(numpy_module.JOINTS))
+            point[0] = numpy_module.task(q)
+            if kernel == "ik_numeric":
+                point[1] = q + 0.05
+        fast = _outputs(front(*point))
+        spelled = {p: float(repr(getattr(c_module, "_" + p))) for p in numpy_module.PARAMS}  # not the default objects
+        for other in (front(*[a.tolist() for a in point]), front(*point, **spelled),
+                      front(**dict(zip(positional, point)))):
+            for got, expected in zip(_outputs(other), fast, strict=True):
+                np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12, err_msg=kernel)
+        for got, expected in zip(_outputs(front(*[a[None] for a in point])), fast, strict=True):
+            np.testing.assert_allclose(got[0], expected, rtol=0, atol=1e-12, err_msg=kernel)
+        with pytest.raises(TypeError, match=kernel):
+            front(*point, no_such_parameter=1.0)
+
+
 def test_parameters_off_the_default_are_checked_and_cached_by_value():
     k = kernels("puma560", "c")
     q = np.random.default_rng(4).uniform(-1, 1, (3, 6))
@@ -93,16 +136,17 @@ def test_the_built_library_uses_the_fast_flags_only_when_asked_and_they_work(mon
     KINEGEN_PORTABLE=1 says otherwise."""
     monkeypatch.delenv("KINEGEN_OPT", raising=False)  # make test's -O0
     script = build.load_build_script(generate.GENERATED / "puma560")
-    assert script.compile_flags() == ["-std=c99", "-O2"]
+    assert script.compile_flags() == ["-std=c99", "-O2", "-fno-math-errno"]
     flags = script.compile_flags(fast=True)
-    assert flags[:3] == ["-std=c99", "-O2", "-O3"] and "-march=native" in flags and "-DKINEGEN_SIMD" in flags
+    assert flags[:4] == ["-std=c99", "-O2", "-fno-math-errno", "-O3"] and "-march=native" in flags
+    assert "-DKINEGEN_SIMD" in flags
     assert "-ffast-math" not in flags and "-ffinite-math-only" not in flags
     for env in ({"KINEGEN_PORTABLE": "1", "KINEGEN_FAST": "1"}, {}):
         portable = subprocess.run(
             [sys.executable, "-c", "import runpy; print(runpy.run_path('build_c.py')['compile_flags']())"],
             cwd=generate.GENERATED / "puma560", capture_output=True, text=True, check=True,
             env={**env, "PATH": "/usr/bin:/bin"})
-        assert portable.stdout.strip() == "['-std=c99', '-O2']"
+        assert portable.stdout.strip() == "['-std=c99', '-O2', '-fno-math-errno']"
 
 
 def test_kinegen_opt_sets_the_portable_level_and_a_bad_one_is_refused_before_work(monkeypatch, tmp_path, capsys):
@@ -111,9 +155,9 @@ def test_kinegen_opt_sets_the_portable_level_and_a_bad_one_is_refused_before_wor
     build_c.py itself, and by `kinegen generate` and `build` at once, exit 2, nothing written."""
     script = build.load_build_script(generate.GENERATED / "planar_2r")
     monkeypatch.setenv("KINEGEN_OPT", "-O1")
-    assert script.compile_flags(fast=False) == ["-std=c99", "-O1"] and script.binding_flags() == ["-O0", "-g0"]
+    assert script.compile_flags(fast=False) == ["-std=c99", "-O1", "-fno-math-errno"] and script.binding_flags() == ["-O0", "-g0"]
     fast = script.compile_flags(fast=True)
-    assert fast == ["-std=c99", "-O1"] or fast[:3] == ["-std=c99", "-O2", "-O3"]  # (no SIMD here: portable)
+    assert fast == ["-std=c99", "-O1", "-fno-math-errno"] or fast[:4] == ["-std=c99", "-O2", "-fno-math-errno", "-O3"]  # (no SIMD here: portable)
     monkeypatch.setenv("KINEGEN_OPT", "-O9 -fplugin=x.so")
     with pytest.raises(ValueError, match="KINEGEN_OPT='-O9 -fplugin=x.so': expected one of -O0, -O1, -O2, -O3, -Os"):
         script.compile_flags(fast=False)
