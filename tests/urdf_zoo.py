@@ -151,6 +151,14 @@ class XmlChain:
         return np.random.default_rng(seed).uniform(low, high, (count, self.n))
 
     def _origin(self, joint) -> np.ndarray:
+        """The joint's <origin> as a transform (read from the XML once per joint: a walk reads every
+        joint's, and the tests walk thousands of configurations)."""
+        cache = self.__dict__.setdefault("_origins", {})
+        if joint not in cache:
+            cache[joint] = self._read_origin(joint)
+        return cache[joint]
+
+    def _read_origin(self, joint) -> np.ndarray:
         element = joint.find("origin")
         xyz = _numbers(element.get("xyz") if element is not None else None, (0, 0, 0))
         rpy = _numbers(element.get("rpy") if element is not None else None, (0, 0, 0))
@@ -161,6 +169,12 @@ class XmlChain:
         return T
 
     def _axis(self, joint) -> np.ndarray:
+        cache = self.__dict__.setdefault("_axes", {})
+        if joint not in cache:
+            cache[joint] = self._read_axis(joint)
+        return cache[joint]
+
+    def _read_axis(self, joint) -> np.ndarray:
         element = joint.find("axis")
         written = _numbers(element.get("xyz") if element is not None else None, (1, 0, 0))
         axis = np.array(self.axes.get(joint.get("name"), written), dtype=float)

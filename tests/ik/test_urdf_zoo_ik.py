@@ -20,6 +20,7 @@ issue #26: every arm of the URDF tests has ``ik``).
 
 The models are those of test_urdf_zoo (``derivations.load`` snapped, cached on disk).
 """
+import functools
 import itertools
 import re
 import sys
@@ -172,6 +173,17 @@ def every_degenerate_configuration(n: int = 6) -> np.ndarray:
     return np.array(list(itertools.product([0.0, np.pi / 2, -np.pi / 2, np.pi], repeat=n)))
 
 
+@functools.cache
+def degenerate_references(name: str):
+    """(the XML chain, every degenerate configuration, their poses, which are regular: the smallest
+    singular value of the chain's Jacobian above 1e-6), once for both backends."""
+    _, chain = model_and_chain(name)
+    q = every_degenerate_configuration()
+    T = np.array([chain.fk(row) for row in q])
+    regular = np.array([np.linalg.svd(xml_jacobian(chain, row), compute_uv=False)[-1] > 1e-6 for row in q])
+    return chain, q, T, regular
+
+
 def xml_jacobian(chain: XmlChain, q) -> np.ndarray:
     """Geometric Jacobian [v; w] (6 x n) of the tip point in the base frame from the XML's joint
     axes and origins (XmlChain.walk), by cross products: nothing of the package's."""
@@ -189,15 +201,12 @@ def test_the_general_6r_misses_no_regular_degenerate_configuration(backend, irb1
     gave up (34 of them missed here), and where the other cut's eigenvalue is double, the one null
     vector it reads is a mix of two solutions.  At singular configurations (a continuum, a double
     root) which answer Newton settles on is not fixed: they are only held to no wrong answer."""
-    _, chain = model_and_chain("irb140")
+    chain, q, T, regular = degenerate_references("irb140")
     k = irb140_package.load(backend)
-    q = every_degenerate_configuration()
-    T = np.array([chain.fk(row) for row in q])
     Q, valid = k.ik(T)
     wrong = sum(np.abs(chain.fk(Q[i, b]) - T[i]).max() > FK_TOLERANCE for i, b in zip(*np.nonzero(valid)))
     difference = np.abs((Q - q[:, None, :] + np.pi) % (2 * np.pi) - np.pi).max(axis=-1)
     missing = ~(valid & (difference <= JOINT_TOLERANCE)).any(axis=-1)
-    regular = np.array([np.linalg.svd(xml_jacobian(chain, row), compute_uv=False)[-1] > 1e-6 for row in q])
     assert regular.sum() > 1000   # the test covers many regular poses, not a handful
     assert (wrong, int((~valid.any(axis=-1)).sum()), int((missing & regular).sum())) == (0, 0, 0)
 
