@@ -32,6 +32,7 @@ import datetime
 import importlib
 import json
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -43,7 +44,8 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 ARMS = ("franka_panda", "kinova_jaco")
-SINGLE = "ur5"
+SINGLE = "ur5"  # also built with --fast
+SINGLE_MORE = ("kuka_kr5", "franka_panda")  # a spherical wrist; joint 7 held (ik(x, free))
 REPEAT = 5
 RTB_TOLERANCE = 1e-22
 REACHED = 1e-10
@@ -152,13 +154,18 @@ def measure_single(root: Path, name: str, calls: int) -> dict:
     c_k = importlib.import_module(name).load("c")
     q, poses, _ = problems(c_k, 64)
     vectors = np.concatenate([poses[:, :3, 3], poses[:, :3, :3].reshape(-1, 9)], axis=-1)
-    rows = {}
+    held = re.search(r"joint (\d+) free", c_k.IK_METHOD)  # ik(x, free): the held joint at its value
+    free = [()] * len(q) if held is None else [(q[i, int(held[1]) - 1:int(held[1])],) for i in range(len(q))]
+    rows = {"method": c_k.IK_METHOD, "branches": len(c_k.BRANCHES)}
     rounds = max(1, calls // len(poses))
     for label, items in (("4 x 4", list(poses)), ("12-vector", list(vectors))):
-        ik = c_k.ik
-        rows[label] = per(best(lambda: [ik(x) for _ in range(rounds) for x in items]), rounds * len(items))
+        ik, pairs = c_k.ik, list(zip(items, free))
+        rows[label] = per(best(lambda: [ik(x, *f) for _ in range(rounds) for x, f in pairs]), rounds * len(items))
     batch = np.repeat(vectors, 1_000, axis=0)
-    rows["batched, per pose"] = per(best(lambda: c_k.ik(batch)), len(batch))
+    rest = () if held is None else (np.repeat(np.array(free)[:, 0], 1_000, axis=0),)
+    valid = c_k.ik(batch, *rest)[1]
+    assert valid.any(axis=-1).all(), "a pose of the single call's bench without a valid branch"
+    rows["batched, per pose"] = per(best(lambda: c_k.ik(batch, *rest)), len(batch))
     return rows
 
 
@@ -223,14 +230,16 @@ def report(rows, single, started, ended, load, args) -> str:
     lines += ["", f"The Toolbox's chains were built here from the same DH tables (their fk agrees with ours to "
               + ", ".join(f"{row['rtb']['fk']:.1e} ({name})" for name, row in rows.items() if 'fk' in row['rtb'])
               + ").", "",
-              f"## The single call: ik of one pose from Python ({SINGLE}, C backend, closed form, all 8 branches)", "",
-              "The same 64 poses called one at a time, as a 4 x 4 array and as the 12-vector (x, y, z, r11 .. r33); "
-              "and batched, for the cost of the C kernel itself.", "",
+              "## The single call: ik of one pose from Python (C backend, closed form, every branch)", "",
+              "The same 64 poses (of configurations within the limits) called one at a time, as a 4 x 4 array and "
+              "as the 12-vector (x, y, z, r11 .. r33), the held joint of a 7-joint arm given as `free` (an array of "
+              "shape (1,)); and batched, for the cost of the C kernel itself.", "",
               "Times: CPU (wall), the best of several runs.", "",
-              "| build | 4 x 4, per call | 12-vector, per call | batched, per pose |", "|---|---|---|---|"]
-    for build, figures in single.items():
-        lines.append(f"| {build} | {_time(figures['4 x 4'])} | {_time(figures['12-vector'])} | "
-                     f"{_time(figures['batched, per pose'])} |")
+              "| arm | method (branches) | build | 4 x 4, per call | 12-vector, per call | batched, per pose |",
+              "|---|---|---|---|---|---|"]
+    for (name, build), figures in single.items():
+        lines.append(f"| {name} | {figures['method']} ({figures['branches']}) | {build} | {_time(figures['4 x 4'])} | "
+                     f"{_time(figures['12-vector'])} | {_time(figures['batched, per pose'])} |")
     return "\n".join(lines) + "\n"
 
 
@@ -255,7 +264,7 @@ def main(argv=None) -> int:
     rows = {}
     with tempfile.TemporaryDirectory(prefix="kinegen-numeric-ik-") as tmp:
         root = Path(tmp)
-        for name in (*ARMS, SINGLE):
+        for name in dict.fromkeys((*ARMS, SINGLE, *SINGLE_MORE)):
             say(f"{name}: generate")
             generate(REPO / "tests" / "data" / "arms" / f"{name}.toml", root / name)
         say(f"{SINGLE}: generate --fast")
@@ -263,10 +272,11 @@ def main(argv=None) -> int:
         for name in ARMS:
             say(f"{name}: ik_numeric, C, numpy and the Toolbox")
             rows[name] = worker("numeric", root, name, args)
-        say(f"{SINGLE}: the single call")
-        single = {build: worker("single", folder, SINGLE, args)
-                  for build, folder in (("portable C99 -O2 (the default)", root),
-                                        ("--fast (-O3 -march=native, vectorised)", root / "fast"))}
+        say("the single call")
+        single = {(name, build): worker("single", folder, name, args)
+                  for name, build, folder in ((SINGLE, "portable C99 -O2 (the default)", root),
+                                              (SINGLE, "--fast (-O3 -march=native, vectorised)", root / "fast"),
+                                              *((name, "portable", root) for name in SINGLE_MORE))}
     ended = datetime.datetime.now(datetime.timezone.utc).replace(tzinfo=None, microsecond=0)
     text = report(rows, single, started, ended, os.getloadavg()[0], args)
     print(text)
