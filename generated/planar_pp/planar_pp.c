@@ -782,13 +782,12 @@ static int planar_pp_ik_checks(const double *restrict _x, const double *restrict
         finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
     }
     for (branch = 0; branch < 1; ++branch) {
-        if (!finite_target) {
-            valid[branch] = 0;
-        }
-        for (joint = 0; joint < 2; ++joint) {
-            if (!isfinite(Q[2 * branch + joint])) {
-                valid[branch] = 0;  /* no NaN leaks out as a valid answer */
-            }
+        const double *q = Q + 2 * branch;
+        /* 0 * v is NaN exactly where v is inf or NaN, so this sum is 0 where every joint value is
+           finite (a loop of isfinite tests took twice the instructions) */
+        const double zero = 0.0 * q[0] + 0.0 * q[1];
+        if (!finite_target || zero != 0.0) {
+            valid[branch] = 0;  /* no NaN leaks out as a valid answer */
         }
         valid_branches += valid[branch] != 0;
     }

@@ -4,6 +4,7 @@ Speed itself is never asserted here (`make bench` measures it); these tests
 check that the faster paths compute the same numbers and reject the same bad
 input as the plain ones.
 """
+import importlib
 import inspect
 import math
 import re
@@ -404,3 +405,43 @@ def test_one_point_calls_neither_leak_nor_keep_references():
     assert grown < 50_000, grown  # 15,000 results of 48 to 384 bytes each, if they leaked
     assert (sys.getrefcount(q), sys.getrefcount(x)) == before
     assert sys.getrefcount(k.fk(q)) == sys.getrefcount(np.empty(4))  # a new array: no other reference
+
+
+def test_the_c_wrap_is_the_numpy_wrap_bit_for_bit(tmp_path):
+    """kinegen_wrap_angle (robot.c.j2, which returns an angle already in (-PI, PI] without its floor)
+    against the numpy runtime's wrap_angle, the formula alone: the same doubles, signed zeros
+    included, around -pi, 0, pi and 3 pi, at the limits of the doubles, and at random angles."""
+    source = (generate.GENERATED / "puma560" / "puma560.c").read_text()
+    helper = re.search(r"static double kinegen_wrap_angle\(double angle\)\n\{.*?\n\}\n", source, re.S)[0]
+    driver = tmp_path / "wrap.c"
+    driver.write_text("#include <math.h>\n#include <stdio.h>\n#include <string.h>\n" + helper + """
+int main(void)
+{
+    double angle, wrapped;
+    unsigned long long bits;
+    while (fread(&angle, sizeof angle, 1, stdin) == 1) {
+        wrapped = kinegen_wrap_angle(angle);
+        memcpy(&bits, &wrapped, sizeof bits);
+        printf("%llu\\n", bits);
+    }
+    return 0;
+}
+""")
+    subprocess.run(["cc", "-std=c99", "-O2", "-fno-math-errno", "-Wall", "-Wextra", "-Werror", "-pedantic",
+                    str(driver), "-lm", "-o", str(tmp_path / "wrap")], check=True)
+    rng = np.random.default_rng(27)
+    angles = [rng.uniform(-10, 10, 20_000), np.array([0.0, -0.0, np.pi, -np.pi, 2 * np.pi, -2 * np.pi, 3 * np.pi,
+                                                       -3 * np.pi, 1e300, -1e300, 5e-324, -5e-324])]
+    for centre in (-3 * np.pi, -np.pi, 0.0, np.pi, 3 * np.pi):  # 1,000 doubles on either side of each
+        below, above = [centre], [centre]
+        for _ in range(1000):
+            below.append(np.nextafter(below[-1], -np.inf))
+            above.append(np.nextafter(above[-1], np.inf))
+        angles.append(np.array(below + above))
+    angles = np.concatenate(angles)
+    run = subprocess.run([str(tmp_path / "wrap")], input=angles.astype("<f8").tobytes(), capture_output=True, check=True)
+    c_bits = np.array(run.stdout.split(), dtype=np.uint64)
+    runtime = importlib.import_module("generated.puma560._runtime")
+    numpy_bits = runtime.wrap_angle(angles).view(np.uint64)
+    assert len(c_bits) == len(angles)
+    np.testing.assert_array_equal(c_bits, numpy_bits)
