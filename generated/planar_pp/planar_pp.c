@@ -783,7 +783,7 @@ static int planar_pp_ik_checks(const double *restrict _x, const double *restrict
     }
     for (branch = 0; branch < 1; ++branch) {
         const double *q = Q + 2 * branch;
-        /* 0 * v is NaN exactly where v is inf or NaN, so this sum is 0 where every joint value is
+        /* zero times v is NaN exactly where v is inf or NaN, so this sum is 0 where every joint value is
            finite (a loop of isfinite tests took twice the instructions) */
         const double zero = 0.0 * q[0] + 0.0 * q[1];
         if (!finite_target || zero != 0.0) {

@@ -100,8 +100,8 @@ static double kinegen_max(double a, double b)
 /* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi.  An angle already
    in (-PI, PI] is returned as the formula gives it (k = 0, or k = 1 near -PI and the correction after:
    the angle itself, -0 made +0), without its floor: a call sequence at -O2 without SSE4.1, and a tenth
-   of the instructions of a UR5's one-point ik (callgrind, 2026-11-27).  Bit for bit the same on every
-   double within 2^20 ulps of -PI, 0 and PI and on 10^8 random ones (checked once, by a C program). */
+   of the instructions of a UR5's one-point ik (callgrind, 2026-11-27).  Bit for bit the same, for
+   every angle within 2^20 ulps of -PI, 0 and PI and 10^8 random ones (checked once, by a C program). */
 static double kinegen_wrap_angle(double angle)
 {
     const double pi = 3.141592653589793, two_pi = 6.283185307179586;
@@ -2758,7 +2758,7 @@ static int puma560_ik_checks(const double *restrict _x, const double *restrict Q
     }
     for (branch = 0; branch < 8; ++branch) {
         const double *q = Q + 6 * branch;
-        /* 0 * v is NaN exactly where v is inf or NaN, so this sum is 0 where every joint value is
+        /* zero times v is NaN exactly where v is inf or NaN, so this sum is 0 where every joint value is
            finite (a loop of isfinite tests took twice the instructions) */
         const double zero = 0.0 * q[0] + 0.0 * q[1] + 0.0 * q[2] + 0.0 * q[3] + 0.0 * q[4] + 0.0 * q[5];
         if (!finite_target || zero != 0.0) {
