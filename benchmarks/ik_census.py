@@ -30,6 +30,7 @@ import os
 import re
 import subprocess
 import sys
+import time
 import zlib
 from pathlib import Path
 
@@ -114,12 +115,17 @@ def task(arm, T):
     return test_zoo.ik_target(arm.arm, T)
 
 
+GENERATED = {}  # arm: seconds its `kinegen generate` took (wall), where this run generated it
+
+
 def package(arm, out: Path):
     folder = out / arm.name
     if not (folder / "__init__.py").exists():
+        start = time.perf_counter()
         subprocess.run([sys.executable, "-m", "codegen", "generate", "--quiet", "--no-dynamics", "--force",
                         "--time-limit", "1800",
                         *arm.command(folder)], cwd=REPO, check=True)
+        GENERATED[arm.name] = time.perf_counter() - start
     sys.path.insert(0, str(out))
     try:
         return importlib.import_module(arm.name)
@@ -150,6 +156,28 @@ def regular(arm, q, free):
     return np.linalg.svd(J, compute_uv=False)[..., -1] > REGULAR
 
 
+def best(function, repeat: int = 3) -> float:
+    """The least CPU time of ``repeat`` runs of ``function``."""
+    times = []
+    for _ in range(repeat):
+        start = time.process_time()
+        function()
+        times.append(time.process_time() - start)
+    return min(times)
+
+
+def timings(arm, kernels, q, x, T, free) -> dict:
+    """The C ik's CPU time per pose: the 10,000 random targets batched, and the first 200 one per
+    call from Python as users pass them (a 4 x 4 for a pose task; the free joint as an array (1,))."""
+    rest = () if free is None else (np.ascontiguousarray(q[:RANDOM, free:free + 1]),)
+    batch = np.ascontiguousarray(x[:RANDOM])
+    one = [(T[i] if arm.task == ["pose"] else x[i],) + (() if free is None else (q[i, free:free + 1],))
+           for i in range(200)]
+    ik = kernels.ik
+    return {"batched": best(lambda: ik(batch, *rest)) / RANDOM,
+            "single": best(lambda: [ik(*args) for args in one]) / len(one)}
+
+
 def census(arm, out: Path):
     kernels = package(arm, out)
     q = arm.configurations(np.random.default_rng(zlib.crc32(f"census {arm.name}".encode())))
@@ -166,6 +194,8 @@ def census(arm, out: Path):
         for key, s in part.items():
             row[key] = (int(wrong[s].sum()), int((missing[s] & ok[s]).sum()), int(none[s].sum()))
         row["singular"] = int((~ok[RANDOM:]).sum())
+        if backend == "c":
+            row.update(timings(arm, kernels.load("c"), q, x, T, free), generate=GENERATED.get(arm.name))
         rows.append(row)
         print(f"{arm.name:18} {backend:5} random w/m/n {row['random']}  degenerate w/m/n {row['degenerate']}"
               f"  (degenerate singular: {row['singular']})", flush=True)
@@ -176,13 +206,19 @@ def markdown(rows, started, load):
     lines = [f"# Closed-form ik: wrong / missing / no solution ({started:%Y-%m-%d %H:%M} UTC, load average {load})", "",
              "`python benchmarks/ik_census.py --out DIR --markdown FILE`: per arm and backend, 10,000 random and "
              "1,000 degenerate configurations (module docstring). Missing counts regular configurations only; "
-             "singular: how many of the 1,000 degenerate ones are not.", "",
+             "singular: how many of the 1,000 degenerate ones are not. The C ik's CPU time per pose (best of 3): "
+             "the 10,000 random targets batched, and the first 200 one call each from Python as users pass them "
+             "(a 4 x 4 pose, the free joint an array of shape (1,)). generate: the wall time of `kinegen generate "
+             "--no-dynamics` with its C compile, cold where the run made the package (blank where it reused one).", "",
              "| arm | family | backend | random: wrong / missing / no solution "
-             "| degenerate: wrong / missing / no solution | singular |",
-             "|---|---|---|---|---|---|"]
+             "| degenerate: wrong / missing / no solution | singular | C batched, per pose | C one per call | generate (s) |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
+        times = ("| | | |" if r["backend"] != "c" else
+                 f"| {r['batched'] * 1e6:.2f} us | {r['single'] * 1e6:.2f} us | "
+                 + (f"{r['generate']:.1f} |" if r.get("generate") else "|"))
         lines.append(f"| {r['arm']} | {r['family']} | {r['backend']} | {' / '.join(map(str, r['random']))} | "
-                     f"{' / '.join(map(str, r['degenerate']))} | {r['singular']} |")
+                     f"{' / '.join(map(str, r['degenerate']))} | {r['singular']} {times}")
     return "\n".join(lines) + "\n"
 
 
