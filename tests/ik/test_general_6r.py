@@ -241,7 +241,7 @@ def test_the_pencil_has_eight_spurious_eigenvalues_at_plus_minus_i(generated_roo
 
 @pytest.mark.fuzz
 @pytest.mark.skipif(os.environ.get("HYPOTHESIS_PROFILE") != "fuzz",
-                    reason="`make fuzz` only: the sanitizer build of the Jaco's whole general 6R takes a minute")
+                    reason="`make fuzz` only: the sanitizer build of the Jaco's whole general 6R takes minutes (9.5 min of clang on 2026-11-27)")
 def test_the_c_ik_entry_point_passes_a_short_fuzz_under_the_sanitizers(generated_root):
     """The general 6R's ik in C (general_6r.c.j2: the eigen-solve, the recovery of the joints and the
     Newton polish) under libFuzzer, AddressSanitizer and UndefinedBehaviorSanitizer, every report
