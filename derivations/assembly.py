@@ -56,9 +56,24 @@ def robot_kernels(model: RobotModel) -> list[SymbolicFunction]:
 def position_kernels(model: RobotModel) -> list[SymbolicFunction]:
     """The first of :func:`robot_kernels`: those that need neither the rate kinematics nor the
     dynamics (a render prepares them while those are derived)."""
-    # A general 6R (derivations.ik.general_6r): the closed-form equations its ik solves numerically.
+    # A general 6R (derivations.ik.general_6r): the closed-form equations its ik solves numerically, and
+    # the pose with the Jacobian at once for its Newton steps (one set of sines where task and jacobian
+    # took two).
     general = equations_function(model)
-    return kinematics_kernels(model) + ([model.ik_function()] if model.ik else []) + ([general[0]] if general else [])
+    return (kinematics_kernels(model) + ([model.ik_function()] if model.ik else [])
+            + ([general[0], *pose_and_jacobian(model)] if general else []))
+
+
+def pose_and_jacobian(model: RobotModel) -> list[SymbolicFunction]:
+    """``ik_6r_pose_jacobian(q) -> (x, J)``: ``task`` and ``jacobian`` in one kernel, for the general 6R's
+    Newton steps (general_6r.c.j2), which read both at each candidate."""
+    n, m = model.n, len(model.task_names)
+    q = Argument("q", model.q, f"joint coordinates, shape (..., {n}) ({model._units()})")
+    return with_program([SymbolicFunction(
+        "ik_6r_pose_jacobian", (q,),
+        (Output("x", tuple(model.task), (m,)), Output.from_matrix("J", model.jacobian)),
+        f"Task coordinates {', '.join(model.task_names)} (..., {m}) and the geometric Jacobian [v; w] of the tool "
+        f"point in the base frame (..., 6, {n}) at once: the general 6R's Newton steps read both.")], model.program)
 
 
 def ik_kernel(model: RobotModel) -> SymbolicFunction:

@@ -163,6 +163,22 @@ def test_the_equations_hold_at_the_generating_configuration(generated_root):
         assert np.abs(residual).max() < 1e-10
 
 
+@pytest.mark.parametrize("backend", ["numpy", "c"])
+def test_the_pose_and_jacobian_kernel_is_the_tests_own_pose_and_jacobian(backend, generated_root):
+    """ik_6r_pose_jacobian (the task and the Jacobian from one set of sines, for the C's Newton steps): its
+    x is the pose of this file's DH product (position, then the rotation row by row) and its J this file's
+    Jacobian by cross products (test_zoo.jacobian), to 1e-12, at random configurations and at every joint
+    in {0, +-pi/2, pi}."""
+    arm = ARMS["kinova_jaco"]
+    k = generated_package("kinova_jaco", generated_root).load(backend)
+    q = jaco_configurations()
+    T = fk(arm, q)
+    x, J = k.ik_6r_pose_jacobian(q)
+    assert x.shape == (len(q), 12) and J.shape == (len(q), 6, 6)
+    assert np.abs(x - np.concatenate([T[:, :3, 3], T[:, :3, :3].reshape(-1, 9)], axis=-1)).max() < 1e-12
+    assert np.abs(J - jacobian(arm, q)).max() < 1e-12
+
+
 def test_the_c_fast_pass_takes_the_loop_whose_solutions_lie_further_apart(generated_root):
     """The C's fast pass (general_6r.c.j2, G6R_FAST) solves on the loop whose real roots in psi_3 lie
     further apart (derivations.ik.general_6r.fast_loop), where its determinant resolves them best:
@@ -225,7 +241,7 @@ def test_the_pencil_has_eight_spurious_eigenvalues_at_plus_minus_i(generated_roo
 
 @pytest.mark.fuzz
 @pytest.mark.skipif(os.environ.get("HYPOTHESIS_PROFILE") != "fuzz",
-                    reason="`make fuzz` only: the sanitizer build of the Jaco's whole general 6R takes a minute")
+                    reason="`make fuzz` only: the sanitizer build of the Jaco's whole general 6R takes minutes (9.5 min of clang on 2026-11-27)")
 def test_the_c_ik_entry_point_passes_a_short_fuzz_under_the_sanitizers(generated_root):
     """The general 6R's ik in C (general_6r.c.j2: the eigen-solve, the recovery of the joints and the
     Newton polish) under libFuzzer, AddressSanitizer and UndefinedBehaviorSanitizer, every report
