@@ -49,6 +49,9 @@ from urdf_zoo import ZOO, XmlChain  # noqa: E402
 
 from derivations.formats.urdf import read_urdf  # noqa: E402
 
+sys.path.insert(0, str(REPO / "benchmarks"))
+from peers_ik import best  # noqa: E402  (the least CPU time of 3 runs)
+
 RANDOM, DEGENERATE = 10_000, 1_000
 FK_TOLERANCE, JOINT_TOLERANCE, REGULAR = 1e-9, 1e-6, 1e-6
 
@@ -154,16 +157,6 @@ def regular(arm, q, free):
     if free is not None:
         J = np.delete(J, free, axis=-1)
     return np.linalg.svd(J, compute_uv=False)[..., -1] > REGULAR
-
-
-def best(function, repeat: int = 3) -> float:
-    """The least CPU time of ``repeat`` runs of ``function``."""
-    times = []
-    for _ in range(repeat):
-        start = time.process_time()
-        function()
-        times.append(time.process_time() - start)
-    return min(times)
 
 
 def timings(arm, kernels, q, x, T, free) -> dict:

@@ -19,9 +19,9 @@ import derivations
 import generated
 from codegen import build, generate
 from conftest import kernels
+from test_properties import _ARGUMENT  # each argument's size, read from a kernel's docstring
 
 REPO = Path(__file__).resolve().parents[2]
-_ARGUMENT = re.compile(r"^\s*(\w+): .*?shape \(\.\.\., (\d+)\)", re.M)
 
 
 @pytest.mark.parametrize("kernel", ["fk", "frames", "jacobian", "task", "task_jacobian"])
