@@ -777,10 +777,9 @@ void planar_pp_task_jacobian_batch(size_t count, const double *restrict q, const
    finite, or of a target that is not, is not valid; returns the number of valid branches. */
 static int planar_pp_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
 {
-    int branch, joint, finite_target = 1, valid_branches = 0;
-    for (joint = 0; joint < 2; ++joint) {
-        finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
-    }
+    int branch, valid_branches = 0;
+    /* a NaN or inf target has no answer (zero times it is NaN, as for the joint values below) */
+    const int finite_target = 0.0 * _x[0] + 0.0 * _x[1] == 0.0;
     for (branch = 0; branch < 1; ++branch) {
         const double *q = Q + 2 * branch;
         /* zero times v is NaN exactly where v is inf or NaN, so this sum is 0 where every joint value is

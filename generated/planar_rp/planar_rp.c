@@ -90,19 +90,19 @@ static double kinegen_max(double a, double b)
     return isnan(a) || a > b ? a : b;
 }
 
-/* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi.  An angle already
-   in (-PI, PI] is returned as the formula gives it (k = 0, or k = 1 near -PI and the correction after:
-   the angle itself, -0 made +0), without its floor: a call sequence at -O2 without SSE4.1, and a tenth
-   of the instructions of a UR5's one-point ik (callgrind, 2026-11-27).  Bit for bit the same, for
-   every angle within 2^20 ulps of -PI, 0 and PI and 10^8 random ones (checked once, by a C program). */
-static double kinegen_wrap_angle(double angle)
+/* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi (kinegen_wrap_angle,
+   which returns an angle already in (-PI, PI] as the formula gives it: k = 0, or k = 1 near -PI and
+   the correction after, the angle itself, -0 made +0).  Bit for bit the numpy runtime's wrap_angle
+   (tests/generation/test_fast_paths.py).  Apart, so that the test inside the caller is inlined: a
+   call for each of a UR5's 48 joint values was a sixth of its one-point ik (callgrind, 2026-11-27);
+   GCC and clang would inline this one into the caller too, which would then stay a call. */
+#if defined(__GNUC__)
+__attribute__((noinline))
+#endif
+static double kinegen_wrap_far(double angle)
 {
     const double pi = 3.141592653589793, two_pi = 6.283185307179586;
-    double wrapped;
-    if (angle > -pi && angle <= pi) {
-        return angle + 0.0;
-    }
-    wrapped = angle + two_pi * floor((pi - angle) / two_pi);
+    double wrapped = angle + two_pi * floor((pi - angle) / two_pi);
     if (wrapped > pi) {
         wrapped -= two_pi;  /* rounding of the floor's argument */
     }
@@ -110,6 +110,58 @@ static double kinegen_wrap_angle(double angle)
         wrapped += two_pi;
     }
     return wrapped;
+}
+
+static double kinegen_wrap_angle(double angle)
+{
+    return angle > -3.141592653589793 && angle <= 3.141592653589793 ? angle + 0.0 : kinegen_wrap_far(angle);
+}
+
+/* atan2(y, x) within 2 ulps (1.5 measured; the C library's is correctly rounded, at about twice the
+   time, and a UR5's one-point ik takes 20).  The C library's where a magnitude is outside
+   [2^-500, 2^500] (a zero, an infinity, a NaN: its signs and special values).  Otherwise a, the
+   smaller magnitude over the larger, is in (0, 1], and atan(a) = p, or pi/4 + p above 0.66 with
+   t = (a - 1)/(a + 1), where p = t + t^3 P(t^2)/Q(t^2) for |t| <= 0.66 (the coefficients and ranges
+   of S. L. Moshier's Cephes Math Library, atan.c: 2.6e-18 relative in exact arithmetic).  The octant
+   makes the angle k pi/4 + p or k pi/4 - p, k in 0 .. 4, k pi/4 added as a double and its rest.
+   Against mpmath and numpy's arctan2: tests/generation/test_fast_paths.py.  Unused where a build with
+   KINEGEN_SIMD calls the vector atan2 of glibc instead. */
+#if defined(__GNUC__)
+__attribute__((unused))
+#endif
+static double kinegen_atan2(double y, double x)
+{
+    static const double quarter[5] = { 0.0, 7.853981633974483e-01, 1.5707963267948966, 2.356194490192345,
+                                       3.141592653589793 };
+    static const double rest[5] = { 0.0, 3.061616997868383e-17, 6.123233995736766e-17, 9.184850993605148e-17,
+                                    1.2246467991473532e-16 };
+    const double ax = fabs(x), ay = fabs(y);
+    double small, large, t, z, p, r;
+    int steep, wide, back, k;
+    if (!(ax >= 0x1p-500 && ax <= 0x1p500 && ay >= 0x1p-500 && ay <= 0x1p500)) {
+        return atan2(y, x);
+    }
+    steep = ay > ax;
+    back = x < 0.0;
+    small = steep ? ax : ay;
+    large = steep ? ay : ax;
+    wide = small > 0.66 * large;
+    if (wide) {
+        t = (small - large) / (small + large);  /* small - large is exact (Sterbenz) */
+    } else {
+        t = small / large;
+    }
+    z = t * t;
+    p = t + t * (z * ((((-8.750608600031904122785e-1 * z - 1.615753718733365076637e1) * z
+                        - 7.500855792314704667340e1) * z - 1.228866684490136173410e2) * z
+                      - 6.485021904942025371773e1)
+                 / (((((z + 2.485846490142306297962e1) * z + 1.650270098316988542046e2) * z
+                      + 4.328810604912902668951e2) * z + 4.853903996359136964868e2) * z
+                    + 1.945506571482613964425e2));
+    /* atan(a) = wide pi/4 + p; steep: pi/2 - atan(a); back: pi - that */
+    k = back ? (steep ? 2 + wide : 4 - wide) : (steep ? 2 - wide : wide);
+    r = quarter[k] + (rest[k] + (steep != back ? -p : p));
+    return y < 0.0 ? -r : r;
 }
 
 /* Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. */
@@ -911,10 +963,9 @@ void planar_rp_task_jacobian_batch(size_t count, const double *restrict q, const
    finite, or of a target that is not, is not valid; returns the number of valid branches. */
 static int planar_rp_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
 {
-    int branch, joint, finite_target = 1, valid_branches = 0;
-    for (joint = 0; joint < 2; ++joint) {
-        finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
-    }
+    int branch, valid_branches = 0;
+    /* a NaN or inf target has no answer (zero times it is NaN, as for the joint values below) */
+    const int finite_target = 0.0 * _x[0] + 0.0 * _x[1] == 0.0;
     for (branch = 0; branch < 2; ++branch) {
         const double *q = Q + 2 * branch;
         /* zero times v is NaN exactly where v is inf or NaN, so this sum is 0 where every joint value is
@@ -954,8 +1005,8 @@ int planar_rp_ik(const double *restrict _x, const planar_rp_params *restrict par
         _f1 = result[1];
     }
 #else
-    _f0 = atan2(y, x);
-    _f1 = atan2(_a0, _a1);
+    _f0 = kinegen_atan2(y, x);
+    _f1 = kinegen_atan2(_a0, _a1);
 #endif
     const double _t0 = sqrt((x*x) + (y*y));
     Q[0] = kinegen_wrap_angle(_f0);
@@ -995,11 +1046,19 @@ long planar_rp_ik_batch(size_t count, const double *restrict _x, const planar_rp
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f0[i] = atan2(y[i], x[i]);
+#ifdef KINEGEN_SIMD
+            _f0[i] = atan2(y[i], x[i]);  /* glibc's vector atan2 */
+#else
+            _f0[i] = kinegen_atan2(y[i], x[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f1[i] = atan2(_a0[i], _a1[i]);
+#ifdef KINEGEN_SIMD
+            _f1[i] = atan2(_a0[i], _a1[i]);  /* glibc's vector atan2 */
+#else
+            _f1[i] = kinegen_atan2(_a0[i], _a1[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {

@@ -97,19 +97,19 @@ static double kinegen_max(double a, double b)
     return isnan(a) || a > b ? a : b;
 }
 
-/* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi.  An angle already
-   in (-PI, PI] is returned as the formula gives it (k = 0, or k = 1 near -PI and the correction after:
-   the angle itself, -0 made +0), without its floor: a call sequence at -O2 without SSE4.1, and a tenth
-   of the instructions of a UR5's one-point ik (callgrind, 2026-11-27).  Bit for bit the same, for
-   every angle within 2^20 ulps of -PI, 0 and PI and 10^8 random ones (checked once, by a C program). */
-static double kinegen_wrap_angle(double angle)
+/* angle wrapped to (-pi, pi]: as doubles, [-PI, PI] with PI the double below pi (kinegen_wrap_angle,
+   which returns an angle already in (-PI, PI] as the formula gives it: k = 0, or k = 1 near -PI and
+   the correction after, the angle itself, -0 made +0).  Bit for bit the numpy runtime's wrap_angle
+   (tests/generation/test_fast_paths.py).  Apart, so that the test inside the caller is inlined: a
+   call for each of a UR5's 48 joint values was a sixth of its one-point ik (callgrind, 2026-11-27);
+   GCC and clang would inline this one into the caller too, which would then stay a call. */
+#if defined(__GNUC__)
+__attribute__((noinline))
+#endif
+static double kinegen_wrap_far(double angle)
 {
     const double pi = 3.141592653589793, two_pi = 6.283185307179586;
-    double wrapped;
-    if (angle > -pi && angle <= pi) {
-        return angle + 0.0;
-    }
-    wrapped = angle + two_pi * floor((pi - angle) / two_pi);
+    double wrapped = angle + two_pi * floor((pi - angle) / two_pi);
     if (wrapped > pi) {
         wrapped -= two_pi;  /* rounding of the floor's argument */
     }
@@ -119,16 +119,66 @@ static double kinegen_wrap_angle(double angle)
     return wrapped;
 }
 
+static double kinegen_wrap_angle(double angle)
+{
+    return angle > -3.141592653589793 && angle <= 3.141592653589793 ? angle + 0.0 : kinegen_wrap_far(angle);
+}
+
+/* atan2(y, x) within 2 ulps (1.5 measured; the C library's is correctly rounded, at about twice the
+   time, and a UR5's one-point ik takes 20).  The C library's where a magnitude is outside
+   [2^-500, 2^500] (a zero, an infinity, a NaN: its signs and special values).  Otherwise a, the
+   smaller magnitude over the larger, is in (0, 1], and atan(a) = p, or pi/4 + p above 0.66 with
+   t = (a - 1)/(a + 1), where p = t + t^3 P(t^2)/Q(t^2) for |t| <= 0.66 (the coefficients and ranges
+   of S. L. Moshier's Cephes Math Library, atan.c: 2.6e-18 relative in exact arithmetic).  The octant
+   makes the angle k pi/4 + p or k pi/4 - p, k in 0 .. 4, k pi/4 added as a double and its rest.
+   Against mpmath and numpy's arctan2: tests/generation/test_fast_paths.py.  Unused where a build with
+   KINEGEN_SIMD calls the vector atan2 of glibc instead. */
+#if defined(__GNUC__)
+__attribute__((unused))
+#endif
+static double kinegen_atan2(double y, double x)
+{
+    static const double quarter[5] = { 0.0, 7.853981633974483e-01, 1.5707963267948966, 2.356194490192345,
+                                       3.141592653589793 };
+    static const double rest[5] = { 0.0, 3.061616997868383e-17, 6.123233995736766e-17, 9.184850993605148e-17,
+                                    1.2246467991473532e-16 };
+    const double ax = fabs(x), ay = fabs(y);
+    double small, large, t, z, p, r;
+    int steep, wide, back, k;
+    if (!(ax >= 0x1p-500 && ax <= 0x1p500 && ay >= 0x1p-500 && ay <= 0x1p500)) {
+        return atan2(y, x);
+    }
+    steep = ay > ax;
+    back = x < 0.0;
+    small = steep ? ax : ay;
+    large = steep ? ay : ax;
+    wide = small > 0.66 * large;
+    if (wide) {
+        t = (small - large) / (small + large);  /* small - large is exact (Sterbenz) */
+    } else {
+        t = small / large;
+    }
+    z = t * t;
+    p = t + t * (z * ((((-8.750608600031904122785e-1 * z - 1.615753718733365076637e1) * z
+                        - 7.500855792314704667340e1) * z - 1.228866684490136173410e2) * z
+                      - 6.485021904942025371773e1)
+                 / (((((z + 2.485846490142306297962e1) * z + 1.650270098316988542046e2) * z
+                      + 4.328810604912902668951e2) * z + 4.853903996359136964868e2) * z
+                    + 1.945506571482613964425e2));
+    /* atan(a) = wide pi/4 + p; steep: pi/2 - atan(a); back: pi - that */
+    k = back ? (steep ? 2 + wide : 4 - wide) : (steep ? 2 - wide : wide);
+    r = quarter[k] + (rest[k] + (steep != back ? -p : p));
+    return y < 0.0 ? -r : r;
+}
+
 /* 1 when the pose task x (x, y, z, r11 .. r33) is finite and its rotation R is not
    orthonormal within 1e-09 (max|R R^T - I|) or is a reflection (det R < 0). */
 static int puma560_is_refused_pose(const double *restrict x)
 {
     const double *r = x + 3;
     int i, j;
-    for (i = 0; i < 12; ++i) {
-        if (!isfinite(x[i])) {
-            return 0;  /* reported through valid instead */
-        }
+    if (0.0 * x[0] + 0.0 * x[1] + 0.0 * x[2] + 0.0 * x[3] + 0.0 * x[4] + 0.0 * x[5] + 0.0 * x[6] + 0.0 * x[7] + 0.0 * x[8] + 0.0 * x[9] + 0.0 * x[10] + 0.0 * x[11] != 0.0) {
+        return 0;  /* a NaN or an infinity (zero times it is NaN), reported through valid instead */
     }
     for (i = 0; i < 3; ++i) {
         for (j = i; j < 3; ++j) {  /* R R^T is symmetric */
@@ -2752,10 +2802,9 @@ void puma560_task_jacobian_batch(size_t count, const double *restrict q, const p
    or -1 (and no branch valid) when x is a finite pose that is not a rigid transform. */
 static int puma560_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
 {
-    int branch, joint, finite_target = 1, valid_branches = 0;
-    for (joint = 0; joint < 12; ++joint) {
-        finite_target = finite_target && isfinite(_x[joint]);  /* a NaN or inf target has no answer */
-    }
+    int branch, valid_branches = 0;
+    /* a NaN or inf target has no answer (zero times it is NaN, as for the joint values below) */
+    const int finite_target = 0.0 * _x[0] + 0.0 * _x[1] + 0.0 * _x[2] + 0.0 * _x[3] + 0.0 * _x[4] + 0.0 * _x[5] + 0.0 * _x[6] + 0.0 * _x[7] + 0.0 * _x[8] + 0.0 * _x[9] + 0.0 * _x[10] + 0.0 * _x[11] == 0.0;
     for (branch = 0; branch < 8; ++branch) {
         const double *q = Q + 6 * branch;
         /* zero times v is NaN exactly where v is inf or NaN, so this sum is 0 where every joint value is
@@ -2811,7 +2860,7 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
     const double _t16 = _t12*_t14 + _t14*_t15;
     const double _t17 = 1.0/sqrt(_t16);
     const int _t137 = _t16 > 0;
-    const double _f2 = atan2(_a2, _a3);
+    const double _f2 = kinegen_atan2(_a2, _a3);
     const double _t0 = (x*x);
     const double _t1 = (y*y);
     const double _t2 = _t0 + _t1;
@@ -2840,7 +2889,7 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
     _f0 = acos(_a0);
     _f3 = acos(_a4);
 #endif
-    _f1 = atan2(_a1, y);
+    _f1 = kinegen_atan2(_a1, y);
     const double _t6 = _f0 + _f1;
     const double _t20 = -_f2 + _f3;
     const double _t58 = _f2 + _f3;
@@ -2915,10 +2964,10 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
         _f10 = result[3];
     }
 #else
-    _f4 = atan2(_a5, _a6);
-    _f6 = atan2(_a8, _a9);
-    _f8 = atan2(_a11, _a12);
-    _f10 = atan2(_a14, _a15);
+    _f4 = kinegen_atan2(_a5, _a6);
+    _f6 = kinegen_atan2(_a8, _a9);
+    _f8 = kinegen_atan2(_a11, _a12);
+    _f10 = kinegen_atan2(_a14, _a15);
 #endif
     const double _t36 = _f2 - _f3;
     const double _t37 = _f4 + _t36;
@@ -2992,10 +3041,10 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
         _f11 = result[3];
     }
 #else
-    _f5 = atan2(_t33, _a7);
-    _f7 = atan2(_t33, _a10);
-    _f9 = atan2(_t101, _a13);
-    _f11 = atan2(_t101, _a16);
+    _f5 = kinegen_atan2(_t33, _a7);
+    _f7 = kinegen_atan2(_t33, _a10);
+    _f9 = kinegen_atan2(_t101, _a13);
+    _f11 = kinegen_atan2(_t101, _a16);
 #endif
     const double _t34 = -_t33;
     const double _t35 = (_t34*_t34);
@@ -3180,22 +3229,22 @@ int puma560_ik(const double *restrict _x, const puma560_params *restrict params,
         _f27 = result[15];
     }
 #else
-    _f12 = atan2(_a17, _t48);
-    _f13 = atan2(_a18, _a19);
-    _f14 = atan2(_a20, _t48);
-    _f15 = atan2(_a21, _a22);
-    _f16 = atan2(_a23, _t77);
-    _f17 = atan2(_a24, _a25);
-    _f18 = atan2(_a26, _t77);
-    _f19 = atan2(_a27, _a28);
-    _f20 = atan2(_a29, _t106);
-    _f21 = atan2(_a30, _a31);
-    _f22 = atan2(_a32, _t106);
-    _f23 = atan2(_a33, _a34);
-    _f24 = atan2(_a35, _t127);
-    _f25 = atan2(_a36, _a37);
-    _f26 = atan2(_a38, _t127);
-    _f27 = atan2(_a39, _a40);
+    _f12 = kinegen_atan2(_a17, _t48);
+    _f13 = kinegen_atan2(_a18, _a19);
+    _f14 = kinegen_atan2(_a20, _t48);
+    _f15 = kinegen_atan2(_a21, _a22);
+    _f16 = kinegen_atan2(_a23, _t77);
+    _f17 = kinegen_atan2(_a24, _a25);
+    _f18 = kinegen_atan2(_a26, _t77);
+    _f19 = kinegen_atan2(_a27, _a28);
+    _f20 = kinegen_atan2(_a29, _t106);
+    _f21 = kinegen_atan2(_a30, _a31);
+    _f22 = kinegen_atan2(_a32, _t106);
+    _f23 = kinegen_atan2(_a33, _a34);
+    _f24 = kinegen_atan2(_a35, _t127);
+    _f25 = kinegen_atan2(_a36, _a37);
+    _f26 = kinegen_atan2(_a38, _t127);
+    _f27 = kinegen_atan2(_a39, _a40);
 #endif
     const double _t7 = kinegen_wrap_angle(_t6);
     const double _t31 = kinegen_wrap_angle(_f4);
@@ -3446,7 +3495,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
     const double _t16 = _t12*_t14 + _t14*_t15;
     const double _t17 = 1.0/sqrt(_t16);
     const int _t137 = _t16 > 0;
-    const double _f2 = atan2(_a2, _a3);
+    const double _f2 = kinegen_atan2(_a2, _a3);
     for (start = 0; start < count; start += n) {
         n = count - start < KINEGEN_BLOCK_OF(16) ? count - start : KINEGEN_BLOCK_OF(16);
         for (i = 0; i < n; ++i) {
@@ -3482,7 +3531,11 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f1[i] = atan2(_a1[i], y[i]);
+#ifdef KINEGEN_SIMD
+            _f1[i] = atan2(_a1[i], y[i]);  /* glibc's vector atan2 */
+#else
+            _f1[i] = kinegen_atan2(_a1[i], y[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -3550,19 +3603,35 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f4[i] = atan2(_a5[i], _a6[i]);
+#ifdef KINEGEN_SIMD
+            _f4[i] = atan2(_a5[i], _a6[i]);  /* glibc's vector atan2 */
+#else
+            _f4[i] = kinegen_atan2(_a5[i], _a6[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f6[i] = atan2(_a8[i], _a9[i]);
+#ifdef KINEGEN_SIMD
+            _f6[i] = atan2(_a8[i], _a9[i]);  /* glibc's vector atan2 */
+#else
+            _f6[i] = kinegen_atan2(_a8[i], _a9[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f8[i] = atan2(_a11[i], _a12[i]);
+#ifdef KINEGEN_SIMD
+            _f8[i] = atan2(_a11[i], _a12[i]);  /* glibc's vector atan2 */
+#else
+            _f8[i] = kinegen_atan2(_a11[i], _a12[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f10[i] = atan2(_a14[i], _a15[i]);
+#ifdef KINEGEN_SIMD
+            _f10[i] = atan2(_a14[i], _a15[i]);  /* glibc's vector atan2 */
+#else
+            _f10[i] = kinegen_atan2(_a14[i], _a15[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -3624,19 +3693,35 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f5[i] = atan2(_t33[i], _a7[i]);
+#ifdef KINEGEN_SIMD
+            _f5[i] = atan2(_t33[i], _a7[i]);  /* glibc's vector atan2 */
+#else
+            _f5[i] = kinegen_atan2(_t33[i], _a7[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f7[i] = atan2(_t33[i], _a10[i]);
+#ifdef KINEGEN_SIMD
+            _f7[i] = atan2(_t33[i], _a10[i]);  /* glibc's vector atan2 */
+#else
+            _f7[i] = kinegen_atan2(_t33[i], _a10[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f9[i] = atan2(_t101[i], _a13[i]);
+#ifdef KINEGEN_SIMD
+            _f9[i] = atan2(_t101[i], _a13[i]);  /* glibc's vector atan2 */
+#else
+            _f9[i] = kinegen_atan2(_t101[i], _a13[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f11[i] = atan2(_t101[i], _a16[i]);
+#ifdef KINEGEN_SIMD
+            _f11[i] = atan2(_t101[i], _a16[i]);  /* glibc's vector atan2 */
+#else
+            _f11[i] = kinegen_atan2(_t101[i], _a16[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
@@ -3813,67 +3898,131 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f12[i] = atan2(_a17[i], _t48[i]);
+#ifdef KINEGEN_SIMD
+            _f12[i] = atan2(_a17[i], _t48[i]);  /* glibc's vector atan2 */
+#else
+            _f12[i] = kinegen_atan2(_a17[i], _t48[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f13[i] = atan2(_a18[i], _a19[i]);
+#ifdef KINEGEN_SIMD
+            _f13[i] = atan2(_a18[i], _a19[i]);  /* glibc's vector atan2 */
+#else
+            _f13[i] = kinegen_atan2(_a18[i], _a19[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f14[i] = atan2(_a20[i], _t48[i]);
+#ifdef KINEGEN_SIMD
+            _f14[i] = atan2(_a20[i], _t48[i]);  /* glibc's vector atan2 */
+#else
+            _f14[i] = kinegen_atan2(_a20[i], _t48[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f15[i] = atan2(_a21[i], _a22[i]);
+#ifdef KINEGEN_SIMD
+            _f15[i] = atan2(_a21[i], _a22[i]);  /* glibc's vector atan2 */
+#else
+            _f15[i] = kinegen_atan2(_a21[i], _a22[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f16[i] = atan2(_a23[i], _t77[i]);
+#ifdef KINEGEN_SIMD
+            _f16[i] = atan2(_a23[i], _t77[i]);  /* glibc's vector atan2 */
+#else
+            _f16[i] = kinegen_atan2(_a23[i], _t77[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f17[i] = atan2(_a24[i], _a25[i]);
+#ifdef KINEGEN_SIMD
+            _f17[i] = atan2(_a24[i], _a25[i]);  /* glibc's vector atan2 */
+#else
+            _f17[i] = kinegen_atan2(_a24[i], _a25[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f18[i] = atan2(_a26[i], _t77[i]);
+#ifdef KINEGEN_SIMD
+            _f18[i] = atan2(_a26[i], _t77[i]);  /* glibc's vector atan2 */
+#else
+            _f18[i] = kinegen_atan2(_a26[i], _t77[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f19[i] = atan2(_a27[i], _a28[i]);
+#ifdef KINEGEN_SIMD
+            _f19[i] = atan2(_a27[i], _a28[i]);  /* glibc's vector atan2 */
+#else
+            _f19[i] = kinegen_atan2(_a27[i], _a28[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f20[i] = atan2(_a29[i], _t106[i]);
+#ifdef KINEGEN_SIMD
+            _f20[i] = atan2(_a29[i], _t106[i]);  /* glibc's vector atan2 */
+#else
+            _f20[i] = kinegen_atan2(_a29[i], _t106[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f21[i] = atan2(_a30[i], _a31[i]);
+#ifdef KINEGEN_SIMD
+            _f21[i] = atan2(_a30[i], _a31[i]);  /* glibc's vector atan2 */
+#else
+            _f21[i] = kinegen_atan2(_a30[i], _a31[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f22[i] = atan2(_a32[i], _t106[i]);
+#ifdef KINEGEN_SIMD
+            _f22[i] = atan2(_a32[i], _t106[i]);  /* glibc's vector atan2 */
+#else
+            _f22[i] = kinegen_atan2(_a32[i], _t106[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f23[i] = atan2(_a33[i], _a34[i]);
+#ifdef KINEGEN_SIMD
+            _f23[i] = atan2(_a33[i], _a34[i]);  /* glibc's vector atan2 */
+#else
+            _f23[i] = kinegen_atan2(_a33[i], _a34[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f24[i] = atan2(_a35[i], _t127[i]);
+#ifdef KINEGEN_SIMD
+            _f24[i] = atan2(_a35[i], _t127[i]);  /* glibc's vector atan2 */
+#else
+            _f24[i] = kinegen_atan2(_a35[i], _t127[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f25[i] = atan2(_a36[i], _a37[i]);
+#ifdef KINEGEN_SIMD
+            _f25[i] = atan2(_a36[i], _a37[i]);  /* glibc's vector atan2 */
+#else
+            _f25[i] = kinegen_atan2(_a36[i], _a37[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f26[i] = atan2(_a38[i], _t127[i]);
+#ifdef KINEGEN_SIMD
+            _f26[i] = atan2(_a38[i], _t127[i]);  /* glibc's vector atan2 */
+#else
+            _f26[i] = kinegen_atan2(_a38[i], _t127[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
-            _f27[i] = atan2(_a39[i], _a40[i]);
+#ifdef KINEGEN_SIMD
+            _f27[i] = atan2(_a39[i], _a40[i]);  /* glibc's vector atan2 */
+#else
+            _f27[i] = kinegen_atan2(_a39[i], _a40[i]);  /* as the single point */
+#endif
         }
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
