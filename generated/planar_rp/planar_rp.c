@@ -138,13 +138,13 @@ static double kinegen_atan2(double y, double x)
     const double ax = fabs(x), ay = fabs(y);
     double small, large, t, z, p, r;
     int steep, wide, back, k;
-    if (!(ax >= 0x1p-500 && ax <= 0x1p500 && ay >= 0x1p-500 && ay <= 0x1p500)) {
-        return atan2(y, x);
-    }
     steep = ay > ax;
-    back = x < 0.0;
     small = steep ? ax : ay;
     large = steep ? ay : ax;
+    if (!(small >= 0x1p-500 && large <= 0x1p500)) {  /* also where either is a NaN */
+        return atan2(y, x);
+    }
+    back = x < 0.0;
     wide = small > 0.66 * large;
     if (wide) {
         t = (small - large) / (small + large);  /* small - large is exact (Sterbenz) */
