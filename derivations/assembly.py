@@ -17,7 +17,7 @@ import sys
 import sympy as sp
 
 from .chain import REVOLUTE
-from .ik.general_6r import equations_function
+from .ik.general_6r import equations_function, fast_equations_function
 from .ik.primitives import ClampUnit, WrapAngle, kernel_form
 from .model import Argument, Output, RobotModel, SymbolicFunction, install_assembly, with_program
 
@@ -61,7 +61,7 @@ def position_kernels(model: RobotModel) -> list[SymbolicFunction]:
     # took two).
     general = equations_function(model)
     return (kinematics_kernels(model) + ([model.ik_function()] if model.ik else [])
-            + ([general[0], *pose_and_jacobian(model)] if general else []))
+            + ([general[0], fast_equations_function(*general), *pose_and_jacobian(model)] if general else []))
 
 
 def pose_and_jacobian(model: RobotModel) -> list[SymbolicFunction]:

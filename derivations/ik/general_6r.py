@@ -47,7 +47,7 @@ import sympy as sp
 from ..chain import REVOLUTE
 from ..program import Program
 
-__all__ = ["General6R", "general_6r", "NotGeneral6R", "SHIFTS", "MONOMIALS_45", "MONOMIALS_12"]
+__all__ = ["General6R", "general_6r", "NotGeneral6R", "SHIFTS", "MONOMIALS_45", "MONOMIALS_12", "fast_equations_function"]
 
 # (cos, sin) of the shift delta_i of each joint: rational points on the unit circle, so the
 # derived coefficients stay exact.
@@ -605,6 +605,38 @@ def fast_loop(chain, params, loops, count=FAST_POSES, seed=LOOP_SEED) -> int:
     return int(np.argmax(scores))
 
 
+def q_blocks(Q) -> tuple:
+    """Q's rows and columns (Manocha-Canny Eq. 9, 14 x 8) in independent blocks: ((rows, columns), ...),
+    the connected components of its entries that are not zero for every pose, in order of their first
+    row.  On a block-diagonal Q (after permuting rows and columns) the left null space and the least
+    squares for m_12 split by blocks: on the Kinova Jaco's loop psi_3 = q5, rows 0-2 and 6 (the z
+    components of p and l, p.p and p.l, which Rz(psi_1) leaves alone) hold only s2 and c2, the other
+    10 rows the other 6 columns, so the C's Householder QR takes 52 row operations where the whole
+    took 84.  A row of zeros is a block of its own with no column (a null row as it is).  Where some
+    block has fewer rows than columns (Q of rank under 8 on every pose), one block of everything."""
+    rows, columns = len(Q), len(Q[0])
+    parent = list(range(rows + columns))  # union-find over rows 0..13 and columns 14..21
+
+    def root(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+    for i in range(rows):
+        for j in range(columns):
+            if sp.sympify(Q[i][j]).is_zero is not True:
+                parent[root(i)] = root(rows + j)
+    found = {}
+    for i in range(rows + columns):
+        found.setdefault(root(i), []).append(i)
+    blocks = sorted((tuple(i for i in members if i < rows), tuple(i - rows for i in members if i >= rows))
+                    for members in found.values())
+    everything = ((tuple(range(rows)), tuple(range(columns))),)
+    if any(len(r) < len(c) or not r for r, c in blocks):
+        return everything
+    return tuple(blocks)
+
+
 # The working precision of a link's irrational constants in the equations (digits).
 CONSTANT_DIGITS = 30
 
@@ -692,6 +724,25 @@ def equations_function(model):
     return found or None
 
 
+def fast_equations_function(function, layout):
+    """``ik_6r_equations_fast(x) -> (P (3, 14, 9), Q (14, 8), E (6, 3, 4))``: ``ik_6r_equations`` of the
+    loop the C's fast pass solves (``layout["fast"]``) alone, for that pass, which reads no other (the
+    eigen-solve that still runs on 1 % of poses reads both).  The same outputs' entries and program
+    (the code generator keeps the steps they read): on the Jaco, the kernel's 5,000 instructions a
+    pose less what the other loop alone needed."""
+    from ..model import Output, SymbolicFunction
+    fast, count = layout["fast"], len(layout["loops"])
+    outputs = []
+    for out in function.outputs:
+        size = len(out.values) // count
+        outputs.append(Output(out.name, out.values[fast * size:(fast + 1) * size], out.shape[1:], out.dtype,
+                              f"{out.doc} (the fast pass's loop)"))
+    return SymbolicFunction(
+        "ik_6r_equations_fast", function.arguments, tuple(outputs),
+        f"ik_6r_equations of loop {fast} alone (the general 6R's fast pass in C): P (..., 3, 14, 9), "
+        f"Q (..., 14, 8), E (..., 6, 3, 4).", definitions=function.definitions)
+
+
 def _equations_function(model):
     """(the kernel, the layout), or () where no loop's matrix is regular (the arm keeps the seeded ik)."""
     from ..model import Argument, Output, SymbolicFunction
@@ -722,5 +773,6 @@ def _equations_function(model):
               "shifts": tuple(float(sp.atan2(s, c)) for c, s in SHIFTS),
               "offsets": tuple(float(sp.sympify(o).evalf(17)) for o in loops[0].offsets),
               "loops": [g.loop for g in loops],
-              "fast": fast_loop(model.chain, model.params, [g.loop for g in loops])}
+              "fast": fast_loop(model.chain, model.params, [g.loop for g in loops]),
+              "blocks": [q_blocks(g.Q) for g in loops]}
     return function, layout

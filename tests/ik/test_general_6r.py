@@ -163,6 +163,40 @@ def test_the_equations_hold_at_the_generating_configuration(generated_root):
         assert np.abs(residual).max() < 1e-10
 
 
+def test_q_splits_into_the_blocks_the_c_fast_pass_reduces_apart(generated_root):
+    """derivations.ik.general_6r.q_blocks: the rows and columns of Q (Manocha-Canny Eq. 9) that meet no
+    other's, whose left null space and least squares the C's fast pass (g6r_fast_reduce) takes block by
+    block.  On the Jaco's loops, at 40 random configurations' poses (this file's fk), Q from the package's
+    kernel is zero wherever a row of one block meets a column of another, and each block is one: its
+    nonzero entries at a pose join its rows and columns (a search of this test's own over them); the fast
+    loop (psi_3 = q5) splits 4 x 2 (the z components of p and l, p.p and p.l: no psi_1 in them) and 10 x 6."""
+    import derivations
+    from derivations.ik.general_6r import equations_function
+    arm = ARMS["kinova_jaco"]
+    package = generated_package("kinova_jaco", generated_root)
+    layout = equations_function(derivations.load(arm.path))[1]
+    q = np.random.default_rng(zlib.crc32(b"blocks of Q")).uniform(-math.pi, math.pi, (40, 6))
+    _, Q, _ = package.ik_6r_equations(fk(arm, q)[:, :3].reshape(-1, 12)[:, [3, 7, 11, 0, 1, 2, 4, 5, 6, 8, 9, 10]])
+    for loop, blocks in enumerate(layout["blocks"]):
+        assert sorted(r for rows, _ in blocks for r in rows) == list(range(14))
+        assert sorted(c for _, columns in blocks for c in columns) == list(range(8))
+        for rows, columns in blocks:
+            others = [c for c in range(8) if c not in columns]
+            assert (Q[:, loop][:, list(rows)][:, :, others] == 0.0).all(), (loop, rows)
+            nonzero = Q[0, loop][np.ix_(rows, columns)] != 0.0
+            reached, frontier = {("row", 0)}, [("row", 0)]
+            while frontier:
+                kind, i = frontier.pop()
+                for j in range(len(columns) if kind == "row" else len(rows)):
+                    step = ("column", j) if kind == "row" else ("row", j)
+                    if (nonzero[i, j] if kind == "row" else nonzero[j, i]) and step not in reached:
+                        reached.add(step)
+                        frontier.append(step)
+            assert len(reached) == len(rows) + len(columns), (loop, rows, columns)
+    fast = layout["fast"]
+    assert sorted((len(rows), len(columns)) for rows, columns in layout["blocks"][fast]) == [(4, 2), (10, 6)]
+
+
 @pytest.mark.parametrize("backend", ["numpy", "c"])
 def test_the_pose_and_jacobian_kernel_is_the_tests_own_pose_and_jacobian(backend, generated_root):
     """ik_6r_pose_jacobian (the task and the Jacobian from one set of sines, for the C's Newton steps): its
