@@ -412,25 +412,9 @@ def test_the_c_wrap_is_the_numpy_wrap_bit_for_bit(tmp_path):
     and hands any other to kinegen_wrap_far)
     against the numpy runtime's wrap_angle, the formula alone: the same doubles, signed zeros
     included, around -pi, 0, pi and 3 pi, at the limits of the doubles, and at random angles."""
-    source = (generate.GENERATED / "puma560" / "puma560.c").read_text()
-    helper = re.search(r"static double kinegen_wrap_far\(double angle\)\n\{.*?\n\}\n\n"
-                       r"static double kinegen_wrap_angle\(double angle\)\n\{.*?\n\}\n", source, re.S)[0]
-    driver = tmp_path / "wrap.c"
-    driver.write_text("#include <math.h>\n#include <stdio.h>\n#include <string.h>\n" + helper + """
-int main(void)
-{
-    double angle, wrapped;
-    unsigned long long bits;
-    while (fread(&angle, sizeof angle, 1, stdin) == 1) {
-        wrapped = kinegen_wrap_angle(angle);
-        memcpy(&bits, &wrapped, sizeof bits);
-        printf("%llu\\n", bits);
-    }
-    return 0;
-}
-""")
-    subprocess.run(["cc", "-std=c99", "-O2", "-fno-math-errno", "-Wall", "-Wextra", "-Werror", "-pedantic",
-                    str(driver), "-lm", "-o", str(tmp_path / "wrap")], check=True)
+    program = _compiled_helper(tmp_path, r"static double kinegen_wrap_far\(double angle\)\n\{.*?\n\}\n\n"
+                               r"static double kinegen_wrap_angle\(double angle\)\n\{.*?\n\}\n",
+                               "kinegen_wrap_angle(in[0])", 1)
     rng = np.random.default_rng(27)
     angles = [rng.uniform(-10, 10, 20_000), np.array([0.0, -0.0, np.pi, -np.pi, 2 * np.pi, -2 * np.pi, 3 * np.pi,
                                                        -3 * np.pi, 1e300, -1e300, 5e-324, -5e-324])]
@@ -441,7 +425,7 @@ int main(void)
             above.append(np.nextafter(above[-1], np.inf))
         angles.append(np.array(below + above))
     angles = np.concatenate(angles)
-    run = subprocess.run([str(tmp_path / "wrap")], input=angles.astype("<f8").tobytes(), capture_output=True, check=True)
+    run = subprocess.run([str(program)], input=angles.astype("<f8").tobytes(), capture_output=True, check=True)
     c_bits = np.array(run.stdout.split(), dtype=np.uint64)
     runtime = importlib.import_module("generated.puma560._runtime")
     numpy_bits = runtime.wrap_angle(angles).view(np.uint64)
@@ -449,16 +433,17 @@ int main(void)
     np.testing.assert_array_equal(c_bits, numpy_bits)
 
 
-def _compiled_helper(tmp_path, pattern, call):
+def _compiled_helper(tmp_path, pattern, call, arity=2):
     """A program that applies a static helper of the generated PUMA C (found by ``pattern``) to the
-    doubles on its stdin, ``call`` its expression of `in`, and writes each result's 64 bits."""
+    doubles on its stdin, ``arity`` at a time, ``call`` its expression of `in`, and writes each
+    result's 64 bits."""
     source = (generate.GENERATED / "puma560" / "puma560.c").read_text()
     helper = re.search(pattern, source, re.S)[0]
     driver = tmp_path / "helper.c"
     driver.write_text("#include <math.h>\n#include <stdio.h>\n#include <string.h>\n" + helper + f"""
 int main(void)
 {{
-    double in[2], out;
+    double in[{arity}], out;
     unsigned long long bits;
     while (fread(in, sizeof in, 1, stdin) == 1) {{
         out = {call};
