@@ -24,6 +24,7 @@ import pytest
 import derivations
 from derivations.ik.structure import structure_of
 from derivations.ik.reverse import reversed_structure
+from conftest import shared_folder  # noqa: E402
 from test_ik_short_chains import (FK_TOLERANCE, JOINT_TOLERANCE, evaluate_steps, urdf_chain, wrap,
                                   xml_walk)  # noqa: E402
 from test_zoo import ARMS, fk as dh_fk  # noqa: E402
@@ -261,12 +262,9 @@ _PACKAGES: dict = {}
 
 
 @pytest.fixture(scope="session")
-def package_root(tmp_path_factory, worker_id):
+def package_root(tmp_path_factory):
     """One folder of packages for the run, shared by pytest-xdist's workers (as tests/test_zoo.py's)."""
-    base = tmp_path_factory.getbasetemp()
-    root = (base.parent if worker_id != "master" else base) / "reversed_packages"
-    root.mkdir(exist_ok=True)
-    return root
+    return shared_folder(tmp_path_factory, "reversed_packages")
 
 
 def package(name, root):
