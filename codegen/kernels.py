@@ -161,6 +161,14 @@ def _holds_beyond_double(expr: sp.Basic) -> bool:
     return memo[expr]
 
 
+@functools.lru_cache(maxsize=None)
+def _free_symbols_are_the_arguments(kind: type) -> bool:
+    """Whether ``kind`` keeps SymPy's free_symbols of a node that binds none (Basic's: the union of
+    its arguments'), rather than its own (Symbol; Derivative, Lambda, Subs, which bind symbols).
+    Read from the class's MRO: a function class's metaclass has a free_symbols of its own."""
+    return next(k for k in kind.__mro__ if "free_symbols" in vars(k)) is sp.Basic
+
+
 @functools.lru_cache(maxsize=8192)
 def bounded_numbers(expr: sp.Basic) -> sp.Basic:
     """``expr`` with every constant that reads an integer or rational beyond 2**53 folded into one
@@ -175,6 +183,22 @@ def bounded_numbers(expr: sp.Basic) -> sp.Basic:
     if not _holds_beyond_double(expr):
         return expr
     memo: dict = {}
+    facts: dict = {}
+
+    def fact(e):
+        """(e has free symbols, e holds a rational beyond 2**53), each distinct node once: asking
+        ``e.free_symbols`` and ``e.atoms`` of every node walked its whole subtree again (7 of the
+        11 s of the PUMA's render)."""
+        known = facts.get(e)
+        if known is None:
+            if not e.args:
+                known = (bool(e.free_symbols), bool(e.is_Rational and _beyond_double(e)))
+            else:
+                parts = [fact(a) for a in e.args]
+                free = any(p[0] for p in parts) if _free_symbols_are_the_arguments(type(e)) else bool(e.free_symbols)
+                known = (free, any(p[1] for p in parts))
+            facts[e] = known
+        return known
 
     def visit(e):
         done = memo.get(e)
@@ -182,7 +206,7 @@ def bounded_numbers(expr: sp.Basic) -> sp.Basic:
             return done
         if e.is_Rational and not e.is_Integer:
             done = e
-        elif isinstance(e, sp.Expr) and not e.free_symbols and any(_beyond_double(r) for r in e.atoms(sp.Rational)):
+        elif isinstance(e, sp.Expr) and fact(e) == (False, True):
             value = e.evalf(30)
             done = sp.Float(value, 30) if value.is_real and value.is_finite else e
         elif not e.args:

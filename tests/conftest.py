@@ -48,6 +48,16 @@ def kernels(name, backend):
     return generated.load(name, backend=backend)
 
 
+def shared_folder(tmp_path_factory, name: str) -> Path:
+    """A folder for the whole run, which pytest-xdist's workers share (each worker's basetemp is a
+    folder of the run's): a package generated there once, under a lock, serves every worker,
+    instead of one generation per worker.  Without xdist (-n 0, -p no:xdist), the session's own."""
+    base = tmp_path_factory.getbasetemp()
+    root = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / name
+    root.mkdir(exist_ok=True)
+    return root
+
+
 # KINEGEN_TEST_CPU=FILE: each test's CPU time (user + system, of its worker and of the processes
 # that worker waited for: compilers, `kinegen generate`, the render's forked workers), one line
 # per test appended to FILE, setup and teardown included.  On a machine shared with other work the

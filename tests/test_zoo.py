@@ -54,6 +54,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import shared_folder
+
 ROOT = Path(__file__).resolve().parents[1]
 ARMS_DIR = Path(__file__).resolve().parent / "data" / "arms"
 ARM_FILES = sorted(ARMS_DIR.glob("*.toml"))
@@ -469,13 +471,10 @@ _PACKAGES: dict = {}
 
 
 @pytest.fixture(scope="session")
-def generated_root(tmp_path_factory, worker_id):
+def generated_root(tmp_path_factory):
     """One folder of packages for the whole run: under pytest-xdist the workers share it
     (each arm generated once, under a lock), instead of generating every arm per worker."""
-    base = tmp_path_factory.getbasetemp()
-    root = (base.parent if worker_id != "master" else base) / "zoo_packages"
-    root.mkdir(exist_ok=True)
-    return root
+    return shared_folder(tmp_path_factory, "zoo_packages")
 
 
 def generated_package(name, root: Path):

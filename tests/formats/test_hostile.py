@@ -364,6 +364,7 @@ def test_two_generates_of_one_package_at_once_both_end_cleanly(tmp_path):
     """Two `kinegen generate FILE --out PKG --force` at once: each exits 0 or refuses (exit 2),
     and what is left is one whole package and nothing beside it."""
     import os
+    import shutil
     import subprocess
     import sys
     path = tmp_path / "cyl.toml"
@@ -371,16 +372,18 @@ def test_two_generates_of_one_package_at_once_both_end_cleanly(tmp_path):
     command = [sys.executable, "-m", "codegen", "--quiet", "generate", str(path), "--out", str(tmp_path / "cyl"),
                "--no-build", "--force"]
     env = dict(os.environ, KINEGEN_CACHE=str(tmp_path / ".cache"))
-    subprocess.run(command, env=env, check=True, capture_output=True)  # derive once, into the cache
+    # one run alone first: it derives into the cache, and its package is the reference; the three
+    # runs at once then replace a copy of it, as they replaced this run's own package
+    reference = tmp_path / "ref"
+    subprocess.run(command[:-3] + [str(reference / "cyl"), "--no-build"], env=env, check=True, capture_output=True)
+    shutil.copytree(reference / "cyl", tmp_path / "cyl")
     runs = [subprocess.Popen(command, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
             for _ in range(3)]
     finished = [(run.wait(timeout=120), run.stderr.read()) for run in runs]
     for status, err in finished:
         assert status in (0, 2) and "Traceback" not in err, err
     assert any(status == 0 for status, _ in finished)
-    assert sorted(p.name for p in tmp_path.iterdir()) == [".cache", "cyl", "cyl.toml"]
-    reference = tmp_path / "ref"
-    subprocess.run(command[:-3] + [str(reference / "cyl"), "--no-build"], env=env, check=True)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".cache", "cyl", "cyl.toml", "ref"]
     files = sorted(p.relative_to(reference / "cyl") for p in (reference / "cyl").rglob("*"))
     assert sorted(p.relative_to(tmp_path / "cyl") for p in (tmp_path / "cyl").rglob("*")) == files
     for name in files:  # generation is deterministic: a whole package is the reference, byte for byte

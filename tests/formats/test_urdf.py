@@ -31,6 +31,7 @@ import numpy as np
 import pytest
 
 from codegen.cli import main
+from conftest import shared_folder
 
 ROOT = Path(__file__).resolve().parents[2]
 URDF_DIR = Path(__file__).resolve().parents[1] / "data" / "urdf"
@@ -331,11 +332,8 @@ _PACKAGES: dict = {}
 
 
 @pytest.fixture(scope="session")
-def urdf_root(tmp_path_factory, worker_id):
-    base = tmp_path_factory.getbasetemp()
-    root = (base.parent if worker_id != "master" else base) / "urdf_packages"
-    root.mkdir(exist_ok=True)
-    return root
+def urdf_root(tmp_path_factory):
+    return shared_folder(tmp_path_factory, "urdf_packages")
 
 
 def package(name: str, root: Path):

@@ -26,6 +26,7 @@ their C holds no integer literal past 2^53.
 """
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import importlib
 import os
@@ -39,6 +40,7 @@ import numpy as np
 import pytest
 import sympy as sp
 
+from conftest import shared_folder
 from urdf_zoo import ZOO, ZOO_DIR, XmlChain, relative_error
 
 TOLERANCE = 1e-12
@@ -182,24 +184,26 @@ INTEGER_LITERAL = re.compile(r"(?<![\w.])(\d+)(?![\w.])")
 
 @pytest.fixture(scope="session")
 def zoo_packages(tmp_path_factory):
-    return tmp_path_factory.mktemp("urdf_zoo_packages")
+    return shared_folder(tmp_path_factory, "urdf_zoo_packages")
 
 
 def generated_package(name: str, root: Path):
-    """The arm generated into ``root`` by the CLI in a process of its own (once per session and
-    worker), then imported."""
+    """The arm generated into ``root`` by the CLI in a process of its own (once per run in a
+    conftest.shared_folder: under a lock, as another worker may be generating it), then imported."""
     arm = ZOO[name]
     out = root / f"zoo_{name}"
-    if not out.exists():
-        snap = [] if GENERATED.get(name, True) else ["--no-snap"]
-        # --no-dynamics: these files carry inertials, whose eight kernels would take the xArm 7 from 19 s
-        # to over a minute here; the dynamics are tested in test_dynamics.py and against Pinocchio in
-        # benchmarks/dynamics.py
-        result = subprocess.run([sys.executable, "-m", "codegen", "--quiet", "generate", str(arm.path), "--base",
-                                 arm.base, "--tip", arm.tip, "--out", str(out), "--no-dynamics", *snap], cwd=ROOT,
-                                env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True, text=True,
-                                timeout=600)
-        assert result.returncode == 0, result.stderr
+    with open(root / f"zoo_{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not out.exists():
+            snap = [] if GENERATED.get(name, True) else ["--no-snap"]
+            # --no-dynamics: these files carry inertials, whose eight kernels would take the xArm 7 from 19 s
+            # to over a minute here; the dynamics are tested in test_dynamics.py and against Pinocchio in
+            # benchmarks/dynamics.py
+            result = subprocess.run([sys.executable, "-m", "codegen", "--quiet", "generate", str(arm.path), "--base",
+                                     arm.base, "--tip", arm.tip, "--out", str(out), "--no-dynamics", *snap], cwd=ROOT,
+                                    env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True, text=True,
+                                    timeout=600)
+            assert result.returncode == 0, result.stderr
     sys.path.insert(0, str(root))
     importlib.invalidate_caches()
     try:

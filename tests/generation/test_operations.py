@@ -74,15 +74,59 @@ def test_random_expressions_count_as_count_ops_does(expr):
     assert operation_count(expr) == int(sp.count_ops(expr))
 
 
+_BEYOND_DOUBLE = st.recursive(
+    st.sampled_from([x, y, sp.Integer(3), sp.Rational(2**60 + 1, 7), sp.Rational(1, 2**54 + 3),
+                     sp.Integer(-(2**53) - 1), sp.Integer(2**53), sp.pi]),
+    lambda children: st.one_of(st.tuples(children, children).map(lambda a: a[0] + a[1]),
+                               st.tuples(children, children).map(lambda a: a[0] * a[1]),
+                               children.map(sp.sqrt), children.map(sp.cos)),
+    max_leaves=10)
+
+
+def _beyond(expr):
+    from codegen.kernels import EXACT_INTEGER_LIMIT
+    return any(abs(r.p) > EXACT_INTEGER_LIMIT or r.q > EXACT_INTEGER_LIMIT for r in expr.atoms(sp.Rational))
+
+
 @settings(max_examples=200, deadline=None)
-@given(st.recursive(st.sampled_from([x, y, sp.Integer(3), sp.Rational(2**60 + 1, 7), sp.Rational(1, 2**54 + 3),
-                                     sp.Integer(-(2**53) - 1), sp.Integer(2**53), sp.pi]),
-                    lambda children: st.one_of(st.tuples(children, children).map(lambda a: a[0] + a[1]),
-                                               st.tuples(children, children).map(lambda a: a[0] * a[1]),
-                                               children.map(sp.sqrt), children.map(sp.cos)),
-                    max_leaves=10))
+@given(_BEYOND_DOUBLE)
 def test_a_rational_beyond_a_double_is_found_as_atoms_finds_it(expr):
     """codegen.kernels._holds_beyond_double (each distinct node once) against SymPy's atoms."""
-    from codegen.kernels import EXACT_INTEGER_LIMIT, _holds_beyond_double
-    expected = any(abs(r.p) > EXACT_INTEGER_LIMIT or r.q > EXACT_INTEGER_LIMIT for r in expr.atoms(sp.Rational))
-    assert _holds_beyond_double(expr) == expected
+    from codegen.kernels import _holds_beyond_double
+    assert _holds_beyond_double(expr) == _beyond(expr)
+
+
+def _folded(e):
+    """bounded_numbers' fold as its docstring states it, with SymPy's own free_symbols and atoms on
+    every node: the largest constant subexpression holding a rational beyond 2**53, evaluated at 30
+    digits (a rational alone left as it is)."""
+    if e.is_Rational and not e.is_Integer:
+        return e
+    if isinstance(e, sp.Expr) and not e.free_symbols and _beyond(e):
+        value = e.evalf(30)
+        return sp.Float(value, 30) if value.is_real and value.is_finite else e
+    return e.func(*map(_folded, e.args)) if e.args else e
+
+
+# Positive numbers only, for the fold's evaluation: cos(sqrt(-2**53 - 1)) is a cosh of 9.5e7, whose
+# cosine evalf would take for ever to find a digit of.
+_POSITIVE_BEYOND_DOUBLE = st.recursive(
+    st.sampled_from([x, y, sp.Integer(3), sp.Rational(2**60 + 1, 7), sp.Rational(1, 2**54 + 3), sp.Integer(2**53 + 1),
+                     sp.pi]),
+    lambda children: st.one_of(st.tuples(children, children).map(lambda a: a[0] + a[1]),
+                               st.tuples(children, children).map(lambda a: a[0] * a[1]),
+                               children.map(sp.sqrt), children.map(sp.cos)),
+    max_leaves=10)
+
+
+@settings(max_examples=200, deadline=None)
+@given(_POSITIVE_BEYOND_DOUBLE, st.sampled_from([lambda e: e, lambda e: sp.Subs(e * x, x, 2),
+                                                 lambda e: sp.Derivative(e * x, x, evaluate=False)]))
+def test_the_numbers_beyond_a_double_fold_as_free_symbols_and_atoms_say(expr, wrap):
+    """codegen.kernels.bounded_numbers (what each node holds found once, from its arguments, but for
+    a node that binds a symbol of its own: Subs(e x, x, 2) is a constant where e is) folds what the
+    docstring's reference does."""
+    from codegen.kernels import bounded_numbers
+    expr = wrap(expr)
+    bounded_numbers.cache_clear()
+    assert bounded_numbers(expr) == (_folded(expr) if _beyond(expr) else expr)

@@ -35,6 +35,7 @@ import sympy as sp
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import derivations  # noqa: E402
 from codegen.generate import ik_method  # noqa: E402
+from conftest import shared_folder  # noqa: E402
 from test_ik_short_chains import evaluate_steps, xml_walk  # noqa: E402
 from test_urdf_zoo import generated_package, snapped_numbers  # noqa: E402
 from urdf_zoo import ZOO, XmlChain  # noqa: E402
@@ -138,10 +139,19 @@ def test_closed_form_branches_reach_the_xml_pose(name):
 
 
 
+def wrong_answers(chain: XmlChain, Q: np.ndarray, valid: np.ndarray, T: np.ndarray) -> int:
+    """How many valid answers Q[i, b] the XML chain's walk (xml_walk, the batched XmlChain.walk:
+    test_ik_short_chains) takes off their pose T[i]: all of them in one batch, where a walk per
+    answer was most of the test (some 30,000 answers at the 4,096 degenerate poses)."""
+    poses, _ = np.nonzero(valid)
+    return int((np.abs(xml_walk(chain, Q[valid])[0] - T[poses]).max(axis=(-2, -1)) > FK_TOLERANCE).sum())
+
+
 @pytest.fixture(scope="session")
 def irb140_package(tmp_path_factory):
-    """The IRB 140 file's arm generated whole by the CLI in a process of its own (test_urdf_zoo's)."""
-    return generated_package("irb140", tmp_path_factory.mktemp("urdf_general_6r"))[0]
+    """The IRB 140 file's arm generated whole by the CLI in a process of its own (test_urdf_zoo's),
+    once per run: pytest-xdist's workers share it."""
+    return generated_package("irb140", shared_folder(tmp_path_factory, "urdf_general_6r"))[0]
 
 
 @pytest.mark.parametrize("backend", ["numpy", "c"])
@@ -157,9 +167,9 @@ def test_the_general_6r_of_a_urdf_chain_finds_every_solution(backend, irb140_pac
     count = 200
     q = np.vstack([rng.uniform(-np.pi, np.pi, (count, 6)),
                    rng.choice([0.0, np.pi / 2, -np.pi / 2, np.pi], (count // 2, 6))])
-    T = np.array([chain.fk(row) for row in q])
+    T = xml_walk(chain, q)[0]
     Q, valid = k.ik(T)
-    wrong = sum(np.abs(chain.fk(Q[i, b]) - T[i]).max() > FK_TOLERANCE for i, b in zip(*np.nonzero(valid)))
+    wrong = wrong_answers(chain, Q, valid, T)
     difference = np.abs((Q - q[:, None, :] + np.pi) % (2 * np.pi) - np.pi).max(axis=-1)
     missing = ~(valid & (difference <= JOINT_TOLERANCE)).any(axis=-1)
     assert (wrong, int((~valid.any(axis=-1)).sum()), int(missing[:count].sum())) == (0, 0, 0)
@@ -179,7 +189,7 @@ def degenerate_references(name: str):
     singular value of the chain's Jacobian above 1e-6), once for both backends."""
     _, chain = model_and_chain(name)
     q = every_degenerate_configuration()
-    T = np.array([chain.fk(row) for row in q])
+    T = xml_walk(chain, q)[0]
     regular = np.array([np.linalg.svd(xml_jacobian(chain, row), compute_uv=False)[-1] > 1e-6 for row in q])
     return chain, q, T, regular
 
@@ -204,7 +214,7 @@ def test_the_general_6r_misses_no_regular_degenerate_configuration(backend, irb1
     chain, q, T, regular = degenerate_references("irb140")
     k = irb140_package.load(backend)
     Q, valid = k.ik(T)
-    wrong = sum(np.abs(chain.fk(Q[i, b]) - T[i]).max() > FK_TOLERANCE for i, b in zip(*np.nonzero(valid)))
+    wrong = wrong_answers(chain, Q, valid, T)
     difference = np.abs((Q - q[:, None, :] + np.pi) % (2 * np.pi) - np.pi).max(axis=-1)
     missing = ~(valid & (difference <= JOINT_TOLERANCE)).any(axis=-1)
     assert regular.sum() > 1000   # the test covers many regular poses, not a handful
