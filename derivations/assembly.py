@@ -122,7 +122,7 @@ def pose_and_jacobian_from_sines(model: RobotModel) -> SymbolicFunction:
     for symbol, expr in kernel.definitions:
         expr = rewrite(expr)
         steps.append((symbol, expr))
-        if expr.is_Add and pair(expr) is not None and not expr.atoms(sp.sin, sp.cos):
+        if expr.is_Add and all(t.is_number or t in joint or -t in joint or t in linear for t in expr.args):
             linear[symbol] = expr.xreplace(linear)
     outputs = tuple(replace(o, values=tuple(rewrite(v) for v in o.values)) for o in kernel.outputs)
     reads = [v for o in outputs for v in o.values]
