@@ -14,12 +14,15 @@ from __future__ import annotations
 
 import sys
 
+from dataclasses import replace
+
 import sympy as sp
 
 from .chain import REVOLUTE
 from .ik.general_6r import equations_function, fast_equations_function
 from .ik.primitives import ClampUnit, WrapAngle, kernel_form
 from .model import Argument, Output, RobotModel, SymbolicFunction, install_assembly, with_program
+from .program import needed
 
 __all__ = ["robot_kernels", "position_kernels", "kinematics_kernels", "ik_kernel", "rate_kernels", "rates", "dynamics"]
 
@@ -61,7 +64,8 @@ def position_kernels(model: RobotModel) -> list[SymbolicFunction]:
     # took two).
     general = equations_function(model)
     return (kinematics_kernels(model) + ([model.ik_function()] if model.ik else [])
-            + ([general[0], fast_equations_function(*general), *pose_and_jacobian(model)] if general else []))
+            + ([general[0], fast_equations_function(*general), *pose_and_jacobian(model),
+                pose_and_jacobian_from_sines(model)] if general else []))
 
 
 def pose_and_jacobian(model: RobotModel) -> list[SymbolicFunction]:
@@ -74,6 +78,59 @@ def pose_and_jacobian(model: RobotModel) -> list[SymbolicFunction]:
         (Output("x", tuple(model.task), (m,)), Output.from_matrix("J", model.jacobian)),
         f"Task coordinates {', '.join(model.task_names)} (..., {m}) and the geometric Jacobian [v; w] of the tool "
         f"point in the base frame (..., 6, {n}) at once: the general 6R's Newton steps read both.")], model.program)
+
+
+def pose_and_jacobian_from_sines(model: RobotModel) -> SymbolicFunction:
+    """``ik_6r_pose_jacobian_sc(q, cs) -> (x, J)``: :func:`pose_and_jacobian` with the sine and the cosine
+    of every angle that is a sum of joints (with signs) and a constant taken from ``cs`` (c1, s1, ..., cn,
+    sn, of q1 .. qn) by the addition formulas, not from ``sin`` and ``cos``: the general 6R's C has them
+    from its candidates (the half-angle tangents and the loop's atan2 terms), where they cost nothing,
+    and Newton's first look at a candidate then calls no ``sin`` (general_6r.c.j2).  An angle of another
+    form keeps its ``sin`` and ``cos`` of ``q``."""
+    kernel = pose_and_jacobian(model)[0]
+    n = model.n
+    cs = tuple(sp.Symbol(f"{f}{k + 1}_of_q", real=True) for k in range(n) for f in ("cos", "sin"))
+    joint = {q: k for k, q in enumerate(model.q)}
+    linear: dict = {}  # a step that is a sum of joints and a constant: that sum (its sine from cs too)
+    memo: dict = {}
+
+    def pair(angle):
+        """(sin, cos) of angle by the addition formulas over its terms, or None."""
+        s, c = sp.S.Zero, sp.S.One
+        for term in sp.Add.make_args(angle.xreplace(linear)):
+            sign, base = (-1, -term) if term.could_extract_minus_sign() else (1, term)
+            if base in joint:
+                t = (sign * cs[2 * joint[base] + 1], cs[2 * joint[base]])
+            elif not (term.free_symbols & set(model.q)):
+                t = (sp.sin(term), sp.cos(term))
+            else:
+                return None
+            s, c = s * t[1] + c * t[0], c * t[1] - s * t[0]
+        return s, c
+
+    def rewrite(expr):
+        expr = sp.sympify(expr)
+        replace = {}
+        for f in expr.atoms(sp.sin, sp.cos):
+            if f not in memo:
+                found = pair(f.args[0])
+                memo[f] = f if found is None else found[0 if isinstance(f, sp.sin) else 1]
+            replace[f] = memo[f]
+        return expr.xreplace(replace) if replace else expr
+
+    steps = []
+    for symbol, expr in kernel.definitions:
+        expr = rewrite(expr)
+        steps.append((symbol, expr))
+        if expr.is_Add and all(t.is_number or t in joint or -t in joint or t in linear for t in expr.args):
+            linear[symbol] = expr.xreplace(linear)
+    outputs = tuple(replace(o, values=tuple(rewrite(v) for v in o.values)) for o in kernel.outputs)
+    reads = [v for o in outputs for v in o.values]
+    return replace(kernel, name="ik_6r_pose_jacobian_sc",
+                   arguments=kernel.arguments + (Argument("cs", cs, f"cos and sin of each joint, shape (..., {2 * n})"),),
+                   outputs=outputs, definitions=needed(tuple(steps), reads),
+                   doc=kernel.doc + " The sines and cosines of the joints from cs (cos q1, sin q1, ...), where "
+                   "q gives the angles only where an angle is not a sum of joints and a constant.")
 
 
 def ik_kernel(model: RobotModel) -> SymbolicFunction:

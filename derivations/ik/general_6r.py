@@ -772,6 +772,10 @@ def _equations_function(model):
     layout = {"order": [g.order for g in loops], "signs": [g.signs for g in loops],
               "shifts": tuple(float(sp.atan2(s, c)) for c, s in SHIFTS),
               "offsets": tuple(float(sp.sympify(o).evalf(17)) for o in loops[0].offsets),
+              # cos and sin of shift - offset per joint (the C's candidates' cos q and sin q from psi's)
+              "turns": tuple((float(sp.cos(sp.atan2(sh[1], sh[0]) - sp.sympify(o)).evalf(30)),
+                              float(sp.sin(sp.atan2(sh[1], sh[0]) - sp.sympify(o)).evalf(30)))
+                             for sh, o in zip(SHIFTS, loops[0].offsets)),
               "loops": [g.loop for g in loops],
               "fast": fast_loop(model.chain, model.params, [g.loop for g in loops]),
               "blocks": [q_blocks(g.Q) for g in loops]}

@@ -213,6 +213,23 @@ def test_the_pose_and_jacobian_kernel_is_the_tests_own_pose_and_jacobian(backend
     assert np.abs(J - jacobian(arm, q)).max() < 1e-12
 
 
+@pytest.mark.parametrize("backend", ["numpy", "c"])
+def test_the_pose_and_jacobian_from_sines_is_the_tests_own_pose_and_jacobian(backend, generated_root):
+    """ik_6r_pose_jacobian_sc (the same from cos q and sin q given, for the C's first Newton look at a
+    candidate, whose sines it has): this file's DH pose and cross-product Jacobian to 1e-12 at random and
+    degenerate configurations, with q itself given as zeros: every angle of the Jaco's (joint 6 with its
+    10 degree offset) is a joint and a constant, so its sines come from cs alone."""
+    arm = ARMS["kinova_jaco"]
+    k = generated_package("kinova_jaco", generated_root).load(backend)
+    q = jaco_configurations()
+    T = fk(arm, q)
+    cs = np.stack([np.cos(q), np.sin(q)], axis=-1).reshape(len(q), 12)
+    x, J = k.ik_6r_pose_jacobian_sc(np.zeros_like(q), cs)
+    assert x.shape == (len(q), 12) and J.shape == (len(q), 6, 6)
+    assert np.abs(x - np.concatenate([T[:, :3, 3], T[:, :3, :3].reshape(-1, 9)], axis=-1)).max() < 1e-12
+    assert np.abs(J - jacobian(arm, q)).max() < 1e-12
+
+
 def test_the_c_fast_pass_takes_the_loop_whose_solutions_lie_further_apart(generated_root):
     """The C's fast pass (general_6r.c.j2, G6R_FAST) solves on the loop whose real roots in psi_3 lie
     further apart (derivations.ik.general_6r.fast_loop), where its determinant resolves them best:
