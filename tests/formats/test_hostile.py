@@ -183,8 +183,11 @@ def test_ctrl_c_mid_derivation_ends_with_a_line_not_a_traceback(tmp_path):
     path = tmp_path / "arm.toml"
     path.write_text('name = "arm"\n' + '[[joint]]\ntype = "R"\na = 0.1\nd = 0.05\nalpha = "pi/3"\n' * 6)
     env = dict(os.environ, KINEGEN_NO_CACHE="1", TMPDIR=str(scratch))
+    # Ctrl-C as at a terminal: a suite started in the background (`make test &`, nohup) has SIGINT
+    # ignored, which the child would inherit, and Python then installs no handler of its own.
     process = subprocess.Popen([sys.executable, "-m", "codegen", "generate", str(path), "--out", str(tmp_path / "pkg")],
-                               env=env, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
+                               env=env, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         first = process.stderr.readline()  # the handler is in place once the CLI reports its first step
         assert "deriving" in first, first
