@@ -110,13 +110,13 @@ def pose_and_jacobian_from_sines(model: RobotModel) -> SymbolicFunction:
 
     def rewrite(expr):
         expr = sp.sympify(expr)
-        replace = {}
+        swaps = {}  # not `replace`: that is dataclasses.replace, which this function calls below
         for f in expr.atoms(sp.sin, sp.cos):
             if f not in memo:
                 found = pair(f.args[0])
                 memo[f] = f if found is None else found[0 if isinstance(f, sp.sin) else 1]
-            replace[f] = memo[f]
-        return expr.xreplace(replace) if replace else expr
+            swaps[f] = memo[f]
+        return expr.xreplace(swaps) if swaps else expr
 
     steps = []
     for symbol, expr in kernel.definitions:

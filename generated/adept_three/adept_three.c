@@ -1578,13 +1578,10 @@ void adept_three_task_jacobian_batch(size_t count, const double *restrict q, con
 static int adept_three_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
 {
     int branch, valid_branches = 0;
-    /* a NaN or inf target has no answer (zero times it is NaN, as for the joint values below) */
-    const int finite_target = 0.0 * _x[0] + 0.0 * _x[1] + 0.0 * _x[2] + 0.0 * _x[3] == 0.0;
+    const int finite_target = 0.0 * _x[0] + 0.0 * _x[1] + 0.0 * _x[2] + 0.0 * _x[3] == 0.0;  /* a NaN or inf target has no answer */
     for (branch = 0; branch < 2; ++branch) {
         const double *q = Q + 4 * branch;
-        /* zero times v is NaN exactly where v is inf or NaN, so this sum is 0 where every joint value is
-           finite (a loop of isfinite tests took twice the instructions) */
-        const double zero = 0.0 * q[0] + 0.0 * q[1] + 0.0 * q[2] + 0.0 * q[3];
+        const double zero = 0.0 * q[0] + 0.0 * q[1] + 0.0 * q[2] + 0.0 * q[3];  /* 0 where every joint value is finite */
         if (!finite_target || zero != 0.0) {
             valid[branch] = 0;  /* no NaN leaks out as a valid answer */
         }
@@ -1708,7 +1705,7 @@ long adept_three_ik_batch(size_t count, const double *restrict _x, const adept_t
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f0[i] = atan2(_a0[i], _a1[i]);  /* glibc's vector atan2 */
+            _f0[i] = atan2(_a0[i], _a1[i]);  /* glibc's vector form */
 #else
             _f0[i] = kinegen_atan2(_a0[i], _a1[i]);  /* as the single point */
 #endif
@@ -1720,7 +1717,7 @@ long adept_three_ik_batch(size_t count, const double *restrict _x, const adept_t
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f2[i] = atan2(_a2[i], _a3[i]);  /* glibc's vector atan2 */
+            _f2[i] = atan2(_a2[i], _a3[i]);  /* glibc's vector form */
 #else
             _f2[i] = kinegen_atan2(_a2[i], _a3[i]);  /* as the single point */
 #endif

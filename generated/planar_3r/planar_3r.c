@@ -1456,13 +1456,10 @@ void planar_3r_task_jacobian_batch(size_t count, const double *restrict q, const
 static int planar_3r_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
 {
     int branch, valid_branches = 0;
-    /* a NaN or inf target has no answer (zero times it is NaN, as for the joint values below) */
-    const int finite_target = 0.0 * _x[0] + 0.0 * _x[1] + 0.0 * _x[2] == 0.0;
+    const int finite_target = 0.0 * _x[0] + 0.0 * _x[1] + 0.0 * _x[2] == 0.0;  /* a NaN or inf target has no answer */
     for (branch = 0; branch < 2; ++branch) {
         const double *q = Q + 3 * branch;
-        /* zero times v is NaN exactly where v is inf or NaN, so this sum is 0 where every joint value is
-           finite (a loop of isfinite tests took twice the instructions) */
-        const double zero = 0.0 * q[0] + 0.0 * q[1] + 0.0 * q[2];
+        const double zero = 0.0 * q[0] + 0.0 * q[1] + 0.0 * q[2];  /* 0 where every joint value is finite */
         if (!finite_target || zero != 0.0) {
             valid[branch] = 0;  /* no NaN leaks out as a valid answer */
         }
@@ -1645,7 +1642,7 @@ long planar_3r_ik_batch(size_t count, const double *restrict _x, const planar_3r
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f0[i] = atan2(_a0[i], _a1[i]);  /* glibc's vector atan2 */
+            _f0[i] = atan2(_a0[i], _a1[i]);  /* glibc's vector form */
 #else
             _f0[i] = kinegen_atan2(_a0[i], _a1[i]);  /* as the single point */
 #endif
@@ -1685,7 +1682,7 @@ long planar_3r_ik_batch(size_t count, const double *restrict _x, const planar_3r
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f2[i] = atan2(_a3[i], _a4[i]);  /* glibc's vector atan2 */
+            _f2[i] = atan2(_a3[i], _a4[i]);  /* glibc's vector form */
 #else
             _f2[i] = kinegen_atan2(_a3[i], _a4[i]);  /* as the single point */
 #endif
@@ -1693,7 +1690,7 @@ long planar_3r_ik_batch(size_t count, const double *restrict _x, const planar_3r
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f3[i] = atan2(_a5[i], _a6[i]);  /* glibc's vector atan2 */
+            _f3[i] = atan2(_a5[i], _a6[i]);  /* glibc's vector form */
 #else
             _f3[i] = kinegen_atan2(_a5[i], _a6[i]);  /* as the single point */
 #endif

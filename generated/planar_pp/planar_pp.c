@@ -778,13 +778,10 @@ void planar_pp_task_jacobian_batch(size_t count, const double *restrict q, const
 static int planar_pp_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
 {
     int branch, valid_branches = 0;
-    /* a NaN or inf target has no answer (zero times it is NaN, as for the joint values below) */
-    const int finite_target = 0.0 * _x[0] + 0.0 * _x[1] == 0.0;
+    const int finite_target = 0.0 * _x[0] + 0.0 * _x[1] == 0.0;  /* a NaN or inf target has no answer */
     for (branch = 0; branch < 1; ++branch) {
         const double *q = Q + 2 * branch;
-        /* zero times v is NaN exactly where v is inf or NaN, so this sum is 0 where every joint value is
-           finite (a loop of isfinite tests took twice the instructions) */
-        const double zero = 0.0 * q[0] + 0.0 * q[1];
+        const double zero = 0.0 * q[0] + 0.0 * q[1];  /* 0 where every joint value is finite */
         if (!finite_target || zero != 0.0) {
             valid[branch] = 0;  /* no NaN leaks out as a valid answer */
         }

@@ -964,13 +964,10 @@ void planar_rp_task_jacobian_batch(size_t count, const double *restrict q, const
 static int planar_rp_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
 {
     int branch, valid_branches = 0;
-    /* a NaN or inf target has no answer (zero times it is NaN, as for the joint values below) */
-    const int finite_target = 0.0 * _x[0] + 0.0 * _x[1] == 0.0;
+    const int finite_target = 0.0 * _x[0] + 0.0 * _x[1] == 0.0;  /* a NaN or inf target has no answer */
     for (branch = 0; branch < 2; ++branch) {
         const double *q = Q + 2 * branch;
-        /* zero times v is NaN exactly where v is inf or NaN, so this sum is 0 where every joint value is
-           finite (a loop of isfinite tests took twice the instructions) */
-        const double zero = 0.0 * q[0] + 0.0 * q[1];
+        const double zero = 0.0 * q[0] + 0.0 * q[1];  /* 0 where every joint value is finite */
         if (!finite_target || zero != 0.0) {
             valid[branch] = 0;  /* no NaN leaks out as a valid answer */
         }
@@ -1047,7 +1044,7 @@ long planar_rp_ik_batch(size_t count, const double *restrict _x, const planar_rp
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f0[i] = atan2(y[i], x[i]);  /* glibc's vector atan2 */
+            _f0[i] = atan2(y[i], x[i]);  /* glibc's vector form */
 #else
             _f0[i] = kinegen_atan2(y[i], x[i]);  /* as the single point */
 #endif
@@ -1055,7 +1052,7 @@ long planar_rp_ik_batch(size_t count, const double *restrict _x, const planar_rp
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f1[i] = atan2(_a0[i], _a1[i]);  /* glibc's vector atan2 */
+            _f1[i] = atan2(_a0[i], _a1[i]);  /* glibc's vector form */
 #else
             _f1[i] = kinegen_atan2(_a0[i], _a1[i]);  /* as the single point */
 #endif

@@ -178,7 +178,7 @@ static int puma560_is_refused_pose(const double *restrict x)
     const double *r = x + 3;
     int i, j;
     if (0.0 * x[0] + 0.0 * x[1] + 0.0 * x[2] + 0.0 * x[3] + 0.0 * x[4] + 0.0 * x[5] + 0.0 * x[6] + 0.0 * x[7] + 0.0 * x[8] + 0.0 * x[9] + 0.0 * x[10] + 0.0 * x[11] != 0.0) {
-        return 0;  /* a NaN or an infinity (zero times it is NaN), reported through valid instead */
+        return 0;  /* a NaN or an infinity, reported through valid instead */
     }
     for (i = 0; i < 3; ++i) {
         for (j = i; j < 3; ++j) {  /* R R^T is symmetric */
@@ -2803,13 +2803,10 @@ void puma560_task_jacobian_batch(size_t count, const double *restrict q, const p
 static int puma560_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
 {
     int branch, valid_branches = 0;
-    /* a NaN or inf target has no answer (zero times it is NaN, as for the joint values below) */
-    const int finite_target = 0.0 * _x[0] + 0.0 * _x[1] + 0.0 * _x[2] + 0.0 * _x[3] + 0.0 * _x[4] + 0.0 * _x[5] + 0.0 * _x[6] + 0.0 * _x[7] + 0.0 * _x[8] + 0.0 * _x[9] + 0.0 * _x[10] + 0.0 * _x[11] == 0.0;
+    const int finite_target = 0.0 * _x[0] + 0.0 * _x[1] + 0.0 * _x[2] + 0.0 * _x[3] + 0.0 * _x[4] + 0.0 * _x[5] + 0.0 * _x[6] + 0.0 * _x[7] + 0.0 * _x[8] + 0.0 * _x[9] + 0.0 * _x[10] + 0.0 * _x[11] == 0.0;  /* a NaN or inf target has no answer */
     for (branch = 0; branch < 8; ++branch) {
         const double *q = Q + 6 * branch;
-        /* zero times v is NaN exactly where v is inf or NaN, so this sum is 0 where every joint value is
-           finite (a loop of isfinite tests took twice the instructions) */
-        const double zero = 0.0 * q[0] + 0.0 * q[1] + 0.0 * q[2] + 0.0 * q[3] + 0.0 * q[4] + 0.0 * q[5];
+        const double zero = 0.0 * q[0] + 0.0 * q[1] + 0.0 * q[2] + 0.0 * q[3] + 0.0 * q[4] + 0.0 * q[5];  /* 0 where every joint value is finite */
         if (!finite_target || zero != 0.0) {
             valid[branch] = 0;  /* no NaN leaks out as a valid answer */
         }
@@ -3532,7 +3529,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f1[i] = atan2(_a1[i], y[i]);  /* glibc's vector atan2 */
+            _f1[i] = atan2(_a1[i], y[i]);  /* glibc's vector form */
 #else
             _f1[i] = kinegen_atan2(_a1[i], y[i]);  /* as the single point */
 #endif
@@ -3604,7 +3601,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f4[i] = atan2(_a5[i], _a6[i]);  /* glibc's vector atan2 */
+            _f4[i] = atan2(_a5[i], _a6[i]);  /* glibc's vector form */
 #else
             _f4[i] = kinegen_atan2(_a5[i], _a6[i]);  /* as the single point */
 #endif
@@ -3612,7 +3609,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f6[i] = atan2(_a8[i], _a9[i]);  /* glibc's vector atan2 */
+            _f6[i] = atan2(_a8[i], _a9[i]);  /* glibc's vector form */
 #else
             _f6[i] = kinegen_atan2(_a8[i], _a9[i]);  /* as the single point */
 #endif
@@ -3620,7 +3617,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f8[i] = atan2(_a11[i], _a12[i]);  /* glibc's vector atan2 */
+            _f8[i] = atan2(_a11[i], _a12[i]);  /* glibc's vector form */
 #else
             _f8[i] = kinegen_atan2(_a11[i], _a12[i]);  /* as the single point */
 #endif
@@ -3628,7 +3625,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f10[i] = atan2(_a14[i], _a15[i]);  /* glibc's vector atan2 */
+            _f10[i] = atan2(_a14[i], _a15[i]);  /* glibc's vector form */
 #else
             _f10[i] = kinegen_atan2(_a14[i], _a15[i]);  /* as the single point */
 #endif
@@ -3694,7 +3691,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f5[i] = atan2(_t33[i], _a7[i]);  /* glibc's vector atan2 */
+            _f5[i] = atan2(_t33[i], _a7[i]);  /* glibc's vector form */
 #else
             _f5[i] = kinegen_atan2(_t33[i], _a7[i]);  /* as the single point */
 #endif
@@ -3702,7 +3699,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f7[i] = atan2(_t33[i], _a10[i]);  /* glibc's vector atan2 */
+            _f7[i] = atan2(_t33[i], _a10[i]);  /* glibc's vector form */
 #else
             _f7[i] = kinegen_atan2(_t33[i], _a10[i]);  /* as the single point */
 #endif
@@ -3710,7 +3707,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f9[i] = atan2(_t101[i], _a13[i]);  /* glibc's vector atan2 */
+            _f9[i] = atan2(_t101[i], _a13[i]);  /* glibc's vector form */
 #else
             _f9[i] = kinegen_atan2(_t101[i], _a13[i]);  /* as the single point */
 #endif
@@ -3718,7 +3715,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f11[i] = atan2(_t101[i], _a16[i]);  /* glibc's vector atan2 */
+            _f11[i] = atan2(_t101[i], _a16[i]);  /* glibc's vector form */
 #else
             _f11[i] = kinegen_atan2(_t101[i], _a16[i]);  /* as the single point */
 #endif
@@ -3899,7 +3896,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f12[i] = atan2(_a17[i], _t48[i]);  /* glibc's vector atan2 */
+            _f12[i] = atan2(_a17[i], _t48[i]);  /* glibc's vector form */
 #else
             _f12[i] = kinegen_atan2(_a17[i], _t48[i]);  /* as the single point */
 #endif
@@ -3907,7 +3904,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f13[i] = atan2(_a18[i], _a19[i]);  /* glibc's vector atan2 */
+            _f13[i] = atan2(_a18[i], _a19[i]);  /* glibc's vector form */
 #else
             _f13[i] = kinegen_atan2(_a18[i], _a19[i]);  /* as the single point */
 #endif
@@ -3915,7 +3912,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f14[i] = atan2(_a20[i], _t48[i]);  /* glibc's vector atan2 */
+            _f14[i] = atan2(_a20[i], _t48[i]);  /* glibc's vector form */
 #else
             _f14[i] = kinegen_atan2(_a20[i], _t48[i]);  /* as the single point */
 #endif
@@ -3923,7 +3920,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f15[i] = atan2(_a21[i], _a22[i]);  /* glibc's vector atan2 */
+            _f15[i] = atan2(_a21[i], _a22[i]);  /* glibc's vector form */
 #else
             _f15[i] = kinegen_atan2(_a21[i], _a22[i]);  /* as the single point */
 #endif
@@ -3931,7 +3928,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f16[i] = atan2(_a23[i], _t77[i]);  /* glibc's vector atan2 */
+            _f16[i] = atan2(_a23[i], _t77[i]);  /* glibc's vector form */
 #else
             _f16[i] = kinegen_atan2(_a23[i], _t77[i]);  /* as the single point */
 #endif
@@ -3939,7 +3936,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f17[i] = atan2(_a24[i], _a25[i]);  /* glibc's vector atan2 */
+            _f17[i] = atan2(_a24[i], _a25[i]);  /* glibc's vector form */
 #else
             _f17[i] = kinegen_atan2(_a24[i], _a25[i]);  /* as the single point */
 #endif
@@ -3947,7 +3944,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f18[i] = atan2(_a26[i], _t77[i]);  /* glibc's vector atan2 */
+            _f18[i] = atan2(_a26[i], _t77[i]);  /* glibc's vector form */
 #else
             _f18[i] = kinegen_atan2(_a26[i], _t77[i]);  /* as the single point */
 #endif
@@ -3955,7 +3952,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f19[i] = atan2(_a27[i], _a28[i]);  /* glibc's vector atan2 */
+            _f19[i] = atan2(_a27[i], _a28[i]);  /* glibc's vector form */
 #else
             _f19[i] = kinegen_atan2(_a27[i], _a28[i]);  /* as the single point */
 #endif
@@ -3963,7 +3960,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f20[i] = atan2(_a29[i], _t106[i]);  /* glibc's vector atan2 */
+            _f20[i] = atan2(_a29[i], _t106[i]);  /* glibc's vector form */
 #else
             _f20[i] = kinegen_atan2(_a29[i], _t106[i]);  /* as the single point */
 #endif
@@ -3971,7 +3968,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f21[i] = atan2(_a30[i], _a31[i]);  /* glibc's vector atan2 */
+            _f21[i] = atan2(_a30[i], _a31[i]);  /* glibc's vector form */
 #else
             _f21[i] = kinegen_atan2(_a30[i], _a31[i]);  /* as the single point */
 #endif
@@ -3979,7 +3976,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f22[i] = atan2(_a32[i], _t106[i]);  /* glibc's vector atan2 */
+            _f22[i] = atan2(_a32[i], _t106[i]);  /* glibc's vector form */
 #else
             _f22[i] = kinegen_atan2(_a32[i], _t106[i]);  /* as the single point */
 #endif
@@ -3987,7 +3984,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f23[i] = atan2(_a33[i], _a34[i]);  /* glibc's vector atan2 */
+            _f23[i] = atan2(_a33[i], _a34[i]);  /* glibc's vector form */
 #else
             _f23[i] = kinegen_atan2(_a33[i], _a34[i]);  /* as the single point */
 #endif
@@ -3995,7 +3992,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f24[i] = atan2(_a35[i], _t127[i]);  /* glibc's vector atan2 */
+            _f24[i] = atan2(_a35[i], _t127[i]);  /* glibc's vector form */
 #else
             _f24[i] = kinegen_atan2(_a35[i], _t127[i]);  /* as the single point */
 #endif
@@ -4003,7 +4000,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f25[i] = atan2(_a36[i], _a37[i]);  /* glibc's vector atan2 */
+            _f25[i] = atan2(_a36[i], _a37[i]);  /* glibc's vector form */
 #else
             _f25[i] = kinegen_atan2(_a36[i], _a37[i]);  /* as the single point */
 #endif
@@ -4011,7 +4008,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f26[i] = atan2(_a38[i], _t127[i]);  /* glibc's vector atan2 */
+            _f26[i] = atan2(_a38[i], _t127[i]);  /* glibc's vector form */
 #else
             _f26[i] = kinegen_atan2(_a38[i], _t127[i]);  /* as the single point */
 #endif
@@ -4019,7 +4016,7 @@ long puma560_ik_batch(size_t count, const double *restrict _x, const puma560_par
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f27[i] = atan2(_a39[i], _a40[i]);  /* glibc's vector atan2 */
+            _f27[i] = atan2(_a39[i], _a40[i]);  /* glibc's vector form */
 #else
             _f27[i] = kinegen_atan2(_a39[i], _a40[i]);  /* as the single point */
 #endif

@@ -1944,13 +1944,10 @@ void scorbot_er7_task_jacobian_batch(size_t count, const double *restrict q, con
 static int scorbot_er7_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
 {
     int branch, valid_branches = 0;
-    /* a NaN or inf target has no answer (zero times it is NaN, as for the joint values below) */
-    const int finite_target = 0.0 * _x[0] + 0.0 * _x[1] + 0.0 * _x[2] == 0.0;
+    const int finite_target = 0.0 * _x[0] + 0.0 * _x[1] + 0.0 * _x[2] == 0.0;  /* a NaN or inf target has no answer */
     for (branch = 0; branch < 4; ++branch) {
         const double *q = Q + 5 * branch;
-        /* zero times v is NaN exactly where v is inf or NaN, so this sum is 0 where every joint value is
-           finite (a loop of isfinite tests took twice the instructions) */
-        const double zero = 0.0 * q[0] + 0.0 * q[1] + 0.0 * q[2] + 0.0 * q[3] + 0.0 * q[4];
+        const double zero = 0.0 * q[0] + 0.0 * q[1] + 0.0 * q[2] + 0.0 * q[3] + 0.0 * q[4];  /* 0 where every joint value is finite */
         if (!finite_target || zero != 0.0) {
             valid[branch] = 0;  /* no NaN leaks out as a valid answer */
         }
@@ -2161,7 +2158,7 @@ long scorbot_er7_ik_batch(size_t count, const double *restrict _x, const scorbot
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f0[i] = atan2(y[i], x[i]);  /* glibc's vector atan2 */
+            _f0[i] = atan2(y[i], x[i]);  /* glibc's vector form */
 #else
             _f0[i] = kinegen_atan2(y[i], x[i]);  /* as the single point */
 #endif
@@ -2169,7 +2166,7 @@ long scorbot_er7_ik_batch(size_t count, const double *restrict _x, const scorbot
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f1[i] = atan2(_t2[i], _t6[i]);  /* glibc's vector atan2 */
+            _f1[i] = atan2(_t2[i], _t6[i]);  /* glibc's vector form */
 #else
             _f1[i] = kinegen_atan2(_t2[i], _t6[i]);  /* as the single point */
 #endif
@@ -2177,7 +2174,7 @@ long scorbot_er7_ik_batch(size_t count, const double *restrict _x, const scorbot
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f2[i] = atan2(_a0[i], _t15[i]);  /* glibc's vector atan2 */
+            _f2[i] = atan2(_a0[i], _t15[i]);  /* glibc's vector form */
 #else
             _f2[i] = kinegen_atan2(_a0[i], _t15[i]);  /* as the single point */
 #endif
@@ -2189,7 +2186,7 @@ long scorbot_er7_ik_batch(size_t count, const double *restrict _x, const scorbot
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f4[i] = atan2(_t14[i], _t15[i]);  /* glibc's vector atan2 */
+            _f4[i] = atan2(_t14[i], _t15[i]);  /* glibc's vector form */
 #else
             _f4[i] = kinegen_atan2(_t14[i], _t15[i]);  /* as the single point */
 #endif
@@ -2197,7 +2194,7 @@ long scorbot_er7_ik_batch(size_t count, const double *restrict _x, const scorbot
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f5[i] = atan2(_a1[i], _a2[i]);  /* glibc's vector atan2 */
+            _f5[i] = atan2(_a1[i], _a2[i]);  /* glibc's vector form */
 #else
             _f5[i] = kinegen_atan2(_a1[i], _a2[i]);  /* as the single point */
 #endif
@@ -2205,7 +2202,7 @@ long scorbot_er7_ik_batch(size_t count, const double *restrict _x, const scorbot
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f6[i] = atan2(_t2[i], _t21[i]);  /* glibc's vector atan2 */
+            _f6[i] = atan2(_t2[i], _t21[i]);  /* glibc's vector form */
 #else
             _f6[i] = kinegen_atan2(_t2[i], _t21[i]);  /* as the single point */
 #endif
@@ -2213,7 +2210,7 @@ long scorbot_er7_ik_batch(size_t count, const double *restrict _x, const scorbot
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f7[i] = atan2(_t25[i], _t26[i]);  /* glibc's vector atan2 */
+            _f7[i] = atan2(_t25[i], _t26[i]);  /* glibc's vector form */
 #else
             _f7[i] = kinegen_atan2(_t25[i], _t26[i]);  /* as the single point */
 #endif
@@ -2225,7 +2222,7 @@ long scorbot_er7_ik_batch(size_t count, const double *restrict _x, const scorbot
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f9[i] = atan2(_a3[i], _t26[i]);  /* glibc's vector atan2 */
+            _f9[i] = atan2(_a3[i], _t26[i]);  /* glibc's vector form */
 #else
             _f9[i] = kinegen_atan2(_a3[i], _t26[i]);  /* as the single point */
 #endif

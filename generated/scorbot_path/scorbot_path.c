@@ -578,7 +578,7 @@ void scorbot_path_joints_along_line_batch(size_t count, const double *restrict p
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f0[i] = atan2(_t8[i], _t12[i]);  /* glibc's vector atan2 */
+            _f0[i] = atan2(_t8[i], _t12[i]);  /* glibc's vector form */
 #else
             _f0[i] = kinegen_atan2(_t8[i], _t12[i]);  /* as the single point */
 #endif
@@ -586,7 +586,7 @@ void scorbot_path_joints_along_line_batch(size_t count, const double *restrict p
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f1[i] = atan2(_a0[i], _a1[i]);  /* glibc's vector atan2 */
+            _f1[i] = atan2(_a0[i], _a1[i]);  /* glibc's vector form */
 #else
             _f1[i] = kinegen_atan2(_a0[i], _a1[i]);  /* as the single point */
 #endif
@@ -598,7 +598,7 @@ void scorbot_path_joints_along_line_batch(size_t count, const double *restrict p
         KINEGEN_VECTOR_LOOP
         for (i = 0; i < n; ++i) {
 #ifdef KINEGEN_SIMD
-            _f3[i] = atan2(_t2[i], _t5[i]);  /* glibc's vector atan2 */
+            _f3[i] = atan2(_t2[i], _t5[i]);  /* glibc's vector form */
 #else
             _f3[i] = kinegen_atan2(_t2[i], _t5[i]);  /* as the single point */
 #endif
