@@ -203,15 +203,20 @@ def cmd_generate(args, say) -> int:
         beside = gen.RatesAndMotion()  # the rates and the dynamics derived beside the ik
         try:
             what = f"{args.robots[0]}: derivation and rendering"
-            with budget(args.time_limit, what), memory_cap(args.memory_limit, what):
+            # The steps nest in one outer step, so that a budget running out between two of them
+            # (a signal is handled at the next bytecode, which may be just past a step's end)
+            # still names where the run stopped.
+            with budget(args.time_limit, what), memory_cap(args.memory_limit, what), \
+                    stage("deriving and rendering the package"):
                 with stage("deriving the model"):
                     model, path = _load(args.robots[0], say, args, before_ik=beside)
-                say(f"{model.name}: ik: {gen.ik_method(model) or 'none'}"
-                    + (f" (no closed form: {model.ik_unsupported})" if model.ik_unsupported else ""))
-                if out is None:  # ./<robot name>, known once the description is read
-                    out = _default_out(model)
-                    gen.clear_leftovers(out, say)
-                    claimed = gen.claim_output(out, args.force)
+                with stage("choosing the ik method and the output folder"):
+                    say(f"{model.name}: ik: {gen.ik_method(model) or 'none'}"
+                        + (f" (no closed form: {model.ik_unsupported})" if model.ik_unsupported else ""))
+                    if out is None:  # ./<robot name>, known once the description is read
+                        out = _default_out(model)
+                        gen.clear_leftovers(out, say)
+                        claimed = gen.claim_output(out, args.force)
                 with stage("rendering the package"):  # each rendering step names itself inside this
                     files = gen.render_robot(model, path, backends=tuple(dict.fromkeys(("numpy", *backends))),
                                              say=say, templates=templates, beside=beside)
