@@ -1456,13 +1456,27 @@ void planar_3r_task_jacobian_batch(size_t count, const double *restrict q, const
 static int planar_3r_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
 {
     int branch, valid_branches = 0;
-    const int finite_target = 0.0 * _x[0] + 0.0 * _x[1] + 0.0 * _x[2] == 0.0;  /* a NaN or inf target has no answer */
-    for (branch = 0; branch < 2; ++branch) {
-        const double *q = Q + 3 * branch;
-        const double zero = 0.0 * q[0] + 0.0 * q[1] + 0.0 * q[2];  /* 0 where every joint value is finite */
-        if (!finite_target || zero != 0.0) {
-            valid[branch] = 0;  /* no NaN leaks out as a valid answer */
+    if (0.0 * _x[0] + 0.0 * _x[1] + 0.0 * _x[2] != 0.0) {  /* a NaN or inf target has no answer */
+        for (branch = 0; branch < 2; ++branch) {
+            valid[branch] = 0;
         }
+        return 0;
+    }
+    /* The joint values' sum is finite only where every one is, and then no branch needs a closer look
+       (they are angles within pi and lengths: it overflows for no real arm).  Otherwise each branch is,
+       and one with a NaN or an infinity is not valid: no NaN leaks out as a valid answer. */
+    {
+        const double sum = Q[0] + Q[1] + Q[2] + Q[3] + Q[4] + Q[5];
+        if (sum - sum != 0.0) {
+            for (branch = 0; branch < 2; ++branch) {
+                const double *q = Q + 3 * branch;
+                if (0.0 * q[0] + 0.0 * q[1] + 0.0 * q[2] != 0.0) {
+                    valid[branch] = 0;
+                }
+            }
+        }
+    }
+    for (branch = 0; branch < 2; ++branch) {
         valid_branches += valid[branch] != 0;
     }
     return valid_branches;

@@ -171,25 +171,33 @@ static double kinegen_atan2(double y, double x)
     return y < 0.0 ? -r : r;
 }
 
+/* 1 when the rotation r (r11 .. r33, finite) is not orthonormal within 1e-09
+   (max|R R^T - I|) or is a reflection (det R < 0).  Written out, without a branch: the
+   six distinct entries of the symmetric R R^T - I, then det R (a third of the instructions
+   of the loop with an early exit it replaces, on the single call's path). */
+static int puma560_is_refused_rotation(const double *restrict r)
+{
+    const double e11 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2] - 1.0;
+    const double e22 = r[3] * r[3] + r[4] * r[4] + r[5] * r[5] - 1.0;
+    const double e33 = r[6] * r[6] + r[7] * r[7] + r[8] * r[8] - 1.0;
+    const double e12 = r[0] * r[3] + r[1] * r[4] + r[2] * r[5];
+    const double e13 = r[0] * r[6] + r[1] * r[7] + r[2] * r[8];
+    const double e23 = r[3] * r[6] + r[4] * r[7] + r[5] * r[8];
+    const double det = r[0] * (r[4] * r[8] - r[5] * r[7]) - r[1] * (r[3] * r[8] - r[5] * r[6])
+                       + r[2] * (r[3] * r[7] - r[4] * r[6]);
+    return (fabs(e11) > 1e-09) | (fabs(e22) > 1e-09) | (fabs(e33) > 1e-09)
+           | (fabs(e12) > 1e-09) | (fabs(e13) > 1e-09) | (fabs(e23) > 1e-09)
+           | (det < 0.0);
+}
+
 /* 1 when the pose task x (x, y, z, r11 .. r33) is finite and its rotation R is not
    orthonormal within 1e-09 (max|R R^T - I|) or is a reflection (det R < 0). */
 static int puma560_is_refused_pose(const double *restrict x)
 {
-    const double *r = x + 3;
-    int i, j;
     if (0.0 * x[0] + 0.0 * x[1] + 0.0 * x[2] + 0.0 * x[3] + 0.0 * x[4] + 0.0 * x[5] + 0.0 * x[6] + 0.0 * x[7] + 0.0 * x[8] + 0.0 * x[9] + 0.0 * x[10] + 0.0 * x[11] != 0.0) {
         return 0;  /* a NaN or an infinity, reported through valid instead */
     }
-    for (i = 0; i < 3; ++i) {
-        for (j = i; j < 3; ++j) {  /* R R^T is symmetric */
-            const double dot = r[3 * i] * r[3 * j] + r[3 * i + 1] * r[3 * j + 1] + r[3 * i + 2] * r[3 * j + 2];
-            if (fabs(dot - (i == j ? 1.0 : 0.0)) > 1e-09) {
-                return 1;
-            }
-        }
-    }
-    return r[0] * (r[4] * r[8] - r[5] * r[7]) - r[1] * (r[3] * r[8] - r[5] * r[6])
-           + r[2] * (r[3] * r[7] - r[4] * r[6]) < 0.0;
+    return puma560_is_refused_rotation(x + 3);
 }
 
 /* Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. */
@@ -2803,16 +2811,35 @@ void puma560_task_jacobian_batch(size_t count, const double *restrict q, const p
 static int puma560_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
 {
     int branch, valid_branches = 0;
-    const int finite_target = 0.0 * _x[0] + 0.0 * _x[1] + 0.0 * _x[2] + 0.0 * _x[3] + 0.0 * _x[4] + 0.0 * _x[5] + 0.0 * _x[6] + 0.0 * _x[7] + 0.0 * _x[8] + 0.0 * _x[9] + 0.0 * _x[10] + 0.0 * _x[11] == 0.0;  /* a NaN or inf target has no answer */
-    for (branch = 0; branch < 8; ++branch) {
-        const double *q = Q + 6 * branch;
-        const double zero = 0.0 * q[0] + 0.0 * q[1] + 0.0 * q[2] + 0.0 * q[3] + 0.0 * q[4] + 0.0 * q[5];  /* 0 where every joint value is finite */
-        if (!finite_target || zero != 0.0) {
-            valid[branch] = 0;  /* no NaN leaks out as a valid answer */
+    if (0.0 * _x[0] + 0.0 * _x[1] + 0.0 * _x[2] + 0.0 * _x[3] + 0.0 * _x[4] + 0.0 * _x[5] + 0.0 * _x[6] + 0.0 * _x[7] + 0.0 * _x[8] + 0.0 * _x[9] + 0.0 * _x[10] + 0.0 * _x[11] != 0.0) {  /* a NaN or inf target has no answer */
+        for (branch = 0; branch < 8; ++branch) {
+            valid[branch] = 0;
         }
+        return 0;
+    }
+    /* The joint values' sum is finite only where every one is, and then no branch needs a closer look
+       (they are angles within pi and lengths: it overflows for no real arm).  Otherwise each branch is,
+       and one with a NaN or an infinity is not valid: no NaN leaks out as a valid answer.  The sum in
+       4 running sums, not one chain of 48 additions. */
+    {
+        const double sum0 = Q[0] + Q[4] + Q[8] + Q[12] + Q[16] + Q[20] + Q[24] + Q[28] + Q[32] + Q[36] + Q[40] + Q[44];
+        const double sum1 = Q[1] + Q[5] + Q[9] + Q[13] + Q[17] + Q[21] + Q[25] + Q[29] + Q[33] + Q[37] + Q[41] + Q[45];
+        const double sum2 = Q[2] + Q[6] + Q[10] + Q[14] + Q[18] + Q[22] + Q[26] + Q[30] + Q[34] + Q[38] + Q[42] + Q[46];
+        const double sum3 = Q[3] + Q[7] + Q[11] + Q[15] + Q[19] + Q[23] + Q[27] + Q[31] + Q[35] + Q[39] + Q[43] + Q[47];
+        const double sum = sum0 + sum1 + sum2 + sum3;
+        if (sum - sum != 0.0) {
+            for (branch = 0; branch < 8; ++branch) {
+                const double *q = Q + 6 * branch;
+                if (0.0 * q[0] + 0.0 * q[1] + 0.0 * q[2] + 0.0 * q[3] + 0.0 * q[4] + 0.0 * q[5] != 0.0) {
+                    valid[branch] = 0;
+                }
+            }
+        }
+    }
+    for (branch = 0; branch < 8; ++branch) {
         valid_branches += valid[branch] != 0;
     }
-    if (!puma560_is_refused_pose(_x)) {
+    if (!puma560_is_refused_rotation(_x + 3)) {
         return valid_branches;
     }
     for (branch = 0; branch < 8; ++branch) {

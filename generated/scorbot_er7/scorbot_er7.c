@@ -1944,13 +1944,32 @@ void scorbot_er7_task_jacobian_batch(size_t count, const double *restrict q, con
 static int scorbot_er7_ik_checks(const double *restrict _x, const double *restrict Q, int *restrict valid)
 {
     int branch, valid_branches = 0;
-    const int finite_target = 0.0 * _x[0] + 0.0 * _x[1] + 0.0 * _x[2] == 0.0;  /* a NaN or inf target has no answer */
-    for (branch = 0; branch < 4; ++branch) {
-        const double *q = Q + 5 * branch;
-        const double zero = 0.0 * q[0] + 0.0 * q[1] + 0.0 * q[2] + 0.0 * q[3] + 0.0 * q[4];  /* 0 where every joint value is finite */
-        if (!finite_target || zero != 0.0) {
-            valid[branch] = 0;  /* no NaN leaks out as a valid answer */
+    if (0.0 * _x[0] + 0.0 * _x[1] + 0.0 * _x[2] != 0.0) {  /* a NaN or inf target has no answer */
+        for (branch = 0; branch < 4; ++branch) {
+            valid[branch] = 0;
         }
+        return 0;
+    }
+    /* The joint values' sum is finite only where every one is, and then no branch needs a closer look
+       (they are angles within pi and lengths: it overflows for no real arm).  Otherwise each branch is,
+       and one with a NaN or an infinity is not valid: no NaN leaks out as a valid answer.  The sum in
+       4 running sums, not one chain of 20 additions. */
+    {
+        const double sum0 = Q[0] + Q[4] + Q[8] + Q[12] + Q[16];
+        const double sum1 = Q[1] + Q[5] + Q[9] + Q[13] + Q[17];
+        const double sum2 = Q[2] + Q[6] + Q[10] + Q[14] + Q[18];
+        const double sum3 = Q[3] + Q[7] + Q[11] + Q[15] + Q[19];
+        const double sum = sum0 + sum1 + sum2 + sum3;
+        if (sum - sum != 0.0) {
+            for (branch = 0; branch < 4; ++branch) {
+                const double *q = Q + 5 * branch;
+                if (0.0 * q[0] + 0.0 * q[1] + 0.0 * q[2] + 0.0 * q[3] + 0.0 * q[4] != 0.0) {
+                    valid[branch] = 0;
+                }
+            }
+        }
+    }
+    for (branch = 0; branch < 4; ++branch) {
         valid_branches += valid[branch] != 0;
     }
     return valid_branches;

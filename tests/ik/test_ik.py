@@ -524,6 +524,21 @@ def test_nan_and_inf_targets_give_valid_false_without_a_warning(name, backend):
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
+def test_joint_values_whose_sum_overflows_stay_valid(backend):
+    """The C checks first add up every joint value (finite only where each is); a sum that overflows
+    although each value is finite must not cost a branch its valid flag.  The Cartesian P-P arm's
+    joints are its target's coordinates, so 1.5e308 and 1.6e308 are reachable, and their sum is inf."""
+    k = kernels("planar_pp", backend)
+    target = np.array([1.5e308, 1.6e308])
+    Q, valid = k.ik(target)
+    assert valid.all()
+    assert sorted(Q[0]) == sorted(target)  # each prismatic joint moves along one axis, as far as the target
+    assert np.array_equal(k.task(Q[0]), target)
+    Q, valid = k.ik(np.array([1.5e308, np.nan]))
+    assert not valid.any()
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
 def test_a_pose_that_is_not_rigid_is_refused(backend):
     k = kernels("puma560", backend)
     T = k.fk([0.1, 0.2, 0.3, 0.4, 0.5, 0.6])
