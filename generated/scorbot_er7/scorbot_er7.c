@@ -142,21 +142,21 @@ static double kinegen_atan2(double y, double x)
     static const double rest[5] = { 0.0, 3.061616997868383e-17, 6.123233995736766e-17, 9.184850993605148e-17,
                                     1.2246467991473532e-16 };
     const double ax = fabs(x), ay = fabs(y);
-    double small, large, t, z, p, r;
+    double w, small, large, t, z, p, r;
     int steep, wide, back, k;
-    steep = ay > ax;
-    small = steep ? ax : ay;
-    large = steep ? ay : ax;
-    if (!(small >= 0x1p-500 && large <= 0x1p500)) {  /* also where either is a NaN */
+    if (!(ax >= 0x1p-500 && ay >= 0x1p-500 && ax <= 0x1p500 && ay <= 0x1p500)) {  /* also where either is a NaN */
         return atan2(y, x);
     }
+    /* Without a branch on the data (the octant of a random pose's angle is a coin toss, and a
+       mispredicted branch costs more than the few instructions that choose here): small and large
+       as the compiler's min and max, the other choices products by 0 or 1, exact for finite operands. */
+    steep = ay > ax;
     back = x < 0.0;
+    small = ax < ay ? ax : ay;
+    large = ay < ax ? ax : ay;
     wide = small > 0.66 * large;
-    if (wide) {
-        t = (small - large) / (small + large);  /* small - large is exact (Sterbenz) */
-    } else {
-        t = small / large;
-    }
+    w = (double)wide;
+    t = (small - w * large) / (large + w * small);  /* wide: (a - 1)/(a + 1), small - large exact (Sterbenz) */
     z = t * t;
     p = t + t * (z * ((((-8.750608600031904122785e-1 * z - 1.615753718733365076637e1) * z
                         - 7.500855792314704667340e1) * z - 1.228866684490136173410e2) * z
@@ -164,10 +164,11 @@ static double kinegen_atan2(double y, double x)
                  / (((((z + 2.485846490142306297962e1) * z + 1.650270098316988542046e2) * z
                       + 4.328810604912902668951e2) * z + 4.853903996359136964868e2) * z
                     + 1.945506571482613964425e2));
-    /* atan(a) = wide pi/4 + p; steep: pi/2 - atan(a); back: pi - that */
-    k = back ? (steep ? 2 + wide : 4 - wide) : (steep ? 2 - wide : wide);
-    r = quarter[k] + (rest[k] + (steep != back ? -p : p));
-    return y < 0.0 ? -r : r;
+    /* atan(a) = wide pi/4 + p; steep: pi/2 - atan(a); back: pi - that; the angle's sign is y's */
+    k = wide + steep * (2 - 2 * wide);
+    k += back * (4 - 2 * k);
+    r = quarter[k] + (rest[k] + (1.0 - 2.0 * (double)(steep ^ back)) * p);
+    return copysign(r, y);  /* r > 0 and y is not 0 */
 }
 
 /* Tool pose: homogeneous transform base -> tool, shape (..., 4, 4); metres. */
