@@ -151,6 +151,13 @@ def _load(target: str, say, args=None, before_ik=None) -> tuple:
     if getattr(args, "task", None) is not None:
         options["task"] = args.task
     model = derivations.load(target, verbose=not say.quiet, before_ik=before_ik, **options)
+    if target.endswith(".urdf") and (options.get("base") is None or options.get("tip") is None):
+        # the chain the file's tree gave where the user named no end: say which, so that a jaw or a
+        # sensor link taken as the tip is seen at once (--base and --tip cut out another)
+        chain = model.title[model.title.find("(URDF, ") + 7:-1] if "(URDF, " in model.title else None
+        if chain:
+            say(f"{model.name}: the chain {chain.replace(' to ', ' -> ')}, {len(model.joint_names)} joints "
+                f"({', '.join(model.joint_names)}); --base and --tip choose another")
     if model.notes.get("snapped"):
         say(f"{model.name}: snapped to exact values: {model.notes['snapped']}")
     path = derivations.ROBOTS[target] if target in derivations.ROBOTS and not _is_file(target) else Path(target)

@@ -668,3 +668,21 @@ def test_four_thousand_fixed_joints_in_a_line_parse_quickly():
     description = parsed(f'<robot name="long">{links}{fixed}{moving}</robot>')
     assert time.process_time() - start < 5
     assert description.joints[0].origin[2, 3] == 4 and description.joints[0].axis == (1, 0, 0)
+
+
+def test_show_names_the_chain_it_took_when_no_end_was_given(tmp_path, capsys):
+    """A file whose one leaf is a gripper's jaw (the SO-100 of example-robot-data is such a file) gets
+    that leaf as its tip: the run says which chain it took, with its joints, so that a user who meant
+    the arm without the jaw sees it at once, and says so only where an end was left to the default."""
+    path = tmp_path / "two_links.urdf"
+    path.write_text("""<robot name="two">
+  <link name="base"/><link name="arm"/><link name="jaw"/>
+  <joint name="lift" type="revolute"><parent link="base"/><child link="arm"/>
+    <origin xyz="0 0 0.1"/><axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="grip" type="revolute"><parent link="arm"/><child link="jaw"/>
+    <origin xyz="0.2 0 0"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+</robot>""")
+    assert main(["show", str(path), "--what", "ik"]) == 0
+    assert "the chain base -> jaw, 2 joints (lift, grip); --base and --tip choose another" in capsys.readouterr().err
+    assert main(["show", str(path), "--base", "base", "--tip", "jaw", "--what", "ik"]) == 0
+    assert "the chain" not in capsys.readouterr().err
