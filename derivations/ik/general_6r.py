@@ -641,8 +641,10 @@ def p_nonzero(P) -> tuple:
     """Which entries of P_1, P_c, P_s (Manocha-Canny Eq. 9, 3 x 14 x 9) are not zero for every pose: 1 where
     an entry may be nonzero, 0 where it is zero in the equations themselves (a step of the equations' program
     counts as nonzero).  On the Kinova Jaco's loop psi_3 = q5, 142 of the 378, so that the C's fast pass
-    forms N P and the least squares' rows as sums over those alone."""
-    return tuple(tuple(tuple(int(sp.sympify(e).is_zero is not True) for e in row) for row in part) for part in P)
+    forms N P and the least squares' rows as sums over those alone.  SymPy's zero by equality, not ``is_zero``
+    (which asks the assumptions of every expanded entry: 0.3 s of the Jaco's derivation, where this takes 1 ms;
+    the same pattern on the Jaco, the Mico and the IRB 140)."""
+    return tuple(tuple(tuple(int(sp.sympify(e) != 0) for e in row) for row in part) for part in P)
 
 
 # The working precision of a link's irrational constants in the equations (digits).
