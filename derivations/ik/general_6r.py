@@ -640,7 +640,8 @@ def q_blocks(Q) -> tuple:
 def p_nonzero(P) -> tuple:
     """Which entries of P_1, P_c, P_s (Manocha-Canny Eq. 9, 3 x 14 x 9) are not zero for every pose: 1 where
     an entry may be nonzero, 0 where it is zero in the equations themselves (a step of the equations' program
-    counts as nonzero).  On the Kinova Jaco's loop psi_3 = q5, 142 of the 378, so that the C's fast pass
+    counts as nonzero, and so does a sum of the file's decimals and sqrt(3) terms that cancels only in the
+    numbers: 12 of the Jaco's fast loop's, some products with zero for the C, none left out).  On the Kinova Jaco's loop psi_3 = q5, 142 of the 378, so that the C's fast pass
     forms N P and the least squares' rows as sums over those alone.  SymPy's zero by equality, not ``is_zero``
     (which asks the assumptions of every expanded entry: 0.3 s of the Jaco's derivation, where this takes 1 ms;
     the same pattern on the Jaco, the Mico and the IRB 140)."""
