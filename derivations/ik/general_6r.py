@@ -637,6 +637,17 @@ def q_blocks(Q) -> tuple:
     return tuple(blocks)
 
 
+def p_nonzero(P) -> tuple:
+    """Which entries of P_1, P_c, P_s (Manocha-Canny Eq. 9, 3 x 14 x 9) are not zero for every pose: 1 where
+    an entry may be nonzero, 0 where it is zero in the equations themselves (a step of the equations' program
+    counts as nonzero, and so does a sum of the file's decimals and sqrt(3) terms that cancels only in the
+    numbers: 12 of the Jaco's fast loop's, some products with zero for the C, none left out).  On the Kinova Jaco's loop psi_3 = q5, 142 of the 378, so that the C's fast pass
+    forms N P and the least squares' rows as sums over those alone.  SymPy's zero by equality, not ``is_zero``
+    (which asks the assumptions of every expanded entry: 0.3 s of the Jaco's derivation, where this takes 1 ms;
+    the same pattern on the Jaco, the Mico and the IRB 140)."""
+    return tuple(tuple(tuple(int(sp.sympify(e) != 0) for e in row) for row in part) for part in P)
+
+
 # The working precision of a link's irrational constants in the equations (digits).
 CONSTANT_DIGITS = 30
 
@@ -778,5 +789,6 @@ def _equations_function(model):
                              for sh, o in zip(SHIFTS, loops[0].offsets)),
               "loops": [g.loop for g in loops],
               "fast": fast_loop(model.chain, model.params, [g.loop for g in loops]),
-              "blocks": [q_blocks(g.Q) for g in loops]}
+              "blocks": [q_blocks(g.Q) for g in loops],
+              "p_nonzero": [p_nonzero(g.P) for g in loops]}
     return function, layout

@@ -197,6 +197,31 @@ def test_q_splits_into_the_blocks_the_c_fast_pass_reduces_apart(generated_root):
     assert sorted((len(rows), len(columns)) for rows, columns in layout["blocks"][fast]) == [(4, 2), (10, 6)]
 
 
+def test_p_nonzero_marks_the_entries_of_p_the_c_fast_pass_reads(generated_root):
+    """derivations.ik.general_6r.p_nonzero: the entries of P_1, P_c, P_s (Manocha-Canny Eq. 9) that are not
+    zero in the equations, the only ones the C's fast pass multiplies (g6r_fast_reduce).  On the Jaco's loops,
+    at 40 random configurations' poses (this file's fk), P from the package's kernel is exactly zero wherever
+    an entry is marked 0 (the C would be wrong otherwise), and the entries marked 1 are nonzero at some pose
+    but for at most 12 a loop (the C then multiplies a zero: slower, not wrong): sums of the file's decimals as
+    30-digit floats and sqrt(3) terms, such as -28 sqrt(3) D2 D3 / 425 + 0.11411... D2 D3, that cancel only
+    in the numbers (under 1e-15 at every pose: on the fast loop 12, 4 of them exactly 0).  On the fast loop
+    142 of the 378 are marked."""
+    import derivations
+    from derivations.ik.general_6r import equations_function
+    arm = ARMS["kinova_jaco"]
+    package = generated_package("kinova_jaco", generated_root)
+    layout = equations_function(derivations.load(arm.path))[1]
+    q = np.random.default_rng(zlib.crc32(b"nonzero of P")).uniform(-math.pi, math.pi, (40, 6))
+    P, _, _ = package.ik_6r_equations(fk(arm, q)[:, :3].reshape(-1, 12)[:, [3, 7, 11, 0, 1, 2, 4, 5, 6, 8, 9, 10]])
+    for loop, marks in enumerate(layout["p_nonzero"]):
+        marked = np.array(marks, dtype=bool)
+        assert marked.shape == (3, 14, 9)
+        assert (P[:, loop][:, ~marked] == 0.0).all(), loop
+        largest = np.abs(P[:, loop][:, marked]).max(axis=0)
+        assert (largest <= 1e-15).sum() <= 12, (loop, (largest <= 1e-15).sum())
+    assert sum(map(sum, (row for part in layout["p_nonzero"][layout["fast"]] for row in part))) == 142
+
+
 @pytest.mark.parametrize("backend", ["numpy", "c"])
 def test_the_pose_and_jacobian_kernel_is_the_tests_own_pose_and_jacobian(backend, generated_root):
     """ik_6r_pose_jacobian (the task and the Jacobian from one set of sines, for the C's Newton steps): its
