@@ -137,20 +137,22 @@ def exact_floats(expr: sp.Basic) -> sp.Basic:
     expression shares (a rate kernel unfolds to 10^5 nodes): with them this was a quarter of a
     kernel's preparation (the papers' robots' render: 2.2 of 18 s of CPU)."""
     memo: dict = {}
-
-    def visit(e):
-        done = memo.get(e)
-        if done is None:
-            if e is sp.pi:
-                done = _PI_AS_FLOAT
-            elif not e.args:
-                done = e
-            else:
-                args = tuple(visit(a) for a in e.args)
-                done = e if all(a is b for a, b in zip(args, e.args)) else e.func(*args)
-            memo[e] = done
-        return done
-    return visit(expr)
+    todo = [(expr, False)]  # without recursion: under --memory-limit a deep stack may not grow
+    while todo:
+        e, expanded = todo.pop()
+        if e in memo:
+            continue
+        if e is sp.pi:
+            memo[e] = _PI_AS_FLOAT
+        elif not e.args:
+            memo[e] = e
+        elif expanded:
+            args = tuple(memo[a] for a in e.args)
+            memo[e] = e if all(a is b for a, b in zip(args, e.args)) else e.func(*args)
+        else:
+            todo.append((e, True))
+            todo.extend((a, False) for a in e.args if a not in memo)
+    return memo[expr]
 
 
 def free_symbols(expr: sp.Basic) -> set:
