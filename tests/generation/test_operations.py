@@ -130,3 +130,20 @@ def test_the_numbers_beyond_a_double_fold_as_free_symbols_and_atoms_say(expr, wr
     expr = wrap(expr)
     bounded_numbers.cache_clear()
     assert bounded_numbers(expr) == (_folded(expr) if _beyond(expr) else expr)
+
+
+@settings(max_examples=200, deadline=None)
+@given(_BEYOND_DOUBLE, st.sampled_from([lambda e: e, lambda e: sp.Subs(e * x, x, 2),
+                                        lambda e: sp.Derivative(e * x, x, evaluate=False),
+                                        lambda e: sp.Tuple(e, sp.Lambda(x, e * x + y))]))
+def test_free_symbols_and_the_fold_of_pi_are_sympys(expr, wrap):
+    """codegen.kernels.free_symbols and exact_floats (each distinct node once) against SymPy's own
+    free_symbols and xreplace, on random trees that share subtrees (e + y e**2), and where
+    a node binds a symbol of its own (Subs, Derivative, Lambda: its free symbols are not its arguments')."""
+    from codegen.kernels import exact_floats, free_symbols
+    expr = wrap(expr + y * expr ** 2)
+    assert free_symbols(expr) == expr.free_symbols
+    exact_floats.cache_clear()
+    folded = exact_floats(expr)
+    assert folded == expr.xreplace({sp.pi: sp.Float(sp.pi.evalf(40), 40)})
+    assert not folded.has(sp.pi) and (folded == expr) == (not expr.has(sp.pi))
