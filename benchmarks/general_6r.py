@@ -57,6 +57,13 @@ def say(message):
     print(f"[general-6r bench] {message}", file=sys.stderr, flush=True)
 
 
+def each(function, items) -> None:
+    """``function`` called on each of ``items``, each result dropped as the next comes (as in peers_ik.py:
+    a list of the results kept alive makes Python's cyclic collector run over them)."""
+    for item in items:
+        function(item)
+
+
 def best(function, repeat: int = REPEAT) -> dict:
     cpu, wall = [], []
     for _ in range(repeat):
@@ -159,7 +166,7 @@ def measure(root: Path, name: str) -> dict:
         row[label] = counts(kernels, Q, valid, q, poses)
         sample = poses[:1000]
         row[label]["batched"] = per(best(lambda: kernels.ik(sample)), len(sample))
-        row[label]["single"] = per(best(lambda: [kernels.ik(p) for p in sample[:200]]), 200)
+        row[label]["single"] = per(best(lambda: each(kernels.ik, sample[:200])), 200)
     row["rtb"] = toolbox(ARMS[name], c_k, q, poses)
     return row
 
