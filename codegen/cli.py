@@ -154,7 +154,9 @@ def _load(target: str, say, args=None, before_ik=None) -> tuple:
     if target.endswith(".urdf") and (options.get("base") is None or options.get("tip") is None):
         # the chain the file's tree gave where the user named no end: say which, so that a jaw or a
         # sensor link taken as the tip is seen at once (--base and --tip cut out another)
-        chain = model.title[model.title.find("(URDF, ") + 7:-1] if "(URDF, " in model.title else None
+        # (the URDF reader's title ends "(URDF, BASE to TIP)"; the file's robot name before it is free text)
+        at = model.title.rfind(" (URDF, ")
+        chain = model.title[at + 8:-1] if at >= 0 and model.title.endswith(")") else None
         if chain:
             say(f"{model.name}: the chain {chain.replace(' to ', ' -> ')}, {len(model.joint_names)} joints "
                 f"({', '.join(model.joint_names)}); --base and --tip choose another")

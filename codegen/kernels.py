@@ -127,6 +127,33 @@ def canonical(expr: sp.Basic) -> sp.Basic:
 _PI_AS_FLOAT = sp.Float(sp.pi.evalf(40), 40)
 
 
+def _fold(expr: sp.Basic, leaf, combine):
+    """A value of ``expr`` from its subexpressions', each distinct one visited once (SymPy's own walks
+    go down every path through the subtrees an expression shares), children first, without recursion
+    (under --memory-limit a deep stack may not grow): ``leaf(e)`` gives e's value, or None to look
+    inside e, whose value is then ``combine(e, [its arguments' values])``."""
+    memo: dict = {}
+    todo = [(expr, False)]
+    while todo:
+        e, expanded = todo.pop()
+        if e in memo:
+            continue
+        if expanded:
+            memo[e] = combine(e, [memo[a] for a in e.args])
+            continue
+        value = leaf(e)
+        if value is not None:
+            memo[e] = value
+        else:
+            todo.append((e, True))
+            todo.extend((a, False) for a in e.args if a not in memo)
+    return memo[expr]
+
+
+def _rebuilt(e: sp.Basic, args: list) -> sp.Basic:
+    return e if all(a is b for a, b in zip(args, e.args)) else e.func(*args)
+
+
 @functools.lru_cache(maxsize=8192)
 def exact_floats(expr: sp.Basic) -> sp.Basic:
     """Fold exact constants (pi, rationals times pi) so they print as one double: what
@@ -136,23 +163,7 @@ def exact_floats(expr: sp.Basic) -> sp.Basic:
     frames' too).  SymPy's ``has`` and ``xreplace`` walk every path through the subtrees an
     expression shares (a rate kernel unfolds to 10^5 nodes): with them this was a quarter of a
     kernel's preparation (the papers' robots' render: 2.2 of 18 s of CPU)."""
-    memo: dict = {}
-    todo = [(expr, False)]  # without recursion: under --memory-limit a deep stack may not grow
-    while todo:
-        e, expanded = todo.pop()
-        if e in memo:
-            continue
-        if e is sp.pi:
-            memo[e] = _PI_AS_FLOAT
-        elif not e.args:
-            memo[e] = e
-        elif expanded:
-            args = tuple(memo[a] for a in e.args)
-            memo[e] = e if all(a is b for a, b in zip(args, e.args)) else e.func(*args)
-        else:
-            todo.append((e, True))
-            todo.extend((a, False) for a in e.args if a not in memo)
-    return memo[expr]
+    return _fold(expr, lambda e: _PI_AS_FLOAT if e is sp.pi else (e if not e.args else None), _rebuilt)
 
 
 def free_symbols(expr: sp.Basic) -> set:
@@ -160,20 +171,8 @@ def free_symbols(expr: sp.Basic) -> set:
     through shared subtrees again, and builds a set at every node: 4.3 of 18 s of CPU of the
     papers' robots' kernel preparation).  A node that binds symbols of its own (Derivative,
     Lambda, Subs: :func:`_free_symbols_are_the_arguments`) is asked its own."""
-    memo: dict = {}
-    todo = [(expr, False)]
-    while todo:
-        e, expanded = todo.pop()
-        if e in memo:
-            continue
-        if not e.args or not _free_symbols_are_the_arguments(type(e)):
-            memo[e] = e.free_symbols
-        elif expanded:
-            memo[e] = set().union(*(memo[a] for a in e.args))
-        else:
-            todo.append((e, True))
-            todo.extend((a, False) for a in e.args if a not in memo)
-    return memo[expr]
+    return _fold(expr, lambda e: e.free_symbols if not e.args or not _free_symbols_are_the_arguments(type(e)) else None,
+                 lambda e, values: set().union(*values))
 
 
 # The largest integer every double holds exactly, and every integer below it.
@@ -188,20 +187,8 @@ def _holds_beyond_double(expr: sp.Basic) -> bool:
     """Whether ``expr`` holds a rational beyond 2**53: each distinct subexpression visited once
     (``expr.atoms(Rational)`` walked every path through a program's shared steps: a second of
     Romeo's ik kernel), without recursion."""
-    memo: dict = {}
-    todo = [(expr, False)]
-    while todo:
-        e, expanded = todo.pop()
-        if e in memo:
-            continue
-        if not e.args:
-            memo[e] = e.is_Rational and _beyond_double(e)
-        elif expanded:
-            memo[e] = any(memo[a] for a in e.args)
-        else:
-            todo.append((e, True))
-            todo.extend((a, False) for a in e.args if a not in memo)
-    return memo[expr]
+    return _fold(expr, lambda e: bool(e.is_Rational and _beyond_double(e)) if not e.args else None,
+                 lambda e, values: any(values))
 
 
 @functools.lru_cache(maxsize=None)

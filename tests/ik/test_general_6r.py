@@ -163,6 +163,20 @@ def test_the_equations_hold_at_the_generating_configuration(generated_root):
         assert np.abs(residual).max() < 1e-10
 
 
+
+def _jaco_equations(generated_root, seed: bytes):
+    """(the Jaco's general 6R layout, P, Q) of its package's ik_6r_equations at the poses (this file's fk)
+    of 40 random configurations, seeded by ``seed``."""
+    import derivations
+    from derivations.ik.general_6r import equations_function
+    arm = ARMS["kinova_jaco"]
+    package = generated_package("kinova_jaco", generated_root)
+    layout = equations_function(derivations.load(arm.path))[1]
+    q = np.random.default_rng(zlib.crc32(seed)).uniform(-math.pi, math.pi, (40, 6))
+    P, Q, _ = package.ik_6r_equations(fk(arm, q)[:, :3].reshape(-1, 12)[:, [3, 7, 11, 0, 1, 2, 4, 5, 6, 8, 9, 10]])
+    return layout, P, Q
+
+
 def test_q_splits_into_the_blocks_the_c_fast_pass_reduces_apart(generated_root):
     """derivations.ik.general_6r.q_blocks: the rows and columns of Q (Manocha-Canny Eq. 9) that meet no
     other's, whose left null space and least squares the C's fast pass (g6r_fast_reduce) takes block by
@@ -170,13 +184,7 @@ def test_q_splits_into_the_blocks_the_c_fast_pass_reduces_apart(generated_root):
     kernel is zero wherever a row of one block meets a column of another, and each block is one: its
     nonzero entries at a pose join its rows and columns (a search of this test's own over them); the fast
     loop (psi_3 = q5) splits 4 x 2 (the z components of p and l, p.p and p.l: no psi_1 in them) and 10 x 6."""
-    import derivations
-    from derivations.ik.general_6r import equations_function
-    arm = ARMS["kinova_jaco"]
-    package = generated_package("kinova_jaco", generated_root)
-    layout = equations_function(derivations.load(arm.path))[1]
-    q = np.random.default_rng(zlib.crc32(b"blocks of Q")).uniform(-math.pi, math.pi, (40, 6))
-    _, Q, _ = package.ik_6r_equations(fk(arm, q)[:, :3].reshape(-1, 12)[:, [3, 7, 11, 0, 1, 2, 4, 5, 6, 8, 9, 10]])
+    layout, _, Q = _jaco_equations(generated_root, b"blocks of Q")
     for loop, blocks in enumerate(layout["blocks"]):
         assert sorted(r for rows, _ in blocks for r in rows) == list(range(14))
         assert sorted(c for _, columns in blocks for c in columns) == list(range(8))
@@ -206,13 +214,7 @@ def test_p_nonzero_marks_the_entries_of_p_the_c_fast_pass_reads(generated_root):
     30-digit floats and sqrt(3) terms, such as -28 sqrt(3) D2 D3 / 425 + 0.11411... D2 D3, that cancel only
     in the numbers (under 1e-15 at every pose: on the fast loop 12, 4 of them exactly 0).  On the fast loop
     142 of the 378 are marked."""
-    import derivations
-    from derivations.ik.general_6r import equations_function
-    arm = ARMS["kinova_jaco"]
-    package = generated_package("kinova_jaco", generated_root)
-    layout = equations_function(derivations.load(arm.path))[1]
-    q = np.random.default_rng(zlib.crc32(b"nonzero of P")).uniform(-math.pi, math.pi, (40, 6))
-    P, _, _ = package.ik_6r_equations(fk(arm, q)[:, :3].reshape(-1, 12)[:, [3, 7, 11, 0, 1, 2, 4, 5, 6, 8, 9, 10]])
+    layout, P, _ = _jaco_equations(generated_root, b"nonzero of P")
     for loop, marks in enumerate(layout["p_nonzero"]):
         marked = np.array(marks, dtype=bool)
         assert marked.shape == (3, 14, 9)
