@@ -163,7 +163,6 @@ def test_the_equations_hold_at_the_generating_configuration(generated_root):
         assert np.abs(residual).max() < 1e-10
 
 
-
 def _jaco_equations(generated_root, seed: bytes):
     """(the Jaco's general 6R layout, P, Q) of its package's ik_6r_equations at the poses (this file's fk)
     of 40 random configurations, seeded by ``seed``."""
