@@ -24,7 +24,8 @@ Unified robot inverse kinematics using subproblem decomposition", Mechanism and 
   wrong); no solution = a pose with no exact answer; missing = the generating configuration not
   among the exact answers that reach the pose within 1e-9 (within 1e-6 rad per joint; at a
   wrist-singular pose only the joints it fixes are compared: DETERMINED).
-* Times: CPU time of this process, the best of REPEAT runs, per pose; one pose per call in a loop that drops each result as the next comes.
+* Times: CPU time of this process, the best of REPEAT runs, per pose; one pose per call in a loop that
+  drops each result as the next comes.
 * One pose per call, interleaved: this machine's speed moves by up to 2 times within minutes, so
   the single call is also timed in ROUNDS rounds, each timing every library (and our 12-vector
   call) on the same SINGLE poses one after another, in an order shuffled per round.  Per library:

@@ -47,7 +47,8 @@ import sympy as sp
 from ..chain import REVOLUTE
 from ..program import Program
 
-__all__ = ["General6R", "general_6r", "NotGeneral6R", "SHIFTS", "MONOMIALS_45", "MONOMIALS_12", "fast_equations_function"]
+__all__ = ["General6R", "general_6r", "NotGeneral6R", "SHIFTS", "MONOMIALS_45", "MONOMIALS_12",
+           "fast_equations_function"]
 
 # (cos, sin) of the shift delta_i of each joint: rational points on the unit circle, so the
 # derived coefficients stay exact.
@@ -641,10 +642,11 @@ def p_nonzero(P) -> tuple:
     """Which entries of P_1, P_c, P_s (Manocha-Canny Eq. 9, 3 x 14 x 9) are not zero for every pose: 1 where
     an entry may be nonzero, 0 where it is zero in the equations themselves (a step of the equations' program
     counts as nonzero, and so does a sum of the file's decimals and sqrt(3) terms that cancels only in the
-    numbers: 12 of the Jaco's fast loop's, some products with zero for the C, none left out).  On the Kinova Jaco's loop psi_3 = q5, 142 of the 378, so that the C's fast pass
-    forms N P and the least squares' rows as sums over those alone.  SymPy's zero by equality, not ``is_zero``
-    (which asks the assumptions of every expanded entry: 0.3 s of the Jaco's derivation, where this takes 1 ms;
-    the same pattern on the Jaco, the Mico and the IRB 140)."""
+    numbers: 12 of the Jaco's fast loop's, some products with zero for the C, none left out).  On the Kinova
+    Jaco's loop psi_3 = q5, 142 of the 378, so that the C's fast pass forms N P and the least squares' rows as
+    sums over those alone.  SymPy's zero by equality, not ``is_zero`` (which asks the assumptions of every
+    expanded entry: 0.3 s of the Jaco's derivation, where this takes 1 ms; the same pattern on the Jaco, the
+    Mico and the IRB 140)."""
     return tuple(tuple(tuple(int(sp.sympify(e) != 0) for e in row) for row in part) for part in P)
 
 
@@ -780,13 +782,14 @@ def _equations_function(model):
         f"Eq. 9, P(psi_3) m_45 = Q m_12, on {count} loops: P (..., {count}, 3, 14, 9), Q (..., {count}, 14, 8), "
         f"and the loops' links E (..., {count}, 6, 3, 4); the general 6R ik solves them.",
         definitions=definitions)
+    shifts = [sp.atan2(s, c) for c, s in SHIFTS]
     layout = {"order": [g.order for g in loops], "signs": [g.signs for g in loops],
-              "shifts": tuple(float(sp.atan2(s, c)) for c, s in SHIFTS),
+              "shifts": tuple(float(shift) for shift in shifts),
               "offsets": tuple(float(sp.sympify(o).evalf(17)) for o in loops[0].offsets),
               # cos and sin of shift - offset per joint (the C's candidates' cos q and sin q from psi's)
-              "turns": tuple((float(sp.cos(sp.atan2(sh[1], sh[0]) - sp.sympify(o)).evalf(30)),
-                              float(sp.sin(sp.atan2(sh[1], sh[0]) - sp.sympify(o)).evalf(30)))
-                             for sh, o in zip(SHIFTS, loops[0].offsets)),
+              "turns": tuple((float(sp.cos(shift - sp.sympify(o)).evalf(30)),
+                              float(sp.sin(shift - sp.sympify(o)).evalf(30)))
+                             for shift, o in zip(shifts, loops[0].offsets)),
               "loops": [g.loop for g in loops],
               "fast": fast_loop(model.chain, model.params, [g.loop for g in loops]),
               "blocks": [q_blocks(g.Q) for g in loops],
