@@ -201,8 +201,15 @@ _CAP_MARGIN = 64 * 2**20
 
 
 def _failed_in(exc: BaseException) -> str | None:
-    """The step ``exc`` was raised in: recorded by :func:`stage` on its way out, else the current one."""
-    return _left_stage if _left_by is exc else _stage
+    """The step ``exc`` was raised in: recorded by :func:`stage` on its way out (also where, at the cap,
+    unwinding a step raised a fresh MemoryError, whose context is the one the step recorded), else the
+    current one, else the last a failure left."""
+    seen = exc
+    while seen is not None:
+        if seen is _left_by:
+            return _left_stage
+        seen = seen.__context__
+    return _stage or (_left_stage if _left_by is not None else None)
 
 
 @functools.lru_cache(maxsize=None)

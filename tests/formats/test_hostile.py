@@ -250,6 +250,21 @@ def test_a_derivation_past_its_memory_cap_stops_naming_the_stage(tmp_path, gib, 
     assert sorted(p.name for p in tmp_path.iterdir()) == ["arm.toml"]
 
 
+def test_a_fresh_memory_error_raised_while_a_step_unwinds_still_names_the_step():
+    """At the cap, leaving a step can itself fail for want of memory (contextlib's exit, a traceback): the
+    MemoryError that reaches the cap is then a fresh one, raised while the step's was handled, after every
+    step closed.  The cap names the step the first one left (seen once in a fresh-clone run of the test
+    above, whose message then named no step)."""
+    from derivations.support.budget import MemoryCapExceeded, memory_cap, stage
+    with pytest.raises(MemoryCapExceeded, match="stopped at its memory cap of 1 GiB while the inner step$"):
+        with memory_cap(1.0, "work"):
+            try:
+                with stage("the inner step"):
+                    raise MemoryError
+            except MemoryError:
+                raise MemoryError  # noqa: B904 (a fresh one, its context the step's)
+
+
 def test_a_memory_error_python_cannot_raise_is_not_printed_under_the_cap(monkeypatch):
     """At the cap, a generator SymPy was iterating can fail to close for want of memory; Python
     then printed "Exception ignored in: <generator ...>" and a traceback beside the cap's one line
